@@ -1,0 +1,460 @@
+//! The generic EO host actor: runs any [`Operation`].
+//!
+//! The host owns the bookkeeping every operation needs — current and previous parameter
+//! values, epochs, activation state, up-time — and answers the eo-interface and the property
+//! interface from it, so the operation itself holds only its algorithm.
+//!
+//! # Invariants
+//! - At most one activation runs; its reply port is answered exactly once (`Finished`,
+//!   `Suspended`, `Failed`), or dropped if the host crashes — which the waiting side sees as a
+//!   closed port.
+//! - A command whose epoch is older than the highest accepted one changes nothing.
+//! - Parameters change all at once or not at all.
+//! - A finished task suspends the operation; the host never stops because work is done.
+
+use super::messages::{EoMsg, EoReport, ParamOutcome};
+use super::operation::{Identity, OpContext, Operation, Params, Step};
+use crate::clock::{RealClock, SharedClock};
+use crate::flags::{FlagDecl, StatusFlags};
+use crate::property::{
+    Address, Collection, General, Group, Identification, Limit, Location, ParamMap, ParamSchema,
+    PropertyReply, PropertyRequest, Signature, Specific, Value,
+};
+use crate::registry::{self, ModuleKind};
+use ractor::{Actor, ActorCell, ActorProcessingErr, ActorRef, RpcReplyPort, SpawnErr};
+use std::marker::PhantomData;
+use std::time::Duration;
+use tokio::task::JoinHandle;
+
+/// How to host an operation.
+#[derive(Clone)]
+pub struct HostOptions {
+    /// The node's clock.
+    pub clock: SharedClock,
+    /// Start-up parameter values (may set read-only parameters); the rest take defaults.
+    pub params: ParamMap,
+    /// Publish in the registry (on by default).
+    pub publish: bool,
+}
+
+impl Default for HostOptions {
+    fn default() -> Self {
+        HostOptions {
+            clock: RealClock::shared(),
+            params: ParamMap::new(),
+            publish: true,
+        }
+    }
+}
+
+impl HostOptions {
+    /// Options with the given clock.
+    pub fn with_clock(clock: SharedClock) -> Self {
+        HostOptions {
+            clock,
+            ..Default::default()
+        }
+    }
+}
+
+/// The EO host actor for operation type `O`.
+pub struct EoHost<O>(PhantomData<fn() -> O>);
+
+impl<O> Default for EoHost<O> {
+    fn default() -> Self {
+        EoHost(PhantomData)
+    }
+}
+
+/// Start-up arguments of [`EoHost`].
+pub struct HostArgs<O> {
+    /// The operation to run.
+    pub operation: O,
+    /// Hosting options.
+    pub options: HostOptions,
+}
+
+struct Active {
+    number: u64,
+    epoch: u64,
+    reply: RpcReplyPort<EoReport>,
+}
+
+/// State of an [`EoHost`].
+pub struct HostState<O> {
+    op: O,
+    identity: Identity,
+    schema: ParamSchema,
+    flags: Vec<FlagDecl>,
+    period: Duration,
+    ctx: OpContext,
+    previous: ParamMap,
+    epoch: u64,
+    active: Option<Active>,
+    activations: u64,
+    started: Duration,
+    publish: bool,
+}
+
+impl<O: Operation> HostState<O> {
+    fn uptime_ms(&self) -> u64 {
+        (self.ctx.clock.now().saturating_sub(self.started)).as_millis() as u64
+    }
+
+    fn current(&self) -> &ParamMap {
+        self.ctx.params.all()
+    }
+
+    fn set_params(&mut self, next: ParamMap) {
+        if &next != self.current() {
+            self.previous = self.current().clone();
+            self.ctx.params = Params::new(next);
+        }
+    }
+
+    fn answer(&self, myself: &ActorCell, request: PropertyRequest) -> PropertyReply {
+        let id = &self.identity;
+        match request {
+            PropertyRequest::Group(Group::Identification) => {
+                PropertyReply::Identification(Identification {
+                    name: id.name.clone(),
+                    id: id.id,
+                    version: id.version.to_string(),
+                    description: id.description.clone(),
+                })
+            }
+            PropertyRequest::Group(Group::Location) => PropertyReply::Location(Location {
+                node: registry::local_node_name(),
+                address: myself.get_id().to_string(),
+                alive: true,
+            }),
+            PropertyRequest::Group(Group::General) => PropertyReply::General(General {
+                param_count: self.schema.len(),
+                uptime_ms: self.uptime_ms(),
+                in_use: self.active.is_some(),
+                activations: self.activations,
+                epoch: self.epoch,
+            }),
+            PropertyRequest::Group(Group::Specific) => PropertyReply::Specific(Specific {
+                params: self.schema.params.clone(),
+                previous: self.previous.clone(),
+                current: self.current().clone(),
+                flags: self.flags.clone(),
+            }),
+            PropertyRequest::Collection(Collection::Address) => PropertyReply::Address(Address {
+                name: id.name.clone(),
+                id: id.id,
+                node: registry::local_node_name(),
+                address: myself.get_id().to_string(),
+            }),
+            PropertyRequest::Collection(Collection::Signature) => {
+                PropertyReply::Signature(Signature {
+                    count: self.schema.len(),
+                    params: self
+                        .schema
+                        .params
+                        .iter()
+                        .map(|d| (d.name.clone(), d.ty.clone()))
+                        .collect(),
+                })
+            }
+            PropertyRequest::Collection(Collection::Limits) => PropertyReply::Limits(
+                self.schema
+                    .params
+                    .iter()
+                    .map(|d| Limit {
+                        name: d.name.clone(),
+                        default: d.default.clone(),
+                        min: d.min,
+                        max: d.max,
+                    })
+                    .collect(),
+            ),
+            PropertyRequest::Collection(Collection::Previous) => {
+                PropertyReply::Previous(self.previous.clone())
+            }
+            PropertyRequest::Collection(Collection::Current) => {
+                PropertyReply::Current(self.current().clone())
+            }
+            PropertyRequest::Get(name) => match self.single(myself, &name) {
+                Some(v) => PropertyReply::Value(v),
+                None => PropertyReply::NotFound(name),
+            },
+        }
+    }
+
+    fn single(&self, myself: &ActorCell, name: &str) -> Option<Value> {
+        let id = &self.identity;
+        Some(match name {
+            "name" => Value::Text(id.name.clone()),
+            "id" => Value::Int(id.id.into()),
+            "version" => Value::Text(id.version.to_string()),
+            "description" => Value::Text(id.description.clone()),
+            "node" => Value::Text(registry::local_node_name()),
+            "address" => Value::Text(myself.get_id().to_string()),
+            "alive" => Value::Bool(true),
+            "param_count" => Value::Int(self.schema.len() as i64),
+            "uptime_ms" => Value::Int(self.uptime_ms() as i64),
+            "in_use" => Value::Bool(self.active.is_some()),
+            "activations" => Value::Int(self.activations as i64),
+            "epoch" => Value::Int(self.epoch as i64),
+            _ => {
+                if let Some(param) = name.strip_prefix("param.") {
+                    return self.current().get(param).cloned();
+                }
+                return self.op.property(name);
+            }
+        })
+    }
+
+    /// End the running activation (if any) with the report `make` builds from the flags.
+    async fn end_activation(&mut self, make: impl FnOnce(StatusFlags, u64) -> EoReport) {
+        let Some(active) = self.active.take() else {
+            return;
+        };
+        if let Err(e) = self.op.suspend(&mut self.ctx).await {
+            tracing::warn!(op = %self.identity.name, error = %e, "suspend hook failed");
+        }
+        let report = make(self.ctx.raised, active.epoch);
+        tracing::debug!(op = %self.identity.name, activation = active.number, ?report, "activation ended");
+        let _ = active.reply.send(report);
+    }
+
+    /// React to the outcome of `activate` or `step`.
+    async fn after_step(
+        &mut self,
+        myself: &ActorRef<EoMsg>,
+        outcome: Result<Step, super::OpError>,
+    ) {
+        match outcome {
+            Ok(Step::Continue) => {
+                if let Some(active) = &self.active {
+                    schedule_tick(myself, &self.ctx.clock, self.period, active.number);
+                }
+            }
+            Ok(Step::Finish(flags)) => {
+                self.ctx.raised |= flags;
+                self.end_activation(|flags, epoch| EoReport::Finished { flags, epoch })
+                    .await;
+            }
+            Err(e) => {
+                tracing::warn!(op = %self.identity.name, error = %e, "operation failed");
+                let reason = e.to_string();
+                self.end_activation(|flags, epoch| EoReport::Failed {
+                    reason,
+                    flags,
+                    epoch,
+                })
+                .await;
+            }
+        }
+    }
+}
+
+fn schedule_tick(myself: &ActorRef<EoMsg>, clock: &SharedClock, period: Duration, activation: u64) {
+    let me = myself.clone();
+    let sleep = clock.sleep(period);
+    ractor::concurrency::spawn(async move {
+        sleep.await;
+        let _ = me.cast(EoMsg::Tick { activation });
+    });
+}
+
+impl<O: Operation> Actor for EoHost<O> {
+    type Msg = EoMsg;
+    type State = HostState<O>;
+    type Arguments = HostArgs<O>;
+
+    async fn pre_start(
+        &self,
+        _myself: ActorRef<EoMsg>,
+        args: HostArgs<O>,
+    ) -> Result<HostState<O>, ActorProcessingErr> {
+        let HostArgs { operation, options } = args;
+        let identity = operation.identity();
+        let schema = operation.parameters();
+        let problems = schema.self_check();
+        if !problems.is_empty() {
+            return Err(format!(
+                "operation {} declares bad parameters: {}",
+                identity.name,
+                problems.join("; ")
+            )
+            .into());
+        }
+        let flags = operation.flags();
+        if flags.len() > 32 {
+            return Err(format!("operation {} declares more than 32 flags", identity.name).into());
+        }
+        let initial = schema
+            .apply(&schema.defaults(), &options.params, true)
+            .map_err(|rej| {
+                let list: Vec<String> = rej.iter().map(|r| r.to_string()).collect();
+                format!(
+                    "operation {}: bad start-up parameters: {}",
+                    identity.name,
+                    list.join("; ")
+                )
+            })?;
+        let started = options.clock.now();
+        Ok(HostState {
+            period: operation.period(),
+            ctx: OpContext {
+                params: Params::new(initial.clone()),
+                clock: options.clock,
+                raised: StatusFlags::EMPTY,
+                source: identity.name.clone(),
+                activation: 0,
+            },
+            previous: initial,
+            op: operation,
+            identity,
+            schema,
+            flags,
+            epoch: 0,
+            active: None,
+            activations: 0,
+            started,
+            publish: options.publish,
+        })
+    }
+
+    async fn post_start(
+        &self,
+        myself: ActorRef<EoMsg>,
+        state: &mut HostState<O>,
+    ) -> Result<(), ActorProcessingErr> {
+        if state.publish {
+            let id = &state.identity;
+            registry::publish(ModuleKind::Operation, id.id, &id.name, myself.get_cell())?;
+        }
+        tracing::debug!(op = %state.identity.name, version = %state.identity.version, actor = %myself.get_id(), "operation started");
+        Ok(())
+    }
+
+    async fn post_stop(
+        &self,
+        _myself: ActorRef<EoMsg>,
+        state: &mut HostState<O>,
+    ) -> Result<(), ActorProcessingErr> {
+        state
+            .end_activation(|flags, epoch| EoReport::Suspended { flags, epoch })
+            .await;
+        Ok(())
+    }
+
+    async fn handle(
+        &self,
+        myself: ActorRef<EoMsg>,
+        msg: EoMsg,
+        state: &mut HostState<O>,
+    ) -> Result<(), ActorProcessingErr> {
+        match msg {
+            EoMsg::Activate {
+                params,
+                epoch,
+                reply,
+            } => {
+                if epoch < state.epoch {
+                    let _ = reply.send(EoReport::Stale {
+                        epoch,
+                        current: state.epoch,
+                    });
+                    return Ok(());
+                }
+                state.epoch = epoch;
+                let next = match state.schema.apply(state.current(), &params, false) {
+                    Ok(next) => next,
+                    Err(rejections) => {
+                        let _ = reply.send(EoReport::Rejected { rejections, epoch });
+                        return Ok(());
+                    }
+                };
+                state
+                    .end_activation(|flags, epoch| EoReport::Suspended { flags, epoch })
+                    .await;
+                state.set_params(next);
+                state.activations += 1;
+                state.ctx.activation = state.activations;
+                state.ctx.raised = StatusFlags::EMPTY;
+                state.active = Some(Active {
+                    number: state.activations,
+                    epoch,
+                    reply,
+                });
+                let outcome = state.op.activate(&mut state.ctx).await;
+                state.after_step(&myself, outcome).await;
+            }
+            EoMsg::Tick { activation } => {
+                if state.active.as_ref().map(|a| a.number) != Some(activation) {
+                    return Ok(()); // a tick of an activation that already ended
+                }
+                let outcome = state.op.step(&mut state.ctx).await;
+                state.after_step(&myself, outcome).await;
+            }
+            EoMsg::Suspend { epoch } => {
+                if epoch < state.epoch {
+                    tracing::debug!(op = %state.identity.name, epoch, current = state.epoch, "stale suspend ignored");
+                    return Ok(());
+                }
+                state.epoch = epoch;
+                state
+                    .end_activation(|flags, epoch| EoReport::Suspended { flags, epoch })
+                    .await;
+            }
+            EoMsg::Parameterize {
+                values,
+                epoch,
+                reply,
+            } => {
+                if epoch < state.epoch {
+                    let _ = reply.send(ParamOutcome::Stale {
+                        current: state.epoch,
+                    });
+                    return Ok(());
+                }
+                state.epoch = epoch;
+                let outcome = match state.schema.apply(state.current(), &values, false) {
+                    Ok(next) => {
+                        state.set_params(next);
+                        ParamOutcome::Applied
+                    }
+                    Err(rej) => ParamOutcome::Rejected(rej),
+                };
+                let _ = reply.send(outcome);
+            }
+            EoMsg::Property { request, reply } => {
+                let _ = reply.send(state.answer(&myself.get_cell(), request));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Spawn an operation in its host, unsupervised. The handle completes when the host stops.
+pub async fn spawn_operation<O: Operation>(
+    operation: O,
+    options: HostOptions,
+) -> Result<(ActorRef<EoMsg>, JoinHandle<()>), SpawnErr> {
+    Actor::spawn(
+        None,
+        EoHost::<O>::default(),
+        HostArgs { operation, options },
+    )
+    .await
+}
+
+/// Spawn an operation in its host, linked to `supervisor`.
+pub async fn spawn_operation_linked<O: Operation>(
+    operation: O,
+    options: HostOptions,
+    supervisor: ActorCell,
+) -> Result<(ActorRef<EoMsg>, JoinHandle<()>), SpawnErr> {
+    Actor::spawn_linked(
+        None,
+        EoHost::<O>::default(),
+        HostArgs { operation, options },
+        supervisor,
+    )
+    .await
+}

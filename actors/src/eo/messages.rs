@@ -1,0 +1,82 @@
+//! eo-interface messages (thesis 3.2.5.1, DESIGN.md §3).
+
+use crate::flags::StatusFlags;
+use crate::property::{ParamMap, PropertyReply, PropertyRequest, Rejection};
+use serde::{Deserialize, Serialize};
+
+/// How an activation ended, sent on the activation's reply port. Flags are in the operation's
+/// own bit order (see [`crate::eo::Operation::flags`]).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum EoReport {
+    /// The task completed; the operation is suspended.
+    Finished {
+        /// Flags raised during the activation and at its end.
+        flags: StatusFlags,
+        /// Epoch of the activation.
+        epoch: u64,
+    },
+    /// Suspended before it finished (by `Suspend`, or by a newer `Activate`).
+    Suspended {
+        /// Flags raised until then.
+        flags: StatusFlags,
+        /// Epoch of the activation.
+        epoch: u64,
+    },
+    /// The operation gave up with an error; it is suspended.
+    Failed {
+        /// What went wrong.
+        reason: String,
+        /// Flags raised until then.
+        flags: StatusFlags,
+        /// Epoch of the activation.
+        epoch: u64,
+    },
+    /// The activation's parameters were refused; nothing changed and it did not start.
+    Rejected {
+        /// Every refused value with its reason.
+        rejections: Vec<Rejection>,
+        /// Epoch of the refused command.
+        epoch: u64,
+    },
+    /// The command carried an older epoch than one already accepted and was ignored.
+    Stale {
+        /// Epoch of the ignored command.
+        epoch: u64,
+        /// Epoch in force.
+        current: u64,
+    },
+}
+
+/// Outcome of a `Parameterize` command.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum ParamOutcome {
+    /// All values applied.
+    Applied,
+    /// Nothing applied: every refused value with its reason.
+    Rejected(Vec<Rejection>),
+    /// Ignored: older epoch than the one in force.
+    Stale {
+        /// Epoch in force.
+        current: u64,
+    },
+}
+
+crate::remote_message! {
+    /// Messages an EO host understands: the eo-interface plus the property interface.
+    pub enum EoMsg {
+        /// Apply `params` (atomically, on top of the current values) and start the task. The
+        /// reply comes when the activation ends. A running activation is superseded (its port
+        /// receives `Suspended`).
+        Activate { params: ParamMap, epoch: u64 } -> EoReport,
+        /// End the running activation, if any.
+        Suspend { epoch: u64 },
+        /// Change parameters at run time: all values or none.
+        Parameterize { values: ParamMap, epoch: u64 } -> ParamOutcome,
+        /// A property request.
+        Property { request: PropertyRequest } -> PropertyReply,
+    }
+    local {
+        /// Time for the next step of activation number `activation`.
+        Tick { activation: u64 },
+    }
+}

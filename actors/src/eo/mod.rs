@@ -1,0 +1,43 @@
+//! The eo-interface: elementary operations and the actor that hosts them.
+//!
+//! An author implements [`Operation`]; [`spawn_operation`] runs it in an [`EoHost`] that
+//! speaks [`EoMsg`]: activation, suspension, atomic reparameterization and the property
+//! interface, with [`EoClient`] as the typed way to send them.
+//!
+//! ```
+//! use marie_actors::eo::{self, Identity, Operation, OpContext, OpError, Step, EoClient};
+//! use marie_actors::flags::{FlagDecl, StatusFlags};
+//! use marie_actors::property::{ParamDecl, ParamSchema, ParamMap};
+//!
+//! struct Countdown { left: i64 }
+//! impl Operation for Countdown {
+//!     fn identity(&self) -> Identity { Identity::new("countdown", 9001, "1.0.0", "counts to zero") }
+//!     fn parameters(&self) -> ParamSchema { ParamSchema::new(vec![ParamDecl::int("from", 3).range(0.0, 100.0)]) }
+//!     fn flags(&self) -> Vec<FlagDecl> { vec![FlagDecl::new("zero", "reached zero")] }
+//!     async fn activate(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
+//!         self.left = ctx.params().i64("from")?;
+//!         Ok(Step::Continue)
+//!     }
+//!     async fn step(&mut self, _ctx: &mut OpContext) -> Result<Step, OpError> {
+//!         self.left -= 1;
+//!         Ok(if self.left <= 0 { Step::Finish(StatusFlags(1)) } else { Step::Continue })
+//!     }
+//! }
+//! # #[tokio::main(flavor = "current_thread")] async fn main() {
+//! let (actor, _) = eo::spawn_operation(Countdown { left: 0 }, Default::default()).await.unwrap();
+//! let client = EoClient::new(actor.clone());
+//! let report = client.activate(ParamMap::new(), 1).unwrap().await.unwrap();
+//! assert!(matches!(report, eo::EoReport::Finished { flags: StatusFlags(1), .. }));
+//! actor.stop(None);
+//! # }
+//! ```
+
+mod client;
+mod host;
+mod messages;
+mod operation;
+
+pub use client::{EoClient, EoError};
+pub use host::{spawn_operation, spawn_operation_linked, EoHost, HostArgs, HostOptions, HostState};
+pub use messages::{EoMsg, EoReport, ParamOutcome};
+pub use operation::{Identity, OpContext, OpError, Operation, Params, Step};

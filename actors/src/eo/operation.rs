@@ -1,0 +1,244 @@
+//! What an operation author implements.
+
+use crate::clock::SharedClock;
+use crate::flags::{FlagDecl, StatusFlags};
+use crate::property::{ParamMap, ParamSchema, Value};
+use serde::{Deserialize, Serialize};
+use std::future::Future;
+use std::time::Duration;
+
+/// Who an operation is: the thesis' identification group.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Identity {
+    /// Module name, a word such as `wall-follower` (letters, digits, `-`, `_`, `.`).
+    pub name: String,
+    /// Numeric id, e.g. 1512. Several versions of one operation share name and id.
+    pub id: u32,
+    /// Semantic version.
+    pub version: semver::Version,
+    /// One line about what it does.
+    pub description: String,
+}
+
+impl Identity {
+    /// An identity; `version` must be a semantic version such as `1.2.0`.
+    ///
+    /// # Panics
+    /// On a malformed version: identities are written in code, so this is a programming error
+    /// caught by the first test that spawns the operation.
+    pub fn new(name: &str, id: u32, version: &str, description: &str) -> Self {
+        Identity {
+            name: name.to_string(),
+            id,
+            version: semver::Version::parse(version)
+                .unwrap_or_else(|e| panic!("operation {name}: bad version {version:?}: {e}")),
+            description: description.to_string(),
+        }
+    }
+}
+
+/// What a step (or an activation) decided.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Step {
+    /// Keep running: the host calls `step` again after [`Operation::period`].
+    Continue,
+    /// The task is done: report these flags (in the operation's own bit order, added to those
+    /// raised with [`OpContext::raise`]) and suspend.
+    Finish(StatusFlags),
+}
+
+/// Why an operation could not go on. The host reports it to the dispatcher as a failure (a
+/// panic, by contrast, crashes the host and is a matter for its supervisor).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum OpError {
+    /// The operation's own judgement.
+    #[error("{0}")]
+    Failed(String),
+    /// A parameter was missing or of an unexpected type (a declaration bug).
+    #[error("parameter {name}: {problem}")]
+    Param {
+        /// Parameter name.
+        name: String,
+        /// What is wrong.
+        problem: String,
+    },
+    /// A datamanager could not be reached or refused a request.
+    #[error("datamanager {dm}: {problem}")]
+    Datamanager {
+        /// Datamanager name.
+        dm: String,
+        /// What went wrong.
+        problem: String,
+    },
+}
+
+impl OpError {
+    /// An operation-specific failure.
+    pub fn failed(msg: impl Into<String>) -> Self {
+        OpError::Failed(msg.into())
+    }
+}
+
+/// Current parameter values with typed getters. The host validated them against the
+/// declaration, so a failing getter means the declaration and the code disagree.
+#[derive(Clone, Debug, Default)]
+pub struct Params {
+    values: ParamMap,
+}
+
+impl Params {
+    pub(crate) fn new(values: ParamMap) -> Self {
+        Params { values }
+    }
+
+    /// All values.
+    pub fn all(&self) -> &ParamMap {
+        &self.values
+    }
+
+    /// A value by name.
+    pub fn get(&self, name: &str) -> Result<&Value, OpError> {
+        self.values.get(name).ok_or_else(|| OpError::Param {
+            name: name.to_string(),
+            problem: "not declared".to_string(),
+        })
+    }
+
+    fn typed<T>(
+        &self,
+        name: &str,
+        kind: &str,
+        f: impl Fn(&Value) -> Option<T>,
+    ) -> Result<T, OpError> {
+        let v = self.get(name)?;
+        f(v).ok_or_else(|| OpError::Param {
+            name: name.to_string(),
+            problem: format!("expected {kind}, found {}", v.kind()),
+        })
+    }
+
+    /// A float (integers convert).
+    pub fn f64(&self, name: &str) -> Result<f64, OpError> {
+        self.typed(name, "float", Value::as_f64)
+    }
+
+    /// An integer.
+    pub fn i64(&self, name: &str) -> Result<i64, OpError> {
+        self.typed(name, "int", Value::as_i64)
+    }
+
+    /// A bool.
+    pub fn bool(&self, name: &str) -> Result<bool, OpError> {
+        self.typed(name, "bool", Value::as_bool)
+    }
+
+    /// Text or a choice.
+    pub fn text(&self, name: &str) -> Result<&str, OpError> {
+        let v = self.get(name)?;
+        v.as_str().ok_or_else(|| OpError::Param {
+            name: name.to_string(),
+            problem: format!("expected text, found {}", v.kind()),
+        })
+    }
+}
+
+/// What the host lends an operation while it runs.
+pub struct OpContext {
+    pub(crate) params: Params,
+    pub(crate) clock: SharedClock,
+    pub(crate) raised: StatusFlags,
+    pub(crate) source: String,
+    pub(crate) activation: u64,
+}
+
+impl OpContext {
+    /// Current parameters.
+    pub fn params(&self) -> &Params {
+        &self.params
+    }
+
+    /// The node's clock: read time from it, never from the OS, so simulations can run fast.
+    pub fn clock(&self) -> &SharedClock {
+        &self.clock
+    }
+
+    /// Clock time now.
+    pub fn now(&self) -> Duration {
+        self.clock.now()
+    }
+
+    /// Raise flags (operation bit order) now; they are reported when the activation ends,
+    /// whether it finishes or is suspended.
+    pub fn raise(&mut self, flags: StatusFlags) {
+        self.raised |= flags;
+    }
+
+    /// Flags raised so far in this activation.
+    pub fn raised(&self) -> StatusFlags {
+        self.raised
+    }
+
+    /// The name this operation writes as the source of datamanager records.
+    pub fn source(&self) -> &str {
+        &self.source
+    }
+
+    /// Number of the current activation (1 for the first).
+    pub fn activation(&self) -> u64 {
+        self.activation
+    }
+}
+
+/// An elementary operation: a small concurrent unit that senses, reasons or acts (thesis
+/// 3.2.4.2). The EO host actor runs it: repeated activation and suspension, atomic
+/// reparameterization, the property interface, the registry — none of that is the author's
+/// concern.
+///
+/// Between [`Operation::activate`] and the end of the activation the host calls
+/// [`Operation::step`] every [`Operation::period`] of clock time. Returning
+/// [`Step::Finish`] reports `Finished` to the dispatcher and *suspends* the operation; it stays
+/// alive for the next activation.
+pub trait Operation: Send + 'static {
+    /// Name, id, version, description.
+    fn identity(&self) -> Identity;
+
+    /// Declared parameters. Missions that omit a parameter get its default.
+    fn parameters(&self) -> ParamSchema {
+        ParamSchema::default()
+    }
+
+    /// Flags the operation can raise; bit `i` of its reports means `flags()[i]`.
+    fn flags(&self) -> Vec<FlagDecl> {
+        Vec::new()
+    }
+
+    /// Clock time between steps.
+    fn period(&self) -> Duration {
+        Duration::from_millis(100)
+    }
+
+    /// Called when activated, with the new parameters in place.
+    fn activate(
+        &mut self,
+        ctx: &mut OpContext,
+    ) -> impl Future<Output = Result<Step, OpError>> + Send {
+        let _ = ctx;
+        async { Ok(Step::Continue) }
+    }
+
+    /// One unit of work.
+    fn step(&mut self, ctx: &mut OpContext) -> impl Future<Output = Result<Step, OpError>> + Send;
+
+    /// Called when the activation ends (finished, suspended, or failed): stop motors, release
+    /// resources. Errors are logged.
+    fn suspend(&mut self, ctx: &mut OpContext) -> impl Future<Output = Result<(), OpError>> + Send {
+        let _ = ctx;
+        async { Ok(()) }
+    }
+
+    /// Operation-specific properties, asked by name through the property interface.
+    fn property(&self, name: &str) -> Option<Value> {
+        let _ = name;
+        None
+    }
+}

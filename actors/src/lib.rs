@@ -1,0 +1,28 @@
+//! # marie-actors
+//!
+//! The three interfaces of the MARIE control architecture as [ractor] actors, plus the
+//! location table and the action dispatcher:
+//!
+//! - [`eo`] — elementary operations: the [`eo::Operation`] trait an author implements and the
+//!   EO host actor that runs it (activate, suspend, atomic reparameterization, 32-bit status
+//!   flags);
+//! - [`property`] — the property interface: parameter declarations, values, and the requests
+//!   any module can send an operation about itself;
+//! - [`dm`] — datamanagers: records stored, selected (also by waiting), deleted by query;
+//! - [`registry`] — the cluster-wide location table over ractor `pg`;
+//! - [`dispatcher`] — missions (task trees) and the action dispatcher that runs them.
+//!
+//! Every message that may cross nodes is serializable with rmp-serde ([`wire`]).
+//!
+//! ```
+//! use marie_actors::flags::StatusFlags;
+//! let status = StatusFlags(0b0110);
+//! assert!(status.implies(StatusFlags(0b0100)));
+//! ```
+
+pub mod clock;
+pub mod eo;
+pub mod flags;
+pub mod property;
+pub mod registry;
+pub mod wire;
