@@ -1,1 +1,26 @@
+//! # marie
+//!
+//! An actor framework for robot control with supervision and self-healing: the control
+//! architecture of the MARIE mobile robot (elementary operations, datamanagers, an action
+//! dispatcher, a location table) re-created as [ractor] actors.
+//!
+//! This crate is the facade: it re-exports the member crates and offers [`node::Node`], the
+//! embedded single-process node that the `marie` command runs.
+//!
+//! ```no_run
+//! use marie::node::{Node, NodeOptions};
+//! # #[tokio::main] async fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! let node = Node::start(NodeOptions::default()).await?;
+//! let mission = node.load_mission(std::path::Path::new("missions/demo.toml")).await?;
+//! let report = node.run(mission, None).await?;
+//! println!("{:?}", report.outcome);
+//! node.shutdown().await;
+//! # Ok(()) }
+//! ```
 
+pub use marie_actors as actors;
+pub use marie_cluster as cluster;
+pub use marie_missions as missions;
+pub use marie_supervision as supervision;
+
+pub mod node;

@@ -21,6 +21,8 @@
 //! ```
 
 pub mod clock;
+pub mod dispatcher;
+pub mod dm;
 pub mod eo;
 pub mod flags;
 pub mod property;

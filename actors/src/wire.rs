@@ -310,7 +310,9 @@ mod tests {
 
     #[test]
     fn local_variants_and_garbage_are_refused() {
-        assert!(TestMsg::Tick { generation: 1 }.serialize().is_err());
+        let tick = TestMsg::Tick { generation: 1 };
+        assert!(matches!(tick, TestMsg::Tick { generation: 1 }));
+        assert!(tick.serialize().is_err());
         let garbage = SerializedMessage::Cast {
             variant: "Add".into(),
             args: vec![0xc1, 0xff],

@@ -93,7 +93,6 @@ pub struct HostState<O> {
     active: Option<Active>,
     activations: u64,
     started: Duration,
-    publish: bool,
 }
 
 impl<O: Operation> HostState<O> {
@@ -267,7 +266,7 @@ impl<O: Operation> Actor for EoHost<O> {
 
     async fn pre_start(
         &self,
-        _myself: ActorRef<EoMsg>,
+        myself: ActorRef<EoMsg>,
         args: HostArgs<O>,
     ) -> Result<HostState<O>, ActorProcessingErr> {
         let HostArgs { operation, options } = args;
@@ -297,6 +296,16 @@ impl<O: Operation> Actor for EoHost<O> {
                 )
             })?;
         let started = options.clock.now();
+        // Published before `spawn` returns, so a spawner can look the operation up at once.
+        if options.publish {
+            registry::publish(
+                ModuleKind::Operation,
+                identity.id,
+                &identity.name,
+                myself.get_cell(),
+            )?;
+        }
+        tracing::debug!(op = %identity.name, version = %identity.version, actor = %myself.get_id(), "operation started");
         Ok(HostState {
             period: operation.period(),
             ctx: OpContext {
@@ -305,6 +314,7 @@ impl<O: Operation> Actor for EoHost<O> {
                 raised: StatusFlags::EMPTY,
                 source: identity.name.clone(),
                 activation: 0,
+                dms: Default::default(),
             },
             previous: initial,
             op: operation,
@@ -315,21 +325,7 @@ impl<O: Operation> Actor for EoHost<O> {
             active: None,
             activations: 0,
             started,
-            publish: options.publish,
         })
-    }
-
-    async fn post_start(
-        &self,
-        myself: ActorRef<EoMsg>,
-        state: &mut HostState<O>,
-    ) -> Result<(), ActorProcessingErr> {
-        if state.publish {
-            let id = &state.identity;
-            registry::publish(ModuleKind::Operation, id.id, &id.name, myself.get_cell())?;
-        }
-        tracing::debug!(op = %state.identity.name, version = %state.identity.version, actor = %myself.get_id(), "operation started");
-        Ok(())
     }
 
     async fn post_stop(

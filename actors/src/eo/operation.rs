@@ -149,6 +149,7 @@ pub struct OpContext {
     pub(crate) raised: StatusFlags,
     pub(crate) source: String,
     pub(crate) activation: u64,
+    pub(crate) dms: std::collections::HashMap<String, crate::dm::DmClient>,
 }
 
 impl OpContext {
@@ -186,6 +187,24 @@ impl OpContext {
     /// Number of the current activation (1 for the first).
     pub fn activation(&self) -> u64 {
         self.activation
+    }
+
+    /// A client of the datamanager `name` (or numeric id) that records this operation as the
+    /// source. Found through the registry and kept until its actor stops, then found again
+    /// (a restarted datamanager is a new actor).
+    pub fn dm(&mut self, name: &str) -> Result<crate::dm::DmClient, OpError> {
+        if let Some(c) = self.dms.get(name) {
+            if c.actor().get_status() <= ractor::ActorStatus::Running {
+                return Ok(c.clone());
+            }
+        }
+        let client =
+            crate::dm::DmClient::lookup(name, &self.source).map_err(|e| OpError::Datamanager {
+                dm: name.to_string(),
+                problem: e.to_string(),
+            })?;
+        self.dms.insert(name.to_string(), client.clone());
+        Ok(client)
     }
 }
 

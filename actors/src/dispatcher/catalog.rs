@@ -1,0 +1,77 @@
+//! A mission [`Catalog`] built from the live registry and the property interface.
+
+use super::mission::{Catalog, OpInfo};
+use crate::eo::{EoClient, EoError};
+use crate::property::{Group, PropertyReply, PropertyRequest};
+use crate::registry::{self, ModuleKind};
+use std::collections::BTreeMap;
+
+/// The operations a mission may use, as the running system describes them: each key is
+/// looked up in the registry and its first live instance asked for its identity and
+/// parameter declarations. Keys with no live instance are absent, so validation reports them
+/// as unknown operations.
+#[derive(Clone, Debug, Default)]
+pub struct RegistryCatalog {
+    ops: BTreeMap<String, OpInfo>,
+    names: Vec<String>,
+}
+
+impl RegistryCatalog {
+    /// Ask the registry about every key in `keys` (names or ids).
+    pub async fn gather<I, S>(keys: I) -> Result<Self, EoError>
+    where
+        I: IntoIterator<Item = S>,
+        S: AsRef<str>,
+    {
+        let mut ops = BTreeMap::new();
+        for key in keys {
+            let key = key.as_ref();
+            if let Some(inst) = registry::lookup(ModuleKind::Operation, key)
+                .into_iter()
+                .next()
+            {
+                ops.insert(
+                    key.to_string(),
+                    describe(EoClient::from_cell(inst.actor)).await?,
+                );
+            }
+        }
+        let mut names: Vec<String> = registry::list()
+            .into_iter()
+            .filter(|i| i.kind == ModuleKind::Operation)
+            .map(|i| i.name)
+            .collect();
+        names.dedup();
+        Ok(RegistryCatalog { ops, names })
+    }
+}
+
+/// Describe one operation through its property interface.
+pub async fn describe(client: EoClient) -> Result<OpInfo, EoError> {
+    let ident = client
+        .property(PropertyRequest::Group(Group::Identification))
+        .await?;
+    let specific = client
+        .property(PropertyRequest::Group(Group::Specific))
+        .await?;
+    match (ident, specific) {
+        (PropertyReply::Identification(i), PropertyReply::Specific(s)) => Ok(OpInfo {
+            name: i.name,
+            id: i.id,
+            version: i.version,
+            schema: crate::property::ParamSchema::new(s.params),
+            flags: s.flags,
+        }),
+        _ => Err(EoError::Gone(client.actor().get_id().to_string())),
+    }
+}
+
+impl Catalog for RegistryCatalog {
+    fn operation(&self, key: &str) -> Option<OpInfo> {
+        self.ops.get(key).cloned()
+    }
+
+    fn names(&self) -> Vec<String> {
+        self.names.clone()
+    }
+}

@@ -1,0 +1,220 @@
+//! Problems found in a mission file, each with its `file:line:column`.
+
+use std::fmt;
+use std::ops::Range;
+
+/// A position in a mission file: 1-based line and 1-based column (counted in characters, not
+/// bytes).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub(crate) struct Pos {
+    /// 1-based line.
+    pub(crate) line: usize,
+    /// 1-based column, in characters.
+    pub(crate) column: usize,
+}
+
+impl Pos {
+    /// The position of byte `offset` in `src`. Offsets past the end clamp to the end; offsets
+    /// inside a multi-byte character move back to its start.
+    pub(crate) fn of(src: &str, offset: usize) -> Pos {
+        let mut offset = offset.min(src.len());
+        while offset > 0 && !src.is_char_boundary(offset) {
+            offset -= 1;
+        }
+        let before = src.get(..offset).unwrap_or_default();
+        let line_start = before.rfind('\n').map_or(0, |i| i + 1);
+        Pos {
+            line: before.matches('\n').count() + 1,
+            column: before.get(line_start..).unwrap_or_default().chars().count() + 1,
+        }
+    }
+}
+
+/// Byte offsets to positions in one text, in logarithmic time per lookup (a mission may hold
+/// large arrays, and every value's position is recorded).
+pub(crate) struct LineIndex<'s> {
+    src: &'s str,
+    /// Byte offset where each line starts.
+    starts: Vec<usize>,
+}
+
+impl<'s> LineIndex<'s> {
+    /// Index the lines of `src`.
+    pub(crate) fn new(src: &'s str) -> Self {
+        let starts = std::iter::once(0)
+            .chain(src.match_indices('\n').map(|(i, _)| i + 1))
+            .collect();
+        LineIndex { src, starts }
+    }
+
+    /// The position of byte `offset`, as [`Pos::of`] computes it.
+    pub(crate) fn pos(&self, offset: usize) -> Pos {
+        let mut offset = offset.min(self.src.len());
+        while offset > 0 && !self.src.is_char_boundary(offset) {
+            offset -= 1;
+        }
+        let line = self.starts.partition_point(|s| *s <= offset).max(1);
+        let start = self.starts.get(line - 1).copied().unwrap_or(0);
+        let column = self
+            .src
+            .get(start..offset)
+            .unwrap_or_default()
+            .chars()
+            .count()
+            + 1;
+        Pos { line, column }
+    }
+
+    /// The position of the start of `span`.
+    pub(crate) fn span(&self, span: &Range<usize>) -> Pos {
+        self.pos(span.start)
+    }
+}
+
+impl fmt::Display for Pos {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}:{}", self.line, self.column)
+    }
+}
+
+/// One problem in a mission: where (`path:line:column`) and what was expected.
+///
+/// Displays as `path:line:column: message`, the form editors and terminals link to.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{path}:{line}:{column}: {message}")]
+pub struct Diagnostic {
+    /// The mission file's path, or `<mission>` for a mission given as text.
+    pub path: String,
+    /// 1-based line.
+    pub line: usize,
+    /// 1-based column, counted in characters.
+    pub column: usize,
+    /// What is wrong and what was expected.
+    pub message: String,
+}
+
+impl Diagnostic {
+    /// A diagnostic for `path` at `line:column`.
+    pub fn new(
+        path: impl Into<String>,
+        line: usize,
+        column: usize,
+        message: impl Into<String>,
+    ) -> Self {
+        Diagnostic {
+            path: path.into(),
+            line,
+            column,
+            message: message.into(),
+        }
+    }
+
+    pub(crate) fn at(path: &str, pos: Pos, message: impl Into<String>) -> Self {
+        Diagnostic::new(path, pos.line, pos.column, message)
+    }
+}
+
+/// Every problem found in one stage of checking a mission, sorted by position.
+///
+/// Displays one diagnostic per line. Never empty when returned as an error.
+#[derive(Clone, Debug, Default, PartialEq, Eq, thiserror::Error)]
+#[error("{}", one_per_line(.0))]
+pub struct Diagnostics(pub Vec<Diagnostic>);
+
+impl Diagnostics {
+    /// Sort by position (stable: problems at one position keep the order they were found in)
+    /// and drop exact duplicates.
+    pub fn sort(&mut self) {
+        self.0.sort_by_key(|d| (d.line, d.column));
+        self.0.dedup();
+    }
+
+    /// The diagnostics, in order.
+    pub fn iter(&self) -> std::slice::Iter<'_, Diagnostic> {
+        self.0.iter()
+    }
+
+    /// Number of diagnostics.
+    pub fn len(&self) -> usize {
+        self.0.len()
+    }
+
+    /// True when there is no diagnostic.
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+
+    /// `Ok(value)` when there is no diagnostic, otherwise the sorted diagnostics.
+    pub(crate) fn into_result<T>(mut self, value: T) -> Result<T, Diagnostics> {
+        if self.0.is_empty() {
+            Ok(value)
+        } else {
+            self.sort();
+            Err(self)
+        }
+    }
+}
+
+fn one_per_line(diagnostics: &[Diagnostic]) -> String {
+    diagnostics
+        .iter()
+        .map(Diagnostic::to_string)
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+impl<'a> IntoIterator for &'a Diagnostics {
+    type Item = &'a Diagnostic;
+    type IntoIter = std::slice::Iter<'a, Diagnostic>;
+    fn into_iter(self) -> Self::IntoIter {
+        self.0.iter()
+    }
+}
+
+impl IntoIterator for Diagnostics {
+    type Item = Diagnostic;
+    type IntoIter = std::vec::IntoIter<Diagnostic>;
+    fn into_iter(self) -> Self::IntoIter {
+        self.0.into_iter()
+    }
+}
+
+impl From<Diagnostic> for Diagnostics {
+    fn from(d: Diagnostic) -> Self {
+        Diagnostics(vec![d])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn positions_are_one_based_and_count_characters() {
+        let src = "ab\nçd = 1\n";
+        assert_eq!(Pos::of(src, 0), Pos { line: 1, column: 1 });
+        assert_eq!(Pos::of(src, 3), Pos { line: 2, column: 1 });
+        // `ç` is two bytes: `d` is byte 5 but column 2
+        assert_eq!(Pos::of(src, 5), Pos { line: 2, column: 2 });
+        // inside `ç`: back to its start
+        assert_eq!(Pos::of(src, 4), Pos { line: 2, column: 1 });
+        // past the end: clamps
+        assert_eq!(Pos::of(src, 999), Pos { line: 3, column: 1 });
+        let index = LineIndex::new(src);
+        for offset in 0..=src.len() + 2 {
+            assert_eq!(index.pos(offset), Pos::of(src, offset), "offset {offset}");
+        }
+        assert_eq!(LineIndex::new("").pos(5), Pos { line: 1, column: 1 });
+    }
+
+    #[test]
+    fn diagnostics_sort_and_render_one_per_line() {
+        let mut d = Diagnostics(vec![
+            Diagnostic::new("m.toml", 3, 1, "c"),
+            Diagnostic::new("m.toml", 1, 9, "b"),
+            Diagnostic::new("m.toml", 1, 2, "a"),
+        ]);
+        d.sort();
+        assert_eq!(d.to_string(), "m.toml:1:2: a\nm.toml:1:9: b\nm.toml:3:1: c");
+    }
+}

@@ -1,0 +1,558 @@
+//! Mission files: task trees in TOML, checked before anything runs.
+//!
+//! A mission (thesis 3.2.4.1) is a set of *actions*. Each action names the operations to run
+//! together, the parameters to send each one, the operations whose finishing ends the action,
+//! and the *condition* under which it may run: a set of flags of the 32-bit status word that
+//! must all be set. The dispatcher combines the flags the operations report into that word and
+//! runs the next action whose condition is implied by it; once the `success` flags are all
+//! set the mission has succeeded.
+//!
+//! Checking happens in two stages, and each reports *every* problem it finds, sorted by
+//! position, as `file:line:column: message` ([`Diagnostics`]):
+//!
+//! 1. [`Mission::parse`] — syntax and structure, no knowledge of operations needed: TOML
+//!    syntax; required keys; unknown keys anywhere (with the accepted ones); value types; flag
+//!    bits in `0..=31` and each used once; flag names in `initial`, `success` and `when`
+//!    declared in `[flags]`; unique action names; every action has operations; `ends_on` names
+//!    operations of its action; deadlines positive and finite; parameter values of a TOML type
+//!    that no parameter type holds (datetimes).
+//! 2. [`ParsedMission::validate`] — against the operations a [`Catalog`] offers: every
+//!    operation exists; every supplied parameter is declared, writable, of the right type and
+//!    in range ([`ParamDecl::check`](crate::property::ParamDecl::check)); every flag a
+//!    condition or `success` needs is set in `initial` or declared by some operation of the
+//!    mission ([`FlagDecl`]) — a typo or an impossible condition is caught here.
+//!
+//! [`Mission::load`] does both for a file. Nothing here panics on any input.
+//!
+//! # Format
+//!
+//! ```toml
+//! [mission]
+//! name = "demo"              # required
+//! description = "..."        # optional
+//! success = ["counted"]      # flags that must all be set at the end
+//! initial = []               # flags set before the first action (optional)
+//! deadline_s = 60.0          # optional: deadline of the whole mission, in seconds
+//!
+//! [flags]                    # flag name -> bit of the status word (0..=31, each bit once)
+//! counted = 0
+//! summed = 1
+//!
+//! [[action]]
+//! name = "count"             # required, unique
+//! when = []                  # runs when all these flags are set (default: none needed)
+//! ends_on = ["counter"]      # operations whose finishing ends the action
+//!                            #   (default: every operation of the action)
+//! end_mode = "any"           # "any" (default): the first ender to finish ends the action;
+//!                            # "all": every ender must finish
+//! deadline_s = 10.0          # optional, default 30
+//!
+//! [action.ops.counter]       # an operation, by name or by id as a quoted key ("1512"),
+//! limit = 10                 #   and the parameters the mission sets
+//! [action.ops.ticker]        # an operation with all parameters at their defaults
+//! ```
+//!
+//! Parameters the mission omits are not filled in here: the dispatcher leaves them at the
+//! operation's declared defaults. Supplied values are canonicalized (an integer given for a
+//! float parameter becomes a float). Flags an operation declares but `[flags]` does not name
+//! are allowed; the dispatcher ignores them.
+//!
+//! # Example
+//!
+//! ```
+//! use marie_actors::dispatcher::mission::{EndMode, Mission, OpInfo, StaticCatalog};
+//! use marie_actors::flags::{FlagDecl, StatusFlags};
+//! use marie_actors::property::{ParamDecl, ParamSchema, Value};
+//! use std::time::Duration;
+//!
+//! let src = r#"
+//! [mission]
+//! name = "demo"
+//! success = ["summed"]
+//!
+//! [flags]
+//! counted = 0
+//! summed = 1
+//!
+//! [[action]]
+//! name = "count"
+//! ends_on = ["counter"]
+//! deadline_s = 10
+//! [action.ops.counter]
+//! limit = 10
+//! [action.ops.ticker]
+//!
+//! [[action]]
+//! name = "sum"
+//! when = ["counted"]
+//! [action.ops."7"]
+//! scale = 2
+//! "#;
+//!
+//! let catalog = StaticCatalog::new([
+//!     OpInfo::new("counter", 5, "1.0.0")
+//!         .params(ParamSchema::new(vec![ParamDecl::int("limit", 3).range(1.0, 100.0)]))
+//!         .flags(vec![FlagDecl::new("counted", "reached the limit")]),
+//!     OpInfo::new("ticker", 6, "1.0.0"),
+//!     OpInfo::new("adder", 7, "2.1.0")
+//!         .params(ParamSchema::new(vec![ParamDecl::float("scale", 1.0)]))
+//!         .flags(vec![FlagDecl::new("summed", "sum stored")]),
+//! ]);
+//!
+//! let mission = Mission::parse(src, None)?.validate(&catalog)?;
+//! assert_eq!(mission.flags["summed"], 1);
+//! assert_eq!(mission.success, StatusFlags(0b10));
+//! let count = &mission.actions[0];
+//! assert_eq!(count.ends_on, ["counter"]);
+//! assert_eq!(count.deadline, Duration::from_secs(10));
+//! assert_eq!(count.ops[0].params["limit"], Value::Int(10));
+//! assert!(count.ops[1].params.is_empty()); // ticker: defaults, filled in by the dispatcher
+//! let sum = &mission.actions[1];
+//! assert_eq!((sum.when, sum.end_mode), (StatusFlags(0b01), EndMode::Any));
+//! assert_eq!(sum.ends_on, ["7"]); // default: every operation
+//! assert_eq!(sum.ops[0].name, "adder");
+//! assert_eq!(sum.ops[0].params["scale"], Value::Float(2.0)); // canonicalized
+//! assert_eq!(mission.ops().collect::<Vec<_>>(), ["counter", "ticker", "7"]);
+//!
+//! // A typo is reported with its position and what was expected.
+//! let bad = src.replace("limit = 10", "limt = 10");
+//! let err = Mission::parse(&bad, None)?.validate(&catalog).unwrap_err();
+//! assert_eq!(
+//!     err.to_string(),
+//!     "<mission>:15:1: unknown parameter `limt` of operation `counter` (expected one of: limit)"
+//! );
+//! # Ok::<(), marie_actors::dispatcher::mission::Diagnostics>(())
+//! ```
+
+mod diagnostic;
+mod raw;
+mod validate;
+
+pub use diagnostic::{Diagnostic, Diagnostics};
+
+use crate::eo::{Identity, Operation};
+use crate::flags::{FlagDecl, StatusFlags};
+use crate::property::{ParamMap, ParamSchema};
+use serde::{Deserialize, Serialize};
+use std::collections::{BTreeMap, BTreeSet};
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+/// How the operations an action ends on end it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum EndMode {
+    /// The first of them to finish ends the action (`end_mode = "any"`, the default).
+    #[default]
+    Any,
+    /// All of them must finish (`end_mode = "all"`).
+    All,
+}
+
+impl fmt::Display for EndMode {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            EndMode::Any => "any",
+            EndMode::All => "all",
+        })
+    }
+}
+
+/// One operation of an action, resolved against the catalog.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct OpRun {
+    /// The key as written in the file (`[action.ops.<key>]`): a name or a numeric id.
+    pub key: String,
+    /// The operation's canonical name.
+    pub name: String,
+    /// The operation's numeric id.
+    pub id: u32,
+    /// The parameters the mission supplies, canonicalized by
+    /// [`ParamDecl::check`](crate::property::ParamDecl::check). Omitted parameters are not
+    /// here: the dispatcher leaves them at the declared defaults.
+    pub params: ParamMap,
+}
+
+/// One validated action of a mission.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Action {
+    /// Unique name.
+    pub name: String,
+    /// Condition: the action may run when the status word implies these flags.
+    pub when: StatusFlags,
+    /// The operations it runs, in file order.
+    pub ops: Vec<OpRun>,
+    /// Keys (into `ops`) of the operations whose finishing ends the action; never empty.
+    pub ends_on: Vec<String>,
+    /// Whether any or all of `ends_on` must finish.
+    pub end_mode: EndMode,
+    /// How long the action may take (`deadline_s`, default 30 s).
+    pub deadline: Duration,
+}
+
+impl Action {
+    /// The operation written as `key`.
+    pub fn op(&self, key: &str) -> Option<&OpRun> {
+        self.ops.iter().find(|o| o.key == key)
+    }
+
+    /// True when the operation written as `key` ends the action.
+    pub fn ends_on(&self, key: &str) -> bool {
+        self.ends_on.iter().any(|k| k == key)
+    }
+}
+
+/// A mission that passed both stages: ready for the dispatcher.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Mission {
+    /// The mission's name.
+    pub name: String,
+    /// What it is for (may be empty).
+    pub description: String,
+    /// The file it was loaded from, if any.
+    pub path: Option<PathBuf>,
+    /// Flag names and their bits in the status word.
+    pub flags: BTreeMap<String, u8>,
+    /// Flags set before the first action.
+    pub initial: StatusFlags,
+    /// Flags that must all be set for the mission to succeed.
+    pub success: StatusFlags,
+    /// Deadline of the whole mission.
+    pub deadline: Option<Duration>,
+    /// The actions, in file order.
+    pub actions: Vec<Action>,
+}
+
+impl Mission {
+    /// Stage 1: parse mission text and check its syntax and structure. `path` is used in
+    /// diagnostics (`<mission>` without one) and kept in the mission.
+    pub fn parse(src: &str, path: Option<&Path>) -> Result<ParsedMission, Diagnostics> {
+        raw::parse(src, path)
+    }
+
+    /// Stage 1 on a file. An unreadable file is one diagnostic at 1:1 naming the file and the
+    /// OS error; text that is not UTF-8 is reported at the first invalid byte.
+    pub fn parse_file(path: &Path) -> Result<ParsedMission, Diagnostics> {
+        let file = display_path(Some(path));
+        let bytes = std::fs::read(path).map_err(|e| {
+            Diagnostic::new(&file, 1, 1, format!("cannot read mission file {file}: {e}"))
+        })?;
+        let src = String::from_utf8(bytes).map_err(|e| {
+            let bytes = e.as_bytes();
+            let valid = e.utf8_error().valid_up_to();
+            let prefix =
+                std::str::from_utf8(bytes.get(..valid).unwrap_or_default()).unwrap_or_default();
+            let pos = diagnostic::Pos::of(prefix, valid);
+            Diagnostic::at(&file, pos, "the mission file is not valid UTF-8 text")
+        })?;
+        Mission::parse(&src, Some(path))
+    }
+
+    /// Both stages on a file: read, parse, and validate against `catalog`.
+    pub fn load<C: Catalog + ?Sized>(path: &Path, catalog: &C) -> Result<Mission, Diagnostics> {
+        Mission::parse_file(path)?.validate(catalog)
+    }
+
+    /// The name of the flag on bit `bit`.
+    pub fn flag_name(&self, bit: u8) -> Option<&str> {
+        self.flags
+            .iter()
+            .find(|(_, b)| **b == bit)
+            .map(|(n, _)| n.as_str())
+    }
+
+    /// The names of the flags set in `flags`, lowest bit first; a bit without a name shows as
+    /// `#<bit>`.
+    pub fn flags_to_names(&self, flags: StatusFlags) -> Vec<String> {
+        flags
+            .bits()
+            .map(|b| {
+                self.flag_name(b)
+                    .map_or_else(|| format!("#{b}"), str::to_string)
+            })
+            .collect()
+    }
+
+    /// The operation keys the mission uses, each once, in order of first use.
+    pub fn ops(&self) -> impl Iterator<Item = &str> + '_ {
+        let mut seen = BTreeSet::new();
+        self.actions
+            .iter()
+            .flat_map(|a| a.ops.iter())
+            .map(|o| o.key.as_str())
+            .filter(move |k| seen.insert(*k))
+    }
+
+    /// The canonical names of the operations the mission uses, each once, in order of first
+    /// use (`ops` may name one operation by name in one action and by id in another).
+    pub fn operation_names(&self) -> Vec<&str> {
+        let mut seen = BTreeSet::new();
+        self.actions
+            .iter()
+            .flat_map(|a| a.ops.iter())
+            .map(|o| o.name.as_str())
+            .filter(|n| seen.insert(*n))
+            .collect()
+    }
+}
+
+/// A mission that passed stage 1 (syntax and structure) but has not been checked against the
+/// available operations yet. Call [`ParsedMission::validate`].
+#[derive(Clone, Debug)]
+pub struct ParsedMission {
+    pub(crate) file: String,
+    pub(crate) path: Option<PathBuf>,
+    pub(crate) name: String,
+    pub(crate) description: String,
+    pub(crate) flags: BTreeMap<String, u8>,
+    pub(crate) initial: Vec<raw::FlagRef>,
+    pub(crate) success: Vec<raw::FlagRef>,
+    pub(crate) deadline: Option<Duration>,
+    pub(crate) actions: Vec<raw::ParsedAction>,
+}
+
+impl ParsedMission {
+    /// Stage 2: check the mission against the operations `catalog` offers and build the
+    /// [`Mission`]. Reports every problem, sorted by position.
+    pub fn validate<C: Catalog + ?Sized>(&self, catalog: &C) -> Result<Mission, Diagnostics> {
+        validate::validate(self, catalog)
+    }
+
+    /// The mission's name.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// The file it was parsed from, if any.
+    pub fn path(&self) -> Option<&Path> {
+        self.path.as_deref()
+    }
+
+    /// Flag names and their bits.
+    pub fn flags(&self) -> &BTreeMap<String, u8> {
+        &self.flags
+    }
+
+    /// The operation keys (names or ids, as written) the mission uses, each once, in order of
+    /// first use — what a catalog must be able to answer for.
+    pub fn ops(&self) -> impl Iterator<Item = &str> + '_ {
+        let mut seen = BTreeSet::new();
+        self.actions
+            .iter()
+            .flat_map(|a| a.ops.iter())
+            .map(|o| o.key.as_str())
+            .filter(move |k| seen.insert(*k))
+    }
+
+    /// A placeholder for error paths that never hand it out.
+    pub(crate) fn empty(path: Option<&Path>) -> Self {
+        ParsedMission {
+            file: display_path(path),
+            path: path.map(Path::to_path_buf),
+            name: String::new(),
+            description: String::new(),
+            flags: BTreeMap::new(),
+            initial: Vec::new(),
+            success: Vec::new(),
+            deadline: None,
+            actions: Vec::new(),
+        }
+    }
+}
+
+/// How a mission's source is named in diagnostics.
+pub(crate) fn display_path(path: Option<&Path>) -> String {
+    path.map_or_else(|| "<mission>".to_string(), |p| p.display().to_string())
+}
+
+/// What validation needs to know about one operation: identity, parameter declarations and
+/// the flags it can raise.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct OpInfo {
+    /// Canonical name, e.g. `wall-follower`.
+    pub name: String,
+    /// Numeric id, e.g. 1512.
+    pub id: u32,
+    /// Semantic version.
+    pub version: String,
+    /// Parameter declarations.
+    pub schema: ParamSchema,
+    /// Flags the operation can raise, by name.
+    pub flags: Vec<FlagDecl>,
+}
+
+impl OpInfo {
+    /// An operation without parameters or flags; add them with [`OpInfo::params`] and
+    /// [`OpInfo::flags`].
+    pub fn new(name: impl Into<String>, id: u32, version: impl Into<String>) -> Self {
+        OpInfo {
+            name: name.into(),
+            id,
+            version: version.into(),
+            schema: ParamSchema::default(),
+            flags: Vec::new(),
+        }
+    }
+
+    /// From an operation's identity, parameters and flags.
+    pub fn from_identity(identity: &Identity, schema: ParamSchema, flags: Vec<FlagDecl>) -> Self {
+        OpInfo {
+            name: identity.name.clone(),
+            id: identity.id,
+            version: identity.version.to_string(),
+            schema,
+            flags,
+        }
+    }
+
+    /// What `op` declares about itself.
+    pub fn of<O: Operation>(op: &O) -> Self {
+        OpInfo::from_identity(&op.identity(), op.parameters(), op.flags())
+    }
+
+    /// With these parameter declarations.
+    pub fn params(mut self, schema: ParamSchema) -> Self {
+        self.schema = schema;
+        self
+    }
+
+    /// With these flags.
+    pub fn flags(mut self, flags: Vec<FlagDecl>) -> Self {
+        self.flags = flags;
+        self
+    }
+
+    /// True when `key` names this operation: its name or its id in decimal.
+    pub fn matches(&self, key: &str) -> bool {
+        self.name == key || self.id.to_string() == key
+    }
+}
+
+/// The operations a mission may use.
+pub trait Catalog {
+    /// The operation a mission key (a name or a numeric id such as `"1512"`) refers to.
+    fn operation(&self, key: &str) -> Option<OpInfo>;
+    /// The names of every available operation, for "available: ..." hints.
+    fn names(&self) -> Vec<String>;
+}
+
+/// A fixed list of operations, looked up by name or by id: for tests and for checking a
+/// mission without a running system.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct StaticCatalog {
+    ops: Vec<OpInfo>,
+}
+
+impl StaticCatalog {
+    /// A catalog of `ops`. When two match one key the first wins.
+    pub fn new(ops: impl IntoIterator<Item = OpInfo>) -> Self {
+        StaticCatalog {
+            ops: ops.into_iter().collect(),
+        }
+    }
+
+    /// Add an operation.
+    pub fn insert(&mut self, op: OpInfo) {
+        self.ops.push(op);
+    }
+
+    /// The operations, in insertion order.
+    pub fn iter(&self) -> std::slice::Iter<'_, OpInfo> {
+        self.ops.iter()
+    }
+}
+
+impl Catalog for StaticCatalog {
+    fn operation(&self, key: &str) -> Option<OpInfo> {
+        self.ops.iter().find(|o| o.matches(key)).cloned()
+    }
+
+    fn names(&self) -> Vec<String> {
+        let mut names: Vec<String> = self.ops.iter().map(|o| o.name.clone()).collect();
+        names.sort();
+        names.dedup();
+        names
+    }
+}
+
+/// A map from name to operation is a catalog too; keys that are ids are matched against the
+/// operations' ids.
+impl Catalog for BTreeMap<String, OpInfo> {
+    fn operation(&self, key: &str) -> Option<OpInfo> {
+        self.get(key)
+            .or_else(|| self.values().find(|o| o.matches(key)))
+            .cloned()
+    }
+
+    fn names(&self) -> Vec<String> {
+        let mut names: Vec<String> = self.values().map(|o| o.name.clone()).collect();
+        names.sort();
+        names.dedup();
+        names
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::property::{ParamDecl, Value};
+
+    fn catalog() -> StaticCatalog {
+        StaticCatalog::new([
+            OpInfo::new("counter", 1512, "1.0.0")
+                .params(ParamSchema::new(vec![ParamDecl::float("gain", 1.0)]))
+                .flags(vec![FlagDecl::new("counted", "done")]),
+            OpInfo::new("counter", 1512, "2.0.0"),
+        ])
+    }
+
+    #[test]
+    fn static_catalog_finds_by_name_or_id_first_match_wins() {
+        let c = catalog();
+        assert_eq!(
+            c.operation("counter").map(|o| o.version),
+            Some("1.0.0".into())
+        );
+        assert_eq!(c.operation("1512").map(|o| o.name), Some("counter".into()));
+        assert_eq!(c.operation("01512"), None);
+        assert_eq!(c.names(), ["counter"]);
+    }
+
+    #[test]
+    fn one_operation_by_name_and_by_id_in_one_action_is_rejected() {
+        let src = "[mission]\nname = \"m\"\n[[action]]\nname = \"a\"\n\
+                   [action.ops.counter]\n[action.ops.\"1512\"]\n";
+        let err = Mission::parse(src, None)
+            .and_then(|p| p.validate(&catalog()))
+            .unwrap_err();
+        assert_eq!(err.len(), 1);
+        assert_eq!((err.0[0].line, err.0[0].column), (6, 13));
+    }
+
+    #[test]
+    fn mission_helpers() {
+        let src = "[mission]\nname = \"m\"\nsuccess = [\"counted\"]\n[flags]\ncounted = 3\n\
+                   [[action]]\nname = \"a\"\n[action.ops.\"1512\"]\n\
+                   [[action]]\nname = \"b\"\n[action.ops.\"1512\"]\ngain = 2\n\
+                   [[action]]\nname = \"c\"\n[action.ops.counter]\n";
+        let m = Mission::parse(src, None)
+            .and_then(|p| p.validate(&catalog()))
+            .unwrap_or_else(|d| panic!("{d}"));
+        assert_eq!(m.ops().collect::<Vec<_>>(), ["1512", "counter"]);
+        assert_eq!(m.operation_names(), ["counter"]);
+        assert_eq!(m.actions[1].ops[0].params["gain"], Value::Float(2.0));
+        assert_eq!(m.flag_name(3), Some("counted"));
+        assert_eq!(m.flags_to_names(StatusFlags(0b1001)), ["#0", "counted"]);
+    }
+
+    #[test]
+    fn end_mode_reads_and_writes_as_in_the_file() {
+        assert_eq!(EndMode::default(), EndMode::Any);
+        assert_eq!(EndMode::All.to_string(), "all");
+        assert_eq!(
+            serde_json::to_string(&EndMode::All).ok().as_deref(),
+            Some("\"all\"")
+        );
+    }
+}

@@ -1,0 +1,236 @@
+//! Stage 2: a [`ParsedMission`] checked against the operations a [`Catalog`] offers.
+
+use super::diagnostic::{Diagnostic, Diagnostics};
+use super::raw::{list, q, ParsedOp, ParsedParam};
+use super::{Action, Catalog, Mission, OpInfo, OpRun, ParsedMission};
+use crate::flags::StatusFlags;
+use crate::property::{ParamMap, RejectReason};
+use std::collections::{BTreeMap, BTreeSet};
+
+/// Stage 2 entry point.
+pub(crate) fn validate<C: Catalog + ?Sized>(
+    pm: &ParsedMission,
+    catalog: &C,
+) -> Result<Mission, Diagnostics> {
+    let mut v = Validator {
+        file: &pm.file,
+        catalog,
+        diags: Vec::new(),
+        resolved: BTreeMap::new(),
+        available: None,
+        all_resolved: true,
+        raised: BTreeSet::new(),
+    };
+    let mut actions = Vec::new();
+    for a in &pm.actions {
+        let mut ops = Vec::new();
+        // canonical operation name -> key it was first written as, in this action
+        let mut seen: BTreeMap<String, &str> = BTreeMap::new();
+        for op in &a.ops {
+            let Some(info) = v.resolve(op) else { continue };
+            match seen.get(&info.name) {
+                Some(first) => {
+                    let msg = format!(
+                        "operation {} appears twice in action {} (as {} and {}; an operation runs once per action)",
+                        q(&info.name),
+                        q(&a.name),
+                        q(first),
+                        q(&op.key)
+                    );
+                    v.diags.push(Diagnostic::at(v.file, op.at, msg));
+                }
+                None => {
+                    seen.insert(info.name.clone(), &op.key);
+                }
+            }
+            v.raised.extend(info.flags.iter().map(|f| f.name.clone()));
+            let params = v.params(op, &info);
+            ops.push(OpRun {
+                key: op.key.clone(),
+                name: info.name.clone(),
+                id: info.id,
+                params,
+            });
+        }
+        actions.push(Action {
+            name: a.name.clone(),
+            when: bits(a.when.iter().map(|r| r.bit)),
+            ops,
+            ends_on: a.ends_on.clone(),
+            end_mode: a.end_mode,
+            deadline: a.deadline,
+        });
+    }
+    v.check_raisable(pm);
+    let mission = Mission {
+        name: pm.name.clone(),
+        description: pm.description.clone(),
+        path: pm.path.clone(),
+        flags: pm.flags.clone(),
+        initial: bits(pm.initial.iter().map(|r| r.bit)),
+        success: bits(pm.success.iter().map(|r| r.bit)),
+        deadline: pm.deadline,
+        actions,
+    };
+    Diagnostics(v.diags).into_result(mission)
+}
+
+fn bits(bits: impl Iterator<Item = u8>) -> StatusFlags {
+    bits.filter_map(StatusFlags::bit)
+        .fold(StatusFlags::EMPTY, |acc, b| acc | b)
+}
+
+struct Validator<'a, C: ?Sized> {
+    file: &'a str,
+    catalog: &'a C,
+    diags: Vec<Diagnostic>,
+    /// Catalog answers by key, so each key is asked once.
+    resolved: BTreeMap<String, Option<OpInfo>>,
+    /// `catalog.names()`, sorted, asked only when a key is unknown.
+    available: Option<Vec<String>>,
+    /// False once an operation is unknown: its flags are unknown too.
+    all_resolved: bool,
+    /// Names of the flags the mission's operations declare.
+    raised: BTreeSet<String>,
+}
+
+impl<C: Catalog + ?Sized> Validator<'_, C> {
+    fn resolve(&mut self, op: &ParsedOp) -> Option<OpInfo> {
+        let catalog = self.catalog;
+        let info = self
+            .resolved
+            .entry(op.key.clone())
+            .or_insert_with(|| catalog.operation(&op.key))
+            .clone();
+        if info.is_none() {
+            self.all_resolved = false;
+            let names = self.available.get_or_insert_with(|| {
+                let mut names = catalog.names();
+                names.sort();
+                names.dedup();
+                names
+            });
+            let msg = if names.is_empty() {
+                format!(
+                    "unknown operation {} (no operations are available)",
+                    q(&op.key)
+                )
+            } else {
+                format!(
+                    "unknown operation {} (available: {})",
+                    q(&op.key),
+                    list(names.iter())
+                )
+            };
+            self.diags.push(Diagnostic::at(self.file, op.at, msg));
+        }
+        info
+    }
+
+    /// The supplied parameters of `op`, checked and canonicalized; problems are reported.
+    fn params(&mut self, op: &ParsedOp, info: &OpInfo) -> ParamMap {
+        let mut out = ParamMap::new();
+        for p in &op.params {
+            if let Some(v) = self.param(p, info) {
+                out.insert(p.name.clone(), v);
+            }
+        }
+        out
+    }
+
+    fn param(&mut self, p: &ParsedParam, info: &OpInfo) -> Option<crate::property::Value> {
+        let Some(decl) = info.schema.get(&p.name) else {
+            let hint = if info.schema.is_empty() {
+                format!("operation {} has no parameters", q(&info.name))
+            } else {
+                format!(
+                    "expected one of: {}",
+                    list(info.schema.params.iter().map(|d| d.name.as_str()))
+                )
+            };
+            let msg = format!(
+                "unknown parameter {} of operation {} ({hint})",
+                q(&p.name),
+                q(&info.name)
+            );
+            self.diags.push(Diagnostic::at(self.file, p.at, msg));
+            return None;
+        };
+        if decl.read_only {
+            let msg = format!(
+                "parameter {} of operation {} is read-only: a mission may not set it",
+                q(&p.name),
+                q(&info.name)
+            );
+            self.diags.push(Diagnostic::at(self.file, p.at, msg));
+            return None;
+        }
+        match decl.check(&p.name, &p.value) {
+            Ok(v) => Some(v),
+            Err(r) => {
+                let at = p
+                    .value_at
+                    .get(&r.name)
+                    .or_else(|| p.value_at.get(&p.name))
+                    .copied()
+                    .unwrap_or(p.at);
+                let reason = match &r.reason {
+                    RejectReason::UnknownName => "unknown field".to_string(),
+                    other => other.to_string(),
+                };
+                let msg = if r.name == p.name {
+                    format!(
+                        "invalid value for parameter {} of operation {}: {reason}",
+                        q(&p.name),
+                        q(&info.name)
+                    )
+                } else {
+                    format!(
+                        "invalid value for parameter {} of operation {}: {}: {reason}",
+                        q(&p.name),
+                        q(&info.name),
+                        q(&r.name)
+                    )
+                };
+                self.diags.push(Diagnostic::at(self.file, at, msg));
+                None
+            }
+        }
+    }
+
+    /// Every flag a condition or the success set needs must be set initially or raised by
+    /// some operation of the mission. Skipped when an operation is unknown: what it raises is
+    /// unknown too, and it has been reported already.
+    fn check_raisable(&mut self, pm: &ParsedMission) {
+        if !self.all_resolved {
+            return;
+        }
+        let initial: BTreeSet<&str> = pm.initial.iter().map(|r| r.name.as_str()).collect();
+        let needed = pm
+            .success
+            .iter()
+            .chain(pm.actions.iter().flat_map(|a| a.when.iter()));
+        let raised: Vec<&str> = self
+            .raised
+            .iter()
+            .filter(|n| pm.flags.contains_key(n.as_str()))
+            .map(String::as_str)
+            .collect();
+        for r in needed {
+            if initial.contains(r.name.as_str()) || self.raised.contains(&r.name) {
+                continue;
+            }
+            let hint = if raised.is_empty() {
+                "they raise none of the mission's flags".to_string()
+            } else {
+                format!("they raise: {}", list(&raised))
+            };
+            let msg = format!(
+                "flag {} is never raised by any operation of this mission, nor set in `mission.initial` (needed by `{}`; {hint})",
+                q(&r.name),
+                r.field
+            );
+            self.diags.push(Diagnostic::at(self.file, r.at, msg));
+        }
+    }
+}

@@ -1,0 +1,98 @@
+//! The run report (DESIGN.md §8): what happened during a mission, as JSON.
+
+use serde::{Deserialize, Serialize};
+
+/// How a mission ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Outcome {
+    /// Every action ran and the success flags are set.
+    Succeeded,
+    /// Full stop: a stage failed, a deadline passed, or no action could run.
+    Failed,
+}
+
+/// One operation's part in an action.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct OpRecord {
+    /// Operation name.
+    pub name: String,
+    /// Numeric id.
+    pub id: u32,
+    /// Version of the instance used.
+    pub version: String,
+    /// Node it ran on.
+    pub node: String,
+    /// Actor address.
+    pub address: String,
+    /// `finished`, `suspended`, `failed` or `lost`.
+    pub ended: String,
+    /// Names of the flags it raised (those the mission maps).
+    pub flags: Vec<String>,
+}
+
+/// One action of the run.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ActionRecord {
+    /// Action name.
+    pub name: String,
+    /// Start, in ms of mission clock time since the run began.
+    pub start_ms: u64,
+    /// End, likewise.
+    pub end_ms: u64,
+    /// Status word after the action, as names.
+    pub flags: Vec<String>,
+    /// Status word after the action.
+    pub status: u32,
+    /// The operations it ran.
+    pub operations: Vec<OpRecord>,
+}
+
+/// A rebinding of an operation to another instance (filled by self-healing).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RebindRecord {
+    /// Operation name.
+    pub operation: String,
+    /// Why the old instance was left.
+    pub cause: String,
+    /// Old instance address.
+    pub from: String,
+    /// New instance address.
+    pub to: String,
+    /// Time without a bound instance.
+    pub downtime_ms: u64,
+}
+
+/// The whole report.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RunReport {
+    /// Mission name.
+    pub mission: String,
+    /// `succeeded` or `failed`.
+    pub outcome: Outcome,
+    /// Why it failed (empty on success).
+    pub reason: String,
+    /// Final status word.
+    pub status: u32,
+    /// Final status word, as names.
+    pub flags: Vec<String>,
+    /// Actions in the order they ran.
+    pub actions: Vec<ActionRecord>,
+    /// Rebindings during the run.
+    pub rebinds: Vec<RebindRecord>,
+    /// Mission clock time the run took, in ms.
+    pub duration_ms: u64,
+    /// Final pose `[x, y, heading]` of a robot, where the mission drives one.
+    pub final_pose: Option<[f64; 3]>,
+    /// Collisions counted by a simulation, where there is one.
+    pub collisions: Option<u64>,
+    /// Seed of a simulation, where there is one.
+    pub seed: Option<u64>,
+}
+
+impl RunReport {
+    /// True when the mission succeeded.
+    pub fn succeeded(&self) -> bool {
+        self.outcome == Outcome::Succeeded
+    }
+}

@@ -1,0 +1,311 @@
+//! The datamanager actor.
+//!
+//! # Invariants
+//! - Records get seq numbers 1, 2, 3, … in the order the DM handles `Store` and `Put`, and
+//!   time stamps from the DM's clock that never decrease with seq.
+//! - Every `SelectWait` is answered exactly once: at once if a matching record exists, when a
+//!   matching record is stored, or with nothing when its timeout passes on the DM's clock. A
+//!   wait whose caller has gone (closed reply port) is dropped without an answer.
+//! - The DM is in the registry (kind `Datamanager`, by name and by id) from the end of
+//!   `pre_start` — so as soon as the spawn returns — until it begins to stop; `pg` removes
+//!   the entry even if it crashes.
+
+use super::error::DmError;
+use super::messages::{DmMsg, DmStats};
+use super::query::Query;
+use super::record::{NewRecord, Record};
+use super::store::{DmConfig, Store};
+use super::waits::{TimerGuard, Waiter, Waits};
+use crate::clock::SharedClock;
+use crate::registry::{self, ModuleKind};
+use ractor::{Actor, ActorCell, ActorProcessingErr, ActorRef, RpcReplyPort, SpawnErr};
+use std::time::Duration;
+use tokio::task::JoinHandle;
+
+/// Identity of a well-known datamanager.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct DmSpec {
+    /// Numeric id (the thesis' DM ids are 1201–1203).
+    pub id: u32,
+    /// Registry name.
+    pub name: &'static str,
+}
+
+impl DmSpec {
+    /// Start-up arguments for this DM with `clock` and the default limits.
+    pub fn args(self, clock: SharedClock) -> DmArgs {
+        DmArgs {
+            id: self.id,
+            name: self.name.to_string(),
+            clock,
+            config: DmConfig::default(),
+        }
+    }
+}
+
+/// The world datamanager: world map, walls.
+pub const WORLD: DmSpec = DmSpec {
+    id: 1203,
+    name: "world",
+};
+
+/// The feature datamanager: sensor features such as sonar points and line segments.
+pub const FEATURE: DmSpec = DmSpec {
+    id: 1201,
+    name: "feature",
+};
+
+/// The parameter datamanager: parameters planned for a later task, e.g. the path to drive.
+pub const PARAMETER: DmSpec = DmSpec {
+    id: 1202,
+    name: "parameter",
+};
+
+/// Start-up arguments of a [`Datamanager`].
+#[derive(Clone)]
+pub struct DmArgs {
+    /// Numeric id it is published under.
+    pub id: u32,
+    /// Name it is published under (letters, digits, `-`, `_`, `.`; not all digits).
+    pub name: String,
+    /// Source of time stamps and wait timeouts.
+    pub clock: SharedClock,
+    /// Retention and payload limits.
+    pub config: DmConfig,
+}
+
+impl std::fmt::Debug for DmArgs {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("DmArgs")
+            .field("id", &self.id)
+            .field("name", &self.name)
+            .field("config", &self.config)
+            .finish_non_exhaustive()
+    }
+}
+
+/// The datamanager actor: an indexed record store that speaks [`DmMsg`].
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Datamanager;
+
+/// State of a [`Datamanager`].
+pub struct DmState {
+    id: u32,
+    name: String,
+    clock: SharedClock,
+    store: Store,
+    waits: Waits,
+    refused_puts: u64,
+}
+
+impl DmState {
+    fn stats(&self) -> DmStats {
+        DmStats {
+            id: self.id,
+            name: self.name.clone(),
+            records: self.store.len() as u64,
+            classes: self.store.class_counts(),
+            first_seq: self.store.first_seq(),
+            last_seq: self.store.last_seq(),
+            next_seq: self.store.next_seq(),
+            pending_waits: self.waits.len() as u64,
+            dropped: self.store.dropped(),
+            deleted: self.store.deleted(),
+            refused_puts: self.refused_puts,
+        }
+    }
+
+    fn store(&mut self, record: NewRecord) -> Result<u64, DmError> {
+        let seq = self.store.insert(record, self.clock.now())?;
+        if !self.waits.is_empty() {
+            self.wake(seq);
+        }
+        Ok(seq)
+    }
+
+    /// Answer the waits that the record `seq` satisfies.
+    fn wake(&mut self, seq: u64) {
+        let Some(class) = self.store.class_of(seq) else {
+            return;
+        };
+        let store = &self.store;
+        let ready = self
+            .waits
+            .take_satisfied(class, |query| store.matches(seq, query));
+        for waiter in ready {
+            let answer = self.store.select(&waiter.query);
+            tracing::trace!(dm = %self.name, wait = waiter.id, records = answer.len(), "wait answered");
+            let _ = waiter.reply.send(answer);
+        }
+    }
+
+    fn select_wait(
+        &mut self,
+        myself: &ActorRef<DmMsg>,
+        query: Query,
+        timeout_ms: u64,
+        reply: RpcReplyPort<Vec<Record>>,
+    ) {
+        let answer = self.store.select(&query);
+        if !answer.is_empty() || timeout_ms == 0 {
+            let _ = reply.send(answer);
+            return;
+        }
+        if reply.is_closed() {
+            return;
+        }
+        let id = self.waits.next_id();
+        let sleep = self.clock.sleep(Duration::from_millis(timeout_ms));
+        let me = myself.clone();
+        let timer = ractor::concurrency::spawn(async move {
+            sleep.await;
+            let _ = me.cast(DmMsg::WaitExpired { id });
+        });
+        self.waits.add(Waiter {
+            id,
+            query,
+            reply,
+            _timer: Some(TimerGuard(timer)),
+        });
+    }
+}
+
+/// Same rule as the registry's: a single word of letters, digits, `-`, `_`, `.`, not all
+/// digits (those are ids). Checked first in `pre_start`, so a bad name fails the spawn
+/// before anything is published.
+fn valid_name(name: &str) -> bool {
+    !name.is_empty()
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'))
+        && !name.chars().all(|c| c.is_ascii_digit())
+}
+
+impl Actor for Datamanager {
+    type Msg = DmMsg;
+    type State = DmState;
+    type Arguments = DmArgs;
+
+    async fn pre_start(
+        &self,
+        myself: ActorRef<DmMsg>,
+        args: DmArgs,
+    ) -> Result<DmState, ActorProcessingErr> {
+        if !valid_name(&args.name) {
+            return Err(format!(
+                "invalid datamanager name {:?}: use letters, digits, '-', '_' or '.'",
+                args.name
+            )
+            .into());
+        }
+        // Published last, once nothing can fail any more: when `spawn_datamanager` returns
+        // the DM is already listed, and messages sent before it runs wait in its mailbox.
+        registry::publish(
+            ModuleKind::Datamanager,
+            args.id,
+            &args.name,
+            myself.get_cell(),
+        )?;
+        tracing::debug!(dm = %args.name, id = args.id, actor = %myself.get_id(), "datamanager started");
+        Ok(DmState {
+            id: args.id,
+            name: args.name,
+            clock: args.clock,
+            store: Store::new(args.config),
+            waits: Waits::default(),
+            refused_puts: 0,
+        })
+    }
+
+    async fn post_stop(
+        &self,
+        myself: ActorRef<DmMsg>,
+        state: &mut DmState,
+    ) -> Result<(), ActorProcessingErr> {
+        // pg already dropped the entry when the actor began stopping; this is for clarity.
+        registry::unpublish(
+            ModuleKind::Datamanager,
+            state.id,
+            &state.name,
+            &myself.get_cell(),
+        );
+        tracing::debug!(dm = %state.name, records = state.store.len(), pending = state.waits.len(), "datamanager stopped");
+        Ok(())
+    }
+
+    async fn handle(
+        &self,
+        myself: ActorRef<DmMsg>,
+        msg: DmMsg,
+        state: &mut DmState,
+    ) -> Result<(), ActorProcessingErr> {
+        match msg {
+            DmMsg::Put { record } => {
+                if let Err(e) = state.store(record) {
+                    state.refused_puts += 1;
+                    tracing::warn!(dm = %state.name, error = %e, "put refused");
+                }
+            }
+            DmMsg::Store { record, reply } => {
+                let outcome = state.store(record);
+                if let Err(e) = &outcome {
+                    tracing::debug!(dm = %state.name, error = %e, "store refused");
+                }
+                let _ = reply.send(outcome);
+            }
+            DmMsg::Select { query, reply } => {
+                let _ = reply.send(state.store.select(&query));
+            }
+            DmMsg::SelectWait {
+                query,
+                timeout_ms,
+                reply,
+            } => state.select_wait(&myself, query, timeout_ms, reply),
+            DmMsg::WaitExpired { id } => {
+                if let Some(waiter) = state.waits.take(id) {
+                    tracing::trace!(dm = %state.name, wait = id, "wait timed out");
+                    let _ = waiter.reply.send(Vec::new());
+                }
+            }
+            DmMsg::Delete { query, reply } => {
+                let n = state.store.delete(&query);
+                tracing::debug!(dm = %state.name, deleted = n, "delete");
+                let _ = reply.send(n);
+            }
+            DmMsg::Stats { reply } => {
+                let _ = reply.send(state.stats());
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Spawn a datamanager, unsupervised. The handle completes when it stops.
+pub async fn spawn_datamanager(
+    args: DmArgs,
+) -> Result<(ActorRef<DmMsg>, JoinHandle<()>), SpawnErr> {
+    Actor::spawn(None, Datamanager, args).await
+}
+
+/// Spawn a datamanager linked to `supervisor`.
+pub async fn spawn_datamanager_linked(
+    args: DmArgs,
+    supervisor: ActorCell,
+) -> Result<(ActorRef<DmMsg>, JoinHandle<()>), SpawnErr> {
+    Actor::spawn_linked(None, Datamanager, args, supervisor).await
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names() {
+        assert!(valid_name("world"));
+        assert!(valid_name("dm-test.1"));
+        assert!(!valid_name("1203"));
+        assert!(!valid_name("a b"));
+        assert!(!valid_name(""));
+        assert_eq!((WORLD.id, FEATURE.id, PARAMETER.id), (1203, 1201, 1202));
+    }
+}

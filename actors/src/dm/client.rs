@@ -1,0 +1,231 @@
+//! A typed handle for the dm-interface.
+
+use super::error::DmError;
+use super::messages::{DmMsg, DmStats};
+use super::query::Query;
+use super::record::{NewRecord, Payload, Record, RecordHeader};
+use super::subscription::Subscription;
+use crate::registry::{self, Instance, ModuleKind};
+use ractor::rpc::CallResult;
+use ractor::{ActorRef, RpcReplyPort};
+use serde::de::DeserializeOwned;
+use serde::Serialize;
+use std::time::Duration;
+
+/// A typed handle to a datamanager, for one producer/consumer (`source`). Cheap to clone.
+///
+/// Requests that find the actor gone fail with [`DmError::Unreachable`]; requests that get no
+/// answer in time with [`DmError::Timeout`].
+#[derive(Clone, Debug)]
+pub struct DmClient {
+    actor: ActorRef<DmMsg>,
+    dm: String,
+    source: String,
+    timeout: Duration,
+}
+
+impl DmClient {
+    /// Default deadline of a request (a `select_wait` gets its wait on top).
+    pub const DEFAULT_TIMEOUT: Duration = Duration::from_secs(5);
+
+    /// A handle to `actor`, storing records as `source`.
+    pub fn new(actor: ActorRef<DmMsg>, source: impl Into<String>) -> DmClient {
+        let dm = actor
+            .get_name()
+            .unwrap_or_else(|| actor.get_id().to_string());
+        DmClient {
+            actor,
+            dm,
+            source: source.into(),
+            timeout: Self::DEFAULT_TIMEOUT,
+        }
+    }
+
+    /// A handle to a datamanager found in the registry.
+    pub fn from_instance(instance: &Instance, source: impl Into<String>) -> DmClient {
+        DmClient {
+            actor: instance.actor.clone().into(),
+            dm: instance.name.clone(),
+            source: source.into(),
+            timeout: Self::DEFAULT_TIMEOUT,
+        }
+    }
+
+    /// A handle to the first live datamanager registered as `name_or_id` (`world`, `1203`),
+    /// local ones first.
+    pub fn lookup(name_or_id: &str, source: &str) -> Result<DmClient, DmError> {
+        registry::lookup(ModuleKind::Datamanager, name_or_id)
+            .first()
+            .map(|inst| DmClient::from_instance(inst, source))
+            .ok_or_else(|| DmError::NotRegistered(name_or_id.to_string()))
+    }
+
+    /// Use `timeout` as the deadline of requests.
+    pub fn with_timeout(mut self, timeout: Duration) -> DmClient {
+        self.timeout = timeout;
+        self
+    }
+
+    /// The actor behind the handle.
+    pub fn actor(&self) -> &ActorRef<DmMsg> {
+        &self.actor
+    }
+
+    /// The datamanager's name as errors report it.
+    pub fn dm_name(&self) -> &str {
+        &self.dm
+    }
+
+    /// The producer name records are stored under.
+    pub fn source(&self) -> &str {
+        &self.source
+    }
+
+    /// The deadline of requests.
+    pub fn timeout(&self) -> Duration {
+        self.timeout
+    }
+
+    fn unreachable(&self) -> DmError {
+        DmError::Unreachable(self.dm.clone())
+    }
+
+    async fn call<T: Send + 'static>(
+        &self,
+        deadline: Duration,
+        make: impl FnOnce(RpcReplyPort<T>) -> DmMsg,
+    ) -> Result<T, DmError> {
+        match self.actor.call(make, Some(deadline)).await {
+            Ok(CallResult::Success(v)) => Ok(v),
+            Ok(CallResult::Timeout) => Err(DmError::Timeout {
+                dm: self.dm.clone(),
+                after: deadline,
+            }),
+            Ok(CallResult::SenderError) | Err(_) => Err(self.unreachable()),
+        }
+    }
+
+    fn record<T: Serialize + ?Sized>(
+        &self,
+        class: &str,
+        sub1: Option<&str>,
+        sub2: Option<&str>,
+        value: &T,
+    ) -> Result<NewRecord, DmError> {
+        Ok(NewRecord {
+            source: self.source.clone(),
+            class: class.to_string(),
+            sub1: sub1.map(str::to_string),
+            sub2: sub2.map(str::to_string),
+            payload: Payload::encode(value)?,
+        })
+    }
+
+    fn fill_source(&self, mut record: NewRecord) -> NewRecord {
+        if record.source.is_empty() {
+            record.source.clone_from(&self.source);
+        }
+        record
+    }
+
+    /// Store `value` (as MessagePack) under `class` / `sub1` / `sub2`. Returns its seq.
+    pub async fn store<T: Serialize + ?Sized>(
+        &self,
+        class: &str,
+        sub1: Option<&str>,
+        sub2: Option<&str>,
+        value: &T,
+    ) -> Result<u64, DmError> {
+        let record = self.record(class, sub1, sub2, value)?;
+        self.store_raw(record).await
+    }
+
+    /// Store `value` without waiting for the DM (for high-rate data). Bad names are refused
+    /// here; what the DM refuses afterwards (e.g. a payload over its limit) is only logged and
+    /// counted there.
+    pub fn put<T: Serialize + ?Sized>(
+        &self,
+        class: &str,
+        sub1: Option<&str>,
+        sub2: Option<&str>,
+        value: &T,
+    ) -> Result<(), DmError> {
+        let record = self.record(class, sub1, sub2, value)?;
+        self.put_raw(record)
+    }
+
+    /// Store a prepared record; an empty `source` becomes this client's. Returns its seq.
+    pub async fn store_raw(&self, record: NewRecord) -> Result<u64, DmError> {
+        let record = self.fill_source(record);
+        self.call(self.timeout, |reply| DmMsg::Store { record, reply })
+            .await?
+    }
+
+    /// [`DmClient::put`] for a prepared record.
+    pub fn put_raw(&self, record: NewRecord) -> Result<(), DmError> {
+        let record = self.fill_source(record);
+        record.validate()?;
+        self.actor
+            .cast(DmMsg::Put { record })
+            .map_err(|_| self.unreachable())
+    }
+
+    /// Every record matching `query`, oldest-first.
+    pub async fn select(&self, query: Query) -> Result<Vec<Record>, DmError> {
+        self.call(self.timeout, |reply| DmMsg::Select { query, reply })
+            .await
+    }
+
+    /// Every record matching `query`, with its payload decoded as a `T`. One payload that
+    /// does not decode fails the whole answer.
+    pub async fn select_typed<T: DeserializeOwned>(
+        &self,
+        query: Query,
+    ) -> Result<Vec<(RecordHeader, T)>, DmError> {
+        self.select(query)
+            .await?
+            .into_iter()
+            .map(|r| {
+                let (header, payload) = r.into_parts();
+                Ok((header, payload.decode()?))
+            })
+            .collect()
+    }
+
+    /// Records matching `query`; if none exist yet, wait up to `wait` (on the DM's clock) for
+    /// one to be stored. An empty answer means the wait passed.
+    pub async fn select_wait(&self, query: Query, wait: Duration) -> Result<Vec<Record>, DmError> {
+        let timeout_ms = u64::try_from(wait.as_millis()).unwrap_or(u64::MAX);
+        self.call(self.timeout.saturating_add(wait), |reply| {
+            DmMsg::SelectWait {
+                query,
+                timeout_ms,
+                reply,
+            }
+        })
+        .await
+    }
+
+    /// Delete the records matching `query`; returns how many.
+    pub async fn delete(&self, query: Query) -> Result<u64, DmError> {
+        self.call(self.timeout, |reply| DmMsg::Delete { query, reply })
+            .await
+    }
+
+    /// What the DM holds.
+    pub async fn stats(&self) -> Result<DmStats, DmError> {
+        self.call(self.timeout, |reply| DmMsg::Stats { reply })
+            .await
+    }
+
+    /// Receive, in seq order, every record matching `query` that is stored after this call
+    /// returns — or from `query.seq_from` on, if the query sets it (a replay). The query's
+    /// newest/oldest limit is ignored. See [`Subscription`] for how it works and why.
+    pub async fn subscribe(&self, query: Query) -> Result<Subscription, DmError> {
+        let start = match query.seq_from {
+            Some(seq) => seq,
+            None => self.stats().await?.next_seq,
+        };
+        Ok(Subscription::start(self.clone(), query, start))
+    }
+}

@@ -1,0 +1,55 @@
+//! The one error type of the dm-interface.
+
+use serde::{Deserialize, Serialize};
+use std::time::Duration;
+
+/// Why a datamanager request failed.
+///
+/// It crosses nodes inside the `Store` reply, so it is serializable and carries plain strings.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, thiserror::Error)]
+pub enum DmError {
+    /// A class, sub-class or source name is empty, too long, or holds control characters.
+    #[error("invalid {field} {value:?}: {reason}")]
+    InvalidName {
+        /// Which name (`class`, `sub1`, `sub2`, `source`).
+        field: String,
+        /// The refused name (cut to a readable length).
+        value: String,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// The record is malformed in some other way (e.g. a `sub2` without a `sub1`).
+    #[error("invalid record: {0}")]
+    InvalidRecord(String),
+    /// The payload is larger than the datamanager accepts.
+    #[error("payload of {size} bytes exceeds the limit of {max} bytes")]
+    PayloadTooLarge {
+        /// Size of the refused payload.
+        size: u64,
+        /// The datamanager's limit.
+        max: u64,
+    },
+    /// The datamanager has handed out every sequence number (2^64 records).
+    #[error("sequence numbers exhausted")]
+    SeqExhausted,
+    /// A value could not be encoded as MessagePack.
+    #[error("cannot encode payload: {0}")]
+    Encode(String),
+    /// A payload did not decode into the requested type.
+    #[error("cannot decode payload: {0}")]
+    Decode(String),
+    /// No datamanager with this name or id is in the registry.
+    #[error("no datamanager {0:?} is registered")]
+    NotRegistered(String),
+    /// The datamanager's actor is gone (stopped, crashed, or its node is unreachable).
+    #[error("datamanager {0} is not reachable")]
+    Unreachable(String),
+    /// The datamanager did not answer within the deadline.
+    #[error("datamanager {dm} did not answer within {after:?}")]
+    Timeout {
+        /// The datamanager asked.
+        dm: String,
+        /// The deadline that passed.
+        after: Duration,
+    },
+}

@@ -1,0 +1,106 @@
+//! dm-interface messages (thesis 3.2.5.2, DESIGN.md §3).
+
+use super::error::DmError;
+use super::query::Query;
+use super::record::{NewRecord, Record};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+/// What a datamanager holds, from a `Stats` request.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct DmStats {
+    /// The DM's numeric id (e.g. 1203).
+    pub id: u32,
+    /// The DM's name (e.g. `world`).
+    pub name: String,
+    /// Records stored now.
+    pub records: u64,
+    /// Records stored now, per class.
+    pub classes: BTreeMap<String, u64>,
+    /// Seq of the oldest stored record.
+    pub first_seq: Option<u64>,
+    /// Seq of the newest stored record.
+    pub last_seq: Option<u64>,
+    /// The seq the next record will get (everything below it has been handed out).
+    pub next_seq: u64,
+    /// `SelectWait`s waiting for a record.
+    pub pending_waits: u64,
+    /// Records dropped by retention since the DM started.
+    pub dropped: u64,
+    /// Records deleted by query since the DM started.
+    pub deleted: u64,
+    /// `Put`s refused (bad names, payload too large) since the DM started; a cast has no
+    /// reply to carry the error, so it is counted and logged.
+    pub refused_puts: u64,
+}
+
+crate::remote_message! {
+    /// Messages a [`super::Datamanager`] understands: the dm-interface.
+    pub enum DmMsg {
+        /// Store a record; the reply is its seq, or why it was refused.
+        Store { record: NewRecord } -> Result<u64, DmError>,
+        /// Store a record without waiting for the answer (for high-rate sensors). A refused
+        /// record is logged and counted in [`DmStats::refused_puts`].
+        Put { record: NewRecord },
+        /// Every stored record matching the query, oldest-first.
+        Select { query: Query } -> Vec<Record>,
+        /// Like `Select`, but if nothing matches yet, wait until a matching record is stored
+        /// (then answer as `Select` would) or until `timeout_ms` pass on the DM's clock (then
+        /// answer with nothing). The thesis DM's pending wait.
+        SelectWait { query: Query, timeout_ms: u64 } -> Vec<Record>,
+        /// Delete every record matching the query (respecting its newest/oldest limit); the
+        /// reply is how many were deleted.
+        Delete { query: Query } -> u64,
+        /// What the DM holds.
+        Stats {} -> DmStats,
+    }
+    local {
+        /// The timeout of pending wait `id` passed.
+        WaitExpired { id: u64 },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dm::record::Payload;
+    use ractor::message::SerializedMessage;
+    use ractor::Message;
+
+    #[test]
+    fn put_crosses_the_wire() {
+        let rec = NewRecord::new("sonar", Payload(vec![1, 2]))
+            .with_sub1("front")
+            .with_source("us");
+        let wire = DmMsg::Put {
+            record: rec.clone(),
+        }
+        .serialize()
+        .unwrap();
+        match DmMsg::deserialize(wire).unwrap() {
+            DmMsg::Put { record } => assert_eq!(record, rec),
+            other => panic!("wrong variant {other:?}"),
+        }
+        assert!(DmMsg::WaitExpired { id: 1 }.serialize().is_err());
+    }
+
+    #[tokio::test]
+    async fn store_reply_crosses_the_bridge() {
+        let (tx, rx) = ractor::concurrency::oneshot();
+        let wire = DmMsg::Store {
+            record: NewRecord::default(),
+            reply: tx.into(),
+        }
+        .serialize()
+        .unwrap();
+        assert!(matches!(wire, SerializedMessage::Call { .. }));
+        match DmMsg::deserialize(wire).unwrap() {
+            DmMsg::Store { reply, .. } => {
+                reply.send(Err(DmError::InvalidRecord("x".into()))).unwrap();
+            }
+            other => panic!("wrong variant {other:?}"),
+        }
+        assert_eq!(rx.await.unwrap(), Err(DmError::InvalidRecord("x".into())));
+    }
+}

@@ -1,0 +1,348 @@
+//! Records: what a datamanager stores.
+//!
+//! A producer hands the DM a [`NewRecord`] — its own name as `source`, a class, up to two
+//! sub-classes and an opaque MessagePack [`Payload`]. The DM adds the header fields the thesis
+//! names (3.2.5.2): a sequence number (strictly increasing per DM, from 1) and a time stamp
+//! from its clock, and hands the result back as a [`Record`].
+
+use super::error::DmError;
+use serde::de::{self, DeserializeOwned, SeqAccess, Visitor};
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
+use std::fmt;
+use std::time::Duration;
+
+/// Longest class, sub-class or source name, in bytes.
+pub const MAX_NAME_LEN: usize = 255;
+
+/// An opaque MessagePack value that producer and consumer agree on.
+///
+/// It travels as MessagePack `bin` (one length prefix, not one tag per byte) and also reads a
+/// sequence of bytes, so JSON or a peer that wrote an array of `u8` can be decoded too.
+#[derive(Clone, Default, PartialEq, Eq, Hash)]
+pub struct Payload(pub Vec<u8>);
+
+impl Payload {
+    /// Encode `value` as MessagePack (a map with field names, so fields can be added later).
+    pub fn encode<T: Serialize + ?Sized>(value: &T) -> Result<Payload, DmError> {
+        crate::wire::encode(value)
+            .map(Payload)
+            .map_err(|e| DmError::Encode(e.to_string()))
+    }
+
+    /// Decode the payload as a `T`.
+    pub fn decode<T: DeserializeOwned>(&self) -> Result<T, DmError> {
+        crate::wire::decode(&self.0).map_err(|e| DmError::Decode(e.to_string()))
+    }
+
+    /// Wrap bytes that are already MessagePack.
+    pub fn from_bytes(bytes: Vec<u8>) -> Payload {
+        Payload(bytes)
+    }
+
+    /// The raw bytes.
+    pub fn as_bytes(&self) -> &[u8] {
+        &self.0
+    }
+
+    /// Size in bytes.
+    pub fn len(&self) -> usize {
+        self.0.len()
+    }
+
+    /// True for an empty payload.
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+
+    /// The raw bytes, by value.
+    pub fn into_bytes(self) -> Vec<u8> {
+        self.0
+    }
+}
+
+impl fmt::Debug for Payload {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "Payload({} bytes)", self.0.len())
+    }
+}
+
+impl Serialize for Payload {
+    fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.serialize_bytes(&self.0)
+    }
+}
+
+impl<'de> Deserialize<'de> for Payload {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct BytesVisitor;
+
+        impl<'de> Visitor<'de> for BytesVisitor {
+            type Value = Payload;
+
+            fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                f.write_str("bytes or a sequence of u8")
+            }
+
+            fn visit_bytes<E: de::Error>(self, v: &[u8]) -> Result<Payload, E> {
+                Ok(Payload(v.to_vec()))
+            }
+
+            fn visit_byte_buf<E: de::Error>(self, v: Vec<u8>) -> Result<Payload, E> {
+                Ok(Payload(v))
+            }
+
+            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Payload, A::Error> {
+                // Cap the pre-allocation: the hint comes from the peer.
+                let mut out = Vec::with_capacity(seq.size_hint().unwrap_or(0).min(64 * 1024));
+                while let Some(b) = seq.next_element::<u8>()? {
+                    out.push(b);
+                }
+                Ok(Payload(out))
+            }
+        }
+
+        deserializer.deserialize_byte_buf(BytesVisitor)
+    }
+}
+
+/// A record as a producer hands it to a datamanager: everything except the header fields
+/// the DM fills in.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct NewRecord {
+    /// The producer's name (a [`super::DmClient`] fills in its own).
+    pub source: String,
+    /// The record's class, e.g. `sonar`.
+    pub class: String,
+    /// First sub-class level, e.g. `front`.
+    pub sub1: Option<String>,
+    /// Second sub-class level (requires `sub1`), e.g. `narrow`.
+    pub sub2: Option<String>,
+    /// The MessagePack payload.
+    pub payload: Payload,
+}
+
+impl NewRecord {
+    /// A record of `class` with `payload`, no sub-classes and no source yet.
+    pub fn new(class: impl Into<String>, payload: Payload) -> NewRecord {
+        NewRecord {
+            class: class.into(),
+            payload,
+            ..Default::default()
+        }
+    }
+
+    /// A record of `class` whose payload is `value` encoded as MessagePack.
+    pub fn encode<T: Serialize + ?Sized>(
+        class: impl Into<String>,
+        value: &T,
+    ) -> Result<NewRecord, DmError> {
+        Ok(NewRecord::new(class, Payload::encode(value)?))
+    }
+
+    /// Set the first sub-class.
+    pub fn with_sub1(mut self, sub1: impl Into<String>) -> NewRecord {
+        self.sub1 = Some(sub1.into());
+        self
+    }
+
+    /// Set the second sub-class (the record also needs a first one).
+    pub fn with_sub2(mut self, sub2: impl Into<String>) -> NewRecord {
+        self.sub2 = Some(sub2.into());
+        self
+    }
+
+    /// Set the producer's name.
+    pub fn with_source(mut self, source: impl Into<String>) -> NewRecord {
+        self.source = source.into();
+        self
+    }
+
+    /// Check the names: class and source non-empty, every name at most [`MAX_NAME_LEN`] bytes
+    /// without control characters, and `sub2` only together with `sub1`.
+    pub fn validate(&self) -> Result<(), DmError> {
+        check_name("class", &self.class)?;
+        check_name("source", &self.source)?;
+        if let Some(s) = &self.sub1 {
+            check_name("sub1", s)?;
+        }
+        if let Some(s) = &self.sub2 {
+            check_name("sub2", s)?;
+            if self.sub1.is_none() {
+                return Err(DmError::InvalidRecord(
+                    "a second sub-class needs a first one".to_string(),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Check one name of a record; `field` names it in the error.
+pub(crate) fn check_name(field: &str, value: &str) -> Result<(), DmError> {
+    let reason = if value.is_empty() {
+        "must not be empty"
+    } else if value.len() > MAX_NAME_LEN {
+        "is longer than 255 bytes"
+    } else if value.chars().any(char::is_control) {
+        "must not contain control characters"
+    } else {
+        return Ok(());
+    };
+    let mut shown: String = value.chars().take(64).collect();
+    if shown.len() < value.len() {
+        shown.push('…');
+    }
+    Err(DmError::InvalidName {
+        field: field.to_string(),
+        value: shown,
+        reason: reason.to_string(),
+    })
+}
+
+/// A stored record: the header the DM filled in, the producer's classification and payload.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Record {
+    /// Sequence number: per DM, strictly increasing from 1, never reused.
+    pub seq: u64,
+    /// When the DM stored it, on the DM's clock. Non-decreasing with `seq`.
+    pub timestamp: Duration,
+    /// The producer's name.
+    pub source: String,
+    /// The producer's class.
+    pub class: String,
+    /// First sub-class level.
+    pub sub1: Option<String>,
+    /// Second sub-class level.
+    pub sub2: Option<String>,
+    /// The MessagePack payload.
+    pub payload: Payload,
+}
+
+impl Record {
+    /// Decode the payload as a `T`.
+    pub fn decode<T: DeserializeOwned>(&self) -> Result<T, DmError> {
+        self.payload.decode()
+    }
+
+    /// Everything but the payload.
+    pub fn header(&self) -> RecordHeader {
+        RecordHeader {
+            seq: self.seq,
+            timestamp: self.timestamp,
+            source: self.source.clone(),
+            class: self.class.clone(),
+            sub1: self.sub1.clone(),
+            sub2: self.sub2.clone(),
+        }
+    }
+
+    /// Split into the header and the payload without copying.
+    pub fn into_parts(self) -> (RecordHeader, Payload) {
+        (
+            RecordHeader {
+                seq: self.seq,
+                timestamp: self.timestamp,
+                source: self.source,
+                class: self.class,
+                sub1: self.sub1,
+                sub2: self.sub2,
+            },
+            self.payload,
+        )
+    }
+}
+
+/// A record without its payload, e.g. beside a decoded value from
+/// [`super::DmClient::select_typed`].
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct RecordHeader {
+    /// Sequence number.
+    pub seq: u64,
+    /// Time stamp on the DM's clock.
+    pub timestamp: Duration,
+    /// The producer's name.
+    pub source: String,
+    /// The producer's class.
+    pub class: String,
+    /// First sub-class level.
+    pub sub1: Option<String>,
+    /// Second sub-class level.
+    pub sub2: Option<String>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Debug, PartialEq, Serialize, Deserialize)]
+    struct Echo {
+        range_m: f64,
+        beam: String,
+    }
+
+    #[test]
+    fn payload_round_trips_typed_values() {
+        let v = Echo {
+            range_m: 1.25,
+            beam: "narrow".into(),
+        };
+        let p = Payload::encode(&v).unwrap();
+        assert_eq!(p.decode::<Echo>().unwrap(), v);
+        assert!(matches!(p.decode::<u32>(), Err(DmError::Decode(_))));
+    }
+
+    #[test]
+    fn payload_travels_as_bin_and_reads_sequences() {
+        let p = Payload(vec![1, 2, 3]);
+        let bytes = crate::wire::encode(&p).unwrap();
+        assert_eq!(bytes, vec![0xc4, 3, 1, 2, 3]); // msgpack bin8
+        assert_eq!(crate::wire::decode::<Payload>(&bytes).unwrap(), p);
+        let as_array = crate::wire::encode(&vec![1u8, 2, 3]).unwrap();
+        assert_eq!(crate::wire::decode::<Payload>(&as_array).unwrap(), p);
+        let json = serde_json::to_string(&p).unwrap();
+        assert_eq!(serde_json::from_str::<Payload>(&json).unwrap(), p);
+        assert!(crate::wire::decode::<Payload>(&[0xc1]).is_err());
+    }
+
+    #[test]
+    fn record_round_trips() {
+        let r = Record {
+            seq: 7,
+            timestamp: Duration::from_millis(1500),
+            source: "ultrasonic".into(),
+            class: "sonar".into(),
+            sub1: Some("front".into()),
+            sub2: None,
+            payload: Payload::encode(&3u8).unwrap(),
+        };
+        let bytes = crate::wire::encode(&r).unwrap();
+        assert_eq!(crate::wire::decode::<Record>(&bytes).unwrap(), r);
+        let (h, p) = r.clone().into_parts();
+        assert_eq!(h, r.header());
+        assert_eq!(p, r.payload);
+    }
+
+    #[test]
+    fn validation_names_the_field() {
+        let ok = NewRecord::new("sonar", Payload::default()).with_source("us");
+        assert!(ok.validate().is_ok());
+        let e = NewRecord::new("", Payload::default())
+            .with_source("us")
+            .validate();
+        assert!(matches!(e, Err(DmError::InvalidName { ref field, .. }) if field == "class"));
+        let e = NewRecord::new("sonar", Payload::default()).validate();
+        assert!(matches!(e, Err(DmError::InvalidName { ref field, .. }) if field == "source"));
+        let e = ok.clone().with_sub1("a\nb").validate();
+        assert!(matches!(e, Err(DmError::InvalidName { ref field, .. }) if field == "sub1"));
+        let e = ok.clone().with_sub2("narrow").validate();
+        assert!(matches!(e, Err(DmError::InvalidRecord(_))));
+        let long = "x".repeat(MAX_NAME_LEN + 1);
+        let e = NewRecord::new(long, Payload::default())
+            .with_source("us")
+            .validate();
+        assert!(
+            matches!(e, Err(DmError::InvalidName { ref value, .. }) if value.chars().count() == 65)
+        );
+    }
+}

@@ -1,0 +1,93 @@
+//! Property request round trip through an EO host vs a raw ractor `call` to a trivial actor,
+//! measured in the same run (goal: ≤ 1.2×).
+//!
+//! `cargo bench --bench property`
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use marie_actors::eo::EoMsg;
+use marie_actors::eo::{
+    spawn_operation, HostOptions, Identity, OpContext, OpError, Operation, Step,
+};
+use marie_actors::property::{Group, ParamDecl, ParamSchema, PropertyRequest};
+use ractor::{Actor, ActorProcessingErr, ActorRef, RpcReplyPort};
+use std::time::Duration;
+
+struct Idle;
+impl Operation for Idle {
+    fn identity(&self) -> Identity {
+        Identity::new("bench-idle", 9900, "1.0.0", "does nothing")
+    }
+    fn parameters(&self) -> ParamSchema {
+        ParamSchema::new(vec![ParamDecl::float("x", 1.0).range(0.0, 2.0)])
+    }
+    async fn step(&mut self, _: &mut OpContext) -> Result<Step, OpError> {
+        Ok(Step::Continue)
+    }
+}
+
+/// The baseline: an actor that answers a call with a small struct.
+struct Echo;
+enum EchoMsg {
+    Ask(RpcReplyPort<(u32, String)>),
+}
+impl ractor::Message for EchoMsg {}
+impl Actor for Echo {
+    type Msg = EchoMsg;
+    type State = ();
+    type Arguments = ();
+    async fn pre_start(&self, _: ActorRef<EchoMsg>, _: ()) -> Result<(), ActorProcessingErr> {
+        Ok(())
+    }
+    async fn handle(
+        &self,
+        _: ActorRef<EchoMsg>,
+        msg: EchoMsg,
+        _: &mut (),
+    ) -> Result<(), ActorProcessingErr> {
+        let EchoMsg::Ask(reply) = msg;
+        let _ = reply.send((9900, "bench-idle".to_string()));
+        Ok(())
+    }
+}
+
+fn bench(c: &mut Criterion) {
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    let (op, echo) = rt.block_on(async {
+        let (op, _) = spawn_operation(Idle, HostOptions::default()).await.unwrap();
+        let (echo, _) = Actor::spawn(None, Echo, ()).await.unwrap();
+        (op, echo)
+    });
+    let mut g = c.benchmark_group("property_round_trip");
+    g.measurement_time(Duration::from_secs(5));
+    g.bench_function("raw_ractor_call", |b| {
+        b.to_async(&rt)
+            .iter(|| async { ractor::call!(echo, EchoMsg::Ask).unwrap() })
+    });
+    g.bench_function("property_identification", |b| {
+        b.to_async(&rt).iter(|| async {
+            ractor::call!(op, |reply| EoMsg::Property {
+                request: PropertyRequest::Group(Group::Identification),
+                reply
+            })
+            .unwrap()
+        })
+    });
+    g.bench_function("property_get_version", |b| {
+        b.to_async(&rt).iter(|| async {
+            ractor::call!(op, |reply| EoMsg::Property {
+                request: PropertyRequest::Get("version".into()),
+                reply
+            })
+            .unwrap()
+        })
+    });
+    g.finish();
+    op.stop(None);
+    echo.stop(None);
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
