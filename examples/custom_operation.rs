@@ -56,10 +56,10 @@ impl Operation for Collatz {
 const MISSION: &str = r#"
 [mission]
 name = "collatz-demo"
-success = ["done"]
+success = ["reached-one"]
 
 [flags]
-done = 0
+reached-one = 0
 
 [[action]]
 name = "walk"

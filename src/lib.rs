@@ -18,6 +18,8 @@
 //! # Ok(()) }
 //! ```
 
+#![warn(missing_docs)]
+
 pub use marie_actors as actors;
 pub use marie_cluster as cluster;
 pub use marie_missions as missions;

@@ -20,6 +20,8 @@
 //! assert!(status.implies(StatusFlags(0b0100)));
 //! ```
 
+#![warn(missing_docs)]
+
 pub mod clock;
 pub mod dispatcher;
 pub mod dm;

@@ -993,3 +993,20 @@ fn no_panic_on_pathological_inputs() {
         assert!(must_not_panic(src, &catalog).is_err(), "{src:?} should be rejected");
     }
 }
+
+#[test]
+fn large_parameter_arrays_are_fine() {
+    // every value's position is recorded; lookups must not rescan the file per value
+    let items = vec!["1.5"; 50_000].join(", ");
+    let src = format!(
+        "{HEAD}[[action]]\nname = \"a\"\n[action.ops.wall-follower]\ngains = [{items}, 7]\n"
+    );
+    let d = validate_err(&src);
+    // the array is too long; its length is checked before the elements
+    assert_one(
+        &d,
+        7,
+        9,
+        &["`gains` of operation `wall-follower`: length 50001"],
+    );
+}

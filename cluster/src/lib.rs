@@ -12,4 +12,6 @@
 //! assert_eq!(back.payload::<u64>().unwrap(), 42);
 //! ```
 
+#![warn(missing_docs)]
+
 pub mod envelope;

@@ -13,6 +13,8 @@
 //! # }
 //! ```
 
+#![warn(missing_docs)]
+
 pub mod demo;
 
 use marie_actors::clock::SharedClock;

@@ -18,6 +18,8 @@
 //! assert!(!window.record(t), "the fourth restart within 5 s exceeds the intensity");
 //! ```
 
+#![warn(missing_docs)]
+
 mod intensity;
 
 pub use intensity::Intensity;

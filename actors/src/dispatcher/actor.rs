@@ -75,11 +75,24 @@ crate::remote_message! {
     }
     local {
         /// An activation ended (`None`: its operation died before reporting).
-        OpEnded { generation: u64, key: String, report: Option<EoReport> },
+        OpEnded {
+            /// Generation of the action that activated it.
+            generation: u64,
+            /// The operation's key in that action.
+            key: String,
+            /// Its report.
+            report: Option<EoReport>,
+        },
         /// The deadline of action generation `generation` passed.
-        ActionDeadline { generation: u64 },
+        ActionDeadline {
+            /// Generation of the action.
+            generation: u64,
+        },
         /// Suspended operations of generation `generation` had their time to report.
-        SuspendGrace { generation: u64 },
+        SuspendGrace {
+            /// Generation of the action.
+            generation: u64,
+        },
         /// The whole mission's deadline passed.
         MissionDeadline {},
     }

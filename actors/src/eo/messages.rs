@@ -67,16 +67,35 @@ crate::remote_message! {
         /// Apply `params` (atomically, on top of the current values) and start the task. The
         /// reply comes when the activation ends. A running activation is superseded (its port
         /// receives `Suspended`).
-        Activate { params: ParamMap, epoch: u64 } -> EoReport,
+        Activate {
+            /// Values to change before starting (omitted ones keep their current value).
+            params: ParamMap,
+            /// Epoch of the sender's binding.
+            epoch: u64,
+        } -> EoReport,
         /// End the running activation, if any.
-        Suspend { epoch: u64 },
+        Suspend {
+            /// Epoch of the sender's binding.
+            epoch: u64,
+        },
         /// Change parameters at run time: all values or none.
-        Parameterize { values: ParamMap, epoch: u64 } -> ParamOutcome,
+        Parameterize {
+            /// Values to change.
+            values: ParamMap,
+            /// Epoch of the sender's binding.
+            epoch: u64,
+        } -> ParamOutcome,
         /// A property request.
-        Property { request: PropertyRequest } -> PropertyReply,
+        Property {
+            /// What is asked.
+            request: PropertyRequest,
+        } -> PropertyReply,
     }
     local {
         /// Time for the next step of activation number `activation`.
-        Tick { activation: u64 },
+        Tick {
+            /// Number of the activation the tick belongs to.
+            activation: u64,
+        },
     }
 }

@@ -344,21 +344,6 @@ impl ParsedMission {
             .map(|o| o.key.as_str())
             .filter(move |k| seen.insert(*k))
     }
-
-    /// A placeholder for error paths that never hand it out.
-    pub(crate) fn empty(path: Option<&Path>) -> Self {
-        ParsedMission {
-            file: display_path(path),
-            path: path.map(Path::to_path_buf),
-            name: String::new(),
-            description: String::new(),
-            flags: BTreeMap::new(),
-            initial: Vec::new(),
-            success: Vec::new(),
-            deadline: None,
-            actions: Vec::new(),
-        }
-    }
 }
 
 /// How a mission's source is named in diagnostics.

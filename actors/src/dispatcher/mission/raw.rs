@@ -134,7 +134,9 @@ pub(crate) fn parse(src: &str, path: Option<&Path>) -> Result<ParsedMission, Dia
             let span = e.span().unwrap_or(0..0);
             ctx.err(&span, format!("syntax error: {}", e.message().trim_end()));
         }
-        return Diagnostics(ctx.diags).into_result(ParsedMission::empty(path));
+        let mut diagnostics = Diagnostics(ctx.diags);
+        diagnostics.sort();
+        return Err(diagnostics);
     }
     let doc = doc.get_ref();
     unknown_keys(&mut ctx, doc, TOP_KEYS, "the mission file");

@@ -1,0 +1,37 @@
+//! The embedding examples run and do what their docs say. `cargo test` builds examples next
+//! to the test binaries, so this runs the freshly built one.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+fn example(name: &str) -> PathBuf {
+    // target/<profile>/deps/<this test> -> target/<profile>/examples/<name>
+    let exe = std::env::current_exe().unwrap();
+    let dir = exe
+        .parent()
+        .and_then(|d| d.parent())
+        .unwrap()
+        .join("examples");
+    let path = dir.join(format!("{name}{}", std::env::consts::EXE_SUFFIX));
+    assert!(
+        path.exists(),
+        "example {name} was not built at {}",
+        path.display()
+    );
+    path
+}
+
+#[test]
+fn custom_operation_is_hosted_described_and_driven_by_a_mission() {
+    let out = Command::new(example("custom_operation")).output().unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(stdout.contains("name: \"collatz\""), "{stdout}");
+    assert!(stdout.contains("outcome: Succeeded"), "{stdout}");
+    // 97 reaches 1 after 118 steps
+    assert!(stdout.contains("steps: Value(Int(118))"), "{stdout}");
+}
