@@ -190,3 +190,23 @@ fn bad_flags_exit_2_and_json_logs_go_to_stderr() {
         "logs stay off stdout"
     );
 }
+
+#[test]
+fn speed_max_runs_the_mission_in_virtual_time() {
+    let dir = tempfile::tempdir().unwrap();
+    let report = dir.path().join("max.json");
+    let out = marie(&[
+        "run",
+        "missions/demo.toml",
+        "--speed",
+        "max",
+        "--report",
+        report.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(json["outcome"], "succeeded");
+    // the averager needs 200 samples at one per 2 ms of (virtual) sampler time
+    assert!(json["duration_ms"].as_u64().unwrap() >= 400, "{json}");
+}

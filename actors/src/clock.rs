@@ -8,8 +8,9 @@
 use std::future::Future;
 use std::pin::Pin;
 use std::sync::{Arc, Mutex};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 use tokio::sync::watch;
+use tokio::time::Instant;
 
 /// A boxed future returned by [`Clock::sleep`].
 pub type Sleep = Pin<Box<dyn Future<Output = ()> + Send>>;
@@ -25,7 +26,12 @@ pub trait Clock: Send + Sync + 'static {
 /// A shared clock handle.
 pub type SharedClock = Arc<dyn Clock>;
 
-/// Wall-clock time (tokio's timer).
+/// Runtime time: tokio's clock and timer.
+///
+/// On a normal runtime this is wall-clock time. On a current-thread runtime started with
+/// tokio's paused clock (`start_paused`), time jumps to the next timer whenever every task is
+/// idle — a discrete-event simulation clock that runs as fast as the CPU allows and, being
+/// single-threaded, repeatably. `marie run --speed max` runs that way.
 #[derive(Debug, Clone)]
 pub struct RealClock {
     epoch: Instant,

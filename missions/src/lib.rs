@@ -16,6 +16,7 @@
 #![warn(missing_docs)]
 
 pub mod demo;
+pub mod geom;
 
 use marie_actors::clock::SharedClock;
 use marie_actors::eo::{spawn_operation, HostOptions};
