@@ -116,22 +116,22 @@ impl DmState {
     }
 
     fn store(&mut self, record: NewRecord) -> Result<u64, DmError> {
+        // The class is needed after the insert only if someone waits (the common high-rate
+        // case has no waits and pays nothing).
+        let class = (!self.waits.is_empty()).then(|| record.class.clone());
         let seq = self.store.insert(record, self.clock.now())?;
-        if !self.waits.is_empty() {
-            self.wake(seq);
+        if let Some(class) = class {
+            self.wake(&class, seq);
         }
         Ok(seq)
     }
 
-    /// Answer the waits that the record `seq` satisfies.
-    fn wake(&mut self, seq: u64) {
-        let Some(class) = self.store.class_of(seq) else {
-            return;
-        };
+    /// Answer the waits that the record `seq` of `class` satisfies.
+    fn wake(&mut self, class: &str, seq: u64) {
         let store = &self.store;
         let ready = self
             .waits
-            .take_satisfied(class, |query| store.matches(seq, query));
+            .take_satisfied(class, |query| store.matches_in(class, seq, query));
         for waiter in ready {
             let answer = self.store.select(&waiter.query);
             tracing::trace!(dm = %self.name, wait = waiter.id, records = answer.len(), "wait answered");

@@ -39,25 +39,45 @@ crate::remote_message! {
     /// Messages a [`super::Datamanager`] understands: the dm-interface.
     pub enum DmMsg {
         /// Store a record; the reply is its seq, or why it was refused.
-        Store { record: NewRecord } -> Result<u64, DmError>,
+        Store {
+            /// The record, without the header the DM fills in.
+            record: NewRecord,
+        } -> Result<u64, DmError>,
         /// Store a record without waiting for the answer (for high-rate sensors). A refused
         /// record is logged and counted in [`DmStats::refused_puts`].
-        Put { record: NewRecord },
+        Put {
+            /// The record, without the header the DM fills in.
+            record: NewRecord,
+        },
         /// Every stored record matching the query, oldest-first.
-        Select { query: Query } -> Vec<Record>,
+        Select {
+            /// What to select.
+            query: Query,
+        } -> Vec<Record>,
         /// Like `Select`, but if nothing matches yet, wait until a matching record is stored
         /// (then answer as `Select` would) or until `timeout_ms` pass on the DM's clock (then
         /// answer with nothing). The thesis DM's pending wait.
-        SelectWait { query: Query, timeout_ms: u64 } -> Vec<Record>,
+        SelectWait {
+            /// What to select, or wait for.
+            query: Query,
+            /// How long to wait, in milliseconds of the DM's clock; 0 is a plain select.
+            timeout_ms: u64,
+        } -> Vec<Record>,
         /// Delete every record matching the query (respecting its newest/oldest limit); the
         /// reply is how many were deleted.
-        Delete { query: Query } -> u64,
+        Delete {
+            /// What to delete.
+            query: Query,
+        } -> u64,
         /// What the DM holds.
         Stats {} -> DmStats,
     }
     local {
-        /// The timeout of pending wait `id` passed.
-        WaitExpired { id: u64 },
+        /// The timeout of a pending wait passed.
+        WaitExpired {
+            /// The wait's id.
+            id: u64,
+        },
     }
 }
 

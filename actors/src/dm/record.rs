@@ -178,13 +178,24 @@ impl NewRecord {
     }
 }
 
+/// Control characters: C0 and DEL are single bytes; C1 (U+0080–U+009F) is only possible in
+/// non-ASCII text. (Byte scan first: this runs on every stored record.)
+fn has_control(value: &str) -> bool {
+    let (mut c0, mut wide) = (false, false);
+    for &b in value.as_bytes() {
+        c0 |= b < 0x20 || b == 0x7f;
+        wide |= b >= 0x80;
+    }
+    c0 || (wide && value.chars().any(char::is_control))
+}
+
 /// Check one name of a record; `field` names it in the error.
 pub(crate) fn check_name(field: &str, value: &str) -> Result<(), DmError> {
     let reason = if value.is_empty() {
         "must not be empty"
     } else if value.len() > MAX_NAME_LEN {
         "is longer than 255 bytes"
-    } else if value.chars().any(char::is_control) {
+    } else if has_control(value) {
         "must not contain control characters"
     } else {
         return Ok(());
@@ -335,6 +346,9 @@ mod tests {
         assert!(matches!(e, Err(DmError::InvalidName { ref field, .. }) if field == "source"));
         let e = ok.clone().with_sub1("a\nb").validate();
         assert!(matches!(e, Err(DmError::InvalidName { ref field, .. }) if field == "sub1"));
+        let e = ok.clone().with_sub1("a\u{85}b").validate(); // C1 control
+        assert!(matches!(e, Err(DmError::InvalidName { ref field, .. }) if field == "sub1"));
+        assert!(ok.clone().with_sub1("vorn-ä").validate().is_ok());
         let e = ok.clone().with_sub2("narrow").validate();
         assert!(matches!(e, Err(DmError::InvalidRecord(_))));
         let long = "x".repeat(MAX_NAME_LEN + 1);
