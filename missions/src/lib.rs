@@ -15,8 +15,14 @@
 
 #![warn(missing_docs)]
 
+pub mod algo;
 pub mod demo;
 pub mod geom;
+pub mod hardware;
+pub mod ops;
+pub mod picture;
+pub mod sim;
+pub mod world;
 
 use marie_actors::clock::SharedClock;
 use marie_actors::eo::{spawn_operation, HostOptions};

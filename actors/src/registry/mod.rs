@@ -45,6 +45,9 @@ pub enum ModuleKind {
     Datamanager,
     /// An action dispatcher.
     Dispatcher,
+    /// A (virtual) hardware module such as the cart; hardware-bound modules stay on the
+    /// robot's node (thesis 8.7.1). Each hardware kind speaks its own message type.
+    Hardware,
 }
 
 impl ModuleKind {
@@ -54,6 +57,7 @@ impl ModuleKind {
             ModuleKind::Operation => "eo",
             ModuleKind::Datamanager => "dm",
             ModuleKind::Dispatcher => "ad",
+            ModuleKind::Hardware => "hw",
         }
     }
 
@@ -62,16 +66,18 @@ impl ModuleKind {
             "eo" => Some(ModuleKind::Operation),
             "dm" => Some(ModuleKind::Datamanager),
             "ad" => Some(ModuleKind::Dispatcher),
+            "hw" => Some(ModuleKind::Hardware),
             _ => None,
         }
     }
 
-    /// How the thesis' start-up log names the kind (`EO`, `DM`, `AD`).
+    /// How the thesis' start-up log names the kind (`EO`, `DM`, `AD`, `HW`).
     pub fn label(self) -> &'static str {
         match self {
             ModuleKind::Operation => "EO",
             ModuleKind::Datamanager => "DM",
             ModuleKind::Dispatcher => "AD",
+            ModuleKind::Hardware => "HW",
         }
     }
 }

@@ -1,0 +1,295 @@
+//! The virtual cart actor: steps the simulation on the node's clock and serves commands and
+//! sensor readings.
+//!
+//! # Invariants
+//! - Physics advances only on the cart's own ticks, by the clock time elapsed since the last
+//!   one (in steps of at most [`CartArgs::period`]), so the cart moves at clock speed whether
+//!   the clock is real, scaled or virtual.
+//! - Commands take effect at the next physics step; readings reflect the last one.
+
+use crate::geom::{Point, Pose};
+use crate::sim::{Simulation, SonarReading, TracePoint};
+use crate::world::Judgement;
+use marie_actors::clock::SharedClock;
+use marie_actors::registry::{self, ModuleKind};
+use ractor::rpc::CallResult;
+use ractor::{Actor, ActorProcessingErr, ActorRef, SpawnErr};
+use serde::{Deserialize, Serialize};
+use std::time::Duration;
+use tokio::task::JoinHandle;
+
+/// Registry id of the virtual cart.
+pub const CART_ID: u32 = 1401;
+/// Registry name of the virtual cart.
+pub const CART_NAME: &str = "virtual-cart";
+
+/// One scan of every ultrasonic sensor.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SonarScan {
+    /// Simulated time, seconds.
+    pub time: f64,
+    /// The cart's own pose estimate when it scanned.
+    pub odometry: Pose,
+    /// One reading per sensor.
+    pub readings: Vec<SonarReading>,
+    /// Each sensor's mount in the cart frame (index = sensor), as the robot's own
+    /// calibration knows it.
+    pub mounts: Vec<Pose>,
+}
+
+/// What the cart knows about itself (and, for judging, the simulation's ground truth).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CartStatus {
+    /// Simulated time, seconds.
+    pub time: f64,
+    /// True pose (ground truth).
+    pub pose: Pose,
+    /// The cart's own estimate.
+    pub odometry: Pose,
+    /// Current speed, m/s.
+    pub speed: f64,
+    /// Current steering angle, rad.
+    pub steer: f64,
+    /// Collisions so far.
+    pub collisions: u32,
+    /// Latched after a collision.
+    pub collided: bool,
+    /// Emergency stop engaged.
+    pub emergency_stop: bool,
+    /// The footprint's corners (ground truth).
+    pub footprint: [Point; 4],
+    /// The run judged against the world's goal area, as things stand.
+    pub judgement: Judgement,
+}
+
+marie_actors::remote_message! {
+    /// Messages of the virtual cart.
+    pub enum CartMsg {
+        /// Command the drive motor (m/s, negative backwards) and steering (rad, left positive).
+        Drive {
+            /// Speed, m/s.
+            speed: f64,
+            /// Steering angle, rad.
+            steer: f64,
+        },
+        /// Engage or release the emergency stop.
+        EmergencyStop {
+            /// Engage.
+            on: bool,
+        },
+        /// Read every ultrasonic sensor.
+        Scan {} -> SonarScan,
+        /// Odometry, ground truth, collisions, judgement.
+        Status {} -> CartStatus,
+        /// The driven path so far.
+        Trace {} -> Vec<TracePoint>,
+    }
+    local {
+        /// Time for the next physics step.
+        Tick {},
+    }
+}
+
+/// Start-up arguments of the cart.
+pub struct CartArgs {
+    /// The simulation (world, seed) to drive.
+    pub sim: Simulation,
+    /// The node's clock.
+    pub clock: SharedClock,
+    /// Physics period, clock time.
+    pub period: Duration,
+}
+
+/// The virtual cart actor.
+pub struct VirtualCart;
+
+/// State of the cart actor.
+pub struct CartState {
+    sim: Simulation,
+    clock: SharedClock,
+    period: Duration,
+    last: Duration,
+}
+
+impl CartState {
+    fn advance(&mut self) {
+        let now = self.clock.now();
+        let mut elapsed = now.saturating_sub(self.last);
+        self.last = now;
+        // cap a long stall (a loaded machine in real time) so the cart cannot jump through walls
+        elapsed = elapsed.min(Duration::from_secs(1));
+        while !elapsed.is_zero() {
+            let dt = elapsed.min(self.period);
+            self.sim.step(dt.as_secs_f64());
+            elapsed -= dt;
+        }
+    }
+
+    fn status(&self) -> CartStatus {
+        CartStatus {
+            time: self.sim.time(),
+            pose: self.sim.pose(),
+            odometry: self.sim.odometry(),
+            speed: self.sim.speed(),
+            steer: self.sim.steer(),
+            collisions: self.sim.collisions(),
+            collided: self.sim.is_collided(),
+            emergency_stop: self.sim.is_emergency_stopped(),
+            footprint: self.sim.footprint(),
+            judgement: self.sim.judge(),
+        }
+    }
+}
+
+fn schedule(myself: &ActorRef<CartMsg>, clock: &SharedClock, period: Duration) {
+    let me = myself.clone();
+    let sleep = clock.sleep(period);
+    ractor::concurrency::spawn(async move {
+        sleep.await;
+        let _ = me.cast(CartMsg::Tick {});
+    });
+}
+
+impl Actor for VirtualCart {
+    type Msg = CartMsg;
+    type State = CartState;
+    type Arguments = CartArgs;
+
+    async fn pre_start(
+        &self,
+        myself: ActorRef<CartMsg>,
+        args: CartArgs,
+    ) -> Result<CartState, ActorProcessingErr> {
+        registry::publish(ModuleKind::Hardware, CART_ID, CART_NAME, myself.get_cell())?;
+        let period = args.period.max(Duration::from_millis(1));
+        schedule(&myself, &args.clock, period);
+        Ok(CartState {
+            last: args.clock.now(),
+            sim: args.sim,
+            clock: args.clock,
+            period,
+        })
+    }
+
+    async fn handle(
+        &self,
+        myself: ActorRef<CartMsg>,
+        msg: CartMsg,
+        state: &mut CartState,
+    ) -> Result<(), ActorProcessingErr> {
+        match msg {
+            CartMsg::Tick {} => {
+                state.advance();
+                schedule(&myself, &state.clock, state.period);
+            }
+            CartMsg::Drive { speed, steer } => {
+                state.advance();
+                state.sim.command(speed, steer);
+            }
+            CartMsg::EmergencyStop { on } => {
+                state.advance();
+                state.sim.emergency_stop(on);
+            }
+            CartMsg::Scan { reply } => {
+                state.advance();
+                let readings = state.sim.sonar_scan();
+                let _ = reply.send(SonarScan {
+                    time: state.sim.time(),
+                    odometry: state.sim.odometry(),
+                    readings,
+                    mounts: state.sim.world().sonars.iter().map(|m| m.pose()).collect(),
+                });
+            }
+            CartMsg::Status { reply } => {
+                state.advance();
+                let _ = reply.send(state.status());
+            }
+            CartMsg::Trace { reply } => {
+                let _ = reply.send(state.sim.trace().to_vec());
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Spawn the virtual cart; it publishes itself before this returns.
+pub async fn spawn_cart(args: CartArgs) -> Result<(ActorRef<CartMsg>, JoinHandle<()>), SpawnErr> {
+    Actor::spawn(None, VirtualCart, args).await
+}
+
+/// Why the cart did not answer.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum CartError {
+    /// No cart in the registry.
+    #[error("no virtual cart is running")]
+    NotFound,
+    /// The cart is gone or did not answer in time.
+    #[error("the virtual cart did not answer")]
+    Unreachable,
+}
+
+/// A typed handle to the cart.
+#[derive(Clone, Debug)]
+pub struct CartClient {
+    actor: ActorRef<CartMsg>,
+}
+
+impl CartClient {
+    /// A handle to `actor`.
+    pub fn new(actor: ActorRef<CartMsg>) -> Self {
+        CartClient { actor }
+    }
+
+    /// The cart found in the registry.
+    pub fn lookup() -> Result<Self, CartError> {
+        registry::lookup(ModuleKind::Hardware, CART_NAME)
+            .into_iter()
+            .next()
+            .map(|i| CartClient::new(i.actor.into()))
+            .ok_or(CartError::NotFound)
+    }
+
+    /// True while the cart actor runs.
+    pub fn is_alive(&self) -> bool {
+        self.actor.get_status() <= ractor::ActorStatus::Running
+    }
+
+    /// Command speed and steering.
+    pub fn drive(&self, speed: f64, steer: f64) -> Result<(), CartError> {
+        self.actor
+            .cast(CartMsg::Drive { speed, steer })
+            .map_err(|_| CartError::Unreachable)
+    }
+
+    /// Engage or release the emergency stop.
+    pub fn emergency_stop(&self, on: bool) -> Result<(), CartError> {
+        self.actor
+            .cast(CartMsg::EmergencyStop { on })
+            .map_err(|_| CartError::Unreachable)
+    }
+
+    async fn call<T: Send + 'static>(
+        &self,
+        make: impl FnOnce(ractor::RpcReplyPort<T>) -> CartMsg,
+    ) -> Result<T, CartError> {
+        match self.actor.call(make, Some(Duration::from_secs(5))).await {
+            Ok(CallResult::Success(v)) => Ok(v),
+            _ => Err(CartError::Unreachable),
+        }
+    }
+
+    /// Read every sonar.
+    pub async fn scan(&self) -> Result<SonarScan, CartError> {
+        self.call(|reply| CartMsg::Scan { reply }).await
+    }
+
+    /// The cart's status.
+    pub async fn status(&self) -> Result<CartStatus, CartError> {
+        self.call(|reply| CartMsg::Status { reply }).await
+    }
+
+    /// The driven path.
+    pub async fn trace(&self) -> Result<Vec<TracePoint>, CartError> {
+        self.call(|reply| CartMsg::Trace { reply }).await
+    }
+}

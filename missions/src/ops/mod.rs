@@ -1,0 +1,31 @@
+//! The robot's elementary operations (thesis ids), each an [`Operation`] wrapping an algorithm
+//! of [`crate::algo`]. They exchange data only through the datamanagers (see [`records`]) and
+//! reach the virtual hardware through the registry.
+//!
+//! [`Operation`]: marie_actors::eo::Operation
+
+pub mod records;
+mod ultrasonic;
+
+pub use ultrasonic::Ultrasonic;
+
+use crate::hardware::CartClient;
+use marie_actors::dm::DmError;
+use marie_actors::eo::OpError;
+
+/// The cart client, found in the registry on first use and again after the cart restarted.
+pub(crate) fn cart(slot: &mut Option<CartClient>) -> Result<&CartClient, OpError> {
+    if !slot.as_ref().is_some_and(CartClient::is_alive) {
+        *slot = Some(CartClient::lookup().map_err(|e| OpError::failed(e.to_string()))?);
+    }
+    slot.as_ref()
+        .ok_or_else(|| OpError::failed("no virtual cart is running"))
+}
+
+/// Turn a datamanager error into an operation error naming the DM.
+pub(crate) fn dm_err(dm: &'static str) -> impl Fn(DmError) -> OpError {
+    move |e| OpError::Datamanager {
+        dm: dm.to_string(),
+        problem: e.to_string(),
+    }
+}

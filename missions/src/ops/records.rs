@@ -1,0 +1,99 @@
+//! The records the robot's operations exchange through the datamanagers: classes and payload
+//! types, in one place so producer and consumer agree.
+//!
+//! | DM | class | sub1 | payload | producer → consumers |
+//! |---|---|---|---|---|
+//! | feature | `sonar` | `scan` | [`EchoScan`] | ultrasonic → segment extractor, docking detector, picture |
+//! | feature | `segments` | `current` | [`SegmentSet`] | segment extractor → wall sensor, docking detector |
+//! | world | `map` | `walls` | `Vec<Segment>` | node start-up (the a-priori map) → path planner |
+//! | world | `wall` | `followed` | [`WallRecord`] | wall sensor → wall follower, controllers, docking detector |
+//! | world | `dock` | `found` | [`DockRecord`] | docking detector → path planner |
+//! | parameter | `path` | `planned` | [`PathRecord`] | path planner → trajectory controller |
+
+use crate::geom::{Point, Pose, Segment};
+use serde::{Deserialize, Serialize};
+
+/// Feature DM class of sonar scans.
+pub const SONAR: &str = "sonar";
+/// Feature DM class of extracted segments.
+pub const SEGMENTS: &str = "segments";
+/// World DM class of the a-priori map.
+pub const MAP: &str = "map";
+/// World DM class of the followed wall.
+pub const WALL: &str = "wall";
+/// World DM class of the detected dock.
+pub const DOCK: &str = "dock";
+/// Parameter DM class of planned paths.
+pub const PATH: &str = "path";
+
+/// One sonar echo, placed in the world with the cart's odometry.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Echo {
+    /// Sensor index.
+    pub sensor: usize,
+    /// Beam axis angle in the world, rad.
+    pub bearing: f64,
+    /// Measured range, m.
+    pub range: f64,
+    /// The echo point (sensor position + range along the axis).
+    pub point: Point,
+}
+
+/// One scan of all sensors.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct EchoScan {
+    /// Simulated time of the scan, s.
+    pub time: f64,
+    /// The cart's odometry when it scanned.
+    pub pose: Pose,
+    /// Echoes (lost readings are left out).
+    pub echoes: Vec<Echo>,
+}
+
+/// The segments extracted from recent echoes.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SegmentSet {
+    /// The segments.
+    pub segments: Vec<Segment>,
+    /// Echo points they were fitted to.
+    pub points: usize,
+}
+
+/// The followed wall as seen from the cart.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct WallRecord {
+    /// The wall segment (world frame).
+    pub segment: Segment,
+    /// Perpendicular distance from the cart to the wall's line, m.
+    pub distance: f64,
+    /// Angle of the wall relative to the cart's heading, rad.
+    pub relative_angle: f64,
+    /// +1 when the wall is on the cart's left, -1 on its right.
+    pub side: f64,
+    /// Cart pose it was measured from.
+    pub pose: Pose,
+}
+
+/// A detected dock.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct DockRecord {
+    /// The pose a parked cart should have (rear-axle reference).
+    pub park: Pose,
+    /// The dock's corners (opening first), for pictures.
+    pub corners: [Point; 4],
+    /// Measured breadth, m.
+    pub breadth: f64,
+    /// Measured depth, m.
+    pub depth: f64,
+}
+
+/// A planned path.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PathRecord {
+    /// Waypoints from start to goal.
+    pub waypoints: Vec<Point>,
+    /// Heading required at the goal, rad.
+    pub goal_heading: Option<f64>,
+    /// Drive backwards along it.
+    pub reverse: bool,
+}

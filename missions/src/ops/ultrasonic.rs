@@ -1,0 +1,75 @@
+//! Ultrasonic (1516): reads every sonar of the cart and stores the echoes in the feature DM.
+
+use super::records::{Echo, EchoScan, SONAR};
+use super::{cart, dm_err};
+use crate::hardware::CartClient;
+use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
+use marie_actors::property::{ParamDecl, ParamSchema, Value};
+use std::time::Duration;
+
+/// Reads the sonar ring at a fixed rate; never finishes by itself (it is suspended when its
+/// action ends).
+#[derive(Default)]
+pub struct Ultrasonic {
+    cart: Option<CartClient>,
+    scans: u64,
+}
+
+impl Operation for Ultrasonic {
+    fn identity(&self) -> Identity {
+        Identity::new(
+            "ultrasonic",
+            1516,
+            "1.0.0",
+            "reads the ultrasonic sensors into the feature DM",
+        )
+    }
+
+    fn parameters(&self) -> ParamSchema {
+        ParamSchema::new(vec![ParamDecl::float("min_range", 0.05)
+            .range(0.0, 2.0)
+            .unit("m")
+            .describe("echoes nearer than this are discarded as cross-talk")])
+    }
+
+    fn period(&self) -> Duration {
+        Duration::from_millis(100)
+    }
+
+    async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
+        let min_range = ctx.params().f64("min_range")?;
+        let scan = cart(&mut self.cart)?
+            .scan()
+            .await
+            .map_err(|e| OpError::failed(e.to_string()))?;
+        let echoes = scan
+            .readings
+            .iter()
+            .filter_map(|r| {
+                let range = r.range.filter(|d| *d >= min_range)?;
+                // the mount pose is ground truth; the robot knows it only through odometry
+                let mount = scan.odometry.compose(*scan.mounts.get(r.sensor)?);
+                Some(Echo {
+                    sensor: r.sensor,
+                    bearing: mount.theta,
+                    range,
+                    point: mount.point() + mount.heading() * range,
+                })
+            })
+            .collect();
+        let record = EchoScan {
+            time: scan.time,
+            pose: scan.odometry,
+            echoes,
+        };
+        ctx.dm("feature")?
+            .put(SONAR, Some("scan"), None, &record)
+            .map_err(dm_err("feature"))?;
+        self.scans += 1;
+        Ok(Step::Continue)
+    }
+
+    fn property(&self, name: &str) -> Option<Value> {
+        (name == "scans").then_some(Value::Int(self.scans as i64))
+    }
+}

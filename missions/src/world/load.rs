@@ -1,0 +1,1001 @@
+//! World files: TOML text → a validated [`World`], every problem reported at its
+//! `file:line:column`.
+//!
+//! The text is parsed by toml's span-keeping parser ([`DeTable`]) and walked by hand, so one
+//! pass reports every unknown key, wrong type and bad value. Checks that need several parts of
+//! the world (the start pose against the walls, the goal against the bounds) run only when
+//! the parts themselves are sound, so one mistake does not cascade.
+
+use super::model::{Beam, CartSpec, Dock, GoalArea, Rect, SimSettings, SonarMount, World};
+use crate::geom::{Point, Pose};
+use marie_actors::dispatcher::mission::{Diagnostic, Diagnostics};
+use std::ops::Range;
+use std::path::Path;
+use toml::de::{DeTable, DeValue};
+use toml::Spanned;
+
+type Span = Range<usize>;
+type Val<'i> = Spanned<DeValue<'i>>;
+
+const TOP_KEYS: &[&str] = &[
+    "world", "wall", "obstacle", "cart", "sonar", "goal", "dock", "sim",
+];
+const WORLD_KEYS: &[&str] = &["name", "description"];
+const POINTS_KEYS: &[&str] = &["points"];
+const CART_KEYS: &[&str] = &[
+    "start",
+    "length",
+    "width",
+    "wheelbase",
+    "rear_overhang",
+    "max_speed",
+    "max_steer_deg",
+    "max_steer_rate_deg",
+    "speed_time_constant",
+];
+const START_KEYS: &[&str] = &["x", "y", "heading_deg"];
+const XY_KEYS: &[&str] = &["x", "y"];
+const SONAR_KEYS: &[&str] = &["x", "y", "angle_deg", "beam", "range"];
+const GOAL_KEYS: &[&str] = &[
+    "center",
+    "length",
+    "width",
+    "heading_deg",
+    "heading_tolerance_deg",
+    "either_way",
+];
+const DOCK_KEYS: &[&str] = &["opening", "breadth", "depth"];
+const SIM_KEYS: &[&str] = &[
+    "sonar_sigma",
+    "sonar_dropout",
+    "incidence_limit_deg",
+    "rays_per_beam",
+    "narrow_half_angle_deg",
+    "wide_half_angle_deg",
+    "odometry_distance_sigma",
+    "odometry_heading_sigma_deg",
+];
+
+/// Shortest wall or obstacle edge, metres.
+const MIN_EDGE: f64 = 1e-3;
+/// How far a dock's `breadth` may differ from its opening's length, metres.
+const DOCK_BREADTH_TOLERANCE: f64 = 0.01;
+
+/// The name a path is shown under in diagnostics (`<world>` without one).
+pub(crate) fn display_path(path: Option<&Path>) -> String {
+    path.map_or_else(|| "<world>".to_string(), |p| p.display().to_string())
+}
+
+/// Read and parse a world file.
+pub(crate) fn load(path: &Path) -> Result<World, Diagnostics> {
+    let file = display_path(Some(path));
+    let bytes = std::fs::read(path)
+        .map_err(|e| Diagnostic::new(&file, 1, 1, format!("cannot read world file {file}: {e}")))?;
+    let src = String::from_utf8(bytes).map_err(|e| {
+        let valid = e.utf8_error().valid_up_to();
+        let prefix =
+            std::str::from_utf8(e.as_bytes().get(..valid).unwrap_or_default()).unwrap_or_default();
+        let (line, column) = Lines::new(prefix).pos(valid);
+        Diagnostic::new(
+            &file,
+            line,
+            column,
+            "the world file is not valid UTF-8 text",
+        )
+    })?;
+    parse(&src, Some(path))
+}
+
+/// Byte offsets → 1-based line and column (in characters).
+struct Lines<'s> {
+    src: &'s str,
+    starts: Vec<usize>,
+}
+
+impl<'s> Lines<'s> {
+    fn new(src: &'s str) -> Self {
+        let starts = std::iter::once(0)
+            .chain(src.match_indices('\n').map(|(i, _)| i + 1))
+            .collect();
+        Lines { src, starts }
+    }
+
+    fn pos(&self, offset: usize) -> (usize, usize) {
+        let mut offset = offset.min(self.src.len());
+        while offset > 0 && !self.src.is_char_boundary(offset) {
+            offset -= 1;
+        }
+        let line = self.starts.partition_point(|s| *s <= offset).max(1);
+        let start = self.starts.get(line - 1).copied().unwrap_or(0);
+        let column = self
+            .src
+            .get(start..offset)
+            .unwrap_or_default()
+            .chars()
+            .count()
+            + 1;
+        (line, column)
+    }
+}
+
+/// Where problems go while walking the document.
+struct Ctx<'s> {
+    lines: Lines<'s>,
+    file: String,
+    diags: Vec<Diagnostic>,
+}
+
+impl Ctx<'_> {
+    fn err(&mut self, span: &Span, message: impl Into<String>) {
+        let (line, column) = self.lines.pos(span.start);
+        self.diags
+            .push(Diagnostic::new(&self.file, line, column, message));
+    }
+}
+
+/// A table being read: its entries, where it starts, and how messages name it.
+struct Tbl<'a, 'i> {
+    t: &'a DeTable<'i>,
+    span: Span,
+    place: String,
+}
+
+impl<'a, 'i> Tbl<'a, 'i> {
+    fn get(&self, key: &str) -> Option<&'a Val<'i>> {
+        self.t.get(key)
+    }
+}
+
+/// What a number must satisfy.
+#[derive(Clone, Copy)]
+enum Rule {
+    Any,
+    Positive,
+    NonNegative,
+    /// lo < x <= hi
+    AboveUpTo(f64, f64),
+    /// lo < x < hi
+    Between(f64, f64),
+    /// lo <= x <= hi
+    Within(f64, f64),
+}
+
+impl Rule {
+    fn check(self, x: f64) -> Result<(), String> {
+        let (ok, want) = match self {
+            Rule::Any => (true, String::new()),
+            Rule::Positive => (x > 0.0, "greater than 0".to_string()),
+            Rule::NonNegative => (x >= 0.0, "at least 0".to_string()),
+            Rule::AboveUpTo(lo, hi) => (x > lo && x <= hi, format!("in ({lo}, {hi}]")),
+            Rule::Between(lo, hi) => (x > lo && x < hi, format!("in ({lo}, {hi})")),
+            Rule::Within(lo, hi) => (x >= lo && x <= hi, format!("in [{lo}, {hi}]")),
+        };
+        if ok {
+            Ok(())
+        } else {
+            Err(want)
+        }
+    }
+}
+
+fn type_name(v: &DeValue<'_>) -> &'static str {
+    v.type_str()
+}
+
+/// The value as a table, or a diagnostic.
+fn as_table<'a, 'i>(ctx: &mut Ctx<'_>, v: &'a Val<'i>, place: &str) -> Option<Tbl<'a, 'i>> {
+    match v.get_ref() {
+        DeValue::Table(t) => Some(Tbl {
+            t,
+            span: v.span(),
+            place: place.to_string(),
+        }),
+        other => {
+            ctx.err(
+                &v.span(),
+                format!("expected a table for {place}, found {}", type_name(other)),
+            );
+            None
+        }
+    }
+}
+
+/// Report every key of `tbl` not in `allowed`, in file order.
+fn unknown_keys(ctx: &mut Ctx<'_>, tbl: &Tbl<'_, '_>, allowed: &[&str]) {
+    let mut keys: Vec<_> = tbl.t.keys().collect();
+    keys.sort_by_key(|k| k.span().start);
+    for key in keys {
+        if !allowed.contains(&key.get_ref().as_ref()) {
+            ctx.err(
+                &key.span(),
+                format!(
+                    "unknown key `{}` in {} (expected one of: {})",
+                    key.get_ref().escape_debug(),
+                    tbl.place,
+                    allowed.join(", ")
+                ),
+            );
+        }
+    }
+}
+
+/// A finite number (integer or float), or a diagnostic.
+fn number(ctx: &mut Ctx<'_>, v: &Val<'_>, field: &str) -> Option<f64> {
+    let x = match v.get_ref() {
+        DeValue::Integer(i) => match i64::from_str_radix(i.as_str(), i.radix()) {
+            Ok(n) => n as f64,
+            Err(_) => {
+                ctx.err(&v.span(), format!("`{field}`: integer out of range"));
+                return None;
+            }
+        },
+        DeValue::Float(f) => f.as_str().parse::<f64>().unwrap_or(f64::NAN),
+        other => {
+            ctx.err(
+                &v.span(),
+                format!(
+                    "expected a number for `{field}`, found {}",
+                    type_name(other)
+                ),
+            );
+            return None;
+        }
+    };
+    if !x.is_finite() {
+        ctx.err(&v.span(), format!("`{field}` must be a finite number"));
+        return None;
+    }
+    Some(x)
+}
+
+/// Number `key` of `tbl`: `default` when absent (a diagnostic when there is no default), the
+/// value when it satisfies `rule`, otherwise a diagnostic and `None`.
+fn num(
+    ctx: &mut Ctx<'_>,
+    tbl: &Tbl<'_, '_>,
+    key: &str,
+    default: Option<f64>,
+    rule: Rule,
+) -> Option<f64> {
+    let Some(v) = tbl.get(key) else {
+        if default.is_none() {
+            ctx.err(&tbl.span, format!("missing `{key}` in {}", tbl.place));
+        }
+        return default;
+    };
+    let x = number(ctx, v, key)?;
+    match rule.check(x) {
+        Ok(()) => Some(x),
+        Err(want) => {
+            ctx.err(&v.span(), format!("`{key}` must be {want}, found {x}"));
+            None
+        }
+    }
+}
+
+fn string(ctx: &mut Ctx<'_>, tbl: &Tbl<'_, '_>, key: &str) -> Option<String> {
+    let v = tbl.get(key)?;
+    match v.get_ref() {
+        DeValue::String(s) => Some(s.to_string()),
+        other => {
+            ctx.err(
+                &v.span(),
+                format!("expected a string for `{key}`, found {}", type_name(other)),
+            );
+            None
+        }
+    }
+}
+
+fn boolean(ctx: &mut Ctx<'_>, tbl: &Tbl<'_, '_>, key: &str, default: bool) -> bool {
+    let Some(v) = tbl.get(key) else {
+        return default;
+    };
+    match v.get_ref() {
+        DeValue::Boolean(b) => *b,
+        other => {
+            ctx.err(
+                &v.span(),
+                format!(
+                    "expected true or false for `{key}`, found {}",
+                    type_name(other)
+                ),
+            );
+            default
+        }
+    }
+}
+
+/// A point written `[x, y]`.
+fn xy(ctx: &mut Ctx<'_>, v: &Val<'_>, field: &str) -> Option<Point> {
+    let DeValue::Array(items) = v.get_ref() else {
+        ctx.err(
+            &v.span(),
+            format!(
+                "expected a point `[x, y]` in `{field}`, found {}",
+                type_name(v.get_ref())
+            ),
+        );
+        return None;
+    };
+    if items.len() != 2 {
+        ctx.err(
+            &v.span(),
+            format!(
+                "expected a point `[x, y]` in `{field}`, found {} number(s)",
+                items.len()
+            ),
+        );
+        return None;
+    }
+    let x = number(ctx, &items[0], field);
+    let y = number(ctx, &items[1], field);
+    Some(Point::new(x?, y?))
+}
+
+/// A point written `{ x = .., y = .. }` (or `[x, y]`).
+fn point(ctx: &mut Ctx<'_>, v: &Val<'_>, field: &str) -> Option<Point> {
+    if let DeValue::Array(_) = v.get_ref() {
+        return xy(ctx, v, field);
+    }
+    let tbl = as_table(
+        ctx,
+        v,
+        &format!("`{field}` (a point `{{ x = .., y = .. }}`)"),
+    )?;
+    unknown_keys(ctx, &tbl, XY_KEYS);
+    let x = num(ctx, &tbl, "x", None, Rule::Any);
+    let y = num(ctx, &tbl, "y", None, Rule::Any);
+    Some(Point::new(x?, y?))
+}
+
+/// `points = [[x, y], ...]` of `tbl`: at least `min` points, no edge shorter than a
+/// millimetre.
+fn points(ctx: &mut Ctx<'_>, tbl: &Tbl<'_, '_>, min: usize, closed: bool) -> Option<Vec<Point>> {
+    let Some(v) = tbl.get("points") else {
+        ctx.err(
+            &tbl.span,
+            format!(
+                "missing `points` in {} (expected at least {min} points `[x, y]`)",
+                tbl.place
+            ),
+        );
+        return None;
+    };
+    let DeValue::Array(items) = v.get_ref() else {
+        ctx.err(
+            &v.span(),
+            format!(
+                "expected an array of points `[[x, y], ...]` for `points`, found {}",
+                type_name(v.get_ref())
+            ),
+        );
+        return None;
+    };
+    let mut out: Vec<Point> = Vec::new();
+    let mut ok = true;
+    for item in items.iter() {
+        match xy(ctx, item, "points") {
+            Some(p) => {
+                if let Some(prev) = out.last() {
+                    if (p - *prev).norm() < MIN_EDGE {
+                        ctx.err(
+                            &item.span(),
+                            "this point repeats the previous one (edges must be at least 1 mm long)",
+                        );
+                        ok = false;
+                    }
+                }
+                out.push(p);
+            }
+            None => ok = false,
+        }
+    }
+    if items.len() < min {
+        ctx.err(
+            &v.span(),
+            format!(
+                "{} needs at least {min} points, found {}",
+                tbl.place,
+                items.len()
+            ),
+        );
+        return None;
+    }
+    if !ok {
+        return None;
+    }
+    if closed {
+        let area2: f64 = (0..out.len())
+            .map(|i| {
+                let (a, b) = (out[i], out[(i + 1) % out.len()]);
+                a.x * b.y - b.x * a.y
+            })
+            .sum();
+        if area2.abs() < MIN_EDGE * MIN_EDGE {
+            ctx.err(&v.span(), format!("{} has no area", tbl.place));
+            return None;
+        }
+    }
+    Some(out)
+}
+
+/// The tables of a `[[name]]` array, or diagnostics.
+fn table_array<'a, 'i>(ctx: &mut Ctx<'_>, v: &'a Val<'i>, name: &str) -> Vec<Option<Tbl<'a, 'i>>> {
+    let DeValue::Array(items) = v.get_ref() else {
+        ctx.err(
+            &v.span(),
+            format!(
+                "expected `[[{name}]]` tables, found {}",
+                type_name(v.get_ref())
+            ),
+        );
+        return Vec::new();
+    };
+    items
+        .iter()
+        .enumerate()
+        .map(|(i, item)| as_table(ctx, item, &format!("[[{name}]] #{}", i + 1)))
+        .collect()
+}
+
+/// Parse and validate a world.
+pub(crate) fn parse(src: &str, path: Option<&Path>) -> Result<World, Diagnostics> {
+    let mut ctx = Ctx {
+        lines: Lines::new(src),
+        file: display_path(path),
+        diags: Vec::new(),
+    };
+    let (doc, errors) = DeTable::parse_recoverable(src);
+    if !errors.is_empty() {
+        for e in errors {
+            let span = e.span().unwrap_or(0..0);
+            ctx.err(&span, format!("syntax error: {}", e.message().trim_end()));
+        }
+        return finish(ctx, None);
+    }
+    let top = Tbl {
+        t: doc.get_ref(),
+        span: 0..0,
+        place: "the world file".to_string(),
+    };
+    unknown_keys(&mut ctx, &top, TOP_KEYS);
+
+    // [world]
+    let mut name = String::new();
+    let mut description = String::new();
+    match top.get("world") {
+        None => ctx.err(
+            &(0..0),
+            "missing table `[world]` (expected `name = \"...\"`)",
+        ),
+        Some(v) => {
+            if let Some(t) = as_table(&mut ctx, v, "[world]") {
+                unknown_keys(&mut ctx, &t, WORLD_KEYS);
+                match string(&mut ctx, &t, "name") {
+                    Some(n) if !n.trim().is_empty() => name = n,
+                    Some(_) => {
+                        if let Some(v) = t.get("name") {
+                            ctx.err(&v.span(), "`name` must not be empty");
+                        }
+                    }
+                    None => {
+                        if t.get("name").is_none() {
+                            ctx.err(&t.span, "missing `name` in [world]");
+                        }
+                    }
+                }
+                description = string(&mut ctx, &t, "description").unwrap_or_default();
+            }
+        }
+    }
+
+    // [[wall]], [[obstacle]]
+    let mut walls = Vec::new();
+    match top.get("wall") {
+        None => ctx.err(
+            &(0..0),
+            "the world has no walls (expected at least one `[[wall]]` with `points`)",
+        ),
+        Some(v) => {
+            for t in table_array(&mut ctx, v, "wall").into_iter().flatten() {
+                unknown_keys(&mut ctx, &t, POINTS_KEYS);
+                if let Some(p) = points(&mut ctx, &t, 2, false) {
+                    walls.push(p);
+                }
+            }
+        }
+    }
+    let mut obstacles = Vec::new();
+    if let Some(v) = top.get("obstacle") {
+        for t in table_array(&mut ctx, v, "obstacle").into_iter().flatten() {
+            unknown_keys(&mut ctx, &t, POINTS_KEYS);
+            if let Some(p) = points(&mut ctx, &t, 3, true) {
+                obstacles.push(p);
+            }
+        }
+    }
+
+    // [cart]
+    let mut cart = CartSpec::default();
+    let mut start = Pose::default();
+    let mut start_span = 0..0;
+    match top.get("cart") {
+        None => ctx.err(
+            &(0..0),
+            "missing table `[cart]` (expected at least `start = { x = .., y = .., heading_deg = .. }`)",
+        ),
+        Some(v) => {
+            if let Some(t) = as_table(&mut ctx, v, "[cart]") {
+                unknown_keys(&mut ctx, &t, CART_KEYS);
+                if let Some(pose) = start_pose(&mut ctx, &t) {
+                    start = pose;
+                }
+                start_span = t.get("start").map_or(t.span.clone(), |v| v.span());
+                cart = cart_spec(&mut ctx, &t);
+            }
+        }
+    }
+
+    // [[sonar]]
+    let sonars = match top.get("sonar") {
+        None => SonarMount::default_ring(&cart),
+        Some(v) => table_array(&mut ctx, v, "sonar")
+            .into_iter()
+            .flatten()
+            .filter_map(|t| sonar(&mut ctx, &t))
+            .collect(),
+    };
+
+    // [goal], [dock], [sim]
+    let goal = top
+        .get("goal")
+        .and_then(|v| as_table(&mut ctx, v, "[goal]"))
+        .and_then(|t| goal(&mut ctx, &t).map(|g| (g, t.span.clone())));
+    let dock = top
+        .get("dock")
+        .and_then(|v| as_table(&mut ctx, v, "[dock]"))
+        .and_then(|t| dock(&mut ctx, &t).map(|d| (d, t.span.clone())));
+    let sim = match top.get("sim").and_then(|v| as_table(&mut ctx, v, "[sim]")) {
+        Some(t) => sim_settings(&mut ctx, &t),
+        None => SimSettings::default(),
+    };
+
+    let world = World {
+        name,
+        description,
+        walls,
+        obstacles,
+        cart,
+        start,
+        sonars,
+        goal: goal.as_ref().map(|(g, _)| *g),
+        dock: dock.as_ref().map(|(d, _)| *d),
+        sim,
+    };
+    if !ctx.diags.is_empty() {
+        return finish(ctx, None);
+    }
+
+    // Checks across the parts, on sound parts only.
+    if world.footprint_collides(&world.start) {
+        ctx.err(
+            &start_span,
+            "the cart's footprint at its start pose touches a wall or an obstacle",
+        );
+    }
+    let bounds = world.bounds();
+    let outside = |r: &Rect| {
+        bounds.is_none_or(|(lo, hi)| {
+            r.corners().iter().any(|c| {
+                c.x < lo.x - 1e-9 || c.y < lo.y - 1e-9 || c.x > hi.x + 1e-9 || c.y > hi.y + 1e-9
+            })
+        })
+    };
+    let bounds_text = bounds.map_or(String::new(), |(lo, hi)| {
+        format!(" (x {:.3}..{:.3}, y {:.3}..{:.3})", lo.x, hi.x, lo.y, hi.y)
+    });
+    if let Some((g, span)) = &goal {
+        if outside(&g.area) {
+            ctx.err(
+                span,
+                format!("the goal area reaches outside the world's walls{bounds_text}"),
+            );
+        }
+    }
+    if let Some((d, span)) = &dock {
+        if outside(&d.rect()) {
+            ctx.err(
+                span,
+                format!("the dock reaches outside the world's walls{bounds_text}"),
+            );
+        }
+    }
+    finish(ctx, Some(world))
+}
+
+fn finish(ctx: Ctx<'_>, world: Option<World>) -> Result<World, Diagnostics> {
+    match world {
+        Some(world) if ctx.diags.is_empty() => Ok(world),
+        _ => {
+            let mut diags = Diagnostics(ctx.diags);
+            if diags.is_empty() {
+                diags.0.push(Diagnostic::new(
+                    ctx.file,
+                    1,
+                    1,
+                    "the world file is not valid",
+                ));
+            }
+            diags.sort();
+            Err(diags)
+        }
+    }
+}
+
+fn start_pose(ctx: &mut Ctx<'_>, cart: &Tbl<'_, '_>) -> Option<Pose> {
+    let Some(v) = cart.get("start") else {
+        ctx.err(
+            &cart.span,
+            "missing `start` in [cart] (expected `start = { x = .., y = .., heading_deg = .. }`)",
+        );
+        return None;
+    };
+    let t = as_table(ctx, v, "`start` (`{ x = .., y = .., heading_deg = .. }`)")?;
+    unknown_keys(ctx, &t, START_KEYS);
+    let x = num(ctx, &t, "x", None, Rule::Any);
+    let y = num(ctx, &t, "y", None, Rule::Any);
+    let heading = num(ctx, &t, "heading_deg", Some(0.0), Rule::Any);
+    Some(Pose::new(x?, y?, heading?.to_radians()))
+}
+
+fn cart_spec(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> CartSpec {
+    let d = CartSpec::default();
+    let length = num(ctx, t, "length", Some(d.length), Rule::Positive);
+    let width = num(ctx, t, "width", Some(d.width), Rule::Positive);
+    let wheelbase = num(ctx, t, "wheelbase", Some(d.wheelbase), Rule::Positive);
+    let overhang_default = match (length, wheelbase) {
+        (Some(l), Some(w)) => ((l - w) / 2.0).max(0.0),
+        _ => d.rear_overhang,
+    };
+    let rear_overhang = num(
+        ctx,
+        t,
+        "rear_overhang",
+        Some(overhang_default),
+        Rule::NonNegative,
+    );
+    let max_speed = num(ctx, t, "max_speed", Some(d.max_speed), Rule::Positive);
+    let max_steer = num(
+        ctx,
+        t,
+        "max_steer_deg",
+        Some(d.max_steer.to_degrees()),
+        Rule::AboveUpTo(0.0, 80.0),
+    );
+    let max_steer_rate = num(
+        ctx,
+        t,
+        "max_steer_rate_deg",
+        Some(d.max_steer_rate.to_degrees()),
+        Rule::Positive,
+    );
+    let speed_time_constant = num(
+        ctx,
+        t,
+        "speed_time_constant",
+        Some(d.speed_time_constant),
+        Rule::NonNegative,
+    );
+    if let (Some(l), Some(w), Some(r)) = (length, wheelbase, rear_overhang) {
+        if w + r > l + 1e-12 {
+            let span = t
+                .get("wheelbase")
+                .or_else(|| t.get("rear_overhang"))
+                .or_else(|| t.get("length"))
+                .map_or(t.span.clone(), |v| v.span());
+            ctx.err(
+                &span,
+                format!(
+                    "the axles must lie within the footprint: wheelbase ({w}) + rear_overhang ({r}) must not exceed length ({l})"
+                ),
+            );
+        }
+    }
+    CartSpec {
+        length: length.unwrap_or(d.length),
+        width: width.unwrap_or(d.width),
+        wheelbase: wheelbase.unwrap_or(d.wheelbase),
+        rear_overhang: rear_overhang.unwrap_or(d.rear_overhang),
+        max_speed: max_speed.unwrap_or(d.max_speed),
+        max_steer: max_steer.map_or(d.max_steer, f64::to_radians),
+        max_steer_rate: max_steer_rate.map_or(d.max_steer_rate, f64::to_radians),
+        speed_time_constant: speed_time_constant.unwrap_or(d.speed_time_constant),
+    }
+}
+
+fn sonar(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> Option<SonarMount> {
+    unknown_keys(ctx, t, SONAR_KEYS);
+    let x = num(ctx, t, "x", None, Rule::Any);
+    let y = num(ctx, t, "y", None, Rule::Any);
+    let angle = num(ctx, t, "angle_deg", None, Rule::Any);
+    let beam = match t.get("beam") {
+        None => {
+            ctx.err(
+                &t.span,
+                format!(
+                    "missing `beam` in {} (expected \"narrow\" or \"wide\")",
+                    t.place
+                ),
+            );
+            None
+        }
+        Some(v) => match v.get_ref() {
+            DeValue::String(s) if s == "narrow" => Some(Beam::Narrow),
+            DeValue::String(s) if s == "wide" => Some(Beam::Wide),
+            DeValue::String(s) => {
+                ctx.err(
+                    &v.span(),
+                    format!(
+                        "unknown beam `{}` (expected \"narrow\" or \"wide\")",
+                        s.escape_debug()
+                    ),
+                );
+                None
+            }
+            other => {
+                ctx.err(
+                    &v.span(),
+                    format!(
+                        "expected \"narrow\" or \"wide\" for `beam`, found {}",
+                        type_name(other)
+                    ),
+                );
+                None
+            }
+        },
+    };
+    let default_range = match beam {
+        Some(Beam::Wide) => 3.0,
+        _ => 4.0,
+    };
+    let range = num(ctx, t, "range", Some(default_range), Rule::Positive);
+    Some(SonarMount {
+        x: x?,
+        y: y?,
+        angle: crate::geom::wrap_angle(angle?.to_radians()),
+        beam: beam?,
+        range: range?,
+    })
+}
+
+fn goal(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> Option<GoalArea> {
+    unknown_keys(ctx, t, GOAL_KEYS);
+    let center = match t.get("center") {
+        None => {
+            ctx.err(
+                &t.span,
+                "missing `center` in [goal] (expected `center = { x = .., y = .. }`)",
+            );
+            None
+        }
+        Some(v) => point(ctx, v, "center"),
+    };
+    let length = num(ctx, t, "length", None, Rule::Positive);
+    let width = num(ctx, t, "width", None, Rule::Positive);
+    let heading = num(ctx, t, "heading_deg", Some(0.0), Rule::Any);
+    let tolerance = num(
+        ctx,
+        t,
+        "heading_tolerance_deg",
+        Some(10.0),
+        Rule::AboveUpTo(0.0, 180.0),
+    );
+    let either_way = boolean(ctx, t, "either_way", false);
+    let heading = crate::geom::wrap_angle(heading?.to_radians());
+    Some(GoalArea {
+        area: Rect {
+            center: center?,
+            heading,
+            length: length?,
+            width: width?,
+        },
+        heading,
+        heading_tolerance: tolerance?.to_radians(),
+        either_way,
+    })
+}
+
+fn dock(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> Option<Dock> {
+    unknown_keys(ctx, t, DOCK_KEYS);
+    let opening = match t.get("opening") {
+        None => {
+            ctx.err(
+                &t.span,
+                "missing `opening` in [dock] (expected `opening = [[x, y], [x, y]]`)",
+            );
+            None
+        }
+        Some(v) => match v.get_ref() {
+            DeValue::Array(items) if items.len() == 2 => {
+                let a = xy(ctx, &items[0], "opening");
+                let b = xy(ctx, &items[1], "opening");
+                match (a, b) {
+                    (Some(a), Some(b)) if (b - a).norm() < MIN_EDGE => {
+                        ctx.err(&v.span(), "the dock's opening has no length");
+                        None
+                    }
+                    (Some(a), Some(b)) => Some((a, b, v.span())),
+                    _ => None,
+                }
+            }
+            _ => {
+                ctx.err(
+                    &v.span(),
+                    "expected `opening = [[x, y], [x, y]]` (the two ends of the opening)",
+                );
+                None
+            }
+        },
+    };
+    let breadth = num(ctx, t, "breadth", None, Rule::Positive);
+    let depth = num(ctx, t, "depth", None, Rule::Positive);
+    let (a, b, _) = opening?;
+    let breadth = breadth?;
+    let length = (b - a).norm();
+    if (length - breadth).abs() > DOCK_BREADTH_TOLERANCE {
+        let span = t.get("breadth").map_or(t.span.clone(), |v| v.span());
+        ctx.err(
+            &span,
+            format!(
+                "`breadth` ({breadth}) must equal the opening's length ({length:.3}) within {DOCK_BREADTH_TOLERANCE} m"
+            ),
+        );
+        return None;
+    }
+    Some(Dock {
+        a,
+        b,
+        breadth,
+        depth: depth?,
+    })
+}
+
+fn sim_settings(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> SimSettings {
+    unknown_keys(ctx, t, SIM_KEYS);
+    let d = SimSettings::default();
+    let deg = |x: Option<f64>, default: f64| x.map_or(default, f64::to_radians);
+    let sonar_sigma = num(
+        ctx,
+        t,
+        "sonar_sigma",
+        Some(d.sonar_sigma),
+        Rule::Within(0.0, 1.0),
+    );
+    let sonar_dropout = num(
+        ctx,
+        t,
+        "sonar_dropout",
+        Some(d.sonar_dropout),
+        Rule::Within(0.0, 1.0),
+    );
+    let incidence = num(
+        ctx,
+        t,
+        "incidence_limit_deg",
+        Some(d.incidence_limit.to_degrees()),
+        Rule::AboveUpTo(0.0, 90.0),
+    );
+    let rays = match t.get("rays_per_beam") {
+        None => d.rays_per_beam,
+        Some(v) => match v.get_ref() {
+            DeValue::Integer(i) => match i64::from_str_radix(i.as_str(), i.radix()) {
+                Ok(n) if (1..=64).contains(&n) => n as u32,
+                _ => {
+                    ctx.err(&v.span(), "`rays_per_beam` must be an integer in 1..=64");
+                    d.rays_per_beam
+                }
+            },
+            other => {
+                ctx.err(
+                    &v.span(),
+                    format!(
+                        "expected an integer for `rays_per_beam`, found {}",
+                        type_name(other)
+                    ),
+                );
+                d.rays_per_beam
+            }
+        },
+    };
+    let narrow = num(
+        ctx,
+        t,
+        "narrow_half_angle_deg",
+        Some(d.narrow_half_angle.to_degrees()),
+        Rule::Between(0.0, 90.0),
+    );
+    let wide = num(
+        ctx,
+        t,
+        "wide_half_angle_deg",
+        Some(d.wide_half_angle.to_degrees()),
+        Rule::Between(0.0, 90.0),
+    );
+    let odo_d = num(
+        ctx,
+        t,
+        "odometry_distance_sigma",
+        Some(d.odometry_distance_sigma),
+        Rule::Within(0.0, 1.0),
+    );
+    let odo_h = num(
+        ctx,
+        t,
+        "odometry_heading_sigma_deg",
+        Some(d.odometry_heading_sigma.to_degrees()),
+        Rule::NonNegative,
+    );
+    SimSettings {
+        sonar_sigma: sonar_sigma.unwrap_or(d.sonar_sigma),
+        sonar_dropout: sonar_dropout.unwrap_or(d.sonar_dropout),
+        incidence_limit: deg(incidence, d.incidence_limit),
+        rays_per_beam: rays,
+        narrow_half_angle: deg(narrow, d.narrow_half_angle),
+        wide_half_angle: deg(wide, d.wide_half_angle),
+        odometry_distance_sigma: odo_d.unwrap_or(d.odometry_distance_sigma),
+        odometry_heading_sigma: deg(odo_h, d.odometry_heading_sigma),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const MINI: &str = r#"
+[world]
+name = "mini"
+
+[[wall]]
+points = [[0, 0], [4, 0]]
+
+[cart]
+start = { x = 1, y = 1, heading_deg = 0 }
+"#;
+
+    #[test]
+    fn a_minimal_world_takes_the_defaults() {
+        let w = parse(MINI, None).unwrap();
+        assert_eq!(w.name, "mini");
+        assert_eq!(w.cart, CartSpec::default());
+        assert_eq!(w.sonars.len(), 10);
+        assert_eq!(w.sim, SimSettings::default());
+        assert!(w.goal.is_none() && w.dock.is_none());
+    }
+
+    #[test]
+    fn syntax_errors_have_positions() {
+        let e = parse("[world]\nname = = 1\n", Some(Path::new("w.toml"))).unwrap_err();
+        assert!(e.to_string().starts_with("w.toml:2:8: syntax error"), "{e}");
+    }
+
+    #[test]
+    fn missing_tables_are_reported_at_the_start() {
+        let e = parse("", None).unwrap_err();
+        let text = e.to_string();
+        assert!(
+            text.contains("<world>:1:1: missing table `[world]`"),
+            "{text}"
+        );
+        assert!(text.contains("no walls"), "{text}");
+        assert!(text.contains("missing table `[cart]`"), "{text}");
+    }
+
+    #[test]
+    fn positions_count_characters() {
+        let l = Lines::new("ab\nçd\n");
+        assert_eq!(l.pos(0), (1, 1));
+        assert_eq!(l.pos(5), (2, 2));
+        assert_eq!(l.pos(99), (3, 1));
+    }
+}
