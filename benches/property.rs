@@ -2,6 +2,9 @@
 //! measured in the same run (goal: ≤ 1.2×).
 //!
 //! `cargo bench --bench property`
+//!
+//! Both run on a current-thread runtime: a round trip is then two task switches, and the
+//! comparison is not drowned by cross-thread wake-up noise on a shared 2-core machine.
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use marie_actors::eo::EoMsg;
@@ -51,7 +54,7 @@ impl Actor for Echo {
 }
 
 fn bench(c: &mut Criterion) {
-    let rt = tokio::runtime::Builder::new_multi_thread()
+    let rt = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
         .unwrap();
