@@ -43,3 +43,39 @@ pub async fn spawn_builtin(clock: SharedClock) -> Result<Vec<ActorCell>, SpawnEr
         spawn_operation(demo::Checker, opts).await?.0.get_cell(),
     ])
 }
+
+/// Spawn the robot on `clock`: the virtual cart driving `world` (noise seeded by `seed`) and
+/// one host for each of the robot's operations — both versions of the wall follower, so the
+/// dispatcher has a choice. Unsupervised; the cart publishes itself before this returns.
+pub async fn spawn_robot(
+    clock: SharedClock,
+    world: &world::World,
+    seed: u64,
+) -> Result<Vec<ActorCell>, SpawnErr> {
+    let (cart, _) = hardware::spawn_cart(hardware::CartArgs {
+        sim: sim::Simulation::new(world, seed),
+        clock: clock.clone(),
+        period: std::time::Duration::from_millis(20),
+    })
+    .await?;
+    let opts = HostOptions::with_clock(clock);
+    let mut cells = vec![cart.get_cell()];
+    macro_rules! host {
+        ($($op:expr),* $(,)?) => {
+            $( cells.push(spawn_operation($op, opts.clone()).await?.0.get_cell()); )*
+        };
+    }
+    host!(
+        ops::Ultrasonic::default(),
+        ops::SegmentExtractor::default(),
+        ops::WallSensor::default(),
+        ops::DockingDetector::default(),
+        ops::PathPlanner::default(),
+        ops::TrajectoryController::default(),
+        ops::WallFollowerV1::default(),
+        ops::WallFollowerV2::default(),
+        ops::SensorBasedController::default(),
+        ops::CollisionAvoidance::default(),
+    );
+    Ok(cells)
+}

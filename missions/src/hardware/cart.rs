@@ -56,6 +56,12 @@ pub struct CartStatus {
     pub collided: bool,
     /// Emergency stop engaged.
     pub emergency_stop: bool,
+    /// Speed cap in force, m/s.
+    pub speed_cap: Option<f64>,
+    /// The last commanded `(speed, steer)`, before the cap.
+    pub commanded: (f64, f64),
+    /// Distance from the rear axle (the pose's reference point) to the footprint's centre, m.
+    pub axle_to_centre: f64,
     /// The footprint's corners (ground truth).
     pub footprint: [Point; 4],
     /// The run judged against the world's goal area, as things stand.
@@ -76,6 +82,13 @@ marie_actors::remote_message! {
         EmergencyStop {
             /// Engage.
             on: bool,
+        },
+        /// Cap the speed (both directions) at `max` m/s, or lift the cap with `None`; the
+        /// capped command applies at once. Used by collision avoidance to slow the cart down
+        /// whatever operation is driving it.
+        SpeedCap {
+            /// The cap, m/s.
+            max: Option<f64>,
         },
         /// Read every ultrasonic sensor.
         Scan {} -> SonarScan,
@@ -109,6 +122,8 @@ pub struct CartState {
     clock: SharedClock,
     period: Duration,
     last: Duration,
+    command: (f64, f64),
+    cap: Option<f64>,
 }
 
 impl CartState {
@@ -125,6 +140,15 @@ impl CartState {
         }
     }
 
+    fn apply_command(&mut self) {
+        let (speed, steer) = self.command;
+        let speed = match self.cap {
+            Some(cap) => speed.clamp(-cap.abs(), cap.abs()),
+            None => speed,
+        };
+        self.sim.command(speed, steer);
+    }
+
     fn status(&self) -> CartStatus {
         CartStatus {
             time: self.sim.time(),
@@ -135,6 +159,9 @@ impl CartState {
             collisions: self.sim.collisions(),
             collided: self.sim.is_collided(),
             emergency_stop: self.sim.is_emergency_stopped(),
+            speed_cap: self.cap,
+            commanded: self.command,
+            axle_to_centre: self.sim.world().cart.center_offset(),
             footprint: self.sim.footprint(),
             judgement: self.sim.judge(),
         }
@@ -168,6 +195,8 @@ impl Actor for VirtualCart {
             sim: args.sim,
             clock: args.clock,
             period,
+            command: (0.0, 0.0),
+            cap: None,
         })
     }
 
@@ -184,7 +213,13 @@ impl Actor for VirtualCart {
             }
             CartMsg::Drive { speed, steer } => {
                 state.advance();
-                state.sim.command(speed, steer);
+                state.command = (speed, steer);
+                state.apply_command();
+            }
+            CartMsg::SpeedCap { max } => {
+                state.advance();
+                state.cap = max.filter(|m| m.is_finite());
+                state.apply_command();
             }
             CartMsg::EmergencyStop { on } => {
                 state.advance();
@@ -258,6 +293,13 @@ impl CartClient {
     pub fn drive(&self, speed: f64, steer: f64) -> Result<(), CartError> {
         self.actor
             .cast(CartMsg::Drive { speed, steer })
+            .map_err(|_| CartError::Unreachable)
+    }
+
+    /// Cap the speed, or lift the cap.
+    pub fn speed_cap(&self, max: Option<f64>) -> Result<(), CartError> {
+        self.actor
+            .cast(CartMsg::SpeedCap { max })
             .map_err(|_| CartError::Unreachable)
     }
 

@@ -4,9 +4,17 @@
 //!
 //! [`Operation`]: marie_actors::eo::Operation
 
+mod avoidance;
+mod motion;
+mod perception;
 pub mod records;
 mod ultrasonic;
 
+pub use avoidance::CollisionAvoidance;
+pub use motion::{
+    PathPlanner, SensorBasedController, TrajectoryController, WallFollowerV1, WallFollowerV2,
+};
+pub use perception::{DockingDetector, SegmentExtractor, WallSensor};
 pub use ultrasonic::Ultrasonic;
 
 use crate::hardware::CartClient;
@@ -20,6 +28,28 @@ pub(crate) fn cart(slot: &mut Option<CartClient>) -> Result<&CartClient, OpError
     }
     slot.as_ref()
         .ok_or_else(|| OpError::failed("no virtual cart is running"))
+}
+
+/// Turn a cart error into an operation error.
+pub(crate) fn cart_err(e: crate::hardware::CartError) -> OpError {
+    OpError::failed(e.to_string())
+}
+
+/// The newest record of `class` in datamanager `dm`, decoded; `None` when there is none.
+pub(crate) async fn newest<T: serde::de::DeserializeOwned>(
+    ctx: &mut marie_actors::eo::OpContext,
+    dm: &'static str,
+    class: &str,
+) -> Result<Option<T>, OpError> {
+    let records = ctx
+        .dm(dm)?
+        .select(marie_actors::dm::Query::class(class).newest(1))
+        .await
+        .map_err(dm_err(dm))?;
+    match records.last() {
+        Some(r) => Ok(Some(r.decode().map_err(dm_err(dm))?)),
+        None => Ok(None),
+    }
 }
 
 /// Turn a datamanager error into an operation error naming the DM.

@@ -31,6 +31,8 @@ pub const PATH: &str = "path";
 pub struct Echo {
     /// Sensor index.
     pub sensor: usize,
+    /// A narrow beam (a precise bearing); wide beams smear edges over their cone.
+    pub narrow: bool,
     /// Beam axis angle in the world, rad.
     pub bearing: f64,
     /// Measured range, m.

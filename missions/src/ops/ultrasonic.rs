@@ -51,6 +51,7 @@ impl Operation for Ultrasonic {
                 let mount = scan.odometry.compose(*scan.mounts.get(r.sensor)?);
                 Some(Echo {
                     sensor: r.sensor,
+                    narrow: r.beam == crate::world::Beam::Narrow,
                     bearing: mount.theta,
                     range,
                     point: mount.point() + mount.heading() * range,

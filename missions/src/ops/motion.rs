@@ -1,0 +1,487 @@
+//! Motion: the path planner (1515), the trajectory controller (1511), the wall follower
+//! (1514, versions 1 and 2), the sensor-based controller (1513).
+//!
+//! Controllers command the virtual cart directly (it is hardware, not an operation) and stop
+//! it when suspended.
+
+use super::perception::wall_from;
+use super::records::{
+    DockRecord, PathRecord, SegmentSet, WallRecord, DOCK, MAP, PATH, SEGMENTS, WALL,
+};
+use super::{cart, cart_err, dm_err, newest};
+use crate::algo::follow::{follow_command, is_aligned, FollowMode, FollowParams};
+use crate::algo::planner::{plan, Bounds, Path, PlannerParams};
+use crate::algo::pursuit::{PurePursuit, PursuitParams, PursuitStatus};
+use crate::algo::wall::{sense_wall, WallParams};
+use crate::geom::{Pose, Segment};
+use crate::hardware::CartClient;
+use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
+use marie_actors::flags::{FlagDecl, StatusFlags};
+use marie_actors::property::{ParamDecl, ParamSchema};
+use std::time::Duration;
+
+/// Control period of every controller.
+const CONTROL_PERIOD: Duration = Duration::from_millis(50);
+
+fn stop_cart(slot: &mut Option<CartClient>) -> Result<(), OpError> {
+    cart(slot)?.drive(0.0, 0.0).map_err(cart_err)
+}
+
+/// Plans a collision-free path from the cart to a goal on the world map and stores it in the
+/// parameter DM; finishes with `path-planned`, fails when there is no path.
+#[derive(Default)]
+pub struct PathPlanner {
+    cart: Option<CartClient>,
+}
+
+impl Operation for PathPlanner {
+    fn identity(&self) -> Identity {
+        Identity::new(
+            "path-planner",
+            1515,
+            "1.0.0",
+            "plans a collision-free path on the world map",
+        )
+    }
+
+    fn parameters(&self) -> ParamSchema {
+        let d = PlannerParams::default();
+        ParamSchema::new(vec![
+            ParamDecl::choice("target", &["dock", "pose"], "dock")
+                .describe("plan to the detected dock, or to the pose given below"),
+            ParamDecl::float("x", 0.0)
+                .range(-1e4, 1e4)
+                .unit("m")
+                .describe("goal x (target = pose)"),
+            ParamDecl::float("y", 0.0)
+                .range(-1e4, 1e4)
+                .unit("m")
+                .describe("goal y (target = pose)"),
+            ParamDecl::float("heading", 0.0)
+                .range(-360.0, 360.0)
+                .unit("deg")
+                .describe("goal heading (target = pose)"),
+            ParamDecl::float("inflation", d.inflation)
+                .range(0.0, 5.0)
+                .unit("m")
+                .describe("clearance kept from walls"),
+            ParamDecl::float("resolution", d.resolution)
+                .range(0.01, 1.0)
+                .unit("m")
+                .describe("grid cell size"),
+            ParamDecl::float("approach", d.approach_distance)
+                .range(0.0, 10.0)
+                .unit("m")
+                .describe("straight final approach along the goal heading"),
+            ParamDecl::bool("reverse", false).describe("the path is to be driven backwards"),
+        ])
+    }
+
+    fn flags(&self) -> Vec<FlagDecl> {
+        vec![FlagDecl::new(
+            "path-planned",
+            "a path is stored in the parameter DM",
+        )]
+    }
+
+    async fn activate(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
+        let p = ctx.params();
+        let params = PlannerParams {
+            inflation: p.f64("inflation")?,
+            resolution: p.f64("resolution")?,
+            approach_distance: p.f64("approach")?,
+            reverse: p.bool("reverse")?,
+            ..PlannerParams::default()
+        };
+        let goal = match p.text("target")? {
+            "dock" => {
+                let dock: DockRecord = newest(ctx, "world", DOCK)
+                    .await?
+                    .ok_or_else(|| OpError::failed("no dock in the world DM to plan to"))?;
+                dock.park
+            }
+            _ => Pose::new(p.f64("x")?, p.f64("y")?, p.f64("heading")?.to_radians()),
+        };
+        let map: Vec<Segment> = newest(ctx, "world", MAP)
+            .await?
+            .ok_or_else(|| OpError::failed("no map in the world DM"))?;
+        let start = cart(&mut self.cart)?
+            .status()
+            .await
+            .map_err(cart_err)?
+            .odometry;
+        let bounds =
+            Bounds::around(&map, 1.0).ok_or_else(|| OpError::failed("the world map is empty"))?;
+        let path = plan(&map, &start, &goal, &bounds, &params).map_err(|e| {
+            OpError::failed(format!(
+                "no path from ({:.2}, {:.2}) to ({:.2}, {:.2}): {e}",
+                start.x, start.y, goal.x, goal.y
+            ))
+        })?;
+        let record = PathRecord {
+            waypoints: path.waypoints.clone(),
+            goal_heading: path.goal_heading,
+            reverse: params.reverse,
+        };
+        ctx.dm("parameter")?
+            .store(PATH, Some("planned"), None, &record)
+            .await
+            .map_err(dm_err("parameter"))?;
+        Ok(Step::Finish(StatusFlags(1)))
+    }
+
+    async fn step(&mut self, _ctx: &mut OpContext) -> Result<Step, OpError> {
+        Ok(Step::Finish(StatusFlags(1)))
+    }
+}
+
+/// Drives the newest planned path with pure pursuit; finishes by itself with `path-driven`.
+#[derive(Default)]
+pub struct TrajectoryController {
+    cart: Option<CartClient>,
+    pursuit: Option<(PurePursuit, Path)>,
+}
+
+impl Operation for TrajectoryController {
+    fn identity(&self) -> Identity {
+        Identity::new(
+            "trajectory-controller",
+            1511,
+            "1.0.0",
+            "drives the planned path",
+        )
+    }
+
+    fn parameters(&self) -> ParamSchema {
+        let d = PursuitParams::default();
+        ParamSchema::new(vec![
+            ParamDecl::float("speed", d.speed)
+                .range(0.05, 2.0)
+                .unit("m/s")
+                .describe("cruise speed"),
+            ParamDecl::float("lookahead", d.lookahead)
+                .range(0.1, 5.0)
+                .unit("m")
+                .describe("pure-pursuit lookahead distance"),
+            ParamDecl::float("position_tolerance", d.position_tolerance.max(0.1))
+                .range(0.01, 2.0)
+                .unit("m")
+                .describe("how close to the end counts as arrived"),
+            ParamDecl::float("heading_tolerance", 0.0)
+                .range(0.0, 180.0)
+                .unit("deg")
+                .describe("heading error accepted at the end (0: not checked)"),
+        ])
+    }
+
+    fn flags(&self) -> Vec<FlagDecl> {
+        vec![FlagDecl::new(
+            "path-driven",
+            "the planned path was driven to its end",
+        )]
+    }
+
+    fn period(&self) -> Duration {
+        CONTROL_PERIOD
+    }
+
+    async fn activate(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
+        let record: PathRecord = newest(ctx, "parameter", PATH)
+            .await?
+            .ok_or_else(|| OpError::failed("no planned path in the parameter DM"))?;
+        let p = ctx.params();
+        let heading_tol = p.f64("heading_tolerance")?;
+        let params = PursuitParams {
+            speed: p.f64("speed")?,
+            lookahead: p.f64("lookahead")?,
+            position_tolerance: p.f64("position_tolerance")?,
+            heading_tolerance: (heading_tol > 0.0).then(|| heading_tol.to_radians()),
+            reverse: record.reverse,
+            ..PursuitParams::default()
+        };
+        let mut path = Path::new(record.waypoints);
+        if let Some(h) = record.goal_heading {
+            path = path.with_heading(h);
+        }
+        self.pursuit = Some((PurePursuit::with_path(params, path.clone()), path));
+        Ok(Step::Continue)
+    }
+
+    async fn step(&mut self, _ctx: &mut OpContext) -> Result<Step, OpError> {
+        let status = cart(&mut self.cart)?.status().await.map_err(cart_err)?;
+        if status.collided {
+            return Err(OpError::failed(format!(
+                "the cart collided at ({:.2}, {:.2})",
+                status.pose.x, status.pose.y
+            )));
+        }
+        let Some((pursuit, path)) = self.pursuit.as_mut() else {
+            return Err(OpError::failed("activated without a path"));
+        };
+        let pose = status.odometry;
+        match pursuit.status(&pose) {
+            PursuitStatus::Arrived => {
+                stop_cart(&mut self.cart)?;
+                return Ok(Step::Finish(StatusFlags(1)));
+            }
+            PursuitStatus::Overshot => {
+                stop_cart(&mut self.cart)?;
+                return Err(OpError::failed(format!(
+                    "overshot the end of the path at ({:.2}, {:.2}, {:.0}°)",
+                    pose.x,
+                    pose.y,
+                    pose.theta.to_degrees()
+                )));
+            }
+            PursuitStatus::Tracking => {}
+        }
+        let cmd = pursuit.command(&pose, path);
+        cart(&mut self.cart)?
+            .drive(cmd.speed, cmd.steer)
+            .map_err(cart_err)?;
+        Ok(Step::Continue)
+    }
+
+    async fn suspend(&mut self, _ctx: &mut OpContext) -> Result<(), OpError> {
+        stop_cart(&mut self.cart)
+    }
+}
+
+/// How far the cart may run past the last seen end of the wall before the follower gives up.
+const WALL_END_MARGIN: f64 = 1.5;
+
+fn follow_params(distance: f64, mode: FollowMode, speed: f64) -> FollowParams {
+    FollowParams {
+        distance,
+        mode,
+        speed,
+        ..FollowParams::default()
+    }
+}
+
+/// One control step of wall following: reads the wall, steers the cart, and fails once the
+/// cart has run past the end of the wall seen so far.
+async fn follow_step(
+    ctx: &mut OpContext,
+    slot: &mut Option<CartClient>,
+    params: &FollowParams,
+) -> Result<bool, OpError> {
+    let status = cart(slot)?.status().await.map_err(cart_err)?;
+    if status.collided {
+        return Err(OpError::failed(
+            "the cart collided while following the wall",
+        ));
+    }
+    let Some(wall) = newest::<WallRecord>(ctx, "world", WALL).await? else {
+        return Err(OpError::failed("no wall in the world DM to follow"));
+    };
+    let pose = status.odometry;
+    let Some(est) = wall_from(&wall, &pose) else {
+        return Err(OpError::failed("the wall record is degenerate"));
+    };
+    // progress along the wall, in the direction of travel
+    let Some(dir) = (est.line.b - est.line.a).try_normalize(1e-9) else {
+        return Err(OpError::failed("the wall record is degenerate"));
+    };
+    let travel = if params.speed < 0.0 { -1.0 } else { 1.0 };
+    let end = if travel > 0.0 { est.line.b } else { est.line.a };
+    let past_end = (pose.point() - end).dot(&(dir * travel));
+    if past_end > WALL_END_MARGIN {
+        return Err(OpError::failed(format!(
+            "the wall ended {past_end:.1} m behind the cart at ({:.2}, {:.2})",
+            end.x, end.y
+        )));
+    }
+    let opposite = if params.mode == FollowMode::Corridor {
+        newest::<SegmentSet>(ctx, "feature", SEGMENTS)
+            .await?
+            .and_then(|set| {
+                sense_wall(
+                    &set.segments,
+                    &pose,
+                    &WallParams {
+                        side: Some(est.side.opposite()),
+                        ..WallParams::default()
+                    },
+                )
+            })
+    } else {
+        None
+    };
+    let cmd = follow_command(&est, opposite.as_ref(), params);
+    cart(slot)?.drive(cmd.speed, cmd.steer).map_err(cart_err)?;
+    Ok(is_aligned(&est, opposite.as_ref(), params))
+}
+
+/// The wall follower, version 1: keeps the cart at `distance` from the followed wall, driving
+/// forwards, until suspended. One parameter.
+#[derive(Default)]
+pub struct WallFollowerV1 {
+    cart: Option<CartClient>,
+}
+
+/// Forward speed of the wall followers.
+const FOLLOW_SPEED: f64 = 0.3;
+
+impl Operation for WallFollowerV1 {
+    fn identity(&self) -> Identity {
+        Identity::new(
+            "wall-follower",
+            1514,
+            "1.0.0",
+            "follows a wall at a distance",
+        )
+    }
+
+    fn parameters(&self) -> ParamSchema {
+        ParamSchema::new(vec![ParamDecl::float("distance", 0.6)
+            .range(0.3, 3.0)
+            .unit("m")
+            .describe("distance kept from the wall")])
+    }
+
+    fn period(&self) -> Duration {
+        CONTROL_PERIOD
+    }
+
+    async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
+        let params = follow_params(
+            ctx.params().f64("distance")?,
+            FollowMode::Wall,
+            FOLLOW_SPEED,
+        );
+        follow_step(ctx, &mut self.cart, &params).await?;
+        Ok(Step::Continue)
+    }
+
+    async fn suspend(&mut self, _ctx: &mut OpContext) -> Result<(), OpError> {
+        stop_cart(&mut self.cart)
+    }
+}
+
+/// The wall follower, version 2: like version 1, and it can also keep to the middle of a
+/// corridor. Two parameters: same kind and id as version 1, another schema.
+#[derive(Default)]
+pub struct WallFollowerV2 {
+    cart: Option<CartClient>,
+}
+
+impl Operation for WallFollowerV2 {
+    fn identity(&self) -> Identity {
+        Identity::new(
+            "wall-follower",
+            1514,
+            "2.0.0",
+            "follows a wall at a distance, or a corridor's middle",
+        )
+    }
+
+    fn parameters(&self) -> ParamSchema {
+        ParamSchema::new(vec![
+            ParamDecl::float("distance", 0.6)
+                .range(0.3, 3.0)
+                .unit("m")
+                .describe("distance kept from the wall (wall mode)"),
+            ParamDecl::choice("mode", &["wall", "corridor"], "wall")
+                .describe("follow one wall, or the middle between two"),
+        ])
+    }
+
+    fn period(&self) -> Duration {
+        CONTROL_PERIOD
+    }
+
+    async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
+        let p = ctx.params();
+        let mode = match p.text("mode")? {
+            "corridor" => FollowMode::Corridor,
+            _ => FollowMode::Wall,
+        };
+        let params = follow_params(p.f64("distance")?, mode, FOLLOW_SPEED);
+        follow_step(ctx, &mut self.cart, &params).await?;
+        Ok(Step::Continue)
+    }
+
+    async fn suspend(&mut self, _ctx: &mut OpContext) -> Result<(), OpError> {
+        stop_cart(&mut self.cart)
+    }
+}
+
+/// The sensor-based controller: aligns the cart with the followed wall (finishing with
+/// `aligned` once it has held the distance and heading for a moment), or backs along it
+/// until suspended — the corner mission's last two stages.
+#[derive(Default)]
+pub struct SensorBasedController {
+    cart: Option<CartClient>,
+    aligned_steps: u32,
+}
+
+/// Control steps the alignment must hold before it counts.
+const ALIGNED_STEPS: u32 = 10;
+
+impl Operation for SensorBasedController {
+    fn identity(&self) -> Identity {
+        Identity::new(
+            "sensor-based-controller",
+            1513,
+            "1.0.0",
+            "aligns with or backs along the followed wall",
+        )
+    }
+
+    fn parameters(&self) -> ParamSchema {
+        ParamSchema::new(vec![
+            ParamDecl::choice("mode", &["align", "back"], "align")
+                .describe("align with the wall (finishes), or back along it (until suspended)"),
+            ParamDecl::float("distance", 0.6)
+                .range(0.3, 3.0)
+                .unit("m")
+                .describe("distance kept from the wall"),
+            ParamDecl::float("speed", 0.25)
+                .range(0.05, 1.0)
+                .unit("m/s")
+                .describe("speed, forwards when aligning, backwards when backing"),
+        ])
+    }
+
+    fn flags(&self) -> Vec<FlagDecl> {
+        vec![FlagDecl::new(
+            "aligned",
+            "the cart runs along the wall at the requested distance",
+        )]
+    }
+
+    fn period(&self) -> Duration {
+        CONTROL_PERIOD
+    }
+
+    async fn activate(&mut self, _ctx: &mut OpContext) -> Result<Step, OpError> {
+        self.aligned_steps = 0;
+        Ok(Step::Continue)
+    }
+
+    async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
+        let p = ctx.params();
+        let back = p.text("mode")? == "back";
+        let speed = p.f64("speed")?;
+        let params = follow_params(
+            p.f64("distance")?,
+            FollowMode::Wall,
+            if back { -speed } else { speed },
+        );
+        let aligned = follow_step(ctx, &mut self.cart, &params).await?;
+        if back {
+            return Ok(Step::Continue);
+        }
+        self.aligned_steps = if aligned { self.aligned_steps + 1 } else { 0 };
+        if self.aligned_steps >= ALIGNED_STEPS {
+            stop_cart(&mut self.cart)?;
+            return Ok(Step::Finish(StatusFlags(1)));
+        }
+        Ok(Step::Continue)
+    }
+
+    async fn suspend(&mut self, _ctx: &mut OpContext) -> Result<(), OpError> {
+        stop_cart(&mut self.cart)
+    }
+}

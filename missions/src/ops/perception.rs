@@ -1,0 +1,334 @@
+//! Perception: the segment extractor (1517), the wall sensor (1512) and the docking-spot
+//! detector (1518). They read the feature DM and write the feature and world DMs.
+
+use super::records::{DockRecord, EchoScan, SegmentSet, WallRecord, DOCK, SEGMENTS, SONAR, WALL};
+use super::{cart, cart_err, dm_err, newest};
+use crate::algo::dock::{detect_dock, DockParams};
+use crate::algo::segments::{extract_segments, SegmentParams};
+use crate::algo::wall::{sense_wall, Side, WallEstimate, WallParams};
+use crate::geom::{Point, Pose};
+use crate::hardware::CartClient;
+use marie_actors::dm::Query;
+use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
+use marie_actors::flags::{FlagDecl, StatusFlags};
+use marie_actors::property::{ParamDecl, ParamSchema, Value};
+use std::collections::BTreeMap;
+use std::time::Duration;
+
+/// Echo scans stored since `since` (clock time), oldest first.
+async fn scans_since(ctx: &mut OpContext, since: Duration) -> Result<Vec<EchoScan>, OpError> {
+    let records = ctx
+        .dm("feature")?
+        .select(Query::class(SONAR).time_from(since))
+        .await
+        .map_err(dm_err("feature"))?;
+    records
+        .iter()
+        .map(|r| r.decode().map_err(dm_err("feature")))
+        .collect()
+}
+
+/// The wall estimate of `wall` as seen from `pose` (the wall is static, the cart is not).
+pub(crate) fn wall_from(wall: &WallRecord, pose: &Pose) -> Option<WallEstimate> {
+    sense_wall(
+        &[wall.segment],
+        pose,
+        &WallParams {
+            max_distance: f64::MAX,
+            min_length: 0.0,
+            max_angle: std::f64::consts::PI,
+            ..WallParams::default()
+        },
+    )
+}
+
+/// Fits line segments to the sonar echoes of a recent time window, sensor by sensor (each
+/// sensor's echoes are ordered along the cart's path), and stores the set in the feature DM.
+/// Runs until suspended.
+#[derive(Default)]
+pub struct SegmentExtractor {
+    sets: u64,
+}
+
+impl Operation for SegmentExtractor {
+    fn identity(&self) -> Identity {
+        Identity::new(
+            "segment-extractor",
+            1517,
+            "1.0.0",
+            "fits line segments to sonar echoes",
+        )
+    }
+
+    fn parameters(&self) -> ParamSchema {
+        let d = SegmentParams::default();
+        ParamSchema::new(vec![
+            ParamDecl::float("window", 8.0)
+                .range(0.5, 120.0)
+                .unit("s")
+                .describe("how far back echoes are used"),
+            ParamDecl::float("distance_threshold", d.distance_threshold)
+                .range(0.005, 1.0)
+                .unit("m")
+                .describe("largest distance of an echo from its segment"),
+            ParamDecl::int("min_points", d.min_points as i64)
+                .range(2.0, 1000.0)
+                .describe("fewest echoes a segment needs"),
+            ParamDecl::float("max_gap", d.max_gap)
+                .range(0.01, 5.0)
+                .unit("m")
+                .describe("larger jumps between consecutive echoes end a segment"),
+            ParamDecl::float("min_length", d.min_length)
+                .range(0.0, 50.0)
+                .unit("m")
+                .describe("shortest segment reported"),
+        ])
+    }
+
+    fn period(&self) -> Duration {
+        Duration::from_millis(250)
+    }
+
+    async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
+        let p = ctx.params();
+        let window = Duration::from_secs_f64(p.f64("window")?);
+        let params = SegmentParams {
+            distance_threshold: p.f64("distance_threshold")?,
+            min_points: p.i64("min_points")? as usize,
+            max_gap: p.f64("max_gap")?,
+            min_length: p.f64("min_length")?,
+            ..SegmentParams::default()
+        };
+        let since = ctx.now().saturating_sub(window);
+        let scans = scans_since(ctx, since).await?;
+        let mut by_sensor: BTreeMap<usize, Vec<Point>> = BTreeMap::new();
+        for scan in &scans {
+            for e in &scan.echoes {
+                by_sensor.entry(e.sensor).or_default().push(e.point);
+            }
+        }
+        let points = by_sensor.values().map(Vec::len).sum();
+        let segments = by_sensor
+            .values()
+            .flat_map(|pts| extract_segments(pts, &params))
+            .map(|f| f.segment)
+            .collect();
+        ctx.dm("feature")?
+            .put(
+                SEGMENTS,
+                Some("current"),
+                None,
+                &SegmentSet { segments, points },
+            )
+            .map_err(dm_err("feature"))?;
+        self.sets += 1;
+        Ok(Step::Continue)
+    }
+
+    fn property(&self, name: &str) -> Option<Value> {
+        (name == "sets").then_some(Value::Int(self.sets as i64))
+    }
+}
+
+/// Finds the wall among the newest segments and stores it in the world DM. Finishes with
+/// `wall-found`, or with `continuous` keeps updating the wall (raising `wall-found`) until
+/// suspended.
+#[derive(Default)]
+pub struct WallSensor {
+    cart: Option<CartClient>,
+}
+
+impl Operation for WallSensor {
+    fn identity(&self) -> Identity {
+        Identity::new(
+            "wall-sensor",
+            1512,
+            "1.0.0",
+            "finds a wall among the extracted segments",
+        )
+    }
+
+    fn parameters(&self) -> ParamSchema {
+        let d = WallParams::default();
+        ParamSchema::new(vec![
+            ParamDecl::float("max_distance", d.max_distance)
+                .range(0.1, 20.0)
+                .unit("m")
+                .describe("farthest a wall may be"),
+            ParamDecl::float("min_length", d.min_length)
+                .range(0.0, 50.0)
+                .unit("m")
+                .describe("shortest wall accepted"),
+            ParamDecl::choice("side", &["any", "left", "right"], "any")
+                .describe("which side of the cart the wall must be on"),
+            ParamDecl::bool("continuous", false)
+                .describe("keep updating the wall instead of finishing when found"),
+        ])
+    }
+
+    fn flags(&self) -> Vec<FlagDecl> {
+        vec![FlagDecl::new(
+            "wall-found",
+            "a wall was found and stored in the world DM",
+        )]
+    }
+
+    fn period(&self) -> Duration {
+        Duration::from_millis(250)
+    }
+
+    async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
+        let p = ctx.params();
+        let params = WallParams {
+            max_distance: p.f64("max_distance")?,
+            min_length: p.f64("min_length")?,
+            side: match p.text("side")? {
+                "left" => Some(Side::Left),
+                "right" => Some(Side::Right),
+                _ => None,
+            },
+            ..WallParams::default()
+        };
+        let continuous = p.bool("continuous")?;
+        let Some(set) = newest::<SegmentSet>(ctx, "feature", SEGMENTS).await? else {
+            return Ok(Step::Continue);
+        };
+        let pose = cart(&mut self.cart)?
+            .status()
+            .await
+            .map_err(cart_err)?
+            .odometry;
+        let Some(w) = sense_wall(&set.segments, &pose, &params) else {
+            return Ok(Step::Continue);
+        };
+        let record = WallRecord {
+            segment: w.line,
+            distance: w.distance,
+            relative_angle: w.angle,
+            side: w.side.sign(),
+            pose,
+        };
+        ctx.dm("world")?
+            .store(WALL, Some("followed"), None, &record)
+            .await
+            .map_err(dm_err("world"))?;
+        if continuous {
+            ctx.raise(StatusFlags(1));
+            Ok(Step::Continue)
+        } else {
+            Ok(Step::Finish(StatusFlags(1)))
+        }
+    }
+}
+
+/// Looks for a docking spot of the given breadth (along the wall) and depth (into it) in the
+/// followed wall, among the echoes gathered since it was activated. Finishes with `dock-found`
+/// after storing the dock in the world DM; very sensitive to its parameters (thesis 9.3.2).
+#[derive(Default)]
+pub struct DockingDetector {
+    cart: Option<CartClient>,
+    since: Duration,
+}
+
+impl Operation for DockingDetector {
+    fn identity(&self) -> Identity {
+        Identity::new(
+            "docking-detector",
+            1518,
+            "1.0.0",
+            "finds a docking spot along the followed wall",
+        )
+    }
+
+    fn parameters(&self) -> ParamSchema {
+        let d = DockParams::default();
+        ParamSchema::new(vec![
+            ParamDecl::float("breadth", d.breadth)
+                .range(0.3, 20.0)
+                .unit("m")
+                .describe("width of the spot's opening along the wall"),
+            ParamDecl::float("depth", d.depth)
+                .range(0.1, 10.0)
+                .unit("m")
+                .describe("depth of the spot behind the wall line"),
+            ParamDecl::float("breadth_tolerance", d.breadth_tolerance)
+                .range(0.0, 5.0)
+                .unit("m")
+                .describe("accepted breadth error"),
+            ParamDecl::float("depth_tolerance", d.depth_tolerance)
+                .range(0.0, 5.0)
+                .unit("m")
+                .describe("accepted depth error"),
+            ParamDecl::choice("beams", &["narrow", "all"], "narrow")
+                .describe("which sonar beams to use: wide beams blur the spot's edges"),
+        ])
+    }
+
+    fn flags(&self) -> Vec<FlagDecl> {
+        vec![FlagDecl::new(
+            "dock-found",
+            "a docking spot was found and stored in the world DM",
+        )]
+    }
+
+    fn period(&self) -> Duration {
+        Duration::from_millis(500)
+    }
+
+    async fn activate(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
+        self.since = ctx.now();
+        Ok(Step::Continue)
+    }
+
+    async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
+        let p = ctx.params();
+        let params = DockParams {
+            breadth: p.f64("breadth")?,
+            depth: p.f64("depth")?,
+            breadth_tolerance: p.f64("breadth_tolerance")?,
+            depth_tolerance: p.f64("depth_tolerance")?,
+            ..DockParams::default()
+        };
+        let narrow_only = p.text("beams")? == "narrow";
+        let Some(wall) = newest::<WallRecord>(ctx, "world", WALL).await? else {
+            return Ok(Step::Continue);
+        };
+        let status = cart(&mut self.cart)?.status().await.map_err(cart_err)?;
+        let Some(estimate) = wall_from(&wall, &status.odometry) else {
+            return Ok(Step::Continue);
+        };
+        let points: Vec<Point> = scans_since(ctx, self.since)
+            .await?
+            .iter()
+            .flat_map(|s| s.echoes.iter())
+            .filter(|e| e.narrow || !narrow_only)
+            .map(|e| e.point)
+            .collect();
+        let Some(dock) = detect_dock(&estimate, &points, &params) else {
+            return Ok(Step::Continue);
+        };
+        let park = dock.reference_pose(status.axle_to_centre);
+        let o = dock.opening;
+        // the centre lies half the depth behind the opening's midpoint
+        let into = (dock.pose.point() - o.midpoint()) * 2.0;
+        let corners = [o.a, o.b, o.b + into, o.a + into];
+        let record = DockRecord {
+            park,
+            corners,
+            breadth: dock.breadth,
+            depth: dock.depth,
+        };
+        ctx.dm("world")?
+            .store(DOCK, Some("found"), None, &record)
+            .await
+            .map_err(dm_err("world"))?;
+        tracing::info!(
+            breadth = dock.breadth,
+            depth = dock.depth,
+            x = park.x,
+            y = park.y,
+            "dock found"
+        );
+        Ok(Step::Finish(StatusFlags(1)))
+    }
+}
