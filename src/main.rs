@@ -5,12 +5,14 @@
 
 use anyhow::Context;
 use clap::{Parser, Subcommand, ValueEnum};
+use marie::actors::dispatcher::mission::{Diagnostics, Mission};
 use marie::actors::dispatcher::{DispatchEvent, Outcome, RunReport};
 use marie::actors::eo::EoClient;
 use marie::actors::property::{Group, PropertyReply, PropertyRequest};
 use marie::actors::registry::{self, ModuleKind};
+use marie::missions::world::World;
 use marie::node::{Node, NodeError, NodeOptions};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use tokio::sync::mpsc;
 
@@ -36,17 +38,26 @@ enum Command {
     Run {
         /// Mission file (TOML task tree).
         mission: PathBuf,
+        #[command(flatten)]
+        robot: RobotArgs,
         /// Write the run report (JSON) here.
         #[arg(long, value_name = "FILE")]
         report: Option<PathBuf>,
-        /// Clock speed: a factor of real time, or `max` (virtual time, as fast as possible).
-        #[arg(long, default_value = "1", value_parser = parse_speed)]
+        /// Draw the robot's run (walls, driven path, sonar echoes, segments, followed wall,
+        /// detected dock, planned path, final footprint) as an SVG picture here. Needs a world.
+        #[arg(long, value_name = "FILE.svg")]
+        svg: Option<PathBuf>,
+        /// Clock speed: a factor of real time (`1` is real time), or `max`: virtual time, as
+        /// fast as the CPU allows (the default).
+        #[arg(long, default_value = "max", value_parser = parse_speed)]
         speed: f64,
     },
     /// Check a mission against the running operations without running it.
     Check {
         /// Mission file.
         mission: PathBuf,
+        #[command(flatten)]
+        robot: RobotArgs,
     },
     /// List the location table.
     Ls {
@@ -62,6 +73,18 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+}
+
+/// The simulated robot a mission runs with.
+#[derive(clap::Args, Debug)]
+struct RobotArgs {
+    /// World file the simulated robot drives in; overrides the mission's `world`. Without
+    /// either, no robot is started.
+    #[arg(long, value_name = "FILE")]
+    world: Option<PathBuf>,
+    /// Seed of the simulation's noise (same world, seed and mission: same run).
+    #[arg(long, value_name = "N", default_value_t = marie::node::DEFAULT_SEED)]
+    seed: u64,
 }
 
 /// `--speed max`: virtual time, as fast as the CPU allows.
@@ -126,6 +149,10 @@ fn main() -> ExitCode {
                 eprintln!("{diags}");
                 return ExitCode::from(2);
             }
+            if let Some(WorldFile(diags)) = e.downcast_ref::<WorldFile>() {
+                eprintln!("{diags}");
+                return ExitCode::from(2);
+            }
             if e.downcast_ref::<BadInput>().is_some() {
                 eprintln!("marie: {e:#}");
                 return ExitCode::from(2);
@@ -140,25 +167,36 @@ fn main() -> ExitCode {
 #[error("{0}")]
 struct BadInput(String);
 
+/// A world file that does not load: its diagnostics (exit 2).
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+struct WorldFile(Diagnostics);
+
 async fn run(command: Command) -> anyhow::Result<ExitCode> {
     match command {
         Command::Run {
             mission,
+            robot,
             report,
+            svg,
             speed,
-        } => run_mission(mission, report, speed).await,
-        Command::Check { mission } => {
-            let node = Node::start(NodeOptions::default()).await?;
-            let m = node.load_mission(&mission).await;
-            node.shutdown().await;
-            let m = m?;
+        } => run_mission(mission, robot, report, svg, speed).await,
+        Command::Check { mission, robot } => {
+            let prepared = prepare(&mission, robot, 1.0).await?;
+            let m = &prepared.mission;
             println!(
-                "{}: ok — mission `{}`, {} actions, {} operations",
+                "{}: ok — mission `{}`, {} actions, {} operations{}",
                 mission.display(),
                 m.name,
                 m.actions.len(),
-                m.operation_names().len()
+                m.operation_names().len(),
+                prepared
+                    .node
+                    .world()
+                    .map(|w| format!(", world `{}`", w.name))
+                    .unwrap_or_default()
             );
+            prepared.node.shutdown().await;
             Ok(ExitCode::SUCCESS)
         }
         Command::Ls { json } => {
@@ -190,24 +228,89 @@ async fn run(command: Command) -> anyhow::Result<ExitCode> {
     }
 }
 
-async fn run_mission(
-    path: PathBuf,
-    report_path: Option<PathBuf>,
-    speed: f64,
-) -> anyhow::Result<ExitCode> {
+/// A node started for a mission, with the mission checked against it.
+struct Prepared {
+    node: Node,
+    mission: Mission,
+    /// The world file the robot drives in, when one runs.
+    world_path: Option<PathBuf>,
+}
+
+impl Prepared {
+    /// `world `lab` from FILE, seed N`, when a robot runs.
+    fn world_line(&self) -> Option<String> {
+        let world = self.node.world()?;
+        Some(format!(
+            "world `{}` from {}, seed {}",
+            world.name,
+            self.world_path
+                .as_deref()
+                .map_or_else(|| "?".into(), |p| p.display().to_string()),
+            self.node.seed().unwrap_or_default()
+        ))
+    }
+}
+
+/// Parse the mission, load its world (`--world`, else the mission's `world`, else none),
+/// start the node (with the robot when there is a world) and check the mission against it.
+async fn prepare(path: &Path, robot: RobotArgs, speed: f64) -> anyhow::Result<Prepared> {
+    let parsed = Mission::parse_file(path).map_err(NodeError::Mission)?;
+    let world_path = robot
+        .world
+        .or_else(|| parsed.world().map(Path::to_path_buf));
+    let world = match &world_path {
+        Some(p) => Some(World::load(p).map_err(WorldFile)?),
+        None => None,
+    };
     let node = Node::start(NodeOptions {
-        // on the paused-clock runtime, the runtime's own time is already virtual
-        speed: if speed.is_infinite() { 1.0 } else { speed },
+        speed,
+        world,
+        seed: robot.seed,
         ..Default::default()
     })
     .await?;
-    let mission = node.load_mission(&path).await?;
+    match node.check_mission(&parsed).await {
+        Ok(mission) => Ok(Prepared {
+            node,
+            mission,
+            world_path,
+        }),
+        Err(e) => {
+            node.shutdown().await;
+            Err(e.into())
+        }
+    }
+}
+
+async fn run_mission(
+    path: PathBuf,
+    robot: RobotArgs,
+    report_path: Option<PathBuf>,
+    svg_path: Option<PathBuf>,
+    speed: f64,
+) -> anyhow::Result<ExitCode> {
+    // on the paused-clock runtime, the runtime's own time is already virtual
+    let speed = if speed.is_infinite() { 1.0 } else { speed };
+    let prepared = prepare(&path, robot, speed).await?;
+    if svg_path.is_some() && prepared.node.world().is_none() {
+        prepared.node.shutdown().await;
+        return Err(BadInput(format!(
+            "--svg draws a robot's run, but no robot runs: give a world with --world FILE \
+             or `world = \"...\"` in the `[mission]` of {}",
+            path.display()
+        ))
+        .into());
+    }
     println!(
         "mission `{}` ({} actions) from {}",
-        mission.name,
-        mission.actions.len(),
+        prepared.mission.name,
+        prepared.mission.actions.len(),
         path.display()
     );
+    if let Some(line) = prepared.world_line() {
+        println!("{line}");
+    }
+    let Prepared { node, mission, .. } = prepared;
     let (tx, mut rx) = mpsc::unbounded_channel();
     let printer = tokio::spawn(async move {
         while let Some(evt) = rx.recv().await {
@@ -216,18 +319,63 @@ async fn run_mission(
     });
     let report = node.run(mission, Some(tx)).await;
     let _ = printer.await;
+    let picture = match (&report, &svg_path) {
+        (Ok(report), Some(_)) => node.picture(report).await,
+        _ => None,
+    };
+    let world = node.world().cloned();
     node.shutdown().await;
     let report = report?;
-    if let Some(p) = report_path {
-        write_report(&p, &report)?;
+    if world.is_some() {
+        println!("{}", outcome_line(&report));
     }
-    Ok(match report.outcome {
-        Outcome::Succeeded => ExitCode::SUCCESS,
-        Outcome::Failed => ExitCode::from(1),
+
+    // Write every output asked for, even when one of them cannot be written.
+    let mut written = true;
+    if let Some(p) = &report_path {
+        if let Err(e) = write_report(p, &report) {
+            eprintln!("marie: {e:#}");
+            written = false;
+        }
+    }
+    if let (Some(p), Some(picture), Some(world)) = (&svg_path, &picture, &world) {
+        let svg = picture.render(world, SVG_SCALE);
+        if let Err(e) = std::fs::write(p, svg) {
+            eprintln!("marie: cannot write the picture to {}: {e}", p.display());
+            written = false;
+        }
+    }
+    Ok(match (report.outcome, written) {
+        (Outcome::Succeeded, true) => ExitCode::SUCCESS,
+        _ => ExitCode::from(1),
     })
 }
 
-fn write_report(path: &PathBuf, report: &RunReport) -> anyhow::Result<()> {
+/// Pixels per metre of `--svg` pictures.
+const SVG_SCALE: f64 = 50.0;
+
+/// `outcome: succeeded — final pose (x, y, heading°), inside goal: yes, collisions: 0`.
+fn outcome_line(report: &RunReport) -> String {
+    let outcome = match report.outcome {
+        Outcome::Succeeded => "succeeded",
+        Outcome::Failed => "failed",
+    };
+    let Some([x, y, heading]) = report.final_pose else {
+        return format!("outcome: {outcome} — the cart did not report its final pose");
+    };
+    let inside = match report.inside_goal {
+        Some(true) => "yes",
+        Some(false) => "no",
+        None => "no goal area",
+    };
+    format!(
+        "outcome: {outcome} — final pose ({x:.2}, {y:.2}, {:.1}°), inside goal: {inside}, collisions: {}",
+        heading.to_degrees(),
+        report.collisions.unwrap_or_default()
+    )
+}
+
+fn write_report(path: &Path, report: &RunReport) -> anyhow::Result<()> {
     let json = serde_json::to_string_pretty(report)?;
     std::fs::write(path, json + "\n")
         .with_context(|| format!("cannot write the report to {}", path.display()))

@@ -210,3 +210,285 @@ fn speed_max_runs_the_mission_in_virtual_time() {
     // the averager needs 200 samples at one per 2 ms of (virtual) sampler time
     assert!(json["duration_ms"].as_u64().unwrap() >= 400, "{json}");
 }
+
+// ---------------------------------------------------------------------------------------------
+// Missions with a world: the simulated robot
+
+fn world_file(name: &str) -> PathBuf {
+    marie::missions::world::worlds_dir().join(format!("{name}.toml"))
+}
+
+/// The demo mission (demo operations only, so the cart never moves), naming `world`.
+fn demo_in_world(dir: &tempfile::TempDir, name: &str, world: &str) -> PathBuf {
+    let line = format!("world = {:?}\n", world);
+    let body = DEMO.replacen(
+        "deadline_s = 60.0\n",
+        &format!("deadline_s = 60.0\n{line}"),
+        1,
+    );
+    assert!(body.contains(&line));
+    mission_file(dir, name, &body)
+}
+
+fn read_json(path: &std::path::Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+#[test]
+fn a_mission_with_a_world_runs_the_robot_and_writes_report_and_picture() {
+    let dir = tempfile::tempdir().unwrap();
+    let lab = world_file("lab");
+    let world = marie::missions::world::World::load(&lab).unwrap();
+    let mission = demo_in_world(&dir, "lab.toml", lab.to_str().unwrap());
+    let (report, svg) = (dir.path().join("run.json"), dir.path().join("run.svg"));
+    let out = marie(&[
+        "run",
+        mission.to_str().unwrap(),
+        "--speed",
+        "max",
+        "--seed",
+        "7",
+        "--report",
+        report.to_str().unwrap(),
+        "--svg",
+        svg.to_str().unwrap(),
+    ]);
+    let stdout = text(&out.stdout);
+    // the dispatcher succeeds, but the cart never left its start: the world fails the run
+    assert_eq!(
+        out.status.code(),
+        Some(1),
+        "{stdout}\n{}",
+        text(&out.stderr)
+    );
+    let world_line = stdout.find("world `lab` from").expect("a world line");
+    assert!(
+        stdout[world_line..].starts_with(&format!("world `lab` from {}, seed 7\n", lab.display()))
+    );
+    assert!(world_line < stdout.find("> sample-and-average").unwrap());
+    assert!(
+        stdout.contains("mission FAILED (full stop): the cart did not end in the goal area: failure: outside the goal area"),
+        "{stdout}"
+    );
+    assert!(!stdout.contains("mission succeeded"), "{stdout}");
+    assert!(
+        stdout.contains(
+            "outcome: failed — final pose (12.50, 1.50, 180.0°), inside goal: no, collisions: 0"
+        ),
+        "{stdout}"
+    );
+
+    let json = read_json(&report);
+    assert_eq!(json["outcome"], "failed");
+    assert!(json["reason"]
+        .as_str()
+        .unwrap()
+        .starts_with("the cart did not end in the goal area: "));
+    let pose: Vec<f64> = serde_json::from_value(json["final_pose"].clone()).unwrap();
+    let start = [world.start.x, world.start.y, world.start.theta];
+    for (got, want) in pose.iter().zip(start) {
+        assert!(
+            (got - want).abs() < 1e-9,
+            "final pose {pose:?}, start {start:?}"
+        );
+    }
+    assert_eq!(pose.len(), 3);
+    assert_eq!(json["collisions"], 0);
+    assert_eq!(json["seed"], 7);
+    assert_eq!(json["inside_goal"], false);
+    assert!(json["judgement"]
+        .as_str()
+        .unwrap()
+        .contains("outside the goal area"));
+    // the dispatcher's own account is untouched
+    assert_eq!(json["flags"], serde_json::json!(["averaged", "verified"]));
+
+    let svg = std::fs::read_to_string(&svg).unwrap();
+    assert!(svg.starts_with("<svg"), "{svg}");
+    assert!(svg.trim_end().ends_with("</svg>"));
+    // one polyline per wall, through its first point
+    let walls = svg
+        .lines()
+        .filter(|l| l.starts_with("<polyline") && l.contains(r##"stroke="#222""##))
+        .count();
+    assert_eq!(walls, world.walls.len(), "{svg}");
+    assert!(svg.contains("demo — failed — seed 7"), "the caption");
+    assert!(svg.contains("<title>final footprint</title>"));
+}
+
+#[test]
+fn the_world_flag_overrides_the_missions_world_and_a_world_without_goal_judges_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    // a relative `world` is resolved against the mission's directory
+    std::fs::create_dir(dir.path().join("worlds")).unwrap();
+    std::fs::copy(world_file("lab"), dir.path().join("worlds/lab.toml")).unwrap();
+    let mission = demo_in_world(&dir, "m.toml", "worlds/lab.toml");
+    let out = marie(&["check", mission.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert!(
+        text(&out.stdout).contains("ok — mission `demo`, 2 actions, 3 operations, world `lab`"),
+        "{}",
+        text(&out.stdout)
+    );
+    let out = marie(&["run", mission.to_str().unwrap(), "--speed", "max"]);
+    let expected = format!(
+        "world `lab` from {}, seed 1\n",
+        dir.path().join("worlds/lab.toml").display()
+    );
+    assert!(
+        text(&out.stdout).contains(&expected),
+        "{}",
+        text(&out.stdout)
+    );
+
+    let report = dir.path().join("run.json");
+    let nodock = world_file("nodock");
+    let out = marie(&[
+        "run",
+        mission.to_str().unwrap(),
+        "--world",
+        nodock.to_str().unwrap(),
+        "--speed",
+        "max",
+        "--report",
+        report.to_str().unwrap(),
+    ]);
+    let stdout = text(&out.stdout);
+    // no goal area: only the dispatcher's outcome counts
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{stdout}\n{}",
+        text(&out.stderr)
+    );
+    assert!(stdout.contains("world `nodock` from"), "{stdout}");
+    assert!(stdout.contains(", seed 1\n"), "the default seed: {stdout}");
+    assert!(!stdout.contains("world `lab`"), "{stdout}");
+    assert!(stdout.contains("mission succeeded"), "{stdout}");
+    assert!(
+        stdout.contains("inside goal: no goal area, collisions: 0"),
+        "{stdout}"
+    );
+    let json = read_json(&report);
+    assert_eq!(json["outcome"], "succeeded");
+    assert_eq!(json["seed"], 1);
+    assert_eq!(json["inside_goal"], serde_json::Value::Null);
+    assert!(json["judgement"].as_str().unwrap().contains("no goal area"));
+    assert_eq!(json["final_pose"][0], 12.5);
+}
+
+#[test]
+fn a_bad_world_file_exits_2_naming_file_line_and_column() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = mission_file(
+        &dir,
+        "bad-world.toml",
+        "[world]\nname = \"x\"\ncolour = 3\n",
+    );
+    let out = marie(&[
+        "run",
+        "missions/demo.toml",
+        "--world",
+        bad.to_str().unwrap(),
+    ]);
+    let stderr = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains(&format!("{}:3:1: unknown key `colour`", bad.display())),
+        "{stderr}"
+    );
+    assert!(out.stdout.is_empty(), "nothing ran: {}", text(&out.stdout));
+
+    // a world the mission names but that is not there
+    let mission = demo_in_world(&dir, "m.toml", "no-such-world.toml");
+    let out = marie(&["run", mission.to_str().unwrap(), "--speed", "max"]);
+    let stderr = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("no-such-world.toml:1:1: cannot read world file"),
+        "{stderr}"
+    );
+
+    // a `world` that is not a path is a mission error at its position
+    let body = DEMO.replacen("deadline_s = 60.0\n", "deadline_s = 60.0\nworld = 3\n", 1);
+    let mission = mission_file(&dir, "typed.toml", &body);
+    let out = marie(&["check", mission.to_str().unwrap()]);
+    let stderr = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    let line = body.lines().position(|l| l == "world = 3").unwrap() + 1;
+    assert!(
+        stderr.contains(&format!(
+            "typed.toml:{line}:9: expected a string for `mission.world`"
+        )),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn without_a_world_no_robot_runs_and_svg_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let report = dir.path().join("run.json");
+    let out = marie(&[
+        "run",
+        "missions/demo.toml",
+        "--speed",
+        "max",
+        "--report",
+        report.to_str().unwrap(),
+    ]);
+    let stdout = text(&out.stdout);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert!(!stdout.contains("world `"), "{stdout}");
+    assert!(!stdout.contains("outcome:"), "{stdout}");
+    let json = read_json(&report);
+    for key in [
+        "final_pose",
+        "collisions",
+        "seed",
+        "inside_goal",
+        "judgement",
+    ] {
+        assert_eq!(json[key], serde_json::Value::Null, "{key}");
+    }
+
+    let svg = dir.path().join("run.svg");
+    let out = marie(&[
+        "run",
+        "missions/demo.toml",
+        "--speed",
+        "max",
+        "--svg",
+        svg.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(text(&out.stderr).contains("--svg"), "{}", text(&out.stderr));
+    assert!(!svg.exists());
+}
+
+#[test]
+fn an_unwritable_picture_fails_the_run_after_writing_the_report() {
+    let dir = tempfile::tempdir().unwrap();
+    let report = dir.path().join("run.json");
+    let svg = dir.path().join("no/such/dir/run.svg");
+    let nodock = world_file("nodock");
+    let out = marie(&[
+        "run",
+        "missions/demo.toml",
+        "--world",
+        nodock.to_str().unwrap(),
+        "--speed",
+        "max",
+        "--report",
+        report.to_str().unwrap(),
+        "--svg",
+        svg.to_str().unwrap(),
+    ]);
+    let stderr = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains(&format!("cannot write the picture to {}", svg.display())),
+        "{stderr}"
+    );
+    assert!(text(&out.stdout).contains("mission succeeded"));
+    assert_eq!(read_json(&report)["outcome"], "succeeded");
+}

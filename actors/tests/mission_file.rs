@@ -355,7 +355,7 @@ fn unknown_keys_are_reported_at_the_key_with_the_accepted_ones() {
         3,
         &[
             "unknown key `nmae` in `[mission]`",
-            "expected one of: name, description, success, initial, deadline_s",
+            "expected one of: name, description, success, initial, deadline_s, world",
         ],
     );
     let d = parse_err(&format!(
@@ -1009,4 +1009,56 @@ fn large_parameter_arrays_are_fine() {
         9,
         &["`gains` of operation `wall-follower`: length 50001"],
     );
+}
+
+#[test]
+fn the_mission_names_its_world_relative_to_its_own_file() {
+    let body = "[mission]\nname = \"m\"\nworld = \"../worlds/lab.toml\"\n\
+                [[action]]\nname = \"a\"\n[action.ops.wall-sensor]\n";
+    let file = Path::new("some/dir/m.toml");
+    let parsed = Mission::parse(body, Some(file)).unwrap_or_else(|d| panic!("{d}"));
+    let expected = Path::new("some/dir").join("../worlds/lab.toml");
+    assert_eq!(parsed.world(), Some(expected.as_path()));
+    let mission = parsed
+        .validate(&catalog())
+        .unwrap_or_else(|d| panic!("{d}"));
+    assert_eq!(mission.world.as_deref(), Some(expected.as_path()));
+
+    // an absolute path stays as it is; without a file the path is kept as written
+    let abs = std::env::temp_dir().join("w.toml");
+    let src = body.replace(
+        "../worlds/lab.toml",
+        &abs.display().to_string().escape_debug().to_string(),
+    );
+    let parsed = Mission::parse(&src, Some(file)).unwrap_or_else(|d| panic!("{d}"));
+    assert_eq!(parsed.world(), Some(abs.as_path()));
+    let parsed = Mission::parse(body, None).unwrap_or_else(|d| panic!("{d}"));
+    assert_eq!(parsed.world(), Some(Path::new("../worlds/lab.toml")));
+
+    // no world: none
+    let parsed = Mission::parse(&body.replace("world = \"../worlds/lab.toml\"\n", ""), None)
+        .unwrap_or_else(|d| panic!("{d}"));
+    assert_eq!(parsed.world(), None);
+
+    // a mission from older versions (no `world` in its JSON) still reads
+    let mut json = serde_json::to_value(&mission).unwrap();
+    json.as_object_mut().unwrap().remove("world");
+    let old: Mission = serde_json::from_value(json).unwrap();
+    assert_eq!(old.world, None);
+}
+
+#[test]
+fn a_world_that_is_not_a_path_is_reported_at_its_value() {
+    let d =
+        parse_err("[mission]\nname = \"m\"\nworld = 3\n[[action]]\nname = \"a\"\n[action.ops.x]\n");
+    assert_one(
+        &d,
+        3,
+        9,
+        &["expected a string for `mission.world`, found integer"],
+    );
+    let d = parse_err(
+        "[mission]\nname = \"m\"\nworld = \" \"\n[[action]]\nname = \"a\"\n[action.ops.x]\n",
+    );
+    assert_one(&d, 3, 9, &["`mission.world` must not be empty"]);
 }

@@ -545,6 +545,8 @@ impl DispatcherState {
             final_pose: None,
             collisions: None,
             seed: None,
+            inside_goal: None,
+            judgement: None,
         };
         self.emit(DispatchEvent::Ended { outcome, reason });
         if let Some(reply) = self.reply.take() {

@@ -82,17 +82,53 @@ pub struct RunReport {
     pub rebinds: Vec<RebindRecord>,
     /// Mission clock time the run took, in ms.
     pub duration_ms: u64,
-    /// Final pose `[x, y, heading]` of a robot, where the mission drives one.
+    /// Final pose `[x, y, heading]` of a robot, where the mission drives one: metres, and the
+    /// heading in radians.
+    #[serde(default)]
     pub final_pose: Option<[f64; 3]>,
     /// Collisions counted by a simulation, where there is one.
+    #[serde(default)]
     pub collisions: Option<u64>,
     /// Seed of a simulation, where there is one.
+    #[serde(default)]
     pub seed: Option<u64>,
+    /// Whether the robot's footprint ended inside the world's goal area, where there is a
+    /// simulated robot in a world with a goal area.
+    #[serde(default)]
+    pub inside_goal: Option<bool>,
+    /// The world's verdict on the robot's final state (e.g. `success: inside the goal area,
+    /// heading error 2.1°, 0 collision(s)`), where there is a simulated robot.
+    #[serde(default)]
+    pub judgement: Option<String>,
 }
 
 impl RunReport {
     /// True when the mission succeeded.
     pub fn succeeded(&self) -> bool {
         self.outcome == Outcome::Succeeded
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reports_without_the_robot_fields_still_read() {
+        let json = r#"{"mission":"m","outcome":"failed","reason":"r","status":0,"flags":[],
+                       "actions":[],"rebinds":[],"duration_ms":5}"#;
+        let report: RunReport = serde_json::from_str(json).expect("an older report reads");
+        assert_eq!(report.outcome, Outcome::Failed);
+        assert_eq!(
+            (report.final_pose, report.collisions, report.seed),
+            (None, None, None)
+        );
+        assert_eq!(
+            (report.inside_goal, report.judgement.as_deref()),
+            (None, None)
+        );
+        let round: RunReport =
+            serde_json::from_str(&serde_json::to_string(&report).expect("writes")).expect("reads");
+        assert_eq!(round, report);
     }
 }

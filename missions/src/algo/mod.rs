@@ -48,6 +48,7 @@
 pub mod avoid;
 pub mod dock;
 pub mod follow;
+pub mod parking;
 pub mod planner;
 pub mod pursuit;
 pub mod segments;

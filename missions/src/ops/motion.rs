@@ -6,10 +6,11 @@
 
 use super::perception::wall_from;
 use super::records::{
-    DockRecord, PathRecord, SegmentSet, WallRecord, DOCK, MAP, PATH, SEGMENTS, WALL,
+    DockRecord, LegRecord, PathRecord, SegmentSet, WallRecord, DOCK, MAP, PATH, SEGMENTS, WALL,
 };
 use super::{cart, cart_err, dm_err, newest};
 use crate::algo::follow::{follow_command, is_aligned, FollowMode, FollowParams};
+use crate::algo::parking::{plan_parking, Footprint, ParkParams};
 use crate::algo::planner::{plan, Bounds, Path, PlannerParams};
 use crate::algo::pursuit::{PurePursuit, PursuitParams, PursuitStatus};
 use crate::algo::wall::{sense_wall, WallParams};
@@ -93,23 +94,25 @@ impl Operation for PathPlanner {
             reverse: p.bool("reverse")?,
             ..PlannerParams::default()
         };
-        let goal = match p.text("target")? {
-            "dock" => {
-                let dock: DockRecord = newest(ctx, "world", DOCK)
-                    .await?
-                    .ok_or_else(|| OpError::failed("no dock in the world DM to plan to"))?;
-                dock.park
-            }
-            _ => Pose::new(p.f64("x")?, p.f64("y")?, p.f64("heading")?.to_radians()),
-        };
+        let target = p.text("target")?.to_string();
+        let pose_goal = Pose::new(p.f64("x")?, p.f64("y")?, p.f64("heading")?.to_radians());
         let map: Vec<Segment> = newest(ctx, "world", MAP)
             .await?
             .ok_or_else(|| OpError::failed("no map in the world DM"))?;
-        let start = cart(&mut self.cart)?
-            .status()
-            .await
-            .map_err(cart_err)?
-            .odometry;
+        let status = cart(&mut self.cart)?.status().await.map_err(cart_err)?;
+        let start = status.odometry;
+        if target == "dock" {
+            let dock: DockRecord = newest(ctx, "world", DOCK)
+                .await?
+                .ok_or_else(|| OpError::failed("no dock in the world DM to plan to"))?;
+            let legs = parking_legs(&start, &dock, &status, &map)?;
+            ctx.dm("parameter")?
+                .store(PATH, Some("planned"), None, &PathRecord { legs })
+                .await
+                .map_err(dm_err("parameter"))?;
+            return Ok(Step::Finish(StatusFlags(1)));
+        }
+        let goal = pose_goal;
         let bounds =
             Bounds::around(&map, 1.0).ok_or_else(|| OpError::failed("the world map is empty"))?;
         let path = plan(&map, &start, &goal, &bounds, &params).map_err(|e| {
@@ -119,9 +122,11 @@ impl Operation for PathPlanner {
             ))
         })?;
         let record = PathRecord {
-            waypoints: path.waypoints.clone(),
-            goal_heading: path.goal_heading,
-            reverse: params.reverse,
+            legs: vec![LegRecord {
+                waypoints: path.waypoints.clone(),
+                goal_heading: path.goal_heading,
+                reverse: params.reverse,
+            }],
         };
         ctx.dm("parameter")?
             .store(PATH, Some("planned"), None, &record)
@@ -135,11 +140,71 @@ impl Operation for PathPlanner {
     }
 }
 
-/// Drives the newest planned path with pure pursuit; finishes by itself with `path-driven`.
+/// The parking manoeuvre into `dock` from `start`: the footprint from the cart's own
+/// geometry, the goal allowed to slide as deep into the spot as its breadth leaves room for.
+fn parking_legs(
+    start: &Pose,
+    dock: &DockRecord,
+    status: &crate::hardware::CartStatus,
+    map: &[Segment],
+) -> Result<Vec<LegRecord>, OpError> {
+    let c = &status.footprint;
+    let length = (c[1] - c[0]).norm();
+    let width = (c[2] - c[1]).norm();
+    let rear = length / 2.0 - status.axle_to_centre;
+    let footprint = Footprint {
+        rear,
+        front: length - rear,
+        half_width: width / 2.0,
+    };
+    let params = ParkParams {
+        slide: ((dock.breadth - length) / 2.0 - 0.15).max(0.0),
+        ..ParkParams::default()
+    };
+    let legs = plan_parking(start, &dock.park, &footprint, map, &params).map_err(|e| {
+        OpError::failed(format!(
+            "no parking manoeuvre from ({:.2}, {:.2}) into the dock at ({:.2}, {:.2}): {e}",
+            start.x, start.y, dock.park.x, dock.park.y
+        ))
+    })?;
+    Ok(legs
+        .into_iter()
+        .map(|l| LegRecord {
+            waypoints: l.waypoints,
+            goal_heading: Some(l.heading),
+            reverse: l.reverse,
+        })
+        .collect())
+}
+
+/// Drives the newest planned path with pure pursuit, leg by leg (changing direction between
+/// legs); finishes by itself with `path-driven`.
 #[derive(Default)]
 pub struct TrajectoryController {
     cart: Option<CartClient>,
+    params: Option<PursuitParams>,
+    legs: Vec<LegRecord>,
     pursuit: Option<(PurePursuit, Path)>,
+}
+
+impl TrajectoryController {
+    /// Start the next leg; false when none is left.
+    fn next_leg(&mut self) -> bool {
+        let (Some(params), false) = (self.params, self.legs.is_empty()) else {
+            return false;
+        };
+        let leg = self.legs.remove(0);
+        let mut path = Path::new(leg.waypoints);
+        if let Some(h) = leg.goal_heading {
+            path = path.with_heading(h);
+        }
+        let params = PursuitParams {
+            reverse: leg.reverse,
+            ..params
+        };
+        self.pursuit = Some((PurePursuit::with_path(params, path.clone()), path));
+        true
+    }
 }
 
 impl Operation for TrajectoryController {
@@ -191,19 +256,17 @@ impl Operation for TrajectoryController {
             .ok_or_else(|| OpError::failed("no planned path in the parameter DM"))?;
         let p = ctx.params();
         let heading_tol = p.f64("heading_tolerance")?;
-        let params = PursuitParams {
+        self.params = Some(PursuitParams {
             speed: p.f64("speed")?,
             lookahead: p.f64("lookahead")?,
             position_tolerance: p.f64("position_tolerance")?,
             heading_tolerance: (heading_tol > 0.0).then(|| heading_tol.to_radians()),
-            reverse: record.reverse,
             ..PursuitParams::default()
-        };
-        let mut path = Path::new(record.waypoints);
-        if let Some(h) = record.goal_heading {
-            path = path.with_heading(h);
+        });
+        self.legs = record.legs;
+        if !self.next_leg() {
+            return Err(OpError::failed("the planned path has no legs"));
         }
-        self.pursuit = Some((PurePursuit::with_path(params, path.clone()), path));
         Ok(Step::Continue)
     }
 
@@ -222,6 +285,9 @@ impl Operation for TrajectoryController {
         match pursuit.status(&pose) {
             PursuitStatus::Arrived => {
                 stop_cart(&mut self.cart)?;
+                if self.next_leg() {
+                    return Ok(Step::Continue);
+                }
                 return Ok(Step::Finish(StatusFlags(1)));
             }
             PursuitStatus::Overshot => {
@@ -247,8 +313,10 @@ impl Operation for TrajectoryController {
     }
 }
 
-/// How far the cart may run past the last seen end of the wall before the follower gives up.
-const WALL_END_MARGIN: f64 = 1.5;
+/// How far the cart may run past the last seen end of the wall before the follower gives up,
+/// m: more than a docking spot's breadth, which looks like the wall's end until its far side
+/// is seen.
+const WALL_END_MARGIN: f64 = 3.5;
 
 fn follow_params(distance: f64, mode: FollowMode, speed: f64) -> FollowParams {
     FollowParams {
@@ -408,8 +476,10 @@ impl Operation for WallFollowerV2 {
 }
 
 /// The sensor-based controller: aligns the cart with the followed wall (finishing with
-/// `aligned` once it has held the distance and heading for a moment), or backs along it
-/// until suspended — the corner mission's last two stages.
+/// `aligned` once it has held the distance and heading for a moment), backs along it until
+/// suspended — the corner mission's last two stages —, or cruises straight ahead until
+/// suspended (so that a sonar robot, which sees walls only by moving along them, can find
+/// one).
 #[derive(Default)]
 pub struct SensorBasedController {
     cart: Option<CartClient>,
@@ -431,8 +501,8 @@ impl Operation for SensorBasedController {
 
     fn parameters(&self) -> ParamSchema {
         ParamSchema::new(vec![
-            ParamDecl::choice("mode", &["align", "back"], "align")
-                .describe("align with the wall (finishes), or back along it (until suspended)"),
+            ParamDecl::choice("mode", &["align", "back", "cruise"], "align")
+                .describe("align with the wall (finishes), back along it, or cruise straight ahead (until suspended)"),
             ParamDecl::float("distance", 0.6)
                 .range(0.3, 3.0)
                 .unit("m")
@@ -462,8 +532,17 @@ impl Operation for SensorBasedController {
 
     async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
         let p = ctx.params();
-        let back = p.text("mode")? == "back";
+        let mode = p.text("mode")?;
         let speed = p.f64("speed")?;
+        if mode == "cruise" {
+            let status = cart(&mut self.cart)?.status().await.map_err(cart_err)?;
+            if status.collided {
+                return Err(OpError::failed("the cart collided while cruising"));
+            }
+            cart(&mut self.cart)?.drive(speed, 0.0).map_err(cart_err)?;
+            return Ok(Step::Continue);
+        }
+        let back = mode == "back";
         let params = follow_params(
             p.f64("distance")?,
             FollowMode::Wall,

@@ -4,9 +4,10 @@
 use super::records::{DockRecord, EchoScan, SegmentSet, WallRecord, DOCK, SEGMENTS, SONAR, WALL};
 use super::{cart, cart_err, dm_err, newest};
 use crate::algo::dock::{detect_dock, DockParams};
+use crate::algo::segments::Line;
 use crate::algo::segments::{extract_segments, SegmentParams};
 use crate::algo::wall::{sense_wall, Side, WallEstimate, WallParams};
-use crate::geom::{Point, Pose};
+use crate::geom::{Point, Pose, Segment};
 use crate::hardware::CartClient;
 use marie_actors::dm::Query;
 use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
@@ -133,9 +134,39 @@ impl Operation for SegmentExtractor {
 /// Finds the wall among the newest segments and stores it in the world DM. Finishes with
 /// `wall-found`, or with `continuous` keeps updating the wall (raising `wall-found`) until
 /// suspended.
+///
+/// In continuous mode the sensor *tracks* the wall it has (the newest wall record when it is
+/// activated): it only accepts segments on that wall's line and extends the wall's known
+/// extent with them. Without tracking, a recess in the wall — the docking spot — would, once
+/// the cart is alongside it, offer its back wall as "the" wall and lead the follower into it.
 #[derive(Default)]
 pub struct WallSensor {
     cart: Option<CartClient>,
+    tracked: Option<Segment>,
+}
+
+/// Largest distance of a segment's ends from the tracked wall's line for it to extend the
+/// wall, m.
+const TRACK_OFFSET: f64 = 0.2;
+
+/// Extend `wall` with the segments lying on its line; `None` when none does.
+fn extend_wall(wall: &Segment, segments: &[Segment]) -> Option<Segment> {
+    let line = Line::of_segment(wall)?;
+    let on_line: Vec<&Segment> = segments
+        .iter()
+        .filter(|s| line.distance(s.a) <= TRACK_OFFSET && line.distance(s.b) <= TRACK_OFFSET)
+        .collect();
+    if on_line.is_empty() {
+        return None;
+    }
+    let (mut lo, mut hi) = (line.project(wall.a), line.project(wall.b));
+    for s in &on_line {
+        for t in [line.project(s.a), line.project(s.b)] {
+            lo = lo.min(t);
+            hi = hi.max(t);
+        }
+    }
+    Some(Segment::new(line.at(lo), line.at(hi)))
 }
 
 impl Operation for WallSensor {
@@ -177,6 +208,13 @@ impl Operation for WallSensor {
         Duration::from_millis(250)
     }
 
+    async fn activate(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
+        self.tracked = newest::<WallRecord>(ctx, "world", WALL)
+            .await?
+            .map(|w| w.segment);
+        Ok(Step::Continue)
+    }
+
     async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
         let p = ctx.params();
         let params = WallParams {
@@ -198,7 +236,15 @@ impl Operation for WallSensor {
             .await
             .map_err(cart_err)?
             .odometry;
-        let Some(w) = sense_wall(&set.segments, &pose, &params) else {
+        let found = match (continuous, self.tracked) {
+            (true, Some(wall)) => extend_wall(&wall, &set.segments)
+                .and_then(|segment| wall_from(&WallRecord::of(segment, pose), &pose)),
+            _ => sense_wall(&set.segments, &pose, &params),
+        };
+        let Some(w) = found else {
+            if continuous && self.tracked.is_some() {
+                ctx.raise(StatusFlags(1)); // still the same wall, nothing new seen
+            }
             return Ok(Step::Continue);
         };
         let record = WallRecord {
@@ -208,6 +254,7 @@ impl Operation for WallSensor {
             side: w.side.sign(),
             pose,
         };
+        self.tracked = Some(w.line);
         ctx.dm("world")?
             .store(WALL, Some("followed"), None, &record)
             .await

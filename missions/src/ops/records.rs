@@ -76,6 +76,19 @@ pub struct WallRecord {
     pub pose: Pose,
 }
 
+impl WallRecord {
+    /// A record of `segment` with the relation to `pose` left for the reader to compute.
+    pub fn of(segment: Segment, pose: Pose) -> Self {
+        WallRecord {
+            segment,
+            distance: 0.0,
+            relative_angle: 0.0,
+            side: 0.0,
+            pose,
+        }
+    }
+}
+
 /// A detected dock.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct DockRecord {
@@ -89,13 +102,30 @@ pub struct DockRecord {
     pub depth: f64,
 }
 
-/// A planned path.
+/// One leg of a planned path, driven in one direction.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LegRecord {
+    /// Waypoints from the leg's start to its end.
+    pub waypoints: Vec<Point>,
+    /// Heading required at the leg's end, rad.
+    pub goal_heading: Option<f64>,
+    /// Driven backwards.
+    pub reverse: bool,
+}
+
+/// A planned path: one or more legs (a manoeuvre changes direction between legs).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct PathRecord {
-    /// Waypoints from start to goal.
-    pub waypoints: Vec<Point>,
-    /// Heading required at the goal, rad.
-    pub goal_heading: Option<f64>,
-    /// Drive backwards along it.
-    pub reverse: bool,
+    /// The legs, in driving order.
+    pub legs: Vec<LegRecord>,
+}
+
+impl PathRecord {
+    /// Every waypoint of every leg, in order (for pictures).
+    pub fn waypoints(&self) -> Vec<Point> {
+        self.legs
+            .iter()
+            .flat_map(|l| l.waypoints.iter().copied())
+            .collect()
+    }
 }

@@ -33,6 +33,7 @@
 //! success = ["counted"]      # flags that must all be set at the end
 //! initial = []               # flags set before the first action (optional)
 //! deadline_s = 60.0          # optional: deadline of the whole mission, in seconds
+//! world = "worlds/lab.toml"  # optional: the world to run in, relative to this file
 //!
 //! [flags]                    # flag name -> bit of the status word (0..=31, each bit once)
 //! counted = 0
@@ -51,6 +52,11 @@
 //! limit = 10                 #   and the parameters the mission sets
 //! [action.ops.ticker]        # an operation with all parameters at their defaults
 //! ```
+//!
+//! `world` names the world file a simulated robot runs the mission in; a relative path is
+//! resolved against the directory of the mission file ([`Mission::world`]). To this crate it
+//! is only a path: nothing here reads it, and a mission without one runs without a world. The
+//! `marie` command loads it (its `--world` flag overrides it).
 //!
 //! Parameters the mission omits are not filled in here: the dispatcher leaves them at the
 //! operation's declared defaults. Supplied values are canonicalized (an integer given for a
@@ -222,6 +228,11 @@ pub struct Mission {
     pub deadline: Option<Duration>,
     /// The actions, in file order.
     pub actions: Vec<Action>,
+    /// The world file the mission names (`world = "..."` in `[mission]`), resolved against the
+    /// mission file's directory; `None` when it names none. Just a path: this crate never
+    /// reads it.
+    #[serde(default)]
+    pub world: Option<PathBuf>,
 }
 
 impl Mission {
@@ -309,6 +320,7 @@ pub struct ParsedMission {
     pub(crate) initial: Vec<raw::FlagRef>,
     pub(crate) success: Vec<raw::FlagRef>,
     pub(crate) deadline: Option<Duration>,
+    pub(crate) world: Option<PathBuf>,
     pub(crate) actions: Vec<raw::ParsedAction>,
 }
 
@@ -332,6 +344,12 @@ impl ParsedMission {
     /// Flag names and their bits.
     pub fn flags(&self) -> &BTreeMap<String, u8> {
         &self.flags
+    }
+
+    /// The world file the mission names, resolved against the mission file's directory (see
+    /// [`Mission::world`]).
+    pub fn world(&self) -> Option<&Path> {
+        self.world.as_deref()
     }
 
     /// The operation keys (names or ids, as written) the mission uses, each once, in order of

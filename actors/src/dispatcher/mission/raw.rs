@@ -11,7 +11,7 @@ use super::{EndMode, ParsedMission};
 use crate::property::Value;
 use std::collections::{BTreeMap, BTreeSet};
 use std::ops::Range;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 use toml::de::{DeTable, DeValue};
 use toml::Spanned;
@@ -22,7 +22,14 @@ type Span = Range<usize>;
 pub(crate) const DEFAULT_ACTION_DEADLINE: Duration = Duration::from_secs(30);
 
 const TOP_KEYS: &[&str] = &["mission", "flags", "action"];
-const MISSION_KEYS: &[&str] = &["name", "description", "success", "initial", "deadline_s"];
+const MISSION_KEYS: &[&str] = &[
+    "name",
+    "description",
+    "success",
+    "initial",
+    "deadline_s",
+    "world",
+];
 const ACTION_KEYS: &[&str] = &["name", "when", "ends_on", "end_mode", "deadline_s", "ops"];
 
 /// A flag named in `initial`, `success` or `when`, resolved to its bit.
@@ -74,6 +81,7 @@ struct RawHeader {
     success: Vec<Spanned<String>>,
     initial: Vec<Spanned<String>>,
     deadline: Option<Duration>,
+    world: Option<Spanned<String>>,
 }
 
 /// One `[[action]]` table, fields typed but not cross-checked.
@@ -376,6 +384,9 @@ fn raw_header(ctx: &mut Ctx<'_>, t: &DeTable<'_>, at: Span) -> RawHeader {
     }
     if let Some(v) = t.get("deadline_s") {
         h.deadline = seconds(ctx, v, "mission.deadline_s");
+    }
+    if let Some(v) = t.get("world") {
+        h.world = non_empty_string(ctx, v, "mission.world");
     }
     h
 }
@@ -780,6 +791,18 @@ fn check(
         initial,
         success,
         deadline: header.deadline,
+        world: header
+            .world
+            .map(|w| resolve_world(path, Path::new(w.get_ref()))),
         actions,
+    }
+}
+
+/// The `world` path as the mission names it, resolved against the mission file's directory
+/// (an absolute path, or a mission without a file, keeps the path as written).
+fn resolve_world(mission: Option<&Path>, world: &Path) -> PathBuf {
+    match mission.and_then(Path::parent) {
+        Some(dir) => dir.join(world),
+        None => world.to_path_buf(),
     }
 }

@@ -71,6 +71,7 @@ pub(crate) fn validate<C: Catalog + ?Sized>(
         success: bits(pm.success.iter().map(|r| r.bit)),
         deadline: pm.deadline,
         actions,
+        world: pm.world.clone(),
     };
     Diagnostics(v.diags).into_result(mission)
 }
