@@ -1,0 +1,126 @@
+//! The simulated robot end to end through the `marie` binary: the thesis' docking-spot mission
+//! in the lab world over many seeds, and its clean failures.
+//!
+//! Each run is its own process (ractor's registry is per process), in virtual time.
+
+use std::process::{Command, Output};
+
+fn marie(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_marie"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .env_remove("RUST_LOG")
+        .output()
+        .expect("marie runs")
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+fn report_of(args: &[&str]) -> (Output, serde_json::Value) {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("report.json");
+    let mut all = args.to_vec();
+    all.extend(["--report", path.to_str().unwrap()]);
+    let out = marie(&all);
+    let json = std::fs::read_to_string(&path)
+        .ok()
+        .and_then(|s| serde_json::from_str(&s).ok())
+        .unwrap_or(serde_json::Value::Null);
+    (out, json)
+}
+
+fn docking_succeeds(seed: u64) {
+    let seed = seed.to_string();
+    let (out, json) = report_of(&["run", "missions/docking.toml", "--seed", &seed]);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "seed {seed}: {}\n{}",
+        text(&out.stdout),
+        text(&out.stderr)
+    );
+    assert_eq!(json["outcome"], "succeeded", "seed {seed}: {json}");
+    assert_eq!(json["inside_goal"], true, "seed {seed}");
+    assert_eq!(json["collisions"], 0, "seed {seed}");
+    assert_eq!(json["seed"].as_u64(), seed.parse().ok());
+    let names: Vec<&str> = json["actions"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|a| a["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["find-wall", "follow-wall", "plan-parking", "park"]);
+}
+
+#[test]
+fn docking_succeeds_in_the_lab_for_seeds_1_to_10() {
+    (1..=10).for_each(docking_succeeds);
+}
+
+#[test]
+fn docking_succeeds_in_the_lab_for_seeds_11_to_20() {
+    (11..=20).for_each(docking_succeeds);
+}
+
+#[test]
+fn the_same_seed_gives_the_same_run() {
+    let (_, a) = report_of(&["run", "missions/docking.toml", "--seed", "3"]);
+    let (_, b) = report_of(&["run", "missions/docking.toml", "--seed", "3"]);
+    assert_eq!(a["final_pose"], b["final_pose"]);
+    assert_eq!(a["duration_ms"], b["duration_ms"]);
+    let (_, c) = report_of(&["run", "missions/docking.toml", "--seed", "4"]);
+    assert_ne!(
+        a["final_pose"], c["final_pose"],
+        "another seed, other noise"
+    );
+}
+
+#[test]
+fn a_docking_spot_larger_than_the_real_one_is_missed_and_the_mission_stops_cleanly() {
+    let dir = tempfile::tempdir().unwrap();
+    let src = std::fs::read_to_string("missions/docking.toml")
+        .unwrap()
+        .replace("breadth = 2.8", "breadth = 3.6")
+        .replace(
+            "world = \"worlds/lab.toml\"",
+            &format!(
+                "world = {:?}",
+                std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("missions/worlds/lab.toml")
+            ),
+        );
+    let path = dir.path().join("wrong-breadth.toml");
+    std::fs::write(&path, src).unwrap();
+    let (out, json) = report_of(&["run", path.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(1), "{}", text(&out.stderr));
+    assert_eq!(json["outcome"], "failed");
+    let reason = json["reason"].as_str().unwrap();
+    assert!(reason.contains("`docking-detector`"), "{reason}");
+    assert!(text(&out.stdout).contains("mission FAILED (full stop)"));
+    assert_eq!(
+        json["actions"].as_array().unwrap().len(),
+        2,
+        "parking never started"
+    );
+}
+
+#[test]
+fn a_world_without_a_dock_ends_in_a_clean_full_stop() {
+    let (out, json) = report_of(&[
+        "run",
+        "missions/docking.toml",
+        "--world",
+        "missions/worlds/nodock.toml",
+    ]);
+    assert_eq!(out.status.code(), Some(1), "{}", text(&out.stderr));
+    assert_eq!(json["outcome"], "failed");
+    assert_eq!(json["collisions"], 0);
+    assert!(
+        json["reason"]
+            .as_str()
+            .unwrap()
+            .contains("docking-detector"),
+        "{json}"
+    );
+}
