@@ -8,7 +8,7 @@
 
 use super::model::{Beam, CartSpec, Dock, GoalArea, Rect, SimSettings, SonarMount, World};
 use crate::geom::{Point, Pose};
-use marie_actors::dispatcher::mission::{Diagnostic, Diagnostics};
+use marie_actors::dispatcher::mission::{Diagnostic, Diagnostics, LineIndex, Pos};
 use std::ops::Range;
 use std::path::Path;
 use toml::de::{DeTable, DeValue};
@@ -75,7 +75,7 @@ pub(crate) fn load(path: &Path) -> Result<World, Diagnostics> {
         let valid = e.utf8_error().valid_up_to();
         let prefix =
             std::str::from_utf8(e.as_bytes().get(..valid).unwrap_or_default()).unwrap_or_default();
-        let (line, column) = Lines::new(prefix).pos(valid);
+        let Pos { line, column } = LineIndex::new(prefix).pos(valid);
         Diagnostic::new(
             &file,
             line,
@@ -86,48 +86,16 @@ pub(crate) fn load(path: &Path) -> Result<World, Diagnostics> {
     parse(&src, Some(path))
 }
 
-/// Byte offsets → 1-based line and column (in characters).
-struct Lines<'s> {
-    src: &'s str,
-    starts: Vec<usize>,
-}
-
-impl<'s> Lines<'s> {
-    fn new(src: &'s str) -> Self {
-        let starts = std::iter::once(0)
-            .chain(src.match_indices('\n').map(|(i, _)| i + 1))
-            .collect();
-        Lines { src, starts }
-    }
-
-    fn pos(&self, offset: usize) -> (usize, usize) {
-        let mut offset = offset.min(self.src.len());
-        while offset > 0 && !self.src.is_char_boundary(offset) {
-            offset -= 1;
-        }
-        let line = self.starts.partition_point(|s| *s <= offset).max(1);
-        let start = self.starts.get(line - 1).copied().unwrap_or(0);
-        let column = self
-            .src
-            .get(start..offset)
-            .unwrap_or_default()
-            .chars()
-            .count()
-            + 1;
-        (line, column)
-    }
-}
-
 /// Where problems go while walking the document.
 struct Ctx<'s> {
-    lines: Lines<'s>,
+    lines: LineIndex<'s>,
     file: String,
     diags: Vec<Diagnostic>,
 }
 
 impl Ctx<'_> {
     fn err(&mut self, span: &Span, message: impl Into<String>) {
-        let (line, column) = self.lines.pos(span.start);
+        let Pos { line, column } = self.lines.pos(span.start);
         self.diags
             .push(Diagnostic::new(&self.file, line, column, message));
     }
@@ -442,7 +410,7 @@ fn table_array<'a, 'i>(ctx: &mut Ctx<'_>, v: &'a Val<'i>, name: &str) -> Vec<Opt
 /// Parse and validate a world.
 pub(crate) fn parse(src: &str, path: Option<&Path>) -> Result<World, Diagnostics> {
     let mut ctx = Ctx {
-        lines: Lines::new(src),
+        lines: LineIndex::new(src),
         file: display_path(path),
         diags: Vec::new(),
     };
@@ -989,13 +957,5 @@ start = { x = 1, y = 1, heading_deg = 0 }
         );
         assert!(text.contains("no walls"), "{text}");
         assert!(text.contains("missing table `[cart]`"), "{text}");
-    }
-
-    #[test]
-    fn positions_count_characters() {
-        let l = Lines::new("ab\nçd\n");
-        assert_eq!(l.pos(0), (1, 1));
-        assert_eq!(l.pos(5), (2, 2));
-        assert_eq!(l.pos(99), (3, 1));
     }
 }

@@ -6,17 +6,17 @@ use std::ops::Range;
 /// A position in a mission file: 1-based line and 1-based column (counted in characters, not
 /// bytes).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
-pub(crate) struct Pos {
+pub struct Pos {
     /// 1-based line.
-    pub(crate) line: usize,
+    pub line: usize,
     /// 1-based column, in characters.
-    pub(crate) column: usize,
+    pub column: usize,
 }
 
 impl Pos {
     /// The position of byte `offset` in `src`. Offsets past the end clamp to the end; offsets
     /// inside a multi-byte character move back to its start.
-    pub(crate) fn of(src: &str, offset: usize) -> Pos {
+    pub fn of(src: &str, offset: usize) -> Pos {
         let mut offset = offset.min(src.len());
         while offset > 0 && !src.is_char_boundary(offset) {
             offset -= 1;
@@ -32,7 +32,7 @@ impl Pos {
 
 /// Byte offsets to positions in one text, in logarithmic time per lookup (a mission may hold
 /// large arrays, and every value's position is recorded).
-pub(crate) struct LineIndex<'s> {
+pub struct LineIndex<'s> {
     src: &'s str,
     /// Byte offset where each line starts.
     starts: Vec<usize>,
@@ -40,7 +40,7 @@ pub(crate) struct LineIndex<'s> {
 
 impl<'s> LineIndex<'s> {
     /// Index the lines of `src`.
-    pub(crate) fn new(src: &'s str) -> Self {
+    pub fn new(src: &'s str) -> Self {
         let starts = std::iter::once(0)
             .chain(src.match_indices('\n').map(|(i, _)| i + 1))
             .collect();
@@ -48,7 +48,7 @@ impl<'s> LineIndex<'s> {
     }
 
     /// The position of byte `offset`, as [`Pos::of`] computes it.
-    pub(crate) fn pos(&self, offset: usize) -> Pos {
+    pub fn pos(&self, offset: usize) -> Pos {
         let mut offset = offset.min(self.src.len());
         while offset > 0 && !self.src.is_char_boundary(offset) {
             offset -= 1;
@@ -66,7 +66,7 @@ impl<'s> LineIndex<'s> {
     }
 
     /// The position of the start of `span`.
-    pub(crate) fn span(&self, span: &Range<usize>) -> Pos {
+    pub fn span(&self, span: &Range<usize>) -> Pos {
         self.pos(span.start)
     }
 }
@@ -109,7 +109,8 @@ impl Diagnostic {
         }
     }
 
-    pub(crate) fn at(path: &str, pos: Pos, message: impl Into<String>) -> Self {
+    /// A diagnostic at `pos` of file `path`.
+    pub fn at(path: &str, pos: Pos, message: impl Into<String>) -> Self {
         Diagnostic::new(path, pos.line, pos.column, message)
     }
 }

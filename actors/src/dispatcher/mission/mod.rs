@@ -134,7 +134,7 @@ mod diagnostic;
 mod raw;
 mod validate;
 
-pub use diagnostic::{Diagnostic, Diagnostics};
+pub use diagnostic::{Diagnostic, Diagnostics, LineIndex, Pos};
 
 use crate::eo::{Identity, Operation};
 use crate::flags::{FlagDecl, StatusFlags};
