@@ -26,6 +26,23 @@ pub trait Clock: Send + Sync + 'static {
 /// A shared clock handle.
 pub type SharedClock = Arc<dyn Clock>;
 
+/// Send `msg` to `to` after `d` of `clock` time — the actors' timers (steps, deadlines,
+/// timeouts), so that they follow a simulated clock too. The returned handle may be aborted to
+/// cancel the timer; a message to an actor that has stopped meanwhile is dropped.
+pub fn cast_after<M: ractor::Message>(
+    clock: &SharedClock,
+    d: Duration,
+    to: &ractor::ActorRef<M>,
+    msg: M,
+) -> tokio::task::JoinHandle<()> {
+    let to = to.clone();
+    let sleep = clock.sleep(d);
+    ractor::concurrency::spawn(async move {
+        sleep.await;
+        let _ = to.cast(msg);
+    })
+}
+
 /// Runtime time: tokio's clock and timer.
 ///
 /// On a normal runtime this is wall-clock time. On a current-thread runtime started with

@@ -18,7 +18,7 @@
 use super::catalog::describe;
 use super::mission::{EndMode, Mission};
 use super::report::{ActionRecord, OpRecord, Outcome, RunReport};
-use crate::clock::SharedClock;
+use crate::clock::{cast_after, SharedClock};
 use crate::eo::{EoClient, EoReport};
 use crate::flags::StatusFlags;
 use crate::property::{General, Group, ParamMap, PropertyReply, PropertyRequest};
@@ -350,12 +350,12 @@ impl DispatcherState {
             self.finish(myself, Outcome::Failed, reason);
             return;
         }
-        let me = myself.clone();
-        let sleep = self.clock.sleep(action.deadline);
-        ractor::concurrency::spawn(async move {
-            sleep.await;
-            let _ = me.cast(DispatcherMsg::ActionDeadline { generation });
-        });
+        cast_after(
+            &self.clock,
+            action.deadline,
+            myself,
+            DispatcherMsg::ActionDeadline { generation },
+        );
     }
 
     fn on_op_ended(
@@ -473,12 +473,12 @@ impl DispatcherState {
                 let _ = b.client.suspend(b.epoch);
             }
         }
-        let me = myself.clone();
-        let sleep = self.clock.sleep(SUSPEND_GRACE);
-        ractor::concurrency::spawn(async move {
-            sleep.await;
-            let _ = me.cast(DispatcherMsg::SuspendGrace { generation });
-        });
+        cast_after(
+            &self.clock,
+            SUSPEND_GRACE,
+            myself,
+            DispatcherMsg::SuspendGrace { generation },
+        );
     }
 
     fn record_current(&mut self) {
@@ -607,12 +607,12 @@ impl Actor for ActionDispatcher {
                     return Ok(());
                 }
                 if let Some(deadline) = state.mission.deadline {
-                    let me = myself.clone();
-                    let sleep = state.clock.sleep(deadline);
-                    ractor::concurrency::spawn(async move {
-                        sleep.await;
-                        let _ = me.cast(DispatcherMsg::MissionDeadline {});
-                    });
+                    cast_after(
+                        &state.clock,
+                        deadline,
+                        &myself,
+                        DispatcherMsg::MissionDeadline {},
+                    );
                 }
                 state.next_action(&myself);
             }

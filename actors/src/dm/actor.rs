@@ -16,7 +16,7 @@ use super::query::Query;
 use super::record::{NewRecord, Record};
 use super::store::{DmConfig, Store};
 use super::waits::{TimerGuard, Waiter, Waits};
-use crate::clock::SharedClock;
+use crate::clock::{cast_after, SharedClock};
 use crate::registry::{self, ModuleKind};
 use ractor::{Actor, ActorCell, ActorProcessingErr, ActorRef, RpcReplyPort, SpawnErr};
 use std::time::Duration;
@@ -155,12 +155,12 @@ impl DmState {
             return;
         }
         let id = self.waits.next_id();
-        let sleep = self.clock.sleep(Duration::from_millis(timeout_ms));
-        let me = myself.clone();
-        let timer = ractor::concurrency::spawn(async move {
-            sleep.await;
-            let _ = me.cast(DmMsg::WaitExpired { id });
-        });
+        let timer = cast_after(
+            &self.clock,
+            Duration::from_millis(timeout_ms),
+            myself,
+            DmMsg::WaitExpired { id },
+        );
         self.waits.add(Waiter {
             id,
             query,

@@ -14,7 +14,7 @@
 
 use super::messages::{EoMsg, EoReport, ParamOutcome};
 use super::operation::{Identity, OpContext, Operation, Params, Step};
-use crate::clock::{RealClock, SharedClock};
+use crate::clock::{cast_after, RealClock, SharedClock};
 use crate::flags::{FlagDecl, StatusFlags};
 use crate::property::{
     Address, Collection, General, Group, Identification, Limit, Location, ParamMap, ParamSchema,
@@ -251,12 +251,7 @@ impl<O: Operation> HostState<O> {
 }
 
 fn schedule_tick(myself: &ActorRef<EoMsg>, clock: &SharedClock, period: Duration, activation: u64) {
-    let me = myself.clone();
-    let sleep = clock.sleep(period);
-    ractor::concurrency::spawn(async move {
-        sleep.await;
-        let _ = me.cast(EoMsg::Tick { activation });
-    });
+    cast_after(clock, period, myself, EoMsg::Tick { activation });
 }
 
 impl<O: Operation> Actor for EoHost<O> {

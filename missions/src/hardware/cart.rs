@@ -10,7 +10,7 @@
 use crate::geom::{Point, Pose};
 use crate::sim::{Simulation, SonarReading, TracePoint};
 use crate::world::Judgement;
-use marie_actors::clock::SharedClock;
+use marie_actors::clock::{cast_after, SharedClock};
 use marie_actors::registry::{self, ModuleKind};
 use ractor::rpc::CallResult;
 use ractor::{Actor, ActorProcessingErr, ActorRef, SpawnErr};
@@ -169,12 +169,7 @@ impl CartState {
 }
 
 fn schedule(myself: &ActorRef<CartMsg>, clock: &SharedClock, period: Duration) {
-    let me = myself.clone();
-    let sleep = clock.sleep(period);
-    ractor::concurrency::spawn(async move {
-        sleep.await;
-        let _ = me.cast(CartMsg::Tick {});
-    });
+    cast_after(clock, period, myself, CartMsg::Tick {});
 }
 
 impl Actor for VirtualCart {
