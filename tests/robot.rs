@@ -31,9 +31,10 @@ fn report_of(args: &[&str]) -> (Output, serde_json::Value) {
     (out, json)
 }
 
-fn docking_succeeds(seed: u64) {
+/// Run `mission` with `seed` and assert the world judged it a success, with these actions.
+fn succeeds(mission: &str, seed: u64, actions: &[&str]) {
     let seed = seed.to_string();
-    let (out, json) = report_of(&["run", "missions/docking.toml", "--seed", &seed]);
+    let (out, json) = report_of(&["run", mission, "--seed", &seed]);
     assert_eq!(
         out.status.code(),
         Some(0),
@@ -51,17 +52,30 @@ fn docking_succeeds(seed: u64) {
         .iter()
         .map(|a| a["name"].as_str().unwrap())
         .collect();
-    assert_eq!(names, ["find-wall", "follow-wall", "plan-parking", "park"]);
+    assert_eq!(names, actions, "seed {seed}");
 }
+
+const DOCKING: &[&str] = &["find-wall", "follow-wall", "plan-parking", "park"];
+const CORNER: &[&str] = &["plan", "drive-to-wall", "align", "back-into-corner"];
 
 #[test]
 fn docking_succeeds_in_the_lab_for_seeds_1_to_10() {
-    (1..=10).for_each(docking_succeeds);
+    (1..=10).for_each(|s| succeeds("missions/docking.toml", s, DOCKING));
 }
 
 #[test]
 fn docking_succeeds_in_the_lab_for_seeds_11_to_20() {
-    (11..=20).for_each(docking_succeeds);
+    (11..=20).for_each(|s| succeeds("missions/docking.toml", s, DOCKING));
+}
+
+#[test]
+fn the_corner_mission_backs_into_the_corner_for_seeds_1_to_10() {
+    (1..=10).for_each(|s| succeeds("missions/corner.toml", s, CORNER));
+}
+
+#[test]
+fn the_corner_mission_backs_into_the_corner_for_seeds_11_to_20() {
+    (11..=20).for_each(|s| succeeds("missions/corner.toml", s, CORNER));
 }
 
 #[test]

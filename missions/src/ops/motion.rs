@@ -487,7 +487,10 @@ pub struct SensorBasedController {
 }
 
 /// Control steps the alignment must hold before it counts.
-const ALIGNED_STEPS: u32 = 10;
+const ALIGNED_STEPS: u32 = 6;
+
+/// Heading error (rad) within which the cart counts as parallel to the wall.
+const ALIGN_ANGLE_TOLERANCE: f64 = 0.08;
 
 impl Operation for SensorBasedController {
     fn identity(&self) -> Identity {
@@ -511,6 +514,10 @@ impl Operation for SensorBasedController {
                 .range(0.05, 1.0)
                 .unit("m/s")
                 .describe("speed, forwards when aligning, backwards when backing"),
+            ParamDecl::float("tolerance", 0.1)
+                .range(0.01, 1.0)
+                .unit("m")
+                .describe("distance error within which the cart counts as aligned"),
         ])
     }
 
@@ -543,11 +550,16 @@ impl Operation for SensorBasedController {
             return Ok(Step::Continue);
         }
         let back = mode == "back";
-        let params = follow_params(
-            p.f64("distance")?,
-            FollowMode::Wall,
-            if back { -speed } else { speed },
-        );
+        let tolerance = p.f64("tolerance")?;
+        let params = FollowParams {
+            distance_tolerance: tolerance,
+            angle_tolerance: ALIGN_ANGLE_TOLERANCE,
+            ..follow_params(
+                p.f64("distance")?,
+                FollowMode::Wall,
+                if back { -speed } else { speed },
+            )
+        };
         let aligned = follow_step(ctx, &mut self.cart, &params).await?;
         if back {
             return Ok(Step::Continue);

@@ -149,24 +149,35 @@ pub struct WallSensor {
 /// wall, m.
 const TRACK_OFFSET: f64 = 0.2;
 
-/// Extend `wall` with the segments lying on its line; `None` when none does.
+/// Extend `wall` with the segments lying on its line, refitting the line to all of them
+/// (weighted by length) so that an estimate from a short first glimpse converges as more of
+/// the wall is seen; `None` when no segment lies on the line.
 fn extend_wall(wall: &Segment, segments: &[Segment]) -> Option<Segment> {
     let line = Line::of_segment(wall)?;
-    let on_line: Vec<&Segment> = segments
+    let mut support: Vec<Segment> = segments
         .iter()
         .filter(|s| line.distance(s.a) <= TRACK_OFFSET && line.distance(s.b) <= TRACK_OFFSET)
+        .copied()
         .collect();
-    if on_line.is_empty() {
+    if support.is_empty() {
         return None;
     }
-    let (mut lo, mut hi) = (line.project(wall.a), line.project(wall.b));
-    for s in &on_line {
-        for t in [line.project(s.a), line.project(s.b)] {
-            lo = lo.min(t);
-            hi = hi.max(t);
-        }
+    support.push(*wall);
+    let weighted: Vec<(Point, f64)> = support
+        .iter()
+        .flat_map(|s| [(s.a, s.length()), (s.b, s.length())])
+        .collect();
+    let mut fitted = Line::fit_weighted(&weighted)?;
+    if fitted.direction.dot(&(wall.b - wall.a)) < 0.0 {
+        fitted = fitted.reversed();
     }
-    Some(Segment::new(line.at(lo), line.at(hi)))
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for (p, _) in &weighted {
+        let t = fitted.project(*p);
+        lo = lo.min(t);
+        hi = hi.max(t);
+    }
+    Some(Segment::new(fitted.at(lo), fitted.at(hi)))
 }
 
 impl Operation for WallSensor {
