@@ -69,6 +69,16 @@ fn docking_succeeds_in_the_lab_for_seeds_11_to_20() {
 }
 
 #[test]
+fn docking_succeeds_in_the_corridor_for_seeds_1_to_10() {
+    (1..=10).for_each(|s| succeeds("missions/docking-corridor.toml", s, DOCKING));
+}
+
+#[test]
+fn docking_succeeds_in_the_corridor_for_seeds_11_to_20() {
+    (11..=20).for_each(|s| succeeds("missions/docking-corridor.toml", s, DOCKING));
+}
+
+#[test]
 fn the_corner_mission_backs_into_the_corner_for_seeds_1_to_10() {
     (1..=10).for_each(|s| succeeds("missions/corner.toml", s, CORNER));
 }

@@ -83,6 +83,10 @@ impl Operation for SegmentExtractor {
                 .range(0.0, 50.0)
                 .unit("m")
                 .describe("shortest segment reported"),
+            ParamDecl::choice("beams", &["narrow", "all"], "narrow").describe(
+                "which sonar beams to fit: a wide beam's echo is placed on its axis, so its \
+                 points sit nearer than the wall they came from",
+            ),
         ])
     }
 
@@ -100,11 +104,12 @@ impl Operation for SegmentExtractor {
             min_length: p.f64("min_length")?,
             ..SegmentParams::default()
         };
+        let narrow_only = p.text("beams")? == "narrow";
         let since = ctx.now().saturating_sub(window);
         let scans = scans_since(ctx, since).await?;
         let mut by_sensor: BTreeMap<usize, Vec<Point>> = BTreeMap::new();
         for scan in &scans {
-            for e in &scan.echoes {
+            for e in scan.echoes.iter().filter(|e| e.narrow || !narrow_only) {
                 by_sensor.entry(e.sensor).or_default().push(e.point);
             }
         }
