@@ -324,6 +324,10 @@ impl Operation for DockingDetector {
                 .describe("accepted depth error"),
             ParamDecl::choice("beams", &["narrow", "all"], "narrow")
                 .describe("which sonar beams to use: wide beams blur the spot's edges"),
+            ParamDecl::float("history", 0.0)
+                .range(0.0, 3600.0)
+                .unit("s")
+                .describe("also use echoes from this long before the activation (0: only since)"),
         ])
     }
 
@@ -339,7 +343,8 @@ impl Operation for DockingDetector {
     }
 
     async fn activate(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
-        self.since = ctx.now();
+        let history = Duration::from_secs_f64(ctx.params().f64("history")?);
+        self.since = ctx.now().saturating_sub(history);
         Ok(Step::Continue)
     }
 
