@@ -148,3 +148,32 @@ fn a_world_without_a_dock_ends_in_a_clean_full_stop() {
         "{json}"
     );
 }
+
+#[test]
+fn the_picture_shows_walls_path_echoes_dock_plan_and_footprint() {
+    let dir = tempfile::tempdir().unwrap();
+    let svg = dir.path().join("docking.svg");
+    let out = marie(&[
+        "run",
+        "missions/docking.toml",
+        "--svg",
+        svg.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let svg = std::fs::read_to_string(&svg).unwrap();
+    assert!(svg.starts_with("<svg"));
+    for title in [
+        "goal area",
+        "planned path",
+        "detected dock",
+        "driven path",
+        "final footprint",
+        "followed wall",
+    ] {
+        assert!(
+            svg.contains(&format!("<title>{title}</title>")),
+            "no {title}"
+        );
+    }
+    assert!(svg.matches("<circle").count() > 100, "sonar echoes drawn");
+}
