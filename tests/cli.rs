@@ -1,20 +1,10 @@
 //! The `marie` command, end to end: exit codes, stdout results, stderr diagnostics.
 
 use std::path::PathBuf;
-use std::process::{Command, Output};
+mod common;
 
-fn marie(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_marie"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .env_remove("RUST_LOG")
-        .output()
-        .expect("marie runs")
-}
-
-fn text(b: &[u8]) -> String {
-    String::from_utf8_lossy(b).into_owned()
-}
+use common::{marie, text};
+use std::process::Command;
 
 fn mission_file(dir: &tempfile::TempDir, name: &str, body: &str) -> PathBuf {
     let p = dir.path().join(name);

@@ -3,20 +3,10 @@
 //!
 //! Each run is its own process (ractor's registry is per process), in virtual time.
 
-use std::process::{Command, Output};
+mod common;
 
-fn marie(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_marie"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .env_remove("RUST_LOG")
-        .output()
-        .expect("marie runs")
-}
-
-fn text(b: &[u8]) -> String {
-    String::from_utf8_lossy(b).into_owned()
-}
+use common::{marie, text};
+use std::process::Output;
 
 fn report_of(args: &[&str]) -> (Output, serde_json::Value) {
     let dir = tempfile::tempdir().unwrap();

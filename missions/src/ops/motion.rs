@@ -344,7 +344,7 @@ async fn follow_step(
         return Err(OpError::failed("no wall in the world DM to follow"));
     };
     let pose = status.odometry;
-    let Some(est) = wall_from(&wall, &pose) else {
+    let Some(est) = wall_from(&wall.segment, &pose) else {
         return Err(OpError::failed("the wall record is degenerate"));
     };
     // progress along the wall, in the direction of travel

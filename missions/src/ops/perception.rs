@@ -1,7 +1,9 @@
 //! Perception: the segment extractor (1517), the wall sensor (1512) and the docking-spot
 //! detector (1518). They read the feature DM and write the feature and world DMs.
 
-use super::records::{DockRecord, EchoScan, SegmentSet, WallRecord, DOCK, SEGMENTS, SONAR, WALL};
+use super::records::{
+    DockRecord, Echo, EchoScan, SegmentSet, WallRecord, DOCK, SEGMENTS, SONAR, WALL,
+};
 use super::{cart, cart_err, dm_err, newest};
 use crate::algo::dock::{detect_dock, DockParams};
 use crate::algo::segments::Line;
@@ -16,23 +18,31 @@ use marie_actors::property::{ParamDecl, ParamSchema, Value};
 use std::collections::BTreeMap;
 use std::time::Duration;
 
-/// Echo scans stored since `since` (clock time), oldest first.
-async fn scans_since(ctx: &mut OpContext, since: Duration) -> Result<Vec<EchoScan>, OpError> {
+/// Echo scans stored since `since` (clock time) with a seq of at least `from_seq`, oldest
+/// first, with the seq that follows the last one returned.
+async fn scans_since(
+    ctx: &mut OpContext,
+    since: Duration,
+    from_seq: u64,
+) -> Result<(Vec<EchoScan>, u64), OpError> {
     let records = ctx
         .dm("feature")?
-        .select(Query::class(SONAR).time_from(since))
+        .select(Query::class(SONAR).time_from(since).seq_from(from_seq))
         .await
         .map_err(dm_err("feature"))?;
-    records
+    let next = records.last().map_or(from_seq, |r| r.seq + 1);
+    let scans = records
         .iter()
         .map(|r| r.decode().map_err(dm_err("feature")))
-        .collect()
+        .collect::<Result<_, _>>()?;
+    Ok((scans, next))
 }
 
-/// The wall estimate of `wall` as seen from `pose` (the wall is static, the cart is not).
-pub(crate) fn wall_from(wall: &WallRecord, pose: &Pose) -> Option<WallEstimate> {
+/// The wall estimate of the wall segment `wall` as seen from `pose` (the wall is static, the
+/// cart is not).
+pub(crate) fn wall_from(wall: &Segment, pose: &Pose) -> Option<WallEstimate> {
     sense_wall(
-        &[wall.segment],
+        &[*wall],
         pose,
         &WallParams {
             max_distance: f64::MAX,
@@ -106,7 +116,7 @@ impl Operation for SegmentExtractor {
         };
         let narrow_only = p.text("beams")? == "narrow";
         let since = ctx.now().saturating_sub(window);
-        let scans = scans_since(ctx, since).await?;
+        let (scans, _) = scans_since(ctx, since, 0).await?;
         let mut by_sensor: BTreeMap<usize, Vec<Point>> = BTreeMap::new();
         for scan in &scans {
             for e in scan.echoes.iter().filter(|e| e.narrow || !narrow_only) {
@@ -253,8 +263,9 @@ impl Operation for WallSensor {
             .map_err(cart_err)?
             .odometry;
         let found = match (continuous, self.tracked) {
-            (true, Some(wall)) => extend_wall(&wall, &set.segments)
-                .and_then(|segment| wall_from(&WallRecord::of(segment, pose), &pose)),
+            (true, Some(wall)) => {
+                extend_wall(&wall, &set.segments).and_then(|segment| wall_from(&segment, &pose))
+            }
             _ => sense_wall(&set.segments, &pose, &params),
         };
         let Some(w) = found else {
@@ -291,6 +302,10 @@ impl Operation for WallSensor {
 pub struct DockingDetector {
     cart: Option<CartClient>,
     since: Duration,
+    /// Seq of the first sonar record not yet read.
+    next_seq: u64,
+    /// Every echo gathered in this activation.
+    echoes: Vec<Echo>,
 }
 
 impl Operation for DockingDetector {
@@ -345,6 +360,8 @@ impl Operation for DockingDetector {
     async fn activate(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
         let history = Duration::from_secs_f64(ctx.params().f64("history")?);
         self.since = ctx.now().saturating_sub(history);
+        self.next_seq = 0;
+        self.echoes.clear();
         Ok(Step::Continue)
     }
 
@@ -362,13 +379,16 @@ impl Operation for DockingDetector {
             return Ok(Step::Continue);
         };
         let status = cart(&mut self.cart)?.status().await.map_err(cart_err)?;
-        let Some(estimate) = wall_from(&wall, &status.odometry) else {
+        let Some(estimate) = wall_from(&wall.segment, &status.odometry) else {
             return Ok(Step::Continue);
         };
-        let points: Vec<Point> = scans_since(ctx, self.since)
-            .await?
+        // only the scans stored since the last step are fetched and decoded
+        let (scans, next) = scans_since(ctx, self.since, self.next_seq).await?;
+        self.next_seq = next;
+        self.echoes.extend(scans.into_iter().flat_map(|s| s.echoes));
+        let points: Vec<Point> = self
+            .echoes
             .iter()
-            .flat_map(|s| s.echoes.iter())
             .filter(|e| e.narrow || !narrow_only)
             .map(|e| e.point)
             .collect();

@@ -76,19 +76,6 @@ pub struct WallRecord {
     pub pose: Pose,
 }
 
-impl WallRecord {
-    /// A record of `segment` with the relation to `pose` left for the reader to compute.
-    pub fn of(segment: Segment, pose: Pose) -> Self {
-        WallRecord {
-            segment,
-            distance: 0.0,
-            relative_angle: 0.0,
-            side: 0.0,
-            pose,
-        }
-    }
-}
-
 /// A detected dock.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct DockRecord {
