@@ -68,6 +68,25 @@ fn docking_succeeds_in_the_corridor_for_seeds_11_to_20() {
     (11..=20).for_each(|s| succeeds("missions/docking-corridor.toml", s, DOCKING));
 }
 
+const DOCKING_LSHAPE: &[&str] = &[
+    "plan-approach",
+    "approach",
+    "find-wall",
+    "follow-wall",
+    "plan-parking",
+    "park",
+];
+
+#[test]
+fn docking_succeeds_in_the_lshape_room_for_seeds_1_to_10() {
+    (1..=10).for_each(|s| succeeds("missions/docking-lshape.toml", s, DOCKING_LSHAPE));
+}
+
+#[test]
+fn docking_succeeds_in_the_lshape_room_for_seeds_11_to_20() {
+    (11..=20).for_each(|s| succeeds("missions/docking-lshape.toml", s, DOCKING_LSHAPE));
+}
+
 #[test]
 fn the_corner_mission_backs_into_the_corner_for_seeds_1_to_10() {
     (1..=10).for_each(|s| succeeds("missions/corner.toml", s, CORNER));
