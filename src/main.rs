@@ -398,6 +398,15 @@ fn print_event(evt: &DispatchEvent) {
         } => {
             println!("< {action}: end, status {status} [{}]", flags.join(", "));
         }
+        DispatchEvent::Lost { operation, cause } => {
+            println!("! {operation} lost: {cause}");
+        }
+        DispatchEvent::Rebound(r) => {
+            println!(
+                "~ {} rebound: {} -> {} after {} ms",
+                r.operation, r.from, r.to, r.downtime_ms
+            );
+        }
         DispatchEvent::Ended { outcome, reason } => match outcome {
             Outcome::Succeeded => println!("mission succeeded"),
             Outcome::Failed => println!("mission FAILED (full stop): {reason}"),

@@ -380,12 +380,13 @@ async fn progress_events_follow_the_run() {
 }
 
 #[tokio::test]
-async fn an_operation_that_dies_mid_action_stops_the_mission() {
+async fn an_operation_that_dies_mid_action_with_no_stand_in_stops_the_mission_naming_it() {
     let runner = spawn("dies-runner", 3901, Behaviour::Run).await;
     let actor = runner.actor().clone();
     let src = r#"
         [mission]
         name = "dies"
+        rebind_deadline_s = 1.0
         [flags]
         x = 0
         [[action]]
@@ -404,7 +405,12 @@ async fn an_operation_that_dies_mid_action_stops_the_mission() {
     let report = timeout(T, run).await.unwrap().unwrap();
     assert_eq!(report.outcome, Outcome::Failed);
     assert!(
-        report.reason.contains("`dies-runner` died"),
+        report
+            .reason
+            .contains("operation `dies-runner` was lost (died")
+            && report
+                .reason
+                .contains("no compatible instance appeared within 1.0s"),
         "{}",
         report.reason
     );

@@ -14,15 +14,25 @@
 //!   dispatcher that lost the operation to a newer one is told so.
 //! - Parameters omitted by the mission are sent as the declared defaults, so values left by an
 //!   earlier action or mission never leak into this one.
+//!
+//! # Self-healing
+//! Operations are held through [`Binding`]s, never raw refs. The dispatcher notices a lost
+//! instance three ways: the activation's reply port closes (the instance died mid-action), the
+//! instance leaves the registry (it died at any time), or it does not answer a liveness probe
+//! within its declared deadline (it hangs: the dispatcher kills it). It then adopts a live
+//! instance that passes the same selection — the restarted one, or another — gives it the last
+//! parameters, re-activates it if its action is running, and records the rebind in the report.
+//! If none appears within the mission's `rebind_deadline`, the mission comes to a full stop
+//! naming the operation.
 
-use super::catalog::describe;
+use super::binding::{examine, Binding};
 use super::mission::{EndMode, Mission};
-use super::report::{ActionRecord, OpRecord, Outcome, RunReport};
+use super::report::{ActionRecord, OpRecord, Outcome, RebindRecord, RunReport};
 use crate::clock::{cast_after, SharedClock};
-use crate::eo::{EoClient, EoReport};
+use crate::eo::{EoError, EoReport, ParamOutcome};
 use crate::flags::StatusFlags;
-use crate::property::{General, Group, ParamMap, PropertyReply, PropertyRequest};
-use crate::registry::{self, ModuleKind};
+use crate::property::PropertyRequest;
+use crate::registry::{self, Instance, ModuleKind, RegistryEvent};
 use ractor::{Actor, ActorProcessingErr, ActorRef, RpcReplyPort, SpawnErr};
 use std::collections::{BTreeMap, BTreeSet};
 use std::time::Duration;
@@ -33,6 +43,9 @@ pub const DISPATCHER_ID: u32 = 1500;
 
 /// How long suspended operations get to report before the dispatcher moves on.
 const SUSPEND_GRACE: Duration = Duration::from_secs(5);
+
+/// How often bound operations are asked whether they still answer.
+const PROBE_PERIOD: Duration = Duration::from_millis(500);
 
 /// Progress of a run, for live output.
 #[derive(Clone, Debug, PartialEq)]
@@ -58,6 +71,15 @@ pub enum DispatchEvent {
         /// Status word after it.
         status: StatusFlags,
     },
+    /// A bound operation's instance was lost; the dispatcher looks for a stand-in.
+    Lost {
+        /// Operation name.
+        operation: String,
+        /// What happened to it.
+        cause: String,
+    },
+    /// A lost operation is bound again.
+    Rebound(RebindRecord),
     /// The mission ended.
     Ended {
         /// Outcome.
@@ -80,8 +102,33 @@ crate::remote_message! {
             generation: u64,
             /// The operation's key in that action.
             key: String,
+            /// Incarnation of the binding that was activated.
+            incarnation: u64,
             /// Its report.
             report: Option<EoReport>,
+        },
+        /// An operation instance joined or left the registry.
+        Registry {
+            /// What happened.
+            event: RegistryEvent,
+        },
+        /// Time to ask the bound operations whether they still answer.
+        Probe {},
+        /// A liveness probe of `name`'s incarnation `incarnation` ended.
+        ProbeDone {
+            /// Operation name.
+            name: String,
+            /// Incarnation probed.
+            incarnation: u64,
+            /// `None`: it answered.
+            error: Option<EoError>,
+        },
+        /// The rebind deadline of `name`, lost as incarnation `incarnation`, passed.
+        RebindDeadline {
+            /// Operation name.
+            name: String,
+            /// Incarnation number after the loss.
+            incarnation: u64,
         },
         /// The deadline of action generation `generation` passed.
         ActionDeadline {
@@ -111,19 +158,6 @@ pub struct DispatcherArgs {
 /// The ActionDispatcher actor.
 pub struct ActionDispatcher;
 
-struct Binding {
-    client: EoClient,
-    name: String,
-    id: u32,
-    version: String,
-    node: String,
-    address: String,
-    epoch: u64,
-    defaults: ParamMap,
-    flag_names: Vec<String>,
-    params: ParamMap,
-}
-
 struct Current {
     generation: u64,
     index: usize,
@@ -146,7 +180,11 @@ pub struct DispatcherState {
     current: Option<Current>,
     started: Duration,
     actions: Vec<ActionRecord>,
+    rebinds: Vec<RebindRecord>,
     reply: Option<RpcReplyPort<RunReport>>,
+    /// Dropping it ends the registry watch.
+    _watch_guard: Option<tokio::sync::oneshot::Sender<()>>,
+    ended: bool,
 }
 
 impl DispatcherState {
@@ -200,33 +238,10 @@ impl DispatcherState {
             else {
                 return Err(format!("operation `{key}` has no live instance"));
             };
-            let client = EoClient::from_cell(inst.actor.clone());
-            let info = describe(client.clone())
+            let cand = examine(&inst, crate::eo::EoClient::DEFAULT_TIMEOUT)
                 .await
                 .map_err(|e| format!("operation `{key}`: {e}"))?;
-            let epoch = match client
-                .property(PropertyRequest::Group(Group::General))
-                .await
-                .map_err(|e| format!("operation `{key}`: {e}"))?
-            {
-                PropertyReply::General(General { epoch, .. }) => epoch + 1,
-                other => return Err(format!("operation `{key}` answered {other:?}")),
-            };
-            self.bindings.insert(
-                key,
-                Binding {
-                    client,
-                    name: info.name,
-                    id: info.id,
-                    version: info.version,
-                    node: inst.node,
-                    address: inst.actor.get_id().to_string(),
-                    epoch,
-                    defaults: info.schema.defaults(),
-                    flag_names: info.flags.into_iter().map(|f| f.name).collect(),
-                    params: ParamMap::new(),
-                },
-            );
+            self.bindings.insert(key, Binding::new(cand));
         }
         self.emit(DispatchEvent::Bound {
             operations: self
@@ -236,6 +251,312 @@ impl DispatcherState {
                 .collect(),
         });
         Ok(())
+    }
+
+    /// Start forwarding the registry's operation joins and leaves to the dispatcher, until
+    /// the dispatcher's state is dropped.
+    async fn watch_registry(&mut self, myself: &ActorRef<DispatcherMsg>) -> Result<(), String> {
+        let mut watch = registry::watch(Some(ModuleKind::Operation))
+            .await
+            .map_err(|e| format!("cannot watch the registry: {e}"))?;
+        let (guard, mut gone) = tokio::sync::oneshot::channel::<()>();
+        self._watch_guard = Some(guard);
+        let me = myself.clone();
+        ractor::concurrency::spawn(async move {
+            loop {
+                tokio::select! {
+                    _ = &mut gone => break,
+                    event = watch.next() => {
+                        let Some(event) = event else { break };
+                        if me.cast(DispatcherMsg::Registry { event }).is_err() {
+                            break;
+                        }
+                    }
+                }
+            }
+        });
+        Ok(())
+    }
+
+    /// The current action's key for operation `name`, if it is among the running ones.
+    fn running_key(&self, name: &str) -> Option<String> {
+        let cur = self.current.as_ref()?;
+        let action = &self.mission.actions[cur.index];
+        action
+            .ops
+            .iter()
+            .find(|o| o.name == name && cur.running.contains(&o.key))
+            .map(|o| o.key.clone())
+    }
+
+    /// The instance of `name` is gone (or hung and killed): let it go and look for a
+    /// stand-in. Nothing happens if the binding is already lost.
+    async fn lose(&mut self, myself: &ActorRef<DispatcherMsg>, name: &str, cause: String) {
+        let now = self.clock.now();
+        let Some(b) = self.bindings.get_mut(name) else {
+            return;
+        };
+        if b.lost.is_some() || self.ended {
+            return;
+        }
+        b.lose(cause.clone(), now);
+        let incarnation = b.incarnation;
+        tracing::warn!(op = %name, %cause, "operation lost; rebinding");
+        self.emit(DispatchEvent::Lost {
+            operation: name.to_string(),
+            cause,
+        });
+        // A lost operation of an action that is ending has nothing left to do in it.
+        if let Some(key) = self.running_key(name) {
+            let cur = self.current.as_mut().expect("running_key found it");
+            if cur.ending {
+                cur.running.remove(&key);
+                if let Some(rec) = cur.ops.get_mut(&key) {
+                    rec.ended = "lost".to_string();
+                }
+                if cur.running.is_empty() {
+                    self.complete_action(myself);
+                    return;
+                }
+            }
+        }
+        cast_after(
+            &self.clock,
+            self.mission.rebind_deadline,
+            myself,
+            DispatcherMsg::RebindDeadline {
+                name: name.to_string(),
+                incarnation,
+            },
+        );
+        let found = registry::lookup(ModuleKind::Operation, name);
+        for inst in found {
+            if self.try_adopt(myself, name, &inst).await {
+                break;
+            }
+        }
+    }
+
+    /// Adopt `inst` for the lost binding `name` if it passes the binding's selection; then
+    /// restore its parameters and, if its action runs, re-activate it. True if adopted.
+    async fn try_adopt(
+        &mut self,
+        myself: &ActorRef<DispatcherMsg>,
+        name: &str,
+        inst: &Instance,
+    ) -> bool {
+        let Some(b) = self.bindings.get(name) else {
+            return false;
+        };
+        let Some(lost) = &b.lost else {
+            return false;
+        };
+        if inst.actor.get_id() == lost.dead {
+            return false;
+        }
+        let cand = match examine(inst, b.deadline).await {
+            Ok(c) => c,
+            Err(e) => {
+                tracing::debug!(op = %name, actor = %inst.actor.get_id(), error = %e, "stand-in does not answer");
+                return false;
+            }
+        };
+        let now = self.clock.now();
+        let b = self.bindings.get_mut(name).expect("checked above");
+        if b.lost.is_none() {
+            return false; // adopted another while this one was examined
+        }
+        if let Err(why) = b.accepts(&cand) {
+            tracing::info!(op = %name, actor = %inst.actor.get_id(), %why, "instance cannot stand in");
+            return false;
+        }
+        let Some((lost, downtime)) = b.adopt(cand, now) else {
+            return false;
+        };
+        let record = RebindRecord {
+            operation: name.to_string(),
+            cause: lost.cause,
+            from: lost.from,
+            to: b.address.clone(),
+            downtime_ms: downtime.as_millis() as u64,
+        };
+        tracing::info!(op = %name, from = %record.from, to = %record.to, downtime_ms = record.downtime_ms, "operation rebound");
+        let (client, epoch, params, incarnation) =
+            (b.client.clone(), b.epoch, b.params.clone(), b.incarnation);
+        self.rebinds.push(record.clone());
+        self.emit(DispatchEvent::Rebound(record));
+        match self.running_key(name) {
+            Some(key) => {
+                let cur = self.current.as_mut().expect("running_key found it");
+                if let Some(rec) = cur.ops.get_mut(&key) {
+                    rec.address = client.actor().get_id().to_string();
+                }
+                let generation = cur.generation;
+                if let Err(e) = self.activate(myself, generation, &key, incarnation, params, epoch)
+                {
+                    self.report_gone(myself, name, incarnation, e);
+                }
+            }
+            None if !params.is_empty() => match client.parameterize(params, epoch).await {
+                Ok(ParamOutcome::Applied) => {}
+                Ok(other) => {
+                    tracing::warn!(op = %name, ?other, "last parameters not restored")
+                }
+                Err(e) => self.report_gone(myself, name, incarnation, e),
+            },
+            None => {}
+        }
+        true
+    }
+
+    /// The adopted instance failed at once: handle it like a failed probe (by message, so
+    /// losing and adopting never recurse).
+    fn report_gone(
+        &self,
+        myself: &ActorRef<DispatcherMsg>,
+        name: &str,
+        incarnation: u64,
+        error: EoError,
+    ) {
+        let _ = myself.cast(DispatcherMsg::ProbeDone {
+            name: name.to_string(),
+            incarnation,
+            error: Some(error),
+        });
+    }
+
+    /// Send `Activate` to the binding's instance; its report comes back as `OpEnded`.
+    fn activate(
+        &self,
+        myself: &ActorRef<DispatcherMsg>,
+        generation: u64,
+        key: &str,
+        incarnation: u64,
+        params: crate::property::ParamMap,
+        epoch: u64,
+    ) -> Result<(), EoError> {
+        let Some(b) = self.binding(key) else {
+            return Err(EoError::Gone(key.to_string()));
+        };
+        let rx = b.client.activate(params, epoch)?;
+        let me = myself.clone();
+        let key = key.to_string();
+        ractor::concurrency::spawn(async move {
+            let report = rx.await.ok();
+            let _ = me.cast(DispatcherMsg::OpEnded {
+                generation,
+                key,
+                incarnation,
+                report,
+            });
+        });
+        Ok(())
+    }
+
+    /// Ask every bound instance whether it still answers, within its declared deadline.
+    fn probe(&mut self, myself: &ActorRef<DispatcherMsg>) {
+        for b in self.bindings.values_mut() {
+            if b.lost.is_some() || b.probing {
+                continue;
+            }
+            b.probing = true;
+            let client = b.client.clone().with_timeout(b.deadline);
+            let (name, incarnation) = (b.name.clone(), b.incarnation);
+            let me = myself.clone();
+            ractor::concurrency::spawn(async move {
+                let error = client
+                    .property(PropertyRequest::Get("epoch".to_string()))
+                    .await
+                    .err();
+                let _ = me.cast(DispatcherMsg::ProbeDone {
+                    name,
+                    incarnation,
+                    error,
+                });
+            });
+        }
+        cast_after(&self.clock, PROBE_PERIOD, myself, DispatcherMsg::Probe {});
+    }
+
+    async fn on_probe_done(
+        &mut self,
+        myself: &ActorRef<DispatcherMsg>,
+        name: String,
+        incarnation: u64,
+        error: Option<EoError>,
+    ) {
+        let Some(b) = self.bindings.get_mut(&name) else {
+            return;
+        };
+        if b.incarnation != incarnation || b.lost.is_some() {
+            return;
+        }
+        b.probing = false;
+        match error {
+            None => {}
+            Some(EoError::Timeout(_, deadline)) => {
+                b.cell.kill();
+                let cause = format!(
+                    "hung: no answer within its deadline of {} ms; killed",
+                    deadline.as_millis()
+                );
+                self.lose(myself, &name, cause).await;
+            }
+            Some(EoError::Gone(_)) => {
+                self.lose(myself, &name, "died: its actor is gone".to_string())
+                    .await;
+            }
+        }
+    }
+
+    async fn on_registry(&mut self, myself: &ActorRef<DispatcherMsg>, event: RegistryEvent) {
+        match event {
+            RegistryEvent::Left(inst) => {
+                let id = inst.actor.get_id();
+                let name = self
+                    .bindings
+                    .values()
+                    .find(|b| b.lost.is_none() && b.cell.get_id() == id)
+                    .map(|b| b.name.clone());
+                if let Some(name) = name {
+                    self.lose(myself, &name, "died: it left the registry".to_string())
+                        .await;
+                }
+            }
+            RegistryEvent::Joined(inst) => {
+                let lost = self
+                    .bindings
+                    .get(&inst.name)
+                    .is_some_and(|b| b.lost.is_some());
+                if lost {
+                    let name = inst.name.clone();
+                    self.try_adopt(myself, &name, &inst).await;
+                }
+            }
+        }
+    }
+
+    fn on_rebind_deadline(
+        &mut self,
+        myself: &ActorRef<DispatcherMsg>,
+        name: String,
+        incarnation: u64,
+    ) {
+        let Some(b) = self.bindings.get(&name) else {
+            return;
+        };
+        let Some(lost) = &b.lost else {
+            return;
+        };
+        if b.incarnation != incarnation {
+            return;
+        }
+        let reason = format!(
+            "operation `{name}` was lost ({}) and no compatible instance appeared within {:.1}s",
+            lost.cause,
+            self.mission.rebind_deadline.as_secs_f64()
+        );
+        self.finish(myself, Outcome::Failed, reason);
     }
 
     fn next_action(&mut self, myself: &ActorRef<DispatcherMsg>) {
@@ -305,6 +626,7 @@ impl DispatcherState {
             operations: action.ops.iter().map(|o| o.key.clone()).collect(),
         });
         let mut unreachable = None;
+        let mut activations = Vec::new();
         for op in &action.ops {
             let Some(b) = self.bindings.get_mut(&op.name) else {
                 unreachable = Some(format!("operation `{}` is not bound", op.key));
@@ -313,6 +635,7 @@ impl DispatcherState {
             let mut params = b.defaults.clone();
             params.extend(op.params.clone());
             b.params = params.clone();
+            let (epoch, incarnation, lost) = (b.epoch, b.incarnation, b.lost.is_some());
             current.ops.insert(
                 op.key.clone(),
                 OpRecord {
@@ -325,27 +648,19 @@ impl DispatcherState {
                     flags: Vec::new(),
                 },
             );
-            match b.client.activate(params, b.epoch) {
-                Ok(rx) => {
-                    current.running.insert(op.key.clone());
-                    let me = myself.clone();
-                    let key = op.key.clone();
-                    ractor::concurrency::spawn(async move {
-                        let report = rx.await.ok();
-                        let _ = me.cast(DispatcherMsg::OpEnded {
-                            generation,
-                            key,
-                            report,
-                        });
-                    });
-                }
-                Err(e) => {
-                    unreachable = Some(format!("operation `{}`: {e}", op.key));
-                    break;
-                }
-            }
+            // A lost operation is activated when a stand-in is adopted.
+            current.running.insert(op.key.clone());
+            activations.push((op.key.clone(), incarnation, params, epoch, lost));
         }
         self.current = Some(current);
+        for (key, incarnation, params, epoch, lost) in activations {
+            if lost || unreachable.is_some() {
+                continue;
+            }
+            if let Err(e) = self.activate(myself, generation, &key, incarnation, params, epoch) {
+                unreachable = Some(format!("operation `{key}`: {e}"));
+            }
+        }
         if let Some(reason) = unreachable {
             self.finish(myself, Outcome::Failed, reason);
             return;
@@ -358,19 +673,36 @@ impl DispatcherState {
         );
     }
 
-    fn on_op_ended(
+    async fn on_op_ended(
         &mut self,
         myself: &ActorRef<DispatcherMsg>,
         generation: u64,
         key: String,
+        incarnation: u64,
         report: Option<EoReport>,
     ) {
-        let Some(cur) = self.current.as_mut() else {
+        let Some(cur) = self.current.as_ref() else {
             return;
         };
-        if cur.generation != generation || !cur.running.remove(&key) {
+        if cur.generation != generation || !cur.running.contains(&key) {
             return;
         }
+        let Some(b) = self.binding(&key) else {
+            return;
+        };
+        if b.incarnation != incarnation || b.lost.is_some() {
+            return; // about an instance already let go
+        }
+        if report.is_none() && !cur.ending {
+            // The instance died mid-action: rebind and carry on.
+            let name = b.name.clone();
+            let action = self.mission.actions[cur.index].name.clone();
+            self.lose(myself, &name, format!("died during action `{action}`"))
+                .await;
+            return;
+        }
+        let cur = self.current.as_mut().expect("checked above");
+        cur.running.remove(&key);
         let action = &self.mission.actions[cur.index];
         let action_name = action.name.clone();
         let ending = cur.ending;
@@ -410,14 +742,7 @@ impl DispatcherState {
                     "operation `{key}` is now bound by another dispatcher (epoch {current})"
                 )),
             ),
-            None if ending => ("lost", StatusFlags::EMPTY, None),
-            None => (
-                "lost",
-                StatusFlags::EMPTY,
-                Some(format!(
-                    "operation `{key}` died during action `{action_name}`"
-                )),
-            ),
+            None => ("lost", StatusFlags::EMPTY, None),
         };
         let global = self.translate(&key, flags);
         self.status |= global;
@@ -468,10 +793,26 @@ impl DispatcherState {
         }
         let generation = cur.generation;
         let running: Vec<String> = cur.running.iter().cloned().collect();
+        let mut lost = Vec::new();
         for key in &running {
-            if let Some(b) = self.binding(key) {
-                let _ = b.client.suspend(b.epoch);
+            match self.binding(key) {
+                Some(b) if b.lost.is_none() => {
+                    let _ = b.client.suspend(b.epoch);
+                }
+                _ => lost.push(key.clone()),
             }
+        }
+        // An operation still without a stand-in has nothing to suspend.
+        let cur = self.current.as_mut().expect("checked above");
+        for key in lost {
+            cur.running.remove(&key);
+            if let Some(rec) = cur.ops.get_mut(&key) {
+                rec.ended = "lost".to_string();
+            }
+        }
+        if cur.running.is_empty() {
+            self.complete_action(myself);
+            return;
         }
         cast_after(
             &self.clock,
@@ -519,9 +860,13 @@ impl DispatcherState {
     }
 
     fn finish(&mut self, myself: &ActorRef<DispatcherMsg>, outcome: Outcome, reason: String) {
+        if self.ended {
+            return;
+        }
+        self.ended = true;
         if let Some(cur) = &self.current {
             for key in &cur.running {
-                if let Some(b) = self.binding(key) {
+                if let Some(b) = self.binding(key).filter(|b| b.lost.is_none()) {
                     let _ = b.client.suspend(b.epoch);
                 }
             }
@@ -540,7 +885,7 @@ impl DispatcherState {
             status: self.status.0,
             flags: self.mission.flags_to_names(self.status),
             actions: std::mem::take(&mut self.actions),
-            rebinds: Vec::new(),
+            rebinds: std::mem::take(&mut self.rebinds),
             duration_ms: self.elapsed_ms(),
             final_pose: None,
             collisions: None,
@@ -584,7 +929,10 @@ impl Actor for ActionDispatcher {
             generation: 0,
             current: None,
             actions: Vec::new(),
+            rebinds: Vec::new(),
             reply: None,
+            _watch_guard: None,
+            ended: false,
         })
     }
 
@@ -602,10 +950,15 @@ impl Actor for ActionDispatcher {
                 }
                 state.reply = Some(reply);
                 state.started = state.clock.now();
+                if let Err(reason) = state.watch_registry(&myself).await {
+                    state.finish(&myself, Outcome::Failed, reason);
+                    return Ok(());
+                }
                 if let Err(reason) = state.bind().await {
                     state.finish(&myself, Outcome::Failed, reason);
                     return Ok(());
                 }
+                state.probe(&myself);
                 if let Some(deadline) = state.mission.deadline {
                     cast_after(
                         &state.clock,
@@ -619,8 +972,27 @@ impl Actor for ActionDispatcher {
             DispatcherMsg::OpEnded {
                 generation,
                 key,
+                incarnation,
                 report,
-            } => state.on_op_ended(&myself, generation, key, report),
+            } => {
+                state
+                    .on_op_ended(&myself, generation, key, incarnation, report)
+                    .await
+            }
+            DispatcherMsg::Registry { event } => state.on_registry(&myself, event).await,
+            DispatcherMsg::Probe {} => {
+                if !state.ended {
+                    state.probe(&myself);
+                }
+            }
+            DispatcherMsg::ProbeDone {
+                name,
+                incarnation,
+                error,
+            } => state.on_probe_done(&myself, name, incarnation, error).await,
+            DispatcherMsg::RebindDeadline { name, incarnation } => {
+                state.on_rebind_deadline(&myself, name, incarnation)
+            }
             DispatcherMsg::ActionDeadline { generation } => {
                 let Some(cur) = &state.current else {
                     return Ok(());

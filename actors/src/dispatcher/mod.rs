@@ -5,6 +5,7 @@
 //! [`ActionDispatcher`] and returns a [`RunReport`].
 
 mod actor;
+mod binding;
 mod catalog;
 pub mod mission;
 mod report;

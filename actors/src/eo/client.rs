@@ -1,6 +1,6 @@
 //! A typed handle for sending the eo-interface and property interface to an operation.
 
-use super::messages::{EoMsg, EoReport, ParamOutcome};
+use super::messages::{EoMsg, EoReport, Fault, ParamOutcome};
 use crate::property::{ParamMap, PropertyReply, PropertyRequest};
 use ractor::concurrency::OneshotReceiver;
 use ractor::rpc::CallResult;
@@ -79,6 +79,13 @@ impl EoClient {
     pub fn suspend(&self, epoch: u64) -> Result<(), EoError> {
         self.actor
             .cast(EoMsg::Suspend { epoch })
+            .map_err(|_| EoError::Gone(self.who()))
+    }
+
+    /// Tell the operation to commit `fault` (fault injection).
+    pub fn inject(&self, fault: Fault) -> Result<(), EoError> {
+        self.actor
+            .cast(EoMsg::Inject { fault })
             .map_err(|_| EoError::Gone(self.who()))
     }
 

@@ -12,7 +12,7 @@
 //! - Parameters change all at once or not at all.
 //! - A finished task suspends the operation; the host never stops because work is done.
 
-use super::messages::{EoMsg, EoReport, ParamOutcome};
+use super::messages::{EoMsg, EoReport, Fault, ParamOutcome};
 use super::operation::{Identity, OpContext, Operation, Params, Step};
 use crate::clock::{cast_after, RealClock, SharedClock};
 use crate::flags::{FlagDecl, StatusFlags};
@@ -87,6 +87,7 @@ pub struct HostState<O> {
     schema: ParamSchema,
     flags: Vec<FlagDecl>,
     period: Duration,
+    deadline: Duration,
     ctx: OpContext,
     previous: ParamMap,
     epoch: u64,
@@ -133,6 +134,7 @@ impl<O: Operation> HostState<O> {
                 in_use: self.active.is_some(),
                 activations: self.activations,
                 epoch: self.epoch,
+                deadline_ms: self.deadline.as_millis() as u64,
             }),
             PropertyRequest::Group(Group::Specific) => PropertyReply::Specific(Specific {
                 params: self.schema.params.clone(),
@@ -303,6 +305,7 @@ impl<O: Operation> Actor for EoHost<O> {
         tracing::debug!(op = %identity.name, version = %identity.version, actor = %myself.get_id(), "operation started");
         Ok(HostState {
             period: operation.period(),
+            deadline: operation.deadline(),
             ctx: OpContext {
                 params: Params::new(initial.clone()),
                 clock: options.clock,
@@ -416,6 +419,16 @@ impl<O: Operation> Actor for EoHost<O> {
             }
             EoMsg::Property { request, reply } => {
                 let _ = reply.send(state.answer(&myself.get_cell(), request));
+            }
+            EoMsg::Inject { fault } => {
+                tracing::warn!(op = %state.identity.name, actor = %myself.get_id(), ?fault, "injected fault");
+                match fault {
+                    Fault::Panic => {
+                        panic!("injected fault: operation {} panics", state.identity.name)
+                    }
+                    // Only a kill ends this (ractor's kill signal interrupts a running handler).
+                    Fault::Hang => std::future::pending::<()>().await,
+                }
             }
         }
         Ok(())

@@ -61,6 +61,17 @@ pub enum ParamOutcome {
     },
 }
 
+/// A fault an operation's host can be told to commit, for fault-injection tests of
+/// self-healing (killing needs no cooperation: it is `ActorCell::kill`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Fault {
+    /// Panic in the message handler: the host dies, its supervisor sees a failure.
+    Panic,
+    /// Stop answering: the handler never returns, so every later command goes unanswered
+    /// until someone kills the host.
+    Hang,
+}
+
 crate::remote_message! {
     /// Messages an EO host understands: the eo-interface plus the property interface.
     pub enum EoMsg {
@@ -90,6 +101,11 @@ crate::remote_message! {
             /// What is asked.
             request: PropertyRequest,
         } -> PropertyReply,
+        /// Commit `fault` (fault injection; see [`Fault`]).
+        Inject {
+            /// The fault.
+            fault: Fault,
+        },
     }
     local {
         /// Time for the next step of activation number `activation`.

@@ -39,5 +39,9 @@ mod operation;
 
 pub use client::{EoClient, EoError};
 pub use host::{spawn_operation, spawn_operation_linked, EoHost, HostArgs, HostOptions, HostState};
-pub use messages::{EoMsg, EoReport, ParamOutcome};
+pub use messages::{EoMsg, EoReport, Fault, ParamOutcome};
+
+/// How long an operation may take to answer a command unless it declares otherwise
+/// ([`Operation::deadline`]).
+pub const DEFAULT_DEADLINE: std::time::Duration = std::time::Duration::from_secs(2);
 pub use operation::{Identity, OpContext, OpError, Operation, Params, Step};

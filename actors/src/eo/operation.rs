@@ -236,6 +236,13 @@ pub trait Operation: Send + 'static {
         Duration::from_millis(100)
     }
 
+    /// The longest the operation may take to answer a command (a step included). It is
+    /// published in the general property group; a dispatcher that gets no answer within it
+    /// kills the operation and handles it as crashed (self-healing of hung operations).
+    fn deadline(&self) -> Duration {
+        super::DEFAULT_DEADLINE
+    }
+
     /// Called when activated, with the new parameters in place.
     fn activate(
         &mut self,

@@ -102,6 +102,15 @@ pub struct General {
     pub activations: u64,
     /// Highest command epoch accepted.
     pub epoch: u64,
+    /// How long the operation may take to answer any command, in milliseconds of its clock
+    /// ([`crate::eo::Operation::deadline`]). A dispatcher that gets no answer within it treats
+    /// the operation as hung: it kills it and handles it as crashed.
+    #[serde(default = "default_deadline_ms")]
+    pub deadline_ms: u64,
+}
+
+fn default_deadline_ms() -> u64 {
+    crate::eo::DEFAULT_DEADLINE.as_millis() as u64
 }
 
 /// Specific group: the parameter descriptors (names, types, defaults, min, max, step, unit,

@@ -33,6 +33,7 @@
 //! success = ["counted"]      # flags that must all be set at the end
 //! initial = []               # flags set before the first action (optional)
 //! deadline_s = 60.0          # optional: deadline of the whole mission, in seconds
+//! rebind_deadline_s = 10.0   # optional: how long a lost operation may stay unbound (default 10)
 //! world = "worlds/lab.toml"  # optional: the world to run in, relative to this file
 //!
 //! [flags]                    # flag name -> bit of the status word (0..=31, each bit once)
@@ -226,6 +227,11 @@ pub struct Mission {
     pub success: StatusFlags,
     /// Deadline of the whole mission.
     pub deadline: Option<Duration>,
+    /// How long an operation whose instance died may stay without a live compatible
+    /// instance before the mission comes to a full stop (`rebind_deadline_s`, default
+    /// [`DEFAULT_REBIND_DEADLINE`]).
+    #[serde(default = "default_rebind_deadline")]
+    pub rebind_deadline: Duration,
     /// The actions, in file order.
     pub actions: Vec<Action>,
     /// The world file the mission names (`world = "..."` in `[mission]`), resolved against the
@@ -233,6 +239,13 @@ pub struct Mission {
     /// reads it.
     #[serde(default)]
     pub world: Option<PathBuf>,
+}
+
+/// How long a lost operation may stay unbound when the mission does not say.
+pub const DEFAULT_REBIND_DEADLINE: Duration = Duration::from_secs(10);
+
+fn default_rebind_deadline() -> Duration {
+    DEFAULT_REBIND_DEADLINE
 }
 
 impl Mission {
@@ -320,6 +333,7 @@ pub struct ParsedMission {
     pub(crate) initial: Vec<raw::FlagRef>,
     pub(crate) success: Vec<raw::FlagRef>,
     pub(crate) deadline: Option<Duration>,
+    pub(crate) rebind_deadline: Option<Duration>,
     pub(crate) world: Option<PathBuf>,
     pub(crate) actions: Vec<raw::ParsedAction>,
 }

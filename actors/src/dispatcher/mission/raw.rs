@@ -28,6 +28,7 @@ const MISSION_KEYS: &[&str] = &[
     "success",
     "initial",
     "deadline_s",
+    "rebind_deadline_s",
     "world",
 ];
 const ACTION_KEYS: &[&str] = &["name", "when", "ends_on", "end_mode", "deadline_s", "ops"];
@@ -81,6 +82,7 @@ struct RawHeader {
     success: Vec<Spanned<String>>,
     initial: Vec<Spanned<String>>,
     deadline: Option<Duration>,
+    rebind_deadline: Option<Duration>,
     world: Option<Spanned<String>>,
 }
 
@@ -384,6 +386,9 @@ fn raw_header(ctx: &mut Ctx<'_>, t: &DeTable<'_>, at: Span) -> RawHeader {
     }
     if let Some(v) = t.get("deadline_s") {
         h.deadline = seconds(ctx, v, "mission.deadline_s");
+    }
+    if let Some(v) = t.get("rebind_deadline_s") {
+        h.rebind_deadline = seconds(ctx, v, "mission.rebind_deadline_s");
     }
     if let Some(v) = t.get("world") {
         h.world = non_empty_string(ctx, v, "mission.world");
@@ -791,6 +796,7 @@ fn check(
         initial,
         success,
         deadline: header.deadline,
+        rebind_deadline: header.rebind_deadline,
         world: header
             .world
             .map(|w| resolve_world(path, Path::new(w.get_ref()))),

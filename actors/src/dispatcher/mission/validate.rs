@@ -70,6 +70,7 @@ pub(crate) fn validate<C: Catalog + ?Sized>(
         initial: bits(pm.initial.iter().map(|r| r.bit)),
         success: bits(pm.success.iter().map(|r| r.bit)),
         deadline: pm.deadline,
+        rebind_deadline: pm.rebind_deadline.unwrap_or(super::DEFAULT_REBIND_DEADLINE),
         actions,
         world: pm.world.clone(),
     };

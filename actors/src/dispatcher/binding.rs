@@ -1,0 +1,193 @@
+//! Bindings: the dispatcher's hold on an operation, across failures of its instances.
+//!
+//! A restart makes a new actor, so the dispatcher never keeps a raw `ActorRef` as "the
+//! operation" (DESIGN.md §5). It keeps a [`Binding`]: the operation's logical name, what an
+//! instance must be to stand in for it (same id, a semver-compatible version, a parameter
+//! schema that accepts the parameters the mission gave), the current incarnation and the
+//! binding's epoch. When the incarnation dies the binding is *lost*; a live instance that
+//! passes the same selection is *adopted* and gets the last parameters back.
+//!
+//! # Invariants
+//! - Commands carry the binding's epoch, and adopting an instance raises the epoch above both
+//!   the binding's and the one the instance accepted last, so the dispatcher's commands are
+//!   never ignored as stale and an older dispatcher's are.
+//! - The incarnation number grows with every loss: reports and probe results that carry an
+//!   older number are about an instance the dispatcher has let go of, and are ignored.
+
+use super::mission::OpInfo;
+use crate::eo::EoClient;
+use crate::property::{General, Group, ParamMap, PropertyReply, PropertyRequest};
+use crate::registry::Instance;
+use ractor::{ActorCell, ActorId};
+use semver::{Version, VersionReq};
+use std::time::Duration;
+
+/// A live instance the dispatcher looked at through its property interface.
+pub(crate) struct Candidate {
+    pub(crate) info: OpInfo,
+    pub(crate) client: EoClient,
+    pub(crate) cell: ActorCell,
+    pub(crate) node: String,
+    /// The epoch the instance accepted last.
+    pub(crate) epoch: u64,
+    /// How long it may take to answer a command.
+    pub(crate) deadline: Duration,
+}
+
+/// Ask `inst` who it is, what it takes and which epoch it is at; `timeout` bounds each request.
+pub(crate) async fn examine(inst: &Instance, timeout: Duration) -> Result<Candidate, String> {
+    let client = EoClient::from_cell(inst.actor.clone()).with_timeout(timeout);
+    let info = super::catalog::describe(client.clone())
+        .await
+        .map_err(|e| e.to_string())?;
+    let general = match client
+        .property(PropertyRequest::Group(Group::General))
+        .await
+        .map_err(|e| e.to_string())?
+    {
+        PropertyReply::General(g) => g,
+        other => return Err(format!("answered {other:?} to the general group")),
+    };
+    let General {
+        epoch, deadline_ms, ..
+    } = general;
+    Ok(Candidate {
+        info,
+        client: client.with_timeout(EoClient::DEFAULT_TIMEOUT),
+        cell: inst.actor.clone(),
+        node: inst.node.clone(),
+        epoch,
+        deadline: Duration::from_millis(deadline_ms.max(1)),
+    })
+}
+
+/// Why a binding's instance was let go.
+#[derive(Clone, Debug)]
+pub(crate) struct Lost {
+    /// Clock time of the loss.
+    pub(crate) since: Duration,
+    /// What happened, for the report.
+    pub(crate) cause: String,
+    /// Address of the instance that was lost.
+    pub(crate) from: String,
+    /// Its actor id, never to be adopted again.
+    pub(crate) dead: ActorId,
+}
+
+/// The dispatcher's hold on one operation.
+pub(crate) struct Binding {
+    pub(crate) client: EoClient,
+    pub(crate) cell: ActorCell,
+    pub(crate) name: String,
+    pub(crate) id: u32,
+    pub(crate) version: String,
+    pub(crate) node: String,
+    pub(crate) address: String,
+    pub(crate) epoch: u64,
+    /// Grows with every loss; see the module invariants.
+    pub(crate) incarnation: u64,
+    pub(crate) defaults: ParamMap,
+    pub(crate) flag_names: Vec<String>,
+    /// The parameters sent last (restored on a new instance).
+    pub(crate) params: ParamMap,
+    /// How long the instance may take to answer (its declared deadline).
+    pub(crate) deadline: Duration,
+    /// Set while the instance is gone and no stand-in has been adopted.
+    pub(crate) lost: Option<Lost>,
+    /// A liveness probe is under way.
+    pub(crate) probing: bool,
+    /// The first version bound: stand-ins must be compatible with it.
+    selection: VersionReq,
+}
+
+impl Binding {
+    /// Bind to `cand` for the first time.
+    pub(crate) fn new(cand: Candidate) -> Binding {
+        let selection = Version::parse(&cand.info.version)
+            .ok()
+            .and_then(|v| VersionReq::parse(&format!("^{v}")).ok())
+            .unwrap_or(VersionReq::STAR);
+        let address = cand.cell.get_id().to_string();
+        Binding {
+            client: cand.client,
+            cell: cand.cell,
+            name: cand.info.name,
+            id: cand.info.id,
+            version: cand.info.version,
+            node: cand.node,
+            address,
+            epoch: cand.epoch + 1,
+            incarnation: 0,
+            defaults: cand.info.schema.defaults(),
+            flag_names: cand.info.flags.into_iter().map(|f| f.name).collect(),
+            params: ParamMap::new(),
+            deadline: cand.deadline,
+            lost: None,
+            probing: false,
+            selection,
+        }
+    }
+
+    /// Whether `cand` may stand in for the lost instance: not the dead actor itself, the same
+    /// operation (name and id), a version compatible with the first one bound, and a
+    /// parameter schema that accepts the last parameters.
+    pub(crate) fn accepts(&self, cand: &Candidate) -> Result<(), String> {
+        if let Some(lost) = &self.lost {
+            if cand.cell.get_id() == lost.dead {
+                return Err("it is the instance that was lost".to_string());
+            }
+        }
+        if cand.info.name != self.name || cand.info.id != self.id {
+            return Err(format!(
+                "it is {} ({}), not {} ({})",
+                cand.info.name, cand.info.id, self.name, self.id
+            ));
+        }
+        let version = Version::parse(&cand.info.version)
+            .map_err(|e| format!("its version `{}` is not semver: {e}", cand.info.version))?;
+        if !self.selection.matches(&version) {
+            return Err(format!(
+                "its version {version} does not match {}",
+                self.selection
+            ));
+        }
+        cand.info
+            .schema
+            .apply(&cand.info.schema.defaults(), &self.params, false)
+            .map_err(|rej| {
+                let list: Vec<String> = rej.iter().map(|r| r.to_string()).collect();
+                format!("it refuses the parameters: {}", list.join("; "))
+            })?;
+        Ok(())
+    }
+
+    /// Take `cand` as the new incarnation; returns the record's `(from, downtime)` if the
+    /// binding was lost.
+    pub(crate) fn adopt(&mut self, cand: Candidate, now: Duration) -> Option<(Lost, Duration)> {
+        self.epoch = self.epoch.max(cand.epoch) + 1;
+        self.address = cand.cell.get_id().to_string();
+        self.client = cand.client;
+        self.cell = cand.cell;
+        self.version = cand.info.version;
+        self.node = cand.node;
+        self.defaults = cand.info.schema.defaults();
+        self.flag_names = cand.info.flags.into_iter().map(|f| f.name).collect();
+        self.deadline = cand.deadline;
+        self.probing = false;
+        self.lost
+            .take()
+            .map(|lost| (lost.clone(), now.saturating_sub(lost.since)))
+    }
+
+    /// Let the current instance go.
+    pub(crate) fn lose(&mut self, cause: String, now: Duration) {
+        self.incarnation += 1;
+        self.probing = false;
+        self.lost = Some(Lost {
+            since: now,
+            cause,
+            from: self.address.clone(),
+            dead: self.cell.get_id(),
+        });
+    }
+}

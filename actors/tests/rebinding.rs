@@ -1,0 +1,331 @@
+//! Self-healing in the dispatcher: bindings survive the death of their instance.
+//!
+//! The "supervisor" here is the test itself (it spawns a replacement when it sees the old
+//! instance leave the registry), so these tests pin down the dispatcher's half of
+//! self-healing on its own; the node's real supervision tree is tested in the `marie` package.
+
+use marie_actors::clock::RealClock;
+use marie_actors::dispatcher::mission::Mission;
+use marie_actors::dispatcher::{run_mission, DispatchEvent, Outcome, RegistryCatalog, RunReport};
+use marie_actors::eo::{
+    spawn_operation, EoClient, EoMsg, Fault, HostOptions, Identity, OpContext, OpError, Operation,
+    Step,
+};
+use marie_actors::flags::{FlagDecl, StatusFlags};
+use marie_actors::property::{
+    Collection, General, Group, ParamDecl, ParamSchema, PropertyReply, PropertyRequest, Value,
+};
+use marie_actors::registry::{self, ModuleKind, RegistryEvent};
+use ractor::ActorRef;
+use std::time::Duration;
+use tokio::sync::mpsc;
+use tokio::time::timeout;
+
+const T: Duration = Duration::from_secs(30);
+
+/// Finishes after `steps` steps of 2 ms, raising its one flag.
+struct Worker {
+    name: String,
+    version: &'static str,
+    taken: i64,
+}
+
+impl Operation for Worker {
+    fn identity(&self) -> Identity {
+        Identity::new(
+            &self.name,
+            4000,
+            self.version,
+            "finishes after a number of steps",
+        )
+    }
+    fn parameters(&self) -> ParamSchema {
+        ParamSchema::new(vec![
+            ParamDecl::int("steps", 2).range(1.0, 100_000.0),
+            ParamDecl::float("gain", 0.5).range(0.0, 10.0),
+        ])
+    }
+    fn flags(&self) -> Vec<FlagDecl> {
+        vec![FlagDecl::new("done", "finished")]
+    }
+    fn period(&self) -> Duration {
+        Duration::from_millis(2)
+    }
+    fn deadline(&self) -> Duration {
+        Duration::from_millis(300)
+    }
+    async fn activate(&mut self, _: &mut OpContext) -> Result<Step, OpError> {
+        self.taken = 0;
+        Ok(Step::Continue)
+    }
+    async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
+        self.taken += 1;
+        Ok(if self.taken >= ctx.params().i64("steps")? {
+            Step::Finish(StatusFlags(1))
+        } else {
+            Step::Continue
+        })
+    }
+}
+
+async fn start(name: &str, version: &'static str) -> EoClient {
+    let op = Worker {
+        name: name.to_string(),
+        version,
+        taken: 0,
+    };
+    let (actor, _): (ActorRef<EoMsg>, _) =
+        spawn_operation(op, HostOptions::default()).await.unwrap();
+    EoClient::new(actor)
+}
+
+/// Act as a supervisor for `name`: each time an instance leaves the registry, start a new
+/// one (up to `times` times).
+async fn replace_on_death(name: &str, times: usize) -> tokio::task::JoinHandle<()> {
+    let mut watch = registry::watch(Some(ModuleKind::Operation)).await.unwrap();
+    let name = name.to_string();
+    tokio::spawn(async move {
+        let mut left = times;
+        while left > 0 {
+            match watch.next().await {
+                Some(RegistryEvent::Left(i)) if i.name == name => {
+                    start(&name, "1.0.0").await;
+                    left -= 1;
+                }
+                Some(_) => {}
+                None => break,
+            }
+        }
+    })
+}
+
+async fn general(c: &EoClient) -> General {
+    match c
+        .property(PropertyRequest::Group(Group::General))
+        .await
+        .unwrap()
+    {
+        PropertyReply::General(g) => g,
+        other => panic!("{other:?}"),
+    }
+}
+
+/// Wait until `c` runs an activation.
+async fn activated(c: &EoClient) {
+    let deadline = tokio::time::Instant::now() + T;
+    while !general(c).await.in_use {
+        assert!(tokio::time::Instant::now() < deadline, "never activated");
+        tokio::time::sleep(Duration::from_millis(1)).await;
+    }
+}
+
+/// Start `src` on a dispatcher; returns the run and its live events.
+async fn launch(
+    src: &str,
+) -> (
+    tokio::task::JoinHandle<RunReport>,
+    mpsc::UnboundedReceiver<DispatchEvent>,
+) {
+    let parsed = Mission::parse(src, None).expect("mission parses");
+    let keys: Vec<String> = parsed.ops().map(str::to_string).collect();
+    let catalog = RegistryCatalog::gather(keys).await.unwrap();
+    let mission = parsed.validate(&catalog).expect("mission validates");
+    let (tx, rx) = mpsc::unbounded_channel();
+    let run = tokio::spawn(async move {
+        timeout(T, run_mission(mission, RealClock::shared(), Some(tx)))
+            .await
+            .expect("mission ends")
+            .expect("dispatcher runs")
+    });
+    (run, rx)
+}
+
+/// Wait for the first event that `pick` accepts.
+async fn event<R>(
+    rx: &mut mpsc::UnboundedReceiver<DispatchEvent>,
+    mut pick: impl FnMut(&DispatchEvent) -> Option<R>,
+) -> R {
+    timeout(T, async {
+        loop {
+            let e = rx.recv().await.expect("dispatcher events end early");
+            if let Some(r) = pick(&e) {
+                return r;
+            }
+        }
+    })
+    .await
+    .expect("event in time")
+}
+
+fn mission(name: &str, op: &str, steps: u32) -> String {
+    format!(
+        r#"
+        [mission]
+        name = "{name}"
+        success = ["done"]
+        rebind_deadline_s = 20.0
+        [flags]
+        done = 0
+        [[action]]
+        name = "work"
+        [action.ops.{op}]
+        steps = {steps}
+        gain = 2.5
+    "#
+    )
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_killed_operation_is_rebound_to_its_replacement_and_the_action_completes() {
+    let first = start("rb-kill", "1.0.0").await;
+    let _sup = replace_on_death("rb-kill", 1).await;
+    let (run, mut events) = launch(&mission("kill", "rb-kill", 150)).await;
+    activated(&first).await;
+    first.actor().kill();
+    let record = event(&mut events, |e| match e {
+        DispatchEvent::Rebound(r) => Some(r.clone()),
+        _ => None,
+    })
+    .await;
+    let report = run.await.unwrap();
+    assert_eq!(report.outcome, Outcome::Succeeded, "{}", report.reason);
+    assert_eq!(report.rebinds, vec![record.clone()]);
+    assert_eq!(record.operation, "rb-kill");
+    assert_eq!(record.from, first.actor().get_id().to_string());
+    assert_ne!(record.to, record.from);
+    assert!(record.cause.contains("died"), "{}", record.cause);
+    // the operation's record in the action names the instance that finished it
+    assert_eq!(report.actions[0].operations[0].address, record.to);
+    assert_eq!(report.actions[0].operations[0].ended, "finished");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_stand_in_gets_the_last_parameters_and_a_higher_epoch() {
+    let first = start("rb-params", "1.0.0").await;
+    let _sup = replace_on_death("rb-params", 1).await;
+    let (run, mut events) = launch(&mission("params", "rb-params", 150)).await;
+    activated(&first).await;
+    let old_epoch = general(&first).await.epoch;
+    first.inject(Fault::Panic).unwrap();
+    let report = run.await.unwrap();
+    assert_eq!(report.outcome, Outcome::Succeeded, "{}", report.reason);
+    let lost = event(&mut events, |e| match e {
+        DispatchEvent::Lost { cause, .. } => Some(cause.clone()),
+        _ => None,
+    })
+    .await;
+    assert!(lost.contains("died"), "{lost}");
+    let now = registry::lookup(ModuleKind::Operation, "rb-params");
+    assert_eq!(now.len(), 1, "only the replacement is alive");
+    let stand_in = EoClient::from_cell(now[0].actor.clone());
+    match stand_in
+        .property(PropertyRequest::Collection(Collection::Current))
+        .await
+        .unwrap()
+    {
+        PropertyReply::Current(p) => {
+            assert_eq!(p.get("steps"), Some(&Value::Int(150)));
+            assert_eq!(p.get("gain"), Some(&Value::Float(2.5)));
+        }
+        other => panic!("{other:?}"),
+    }
+    let g = general(&stand_in).await;
+    assert!(g.epoch > old_epoch, "{} > {old_epoch}", g.epoch);
+    assert_eq!(g.activations, 1, "re-activated once");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn another_live_instance_stands_in_at_once() {
+    let first = start("rb-twin", "1.0.0").await;
+    let twin = start("rb-twin", "1.2.0").await;
+    let (run, _events) = launch(&mission("twin", "rb-twin", 150)).await;
+    // the dispatcher binds the first instance in registry order
+    activated(&first).await;
+    first.actor().kill();
+    let report = run.await.unwrap();
+    assert_eq!(report.outcome, Outcome::Succeeded, "{}", report.reason);
+    assert_eq!(report.rebinds.len(), 1);
+    assert_eq!(report.rebinds[0].to, twin.actor().get_id().to_string());
+    assert_eq!(report.actions[0].operations[0].version, "1.0.0");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_hung_operation_is_killed_and_rebound() {
+    let first = start("rb-hang", "1.0.0").await;
+    let _sup = replace_on_death("rb-hang", 1).await;
+    let (run, mut events) = launch(&mission("hang", "rb-hang", 150)).await;
+    activated(&first).await;
+    first.inject(Fault::Hang).unwrap();
+    let cause = event(&mut events, |e| match e {
+        DispatchEvent::Lost { cause, .. } => Some(cause.clone()),
+        _ => None,
+    })
+    .await;
+    assert!(
+        cause.contains("hung") && cause.contains("300 ms"),
+        "{cause}"
+    );
+    let report = run.await.unwrap();
+    assert_eq!(report.outcome, Outcome::Succeeded, "{}", report.reason);
+    assert_eq!(report.rebinds.len(), 1);
+    // killed: its actor is gone
+    assert!(registry::lookup(ModuleKind::Operation, "rb-hang")
+        .iter()
+        .all(|i| i.actor.get_id() != first.actor().get_id()));
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_incompatible_version_does_not_stand_in_and_the_mission_stops_naming_the_operation() {
+    let first = start("rb-major", "1.0.0").await;
+    let src = mission("major", "rb-major", 100_000).replace("20.0", "1.0");
+    let (run, _events) = launch(&src).await;
+    activated(&first).await;
+    let _v2 = start("rb-major", "2.0.0").await;
+    first.actor().kill();
+    let report = run.await.unwrap();
+    assert_eq!(report.outcome, Outcome::Failed);
+    assert!(
+        report.reason.contains("operation `rb-major` was lost"),
+        "{}",
+        report.reason
+    );
+    assert!(report.rebinds.is_empty());
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_operation_lost_between_actions_is_rebound_before_its_next_action() {
+    let a = start("rb-between-a", "1.0.0").await;
+    let b = start("rb-between-b", "1.0.0").await;
+    let _sup = replace_on_death("rb-between-b", 1).await;
+    // both raise `done`: the second action runs once the first has finished
+    let src = r#"
+        [mission]
+        name = "between"
+        success = ["done"]
+        [flags]
+        done = 0
+        [[action]]
+        name = "first"
+        [action.ops.rb-between-a]
+        steps = 150
+        [[action]]
+        name = "second"
+        when = ["done"]
+        [action.ops.rb-between-b]
+        steps = 5
+    "#;
+    let (run, mut events) = launch(src).await;
+    activated(&a).await;
+    b.actor().kill(); // b is bound but idle
+    let record = event(&mut events, |e| match e {
+        DispatchEvent::Rebound(r) => Some(r.clone()),
+        _ => None,
+    })
+    .await;
+    assert_eq!(record.operation, "rb-between-b");
+    let report = run.await.unwrap();
+    assert_eq!(report.outcome, Outcome::Succeeded, "{}", report.reason);
+    let second = &report.actions[1];
+    assert_eq!(second.name, "second");
+    assert_eq!(second.operations[0].address, record.to);
+}
