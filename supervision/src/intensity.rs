@@ -20,7 +20,8 @@ impl Intensity {
         Intensity {
             max_restarts,
             period,
-            restarts: VecDeque::with_capacity(max_restarts + 1),
+            // a huge limit must not allocate up front
+            restarts: VecDeque::with_capacity(max_restarts.saturating_add(1).min(64)),
         }
     }
 

@@ -1,25 +1,107 @@
 //! # marie-supervision
 //!
 //! Supervision for marie's actors with Erlang/OTP semantics (DESIGN.md §5). ractor links
-//! actors and reports failures, but has no strategies, restart intensity or backoff; this
-//! crate adds them. It starts with the piece every strategy rests on: the sliding-window
-//! restart intensity ([`Intensity`]); the supervisor actor, strategies and shutdown specs
-//! build on it.
+//! actors and reports a linked child's exit to its parent, but has no strategies, restart
+//! types, restart intensity, ordered shutdown or backoff — and its default
+//! `handle_supervisor_evt` stops the parent when any child stops. This crate adds a
+//! [`Supervisor`] actor that does what OTP's `supervisor` does, so that a robot's operations
+//! and datamanagers heal themselves and a fault that keeps recurring escalates up the tree
+//! instead of looping forever.
+//!
+//! * **Strategies** ([`Strategy`]): one-for-one, one-for-all, rest-for-one; children can also
+//!   be added, terminated, restarted and deleted at run time ([`SupervisorRef`]).
+//! * **Restart types** ([`Restart`]): permanent, transient, temporary, judged by the exit
+//!   reason ([`ExitReason`] documents the convention: a clean stop or [`NORMAL`] is normal,
+//!   [`SHUTDOWN`] is a shutdown, anything else — panic, `Err`, kill, other reason — is
+//!   abnormal).
+//! * **Restart intensity**: more than `max_restarts` restarts within a sliding `period`
+//!   ([`Intensity`]) and the supervisor stops its children in reverse start order and fails
+//!   with [`REACHED_MAX_RESTART_INTENSITY`], which its parent treats as an abnormal exit.
+//! * **Shutdown specs** ([`Shutdown`]): brutal kill, stop-then-kill after a timeout, or wait
+//!   forever (child supervisors). Children start in order and stop in reverse order.
+//! * **Backoff** ([`Backoff`]): opt-in exponential delays with seeded jitter between restart
+//!   attempts; off by default, as in OTP.
+//! * **Introspection and events**: [`SupervisorRef::which_children`],
+//!   [`SupervisorRef::count_children`], per-child restart counts, and a broadcast of
+//!   [`SupervisorEvent`]s ([`SupervisorRef::subscribe`]) to wait on instead of sleeping.
+//!
+//! A child is described by a [`ChildSpec`] whose start function **spawns the child linked to
+//! the supervisor cell it is given**; the supervisor calls it again for every restart.
 //!
 //! ```
-//! use marie_supervision::Intensity;
+//! use marie_supervision::{ChildSpec, Supervisor, SupervisorEvent, SupervisorSpec};
+//! use ractor::{Actor, ActorProcessingErr, ActorRef};
 //! use std::time::Duration;
-//! // at most 3 restarts in any 5 seconds
-//! let mut window = Intensity::new(3, Duration::from_secs(5));
-//! let t = Duration::from_secs(100);
-//! assert!(window.record(t));
-//! assert!(window.record(t));
-//! assert!(window.record(t));
-//! assert!(!window.record(t), "the fourth restart within 5 s exceeds the intensity");
+//!
+//! /// A worker that fails on request.
+//! struct Flaky;
+//! struct Crash;
+//! impl ractor::Message for Crash {}
+//!
+//! impl Actor for Flaky {
+//!     type Msg = Crash;
+//!     type State = ();
+//!     type Arguments = ();
+//!     async fn pre_start(&self, _: ActorRef<Crash>, _: ()) -> Result<(), ActorProcessingErr> {
+//!         Ok(())
+//!     }
+//!     async fn handle(&self, _: ActorRef<Crash>, _: Crash, _: &mut ()) -> Result<(), ActorProcessingErr> {
+//!         Err("sensor glitch".into())
+//!     }
+//! }
+//!
+//! # #[tokio::main(flavor = "current_thread")]
+//! # async fn main() {
+//! let spec = SupervisorSpec::one_for_one().with_intensity(3, Duration::from_secs(5));
+//! let children = vec![ChildSpec::worker("flaky", |sup| async move {
+//!     let (actor, _) = Actor::spawn_linked(None, Flaky, (), sup).await?;
+//!     Ok(actor.get_cell())
+//! })];
+//! let (sup, _) = Supervisor::start(None, spec, children).await.unwrap();
+//! let mut events = sup.subscribe().await.unwrap();
+//!
+//! // crash the worker: the supervisor restarts it as a new actor
+//! let first = sup.which_children().await.unwrap()[0].state.actor().unwrap().clone();
+//! ActorRef::<Crash>::from(first.clone()).cast(Crash).unwrap();
+//! loop {
+//!     if let SupervisorEvent::ChildRestarted { id, old, .. } = events.recv().await.unwrap() {
+//!         assert_eq!(id, "flaky");
+//!         assert_eq!(old, Some(first.get_id()));
+//!         break;
+//!     }
+//! }
+//! assert_eq!(sup.which_children().await.unwrap()[0].restarts, 1);
+//! sup.stop().await;
+//! # }
 //! ```
 
 #![warn(missing_docs)]
 
+mod backoff;
+mod child;
+mod error;
+mod events;
+mod exit;
+pub mod fault;
+mod handle;
+mod info;
 mod intensity;
+mod messages;
+mod spec;
+mod start;
+mod strategy;
+mod supervisor;
+mod terminate;
 
+pub use backoff::{Backoff, SplitMix64};
+pub use child::{ChildKind, ChildSpec, Restart, Shutdown, StartFn, StartFuture};
+pub use error::SupervisorError;
+pub use events::{RestartCause, SupervisorEvent};
+pub use exit::{ExitReason, NORMAL, REACHED_MAX_RESTART_INTENSITY, SHUTDOWN};
+pub use handle::SupervisorRef;
+pub use info::{ChildCounts, ChildInfo, ChildState};
 pub use intensity::Intensity;
+pub use messages::{Internal, SupervisorMsg};
+pub use spec::SupervisorSpec;
+pub use strategy::Strategy;
+pub use supervisor::{Supervisor, SupervisorArgs, SupervisorState};
