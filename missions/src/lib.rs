@@ -1,13 +1,18 @@
 //! # marie-missions
 //!
 //! The operations, worlds and missions that marie runs — the framework used the way a user's
-//! own robot would use it. Until the simulated robot lands, it holds the [`demo`]
-//! operations: a signal sampler, an averager and a checker that exchange data only through
-//! the datamanagers, driven by `missions/demo.toml`.
+//! own robot would use it: the thesis' robot operations ([`ops`]) against a simulated cart
+//! ([`hardware`], [`sim`], [`world`]), and the [`demo`] operations (a signal sampler, an
+//! averager and a checker that exchange data only through the datamanagers).
+//!
+//! Operations are offered as [`OperationFactory`]s, so a supervisor can start a fresh
+//! instance after every crash; [`spawn_builtin`] and [`spawn_robot`] start them unsupervised.
 //!
 //! ```no_run
 //! # #[tokio::main] async fn main() {
 //! let clock = marie_actors::clock::RealClock::shared();
+//! let names: Vec<&str> = marie_missions::builtin_operations().iter().map(|f| f.name).collect();
+//! assert_eq!(names, ["sampler", "averager", "checker"]);
 //! let actors = marie_missions::spawn_builtin(clock).await.unwrap();
 //! assert_eq!(actors.len(), 3);
 //! # }
@@ -25,57 +30,140 @@ pub mod sim;
 pub mod world;
 
 use marie_actors::clock::SharedClock;
-use marie_actors::eo::{spawn_operation, HostOptions};
+use marie_actors::eo::{spawn_operation, spawn_operation_linked, HostOptions, Operation};
 use ractor::{ActorCell, SpawnErr};
+use std::future::Future;
+use std::pin::Pin;
+use std::sync::Arc;
+
+/// A function that starts one operation instance in a host linked to the given supervisor.
+pub type StartOperation = Arc<
+    dyn Fn(
+            HostOptions,
+            Option<ActorCell>,
+        ) -> Pin<Box<dyn Future<Output = Result<ActorCell, SpawnErr>> + Send>>
+        + Send
+        + Sync,
+>;
+
+/// How to start instances of one operation: each call starts a fresh one (new state, new
+/// actor), which is what a supervisor needs to restart a crashed operation.
+#[derive(Clone)]
+pub struct OperationFactory {
+    /// The operation's registry name.
+    pub name: &'static str,
+    /// Its version (two versions of one operation have two factories).
+    pub version: String,
+    /// Start an instance: hosted with these options, linked to the supervisor if given.
+    pub start: StartOperation,
+}
+
+impl OperationFactory {
+    /// The factory of operations built by `O::default()`.
+    pub fn of<O: Operation + Default>(name: &'static str) -> OperationFactory {
+        OperationFactory {
+            name,
+            version: O::default().identity().version.to_string(),
+            start: Arc::new(|options, supervisor| {
+                Box::pin(async move {
+                    let op = O::default();
+                    let actor = match supervisor {
+                        Some(sup) => spawn_operation_linked(op, options, sup).await?.0,
+                        None => spawn_operation(op, options).await?.0,
+                    };
+                    Ok(actor.get_cell())
+                })
+            }),
+        }
+    }
+
+    /// A child id unique among the factories: `name@version`.
+    pub fn key(&self) -> String {
+        format!("{}@{}", self.name, self.version)
+    }
+}
+
+impl std::fmt::Debug for OperationFactory {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("OperationFactory")
+            .field("name", &self.name)
+            .field("version", &self.version)
+            .finish_non_exhaustive()
+    }
+}
+
+/// The built-in demo operations (sampler, averager, checker).
+pub fn builtin_operations() -> Vec<OperationFactory> {
+    vec![
+        OperationFactory::of::<demo::Sampler>("sampler"),
+        OperationFactory::of::<demo::Averager>("averager"),
+        OperationFactory::of::<demo::Checker>("checker"),
+    ]
+}
+
+/// The robot's operations — both versions of the wall follower, so the dispatcher has a
+/// choice. They find the cart through the registry, so they need no arguments.
+pub fn robot_operations() -> Vec<OperationFactory> {
+    vec![
+        OperationFactory::of::<ops::Ultrasonic>("ultrasonic"),
+        OperationFactory::of::<ops::SegmentExtractor>("segment-extractor"),
+        OperationFactory::of::<ops::WallSensor>("wall-sensor"),
+        OperationFactory::of::<ops::DockingDetector>("docking-detector"),
+        OperationFactory::of::<ops::PathPlanner>("path-planner"),
+        OperationFactory::of::<ops::TrajectoryController>("trajectory-controller"),
+        OperationFactory::of::<ops::WallFollowerV1>("wall-follower"),
+        OperationFactory::of::<ops::WallFollowerV2>("wall-follower"),
+        OperationFactory::of::<ops::SensorBasedController>("sensor-based-controller"),
+        OperationFactory::of::<ops::CollisionAvoidance>("collision-avoidance"),
+    ]
+}
+
+/// Start every operation of `factories` on `clock`, unsupervised.
+async fn start_all(
+    factories: Vec<OperationFactory>,
+    clock: SharedClock,
+) -> Result<Vec<ActorCell>, SpawnErr> {
+    let opts = HostOptions::with_clock(clock);
+    let mut cells = Vec::with_capacity(factories.len());
+    for f in factories {
+        cells.push((f.start)(opts.clone(), None).await?);
+    }
+    Ok(cells)
+}
 
 /// Spawn one host for each built-in operation, unsupervised, on `clock`.
 pub async fn spawn_builtin(clock: SharedClock) -> Result<Vec<ActorCell>, SpawnErr> {
-    let opts = HostOptions::with_clock(clock);
-    Ok(vec![
-        spawn_operation(demo::Sampler::default(), opts.clone())
-            .await?
-            .0
-            .get_cell(),
-        spawn_operation(demo::Averager::default(), opts.clone())
-            .await?
-            .0
-            .get_cell(),
-        spawn_operation(demo::Checker, opts).await?.0.get_cell(),
-    ])
+    start_all(builtin_operations(), clock).await
 }
 
-/// Spawn the robot on `clock`: the virtual cart driving `world` (noise seeded by `seed`) and
-/// one host for each of the robot's operations — both versions of the wall follower, so the
-/// dispatcher has a choice. Unsupervised; the cart publishes itself before this returns.
+/// Spawn the virtual cart driving `world` (noise seeded by `seed`) on `clock`, linked to
+/// `supervisor` if given. It publishes itself before this returns.
+pub async fn spawn_cart(
+    clock: SharedClock,
+    world: &world::World,
+    seed: u64,
+    supervisor: Option<ActorCell>,
+) -> Result<ActorCell, SpawnErr> {
+    let args = hardware::CartArgs {
+        sim: sim::Simulation::new(world, seed),
+        clock,
+        period: std::time::Duration::from_millis(20),
+    };
+    Ok(match supervisor {
+        Some(sup) => hardware::spawn_cart_linked(args, sup).await?.0.get_cell(),
+        None => hardware::spawn_cart(args).await?.0.get_cell(),
+    })
+}
+
+/// Spawn the robot on `clock`, unsupervised: the virtual cart driving `world` (noise seeded
+/// by `seed`) and one host for each of [`robot_operations`]. The cart publishes itself before
+/// this returns.
 pub async fn spawn_robot(
     clock: SharedClock,
     world: &world::World,
     seed: u64,
 ) -> Result<Vec<ActorCell>, SpawnErr> {
-    let (cart, _) = hardware::spawn_cart(hardware::CartArgs {
-        sim: sim::Simulation::new(world, seed),
-        clock: clock.clone(),
-        period: std::time::Duration::from_millis(20),
-    })
-    .await?;
-    let opts = HostOptions::with_clock(clock);
-    let mut cells = vec![cart.get_cell()];
-    macro_rules! host {
-        ($($op:expr),* $(,)?) => {
-            $( cells.push(spawn_operation($op, opts.clone()).await?.0.get_cell()); )*
-        };
-    }
-    host!(
-        ops::Ultrasonic::default(),
-        ops::SegmentExtractor::default(),
-        ops::WallSensor::default(),
-        ops::DockingDetector::default(),
-        ops::PathPlanner::default(),
-        ops::TrajectoryController::default(),
-        ops::WallFollowerV1::default(),
-        ops::WallFollowerV2::default(),
-        ops::SensorBasedController::default(),
-        ops::CollisionAvoidance::default(),
-    );
+    let mut cells = vec![spawn_cart(clock.clone(), world, seed, None).await?];
+    cells.extend(start_all(robot_operations(), clock).await?);
     Ok(cells)
 }

@@ -134,6 +134,18 @@ impl PurePursuit {
         self.s = 0.0;
     }
 
+    /// Resume at `along` metres along the path (a progress saved earlier), as if driven so
+    /// far: the progress only ever moves forward from there.
+    pub fn resume_at(&mut self, along: f64) {
+        let along = along.clamp(0.0, self.total());
+        self.seg = self
+            .cum
+            .partition_point(|&c| c <= along)
+            .saturating_sub(1)
+            .min(self.pts.len().saturating_sub(2));
+        self.s = along;
+    }
+
     /// The path being followed.
     pub fn path(&self) -> &Path {
         &self.path

@@ -247,6 +247,14 @@ pub async fn spawn_cart(args: CartArgs) -> Result<(ActorRef<CartMsg>, JoinHandle
     Actor::spawn(None, VirtualCart, args).await
 }
 
+/// Spawn the virtual cart linked to `supervisor`.
+pub async fn spawn_cart_linked(
+    args: CartArgs,
+    supervisor: ractor::ActorCell,
+) -> Result<(ActorRef<CartMsg>, JoinHandle<()>), SpawnErr> {
+    Actor::spawn_linked(None, VirtualCart, args, supervisor).await
+}
+
 /// Why the cart did not answer.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum CartError {

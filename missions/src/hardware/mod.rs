@@ -8,6 +8,6 @@
 mod cart;
 
 pub use cart::{
-    spawn_cart, CartArgs, CartClient, CartError, CartMsg, CartStatus, SonarScan, VirtualCart,
-    CART_ID, CART_NAME,
+    spawn_cart, spawn_cart_linked, CartArgs, CartClient, CartError, CartMsg, CartStatus, SonarScan,
+    VirtualCart, CART_ID, CART_NAME,
 };

@@ -52,6 +52,23 @@ pub(crate) async fn newest<T: serde::de::DeserializeOwned>(
     }
 }
 
+/// Like [`newest`], with the record's sequence number.
+pub(crate) async fn newest_with_seq<T: serde::de::DeserializeOwned>(
+    ctx: &mut marie_actors::eo::OpContext,
+    dm: &'static str,
+    class: &str,
+) -> Result<Option<(u64, T)>, OpError> {
+    let records = ctx
+        .dm(dm)?
+        .select(marie_actors::dm::Query::class(class).newest(1))
+        .await
+        .map_err(dm_err(dm))?;
+    match records.last() {
+        Some(r) => Ok(Some((r.seq, r.decode().map_err(dm_err(dm))?))),
+        None => Ok(None),
+    }
+}
+
 /// Turn a datamanager error into an operation error naming the DM.
 pub(crate) fn dm_err(dm: &'static str) -> impl Fn(DmError) -> OpError {
     move |e| OpError::Datamanager {

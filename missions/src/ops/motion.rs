@@ -6,9 +6,10 @@
 
 use super::perception::wall_from;
 use super::records::{
-    DockRecord, LegRecord, PathRecord, SegmentSet, WallRecord, DOCK, MAP, PATH, SEGMENTS, WALL,
+    DockRecord, LegRecord, PathRecord, ProgressRecord, SegmentSet, WallRecord, DOCK, MAP, PATH,
+    PROGRESS, SEGMENTS, WALL,
 };
-use super::{cart, cart_err, dm_err, newest};
+use super::{cart, cart_err, dm_err, newest, newest_with_seq};
 use crate::algo::follow::{follow_command, is_aligned, FollowMode, FollowParams};
 use crate::algo::parking::{plan_parking, Footprint, ParkParams};
 use crate::algo::planner::{plan, Bounds, Path, PlannerParams};
@@ -185,7 +186,16 @@ pub struct TrajectoryController {
     params: Option<PursuitParams>,
     legs: Vec<LegRecord>,
     pursuit: Option<(PurePursuit, Path)>,
+    /// Sequence number of the path record being driven.
+    path_seq: u64,
+    /// Index of the leg being driven.
+    leg: usize,
+    /// Progress saved last: `(leg, along)`.
+    saved: Option<(usize, f64)>,
 }
+
+/// How much further along than the saved progress the controller saves again, m.
+const PROGRESS_STEP: f64 = 0.1;
 
 impl TrajectoryController {
     /// Start the next leg; false when none is left.
@@ -193,6 +203,9 @@ impl TrajectoryController {
         let (Some(params), false) = (self.params, self.legs.is_empty()) else {
             return false;
         };
+        if self.pursuit.is_some() {
+            self.leg += 1;
+        }
         let leg = self.legs.remove(0);
         let mut path = Path::new(leg.waypoints);
         if let Some(h) = leg.goal_heading {
@@ -204,6 +217,30 @@ impl TrajectoryController {
         };
         self.pursuit = Some((PurePursuit::with_path(params, path.clone()), path));
         true
+    }
+
+    /// Save the progress in the parameter DM once it moved on enough since the last save.
+    fn save_progress(&mut self, ctx: &mut OpContext) -> Result<(), OpError> {
+        let Some((pursuit, _)) = &self.pursuit else {
+            return Ok(());
+        };
+        let along = pursuit.progress();
+        let due = match self.saved {
+            Some((leg, saved)) => leg != self.leg || along >= saved + PROGRESS_STEP,
+            None => true,
+        };
+        if due {
+            let record = ProgressRecord {
+                path_seq: self.path_seq,
+                leg: self.leg,
+                along,
+            };
+            ctx.dm("parameter")?
+                .put(PROGRESS, Some("driven"), None, &record)
+                .map_err(dm_err("parameter"))?;
+            self.saved = Some((self.leg, along));
+        }
+        Ok(())
     }
 }
 
@@ -251,7 +288,7 @@ impl Operation for TrajectoryController {
     }
 
     async fn activate(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
-        let record: PathRecord = newest(ctx, "parameter", PATH)
+        let (path_seq, record): (u64, PathRecord) = newest_with_seq(ctx, "parameter", PATH)
             .await?
             .ok_or_else(|| OpError::failed("no planned path in the parameter DM"))?;
         let p = ctx.params();
@@ -264,13 +301,33 @@ impl Operation for TrajectoryController {
             ..PursuitParams::default()
         });
         self.legs = record.legs;
+        self.pursuit = None;
+        self.path_seq = path_seq;
+        self.leg = 0;
+        self.saved = None;
+        // a predecessor that crashed on this path left its progress behind: resume there
+        let progress: Option<ProgressRecord> = newest(ctx, "parameter", PROGRESS).await?;
+        let resume = progress.filter(|p| p.path_seq == path_seq && p.leg < self.legs.len());
+        if let Some(p) = resume {
+            self.legs.drain(..p.leg);
+        }
         if !self.next_leg() {
             return Err(OpError::failed("the planned path has no legs"));
+        }
+        if let (Some(p), Some((pursuit, _))) = (resume, self.pursuit.as_mut()) {
+            self.leg = p.leg;
+            pursuit.resume_at(p.along);
+            self.saved = Some((p.leg, p.along));
+            tracing::info!(
+                leg = p.leg,
+                along = p.along,
+                "resuming the path where it was left"
+            );
         }
         Ok(Step::Continue)
     }
 
-    async fn step(&mut self, _ctx: &mut OpContext) -> Result<Step, OpError> {
+    async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
         let status = cart(&mut self.cart)?.status().await.map_err(cart_err)?;
         if status.collided {
             return Err(OpError::failed(format!(
@@ -305,6 +362,7 @@ impl Operation for TrajectoryController {
         cart(&mut self.cart)?
             .drive(cmd.speed, cmd.steer)
             .map_err(cart_err)?;
+        self.save_progress(ctx)?;
         Ok(Step::Continue)
     }
 

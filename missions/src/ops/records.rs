@@ -9,6 +9,7 @@
 //! | world | `wall` | `followed` | [`WallRecord`] | wall sensor → wall follower, controllers, docking detector |
 //! | world | `dock` | `found` | [`DockRecord`] | docking detector → path planner |
 //! | parameter | `path` | `planned` | [`PathRecord`] | path planner → trajectory controller |
+//! | parameter | `path-progress` | `driven` | [`ProgressRecord`] | trajectory controller → itself, after a restart |
 
 use crate::geom::{Point, Pose, Segment};
 use serde::{Deserialize, Serialize};
@@ -25,6 +26,22 @@ pub const WALL: &str = "wall";
 pub const DOCK: &str = "dock";
 /// Parameter DM class of planned paths.
 pub const PATH: &str = "path";
+/// Parameter DM class of the trajectory controller's progress along a path.
+pub const PROGRESS: &str = "path-progress";
+
+/// How far the trajectory controller got along a planned path. Kept in the parameter DM, not
+/// in the controller, so that a controller restarted after a crash resumes where the crashed
+/// one was instead of driving the path again from its start (state that must survive a crash
+/// lives outside the actor).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ProgressRecord {
+    /// Sequence number of the path record in the parameter DM.
+    pub path_seq: u64,
+    /// Index of the leg being driven.
+    pub leg: usize,
+    /// Distance driven along that leg, m.
+    pub along: f64,
+}
 
 /// One sonar echo, placed in the world with the cart's odometry.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
