@@ -25,4 +25,5 @@ pub use marie_cluster as cluster;
 pub use marie_missions as missions;
 pub use marie_supervision as supervision;
 
+pub mod faults;
 pub mod node;

@@ -10,8 +10,11 @@ use marie::actors::dispatcher::{DispatchEvent, Outcome, RunReport};
 use marie::actors::eo::EoClient;
 use marie::actors::property::{Group, PropertyReply, PropertyRequest};
 use marie::actors::registry::{self, ModuleKind};
+use marie::faults::FaultPlan;
 use marie::missions::world::World;
 use marie::node::{Node, NodeError, NodeOptions};
+use marie::supervision::fault::{self, Chaos, FaultKind, FaultSpec};
+use marie::supervision::SupervisorEvent;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use tokio::sync::mpsc;
@@ -51,6 +54,14 @@ enum Command {
         /// fast as the CPU allows (the default).
         #[arg(long, default_value = "max", value_parser = parse_speed)]
         speed: f64,
+        /// Inject a fault while the mission runs: `kill:NAME@SECS`, `panic:NAME@SECS` or
+        /// `hang:NAME@SECS` (NAME: operation name or id; SECS: mission time). Repeatable.
+        #[arg(long = "fault", value_name = "KIND:NAME@SECS")]
+        faults: Vec<FaultSpec>,
+        /// Kill a random operation of the running action every 4 to 12 s of mission time,
+        /// picked by a generator seeded with SEED.
+        #[arg(long, value_name = "SEED")]
+        chaos: Option<u64>,
     },
     /// Check a mission against the running operations without running it.
     Check {
@@ -64,6 +75,13 @@ enum Command {
         /// Print JSON instead of the start-up log format.
         #[arg(long)]
         json: bool,
+    },
+    /// Kill an operation on the embedded node and show its supervisor restarting it.
+    Kill {
+        /// Operation name or numeric id.
+        operation: String,
+        #[command(flatten)]
+        robot: RobotArgs,
     },
     /// Show every property of an operation.
     Props {
@@ -180,7 +198,16 @@ async fn run(command: Command) -> anyhow::Result<ExitCode> {
             report,
             svg,
             speed,
-        } => run_mission(mission, robot, report, svg, speed).await,
+            faults,
+            chaos,
+        } => {
+            let plan = FaultPlan {
+                faults,
+                chaos: chaos.map(Chaos::new),
+            };
+            run_mission(mission, robot, report, svg, speed, plan).await
+        }
+        Command::Kill { operation, robot } => kill(&operation, robot).await,
         Command::Check { mission, robot } => {
             let prepared = prepare(&mission, robot, 1.0).await?;
             let m = &prepared.mission;
@@ -288,6 +315,7 @@ async fn run_mission(
     report_path: Option<PathBuf>,
     svg_path: Option<PathBuf>,
     speed: f64,
+    plan: FaultPlan,
 ) -> anyhow::Result<ExitCode> {
     // on the paused-clock runtime, the runtime's own time is already virtual
     let speed = if speed.is_infinite() { 1.0 } else { speed };
@@ -310,6 +338,16 @@ async fn run_mission(
     if let Some(line) = prepared.world_line() {
         println!("{line}");
     }
+    for f in &plan.faults {
+        if registry::lookup(ModuleKind::Operation, &f.target).is_empty() {
+            prepared.node.shutdown().await;
+            return Err(BadInput(format!(
+                "--fault {f}: no operation `{}` is running (`marie ls` lists them)",
+                f.target
+            ))
+            .into());
+        }
+    }
     let Prepared { node, mission, .. } = prepared;
     let (tx, mut rx) = mpsc::unbounded_channel();
     let printer = tokio::spawn(async move {
@@ -317,7 +355,7 @@ async fn run_mission(
             print_event(&evt);
         }
     });
-    let report = node.run(mission, Some(tx)).await;
+    let report = node.run_with_faults(mission, Some(tx), plan).await;
     let _ = printer.await;
     let picture = match (&report, &svg_path) {
         (Ok(report), Some(_)) => node.picture(report).await,
@@ -326,6 +364,23 @@ async fn run_mission(
     let world = node.world().cloned();
     node.shutdown().await;
     let report = report?;
+    for f in &report.faults {
+        match &f.error {
+            None => println!(
+                "* injected {} into {} ({}) at {:.1}s",
+                f.fault,
+                f.operation,
+                f.actor,
+                f.at_ms as f64 / 1000.0
+            ),
+            Some(e) => println!(
+                "* could not inject {} into {} at {:.1}s: {e}",
+                f.fault,
+                f.operation,
+                f.at_ms as f64 / 1000.0
+            ),
+        }
+    }
     if world.is_some() {
         println!("{}", outcome_line(&report));
     }
@@ -349,6 +404,67 @@ async fn run_mission(
         (Outcome::Succeeded, true) => ExitCode::SUCCESS,
         _ => ExitCode::from(1),
     })
+}
+
+/// `marie kill`: start the embedded node, kill the operation's live instance and wait for
+/// the operation supervisor to restart it.
+async fn kill(operation: &str, robot: RobotArgs) -> anyhow::Result<ExitCode> {
+    let world = match &robot.world {
+        Some(p) => Some(World::load(p).map_err(WorldFile)?),
+        None => None,
+    };
+    let node = Node::start(NodeOptions {
+        world,
+        seed: robot.seed,
+        ..Default::default()
+    })
+    .await?;
+    let result = kill_on(&node, operation).await;
+    node.shutdown().await;
+    result
+}
+
+async fn kill_on(node: &Node, operation: &str) -> anyhow::Result<ExitCode> {
+    let Some(inst) = registry::lookup(ModuleKind::Operation, operation)
+        .into_iter()
+        .next()
+    else {
+        return Err(BadInput(format!(
+            "no operation `{operation}` is running (`marie ls` lists them)"
+        ))
+        .into());
+    };
+    let supervisor = node.operation_supervisor().await?;
+    let mut events = supervisor.subscribe().await?;
+    let started = std::time::Instant::now();
+    let done = fault::inject_into(FaultKind::Kill, &inst)?;
+    println!("killed {} ({}) at {}", inst.name, inst.id, done.actor);
+    let restarted = tokio::time::timeout(std::time::Duration::from_secs(10), async {
+        loop {
+            match events.recv().await {
+                Ok(SupervisorEvent::ChildRestarted { old, new, .. }) if old == Some(done.actor) => {
+                    return Some(new)
+                }
+                Ok(_) | Err(tokio::sync::broadcast::error::RecvError::Lagged(_)) => {}
+                Err(_) => return None,
+            }
+        }
+    })
+    .await;
+    match restarted {
+        Ok(Some(new)) => {
+            println!(
+                "restarted by the operation supervisor as {} after {:.2} ms",
+                new.get_id(),
+                started.elapsed().as_secs_f64() * 1000.0
+            );
+            Ok(ExitCode::SUCCESS)
+        }
+        _ => {
+            println!("not restarted within 10 s");
+            Ok(ExitCode::from(1))
+        }
+    }
 }
 
 /// Pixels per metre of `--svg` pictures.

@@ -5,21 +5,7 @@
 
 mod common;
 
-use common::{marie, text};
-use std::process::Output;
-
-fn report_of(args: &[&str]) -> (Output, serde_json::Value) {
-    let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("report.json");
-    let mut all = args.to_vec();
-    all.extend(["--report", path.to_str().unwrap()]);
-    let out = marie(&all);
-    let json = std::fs::read_to_string(&path)
-        .ok()
-        .and_then(|s| serde_json::from_str(&s).ok())
-        .unwrap_or(serde_json::Value::Null);
-    (out, json)
-}
+use common::{marie, report_of, text};
 
 /// Run `mission` with `seed` and assert the world judged it a success, with these actions.
 fn succeeds(mission: &str, seed: u64, actions: &[&str]) {

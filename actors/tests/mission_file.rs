@@ -355,7 +355,7 @@ fn unknown_keys_are_reported_at_the_key_with_the_accepted_ones() {
         3,
         &[
             "unknown key `nmae` in `[mission]`",
-            "expected one of: name, description, success, initial, deadline_s, world",
+            "expected one of: name, description, success, initial, deadline_s, rebind_deadline_s, world",
         ],
     );
     let d = parse_err(&format!(

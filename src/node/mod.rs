@@ -36,13 +36,18 @@
 //! # Ok(()) }
 //! ```
 
+mod tree;
+
+use crate::faults::{FaultPlan, Injector};
 use marie_actors::clock::{RealClock, ScaledClock, SharedClock};
 use marie_actors::dispatcher::mission::{Diagnostics, Mission, ParsedMission};
 use marie_actors::dispatcher::{
-    self, DispatchError, DispatchEvent, Outcome, RegistryCatalog, RunReport,
+    self, DispatchError, DispatchEvent, DispatcherArgs, DispatcherMsg, Outcome, RegistryCatalog,
+    RunReport,
 };
-use marie_actors::dm::{self, DmArgs, DmClient, DmConfig, DmError, DmMsg, DmSpec, Query};
+use marie_actors::dm::{self, DmClient, DmError, DmSpec, Query};
 use marie_actors::eo::EoError;
+use marie_actors::eo::HostOptions;
 use marie_missions::geom::{Point, Pose};
 use marie_missions::hardware::{CartClient, CartError};
 use marie_missions::ops::records::{
@@ -50,11 +55,17 @@ use marie_missions::ops::records::{
 };
 use marie_missions::picture::Picture;
 use marie_missions::world::{Judgement, World};
-use ractor::{ActorCell, ActorRef};
+use marie_supervision::{
+    ChildSpec, Restart, Shutdown, Supervisor, SupervisorError, SupervisorRef, SupervisorSpec,
+};
+use ractor::ActorRef;
 use serde::de::DeserializeOwned;
 use std::path::Path;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
+use std::time::Duration;
 use tokio::sync::mpsc;
+use tree::{abort_on_give_up, datamanagers, DATAMANAGERS, OPERATIONS};
 
 /// The seed of a simulation when none is given.
 pub const DEFAULT_SEED: u64 = 1;
@@ -79,7 +90,24 @@ pub struct NodeOptions {
     /// Seed of the simulation's noise (sonar, odometry): the same world, seed and mission
     /// give the same run. Used only with a world; default [`DEFAULT_SEED`].
     pub seed: u64,
+    /// Restart intensity of the operation supervisor: more than this many restarts within
+    /// [`NodeOptions::operation_period`] and it gives up (the running mission comes to a
+    /// full stop naming the operation; the node then starts the operations afresh).
+    /// Default [`DEFAULT_OPERATION_RESTARTS`].
+    pub operation_restarts: usize,
+    /// The window of [`NodeOptions::operation_restarts`]; default
+    /// [`DEFAULT_OPERATION_PERIOD`].
+    pub operation_period: Duration,
 }
+
+/// Default restart intensity of the operation supervisor (restarts per period).
+pub const DEFAULT_OPERATION_RESTARTS: usize = 5;
+
+/// Default window of the operation supervisor's restart intensity.
+pub const DEFAULT_OPERATION_PERIOD: Duration = Duration::from_secs(10);
+
+/// How long an operation gets to stop before it is killed.
+const OPERATION_SHUTDOWN: Duration = Duration::from_secs(1);
 
 impl Default for NodeOptions {
     fn default() -> Self {
@@ -88,6 +116,8 @@ impl Default for NodeOptions {
             builtin_operations: true,
             world: None,
             seed: DEFAULT_SEED,
+            operation_restarts: DEFAULT_OPERATION_RESTARTS,
+            operation_period: DEFAULT_OPERATION_PERIOD,
         }
     }
 }
@@ -103,6 +133,9 @@ pub enum NodeError {
         /// Why.
         source: ractor::SpawnErr,
     },
+    /// The node's supervision tree did not start or refused a request.
+    #[error("node supervisor: {0}")]
+    Supervisor(#[from] SupervisorError),
     /// An operation did not answer while the mission was checked.
     #[error(transparent)]
     Operation(#[from] EoError),
@@ -124,85 +157,110 @@ struct Robot {
     seed: u64,
 }
 
-/// A running embedded node.
+/// A running embedded node: the supervision tree of DESIGN.md §2.
+///
+/// ```text
+/// node (one_for_one)
+///  ├─ datamanagers (one_for_one) ── feature 1201, parameter 1202, world 1203
+///  ├─ cart                          (with a world; temporary: a simulation is not restarted)
+///  ├─ operations (one_for_one) ──── one EO host per operation instance
+///  └─ dispatcher-N                  (temporary, one per run)
+/// ```
 pub struct Node {
     clock: SharedClock,
-    actors: Vec<ActorCell>,
-    /// The datamanagers, by name.
-    dms: Vec<(&'static str, ActorRef<DmMsg>)>,
+    root: SupervisorRef,
     robot: Option<Robot>,
+    runs: AtomicU64,
 }
 
 impl Node {
-    /// Start the datamanagers, (optionally) the built-in operations, and with a
-    /// [`NodeOptions::world`] the simulated robot, after storing the world's walls as the
-    /// a-priori map.
+    /// Start the node's supervision tree: the datamanagers, (optionally) the built-in
+    /// operations, and with a [`NodeOptions::world`] the simulated robot, after storing the
+    /// world's walls as the a-priori map.
     pub async fn start(options: NodeOptions) -> Result<Node, NodeError> {
         let clock: SharedClock = if (options.speed - 1.0).abs() < f64::EPSILON {
             RealClock::shared()
         } else {
             Arc::new(ScaledClock::new(options.speed))
         };
-        let mut node = Node {
-            clock: clock.clone(),
-            actors: Vec::new(),
-            dms: Vec::new(),
-            robot: None,
-        };
-        // On any error below, stop what was started already.
-        match node.start_actors(options).await {
-            Ok(()) => Ok(node),
-            Err(e) => {
-                node.shutdown().await;
-                Err(e)
-            }
-        }
-    }
-
-    async fn start_actors(&mut self, options: NodeOptions) -> Result<(), NodeError> {
-        let clock = self.clock.clone();
-        for spec in [dm::FEATURE, dm::PARAMETER, dm::WORLD] {
-            let (actor, _) = dm::spawn_datamanager(DmArgs {
-                id: spec.id,
-                name: spec.name.to_string(),
-                clock: clock.clone(),
-                config: DmConfig::default(),
-            })
-            .await
-            .map_err(|source| NodeError::Spawn {
-                what: format!("datamanager {}", spec.name),
-                source,
-            })?;
-            self.actors.push(actor.get_cell());
-            self.dms.push((spec.name, actor));
-        }
+        let world = options.world.clone();
+        let mut children = vec![ChildSpec::supervisor(
+            DATAMANAGERS,
+            SupervisorSpec::one_for_one().with_intensity(3, Duration::from_secs(5)),
+            datamanagers(&clock, world.as_ref()),
+        )];
+        let mut factories = Vec::new();
         if options.builtin_operations {
-            let cells = marie_missions::spawn_builtin(clock.clone())
-                .await
-                .map_err(|source| NodeError::Spawn {
-                    what: "built-in operations".to_string(),
-                    source,
-                })?;
-            self.actors.extend(cells);
+            factories.extend(marie_missions::builtin_operations());
         }
-        if let Some(world) = options.world {
-            // the map is there before any operation of the robot can look for it
-            self.dm(dm::WORLD)?
-                .store(records::MAP, Some("walls"), None, &world.segments())
-                .await?;
-            let cells = marie_missions::spawn_robot(clock, &world, options.seed)
-                .await
-                .map_err(|source| NodeError::Spawn {
-                    what: format!("the robot in world `{}`", world.name),
-                    source,
-                })?;
-            self.actors.extend(cells);
-            self.robot = Some(Robot {
+        if let Some(world) = &world {
+            let (clock, world, seed) = (clock.clone(), world.clone(), options.seed);
+            children.push(
+                ChildSpec::worker("cart", move |sup| {
+                    let (clock, world) = (clock.clone(), world.clone());
+                    async move { marie_missions::spawn_cart(clock, &world, seed, Some(sup)).await }
+                })
+                .with_restart(Restart::Temporary),
+            );
+            factories.extend(marie_missions::robot_operations());
+        }
+        let options_host = HostOptions::with_clock(clock.clone());
+        let operations = factories
+            .into_iter()
+            .map(|f| {
+                let opts = options_host.clone();
+                ChildSpec::worker(f.key(), move |sup| (f.start)(opts.clone(), Some(sup)))
+                    .with_shutdown(Shutdown::Timeout(OPERATION_SHUTDOWN))
+            })
+            .collect();
+        children.push(ChildSpec::supervisor(
+            OPERATIONS,
+            SupervisorSpec::one_for_one()
+                .with_intensity(options.operation_restarts, options.operation_period),
+            operations,
+        ));
+        let (root, _) = Supervisor::start(
+            None,
+            SupervisorSpec::one_for_one().with_intensity(3, Duration::from_secs(30)),
+            children,
+        )
+        .await?;
+        Ok(Node {
+            clock,
+            root,
+            robot: world.map(|world| Robot {
                 world,
                 seed: options.seed,
-            });
-        }
-        Ok(())
+            }),
+            runs: AtomicU64::new(0),
+        })
+    }
+
+    /// The node's root supervisor (for introspection: `which_children`, events).
+    pub fn supervisor(&self) -> &SupervisorRef {
+        &self.root
+    }
+
+    /// The supervisor of the node's operations, as it is now (it is a new actor after it
+    /// was restarted).
+    pub async fn operation_supervisor(&self) -> Result<SupervisorRef, NodeError> {
+        self.child_supervisor(OPERATIONS).await
+    }
+
+    /// The supervisor of the node's datamanagers, as it is now.
+    pub async fn datamanager_supervisor(&self) -> Result<SupervisorRef, NodeError> {
+        self.child_supervisor(DATAMANAGERS).await
+    }
+
+    async fn child_supervisor(&self, id: &str) -> Result<SupervisorRef, NodeError> {
+        self.root
+            .which_children()
+            .await?
+            .into_iter()
+            .find(|c| c.id == id)
+            .and_then(|c| c.state.actor().cloned())
+            .and_then(SupervisorRef::from_cell)
+            .ok_or_else(|| NodeError::Supervisor(SupervisorError::NotFound(id.to_string())))
     }
 
     /// The node's clock.
@@ -220,13 +278,10 @@ impl Node {
         self.robot.as_ref().map(|r| r.seed)
     }
 
-    /// A client of the node's datamanager `spec`, storing as the node.
+    /// A client of the node's datamanager `spec` (its current incarnation), storing as the
+    /// node.
     fn dm(&self, spec: DmSpec) -> Result<DmClient, DmError> {
-        self.dms
-            .iter()
-            .find(|(name, _)| *name == spec.name)
-            .map(|(_, actor)| DmClient::new(actor.clone(), NODE_SOURCE))
-            .ok_or_else(|| DmError::NotRegistered(spec.name.to_string()))
+        DmClient::lookup(spec.name, NODE_SOURCE)
     }
 
     /// Read, parse and check a mission against the operations running now.
@@ -255,36 +310,72 @@ impl Node {
         mission: Mission,
         events: Option<mpsc::UnboundedSender<DispatchEvent>>,
     ) -> Result<RunReport, NodeError> {
-        let Some(robot) = &self.robot else {
-            return Ok(dispatcher::run_mission(mission, self.clock.clone(), events).await?);
-        };
+        self.run_with_faults(mission, events, FaultPlan::default())
+            .await
+    }
+
+    /// [`Node::run`], injecting the faults of `plan` while the mission runs (fault-injection
+    /// tests of self-healing). The report lists what was injected in `faults`.
+    pub async fn run_with_faults(
+        &self,
+        mission: Mission,
+        events: Option<mpsc::UnboundedSender<DispatchEvent>>,
+        plan: FaultPlan,
+    ) -> Result<RunReport, NodeError> {
         // Pass every event on as it comes, but hold back `Ended` until the world has judged.
-        let (inner, forwarder) = match events.clone() {
-            Some(outer) => {
-                let (tx, mut rx) = mpsc::unbounded_channel();
-                let forwarder = tokio::spawn(async move {
-                    while let Some(evt) = rx.recv().await {
-                        if !matches!(evt, DispatchEvent::Ended { .. }) {
-                            let _ = outer.send(evt);
-                        }
+        let (inner, mut rx) = mpsc::unbounded_channel();
+        let (stop, mut stopped) = tokio::sync::oneshot::channel::<()>();
+        let outer = events.clone();
+        // the operations of the running action, for chaos to pick from
+        let (running_tx, running) = tokio::sync::watch::channel(Vec::<String>::new());
+        let forwarder = tokio::spawn(async move {
+            let pass = |evt: DispatchEvent| {
+                match &evt {
+                    DispatchEvent::ActionStarted { operations, .. } => {
+                        running_tx.send_replace(operations.clone());
                     }
-                });
-                (Some(tx), Some(forwarder))
+                    DispatchEvent::ActionEnded { .. } => {
+                        running_tx.send_replace(Vec::new());
+                    }
+                    _ => {}
+                }
+                if let Some(outer) = &outer {
+                    if !matches!(evt, DispatchEvent::Ended { .. }) {
+                        let _ = outer.send(evt);
+                    }
+                }
+            };
+            loop {
+                tokio::select! {
+                    evt = rx.recv() => match evt {
+                        Some(evt) => pass(evt),
+                        None => break,
+                    },
+                    _ = &mut stopped => {
+                        // the dispatcher emits every event before it reports
+                        while let Ok(evt) = rx.try_recv() {
+                            pass(evt);
+                        }
+                        break;
+                    }
+                }
             }
-            None => (None, None),
-        };
-        let result = dispatcher::run_mission(mission, self.clock.clone(), inner).await;
-        if let Some(forwarder) = forwarder {
-            // the dispatcher is gone, so is its sender: the forwarder has passed on everything
-            let _ = forwarder.await;
-        }
+        });
+        let injector = Injector::start(plan, self.clock.clone(), running);
+        let result = self.dispatch(mission, inner).await;
+        let faults = injector.finish();
+        let _ = stop.send(());
+        let _ = forwarder.await;
         let mut report = result?;
-        let status = match CartClient::lookup() {
-            Ok(cart) => cart.status().await,
-            Err(e) => Err(e),
-        };
-        let status = status.map(|s| (s.pose, s.collisions, s.judgement));
-        judge(&mut report, robot, status);
+        report.faults = faults;
+        if let Some(robot) = &self.robot {
+            let status = match CartClient::lookup() {
+                Ok(cart) => cart.status().await,
+                Err(e) => Err(e),
+            };
+            let status = status.map(|s| (s.pose, s.collisions, s.judgement));
+            judge(&mut report, robot, status);
+        }
         if let Some(outer) = events {
             let _ = outer.send(DispatchEvent::Ended {
                 outcome: report.outcome,
@@ -292,6 +383,47 @@ impl Node {
             });
         }
         Ok(report)
+    }
+
+    /// Run `mission` on a dispatcher started as a temporary child of the node's supervisor.
+    /// Should the operation supervisor give up (restart intensity exceeded) during the run,
+    /// the mission is aborted with a reason naming the operation that kept failing.
+    async fn dispatch(
+        &self,
+        mission: Mission,
+        events: mpsc::UnboundedSender<DispatchEvent>,
+    ) -> Result<RunReport, NodeError> {
+        let n = self.runs.fetch_add(1, Ordering::Relaxed);
+        let args = DispatcherArgs {
+            mission,
+            clock: self.clock.clone(),
+            events: Some(events),
+        };
+        let spec = ChildSpec::worker(format!("dispatcher-{n}"), move |sup| {
+            let args = args.clone();
+            async move {
+                Ok(dispatcher::spawn_dispatcher(args, Some(sup))
+                    .await?
+                    .get_cell())
+            }
+        })
+        .with_restart(Restart::Temporary)
+        .with_shutdown(Shutdown::Timeout(Duration::from_secs(1)));
+        // subscribe before the run starts, so no give-up goes unseen
+        let give_ups = match self.operation_supervisor().await {
+            Ok(sup) => Some(sup.subscribe().await?),
+            Err(e) => {
+                tracing::warn!("running without an operation supervisor: {e}");
+                None
+            }
+        };
+        let dispatcher: ActorRef<DispatcherMsg> = self.root.start_child(spec).await?.into();
+        let guard = give_ups.map(|rx| tokio::spawn(abort_on_give_up(rx, dispatcher.clone())));
+        let report = dispatcher::request_run(&dispatcher).await;
+        if let Some(guard) = guard {
+            guard.abort();
+        }
+        Ok(report?)
     }
 
     /// A picture of the robot's run, to render over [`Node::world`] with
@@ -358,11 +490,9 @@ impl Node {
         Some(picture)
     }
 
-    /// Stop every actor the node started.
+    /// Stop the node's supervision tree, children in reverse start order, and wait for it.
     pub async fn shutdown(self) {
-        for cell in self.actors.iter().rev() {
-            cell.stop(None);
-        }
+        self.root.stop().await;
     }
 }
 
@@ -466,6 +596,7 @@ mod tests {
             seed: None,
             inside_goal: None,
             judgement: None,
+            faults: Vec::new(),
         }
     }
 

@@ -1,5 +1,8 @@
 //! Helpers shared by the end-to-end tests of the `marie` binary.
 
+// each test crate uses its own subset
+#![allow(dead_code)]
+
 use std::process::{Command, Output};
 
 /// Run the built `marie` with `args` from the package root, without `RUST_LOG`.
@@ -15,4 +18,19 @@ pub fn marie(args: &[&str]) -> Output {
 /// Command output as text.
 pub fn text(b: &[u8]) -> String {
     String::from_utf8_lossy(b).into_owned()
+}
+
+/// Run `marie` with `args` plus `--report FILE`; the output and the report (`Null` if none
+/// was written).
+pub fn report_of(args: &[&str]) -> (Output, serde_json::Value) {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("report.json");
+    let mut all = args.to_vec();
+    all.extend(["--report", path.to_str().unwrap()]);
+    let out = marie(&all);
+    let json = std::fs::read_to_string(&path)
+        .ok()
+        .and_then(|s| serde_json::from_str(&s).ok())
+        .unwrap_or(serde_json::Value::Null);
+    (out, json)
 }

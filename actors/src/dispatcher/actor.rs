@@ -142,10 +142,17 @@ crate::remote_message! {
         },
         /// The whole mission's deadline passed.
         MissionDeadline {},
+        /// Stop the mission now (full stop) for `reason` — e.g. the node's operation
+        /// supervisor gave up.
+        Abort {
+            /// Why.
+            reason: String,
+        },
     }
 }
 
 /// Start-up arguments of the dispatcher.
+#[derive(Clone)]
 pub struct DispatcherArgs {
     /// The validated mission.
     pub mission: Mission,
@@ -892,12 +899,13 @@ impl DispatcherState {
             seed: None,
             inside_goal: None,
             judgement: None,
+            faults: Vec::new(),
         };
         self.emit(DispatchEvent::Ended { outcome, reason });
         if let Some(reply) = self.reply.take() {
             let _ = reply.send(report);
         }
-        myself.stop(Some("mission ended".to_string()));
+        myself.stop(None); // a normal exit: its work is done
     }
 }
 
@@ -1030,6 +1038,7 @@ impl Actor for ActionDispatcher {
                 }
                 state.complete_action(&myself);
             }
+            DispatcherMsg::Abort { reason } => state.finish(&myself, Outcome::Failed, reason),
             DispatcherMsg::MissionDeadline {} => {
                 let deadline = state.mission.deadline.unwrap_or_default();
                 state.finish(
@@ -1058,7 +1067,32 @@ pub enum DispatchError {
     NoReport,
 }
 
-/// Run `mission` with a new dispatcher and wait for its report.
+/// Spawn a dispatcher for `args`, linked to `supervisor` if given. It does nothing until
+/// asked to [`run`](request_run).
+pub async fn spawn_dispatcher(
+    args: DispatcherArgs,
+    supervisor: Option<ractor::ActorCell>,
+) -> Result<ActorRef<DispatcherMsg>, SpawnErr> {
+    Ok(match supervisor {
+        Some(sup) => {
+            Actor::spawn_linked(None, ActionDispatcher, args, sup)
+                .await?
+                .0
+        }
+        None => Actor::spawn(None, ActionDispatcher, args).await?.0,
+    })
+}
+
+/// Ask `dispatcher` to run its mission and wait for the report (a dispatcher runs once).
+pub async fn request_run(dispatcher: &ActorRef<DispatcherMsg>) -> Result<RunReport, DispatchError> {
+    let (tx, rx) = ractor::concurrency::oneshot();
+    dispatcher
+        .cast(DispatcherMsg::Run { reply: tx.into() })
+        .map_err(|_| DispatchError::NoReport)?;
+    rx.await.map_err(|_| DispatchError::NoReport)
+}
+
+/// Run `mission` with a new, unsupervised dispatcher and wait for its report.
 pub async fn run_mission(
     mission: Mission,
     clock: SharedClock,
@@ -1074,11 +1108,8 @@ pub async fn run_mission(
         },
     )
     .await?;
-    let (tx, rx) = ractor::concurrency::oneshot();
-    actor
-        .cast(DispatcherMsg::Run { reply: tx.into() })
-        .map_err(|_| DispatchError::NoReport)?;
-    let report = rx.await.map_err(|_| DispatchError::NoReport);
+    let report = request_run(&actor).await;
+    // the dispatcher stops by itself once it has reported
     let _ = handle.await;
     report
 }

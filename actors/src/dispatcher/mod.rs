@@ -11,8 +11,8 @@ pub mod mission;
 mod report;
 
 pub use actor::{
-    run_mission, ActionDispatcher, DispatchError, DispatchEvent, DispatcherArgs, DispatcherMsg,
-    DispatcherState, DISPATCHER_ID,
+    request_run, run_mission, spawn_dispatcher, ActionDispatcher, DispatchError, DispatchEvent,
+    DispatcherArgs, DispatcherMsg, DispatcherState, DISPATCHER_ID,
 };
 pub use catalog::{describe, RegistryCatalog};
-pub use report::{ActionRecord, OpRecord, Outcome, RebindRecord, RunReport};
+pub use report::{ActionRecord, FaultRecord, OpRecord, Outcome, RebindRecord, RunReport};

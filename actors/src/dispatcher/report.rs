@@ -100,6 +100,26 @@ pub struct RunReport {
     /// heading error 2.1°, 0 collision(s)`), where there is a simulated robot.
     #[serde(default)]
     pub judgement: Option<String>,
+    /// Faults injected on purpose during the run (fault-injection tests, `--fault`,
+    /// `--chaos`).
+    #[serde(default)]
+    pub faults: Vec<FaultRecord>,
+}
+
+/// A fault injected during a run.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FaultRecord {
+    /// When, in ms of mission clock time since the run began.
+    pub at_ms: u64,
+    /// `kill`, `panic` or `hang`.
+    pub fault: String,
+    /// The operation it was meant for (name or id, as asked).
+    pub operation: String,
+    /// The instance that got it; empty if none did.
+    pub actor: String,
+    /// Why it could not be injected, if it could not.
+    #[serde(default)]
+    pub error: Option<String>,
 }
 
 impl RunReport {

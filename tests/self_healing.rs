@@ -1,0 +1,225 @@
+//! Self-healing end to end: faults injected into the operations of the running action while
+//! the thesis' missions run in the simulated world, through the `marie` binary (one process
+//! per run, in virtual time), and the node's supervision tree through the library.
+
+mod common;
+
+use common::{marie, report_of, text};
+use marie::actors::registry::{self, ModuleKind};
+use marie::node::{Node, NodeOptions};
+use marie::supervision::fault::{self, FaultKind};
+use marie::supervision::SupervisorEvent;
+use std::time::Duration;
+
+/// Run `mission` with `fault` and check that it succeeded, that the fault hit `op` and that
+/// the dispatcher rebound `op`, with a cause containing `cause`.
+fn heals(mission: &str, fault: &str, op: &str, cause: &str) {
+    let (out, json) = report_of(&["run", mission, "--fault", fault]);
+    let log = format!("{}\n{}", text(&out.stdout), text(&out.stderr));
+    assert_eq!(out.status.code(), Some(0), "{fault}: {log}");
+    assert_eq!(json["outcome"], "succeeded", "{fault}: {json}");
+    assert_eq!(json["inside_goal"], true, "{fault}");
+    let faults = json["faults"].as_array().expect("faults in the report");
+    assert_eq!(faults.len(), 1, "{json}");
+    assert_eq!(faults[0]["operation"], op);
+    assert!(faults[0]["error"].is_null(), "{}", faults[0]);
+    let rebinds = json["rebinds"].as_array().expect("rebinds in the report");
+    let rebind = rebinds
+        .iter()
+        .find(|r| r["operation"] == op)
+        .unwrap_or_else(|| panic!("{fault}: no rebind of {op}: {json}"));
+    assert_eq!(
+        rebind["from"], faults[0]["actor"],
+        "the faulty instance was left"
+    );
+    assert_ne!(rebind["to"], rebind["from"]);
+    let why = rebind["cause"].as_str().unwrap_or_default();
+    assert!(why.contains(cause), "{fault}: cause `{why}`");
+    assert!(
+        text(&out.stdout).contains(&format!("~ {op} rebound")),
+        "live output shows the rebind: {log}"
+    );
+}
+
+#[test]
+fn docking_completes_when_the_wall_follower_is_killed_while_following_the_wall() {
+    heals(
+        "missions/docking.toml",
+        "kill:wall-follower@20",
+        "wall-follower",
+        "died",
+    );
+}
+
+#[test]
+fn docking_completes_when_the_docking_detector_panics_while_following_the_wall() {
+    heals(
+        "missions/docking.toml",
+        "panic:docking-detector@25",
+        "docking-detector",
+        "died",
+    );
+}
+
+#[test]
+fn docking_completes_when_the_trajectory_controller_hangs_while_parking() {
+    heals(
+        "missions/docking.toml",
+        "hang:trajectory-controller@50",
+        "trajectory-controller",
+        "hung",
+    );
+}
+
+#[test]
+fn corner_completes_when_the_trajectory_controller_is_killed_while_driving_to_the_wall() {
+    heals(
+        "missions/corner.toml",
+        "kill:trajectory-controller@5",
+        "trajectory-controller",
+        "died",
+    );
+}
+
+#[test]
+fn corner_completes_when_the_sensor_based_controller_panics_while_aligning() {
+    heals(
+        "missions/corner.toml",
+        "panic:sensor-based-controller@20",
+        "sensor-based-controller",
+        "died",
+    );
+}
+
+#[test]
+fn corner_completes_when_the_sensor_based_controller_hangs_while_backing_into_the_corner() {
+    heals(
+        "missions/corner.toml",
+        "hang:sensor-based-controller@60",
+        "sensor-based-controller",
+        "hung",
+    );
+}
+
+#[test]
+fn docking_completes_under_chaos() {
+    // seeded chaos in virtual time is repeatable: seed 3 kills seven operations
+    let (out, json) = report_of(&["run", "missions/docking.toml", "--chaos", "3"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stdout));
+    assert_eq!(json["outcome"], "succeeded");
+    let kills = json["faults"].as_array().unwrap().len();
+    assert!(kills >= 5, "{json}");
+    assert_eq!(json["rebinds"].as_array().unwrap().len(), kills);
+}
+
+#[test]
+fn a_crash_loop_beyond_the_restart_intensity_ends_the_mission_in_a_full_stop_naming_the_operation()
+{
+    // seven panics within 0.6 s of mission time: more than 5 restarts in 10 s
+    let specs: Vec<String> = (0..7)
+        .map(|i| format!("panic:wall-follower@{}", 20.0 + 0.1 * f64::from(i)))
+        .collect();
+    let mut args = vec!["run", "missions/docking.toml"];
+    for s in &specs {
+        args.extend(["--fault", s.as_str()]);
+    }
+    let (out, json) = report_of(&args);
+    assert_eq!(out.status.code(), Some(1), "{}", text(&out.stdout));
+    assert_eq!(json["outcome"], "failed");
+    let reason = json["reason"].as_str().unwrap();
+    assert!(
+        reason.contains("the operation supervisor gave up")
+            && reason.contains("more than 5 restarts within 10.0s")
+            && reason.contains("wall-follower"),
+        "{reason}"
+    );
+    assert!(text(&out.stdout).contains("mission FAILED (full stop)"));
+}
+
+#[test]
+fn a_fault_for_an_operation_that_does_not_run_is_bad_input() {
+    let out = marie(&["run", "missions/docking.toml", "--fault", "kill:nosuch@3"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        text(&out.stderr).contains("no operation `nosuch` is running"),
+        "{}",
+        text(&out.stderr)
+    );
+}
+
+#[test]
+fn a_malformed_fault_is_bad_input() {
+    let out = marie(&[
+        "run",
+        "missions/docking.toml",
+        "--fault",
+        "melt:wall-sensor@3",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        text(&out.stderr).contains("unknown fault `melt`"),
+        "{}",
+        text(&out.stderr)
+    );
+}
+
+#[test]
+fn marie_kill_shows_the_operation_supervisor_restarting_the_operation() {
+    let out = marie(&["kill", "averager"]);
+    let stdout = text(&out.stdout);
+    assert_eq!(out.status.code(), Some(0), "{stdout}{}", text(&out.stderr));
+    assert!(stdout.contains("killed averager (1602)"), "{stdout}");
+    assert!(
+        stdout.contains("restarted by the operation supervisor as"),
+        "{stdout}"
+    );
+    let out = marie(&["kill", "1999"]);
+    assert_eq!(out.status.code(), Some(2));
+}
+
+#[tokio::test(flavor = "current_thread", start_paused = true)]
+async fn the_node_tree_is_datamanagers_then_operations_and_heals_a_killed_operation() {
+    let node = Node::start(NodeOptions::default()).await.unwrap();
+    let ids: Vec<String> = node
+        .supervisor()
+        .which_children()
+        .await
+        .unwrap()
+        .into_iter()
+        .map(|c| c.id)
+        .collect();
+    assert_eq!(ids, ["datamanagers", "operations"]);
+    let dms: Vec<String> = node
+        .datamanager_supervisor()
+        .await
+        .unwrap()
+        .which_children()
+        .await
+        .unwrap()
+        .into_iter()
+        .map(|c| c.id)
+        .collect();
+    assert_eq!(dms, ["feature", "parameter", "world"]);
+    let ops = node.operation_supervisor().await.unwrap();
+    let mut events = ops.subscribe().await.unwrap();
+    let killed = fault::inject(FaultKind::Kill, "sampler").unwrap();
+    let new = tokio::time::timeout(Duration::from_secs(10), async {
+        loop {
+            if let SupervisorEvent::ChildRestarted { old, new, .. } = events.recv().await.unwrap() {
+                if old == Some(killed.actor) {
+                    return new;
+                }
+            }
+        }
+    })
+    .await
+    .expect("restarted");
+    let now = registry::lookup(ModuleKind::Operation, "sampler");
+    assert_eq!(now.len(), 1);
+    assert_eq!(
+        now[0].actor.get_id(),
+        new.get_id(),
+        "the registry has the new one"
+    );
+    node.shutdown().await;
+}
