@@ -35,3 +35,20 @@ fn custom_operation_is_hosted_described_and_driven_by_a_mission() {
     // 97 reaches 1 after 118 steps
     assert!(stdout.contains("steps: Value(Int(118))"), "{stdout}");
 }
+
+#[test]
+fn self_healing_rebinds_a_panicked_operation_and_the_mission_succeeds() {
+    let out = Command::new(example("self_healing")).output().unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(stdout.contains("injected a panic into pump"), "{stdout}");
+    assert!(stdout.contains("rebound pump:"), "{stdout}");
+    assert!(
+        stdout.contains("mission Succeeded with 1 rebind(s)"),
+        "{stdout}"
+    );
+}

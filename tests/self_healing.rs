@@ -223,3 +223,139 @@ async fn the_node_tree_is_datamanagers_then_operations_and_heals_a_killed_operat
     );
     node.shutdown().await;
 }
+
+/// Runs until suspended.
+#[derive(Default)]
+struct Endless;
+
+impl marie::actors::eo::Operation for Endless {
+    fn identity(&self) -> marie::actors::eo::Identity {
+        marie::actors::eo::Identity::new("endless", 7101, "1.0.0", "never finishes")
+    }
+    fn parameters(&self) -> marie::actors::property::ParamSchema {
+        marie::actors::property::ParamSchema::new(vec![marie::actors::property::ParamDecl::int(
+            "level", 1,
+        )
+        .range(0.0, 10.0)])
+    }
+    fn flags(&self) -> Vec<marie::actors::flags::FlagDecl> {
+        vec![marie::actors::flags::FlagDecl::new("never", "never raised")]
+    }
+    async fn step(
+        &mut self,
+        _: &mut marie::actors::eo::OpContext,
+    ) -> Result<marie::actors::eo::Step, marie::actors::eo::OpError> {
+        Ok(marie::actors::eo::Step::Continue)
+    }
+}
+
+/// The next `ActionStarted` (`None`) or `Rebound` (the new instance's address) event.
+async fn next(
+    events: &mut tokio::sync::mpsc::UnboundedReceiver<marie::actors::dispatcher::DispatchEvent>,
+) -> Result<Option<String>, tokio::time::error::Elapsed> {
+    use marie::actors::dispatcher::DispatchEvent;
+    tokio::time::timeout(Duration::from_secs(30), async {
+        loop {
+            match events.recv().await.expect("events") {
+                DispatchEvent::ActionStarted { .. } => return None,
+                DispatchEvent::Rebound(r) => return Some(r.to),
+                _ => {}
+            }
+        }
+    })
+    .await
+}
+
+/// Keep the test log readable: the injected panics are expected.
+fn quiet_injected_panics() {
+    let default = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        if !info.to_string().contains("injected fault") {
+            default(info);
+        }
+    }));
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_thousand_crash_restart_cycles_during_a_mission_leave_the_actor_count_at_its_baseline() {
+    use marie::actors::dispatcher::{self, DispatcherArgs, DispatcherMsg};
+    use marie::actors::dispatcher::{mission::Mission, RegistryCatalog};
+    use marie::supervision::{ChildSpec, Supervisor, SupervisorSpec};
+    quiet_injected_panics();
+    const CYCLES: usize = 1000;
+    let (sup, _) = Supervisor::start(
+        None,
+        SupervisorSpec::one_for_one().with_intensity(10 * CYCLES, Duration::from_secs(1)),
+        vec![ChildSpec::worker("endless", |sup| async move {
+            let opts = marie::actors::eo::HostOptions::default();
+            let (a, _) = marie::actors::eo::spawn_operation_linked(Endless, opts, sup).await?;
+            Ok(a.get_cell())
+        })],
+    )
+    .await
+    .unwrap();
+    let baseline = ractor::registry::get_all_pids().len();
+    let tasks = || {
+        tokio::runtime::Handle::current()
+            .metrics()
+            .num_alive_tasks()
+    };
+    let baseline_tasks = tasks();
+
+    let parsed = Mission::parse(
+        "[mission]\nname = \"endless\"\n[flags]\nnever = 0\n[[action]]\nname = \"run\"\ndeadline_s = 3600.0\n[action.ops.endless]\nlevel = 7\n",
+        None,
+    )
+    .unwrap();
+    let catalog = RegistryCatalog::gather(parsed.ops()).await.unwrap();
+    let mission = parsed.validate(&catalog).unwrap();
+    let (tx, mut events) = tokio::sync::mpsc::unbounded_channel();
+    let args = DispatcherArgs {
+        mission,
+        clock: marie::actors::clock::RealClock::shared(),
+        events: Some(tx),
+    };
+    let dispatcher = dispatcher::spawn_dispatcher(args, None).await.unwrap();
+    let run = {
+        let d = dispatcher.clone();
+        tokio::spawn(async move { dispatcher::request_run(&d).await })
+    };
+    assert_eq!(next(&mut events).await.expect("started"), None);
+    let mut current = registry::lookup(ModuleKind::Operation, "endless")[0].clone();
+    for cycle in 0..CYCLES {
+        fault::inject_into(FaultKind::Panic, &current).unwrap();
+        let to = next(&mut events)
+            .await
+            .unwrap_or_else(|_| panic!("no rebind after crash {cycle}"))
+            .expect("a rebind");
+        current = registry::lookup(ModuleKind::Operation, "endless")
+            .into_iter()
+            .find(|i| i.actor.get_id().to_string() == to)
+            .expect("the stand-in is in the registry");
+    }
+    let _ = dispatcher.cast(DispatcherMsg::Abort {
+        reason: "enough".into(),
+    });
+    let report = run.await.unwrap().unwrap();
+    assert_eq!(report.reason, "enough");
+    assert_eq!(report.rebinds.len(), CYCLES);
+    // the dispatcher (and its registry watcher) stop once they have reported; no timer or
+    // waiter of the 1000 failovers outlives the run
+    let settled = tokio::time::timeout(Duration::from_secs(30), async {
+        while ractor::registry::get_all_pids().len() != baseline || tasks() > baseline_tasks {
+            tokio::time::sleep(Duration::from_millis(5)).await;
+        }
+    })
+    .await;
+    assert!(
+        settled.is_ok(),
+        "{} actors (baseline {baseline}), {} tasks (baseline {baseline_tasks})",
+        ractor::registry::get_all_pids().len(),
+        tasks()
+    );
+    assert_eq!(
+        sup.which_children().await.unwrap()[0].restarts,
+        CYCLES as u32
+    );
+    sup.stop().await;
+}

@@ -43,6 +43,29 @@ pub fn cast_after<M: ractor::Message>(
     })
 }
 
+/// A timer that is cancelled when dropped: keep it where the state it belongs to lives (an
+/// action, a binding, an actor's state), so that no sleeping task outlives what it was for.
+#[derive(Debug)]
+pub struct Timer(tokio::task::JoinHandle<()>);
+
+impl Timer {
+    /// Like [`cast_after`], cancelled when the returned timer is dropped.
+    pub fn cast_after<M: ractor::Message>(
+        clock: &SharedClock,
+        d: Duration,
+        to: &ractor::ActorRef<M>,
+        msg: M,
+    ) -> Timer {
+        Timer(cast_after(clock, d, to, msg))
+    }
+}
+
+impl Drop for Timer {
+    fn drop(&mut self) {
+        self.0.abort();
+    }
+}
+
 /// Runtime time: tokio's clock and timer.
 ///
 /// On a normal runtime this is wall-clock time. On a current-thread runtime started with

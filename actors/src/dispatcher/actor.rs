@@ -28,7 +28,7 @@
 use super::binding::{examine, Binding};
 use super::mission::{EndMode, Mission};
 use super::report::{ActionRecord, OpRecord, Outcome, RebindRecord, RunReport};
-use crate::clock::{cast_after, SharedClock};
+use crate::clock::{SharedClock, Timer};
 use crate::eo::{EoError, EoReport, ParamOutcome};
 use crate::flags::StatusFlags;
 use crate::property::PropertyRequest;
@@ -165,6 +165,13 @@ pub struct DispatcherArgs {
 /// The ActionDispatcher actor.
 pub struct ActionDispatcher;
 
+/// Timers of the whole run.
+#[derive(Default)]
+struct RunTimers {
+    mission: Option<Timer>,
+    probe: Option<Timer>,
+}
+
 struct Current {
     generation: u64,
     index: usize,
@@ -173,6 +180,8 @@ struct Current {
     enders_done: BTreeSet<String>,
     ending: bool,
     ops: BTreeMap<String, OpRecord>,
+    /// The action's deadline, then its suspension grace; cancelled with the action.
+    timer: Option<Timer>,
 }
 
 /// State of the dispatcher.
@@ -191,6 +200,8 @@ pub struct DispatcherState {
     reply: Option<RpcReplyPort<RunReport>>,
     /// Dropping it ends the registry watch.
     _watch_guard: Option<tokio::sync::oneshot::Sender<()>>,
+    /// The run's own timers, cancelled with the dispatcher.
+    timers: RunTimers,
     ended: bool,
 }
 
@@ -327,7 +338,7 @@ impl DispatcherState {
                 }
             }
         }
-        cast_after(
+        let timer = Timer::cast_after(
             &self.clock,
             self.mission.rebind_deadline,
             myself,
@@ -336,6 +347,9 @@ impl DispatcherState {
                 incarnation,
             },
         );
+        if let Some(b) = self.bindings.get_mut(name) {
+            b.deadline_timer = Some(timer);
+        }
         let found = registry::lookup(ModuleKind::Operation, name);
         for inst in found {
             if self.try_adopt(myself, name, &inst).await {
@@ -482,7 +496,12 @@ impl DispatcherState {
                 });
             });
         }
-        cast_after(&self.clock, PROBE_PERIOD, myself, DispatcherMsg::Probe {});
+        self.timers.probe = Some(Timer::cast_after(
+            &self.clock,
+            PROBE_PERIOD,
+            myself,
+            DispatcherMsg::Probe {},
+        ));
     }
 
     async fn on_probe_done(
@@ -626,6 +645,7 @@ impl DispatcherState {
             enders_done: BTreeSet::new(),
             ending: false,
             ops: BTreeMap::new(),
+            timer: None,
         };
         tracing::info!(action = %action.name, "action started");
         self.emit(DispatchEvent::ActionStarted {
@@ -672,12 +692,15 @@ impl DispatcherState {
             self.finish(myself, Outcome::Failed, reason);
             return;
         }
-        cast_after(
+        let timer = Timer::cast_after(
             &self.clock,
             action.deadline,
             myself,
             DispatcherMsg::ActionDeadline { generation },
         );
+        if let Some(cur) = self.current.as_mut() {
+            cur.timer = Some(timer);
+        }
     }
 
     async fn on_op_ended(
@@ -821,12 +844,13 @@ impl DispatcherState {
             self.complete_action(myself);
             return;
         }
-        cast_after(
+        // replaces (cancels) the action's deadline
+        cur.timer = Some(Timer::cast_after(
             &self.clock,
             SUSPEND_GRACE,
             myself,
             DispatcherMsg::SuspendGrace { generation },
-        );
+        ));
     }
 
     fn record_current(&mut self) {
@@ -940,6 +964,7 @@ impl Actor for ActionDispatcher {
             rebinds: Vec::new(),
             reply: None,
             _watch_guard: None,
+            timers: RunTimers::default(),
             ended: false,
         })
     }
@@ -968,12 +993,12 @@ impl Actor for ActionDispatcher {
                 }
                 state.probe(&myself);
                 if let Some(deadline) = state.mission.deadline {
-                    cast_after(
+                    state.timers.mission = Some(Timer::cast_after(
                         &state.clock,
                         deadline,
                         &myself,
                         DispatcherMsg::MissionDeadline {},
-                    );
+                    ));
                 }
                 state.next_action(&myself);
             }

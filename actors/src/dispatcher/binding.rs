@@ -15,6 +15,7 @@
 //!   older number are about an instance the dispatcher has let go of, and are ignored.
 
 use super::mission::OpInfo;
+use crate::clock::Timer;
 use crate::eo::EoClient;
 use crate::property::{General, Group, ParamMap, PropertyReply, PropertyRequest};
 use crate::registry::Instance;
@@ -94,6 +95,9 @@ pub(crate) struct Binding {
     pub(crate) deadline: Duration,
     /// Set while the instance is gone and no stand-in has been adopted.
     pub(crate) lost: Option<Lost>,
+    /// The rebind deadline's timer while lost; dropped (cancelled) when a stand-in is
+    /// adopted, so a run with many failovers does not keep a sleeping task per loss.
+    pub(crate) deadline_timer: Option<Timer>,
     /// A liveness probe is under way.
     pub(crate) probing: bool,
     /// The first version bound: stand-ins must be compatible with it.
@@ -123,6 +127,7 @@ impl Binding {
             params: ParamMap::new(),
             deadline: cand.deadline,
             lost: None,
+            deadline_timer: None,
             probing: false,
             selection,
         }
@@ -174,6 +179,7 @@ impl Binding {
         self.flag_names = cand.info.flags.into_iter().map(|f| f.name).collect();
         self.deadline = cand.deadline;
         self.probing = false;
+        self.deadline_timer = None;
         self.lost
             .take()
             .map(|lost| (lost.clone(), now.saturating_sub(lost.since)))
