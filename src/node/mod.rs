@@ -1,14 +1,16 @@
 //! The embedded node: datamanagers, operations and a dispatcher in one process, no network.
 //!
-//! This is the default way to run marie (DESIGN.md §2). It starts the thesis' three
-//! datamanagers (world 1203, feature 1201, parameter 1202) and the operations of the
-//! [`marie_missions`] catalogue, each publishing itself in the registry, then runs missions
-//! against them.
+//! This is the default way to run marie (DESIGN.md §2). It starts a supervision tree (see
+//! [`Node`]): the thesis' three datamanagers (world 1203, feature 1201, parameter 1202) and
+//! the operations of the [`marie_missions`] catalogue under their supervisors, each
+//! publishing itself in the registry, then runs missions against them, each on a dispatcher
+//! of its own. A crashed operation is restarted by its supervisor and the dispatcher rebinds
+//! to the new instance; [`Node::run_with_faults`] injects faults to test exactly that.
 //!
 //! # With a simulated robot
 //!
 //! Given a [`World`] ([`NodeOptions::world`]), the node also starts the robot: the virtual
-//! cart in that world and the robot's operations ([`marie_missions::spawn_robot`]), and
+//! cart in that world and the robot's operations ([`marie_missions::robot_operations`]), and
 //! stores the world's walls in the world datamanager as the a-priori map (class
 //! [`records::MAP`], sub1 `walls`, a `Vec<Segment>`) before any mission runs. A run is then
 //! judged by the world too ([`Node::run`]): the report gets the cart's final pose, its
