@@ -256,10 +256,12 @@ async fn next(
     use marie::actors::dispatcher::DispatchEvent;
     tokio::time::timeout(Duration::from_secs(30), async {
         loop {
-            match events.recv().await.expect("events") {
-                DispatchEvent::ActionStarted { .. } => return None,
-                DispatchEvent::Rebound(r) => return Some(r.to),
-                _ => {}
+            match events.recv().await {
+                Some(DispatchEvent::ActionStarted { .. }) => return None,
+                Some(DispatchEvent::Rebound(r)) => return Some(r.to),
+                Some(DispatchEvent::Ended { reason, .. }) => panic!("the mission ended: {reason}"),
+                Some(_) => {}
+                None => panic!("the dispatcher is gone"),
             }
         }
     })

@@ -326,16 +326,9 @@ impl DispatcherState {
         });
         // A lost operation of an action that is ending has nothing left to do in it.
         if let Some(key) = self.running_key(name) {
-            let cur = self.current.as_mut().expect("running_key found it");
-            if cur.ending {
-                cur.running.remove(&key);
-                if let Some(rec) = cur.ops.get_mut(&key) {
-                    rec.ended = "lost".to_string();
-                }
-                if cur.running.is_empty() {
-                    self.complete_action(myself);
-                    return;
-                }
+            let ending = self.current.as_ref().is_some_and(|c| c.ending);
+            if ending && self.give_up_on(myself, &[key]) {
+                return;
             }
         }
         let timer = Timer::cast_after(
@@ -677,15 +670,23 @@ impl DispatcherState {
             );
             // A lost operation is activated when a stand-in is adopted.
             current.running.insert(op.key.clone());
-            activations.push((op.key.clone(), incarnation, params, epoch, lost));
+            activations.push((
+                op.key.clone(),
+                op.name.clone(),
+                incarnation,
+                params,
+                epoch,
+                lost,
+            ));
         }
         self.current = Some(current);
-        for (key, incarnation, params, epoch, lost) in activations {
+        for (key, name, incarnation, params, epoch, lost) in activations {
             if lost || unreachable.is_some() {
                 continue;
             }
             if let Err(e) = self.activate(myself, generation, &key, incarnation, params, epoch) {
-                unreachable = Some(format!("operation `{key}`: {e}"));
+                // the instance died since it was bound: a loss like any other
+                self.report_gone(myself, &name, incarnation, e);
             }
         }
         if let Some(reason) = unreachable {
@@ -833,17 +834,10 @@ impl DispatcherState {
             }
         }
         // An operation still without a stand-in has nothing to suspend.
-        let cur = self.current.as_mut().expect("checked above");
-        for key in lost {
-            cur.running.remove(&key);
-            if let Some(rec) = cur.ops.get_mut(&key) {
-                rec.ended = "lost".to_string();
-            }
-        }
-        if cur.running.is_empty() {
-            self.complete_action(myself);
+        if self.give_up_on(myself, &lost) {
             return;
         }
+        let cur = self.current.as_mut().expect("checked above");
         // replaces (cancels) the action's deadline
         cur.timer = Some(Timer::cast_after(
             &self.clock,
@@ -851,6 +845,25 @@ impl DispatcherState {
             myself,
             DispatcherMsg::SuspendGrace { generation },
         ));
+    }
+
+    /// Stop waiting for `keys` in the current action, recording them as lost; completes the
+    /// action (and returns true) when nothing else runs.
+    fn give_up_on(&mut self, myself: &ActorRef<DispatcherMsg>, keys: &[String]) -> bool {
+        let Some(cur) = self.current.as_mut() else {
+            return false;
+        };
+        for key in keys {
+            cur.running.remove(key);
+            if let Some(rec) = cur.ops.get_mut(key) {
+                rec.ended = "lost".to_string();
+            }
+        }
+        if cur.running.is_empty() {
+            self.complete_action(myself);
+            return true;
+        }
+        false
     }
 
     fn record_current(&mut self) {

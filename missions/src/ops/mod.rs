@@ -41,15 +41,7 @@ pub(crate) async fn newest<T: serde::de::DeserializeOwned>(
     dm: &'static str,
     class: &str,
 ) -> Result<Option<T>, OpError> {
-    let records = ctx
-        .dm(dm)?
-        .select(marie_actors::dm::Query::class(class).newest(1))
-        .await
-        .map_err(dm_err(dm))?;
-    match records.last() {
-        Some(r) => Ok(Some(r.decode().map_err(dm_err(dm))?)),
-        None => Ok(None),
-    }
+    Ok(newest_with_seq(ctx, dm, class).await?.map(|(_, v)| v))
 }
 
 /// Like [`newest`], with the record's sequence number.
