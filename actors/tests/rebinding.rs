@@ -28,6 +28,7 @@ struct Worker {
     name: String,
     version: &'static str,
     taken: i64,
+    resumed: bool,
 }
 
 impl Operation for Worker {
@@ -54,9 +55,13 @@ impl Operation for Worker {
     fn deadline(&self) -> Duration {
         Duration::from_millis(300)
     }
-    async fn activate(&mut self, _: &mut OpContext) -> Result<Step, OpError> {
+    async fn activate(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
         self.taken = 0;
+        self.resumed = ctx.resumed();
         Ok(Step::Continue)
+    }
+    fn property(&self, name: &str) -> Option<Value> {
+        (name == "resumed").then_some(Value::Bool(self.resumed))
     }
     async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
         self.taken += 1;
@@ -73,6 +78,7 @@ async fn start(name: &str, version: &'static str) -> EoClient {
         name: name.to_string(),
         version,
         taken: 0,
+        resumed: false,
     };
     let (actor, _): (ActorRef<EoMsg>, _) =
         spawn_operation(op, HostOptions::default()).await.unwrap();
@@ -106,6 +112,18 @@ async fn general(c: &EoClient) -> General {
         .unwrap()
     {
         PropertyReply::General(g) => g,
+        other => panic!("{other:?}"),
+    }
+}
+
+/// The operation's `resumed` property: whether its last activation took over a lost one's.
+async fn resumed(c: &EoClient) -> Value {
+    match c
+        .property(PropertyRequest::Get("resumed".into()))
+        .await
+        .unwrap()
+    {
+        PropertyReply::Value(v) => v,
         other => panic!("{other:?}"),
     }
 }
@@ -200,11 +218,16 @@ async fn a_killed_operation_is_rebound_to_its_replacement_and_the_action_complet
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn the_stand_in_gets_the_last_parameters_and_a_higher_epoch() {
+async fn the_stand_in_gets_the_last_parameters_a_higher_epoch_and_resumes() {
     let first = start("rb-params", "1.0.0").await;
     let _sup = replace_on_death("rb-params", 1).await;
     let (run, mut events) = launch(&mission("params", "rb-params", 150)).await;
     activated(&first).await;
+    assert_eq!(
+        resumed(&first).await,
+        Value::Bool(false),
+        "a fresh activation"
+    );
     let old_epoch = general(&first).await.epoch;
     first.inject(Fault::Panic).unwrap();
     let report = run.await.unwrap();
@@ -232,6 +255,11 @@ async fn the_stand_in_gets_the_last_parameters_and_a_higher_epoch() {
     let g = general(&stand_in).await;
     assert!(g.epoch > old_epoch, "{} > {old_epoch}", g.epoch);
     assert_eq!(g.activations, 1, "re-activated once");
+    assert_eq!(
+        resumed(&stand_in).await,
+        Value::Bool(true),
+        "the stand-in knows it takes over"
+    );
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -165,6 +165,16 @@ pub struct DispatcherArgs {
 /// The ActionDispatcher actor.
 pub struct ActionDispatcher;
 
+/// How an activation is sent: for which action generation and binding incarnation, with
+/// which epoch, and whether it takes over a lost instance's activation.
+#[derive(Clone, Copy)]
+struct Start {
+    generation: u64,
+    incarnation: u64,
+    epoch: u64,
+    resume: bool,
+}
+
 /// Timers of the whole run.
 #[derive(Default)]
 struct RunTimers {
@@ -406,8 +416,13 @@ impl DispatcherState {
                     rec.address = client.actor().get_id().to_string();
                 }
                 let generation = cur.generation;
-                if let Err(e) = self.activate(myself, generation, &key, incarnation, params, epoch)
-                {
+                let start = Start {
+                    generation,
+                    incarnation,
+                    epoch,
+                    resume: true,
+                };
+                if let Err(e) = self.activate(myself, &key, start, params) {
                     self.report_gone(myself, name, incarnation, e);
                 }
             }
@@ -439,20 +454,29 @@ impl DispatcherState {
         });
     }
 
-    /// Send `Activate` to the binding's instance; its report comes back as `OpEnded`.
+    /// Send `Activate` (or `Resume`) to the binding's instance; its report comes back as
+    /// `OpEnded`.
     fn activate(
         &self,
         myself: &ActorRef<DispatcherMsg>,
-        generation: u64,
         key: &str,
-        incarnation: u64,
+        start: Start,
         params: crate::property::ParamMap,
-        epoch: u64,
     ) -> Result<(), EoError> {
         let Some(b) = self.binding(key) else {
             return Err(EoError::Gone(key.to_string()));
         };
-        let rx = b.client.activate(params, epoch)?;
+        let Start {
+            generation,
+            incarnation,
+            epoch,
+            resume,
+        } = start;
+        let rx = if resume {
+            b.client.resume(params, epoch)?
+        } else {
+            b.client.activate(params, epoch)?
+        };
         let me = myself.clone();
         let key = key.to_string();
         ractor::concurrency::spawn(async move {
@@ -684,7 +708,13 @@ impl DispatcherState {
             if lost || unreachable.is_some() {
                 continue;
             }
-            if let Err(e) = self.activate(myself, generation, &key, incarnation, params, epoch) {
+            let start = Start {
+                generation,
+                incarnation,
+                epoch,
+                resume: false,
+            };
+            if let Err(e) = self.activate(myself, &key, start, params) {
                 // the instance died since it was bound: a loss like any other
                 self.report_gone(myself, &name, incarnation, e);
             }

@@ -75,6 +75,24 @@ impl EoClient {
         Ok(rx)
     }
 
+    /// Like [`EoClient::activate`], taking over the activation of a lost instance (see
+    /// [`crate::eo::OpContext::resumed`]).
+    pub fn resume(
+        &self,
+        params: ParamMap,
+        epoch: u64,
+    ) -> Result<OneshotReceiver<EoReport>, EoError> {
+        let (tx, rx) = ractor::concurrency::oneshot();
+        self.actor
+            .cast(EoMsg::Resume {
+                params,
+                epoch,
+                reply: tx.into(),
+            })
+            .map_err(|_| EoError::Gone(self.who()))?;
+        Ok(rx)
+    }
+
     /// Suspend the running activation (if its epoch is not older than the one in force).
     pub fn suspend(&self, epoch: u64) -> Result<(), EoError> {
         self.actor

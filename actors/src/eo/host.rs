@@ -221,6 +221,46 @@ impl<O: Operation> HostState<O> {
         let _ = active.reply.send(report);
     }
 
+    /// Start an activation (`resumed`: taking over a lost instance's).
+    async fn activate(
+        &mut self,
+        myself: &ActorRef<EoMsg>,
+        params: ParamMap,
+        epoch: u64,
+        reply: RpcReplyPort<EoReport>,
+        resumed: bool,
+    ) {
+        if epoch < self.epoch {
+            let _ = reply.send(EoReport::Stale {
+                epoch,
+                current: self.epoch,
+            });
+            return;
+        }
+        self.epoch = epoch;
+        let next = match self.schema.apply(self.current(), &params, false) {
+            Ok(next) => next,
+            Err(rejections) => {
+                let _ = reply.send(EoReport::Rejected { rejections, epoch });
+                return;
+            }
+        };
+        self.end_activation(|flags, epoch| EoReport::Suspended { flags, epoch })
+            .await;
+        self.set_params(next);
+        self.activations += 1;
+        self.ctx.activation = self.activations;
+        self.ctx.resumed = resumed;
+        self.ctx.raised = StatusFlags::EMPTY;
+        self.active = Some(Active {
+            number: self.activations,
+            epoch,
+            reply,
+        });
+        let outcome = self.op.activate(&mut self.ctx).await;
+        self.after_step(myself, outcome).await;
+    }
+
     /// React to the outcome of `activate` or `step`.
     async fn after_step(
         &mut self,
@@ -312,6 +352,7 @@ impl<O: Operation> Actor for EoHost<O> {
                 raised: StatusFlags::EMPTY,
                 source: identity.name.clone(),
                 activation: 0,
+                resumed: false,
                 dms: Default::default(),
             },
             previous: initial,
@@ -348,37 +389,12 @@ impl<O: Operation> Actor for EoHost<O> {
                 params,
                 epoch,
                 reply,
-            } => {
-                if epoch < state.epoch {
-                    let _ = reply.send(EoReport::Stale {
-                        epoch,
-                        current: state.epoch,
-                    });
-                    return Ok(());
-                }
-                state.epoch = epoch;
-                let next = match state.schema.apply(state.current(), &params, false) {
-                    Ok(next) => next,
-                    Err(rejections) => {
-                        let _ = reply.send(EoReport::Rejected { rejections, epoch });
-                        return Ok(());
-                    }
-                };
-                state
-                    .end_activation(|flags, epoch| EoReport::Suspended { flags, epoch })
-                    .await;
-                state.set_params(next);
-                state.activations += 1;
-                state.ctx.activation = state.activations;
-                state.ctx.raised = StatusFlags::EMPTY;
-                state.active = Some(Active {
-                    number: state.activations,
-                    epoch,
-                    reply,
-                });
-                let outcome = state.op.activate(&mut state.ctx).await;
-                state.after_step(&myself, outcome).await;
-            }
+            } => state.activate(&myself, params, epoch, reply, false).await,
+            EoMsg::Resume {
+                params,
+                epoch,
+                reply,
+            } => state.activate(&myself, params, epoch, reply, true).await,
             EoMsg::Tick { activation } => {
                 if state.active.as_ref().map(|a| a.number) != Some(activation) {
                     return Ok(()); // a tick of an activation that already ended

@@ -84,6 +84,15 @@ crate::remote_message! {
             /// Epoch of the sender's binding.
             epoch: u64,
         } -> EoReport,
+        /// Like `Activate`, for a stand-in taking over an activation whose instance was lost
+        /// (crashed, killed, hung): the operation sees [`crate::eo::OpContext::resumed`] and
+        /// can pick up its predecessor's state from the datamanagers.
+        Resume {
+            /// Values to change before starting.
+            params: ParamMap,
+            /// Epoch of the sender's binding.
+            epoch: u64,
+        } -> EoReport,
         /// End the running activation, if any.
         Suspend {
             /// Epoch of the sender's binding.

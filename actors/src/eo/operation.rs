@@ -149,6 +149,7 @@ pub struct OpContext {
     pub(crate) raised: StatusFlags,
     pub(crate) source: String,
     pub(crate) activation: u64,
+    pub(crate) resumed: bool,
     pub(crate) dms: std::collections::HashMap<String, crate::dm::DmClient>,
 }
 
@@ -161,6 +162,13 @@ impl OpContext {
     /// The node's clock: read time from it, never from the OS, so simulations can run fast.
     pub fn clock(&self) -> &SharedClock {
         &self.clock
+    }
+
+    /// True when this activation takes over one whose instance was lost (a `Resume` from a
+    /// dispatcher that rebound the operation): state kept in the datamanagers by the lost
+    /// instance is this activation's to continue, not a previous task's.
+    pub fn resumed(&self) -> bool {
+        self.resumed
     }
 
     /// Clock time now.

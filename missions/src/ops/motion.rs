@@ -306,7 +306,10 @@ impl Operation for TrajectoryController {
         self.leg = 0;
         self.saved = None;
         // a predecessor that crashed on this path left its progress behind: resume there
-        let progress: Option<ProgressRecord> = newest(ctx, "parameter", PROGRESS).await?;
+        let progress: Option<ProgressRecord> = match ctx.resumed() {
+            true => newest(ctx, "parameter", PROGRESS).await?,
+            false => None,
+        };
         let resume = progress.filter(|p| p.path_seq == path_seq && p.leg < self.legs.len());
         if let Some(p) = resume {
             self.legs.drain(..p.leg);

@@ -2,7 +2,8 @@
 //! detector (1518). They read the feature DM and write the feature and world DMs.
 
 use super::records::{
-    DockRecord, Echo, EchoScan, SegmentSet, WallRecord, DOCK, SEGMENTS, SONAR, WALL,
+    DockRecord, Echo, EchoScan, SearchRecord, SegmentSet, WallRecord, DOCK, SEARCH, SEGMENTS,
+    SONAR, WALL,
 };
 use super::{cart, cart_err, dm_err, newest};
 use crate::algo::dock::{detect_dock, DockParams};
@@ -359,7 +360,21 @@ impl Operation for DockingDetector {
 
     async fn activate(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
         let history = Duration::from_secs_f64(ctx.params().f64("history")?);
-        self.since = ctx.now().saturating_sub(history);
+        let resumed = match ctx.resumed() {
+            true => newest::<SearchRecord>(ctx, "world", SEARCH).await?,
+            false => None,
+        };
+        self.since = match resumed {
+            Some(search) => search.since,
+            None => {
+                let since = ctx.now().saturating_sub(history);
+                ctx.dm("world")?
+                    .store(SEARCH, Some("since"), None, &SearchRecord { since })
+                    .await
+                    .map_err(dm_err("world"))?;
+                since
+            }
+        };
         self.next_seq = 0;
         self.echoes.clear();
         Ok(Step::Continue)

@@ -10,6 +10,7 @@
 //! | world | `dock` | `found` | [`DockRecord`] | docking detector → path planner |
 //! | parameter | `path` | `planned` | [`PathRecord`] | path planner → trajectory controller |
 //! | parameter | `path-progress` | `driven` | [`ProgressRecord`] | trajectory controller → itself, after a restart |
+//! | world | `dock-search` | `since` | [`SearchRecord`] | docking detector → itself, after a restart |
 
 use crate::geom::{Point, Pose, Segment};
 use serde::{Deserialize, Serialize};
@@ -28,6 +29,18 @@ pub const DOCK: &str = "dock";
 pub const PATH: &str = "path";
 /// Parameter DM class of the trajectory controller's progress along a path.
 pub const PROGRESS: &str = "path-progress";
+
+/// World DM class of the docking detector's search.
+pub const SEARCH: &str = "dock-search";
+
+/// Since when the docking detector gathers echoes for its search. Kept in the world DM so a
+/// detector resuming a lost instance's search (`OpContext::resumed`) still sees the echoes of
+/// the spot's near edge, gathered before the crash.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SearchRecord {
+    /// Clock time from which echoes count.
+    pub since: std::time::Duration,
+}
 
 /// How far the trajectory controller got along a planned path. Kept in the parameter DM, not
 /// in the controller, so that a controller restarted after a crash resumes where the crashed
