@@ -14,7 +14,7 @@
 
 use super::messages::{EoMsg, EoReport, Fault, ParamOutcome};
 use super::operation::{Identity, OpContext, Operation, Params, Step};
-use crate::clock::{cast_after, RealClock, SharedClock};
+use crate::clock::{RealClock, SharedClock, Timer};
 use crate::flags::{FlagDecl, StatusFlags};
 use crate::property::{
     Address, Collection, General, Group, Identification, Limit, Location, ParamMap, ParamSchema,
@@ -87,6 +87,8 @@ pub struct HostState<O> {
     schema: ParamSchema,
     flags: Vec<FlagDecl>,
     period: Duration,
+    /// The next step's timer.
+    tick: Option<Timer>,
     deadline: Duration,
     ctx: OpContext,
     previous: ParamMap,
@@ -270,7 +272,15 @@ impl<O: Operation> HostState<O> {
         match outcome {
             Ok(Step::Continue) => {
                 if let Some(active) = &self.active {
-                    schedule_tick(myself, &self.ctx.clock, self.period, active.number);
+                    // kept in the state: a crashed host's pending tick dies with it
+                    self.tick = Some(Timer::cast_after(
+                        &self.ctx.clock,
+                        self.period,
+                        myself,
+                        EoMsg::Tick {
+                            activation: active.number,
+                        },
+                    ));
                 }
             }
             Ok(Step::Finish(flags)) => {
@@ -290,10 +300,6 @@ impl<O: Operation> HostState<O> {
             }
         }
     }
-}
-
-fn schedule_tick(myself: &ActorRef<EoMsg>, clock: &SharedClock, period: Duration, activation: u64) {
-    cast_after(clock, period, myself, EoMsg::Tick { activation });
 }
 
 impl<O: Operation> Actor for EoHost<O> {
@@ -345,6 +351,7 @@ impl<O: Operation> Actor for EoHost<O> {
         tracing::debug!(op = %identity.name, version = %identity.version, actor = %myself.get_id(), "operation started");
         Ok(HostState {
             period: operation.period(),
+            tick: None,
             deadline: operation.deadline(),
             ctx: OpContext {
                 params: Params::new(initial.clone()),
