@@ -64,15 +64,11 @@ impl EoClient {
         params: ParamMap,
         epoch: u64,
     ) -> Result<OneshotReceiver<EoReport>, EoError> {
-        let (tx, rx) = ractor::concurrency::oneshot();
-        self.actor
-            .cast(EoMsg::Activate {
-                params,
-                epoch,
-                reply: tx.into(),
-            })
-            .map_err(|_| EoError::Gone(self.who()))?;
-        Ok(rx)
+        self.start(|reply| EoMsg::Activate {
+            params,
+            epoch,
+            reply,
+        })
     }
 
     /// Like [`EoClient::activate`], taking over the activation of a lost instance (see
@@ -82,13 +78,21 @@ impl EoClient {
         params: ParamMap,
         epoch: u64,
     ) -> Result<OneshotReceiver<EoReport>, EoError> {
+        self.start(|reply| EoMsg::Resume {
+            params,
+            epoch,
+            reply,
+        })
+    }
+
+    /// Send an activation built by `make`; the port its end is reported on.
+    fn start(
+        &self,
+        make: impl FnOnce(ractor::RpcReplyPort<EoReport>) -> EoMsg,
+    ) -> Result<OneshotReceiver<EoReport>, EoError> {
         let (tx, rx) = ractor::concurrency::oneshot();
         self.actor
-            .cast(EoMsg::Resume {
-                params,
-                epoch,
-                reply: tx.into(),
-            })
+            .cast(make(tx.into()))
             .map_err(|_| EoError::Gone(self.who()))?;
         Ok(rx)
     }
