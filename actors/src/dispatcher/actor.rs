@@ -815,6 +815,12 @@ impl DispatcherState {
         }
         tracing::debug!(op = %key, ended, flags = %global, "operation report");
         if let Some(reason) = failure {
+            // say what the action still waited for: often the real news (a dock not found)
+            let waiting = self.awaited_enders(&key);
+            let reason = match waiting.is_empty() {
+                true => reason,
+                false => format!("{reason} (while waiting for {})", waiting.join(", ")),
+            };
             self.finish(myself, Outcome::Failed, reason);
             return;
         }
@@ -875,6 +881,19 @@ impl DispatcherState {
             myself,
             DispatcherMsg::SuspendGrace { generation },
         ));
+    }
+
+    /// The current action's enders that have not finished (other than `except`), quoted.
+    fn awaited_enders(&self, except: &str) -> Vec<String> {
+        let Some(cur) = &self.current else {
+            return Vec::new();
+        };
+        self.mission.actions[cur.index]
+            .ends_on
+            .iter()
+            .filter(|k| k.as_str() != except && !cur.enders_done.contains(*k))
+            .map(|k| format!("`{k}`"))
+            .collect()
     }
 
     /// Stop waiting for `keys` in the current action, recording them as lost; completes the
@@ -1077,12 +1096,7 @@ impl Actor for ActionDispatcher {
                     return Ok(());
                 }
                 let action = &state.mission.actions[cur.index];
-                let waiting: Vec<String> = action
-                    .ends_on
-                    .iter()
-                    .filter(|k| !cur.enders_done.contains(*k))
-                    .map(|k| format!("`{k}`"))
-                    .collect();
+                let waiting = state.awaited_enders("");
                 let reason = format!(
                     "action `{}` missed its deadline of {:.1}s waiting for {}",
                     action.name,

@@ -389,12 +389,13 @@ fn follow_params(distance: f64, mode: FollowMode, speed: f64) -> FollowParams {
 }
 
 /// One control step of wall following: reads the wall, steers the cart, and fails once the
-/// cart has run past the end of the wall seen so far.
+/// cart has run past the end of the wall seen so far. Returns whether the cart is aligned,
+/// and its pose.
 async fn follow_step(
     ctx: &mut OpContext,
     slot: &mut Option<CartClient>,
     params: &FollowParams,
-) -> Result<bool, OpError> {
+) -> Result<(bool, Pose), OpError> {
     let status = cart(slot)?.status().await.map_err(cart_err)?;
     if status.collided {
         return Err(OpError::failed(
@@ -439,7 +440,41 @@ async fn follow_step(
     };
     let cmd = follow_command(&est, opposite.as_ref(), params);
     cart(slot)?.drive(cmd.speed, cmd.steer).map_err(cart_err)?;
-    Ok(is_aligned(&est, opposite.as_ref(), params))
+    Ok((is_aligned(&est, opposite.as_ref(), params), pose))
+}
+
+/// How long a wall follower may see the cart make no progress before it gives up: something
+/// (an obstacle, the collision avoidance's stop) keeps it from following the wall.
+const STALL_TIME: Duration = Duration::from_secs(15);
+
+/// How far the cart must move to count as progress, m.
+const STALL_DISTANCE: f64 = 0.1;
+
+/// Watches that a follower's cart keeps moving.
+#[derive(Default)]
+struct Stall {
+    /// Where and when the cart last made progress.
+    anchor: Option<(Pose, Duration)>,
+}
+
+impl Stall {
+    /// Record the cart at `pose` at `now`; an error once it has not moved for [`STALL_TIME`].
+    fn check(&mut self, pose: Pose, now: Duration) -> Result<(), OpError> {
+        match self.anchor {
+            Some((at, since)) if (pose.point() - at.point()).norm() < STALL_DISTANCE => {
+                if now.saturating_sub(since) >= STALL_TIME {
+                    return Err(OpError::failed(format!(
+                        "the cart has made no progress along the wall for {:.0} s, blocked at ({:.2}, {:.2})",
+                        STALL_TIME.as_secs_f64(),
+                        pose.x,
+                        pose.y
+                    )));
+                }
+            }
+            _ => self.anchor = Some((pose, now)),
+        }
+        Ok(())
+    }
 }
 
 /// The wall follower, version 1: keeps the cart at `distance` from the followed wall, driving
@@ -447,6 +482,7 @@ async fn follow_step(
 #[derive(Default)]
 pub struct WallFollowerV1 {
     cart: Option<CartClient>,
+    stall: Stall,
 }
 
 /// Forward speed of the wall followers.
@@ -479,7 +515,13 @@ impl Operation for WallFollowerV1 {
             FollowMode::Wall,
             FOLLOW_SPEED,
         );
-        follow_step(ctx, &mut self.cart, &params).await?;
+        let (_, pose) = follow_step(ctx, &mut self.cart, &params).await?;
+        self.stall.check(pose, ctx.now())?;
+        Ok(Step::Continue)
+    }
+
+    async fn activate(&mut self, _ctx: &mut OpContext) -> Result<Step, OpError> {
+        self.stall = Stall::default();
         Ok(Step::Continue)
     }
 
@@ -493,6 +535,7 @@ impl Operation for WallFollowerV1 {
 #[derive(Default)]
 pub struct WallFollowerV2 {
     cart: Option<CartClient>,
+    stall: Stall,
 }
 
 impl Operation for WallFollowerV2 {
@@ -527,7 +570,13 @@ impl Operation for WallFollowerV2 {
             _ => FollowMode::Wall,
         };
         let params = follow_params(p.f64("distance")?, mode, FOLLOW_SPEED);
-        follow_step(ctx, &mut self.cart, &params).await?;
+        let (_, pose) = follow_step(ctx, &mut self.cart, &params).await?;
+        self.stall.check(pose, ctx.now())?;
+        Ok(Step::Continue)
+    }
+
+    async fn activate(&mut self, _ctx: &mut OpContext) -> Result<Step, OpError> {
+        self.stall = Stall::default();
         Ok(Step::Continue)
     }
 
@@ -621,7 +670,7 @@ impl Operation for SensorBasedController {
                 if back { -speed } else { speed },
             )
         };
-        let aligned = follow_step(ctx, &mut self.cart, &params).await?;
+        let (aligned, _) = follow_step(ctx, &mut self.cart, &params).await?;
         if back {
             return Ok(Step::Continue);
         }
