@@ -86,14 +86,7 @@ async fn sup_start_fail() {
     let fail = flag(true);
     let children = vec![
         worker("c1", &log),
-        worker_with(
-            "c2",
-            &log,
-            WorkerOpts {
-                fail_start: Some(fail),
-                ..Default::default()
-            },
-        ),
+        worker_with("c2", &log, WorkerOpts::failing(&fail)),
         worker("c3", &log),
     ];
     let err = Supervisor::start(None, SupervisorSpec::one_for_one(), children)
@@ -271,14 +264,7 @@ async fn one_for_one_escalation() {
     let (sup, _probe, mut exits) = start_probed(
         SupervisorSpec::one_for_one().with_intensity(4, HOUR),
         vec![
-            worker_with(
-                "c1",
-                &log,
-                WorkerOpts {
-                    fail_start: Some(fail.clone()),
-                    ..Default::default()
-                },
-            ),
+            worker_with("c1", &log, WorkerOpts::failing(&fail)),
             worker("c2", &log),
         ],
     )
@@ -357,14 +343,7 @@ async fn one_for_all_escalation() {
         SupervisorSpec::one_for_all().with_intensity(4, HOUR),
         vec![
             worker("c1", &log),
-            worker_with(
-                "c2",
-                &log,
-                WorkerOpts {
-                    fail_start: Some(fail.clone()),
-                    ..Default::default()
-                },
-            ),
+            worker_with("c2", &log, WorkerOpts::failing(&fail)),
         ],
     )
     .await;
@@ -437,14 +416,7 @@ async fn rest_for_one_escalation() {
         SupervisorSpec::rest_for_one().with_intensity(4, HOUR),
         vec![
             worker("c1", &log),
-            worker_with(
-                "c2",
-                &log,
-                WorkerOpts {
-                    fail_start: Some(fail.clone()),
-                    ..Default::default()
-                },
-            ),
+            worker_with("c2", &log, WorkerOpts::failing(&fail)),
         ],
     )
     .await;
@@ -767,14 +739,7 @@ async fn restart_fails_counts_toward_intensity() {
     let fail = flag(false);
     let (sup, _probe, mut exits) = start_probed(
         SupervisorSpec::one_for_one().with_intensity(3, HOUR),
-        vec![worker_with(
-            "c1",
-            &log,
-            WorkerOpts {
-                fail_start: Some(fail.clone()),
-                ..Default::default()
-            },
-        )],
+        vec![worker_with("c1", &log, WorkerOpts::failing(&fail))],
     )
     .await;
     let mut events = sup.subscribe().await.unwrap();
@@ -864,14 +829,7 @@ async fn hanging_restart_loop() {
     // while a restart keeps failing, the supervisor keeps serving its mailbox
     let log = Log::default();
     let fail = flag(false);
-    let spec = worker_with(
-        "c1",
-        &log,
-        WorkerOpts {
-            fail_start: Some(fail.clone()),
-            ..Default::default()
-        },
-    );
+    let spec = worker_with("c1", &log, WorkerOpts::failing(&fail));
     let (sup, _) = Supervisor::start(
         None,
         SupervisorSpec::one_for_one().with_intensity(usize::MAX, Duration::from_secs(10)),
@@ -925,14 +883,7 @@ async fn hanging_restart_does_not_block_shutdown() {
         SupervisorSpec::one_for_one().with_intensity(5, HOUR),
         vec![
             worker("c0", &log),
-            worker_with(
-                "c1",
-                &log,
-                WorkerOpts {
-                    hang_start: Some(hang.clone()),
-                    ..Default::default()
-                },
-            ),
+            worker_with("c1", &log, WorkerOpts::hanging(&hang)),
         ],
     )
     .await
@@ -964,15 +915,8 @@ async fn start_timeout_counts_as_failed_restart() {
     let (sup, _) = Supervisor::start(
         None,
         SupervisorSpec::one_for_one().with_intensity(5, HOUR),
-        vec![worker_with(
-            "c1",
-            &log,
-            WorkerOpts {
-                hang_start: Some(hang.clone()),
-                ..Default::default()
-            },
-        )
-        .with_start_timeout(Duration::from_secs(1))],
+        vec![worker_with("c1", &log, WorkerOpts::hanging(&hang))
+            .with_start_timeout(Duration::from_secs(1))],
     )
     .await
     .unwrap();
@@ -1095,14 +1039,7 @@ async fn child_adm() {
     assert!(sup.which_children().await.unwrap().is_empty());
 
     // a dynamic child whose start fails leaves no spec behind
-    let bad = worker_with(
-        "bad",
-        &log,
-        WorkerOpts {
-            fail_start: Some(flag(true)),
-            ..Default::default()
-        },
-    );
+    let bad = worker_with("bad", &log, WorkerOpts::failing(&flag(true)));
     assert!(matches!(
         sup.start_child(bad).await.unwrap_err(),
         SupervisorError::StartFailed { id, .. } if id == "bad"
@@ -1265,14 +1202,7 @@ async fn backoff_end_to_end() {
         SupervisorSpec::one_for_one()
             .with_intensity(10, Duration::from_secs(60))
             .with_backoff(backoff),
-        vec![worker_with(
-            "c1",
-            &log,
-            WorkerOpts {
-                fail_start: Some(fail.clone()),
-                ..Default::default()
-            },
-        )],
+        vec![worker_with("c1", &log, WorkerOpts::failing(&fail))],
     )
     .await
     .unwrap();

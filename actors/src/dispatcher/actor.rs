@@ -401,7 +401,7 @@ impl DispatcherState {
             operation: name.to_string(),
             cause: lost.cause,
             from: lost.from,
-            to: b.address.clone(),
+            to: b.address(),
             downtime_ms: downtime.as_millis() as u64,
         };
         tracing::info!(op = %name, from = %record.from, to = %record.to, downtime_ms = record.downtime_ms, "operation rebound");
@@ -538,7 +538,7 @@ impl DispatcherState {
         match error {
             None => {}
             Some(EoError::Timeout(_, deadline)) => {
-                b.cell.kill();
+                b.client.actor().kill();
                 let cause = format!(
                     "hung: no answer within its deadline of {} ms; killed",
                     deadline.as_millis()
@@ -559,7 +559,7 @@ impl DispatcherState {
                 let name = self
                     .bindings
                     .values()
-                    .find(|b| b.lost.is_none() && b.cell.get_id() == id)
+                    .find(|b| b.lost.is_none() && b.actor_id() == id)
                     .map(|b| b.name.clone());
                 if let Some(name) = name {
                     self.lose(myself, &name, "died: it left the registry".to_string())
@@ -687,7 +687,7 @@ impl DispatcherState {
                     id: b.id,
                     version: b.version.clone(),
                     node: b.node.clone(),
-                    address: b.address.clone(),
+                    address: b.address(),
                     ended: "running".to_string(),
                     flags: Vec::new(),
                 },

@@ -19,7 +19,7 @@ use crate::clock::Timer;
 use crate::eo::EoClient;
 use crate::property::{General, Group, ParamMap, PropertyReply, PropertyRequest};
 use crate::registry::Instance;
-use ractor::{ActorCell, ActorId};
+use ractor::ActorId;
 use semver::{Version, VersionReq};
 use std::time::Duration;
 
@@ -27,7 +27,6 @@ use std::time::Duration;
 pub(crate) struct Candidate {
     pub(crate) info: OpInfo,
     pub(crate) client: EoClient,
-    pub(crate) cell: ActorCell,
     pub(crate) node: String,
     /// The epoch the instance accepted last.
     pub(crate) epoch: u64,
@@ -55,7 +54,6 @@ pub(crate) async fn examine(inst: &Instance, timeout: Duration) -> Result<Candid
     Ok(Candidate {
         info,
         client: client.with_timeout(EoClient::DEFAULT_TIMEOUT),
-        cell: inst.actor.clone(),
         node: inst.node.clone(),
         epoch,
         deadline: Duration::from_millis(deadline_ms.max(1)),
@@ -78,12 +76,10 @@ pub(crate) struct Lost {
 /// The dispatcher's hold on one operation.
 pub(crate) struct Binding {
     pub(crate) client: EoClient,
-    pub(crate) cell: ActorCell,
     pub(crate) name: String,
     pub(crate) id: u32,
     pub(crate) version: String,
     pub(crate) node: String,
-    pub(crate) address: String,
     pub(crate) epoch: u64,
     /// Grows with every loss; see the module invariants.
     pub(crate) incarnation: u64,
@@ -111,15 +107,12 @@ impl Binding {
             .ok()
             .and_then(|v| VersionReq::parse(&format!("^{v}")).ok())
             .unwrap_or(VersionReq::STAR);
-        let address = cand.cell.get_id().to_string();
         Binding {
             client: cand.client,
-            cell: cand.cell,
             name: cand.info.name,
             id: cand.info.id,
             version: cand.info.version,
             node: cand.node,
-            address,
             epoch: cand.epoch + 1,
             incarnation: 0,
             defaults: cand.info.schema.defaults(),
@@ -138,7 +131,7 @@ impl Binding {
     /// parameter schema that accepts the last parameters.
     pub(crate) fn accepts(&self, cand: &Candidate) -> Result<(), String> {
         if let Some(lost) = &self.lost {
-            if cand.cell.get_id() == lost.dead {
+            if cand.client.actor().get_id() == lost.dead {
                 return Err("it is the instance that was lost".to_string());
             }
         }
@@ -170,9 +163,7 @@ impl Binding {
     /// binding was lost.
     pub(crate) fn adopt(&mut self, cand: Candidate, now: Duration) -> Option<(Lost, Duration)> {
         self.epoch = self.epoch.max(cand.epoch) + 1;
-        self.address = cand.cell.get_id().to_string();
         self.client = cand.client;
-        self.cell = cand.cell;
         self.version = cand.info.version;
         self.node = cand.node;
         self.defaults = cand.info.schema.defaults();
@@ -185,6 +176,16 @@ impl Binding {
             .map(|lost| (lost.clone(), now.saturating_sub(lost.since)))
     }
 
+    /// The current instance's actor.
+    pub(crate) fn actor_id(&self) -> ActorId {
+        self.client.actor().get_id()
+    }
+
+    /// The current instance's address, as reports show it.
+    pub(crate) fn address(&self) -> String {
+        self.actor_id().to_string()
+    }
+
     /// Let the current instance go.
     pub(crate) fn lose(&mut self, cause: String, now: Duration) {
         self.incarnation += 1;
@@ -192,8 +193,8 @@ impl Binding {
         self.lost = Some(Lost {
             since: now,
             cause,
-            from: self.address.clone(),
-            dead: self.cell.get_id(),
+            from: self.address(),
+            dead: self.actor_id(),
         });
     }
 }

@@ -450,6 +450,32 @@ const STALL_TIME: Duration = Duration::from_secs(15);
 /// How far the cart must move to count as progress, m.
 const STALL_DISTANCE: f64 = 0.1;
 
+/// What both wall followers do with the cart: a follow step and a stall check per control
+/// step, stop on suspension.
+#[derive(Default)]
+struct Follower {
+    cart: Option<CartClient>,
+    stall: Stall,
+}
+
+impl Follower {
+    /// A new activation: the stall check starts afresh.
+    fn activate(&mut self) -> Result<Step, OpError> {
+        self.stall = Stall::default();
+        Ok(Step::Continue)
+    }
+
+    async fn step(&mut self, ctx: &mut OpContext, params: &FollowParams) -> Result<Step, OpError> {
+        let (_, pose) = follow_step(ctx, &mut self.cart, params).await?;
+        self.stall.check(pose, ctx.now())?;
+        Ok(Step::Continue)
+    }
+
+    fn suspend(&mut self) -> Result<(), OpError> {
+        stop_cart(&mut self.cart)
+    }
+}
+
 /// Watches that a follower's cart keeps moving.
 #[derive(Default)]
 struct Stall {
@@ -481,8 +507,7 @@ impl Stall {
 /// forwards, until suspended. One parameter.
 #[derive(Default)]
 pub struct WallFollowerV1 {
-    cart: Option<CartClient>,
-    stall: Stall,
+    follower: Follower,
 }
 
 /// Forward speed of the wall followers.
@@ -515,18 +540,15 @@ impl Operation for WallFollowerV1 {
             FollowMode::Wall,
             FOLLOW_SPEED,
         );
-        let (_, pose) = follow_step(ctx, &mut self.cart, &params).await?;
-        self.stall.check(pose, ctx.now())?;
-        Ok(Step::Continue)
+        self.follower.step(ctx, &params).await
     }
 
     async fn activate(&mut self, _ctx: &mut OpContext) -> Result<Step, OpError> {
-        self.stall = Stall::default();
-        Ok(Step::Continue)
+        self.follower.activate()
     }
 
     async fn suspend(&mut self, _ctx: &mut OpContext) -> Result<(), OpError> {
-        stop_cart(&mut self.cart)
+        self.follower.suspend()
     }
 }
 
@@ -534,8 +556,7 @@ impl Operation for WallFollowerV1 {
 /// corridor. Two parameters: same kind and id as version 1, another schema.
 #[derive(Default)]
 pub struct WallFollowerV2 {
-    cart: Option<CartClient>,
-    stall: Stall,
+    follower: Follower,
 }
 
 impl Operation for WallFollowerV2 {
@@ -570,18 +591,15 @@ impl Operation for WallFollowerV2 {
             _ => FollowMode::Wall,
         };
         let params = follow_params(p.f64("distance")?, mode, FOLLOW_SPEED);
-        let (_, pose) = follow_step(ctx, &mut self.cart, &params).await?;
-        self.stall.check(pose, ctx.now())?;
-        Ok(Step::Continue)
+        self.follower.step(ctx, &params).await
     }
 
     async fn activate(&mut self, _ctx: &mut OpContext) -> Result<Step, OpError> {
-        self.stall = Stall::default();
-        Ok(Step::Continue)
+        self.follower.activate()
     }
 
     async fn suspend(&mut self, _ctx: &mut OpContext) -> Result<(), OpError> {
-        stop_cart(&mut self.cart)
+        self.follower.suspend()
     }
 }
 

@@ -140,6 +140,24 @@ pub fn worker(id: &str, log: &Log) -> ChildSpec {
     worker_with(id, log, WorkerOpts::default())
 }
 
+impl WorkerOpts {
+    /// Starts fail while `flag` is set.
+    pub fn failing(flag: &Arc<AtomicBool>) -> Self {
+        WorkerOpts {
+            fail_start: Some(flag.clone()),
+            ..Default::default()
+        }
+    }
+
+    /// Starts never finish while `flag` is set.
+    pub fn hanging(flag: &Arc<AtomicBool>) -> Self {
+        WorkerOpts {
+            hang_start: Some(flag.clone()),
+            ..Default::default()
+        }
+    }
+}
+
 pub fn worker_with(id: &str, log: &Log, opts: WorkerOpts) -> ChildSpec {
     let args = WorkerArgs {
         name: id.to_string(),
