@@ -10,7 +10,9 @@
 //!   any module can send an operation about itself;
 //! - [`dm`] — datamanagers: records stored, selected (also by waiting), deleted by query;
 //! - [`registry`] — the cluster-wide location table over ractor `pg`;
-//! - [`dispatcher`] — missions (task trees) and the action dispatcher that runs them.
+//! - [`dispatcher`] — missions (task trees) and the action dispatcher that runs them;
+//! - [`diagnostic`] — `file:line:column` diagnostics and the TOML reader every file format
+//!   (missions, worlds, node configs) shares.
 //!
 //! Every message that may cross nodes is serializable with rmp-serde ([`wire`]).
 //!
@@ -23,6 +25,7 @@
 #![warn(missing_docs)]
 
 pub mod clock;
+pub mod diagnostic;
 pub mod dispatcher;
 pub mod dm;
 pub mod eo;

@@ -8,14 +8,10 @@
 
 use super::model::{Beam, CartSpec, Dock, GoalArea, Rect, SimSettings, SonarMount, World};
 use crate::geom::{Point, Pose};
-use marie_actors::dispatcher::mission::{Diagnostic, Diagnostics, LineIndex, Pos};
-use std::ops::Range;
+use marie_actors::diagnostic::toml::{Reader, Rule, Tbl, Val};
+use marie_actors::diagnostic::{read_source, Diagnostics};
 use std::path::Path;
-use toml::de::{DeTable, DeValue};
-use toml::Spanned;
-
-type Span = Range<usize>;
-type Val<'i> = Spanned<DeValue<'i>>;
+use toml::de::DeValue;
 
 const TOP_KEYS: &[&str] = &[
     "world", "wall", "obstacle", "cart", "sonar", "goal", "dock", "sim",
@@ -66,213 +62,14 @@ pub(crate) fn display_path(path: Option<&Path>) -> String {
     path.map_or_else(|| "<world>".to_string(), |p| p.display().to_string())
 }
 
-/// Read and parse a world file.
+/// Read and parse a world file (refused unread when it is not a regular file or is huge).
 pub(crate) fn load(path: &Path) -> Result<World, Diagnostics> {
-    let file = display_path(Some(path));
-    let bytes = std::fs::read(path)
-        .map_err(|e| Diagnostic::new(&file, 1, 1, format!("cannot read world file {file}: {e}")))?;
-    let src = String::from_utf8(bytes).map_err(|e| {
-        let valid = e.utf8_error().valid_up_to();
-        let prefix =
-            std::str::from_utf8(e.as_bytes().get(..valid).unwrap_or_default()).unwrap_or_default();
-        let Pos { line, column } = LineIndex::new(prefix).pos(valid);
-        Diagnostic::new(
-            &file,
-            line,
-            column,
-            "the world file is not valid UTF-8 text",
-        )
-    })?;
+    let src = read_source(path, "world")?;
     parse(&src, Some(path))
 }
 
-/// Where problems go while walking the document.
-struct Ctx<'s> {
-    lines: LineIndex<'s>,
-    file: String,
-    diags: Vec<Diagnostic>,
-}
-
-impl Ctx<'_> {
-    fn err(&mut self, span: &Span, message: impl Into<String>) {
-        let Pos { line, column } = self.lines.pos(span.start);
-        self.diags
-            .push(Diagnostic::new(&self.file, line, column, message));
-    }
-}
-
-/// A table being read: its entries, where it starts, and how messages name it.
-struct Tbl<'a, 'i> {
-    t: &'a DeTable<'i>,
-    span: Span,
-    place: String,
-}
-
-impl<'a, 'i> Tbl<'a, 'i> {
-    fn get(&self, key: &str) -> Option<&'a Val<'i>> {
-        self.t.get(key)
-    }
-}
-
-/// What a number must satisfy.
-#[derive(Clone, Copy)]
-enum Rule {
-    Any,
-    Positive,
-    NonNegative,
-    /// lo < x <= hi
-    AboveUpTo(f64, f64),
-    /// lo < x < hi
-    Between(f64, f64),
-    /// lo <= x <= hi
-    Within(f64, f64),
-}
-
-impl Rule {
-    fn check(self, x: f64) -> Result<(), String> {
-        let (ok, want) = match self {
-            Rule::Any => (true, String::new()),
-            Rule::Positive => (x > 0.0, "greater than 0".to_string()),
-            Rule::NonNegative => (x >= 0.0, "at least 0".to_string()),
-            Rule::AboveUpTo(lo, hi) => (x > lo && x <= hi, format!("in ({lo}, {hi}]")),
-            Rule::Between(lo, hi) => (x > lo && x < hi, format!("in ({lo}, {hi})")),
-            Rule::Within(lo, hi) => (x >= lo && x <= hi, format!("in [{lo}, {hi}]")),
-        };
-        if ok {
-            Ok(())
-        } else {
-            Err(want)
-        }
-    }
-}
-
-fn type_name(v: &DeValue<'_>) -> &'static str {
-    v.type_str()
-}
-
-/// The value as a table, or a diagnostic.
-fn as_table<'a, 'i>(ctx: &mut Ctx<'_>, v: &'a Val<'i>, place: &str) -> Option<Tbl<'a, 'i>> {
-    match v.get_ref() {
-        DeValue::Table(t) => Some(Tbl {
-            t,
-            span: v.span(),
-            place: place.to_string(),
-        }),
-        other => {
-            ctx.err(
-                &v.span(),
-                format!("expected a table for {place}, found {}", type_name(other)),
-            );
-            None
-        }
-    }
-}
-
-/// Report every key of `tbl` not in `allowed`, in file order.
-fn unknown_keys(ctx: &mut Ctx<'_>, tbl: &Tbl<'_, '_>, allowed: &[&str]) {
-    let mut keys: Vec<_> = tbl.t.keys().collect();
-    keys.sort_by_key(|k| k.span().start);
-    for key in keys {
-        if !allowed.contains(&key.get_ref().as_ref()) {
-            ctx.err(
-                &key.span(),
-                format!(
-                    "unknown key `{}` in {} (expected one of: {})",
-                    key.get_ref().escape_debug(),
-                    tbl.place,
-                    allowed.join(", ")
-                ),
-            );
-        }
-    }
-}
-
-/// A finite number (integer or float), or a diagnostic.
-fn number(ctx: &mut Ctx<'_>, v: &Val<'_>, field: &str) -> Option<f64> {
-    let x = match v.get_ref() {
-        DeValue::Integer(i) => match i64::from_str_radix(i.as_str(), i.radix()) {
-            Ok(n) => n as f64,
-            Err(_) => {
-                ctx.err(&v.span(), format!("`{field}`: integer out of range"));
-                return None;
-            }
-        },
-        DeValue::Float(f) => f.as_str().parse::<f64>().unwrap_or(f64::NAN),
-        other => {
-            ctx.err(
-                &v.span(),
-                format!(
-                    "expected a number for `{field}`, found {}",
-                    type_name(other)
-                ),
-            );
-            return None;
-        }
-    };
-    if !x.is_finite() {
-        ctx.err(&v.span(), format!("`{field}` must be a finite number"));
-        return None;
-    }
-    Some(x)
-}
-
-/// Number `key` of `tbl`: `default` when absent (a diagnostic when there is no default), the
-/// value when it satisfies `rule`, otherwise a diagnostic and `None`.
-fn num(
-    ctx: &mut Ctx<'_>,
-    tbl: &Tbl<'_, '_>,
-    key: &str,
-    default: Option<f64>,
-    rule: Rule,
-) -> Option<f64> {
-    let Some(v) = tbl.get(key) else {
-        if default.is_none() {
-            ctx.err(&tbl.span, format!("missing `{key}` in {}", tbl.place));
-        }
-        return default;
-    };
-    let x = number(ctx, v, key)?;
-    match rule.check(x) {
-        Ok(()) => Some(x),
-        Err(want) => {
-            ctx.err(&v.span(), format!("`{key}` must be {want}, found {x}"));
-            None
-        }
-    }
-}
-
-fn string(ctx: &mut Ctx<'_>, tbl: &Tbl<'_, '_>, key: &str) -> Option<String> {
-    let v = tbl.get(key)?;
-    match v.get_ref() {
-        DeValue::String(s) => Some(s.to_string()),
-        other => {
-            ctx.err(
-                &v.span(),
-                format!("expected a string for `{key}`, found {}", type_name(other)),
-            );
-            None
-        }
-    }
-}
-
-fn boolean(ctx: &mut Ctx<'_>, tbl: &Tbl<'_, '_>, key: &str, default: bool) -> bool {
-    let Some(v) = tbl.get(key) else {
-        return default;
-    };
-    match v.get_ref() {
-        DeValue::Boolean(b) => *b,
-        other => {
-            ctx.err(
-                &v.span(),
-                format!(
-                    "expected true or false for `{key}`, found {}",
-                    type_name(other)
-                ),
-            );
-            default
-        }
-    }
-}
+/// Where problems go while walking the document: the shared TOML reader.
+type Ctx<'s> = Reader<'s>;
 
 /// A point written `[x, y]`.
 fn xy(ctx: &mut Ctx<'_>, v: &Val<'_>, field: &str) -> Option<Point> {
@@ -281,7 +78,7 @@ fn xy(ctx: &mut Ctx<'_>, v: &Val<'_>, field: &str) -> Option<Point> {
             &v.span(),
             format!(
                 "expected a point `[x, y]` in `{field}`, found {}",
-                type_name(v.get_ref())
+                v.get_ref().type_str()
             ),
         );
         return None;
@@ -296,8 +93,8 @@ fn xy(ctx: &mut Ctx<'_>, v: &Val<'_>, field: &str) -> Option<Point> {
         );
         return None;
     }
-    let x = number(ctx, &items[0], field);
-    let y = number(ctx, &items[1], field);
+    let x = ctx.number(&items[0], field);
+    let y = ctx.number(&items[1], field);
     Some(Point::new(x?, y?))
 }
 
@@ -306,14 +103,10 @@ fn point(ctx: &mut Ctx<'_>, v: &Val<'_>, field: &str) -> Option<Point> {
     if let DeValue::Array(_) = v.get_ref() {
         return xy(ctx, v, field);
     }
-    let tbl = as_table(
-        ctx,
-        v,
-        &format!("`{field}` (a point `{{ x = .., y = .. }}`)"),
-    )?;
-    unknown_keys(ctx, &tbl, XY_KEYS);
-    let x = num(ctx, &tbl, "x", None, Rule::Any);
-    let y = num(ctx, &tbl, "y", None, Rule::Any);
+    let tbl = ctx.table(v, &format!("`{field}` (a point `{{ x = .., y = .. }}`)"))?;
+    ctx.unknown_keys(&tbl, XY_KEYS);
+    let x = ctx.num(&tbl, "x", None, Rule::Any);
+    let y = ctx.num(&tbl, "y", None, Rule::Any);
     Some(Point::new(x?, y?))
 }
 
@@ -335,7 +128,7 @@ fn points(ctx: &mut Ctx<'_>, tbl: &Tbl<'_, '_>, min: usize, closed: bool) -> Opt
             &v.span(),
             format!(
                 "expected an array of points `[[x, y], ...]` for `points`, found {}",
-                type_name(v.get_ref())
+                v.get_ref().type_str()
             ),
         );
         return None;
@@ -388,46 +181,14 @@ fn points(ctx: &mut Ctx<'_>, tbl: &Tbl<'_, '_>, min: usize, closed: bool) -> Opt
     Some(out)
 }
 
-/// The tables of a `[[name]]` array, or diagnostics.
-fn table_array<'a, 'i>(ctx: &mut Ctx<'_>, v: &'a Val<'i>, name: &str) -> Vec<Option<Tbl<'a, 'i>>> {
-    let DeValue::Array(items) = v.get_ref() else {
-        ctx.err(
-            &v.span(),
-            format!(
-                "expected `[[{name}]]` tables, found {}",
-                type_name(v.get_ref())
-            ),
-        );
-        return Vec::new();
-    };
-    items
-        .iter()
-        .enumerate()
-        .map(|(i, item)| as_table(ctx, item, &format!("[[{name}]] #{}", i + 1)))
-        .collect()
-}
-
 /// Parse and validate a world.
 pub(crate) fn parse(src: &str, path: Option<&Path>) -> Result<World, Diagnostics> {
-    let mut ctx = Ctx {
-        lines: LineIndex::new(src),
-        file: display_path(path),
-        diags: Vec::new(),
-    };
-    let (doc, errors) = DeTable::parse_recoverable(src);
-    if !errors.is_empty() {
-        for e in errors {
-            let span = e.span().unwrap_or(0..0);
-            ctx.err(&span, format!("syntax error: {}", e.message().trim_end()));
-        }
+    let mut ctx = Ctx::new(src, display_path(path));
+    let Some(doc) = ctx.parse() else {
         return finish(ctx, None);
-    }
-    let top = Tbl {
-        t: doc.get_ref(),
-        span: 0..0,
-        place: "the world file".to_string(),
     };
-    unknown_keys(&mut ctx, &top, TOP_KEYS);
+    let top = ctx.top(&doc, "the world file");
+    ctx.unknown_keys(&top, TOP_KEYS);
 
     // [world]
     let mut name = String::new();
@@ -438,9 +199,9 @@ pub(crate) fn parse(src: &str, path: Option<&Path>) -> Result<World, Diagnostics
             "missing table `[world]` (expected `name = \"...\"`)",
         ),
         Some(v) => {
-            if let Some(t) = as_table(&mut ctx, v, "[world]") {
-                unknown_keys(&mut ctx, &t, WORLD_KEYS);
-                match string(&mut ctx, &t, "name") {
+            if let Some(t) = ctx.table(v, "[world]") {
+                ctx.unknown_keys(&t, WORLD_KEYS);
+                match ctx.string(&t, "name") {
                     Some(n) if !n.trim().is_empty() => name = n,
                     Some(_) => {
                         if let Some(v) = t.get("name") {
@@ -453,7 +214,7 @@ pub(crate) fn parse(src: &str, path: Option<&Path>) -> Result<World, Diagnostics
                         }
                     }
                 }
-                description = string(&mut ctx, &t, "description").unwrap_or_default();
+                description = ctx.string(&t, "description").unwrap_or_default();
             }
         }
     }
@@ -466,8 +227,8 @@ pub(crate) fn parse(src: &str, path: Option<&Path>) -> Result<World, Diagnostics
             "the world has no walls (expected at least one `[[wall]]` with `points`)",
         ),
         Some(v) => {
-            for t in table_array(&mut ctx, v, "wall").into_iter().flatten() {
-                unknown_keys(&mut ctx, &t, POINTS_KEYS);
+            for t in ctx.table_array(v, "wall").into_iter().flatten() {
+                ctx.unknown_keys(&t, POINTS_KEYS);
                 if let Some(p) = points(&mut ctx, &t, 2, false) {
                     walls.push(p);
                 }
@@ -476,8 +237,8 @@ pub(crate) fn parse(src: &str, path: Option<&Path>) -> Result<World, Diagnostics
     }
     let mut obstacles = Vec::new();
     if let Some(v) = top.get("obstacle") {
-        for t in table_array(&mut ctx, v, "obstacle").into_iter().flatten() {
-            unknown_keys(&mut ctx, &t, POINTS_KEYS);
+        for t in ctx.table_array(v, "obstacle").into_iter().flatten() {
+            ctx.unknown_keys(&t, POINTS_KEYS);
             if let Some(p) = points(&mut ctx, &t, 3, true) {
                 obstacles.push(p);
             }
@@ -494,8 +255,8 @@ pub(crate) fn parse(src: &str, path: Option<&Path>) -> Result<World, Diagnostics
             "missing table `[cart]` (expected at least `start = { x = .., y = .., heading_deg = .. }`)",
         ),
         Some(v) => {
-            if let Some(t) = as_table(&mut ctx, v, "[cart]") {
-                unknown_keys(&mut ctx, &t, CART_KEYS);
+            if let Some(t) = ctx.table(v, "[cart]") {
+                ctx.unknown_keys(&t, CART_KEYS);
                 if let Some(pose) = start_pose(&mut ctx, &t) {
                     start = pose;
                 }
@@ -508,7 +269,8 @@ pub(crate) fn parse(src: &str, path: Option<&Path>) -> Result<World, Diagnostics
     // [[sonar]]
     let sonars = match top.get("sonar") {
         None => SonarMount::default_ring(&cart),
-        Some(v) => table_array(&mut ctx, v, "sonar")
+        Some(v) => ctx
+            .table_array(v, "sonar")
             .into_iter()
             .flatten()
             .filter_map(|t| sonar(&mut ctx, &t))
@@ -518,13 +280,13 @@ pub(crate) fn parse(src: &str, path: Option<&Path>) -> Result<World, Diagnostics
     // [goal], [dock], [sim]
     let goal = top
         .get("goal")
-        .and_then(|v| as_table(&mut ctx, v, "[goal]"))
+        .and_then(|v| ctx.table(v, "[goal]"))
         .and_then(|t| goal(&mut ctx, &t).map(|g| (g, t.span.clone())));
     let dock = top
         .get("dock")
-        .and_then(|v| as_table(&mut ctx, v, "[dock]"))
+        .and_then(|v| ctx.table(v, "[dock]"))
         .and_then(|t| dock(&mut ctx, &t).map(|d| (d, t.span.clone())));
-    let sim = match top.get("sim").and_then(|v| as_table(&mut ctx, v, "[sim]")) {
+    let sim = match top.get("sim").and_then(|v| ctx.table(v, "[sim]")) {
         Some(t) => sim_settings(&mut ctx, &t),
         None => SimSettings::default(),
     };
@@ -541,7 +303,7 @@ pub(crate) fn parse(src: &str, path: Option<&Path>) -> Result<World, Diagnostics
         dock: dock.as_ref().map(|(d, _)| *d),
         sim,
     };
-    if !ctx.diags.is_empty() {
+    if ctx.has_errors() {
         return finish(ctx, None);
     }
 
@@ -583,22 +345,7 @@ pub(crate) fn parse(src: &str, path: Option<&Path>) -> Result<World, Diagnostics
 }
 
 fn finish(ctx: Ctx<'_>, world: Option<World>) -> Result<World, Diagnostics> {
-    match world {
-        Some(world) if ctx.diags.is_empty() => Ok(world),
-        _ => {
-            let mut diags = Diagnostics(ctx.diags);
-            if diags.is_empty() {
-                diags.0.push(Diagnostic::new(
-                    ctx.file,
-                    1,
-                    1,
-                    "the world file is not valid",
-                ));
-            }
-            diags.sort();
-            Err(diags)
-        }
-    }
+    ctx.finish(world, "the world file is not valid")
 }
 
 fn start_pose(ctx: &mut Ctx<'_>, cart: &Tbl<'_, '_>) -> Option<Pose> {
@@ -609,47 +356,43 @@ fn start_pose(ctx: &mut Ctx<'_>, cart: &Tbl<'_, '_>) -> Option<Pose> {
         );
         return None;
     };
-    let t = as_table(ctx, v, "`start` (`{ x = .., y = .., heading_deg = .. }`)")?;
-    unknown_keys(ctx, &t, START_KEYS);
-    let x = num(ctx, &t, "x", None, Rule::Any);
-    let y = num(ctx, &t, "y", None, Rule::Any);
-    let heading = num(ctx, &t, "heading_deg", Some(0.0), Rule::Any);
+    let t = ctx.table(v, "`start` (`{ x = .., y = .., heading_deg = .. }`)")?;
+    ctx.unknown_keys(&t, START_KEYS);
+    let x = ctx.num(&t, "x", None, Rule::Any);
+    let y = ctx.num(&t, "y", None, Rule::Any);
+    let heading = ctx.num(&t, "heading_deg", Some(0.0), Rule::Any);
     Some(Pose::new(x?, y?, heading?.to_radians()))
 }
 
 fn cart_spec(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> CartSpec {
     let d = CartSpec::default();
-    let length = num(ctx, t, "length", Some(d.length), Rule::Positive);
-    let width = num(ctx, t, "width", Some(d.width), Rule::Positive);
-    let wheelbase = num(ctx, t, "wheelbase", Some(d.wheelbase), Rule::Positive);
+    let length = ctx.num(t, "length", Some(d.length), Rule::Positive);
+    let width = ctx.num(t, "width", Some(d.width), Rule::Positive);
+    let wheelbase = ctx.num(t, "wheelbase", Some(d.wheelbase), Rule::Positive);
     let overhang_default = match (length, wheelbase) {
         (Some(l), Some(w)) => ((l - w) / 2.0).max(0.0),
         _ => d.rear_overhang,
     };
-    let rear_overhang = num(
-        ctx,
+    let rear_overhang = ctx.num(
         t,
         "rear_overhang",
         Some(overhang_default),
         Rule::NonNegative,
     );
-    let max_speed = num(ctx, t, "max_speed", Some(d.max_speed), Rule::Positive);
-    let max_steer = num(
-        ctx,
+    let max_speed = ctx.num(t, "max_speed", Some(d.max_speed), Rule::Positive);
+    let max_steer = ctx.num(
         t,
         "max_steer_deg",
         Some(d.max_steer.to_degrees()),
         Rule::AboveUpTo(0.0, 80.0),
     );
-    let max_steer_rate = num(
-        ctx,
+    let max_steer_rate = ctx.num(
         t,
         "max_steer_rate_deg",
         Some(d.max_steer_rate.to_degrees()),
         Rule::Positive,
     );
-    let speed_time_constant = num(
-        ctx,
+    let speed_time_constant = ctx.num(
         t,
         "speed_time_constant",
         Some(d.speed_time_constant),
@@ -683,10 +426,10 @@ fn cart_spec(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> CartSpec {
 }
 
 fn sonar(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> Option<SonarMount> {
-    unknown_keys(ctx, t, SONAR_KEYS);
-    let x = num(ctx, t, "x", None, Rule::Any);
-    let y = num(ctx, t, "y", None, Rule::Any);
-    let angle = num(ctx, t, "angle_deg", None, Rule::Any);
+    ctx.unknown_keys(t, SONAR_KEYS);
+    let x = ctx.num(t, "x", None, Rule::Any);
+    let y = ctx.num(t, "y", None, Rule::Any);
+    let angle = ctx.num(t, "angle_deg", None, Rule::Any);
     let beam = match t.get("beam") {
         None => {
             ctx.err(
@@ -716,7 +459,7 @@ fn sonar(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> Option<SonarMount> {
                     &v.span(),
                     format!(
                         "expected \"narrow\" or \"wide\" for `beam`, found {}",
-                        type_name(other)
+                        other.type_str()
                     ),
                 );
                 None
@@ -727,7 +470,7 @@ fn sonar(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> Option<SonarMount> {
         Some(Beam::Wide) => 3.0,
         _ => 4.0,
     };
-    let range = num(ctx, t, "range", Some(default_range), Rule::Positive);
+    let range = ctx.num(t, "range", Some(default_range), Rule::Positive);
     Some(SonarMount {
         x: x?,
         y: y?,
@@ -738,7 +481,7 @@ fn sonar(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> Option<SonarMount> {
 }
 
 fn goal(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> Option<GoalArea> {
-    unknown_keys(ctx, t, GOAL_KEYS);
+    ctx.unknown_keys(t, GOAL_KEYS);
     let center = match t.get("center") {
         None => {
             ctx.err(
@@ -749,17 +492,16 @@ fn goal(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> Option<GoalArea> {
         }
         Some(v) => point(ctx, v, "center"),
     };
-    let length = num(ctx, t, "length", None, Rule::Positive);
-    let width = num(ctx, t, "width", None, Rule::Positive);
-    let heading = num(ctx, t, "heading_deg", Some(0.0), Rule::Any);
-    let tolerance = num(
-        ctx,
+    let length = ctx.num(t, "length", None, Rule::Positive);
+    let width = ctx.num(t, "width", None, Rule::Positive);
+    let heading = ctx.num(t, "heading_deg", Some(0.0), Rule::Any);
+    let tolerance = ctx.num(
         t,
         "heading_tolerance_deg",
         Some(10.0),
         Rule::AboveUpTo(0.0, 180.0),
     );
-    let either_way = boolean(ctx, t, "either_way", false);
+    let either_way = ctx.boolean(t, "either_way", false);
     let heading = crate::geom::wrap_angle(heading?.to_radians());
     Some(GoalArea {
         area: Rect {
@@ -775,7 +517,7 @@ fn goal(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> Option<GoalArea> {
 }
 
 fn dock(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> Option<Dock> {
-    unknown_keys(ctx, t, DOCK_KEYS);
+    ctx.unknown_keys(t, DOCK_KEYS);
     let opening = match t.get("opening") {
         None => {
             ctx.err(
@@ -806,8 +548,8 @@ fn dock(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> Option<Dock> {
             }
         },
     };
-    let breadth = num(ctx, t, "breadth", None, Rule::Positive);
-    let depth = num(ctx, t, "depth", None, Rule::Positive);
+    let breadth = ctx.num(t, "breadth", None, Rule::Positive);
+    let depth = ctx.num(t, "depth", None, Rule::Positive);
     let (a, b, _) = opening?;
     let breadth = breadth?;
     let length = (b - a).norm();
@@ -830,25 +572,22 @@ fn dock(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> Option<Dock> {
 }
 
 fn sim_settings(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> SimSettings {
-    unknown_keys(ctx, t, SIM_KEYS);
+    ctx.unknown_keys(t, SIM_KEYS);
     let d = SimSettings::default();
     let deg = |x: Option<f64>, default: f64| x.map_or(default, f64::to_radians);
-    let sonar_sigma = num(
-        ctx,
+    let sonar_sigma = ctx.num(
         t,
         "sonar_sigma",
         Some(d.sonar_sigma),
         Rule::Within(0.0, 1.0),
     );
-    let sonar_dropout = num(
-        ctx,
+    let sonar_dropout = ctx.num(
         t,
         "sonar_dropout",
         Some(d.sonar_dropout),
         Rule::Within(0.0, 1.0),
     );
-    let incidence = num(
-        ctx,
+    let incidence = ctx.num(
         t,
         "incidence_limit_deg",
         Some(d.incidence_limit.to_degrees()),
@@ -869,36 +608,32 @@ fn sim_settings(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> SimSettings {
                     &v.span(),
                     format!(
                         "expected an integer for `rays_per_beam`, found {}",
-                        type_name(other)
+                        other.type_str()
                     ),
                 );
                 d.rays_per_beam
             }
         },
     };
-    let narrow = num(
-        ctx,
+    let narrow = ctx.num(
         t,
         "narrow_half_angle_deg",
         Some(d.narrow_half_angle.to_degrees()),
         Rule::Between(0.0, 90.0),
     );
-    let wide = num(
-        ctx,
+    let wide = ctx.num(
         t,
         "wide_half_angle_deg",
         Some(d.wide_half_angle.to_degrees()),
         Rule::Between(0.0, 90.0),
     );
-    let odo_d = num(
-        ctx,
+    let odo_d = ctx.num(
         t,
         "odometry_distance_sigma",
         Some(d.odometry_distance_sigma),
         Rule::Within(0.0, 1.0),
     );
-    let odo_h = num(
-        ctx,
+    let odo_h = ctx.num(
         t,
         "odometry_heading_sigma_deg",
         Some(d.odometry_heading_sigma.to_degrees()),

@@ -75,7 +75,7 @@
 //! assert!(bad.to_string().contains("<world>:3:1: unknown key `colour` in [world]"));
 //! ```
 //!
-//! [`Diagnostic`]: marie_actors::dispatcher::mission::Diagnostic
+//! [`Diagnostic`]: marie_actors::diagnostic::Diagnostic
 
 mod load;
 mod model;
@@ -85,7 +85,7 @@ pub use model::{
     WorldGeometry,
 };
 
-use marie_actors::dispatcher::mission::{Diagnostic, Diagnostics};
+use marie_actors::diagnostic::{Diagnostic, Diagnostics};
 use std::path::{Path, PathBuf};
 
 /// The worlds shipped in `missions/worlds/`, by name, with their text.

@@ -131,11 +131,10 @@
 //! # Ok::<(), marie_actors::dispatcher::mission::Diagnostics>(())
 //! ```
 
-mod diagnostic;
 mod raw;
 mod validate;
 
-pub use diagnostic::{Diagnostic, Diagnostics, LineIndex, Pos};
+pub use crate::diagnostic::{Diagnostic, Diagnostics, LineIndex, Pos};
 
 use crate::eo::{Identity, Operation};
 use crate::flags::{FlagDecl, StatusFlags};
@@ -258,18 +257,7 @@ impl Mission {
     /// Stage 1 on a file. An unreadable file is one diagnostic at 1:1 naming the file and the
     /// OS error; text that is not UTF-8 is reported at the first invalid byte.
     pub fn parse_file(path: &Path) -> Result<ParsedMission, Diagnostics> {
-        let file = display_path(Some(path));
-        let bytes = std::fs::read(path).map_err(|e| {
-            Diagnostic::new(&file, 1, 1, format!("cannot read mission file {file}: {e}"))
-        })?;
-        let src = String::from_utf8(bytes).map_err(|e| {
-            let bytes = e.as_bytes();
-            let valid = e.utf8_error().valid_up_to();
-            let prefix =
-                std::str::from_utf8(bytes.get(..valid).unwrap_or_default()).unwrap_or_default();
-            let pos = diagnostic::Pos::of(prefix, valid);
-            Diagnostic::at(&file, pos, "the mission file is not valid UTF-8 text")
-        })?;
+        let src = crate::diagnostic::read_source(path, "mission")?;
         Mission::parse(&src, Some(path))
     }
 

@@ -6,8 +6,9 @@
 //! wrong type and missing field, each at its own position. The raw structures are then checked
 //! for what needs no catalog: flag bits, flag names, action names, `ends_on`, deadlines.
 
-use super::diagnostic::{Diagnostic, Diagnostics, LineIndex, Pos};
 use super::{EndMode, ParsedMission};
+use crate::diagnostic::toml::{quote, Reader, Tbl};
+use crate::diagnostic::{Diagnostics, Pos};
 use crate::property::Value;
 use std::collections::{BTreeMap, BTreeSet};
 use std::ops::Range;
@@ -96,28 +97,12 @@ struct RawAction {
     ops: Vec<ParsedOp>,
 }
 
-/// Where problems go while walking the document.
-struct Ctx<'s> {
-    src: &'s str,
-    lines: LineIndex<'s>,
-    file: &'s str,
-    diags: Vec<Diagnostic>,
-}
-
-impl Ctx<'_> {
-    fn pos(&self, span: &Span) -> Pos {
-        self.lines.span(span)
-    }
-
-    fn err(&mut self, span: &Span, message: impl Into<String>) {
-        let d = Diagnostic::at(self.file, self.pos(span), message);
-        self.diags.push(d);
-    }
-}
+/// Where problems go while walking the document: the shared TOML reader.
+type Ctx<'s> = Reader<'s>;
 
 /// Text from the file, quoted for a message: `` `name` ``, with control characters escaped.
 pub(crate) fn q(text: &str) -> String {
-    format!("`{}`", text.escape_debug())
+    quote(text)
 }
 
 /// A list of names for "expected one of" hints.
@@ -132,22 +117,12 @@ pub(crate) fn list<S: AsRef<str>>(names: impl IntoIterator<Item = S>) -> String 
 /// Stage 1 entry point.
 pub(crate) fn parse(src: &str, path: Option<&Path>) -> Result<ParsedMission, Diagnostics> {
     let file = super::display_path(path);
-    let mut ctx = Ctx {
-        src,
-        lines: LineIndex::new(src),
-        file: &file,
-        diags: Vec::new(),
+    let mut ctx = Reader::new(src, file);
+    let Some(doc) = ctx.parse() else {
+        let mut syntax = Diagnostics(ctx.into_diagnostics());
+        syntax.sort();
+        return Err(syntax);
     };
-    let (doc, errors) = DeTable::parse_recoverable(src);
-    if !errors.is_empty() {
-        for e in errors {
-            let span = e.span().unwrap_or(0..0);
-            ctx.err(&span, format!("syntax error: {}", e.message().trim_end()));
-        }
-        let mut diagnostics = Diagnostics(ctx.diags);
-        diagnostics.sort();
-        return Err(diagnostics);
-    }
     let doc = doc.get_ref();
     unknown_keys(&mut ctx, doc, TOP_KEYS, "the mission file");
 
@@ -200,23 +175,17 @@ pub(crate) fn parse(src: &str, path: Option<&Path>) -> Result<ParsedMission, Dia
         Some(v) => raw_actions(&mut ctx, v),
     };
     let mission = check(&mut ctx, path, header, flags, actions);
-    Diagnostics(ctx.diags).into_result(mission)
+    Diagnostics(ctx.into_diagnostics()).into_result(mission)
 }
 
 /// Report every key of `table` not in `allowed`.
 fn unknown_keys(ctx: &mut Ctx<'_>, table: &DeTable<'_>, allowed: &[&str], place: &str) {
-    for key in table.keys() {
-        if !allowed.contains(&key.get_ref().as_ref()) {
-            ctx.err(
-                &key.span(),
-                format!(
-                    "unknown key {} in {place} (expected one of: {})",
-                    q(key.get_ref()),
-                    allowed.join(", ")
-                ),
-            );
-        }
-    }
+    let tbl = Tbl {
+        t: table,
+        span: 0..0,
+        place: place.to_string(),
+    };
+    ctx.unknown_keys(&tbl, allowed);
 }
 
 /// The entries of a table in file order (toml's map orders keys by name).
@@ -294,7 +263,7 @@ fn integer(ctx: &mut Ctx<'_>, v: &Spanned<DeValue<'_>>) -> Option<i64> {
     };
     let parsed = i64::from_str_radix(i.as_str(), i.radix()).ok();
     if parsed.is_none() {
-        let shown = ctx.src.get(v.span()).unwrap_or_default().to_string();
+        let shown = ctx.src().get(v.span()).unwrap_or_default().to_string();
         ctx.err(
             &v.span(),
             format!("integer {shown} is out of range (expected a 64-bit signed integer)"),
@@ -310,7 +279,7 @@ fn float(ctx: &mut Ctx<'_>, v: &Spanned<DeValue<'_>>) -> Option<f64> {
     match f.as_str().parse::<f64>() {
         Ok(x) if x.is_finite() || f.as_str().contains("inf") || x.is_nan() => Some(x),
         _ => {
-            let shown = ctx.src.get(v.span()).unwrap_or_default().to_string();
+            let shown = ctx.src().get(v.span()).unwrap_or_default().to_string();
             ctx.err(
                 &v.span(),
                 format!("float {shown} is out of range (expected a 64-bit float)"),
@@ -335,7 +304,7 @@ fn seconds(ctx: &mut Ctx<'_>, v: &Spanned<DeValue<'_>>, field: &str) -> Option<D
             return None;
         }
     };
-    let shown = ctx.src.get(v.span()).unwrap_or_default().to_string();
+    let shown = ctx.src().get(v.span()).unwrap_or_default().to_string();
     if !(x.is_finite() && x > 0.0) {
         ctx.err(
             &v.span(),

@@ -1,8 +1,8 @@
 //! Stage 2: a [`ParsedMission`] checked against the operations a [`Catalog`] offers.
 
-use super::diagnostic::{Diagnostic, Diagnostics};
 use super::raw::{list, q, ParsedOp, ParsedParam};
 use super::{Action, Catalog, Mission, OpInfo, OpRun, ParsedMission};
+use crate::diagnostic::{Diagnostic, Diagnostics};
 use crate::flags::StatusFlags;
 use crate::property::{ParamMap, RejectReason};
 use std::collections::{BTreeMap, BTreeSet};

@@ -1,9 +1,37 @@
-//! Problems found in a mission file, each with its `file:line:column`.
+//! Problems found in a TOML file of marie's — a mission, a world, a node config — each
+//! with its `file:line:column`, and the pieces every such loader shares.
+//!
+//! One module serves every file format so that every bad input reads the same way:
+//! `path:line:column: what was expected`, one line per problem, sorted by position.
+//!
+//! - [`Pos`], [`LineIndex`] — byte offsets to 1-based line and column;
+//! - [`Diagnostic`], [`Diagnostics`] — the problems, displayed the way editors link them;
+//! - [`read_source`] — reading a file safely: a directory, a device, a fifo or a huge file is
+//!   refused *before* it is read, and text that is not UTF-8 is reported at its first bad
+//!   byte;
+//! - [`toml`] — the span-keeping TOML reader that walks a document by hand so one pass
+//!   reports every unknown key, wrong type and out-of-range value at its own position.
+//!
+//! ```
+//! use marie_actors::diagnostic::toml::{Reader, Rule};
+//! let src = "[cart]\nspeed = -2\n";
+//! let mut r = Reader::new(src, "cart.toml");
+//! let doc = r.parse().unwrap();
+//! let top = r.top(&doc, "the file");
+//! let cart = r.table(top.get("cart").unwrap(), "[cart]").unwrap();
+//! assert_eq!(r.num(&cart, "speed", Some(1.0), Rule::Positive), None);
+//! let diags = r.finish(Some(()), "the file is not valid").unwrap_err();
+//! assert_eq!(diags.to_string(), "cart.toml:2:9: `speed` must be greater than 0, found -2");
+//! ```
+
+pub mod toml;
 
 use std::fmt;
+use std::io::Read;
 use std::ops::Range;
+use std::path::Path;
 
-/// A position in a mission file: 1-based line and 1-based column (counted in characters, not
+/// A position in a text file: 1-based line and 1-based column (counted in characters, not
 /// bytes).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct Pos {
@@ -77,13 +105,13 @@ impl fmt::Display for Pos {
     }
 }
 
-/// One problem in a mission: where (`path:line:column`) and what was expected.
+/// One problem in a file: where (`path:line:column`) and what was expected.
 ///
 /// Displays as `path:line:column: message`, the form editors and terminals link to.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 #[error("{path}:{line}:{column}: {message}")]
 pub struct Diagnostic {
-    /// The mission file's path, or `<mission>` for a mission given as text.
+    /// The file's path, or a placeholder such as `<mission>` for text given without one.
     pub path: String,
     /// 1-based line.
     pub line: usize,
@@ -115,7 +143,7 @@ impl Diagnostic {
     }
 }
 
-/// Every problem found in one stage of checking a mission, sorted by position.
+/// Every problem found in one stage of checking a file, sorted by position.
 ///
 /// Displays one diagnostic per line. Never empty when returned as an error.
 #[derive(Clone, Debug, Default, PartialEq, Eq, thiserror::Error)]
@@ -146,7 +174,7 @@ impl Diagnostics {
     }
 
     /// `Ok(value)` when there is no diagnostic, otherwise the sorted diagnostics.
-    pub(crate) fn into_result<T>(mut self, value: T) -> Result<T, Diagnostics> {
+    pub fn into_result<T>(mut self, value: T) -> Result<T, Diagnostics> {
         if self.0.is_empty() {
             Ok(value)
         } else {
@@ -154,6 +182,58 @@ impl Diagnostics {
             Err(self)
         }
     }
+}
+
+/// The largest file marie reads as a mission, world or node config. Real ones are a few
+/// KiB; anything this large is a mistake (a log, an image, `/dev/zero`), refused before
+/// it is read.
+pub const MAX_SOURCE_BYTES: u64 = 4 * 1024 * 1024;
+
+/// Read the text of `path`, a `what` file (e.g. `"mission"`), as a loader needs it: a path that
+/// is not a regular file (a directory, a device, a fifo) or is larger than
+/// [`MAX_SOURCE_BYTES`] is refused without reading it, an unreadable file names the OS error,
+/// and text that is not UTF-8 is reported at its first invalid byte. Every error is one
+/// diagnostic at the file's `1:1` (or the bad byte's position).
+pub fn read_source(path: &Path, what: &str) -> Result<String, Diagnostic> {
+    let file = path.display().to_string();
+    let at_start = |message: String| Diagnostic::new(&file, 1, 1, message);
+    let meta = std::fs::metadata(path)
+        .map_err(|e| at_start(format!("cannot read {what} file {file}: {e}")))?;
+    if !meta.is_file() {
+        let kind = if meta.is_dir() {
+            "a directory"
+        } else {
+            "not a regular file"
+        };
+        return Err(at_start(format!(
+            "cannot read {what} file {file}: it is {kind} (expected a TOML file)"
+        )));
+    }
+    if meta.len() > MAX_SOURCE_BYTES {
+        return Err(at_start(format!(
+            "{what} file {file} is {} bytes, more than the {MAX_SOURCE_BYTES} a {what} file may have",
+            meta.len()
+        )));
+    }
+    let mut bytes = Vec::with_capacity(meta.len() as usize);
+    std::fs::File::open(path)
+        .and_then(|f| f.take(MAX_SOURCE_BYTES + 1).read_to_end(&mut bytes))
+        .map_err(|e| at_start(format!("cannot read {what} file {file}: {e}")))?;
+    if bytes.len() as u64 > MAX_SOURCE_BYTES {
+        return Err(at_start(format!(
+            "{what} file {file} grew past {MAX_SOURCE_BYTES} bytes while it was read"
+        )));
+    }
+    String::from_utf8(bytes).map_err(|e| {
+        let valid = e.utf8_error().valid_up_to();
+        let prefix =
+            std::str::from_utf8(e.as_bytes().get(..valid).unwrap_or_default()).unwrap_or_default();
+        Diagnostic::at(
+            &file,
+            Pos::of(prefix, valid),
+            format!("the {what} file is not valid UTF-8 text"),
+        )
+    })
 }
 
 fn one_per_line(diagnostics: &[Diagnostic]) -> String {
@@ -217,5 +297,30 @@ mod tests {
         ]);
         d.sort();
         assert_eq!(d.to_string(), "m.toml:1:2: a\nm.toml:1:9: b\nm.toml:3:1: c");
+    }
+
+    #[test]
+    fn a_directory_or_device_is_refused_without_reading_it() {
+        let dir = std::env::temp_dir();
+        let d = read_source(&dir, "mission").unwrap_err();
+        assert!(d.message.contains("is a directory"), "{d}");
+        if Path::new("/dev/zero").exists() {
+            let d = read_source(Path::new("/dev/zero"), "world").unwrap_err();
+            assert!(d.message.contains("not a regular file"), "{d}");
+        }
+        let d = read_source(Path::new("/no/such/file.toml"), "node config").unwrap_err();
+        assert!(d
+            .to_string()
+            .starts_with("/no/such/file.toml:1:1: cannot read node config file"));
+    }
+
+    #[test]
+    fn text_that_is_not_utf8_is_reported_at_its_first_bad_byte() {
+        let path = std::env::temp_dir().join(format!("marie-diag-{}.toml", std::process::id()));
+        std::fs::write(&path, b"a = 1\nb = \"\xff\"\n").unwrap();
+        let d = read_source(&path, "mission").unwrap_err();
+        let _ = std::fs::remove_file(&path);
+        assert_eq!((d.line, d.column), (2, 6), "{d}");
+        assert!(d.message.contains("not valid UTF-8"), "{d}");
     }
 }

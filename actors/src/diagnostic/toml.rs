@@ -1,0 +1,460 @@
+//! The span-keeping TOML reader shared by every file loader (missions, worlds, node configs).
+//!
+//! The text is parsed by toml's span-preserving parser ([`DeTable`]: every key and value is a
+//! [`Spanned`]) and walked by hand. A derived `Deserialize` stops at the first problem; walking
+//! the table lets one pass report *every* unknown key, wrong type, missing field and
+//! out-of-range number, each at its own position — which is what a person fixing a file by
+//! hand needs. A [`Reader`] collects the problems; its helpers return `None` (or a default)
+//! after recording one, so a loader simply carries on and reports the rest.
+
+use super::{Diagnostic, Diagnostics, LineIndex, Pos};
+use std::ops::{Range, RangeInclusive};
+use toml::de::{DeTable, DeValue};
+use toml::Spanned;
+
+/// A byte range of the source.
+pub type Span = Range<usize>;
+
+/// A value with its span.
+pub type Val<'i> = Spanned<DeValue<'i>>;
+
+/// Where problems go while a document is walked.
+pub struct Reader<'s> {
+    src: &'s str,
+    lines: LineIndex<'s>,
+    file: String,
+    diags: Vec<Diagnostic>,
+}
+
+/// A table being read: its entries, where it starts, and how messages name it
+/// (e.g. `[cart]`, `[[operation]] #2`).
+pub struct Tbl<'a, 'i> {
+    /// The entries.
+    pub t: &'a DeTable<'i>,
+    /// Where the table starts (missing keys are reported here).
+    pub span: Span,
+    /// How messages name the table.
+    pub place: String,
+}
+
+impl<'a, 'i> Tbl<'a, 'i> {
+    /// The value of `key`, if present.
+    pub fn get(&self, key: &str) -> Option<&'a Val<'i>> {
+        self.t.get(key)
+    }
+
+    /// The entries in file order (toml's map orders keys by name).
+    pub fn in_file_order(&self) -> Vec<(&'a Spanned<std::borrow::Cow<'i, str>>, &'a Val<'i>)> {
+        let mut entries: Vec<_> = self.t.iter().collect();
+        entries.sort_by_key(|(k, _)| k.span().start);
+        entries
+    }
+}
+
+/// What a number must satisfy; the message says the rule in words.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Rule {
+    /// Any finite number.
+    Any,
+    /// x > 0.
+    Positive,
+    /// x ≥ 0.
+    NonNegative,
+    /// lo < x ≤ hi.
+    AboveUpTo(f64, f64),
+    /// lo < x < hi.
+    Between(f64, f64),
+    /// lo ≤ x ≤ hi.
+    Within(f64, f64),
+}
+
+impl Rule {
+    /// `Ok` when `x` satisfies the rule, otherwise what was expected, in words.
+    pub fn check(self, x: f64) -> Result<(), String> {
+        let (ok, want) = match self {
+            Rule::Any => (x.is_finite(), "a finite number".to_string()),
+            Rule::Positive => (x > 0.0, "greater than 0".to_string()),
+            Rule::NonNegative => (x >= 0.0, "at least 0".to_string()),
+            Rule::AboveUpTo(lo, hi) => (x > lo && x <= hi, format!("in ({lo}, {hi}]")),
+            Rule::Between(lo, hi) => (x > lo && x < hi, format!("in ({lo}, {hi})")),
+            Rule::Within(lo, hi) => (x >= lo && x <= hi, format!("in [{lo}, {hi}]")),
+        };
+        if ok {
+            Ok(())
+        } else {
+            Err(want)
+        }
+    }
+}
+
+/// Text from the file, quoted for a message: `` `name` ``, with control characters escaped.
+pub fn quote(text: &str) -> String {
+    format!("`{}`", text.escape_debug())
+}
+
+impl<'s> Reader<'s> {
+    /// A reader of `src`, naming `file` in its diagnostics.
+    pub fn new(src: &'s str, file: impl Into<String>) -> Self {
+        Reader {
+            src,
+            lines: LineIndex::new(src),
+            file: file.into(),
+            diags: Vec::new(),
+        }
+    }
+
+    /// The text being read.
+    pub fn src(&self) -> &'s str {
+        self.src
+    }
+
+    /// The file name diagnostics show.
+    pub fn file(&self) -> &str {
+        &self.file
+    }
+
+    /// The position of the start of `span`.
+    pub fn pos(&self, span: &Span) -> Pos {
+        self.lines.span(span)
+    }
+
+    /// Record a problem at the start of `span`.
+    pub fn err(&mut self, span: &Span, message: impl Into<String>) {
+        let d = Diagnostic::at(&self.file, self.pos(span), message);
+        self.diags.push(d);
+    }
+
+    /// Record a diagnostic found elsewhere (e.g. in a file this one names).
+    pub fn push(&mut self, d: Diagnostic) {
+        self.diags.push(d);
+    }
+
+    /// True when a problem has been recorded.
+    pub fn has_errors(&self) -> bool {
+        !self.diags.is_empty()
+    }
+
+    /// The problems recorded so far, consuming the reader.
+    pub fn into_diagnostics(self) -> Vec<Diagnostic> {
+        self.diags
+    }
+
+    /// Parse the document; every syntax error is recorded at its position and `None`
+    /// returned.
+    pub fn parse(&mut self) -> Option<Spanned<DeTable<'s>>> {
+        let (doc, errors) = DeTable::parse_recoverable(self.src);
+        if errors.is_empty() {
+            return Some(doc);
+        }
+        for e in errors {
+            let span = e.span().unwrap_or(0..0);
+            self.err(&span, format!("syntax error: {}", e.message().trim_end()));
+        }
+        None
+    }
+
+    /// The document's top table, named `place` in messages.
+    pub fn top<'a, 'i>(&self, doc: &'a Spanned<DeTable<'i>>, place: &str) -> Tbl<'a, 'i> {
+        Tbl {
+            t: doc.get_ref(),
+            span: 0..0,
+            place: place.to_string(),
+        }
+    }
+
+    /// `Ok(value)` when nothing was recorded and there is a value; otherwise the sorted
+    /// diagnostics (with `fallback` at 1:1 should a value be missing without a recorded
+    /// reason).
+    pub fn finish<T>(self, value: Option<T>, fallback: &str) -> Result<T, Diagnostics> {
+        match value {
+            Some(v) if self.diags.is_empty() => Ok(v),
+            _ => {
+                let mut diags = Diagnostics(self.diags);
+                if diags.is_empty() {
+                    diags.0.push(Diagnostic::new(&self.file, 1, 1, fallback));
+                }
+                diags.sort();
+                Err(diags)
+            }
+        }
+    }
+
+    /// The value as a table, or a diagnostic.
+    pub fn table<'a, 'i>(&mut self, v: &'a Val<'i>, place: &str) -> Option<Tbl<'a, 'i>> {
+        match v.get_ref() {
+            DeValue::Table(t) => Some(Tbl {
+                t,
+                span: v.span(),
+                place: place.to_string(),
+            }),
+            other => {
+                self.err(
+                    &v.span(),
+                    format!("expected a table for {place}, found {}", other.type_str()),
+                );
+                None
+            }
+        }
+    }
+
+    /// Record every key of `tbl` not in `allowed`, in file order.
+    pub fn unknown_keys(&mut self, tbl: &Tbl<'_, '_>, allowed: &[&str]) {
+        for (key, _) in tbl.in_file_order() {
+            if !allowed.contains(&key.get_ref().as_ref()) {
+                self.err(
+                    &key.span(),
+                    format!(
+                        "unknown key {} in {} (expected one of: {})",
+                        quote(key.get_ref()),
+                        tbl.place,
+                        allowed.join(", ")
+                    ),
+                );
+            }
+        }
+    }
+
+    /// A finite number (integer or float), or a diagnostic.
+    pub fn number(&mut self, v: &Val<'_>, field: &str) -> Option<f64> {
+        let x = match v.get_ref() {
+            DeValue::Integer(i) => match i64::from_str_radix(i.as_str(), i.radix()) {
+                Ok(n) => n as f64,
+                Err(_) => {
+                    self.err(&v.span(), format!("`{field}`: integer out of range"));
+                    return None;
+                }
+            },
+            DeValue::Float(f) => f.as_str().parse::<f64>().unwrap_or(f64::NAN),
+            other => {
+                self.err(
+                    &v.span(),
+                    format!(
+                        "expected a number for `{field}`, found {}",
+                        other.type_str()
+                    ),
+                );
+                return None;
+            }
+        };
+        if !x.is_finite() {
+            self.err(&v.span(), format!("`{field}` must be a finite number"));
+            return None;
+        }
+        Some(x)
+    }
+
+    /// Number `key` of `tbl`: `default` when absent (a diagnostic when there is no default),
+    /// the value when it satisfies `rule`, otherwise a diagnostic and `None`.
+    pub fn num(
+        &mut self,
+        tbl: &Tbl<'_, '_>,
+        key: &str,
+        default: Option<f64>,
+        rule: Rule,
+    ) -> Option<f64> {
+        let Some(v) = tbl.get(key) else {
+            if default.is_none() {
+                self.err(&tbl.span, format!("missing `{key}` in {}", tbl.place));
+            }
+            return default;
+        };
+        let x = self.number(v, key)?;
+        match rule.check(x) {
+            Ok(()) => Some(x),
+            Err(want) => {
+                self.err(&v.span(), format!("`{key}` must be {want}, found {x}"));
+                None
+            }
+        }
+    }
+
+    /// Integer `key` of `tbl` within `range`: `default` when absent (a diagnostic when there is
+    /// no default); a float, a string or a number out of range is a diagnostic and `None`.
+    pub fn integer(
+        &mut self,
+        tbl: &Tbl<'_, '_>,
+        key: &str,
+        default: Option<i64>,
+        range: RangeInclusive<i64>,
+    ) -> Option<i64> {
+        let Some(v) = tbl.get(key) else {
+            if default.is_none() {
+                self.err(&tbl.span, format!("missing `{key}` in {}", tbl.place));
+            }
+            return default;
+        };
+        let n = match v.get_ref() {
+            DeValue::Integer(i) => i64::from_str_radix(i.as_str(), i.radix()).ok(),
+            other => {
+                self.err(
+                    &v.span(),
+                    format!(
+                        "expected an integer for `{key}`, found {}",
+                        other.type_str()
+                    ),
+                );
+                return None;
+            }
+        };
+        match n {
+            Some(n) if range.contains(&n) => Some(n),
+            _ => {
+                self.err(
+                    &v.span(),
+                    format!(
+                        "`{key}` must be an integer in [{}, {}], found {}",
+                        range.start(),
+                        range.end(),
+                        text_of(v)
+                    ),
+                );
+                None
+            }
+        }
+    }
+
+    /// String `key` of `tbl`, if present; a non-string is a diagnostic.
+    pub fn string(&mut self, tbl: &Tbl<'_, '_>, key: &str) -> Option<String> {
+        let v = tbl.get(key)?;
+        self.string_value(v, key)
+    }
+
+    /// The value as a string, or a diagnostic naming `field`.
+    pub fn string_value(&mut self, v: &Val<'_>, field: &str) -> Option<String> {
+        match v.get_ref() {
+            DeValue::String(s) => Some(s.to_string()),
+            other => {
+                self.err(
+                    &v.span(),
+                    format!(
+                        "expected a string for `{field}`, found {}",
+                        other.type_str()
+                    ),
+                );
+                None
+            }
+        }
+    }
+
+    /// A non-empty string `key` of `tbl`; missing or blank is a diagnostic.
+    pub fn required_string(&mut self, tbl: &Tbl<'_, '_>, key: &str) -> Option<String> {
+        let Some(v) = tbl.get(key) else {
+            self.err(&tbl.span, format!("missing `{key}` in {}", tbl.place));
+            return None;
+        };
+        let s = self.string_value(v, key)?;
+        if s.trim().is_empty() {
+            self.err(&v.span(), format!("`{key}` must not be empty"));
+            return None;
+        }
+        Some(s)
+    }
+
+    /// Boolean `key` of `tbl`, `default` when absent or not a boolean (then a diagnostic).
+    pub fn boolean(&mut self, tbl: &Tbl<'_, '_>, key: &str, default: bool) -> bool {
+        let Some(v) = tbl.get(key) else {
+            return default;
+        };
+        match v.get_ref() {
+            DeValue::Boolean(b) => *b,
+            other => {
+                self.err(
+                    &v.span(),
+                    format!(
+                        "expected true or false for `{key}`, found {}",
+                        other.type_str()
+                    ),
+                );
+                default
+            }
+        }
+    }
+
+    /// The tables of a `[[name]]` array, or diagnostics (`None` for an entry that is not a
+    /// table, so callers keep their numbering).
+    pub fn table_array<'a, 'i>(&mut self, v: &'a Val<'i>, name: &str) -> Vec<Option<Tbl<'a, 'i>>> {
+        let DeValue::Array(items) = v.get_ref() else {
+            self.err(
+                &v.span(),
+                format!(
+                    "expected `[[{name}]]` tables, found {}",
+                    v.get_ref().type_str()
+                ),
+            );
+            return Vec::new();
+        };
+        items
+            .iter()
+            .enumerate()
+            .map(|(i, item)| self.table(item, &format!("[[{name}]] #{}", i + 1)))
+            .collect()
+    }
+}
+
+/// The literal text of a scalar, for messages.
+fn text_of(v: &Val<'_>) -> String {
+    match v.get_ref() {
+        DeValue::Integer(i) => i.as_str().to_string(),
+        DeValue::Float(f) => f.as_str().to_string(),
+        DeValue::String(s) => quote(s),
+        DeValue::Boolean(b) => b.to_string(),
+        other => other.type_str().to_string(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn read(src: &str, f: impl FnOnce(&mut Reader<'_>, &Tbl<'_, '_>)) -> String {
+        let mut r = Reader::new(src, "f.toml");
+        let doc = r.parse().expect("valid toml");
+        let top = r.top(&doc, "the file");
+        f(&mut r, &top);
+        match r.finish(Some(()), "invalid") {
+            Ok(()) => String::new(),
+            Err(d) => d.to_string(),
+        }
+    }
+
+    #[test]
+    fn every_problem_is_reported_at_its_own_position() {
+        let out = read("a = \"x\"\nb = 3.5\nzz = 1\nc = 1e400\n", |r, t| {
+            r.unknown_keys(t, &["a", "b", "c"]);
+            assert_eq!(r.num(t, "a", None, Rule::Any), None);
+            assert_eq!(r.integer(t, "b", Some(1), 0..=9), None);
+            assert_eq!(r.num(t, "c", None, Rule::Any), None);
+            assert_eq!(r.num(t, "d", Some(2.0), Rule::Any), Some(2.0));
+            assert_eq!(r.num(t, "e", None, Rule::Any), None);
+        });
+        assert_eq!(
+            out,
+            "f.toml:1:1: missing `e` in the file\n\
+             f.toml:1:5: expected a number for `a`, found string\n\
+             f.toml:2:5: expected an integer for `b`, found float\n\
+             f.toml:3:1: unknown key `zz` in the file (expected one of: a, b, c)\n\
+             f.toml:4:5: `c` must be a finite number"
+        );
+    }
+
+    #[test]
+    fn integers_and_rules_name_their_range() {
+        let out = read("n = 12\nx = 0\n", |r, t| {
+            assert_eq!(r.integer(t, "n", None, 1..=10), None);
+            assert_eq!(r.num(t, "x", None, Rule::Positive), None);
+        });
+        assert_eq!(
+            out,
+            "f.toml:1:5: `n` must be an integer in [1, 10], found 12\n\
+             f.toml:2:5: `x` must be greater than 0, found 0"
+        );
+    }
+
+    #[test]
+    fn syntax_errors_are_positioned_and_stop_the_walk() {
+        let mut r = Reader::new("a = \n", "f.toml");
+        assert!(r.parse().is_none());
+        let d = r.finish::<()>(None, "invalid").unwrap_err();
+        assert!(d.to_string().starts_with("f.toml:1:"), "{d}");
+    }
+}
