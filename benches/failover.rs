@@ -19,7 +19,7 @@ use marie::actors::eo::{
 use marie::actors::flags::FlagDecl;
 use marie::actors::property::{ParamDecl, ParamSchema};
 use marie::actors::registry::{self, ModuleKind};
-use marie::supervision::fault::{self, FaultKind};
+use marie::fault::{self, FaultKind};
 use marie::supervision::{ChildSpec, Supervisor, SupervisorSpec};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicIsize, Ordering};

@@ -13,7 +13,7 @@ use marie::actors::eo::{
 use marie::actors::flags::{FlagDecl, StatusFlags};
 use marie::actors::property::{Group, ParamDecl, ParamSchema, PropertyReply, PropertyRequest};
 use marie::actors::registry::{self, ModuleKind};
-use marie::supervision::fault::{self, FaultKind};
+use marie::fault::{self, FaultKind};
 use marie::supervision::{ChildSpec, Supervisor, SupervisorSpec};
 use std::time::Duration;
 

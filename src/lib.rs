@@ -4,13 +4,16 @@
 //! architecture of the MARIE mobile robot (elementary operations, datamanagers, an action
 //! dispatcher, a location table) re-created as [ractor] actors.
 //!
-//! This crate is the facade: it re-exports the member crates and offers [`node::Node`], the
-//! embedded single-process node that the `marie` command runs.
+//! This crate is the facade: it re-exports the member crates — the node is
+//! [`cluster::node`] ([`node`] here too), the robot [`missions`] — and offers
+//! [`embedded::Embedded`], the single-process node the `marie` command runs.
 //!
 //! ```no_run
-//! use marie::node::{Node, NodeOptions};
+//! use marie::node::{Node, NodeConfig, NodeOptions};
 //! # #[tokio::main] async fn main() -> Result<(), Box<dyn std::error::Error>> {
-//! let node = Node::start(NodeOptions::default()).await?;
+//! let catalog = marie::missions::catalog();
+//! let config = NodeConfig::everything("solo", &catalog);
+//! let node = Node::start(config, NodeOptions::with_catalog(catalog)).await?;
 //! let mission = node.load_mission(std::path::Path::new("missions/demo.toml")).await?;
 //! let report = node.run(mission, None).await?;
 //! println!("{:?}", report.outcome);
@@ -25,5 +28,6 @@ pub use marie_cluster as cluster;
 pub use marie_missions as missions;
 pub use marie_supervision as supervision;
 
-pub mod faults;
-pub mod node;
+pub use marie_cluster::{fault, node};
+
+pub mod embedded;

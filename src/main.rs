@@ -5,15 +5,14 @@
 
 use anyhow::Context;
 use clap::{Parser, Subcommand, ValueEnum};
-use marie::actors::dispatcher::mission::{Diagnostics, Mission};
+use marie::actors::dispatcher::mission::Mission;
 use marie::actors::dispatcher::{DispatchEvent, Outcome, RunReport};
 use marie::actors::eo::EoClient;
 use marie::actors::property::{Group, PropertyReply, PropertyRequest};
 use marie::actors::registry::{self, ModuleKind};
-use marie::faults::FaultPlan;
-use marie::missions::world::World;
-use marie::node::{Node, NodeError, NodeOptions};
-use marie::supervision::fault::{self, Chaos, FaultKind, FaultSpec};
+use marie::embedded::{Embedded, EmbeddedError, EmbeddedOptions};
+use marie::fault::{self, Chaos, FaultKind, FaultPlan, FaultSpec};
+use marie::node::{Node, NodeError};
 use marie::supervision::SupervisorEvent;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -70,11 +69,13 @@ enum Command {
         #[command(flatten)]
         robot: RobotArgs,
     },
-    /// List the location table.
+    /// List the location table of the embedded node.
     Ls {
         /// Print JSON instead of the start-up log format.
         #[arg(long)]
         json: bool,
+        #[command(flatten)]
+        robot: RobotArgs,
     },
     /// Kill an operation on the embedded node and show its supervisor restarting it.
     Kill {
@@ -90,6 +91,8 @@ enum Command {
         /// Print JSON.
         #[arg(long)]
         json: bool,
+        #[command(flatten)]
+        robot: RobotArgs,
     },
 }
 
@@ -100,9 +103,27 @@ struct RobotArgs {
     /// either, no robot is started.
     #[arg(long, value_name = "FILE")]
     world: Option<PathBuf>,
-    /// Seed of the simulation's noise (same world, seed and mission: same run).
-    #[arg(long, value_name = "N", default_value_t = marie::node::DEFAULT_SEED)]
-    seed: u64,
+    /// Seed of the simulation's noise (same world, seed and mission: same run); default:
+    /// the node config's, else 1.
+    #[arg(long, value_name = "N")]
+    seed: Option<u64>,
+    /// Host exactly what this node config says (`missions/nodes/*.toml`); default: a
+    /// built-in node that hosts everything.
+    #[arg(long, value_name = "FILE")]
+    node: Option<PathBuf>,
+}
+
+impl RobotArgs {
+    /// The embedded node's options for a mission whose world is `mission_world`.
+    fn options(&self, mission_world: Option<&Path>) -> EmbeddedOptions {
+        EmbeddedOptions {
+            node: self.node.clone(),
+            world: self.world.clone(),
+            mission_world: mission_world.map(Path::to_path_buf),
+            seed: self.seed,
+            ..EmbeddedOptions::default()
+        }
+    }
 }
 
 /// `--speed max`: virtual time, as fast as the CPU allows.
@@ -167,9 +188,11 @@ fn main() -> ExitCode {
                 eprintln!("{diags}");
                 return ExitCode::from(2);
             }
-            if let Some(WorldFile(diags)) = e.downcast_ref::<WorldFile>() {
-                eprintln!("{diags}");
-                return ExitCode::from(2);
+            if let Some(err) = e.downcast_ref::<EmbeddedError>() {
+                if err.is_bad_input() {
+                    eprintln!("{err}");
+                    return ExitCode::from(2);
+                }
             }
             if e.downcast_ref::<BadInput>().is_some() {
                 eprintln!("marie: {e:#}");
@@ -184,11 +207,6 @@ fn main() -> ExitCode {
 #[derive(Debug, thiserror::Error)]
 #[error("{0}")]
 struct BadInput(String);
-
-/// A world file that does not load: its diagnostics (exit 2).
-#[derive(Debug, thiserror::Error)]
-#[error("{0}")]
-struct WorldFile(Diagnostics);
 
 async fn run(command: Command) -> anyhow::Result<ExitCode> {
     match command {
@@ -218,16 +236,16 @@ async fn run(command: Command) -> anyhow::Result<ExitCode> {
                 m.actions.len(),
                 m.operation_names().len(),
                 prepared
-                    .node
-                    .world()
-                    .map(|w| format!(", world `{}`", w.name))
+                    .robot
+                    .as_ref()
+                    .map(|r| format!(", world `{}`", r.world().name))
                     .unwrap_or_default()
             );
             prepared.node.shutdown().await;
             Ok(ExitCode::SUCCESS)
         }
-        Command::Ls { json } => {
-            let node = Node::start(NodeOptions::default()).await?;
+        Command::Ls { json, robot } => {
+            let node = Embedded::start(robot.options(None)).await?.node;
             let list = registry::list();
             if json {
                 let rows: Vec<_> = list
@@ -246,8 +264,12 @@ async fn run(command: Command) -> anyhow::Result<ExitCode> {
             node.shutdown().await;
             Ok(ExitCode::SUCCESS)
         }
-        Command::Props { operation, json } => {
-            let node = Node::start(NodeOptions::default()).await?;
+        Command::Props {
+            operation,
+            json,
+            robot,
+        } => {
+            let node = Embedded::start(robot.options(None)).await?.node;
             let result = props(&operation, json).await;
             node.shutdown().await;
             result
@@ -258,6 +280,7 @@ async fn run(command: Command) -> anyhow::Result<ExitCode> {
 /// A node started for a mission, with the mission checked against it.
 struct Prepared {
     node: Node,
+    robot: Option<std::sync::Arc<marie::missions::robot::SimRobot>>,
     mission: Mission,
     /// The world file the robot drives in, when one runs.
     world_path: Option<PathBuf>,
@@ -266,14 +289,14 @@ struct Prepared {
 impl Prepared {
     /// `world `lab` from FILE, seed N`, when a robot runs.
     fn world_line(&self) -> Option<String> {
-        let world = self.node.world()?;
+        let robot = self.robot.as_ref()?;
         Some(format!(
             "world `{}` from {}, seed {}",
-            world.name,
+            robot.world().name,
             self.world_path
                 .as_deref()
                 .map_or_else(|| "?".into(), |p| p.display().to_string()),
-            self.node.seed().unwrap_or_default()
+            robot.seed()
         ))
     }
 }
@@ -282,23 +305,19 @@ impl Prepared {
 /// start the node (with the robot when there is a world) and check the mission against it.
 async fn prepare(path: &Path, robot: RobotArgs, speed: f64) -> anyhow::Result<Prepared> {
     let parsed = Mission::parse_file(path).map_err(NodeError::Mission)?;
-    let world_path = robot
-        .world
-        .or_else(|| parsed.world().map(Path::to_path_buf));
-    let world = match &world_path {
-        Some(p) => Some(World::load(p).map_err(WorldFile)?),
-        None => None,
-    };
-    let node = Node::start(NodeOptions {
-        speed,
-        world,
-        seed: robot.seed,
-        ..Default::default()
-    })
-    .await?;
+    let mut options = robot.options(parsed.world());
+    if speed.is_finite() && (speed - 1.0).abs() > f64::EPSILON {
+        options.clock = std::sync::Arc::new(marie::actors::clock::ScaledClock::new(speed));
+    }
+    let Embedded {
+        node,
+        robot,
+        world_path,
+    } = Embedded::start(options).await?;
     match node.check_mission(&parsed).await {
         Ok(mission) => Ok(Prepared {
             node,
+            robot,
             mission,
             world_path,
         }),
@@ -320,7 +339,7 @@ async fn run_mission(
     // on the paused-clock runtime, the runtime's own time is already virtual
     let speed = if speed.is_infinite() { 1.0 } else { speed };
     let prepared = prepare(&path, robot, speed).await?;
-    if svg_path.is_some() && prepared.node.world().is_none() {
+    if svg_path.is_some() && prepared.robot.is_none() {
         prepared.node.shutdown().await;
         return Err(BadInput(format!(
             "--svg draws a robot's run, but no robot runs: give a world with --world FILE \
@@ -348,7 +367,12 @@ async fn run_mission(
             .into());
         }
     }
-    let Prepared { node, mission, .. } = prepared;
+    let Prepared {
+        node,
+        robot,
+        mission,
+        ..
+    } = prepared;
     let (tx, mut rx) = mpsc::unbounded_channel();
     let printer = tokio::spawn(async move {
         while let Some(evt) = rx.recv().await {
@@ -357,11 +381,11 @@ async fn run_mission(
     });
     let report = node.run_with_faults(mission, Some(tx), plan).await;
     let _ = printer.await;
-    let picture = match (&report, &svg_path) {
-        (Ok(report), Some(_)) => node.picture(report).await,
+    let picture = match (&report, &svg_path, &robot) {
+        (Ok(report), Some(_), Some(robot)) => Some(robot.picture(report).await),
         _ => None,
     };
-    let world = node.world().cloned();
+    let world = robot.as_ref().map(|r| r.world().clone());
     node.shutdown().await;
     let report = report?;
     for f in &report.faults {
@@ -409,16 +433,7 @@ async fn run_mission(
 /// `marie kill`: start the embedded node, kill the operation's live instance and wait for
 /// the operation supervisor to restart it.
 async fn kill(operation: &str, robot: RobotArgs) -> anyhow::Result<ExitCode> {
-    let world = match &robot.world {
-        Some(p) => Some(World::load(p).map_err(WorldFile)?),
-        None => None,
-    };
-    let node = Node::start(NodeOptions {
-        world,
-        seed: robot.seed,
-        ..Default::default()
-    })
-    .await?;
+    let node = Embedded::start(robot.options(None)).await?.node;
     let result = kill_on(&node, operation).await;
     node.shutdown().await;
     result

@@ -6,8 +6,8 @@ mod common;
 
 use common::{marie, report_of, text};
 use marie::actors::registry::{self, ModuleKind};
-use marie::node::{Node, NodeOptions};
-use marie::supervision::fault::{self, FaultKind};
+use marie::fault::{self, FaultKind};
+use marie::node::{Node, NodeConfig, NodeOptions};
 use marie::supervision::SupervisorEvent;
 use std::time::Duration;
 
@@ -115,9 +115,9 @@ fn survives_chaos(mission: &str, seed: &str, min: usize) {
 
 #[test]
 fn docking_completes_under_chaos() {
-    // seed 6 kills the docking detector twice while the cart passes the spot: the stand-ins
-    // resume the search with the echoes gathered before the crashes
-    survives_chaos("missions/docking.toml", "6", 8);
+    // seed 2 kills seven operations, the docking detector twice: the stand-ins resume the
+    // search with the echoes gathered before the crashes
+    survives_chaos("missions/docking.toml", "2", 7);
 }
 
 #[test]
@@ -192,7 +192,11 @@ fn marie_kill_shows_the_operation_supervisor_restarting_the_operation() {
 
 #[tokio::test(flavor = "current_thread", start_paused = true)]
 async fn the_node_tree_is_datamanagers_then_operations_and_heals_a_killed_operation() {
-    let node = Node::start(NodeOptions::default()).await.unwrap();
+    let catalog = marie::missions::builtin_operations();
+    let config = NodeConfig::everything("tree", &catalog);
+    let node = Node::start(config, NodeOptions::with_catalog(catalog))
+        .await
+        .unwrap();
     let ids: Vec<String> = node
         .supervisor()
         .which_children()

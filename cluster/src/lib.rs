@@ -1,8 +1,10 @@
 //! # marie-cluster
 //!
-//! Running marie's actors on several nodes over ractor_cluster (DESIGN.md §6). It starts with
-//! the versioned wire envelope every cross-node frame travels in; node bootstrap, the failure
-//! detector and membership events build on it.
+//! The node — what joins a cluster: its config ([`node::NodeConfig`]: what it hosts), its
+//! supervision tree, the plug a robot fits into ([`node::Robot`]), and fault injection
+//! ([`fault`]). Running marie's actors on several nodes over ractor_cluster (DESIGN.md §6)
+//! builds on it: the versioned wire envelope every cross-node frame travels in is here;
+//! joining, the failure detector and membership events come next.
 //!
 //! ```
 //! use marie_cluster::envelope::{Envelope, WIRE_VERSION};
@@ -15,3 +17,5 @@
 #![warn(missing_docs)]
 
 pub mod envelope;
+pub mod fault;
+pub mod node;

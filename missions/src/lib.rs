@@ -26,71 +26,14 @@ pub mod geom;
 pub mod hardware;
 pub mod ops;
 pub mod picture;
+pub mod robot;
 pub mod sim;
 pub mod world;
 
 use marie_actors::clock::SharedClock;
-use marie_actors::eo::{spawn_operation, spawn_operation_linked, HostOptions, Operation};
+use marie_actors::eo::HostOptions;
+pub use marie_actors::eo::{OperationFactory, StartOperation};
 use ractor::{ActorCell, SpawnErr};
-use std::future::Future;
-use std::pin::Pin;
-use std::sync::Arc;
-
-/// A function that starts one operation instance in a host linked to the given supervisor.
-pub type StartOperation = Arc<
-    dyn Fn(
-            HostOptions,
-            Option<ActorCell>,
-        ) -> Pin<Box<dyn Future<Output = Result<ActorCell, SpawnErr>> + Send>>
-        + Send
-        + Sync,
->;
-
-/// How to start instances of one operation: each call starts a fresh one (new state, new
-/// actor), which is what a supervisor needs to restart a crashed operation.
-#[derive(Clone)]
-pub struct OperationFactory {
-    /// The operation's registry name.
-    pub name: &'static str,
-    /// Its version (two versions of one operation have two factories).
-    pub version: String,
-    /// Start an instance: hosted with these options, linked to the supervisor if given.
-    pub start: StartOperation,
-}
-
-impl OperationFactory {
-    /// The factory of operations built by `O::default()`.
-    pub fn of<O: Operation + Default>(name: &'static str) -> OperationFactory {
-        OperationFactory {
-            name,
-            version: O::default().identity().version.to_string(),
-            start: Arc::new(|options, supervisor| {
-                Box::pin(async move {
-                    let op = O::default();
-                    let actor = match supervisor {
-                        Some(sup) => spawn_operation_linked(op, options, sup).await?.0,
-                        None => spawn_operation(op, options).await?.0,
-                    };
-                    Ok(actor.get_cell())
-                })
-            }),
-        }
-    }
-
-    /// A child id unique among the factories: `name@version`.
-    pub fn key(&self) -> String {
-        format!("{}@{}", self.name, self.version)
-    }
-}
-
-impl std::fmt::Debug for OperationFactory {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("OperationFactory")
-            .field("name", &self.name)
-            .field("version", &self.version)
-            .finish_non_exhaustive()
-    }
-}
 
 /// The built-in demo operations (sampler, averager, checker).
 pub fn builtin_operations() -> Vec<OperationFactory> {
@@ -116,6 +59,14 @@ pub fn robot_operations() -> Vec<OperationFactory> {
         OperationFactory::of::<ops::SensorBasedController>("sensor-based-controller"),
         OperationFactory::of::<ops::CollisionAvoidance>("collision-avoidance"),
     ]
+}
+
+/// Every operation this crate offers — the demo's and the robot's: the catalogue a node
+/// picks what it hosts from ([`marie_cluster::node::NodeConfig`]).
+pub fn catalog() -> Vec<OperationFactory> {
+    let mut all = builtin_operations();
+    all.extend(robot_operations());
+    all
 }
 
 /// Start every operation of `factories` on `clock`, unsupervised.

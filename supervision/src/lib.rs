@@ -82,7 +82,6 @@ mod child;
 mod error;
 mod events;
 mod exit;
-pub mod fault;
 mod handle;
 mod info;
 mod intensity;

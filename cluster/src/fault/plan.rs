@@ -1,13 +1,13 @@
 //! Faults injected into a node's run on a schedule: `marie run --fault KIND:NAME@SECS` and
-//! `--chaos SEED` ([`marie_supervision::fault`] does the injecting).
+//! `--chaos SEED` (the parent module does the injecting).
 //!
 //! Times are mission clock time since the run began, so a fault lands at the same point of a
 //! simulated run whatever the speed. Every injection — and every one that found nothing to
 //! hit — is recorded for the run report.
 
+use super::{Chaos, FaultKind, FaultSpec};
 use marie_actors::clock::SharedClock;
 use marie_actors::dispatcher::FaultRecord;
-use marie_supervision::fault::{self, Chaos, FaultKind, FaultSpec};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 use tokio::sync::watch;
@@ -90,7 +90,7 @@ fn record(
     target: &str,
 ) {
     let at_ms = clock.now().saturating_sub(t0).as_millis() as u64;
-    let rec = match fault::inject(kind, target) {
+    let rec = match super::inject(kind, target) {
         Ok(done) => FaultRecord {
             at_ms,
             fault: kind.to_string(),

@@ -1,5 +1,9 @@
 //! Fault injection: kill, panic or hang an operation, on purpose, to test self-healing.
 //!
+//! It lives with the node (not in `marie-supervision`, which knows no operation): a fault
+//! is aimed at an operation found in the registry, and a [`plan::FaultPlan`] injects faults
+//! on a run's mission clock.
+//!
 //! Tests of embedding applications and the CLI (`marie run --fault kill:NAME@SECS`,
 //! `--chaos SEED`, `marie kill NAME|ID`) use the same three faults:
 //!
@@ -12,7 +16,7 @@
 //!   when the operation misses its answer deadline.
 //!
 //! ```
-//! use marie_supervision::fault::{FaultKind, FaultSpec};
+//! use marie_cluster::fault::{FaultKind, FaultSpec};
 //! use std::time::Duration;
 //! let spec: FaultSpec = "panic:wall-sensor@12.5".parse().unwrap();
 //! assert_eq!(spec.kind, FaultKind::Panic);
@@ -21,9 +25,15 @@
 //! assert!("explode:wall-sensor@1".parse::<FaultSpec>().is_err());
 //! ```
 
+pub mod plan;
+
+pub use plan::FaultPlan;
+
 use marie_actors::eo::{EoClient, Fault};
 use marie_actors::registry::{self, Instance, ModuleKind};
 use ractor::ActorId;
+use rand_xoshiro::rand_core::{Rng, SeedableRng};
+use rand_xoshiro::Xoshiro256StarStar;
 use std::fmt;
 use std::str::FromStr;
 use std::time::Duration;
@@ -171,7 +181,7 @@ pub fn inject_into(kind: FaultKind, inst: &Instance) -> Result<Injected, FaultEr
 /// given. Deterministic for a seed (the same gaps and picks, given the same candidates).
 #[derive(Clone, Debug)]
 pub struct Chaos {
-    rng: crate::SplitMix64,
+    rng: Xoshiro256StarStar,
     /// Shortest gap between two kills.
     pub min_gap: Duration,
     /// Longest gap between two kills.
@@ -182,7 +192,7 @@ impl Chaos {
     /// Chaos seeded by `seed`, with kills every 4 to 12 seconds.
     pub fn new(seed: u64) -> Chaos {
         Chaos {
-            rng: crate::SplitMix64::new(seed),
+            rng: Xoshiro256StarStar::seed_from_u64(seed),
             min_gap: Duration::from_secs(4),
             max_gap: Duration::from_secs(12),
         }
@@ -198,7 +208,7 @@ impl Chaos {
     /// The time until the next kill.
     pub fn next_gap(&mut self) -> Duration {
         let span = self.max_gap.saturating_sub(self.min_gap).as_secs_f64();
-        self.min_gap + Duration::from_secs_f64(span * self.rng.next_f64())
+        self.min_gap + Duration::from_secs_f64(span * unit(self.rng.next_u64()))
     }
 
     /// Pick one of `candidates` (`None` if there are none).
@@ -209,6 +219,11 @@ impl Chaos {
         let i = (self.rng.next_u64() % candidates.len() as u64) as usize;
         candidates.get(i)
     }
+}
+
+/// A uniform draw in [0, 1) from 64 random bits (the top 53, as many as an f64 holds).
+fn unit(bits: u64) -> f64 {
+    (bits >> 11) as f64 / (1u64 << 53) as f64
 }
 
 #[cfg(test)]

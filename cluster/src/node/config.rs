@@ -1,0 +1,688 @@
+//! `NodeConfig`: a node is configured by what it hosts.
+//!
+//! A node config says the node's name; which operations it hosts — by name, with a version
+//! requirement and a number of instances, each under which supervisor and restart policy —;
+//! which datamanagers; whether it runs the simulation (world, seed) and the cart's drivers;
+//! whether it runs a dispatcher. [`Node::start`](super::Node::start) builds its supervision
+//! tree from that and nothing else. The same config is a TOML file (for `marie run --node
+//! FILE`, `missions/nodes/*.toml`) and a Rust value (for embedders).
+//!
+//! ```toml
+//! [node]
+//! name = "v1-only"
+//! dispatcher = true            # default true
+//!
+//! [[datamanager]]              # the thesis' three by name; another needs an `id`
+//! name = "feature"
+//! [[datamanager]]
+//! name = "parameter"
+//! [[datamanager]]
+//! name = "world"
+//!
+//! [simulation]                 # optional: a simulated robot
+//! world = "../worlds/lab.toml" # relative to this file; default: the mission's world
+//! seed = 1                     # default: the command line's --seed
+//! drivers = true               # the cart's drivers (default true)
+//!
+//! [[supervisor]]               # optional: `operations` (one_for_one, 5 in 10 s) always exists
+//! name = "sensing"
+//! strategy = "one_for_all"     # one_for_one | one_for_all | rest_for_one
+//! max_restarts = 3
+//! period_s = 5
+//!
+//! [[operation]]
+//! name = "wall-follower"
+//! version = "1"                # a semver requirement; default "*": every version built in
+//! instances = 1                # default 1; 0 hosts none but allows dynamic instances
+//! supervisor = "operations"    # default
+//! restart = "permanent"        # permanent | transient | temporary
+//! ```
+//!
+//! Every problem — unknown key, wrong type, a number out of range, an operation or version
+//! the node cannot host, a supervisor nobody declared — is a diagnostic at its
+//! `file:line:column` (the shared [`marie_actors::diagnostic`] reader).
+
+use marie_actors::diagnostic::toml::{quote, Reader, Rule, Tbl};
+use marie_actors::diagnostic::{read_source, Diagnostic, Diagnostics};
+use marie_actors::dm::{self, DmSpec};
+use marie_actors::eo::OperationFactory;
+use marie_supervision::{Restart, Strategy};
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+/// Name of the operation supervisor every node has.
+pub const OPERATIONS: &str = "operations";
+
+/// Default restart intensity of a supervisor: restarts per [`DEFAULT_PERIOD`].
+pub const DEFAULT_RESTARTS: usize = 5;
+
+/// Default window of a supervisor's restart intensity.
+pub const DEFAULT_PERIOD: Duration = Duration::from_secs(10);
+
+/// Most instances one `[[operation]]` may ask for.
+pub const MAX_INSTANCES: usize = 64;
+
+/// Most restarts an intensity may allow (beyond that, "never give up" is meant: say so with
+/// a long period instead).
+pub const MAX_RESTARTS: usize = 10_000;
+
+/// Longest intensity window, seconds.
+pub const MAX_PERIOD_S: f64 = 86_400.0;
+
+/// What one node hosts.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NodeConfig {
+    /// The node's name (shown in the registry's locations and in every event).
+    pub name: String,
+    /// Whether the node runs missions (a dispatcher per run).
+    pub dispatcher: bool,
+    /// The datamanagers it hosts.
+    pub datamanagers: Vec<DatamanagerConfig>,
+    /// Operation supervisors besides [`OPERATIONS`], which always exists.
+    pub supervisors: Vec<SupervisorConfig>,
+    /// The operations it hosts.
+    pub operations: Vec<OperationConfig>,
+    /// A simulated robot, if the node runs one.
+    pub simulation: Option<SimulationConfig>,
+}
+
+/// One datamanager a node hosts.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct DatamanagerConfig {
+    /// Registry name.
+    pub name: String,
+    /// Numeric id (the thesis': feature 1201, parameter 1202, world 1203).
+    pub id: u32,
+}
+
+impl From<DmSpec> for DatamanagerConfig {
+    fn from(spec: DmSpec) -> Self {
+        DatamanagerConfig {
+            name: spec.name.to_string(),
+            id: spec.id,
+        }
+    }
+}
+
+/// One supervisor of operations.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SupervisorConfig {
+    /// Its name, which `[[operation]]`s refer to.
+    pub name: String,
+    /// Which children a failure restarts.
+    pub strategy: Strategy,
+    /// More than this many restarts within [`SupervisorConfig::period`] and it gives up.
+    pub max_restarts: usize,
+    /// The intensity's window.
+    pub period: Duration,
+}
+
+impl SupervisorConfig {
+    /// The node's default operation supervisor: one_for_one, 5 restarts in 10 s.
+    pub fn operations() -> Self {
+        SupervisorConfig {
+            name: OPERATIONS.to_string(),
+            strategy: Strategy::OneForOne,
+            max_restarts: DEFAULT_RESTARTS,
+            period: DEFAULT_PERIOD,
+        }
+    }
+}
+
+/// Operations a node hosts: every built-in version matching `version`, `instances` times.
+#[derive(Clone, Debug, PartialEq)]
+pub struct OperationConfig {
+    /// Registry name of the operation.
+    pub name: String,
+    /// Which versions (a semver requirement; `*` for every one the node can build).
+    pub version: semver::VersionReq,
+    /// Instances started with the node (of each matching version). More may be started
+    /// later, on request ([`Node::start_instance`](super::Node::start_instance)).
+    pub instances: usize,
+    /// The supervisor it runs under.
+    pub supervisor: String,
+    /// When it is restarted.
+    pub restart: Restart,
+}
+
+impl OperationConfig {
+    /// One permanent instance of every version of `name` under [`OPERATIONS`].
+    pub fn new(name: impl Into<String>) -> Self {
+        OperationConfig {
+            name: name.into(),
+            version: semver::VersionReq::STAR,
+            instances: 1,
+            supervisor: OPERATIONS.to_string(),
+            restart: Restart::Permanent,
+        }
+    }
+
+    /// Only versions matching `req`.
+    pub fn with_version(mut self, req: semver::VersionReq) -> Self {
+        self.version = req;
+        self
+    }
+
+    /// `n` instances of each matching version.
+    pub fn with_instances(mut self, n: usize) -> Self {
+        self.instances = n;
+        self
+    }
+
+    /// Whether the factory `f` is one this entry hosts.
+    pub fn allows(&self, f: &OperationFactory) -> bool {
+        f.name == self.name && f.semver().is_some_and(|v| self.version.matches(&v))
+    }
+}
+
+/// A simulated robot on the node.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SimulationConfig {
+    /// The world file; `None`: the mission's world.
+    pub world: Option<PathBuf>,
+    /// Seed of its noise; `None`: the command line's.
+    pub seed: Option<u64>,
+    /// Whether the node runs the cart's drivers (the virtual cart).
+    pub drivers: bool,
+}
+
+/// Why a node config (as a Rust value) cannot be hosted.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum ConfigError {
+    /// The node has no name.
+    #[error("a node needs a name")]
+    NoName,
+    /// An operation no factory builds.
+    #[error("operation `{name}` cannot be hosted: no such operation (known: {known})")]
+    UnknownOperation {
+        /// Its name.
+        name: String,
+        /// The names the node can host.
+        known: String,
+    },
+    /// An operation whose versions do not match.
+    #[error("operation `{name}`: no version matches `{req}` (available: {available})")]
+    NoVersion {
+        /// Its name.
+        name: String,
+        /// The requirement.
+        req: String,
+        /// The versions the node can host.
+        available: String,
+    },
+    /// An operation under a supervisor nobody declared.
+    #[error("operation `{name}` names supervisor `{supervisor}`, which is not declared")]
+    UnknownSupervisor {
+        /// The operation.
+        name: String,
+        /// The supervisor it names.
+        supervisor: String,
+    },
+    /// Two entries of one kind with one name.
+    #[error("{kind} `{name}` is declared twice")]
+    Duplicate {
+        /// `supervisor` or `datamanager`.
+        kind: &'static str,
+        /// The name.
+        name: String,
+    },
+    /// A number out of range.
+    #[error("{what}: {message}")]
+    Range {
+        /// Which field.
+        what: String,
+        /// What was expected.
+        message: String,
+    },
+}
+
+impl NodeConfig {
+    /// A node named `name` hosting nothing yet (no datamanager, no operation, a dispatcher).
+    pub fn new(name: impl Into<String>) -> Self {
+        NodeConfig {
+            name: name.into(),
+            dispatcher: true,
+            datamanagers: Vec::new(),
+            supervisors: Vec::new(),
+            operations: Vec::new(),
+            simulation: None,
+        }
+    }
+
+    /// The embedded default: the thesis' three datamanagers, one instance of every operation
+    /// of `catalog` under [`OPERATIONS`], a dispatcher — everything a mission may need. This is
+    /// what `marie run MISSION` runs without `--node`.
+    pub fn everything(name: impl Into<String>, catalog: &[OperationFactory]) -> Self {
+        let mut names: Vec<&str> = catalog.iter().map(|f| f.name).collect();
+        names.dedup();
+        let mut seen = std::collections::BTreeSet::new();
+        names.retain(|n| seen.insert(*n));
+        NodeConfig {
+            datamanagers: [dm::FEATURE, dm::PARAMETER, dm::WORLD]
+                .into_iter()
+                .map(DatamanagerConfig::from)
+                .collect(),
+            operations: names.into_iter().map(OperationConfig::new).collect(),
+            ..NodeConfig::new(name)
+        }
+    }
+
+    /// Every supervisor of operations: [`OPERATIONS`] (declared or default) and the others.
+    pub fn operation_supervisors(&self) -> Vec<SupervisorConfig> {
+        let mut out = Vec::with_capacity(self.supervisors.len() + 1);
+        if !self.supervisors.iter().any(|s| s.name == OPERATIONS) {
+            out.push(SupervisorConfig::operations());
+        }
+        out.extend(self.supervisors.iter().cloned());
+        out
+    }
+
+    /// The factories of `catalog` this node hosts at start, with their entry: each matching
+    /// version of each `[[operation]]`, `instances` times.
+    pub fn hosted<'c>(
+        &self,
+        catalog: &'c [OperationFactory],
+    ) -> Vec<(&OperationConfig, &'c OperationFactory)> {
+        let mut out = Vec::new();
+        for op in &self.operations {
+            for f in catalog.iter().filter(|f| op.allows(f)) {
+                for _ in 0..op.instances {
+                    out.push((op, f));
+                }
+            }
+        }
+        out
+    }
+
+    /// Check the config against what this build can host (`catalog`): names, versions,
+    /// supervisors, duplicates and ranges. A config loaded from a file has been checked the
+    /// same way, with positions.
+    pub fn validate(&self, catalog: &[OperationFactory]) -> Result<(), ConfigError> {
+        if self.name.trim().is_empty() {
+            return Err(ConfigError::NoName);
+        }
+        let mut seen = std::collections::BTreeSet::new();
+        for s in &self.supervisors {
+            if !seen.insert(s.name.as_str()) {
+                return Err(ConfigError::Duplicate {
+                    kind: "supervisor",
+                    name: s.name.clone(),
+                });
+            }
+            if s.max_restarts > MAX_RESTARTS {
+                return Err(ConfigError::Range {
+                    what: format!("supervisor `{}`: max_restarts", s.name),
+                    message: format!("at most {MAX_RESTARTS}, got {}", s.max_restarts),
+                });
+            }
+            let p = s.period.as_secs_f64();
+            if p <= 0.0 || p > MAX_PERIOD_S {
+                return Err(ConfigError::Range {
+                    what: format!("supervisor `{}`: period", s.name),
+                    message: format!("in (0, {MAX_PERIOD_S}] s, got {p} s"),
+                });
+            }
+        }
+        let mut dms = std::collections::BTreeSet::new();
+        for d in &self.datamanagers {
+            if !dms.insert(d.name.as_str()) {
+                return Err(ConfigError::Duplicate {
+                    kind: "datamanager",
+                    name: d.name.clone(),
+                });
+            }
+        }
+        let supervisors = self.operation_supervisors();
+        for op in &self.operations {
+            check_operation(op, catalog).map_err(|e| match e {
+                OpProblem::Unknown(known) => ConfigError::UnknownOperation {
+                    name: op.name.clone(),
+                    known,
+                },
+                OpProblem::NoVersion(available) => ConfigError::NoVersion {
+                    name: op.name.clone(),
+                    req: op.version.to_string(),
+                    available,
+                },
+            })?;
+            if op.instances > MAX_INSTANCES {
+                return Err(ConfigError::Range {
+                    what: format!("operation `{}`: instances", op.name),
+                    message: format!("at most {MAX_INSTANCES}, got {}", op.instances),
+                });
+            }
+            if !supervisors.iter().any(|s| s.name == op.supervisor) {
+                return Err(ConfigError::UnknownSupervisor {
+                    name: op.name.clone(),
+                    supervisor: op.supervisor.clone(),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Read and check a node config file against `catalog`. Every problem is a diagnostic
+    /// at its `file:line:column`; a relative `world` is resolved against the file's directory.
+    pub fn load(path: &Path, catalog: &[OperationFactory]) -> Result<NodeConfig, Diagnostics> {
+        let src = read_source(path, "node config")?;
+        NodeConfig::parse(&src, Some(path), catalog)
+    }
+
+    /// [`NodeConfig::load`] on text; `path` names it in diagnostics (`<node>` without one).
+    pub fn parse(
+        src: &str,
+        path: Option<&Path>,
+        catalog: &[OperationFactory],
+    ) -> Result<NodeConfig, Diagnostics> {
+        let file = path.map_or_else(|| "<node>".to_string(), |p| p.display().to_string());
+        let mut r = Reader::new(src, file);
+        let Some(doc) = r.parse() else {
+            return r.finish(None, "the node config is not valid");
+        };
+        let top = r.top(&doc, "the node config");
+        r.unknown_keys(
+            &top,
+            &[
+                "node",
+                "datamanager",
+                "simulation",
+                "supervisor",
+                "operation",
+            ],
+        );
+        let mut config = NodeConfig::new("");
+        match top.get("node") {
+            None => r.err(
+                &(0..0),
+                "missing table `[node]` (expected `name = \"...\"`)",
+            ),
+            Some(v) => {
+                if let Some(t) = r.table(v, "[node]") {
+                    r.unknown_keys(&t, &["name", "dispatcher"]);
+                    config.name = r.required_string(&t, "name").unwrap_or_default();
+                    config.dispatcher = r.boolean(&t, "dispatcher", true);
+                }
+            }
+        }
+        if let Some(v) = top.get("datamanager") {
+            for t in r.table_array(v, "datamanager").into_iter().flatten() {
+                if let Some(d) = datamanager(&mut r, &t, &config.datamanagers) {
+                    config.datamanagers.push(d);
+                }
+            }
+        }
+        if let Some(v) = top.get("simulation") {
+            if let Some(t) = r.table(v, "[simulation]") {
+                config.simulation = Some(simulation(&mut r, &t, path));
+            }
+        }
+        if let Some(v) = top.get("supervisor") {
+            for t in r.table_array(v, "supervisor").into_iter().flatten() {
+                if let Some(s) = supervisor(&mut r, &t, &config.supervisors) {
+                    config.supervisors.push(s);
+                }
+            }
+        }
+        if let Some(v) = top.get("operation") {
+            let supervisors: Vec<String> = config
+                .operation_supervisors()
+                .into_iter()
+                .map(|s| s.name)
+                .collect();
+            for t in r.table_array(v, "operation").into_iter().flatten() {
+                if let Some(op) = operation(&mut r, &t, catalog, &supervisors) {
+                    config.operations.push(op);
+                }
+            }
+        }
+        r.finish(Some(config), "the node config is not valid")
+    }
+}
+
+/// One `[[datamanager]]`: a known name (feature, parameter, world) or a name with an `id`.
+fn datamanager(
+    r: &mut Reader<'_>,
+    t: &Tbl<'_, '_>,
+    seen: &[DatamanagerConfig],
+) -> Option<DatamanagerConfig> {
+    r.unknown_keys(t, &["name", "id"]);
+    let name = r.required_string(t, "name")?;
+    let known = [dm::FEATURE, dm::PARAMETER, dm::WORLD];
+    let id = r.integer(t, "id", Some(0), 0..=i64::from(u32::MAX));
+    let spec = match known.iter().find(|k| k.name == name) {
+        Some(k) => DatamanagerConfig::from(*k),
+        None => {
+            let Some(id) = id.filter(|id| *id > 0) else {
+                r.err(
+                    &t.span,
+                    format!(
+                        "datamanager {} is not one of feature, parameter, world: it needs an `id`",
+                        quote(&name)
+                    ),
+                );
+                return None;
+            };
+            DatamanagerConfig {
+                id: id as u32,
+                name,
+            }
+        }
+    };
+    if seen.iter().any(|d| d.name == spec.name) {
+        r.err(
+            &t.span,
+            format!("datamanager {} is declared twice", quote(&spec.name)),
+        );
+        return None;
+    }
+    Some(spec)
+}
+
+/// The `[simulation]` table.
+fn simulation(r: &mut Reader<'_>, t: &Tbl<'_, '_>, path: Option<&Path>) -> SimulationConfig {
+    r.unknown_keys(t, &["world", "seed", "drivers"]);
+    let world = r.string(t, "world").map(|w| {
+        let w = PathBuf::from(w);
+        match path.and_then(Path::parent) {
+            Some(dir) if w.is_relative() => dir.join(w),
+            _ => w,
+        }
+    });
+    let seed = r
+        .integer(t, "seed", Some(-1), 0..=i64::MAX)
+        .filter(|s| *s >= 0)
+        .map(|s| s as u64);
+    SimulationConfig {
+        world,
+        seed: t.get("seed").and(seed),
+        drivers: r.boolean(t, "drivers", true),
+    }
+}
+
+/// One `[[supervisor]]`.
+fn supervisor(
+    r: &mut Reader<'_>,
+    t: &Tbl<'_, '_>,
+    seen: &[SupervisorConfig],
+) -> Option<SupervisorConfig> {
+    r.unknown_keys(t, &["name", "strategy", "max_restarts", "period_s"]);
+    let name = r.required_string(t, "name");
+    let strategy = match t.get("strategy") {
+        None => Some(Strategy::OneForOne),
+        Some(v) => match r.string_value(v, "strategy").as_deref() {
+            Some("one_for_one") => Some(Strategy::OneForOne),
+            Some("one_for_all") => Some(Strategy::OneForAll),
+            Some("rest_for_one") => Some(Strategy::RestForOne),
+            Some(other) => {
+                r.err(
+                    &v.span(),
+                    format!(
+                        "unknown strategy {} (expected one of: one_for_one, one_for_all, rest_for_one)",
+                        quote(other)
+                    ),
+                );
+                None
+            }
+            None => None,
+        },
+    };
+    let max_restarts = r.integer(
+        t,
+        "max_restarts",
+        Some(DEFAULT_RESTARTS as i64),
+        0..=MAX_RESTARTS as i64,
+    );
+    let period = r.num(
+        t,
+        "period_s",
+        Some(DEFAULT_PERIOD.as_secs_f64()),
+        Rule::AboveUpTo(0.0, MAX_PERIOD_S),
+    );
+    let name = name?;
+    if seen.iter().any(|s| s.name == name) {
+        r.err(
+            &t.span,
+            format!("supervisor {} is declared twice", quote(&name)),
+        );
+        return None;
+    }
+    Some(SupervisorConfig {
+        name,
+        strategy: strategy?,
+        max_restarts: max_restarts? as usize,
+        period: Duration::from_secs_f64(period?),
+    })
+}
+
+/// One `[[operation]]`, checked against the catalogue and the declared supervisors.
+fn operation(
+    r: &mut Reader<'_>,
+    t: &Tbl<'_, '_>,
+    catalog: &[OperationFactory],
+    supervisors: &[String],
+) -> Option<OperationConfig> {
+    r.unknown_keys(
+        t,
+        &["name", "version", "instances", "supervisor", "restart"],
+    );
+    let name = r.required_string(t, "name");
+    let version = match t.get("version") {
+        None => Some(semver::VersionReq::STAR),
+        Some(v) => {
+            let text = r.string_value(v, "version");
+            match text.as_deref().map(semver::VersionReq::parse) {
+                Some(Ok(req)) => Some(req),
+                Some(Err(e)) => {
+                    r.err(
+                        &v.span(),
+                        format!(
+                            "`version` must be a semver requirement such as \"1\", \"^2.1\" or \"*\": {e}"
+                        ),
+                    );
+                    None
+                }
+                None => None,
+            }
+        }
+    };
+    let instances = r.integer(t, "instances", Some(1), 0..=MAX_INSTANCES as i64);
+    let supervisor = match t.get("supervisor") {
+        None => Some(OPERATIONS.to_string()),
+        Some(v) => {
+            let s = r.string_value(v, "supervisor")?;
+            if supervisors.contains(&s) {
+                Some(s)
+            } else {
+                r.err(
+                    &v.span(),
+                    format!(
+                        "no supervisor {} is declared (expected one of: {})",
+                        quote(&s),
+                        supervisors.join(", ")
+                    ),
+                );
+                None
+            }
+        }
+    };
+    let restart = match t.get("restart") {
+        None => Some(Restart::Permanent),
+        Some(v) => match r.string_value(v, "restart").as_deref() {
+            Some("permanent") => Some(Restart::Permanent),
+            Some("transient") => Some(Restart::Transient),
+            Some("temporary") => Some(Restart::Temporary),
+            Some(other) => {
+                r.err(
+                    &v.span(),
+                    format!(
+                        "unknown restart {} (expected one of: permanent, transient, temporary)",
+                        quote(other)
+                    ),
+                );
+                None
+            }
+            None => None,
+        },
+    };
+    let op = OperationConfig {
+        name: name?,
+        version: version?,
+        instances: instances? as usize,
+        supervisor: supervisor?,
+        restart: restart?,
+    };
+    if let Err(problem) = check_operation(&op, catalog) {
+        let (span, message) = match problem {
+            OpProblem::Unknown(known) => (
+                t.get("name").map_or(t.span.clone(), |v| v.span()),
+                format!(
+                    "this node cannot host operation {} (expected one of: {known})",
+                    quote(&op.name)
+                ),
+            ),
+            OpProblem::NoVersion(available) => (
+                t.get("version").map_or(t.span.clone(), |v| v.span()),
+                format!(
+                    "no version of {} matches `{}` (available: {available})",
+                    quote(&op.name),
+                    op.version
+                ),
+            ),
+        };
+        r.err(&span, message);
+        return None;
+    }
+    Some(op)
+}
+
+/// What is wrong with an operation entry against the catalogue.
+enum OpProblem {
+    /// No such name; the known names.
+    Unknown(String),
+    /// No matching version; the versions there are.
+    NoVersion(String),
+}
+
+fn check_operation(op: &OperationConfig, catalog: &[OperationFactory]) -> Result<(), OpProblem> {
+    let versions: Vec<&str> = catalog
+        .iter()
+        .filter(|f| f.name == op.name)
+        .map(|f| f.version.as_str())
+        .collect();
+    if versions.is_empty() {
+        let mut known: Vec<&str> = catalog.iter().map(|f| f.name).collect();
+        known.sort_unstable();
+        known.dedup();
+        return Err(OpProblem::Unknown(known.join(", ")));
+    }
+    if !catalog.iter().any(|f| op.allows(f)) {
+        return Err(OpProblem::NoVersion(versions.join(", ")));
+    }
+    Ok(())
+}
+
+/// A diagnostic at `1:1` of the file that names a node config problem found outside the file
+/// (e.g. its world does not load).
+pub fn file_diagnostic(path: &Path, message: impl Into<String>) -> Diagnostic {
+    Diagnostic::new(path.display().to_string(), 1, 1, message)
+}

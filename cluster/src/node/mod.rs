@@ -1,0 +1,430 @@
+//! The node: what it hosts, as a supervision tree, and the runs of missions on it.
+//!
+//! A node is configured by what it hosts ([`NodeConfig`]): datamanagers, operations (by name,
+//! version and number of instances, under named supervisors with restart policies), a
+//! simulated robot, a dispatcher. [`Node::start`] builds its supervision tree (DESIGN.md §2)
+//! from that config and nothing else; the operations come from a catalogue of
+//! [`OperationFactory`]s and a robot plugs in through the [`Robot`] trait — a node knows no
+//! robot. A crashed operation is restarted by its supervisor and the dispatcher rebinds to the
+//! new instance; [`Node::run_with_faults`] injects faults to test exactly that, and
+//! [`Node::start_instance`] starts another instance of an operation the config allows (a
+//! dynamic child), for failover when no spare runs.
+//!
+//! ```
+//! use marie_cluster::node::{Node, NodeConfig, NodeOptions, OperationConfig};
+//! use marie_actors::eo::OperationFactory;
+//! # #[derive(Default)] struct Echo;
+//! # impl marie_actors::eo::Operation for Echo {
+//! #   fn identity(&self) -> marie_actors::eo::Identity {
+//! #       marie_actors::eo::Identity::new("echo", 4242, "1.0.0", "echo")
+//! #   }
+//! #   async fn step(&mut self, _: &mut marie_actors::eo::OpContext)
+//! #       -> Result<marie_actors::eo::Step, marie_actors::eo::OpError> {
+//! #       Ok(marie_actors::eo::Step::Finish(marie_actors::flags::StatusFlags(0)))
+//! #   }
+//! # }
+//! # #[tokio::main] async fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! let catalog = vec![OperationFactory::of::<Echo>("echo")];
+//! let mut config = NodeConfig::new("doc-node");
+//! config.operations.push(OperationConfig::new("echo").with_instances(2));
+//! config.validate(&catalog)?;
+//! let node = Node::start(config, NodeOptions::with_catalog(catalog)).await?;
+//! assert_eq!(node.instances("echo").len(), 2);
+//! node.shutdown().await;
+//! # Ok(()) }
+//! ```
+
+pub mod config;
+pub mod robot;
+mod tree;
+
+pub use config::{
+    ConfigError, DatamanagerConfig, NodeConfig, OperationConfig, SimulationConfig,
+    SupervisorConfig, OPERATIONS,
+};
+pub use robot::{AprioriRecord, BoxFuture, Robot};
+
+use crate::fault::plan::Injector;
+use crate::fault::FaultPlan;
+use marie_actors::clock::{RealClock, SharedClock};
+use marie_actors::dispatcher::mission::{Diagnostics, Mission, ParsedMission};
+use marie_actors::dispatcher::{
+    self, DispatchError, DispatchEvent, DispatcherArgs, DispatcherMsg, RegistryCatalog, RunReport,
+};
+use marie_actors::dm::DmError;
+use marie_actors::eo::{EoError, HostOptions, OperationFactory};
+use marie_actors::registry::{self, Instance, ModuleKind};
+use marie_supervision::{ChildSpec, Restart, Shutdown, SupervisorError, SupervisorRef};
+use ractor::{ActorCell, ActorRef};
+use std::path::Path;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+use tokio::sync::mpsc;
+use tree::{abort_on_give_up, DATAMANAGERS};
+
+/// What a node is built with besides its config: the operations it can build, the robot it
+/// drives, the clock its actors share.
+#[derive(Clone)]
+pub struct NodeOptions {
+    /// Every operation this node *can* host; its config picks which it *does*.
+    pub catalog: Vec<OperationFactory>,
+    /// The robot, if the node drives one.
+    pub robot: Option<Arc<dyn Robot>>,
+    /// The clock every actor of the node reads and sleeps on.
+    pub clock: SharedClock,
+}
+
+impl NodeOptions {
+    /// A catalogue, no robot, tokio's clock.
+    pub fn with_catalog(catalog: Vec<OperationFactory>) -> Self {
+        NodeOptions {
+            catalog,
+            robot: None,
+            clock: RealClock::shared(),
+        }
+    }
+
+    /// With a robot.
+    pub fn with_robot(mut self, robot: Arc<dyn Robot>) -> Self {
+        self.robot = Some(robot);
+        self
+    }
+
+    /// With a clock.
+    pub fn with_clock(mut self, clock: SharedClock) -> Self {
+        self.clock = clock;
+        self
+    }
+}
+
+impl std::fmt::Debug for NodeOptions {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("NodeOptions")
+            .field("catalog", &self.catalog)
+            .field("robot", &self.robot.as_ref().map(|r| r.describe()))
+            .finish_non_exhaustive()
+    }
+}
+
+/// How long an operation gets to stop before it is killed.
+const OPERATION_SHUTDOWN: Duration = Duration::from_secs(1);
+
+/// Why a node could not do what was asked.
+#[derive(Debug, thiserror::Error)]
+pub enum NodeError {
+    /// The config asks for what this node cannot host.
+    #[error("node config: {0}")]
+    Config(#[from] ConfigError),
+    /// The node's supervision tree did not start or refused a request.
+    #[error("node supervisor: {0}")]
+    Supervisor(#[from] SupervisorError),
+    /// An operation did not answer while the mission was checked.
+    #[error(transparent)]
+    Operation(#[from] EoError),
+    /// The mission is malformed or inconsistent.
+    #[error("{0}")]
+    Mission(Diagnostics),
+    /// The dispatcher failed.
+    #[error(transparent)]
+    Dispatch(#[from] DispatchError),
+    /// A datamanager refused or did not answer a request of the node itself.
+    #[error("datamanager request failed: {0}")]
+    Datamanager(#[from] DmError),
+    /// A run was asked of a node whose config runs no dispatcher.
+    #[error("node `{0}` runs no dispatcher (its config says `dispatcher = false`)")]
+    NoDispatcher(String),
+    /// An instance was asked of an operation the config does not allow.
+    #[error("node `{node}` does not host operation `{operation}` (its config allows: {allowed})")]
+    NotAllowed {
+        /// The node.
+        node: String,
+        /// The operation asked for.
+        operation: String,
+        /// What the config allows.
+        allowed: String,
+    },
+}
+
+/// A running node: the supervision tree of DESIGN.md §2, built from its [`NodeConfig`].
+///
+/// ```text
+/// node (one_for_one)
+///  ├─ datamanagers (one_for_one) ── one per [[datamanager]], a-priori records stored at start
+///  ├─ the robot's drivers           (temporary: a simulation is not restarted)
+///  ├─ operations (one_for_one) ──── one EO host per operation instance
+///  ├─ <other [[supervisor]]s> ───── their operations
+///  └─ dispatcher-N                  (temporary, one per run; with `dispatcher = true`)
+/// ```
+pub struct Node {
+    config: NodeConfig,
+    catalog: Vec<OperationFactory>,
+    clock: SharedClock,
+    root: SupervisorRef,
+    robot: Option<Arc<dyn Robot>>,
+    runs: AtomicU64,
+    dynamic: AtomicU64,
+}
+
+impl Node {
+    /// Check `config` against the catalogue and start the node's supervision tree: the
+    /// datamanagers (storing the robot's a-priori records), the robot's drivers, then each
+    /// operation supervisor with the instances the config names.
+    pub async fn start(config: NodeConfig, options: NodeOptions) -> Result<Node, NodeError> {
+        config.validate(&options.catalog)?;
+        let children = tree::children(&config, &options);
+        let (root, _) = tree::start_root(children).await?;
+        tracing::info!(node = %config.name, "node started");
+        Ok(Node {
+            config,
+            catalog: options.catalog,
+            clock: options.clock,
+            root,
+            robot: options.robot,
+            runs: AtomicU64::new(0),
+            dynamic: AtomicU64::new(0),
+        })
+    }
+
+    /// The config the node was built from.
+    pub fn config(&self) -> &NodeConfig {
+        &self.config
+    }
+
+    /// The node's root supervisor (for introspection: `which_children`, events).
+    pub fn supervisor(&self) -> &SupervisorRef {
+        &self.root
+    }
+
+    /// The default supervisor of the node's operations ([`OPERATIONS`]), as it is now (it is
+    /// a new actor after it was restarted).
+    pub async fn operation_supervisor(&self) -> Result<SupervisorRef, NodeError> {
+        self.child_supervisor(OPERATIONS).await
+    }
+
+    /// The supervisor of the node's datamanagers, as it is now.
+    pub async fn datamanager_supervisor(&self) -> Result<SupervisorRef, NodeError> {
+        self.child_supervisor(DATAMANAGERS).await
+    }
+
+    /// One of the root's child supervisors by name, as it is now.
+    pub async fn child_supervisor(&self, id: &str) -> Result<SupervisorRef, NodeError> {
+        self.root
+            .which_children()
+            .await?
+            .into_iter()
+            .find(|c| c.id == id)
+            .and_then(|c| c.state.actor().cloned())
+            .and_then(SupervisorRef::from_cell)
+            .ok_or_else(|| NodeError::Supervisor(SupervisorError::NotFound(id.to_string())))
+    }
+
+    /// The node's clock.
+    pub fn clock(&self) -> &SharedClock {
+        &self.clock
+    }
+
+    /// The robot the node drives, if any.
+    pub fn robot(&self) -> Option<&Arc<dyn Robot>> {
+        self.robot.as_ref()
+    }
+
+    /// The live instances of operation `name` (or id) in the registry.
+    pub fn instances(&self, name: &str) -> Vec<Instance> {
+        registry::lookup(ModuleKind::Operation, name)
+    }
+
+    /// Start another instance of operation `name` — of the newest version matching `version`
+    /// that the config allows — as a dynamic child of the supervisor its config names (OTP's
+    /// `simple_one_for_one` use: more workers of one kind on request). Failover uses this when
+    /// no spare runs. Refused when the config does not host that operation.
+    pub async fn start_instance(
+        &self,
+        name: &str,
+        version: &semver::VersionReq,
+    ) -> Result<ActorCell, NodeError> {
+        let chosen = self
+            .config
+            .operations
+            .iter()
+            .flat_map(|op| {
+                self.catalog
+                    .iter()
+                    .filter(move |f| op.allows(f) && f.name == name)
+                    .map(move |f| (op, f))
+            })
+            .filter(|(_, f)| f.semver().is_some_and(|v| version.matches(&v)))
+            .max_by_key(|(_, f)| f.semver());
+        let Some((op, factory)) = chosen else {
+            let allowed: Vec<String> = self
+                .config
+                .operations
+                .iter()
+                .map(|o| format!("{}@{}", o.name, o.version))
+                .collect();
+            return Err(NodeError::NotAllowed {
+                node: self.config.name.clone(),
+                operation: format!("{name}@{version}"),
+                allowed: allowed.join(", "),
+            });
+        };
+        let n = self.dynamic.fetch_add(1, Ordering::Relaxed);
+        let spec = tree::operation_child(
+            format!("{}+{n}", factory.key()),
+            factory.clone(),
+            HostOptions::with_clock(self.clock.clone()),
+            op.restart,
+        );
+        let sup = self.child_supervisor(&op.supervisor).await?;
+        let cell = sup.start_child(spec).await?;
+        tracing::info!(node = %self.config.name, op = %factory.key(), "dynamic instance started");
+        Ok(cell)
+    }
+
+    /// Read, parse and check a mission against the operations running now.
+    pub async fn load_mission(&self, path: &Path) -> Result<Mission, NodeError> {
+        let parsed = Mission::parse_file(path).map_err(NodeError::Mission)?;
+        self.check_mission(&parsed).await
+    }
+
+    /// Check a parsed mission against the operations running now (stage 2 of
+    /// [`marie_actors::dispatcher::mission`]).
+    pub async fn check_mission(&self, parsed: &ParsedMission) -> Result<Mission, NodeError> {
+        let catalog = RegistryCatalog::gather(parsed.ops()).await?;
+        parsed.validate(&catalog).map_err(NodeError::Mission)
+    }
+
+    /// Run a mission; progress events go to `events`.
+    ///
+    /// With a [`Robot`] the run is judged by the robot too ([`Robot::judge`]: for the
+    /// simulated cart, its final pose, collisions, seed and the world's verdict, which may
+    /// turn the dispatcher's success into a failure). The [`DispatchEvent::Ended`] event
+    /// carries the outcome after this judgement.
+    pub async fn run(
+        &self,
+        mission: Mission,
+        events: Option<mpsc::UnboundedSender<DispatchEvent>>,
+    ) -> Result<RunReport, NodeError> {
+        self.run_with_faults(mission, events, FaultPlan::default())
+            .await
+    }
+
+    /// [`Node::run`], injecting the faults of `plan` while the mission runs (fault-injection
+    /// tests of self-healing). The report lists what was injected in `faults`.
+    pub async fn run_with_faults(
+        &self,
+        mission: Mission,
+        events: Option<mpsc::UnboundedSender<DispatchEvent>>,
+        plan: FaultPlan,
+    ) -> Result<RunReport, NodeError> {
+        // Pass every event on as it comes, but hold back `Ended` until the world has judged.
+        let (inner, mut rx) = mpsc::unbounded_channel();
+        let (stop, mut stopped) = tokio::sync::oneshot::channel::<()>();
+        let outer = events.clone();
+        // the operations of the running action, for chaos to pick from
+        let (running_tx, running) = tokio::sync::watch::channel(Vec::<String>::new());
+        let forwarder = tokio::spawn(async move {
+            let pass = |evt: DispatchEvent| {
+                match &evt {
+                    DispatchEvent::ActionStarted { operations, .. } => {
+                        running_tx.send_replace(operations.clone());
+                    }
+                    DispatchEvent::ActionEnded { .. } => {
+                        running_tx.send_replace(Vec::new());
+                    }
+                    _ => {}
+                }
+                if let Some(outer) = &outer {
+                    if !matches!(evt, DispatchEvent::Ended { .. }) {
+                        let _ = outer.send(evt);
+                    }
+                }
+            };
+            loop {
+                tokio::select! {
+                    evt = rx.recv() => match evt {
+                        Some(evt) => pass(evt),
+                        None => break,
+                    },
+                    _ = &mut stopped => {
+                        // the dispatcher emits every event before it reports
+                        while let Ok(evt) = rx.try_recv() {
+                            pass(evt);
+                        }
+                        break;
+                    }
+                }
+            }
+        });
+        let injector = Injector::start(plan, self.clock.clone(), running);
+        let result = self.dispatch(mission, inner).await;
+        let faults = injector.finish();
+        let _ = stop.send(());
+        let _ = forwarder.await;
+        let mut report = result?;
+        report.faults = faults;
+        if let Some(robot) = &self.robot {
+            robot.judge(&mut report).await;
+        }
+        if let Some(outer) = events {
+            let _ = outer.send(DispatchEvent::Ended {
+                outcome: report.outcome,
+                reason: report.reason.clone(),
+            });
+        }
+        Ok(report)
+    }
+
+    /// Run `mission` on a dispatcher started as a temporary child of the node's supervisor.
+    /// Should the operation supervisor give up (restart intensity exceeded) during the run,
+    /// the mission is aborted with a reason naming the operation that kept failing.
+    async fn dispatch(
+        &self,
+        mission: Mission,
+        events: mpsc::UnboundedSender<DispatchEvent>,
+    ) -> Result<RunReport, NodeError> {
+        if !self.config.dispatcher {
+            return Err(NodeError::NoDispatcher(self.config.name.clone()));
+        }
+        let n = self.runs.fetch_add(1, Ordering::Relaxed);
+        let args = DispatcherArgs {
+            mission,
+            clock: self.clock.clone(),
+            events: Some(events),
+        };
+        let spec = ChildSpec::worker(format!("dispatcher-{n}"), move |sup| {
+            let args = args.clone();
+            async move {
+                Ok(dispatcher::spawn_dispatcher(args, Some(sup))
+                    .await?
+                    .get_cell())
+            }
+        })
+        .with_restart(Restart::Temporary)
+        .with_shutdown(Shutdown::Timeout(Duration::from_secs(1)));
+        // subscribe before the run starts, so no give-up goes unseen
+        let mut give_ups = Vec::new();
+        for sup in self.config.operation_supervisors() {
+            match self.child_supervisor(&sup.name).await {
+                Ok(s) => give_ups.push((sup.name, s.subscribe().await?)),
+                Err(e) => tracing::warn!("running without supervisor `{}`: {e}", sup.name),
+            }
+        }
+        let dispatcher: ActorRef<DispatcherMsg> = self.root.start_child(spec).await?.into();
+        let guards: Vec<_> = give_ups
+            .into_iter()
+            .map(|(name, rx)| tokio::spawn(abort_on_give_up(name, rx, dispatcher.clone())))
+            .collect();
+        let report = dispatcher::request_run(&dispatcher).await;
+        for guard in guards {
+            guard.abort();
+        }
+        Ok(report?)
+    }
+
+    /// Stop the node's supervision tree, children in reverse start order, and wait for it.
+    pub async fn shutdown(self) {
+        self.root.stop().await;
+        tracing::info!(node = %self.config.name, "node stopped");
+    }
+}

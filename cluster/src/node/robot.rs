@@ -1,0 +1,45 @@
+//! The plug a robot fits into a node: a node knows no robot.
+//!
+//! A node hosts datamanagers, operations and a dispatcher; what a *robot* adds — the
+//! a-priori knowledge it stores before any operation runs (a map), the drivers of its
+//! hardware (a cart), and its own verdict on a run (did the cart end where it should) — comes
+//! through the [`Robot`] trait, which `marie-missions` implements for its simulated cart and
+//! an embedder implements for theirs. The operations a node can host come separately, as
+//! [`OperationFactory`](marie_actors::eo::OperationFactory)s: a catalogue.
+
+use marie_actors::clock::SharedClock;
+use marie_actors::dispatcher::RunReport;
+use marie_actors::dm::NewRecord;
+use marie_supervision::ChildSpec;
+use std::future::Future;
+use std::pin::Pin;
+
+/// A boxed future, as trait objects return them.
+pub type BoxFuture<'a, T> = Pin<Box<dyn Future<Output = T> + Send + 'a>>;
+
+/// A record a robot stores in a datamanager before any operation starts (and again after
+/// that datamanager restarts): a-priori knowledge such as the map of the walls.
+#[derive(Clone, Debug)]
+pub struct AprioriRecord {
+    /// The datamanager's registry name (e.g. `world`).
+    pub datamanager: String,
+    /// The record.
+    pub record: NewRecord,
+}
+
+/// A robot a node drives.
+pub trait Robot: Send + Sync + 'static {
+    /// What it is, for logs and reports (e.g. the world it drives in).
+    fn describe(&self) -> String;
+
+    /// Records the node stores in its datamanagers before any operation starts.
+    fn apriori(&self) -> Vec<AprioriRecord>;
+
+    /// The drivers of its hardware, started under the node's root supervisor after the
+    /// datamanagers and before the operations (the cart). Empty when the node runs none.
+    fn drivers(&self, clock: &SharedClock) -> Vec<ChildSpec>;
+
+    /// Judge a finished run: fill the robot's part of `report` (final pose, collisions, seed,
+    /// verdict) and turn a success into a failure when the robot did not end where it should.
+    fn judge<'a>(&'a self, report: &'a mut RunReport) -> BoxFuture<'a, ()>;
+}

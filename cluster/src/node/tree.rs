@@ -1,0 +1,193 @@
+//! The node's supervision tree: what its supervisors start, built from its [`NodeConfig`],
+//! and how a run learns that an operation supervisor gave up.
+
+use super::config::{NodeConfig, OPERATIONS};
+use super::robot::AprioriRecord;
+use super::{NodeOptions, OPERATION_SHUTDOWN};
+use marie_actors::clock::SharedClock;
+use marie_actors::dispatcher::DispatcherMsg;
+use marie_actors::dm::{self, DmArgs, DmClient, DmConfig};
+use marie_actors::eo::{HostOptions, OperationFactory};
+use marie_supervision::{
+    ChildSpec, Restart, Shutdown, Supervisor, SupervisorError, SupervisorEvent, SupervisorRef,
+    SupervisorSpec,
+};
+use ractor::{ActorRef, SpawnErr};
+use std::sync::Arc;
+use std::time::Duration;
+use tokio::sync::broadcast;
+
+/// The source name the node stores its a-priori records under.
+const NODE_SOURCE: &str = "node";
+
+/// Abort `dispatcher`'s mission if the operation supervisor gives up, naming the operation
+/// whose exits made it give up.
+pub(super) async fn abort_on_give_up(
+    supervisor: String,
+    mut events: broadcast::Receiver<SupervisorEvent>,
+    dispatcher: ActorRef<DispatcherMsg>,
+) {
+    // (child id, why it exited), newest last
+    let mut exits: Vec<(String, String)> = Vec::new();
+    loop {
+        match events.recv().await {
+            Ok(SupervisorEvent::ChildExited { id, reason, .. }) => {
+                exits.push((id, reason.to_string()));
+            }
+            Ok(SupervisorEvent::RestartFailed { id, error }) => {
+                exits.push((id, format!("restart failed: {error}")));
+            }
+            Ok(SupervisorEvent::IntensityExceeded {
+                max_restarts,
+                period,
+            }) => {
+                let recent: Vec<&(String, String)> =
+                    exits.iter().rev().take(max_restarts + 1).collect();
+                let mut culprits: Vec<&str> = recent.iter().map(|(id, _)| id.as_str()).collect();
+                culprits.sort_unstable();
+                culprits.dedup();
+                let last = recent.first().map_or_else(
+                    || "unknown".to_string(),
+                    |(id, why)| format!("{id} ({why})"),
+                );
+                let which = if supervisor == OPERATIONS {
+                    "the operation supervisor".to_string()
+                } else {
+                    format!("operation supervisor `{supervisor}`")
+                };
+                let reason = format!(
+                    "{which} gave up: more than {max_restarts} restarts within {:.1}s, of {} (last exit: {last})",
+                    period.as_secs_f64(),
+                    culprits.join(", "),
+                );
+                let _ = dispatcher.cast(DispatcherMsg::Abort { reason });
+                return;
+            }
+            Ok(_) => {}
+            Err(broadcast::error::RecvError::Lagged(_)) => {}
+            Err(broadcast::error::RecvError::Closed) => return,
+        }
+    }
+}
+
+/// Child id of the datamanager supervisor in the node's tree.
+pub(super) const DATAMANAGERS: &str = "datamanagers";
+
+/// The root's children, in start order: datamanagers, the robot's drivers, then one
+/// supervisor per operation supervisor of the config with the instances it names.
+pub(super) fn children(config: &NodeConfig, options: &NodeOptions) -> Vec<ChildSpec> {
+    let apriori = options
+        .robot
+        .as_ref()
+        .map(|r| r.apriori())
+        .unwrap_or_default();
+    let mut children = Vec::new();
+    if !config.datamanagers.is_empty() {
+        children.push(ChildSpec::supervisor(
+            DATAMANAGERS,
+            SupervisorSpec::one_for_one().with_intensity(3, Duration::from_secs(5)),
+            datamanagers(config, &options.clock, &apriori),
+        ));
+    }
+    if let Some(robot) = &options.robot {
+        children.extend(robot.drivers(&options.clock));
+    }
+    let host = HostOptions::with_clock(options.clock.clone());
+    let hosted = config.hosted(&options.catalog);
+    for sup in config.operation_supervisors() {
+        let mut seen = std::collections::BTreeMap::<String, usize>::new();
+        let ops = hosted
+            .iter()
+            .filter(|(op, _)| op.supervisor == sup.name)
+            .map(|(op, f)| {
+                let n = seen.entry(f.key()).or_default();
+                *n += 1;
+                let id = if *n == 1 {
+                    f.key()
+                } else {
+                    format!("{}#{n}", f.key())
+                };
+                operation_child(id, (*f).clone(), host.clone(), op.restart)
+            })
+            .collect();
+        children.push(ChildSpec::supervisor(
+            sup.name.clone(),
+            SupervisorSpec::new(sup.strategy).with_intensity(sup.max_restarts, sup.period),
+            ops,
+        ));
+    }
+    children
+}
+
+/// Start the root supervisor (one_for_one, 3 restarts in 30 s) with `children`.
+pub(super) async fn start_root(
+    children: Vec<ChildSpec>,
+) -> Result<(SupervisorRef, ractor::concurrency::JoinHandle<()>), SupervisorError> {
+    Supervisor::start(
+        None,
+        SupervisorSpec::one_for_one().with_intensity(3, Duration::from_secs(30)),
+        children,
+    )
+    .await
+}
+
+/// The child spec of one operation instance: a fresh instance of `factory` at every
+/// (re)start, hosted with `host`, stopped within [`OPERATION_SHUTDOWN`].
+pub(super) fn operation_child(
+    id: String,
+    factory: OperationFactory,
+    host: HostOptions,
+    restart: Restart,
+) -> ChildSpec {
+    ChildSpec::worker(id, move |sup| (factory.start)(host.clone(), Some(sup)))
+        .with_shutdown(Shutdown::Timeout(OPERATION_SHUTDOWN))
+        .with_restart(restart)
+}
+
+/// The datamanagers' child specs. Each datamanager's start stores the a-priori records meant
+/// for it before it counts as started, so they are there before any operation looks for them
+/// — and are there again after a restart.
+fn datamanagers(
+    config: &NodeConfig,
+    clock: &SharedClock,
+    apriori: &[AprioriRecord],
+) -> Vec<ChildSpec> {
+    config
+        .datamanagers
+        .iter()
+        .map(|spec| {
+            let clock = clock.clone();
+            let records: Arc<Vec<_>> = Arc::new(
+                apriori
+                    .iter()
+                    .filter(|a| a.datamanager == spec.name)
+                    .map(|a| a.record.clone())
+                    .collect(),
+            );
+            let (id, name) = (spec.id, spec.name.clone());
+            ChildSpec::worker(spec.name.clone(), move |sup| {
+                let (clock, records, name) = (clock.clone(), records.clone(), name.clone());
+                async move {
+                    let (actor, _) = dm::spawn_datamanager_linked(
+                        DmArgs {
+                            id,
+                            name,
+                            clock,
+                            config: DmConfig::default(),
+                        },
+                        sup,
+                    )
+                    .await?;
+                    let client = DmClient::new(actor.clone(), NODE_SOURCE);
+                    for record in records.iter() {
+                        client
+                            .store_raw(record.clone())
+                            .await
+                            .map_err(|e| SpawnErr::StartupFailed(Box::new(e)))?;
+                    }
+                    Ok(actor.get_cell())
+                }
+            })
+        })
+        .collect()
+}

@@ -1,0 +1,399 @@
+//! The simulated robot as a node's [`Robot`]: the plug between `marie-missions` and a node.
+//!
+//! A [`SimRobot`] is a world and a seed. Plugged into a node it stores the world's walls in
+//! the world datamanager as the a-priori map (class [`records::MAP`], sub1 `walls`, a
+//! `Vec<Segment>`) before any operation runs, starts the virtual cart in that world (when the
+//! node runs the cart's drivers), and judges every run by the world: the report gets the
+//! cart's final pose, its collisions, the seed and the world's verdict, and a mission the
+//! dispatcher calls a success fails when the cart did not end in the world's goal area.
+//! [`SimRobot::picture`] draws a run.
+//!
+//! ```no_run
+//! use marie_cluster::node::{Node, NodeConfig, NodeOptions};
+//! use marie_missions::robot::SimRobot;
+//! use marie_missions::world::World;
+//! use std::sync::Arc;
+//! # #[tokio::main] async fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! let world = World::load("missions/worlds/lab.toml")?;
+//! let robot = Arc::new(SimRobot::new(world.clone(), 7));
+//! let catalog = marie_missions::catalog();
+//! let config = NodeConfig::everything("solo", &catalog);
+//! let options = NodeOptions::with_catalog(catalog).with_robot(robot.clone());
+//! let node = Node::start(config, options).await?;
+//! let mission = node.load_mission(std::path::Path::new("missions/docking.toml")).await?;
+//! let report = node.run(mission, None).await?;
+//! println!("{:?} at {:?}: {:?}", report.outcome, report.final_pose, report.judgement);
+//! std::fs::write("run.svg", robot.picture(&report).await.render(&world, 50.0))?;
+//! node.shutdown().await;
+//! # Ok(()) }
+//! ```
+
+use crate::geom::{Point, Pose};
+use crate::hardware::{CartClient, CartError};
+use crate::ops::records::{self, DockRecord, EchoScan, PathRecord, SegmentSet, WallRecord};
+use crate::picture::Picture;
+use crate::world::{Judgement, World};
+use marie_actors::clock::SharedClock;
+use marie_actors::dispatcher::{Outcome, RunReport};
+use marie_actors::dm::{self, DmClient, DmError, DmSpec, NewRecord, Query};
+use marie_cluster::node::{AprioriRecord, BoxFuture, Robot};
+use marie_supervision::{ChildSpec, Restart};
+use serde::de::DeserializeOwned;
+
+/// The most sonar echo points [`SimRobot::picture`] draws; more are thinned out evenly.
+pub const MAX_PICTURE_ECHOES: usize = 5000;
+
+/// The seed of a simulation when none is given.
+pub const DEFAULT_SEED: u64 = 1;
+
+/// The source name the picture reads datamanagers as.
+const SOURCE: &str = "robot";
+
+/// The simulated robot: the world it drives in, the seed of its noise, and whether this node
+/// runs its drivers (the virtual cart).
+#[derive(Clone, Debug)]
+pub struct SimRobot {
+    world: World,
+    seed: u64,
+    drivers: bool,
+}
+
+impl SimRobot {
+    /// A robot in `world` with noise seeded by `seed`, running its cart.
+    pub fn new(world: World, seed: u64) -> Self {
+        SimRobot {
+            world,
+            seed,
+            drivers: true,
+        }
+    }
+
+    /// Whether the node runs the cart's drivers (another node may run them).
+    pub fn with_drivers(mut self, drivers: bool) -> Self {
+        self.drivers = drivers;
+        self
+    }
+
+    /// The world it drives in.
+    pub fn world(&self) -> &World {
+        &self.world
+    }
+
+    /// The seed of its noise.
+    pub fn seed(&self) -> u64 {
+        self.seed
+    }
+
+    /// echo point stored in the feature datamanager (thinned out evenly to at most
+    /// [`MAX_PICTURE_ECHOES`]), the newest extracted segments, the newest followed wall and
+    /// detected dock (world datamanager), and the newest planned path (parameter
+    /// datamanager), captioned `mission — outcome — seed N`.
+    ///
+    /// Whatever cannot be had — the cart does not answer, a
+    /// datamanager fails, a record does not decode — is left out with a warning.
+    pub async fn picture(&self, report: &RunReport) -> Picture {
+        let robot = self;
+        let outcome = match report.outcome {
+            Outcome::Succeeded => "succeeded",
+            Outcome::Failed => "failed",
+        };
+        let mut picture = Picture {
+            caption: format!("{} — {outcome} — seed {}", report.mission, robot.seed),
+            ..Picture::default()
+        };
+        match CartClient::lookup() {
+            Ok(cart) => {
+                match cart.trace().await {
+                    Ok(trace) => picture.path = trace.iter().map(|t| t.pose.point()).collect(),
+                    Err(e) => tracing::warn!("picture without the driven path: {e}"),
+                }
+                match cart.status().await {
+                    Ok(status) => picture.footprint = Some(status.footprint),
+                    Err(e) => tracing::warn!("picture without the final footprint: {e}"),
+                }
+            }
+            Err(e) => tracing::warn!("picture without the cart's path and footprint: {e}"),
+        }
+        if picture.footprint.is_none() {
+            if let Some([x, y, theta]) = report.final_pose {
+                let pose = Pose::new(x, y, theta);
+                picture.footprint = Some(robot.world.cart.footprint(&pose));
+            }
+        }
+
+        let feature = dm_client(dm::FEATURE);
+        let scans: Vec<EchoScan> = decoded(&feature, Query::class(records::SONAR)).await;
+        let echoes: Vec<Point> = scans
+            .iter()
+            .flat_map(|s| s.echoes.iter().map(|e| e.point))
+            .filter(|p| p.x.is_finite() && p.y.is_finite())
+            .collect();
+        picture.sonar = thin_out(echoes, MAX_PICTURE_ECHOES);
+        if let Some(set) = newest::<SegmentSet>(&feature, records::SEGMENTS).await {
+            picture.segments = set.segments;
+        }
+        let world = dm_client(dm::WORLD);
+        if let Some(wall) = newest::<WallRecord>(&world, records::WALL).await {
+            picture.wall = Some(wall.segment);
+        }
+        if let Some(dock) = newest::<DockRecord>(&world, records::DOCK).await {
+            picture.dock = Some(dock.corners);
+        }
+        let parameter = dm_client(dm::PARAMETER);
+        if let Some(path) = newest::<PathRecord>(&parameter, records::PATH).await {
+            picture.planned = path.waypoints();
+        }
+        picture
+    }
+}
+
+impl Robot for SimRobot {
+    fn describe(&self) -> String {
+        format!("world {} (seed {})", self.world.name, self.seed)
+    }
+
+    fn apriori(&self) -> Vec<AprioriRecord> {
+        match NewRecord::encode(records::MAP, &self.world.segments()) {
+            Ok(record) => vec![AprioriRecord {
+                datamanager: dm::WORLD.name.to_string(),
+                record: record.with_sub1("walls"),
+            }],
+            Err(e) => {
+                tracing::error!("the map of world {} does not encode: {e}", self.world.name);
+                Vec::new()
+            }
+        }
+    }
+
+    fn drivers(&self, clock: &SharedClock) -> Vec<ChildSpec> {
+        if !self.drivers {
+            return Vec::new();
+        }
+        let (clock, world, seed) = (clock.clone(), self.world.clone(), self.seed);
+        vec![ChildSpec::worker("cart", move |sup| {
+            let (clock, world) = (clock.clone(), world.clone());
+            async move { crate::spawn_cart(clock, &world, seed, Some(sup)).await }
+        })
+        .with_restart(Restart::Temporary)]
+    }
+
+    fn judge<'a>(&'a self, report: &'a mut RunReport) -> BoxFuture<'a, ()> {
+        Box::pin(async move {
+            let status = match CartClient::lookup() {
+                Ok(cart) => cart.status().await,
+                Err(e) => Err(e),
+            };
+            let status = status.map(|s| (s.pose, s.collisions, s.judgement));
+            judge(report, self, status);
+        })
+    }
+}
+
+/// A client of datamanager `spec`'s current incarnation.
+fn dm_client(spec: DmSpec) -> Result<DmClient, DmError> {
+    DmClient::lookup(spec.name, SOURCE)
+}
+
+/// judgement of them (or why the cart did not tell), and let the world overrule a success.
+fn judge(
+    report: &mut RunReport,
+    robot: &SimRobot,
+    status: Result<(Pose, u32, Judgement), CartError>,
+) {
+    report.seed = Some(robot.seed);
+    let has_goal = robot.world.goal.is_some();
+    let (pose, collisions, judgement) = match status {
+        Ok(status) => status,
+        Err(e) => {
+            tracing::warn!("cannot judge the run: {e}");
+            if has_goal && report.succeeded() {
+                report.outcome = Outcome::Failed;
+                report.reason =
+                    format!("cannot judge the run in world `{}`: {e}", robot.world.name);
+            }
+            return;
+        }
+    };
+    report.final_pose = Some([pose.x, pose.y, pose.theta]);
+    report.collisions = Some(u64::from(collisions));
+    report.inside_goal = has_goal.then_some(judgement.inside_goal);
+    report.judgement = Some(judgement.to_string());
+    if has_goal && report.succeeded() && !judgement.success {
+        report.outcome = Outcome::Failed;
+        report.reason = format!("the cart did not end in the goal area: {judgement}");
+    }
+}
+
+/// Every record of `query`, decoded as `T`; records that do not decode, or a datamanager that
+/// does not answer, are skipped with a warning.
+async fn decoded<T: DeserializeOwned>(client: &Result<DmClient, DmError>, query: Query) -> Vec<T> {
+    let class = query.class.clone().unwrap_or_default();
+    let selected = match client {
+        Ok(client) => client.select(query).await,
+        Err(e) => Err(e.clone()),
+    };
+    let records = match selected {
+        Ok(records) => records,
+        Err(e) => {
+            tracing::warn!(class = %class, "picture without `{class}` records: {e}");
+            return Vec::new();
+        }
+    };
+    let mut skipped = 0usize;
+    let mut first_error = None;
+    let out = records
+        .iter()
+        .filter_map(|r| match r.decode::<T>() {
+            Ok(v) => Some(v),
+            Err(e) => {
+                skipped += 1;
+                first_error.get_or_insert(e);
+                None
+            }
+        })
+        .collect();
+    if let Some(e) = first_error {
+        tracing::warn!(
+            class = %class,
+            "picture skips {skipped} `{class}` record(s) that do not decode: {e}"
+        );
+    }
+    out
+}
+
+/// The newest record of `class`, decoded; `None` when there is none or it does not decode.
+async fn newest<T: DeserializeOwned>(client: &Result<DmClient, DmError>, class: &str) -> Option<T> {
+    decoded(client, Query::class(class).newest(1)).await.pop()
+}
+
+/// At most `max` of `points`, taking every k-th.
+fn thin_out(points: Vec<Point>, max: usize) -> Vec<Point> {
+    if points.len() <= max {
+        return points;
+    }
+    let k = points.len().div_ceil(max.max(1));
+    points.into_iter().step_by(k).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn report(outcome: Outcome) -> RunReport {
+        RunReport {
+            mission: "m".into(),
+            outcome,
+            reason: match outcome {
+                Outcome::Succeeded => String::new(),
+                Outcome::Failed => "the dispatcher's reason".into(),
+            },
+            status: 0,
+            flags: Vec::new(),
+            actions: Vec::new(),
+            rebinds: Vec::new(),
+            duration_ms: 0,
+            final_pose: None,
+            collisions: None,
+            seed: None,
+            inside_goal: None,
+            judgement: None,
+            faults: Vec::new(),
+        }
+    }
+
+    fn robot(world: &str) -> SimRobot {
+        SimRobot::new(World::builtin(world).expect("a shipped world"), 9)
+    }
+
+    fn at(
+        robot: &SimRobot,
+        pose: Pose,
+        collisions: u32,
+    ) -> Result<(Pose, u32, Judgement), CartError> {
+        Ok((pose, collisions, robot.world.judge(pose, collisions)))
+    }
+
+    #[test]
+    fn a_success_outside_the_goal_is_a_failure() {
+        let lab = robot("lab");
+        let mut r = report(Outcome::Succeeded);
+        judge(&mut r, &lab, at(&lab, lab.world.start, 0));
+        assert_eq!(r.outcome, Outcome::Failed);
+        assert!(
+            r.reason
+                .starts_with("the cart did not end in the goal area: failure: outside"),
+            "{}",
+            r.reason
+        );
+        assert_eq!(r.final_pose, Some([12.5, 1.5, lab.world.start.theta]));
+        assert_eq!(
+            (r.collisions, r.seed, r.inside_goal),
+            (Some(0), Some(9), Some(false))
+        );
+    }
+
+    #[test]
+    fn a_success_in_the_goal_stays_one_but_a_collision_fails_it() {
+        let lab = robot("lab");
+        let parked = Pose::new(4.9, -0.4, 0.0);
+        let mut r = report(Outcome::Succeeded);
+        judge(&mut r, &lab, at(&lab, parked, 0));
+        assert_eq!((r.outcome, r.inside_goal), (Outcome::Succeeded, Some(true)));
+        assert!(r
+            .judgement
+            .as_deref()
+            .is_some_and(|j| j.starts_with("success")));
+        let mut r = report(Outcome::Succeeded);
+        judge(&mut r, &lab, at(&lab, parked, 2));
+        assert_eq!(r.outcome, Outcome::Failed);
+        assert!(r.reason.contains("2 collision(s)"), "{}", r.reason);
+    }
+
+    #[test]
+    fn a_failure_keeps_the_dispatchers_reason() {
+        let lab = robot("lab");
+        let mut r = report(Outcome::Failed);
+        judge(&mut r, &lab, at(&lab, lab.world.start, 0));
+        assert_eq!(r.reason, "the dispatcher's reason");
+        assert_eq!(r.collisions, Some(0));
+    }
+
+    #[test]
+    fn a_world_without_a_goal_never_fails_a_run_on_its_own() {
+        let nodock = robot("nodock");
+        let mut r = report(Outcome::Succeeded);
+        judge(&mut r, &nodock, at(&nodock, nodock.world.start, 1));
+        assert_eq!(r.outcome, Outcome::Succeeded);
+        assert_eq!((r.inside_goal, r.collisions), (None, Some(1)));
+        assert!(r.judgement.is_some());
+        // nor does a cart that does not answer
+        let mut r = report(Outcome::Succeeded);
+        judge(&mut r, &nodock, Err(CartError::Unreachable));
+        assert_eq!(
+            (r.outcome, r.final_pose, r.seed),
+            (Outcome::Succeeded, None, Some(9))
+        );
+    }
+
+    #[test]
+    fn an_unanswering_cart_fails_a_run_that_needs_judging() {
+        let lab = robot("lab");
+        let mut r = report(Outcome::Succeeded);
+        judge(&mut r, &lab, Err(CartError::NotFound));
+        assert_eq!(r.outcome, Outcome::Failed);
+        assert!(
+            r.reason.contains("no virtual cart is running"),
+            "{}",
+            r.reason
+        );
+    }
+
+    #[test]
+    fn echo_points_are_thinned_out_evenly() {
+        let points: Vec<Point> = (0..12_001).map(|i| Point::new(f64::from(i), 0.0)).collect();
+        let thin = thin_out(points.clone(), 5000);
+        assert!(thin.len() <= 5000 && thin.len() >= 4000, "{}", thin.len());
+        assert_eq!(thin[1].x, 3.0);
+        assert_eq!(thin_out(points[..10].to_vec(), 5000).len(), 10);
+    }
+}

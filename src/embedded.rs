@@ -1,0 +1,161 @@
+//! The embedded, single-process node the `marie` command runs: a [`NodeConfig`] — the
+//! built-in one that hosts everything, or a file's — with the simulated robot plugged in
+//! when there is a world.
+//!
+//! Which world the robot drives in: `--world FILE`, else the node config's
+//! `[simulation] world`, else the mission's `world`. With a node config file, a robot runs
+//! only if the file has a `[simulation]` table: the node hosts exactly what the file says.
+//!
+//! ```no_run
+//! use marie::embedded::{Embedded, EmbeddedOptions};
+//! # #[tokio::main] async fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! let options = EmbeddedOptions {
+//!     node: Some("missions/nodes/v1-only.toml".into()),
+//!     mission_world: Some("missions/worlds/lab.toml".into()),
+//!     ..EmbeddedOptions::default()
+//! };
+//! let embedded = Embedded::start(options).await?;
+//! let mission = embedded.node.load_mission("missions/docking.toml".as_ref()).await?;
+//! let report = embedded.node.run(mission, None).await?;
+//! println!("{:?}", report.outcome);
+//! embedded.node.shutdown().await;
+//! # Ok(()) }
+//! ```
+
+use marie_actors::clock::{RealClock, SharedClock};
+use marie_actors::diagnostic::{Diagnostic, Diagnostics};
+use marie_cluster::node::{Node, NodeConfig, NodeError, NodeOptions, SimulationConfig};
+use marie_missions::robot::{SimRobot, DEFAULT_SEED};
+use marie_missions::world::World;
+use std::path::PathBuf;
+use std::sync::Arc;
+
+/// The name of the built-in node.
+pub const EMBEDDED_NODE: &str = "embedded";
+
+/// How to start the embedded node.
+#[derive(Clone)]
+pub struct EmbeddedOptions {
+    /// A node config file; `None`: the built-in config that hosts everything.
+    pub node: Option<PathBuf>,
+    /// `--world`: overrides the node config's and the mission's world.
+    pub world: Option<PathBuf>,
+    /// The mission's `world`, used when neither `--world` nor the node config names one.
+    pub mission_world: Option<PathBuf>,
+    /// `--seed`: overrides the node config's; default [`DEFAULT_SEED`].
+    pub seed: Option<u64>,
+    /// The clock the node's actors share.
+    pub clock: SharedClock,
+}
+
+impl Default for EmbeddedOptions {
+    fn default() -> Self {
+        EmbeddedOptions {
+            node: None,
+            world: None,
+            mission_world: None,
+            seed: None,
+            clock: RealClock::shared(),
+        }
+    }
+}
+
+/// Why the embedded node did not start.
+#[derive(Debug, thiserror::Error)]
+pub enum EmbeddedError {
+    /// The node config file is not valid (bad input).
+    #[error("{0}")]
+    Config(Diagnostics),
+    /// The world file does not load (bad input); diagnostics of the file that named it come
+    /// first.
+    #[error("{0}")]
+    World(Diagnostics),
+    /// The node did not start.
+    #[error(transparent)]
+    Node(#[from] NodeError),
+}
+
+impl EmbeddedError {
+    /// Whether the error is the user's input (exit 2) rather than a failure (exit 1).
+    pub fn is_bad_input(&self) -> bool {
+        matches!(
+            self,
+            EmbeddedError::Config(_)
+                | EmbeddedError::World(_)
+                | EmbeddedError::Node(NodeError::Config(_))
+        )
+    }
+}
+
+/// A started embedded node, with the robot it drives.
+pub struct Embedded {
+    /// The node.
+    pub node: Node,
+    /// The simulated robot, when one runs.
+    pub robot: Option<Arc<SimRobot>>,
+    /// The world file it drives in.
+    pub world_path: Option<PathBuf>,
+}
+
+impl Embedded {
+    /// Load the node config (or take the built-in one), the world, and start the node.
+    pub async fn start(options: EmbeddedOptions) -> Result<Embedded, EmbeddedError> {
+        let catalog = marie_missions::catalog();
+        let (config, from_file) = match &options.node {
+            Some(path) => (
+                NodeConfig::load(path, &catalog).map_err(EmbeddedError::Config)?,
+                true,
+            ),
+            None => (NodeConfig::everything(EMBEDDED_NODE, &catalog), false),
+        };
+        let simulation = match (&config.simulation, from_file) {
+            (Some(sim), _) => Some(sim.clone()),
+            (None, true) => None,
+            (None, false) => Some(SimulationConfig {
+                world: None,
+                seed: None,
+                drivers: true,
+            }),
+        };
+        let mut robot = None;
+        let mut world_path = None;
+        if let Some(sim) = simulation {
+            let named_by_config = options.world.is_none() && sim.world.is_some();
+            let path = options
+                .world
+                .clone()
+                .or_else(|| sim.world.clone())
+                .or_else(|| options.mission_world.clone());
+            if let Some(path) = path {
+                let world = World::load(&path).map_err(|d| {
+                    let mut all = Vec::new();
+                    if let (true, Some(node)) = (named_by_config, &options.node) {
+                        all.push(Diagnostic::new(
+                            node.display().to_string(),
+                            1,
+                            1,
+                            format!("its [simulation] world {} does not load:", path.display()),
+                        ));
+                    }
+                    all.extend(d);
+                    EmbeddedError::World(Diagnostics(all))
+                })?;
+                let seed = options.seed.or(sim.seed).unwrap_or(DEFAULT_SEED);
+                robot = Some(Arc::new(
+                    SimRobot::new(world, seed).with_drivers(sim.drivers),
+                ));
+                world_path = Some(path);
+            }
+        }
+        let mut node_options = NodeOptions::with_catalog(catalog).with_clock(options.clock);
+        if let Some(robot) = &robot {
+            node_options = node_options.with_robot(robot.clone());
+        }
+        let node = Node::start(config, node_options).await?;
+        Ok(Embedded {
+            node,
+            robot,
+            world_path,
+        })
+    }
+}
