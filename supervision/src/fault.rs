@@ -171,7 +171,7 @@ pub fn inject_into(kind: FaultKind, inst: &Instance) -> Result<Injected, FaultEr
 /// given. Deterministic for a seed (the same gaps and picks, given the same candidates).
 #[derive(Clone, Debug)]
 pub struct Chaos {
-    rng: crate::SplitMix64,
+    rng: rand_xoshiro::Xoshiro256StarStar,
     /// Shortest gap between two kills.
     pub min_gap: Duration,
     /// Longest gap between two kills.
@@ -182,7 +182,7 @@ impl Chaos {
     /// Chaos seeded by `seed`, with kills every 4 to 12 seconds.
     pub fn new(seed: u64) -> Chaos {
         Chaos {
-            rng: crate::SplitMix64::new(seed),
+            rng: rand_core::SeedableRng::seed_from_u64(seed),
             min_gap: Duration::from_secs(4),
             max_gap: Duration::from_secs(12),
         }
@@ -198,7 +198,7 @@ impl Chaos {
     /// The time until the next kill.
     pub fn next_gap(&mut self) -> Duration {
         let span = self.max_gap.saturating_sub(self.min_gap).as_secs_f64();
-        self.min_gap + Duration::from_secs_f64(span * self.rng.next_f64())
+        self.min_gap + Duration::from_secs_f64(span * crate::backoff::unit(&mut self.rng))
     }
 
     /// Pick one of `candidates` (`None` if there are none).
@@ -206,7 +206,7 @@ impl Chaos {
         if candidates.is_empty() {
             return None;
         }
-        let i = (self.rng.next_u64() % candidates.len() as u64) as usize;
+        let i = (rand_core::Rng::next_u64(&mut self.rng) % candidates.len() as u64) as usize;
         candidates.get(i)
     }
 }

@@ -93,7 +93,7 @@ mod strategy;
 mod supervisor;
 mod terminate;
 
-pub use backoff::{Backoff, SplitMix64};
+pub use backoff::Backoff;
 pub use child::{ChildKind, ChildSpec, Restart, Shutdown, StartFn, StartFuture};
 pub use error::SupervisorError;
 pub use events::{RestartCause, SupervisorEvent};

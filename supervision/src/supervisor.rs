@@ -13,7 +13,6 @@ use ractor::{
 use tokio::sync::broadcast;
 use tokio::time::Instant;
 
-use crate::backoff::SplitMix64;
 use crate::child::{ChildKind, ChildSpec, Restart};
 use crate::error::SupervisorError;
 use crate::events::{RestartCause, SupervisorEvent};
@@ -25,6 +24,7 @@ use crate::messages::{Internal, InternalKind, SupervisorMsg};
 use crate::spec::SupervisorSpec;
 use crate::start::run_start;
 use crate::terminate::shutdown_child;
+use rand_xoshiro::Xoshiro256StarStar;
 
 /// The supervisor actor (a ractor [`Actor`]). Start it with [`Supervisor::start`] or
 /// [`Supervisor::start_linked`], or nest it with [`ChildSpec::supervisor`].
@@ -139,7 +139,7 @@ pub struct SupervisorState {
     early_exits: HashMap<ActorId, ExitReason>,
     /// Backoff timers.
     timers: Vec<JoinHandle<()>>,
-    rng: SplitMix64,
+    rng: Xoshiro256StarStar,
     events: Option<broadcast::Sender<SupervisorEvent>>,
 }
 
@@ -249,7 +249,10 @@ impl Actor for Supervisor {
 impl SupervisorState {
     fn new(spec: SupervisorSpec) -> Self {
         let (events, _) = broadcast::channel(spec.event_capacity.max(1));
-        let seed = spec.backoff.as_ref().map_or(0, |b| b.seed);
+        let rng = match &spec.backoff {
+            Some(b) => b.rng(),
+            None => rand_core::SeedableRng::seed_from_u64(0),
+        };
         SupervisorState {
             intensity: Intensity::new(spec.max_restarts, spec.period),
             epoch: Instant::now(),
@@ -264,7 +267,7 @@ impl SupervisorState {
             tasks: HashMap::new(),
             early_exits: HashMap::new(),
             timers: Vec::new(),
-            rng: SplitMix64::new(seed),
+            rng,
             events: Some(events),
             spec,
         }
