@@ -10,9 +10,9 @@ use std::time::Duration;
 
 use common::*;
 use marie_supervision::{
-    Backoff, ChildKind, ChildSpec, ChildState, ExitReason, RestartCause, Shutdown, Strategy,
-    Supervisor, SupervisorError, SupervisorEvent, SupervisorSpec, REACHED_MAX_RESTART_INTENSITY,
-    SHUTDOWN,
+    Backoff, ChildKind, ChildSpec, ChildState, ExitReason, RestartCause, Shutdown, SpecError,
+    Strategy, Supervisor, SupervisorError, SupervisorEvent, SupervisorSpec,
+    REACHED_MAX_RESTART_INTENSITY, SHUTDOWN,
 };
 use ractor::ActorStatus;
 
@@ -113,7 +113,10 @@ async fn sup_start_duplicate_child_id() {
     )
     .await
     .unwrap_err();
-    assert_eq!(err, SupervisorError::DuplicateChildId("c1".into()));
+    assert_eq!(
+        err,
+        SupervisorError::InvalidSpec(SpecError::DuplicateChildId("c1".into()))
+    );
     assert!(log.entries().is_empty());
 }
 
@@ -1308,4 +1311,615 @@ fn strategy_default_is_one_for_one() {
     assert_eq!(SupervisorSpec::default().max_restarts, 1);
     assert_eq!(SupervisorSpec::default().period, Duration::from_secs(5));
     assert!(SupervisorSpec::default().backoff.is_none());
+}
+
+// ---------------------------------------------------------------------------------------------
+// ignore: a start may decline to run (OTP's `ignore`)
+
+fn counts(c: marie_supervision::ChildCounts) -> [usize; 4] {
+    // OTP's get_child_counts order: specs, active, supervisors, workers
+    [c.specs, c.active, c.supervisors, c.workers]
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn sup_start_ignore_child() {
+    let log = Log::default();
+    let (sup, _) = Supervisor::start(None, SupervisorSpec::one_for_one(), vec![])
+        .await
+        .unwrap();
+    let ignoring = worker_with("child1", &log, WorkerOpts::ignoring(&flag(true)));
+    assert_eq!(
+        sup.start_child(ignoring).await.unwrap_err(),
+        SupervisorError::Ignored("child1".into())
+    );
+    let c2 = sup.start_child(worker("child2", &log)).await.unwrap();
+    let children = sup.which_children().await.unwrap();
+    assert_eq!(ids(&children), ["child1", "child2"]);
+    assert_eq!(children[0].state, ChildState::Undefined);
+    assert_eq!(children[1].state, ChildState::Running(c2));
+    assert_eq!(counts(sup.count_children().await.unwrap()), [2, 1, 0, 2]);
+    sup.stop().await;
+
+    // the same for a static child: kept, not running
+    let (sup, _) = Supervisor::start(
+        None,
+        SupervisorSpec::one_for_one(),
+        vec![
+            worker_with("child1", &log, WorkerOpts::ignoring(&flag(true))),
+            worker("child2", &log),
+        ],
+    )
+    .await
+    .unwrap();
+    let children = sup.which_children().await.unwrap();
+    assert_eq!(ids(&children), ["child1", "child2"]);
+    assert_eq!(children[0].state, ChildState::Undefined);
+    assert_eq!(counts(sup.count_children().await.unwrap()), [2, 1, 0, 2]);
+    sup.stop().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn sup_start_ignore_temporary_child() {
+    // a temporary static child that ignores its start leaves no spec behind
+    let log = Log::default();
+    let temporary = marie_supervision::Restart::Temporary;
+    let (sup, _) = Supervisor::start(
+        None,
+        SupervisorSpec::one_for_one(),
+        vec![
+            worker_with("child1", &log, WorkerOpts::ignoring(&flag(true))).with_restart(temporary),
+            worker("child2", &log).with_restart(temporary),
+        ],
+    )
+    .await
+    .unwrap();
+    let children = sup.which_children().await.unwrap();
+    assert_eq!(ids(&children), ["child2"]);
+    assert!(children[0].state.actor().is_some());
+    assert_eq!(counts(sup.count_children().await.unwrap()), [1, 1, 0, 1]);
+    sup.stop().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn sup_start_ignore_temporary_child_start_child() {
+    let log = Log::default();
+    let temporary = marie_supervision::Restart::Temporary;
+    let (sup, _) = Supervisor::start(None, SupervisorSpec::one_for_one(), vec![])
+        .await
+        .unwrap();
+    let ignoring =
+        worker_with("child1", &log, WorkerOpts::ignoring(&flag(true))).with_restart(temporary);
+    assert_eq!(
+        sup.start_child(ignoring).await.unwrap_err(),
+        SupervisorError::Ignored("child1".into())
+    );
+    let c2 = sup
+        .start_child(worker("child2", &log).with_restart(temporary))
+        .await
+        .unwrap();
+    let children = sup.which_children().await.unwrap();
+    assert_eq!(ids(&children), ["child2"]);
+    assert_eq!(children[0].state, ChildState::Running(c2));
+    assert_eq!(counts(sup.count_children().await.unwrap()), [1, 1, 0, 1]);
+    assert_eq!(
+        sup.restart_child("child1").await.unwrap_err(),
+        SupervisorError::NotFound("child1".into())
+    );
+    sup.stop().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn sup_start_ignore_permanent_child_start_child() {
+    // a permanent child that ignores its start stays, not running; restart_child tries again
+    let log = Log::default();
+    let ignore = flag(true);
+    let spec = worker_with("child", &log, WorkerOpts::ignoring(&ignore));
+    let (sup, _) = Supervisor::start(
+        None,
+        SupervisorSpec::one_for_one().with_intensity(10, HOUR),
+        vec![],
+    )
+    .await
+    .unwrap();
+    assert_eq!(
+        sup.start_child(spec.clone()).await.unwrap_err(),
+        SupervisorError::Ignored("child".into())
+    );
+    assert_eq!(
+        sup.start_child(spec.clone()).await.unwrap_err(),
+        SupervisorError::AlreadyPresent("child".into())
+    );
+    assert_eq!(
+        sup.restart_child("child").await.unwrap_err(),
+        SupervisorError::Ignored("child".into())
+    );
+    let children = sup.which_children().await.unwrap();
+    assert_eq!(ids(&children), ["child"]);
+    assert_eq!(children[0].state, ChildState::Undefined);
+    assert_eq!(counts(sup.count_children().await.unwrap()), [1, 0, 0, 1]);
+
+    ignore.store(false, Ordering::SeqCst);
+    let cell = sup.restart_child("child").await.unwrap();
+    assert_eq!(running(&sup, "child").await, cell);
+    assert_eq!(log.with_prefix("ignored start").len(), 2);
+    sup.stop().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn sup_start_ignore_temporary_child_start_child_simple() {
+    let log = Log::default();
+    let template = template(&log).with_restart(marie_supervision::Restart::Temporary);
+    let (sup, _) = Supervisor::start(None, SupervisorSpec::simple_one_for_one(template), vec![])
+        .await
+        .unwrap();
+    let ignoring = Inst {
+        ignore: true,
+        ..Inst::named("i1")
+    };
+    assert!(matches!(
+        sup.start_dynamic(ignoring).await.unwrap_err(),
+        SupervisorError::Ignored(_)
+    ));
+    let c2 = sup.start_dynamic(Inst::named("i2")).await.unwrap();
+    let children = sup.which_children().await.unwrap();
+    assert_eq!(children.len(), 1);
+    assert_eq!(children[0].state, ChildState::Running(c2));
+    assert_eq!(counts(sup.count_children().await.unwrap()), [1, 1, 0, 1]);
+    sup.stop().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn sup_start_ignore_permanent_child_start_child_simple() {
+    // an instance that ignores its start leaves nothing behind, whatever its restart type
+    let log = Log::default();
+    let (sup, _probe, mut exits) =
+        start_probed(SupervisorSpec::simple_one_for_one(template(&log)), vec![]).await;
+    let mut events = sup.subscribe().await.unwrap();
+    let ignoring = Inst {
+        ignore: true,
+        ..Inst::named("i1")
+    };
+    assert!(matches!(
+        sup.start_dynamic(ignoring).await.unwrap_err(),
+        SupervisorError::Ignored(_)
+    ));
+    wait_for(&mut events, "ignored", |e| {
+        matches!(e, SupervisorEvent::ChildIgnored { .. })
+    })
+    .await;
+    let c2 = sup.start_dynamic(Inst::named("i2")).await.unwrap();
+    let children = sup.which_children().await.unwrap();
+    assert_eq!(children.len(), 1);
+    assert_eq!(children[0].state, ChildState::Running(c2));
+    assert_eq!(counts(sup.count_children().await.unwrap()), [1, 1, 0, 1]);
+    // the supervisor terminates without error
+    sup.stop().await;
+    assert!(matches!(
+        exit_of(&mut exits, sup.get_id()).await,
+        ExitReason::Shutdown(None)
+    ));
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn restart_answering_ignore_leaves_the_child_undefined() {
+    // a permanent child whose restart answers ignore is not running and not retried; the
+    // ignore counts no restart
+    let log = Log::default();
+    let ignore = flag(false);
+    let (sup, _) = Supervisor::start(
+        None,
+        SupervisorSpec::one_for_one().with_intensity(1, HOUR),
+        vec![
+            worker_with("c1", &log, WorkerOpts::ignoring(&ignore)),
+            worker("c2", &log),
+        ],
+    )
+    .await
+    .unwrap();
+    let mut events = sup.subscribe().await.unwrap();
+    ignore.store(true, Ordering::SeqCst);
+    crash(&running(&sup, "c1").await);
+    wait_for(
+        &mut events,
+        "ignored restart",
+        |e| matches!(e, SupervisorEvent::ChildIgnored { id } if id == "c1"),
+    )
+    .await;
+    let children = sup.which_children().await.unwrap();
+    assert_eq!(children[0].state, ChildState::Undefined);
+    assert!(children[1].state.actor().is_some());
+    // one more restart is still allowed: the ignored one did not count twice
+    ignore.store(false, Ordering::SeqCst);
+    sup.restart_child("c1").await.unwrap();
+    assert_eq!(sup.get_cell().get_status(), ActorStatus::Running);
+    sup.stop().await;
+}
+
+// ---------------------------------------------------------------------------------------------
+// simple_one_for_one
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn child_adm_simple() {
+    let log = Log::default();
+    let (sup, _) = Supervisor::start(
+        None,
+        SupervisorSpec::simple_one_for_one(template(&log)),
+        vec![],
+    )
+    .await
+    .unwrap();
+    // all children are added at run time
+    assert!(sup.which_children().await.unwrap().is_empty());
+    assert_eq!(counts(sup.count_children().await.unwrap()), [1, 0, 0, 0]);
+
+    let c1 = sup.start_dynamic(Inst::named("i1")).await.unwrap();
+    let children = sup.which_children().await.unwrap();
+    assert_eq!(children.len(), 1);
+    assert_eq!(children[0].state, ChildState::Running(c1.clone()));
+    assert_eq!(children[0].id, "child#1", "instance ids are generated");
+    assert_eq!(counts(sup.count_children().await.unwrap()), [1, 1, 0, 1]);
+    let c2 = sup.start_dynamic(Inst::named("i2")).await.unwrap();
+    assert_eq!(counts(sup.count_children().await.unwrap()), [1, 2, 0, 2]);
+
+    // termination is by actor
+    assert_eq!(
+        sup.terminate_child("child#1").await.unwrap_err(),
+        SupervisorError::SimpleOneForOne
+    );
+    assert_eq!(counts(sup.count_children().await.unwrap()), [1, 2, 0, 2]);
+    sup.terminate_actor(c1.get_id()).await.unwrap();
+    assert_eq!(c1.get_status(), ActorStatus::Stopped);
+    let children = sup.which_children().await.unwrap();
+    assert_eq!(children.len(), 1);
+    assert_eq!(children[0].state, ChildState::Running(c2.clone()));
+    assert_eq!(counts(sup.count_children().await.unwrap()), [1, 1, 0, 1]);
+    // terminating an instance that is gone is fine
+    sup.terminate_actor(c1.get_id()).await.unwrap();
+    assert_eq!(counts(sup.count_children().await.unwrap()), [1, 1, 0, 1]);
+    // a live actor that is not a child is not found, and left alone
+    let (stranger, _) = ractor::Actor::spawn(None, Probe, tokio::sync::mpsc::unbounded_channel().0)
+        .await
+        .unwrap();
+    assert!(matches!(
+        sup.terminate_actor(stranger.get_id()).await.unwrap_err(),
+        SupervisorError::NotFound(_)
+    ));
+    assert_eq!(stranger.get_status(), ActorStatus::Running);
+    stranger.stop(None);
+
+    // no specs to restart, delete or add
+    assert_eq!(
+        sup.restart_child("child#2").await.unwrap_err(),
+        SupervisorError::SimpleOneForOne
+    );
+    assert_eq!(
+        sup.delete_child("child#2").await.unwrap_err(),
+        SupervisorError::SimpleOneForOne
+    );
+    assert_eq!(
+        sup.start_child(worker("c", &log)).await.unwrap_err(),
+        SupervisorError::SimpleOneForOne
+    );
+    // the argument's type is checked before anything starts
+    match sup.start_dynamic(42u32).await.unwrap_err() {
+        SupervisorError::WrongArgument { expected, got } => {
+            assert!(expected.ends_with("Inst"), "{expected}");
+            assert_eq!(got, "u32");
+        }
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(counts(sup.count_children().await.unwrap()), [1, 1, 0, 1]);
+    sup.stop().await;
+    assert_eq!(c2.get_status(), ActorStatus::Stopped);
+
+    // on other strategies: no template, and children are addressed by id (OTP child_adm)
+    let (sup, _) = Supervisor::start(
+        None,
+        SupervisorSpec::one_for_one(),
+        vec![worker("child1", &log)],
+    )
+    .await
+    .unwrap();
+    assert_eq!(
+        sup.start_dynamic(Inst::named("x")).await.unwrap_err(),
+        SupervisorError::NotSimpleOneForOne
+    );
+    let child1 = running(&sup, "child1").await;
+    assert!(matches!(
+        sup.terminate_actor(child1.get_id()).await.unwrap_err(),
+        SupervisorError::NotFound(_)
+    ));
+    assert_eq!(running(&sup, "child1").await, child1);
+    sup.stop().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn simple_one_for_one() {
+    let log = Log::default();
+    let (sup, _probe, mut exits) = start_probed(
+        SupervisorSpec::simple_one_for_one(template(&log)).with_intensity(2, HOUR),
+        vec![],
+    )
+    .await;
+    let mut events = sup.subscribe().await.unwrap();
+    let c1 = sup.start_dynamic(Inst::named("i1")).await.unwrap();
+    let c2 = sup.start_dynamic(Inst::named("i2")).await.unwrap();
+
+    crash(&c1);
+    let new_c1 = restarted(&mut events, "child#1").await;
+    assert_ne!(new_c1, c1);
+    let children = sup.which_children().await.unwrap();
+    assert_eq!(children.len(), 2);
+    assert!(children
+        .iter()
+        .any(|c| c.state == ChildState::Running(c2.clone())));
+    assert_eq!(counts(sup.count_children().await.unwrap()), [1, 2, 0, 2]);
+
+    // restart intensity over all instances together
+    crash(&c2);
+    let new_c2 = restarted(&mut events, "child#2").await;
+    crash(&new_c2);
+    assert_escalated(&mut exits, &sup).await;
+    stopped(&new_c1).await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn simple_one_for_one_extra() {
+    // each instance is restarted with the argument it was started with
+    let log = Log::default();
+    let (sup, _) = Supervisor::start(
+        None,
+        SupervisorSpec::simple_one_for_one(template(&log)).with_intensity(2, HOUR),
+        vec![],
+    )
+    .await
+    .unwrap();
+    let mut events = sup.subscribe().await.unwrap();
+    let alpha = sup.start_dynamic(Inst::named("alpha")).await.unwrap();
+    let beta = sup.start_dynamic(Inst::named("beta")).await.unwrap();
+    log.clear();
+    crash(&alpha);
+    match wait_for(&mut events, "restart", |e| is_restart_of(e, "child#1")).await {
+        SupervisorEvent::ChildRestarted {
+            old,
+            cause,
+            restarts,
+            ..
+        } => {
+            assert_eq!(old, Some(alpha.get_id()));
+            assert!(matches!(cause, RestartCause::Exited(ExitReason::Failed(_))));
+            assert_eq!(restarts, 1);
+        }
+        _ => unreachable!(),
+    }
+    assert_eq!(log.with_prefix("start "), ["start alpha"]);
+    let children = sup.which_children().await.unwrap();
+    assert_eq!(ids(&children), ["child#1", "child#2"]);
+    assert_eq!(children[1].state, ChildState::Running(beta));
+    assert_eq!((children[0].restarts, children[1].restarts), (1, 0));
+    sup.stop().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn simple_one_for_one_escalation() {
+    let log = Log::default();
+    let fail = flag(false);
+    let (sup, _probe, mut exits) = start_probed(
+        SupervisorSpec::simple_one_for_one(template(&log)).with_intensity(4, HOUR),
+        vec![],
+    )
+    .await;
+    let c1 = sup
+        .start_dynamic(Inst {
+            fail_start: Some(fail.clone()),
+            ..Inst::named("i1")
+        })
+        .await
+        .unwrap();
+    let c2 = sup.start_dynamic(Inst::named("i2")).await.unwrap();
+    fail.store(true, Ordering::SeqCst);
+    crash(&c1);
+    assert_escalated(&mut exits, &sup).await;
+    assert_eq!(c2.get_status(), ActorStatus::Stopped);
+    assert_eq!(log.with_prefix("failed start i1").len(), 4);
+}
+
+#[tokio::test(start_paused = true)]
+async fn simple_one_for_one_shutdown() {
+    // instances are stopped together: two stop within their shutdown time, the third is
+    // killed at the deadline; the whole shutdown takes one deadline, not the sum
+    let log = Log::default();
+    let t = Duration::from_secs(1);
+    let template = template(&log).with_shutdown(Shutdown::Timeout(2 * t));
+    let (sup, _) = Supervisor::start(None, SupervisorSpec::simple_one_for_one(template), vec![])
+        .await
+        .unwrap();
+    for (name, delay) in [("i1", t), ("i2", t), ("i3", 5 * t)] {
+        sup.start_dynamic(Inst {
+            stop_delay: Some(delay),
+            ..Inst::named(name)
+        })
+        .await
+        .unwrap();
+    }
+    let mut events = sup.subscribe().await.unwrap();
+    let begin = tokio::time::Instant::now();
+    sup.stop().await;
+    let took = begin.elapsed();
+    assert!(
+        took >= t && took < 5 * t,
+        "shutdown took {took:?}: the children wait before exiting"
+    );
+    assert!(
+        took < 2 * t + Duration::from_millis(500),
+        "shutdown took {took:?}: the instances must stop together"
+    );
+    let mut killed: Vec<(String, bool)> = events_until(&mut events, "stopped", |e| {
+        matches!(e, SupervisorEvent::Stopped { .. })
+    })
+    .await
+    .into_iter()
+    .filter_map(|e| match e {
+        SupervisorEvent::ChildShutdown { id, killed, .. } => Some((id, killed)),
+        _ => None,
+    })
+    .collect();
+    killed.sort();
+    assert_eq!(
+        killed,
+        [
+            ("child#1".to_string(), false),
+            ("child#2".to_string(), false),
+            ("child#3".to_string(), true)
+        ]
+    );
+    let mut stops = log.with_prefix("stop");
+    stops.sort();
+    assert_eq!(
+        stops,
+        ["stop i1", "stop i2", "stop i3", "stopped i1", "stopped i2"]
+    );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn hanging_restart_loop_simple() {
+    let log = Log::default();
+    let fail = flag(false);
+    let (sup, _) = Supervisor::start(
+        None,
+        SupervisorSpec::simple_one_for_one(template(&log).with_shutdown(Shutdown::BrutalKill))
+            .with_intensity(usize::MAX, Duration::from_secs(10)),
+        vec![],
+    )
+    .await
+    .unwrap();
+    let mut events = sup.subscribe().await.unwrap();
+    let inst = Inst {
+        fail_start: Some(fail.clone()),
+        ..Inst::named("i1")
+    };
+    let c1 = sup.start_dynamic(inst.clone()).await.unwrap();
+    fail.store(true, Ordering::SeqCst);
+    crash(&c1);
+    wait_for(&mut events, "a failed restart", |e| {
+        matches!(e, SupervisorEvent::RestartFailed { .. })
+    })
+    .await;
+    assert_eq!(
+        sup.restart_child("child#1").await.unwrap_err(),
+        SupervisorError::SimpleOneForOne
+    );
+    assert_eq!(
+        sup.delete_child("child#1").await.unwrap_err(),
+        SupervisorError::SimpleOneForOne
+    );
+    let children = sup.which_children().await.unwrap();
+    assert_eq!(children.len(), 1);
+    assert_eq!(children[0].state, ChildState::Restarting);
+    assert_eq!(counts(sup.count_children().await.unwrap()), [1, 0, 0, 1]);
+    // the restarting instance is still addressed by its last actor
+    sup.terminate_actor(c1.get_id()).await.unwrap();
+    assert!(sup.which_children().await.unwrap().is_empty());
+
+    fail.store(false, Ordering::SeqCst);
+    let c2 = sup.start_dynamic(inst).await.unwrap();
+    fail.store(true, Ordering::SeqCst);
+    crash(&c2);
+    wait_for(&mut events, "a failed restart", |e| {
+        matches!(e, SupervisorEvent::RestartFailed { .. })
+    })
+    .await;
+    // the supervisor does not hang in its restart loop
+    assert!(sup.stop_timeout(PATIENCE).await);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn count_children_simple() {
+    // OTP's count_children: 1000 temporary instances, then 1000 more, then all killed
+    let log = Log::default();
+    let template = template(&log).with_restart(marie_supervision::Restart::Temporary);
+    let (sup, _) = Supervisor::start(
+        None,
+        SupervisorSpec::simple_one_for_one(template).with_event_capacity(8192),
+        vec![],
+    )
+    .await
+    .unwrap();
+    let mut events = sup.subscribe().await.unwrap();
+    for _ in 0..1000 {
+        sup.start_dynamic(Inst::named("i")).await.unwrap();
+    }
+    assert_eq!(sup.which_children().await.unwrap().len(), 1000);
+    assert_eq!(
+        counts(sup.count_children().await.unwrap()),
+        [1, 1000, 0, 1000]
+    );
+    for _ in 0..1000 {
+        sup.start_dynamic(Inst::named("i")).await.unwrap();
+    }
+    let children = sup.which_children().await.unwrap();
+    assert_eq!(children.len(), 2000);
+    assert_eq!(
+        counts(sup.count_children().await.unwrap()),
+        [1, 2000, 0, 2000]
+    );
+    for child in &children {
+        child.state.actor().unwrap().kill();
+    }
+    let mut removed = 0;
+    while removed < 2000 {
+        wait_for(&mut events, "removals", |e| {
+            matches!(e, SupervisorEvent::ChildDeleted { .. })
+        })
+        .await;
+        removed += 1;
+    }
+    assert_eq!(counts(sup.count_children().await.unwrap()), [1, 0, 0, 0]);
+    sup.stop().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn simple_one_for_one_scale_many_temporary_children() {
+    // OTP-9242: terminating n temporary instances one by one costs O(n), not O(n²): 10 000
+    // take at most 50 times as long as 1 000 (linear would be 10; the margin absorbs a
+    // loaded machine)
+    let log = Log::default();
+    let template = template(&log).with_restart(marie_supervision::Restart::Temporary);
+    let (sup, _) = Supervisor::start(None, SupervisorSpec::simple_one_for_one(template), vec![])
+        .await
+        .unwrap();
+    async fn start_n(sup: &marie_supervision::SupervisorRef, n: usize) -> Vec<ractor::ActorId> {
+        let mut actors = Vec::with_capacity(n);
+        for _ in 0..n {
+            actors.push(sup.start_dynamic(Inst::named("i")).await.unwrap().get_id());
+        }
+        actors
+    }
+    async fn terminate_all(
+        sup: &marie_supervision::SupervisorRef,
+        actors: Vec<ractor::ActorId>,
+    ) -> Duration {
+        let begin = std::time::Instant::now();
+        for actor in actors {
+            sup.terminate_actor(actor).await.unwrap();
+        }
+        begin.elapsed()
+    }
+    // the best of three small runs, against one large run
+    let mut t1 = Duration::MAX;
+    for _ in 0..3 {
+        let c1 = start_n(&sup, 1_000).await;
+        t1 = t1.min(terminate_all(&sup, c1).await);
+    }
+    let c2 = start_n(&sup, 10_000).await;
+    assert_eq!(sup.count_children().await.unwrap().active, 10_000);
+    let t2 = terminate_all(&sup, c2).await;
+    let scaling = t2.as_secs_f64() / t1.as_secs_f64();
+    assert!(
+        scaling <= 50.0,
+        "terminating 10 000 took {t2:?}, 1 000 took {t1:?}: scaling {scaling:.1}"
+    );
+    assert_eq!(counts(sup.count_children().await.unwrap()), [1, 0, 0, 0]);
+    assert_eq!(log.with_prefix("stopped ").len(), 13_000);
+    sup.stop().await;
 }
