@@ -10,8 +10,8 @@ use std::time::Duration;
 
 use common::*;
 use marie_supervision::{
-    Backoff, ChildKind, ChildSpec, ChildState, ExitReason, RestartCause, Shutdown, SpecError,
-    Strategy, Supervisor, SupervisorError, SupervisorEvent, SupervisorSpec,
+    check_child_specs, Backoff, ChildKind, ChildSpec, ChildState, ExitReason, RestartCause,
+    Shutdown, SpecError, Strategy, Supervisor, SupervisorError, SupervisorEvent, SupervisorSpec,
     REACHED_MAX_RESTART_INTENSITY, SHUTDOWN,
 };
 use ractor::ActorStatus;
@@ -1584,7 +1584,7 @@ async fn child_adm_simple() {
         sup.terminate_actor(stranger.get_id()).await.unwrap_err(),
         SupervisorError::NotFound(_)
     ));
-    assert_eq!(stranger.get_status(), ActorStatus::Running);
+    assert!(stranger.get_status() < ActorStatus::Stopping);
     stranger.stop(None);
 
     // no specs to restart, delete or add
@@ -1922,4 +1922,734 @@ async fn simple_one_for_one_scale_many_temporary_children() {
     assert_eq!(counts(sup.count_children().await.unwrap()), [1, 0, 0, 0]);
     assert_eq!(log.with_prefix("stopped ").len(), 13_000);
     sup.stop().await;
+}
+
+// ---------------------------------------------------------------------------------------------
+// child specs and supervisor flags
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn child_specs() {
+    let log = Log::default();
+    let invalid = SupervisorError::InvalidSpec;
+    let (sup, _) = Supervisor::start(None, SupervisorSpec::one_for_one(), vec![])
+        .await
+        .unwrap();
+    // bad child specs are refused before anything starts
+    assert_eq!(
+        sup.start_child(worker("", &log)).await.unwrap_err(),
+        invalid(SpecError::EmptyId)
+    );
+    assert_eq!(
+        sup.start_child(worker("c", &log).with_shutdown(Shutdown::Timeout(Duration::ZERO)))
+            .await
+            .unwrap_err(),
+        invalid(SpecError::ZeroShutdownTimeout("c".into()))
+    );
+    assert_eq!(
+        sup.start_child(worker("c", &log).with_start_timeout(Duration::ZERO))
+            .await
+            .unwrap_err(),
+        invalid(SpecError::ZeroStartTimeout("c".into()))
+    );
+    assert!(log.entries().is_empty());
+    assert!(sup.which_children().await.unwrap().is_empty());
+    sup.stop().await;
+
+    // correct child specs
+    let c1 = worker("child", &log)
+        .with_kind(ChildKind::Supervisor)
+        .with_shutdown(Shutdown::Infinity);
+    let c2 = worker("child", &log)
+        .with_kind(ChildKind::Supervisor)
+        .with_shutdown(Shutdown::Timeout(Duration::from_secs(1)));
+    let c3 = worker("child", &log).with_restart(marie_supervision::Restart::Temporary);
+    let c4 = worker("child", &log).with_restart(marie_supervision::Restart::Transient);
+    let c5 = worker("child", &log).with_shutdown(Shutdown::Infinity);
+    for c in [&c1, &c2, &c3, &c4, &c5] {
+        assert_eq!(check_child_specs(std::slice::from_ref(c)), Ok(()));
+    }
+    assert_eq!(
+        check_child_specs(&[c1.clone(), c2.clone()]),
+        Err(SpecError::DuplicateChildId("child".into()))
+    );
+
+    // faulty child specs in a supervisor's start
+    assert_eq!(
+        Supervisor::start(None, SupervisorSpec::one_for_one(), vec![worker(" ", &log)])
+            .await
+            .unwrap_err(),
+        invalid(SpecError::EmptyId)
+    );
+    // a simple_one_for_one supervisor has exactly one child spec, its template
+    let sofo = SupervisorSpec::simple_one_for_one(template(&log));
+    assert_eq!(
+        Supervisor::start(None, sofo.clone(), vec![c1, c2])
+            .await
+            .unwrap_err(),
+        invalid(SpecError::SimpleOneForOneChildren(2))
+    );
+    let mut nameless = template(&log);
+    nameless.id = String::new();
+    assert_eq!(
+        Supervisor::start(None, SupervisorSpec::simple_one_for_one(nameless), vec![])
+            .await
+            .unwrap_err(),
+        invalid(SpecError::EmptyId)
+    );
+    let hasty = template(&log).with_shutdown(Shutdown::Timeout(Duration::ZERO));
+    assert_eq!(
+        Supervisor::start(None, SupervisorSpec::simple_one_for_one(hasty), vec![])
+            .await
+            .unwrap_err(),
+        invalid(SpecError::ZeroShutdownTimeout("child".into()))
+    );
+    assert!(log.entries().is_empty(), "nothing ever started");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn sup_flags() {
+    let log = Log::default();
+    let invalid = SupervisorError::InvalidSpec;
+    let start = |spec: SupervisorSpec| Supervisor::start(None, spec, vec![]);
+    assert_eq!(
+        start(SupervisorSpec::one_for_one().with_intensity(2, Duration::ZERO))
+            .await
+            .unwrap_err(),
+        invalid(SpecError::ZeroPeriod)
+    );
+    // refused before anything is spawned, linked or not
+    let (parent, _) = probe().await;
+    assert_eq!(
+        Supervisor::start_linked(
+            None,
+            SupervisorSpec::one_for_all().with_intensity(2, Duration::ZERO),
+            vec![worker("c1", &log)],
+            parent.get_cell()
+        )
+        .await
+        .unwrap_err(),
+        invalid(SpecError::ZeroPeriod)
+    );
+    assert!(parent.get_children().is_empty());
+    assert!(log.entries().is_empty());
+    // spawning the actor directly with bad flags fails its start-up, it does not panic
+    let direct = ractor::Actor::spawn(
+        None,
+        Supervisor,
+        marie_supervision::SupervisorArgs {
+            spec: SupervisorSpec::rest_for_one().with_intensity(1, Duration::ZERO),
+            children: vec![],
+        },
+    )
+    .await;
+    assert!(matches!(direct, Err(ractor::SpawnErr::StartupFailed(_))));
+
+    for capacity in [0, usize::MAX] {
+        let mut spec = SupervisorSpec::one_for_one();
+        spec.event_capacity = capacity;
+        assert_eq!(
+            start(spec).await.unwrap_err(),
+            invalid(SpecError::EventCapacity(capacity))
+        );
+    }
+    let backoff = Backoff::exponential(Duration::from_millis(10), Duration::from_secs(1));
+    for bad in [
+        Backoff {
+            multiplier: f64::NAN,
+            ..backoff.clone()
+        },
+        Backoff {
+            jitter: 3.0,
+            ..backoff.clone()
+        },
+        Backoff {
+            base: Duration::from_secs(2),
+            ..backoff.clone()
+        },
+        Backoff::exponential(Duration::from_secs(1), Duration::MAX),
+    ] {
+        assert!(matches!(
+            start(SupervisorSpec::one_for_one().with_backoff(bad))
+                .await
+                .unwrap_err(),
+            SupervisorError::InvalidSpec(SpecError::Backoff(_))
+        ));
+    }
+    // the strategy and the template go together
+    let mut spec = SupervisorSpec::one_for_one();
+    spec.strategy = Strategy::SimpleOneForOne;
+    assert_eq!(
+        start(spec).await.unwrap_err(),
+        invalid(SpecError::MissingTemplate)
+    );
+    let mut spec = SupervisorSpec::simple_one_for_one(template(&log));
+    spec.strategy = Strategy::OneForAll;
+    assert_eq!(
+        start(spec).await.unwrap_err(),
+        invalid(SpecError::TemplateWithoutSimpleOneForOne(
+            Strategy::OneForAll
+        ))
+    );
+
+    // absurd but meaningful limits work
+    let (sup, _) = Supervisor::start(
+        None,
+        SupervisorSpec::one_for_one().with_intensity(usize::MAX, Duration::MAX),
+        vec![worker("c1", &log)],
+    )
+    .await
+    .unwrap();
+    let mut events = sup.subscribe().await.unwrap();
+    crash(&running(&sup, "c1").await);
+    restarted(&mut events, "c1").await;
+    sup.stop().await;
+}
+
+// ---------------------------------------------------------------------------------------------
+// another child fails while its siblings restart
+
+/// Start a supervisor over two gated children, letting both start.
+async fn start_gated(
+    spec: SupervisorSpec,
+    log: &Log,
+) -> (
+    marie_supervision::SupervisorRef,
+    Gates,
+    ractor::ActorRef<()>,
+    Exits,
+) {
+    let (tx, mut gates) = tokio::sync::mpsc::unbounded_channel();
+    let children = vec![gated("child1", log, &tx), gated("child2", log, &tx)];
+    let (probe, exits) = probe().await;
+    let parent = probe.get_cell();
+    let starting =
+        tokio::spawn(async move { Supervisor::start_linked(None, spec, children, parent).await });
+    answer(&mut gates, "child1", Verdict::Start).await;
+    answer(&mut gates, "child2", Verdict::Start).await;
+    let (sup, _) = starting.await.unwrap().expect("supervisor starts");
+    (sup, gates, probe, exits)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn one_for_all_other_child_fails_restart() {
+    // child1 dies; child1 restarts but child2 fails to: the restarted child1 is stopped again
+    // and the whole group is restarted once more
+    let log = Log::default();
+    let (sup, mut gates, _probe, mut exits) =
+        start_gated(SupervisorSpec::one_for_all().with_intensity(3, HOUR), &log).await;
+    let mut events = sup.subscribe().await.unwrap();
+    let c1 = running(&sup, "child1").await;
+    c1.kill();
+    answer(&mut gates, "child1", Verdict::Start).await;
+    let c1b = restarted(&mut events, "child1").await;
+    answer(&mut gates, "child2", Verdict::Fail).await;
+    wait_for(
+        &mut events,
+        "failed restart of child2",
+        |e| matches!(e, SupervisorEvent::RestartFailed { id, .. } if id == "child2"),
+    )
+    .await;
+    wait_for(&mut events, "shutdown of the restarted child1", |e| {
+        matches!(e, SupervisorEvent::ChildShutdown { id, actor, .. } if id == "child1" && *actor == c1b.get_id())
+    })
+    .await;
+    stopped(&c1b).await;
+    // let the restart complete
+    answer(&mut gates, "child1", Verdict::Start).await;
+    answer(&mut gates, "child2", Verdict::Start).await;
+    restarted(&mut events, "child2").await;
+    let c1c = running(&sup, "child1").await;
+    assert_ne!(c1c, c1b);
+    running(&sup, "child2").await;
+    assert_eq!(log.with_prefix("failed start"), ["failed start child2"]);
+    sup.stop().await;
+    assert!(exit_of(&mut exits, sup.get_id()).await.is_shutdown());
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn rest_for_one_other_child_fails_restart() {
+    // child1 dies; child1 restarts but child2 fails to: only child2 is tried again — child1,
+    // started before it, is left running
+    let log = Log::default();
+    let (sup, mut gates, _probe, mut exits) =
+        start_gated(SupervisorSpec::rest_for_one().with_intensity(3, HOUR), &log).await;
+    let mut events = sup.subscribe().await.unwrap();
+    running(&sup, "child1").await.kill();
+    answer(&mut gates, "child1", Verdict::Start).await;
+    let c1b = restarted(&mut events, "child1").await;
+    answer(&mut gates, "child2", Verdict::Fail).await;
+    // the next start must be child2's (answer checks it), not child1's
+    answer(&mut gates, "child2", Verdict::Start).await;
+    restarted(&mut events, "child2").await;
+    assert_eq!(running(&sup, "child1").await, c1b);
+    assert!(gates.try_recv().is_err(), "no other start");
+    sup.stop().await;
+    assert!(exit_of(&mut exits, sup.get_id()).await.is_shutdown());
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn temporary_bystander_rest_for_one() {
+    // a temporary child started after the failing one is stopped and removed, not restarted
+    let log = Log::default();
+    let (sup, _) = Supervisor::start(
+        None,
+        SupervisorSpec::rest_for_one().with_intensity(2, HOUR),
+        vec![
+            worker("c1", &log),
+            worker("c2", &log).with_restart(marie_supervision::Restart::Temporary),
+        ],
+    )
+    .await
+    .unwrap();
+    let mut events = sup.subscribe().await.unwrap();
+    let c2 = running(&sup, "c2").await;
+    stop_normal(&running(&sup, "c1").await);
+    restarted(&mut events, "c1").await;
+    assert_eq!(ids(&sup.which_children().await.unwrap()), ["c1"]);
+    assert_eq!(c2.get_status(), ActorStatus::Stopped);
+    assert_eq!(log.with_prefix("start c2").len(), 1);
+    assert_eq!(
+        sup.restart_child("c2").await.unwrap_err(),
+        SupervisorError::NotFound("c2".into())
+    );
+    sup.stop().await;
+}
+
+// ---------------------------------------------------------------------------------------------
+// trees
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn tree() {
+    let log = Log::default();
+    let fail3 = flag(false);
+    let supchild1 = ChildSpec::supervisor(
+        "supchild1",
+        SupervisorSpec::one_for_one().with_intensity(4, HOUR),
+        vec![worker("child1", &log), worker("child2", &log)],
+    );
+    let supchild2 = ChildSpec::supervisor(
+        "supchild2",
+        SupervisorSpec::one_for_one().with_intensity(4, HOUR),
+        vec![],
+    );
+    // the top allows one restart an hour, so a second fault below escalates through it
+    let (top, _probe, mut exits) = start_probed(
+        SupervisorSpec::one_for_all().with_intensity(1, HOUR),
+        vec![],
+    )
+    .await;
+    let mut top_events = top.subscribe().await.unwrap();
+    top.start_child(supchild1).await.unwrap();
+    top.start_child(supchild2).await.unwrap();
+    assert_eq!(counts(top.count_children().await.unwrap()), [2, 2, 2, 0]);
+    let sub = |cell| marie_supervision::SupervisorRef::from_cell(cell).expect("a supervisor");
+    let sup1 = sub(running(&top, "supchild1").await);
+    let sup2 = sub(running(&top, "supchild2").await);
+    assert_eq!(
+        ids(&sup1.which_children().await.unwrap()),
+        ["child1", "child2"]
+    );
+    assert_eq!(counts(sup1.count_children().await.unwrap()), [2, 2, 0, 2]);
+    assert_eq!(counts(sup2.count_children().await.unwrap()), [0, 0, 0, 0]);
+
+    // dynamic children
+    sup2.start_child(worker_with("child3", &log, WorkerOpts::failing(&fail3)))
+        .await
+        .unwrap();
+    sup2.start_child(worker("child4", &log)).await.unwrap();
+    assert_eq!(counts(sup2.count_children().await.unwrap()), [2, 2, 0, 2]);
+    let [cp1, cp2] = [
+        running(&sup1, "child1").await,
+        running(&sup1, "child2").await,
+    ];
+    let [cp3, cp4] = [
+        running(&sup2, "child3").await,
+        running(&sup2, "child4").await,
+    ];
+
+    // only the process that dies is restarted
+    let mut sup2_events = sup2.subscribe().await.unwrap();
+    crash(&cp4);
+    let new_cp4 = restarted(&mut sup2_events, "child4").await;
+    assert_ne!(new_cp4, cp4);
+    assert_eq!(running(&sup1, "child1").await, cp1);
+    assert_eq!(running(&sup1, "child2").await, cp2);
+    assert_eq!(running(&sup2, "child3").await, cp3);
+    assert_eq!(counts(sup2.count_children().await.unwrap()), [2, 2, 0, 2]);
+
+    // child3's restarts fail until supchild2 gives up; the top restarts both child
+    // supervisors (one-for-all), with their static children only
+    fail3.store(true, Ordering::SeqCst);
+    crash(&cp3);
+    let seen = events_until(&mut top_events, "restart of the tree", |e| {
+        is_restart_of(e, "supchild2")
+    })
+    .await;
+    let causes: Vec<(String, RestartCause)> = seen
+        .into_iter()
+        .filter_map(|e| match e {
+            SupervisorEvent::ChildRestarted { id, cause, .. } => Some((id, cause)),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(causes.len(), 2, "{causes:?}");
+    assert_eq!(
+        causes[0],
+        (
+            "supchild1".to_string(),
+            RestartCause::Sibling("supchild2".into())
+        )
+    );
+    assert!(
+        matches!(&causes[1], (id, RestartCause::Exited(r)) if id == "supchild2" && r.is_intensity_escalation()),
+        "{causes:?}"
+    );
+    // child4's restart was the first of supchild2's 4; three failed attempts for child3, and
+    // the fourth restart within the hour exceeds the intensity
+    assert_eq!(log.with_prefix("failed start child3").len(), 3);
+    let new_sup1 = sub(running(&top, "supchild1").await);
+    let new_sup2 = sub(running(&top, "supchild2").await);
+    assert_ne!(new_sup1, sup1);
+    assert_eq!(counts(top.count_children().await.unwrap()), [2, 2, 2, 0]);
+    assert_eq!(
+        ids(&new_sup1.which_children().await.unwrap()),
+        ["child1", "child2"]
+    );
+    assert_eq!(
+        counts(new_sup1.count_children().await.unwrap()),
+        [2, 2, 0, 2]
+    );
+    assert!(new_sup2.which_children().await.unwrap().is_empty());
+    assert_eq!(
+        counts(new_sup2.count_children().await.unwrap()),
+        [0, 0, 0, 0]
+    );
+    for old in [&cp1, &cp2, &new_cp4] {
+        stopped(old).await;
+    }
+
+    // a second fault exceeds the top's intensity: the whole tree stops, and the top fails
+    // to its own parent
+    let leaves = [
+        running(&new_sup1, "child1").await,
+        running(&new_sup1, "child2").await,
+    ];
+    new_sup2.kill();
+    assert_escalated(&mut exits, &top).await;
+    for leaf in &leaves {
+        stopped(leaf).await;
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn simple_global_supervisor() {
+    // OTP-9212 with registered names (ractor's registry is node-local; there are no global
+    // names): top (one-for-all) → "sup2" (one-for-all) → "server". Whatever part dies, both
+    // names are registered again to new actors.
+    const SUP2: &str = "sup2-9212";
+    const SERVER: &str = "server-9212";
+    let log = Log::default();
+    let l = log.clone();
+    let server = ChildSpec::worker("child", move |sup| {
+        let args = WorkerArgs {
+            name: "server".into(),
+            log: l.clone(),
+            stop_delay: None,
+            unlink: false,
+        };
+        async move {
+            let (actor, _) =
+                ractor::Actor::spawn_linked(Some(SERVER.into()), Worker, args, sup).await?;
+            Ok(actor.get_cell())
+        }
+    });
+    // a killed supervisor's children are killed asynchronously, so the old server may hold
+    // its name a moment longer than the old sup2: restarts back off briefly and try again
+    let backoff = Backoff::exponential(Duration::from_millis(5), Duration::from_millis(200));
+    let sup2_spec = SupervisorSpec::one_for_all()
+        .with_intensity(10, Duration::from_secs(60))
+        .with_backoff(backoff.clone());
+    let middle = ChildSpec::worker("middle", move |sup| {
+        let spec = sup2_spec.clone();
+        let children = vec![server.clone()];
+        async move {
+            let (handle, _) = Supervisor::start_linked(Some(SUP2.into()), spec, children, sup)
+                .await
+                .map_err(|e| ractor::SpawnErr::StartupFailed(Box::new(e)))?;
+            Ok(handle.get_cell())
+        }
+    })
+    .with_kind(ChildKind::Supervisor)
+    .with_shutdown(Shutdown::Timeout(Duration::from_secs(2)));
+    let where_is = |name: &str| ractor::registry::where_is(name);
+    let (top, _) = Supervisor::start(
+        None,
+        SupervisorSpec::one_for_all()
+            .with_intensity(10, Duration::from_secs(60))
+            .with_backoff(backoff),
+        vec![middle],
+    )
+    .await
+    .unwrap();
+    let mut top_events = top.subscribe().await.unwrap();
+    let sup2 = where_is(SUP2).expect("sup2 registered");
+    let server = where_is(SERVER).expect("server registered");
+
+    // kill_supervisor
+    sup2.kill();
+    restarted(&mut top_events, "middle").await;
+    let sup2_b = where_is(SUP2).expect("sup2 registered again");
+    let server_b = where_is(SERVER).expect("server registered again");
+    assert_ne!(sup2_b, sup2);
+    assert_ne!(server_b, server);
+    let sup2_ref = marie_supervision::SupervisorRef::from_cell(sup2_b.clone()).unwrap();
+    let mut sup2_events = sup2_ref.subscribe().await.unwrap();
+
+    // kill_worker
+    server_b.kill();
+    restarted(&mut sup2_events, "child").await;
+    let server_c = where_is(SERVER).expect("server registered again");
+    assert_ne!(server_c, server_b);
+
+    // exit_worker
+    stop_normal(&server_c);
+    restarted(&mut sup2_events, "child").await;
+    let server_d = where_is(SERVER).expect("server registered again");
+    assert_ne!(server_d, server_c);
+
+    // restart_worker
+    sup2_ref.terminate_child("child").await.unwrap();
+    assert!(where_is(SERVER).is_none());
+    let server_e = sup2_ref.restart_child("child").await.unwrap();
+    assert_eq!(where_is(SERVER), Some(server_e.clone()));
+    assert_eq!(where_is(SUP2), Some(sup2_b.clone()));
+
+    // killing the top frees both names
+    top.kill();
+    stopped(&sup2_b).await;
+    stopped(&server_e).await;
+    assert!(where_is(SUP2).is_none() && where_is(SERVER).is_none());
+}
+
+// ---------------------------------------------------------------------------------------------
+// temporary children leave nothing behind
+
+/// `spec` with a start function that also holds `payload`, so the test can count who keeps
+/// the start parameters.
+fn holding(spec: ChildSpec, payload: std::sync::Arc<()>) -> ChildSpec {
+    let start = spec.start.clone();
+    ChildSpec {
+        start: std::sync::Arc::new(move |sup| {
+            let _held = &payload;
+            start(sup)
+        }),
+        ..spec
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn do_not_save_start_parameters_for_temporary_children() {
+    use marie_supervision::Restart::{Permanent, Temporary, Transient};
+    let log = Log::default();
+    for strategy in [
+        SupervisorSpec::one_for_all(),
+        SupervisorSpec::one_for_one(),
+        SupervisorSpec::rest_for_one(),
+    ] {
+        let (sup, _) = Supervisor::start(None, strategy.clone(), vec![])
+            .await
+            .unwrap();
+        for restart in [Permanent, Transient, Temporary] {
+            let payload = std::sync::Arc::new(());
+            for n in 0..100 {
+                let spec = worker(&format!("{restart:?}{n}"), &log).with_restart(restart);
+                sup.start_child(holding(spec, payload.clone()))
+                    .await
+                    .unwrap();
+            }
+            let kept = std::sync::Arc::strong_count(&payload) - 1;
+            let expected = if restart == Temporary { 0 } else { 100 };
+            assert_eq!(kept, expected, "{:?}, {restart:?}", strategy.strategy);
+        }
+        sup.stop().await;
+    }
+    for restart in [Permanent, Transient, Temporary] {
+        let (sup, _) = Supervisor::start(
+            None,
+            SupervisorSpec::simple_one_for_one(template(&log).with_restart(restart)),
+            vec![],
+        )
+        .await
+        .unwrap();
+        let payload = std::sync::Arc::new(());
+        for _ in 0..100 {
+            sup.start_dynamic(Inst {
+                payload: Some(payload.clone()),
+                ..Inst::named("i")
+            })
+            .await
+            .unwrap();
+        }
+        let kept = std::sync::Arc::strong_count(&payload) - 1;
+        let expected = if restart == Temporary { 0 } else { 100 };
+        assert_eq!(kept, expected, "simple_one_for_one, {restart:?}");
+        sup.stop().await;
+    }
+}
+
+#[derive(Clone, Copy, Debug)]
+enum How {
+    Kill,
+    Normal,
+    Abnormal,
+    /// `terminate_child`
+    Supervisor,
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn do_not_save_child_specs_for_temporary_children() {
+    use marie_supervision::Restart::{Permanent, Temporary, Transient};
+    let log = Log::default();
+    for strategy in [
+        Strategy::OneForAll,
+        Strategy::OneForOne,
+        Strategy::RestForOne,
+    ] {
+        for how in [How::Kill, How::Normal, How::Abnormal, How::Supervisor] {
+            for restart in [Permanent, Transient, Temporary] {
+                let (sup, _) = Supervisor::start(
+                    None,
+                    SupervisorSpec::new(strategy).with_intensity(10, HOUR),
+                    vec![],
+                )
+                .await
+                .unwrap();
+                let mut events = sup.subscribe().await.unwrap();
+                let spec = worker("child", &log).with_restart(restart);
+                let cell = sup.start_child(spec.clone()).await.unwrap();
+                match how {
+                    How::Kill => cell.kill(),
+                    How::Normal => stop_normal(&cell),
+                    How::Abnormal => crash(&cell),
+                    How::Supervisor => sup.terminate_child("child").await.unwrap(),
+                }
+                let case = format!("{strategy:?}, {how:?}, {restart:?}");
+                let restarts = !matches!(
+                    (restart, how),
+                    (Temporary, _) | (_, How::Supervisor) | (Transient, How::Normal)
+                );
+                if restarts {
+                    // restarted by the supervisor, so still there and running
+                    restarted(&mut events, "child").await;
+                    assert_eq!(
+                        sup.start_child(spec.clone()).await.unwrap_err(),
+                        SupervisorError::AlreadyStarted("child".into()),
+                        "{case}"
+                    );
+                } else if restart == Temporary {
+                    // forgotten: a new child of the same id can be added
+                    if !matches!(how, How::Supervisor) {
+                        wait_for(&mut events, "removal", |e| {
+                            matches!(e, SupervisorEvent::ChildDeleted { .. })
+                        })
+                        .await;
+                    }
+                    assert_eq!(
+                        sup.restart_child("child").await.unwrap_err(),
+                        SupervisorError::NotFound("child".into()),
+                        "{case}"
+                    );
+                    sup.start_child(spec.clone()).await.unwrap();
+                } else {
+                    // kept, not running
+                    if !matches!(how, How::Supervisor) {
+                        wait_for(&mut events, "exit", |e| {
+                            matches!(e, SupervisorEvent::ChildExited { .. })
+                        })
+                        .await;
+                    }
+                    assert_eq!(
+                        sup.start_child(spec.clone()).await.unwrap_err(),
+                        SupervisorError::AlreadyPresent("child".into()),
+                        "{case}"
+                    );
+                    sup.restart_child("child").await.unwrap();
+                }
+                sup.stop().await;
+            }
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// a dynamic child's restart loop
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn dynamic_child_restart_loop_escalates() {
+    // a child added at run time whose restarts keep failing exhausts the intensity: the
+    // supervisor stops every child in reverse start order and fails to its parent
+    let log = Log::default();
+    let fail = flag(false);
+    let (sup, _probe, mut exits) = start_probed(
+        SupervisorSpec::one_for_one().with_intensity(3, HOUR),
+        vec![worker("c1", &log), worker("c2", &log)],
+    )
+    .await;
+    let mut events = sup.subscribe().await.unwrap();
+    let d3 = sup
+        .start_child(worker_with("d3", &log, WorkerOpts::failing(&fail)))
+        .await
+        .unwrap();
+    sup.start_child(worker("d4", &log)).await.unwrap();
+    fail.store(true, Ordering::SeqCst);
+    crash(&d3);
+    let seen = events_until(&mut events, "giving up", |e| {
+        matches!(e, SupervisorEvent::Stopped { .. })
+    })
+    .await;
+    assert_eq!(
+        seen.iter()
+            .filter(|e| matches!(e, SupervisorEvent::RestartFailed { .. }))
+            .count(),
+        3
+    );
+    assert_escalated(&mut exits, &sup).await;
+    assert_eq!(log.with_prefix("stop "), ["stop d4", "stop c2", "stop c1"]);
+    assert_eq!(log.with_prefix("failed start d3").len(), 3);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn simple_one_for_one_restart_loop() {
+    // the same for a simple_one_for_one instance: the others are stopped together and the
+    // supervisor fails to its parent
+    let log = Log::default();
+    let fail = flag(false);
+    let (sup, _probe, mut exits) = start_probed(
+        SupervisorSpec::simple_one_for_one(template(&log)).with_intensity(5, HOUR),
+        vec![],
+    )
+    .await;
+    let mut others = Vec::new();
+    for n in 0..10 {
+        others.push(
+            sup.start_dynamic(Inst::named(&format!("i{n}")))
+                .await
+                .unwrap(),
+        );
+    }
+    let looping = sup
+        .start_dynamic(Inst {
+            fail_start: Some(fail.clone()),
+            ..Inst::named("looping")
+        })
+        .await
+        .unwrap();
+    fail.store(true, Ordering::SeqCst);
+    crash(&looping);
+    assert_escalated(&mut exits, &sup).await;
+    for other in &others {
+        assert_eq!(other.get_status(), ActorStatus::Stopped);
+    }
+    assert_eq!(log.with_prefix("failed start looping").len(), 5);
+    assert_eq!(log.with_prefix("stopped i").len(), 10);
 }
