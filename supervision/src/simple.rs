@@ -1,36 +1,7 @@
 //! Simple-one-for-one supervision: one child template, any number of instances started at run
 //! time with an argument each (OTP's `simple_one_for_one`).
 //!
-//! A node's failover needs to say "start another instance of operation X, with these
-//! parameters" without writing a child spec per instance: the operation's supervisor is a
-//! simple-one-for-one supervisor whose [`ChildTemplate`] knows how to start one instance of X
-//! from an argument, and [`crate::SupervisorRef::start_dynamic`] starts one.
-//!
-//! # Why the argument is a type-erased `Any`
-//!
-//! The argument's type is fixed by the template (`ChildTemplate::worker::<A, ..>`), but the
-//! supervisor does not carry it in its own type: [`crate::Supervisor`] is one actor type with
-//! one message type, [`crate::SupervisorMsg`]. That is what lets supervisors of any kind nest
-//! in one tree, and lets a [`crate::SupervisorRef`] be recovered from any child supervisor's
-//! cell ([`crate::SupervisorRef::from_cell`]) — a `Supervisor<A>` would need its argument type
-//! named wherever a supervisor is handled, and a child supervisor found at run time could not
-//! be addressed at all. So the argument travels as an `Arc<dyn Any + Send + Sync>`
-//! ([`DynamicArg`]), tagged with its type; the supervisor compares the tag with the template's
-//! before it starts anything, and a mismatch is a typed error
-//! ([`crate::SupervisorError::WrongArgument`]) naming both types, never a panic. No serde:
-//! the argument never leaves the process, it is handed to the start function as it is.
-//!
-//! # Semantics (as OTP)
-//!
-//! * Instances get generated ids, `"{template id}#{n}"` (OTP's are `undefined`); they are
-//!   addressed by their actor ([`crate::SupervisorRef::terminate_actor`]).
-//! * Each instance restarts by the template's restart type, with the argument it was started
-//!   with; restarting one never touches the others. The supervisor's restart intensity counts
-//!   the restarts of all instances together.
-//! * A temporary instance's argument is dropped once it started (it will never be restarted);
-//!   an instance whose start answers [`crate::ChildStart::Ignore`] leaves nothing behind.
-//! * On shutdown all instances are asked to stop at once and waited for together (OTP stops
-//!   them asynchronously too): there is no order among instances.
+//! (See [`ChildTemplate`] for the semantics and the design.)
 
 use std::any::{Any, TypeId};
 use std::fmt;
@@ -45,7 +16,7 @@ use crate::spec::SupervisorSpec;
 use crate::supervisor::Supervisor;
 use crate::validate::{validate_child, SpecError};
 
-/// The start argument of one instance, type-erased (see the [module docs](self) for why).
+/// The start argument of one instance, type-erased (see [`ChildTemplate`] for why).
 /// [`crate::SupervisorRef::start_dynamic`] builds it; build one yourself only to send
 /// [`crate::SupervisorMsg::StartDynamic`] directly.
 #[derive(Clone)]
@@ -82,6 +53,37 @@ type TemplateStartFn =
 
 /// How a simple-one-for-one supervisor starts each instance: like a [`ChildSpec`], but its
 /// start function takes an argument of type `A` besides the supervisor's cell. Cheap to clone.
+///
+/// A node's failover needs to say "start another instance of operation X, with these
+/// parameters" without writing a child spec per instance: the operation's supervisor is a
+/// simple-one-for-one supervisor whose [`ChildTemplate`] knows how to start one instance of X
+/// from an argument, and [`crate::SupervisorRef::start_dynamic`] starts one.
+///
+/// # Why the argument is a type-erased `Any`
+///
+/// The argument's type is fixed by the template (`ChildTemplate::worker::<A, ..>`), but the
+/// supervisor does not carry it in its own type: [`crate::Supervisor`] is one actor type with
+/// one message type, [`crate::SupervisorMsg`]. That is what lets supervisors of any kind nest
+/// in one tree, and lets a [`crate::SupervisorRef`] be recovered from any child supervisor's
+/// cell ([`crate::SupervisorRef::from_cell`]) — a `Supervisor<A>` would need its argument type
+/// named wherever a supervisor is handled, and a child supervisor found at run time could not
+/// be addressed at all. So the argument travels as an `Arc<dyn Any + Send + Sync>`
+/// ([`DynamicArg`]), tagged with its type; the supervisor compares the tag with the template's
+/// before it starts anything, and a mismatch is a typed error
+/// ([`crate::SupervisorError::WrongArgument`]) naming both types, never a panic. No serde:
+/// the argument never leaves the process, it is handed to the start function as it is.
+///
+/// # Semantics (as OTP)
+///
+/// * Instances get generated ids, `"{template id}#{n}"` (OTP's are `undefined`); they are
+///   addressed by their actor ([`crate::SupervisorRef::terminate_actor`]).
+/// * Each instance restarts by the template's restart type, with the argument it was started
+///   with; restarting one never touches the others. The supervisor's restart intensity counts
+///   the restarts of all instances together.
+/// * A temporary instance's argument is dropped once it started (it will never be restarted);
+///   an instance whose start answers [`crate::ChildStart::Ignore`] leaves nothing behind.
+/// * On shutdown all instances are asked to stop at once and waited for together (OTP stops
+///   them asynchronously too): there is no order among instances.
 #[derive(Clone)]
 pub struct ChildTemplate {
     /// The template's id; instances are named `"{id}#{n}"`.

@@ -55,6 +55,12 @@ use rand_xoshiro::Xoshiro256StarStar;
 /// * **Giving up**: when a restart would exceed the intensity, the supervisor stops all
 ///   children in reverse order and fails with [`REACHED_MAX_RESTART_INTENSITY`]; its parent
 ///   sees an abnormal exit (`ActorFailed`) and applies its own strategy.
+/// * **Simple-one-for-one** instances are ordinary children built from the template and
+///   their argument ([`ChildTemplate`]), keyed in start order like the others; only their
+///   shutdown differs: all are asked to stop at once and waited for together.
+/// * **Ignore**: a start answering [`ChildStart::Ignore`] leaves the child undefined (kept) or
+///   forgets it (temporary children, simple-one-for-one instances); it is not a failure and
+///   is never retried.
 ///
 /// ractor specifics this relies on: a child exit arrives as `ActorTerminated` / `ActorFailed`
 /// on the supervisor's supervision channel (which ractor serves before ordinary messages, so
