@@ -80,8 +80,10 @@ type TemplateStartFn =
 /// * Each instance restarts by the template's restart type, with the argument it was started
 ///   with; restarting one never touches the others. The supervisor's restart intensity counts
 ///   the restarts of all instances together.
-/// * A temporary instance's argument is dropped once it started (it will never be restarted);
-///   an instance whose start answers [`crate::ChildStart::Ignore`] leaves nothing behind.
+/// * An instance that is not restarted — temporary, or transient after a normal exit or a
+///   shutdown — is removed, not kept undefined: there is no spec of its own to restart. A
+///   temporary instance's argument is dropped as soon as it started; an instance whose start
+///   answers [`crate::ChildStart::Ignore`] leaves nothing behind.
 /// * On shutdown all instances are asked to stop at once and waited for together (OTP stops
 ///   them asynchronously too): there is no order among instances.
 #[derive(Clone)]

@@ -492,6 +492,11 @@ impl SupervisorState {
             return Ok(());
         }
         if !restart.restarts_after(&reason) {
+            if self.is_simple() {
+                // an instance that is not restarted has nothing left to keep (as in OTP):
+                // a transient instance that finished is gone, not undefined
+                self.remove_child(key);
+            }
             return Ok(());
         }
         self.restart(myself, key, RestartCause::Exited(reason))

@@ -2653,3 +2653,50 @@ async fn simple_one_for_one_restart_loop() {
     assert_eq!(log.with_prefix("failed start looping").len(), 5);
     assert_eq!(log.with_prefix("stopped i").len(), 10);
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn simple_one_for_one_restart_types() {
+    // restart types apply per instance; an instance that is not restarted is forgotten
+    use marie_supervision::Restart::{Permanent, Temporary, Transient};
+    let log = Log::default();
+    type Exit = fn(&ractor::ActorCell);
+    let cases: [(marie_supervision::Restart, Exit, bool); 6] = [
+        (Permanent, stop_normal, true),
+        (Permanent, stop_abnormal, true),
+        (Transient, stop_normal, false),
+        (Transient, stop_shutdown, false),
+        (Transient, stop_abnormal, true),
+        (Temporary, stop_abnormal, false),
+    ];
+    for (restart, exit, restarts) in cases {
+        let (sup, _) = Supervisor::start(
+            None,
+            SupervisorSpec::simple_one_for_one(template(&log).with_restart(restart))
+                .with_intensity(10, HOUR),
+            vec![],
+        )
+        .await
+        .unwrap();
+        let mut events = sup.subscribe().await.unwrap();
+        let bystander = sup.start_dynamic(Inst::named("b")).await.unwrap();
+        let cell = sup.start_dynamic(Inst::named("i")).await.unwrap();
+        exit(&cell);
+        if restarts {
+            let new = restarted(&mut events, "child#2").await;
+            assert_ne!(new, cell);
+            assert_eq!(sup.count_children().await.unwrap().active, 2, "{restart:?}");
+        } else {
+            wait_for(
+                &mut events,
+                "removal",
+                |e| matches!(e, SupervisorEvent::ChildDeleted { id } if id == "child#2"),
+            )
+            .await;
+            let children = sup.which_children().await.unwrap();
+            assert_eq!(children.len(), 1, "{restart:?}");
+            assert_eq!(children[0].state, ChildState::Running(bystander.clone()));
+        }
+        assert_eq!(running(&sup, "child#1").await, bystander);
+        sup.stop().await;
+    }
+}
