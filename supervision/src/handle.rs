@@ -112,6 +112,15 @@ impl SupervisorRef {
             .await?
     }
 
+    /// The spec of child `id` (OTP's `get_childspec`): to inspect its restart type, shutdown
+    /// and kind, or to hand it to another supervisor. For a simple-one-for-one instance, the
+    /// template's settings with the instance's argument bound; for a temporary child, a spec
+    /// whose start function fails (its start parameters are not kept).
+    pub async fn get_child_spec(&self, id: &str) -> Result<ChildSpec, SupervisorError> {
+        self.call(|reply| SupervisorMsg::GetChildSpec(id.to_string(), reply))
+            .await?
+    }
+
     /// All children in start order, with their state and restart counts.
     pub async fn which_children(&self) -> Result<Vec<ChildInfo>, SupervisorError> {
         self.call(SupervisorMsg::WhichChildren).await

@@ -31,6 +31,8 @@ pub enum SupervisorMsg {
     RestartChild(String, RpcReplyPort<Result<ActorCell, SupervisorError>>),
     /// Remove the spec of a terminated child (OTP's `delete_child`).
     DeleteChild(String, RpcReplyPort<Result<(), SupervisorError>>),
+    /// The spec of one child (OTP's `get_childspec`).
+    GetChildSpec(String, RpcReplyPort<Result<ChildSpec, SupervisorError>>),
     /// All children in start order.
     WhichChildren(RpcReplyPort<Vec<ChildInfo>>),
     /// Counts of children by state and kind.
@@ -97,6 +99,7 @@ impl fmt::Debug for SupervisorMsg {
             }
             SupervisorMsg::RestartChild(id, _) => f.debug_tuple("RestartChild").field(id).finish(),
             SupervisorMsg::DeleteChild(id, _) => f.debug_tuple("DeleteChild").field(id).finish(),
+            SupervisorMsg::GetChildSpec(id, _) => f.debug_tuple("GetChildSpec").field(id).finish(),
             SupervisorMsg::WhichChildren(_) => f.write_str("WhichChildren"),
             SupervisorMsg::CountChildren(_) => f.write_str("CountChildren"),
             SupervisorMsg::Subscribe(_) => f.write_str("Subscribe"),

@@ -394,6 +394,15 @@ impl SupervisorState {
                     self.delete_child(&id)
                 });
             }
+            SupervisorMsg::GetChildSpec(id, reply) => {
+                let spec = self
+                    .by_id
+                    .get(&id)
+                    .and_then(|key| self.children.get(key))
+                    .map(|c| c.spec.clone())
+                    .ok_or(SupervisorError::NotFound(id));
+                let _ = reply.send(spec);
+            }
             SupervisorMsg::WhichChildren(reply) => {
                 let _ = reply.send(self.which_children());
             }

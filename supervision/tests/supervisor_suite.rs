@@ -10,13 +10,29 @@ use std::time::Duration;
 
 use common::*;
 use marie_supervision::{
-    check_child_specs, Backoff, ChildKind, ChildSpec, ChildState, ExitReason, RestartCause,
-    Shutdown, SpecError, Strategy, Supervisor, SupervisorError, SupervisorEvent, SupervisorSpec,
-    REACHED_MAX_RESTART_INTENSITY, SHUTDOWN,
+    check_child_specs, Backoff, ChildKind, ChildSpec, ChildState, ChildTemplate, ExitReason,
+    RestartCause, Shutdown, SpecError, Strategy, Supervisor, SupervisorError, SupervisorEvent,
+    SupervisorSpec, REACHED_MAX_RESTART_INTENSITY, SHUTDOWN,
 };
 use ractor::ActorStatus;
 
 const HOUR: Duration = Duration::from_secs(3600);
+
+/// An actor that does nothing.
+struct Idle;
+
+impl ractor::Actor for Idle {
+    type Msg = ();
+    type State = ();
+    type Arguments = ();
+    async fn pre_start(
+        &self,
+        _: ractor::ActorRef<()>,
+        _: (),
+    ) -> Result<(), ractor::ActorProcessingErr> {
+        Ok(())
+    }
+}
 
 fn is_restart_of(e: &SupervisorEvent, id: &str) -> bool {
     matches!(e, SupervisorEvent::ChildRestarted { id: i, .. } if i == id)
@@ -2701,4 +2717,95 @@ async fn simple_one_for_one_restart_types() {
         assert_eq!(running(&sup, "child#1").await, bystander);
         sup.stop().await;
     }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn get_childspec() {
+    // OTP's sup_start_map: a spec's defaults, and reading a child's spec back
+    let log = Log::default();
+    let plain = ChildSpec::actor("child1", || (Idle, ()));
+    let killed = ChildSpec::actor("child2", || (Idle, ())).with_shutdown(Shutdown::BrutalKill);
+    let sub = ChildSpec::supervisor("child3", SupervisorSpec::one_for_one(), vec![]);
+    let (sup, _) = Supervisor::start(
+        None,
+        SupervisorSpec::one_for_one(),
+        vec![plain, killed, sub],
+    )
+    .await
+    .unwrap();
+    let spec = sup.get_child_spec("child1").await.unwrap();
+    assert_eq!(
+        (spec.id.as_str(), spec.restart, spec.shutdown, spec.kind),
+        (
+            "child1",
+            marie_supervision::Restart::Permanent,
+            Shutdown::Timeout(Duration::from_secs(5)),
+            ChildKind::Worker
+        )
+    );
+    assert_eq!(spec.start_timeout, None);
+    assert_eq!(
+        sup.get_child_spec("child2").await.unwrap().shutdown,
+        Shutdown::BrutalKill
+    );
+    let spec = sup.get_child_spec("child3").await.unwrap();
+    assert_eq!(
+        (spec.shutdown, spec.kind),
+        (Shutdown::Infinity, ChildKind::Supervisor)
+    );
+    assert_eq!(
+        sup.get_child_spec("child4").await.unwrap_err(),
+        SupervisorError::NotFound("child4".into())
+    );
+    // a spec read back starts the same child elsewhere
+    let (other, _) = Supervisor::start(None, SupervisorSpec::one_for_one(), vec![])
+        .await
+        .unwrap();
+    other
+        .start_child(sup.get_child_spec("child1").await.unwrap())
+        .await
+        .unwrap();
+    other.stop().await;
+    sup.stop().await;
+    assert!(log.entries().is_empty());
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn simple_one_for_one_of_supervisors() {
+    // instances may be supervisors themselves, each built from its argument: a fault deep in
+    // one instance is healed inside it
+    let log = Log::default();
+    let l = log.clone();
+    let template = ChildTemplate::supervisor("team", move |size: usize| {
+        let workers = (0..size)
+            .map(|n| worker(&format!("w{n}"), &l))
+            .collect::<Vec<_>>();
+        (
+            SupervisorSpec::one_for_one().with_intensity(5, HOUR),
+            workers,
+        )
+    });
+    let (sup, _) = Supervisor::start(None, SupervisorSpec::simple_one_for_one(template), vec![])
+        .await
+        .unwrap();
+    let big = sup.start_dynamic(3usize).await.unwrap();
+    let small = sup.start_dynamic(1usize).await.unwrap();
+    assert_eq!(counts(sup.count_children().await.unwrap()), [1, 2, 2, 0]);
+    let big = marie_supervision::SupervisorRef::from_cell(big).expect("a supervisor");
+    let small = marie_supervision::SupervisorRef::from_cell(small).expect("a supervisor");
+    assert_eq!(
+        ids(&big.which_children().await.unwrap()),
+        ["w0", "w1", "w2"]
+    );
+    assert_eq!(ids(&small.which_children().await.unwrap()), ["w0"]);
+    let mut events = big.subscribe().await.unwrap();
+    crash(&running(&big, "w1").await);
+    restarted(&mut events, "w1").await;
+    assert_eq!(
+        sup.which_children().await.unwrap()[0].restarts,
+        0,
+        "healed inside the instance"
+    );
+    sup.stop().await;
+    assert_eq!(log.with_prefix("stopped ").len(), 4);
 }
