@@ -1518,8 +1518,8 @@ async fn sup_start_ignore_permanent_child_start_child_simple() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn restart_answering_ignore_leaves_the_child_undefined() {
-    // a permanent child whose restart answers ignore is not running and not retried; the
-    // ignore counts no restart
+    // a permanent child whose restart answers ignore is not running and not retried: the
+    // ignore is not a failure (the exit counted one restart, as OTP counts it)
     let log = Log::default();
     let ignore = flag(false);
     let (sup, _) = Supervisor::start(
@@ -1544,7 +1544,7 @@ async fn restart_answering_ignore_leaves_the_child_undefined() {
     let children = sup.which_children().await.unwrap();
     assert_eq!(children[0].state, ChildState::Undefined);
     assert!(children[1].state.actor().is_some());
-    // one more restart is still allowed: the ignored one did not count twice
+    // the supervisor did not loop on it, and it can be started by hand later
     ignore.store(false, Ordering::SeqCst);
     sup.restart_child("c1").await.unwrap();
     assert_eq!(sup.get_cell().get_status(), ActorStatus::Running);
