@@ -42,6 +42,9 @@ pub struct EmbeddedOptions {
     pub world: Option<PathBuf>,
     /// The mission's `world`, used when neither `--world` nor the node config names one.
     pub mission_world: Option<PathBuf>,
+    /// Where the mission names its world, for the first line of an error about the world
+    /// file ([`ParsedMission::world_diagnostic`](marie_actors::dispatcher::mission::ParsedMission::world_diagnostic)).
+    pub mission_world_at: Option<Diagnostic>,
     /// `--seed`: overrides the node config's; default [`DEFAULT_SEED`].
     pub seed: Option<u64>,
     /// The clock the node's actors share.
@@ -54,6 +57,7 @@ impl Default for EmbeddedOptions {
             node: None,
             world: None,
             mission_world: None,
+            mission_world_at: None,
             seed: None,
             clock: RealClock::shared(),
         }
@@ -113,6 +117,7 @@ impl Embedded {
             (None, true) => None,
             (None, false) => Some(SimulationConfig {
                 world: None,
+                world_at: None,
                 seed: None,
                 drivers: true,
             }),
@@ -120,7 +125,14 @@ impl Embedded {
         let mut robot = None;
         let mut world_path = None;
         if let Some(sim) = simulation {
-            let named_by_config = options.world.is_none() && sim.world.is_some();
+            // what named the world, for the first line of an error about it
+            let named_at = if options.world.is_some() {
+                None
+            } else if sim.world.is_some() {
+                sim.world_at.clone()
+            } else {
+                options.mission_world_at.clone()
+            };
             let path = options
                 .world
                 .clone()
@@ -128,15 +140,7 @@ impl Embedded {
                 .or_else(|| options.mission_world.clone());
             if let Some(path) = path {
                 let world = World::load(&path).map_err(|d| {
-                    let mut all = Vec::new();
-                    if let (true, Some(node)) = (named_by_config, &options.node) {
-                        all.push(Diagnostic::new(
-                            node.display().to_string(),
-                            1,
-                            1,
-                            format!("its [simulation] world {} does not load:", path.display()),
-                        ));
-                    }
+                    let mut all: Vec<Diagnostic> = named_at.clone().into_iter().collect();
                     all.extend(d);
                     EmbeddedError::World(Diagnostics(all))
                 })?;

@@ -306,6 +306,7 @@ impl Prepared {
 async fn prepare(path: &Path, robot: RobotArgs, speed: f64) -> anyhow::Result<Prepared> {
     let parsed = Mission::parse_file(path).map_err(NodeError::Mission)?;
     let mut options = robot.options(parsed.world());
+    options.mission_world_at = parsed.world_diagnostic("the world named here does not load:");
     if speed.is_finite() && (speed - 1.0).abs() > f64::EPSILON {
         options.clock = std::sync::Arc::new(marie::actors::clock::ScaledClock::new(speed));
     }

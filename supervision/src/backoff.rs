@@ -5,9 +5,13 @@
 //! restart intensity in microseconds. With a [`Backoff`] the supervisor waits between attempts
 //! instead: `base`, then `base * multiplier`, ... up to `max`, each shortened by a random
 //! fraction of up to `jitter` so that siblings failing together do not retry in lock-step.
-//! The randomness comes from a seeded [`SplitMix64`], so a run is repeatable.
+//! The randomness comes from the project's one seeded generator, xoshiro256**
+//! ([`Xoshiro256StarStar`], seeded with [`Backoff::seed`]), so a run is repeatable.
 
 use std::time::Duration;
+
+use rand_core::{Rng, SeedableRng};
+use rand_xoshiro::Xoshiro256StarStar;
 
 /// Opt-in delay between restart attempts of a child.
 ///
@@ -86,54 +90,44 @@ impl Backoff {
         if !secs.is_finite() || secs >= self.max.as_secs_f64() {
             self.max
         } else {
-            Duration::from_secs_f64(secs)
+            // never panics, even for absurd bases (validation rejects those anyway)
+            Duration::try_from_secs_f64(secs).unwrap_or(self.max)
         }
     }
 
-    /// The delay of attempt `attempt`, shortened by up to `jitter` using `rng`.
-    pub fn delay(&self, attempt: u32, rng: &mut SplitMix64) -> Duration {
+    /// The delay of attempt `attempt`, shortened by up to `jitter` using `rng` (any
+    /// `rand_core` generator; a supervisor uses a [`Xoshiro256StarStar`] seeded with
+    /// [`Backoff::seed`]).
+    pub fn delay<R: Rng + ?Sized>(&self, attempt: u32, rng: &mut R) -> Duration {
         let nominal = self.nominal(attempt);
-        let jitter = self.jitter.clamp(0.0, 1.0);
+        let jitter = if self.jitter.is_nan() {
+            0.0
+        } else {
+            self.jitter.clamp(0.0, 1.0)
+        };
         if jitter == 0.0 {
             return nominal;
         }
-        nominal.mul_f64(1.0 - jitter * rng.next_f64())
+        nominal.mul_f64(1.0 - jitter * unit(rng))
+    }
+
+    /// The generator a supervisor draws this backoff's jitter from: xoshiro256** seeded with
+    /// [`Backoff::seed`].
+    pub fn rng(&self) -> Xoshiro256StarStar {
+        Xoshiro256StarStar::seed_from_u64(self.seed)
     }
 
     /// The delays of attempts 0, 1, 2, ... with this backoff's seed: what a supervisor whose
     /// only restarting child keeps failing waits.
     pub fn schedule(&self) -> impl Iterator<Item = Duration> + '_ {
-        let mut rng = SplitMix64::new(self.seed);
+        let mut rng = self.rng();
         (0u32..).map(move |attempt| self.delay(attempt, &mut rng))
     }
 }
 
-/// A tiny seeded pseudo-random generator (Steele, Lea and Flood's SplitMix64): good enough for
-/// jitter, deterministic, and no dependency.
-#[derive(Clone, Debug)]
-pub struct SplitMix64 {
-    state: u64,
-}
-
-impl SplitMix64 {
-    /// A generator starting from `seed`.
-    pub fn new(seed: u64) -> Self {
-        SplitMix64 { state: seed }
-    }
-
-    /// The next 64 random bits.
-    pub fn next_u64(&mut self) -> u64 {
-        self.state = self.state.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-
-    /// A number uniform in `[0, 1)`.
-    pub fn next_f64(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
+/// A number uniform in `[0, 1)` from the top 53 bits of the next `u64`.
+pub(crate) fn unit<R: Rng + ?Sized>(rng: &mut R) -> f64 {
+    (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64
 }
 
 #[cfg(test)]
@@ -156,12 +150,12 @@ mod tests {
     }
 
     #[test]
-    fn splitmix_is_deterministic_and_in_range() {
-        let mut a = SplitMix64::new(7);
-        let mut b = SplitMix64::new(7);
+    fn jitter_is_deterministic_and_in_range() {
+        let mut a = Xoshiro256StarStar::seed_from_u64(7);
+        let mut b = Xoshiro256StarStar::seed_from_u64(7);
         for _ in 0..1000 {
-            let x = a.next_f64();
-            assert_eq!(x, b.next_f64());
+            let x = unit(&mut a);
+            assert_eq!(x, unit(&mut b));
             assert!((0.0..1.0).contains(&x));
         }
     }

@@ -14,8 +14,39 @@ use crate::exit::ExitReason;
 use crate::spec::SupervisorSpec;
 use crate::supervisor::Supervisor;
 
-/// The future a start function returns: the new child's cell, or why it could not start.
-pub type StartFuture = Pin<Box<dyn Future<Output = Result<ActorCell, SpawnErr>> + Send>>;
+/// What a successful start function produced: OTP's `{ok, Pid}` or `ignore`.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ChildStart {
+    /// The child runs as this actor, linked to the supervisor.
+    Started(ActorCell),
+    /// The child chose not to run now (OTP's `ignore`) — say, an operation whose device is
+    /// absent on this robot. That is not a failure: nothing counts toward the restart
+    /// intensity. A static child keeps its spec, not running
+    /// ([`crate::ChildState::Undefined`]), so [`crate::SupervisorRef::restart_child`] can
+    /// start it later; a temporary child, and any instance of a simple-one-for-one
+    /// supervisor, leaves nothing behind.
+    Ignore,
+}
+
+impl ChildStart {
+    /// The started actor, if the child did not ignore its start.
+    pub fn actor(&self) -> Option<&ActorCell> {
+        match self {
+            ChildStart::Started(cell) => Some(cell),
+            ChildStart::Ignore => None,
+        }
+    }
+}
+
+impl From<ActorCell> for ChildStart {
+    fn from(cell: ActorCell) -> Self {
+        ChildStart::Started(cell)
+    }
+}
+
+/// The future a start function returns: the new child (or [`ChildStart::Ignore`]), or why it
+/// could not start.
+pub type StartFuture = Pin<Box<dyn Future<Output = Result<ChildStart, SpawnErr>> + Send>>;
 
 /// A start function. It is given the supervisor's cell and **must spawn the child linked to
 /// it** (`Actor::spawn_linked(.., supervisor)`), since the supervisor learns of the child's
@@ -116,7 +147,8 @@ impl ChildSpec {
     }
 
     /// A permanent worker with a 5 s shutdown, started by `start`, which must spawn the actor
-    /// linked to the supervisor cell it is given:
+    /// linked to the supervisor cell it is given. The start answers the actor's cell, or a
+    /// [`ChildStart`] when it may also decline to run ([`ChildStart::Ignore`]):
     ///
     /// ```
     /// # use marie_supervision::ChildSpec;
@@ -131,16 +163,31 @@ impl ChildSpec {
     ///     Ok(actor.get_cell())
     /// });
     /// assert_eq!(spec.id, "sonar");
+    ///
+    /// // a child that may decline to run (OTP's `ignore`)
+    /// # use marie_supervision::ChildStart;
+    /// # let fitted = false;
+    /// let spec = ChildSpec::worker("laser", move |sup| async move {
+    ///     if !fitted {
+    ///         return Ok(ChildStart::Ignore);
+    ///     }
+    ///     let (actor, _) = Actor::spawn_linked(None, Sensor, 1, sup).await?;
+    ///     Ok(ChildStart::Started(actor.get_cell()))
+    /// });
     /// ```
-    pub fn worker<F, Fut>(id: impl Into<String>, start: F) -> Self
+    pub fn worker<F, Fut, T>(id: impl Into<String>, start: F) -> Self
     where
         F: Fn(ActorCell) -> Fut + Send + Sync + 'static,
-        Fut: Future<Output = Result<ActorCell, SpawnErr>> + Send + 'static,
+        Fut: Future<Output = Result<T, SpawnErr>> + Send + 'static,
+        T: Into<ChildStart> + 'static,
     {
         Self::new(
             id,
             ChildKind::Worker,
-            Arc::new(move |sup| Box::pin(start(sup))),
+            Arc::new(move |sup| {
+                let started = start(sup);
+                Box::pin(async move { started.await.map(Into::into) })
+            }),
         )
     }
 
@@ -155,7 +202,7 @@ impl ChildSpec {
             let (handler, args) = make();
             async move {
                 let (actor, _) = A::spawn_linked(None, handler, args, sup).await?;
-                Ok(actor.get_cell())
+                Ok(ChildStart::Started(actor.get_cell()))
             }
         })
     }
@@ -176,7 +223,7 @@ impl ChildSpec {
                 let (handle, _) = Supervisor::start_linked(None, spec, children, sup)
                     .await
                     .map_err(|e| SpawnErr::StartupFailed(Box::new(e)))?;
-                Ok(handle.get_cell())
+                Ok(ChildStart::Started(handle.get_cell()))
             })
         });
         Self::new(id, ChildKind::Supervisor, start)

@@ -3,6 +3,7 @@
 use ractor::SpawnErr;
 
 use crate::exit::REACHED_MAX_RESTART_INTENSITY;
+use crate::validate::SpecError;
 
 /// Why a supervisor operation failed.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
@@ -33,9 +34,35 @@ pub enum SupervisorError {
     /// The pending start of a child was abandoned because the child was terminated.
     #[error("child {0:?} was terminated before it started")]
     Terminated(String),
-    /// Two child specs share an id.
-    #[error("duplicate child id {0:?}")]
-    DuplicateChildId(String),
+    /// The child's start answered [`crate::ChildStart::Ignore`] (OTP's `{ok, undefined}`): no
+    /// actor runs. Not a failure of the supervisor: a static child's spec was kept, not
+    /// running ([`crate::SupervisorRef::restart_child`] can try again later); a temporary
+    /// child or a simple-one-for-one instance left nothing behind.
+    #[error("child {0:?} ignored its start")]
+    Ignored(String),
+    /// A supervisor spec or child spec was refused before anything started (what was wrong
+    /// is in the [`SpecError`]).
+    #[error("invalid spec: {0}")]
+    InvalidSpec(#[from] SpecError),
+    /// The operation does not exist on a simple-one-for-one supervisor (OTP's
+    /// `{error, simple_one_for_one}`): its children are instances of its template, started
+    /// by [`crate::SupervisorRef::start_dynamic`] and stopped by
+    /// [`crate::SupervisorRef::terminate_actor`]; they have no spec to restart or delete.
+    #[error("not possible on a simple_one_for_one supervisor")]
+    SimpleOneForOne,
+    /// [`crate::SupervisorRef::start_dynamic`] on a supervisor that is not
+    /// simple-one-for-one: it has no template to start an instance of.
+    #[error("not a simple_one_for_one supervisor: no template to start an instance of")]
+    NotSimpleOneForOne,
+    /// [`crate::SupervisorRef::start_dynamic`] with an argument of another type than the
+    /// template's start function takes; nothing was started.
+    #[error("the template takes a {expected}, got a {got}")]
+    WrongArgument {
+        /// The template's argument type.
+        expected: &'static str,
+        /// The type given.
+        got: &'static str,
+    },
     /// The supervisor actor could not be spawned (e.g. its name is taken).
     #[error("cannot spawn the supervisor: {0}")]
     Spawn(String),
@@ -52,7 +79,7 @@ pub enum SupervisorError {
 
 impl SupervisorError {
     /// The error of a failed supervisor spawn: the supervisor's own error when its start-up
-    /// failed (a child failed to start, duplicate ids), otherwise ractor's.
+    /// failed (a child failed to start, an invalid spec), otherwise ractor's.
     pub(crate) fn from_spawn(err: SpawnErr) -> Self {
         match err {
             SpawnErr::StartupFailed(inner) => match inner.downcast_ref::<SupervisorError>() {

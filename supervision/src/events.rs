@@ -78,6 +78,13 @@ pub enum SupervisorEvent {
         /// Why the start failed.
         error: String,
     },
+    /// A child's start answered [`crate::ChildStart::Ignore`]: it does not run. A static
+    /// child stays, not running ([`crate::ChildState::Undefined`]); a temporary child or a
+    /// simple-one-for-one instance is dropped. Not a failure: no restart, no intensity.
+    ChildIgnored {
+        /// The child's id.
+        id: String,
+    },
     /// A child was removed from the supervisor (a temporary child stopped, or
     /// `delete_child`).
     ChildDeleted {
@@ -109,6 +116,7 @@ impl SupervisorEvent {
             | SupervisorEvent::RestartScheduled { id, .. }
             | SupervisorEvent::ChildRestarted { id, .. }
             | SupervisorEvent::RestartFailed { id, .. }
+            | SupervisorEvent::ChildIgnored { id }
             | SupervisorEvent::ChildDeleted { id } => Some(id),
             SupervisorEvent::IntensityExceeded { .. } | SupervisorEvent::Stopped { .. } => None,
         }

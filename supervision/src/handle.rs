@@ -12,6 +12,7 @@ use crate::events::SupervisorEvent;
 use crate::exit::SHUTDOWN;
 use crate::info::{ChildCounts, ChildInfo};
 use crate::messages::SupervisorMsg;
+use crate::simple::DynamicArg;
 
 /// A handle on a [`crate::Supervisor`]: OTP's supervisor API as async methods. Cheap to
 /// clone; it does not keep the supervisor alive.
@@ -54,8 +55,12 @@ impl SupervisorRef {
     }
 
     /// Add `spec` at the end of the start order and start it; the new child's cell once it
-    /// started. Fails with `AlreadyStarted` / `AlreadyPresent` if the id is taken, and with
-    /// `StartFailed` (leaving no spec behind) if the start fails.
+    /// started. Fails with `InvalidSpec` if the spec does not validate
+    /// ([`ChildSpec::validate`]), with `AlreadyStarted` / `AlreadyPresent` if the id is taken,
+    /// with `StartFailed` (leaving no spec behind) if the start fails, with `Ignored` if the
+    /// start answered [`crate::ChildStart::Ignore`] (the spec is kept, not running, unless the
+    /// child is temporary), and with `SimpleOneForOne` on a simple-one-for-one supervisor (use
+    /// [`SupervisorRef::start_dynamic`]).
     pub async fn start_child(&self, spec: ChildSpec) -> Result<ActorCell, SupervisorError> {
         self.call(|reply| SupervisorMsg::StartChild(spec, reply))
             .await?
@@ -68,7 +73,34 @@ impl SupervisorRef {
             .await?
     }
 
-    /// Start terminated child `id` again.
+    /// Start one more instance of a simple-one-for-one supervisor's template with `arg` — "start
+    /// another instance of operation X that my config allows". The new instance's actor once
+    /// it started; it restarts by the template's restart type with (a clone of) the same
+    /// `arg`. Fails with `WrongArgument` if the template's start function takes another type
+    /// (nothing starts), `NotSimpleOneForOne` on a supervisor of another strategy,
+    /// `StartFailed` if the start fails and `Ignored` if it answered
+    /// [`crate::ChildStart::Ignore`] (both leave nothing behind, as in OTP).
+    pub async fn start_dynamic<A: Clone + Send + Sync + 'static>(
+        &self,
+        arg: A,
+    ) -> Result<ActorCell, SupervisorError> {
+        let arg = DynamicArg::new(arg);
+        self.call(|reply| SupervisorMsg::StartDynamic(arg, reply))
+            .await?
+    }
+
+    /// Stop a simple-one-for-one instance by its actor (by its shutdown spec, as
+    /// `terminate_child`) and forget it (OTP's `terminate_child` with a pid). An actor that
+    /// was an instance but has stopped meanwhile is fine (`Ok`, as in OTP); a live actor that
+    /// is not an instance of this supervisor is `NotFound`, and so is any actor on a
+    /// supervisor of another strategy (address its children by id).
+    pub async fn terminate_actor(&self, actor: ActorId) -> Result<(), SupervisorError> {
+        self.call(|reply| SupervisorMsg::TerminateActor(actor, reply))
+            .await?
+    }
+
+    /// Start terminated child `id` again. `Ignored` if its start answered
+    /// [`crate::ChildStart::Ignore`] again (it stays, not running).
     pub async fn restart_child(&self, id: &str) -> Result<ActorCell, SupervisorError> {
         self.call(|reply| SupervisorMsg::RestartChild(id.to_string(), reply))
             .await?
@@ -77,6 +109,15 @@ impl SupervisorRef {
     /// Remove the spec of terminated child `id`.
     pub async fn delete_child(&self, id: &str) -> Result<(), SupervisorError> {
         self.call(|reply| SupervisorMsg::DeleteChild(id.to_string(), reply))
+            .await?
+    }
+
+    /// The spec of child `id` (OTP's `get_childspec`): to inspect its restart type, shutdown
+    /// and kind, or to hand it to another supervisor. For a simple-one-for-one instance, the
+    /// template's settings with the instance's argument bound; for a temporary child, a spec
+    /// whose start function fails (its start parameters are not kept).
+    pub async fn get_child_spec(&self, id: &str) -> Result<ChildSpec, SupervisorError> {
+        self.call(|reply| SupervisorMsg::GetChildSpec(id.to_string(), reply))
             .await?
     }
 

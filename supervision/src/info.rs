@@ -18,7 +18,8 @@ pub enum ChildState {
     /// about to retry after a failed start (OTP's `restarting`).
     Restarting,
     /// Not running and not going to be restarted: terminated by `terminate_child`, or a
-    /// transient child that exited normally (OTP's `undefined`).
+    /// transient child that exited normally, a child whose start answered ignore (OTP's
+    /// `undefined`). Simple-one-for-one instances are never undefined: they are removed.
     Undefined,
 }
 

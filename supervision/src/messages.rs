@@ -6,10 +6,11 @@ use std::fmt;
 use ractor::{ActorCell, RpcReplyPort};
 use tokio::sync::broadcast;
 
-use crate::child::ChildSpec;
+use crate::child::{ChildSpec, ChildStart};
 use crate::error::SupervisorError;
 use crate::events::SupervisorEvent;
 use crate::info::{ChildCounts, ChildInfo};
+use crate::simple::DynamicArg;
 
 /// A request to a [`crate::Supervisor`]. [`crate::SupervisorRef`] wraps each in a typed
 /// method; send them directly only when holding a bare `ActorRef<SupervisorMsg>`.
@@ -20,10 +21,18 @@ pub enum SupervisorMsg {
     /// Stop a child (by its shutdown spec) and keep its spec, undefined (OTP's
     /// `terminate_child`). A temporary child is removed instead.
     TerminateChild(String, RpcReplyPort<Result<(), SupervisorError>>),
+    /// Start one more instance of a simple-one-for-one supervisor's template with this
+    /// argument (OTP's `start_child` on a `simple_one_for_one` supervisor).
+    StartDynamic(DynamicArg, RpcReplyPort<Result<ActorCell, SupervisorError>>),
+    /// Stop a simple-one-for-one instance by its actor and forget it (OTP's `terminate_child`
+    /// with a pid).
+    TerminateActor(ractor::ActorId, RpcReplyPort<Result<(), SupervisorError>>),
     /// Start a terminated child again (OTP's `restart_child`).
     RestartChild(String, RpcReplyPort<Result<ActorCell, SupervisorError>>),
     /// Remove the spec of a terminated child (OTP's `delete_child`).
     DeleteChild(String, RpcReplyPort<Result<(), SupervisorError>>),
+    /// The spec of one child (OTP's `get_childspec`).
+    GetChildSpec(String, RpcReplyPort<Result<ChildSpec, SupervisorError>>),
     /// All children in start order.
     WhichChildren(RpcReplyPort<Vec<ChildInfo>>),
     /// Counts of children by state and kind.
@@ -44,7 +53,7 @@ pub(crate) enum InternalKind {
     StartDone {
         token: u64,
         key: u64,
-        result: Result<ActorCell, String>,
+        result: Result<ChildStart, String>,
     },
     /// Try a failed restart again (OTP's `try_again_restart`).
     Retry { key: u64, generation: u64 },
@@ -82,8 +91,15 @@ impl fmt::Debug for SupervisorMsg {
             SupervisorMsg::TerminateChild(id, _) => {
                 f.debug_tuple("TerminateChild").field(id).finish()
             }
+            SupervisorMsg::StartDynamic(arg, _) => {
+                f.debug_tuple("StartDynamic").field(arg).finish()
+            }
+            SupervisorMsg::TerminateActor(actor, _) => {
+                f.debug_tuple("TerminateActor").field(actor).finish()
+            }
             SupervisorMsg::RestartChild(id, _) => f.debug_tuple("RestartChild").field(id).finish(),
             SupervisorMsg::DeleteChild(id, _) => f.debug_tuple("DeleteChild").field(id).finish(),
+            SupervisorMsg::GetChildSpec(id, _) => f.debug_tuple("GetChildSpec").field(id).finish(),
             SupervisorMsg::WhichChildren(_) => f.write_str("WhichChildren"),
             SupervisorMsg::CountChildren(_) => f.write_str("CountChildren"),
             SupervisorMsg::Subscribe(_) => f.write_str("Subscribe"),

@@ -3,6 +3,7 @@
 use std::time::Duration;
 
 use crate::backoff::Backoff;
+use crate::simple::ChildTemplate;
 use crate::strategy::Strategy;
 
 /// How a supervisor treats its children as a group (OTP's supervisor flags).
@@ -20,8 +21,12 @@ pub struct SupervisorSpec {
     /// Delay between restart attempts; `None` (the default, as in OTP) restarts at once.
     pub backoff: Option<Backoff>,
     /// Capacity of the event channel ([`crate::SupervisorRef::subscribe`]); a subscriber that
-    /// falls further behind misses events (it gets `RecvError::Lagged`).
+    /// falls further behind misses events (it gets `RecvError::Lagged`). At most
+    /// [`crate::MAX_EVENT_CAPACITY`].
     pub event_capacity: usize,
+    /// The child template of a [`Strategy::SimpleOneForOne`] supervisor (and only of one):
+    /// its single child spec, of which every child is an instance.
+    pub template: Option<ChildTemplate>,
 }
 
 impl SupervisorSpec {
@@ -33,6 +38,7 @@ impl SupervisorSpec {
             period: Duration::from_secs(5),
             backoff: None,
             event_capacity: 1024,
+            template: None,
         }
     }
 
@@ -51,6 +57,38 @@ impl SupervisorSpec {
         Self::new(Strategy::RestForOne)
     }
 
+    /// Simple-one-for-one over instances of `template`, with the default intensity. The
+    /// supervisor starts with no children (give it none); each
+    /// [`crate::SupervisorRef::start_dynamic`] starts one more instance:
+    ///
+    /// ```
+    /// # use marie_supervision::{ChildTemplate, Supervisor, SupervisorSpec};
+    /// # use ractor::{Actor, ActorProcessingErr, ActorRef};
+    /// # struct Op;
+    /// # impl Actor for Op {
+    /// #     type Msg = (); type State = (); type Arguments = String;
+    /// #     async fn pre_start(&self, _: ActorRef<()>, _: String) -> Result<(), ActorProcessingErr> { Ok(()) }
+    /// # }
+    /// # #[tokio::main(flavor = "current_thread")]
+    /// # async fn main() {
+    /// let template = ChildTemplate::actor("op", |params: String| (Op, params));
+    /// let (sup, _) = Supervisor::start(None, SupervisorSpec::simple_one_for_one(template), vec![])
+    ///     .await
+    ///     .unwrap();
+    /// let first = sup.start_dynamic("north wall".to_string()).await.unwrap();
+    /// let second = sup.start_dynamic("south wall".to_string()).await.unwrap();
+    /// assert_ne!(first, second);
+    /// assert_eq!(sup.count_children().await.unwrap().active, 2);
+    /// sup.stop().await;
+    /// # }
+    /// ```
+    pub fn simple_one_for_one(template: ChildTemplate) -> Self {
+        SupervisorSpec {
+            template: Some(template),
+            ..Self::new(Strategy::SimpleOneForOne)
+        }
+    }
+
     /// The same spec allowing `max_restarts` restarts in any `period`.
     pub fn with_intensity(mut self, max_restarts: usize, period: Duration) -> Self {
         self.max_restarts = max_restarts;
@@ -64,9 +102,10 @@ impl SupervisorSpec {
         self
     }
 
-    /// The same spec with another event channel capacity (at least 1).
+    /// The same spec with another event channel capacity (clamped to
+    /// `1..=`[`crate::MAX_EVENT_CAPACITY`]).
     pub fn with_event_capacity(mut self, capacity: usize) -> Self {
-        self.event_capacity = capacity.max(1);
+        self.event_capacity = capacity.clamp(1, crate::validate::MAX_EVENT_CAPACITY);
         self
     }
 }

@@ -10,7 +10,7 @@ use std::time::Duration;
 
 use ractor::ActorCell;
 
-use crate::child::StartFn;
+use crate::child::{ChildStart, StartFn};
 
 /// Call `start` with the supervisor's cell and await the child, at most `timeout`. A start
 /// that is dropped (timeout, supervisor shutdown) is abandoned at whatever `.await` it was in;
@@ -19,7 +19,7 @@ pub(crate) async fn run_start(
     start: &StartFn,
     supervisor: ActorCell,
     timeout: Option<Duration>,
-) -> Result<ActorCell, String> {
+) -> Result<ChildStart, String> {
     let started = match catch_unwind(AssertUnwindSafe(|| start(supervisor))) {
         Ok(future) => CatchUnwind(future),
         Err(panic) => return Err(panicked(panic)),
@@ -32,7 +32,7 @@ pub(crate) async fn run_start(
         None => started.await,
     };
     match outcome {
-        Ok(Ok(cell)) => Ok(cell),
+        Ok(Ok(started)) => Ok(started),
         Ok(Err(e)) => Err(e.to_string()),
         Err(panic) => Err(panicked(panic)),
     }

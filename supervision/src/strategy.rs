@@ -18,6 +18,10 @@ pub enum Strategy {
     OneForAll,
     /// The child and every child started after it: later children depend on earlier ones.
     RestForOne,
+    /// One-for-one over instances of a single [`crate::ChildTemplate`], all started at run
+    /// time with an argument each ([`crate::SupervisorRef::start_dynamic`]); see
+    /// [`crate::SupervisorSpec::simple_one_for_one`].
+    SimpleOneForOne,
 }
 
 impl Strategy {
@@ -25,7 +29,7 @@ impl Strategy {
     /// children keyed by their position in the start order.
     pub(crate) fn scope<V>(self, children: &BTreeMap<u64, V>, failed: u64) -> Vec<u64> {
         match self {
-            Strategy::OneForOne => vec![failed],
+            Strategy::OneForOne | Strategy::SimpleOneForOne => vec![failed],
             Strategy::OneForAll => children.keys().copied().collect(),
             Strategy::RestForOne => children.range(failed..).map(|(k, _)| *k).collect(),
         }
@@ -40,6 +44,7 @@ mod tests {
     fn scopes() {
         let children: BTreeMap<u64, ()> = [1, 3, 5, 8].into_iter().map(|k| (k, ())).collect();
         assert_eq!(Strategy::OneForOne.scope(&children, 3), vec![3]);
+        assert_eq!(Strategy::SimpleOneForOne.scope(&children, 3), vec![3]);
         assert_eq!(Strategy::OneForAll.scope(&children, 3), vec![1, 3, 5, 8]);
         assert_eq!(Strategy::RestForOne.scope(&children, 3), vec![3, 5, 8]);
         assert_eq!(Strategy::RestForOne.scope(&children, 8), vec![8]);

@@ -2,7 +2,8 @@
 //! restarts them by strategy and restart type within a restart intensity, and stops them in
 //! reverse order. See [`Supervisor`] for how it works.
 
-use std::collections::{BTreeMap, BTreeSet, HashMap, HashSet};
+use std::collections::{BTreeMap, BTreeSet, HashMap};
+use std::sync::Arc;
 use std::time::Duration;
 
 use ractor::concurrency::JoinHandle;
@@ -13,8 +14,7 @@ use ractor::{
 use tokio::sync::broadcast;
 use tokio::time::Instant;
 
-use crate::backoff::SplitMix64;
-use crate::child::{ChildKind, ChildSpec, Restart};
+use crate::child::{ChildKind, ChildSpec, ChildStart, Restart, StartFn};
 use crate::error::SupervisorError;
 use crate::events::{RestartCause, SupervisorEvent};
 use crate::exit::{ExitReason, REACHED_MAX_RESTART_INTENSITY, SHUTDOWN};
@@ -22,9 +22,13 @@ use crate::handle::SupervisorRef;
 use crate::info::{ChildCounts, ChildInfo, ChildState};
 use crate::intensity::Intensity;
 use crate::messages::{Internal, InternalKind, SupervisorMsg};
+use crate::simple::{ChildTemplate, DynamicArg};
 use crate::spec::SupervisorSpec;
 use crate::start::run_start;
-use crate::terminate::shutdown_child;
+use crate::strategy::Strategy;
+use crate::terminate::{shutdown_child, shutdown_together};
+use crate::validate::validate_start;
+use rand_xoshiro::Xoshiro256StarStar;
 
 /// The supervisor actor (a ractor [`Actor`]). Start it with [`Supervisor::start`] or
 /// [`Supervisor::start_linked`], or nest it with [`ChildSpec::supervisor`].
@@ -51,6 +55,12 @@ use crate::terminate::shutdown_child;
 /// * **Giving up**: when a restart would exceed the intensity, the supervisor stops all
 ///   children in reverse order and fails with [`REACHED_MAX_RESTART_INTENSITY`]; its parent
 ///   sees an abnormal exit (`ActorFailed`) and applies its own strategy.
+/// * **Simple-one-for-one** instances are ordinary children built from the template and
+///   their argument ([`ChildTemplate`]), keyed in start order like the others; only their
+///   shutdown differs: all are asked to stop at once and waited for together.
+/// * **Ignore**: a start answering [`ChildStart::Ignore`] leaves the child undefined (kept) or
+///   forgets it (temporary children, simple-one-for-one instances); it is not a failure and
+///   is never retried.
 ///
 /// ractor specifics this relies on: a child exit arrives as `ActorTerminated` / `ActorFailed`
 /// on the supervisor's supervision channel (which ractor serves before ordinary messages, so
@@ -80,7 +90,7 @@ impl Supervisor {
         spec: SupervisorSpec,
         children: Vec<ChildSpec>,
     ) -> Result<(SupervisorRef, JoinHandle<()>), SupervisorError> {
-        check_ids(&children)?;
+        validate_start(&spec, &children)?;
         let (actor, handle) = Actor::spawn(name, Supervisor, SupervisorArgs { spec, children })
             .await
             .map_err(SupervisorError::from_spawn)?;
@@ -96,7 +106,7 @@ impl Supervisor {
         children: Vec<ChildSpec>,
         parent: ActorCell,
     ) -> Result<(SupervisorRef, JoinHandle<()>), SupervisorError> {
-        check_ids(&children)?;
+        validate_start(&spec, &children)?;
         let (actor, handle) =
             Actor::spawn_linked(name, Supervisor, SupervisorArgs { spec, children }, parent)
                 .await
@@ -105,14 +115,17 @@ impl Supervisor {
     }
 }
 
-fn check_ids(children: &[ChildSpec]) -> Result<(), SupervisorError> {
-    let mut seen = HashSet::with_capacity(children.len());
-    for c in children {
-        if !seen.insert(c.id.as_str()) {
-            return Err(SupervisorError::DuplicateChildId(c.id.clone()));
-        }
-    }
-    Ok(())
+/// The start function a temporary child keeps once it started: it will never be restarted, so
+/// its start parameters are dropped (OTP's "do not save start parameters for temporary
+/// children" — they can be large, and a long-running supervisor may start many).
+fn forgotten_start() -> StartFn {
+    Arc::new(|_| {
+        Box::pin(async {
+            Err(ractor::SpawnErr::StartupFailed(
+                "the start parameters of a temporary child are not kept".into(),
+            ))
+        })
+    })
 }
 
 /// The supervisor's state; opaque (inspect it through [`SupervisorRef`]).
@@ -139,7 +152,11 @@ pub struct SupervisorState {
     early_exits: HashMap<ActorId, ExitReason>,
     /// Backoff timers.
     timers: Vec<JoinHandle<()>>,
-    rng: SplitMix64,
+    /// The template of a simple-one-for-one supervisor.
+    template: Option<ChildTemplate>,
+    /// The number of the next simple-one-for-one instance.
+    next_instance: u64,
+    rng: Xoshiro256StarStar,
     events: Option<broadcast::Sender<SupervisorEvent>>,
 }
 
@@ -186,11 +203,12 @@ impl Actor for Supervisor {
         myself: ActorRef<SupervisorMsg>,
         args: SupervisorArgs,
     ) -> Result<SupervisorState, ActorProcessingErr> {
-        check_ids(&args.children)?;
+        validate_start(&args.spec, &args.children).map_err(SupervisorError::from)?;
         let mut state = SupervisorState::new(args.spec);
         for spec in args.children {
             match run_start(&spec.start, myself.get_cell(), spec.start_timeout).await {
-                Ok(cell) => state.add_started(&myself, spec, cell),
+                Ok(ChildStart::Started(cell)) => state.add_started(&myself, spec, cell),
+                Ok(ChildStart::Ignore) => state.add_ignored(&myself, spec),
                 Err(reason) => {
                     tracing::error!(
                         supervisor = %myself.get_id(), child = %spec.id, %reason,
@@ -249,7 +267,10 @@ impl Actor for Supervisor {
 impl SupervisorState {
     fn new(spec: SupervisorSpec) -> Self {
         let (events, _) = broadcast::channel(spec.event_capacity.max(1));
-        let seed = spec.backoff.as_ref().map_or(0, |b| b.seed);
+        let rng = match &spec.backoff {
+            Some(b) => b.rng(),
+            None => rand_core::SeedableRng::seed_from_u64(0),
+        };
         SupervisorState {
             intensity: Intensity::new(spec.max_restarts, spec.period),
             epoch: Instant::now(),
@@ -264,8 +285,10 @@ impl SupervisorState {
             tasks: HashMap::new(),
             early_exits: HashMap::new(),
             timers: Vec::new(),
-            rng: SplitMix64::new(seed),
+            rng,
             events: Some(events),
+            template: spec.template.clone(),
+            next_instance: 0,
             spec,
         }
     }
@@ -296,11 +319,23 @@ impl SupervisorState {
         }
     }
 
+    fn is_simple(&self) -> bool {
+        self.spec.strategy == Strategy::SimpleOneForOne
+    }
+
     /// Record an initial child that started.
-    fn add_started(&mut self, myself: &ActorRef<SupervisorMsg>, spec: ChildSpec, cell: ActorCell) {
+    fn add_started(
+        &mut self,
+        myself: &ActorRef<SupervisorMsg>,
+        mut spec: ChildSpec,
+        cell: ActorCell,
+    ) {
         let key = self.next_key;
         self.next_key += 1;
         let id = spec.id.clone();
+        if spec.restart == Restart::Temporary {
+            spec.start = forgotten_start();
+        }
         ensure_linked(myself, &id, &cell);
         self.by_id.insert(id.clone(), key);
         self.by_actor.insert(cell.get_id(), key);
@@ -310,6 +345,21 @@ impl SupervisorState {
         self.emit(SupervisorEvent::ChildStarted { id, actor: cell });
     }
 
+    /// Record an initial child whose start answered ignore: kept, not running, unless it is
+    /// temporary (OTP's `sup_start_ignore_child` / `sup_start_ignore_temporary_child`).
+    fn add_ignored(&mut self, myself: &ActorRef<SupervisorMsg>, spec: ChildSpec) {
+        let id = spec.id.clone();
+        tracing::info!(supervisor = %myself.get_id(), child = %id, "child ignored its start");
+        if spec.restart != Restart::Temporary {
+            let key = self.next_key;
+            self.next_key += 1;
+            self.by_id.insert(id.clone(), key);
+            self.children
+                .insert(key, Self::new_child(spec, Status::Undefined));
+        }
+        self.emit(SupervisorEvent::ChildIgnored { id });
+    }
+
     async fn handle(
         &mut self,
         myself: &ActorRef<SupervisorMsg>,
@@ -317,13 +367,41 @@ impl SupervisorState {
     ) -> Result<(), Escalation> {
         match message {
             SupervisorMsg::StartChild(spec, reply) => self.start_child(myself, spec, reply),
-            SupervisorMsg::TerminateChild(id, reply) => {
-                let result = self.terminate_child(myself, &id).await;
+            SupervisorMsg::StartDynamic(arg, reply) => self.start_dynamic(myself, arg, reply),
+            SupervisorMsg::TerminateActor(actor, reply) => {
+                let result = self.terminate_actor(myself, actor).await;
                 let _ = reply.send(result);
             }
-            SupervisorMsg::RestartChild(id, reply) => self.restart_child(myself, &id, reply),
+            SupervisorMsg::TerminateChild(id, reply) => {
+                let result = if self.is_simple() {
+                    Err(SupervisorError::SimpleOneForOne)
+                } else {
+                    self.terminate_child(myself, &id).await
+                };
+                let _ = reply.send(result);
+            }
+            SupervisorMsg::RestartChild(id, reply) => {
+                if self.is_simple() {
+                    let _ = reply.send(Err(SupervisorError::SimpleOneForOne));
+                } else {
+                    self.restart_child(myself, &id, reply)
+                }
+            }
             SupervisorMsg::DeleteChild(id, reply) => {
-                let _ = reply.send(self.delete_child(&id));
+                let _ = reply.send(if self.is_simple() {
+                    Err(SupervisorError::SimpleOneForOne)
+                } else {
+                    self.delete_child(&id)
+                });
+            }
+            SupervisorMsg::GetChildSpec(id, reply) => {
+                let spec = self
+                    .by_id
+                    .get(&id)
+                    .and_then(|key| self.children.get(key))
+                    .map(|c| c.spec.clone())
+                    .ok_or(SupervisorError::NotFound(id));
+                let _ = reply.send(spec);
             }
             SupervisorMsg::WhichChildren(reply) => {
                 let _ = reply.send(self.which_children());
@@ -423,6 +501,11 @@ impl SupervisorState {
             return Ok(());
         }
         if !restart.restarts_after(&reason) {
+            if self.is_simple() {
+                // an instance that is not restarted has nothing left to keep (as in OTP):
+                // a transient instance that finished is gone, not undefined
+                self.remove_child(key);
+            }
             return Ok(());
         }
         self.restart(myself, key, RestartCause::Exited(reason))
@@ -540,7 +623,10 @@ impl SupervisorState {
         let me = myself.clone();
         let task = tokio::spawn(async move {
             let result = run_start(&start, me.get_cell(), timeout).await;
-            let started = result.as_ref().ok().cloned();
+            // drop the start function (and the start parameters it holds) before reporting,
+            // so that a temporary child's parameters are gone once its start is answered
+            drop(start);
+            let started = result.as_ref().ok().and_then(|s| s.actor().cloned());
             let done =
                 SupervisorMsg::Internal(Internal(InternalKind::StartDone { token, key, result }));
             if me.cast(done).is_err() {
@@ -558,7 +644,7 @@ impl SupervisorState {
         myself: &ActorRef<SupervisorMsg>,
         token: u64,
         key: u64,
-        result: Result<ActorCell, String>,
+        result: Result<ChildStart, String>,
     ) -> Result<(), Escalation> {
         self.tasks.remove(&token);
         let outcome = if self.in_flight == Some(token) {
@@ -568,7 +654,7 @@ impl SupervisorState {
             self.early_exits.clear();
             outcome
         } else {
-            if let Ok(cell) = result {
+            if let Ok(ChildStart::Started(cell)) = result {
                 tracing::debug!(supervisor = %myself.get_id(), actor = %cell.get_id(), "abandoned start finished; killing its actor");
                 cell.kill();
             }
@@ -585,20 +671,44 @@ impl SupervisorState {
         &mut self,
         myself: &ActorRef<SupervisorMsg>,
         key: u64,
-        result: Result<ActorCell, String>,
+        result: Result<ChildStart, String>,
     ) -> Result<(), Escalation> {
+        let simple = self.is_simple();
         let Some(child) = self.children.get_mut(&key) else {
-            if let Ok(cell) = result {
+            if let Ok(ChildStart::Started(cell)) = result {
                 cell.kill();
             }
             return Ok(());
         };
         let id = child.spec.id.clone();
         match result {
-            Ok(cell) => {
+            Ok(ChildStart::Ignore) => {
+                tracing::info!(supervisor = %myself.get_id(), child = %id, "child ignored its start");
+                child.status = Status::Undefined;
+                let first = child.cause.take().is_none();
+                let waiter = child.waiter.take();
+                let drop_it = simple || child.spec.restart == Restart::Temporary;
+                self.emit(SupervisorEvent::ChildIgnored { id: id.clone() });
+                if drop_it {
+                    if first {
+                        // a first start leaves no trace
+                        self.forget_child(key);
+                    } else {
+                        self.remove_child(key);
+                    }
+                }
+                if let Some(waiter) = waiter {
+                    let _ = waiter.send(Err(SupervisorError::Ignored(id)));
+                }
+                Ok(())
+            }
+            Ok(ChildStart::Started(cell)) => {
                 let actor = cell.get_id();
                 child.status = Status::Running(cell.clone());
                 child.started_at = Instant::now();
+                if child.spec.restart == Restart::Temporary {
+                    child.spec.start = forgotten_start();
+                }
                 let event = match child.cause.take() {
                     Some(cause) => {
                         child.restarts = child.restarts.saturating_add(1);
@@ -655,11 +765,9 @@ impl SupervisorState {
                         self.emit(SupervisorEvent::RestartFailed { id, error: reason });
                         // children queued behind it in the same round wait for its retry
                         let behind: Vec<u64> = match self.spec.strategy {
-                            crate::Strategy::OneForOne => Vec::new(),
-                            crate::Strategy::RestForOne => {
-                                self.pending.range(key..).copied().collect()
-                            }
-                            crate::Strategy::OneForAll => self.pending.iter().copied().collect(),
+                            Strategy::OneForOne | Strategy::SimpleOneForOne => Vec::new(),
+                            Strategy::RestForOne => self.pending.range(key..).copied().collect(),
+                            Strategy::OneForAll => self.pending.iter().copied().collect(),
                         };
                         for k in behind {
                             self.pending.remove(&k);
@@ -743,6 +851,14 @@ impl SupervisorState {
         spec: ChildSpec,
         reply: RpcReplyPort<Result<ActorCell, SupervisorError>>,
     ) {
+        if self.is_simple() {
+            let _ = reply.send(Err(SupervisorError::SimpleOneForOne));
+            return;
+        }
+        if let Err(e) = spec.validate() {
+            let _ = reply.send(Err(e.into()));
+            return;
+        }
         if let Some(key) = self.by_id.get(&spec.id) {
             let err = match self.children[key].status {
                 Status::Running(_) => SupervisorError::AlreadyStarted(spec.id),
@@ -751,6 +867,16 @@ impl SupervisorState {
             let _ = reply.send(Err(err));
             return;
         }
+        self.add_pending(myself, spec, reply);
+    }
+
+    /// Add `spec` at the end of the start order and queue its first start.
+    fn add_pending(
+        &mut self,
+        myself: &ActorRef<SupervisorMsg>,
+        spec: ChildSpec,
+        reply: RpcReplyPort<Result<ActorCell, SupervisorError>>,
+    ) {
         let key = self.next_key;
         self.next_key += 1;
         self.by_id.insert(spec.id.clone(), key);
@@ -759,6 +885,65 @@ impl SupervisorState {
         self.children.insert(key, child);
         self.pending.insert(key);
         self.pump(myself);
+    }
+
+    /// Start one more instance of the template with `arg` (simple-one-for-one only).
+    fn start_dynamic(
+        &mut self,
+        myself: &ActorRef<SupervisorMsg>,
+        arg: DynamicArg,
+        reply: RpcReplyPort<Result<ActorCell, SupervisorError>>,
+    ) {
+        let Some(template) = self.template.as_ref().filter(|_| self.is_simple()) else {
+            let _ = reply.send(Err(SupervisorError::NotSimpleOneForOne));
+            return;
+        };
+        if !template.accepts(&arg) {
+            let _ = reply.send(Err(SupervisorError::WrongArgument {
+                expected: template.arg_type_name(),
+                got: arg.type_name(),
+            }));
+            return;
+        }
+        self.next_instance += 1;
+        let id = format!("{}#{}", template.id, self.next_instance);
+        let spec = template.instance(id, arg);
+        self.add_pending(myself, spec, reply);
+    }
+
+    /// Stop instance `actor` of a simple-one-for-one supervisor and forget it.
+    async fn terminate_actor(
+        &mut self,
+        myself: &ActorRef<SupervisorMsg>,
+        actor: ActorId,
+    ) -> Result<(), SupervisorError> {
+        if !self.is_simple() {
+            return Err(SupervisorError::NotFound(actor.to_string()));
+        }
+        let key = match self.by_actor.get(&actor) {
+            Some(&key) => Some(key),
+            // an instance restarting after this incarnation's exit
+            None => self
+                .children
+                .iter()
+                .find(|(_, c)| !matches!(c.status, Status::Running(_)) && c.old == Some(actor))
+                .map(|(&k, _)| k),
+        };
+        let Some(key) = key else {
+            // OTP: terminating an instance that has already gone is fine; a live actor that
+            // is not an instance is not
+            return match ractor::registry::where_is_pid(actor) {
+                Some(_) => Err(SupervisorError::NotFound(actor.to_string())),
+                None => Ok(()),
+            };
+        };
+        self.stop_child(key).await;
+        if let Some(waiter) = self.children.get_mut(&key).and_then(|c| c.waiter.take()) {
+            let _ = waiter.send(Err(SupervisorError::Terminated(actor.to_string())));
+        }
+        self.remove_child(key);
+        self.pump(myself);
+        Ok(())
     }
 
     async fn terminate_child(
@@ -861,7 +1046,12 @@ impl SupervisorState {
 
     fn count_children(&self) -> ChildCounts {
         let mut counts = ChildCounts {
-            specs: self.children.len(),
+            // a simple-one-for-one supervisor has one spec, its template (as OTP counts)
+            specs: if self.is_simple() {
+                1
+            } else {
+                self.children.len()
+            },
             ..ChildCounts::default()
         };
         for c in self.children.values() {
@@ -886,6 +1076,9 @@ impl SupervisorState {
         }
         self.in_flight = None;
         self.early_exits.clear();
+        if self.is_simple() {
+            self.shutdown_instances().await;
+        }
         let keys: Vec<u64> = self.children.keys().rev().copied().collect();
         for key in keys {
             self.stop_child(key).await;
@@ -894,6 +1087,30 @@ impl SupervisorState {
             }
         }
         self.pending.clear();
+    }
+
+    /// Stop every running instance of a simple-one-for-one supervisor at once and wait for
+    /// them together (OTP stops them asynchronously too; there is no order among instances).
+    async fn shutdown_instances(&mut self) {
+        let mut stopping = Vec::new();
+        for child in self.children.values_mut() {
+            if let Status::Running(cell) = &child.status {
+                let cell = cell.clone();
+                child.status = Status::Undefined;
+                child.old = Some(cell.get_id());
+                self.by_actor.remove(&cell.get_id());
+                stopping.push((child.spec.id.clone(), cell, child.spec.shutdown));
+            }
+        }
+        let cells: Vec<_> = stopping.iter().map(|(_, c, s)| (c.clone(), *s)).collect();
+        let killed = shutdown_together(&cells).await;
+        for ((id, cell, _), killed) in stopping.into_iter().zip(killed) {
+            self.emit(SupervisorEvent::ChildShutdown {
+                id,
+                actor: cell.get_id(),
+                killed,
+            });
+        }
     }
 
     /// The restart intensity was exceeded: stop everything and fail, escalating to the parent.

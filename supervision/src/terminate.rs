@@ -54,3 +54,59 @@ async fn kill(child: &ActorCell) {
         );
     }
 }
+
+/// Stop many children at once, each as its shutdown says, and wait until all have stopped
+/// (simple-one-for-one instances, which have no order among them). Every child is asked to
+/// stop (or killed) first; then each is waited for until its own deadline, counted from the
+/// common start; the stragglers are killed together and waited for. Returns, per child,
+/// whether it had to be killed. Costs one pass over the children, however many there are,
+/// instead of one shutdown after the other.
+pub(crate) async fn shutdown_together(children: &[(ActorCell, Shutdown)]) -> Vec<bool> {
+    let started = tokio::time::Instant::now();
+    for (child, shutdown) in children {
+        match shutdown {
+            Shutdown::BrutalKill => child.kill(),
+            Shutdown::Timeout(_) | Shutdown::Infinity => child.stop(Some(SHUTDOWN.to_string())),
+        }
+    }
+    let mut killed = vec![false; children.len()];
+    let mut stragglers = Vec::new();
+    for (i, (child, shutdown)) in children.iter().enumerate() {
+        match shutdown {
+            Shutdown::BrutalKill => {
+                killed[i] = true;
+                stragglers.push(i);
+            }
+            Shutdown::Timeout(timeout) => {
+                let left =
+                    (started + *timeout).saturating_duration_since(tokio::time::Instant::now());
+                if child.wait(Some(left)).await.is_err() {
+                    tracing::warn!(
+                        child = %child.get_id(),
+                        ?timeout,
+                        "child did not stop within its shutdown timeout; killing it"
+                    );
+                    child.kill();
+                    killed[i] = true;
+                    stragglers.push(i);
+                }
+            }
+            Shutdown::Infinity => {
+                let _ = child.wait(None).await;
+            }
+        }
+    }
+    let grace_end = tokio::time::Instant::now() + KILL_GRACE;
+    for i in stragglers {
+        let child = &children[i].0;
+        let left = grace_end.saturating_duration_since(tokio::time::Instant::now());
+        if child.wait(Some(left)).await.is_err() {
+            tracing::error!(
+                child = %child.get_id(),
+                "killed child still runs after {KILL_GRACE:?} (blocked in synchronous code?); \
+                 giving up on it"
+            );
+        }
+    }
+    killed
+}

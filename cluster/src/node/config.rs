@@ -180,6 +180,9 @@ impl OperationConfig {
 pub struct SimulationConfig {
     /// The world file; `None`: the mission's world.
     pub world: Option<PathBuf>,
+    /// Where the config file names the world (for an error about the world file, which
+    /// points first at the line that named it).
+    pub world_at: Option<Diagnostic>,
     /// Seed of its noise; `None`: the command line's.
     pub seed: Option<u64>,
     /// Whether the node runs the cart's drivers (the virtual cart).
@@ -481,6 +484,13 @@ fn datamanager(
 /// The `[simulation]` table.
 fn simulation(r: &mut Reader<'_>, t: &Tbl<'_, '_>, path: Option<&Path>) -> SimulationConfig {
     r.unknown_keys(t, &["world", "seed", "drivers"]);
+    let world_at = t.get("world").map(|v| {
+        Diagnostic::at(
+            r.file(),
+            r.pos(&v.span()),
+            "the world named here does not load:",
+        )
+    });
     let world = r.string(t, "world").map(|w| {
         let w = PathBuf::from(w);
         match path.and_then(Path::parent) {
@@ -494,6 +504,7 @@ fn simulation(r: &mut Reader<'_>, t: &Tbl<'_, '_>, path: Option<&Path>) -> Simul
         .map(|s| s as u64);
     SimulationConfig {
         world,
+        world_at,
         seed: t.get("seed").and(seed),
         drivers: r.boolean(t, "drivers", true),
     }
@@ -679,10 +690,4 @@ fn check_operation(op: &OperationConfig, catalog: &[OperationFactory]) -> Result
         return Err(OpProblem::NoVersion(versions.join(", ")));
     }
     Ok(())
-}
-
-/// A diagnostic at `1:1` of the file that names a node config problem found outside the file
-/// (e.g. its world does not load).
-pub fn file_diagnostic(path: &Path, message: impl Into<String>) -> Diagnostic {
-    Diagnostic::new(path.display().to_string(), 1, 1, message)
 }

@@ -154,6 +154,7 @@ pub enum NodeError {
 ///  ├─ the robot's drivers           (temporary: a simulation is not restarted)
 ///  ├─ operations (one_for_one) ──── one EO host per operation instance
 ///  ├─ <other [[supervisor]]s> ───── their operations
+///  ├─ dynamic (simple_one_for_one)─ instances started on request (start_instance)
 ///  └─ dispatcher-N                  (temporary, one per run; with `dispatcher = true`)
 /// ```
 pub struct Node {
@@ -163,7 +164,6 @@ pub struct Node {
     root: SupervisorRef,
     robot: Option<Arc<dyn Robot>>,
     runs: AtomicU64,
-    dynamic: AtomicU64,
 }
 
 impl Node {
@@ -182,7 +182,6 @@ impl Node {
             root,
             robot: options.robot,
             runs: AtomicU64::new(0),
-            dynamic: AtomicU64::new(0),
         })
     }
 
@@ -235,9 +234,10 @@ impl Node {
     }
 
     /// Start another instance of operation `name` — of the newest version matching `version`
-    /// that the config allows — as a dynamic child of the supervisor its config names (OTP's
-    /// `simple_one_for_one` use: more workers of one kind on request). Failover uses this when
-    /// no spare runs. Refused when the config does not host that operation.
+    /// that the config allows — as a dynamic child (the node's `dynamic` supervisor is OTP's
+    /// `simple_one_for_one`: instances of one template, "an operation instance", started on
+    /// request, permanent). Failover uses this when no spare runs. Refused when the config
+    /// does not host that operation.
     pub async fn start_instance(
         &self,
         name: &str,
@@ -255,7 +255,7 @@ impl Node {
             })
             .filter(|(_, f)| f.semver().is_some_and(|v| version.matches(&v)))
             .max_by_key(|(_, f)| f.semver());
-        let Some((op, factory)) = chosen else {
+        let Some((_, factory)) = chosen else {
             let allowed: Vec<String> = self
                 .config
                 .operations
@@ -268,15 +268,13 @@ impl Node {
                 allowed: allowed.join(", "),
             });
         };
-        let n = self.dynamic.fetch_add(1, Ordering::Relaxed);
-        let spec = tree::operation_child(
-            format!("{}+{n}", factory.key()),
-            factory.clone(),
-            HostOptions::with_clock(self.clock.clone()),
-            op.restart,
-        );
-        let sup = self.child_supervisor(&op.supervisor).await?;
-        let cell = sup.start_child(spec).await?;
+        let sup = self.child_supervisor(tree::DYNAMIC).await?;
+        let cell = sup
+            .start_dynamic(tree::DynamicOp {
+                factory: factory.clone(),
+                host: HostOptions::with_clock(self.clock.clone()),
+            })
+            .await?;
         tracing::info!(node = %self.config.name, op = %factory.key(), "dynamic instance started");
         Ok(cell)
     }

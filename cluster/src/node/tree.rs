@@ -1,7 +1,7 @@
 //! The node's supervision tree: what its supervisors start, built from its [`NodeConfig`],
 //! and how a run learns that an operation supervisor gave up.
 
-use super::config::{NodeConfig, OPERATIONS};
+use super::config::{NodeConfig, DEFAULT_PERIOD, DEFAULT_RESTARTS, OPERATIONS};
 use super::robot::AprioriRecord;
 use super::{NodeOptions, OPERATION_SHUTDOWN};
 use marie_actors::clock::SharedClock;
@@ -9,8 +9,8 @@ use marie_actors::dispatcher::DispatcherMsg;
 use marie_actors::dm::{self, DmArgs, DmClient, DmConfig};
 use marie_actors::eo::{HostOptions, OperationFactory};
 use marie_supervision::{
-    ChildSpec, Restart, Shutdown, Supervisor, SupervisorError, SupervisorEvent, SupervisorRef,
-    SupervisorSpec,
+    ChildSpec, ChildTemplate, Restart, Shutdown, Supervisor, SupervisorError, SupervisorEvent,
+    SupervisorRef, SupervisorSpec,
 };
 use ractor::{ActorRef, SpawnErr};
 use std::sync::Arc;
@@ -73,6 +73,34 @@ pub(super) async fn abort_on_give_up(
 /// Child id of the datamanager supervisor in the node's tree.
 pub(super) const DATAMANAGERS: &str = "datamanagers";
 
+/// Child id of the supervisor of dynamic operation instances (simple_one_for_one).
+pub(super) const DYNAMIC: &str = "dynamic";
+
+/// What a dynamic instance is started from: the operation's factory and host options.
+#[derive(Clone)]
+pub(super) struct DynamicOp {
+    pub(super) factory: OperationFactory,
+    pub(super) host: HostOptions,
+}
+
+/// The supervisor of instances started on request ([`Node::start_instance`]): OTP's
+/// `simple_one_for_one`, one template — "an operation instance" — whose argument says which
+/// operation; permanent, with the default operation intensity.
+///
+/// [`Node::start_instance`]: super::Node::start_instance
+fn dynamic_supervisor() -> ChildSpec {
+    let template = ChildTemplate::worker("instance", |sup, op: DynamicOp| {
+        (op.factory.start)(op.host, Some(sup))
+    })
+    .with_shutdown(Shutdown::Timeout(OPERATION_SHUTDOWN));
+    ChildSpec::supervisor(
+        DYNAMIC,
+        SupervisorSpec::simple_one_for_one(template)
+            .with_intensity(DEFAULT_RESTARTS, DEFAULT_PERIOD),
+        Vec::new(),
+    )
+}
+
 /// The root's children, in start order: datamanagers, the robot's drivers, then one
 /// supervisor per operation supervisor of the config with the instances it names.
 pub(super) fn children(config: &NodeConfig, options: &NodeOptions) -> Vec<ChildSpec> {
@@ -116,6 +144,7 @@ pub(super) fn children(config: &NodeConfig, options: &NodeOptions) -> Vec<ChildS
             ops,
         ));
     }
+    children.push(dynamic_supervisor());
     children
 }
 

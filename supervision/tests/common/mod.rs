@@ -6,10 +6,11 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use marie_supervision::{
-    ChildSpec, ExitReason, Shutdown, SupervisorEvent, SupervisorRef, SupervisorSpec,
+    ChildSpec, ChildStart, ChildTemplate, ExitReason, Shutdown, SupervisorEvent, SupervisorRef,
+    SupervisorSpec,
 };
 use ractor::{Actor, ActorCell, ActorId, ActorProcessingErr, ActorRef, RpcReplyPort, SpawnErr};
-use tokio::sync::{broadcast, mpsc};
+use tokio::sync::{broadcast, mpsc, oneshot};
 
 /// How long a test waits for something that must happen. Generous: the tests run on a
 /// loaded 2-core machine, and they never wait this long when things work.
@@ -133,6 +134,8 @@ pub struct WorkerOpts {
     pub hang_start: Option<Arc<AtomicBool>>,
     /// While positive, starts fail and count it down.
     pub fail_count: Option<Arc<AtomicUsize>>,
+    /// While set, starts answer `ChildStart::Ignore`.
+    pub ignore: Option<Arc<AtomicBool>>,
 }
 
 /// A permanent worker with a 5 s shutdown.
@@ -153,6 +156,14 @@ impl WorkerOpts {
     pub fn hanging(flag: &Arc<AtomicBool>) -> Self {
         WorkerOpts {
             hang_start: Some(flag.clone()),
+            ..Default::default()
+        }
+    }
+
+    /// Starts answer ignore while `flag` is set.
+    pub fn ignoring(flag: &Arc<AtomicBool>) -> Self {
+        WorkerOpts {
+            ignore: Some(flag.clone()),
             ..Default::default()
         }
     }
@@ -179,6 +190,10 @@ pub fn worker_with(id: &str, log: &Log, opts: WorkerOpts) -> ChildSpec {
             .hang_start
             .as_ref()
             .is_some_and(|f| f.load(Ordering::SeqCst));
+        let ignore = opts
+            .ignore
+            .as_ref()
+            .is_some_and(|f| f.load(Ordering::SeqCst));
         async move {
             if hang {
                 std::future::pending::<()>().await;
@@ -187,8 +202,12 @@ pub fn worker_with(id: &str, log: &Log, opts: WorkerOpts) -> ChildSpec {
                 args.log.push(format!("failed start {}", args.name));
                 return Err(SpawnErr::StartupFailed("induced start failure".into()));
             }
+            if ignore {
+                args.log.push(format!("ignored start {}", args.name));
+                return Ok(ChildStart::Ignore);
+            }
             let (actor, _) = Actor::spawn_linked(None, Worker, args, sup).await?;
-            Ok(actor.get_cell())
+            Ok(ChildStart::Started(actor.get_cell()))
         }
     })
     .with_shutdown(Shutdown::Timeout(Duration::from_secs(5)))
@@ -359,4 +378,113 @@ pub async fn start_probed(
             .await
             .expect("supervisor starts");
     (sup, probe, exits)
+}
+
+/// The argument of one instance of the test template ([`template`]).
+#[derive(Clone, Default)]
+pub struct Inst {
+    /// The worker's name in the log.
+    pub name: String,
+    /// While set, starts fail.
+    pub fail_start: Option<Arc<AtomicBool>>,
+    /// Starts answer ignore.
+    pub ignore: bool,
+    /// `post_stop` sleeps this long.
+    pub stop_delay: Option<Duration>,
+    /// Held by the argument only: counts who keeps the argument alive.
+    pub payload: Option<Arc<()>>,
+}
+
+impl Inst {
+    pub fn named(name: &str) -> Self {
+        Inst {
+            name: name.to_string(),
+            ..Default::default()
+        }
+    }
+}
+
+/// A simple-one-for-one template of permanent test workers (5 s shutdown) named "child",
+/// each started from an [`Inst`].
+pub fn template(log: &Log) -> ChildTemplate {
+    let log = log.clone();
+    ChildTemplate::worker("child", move |sup, inst: Inst| {
+        let args = WorkerArgs {
+            name: inst.name.clone(),
+            log: log.clone(),
+            stop_delay: inst.stop_delay,
+            unlink: false,
+        };
+        let fail = inst
+            .fail_start
+            .as_ref()
+            .is_some_and(|f| f.load(Ordering::SeqCst));
+        let ignore = inst.ignore;
+        async move {
+            if fail {
+                args.log.push(format!("failed start {}", args.name));
+                return Err(SpawnErr::StartupFailed("induced start failure".into()));
+            }
+            if ignore {
+                return Ok(ChildStart::Ignore);
+            }
+            let (actor, _) = Actor::spawn_linked(None, Worker, args, sup).await?;
+            Ok(ChildStart::Started(actor.get_cell()))
+        }
+    })
+}
+
+/// What the test tells a gated start to do.
+pub enum Verdict {
+    Start,
+    Fail,
+}
+
+/// Starts waiting for a verdict: the child's id and where to send the verdict.
+pub type Gates = mpsc::UnboundedReceiver<(String, oneshot::Sender<Verdict>)>;
+
+/// A permanent worker whose every start asks the test (through `gates`) whether to start or
+/// fail: the test steps through a restart one start at a time (OTP's `supervisor_3`).
+pub fn gated(
+    id: &str,
+    log: &Log,
+    gates: &mpsc::UnboundedSender<(String, oneshot::Sender<Verdict>)>,
+) -> ChildSpec {
+    let args = WorkerArgs {
+        name: id.to_string(),
+        log: log.clone(),
+        stop_delay: None,
+        unlink: false,
+    };
+    let gates = gates.clone();
+    ChildSpec::worker(id, move |sup| {
+        let args = args.clone();
+        let gates = gates.clone();
+        async move {
+            let (tx, rx) = oneshot::channel();
+            if gates.send((args.name.clone(), tx)).is_err() {
+                return Err(SpawnErr::StartupFailed("the test is gone".into()));
+            }
+            match rx.await {
+                Ok(Verdict::Start) => {
+                    let (actor, _) = Actor::spawn_linked(None, Worker, args, sup).await?;
+                    Ok(actor.get_cell())
+                }
+                _ => {
+                    args.log.push(format!("failed start {}", args.name));
+                    Err(SpawnErr::StartupFailed("the test failed this start".into()))
+                }
+            }
+        }
+    })
+}
+
+/// The next gated start; it must be `id`'s. Answer it with `verdict`.
+pub async fn answer(gates: &mut Gates, id: &str, verdict: Verdict) {
+    let (who, reply) = tokio::time::timeout(PATIENCE, gates.recv())
+        .await
+        .unwrap_or_else(|_| panic!("timed out waiting for the start of {id}"))
+        .expect("gates open");
+    assert_eq!(who, id, "expected the start of {id}, got {who}'s");
+    let _ = reply.send(verdict);
 }

@@ -323,6 +323,8 @@ pub struct ParsedMission {
     pub(crate) deadline: Option<Duration>,
     pub(crate) rebind_deadline: Option<Duration>,
     pub(crate) world: Option<PathBuf>,
+    /// Where the file names the world.
+    pub(crate) world_at: Option<Pos>,
     pub(crate) actions: Vec<raw::ParsedAction>,
 }
 
@@ -352,6 +354,14 @@ impl ParsedMission {
     /// [`Mission::world`]).
     pub fn world(&self) -> Option<&Path> {
         self.world.as_deref()
+    }
+
+    /// A diagnostic at the line that names the world, saying `message` — the first line of
+    /// an error about the world file, so that it points at what named it. `None` when the
+    /// mission names no world.
+    pub fn world_diagnostic(&self, message: impl Into<String>) -> Option<Diagnostic> {
+        let at = self.world_at?;
+        Some(Diagnostic::at(&self.file, at, message))
     }
 
     /// The operation keys (names or ids, as written) the mission uses, each once, in order of

@@ -766,6 +766,7 @@ fn check(
         success,
         deadline: header.deadline,
         rebind_deadline: header.rebind_deadline,
+        world_at: header.world.as_ref().map(|w| ctx.pos(&w.span())),
         world: header
             .world
             .map(|w| resolve_world(path, Path::new(w.get_ref()))),
