@@ -159,7 +159,7 @@ heading_tolerance_deg = 200
         "bad.toml:3:1: unknown key `colour` in [world] (expected one of: name, description)",
         "bad.toml:6:10: [[wall]] #1 needs at least 2 points, found 1",
         "bad.toml:9:23: `points` must be a finite number",
-        "bad.toml:13:9: `width` must be greater than 0, found -0.6",
+        "bad.toml:13:9: `width` must be in (0, 10], found -0.6",
         "bad.toml:14:10: expected a number for `length`, found string",
         "bad.toml:15:1: unknown key `wheels` in [cart] (expected one of: start, length, width, \
          wheelbase, rear_overhang, max_speed, max_steer_deg, max_steer_rate_deg, \
@@ -655,5 +655,20 @@ fn sonar_mounts_of_the_default_ring_sit_on_the_footprint() {
             s.x >= r - 1e-12 && s.x <= f + 1e-12 && s.y.abs() <= h + 1e-12,
             "{s:?}"
         );
+    }
+}
+
+#[test]
+fn numbers_out_of_a_worlds_range_are_refused_at_their_position() {
+    let src = "[world]\nname = \"w\"\n[[wall]]\npoints = [[0, 0], [4e9, 0]]\n\
+               [cart]\nstart = { x = 1, y = 1e300 }\nlength = 1e6\nmax_speed = 500\n";
+    let err = World::parse(src, None).unwrap_err().to_string();
+    for want in [
+        "<world>:4:20: coordinates in `points` must be in [-1000, 1000] metres, found 4e9",
+        "<world>:6:22: `y` must be in [-1000, 1000], found 1e300",
+        "<world>:7:10: `length` must be in (0, 10], found 1000000",
+        "<world>:8:13: `max_speed` must be in (0, 5], found 500",
+    ] {
+        assert!(err.contains(want), "`{want}` not in:\n{err}");
     }
 }

@@ -262,7 +262,10 @@ impl<'s> Reader<'s> {
         match rule.check(x) {
             Ok(()) => Some(x),
             Err(want) => {
-                self.err(&v.span(), format!("`{key}` must be {want}, found {x}"));
+                self.err(
+                    &v.span(),
+                    format!("`{key}` must be {want}, found {}", literal(v)),
+                );
                 None
             }
         }
@@ -305,7 +308,7 @@ impl<'s> Reader<'s> {
                         "`{key}` must be an integer in [{}, {}], found {}",
                         range.start(),
                         range.end(),
-                        text_of(v)
+                        literal(v)
                     ),
                 );
                 None
@@ -391,8 +394,9 @@ impl<'s> Reader<'s> {
     }
 }
 
-/// The literal text of a scalar, for messages.
-fn text_of(v: &Val<'_>) -> String {
+/// The literal text of a scalar as the file wrote it, for messages (`1e300`, not its
+/// 301-digit expansion).
+pub fn literal(v: &Val<'_>) -> String {
     match v.get_ref() {
         DeValue::Integer(i) => i.as_str().to_string(),
         DeValue::Float(f) => f.as_str().to_string(),

@@ -8,7 +8,7 @@
 
 use super::model::{Beam, CartSpec, Dock, GoalArea, Rect, SimSettings, SonarMount, World};
 use crate::geom::{Point, Pose};
-use marie_actors::diagnostic::toml::{Reader, Rule, Tbl, Val};
+use marie_actors::diagnostic::toml::{literal, Reader, Rule, Tbl, Val};
 use marie_actors::diagnostic::{read_source, Diagnostics};
 use std::path::Path;
 use toml::de::DeValue;
@@ -52,6 +52,16 @@ const SIM_KEYS: &[&str] = &[
     "odometry_heading_sigma_deg",
 ];
 
+/// Largest coordinate magnitude, metres: a world is at most 2 km across (the simulation's
+/// grid planner and pictures are sized by it, so a typo like `1e300` must not reach them).
+const MAX_COORD: f64 = 1000.0;
+/// Coordinates: within ±[`MAX_COORD`].
+const COORD: Rule = Rule::Within(-MAX_COORD, MAX_COORD);
+/// Headings in degrees: one turn either way.
+const HEADING: Rule = Rule::Within(-360.0, 360.0);
+/// A part of the cart (length, width, wheelbase), metres.
+const CART_SIZE: Rule = Rule::AboveUpTo(0.0, 10.0);
+
 /// Shortest wall or obstacle edge, metres.
 const MIN_EDGE: f64 = 1e-3;
 /// How far a dock's `breadth` may differ from its opening's length, metres.
@@ -93,9 +103,25 @@ fn xy(ctx: &mut Ctx<'_>, v: &Val<'_>, field: &str) -> Option<Point> {
         );
         return None;
     }
-    let x = ctx.number(&items[0], field);
-    let y = ctx.number(&items[1], field);
+    let x = coordinate(ctx, &items[0], field);
+    let y = coordinate(ctx, &items[1], field);
     Some(Point::new(x?, y?))
+}
+
+/// A coordinate within ±[`MAX_COORD`], or a diagnostic.
+fn coordinate(ctx: &mut Ctx<'_>, v: &Val<'_>, field: &str) -> Option<f64> {
+    let x = ctx.number(v, field)?;
+    if let Err(want) = COORD.check(x) {
+        ctx.err(
+            &v.span(),
+            format!(
+                "coordinates in `{field}` must be {want} metres, found {}",
+                literal(v)
+            ),
+        );
+        return None;
+    }
+    Some(x)
 }
 
 /// A point written `{ x = .., y = .. }` (or `[x, y]`).
@@ -105,8 +131,8 @@ fn point(ctx: &mut Ctx<'_>, v: &Val<'_>, field: &str) -> Option<Point> {
     }
     let tbl = ctx.table(v, &format!("`{field}` (a point `{{ x = .., y = .. }}`)"))?;
     ctx.unknown_keys(&tbl, XY_KEYS);
-    let x = ctx.num(&tbl, "x", None, Rule::Any);
-    let y = ctx.num(&tbl, "y", None, Rule::Any);
+    let x = ctx.num(&tbl, "x", None, COORD);
+    let y = ctx.num(&tbl, "y", None, COORD);
     Some(Point::new(x?, y?))
 }
 
@@ -358,17 +384,17 @@ fn start_pose(ctx: &mut Ctx<'_>, cart: &Tbl<'_, '_>) -> Option<Pose> {
     };
     let t = ctx.table(v, "`start` (`{ x = .., y = .., heading_deg = .. }`)")?;
     ctx.unknown_keys(&t, START_KEYS);
-    let x = ctx.num(&t, "x", None, Rule::Any);
-    let y = ctx.num(&t, "y", None, Rule::Any);
-    let heading = ctx.num(&t, "heading_deg", Some(0.0), Rule::Any);
+    let x = ctx.num(&t, "x", None, COORD);
+    let y = ctx.num(&t, "y", None, COORD);
+    let heading = ctx.num(&t, "heading_deg", Some(0.0), HEADING);
     Some(Pose::new(x?, y?, heading?.to_radians()))
 }
 
 fn cart_spec(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> CartSpec {
     let d = CartSpec::default();
-    let length = ctx.num(t, "length", Some(d.length), Rule::Positive);
-    let width = ctx.num(t, "width", Some(d.width), Rule::Positive);
-    let wheelbase = ctx.num(t, "wheelbase", Some(d.wheelbase), Rule::Positive);
+    let length = ctx.num(t, "length", Some(d.length), CART_SIZE);
+    let width = ctx.num(t, "width", Some(d.width), CART_SIZE);
+    let wheelbase = ctx.num(t, "wheelbase", Some(d.wheelbase), CART_SIZE);
     let overhang_default = match (length, wheelbase) {
         (Some(l), Some(w)) => ((l - w) / 2.0).max(0.0),
         _ => d.rear_overhang,
@@ -379,7 +405,8 @@ fn cart_spec(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> CartSpec {
         Some(overhang_default),
         Rule::NonNegative,
     );
-    let max_speed = ctx.num(t, "max_speed", Some(d.max_speed), Rule::Positive);
+    // a cart, not a car: at most 5 m/s (the thesis' cart did 0.5)
+    let max_speed = ctx.num(t, "max_speed", Some(d.max_speed), Rule::AboveUpTo(0.0, 5.0));
     let max_steer = ctx.num(
         t,
         "max_steer_deg",
@@ -427,9 +454,9 @@ fn cart_spec(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> CartSpec {
 
 fn sonar(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> Option<SonarMount> {
     ctx.unknown_keys(t, SONAR_KEYS);
-    let x = ctx.num(t, "x", None, Rule::Any);
-    let y = ctx.num(t, "y", None, Rule::Any);
-    let angle = ctx.num(t, "angle_deg", None, Rule::Any);
+    let x = ctx.num(t, "x", None, Rule::Within(-10.0, 10.0));
+    let y = ctx.num(t, "y", None, Rule::Within(-10.0, 10.0));
+    let angle = ctx.num(t, "angle_deg", None, HEADING);
     let beam = match t.get("beam") {
         None => {
             ctx.err(
@@ -470,7 +497,7 @@ fn sonar(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> Option<SonarMount> {
         Some(Beam::Wide) => 3.0,
         _ => 4.0,
     };
-    let range = ctx.num(t, "range", Some(default_range), Rule::Positive);
+    let range = ctx.num(t, "range", Some(default_range), Rule::AboveUpTo(0.0, 100.0));
     Some(SonarMount {
         x: x?,
         y: y?,
@@ -492,9 +519,9 @@ fn goal(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> Option<GoalArea> {
         }
         Some(v) => point(ctx, v, "center"),
     };
-    let length = ctx.num(t, "length", None, Rule::Positive);
-    let width = ctx.num(t, "width", None, Rule::Positive);
-    let heading = ctx.num(t, "heading_deg", Some(0.0), Rule::Any);
+    let length = ctx.num(t, "length", None, Rule::AboveUpTo(0.0, 2.0 * MAX_COORD));
+    let width = ctx.num(t, "width", None, Rule::AboveUpTo(0.0, 2.0 * MAX_COORD));
+    let heading = ctx.num(t, "heading_deg", Some(0.0), HEADING);
     let tolerance = ctx.num(
         t,
         "heading_tolerance_deg",
@@ -548,8 +575,8 @@ fn dock(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> Option<Dock> {
             }
         },
     };
-    let breadth = ctx.num(t, "breadth", None, Rule::Positive);
-    let depth = ctx.num(t, "depth", None, Rule::Positive);
+    let breadth = ctx.num(t, "breadth", None, Rule::AboveUpTo(0.0, 2.0 * MAX_COORD));
+    let depth = ctx.num(t, "depth", None, Rule::AboveUpTo(0.0, 2.0 * MAX_COORD));
     let (a, b, _) = opening?;
     let breadth = breadth?;
     let length = (b - a).norm();

@@ -19,6 +19,10 @@ use toml::Spanned;
 
 type Span = Range<usize>;
 
+/// The longest deadline a mission may set: a day. A wait longer than that could not be run in
+/// reasonable time at `--speed 1`, so `marie check` refuses it.
+pub(crate) const MAX_SECONDS: f64 = 86_400.0;
+
 /// Deadline of an action that gives no `deadline_s`.
 pub(crate) const DEFAULT_ACTION_DEADLINE: Duration = Duration::from_secs(30);
 
@@ -309,6 +313,13 @@ fn seconds(ctx: &mut Ctx<'_>, v: &Spanned<DeValue<'_>>, field: &str) -> Option<D
         ctx.err(
             &v.span(),
             format!("`{field}` must be a positive, finite number of seconds, found {shown}"),
+        );
+        return None;
+    }
+    if x > MAX_SECONDS {
+        ctx.err(
+            &v.span(),
+            format!("`{field}` = {shown} is more than a mission may wait ({MAX_SECONDS} s, a day)"),
         );
         return None;
     }
