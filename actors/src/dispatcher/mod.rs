@@ -5,14 +5,19 @@
 //! [`ActionDispatcher`] and returns a [`RunReport`].
 
 mod actor;
+mod assembly;
 mod binding;
 mod catalog;
+mod healing;
+mod messages;
 pub mod mission;
 mod report;
+mod running;
 
 pub use actor::{
-    request_run, run_mission, spawn_dispatcher, ActionDispatcher, DispatchError, DispatchEvent,
-    DispatcherArgs, DispatcherMsg, DispatcherState, DISPATCHER_ID,
+    request_run, run_mission, spawn_dispatcher, ActionDispatcher, DispatchError, DispatcherArgs,
+    DispatcherState, DISPATCHER_ID,
 };
 pub use catalog::{describe, RegistryCatalog};
+pub use messages::{DispatchEvent, DispatcherMsg};
 pub use report::{ActionRecord, FaultRecord, OpRecord, Outcome, RebindRecord, RunReport};
