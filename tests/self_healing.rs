@@ -33,8 +33,9 @@ fn heals(mission: &str, fault: &str, op: &str, cause: &str) {
         "the faulty instance was left"
     );
     assert_ne!(rebind["to"], rebind["from"]);
-    let why = rebind["cause"].as_str().unwrap_or_default();
-    assert!(why.contains(cause), "{fault}: cause `{why}`");
+    let why: marie::actors::dispatcher::LossCause =
+        serde_json::from_value(rebind["cause"].clone()).expect("a typed loss cause");
+    assert!(why.to_string().contains(cause), "{fault}: cause `{why}`");
     assert!(
         text(&out.stdout).contains(&format!("~ {op} rebound")),
         "live output shows the rebind: {log}"

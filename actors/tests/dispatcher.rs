@@ -2,7 +2,9 @@
 
 use marie_actors::clock::RealClock;
 use marie_actors::dispatcher::mission::Mission;
-use marie_actors::dispatcher::{run_mission, DispatchEvent, Outcome, RegistryCatalog, RunReport};
+use marie_actors::dispatcher::{
+    run_mission, DispatchEvent, OpEnd, Outcome, RegistryCatalog, RunReport,
+};
 use marie_actors::eo::{
     spawn_operation, EoClient, EoMsg, HostOptions, Identity, OpContext, OpError, Operation, Step,
 };
@@ -160,13 +162,13 @@ async fn an_action_ends_when_its_ender_finishes_and_the_others_are_suspended() {
     .await;
     assert!(report.succeeded(), "{}", report.reason);
     let ops = &report.actions[0].operations;
-    let ended: Vec<(&str, &str)> = ops
-        .iter()
-        .map(|o| (o.name.as_str(), o.ended.as_str()))
-        .collect();
+    let ended: Vec<(&str, OpEnd)> = ops.iter().map(|o| (o.name.as_str(), o.ended)).collect();
     assert_eq!(
         ended,
-        [("end-ender", "finished"), ("end-runner", "suspended")]
+        [
+            ("end-ender", OpEnd::Finished),
+            ("end-runner", OpEnd::Suspended)
+        ]
     );
     // suspended, not stopped: the runner is alive, idle, and was activated once
     let g = general(&runner).await;
@@ -202,7 +204,7 @@ async fn end_mode_all_waits_for_every_ender() {
     assert!(report.actions[0]
         .operations
         .iter()
-        .all(|o| o.ended == "finished"));
+        .all(|o| o.ended == OpEnd::Finished));
 }
 
 #[tokio::test]

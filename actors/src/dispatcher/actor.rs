@@ -77,13 +77,25 @@ pub(super) struct RunTimers {
     pub(super) probe: Option<Timer>,
 }
 
+/// Where the current action is in its life.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum ActionState {
+    /// Its operations run; it waits for its enders.
+    Running,
+    /// It ended: what still ran was suspended, and the action completes when they have
+    /// reported (or the suspension grace passes).
+    Ending,
+}
+
+/// The action that runs now.
 pub(super) struct Current {
     pub(super) generation: u64,
     pub(super) index: usize,
     pub(super) start_ms: u64,
     pub(super) running: BTreeSet<String>,
     pub(super) enders_done: BTreeSet<String>,
-    pub(super) ending: bool,
+    /// Running, or ending (its others suspended, waiting for their reports).
+    pub(super) state: ActionState,
     pub(super) ops: BTreeMap<String, OpRecord>,
     /// The action's deadline, then its suspension grace; cancelled with the action.
     pub(super) timer: Option<Timer>,
@@ -108,6 +120,13 @@ pub struct DispatcherState {
     /// The run's own timers, cancelled with the dispatcher.
     pub(super) timers: RunTimers,
     pub(super) ended: bool,
+}
+
+impl Current {
+    /// True once the action ended and only waits for suspended operations.
+    pub(super) fn ending(&self) -> bool {
+        self.state == ActionState::Ending
+    }
 }
 
 impl DispatcherState {

@@ -16,6 +16,7 @@
 
 use super::actor::{DispatcherState, Start};
 use super::binding::{examine, Binding};
+use super::loss::LossCause;
 use super::messages::{DispatchEvent, DispatcherMsg};
 use super::report::{Outcome, RebindRecord};
 use crate::clock::Timer;
@@ -92,7 +93,7 @@ impl DispatcherState {
         &mut self,
         myself: &ActorRef<DispatcherMsg>,
         name: &str,
-        cause: String,
+        cause: LossCause,
     ) {
         let now = self.clock.now();
         let Some(b) = self.bindings.get_mut(name) else {
@@ -110,7 +111,7 @@ impl DispatcherState {
         });
         // A lost operation of an action that is ending has nothing left to do in it.
         if let Some(key) = self.running_key(name) {
-            let ending = self.current.as_ref().is_some_and(|c| c.ending);
+            let ending = self.current.as_ref().is_some_and(|c| c.ending());
             if ending && self.give_up_on(myself, &[key]) {
                 return;
             }
@@ -276,15 +277,13 @@ impl DispatcherState {
             None => {}
             Some(EoError::Timeout(_, deadline)) => {
                 b.client.actor().kill();
-                let cause = format!(
-                    "hung: no answer within its deadline of {} ms; killed",
-                    deadline.as_millis()
-                );
+                let cause = LossCause::Hung {
+                    deadline_ms: deadline.as_millis() as u64,
+                };
                 self.lose(myself, &name, cause).await;
             }
             Some(EoError::Gone(_)) => {
-                self.lose(myself, &name, "died: its actor is gone".to_string())
-                    .await;
+                self.lose(myself, &name, LossCause::Gone).await;
             }
         }
     }
@@ -303,8 +302,7 @@ impl DispatcherState {
                     .find(|b| b.lost.is_none() && b.actor_id() == id)
                     .map(|b| b.name.clone());
                 if let Some(name) = name {
-                    self.lose(myself, &name, "died: it left the registry".to_string())
-                        .await;
+                    self.lose(myself, &name, LossCause::LeftRegistry).await;
                 }
             }
             RegistryEvent::Joined(inst) => {

@@ -1,5 +1,6 @@
 //! The dispatcher's messages, and the progress events it emits for live output.
 
+use super::loss::LossCause;
 use super::report::{Outcome, RebindRecord, RunReport};
 use crate::eo::{EoError, EoReport};
 use crate::flags::StatusFlags;
@@ -34,7 +35,7 @@ pub enum DispatchEvent {
         /// Operation name.
         operation: String,
         /// What happened to it.
-        cause: String,
+        cause: LossCause,
     },
     /// A lost operation is bound again.
     Rebound(RebindRecord),

@@ -9,6 +9,7 @@ mod assembly;
 mod binding;
 mod catalog;
 mod healing;
+mod loss;
 mod messages;
 pub mod mission;
 mod report;
@@ -19,5 +20,6 @@ pub use actor::{
     DispatcherState, DISPATCHER_ID,
 };
 pub use catalog::{describe, RegistryCatalog};
+pub use loss::LossCause;
 pub use messages::{DispatchEvent, DispatcherMsg};
-pub use report::{ActionRecord, FaultRecord, OpRecord, Outcome, RebindRecord, RunReport};
+pub use report::{ActionRecord, FaultRecord, OpEnd, OpRecord, Outcome, RebindRecord, RunReport};

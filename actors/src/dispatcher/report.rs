@@ -1,6 +1,9 @@
 //! The run report (DESIGN.md §8): what happened during a mission, as JSON.
 
+use super::loss::LossCause;
+use crate::eo::FaultKind;
 use serde::{Deserialize, Serialize};
+use std::fmt;
 
 /// How a mission ended.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -10,6 +13,46 @@ pub enum Outcome {
     Succeeded,
     /// Full stop: a stage failed, a deadline passed, or no action could run.
     Failed,
+}
+
+/// How an operation's part in an action ended. Serialized as its snake_case name
+/// (`finished`, `suspended`, …), the values reports have always carried.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum OpEnd {
+    /// Still running (the action has not ended, e.g. a report written at a full stop).
+    Running,
+    /// It reported that its task is done.
+    Finished,
+    /// It was suspended (its action ended on other operations), or suspended by another
+    /// party — then the run failed.
+    Suspended,
+    /// It reported a failure, refused its parameters, or is bound by another dispatcher.
+    Failed,
+    /// Its instance was lost and no stand-in finished its part.
+    Lost,
+    /// It did not report within the suspension grace.
+    Unresponsive,
+}
+
+impl OpEnd {
+    /// The stable name, as serialized.
+    pub fn name(self) -> &'static str {
+        match self {
+            OpEnd::Running => "running",
+            OpEnd::Finished => "finished",
+            OpEnd::Suspended => "suspended",
+            OpEnd::Failed => "failed",
+            OpEnd::Lost => "lost",
+            OpEnd::Unresponsive => "unresponsive",
+        }
+    }
+}
+
+impl fmt::Display for OpEnd {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
 }
 
 /// One operation's part in an action.
@@ -25,8 +68,8 @@ pub struct OpRecord {
     pub node: String,
     /// Actor address.
     pub address: String,
-    /// `finished`, `suspended`, `failed` or `lost`.
-    pub ended: String,
+    /// How its part ended.
+    pub ended: OpEnd,
     /// Names of the flags it raised (those the mission maps).
     pub flags: Vec<String>,
 }
@@ -54,7 +97,7 @@ pub struct RebindRecord {
     /// Operation name.
     pub operation: String,
     /// Why the old instance was left.
-    pub cause: String,
+    pub cause: LossCause,
     /// Old instance address.
     pub from: String,
     /// New instance address.
@@ -111,8 +154,8 @@ pub struct RunReport {
 pub struct FaultRecord {
     /// When, in ms of mission clock time since the run began.
     pub at_ms: u64,
-    /// `kill`, `panic` or `hang`.
-    pub fault: String,
+    /// What was injected.
+    pub fault: FaultKind,
     /// The operation it was meant for (name or id, as asked).
     pub operation: String,
     /// The instance that got it; empty if none did.
@@ -150,5 +193,60 @@ mod tests {
         let round: RunReport =
             serde_json::from_str(&serde_json::to_string(&report).expect("writes")).expect("reads");
         assert_eq!(round, report);
+    }
+
+    #[test]
+    fn a_report_with_typed_values_keeps_its_json_shape_and_reads_back_equal() {
+        let report = RunReport {
+            mission: "m".into(),
+            outcome: Outcome::Succeeded,
+            reason: String::new(),
+            status: 1,
+            flags: vec!["done".into()],
+            actions: vec![ActionRecord {
+                name: "a".into(),
+                start_ms: 1,
+                end_ms: 9,
+                flags: vec!["done".into()],
+                status: 1,
+                operations: vec![OpRecord {
+                    name: "op".into(),
+                    id: 7,
+                    version: "1.0.0".into(),
+                    node: "local".into(),
+                    address: "0.3".into(),
+                    ended: OpEnd::Finished,
+                    flags: vec!["done".into()],
+                }],
+            }],
+            rebinds: vec![RebindRecord {
+                operation: "op".into(),
+                cause: LossCause::Hung { deadline_ms: 300 },
+                from: "0.2".into(),
+                to: "0.3".into(),
+                downtime_ms: 4,
+            }],
+            duration_ms: 10,
+            final_pose: None,
+            collisions: None,
+            seed: None,
+            inside_goal: None,
+            judgement: None,
+            faults: vec![FaultRecord {
+                at_ms: 2,
+                fault: FaultKind::Hang,
+                operation: "op".into(),
+                actor: "0.2".into(),
+                error: None,
+            }],
+        };
+        let json: serde_json::Value = serde_json::to_value(&report).expect("writes");
+        assert_eq!(json["outcome"], "succeeded");
+        assert_eq!(json["actions"][0]["operations"][0]["ended"], "finished");
+        assert_eq!(json["faults"][0]["fault"], "hang");
+        assert_eq!(json["rebinds"][0]["cause"]["type"], "hung");
+        assert_eq!(json["rebinds"][0]["cause"]["deadline_ms"], 300);
+        let back: RunReport = serde_json::from_value(json).expect("reads");
+        assert_eq!(back, report);
     }
 }

@@ -8,10 +8,11 @@
 //! - An action ends when its enders say so (`any` or `all`), or when nothing runs any more;
 //!   what still runs is suspended and gets [`SUSPEND_GRACE`] to report.
 
-use super::actor::{Current, DispatcherState, Start};
+use super::actor::{ActionState, Current, DispatcherState, Start};
+use super::loss::LossCause;
 use super::messages::{DispatchEvent, DispatcherMsg};
 use super::mission::EndMode;
-use super::report::{OpRecord, Outcome};
+use super::report::{OpEnd, OpRecord, Outcome};
 use crate::clock::Timer;
 use crate::eo::{EoError, EoReport};
 use crate::flags::StatusFlags;
@@ -118,7 +119,7 @@ impl DispatcherState {
             start_ms: self.elapsed_ms(),
             running: BTreeSet::new(),
             enders_done: BTreeSet::new(),
-            ending: false,
+            state: ActionState::Running,
             ops: BTreeMap::new(),
             timer: None,
         };
@@ -146,7 +147,7 @@ impl DispatcherState {
                     version: b.version.clone(),
                     node: b.node.clone(),
                     address: b.address(),
-                    ended: "running".to_string(),
+                    ended: OpEnd::Running,
                     flags: Vec::new(),
                 },
             );
@@ -212,11 +213,11 @@ impl DispatcherState {
         if b.incarnation != incarnation || b.lost.is_some() {
             return; // about an instance already let go
         }
-        if report.is_none() && !cur.ending {
+        if report.is_none() && !cur.ending() {
             // The instance died mid-action: rebind and carry on.
             let name = b.name.clone();
             let action = self.mission.actions[cur.index].name.clone();
-            self.lose(myself, &name, format!("died during action `{action}`"))
+            self.lose(myself, &name, LossCause::DiedInAction { action })
                 .await;
             return;
         }
@@ -224,26 +225,26 @@ impl DispatcherState {
         cur.running.remove(&key);
         let action = &self.mission.actions[cur.index];
         let action_name = action.name.clone();
-        let ending = cur.ending;
+        let ending = cur.ending();
         let (ended, flags, failure) = match report {
-            Some(EoReport::Finished { flags, .. }) => ("finished", flags, None),
-            Some(EoReport::Suspended { flags, .. }) if ending => ("suspended", flags, None),
+            Some(EoReport::Finished { flags, .. }) => (OpEnd::Finished, flags, None),
+            Some(EoReport::Suspended { flags, .. }) if ending => (OpEnd::Suspended, flags, None),
             Some(EoReport::Suspended { flags, .. }) => (
-                "suspended",
+                OpEnd::Suspended,
                 flags,
                 Some(format!(
                     "operation `{key}` was suspended by another party during action `{action_name}`"
                 )),
             ),
             Some(EoReport::Failed { reason, flags, .. }) => (
-                "failed",
+                OpEnd::Failed,
                 flags,
                 Some(format!(
                     "operation `{key}` failed in action `{action_name}`: {reason}"
                 )),
             ),
             Some(EoReport::Rejected { rejections, .. }) => (
-                "failed",
+                OpEnd::Failed,
                 StatusFlags::EMPTY,
                 Some(format!(
                     "operation `{key}` refused its parameters in action `{action_name}`: {}",
@@ -255,23 +256,23 @@ impl DispatcherState {
                 )),
             ),
             Some(EoReport::Stale { current, .. }) => (
-                "failed",
+                OpEnd::Failed,
                 StatusFlags::EMPTY,
                 Some(format!(
                     "operation `{key}` is now bound by another dispatcher (epoch {current})"
                 )),
             ),
-            None => ("lost", StatusFlags::EMPTY, None),
+            None => (OpEnd::Lost, StatusFlags::EMPTY, None),
         };
         let global = self.translate(&key, flags);
         self.status |= global;
         let names = self.mission.flags_to_names(global);
         let cur = self.current.as_mut().expect("checked above");
         if let Some(rec) = cur.ops.get_mut(&key) {
-            rec.ended = ended.to_string();
+            rec.ended = ended;
             rec.flags = names;
         }
-        tracing::debug!(op = %key, ended, flags = %global, "operation report");
+        tracing::debug!(op = %key, %ended, flags = %global, "operation report");
         if let Some(reason) = failure {
             // say what the action still waited for: often the real news (a dock not found)
             let waiting = self.awaited_enders(&key);
@@ -289,7 +290,7 @@ impl DispatcherState {
             return;
         }
         let action = &self.mission.actions[cur.index];
-        if ended == "finished" && action.ends_on(&key) {
+        if ended == OpEnd::Finished && action.ends_on(&key) {
             cur.enders_done.insert(key);
             let end = match action.end_mode {
                 EndMode::Any => true,
@@ -311,7 +312,7 @@ impl DispatcherState {
         let Some(cur) = self.current.as_mut() else {
             return;
         };
-        cur.ending = true;
+        cur.state = ActionState::Ending;
         if cur.running.is_empty() {
             self.complete_action(myself);
             return;
@@ -363,7 +364,7 @@ impl DispatcherState {
         for key in keys {
             cur.running.remove(key);
             if let Some(rec) = cur.ops.get_mut(key) {
-                rec.ended = "lost".to_string();
+                rec.ended = OpEnd::Lost;
             }
         }
         if cur.running.is_empty() {
@@ -394,7 +395,7 @@ impl DispatcherState {
         let Some(cur) = &self.current else {
             return;
         };
-        if cur.generation != generation || cur.ending {
+        if cur.generation != generation || cur.ending() {
             return;
         }
         let action = &self.mission.actions[cur.index];
@@ -414,13 +415,13 @@ impl DispatcherState {
         let Some(cur) = &mut self.current else {
             return;
         };
-        if cur.generation != generation || !cur.ending {
+        if cur.generation != generation || !cur.ending() {
             return;
         }
         for key in std::mem::take(&mut cur.running) {
             tracing::warn!(op = %key, "no report after suspension");
             if let Some(rec) = cur.ops.get_mut(&key) {
-                rec.ended = "unresponsive".to_string();
+                rec.ended = OpEnd::Unresponsive;
             }
         }
         self.complete_action(myself);

@@ -33,11 +33,13 @@
 //! ```
 
 mod client;
+mod fault;
 mod host;
 mod messages;
 mod operation;
 
 pub use client::{EoClient, EoError};
+pub use fault::{FaultKind, UnknownFault};
 pub use host::{spawn_operation, spawn_operation_linked, EoHost, HostArgs, HostOptions, HostState};
 pub use messages::{EoMsg, EoReport, Fault, ParamOutcome};
 
