@@ -225,6 +225,10 @@ fn main() {
         for r in &report.rebinds {
             *causes.entry(r.cause.clone()).or_insert(0) += 1;
         }
-        println!("rebinds recorded: {} {causes:?}", report.rebinds.len());
+        println!(
+            "rebinds: {} in all, the latest {} kept: {causes:?}",
+            report.rebinds_total,
+            report.rebinds.len()
+        );
     });
 }

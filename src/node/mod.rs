@@ -369,7 +369,7 @@ impl Node {
         let _ = stop.send(());
         let _ = forwarder.await;
         let mut report = result?;
-        report.faults = faults;
+        report.record_faults(faults);
         if let Some(robot) = &self.robot {
             let status = match CartClient::lookup() {
                 Ok(cart) => cart.status().await,
@@ -592,6 +592,7 @@ mod tests {
             flags: Vec::new(),
             actions: Vec::new(),
             rebinds: Vec::new(),
+            rebinds_total: 0,
             duration_ms: 0,
             final_pose: None,
             collisions: None,
@@ -599,6 +600,7 @@ mod tests {
             inside_goal: None,
             judgement: None,
             faults: Vec::new(),
+            faults_total: 0,
         }
     }
 

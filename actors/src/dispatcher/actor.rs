@@ -113,7 +113,9 @@ pub struct DispatcherState {
     pub(super) current: Option<Current>,
     pub(super) started: Duration,
     pub(super) actions: Vec<ActionRecord>,
+    /// The latest rebinds (bounded, see [`super::report::REPORT_KEEPS`]) and their count.
     pub(super) rebinds: Vec<RebindRecord>,
+    pub(super) rebinds_total: u64,
     pub(super) reply: Option<RpcReplyPort<RunReport>>,
     /// Dropping it ends the registry watch.
     pub(super) _watch_guard: Option<tokio::sync::oneshot::Sender<()>>,
@@ -197,6 +199,7 @@ impl Actor for ActionDispatcher {
             current: None,
             actions: Vec::new(),
             rebinds: Vec::new(),
+            rebinds_total: 0,
             reply: None,
             _watch_guard: None,
             timers: RunTimers::default(),

@@ -74,6 +74,7 @@ impl DispatcherState {
             flags: self.mission.flags_to_names(self.status),
             actions: std::mem::take(&mut self.actions),
             rebinds: std::mem::take(&mut self.rebinds),
+            rebinds_total: self.rebinds_total,
             duration_ms: self.elapsed_ms(),
             final_pose: None,
             collisions: None,
@@ -81,6 +82,7 @@ impl DispatcherState {
             inside_goal: None,
             judgement: None,
             faults: Vec::new(),
+            faults_total: 0,
         };
         self.emit(DispatchEvent::Ended { outcome, reason });
         if let Some(reply) = self.reply.take() {

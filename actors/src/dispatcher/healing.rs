@@ -18,7 +18,7 @@ use super::actor::{DispatcherState, Start};
 use super::binding::{examine, Binding};
 use super::loss::LossCause;
 use super::messages::{DispatchEvent, DispatcherMsg};
-use super::report::{Outcome, RebindRecord};
+use super::report::{keep_latest, Outcome, RebindRecord};
 use crate::clock::Timer;
 use crate::eo::{EoError, ParamOutcome};
 use crate::property::PropertyRequest;
@@ -182,7 +182,8 @@ impl DispatcherState {
         tracing::info!(op = %name, from = %record.from, to = %record.to, downtime_ms = record.downtime_ms, "operation rebound");
         let (client, epoch, params, incarnation) =
             (b.client.clone(), b.epoch, b.params.clone(), b.incarnation);
-        self.rebinds.push(record.clone());
+        self.rebinds_total += 1;
+        keep_latest(&mut self.rebinds, record.clone());
         self.emit(DispatchEvent::Rebound(record));
         match self.running_key(name) {
             Some(key) => {

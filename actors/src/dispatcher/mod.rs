@@ -22,4 +22,6 @@ pub use actor::{
 pub use catalog::{describe, RegistryCatalog};
 pub use loss::LossCause;
 pub use messages::{DispatchEvent, DispatcherMsg};
-pub use report::{ActionRecord, FaultRecord, OpEnd, OpRecord, Outcome, RebindRecord, RunReport};
+pub use report::{
+    ActionRecord, FaultRecord, OpEnd, OpRecord, Outcome, RebindRecord, RunReport, REPORT_KEEPS,
+};
