@@ -265,17 +265,17 @@ impl marie::actors::eo::Operation for Endless {
 
 /// The next `ActionStarted` (`None`) or `Rebound` (the new instance's address) event.
 async fn next(
-    events: &mut tokio::sync::mpsc::UnboundedReceiver<marie::actors::dispatcher::DispatchEvent>,
+    events: &mut marie::actors::events::EventSubscription,
 ) -> Result<Option<String>, tokio::time::error::Elapsed> {
-    use marie::actors::dispatcher::DispatchEvent;
+    use marie::actors::events::EventKind;
     tokio::time::timeout(Duration::from_secs(30), async {
         loop {
-            match events.recv().await {
-                Some(DispatchEvent::ActionStarted { .. }) => return None,
-                Some(DispatchEvent::Rebound(r)) => return Some(r.to),
-                Some(DispatchEvent::Ended { reason, .. }) => panic!("the mission ended: {reason}"),
-                Some(_) => {}
-                None => panic!("the dispatcher is gone"),
+            match events.recv().await.map(|e| e.kind) {
+                Ok(EventKind::ActionStarted { .. }) => return None,
+                Ok(EventKind::Rebound(r)) => return Some(r.to),
+                Ok(EventKind::RunEnded { reason, .. }) => panic!("the mission ended: {reason}"),
+                Ok(_) => {}
+                Err(e) => panic!("no more dispatcher events: {e}"),
             }
         }
     })
@@ -325,11 +325,13 @@ async fn a_thousand_crash_restart_cycles_during_a_mission_leave_the_actor_count_
     .unwrap();
     let catalog = RegistryCatalog::gather(parsed.ops()).await.unwrap();
     let mission = parsed.validate(&catalog).unwrap();
-    let (tx, mut events) = tokio::sync::mpsc::unbounded_channel();
+    let clock = marie::actors::clock::RealClock::shared();
+    let bus = marie::actors::events::EventBus::new("test", clock.clone());
+    let mut events = bus.subscribe();
     let args = DispatcherArgs {
         mission,
-        clock: marie::actors::clock::RealClock::shared(),
-        events: Some(tx),
+        clock,
+        bus,
     };
     let dispatcher = dispatcher::spawn_dispatcher(args, None).await.unwrap();
     let run = {

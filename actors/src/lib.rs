@@ -10,7 +10,8 @@
 //!   any module can send an operation about itself;
 //! - [`dm`] — datamanagers: records stored, selected (also by waiting), deleted by query;
 //! - [`registry`] — the cluster-wide location table over ractor `pg`;
-//! - [`dispatcher`] — missions (task trees) and the action dispatcher that runs them.
+//! - [`dispatcher`] — missions (task trees) and the action dispatcher that runs them;
+//! - [`events`] — one typed event stream per node: the [`events::EventBus`].
 //!
 //! Every message that may cross nodes is serializable with rmp-serde ([`wire`]).
 //!
@@ -26,6 +27,7 @@ pub mod clock;
 pub mod dispatcher;
 pub mod dm;
 pub mod eo;
+pub mod events;
 pub mod flags;
 pub mod property;
 pub mod registry;

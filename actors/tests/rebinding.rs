@@ -7,12 +7,13 @@
 use marie_actors::clock::RealClock;
 use marie_actors::dispatcher::mission::Mission;
 use marie_actors::dispatcher::{
-    run_mission, DispatchEvent, LossCause, OpEnd, Outcome, RegistryCatalog, RunReport,
+    run_mission, LossCause, OpEnd, Outcome, RegistryCatalog, RunReport,
 };
 use marie_actors::eo::{
     spawn_operation, EoClient, EoMsg, Fault, HostOptions, Identity, OpContext, OpError, Operation,
     Step,
 };
+use marie_actors::events::{EventBus, EventKind, EventSubscription};
 use marie_actors::flags::{FlagDecl, StatusFlags};
 use marie_actors::property::{
     Collection, General, Group, ParamDecl, ParamSchema, PropertyReply, PropertyRequest, Value,
@@ -20,7 +21,6 @@ use marie_actors::property::{
 use marie_actors::registry::{self, ModuleKind, RegistryEvent};
 use ractor::ActorRef;
 use std::time::Duration;
-use tokio::sync::mpsc;
 use tokio::time::timeout;
 
 const T: Duration = Duration::from_secs(30);
@@ -139,36 +139,43 @@ async fn activated(c: &EoClient) {
     }
 }
 
-/// Start `src` on a dispatcher; returns the run and its live events.
-async fn launch(
-    src: &str,
-) -> (
-    tokio::task::JoinHandle<RunReport>,
-    mpsc::UnboundedReceiver<DispatchEvent>,
-) {
+/// A run's events: `live` for waiting on, `log` keeps every one for a replay.
+struct Events {
+    live: EventSubscription,
+    log: EventSubscription,
+}
+
+/// Start `src` on a dispatcher; returns the run and its events.
+async fn launch(src: &str) -> (tokio::task::JoinHandle<RunReport>, Events) {
     let parsed = Mission::parse(src, None).expect("mission parses");
     let keys: Vec<String> = parsed.ops().map(str::to_string).collect();
     let catalog = RegistryCatalog::gather(keys).await.unwrap();
     let mission = parsed.validate(&catalog).expect("mission validates");
-    let (tx, rx) = mpsc::unbounded_channel();
+    let clock = RealClock::shared();
+    let bus = EventBus::new("test", clock.clone());
+    let events = Events {
+        live: bus.subscribe(),
+        log: bus.subscribe(),
+    };
     let run = tokio::spawn(async move {
-        timeout(T, run_mission(mission, RealClock::shared(), Some(tx)))
+        timeout(T, run_mission(mission, clock, Some(bus)))
             .await
             .expect("mission ends")
             .expect("dispatcher runs")
     });
-    (run, rx)
+    (run, events)
 }
 
 /// Wait for the first event that `pick` accepts.
-async fn event<R>(
-    rx: &mut mpsc::UnboundedReceiver<DispatchEvent>,
-    mut pick: impl FnMut(&DispatchEvent) -> Option<R>,
-) -> R {
+async fn event<R>(events: &mut Events, mut pick: impl FnMut(&EventKind) -> Option<R>) -> R {
     timeout(T, async {
         loop {
-            let e = rx.recv().await.expect("dispatcher events end early");
-            if let Some(r) = pick(&e) {
+            let e = events
+                .live
+                .recv()
+                .await
+                .expect("dispatcher events end early");
+            if let Some(r) = pick(&e.kind) {
                 return r;
             }
         }
@@ -203,13 +210,20 @@ async fn a_killed_operation_is_rebound_to_its_replacement_and_the_action_complet
     activated(&first).await;
     first.actor().kill();
     let record = event(&mut events, |e| match e {
-        DispatchEvent::Rebound(r) => Some(r.clone()),
+        EventKind::Rebound(r) => Some(r.clone()),
         _ => None,
     })
     .await;
     let report = run.await.unwrap();
     assert_eq!(report.outcome, Outcome::Succeeded, "{}", report.reason);
     assert_eq!(report.rebinds, vec![record.clone()]);
+    assert_eq!(report.rebinds_total, 1);
+    // the whole report, rebind included, replays from the run's events
+    let log = events.log.drain();
+    assert!(log
+        .iter()
+        .any(|e| matches!(&e.kind, EventKind::Lost { operation, .. } if operation == "rb-kill")));
+    assert_eq!(RunReport::from_events(&log), report);
     assert_eq!(record.operation, "rb-kill");
     assert_eq!(record.from, first.actor().get_id().to_string());
     assert_ne!(record.to, record.from);
@@ -235,7 +249,7 @@ async fn the_stand_in_gets_the_last_parameters_a_higher_epoch_and_resumes() {
     let report = run.await.unwrap();
     assert_eq!(report.outcome, Outcome::Succeeded, "{}", report.reason);
     let lost = event(&mut events, |e| match e {
-        DispatchEvent::Lost { cause, .. } => Some(cause.clone()),
+        EventKind::Lost { cause, .. } => Some(cause.clone()),
         _ => None,
     })
     .await;
@@ -287,7 +301,7 @@ async fn a_hung_operation_is_killed_and_rebound() {
     activated(&first).await;
     first.inject(Fault::Hang).unwrap();
     let cause = event(&mut events, |e| match e {
-        DispatchEvent::Lost { cause, .. } => Some(cause.clone()),
+        EventKind::Lost { cause, .. } => Some(cause.clone()),
         _ => None,
     })
     .await;
@@ -346,7 +360,7 @@ async fn an_operation_lost_between_actions_is_rebound_before_its_next_action() {
     activated(&a).await;
     b.actor().kill(); // b is bound but idle
     let record = event(&mut events, |e| match e {
-        DispatchEvent::Rebound(r) => Some(r.clone()),
+        EventKind::Rebound(r) => Some(r.clone()),
         _ => None,
     })
     .await;

@@ -44,12 +44,13 @@ use crate::faults::{FaultPlan, Injector};
 use marie_actors::clock::{RealClock, ScaledClock, SharedClock};
 use marie_actors::dispatcher::mission::{Diagnostics, Mission, ParsedMission};
 use marie_actors::dispatcher::{
-    self, DispatchError, DispatchEvent, DispatcherArgs, DispatcherMsg, Outcome, RegistryCatalog,
-    RunReport,
+    self, DispatchError, DispatchEvent, DispatcherArgs, DispatcherMsg, Outcome, ProgressRelay,
+    RegistryCatalog, RunReport,
 };
 use marie_actors::dm::{self, DmClient, DmError, DmSpec, Query};
 use marie_actors::eo::EoError;
 use marie_actors::eo::HostOptions;
+use marie_actors::events::EventBus;
 use marie_missions::geom::{Point, Pose};
 use marie_missions::hardware::{CartClient, CartError};
 use marie_missions::ops::records::{
@@ -396,10 +397,17 @@ impl Node {
         events: mpsc::UnboundedSender<DispatchEvent>,
     ) -> Result<RunReport, NodeError> {
         let n = self.runs.fetch_add(1, Ordering::Relaxed);
+        // the run's events, relayed to the live lines (the node's own bus comes with the
+        // node's move to marie-cluster)
+        let bus = EventBus::new(
+            marie_actors::registry::local_node_name(),
+            self.clock.clone(),
+        );
+        let relay = ProgressRelay::start(&bus, events);
         let args = DispatcherArgs {
             mission,
             clock: self.clock.clone(),
-            events: Some(events),
+            bus,
         };
         let spec = ChildSpec::worker(format!("dispatcher-{n}"), move |sup| {
             let args = args.clone();
@@ -422,6 +430,7 @@ impl Node {
         let dispatcher: ActorRef<DispatcherMsg> = self.root.start_child(spec).await?.into();
         let guard = give_ups.map(|rx| tokio::spawn(abort_on_give_up(rx, dispatcher.clone())));
         let report = dispatcher::request_run(&dispatcher).await;
+        relay.finish().await;
         if let Some(guard) = guard {
             guard.abort();
         }

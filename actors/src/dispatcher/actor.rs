@@ -32,16 +32,17 @@
 //! (the report).
 
 use super::binding::Binding;
-use super::messages::{DispatchEvent, DispatcherMsg};
+use super::builder::ReportBuilder;
+use super::messages::DispatcherMsg;
 use super::mission::Mission;
-use super::report::{ActionRecord, OpRecord, Outcome, RebindRecord, RunReport};
+use super::report::{Outcome, RunReport};
 use crate::clock::{SharedClock, Timer};
+use crate::events::{EventBus, EventKind};
 use crate::flags::StatusFlags;
 use crate::registry::{self, ModuleKind};
 use ractor::{Actor, ActorProcessingErr, ActorRef, RpcReplyPort, SpawnErr};
 use std::collections::{BTreeMap, BTreeSet};
 use std::time::Duration;
-use tokio::sync::mpsc;
 
 /// Registry id of the action dispatcher.
 pub const DISPATCHER_ID: u32 = 1500;
@@ -53,8 +54,8 @@ pub struct DispatcherArgs {
     pub mission: Mission,
     /// The node's clock.
     pub clock: SharedClock,
-    /// Where progress events go.
-    pub events: Option<mpsc::UnboundedSender<DispatchEvent>>,
+    /// Where the run's events go (the node's bus); the report is assembled from them.
+    pub bus: EventBus,
 }
 
 /// The ActionDispatcher actor.
@@ -91,12 +92,10 @@ pub(super) enum ActionState {
 pub(super) struct Current {
     pub(super) generation: u64,
     pub(super) index: usize,
-    pub(super) start_ms: u64,
     pub(super) running: BTreeSet<String>,
     pub(super) enders_done: BTreeSet<String>,
     /// Running, or ending (its others suspended, waiting for their reports).
     pub(super) state: ActionState,
-    pub(super) ops: BTreeMap<String, OpRecord>,
     /// The action's deadline, then its suspension grace; cancelled with the action.
     pub(super) timer: Option<Timer>,
 }
@@ -105,17 +104,15 @@ pub(super) struct Current {
 pub struct DispatcherState {
     pub(super) mission: Mission,
     pub(super) clock: SharedClock,
-    pub(super) events: Option<mpsc::UnboundedSender<DispatchEvent>>,
+    pub(super) bus: EventBus,
+    /// The report, assembled from the events the dispatcher publishes.
+    pub(super) builder: ReportBuilder,
     pub(super) bindings: BTreeMap<String, Binding>,
     pub(super) status: StatusFlags,
     pub(super) done: Vec<bool>,
     pub(super) generation: u64,
     pub(super) current: Option<Current>,
     pub(super) started: Duration,
-    pub(super) actions: Vec<ActionRecord>,
-    /// The latest rebinds (bounded, see [`super::report::REPORT_KEEPS`]) and their count.
-    pub(super) rebinds: Vec<RebindRecord>,
-    pub(super) rebinds_total: u64,
     pub(super) reply: Option<RpcReplyPort<RunReport>>,
     /// Dropping it ends the registry watch.
     pub(super) _watch_guard: Option<tokio::sync::oneshot::Sender<()>>,
@@ -192,14 +189,12 @@ impl Actor for ActionDispatcher {
             started: args.clock.now(),
             mission: args.mission,
             clock: args.clock,
-            events: args.events,
+            bus: args.bus,
+            builder: ReportBuilder::new(),
             bindings: BTreeMap::new(),
             done: vec![false; n],
             generation: 0,
             current: None,
-            actions: Vec::new(),
-            rebinds: Vec::new(),
-            rebinds_total: 0,
             reply: None,
             _watch_guard: None,
             timers: RunTimers::default(),
@@ -221,6 +216,9 @@ impl Actor for ActionDispatcher {
                 }
                 state.reply = Some(reply);
                 state.started = state.clock.now();
+                state.emit(EventKind::RunStarted {
+                    mission: state.mission.name.clone(),
+                });
                 if let Err(reason) = state.watch_registry(&myself).await {
                     state.finish(&myself, Outcome::Failed, reason);
                     return Ok(());
@@ -324,19 +322,21 @@ pub async fn request_run(dispatcher: &ActorRef<DispatcherMsg>) -> Result<RunRepo
     rx.await.map_err(|_| DispatchError::NoReport)
 }
 
-/// Run `mission` with a new, unsupervised dispatcher and wait for its report.
+/// Run `mission` with a new, unsupervised dispatcher and wait for its report. Its events go
+/// to `bus` (subscribe before calling); without one, to a bus of its own that nobody reads.
 pub async fn run_mission(
     mission: Mission,
     clock: SharedClock,
-    events: Option<mpsc::UnboundedSender<DispatchEvent>>,
+    bus: Option<EventBus>,
 ) -> Result<RunReport, DispatchError> {
+    let bus = bus.unwrap_or_else(|| EventBus::new(registry::local_node_name(), clock.clone()));
     let (actor, handle) = Actor::spawn(
         None,
         ActionDispatcher,
         DispatcherArgs {
             mission,
             clock,
-            events,
+            bus,
         },
     )
     .await?;

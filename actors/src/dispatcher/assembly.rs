@@ -1,47 +1,45 @@
-//! Assembling the report: the records of finished actions, the final outcome, and the live
-//! progress events that go with them.
+//! Assembling the report: the dispatcher publishes every step of the run on its bus and
+//! feeds the same events to its [`ReportBuilder`](super::ReportBuilder); the report it sends
+//! is the builder's.
 //!
 //! # Invariants
+//! - Every event is published and applied in one place ([`DispatcherState::emit`]), so the
+//!   report and the event stream cannot disagree: [`RunReport::from_events`] on the run's
+//!   events gives the report the dispatcher sent.
 //! - The report is sent once, when the mission ends (success or full stop); what still runs
 //!   is suspended first, and the dispatcher then stops normally.
 
 use super::actor::DispatcherState;
-use super::messages::{DispatchEvent, DispatcherMsg};
-use super::report::{ActionRecord, Outcome, RunReport};
+use super::messages::DispatcherMsg;
+use super::report::{Outcome, RunReport};
+use crate::events::EventKind;
 use ractor::ActorRef;
 
 impl DispatcherState {
-    pub(super) fn emit(&self, evt: DispatchEvent) {
-        if let Some(tx) = &self.events {
-            let _ = tx.send(evt);
-        }
+    /// Publish `kind` on the bus and take it into the report.
+    pub(super) fn emit(&mut self, kind: EventKind) {
+        let event = self.bus.publish(kind);
+        self.builder.apply(&event.kind);
     }
 
+    /// Mission clock time since the run began, in ms.
     pub(super) fn elapsed_ms(&self) -> u64 {
         self.clock.now().saturating_sub(self.started).as_millis() as u64
     }
 
-    pub(super) fn record_current(&mut self) {
-        let Some(cur) = self.current.take() else {
-            return;
-        };
-        let end_ms = self.elapsed_ms();
-        let action = &self.mission.actions[cur.index];
-        self.done[cur.index] = true;
-        self.actions.push(ActionRecord {
-            name: action.name.clone(),
-            start_ms: cur.start_ms,
-            end_ms,
-            flags: self.mission.flags_to_names(self.status),
-            status: self.status.0,
-            operations: action
-                .ops
-                .iter()
-                .filter_map(|o| cur.ops.get(&o.key).cloned())
-                .collect(),
-        });
+    /// The mission's status word now, as `(word, flag names)`.
+    pub(super) fn status_now(&self) -> (u32, Vec<String>) {
+        (self.status.0, self.mission.flags_to_names(self.status))
     }
 
+    /// The current action is over: mark it done (its record is closed by the next event).
+    pub(super) fn record_current(&mut self) {
+        if let Some(cur) = self.current.take() {
+            self.done[cur.index] = true;
+        }
+    }
+
+    /// End the run: suspend what still runs, publish the end and send the report.
     pub(super) fn finish(
         &mut self,
         myself: &ActorRef<DispatcherMsg>,
@@ -66,25 +64,15 @@ impl DispatcherState {
                 tracing::warn!(mission = %self.mission.name, %reason, "mission failed: full stop")
             }
         }
-        let report = RunReport {
-            mission: self.mission.name.clone(),
+        let (status, flags) = self.status_now();
+        self.emit(EventKind::RunEnded {
             outcome,
-            reason: reason.clone(),
-            status: self.status.0,
-            flags: self.mission.flags_to_names(self.status),
-            actions: std::mem::take(&mut self.actions),
-            rebinds: std::mem::take(&mut self.rebinds),
-            rebinds_total: self.rebinds_total,
-            duration_ms: self.elapsed_ms(),
-            final_pose: None,
-            collisions: None,
-            seed: None,
-            inside_goal: None,
-            judgement: None,
-            faults: Vec::new(),
-            faults_total: 0,
-        };
-        self.emit(DispatchEvent::Ended { outcome, reason });
+            reason,
+            run_ms: self.elapsed_ms(),
+            status,
+            flags,
+        });
+        let report: RunReport = self.builder.report().clone();
         if let Some(reply) = self.reply.take() {
             let _ = reply.send(report);
         }

@@ -17,10 +17,11 @@
 use super::actor::{DispatcherState, Start};
 use super::binding::{examine, Binding};
 use super::loss::LossCause;
-use super::messages::{DispatchEvent, DispatcherMsg};
-use super::report::{keep_latest, Outcome, RebindRecord};
+use super::messages::DispatcherMsg;
+use super::report::{Outcome, RebindRecord};
 use crate::clock::Timer;
 use crate::eo::{EoError, ParamOutcome};
+use crate::events::{BoundOp, EventKind};
 use crate::property::PropertyRequest;
 use crate::registry::{self, Instance, ModuleKind, RegistryEvent};
 use ractor::ActorRef;
@@ -49,13 +50,16 @@ impl DispatcherState {
                 .map_err(|e| format!("operation `{key}`: {e}"))?;
             self.bindings.insert(key, Binding::new(cand));
         }
-        self.emit(DispatchEvent::Bound {
-            operations: self
-                .bindings
-                .values()
-                .map(|b| (b.name.clone(), b.version.clone(), b.node.clone()))
-                .collect(),
-        });
+        let operations = self
+            .bindings
+            .values()
+            .map(|b| BoundOp {
+                name: b.name.clone(),
+                version: b.version.clone(),
+                node: b.node.clone(),
+            })
+            .collect();
+        self.emit(EventKind::Bound { operations });
         Ok(())
     }
 
@@ -105,7 +109,7 @@ impl DispatcherState {
         b.lose(cause.clone(), now);
         let incarnation = b.incarnation;
         tracing::warn!(op = %name, %cause, "operation lost; rebinding");
-        self.emit(DispatchEvent::Lost {
+        self.emit(EventKind::Lost {
             operation: name.to_string(),
             cause,
         });
@@ -182,15 +186,11 @@ impl DispatcherState {
         tracing::info!(op = %name, from = %record.from, to = %record.to, downtime_ms = record.downtime_ms, "operation rebound");
         let (client, epoch, params, incarnation) =
             (b.client.clone(), b.epoch, b.params.clone(), b.incarnation);
-        self.rebinds_total += 1;
-        keep_latest(&mut self.rebinds, record.clone());
-        self.emit(DispatchEvent::Rebound(record));
+        // the report's record of the running action takes the stand-in's address from it
+        self.emit(EventKind::Rebound(record));
         match self.running_key(name) {
             Some(key) => {
-                let cur = self.current.as_mut().expect("running_key found it");
-                if let Some(rec) = cur.ops.get_mut(&key) {
-                    rec.address = client.actor().get_id().to_string();
-                }
+                let cur = self.current.as_ref().expect("running_key found it");
                 let generation = cur.generation;
                 let start = Start {
                     generation,
@@ -339,6 +339,12 @@ impl DispatcherState {
             lost.cause,
             self.mission.rebind_deadline.as_secs_f64()
         );
+        let gave_up = EventKind::RebindGaveUp {
+            operation: name,
+            cause: lost.cause.clone(),
+            waited_ms: self.clock.now().saturating_sub(lost.since).as_millis() as u64,
+        };
+        self.emit(gave_up);
         self.finish(myself, Outcome::Failed, reason);
     }
 }

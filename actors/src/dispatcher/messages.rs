@@ -1,52 +1,8 @@
-//! The dispatcher's messages, and the progress events it emits for live output.
+//! The dispatcher's messages.
 
-use super::loss::LossCause;
-use super::report::{Outcome, RebindRecord, RunReport};
+use super::report::RunReport;
 use crate::eo::{EoError, EoReport};
-use crate::flags::StatusFlags;
 use crate::registry::RegistryEvent;
-
-/// Progress of a run, for live output.
-#[derive(Clone, Debug, PartialEq)]
-pub enum DispatchEvent {
-    /// All operations were found and bound.
-    Bound {
-        /// `(operation, version, node)` for each binding.
-        operations: Vec<(String, String, String)>,
-    },
-    /// An action started.
-    ActionStarted {
-        /// Action name.
-        action: String,
-        /// Its operations.
-        operations: Vec<String>,
-    },
-    /// An action ended.
-    ActionEnded {
-        /// Action name.
-        action: String,
-        /// Status word after it, as names.
-        flags: Vec<String>,
-        /// Status word after it.
-        status: StatusFlags,
-    },
-    /// A bound operation's instance was lost; the dispatcher looks for a stand-in.
-    Lost {
-        /// Operation name.
-        operation: String,
-        /// What happened to it.
-        cause: LossCause,
-    },
-    /// A lost operation is bound again.
-    Rebound(RebindRecord),
-    /// The mission ended.
-    Ended {
-        /// Outcome.
-        outcome: Outcome,
-        /// Reason of a failure.
-        reason: String,
-    },
-}
 
 crate::remote_message! {
     /// Messages of the action dispatcher.

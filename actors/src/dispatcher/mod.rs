@@ -7,21 +7,26 @@
 mod actor;
 mod assembly;
 mod binding;
+mod builder;
 mod catalog;
 mod healing;
 mod loss;
 mod messages;
 pub mod mission;
+mod progress;
 mod report;
 mod running;
+mod verdict;
 
 pub use actor::{
     request_run, run_mission, spawn_dispatcher, ActionDispatcher, DispatchError, DispatcherArgs,
     DispatcherState, DISPATCHER_ID,
 };
+pub use builder::ReportBuilder;
 pub use catalog::{describe, RegistryCatalog};
 pub use loss::LossCause;
-pub use messages::{DispatchEvent, DispatcherMsg};
+pub use messages::DispatcherMsg;
+pub use progress::{DispatchEvent, ProgressRelay};
 pub use report::{
     ActionRecord, FaultRecord, OpEnd, OpRecord, Outcome, RebindRecord, RunReport, REPORT_KEEPS,
 };

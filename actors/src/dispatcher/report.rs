@@ -3,7 +3,7 @@
 //! # Invariant: bounded
 //! A long run (a chaos test, a robot on duty for days) keeps bounded memory: the report
 //! keeps the counts `rebinds_total` and `faults_total` and only the latest [`REPORT_KEEPS`]
-//! rebinds and faults; the full history is on the event stream.
+//! rebinds and faults; the full history is on the event stream ([`crate::events`]).
 
 use super::loss::LossCause;
 use crate::eo::FaultKind;
@@ -203,7 +203,7 @@ impl RunReport {
 }
 
 /// Append `item`, dropping the oldest so that at most [`REPORT_KEEPS`] remain.
-pub(super) fn keep_latest<T>(list: &mut Vec<T>, item: T) {
+fn keep_latest<T>(list: &mut Vec<T>, item: T) {
     if list.len() >= REPORT_KEEPS {
         let excess = list.len() + 1 - REPORT_KEEPS;
         list.drain(..excess);

@@ -10,14 +10,15 @@
 
 use super::actor::{ActionState, Current, DispatcherState, Start};
 use super::loss::LossCause;
-use super::messages::{DispatchEvent, DispatcherMsg};
+use super::messages::DispatcherMsg;
 use super::mission::EndMode;
-use super::report::{OpEnd, OpRecord, Outcome};
+use super::report::{OpEnd, Outcome};
+use super::verdict::Verdict;
 use crate::clock::Timer;
 use crate::eo::{EoError, EoReport};
-use crate::flags::StatusFlags;
+use crate::events::{EventKind, OpStarted};
 use ractor::ActorRef;
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::BTreeSet;
 use std::time::Duration;
 
 /// How long suspended operations get to report before the dispatcher moves on.
@@ -116,18 +117,13 @@ impl DispatcherState {
         let mut current = Current {
             generation,
             index,
-            start_ms: self.elapsed_ms(),
             running: BTreeSet::new(),
             enders_done: BTreeSet::new(),
             state: ActionState::Running,
-            ops: BTreeMap::new(),
             timer: None,
         };
         tracing::info!(action = %action.name, "action started");
-        self.emit(DispatchEvent::ActionStarted {
-            action: action.name.clone(),
-            operations: action.ops.iter().map(|o| o.key.clone()).collect(),
-        });
+        let mut started = Vec::new();
         let mut unreachable = None;
         let mut activations = Vec::new();
         for op in &action.ops {
@@ -139,18 +135,14 @@ impl DispatcherState {
             params.extend(op.params.clone());
             b.params = params.clone();
             let (epoch, incarnation, lost) = (b.epoch, b.incarnation, b.lost.is_some());
-            current.ops.insert(
-                op.key.clone(),
-                OpRecord {
-                    name: b.name.clone(),
-                    id: b.id,
-                    version: b.version.clone(),
-                    node: b.node.clone(),
-                    address: b.address(),
-                    ended: OpEnd::Running,
-                    flags: Vec::new(),
-                },
-            );
+            started.push(OpStarted {
+                key: op.key.clone(),
+                name: b.name.clone(),
+                id: b.id,
+                version: b.version.clone(),
+                node: b.node.clone(),
+                address: b.address(),
+            });
             // A lost operation is activated when a stand-in is adopted.
             current.running.insert(op.key.clone());
             activations.push((
@@ -163,6 +155,11 @@ impl DispatcherState {
             ));
         }
         self.current = Some(current);
+        self.emit(EventKind::ActionStarted {
+            action: action.name.clone(),
+            run_ms: self.elapsed_ms(),
+            operations: started,
+        });
         for (key, name, incarnation, params, epoch, lost) in activations {
             if lost || unreachable.is_some() {
                 continue;
@@ -226,52 +223,21 @@ impl DispatcherState {
         let action = &self.mission.actions[cur.index];
         let action_name = action.name.clone();
         let ending = cur.ending();
-        let (ended, flags, failure) = match report {
-            Some(EoReport::Finished { flags, .. }) => (OpEnd::Finished, flags, None),
-            Some(EoReport::Suspended { flags, .. }) if ending => (OpEnd::Suspended, flags, None),
-            Some(EoReport::Suspended { flags, .. }) => (
-                OpEnd::Suspended,
-                flags,
-                Some(format!(
-                    "operation `{key}` was suspended by another party during action `{action_name}`"
-                )),
-            ),
-            Some(EoReport::Failed { reason, flags, .. }) => (
-                OpEnd::Failed,
-                flags,
-                Some(format!(
-                    "operation `{key}` failed in action `{action_name}`: {reason}"
-                )),
-            ),
-            Some(EoReport::Rejected { rejections, .. }) => (
-                OpEnd::Failed,
-                StatusFlags::EMPTY,
-                Some(format!(
-                    "operation `{key}` refused its parameters in action `{action_name}`: {}",
-                    rejections
-                        .iter()
-                        .map(|r| r.to_string())
-                        .collect::<Vec<_>>()
-                        .join("; ")
-                )),
-            ),
-            Some(EoReport::Stale { current, .. }) => (
-                OpEnd::Failed,
-                StatusFlags::EMPTY,
-                Some(format!(
-                    "operation `{key}` is now bound by another dispatcher (epoch {current})"
-                )),
-            ),
-            None => (OpEnd::Lost, StatusFlags::EMPTY, None),
-        };
+        let Verdict {
+            ended,
+            flags,
+            failure,
+        } = Verdict::of(report, ending, &key, &action_name);
         let global = self.translate(&key, flags);
         self.status |= global;
         let names = self.mission.flags_to_names(global);
+        self.emit(EventKind::OpEnded {
+            action: action_name,
+            key: key.clone(),
+            ended,
+            flags: names,
+        });
         let cur = self.current.as_mut().expect("checked above");
-        if let Some(rec) = cur.ops.get_mut(&key) {
-            rec.ended = ended;
-            rec.flags = names;
-        }
         tracing::debug!(op = %key, %ended, flags = %global, "operation report");
         if let Some(reason) = failure {
             // say what the action still waited for: often the real news (a dock not found)
@@ -361,13 +327,16 @@ impl DispatcherState {
         let Some(cur) = self.current.as_mut() else {
             return false;
         };
+        let action = self.mission.actions[cur.index].name.clone();
+        let mut gone = Vec::new();
         for key in keys {
-            cur.running.remove(key);
-            if let Some(rec) = cur.ops.get_mut(key) {
-                rec.ended = OpEnd::Lost;
+            if cur.running.remove(key) {
+                gone.push(key.clone());
             }
         }
-        if cur.running.is_empty() {
+        let nothing_runs = cur.running.is_empty();
+        self.ended_without_report(&action, gone, OpEnd::Lost);
+        if nothing_runs {
             self.complete_action(myself);
             return true;
         }
@@ -382,10 +351,12 @@ impl DispatcherState {
             .unwrap_or_default();
         self.record_current();
         tracing::info!(action = %name, status = %self.status, "action ended");
-        self.emit(DispatchEvent::ActionEnded {
+        let (status, flags) = self.status_now();
+        self.emit(EventKind::ActionEnded {
             action: name,
-            flags: self.mission.flags_to_names(self.status),
-            status: self.status,
+            run_ms: self.elapsed_ms(),
+            flags,
+            status,
         });
         self.next_action(myself);
     }
@@ -418,12 +389,24 @@ impl DispatcherState {
         if cur.generation != generation || !cur.ending() {
             return;
         }
-        for key in std::mem::take(&mut cur.running) {
+        let action = self.mission.actions[cur.index].name.clone();
+        let silent: Vec<String> = std::mem::take(&mut cur.running).into_iter().collect();
+        for key in &silent {
             tracing::warn!(op = %key, "no report after suspension");
-            if let Some(rec) = cur.ops.get_mut(&key) {
-                rec.ended = OpEnd::Unresponsive;
-            }
         }
+        self.ended_without_report(&action, silent, OpEnd::Unresponsive);
         self.complete_action(myself);
+    }
+
+    /// Record that `keys` of action `action` ended as `ended` without a report of theirs.
+    fn ended_without_report(&mut self, action: &str, keys: Vec<String>, ended: OpEnd) {
+        for key in keys {
+            self.emit(EventKind::OpEnded {
+                action: action.to_string(),
+                key,
+                ended,
+                flags: Vec::new(),
+            });
+        }
     }
 }
