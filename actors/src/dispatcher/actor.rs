@@ -24,12 +24,16 @@
 //! parameters, re-activates it if its action is running, and records the rebind in the report.
 //! If none appears within the mission's `rebind_deadline`, the mission comes to a full stop
 //! naming the operation.
-
+//!
+//! # Events and the report
+//! Every step of the run is published on the bus given in [`DispatcherArgs`]; the report is
+//! assembled from those same events, so it equals
+//! [`RunReport::from_events`](super::RunReport::from_events) of the run's events.
 //!
 //! # Layout
 //! This file is the actor's shell: its arguments, state and message loop. What the state
-//! does lives by concern: `running.rs` (actions), `healing.rs` (bindings), `assembly.rs`
-//! (the report).
+//! does lives by concern: `running.rs` (actions) with `verdict.rs` (what a report means),
+//! `healing.rs` (bindings), `assembly.rs` (events and the end of the run).
 
 use super::binding::Binding;
 use super::builder::ReportBuilder;

@@ -72,7 +72,7 @@ impl DispatcherState {
             status,
             flags,
         });
-        let report: RunReport = self.builder.report().clone();
+        let report: RunReport = std::mem::take(&mut self.builder).finish();
         if let Some(reply) = self.reply.take() {
             let _ = reply.send(report);
         }

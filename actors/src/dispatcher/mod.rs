@@ -2,7 +2,10 @@
 //!
 //! A [`mission::Mission`] is a task tree loaded from TOML and checked against the operations
 //! that are actually running ([`RegistryCatalog`]); [`run_mission`] runs it with an
-//! [`ActionDispatcher`] and returns a [`RunReport`].
+//! [`ActionDispatcher`] and returns a [`RunReport`]. Its progress is published on an
+//! [`EventBus`](crate::events::EventBus); the report is rebuilt from those events by
+//! [`RunReport::from_events`] (bounded: see [`REPORT_KEEPS`]), and [`DispatchEvent`] is the
+//! live-line view of them.
 
 mod actor;
 mod assembly;
