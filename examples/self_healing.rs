@@ -6,10 +6,11 @@
 //! `cargo run --example self_healing`
 
 use marie::actors::dispatcher::mission::Mission;
-use marie::actors::dispatcher::{run_mission, DispatchEvent, RegistryCatalog};
+use marie::actors::dispatcher::{run_mission, RegistryCatalog};
 use marie::actors::eo::{
     spawn_operation_linked, EoClient, HostOptions, Identity, OpContext, OpError, Operation, Step,
 };
+use marie::actors::events::{EventBus, EventKind};
 use marie::actors::flags::{FlagDecl, StatusFlags};
 use marie::actors::property::{Group, ParamDecl, ParamSchema, PropertyReply, PropertyRequest};
 use marie::actors::registry::{self, ModuleKind};
@@ -82,9 +83,10 @@ async fn main() -> Result<(), Box<dyn std::error::Error>> {
     let parsed = Mission::parse(MISSION, None)?;
     let catalog = RegistryCatalog::gather(parsed.ops()).await?;
     let mission = parsed.validate(&catalog)?;
-    let (tx, mut events) = tokio::sync::mpsc::unbounded_channel();
     let clock = marie::actors::clock::RealClock::shared();
-    let run = tokio::spawn(run_mission(mission, clock, Some(tx)));
+    let bus = EventBus::new("example", clock.clone());
+    let mut events = bus.subscribe();
+    let run = tokio::spawn(run_mission(mission, clock, Some(bus)));
 
     // Once the pump runs, make it panic.
     let first = registry::lookup(ModuleKind::Operation, "pump")[0]
@@ -104,10 +106,10 @@ async fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!("injected a panic into pump ({})", hit.actor);
 
     let report = run.await??;
-    while let Ok(evt) = events.try_recv() {
-        match evt {
-            DispatchEvent::Lost { operation, cause } => println!("lost {operation}: {cause}"),
-            DispatchEvent::Rebound(r) => println!(
+    for evt in events.drain() {
+        match evt.kind {
+            EventKind::Lost { operation, cause } => println!("lost {operation}: {cause}"),
+            EventKind::Rebound(r) => println!(
                 "rebound {}: {} -> {} after {} ms",
                 r.operation, r.from, r.to, r.downtime_ms
             ),

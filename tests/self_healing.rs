@@ -33,8 +33,9 @@ fn heals(mission: &str, fault: &str, op: &str, cause: &str) {
         "the faulty instance was left"
     );
     assert_ne!(rebind["to"], rebind["from"]);
-    let why = rebind["cause"].as_str().unwrap_or_default();
-    assert!(why.contains(cause), "{fault}: cause `{why}`");
+    let why: marie::actors::dispatcher::LossCause =
+        serde_json::from_value(rebind["cause"].clone()).expect("a typed loss cause");
+    assert!(why.to_string().contains(cause), "{fault}: cause `{why}`");
     assert!(
         text(&out.stdout).contains(&format!("~ {op} rebound")),
         "live output shows the rebind: {log}"
@@ -191,7 +192,7 @@ fn marie_kill_shows_the_operation_supervisor_restarting_the_operation() {
 }
 
 #[tokio::test(flavor = "current_thread", start_paused = true)]
-async fn the_node_tree_is_datamanagers_then_operations_and_heals_a_killed_operation() {
+async fn the_node_tree_is_datamanagers_operations_dynamic_and_heals_a_killed_operation() {
     let catalog = marie::missions::builtin_operations();
     let config = NodeConfig::everything("tree", &catalog);
     let node = Node::start(config, NodeOptions::with_catalog(catalog))
@@ -205,7 +206,7 @@ async fn the_node_tree_is_datamanagers_then_operations_and_heals_a_killed_operat
         .into_iter()
         .map(|c| c.id)
         .collect();
-    assert_eq!(ids, ["datamanagers", "operations"]);
+    assert_eq!(ids, ["datamanagers", "operations", "dynamic"]);
     let dms: Vec<String> = node
         .datamanager_supervisor()
         .await
@@ -268,17 +269,17 @@ impl marie::actors::eo::Operation for Endless {
 
 /// The next `ActionStarted` (`None`) or `Rebound` (the new instance's address) event.
 async fn next(
-    events: &mut tokio::sync::mpsc::UnboundedReceiver<marie::actors::dispatcher::DispatchEvent>,
+    events: &mut marie::actors::events::EventSubscription,
 ) -> Result<Option<String>, tokio::time::error::Elapsed> {
-    use marie::actors::dispatcher::DispatchEvent;
+    use marie::actors::events::EventKind;
     tokio::time::timeout(Duration::from_secs(30), async {
         loop {
-            match events.recv().await {
-                Some(DispatchEvent::ActionStarted { .. }) => return None,
-                Some(DispatchEvent::Rebound(r)) => return Some(r.to),
-                Some(DispatchEvent::Ended { reason, .. }) => panic!("the mission ended: {reason}"),
-                Some(_) => {}
-                None => panic!("the dispatcher is gone"),
+            match events.recv().await.map(|e| e.kind) {
+                Ok(EventKind::ActionStarted { .. }) => return None,
+                Ok(EventKind::Rebound(r)) => return Some(r.to),
+                Ok(EventKind::RunEnded { reason, .. }) => panic!("the mission ended: {reason}"),
+                Ok(_) => {}
+                Err(e) => panic!("no more dispatcher events: {e}"),
             }
         }
     })
@@ -328,11 +329,13 @@ async fn a_thousand_crash_restart_cycles_during_a_mission_leave_the_actor_count_
     .unwrap();
     let catalog = RegistryCatalog::gather(parsed.ops()).await.unwrap();
     let mission = parsed.validate(&catalog).unwrap();
-    let (tx, mut events) = tokio::sync::mpsc::unbounded_channel();
+    let clock = marie::actors::clock::RealClock::shared();
+    let bus = marie::actors::events::EventBus::new("test", clock.clone());
+    let mut events = bus.subscribe();
     let args = DispatcherArgs {
         mission,
-        clock: marie::actors::clock::RealClock::shared(),
-        events: Some(tx),
+        clock,
+        bus,
     };
     let dispatcher = dispatcher::spawn_dispatcher(args, None).await.unwrap();
     let run = {
@@ -357,7 +360,11 @@ async fn a_thousand_crash_restart_cycles_during_a_mission_leave_the_actor_count_
     });
     let report = run.await.unwrap().unwrap();
     assert_eq!(report.reason, "enough");
-    assert_eq!(report.rebinds.len(), CYCLES);
+    assert_eq!(report.rebinds_total, CYCLES as u64);
+    assert_eq!(
+        report.rebinds.len(),
+        marie::actors::dispatcher::REPORT_KEEPS
+    );
     // the dispatcher (and its registry watcher) stop once they have reported; no timer or
     // waiter of the 1000 failovers outlives the run
     let settled = tokio::time::timeout(Duration::from_secs(30), async {

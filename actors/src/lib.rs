@@ -13,6 +13,7 @@
 //! - [`dispatcher`] — missions (task trees) and the action dispatcher that runs them;
 //! - [`diagnostic`] — `file:line:column` diagnostics and the TOML reader every file format
 //!   (missions, worlds, node configs) shares.
+//! - [`events`] — one typed event stream per node: the [`events::EventBus`].
 //!
 //! Every message that may cross nodes is serializable with rmp-serde ([`wire`]).
 //!
@@ -29,6 +30,7 @@ pub mod diagnostic;
 pub mod dispatcher;
 pub mod dm;
 pub mod eo;
+pub mod events;
 pub mod flags;
 pub mod property;
 pub mod registry;

@@ -2,10 +2,11 @@
 
 use marie_actors::clock::RealClock;
 use marie_actors::dispatcher::mission::Mission;
-use marie_actors::dispatcher::{run_mission, DispatchEvent, Outcome, RegistryCatalog, RunReport};
+use marie_actors::dispatcher::{run_mission, OpEnd, Outcome, RegistryCatalog, RunReport};
 use marie_actors::eo::{
     spawn_operation, EoClient, EoMsg, HostOptions, Identity, OpContext, OpError, Operation, Step,
 };
+use marie_actors::events::{Event, EventBus, EventKind};
 use marie_actors::flags::{FlagDecl, StatusFlags};
 use marie_actors::property::{
     Group, ParamDecl, ParamSchema, PropertyReply, PropertyRequest, Value,
@@ -83,20 +84,25 @@ async fn run(src: &str) -> RunReport {
     run_with_events(src).await.0
 }
 
-async fn run_with_events(src: &str) -> (RunReport, Vec<DispatchEvent>) {
+async fn run_with_events(src: &str) -> (RunReport, Vec<Event>) {
     let parsed = Mission::parse(src, None).expect("mission parses");
     let keys: Vec<String> = parsed.ops().map(str::to_string).collect();
     let catalog = RegistryCatalog::gather(keys).await.unwrap();
     let mission = parsed.validate(&catalog).expect("mission validates");
-    let (tx, mut rx) = tokio::sync::mpsc::unbounded_channel();
-    let report = timeout(T, run_mission(mission, RealClock::shared(), Some(tx)))
+    let clock = RealClock::shared();
+    let bus = EventBus::new("test", clock.clone());
+    let mut events = bus.subscribe();
+    let report = timeout(T, run_mission(mission, clock, Some(bus)))
         .await
         .expect("mission ends")
         .expect("dispatcher runs");
-    let mut events = Vec::new();
-    while let Ok(e) = rx.try_recv() {
-        events.push(e);
-    }
+    // the dispatcher publishes every event before it reports
+    let events = events.drain();
+    assert_eq!(
+        RunReport::from_events(&events),
+        report,
+        "the report replays from the events"
+    );
     (report, events)
 }
 
@@ -160,13 +166,13 @@ async fn an_action_ends_when_its_ender_finishes_and_the_others_are_suspended() {
     .await;
     assert!(report.succeeded(), "{}", report.reason);
     let ops = &report.actions[0].operations;
-    let ended: Vec<(&str, &str)> = ops
-        .iter()
-        .map(|o| (o.name.as_str(), o.ended.as_str()))
-        .collect();
+    let ended: Vec<(&str, OpEnd)> = ops.iter().map(|o| (o.name.as_str(), o.ended)).collect();
     assert_eq!(
         ended,
-        [("end-ender", "finished"), ("end-runner", "suspended")]
+        [
+            ("end-ender", OpEnd::Finished),
+            ("end-runner", OpEnd::Suspended)
+        ]
     );
     // suspended, not stopped: the runner is alive, idle, and was activated once
     let g = general(&runner).await;
@@ -202,7 +208,7 @@ async fn end_mode_all_waits_for_every_ender() {
     assert!(report.actions[0]
         .operations
         .iter()
-        .all(|o| o.ended == "finished"));
+        .all(|o| o.ended == OpEnd::Finished));
 }
 
 #[tokio::test]
@@ -365,18 +371,29 @@ async fn progress_events_follow_the_run() {
     .await;
     assert!(report.succeeded(), "{}", report.reason);
     assert_eq!(report.status, 1 << 4);
-    assert!(matches!(events.first(), Some(DispatchEvent::Bound { .. })));
-    assert!(matches!(&events[1], DispatchEvent::ActionStarted { action, .. } if action == "only"));
+    let kinds: Vec<&EventKind> = events.iter().map(|e| &e.kind).collect();
     assert!(
-        matches!(&events[2], DispatchEvent::ActionEnded { status, .. } if *status == StatusFlags(1 << 4))
+        matches!(kinds[0], EventKind::RunStarted { mission } if mission == "events"),
+        "{kinds:?}"
     );
+    assert!(matches!(kinds[1], EventKind::Bound { .. }));
+    assert!(
+        matches!(kinds[2], EventKind::ActionStarted { action, operations, .. } if action == "only" && operations[0].key == "events-a")
+    );
+    assert!(
+        matches!(kinds[3], EventKind::OpEnded { key, ended: OpEnd::Finished, flags, .. } if key == "events-a" && flags == &["events-a-done"])
+    );
+    assert!(matches!(kinds[4], EventKind::ActionEnded { status, .. } if *status == 1 << 4));
     assert!(matches!(
-        events.last(),
-        Some(DispatchEvent::Ended {
+        kinds.last(),
+        Some(EventKind::RunEnded {
             outcome: Outcome::Succeeded,
             ..
         })
     ));
+    assert_eq!(kinds.len(), 6, "{kinds:?}");
+    assert!(events.iter().all(|e| e.node == "test"));
+    assert!(events.windows(2).all(|w| w[0].at_ms <= w[1].at_ms));
 }
 
 #[tokio::test]

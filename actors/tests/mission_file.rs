@@ -526,7 +526,7 @@ fn an_action_needs_operations_and_a_mission_needs_actions() {
 }
 
 #[test]
-fn deadlines_must_be_positive_and_finite() {
+fn deadlines_must_be_positive_finite_and_at_most_a_day() {
     for (value, col, part) in [
         (
             "0",
@@ -541,7 +541,8 @@ fn deadlines_must_be_positive_and_finite() {
             14,
             "expected a number of seconds for `action.deadline_s`, found string",
         ),
-        ("1e300", 14, "too large"),
+        ("1e300", 14, "more than a mission may wait (86400 s, a day)"),
+        ("86401", 14, "more than a mission may wait (86400 s, a day)"),
     ] {
         let d = parse_err(&format!(
             "{HEAD}[[action]]\nname = \"a\"\ndeadline_s = {value}\n[action.ops.x]\n"

@@ -6,11 +6,14 @@
 
 use marie_actors::clock::RealClock;
 use marie_actors::dispatcher::mission::Mission;
-use marie_actors::dispatcher::{run_mission, DispatchEvent, Outcome, RegistryCatalog, RunReport};
+use marie_actors::dispatcher::{
+    run_mission, LossCause, OpEnd, Outcome, RegistryCatalog, RunReport,
+};
 use marie_actors::eo::{
     spawn_operation, EoClient, EoMsg, Fault, HostOptions, Identity, OpContext, OpError, Operation,
     Step,
 };
+use marie_actors::events::{EventBus, EventKind, EventSubscription};
 use marie_actors::flags::{FlagDecl, StatusFlags};
 use marie_actors::property::{
     Collection, General, Group, ParamDecl, ParamSchema, PropertyReply, PropertyRequest, Value,
@@ -18,7 +21,6 @@ use marie_actors::property::{
 use marie_actors::registry::{self, ModuleKind, RegistryEvent};
 use ractor::ActorRef;
 use std::time::Duration;
-use tokio::sync::mpsc;
 use tokio::time::timeout;
 
 const T: Duration = Duration::from_secs(30);
@@ -137,36 +139,43 @@ async fn activated(c: &EoClient) {
     }
 }
 
-/// Start `src` on a dispatcher; returns the run and its live events.
-async fn launch(
-    src: &str,
-) -> (
-    tokio::task::JoinHandle<RunReport>,
-    mpsc::UnboundedReceiver<DispatchEvent>,
-) {
+/// A run's events: `live` for waiting on, `log` keeps every one for a replay.
+struct Events {
+    live: EventSubscription,
+    log: EventSubscription,
+}
+
+/// Start `src` on a dispatcher; returns the run and its events.
+async fn launch(src: &str) -> (tokio::task::JoinHandle<RunReport>, Events) {
     let parsed = Mission::parse(src, None).expect("mission parses");
     let keys: Vec<String> = parsed.ops().map(str::to_string).collect();
     let catalog = RegistryCatalog::gather(keys).await.unwrap();
     let mission = parsed.validate(&catalog).expect("mission validates");
-    let (tx, rx) = mpsc::unbounded_channel();
+    let clock = RealClock::shared();
+    let bus = EventBus::new("test", clock.clone());
+    let events = Events {
+        live: bus.subscribe(),
+        log: bus.subscribe(),
+    };
     let run = tokio::spawn(async move {
-        timeout(T, run_mission(mission, RealClock::shared(), Some(tx)))
+        timeout(T, run_mission(mission, clock, Some(bus)))
             .await
             .expect("mission ends")
             .expect("dispatcher runs")
     });
-    (run, rx)
+    (run, events)
 }
 
 /// Wait for the first event that `pick` accepts.
-async fn event<R>(
-    rx: &mut mpsc::UnboundedReceiver<DispatchEvent>,
-    mut pick: impl FnMut(&DispatchEvent) -> Option<R>,
-) -> R {
+async fn event<R>(events: &mut Events, mut pick: impl FnMut(&EventKind) -> Option<R>) -> R {
     timeout(T, async {
         loop {
-            let e = rx.recv().await.expect("dispatcher events end early");
-            if let Some(r) = pick(&e) {
+            let e = events
+                .live
+                .recv()
+                .await
+                .expect("dispatcher events end early");
+            if let Some(r) = pick(&e.kind) {
                 return r;
             }
         }
@@ -201,20 +210,27 @@ async fn a_killed_operation_is_rebound_to_its_replacement_and_the_action_complet
     activated(&first).await;
     first.actor().kill();
     let record = event(&mut events, |e| match e {
-        DispatchEvent::Rebound(r) => Some(r.clone()),
+        EventKind::Rebound(r) => Some(r.clone()),
         _ => None,
     })
     .await;
     let report = run.await.unwrap();
     assert_eq!(report.outcome, Outcome::Succeeded, "{}", report.reason);
     assert_eq!(report.rebinds, vec![record.clone()]);
+    assert_eq!(report.rebinds_total, 1);
+    // the whole report, rebind included, replays from the run's events
+    let log = events.log.drain();
+    assert!(log
+        .iter()
+        .any(|e| matches!(&e.kind, EventKind::Lost { operation, .. } if operation == "rb-kill")));
+    assert_eq!(RunReport::from_events(&log), report);
     assert_eq!(record.operation, "rb-kill");
     assert_eq!(record.from, first.actor().get_id().to_string());
     assert_ne!(record.to, record.from);
-    assert!(record.cause.contains("died"), "{}", record.cause);
+    assert!(died(&record.cause), "{}", record.cause);
     // the operation's record in the action names the instance that finished it
     assert_eq!(report.actions[0].operations[0].address, record.to);
-    assert_eq!(report.actions[0].operations[0].ended, "finished");
+    assert_eq!(report.actions[0].operations[0].ended, OpEnd::Finished);
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -233,11 +249,11 @@ async fn the_stand_in_gets_the_last_parameters_a_higher_epoch_and_resumes() {
     let report = run.await.unwrap();
     assert_eq!(report.outcome, Outcome::Succeeded, "{}", report.reason);
     let lost = event(&mut events, |e| match e {
-        DispatchEvent::Lost { cause, .. } => Some(cause.clone()),
+        EventKind::Lost { cause, .. } => Some(cause.clone()),
         _ => None,
     })
     .await;
-    assert!(lost.contains("died"), "{lost}");
+    assert!(died(&lost), "{lost}");
     let now = registry::lookup(ModuleKind::Operation, "rb-params");
     assert_eq!(now.len(), 1, "only the replacement is alive");
     let stand_in = EoClient::from_cell(now[0].actor.clone());
@@ -285,14 +301,12 @@ async fn a_hung_operation_is_killed_and_rebound() {
     activated(&first).await;
     first.inject(Fault::Hang).unwrap();
     let cause = event(&mut events, |e| match e {
-        DispatchEvent::Lost { cause, .. } => Some(cause.clone()),
+        EventKind::Lost { cause, .. } => Some(cause.clone()),
         _ => None,
     })
     .await;
-    assert!(
-        cause.contains("hung") && cause.contains("300 ms"),
-        "{cause}"
-    );
+    assert_eq!(cause, LossCause::Hung { deadline_ms: 300 });
+    assert!(cause.to_string().contains("300 ms"), "{cause}");
     let report = run.await.unwrap();
     assert_eq!(report.outcome, Outcome::Succeeded, "{}", report.reason);
     assert_eq!(report.rebinds.len(), 1);
@@ -346,7 +360,7 @@ async fn an_operation_lost_between_actions_is_rebound_before_its_next_action() {
     activated(&a).await;
     b.actor().kill(); // b is bound but idle
     let record = event(&mut events, |e| match e {
-        DispatchEvent::Rebound(r) => Some(r.clone()),
+        EventKind::Rebound(r) => Some(r.clone()),
         _ => None,
     })
     .await;
@@ -356,4 +370,12 @@ async fn an_operation_lost_between_actions_is_rebound_before_its_next_action() {
     let second = &report.actions[1];
     assert_eq!(second.name, "second");
     assert_eq!(second.operations[0].address, record.to);
+}
+
+/// A cause that says the instance died (rather than hung or lost its node).
+fn died(cause: &LossCause) -> bool {
+    matches!(
+        cause,
+        LossCause::DiedInAction { .. } | LossCause::LeftRegistry | LossCause::Gone
+    )
 }

@@ -291,6 +291,7 @@ mod tests {
             flags: Vec::new(),
             actions: Vec::new(),
             rebinds: Vec::new(),
+            rebinds_total: 0,
             duration_ms: 0,
             final_pose: None,
             collisions: None,
@@ -298,6 +299,7 @@ mod tests {
             inside_goal: None,
             judgement: None,
             faults: Vec::new(),
+            faults_total: 0,
         }
     }
 

@@ -666,7 +666,7 @@ fn numbers_out_of_a_worlds_range_are_refused_at_their_position() {
     for want in [
         "<world>:4:20: coordinates in `points` must be in [-1000, 1000] metres, found 4e9",
         "<world>:6:22: `y` must be in [-1000, 1000], found 1e300",
-        "<world>:7:10: `length` must be in (0, 10], found 1000000",
+        "<world>:7:10: `length` must be in (0, 10], found 1e6",
         "<world>:8:13: `max_speed` must be in (0, 5], found 500",
     ] {
         assert!(err.contains(want), "`{want}` not in:\n{err}");

@@ -14,6 +14,7 @@
 //! - The incarnation number grows with every loss: reports and probe results that carry an
 //!   older number are about an instance the dispatcher has let go of, and are ignored.
 
+use super::loss::LossCause;
 use super::mission::OpInfo;
 use crate::clock::Timer;
 use crate::eo::EoClient;
@@ -66,7 +67,7 @@ pub(crate) struct Lost {
     /// Clock time of the loss.
     pub(crate) since: Duration,
     /// What happened, for the report.
-    pub(crate) cause: String,
+    pub(crate) cause: LossCause,
     /// Address of the instance that was lost.
     pub(crate) from: String,
     /// Its actor id, never to be adopted again.
@@ -187,7 +188,7 @@ impl Binding {
     }
 
     /// Let the current instance go.
-    pub(crate) fn lose(&mut self, cause: String, now: Duration) {
+    pub(crate) fn lose(&mut self, cause: LossCause, now: Duration) {
         self.incarnation += 1;
         self.probing = false;
         self.lost = Some(Lost {

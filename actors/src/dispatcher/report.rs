@@ -1,6 +1,19 @@
 //! The run report (DESIGN.md §8): what happened during a mission, as JSON.
+//!
+//! # Invariant: bounded
+//! A long run (a chaos test, a robot on duty for days) keeps bounded memory: the report
+//! keeps the counts `rebinds_total` and `faults_total` and only the latest [`REPORT_KEEPS`]
+//! rebinds and faults; the full history is on the event stream ([`crate::events`]).
 
+use super::loss::LossCause;
+use crate::eo::FaultKind;
 use serde::{Deserialize, Serialize};
+use std::fmt;
+
+/// How many of the latest rebinds, and of the latest faults, a report keeps (older ones are
+/// only counted). 100 covers every ordinary run in full and keeps a report of a long chaos
+/// run small enough to read.
+pub const REPORT_KEEPS: usize = 100;
 
 /// How a mission ended.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -10,6 +23,46 @@ pub enum Outcome {
     Succeeded,
     /// Full stop: a stage failed, a deadline passed, or no action could run.
     Failed,
+}
+
+/// How an operation's part in an action ended. Serialized as its snake_case name
+/// (`finished`, `suspended`, …), the values reports have always carried.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum OpEnd {
+    /// Still running (the action has not ended, e.g. a report written at a full stop).
+    Running,
+    /// It reported that its task is done.
+    Finished,
+    /// It was suspended (its action ended on other operations), or suspended by another
+    /// party — then the run failed.
+    Suspended,
+    /// It reported a failure, refused its parameters, or is bound by another dispatcher.
+    Failed,
+    /// Its instance was lost and no stand-in finished its part.
+    Lost,
+    /// It did not report within the suspension grace.
+    Unresponsive,
+}
+
+impl OpEnd {
+    /// The stable name, as serialized.
+    pub fn name(self) -> &'static str {
+        match self {
+            OpEnd::Running => "running",
+            OpEnd::Finished => "finished",
+            OpEnd::Suspended => "suspended",
+            OpEnd::Failed => "failed",
+            OpEnd::Lost => "lost",
+            OpEnd::Unresponsive => "unresponsive",
+        }
+    }
+}
+
+impl fmt::Display for OpEnd {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
 }
 
 /// One operation's part in an action.
@@ -25,8 +78,8 @@ pub struct OpRecord {
     pub node: String,
     /// Actor address.
     pub address: String,
-    /// `finished`, `suspended`, `failed` or `lost`.
-    pub ended: String,
+    /// How its part ended.
+    pub ended: OpEnd,
     /// Names of the flags it raised (those the mission maps).
     pub flags: Vec<String>,
 }
@@ -54,7 +107,7 @@ pub struct RebindRecord {
     /// Operation name.
     pub operation: String,
     /// Why the old instance was left.
-    pub cause: String,
+    pub cause: LossCause,
     /// Old instance address.
     pub from: String,
     /// New instance address.
@@ -78,8 +131,11 @@ pub struct RunReport {
     pub flags: Vec<String>,
     /// Actions in the order they ran.
     pub actions: Vec<ActionRecord>,
-    /// Rebindings during the run.
+    /// The latest [`REPORT_KEEPS`] rebindings of the run, oldest first.
     pub rebinds: Vec<RebindRecord>,
+    /// How many rebindings the run had in all.
+    #[serde(default)]
+    pub rebinds_total: u64,
     /// Mission clock time the run took, in ms.
     pub duration_ms: u64,
     /// Final pose `[x, y, heading]` of a robot, where the mission drives one: metres, and the
@@ -100,10 +156,13 @@ pub struct RunReport {
     /// heading error 2.1°, 0 collision(s)`), where there is a simulated robot.
     #[serde(default)]
     pub judgement: Option<String>,
-    /// Faults injected on purpose during the run (fault-injection tests, `--fault`,
-    /// `--chaos`).
+    /// The latest [`REPORT_KEEPS`] faults injected on purpose during the run
+    /// (fault-injection tests, `--fault`, `--chaos`), oldest first.
     #[serde(default)]
     pub faults: Vec<FaultRecord>,
+    /// How many faults were injected (or tried) in all.
+    #[serde(default)]
+    pub faults_total: u64,
 }
 
 /// A fault injected during a run.
@@ -111,8 +170,8 @@ pub struct RunReport {
 pub struct FaultRecord {
     /// When, in ms of mission clock time since the run began.
     pub at_ms: u64,
-    /// `kill`, `panic` or `hang`.
-    pub fault: String,
+    /// What was injected.
+    pub fault: FaultKind,
     /// The operation it was meant for (name or id, as asked).
     pub operation: String,
     /// The instance that got it; empty if none did.
@@ -127,6 +186,29 @@ impl RunReport {
     pub fn succeeded(&self) -> bool {
         self.outcome == Outcome::Succeeded
     }
+
+    /// Count a rebind and keep it among the latest [`REPORT_KEEPS`].
+    pub fn record_rebind(&mut self, rebind: RebindRecord) {
+        self.rebinds_total += 1;
+        keep_latest(&mut self.rebinds, rebind);
+    }
+
+    /// Count faults and keep them among the latest [`REPORT_KEEPS`].
+    pub fn record_faults(&mut self, faults: impl IntoIterator<Item = FaultRecord>) {
+        for fault in faults {
+            self.faults_total += 1;
+            keep_latest(&mut self.faults, fault);
+        }
+    }
+}
+
+/// Append `item`, dropping the oldest so that at most [`REPORT_KEEPS`] remain.
+fn keep_latest<T>(list: &mut Vec<T>, item: T) {
+    if list.len() >= REPORT_KEEPS {
+        let excess = list.len() + 1 - REPORT_KEEPS;
+        list.drain(..excess);
+    }
+    list.push(item);
 }
 
 #[cfg(test)]
@@ -150,5 +232,98 @@ mod tests {
         let round: RunReport =
             serde_json::from_str(&serde_json::to_string(&report).expect("writes")).expect("reads");
         assert_eq!(round, report);
+    }
+
+    #[test]
+    fn a_report_with_typed_values_keeps_its_json_shape_and_reads_back_equal() {
+        let report = RunReport {
+            mission: "m".into(),
+            outcome: Outcome::Succeeded,
+            reason: String::new(),
+            status: 1,
+            flags: vec!["done".into()],
+            actions: vec![ActionRecord {
+                name: "a".into(),
+                start_ms: 1,
+                end_ms: 9,
+                flags: vec!["done".into()],
+                status: 1,
+                operations: vec![OpRecord {
+                    name: "op".into(),
+                    id: 7,
+                    version: "1.0.0".into(),
+                    node: "local".into(),
+                    address: "0.3".into(),
+                    ended: OpEnd::Finished,
+                    flags: vec!["done".into()],
+                }],
+            }],
+            rebinds: vec![RebindRecord {
+                operation: "op".into(),
+                cause: LossCause::Hung { deadline_ms: 300 },
+                from: "0.2".into(),
+                to: "0.3".into(),
+                downtime_ms: 4,
+            }],
+            rebinds_total: 1,
+            duration_ms: 10,
+            final_pose: None,
+            collisions: None,
+            seed: None,
+            inside_goal: None,
+            judgement: None,
+            faults: vec![FaultRecord {
+                at_ms: 2,
+                fault: FaultKind::Hang,
+                operation: "op".into(),
+                actor: "0.2".into(),
+                error: None,
+            }],
+            faults_total: 1,
+        };
+        let json: serde_json::Value = serde_json::to_value(&report).expect("writes");
+        assert_eq!(json["outcome"], "succeeded");
+        assert_eq!(json["actions"][0]["operations"][0]["ended"], "finished");
+        assert_eq!(json["faults"][0]["fault"], "hang");
+        assert_eq!(json["rebinds"][0]["cause"]["type"], "hung");
+        assert_eq!(json["rebinds"][0]["cause"]["deadline_ms"], 300);
+        let back: RunReport = serde_json::from_value(json).expect("reads");
+        assert_eq!(back, report);
+    }
+
+    #[test]
+    fn a_report_keeps_counts_and_only_the_latest_rebinds_and_faults() {
+        let mut report: RunReport = serde_json::from_str(
+            r#"{"mission":"m","outcome":"failed","reason":"r","status":0,"flags":[],
+                "actions":[],"rebinds":[],"duration_ms":5}"#,
+        )
+        .expect("reads");
+        let rebind = |i: u64| RebindRecord {
+            operation: "op".into(),
+            cause: LossCause::Gone,
+            from: format!("0.{i}"),
+            to: format!("0.{}", i + 1),
+            downtime_ms: i,
+        };
+        for i in 0..1000 {
+            report.record_rebind(rebind(i));
+        }
+        report.record_faults((0..250).map(|i| FaultRecord {
+            at_ms: i,
+            fault: FaultKind::Kill,
+            operation: "op".into(),
+            actor: String::new(),
+            error: None,
+        }));
+        assert_eq!((report.rebinds_total, report.faults_total), (1000, 250));
+        assert_eq!(report.rebinds.len(), REPORT_KEEPS);
+        assert_eq!(report.faults.len(), REPORT_KEEPS);
+        assert_eq!(
+            report.rebinds.first(),
+            Some(&rebind(900)),
+            "the latest, oldest first"
+        );
+        assert_eq!(report.rebinds.last(), Some(&rebind(999)));
+        assert_eq!(report.faults[0].at_ms, 150);
     }
 }

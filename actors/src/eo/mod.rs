@@ -34,12 +34,14 @@
 
 mod client;
 mod factory;
+mod fault;
 mod host;
 mod messages;
 mod operation;
 
 pub use client::{EoClient, EoError};
 pub use factory::{OperationFactory, StartOperation};
+pub use fault::{FaultKind, UnknownFault};
 pub use host::{spawn_operation, spawn_operation_linked, EoHost, HostArgs, HostOptions, HostState};
 pub use messages::{EoMsg, EoReport, Fault, ParamOutcome};
 

@@ -38,41 +38,8 @@ use std::fmt;
 use std::str::FromStr;
 use std::time::Duration;
 
-/// What to do to an operation.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum FaultKind {
-    /// Kill its actor.
-    Kill,
-    /// Make its host panic.
-    Panic,
-    /// Make its host stop answering.
-    Hang,
-}
-
-impl fmt::Display for FaultKind {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            FaultKind::Kill => "kill",
-            FaultKind::Panic => "panic",
-            FaultKind::Hang => "hang",
-        })
-    }
-}
-
-impl FromStr for FaultKind {
-    type Err = FaultError;
-
-    fn from_str(s: &str) -> Result<Self, FaultError> {
-        match s {
-            "kill" => Ok(FaultKind::Kill),
-            "panic" => Ok(FaultKind::Panic),
-            "hang" => Ok(FaultKind::Hang),
-            other => Err(FaultError::Syntax(format!(
-                "unknown fault `{other}` (expected kill, panic or hang)"
-            ))),
-        }
-    }
-}
+/// What to do to an operation: one type shared with the run report and the event stream.
+pub use marie_actors::eo::FaultKind;
 
 /// A fault to inject into operation `target` (a name or a numeric id) at `at` after the
 /// mission started: `KIND:TARGET@SECONDS`.
@@ -103,7 +70,10 @@ impl FromStr for FaultSpec {
         };
         let (kind, rest) = s.split_once(':').ok_or_else(syntax)?;
         let (target, at) = rest.rsplit_once('@').ok_or_else(syntax)?;
-        let kind: FaultKind = kind.trim().parse()?;
+        let kind: FaultKind = kind
+            .trim()
+            .parse()
+            .map_err(|e: marie_actors::eo::UnknownFault| FaultError::Syntax(e.to_string()))?;
         let target = target.trim();
         if target.is_empty() {
             return Err(FaultError::Syntax(format!(

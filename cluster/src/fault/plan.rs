@@ -93,7 +93,7 @@ fn record(
     let rec = match super::inject(kind, target) {
         Ok(done) => FaultRecord {
             at_ms,
-            fault: kind.to_string(),
+            fault: kind,
             operation: target.to_string(),
             actor: done.actor.to_string(),
             error: None,
@@ -102,7 +102,7 @@ fn record(
             tracing::warn!(fault = %kind, op = %target, error = %e, "fault not injected");
             FaultRecord {
                 at_ms,
-                fault: kind.to_string(),
+                fault: kind,
                 operation: target.to_string(),
                 actor: String::new(),
                 error: Some(e.to_string()),

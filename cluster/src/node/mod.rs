@@ -35,6 +35,7 @@
 //! ```
 
 pub mod config;
+mod events;
 pub mod robot;
 mod tree;
 
@@ -49,10 +50,12 @@ use crate::fault::FaultPlan;
 use marie_actors::clock::{RealClock, SharedClock};
 use marie_actors::dispatcher::mission::{Diagnostics, Mission, ParsedMission};
 use marie_actors::dispatcher::{
-    self, DispatchError, DispatchEvent, DispatcherArgs, DispatcherMsg, RegistryCatalog, RunReport,
+    self, DispatchError, DispatchEvent, DispatcherArgs, DispatcherMsg, ProgressRelay,
+    RegistryCatalog, RunReport,
 };
 use marie_actors::dm::DmError;
 use marie_actors::eo::{EoError, HostOptions, OperationFactory};
+use marie_actors::events::{bridge_registry, EventBus, EventKind, RegistryBridge};
 use marie_actors::registry::{self, Instance, ModuleKind};
 use marie_supervision::{ChildSpec, Restart, Shutdown, SupervisorError, SupervisorRef};
 use ractor::{ActorCell, ActorRef};
@@ -159,6 +162,9 @@ pub enum NodeError {
 /// ```
 pub struct Node {
     config: NodeConfig,
+    bus: EventBus,
+    _registry: Option<RegistryBridge>,
+    bridges: Vec<tokio::task::JoinHandle<()>>,
     catalog: Vec<OperationFactory>,
     clock: SharedClock,
     root: SupervisorRef,
@@ -172,11 +178,24 @@ impl Node {
     /// operation supervisor with the instances the config names.
     pub async fn start(config: NodeConfig, options: NodeOptions) -> Result<Node, NodeError> {
         config.validate(&options.catalog)?;
+        let bus = EventBus::new(config.name.clone(), options.clock.clone());
+        // the registry's joins and leaves from the start, so the first publications are seen
+        let registry = match bridge_registry(bus.clone(), None).await {
+            Ok(bridge) => Some(bridge),
+            Err(e) => {
+                tracing::warn!("node events without the registry's: {e}");
+                None
+            }
+        };
         let children = tree::children(&config, &options);
         let (root, _) = tree::start_root(children).await?;
+        let bridges = events::bridge_supervisors(&bus, &root).await;
         tracing::info!(node = %config.name, "node started");
         Ok(Node {
             config,
+            bus,
+            _registry: registry,
+            bridges,
             catalog: options.catalog,
             clock: options.clock,
             root,
@@ -216,6 +235,14 @@ impl Node {
             .and_then(|c| c.state.actor().cloned())
             .and_then(SupervisorRef::from_cell)
             .ok_or_else(|| NodeError::Supervisor(SupervisorError::NotFound(id.to_string())))
+    }
+
+    /// The node's event bus: every dispatcher, binding, supervisor, registry, fault and robot
+    /// event of this node, stamped with the mission clock and the node's name
+    /// ([`marie_actors::events`] documents the schema). Subscribe before a run to see all of
+    /// it.
+    pub fn events(&self) -> &EventBus {
+        &self.bus
     }
 
     /// The node's clock.
@@ -360,9 +387,18 @@ impl Node {
         let _ = stop.send(());
         let _ = forwarder.await;
         let mut report = result?;
-        report.faults = faults;
+        report.record_faults(faults);
         if let Some(robot) = &self.robot {
             robot.judge(&mut report).await;
+            self.bus.publish(EventKind::Judged {
+                outcome: report.outcome,
+                reason: report.reason.clone(),
+                final_pose: report.final_pose,
+                collisions: report.collisions,
+                seed: report.seed,
+                inside_goal: report.inside_goal,
+                judgement: report.judgement.clone(),
+            });
         }
         if let Some(outer) = events {
             let _ = outer.send(DispatchEvent::Ended {
@@ -385,10 +421,12 @@ impl Node {
             return Err(NodeError::NoDispatcher(self.config.name.clone()));
         }
         let n = self.runs.fetch_add(1, Ordering::Relaxed);
+        // the run's part of the node's events, relayed to the live lines
+        let relay = ProgressRelay::start(&self.bus, events);
         let args = DispatcherArgs {
             mission,
             clock: self.clock.clone(),
-            events: Some(events),
+            bus: self.bus.clone(),
         };
         let spec = ChildSpec::worker(format!("dispatcher-{n}"), move |sup| {
             let args = args.clone();
@@ -414,6 +452,7 @@ impl Node {
             .map(|(name, rx)| tokio::spawn(abort_on_give_up(name, rx, dispatcher.clone())))
             .collect();
         let report = dispatcher::request_run(&dispatcher).await;
+        relay.finish().await;
         for guard in guards {
             guard.abort();
         }
@@ -423,6 +462,9 @@ impl Node {
     /// Stop the node's supervision tree, children in reverse start order, and wait for it.
     pub async fn shutdown(self) {
         self.root.stop().await;
+        for task in &self.bridges {
+            task.abort();
+        }
         tracing::info!(node = %self.config.name, "node stopped");
     }
 }

@@ -10,6 +10,14 @@
 //! its fields as a MessagePack map (`to_vec_named`, so fields can be added later). A variant
 //! declared with `-> Reply` carries a `reply: RpcReplyPort<Reply>` field and travels as a call:
 //! its port is bridged to a byte port and back with [`bridge_out`] / [`bridge_in`].
+//!
+//! Frames marie sends between nodes outside ractor's own messages (heartbeats, membership,
+//! events) travel in the versioned [`envelope::Envelope`]: a peer that speaks another
+//! [`PROTOCOL_VERSION`] is refused with an error naming both versions, never misread.
+
+pub mod envelope;
+
+pub use envelope::{Envelope, EnvelopeError, PROTOCOL_VERSION};
 
 use ractor::concurrency::{self, Duration};
 use ractor::RpcReplyPort;

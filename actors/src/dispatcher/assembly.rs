@@ -1,0 +1,81 @@
+//! Assembling the report: the dispatcher publishes every step of the run on its bus and
+//! feeds the same events to its [`ReportBuilder`](super::ReportBuilder); the report it sends
+//! is the builder's.
+//!
+//! # Invariants
+//! - Every event is published and applied in one place ([`DispatcherState::emit`]), so the
+//!   report and the event stream cannot disagree: [`RunReport::from_events`] on the run's
+//!   events gives the report the dispatcher sent.
+//! - The report is sent once, when the mission ends (success or full stop); what still runs
+//!   is suspended first, and the dispatcher then stops normally.
+
+use super::actor::DispatcherState;
+use super::messages::DispatcherMsg;
+use super::report::{Outcome, RunReport};
+use crate::events::EventKind;
+use ractor::ActorRef;
+
+impl DispatcherState {
+    /// Publish `kind` on the bus and take it into the report.
+    pub(super) fn emit(&mut self, kind: EventKind) {
+        let event = self.bus.publish(kind);
+        self.builder.apply(&event.kind);
+    }
+
+    /// Mission clock time since the run began, in ms.
+    pub(super) fn elapsed_ms(&self) -> u64 {
+        self.clock.now().saturating_sub(self.started).as_millis() as u64
+    }
+
+    /// The mission's status word now, as `(word, flag names)`.
+    pub(super) fn status_now(&self) -> (u32, Vec<String>) {
+        (self.status.0, self.mission.flags_to_names(self.status))
+    }
+
+    /// The current action is over: mark it done (its record is closed by the next event).
+    pub(super) fn record_current(&mut self) {
+        if let Some(cur) = self.current.take() {
+            self.done[cur.index] = true;
+        }
+    }
+
+    /// End the run: suspend what still runs, publish the end and send the report.
+    pub(super) fn finish(
+        &mut self,
+        myself: &ActorRef<DispatcherMsg>,
+        outcome: Outcome,
+        reason: String,
+    ) {
+        if self.ended {
+            return;
+        }
+        self.ended = true;
+        if let Some(cur) = &self.current {
+            for key in &cur.running {
+                if let Some(b) = self.binding(key).filter(|b| b.lost.is_none()) {
+                    let _ = b.client.suspend(b.epoch);
+                }
+            }
+        }
+        self.record_current();
+        match outcome {
+            Outcome::Succeeded => tracing::info!(mission = %self.mission.name, "mission succeeded"),
+            Outcome::Failed => {
+                tracing::warn!(mission = %self.mission.name, %reason, "mission failed: full stop")
+            }
+        }
+        let (status, flags) = self.status_now();
+        self.emit(EventKind::RunEnded {
+            outcome,
+            reason,
+            run_ms: self.elapsed_ms(),
+            status,
+            flags,
+        });
+        let report: RunReport = std::mem::take(&mut self.builder).finish();
+        if let Some(reply) = self.reply.take() {
+            let _ = reply.send(report);
+        }
+        myself.stop(None); // a normal exit: its work is done
+    }
+}

@@ -1,0 +1,350 @@
+//! Healing bindings: noticing that a bound instance is lost, finding a stand-in, restoring it.
+//!
+//! The dispatcher notices a lost instance three ways: the activation's reply port closes (the
+//! instance died mid-action, see `running.rs`), the instance leaves the registry (it died at
+//! any time), or it does not answer a liveness probe within its declared deadline (it hangs:
+//! the dispatcher kills it). It then adopts a live instance that passes the binding's
+//! selection — the restarted one, or another — gives it the last parameters, re-activates it
+//! (as `Resume`) if its action is running, and records the rebind. If none appears within the
+//! mission's `rebind_deadline`, the mission comes to a full stop naming the operation.
+//!
+//! # Invariants
+//! - Losing and adopting never recurse: an adopted instance that fails at once is reported
+//!   back to the actor as a failed probe.
+//! - A binding is lost at most once per incarnation; probe results and deadlines of an older
+//!   incarnation are ignored.
+
+use super::actor::{DispatcherState, Start};
+use super::binding::{examine, Binding};
+use super::loss::LossCause;
+use super::messages::DispatcherMsg;
+use super::report::{Outcome, RebindRecord};
+use crate::clock::Timer;
+use crate::eo::{EoError, ParamOutcome};
+use crate::events::{BoundOp, EventKind};
+use crate::property::PropertyRequest;
+use crate::registry::{self, Instance, ModuleKind, RegistryEvent};
+use ractor::ActorRef;
+use std::time::Duration;
+
+/// How often bound operations are asked whether they still answer.
+const PROBE_PERIOD: Duration = Duration::from_millis(500);
+
+impl DispatcherState {
+    pub(super) async fn bind(&mut self) -> Result<(), String> {
+        let names: Vec<String> = self
+            .mission
+            .operation_names()
+            .into_iter()
+            .map(str::to_string)
+            .collect();
+        for key in names {
+            let Some(inst) = registry::lookup(ModuleKind::Operation, &key)
+                .into_iter()
+                .next()
+            else {
+                return Err(format!("operation `{key}` has no live instance"));
+            };
+            let cand = examine(&inst, crate::eo::EoClient::DEFAULT_TIMEOUT)
+                .await
+                .map_err(|e| format!("operation `{key}`: {e}"))?;
+            self.bindings.insert(key, Binding::new(cand));
+        }
+        let operations = self
+            .bindings
+            .values()
+            .map(|b| BoundOp {
+                name: b.name.clone(),
+                version: b.version.clone(),
+                node: b.node.clone(),
+            })
+            .collect();
+        self.emit(EventKind::Bound { operations });
+        Ok(())
+    }
+
+    /// Start forwarding the registry's operation joins and leaves to the dispatcher, until
+    /// the dispatcher's state is dropped.
+    pub(super) async fn watch_registry(
+        &mut self,
+        myself: &ActorRef<DispatcherMsg>,
+    ) -> Result<(), String> {
+        let mut watch = registry::watch(Some(ModuleKind::Operation))
+            .await
+            .map_err(|e| format!("cannot watch the registry: {e}"))?;
+        let (guard, mut gone) = tokio::sync::oneshot::channel::<()>();
+        self._watch_guard = Some(guard);
+        let me = myself.clone();
+        ractor::concurrency::spawn(async move {
+            loop {
+                tokio::select! {
+                    _ = &mut gone => break,
+                    event = watch.next() => {
+                        let Some(event) = event else { break };
+                        if me.cast(DispatcherMsg::Registry { event }).is_err() {
+                            break;
+                        }
+                    }
+                }
+            }
+        });
+        Ok(())
+    }
+
+    /// The instance of `name` is gone (or hung and killed): let it go and look for a
+    /// stand-in. Nothing happens if the binding is already lost.
+    pub(super) async fn lose(
+        &mut self,
+        myself: &ActorRef<DispatcherMsg>,
+        name: &str,
+        cause: LossCause,
+    ) {
+        let now = self.clock.now();
+        let Some(b) = self.bindings.get_mut(name) else {
+            return;
+        };
+        if b.lost.is_some() || self.ended {
+            return;
+        }
+        b.lose(cause.clone(), now);
+        let incarnation = b.incarnation;
+        tracing::warn!(op = %name, %cause, "operation lost; rebinding");
+        self.emit(EventKind::Lost {
+            operation: name.to_string(),
+            cause,
+        });
+        // A lost operation of an action that is ending has nothing left to do in it.
+        if let Some(key) = self.running_key(name) {
+            let ending = self.current.as_ref().is_some_and(|c| c.ending());
+            if ending && self.give_up_on(myself, &[key]) {
+                return;
+            }
+        }
+        let timer = Timer::cast_after(
+            &self.clock,
+            self.mission.rebind_deadline,
+            myself,
+            DispatcherMsg::RebindDeadline {
+                name: name.to_string(),
+                incarnation,
+            },
+        );
+        if let Some(b) = self.bindings.get_mut(name) {
+            b.deadline_timer = Some(timer);
+        }
+        let found = registry::lookup(ModuleKind::Operation, name);
+        for inst in found {
+            if self.try_adopt(myself, name, &inst).await {
+                break;
+            }
+        }
+    }
+
+    /// Adopt `inst` for the lost binding `name` if it passes the binding's selection; then
+    /// restore its parameters and, if its action runs, re-activate it. True if adopted.
+    pub(super) async fn try_adopt(
+        &mut self,
+        myself: &ActorRef<DispatcherMsg>,
+        name: &str,
+        inst: &Instance,
+    ) -> bool {
+        let Some(b) = self.bindings.get(name) else {
+            return false;
+        };
+        let Some(lost) = &b.lost else {
+            return false;
+        };
+        if inst.actor.get_id() == lost.dead {
+            return false;
+        }
+        let cand = match examine(inst, b.deadline).await {
+            Ok(c) => c,
+            Err(e) => {
+                tracing::debug!(op = %name, actor = %inst.actor.get_id(), error = %e, "stand-in does not answer");
+                return false;
+            }
+        };
+        let now = self.clock.now();
+        let b = self.bindings.get_mut(name).expect("checked above");
+        if b.lost.is_none() {
+            return false; // adopted another while this one was examined
+        }
+        if let Err(why) = b.accepts(&cand) {
+            tracing::info!(op = %name, actor = %inst.actor.get_id(), %why, "instance cannot stand in");
+            return false;
+        }
+        let Some((lost, downtime)) = b.adopt(cand, now) else {
+            return false;
+        };
+        let record = RebindRecord {
+            operation: name.to_string(),
+            cause: lost.cause,
+            from: lost.from,
+            to: b.address(),
+            downtime_ms: downtime.as_millis() as u64,
+        };
+        tracing::info!(op = %name, from = %record.from, to = %record.to, downtime_ms = record.downtime_ms, "operation rebound");
+        let (client, epoch, params, incarnation) =
+            (b.client.clone(), b.epoch, b.params.clone(), b.incarnation);
+        // the report's record of the running action takes the stand-in's address from it
+        self.emit(EventKind::Rebound(record));
+        match self.running_key(name) {
+            Some(key) => {
+                let cur = self.current.as_ref().expect("running_key found it");
+                let generation = cur.generation;
+                let start = Start {
+                    generation,
+                    incarnation,
+                    epoch,
+                    resume: true,
+                };
+                if let Err(e) = self.activate(myself, &key, start, params) {
+                    self.report_gone(myself, name, incarnation, e);
+                }
+            }
+            None if !params.is_empty() => match client.parameterize(params, epoch).await {
+                Ok(ParamOutcome::Applied) => {}
+                Ok(other) => {
+                    tracing::warn!(op = %name, ?other, "last parameters not restored")
+                }
+                Err(e) => self.report_gone(myself, name, incarnation, e),
+            },
+            None => {}
+        }
+        true
+    }
+
+    /// The adopted instance failed at once: handle it like a failed probe (by message, so
+    /// losing and adopting never recurse).
+    pub(super) fn report_gone(
+        &self,
+        myself: &ActorRef<DispatcherMsg>,
+        name: &str,
+        incarnation: u64,
+        error: EoError,
+    ) {
+        let _ = myself.cast(DispatcherMsg::ProbeDone {
+            name: name.to_string(),
+            incarnation,
+            error: Some(error),
+        });
+    }
+
+    /// Ask every bound instance whether it still answers, within its declared deadline.
+    pub(super) fn probe(&mut self, myself: &ActorRef<DispatcherMsg>) {
+        for b in self.bindings.values_mut() {
+            if b.lost.is_some() || b.probing {
+                continue;
+            }
+            b.probing = true;
+            let client = b.client.clone().with_timeout(b.deadline);
+            let (name, incarnation) = (b.name.clone(), b.incarnation);
+            let me = myself.clone();
+            ractor::concurrency::spawn(async move {
+                let error = client
+                    .property(PropertyRequest::Get("epoch".to_string()))
+                    .await
+                    .err();
+                let _ = me.cast(DispatcherMsg::ProbeDone {
+                    name,
+                    incarnation,
+                    error,
+                });
+            });
+        }
+        self.timers.probe = Some(Timer::cast_after(
+            &self.clock,
+            PROBE_PERIOD,
+            myself,
+            DispatcherMsg::Probe {},
+        ));
+    }
+
+    pub(super) async fn on_probe_done(
+        &mut self,
+        myself: &ActorRef<DispatcherMsg>,
+        name: String,
+        incarnation: u64,
+        error: Option<EoError>,
+    ) {
+        let Some(b) = self.bindings.get_mut(&name) else {
+            return;
+        };
+        if b.incarnation != incarnation || b.lost.is_some() {
+            return;
+        }
+        b.probing = false;
+        match error {
+            None => {}
+            Some(EoError::Timeout(_, deadline)) => {
+                b.client.actor().kill();
+                let cause = LossCause::Hung {
+                    deadline_ms: deadline.as_millis() as u64,
+                };
+                self.lose(myself, &name, cause).await;
+            }
+            Some(EoError::Gone(_)) => {
+                self.lose(myself, &name, LossCause::Gone).await;
+            }
+        }
+    }
+
+    pub(super) async fn on_registry(
+        &mut self,
+        myself: &ActorRef<DispatcherMsg>,
+        event: RegistryEvent,
+    ) {
+        match event {
+            RegistryEvent::Left(inst) => {
+                let id = inst.actor.get_id();
+                let name = self
+                    .bindings
+                    .values()
+                    .find(|b| b.lost.is_none() && b.actor_id() == id)
+                    .map(|b| b.name.clone());
+                if let Some(name) = name {
+                    self.lose(myself, &name, LossCause::LeftRegistry).await;
+                }
+            }
+            RegistryEvent::Joined(inst) => {
+                let lost = self
+                    .bindings
+                    .get(&inst.name)
+                    .is_some_and(|b| b.lost.is_some());
+                if lost {
+                    let name = inst.name.clone();
+                    self.try_adopt(myself, &name, &inst).await;
+                }
+            }
+        }
+    }
+
+    pub(super) fn on_rebind_deadline(
+        &mut self,
+        myself: &ActorRef<DispatcherMsg>,
+        name: String,
+        incarnation: u64,
+    ) {
+        let Some(b) = self.bindings.get(&name) else {
+            return;
+        };
+        let Some(lost) = &b.lost else {
+            return;
+        };
+        if b.incarnation != incarnation {
+            return;
+        }
+        let reason = format!(
+            "operation `{name}` was lost ({}) and no compatible instance appeared within {:.1}s",
+            lost.cause,
+            self.mission.rebind_deadline.as_secs_f64()
+        );
+        let gave_up = EventKind::RebindGaveUp {
+            operation: name,
+            cause: lost.cause.clone(),
+            waited_ms: self.clock.now().saturating_sub(lost.since).as_millis() as u64,
+        };
+        self.emit(gave_up);
+        self.finish(myself, Outcome::Failed, reason);
+    }
+}

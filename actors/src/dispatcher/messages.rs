@@ -1,0 +1,67 @@
+//! The dispatcher's messages.
+
+use super::report::RunReport;
+use crate::eo::{EoError, EoReport};
+use crate::registry::RegistryEvent;
+
+crate::remote_message! {
+    /// Messages of the action dispatcher.
+    pub enum DispatcherMsg {
+        /// Run the mission; the answer comes when it has ended.
+        Run {} -> RunReport,
+    }
+    local {
+        /// An activation ended (`None`: its operation died before reporting).
+        OpEnded {
+            /// Generation of the action that activated it.
+            generation: u64,
+            /// The operation's key in that action.
+            key: String,
+            /// Incarnation of the binding that was activated.
+            incarnation: u64,
+            /// Its report.
+            report: Option<EoReport>,
+        },
+        /// An operation instance joined or left the registry.
+        Registry {
+            /// What happened.
+            event: RegistryEvent,
+        },
+        /// Time to ask the bound operations whether they still answer.
+        Probe {},
+        /// A liveness probe of `name`'s incarnation `incarnation` ended.
+        ProbeDone {
+            /// Operation name.
+            name: String,
+            /// Incarnation probed.
+            incarnation: u64,
+            /// `None`: it answered.
+            error: Option<EoError>,
+        },
+        /// The rebind deadline of `name`, lost as incarnation `incarnation`, passed.
+        RebindDeadline {
+            /// Operation name.
+            name: String,
+            /// Incarnation number after the loss.
+            incarnation: u64,
+        },
+        /// The deadline of action generation `generation` passed.
+        ActionDeadline {
+            /// Generation of the action.
+            generation: u64,
+        },
+        /// Suspended operations of generation `generation` had their time to report.
+        SuspendGrace {
+            /// Generation of the action.
+            generation: u64,
+        },
+        /// The whole mission's deadline passed.
+        MissionDeadline {},
+        /// Stop the mission now (full stop) for `reason` — e.g. the node's operation
+        /// supervisor gave up.
+        Abort {
+            /// Why.
+            reason: String,
+        },
+    }
+}

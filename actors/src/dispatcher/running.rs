@@ -1,0 +1,412 @@
+//! Running actions: choosing the next action by flag implication, activating its operations,
+//! collecting their reports, ending the action on its enders, suspending the rest.
+//!
+//! # Invariants
+//! - Events of an earlier action (by generation number) never touch the current one.
+//! - Parameters omitted by the mission are sent as the declared defaults, so values left by an
+//!   earlier action or mission never leak into this one.
+//! - An action ends when its enders say so (`any` or `all`), or when nothing runs any more;
+//!   what still runs is suspended and gets [`SUSPEND_GRACE`] to report.
+
+use super::actor::{ActionState, Current, DispatcherState, Start};
+use super::loss::LossCause;
+use super::messages::DispatcherMsg;
+use super::mission::EndMode;
+use super::report::{OpEnd, Outcome};
+use super::verdict::Verdict;
+use crate::clock::Timer;
+use crate::eo::{EoError, EoReport};
+use crate::events::{EventKind, OpStarted};
+use ractor::ActorRef;
+use std::collections::BTreeSet;
+use std::time::Duration;
+
+/// How long suspended operations get to report before the dispatcher moves on.
+pub(super) const SUSPEND_GRACE: Duration = Duration::from_secs(5);
+
+impl DispatcherState {
+    /// Send `Activate` (or `Resume`) to the binding's instance; its report comes back as
+    /// `OpEnded`.
+    pub(super) fn activate(
+        &self,
+        myself: &ActorRef<DispatcherMsg>,
+        key: &str,
+        start: Start,
+        params: crate::property::ParamMap,
+    ) -> Result<(), EoError> {
+        let Some(b) = self.binding(key) else {
+            return Err(EoError::Gone(key.to_string()));
+        };
+        let Start {
+            generation,
+            incarnation,
+            epoch,
+            resume,
+        } = start;
+        let rx = if resume {
+            b.client.resume(params, epoch)?
+        } else {
+            b.client.activate(params, epoch)?
+        };
+        let me = myself.clone();
+        let key = key.to_string();
+        ractor::concurrency::spawn(async move {
+            let report = rx.await.ok();
+            let _ = me.cast(DispatcherMsg::OpEnded {
+                generation,
+                key,
+                incarnation,
+                report,
+            });
+        });
+        Ok(())
+    }
+
+    pub(super) fn next_action(&mut self, myself: &ActorRef<DispatcherMsg>) {
+        let next = self
+            .mission
+            .actions
+            .iter()
+            .enumerate()
+            .find(|(i, a)| !self.done[*i] && self.status.implies(a.when))
+            .map(|(i, _)| i);
+        match next {
+            Some(i) => self.start_action(myself, i),
+            None if self.done.iter().all(|d| *d) => {
+                if self.status.implies(self.mission.success) {
+                    self.finish(myself, Outcome::Succeeded, String::new());
+                } else {
+                    let missing = self
+                        .mission
+                        .flags_to_names(self.mission.success & !self.status);
+                    self.finish(
+                        myself,
+                        Outcome::Failed,
+                        format!(
+                            "every action ran but success flags are missing: {}",
+                            missing.join(", ")
+                        ),
+                    );
+                }
+            }
+            None => {
+                let waiting: Vec<String> = self
+                    .mission
+                    .actions
+                    .iter()
+                    .enumerate()
+                    .filter(|(i, _)| !self.done[*i])
+                    .map(|(_, a)| {
+                        let missing = self.mission.flags_to_names(a.when & !self.status);
+                        format!("`{}` waits for {}", a.name, missing.join(", "))
+                    })
+                    .collect();
+                self.finish(
+                    myself,
+                    Outcome::Failed,
+                    format!("no action can run: {}", waiting.join("; ")),
+                );
+            }
+        }
+    }
+
+    pub(super) fn start_action(&mut self, myself: &ActorRef<DispatcherMsg>, index: usize) {
+        self.generation += 1;
+        let generation = self.generation;
+        let action = self.mission.actions[index].clone();
+        let mut current = Current {
+            generation,
+            index,
+            running: BTreeSet::new(),
+            enders_done: BTreeSet::new(),
+            state: ActionState::Running,
+            timer: None,
+        };
+        tracing::info!(action = %action.name, "action started");
+        let mut started = Vec::new();
+        let mut unreachable = None;
+        let mut activations = Vec::new();
+        for op in &action.ops {
+            let Some(b) = self.bindings.get_mut(&op.name) else {
+                unreachable = Some(format!("operation `{}` is not bound", op.key));
+                break;
+            };
+            let mut params = b.defaults.clone();
+            params.extend(op.params.clone());
+            b.params = params.clone();
+            let (epoch, incarnation, lost) = (b.epoch, b.incarnation, b.lost.is_some());
+            started.push(OpStarted {
+                key: op.key.clone(),
+                name: b.name.clone(),
+                id: b.id,
+                version: b.version.clone(),
+                node: b.node.clone(),
+                address: b.address(),
+            });
+            // A lost operation is activated when a stand-in is adopted.
+            current.running.insert(op.key.clone());
+            activations.push((
+                op.key.clone(),
+                op.name.clone(),
+                incarnation,
+                params,
+                epoch,
+                lost,
+            ));
+        }
+        self.current = Some(current);
+        self.emit(EventKind::ActionStarted {
+            action: action.name.clone(),
+            run_ms: self.elapsed_ms(),
+            operations: started,
+        });
+        for (key, name, incarnation, params, epoch, lost) in activations {
+            if lost || unreachable.is_some() {
+                continue;
+            }
+            let start = Start {
+                generation,
+                incarnation,
+                epoch,
+                resume: false,
+            };
+            if let Err(e) = self.activate(myself, &key, start, params) {
+                // the instance died since it was bound: a loss like any other
+                self.report_gone(myself, &name, incarnation, e);
+            }
+        }
+        if let Some(reason) = unreachable {
+            self.finish(myself, Outcome::Failed, reason);
+            return;
+        }
+        let timer = Timer::cast_after(
+            &self.clock,
+            action.deadline,
+            myself,
+            DispatcherMsg::ActionDeadline { generation },
+        );
+        if let Some(cur) = self.current.as_mut() {
+            cur.timer = Some(timer);
+        }
+    }
+
+    pub(super) async fn on_op_ended(
+        &mut self,
+        myself: &ActorRef<DispatcherMsg>,
+        generation: u64,
+        key: String,
+        incarnation: u64,
+        report: Option<EoReport>,
+    ) {
+        let Some(cur) = self.current.as_ref() else {
+            return;
+        };
+        if cur.generation != generation || !cur.running.contains(&key) {
+            return;
+        }
+        let Some(b) = self.binding(&key) else {
+            return;
+        };
+        if b.incarnation != incarnation || b.lost.is_some() {
+            return; // about an instance already let go
+        }
+        if report.is_none() && !cur.ending() {
+            // The instance died mid-action: rebind and carry on.
+            let name = b.name.clone();
+            let action = self.mission.actions[cur.index].name.clone();
+            self.lose(myself, &name, LossCause::DiedInAction { action })
+                .await;
+            return;
+        }
+        let cur = self.current.as_mut().expect("checked above");
+        cur.running.remove(&key);
+        let action = &self.mission.actions[cur.index];
+        let action_name = action.name.clone();
+        let ending = cur.ending();
+        let Verdict {
+            ended,
+            flags,
+            failure,
+        } = Verdict::of(report, ending, &key, &action_name);
+        let global = self.translate(&key, flags);
+        self.status |= global;
+        let names = self.mission.flags_to_names(global);
+        self.emit(EventKind::OpEnded {
+            action: action_name,
+            key: key.clone(),
+            ended,
+            flags: names,
+        });
+        let cur = self.current.as_mut().expect("checked above");
+        tracing::debug!(op = %key, %ended, flags = %global, "operation report");
+        if let Some(reason) = failure {
+            // say what the action still waited for: often the real news (a dock not found)
+            let waiting = self.awaited_enders(&key);
+            let reason = match waiting.is_empty() {
+                true => reason,
+                false => format!("{reason} (while waiting for {})", waiting.join(", ")),
+            };
+            self.finish(myself, Outcome::Failed, reason);
+            return;
+        }
+        if ending {
+            if cur.running.is_empty() {
+                self.complete_action(myself);
+            }
+            return;
+        }
+        let action = &self.mission.actions[cur.index];
+        if ended == OpEnd::Finished && action.ends_on(&key) {
+            cur.enders_done.insert(key);
+            let end = match action.end_mode {
+                EndMode::Any => true,
+                EndMode::All => action.ends_on.iter().all(|k| cur.enders_done.contains(k)),
+            };
+            if end {
+                self.end_action(myself);
+                return;
+            }
+        }
+        if cur.running.is_empty() {
+            // Every operation finished but the enders' condition cannot hold any more.
+            self.end_action(myself);
+        }
+    }
+
+    /// Suspend what still runs; the action completes when they have reported.
+    pub(super) fn end_action(&mut self, myself: &ActorRef<DispatcherMsg>) {
+        let Some(cur) = self.current.as_mut() else {
+            return;
+        };
+        cur.state = ActionState::Ending;
+        if cur.running.is_empty() {
+            self.complete_action(myself);
+            return;
+        }
+        let generation = cur.generation;
+        let running: Vec<String> = cur.running.iter().cloned().collect();
+        let mut lost = Vec::new();
+        for key in &running {
+            match self.binding(key) {
+                Some(b) if b.lost.is_none() => {
+                    let _ = b.client.suspend(b.epoch);
+                }
+                _ => lost.push(key.clone()),
+            }
+        }
+        // An operation still without a stand-in has nothing to suspend.
+        if self.give_up_on(myself, &lost) {
+            return;
+        }
+        let cur = self.current.as_mut().expect("checked above");
+        // replaces (cancels) the action's deadline
+        cur.timer = Some(Timer::cast_after(
+            &self.clock,
+            SUSPEND_GRACE,
+            myself,
+            DispatcherMsg::SuspendGrace { generation },
+        ));
+    }
+
+    /// The current action's enders that have not finished (other than `except`), quoted.
+    pub(super) fn awaited_enders(&self, except: &str) -> Vec<String> {
+        let Some(cur) = &self.current else {
+            return Vec::new();
+        };
+        self.mission.actions[cur.index]
+            .ends_on
+            .iter()
+            .filter(|k| k.as_str() != except && !cur.enders_done.contains(*k))
+            .map(|k| format!("`{k}`"))
+            .collect()
+    }
+
+    /// Stop waiting for `keys` in the current action, recording them as lost; completes the
+    /// action (and returns true) when nothing else runs.
+    pub(super) fn give_up_on(&mut self, myself: &ActorRef<DispatcherMsg>, keys: &[String]) -> bool {
+        let Some(cur) = self.current.as_mut() else {
+            return false;
+        };
+        let action = self.mission.actions[cur.index].name.clone();
+        let mut gone = Vec::new();
+        for key in keys {
+            if cur.running.remove(key) {
+                gone.push(key.clone());
+            }
+        }
+        let nothing_runs = cur.running.is_empty();
+        self.ended_without_report(&action, gone, OpEnd::Lost);
+        if nothing_runs {
+            self.complete_action(myself);
+            return true;
+        }
+        false
+    }
+
+    pub(super) fn complete_action(&mut self, myself: &ActorRef<DispatcherMsg>) {
+        let name = self
+            .current
+            .as_ref()
+            .map(|c| self.mission.actions[c.index].name.clone())
+            .unwrap_or_default();
+        self.record_current();
+        tracing::info!(action = %name, status = %self.status, "action ended");
+        let (status, flags) = self.status_now();
+        self.emit(EventKind::ActionEnded {
+            action: name,
+            run_ms: self.elapsed_ms(),
+            flags,
+            status,
+        });
+        self.next_action(myself);
+    }
+
+    /// The deadline of action `generation` passed: a full stop naming what it waited for.
+    pub(super) fn on_action_deadline(&mut self, myself: &ActorRef<DispatcherMsg>, generation: u64) {
+        let Some(cur) = &self.current else {
+            return;
+        };
+        if cur.generation != generation || cur.ending() {
+            return;
+        }
+        let action = &self.mission.actions[cur.index];
+        let waiting = self.awaited_enders("");
+        let reason = format!(
+            "action `{}` missed its deadline of {:.1}s waiting for {}",
+            action.name,
+            action.deadline.as_secs_f64(),
+            waiting.join(", ")
+        );
+        self.finish(myself, Outcome::Failed, reason);
+    }
+
+    /// The suspended operations of action `generation` had their time: whatever has not
+    /// reported is recorded as unresponsive and the action completes.
+    pub(super) fn on_suspend_grace(&mut self, myself: &ActorRef<DispatcherMsg>, generation: u64) {
+        let Some(cur) = &mut self.current else {
+            return;
+        };
+        if cur.generation != generation || !cur.ending() {
+            return;
+        }
+        let action = self.mission.actions[cur.index].name.clone();
+        let silent: Vec<String> = std::mem::take(&mut cur.running).into_iter().collect();
+        for key in &silent {
+            tracing::warn!(op = %key, "no report after suspension");
+        }
+        self.ended_without_report(&action, silent, OpEnd::Unresponsive);
+        self.complete_action(myself);
+    }
+
+    /// Record that `keys` of action `action` ended as `ended` without a report of theirs.
+    fn ended_without_report(&mut self, action: &str, keys: Vec<String>, ended: OpEnd) {
+        for key in keys {
+            self.emit(EventKind::OpEnded {
+                action: action.to_string(),
+                key,
+                ended,
+                flags: Vec::new(),
+            });
+        }
+    }
+}

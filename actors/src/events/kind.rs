@@ -1,0 +1,239 @@
+//! What an event says: one enum of every kind of event a node publishes.
+
+use crate::dispatcher::{LossCause, OpEnd, Outcome, RebindRecord};
+use crate::eo::FaultKind;
+use crate::registry::{Instance, ModuleKind};
+use serde::{Deserialize, Serialize};
+
+/// What happened. Serialized internally tagged with `type` in snake_case (see the module
+/// docs for one JSON line per kind); the tags are stable names — add kinds, never rename
+/// them. Times in a kind (`run_ms`) are mission clock ms since the run began, the times a
+/// [`RunReport`](crate::dispatcher::RunReport) shows.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case")]
+pub enum EventKind {
+    // --- dispatcher ---
+    /// A dispatcher began to run `mission`; the events of one run follow it.
+    RunStarted {
+        /// Mission name.
+        mission: String,
+    },
+    /// Every operation of the mission was found and bound.
+    Bound {
+        /// The bound instances.
+        operations: Vec<BoundOp>,
+    },
+    /// An action started and its operations were activated.
+    ActionStarted {
+        /// Action name.
+        action: String,
+        /// When, in ms since the run began.
+        run_ms: u64,
+        /// Its operations, in the mission's order.
+        operations: Vec<OpStarted>,
+    },
+    /// An operation's part in the running action ended (finished, suspended, failed, lost,
+    /// unresponsive).
+    OpEnded {
+        /// Action name.
+        action: String,
+        /// The operation as the action names it (name or id).
+        key: String,
+        /// How its part ended.
+        ended: OpEnd,
+        /// The mission's flags it raised.
+        flags: Vec<String>,
+    },
+    /// An action ended.
+    ActionEnded {
+        /// Action name.
+        action: String,
+        /// When, in ms since the run began.
+        run_ms: u64,
+        /// The status word after it, as names.
+        flags: Vec<String>,
+        /// The status word after it.
+        status: u32,
+    },
+    /// The run ended; the dispatcher's verdict (a node may judge further, [`Judged`](Self::Judged)).
+    RunEnded {
+        /// Outcome.
+        outcome: Outcome,
+        /// Why it failed (empty on success).
+        reason: String,
+        /// When, in ms since the run began: the run's duration.
+        run_ms: u64,
+        /// Final status word.
+        status: u32,
+        /// Final status word, as names.
+        flags: Vec<String>,
+    },
+    // --- bindings ---
+    /// A bound operation's instance was lost; the dispatcher looks for a stand-in.
+    Lost {
+        /// Operation name.
+        operation: String,
+        /// Why.
+        cause: LossCause,
+    },
+    /// A lost operation is bound again.
+    Rebound(RebindRecord),
+    /// No stand-in appeared within the rebind deadline: the run comes to a full stop.
+    RebindGaveUp {
+        /// Operation name.
+        operation: String,
+        /// Why it was lost.
+        cause: LossCause,
+        /// How long the dispatcher waited, in ms.
+        waited_ms: u64,
+    },
+    // --- registry ---
+    /// A module published itself in the location table.
+    Joined(ModuleInfo),
+    /// A module left the location table (it died, or withdrew).
+    Left(ModuleInfo),
+    // --- supervisors (plain data: the node translates its supervisors' events) ---
+    /// A supervisor started a child for the first time.
+    ChildStarted {
+        /// The supervisor's id (its name in the node's tree).
+        supervisor: String,
+        /// The child's id.
+        child: String,
+        /// The new incarnation's actor address.
+        actor: String,
+    },
+    /// A child stopped by itself.
+    ChildExited {
+        /// The supervisor's id.
+        supervisor: String,
+        /// The child's id.
+        child: String,
+        /// Its exit reason, as text.
+        reason: String,
+    },
+    /// A supervisor started a child again.
+    ChildRestarted {
+        /// The supervisor's id.
+        supervisor: String,
+        /// The child's id.
+        child: String,
+        /// The new incarnation's actor address.
+        actor: String,
+        /// How many times the child was restarted, this time included.
+        restarts: u32,
+        /// Why, as text.
+        reason: String,
+    },
+    /// A supervisor gave up (restart intensity exceeded) and stopped.
+    SupervisorGaveUp {
+        /// The supervisor's id.
+        supervisor: String,
+        /// Why, as text.
+        reason: String,
+    },
+    // --- faults injected on purpose ---
+    /// A fault was injected.
+    FaultInjected {
+        /// When, in ms since the run began.
+        run_ms: u64,
+        /// What.
+        fault: FaultKind,
+        /// The operation it was meant for (name or id, as asked).
+        operation: String,
+        /// The instance that got it.
+        actor: String,
+    },
+    /// A fault could not be injected.
+    FaultNotInjected {
+        /// When, in ms since the run began.
+        run_ms: u64,
+        /// What.
+        fault: FaultKind,
+        /// The operation it was meant for.
+        operation: String,
+        /// Why not.
+        why: String,
+    },
+    // --- the robot ---
+    /// The world judged the robot's final state (fills a report's robot fields; its outcome
+    /// replaces the dispatcher's).
+    Judged {
+        /// Outcome after judgement.
+        outcome: Outcome,
+        /// Why it failed (empty on success).
+        reason: String,
+        /// Final pose `[x, y, heading]`.
+        final_pose: Option<[f64; 3]>,
+        /// Collisions counted.
+        collisions: Option<u64>,
+        /// Seed of the simulation.
+        seed: Option<u64>,
+        /// Whether the footprint ended inside the goal area.
+        inside_goal: Option<bool>,
+        /// The world's verdict.
+        judgement: Option<String>,
+    },
+    /// Anything else a robot reports (a collision, a dock found): `what` names it, `data`
+    /// holds it as JSON.
+    Robot {
+        /// What happened, e.g. `collision`.
+        what: String,
+        /// Its details.
+        data: serde_json::Value,
+    },
+}
+
+/// An operation instance a binding holds.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct BoundOp {
+    /// Operation name.
+    pub name: String,
+    /// Version of the instance.
+    pub version: String,
+    /// Node it runs on.
+    pub node: String,
+}
+
+/// An operation an action activates, and the instance that runs it.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct OpStarted {
+    /// The operation as the action names it (name or id).
+    pub key: String,
+    /// Operation name.
+    pub name: String,
+    /// Numeric id.
+    pub id: u32,
+    /// Version of the instance.
+    pub version: String,
+    /// Node it runs on.
+    pub node: String,
+    /// Actor address of the instance.
+    pub address: String,
+}
+
+/// A module in the location table, as plain data.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ModuleInfo {
+    /// Kind of module.
+    pub module: ModuleKind,
+    /// Module name.
+    pub name: String,
+    /// Numeric id.
+    pub id: u32,
+    /// Node it runs on.
+    pub node: String,
+    /// Actor address.
+    pub address: String,
+}
+
+impl From<&Instance> for ModuleInfo {
+    fn from(inst: &Instance) -> ModuleInfo {
+        ModuleInfo {
+            module: inst.kind,
+            name: inst.name.clone(),
+            id: inst.id,
+            node: inst.node.clone(),
+            address: inst.actor.get_id().to_string(),
+        }
+    }
+}

@@ -1,0 +1,120 @@
+//! One event stream: every dispatcher, binding, registry, supervisor, fault and robot event
+//! as a typed, serializable value on the node's [`EventBus`] (DESIGN.md §6).
+//!
+//! The live lines, the run report, `--events` files, a remote dispatcher and the monitor all
+//! read the same stream. The report can be rebuilt from it
+//! ([`RunReport::from_events`](crate::dispatcher::RunReport::from_events)): the dispatcher
+//! assembles its own report from the events it publishes
+//! ([`ReportBuilder`](crate::dispatcher::ReportBuilder)), so the two cannot disagree — and
+//! while the report keeps only the latest rebinds and faults, the stream has them all.
+//!
+//! # JSON schema (`.jsonl`: one event per line)
+//!
+//! Every line is an object `{"at_ms": u64, "node": string, "kind": {...}}`: `at_ms` is the
+//! node's mission clock in ms when the event was published, `node` the node's name, and
+//! `kind` the [`EventKind`], an object whose `type` names it (snake_case, stable) and whose
+//! other fields are the kind's. Times inside a kind (`run_ms`) are ms since its run began.
+//! Loss causes are objects tagged by `type` too ([`LossCause`](crate::dispatcher::LossCause));
+//! `ended` is `running|finished|suspended|failed|lost|unresponsive`, `outcome`
+//! `succeeded|failed`, `fault` `kill|panic|hang`. One example line per kind:
+//!
+//! ```json
+//! {"at_ms":1200,"node":"marie@localhost","kind":{"type":"run_started","mission":"docking"}}
+//! {"at_ms":1250,"node":"marie@localhost","kind":{"type":"bound","operations":[{"name":"wall-follower","version":"1.0.0","node":"marie@localhost"}]}}
+//! {"at_ms":1260,"node":"marie@localhost","kind":{"type":"action_started","action":"follow","run_ms":60,"operations":[{"key":"wall-follower","name":"wall-follower","id":1512,"version":"1.0.0","node":"marie@localhost","address":"0.41"}]}}
+//! {"at_ms":9800,"node":"marie@localhost","kind":{"type":"op_ended","action":"follow","key":"wall-follower","ended":"suspended","flags":[]}}
+//! {"at_ms":9810,"node":"marie@localhost","kind":{"type":"action_ended","action":"follow","run_ms":8610,"flags":["dock_found"],"status":4}}
+//! {"at_ms":30000,"node":"marie@localhost","kind":{"type":"run_ended","outcome":"succeeded","reason":"","run_ms":28800,"status":12,"flags":["dock_found","parked"]}}
+//! {"at_ms":5000,"node":"marie@localhost","kind":{"type":"lost","operation":"wall-follower","cause":{"type":"died_in_action","action":"follow"}}}
+//! {"at_ms":5001,"node":"marie@localhost","kind":{"type":"rebound","operation":"wall-follower","cause":{"type":"died_in_action","action":"follow"},"from":"0.41","to":"0.57","downtime_ms":1}}
+//! {"at_ms":8000,"node":"marie@localhost","kind":{"type":"rebind_gave_up","operation":"planner","cause":{"type":"hung","deadline_ms":300},"waited_ms":3000}}
+//! {"at_ms":100,"node":"marie@localhost","kind":{"type":"joined","module":"Operation","name":"wall-follower","id":1512,"node":"marie@localhost","address":"0.41"}}
+//! {"at_ms":5000,"node":"marie@localhost","kind":{"type":"left","module":"Operation","name":"wall-follower","id":1512,"node":"marie@localhost","address":"0.41"}}
+//! {"at_ms":90,"node":"marie@localhost","kind":{"type":"child_started","supervisor":"operations","child":"wall-follower","actor":"0.41"}}
+//! {"at_ms":5000,"node":"marie@localhost","kind":{"type":"child_exited","supervisor":"operations","child":"wall-follower","reason":"killed"}}
+//! {"at_ms":5001,"node":"marie@localhost","kind":{"type":"child_restarted","supervisor":"operations","child":"wall-follower","actor":"0.57","restarts":1,"reason":"killed"}}
+//! {"at_ms":9000,"node":"marie@localhost","kind":{"type":"supervisor_gave_up","supervisor":"operations","reason":"reached_max_restart_intensity"}}
+//! {"at_ms":5000,"node":"marie@localhost","kind":{"type":"fault_injected","run_ms":3800,"fault":"kill","operation":"wall-follower","actor":"0.41"}}
+//! {"at_ms":6000,"node":"marie@localhost","kind":{"type":"fault_not_injected","run_ms":4800,"fault":"hang","operation":"nobody","why":"no operation `nobody` is running"}}
+//! {"at_ms":30001,"node":"marie@localhost","kind":{"type":"judged","outcome":"succeeded","reason":"","final_pose":[1.5,0.25,0.01],"collisions":0,"seed":7,"inside_goal":true,"judgement":"success: inside the goal area"}}
+//! {"at_ms":4000,"node":"marie@localhost","kind":{"type":"robot","what":"collision","data":{"x":1.0,"y":2.0}}}
+//! ```
+//!
+//! (A test reads these lines back and writes them again, so they stay exact.)
+//!
+//! # Invariants
+//! - Publishing never blocks: the bus is bounded, a slow subscriber loses the oldest events
+//!   and is told how many ([`BusError::Lagged`]).
+//! - Every event of a node carries the node's clock and name, stamped by the bus.
+//! - The supervision crate knows nothing of this module: a node translates its supervisors'
+//!   events into the plain-data supervisor kinds.
+
+mod bus;
+mod kind;
+mod registry_bridge;
+
+pub use bus::{BusError, EventBus, EventSubscription, DEFAULT_CAPACITY};
+pub use kind::{BoundOp, EventKind, ModuleInfo, OpStarted};
+pub use registry_bridge::{bridge_registry, RegistryBridge};
+
+use serde::{Deserialize, Serialize};
+
+/// One event: what happened ([`EventKind`]), on which node, at which mission clock time.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Event {
+    /// The node's mission clock when it was published, in ms.
+    pub at_ms: u64,
+    /// The node that published it.
+    pub node: String,
+    /// What happened.
+    pub kind: EventKind,
+}
+
+impl Event {
+    /// The event as one line of a `.jsonl` file (no newline).
+    pub fn to_json_line(&self) -> Result<String, serde_json::Error> {
+        serde_json::to_string(self)
+    }
+
+    /// Read one line of a `.jsonl` file.
+    pub fn from_json_line(line: &str) -> Result<Event, serde_json::Error> {
+        serde_json::from_str(line)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::collections::BTreeSet;
+
+    /// The example lines of the module docs.
+    fn doc_examples() -> Vec<String> {
+        let src = include_str!("mod.rs");
+        src.lines()
+            .skip_while(|l| *l != "//! ```json")
+            .skip(1)
+            .take_while(|l| *l != "//! ```")
+            .map(|l| l.trim_start_matches("//! ").to_string())
+            .collect()
+    }
+
+    #[test]
+    fn every_kind_has_a_documented_line_that_reads_and_writes_back_exactly() {
+        let lines = doc_examples();
+        let mut types = BTreeSet::new();
+        for line in &lines {
+            let event = Event::from_json_line(line).unwrap_or_else(|e| panic!("{line}: {e}"));
+            assert_eq!(&event.to_json_line().unwrap(), line);
+            let bytes = crate::wire::encode(&event).unwrap();
+            assert_eq!(
+                crate::wire::decode::<Event>(&bytes).unwrap(),
+                event,
+                "{line}"
+            );
+            let value: serde_json::Value = serde_json::from_str(line).unwrap();
+            types.insert(value["kind"]["type"].as_str().unwrap().to_string());
+        }
+        assert_eq!(types.len(), lines.len(), "one line per kind");
+        assert_eq!(lines.len(), 19, "every kind is documented");
+    }
+}

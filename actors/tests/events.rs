@@ -1,0 +1,177 @@
+//! The event stream, end to end: the registry bridge on a bus, and a report rebuilt from the
+//! events of a run that had faults and a judgement.
+
+use marie_actors::clock::{Clock, ManualClock, RealClock};
+use marie_actors::dispatcher::{
+    FaultRecord, LossCause, OpEnd, Outcome, RebindRecord, ReportBuilder, RunReport, REPORT_KEEPS,
+};
+use marie_actors::eo::{
+    spawn_operation, EoMsg, FaultKind, HostOptions, Identity, OpContext, OpError, Operation, Step,
+};
+use marie_actors::events::{bridge_registry, EventBus, EventKind, ModuleInfo, OpStarted};
+use marie_actors::property::ParamSchema;
+use marie_actors::registry::ModuleKind;
+use ractor::ActorRef;
+use std::sync::Arc;
+use std::time::Duration;
+use tokio::time::timeout;
+
+const T: Duration = Duration::from_secs(30);
+
+struct Idle;
+
+impl Operation for Idle {
+    fn identity(&self) -> Identity {
+        Identity::new("bridge-op", 9101, "1.0.0", "does nothing")
+    }
+    fn parameters(&self) -> ParamSchema {
+        ParamSchema::new(Vec::new())
+    }
+    async fn step(&mut self, _: &mut OpContext) -> Result<Step, OpError> {
+        Ok(Step::Continue)
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_registry_bridge_publishes_joins_and_leaves() {
+    let bus = EventBus::new("bridge-node", RealClock::shared());
+    let mut events = bus.subscribe();
+    let bridge = bridge_registry(bus.clone(), Some(ModuleKind::Operation))
+        .await
+        .expect("bridge");
+    let (actor, _): (ActorRef<EoMsg>, _) = spawn_operation(Idle, HostOptions::default())
+        .await
+        .expect("spawn");
+    let expected = |info: &ModuleInfo| {
+        info.module == ModuleKind::Operation
+            && (info.name.as_str(), info.id) == ("bridge-op", 9101)
+            && info.address == actor.get_id().to_string()
+    };
+    let joined = timeout(T, async {
+        loop {
+            let e = events.recv().await.expect("events");
+            if let EventKind::Joined(info) = &e.kind {
+                if expected(info) {
+                    return e;
+                }
+            }
+        }
+    })
+    .await
+    .expect("a join in time");
+    assert_eq!(joined.node, "bridge-node");
+    actor.stop(None);
+    timeout(T, async {
+        loop {
+            match events.recv().await.expect("events").kind {
+                EventKind::Left(info) if expected(&info) => return,
+                _ => {}
+            }
+        }
+    })
+    .await
+    .expect("a leave in time");
+    drop(bridge);
+}
+
+#[tokio::test]
+async fn a_report_is_rebuilt_with_its_faults_judgement_and_latest_rebinds() {
+    let clock = Arc::new(ManualClock::new());
+    let bus = EventBus::new("n", clock.clone());
+    let mut sub = bus.subscribe();
+    let op = OpStarted {
+        key: "op".into(),
+        name: "op".into(),
+        id: 7,
+        version: "1.0.0".into(),
+        node: "n".into(),
+        address: "0.1".into(),
+    };
+    let rebind = |i: u64| RebindRecord {
+        operation: "op".into(),
+        cause: LossCause::Gone,
+        from: format!("0.{i}"),
+        to: format!("0.{}", i + 1),
+        downtime_ms: 1,
+    };
+    bus.publish(EventKind::RunStarted {
+        mission: "m".into(),
+    });
+    bus.publish(EventKind::ActionStarted {
+        action: "a".into(),
+        run_ms: 0,
+        operations: vec![op],
+    });
+    for i in 1..=150 {
+        clock.advance(Duration::from_millis(1));
+        bus.publish(EventKind::Rebound(rebind(i)));
+    }
+    bus.publish(EventKind::FaultInjected {
+        run_ms: 5,
+        fault: FaultKind::Kill,
+        operation: "op".into(),
+        actor: "0.1".into(),
+    });
+    bus.publish(EventKind::FaultNotInjected {
+        run_ms: 6,
+        fault: FaultKind::Hang,
+        operation: "ghost".into(),
+        why: "no operation `ghost` is running".into(),
+    });
+    bus.publish(EventKind::RunEnded {
+        outcome: Outcome::Succeeded,
+        reason: String::new(),
+        run_ms: clock.now().as_millis() as u64,
+        status: 1,
+        flags: vec!["done".into()],
+    });
+    bus.publish(EventKind::Judged {
+        outcome: Outcome::Failed,
+        reason: "outside the goal area".into(),
+        final_pose: Some([1.0, 2.0, 0.5]),
+        collisions: Some(0),
+        seed: Some(3),
+        inside_goal: Some(false),
+        judgement: Some("failure: outside the goal area".into()),
+    });
+    let events = sub.drain();
+    let report = RunReport::from_events(&events);
+    assert_eq!(report.mission, "m");
+    assert_eq!(
+        (report.outcome, report.reason.as_str()),
+        (Outcome::Failed, "outside the goal area")
+    );
+    assert_eq!(report.final_pose, Some([1.0, 2.0, 0.5]));
+    assert_eq!(
+        (report.rebinds_total, report.rebinds.len()),
+        (150, REPORT_KEEPS)
+    );
+    assert_eq!(report.rebinds.last(), Some(&rebind(150)));
+    let action = &report.actions[0];
+    assert_eq!((action.start_ms, action.end_ms, action.status), (0, 150, 1));
+    // the action's operation was still running at the end, by the last stand-in
+    assert_eq!(action.operations[0].ended, OpEnd::Running);
+    assert_eq!(action.operations[0].address, "0.151");
+    assert_eq!(report.faults_total, 2);
+    assert_eq!(
+        report.faults[1],
+        FaultRecord {
+            at_ms: 6,
+            fault: FaultKind::Hang,
+            operation: "ghost".into(),
+            actor: String::new(),
+            error: Some("no operation `ghost` is running".into()),
+        }
+    );
+    // a builder fed the same events agrees, and a new run starts over
+    let mut builder = ReportBuilder::new();
+    for e in &events {
+        builder.apply(&e.kind);
+    }
+    assert_eq!(builder.report(), &report);
+    builder.apply(&EventKind::RunStarted {
+        mission: "next".into(),
+    });
+    assert_eq!(builder.report().actions.len(), 0);
+    assert_eq!(builder.finish().mission, "next");
+}

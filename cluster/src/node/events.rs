@@ -1,0 +1,139 @@
+//! The node's supervisors on its event bus: every supervisor event of the node's tree,
+//! translated into plain [`EventKind`]s (the supervision crate knows no bus), so that the
+//! live lines, the `--events` file and a remote monitor see restarts and give-ups as they
+//! happen.
+
+use marie_actors::events::{EventBus, EventKind};
+use marie_supervision::{RestartCause, SupervisorEvent, SupervisorRef};
+use tokio::sync::broadcast::{self, error::RecvError};
+use tokio::task::JoinHandle;
+
+/// The bus form of a supervisor event of supervisor `supervisor`; `None` for the
+/// bookkeeping steps nobody outside needs (scheduled restarts, deletions, the final stop).
+pub(crate) fn translate(supervisor: &str, event: &SupervisorEvent) -> Option<EventKind> {
+    let supervisor = supervisor.to_string();
+    Some(match event {
+        SupervisorEvent::ChildStarted { id, actor } => EventKind::ChildStarted {
+            supervisor,
+            child: id.clone(),
+            actor: actor.get_id().to_string(),
+        },
+        SupervisorEvent::ChildExited { id, reason, .. } => EventKind::ChildExited {
+            supervisor,
+            child: id.clone(),
+            reason: reason.to_string(),
+        },
+        SupervisorEvent::ChildRestarted {
+            id,
+            new,
+            cause,
+            restarts,
+            ..
+        } => EventKind::ChildRestarted {
+            supervisor,
+            child: id.clone(),
+            actor: new.get_id().to_string(),
+            restarts: *restarts,
+            reason: match cause {
+                RestartCause::Exited(reason) => reason.to_string(),
+                RestartCause::Sibling(sibling) => format!("restarted with `{sibling}`"),
+                RestartCause::Manual => "restarted on request".to_string(),
+            },
+        },
+        SupervisorEvent::RestartFailed { id, error } => EventKind::ChildExited {
+            supervisor,
+            child: id.clone(),
+            reason: format!("restart failed: {error}"),
+        },
+        SupervisorEvent::IntensityExceeded {
+            max_restarts,
+            period,
+        } => EventKind::SupervisorGaveUp {
+            supervisor,
+            reason: format!(
+                "more than {max_restarts} restarts within {:.1}s",
+                period.as_secs_f64()
+            ),
+        },
+        SupervisorEvent::ChildShutdown { .. }
+        | SupervisorEvent::RestartScheduled { .. }
+        | SupervisorEvent::ChildIgnored { .. }
+        | SupervisorEvent::ChildDeleted { .. }
+        | SupervisorEvent::Stopped { .. } => return None,
+    })
+}
+
+/// Publish the events of `root` and of every supervisor below it on `bus`, following
+/// supervisors that are restarted (a restart is a new actor with a new event stream). The
+/// returned tasks end when their supervisors stop.
+pub(crate) async fn bridge_supervisors(
+    bus: &EventBus,
+    root: &SupervisorRef,
+) -> Vec<JoinHandle<()>> {
+    let mut tasks = Vec::new();
+    if let Ok(children) = root.which_children().await {
+        for child in children {
+            let Some(sup) = child
+                .state
+                .actor()
+                .cloned()
+                .and_then(SupervisorRef::from_cell)
+            else {
+                continue;
+            };
+            if let Ok(rx) = sup.subscribe().await {
+                tasks.push(tokio::spawn(relay(bus.clone(), child.id, rx)));
+            }
+        }
+    }
+    if let Ok(rx) = root.subscribe().await {
+        tasks.push(tokio::spawn(relay_root(bus.clone(), rx)));
+    }
+    tasks
+}
+
+/// Relay one supervisor's events until it stops.
+async fn relay(bus: EventBus, name: String, mut rx: broadcast::Receiver<SupervisorEvent>) {
+    loop {
+        match rx.recv().await {
+            Ok(event) => {
+                if let Some(kind) = translate(&name, &event) {
+                    bus.publish(kind);
+                }
+            }
+            Err(RecvError::Lagged(missed)) => {
+                tracing::warn!(supervisor = %name, missed, "supervisor events lost on the bus");
+            }
+            Err(RecvError::Closed) => return,
+        }
+    }
+}
+
+/// Relay the root's events, and start relaying each child supervisor it (re)starts.
+async fn relay_root(bus: EventBus, mut rx: broadcast::Receiver<SupervisorEvent>) {
+    loop {
+        match rx.recv().await {
+            Ok(event) => {
+                if let Some(kind) = translate("node", &event) {
+                    bus.publish(kind);
+                }
+                let started = match &event {
+                    SupervisorEvent::ChildStarted { id, actor } => Some((id, actor)),
+                    SupervisorEvent::ChildRestarted { id, new, .. } => Some((id, new)),
+                    _ => None,
+                };
+                if let Some((id, cell)) = started {
+                    if let Some(sup) = SupervisorRef::from_cell(cell.clone()) {
+                        if let Ok(sub) = sup.subscribe().await {
+                            tokio::spawn(relay(bus.clone(), id.clone(), sub));
+                        }
+                    }
+                }
+            }
+            Err(RecvError::Lagged(missed)) => {
+                tracing::warn!(missed, "root supervisor events lost on the bus");
+            }
+            Err(RecvError::Closed) => return,
+        }
+    }
+}
