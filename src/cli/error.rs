@@ -1,0 +1,32 @@
+//! How a failed command ends: bad input is exit 2 (DESIGN.md §8), everything else exit 1.
+
+use marie::actors::dispatcher::mission::Diagnostics;
+use marie::node::NodeError;
+use std::process::ExitCode;
+
+/// Input the command refuses (a flag, a file, a name): exit 2.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct BadInput(pub String);
+
+/// A world file that does not load: its diagnostics (exit 2).
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct WorldFile(pub Diagnostics);
+
+/// Print `e` on stderr and give its exit code.
+pub fn report(e: &anyhow::Error) -> ExitCode {
+    if let Some(NodeError::Mission(diags)) = e.downcast_ref::<NodeError>() {
+        eprintln!("{diags}");
+        return ExitCode::from(2);
+    }
+    if let Some(WorldFile(diags)) = e.downcast_ref::<WorldFile>() {
+        eprintln!("{diags}");
+        return ExitCode::from(2);
+    }
+    eprintln!("marie: {e:#}");
+    if e.downcast_ref::<BadInput>().is_some() {
+        return ExitCode::from(2);
+    }
+    ExitCode::from(1)
+}

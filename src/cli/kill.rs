@@ -1,0 +1,82 @@
+//! `marie kill NAME|ID`: kill an operation on the embedded node and watch its supervisor
+//! restart it.
+
+use super::args::RobotArgs;
+use super::error::{BadInput, WorldFile};
+use marie::actors::registry::{self, ModuleKind};
+use marie::missions::world::World;
+use marie::node::{Node, NodeOptions};
+use marie::supervision::fault::{self, FaultKind};
+use marie::supervision::SupervisorEvent;
+use std::process::ExitCode;
+
+/// Flags of `marie kill`.
+#[derive(clap::Args, Debug)]
+pub struct KillArgs {
+    /// Operation name or numeric id.
+    pub operation: String,
+    #[command(flatten)]
+    pub robot: RobotArgs,
+}
+
+/// Start the embedded node, kill the operation's live instance and wait for the operation
+/// supervisor to restart it.
+pub async fn kill(args: KillArgs) -> anyhow::Result<ExitCode> {
+    let KillArgs { operation, robot } = args;
+    let world = match &robot.world {
+        Some(p) => Some(World::load(p).map_err(WorldFile)?),
+        None => None,
+    };
+    let node = Node::start(NodeOptions {
+        world,
+        seed: robot.seed,
+        ..Default::default()
+    })
+    .await?;
+    let result = kill_on(&node, &operation).await;
+    node.shutdown().await;
+    result
+}
+
+async fn kill_on(node: &Node, operation: &str) -> anyhow::Result<ExitCode> {
+    let Some(inst) = registry::lookup(ModuleKind::Operation, operation)
+        .into_iter()
+        .next()
+    else {
+        return Err(BadInput(format!(
+            "no operation `{operation}` is running (`marie ls` lists them)"
+        ))
+        .into());
+    };
+    let supervisor = node.operation_supervisor().await?;
+    let mut events = supervisor.subscribe().await?;
+    let started = std::time::Instant::now();
+    let done = fault::inject_into(FaultKind::Kill, &inst)?;
+    println!("killed {} ({}) at {}", inst.name, inst.id, done.actor);
+    let restarted = tokio::time::timeout(std::time::Duration::from_secs(10), async {
+        loop {
+            match events.recv().await {
+                Ok(SupervisorEvent::ChildRestarted { old, new, .. }) if old == Some(done.actor) => {
+                    return Some(new)
+                }
+                Ok(_) | Err(tokio::sync::broadcast::error::RecvError::Lagged(_)) => {}
+                Err(_) => return None,
+            }
+        }
+    })
+    .await;
+    match restarted {
+        Ok(Some(new)) => {
+            println!(
+                "restarted by the operation supervisor as {} after {:.2} ms",
+                new.get_id(),
+                started.elapsed().as_secs_f64() * 1000.0
+            );
+            Ok(ExitCode::SUCCESS)
+        }
+        _ => {
+            println!("not restarted within 10 s");
+            Ok(ExitCode::from(1))
+        }
+    }
+}

@@ -1,0 +1,140 @@
+//! `marie run MISSION`: run a mission on the embedded node, print its progress and outcome,
+//! write the report and the picture.
+
+use super::args::{parse_speed, RobotArgs};
+use super::error::BadInput;
+use super::output::{outcome_line, print_event, print_faults};
+use super::prepare::{prepare, Prepared};
+use anyhow::Context;
+use marie::actors::dispatcher::{Outcome, RunReport};
+use marie::actors::registry::{self, ModuleKind};
+use marie::faults::FaultPlan;
+use marie::supervision::fault::{Chaos, FaultSpec};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use tokio::sync::mpsc;
+
+/// Flags of `marie run`.
+#[derive(clap::Args, Debug)]
+pub struct RunArgs {
+    /// Mission file (TOML task tree).
+    pub mission: PathBuf,
+    #[command(flatten)]
+    pub robot: RobotArgs,
+    /// Write the run report (JSON) here.
+    #[arg(long, value_name = "FILE")]
+    pub report: Option<PathBuf>,
+    /// Draw the robot's run (walls, driven path, sonar echoes, segments, followed wall,
+    /// detected dock, planned path, final footprint) as an SVG picture here. Needs a world.
+    #[arg(long, value_name = "FILE.svg")]
+    pub svg: Option<PathBuf>,
+    /// Clock speed: a factor of real time (`1` is real time), or `max`: virtual time, as
+    /// fast as the CPU allows (the default).
+    #[arg(long, default_value = "max", value_parser = parse_speed)]
+    pub speed: f64,
+    /// Inject a fault while the mission runs: `kill:NAME@SECS`, `panic:NAME@SECS` or
+    /// `hang:NAME@SECS` (NAME: operation name or id; SECS: mission time). Repeatable.
+    #[arg(long = "fault", value_name = "KIND:NAME@SECS")]
+    pub faults: Vec<FaultSpec>,
+    /// Kill a random operation of the running action every 4 to 12 s of mission time,
+    /// picked by a generator seeded with SEED.
+    #[arg(long, value_name = "SEED")]
+    pub chaos: Option<u64>,
+}
+
+/// Pixels per metre of `--svg` pictures.
+const SVG_SCALE: f64 = 50.0;
+
+/// Run the mission; exit 0 when it succeeded and every output was written, else 1.
+pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
+    let RunArgs {
+        mission: path,
+        robot,
+        report: report_path,
+        svg: svg_path,
+        speed,
+        faults,
+        chaos,
+    } = args;
+    let plan = FaultPlan {
+        faults,
+        chaos: chaos.map(Chaos::new),
+    };
+    // on the paused-clock runtime, the runtime's own time is already virtual
+    let speed = if speed.is_infinite() { 1.0 } else { speed };
+    let prepared = prepare(&path, robot, speed).await?;
+    if svg_path.is_some() && prepared.node.world().is_none() {
+        prepared.node.shutdown().await;
+        return Err(BadInput(format!(
+            "--svg draws a robot's run, but no robot runs: give a world with --world FILE \
+             or `world = \"...\"` in the `[mission]` of {}",
+            path.display()
+        ))
+        .into());
+    }
+    println!(
+        "mission `{}` ({} actions) from {}",
+        prepared.mission.name,
+        prepared.mission.actions.len(),
+        path.display()
+    );
+    if let Some(line) = prepared.world_line() {
+        println!("{line}");
+    }
+    for f in &plan.faults {
+        if registry::lookup(ModuleKind::Operation, &f.target).is_empty() {
+            prepared.node.shutdown().await;
+            return Err(BadInput(format!(
+                "--fault {f}: no operation `{}` is running (`marie ls` lists them)",
+                f.target
+            ))
+            .into());
+        }
+    }
+    let Prepared { node, mission, .. } = prepared;
+    let (tx, mut rx) = mpsc::unbounded_channel();
+    let printer = tokio::spawn(async move {
+        while let Some(evt) = rx.recv().await {
+            print_event(&evt);
+        }
+    });
+    let report = node.run_with_faults(mission, Some(tx), plan).await;
+    let _ = printer.await;
+    let picture = match (&report, &svg_path) {
+        (Ok(report), Some(_)) => node.picture(report).await,
+        _ => None,
+    };
+    let world = node.world().cloned();
+    node.shutdown().await;
+    let report = report?;
+    print_faults(&report);
+    if world.is_some() {
+        println!("{}", outcome_line(&report));
+    }
+
+    // Write every output asked for, even when one of them cannot be written.
+    let mut written = true;
+    if let Some(p) = &report_path {
+        if let Err(e) = write_report(p, &report) {
+            eprintln!("marie: {e:#}");
+            written = false;
+        }
+    }
+    if let (Some(p), Some(picture), Some(world)) = (&svg_path, &picture, &world) {
+        let svg = picture.render(world, SVG_SCALE);
+        if let Err(e) = std::fs::write(p, svg) {
+            eprintln!("marie: cannot write the picture to {}: {e}", p.display());
+            written = false;
+        }
+    }
+    Ok(match (report.outcome, written) {
+        (Outcome::Succeeded, true) => ExitCode::SUCCESS,
+        _ => ExitCode::from(1),
+    })
+}
+
+fn write_report(path: &Path, report: &RunReport) -> anyhow::Result<()> {
+    let json = serde_json::to_string_pretty(report)?;
+    std::fs::write(path, json + "\n")
+        .with_context(|| format!("cannot write the report to {}", path.display()))
+}

@@ -1,0 +1,40 @@
+//! The tokio runtime a command runs on, and its diagnostics (tracing on stderr).
+
+use clap::ValueEnum;
+
+/// Diagnostics format on stderr.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum LogFormat {
+    /// Human-readable lines.
+    Text,
+    /// One JSON object per line.
+    Json,
+}
+
+/// The runtime: multi-threaded in real (or scaled) time; for `--speed max` a single thread
+/// with tokio's paused clock, which jumps to the next timer whenever every actor is idle.
+pub fn build(speed: f64) -> std::io::Result<tokio::runtime::Runtime> {
+    if speed.is_infinite() {
+        tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .start_paused(true)
+            .build()
+    } else {
+        tokio::runtime::Builder::new_multi_thread()
+            .enable_all()
+            .build()
+    }
+}
+
+/// Diagnostics on stderr, filtered by `RUST_LOG` (default `warn`).
+pub fn init_tracing(format: LogFormat) {
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn"));
+    let builder = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr);
+    match format {
+        LogFormat::Text => builder.init(),
+        LogFormat::Json => builder.json().init(),
+    }
+}
