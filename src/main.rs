@@ -12,7 +12,7 @@ use std::process::ExitCode;
 fn main() -> ExitCode {
     let cli = cli::Cli::parse();
     cli::runtime::init_tracing(cli.log_format);
-    let runtime = match cli::runtime::build(cli.command.speed()) {
+    let runtime = match cli::runtime::build(cli.command.virtual_time()) {
         Ok(rt) => rt,
         Err(e) => {
             eprintln!("marie: cannot start the runtime: {e}");

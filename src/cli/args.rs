@@ -14,16 +14,24 @@ pub struct RobotArgs {
     pub seed: u64,
 }
 
-/// `--speed max`: virtual time, as fast as the CPU allows.
+/// `--speed max`: as fast as the CPU allows.
 pub const MAX_SPEED: f64 = f64::INFINITY;
 
-/// `--speed X|max`.
+/// The slowest `--speed`: a hundredth of real time (slower is a stall, not a run).
+pub const SLOWEST: f64 = 0.01;
+
+/// The fastest `--speed` factor; beyond it a factor means `max` and should say so.
+pub const FASTEST: f64 = 1_000_000.0;
+
+/// `--speed X|max`: X a factor of real time from [`SLOWEST`] to [`FASTEST`].
 pub fn parse_speed(s: &str) -> Result<f64, String> {
     if s == "max" {
         return Ok(MAX_SPEED);
     }
     match s.parse::<f64>() {
-        Ok(x) if x.is_finite() && x > 0.0 => Ok(x),
-        _ => Err(format!("expected a positive number or `max`, got {s:?}")),
+        Ok(x) if (SLOWEST..=FASTEST).contains(&x) => Ok(x),
+        _ => Err(format!(
+            "expected a factor of real time from {SLOWEST} to {FASTEST}, or `max`, got {s:?}"
+        )),
     }
 }

@@ -17,7 +17,7 @@ pub struct CheckArgs {
 /// Check the mission against the operations of a freshly started node.
 pub async fn check(args: CheckArgs) -> anyhow::Result<ExitCode> {
     let CheckArgs { mission, robot } = args;
-    let prepared = prepare(&mission, robot, 1.0).await?;
+    let prepared = prepare(&mission, robot).await?;
     let m = &prepared.mission;
     println!(
         "{}: ok — mission `{}`, {} actions, {} operations{}",

@@ -47,12 +47,10 @@ pub enum Command {
 }
 
 impl Command {
-    /// The clock speed the verb runs at (only `run` has a choice).
-    pub fn speed(&self) -> f64 {
-        match self {
-            Command::Run(args) => args.speed,
-            _ => 1.0,
-        }
+    /// True when the verb runs in virtual time (see [`runtime::build`]): a mission run,
+    /// whose outcome must not depend on its speed.
+    pub fn virtual_time(&self) -> bool {
+        matches!(self, Command::Run(_))
     }
 
     /// Do what the verb says.

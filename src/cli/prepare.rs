@@ -35,7 +35,7 @@ impl Prepared {
 
 /// Parse the mission, load its world (`--world`, else the mission's `world`, else none),
 /// start the node (with the robot when there is a world) and check the mission against it.
-pub async fn prepare(path: &Path, robot: RobotArgs, speed: f64) -> anyhow::Result<Prepared> {
+pub async fn prepare(path: &Path, robot: RobotArgs) -> anyhow::Result<Prepared> {
     let parsed = Mission::parse_file(path).map_err(NodeError::Mission)?;
     let world_path = robot
         .world
@@ -44,8 +44,8 @@ pub async fn prepare(path: &Path, robot: RobotArgs, speed: f64) -> anyhow::Resul
         Some(p) => Some(World::load(p).map_err(WorldFile)?),
         None => None,
     };
+    // speed 1: the node's clock is the runtime's (virtual in `run`, paced there)
     let node = Node::start(NodeOptions {
-        speed,
         world,
         seed: robot.seed,
         ..Default::default()

@@ -6,6 +6,7 @@ use super::error::BadInput;
 use super::output::{outcome_line, print_event, print_faults};
 use super::prepare::{prepare, Prepared};
 use anyhow::Context;
+use marie::actors::clock::Pacer;
 use marie::actors::dispatcher::{Outcome, RunReport};
 use marie::actors::registry::{self, ModuleKind};
 use marie::faults::FaultPlan;
@@ -28,8 +29,8 @@ pub struct RunArgs {
     /// detected dock, planned path, final footprint) as an SVG picture here. Needs a world.
     #[arg(long, value_name = "FILE.svg")]
     pub svg: Option<PathBuf>,
-    /// Clock speed: a factor of real time (`1` is real time), or `max`: virtual time, as
-    /// fast as the CPU allows (the default).
+    /// Clock speed: a factor of real time (`1` is real time), or `max`: as fast as the CPU
+    /// allows (the default). Only paces the run: the outcome is the same at every speed.
     #[arg(long, default_value = "max", value_parser = parse_speed)]
     pub speed: f64,
     /// Inject a fault while the mission runs: `kill:NAME@SECS`, `panic:NAME@SECS` or
@@ -60,9 +61,10 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         faults,
         chaos: chaos.map(Chaos::new),
     };
-    // on the paused-clock runtime, the runtime's own time is already virtual
-    let speed = if speed.is_infinite() { 1.0 } else { speed };
-    let prepared = prepare(&path, robot, speed).await?;
+    // The runtime's paused clock is the mission clock (the node's "real" clock reads it);
+    // the pacer only holds it back to `speed`, from before the node starts to the end.
+    let _pace = Pacer::new(speed).spawn();
+    let prepared = prepare(&path, robot).await?;
     if svg_path.is_some() && prepared.node.world().is_none() {
         prepared.node.shutdown().await;
         return Err(BadInput(format!(

@@ -11,10 +11,13 @@ pub enum LogFormat {
     Json,
 }
 
-/// The runtime: multi-threaded in real (or scaled) time; for `--speed max` a single thread
-/// with tokio's paused clock, which jumps to the next timer whenever every actor is idle.
-pub fn build(speed: f64) -> std::io::Result<tokio::runtime::Runtime> {
-    if speed.is_infinite() {
+/// The runtime. In virtual time (`marie run`, at every `--speed`): a single thread with
+/// tokio's paused clock, which jumps to the next timer whenever every actor is idle — a
+/// discrete-event clock, repeatable, that a [`marie::actors::clock::Pacer`] holds back to the
+/// speed asked for. Otherwise (verbs that measure or wait in real time) multi-threaded on
+/// the wall clock.
+pub fn build(virtual_time: bool) -> std::io::Result<tokio::runtime::Runtime> {
+    if virtual_time {
         tokio::runtime::Builder::new_current_thread()
             .enable_all()
             .start_paused(true)
