@@ -1,5 +1,7 @@
 //! Flags and value parsers shared by several verbs.
 
+use marie::faults::Target;
+use marie::supervision::fault::FaultSpec;
 use std::path::PathBuf;
 
 /// The simulated robot a mission runs with.
@@ -10,8 +12,16 @@ pub struct RobotArgs {
     #[arg(long, value_name = "FILE")]
     pub world: Option<PathBuf>,
     /// Seed of the simulation's noise (same world, seed and mission: same run).
-    #[arg(long, value_name = "N", default_value_t = marie::node::DEFAULT_SEED)]
+    #[arg(long, value_name = "N", default_value_t = marie::node::DEFAULT_SEED,
+          value_parser = parse_seed, allow_hyphen_values = true)]
     pub seed: u64,
+}
+
+/// A seed (`--seed`, `--chaos`): a whole number from 0 to 2^64 - 1. A negative one is read as
+/// a value (not as a flag) so that the message says what is wrong with it.
+pub fn parse_seed(s: &str) -> Result<u64, String> {
+    s.parse::<u64>()
+        .map_err(|_| format!("expected a whole number from 0 to {}, got {s:?}", u64::MAX))
 }
 
 /// `--speed max`: as fast as the CPU allows.
@@ -34,4 +44,30 @@ pub fn parse_speed(s: &str) -> Result<f64, String> {
             "expected a factor of real time from {SLOWEST} to {FASTEST}, or `max`, got {s:?}"
         )),
     }
+}
+
+/// The latest a `--fault` may be due, in seconds of mission time (about 11.5 days): later
+/// is a typo, not a plan — and would overflow a `Duration` long before `f64` runs out.
+pub const MAX_FAULT_SECS: f64 = 1_000_000.0;
+
+/// `--fault KIND:TARGET@SECS`: the time range-checked before anything else reads it, the
+/// target a [`marie::faults::Target`].
+pub fn parse_fault(s: &str) -> Result<FaultSpec, String> {
+    let expected = "expected KIND:TARGET@SECS, e.g. kill:wall-follower@20 \
+                    (TARGET: NAME, ID, NAME#VERSION or an actor id like 0.42)";
+    let Some((_, secs)) = s.rsplit_once('@') else {
+        return Err(format!("`{s}` is not a fault: {expected}"));
+    };
+    match secs.trim().parse::<f64>() {
+        Ok(x) if (0.0..=MAX_FAULT_SECS).contains(&x) => {}
+        Ok(_) => {
+            return Err(format!(
+                "the time of `{s}` must be from 0 to {MAX_FAULT_SECS} seconds of mission time"
+            ))
+        }
+        Err(_) => return Err(format!("`{secs}` in `{s}` is not a number of seconds")),
+    }
+    let spec: FaultSpec = s.parse().map_err(|e| format!("{e}"))?;
+    Target::parse(&spec.target).map_err(|e| e.to_string())?;
+    Ok(spec)
 }

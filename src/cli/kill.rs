@@ -2,10 +2,11 @@
 //! restart it.
 
 use super::args::RobotArgs;
-use super::error::{BadInput, WorldFile};
+use super::error::BadInput;
+use super::output::running_operations;
+use super::prepare::start_node;
 use marie::actors::registry::{self, ModuleKind};
-use marie::missions::world::World;
-use marie::node::{Node, NodeOptions};
+use marie::node::Node;
 use marie::supervision::fault::{self, FaultKind};
 use marie::supervision::SupervisorEvent;
 use std::process::ExitCode;
@@ -23,16 +24,7 @@ pub struct KillArgs {
 /// supervisor to restart it.
 pub async fn kill(args: KillArgs) -> anyhow::Result<ExitCode> {
     let KillArgs { operation, robot } = args;
-    let world = match &robot.world {
-        Some(p) => Some(World::load(p).map_err(WorldFile)?),
-        None => None,
-    };
-    let node = Node::start(NodeOptions {
-        world,
-        seed: robot.seed,
-        ..Default::default()
-    })
-    .await?;
+    let node = start_node(robot.world.as_deref(), robot.seed).await?;
     let result = kill_on(&node, &operation).await;
     node.shutdown().await;
     result
@@ -44,7 +36,8 @@ async fn kill_on(node: &Node, operation: &str) -> anyhow::Result<ExitCode> {
         .next()
     else {
         return Err(BadInput(format!(
-            "no operation `{operation}` is running (`marie ls` lists them)"
+            "no operation `{operation}` is running (running: {})",
+            running_operations(node.world().is_some())
         ))
         .into());
     };

@@ -1,7 +1,8 @@
 //! `marie ls`: the location table of the embedded node.
 
+use super::args::RobotArgs;
+use super::prepare::start_node;
 use marie::actors::registry;
-use marie::node::{Node, NodeOptions};
 use std::process::ExitCode;
 
 /// Flags of `marie ls`.
@@ -10,11 +11,14 @@ pub struct LsArgs {
     /// Print JSON instead of the start-up log format.
     #[arg(long)]
     pub json: bool,
+    /// With `--world FILE`, the robot's operations run (and are listed) too.
+    #[command(flatten)]
+    pub robot: RobotArgs,
 }
 
 /// Start the node and list what it published.
 pub async fn ls(args: LsArgs) -> anyhow::Result<ExitCode> {
-    let node = Node::start(NodeOptions::default()).await?;
+    let node = start_node(args.robot.world.as_deref(), args.robot.seed).await?;
     let list = registry::list();
     if args.json {
         let rows: Vec<_> = list

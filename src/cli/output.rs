@@ -1,6 +1,7 @@
 //! The lines a run prints on stdout: its progress events and its outcome.
 
 use marie::actors::dispatcher::{DispatchEvent, Outcome, RunReport};
+use marie::actors::registry::{self, ModuleKind};
 
 /// One progress line per dispatcher event.
 pub fn print_event(evt: &DispatchEvent) {
@@ -76,4 +77,21 @@ pub fn outcome_line(report: &RunReport) -> String {
         heading.to_degrees(),
         report.collisions.unwrap_or_default()
     )
+}
+
+/// The operations running now, `name (id)`, for messages about one that does not run. Without
+/// a world (`with_world` false) only the demo operations run: the hint says how to get the
+/// robot's.
+pub fn running_operations(with_world: bool) -> String {
+    let names: Vec<String> = registry::list()
+        .into_iter()
+        .filter(|i| i.kind == ModuleKind::Operation)
+        .map(|i| format!("{} ({})", i.name, i.id))
+        .collect();
+    let robot = if with_world {
+        ""
+    } else {
+        "; the robot's operations run with a world: --world FILE"
+    };
+    format!("{}{robot}", names.join(", "))
 }

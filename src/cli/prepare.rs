@@ -3,6 +3,7 @@
 
 use super::args::RobotArgs;
 use super::error::WorldFile;
+use super::files;
 use marie::actors::dispatcher::mission::Mission;
 use marie::missions::world::World;
 use marie::node::{Node, NodeError, NodeOptions};
@@ -36,21 +37,12 @@ impl Prepared {
 /// Parse the mission, load its world (`--world`, else the mission's `world`, else none),
 /// start the node (with the robot when there is a world) and check the mission against it.
 pub async fn prepare(path: &Path, robot: RobotArgs) -> anyhow::Result<Prepared> {
+    files::input("mission file", path)?;
     let parsed = Mission::parse_file(path).map_err(NodeError::Mission)?;
     let world_path = robot
         .world
         .or_else(|| parsed.world().map(Path::to_path_buf));
-    let world = match &world_path {
-        Some(p) => Some(World::load(p).map_err(WorldFile)?),
-        None => None,
-    };
-    // speed 1: the node's clock is the runtime's (virtual in `run`, paced there)
-    let node = Node::start(NodeOptions {
-        world,
-        seed: robot.seed,
-        ..Default::default()
-    })
-    .await?;
+    let node = start_node(world_path.as_deref(), robot.seed).await?;
     match node.check_mission(&parsed).await {
         Ok(mission) => Ok(Prepared {
             node,
@@ -62,4 +54,23 @@ pub async fn prepare(path: &Path, robot: RobotArgs) -> anyhow::Result<Prepared> 
             Err(e.into())
         }
     }
+}
+
+/// Load the world at `world_path` (if any; bad world → its diagnostics, exit 2) and start the
+/// node with it — with the robot when there is a world. Speed 1: the node's clock is the
+/// runtime's (virtual in `run`, paced there).
+pub async fn start_node(world_path: Option<&Path>, seed: u64) -> anyhow::Result<Node> {
+    let world = match world_path {
+        Some(p) => {
+            files::input("world file", p)?;
+            Some(World::load(p).map_err(WorldFile)?)
+        }
+        None => None,
+    };
+    Ok(Node::start(NodeOptions {
+        world,
+        seed,
+        ..Default::default()
+    })
+    .await?)
 }

@@ -1,10 +1,12 @@
 //! `marie props NAME|ID`: every property group of an operation.
 
+use super::args::RobotArgs;
 use super::error::BadInput;
+use super::output::running_operations;
+use super::prepare::start_node;
 use marie::actors::eo::EoClient;
 use marie::actors::property::{Group, PropertyReply, PropertyRequest};
 use marie::actors::registry::{self, ModuleKind};
-use marie::node::{Node, NodeOptions};
 use std::process::ExitCode;
 
 /// Flags of `marie props`.
@@ -15,29 +17,27 @@ pub struct PropsArgs {
     /// Print JSON.
     #[arg(long)]
     pub json: bool,
+    /// With `--world FILE`, the robot's operations run too.
+    #[command(flatten)]
+    pub robot: RobotArgs,
 }
 
 /// Start the node, ask the operation and print its answers.
 pub async fn props(args: PropsArgs) -> anyhow::Result<ExitCode> {
-    let node = Node::start(NodeOptions::default()).await?;
-    let result = props_on(&args.operation, args.json).await;
+    let node = start_node(args.robot.world.as_deref(), args.robot.seed).await?;
+    let result = props_on(&args.operation, args.json, node.world().is_some()).await;
     node.shutdown().await;
     result
 }
 
-async fn props_on(operation: &str, json: bool) -> anyhow::Result<ExitCode> {
+async fn props_on(operation: &str, json: bool, with_world: bool) -> anyhow::Result<ExitCode> {
     let Some(inst) = registry::lookup(ModuleKind::Operation, operation)
         .into_iter()
         .next()
     else {
-        let names: Vec<String> = registry::list()
-            .into_iter()
-            .filter(|i| i.kind == ModuleKind::Operation)
-            .map(|i| format!("{} ({})", i.name, i.id))
-            .collect();
         return Err(BadInput(format!(
             "no operation `{operation}` is running (running: {})",
-            names.join(", ")
+            running_operations(with_world)
         ))
         .into());
     };

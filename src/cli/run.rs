@@ -1,15 +1,15 @@
 //! `marie run MISSION`: run a mission on the embedded node, print its progress and outcome,
 //! write the report and the picture.
 
-use super::args::{parse_speed, RobotArgs};
+use super::args::{parse_fault, parse_seed, parse_speed, RobotArgs};
 use super::error::BadInput;
+use super::files;
 use super::output::{outcome_line, print_event, print_faults};
 use super::prepare::{prepare, Prepared};
 use anyhow::Context;
 use marie::actors::clock::Pacer;
 use marie::actors::dispatcher::{Outcome, RunReport};
-use marie::actors::registry::{self, ModuleKind};
-use marie::faults::FaultPlan;
+use marie::faults::{check_target, FaultPlan, Target, TargetError};
 use marie::supervision::fault::{Chaos, FaultSpec};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -31,15 +31,17 @@ pub struct RunArgs {
     pub svg: Option<PathBuf>,
     /// Clock speed: a factor of real time (`1` is real time), or `max`: as fast as the CPU
     /// allows (the default). Only paces the run: the outcome is the same at every speed.
-    #[arg(long, default_value = "max", value_parser = parse_speed)]
+    #[arg(long, default_value = "max", value_parser = parse_speed, allow_hyphen_values = true)]
     pub speed: f64,
-    /// Inject a fault while the mission runs: `kill:NAME@SECS`, `panic:NAME@SECS` or
-    /// `hang:NAME@SECS` (NAME: operation name or id; SECS: mission time). Repeatable.
-    #[arg(long = "fault", value_name = "KIND:NAME@SECS")]
+    /// Inject a fault while the mission runs: KIND `kill`, `panic` or `hang`; TARGET the
+    /// operation's name or id (the instance the mission bound), `NAME#VERSION` (the instance
+    /// with that version) or an actor id like `0.42`; SECS mission time, 0 to 1000000.
+    /// Repeatable. A fault that cannot be injected is reported, never dropped.
+    #[arg(long = "fault", value_name = "KIND:TARGET@SECS", value_parser = parse_fault)]
     pub faults: Vec<FaultSpec>,
     /// Kill a random operation of the running action every 4 to 12 s of mission time,
     /// picked by a generator seeded with SEED.
-    #[arg(long, value_name = "SEED")]
+    #[arg(long, value_name = "SEED", value_parser = parse_seed, allow_hyphen_values = true)]
     pub chaos: Option<u64>,
 }
 
@@ -57,6 +59,13 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         faults,
         chaos,
     } = args;
+    // outputs first: a run must not end in a report it cannot write
+    if let Some(p) = &report_path {
+        files::output("--report", p)?;
+    }
+    if let Some(p) = &svg_path {
+        files::output("--svg", p)?;
+    }
     let plan = FaultPlan {
         faults,
         chaos: chaos.map(Chaos::new),
@@ -83,14 +92,21 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     if let Some(line) = prepared.world_line() {
         println!("{line}");
     }
+    let bound = prepared.mission.operation_names();
     for f in &plan.faults {
-        if registry::lookup(ModuleKind::Operation, &f.target).is_empty() {
+        let checked = match Target::parse(&f.target) {
+            Ok(target) => check_target(&target, |name| bound.contains(&name)).await,
+            Err(e) => Err(e),
+        };
+        if let Err(e) = checked {
+            let hint = match (&e, prepared.node.world()) {
+                (TargetError::NotRunning(..), None) => {
+                    "; the robot's operations run only with a world: --world FILE"
+                }
+                _ => "",
+            };
             prepared.node.shutdown().await;
-            return Err(BadInput(format!(
-                "--fault {f}: no operation `{}` is running (`marie ls` lists them)",
-                f.target
-            ))
-            .into());
+            return Err(BadInput(format!("--fault {f}: {e}{hint}")).into());
         }
     }
     let Prepared { node, mission, .. } = prepared;

@@ -1,6 +1,7 @@
 //! The tokio runtime a command runs on, and its diagnostics (tracing on stderr).
 
 use clap::ValueEnum;
+use std::io::IsTerminal;
 
 /// Diagnostics format on stderr.
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -35,7 +36,9 @@ pub fn init_tracing(format: LogFormat) {
         .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn"));
     let builder = tracing_subscriber::fmt()
         .with_env_filter(filter)
-        .with_writer(std::io::stderr);
+        .with_writer(std::io::stderr)
+        // colours only for a terminal: not in files, pipes or CI logs
+        .with_ansi(std::io::stderr().is_terminal());
     match format {
         LogFormat::Text => builder.init(),
         LogFormat::Json => builder.json().init(),
