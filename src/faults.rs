@@ -137,9 +137,9 @@ pub enum TargetError {
     /// No operation instance has that actor id.
     #[error("no operation instance {0} is running (running: {1})")]
     NoActor(String, String),
-    /// Several instances run and the mission binds none of them.
+    /// Several instances run and no mission binds one of them.
     #[error(
-        "{count} instances of `{operation}` run and the mission binds none: name one as {choices}"
+        "{count} instances of `{operation}` run and no mission binds one: name one as {choices}"
     )]
     Ambiguous {
         /// Operation name or id.
@@ -205,6 +205,16 @@ pub async fn check_target(
         view.bound = true; // the mission will bind none of them
     }
     resolve(target, &view).await.map(drop)
+}
+
+/// The instance `target` names now, outside a run: a name or id that several instances
+/// share is ambiguous (`marie props`, `marie kill`).
+pub async fn find(target: &Target) -> Result<Instance, TargetError> {
+    let view = RunView {
+        bound: true,
+        ..RunView::default()
+    };
+    resolve(target, &view).await
 }
 
 /// The instance `target` names now.

@@ -234,8 +234,18 @@ fn hints_name_commands_that_work() {
         assert!(text(&out.stderr).contains("--world FILE"));
     }
     let world = "missions/worlds/lab.toml";
-    let out = marie(&["props", "wall-follower", "--world", world]);
+    // two versions of the wall follower run: a name alone does not say which
+    for verb in ["props", "kill"] {
+        let out = marie(&[verb, "wall-follower", "--world", world]);
+        refused(
+            &out,
+            "2 instances of `wall-follower` run and no mission binds one: \
+             name one as wall-follower#1.0.0 or wall-follower#2.0.0",
+        );
+    }
+    let out = marie(&["props", "wall-follower#2.0.0", "--world", world]);
     assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert!(text(&out.stdout).contains("version:     2.0.0"));
     let out = marie(&["ls", "--world", world]);
     assert!(text(&out.stdout).contains("name: wall-follower"));
 }

@@ -3,9 +3,9 @@
 
 use super::args::RobotArgs;
 use super::error::BadInput;
-use super::output::running_operations;
+use super::output::not_found;
 use super::prepare::start_node;
-use marie::actors::registry::{self, ModuleKind};
+use marie::faults::{find, Target};
 use marie::node::Node;
 use marie::supervision::fault::{self, FaultKind};
 use marie::supervision::SupervisorEvent;
@@ -14,7 +14,8 @@ use std::process::ExitCode;
 /// Flags of `marie kill`.
 #[derive(clap::Args, Debug)]
 pub struct KillArgs {
-    /// Operation name or numeric id.
+    /// The operation: its name or numeric id, `NAME#VERSION` when several versions run, or
+    /// an actor id like `0.42`.
     pub operation: String,
     #[command(flatten)]
     pub robot: RobotArgs,
@@ -31,16 +32,11 @@ pub async fn kill(args: KillArgs) -> anyhow::Result<ExitCode> {
 }
 
 async fn kill_on(node: &Node, operation: &str) -> anyhow::Result<ExitCode> {
-    let Some(inst) = registry::lookup(ModuleKind::Operation, operation)
-        .into_iter()
-        .next()
-    else {
-        return Err(BadInput(format!(
-            "no operation `{operation}` is running (running: {})",
-            running_operations(node.world().is_some())
-        ))
-        .into());
+    let inst = match Target::parse(operation) {
+        Ok(target) => find(&target).await,
+        Err(e) => Err(e),
     };
+    let inst = inst.map_err(|e| BadInput(not_found(e, node.world().is_some())))?;
     let supervisor = node.operation_supervisor().await?;
     let mut events = supervisor.subscribe().await?;
     let started = std::time::Instant::now();

@@ -1,7 +1,7 @@
 //! The lines a run prints on stdout: its progress events and its outcome.
 
 use marie::actors::dispatcher::{DispatchEvent, Outcome, RunReport};
-use marie::actors::registry::{self, ModuleKind};
+use marie::faults::TargetError;
 
 /// One progress line per dispatcher event.
 pub fn print_event(evt: &DispatchEvent) {
@@ -79,19 +79,13 @@ pub fn outcome_line(report: &RunReport) -> String {
     )
 }
 
-/// The operations running now, `name (id)`, for messages about one that does not run. Without
-/// a world (`with_world` false) only the demo operations run: the hint says how to get the
-/// robot's.
-pub fn running_operations(with_world: bool) -> String {
-    let names: Vec<String> = registry::list()
-        .into_iter()
-        .filter(|i| i.kind == ModuleKind::Operation)
-        .map(|i| format!("{} ({})", i.name, i.id))
-        .collect();
-    let robot = if with_world {
-        ""
-    } else {
-        "; the robot's operations run with a world: --world FILE"
-    };
-    format!("{}{robot}", names.join(", "))
+/// The message for an operation that names no running instance; without a world
+/// (`with_world` false) it adds how to get the robot's operations, which only run with one.
+pub fn not_found(e: TargetError, with_world: bool) -> String {
+    match (&e, with_world) {
+        (TargetError::NotRunning(..), false) => {
+            format!("{e}; the robot's operations run only with a world: --world FILE")
+        }
+        _ => e.to_string(),
+    }
 }

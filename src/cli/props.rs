@@ -2,17 +2,18 @@
 
 use super::args::RobotArgs;
 use super::error::BadInput;
-use super::output::running_operations;
+use super::output::not_found;
 use super::prepare::start_node;
 use marie::actors::eo::EoClient;
 use marie::actors::property::{Group, PropertyReply, PropertyRequest};
-use marie::actors::registry::{self, ModuleKind};
+use marie::faults::{find, Target};
 use std::process::ExitCode;
 
 /// Flags of `marie props`.
 #[derive(clap::Args, Debug)]
 pub struct PropsArgs {
-    /// Operation name or numeric id.
+    /// The operation: its name or numeric id, `NAME#VERSION` when several versions run, or
+    /// an actor id like `0.42`.
     pub operation: String,
     /// Print JSON.
     #[arg(long)]
@@ -31,16 +32,11 @@ pub async fn props(args: PropsArgs) -> anyhow::Result<ExitCode> {
 }
 
 async fn props_on(operation: &str, json: bool, with_world: bool) -> anyhow::Result<ExitCode> {
-    let Some(inst) = registry::lookup(ModuleKind::Operation, operation)
-        .into_iter()
-        .next()
-    else {
-        return Err(BadInput(format!(
-            "no operation `{operation}` is running (running: {})",
-            running_operations(with_world)
-        ))
-        .into());
+    let inst = match Target::parse(operation) {
+        Ok(target) => find(&target).await,
+        Err(e) => Err(e),
     };
+    let inst = inst.map_err(|e| BadInput(not_found(e, with_world)))?;
     let client = EoClient::from_cell(inst.actor);
     let mut replies = Vec::new();
     for req in [

@@ -4,12 +4,12 @@
 use super::args::{parse_fault, parse_seed, parse_speed, RobotArgs};
 use super::error::BadInput;
 use super::files;
-use super::output::{outcome_line, print_event, print_faults};
+use super::output::{not_found, outcome_line, print_event, print_faults};
 use super::prepare::{prepare, Prepared};
 use anyhow::Context;
 use marie::actors::clock::Pacer;
 use marie::actors::dispatcher::{Outcome, RunReport};
-use marie::faults::{check_target, FaultPlan, Target, TargetError};
+use marie::faults::{check_target, FaultPlan, Target};
 use marie::supervision::fault::{Chaos, FaultSpec};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -99,14 +99,9 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
             Err(e) => Err(e),
         };
         if let Err(e) = checked {
-            let hint = match (&e, prepared.node.world()) {
-                (TargetError::NotRunning(..), None) => {
-                    "; the robot's operations run only with a world: --world FILE"
-                }
-                _ => "",
-            };
+            let why = not_found(e, prepared.node.world().is_some());
             prepared.node.shutdown().await;
-            return Err(BadInput(format!("--fault {f}: {e}{hint}")).into());
+            return Err(BadInput(format!("--fault {f}: {why}")).into());
         }
     }
     let Prepared { node, mission, .. } = prepared;
