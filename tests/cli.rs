@@ -455,7 +455,7 @@ fn without_a_world_no_robot_runs_and_svg_is_refused() {
 }
 
 #[test]
-fn an_unwritable_picture_fails_the_run_after_writing_the_report() {
+fn an_unwritable_picture_is_refused_before_the_run() {
     let dir = tempfile::tempdir().unwrap();
     let report = dir.path().join("run.json");
     let svg = dir.path().join("no/such/dir/run.svg");
@@ -473,11 +473,11 @@ fn an_unwritable_picture_fails_the_run_after_writing_the_report() {
         svg.to_str().unwrap(),
     ]);
     let stderr = text(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
     assert!(
-        stderr.contains(&format!("cannot write the picture to {}", svg.display())),
+        stderr.contains(&format!("--svg {}: no directory", svg.display())),
         "{stderr}"
     );
-    assert!(text(&out.stdout).contains("mission succeeded"));
-    assert_eq!(read_json(&report)["outcome"], "succeeded");
+    assert!(out.stdout.is_empty(), "nothing ran: {}", text(&out.stdout));
+    assert!(!report.exists());
 }

@@ -196,5 +196,5 @@ fn a_node_config_that_is_not_a_regular_file_is_refused_unread() {
     assert!(text(&out.stderr).contains("not a regular file"));
     let out = marie(&["run", "missions/demo.toml", "--node", "missions"]);
     assert_eq!(out.status.code(), Some(2));
-    assert!(text(&out.stderr).contains("is a directory"));
+    assert!(text(&out.stderr).contains("not a regular file (a directory)"));
 }

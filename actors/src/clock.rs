@@ -71,7 +71,8 @@ impl Drop for Timer {
 /// On a normal runtime this is wall-clock time. On a current-thread runtime started with
 /// tokio's paused clock (`start_paused`), time jumps to the next timer whenever every task is
 /// idle — a discrete-event simulation clock that runs as fast as the CPU allows and, being
-/// single-threaded, repeatably. `marie run --speed max` runs that way.
+/// single-threaded, repeatably. `marie run` runs that way at every `--speed`, a [`Pacer`]
+/// holding virtual time back to the speed asked for.
 #[derive(Debug, Clone)]
 pub struct RealClock {
     epoch: Instant,
@@ -106,7 +107,112 @@ impl Clock for RealClock {
     }
 }
 
+/// How often, in virtual time, a [`Pacer`] compares virtual with real time. The same at
+/// every speed, so the set of timers a paced run has does not depend on its speed.
+pub const PACER_PERIOD: Duration = Duration::from_millis(5);
+
+/// How far virtual time may run ahead of the pace before a [`Pacer`] holds it back (shorter
+/// thread sleeps would be mostly the OS's own granularity).
+const PACER_SLACK: Duration = Duration::from_millis(1);
+
+/// Paces virtual time: on a current-thread runtime with tokio's paused clock (see
+/// [`RealClock`]), keeps virtual time from running ahead of `speed` × real time.
+///
+/// Its task wakes every [`PACER_PERIOD`] of virtual time and, when virtual time is ahead of
+/// `speed` × the real time elapsed since it started, blocks the runtime's only thread
+/// (`std::thread::sleep`) until real time has caught up. Blocking the thread, not sleeping
+/// on a timer, is the point: nothing else runs and virtual time stands still meanwhile, so
+/// pacing changes *when* (in real time) things happen, never *what* happens. At
+/// [`Pacer::max`] the task runs just the same but never blocks: the tasks and timers of a run
+/// are the same at every speed, and so is its outcome. Virtual time never runs ahead of the
+/// actors that still have work at the current instant either — tokio only advances a paused
+/// clock when every task is idle.
+///
+/// `marie run --speed X` runs this way; `--speed 1` is real time.
+///
+/// ```
+/// use marie_actors::clock::Pacer;
+/// # let rt = tokio::runtime::Builder::new_current_thread().enable_all().start_paused(true).build().unwrap();
+/// # rt.block_on(async {
+/// let _pace = Pacer::new(100.0).spawn(); // paces until dropped
+/// let real = std::time::Instant::now();
+/// tokio::time::sleep(std::time::Duration::from_millis(500)).await; // virtual
+/// assert!(real.elapsed() >= std::time::Duration::from_millis(4)); // 500 ms / 100, less slack
+/// # });
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Pacer {
+    speed: f64,
+}
+
+impl Pacer {
+    /// Pace virtual time at `speed` × real time. A speed that is not a positive number
+    /// (NaN, zero, negative) is taken as 1 (real time); `f64::INFINITY` is [`Pacer::max`].
+    pub fn new(speed: f64) -> Pacer {
+        let speed = if speed > 0.0 { speed } else { 1.0 };
+        Pacer { speed }
+    }
+
+    /// Never hold virtual time back: as fast as the CPU allows.
+    pub fn max() -> Pacer {
+        Pacer {
+            speed: f64::INFINITY,
+        }
+    }
+
+    /// The speed factor (`f64::INFINITY` for [`Pacer::max`]).
+    pub fn speed(&self) -> f64 {
+        self.speed
+    }
+
+    /// Start pacing on the current runtime, counting from now; pacing stops when the
+    /// returned handle is dropped.
+    pub fn spawn(self) -> Paced {
+        Paced(tokio::spawn(self.run()))
+    }
+
+    /// The pacing loop (what [`Pacer::spawn`] runs).
+    pub async fn run(self) {
+        let (real0, virtual0) = (std::time::Instant::now(), Instant::now());
+        let mut next = virtual0;
+        loop {
+            next += PACER_PERIOD;
+            tokio::time::sleep_until(next).await;
+            if let Some(ahead) = self.ahead(virtual0.elapsed(), real0.elapsed()) {
+                std::thread::sleep(ahead);
+            }
+        }
+    }
+
+    /// How long to hold virtual time back after `virtual_elapsed` of it in `real_elapsed`
+    /// of real time; `None` when it is not ahead by more than the slack.
+    fn ahead(&self, virtual_elapsed: Duration, real_elapsed: Duration) -> Option<Duration> {
+        if !self.speed.is_finite() {
+            return None;
+        }
+        let ahead = virtual_elapsed
+            .div_f64(self.speed)
+            .saturating_sub(real_elapsed);
+        (ahead >= PACER_SLACK).then_some(ahead)
+    }
+}
+
+/// A running [`Pacer`]; pacing stops when it is dropped.
+#[derive(Debug)]
+pub struct Paced(tokio::task::JoinHandle<()>);
+
+impl Drop for Paced {
+    fn drop(&mut self) {
+        self.0.abort();
+    }
+}
+
 /// Real time scaled by a constant factor: at speed 10, one real second is ten clock seconds.
+///
+/// For a multi-threaded runtime on the wall clock (an embedder's node with
+/// `NodeOptions::speed`, a cluster whose nodes share one factor). What happens then depends
+/// on the scheduling of real threads; a single process that should run the same way at every
+/// speed paces a paused clock with a [`Pacer`] instead.
 #[derive(Debug, Clone)]
 pub struct ScaledClock {
     epoch: Instant,
@@ -224,5 +330,50 @@ mod tests {
         let before = clock.now();
         clock.sleep(Duration::from_secs(1)).await;
         assert!(clock.now() - before >= Duration::from_secs(1));
+    }
+    #[test]
+    fn a_pacer_holds_back_only_time_ahead_of_its_pace() {
+        let ms = Duration::from_millis;
+        let p = Pacer::new(10.0);
+        // 100 ms of virtual time at 10× is 10 ms of real time
+        assert_eq!(p.ahead(ms(100), ms(2)), Some(ms(8)));
+        assert_eq!(p.ahead(ms(100), ms(10)), None);
+        assert_eq!(p.ahead(ms(100), ms(50)), None);
+        // within the slack: not worth a sleep
+        assert_eq!(p.ahead(ms(100), Duration::from_micros(9_500)), None);
+        assert_eq!(Pacer::max().ahead(ms(100), Duration::ZERO), None);
+        assert_eq!(Pacer::new(f64::NAN).speed(), 1.0);
+        assert_eq!(Pacer::new(-3.0).speed(), 1.0);
+        assert!(Pacer::new(f64::INFINITY).speed().is_infinite());
+    }
+
+    #[test]
+    fn a_paced_paused_clock_keeps_to_real_time() {
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .start_paused(true)
+            .build()
+            .unwrap();
+        let real = std::time::Instant::now();
+        rt.block_on(async {
+            let _pace = Pacer::new(2.0).spawn();
+            tokio::time::sleep(Duration::from_millis(200)).await;
+        });
+        // 200 ms of virtual time at 2× take at least 100 ms, less the slack and a period
+        assert!(
+            real.elapsed() >= Duration::from_millis(90),
+            "{:?}",
+            real.elapsed()
+        );
+        let real = std::time::Instant::now();
+        rt.block_on(async {
+            let _pace = Pacer::max().spawn();
+            tokio::time::sleep(Duration::from_secs(3600)).await;
+        });
+        assert!(
+            real.elapsed() < Duration::from_secs(5),
+            "{:?}",
+            real.elapsed()
+        );
     }
 }

@@ -5,14 +5,25 @@
 
 use std::process::{Command, Output};
 
-/// Run the built `marie` with `args` from the package root, without `RUST_LOG`.
+/// Run the built `marie` with `args` from the package root, without `RUST_LOG`. Whatever the
+/// input, `marie` must not panic: its stderr may say `panicked` only when a `panic:` fault
+/// was injected on purpose.
+#[track_caller]
 pub fn marie(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_marie"))
+    let out = Command::new(env!("CARGO_BIN_EXE_marie"))
         .args(args)
         .current_dir(env!("CARGO_MANIFEST_DIR"))
         .env_remove("RUST_LOG")
         .output()
-        .expect("marie runs")
+        .expect("marie runs");
+    if !args.iter().any(|a| a.starts_with("panic:")) {
+        let stderr = text(&out.stderr);
+        assert!(
+            !stderr.contains("panicked"),
+            "marie {args:?} panicked: {stderr}"
+        );
+    }
+    out
 }
 
 /// Command output as text.

@@ -41,6 +41,9 @@ use std::time::Duration;
 /// What to do to an operation: one type shared with the run report and the event stream.
 pub use marie_actors::eo::FaultKind;
 
+/// The latest mission time a fault may be planned for: a day (no mission may wait longer).
+pub const MAX_FAULT_SECS: f64 = 86_400.0;
+
 /// A fault to inject into operation `target` (a name or a numeric id) at `at` after the
 /// mission started: `KIND:TARGET@SECONDS`.
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
@@ -83,9 +86,9 @@ impl FromStr for FaultSpec {
         let secs: f64 = at.trim().parse().map_err(|_| {
             FaultError::Syntax(format!("`{at}` in `{s}` is not a number of seconds"))
         })?;
-        if !secs.is_finite() || secs < 0.0 {
+        if !secs.is_finite() || !(0.0..=MAX_FAULT_SECS).contains(&secs) {
             return Err(FaultError::Syntax(format!(
-                "the time in `{s}` must be a finite number of seconds, 0 or more"
+                "the time in `{s}` must be a number of seconds from 0 to {MAX_FAULT_SECS}"
             )));
         }
         Ok(FaultSpec {
@@ -220,8 +223,10 @@ mod tests {
             ("melt:x@1", "unknown fault `melt`"),
             ("kill:@1", "names no operation"),
             ("kill:x@soon", "`soon` in `kill:x@soon` is not a number"),
-            ("kill:x@-1", "0 or more"),
-            ("kill:x@inf", "finite"),
+            ("kill:x@-1", "from 0 to 86400"),
+            ("kill:x@inf", "from 0 to 86400"),
+            ("kill:x@1e300", "from 0 to 86400"),
+            ("kill:x@nan", "from 0 to 86400"),
         ];
         for (text, want) in cases {
             let err = text.parse::<FaultSpec>().unwrap_err().to_string();

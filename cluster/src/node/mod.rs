@@ -45,7 +45,7 @@ pub use config::{
 };
 pub use robot::{AprioriRecord, BoxFuture, Robot};
 
-use crate::fault::plan::Injector;
+use crate::fault::plan::{Injector, RunView};
 use crate::fault::FaultPlan;
 use marie_actors::clock::{RealClock, SharedClock};
 use marie_actors::dispatcher::mission::{Diagnostics, Mission, ParsedMission};
@@ -346,19 +346,11 @@ impl Node {
         let (inner, mut rx) = mpsc::unbounded_channel();
         let (stop, mut stopped) = tokio::sync::oneshot::channel::<()>();
         let outer = events.clone();
-        // the operations of the running action, for chaos to pick from
-        let (running_tx, running) = tokio::sync::watch::channel(Vec::<String>::new());
+        // what the fault injector knows of the run: bindings, the running action
+        let (view_tx, view) = tokio::sync::watch::channel(RunView::default());
         let forwarder = tokio::spawn(async move {
             let pass = |evt: DispatchEvent| {
-                match &evt {
-                    DispatchEvent::ActionStarted { operations, .. } => {
-                        running_tx.send_replace(operations.clone());
-                    }
-                    DispatchEvent::ActionEnded { .. } => {
-                        running_tx.send_replace(Vec::new());
-                    }
-                    _ => {}
-                }
+                view_tx.send_modify(|v| v.observe(&evt));
                 if let Some(outer) = &outer {
                     if !matches!(evt, DispatchEvent::Ended { .. }) {
                         let _ = outer.send(evt);
@@ -381,7 +373,7 @@ impl Node {
                 }
             }
         });
-        let injector = Injector::start(plan, self.clock.clone(), running);
+        let injector = Injector::start(plan, self.clock.clone(), view);
         let result = self.dispatch(mission, inner).await;
         let faults = injector.finish();
         let _ = stop.send(());

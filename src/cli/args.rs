@@ -1,0 +1,91 @@
+//! Flags and value parsers shared by several verbs.
+
+use marie::embedded::EmbeddedOptions;
+use marie::fault::plan::Target;
+use marie::fault::FaultSpec;
+use std::path::{Path, PathBuf};
+
+/// What the embedded node hosts, and the simulated robot a mission runs with.
+#[derive(clap::Args, Debug)]
+pub struct RobotArgs {
+    /// World file the simulated robot drives in; overrides the node config's and the
+    /// mission's `world`. Without any, no robot is started.
+    #[arg(long, value_name = "FILE")]
+    pub world: Option<PathBuf>,
+    /// Seed of the simulation's noise (same world, seed and mission: same run); default: the
+    /// node config's, else 1.
+    #[arg(long, value_name = "N", value_parser = parse_seed, allow_hyphen_values = true)]
+    pub seed: Option<u64>,
+    /// Host exactly what this node config says (`missions/nodes/*.toml`); default: a built-in
+    /// node that hosts every operation, the three datamanagers and the robot.
+    #[arg(long, value_name = "FILE")]
+    pub node: Option<PathBuf>,
+}
+
+impl RobotArgs {
+    /// The embedded node's options, for a mission whose world is `mission_world`.
+    pub fn options(&self, mission_world: Option<&Path>) -> EmbeddedOptions {
+        EmbeddedOptions {
+            node: self.node.clone(),
+            world: self.world.clone(),
+            mission_world: mission_world.map(Path::to_path_buf),
+            seed: self.seed,
+            ..EmbeddedOptions::default()
+        }
+    }
+}
+
+/// A seed (`--seed`, `--chaos`): a whole number from 0 to 2^64 - 1. A negative one is read as
+/// a value (not as a flag) so that the message says what is wrong with it.
+pub fn parse_seed(s: &str) -> Result<u64, String> {
+    s.parse::<u64>()
+        .map_err(|_| format!("expected a whole number from 0 to {}, got {s:?}", u64::MAX))
+}
+
+/// `--speed max`: as fast as the CPU allows.
+pub const MAX_SPEED: f64 = f64::INFINITY;
+
+/// The slowest `--speed`: a hundredth of real time (slower is a stall, not a run).
+pub const SLOWEST: f64 = 0.01;
+
+/// The fastest `--speed` factor; beyond it a factor means `max` and should say so.
+pub const FASTEST: f64 = 1_000_000.0;
+
+/// `--speed X|max`: X a factor of real time from [`SLOWEST`] to [`FASTEST`].
+pub fn parse_speed(s: &str) -> Result<f64, String> {
+    if s == "max" {
+        return Ok(MAX_SPEED);
+    }
+    match s.parse::<f64>() {
+        Ok(x) if (SLOWEST..=FASTEST).contains(&x) => Ok(x),
+        _ => Err(format!(
+            "expected a factor of real time from {SLOWEST} to {FASTEST}, or `max`, got {s:?}"
+        )),
+    }
+}
+
+/// The latest a `--fault` may be due, in seconds of mission time (a day, as long as a
+/// mission may wait): later is a typo, not a plan.
+pub use marie::fault::MAX_FAULT_SECS;
+
+/// `--fault KIND:TARGET@SECS`: the time range-checked before anything else reads it, the
+/// target a [`marie::fault::plan::Target`].
+pub fn parse_fault(s: &str) -> Result<FaultSpec, String> {
+    let expected = "expected KIND:TARGET@SECS, e.g. kill:wall-follower@20 \
+                    (TARGET: NAME, ID, NAME#VERSION or an actor id like 0.42)";
+    let Some((_, secs)) = s.rsplit_once('@') else {
+        return Err(format!("`{s}` is not a fault: {expected}"));
+    };
+    match secs.trim().parse::<f64>() {
+        Ok(x) if (0.0..=MAX_FAULT_SECS).contains(&x) => {}
+        Ok(_) => {
+            return Err(format!(
+                "the time of `{s}` must be from 0 to {MAX_FAULT_SECS} seconds of mission time"
+            ))
+        }
+        Err(_) => return Err(format!("`{secs}` in `{s}` is not a number of seconds")),
+    }
+    let spec: FaultSpec = s.parse().map_err(|e| format!("{e}"))?;
+    Target::parse(&spec.target).map_err(|e| e.to_string())?;
+    Ok(spec)
+}

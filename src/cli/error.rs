@@ -1,0 +1,29 @@
+//! How a failed command ends: bad input is exit 2 (DESIGN.md §8), everything else exit 1.
+
+use marie::embedded::EmbeddedError;
+use marie::node::NodeError;
+use std::process::ExitCode;
+
+/// Input the command refuses (a flag, a file, a name): exit 2.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct BadInput(pub String);
+
+/// Print `e` on stderr and give its exit code.
+pub fn report(e: &anyhow::Error) -> ExitCode {
+    if let Some(NodeError::Mission(diags)) = e.downcast_ref::<NodeError>() {
+        eprintln!("{diags}");
+        return ExitCode::from(2);
+    }
+    if let Some(err) = e.downcast_ref::<EmbeddedError>() {
+        if err.is_bad_input() {
+            eprintln!("{err}");
+            return ExitCode::from(2);
+        }
+    }
+    eprintln!("marie: {e:#}");
+    if e.downcast_ref::<BadInput>().is_some() {
+        return ExitCode::from(2);
+    }
+    ExitCode::from(1)
+}

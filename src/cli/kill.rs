@@ -1,0 +1,71 @@
+//! `marie kill NAME|ID`: kill an operation on the embedded node and watch its supervisor
+//! restart it.
+
+use super::args::RobotArgs;
+use super::error::BadInput;
+use super::output::not_found;
+use super::prepare::start_node;
+use marie::fault::plan::{find, Target};
+use marie::fault::{self, FaultKind};
+use marie::node::Node;
+use marie::supervision::SupervisorEvent;
+use std::process::ExitCode;
+
+/// Flags of `marie kill`.
+#[derive(clap::Args, Debug)]
+pub struct KillArgs {
+    /// The operation: its name or numeric id, `NAME#VERSION` when several versions run, or
+    /// an actor id like `0.42`.
+    pub operation: String,
+    #[command(flatten)]
+    pub robot: RobotArgs,
+}
+
+/// Start the embedded node, kill the operation's live instance and wait for the operation
+/// supervisor to restart it.
+pub async fn kill(args: KillArgs) -> anyhow::Result<ExitCode> {
+    let KillArgs { operation, robot } = args;
+    let node = start_node(robot.options(None)).await?.node;
+    let result = kill_on(&node, &operation).await;
+    node.shutdown().await;
+    result
+}
+
+async fn kill_on(node: &Node, operation: &str) -> anyhow::Result<ExitCode> {
+    let inst = match Target::parse(operation) {
+        Ok(target) => find(&target).await,
+        Err(e) => Err(e),
+    };
+    let inst = inst.map_err(|e| BadInput(not_found(e)))?;
+    let supervisor = node.operation_supervisor().await?;
+    let mut events = supervisor.subscribe().await?;
+    let started = std::time::Instant::now();
+    let done = fault::inject_into(FaultKind::Kill, &inst)?;
+    println!("killed {} ({}) at {}", inst.name, inst.id, done.actor);
+    let restarted = tokio::time::timeout(std::time::Duration::from_secs(10), async {
+        loop {
+            match events.recv().await {
+                Ok(SupervisorEvent::ChildRestarted { old, new, .. }) if old == Some(done.actor) => {
+                    return Some(new)
+                }
+                Ok(_) | Err(tokio::sync::broadcast::error::RecvError::Lagged(_)) => {}
+                Err(_) => return None,
+            }
+        }
+    })
+    .await;
+    match restarted {
+        Ok(Some(new)) => {
+            println!(
+                "restarted by the operation supervisor as {} after {:.2} ms",
+                new.get_id(),
+                started.elapsed().as_secs_f64() * 1000.0
+            );
+            Ok(ExitCode::SUCCESS)
+        }
+        _ => {
+            println!("not restarted within 10 s");
+            Ok(ExitCode::from(1))
+        }
+    }
+}

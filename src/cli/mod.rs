@@ -1,0 +1,67 @@
+//! The `marie` command line: the flags of every verb, and which verb runs what.
+//!
+//! One module per verb (`run`, `check`, `ls`, `props`, `kill`), each holding its flags and
+//! its work; the modules beside them hold what verbs share: flags and parsers (`args`), the
+//! node a mission is prepared on (`prepare`), the printed lines (`output`), the runtime and
+//! tracing set-up (`runtime`) and how an error becomes an exit code (`error`).
+
+pub mod args;
+pub mod check;
+pub mod error;
+pub mod files;
+pub mod kill;
+pub mod ls;
+pub mod output;
+pub mod prepare;
+pub mod props;
+pub mod run;
+pub mod runtime;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+/// `marie`: its global flags and the verb.
+#[derive(Parser, Debug)]
+#[command(name = "marie", version, about = "Run MARIE missions on ractor actors")]
+pub struct Cli {
+    /// Diagnostics format on stderr (filter with RUST_LOG, default `warn`).
+    #[arg(long, value_enum, default_value_t = runtime::LogFormat::Text, global = true)]
+    pub log_format: runtime::LogFormat,
+    /// The verb.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The verbs.
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Run a mission on the embedded node.
+    Run(run::RunArgs),
+    /// Check a mission against the running operations without running it.
+    Check(check::CheckArgs),
+    /// List the location table.
+    Ls(ls::LsArgs),
+    /// Kill an operation on the embedded node and show its supervisor restarting it.
+    Kill(kill::KillArgs),
+    /// Show every property of an operation.
+    Props(props::PropsArgs),
+}
+
+impl Command {
+    /// True when the verb runs in virtual time (see [`runtime::build`]): a mission run,
+    /// whose outcome must not depend on its speed.
+    pub fn virtual_time(&self) -> bool {
+        matches!(self, Command::Run(_))
+    }
+
+    /// Do what the verb says.
+    pub async fn execute(self) -> anyhow::Result<ExitCode> {
+        match self {
+            Command::Run(args) => run::run(args).await,
+            Command::Check(args) => check::check(args).await,
+            Command::Ls(args) => ls::ls(args).await,
+            Command::Kill(args) => kill::kill(args).await,
+            Command::Props(args) => props::props(args).await,
+        }
+    }
+}

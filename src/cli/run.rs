@@ -1,0 +1,158 @@
+//! `marie run MISSION`: run a mission on the embedded node, print its progress and outcome,
+//! write the report and the picture.
+
+use super::args::{parse_fault, parse_seed, parse_speed, RobotArgs};
+use super::error::BadInput;
+use super::files;
+use super::output::{not_found, outcome_line, print_event, print_faults};
+use super::prepare::{prepare, Prepared};
+use anyhow::Context;
+use marie::actors::clock::Pacer;
+use marie::actors::dispatcher::{Outcome, RunReport};
+use marie::fault::plan::{check_target, Target};
+use marie::fault::{Chaos, FaultPlan, FaultSpec};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use tokio::sync::mpsc;
+
+/// Flags of `marie run`.
+#[derive(clap::Args, Debug)]
+pub struct RunArgs {
+    /// Mission file (TOML task tree).
+    pub mission: PathBuf,
+    #[command(flatten)]
+    pub robot: RobotArgs,
+    /// Write the run report (JSON) here.
+    #[arg(long, value_name = "FILE")]
+    pub report: Option<PathBuf>,
+    /// Draw the robot's run (walls, driven path, sonar echoes, segments, followed wall,
+    /// detected dock, planned path, final footprint) as an SVG picture here. Needs a world.
+    #[arg(long, value_name = "FILE.svg")]
+    pub svg: Option<PathBuf>,
+    /// Clock speed: a factor of real time (`1` is real time), or `max`: as fast as the CPU
+    /// allows (the default). Only paces the run: the outcome is the same at every speed.
+    #[arg(long, default_value = "max", value_parser = parse_speed, allow_hyphen_values = true)]
+    pub speed: f64,
+    /// Inject a fault while the mission runs: KIND `kill`, `panic` or `hang`; TARGET the
+    /// operation's name or id (the instance the mission bound), `NAME#VERSION` (the instance
+    /// with that version) or an actor id like `0.42`; SECS mission time, 0 to 1000000.
+    /// Repeatable. A fault that cannot be injected is reported, never dropped.
+    #[arg(long = "fault", value_name = "KIND:TARGET@SECS", value_parser = parse_fault)]
+    pub faults: Vec<FaultSpec>,
+    /// Kill a random operation of the running action every 4 to 12 s of mission time,
+    /// picked by a generator seeded with SEED.
+    #[arg(long, value_name = "SEED", value_parser = parse_seed, allow_hyphen_values = true)]
+    pub chaos: Option<u64>,
+}
+
+/// Pixels per metre of `--svg` pictures.
+const SVG_SCALE: f64 = 50.0;
+
+/// Run the mission; exit 0 when it succeeded and every output was written, else 1.
+pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
+    let RunArgs {
+        mission: path,
+        robot,
+        report: report_path,
+        svg: svg_path,
+        speed,
+        faults,
+        chaos,
+    } = args;
+    // outputs first: a run must not end in a report it cannot write
+    if let Some(p) = &report_path {
+        files::output("--report", p)?;
+    }
+    if let Some(p) = &svg_path {
+        files::output("--svg", p)?;
+    }
+    let plan = FaultPlan {
+        faults,
+        chaos: chaos.map(Chaos::new),
+    };
+    // The runtime's paused clock is the mission clock (the node's "real" clock reads it);
+    // the pacer only holds it back to `speed`, from before the node starts to the end.
+    let _pace = Pacer::new(speed).spawn();
+    let prepared = prepare(&path, robot).await?;
+    if svg_path.is_some() && prepared.robot.is_none() {
+        prepared.node.shutdown().await;
+        return Err(BadInput(format!(
+            "--svg draws a robot's run, but no robot runs: give a world with --world FILE \
+             or `world = \"...\"` in the `[mission]` of {}",
+            path.display()
+        ))
+        .into());
+    }
+    println!(
+        "mission `{}` ({} actions) from {}",
+        prepared.mission.name,
+        prepared.mission.actions.len(),
+        path.display()
+    );
+    if let Some(line) = prepared.world_line() {
+        println!("{line}");
+    }
+    let bound = prepared.mission.operation_names();
+    for f in &plan.faults {
+        let checked = match Target::parse(&f.target) {
+            Ok(target) => check_target(&target, |name| bound.contains(&name)).await,
+            Err(e) => Err(e),
+        };
+        if let Err(e) = checked {
+            let why = not_found(e);
+            prepared.node.shutdown().await;
+            return Err(BadInput(format!("--fault {f}: {why}")).into());
+        }
+    }
+    let Prepared {
+        node,
+        robot,
+        mission,
+        ..
+    } = prepared;
+    let (tx, mut rx) = mpsc::unbounded_channel();
+    let printer = tokio::spawn(async move {
+        while let Some(evt) = rx.recv().await {
+            print_event(&evt);
+        }
+    });
+    let report = node.run_with_faults(mission, Some(tx), plan).await;
+    let _ = printer.await;
+    let picture = match (&report, &svg_path, &robot) {
+        (Ok(report), Some(_), Some(robot)) => Some(robot.picture(report).await),
+        _ => None,
+    };
+    let world = robot.as_ref().map(|r| r.world().clone());
+    node.shutdown().await;
+    let report = report?;
+    print_faults(&report);
+    if world.is_some() {
+        println!("{}", outcome_line(&report));
+    }
+
+    // Write every output asked for, even when one of them cannot be written.
+    let mut written = true;
+    if let Some(p) = &report_path {
+        if let Err(e) = write_report(p, &report) {
+            eprintln!("marie: {e:#}");
+            written = false;
+        }
+    }
+    if let (Some(p), Some(picture), Some(world)) = (&svg_path, &picture, &world) {
+        let svg = picture.render(world, SVG_SCALE);
+        if let Err(e) = std::fs::write(p, svg) {
+            eprintln!("marie: cannot write the picture to {}: {e}", p.display());
+            written = false;
+        }
+    }
+    Ok(match (report.outcome, written) {
+        (Outcome::Succeeded, true) => ExitCode::SUCCESS,
+        _ => ExitCode::from(1),
+    })
+}
+
+fn write_report(path: &Path, report: &RunReport) -> anyhow::Result<()> {
+    let json = serde_json::to_string_pretty(report)?;
+    std::fs::write(path, json + "\n")
+        .with_context(|| format!("cannot write the report to {}", path.display()))
+}
