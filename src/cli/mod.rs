@@ -8,6 +8,7 @@
 pub mod args;
 pub mod check;
 pub mod error;
+pub mod events_file;
 pub mod files;
 pub mod kill;
 pub mod ls;

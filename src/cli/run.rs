@@ -3,6 +3,7 @@
 
 use super::args::{parse_fault, parse_seed, parse_speed, RobotArgs};
 use super::error::BadInput;
+use super::events_file::EventsFile;
 use super::files;
 use super::output::{not_found, outcome_line, print_event, print_faults};
 use super::prepare::{prepare, Prepared};
@@ -25,6 +26,11 @@ pub struct RunArgs {
     /// Write the run report (JSON) here.
     #[arg(long, value_name = "FILE")]
     pub report: Option<PathBuf>,
+    /// Write every event of the run here, one JSON object per line (the schema is in the
+    /// docs of `marie_actors::events`): dispatcher, bindings, supervisors, registry, faults,
+    /// the robot. The report can be rebuilt from it.
+    #[arg(long, value_name = "FILE.jsonl")]
+    pub events: Option<PathBuf>,
     /// Draw the robot's run (walls, driven path, sonar echoes, segments, followed wall,
     /// detected dock, planned path, final footprint) as an SVG picture here. Needs a world.
     #[arg(long, value_name = "FILE.svg")]
@@ -54,6 +60,7 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         mission: path,
         robot,
         report: report_path,
+        events: events_path,
         svg: svg_path,
         speed,
         faults,
@@ -65,6 +72,9 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     }
     if let Some(p) = &svg_path {
         files::output("--svg", p)?;
+    }
+    if let Some(p) = &events_path {
+        files::output("--events", p)?;
     }
     let plan = FaultPlan {
         faults,
@@ -116,8 +126,19 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
             print_event(&evt);
         }
     });
+    let events = match &events_path {
+        Some(p) => Some(
+            EventsFile::start(node.events(), p)
+                .with_context(|| format!("cannot write the events to {}", p.display()))?,
+        ),
+        None => None,
+    };
     let report = node.run_with_faults(mission, Some(tx), plan).await;
     let _ = printer.await;
+    let events = match events {
+        Some(file) => Some(file.finish().await),
+        None => None,
+    };
     let picture = match (&report, &svg_path, &robot) {
         (Ok(report), Some(_), Some(robot)) => Some(robot.picture(report).await),
         _ => None,
@@ -132,6 +153,10 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
 
     // Write every output asked for, even when one of them cannot be written.
     let mut written = true;
+    if let Some(Err(e)) = &events {
+        eprintln!("marie: {e:#}");
+        written = false;
+    }
     if let Some(p) = &report_path {
         if let Err(e) = write_report(p, &report) {
             eprintln!("marie: {e:#}");

@@ -12,6 +12,7 @@ use super::{Chaos, FaultError, FaultKind, FaultSpec};
 use marie_actors::clock::SharedClock;
 use marie_actors::dispatcher::{DispatchEvent, FaultRecord};
 use marie_actors::eo::EoClient;
+use marie_actors::events::{EventBus, EventKind};
 use marie_actors::property::{Group, PropertyReply, PropertyRequest};
 use marie_actors::registry::{self, Instance, ModuleKind};
 use std::collections::HashMap;
@@ -312,6 +313,25 @@ pub(crate) struct Injector {
     pending: Arc<Mutex<Vec<FaultSpec>>>,
     clock: SharedClock,
     t0: Duration,
+    bus: EventBus,
+}
+
+/// Publish what became of a fault on the node's event bus.
+fn publish(bus: &EventBus, rec: &FaultRecord) {
+    bus.publish(match &rec.error {
+        None => EventKind::FaultInjected {
+            run_ms: rec.at_ms,
+            fault: rec.fault,
+            operation: rec.operation.clone(),
+            actor: rec.actor.clone(),
+        },
+        Some(why) => EventKind::FaultNotInjected {
+            run_ms: rec.at_ms,
+            fault: rec.fault,
+            operation: rec.operation.clone(),
+            why: why.clone(),
+        },
+    });
 }
 
 impl Injector {
@@ -322,6 +342,7 @@ impl Injector {
         plan: FaultPlan,
         clock: SharedClock,
         view: watch::Receiver<RunView>,
+        bus: EventBus,
     ) -> Injector {
         let records = Arc::new(Mutex::new(Vec::new()));
         let t0 = clock.now();
@@ -330,11 +351,12 @@ impl Injector {
         let pending = Arc::new(Mutex::new(faults));
         let mut tasks = Vec::new();
         if !lock(&pending).is_empty() {
-            let (clock, records, pending, mut view) = (
+            let (clock, records, pending, mut view, bus) = (
                 clock.clone(),
                 records.clone(),
                 pending.clone(),
                 view.clone(),
+                bus.clone(),
             );
             tasks.push(tokio::spawn(async move {
                 if view.wait_for(|v| v.bound).await.is_err() {
@@ -350,18 +372,20 @@ impl Injector {
                     let current = view.borrow().clone();
                     let rec = inject(&clock, t0, f.kind, &f.target, &current).await;
                     lock(&pending).remove(0);
+                    publish(&bus, &rec);
                     lock(&records).push(rec);
                 }
             }));
         }
         if let Some(mut chaos) = plan.chaos {
-            let (clock, records) = (clock.clone(), records.clone());
+            let (clock, records, bus) = (clock.clone(), records.clone(), bus.clone());
             tasks.push(tokio::spawn(async move {
                 loop {
                     clock.sleep(chaos.next_gap()).await;
                     let current = view.borrow().clone();
                     if let Some(target) = chaos.pick(&current.running) {
                         let rec = inject(&clock, t0, FaultKind::Kill, target, &current).await;
+                        publish(&bus, &rec);
                         lock(&records).push(rec);
                     }
                 }
@@ -373,6 +397,7 @@ impl Injector {
             pending,
             clock,
             t0,
+            bus,
         }
     }
 
@@ -390,13 +415,15 @@ impl Injector {
                 ended.as_secs_f64()
             );
             tracing::warn!(fault = %f.kind, op = %f.target, "fault not injected: {error}");
-            records.push(FaultRecord {
+            let rec = FaultRecord {
                 at_ms: f.at.as_millis() as u64,
                 fault: f.kind,
                 operation: f.target,
                 actor: String::new(),
                 error: Some(error),
-            });
+            };
+            publish(&self.bus, &rec);
+            records.push(rec);
         }
         records
     }

@@ -373,7 +373,7 @@ impl Node {
                 }
             }
         });
-        let injector = Injector::start(plan, self.clock.clone(), view);
+        let injector = Injector::start(plan, self.clock.clone(), view, self.bus.clone());
         let result = self.dispatch(mission, inner).await;
         let faults = injector.finish();
         let _ = stop.send(());
