@@ -36,6 +36,14 @@ fn heals(mission: &str, fault: &str, op: &str, cause: &str) {
     let why: marie::actors::dispatcher::LossCause =
         serde_json::from_value(rebind["cause"].clone()).expect("a typed loss cause");
     assert!(why.to_string().contains(cause), "{fault}: cause `{why}`");
+    if let marie::actors::dispatcher::LossCause::Hung { deadline_ms } = why {
+        // a hung instance is down from its last sign of life, not from when it was found out
+        let down = rebind["downtime_ms"].as_u64().unwrap();
+        assert!(
+            down >= deadline_ms,
+            "{fault}: down {down} ms < deadline {deadline_ms} ms"
+        );
+    }
     assert!(
         text(&out.stdout).contains(&format!("~ {op} rebound")),
         "live output shows the rebind: {log}"

@@ -92,6 +92,9 @@ pub(crate) struct Binding {
     pub(crate) deadline: Duration,
     /// Set while the instance is gone and no stand-in has been adopted.
     pub(crate) lost: Option<Lost>,
+    /// When the instance last showed it was alive (answered a probe, was adopted); a hung
+    /// instance's downtime counts from here, not from when its deadline ran out.
+    pub(crate) last_alive: Option<Duration>,
     /// The rebind deadline's timer while lost; dropped (cancelled) when a stand-in is
     /// adopted, so a run with many failovers does not keep a sleeping task per loss.
     pub(crate) deadline_timer: Option<Timer>,
@@ -121,6 +124,7 @@ impl Binding {
             params: ParamMap::new(),
             deadline: cand.deadline,
             lost: None,
+            last_alive: None,
             deadline_timer: None,
             probing: false,
             selection,
@@ -172,6 +176,7 @@ impl Binding {
         self.deadline = cand.deadline;
         self.probing = false;
         self.deadline_timer = None;
+        self.last_alive = Some(now);
         self.lost
             .take()
             .map(|lost| (lost.clone(), now.saturating_sub(lost.since)))
@@ -187,12 +192,17 @@ impl Binding {
         self.actor_id().to_string()
     }
 
-    /// Let the current instance go.
+    /// Let the current instance go. Its downtime starts `now` — or, for a hung instance
+    /// (found out only when its deadline ran out), at its last sign of life.
     pub(crate) fn lose(&mut self, cause: LossCause, now: Duration) {
+        let since = match cause {
+            LossCause::Hung { .. } => self.last_alive.map_or(now, |t| t.min(now)),
+            _ => now,
+        };
         self.incarnation += 1;
         self.probing = false;
         self.lost = Some(Lost {
-            since: now,
+            since,
             cause,
             from: self.address(),
             dead: self.actor_id(),

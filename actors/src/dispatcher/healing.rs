@@ -275,7 +275,7 @@ impl DispatcherState {
         }
         b.probing = false;
         match error {
-            None => {}
+            None => b.last_alive = Some(self.clock.now()),
             Some(EoError::Timeout(_, deadline)) => {
                 b.client.actor().kill();
                 let cause = LossCause::Hung {
