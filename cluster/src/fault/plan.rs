@@ -10,12 +10,12 @@
 
 use super::{Chaos, FaultError, FaultKind, FaultSpec};
 use marie_actors::clock::SharedClock;
-use marie_actors::dispatcher::{DispatchEvent, FaultRecord};
+use marie_actors::dispatcher::{DispatchEvent, FaultRecord, RunReport, REPORT_KEEPS};
 use marie_actors::eo::EoClient;
 use marie_actors::events::{EventBus, EventKind};
 use marie_actors::property::{Group, PropertyReply, PropertyRequest};
 use marie_actors::registry::{self, Instance, ModuleKind};
-use std::collections::HashMap;
+use std::collections::{HashMap, VecDeque};
 use std::fmt;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -305,10 +305,38 @@ async fn version_of(inst: &Instance) -> Option<String> {
     }
 }
 
+/// What became of a run's faults, bounded like the report: every fault counted, the latest
+/// [`REPORT_KEEPS`] kept (the event stream has them all) — chaos over a long run must not
+/// grow memory without limit.
+#[derive(Debug, Default)]
+pub(crate) struct FaultLog {
+    /// The latest faults, oldest first.
+    pub(crate) latest: VecDeque<FaultRecord>,
+    /// Faults counted but no longer kept.
+    pub(crate) dropped: u64,
+}
+
+impl FaultLog {
+    /// Add `rec`, dropping the oldest beyond [`REPORT_KEEPS`].
+    pub(crate) fn push(&mut self, rec: FaultRecord) {
+        if self.latest.len() >= REPORT_KEEPS {
+            self.latest.pop_front();
+            self.dropped += 1;
+        }
+        self.latest.push_back(rec);
+    }
+
+    /// Fill the report's `faults` and `faults_total`.
+    pub(crate) fn into_report(self, report: &mut RunReport) {
+        report.record_faults(self.latest);
+        report.faults_total += self.dropped;
+    }
+}
+
 /// The injection tasks of one run.
 pub(crate) struct Injector {
     tasks: Vec<JoinHandle<()>>,
-    records: Arc<Mutex<Vec<FaultRecord>>>,
+    records: Arc<Mutex<FaultLog>>,
     /// Fixed faults not yet due, in time order.
     pending: Arc<Mutex<Vec<FaultSpec>>>,
     clock: SharedClock,
@@ -344,7 +372,7 @@ impl Injector {
         view: watch::Receiver<RunView>,
         bus: EventBus,
     ) -> Injector {
-        let records = Arc::new(Mutex::new(Vec::new()));
+        let records = Arc::new(Mutex::new(FaultLog::default()));
         let t0 = clock.now();
         let mut faults = plan.faults;
         faults.sort_by_key(|f| f.at);
@@ -401,9 +429,9 @@ impl Injector {
         }
     }
 
-    /// Stop injecting; the records of every fault: injected, not injected and why, and —
+    /// Stop injecting; the log of every fault: injected, not injected and why, and —
     /// for those not yet due — that the mission was over first.
-    pub(crate) fn finish(self) -> Vec<FaultRecord> {
+    pub(crate) fn finish(self) -> FaultLog {
         for t in &self.tasks {
             t.abort();
         }

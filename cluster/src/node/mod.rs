@@ -379,7 +379,7 @@ impl Node {
         let _ = stop.send(());
         let _ = forwarder.await;
         let mut report = result?;
-        report.record_faults(faults);
+        faults.into_report(&mut report);
         if let Some(robot) = &self.robot {
             robot.judge(&mut report).await;
             self.bus.publish(EventKind::Judged {
