@@ -280,27 +280,11 @@ mod tests {
     use super::*;
 
     fn report(outcome: Outcome) -> RunReport {
-        RunReport {
-            mission: "m".into(),
-            outcome,
-            reason: match outcome {
-                Outcome::Succeeded => String::new(),
-                Outcome::Failed => "the dispatcher's reason".into(),
-            },
-            status: 0,
-            flags: Vec::new(),
-            actions: Vec::new(),
-            rebinds: Vec::new(),
-            rebinds_total: 0,
-            duration_ms: 0,
-            final_pose: None,
-            collisions: None,
-            seed: None,
-            inside_goal: None,
-            judgement: None,
-            faults: Vec::new(),
-            faults_total: 0,
-        }
+        let reason = match outcome {
+            Outcome::Succeeded => "",
+            Outcome::Failed => "the dispatcher's reason",
+        };
+        RunReport::new("m", outcome, reason)
     }
 
     fn robot(world: &str) -> SimRobot {

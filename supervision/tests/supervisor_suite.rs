@@ -607,13 +607,13 @@ async fn temporary_abnormal() {
     assert_not_restarted(&sup, true).await;
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn temporary_bystander() {
-    // a temporary child caught in a one-for-all restart is stopped and removed, not restarted
+/// A temporary child caught in the restart of a sibling (`spec`'s strategy) is stopped and
+/// removed, not restarted.
+async fn temporary_bystander_of(spec: SupervisorSpec) -> marie_supervision::SupervisorRef {
     let log = Log::default();
     let (sup, _) = Supervisor::start(
         None,
-        SupervisorSpec::one_for_all().with_intensity(2, HOUR),
+        spec.with_intensity(2, HOUR),
         vec![
             worker("c1", &log),
             worker("c2", &log).with_restart(marie_supervision::Restart::Temporary),
@@ -628,7 +628,15 @@ async fn temporary_bystander() {
     assert_eq!(ids(&sup.which_children().await.unwrap()), ["c1"]);
     assert_eq!(c2.get_status(), ActorStatus::Stopped);
     assert_eq!(log.with_prefix("start c2").len(), 1);
-    sup.stop().await;
+    sup
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn temporary_bystander() {
+    temporary_bystander_of(SupervisorSpec::one_for_all())
+        .await
+        .stop()
+        .await;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -2207,25 +2215,7 @@ async fn rest_for_one_other_child_fails_restart() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn temporary_bystander_rest_for_one() {
-    // a temporary child started after the failing one is stopped and removed, not restarted
-    let log = Log::default();
-    let (sup, _) = Supervisor::start(
-        None,
-        SupervisorSpec::rest_for_one().with_intensity(2, HOUR),
-        vec![
-            worker("c1", &log),
-            worker("c2", &log).with_restart(marie_supervision::Restart::Temporary),
-        ],
-    )
-    .await
-    .unwrap();
-    let mut events = sup.subscribe().await.unwrap();
-    let c2 = running(&sup, "c2").await;
-    stop_normal(&running(&sup, "c1").await);
-    restarted(&mut events, "c1").await;
-    assert_eq!(ids(&sup.which_children().await.unwrap()), ["c1"]);
-    assert_eq!(c2.get_status(), ActorStatus::Stopped);
-    assert_eq!(log.with_prefix("start c2").len(), 1);
+    let sup = temporary_bystander_of(SupervisorSpec::rest_for_one()).await;
     assert_eq!(
         sup.restart_child("c2").await.unwrap_err(),
         SupervisorError::NotFound("c2".into())

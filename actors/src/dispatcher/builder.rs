@@ -38,24 +38,7 @@ impl ReportBuilder {
     /// A builder before any event: a failed report whose reason says the run never ended.
     pub fn new() -> ReportBuilder {
         ReportBuilder {
-            report: RunReport {
-                mission: String::new(),
-                outcome: Outcome::Failed,
-                reason: "the run has not ended".to_string(),
-                status: 0,
-                flags: Vec::new(),
-                actions: Vec::new(),
-                rebinds: Vec::new(),
-                rebinds_total: 0,
-                duration_ms: 0,
-                final_pose: None,
-                collisions: None,
-                seed: None,
-                inside_goal: None,
-                judgement: None,
-                faults: Vec::new(),
-                faults_total: 0,
-            },
+            report: RunReport::new("", Outcome::Failed, "the run has not ended"),
             open: None,
         }
     }

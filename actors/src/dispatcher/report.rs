@@ -182,6 +182,29 @@ pub struct FaultRecord {
 }
 
 impl RunReport {
+    /// The report of mission `mission` that ended with `outcome` for `reason`, before any
+    /// action, rebind, fault or judgement is recorded in it.
+    pub fn new(mission: impl Into<String>, outcome: Outcome, reason: impl Into<String>) -> Self {
+        RunReport {
+            mission: mission.into(),
+            outcome,
+            reason: reason.into(),
+            status: 0,
+            flags: Vec::new(),
+            actions: Vec::new(),
+            rebinds: Vec::new(),
+            rebinds_total: 0,
+            duration_ms: 0,
+            final_pose: None,
+            collisions: None,
+            seed: None,
+            inside_goal: None,
+            judgement: None,
+            faults: Vec::new(),
+            faults_total: 0,
+        }
+    }
+
     /// True when the mission succeeded.
     pub fn succeeded(&self) -> bool {
         self.outcome == Outcome::Succeeded
