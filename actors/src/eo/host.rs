@@ -84,6 +84,9 @@ struct Active {
 pub struct HostState<O> {
     op: O,
     identity: Identity,
+    /// The identification group, built once: it never changes, and a property request is
+    /// answered by cloning it (no version formatting per request).
+    identification: Identification,
     schema: ParamSchema,
     flags: Vec<FlagDecl>,
     period: Duration,
@@ -118,12 +121,7 @@ impl<O: Operation> HostState<O> {
         let id = &self.identity;
         match request {
             PropertyRequest::Group(Group::Identification) => {
-                PropertyReply::Identification(Identification {
-                    name: id.name.clone(),
-                    id: id.id,
-                    version: id.version.to_string(),
-                    description: id.description.clone(),
-                })
+                PropertyReply::Identification(self.identification.clone())
             }
             PropertyRequest::Group(Group::Location) => PropertyReply::Location(Location {
                 node: registry::local_node_name(),
@@ -191,7 +189,7 @@ impl<O: Operation> HostState<O> {
         Some(match name {
             "name" => Value::Text(id.name.clone()),
             "id" => Value::Int(id.id.into()),
-            "version" => Value::Text(id.version.to_string()),
+            "version" => Value::Text(self.identification.version.clone()),
             "description" => Value::Text(id.description.clone()),
             "node" => Value::Text(registry::local_node_name()),
             "address" => Value::Text(myself.get_id().to_string()),
@@ -364,6 +362,12 @@ impl<O: Operation> Actor for EoHost<O> {
             },
             previous: initial,
             op: operation,
+            identification: Identification {
+                name: identity.name.clone(),
+                id: identity.id,
+                version: identity.version.to_string(),
+                description: identity.description.clone(),
+            },
             identity,
             schema,
             flags,
