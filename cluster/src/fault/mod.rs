@@ -26,6 +26,7 @@
 //! ```
 
 pub mod plan;
+mod target;
 
 pub use plan::FaultPlan;
 
