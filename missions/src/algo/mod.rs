@@ -11,6 +11,8 @@
 //! - [`pursuit`] — pure pursuit trajectory controller for car-like kinematics, forwards or in
 //!   reverse;
 //! - [`follow`] — wall (v1) and corridor (v2) following control law;
+//! - [`localize`] — map matching: sonar segments on the map's walls correct the drifting
+//!   odometry (heading, and the offset across each wall seen);
 //! - [`avoid`] — collision avoidance with four modes, including the controlled stop.
 //!
 //! # Conventions
@@ -48,6 +50,7 @@
 pub mod avoid;
 pub mod dock;
 pub mod follow;
+pub mod localize;
 pub mod parking;
 pub mod planner;
 pub mod pursuit;

@@ -111,7 +111,11 @@ mod tests {
         let got: Vec<u64> = (0..3).map(|_| s.next_u64()).collect();
         assert_eq!(
             got,
-            [0xeb5c_b4bf_139b_351f, 0x9ddf_d655_bf07_c551, 0xc20e_2344_75da_8393]
+            [
+                0xeb5c_b4bf_139b_351f,
+                0x9ddf_d655_bf07_c551,
+                0xc20e_2344_75da_8393
+            ]
         );
     }
 

@@ -54,6 +54,7 @@ const SIM_KEYS: &[&str] = &[
     "wide_half_angle_deg",
     "odometry_distance_sigma",
     "odometry_heading_sigma_deg",
+    "odometry_heading_walk_deg",
 ];
 
 /// Shortest wall or obstacle edge, metres.
@@ -904,6 +905,13 @@ fn sim_settings(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> SimSettings {
         Some(d.odometry_heading_sigma.to_degrees()),
         Rule::NonNegative,
     );
+    let odo_walk = num(
+        ctx,
+        t,
+        "odometry_heading_walk_deg",
+        Some(d.odometry_heading_walk.to_degrees()),
+        Rule::NonNegative,
+    );
     SimSettings {
         sonar_sigma: sonar_sigma.unwrap_or(d.sonar_sigma),
         sonar_dropout: sonar_dropout.unwrap_or(d.sonar_dropout),
@@ -913,6 +921,7 @@ fn sim_settings(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> SimSettings {
         wide_half_angle: deg(wide, d.wide_half_angle),
         odometry_distance_sigma: odo_d.unwrap_or(d.odometry_distance_sigma),
         odometry_heading_sigma: deg(odo_h, d.odometry_heading_sigma),
+        odometry_heading_walk: deg(odo_walk, d.odometry_heading_walk),
     }
 }
 
