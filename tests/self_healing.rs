@@ -131,7 +131,7 @@ fn docking_completes_under_chaos() {
 
 #[test]
 fn corner_completes_under_chaos() {
-    survives_chaos("missions/corner.toml", "2", 10);
+    survives_chaos("missions/corner.toml", "2", 8);
 }
 
 #[test]

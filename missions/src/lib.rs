@@ -58,6 +58,7 @@ pub fn robot_operations() -> Vec<OperationFactory> {
         OperationFactory::of::<ops::WallFollowerV2>("wall-follower"),
         OperationFactory::of::<ops::SensorBasedController>("sensor-based-controller"),
         OperationFactory::of::<ops::CollisionAvoidance>("collision-avoidance"),
+        OperationFactory::of::<ops::Localizer>("localizer"),
     ]
 }
 

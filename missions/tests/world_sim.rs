@@ -297,7 +297,11 @@ fn a_hand_made_world_never_makes_the_simulation_panic() {
 
 #[test]
 fn driving_straight_goes_straight() {
-    let w = open_room();
+    let mut w = open_room();
+    // perfect odometry, to compare it with the truth exactly
+    w.sim.odometry_distance_sigma = 0.0;
+    w.sim.odometry_heading_sigma = 0.0;
+    w.sim.odometry_heading_walk = 0.0;
     let mut sim = Simulation::new(&w, 0);
     sim.command(0.5, 0.0);
     for _ in 0..500 {
@@ -554,6 +558,29 @@ fn the_same_seed_gives_the_same_readings_and_another_seed_other_noise() {
             assert_eq!(p, q);
         }
     }
+}
+
+/// The worlds' default odometry drifts as a real cart's: over 10 m driven straight, 1σ of
+/// about 1 % of the distance and 0.5° of heading per metre (plus a little slip).
+#[test]
+fn the_default_odometry_drifts_as_a_real_carts() {
+    let w = open_room();
+    assert_eq!(w.sim.odometry_distance_sigma, 0.01);
+    assert!((w.sim.odometry_heading_sigma - 0.5f64.to_radians()).abs() < 1e-15);
+    let (mut along, mut heading) = (Vec::new(), Vec::new());
+    for seed in 1..=200 {
+        let mut sim = Simulation::new(&w, seed);
+        sim.command(0.5, 0.0);
+        sim.step(20.0);
+        let (o, p) = (sim.odometry(), sim.pose());
+        assert!((p.x - 10.0).abs() < 1e-6, "{p:?}");
+        along.push(o.x.hypot(o.y) - 10.0);
+        heading.push(o.theta.to_degrees());
+    }
+    let sd = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt();
+    // 1 % of 10 m; 0.5°/m × 10 m with a random walk of 0.1°·√10 on top: ≈ 5.0°
+    assert!((0.07..0.13).contains(&sd(&along)), "{}", sd(&along));
+    assert!((4.0..6.5).contains(&sd(&heading)), "{}", sd(&heading));
 }
 
 #[test]

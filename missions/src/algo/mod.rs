@@ -11,6 +11,8 @@
 //! - [`pursuit`] — pure pursuit trajectory controller for car-like kinematics, forwards or in
 //!   reverse;
 //! - [`follow`] — wall (v1) and corridor (v2) following control law;
+//! - [`localize`] — map matching: sonar segments on the map's walls correct the drifting
+//!   odometry (heading, and the offset across each wall seen);
 //! - [`avoid`] — collision avoidance with four modes, including the controlled stop.
 //!
 //! # Conventions
@@ -48,6 +50,7 @@
 pub mod avoid;
 pub mod dock;
 pub mod follow;
+pub mod localize;
 pub mod parking;
 pub mod planner;
 pub mod pursuit;
@@ -122,35 +125,26 @@ pub(crate) fn safe_div(x: f64, y: f64, fallback: f64) -> f64 {
     }
 }
 
-/// Deterministic random numbers for the tests: splitmix64 and Box–Muller.
+/// Deterministic random numbers for the tests: the simulation's seeded generator
+/// ([`crate::sim::Rng`], xoshiro256** from `rand_xoshiro`), under the names the tests use.
 #[cfg(test)]
 pub(crate) mod test_rng {
-    /// splitmix64 generator.
-    pub struct Rng(u64);
+    /// The seeded generator.
+    pub struct Rng(crate::sim::Rng);
 
     impl Rng {
         pub fn new(seed: u64) -> Self {
-            Rng(seed)
-        }
-
-        pub fn next_u64(&mut self) -> u64 {
-            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = self.0;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            z ^ (z >> 31)
+            Rng(crate::sim::Rng::new(seed))
         }
 
         /// Uniform in [0, 1).
         pub fn uniform(&mut self) -> f64 {
-            (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+            self.0.uniform()
         }
 
         /// Normal with standard deviation `sigma`.
         pub fn gauss(&mut self, sigma: f64) -> f64 {
-            let u1 = self.uniform().max(1e-300);
-            let u2 = self.uniform();
-            sigma * (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
+            self.0.gaussian(sigma)
         }
     }
 }

@@ -6,6 +6,10 @@
 //!   one (in steps of at most [`CartArgs::period`]), so the cart moves at clock speed whether
 //!   the clock is real, scaled or virtual.
 //! - Commands take effect at the next physics step; readings reflect the last one.
+//! - A drive command holds for [`COMMAND_HOLD`]: a controller that stops renewing it (hung,
+//!   crashed, cut off from the cart) leaves a cart that brakes to a stop, as a real cart's
+//!   motor controller does — rather than one that drives on blind until a stand-in takes
+//!   over. Controllers renew theirs every control period.
 
 use crate::geom::{Point, Pose};
 use crate::sim::{Simulation, SonarReading, TracePoint};
@@ -17,6 +21,10 @@ use ractor::{Actor, ActorProcessingErr, ActorRef, SpawnErr};
 use serde::{Deserialize, Serialize};
 use std::time::Duration;
 use tokio::task::JoinHandle;
+
+/// How long a drive command holds without being renewed; then the cart brakes (steering
+/// kept). Six of the controllers' 50 ms control periods.
+pub const COMMAND_HOLD: Duration = Duration::from_millis(300);
 
 /// Registry id of the virtual cart.
 pub const CART_ID: u32 = 1401;
@@ -123,6 +131,8 @@ pub struct CartState {
     period: Duration,
     last: Duration,
     command: (f64, f64),
+    /// Clock time of the last drive command.
+    commanded_at: Duration,
     cap: Option<f64>,
 }
 
@@ -137,6 +147,19 @@ impl CartState {
             let dt = elapsed.min(self.period);
             self.sim.step(dt.as_secs_f64());
             elapsed -= dt;
+        }
+    }
+
+    /// Brake when the drive command was not renewed within [`COMMAND_HOLD`].
+    fn watchdog(&mut self) {
+        let stale = self.clock.now().saturating_sub(self.commanded_at) > COMMAND_HOLD;
+        if stale && self.command.0 != 0.0 {
+            tracing::debug!(
+                speed = self.command.0,
+                "drive command not renewed within {COMMAND_HOLD:?}: braking"
+            );
+            self.command.0 = 0.0;
+            self.apply_command();
         }
     }
 
@@ -191,6 +214,7 @@ impl Actor for VirtualCart {
             clock: args.clock,
             period,
             command: (0.0, 0.0),
+            commanded_at: Duration::ZERO,
             cap: None,
         })
     }
@@ -204,11 +228,13 @@ impl Actor for VirtualCart {
         match msg {
             CartMsg::Tick {} => {
                 state.advance();
+                state.watchdog();
                 schedule(&myself, &state.clock, state.period);
             }
             CartMsg::Drive { speed, steer } => {
                 state.advance();
                 state.command = (speed, steer);
+                state.commanded_at = state.clock.now();
                 state.apply_command();
             }
             CartMsg::SpeedCap { max } => {

@@ -5,12 +5,14 @@
 //! [`Operation`]: marie_actors::eo::Operation
 
 mod avoidance;
+mod localization;
 mod motion;
 mod perception;
 pub mod records;
 mod ultrasonic;
 
 pub use avoidance::CollisionAvoidance;
+pub use localization::Localizer;
 pub use motion::{
     PathPlanner, SensorBasedController, TrajectoryController, WallFollowerV1, WallFollowerV2,
 };
@@ -67,4 +69,30 @@ pub(crate) fn dm_err(dm: &'static str) -> impl Fn(DmError) -> OpError {
         dm: dm.to_string(),
         problem: e.to_string(),
     }
+}
+
+/// The localizer's newest odometry correction ([`records::LocationRecord`]); the identity
+/// when there is none yet (the odometry starts at the world's start pose).
+pub(crate) async fn correction(
+    ctx: &mut marie_actors::eo::OpContext,
+) -> Result<crate::geom::Pose, OpError> {
+    Ok(
+        newest::<records::LocationRecord>(ctx, "world", records::LOCATION)
+            .await?
+            .map(|r| r.correction)
+            .unwrap_or_default(),
+    )
+}
+
+/// The cart's pose in the map frame: its `odometry` under the localizer's newest correction.
+/// Every operation that places things in the world or drives to a place uses this, never the
+/// raw odometry, which drifts.
+pub(crate) async fn located(
+    ctx: &mut marie_actors::eo::OpContext,
+    odometry: &crate::geom::Pose,
+) -> Result<crate::geom::Pose, OpError> {
+    Ok(crate::algo::localize::corrected(
+        &correction(ctx).await?,
+        odometry,
+    ))
 }

@@ -9,7 +9,7 @@ use super::records::{
     DockRecord, LegRecord, PathRecord, ProgressRecord, SegmentSet, WallRecord, DOCK, MAP, PATH,
     PROGRESS, SEGMENTS, WALL,
 };
-use super::{cart, cart_err, dm_err, newest, newest_with_seq};
+use super::{cart, cart_err, dm_err, located, newest, newest_with_seq};
 use crate::algo::follow::{follow_command, is_aligned, FollowMode, FollowParams};
 use crate::algo::parking::{plan_parking, Footprint, ParkParams};
 use crate::algo::planner::{plan, Bounds, Path, PlannerParams};
@@ -101,7 +101,7 @@ impl Operation for PathPlanner {
             .await?
             .ok_or_else(|| OpError::failed("no map in the world DM"))?;
         let status = cart(&mut self.cart)?.status().await.map_err(cart_err)?;
-        let start = status.odometry;
+        let start = located(ctx, &status.odometry).await?;
         if target == "dock" {
             let dock: DockRecord = newest(ctx, "world", DOCK)
                 .await?
@@ -338,10 +338,10 @@ impl Operation for TrajectoryController {
                 status.pose.x, status.pose.y
             )));
         }
+        let pose = located(ctx, &status.odometry).await?;
         let Some((pursuit, path)) = self.pursuit.as_mut() else {
             return Err(OpError::failed("activated without a path"));
         };
-        let pose = status.odometry;
         match pursuit.status(&pose) {
             PursuitStatus::Arrived => {
                 stop_cart(&mut self.cart)?;
@@ -405,8 +405,9 @@ async fn follow_step(
     let Some(wall) = newest::<WallRecord>(ctx, "world", WALL).await? else {
         return Err(OpError::failed("no wall in the world DM to follow"));
     };
-    let pose = status.odometry;
-    let Some(est) = wall_from(&wall.segment, &pose) else {
+    let now = super::correction(ctx).await?;
+    let pose = now.compose(status.odometry);
+    let Some(est) = wall_from(&wall.segment_under(&now), &pose) else {
         return Err(OpError::failed("the wall record is degenerate"));
     };
     // progress along the wall, in the direction of travel

@@ -5,8 +5,9 @@ use super::records::{
     DockRecord, Echo, EchoScan, SearchRecord, SegmentSet, WallRecord, DOCK, SEARCH, SEGMENTS,
     SONAR, WALL,
 };
-use super::{cart, cart_err, dm_err, newest};
+use super::{cart, cart_err, correction, dm_err, newest};
 use crate::algo::dock::{detect_dock, DockParams};
+use crate::algo::localize::reframe;
 use crate::algo::segments::Line;
 use crate::algo::segments::{extract_segments, SegmentParams};
 use crate::algo::wall::{sense_wall, Side, WallEstimate, WallParams};
@@ -60,6 +61,8 @@ pub(crate) fn wall_from(wall: &Segment, pose: &Pose) -> Option<WallEstimate> {
 #[derive(Default)]
 pub struct SegmentExtractor {
     sets: u64,
+    /// Clock time of the activation (for `fresh`).
+    activated: Duration,
 }
 
 impl Operation for SegmentExtractor {
@@ -98,7 +101,16 @@ impl Operation for SegmentExtractor {
                 "which sonar beams to fit: a wide beam's echo is placed on its axis, so its \
                  points sit nearer than the wall they came from",
             ),
+            ParamDecl::bool("fresh", false).describe(
+                "only echoes heard since this activation (not an earlier stage's, which the \
+                 sonar may have heard for the localizer while the cart turned)",
+            ),
         ])
+    }
+
+    async fn activate(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
+        self.activated = ctx.now();
+        Ok(Step::Continue)
     }
 
     fn period(&self) -> Duration {
@@ -116,12 +128,21 @@ impl Operation for SegmentExtractor {
             ..SegmentParams::default()
         };
         let narrow_only = p.text("beams")? == "narrow";
-        let since = ctx.now().saturating_sub(window);
+        let mut since = ctx.now().saturating_sub(window);
+        if p.bool("fresh")? {
+            since = since.max(self.activated);
+        }
         let (scans, _) = scans_since(ctx, since, 0).await?;
+        // every echo in the frame of the newest correction, whatever it was placed with
+        let now = correction(ctx).await?;
         let mut by_sensor: BTreeMap<usize, Vec<Point>> = BTreeMap::new();
         for scan in &scans {
             for e in scan.echoes.iter().filter(|e| e.narrow || !narrow_only) {
-                by_sensor.entry(e.sensor).or_default().push(e.point);
+                by_sensor.entry(e.sensor).or_default().push(reframe(
+                    e.point,
+                    &scan.correction,
+                    &now,
+                ));
             }
         }
         let points = by_sensor.values().map(Vec::len).sum();
@@ -158,7 +179,8 @@ impl Operation for SegmentExtractor {
 #[derive(Default)]
 pub struct WallSensor {
     cart: Option<CartClient>,
-    tracked: Option<Segment>,
+    /// The tracked wall and the correction it is placed with.
+    tracked: Option<(Segment, Pose)>,
 }
 
 /// Largest distance of a segment's ends from the tracked wall's line for it to extend the
@@ -219,6 +241,10 @@ impl Operation for WallSensor {
                 .describe("shortest wall accepted"),
             ParamDecl::choice("side", &["any", "left", "right"], "any")
                 .describe("which side of the cart the wall must be on"),
+            ParamDecl::float("max_angle", d.max_angle.to_degrees())
+                .range(0.0, 90.0)
+                .unit("deg")
+                .describe("largest angle between the wall and the cart's heading"),
             ParamDecl::bool("continuous", false)
                 .describe("keep updating the wall instead of finishing when found"),
         ])
@@ -238,7 +264,7 @@ impl Operation for WallSensor {
     async fn activate(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
         self.tracked = newest::<WallRecord>(ctx, "world", WALL)
             .await?
-            .map(|w| w.segment);
+            .map(|w| (w.segment, w.correction));
         Ok(Step::Continue)
     }
 
@@ -252,18 +278,24 @@ impl Operation for WallSensor {
                 "right" => Some(Side::Right),
                 _ => None,
             },
+            max_angle: p.f64("max_angle")?.to_radians(),
             ..WallParams::default()
         };
         let continuous = p.bool("continuous")?;
         let Some(set) = newest::<SegmentSet>(ctx, "feature", SEGMENTS).await? else {
             return Ok(Step::Continue);
         };
-        let pose = cart(&mut self.cart)?
+        let odometry = cart(&mut self.cart)?
             .status()
             .await
             .map_err(cart_err)?
             .odometry;
-        let found = match (continuous, self.tracked) {
+        let now = correction(ctx).await?;
+        let pose = now.compose(odometry);
+        let tracked = self.tracked.map(|(wall, then)| {
+            Segment::new(reframe(wall.a, &then, &now), reframe(wall.b, &then, &now))
+        });
+        let found = match (continuous, tracked) {
             (true, Some(wall)) => {
                 extend_wall(&wall, &set.segments).and_then(|segment| wall_from(&segment, &pose))
             }
@@ -281,8 +313,17 @@ impl Operation for WallSensor {
             relative_angle: w.angle,
             side: w.side.sign(),
             pose,
+            correction: now,
         };
-        self.tracked = Some(w.line);
+        self.tracked = Some((w.line, now));
+        tracing::debug!(
+            a = ?(w.line.a.x, w.line.a.y),
+            b = ?(w.line.b.x, w.line.b.y),
+            distance = w.distance,
+            x = pose.x,
+            y = pose.y,
+            "wall sensed"
+        );
         ctx.dm("world")?
             .store(WALL, Some("followed"), None, &record)
             .await
@@ -394,12 +435,17 @@ impl Operation for DockingDetector {
             return Ok(Step::Continue);
         };
         let status = cart(&mut self.cart)?.status().await.map_err(cart_err)?;
-        let Some(estimate) = wall_from(&wall.segment, &status.odometry) else {
+        let now = correction(ctx).await?;
+        let pose = now.compose(status.odometry);
+        let Some(estimate) = wall_from(&wall.segment_under(&now), &pose) else {
             return Ok(Step::Continue);
         };
         // only the scans stored since the last step are fetched and decoded
         let (scans, next) = scans_since(ctx, self.since, self.next_seq).await?;
         self.next_seq = next;
+        // each echo stays where it was placed: with the correction of its time, which was
+        // right then (moving old echoes with a newer correction bends the spot out of shape
+        // by the odometry's drift since)
         self.echoes.extend(scans.into_iter().flat_map(|s| s.echoes));
         let points: Vec<Point> = self
             .echoes

@@ -11,6 +11,7 @@
 //! | parameter | `path` | `planned` | [`PathRecord`] | path planner → trajectory controller |
 //! | parameter | `path-progress` | `driven` | [`ProgressRecord`] | trajectory controller → itself, after a restart |
 //! | world | `dock-search` | `since` | [`SearchRecord`] | docking detector → itself, after a restart |
+//! | world | `pose` | `correction` | [`LocationRecord`] | localizer → every operation that places or drives the cart in the map frame |
 
 use crate::geom::{Point, Pose, Segment};
 use serde::{Deserialize, Serialize};
@@ -29,6 +30,26 @@ pub const DOCK: &str = "dock";
 pub const PATH: &str = "path";
 /// Parameter DM class of the trajectory controller's progress along a path.
 pub const PROGRESS: &str = "path-progress";
+
+/// World DM class of the localizer's odometry correction.
+pub const LOCATION: &str = "pose";
+
+/// The localizer's correction of the cart's drifting odometry: the cart's pose in the map
+/// frame is `correction.compose(odometry)`. Kept in the world DM (the pose is the world's
+/// business), so every operation places echoes and drives in one frame — the map's —, and a
+/// restarted localizer resumes from the last correction. No record: the identity (the
+/// odometry starts at the world's start pose).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LocationRecord {
+    /// Odometry frame → map frame.
+    pub correction: Pose,
+    /// The odometry when the correction was made.
+    pub odometry: Pose,
+    /// The corrected pose then.
+    pub pose: Pose,
+    /// Segments matched to map walls for this correction.
+    pub matched: usize,
+}
 
 /// World DM class of the docking detector's search.
 pub const SEARCH: &str = "dock-search";
@@ -56,7 +77,7 @@ pub struct ProgressRecord {
     pub along: f64,
 }
 
-/// One sonar echo, placed in the world with the cart's odometry.
+/// One sonar echo, placed in the world with the cart's corrected odometry.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Echo {
     /// Sensor index.
@@ -76,10 +97,15 @@ pub struct Echo {
 pub struct EchoScan {
     /// Simulated time of the scan, s.
     pub time: f64,
-    /// The cart's odometry when it scanned.
+    /// The cart's pose when it scanned: its odometry under `correction` (the frame the
+    /// echoes are placed in).
     pub pose: Pose,
     /// Echoes (lost readings are left out).
     pub echoes: Vec<Echo>,
+    /// The localizer's correction the echoes were placed with (see [`LocationRecord`]), so
+    /// the localizer can bring them into its newer frame; identity when absent.
+    #[serde(default)]
+    pub correction: Pose,
 }
 
 /// The segments extracted from recent echoes.
@@ -104,6 +130,18 @@ pub struct WallRecord {
     pub side: f64,
     /// Cart pose it was measured from.
     pub pose: Pose,
+    /// The localizer's correction the wall is placed with (see [`LocationRecord`]): a reader
+    /// under a newer correction moves it into its own frame first.
+    #[serde(default)]
+    pub correction: Pose,
+}
+
+impl WallRecord {
+    /// The wall segment in the frame of correction `now`.
+    pub fn segment_under(&self, now: &Pose) -> Segment {
+        let f = |p| crate::algo::localize::reframe(p, &self.correction, now);
+        Segment::new(f(self.segment.a), f(self.segment.b))
+    }
 }
 
 /// A detected dock.

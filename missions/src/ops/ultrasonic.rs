@@ -1,7 +1,8 @@
-//! Ultrasonic (1516): reads every sonar of the cart and stores the echoes in the feature DM.
+//! Ultrasonic (1516): reads every sonar of the cart and stores the echoes in the feature DM,
+//! placed in the map frame with the localizer's newest odometry correction.
 
 use super::records::{Echo, EchoScan, SONAR};
-use super::{cart, dm_err};
+use super::{cart, correction, dm_err};
 use crate::hardware::CartClient;
 use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
 use marie_actors::property::{ParamDecl, ParamSchema, Value};
@@ -42,13 +43,16 @@ impl Operation for Ultrasonic {
             .scan()
             .await
             .map_err(|e| OpError::failed(e.to_string()))?;
+        let fix = correction(ctx).await?;
+        let pose = fix.compose(scan.odometry);
         let echoes = scan
             .readings
             .iter()
             .filter_map(|r| {
                 let range = r.range.filter(|d| *d >= min_range)?;
-                // the mount pose is ground truth; the robot knows it only through odometry
-                let mount = scan.odometry.compose(*scan.mounts.get(r.sensor)?);
+                // the mount pose is ground truth; the robot knows it only through its
+                // (corrected) odometry
+                let mount = pose.compose(*scan.mounts.get(r.sensor)?);
                 Some(Echo {
                     sensor: r.sensor,
                     narrow: r.beam == crate::world::Beam::Narrow,
@@ -60,8 +64,9 @@ impl Operation for Ultrasonic {
             .collect();
         let record = EchoScan {
             time: scan.time,
-            pose: scan.odometry,
+            pose,
             echoes,
+            correction: fix,
         };
         ctx.dm("feature")?
             .put(SONAR, Some("scan"), None, &record)

@@ -63,10 +63,13 @@ pub struct CollisionEvent {
 ///   The latch clears when a command asks for the opposite direction (backing away), or on
 ///   [`clear_collision`](Self::clear_collision). One contact episode counts once.
 /// - **Odometry** ([`odometry`](Self::odometry)): the cart's own pose estimate, integrated
-///   from its wheels. With the world's default [`crate::world::SimSettings`] it equals the
-///   true pose; `odometry_distance_sigma` draws one distance scale error per run (a
-///   miscalibrated wheel: systematic drift) and `odometry_heading_sigma` adds a heading random
-///   walk (σ per √metre driven).
+///   from its wheels, drifting as a real cart's does (the world's
+///   [`crate::world::SimSettings`]; by default 1 % of distance and 0.5° of heading per metre,
+///   1σ). `odometry_distance_sigma` draws one distance scale error per run (a miscalibrated
+///   wheel); `odometry_heading_sigma` draws one heading drift rate per run (a steering offset:
+///   radians per metre driven, its sign following the direction of travel), and
+///   `odometry_heading_walk` adds a heading random walk (σ per √metre driven: wheel slip). A
+///   zero sigma turns its error off.
 #[derive(Clone, Debug)]
 pub struct Simulation {
     world: World,
@@ -77,6 +80,8 @@ pub struct Simulation {
     pose: Pose,
     odometry: Pose,
     odometry_scale: f64,
+    /// Systematic heading drift of the odometry, rad per metre driven (signed with travel).
+    odometry_drift: f64,
     command_speed: f64,
     command_steer: f64,
     emergency: bool,
@@ -102,6 +107,7 @@ impl Simulation {
         let geometry = WorldGeometry::new(&world);
         let mut odometry_rng = Rng::stream(seed, STREAM_ODOMETRY);
         let odometry_scale = 1.0 + odometry_rng.gaussian(world.sim.odometry_distance_sigma);
+        let odometry_drift = odometry_rng.gaussian(world.sim.odometry_heading_sigma);
         let start = if world.start.x.is_finite()
             && world.start.y.is_finite()
             && world.start.theta.is_finite()
@@ -118,6 +124,7 @@ impl Simulation {
             pose: start,
             odometry: start,
             odometry_scale,
+            odometry_drift,
             command_speed: 0.0,
             command_steer: 0.0,
             emergency: false,
@@ -258,14 +265,16 @@ impl Simulation {
     fn advance_odometry(&mut self, v: f64, phi: f64, dt: f64) {
         let measured = v * self.odometry_scale;
         let mut odo = bicycle_step(&self.odometry, measured, phi, self.world.cart.wheelbase, dt);
-        let sigma = self.world.sim.odometry_heading_sigma;
-        if sigma > 0.0 {
-            let ds = (measured * dt).abs();
-            odo = Pose::new(
-                odo.x,
-                odo.y,
-                odo.theta + self.odometry_rng.gaussian(sigma * ds.sqrt()),
-            );
+        let ds = measured * dt;
+        let walk_sigma = self.world.sim.odometry_heading_walk;
+        let walk = if walk_sigma > 0.0 && walk_sigma.is_finite() {
+            self.odometry_rng.gaussian(walk_sigma * ds.abs().sqrt())
+        } else {
+            0.0
+        };
+        let drift = self.odometry_drift * ds;
+        if drift != 0.0 || walk != 0.0 {
+            odo = Pose::new(odo.x, odo.y, odo.theta + drift + walk);
         }
         self.odometry = odo;
     }

@@ -50,6 +50,7 @@ const SIM_KEYS: &[&str] = &[
     "wide_half_angle_deg",
     "odometry_distance_sigma",
     "odometry_heading_sigma_deg",
+    "odometry_heading_walk_deg",
 ];
 
 /// Largest coordinate magnitude, metres: a world is at most 2 km across (the simulation's
@@ -664,7 +665,13 @@ fn sim_settings(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> SimSettings {
         t,
         "odometry_heading_sigma_deg",
         Some(d.odometry_heading_sigma.to_degrees()),
-        Rule::NonNegative,
+        Rule::Within(0.0, 45.0),
+    );
+    let odo_walk = ctx.num(
+        t,
+        "odometry_heading_walk_deg",
+        Some(d.odometry_heading_walk.to_degrees()),
+        Rule::Within(0.0, 45.0),
     );
     SimSettings {
         sonar_sigma: sonar_sigma.unwrap_or(d.sonar_sigma),
@@ -675,6 +682,7 @@ fn sim_settings(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> SimSettings {
         wide_half_angle: deg(wide, d.wide_half_angle),
         odometry_distance_sigma: odo_d.unwrap_or(d.odometry_distance_sigma),
         odometry_heading_sigma: deg(odo_h, d.odometry_heading_sigma),
+        odometry_heading_walk: deg(odo_walk, d.odometry_heading_walk),
     }
 }
 

@@ -26,7 +26,7 @@
 //! | `[goal]` | `center = { x, y }`, `length`, `width`, `heading_deg` 0 | the rectangle the whole footprint must end in; `length` runs along `heading_deg` |
 //! | | `heading_tolerance_deg` 10, `either_way` false | heading the cart must end with; `either_way`: modulo 180° |
 //! | `[dock]` | `opening = [[x, y], [x, y]]`, `breadth`, `depth` | ground truth: the recess lies left of the opening's first → second point |
-//! | `[sim]` | `sonar_sigma` 0.01, `sonar_dropout` 0.01, `incidence_limit_deg` 65, `rays_per_beam` 7, `narrow_half_angle_deg` 8, `wide_half_angle_deg` 25, `odometry_distance_sigma` 0, `odometry_heading_sigma_deg` 0 | sensor and odometry model ([`SimSettings`]) |
+//! | `[sim]` | `sonar_sigma` 0.01, `sonar_dropout` 0.01, `incidence_limit_deg` 65, `rays_per_beam` 7, `narrow_half_angle_deg` 8, `wide_half_angle_deg` 25, `odometry_distance_sigma` 0.01, `odometry_heading_sigma_deg` 0.5, `odometry_heading_walk_deg` 0.1 | sensor and odometry model ([`SimSettings`]); odometry errors are 1σ: a distance scale error (fraction of the distance) and a heading drift rate (degrees per metre driven), both drawn once per run from the seed, and a heading random walk (degrees per √metre); 0 turns one off |
 //!
 //! A world without `[goal]` can never be judged a success (the `nodock` world).
 //!
@@ -82,7 +82,8 @@ mod model;
 
 pub use model::{
     Beam, CartSpec, Dock, GoalArea, Judgement, RayHit, Rect, SimSettings, SonarMount, World,
-    WorldGeometry,
+    WorldGeometry, DEFAULT_ODOMETRY_DISTANCE_SIGMA, DEFAULT_ODOMETRY_HEADING_SIGMA_DEG,
+    DEFAULT_ODOMETRY_HEADING_WALK_DEG,
 };
 
 use marie_actors::diagnostic::{Diagnostic, Diagnostics};

@@ -328,6 +328,14 @@ impl Dock {
     }
 }
 
+/// Default odometry distance error, 1σ, fraction of the distance driven (1 %).
+pub const DEFAULT_ODOMETRY_DISTANCE_SIGMA: f64 = 0.01;
+/// Default odometry heading error, 1σ, degrees per metre driven.
+pub const DEFAULT_ODOMETRY_HEADING_SIGMA_DEG: f64 = 0.5;
+/// Default odometry heading random walk, 1σ, degrees per √metre driven: slip on a lab floor,
+/// small beside the systematic drift.
+pub const DEFAULT_ODOMETRY_HEADING_WALK_DEG: f64 = 0.1;
+
 /// The sensor and odometry model of a simulation run.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SimSettings {
@@ -344,15 +352,21 @@ pub struct SimSettings {
     pub narrow_half_angle: f64,
     /// Half the opening angle of a wide beam, radians.
     pub wide_half_angle: f64,
-    /// Odometry distance noise: standard deviation as a fraction of the distance driven.
+    /// Odometry distance error, 1σ, as a fraction of the distance driven: one scale error
+    /// drawn per run (a wheel whose diameter is not quite the calibrated one).
     pub odometry_distance_sigma: f64,
-    /// Odometry heading noise: standard deviation in radians per metre driven.
+    /// Odometry heading error, 1σ, radians per metre driven: one drift rate drawn per run
+    /// (a steering offset, so the error grows with the distance).
     pub odometry_heading_sigma: f64,
+    /// Odometry heading random walk, 1σ, radians per √metre driven (wheel slip).
+    pub odometry_heading_walk: f64,
 }
 
 impl Default for SimSettings {
     /// 1 cm range noise, 1 % dropouts, 65° incidence limit, 7 rays per beam, narrow ±8°,
-    /// wide ±25°, perfect odometry.
+    /// wide ±25°; odometry off by 1 % of the distance and 0.5° of heading per metre (1σ), with
+    /// a heading random walk of 0.1° per √metre, as a real cart's: the robot must correct its pose from what it senses, not trust its
+    /// wheels.
     fn default() -> Self {
         SimSettings {
             sonar_sigma: 0.01,
@@ -361,8 +375,9 @@ impl Default for SimSettings {
             rays_per_beam: 7,
             narrow_half_angle: 8f64.to_radians(),
             wide_half_angle: 25f64.to_radians(),
-            odometry_distance_sigma: 0.0,
-            odometry_heading_sigma: 0.0,
+            odometry_distance_sigma: DEFAULT_ODOMETRY_DISTANCE_SIGMA,
+            odometry_heading_sigma: DEFAULT_ODOMETRY_HEADING_SIGMA_DEG.to_radians(),
+            odometry_heading_walk: DEFAULT_ODOMETRY_HEADING_WALK_DEG.to_radians(),
         }
     }
 }

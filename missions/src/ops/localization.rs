@@ -1,0 +1,154 @@
+//! The localizer (1520): corrects the cart's drifting odometry by matching sonar segments
+//! against the a-priori map's walls, and stores the correction in the world DM.
+
+use super::records::{EchoScan, LocationRecord, LOCATION, MAP, SONAR};
+use super::{cart, cart_err, correction, dm_err, newest};
+use crate::algo::localize::{localize, reframe, swept_segments, Fix, LocalizeParams, SensedPoint};
+use crate::algo::segments::SegmentParams;
+use crate::geom::Segment;
+use crate::hardware::CartClient;
+use marie_actors::dm::Query;
+use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
+use marie_actors::property::{ParamDecl, ParamSchema, Value};
+use std::collections::BTreeMap;
+use std::time::Duration;
+
+/// Keeps the cart's pose in the map frame while it runs (until suspended), as the thesis'
+/// cart had to: its wheels drift by about 1 % of the distance and half a degree of heading
+/// per metre. Every step it fits segments to the narrow-beam echoes of a short recent window
+/// (short, so the odometry's own drift within it is negligible), brought into the frame of
+/// the newest correction, matches them to the map's walls (world DM, class `map`), and
+/// stores the corrected correction ([`LocationRecord`]) with part (`gain`) of the measured
+/// error taken out. A direction no matched wall constrains keeps the odometry's estimate.
+#[derive(Default)]
+pub struct Localizer {
+    cart: Option<CartClient>,
+    map: Option<Vec<Segment>>,
+    fixes: u64,
+}
+
+impl Operation for Localizer {
+    fn identity(&self) -> Identity {
+        Identity::new(
+            "localizer",
+            1520,
+            "1.0.0",
+            "corrects the odometry by matching sonar segments to the map",
+        )
+    }
+
+    fn parameters(&self) -> ParamSchema {
+        let d = LocalizeParams::default();
+        ParamSchema::new(vec![
+            ParamDecl::float("window", 5.0)
+                .range(0.5, 30.0)
+                .unit("s")
+                .describe("how far back echoes are fitted (short: the odometry drifts)"),
+            ParamDecl::float("gain", 0.5)
+                .range(0.0, 1.0)
+                .describe("fraction of the measured error corrected per step"),
+            ParamDecl::float("max_angle", d.max_angle.to_degrees())
+                .range(0.5, 45.0)
+                .unit("deg")
+                .describe("largest angle between a segment and its map wall"),
+            ParamDecl::float("max_offset", d.max_offset)
+                .range(0.01, 2.0)
+                .unit("m")
+                .describe("largest distance between a segment and its map wall"),
+            ParamDecl::float("min_length", d.min_length)
+                .range(0.1, 10.0)
+                .unit("m")
+                .describe("shortest segment matched"),
+        ])
+    }
+
+    fn period(&self) -> Duration {
+        Duration::from_millis(250)
+    }
+
+    async fn activate(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
+        self.map = Some(
+            newest(ctx, "world", MAP)
+                .await?
+                .ok_or_else(|| OpError::failed("no map in the world DM to localize on"))?,
+        );
+        Ok(Step::Continue)
+    }
+
+    async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
+        let p = ctx.params();
+        let window = Duration::from_secs_f64(p.f64("window")?);
+        let gain = p.f64("gain")?;
+        let params = LocalizeParams {
+            max_angle: p.f64("max_angle")?.to_radians(),
+            max_offset: p.f64("max_offset")?,
+            min_length: p.f64("min_length")?,
+            ..LocalizeParams::default()
+        };
+        let Some(map) = self.map.clone() else {
+            return Err(OpError::failed("activated without a map"));
+        };
+        let now = correction(ctx).await?;
+        let since = ctx.now().saturating_sub(window);
+        let records = ctx
+            .dm("feature")?
+            .select(Query::class(SONAR).time_from(since))
+            .await
+            .map_err(dm_err("feature"))?;
+        let mut by_sensor: BTreeMap<usize, Vec<SensedPoint>> = BTreeMap::new();
+        for record in &records {
+            let scan: EchoScan = record.decode().map_err(dm_err("feature"))?;
+            for e in scan.echoes.iter().filter(|e| e.narrow) {
+                let origin =
+                    e.point - crate::geom::Pose::new(0.0, 0.0, e.bearing).heading() * e.range;
+                by_sensor.entry(e.sensor).or_default().push(SensedPoint {
+                    origin: reframe(origin, &scan.correction, &now),
+                    point: reframe(e.point, &scan.correction, &now),
+                });
+            }
+        }
+        let segments: Vec<Segment> = by_sensor
+            .values()
+            .flat_map(|track| swept_segments(track, &SegmentParams::default()))
+            .collect();
+        let odometry = cart(&mut self.cart)?
+            .status()
+            .await
+            .map_err(cart_err)?
+            .odometry;
+        let pose = now.compose(odometry);
+        let Some(fix) = localize(&segments, &map, pose.point(), &params) else {
+            return Ok(Step::Continue);
+        };
+        let step = Fix {
+            rotation: fix.rotation * gain,
+            shift: fix.shift * gain,
+            ..fix
+        }
+        .limited(params.max_turn, params.max_shift);
+        let corrected = step.apply(&now, pose.point(), 1.0);
+        let record = LocationRecord {
+            correction: corrected,
+            odometry,
+            pose: corrected.compose(odometry),
+            matched: fix.matched,
+        };
+        ctx.dm("world")?
+            .store(LOCATION, Some("correction"), None, &record)
+            .await
+            .map_err(dm_err("world"))?;
+        self.fixes += 1;
+        tracing::debug!(
+            rotation = step.rotation,
+            dx = step.shift.x,
+            dy = step.shift.y,
+            matched = fix.matched,
+            "odometry corrected"
+        );
+        Ok(Step::Continue)
+    }
+
+    fn property(&self, name: &str) -> Option<Value> {
+        (name == "fixes").then_some(Value::Int(self.fixes as i64))
+    }
+}
