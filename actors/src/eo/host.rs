@@ -400,18 +400,21 @@ impl<O: Operation> Actor for EoHost<O> {
                 params,
                 epoch,
                 reply,
-            } => state.activate(&myself, params, epoch, reply, false).await,
+            } => Box::pin(state.activate(&myself, params, epoch, reply, false)).await,
             EoMsg::Resume {
                 params,
                 epoch,
                 reply,
-            } => state.activate(&myself, params, epoch, reply, true).await,
+            } => Box::pin(state.activate(&myself, params, epoch, reply, true)).await,
             EoMsg::Tick { activation } => {
                 if state.active.as_ref().map(|a| a.number) != Some(activation) {
                     return Ok(()); // a tick of an activation that already ended
                 }
-                let outcome = state.op.step(&mut state.ctx).await;
-                state.after_step(&myself, outcome).await;
+                // boxed, like every arm that awaits: the operation's step future would
+                // otherwise be part of every message's future (a property request pays for
+                // the size of the largest arm)
+                let outcome = Box::pin(state.op.step(&mut state.ctx)).await;
+                Box::pin(state.after_step(&myself, outcome)).await;
             }
             EoMsg::Suspend { epoch } => {
                 if epoch < state.epoch {
@@ -419,8 +422,7 @@ impl<O: Operation> Actor for EoHost<O> {
                     return Ok(());
                 }
                 state.epoch = epoch;
-                state
-                    .end_activation(|flags, epoch| EoReport::Suspended { flags, epoch })
+                Box::pin(state.end_activation(|flags, epoch| EoReport::Suspended { flags, epoch }))
                     .await;
             }
             EoMsg::Parameterize {
