@@ -82,23 +82,34 @@ pub(crate) async fn bridge_supervisors(
                 continue;
             };
             if let Ok(rx) = sup.subscribe().await {
-                tasks.push(tokio::spawn(relay(bus.clone(), child.id, rx)));
+                tasks.push(spawn_relay(bus, child.id, rx, false));
             }
         }
     }
     if let Ok(rx) = root.subscribe().await {
-        tasks.push(tokio::spawn(relay_root(bus.clone(), rx)));
+        tasks.push(spawn_relay(bus, "node".to_string(), rx, true));
     }
     tasks
 }
 
-/// Relay one supervisor's events until it stops.
-async fn relay(bus: EventBus, name: String, mut rx: broadcast::Receiver<SupervisorEvent>) {
+/// Relay the events of supervisor `name` until it stops. The root's (`follow`) also start
+/// relaying each child supervisor it (re)starts: a restart is a new actor with a new stream.
+async fn relay(
+    bus: EventBus,
+    name: String,
+    mut rx: broadcast::Receiver<SupervisorEvent>,
+    follow: bool,
+) {
     loop {
         match rx.recv().await {
             Ok(event) => {
                 if let Some(kind) = translate(&name, &event) {
                     bus.publish(kind);
+                }
+                if follow {
+                    if let Some((id, sub)) = child_supervisor(&event).await {
+                        spawn_relay(&bus, id, sub, false);
+                    }
                 }
             }
             Err(RecvError::Lagged(missed)) => {
@@ -109,31 +120,29 @@ async fn relay(bus: EventBus, name: String, mut rx: broadcast::Receiver<Supervis
     }
 }
 
-/// Relay the root's events, and start relaying each child supervisor it (re)starts.
-async fn relay_root(bus: EventBus, mut rx: broadcast::Receiver<SupervisorEvent>) {
-    loop {
-        match rx.recv().await {
-            Ok(event) => {
-                if let Some(kind) = translate("node", &event) {
-                    bus.publish(kind);
-                }
-                let started = match &event {
-                    SupervisorEvent::ChildStarted { id, actor } => Some((id, actor)),
-                    SupervisorEvent::ChildRestarted { id, new, .. } => Some((id, new)),
-                    _ => None,
-                };
-                if let Some((id, cell)) = started {
-                    if let Some(sup) = SupervisorRef::from_cell(cell.clone()) {
-                        if let Ok(sub) = sup.subscribe().await {
-                            tokio::spawn(relay(bus.clone(), id.clone(), sub));
-                        }
-                    }
-                }
-            }
-            Err(RecvError::Lagged(missed)) => {
-                tracing::warn!(missed, "root supervisor events lost on the bus");
-            }
-            Err(RecvError::Closed) => return,
-        }
-    }
+/// The name and event stream of the child `event` (re)started, if it is a supervisor.
+async fn child_supervisor(
+    event: &SupervisorEvent,
+) -> Option<(String, broadcast::Receiver<SupervisorEvent>)> {
+    let (id, cell) = match event {
+        SupervisorEvent::ChildStarted { id, actor } => (id, actor),
+        SupervisorEvent::ChildRestarted { id, new, .. } => (id, new),
+        _ => return None,
+    };
+    let sub = SupervisorRef::from_cell(cell.clone())?
+        .subscribe()
+        .await
+        .ok()?;
+    Some((id.clone(), sub))
+}
+
+/// Relay a supervisor's events in a task of their own (a plain function, so that the root's
+/// relay may start relays of its children).
+fn spawn_relay(
+    bus: &EventBus,
+    name: String,
+    rx: broadcast::Receiver<SupervisorEvent>,
+    follow: bool,
+) -> JoinHandle<()> {
+    tokio::spawn(relay(bus.clone(), name, rx, follow))
 }

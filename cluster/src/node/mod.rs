@@ -343,32 +343,18 @@ impl Node {
         plan: FaultPlan,
     ) -> Result<RunReport, NodeError> {
         // Pass every event on as it comes, but hold back `Ended` until the world has judged.
+        // The channel closes when the run's relay from the bus has finished (in `dispatch`),
+        // so the forwarder ends by itself once it has passed everything on.
         let (inner, mut rx) = mpsc::unbounded_channel();
-        let (stop, mut stopped) = tokio::sync::oneshot::channel::<()>();
         let outer = events.clone();
         // what the fault injector knows of the run: bindings, the running action
         let (view_tx, view) = tokio::sync::watch::channel(RunView::default());
         let forwarder = tokio::spawn(async move {
-            let pass = |evt: DispatchEvent| {
+            while let Some(evt) = rx.recv().await {
                 view_tx.send_modify(|v| v.observe(&evt));
                 if let Some(outer) = &outer {
                     if !matches!(evt, DispatchEvent::Ended { .. }) {
                         let _ = outer.send(evt);
-                    }
-                }
-            };
-            loop {
-                tokio::select! {
-                    evt = rx.recv() => match evt {
-                        Some(evt) => pass(evt),
-                        None => break,
-                    },
-                    _ = &mut stopped => {
-                        // the dispatcher emits every event before it reports
-                        while let Ok(evt) = rx.try_recv() {
-                            pass(evt);
-                        }
-                        break;
                     }
                 }
             }
@@ -376,7 +362,6 @@ impl Node {
         let injector = Injector::start(plan, self.clock.clone(), view, self.bus.clone());
         let result = self.dispatch(mission, inner).await;
         let faults = injector.finish();
-        let _ = stop.send(());
         let _ = forwarder.await;
         let mut report = result?;
         faults.into_report(&mut report);

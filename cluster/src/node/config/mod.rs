@@ -257,10 +257,13 @@ impl NodeConfig {
     /// of `catalog` under [`OPERATIONS`], a dispatcher — everything a mission may need. This is
     /// what `marie run MISSION` runs without `--node`.
     pub fn everything(name: impl Into<String>, catalog: &[OperationFactory]) -> Self {
-        let mut names: Vec<&str> = catalog.iter().map(|f| f.name).collect();
-        names.dedup();
+        // each name once, in catalogue order (an entry hosts every version of its name)
         let mut seen = std::collections::BTreeSet::new();
-        names.retain(|n| seen.insert(*n));
+        let names: Vec<&str> = catalog
+            .iter()
+            .map(|f| f.name)
+            .filter(|n| seen.insert(*n))
+            .collect();
         NodeConfig {
             datamanagers: [dm::FEATURE, dm::PARAMETER, dm::WORLD]
                 .into_iter()
