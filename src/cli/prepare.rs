@@ -2,7 +2,6 @@
 //! against the operations that run — shared by `run` and `check`.
 
 use super::args::RobotArgs;
-use super::files;
 use marie::actors::dispatcher::mission::Mission;
 use marie::embedded::{Embedded, EmbeddedOptions};
 use marie::missions::robot::SimRobot;
@@ -41,7 +40,6 @@ impl Prepared {
 /// from `--world`, else the node config's, else the mission's, else none) and check the
 /// mission against it.
 pub async fn prepare(path: &Path, robot: RobotArgs) -> anyhow::Result<Prepared> {
-    files::input("mission file", path)?;
     let parsed = Mission::parse_file(path).map_err(NodeError::Mission)?;
     let mut options = robot.options(parsed.world());
     options.mission_world_at = parsed.world_diagnostic("the world named here does not load:");
@@ -68,13 +66,5 @@ pub async fn prepare(path: &Path, robot: RobotArgs) -> anyhow::Result<Prepared> 
 /// diagnostics, exit 2), the robot plugged in when there is a world. The node's clock is the
 /// runtime's (virtual in `run`, paced there).
 pub async fn start_node(options: EmbeddedOptions) -> anyhow::Result<Embedded> {
-    for (what, path) in [
-        ("node config", &options.node),
-        ("world file", &options.world),
-    ] {
-        if let Some(p) = path {
-            files::input(what, p)?;
-        }
-    }
     Ok(Embedded::start(options).await?)
 }

@@ -200,19 +200,16 @@ pub fn read_source(path: &Path, what: &str) -> Result<String, Diagnostic> {
     let meta = std::fs::metadata(path)
         .map_err(|e| at_start(format!("cannot read {what} file {file}: {e}")))?;
     if !meta.is_file() {
-        let kind = if meta.is_dir() {
-            "a directory"
-        } else {
-            "not a regular file"
-        };
         return Err(at_start(format!(
-            "cannot read {what} file {file}: it is {kind} (expected a TOML file)"
+            "cannot read {what} file {file}: it is not a regular file ({}), and a {what} file is TOML text",
+            file_kind(&meta)
         )));
     }
     if meta.len() > MAX_SOURCE_BYTES {
         return Err(at_start(format!(
-            "{what} file {file} is {} bytes, more than the {MAX_SOURCE_BYTES} a {what} file may have",
-            meta.len()
+            "{what} file {file} is {} bytes, more than the {} MiB a {what} file may have",
+            meta.len(),
+            MAX_SOURCE_BYTES / (1024 * 1024)
         )));
     }
     let mut bytes = Vec::with_capacity(meta.len() as usize);
@@ -234,6 +231,32 @@ pub fn read_source(path: &Path, what: &str) -> Result<String, Diagnostic> {
             format!("the {what} file is not valid UTF-8 text"),
         )
     })
+}
+
+/// What a path that is not a regular file is, for messages (`a directory`, `a fifo`, …).
+pub fn file_kind(meta: &std::fs::Metadata) -> &'static str {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        let t = meta.file_type();
+        if t.is_fifo() {
+            return "a fifo";
+        }
+        if t.is_char_device() {
+            return "a character device";
+        }
+        if t.is_block_device() {
+            return "a block device";
+        }
+        if t.is_socket() {
+            return "a socket";
+        }
+    }
+    if meta.is_dir() {
+        "a directory"
+    } else {
+        "not a file"
+    }
 }
 
 fn one_per_line(diagnostics: &[Diagnostic]) -> String {
@@ -303,7 +326,10 @@ mod tests {
     fn a_directory_or_device_is_refused_without_reading_it() {
         let dir = std::env::temp_dir();
         let d = read_source(&dir, "mission").unwrap_err();
-        assert!(d.message.contains("is a directory"), "{d}");
+        assert!(
+            d.message.contains("not a regular file (a directory)"),
+            "{d}"
+        );
         if Path::new("/dev/zero").exists() {
             let d = read_source(Path::new("/dev/zero"), "world").unwrap_err();
             assert!(d.message.contains("not a regular file"), "{d}");
