@@ -105,26 +105,22 @@ impl Embedded {
     /// Load the node config (or take the built-in one), the world, and start the node.
     pub async fn start(options: EmbeddedOptions) -> Result<Embedded, EmbeddedError> {
         let catalog = marie_missions::catalog();
-        let (config, from_file) = match &options.node {
-            Some(path) => (
-                NodeConfig::load(path, &catalog).map_err(EmbeddedError::Config)?,
-                true,
-            ),
-            None => (NodeConfig::everything(EMBEDDED_NODE, &catalog), false),
-        };
-        let simulation = match (&config.simulation, from_file) {
-            (Some(sim), _) => Some(sim.clone()),
-            (None, true) => None,
-            (None, false) => Some(SimulationConfig {
-                world: None,
-                world_at: None,
-                seed: None,
-                drivers: true,
-            }),
+        let config = match &options.node {
+            Some(path) => NodeConfig::load(path, &catalog).map_err(EmbeddedError::Config)?,
+            // the built-in node runs the robot whenever there is a world
+            None => NodeConfig {
+                simulation: Some(SimulationConfig {
+                    world: None,
+                    world_at: None,
+                    seed: None,
+                    drivers: true,
+                }),
+                ..NodeConfig::everything(EMBEDDED_NODE, &catalog)
+            },
         };
         let mut robot = None;
         let mut world_path = None;
-        if let Some(sim) = simulation {
+        if let Some(sim) = &config.simulation {
             // what named the world, for the first line of an error about it
             let named_at = if options.world.is_some() {
                 None
@@ -140,7 +136,7 @@ impl Embedded {
                 .or_else(|| options.mission_world.clone());
             if let Some(path) = path {
                 let world = World::load(&path).map_err(|d| {
-                    let mut all: Vec<Diagnostic> = named_at.clone().into_iter().collect();
+                    let mut all: Vec<Diagnostic> = named_at.into_iter().collect();
                     all.extend(d);
                     EmbeddedError::World(Diagnostics(all))
                 })?;
