@@ -62,6 +62,7 @@ mod client;
 mod error;
 mod index;
 mod messages;
+mod packed;
 mod query;
 mod record;
 mod store;

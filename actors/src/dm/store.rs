@@ -21,11 +21,13 @@
 //! # Retention
 //! Each class holds at most its bound of records ([`DmConfig::retention_for`]); storing one
 //! more drops the oldest record *of that class*, which is also the first of each of its sets.
-//! Other classes are not touched. Names are interned (`Arc<str>`): a record costs its payload
-//! plus about a hundred bytes, and index entries that become empty are removed.
+//! Other classes are not touched. Names are interned (`Arc<str>`) and payloads of a few dozen
+//! bytes live in the record's own slot ([`Packed`]): a record costs about 130 bytes plus any
+//! larger payload, and index entries that become empty are removed.
 
 use super::error::DmError;
 use super::index::{NameMap, SeqDeque, TimeIndex};
+use super::packed::Packed;
 use super::query::{Query, Take};
 use super::record::{NewRecord, Payload, Record};
 use serde::{Deserialize, Serialize};
@@ -96,7 +98,7 @@ struct Entry {
     source: Arc<str>,
     sub1: Option<Arc<str>>,
     sub2: Option<Arc<str>>,
-    payload: Payload,
+    payload: Packed,
 }
 
 impl Entry {
@@ -108,7 +110,7 @@ impl Entry {
             class: class.to_string(),
             sub1: self.sub1.as_deref().map(str::to_string),
             sub2: self.sub2.as_deref().map(str::to_string),
-            payload: self.payload.clone(),
+            payload: self.payload.to_payload(),
         }
     }
 
@@ -223,7 +225,7 @@ impl ClassIndex {
                 source,
                 sub1,
                 sub2,
-                payload,
+                payload: Packed::new(payload),
             },
         ));
         // The class held at most `bound` records before, so one drop restores the bound.
@@ -232,12 +234,17 @@ impl ClassIndex {
         }
         let (old, e) = self.entries.pop_front()?;
         if let Some(s1) = e.sub1.as_deref() {
+            // one lookup serves both levels
             if let Some(si) = self.subs.get_mut(s1) {
                 if let Some(s2) = e.sub2.as_deref() {
                     remove_front(&mut si.subs, s2, old);
                 }
+                debug_assert_eq!(si.seqs.first(), Some(old), "retention victim not in front");
+                si.seqs.remove(old);
+                if si.seqs.is_empty() {
+                    self.subs.remove(s1);
+                }
             }
-            remove_front(&mut self.subs, s1, old);
         }
         remove_front(&mut self.sources, &e.source, old);
         Some((old, e))
