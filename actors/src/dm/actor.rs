@@ -247,7 +247,7 @@ impl Actor for Datamanager {
                 }
             }
             DmMsg::Store { record, reply } => {
-                let outcome = state.store(record);
+                let outcome = state.store(*record);
                 if let Err(e) = &outcome {
                     tracing::debug!(dm = %state.name, error = %e, "store refused");
                 }
@@ -260,7 +260,7 @@ impl Actor for Datamanager {
                 query,
                 timeout_ms,
                 reply,
-            } => state.select_wait(&myself, query, timeout_ms, reply),
+            } => state.select_wait(&myself, *query, timeout_ms, reply),
             DmMsg::WaitExpired { id } => {
                 if let Some(waiter) = state.waits.take(id) {
                     tracing::trace!(dm = %state.name, wait = id, "wait timed out");

@@ -157,8 +157,11 @@ impl DmClient {
     /// Store a prepared record; an empty `source` becomes this client's. Returns its seq.
     pub async fn store_raw(&self, record: NewRecord) -> Result<u64, DmError> {
         let record = self.fill_source(record);
-        self.call(self.timeout, |reply| DmMsg::Store { record, reply })
-            .await?
+        self.call(self.timeout, |reply| DmMsg::Store {
+            record: Box::new(record),
+            reply,
+        })
+        .await?
     }
 
     /// [`DmClient::put`] for a prepared record.
@@ -172,8 +175,11 @@ impl DmClient {
 
     /// Every record matching `query`, oldest-first.
     pub async fn select(&self, query: Query) -> Result<Vec<Record>, DmError> {
-        self.call(self.timeout, |reply| DmMsg::Select { query, reply })
-            .await
+        self.call(self.timeout, |reply| DmMsg::Select {
+            query: Box::new(query),
+            reply,
+        })
+        .await
     }
 
     /// Every record matching `query`, with its payload decoded as a `T`. One payload that
@@ -198,7 +204,7 @@ impl DmClient {
         let timeout_ms = u64::try_from(wait.as_millis()).unwrap_or(u64::MAX);
         self.call(self.timeout.saturating_add(wait), |reply| {
             DmMsg::SelectWait {
-                query,
+                query: Box::new(query),
                 timeout_ms,
                 reply,
             }
@@ -208,8 +214,11 @@ impl DmClient {
 
     /// Delete the records matching `query`; returns how many.
     pub async fn delete(&self, query: Query) -> Result<u64, DmError> {
-        self.call(self.timeout, |reply| DmMsg::Delete { query, reply })
-            .await
+        self.call(self.timeout, |reply| DmMsg::Delete {
+            query: Box::new(query),
+            reply,
+        })
+        .await
     }
 
     /// What the DM holds.

@@ -40,8 +40,10 @@ crate::remote_message! {
     pub enum DmMsg {
         /// Store a record; the reply is its seq, or why it was refused.
         Store {
-            /// The record, without the header the DM fills in.
-            record: NewRecord,
+            /// The record, without the header the DM fills in (boxed, like the queries below,
+            /// so every message is no larger than a `Put`: the mailbox moves each one several
+            /// times).
+            record: Box<NewRecord>,
         } -> Result<u64, DmError>,
         /// Store a record without waiting for the answer (for high-rate sensors). A refused
         /// record is logged and counted in [`DmStats::refused_puts`].
@@ -52,14 +54,14 @@ crate::remote_message! {
         /// Every stored record matching the query, oldest-first.
         Select {
             /// What to select.
-            query: Query,
+            query: Box<Query>,
         } -> Vec<Record>,
         /// Like `Select`, but if nothing matches yet, wait until a matching record is stored
         /// (then answer as `Select` would) or until `timeout_ms` pass on the DM's clock (then
         /// answer with nothing). The thesis DM's pending wait.
         SelectWait {
             /// What to select, or wait for.
-            query: Query,
+            query: Box<Query>,
             /// How long to wait, in milliseconds of the DM's clock; 0 is a plain select.
             timeout_ms: u64,
         } -> Vec<Record>,
@@ -67,7 +69,7 @@ crate::remote_message! {
         /// reply is how many were deleted.
         Delete {
             /// What to delete.
-            query: Query,
+            query: Box<Query>,
         } -> u64,
         /// What the DM holds.
         Stats {} -> DmStats,
@@ -83,6 +85,13 @@ crate::remote_message! {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn no_message_is_larger_than_a_put() {
+        // a put is the high-rate message: the others must not make every message bigger
+        let put = std::mem::size_of::<super::NewRecord>() + 8;
+        assert!(std::mem::size_of::<super::DmMsg>() <= put);
+    }
+
     use super::*;
     use crate::dm::record::Payload;
     use ractor::message::SerializedMessage;
@@ -109,7 +118,7 @@ mod tests {
     async fn store_reply_crosses_the_bridge() {
         let (tx, rx) = ractor::concurrency::oneshot();
         let wire = DmMsg::Store {
-            record: NewRecord::default(),
+            record: Box::default(),
             reply: tx.into(),
         }
         .serialize()
