@@ -14,7 +14,8 @@
 //! [`localize`] measures the error of the current correction; [`Fix::apply`] blends it in
 //! with a gain, so one bad scan cannot throw the pose far.
 
-use super::segments::{extract_segments, Line, SegmentParams};
+use super::segments::Line;
+pub use super::sweep::{recent_travel, swept_segments, SensedPoint};
 use crate::geom::{wrap_angle, Point, Pose, Segment, Vector};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::FRAC_PI_2;
@@ -144,91 +145,6 @@ pub fn corrected(correction: &Pose, odometry: &Pose) -> Pose {
 pub fn reframe(point: Point, from: &Pose, to: &Pose) -> Point {
     let odometry = from.isometry().inverse_transform_point(&point);
     to.transform(odometry)
-}
-
-/// One sonar echo with the position of the sensor that heard it (same frame).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-pub struct SensedPoint {
-    /// Where the sensor was.
-    pub origin: Point,
-    /// The echo point.
-    pub point: Point,
-}
-
-/// Least fraction of a segment's length the sensor must have moved along it for the segment
-/// to count as a wall seen sideways.
-const MIN_SWEEP: f64 = 0.7;
-
-/// Largest angle between a beam's axis and a segment's normal for the echo to be trusted,
-/// radians (≈ 10°, a narrow cone's half angle and a bit): within it the nearest echo is the
-/// foot of the perpendicular and lies on the segment's line; beyond it the echo comes off the
-/// cone's edge and the point, placed on the axis, is off the wall.
-const MAX_INCIDENCE: f64 = 0.17;
-
-/// Least distance (m) a sensor must have moved since the echo kept before for its next echo
-/// to count.
-const MIN_STEP: f64 = 0.015;
-
-/// Least fraction of a segment's echoes that must have been heard square on.
-const MIN_SQUARE: f64 = 0.8;
-
-/// Segments fitted to one sensor's echoes (in the order heard) that the sensor saw while
-/// moving *along* them and looking *square on* at them — the only sonar segments that trace
-/// a wall. A sensor looking along its direction of travel (or turning on the spot) puts its
-/// echoes on a line that is the trace of its own motion or of a pose error (a heading error
-/// sweeps a distant echo sideways), not a wall; taking that for a wall would feed the error
-/// back into the pose. Echoes heard obliquely (a turning cart, a wall's edge) are placed off
-/// the wall.
-pub fn swept_segments(track: &[SensedPoint], params: &SegmentParams) -> Vec<Segment> {
-    // a standing cart hears the same spot over and over: keep one echo per step of the sensor
-    let mut moving: Vec<SensedPoint> = Vec::with_capacity(track.len());
-    for s in track {
-        if moving
-            .last()
-            .is_none_or(|last| (s.origin - last.origin).norm() >= MIN_STEP)
-        {
-            moving.push(*s);
-        }
-    }
-    let track = &moving[..];
-    let points: Vec<Point> = track.iter().map(|s| s.point).collect();
-    extract_segments(&points, params)
-        .into_iter()
-        .filter_map(|fitted| {
-            let segment = fitted.segment;
-            let line = Line::of_segment(&segment)?;
-            let length = segment.length();
-            let (t0, t1) = (line.project(segment.a), line.project(segment.b));
-            let (lo, hi) = (t0.min(t1), t0.max(t1));
-            let (mut min, mut max) = (f64::INFINITY, f64::NEG_INFINITY);
-            let (mut on_count, mut square) = (0usize, 0usize);
-            for s in track {
-                let t = line.project(s.point);
-                let on = line.distance(s.point) <= params.distance_threshold
-                    && t >= lo - 1e-9
-                    && t <= hi + 1e-9;
-                if !on {
-                    continue;
-                }
-                on_count += 1;
-                let o = line.project(s.origin);
-                min = min.min(o);
-                max = max.max(o);
-                let axis = s.point - s.origin;
-                let norm = axis.norm();
-                if norm > 1e-9 {
-                    // |sin| of the angle between the axis and the normal
-                    let sin = (axis.dot(&line.direction) / norm).abs();
-                    if sin <= MAX_INCIDENCE.sin() {
-                        square += 1;
-                    }
-                }
-            }
-            let swept = max - min >= MIN_SWEEP * length;
-            let square_on = square as f64 >= MIN_SQUARE * on_count as f64 && on_count > 0;
-            (swept && square_on).then_some(segment)
-        })
-        .collect()
 }
 
 /// `a - b` for undirected lines: in (-π/2, π/2].
@@ -503,34 +419,6 @@ mod tests {
             "beyond the end"
         );
         assert!(localize(&[], &map, Point::new(1.0, 1.0), &p).is_none());
-    }
-
-    #[test]
-    fn only_walls_swept_sideways_make_segments() {
-        // a side sensor driving along y = 0 at 1 m: a wall
-        let side: Vec<SensedPoint> = (0..30)
-            .map(|i| {
-                let x = 10.0 - i as f64 * 0.03;
-                SensedPoint {
-                    origin: Point::new(x, 1.0),
-                    point: Point::new(x, 0.0),
-                }
-            })
-            .collect();
-        assert_eq!(swept_segments(&side, &SegmentParams::default()).len(), 1);
-        // a rear sensor driving away from x = 14 with a heading error: its echoes sweep along
-        // the wall, but the sensor moved across it
-        let rear: Vec<SensedPoint> = (0..30)
-            .map(|i| {
-                let x = 13.0 - i as f64 * 0.03;
-                SensedPoint {
-                    origin: Point::new(x, 1.5),
-                    point: Point::new(14.0, 1.5 + (14.0 - x) * 0.1),
-                }
-            })
-            .collect();
-        assert!(swept_segments(&rear, &SegmentParams::default()).is_empty());
-        assert!(swept_segments(&[], &SegmentParams::default()).is_empty());
     }
 
     #[test]

@@ -5,6 +5,7 @@
 //! - [`segments`] — split-and-merge line extraction from ordered sonar points, with total
 //!   least squares refits;
 //! - [`wall`] — "the wall": the longest collinear set of segments near the cart;
+//! - [`track`] — tracking the followed wall: refit to what is seen now, extent kept;
 //! - [`dock`] — a docking spot (a rectangular recess of given breadth and depth) in the wall;
 //! - [`planner`] — A* on an inflated occupancy grid, line-of-sight shortcutting and a straight
 //!   final approach along the goal heading;
@@ -13,6 +14,8 @@
 //! - [`follow`] — wall (v1) and corridor (v2) following control law;
 //! - [`localize`] — map matching: sonar segments on the map's walls correct the drifting
 //!   odometry (heading, and the offset across each wall seen);
+//! - [`sweep`] — which sonar echoes trace a wall (seen sideways, over the last metres
+//!   driven), for the localizer;
 //! - [`avoid`] — collision avoidance with four modes, including the controlled stop.
 //!
 //! # Conventions
@@ -55,6 +58,8 @@ pub mod parking;
 pub mod planner;
 pub mod pursuit;
 pub mod segments;
+pub mod sweep;
+pub mod track;
 pub mod wall;
 
 use crate::geom::{wrap_angle, Pose};

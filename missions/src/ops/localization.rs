@@ -3,7 +3,9 @@
 
 use super::records::{EchoScan, LocationRecord, LOCATION, MAP, SONAR};
 use super::{cart, cart_err, correction, dm_err, newest};
-use crate::algo::localize::{localize, reframe, swept_segments, Fix, LocalizeParams, SensedPoint};
+use crate::algo::localize::{
+    localize, recent_travel, reframe, swept_segments, Fix, LocalizeParams, SensedPoint,
+};
 use crate::algo::segments::SegmentParams;
 use crate::geom::Segment;
 use crate::hardware::CartClient;
@@ -15,8 +17,11 @@ use std::time::Duration;
 
 /// Keeps the cart's pose in the map frame while it runs (until suspended), as the thesis'
 /// cart had to: its wheels drift by about 1 % of the distance and half a degree of heading
-/// per metre. Every step it fits segments to the narrow-beam echoes of a short recent window
-/// (short, so the odometry's own drift within it is negligible), brought into the frame of
+/// per metre. Every step it fits segments to the narrow-beam echoes each sensor heard over the
+/// last metres it travelled (`travel`, since it last turned by `turn`, at most `window`
+/// seconds back: short in distance, so
+/// the odometry's own drift within it is negligible, yet as long when the cart crawls along a
+/// wall as when it drives, so the segments are long enough to give the heading), brought into the frame of
 /// the newest correction, matches them to the map's walls (world DM, class `map`), and
 /// stores the corrected correction ([`LocationRecord`]) with part (`gain`) of the measured
 /// error taken out. A direction no matched wall constrains keeps the odometry's estimate.
@@ -40,10 +45,18 @@ impl Operation for Localizer {
     fn parameters(&self) -> ParamSchema {
         let d = LocalizeParams::default();
         ParamSchema::new(vec![
-            ParamDecl::float("window", 5.0)
-                .range(0.5, 30.0)
+            ParamDecl::float("window", 20.0)
+                .range(0.5, 120.0)
                 .unit("s")
-                .describe("how far back echoes are fitted (short: the odometry drifts)"),
+                .describe("how far back in time echoes are fitted at most"),
+            ParamDecl::float("travel", 2.0)
+                .range(0.3, 20.0)
+                .unit("m")
+                .describe("how far back along each sensor's path echoes are fitted (short: the odometry drifts per metre)"),
+            ParamDecl::float("turn", 10.0)
+                .range(1.0, 180.0)
+                .unit("deg")
+                .describe("echoes from before the sensor turned by more than this are not fitted (wheels slip in turns)"),
             ParamDecl::float("gain", 0.5)
                 .range(0.0, 1.0)
                 .describe("fraction of the measured error corrected per step"),
@@ -78,6 +91,8 @@ impl Operation for Localizer {
     async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
         let p = ctx.params();
         let window = Duration::from_secs_f64(p.f64("window")?);
+        let travel = p.f64("travel")?;
+        let turn = p.f64("turn")?.to_radians();
         let gain = p.f64("gain")?;
         let params = LocalizeParams {
             max_angle: p.f64("max_angle")?.to_radians(),
@@ -109,14 +124,17 @@ impl Operation for Localizer {
         }
         let segments: Vec<Segment> = by_sensor
             .values()
-            .flat_map(|track| swept_segments(track, &SegmentParams::default()))
+            .flat_map(|track| {
+                swept_segments(
+                    recent_travel(track, travel, turn),
+                    &SegmentParams::default(),
+                )
+            })
             .collect();
-        let odometry = cart(&mut self.cart)?
-            .status()
-            .await
-            .map_err(cart_err)?
-            .odometry;
+        let st = cart(&mut self.cart)?.status().await.map_err(cart_err)?;
+        let odometry = st.odometry;
         let pose = now.compose(odometry);
+        tracing::debug!(target: "truth", t = st.time, ex = pose.x - st.pose.x, ey = pose.y - st.pose.y, eth = crate::geom::wrap_angle(pose.theta - st.pose.theta).to_degrees(), x = st.pose.x, y = st.pose.y, th = st.pose.theta.to_degrees(), segs = segments.len(), "TRUTH");
         let Some(fix) = localize(&segments, &map, pose.point(), &params) else {
             return Ok(Step::Continue);
         };

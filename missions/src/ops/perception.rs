@@ -8,8 +8,8 @@ use super::records::{
 use super::{cart, cart_err, correction, dm_err, newest};
 use crate::algo::dock::{detect_dock, DockParams};
 use crate::algo::localize::reframe;
-use crate::algo::segments::Line;
 use crate::algo::segments::{extract_segments, SegmentParams};
+use crate::algo::track::{track_wall, TrackParams};
 use crate::algo::wall::{sense_wall, Side, WallEstimate, WallParams};
 use crate::geom::{Point, Pose, Segment};
 use crate::hardware::CartClient;
@@ -173,49 +173,15 @@ impl Operation for SegmentExtractor {
 /// suspended.
 ///
 /// In continuous mode the sensor *tracks* the wall it has (the newest wall record when it is
-/// activated): it only accepts segments on that wall's line and extends the wall's known
-/// extent with them. Without tracking, a recess in the wall — the docking spot — would, once
+/// activated): it only accepts segments on that wall's line, refits the line to them (so a
+/// direction from an early glimpse or an uncorrected pose does not stay) and extends the
+/// wall's known extent with them ([`track_wall`]). Without tracking, a recess in the wall — the docking spot — would, once
 /// the cart is alongside it, offer its back wall as "the" wall and lead the follower into it.
 #[derive(Default)]
 pub struct WallSensor {
     cart: Option<CartClient>,
     /// The tracked wall and the correction it is placed with.
     tracked: Option<(Segment, Pose)>,
-}
-
-/// Largest distance of a segment's ends from the tracked wall's line for it to extend the
-/// wall, m.
-const TRACK_OFFSET: f64 = 0.2;
-
-/// Extend `wall` with the segments lying on its line, refitting the line to all of them
-/// (weighted by length) so that an estimate from a short first glimpse converges as more of
-/// the wall is seen; `None` when no segment lies on the line.
-fn extend_wall(wall: &Segment, segments: &[Segment]) -> Option<Segment> {
-    let line = Line::of_segment(wall)?;
-    let mut support: Vec<Segment> = segments
-        .iter()
-        .filter(|s| line.distance(s.a) <= TRACK_OFFSET && line.distance(s.b) <= TRACK_OFFSET)
-        .copied()
-        .collect();
-    if support.is_empty() {
-        return None;
-    }
-    support.push(*wall);
-    let weighted: Vec<(Point, f64)> = support
-        .iter()
-        .flat_map(|s| [(s.a, s.length()), (s.b, s.length())])
-        .collect();
-    let mut fitted = Line::fit_weighted(&weighted)?;
-    if fitted.direction.dot(&(wall.b - wall.a)) < 0.0 {
-        fitted = fitted.reversed();
-    }
-    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-    for (p, _) in &weighted {
-        let t = fitted.project(*p);
-        lo = lo.min(t);
-        hi = hi.max(t);
-    }
-    Some(Segment::new(fitted.at(lo), fitted.at(hi)))
 }
 
 impl Operation for WallSensor {
@@ -296,9 +262,8 @@ impl Operation for WallSensor {
             Segment::new(reframe(wall.a, &then, &now), reframe(wall.b, &then, &now))
         });
         let found = match (continuous, tracked) {
-            (true, Some(wall)) => {
-                extend_wall(&wall, &set.segments).and_then(|segment| wall_from(&segment, &pose))
-            }
+            (true, Some(wall)) => track_wall(&wall, &set.segments, &TrackParams::default())
+                .and_then(|segment| wall_from(&segment, &pose)),
             _ => sense_wall(&set.segments, &pose, &params),
         };
         let Some(w) = found else {
