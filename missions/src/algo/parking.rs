@@ -78,6 +78,11 @@ pub struct ParkParams {
     /// How far the goal may slide deeper along the spot (against the goal heading), m: a
     /// spot longer than the cart leaves room, and backing in needs it.
     pub slide: f64,
+    /// Length of a last, forward leg along the goal heading, m (0: none). Backing into a spot
+    /// along an S leaves the heading still swinging at its end; a short forward run
+    /// straightens it, as a driver does. The cart backs in this much deeper than the goal (it
+    /// must fit within `slide`; when no such manoeuvre fits, one without it is planned).
+    pub settle: f64,
 }
 
 impl Default for ParkParams {
@@ -89,6 +94,7 @@ impl Default for ParkParams {
             clearance: 0.03,
             step: 0.05,
             slide: 0.0,
+            settle: 0.0,
         }
     }
 }
@@ -140,7 +146,14 @@ pub fn plan_parking(
         return Err(ParkError::NotParallel(misalign.to_degrees()));
     }
     let slides = (params.slide.max(0.0) / 0.1).floor() as usize;
-    for k in 0..=slides {
+    let settle = if params.settle.is_finite() {
+        params.settle.max(0.0)
+    } else {
+        0.0
+    };
+    // the back-in goal must lie `settle` deeper than the goal: slide at least that far
+    let first = (settle / 0.1 - 1e-9).ceil().max(0.0) as usize;
+    for k in first..=slides {
         // slide the goal deeper into the spot (backwards along its heading)
         let h = goal.heading();
         let g = Pose::new(
@@ -154,16 +167,60 @@ pub fn plan_parking(
         let (sx, sy) = (rel.dot(&h), rel.dot(&left));
         let mut radius = params.min_radius.max(1e-3);
         while radius <= params.max_radius + 1e-9 {
-            if let Some(legs) = try_radius(radius, sx, sy, &g, footprint, walls, params) {
-                return Ok(legs);
+            if let Some(mut legs) = try_radius(radius, sx, sy, &g, footprint, walls, params) {
+                if settle <= 0.0 {
+                    return Ok(legs);
+                }
+                if let Some(forward) = settle_leg(&g, settle, footprint, walls, params) {
+                    legs.push(forward);
+                    return Ok(legs);
+                }
             }
             radius += 0.1;
         }
+    }
+    if settle > 0.0 {
+        return plan_parking(
+            start,
+            &goal,
+            footprint,
+            walls,
+            &ParkParams {
+                settle: 0.0,
+                ..*params
+            },
+        );
     }
     Err(ParkError::Blocked {
         min: params.min_radius,
         max: params.max_radius,
     })
+}
+
+/// The forward leg `length` long from `from` along its heading, if it keeps clear.
+fn settle_leg(
+    from: &Pose,
+    length: f64,
+    footprint: &Footprint,
+    walls: &[Segment],
+    params: &ParkParams,
+) -> Option<Leg> {
+    let h = from.heading();
+    let n = (length / params.step).ceil().max(1.0) as usize;
+    let poses: Vec<Pose> = (0..=n)
+        .map(|k| {
+            let d = length * k as f64 / n as f64;
+            Pose::new(from.x + h.x * d, from.y + h.y * d, from.theta)
+        })
+        .collect();
+    poses
+        .iter()
+        .all(|p| footprint.clearance(p, walls) >= params.clearance)
+        .then(|| Leg {
+            waypoints: poses.iter().map(Pose::point).collect(),
+            reverse: false,
+            heading: from.theta,
+        })
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -291,6 +348,34 @@ mod tests {
             .all(|c| c.x > 4.0 && c.x < 6.8 && c.y > -0.8 && c.y < 0.0));
         // the S stays clear of the recess walls: checked inside, and the end is in the recess
         assert!(end.y < -0.3 && end.x > 4.5 && end.x < 6.5);
+    }
+
+    #[test]
+    fn a_settling_leg_straightens_the_cart_forward_onto_the_goal() {
+        let start = Pose::new(4.5, 0.8, std::f64::consts::PI);
+        let goal = Pose::new(5.75, -0.4, std::f64::consts::PI);
+        let params = ParkParams {
+            slide: 0.8,
+            settle: 0.3,
+            ..ParkParams::default()
+        };
+        let legs = plan_parking(&start, &goal, &cart(), &lab(), &params).unwrap();
+        assert_eq!(legs.len(), 3);
+        let (back, forward) = (&legs[1], &legs[2]);
+        assert!(back.reverse && !forward.reverse);
+        let (a, b) = (forward.waypoints[0], *forward.waypoints.last().unwrap());
+        assert_eq!(a, *back.waypoints.last().unwrap());
+        // 0.3 m forward (heading -x), along the goal line, ending within the slide
+        assert!(((a - b).norm() - 0.3).abs() < 1e-9 && (b.y - goal.y).abs() < 1e-6);
+        assert!(b.x < a.x && b.x >= goal.x - 1e-9 && b.x <= goal.x + 0.8 + 1e-9);
+        // no room to back in deeper: planned without the settling leg
+        let tight = ParkParams {
+            slide: 0.8,
+            settle: 5.0,
+            ..ParkParams::default()
+        };
+        let legs = plan_parking(&start, &goal, &cart(), &lab(), &tight).unwrap();
+        assert_eq!(legs.len(), 2);
     }
 
     #[test]

@@ -131,10 +131,12 @@ impl Operation for Localizer {
                 )
             })
             .collect();
-        let st = cart(&mut self.cart)?.status().await.map_err(cart_err)?;
-        let odometry = st.odometry;
+        let odometry = cart(&mut self.cart)?
+            .status()
+            .await
+            .map_err(cart_err)?
+            .odometry;
         let pose = now.compose(odometry);
-        tracing::debug!(target: "truth", t = st.time, ex = pose.x - st.pose.x, ey = pose.y - st.pose.y, eth = crate::geom::wrap_angle(pose.theta - st.pose.theta).to_degrees(), x = st.pose.x, y = st.pose.y, th = st.pose.theta.to_degrees(), segs = segments.len(), "TRUTH");
         let Some(fix) = localize(&segments, &map, pose.point(), &params) else {
             return Ok(Step::Continue);
         };
