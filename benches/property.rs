@@ -11,7 +11,7 @@ use marie_actors::eo::EoMsg;
 use marie_actors::eo::{
     spawn_operation, HostOptions, Identity, OpContext, OpError, Operation, Step,
 };
-use marie_actors::property::{Group, ParamDecl, ParamSchema, PropertyRequest};
+use marie_actors::property::{Group, Identification, ParamDecl, ParamSchema, PropertyRequest};
 use ractor::{Actor, ActorProcessingErr, ActorRef, RpcReplyPort};
 use std::time::Duration;
 
@@ -32,23 +32,40 @@ impl Operation for Idle {
 struct Echo;
 enum EchoMsg {
     Ask(RpcReplyPort<(u32, String)>),
+    /// Answers what the identification group answers, to split payload cost from the host's.
+    AskSame(RpcReplyPort<Identification>),
 }
 impl ractor::Message for EchoMsg {}
 impl Actor for Echo {
     type Msg = EchoMsg;
-    type State = ();
+    type State = Identification;
     type Arguments = ();
-    async fn pre_start(&self, _: ActorRef<EchoMsg>, _: ()) -> Result<(), ActorProcessingErr> {
-        Ok(())
+    async fn pre_start(
+        &self,
+        _: ActorRef<EchoMsg>,
+        _: (),
+    ) -> Result<Identification, ActorProcessingErr> {
+        Ok(Identification {
+            name: "bench-idle".into(),
+            id: 9900,
+            version: "1.0.0".into(),
+            description: "does nothing".into(),
+        })
     }
     async fn handle(
         &self,
         _: ActorRef<EchoMsg>,
         msg: EchoMsg,
-        _: &mut (),
+        same: &mut Identification,
     ) -> Result<(), ActorProcessingErr> {
-        let EchoMsg::Ask(reply) = msg;
-        let _ = reply.send((9900, "bench-idle".to_string()));
+        match msg {
+            EchoMsg::Ask(reply) => {
+                let _ = reply.send((9900, "bench-idle".to_string()));
+            }
+            EchoMsg::AskSame(reply) => {
+                let _ = reply.send(same.clone());
+            }
+        }
         Ok(())
     }
 }
@@ -68,6 +85,10 @@ fn bench(c: &mut Criterion) {
     g.bench_function("raw_ractor_call", |b| {
         b.to_async(&rt)
             .iter(|| async { ractor::call!(echo, EchoMsg::Ask).unwrap() })
+    });
+    g.bench_function("raw_call_same_answer", |b| {
+        b.to_async(&rt)
+            .iter(|| async { ractor::call!(echo, EchoMsg::AskSame).unwrap() })
     });
     g.bench_function("property_identification", |b| {
         b.to_async(&rt).iter(|| async {

@@ -292,7 +292,7 @@ async fn every_property_group_and_collection() {
         panic!()
     };
     assert_eq!(
-        (id.name.as_str(), id.id, id.version.as_str()),
+        (&*id.name, id.id, &*id.version),
         ("stepper-props", 4242, "2.1.0")
     );
 

@@ -56,9 +56,9 @@ pub async fn describe(client: EoClient) -> Result<OpInfo, EoError> {
         .await?;
     match (ident, specific) {
         (PropertyReply::Identification(i), PropertyReply::Specific(s)) => Ok(OpInfo {
-            name: i.name,
+            name: i.name.to_string(),
             id: i.id,
-            version: i.version,
+            version: i.version.to_string(),
             schema: crate::property::ParamSchema::new(s.params),
             flags: s.flags,
         }),

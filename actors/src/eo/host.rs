@@ -189,7 +189,7 @@ impl<O: Operation> HostState<O> {
         Some(match name {
             "name" => Value::Text(id.name.clone()),
             "id" => Value::Int(id.id.into()),
-            "version" => Value::Text(self.identification.version.clone()),
+            "version" => Value::Text(self.identification.version.to_string()),
             "description" => Value::Text(id.description.clone()),
             "node" => Value::Text(registry::local_node_name()),
             "address" => Value::Text(myself.get_id().to_string()),
@@ -363,10 +363,10 @@ impl<O: Operation> Actor for EoHost<O> {
             previous: initial,
             op: operation,
             identification: Identification {
-                name: identity.name.clone(),
+                name: identity.name.as_str().into(),
                 id: identity.id,
-                version: identity.version.to_string(),
-                description: identity.description.clone(),
+                version: identity.version.to_string().into(),
+                description: identity.description.as_str().into(),
             },
             identity,
             schema,
@@ -447,7 +447,7 @@ impl<O: Operation> Actor for EoHost<O> {
                 let _ = reply.send(outcome);
             }
             EoMsg::Property { request, reply } => {
-                let _ = reply.send(state.answer(&myself.get_cell(), request));
+                let _ = reply.send(state.answer(&myself, request));
             }
             EoMsg::Inject { fault } => {
                 tracing::warn!(op = %state.identity.name, actor = %myself.get_id(), ?fault, "injected fault");

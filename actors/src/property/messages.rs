@@ -8,6 +8,7 @@ use super::schema::{ParamDecl, ParamType};
 use super::value::{ParamMap, Value};
 use crate::flags::FlagDecl;
 use serde::{Deserialize, Serialize};
+use std::sync::Arc;
 
 /// A property group of the thesis (table A-1).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -65,17 +66,19 @@ pub const STANDARD_PROPERTIES: &[&str] = &[
     "epoch",
 ];
 
-/// Identification group.
+/// Identification group. Its strings are shared (`Arc<str>`): identity never changes, and
+/// every identification request answers a copy, which is then a reference-count bump instead
+/// of three allocations.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Identification {
     /// Module name, e.g. `wall-follower`.
-    pub name: String,
+    pub name: Arc<str>,
     /// Numeric id, e.g. 1512.
     pub id: u32,
     /// Semantic version, e.g. `2.0.0`.
-    pub version: String,
+    pub version: Arc<str>,
     /// One line about what it does.
-    pub description: String,
+    pub description: Arc<str>,
 }
 
 /// Location group.

@@ -274,7 +274,7 @@ async fn version_of(inst: &Instance) -> Option<String> {
         .property(PropertyRequest::Group(Group::Identification))
         .await
     {
-        Ok(PropertyReply::Identification(i)) => Some(i.version),
+        Ok(PropertyReply::Identification(i)) => Some(i.version.to_string()),
         _ => None,
     }
 }
