@@ -111,10 +111,6 @@ impl SeqDeque {
         }
     }
 
-    pub(crate) fn first(&self) -> Option<u64> {
-        self.0.front().copied()
-    }
-
     /// Remove `seq`: O(1) at either end, else a shift of the shorter side.
     pub(crate) fn remove(&mut self, seq: u64) -> bool {
         if self.0.front() == Some(&seq) {
@@ -128,6 +124,19 @@ impl SeqDeque {
         }
         self.shrink();
         true
+    }
+
+    /// The largest seq, if any.
+    pub(crate) fn last(&self) -> Option<u64> {
+        self.0.back().copied()
+    }
+
+    /// Drop every seq below `seq` (they are all at the front).
+    pub(crate) fn drop_below(&mut self, seq: u64) {
+        while self.0.front().is_some_and(|&s| s < seq) {
+            self.0.pop_front();
+        }
+        self.shrink();
     }
 
     /// Remove every seq of `seqs` (ascending): one pass over the set.
@@ -303,7 +312,11 @@ mod tests {
         d.push(3); // out of order: still sorted
         d.push(8); // duplicate: ignored
         assert_eq!(all(&d), vec![3, 4, 8, 10]);
-        assert_eq!(d.first(), Some(3));
+        assert_eq!(d.last(), Some(10));
+        d.drop_below(8);
+        assert_eq!(all(&d), vec![8, 10]);
+        d.drop_below(11);
+        assert!(d.is_empty());
         let mut big = deque(&(1..=100).collect::<Vec<_>>());
         let odd: Vec<u64> = (1..=100).filter(|s| s % 2 == 1).collect();
         big.remove_sorted(&odd);

@@ -23,7 +23,8 @@
 //! more drops the oldest record *of that class*, which is also the first of each of its sets.
 //! Other classes are not touched. Names are interned (`Arc<str>`) and payloads of a few dozen
 //! bytes live in the record's own slot ([`Packed`]): a record costs about 130 bytes plus any
-//! larger payload, and index entries that become empty are removed.
+//! larger payload. The dropped record's seqs are swept from the sub-class and source sets in
+//! batches (a drop then costs no hash lookup), and sets that become empty are removed.
 
 use super::error::DmError;
 use super::index::{NameMap, SeqDeque, TimeIndex};
@@ -147,21 +148,9 @@ type Sub2Index = Level<()>;
 type Sub1Index = Level<Sub2Index>;
 type SourceIndex = Level<()>;
 
-/// Take `seq` out of a deque that has it in front: the oldest record of a class is also the
-/// oldest of every sub-class and source set of that class.
-fn remove_front<Sub>(map: &mut NameMap<Level<Sub>>, key: &str, seq: u64) {
-    if let Some(level) = map.get_mut(key) {
-        debug_assert_eq!(
-            level.seqs.first(),
-            Some(seq),
-            "retention victim not in front"
-        );
-        level.seqs.remove(seq);
-        if level.seqs.is_empty() {
-            map.remove(key);
-        }
-    }
-}
+/// Retention victims whose seqs a class may leave at the fronts of its sets before it
+/// sweeps them out (see [`ClassIndex::stale`]).
+const STALE_LIMIT: usize = 64;
 
 /// Everything stored under one class: its records, in seq order, and its sub-indexes.
 struct ClassIndex {
@@ -170,6 +159,11 @@ struct ClassIndex {
     entries: VecDeque<(u64, Entry)>,
     subs: NameMap<Sub1Index>,
     sources: NameMap<SourceIndex>,
+    /// Records dropped by retention since the last sweep. Their seqs stay at the fronts of
+    /// the sub-class and source sets until [`STALE_LIMIT`] of them have gathered, then one
+    /// sweep takes them all out: a dropped record then costs no hash lookups. Every reader
+    /// of a set starts at the class's first live seq, below which every seq is stale.
+    stale: usize,
 }
 
 /// Which of a class's sequences a walk follows.
@@ -187,7 +181,31 @@ impl ClassIndex {
             entries: VecDeque::new(),
             subs: NameMap::default(),
             sources: NameMap::default(),
+            stale: 0,
         }
+    }
+
+    /// The seq of the oldest record still stored (`u64::MAX` when none).
+    fn first_live(&self) -> u64 {
+        self.entries.front().map_or(u64::MAX, |(s, _)| *s)
+    }
+
+    /// Take the seqs of dropped records out of every set, and the sets left empty.
+    fn sweep_stale(&mut self) {
+        let first = self.first_live();
+        self.subs.retain(|_, si| {
+            si.seqs.drop_below(first);
+            si.subs.retain(|_, x| {
+                x.seqs.drop_below(first);
+                !x.seqs.is_empty()
+            });
+            !si.seqs.is_empty()
+        });
+        self.sources.retain(|_, so| {
+            so.seqs.drop_below(first);
+            !so.seqs.is_empty()
+        });
+        self.stale = 0;
     }
 
     /// Append a record (its seq is larger than every stored one) and, if the class is now
@@ -233,20 +251,12 @@ impl ClassIndex {
             return None;
         }
         let (old, e) = self.entries.pop_front()?;
-        if let Some(s1) = e.sub1.as_deref() {
-            // one lookup serves both levels
-            if let Some(si) = self.subs.get_mut(s1) {
-                if let Some(s2) = e.sub2.as_deref() {
-                    remove_front(&mut si.subs, s2, old);
-                }
-                debug_assert_eq!(si.seqs.first(), Some(old), "retention victim not in front");
-                si.seqs.remove(old);
-                if si.seqs.is_empty() {
-                    self.subs.remove(s1);
-                }
-            }
+        // The victim is the oldest of the class, so its seq is below every live one: it is
+        // stale in each of its sets, and swept out with the others in a while.
+        self.stale += 1;
+        if self.stale >= STALE_LIMIT {
+            self.sweep_stale();
         }
-        remove_front(&mut self.sources, &e.source, old);
         Some((old, e))
     }
 
@@ -334,16 +344,19 @@ impl ClassIndex {
     /// `None` if nothing in this class can match.
     fn pick(&self, q: &Query) -> Option<(Pick<'_>, Plan)> {
         let mut best = (Pick::Entries, self.entries.len(), Plan::Class);
+        // a set with no live seq (only stale ones not yet swept) counts as missing
+        let first = self.first_live();
+        let live = |seqs: &SeqDeque| seqs.last().is_some_and(|s| s >= first);
         if let Some(s1) = q.sub1.as_deref() {
-            let si = self.subs.get(s1)?;
+            let si = self.subs.get(s1).filter(|si| live(&si.seqs))?;
             best = (Pick::Seqs(&si.seqs), si.seqs.len(), Plan::Sub1);
             if let Some(s2) = q.sub2.as_deref() {
-                let x = si.subs.get(s2)?;
+                let x = si.subs.get(s2).filter(|x| live(&x.seqs))?;
                 best = (Pick::Seqs(&x.seqs), x.seqs.len(), Plan::Sub2);
             }
         }
         if let Some(src) = q.source.as_deref() {
-            let so = self.sources.get(src)?;
+            let so = self.sources.get(src).filter(|so| live(&so.seqs))?;
             if so.seqs.len() < best.1 {
                 best = (Pick::Seqs(&so.seqs), so.seqs.len(), Plan::Source);
             }
@@ -358,7 +371,8 @@ impl ClassIndex {
                 let b = self.entries.partition_point(|(s, _)| *s <= hi).max(a);
                 ClassIter::Entries(self.entries.range(a..b))
             }
-            Pick::Seqs(seqs) => ClassIter::Seqs(seqs.range(lo, hi), self),
+            // stale seqs all lie below the first live one
+            Pick::Seqs(seqs) => ClassIter::Seqs(seqs.range(lo.max(self.first_live()), hi), self),
         }
     }
 }
@@ -974,6 +988,42 @@ mod tests {
         s.insert(new("a", None, None, "p"), secs(0)).unwrap();
         s.insert(new("a", None, None, "p"), secs(0)).unwrap();
         assert_eq!(seqs(&s.select(&Query::all())), vec![2]);
+    }
+
+    #[test]
+    fn retention_victims_leave_the_sets_in_batches() {
+        let mut s = Store::new(DmConfig::default().with_retention("sonar", 2));
+        s.insert(new("sonar", Some("rare"), Some("x"), "old"), secs(0))
+            .unwrap(); // seq 1
+        for i in 0..3 {
+            s.insert(new("sonar", Some("front"), None, "us"), secs(i))
+                .unwrap(); // seq 2..=4
+        }
+        // seqs 1 and 2 are dropped but not yet swept: readers must not see them
+        let sonar = s.classes.get("sonar").unwrap();
+        assert_eq!(sonar.stale, 2);
+        assert!(sonar.subs.contains_key("rare"));
+        for q in [
+            Query::class("sonar").sub1("rare"),
+            Query::class("sonar").sub1("rare").sub2("x"),
+            Query::class("sonar").source("old"),
+        ] {
+            assert_eq!(s.plan(&q), Plan::Empty, "{q:?}");
+            assert!(s.select(&q).is_empty());
+        }
+        let q = Query::class("sonar").sub1("front").oldest(1);
+        assert_eq!(seqs(&s.select(&q)), vec![3]);
+        assert_eq!(seqs(&s.select(&Query::all().source("us"))), vec![3, 4]);
+        // after enough drops one sweep takes them all out, and the empty sets with them
+        for i in 0..STALE_LIMIT as u64 {
+            s.insert(new("sonar", Some("front"), None, "us"), secs(10 + i))
+                .unwrap();
+        }
+        let sonar = s.classes.get("sonar").unwrap();
+        assert!(sonar.stale < STALE_LIMIT);
+        assert!(!sonar.subs.contains_key("rare") && !sonar.sources.contains_key("old"));
+        assert!(sonar.subs["front"].seqs.len() <= 2 + sonar.stale);
+        assert_eq!(s.select(&Query::class("sonar").sub1("front")).len(), 2);
     }
 
     #[test]
