@@ -20,4 +20,5 @@
 pub use marie_actors::wire::envelope;
 
 pub mod fault;
+pub mod net;
 pub mod node;

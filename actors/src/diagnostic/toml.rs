@@ -339,6 +339,28 @@ impl<'s> Reader<'s> {
         }
     }
 
+    /// Array of strings `key` of `tbl`, each with its span; `None` if absent or not an array
+    /// (a diagnostic); an item that is not a string is a diagnostic and left out.
+    pub fn string_array(&mut self, tbl: &Tbl<'_, '_>, key: &str) -> Option<Vec<(String, Span)>> {
+        let v = tbl.get(key)?;
+        let DeValue::Array(items) = v.get_ref() else {
+            self.err(
+                &v.span(),
+                format!(
+                    "expected an array of strings for `{key}`, found {}",
+                    v.get_ref().type_str()
+                ),
+            );
+            return None;
+        };
+        Some(
+            items
+                .iter()
+                .filter_map(|item| Some((self.string_value(item, key)?, item.span())))
+                .collect(),
+        )
+    }
+
     /// A non-empty string `key` of `tbl`; missing or blank is a diagnostic.
     pub fn required_string(&mut self, tbl: &Tbl<'_, '_>, key: &str) -> Option<String> {
         let Some(v) = tbl.get(key) else {

@@ -1,0 +1,58 @@
+//! Where a node listens, whom it joins, and the cookie it proves itself with.
+
+use super::TransportError;
+use std::net::SocketAddr;
+
+/// Longest cookie accepted (ractor_cluster hashes it; a longer one gains nothing).
+pub const MAX_COOKIE_LEN: usize = 256;
+
+/// The `[cluster]` part of a node config.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ClusterConfig {
+    /// The address the node listens on for its peers (an explicit port: peers dial it).
+    pub listen: SocketAddr,
+    /// Nodes to join; any one reachable member is enough.
+    pub peers: Vec<SocketAddr>,
+    /// Shared secret of the cluster: a peer with another cookie is refused.
+    pub cookie: String,
+}
+
+impl ClusterConfig {
+    /// Listen on `listen`, join nobody yet.
+    pub fn new(listen: SocketAddr, cookie: impl Into<String>) -> Self {
+        ClusterConfig {
+            listen,
+            peers: Vec::new(),
+            cookie: cookie.into(),
+        }
+    }
+
+    /// Also join the node at `addr`.
+    pub fn with_peer(mut self, addr: SocketAddr) -> Self {
+        self.peers.push(addr);
+        self
+    }
+
+    /// Check what ractor_cluster would otherwise take silently or fail on later.
+    pub fn validate(&self, node: &str) -> Result<(), TransportError> {
+        if node.is_empty() || node.contains('@') || node.chars().any(char::is_whitespace) {
+            return Err(TransportError::Config(format!(
+                "node name {node:?} cannot join a cluster: it must be non-empty, without '@' or spaces"
+            )));
+        }
+        if self.cookie.is_empty() {
+            return Err(TransportError::Config(
+                "the cookie must not be empty".into(),
+            ));
+        }
+        if self.cookie.len() > MAX_COOKIE_LEN {
+            return Err(TransportError::Config(format!(
+                "the cookie is longer than {MAX_COOKIE_LEN} bytes"
+            )));
+        }
+        if let Some(p) = self.peers.iter().find(|p| p.port() == 0) {
+            return Err(TransportError::Config(format!("peer {p} has no port")));
+        }
+        Ok(())
+    }
+}

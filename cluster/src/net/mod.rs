@@ -1,0 +1,30 @@
+//! The transport: a node's ractor_cluster `NodeServer`, the peers it dials, and whom it sees.
+//!
+//! A node that joins a cluster listens on its [`ClusterConfig::listen`] address and dials
+//! every configured peer (any one is enough: ractor_cluster's transitive mode then dials the
+//! peers' peers, so the cluster becomes a full mesh, which `pg` needs — membership is pushed
+//! only to directly connected nodes). A peer that goes away is redialled with backoff for as
+//! long as the transport runs. Each peer is known by its configured node name: ractor names
+//! nodes `name@host` and numbers sessions afresh on every reconnect, so the transport records
+//! the name behind each session number in the registry, which then shows every remote
+//! module with its node.
+//!
+//! ```no_run
+//! # async fn demo() -> Result<(), marie_cluster::net::TransportError> {
+//! use marie_cluster::net::{ClusterConfig, Transport};
+//! use std::time::Duration;
+//! let config = ClusterConfig::new("127.0.0.1:7101".parse().unwrap(), "secret")
+//!     .with_peer("127.0.0.1:7100".parse().unwrap());
+//! let transport = Transport::start("beta", &config).await?;
+//! let peers = transport.wait_for_peers(1, Duration::from_secs(10)).await?;
+//! println!("beta sees {}", peers[0].name);
+//! transport.stop().await;
+//! # Ok(()) }
+//! ```
+
+mod config;
+mod sessions;
+mod transport;
+
+pub use config::ClusterConfig;
+pub use transport::{Peer, Transport, TransportError};
