@@ -178,6 +178,9 @@ impl Node {
     /// operation supervisor with the instances the config names.
     pub async fn start(config: NodeConfig, options: NodeOptions) -> Result<Node, NodeError> {
         config.validate(&options.catalog)?;
+        // one node per process (ractor's registry and pg are process-wide): its name is the
+        // location every module published here shows
+        marie_actors::registry::set_local_node_name(&config.name);
         let bus = EventBus::new(config.name.clone(), options.clock.clone());
         // the registry's joins and leaves from the start, so the first publications are seen
         let registry = match bridge_registry(bus.clone(), None).await {

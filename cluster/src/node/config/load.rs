@@ -2,8 +2,10 @@
 //! diagnostic at its `file:line:col`, each operation checked against the catalogue.
 
 use super::*;
-use marie_actors::diagnostic::toml::{quote, Reader, Rule, Tbl};
+use crate::net::ClusterConfig;
+use marie_actors::diagnostic::toml::{quote, Reader, Rule, Span, Tbl};
 use marie_actors::diagnostic::{read_source, Diagnostic, Diagnostics};
+use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 
 impl NodeConfig {
@@ -34,6 +36,7 @@ impl NodeConfig {
                 "simulation",
                 "supervisor",
                 "operation",
+                "cluster",
             ],
         );
         let mut config = NodeConfig::new("");
@@ -79,6 +82,11 @@ impl NodeConfig {
                 if let Some(op) = operation(&mut r, &t, catalog, &supervisors) {
                     config.operations.push(op);
                 }
+            }
+        }
+        if let Some(v) = top.get("cluster") {
+            if let Some(t) = r.table(v, "[cluster]") {
+                config.cluster = cluster(&mut r, &t, &config.name);
             }
         }
         r.finish(Some(config), "the node config is not valid")
@@ -307,4 +315,113 @@ fn operation(
         return None;
     }
     Some(op)
+}
+
+/// `[cluster]`: where the node listens, whom it joins, its cookie.
+fn cluster(r: &mut Reader<'_>, t: &Tbl<'_, '_>, node: &str) -> Option<ClusterConfig> {
+    r.unknown_keys(t, &["listen", "peers", "cookie"]);
+    let listen = t.get("listen").map(|v| (r.string(t, "listen"), v.span()));
+    let listen = match listen {
+        None => {
+            r.err(
+                &t.span,
+                "missing `listen` in [cluster] (e.g. \"127.0.0.1:7100\")",
+            );
+            None
+        }
+        Some((text, span)) => text.and_then(|s| socket_addr(r, &s, &span, "listen")),
+    };
+    let peers: Vec<SocketAddr> = r
+        .string_array(t, "peers")
+        .unwrap_or_default()
+        .into_iter()
+        .filter_map(|(s, span)| {
+            let addr = socket_addr(r, &s, &span, "peers")?;
+            if addr.port() == 0 {
+                r.err(&span, format!("peer {} needs its port", quote(&s)));
+                return None;
+            }
+            Some(addr)
+        })
+        .collect();
+    let cookie = r.required_string(t, "cookie");
+    let config = ClusterConfig {
+        listen: listen?,
+        peers,
+        cookie: cookie?,
+    };
+    if let Err(e) = config.validate(node) {
+        r.err(&t.span, e.to_string());
+        return None;
+    }
+    Some(config)
+}
+
+/// `IP:PORT`, or a diagnostic at `span`.
+fn socket_addr(r: &mut Reader<'_>, s: &str, span: &Span, field: &str) -> Option<SocketAddr> {
+    match s.parse() {
+        Ok(a) => Some(a),
+        Err(_) => {
+            r.err(
+                span,
+                format!(
+                    "`{field}`: {} is not an address (expected IP:PORT, e.g. \"127.0.0.1:7100\")",
+                    quote(s)
+                ),
+            );
+            None
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(src: &str) -> Result<NodeConfig, String> {
+        NodeConfig::parse(src, None, &[]).map_err(|d| d.to_string())
+    }
+
+    #[test]
+    fn a_cluster_section_gives_listen_peers_and_cookie() {
+        let c = parse(
+            "[node]\nname = \"beta\"\n[cluster]\nlisten = \"127.0.0.1:7101\"\n\
+             peers = [\"127.0.0.1:7100\", \"127.0.0.1:7102\"]\ncookie = \"thesis\"\n",
+        )
+        .unwrap();
+        let cluster = c.cluster.unwrap();
+        assert_eq!(cluster.listen, "127.0.0.1:7101".parse().unwrap());
+        assert_eq!(cluster.peers.len(), 2);
+        assert_eq!(cluster.cookie, "thesis");
+        assert_eq!(parse("[node]\nname = \"solo\"\n").unwrap().cluster, None);
+    }
+
+    #[test]
+    fn each_bad_cluster_setting_is_reported_at_its_line() {
+        let e = parse(
+            "[node]\nname = \"beta\"\n[cluster]\nlisten = \"localhost\"\n\
+             peers = [\"127.0.0.1:0\", 7, \"nowhere\"]\ncookie = \"c\"\nport = 1\n",
+        )
+        .unwrap_err();
+        for want in [
+            "<node>:4:10: `listen`: `localhost` is not an address",
+            "<node>:5:10: peer `127.0.0.1:0` needs its port",
+            "<node>:5:25: expected a string for `peers`, found integer",
+            "<node>:5:28: `peers`: `nowhere` is not an address",
+            "<node>:7:1: unknown key `port`",
+        ] {
+            assert!(e.contains(want), "{want:?} not in:\n{e}");
+        }
+        let e =
+            parse("[node]\nname = \"a@b\"\n[cluster]\nlisten = \"127.0.0.1:1\"\ncookie = \"\"\n")
+                .unwrap_err();
+        assert!(
+            e.contains("missing `cookie`") || e.contains("cookie"),
+            "{e}"
+        );
+        let e =
+            parse("[node]\nname = \"a@b\"\n[cluster]\nlisten = \"127.0.0.1:1\"\ncookie = \"x\"\n")
+                .unwrap_err();
+        assert!(e.contains("cannot join a cluster"), "{e}");
+    }
 }

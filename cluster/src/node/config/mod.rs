@@ -30,6 +30,11 @@
 //! max_restarts = 3
 //! period_s = 5
 //!
+//! [cluster]                   # optional: a member of a cluster (`marie node --config FILE`)
+//! listen = "127.0.0.1:7101"    # where peers reach it
+//! peers = ["127.0.0.1:7100"]   # whom to join; any one member is enough
+//! cookie = "thesis"            # shared secret: a peer with another cookie is refused
+//!
 //! [[operation]]
 //! name = "wall-follower"
 //! version = "1"                # a semver requirement; default "*": every version built in
@@ -85,6 +90,8 @@ pub struct NodeConfig {
     pub operations: Vec<OperationConfig>,
     /// A simulated robot, if the node runs one.
     pub simulation: Option<SimulationConfig>,
+    /// Where it listens and whom it joins, when it is a cluster member (`marie node`).
+    pub cluster: Option<crate::net::ClusterConfig>,
 }
 
 /// One datamanager a node hosts.
@@ -250,7 +257,14 @@ impl NodeConfig {
             supervisors: Vec::new(),
             operations: Vec::new(),
             simulation: None,
+            cluster: None,
         }
+    }
+
+    /// Join a cluster with `cluster` (listen address, peers, cookie).
+    pub fn with_cluster(mut self, cluster: crate::net::ClusterConfig) -> Self {
+        self.cluster = Some(cluster);
+        self
     }
 
     /// The embedded default: the thesis' three datamanagers, one instance of every operation
