@@ -1,6 +1,6 @@
 //! The `marie` command line: the flags of every verb, and which verb runs what.
 //!
-//! One module per verb (`run`, `check`, `ls`, `props`, `kill`), each holding its flags and
+//! One module per verb (`run`, `check`, `ls`, `props`, `kill`, `node`), each holding its flags and
 //! its work; the modules beside them hold what verbs share: flags and parsers (`args`), the
 //! node a mission is prepared on (`prepare`), the printed lines (`output`), the runtime and
 //! tracing set-up (`runtime`) and how an error becomes an exit code (`error`).
@@ -12,6 +12,7 @@ pub mod events_file;
 pub mod files;
 pub mod kill;
 pub mod ls;
+pub mod node;
 pub mod output;
 pub mod prepare;
 pub mod props;
@@ -46,6 +47,8 @@ pub enum Command {
     Kill(kill::KillArgs),
     /// Show every property of an operation.
     Props(props::PropsArgs),
+    /// Run a cluster member: host what a node config says and join its peers.
+    Node(node::NodeArgs),
 }
 
 impl Command {
@@ -63,6 +66,7 @@ impl Command {
             Command::Ls(args) => ls::ls(args).await,
             Command::Kill(args) => kill::kill(args).await,
             Command::Props(args) => props::props(args).await,
+            Command::Node(args) => node::node(args).await,
         }
     }
 }
