@@ -120,11 +120,11 @@ fn ls_lists_datamanagers_and_operations_like_the_thesis_log() {
     let out = marie(&["ls"]);
     let stdout = text(&out.stdout);
     assert_eq!(out.status.code(), Some(0));
-    assert!(stdout.contains("ID: 1601 node: local"), "{stdout}");
+    assert!(stdout.contains("ID: 1601 node: embedded"), "{stdout}");
     // the robot's operations too: the built-in node hosts everything
-    assert!(stdout.contains("ID: 1514 node: local"), "{stdout}");
+    assert!(stdout.contains("ID: 1514 node: embedded"), "{stdout}");
     assert!(
-        stdout.contains("DM found 0: ID: 1201 node: local"),
+        stdout.contains("DM found 0: ID: 1201 node: embedded"),
         "{stdout}"
     );
     assert!(stdout.contains("name: world"), "{stdout}");
