@@ -3,6 +3,8 @@
 // each test crate uses its own subset
 #![allow(dead_code)]
 
+pub mod cluster;
+
 use std::process::{Command, Output};
 
 /// Run the built `marie` with `args` from the package root, without `RUST_LOG`. Whatever the

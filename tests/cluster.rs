@@ -1,0 +1,142 @@
+//! The cluster across real processes on 127.0.0.1: `marie node` members that find each
+//! other, `marie ls --join` listing every node's modules with their node, a member that
+//! leaves taking its entries along, and a wrong cookie refused.
+
+mod common;
+
+use common::cluster::NodeProc;
+use common::{marie, text};
+use serde_json::Value;
+
+const COOKIE: &str = "thesis";
+
+const ALPHA_HOSTS: &str =
+    "[[datamanager]]\nname = \"feature\"\n[[operation]]\nname = \"sampler\"\n";
+const BETA_HOSTS: &str = "[[datamanager]]\nname = \"world\"\n[[operation]]\nname = \"averager\"\n";
+
+/// `marie ls --join ADDR --cookie C --json`: (kind, name, node) of every entry, sorted.
+fn ls_join(
+    addr: &std::net::SocketAddr,
+    cookie: &str,
+) -> (Option<i32>, Vec<(String, String, String)>, String) {
+    let out = marie(&[
+        "ls",
+        "--join",
+        &addr.to_string(),
+        "--cookie",
+        cookie,
+        "--json",
+    ]);
+    let stderr = text(&out.stderr);
+    let rows = serde_json::from_slice::<Value>(&out.stdout)
+        .ok()
+        .and_then(|v| v.as_array().cloned())
+        .unwrap_or_default();
+    let mut entries: Vec<(String, String, String)> = rows
+        .iter()
+        .map(|r| {
+            let s = |k: &str| r[k].as_str().unwrap_or_default().to_string();
+            (s("kind"), s("name"), s("node"))
+        })
+        .collect();
+    entries.sort();
+    (out.status.code(), entries, stderr)
+}
+
+fn entry(kind: &str, name: &str, node: &str) -> (String, String, String) {
+    (kind.into(), name.into(), node.into())
+}
+
+#[test]
+fn nodes_find_each_other_and_ls_join_lists_every_module_with_its_node() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut alpha = NodeProc::start(dir.path(), "alpha", ALPHA_HOSTS, &[], COOKIE);
+    let mut beta = NodeProc::start(dir.path(), "beta", BETA_HOSTS, &[alpha.addr], COOKIE);
+    beta.wait_line("node beta sees alpha");
+    alpha.wait_line("node alpha sees beta");
+
+    // joining either node shows both (the one not dialed is found through the other)
+    for via in [beta.addr, alpha.addr] {
+        let (code, entries, stderr) = ls_join(&via, COOKIE);
+        assert_eq!(code, Some(0), "{stderr}");
+        assert!(
+            stderr.contains("sees alpha") && stderr.contains("beta"),
+            "{stderr}"
+        );
+        for want in [
+            entry("DM", "feature", "alpha"),
+            entry("DM", "world", "beta"),
+            entry("EO", "averager", "beta"),
+            entry("EO", "sampler", "alpha"),
+        ] {
+            assert!(entries.contains(&want), "{want:?} not in {entries:?}");
+        }
+        assert_eq!(entries.len(), 4, "{entries:?}");
+    }
+
+    // a member that leaves takes its entries along
+    alpha.signal("TERM");
+    alpha.wait_line("node alpha stopping (SIGTERM)");
+    assert_eq!(alpha.wait_exit(), Some(0));
+    beta.wait_line("node beta lost alpha");
+    let (code, entries, stderr) = ls_join(&beta.addr, COOKIE);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(
+        entries.iter().all(|(_, _, node)| node == "beta"),
+        "{entries:?}"
+    );
+    assert_eq!(entries.len(), 2, "{entries:?}");
+    beta.signal("TERM");
+    assert_eq!(beta.wait_exit(), Some(0));
+}
+
+#[test]
+fn a_peer_with_another_cookie_is_refused_and_changes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut alpha = NodeProc::start(dir.path(), "alpha", ALPHA_HOSTS, &[], COOKIE);
+    let (code, entries, stderr) = ls_join(&alpha.addr, "not-the-cookie");
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(stderr.contains("could not join the cluster"), "{stderr}");
+    assert!(entries.is_empty());
+    // the node still serves the right cookie, with what it hosted before
+    let (code, entries, stderr) = ls_join(&alpha.addr, COOKIE);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert_eq!(
+        entries,
+        vec![
+            entry("DM", "feature", "alpha"),
+            entry("EO", "sampler", "alpha")
+        ]
+    );
+    alpha.signal("TERM");
+    assert_eq!(alpha.wait_exit(), Some(0));
+    assert!(!alpha.wait_line("stopped").is_empty());
+}
+
+#[test]
+fn a_node_config_without_a_cluster_table_or_with_a_bad_one_exits_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let solo = dir.path().join("solo.toml");
+    std::fs::write(&solo, "[node]\nname = \"solo\"\n").unwrap();
+    let out = marie(&["node", "--config", solo.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        text(&out.stderr).contains("no [cluster] table"),
+        "{}",
+        text(&out.stderr)
+    );
+
+    let bad = dir.path().join("bad.toml");
+    std::fs::write(
+        &bad,
+        "[node]\nname = \"bad\"\n[cluster]\nlisten = \"127.0.0.1\"\ncookie = \"c\"\n",
+    )
+    .unwrap();
+    let out = marie(&["node", "--config", bad.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = text(&out.stderr);
+    assert!(
+        stderr.contains("bad.toml:4:10: `listen`: `127.0.0.1` is not an address"),
+        "{stderr}"
+    );
+}
