@@ -213,9 +213,16 @@ impl Drop for Paced {
 /// `NodeOptions::clock`, a cluster whose nodes share one factor). What happens then depends
 /// on the scheduling of real threads; a single process that should run the same way at every
 /// speed paces a paused clock with a [`Pacer`] instead.
+///
+/// [`ScaledClock::cluster`] counts from the Unix epoch instead of its own creation, so that
+/// the nodes of a cluster — separate processes, each with its own clock — read the same time:
+/// a record stamped by a datamanager on one node is found by a `since` query from an
+/// operation on another.
 #[derive(Debug, Clone)]
 pub struct ScaledClock {
     epoch: Instant,
+    /// Time at `epoch`, before scaling: zero, or the time since the Unix epoch.
+    origin: Duration,
     speed: f64,
 }
 
@@ -230,7 +237,22 @@ impl ScaledClock {
         };
         ScaledClock {
             epoch: Instant::now(),
+            origin: Duration::ZERO,
             speed,
+        }
+    }
+
+    /// The clock of a cluster member: wall-clock time since the Unix epoch, times `speed`.
+    /// Every node of a cluster runs at the same factor and so reads the same time (up to the
+    /// hosts' wall clocks: on several machines, keep them in sync with NTP). It never runs
+    /// backwards: after creation it advances with the monotonic clock.
+    pub fn cluster(speed: f64) -> Self {
+        let origin = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .unwrap_or_default();
+        ScaledClock {
+            origin,
+            ..ScaledClock::new(speed)
         }
     }
 
@@ -242,7 +264,7 @@ impl ScaledClock {
 
 impl Clock for ScaledClock {
     fn now(&self) -> Duration {
-        self.epoch.elapsed().mul_f64(self.speed)
+        (self.origin + self.epoch.elapsed()).mul_f64(self.speed)
     }
     fn sleep(&self, d: Duration) -> Sleep {
         Box::pin(tokio::time::sleep(d.div_f64(self.speed)))
@@ -331,6 +353,19 @@ mod tests {
         clock.sleep(Duration::from_secs(1)).await;
         assert!(clock.now() - before >= Duration::from_secs(1));
     }
+    #[test]
+    fn cluster_clocks_created_apart_read_the_same_time() {
+        let a = ScaledClock::cluster(4.0);
+        std::thread::sleep(Duration::from_millis(20));
+        let b = ScaledClock::cluster(4.0);
+        let (ta, tb) = (a.now(), b.now());
+        let apart = ta.abs_diff(tb);
+        // read one after the other: a few microseconds apart, times 4; never the 80 ms a
+        // per-process epoch would put between them
+        assert!(apart < Duration::from_millis(10), "{apart:?}");
+        assert!(ScaledClock::new(4.0).now() < Duration::from_secs(1));
+    }
+
     #[test]
     fn a_pacer_holds_back_only_time_ahead_of_its_pace() {
         let ms = Duration::from_millis;
