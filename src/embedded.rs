@@ -38,6 +38,9 @@ pub const EMBEDDED_NODE: &str = "embedded";
 pub struct EmbeddedOptions {
     /// A node config file; `None`: the built-in config that hosts everything.
     pub node: Option<PathBuf>,
+    /// A node config given as a value (e.g. the dispatcher-only member of `marie run
+    /// --join`); used when `node` is `None`.
+    pub config: Option<NodeConfig>,
     /// `--world`: overrides the node config's and the mission's world.
     pub world: Option<PathBuf>,
     /// The mission's `world`, used when neither `--world` nor the node config names one.
@@ -55,6 +58,7 @@ impl Default for EmbeddedOptions {
     fn default() -> Self {
         EmbeddedOptions {
             node: None,
+            config: None,
             world: None,
             mission_world: None,
             mission_world_at: None,
@@ -105,10 +109,11 @@ impl Embedded {
     /// Load the node config (or take the built-in one), the world, and start the node.
     pub async fn start(options: EmbeddedOptions) -> Result<Embedded, EmbeddedError> {
         let catalog = marie_missions::catalog();
-        let config = match &options.node {
-            Some(path) => NodeConfig::load(path, &catalog).map_err(EmbeddedError::Config)?,
+        let config = match (&options.node, options.config.clone()) {
+            (Some(path), _) => NodeConfig::load(path, &catalog).map_err(EmbeddedError::Config)?,
+            (None, Some(config)) => config,
             // the built-in node runs the robot whenever there is a world
-            None => NodeConfig {
+            (None, None) => NodeConfig {
                 simulation: Some(SimulationConfig {
                     world: None,
                     world_at: None,

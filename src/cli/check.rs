@@ -1,7 +1,9 @@
 //! `marie check MISSION`: load and check a mission (and its world) without running it.
 
 use super::args::RobotArgs;
-use super::prepare::prepare;
+use super::error::BadInput;
+use super::join::{member_name, JoinArgs};
+use super::prepare::{prepare, Joining};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -12,12 +14,34 @@ pub struct CheckArgs {
     pub mission: PathBuf,
     #[command(flatten)]
     pub robot: RobotArgs,
+    /// `--join ADDR --cookie C`: check against the instances of a running cluster.
+    #[command(flatten)]
+    pub cluster: JoinArgs,
 }
 
 /// Check the mission against the operations of a freshly started node.
 pub async fn check(args: CheckArgs) -> anyhow::Result<ExitCode> {
-    let CheckArgs { mission, robot } = args;
-    let prepared = prepare(&mission, robot).await?;
+    let CheckArgs {
+        mission,
+        robot,
+        cluster,
+    } = args;
+    let joining = match cluster.target() {
+        Some(_) if robot.node.is_some() => {
+            return Err(BadInput(
+                "--join checks against a running cluster: --node starts a node of its own".into(),
+            )
+            .into())
+        }
+        Some((addr, cookie)) => Some(Joining {
+            me: member_name("check"),
+            addr,
+            cookie: cookie.to_string(),
+            speed: 1.0,
+        }),
+        None => None,
+    };
+    let prepared = prepare(&mission, robot, joining.as_ref()).await?;
     let m = &prepared.mission;
     println!(
         "{}: ok — mission `{}`, {} actions, {} operations{}",
@@ -31,6 +55,6 @@ pub async fn check(args: CheckArgs) -> anyhow::Result<ExitCode> {
             .map(|r| format!(", world `{}`", r.world().name))
             .unwrap_or_default()
     );
-    prepared.node.shutdown().await;
+    prepared.shutdown().await;
     Ok(ExitCode::SUCCESS)
 }

@@ -3,18 +3,10 @@
 
 use super::args::RobotArgs;
 use super::error::BadInput;
+use super::join::{join, member_name, JoinArgs};
 use super::prepare::start_node;
 use marie::actors::registry::{self, Instance};
-use marie::net::{ClusterConfig, Transport};
-use std::net::SocketAddr;
 use std::process::ExitCode;
-use std::time::Duration;
-
-/// How long `ls --join` waits for the node it dials.
-const JOIN_TIMEOUT: Duration = Duration::from_secs(10);
-/// `ls --join` lists once no new peer has appeared for this long (the peers behind the one
-/// it dialed are dialed a moment after).
-const QUIET: Duration = Duration::from_millis(300);
 
 /// Flags of `marie ls`.
 #[derive(clap::Args, Debug)]
@@ -22,12 +14,9 @@ pub struct LsArgs {
     /// Print JSON instead of the start-up log format.
     #[arg(long)]
     pub json: bool,
-    /// List a running cluster's modules: the address of any one of its nodes.
-    #[arg(long, value_name = "ADDR", requires = "cookie", conflicts_with_all = ["node", "world"])]
-    pub join: Option<SocketAddr>,
-    /// The cluster's cookie (with `--join`).
-    #[arg(long, value_name = "C", requires = "join")]
-    pub cookie: Option<String>,
+    /// `--join ADDR --cookie C`: list every module of a running cluster, with its node.
+    #[command(flatten)]
+    pub cluster: JoinArgs,
     /// `--node FILE`: list what that node hosts; `--world FILE`: with the robot too.
     #[command(flatten)]
     pub robot: RobotArgs,
@@ -35,38 +24,24 @@ pub struct LsArgs {
 
 /// Start the node (or join the cluster) and list what is published.
 pub async fn ls(args: LsArgs) -> anyhow::Result<ExitCode> {
-    if let (Some(addr), Some(cookie)) = (args.join, &args.cookie) {
-        return ls_cluster(addr, cookie, args.json).await;
+    if let Some((addr, cookie)) = args.cluster.target() {
+        if args.robot.node.is_some() || args.robot.world.is_some() {
+            return Err(BadInput(
+                "--join lists a running cluster: --node and --world start a node of their own"
+                    .into(),
+            )
+            .into());
+        }
+        // a member that hosts nothing: what it lists is the others'
+        let transport = join(&member_name("ls"), addr, cookie).await?;
+        let result = print_listing(&registry::list(), args.json);
+        transport.stop().await;
+        return result.map(|()| ExitCode::SUCCESS);
     }
     let node = start_node(args.robot.options(None)).await?.node;
     print_listing(&registry::list(), args.json)?;
     node.shutdown().await;
     Ok(ExitCode::SUCCESS)
-}
-
-/// Join the cluster at `addr` as a node that hosts nothing, list every node's modules.
-async fn ls_cluster(addr: SocketAddr, cookie: &str, json: bool) -> anyhow::Result<ExitCode> {
-    let me = format!("ls-{}", std::process::id());
-    let any_port = SocketAddr::new(std::net::Ipv4Addr::LOCALHOST.into(), 0);
-    let config = ClusterConfig::new(any_port, cookie).with_peer(addr);
-    config.validate(&me).map_err(|e| BadInput(e.to_string()))?;
-    let transport = Transport::start(&me, &config).await?;
-    if let Err(e) = transport.wait_for_peers(1, JOIN_TIMEOUT).await {
-        transport.stop().await;
-        anyhow::bail!("{me} could not join the cluster at {addr}: {e} (is a node listening there, with this cookie?)");
-    }
-    let peers = transport.settle(QUIET, JOIN_TIMEOUT).await;
-    eprintln!(
-        "{me} sees {}",
-        peers
-            .iter()
-            .map(|p| format!("{} ({})", p.name, p.address))
-            .collect::<Vec<_>>()
-            .join(", ")
-    );
-    let result = print_listing(&registry::list(), json);
-    transport.stop().await;
-    result.map(|()| ExitCode::SUCCESS)
 }
 
 fn print_listing(list: &[Instance], json: bool) -> anyhow::Result<()> {

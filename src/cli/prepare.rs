@@ -2,12 +2,46 @@
 //! against the operations that run — shared by `run` and `check`.
 
 use super::args::RobotArgs;
+use super::join::join;
+use marie::actors::clock::ScaledClock;
 use marie::actors::dispatcher::mission::Mission;
 use marie::embedded::{Embedded, EmbeddedOptions};
 use marie::missions::robot::SimRobot;
-use marie::node::{Node, NodeError};
+use marie::net::Transport;
+use marie::node::{Node, NodeConfig, NodeError, SimulationConfig};
+use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
+
+/// A mission run (or checked) from a member of a running cluster (`--join ADDR --cookie C`).
+#[derive(Clone, Debug)]
+pub struct Joining {
+    /// The member's name (`run-4242`).
+    pub me: String,
+    /// Any node of the cluster.
+    pub addr: SocketAddr,
+    /// The cluster's cookie.
+    pub cookie: String,
+    /// The cluster's speed factor.
+    pub speed: f64,
+}
+
+impl Joining {
+    /// The member's node: a dispatcher and nothing else — the operations, datamanagers and
+    /// the cart are the cluster's — plus, when a world is known, the robot without drivers,
+    /// to judge the run by the cart's final pose (asked of the cart wherever it runs).
+    fn config(&self) -> NodeConfig {
+        NodeConfig {
+            simulation: Some(SimulationConfig {
+                world: None,
+                world_at: None,
+                seed: None,
+                drivers: false,
+            }),
+            ..NodeConfig::new(self.me.clone())
+        }
+    }
+}
 
 /// A node started for a mission, with the mission checked against it.
 pub struct Prepared {
@@ -19,9 +53,19 @@ pub struct Prepared {
     pub mission: Mission,
     /// The world file the robot drives in, when one runs.
     pub world_path: Option<PathBuf>,
+    /// The cluster transport, when the node joined one.
+    pub transport: Option<Transport>,
 }
 
 impl Prepared {
+    /// Stop the node, then leave the cluster if it joined one.
+    pub async fn shutdown(self) {
+        self.node.shutdown().await;
+        if let Some(t) = self.transport {
+            t.stop().await;
+        }
+    }
+
     /// `world `lab` from FILE, seed N`, when a robot runs.
     pub fn world_line(&self) -> Option<String> {
         let robot = self.robot.as_ref()?;
@@ -37,26 +81,48 @@ impl Prepared {
 }
 
 /// Parse the mission, start the node (`--node FILE` or the built-in one; the robot's world
-/// from `--world`, else the node config's, else the mission's, else none) and check the
-/// mission against it.
-pub async fn prepare(path: &Path, robot: RobotArgs) -> anyhow::Result<Prepared> {
+/// from `--world`, else the node config's, else the mission's, else none) — or, `joining`,
+/// a dispatcher-only member of the cluster — and check the mission against it.
+pub async fn prepare(
+    path: &Path,
+    robot: RobotArgs,
+    joining: Option<&Joining>,
+) -> anyhow::Result<Prepared> {
     let parsed = Mission::parse_file(path).map_err(NodeError::Mission)?;
     let mut options = robot.options(parsed.world());
     options.mission_world_at = parsed.world_diagnostic("the world named here does not load:");
+    if let Some(j) = joining {
+        options.config = Some(j.config());
+        options.clock = Arc::new(ScaledClock::cluster(j.speed));
+    }
     let Embedded {
         node,
         robot,
         world_path,
     } = start_node(options).await?;
+    let transport = match joining {
+        Some(j) => match join(&j.me, j.addr, &j.cookie).await {
+            Ok(t) => Some(t),
+            Err(e) => {
+                node.shutdown().await;
+                return Err(e);
+            }
+        },
+        None => None,
+    };
     match node.check_mission(&parsed).await {
         Ok(mission) => Ok(Prepared {
             node,
             robot,
             mission,
             world_path,
+            transport,
         }),
         Err(e) => {
             node.shutdown().await;
+            if let Some(t) = transport {
+                t.stop().await;
+            }
             Err(e.into())
         }
     }

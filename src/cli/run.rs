@@ -5,8 +5,9 @@ use super::args::{parse_fault, parse_seed, parse_speed, RobotArgs};
 use super::error::BadInput;
 use super::events_file::EventsFile;
 use super::files;
+use super::join::{member_name, JoinArgs};
 use super::output::{not_found, outcome_line, print_event, print_faults};
-use super::prepare::{prepare, Prepared};
+use super::prepare::{prepare, Joining, Prepared};
 use anyhow::Context;
 use marie::actors::clock::Pacer;
 use marie::actors::dispatcher::{Outcome, RunReport};
@@ -37,8 +38,14 @@ pub struct RunArgs {
     pub svg: Option<PathBuf>,
     /// Clock speed: a factor of real time (`1` is real time), or `max`: as fast as the CPU
     /// allows (the default). Only paces the run: the outcome is the same at every speed.
-    #[arg(long, default_value = "max", value_parser = parse_speed, allow_hyphen_values = true)]
-    pub speed: f64,
+    /// With `--join`: the cluster's factor (default 1; `max` is refused, a cluster runs on
+    /// the wall clock).
+    #[arg(long, value_parser = parse_speed, allow_hyphen_values = true)]
+    pub speed: Option<f64>,
+    /// `--join ADDR --cookie C`: run the dispatcher as a member of a running cluster; the
+    /// operations, datamanagers and cart are the cluster's.
+    #[command(flatten)]
+    pub cluster: JoinArgs,
     /// Inject a fault while the mission runs: KIND `kill`, `panic` or `hang`; TARGET the
     /// operation's name or id (the instance the mission bound), `NAME#VERSION` (the instance
     /// with that version) or an actor id like `0.42`; SECS mission time, 0 to 1000000.
@@ -65,7 +72,30 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         speed,
         faults,
         chaos,
+        cluster,
     } = args;
+    let joining = match cluster.target() {
+        Some((addr, cookie)) => {
+            if robot.node.is_some() {
+                return Err(BadInput(
+                    "--join runs the dispatcher in a running cluster: --node starts a node of \
+                     its own"
+                        .into(),
+                )
+                .into());
+            }
+            let speed = speed.unwrap_or(1.0);
+            super::args::parse_cluster_speed(&speed.to_string())
+                .map_err(|e| BadInput(format!("--speed with --join: {e}")))?;
+            Some(Joining {
+                me: member_name("run"),
+                addr,
+                cookie: cookie.to_string(),
+                speed,
+            })
+        }
+        None => None,
+    };
     // outputs first: a run must not end in a report it cannot write
     if let Some(p) = &report_path {
         files::output("--report", p)?;
@@ -82,10 +112,13 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     };
     // The runtime's paused clock is the mission clock (the node's "real" clock reads it);
     // the pacer only holds it back to `speed`, from before the node starts to the end.
-    let _pace = Pacer::new(speed).spawn();
-    let prepared = prepare(&path, robot).await?;
+    // (a member of a cluster runs on the cluster's wall clock instead)
+    let _pace = joining
+        .is_none()
+        .then(|| Pacer::new(speed.unwrap_or(f64::INFINITY)).spawn());
+    let prepared = prepare(&path, robot, joining.as_ref()).await?;
     if svg_path.is_some() && prepared.robot.is_none() {
-        prepared.node.shutdown().await;
+        prepared.shutdown().await;
         return Err(BadInput(format!(
             "--svg draws a robot's run, but no robot runs: give a world with --world FILE \
              or `world = \"...\"` in the `[mission]` of {}",
@@ -110,7 +143,7 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         };
         if let Err(e) = checked {
             let why = not_found(e);
-            prepared.node.shutdown().await;
+            prepared.shutdown().await;
             return Err(BadInput(format!("--fault {f}: {why}")).into());
         }
     }
@@ -118,6 +151,7 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         node,
         robot,
         mission,
+        transport,
         ..
     } = prepared;
     let (tx, mut rx) = mpsc::unbounded_channel();
@@ -145,6 +179,9 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     };
     let world = robot.as_ref().map(|r| r.world().clone());
     node.shutdown().await;
+    if let Some(t) = transport {
+        t.stop().await;
+    }
     let report = report?;
     print_faults(&report);
     if world.is_some() {
