@@ -3,16 +3,23 @@
 //!
 //! It prints one line when it listens and one whenever it starts or stops seeing a peer, so
 //! whoever started it (a person, `marie up`, a test) can wait for those lines.
+//!
+//! `--listen`, `--peer` and `--cookie` give or override the config's `[cluster]` table (what
+//! `marie up` does for the nodes of a cluster file). Its actors run on the cluster clock
+//! ([`ScaledClock::cluster`]): wall-clock time at `--speed`, the same on every node.
 
 use super::error::BadInput;
 use super::prepare::start_node;
+use marie::actors::clock::ScaledClock;
 use marie::actors::registry;
 use marie::embedded::EmbeddedOptions;
-use marie::net::{Peer, Transport};
+use marie::net::{ClusterConfig, Peer, Transport};
 use std::collections::BTreeSet;
 use std::io::Write;
+use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::sync::Arc;
 
 /// Flags of `marie node`.
 #[derive(clap::Args, Debug)]
@@ -26,28 +33,70 @@ pub struct NodeArgs {
     /// Seed of the simulation's noise; default: the config's, else 1.
     #[arg(long, value_name = "N", value_parser = super::args::parse_seed, allow_hyphen_values = true)]
     pub seed: Option<u64>,
+    /// Listen here (overrides the config's `listen`).
+    #[arg(long, value_name = "ADDR")]
+    pub listen: Option<SocketAddr>,
+    /// Join the node at ADDR (repeatable; replaces the config's `peers`).
+    #[arg(long = "peer", value_name = "ADDR")]
+    pub peers: Vec<SocketAddr>,
+    /// The cluster's cookie (overrides the config's `cookie`).
+    #[arg(long, value_name = "C")]
+    pub cookie: Option<String>,
+    /// The cluster's speed factor: wall-clock time times X, the same on every node.
+    #[arg(long, default_value = "1", value_parser = super::args::parse_cluster_speed, allow_hyphen_values = true)]
+    pub speed: f64,
+    /// Stop, like on SIGTERM, when standard input closes: what `marie up` gives its
+    /// children, so that none outlives it even when it is killed.
+    #[arg(long)]
+    pub stop_with_stdin: bool,
+}
+
+impl NodeArgs {
+    /// The config's `[cluster]` table with the flags applied; `None` when neither gives a
+    /// listen address and a cookie.
+    fn cluster(&self, from_file: Option<ClusterConfig>) -> Option<ClusterConfig> {
+        let mut cluster = match (from_file, self.listen, &self.cookie) {
+            (Some(c), _, _) => c,
+            (None, Some(listen), Some(cookie)) => ClusterConfig::new(listen, cookie.clone()),
+            (None, _, _) => return None,
+        };
+        if let Some(listen) = self.listen {
+            cluster.listen = listen;
+        }
+        if let Some(cookie) = &self.cookie {
+            cluster.cookie = cookie.clone();
+        }
+        if !self.peers.is_empty() {
+            cluster.peers = self.peers.clone();
+        }
+        Some(cluster)
+    }
 }
 
 /// Start the node and its transport, report whom it sees, stop cleanly on a signal.
 pub async fn node(args: NodeArgs) -> anyhow::Result<ExitCode> {
     let embedded = start_node(EmbeddedOptions {
         node: Some(args.config.clone()),
-        world: args.world,
+        world: args.world.clone(),
         seed: args.seed,
+        clock: Arc::new(ScaledClock::cluster(args.speed)),
         ..EmbeddedOptions::default()
     })
     .await?;
     let node = embedded.node;
     let name = node.config().name.clone();
-    let Some(cluster) = node.config().cluster.clone() else {
+    let Some(cluster) = args.cluster(node.config().cluster.clone()) else {
         node.shutdown().await;
         return Err(BadInput(format!(
             "{}: no [cluster] table: a node needs `listen`, `peers` and `cookie` to join a \
-             cluster (to run a mission on one process: marie run MISSION --node {0})",
+             cluster, in the file or as --listen and --cookie (to run a mission on one \
+             process: marie run MISSION --node {0})",
             args.config.display()
         ))
         .into());
     };
+    // what it hosts itself, counted before any peer's modules arrive
+    let modules = registry::list().len();
     let transport = match Transport::start(&name, &cluster).await {
         Ok(t) => t,
         Err(e) => {
@@ -55,10 +104,10 @@ pub async fn node(args: NodeArgs) -> anyhow::Result<ExitCode> {
             return Err(e.into());
         }
     };
-    let modules = registry::list().len();
     say(&format!(
-        "node {name} listening on {} with {modules} module(s); joining {}",
+        "node {name} listening on {} with {modules} module(s) at speed {}; joining {}",
         transport.listen(),
+        args.speed,
         if cluster.peers.is_empty() {
             "nobody (others join it)".to_string()
         } else {
@@ -70,7 +119,7 @@ pub async fn node(args: NodeArgs) -> anyhow::Result<ExitCode> {
                 .join(", ")
         }
     ));
-    let stop = shutdown_signal();
+    let stop = super::signal::shutdown_signal(args.stop_with_stdin);
     tokio::pin!(stop);
     let mut seen: BTreeSet<(String, String)> = BTreeSet::new();
     let mut changes = transport.changes();
@@ -110,21 +159,4 @@ fn say(line: &str) {
     let mut out = std::io::stdout().lock();
     let _ = writeln!(out, "{line}");
     let _ = out.flush();
-}
-
-/// SIGINT or SIGTERM, by name.
-async fn shutdown_signal() -> &'static str {
-    use tokio::signal::unix::{signal, SignalKind};
-    let mut term = match signal(SignalKind::terminate()) {
-        Ok(s) => s,
-        Err(e) => {
-            tracing::warn!("cannot watch SIGTERM: {e}");
-            let _ = tokio::signal::ctrl_c().await;
-            return "SIGINT";
-        }
-    };
-    tokio::select! {
-        _ = tokio::signal::ctrl_c() => "SIGINT",
-        _ = term.recv() => "SIGTERM",
-    }
 }

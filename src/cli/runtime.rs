@@ -30,10 +30,10 @@ pub fn build(virtual_time: bool) -> std::io::Result<tokio::runtime::Runtime> {
     }
 }
 
-/// Diagnostics on stderr, filtered by `RUST_LOG` (default `warn`).
+/// Diagnostics on stderr, filtered by `RUST_LOG` (default `warn`, and `error` for ractor_cluster, whose warnings are routine session ends).
 pub fn init_tracing(format: LogFormat) {
     let filter = tracing_subscriber::EnvFilter::try_from_default_env()
-        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn"));
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn,ractor_cluster=error"));
     let builder = tracing_subscriber::fmt()
         .with_env_filter(filter)
         .with_writer(std::io::stderr)

@@ -82,7 +82,7 @@ impl NodeEventSubscription for Sessions {
     fn node_session_disconnected(&self, ses: NodeServerSessionInformation) {
         let gone = self.table().remove(&ses.node_id);
         if let Some(peer) = gone {
-            tracing::warn!(node = %self.node, peer = %peer.name, address = %peer.address, "lost peer");
+            tracing::info!(node = %self.node, peer = %peer.name, address = %peer.address, "lost peer");
             self.bump();
         } else {
             tracing::debug!(node = %self.node, peer_addr = %ses.peer_addr, "session closed before it was ready");
