@@ -20,5 +20,6 @@
 pub use marie_actors::wire::envelope;
 
 pub mod fault;
+pub mod layout;
 pub mod net;
 pub mod node;

@@ -26,5 +26,5 @@ mod config;
 mod sessions;
 mod transport;
 
-pub use config::ClusterConfig;
+pub use config::{ClusterConfig, MAX_COOKIE_LEN};
 pub use transport::{Peer, Transport, TransportError};

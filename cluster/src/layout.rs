@@ -1,0 +1,271 @@
+//! A cluster file: which nodes a cluster runs, as one file `marie up` starts.
+//!
+//! ```toml
+//! [cluster]
+//! cookie = "marie-thesis"      # the shared secret every node proves
+//! speed = 1                    # the cluster's factor of real time (the same on every node)
+//! world = "../worlds/lab.toml" # the simulated robot's world (a mission's or --world wins)
+//! seed = 1
+//!
+//! [[node]]
+//! config = "thesis/cart.toml"  # a node config, relative to this file
+//! [[node]]
+//! config = "thesis/features.toml"
+//! listen = "127.0.0.1:7102"    # optional: else a free port on 127.0.0.1
+//! ```
+//!
+//! Every node config is loaded and checked with the file, and node names must differ (two
+//! processes with one node name cannot connect). Problems are diagnostics at their
+//! `file:line:col`, a node config's own ones after the line that names it.
+//!
+//! ```
+//! # use marie_cluster::layout::ClusterLayout;
+//! let dir = tempfile::tempdir().unwrap();
+//! std::fs::write(dir.path().join("a.toml"), "[node]\nname = \"a\"\n").unwrap();
+//! std::fs::write(dir.path().join("c.toml"), "[cluster]\ncookie = \"c\"\n[[node]]\nconfig = \"a.toml\"\n").unwrap();
+//! let layout = ClusterLayout::load(&dir.path().join("c.toml"), &[]).unwrap();
+//! assert_eq!(layout.nodes[0].config.name, "a");
+//! ```
+
+use crate::net::MAX_COOKIE_LEN;
+use crate::node::NodeConfig;
+use marie_actors::diagnostic::toml::{Reader, Rule};
+use marie_actors::diagnostic::{read_source, Diagnostic, Diagnostics};
+use marie_actors::eo::OperationFactory;
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+
+/// Slowest and fastest speed factor of a cluster (it runs on the wall clock: a step period
+/// must stay long against a message's trip between processes).
+pub const SPEED_RANGE: (f64, f64) = (0.01, 20.0);
+
+/// A cluster file, checked.
+#[derive(Clone, Debug)]
+pub struct ClusterLayout {
+    /// The file it was read from.
+    pub path: PathBuf,
+    /// The cookie every node proves.
+    pub cookie: String,
+    /// The cluster's factor of real time.
+    pub speed: f64,
+    /// The robot's world, resolved against the file's directory.
+    pub world: Option<PathBuf>,
+    /// The simulation's seed.
+    pub seed: Option<u64>,
+    /// The nodes, in file order.
+    pub nodes: Vec<LayoutNode>,
+}
+
+/// One `[[node]]` of a cluster file.
+#[derive(Clone, Debug)]
+pub struct LayoutNode {
+    /// The node config file (resolved).
+    pub path: PathBuf,
+    /// The node config, checked.
+    pub config: NodeConfig,
+    /// Where it listens; `None`: a free port on 127.0.0.1.
+    pub listen: Option<SocketAddr>,
+}
+
+impl ClusterLayout {
+    /// Read and check a cluster file and every node config it names, against `catalog`.
+    pub fn load(path: &Path, catalog: &[OperationFactory]) -> Result<ClusterLayout, Diagnostics> {
+        let src = read_source(path, "cluster file")?;
+        let file = path.display().to_string();
+        let dir = path.parent().unwrap_or(Path::new(""));
+        let resolve = |p: String| {
+            let p = PathBuf::from(p);
+            if p.is_relative() {
+                dir.join(p)
+            } else {
+                p
+            }
+        };
+        let mut r = Reader::new(&src, file);
+        let Some(doc) = r.parse() else {
+            return r.finish(None, "the cluster file is not valid");
+        };
+        let top = r.top(&doc, "the cluster file");
+        r.unknown_keys(&top, &["cluster", "node"]);
+        let mut layout = ClusterLayout {
+            path: path.to_path_buf(),
+            cookie: String::new(),
+            speed: 1.0,
+            world: None,
+            seed: None,
+            nodes: Vec::new(),
+        };
+        match top.get("cluster") {
+            None => r.err(
+                &(0..0),
+                "missing table `[cluster]` (expected `cookie = \"...\"`)",
+            ),
+            Some(v) => {
+                if let Some(t) = r.table(v, "[cluster]") {
+                    r.unknown_keys(&t, &["cookie", "speed", "world", "seed"]);
+                    if let Some(cookie) = r.required_string(&t, "cookie") {
+                        if cookie.len() > MAX_COOKIE_LEN {
+                            let span = t.get("cookie").map(|v| v.span()).unwrap_or(0..0);
+                            r.err(
+                                &span,
+                                format!("`cookie` is longer than {MAX_COOKIE_LEN} bytes"),
+                            );
+                        }
+                        layout.cookie = cookie;
+                    }
+                    let (lo, hi) = SPEED_RANGE;
+                    layout.speed = r
+                        .num(&t, "speed", Some(1.0), Rule::Within(lo, hi))
+                        .unwrap_or(1.0);
+                    layout.world = r.string(&t, "world").map(resolve);
+                    layout.seed = r
+                        .integer(&t, "seed", Some(-1), 0..=i64::MAX)
+                        .filter(|s| *s >= 0 && t.get("seed").is_some())
+                        .map(|s| s as u64);
+                }
+            }
+        }
+        let mut nested: Vec<Diagnostic> = Vec::new();
+        match top.get("node") {
+            None => r.err(
+                &(0..0),
+                "no `[[node]]`: a cluster file lists the nodes it runs",
+            ),
+            Some(v) => {
+                for t in r.table_array(v, "node").into_iter().flatten() {
+                    r.unknown_keys(&t, &["config", "listen"]);
+                    let listen = t.get("listen").and_then(|v| {
+                        let s = r.string_value(v, "listen")?;
+                        match s.parse::<SocketAddr>() {
+                            Ok(a) => Some(a),
+                            Err(_) => {
+                                r.err(
+                                    &v.span(),
+                                    format!("`listen`: `{s}` is not an address (IP:PORT)"),
+                                );
+                                None
+                            }
+                        }
+                    });
+                    let Some(config_at) = t.get("config").map(|v| v.span()) else {
+                        r.err(&t.span, "missing `config` in [[node]] (a node config file)");
+                        continue;
+                    };
+                    let Some(config) = r.required_string(&t, "config") else {
+                        continue;
+                    };
+                    let node_path = resolve(config);
+                    match NodeConfig::load(&node_path, catalog) {
+                        Ok(config) => {
+                            if let Some(twin) =
+                                layout.nodes.iter().find(|n| n.config.name == config.name)
+                            {
+                                r.err(
+                                    &config_at,
+                                    format!(
+                                        "node `{}` is already named by {}: node names must \
+                                         differ within a cluster",
+                                        config.name,
+                                        twin.path.display()
+                                    ),
+                                );
+                                continue;
+                            }
+                            layout.nodes.push(LayoutNode {
+                                path: node_path,
+                                config,
+                                listen,
+                            });
+                        }
+                        Err(diags) => {
+                            nested.push(Diagnostic::at(
+                                r.file(),
+                                r.pos(&config_at),
+                                "the node config named here does not load:",
+                            ));
+                            nested.extend(diags);
+                        }
+                    }
+                }
+            }
+        }
+        let mut all = r.into_diagnostics();
+        all.extend(nested);
+        Diagnostics(all).into_result(layout)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+        let p = dir.join(name);
+        std::fs::write(&p, text).unwrap();
+        p
+    }
+
+    #[test]
+    fn a_cluster_file_gives_its_nodes_cookie_speed_and_world() {
+        let dir = tempfile::tempdir().unwrap();
+        write(dir.path(), "a.toml", "[node]\nname = \"a\"\n");
+        write(dir.path(), "b.toml", "[node]\nname = \"b\"\n");
+        let c = write(
+            dir.path(),
+            "c.toml",
+            "[cluster]\ncookie = \"k\"\nspeed = 4\nworld = \"w.toml\"\nseed = 7\n\
+             [[node]]\nconfig = \"a.toml\"\n[[node]]\nconfig = \"b.toml\"\nlisten = \"127.0.0.1:7001\"\n",
+        );
+        let l = ClusterLayout::load(&c, &[]).unwrap();
+        assert_eq!((l.cookie.as_str(), l.speed, l.seed), ("k", 4.0, Some(7)));
+        assert_eq!(l.world, Some(dir.path().join("w.toml")));
+        let names: Vec<_> = l.nodes.iter().map(|n| n.config.name.as_str()).collect();
+        assert_eq!(names, ["a", "b"]);
+        assert_eq!(l.nodes[1].listen, Some("127.0.0.1:7001".parse().unwrap()));
+    }
+
+    #[test]
+    fn each_bad_cluster_setting_is_reported_at_its_line() {
+        let dir = tempfile::tempdir().unwrap();
+        write(dir.path(), "a.toml", "[node]\nname = \"a\"\n");
+        write(dir.path(), "bad.toml", "[node]\nname = 3\n");
+        let c = write(
+            dir.path(),
+            "c.toml",
+            "[cluster]\ncookie = \"k\"\nspeed = 50\n\
+             [[node]]\nconfig = \"a.toml\"\nlisten = \"nowhere\"\n\
+             [[node]]\nconfig = \"a.toml\"\n\
+             [[node]]\nconfig = \"bad.toml\"\n",
+        );
+        let text = ClusterLayout::load(&c, &[]).unwrap_err().to_string();
+        let f = c.display().to_string();
+        assert!(
+            text.contains(&format!("{f}:3:9: `speed` must be")),
+            "{text}"
+        );
+        assert!(
+            text.contains(&format!("{f}:6:10: `listen`: `nowhere`")),
+            "{text}"
+        );
+        assert!(
+            text.contains(&format!("{f}:8:10: node `a` is already named")),
+            "{text}"
+        );
+        assert!(
+            text.contains(&format!(
+                "{f}:10:10: the node config named here does not load:"
+            )),
+            "{text}"
+        );
+        assert!(text.contains("bad.toml:2:8"), "{text}");
+    }
+
+    #[test]
+    fn a_cluster_file_without_cookie_or_nodes_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let c = write(dir.path(), "c.toml", "[cluster]\nspeed = 1\n");
+        let text = ClusterLayout::load(&c, &[]).unwrap_err().to_string();
+        assert!(text.contains("missing `cookie`"), "{text}");
+        assert!(text.contains("no `[[node]]`"), "{text}");
+    }
+}
