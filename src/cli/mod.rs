@@ -7,9 +7,11 @@
 
 pub mod args;
 pub mod check;
+pub mod children;
 pub mod error;
 pub mod events_file;
 pub mod files;
+pub mod join;
 pub mod kill;
 pub mod ls;
 pub mod node;
@@ -18,6 +20,8 @@ pub mod prepare;
 pub mod props;
 pub mod run;
 pub mod runtime;
+pub mod signal;
+pub mod up;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -49,13 +53,15 @@ pub enum Command {
     Props(props::PropsArgs),
     /// Run a cluster member: host what a node config says and join its peers.
     Node(node::NodeArgs),
+    /// Start the nodes of a cluster file as processes on 127.0.0.1, run a mission on them.
+    Up(up::UpArgs),
 }
 
 impl Command {
     /// True when the verb runs in virtual time (see [`runtime::build`]): a mission run,
     /// whose outcome must not depend on its speed.
     pub fn virtual_time(&self) -> bool {
-        matches!(self, Command::Run(_))
+        matches!(self, Command::Run(run) if run.cluster.join.is_none())
     }
 
     /// Do what the verb says.
@@ -67,6 +73,7 @@ impl Command {
             Command::Kill(args) => kill::kill(args).await,
             Command::Props(args) => props::props(args).await,
             Command::Node(args) => node::node(args).await,
+            Command::Up(args) => up::up(args).await,
         }
     }
 }

@@ -1,6 +1,6 @@
-//! Real `marie node` processes on 127.0.0.1 for the cluster tests: each killed by its pid
-//! when its handle drops (also when a test panics), each line of its stdout awaited as an
-//! event, never a sleep.
+//! Real `marie node` (and `marie up`) processes on 127.0.0.1 for the cluster tests: each
+//! killed by its pid when its handle drops (also when a test panics), each line of its stdout
+//! awaited as an event, never a sleep.
 
 use std::io::{BufRead, BufReader};
 use std::net::{SocketAddr, TcpListener};
@@ -19,15 +19,33 @@ pub fn free_addr() -> SocketAddr {
         .expect("a free port")
 }
 
-/// A running `marie node`.
-pub struct NodeProc {
-    /// Its node name.
+/// A running `marie` process whose stdout lines are awaited.
+pub struct Proc {
+    /// What it is, for messages.
     pub name: String,
-    /// Where it listens.
-    pub addr: SocketAddr,
     child: Child,
     lines: Receiver<String>,
     seen: Vec<String>,
+}
+
+/// A running `marie node`.
+pub struct NodeProc {
+    /// Where it listens.
+    pub addr: SocketAddr,
+    proc: Proc,
+}
+
+impl std::ops::Deref for NodeProc {
+    type Target = Proc;
+    fn deref(&self) -> &Proc {
+        &self.proc
+    }
+}
+
+impl std::ops::DerefMut for NodeProc {
+    fn deref_mut(&mut self) -> &mut Proc {
+        &mut self.proc
+    }
 }
 
 impl NodeProc {
@@ -48,14 +66,27 @@ impl NodeProc {
         );
         let path = dir.join(format!("{name}.toml"));
         std::fs::write(&path, config).expect("write node config");
+        let proc = Proc::spawn(
+            name,
+            &["node", "--config", path.to_str().expect("utf-8 path")],
+        );
+        let mut node = NodeProc { addr, proc };
+        node.wait_line(&format!("node {name} listening on {addr}"));
+        node
+    }
+}
+
+impl Proc {
+    /// Start `marie ARGS` in the repository's directory, its stdout read line by line.
+    pub fn spawn(name: &str, args: &[&str]) -> Proc {
         let mut child = Command::new(env!("CARGO_BIN_EXE_marie"))
-            .args(["node", "--config", path.to_str().expect("utf-8 path")])
+            .args(args)
             .current_dir(env!("CARGO_MANIFEST_DIR"))
             .env_remove("RUST_LOG")
             .stdout(Stdio::piped())
             .stderr(Stdio::null())
             .spawn()
-            .expect("marie node starts");
+            .expect("marie starts");
         let stdout = child.stdout.take().expect("stdout");
         let (tx, lines) = mpsc::channel();
         std::thread::spawn(move || {
@@ -65,15 +96,22 @@ impl NodeProc {
                 }
             }
         });
-        let mut node = NodeProc {
+        Proc {
             name: name.to_string(),
-            addr,
             child,
             lines,
             seen: Vec::new(),
-        };
-        node.wait_line(&format!("node {name} listening on {addr}"));
-        node
+        }
+    }
+
+    /// Its process id.
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
+    /// Every line seen so far.
+    pub fn seen(&self) -> &[String] {
+        &self.seen
     }
 
     /// Wait for a stdout line containing `needle` (lines seen earlier count too).
@@ -93,7 +131,7 @@ impl NodeProc {
                     }
                 }
                 Err(_) => panic!(
-                    "node {}: no line with {needle:?} within {EVENT_TIMEOUT:?}; saw:\n{}",
+                    "{}: no line with {needle:?} within {EVENT_TIMEOUT:?}; saw:\n{}",
                     self.name,
                     self.seen.join("\n")
                 ),
@@ -117,16 +155,38 @@ impl NodeProc {
             if let Some(status) = self.child.try_wait().expect("try_wait") {
                 return status.code();
             }
-            assert!(Instant::now() < deadline, "node {} did not exit", self.name);
+            assert!(Instant::now() < deadline, "{} did not exit", self.name);
             // polling a child's exit: the only wait std offers with a deadline
             std::thread::sleep(Duration::from_millis(20));
         }
     }
 }
 
-impl Drop for NodeProc {
+impl Drop for Proc {
     fn drop(&mut self) {
         let _ = self.child.kill();
         let _ = self.child.wait();
     }
+}
+
+/// Wait until process `pid` (not a child of this one) has ended: gone from `/proc`, or a
+/// zombie waiting for its new parent to reap it. False after [`EVENT_TIMEOUT`].
+pub fn wait_gone(pid: u32) -> bool {
+    let deadline = Instant::now() + EVENT_TIMEOUT;
+    while Instant::now() < deadline {
+        match std::fs::read_to_string(format!("/proc/{pid}/stat")) {
+            Err(_) => return true,
+            // the state follows the command name in parentheses
+            Ok(stat)
+                if stat
+                    .rsplit_once(") ")
+                    .is_some_and(|(_, rest)| rest.starts_with('Z')) =>
+            {
+                return true
+            }
+            // polling /proc: a process that is not our child offers no other wait
+            Ok(_) => std::thread::sleep(Duration::from_millis(50)),
+        }
+    }
+    false
 }

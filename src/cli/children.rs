@@ -1,0 +1,159 @@
+//! The node processes `marie up` starts: each a `marie node` child whose standard input is a
+//! pipe it holds. Closing the pipe stops the child cleanly (`--stop-with-stdin`); the pipe
+//! also closes when `marie up` dies in any way, even `kill -9`, so no child outlives it.
+
+use std::io::{BufRead, BufReader};
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::process::{Child, ChildStdin, Command, Stdio};
+use std::time::{Duration, Instant};
+use tokio::sync::mpsc;
+
+/// How long a child may take to stop after its pipe closed before it is killed.
+const STOP_GRACE: Duration = Duration::from_secs(10);
+
+/// A line a child printed on its standard output.
+#[derive(Clone, Debug)]
+pub struct Line {
+    /// The child's node name.
+    pub node: String,
+    /// The line, or `None` once its output ended (it exited).
+    pub text: Option<String>,
+}
+
+/// How to start one node.
+#[derive(Clone, Debug)]
+pub struct NodeLaunch {
+    /// Its node name (for messages).
+    pub name: String,
+    /// Its node config file.
+    pub config: PathBuf,
+    /// Where it listens.
+    pub listen: SocketAddr,
+    /// Whom it joins.
+    pub peers: Vec<SocketAddr>,
+    /// The cluster's cookie.
+    pub cookie: String,
+    /// The cluster's speed factor.
+    pub speed: f64,
+    /// The robot's world, for a node with a simulation.
+    pub world: Option<PathBuf>,
+    /// The simulation's seed.
+    pub seed: Option<u64>,
+}
+
+/// A running node process.
+pub struct NodeChild {
+    /// Its node name.
+    pub name: String,
+    child: Child,
+    stdin: Option<ChildStdin>,
+}
+
+impl NodeChild {
+    /// Start `marie node` (this same executable) as `launch` says; its output lines go to
+    /// `lines`.
+    pub fn start(
+        exe: &Path,
+        launch: &NodeLaunch,
+        lines: mpsc::UnboundedSender<Line>,
+    ) -> std::io::Result<NodeChild> {
+        let mut cmd = Command::new(exe);
+        cmd.arg("node")
+            .arg("--config")
+            .arg(&launch.config)
+            .arg("--listen")
+            .arg(launch.listen.to_string())
+            .arg("--cookie")
+            .arg(&launch.cookie)
+            .arg("--speed")
+            .arg(launch.speed.to_string())
+            .arg("--stop-with-stdin");
+        for p in &launch.peers {
+            cmd.arg("--peer").arg(p.to_string());
+        }
+        if let Some(w) = &launch.world {
+            cmd.arg("--world").arg(w);
+        }
+        if let Some(s) = launch.seed {
+            cmd.arg("--seed").arg(s.to_string());
+        }
+        let mut child = cmd
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()?;
+        let stdin = child.stdin.take();
+        if let Some(out) = child.stdout.take() {
+            let node = launch.name.clone();
+            std::thread::spawn(move || {
+                for text in BufReader::new(out).lines().map_while(Result::ok) {
+                    let line = Line {
+                        node: node.clone(),
+                        text: Some(text),
+                    };
+                    if lines.send(line).is_err() {
+                        return;
+                    }
+                }
+                let _ = lines.send(Line { node, text: None });
+            });
+        }
+        Ok(NodeChild {
+            name: launch.name.clone(),
+            child,
+            stdin,
+        })
+    }
+
+    /// Its process id.
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
+    /// Ask it to stop (close its pipe); kill it if it has not within the grace period.
+    /// Returns its exit code (`None` when killed by a signal).
+    pub fn stop(&mut self) -> Option<i32> {
+        self.stdin.take();
+        let deadline = Instant::now() + STOP_GRACE;
+        loop {
+            match self.child.try_wait() {
+                Ok(Some(status)) => return status.code(),
+                Ok(None) if Instant::now() < deadline => {
+                    std::thread::sleep(Duration::from_millis(20))
+                }
+                _ => {
+                    tracing::warn!(node = %self.name, "did not stop in time: killed");
+                    let _ = self.child.kill();
+                    return self.child.wait().ok().and_then(|s| s.code());
+                }
+            }
+        }
+    }
+}
+
+/// Stop every child: all pipes closed at once, then each awaited (killed after the grace
+/// period). Gives each node's name and exit code.
+pub fn stop_all(children: &mut [NodeChild]) -> Vec<(String, Option<i32>)> {
+    for c in children.iter_mut() {
+        c.stdin.take();
+    }
+    children
+        .iter_mut()
+        .map(|c| (c.name.clone(), c.stop()))
+        .collect()
+}
+
+impl Drop for NodeChild {
+    fn drop(&mut self) {
+        if matches!(self.child.try_wait(), Ok(None)) {
+            self.stop();
+        }
+    }
+}
+
+/// A free port on 127.0.0.1 (bound and released: another process could take it before the
+/// node does, which the node then reports as a listen error).
+pub fn free_loopback_addr() -> std::io::Result<SocketAddr> {
+    std::net::TcpListener::bind("127.0.0.1:0")?.local_addr()
+}

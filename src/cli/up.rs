@@ -1,0 +1,281 @@
+//! `marie up CLUSTER.toml [--run MISSION]`: a cluster in one command.
+//!
+//! Starts the nodes a cluster file lists as `marie node` children on 127.0.0.1 (the first
+//! listens, the others join it), waits until the registry has converged — a member of its
+//! own sees every module each node said it hosts —, prints each node with its address and
+//! modules, runs the mission if asked (`run --join` from this process) and stops every child
+//! on exit, on Ctrl-C or SIGTERM. The children hold a pipe to it and stop when it closes, so
+//! none outlives `marie up`, even when it is killed.
+
+use super::args::{parse_cluster_speed, parse_seed, RobotArgs};
+use super::children::{free_loopback_addr, stop_all, Line, NodeChild, NodeLaunch};
+use super::error::BadInput;
+use super::join::{join, member_name, JoinArgs};
+use super::run::RunArgs;
+use marie::actors::dispatcher::mission::Mission;
+use marie::actors::registry::{self, Instance};
+use marie::layout::ClusterLayout;
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Duration;
+use tokio::sync::mpsc;
+
+/// How long a node may take to start listening, and the registry to converge.
+const START_TIMEOUT: Duration = Duration::from_secs(60);
+
+/// Flags of `marie up`.
+#[derive(clap::Args, Debug)]
+pub struct UpArgs {
+    /// The cluster file (`missions/clusters/thesis.toml`).
+    pub cluster: PathBuf,
+    /// Run this mission once the cluster has converged, from a dispatcher of its own; then
+    /// stop the cluster and exit as `marie run` would.
+    #[arg(long, value_name = "MISSION")]
+    pub run: Option<PathBuf>,
+    /// The robot's world (default: the mission's, else the cluster file's).
+    #[arg(long, value_name = "FILE")]
+    pub world: Option<PathBuf>,
+    /// The simulation's seed (default: the cluster file's, else the node configs').
+    #[arg(long, value_name = "N", value_parser = parse_seed, allow_hyphen_values = true)]
+    pub seed: Option<u64>,
+    /// The cluster's speed factor (default: the cluster file's, else 1).
+    #[arg(long, value_parser = parse_cluster_speed, allow_hyphen_values = true)]
+    pub speed: Option<f64>,
+    /// With `--run`: write the run report (JSON) here.
+    #[arg(long, value_name = "FILE", requires = "run")]
+    pub report: Option<PathBuf>,
+    /// With `--run`: write every event of the run here (JSON lines).
+    #[arg(long, value_name = "FILE.jsonl", requires = "run")]
+    pub events: Option<PathBuf>,
+    /// With `--run`: draw the robot's run here (SVG).
+    #[arg(long, value_name = "FILE.svg", requires = "run")]
+    pub svg: Option<PathBuf>,
+}
+
+/// Start the cluster, wait for it, run the mission or wait for a signal, stop it.
+pub async fn up(args: UpArgs) -> anyhow::Result<ExitCode> {
+    let catalog = marie::missions::catalog();
+    let layout =
+        ClusterLayout::load(&args.cluster, &catalog).map_err(|d| BadInput(d.to_string()))?;
+    // the mission is checked before any process starts; its world is the robot's
+    let mission_world = match &args.run {
+        Some(path) => Mission::parse_file(path)
+            .map_err(marie::node::NodeError::Mission)?
+            .world()
+            .map(PathBuf::from),
+        None => None,
+    };
+    let world = args
+        .world
+        .clone()
+        .or(mission_world)
+        .or(layout.world.clone());
+    let speed = args.speed.unwrap_or(layout.speed);
+    let seed = args.seed.or(layout.seed);
+    let exe = std::env::current_exe()?;
+
+    let mut launches = Vec::new();
+    for node in &layout.nodes {
+        let listen = match node.listen {
+            Some(a) => a,
+            None => free_loopback_addr()?,
+        };
+        launches.push(NodeLaunch {
+            name: node.config.name.clone(),
+            config: node.path.clone(),
+            listen,
+            peers: Vec::new(),
+            cookie: layout.cookie.clone(),
+            speed,
+            world: world.clone(),
+            seed,
+        });
+    }
+    // everyone joins the first node; ractor_cluster's transitive mode meshes the rest
+    let first = launches[0].listen;
+    for l in launches.iter_mut().skip(1) {
+        l.peers = vec![first];
+    }
+
+    let (tx, mut lines) = mpsc::unbounded_channel();
+    let mut children = Vec::new();
+    for l in &launches {
+        match NodeChild::start(&exe, l, tx.clone()) {
+            Ok(c) => children.push(c),
+            Err(e) => {
+                stop_all(&mut children);
+                anyhow::bail!("cannot start node `{}`: {e}", l.name);
+            }
+        }
+    }
+    drop(tx);
+    let result = serve(&args, &layout, &launches, &mut children, &mut lines, speed).await;
+    let stopped = tokio::task::spawn_blocking(move || stop_all(&mut children)).await?;
+    for (name, code) in stopped {
+        match code {
+            Some(0) => {}
+            Some(c) => println!("node {name} exited with code {c}"),
+            None => println!("node {name} was killed"),
+        }
+    }
+    println!("cluster stopped");
+    result
+}
+
+/// Everything between starting the children and stopping them.
+async fn serve(
+    args: &UpArgs,
+    layout: &ClusterLayout,
+    launches: &[NodeLaunch],
+    children: &mut [NodeChild],
+    lines: &mut mpsc::UnboundedReceiver<Line>,
+    speed: f64,
+) -> anyhow::Result<ExitCode> {
+    let hosted = wait_listening(launches, lines).await?;
+    let total: usize = hosted.values().sum();
+    let listing = converged(launches, &layout.cookie, total).await?;
+    // the nodes' lines so far tell of the joins just summed up
+    while lines.try_recv().is_ok() {}
+    println!(
+        "cluster {} up: {} nodes, {total} modules, speed {speed}",
+        layout.path.display(),
+        launches.len()
+    );
+    for (l, c) in launches.iter().zip(children.iter()) {
+        let modules: Vec<String> = listing
+            .iter()
+            .filter(|i| i.node == l.name)
+            .map(|i| format!("{} {}", i.kind.label(), i.name))
+            .collect();
+        println!(
+            "  {} at {} (pid {}): {}",
+            l.name,
+            l.listen,
+            c.pid(),
+            modules.join(", ")
+        );
+    }
+    let Some(mission) = &args.run else {
+        println!("Ctrl-C stops the cluster");
+        let stop = super::signal::shutdown_signal(false);
+        tokio::pin!(stop);
+        loop {
+            tokio::select! {
+                signal = &mut stop => {
+                    println!("stopping the cluster ({signal})");
+                    return Ok(ExitCode::SUCCESS);
+                }
+                line = lines.recv() => match line {
+                    Some(Line { node, text: Some(text) }) => println!("[{node}] {text}"),
+                    Some(Line { node, text: None }) => println!("[{node}] exited"),
+                    None => {
+                        println!("every node has exited");
+                        return Ok(ExitCode::from(1));
+                    }
+                },
+            }
+        }
+    };
+    let run = RunArgs {
+        mission: mission.clone(),
+        robot: RobotArgs {
+            world: args.world.clone(),
+            seed: args.seed.or(layout.seed),
+            node: None,
+        },
+        report: args.report.clone(),
+        events: args.events.clone(),
+        svg: args.svg.clone(),
+        speed: Some(speed),
+        faults: Vec::new(),
+        chaos: None,
+        cluster: JoinArgs {
+            join: Some(launches[0].listen),
+            cookie: Some(layout.cookie.clone()),
+        },
+    };
+    let stop = super::signal::shutdown_signal(false);
+    tokio::select! {
+        result = super::run::run(run) => result,
+        signal = stop => {
+            println!("stopping the cluster ({signal}) before the mission ended");
+            Ok(ExitCode::from(1))
+        }
+    }
+}
+
+/// Wait until every node printed that it listens; gives each node's own module count. A
+/// node that exits first fails the start.
+async fn wait_listening(
+    launches: &[NodeLaunch],
+    lines: &mut mpsc::UnboundedReceiver<Line>,
+) -> anyhow::Result<BTreeMap<String, usize>> {
+    let mut hosted = BTreeMap::new();
+    let wait = async {
+        while hosted.len() < launches.len() {
+            match lines.recv().await {
+                Some(Line {
+                    node,
+                    text: Some(text),
+                }) => {
+                    if let Some(n) = modules_of(&text) {
+                        hosted.insert(node, n);
+                    }
+                }
+                Some(Line { node, text: None }) => {
+                    anyhow::bail!("node `{node}` exited while starting (its errors are above)")
+                }
+                None => anyhow::bail!("every node exited while starting"),
+            }
+        }
+        Ok(())
+    };
+    match tokio::time::timeout(START_TIMEOUT, wait).await {
+        Ok(r) => r?,
+        Err(_) => anyhow::bail!(
+            "only {} of {} nodes listened within {START_TIMEOUT:?}",
+            hosted.len(),
+            launches.len()
+        ),
+    }
+    Ok(hosted)
+}
+
+/// `node NAME listening on ADDR with N module(s) ...` → N.
+fn modules_of(line: &str) -> Option<usize> {
+    let rest = line.split_once(" with ")?.1;
+    rest.split_whitespace().next()?.parse().ok()
+}
+
+/// Join the cluster as a member of its own until its registry lists `total` modules of the
+/// nodes (the registry has converged); gives that listing.
+async fn converged(
+    launches: &[NodeLaunch],
+    cookie: &str,
+    total: usize,
+) -> anyhow::Result<Vec<Instance>> {
+    let me = member_name("up");
+    let transport = join(&me, launches[0].listen, cookie).await?;
+    let mut watch = registry::watch(None).await?;
+    let wait = async {
+        loop {
+            let list: Vec<Instance> = registry::list()
+                .into_iter()
+                .filter(|i| i.node != me)
+                .collect();
+            if list.len() >= total {
+                return list;
+            }
+            let _ = tokio::time::timeout(Duration::from_millis(200), watch.next()).await;
+        }
+    };
+    let result = tokio::time::timeout(START_TIMEOUT, wait).await;
+    transport.stop().await;
+    result.map_err(|_| {
+        anyhow::anyhow!(
+            "the registry did not converge within {START_TIMEOUT:?}: {} of {total} modules seen",
+            registry::list().len()
+        )
+    })
+}

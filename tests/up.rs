@@ -1,0 +1,184 @@
+//! `marie up`: the thesis' layout (`missions/clusters/thesis.toml`) as real processes on
+//! 127.0.0.1 — its consistency experiment (the docking mission with the dispatcher on a
+//! process of its own), the converged registry listed by `ls --join`, and no node left
+//! running when `marie up` is killed.
+
+mod common;
+
+use common::cluster::{wait_gone, Proc};
+use common::{marie, text};
+use serde_json::Value;
+use std::collections::BTreeSet;
+
+const THESIS: &str = "missions/clusters/thesis.toml";
+/// The cluster's speed factor in these tests: wall-clock time × 4, on every node.
+const SPEED: &str = "4";
+
+#[test]
+fn the_thesis_layout_docks_with_the_dispatcher_on_a_process_of_its_own() {
+    let dir = tempfile::tempdir().unwrap();
+    let report_path = dir.path().join("report.json");
+    let out = marie(&[
+        "up",
+        THESIS,
+        "--run",
+        "missions/docking.toml",
+        "--speed",
+        SPEED,
+        "--report",
+        report_path.to_str().unwrap(),
+    ]);
+    let stdout = text(&out.stdout);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{stdout}\n{}",
+        text(&out.stderr)
+    );
+    assert!(stdout.contains("4 nodes, 17 modules"), "{stdout}");
+    assert!(stdout.contains("outcome: succeeded"), "{stdout}");
+    assert!(stdout.contains("cluster stopped"), "{stdout}");
+    let report: Value = serde_json::from_slice(&std::fs::read(&report_path).unwrap()).unwrap();
+    assert_eq!(report["outcome"], "succeeded");
+    assert_eq!(report["collisions"], 0);
+    // every operation ran where the layout put it, none on the dispatcher's process
+    let mut placed = BTreeSet::new();
+    for action in report["actions"].as_array().unwrap() {
+        for op in action["operations"].as_array().unwrap() {
+            placed.insert((
+                op["name"].as_str().unwrap().to_string(),
+                op["node"].as_str().unwrap().to_string(),
+            ));
+        }
+    }
+    for (op, node) in [
+        ("ultrasonic", "cart"),
+        ("collision-avoidance", "cart"),
+        ("localizer", "operations"),
+        ("path-planner", "operations"),
+        ("trajectory-controller", "operations"),
+    ] {
+        assert!(
+            placed.contains(&(op.to_string(), node.to_string())),
+            "{op} on {node}: {placed:?}"
+        );
+    }
+    let wall_follower: Vec<_> = placed
+        .iter()
+        .filter(|(op, _)| op == "wall-follower")
+        .collect();
+    assert_eq!(wall_follower.len(), 1, "{placed:?}");
+    assert!(
+        ["operations", "spare"].contains(&wall_follower[0].1.as_str()),
+        "{placed:?}"
+    );
+}
+
+/// `  cart at 127.0.0.1:4242 (pid 77): EO ultrasonic, ...` → (name, address, pid).
+fn node_line(line: &str) -> Option<(String, String, u32)> {
+    let (name, rest) = line.trim().split_once(" at ")?;
+    let (addr, rest) = rest.split_once(" (pid ")?;
+    let pid = rest.split_once(')')?.0.parse().ok()?;
+    Some((name.to_string(), addr.to_string(), pid))
+}
+
+#[test]
+fn up_lists_every_module_with_its_node_and_leaves_no_node_behind_when_killed() {
+    let mut up = Proc::spawn("marie up", &["up", THESIS, "--speed", SPEED]);
+    up.wait_line("Ctrl-C stops the cluster");
+    let nodes: Vec<(String, String, u32)> = up.seen().iter().filter_map(|l| node_line(l)).collect();
+    let names: Vec<&str> = nodes.iter().map(|(n, _, _)| n.as_str()).collect();
+    assert_eq!(names, ["cart", "features", "operations", "spare"]);
+
+    // any node lets a newcomer see the whole cluster
+    let out = marie(&[
+        "ls",
+        "--join",
+        &nodes[3].1,
+        "--cookie",
+        "marie-thesis",
+        "--json",
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let rows: Vec<Value> = serde_json::from_slice(&out.stdout).unwrap();
+    let listed: BTreeSet<(String, String)> = rows
+        .iter()
+        .map(|r| {
+            (
+                r["name"].as_str().unwrap().to_string(),
+                r["node"].as_str().unwrap().to_string(),
+            )
+        })
+        .collect();
+    assert_eq!(rows.len(), 17, "{listed:?}");
+    for (module, node) in [
+        ("virtual-cart", "cart"),
+        ("ultrasonic", "cart"),
+        ("feature", "features"),
+        ("world", "operations"),
+        ("parameter", "operations"),
+        ("docking-detector", "operations"),
+        ("wall-follower", "spare"),
+        ("wall-follower", "operations"),
+    ] {
+        assert!(
+            listed.contains(&(module.to_string(), node.to_string())),
+            "{module} on {node}: {listed:?}"
+        );
+    }
+
+    // killed without a chance to clean up, it still takes its nodes along
+    up.signal("KILL");
+    assert_eq!(up.wait_exit(), None);
+    for (name, _, pid) in &nodes {
+        assert!(wait_gone(*pid), "node {name} (pid {pid}) outlived marie up");
+    }
+}
+
+#[test]
+fn a_bad_cluster_file_or_speed_exits_2_before_any_node_starts() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.toml");
+    std::fs::write(
+        &bad,
+        "[cluster]\ncookie = \"c\"\n[[node]]\nconfig = \"missing.toml\"\n",
+    )
+    .unwrap();
+    let out = marie(&["up", bad.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = text(&out.stderr);
+    assert!(
+        stderr.contains(&format!(
+            "{}:4:10: the node config named here does not load:",
+            bad.display()
+        )),
+        "{stderr}"
+    );
+    assert!(stderr.contains("missing.toml"), "{stderr}");
+
+    for speed in ["max", "0", "1000"] {
+        let out = marie(&["up", THESIS, "--speed", speed]);
+        assert_eq!(out.status.code(), Some(2), "--speed {speed}");
+        assert!(
+            text(&out.stderr).contains("wall clock"),
+            "{}",
+            text(&out.stderr)
+        );
+    }
+    let out = marie(&[
+        "run",
+        "missions/docking.toml",
+        "--join",
+        "127.0.0.1:9",
+        "--cookie",
+        "c",
+        "--speed",
+        "max",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        text(&out.stderr).contains("--speed with --join"),
+        "{}",
+        text(&out.stderr)
+    );
+}
