@@ -170,6 +170,10 @@ impl ReportBuilder {
             | EventKind::ChildExited { .. }
             | EventKind::ChildRestarted { .. }
             | EventKind::SupervisorGaveUp { .. }
+            | EventKind::NodeUp { .. }
+            | EventKind::NodeLost { .. }
+            | EventKind::NodeDown { .. }
+            | EventKind::NodeRefused { .. }
             | EventKind::Robot { .. } => {}
         }
     }

@@ -154,6 +154,38 @@ pub enum EventKind {
         /// Why not.
         why: String,
     },
+    // --- the cluster ---
+    /// A peer node's session became ready: its modules are in the registry.
+    NodeUp {
+        /// Its node name.
+        peer: String,
+        /// The address it listens on.
+        address: String,
+    },
+    /// A peer node's sessions ended (it left, its connection broke, or it was declared
+    /// down): its modules have left the registry.
+    NodeLost {
+        /// Its node name.
+        peer: String,
+        /// The address it listened on.
+        address: String,
+    },
+    /// The failure detector declared a silent peer node down and closed its sessions.
+    NodeDown {
+        /// Its node name.
+        peer: String,
+        /// How long it had been silent, ms of real time.
+        silent_ms: u64,
+    },
+    /// A peer node of another protocol version was refused.
+    NodeRefused {
+        /// Its node name.
+        peer: String,
+        /// Its protocol version.
+        theirs: u16,
+        /// This node's.
+        ours: u16,
+    },
     // --- the robot ---
     /// The world judged the robot's final state (fills a report's robot fields; its outcome
     /// replaces the dispatcher's).

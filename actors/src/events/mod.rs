@@ -36,6 +36,10 @@
 //! {"at_ms":9000,"node":"marie@localhost","kind":{"type":"supervisor_gave_up","supervisor":"operations","reason":"reached_max_restart_intensity"}}
 //! {"at_ms":5000,"node":"marie@localhost","kind":{"type":"fault_injected","run_ms":3800,"fault":"kill","operation":"wall-follower","actor":"0.41"}}
 //! {"at_ms":6000,"node":"marie@localhost","kind":{"type":"fault_not_injected","run_ms":4800,"fault":"hang","operation":"nobody","why":"no operation `nobody` is running"}}
+//! {"at_ms":700,"node":"marie@localhost","kind":{"type":"node_up","peer":"cart","address":"127.0.0.1:7101"}}
+//! {"at_ms":9500,"node":"marie@localhost","kind":{"type":"node_down","peer":"cart","silent_ms":1530}}
+//! {"at_ms":9501,"node":"marie@localhost","kind":{"type":"node_lost","peer":"cart","address":"127.0.0.1:7101"}}
+//! {"at_ms":800,"node":"marie@localhost","kind":{"type":"node_refused","peer":"old","theirs":2,"ours":1}}
 //! {"at_ms":30001,"node":"marie@localhost","kind":{"type":"judged","outcome":"succeeded","reason":"","final_pose":[1.5,0.25,0.01],"collisions":0,"seed":7,"inside_goal":true,"judgement":"success: inside the goal area"}}
 //! {"at_ms":4000,"node":"marie@localhost","kind":{"type":"robot","what":"collision","data":{"x":1.0,"y":2.0}}}
 //! ```
@@ -115,6 +119,6 @@ mod tests {
             types.insert(value["kind"]["type"].as_str().unwrap().to_string());
         }
         assert_eq!(types.len(), lines.len(), "one line per kind");
-        assert_eq!(lines.len(), 19, "every kind is documented");
+        assert_eq!(lines.len(), 23, "every kind is documented");
     }
 }
