@@ -49,6 +49,9 @@ pub struct NodeArgs {
     /// children, so that none outlives it even when it is killed.
     #[arg(long)]
     pub stop_with_stdin: bool,
+    /// Claim another protocol version in heartbeats: only to see a cluster refuse it.
+    #[arg(long, hide = true, value_name = "N")]
+    pub protocol_version: Option<u16>,
 }
 
 impl NodeArgs {
@@ -68,6 +71,9 @@ impl NodeArgs {
         }
         if !self.peers.is_empty() {
             cluster.peers = self.peers.clone();
+        }
+        if let Some(v) = self.protocol_version {
+            cluster.protocol = v;
         }
         Some(cluster)
     }
@@ -123,6 +129,8 @@ pub async fn node(args: NodeArgs) -> anyhow::Result<ExitCode> {
     tokio::pin!(stop);
     let mut seen: BTreeSet<(String, String)> = BTreeSet::new();
     let mut changes = transport.changes();
+    let mut net = transport.events();
+    let publisher = marie::net::publish_on(&transport, node.events().clone());
     loop {
         report_peers(&name, &transport.peers(), &mut seen);
         tokio::select! {
@@ -131,8 +139,12 @@ pub async fn node(args: NodeArgs) -> anyhow::Result<ExitCode> {
                 break;
             }
             changed = changes.changed() => if changed.is_err() { break },
+            event = net.recv() => if let Ok(event) = event {
+                say(&format!("node {name} {event}"));
+            },
         }
     }
+    publisher.abort();
     transport.stop().await;
     node.shutdown().await;
     say(&format!("node {name} stopped"));

@@ -154,6 +154,10 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         transport,
         ..
     } = prepared;
+    // the cluster's news (nodes up, lost, down) join the run's events
+    let publisher = transport
+        .as_ref()
+        .map(|t| marie::net::publish_on(t, node.events().clone()));
     let (tx, mut rx) = mpsc::unbounded_channel();
     let printer = tokio::spawn(async move {
         while let Some(evt) = rx.recv().await {
@@ -179,6 +183,9 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     };
     let world = robot.as_ref().map(|r| r.world().clone());
     node.shutdown().await;
+    if let Some(p) = publisher {
+        p.abort();
+    }
     if let Some(t) = transport {
         t.stop().await;
     }

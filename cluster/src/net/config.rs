@@ -1,6 +1,8 @@
 //! Where a node listens, whom it joins, and the cookie it proves itself with.
 
+use super::detector::HeartbeatConfig;
 use super::TransportError;
+use marie_actors::wire::PROTOCOL_VERSION;
 use std::net::SocketAddr;
 
 /// Longest cookie accepted (ractor_cluster hashes it; a longer one gains nothing).
@@ -15,6 +17,11 @@ pub struct ClusterConfig {
     pub peers: Vec<SocketAddr>,
     /// Shared secret of the cluster: a peer with another cookie is refused.
     pub cookie: String,
+    /// The failure detector's heartbeat period and deadline.
+    pub heartbeat: HeartbeatConfig,
+    /// The protocol version the node claims in its heartbeats: [`PROTOCOL_VERSION`]; another
+    /// value only to see a cluster refuse it (`marie node --protocol-version`, hidden).
+    pub protocol: u16,
 }
 
 impl ClusterConfig {
@@ -24,6 +31,8 @@ impl ClusterConfig {
             listen,
             peers: Vec::new(),
             cookie: cookie.into(),
+            heartbeat: HeartbeatConfig::default(),
+            protocol: PROTOCOL_VERSION,
         }
     }
 
@@ -50,6 +59,7 @@ impl ClusterConfig {
                 "the cookie is longer than {MAX_COOKIE_LEN} bytes"
             )));
         }
+        self.heartbeat.validate().map_err(TransportError::Config)?;
         if let Some(p) = self.peers.iter().find(|p| p.port() == 0) {
             return Err(TransportError::Config(format!("peer {p} has no port")));
         }

@@ -9,6 +9,9 @@
 //! the name behind each session number in the registry, which then shows every remote
 //! module with its node.
 //!
+//! ractor_cluster has no failure detector: [`heartbeat`] adds one (default: a silent peer
+//! is declared down within 1.5 s), and refuses peers of another protocol version.
+//!
 //! ```no_run
 //! # async fn demo() -> Result<(), marie_cluster::net::TransportError> {
 //! use marie_cluster::net::{ClusterConfig, Transport};
@@ -23,8 +26,14 @@
 //! ```
 
 mod config;
+pub mod detector;
+mod events;
+pub mod heartbeat;
 mod sessions;
 mod transport;
 
 pub use config::{ClusterConfig, MAX_COOKIE_LEN};
+pub use detector::HeartbeatConfig;
+pub use events::publish_on;
+pub use heartbeat::NetEvent;
 pub use transport::{Peer, Transport, TransportError};

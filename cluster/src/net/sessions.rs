@@ -3,24 +3,36 @@
 
 use super::transport::Peer;
 use marie_actors::registry;
-use ractor_cluster::node::NodeServerSessionInformation;
+use ractor::ActorRef;
+use ractor_cluster::node::{NodeServerSessionInformation, NodeSessionMessage};
 use ractor_cluster::NodeEventSubscription;
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
+use std::time::Duration;
 use tokio::sync::watch;
+
+/// An open session: the peer's node name once authenticated, and the session's actor.
+type OpenSession = (Option<String>, ActorRef<NodeSessionMessage>);
 
 /// The ready sessions, by ractor's session number; `changed` ticks on every change.
 #[derive(Clone)]
 pub(crate) struct Sessions {
     ready: Arc<Mutex<BTreeMap<u64, Peer>>>,
+    /// Every open session's actor, by session number: what closing a peer stops.
+    actors: Arc<Mutex<BTreeMap<u64, OpenSession>>>,
     changed: watch::Sender<u64>,
     node: String,
+    /// Peers refused (another protocol version): a session with one is closed as soon as
+    /// it is authenticated, before its modules reach the registry.
+    refused: Arc<Mutex<std::collections::BTreeSet<String>>>,
 }
 
 impl Sessions {
     pub(crate) fn new(node: &str) -> Self {
         Sessions {
             ready: Arc::default(),
+            actors: Arc::default(),
+            refused: Arc::default(),
             changed: watch::Sender::new(0),
             node: node.to_string(),
         }
@@ -36,6 +48,42 @@ impl Sessions {
     /// A receiver that sees every change of the table.
     pub(crate) fn subscribe(&self) -> watch::Receiver<u64> {
         self.changed.subscribe()
+    }
+
+    /// Refuse `peer` from now on: its later sessions are closed at once, the open ones after
+    /// `grace` (time for this node's own heartbeat to reach it, so that it learns why too).
+    /// False if it already was refused.
+    pub(crate) fn refuse(&self, peer: &str, reason: &'static str, grace: Duration) -> bool {
+        let new = self
+            .refused
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .insert(peer.to_string());
+        let (this, peer) = (self.clone(), peer.to_string());
+        tokio::spawn(async move {
+            tokio::time::sleep(grace).await;
+            this.close(&peer, reason);
+        });
+        new
+    }
+
+    fn is_refused(&self, peer: &str) -> bool {
+        self.refused
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .contains(peer)
+    }
+
+    /// Close every session with the peer named `peer` (its modules leave the registry with
+    /// them); the transport redials it with backoff.
+    pub(crate) fn close(&self, peer: &str, reason: &str) {
+        let actors = self.actors.lock().unwrap_or_else(|e| e.into_inner());
+        for (name, actor) in actors.values() {
+            if name.as_deref() == Some(peer) {
+                tracing::info!(node = %self.node, %peer, reason, "closing the session");
+                actor.stop(Some(reason.to_string()));
+            }
+        }
     }
 
     fn table(&self) -> std::sync::MutexGuard<'_, BTreeMap<u64, Peer>> {
@@ -54,13 +102,30 @@ fn node_name(full: &str) -> &str {
 
 impl NodeEventSubscription for Sessions {
     fn node_session_opened(&self, ses: NodeServerSessionInformation) {
+        self.actors
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .insert(ses.node_id, (None, ses.actor.clone()));
         tracing::debug!(node = %self.node, peer_addr = %ses.peer_addr, incoming = ses.is_server, "session opened");
     }
 
     fn node_session_authenticated(&self, ses: NodeServerSessionInformation) {
         if let Some(peer) = &ses.peer_name {
+            if self.is_refused(node_name(&peer.name)) {
+                tracing::debug!(node = %self.node, peer = %peer.name, "a refused peer is back: closed");
+                ses.actor
+                    .stop(Some("refused: another protocol version".into()));
+                return;
+            }
             // before the state exchange, so the peer's modules arrive already named
             registry::set_peer_node_name(ses.node_id, node_name(&peer.name));
+            self.actors
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .insert(
+                    ses.node_id,
+                    (Some(node_name(&peer.name).to_string()), ses.actor.clone()),
+                );
         }
     }
 
@@ -80,6 +145,10 @@ impl NodeEventSubscription for Sessions {
     }
 
     fn node_session_disconnected(&self, ses: NodeServerSessionInformation) {
+        self.actors
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .remove(&ses.node_id);
         let gone = self.table().remove(&ses.node_id);
         if let Some(peer) = gone {
             tracing::info!(node = %self.node, peer = %peer.name, address = %peer.address, "lost peer");

@@ -1,6 +1,7 @@
 //! Starting and stopping a node's transport, and dialing its peers until they answer.
 
 use super::config::ClusterConfig;
+use super::heartbeat::{Heartbeat, HeartbeatArgs, NetEvent};
 use super::sessions::Sessions;
 use marie_actors::registry;
 use ractor::{Actor, ActorRef};
@@ -62,6 +63,9 @@ pub struct Transport {
     server_handle: JoinHandle<()>,
     sessions: Sessions,
     dialers: Vec<JoinHandle<()>>,
+    heartbeat: ActorRef<super::heartbeat::BeatMsg>,
+    heartbeat_handle: JoinHandle<()>,
+    events: tokio::sync::broadcast::Sender<NetEvent>,
 }
 
 impl Transport {
@@ -98,6 +102,23 @@ impl Transport {
                 addr: listen,
                 reason: e.to_string(),
             })?;
+        let (events, _) = tokio::sync::broadcast::channel(256);
+        let (heartbeat, heartbeat_handle) = Actor::spawn(
+            None,
+            Heartbeat,
+            HeartbeatArgs {
+                node: node.to_string(),
+                config: config.heartbeat,
+                sessions: sessions.clone(),
+                events: events.clone(),
+                protocol: config.protocol,
+            },
+        )
+        .await
+        .map_err(|e| TransportError::Listen {
+            addr: listen,
+            reason: format!("the heartbeat did not start: {e}"),
+        })?;
         tracing::info!(node, %listen, peers = ?config.peers, "node listening");
         let dialers = config
             .peers
@@ -118,7 +139,20 @@ impl Transport {
             server_handle,
             sessions,
             dialers,
+            heartbeat,
+            heartbeat_handle,
+            events,
         })
+    }
+
+    /// The session table (for [`super::publish_on`]).
+    pub(crate) fn sessions(&self) -> Sessions {
+        self.sessions.clone()
+    }
+
+    /// Peers declared down or refused, as they happen.
+    pub fn events(&self) -> tokio::sync::broadcast::Receiver<NetEvent> {
+        self.events.subscribe()
     }
 
     /// This node's name.
@@ -190,6 +224,8 @@ impl Transport {
         for d in &self.dialers {
             d.abort();
         }
+        self.heartbeat.stop(None);
+        let _ = self.heartbeat_handle.await;
         self.server.stop(Some("node stopping".into()));
         let _ = self.server_handle.await;
         tracing::info!(node = %self.node, "left the cluster");

@@ -2,6 +2,7 @@
 //! diagnostic at its `file:line:col`, each operation checked against the catalogue.
 
 use super::*;
+use crate::net::detector::{HeartbeatConfig, DEFAULT_DEADLINE, MIN_DEADLINE};
 use crate::net::ClusterConfig;
 use marie_actors::diagnostic::toml::{quote, Reader, Rule, Span, Tbl};
 use marie_actors::diagnostic::{read_source, Diagnostic, Diagnostics};
@@ -317,9 +318,14 @@ fn operation(
     Some(op)
 }
 
-/// `[cluster]`: where the node listens, whom it joins, its cookie.
+/// `[cluster]`: where the node listens, whom it joins, its cookie, its failure detector's
+/// deadline (`deadline_ms`, default 1200, at least 300) and heartbeat period
+/// (`heartbeat_ms`, default a fifth of the deadline, at most half of it).
 fn cluster(r: &mut Reader<'_>, t: &Tbl<'_, '_>, node: &str) -> Option<ClusterConfig> {
-    r.unknown_keys(t, &["listen", "peers", "cookie"]);
+    r.unknown_keys(
+        t,
+        &["listen", "peers", "cookie", "deadline_ms", "heartbeat_ms"],
+    );
     let listen = t.get("listen").map(|v| (r.string(t, "listen"), v.span()));
     let listen = match listen {
         None => {
@@ -345,11 +351,21 @@ fn cluster(r: &mut Reader<'_>, t: &Tbl<'_, '_>, node: &str) -> Option<ClusterCon
         })
         .collect();
     let cookie = r.required_string(t, "cookie");
-    let config = ClusterConfig {
-        listen: listen?,
-        peers,
-        cookie: cookie?,
-    };
+    let min = MIN_DEADLINE.as_millis() as i64;
+    let deadline = r.integer(
+        t,
+        "deadline_ms",
+        Some(DEFAULT_DEADLINE.as_millis() as i64),
+        min..=3_600_000,
+    )?;
+    let mut heartbeat = HeartbeatConfig::with_deadline(Duration::from_millis(deadline as u64));
+    if t.get("heartbeat_ms").is_some() {
+        let period = r.integer(t, "heartbeat_ms", None, 1..=deadline / 2)?;
+        heartbeat.period = Duration::from_millis(period as u64);
+    }
+    let mut config = ClusterConfig::new(listen?, cookie?);
+    config.peers = peers;
+    config.heartbeat = heartbeat;
     if let Err(e) = config.validate(node) {
         r.err(&t.span, e.to_string());
         return None;

@@ -1,0 +1,258 @@
+//! Heartbeats between nodes: the failure detector ractor_cluster lacks.
+//!
+//! ractor_cluster notices a peer's death only when its TCP connection errors, so a frozen
+//! (`SIGSTOP`) or cut-off node stays "connected" for minutes. Every node runs one heartbeat
+//! actor, published in `pg` (scope [`SCOPE`], group [`GROUP`]) so that every peer finds it.
+//! Each period it casts a beat — a versioned [`Envelope`] naming the node — to every remote
+//! heartbeat actor, and asks its [`Detector`] which ready peers have been silent past the
+//! deadline: those are declared down — their sessions closed (their modules leave the
+//! registry with them), a [`NetEvent::PeerDown`] published — and redialled by the transport
+//! with backoff, to rejoin once they answer.
+//!
+//! A beat of another protocol version refuses its sender for the transport's life: a
+//! [`NetEvent::PeerRefused`] names both versions, its sessions are closed two periods later
+//! (time for this node's own beat to tell it the same), and a later session with it is
+//! closed as soon as it is authenticated, before its modules reach the registry.
+
+use super::detector::{Detector, HeartbeatConfig};
+use super::sessions::Sessions;
+use marie_actors::wire::{self, Envelope};
+use ractor::{pg, Actor, ActorProcessingErr, ActorRef};
+use serde::{Deserialize, Serialize};
+use std::time::{Duration, Instant};
+use tokio::sync::broadcast;
+
+/// `pg` scope of the heartbeat actors (apart from the location table's).
+pub const SCOPE: &str = "marie-net";
+/// `pg` group of the heartbeat actors.
+pub const GROUP: &str = "heartbeat";
+/// The envelope kind of a beat.
+const KIND: &str = "heartbeat";
+
+/// What the transport tells of its peers beyond ready and lost sessions.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum NetEvent {
+    /// A peer stayed silent past the deadline and was declared down.
+    PeerDown {
+        /// Its node name.
+        peer: String,
+        /// How long it had been silent.
+        silent: Duration,
+    },
+    /// A peer speaks another protocol version and was refused.
+    PeerRefused {
+        /// Its node name.
+        peer: String,
+        /// Its protocol version.
+        theirs: u16,
+        /// This node's.
+        ours: u16,
+    },
+}
+
+impl std::fmt::Display for NetEvent {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            NetEvent::PeerDown { peer, silent } => write!(
+                f,
+                "declared {peer} down: no heartbeat for {} ms",
+                silent.as_millis()
+            ),
+            NetEvent::PeerRefused { peer, theirs, ours } => write!(
+                f,
+                "refused {peer}: it speaks protocol version {theirs}, this node speaks \
+                 protocol version {ours}"
+            ),
+        }
+    }
+}
+
+/// A beat's payload.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+struct Beat {
+    /// The sender's node name.
+    node: String,
+    /// Beats sent so far by the sender.
+    seq: u64,
+}
+
+marie_actors::remote_message! {
+    /// Messages of a heartbeat actor.
+    pub enum BeatMsg {
+        /// A peer's beat: an [`Envelope`] of kind `heartbeat`.
+        Beat {
+            /// The encoded envelope.
+            frame: Vec<u8>,
+        },
+    }
+    local {
+        /// Time to beat and to judge the peers.
+        Tick {},
+    }
+}
+
+/// What a heartbeat actor is started with.
+pub(crate) struct HeartbeatArgs {
+    pub node: String,
+    pub config: HeartbeatConfig,
+    pub sessions: Sessions,
+    pub events: broadcast::Sender<NetEvent>,
+    /// The protocol version it claims (another than [`PROTOCOL_VERSION`] only to test
+    /// refusal).
+    pub protocol: u16,
+}
+
+pub(crate) struct Heartbeat;
+
+pub(crate) struct State {
+    args: HeartbeatArgs,
+    detector: Detector,
+    seq: u64,
+    ticker: tokio::task::JoinHandle<()>,
+}
+
+impl Drop for State {
+    fn drop(&mut self) {
+        self.ticker.abort();
+    }
+}
+
+impl Actor for Heartbeat {
+    type Msg = BeatMsg;
+    type State = State;
+    type Arguments = HeartbeatArgs;
+
+    async fn pre_start(
+        &self,
+        myself: ActorRef<BeatMsg>,
+        args: HeartbeatArgs,
+    ) -> Result<State, ActorProcessingErr> {
+        args.config.validate()?;
+        pg::join_scoped(SCOPE.into(), GROUP.into(), vec![myself.get_cell()]);
+        let period = args.config.period;
+        let me = myself.clone();
+        // wall-clock ticks: heartbeats stay in real time whatever the cluster's speed
+        let ticker = tokio::spawn(async move {
+            let mut every = tokio::time::interval(period);
+            every.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+            loop {
+                every.tick().await;
+                if me.cast(BeatMsg::Tick {}).is_err() {
+                    return;
+                }
+            }
+        });
+        Ok(State {
+            detector: Detector::new(args.config.deadline),
+            args,
+            seq: 0,
+            ticker,
+        })
+    }
+
+    async fn handle(
+        &self,
+        _myself: ActorRef<BeatMsg>,
+        msg: BeatMsg,
+        state: &mut State,
+    ) -> Result<(), ActorProcessingErr> {
+        match msg {
+            BeatMsg::Tick {} => state.tick(),
+            BeatMsg::Beat { frame } => state.received(&frame),
+        }
+        Ok(())
+    }
+}
+
+impl State {
+    /// Beat to every remote heartbeat actor, then judge the ready peers.
+    fn tick(&mut self) {
+        self.seq += 1;
+        let beat = Beat {
+            node: self.args.node.clone(),
+            seq: self.seq,
+        };
+        let frame = Envelope::new(KIND, &beat)
+            .map(|mut env| {
+                env.version = self.args.protocol;
+                env
+            })
+            .and_then(|env| env.to_bytes());
+        match frame {
+            Ok(frame) => {
+                for cell in pg::get_scoped_members(&SCOPE.to_string(), &GROUP.to_string()) {
+                    if cell.get_id().is_local() {
+                        continue;
+                    }
+                    let to: ActorRef<BeatMsg> = cell.into();
+                    let _ = to.cast(BeatMsg::Beat {
+                        frame: frame.clone(),
+                    });
+                }
+            }
+            Err(e) => tracing::error!(error = %e, "cannot encode a heartbeat"),
+        }
+        let ready: Vec<String> = self
+            .args
+            .sessions
+            .peers()
+            .into_iter()
+            .map(|p| p.name)
+            .collect();
+        for (peer, silent) in self.detector.tick(&ready, Instant::now()) {
+            let event = NetEvent::PeerDown { peer, silent };
+            tracing::warn!(node = %self.args.node, "{event}");
+            if let NetEvent::PeerDown { peer, .. } = &event {
+                self.args
+                    .sessions
+                    .close(peer, "declared down: no heartbeat");
+                self.detector.forget(peer);
+            }
+            let _ = self.args.events.send(event);
+        }
+    }
+
+    /// A beat arrived: note its sender's life, or refuse a sender of another version.
+    fn received(&mut self, frame: &[u8]) {
+        let env = match wire::decode::<Envelope>(frame) {
+            Ok(env) if env.kind == KIND => env,
+            Ok(env) => {
+                tracing::warn!(kind = %env.kind, "a heartbeat actor got a frame of another kind: dropped");
+                return;
+            }
+            Err(e) => {
+                tracing::warn!(error = %e, len = frame.len(), "a heartbeat that does not decode: dropped");
+                return;
+            }
+        };
+        // the beat's two fields are read whatever the version, to name who is refused
+        let beat = match env.payload::<Beat>() {
+            Ok(b) => b,
+            Err(e) => {
+                tracing::warn!(error = %e, "a heartbeat whose payload does not decode: dropped");
+                return;
+            }
+        };
+        if env.version != self.args.protocol {
+            if self
+                .args
+                .sessions
+                .refuse(
+                    &beat.node,
+                    "refused: another protocol version",
+                    self.args.config.period * 2,
+                )
+            {
+                let event = NetEvent::PeerRefused {
+                    peer: beat.node.clone(),
+                    theirs: env.version,
+                    ours: self.args.protocol,
+                };
+                tracing::error!(node = %self.args.node, "{event}");
+                let _ = self.args.events.send(event);
+            }
+            return;
+        }
+        self.detector.heard(&beat.node, Instant::now());
+    }
+}
