@@ -58,18 +58,31 @@ impl NodeProc {
         peers: &[SocketAddr],
         cookie: &str,
     ) -> NodeProc {
+        NodeProc::start_with(dir, name, hosts, peers, cookie, "", &[])
+    }
+
+    /// [`NodeProc::start`] with more `[cluster]` keys (`cluster_extra`, TOML lines) and
+    /// more flags.
+    pub fn start_with(
+        dir: &Path,
+        name: &str,
+        hosts: &str,
+        peers: &[SocketAddr],
+        cookie: &str,
+        cluster_extra: &str,
+        flags: &[&str],
+    ) -> NodeProc {
         let addr = free_addr();
         let peers: Vec<String> = peers.iter().map(|p| format!("\"{p}\"")).collect();
         let config = format!(
-            "[node]\nname = \"{name}\"\n{hosts}\n[cluster]\nlisten = \"{addr}\"\npeers = [{}]\ncookie = \"{cookie}\"\n",
+            "[node]\nname = \"{name}\"\n{hosts}\n[cluster]\nlisten = \"{addr}\"\npeers = [{}]\ncookie = \"{cookie}\"\n{cluster_extra}\n",
             peers.join(", ")
         );
         let path = dir.join(format!("{name}.toml"));
         std::fs::write(&path, config).expect("write node config");
-        let proc = Proc::spawn(
-            name,
-            &["node", "--config", path.to_str().expect("utf-8 path")],
-        );
+        let mut args = vec!["node", "--config", path.to_str().expect("utf-8 path")];
+        args.extend_from_slice(flags);
+        let proc = Proc::spawn(name, &args);
         let mut node = NodeProc { addr, proc };
         node.wait_line(&format!("node {name} listening on {addr}"));
         node
@@ -117,7 +130,14 @@ impl Proc {
     /// Wait for a stdout line containing `needle` (lines seen earlier count too).
     #[track_caller]
     pub fn wait_line(&mut self, needle: &str) -> String {
-        if let Some(l) = self.seen.iter().find(|l| l.contains(needle)) {
+        self.wait_line_since(0, needle)
+    }
+
+    /// Wait for a line containing `needle` among the lines from the `mark`-th on (a mark
+    /// is `seen().len()` taken earlier).
+    #[track_caller]
+    pub fn wait_line_since(&mut self, mark: usize, needle: &str) -> String {
+        if let Some(l) = self.seen.iter().skip(mark).find(|l| l.contains(needle)) {
             return l.clone();
         }
         let deadline = Instant::now() + EVENT_TIMEOUT;

@@ -1,0 +1,115 @@
+//! The failure detector across real processes on 127.0.0.1: a frozen node (`SIGSTOP`) is
+//! declared down after its deadline, its modules leave the registry, and it rejoins when it
+//! wakes; a node of another protocol version is refused, naming both versions, and the
+//! cluster keeps serving.
+
+mod common;
+
+use common::cluster::NodeProc;
+use common::{marie, text};
+use serde_json::Value;
+
+const COOKIE: &str = "detector";
+const ALPHA: &str = "[[datamanager]]\nname = \"feature\"\n";
+const BETA: &str = "[[operation]]\nname = \"sampler\"\n";
+
+/// The nodes of every module `ls --join addr` lists.
+fn nodes_listed(addr: &std::net::SocketAddr) -> Vec<String> {
+    let out = marie(&[
+        "ls",
+        "--join",
+        &addr.to_string(),
+        "--cookie",
+        COOKIE,
+        "--json",
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let rows: Vec<Value> = serde_json::from_slice(&out.stdout).unwrap();
+    let mut nodes: Vec<String> = rows
+        .iter()
+        .map(|r| r["node"].as_str().unwrap().to_string())
+        .collect();
+    nodes.sort();
+    nodes
+}
+
+/// `... no heartbeat for 1234 ms` → 1234.
+fn silence_ms(line: &str) -> u64 {
+    line.rsplit_once("for ")
+        .and_then(|(_, rest)| rest.split_whitespace().next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no silence in {line:?}"))
+}
+
+#[test]
+fn a_frozen_node_is_declared_down_after_its_deadline_and_rejoins_when_it_wakes() {
+    let dir = tempfile::tempdir().unwrap();
+    // a short deadline (the configurable minimum is 300 ms); beats every 100 ms
+    let detector = "deadline_ms = 600\nheartbeat_ms = 100\n";
+    let mut alpha = NodeProc::start_with(dir.path(), "alpha", ALPHA, &[], COOKIE, detector, &[]);
+    let mut beta = NodeProc::start_with(
+        dir.path(),
+        "beta",
+        BETA,
+        &[alpha.addr],
+        COOKIE,
+        detector,
+        &[],
+    );
+    alpha.wait_line("node alpha sees beta");
+    beta.wait_line("node beta sees alpha");
+    assert_eq!(nodes_listed(&alpha.addr), ["alpha", "beta"]);
+
+    let mark = alpha.seen().len();
+    beta.signal("STOP");
+    let down = alpha.wait_line_since(mark, "node alpha declared beta down");
+    assert!(silence_ms(&down) >= 600, "{down}");
+    alpha.wait_line_since(mark, "node alpha lost beta");
+    // beta's modules left with it; alpha still serves
+    assert_eq!(nodes_listed(&alpha.addr), ["alpha"]);
+
+    let mark = alpha.seen().len();
+    let beta_mark = beta.seen().len();
+    beta.signal("CONT");
+    alpha.wait_line_since(mark, "node alpha sees beta");
+    beta.wait_line_since(beta_mark, "node beta sees alpha");
+    // beta, which was asleep, declared nobody down: the silence was its own
+    assert!(
+        !beta.seen().iter().any(|l| l.contains("declared")),
+        "{:?}",
+        beta.seen()
+    );
+    assert_eq!(nodes_listed(&alpha.addr), ["alpha", "beta"]);
+    for node in [&mut alpha, &mut beta] {
+        node.signal("TERM");
+        assert_eq!(node.wait_exit(), Some(0));
+    }
+}
+
+#[test]
+fn a_node_of_another_protocol_version_is_refused_naming_both_versions() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut alpha = NodeProc::start(dir.path(), "alpha", ALPHA, &[], COOKIE);
+    let mut future = NodeProc::start_with(
+        dir.path(),
+        "future",
+        BETA,
+        &[alpha.addr],
+        COOKIE,
+        "",
+        &["--protocol-version", "2"],
+    );
+    let refused = alpha.wait_line("node alpha refused future");
+    let mark = alpha.seen().len();
+    assert!(
+        refused.contains("protocol version 2") && refused.contains("protocol version 1"),
+        "{refused}"
+    );
+    future.wait_line("node future refused alpha");
+    // its session closed (after the grace that lets alpha's own beat tell it why), the
+    // refused node's modules have left; alpha keeps serving, and refuses it at every redial
+    alpha.wait_line_since(mark - 1, "node alpha lost future");
+    assert_eq!(nodes_listed(&alpha.addr), ["alpha"]);
+    alpha.signal("TERM");
+    assert_eq!(alpha.wait_exit(), Some(0));
+}
