@@ -24,6 +24,12 @@ pub fn print_event(evt: &DispatchEvent) {
         DispatchEvent::Lost { operation, cause } => {
             println!("! {operation} lost: {cause}");
         }
+        DispatchEvent::Rebound(r) if !r.from_node.is_empty() && r.from_node != r.to_node => {
+            println!(
+                "~ {} rebound: {} on {} -> {} on {} after {} ms",
+                r.operation, r.from, r.from_node, r.to, r.to_node, r.downtime_ms
+            );
+        }
         DispatchEvent::Rebound(r) => {
             println!(
                 "~ {} rebound: {} -> {} after {} ms",

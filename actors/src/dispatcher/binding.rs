@@ -70,6 +70,8 @@ pub(crate) struct Lost {
     pub(crate) cause: LossCause,
     /// Address of the instance that was lost.
     pub(crate) from: String,
+    /// The node it ran on.
+    pub(crate) from_node: String,
     /// Its actor id, never to be adopted again.
     pub(crate) dead: ActorId,
 }
@@ -205,6 +207,7 @@ impl Binding {
             since,
             cause,
             from: self.address(),
+            from_node: self.node.clone(),
             dead: self.actor_id(),
         });
     }

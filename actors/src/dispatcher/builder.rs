@@ -103,6 +103,9 @@ impl ReportBuilder {
                 if let Some(rec) = self.open_op(|_, r| r.name == name && r.ended == OpEnd::Running)
                 {
                     rec.address = rebind.to.clone();
+                    if !rebind.to_node.is_empty() {
+                        rec.node = rebind.to_node.clone();
+                    }
                 }
                 self.report.record_rebind(rebind.clone());
             }

@@ -181,6 +181,8 @@ impl DispatcherState {
             cause: lost.cause,
             from: lost.from,
             to: b.address(),
+            from_node: lost.from_node,
+            to_node: b.node.clone(),
             downtime_ms: downtime.as_millis() as u64,
         };
         tracing::info!(op = %name, from = %record.from, to = %record.to, downtime_ms = record.downtime_ms, "operation rebound");

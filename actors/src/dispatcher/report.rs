@@ -112,6 +112,13 @@ pub struct RebindRecord {
     pub from: String,
     /// New instance address.
     pub to: String,
+    /// The node the old instance ran on (empty in reports written before nodes were
+    /// recorded).
+    #[serde(default)]
+    pub from_node: String,
+    /// The node the new instance runs on.
+    #[serde(default)]
+    pub to_node: String,
     /// Time without a bound instance.
     pub downtime_ms: u64,
 }
@@ -282,6 +289,8 @@ mod tests {
                 }],
             }],
             rebinds: vec![RebindRecord {
+                from_node: String::new(),
+                to_node: String::new(),
                 operation: "op".into(),
                 cause: LossCause::Hung { deadline_ms: 300 },
                 from: "0.2".into(),
@@ -322,6 +331,8 @@ mod tests {
         )
         .expect("reads");
         let rebind = |i: u64| RebindRecord {
+            from_node: String::new(),
+            to_node: String::new(),
             operation: "op".into(),
             cause: LossCause::Gone,
             from: format!("0.{i}"),

@@ -26,7 +26,7 @@
 //! {"at_ms":9810,"node":"marie@localhost","kind":{"type":"action_ended","action":"follow","run_ms":8610,"flags":["dock_found"],"status":4}}
 //! {"at_ms":30000,"node":"marie@localhost","kind":{"type":"run_ended","outcome":"succeeded","reason":"","run_ms":28800,"status":12,"flags":["dock_found","parked"]}}
 //! {"at_ms":5000,"node":"marie@localhost","kind":{"type":"lost","operation":"wall-follower","cause":{"type":"died_in_action","action":"follow"}}}
-//! {"at_ms":5001,"node":"marie@localhost","kind":{"type":"rebound","operation":"wall-follower","cause":{"type":"died_in_action","action":"follow"},"from":"0.41","to":"0.57","downtime_ms":1}}
+//! {"at_ms":5001,"node":"marie@localhost","kind":{"type":"rebound","operation":"wall-follower","cause":{"type":"died_in_action","action":"follow"},"from":"0.41","to":"0.57","from_node":"n1","to_node":"n2","downtime_ms":1}}
 //! {"at_ms":8000,"node":"marie@localhost","kind":{"type":"rebind_gave_up","operation":"planner","cause":{"type":"hung","deadline_ms":300},"waited_ms":3000}}
 //! {"at_ms":100,"node":"marie@localhost","kind":{"type":"joined","module":"Operation","name":"wall-follower","id":1512,"node":"marie@localhost","address":"0.41"}}
 //! {"at_ms":5000,"node":"marie@localhost","kind":{"type":"left","module":"Operation","name":"wall-follower","id":1512,"node":"marie@localhost","address":"0.41"}}
