@@ -1,0 +1,163 @@
+//! Failover across real processes: the node that hosts the running wall follower is killed
+//! (`kill -9`) or frozen (`SIGSTOP`) while the docking mission runs; the dispatcher, on a
+//! process of its own, rebinds to the wall follower of another node and the mission
+//! succeeds, the rebind naming both nodes in the report.
+//!
+//! The layout is the thesis' with the wall follower on two nodes of its own (`wf-a`,
+//! `wf-b`), so that whichever one the dispatcher binds can be lost alone.
+
+mod common;
+
+use common::cluster::Proc;
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+
+const SPEED: &str = "4";
+
+/// Write the layout into `dir`; gives the cluster file.
+fn layout(dir: &Path) -> PathBuf {
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let thesis = repo.join("missions/clusters/thesis");
+    let operations = std::fs::read_to_string(thesis.join("operations.toml"))
+        .unwrap()
+        .replace("[[operation]]\nname = \"wall-follower\"\n", "");
+    assert!(!operations.contains("wall-follower\""), "{operations}");
+    std::fs::write(dir.join("operations.toml"), operations).unwrap();
+    for wf in ["wf-a", "wf-b"] {
+        std::fs::write(
+            dir.join(format!("{wf}.toml")),
+            format!(
+                "[node]\nname = \"{wf}\"\ndispatcher = false\n[[operation]]\nname = \"wall-follower\"\n"
+            ),
+        )
+        .unwrap();
+    }
+    let cluster = dir.join("cluster.toml");
+    std::fs::write(
+        &cluster,
+        format!(
+            "[cluster]\ncookie = \"failover\"\nworld = \"{}\"\nseed = 1\n\
+             [[node]]\nconfig = \"{}\"\n[[node]]\nconfig = \"{}\"\n\
+             [[node]]\nconfig = \"operations.toml\"\n\
+             [[node]]\nconfig = \"wf-a.toml\"\n[[node]]\nconfig = \"wf-b.toml\"\n",
+            repo.join("missions/worlds/lab.toml").display(),
+            thesis.join("cart.toml").display(),
+            thesis.join("features.toml").display(),
+        ),
+    )
+    .unwrap();
+    cluster
+}
+
+/// Run docking on the layout; once the wall follower runs, send `signal` to its node.
+/// Gives the report, the node hit, `marie up`'s lines and the run's events.
+fn lose_the_wall_followers_node(signal: &str) -> (Value, String, Vec<String>, Vec<Value>) {
+    let dir = tempfile::tempdir().unwrap();
+    let cluster = layout(dir.path());
+    let report = dir.path().join("report.json");
+    let events = dir.path().join("events.jsonl");
+    let mut up = Proc::spawn(
+        "marie up",
+        &[
+            "up",
+            cluster.to_str().unwrap(),
+            "--run",
+            "missions/docking.toml",
+            "--speed",
+            SPEED,
+            "--report",
+            report.to_str().unwrap(),
+            "--events",
+            events.to_str().unwrap(),
+        ],
+    );
+    let bound = up.wait_line("bound wall-follower");
+    let node = bound.rsplit(' ').next().unwrap().to_string();
+    assert!(node == "wf-a" || node == "wf-b", "{bound}");
+    let pid: u32 = up
+        .seen()
+        .iter()
+        .find_map(|l| {
+            let rest = l.trim().strip_prefix(&format!("{node} at "))?;
+            rest.split_once("(pid ")?.1.split_once(')')?.0.parse().ok()
+        })
+        .expect("the node's pid");
+    up.wait_line("> follow-wall: start");
+    let status = std::process::Command::new("kill")
+        .args([&format!("-{signal}"), &pid.to_string()])
+        .status()
+        .unwrap();
+    assert!(status.success());
+    up.wait_line("wall-follower rebound");
+    if signal == "STOP" {
+        // wake it while the mission goes on; it must end with the cluster
+        let status = std::process::Command::new("kill")
+            .args(["-CONT", &pid.to_string()])
+            .status()
+            .unwrap();
+        assert!(status.success());
+    }
+    up.wait_line("cluster stopped");
+    let code = up.wait_exit();
+    assert!(common::cluster::wait_gone(pid), "{node} outlived marie up");
+    assert_eq!(code, Some(0), "{}", up.seen().join("\n"));
+    let report: Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    let events = std::fs::read_to_string(&events)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    (report, node, up.seen().to_vec(), events)
+}
+
+fn assert_rebound_across_nodes(report: &Value, lost: &str) {
+    assert_eq!(report["outcome"], "succeeded", "{report:#}");
+    assert_eq!(report["collisions"], 0);
+    let other = if lost == "wf-a" { "wf-b" } else { "wf-a" };
+    let rebinds = report["rebinds"].as_array().unwrap();
+    let rebind = rebinds
+        .iter()
+        .find(|r| r["operation"] == "wall-follower")
+        .unwrap_or_else(|| panic!("no wall-follower rebind: {rebinds:?}"));
+    assert_eq!(rebind["from_node"], lost, "{rebind}");
+    assert_eq!(rebind["to_node"], other, "{rebind}");
+    // the actions after the loss ran on the survivor
+    let park_ops: Vec<&Value> = report["actions"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .flat_map(|a| a["operations"].as_array().unwrap())
+        .filter(|op| op["name"] == "wall-follower")
+        .collect();
+    assert_eq!(park_ops.last().unwrap()["node"], other, "{park_ops:?}");
+}
+
+#[test]
+fn killing_the_wall_followers_node_rebinds_to_the_other_node_and_the_mission_succeeds() {
+    let (report, lost, lines, _) = lose_the_wall_followers_node("KILL");
+    assert_rebound_across_nodes(&report, &lost);
+    assert!(
+        lines
+            .iter()
+            .any(|l| l.contains(&format!("node {lost} was killed"))),
+        "{lines:?}"
+    );
+}
+
+#[test]
+fn freezing_the_wall_followers_node_gets_it_declared_down_rebound_and_the_mission_succeeds() {
+    let (report, lost, _, events) = lose_the_wall_followers_node("STOP");
+    assert_rebound_across_nodes(&report, &lost);
+    // noticed by the failure detector — the dispatcher's member declared the node down,
+    // then the instance was lost and rebound — not by a broken connection
+    let position = |kind: &str, key: &str, value: &str| {
+        events
+            .iter()
+            .position(|e| e["kind"]["type"] == kind && e["kind"][key] == value)
+            .unwrap_or_else(|| panic!("no {kind} with {key} {value}: {events:?}"))
+    };
+    let down = position("node_down", "peer", &lost);
+    let rebound = position("rebound", "operation", "wall-follower");
+    assert!(down < rebound, "{:?}", &events[down..=rebound]);
+    assert!(events[down]["kind"]["silent_ms"].as_u64().unwrap() >= 1200);
+}
