@@ -92,6 +92,8 @@ async fn a_report_is_rebuilt_with_its_faults_judgement_and_latest_rebinds() {
         cause: LossCause::Gone,
         from: format!("0.{i}"),
         to: format!("0.{}", i + 1),
+        from_node: "n".into(),
+        to_node: "n".into(),
         downtime_ms: 1,
     };
     bus.publish(EventKind::RunStarted {
