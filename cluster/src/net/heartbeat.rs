@@ -234,15 +234,11 @@ impl State {
             }
         };
         if env.version != self.args.protocol {
-            if self
-                .args
-                .sessions
-                .refuse(
-                    &beat.node,
-                    "refused: another protocol version",
-                    self.args.config.period * 2,
-                )
-            {
+            if self.args.sessions.refuse(
+                &beat.node,
+                "refused: another protocol version",
+                self.args.config.period * 2,
+            ) {
                 let event = NetEvent::PeerRefused {
                     peer: beat.node.clone(),
                     theirs: env.version,
