@@ -31,6 +31,7 @@ pub mod dispatcher;
 pub mod dm;
 pub mod eo;
 pub mod events;
+pub mod fence;
 pub mod flags;
 pub mod property;
 pub mod registry;

@@ -518,3 +518,43 @@ async fn spawn_refuses_a_bad_name() {
     let clock = ManualClock::new();
     assert_eq!(clock.now(), Duration::ZERO);
 }
+
+#[tokio::test]
+async fn records_of_a_replaced_incarnation_are_refused_and_change_nothing() {
+    let dm = spawn("dm-t-fence", 9190, RealClock::shared(), DmConfig::default()).await;
+    // the stand-in (epoch 8) stores first; the woken original (epoch 7) then tries
+    let stand_in = DmClient::new(dm.actor.clone(), "wall-follower").with_epoch(8);
+    let original = DmClient::new(dm.actor.clone(), "wall-follower").with_epoch(7);
+    let other = DmClient::new(dm.actor.clone(), "localizer").with_epoch(3);
+    within("stand-in", stand_in.store("wall", None, None, &1u32))
+        .await
+        .unwrap();
+    let refused = within("original", original.store("wall", None, None, &2u32)).await;
+    match refused {
+        Err(DmError::Fenced(stale)) => {
+            assert_eq!(
+                (stale.operation.as_str(), stale.got, stale.current),
+                ("wall-follower", 7, 8)
+            )
+        }
+        other => panic!("expected Fenced, got {other:?}"),
+    }
+    original.put("wall", None, None, &3u32).unwrap(); // a put is refused too, counted
+                                                      // another operation, and unfenced records, are not concerned
+    within("other", other.store("pose", None, None, &4u32))
+        .await
+        .unwrap();
+    within("unfenced", dm.client.store("wall", None, None, &5u32))
+        .await
+        .unwrap();
+    let walls: Vec<u32> = within("select", dm.client.select(Query::class("wall")))
+        .await
+        .unwrap()
+        .iter()
+        .map(|r| r.decode().unwrap())
+        .collect();
+    assert_eq!(walls, [1, 5]);
+    let stats = within("stats", dm.client.stats()).await.unwrap();
+    assert_eq!((stats.fenced, stats.refused_puts), (2, 1));
+    dm.stop().await;
+}

@@ -107,8 +107,8 @@ pub(crate) struct Binding {
 }
 
 impl Binding {
-    /// Bind to `cand` for the first time.
-    pub(crate) fn new(cand: Candidate) -> Binding {
+    /// Bind to `cand` for the first time, at an epoch above both its own and `base`.
+    pub(crate) fn new(cand: Candidate, base: u64) -> Binding {
         let selection = Version::parse(&cand.info.version)
             .ok()
             .and_then(|v| VersionReq::parse(&format!("^{v}")).ok())
@@ -119,7 +119,7 @@ impl Binding {
             id: cand.info.id,
             version: cand.info.version,
             node: cand.node,
-            epoch: cand.epoch + 1,
+            epoch: (cand.epoch + 1).max(base),
             incarnation: 0,
             defaults: cand.info.schema.defaults(),
             flag_names: cand.info.flags.into_iter().map(|f| f.name).collect(),

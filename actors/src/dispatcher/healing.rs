@@ -31,6 +31,15 @@ use std::time::Duration;
 const PROBE_PERIOD: Duration = Duration::from_millis(500);
 
 impl DispatcherState {
+    /// The lowest epoch this run binds under: its start in clock ms × 1000. A later run —
+    /// of this dispatcher or of another on a synchronized clock — binds above every epoch an
+    /// earlier one used (up to a thousand rebinds per ms of run), so the receivers' fences
+    /// ([`crate::fence`]) admit a new run's commands and keep refusing a replaced
+    /// incarnation's.
+    fn epoch_base(&self) -> u64 {
+        (self.started.as_millis() as u64).saturating_mul(1000)
+    }
+
     pub(super) async fn bind(&mut self) -> Result<(), String> {
         let names: Vec<String> = self
             .mission
@@ -48,7 +57,8 @@ impl DispatcherState {
             let cand = examine(&inst, crate::eo::EoClient::DEFAULT_TIMEOUT)
                 .await
                 .map_err(|e| format!("operation `{key}`: {e}"))?;
-            self.bindings.insert(key, Binding::new(cand));
+            self.bindings
+                .insert(key, Binding::new(cand, self.epoch_base()));
         }
         let operations = self
             .bindings

@@ -96,6 +96,8 @@ pub struct DmState {
     store: Store,
     waits: Waits,
     refused_puts: u64,
+    /// The newest epoch per source: records of a replaced incarnation are refused.
+    fences: crate::fence::FenceTable,
 }
 
 impl DmState {
@@ -112,12 +114,16 @@ impl DmState {
             dropped: self.store.dropped(),
             deleted: self.store.deleted(),
             refused_puts: self.refused_puts,
+            fenced: self.fences.refused(),
         }
     }
 
     fn store(&mut self, record: NewRecord) -> Result<u64, DmError> {
         // The class is needed after the insert only if someone waits (the common high-rate
         // case has no waits and pays nothing).
+        self.fences
+            .admit_parts(&record.source, record.epoch)
+            .map_err(DmError::Fenced)?;
         let class = (!self.waits.is_empty()).then(|| record.class.clone());
         let seq = self.store.insert(record, self.clock.now())?;
         if let Some(class) = class {
@@ -214,6 +220,7 @@ impl Actor for Datamanager {
             store: Store::new(args.config),
             waits: Waits::default(),
             refused_puts: 0,
+            fences: Default::default(),
         })
     }
 

@@ -22,6 +22,8 @@ pub struct DmClient {
     dm: String,
     source: String,
     timeout: Duration,
+    /// The epoch its records carry (0: unfenced).
+    epoch: u64,
 }
 
 impl DmClient {
@@ -38,6 +40,7 @@ impl DmClient {
             dm,
             source: source.into(),
             timeout: Self::DEFAULT_TIMEOUT,
+            epoch: 0,
         }
     }
 
@@ -48,6 +51,7 @@ impl DmClient {
             dm: instance.name.clone(),
             source: source.into(),
             timeout: Self::DEFAULT_TIMEOUT,
+            epoch: 0,
         }
     }
 
@@ -63,6 +67,13 @@ impl DmClient {
     /// Use `timeout` as the deadline of requests.
     pub fn with_timeout(mut self, timeout: Duration) -> DmClient {
         self.timeout = timeout;
+        self
+    }
+
+    /// Stamp the records it stores with `epoch` (an operation's binding epoch): the DM then
+    /// refuses records of older epochs from the same source ([`crate::fence`]).
+    pub fn with_epoch(mut self, epoch: u64) -> DmClient {
+        self.epoch = epoch;
         self
     }
 
@@ -118,12 +129,16 @@ impl DmClient {
             sub1: sub1.map(str::to_string),
             sub2: sub2.map(str::to_string),
             payload: Payload::encode(value)?,
+            epoch: self.epoch,
         })
     }
 
     fn fill_source(&self, mut record: NewRecord) -> NewRecord {
         if record.source.is_empty() {
             record.source.clone_from(&self.source);
+        }
+        if record.epoch == 0 {
+            record.epoch = self.epoch;
         }
         record
     }

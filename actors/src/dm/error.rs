@@ -18,6 +18,10 @@ pub enum DmError {
         /// What is wrong with it.
         reason: String,
     },
+    /// The record comes from an operation's replaced incarnation (an older epoch than the
+    /// newest seen from its source).
+    #[error("{0}")]
+    Fenced(crate::fence::Stale),
     /// The record is malformed in some other way (e.g. a `sub2` without a `sub1`).
     #[error("invalid record: {0}")]
     InvalidRecord(String),

@@ -33,6 +33,10 @@ pub struct DmStats {
     /// `Put`s refused (bad names, payload too large) since the DM started; a cast has no
     /// reply to carry the error, so it is counted and logged.
     pub refused_puts: u64,
+    /// Records refused because their source's epoch was replaced (counted in
+    /// `refused_puts` too when they came as `Put`s).
+    #[serde(default)]
+    pub fenced: u64,
 }
 
 crate::remote_message! {

@@ -120,6 +120,10 @@ pub struct NewRecord {
     pub sub2: Option<String>,
     /// The MessagePack payload.
     pub payload: Payload,
+    /// The epoch of the producer's binding (a [`super::DmClient`] of an activation fills it
+    /// in): a record of an older epoch than the newest the DM has seen from the same source
+    /// is refused ([`crate::fence`]). 0: unfenced.
+    pub epoch: u64,
 }
 
 impl NewRecord {

@@ -510,6 +510,7 @@ impl Store {
             sub1,
             sub2,
             payload,
+            epoch: _,
         } = record;
         let config = &self.config;
         let evicted = with_slot(

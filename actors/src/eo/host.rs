@@ -250,6 +250,7 @@ impl<O: Operation> HostState<O> {
         self.set_params(next);
         self.activations += 1;
         self.ctx.activation = self.activations;
+        self.ctx.epoch = epoch;
         self.ctx.resumed = resumed;
         self.ctx.raised = StatusFlags::EMPTY;
         self.active = Some(Active {
@@ -357,6 +358,7 @@ impl<O: Operation> Actor for EoHost<O> {
                 raised: StatusFlags::EMPTY,
                 source: identity.name.clone(),
                 activation: 0,
+                epoch: 0,
                 resumed: false,
                 dms: Default::default(),
             },

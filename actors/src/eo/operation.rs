@@ -149,6 +149,7 @@ pub struct OpContext {
     pub(crate) raised: StatusFlags,
     pub(crate) source: String,
     pub(crate) activation: u64,
+    pub(crate) epoch: u64,
     pub(crate) resumed: bool,
     pub(crate) dms: std::collections::HashMap<String, crate::dm::DmClient>,
 }
@@ -197,13 +198,26 @@ impl OpContext {
         self.activation
     }
 
+    /// The epoch of the binding this activation runs under (0 outside any).
+    pub fn epoch(&self) -> u64 {
+        self.epoch
+    }
+
+    /// This operation's fencing token: give it with every command to hardware, which then
+    /// obeys only the newest incarnation of the operation ([`crate::fence`]).
+    pub fn fence(&self) -> crate::fence::Fence {
+        crate::fence::Fence::new(self.source.clone(), self.epoch)
+    }
+
     /// A client of the datamanager `name` (or numeric id) that records this operation as the
-    /// source. Found through the registry and kept until its actor stops, then found again
-    /// (a restarted datamanager is a new actor).
+    /// source, under this activation's epoch (the DM refuses records of a replaced
+    /// incarnation). Found through the registry and kept until its actor stops, then found
+    /// again (a restarted datamanager is a new actor).
     pub fn dm(&mut self, name: &str) -> Result<crate::dm::DmClient, OpError> {
+        let epoch = self.epoch;
         if let Some(c) = self.dms.get(name) {
             if c.actor().get_status() <= ractor::ActorStatus::Running {
-                return Ok(c.clone());
+                return Ok(c.clone().with_epoch(epoch));
             }
         }
         let client =
@@ -212,7 +226,7 @@ impl OpContext {
                 problem: e.to_string(),
             })?;
         self.dms.insert(name.to_string(), client.clone());
-        Ok(client)
+        Ok(client.with_epoch(epoch))
     }
 }
 
