@@ -15,6 +15,7 @@ use crate::geom::{Point, Pose};
 use crate::sim::{Simulation, SonarReading, TracePoint};
 use crate::world::Judgement;
 use marie_actors::clock::{cast_after, SharedClock};
+use marie_actors::fence::{Fence, FenceTable};
 use marie_actors::registry::{self, ModuleKind};
 use ractor::rpc::CallResult;
 use ractor::{Actor, ActorProcessingErr, ActorRef, SpawnErr};
@@ -74,6 +75,8 @@ pub struct CartStatus {
     pub footprint: [Point; 4],
     /// The run judged against the world's goal area, as things stand.
     pub judgement: Judgement,
+    /// Commands refused because they came from a replaced incarnation of an operation.
+    pub refused: u64,
 }
 
 marie_actors::remote_message! {
@@ -85,11 +88,17 @@ marie_actors::remote_message! {
             speed: f64,
             /// Steering angle, rad.
             steer: f64,
+            /// Who commands, under which epoch: an older epoch of an operation than
+            /// one the cart has obeyed is refused.
+            fence: Fence,
         },
         /// Engage or release the emergency stop.
         EmergencyStop {
             /// Engage.
             on: bool,
+            /// Who commands, under which epoch: an older epoch of an operation than
+            /// one the cart has obeyed is refused.
+            fence: Fence,
         },
         /// Cap the speed (both directions) at `max` m/s, or lift the cap with `None`; the
         /// capped command applies at once. Used by collision avoidance to slow the cart down
@@ -97,6 +106,9 @@ marie_actors::remote_message! {
         SpeedCap {
             /// The cap, m/s.
             max: Option<f64>,
+            /// Who commands, under which epoch: an older epoch of an operation than
+            /// one the cart has obeyed is refused.
+            fence: Fence,
         },
         /// Read every ultrasonic sensor.
         Scan {} -> SonarScan,
@@ -134,9 +146,23 @@ pub struct CartState {
     /// Clock time of the last drive command.
     commanded_at: Duration,
     cap: Option<f64>,
+    /// The newest epoch of each operation that commanded the cart.
+    fences: FenceTable,
 }
 
 impl CartState {
+    /// Whether a command under `fence` is obeyed: not when it comes from a replaced
+    /// incarnation of its operation (then it changes nothing, and is counted).
+    fn admit(&mut self, fence: &Fence) -> bool {
+        match self.fences.admit(fence) {
+            Ok(()) => true,
+            Err(stale) => {
+                tracing::warn!("cart command refused: {stale}");
+                false
+            }
+        }
+    }
+
     fn advance(&mut self) {
         let now = self.clock.now();
         let mut elapsed = now.saturating_sub(self.last);
@@ -187,6 +213,7 @@ impl CartState {
             axle_to_centre: self.sim.world().cart.center_offset(),
             footprint: self.sim.footprint(),
             judgement: self.sim.judge(),
+            refused: self.fences.refused(),
         }
     }
 }
@@ -216,6 +243,7 @@ impl Actor for VirtualCart {
             command: (0.0, 0.0),
             commanded_at: Duration::ZERO,
             cap: None,
+            fences: FenceTable::default(),
         })
     }
 
@@ -231,18 +259,22 @@ impl Actor for VirtualCart {
                 state.watchdog();
                 schedule(&myself, &state.clock, state.period);
             }
-            CartMsg::Drive { speed, steer } => {
+            CartMsg::Drive { fence, .. }
+            | CartMsg::SpeedCap { fence, .. }
+            | CartMsg::EmergencyStop { fence, .. }
+                if !state.admit(&fence) => {}
+            CartMsg::Drive { speed, steer, .. } => {
                 state.advance();
                 state.command = (speed, steer);
                 state.commanded_at = state.clock.now();
                 state.apply_command();
             }
-            CartMsg::SpeedCap { max } => {
+            CartMsg::SpeedCap { max, .. } => {
                 state.advance();
                 state.cap = max.filter(|m| m.is_finite());
                 state.apply_command();
             }
-            CartMsg::EmergencyStop { on } => {
+            CartMsg::EmergencyStop { on, .. } => {
                 state.advance();
                 state.sim.emergency_stop(on);
             }
@@ -296,12 +328,22 @@ pub enum CartError {
 #[derive(Clone, Debug)]
 pub struct CartClient {
     actor: ActorRef<CartMsg>,
+    fence: Fence,
 }
 
 impl CartClient {
     /// A handle to `actor`.
     pub fn new(actor: ActorRef<CartMsg>) -> Self {
-        CartClient { actor }
+        CartClient {
+            actor,
+            fence: Fence::default(),
+        }
+    }
+
+    /// Send commands under `fence` (an operation's, from
+    /// [`marie_actors::eo::OpContext::fence`]); without one they are unfenced.
+    pub fn set_fence(&mut self, fence: Fence) {
+        self.fence = fence;
     }
 
     /// The cart found in the registry.
@@ -321,21 +363,31 @@ impl CartClient {
     /// Command speed and steering.
     pub fn drive(&self, speed: f64, steer: f64) -> Result<(), CartError> {
         self.actor
-            .cast(CartMsg::Drive { speed, steer })
+            .cast(CartMsg::Drive {
+                speed,
+                steer,
+                fence: self.fence.clone(),
+            })
             .map_err(|_| CartError::Unreachable)
     }
 
     /// Cap the speed, or lift the cap.
     pub fn speed_cap(&self, max: Option<f64>) -> Result<(), CartError> {
         self.actor
-            .cast(CartMsg::SpeedCap { max })
+            .cast(CartMsg::SpeedCap {
+                max,
+                fence: self.fence.clone(),
+            })
             .map_err(|_| CartError::Unreachable)
     }
 
     /// Engage or release the emergency stop.
     pub fn emergency_stop(&self, on: bool) -> Result<(), CartError> {
         self.actor
-            .cast(CartMsg::EmergencyStop { on })
+            .cast(CartMsg::EmergencyStop {
+                on,
+                fence: self.fence.clone(),
+            })
             .map_err(|_| CartError::Unreachable)
     }
 

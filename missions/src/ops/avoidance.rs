@@ -94,7 +94,7 @@ impl Operation for CollisionAvoidance {
         if params.mode == AvoidMode::Off {
             return Ok(Step::Continue);
         }
-        let cart = cart(&mut self.cart)?.clone();
+        let cart = cart(&mut self.cart, ctx)?.clone();
         let status = cart.status().await.map_err(cart_err)?;
         let scan = cart.scan().await.map_err(cart_err)?;
         let readings: Vec<SonarReading> = scan

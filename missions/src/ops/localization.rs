@@ -131,7 +131,7 @@ impl Operation for Localizer {
                 )
             })
             .collect();
-        let odometry = cart(&mut self.cart)?
+        let odometry = cart(&mut self.cart, ctx)?
             .status()
             .await
             .map_err(cart_err)?

@@ -21,15 +21,23 @@ pub use ultrasonic::Ultrasonic;
 
 use crate::hardware::CartClient;
 use marie_actors::dm::DmError;
-use marie_actors::eo::OpError;
+use marie_actors::eo::{OpContext, OpError};
 
-/// The cart client, found in the registry on first use and again after the cart restarted.
-pub(crate) fn cart(slot: &mut Option<CartClient>) -> Result<&CartClient, OpError> {
+/// The cart client, found in the registry on first use and again after the cart restarted,
+/// carrying the running activation's fence: the cart obeys only the newest incarnation of
+/// an operation ([`marie_actors::fence`]).
+pub(crate) fn cart<'s>(
+    slot: &'s mut Option<CartClient>,
+    ctx: &OpContext,
+) -> Result<&'s CartClient, OpError> {
     if !slot.as_ref().is_some_and(CartClient::is_alive) {
         *slot = Some(CartClient::lookup().map_err(|e| OpError::failed(e.to_string()))?);
     }
-    slot.as_ref()
-        .ok_or_else(|| OpError::failed("no virtual cart is running"))
+    let client = slot
+        .as_mut()
+        .ok_or_else(|| OpError::failed("no virtual cart is running"))?;
+    client.set_fence(ctx.fence());
+    Ok(client)
 }
 
 /// Turn a cart error into an operation error.

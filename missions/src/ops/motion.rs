@@ -25,8 +25,8 @@ use std::time::Duration;
 /// Control period of every controller.
 const CONTROL_PERIOD: Duration = Duration::from_millis(50);
 
-fn stop_cart(slot: &mut Option<CartClient>) -> Result<(), OpError> {
-    cart(slot)?.drive(0.0, 0.0).map_err(cart_err)
+fn stop_cart(slot: &mut Option<CartClient>, ctx: &OpContext) -> Result<(), OpError> {
+    cart(slot, ctx)?.drive(0.0, 0.0).map_err(cart_err)
 }
 
 /// Plans a collision-free path from the cart to a goal on the world map and stores it in the
@@ -142,7 +142,10 @@ impl Operation for PathPlanner {
         let map: Vec<Segment> = newest(ctx, "world", MAP)
             .await?
             .ok_or_else(|| OpError::failed("no map in the world DM"))?;
-        let status = cart(&mut self.cart)?.status().await.map_err(cart_err)?;
+        let status = cart(&mut self.cart, ctx)?
+            .status()
+            .await
+            .map_err(cart_err)?;
         let start = located(ctx, &status.odometry).await?;
         if target == "dock" {
             let dock: DockRecord = newest(ctx, "world", DOCK)
@@ -428,7 +431,10 @@ impl Operation for TrajectoryController {
     }
 
     async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
-        let status = cart(&mut self.cart)?.status().await.map_err(cart_err)?;
+        let status = cart(&mut self.cart, ctx)?
+            .status()
+            .await
+            .map_err(cart_err)?;
         if status.collided {
             return Err(OpError::failed(format!(
                 "the cart collided at ({:.2}, {:.2})",
@@ -441,14 +447,14 @@ impl Operation for TrajectoryController {
         };
         match pursuit.status(&pose) {
             PursuitStatus::Arrived => {
-                stop_cart(&mut self.cart)?;
+                stop_cart(&mut self.cart, ctx)?;
                 if self.next_leg() {
                     return Ok(Step::Continue);
                 }
                 return Ok(Step::Finish(StatusFlags(1)));
             }
             PursuitStatus::Overshot => {
-                stop_cart(&mut self.cart)?;
+                stop_cart(&mut self.cart, ctx)?;
                 return Err(OpError::failed(format!(
                     "overshot the end of the path at ({:.2}, {:.2}, {:.0}°)",
                     pose.x,
@@ -459,15 +465,15 @@ impl Operation for TrajectoryController {
             PursuitStatus::Tracking => {}
         }
         let cmd = pursuit.command(&pose, path);
-        cart(&mut self.cart)?
+        cart(&mut self.cart, ctx)?
             .drive(cmd.speed, cmd.steer)
             .map_err(cart_err)?;
         self.save_progress(ctx)?;
         Ok(Step::Continue)
     }
 
-    async fn suspend(&mut self, _ctx: &mut OpContext) -> Result<(), OpError> {
-        stop_cart(&mut self.cart)
+    async fn suspend(&mut self, ctx: &mut OpContext) -> Result<(), OpError> {
+        stop_cart(&mut self.cart, ctx)
     }
 }
 
@@ -493,7 +499,7 @@ async fn follow_step(
     slot: &mut Option<CartClient>,
     params: &FollowParams,
 ) -> Result<(bool, Pose), OpError> {
-    let status = cart(slot)?.status().await.map_err(cart_err)?;
+    let status = cart(slot, ctx)?.status().await.map_err(cart_err)?;
     if status.collided {
         return Err(OpError::failed(
             "the cart collided while following the wall",
@@ -537,7 +543,9 @@ async fn follow_step(
         None
     };
     let cmd = follow_command(&est, opposite.as_ref(), params);
-    cart(slot)?.drive(cmd.speed, cmd.steer).map_err(cart_err)?;
+    cart(slot, ctx)?
+        .drive(cmd.speed, cmd.steer)
+        .map_err(cart_err)?;
     Ok((is_aligned(&est, opposite.as_ref(), params), pose))
 }
 
@@ -569,8 +577,8 @@ impl Follower {
         Ok(Step::Continue)
     }
 
-    fn suspend(&mut self) -> Result<(), OpError> {
-        stop_cart(&mut self.cart)
+    fn suspend(&mut self, ctx: &OpContext) -> Result<(), OpError> {
+        stop_cart(&mut self.cart, ctx)
     }
 }
 
@@ -645,8 +653,8 @@ impl Operation for WallFollowerV1 {
         self.follower.activate()
     }
 
-    async fn suspend(&mut self, _ctx: &mut OpContext) -> Result<(), OpError> {
-        self.follower.suspend()
+    async fn suspend(&mut self, ctx: &mut OpContext) -> Result<(), OpError> {
+        self.follower.suspend(ctx)
     }
 }
 
@@ -696,8 +704,8 @@ impl Operation for WallFollowerV2 {
         self.follower.activate()
     }
 
-    async fn suspend(&mut self, _ctx: &mut OpContext) -> Result<(), OpError> {
-        self.follower.suspend()
+    async fn suspend(&mut self, ctx: &mut OpContext) -> Result<(), OpError> {
+        self.follower.suspend(ctx)
     }
 }
 
@@ -768,11 +776,16 @@ impl Operation for SensorBasedController {
         let mode = p.text("mode")?;
         let speed = p.f64("speed")?;
         if mode == "cruise" {
-            let status = cart(&mut self.cart)?.status().await.map_err(cart_err)?;
+            let status = cart(&mut self.cart, ctx)?
+                .status()
+                .await
+                .map_err(cart_err)?;
             if status.collided {
                 return Err(OpError::failed("the cart collided while cruising"));
             }
-            cart(&mut self.cart)?.drive(speed, 0.0).map_err(cart_err)?;
+            cart(&mut self.cart, ctx)?
+                .drive(speed, 0.0)
+                .map_err(cart_err)?;
             return Ok(Step::Continue);
         }
         let back = mode == "back";
@@ -792,13 +805,13 @@ impl Operation for SensorBasedController {
         }
         self.aligned_steps = if aligned { self.aligned_steps + 1 } else { 0 };
         if self.aligned_steps >= ALIGNED_STEPS {
-            stop_cart(&mut self.cart)?;
+            stop_cart(&mut self.cart, ctx)?;
             return Ok(Step::Finish(StatusFlags(1)));
         }
         Ok(Step::Continue)
     }
 
-    async fn suspend(&mut self, _ctx: &mut OpContext) -> Result<(), OpError> {
-        stop_cart(&mut self.cart)
+    async fn suspend(&mut self, ctx: &mut OpContext) -> Result<(), OpError> {
+        stop_cart(&mut self.cart, ctx)
     }
 }

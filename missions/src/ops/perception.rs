@@ -251,7 +251,7 @@ impl Operation for WallSensor {
         let Some(set) = newest::<SegmentSet>(ctx, "feature", SEGMENTS).await? else {
             return Ok(Step::Continue);
         };
-        let odometry = cart(&mut self.cart)?
+        let odometry = cart(&mut self.cart, ctx)?
             .status()
             .await
             .map_err(cart_err)?
@@ -399,7 +399,10 @@ impl Operation for DockingDetector {
         let Some(wall) = newest::<WallRecord>(ctx, "world", WALL).await? else {
             return Ok(Step::Continue);
         };
-        let status = cart(&mut self.cart)?.status().await.map_err(cart_err)?;
+        let status = cart(&mut self.cart, ctx)?
+            .status()
+            .await
+            .map_err(cart_err)?;
         let now = correction(ctx).await?;
         let pose = now.compose(status.odometry);
         let Some(estimate) = wall_from(&wall.segment_under(&now), &pose) else {

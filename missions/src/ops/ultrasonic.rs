@@ -39,7 +39,7 @@ impl Operation for Ultrasonic {
 
     async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
         let min_range = ctx.params().f64("min_range")?;
-        let scan = cart(&mut self.cart)?
+        let scan = cart(&mut self.cart, ctx)?
             .scan()
             .await
             .map_err(|e| OpError::failed(e.to_string()))?;
