@@ -140,3 +140,43 @@ fn a_node_config_without_a_cluster_table_or_with_a_bad_one_exits_2() {
         "{stderr}"
     );
 }
+
+#[test]
+fn props_and_kill_reach_an_operation_on_another_node() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut alpha = NodeProc::start(dir.path(), "alpha", ALPHA_HOSTS, &[], COOKIE);
+    let join = ["--join", &alpha.addr.to_string(), "--cookie", COOKIE].map(String::from);
+    let with_join = |verb: &[&str]| {
+        let mut args: Vec<&str> = verb.to_vec();
+        args.extend(join.iter().map(String::as_str));
+        marie(&args)
+    };
+
+    let out = with_join(&["props", "sampler", "--json"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let replies: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let text_of_replies = replies.to_string();
+    assert!(text_of_replies.contains("\"sampler\""), "{text_of_replies}");
+    assert!(text_of_replies.contains("\"alpha\""), "{text_of_replies}");
+
+    // the kill reaches the instance on alpha (not just this member's stand-in for it), and
+    // alpha's supervisor restarts it there
+    let out = with_join(&["kill", "sampler"]);
+    let stdout = text(&out.stdout);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{stdout}\n{}",
+        text(&out.stderr)
+    );
+    assert!(
+        stdout.contains("killed sampler (1601) on alpha"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("restarted on alpha as"), "{stdout}");
+
+    let out = with_join(&["props", "nobody"]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    alpha.signal("TERM");
+    assert_eq!(alpha.wait_exit(), Some(0));
+}

@@ -3,13 +3,16 @@
 
 use super::args::RobotArgs;
 use super::error::BadInput;
+use super::join::{join, member_name, JoinArgs};
 use super::output::not_found;
 use super::prepare::start_node;
+use marie::actors::registry::{self, ModuleKind, RegistryEvent};
 use marie::fault::plan::{find, Target};
 use marie::fault::{self, FaultKind};
 use marie::node::Node;
 use marie::supervision::SupervisorEvent;
 use std::process::ExitCode;
+use std::time::{Duration, Instant};
 
 /// Flags of `marie kill`.
 #[derive(clap::Args, Debug)]
@@ -19,12 +22,36 @@ pub struct KillArgs {
     pub operation: String,
     #[command(flatten)]
     pub robot: RobotArgs,
+    /// `--join ADDR --cookie C`: kill an operation of a running cluster, wherever it runs,
+    /// and watch the registry for its restarted instance.
+    #[command(flatten)]
+    pub cluster: JoinArgs,
 }
+
+/// How long `kill` waits for the restarted instance.
+const RESTART_TIMEOUT: Duration = Duration::from_secs(10);
 
 /// Start the embedded node, kill the operation's live instance and wait for the operation
 /// supervisor to restart it.
 pub async fn kill(args: KillArgs) -> anyhow::Result<ExitCode> {
-    let KillArgs { operation, robot } = args;
+    let KillArgs {
+        operation,
+        robot,
+        cluster,
+    } = args;
+    if let Some((addr, cookie)) = cluster.target() {
+        if robot.node.is_some() || robot.world.is_some() {
+            return Err(BadInput(
+                "--join kills in a running cluster: --node and --world start a node of their own"
+                    .into(),
+            )
+            .into());
+        }
+        let transport = join(&member_name("kill"), addr, cookie).await?;
+        let result = kill_in_cluster(&operation).await;
+        transport.stop().await;
+        return result;
+    }
     let node = start_node(robot.options(None)).await?.node;
     let result = kill_on(&node, &operation).await;
     node.shutdown().await;
@@ -65,6 +92,50 @@ async fn kill_on(node: &Node, operation: &str) -> anyhow::Result<ExitCode> {
         }
         _ => {
             println!("not restarted within 10 s");
+            Ok(ExitCode::from(1))
+        }
+    }
+}
+
+/// Kill an instance wherever it runs (a remote one is told to die: killing its local
+/// stand-in would kill the stand-in alone) and wait for an instance of the same operation to
+/// appear on the same node: its supervisor's restart.
+async fn kill_in_cluster(operation: &str) -> anyhow::Result<ExitCode> {
+    let inst = match Target::parse(operation) {
+        Ok(target) => find(&target).await,
+        Err(e) => Err(e),
+    };
+    let inst = inst.map_err(|e| BadInput(not_found(e)))?;
+    let mut watch = registry::watch(Some(ModuleKind::Operation)).await?;
+    let started = Instant::now();
+    let done = fault::inject_into(FaultKind::Kill, &inst)?;
+    println!(
+        "killed {} ({}) on {} at {}",
+        inst.name, inst.id, inst.node, done.actor
+    );
+    let restarted = tokio::time::timeout(RESTART_TIMEOUT, async {
+        while let Some(event) = watch.next().await {
+            if let RegistryEvent::Joined(new) = event {
+                if new.name == inst.name && new.node == inst.node && new.actor_id() != done.actor {
+                    return Some(new);
+                }
+            }
+        }
+        None
+    })
+    .await;
+    match restarted {
+        Ok(Some(new)) => {
+            println!(
+                "restarted on {} as {} after {:.2} ms",
+                new.node,
+                new.actor_id(),
+                started.elapsed().as_secs_f64() * 1000.0
+            );
+            Ok(ExitCode::SUCCESS)
+        }
+        _ => {
+            println!("not restarted on {} within {RESTART_TIMEOUT:?}", inst.node);
             Ok(ExitCode::from(1))
         }
     }

@@ -2,6 +2,7 @@
 
 use super::args::RobotArgs;
 use super::error::BadInput;
+use super::join::{join, member_name, JoinArgs};
 use super::output::not_found;
 use super::prepare::start_node;
 use marie::actors::eo::EoClient;
@@ -21,10 +22,26 @@ pub struct PropsArgs {
     /// `--node FILE`: ask an operation of that node; `--world FILE`: with the robot.
     #[command(flatten)]
     pub robot: RobotArgs,
+    /// `--join ADDR --cookie C`: ask an operation of a running cluster, wherever it runs.
+    #[command(flatten)]
+    pub cluster: JoinArgs,
 }
 
 /// Start the node, ask the operation and print its answers.
 pub async fn props(args: PropsArgs) -> anyhow::Result<ExitCode> {
+    if let Some((addr, cookie)) = args.cluster.target() {
+        if args.robot.node.is_some() || args.robot.world.is_some() {
+            return Err(BadInput(
+                "--join asks a running cluster: --node and --world start a node of their own"
+                    .into(),
+            )
+            .into());
+        }
+        let transport = join(&member_name("props"), addr, cookie).await?;
+        let result = props_on(&args.operation, args.json).await;
+        transport.stop().await;
+        return result;
+    }
     let node = start_node(args.robot.options(None)).await?.node;
     let result = props_on(&args.operation, args.json).await;
     node.shutdown().await;

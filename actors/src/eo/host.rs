@@ -459,6 +459,7 @@ impl<O: Operation> Actor for EoHost<O> {
                     }
                     // Only a kill ends this (ractor's kill signal interrupts a running handler).
                     Fault::Hang => std::future::pending::<()>().await,
+                    Fault::Kill => myself.kill(),
                 }
             }
         }

@@ -70,6 +70,10 @@ pub enum Fault {
     /// Stop answering: the handler never returns, so every later command goes unanswered
     /// until someone kills the host.
     Hang,
+    /// Die at once, as a kill would (no clean stop): how a kill reaches an instance on
+    /// another node, where killing the local stand-in of a remote actor would only kill the
+    /// stand-in.
+    Kill,
 }
 
 crate::remote_message! {

@@ -139,6 +139,10 @@ pub fn inject_into(kind: FaultKind, inst: &Instance) -> Result<Injected, FaultEr
     let client = EoClient::from_cell(inst.actor.clone());
     let unreachable = |_| FaultError::Unreachable(inst.name.clone());
     match kind {
+        // a remote instance's local stand-in would die alone: ask the instance itself
+        FaultKind::Kill if !inst.actor.get_id().is_local() => {
+            client.inject(Fault::Kill).map_err(unreachable)?
+        }
         FaultKind::Kill => inst.actor.kill(),
         FaultKind::Panic => client.inject(Fault::Panic).map_err(unreachable)?,
         FaultKind::Hang => client.inject(Fault::Hang).map_err(unreachable)?,
