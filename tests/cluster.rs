@@ -180,3 +180,41 @@ fn props_and_kill_reach_an_operation_on_another_node() {
     alpha.signal("TERM");
     assert_eq!(alpha.wait_exit(), Some(0));
 }
+
+#[test]
+fn garbage_and_oversized_frames_on_a_nodes_port_change_nothing() {
+    use std::io::Write;
+    let dir = tempfile::tempdir().unwrap();
+    let mut alpha = NodeProc::start(dir.path(), "alpha", ALPHA_HOSTS, &[], COOKIE);
+    let mut noise: Vec<Vec<u8>> = vec![
+        b"GET / HTTP/1.1\r\nHost: x\r\n\r\n".to_vec(),
+        // a length prefix claiming far more than the 16 MiB frame limit, then little
+        [u64::MAX.to_be_bytes().as_slice(), b"abc"].concat(),
+        [(64u64 << 20).to_be_bytes().as_slice(), &[0u8; 1024]].concat(),
+    ];
+    // seeded noise of every length up to 4 KiB
+    let mut x: u64 = 0x9e37_79b9_7f4a_7c15;
+    for len in [1usize, 7, 8, 9, 100, 4096] {
+        noise.push(
+            (0..len)
+                .map(|_| {
+                    x ^= x << 13;
+                    x ^= x >> 7;
+                    x ^= x << 17;
+                    x as u8
+                })
+                .collect(),
+        );
+    }
+    for bytes in &noise {
+        if let Ok(mut s) = std::net::TcpStream::connect(alpha.addr) {
+            let _ = s.write_all(bytes);
+        }
+    }
+    // alpha still serves, with what it hosted
+    let (code, entries, stderr) = ls_join(&alpha.addr, COOKIE);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert_eq!(entries.len(), 2, "{entries:?}");
+    alpha.signal("TERM");
+    assert_eq!(alpha.wait_exit(), Some(0));
+}
