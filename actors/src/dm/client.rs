@@ -1,5 +1,6 @@
 //! A typed handle for the dm-interface.
 
+use super::credits::Credits;
 use super::error::DmError;
 use super::messages::{DmMsg, DmStats};
 use super::query::Query;
@@ -10,6 +11,7 @@ use ractor::rpc::CallResult;
 use ractor::{ActorRef, RpcReplyPort};
 use serde::de::DeserializeOwned;
 use serde::Serialize;
+use std::sync::Arc;
 use std::time::Duration;
 
 /// A typed handle to a datamanager, for one producer/consumer (`source`). Cheap to clone.
@@ -24,6 +26,8 @@ pub struct DmClient {
     timeout: Duration,
     /// The epoch its records carry (0: unfenced).
     epoch: u64,
+    /// Flow control of puts to a remote datamanager, shared by clones.
+    credits: Arc<Credits>,
 }
 
 impl DmClient {
@@ -41,6 +45,7 @@ impl DmClient {
             source: source.into(),
             timeout: Self::DEFAULT_TIMEOUT,
             epoch: 0,
+            credits: Arc::default(),
         }
     }
 
@@ -52,6 +57,7 @@ impl DmClient {
             source: source.into(),
             timeout: Self::DEFAULT_TIMEOUT,
             epoch: 0,
+            credits: Arc::default(),
         }
     }
 
@@ -183,9 +189,23 @@ impl DmClient {
     pub fn put_raw(&self, record: NewRecord) -> Result<(), DmError> {
         let record = self.fill_source(record);
         record.validate()?;
-        self.actor
-            .cast(DmMsg::Put { record })
-            .map_err(|_| self.unreachable())
+        // a remote datamanager's puts spend credits (see `credits`): bounded in flight
+        let metered = !self.actor.get_id().is_local();
+        if metered {
+            self.credits.spend(&self.actor, &self.dm)?;
+        }
+        self.actor.cast(DmMsg::Put { record }).map_err(|_| {
+            if metered {
+                self.credits.refund();
+            }
+            self.unreachable()
+        })
+    }
+
+    /// Puts sent to a remote datamanager and not yet acknowledged (at most
+    /// [`super::credits::WINDOW`]; always 0 for a local one).
+    pub fn puts_in_flight(&self) -> usize {
+        self.credits.in_flight()
     }
 
     /// Every record matching `query`, oldest-first.

@@ -48,6 +48,15 @@ pub enum DmError {
     /// The datamanager's actor is gone (stopped, crashed, or its node is unreachable).
     #[error("datamanager {0} is not reachable")]
     Unreachable(String),
+    /// A put to a datamanager on another node found no credit left: the datamanager has
+    /// not yet acknowledged the puts in flight ([`super::credits`]). The record was not sent.
+    #[error("datamanager {dm} is busy: {window} puts await its acknowledgement")]
+    Busy {
+        /// The datamanager.
+        dm: String,
+        /// The window of unacknowledged puts.
+        window: u64,
+    },
     /// The datamanager did not answer within the deadline.
     #[error("datamanager {dm} did not answer within {after:?}")]
     Timeout {

@@ -59,6 +59,7 @@
 
 mod actor;
 mod client;
+pub mod credits;
 mod error;
 mod index;
 mod messages;

@@ -1,0 +1,79 @@
+//! Flow control of remote puts: a producer in this process storing as fast as it can into
+//! a datamanager on a `marie node` process is held to a window of unacknowledged puts —
+//! refused with `Busy` when it is spent, never queueing without bound — and every put it
+//! was allowed reaches the datamanager. (Its own process: it joins the cluster as a member.)
+
+mod common;
+
+use common::cluster::NodeProc;
+use marie::actors::dm::credits::WINDOW;
+use marie::actors::dm::{DmClient, DmError};
+use marie::net::{ClusterConfig, Transport};
+use std::time::Duration;
+
+const COOKIE: &str = "backpressure";
+const PUTS: usize = 100_000;
+
+#[test]
+fn a_fast_producer_is_held_to_its_window_and_loses_no_accepted_put() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut alpha = NodeProc::start(
+        dir.path(),
+        "alpha",
+        "[[datamanager]]\nname = \"feature\"\n",
+        &[],
+        COOKIE,
+    );
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .unwrap();
+    let (accepted, busy, max_in_flight, stats) = rt.block_on(async {
+        let me = ClusterConfig::new("127.0.0.1:0".parse().unwrap(), COOKIE).with_peer(alpha.addr);
+        let transport = Transport::start("producer", &me).await.unwrap();
+        transport
+            .wait_for_peers(1, Duration::from_secs(60))
+            .await
+            .unwrap();
+        let client = DmClient::lookup("feature", "producer").unwrap();
+        assert!(!client.actor().get_id().is_local());
+        let (mut accepted, mut busy, mut max_in_flight) = (0usize, 0usize, 0usize);
+        for i in 0..PUTS {
+            match client.put("sonar", Some("front"), None, &(i as u64)) {
+                Ok(()) => accepted += 1,
+                Err(DmError::Busy { .. }) => busy += 1,
+                Err(e) => panic!("put {i}: {e}"),
+            }
+            max_in_flight = max_in_flight.max(client.puts_in_flight());
+            if i % 256 == 0 {
+                tokio::task::yield_now().await; // a sensor's loop has awaits too
+            }
+        }
+        // every accepted put arrives: the last acknowledgement returns every credit
+        let stats = tokio::time::timeout(Duration::from_secs(60), async {
+            loop {
+                let stats = client.stats().await.unwrap();
+                if stats.records + stats.dropped >= accepted as u64 {
+                    return stats;
+                }
+                tokio::task::yield_now().await;
+            }
+        })
+        .await
+        .expect("the accepted puts arrive");
+        transport.stop().await;
+        (accepted, busy, max_in_flight, stats)
+    });
+    eprintln!(
+        "{accepted} puts accepted, {busy} refused busy, at most {max_in_flight} in flight; the DM holds {} and dropped {}",
+        stats.records, stats.dropped
+    );
+    assert!(busy > 0, "a producer this fast must have been held back");
+    assert!(max_in_flight <= WINDOW, "{max_in_flight} in flight");
+    assert_eq!(stats.records + stats.dropped, accepted as u64, "{stats:?}");
+    assert_eq!(stats.refused_puts, 0);
+    assert_eq!(accepted + busy, PUTS);
+    alpha.signal("TERM");
+    assert_eq!(alpha.wait_exit(), Some(0));
+}
