@@ -202,6 +202,21 @@ fn parking_legs(
     shape: ParkParams,
     shallow: f64,
 ) -> Result<Vec<LegRecord>, OpError> {
+    // the map as the cart's pose sees it: moved along the wall so that its recess lies where
+    // the sonar found the dock (the pose along a wall drifts with the odometry)
+    let seen_map: Vec<Segment>;
+    let map = match crate::algo::dock::offset_to_map(&dock.corners, dock.breadth, map) {
+        Some(v) => {
+            tracing::info!(
+                dx = v.x,
+                dy = v.y,
+                "the dock lies this far from the map's recess: the manoeuvre is checked against the map moved onto it"
+            );
+            seen_map = map.iter().map(|s| Segment::new(s.a - v, s.b - v)).collect();
+            &seen_map[..]
+        }
+        None => map,
+    };
     let footprint = footprint_of(status);
     let length = footprint.rear + footprint.front;
     let params = ParkParams {
