@@ -246,10 +246,81 @@ pub fn detect_dock_on_line(
     best.map(|(_, d)| d)
 }
 
+/// Largest angle between a detected dock's back wall and the map wall taken for it, radians.
+const MAP_MATCH_ANGLE: f64 = 0.1;
+
+/// Largest distance (m) between a detected dock's back wall and the line of the map wall
+/// taken for it.
+const MAP_MATCH_OFFSET: f64 = 0.3;
+
+/// Largest difference (m) between the detected breadth and the length of that map wall.
+const MAP_MATCH_BREADTH: f64 = 0.5;
+
+/// Largest distance (m) along the wall between the detected dock and the map's recess: more
+/// than the odometry drifts along a wall that nothing across it pins down.
+const MAP_MATCH_ALONG: f64 = 1.0;
+
+/// Where the map's recess lies from a dock detected at `corners` (opening first, then the back
+/// wall's ends: [`Dock::corners`]) of `breadth`, along the wall: the vector to move the
+/// detected dock by to put it on the map's recess, the same map wall's back wall (parallel,
+/// near, of the dock's breadth). `None` unless exactly one map wall fits.
+///
+/// Along a straight wall the localizer fixes only the offset across it; the position along it
+/// is the odometry's, which drifts by a percent of the distance driven. The docking spot's
+/// ends are the one landmark along the wall the sonars have measured: the detected dock is
+/// where the recess is *as the cart sees it*, so the map moved back by this vector is the map
+/// as the cart's pose sees it — what a manoeuvre that must clear the spot's edges by a few
+/// centimetres has to be checked against.
+pub fn offset_to_map(corners: &[Point; 4], breadth: f64, map: &[Segment]) -> Option<Vector> {
+    let along = (corners[1] - corners[0]).try_normalize(1e-9)?;
+    let back = Segment::new(corners[3], corners[2]);
+    let opening_mid = Point::from((corners[0].coords + corners[1].coords) / 2.0);
+    let back_mid = back.midpoint();
+    let mut fits = map.iter().filter_map(|wall| {
+        let dir = (wall.b - wall.a).try_normalize(1e-9)?;
+        let parallel = dir.dot(&along).abs() >= MAP_MATCH_ANGLE.cos();
+        let line = Line::of_segment(wall)?;
+        let near = line.distance(back_mid) <= MAP_MATCH_OFFSET;
+        let sized = (wall.length() - breadth).abs() <= MAP_MATCH_BREADTH;
+        let shift = (wall.midpoint() - opening_mid).dot(&along);
+        (parallel && near && sized && shift.abs() <= MAP_MATCH_ALONG).then_some(along * shift)
+    });
+    let first = fits.next()?;
+    fits.next().is_none().then_some(first)
+}
+
 #[cfg(test)]
 mod tests {
     use super::super::test_rng::Rng;
     use super::*;
+
+    #[test]
+    fn a_dock_seen_off_along_the_wall_is_put_on_the_maps_recess() {
+        // the lab: a recess at x 4.0-6.8, 0.8 deep, in the wall y = 0
+        let map = [
+            Segment::new(Point::new(0.0, 0.0), Point::new(4.0, 0.0)),
+            Segment::new(Point::new(4.0, 0.0), Point::new(4.0, -0.8)),
+            Segment::new(Point::new(4.0, -0.8), Point::new(6.8, -0.8)),
+            Segment::new(Point::new(6.8, -0.8), Point::new(6.8, 0.0)),
+            Segment::new(Point::new(6.8, 0.0), Point::new(14.0, 0.0)),
+        ];
+        // seen 0.2 m too far west (and 3 cm shallow), driving west
+        let seen = [
+            Point::new(6.6, 0.0),
+            Point::new(3.8, 0.0),
+            Point::new(3.8, -0.77),
+            Point::new(6.6, -0.77),
+        ];
+        let v = offset_to_map(&seen, 2.8, &map).expect("the recess");
+        assert!((v.x - 0.2).abs() < 1e-9 && v.y.abs() < 1e-9, "{v:?}");
+        // a dock nowhere near the map's recess, or of another size: no landmark
+        let far: Vec<Point> = seen.iter().map(|p| p - Vector::new(2.0, 0.0)).collect();
+        assert_eq!(
+            offset_to_map(&[far[0], far[1], far[2], far[3]], 2.8, &map),
+            None
+        );
+        assert_eq!(offset_to_map(&seen, 1.5, &map), None);
+    }
 
     /// Points seen along a wall at y = 1 with a recess of `breadth` × `depth` at x ∈ [3, 3 + b].
     fn scene(breadth: f64, depth: f64, rng: &mut Rng) -> Vec<Point> {

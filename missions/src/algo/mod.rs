@@ -16,7 +16,9 @@
 //!   odometry (heading, and the offset across each wall seen);
 //! - [`sweep`] — which sonar echoes trace a wall (seen sideways, over the last metres
 //!   driven), for the localizer;
-//! - [`avoid`] — collision avoidance with four modes, including the controlled stop.
+//! - [`avoid`] — collision avoidance with four modes, including the controlled stop;
+//! - [`clearance`] — the clearance guard: would the next centimetres of a command bring the
+//!   cart's outline onto an echo?
 //!
 //! # Conventions
 //!
@@ -51,6 +53,7 @@
 //! ```
 
 pub mod avoid;
+pub mod clearance;
 pub mod dock;
 pub mod follow;
 pub mod localize;

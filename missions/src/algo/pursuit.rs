@@ -156,6 +156,11 @@ impl PurePursuit {
         self.s
     }
 
+    /// Length of the path still ahead of the progress, metres.
+    pub fn remaining(&self) -> f64 {
+        (self.total() - self.s).max(0.0)
+    }
+
     fn total(&self) -> f64 {
         *self.cum.last().unwrap_or(&0.0)
     }

@@ -10,6 +10,7 @@ use super::records::{
     PROGRESS, SEGMENTS, WALL,
 };
 use super::{cart, cart_err, dm_err, located, newest, newest_with_seq};
+use crate::algo::clearance::{check, Echo, GuardParams, Trip, NARROW_HALF_ANGLE, WIDE_HALF_ANGLE};
 use crate::algo::follow::{follow_command, is_aligned, FollowMode, FollowParams};
 use crate::algo::parking::{plan_parking, Footprint, ParkError, ParkParams};
 use crate::algo::planner::{plan, Bounds, Path, PlannerParams};
@@ -204,15 +205,23 @@ fn parking_legs(
     shape: ParkParams,
     shallow: f64,
 ) -> Result<Vec<LegRecord>, OpError> {
-    let c = &status.footprint;
-    let length = (c[1] - c[0]).norm();
-    let width = (c[2] - c[1]).norm();
-    let rear = length / 2.0 - status.axle_to_centre;
-    let footprint = Footprint {
-        rear,
-        front: length - rear,
-        half_width: width / 2.0,
+    // the map as the cart's pose sees it: moved along the wall so that its recess lies where
+    // the sonar found the dock (the pose along a wall drifts with the odometry)
+    let seen_map: Vec<Segment>;
+    let map = match crate::algo::dock::offset_to_map(&dock.corners, dock.breadth, map) {
+        Some(v) => {
+            tracing::info!(
+                dx = v.x,
+                dy = v.y,
+                "the dock lies this far from the map's recess: the manoeuvre is checked against the map moved onto it"
+            );
+            seen_map = map.iter().map(|s| Segment::new(s.a - v, s.b - v)).collect();
+            &seen_map[..]
+        }
+        None => map,
     };
+    let footprint = footprint_of(status);
+    let length = footprint.rear + footprint.front;
     let params = ParkParams {
         slide: ((dock.breadth - length) / 2.0 - 0.15).max(0.0),
         ..shape
@@ -278,6 +287,20 @@ fn parking_legs(
         .collect())
 }
 
+/// The cart's own outline about its reference point, from its status (its size and where its
+/// rear axle sits: the cart's geometry, not where it is).
+fn footprint_of(status: &crate::hardware::CartStatus) -> Footprint {
+    let c = &status.footprint;
+    let length = (c[1] - c[0]).norm();
+    let width = (c[2] - c[1]).norm();
+    let rear = length / 2.0 - status.axle_to_centre;
+    Footprint {
+        rear,
+        front: length - rear,
+        half_width: width / 2.0,
+    }
+}
+
 /// Drives the newest planned path with pure pursuit, leg by leg (changing direction between
 /// legs); finishes by itself with `path-driven`.
 #[derive(Default)]
@@ -292,6 +315,8 @@ pub struct TrajectoryController {
     leg: usize,
     /// Progress saved last: `(leg, along)`.
     saved: Option<(usize, f64)>,
+    /// Straightening after the clearance guard stopped the last, backing leg in its tail.
+    settling: bool,
 }
 
 /// How much further along than the saved progress the controller saves again, m.
@@ -316,6 +341,38 @@ impl TrajectoryController {
             ..params
         };
         self.pursuit = Some((PurePursuit::with_path(params, path.clone()), path));
+        true
+    }
+
+    /// The clearance guard stopped the cart on the last, backing leg within [`PARKED_ZONE`] of
+    /// its end: the cart is in the spot, its heading still swinging, and backing on would
+    /// touch the spot's wall. So it pulls forward [`SETTLE_LENGTH`] along the leg's end line,
+    /// as a driver straightens a car the parking sensor stopped. False (finish where it
+    /// stands) when it has done so already or the leg was not a backing one.
+    fn settle(&mut self, pose: &Pose) -> bool {
+        let Some((pursuit, path)) = &self.pursuit else {
+            return false;
+        };
+        let (Some(params), Some(heading)) = (self.params, path.goal_heading) else {
+            return false;
+        };
+        if self.settling || !pursuit.params.reverse {
+            return false;
+        }
+        // along the leg's own end line (the spot's middle), from abreast of the cart: pulling
+        // forward along its tilted heading would take its front out across the opening
+        let Some(&end) = path.waypoints.last() else {
+            return false;
+        };
+        let dir = Pose::new(end.x, end.y, heading).heading();
+        let abreast = end + dir * (pose.point() - end).dot(&dir);
+        let path = Path::new(vec![abreast, abreast + dir * SETTLE_LENGTH]).with_heading(heading);
+        let params = PursuitParams {
+            reverse: false,
+            ..params
+        };
+        self.pursuit = Some((PurePursuit::with_path(params, path.clone()), path));
+        self.settling = true;
         true
     }
 
@@ -405,6 +462,7 @@ impl Operation for TrajectoryController {
         self.path_seq = path_seq;
         self.leg = 0;
         self.saved = None;
+        self.settling = false;
         // a predecessor that crashed on this path left its progress behind: resume there
         let progress: Option<ProgressRecord> = match ctx.resumed() {
             true => newest(ctx, "parameter", PROGRESS).await?,
@@ -465,6 +523,32 @@ impl Operation for TrajectoryController {
             PursuitStatus::Tracking => {}
         }
         let cmd = pursuit.command(&pose, path);
+        let remaining = pursuit.remaining();
+        let last_leg = self.legs.is_empty();
+        let footprint = footprint_of(&status);
+        if let Some(trip) = guard(&mut self.cart, ctx, &footprint, cmd).await? {
+            if last_leg && (self.settling || remaining <= PARKED_ZONE) {
+                if self.settle(&pose) {
+                    tracing::info!(
+                        clearance = trip.clearance,
+                        remaining,
+                        "stopped in the spot by the sonar: straightening forwards"
+                    );
+                    return Ok(Step::Continue);
+                }
+                tracing::info!(
+                    clearance = trip.clearance,
+                    remaining,
+                    "the sonar says the spot's end is reached: stopped there"
+                );
+                return Ok(Step::Finish(StatusFlags(1)));
+            }
+            return Err(OpError::failed(format!(
+                "stopped {remaining:.2} m before the end of leg {}: the sonar hears something \
+                 {:.3} m from the cart's outline, which the path would bring nearer",
+                self.leg, trip.clearance
+            )));
+        }
         cart(&mut self.cart, ctx)?
             .drive(cmd.speed, cmd.steer)
             .map_err(cart_err)?;
@@ -475,6 +559,61 @@ impl Operation for TrajectoryController {
     async fn suspend(&mut self, ctx: &mut OpContext) -> Result<(), OpError> {
         stop_cart(&mut self.cart, ctx)
     }
+}
+
+/// On the last leg, how near its end (m) a stop by the clearance guard means the cart is in
+/// the spot: a parking manoeuvre's straight tail (0.5 m) and the end of the arc before it,
+/// where the cart is between the spot's ends and only its heading still settles.
+const PARKED_ZONE: f64 = 0.7;
+
+/// How far ahead of where the clearance guard stopped it the cart aims when it straightens
+/// in the spot, m (it ends within the position tolerance of that, so it moves about 0.25 m):
+/// room to turn the heading by the ten-odd degrees a backing manoeuvre leaves, and within the
+/// room the manoeuvre left ahead of the cart (its goal slides deep into the spot).
+const SETTLE_LENGTH: f64 = 0.35;
+
+/// Check `cmd` with the clearance guard against the cart's current sonar scan; when it
+/// trips, the cart is stopped at once (the emergency stop, engaged and released, halts the
+/// wheels without the drive's lag) and the trip returned.
+async fn guard(
+    slot: &mut Option<CartClient>,
+    ctx: &OpContext,
+    footprint: &Footprint,
+    cmd: crate::algo::Command,
+) -> Result<Option<Trip>, OpError> {
+    if cmd.is_stop() {
+        return Ok(None);
+    }
+    let cart = cart(slot, ctx)?.clone();
+    let scan = cart.scan().await.map_err(cart_err)?;
+    let echoes: Vec<Echo> = scan
+        .readings
+        .iter()
+        .filter_map(|r| {
+            Some(Echo {
+                mount: *scan.mounts.get(r.sensor)?,
+                half_angle: match r.beam {
+                    crate::world::Beam::Narrow => NARROW_HALF_ANGLE,
+                    crate::world::Beam::Wide => WIDE_HALF_ANGLE,
+                },
+                range: r.range?,
+            })
+        })
+        .collect();
+    let Some(trip) = check(&echoes, footprint, cmd, &GuardParams::default()) else {
+        return Ok(None);
+    };
+    cart.emergency_stop(true).map_err(cart_err)?;
+    cart.drive(0.0, 0.0).map_err(cart_err)?;
+    cart.emergency_stop(false).map_err(cart_err)?;
+    tracing::info!(
+        clearance = trip.clearance,
+        ahead = trip.ahead,
+        x = trip.point.x,
+        y = trip.point.y,
+        "clearance guard: stopped before an echo"
+    );
+    Ok(Some(trip))
 }
 
 /// How far the cart may run past the last seen end of the wall before the follower gives up,
