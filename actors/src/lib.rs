@@ -34,5 +34,6 @@ pub mod events;
 pub mod fence;
 pub mod flags;
 pub mod property;
+pub mod provision;
 pub mod registry;
 pub mod wire;

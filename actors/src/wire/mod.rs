@@ -170,6 +170,7 @@ macro_rules! remote_message {
             fn serialize(self) -> ::std::result::Result<::ractor::message::SerializedMessage, ::ractor::message::BoxedDowncastErr> {
                 let this = self;
                 $(
+                    #[allow(unreachable_patterns)]
                     let this = $crate::remote_message!(@ser this, $name, $variant, [$($field : $fty),*] $(, $reply)?);
                 )*
                 ::tracing::warn!(message = ?this, "a local-only message cannot cross nodes");
