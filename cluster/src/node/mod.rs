@@ -36,6 +36,7 @@
 
 pub mod config;
 mod events;
+mod provisioner;
 pub mod robot;
 mod tree;
 
@@ -54,7 +55,7 @@ use marie_actors::dispatcher::{
     RegistryCatalog, RunReport,
 };
 use marie_actors::dm::DmError;
-use marie_actors::eo::{EoError, HostOptions, OperationFactory};
+use marie_actors::eo::{EoError, OperationFactory};
 use marie_actors::events::{bridge_registry, EventBus, EventKind, RegistryBridge};
 use marie_actors::registry::{self, Instance, ModuleKind};
 use marie_supervision::{ChildSpec, Restart, Shutdown, SupervisorError, SupervisorRef};
@@ -170,6 +171,8 @@ pub struct Node {
     root: SupervisorRef,
     robot: Option<Arc<dyn Robot>>,
     runs: AtomicU64,
+    /// Answers the cluster's requests for new instances (when the config hosts operations).
+    provisioner: Option<ActorRef<marie_actors::provision::ProvisionMsg>>,
 }
 
 impl Node {
@@ -194,7 +197,7 @@ impl Node {
         let (root, _) = tree::start_root(children).await?;
         let bridges = events::bridge_supervisors(&bus, &root).await;
         tracing::info!(node = %config.name, "node started");
-        Ok(Node {
+        let mut node = Node {
             config,
             bus,
             _registry: registry,
@@ -204,7 +207,15 @@ impl Node {
             root,
             robot: options.robot,
             runs: AtomicU64::new(0),
-        })
+            provisioner: None,
+        };
+        if !node.config.operations.is_empty() {
+            match ractor::Actor::spawn(None, provisioner::Provisioner, node.starter()).await {
+                Ok((actor, _)) => node.provisioner = Some(actor),
+                Err(e) => tracing::warn!("the node will not start instances on request: {e}"),
+            }
+        }
+        Ok(node)
     }
 
     /// The config the node was built from.
@@ -273,40 +284,16 @@ impl Node {
         name: &str,
         version: &semver::VersionReq,
     ) -> Result<ActorCell, NodeError> {
-        let chosen = self
-            .config
-            .operations
-            .iter()
-            .flat_map(|op| {
-                self.catalog
-                    .iter()
-                    .filter(move |f| op.allows(f) && f.name == name)
-                    .map(move |f| (op, f))
-            })
-            .filter(|(_, f)| f.semver().is_some_and(|v| version.matches(&v)))
-            .max_by_key(|(_, f)| f.semver());
-        let Some((_, factory)) = chosen else {
-            let allowed: Vec<String> = self
-                .config
-                .operations
-                .iter()
-                .map(|o| format!("{}@{}", o.name, o.version))
-                .collect();
-            return Err(NodeError::NotAllowed {
-                node: self.config.name.clone(),
-                operation: format!("{name}@{version}"),
-                allowed: allowed.join(", "),
-            });
-        };
-        let sup = self.child_supervisor(tree::DYNAMIC).await?;
-        let cell = sup
-            .start_dynamic(tree::DynamicOp {
-                factory: factory.clone(),
-                host: HostOptions::with_clock(self.clock.clone()),
-            })
-            .await?;
-        tracing::info!(node = %self.config.name, op = %factory.key(), "dynamic instance started");
-        Ok(cell)
+        self.starter().start(name, version).await
+    }
+
+    fn starter(&self) -> provisioner::Starter {
+        provisioner::Starter {
+            config: self.config.clone(),
+            catalog: self.catalog.clone(),
+            clock: self.clock.clone(),
+            root: self.root.clone(),
+        }
     }
 
     /// Read, parse and check a mission against the operations running now.
@@ -441,6 +428,9 @@ impl Node {
 
     /// Stop the node's supervision tree, children in reverse start order, and wait for it.
     pub async fn shutdown(self) {
+        if let Some(p) = &self.provisioner {
+            p.stop(None);
+        }
         self.root.stop().await;
         for task in &self.bridges {
             task.abort();
