@@ -263,6 +263,9 @@ impl Actor for ActionDispatcher {
                 incarnation,
                 error,
             } => state.on_probe_done(&myself, name, incarnation, error).await,
+            DispatcherMsg::ProvisionDue { name, incarnation } => {
+                state.on_provision_due(name, incarnation)
+            }
             DispatcherMsg::RebindDeadline { name, incarnation } => {
                 state.on_rebind_deadline(&myself, name, incarnation)
             }

@@ -100,6 +100,8 @@ pub(crate) struct Binding {
     /// The rebind deadline's timer while lost; dropped (cancelled) when a stand-in is
     /// adopted, so a run with many failovers does not keep a sleeping task per loss.
     pub(crate) deadline_timer: Option<Timer>,
+    /// The provisioning grace's timer while lost (see `healing`).
+    pub(crate) provision_timer: Option<Timer>,
     /// A liveness probe is under way.
     pub(crate) probing: bool,
     /// The first version bound: stand-ins must be compatible with it.
@@ -128,6 +130,7 @@ impl Binding {
             lost: None,
             last_alive: None,
             deadline_timer: None,
+            provision_timer: None,
             probing: false,
             selection,
         }
@@ -136,6 +139,11 @@ impl Binding {
     /// Whether `cand` may stand in for the lost instance: not the dead actor itself, the same
     /// operation (name and id), a version compatible with the first one bound, and a
     /// parameter schema that accepts the last parameters.
+    /// The versions a stand-in may have (those compatible with the first one bound).
+    pub(crate) fn selection(&self) -> &VersionReq {
+        &self.selection
+    }
+
     pub(crate) fn accepts(&self, cand: &Candidate) -> Result<(), String> {
         if let Some(lost) = &self.lost {
             if cand.client.actor().get_id() == lost.dead {
@@ -178,6 +186,7 @@ impl Binding {
         self.deadline = cand.deadline;
         self.probing = false;
         self.deadline_timer = None;
+        self.provision_timer = None;
         self.last_alive = Some(now);
         self.lost
             .take()

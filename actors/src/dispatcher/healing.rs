@@ -27,6 +27,10 @@ use crate::registry::{self, Instance, ModuleKind, RegistryEvent};
 use ractor::ActorRef;
 use std::time::Duration;
 
+/// How long a lost binding waits for a stand-in (a supervisor's restart, a spare) before
+/// asking the cluster to start one.
+const PROVISION_GRACE: Duration = Duration::from_secs(1);
+
 /// How often bound operations are asked whether they still answer.
 const PROBE_PERIOD: Duration = Duration::from_millis(500);
 
@@ -139,8 +143,21 @@ impl DispatcherState {
                 incarnation,
             },
         );
+        // a restarted or spare instance usually shows up within this grace; a lost node's
+        // does not, and then the cluster is asked to start one (`provision`)
+        let grace = PROVISION_GRACE.min(self.mission.rebind_deadline / 2);
+        let provision = Timer::cast_after(
+            &self.clock,
+            grace,
+            myself,
+            DispatcherMsg::ProvisionDue {
+                name: name.to_string(),
+                incarnation,
+            },
+        );
         if let Some(b) = self.bindings.get_mut(name) {
             b.deadline_timer = Some(timer);
+            b.provision_timer = Some(provision);
         }
         let found = registry::lookup(ModuleKind::Operation, name);
         for inst in found {
@@ -329,6 +346,30 @@ impl DispatcherState {
                 }
             }
         }
+    }
+
+    /// The provisioning grace of `name` passed without a stand-in: ask the nodes that can
+    /// start instances for one matching the binding's selection (in a task: it may take a
+    /// while, and the new instance is adopted through the registry like any stand-in).
+    pub(super) fn on_provision_due(&mut self, name: String, incarnation: u64) {
+        let Some(b) = self.bindings.get(&name) else {
+            return;
+        };
+        if b.lost.is_none() || b.incarnation != incarnation || self.ended {
+            return;
+        }
+        let req = b.selection().clone();
+        tracing::info!(op = %name, %req, "no stand-in: asking the cluster to start one");
+        tokio::spawn(async move {
+            match crate::provision::request(&name, &req).await {
+                Ok(node) => tracing::info!(op = %name, %node, "a stand-in is starting"),
+                Err(refusals) => tracing::warn!(
+                    op = %name,
+                    "no node can start a stand-in: {}",
+                    refusals.join("; ")
+                ),
+            }
+        });
     }
 
     pub(super) fn on_rebind_deadline(

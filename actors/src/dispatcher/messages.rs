@@ -38,6 +38,14 @@ crate::remote_message! {
             /// `None`: it answered.
             error: Option<EoError>,
         },
+        /// `name`, lost as incarnation `incarnation`, still has no stand-in after the
+        /// provisioning grace: ask the cluster to start one.
+        ProvisionDue {
+            /// Operation name.
+            name: String,
+            /// Incarnation number after the loss.
+            incarnation: u64,
+        },
         /// The rebind deadline of `name`, lost as incarnation `incarnation`, passed.
         RebindDeadline {
             /// Operation name.
