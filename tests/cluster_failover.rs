@@ -14,16 +14,24 @@ use std::path::{Path, PathBuf};
 
 const SPEED: &str = "4";
 
-/// Write the layout into `dir`; gives the cluster file.
-fn layout(dir: &Path) -> PathBuf {
+/// Write the layout into `dir`: the thesis' with a wall follower on each node of
+/// `followers` (none on the operations node, which may only start one on request when
+/// `standby`); gives the cluster file.
+fn layout(dir: &Path, followers: &[&str], standby: bool) -> PathBuf {
     let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
     let thesis = repo.join("missions/clusters/thesis");
     let operations = std::fs::read_to_string(thesis.join("operations.toml"))
         .unwrap()
-        .replace("[[operation]]\nname = \"wall-follower\"\n", "");
-    assert!(!operations.contains("wall-follower\""), "{operations}");
+        .replace(
+            "[[operation]]\nname = \"wall-follower\"\n",
+            if standby {
+                "[[operation]]\nname = \"wall-follower\"\ninstances = 0\n"
+            } else {
+                ""
+            },
+        );
     std::fs::write(dir.join("operations.toml"), operations).unwrap();
-    for wf in ["wf-a", "wf-b"] {
+    for wf in followers {
         std::fs::write(
             dir.join(format!("{wf}.toml")),
             format!(
@@ -33,27 +41,30 @@ fn layout(dir: &Path) -> PathBuf {
         .unwrap();
     }
     let cluster = dir.join("cluster.toml");
-    std::fs::write(
-        &cluster,
-        format!(
-            "[cluster]\ncookie = \"failover\"\nworld = \"{}\"\nseed = 1\n\
-             [[node]]\nconfig = \"{}\"\n[[node]]\nconfig = \"{}\"\n\
-             [[node]]\nconfig = \"operations.toml\"\n\
-             [[node]]\nconfig = \"wf-a.toml\"\n[[node]]\nconfig = \"wf-b.toml\"\n",
-            repo.join("missions/worlds/lab.toml").display(),
-            thesis.join("cart.toml").display(),
-            thesis.join("features.toml").display(),
-        ),
-    )
-    .unwrap();
+    let mut text = format!(
+        "[cluster]\ncookie = \"failover\"\nworld = \"{}\"\nseed = 1\n\
+         [[node]]\nconfig = \"{}\"\n[[node]]\nconfig = \"{}\"\n\
+         [[node]]\nconfig = \"operations.toml\"\n",
+        repo.join("missions/worlds/lab.toml").display(),
+        thesis.join("cart.toml").display(),
+        thesis.join("features.toml").display(),
+    );
+    for wf in followers {
+        text += &format!("[[node]]\nconfig = \"{wf}.toml\"\n");
+    }
+    std::fs::write(&cluster, text).unwrap();
     cluster
 }
 
 /// Run docking on the layout; once the wall follower runs, send `signal` to its node.
 /// Gives the report, the node hit, `marie up`'s lines and the run's events.
-fn lose_the_wall_followers_node(signal: &str) -> (Value, String, Vec<String>, Vec<Value>) {
+fn lose_the_wall_followers_node(
+    signal: &str,
+    followers: &[&str],
+    standby: bool,
+) -> (Value, String, Vec<String>, Vec<Value>) {
     let dir = tempfile::tempdir().unwrap();
-    let cluster = layout(dir.path());
+    let cluster = layout(dir.path(), followers, standby);
     let report = dir.path().join("report.json");
     let events = dir.path().join("events.jsonl");
     let mut up = Proc::spawn(
@@ -73,7 +84,7 @@ fn lose_the_wall_followers_node(signal: &str) -> (Value, String, Vec<String>, Ve
     );
     let bound = up.wait_line("bound wall-follower");
     let node = bound.rsplit(' ').next().unwrap().to_string();
-    assert!(node == "wf-a" || node == "wf-b", "{bound}");
+    assert!(followers.contains(&node.as_str()), "{bound}");
     let pid: u32 = up
         .seen()
         .iter()
@@ -110,10 +121,9 @@ fn lose_the_wall_followers_node(signal: &str) -> (Value, String, Vec<String>, Ve
     (report, node, up.seen().to_vec(), events)
 }
 
-fn assert_rebound_across_nodes(report: &Value, lost: &str) {
+fn assert_rebound_across_nodes(report: &Value, lost: &str, other: &str) {
     assert_eq!(report["outcome"], "succeeded", "{report:#}");
     assert_eq!(report["collisions"], 0);
-    let other = if lost == "wf-a" { "wf-b" } else { "wf-a" };
     let rebinds = report["rebinds"].as_array().unwrap();
     let rebind = rebinds
         .iter()
@@ -134,8 +144,8 @@ fn assert_rebound_across_nodes(report: &Value, lost: &str) {
 
 #[test]
 fn killing_the_wall_followers_node_rebinds_to_the_other_node_and_the_mission_succeeds() {
-    let (report, lost, lines, _) = lose_the_wall_followers_node("KILL");
-    assert_rebound_across_nodes(&report, &lost);
+    let (report, lost, lines, _) = lose_the_wall_followers_node("KILL", &["wf-a", "wf-b"], false);
+    assert_rebound_across_nodes(&report, &lost, other(&lost));
     assert!(
         lines
             .iter()
@@ -146,8 +156,8 @@ fn killing_the_wall_followers_node_rebinds_to_the_other_node_and_the_mission_suc
 
 #[test]
 fn freezing_the_wall_followers_node_gets_it_declared_down_rebound_and_the_mission_succeeds() {
-    let (report, lost, _, events) = lose_the_wall_followers_node("STOP");
-    assert_rebound_across_nodes(&report, &lost);
+    let (report, lost, _, events) = lose_the_wall_followers_node("STOP", &["wf-a", "wf-b"], false);
+    assert_rebound_across_nodes(&report, &lost, other(&lost));
     // noticed by the failure detector — the dispatcher's member declared the node down,
     // then the instance was lost and rebound — not by a broken connection
     let position = |kind: &str, key: &str, value: &str| {
@@ -160,4 +170,20 @@ fn freezing_the_wall_followers_node_gets_it_declared_down_rebound_and_the_missio
     let rebound = position("rebound", "operation", "wall-follower");
     assert!(down < rebound, "{:?}", &events[down..=rebound]);
     assert!(events[down]["kind"]["silent_ms"].as_u64().unwrap() >= 1200);
+}
+
+fn other(wf: &str) -> &'static str {
+    if wf == "wf-a" {
+        "wf-b"
+    } else {
+        "wf-a"
+    }
+}
+
+#[test]
+fn when_no_wall_follower_survives_a_node_that_allows_one_starts_it_and_the_mission_succeeds() {
+    // the only running wall follower is on wf-a; the operations node may start one
+    let (report, lost, _, _) = lose_the_wall_followers_node("KILL", &["wf-a"], true);
+    assert_eq!(lost, "wf-a");
+    assert_rebound_across_nodes(&report, &lost, "operations");
 }
