@@ -2,6 +2,7 @@
 //! member named after itself (`run-4242`, `ls-4242`), sees the others' modules in its
 //! registry, does its work and leaves.
 
+use super::args::RobotArgs;
 use super::error::BadInput;
 use marie::net::{ClusterConfig, Peer, Transport};
 use std::net::SocketAddr;
@@ -29,6 +30,22 @@ impl JoinArgs {
     /// The address and cookie, when `--join` was given.
     pub fn target(&self) -> Option<(SocketAddr, &str)> {
         Some((self.join?, self.cookie.as_deref()?))
+    }
+
+    /// [`JoinArgs::target`] for a verb that otherwise starts a node of its own: `--node`
+    /// and `--world` (in `robot`) make no sense with `--join` (bad input). `acts` says what
+    /// the verb does in the cluster, for the message.
+    pub fn target_alone(
+        &self,
+        robot: &RobotArgs,
+        acts: &str,
+    ) -> Result<Option<(SocketAddr, &str)>, BadInput> {
+        match self.target() {
+            Some(_) if robot.node.is_some() || robot.world.is_some() => Err(BadInput(format!(
+                "--join {acts} a running cluster: --node and --world start a node of their own"
+            ))),
+            target => Ok(target),
+        }
     }
 }
 

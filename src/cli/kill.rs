@@ -39,14 +39,7 @@ pub async fn kill(args: KillArgs) -> anyhow::Result<ExitCode> {
         robot,
         cluster,
     } = args;
-    if let Some((addr, cookie)) = cluster.target() {
-        if robot.node.is_some() || robot.world.is_some() {
-            return Err(BadInput(
-                "--join kills in a running cluster: --node and --world start a node of their own"
-                    .into(),
-            )
-            .into());
-        }
+    if let Some((addr, cookie)) = cluster.target_alone(&robot, "kills in")? {
         let transport = join(&member_name("kill"), addr, cookie).await?;
         let result = kill_in_cluster(&operation).await;
         transport.stop().await;

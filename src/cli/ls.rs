@@ -2,7 +2,6 @@
 //! (`--join ADDR --cookie C`).
 
 use super::args::RobotArgs;
-use super::error::BadInput;
 use super::join::{join, member_name, JoinArgs};
 use super::prepare::start_node;
 use marie::actors::registry::{self, Instance};
@@ -24,14 +23,7 @@ pub struct LsArgs {
 
 /// Start the node (or join the cluster) and list what is published.
 pub async fn ls(args: LsArgs) -> anyhow::Result<ExitCode> {
-    if let Some((addr, cookie)) = args.cluster.target() {
-        if args.robot.node.is_some() || args.robot.world.is_some() {
-            return Err(BadInput(
-                "--join lists a running cluster: --node and --world start a node of their own"
-                    .into(),
-            )
-            .into());
-        }
+    if let Some((addr, cookie)) = args.cluster.target_alone(&args.robot, "lists")? {
         // a member that hosts nothing: what it lists is the others'
         let transport = join(&member_name("ls"), addr, cookie).await?;
         let result = print_listing(&registry::list(), args.json);

@@ -29,14 +29,7 @@ pub struct PropsArgs {
 
 /// Start the node, ask the operation and print its answers.
 pub async fn props(args: PropsArgs) -> anyhow::Result<ExitCode> {
-    if let Some((addr, cookie)) = args.cluster.target() {
-        if args.robot.node.is_some() || args.robot.world.is_some() {
-            return Err(BadInput(
-                "--join asks a running cluster: --node and --world start a node of their own"
-                    .into(),
-            )
-            .into());
-        }
+    if let Some((addr, cookie)) = args.cluster.target_alone(&args.robot, "asks")? {
         let transport = join(&member_name("props"), addr, cookie).await?;
         let result = props_on(&args.operation, args.json).await;
         transport.stop().await;

@@ -145,14 +145,7 @@ pub fn check(
 mod tests {
     use super::*;
 
-    /// The thesis-like cart: 1.0 m × 0.6 m, rear axle 0.15 m from the rear bumper.
-    fn cart() -> Footprint {
-        Footprint {
-            rear: 0.15,
-            front: 0.85,
-            half_width: 0.3,
-        }
-    }
+    use crate::algo::parking::tests::cart;
 
     fn echo(x: f64, y: f64, deg: f64, range: f64) -> Echo {
         Echo {

@@ -302,10 +302,12 @@ fn try_radius(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    fn cart() -> Footprint {
+    /// The thesis-like cart: 1.0 m × 0.6 m, rear axle 0.15 m from the rear bumper (the
+    /// clearance guard's tests use it too).
+    pub(crate) fn cart() -> Footprint {
         Footprint {
             rear: 0.15,
             front: 0.85,
