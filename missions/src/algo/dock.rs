@@ -261,7 +261,7 @@ const MAP_MATCH_BREADTH: f64 = 0.5;
 const MAP_MATCH_ALONG: f64 = 1.0;
 
 /// Where the map's recess lies from a dock detected at `corners` (opening first, then the back
-/// wall's ends: [`Rect::corners`](crate::world::Rect::corners)) of `breadth`, along the wall: the vector to move the
+/// wall's ends) of `breadth`, along the wall: the vector to move the
 /// detected dock by to put it on the map's recess, the same map wall's back wall (parallel,
 /// near, of the dock's breadth). `None` unless exactly one map wall fits.
 ///
