@@ -23,6 +23,7 @@
 //! # }
 //! ```
 
+mod index;
 mod watch;
 
 pub use watch::{watch, RegistryEvent, Watch};
@@ -169,6 +170,14 @@ pub fn publish(
     ] {
         pg::join_scoped(SCOPE.to_string(), group, vec![actor.clone()]);
     }
+    index::insert(
+        actor.get_id(),
+        index::Entry {
+            kind,
+            id,
+            name: name.to_string(),
+        },
+    );
     tracing::debug!(%kind, id, name, actor = %actor.get_id(), "published");
     Ok(())
 }
@@ -192,10 +201,32 @@ pub fn lookup(kind: ModuleKind, name_or_id: &str) -> Vec<Instance> {
     if by_key.is_empty() {
         return Vec::new();
     }
-    let mut out: Vec<Instance> = list_kind(Some(kind))
-        .into_iter()
-        .filter(|inst| by_key.iter().any(|c| c.get_id() == inst.actor.get_id()))
-        .collect();
+    // name the members from the index; a member it does not know yet (a remote module that
+    // just joined) rebuilds it once
+    let ids: Vec<ActorId> = by_key.iter().map(ActorCell::get_id).collect();
+    let entries = index::entries(&ids).or_else(|| {
+        index::rebuild();
+        index::entries(&ids)
+    });
+    let mut out: Vec<Instance> = match entries {
+        Some(entries) => by_key
+            .into_iter()
+            .zip(entries)
+            .filter(|(_, e)| e.kind == kind)
+            .map(|(actor, e)| Instance {
+                kind,
+                id: e.id,
+                name: e.name,
+                node: node_name_of(&actor.get_id()),
+                actor,
+            })
+            .collect(),
+        // a member between its key group and its entry group: the slow, exact way
+        None => list_kind(Some(kind))
+            .into_iter()
+            .filter(|inst| by_key.iter().any(|c| c.get_id() == inst.actor.get_id()))
+            .collect(),
+    };
     sort_instances(&mut out);
     out
 }
