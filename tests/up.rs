@@ -182,3 +182,42 @@ fn a_bad_cluster_file_or_speed_exits_2_before_any_node_starts() {
         text(&out.stderr)
     );
 }
+
+#[test]
+fn a_thousand_operations_on_three_nodes_converge_in_every_members_registry() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut cluster = String::from("[cluster]\ncookie = \"big\"\n");
+    for node in ["a", "b", "c"] {
+        let mut config = format!("[node]\nname = \"{node}\"\ndispatcher = false\n");
+        for op in [
+            "sampler",
+            "averager",
+            "checker",
+            "segment-extractor",
+            "wall-sensor",
+        ] {
+            config += &format!("[[operation]]\nname = \"{op}\"\ninstances = 64\n");
+        }
+        config += "[[operation]]\nname = \"docking-detector\"\ninstances = 14\n";
+        std::fs::write(dir.path().join(format!("{node}.toml")), config).unwrap();
+        cluster += &format!("[[node]]\nconfig = \"{node}.toml\"\n");
+    }
+    let file = dir.path().join("big.toml");
+    std::fs::write(&file, cluster).unwrap();
+    let mut up = Proc::spawn("marie up", &["up", file.to_str().unwrap()]);
+    // `up` prints this once its own member sees every module the nodes said they host
+    let line = up.wait_line("cluster ");
+    assert!(line.contains("3 nodes, 1002 modules"), "{line}");
+    up.wait_line("Ctrl-C stops the cluster");
+    let nodes: Vec<(String, String, u32)> = up.seen().iter().filter_map(|l| node_line(l)).collect();
+    // a newcomer sees them all too, through any node
+    let out = marie(&["ls", "--join", &nodes[2].1, "--cookie", "big", "--json"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let rows: Vec<Value> = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(rows.len(), 1002);
+    up.signal("TERM");
+    assert_eq!(up.wait_exit(), Some(0));
+    for (name, _, pid) in &nodes {
+        assert!(wait_gone(*pid), "node {name} (pid {pid}) outlived marie up");
+    }
+}

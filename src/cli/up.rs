@@ -133,14 +133,18 @@ async fn serve(
     speed: f64,
 ) -> anyhow::Result<ExitCode> {
     let hosted = wait_listening(launches, lines).await?;
+    let listening = std::time::Instant::now();
     let total: usize = hosted.values().sum();
     let listing = converged(launches, &layout.cookie, total).await?;
+    let convergence = listening.elapsed();
     // the nodes' lines so far tell of the joins just summed up
     while lines.try_recv().is_ok() {}
     println!(
-        "cluster {} up: {} nodes, {total} modules, speed {speed}",
+        "cluster {} up: {} nodes, {total} modules, speed {speed} (registry converged {:.2} s \
+         after the last node listened)",
         layout.path.display(),
-        launches.len()
+        launches.len(),
+        convergence.as_secs_f64()
     );
     for (l, c) in launches.iter().zip(children.iter()) {
         let modules: Vec<String> = listing
