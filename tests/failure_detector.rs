@@ -73,9 +73,15 @@ fn a_frozen_node_is_declared_down_after_its_deadline_and_rejoins_when_it_wakes()
     beta.signal("CONT");
     alpha.wait_line_since(mark, "node alpha sees beta");
     beta.wait_line_since(beta_mark, "node beta sees alpha");
-    // beta, which was asleep, declared nobody down: the silence was its own
+    // beta, which was asleep, declared nobody down: the silence was its own; knowing its
+    // peers have replaced it, it restarts its operations as a new incarnation
+    beta.wait_line_since(beta_mark, "node beta was frozen for");
+    beta.wait_line_since(
+        beta_mark,
+        "node beta restarted its 1 operation instance(s) as a new incarnation",
+    );
     assert!(
-        !beta.seen().iter().any(|l| l.contains("declared")),
+        !beta.seen().iter().any(|l| l.contains("declared alpha down")),
         "{:?}",
         beta.seen()
     );

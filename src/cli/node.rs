@@ -141,6 +141,14 @@ pub async fn node(args: NodeArgs) -> anyhow::Result<ExitCode> {
             changed = changes.changed() => if changed.is_err() { break },
             event = net.recv() => if let Ok(event) = event {
                 say(&format!("node {name} {event}"));
+                if matches!(event, marie::net::NetEvent::Frozen { .. }) {
+                    match node.reincarnate().await {
+                        Ok(n) => say(&format!(
+                            "node {name} restarted its {n} operation instance(s) as a new incarnation"
+                        )),
+                        Err(e) => tracing::error!("node {name} could not restart its operations: {e}"),
+                    }
+                }
             },
         }
     }

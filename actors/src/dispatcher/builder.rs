@@ -176,6 +176,7 @@ impl ReportBuilder {
             | EventKind::NodeUp { .. }
             | EventKind::NodeLost { .. }
             | EventKind::NodeDown { .. }
+            | EventKind::NodeFrozen { .. }
             | EventKind::NodeRefused { .. }
             | EventKind::Robot { .. } => {}
         }

@@ -177,6 +177,12 @@ pub enum EventKind {
         /// How long it had been silent, ms of real time.
         silent_ms: u64,
     },
+    /// This node was frozen longer than its failure detector's deadline (its peers have
+    /// declared it down): it restarts its operations as a new incarnation.
+    NodeFrozen {
+        /// How long it was frozen, ms of real time.
+        silent_ms: u64,
+    },
     /// A peer node of another protocol version was refused.
     NodeRefused {
         /// Its node name.

@@ -72,6 +72,8 @@ pub struct Detector {
     deadline: Duration,
     last_heard: BTreeMap<String, Instant>,
     last_tick: Option<Instant>,
+    /// How long this detector itself was frozen, once, until taken.
+    frozen: Option<Duration>,
 }
 
 impl Detector {
@@ -81,6 +83,7 @@ impl Detector {
             deadline,
             last_heard: BTreeMap::new(),
             last_tick: None,
+            frozen: None,
         }
     }
 
@@ -98,11 +101,13 @@ impl Detector {
         for p in ready {
             self.last_heard.entry(p.clone()).or_insert(now);
         }
-        let frozen = self
+        let gap = self
             .last_tick
-            .is_some_and(|t| now.saturating_duration_since(t) > self.deadline);
+            .map(|t| now.saturating_duration_since(t))
+            .filter(|gap| *gap > self.deadline);
         self.last_tick = Some(now);
-        if frozen {
+        if let Some(gap) = gap {
+            self.frozen = Some(gap);
             for t in self.last_heard.values_mut() {
                 *t = now;
             }
@@ -115,6 +120,12 @@ impl Detector {
                 (silent > self.deadline).then(|| (p.clone(), silent))
             })
             .collect()
+    }
+
+    /// How long this detector was frozen (the process stopped or starved longer than a
+    /// deadline: its peers have declared it down), once; `None` otherwise.
+    pub fn take_freeze(&mut self) -> Option<Duration> {
+        self.frozen.take()
     }
 
     /// `peer` was declared down (its sessions are closing): judge it afresh when it is back.
@@ -175,6 +186,8 @@ mod tests {
         d.tick(&peers(&["a"]), t0);
         // this process slept 5 s: its peers' silence is its own
         assert!(d.tick(&peers(&["a"]), t0 + MS(5000)).is_empty());
+        assert_eq!(d.take_freeze(), Some(MS(5000)));
+        assert_eq!(d.take_freeze(), None);
         assert!(d.tick(&peers(&["a"]), t0 + MS(5500)).is_empty());
         assert_eq!(d.tick(&peers(&["a"]), t0 + MS(6100)).len(), 1);
     }

@@ -44,6 +44,11 @@ pub fn publish_on(transport: &Transport, bus: EventBus) -> tokio::task::JoinHand
                             silent_ms: silent.as_millis() as u64,
                         });
                     }
+                    Ok(NetEvent::Frozen { silent }) => {
+                        bus.publish(EventKind::NodeFrozen {
+                            silent_ms: silent.as_millis() as u64,
+                        });
+                    }
                     Ok(NetEvent::PeerRefused { peer, theirs, ours }) => {
                         bus.publish(EventKind::NodeRefused { peer, theirs, ours });
                     }

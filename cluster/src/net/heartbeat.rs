@@ -39,6 +39,13 @@ pub enum NetEvent {
         /// How long it had been silent.
         silent: Duration,
     },
+    /// This node itself was frozen (stopped, starved) longer than the deadline: its peers
+    /// have declared it down and replaced its operations, so it must rejoin as a new
+    /// incarnation.
+    Frozen {
+        /// How long it was frozen.
+        silent: Duration,
+    },
     /// A peer speaks another protocol version and was refused.
     PeerRefused {
         /// Its node name.
@@ -56,6 +63,11 @@ impl std::fmt::Display for NetEvent {
             NetEvent::PeerDown { peer, silent } => write!(
                 f,
                 "declared {peer} down: no heartbeat for {} ms",
+                silent.as_millis()
+            ),
+            NetEvent::Frozen { silent } => write!(
+                f,
+                "was frozen for {} ms: its peers have declared it down",
                 silent.as_millis()
             ),
             NetEvent::PeerRefused { peer, theirs, ours } => write!(
@@ -199,7 +211,13 @@ impl State {
             .into_iter()
             .map(|p| p.name)
             .collect();
-        for (peer, silent) in self.detector.tick(&ready, Instant::now()) {
+        let overdue = self.detector.tick(&ready, Instant::now());
+        if let Some(silent) = self.detector.take_freeze() {
+            let event = NetEvent::Frozen { silent };
+            tracing::warn!(node = %self.args.node, "{event}");
+            let _ = self.args.events.send(event);
+        }
+        for (peer, silent) in overdue {
             let event = NetEvent::PeerDown { peer, silent };
             tracing::warn!(node = %self.args.node, "{event}");
             if let NetEvent::PeerDown { peer, .. } = &event {

@@ -296,6 +296,32 @@ impl Node {
         }
     }
 
+    /// Restart every operation instance this node runs — as a new incarnation: new actors,
+    /// no activation, no state — and stop the dynamic ones. What a node does after it was
+    /// frozen past its failure detector's deadline: its peers have declared it down and
+    /// replaced its operations, so whatever its old instances were doing is stale (the
+    /// receivers refuse their commands by epoch anyway). Restarts through the supervisors'
+    /// API, which do not count as crashes. Gives how many instances were restarted.
+    pub async fn reincarnate(&self) -> Result<usize, NodeError> {
+        let mut restarted = 0;
+        for sup in self.config.operation_supervisors() {
+            let sup = self.child_supervisor(&sup.name).await?;
+            for child in sup.which_children().await? {
+                sup.terminate_child(&child.id).await?;
+                sup.restart_child(&child.id).await?;
+                restarted += 1;
+            }
+        }
+        let dynamic = self.child_supervisor(tree::DYNAMIC).await?;
+        for child in dynamic.which_children().await? {
+            if let Some(actor) = child.state.actor() {
+                dynamic.terminate_actor(actor.get_id()).await?;
+            }
+        }
+        tracing::warn!(node = %self.config.name, restarted, "operations restarted as a new incarnation");
+        Ok(restarted)
+    }
+
     /// Read, parse and check a mission against the operations running now.
     pub async fn load_mission(&self, path: &Path) -> Result<Mission, NodeError> {
         let parsed = Mission::parse_file(path).map_err(NodeError::Mission)?;
