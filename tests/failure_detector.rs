@@ -81,7 +81,10 @@ fn a_frozen_node_is_declared_down_after_its_deadline_and_rejoins_when_it_wakes()
         "node beta restarted its 1 operation instance(s) as a new incarnation",
     );
     assert!(
-        !beta.seen().iter().any(|l| l.contains("declared alpha down")),
+        !beta
+            .seen()
+            .iter()
+            .any(|l| l.contains("declared alpha down")),
         "{:?}",
         beta.seen()
     );
