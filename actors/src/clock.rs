@@ -137,7 +137,8 @@ const PACER_SLACK: Duration = Duration::from_millis(1);
 /// let _pace = Pacer::new(100.0).spawn(); // paces until dropped
 /// let real = std::time::Instant::now();
 /// tokio::time::sleep(std::time::Duration::from_millis(500)).await; // virtual
-/// assert!(real.elapsed() >= std::time::Duration::from_millis(4)); // 500 ms / 100, less slack
+/// // 500 ms / 100 = 5 ms, less one pacer period (5 ms / 100) and the slack (1 ms)
+/// assert!(real.elapsed() >= std::time::Duration::from_millis(3));
 /// # });
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq)]
