@@ -13,8 +13,7 @@ use super::prepare::start_node;
 use marie::actors::clock::ScaledClock;
 use marie::actors::registry;
 use marie::embedded::EmbeddedOptions;
-use marie::net::{ClusterConfig, Peer, Transport};
-use std::collections::BTreeSet;
+use marie::net::{ClusterConfig, Transport};
 use std::io::Write;
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -127,18 +126,20 @@ pub async fn node(args: NodeArgs) -> anyhow::Result<ExitCode> {
     ));
     let stop = super::signal::shutdown_signal(args.stop_with_stdin);
     tokio::pin!(stop);
-    let mut seen: BTreeSet<(String, String)> = BTreeSet::new();
-    let mut changes = transport.changes();
-    let mut net = transport.events();
+    let (ready, mut net) = transport.events();
+    for peer in ready {
+        say(&format!(
+            "node {name} sees {} at {}",
+            peer.name, peer.address
+        ));
+    }
     let publisher = marie::net::publish_on(&transport, node.events().clone());
     loop {
-        report_peers(&name, &transport.peers(), &mut seen);
         tokio::select! {
             signal = &mut stop => {
                 say(&format!("node {name} stopping ({signal})"));
                 break;
             }
-            changed = changes.changed() => if changed.is_err() { break },
             event = net.recv() => if let Ok(event) = event {
                 say(&format!("node {name} {event}"));
                 if matches!(event, marie::net::NetEvent::Frozen { .. }) {
@@ -157,21 +158,6 @@ pub async fn node(args: NodeArgs) -> anyhow::Result<ExitCode> {
     node.shutdown().await;
     say(&format!("node {name} stopped"));
     Ok(ExitCode::SUCCESS)
-}
-
-/// Print the peers that appeared and those that went since `seen`.
-fn report_peers(node: &str, now: &[Peer], seen: &mut BTreeSet<(String, String)>) {
-    let current: BTreeSet<(String, String)> = now
-        .iter()
-        .map(|p| (p.name.clone(), p.address.clone()))
-        .collect();
-    for (peer, addr) in current.difference(seen) {
-        say(&format!("node {node} sees {peer} at {addr}"));
-    }
-    for (peer, addr) in seen.difference(&current) {
-        say(&format!("node {node} lost {peer} at {addr}"));
-    }
-    *seen = current;
 }
 
 /// A line on stdout, flushed at once (stdout is a pipe when a parent waits for it).

@@ -1,63 +1,111 @@
-//! The transport's news on the node's event bus: peers up, lost, declared down or refused
-//! become [`EventKind`]s, beside the dispatcher's and supervisors' events, for the events
-//! file, a remote dispatcher and the monitor.
+//! The transport's news — peers up, lost, declared down or refused, this node frozen — as
+//! [`NetEvent`]s, and on the node's event bus as [`EventKind`]s, beside the dispatcher's and
+//! supervisors' events, for the events file, a remote dispatcher and the monitor.
 
-use super::heartbeat::NetEvent;
 use super::transport::{Peer, Transport};
 use marie_actors::events::{EventBus, EventKind};
-use std::collections::BTreeSet;
+use std::time::Duration;
 use tokio::sync::broadcast::error::RecvError;
 
-/// Publish what `transport` sees on `bus` until the transport stops; abort the returned task
-/// to stop earlier.
+/// What the transport tells of its peers, as it happens.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum NetEvent {
+    /// A peer's first session became ready: its modules are in the registry.
+    PeerUp {
+        /// Its node name.
+        peer: String,
+        /// The address it listens on.
+        address: String,
+    },
+    /// A peer's last ready session ended (it left, its connection broke, or it was declared
+    /// down): its modules have left the registry.
+    PeerLost {
+        /// Its node name.
+        peer: String,
+        /// The address it listened on.
+        address: String,
+    },
+    /// A peer stayed silent past the deadline and was declared down.
+    PeerDown {
+        /// Its node name.
+        peer: String,
+        /// How long it had been silent.
+        silent: Duration,
+    },
+    /// This node itself was frozen (stopped, starved) longer than the deadline: its peers
+    /// have declared it down and replaced its operations, so it must rejoin as a new
+    /// incarnation.
+    Frozen {
+        /// How long it was frozen.
+        silent: Duration,
+    },
+    /// A peer speaks another protocol version and was refused.
+    PeerRefused {
+        /// Its node name.
+        peer: String,
+        /// Its protocol version.
+        theirs: u16,
+        /// This node's.
+        ours: u16,
+    },
+}
+
+impl std::fmt::Display for NetEvent {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            NetEvent::PeerUp { peer, address } => write!(f, "sees {peer} at {address}"),
+            NetEvent::PeerLost { peer, address } => write!(f, "lost {peer} at {address}"),
+            NetEvent::PeerDown { peer, silent } => write!(
+                f,
+                "declared {peer} down: no heartbeat for {} ms",
+                silent.as_millis()
+            ),
+            NetEvent::Frozen { silent } => write!(
+                f,
+                "was frozen for {} ms: its peers have declared it down",
+                silent.as_millis()
+            ),
+            NetEvent::PeerRefused { peer, theirs, ours } => write!(
+                f,
+                "refused {peer}: it speaks protocol version {theirs}, this node speaks \
+                 protocol version {ours}"
+            ),
+        }
+    }
+}
+
+/// Publish what `transport` tells on `bus` until the transport stops; abort the returned
+/// task to stop earlier.
 pub fn publish_on(transport: &Transport, bus: EventBus) -> tokio::task::JoinHandle<()> {
-    let mut changes = transport.changes();
-    let mut net = transport.events();
-    let sessions = transport.sessions();
+    let (ready, mut net) = transport.events();
     tokio::spawn(async move {
-        let mut seen: BTreeSet<(String, String)> = BTreeSet::new();
+        for Peer { name, address, .. } in ready {
+            bus.publish(EventKind::NodeUp {
+                peer: name,
+                address,
+            });
+        }
         loop {
-            let now: BTreeSet<(String, String)> = sessions
-                .peers()
-                .into_iter()
-                .map(|Peer { name, address, .. }| (name, address))
-                .collect();
-            for (peer, address) in now.difference(&seen) {
-                bus.publish(EventKind::NodeUp {
-                    peer: peer.clone(),
-                    address: address.clone(),
-                });
-            }
-            for (peer, address) in seen.difference(&now) {
-                bus.publish(EventKind::NodeLost {
-                    peer: peer.clone(),
-                    address: address.clone(),
-                });
-            }
-            seen = now;
-            tokio::select! {
-                changed = changes.changed() => if changed.is_err() { return },
-                event = net.recv() => match event {
-                    Ok(NetEvent::PeerDown { peer, silent }) => {
-                        bus.publish(EventKind::NodeDown {
-                            peer,
-                            silent_ms: silent.as_millis() as u64,
-                        });
-                    }
-                    Ok(NetEvent::Frozen { silent }) => {
-                        bus.publish(EventKind::NodeFrozen {
-                            silent_ms: silent.as_millis() as u64,
-                        });
-                    }
-                    Ok(NetEvent::PeerRefused { peer, theirs, ours }) => {
-                        bus.publish(EventKind::NodeRefused { peer, theirs, ours });
-                    }
-                    Err(RecvError::Lagged(n)) => {
-                        tracing::warn!("{n} transport event(s) lost before the bus");
-                    }
-                    Err(RecvError::Closed) => return,
+            let kind = match net.recv().await {
+                Ok(NetEvent::PeerUp { peer, address }) => EventKind::NodeUp { peer, address },
+                Ok(NetEvent::PeerLost { peer, address }) => EventKind::NodeLost { peer, address },
+                Ok(NetEvent::PeerDown { peer, silent }) => EventKind::NodeDown {
+                    peer,
+                    silent_ms: silent.as_millis() as u64,
                 },
-            }
+                Ok(NetEvent::Frozen { silent }) => EventKind::NodeFrozen {
+                    silent_ms: silent.as_millis() as u64,
+                },
+                Ok(NetEvent::PeerRefused { peer, theirs, ours }) => {
+                    EventKind::NodeRefused { peer, theirs, ours }
+                }
+                Err(RecvError::Lagged(n)) => {
+                    tracing::warn!("{n} transport event(s) lost before the bus");
+                    continue;
+                }
+                Err(RecvError::Closed) => return,
+            };
+            bus.publish(kind);
         }
     })
 }

@@ -15,12 +15,12 @@
 //! closed as soon as it is authenticated, before its modules reach the registry.
 
 use super::detector::{Detector, HeartbeatConfig};
+use super::events::NetEvent;
 use super::sessions::Sessions;
 use marie_actors::wire::{self, Envelope};
 use ractor::{pg, Actor, ActorProcessingErr, ActorRef};
 use serde::{Deserialize, Serialize};
-use std::time::{Duration, Instant};
-use tokio::sync::broadcast;
+use std::time::Instant;
 
 /// `pg` scope of the heartbeat actors (apart from the location table's).
 pub const SCOPE: &str = "marie-net";
@@ -28,56 +28,6 @@ pub const SCOPE: &str = "marie-net";
 pub const GROUP: &str = "heartbeat";
 /// The envelope kind of a beat.
 const KIND: &str = "heartbeat";
-
-/// What the transport tells of its peers beyond ready and lost sessions.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub enum NetEvent {
-    /// A peer stayed silent past the deadline and was declared down.
-    PeerDown {
-        /// Its node name.
-        peer: String,
-        /// How long it had been silent.
-        silent: Duration,
-    },
-    /// This node itself was frozen (stopped, starved) longer than the deadline: its peers
-    /// have declared it down and replaced its operations, so it must rejoin as a new
-    /// incarnation.
-    Frozen {
-        /// How long it was frozen.
-        silent: Duration,
-    },
-    /// A peer speaks another protocol version and was refused.
-    PeerRefused {
-        /// Its node name.
-        peer: String,
-        /// Its protocol version.
-        theirs: u16,
-        /// This node's.
-        ours: u16,
-    },
-}
-
-impl std::fmt::Display for NetEvent {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            NetEvent::PeerDown { peer, silent } => write!(
-                f,
-                "declared {peer} down: no heartbeat for {} ms",
-                silent.as_millis()
-            ),
-            NetEvent::Frozen { silent } => write!(
-                f,
-                "was frozen for {} ms: its peers have declared it down",
-                silent.as_millis()
-            ),
-            NetEvent::PeerRefused { peer, theirs, ours } => write!(
-                f,
-                "refused {peer}: it speaks protocol version {theirs}, this node speaks \
-                 protocol version {ours}"
-            ),
-        }
-    }
-}
 
 /// A beat's payload.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -108,7 +58,6 @@ pub(crate) struct HeartbeatArgs {
     pub node: String,
     pub config: HeartbeatConfig,
     pub sessions: Sessions,
-    pub events: broadcast::Sender<NetEvent>,
     /// The protocol version it claims (another than [`PROTOCOL_VERSION`] only to test
     /// refusal).
     pub protocol: u16,
@@ -215,18 +164,16 @@ impl State {
         if let Some(silent) = self.detector.take_freeze() {
             let event = NetEvent::Frozen { silent };
             tracing::warn!(node = %self.args.node, "{event}");
-            let _ = self.args.events.send(event);
+            self.args.sessions.tell(event);
         }
         for (peer, silent) in overdue {
+            self.args
+                .sessions
+                .close(&peer, "declared down: no heartbeat");
+            self.detector.forget(&peer);
             let event = NetEvent::PeerDown { peer, silent };
             tracing::warn!(node = %self.args.node, "{event}");
-            if let NetEvent::PeerDown { peer, .. } = &event {
-                self.args
-                    .sessions
-                    .close(peer, "declared down: no heartbeat");
-                self.detector.forget(peer);
-            }
-            let _ = self.args.events.send(event);
+            self.args.sessions.tell(event);
         }
     }
 
@@ -263,7 +210,7 @@ impl State {
                     ours: self.args.protocol,
                 };
                 tracing::error!(node = %self.args.node, "{event}");
-                let _ = self.args.events.send(event);
+                self.args.sessions.tell(event);
             }
             return;
         }

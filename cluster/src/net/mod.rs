@@ -35,5 +35,5 @@ mod transport;
 pub use config::{ClusterConfig, MAX_COOKIE_LEN};
 pub use detector::HeartbeatConfig;
 pub use events::publish_on;
-pub use heartbeat::NetEvent;
+pub use events::NetEvent;
 pub use transport::{Peer, Transport, TransportError};

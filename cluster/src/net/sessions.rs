@@ -1,6 +1,7 @@
 //! Who the node sees: ractor_cluster's session callbacks turned into a table of ready peers,
 //! and the names behind session numbers recorded in the registry.
 
+use super::events::NetEvent;
 use super::transport::Peer;
 use marie_actors::registry;
 use ractor::ActorRef;
@@ -9,7 +10,7 @@ use ractor_cluster::NodeEventSubscription;
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
-use tokio::sync::watch;
+use tokio::sync::{broadcast, watch};
 
 /// An open session: the peer's node name once authenticated, and the session's actor.
 type OpenSession = (Option<String>, ActorRef<NodeSessionMessage>);
@@ -21,6 +22,9 @@ pub(crate) struct Sessions {
     /// Every open session's actor, by session number: what closing a peer stops.
     actors: Arc<Mutex<BTreeMap<u64, OpenSession>>>,
     changed: watch::Sender<u64>,
+    /// What the transport tells ([`NetEvent`]): peers up and lost from here, the rest from
+    /// the heartbeat.
+    events: broadcast::Sender<NetEvent>,
     node: String,
     /// Peers refused (another protocol version): a session with one is closed as soon as
     /// it is authenticated, before its modules reach the registry.
@@ -34,15 +38,26 @@ impl Sessions {
             actors: Arc::default(),
             refused: Arc::default(),
             changed: watch::Sender::new(0),
+            events: broadcast::Sender::new(256),
             node: node.to_string(),
         }
     }
 
-    /// The peers ready now, by name.
+    /// The peers ready now, by name (one entry per peer, however many sessions).
     pub(crate) fn peers(&self) -> Vec<Peer> {
-        let mut peers: Vec<Peer> = self.table().values().cloned().collect();
-        peers.sort_by(|a, b| a.name.cmp(&b.name));
-        peers
+        peers_of(&self.table())
+    }
+
+    /// Tell `event` to whoever listens ([`Sessions::listen`]).
+    pub(crate) fn tell(&self, event: NetEvent) {
+        let _ = self.events.send(event);
+    }
+
+    /// The peers ready now and the transport's news from then on: peers are told up and
+    /// lost under the table's lock, so none is missed or told twice.
+    pub(crate) fn listen(&self) -> (Vec<Peer>, broadcast::Receiver<NetEvent>) {
+        let table = self.table();
+        (peers_of(&table), self.events.subscribe())
     }
 
     /// A receiver that sees every change of the table.
@@ -59,11 +74,13 @@ impl Sessions {
             .lock()
             .unwrap_or_else(|e| e.into_inner())
             .insert(peer.to_string());
-        let (this, peer) = (self.clone(), peer.to_string());
-        tokio::spawn(async move {
-            tokio::time::sleep(grace).await;
-            this.close(&peer, reason);
-        });
+        if new {
+            let (this, peer) = (self.clone(), peer.to_string());
+            tokio::spawn(async move {
+                tokio::time::sleep(grace).await;
+                this.close(&peer, reason);
+            });
+        }
         new
     }
 
@@ -93,6 +110,14 @@ impl Sessions {
     fn bump(&self) {
         self.changed.send_modify(|n| *n += 1);
     }
+}
+
+/// The peers of a session table, by name, one entry per peer.
+fn peers_of(table: &BTreeMap<u64, Peer>) -> Vec<Peer> {
+    let mut peers: Vec<Peer> = table.values().cloned().collect();
+    peers.sort_by(|a, b| a.name.cmp(&b.name));
+    peers.dedup_by(|a, b| a.name == b.name);
+    peers
 }
 
 /// `name@host` → `name` (marie's node names have no `@`).
@@ -138,9 +163,18 @@ impl NodeEventSubscription for Sessions {
             address: name.connection_string.clone(),
             session: ses.node_id,
         };
-        registry::set_peer_node_name(ses.node_id, &peer.name);
         tracing::info!(node = %self.node, peer = %peer.name, address = %peer.address, "sees peer");
-        self.table().insert(ses.node_id, peer);
+        {
+            let mut table = self.table();
+            // a second session with the same peer (both dialed at once) is no news
+            if !table.values().any(|p| p.name == peer.name) {
+                self.tell(NetEvent::PeerUp {
+                    peer: peer.name.clone(),
+                    address: peer.address.clone(),
+                });
+            }
+            table.insert(ses.node_id, peer);
+        }
         self.bump();
     }
 
@@ -149,7 +183,19 @@ impl NodeEventSubscription for Sessions {
             .lock()
             .unwrap_or_else(|e| e.into_inner())
             .remove(&ses.node_id);
-        let gone = self.table().remove(&ses.node_id);
+        let gone = {
+            let mut table = self.table();
+            let gone = table.remove(&ses.node_id);
+            if let Some(peer) = &gone {
+                if !table.values().any(|p| p.name == peer.name) {
+                    self.tell(NetEvent::PeerLost {
+                        peer: peer.name.clone(),
+                        address: peer.address.clone(),
+                    });
+                }
+            }
+            gone
+        };
         if let Some(peer) = gone {
             tracing::info!(node = %self.node, peer = %peer.name, address = %peer.address, "lost peer");
             self.bump();

@@ -1,7 +1,8 @@
 //! Starting and stopping a node's transport, and dialing its peers until they answer.
 
 use super::config::ClusterConfig;
-use super::heartbeat::{Heartbeat, HeartbeatArgs, NetEvent};
+use super::events::NetEvent;
+use super::heartbeat::{Heartbeat, HeartbeatArgs};
 use super::sessions::Sessions;
 use marie_actors::registry;
 use ractor::{Actor, ActorRef};
@@ -65,7 +66,6 @@ pub struct Transport {
     dialers: Vec<JoinHandle<()>>,
     heartbeat: ActorRef<super::heartbeat::BeatMsg>,
     heartbeat_handle: JoinHandle<()>,
-    events: tokio::sync::broadcast::Sender<NetEvent>,
 }
 
 impl Transport {
@@ -102,7 +102,6 @@ impl Transport {
                 addr: listen,
                 reason: e.to_string(),
             })?;
-        let (events, _) = tokio::sync::broadcast::channel(256);
         let (heartbeat, heartbeat_handle) = Actor::spawn(
             None,
             Heartbeat,
@@ -110,7 +109,6 @@ impl Transport {
                 node: node.to_string(),
                 config: config.heartbeat,
                 sessions: sessions.clone(),
-                events: events.clone(),
                 protocol: config.protocol,
             },
         )
@@ -141,18 +139,14 @@ impl Transport {
             dialers,
             heartbeat,
             heartbeat_handle,
-            events,
         })
     }
 
-    /// The session table (for [`super::publish_on`]).
-    pub(crate) fn sessions(&self) -> Sessions {
-        self.sessions.clone()
-    }
-
-    /// Peers declared down or refused, as they happen.
-    pub fn events(&self) -> tokio::sync::broadcast::Receiver<NetEvent> {
-        self.events.subscribe()
+    /// The peers ready now, and what happens from then on: peers up, lost, declared down,
+    /// refused — and this node frozen — none missed or told twice. A receiver that falls
+    /// 256 events behind loses the oldest.
+    pub fn events(&self) -> (Vec<Peer>, tokio::sync::broadcast::Receiver<NetEvent>) {
+        self.sessions.listen()
     }
 
     /// This node's name.
@@ -168,11 +162,6 @@ impl Transport {
     /// The peers it has a ready session with now, by name.
     pub fn peers(&self) -> Vec<Peer> {
         self.sessions.peers()
-    }
-
-    /// A receiver that wakes whenever a peer appears or goes (then read [`Transport::peers`]).
-    pub fn changes(&self) -> tokio::sync::watch::Receiver<u64> {
-        self.sessions.subscribe()
     }
 
     /// Wait until at least `n` peers are ready (their modules are then in the registry:
