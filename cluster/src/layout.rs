@@ -28,8 +28,9 @@
 //! ```
 
 use crate::net::MAX_COOKIE_LEN;
+use crate::node::config::socket_addr;
 use crate::node::NodeConfig;
-use marie_actors::diagnostic::toml::{Reader, Rule};
+use marie_actors::diagnostic::toml::{Reader, Rule, Tbl};
 use marie_actors::diagnostic::{read_source, Diagnostic, Diagnostics};
 use marie_actors::eo::OperationFactory;
 use std::net::SocketAddr;
@@ -38,6 +39,25 @@ use std::path::{Path, PathBuf};
 /// Slowest and fastest speed factor of a cluster (it runs on the wall clock: a step period
 /// must stay long against a message's trip between processes).
 pub const SPEED_RANGE: (f64, f64) = (0.01, 20.0);
+
+/// What a cluster's speed factor must be, for messages.
+pub fn speed_expected() -> String {
+    let (lo, hi) = SPEED_RANGE;
+    format!(
+        "expected a factor of real time from {lo} to {hi} (a cluster runs on the wall clock, \
+         the same factor on every node)"
+    )
+}
+
+/// `speed` if it is a cluster's speed factor (within [`SPEED_RANGE`]), else why not.
+pub fn cluster_speed(speed: f64) -> Result<f64, String> {
+    let (lo, hi) = SPEED_RANGE;
+    if (lo..=hi).contains(&speed) {
+        Ok(speed)
+    } else {
+        Err(format!("{}, got {speed}", speed_expected()))
+    }
+}
 
 /// A cluster file, checked.
 #[derive(Clone, Debug)]
@@ -71,17 +91,8 @@ impl ClusterLayout {
     /// Read and check a cluster file and every node config it names, against `catalog`.
     pub fn load(path: &Path, catalog: &[OperationFactory]) -> Result<ClusterLayout, Diagnostics> {
         let src = read_source(path, "cluster file")?;
-        let file = path.display().to_string();
         let dir = path.parent().unwrap_or(Path::new(""));
-        let resolve = |p: String| {
-            let p = PathBuf::from(p);
-            if p.is_relative() {
-                dir.join(p)
-            } else {
-                p
-            }
-        };
-        let mut r = Reader::new(&src, file);
+        let mut r = Reader::new(&src, path.display().to_string());
         let Some(doc) = r.parse() else {
             return r.finish(None, "the cluster file is not valid");
         };
@@ -95,36 +106,15 @@ impl ClusterLayout {
             seed: None,
             nodes: Vec::new(),
         };
-        match top.get("cluster") {
+        match top.get("cluster").map(|v| r.table(v, "[cluster]")) {
             None => r.err(
                 &(0..0),
                 "missing table `[cluster]` (expected `cookie = \"...\"`)",
             ),
-            Some(v) => {
-                if let Some(t) = r.table(v, "[cluster]") {
-                    r.unknown_keys(&t, &["cookie", "speed", "world", "seed"]);
-                    if let Some(cookie) = r.required_string(&t, "cookie") {
-                        if cookie.len() > MAX_COOKIE_LEN {
-                            let span = t.get("cookie").map(|v| v.span()).unwrap_or(0..0);
-                            r.err(
-                                &span,
-                                format!("`cookie` is longer than {MAX_COOKIE_LEN} bytes"),
-                            );
-                        }
-                        layout.cookie = cookie;
-                    }
-                    let (lo, hi) = SPEED_RANGE;
-                    layout.speed = r
-                        .num(&t, "speed", Some(1.0), Rule::Within(lo, hi))
-                        .unwrap_or(1.0);
-                    layout.world = r.string(&t, "world").map(resolve);
-                    layout.seed = r
-                        .integer(&t, "seed", Some(-1), 0..=i64::MAX)
-                        .filter(|s| *s >= 0 && t.get("seed").is_some())
-                        .map(|s| s as u64);
-                }
-            }
+            Some(Some(t)) => layout.read_cluster_table(&mut r, &t, dir),
+            Some(None) => {}
         }
+        // a node config's own diagnostics follow the line that names it, after this file's
         let mut nested: Vec<Diagnostic> = Vec::new();
         match top.get("node") {
             None => r.err(
@@ -133,65 +123,99 @@ impl ClusterLayout {
             ),
             Some(v) => {
                 for t in r.table_array(v, "node").into_iter().flatten() {
-                    r.unknown_keys(&t, &["config", "listen"]);
-                    let listen = t.get("listen").and_then(|v| {
-                        let s = r.string_value(v, "listen")?;
-                        match s.parse::<SocketAddr>() {
-                            Ok(a) => Some(a),
-                            Err(_) => {
-                                r.err(
-                                    &v.span(),
-                                    format!("`listen`: `{s}` is not an address (IP:PORT)"),
-                                );
-                                None
-                            }
-                        }
-                    });
-                    let Some(config_at) = t.get("config").map(|v| v.span()) else {
-                        r.err(&t.span, "missing `config` in [[node]] (a node config file)");
-                        continue;
-                    };
-                    let Some(config) = r.required_string(&t, "config") else {
-                        continue;
-                    };
-                    let node_path = resolve(config);
-                    match NodeConfig::load(&node_path, catalog) {
-                        Ok(config) => {
-                            if let Some(twin) =
-                                layout.nodes.iter().find(|n| n.config.name == config.name)
-                            {
-                                r.err(
-                                    &config_at,
-                                    format!(
-                                        "node `{}` is already named by {}: node names must \
-                                         differ within a cluster",
-                                        config.name,
-                                        twin.path.display()
-                                    ),
-                                );
-                                continue;
-                            }
-                            layout.nodes.push(LayoutNode {
-                                path: node_path,
-                                config,
-                                listen,
-                            });
-                        }
-                        Err(diags) => {
-                            nested.push(Diagnostic::at(
-                                r.file(),
-                                r.pos(&config_at),
-                                "the node config named here does not load:",
-                            ));
-                            nested.extend(diags);
-                        }
-                    }
+                    layout.read_node(&mut r, &t, dir, catalog, &mut nested);
                 }
             }
         }
         let mut all = r.into_diagnostics();
         all.extend(nested);
         Diagnostics(all).into_result(layout)
+    }
+
+    /// `[cluster]`: cookie, speed, world, seed.
+    fn read_cluster_table(&mut self, r: &mut Reader<'_>, t: &Tbl<'_, '_>, dir: &Path) {
+        r.unknown_keys(t, &["cookie", "speed", "world", "seed"]);
+        if let Some(cookie) = r.required_string(t, "cookie") {
+            if cookie.len() > MAX_COOKIE_LEN {
+                let span = t.get("cookie").map(|v| v.span()).unwrap_or(0..0);
+                r.err(
+                    &span,
+                    format!("`cookie` is longer than {MAX_COOKIE_LEN} bytes"),
+                );
+            }
+            self.cookie = cookie;
+        }
+        let (lo, hi) = SPEED_RANGE;
+        self.speed = r
+            .num(t, "speed", Some(1.0), Rule::Within(lo, hi))
+            .unwrap_or(1.0);
+        self.world = r.string(t, "world").map(|w| resolve(dir, w));
+        self.seed = r
+            .integer(t, "seed", Some(-1), 0..=i64::MAX)
+            .filter(|s| *s >= 0 && t.get("seed").is_some())
+            .map(|s| s as u64);
+    }
+
+    /// One `[[node]]`: its config file loaded and checked, its name not yet taken.
+    fn read_node(
+        &mut self,
+        r: &mut Reader<'_>,
+        t: &Tbl<'_, '_>,
+        dir: &Path,
+        catalog: &[OperationFactory],
+        nested: &mut Vec<Diagnostic>,
+    ) {
+        r.unknown_keys(t, &["config", "listen"]);
+        let listen = t.get("listen").and_then(|v| {
+            let s = r.string_value(v, "listen")?;
+            socket_addr(r, &s, &v.span(), "listen")
+        });
+        let Some(config_at) = t.get("config").map(|v| v.span()) else {
+            r.err(&t.span, "missing `config` in [[node]] (a node config file)");
+            return;
+        };
+        let Some(file) = r.required_string(t, "config") else {
+            return;
+        };
+        let path = resolve(dir, file);
+        let config = match NodeConfig::load(&path, catalog) {
+            Ok(config) => config,
+            Err(diags) => {
+                nested.push(Diagnostic::at(
+                    r.file(),
+                    r.pos(&config_at),
+                    "the node config named here does not load:",
+                ));
+                nested.extend(diags);
+                return;
+            }
+        };
+        if let Some(twin) = self.nodes.iter().find(|n| n.config.name == config.name) {
+            r.err(
+                &config_at,
+                format!(
+                    "node `{}` is already named by {}: node names must differ within a cluster",
+                    config.name,
+                    twin.path.display()
+                ),
+            );
+            return;
+        }
+        self.nodes.push(LayoutNode {
+            path,
+            config,
+            listen,
+        });
+    }
+}
+
+/// `file` relative to the cluster file's directory (absolute paths stay).
+fn resolve(dir: &Path, file: String) -> PathBuf {
+    let file = PathBuf::from(file);
+    if file.is_relative() {
+        dir.join(file)
+    } else {
+        file
     }
 }
 

@@ -64,20 +64,12 @@ pub fn parse_speed(s: &str) -> Result<f64, String> {
     }
 }
 
-/// Fastest speed factor of a cluster: its nodes run on the wall clock (no shared virtual
-/// clock across processes), so a step period must stay long against a message's trip between
-/// processes and the scheduling of two cores.
-pub const CLUSTER_FASTEST: f64 = 20.0;
-
-/// `--speed` of a cluster member (`node`, `up`, `run --join`): a factor of real time from
-/// [`SLOWEST`] to [`CLUSTER_FASTEST`]; `max` is refused (a cluster runs on the wall clock).
+/// `--speed` of a cluster member (`node`, `up`): a factor within
+/// [`marie::layout::SPEED_RANGE`]; `max` is refused (a cluster runs on the wall clock).
 pub fn parse_cluster_speed(s: &str) -> Result<f64, String> {
     match s.parse::<f64>() {
-        Ok(x) if (SLOWEST..=CLUSTER_FASTEST).contains(&x) => Ok(x),
-        _ => Err(format!(
-            "expected a factor of real time from {SLOWEST} to {CLUSTER_FASTEST} (a cluster \
-             runs on the wall clock, the same factor on every node), got {s:?}"
-        )),
+        Ok(x) => marie::layout::cluster_speed(x),
+        Err(_) => Err(format!("{}, got {s:?}", marie::layout::speed_expected())),
     }
 }
 

@@ -1,9 +1,8 @@
 //! `marie check MISSION`: load and check a mission (and its world) without running it.
 
 use super::args::RobotArgs;
-use super::error::BadInput;
-use super::join::{member_name, JoinArgs};
-use super::prepare::{prepare, Joining};
+use super::join::JoinArgs;
+use super::prepare::prepare;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -26,21 +25,7 @@ pub async fn check(args: CheckArgs) -> anyhow::Result<ExitCode> {
         robot,
         cluster,
     } = args;
-    let joining = match cluster.target() {
-        Some(_) if robot.node.is_some() => {
-            return Err(BadInput(
-                "--join checks against a running cluster: --node starts a node of its own".into(),
-            )
-            .into())
-        }
-        Some((addr, cookie)) => Some(Joining {
-            me: member_name("check"),
-            addr,
-            cookie: cookie.to_string(),
-            speed: 1.0,
-        }),
-        None => None,
-    };
+    let joining = cluster.joining("check", &robot, 1.0)?;
     let prepared = prepare(&mission, robot, joining.as_ref()).await?;
     let m = &prepared.mission;
     println!(

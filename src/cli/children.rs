@@ -115,7 +115,12 @@ impl NodeChild {
     /// Returns its exit code (`None` when killed by a signal).
     pub fn stop(&mut self) -> Option<i32> {
         self.stdin.take();
-        let deadline = Instant::now() + STOP_GRACE;
+        self.wait_until(Instant::now() + STOP_GRACE)
+    }
+
+    /// Wait for it to exit until `deadline`, then kill it. Polling: a child's exit has no
+    /// wait with a deadline in std.
+    fn wait_until(&mut self, deadline: Instant) -> Option<i32> {
         loop {
             match self.child.try_wait() {
                 Ok(Some(status)) => return status.code(),
@@ -138,9 +143,11 @@ pub fn stop_all(children: &mut [NodeChild]) -> Vec<(String, Option<i32>)> {
     for c in children.iter_mut() {
         c.stdin.take();
     }
+    // one grace for all: they stop side by side
+    let deadline = Instant::now() + STOP_GRACE;
     children
         .iter_mut()
-        .map(|c| (c.name.clone(), c.stop()))
+        .map(|c| (c.name.clone(), c.wait_until(deadline)))
         .collect()
 }
 

@@ -4,6 +4,7 @@
 
 use super::args::RobotArgs;
 use super::error::BadInput;
+use super::prepare::Joining;
 use marie::net::{ClusterConfig, Peer, Transport};
 use std::net::SocketAddr;
 use std::time::Duration;
@@ -30,6 +31,33 @@ impl JoinArgs {
     /// The address and cookie, when `--join` was given.
     pub fn target(&self) -> Option<(SocketAddr, &str)> {
         Some((self.join?, self.cookie.as_deref()?))
+    }
+
+    /// The member a mission verb (`run`, `check`) joins as, when `--join` was given: it
+    /// hosts the dispatcher (and judges with `--world`), so only `--node` is refused. `speed`
+    /// is the cluster's factor, checked.
+    pub fn joining(
+        &self,
+        verb: &str,
+        robot: &RobotArgs,
+        speed: f64,
+    ) -> Result<Option<Joining>, BadInput> {
+        let Some((addr, cookie)) = self.target() else {
+            return Ok(None);
+        };
+        if robot.node.is_some() {
+            return Err(BadInput(format!(
+                "--join {verb}s in a running cluster: --node starts a node of its own"
+            )));
+        }
+        let speed = marie::layout::cluster_speed(speed)
+            .map_err(|e| BadInput(format!("--speed with --join: {e}")))?;
+        Ok(Some(Joining {
+            me: member_name(verb),
+            addr,
+            cookie: cookie.to_string(),
+            speed,
+        }))
     }
 
     /// [`JoinArgs::target`] for a verb that otherwise starts a node of its own: `--node`

@@ -5,9 +5,9 @@ use super::args::{parse_fault, parse_seed, parse_speed, RobotArgs};
 use super::error::BadInput;
 use super::events_file::EventsFile;
 use super::files;
-use super::join::{member_name, JoinArgs};
+use super::join::JoinArgs;
 use super::output::{not_found, outcome_line, print_event, print_faults};
-use super::prepare::{prepare, Joining, Prepared};
+use super::prepare::{prepare, Prepared};
 use anyhow::Context;
 use marie::actors::clock::Pacer;
 use marie::actors::dispatcher::{Outcome, RunReport};
@@ -74,28 +74,7 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         chaos,
         cluster,
     } = args;
-    let joining = match cluster.target() {
-        Some((addr, cookie)) => {
-            if robot.node.is_some() {
-                return Err(BadInput(
-                    "--join runs the dispatcher in a running cluster: --node starts a node of \
-                     its own"
-                        .into(),
-                )
-                .into());
-            }
-            let speed = speed.unwrap_or(1.0);
-            super::args::parse_cluster_speed(&speed.to_string())
-                .map_err(|e| BadInput(format!("--speed with --join: {e}")))?;
-            Some(Joining {
-                me: member_name("run"),
-                addr,
-                cookie: cookie.to_string(),
-                speed,
-            })
-        }
-        None => None,
-    };
+    let joining = cluster.joining("run", &robot, speed.unwrap_or(1.0))?;
     // outputs first: a run must not end in a report it cannot write
     if let Some(p) = &report_path {
         files::output("--report", p)?;

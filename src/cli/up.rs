@@ -261,6 +261,7 @@ async fn converged(
 ) -> anyhow::Result<Vec<Instance>> {
     let me = member_name("up");
     let transport = join(&me, launches[0].listen, cookie).await?;
+    // watching before the first listing: no change between the two goes unseen
     let mut watch = registry::watch(None).await?;
     let wait = async {
         loop {
@@ -269,14 +270,16 @@ async fn converged(
                 .filter(|i| i.node != me)
                 .collect();
             if list.len() >= total {
-                return list;
+                return Some(list);
             }
-            let _ = tokio::time::timeout(Duration::from_millis(200), watch.next()).await;
+            watch.next().await?;
+            // a node's modules arrive in a burst: list again once per burst, not per module
+            while watch.try_next().is_some() {}
         }
     };
     let result = tokio::time::timeout(START_TIMEOUT, wait).await;
     transport.stop().await;
-    result.map_err(|_| {
+    result.ok().flatten().ok_or_else(|| {
         anyhow::anyhow!(
             "the registry did not converge within {START_TIMEOUT:?}: {} of {total} modules seen",
             registry::list().len()

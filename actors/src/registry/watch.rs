@@ -34,6 +34,11 @@ impl Watch {
     pub async fn next(&mut self) -> Option<RegistryEvent> {
         self.rx.recv().await
     }
+
+    /// The next event if one is already there (to take a burst of joins at once).
+    pub fn try_next(&mut self) -> Option<RegistryEvent> {
+        self.rx.try_recv().ok()
+    }
 }
 
 impl Drop for Watch {

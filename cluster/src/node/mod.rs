@@ -166,7 +166,8 @@ pub struct Node {
     bus: EventBus,
     _registry: Option<RegistryBridge>,
     bridges: Vec<tokio::task::JoinHandle<()>>,
-    catalog: Vec<OperationFactory>,
+    /// Starts instances on request (the node's own and the provisioner's).
+    starter: provisioner::Starter,
     clock: SharedClock,
     root: SupervisorRef,
     robot: Option<Arc<dyn Robot>>,
@@ -197,12 +198,19 @@ impl Node {
         let (root, _) = tree::start_root(children).await?;
         let bridges = events::bridge_supervisors(&bus, &root).await;
         tracing::info!(node = %config.name, "node started");
+        let starter = provisioner::Starter {
+            node: config.name.clone(),
+            operations: config.operations.clone(),
+            catalog: options.catalog,
+            clock: options.clock.clone(),
+            root: root.clone(),
+        };
         let mut node = Node {
             config,
             bus,
             _registry: registry,
             bridges,
-            catalog: options.catalog,
+            starter,
             clock: options.clock,
             root,
             robot: options.robot,
@@ -210,7 +218,7 @@ impl Node {
             provisioner: None,
         };
         if !node.config.operations.is_empty() {
-            match ractor::Actor::spawn(None, provisioner::Provisioner, node.starter()).await {
+            match ractor::Actor::spawn(None, provisioner::Provisioner, node.starter.clone()).await {
                 Ok((actor, _)) => node.provisioner = Some(actor),
                 Err(e) => tracing::warn!("the node will not start instances on request: {e}"),
             }
@@ -241,14 +249,7 @@ impl Node {
 
     /// One of the root's child supervisors by name, as it is now.
     pub async fn child_supervisor(&self, id: &str) -> Result<SupervisorRef, NodeError> {
-        self.root
-            .which_children()
-            .await?
-            .into_iter()
-            .find(|c| c.id == id)
-            .and_then(|c| c.state.actor().cloned())
-            .and_then(SupervisorRef::from_cell)
-            .ok_or_else(|| NodeError::Supervisor(SupervisorError::NotFound(id.to_string())))
+        tree::child_supervisor(&self.root, id).await
     }
 
     /// The node's event bus: every dispatcher, binding, supervisor, registry, fault and robot
@@ -284,16 +285,7 @@ impl Node {
         name: &str,
         version: &semver::VersionReq,
     ) -> Result<ActorCell, NodeError> {
-        self.starter().start(name, version).await
-    }
-
-    fn starter(&self) -> provisioner::Starter {
-        provisioner::Starter {
-            config: self.config.clone(),
-            catalog: self.catalog.clone(),
-            clock: self.clock.clone(),
-            root: self.root.clone(),
-        }
+        self.starter.start(name, version).await
     }
 
     /// Restart every operation instance this node runs — as a new incarnation: new actors,

@@ -3,18 +3,20 @@
 //! when no compatible instance runs anywhere.
 
 use super::tree;
-use super::{NodeConfig, NodeError};
+use super::{NodeError, OperationConfig};
 use marie_actors::clock::SharedClock;
 use marie_actors::eo::{HostOptions, OperationFactory};
 use marie_actors::provision::{self, ProvisionMsg};
-use marie_supervision::{SupervisorError, SupervisorRef};
+use marie_supervision::SupervisorRef;
 use ractor::{Actor, ActorCell, ActorProcessingErr, ActorRef};
 
-/// What starting an instance needs: the config (what is allowed), the catalogue (how to
-/// build it), the clock, and the root supervisor (whose `dynamic` child starts it).
+/// What starting an instance needs: what the config allows (its operations), the catalogue
+/// (how to build them), the clock, and the root supervisor (whose `dynamic` child starts
+/// them). Built once by the node; the provisioner holds a clone.
 #[derive(Clone)]
 pub(crate) struct Starter {
-    pub(crate) config: NodeConfig,
+    pub(crate) node: String,
+    pub(crate) operations: Vec<OperationConfig>,
     pub(crate) catalog: Vec<OperationFactory>,
     pub(crate) clock: SharedClock,
     pub(crate) root: SupervisorRef,
@@ -28,7 +30,6 @@ impl Starter {
         version: &semver::VersionReq,
     ) -> Result<ActorCell, NodeError> {
         let chosen = self
-            .config
             .operations
             .iter()
             .flat_map(|op| {
@@ -40,35 +41,24 @@ impl Starter {
             .max_by_key(|f| f.semver());
         let Some(factory) = chosen else {
             let allowed: Vec<String> = self
-                .config
                 .operations
                 .iter()
                 .map(|o| format!("{}@{}", o.name, o.version))
                 .collect();
             return Err(NodeError::NotAllowed {
-                node: self.config.name.clone(),
+                node: self.node.clone(),
                 operation: format!("{name}@{version}"),
                 allowed: allowed.join(", "),
             });
         };
-        let sup = self
-            .root
-            .which_children()
+        let cell = tree::child_supervisor(&self.root, tree::DYNAMIC)
             .await?
-            .into_iter()
-            .find(|c| c.id == tree::DYNAMIC)
-            .and_then(|c| c.state.actor().cloned())
-            .and_then(SupervisorRef::from_cell)
-            .ok_or_else(|| {
-                NodeError::Supervisor(SupervisorError::NotFound(tree::DYNAMIC.to_string()))
-            })?;
-        let cell = sup
             .start_dynamic(tree::DynamicOp {
                 factory: factory.clone(),
                 host: HostOptions::with_clock(self.clock.clone()),
             })
             .await?;
-        tracing::info!(node = %self.config.name, op = %factory.key(), "dynamic instance started");
+        tracing::info!(node = %self.node, op = %factory.key(), "dynamic instance started");
         Ok(cell)
     }
 }
@@ -104,7 +94,7 @@ impl Actor for Provisioner {
         let answer = match semver::VersionReq::parse(&version) {
             Err(e) => Err(format!("`{version}` is not a version requirement: {e}")),
             Ok(req) => match starter.start(&operation, &req).await {
-                Ok(_) => Ok(starter.config.name.clone()),
+                Ok(_) => Ok(starter.node.clone()),
                 Err(e) => Err(e.to_string()),
             },
         };

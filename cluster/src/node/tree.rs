@@ -3,6 +3,7 @@
 
 use super::config::{NodeConfig, DEFAULT_PERIOD, DEFAULT_RESTARTS, OPERATIONS};
 use super::robot::AprioriRecord;
+use super::NodeError;
 use super::{NodeOptions, OPERATION_SHUTDOWN};
 use marie_actors::clock::SharedClock;
 use marie_actors::dispatcher::DispatcherMsg;
@@ -219,4 +220,18 @@ fn datamanagers(
             })
         })
         .collect()
+}
+
+/// The root's child supervisor `id`, as it is now (a new actor after it was restarted).
+pub(crate) async fn child_supervisor(
+    root: &SupervisorRef,
+    id: &str,
+) -> Result<SupervisorRef, NodeError> {
+    root.which_children()
+        .await?
+        .into_iter()
+        .find(|c| c.id == id)
+        .and_then(|c| c.state.actor().cloned())
+        .and_then(SupervisorRef::from_cell)
+        .ok_or_else(|| NodeError::Supervisor(SupervisorError::NotFound(id.to_string())))
 }

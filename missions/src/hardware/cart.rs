@@ -346,6 +346,11 @@ impl CartClient {
         self.fence = fence;
     }
 
+    /// The fence its commands carry.
+    pub fn fence(&self) -> &Fence {
+        &self.fence
+    }
+
     /// The cart found in the registry.
     pub fn lookup() -> Result<Self, CartError> {
         registry::lookup(ModuleKind::Hardware, CART_NAME)

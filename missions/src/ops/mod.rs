@@ -36,7 +36,10 @@ pub(crate) fn cart<'s>(
     let client = slot
         .as_mut()
         .ok_or_else(|| OpError::failed("no virtual cart is running"))?;
-    client.set_fence(ctx.fence());
+    // the slot is one operation's: only the epoch changes, once per activation
+    if client.fence().epoch != ctx.epoch() {
+        client.set_fence(ctx.fence());
+    }
     Ok(client)
 }
 

@@ -374,7 +374,12 @@ fn cluster(r: &mut Reader<'_>, t: &Tbl<'_, '_>, node: &str) -> Option<ClusterCon
 }
 
 /// `IP:PORT`, or a diagnostic at `span`.
-fn socket_addr(r: &mut Reader<'_>, s: &str, span: &Span, field: &str) -> Option<SocketAddr> {
+pub(crate) fn socket_addr(
+    r: &mut Reader<'_>,
+    s: &str,
+    span: &Span,
+    field: &str,
+) -> Option<SocketAddr> {
     match s.parse() {
         Ok(a) => Some(a),
         Err(_) => {

@@ -49,6 +49,8 @@
 
 mod load;
 
+pub(crate) use load::socket_addr;
+
 use marie_actors::diagnostic::Diagnostic;
 use marie_actors::dm::{self, DmSpec};
 use marie_actors::eo::OperationFactory;
