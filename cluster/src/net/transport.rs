@@ -16,6 +16,9 @@ use tokio::task::JoinHandle;
 const REDIAL_MIN: Duration = Duration::from_millis(100);
 /// Longest wait between two dials of an absent peer.
 const REDIAL_MAX: Duration = Duration::from_secs(2);
+/// Longest a dial may take: a peer behind a partition drops our SYNs silently, and the
+/// kernel would retry them for minutes — long after the partition healed.
+const DIAL_TIMEOUT: Duration = Duration::from_secs(2);
 
 /// A peer node the transport has a ready session with.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -242,9 +245,12 @@ async fn dial_while_absent(
             }
             continue;
         }
-        match ractor_cluster::client_connect(&server, addr).await {
-            Ok(()) => tracing::debug!(%node, peer = %addr, "dialed"),
-            Err(e) => tracing::debug!(%node, peer = %addr, error = %e, "dial failed"),
+        match tokio::time::timeout(DIAL_TIMEOUT, ractor_cluster::client_connect(&server, addr))
+            .await
+        {
+            Ok(Ok(())) => tracing::debug!(%node, peer = %addr, "dialed"),
+            Ok(Err(e)) => tracing::debug!(%node, peer = %addr, error = %e, "dial failed"),
+            Err(_) => tracing::debug!(%node, peer = %addr, "dial timed out"),
         }
         // give the handshake its time, or back off; wake early on any session change
         let _ = tokio::time::timeout(backoff, changes.changed()).await;
