@@ -5,8 +5,9 @@
 use super::args::RobotArgs;
 use super::error::BadInput;
 use super::prepare::Joining;
-use marie::net::{ClusterConfig, Peer, Transport};
+use marie::net::{ClusterConfig, Peer, TlsFiles, Transport};
 use std::net::SocketAddr;
+use std::path::PathBuf;
 use std::time::Duration;
 
 /// How long a joining command waits for the node it dials.
@@ -25,12 +26,49 @@ pub struct JoinArgs {
     /// The cluster's cookie (with `--join`).
     #[arg(long, value_name = "C", requires = "join")]
     pub cookie: Option<String>,
+    /// With `--join` to a cluster that runs mutual TLS: this member's certificate (PEM),
+    /// signed by the cluster's CA.
+    #[arg(long, value_name = "FILE", requires_all = ["join", "tls_key", "tls_ca"])]
+    pub tls_cert: Option<PathBuf>,
+    /// This member's private key (PEM), with `--tls-cert`.
+    #[arg(long, value_name = "FILE", requires = "tls_cert")]
+    pub tls_key: Option<PathBuf>,
+    /// The cluster's CA certificate (PEM), with `--tls-cert`.
+    #[arg(long, value_name = "FILE", requires = "tls_cert")]
+    pub tls_ca: Option<PathBuf>,
+    /// The name the nodes' certificates carry (default: the node's IP address).
+    #[arg(long, value_name = "NAME", requires = "tls_cert")]
+    pub tls_server_name: Option<String>,
+}
+
+/// Where and how a command joins a running cluster.
+#[derive(Debug, Clone)]
+pub struct Target {
+    /// Any node of the cluster.
+    pub addr: SocketAddr,
+    /// The cluster's cookie.
+    pub cookie: String,
+    /// This member's TLS files, for a cluster that runs TLS.
+    pub tls: Option<TlsFiles>,
 }
 
 impl JoinArgs {
-    /// The address and cookie, when `--join` was given.
-    pub fn target(&self) -> Option<(SocketAddr, &str)> {
-        Some((self.join?, self.cookie.as_deref()?))
+    /// Where to join, when `--join` was given.
+    pub fn target(&self) -> Option<Target> {
+        let tls = match (&self.tls_cert, &self.tls_key, &self.tls_ca) {
+            (Some(cert), Some(key), Some(ca)) => Some(TlsFiles {
+                cert: cert.clone(),
+                key: key.clone(),
+                ca: ca.clone(),
+                server_name: self.tls_server_name.clone(),
+            }),
+            _ => None,
+        };
+        Some(Target {
+            addr: self.join?,
+            cookie: self.cookie.clone()?,
+            tls,
+        })
     }
 
     /// The member a mission verb (`run`, `check`) joins as, when `--join` was given: it
@@ -42,7 +80,7 @@ impl JoinArgs {
         robot: &RobotArgs,
         speed: f64,
     ) -> Result<Option<Joining>, BadInput> {
-        let Some((addr, cookie)) = self.target() else {
+        let Some(target) = self.target() else {
             return Ok(None);
         };
         if robot.node.is_some() {
@@ -54,8 +92,7 @@ impl JoinArgs {
             .map_err(|e| BadInput(format!("--speed with --join: {e}")))?;
         Ok(Some(Joining {
             me: member_name(verb),
-            addr,
-            cookie: cookie.to_string(),
+            target,
             speed,
         }))
     }
@@ -63,11 +100,7 @@ impl JoinArgs {
     /// [`JoinArgs::target`] for a verb that otherwise starts a node of its own: `--node`
     /// and `--world` (in `robot`) make no sense with `--join` (bad input). `acts` says what
     /// the verb does in the cluster, for the message.
-    pub fn target_alone(
-        &self,
-        robot: &RobotArgs,
-        acts: &str,
-    ) -> Result<Option<(SocketAddr, &str)>, BadInput> {
+    pub fn target_alone(&self, robot: &RobotArgs, acts: &str) -> Result<Option<Target>, BadInput> {
         match self.target() {
             Some(_) if robot.node.is_some() || robot.world.is_some() => Err(BadInput(format!(
                 "--join {acts} a running cluster: --node and --world start a node of their own"
@@ -82,23 +115,47 @@ pub fn member_name(verb: &str) -> String {
     format!("{verb}-{}", std::process::id())
 }
 
-/// Join the cluster at `addr` as member `me` (listening on a free loopback port): wait for
-/// the node dialed and the members behind it, say on stderr whom it sees.
-pub async fn join(me: &str, addr: SocketAddr, cookie: &str) -> anyhow::Result<Transport> {
-    let any_port = SocketAddr::new(std::net::Ipv4Addr::LOCALHOST.into(), 0);
-    let config = ClusterConfig::new(any_port, cookie).with_peer(addr);
+/// Join the cluster at `target` as member `me` (listening on a free port of the address
+/// it dials from): wait for the node dialed and the members behind it, say on stderr whom
+/// it sees.
+pub async fn join(me: &str, target: &Target) -> anyhow::Result<Transport> {
+    let addr = target.addr;
+    let any_port = SocketAddr::new(local_ip_towards(addr), 0);
+    let mut config = ClusterConfig::new(any_port, target.cookie.clone()).with_peer(addr);
+    config.tls = target.tls.clone();
     config.validate(me).map_err(|e| BadInput(e.to_string()))?;
-    let transport = Transport::start(me, &config).await?;
+    let transport = match Transport::start(me, &config).await {
+        Ok(t) => t,
+        Err(e @ marie::net::TransportError::Tls(_)) => return Err(BadInput(e.to_string()).into()),
+        Err(e) => return Err(e.into()),
+    };
     if let Err(e) = transport.wait_for_peers(1, JOIN_TIMEOUT).await {
         transport.stop().await;
         anyhow::bail!(
             "{me} could not join the cluster at {addr}: {e} (is a node listening there, with \
-             this cookie?)"
+             this cookie{}?)",
+            if target.tls.is_some() {
+                " and a certificate from its CA"
+            } else {
+                " and without TLS"
+            }
         );
     }
     let peers = transport.settle(QUIET, JOIN_TIMEOUT).await;
     eprintln!("{me} sees {}", describe(&peers));
     Ok(transport)
+}
+
+/// The local address a connection to `peer` leaves from (peers dial a member back there):
+/// loopback for a loopback peer.
+fn local_ip_towards(peer: SocketAddr) -> std::net::IpAddr {
+    if peer.ip().is_loopback() {
+        return std::net::Ipv4Addr::LOCALHOST.into();
+    }
+    std::net::UdpSocket::bind("0.0.0.0:0")
+        .and_then(|s| s.connect(peer).and_then(|()| s.local_addr()))
+        .map(|a| a.ip())
+        .unwrap_or(std::net::Ipv4Addr::LOCALHOST.into())
 }
 
 /// `alpha (127.0.0.1:7001), beta (127.0.0.1:7002)`.

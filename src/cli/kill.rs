@@ -39,8 +39,8 @@ pub async fn kill(args: KillArgs) -> anyhow::Result<ExitCode> {
         robot,
         cluster,
     } = args;
-    if let Some((addr, cookie)) = cluster.target_alone(&robot, "kills in")? {
-        let transport = join(&member_name("kill"), addr, cookie).await?;
+    if let Some(target) = cluster.target_alone(&robot, "kills in")? {
+        let transport = join(&member_name("kill"), &target).await?;
         let result = kill_in_cluster(&operation).await;
         transport.stop().await;
         return result;

@@ -23,9 +23,9 @@ pub struct LsArgs {
 
 /// Start the node (or join the cluster) and list what is published.
 pub async fn ls(args: LsArgs) -> anyhow::Result<ExitCode> {
-    if let Some((addr, cookie)) = args.cluster.target_alone(&args.robot, "lists")? {
+    if let Some(target) = args.cluster.target_alone(&args.robot, "lists")? {
         // a member that hosts nothing: what it lists is the others'
-        let transport = join(&member_name("ls"), addr, cookie).await?;
+        let transport = join(&member_name("ls"), &target).await?;
         let result = print_listing(&registry::list(), args.json);
         transport.stop().await;
         return result.map(|()| ExitCode::SUCCESS);

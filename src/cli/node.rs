@@ -106,12 +106,20 @@ pub async fn node(args: NodeArgs) -> anyhow::Result<ExitCode> {
         Ok(t) => t,
         Err(e) => {
             node.shutdown().await;
-            return Err(e.into());
+            return Err(match e {
+                marie::net::TransportError::Tls(_) => BadInput(e.to_string()).into(),
+                e => e.into(),
+            });
         }
     };
     say(&format!(
-        "node {name} listening on {} with {modules} module(s) at speed {}; joining {}",
+        "node {name} listening on {}{} with {modules} module(s) at speed {}; joining {}",
         transport.listen(),
+        if cluster.tls.is_some() {
+            " (mutual TLS)"
+        } else {
+            ""
+        },
         args.speed,
         if cluster.peers.is_empty() {
             "nobody (others join it)".to_string()

@@ -9,7 +9,6 @@ use marie::embedded::{Embedded, EmbeddedOptions};
 use marie::missions::robot::SimRobot;
 use marie::net::Transport;
 use marie::node::{Node, NodeConfig, NodeError, SimulationConfig};
-use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -18,10 +17,8 @@ use std::sync::Arc;
 pub struct Joining {
     /// The member's name (`run-4242`).
     pub me: String,
-    /// Any node of the cluster.
-    pub addr: SocketAddr,
-    /// The cluster's cookie.
-    pub cookie: String,
+    /// Where it joins.
+    pub target: super::join::Target,
     /// The cluster's speed factor.
     pub speed: f64,
 }
@@ -101,7 +98,7 @@ pub async fn prepare(
         world_path,
     } = start_node(options).await?;
     let transport = match joining {
-        Some(j) => match join(&j.me, j.addr, &j.cookie).await {
+        Some(j) => match join(&j.me, &j.target).await {
             Ok(t) => Some(t),
             Err(e) => {
                 node.shutdown().await;

@@ -29,8 +29,8 @@ pub struct PropsArgs {
 
 /// Start the node, ask the operation and print its answers.
 pub async fn props(args: PropsArgs) -> anyhow::Result<ExitCode> {
-    if let Some((addr, cookie)) = args.cluster.target_alone(&args.robot, "asks")? {
-        let transport = join(&member_name("props"), addr, cookie).await?;
+    if let Some(target) = args.cluster.target_alone(&args.robot, "asks")? {
+        let transport = join(&member_name("props"), &target).await?;
         let result = props_on(&args.operation, args.json).await;
         transport.stop().await;
         return result;

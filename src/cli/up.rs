@@ -197,6 +197,10 @@ async fn serve(
         cluster: JoinArgs {
             join: Some(launches[0].listen),
             cookie: Some(layout.cookie.clone()),
+            tls_cert: None,
+            tls_key: None,
+            tls_ca: None,
+            tls_server_name: None,
         },
     };
     let stop = super::signal::shutdown_signal(false);
@@ -260,7 +264,12 @@ async fn converged(
     total: usize,
 ) -> anyhow::Result<Vec<Instance>> {
     let me = member_name("up");
-    let transport = join(&me, launches[0].listen, cookie).await?;
+    let target = super::join::Target {
+        addr: launches[0].listen,
+        cookie: cookie.to_string(),
+        tls: None,
+    };
+    let transport = join(&me, &target).await?;
     // watching before the first listing: no change between the two goes unseen
     let mut watch = registry::watch(None).await?;
     let wait = async {

@@ -178,6 +178,7 @@ impl ReportBuilder {
             | EventKind::NodeDown { .. }
             | EventKind::NodeFrozen { .. }
             | EventKind::NodeRefused { .. }
+            | EventKind::ConnectionRefused { .. }
             | EventKind::Robot { .. } => {}
         }
     }

@@ -192,6 +192,14 @@ pub enum EventKind {
         /// This node's.
         ours: u16,
     },
+    /// An incoming connection was refused before it could become a session (with TLS on:
+    /// no valid certificate, or no handshake in time).
+    ConnectionRefused {
+        /// Where it came from (`ip:port`).
+        from: String,
+        /// Why.
+        reason: String,
+    },
     // --- the robot ---
     /// The world judged the robot's final state (fills a report's robot fields; its outcome
     /// replaces the dispatcher's).

@@ -1,6 +1,7 @@
 //! Where a node listens, whom it joins, and the cookie it proves itself with.
 
 use super::detector::HeartbeatConfig;
+use super::tls::TlsFiles;
 use super::TransportError;
 use marie_actors::wire::PROTOCOL_VERSION;
 use std::net::SocketAddr;
@@ -22,6 +23,8 @@ pub struct ClusterConfig {
     /// The protocol version the node claims in its heartbeats: [`PROTOCOL_VERSION`]; another
     /// value only to see a cluster refuse it (`marie node --protocol-version`, hidden).
     pub protocol: u16,
+    /// Mutual TLS for every session; `None`: plain TCP (the cookie still authenticates).
+    pub tls: Option<TlsFiles>,
 }
 
 impl ClusterConfig {
@@ -33,12 +36,19 @@ impl ClusterConfig {
             cookie: cookie.into(),
             heartbeat: HeartbeatConfig::default(),
             protocol: PROTOCOL_VERSION,
+            tls: None,
         }
     }
 
     /// Also join the node at `addr`.
     pub fn with_peer(mut self, addr: SocketAddr) -> Self {
         self.peers.push(addr);
+        self
+    }
+
+    /// Encrypt every session with mutual TLS from these files.
+    pub fn with_tls(mut self, files: TlsFiles) -> Self {
+        self.tls = Some(files);
         self
     }
 

@@ -48,6 +48,14 @@ pub enum NetEvent {
         /// This node's.
         ours: u16,
     },
+    /// An incoming connection was refused before it became a session: with TLS on, it
+    /// presented no valid certificate or no handshake in time.
+    ConnectionRefused {
+        /// Where it came from.
+        from: std::net::SocketAddr,
+        /// Why.
+        reason: String,
+    },
 }
 
 impl std::fmt::Display for NetEvent {
@@ -70,6 +78,9 @@ impl std::fmt::Display for NetEvent {
                 "refused {peer}: it speaks protocol version {theirs}, this node speaks \
                  protocol version {ours}"
             ),
+            NetEvent::ConnectionRefused { from, reason } => {
+                write!(f, "refused a connection from {from}: {reason}")
+            }
         }
     }
 }
@@ -99,6 +110,10 @@ pub fn publish_on(transport: &Transport, bus: EventBus) -> tokio::task::JoinHand
                 Ok(NetEvent::PeerRefused { peer, theirs, ours }) => {
                     EventKind::NodeRefused { peer, theirs, ours }
                 }
+                Ok(NetEvent::ConnectionRefused { from, reason }) => EventKind::ConnectionRefused {
+                    from: from.to_string(),
+                    reason,
+                },
                 Err(RecvError::Lagged(n)) => {
                     tracing::warn!("{n} transport event(s) lost before the bus");
                     continue;

@@ -36,6 +36,12 @@ struct Beat {
     node: String,
     /// Beats sent so far by the sender.
     seq: u64,
+    /// The addresses of the peers the sender has a ready session with: a receiver that
+    /// does not see one dials it, which keeps the cluster a full mesh (ractor_cluster's own
+    /// transitive dials are plain TCP, and happen only once). Absent from the beats of
+    /// older builds, which ignore it in ours.
+    #[serde(default)]
+    sees: Vec<String>,
 }
 
 marie_actors::remote_message! {
@@ -58,6 +64,10 @@ pub(crate) struct HeartbeatArgs {
     pub node: String,
     pub config: HeartbeatConfig,
     pub sessions: Sessions,
+    /// The address this node listens on, as peers name it.
+    pub listen: String,
+    /// Where the addresses of peers that peers see go, to be dialed.
+    pub learned: tokio::sync::mpsc::UnboundedSender<std::net::SocketAddr>,
     /// The protocol version it claims (another than [`PROTOCOL_VERSION`] only to test
     /// refusal).
     pub protocol: u16,
@@ -129,9 +139,11 @@ impl State {
     /// Beat to every remote heartbeat actor, then judge the ready peers.
     fn tick(&mut self) {
         self.seq += 1;
+        let ready = self.args.sessions.peers();
         let beat = Beat {
             node: self.args.node.clone(),
             seq: self.seq,
+            sees: ready.iter().map(|p| p.address.clone()).collect(),
         };
         let frame = Envelope::new(KIND, &beat)
             .map(|mut env| {
@@ -153,13 +165,7 @@ impl State {
             }
             Err(e) => tracing::error!(error = %e, "cannot encode a heartbeat"),
         }
-        let ready: Vec<String> = self
-            .args
-            .sessions
-            .peers()
-            .into_iter()
-            .map(|p| p.name)
-            .collect();
+        let ready: Vec<String> = ready.into_iter().map(|p| p.name).collect();
         let overdue = self.detector.tick(&ready, Instant::now());
         if let Some(silent) = self.detector.take_freeze() {
             let event = NetEvent::Frozen { silent };
@@ -215,5 +221,25 @@ impl State {
             return;
         }
         self.detector.heard(&beat.node, Instant::now());
+        if !beat.sees.is_empty() {
+            let known: Vec<String> = self
+                .args
+                .sessions
+                .peers()
+                .into_iter()
+                .map(|p| p.address)
+                .collect();
+            for address in beat.sees {
+                if address == self.args.listen || known.contains(&address) {
+                    continue;
+                }
+                match address.parse() {
+                    Ok(addr) => {
+                        let _ = self.args.learned.send(addr);
+                    }
+                    Err(_) => tracing::debug!(%address, "a peer's peer address does not parse"),
+                }
+            }
+        }
     }
 }

@@ -1,13 +1,13 @@
 //! The transport: a node's ractor_cluster `NodeServer`, the peers it dials, and whom it sees.
 //!
 //! A node that joins a cluster listens on its [`ClusterConfig::listen`] address and dials
-//! every configured peer (any one is enough: ractor_cluster's transitive mode then dials the
-//! peers' peers, so the cluster becomes a full mesh, which `pg` needs — membership is pushed
-//! only to directly connected nodes). A peer that goes away is redialled with backoff for as
-//! long as the transport runs. Each peer is known by its configured node name: ractor names
+//! every configured peer (any one is enough: a node also dials every peer its peers see,
+//! so the cluster becomes a full mesh, which `pg` needs — membership is pushed only to
+//! directly connected nodes). A peer that goes away is redialled with backoff for as long
+//! as the transport runs. Each peer is known by its configured node name: ractor names
 //! nodes `name@host` and numbers sessions afresh on every reconnect, so the transport records
 //! the name behind each session number in the registry, which then shows every remote
-//! module with its node.
+//! module with its node. With [`ClusterConfig::tls`], every session is mutual TLS ([`tls`]).
 //!
 //! ractor_cluster has no failure detector: [`heartbeat`] adds one (default: a silent peer
 //! is declared down within 1.5 s), and refuses peers of another protocol version.
@@ -30,10 +30,12 @@ pub mod detector;
 mod events;
 pub mod heartbeat;
 mod sessions;
+pub mod tls;
 mod transport;
 
 pub use config::{ClusterConfig, MAX_COOKIE_LEN};
 pub use detector::HeartbeatConfig;
 pub use events::publish_on;
 pub use events::NetEvent;
+pub use tls::TlsFiles;
 pub use transport::{Peer, Transport, TransportError};

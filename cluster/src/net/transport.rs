@@ -4,12 +4,16 @@ use super::config::ClusterConfig;
 use super::events::NetEvent;
 use super::heartbeat::{Heartbeat, HeartbeatArgs};
 use super::sessions::Sessions;
+use super::tls::{self, Tls};
 use marie_actors::registry;
 use ractor::{Actor, ActorRef};
 use ractor_cluster::node::NodeConnectionMode;
-use ractor_cluster::{NodeServer, NodeServerMessage};
+use ractor_cluster::{IncomingEncryptionMode, NodeServer, NodeServerMessage};
+use std::collections::BTreeSet;
 use std::net::SocketAddr;
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
+use tokio::sync::mpsc;
 use tokio::task::JoinHandle;
 
 /// First wait before dialing a peer again; doubled on each failure up to [`REDIAL_MAX`].
@@ -45,6 +49,9 @@ pub enum TransportError {
         /// What failed.
         reason: String,
     },
+    /// The TLS files cannot be used.
+    #[error("TLS: {0}")]
+    Tls(String),
     /// Fewer peers than awaited answered in time.
     #[error("saw {seen} of {wanted} peer(s) within {waited:?}: {}", if .names.is_empty() { "none".to_string() } else { .names.join(", ") })]
     PeersMissing {
@@ -66,7 +73,9 @@ pub struct Transport {
     server: ActorRef<NodeServerMessage>,
     server_handle: JoinHandle<()>,
     sessions: Sessions,
-    dialers: Vec<JoinHandle<()>>,
+    /// The dialers of configured peers, the dialer of peers learned from heartbeats and,
+    /// with TLS, the listener.
+    tasks: Vec<JoinHandle<()>>,
     heartbeat: ActorRef<super::heartbeat::BeatMsg>,
     heartbeat_handle: JoinHandle<()>,
 }
@@ -76,70 +85,105 @@ impl Transport {
     /// and dial every configured peer (again and again, with backoff, while it is absent).
     pub async fn start(node: &str, config: &ClusterConfig) -> Result<Transport, TransportError> {
         config.validate(node)?;
+        let tls = config.tls.as_ref().map(Tls::load).transpose()?;
         registry::set_local_node_name(node);
         let listen = config.listen;
-        let server = NodeServer::new(
-            listen.port(),
-            config.cookie.clone(),
-            node.to_string(),
-            listen.ip().to_string(),
-            None,
+        let listen_err = |reason: String| TransportError::Listen {
+            addr: listen,
+            reason,
+        };
+        let server = match &tls {
             // a node that joins one member dials that member's peers: a full mesh
-            Some(NodeConnectionMode::Transitive),
-        )
+            None => NodeServer::new(
+                listen.port(),
+                config.cookie.clone(),
+                node.to_string(),
+                listen.ip().to_string(),
+                None,
+                Some(NodeConnectionMode::Transitive),
+            ),
+            // ractor_cluster's transitive dials are plain TCP: with TLS, the peers' peers are
+            // learned from heartbeats instead. Its own listener (which would stall on a silent
+            // TLS client) takes an unadvertised port; `tls::serve` takes the real one.
+            Some(tls) => NodeServer::new(
+                0,
+                config.cookie.clone(),
+                node.to_string(),
+                listen.ip().to_string(),
+                Some(IncomingEncryptionMode::Tls(tls.acceptor())),
+                Some(NodeConnectionMode::Isolated),
+            ),
+        }
         .with_listen_addr(listen.ip());
-        let (server, server_handle) =
-            Actor::spawn(None, server, ())
-                .await
-                .map_err(|e| TransportError::Listen {
-                    addr: listen,
-                    reason: e.to_string(),
-                })?;
+        let (server, server_handle) = Actor::spawn(None, server, ())
+            .await
+            .map_err(|e| listen_err(e.to_string()))?;
+        let mut tasks = Vec::new();
         let sessions = Sessions::new(node);
+        let mut advertised = listen;
+        if let Some(tls) = &tls {
+            // peers are told the real port, not the unadvertised one
+            let bound = tokio::net::TcpListener::bind(listen).await;
+            let listener = match bound {
+                Ok(l) => l,
+                Err(e) => {
+                    server.stop(None);
+                    let _ = server_handle.await;
+                    return Err(listen_err(e.to_string()));
+                }
+            };
+            // (with port 0, the one the OS chose)
+            let port = listener.local_addr().map_or(listen.port(), |a| a.port());
+            advertised.set_port(port);
+            let _ = server.cast(NodeServerMessage::PortChanged { port });
+            tasks.push(tokio::spawn(tls::serve(
+                listener,
+                tls.clone(),
+                server.clone(),
+                sessions.clone(),
+            )));
+        }
         server
             .cast(NodeServerMessage::SubscribeToEvents {
                 id: "marie-sessions".into(),
                 subscription: Box::new(sessions.clone()),
             })
-            .map_err(|e| TransportError::Listen {
-                addr: listen,
-                reason: e.to_string(),
-            })?;
+            .map_err(|e| listen_err(e.to_string()))?;
+        let dialer = Dialer {
+            node: node.to_string(),
+            listen: advertised,
+            server: server.clone(),
+            sessions: sessions.clone(),
+            tls,
+            learning: Arc::default(),
+        };
+        let (learned, heard) = mpsc::unbounded_channel();
         let (heartbeat, heartbeat_handle) = Actor::spawn(
             None,
             Heartbeat,
             HeartbeatArgs {
                 node: node.to_string(),
+                listen: advertised.to_string(),
                 config: config.heartbeat,
                 sessions: sessions.clone(),
                 protocol: config.protocol,
+                learned,
             },
         )
         .await
-        .map_err(|e| TransportError::Listen {
-            addr: listen,
-            reason: format!("the heartbeat did not start: {e}"),
-        })?;
-        tracing::info!(node, %listen, peers = ?config.peers, "node listening");
-        let dialers = config
-            .peers
-            .iter()
-            .map(|&addr| {
-                tokio::spawn(dial_while_absent(
-                    node.to_string(),
-                    server.clone(),
-                    sessions.clone(),
-                    addr,
-                ))
-            })
-            .collect();
+        .map_err(|e| listen_err(format!("the heartbeat did not start: {e}")))?;
+        tracing::info!(node, %listen, peers = ?config.peers, tls = dialer.tls.is_some(), "node listening");
+        for &addr in &config.peers {
+            tasks.push(tokio::spawn(dialer.clone().keep(addr)));
+        }
+        tasks.push(tokio::spawn(dialer.learn(heard)));
         Ok(Transport {
             node: node.to_string(),
-            listen,
+            listen: advertised,
             server,
             server_handle,
             sessions,
-            dialers,
+            tasks,
             heartbeat,
             heartbeat_handle,
         })
@@ -213,8 +257,8 @@ impl Transport {
 
     /// Stop dialing, close every session and stop listening.
     pub async fn stop(self) {
-        for d in &self.dialers {
-            d.abort();
+        for t in &self.tasks {
+            t.abort();
         }
         self.heartbeat.stop(None);
         let _ = self.heartbeat_handle.await;
@@ -224,36 +268,102 @@ impl Transport {
     }
 }
 
-/// Keep a session with the peer at `addr`: dial it whenever no ready peer listens there,
-/// backing off while it does not answer.
-async fn dial_while_absent(
+/// Dials peers: the configured ones while they are absent, and those other peers name in
+/// their heartbeats (so that the cluster stays a full mesh, also with TLS and after a
+/// partition heals).
+#[derive(Clone)]
+struct Dialer {
     node: String,
+    listen: SocketAddr,
     server: ActorRef<NodeServerMessage>,
     sessions: Sessions,
-    addr: SocketAddr,
-) {
-    let mut changes = sessions.subscribe();
-    let mut backoff = REDIAL_MIN;
-    let wanted = addr.to_string();
-    loop {
-        let present = sessions.peers().iter().any(|p| p.address == wanted);
-        if present {
-            backoff = REDIAL_MIN;
-            // sleep until something changes (a peer lost, perhaps this one)
-            if changes.changed().await.is_err() {
-                return;
+    tls: Option<Tls>,
+    /// Learned addresses being dialed now.
+    learning: Arc<Mutex<BTreeSet<SocketAddr>>>,
+}
+
+impl Dialer {
+    /// Whether a ready peer listens at `addr`.
+    fn present(&self, addr: SocketAddr) -> bool {
+        let wanted = addr.to_string();
+        self.sessions.peers().iter().any(|p| p.address == wanted)
+    }
+
+    /// One dial, with TLS if on, given up after [`DIAL_TIMEOUT`].
+    async fn dial(&self, addr: SocketAddr) {
+        let dialed = tokio::time::timeout(DIAL_TIMEOUT, async {
+            match &self.tls {
+                None => ractor_cluster::client_connect(&self.server, addr)
+                    .await
+                    .map_err(|e| e.to_string()),
+                Some(tls) => tls.dial(&self.server, addr).await,
             }
-            continue;
-        }
-        match tokio::time::timeout(DIAL_TIMEOUT, ractor_cluster::client_connect(&server, addr))
-            .await
-        {
+        })
+        .await;
+        let node = &self.node;
+        match dialed {
             Ok(Ok(())) => tracing::debug!(%node, peer = %addr, "dialed"),
             Ok(Err(e)) => tracing::debug!(%node, peer = %addr, error = %e, "dial failed"),
             Err(_) => tracing::debug!(%node, peer = %addr, "dial timed out"),
         }
-        // give the handshake its time, or back off; wake early on any session change
-        let _ = tokio::time::timeout(backoff, changes.changed()).await;
-        backoff = (backoff * 2).min(REDIAL_MAX);
+    }
+
+    /// Keep a session with the peer at `addr`: dial it whenever no ready peer listens
+    /// there, backing off while it does not answer.
+    async fn keep(self, addr: SocketAddr) {
+        let mut changes = self.sessions.subscribe();
+        let mut backoff = REDIAL_MIN;
+        loop {
+            if self.present(addr) {
+                backoff = REDIAL_MIN;
+                // sleep until something changes (a peer lost, perhaps this one)
+                if changes.changed().await.is_err() {
+                    return;
+                }
+                continue;
+            }
+            self.dial(addr).await;
+            // give the handshake its time, or back off; wake early on any session change
+            let _ = tokio::time::timeout(backoff, changes.changed()).await;
+            backoff = (backoff * 2).min(REDIAL_MAX);
+        }
+    }
+
+    /// Dial, once each time it is heard of, every peer another peer sees and this node
+    /// does not (one dial per address at a time; another peer keeps naming it while it
+    /// lives, which is the retry).
+    async fn learn(self, mut heard: mpsc::UnboundedReceiver<SocketAddr>) {
+        while let Some(addr) = heard.recv().await {
+            if addr == self.listen || self.present(addr) {
+                continue;
+            }
+            if !self
+                .learning
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .insert(addr)
+            {
+                continue;
+            }
+            let this = self.clone();
+            tokio::spawn(async move {
+                tracing::debug!(node = %this.node, peer = %addr, "dialing a peer learned from a heartbeat");
+                this.dial(addr).await;
+                // let the session come up before the address may be dialed again
+                let _ = tokio::time::timeout(REDIAL_MIN * 5, async {
+                    let mut changes = this.sessions.subscribe();
+                    while !this.present(addr) {
+                        if changes.changed().await.is_err() {
+                            return;
+                        }
+                    }
+                })
+                .await;
+                this.learning
+                    .lock()
+                    .unwrap_or_else(|e| e.into_inner())
+                    .remove(&addr);
+            });
+        }
     }
 }

@@ -3,7 +3,7 @@
 
 use super::*;
 use crate::net::detector::{HeartbeatConfig, DEFAULT_DEADLINE, MIN_DEADLINE};
-use crate::net::ClusterConfig;
+use crate::net::{ClusterConfig, TlsFiles};
 use marie_actors::diagnostic::toml::{quote, Reader, Rule, Span, Tbl};
 use marie_actors::diagnostic::{read_source, Diagnostic, Diagnostics};
 use std::net::SocketAddr;
@@ -87,7 +87,7 @@ impl NodeConfig {
         }
         if let Some(v) = top.get("cluster") {
             if let Some(t) = r.table(v, "[cluster]") {
-                config.cluster = cluster(&mut r, &t, &config.name);
+                config.cluster = cluster(&mut r, &t, &config.name, path);
             }
         }
         r.finish(Some(config), "the node config is not valid")
@@ -320,12 +320,28 @@ fn operation(
 
 /// `[cluster]`: where the node listens, whom it joins, its cookie, its failure detector's
 /// deadline (`deadline_ms`, default 1200, at least 300) and heartbeat period
-/// (`heartbeat_ms`, default a fifth of the deadline, at most half of it).
-fn cluster(r: &mut Reader<'_>, t: &Tbl<'_, '_>, node: &str) -> Option<ClusterConfig> {
+/// (`heartbeat_ms`, default a fifth of the deadline, at most half of it), and `[cluster.tls]`.
+fn cluster(
+    r: &mut Reader<'_>,
+    t: &Tbl<'_, '_>,
+    node: &str,
+    path: Option<&Path>,
+) -> Option<ClusterConfig> {
     r.unknown_keys(
         t,
-        &["listen", "peers", "cookie", "deadline_ms", "heartbeat_ms"],
+        &[
+            "listen",
+            "peers",
+            "cookie",
+            "deadline_ms",
+            "heartbeat_ms",
+            "tls",
+        ],
     );
+    let tls = match t.get("tls") {
+        None => None,
+        Some(v) => Some(r.table(v, "[cluster.tls]").and_then(|t| tls(r, &t, path))?),
+    };
     let listen = t.get("listen").map(|v| (r.string(t, "listen"), v.span()));
     let listen = match listen {
         None => {
@@ -366,11 +382,43 @@ fn cluster(r: &mut Reader<'_>, t: &Tbl<'_, '_>, node: &str) -> Option<ClusterCon
     let mut config = ClusterConfig::new(listen?, cookie?);
     config.peers = peers;
     config.heartbeat = heartbeat;
+    config.tls = tls;
     if let Err(e) = config.validate(node) {
         r.err(&t.span, e.to_string());
         return None;
     }
     Some(config)
+}
+
+/// `[cluster.tls]`: `cert`, `key` and `ca` (PEM files, relative to the config file's
+/// directory, each checked to be readable here; their contents are checked when the node
+/// starts) and an optional `server_name`.
+fn tls(r: &mut Reader<'_>, t: &Tbl<'_, '_>, path: Option<&Path>) -> Option<TlsFiles> {
+    r.unknown_keys(t, &["cert", "key", "ca", "server_name"]);
+    let file = |r: &mut Reader<'_>, key: &str| -> Option<PathBuf> {
+        let name = r.required_string(t, key)?;
+        let f = PathBuf::from(&name);
+        let f = match path.and_then(Path::parent) {
+            Some(dir) if f.is_relative() => dir.join(f),
+            _ => f,
+        };
+        if let Err(e) = std::fs::File::open(&f) {
+            let span = t.get(key).map(|v| v.span()).unwrap_or(t.span.clone());
+            r.err(&span, format!("`{key}`: cannot read {}: {e}", f.display()));
+            return None;
+        }
+        Some(f)
+    };
+    let cert = file(r, "cert");
+    let key = file(r, "key");
+    let ca = file(r, "ca");
+    let server_name = r.string(t, "server_name");
+    Some(TlsFiles {
+        cert: cert?,
+        key: key?,
+        ca: ca?,
+        server_name,
+    })
 }
 
 /// `IP:PORT`, or a diagnostic at `span`.
@@ -415,6 +463,38 @@ mod tests {
         assert_eq!(cluster.peers.len(), 2);
         assert_eq!(cluster.cookie, "thesis");
         assert_eq!(parse("[node]\nname = \"solo\"\n").unwrap().cluster, None);
+    }
+
+    #[test]
+    fn a_tls_table_names_files_relative_to_the_config_and_each_must_be_readable() {
+        let dir = tempfile::tempdir().unwrap();
+        for f in ["n.pem", "n.key", "ca.pem"] {
+            std::fs::write(dir.path().join(f), "").unwrap();
+        }
+        let path = dir.path().join("node.toml");
+        let cluster =
+            "[node]\nname = \"n\"\n[cluster]\nlisten = \"127.0.0.1:7101\"\ncookie = \"c\"\n";
+        let good =
+            format!("{cluster}[cluster.tls]\ncert = \"n.pem\"\nkey = \"n.key\"\nca = \"ca.pem\"\n");
+        let c = NodeConfig::parse(&good, Some(&path), &[]).unwrap();
+        let tls = c.cluster.unwrap().tls.unwrap();
+        assert_eq!(tls.cert, dir.path().join("n.pem"));
+        assert_eq!(tls.ca, dir.path().join("ca.pem"));
+        assert_eq!(tls.server_name, None);
+
+        let bad =
+            format!("{cluster}[cluster.tls]\ncert = \"gone.pem\"\nca = \"ca.pem\"\nsni = 1\n");
+        let e = NodeConfig::parse(&bad, Some(&path), &[])
+            .unwrap_err()
+            .to_string();
+        for want in [
+            "node.toml:7:8: `cert`: cannot read",
+            "gone.pem",
+            "missing `key`",
+            "node.toml:9:1: unknown key `sni`",
+        ] {
+            assert!(e.contains(want), "{want:?} not in:\n{e}");
+        }
     }
 
     #[test]
