@@ -28,6 +28,6 @@ pub use marie_cluster as cluster;
 pub use marie_missions as missions;
 pub use marie_supervision as supervision;
 
-pub use marie_cluster::{fault, layout, net, node};
+pub use marie_cluster::{fault, layout, net, node, relay};
 
 pub mod embedded;

@@ -144,7 +144,8 @@ fn assert_rebound_across_nodes(report: &Value, lost: &str, other: &str) {
 
 #[test]
 fn killing_the_wall_followers_node_rebinds_to_the_other_node_and_the_mission_succeeds() {
-    let (report, lost, lines, _) = lose_the_wall_followers_node("KILL", &["wf-a", "wf-b"], false);
+    let (report, lost, lines, events) =
+        lose_the_wall_followers_node("KILL", &["wf-a", "wf-b"], false);
     assert_rebound_across_nodes(&report, &lost, other(&lost));
     assert!(
         lines
@@ -152,6 +153,18 @@ fn killing_the_wall_followers_node_rebinds_to_the_other_node_and_the_mission_suc
             .any(|l| l.contains(&format!("node {lost} was killed"))),
         "{lines:?}"
     );
+    // the events file has every surviving node's events, forwarded to the run's member:
+    // each of them lost the killed node
+    let mut losers: Vec<&str> = events
+        .iter()
+        .filter(|e| e["kind"]["type"] == "node_lost" && e["kind"]["peer"] == lost.as_str())
+        .filter_map(|e| e["node"].as_str())
+        .collect();
+    losers.sort();
+    losers.dedup();
+    for node in ["cart", "features", "operations", other(&lost)] {
+        assert!(losers.contains(&node), "{node} not in {losers:?}");
+    }
 }
 
 #[test]
@@ -163,7 +176,12 @@ fn freezing_the_wall_followers_node_gets_it_declared_down_rebound_and_the_missio
     let position = |kind: &str, key: &str, value: &str| {
         events
             .iter()
-            .position(|e| e["kind"]["type"] == kind && e["kind"][key] == value)
+            .position(|e| {
+                // the dispatcher's member's own events, not those other nodes forward
+                e["node"].as_str().is_some_and(|n| n.starts_with("run-"))
+                    && e["kind"]["type"] == kind
+                    && e["kind"][key] == value
+            })
             .unwrap_or_else(|| panic!("no {kind} with {key} {value}: {events:?}"))
     };
     let down = position("node_down", "peer", &lost);
@@ -183,7 +201,24 @@ fn other(wf: &str) -> &'static str {
 #[test]
 fn when_no_wall_follower_survives_a_node_that_allows_one_starts_it_and_the_mission_succeeds() {
     // the only running wall follower is on wf-a; the operations node may start one
-    let (report, lost, _, _) = lose_the_wall_followers_node("KILL", &["wf-a"], true);
+    let (report, lost, _, events) = lose_the_wall_followers_node("KILL", &["wf-a"], true);
     assert_eq!(lost, "wf-a");
     assert_rebound_across_nodes(&report, &lost, "operations");
+    // the operations node started it under its dynamic supervisor, and says so in the
+    // events file, once
+    assert!(
+        events.iter().any(|e| e["node"] == "operations"
+            && e["kind"]["type"] == "child_started"
+            && e["kind"]["supervisor"] == "dynamic"),
+        "{events:?}"
+    );
+    let joined = events
+        .iter()
+        .filter(|e| {
+            e["node"] != e["kind"]["node"]
+                && e["kind"]["type"] == "joined"
+                && !e["node"].as_str().is_some_and(|n| n.starts_with("run-"))
+        })
+        .count();
+    assert_eq!(joined, 0, "a node echoed another node's module");
 }

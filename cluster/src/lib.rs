@@ -2,10 +2,12 @@
 //!
 //! The node — what joins a cluster: its config ([`node::NodeConfig`]: what it hosts), its
 //! supervision tree, the plug a robot fits into ([`node::Robot`]), and fault injection
-//! ([`fault`]). Running marie's actors on several nodes over ractor_cluster (DESIGN.md §6)
-//! builds on it: every cross-node frame travels in the versioned wire envelope, which lives
+//! ([`fault`]); the transport that makes nodes a cluster over ractor_cluster ([`net`]:
+//! joining, a full mesh, heartbeats and the failure detector, TLS), a cluster file of
+//! several nodes ([`layout`]), and every node's events for whoever watches the cluster
+//! ([`relay`]). Every cross-node frame travels in the versioned wire envelope, which lives
 //! with the rest of the wire code in [`marie_actors::wire`] and is re-exported here as
-//! [`envelope`]; joining, the failure detector and membership events come next.
+//! [`envelope`].
 //!
 //! ```
 //! use marie_cluster::envelope::{Envelope, PROTOCOL_VERSION};
@@ -23,3 +25,4 @@ pub mod fault;
 pub mod layout;
 pub mod net;
 pub mod node;
+pub mod relay;

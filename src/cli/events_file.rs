@@ -1,7 +1,9 @@
-//! `marie run --events FILE.jsonl`: every event of the node's bus during the run, one JSON
-//! object per line ([`marie::actors::events`] documents the schema), written as they come.
+//! `marie run --events FILE.jsonl`: every event of the node's bus during the run — and,
+//! for a member of a cluster, every other node's ([`marie::relay`]) — one JSON object per
+//! line ([`marie::actors::events`] documents the schema), written as they come.
 
 use marie::actors::events::{BusError, EventBus};
+use marie::relay::Watch;
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -25,9 +27,13 @@ pub struct Written {
 }
 
 impl EventsFile {
-    /// Create `path` and write every event `bus` publishes from now on, until
-    /// [`finish`](EventsFile::finish).
-    pub fn start(bus: &EventBus, path: &Path) -> std::io::Result<EventsFile> {
+    /// Create `path` and write every event `bus` publishes from now on, and those `others`
+    /// receives from the other nodes, until [`finish`](EventsFile::finish).
+    pub fn start(
+        bus: &EventBus,
+        mut others: Option<Watch>,
+        path: &Path,
+    ) -> std::io::Result<EventsFile> {
         let mut out = BufWriter::new(File::create(path)?);
         let mut sub = bus.subscribe();
         let (stop, mut stopped) = oneshot::channel::<()>();
@@ -44,8 +50,16 @@ impl EventsFile {
                         Err(BusError::Lagged { missed }) => written.missed += missed,
                         Err(BusError::Closed) => break,
                     },
+                    Some(event) = next_of(&mut others) => {
+                        writeln!(out, "{}", event.to_json_line()?)?;
+                        written.lines += 1;
+                    }
                     _ = &mut stopped => {
                         for event in sub.drain() {
+                            writeln!(out, "{}", event.to_json_line()?)?;
+                            written.lines += 1;
+                        }
+                        while let Some(event) = others.as_mut().and_then(Watch::try_recv) {
                             writeln!(out, "{}", event.to_json_line()?)?;
                             written.lines += 1;
                         }
@@ -53,6 +67,7 @@ impl EventsFile {
                     }
                 }
             }
+            written.missed += others.as_ref().map_or(0, Watch::lost);
             out.flush()?;
             Ok(written)
         });
@@ -80,5 +95,19 @@ impl EventsFile {
             );
         }
         Ok(written)
+    }
+}
+
+/// The next event of the other nodes; pending forever without a watch (or once it ended).
+async fn next_of(others: &mut Option<Watch>) -> Option<marie::actors::events::Event> {
+    match others {
+        Some(w) => match w.recv().await {
+            Some(e) => Some(e),
+            None => {
+                *others = None;
+                std::future::pending().await
+            }
+        },
+        None => std::future::pending().await,
     }
 }

@@ -142,6 +142,8 @@ pub async fn node(args: NodeArgs) -> anyhow::Result<ExitCode> {
         ));
     }
     let publisher = marie::net::publish_on(&transport, node.events().clone());
+    // its events (restarts, peers down, …) to whoever watches the cluster
+    let forwarder = marie::relay::forward(node.events().clone());
     loop {
         tokio::select! {
             signal = &mut stop => {
@@ -162,6 +164,7 @@ pub async fn node(args: NodeArgs) -> anyhow::Result<ExitCode> {
         }
     }
     publisher.abort();
+    forwarder.abort();
     transport.stop().await;
     node.shutdown().await;
     say(&format!("node {name} stopped"));

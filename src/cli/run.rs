@@ -60,6 +60,8 @@ pub struct RunArgs {
 
 /// Pixels per metre of `--svg` pictures.
 const SVG_SCALE: f64 = 50.0;
+/// Events of the other nodes a `run --join --events` keeps while its file writer is behind.
+const EVENTS_FROM_OTHERS: usize = 4096;
 
 /// Run the mission; exit 0 when it succeeded and every output was written, else 1.
 pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
@@ -143,9 +145,17 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
             print_event(&evt);
         }
     });
+    // this member's events go to whoever watches the cluster; its events file has theirs
+    let forwarder = transport
+        .as_ref()
+        .map(|_| marie::relay::forward(node.events().clone()));
+    let others = match (&transport, &events_path) {
+        (Some(_), Some(_)) => Some(marie::relay::watch(EVENTS_FROM_OTHERS).await?),
+        _ => None,
+    };
     let events = match &events_path {
         Some(p) => Some(
-            EventsFile::start(node.events(), p)
+            EventsFile::start(node.events(), others, p)
                 .with_context(|| format!("cannot write the events to {}", p.display()))?,
         ),
         None => None,
@@ -162,8 +172,8 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     };
     let world = robot.as_ref().map(|r| r.world().clone());
     node.shutdown().await;
-    if let Some(p) = publisher {
-        p.abort();
+    for task in publisher.into_iter().chain(forwarder) {
+        task.abort();
     }
     if let Some(t) = transport {
         t.stop().await;
