@@ -436,6 +436,7 @@ fn without_a_world_no_robot_runs_and_svg_is_refused() {
         "seed",
         "inside_goal",
         "judgement",
+        "refused_commands",
     ] {
         assert_eq!(json[key], serde_json::Value::Null, "{key}");
     }

@@ -19,10 +19,11 @@
 //! let stale = cart.admit(&Fence::new("wall-follower", 6)).unwrap_err(); // the woken original
 //! assert_eq!((stale.got, stale.current), (6, 7));
 //! assert_eq!(cart.refused(), 1);
+//! assert_eq!(cart.refused_by()["wall-follower"], 1);
 //! ```
 
 use serde::{Deserialize, Serialize};
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 
 /// Who sends a command, and under which epoch.
 #[derive(Clone, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -60,6 +61,7 @@ pub struct Stale {
 pub struct FenceTable {
     newest: HashMap<String, u64>,
     refused: u64,
+    refused_by: BTreeMap<String, u64>,
 }
 
 impl FenceTable {
@@ -78,6 +80,7 @@ impl FenceTable {
         match self.newest.get_mut(operation) {
             Some(newest) if epoch < *newest => {
                 self.refused += 1;
+                *self.refused_by.entry(operation.to_string()).or_default() += 1;
                 Err(Stale {
                     operation: operation.to_string(),
                     got: epoch,
@@ -98,6 +101,11 @@ impl FenceTable {
     /// Commands refused so far.
     pub fn refused(&self) -> u64 {
         self.refused
+    }
+
+    /// Commands refused so far, by operation (only those with at least one).
+    pub fn refused_by(&self) -> &BTreeMap<String, u64> {
+        &self.refused_by
     }
 }
 
@@ -122,6 +130,10 @@ mod tests {
             })
         );
         assert_eq!(t.refused(), 2);
+        assert_eq!(
+            t.refused_by().iter().collect::<Vec<_>>(),
+            [(&"a".to_string(), &2)]
+        );
     }
 
     #[test]
@@ -130,5 +142,6 @@ mod tests {
         t.admit(&Fence::new("a", 3)).unwrap();
         assert!(t.admit(&Fence::new("a", 0)).is_ok());
         assert_eq!(t.refused(), 0);
+        assert!(t.refused_by().is_empty());
     }
 }

@@ -135,6 +135,7 @@ async fn a_report_is_rebuilt_with_its_faults_judgement_and_latest_rebinds() {
         seed: Some(3),
         inside_goal: Some(false),
         judgement: Some("failure: outside the goal area".into()),
+        refused_commands: Some([("wall-follower".to_string(), 4)].into()),
     });
     let events = sub.drain();
     let report = RunReport::from_events(&events);
@@ -144,6 +145,10 @@ async fn a_report_is_rebuilt_with_its_faults_judgement_and_latest_rebinds() {
         (Outcome::Failed, "outside the goal area")
     );
     assert_eq!(report.final_pose, Some([1.0, 2.0, 0.5]));
+    assert_eq!(
+        report.refused_commands,
+        Some([("wall-follower".to_string(), 4)].into())
+    );
     assert_eq!(
         (report.rebinds_total, report.rebinds.len()),
         (150, REPORT_KEEPS)

@@ -183,7 +183,11 @@ impl Robot for SimRobot {
                 Ok(cart) => cart.status().await,
                 Err(e) => Err(e),
             };
-            let status = status.map(|s| (s.pose, s.collisions, s.judgement));
+            let status = status.map(|s| {
+                // its fencing: the commands of replaced incarnations it refused
+                report.refused_commands = Some(s.refused_by);
+                (s.pose, s.collisions, s.judgement)
+            });
             judge(report, self, status);
         })
     }

@@ -51,6 +51,10 @@ async fn a_replaced_incarnations_commands_are_refused_and_change_nothing() {
     assert_eq!(status.commanded, (0.1, 0.0));
     assert_eq!(status.speed_cap, Some(0.2));
     assert_eq!(status.refused, 4);
+    assert_eq!(
+        status.refused_by.into_iter().collect::<Vec<_>>(),
+        [("wall-follower".to_string(), 4)]
+    );
 
     actor.stop(None);
     handle.await.unwrap();

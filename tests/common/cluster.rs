@@ -1,13 +1,21 @@
-//! Real `marie node` (and `marie up`) processes on 127.0.0.1 for the cluster tests: each
-//! killed by its pid when its handle drops (also when a test panics), each line of its stdout
-//! awaited as an event, never a sleep.
+//! Real `marie node` (and `marie up`) processes for the cluster tests — on 127.0.0.1, or in
+//! network namespaces of the test's own ([`super::netns`]): each killed by its pid when its
+//! handle drops (also when a test panics), each line of its stdout awaited as an event,
+//! never a sleep.
 
 use std::io::{BufRead, BufReader};
 use std::net::{SocketAddr, TcpListener};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::sync::mpsc::{self, Receiver};
 use std::time::{Duration, Instant};
+
+/// With this environment variable set to a directory, each process's log (stderr, at
+/// `RUST_LOG=info`) is written there as `NAME-TESTPID-N.log`; else it is dropped.
+pub const LOGS: &str = "MARIE_TEST_LOGS";
+
+/// Processes logged so far (part of the log files' names).
+static LOGGED: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
 
 /// Generous: a loaded 2-core machine may take seconds to start a process.
 pub const EVENT_TIMEOUT: Duration = Duration::from_secs(60);
@@ -24,8 +32,11 @@ pub struct Proc {
     /// What it is, for messages.
     pub name: String,
     child: Child,
-    lines: Receiver<String>,
+    /// Each line with the moment it was read.
+    lines: Receiver<(Instant, String)>,
     seen: Vec<String>,
+    /// When each line of `seen` was read.
+    arrived: Vec<Instant>,
 }
 
 /// A running `marie node`.
@@ -73,38 +84,92 @@ impl NodeProc {
         flags: &[&str],
     ) -> NodeProc {
         let addr = free_addr();
-        let peers: Vec<String> = peers.iter().map(|p| format!("\"{p}\"")).collect();
-        let config = format!(
-            "[node]\nname = \"{name}\"\n{hosts}\n[cluster]\nlisten = \"{addr}\"\npeers = [{}]\ncookie = \"{cookie}\"\n{cluster_extra}\n",
-            peers.join(", ")
-        );
-        let path = dir.join(format!("{name}.toml"));
-        std::fs::write(&path, config).expect("write node config");
+        let path = node_config(dir, name, hosts, addr, peers, cookie, cluster_extra);
         let mut args = vec!["node", "--config", path.to_str().expect("utf-8 path")];
         args.extend_from_slice(flags);
-        let proc = Proc::spawn(name, &args);
+        NodeProc::launch(None, addr, name, &args)
+    }
+
+    /// Start `marie ARGS` (a `marie node` listening on `addr`), inside network namespace
+    /// `netns` if one is given, and wait until it listens.
+    pub fn launch(netns: Option<&str>, addr: SocketAddr, name: &str, args: &[&str]) -> NodeProc {
+        let proc = Proc::spawn_in(netns, name, args);
         let mut node = NodeProc { addr, proc };
         node.wait_line(&format!("node {name} listening on {addr}"));
         node
     }
 }
 
+/// Write `dir/NAME.toml` — `[node]`, then `hosts` (TOML tables), then `[cluster]` with
+/// `listen`, `peers`, `cookie` and `cluster_extra` (TOML lines) — and give its path.
+pub fn node_config(
+    dir: &Path,
+    name: &str,
+    hosts: &str,
+    listen: SocketAddr,
+    peers: &[SocketAddr],
+    cookie: &str,
+    cluster_extra: &str,
+) -> PathBuf {
+    let peers: Vec<String> = peers.iter().map(|p| format!("\"{p}\"")).collect();
+    let config = format!(
+        "[node]\nname = \"{name}\"\n{hosts}\n[cluster]\nlisten = \"{listen}\"\npeers = [{}]\ncookie = \"{cookie}\"\n{cluster_extra}\n",
+        peers.join(", ")
+    );
+    let path = dir.join(format!("{name}.toml"));
+    std::fs::write(&path, config).expect("write node config");
+    path
+}
+
 impl Proc {
     /// Start `marie ARGS` in the repository's directory, its stdout read line by line.
     pub fn spawn(name: &str, args: &[&str]) -> Proc {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_marie"))
+        Proc::spawn_in(None, name, args)
+    }
+
+    /// [`Proc::spawn`] inside network namespace `netns`, if one is given: through
+    /// `ip netns exec NS`, which execs `marie` in place, so the child's pid is marie's (what
+    /// [`Proc::signal`] and the drop kill). Its stdin is a pipe held until the drop: a
+    /// `marie node --stop-with-stdin` stops even when this test process is killed.
+    pub fn spawn_in(netns: Option<&str>, name: &str, args: &[&str]) -> Proc {
+        let marie = env!("CARGO_BIN_EXE_marie");
+        let mut command = match netns {
+            Some(ns) => {
+                let mut c = Command::new("ip");
+                c.args(["netns", "exec", ns, marie]);
+                c
+            }
+            None => Command::new(marie),
+        };
+        let stderr = match std::env::var_os(LOGS) {
+            Some(dir) => {
+                command.env("RUST_LOG", "info");
+                let n = LOGGED.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                let file = Path::new(&dir).join(format!(
+                    "{}-{}-{n}.log",
+                    name.replace(' ', "_"),
+                    std::process::id()
+                ));
+                Stdio::from(std::fs::File::create(&file).expect("create a log file"))
+            }
+            None => {
+                command.env_remove("RUST_LOG");
+                Stdio::null()
+            }
+        };
+        let mut child = command
             .args(args)
             .current_dir(env!("CARGO_MANIFEST_DIR"))
-            .env_remove("RUST_LOG")
+            .stdin(Stdio::piped())
             .stdout(Stdio::piped())
-            .stderr(Stdio::null())
+            .stderr(stderr)
             .spawn()
             .expect("marie starts");
         let stdout = child.stdout.take().expect("stdout");
         let (tx, lines) = mpsc::channel();
         std::thread::spawn(move || {
             for line in BufReader::new(stdout).lines().map_while(Result::ok) {
-                if tx.send(line).is_err() {
+                if tx.send((Instant::now(), line)).is_err() {
                     break;
                 }
             }
@@ -114,12 +179,18 @@ impl Proc {
             child,
             lines,
             seen: Vec::new(),
+            arrived: Vec::new(),
         }
     }
 
     /// Its process id.
     pub fn pid(&self) -> u32 {
         self.child.id()
+    }
+
+    /// Whether it still runs.
+    pub fn alive(&mut self) -> bool {
+        matches!(self.child.try_wait(), Ok(None))
     }
 
     /// Every line seen so far.
@@ -137,17 +208,25 @@ impl Proc {
     /// is `seen().len()` taken earlier).
     #[track_caller]
     pub fn wait_line_since(&mut self, mark: usize, needle: &str) -> String {
-        if let Some(l) = self.seen.iter().skip(mark).find(|l| l.contains(needle)) {
-            return l.clone();
+        self.wait_line_timed(mark, needle).0
+    }
+
+    /// [`Proc::wait_line_since`], with the moment the line was read (by a thread that
+    /// reads every line as it comes, whenever the test waits).
+    #[track_caller]
+    pub fn wait_line_timed(&mut self, mark: usize, needle: &str) -> (String, Instant) {
+        if let Some(i) = (mark..self.seen.len()).find(|&i| self.seen[i].contains(needle)) {
+            return (self.seen[i].clone(), self.arrived[i]);
         }
         let deadline = Instant::now() + EVENT_TIMEOUT;
         loop {
             let left = deadline.saturating_duration_since(Instant::now());
             match self.lines.recv_timeout(left) {
-                Ok(line) => {
+                Ok((at, line)) => {
                     self.seen.push(line.clone());
+                    self.arrived.push(at);
                     if line.contains(needle) {
-                        return line;
+                        return (line, at);
                     }
                 }
                 Err(_) => panic!(
@@ -157,6 +236,22 @@ impl Proc {
                 ),
             }
         }
+    }
+
+    /// Take in the lines printed so far without waiting; every line seen.
+    pub fn drain(&mut self) -> &[String] {
+        while let Ok((at, line)) = self.lines.try_recv() {
+            self.seen.push(line);
+            self.arrived.push(at);
+        }
+        &self.seen
+    }
+
+    /// The lines read at or after `at`, taking in those printed so far.
+    pub fn lines_since(&mut self, at: Instant) -> Vec<String> {
+        self.drain();
+        let first = self.arrived.partition_point(|t| *t < at);
+        self.seen[first..].to_vec()
     }
 
     /// Send `signal` (e.g. `TERM`, `KILL`, `STOP`) to the process.

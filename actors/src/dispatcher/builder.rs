@@ -155,6 +155,7 @@ impl ReportBuilder {
                 seed,
                 inside_goal,
                 judgement,
+                refused_commands,
             } => {
                 self.report.outcome = *outcome;
                 self.report.reason = reason.clone();
@@ -163,6 +164,7 @@ impl ReportBuilder {
                 self.report.seed = *seed;
                 self.report.inside_goal = *inside_goal;
                 self.report.judgement = judgement.clone();
+                self.report.refused_commands = refused_commands.clone();
             }
             EventKind::Bound { .. }
             | EventKind::Lost { .. }

@@ -8,6 +8,7 @@
 use super::loss::LossCause;
 use crate::eo::FaultKind;
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 use std::fmt;
 
 /// How many of the latest rebinds, and of the latest faults, a report keeps (older ones are
@@ -163,6 +164,12 @@ pub struct RunReport {
     /// heading error 2.1°, 0 collision(s)`), where there is a simulated robot.
     #[serde(default)]
     pub judgement: Option<String>,
+    /// Commands the robot's drivers refused because they came from a replaced incarnation
+    /// of an operation (an older epoch than its stand-in's: fencing, [`crate::fence`]), by
+    /// operation name, where a simulated robot's cart told — e.g. a wall follower on a
+    /// node cut off from the dispatcher, still driving after its binding moved.
+    #[serde(default)]
+    pub refused_commands: Option<BTreeMap<String, u64>>,
     /// The latest [`REPORT_KEEPS`] faults injected on purpose during the run
     /// (fault-injection tests, `--fault`, `--chaos`), oldest first.
     #[serde(default)]
@@ -207,6 +214,7 @@ impl RunReport {
             seed: None,
             inside_goal: None,
             judgement: None,
+            refused_commands: None,
             faults: Vec::new(),
             faults_total: 0,
         }
@@ -259,6 +267,7 @@ mod tests {
             (report.inside_goal, report.judgement.as_deref()),
             (None, None)
         );
+        assert_eq!(report.refused_commands, None);
         let round: RunReport =
             serde_json::from_str(&serde_json::to_string(&report).expect("writes")).expect("reads");
         assert_eq!(round, report);
@@ -304,6 +313,7 @@ mod tests {
             seed: None,
             inside_goal: None,
             judgement: None,
+            refused_commands: None,
             faults: vec![FaultRecord {
                 at_ms: 2,
                 fault: FaultKind::Hang,

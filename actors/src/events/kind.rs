@@ -4,6 +4,7 @@ use crate::dispatcher::{LossCause, OpEnd, Outcome, RebindRecord};
 use crate::eo::FaultKind;
 use crate::registry::{Instance, ModuleKind};
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 
 /// What happened. Serialized internally tagged with `type` in snake_case (see the module
 /// docs for one JSON line per kind); the tags are stable names — add kinds, never rename
@@ -218,6 +219,9 @@ pub enum EventKind {
         inside_goal: Option<bool>,
         /// The world's verdict.
         judgement: Option<String>,
+        /// Commands the drivers refused by epoch, by operation (absent in older streams).
+        #[serde(default)]
+        refused_commands: Option<BTreeMap<String, u64>>,
     },
     /// Anything else a robot reports (a collision, a dock found): `what` names it, `data`
     /// holds it as JSON.

@@ -42,7 +42,7 @@
 //! {"at_ms":9900,"node":"marie@localhost","kind":{"type":"node_frozen","silent_ms":4200}}
 //! {"at_ms":800,"node":"marie@localhost","kind":{"type":"node_refused","peer":"old","theirs":2,"ours":1}}
 //! {"at_ms":850,"node":"marie@localhost","kind":{"type":"connection_refused","from":"127.0.0.1:45042","reason":"TLS: invalid peer certificate: UnknownIssuer"}}
-//! {"at_ms":30001,"node":"marie@localhost","kind":{"type":"judged","outcome":"succeeded","reason":"","final_pose":[1.5,0.25,0.01],"collisions":0,"seed":7,"inside_goal":true,"judgement":"success: inside the goal area"}}
+//! {"at_ms":30001,"node":"marie@localhost","kind":{"type":"judged","outcome":"succeeded","reason":"","final_pose":[1.5,0.25,0.01],"collisions":0,"seed":7,"inside_goal":true,"judgement":"success: inside the goal area","refused_commands":{}}}
 //! {"at_ms":4000,"node":"marie@localhost","kind":{"type":"robot","what":"collision","data":{"x":1.0,"y":2.0}}}
 //! ```
 //!

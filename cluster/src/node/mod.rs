@@ -383,6 +383,7 @@ impl Node {
                 seed: report.seed,
                 inside_goal: report.inside_goal,
                 judgement: report.judgement.clone(),
+                refused_commands: report.refused_commands.clone(),
             });
         }
         if let Some(outer) = events {

@@ -20,6 +20,7 @@ use marie_actors::registry::{self, ModuleKind};
 use ractor::rpc::CallResult;
 use ractor::{Actor, ActorProcessingErr, ActorRef, SpawnErr};
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 use std::time::Duration;
 use tokio::task::JoinHandle;
 
@@ -77,6 +78,9 @@ pub struct CartStatus {
     pub judgement: Judgement,
     /// Commands refused because they came from a replaced incarnation of an operation.
     pub refused: u64,
+    /// Those commands by operation name (only operations with at least one).
+    #[serde(default)]
+    pub refused_by: BTreeMap<String, u64>,
 }
 
 marie_actors::remote_message! {
@@ -214,6 +218,7 @@ impl CartState {
             footprint: self.sim.footprint(),
             judgement: self.sim.judge(),
             refused: self.fences.refused(),
+            refused_by: self.fences.refused_by().clone(),
         }
     }
 }
