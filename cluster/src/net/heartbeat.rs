@@ -38,7 +38,7 @@ struct Beat {
     seq: u64,
     /// The addresses of the peers the sender has a ready session with: a receiver that
     /// does not see one dials it, which keeps the cluster a full mesh (ractor_cluster's own
-    /// transitive dials are plain TCP, and happen only once). Absent from the beats of
+    /// transitive dials would be plain TCP, and duplicated). Absent from the beats of
     /// older builds, which ignore it in ours.
     #[serde(default)]
     sees: Vec<String>,
@@ -80,11 +80,13 @@ pub(crate) struct State {
     detector: Detector,
     seq: u64,
     ticker: tokio::task::JoinHandle<()>,
+    greeter: tokio::task::JoinHandle<()>,
 }
 
 impl Drop for State {
     fn drop(&mut self) {
         self.ticker.abort();
+        self.greeter.abort();
     }
 }
 
@@ -101,6 +103,23 @@ impl Actor for Heartbeat {
         args.config.validate()?;
         pg::join_scoped(SCOPE.into(), GROUP.into(), vec![myself.get_cell()]);
         let period = args.config.period;
+        // a new peer hears at once whom this node sees: the mesh closes without waiting
+        // a period
+        let (_, mut news) = args.sessions.listen();
+        let me = myself.clone();
+        let greeter = tokio::spawn(async move {
+            loop {
+                match news.recv().await {
+                    Ok(NetEvent::PeerUp { .. }) => {
+                        if me.cast(BeatMsg::Tick {}).is_err() {
+                            return;
+                        }
+                    }
+                    Ok(_) | Err(tokio::sync::broadcast::error::RecvError::Lagged(_)) => {}
+                    Err(tokio::sync::broadcast::error::RecvError::Closed) => return,
+                }
+            }
+        });
         let me = myself.clone();
         // wall-clock ticks: heartbeats stay in real time whatever the cluster's speed
         let ticker = tokio::spawn(async move {
@@ -118,6 +137,7 @@ impl Actor for Heartbeat {
             args,
             seq: 0,
             ticker,
+            greeter,
         })
     }
 

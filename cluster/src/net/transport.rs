@@ -92,19 +92,28 @@ impl Transport {
             addr: listen,
             reason,
         };
+        // Isolated: marie dials the peers' peers itself (`Dialer::learn`), once each and
+        // from one side only — ractor_cluster's transitive mode dials a peer once per member
+        // that names it, and the duplicate sessions it then closes make peers flap — and
+        // over TLS when on (its transitive dials are plain TCP).
+        // a node that listens on port 0 must know its port to compare addresses with its
+        // peers (see `Dialer::learn`): ask the OS for a free one first
+        let mut advertised = listen;
+        if listen.port() == 0 && tls.is_none() {
+            let free = std::net::TcpListener::bind(listen).and_then(|l| l.local_addr());
+            advertised = free.map_err(|e| listen_err(e.to_string()))?;
+        }
         let server = match &tls {
-            // a node that joins one member dials that member's peers: a full mesh
             None => NodeServer::new(
-                listen.port(),
+                advertised.port(),
                 config.cookie.clone(),
                 node.to_string(),
                 listen.ip().to_string(),
                 None,
-                Some(NodeConnectionMode::Transitive),
+                Some(NodeConnectionMode::Isolated),
             ),
-            // ractor_cluster's transitive dials are plain TCP: with TLS, the peers' peers are
-            // learned from heartbeats instead. Its own listener (which would stall on a silent
-            // TLS client) takes an unadvertised port; `tls::serve` takes the real one.
+            // its own listener (which would stall on a silent TLS client) takes an
+            // unadvertised port; `tls::serve` takes the real one
             Some(tls) => NodeServer::new(
                 0,
                 config.cookie.clone(),
@@ -120,7 +129,6 @@ impl Transport {
             .map_err(|e| listen_err(e.to_string()))?;
         let mut tasks = Vec::new();
         let sessions = Sessions::new(node);
-        let mut advertised = listen;
         if let Some(tls) = &tls {
             // peers are told the real port, not the unadvertised one
             let bound = tokio::net::TcpListener::bind(listen).await;
@@ -155,7 +163,7 @@ impl Transport {
             server: server.clone(),
             sessions: sessions.clone(),
             tls,
-            learning: Arc::default(),
+            dialing: Arc::default(),
         };
         let (learned, heard) = mpsc::unbounded_channel();
         let (heartbeat, heartbeat_handle) = Actor::spawn(
@@ -278,8 +286,9 @@ struct Dialer {
     server: ActorRef<NodeServerMessage>,
     sessions: Sessions,
     tls: Option<Tls>,
-    /// Learned addresses being dialed now.
-    learning: Arc<Mutex<BTreeSet<SocketAddr>>>,
+    /// Addresses being dialed now (connecting, or their session not yet ready): never
+    /// two dials to one address at once.
+    dialing: Arc<Mutex<BTreeSet<SocketAddr>>>,
 }
 
 impl Dialer {
@@ -289,8 +298,14 @@ impl Dialer {
         self.sessions.peers().iter().any(|p| p.address == wanted)
     }
 
-    /// One dial, with TLS if on, given up after [`DIAL_TIMEOUT`].
+    /// One dial, with TLS if on, given up after [`DIAL_TIMEOUT`]; then wait, up to as
+    /// long again, for the session to be ready. Nothing if `addr` is being dialed already.
     async fn dial(&self, addr: SocketAddr) {
+        let lock = || self.dialing.lock().unwrap_or_else(|e| e.into_inner());
+        if !lock().insert(addr) {
+            return;
+        }
+        let mut changes = self.sessions.subscribe();
         let dialed = tokio::time::timeout(DIAL_TIMEOUT, async {
             match &self.tls {
                 None => ractor_cluster::client_connect(&self.server, addr)
@@ -302,10 +317,22 @@ impl Dialer {
         .await;
         let node = &self.node;
         match dialed {
-            Ok(Ok(())) => tracing::debug!(%node, peer = %addr, "dialed"),
+            Ok(Ok(())) => {
+                tracing::debug!(%node, peer = %addr, "dialed");
+                // the handshake and the state exchange follow
+                let _ = tokio::time::timeout(DIAL_TIMEOUT, async {
+                    while !self.present(addr) {
+                        if changes.changed().await.is_err() {
+                            return;
+                        }
+                    }
+                })
+                .await;
+            }
             Ok(Err(e)) => tracing::debug!(%node, peer = %addr, error = %e, "dial failed"),
             Err(_) => tracing::debug!(%node, peer = %addr, "dial timed out"),
         }
+        lock().remove(&addr);
     }
 
     /// Keep a session with the peer at `addr`: dial it whenever no ready peer listens
@@ -323,46 +350,25 @@ impl Dialer {
                 continue;
             }
             self.dial(addr).await;
-            // give the handshake its time, or back off; wake early on any session change
+            // back off; wake early on any session change
             let _ = tokio::time::timeout(backoff, changes.changed()).await;
             backoff = (backoff * 2).min(REDIAL_MAX);
         }
     }
 
-    /// Dial, once each time it is heard of, every peer another peer sees and this node
-    /// does not (one dial per address at a time; another peer keeps naming it while it
-    /// lives, which is the retry).
+    /// Dial, each time it is heard of, a peer another peer sees and this node does not —
+    /// when this node's address is the lower of the two: both hear of each other from
+    /// their common peers, and one session between them is what both want. (Another peer
+    /// keeps naming it while it lives, which is the retry.)
     async fn learn(self, mut heard: mpsc::UnboundedReceiver<SocketAddr>) {
         while let Some(addr) = heard.recv().await {
-            if addr == self.listen || self.present(addr) {
-                continue;
-            }
-            if !self
-                .learning
-                .lock()
-                .unwrap_or_else(|e| e.into_inner())
-                .insert(addr)
-            {
+            if addr <= self.listen || self.present(addr) {
                 continue;
             }
             let this = self.clone();
             tokio::spawn(async move {
                 tracing::debug!(node = %this.node, peer = %addr, "dialing a peer learned from a heartbeat");
                 this.dial(addr).await;
-                // let the session come up before the address may be dialed again
-                let _ = tokio::time::timeout(REDIAL_MIN * 5, async {
-                    let mut changes = this.sessions.subscribe();
-                    while !this.present(addr) {
-                        if changes.changed().await.is_err() {
-                            return;
-                        }
-                    }
-                })
-                .await;
-                this.learning
-                    .lock()
-                    .unwrap_or_else(|e| e.into_inner())
-                    .remove(&addr);
             });
         }
     }
