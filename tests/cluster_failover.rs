@@ -188,6 +188,13 @@ fn freezing_the_wall_followers_node_gets_it_declared_down_rebound_and_the_missio
     let rebound = position("rebound", "operation", "wall-follower");
     assert!(down < rebound, "{:?}", &events[down..=rebound]);
     assert!(events[down]["kind"]["silent_ms"].as_u64().unwrap() >= 1200);
+    // and the rebind blames the node
+    assert_eq!(
+        events[rebound]["kind"]["cause"],
+        serde_json::json!({"type": "node_down", "node": lost}),
+        "{}",
+        events[rebound]
+    );
 }
 
 fn other(wf: &str) -> &'static str {

@@ -345,6 +345,13 @@ fn a_partial_partition_does_not_let_the_cut_off_wall_follower_drive_the_cart() {
     let rebound = position("rebound", "operation", "wall-follower");
     assert!(down < rebound, "{:?}", &events[down..=rebound]);
     assert!(events[down]["kind"]["silent_ms"].as_u64().unwrap() >= DEADLINE_MS);
+    // and the rebind blames the node
+    assert_eq!(
+        events[rebound]["kind"]["cause"],
+        serde_json::json!({"type": "node_down", "node": old_name}),
+        "{}",
+        events[rebound]
+    );
 
     // a partial partition: the cut-off node lost only the dispatcher; the cart and the
     // others never lost it; every node still runs

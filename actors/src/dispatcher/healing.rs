@@ -21,7 +21,7 @@ use super::messages::DispatcherMsg;
 use super::report::{Outcome, RebindRecord};
 use crate::clock::Timer;
 use crate::eo::{EoError, ParamOutcome};
-use crate::events::{BoundOp, EventKind};
+use crate::events::{BoundOp, BusError, Event, EventKind};
 use crate::property::PropertyRequest;
 use crate::registry::{self, Instance, ModuleKind, RegistryEvent};
 use ractor::ActorRef;
@@ -77,8 +77,9 @@ impl DispatcherState {
         Ok(())
     }
 
-    /// Start forwarding the registry's operation joins and leaves to the dispatcher, until
-    /// the dispatcher's state is dropped.
+    /// Start forwarding the registry's operation joins and leaves, and the failure
+    /// detector's verdicts on nodes (from the bus), to the dispatcher, until the
+    /// dispatcher's state is dropped.
     pub(super) async fn watch_registry(
         &mut self,
         myself: &ActorRef<DispatcherMsg>,
@@ -89,6 +90,7 @@ impl DispatcherState {
         let (guard, mut gone) = tokio::sync::oneshot::channel::<()>();
         self._watch_guard = Some(guard);
         let me = myself.clone();
+        let mut bus = self.bus.subscribe();
         ractor::concurrency::spawn(async move {
             loop {
                 tokio::select! {
@@ -96,6 +98,17 @@ impl DispatcherState {
                     event = watch.next() => {
                         let Some(event) = event else { break };
                         if me.cast(DispatcherMsg::Registry { event }).is_err() {
+                            break;
+                        }
+                    }
+                    event = bus.recv() => {
+                        let news = match event {
+                            Ok(Event { kind: EventKind::NodeDown { peer, .. }, .. }) => (peer, false),
+                            Ok(Event { kind: EventKind::NodeUp { peer, .. }, .. }) => (peer, true),
+                            Ok(_) | Err(BusError::Lagged { .. }) => continue,
+                            Err(BusError::Closed) => break,
+                        };
+                        if me.cast(DispatcherMsg::NodeNews { node: news.0, up: news.1 }).is_err() {
                             break;
                         }
                     }
@@ -120,6 +133,15 @@ impl DispatcherState {
         if b.lost.is_some() || self.ended {
             return;
         }
+        // however it showed (a closed reply port, a registry leave), the failure
+        // detector's verdict says why
+        let cause = if self.down_nodes.contains(&b.node) {
+            LossCause::NodeDown {
+                node: b.node.clone(),
+            }
+        } else {
+            cause
+        };
         b.lose(cause.clone(), now);
         let incarnation = b.incarnation;
         tracing::warn!(op = %name, %cause, "operation lost; rebinding");
@@ -182,6 +204,11 @@ impl DispatcherState {
             return false;
         };
         if inst.actor.get_id() == lost.dead {
+            return false;
+        }
+        if self.down_nodes.contains(&inst.node) {
+            // still in the registry a moment after its node was declared down
+            tracing::debug!(op = %name, node = %inst.node, "no stand-in from a node declared down");
             return false;
         }
         let cand = match examine(inst, b.deadline).await {
@@ -315,6 +342,31 @@ impl DispatcherState {
             Some(EoError::Gone(_)) => {
                 self.lose(myself, &name, LossCause::Gone).await;
             }
+        }
+    }
+
+    /// A node declared down: every instance bound there is lost (the registry would tell
+    /// the same a moment later); a node back up is no longer blamed.
+    pub(super) async fn on_node_news(
+        &mut self,
+        myself: &ActorRef<DispatcherMsg>,
+        node: String,
+        up: bool,
+    ) {
+        if up {
+            self.down_nodes.remove(&node);
+            return;
+        }
+        let there: Vec<String> = self
+            .bindings
+            .values()
+            .filter(|b| b.lost.is_none() && b.node == node)
+            .map(|b| b.name.clone())
+            .collect();
+        self.down_nodes.insert(node.clone());
+        for name in there {
+            self.lose(myself, &name, LossCause::NodeDown { node: node.clone() })
+                .await;
         }
     }
 

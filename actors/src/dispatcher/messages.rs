@@ -27,6 +27,14 @@ crate::remote_message! {
             /// What happened.
             event: RegistryEvent,
         },
+        /// The failure detector declared `node` down (or, `up`, the node is back): its
+        /// instances are lost, and a loss on it is blamed on it.
+        NodeNews {
+            /// The node's name.
+            node: String,
+            /// Back up (true) or declared down (false).
+            up: bool,
+        },
         /// Time to ask the bound operations whether they still answer.
         Probe {},
         /// A liveness probe of `name`'s incarnation `incarnation` ended.

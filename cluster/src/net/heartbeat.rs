@@ -193,13 +193,18 @@ impl State {
             self.args.sessions.tell(event);
         }
         for (peer, silent) in overdue {
+            // told before its sessions close: whoever reacts to the verdict (a dispatcher)
+            // hears it before it sees the peer's modules leave
+            let event = NetEvent::PeerDown {
+                peer: peer.clone(),
+                silent,
+            };
+            tracing::warn!(node = %self.args.node, "{event}");
+            self.args.sessions.tell(event);
             self.args
                 .sessions
                 .close(&peer, "declared down: no heartbeat");
             self.detector.forget(&peer);
-            let event = NetEvent::PeerDown { peer, silent };
-            tracing::warn!(node = %self.args.node, "{event}");
-            self.args.sessions.tell(event);
         }
     }
 
