@@ -31,7 +31,8 @@
 //! re-executes itself as its children (the environment variable `MARIE_BENCH_CLUSTER_ROLE`
 //! says which), each a marie node (`Node::start` + `Transport::start`) that dials this
 //! process on 127.0.0.1. Every child is killed by its pid when the bench ends (a `Drop`
-//! guard, also on panic), and exits by itself when this process' end closes its stdin.
+//! guard, also on panic), and dies with this process however it ends (parent-death signal;
+//! and it exits when its stdin closes).
 //! A plain bench binary (not criterion): failover samples cannot be repeated in a tight loop.
 
 use marie::actors::clock::RealClock;
@@ -264,6 +265,9 @@ fn child(role: &str) {
         .expect("join address")
         .parse()
         .expect("a socket address");
+    // SAFETY: prctl(2) on this process only. The kernel kills us when the parent dies,
+    // however it dies — even while we are stopped (SIGSTOP), when reading stdin cannot.
+    unsafe { libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL) };
     std::thread::spawn(|| {
         // the parent holds our stdin: when it ends, however it ends, so do we
         let _ = std::io::copy(&mut std::io::stdin(), &mut std::io::sink());
