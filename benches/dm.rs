@@ -3,8 +3,9 @@
 //! - `dm_store`: N `Put` casts into a DM (a sonar class at its retention bound, so every put
 //!   also drops the oldest record) vs the same N messages, carrying the same records, told to
 //!   a trivial actor that only counts them; plus the store's index work alone and N unit
-//!   messages for scale. Each actor iteration ends with a call, so every message has been
-//!   handled. Goal: DM rate ≥ 0.5 × raw rate.
+//!   messages for scale; and the same records in batches (`DmClient::put_all`). Each actor
+//!   iteration ends with a call, so every message has been handled. Goal: DM rate ≥ 0.5 ×
+//!   raw rate.
 //! - `dm_select`: the newest 10 records of one class with a sub-class filter, with 1 000 vs
 //!   1 000 000 records stored — on the store itself and through the actor. Goal: the 1M time
 //!   ≤ 2 × the 1k time.
@@ -140,6 +141,23 @@ fn store_rate(c: &mut Criterion) {
                     for record in records {
                         dm_ref.cast(DmMsg::Put { record }).expect("dm alive");
                     }
+                    client.stats().await.expect("stats");
+                    total += start.elapsed();
+                }
+                total
+            }
+        })
+    });
+    // The same records in `PutBatch` messages of `credits::BATCH` (what `put_all` sends).
+    g.bench_function("dm_put_batch", |b| {
+        b.to_async(&rt).iter_custom(|iters| {
+            let client = client.clone();
+            async move {
+                let mut total = Duration::ZERO;
+                for _ in 0..iters {
+                    let records = batch();
+                    let start = Instant::now();
+                    client.put_all(records).await.expect("put_all");
                     client.stats().await.expect("stats");
                     total += start.elapsed();
                 }

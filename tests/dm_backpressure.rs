@@ -1,13 +1,14 @@
 //! Flow control of remote puts: a producer in this process storing as fast as it can into
 //! a datamanager on a `marie node` process is held to a window of unacknowledged puts —
 //! refused with `Busy` when it is spent, never queueing without bound — and every put it
-//! was allowed reaches the datamanager. (Its own process: it joins the cluster as a member.)
+//! was allowed reaches the datamanager; batches of puts spend one credit per record and
+//! arrive whole and in order. (Its own process: it joins the cluster as a member.)
 
 mod common;
 
 use common::cluster::NodeProc;
-use marie::actors::dm::credits::WINDOW;
-use marie::actors::dm::{DmClient, DmError};
+use marie::actors::dm::credits::{BATCH, WINDOW};
+use marie::actors::dm::{DmClient, DmError, NewRecord, Payload, Query};
 use marie::net::{ClusterConfig, Transport};
 use std::time::Duration;
 
@@ -74,6 +75,76 @@ fn a_fast_producer_is_held_to_its_window_and_loses_no_accepted_put() {
     assert_eq!(stats.records + stats.dropped, accepted as u64, "{stats:?}");
     assert_eq!(stats.refused_puts, 0);
     assert_eq!(accepted + busy, PUTS);
+    alpha.signal("TERM");
+    assert_eq!(alpha.wait_exit(), Some(0));
+}
+
+#[test]
+fn batches_spend_a_credit_per_record_and_arrive_whole_and_in_order() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut alpha = NodeProc::start(
+        dir.path(),
+        "alpha",
+        "[[datamanager]]\nname = \"feature\"\n",
+        &[],
+        COOKIE,
+    );
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .unwrap();
+    rt.block_on(async {
+        let me = ClusterConfig::new("127.0.0.1:0".parse().unwrap(), COOKIE).with_peer(alpha.addr);
+        let transport = Transport::start("batcher", &me).await.unwrap();
+        transport
+            .wait_for_peers(1, Duration::from_secs(60))
+            .await
+            .unwrap();
+        let client = DmClient::lookup("feature", "batcher").unwrap();
+        assert!(!client.actor().get_id().is_local());
+        let rec = |i: u64| NewRecord::new("sonar", Payload::encode(&i).unwrap());
+        // a batch the window could never hold is refused, not sent
+        match client.put_batch((0..WINDOW as u64 + 1).map(rec).collect()) {
+            Err(DmError::BatchTooLarge { records, window }) => {
+                assert_eq!((records, window), (WINDOW as u64 + 1, WINDOW as u64))
+            }
+            other => panic!("{other:?}"),
+        }
+        assert_eq!(client.puts_in_flight(), 0);
+        // a producer that waits for credits is never refused, and never over the window
+        let mut max_in_flight = 0;
+        let mut next = 0u64;
+        while next < PUTS as u64 {
+            let batch: Vec<NewRecord> = (next..next + BATCH as u64).map(rec).collect();
+            next += BATCH as u64;
+            client.ready(batch.len()).await.unwrap();
+            client.put_batch(batch).unwrap();
+            max_in_flight = max_in_flight.max(client.puts_in_flight());
+        }
+        assert!(max_in_flight <= WINDOW, "{max_in_flight} in flight");
+        // and put_all does the same by itself
+        tokio::time::timeout(
+            Duration::from_secs(60),
+            client.put_all((next..next + PUTS as u64 / 2).map(rec)),
+        )
+        .await
+        .expect("put_all ends")
+        .unwrap();
+        let total = next + PUTS as u64 / 2;
+        let stats = client.stats().await.unwrap();
+        assert_eq!(stats.records + stats.dropped, total, "{stats:?}");
+        assert_eq!(stats.refused_puts, 0);
+        let newest: Vec<u64> = client
+            .select_typed::<u64>(Query::class("sonar").newest(1000))
+            .await
+            .unwrap()
+            .into_iter()
+            .map(|(_, v)| v)
+            .collect();
+        assert_eq!(newest, (total - 1000..total).collect::<Vec<_>>());
+        transport.stop().await;
+    });
     alpha.signal("TERM");
     assert_eq!(alpha.wait_exit(), Some(0));
 }

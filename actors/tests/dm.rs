@@ -558,3 +558,42 @@ async fn records_of_a_replaced_incarnation_are_refused_and_change_nothing() {
     assert_eq!((stats.fenced, stats.refused_puts), (2, 1));
     dm.stop().await;
 }
+
+#[tokio::test]
+async fn batches_store_in_order_all_or_nothing() {
+    let dm = spawn(
+        "dm-t-batch",
+        9111,
+        RealClock::shared(),
+        DmConfig::default().with_max_payload(64),
+    )
+    .await;
+    let c = &dm.client;
+    let rec = |i: u32| NewRecord::new("sonar", Payload::encode(&i).unwrap());
+    // a bad record refuses the whole batch here: nothing is sent
+    let bad = vec![rec(0), NewRecord::new("", Payload::default())];
+    assert!(matches!(c.put_batch(bad), Err(DmError::InvalidName { .. })));
+    c.put_batch(Vec::new()).unwrap();
+    c.put_batch((0..10).map(rec).collect()).unwrap();
+    // what the DM refuses is counted and skipped, the rest of the batch is stored
+    c.put_batch(vec![
+        rec(10),
+        NewRecord::new("blob", Payload(vec![0; 65])),
+        rec(11),
+    ])
+    .unwrap();
+    // put_all cuts a long sequence into batches (a local DM: no credits to wait for)
+    within("put_all", c.put_all((12..5000).map(rec)))
+        .await
+        .unwrap();
+    c.put_raw(rec(5000)).unwrap();
+    let stats = within("stats", c.stats()).await.unwrap();
+    assert_eq!(stats.records, 5001);
+    assert_eq!(stats.refused_puts, 1);
+    let stored = c.select_typed::<u32>(Query::class("sonar")).await.unwrap();
+    assert!(stored.iter().all(|(h, _)| h.source == "tester"));
+    let values: Vec<u32> = stored.into_iter().map(|(_, v)| v).collect();
+    assert_eq!(values, (0..=5000).collect::<Vec<_>>());
+    assert_eq!(c.puts_in_flight(), 0, "local puts are not metered");
+    dm.stop().await;
+}

@@ -30,7 +30,17 @@ fn seeds() -> Vec<(&'static str, String, Vec<u8>)> {
         .with_sub1("front")
         .with_source("ultrasonic");
     let mut out = Vec::new();
-    let (v, a) = cast_parts(DmMsg::Put { record });
+    let (v, a) = cast_parts(DmMsg::Put {
+        record: record.clone(),
+    });
+    out.push(("dm", v, a));
+    let (v, a) = cast_parts(DmMsg::PutBatch {
+        records: vec![
+            record.clone(),
+            NewRecord::new("odometry", Payload(vec![9])),
+            record,
+        ],
+    });
     out.push(("dm", v, a));
     let (v, a) = cast_parts(EoMsg::Suspend { epoch: 7 });
     out.push(("eo", v, a));

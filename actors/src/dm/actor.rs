@@ -253,6 +253,14 @@ impl Actor for Datamanager {
                     tracing::warn!(dm = %state.name, error = %e, "put refused");
                 }
             }
+            DmMsg::PutBatch { records } => {
+                for record in records {
+                    if let Err(e) = state.store(record) {
+                        state.refused_puts += 1;
+                        tracing::warn!(dm = %state.name, error = %e, "put refused");
+                    }
+                }
+            }
             DmMsg::Store { record, reply } => {
                 let outcome = state.store(*record);
                 if let Err(e) = &outcome {

@@ -190,16 +190,105 @@ impl DmClient {
         let record = self.fill_source(record);
         record.validate()?;
         // a remote datamanager's puts spend credits (see `credits`): bounded in flight
-        let metered = !self.actor.get_id().is_local();
+        let metered = self.metered();
         if metered {
-            self.credits.spend(&self.actor, &self.dm)?;
+            self.credits.take(1, &self.actor, &self.dm)?;
         }
-        self.actor.cast(DmMsg::Put { record }).map_err(|_| {
+        if self.actor.cast(DmMsg::Put { record }).is_err() {
             if metered {
-                self.credits.refund();
+                self.credits.refund(1);
             }
-            self.unreachable()
-        })
+            return Err(self.unreachable());
+        }
+        if metered {
+            self.credits.sent(&self.actor);
+        }
+        Ok(())
+    }
+
+    /// Store prepared records without waiting for the DM, in as few messages as their size
+    /// allows (one frame, one mailbox hop for many records: what a high-rate producer
+    /// sending to another node wants). All or nothing: a bad record refuses the whole batch
+    /// here, and to a remote DM the batch takes one credit per record at once — `Busy` if
+    /// the window lacks room for all of them, [`DmError::BatchTooLarge`] if it never could
+    /// ([`super::credits::WINDOW`]). What the DM refuses afterwards is counted there, as
+    /// for [`DmClient::put`].
+    pub fn put_batch(&self, records: Vec<NewRecord>) -> Result<(), DmError> {
+        if records.is_empty() {
+            return Ok(());
+        }
+        let records = records
+            .into_iter()
+            .map(|r| {
+                let r = self.fill_source(r);
+                r.validate().map(|()| r)
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let n = records.len();
+        let metered = self.metered();
+        if metered {
+            self.credits.take(n, &self.actor, &self.dm)?;
+        }
+        let mut left = n;
+        for chunk in frames(records) {
+            let len = chunk.len();
+            if self.actor.cast(DmMsg::PutBatch { records: chunk }).is_err() {
+                if metered {
+                    self.credits.refund(left);
+                }
+                return Err(self.unreachable());
+            }
+            left -= len;
+        }
+        if metered {
+            self.credits.sent(&self.actor);
+        }
+        Ok(())
+    }
+
+    /// Store every record of `records`, in order, waiting for credits rather than refusing
+    /// with `Busy`: batches of [`super::credits::BATCH`] records. For bulk transfers (a log,
+    /// a replay) where nothing may be dropped; `Timeout` if the DM acknowledges nothing for
+    /// [`DmClient::timeout`].
+    pub async fn put_all(
+        &self,
+        records: impl IntoIterator<Item = NewRecord>,
+    ) -> Result<(), DmError> {
+        let mut records = records.into_iter().peekable();
+        while records.peek().is_some() {
+            let batch: Vec<NewRecord> = records.by_ref().take(super::credits::BATCH).collect();
+            self.ready(batch.len()).await?;
+            self.put_batch(batch)?;
+        }
+        Ok(())
+    }
+
+    /// Wait until `n` more puts fit in the window of a remote DM (at once for a local one),
+    /// at most [`DmClient::timeout`]: a producer that would rather wait than have its puts
+    /// refused `Busy`. With one producer per client, the puts that follow are then accepted.
+    pub async fn ready(&self, n: usize) -> Result<(), DmError> {
+        if !self.metered() || self.credits.in_flight() + n <= super::credits::WINDOW {
+            return Ok(());
+        }
+        if n > super::credits::WINDOW {
+            return Err(DmError::BatchTooLarge {
+                records: n as u64,
+                window: super::credits::WINDOW as u64,
+            });
+        }
+        if self.credits.ready(n, &self.actor, self.timeout).await {
+            Ok(())
+        } else {
+            Err(DmError::Timeout {
+                dm: self.dm.clone(),
+                after: self.timeout,
+            })
+        }
+    }
+
+    /// Puts to a remote datamanager are metered by credits; local ones are not.
+    fn metered(&self) -> bool {
+        !self.actor.get_id().is_local()
     }
 
     /// Puts sent to a remote datamanager and not yet acknowledged (at most
@@ -271,5 +360,61 @@ impl DmClient {
             None => self.stats().await?.next_seq,
         };
         Ok(Subscription::start(self.clone(), query, start))
+    }
+}
+
+/// Most bytes of records (payloads and names) one `PutBatch` message carries: far below
+/// ractor_cluster's 16 MiB frame limit, whatever the payloads.
+const FRAME_BYTES: usize = 1 << 20;
+
+/// Cut `records` into messages of at most [`FRAME_BYTES`] (a larger record goes alone).
+fn frames(records: Vec<NewRecord>) -> Vec<Vec<NewRecord>> {
+    let size = |r: &NewRecord| {
+        r.payload.len()
+            + r.class.len()
+            + r.source.len()
+            + r.sub1.as_ref().map_or(0, String::len)
+            + r.sub2.as_ref().map_or(0, String::len)
+    };
+    if records.iter().map(size).sum::<usize>() <= FRAME_BYTES {
+        return vec![records];
+    }
+    let mut out = Vec::new();
+    let (mut frame, mut bytes) = (Vec::new(), 0);
+    for r in records {
+        let s = size(&r);
+        if !frame.is_empty() && bytes + s > FRAME_BYTES {
+            out.push(std::mem::take(&mut frame));
+            bytes = 0;
+        }
+        bytes += s;
+        frame.push(r);
+    }
+    if !frame.is_empty() {
+        out.push(frame);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn batches_are_cut_into_frames_by_size_in_order() {
+        let rec = |i: usize, len: usize| {
+            NewRecord::new("c", Payload(vec![0; len])).with_source(format!("s{i}"))
+        };
+        let small: Vec<NewRecord> = (0..100).map(|i| rec(i, 10)).collect();
+        assert_eq!(frames(small.clone()), vec![small]);
+        let big: Vec<NewRecord> = (0..5).map(|i| rec(i, FRAME_BYTES / 2)).collect();
+        let cut = frames(big.clone());
+        assert_eq!(cut.len(), 5, "two halves and their names exceed a frame");
+        assert_eq!(cut.concat(), big);
+        let huge = vec![rec(0, 3 * FRAME_BYTES), rec(1, 1)];
+        assert_eq!(
+            frames(huge).iter().map(Vec::len).collect::<Vec<_>>(),
+            [1, 1]
+        );
     }
 }

@@ -4,16 +4,29 @@
 //! control — a sensor on one node can enqueue millions of records a second while the
 //! datamanager's node drains a few hundred thousand, and both the session between them and
 //! the datamanager's mailbox grow without bound. So a client's puts to a *remote*
-//! datamanager spend credits: at most [`WINDOW`] may be unacknowledged. Once half the window
-//! is spent, the client asks the datamanager for its stats (a call, which the datamanager
-//! answers only after every earlier message of the same sender: one session, one mailbox, in
-//! order); the answer gives back the credits spent before the ask. With no credit left, a
-//! put is refused at once with [`DmError::Busy`] — a high-rate producer drops that sample, as
-//! a sensor would, instead of queueing it. Memory in flight is bounded by the window on
-//! both sides. Local puts are not metered: the datamanager runs on the producer's own
-//! runtime.
+//! datamanager spend credits, one per record: at most [`WINDOW`] records may be
+//! unacknowledged. Once half the window is spent, the client asks the datamanager for its
+//! stats (a call, which the datamanager answers only after every earlier message of the same
+//! sender: one session, one mailbox, in order); the answer gives back the credits spent
+//! before the ask. With too few credits left, a put is refused at once with
+//! [`DmError::Busy`] — a high-rate producer drops that sample, as a sensor would, instead of
+//! queueing it — or a producer that would rather wait awaits [`DmClient::ready`]. Memory in
+//! flight is bounded by the window on both sides. Local puts are not metered: the
+//! datamanager runs on the producer's own runtime.
 //!
-//! Clones of a client share its credits (one producer, one window).
+//! A `PutBatch` carries many records in one message (one frame, one mailbox hop, one
+//! decode), and spends one credit per record all at once: the bound is the same, in records,
+//! and the acknowledgements stay one per half window. A batch larger than the window can
+//! never be sent whole and is refused ([`DmError::BatchTooLarge`]);
+//! [`DmClient::put_all`] cuts a long sequence into batches of [`BATCH`] and waits for
+//! credits between them.
+//!
+//! The acknowledgement is asked for after the put that crossed half the window was cast,
+//! so it also covers that put. Clones of a client share its credits (one producer, one
+//! window).
+//!
+//! [`DmClient::ready`]: super::DmClient::ready
+//! [`DmClient::put_all`]: super::DmClient::put_all
 
 use super::error::DmError;
 use super::messages::DmMsg;
@@ -21,9 +34,14 @@ use ractor::ActorRef;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
+use tokio::sync::Notify;
 
-/// Unacknowledged puts a client may have in flight to a remote datamanager.
+/// Unacknowledged records a client may have in flight to a remote datamanager.
 pub const WINDOW: usize = 1024;
+
+/// Records per message [`super::DmClient::put_all`] sends: a quarter of the window, so
+/// that two batches are on their way while the acknowledgement of two more comes back.
+pub const BATCH: usize = WINDOW / 4;
 
 /// How long an acknowledgement may take before the credits it would return are asked for
 /// again (by the next put).
@@ -34,39 +52,80 @@ const ACK_TIMEOUT: Duration = Duration::from_secs(5);
 pub(crate) struct Credits {
     in_flight: AtomicUsize,
     acking: AtomicBool,
+    /// Woken when an acknowledgement returns (or fails): waiters look again.
+    freed: Notify,
 }
 
 impl Credits {
-    /// Spend a credit for a put to `actor`, asking for an acknowledgement when half the
-    /// window is spent; `Busy` when none is left.
-    pub(crate) fn spend(
+    /// Take `n` credits for puts to `actor`, all or none; `Busy` when fewer are left (an
+    /// acknowledgement is then asked for, so that they come back).
+    pub(crate) fn take(
         self: &Arc<Self>,
+        n: usize,
         actor: &ActorRef<DmMsg>,
         dm: &str,
     ) -> Result<(), DmError> {
-        let spent = self.in_flight.fetch_add(1, Ordering::AcqRel) + 1;
-        if spent > WINDOW {
-            self.in_flight.fetch_sub(1, Ordering::AcqRel);
+        if n > WINDOW {
+            return Err(DmError::BatchTooLarge {
+                records: n as u64,
+                window: WINDOW as u64,
+            });
+        }
+        let took = self
+            .in_flight
+            .fetch_update(Ordering::AcqRel, Ordering::Acquire, |spent| {
+                (spent + n <= WINDOW).then_some(spent + n)
+            });
+        if took.is_err() {
             self.ask_ack(actor);
             return Err(DmError::Busy {
                 dm: dm.to_string(),
                 window: WINDOW as u64,
             });
         }
-        if spent >= WINDOW / 2 {
-            self.ask_ack(actor);
-        }
         Ok(())
     }
 
-    /// A put that was counted but could not be sent gives its credit back.
-    pub(crate) fn refund(&self) {
-        self.in_flight.fetch_sub(1, Ordering::AcqRel);
+    /// The puts credits were taken for have been cast: ask for an acknowledgement once half
+    /// the window is spent (asked after the cast, so that it covers those puts too).
+    pub(crate) fn sent(self: &Arc<Self>, actor: &ActorRef<DmMsg>) {
+        if self.in_flight() >= WINDOW / 2 {
+            self.ask_ack(actor);
+        }
+    }
+
+    /// Puts that were counted but could not be sent give their credits back.
+    pub(crate) fn refund(&self, n: usize) {
+        self.in_flight.fetch_sub(n, Ordering::AcqRel);
+        self.freed.notify_waiters();
     }
 
     /// Puts in flight now (for tests and stats).
     pub(crate) fn in_flight(&self) -> usize {
         self.in_flight.load(Ordering::Acquire)
+    }
+
+    /// Wait until `n` more puts fit in the window, at most `timeout`; false if they did not.
+    pub(crate) async fn ready(
+        self: &Arc<Self>,
+        n: usize,
+        actor: &ActorRef<DmMsg>,
+        timeout: Duration,
+    ) -> bool {
+        let deadline = tokio::time::Instant::now() + timeout;
+        loop {
+            let freed = self.freed.notified();
+            tokio::pin!(freed);
+            // registered before looking, so that an acknowledgement in between is not missed
+            freed.as_mut().enable();
+            if self.in_flight() + n <= WINDOW {
+                return true;
+            }
+            self.ask_ack(actor);
+            if tokio::time::timeout_at(deadline, freed).await.is_err() {
+                return false;
+            }
+        }
     }
 
     /// Unless one is under way, ask `actor` for an acknowledgement of the puts spent so far
@@ -88,6 +147,7 @@ impl Credits {
                 tracing::debug!("a datamanager did not acknowledge puts: credits held");
             }
             credits.acking.store(false, Ordering::Release);
+            credits.freed.notify_waiters();
         });
     }
 }

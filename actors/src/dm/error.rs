@@ -57,6 +57,15 @@ pub enum DmError {
         /// The window of unacknowledged puts.
         window: u64,
     },
+    /// A batch of puts larger than the window of credits to a remote datamanager: it could
+    /// never be sent whole ([`super::credits::WINDOW`]; `DmClient::put_all` cuts it).
+    #[error("a batch of {records} records exceeds the window of {window} puts")]
+    BatchTooLarge {
+        /// Records in the batch.
+        records: u64,
+        /// The window.
+        window: u64,
+    },
     /// The datamanager did not answer within the deadline.
     #[error("datamanager {dm} did not answer within {after:?}")]
     Timeout {

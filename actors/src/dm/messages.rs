@@ -55,6 +55,13 @@ crate::remote_message! {
             /// The record, without the header the DM fills in.
             record: NewRecord,
         },
+        /// Store records in order without waiting for the answer: many `Put`s in one
+        /// message (see [`super::credits`]). Each refused record is logged and counted in
+        /// [`DmStats::refused_puts`]; the others are stored.
+        PutBatch {
+            /// The records, without the headers the DM fills in.
+            records: Vec<NewRecord>,
+        },
         /// Every stored record matching the query, oldest-first.
         Select {
             /// What to select.
