@@ -3,9 +3,9 @@
 //! ractor_cluster notices a peer's death only when its TCP connection errors, so a frozen
 //! (`SIGSTOP`) or cut-off node stays "connected" for minutes. Every node runs one heartbeat
 //! actor, published in `pg` (scope [`SCOPE`], group [`GROUP`]) so that every peer finds it.
-//! Each period it casts a beat — a versioned [`Envelope`] naming the node — to every remote
-//! heartbeat actor, and asks its [`Detector`] which ready peers have been silent past the
-//! deadline: those are declared down — their sessions closed (their modules leave the
+//! Each period it casts a beat — a versioned [`Envelope`] naming the node and the peers it
+//! sees — to every remote heartbeat actor; four times a period it asks its [`Detector`]
+//! which ready peers have been silent past the deadline: those are declared down — their sessions closed (their modules leave the
 //! registry with them), a [`NetEvent::PeerDown`] published — and redialled by the transport
 //! with backoff, to rejoin once they answer.
 //!
@@ -26,6 +26,8 @@ use std::time::Instant;
 pub const SCOPE: &str = "marie-net";
 /// `pg` group of the heartbeat actors.
 pub const GROUP: &str = "heartbeat";
+/// How many times a heartbeat period the peers are judged.
+const JUDGES_PER_BEAT: u32 = 4;
 /// The envelope kind of a beat.
 const KIND: &str = "heartbeat";
 
@@ -54,8 +56,11 @@ marie_actors::remote_message! {
         },
     }
     local {
-        /// Time to beat and to judge the peers.
-        Tick {},
+        /// Time to judge the peers, and to beat if `beat`.
+        Tick {
+            /// Beat to every peer too.
+            beat: bool,
+        },
     }
 }
 
@@ -111,7 +116,7 @@ impl Actor for Heartbeat {
             loop {
                 match news.recv().await {
                     Ok(NetEvent::PeerUp { .. }) => {
-                        if me.cast(BeatMsg::Tick {}).is_err() {
+                        if me.cast(BeatMsg::Tick { beat: true }).is_err() {
                             return;
                         }
                     }
@@ -121,13 +126,17 @@ impl Actor for Heartbeat {
             }
         });
         let me = myself.clone();
-        // wall-clock ticks: heartbeats stay in real time whatever the cluster's speed
+        // wall-clock ticks: heartbeats stay in real time whatever the cluster's speed. Peers
+        // are judged JUDGES_PER_BEAT times a period, so one is declared down at most a
+        // fraction of a period after its deadline, not up to a whole period after.
+        let judge_every = period / JUDGES_PER_BEAT;
         let ticker = tokio::spawn(async move {
-            let mut every = tokio::time::interval(period);
+            let mut every = tokio::time::interval(judge_every);
             every.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
-            loop {
+            for n in 0u64.. {
                 every.tick().await;
-                if me.cast(BeatMsg::Tick {}).is_err() {
+                let beat = n % u64::from(JUDGES_PER_BEAT) == 0;
+                if me.cast(BeatMsg::Tick { beat }).is_err() {
                     return;
                 }
             }
@@ -148,7 +157,7 @@ impl Actor for Heartbeat {
         state: &mut State,
     ) -> Result<(), ActorProcessingErr> {
         match msg {
-            BeatMsg::Tick {} => state.tick(),
+            BeatMsg::Tick { beat } => state.tick(beat),
             BeatMsg::Beat { frame } => state.received(&frame),
         }
         Ok(())
@@ -156,10 +165,9 @@ impl Actor for Heartbeat {
 }
 
 impl State {
-    /// Beat to every remote heartbeat actor, then judge the ready peers.
-    fn tick(&mut self) {
+    /// Cast a beat naming the `ready` peers to every remote heartbeat actor.
+    fn beat(&mut self, ready: &[super::transport::Peer]) {
         self.seq += 1;
-        let ready = self.args.sessions.peers();
         let beat = Beat {
             node: self.args.node.clone(),
             seq: self.seq,
@@ -184,6 +192,14 @@ impl State {
                 }
             }
             Err(e) => tracing::error!(error = %e, "cannot encode a heartbeat"),
+        }
+    }
+
+    /// Beat to every remote heartbeat actor if `beat`, then judge the ready peers.
+    fn tick(&mut self, beat: bool) {
+        let ready = self.args.sessions.peers();
+        if beat {
+            self.beat(&ready);
         }
         let ready: Vec<String> = ready.into_iter().map(|p| p.name).collect();
         let overdue = self.detector.tick(&ready, Instant::now());
