@@ -15,11 +15,14 @@ use std::time::Duration;
 const COOKIE: &str = "backpressure";
 const PUTS: usize = 100_000;
 
-#[test]
-fn a_fast_producer_is_held_to_its_window_and_loses_no_accepted_put() {
-    let dir = tempfile::tempdir().unwrap();
-    let mut alpha = NodeProc::start(
-        dir.path(),
+/// ractor's registry and `pg` are process-wide: one member of one cluster at a time in
+/// this test process, whatever the tests running in parallel.
+static ONE_MEMBER: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+/// `alpha`, a node with the feature datamanager, and a runtime for this process' member.
+fn feature_node(dir: &std::path::Path) -> (NodeProc, tokio::runtime::Runtime) {
+    let alpha = NodeProc::start(
+        dir,
         "alpha",
         "[[datamanager]]\nname = \"feature\"\n",
         &[],
@@ -30,6 +33,14 @@ fn a_fast_producer_is_held_to_its_window_and_loses_no_accepted_put() {
         .enable_all()
         .build()
         .unwrap();
+    (alpha, rt)
+}
+
+#[test]
+fn a_fast_producer_is_held_to_its_window_and_loses_no_accepted_put() {
+    let _one = ONE_MEMBER.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = tempfile::tempdir().unwrap();
+    let (mut alpha, rt) = feature_node(dir.path());
     let (accepted, busy, max_in_flight, stats) = rt.block_on(async {
         let me = ClusterConfig::new("127.0.0.1:0".parse().unwrap(), COOKIE).with_peer(alpha.addr);
         let transport = Transport::start("producer", &me).await.unwrap();
@@ -81,19 +92,9 @@ fn a_fast_producer_is_held_to_its_window_and_loses_no_accepted_put() {
 
 #[test]
 fn batches_spend_a_credit_per_record_and_arrive_whole_and_in_order() {
+    let _one = ONE_MEMBER.lock().unwrap_or_else(|e| e.into_inner());
     let dir = tempfile::tempdir().unwrap();
-    let mut alpha = NodeProc::start(
-        dir.path(),
-        "alpha",
-        "[[datamanager]]\nname = \"feature\"\n",
-        &[],
-        COOKIE,
-    );
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .unwrap();
+    let (mut alpha, rt) = feature_node(dir.path());
     rt.block_on(async {
         let me = ClusterConfig::new("127.0.0.1:0".parse().unwrap(), COOKIE).with_peer(alpha.addr);
         let transport = Transport::start("batcher", &me).await.unwrap();
