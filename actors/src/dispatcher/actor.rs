@@ -120,9 +120,7 @@ pub struct DispatcherState {
     pub(super) reply: Option<RpcReplyPort<RunReport>>,
     /// Dropping it ends the registry watch.
     pub(super) _watch_guard: Option<tokio::sync::oneshot::Sender<()>>,
-    /// Nodes the failure detector declared down and that have not come back: a loss of
-    /// an instance there is blamed on its node.
-    pub(super) down_nodes: std::collections::BTreeSet<String>,
+
     /// The run's own timers, cancelled with the dispatcher.
     pub(super) timers: RunTimers,
     pub(super) ended: bool,
@@ -204,7 +202,7 @@ impl Actor for ActionDispatcher {
             current: None,
             reply: None,
             _watch_guard: None,
-            down_nodes: Default::default(),
+
             timers: RunTimers::default(),
             ended: false,
         })
@@ -257,7 +255,7 @@ impl Actor for ActionDispatcher {
                     .await
             }
             DispatcherMsg::Registry { event } => state.on_registry(&myself, event).await,
-            DispatcherMsg::NodeNews { node, up } => state.on_node_news(&myself, node, up).await,
+            DispatcherMsg::NodeDown { node } => state.on_node_down(&myself, node).await,
             DispatcherMsg::Probe {} => {
                 if !state.ended {
                     state.probe(&myself);

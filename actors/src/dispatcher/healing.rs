@@ -102,13 +102,12 @@ impl DispatcherState {
                         }
                     }
                     event = bus.recv() => {
-                        let news = match event {
-                            Ok(Event { kind: EventKind::NodeDown { peer, .. }, .. }) => (peer, false),
-                            Ok(Event { kind: EventKind::NodeUp { peer, .. }, .. }) => (peer, true),
+                        let node = match event {
+                            Ok(Event { kind: EventKind::NodeDown { peer, .. }, .. }) => peer,
                             Ok(_) | Err(BusError::Lagged { .. }) => continue,
                             Err(BusError::Closed) => break,
                         };
-                        if me.cast(DispatcherMsg::NodeNews { node: news.0, up: news.1 }).is_err() {
+                        if me.cast(DispatcherMsg::NodeDown { node }).is_err() {
                             break;
                         }
                     }
@@ -135,7 +134,7 @@ impl DispatcherState {
         }
         // however it showed (a closed reply port, a registry leave), the failure
         // detector's verdict says why
-        let cause = if self.down_nodes.contains(&b.node) {
+        let cause = if registry::is_declared_down(&b.node) {
             LossCause::NodeDown {
                 node: b.node.clone(),
             }
@@ -206,7 +205,7 @@ impl DispatcherState {
         if inst.actor.get_id() == lost.dead {
             return false;
         }
-        if self.down_nodes.contains(&inst.node) {
+        if registry::is_declared_down(&inst.node) {
             // still in the registry a moment after its node was declared down
             tracing::debug!(op = %name, node = %inst.node, "no stand-in from a node declared down");
             return false;
@@ -345,25 +344,15 @@ impl DispatcherState {
         }
     }
 
-    /// A node declared down: every instance bound there is lost (the registry would tell
-    /// the same a moment later); a node back up is no longer blamed.
-    pub(super) async fn on_node_news(
-        &mut self,
-        myself: &ActorRef<DispatcherMsg>,
-        node: String,
-        up: bool,
-    ) {
-        if up {
-            self.down_nodes.remove(&node);
-            return;
-        }
+    /// A node declared down: every instance bound there is lost at once (the registry
+    /// would tell the same a moment later).
+    pub(super) async fn on_node_down(&mut self, myself: &ActorRef<DispatcherMsg>, node: String) {
         let there: Vec<String> = self
             .bindings
             .values()
             .filter(|b| b.lost.is_none() && b.node == node)
             .map(|b| b.name.clone())
             .collect();
-        self.down_nodes.insert(node.clone());
         for name in there {
             self.lose(myself, &name, LossCause::NodeDown { node: node.clone() })
                 .await;

@@ -27,13 +27,10 @@ crate::remote_message! {
             /// What happened.
             event: RegistryEvent,
         },
-        /// The failure detector declared `node` down (or, `up`, the node is back): its
-        /// instances are lost, and a loss on it is blamed on it.
-        NodeNews {
+        /// The failure detector declared `node` down: its instances are lost.
+        NodeDown {
             /// The node's name.
             node: String,
-            /// Back up (true) or declared down (false).
-            up: bool,
         },
         /// Time to ask the bound operations whether they still answer.
         Probe {},

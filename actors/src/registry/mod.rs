@@ -24,8 +24,10 @@
 //! ```
 
 mod index;
+mod verdicts;
 mod watch;
 
+pub use verdicts::{declare_down, declare_up, is_declared_down};
 pub use watch::{watch, RegistryEvent, Watch};
 
 use ractor::{pg, ActorCell, ActorId};

@@ -209,8 +209,9 @@ impl State {
             self.args.sessions.tell(event);
         }
         for (peer, silent) in overdue {
-            // told before its sessions close: whoever reacts to the verdict (a dispatcher)
-            // hears it before it sees the peer's modules leave
+            // recorded and told before its sessions close: whoever sees the peer's modules
+            // leave can tell why (a dispatcher blames the node)
+            marie_actors::registry::declare_down(&peer);
             let event = NetEvent::PeerDown {
                 peer: peer.clone(),
                 silent,

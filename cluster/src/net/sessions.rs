@@ -164,6 +164,7 @@ impl NodeEventSubscription for Sessions {
             session: ses.node_id,
         };
         tracing::info!(node = %self.node, peer = %peer.name, address = %peer.address, "sees peer");
+        registry::declare_up(&peer.name);
         {
             let mut table = self.table();
             // a second session with the same peer (both dialed at once) is no news
