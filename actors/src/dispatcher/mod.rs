@@ -19,6 +19,7 @@ pub mod mission;
 mod progress;
 mod report;
 mod running;
+pub mod selection;
 mod verdict;
 
 pub use actor::{
