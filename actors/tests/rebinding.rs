@@ -317,9 +317,11 @@ async fn a_hung_operation_is_killed_and_rebound() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn an_incompatible_version_does_not_stand_in_and_the_mission_stops_naming_the_operation() {
+async fn a_version_the_mission_does_not_accept_does_not_stand_in_and_the_mission_stops_naming_the_operation(
+) {
     let first = start("rb-major", "1.0.0").await;
-    let src = mission("major", "rb-major", 100_000).replace("20.0", "1.0");
+    let src = mission("major", "rb-major", 100_000).replace("20.0", "1.0")
+        + "\n[requires]\nrb-major = \"^1\"\n";
     let (run, _events) = launch(&src).await;
     activated(&first).await;
     let _v2 = start("rb-major", "2.0.0").await;
@@ -332,6 +334,26 @@ async fn an_incompatible_version_does_not_stand_in_and_the_mission_stops_naming_
         report.reason
     );
     assert!(report.rebinds.is_empty());
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn another_major_version_stands_in_when_the_mission_could_have_chosen_it() {
+    // no `[requires]`: version 2 takes the same parameters, so it could have been chosen at
+    // the start, and may stand in
+    let first = start("rb-any", "1.0.0").await;
+    let src = mission("any", "rb-any", 100_000).replace("20.0", "1.0");
+    let (run, mut events) = launch(&src).await;
+    activated(&first).await;
+    let v2 = start("rb-any", "2.0.0").await;
+    first.actor().kill();
+    let record = event(&mut events, |e| match e {
+        EventKind::Rebound(r) => Some(r.clone()),
+        _ => None,
+    })
+    .await;
+    assert_eq!(record.to, v2.actor().get_id().to_string());
+    v2.actor().kill();
+    let _ = run.await.unwrap();
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -16,12 +16,13 @@
 
 use super::loss::LossCause;
 use super::mission::OpInfo;
+use super::selection::{self, Need, Offer};
 use crate::clock::Timer;
 use crate::eo::EoClient;
 use crate::property::{General, Group, ParamMap, PropertyReply, PropertyRequest};
 use crate::registry::Instance;
 use ractor::ActorId;
-use semver::{Version, VersionReq};
+use semver::VersionReq;
 use std::time::Duration;
 
 /// A live instance the dispatcher looked at through its property interface.
@@ -33,6 +34,23 @@ pub(crate) struct Candidate {
     pub(crate) epoch: u64,
     /// How long it may take to answer a command.
     pub(crate) deadline: Duration,
+    /// Bound by another binding.
+    pub(crate) in_use: bool,
+    /// How long it has run, ms.
+    pub(crate) uptime_ms: u64,
+}
+
+impl Candidate {
+    /// The candidate as selection sees it.
+    pub(crate) fn offer(&self) -> Offer {
+        Offer {
+            address: self.client.actor().get_id().to_string(),
+            node: self.node.clone(),
+            info: self.info.clone(),
+            in_use: self.in_use,
+            uptime_ms: self.uptime_ms,
+        }
+    }
 }
 
 /// Ask `inst` who it is, what it takes and which epoch it is at; `timeout` bounds each request.
@@ -50,7 +68,11 @@ pub(crate) async fn examine(inst: &Instance, timeout: Duration) -> Result<Candid
         other => return Err(format!("answered {other:?} to the general group")),
     };
     let General {
-        epoch, deadline_ms, ..
+        epoch,
+        deadline_ms,
+        in_use,
+        uptime_ms,
+        ..
     } = general;
     Ok(Candidate {
         info,
@@ -58,6 +80,8 @@ pub(crate) async fn examine(inst: &Instance, timeout: Duration) -> Result<Candid
         node: inst.node.clone(),
         epoch,
         deadline: Duration::from_millis(deadline_ms.max(1)),
+        in_use,
+        uptime_ms,
     })
 }
 
@@ -104,17 +128,14 @@ pub(crate) struct Binding {
     pub(crate) provision_timer: Option<Timer>,
     /// A liveness probe is under way.
     pub(crate) probing: bool,
-    /// The first version bound: stand-ins must be compatible with it.
-    selection: VersionReq,
+    /// What the mission needs of the operation: a stand-in must meet it, as the first
+    /// instance did (see [`super::selection`]).
+    need: Need,
 }
 
 impl Binding {
-    /// Bind to `cand` for the first time, at an epoch above both its own and `base`.
-    pub(crate) fn new(cand: Candidate, base: u64) -> Binding {
-        let selection = Version::parse(&cand.info.version)
-            .ok()
-            .and_then(|v| VersionReq::parse(&format!("^{v}")).ok())
-            .unwrap_or(VersionReq::STAR);
+    /// Bind to `cand`, chosen for `need`, at an epoch above both its own and `base`.
+    pub(crate) fn new(cand: Candidate, base: u64, need: Need) -> Binding {
         Binding {
             client: cand.client,
             name: cand.info.name,
@@ -132,18 +153,18 @@ impl Binding {
             deadline_timer: None,
             provision_timer: None,
             probing: false,
-            selection,
+            need,
         }
     }
 
-    /// Whether `cand` may stand in for the lost instance: not the dead actor itself, the same
-    /// operation (name and id), a version compatible with the first one bound, and a
-    /// parameter schema that accepts the last parameters.
-    /// The versions a stand-in may have (those compatible with the first one bound).
-    pub(crate) fn selection(&self) -> &VersionReq {
-        &self.selection
+    /// The versions a stand-in may have (the mission's requirement; any without one).
+    pub(crate) fn versions(&self) -> VersionReq {
+        self.need.version.clone().unwrap_or(VersionReq::STAR)
     }
 
+    /// Whether `cand` may stand in for the lost instance: not the dead actor itself, the same
+    /// operation (name and id), and an instance the mission could have chosen at the start
+    /// ([`selection::admits`]: its version requirement, the parameters it supplies).
     pub(crate) fn accepts(&self, cand: &Candidate) -> Result<(), String> {
         if let Some(lost) = &self.lost {
             if cand.client.actor().get_id() == lost.dead {
@@ -156,22 +177,7 @@ impl Binding {
                 cand.info.name, cand.info.id, self.name, self.id
             ));
         }
-        let version = Version::parse(&cand.info.version)
-            .map_err(|e| format!("its version `{}` is not semver: {e}", cand.info.version))?;
-        if !self.selection.matches(&version) {
-            return Err(format!(
-                "its version {version} does not match {}",
-                self.selection
-            ));
-        }
-        cand.info
-            .schema
-            .apply(&cand.info.schema.defaults(), &self.params, false)
-            .map_err(|rej| {
-                let list: Vec<String> = rej.iter().map(|r| r.to_string()).collect();
-                format!("it refuses the parameters: {}", list.join("; "))
-            })?;
-        Ok(())
+        selection::admits(&self.need, &cand.info)
     }
 
     /// Take `cand` as the new incarnation; returns the record's `(from, downtime)` if the

@@ -52,6 +52,7 @@ impl ReportBuilder {
                 *self = ReportBuilder::new();
                 self.report.mission = mission.clone();
             }
+            EventKind::Selected { choice } => self.report.selection.push(choice.clone()),
             EventKind::ActionStarted {
                 action,
                 run_ms,

@@ -1,6 +1,7 @@
 //! A mission [`Catalog`] built from the live registry and the property interface.
 
-use super::mission::{Catalog, OpInfo};
+use super::mission::{Catalog, OpInfo, ParsedMission};
+use super::selection::{choose, Offer};
 use crate::eo::{EoClient, EoError};
 use crate::property::{Group, PropertyReply, PropertyRequest};
 use crate::registry::{self, ModuleKind};
@@ -14,6 +15,8 @@ use std::collections::BTreeMap;
 pub struct RegistryCatalog {
     ops: BTreeMap<String, OpInfo>,
     names: Vec<String>,
+    /// Operations with live instances none of which fits the mission, and why.
+    unfit: BTreeMap<String, String>,
 }
 
 impl RegistryCatalog {
@@ -42,7 +45,58 @@ impl RegistryCatalog {
             .map(|i| i.name)
             .collect();
         names.dedup();
-        Ok(RegistryCatalog { ops, names })
+        Ok(RegistryCatalog {
+            ops,
+            names,
+            unfit: BTreeMap::new(),
+        })
+    }
+
+    /// The operations that run but have no instance fitting the mission
+    /// ([`RegistryCatalog::for_mission`]), each with every candidate's reason.
+    pub fn unfit(&self) -> &BTreeMap<String, String> {
+        &self.unfit
+    }
+}
+
+impl RegistryCatalog {
+    /// Ask the registry about every operation `mission` uses, describing each with the
+    /// instance selection would choose for it ([`crate::dispatcher::selection`]: every live
+    /// instance asked, the best fit for what the mission supplies and requires) — so that
+    /// a mission is validated against the instance that will run it. When none fits, the
+    /// first instance is described, and validation names what it refuses.
+    pub async fn for_mission(mission: &ParsedMission) -> Result<Self, EoError> {
+        let mut ops = BTreeMap::new();
+        let mut unfit = BTreeMap::new();
+        let here = registry::local_node_name();
+        for key in mission.ops() {
+            let mut offers = Vec::new();
+            for inst in registry::lookup(ModuleKind::Operation, key) {
+                match describe(EoClient::from_cell(inst.actor.clone())).await {
+                    Ok(info) => offers.push(Offer::new(
+                        inst.actor.get_id().to_string(),
+                        inst.node.clone(),
+                        info,
+                    )),
+                    Err(e) => tracing::debug!(op = %key, error = %e, "an instance does not answer"),
+                }
+            }
+            let choice = choose(&mission.need(key), &offers, &here);
+            if !offers.is_empty() && choice.chosen_index().is_none() {
+                unfit.insert(key.to_string(), choice.why_none());
+            }
+            let pick = choice.chosen_index().unwrap_or(0);
+            if let Some(offer) = offers.into_iter().nth(pick) {
+                ops.insert(key.to_string(), offer.info);
+            }
+        }
+        let mut names: Vec<String> = registry::list()
+            .into_iter()
+            .filter(|i| i.kind == ModuleKind::Operation)
+            .map(|i| i.name)
+            .collect();
+        names.dedup();
+        Ok(RegistryCatalog { ops, names, unfit })
     }
 }
 

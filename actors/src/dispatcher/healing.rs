@@ -51,18 +51,46 @@ impl DispatcherState {
             .into_iter()
             .map(str::to_string)
             .collect();
+        let here = registry::local_node_name();
         for key in names {
-            let Some(inst) = registry::lookup(ModuleKind::Operation, &key)
+            let need = self.mission.need(&key);
+            // every live instance, asked at once: selection needs them all
+            let mut asked = tokio::task::JoinSet::new();
+            for (i, inst) in registry::lookup(ModuleKind::Operation, &key)
                 .into_iter()
-                .next()
-            else {
-                return Err(format!("operation `{key}` has no live instance"));
+                .enumerate()
+            {
+                asked.spawn(async move {
+                    (
+                        i,
+                        examine(&inst, crate::eo::EoClient::DEFAULT_TIMEOUT).await,
+                    )
+                });
+            }
+            let mut answers = Vec::new();
+            while let Some(joined) = asked.join_next().await {
+                match joined {
+                    Ok((i, Ok(cand))) => answers.push((i, cand)),
+                    Ok((_, Err(e))) => {
+                        tracing::debug!(op = %key, error = %e, "a candidate does not answer")
+                    }
+                    Err(e) => tracing::debug!(op = %key, error = %e, "asking a candidate failed"),
+                }
+            }
+            answers.sort_by_key(|(i, _)| *i);
+            let mut cands: Vec<_> = answers.into_iter().map(|(_, c)| c).collect();
+            let offers: Vec<_> = cands.iter().map(|c| c.offer()).collect();
+            let choice = super::selection::choose(&need, &offers, &here);
+            let chosen = choice.chosen_index();
+            self.emit(EventKind::Selected {
+                choice: choice.clone(),
+            });
+            let Some(index) = chosen else {
+                return Err(choice.why_none());
             };
-            let cand = examine(&inst, crate::eo::EoClient::DEFAULT_TIMEOUT)
-                .await
-                .map_err(|e| format!("operation `{key}`: {e}"))?;
+            let cand = cands.swap_remove(index);
             self.bindings
-                .insert(key, Binding::new(cand, self.epoch_base()));
+                .insert(key, Binding::new(cand, self.epoch_base(), need));
         }
         let operations = self
             .bindings
@@ -399,7 +427,7 @@ impl DispatcherState {
         if b.lost.is_none() || b.incarnation != incarnation || self.ended {
             return;
         }
-        let req = b.selection().clone();
+        let req = b.versions();
         tracing::info!(op = %name, %req, "no stand-in: asking the cluster to start one");
         tokio::spawn(async move {
             match crate::provision::request(&name, &req).await {

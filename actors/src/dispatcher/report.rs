@@ -177,6 +177,10 @@ pub struct RunReport {
     /// How many faults were injected (or tried) in all.
     #[serde(default)]
     pub faults_total: u64,
+    /// How each operation's instance was chosen: the candidates and their verdicts
+    /// ([`crate::dispatcher::selection`]).
+    #[serde(default)]
+    pub selection: Vec<crate::dispatcher::selection::Choice>,
 }
 
 /// A fault injected during a run.
@@ -215,6 +219,7 @@ impl RunReport {
             inside_goal: None,
             judgement: None,
             refused_commands: None,
+            selection: Vec::new(),
             faults: Vec::new(),
             faults_total: 0,
         }
@@ -314,6 +319,7 @@ mod tests {
             inside_goal: None,
             judgement: None,
             refused_commands: None,
+            selection: Vec::new(),
             faults: vec![FaultRecord {
                 at_ms: 2,
                 fault: FaultKind::Hang,

@@ -201,6 +201,13 @@ pub enum EventKind {
         /// Why.
         reason: String,
     },
+    // --- self-configuration ---
+    /// The dispatcher chose an instance of an operation by its properties (or found none
+    /// fit): every candidate with its verdict.
+    Selected {
+        /// The candidates and the choice.
+        choice: crate::dispatcher::selection::Choice,
+    },
     // --- the robot ---
     /// The world judged the robot's final state (fills a report's robot fields; its outcome
     /// replaces the dispatcher's).

@@ -323,8 +323,22 @@ impl Node {
     /// Check a parsed mission against the operations running now (stage 2 of
     /// [`marie_actors::dispatcher::mission`]).
     pub async fn check_mission(&self, parsed: &ParsedMission) -> Result<Mission, NodeError> {
-        let catalog = RegistryCatalog::gather(parsed.ops()).await?;
-        parsed.validate(&catalog).map_err(NodeError::Mission)
+        let catalog = RegistryCatalog::for_mission(parsed).await?;
+        let mission = parsed.validate(&catalog).map_err(NodeError::Mission)?;
+        // every parameter is known to some instance; one must also take them all, in a
+        // version the mission accepts (selection, as the dispatcher will choose)
+        let unfit: Vec<_> = catalog
+            .unfit()
+            .iter()
+            .map(|(key, why)| parsed.op_diagnostic(key, why.clone()))
+            .collect();
+        if unfit.is_empty() {
+            Ok(mission)
+        } else {
+            Err(NodeError::Mission(marie_actors::diagnostic::Diagnostics(
+                unfit,
+            )))
+        }
     }
 
     /// Run a mission; progress events go to `events`.

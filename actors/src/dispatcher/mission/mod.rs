@@ -52,7 +52,16 @@
 //! [action.ops.counter]       # an operation, by name or by id as a quoted key ("1512"),
 //! limit = 10                 #   and the parameters the mission sets
 //! [action.ops.ticker]        # an operation with all parameters at their defaults
+//!
+//! [requires]                 # optional: the versions the mission accepts (semver)
+//! counter = "^1"
 //! ```
+//!
+//! Where several instances of an operation run, the dispatcher chooses one by their
+//! properties ([`selection`](super::selection)): the schema that takes what the mission
+//! supplies most exactly, a version `[requires]` accepts, one not in use, on its own node,
+//! up longest; the run report's `selection` says why each other candidate lost or was
+//! rejected. A stand-in after a failure must be one the mission could have chosen.
 //!
 //! `world` names the world file a simulated robot runs the mission in; a relative path is
 //! resolved against the directory of the mission file ([`Mission::world`]). To this crate it
@@ -238,6 +247,10 @@ pub struct Mission {
     /// reads it.
     #[serde(default)]
     pub world: Option<PathBuf>,
+    /// The versions the mission accepts, by operation name (`[requires]`): only an
+    /// instance of a matching version is chosen, or stands in after a failure.
+    #[serde(default)]
+    pub requires: BTreeMap<String, semver::VersionReq>,
 }
 
 /// How long a lost operation may stay unbound when the mission does not say.
@@ -307,6 +320,22 @@ impl Mission {
             .filter(|n| seen.insert(*n))
             .collect()
     }
+
+    /// What the mission needs of operation `name`: the parameters each action supplies to
+    /// it and the versions it accepts (what [`selection`](super::selection) chooses an
+    /// instance by).
+    pub fn need(&self, name: &str) -> super::selection::Need {
+        let mut need = super::selection::Need::new(name);
+        need.version = self.requires.get(name).cloned();
+        need.supplied = self
+            .actions
+            .iter()
+            .flat_map(|a| a.ops.iter())
+            .filter(|o| o.name == name)
+            .map(|o| o.params.clone())
+            .collect();
+        need
+    }
 }
 
 /// A mission that passed stage 1 (syntax and structure) but has not been checked against the
@@ -326,6 +355,8 @@ pub struct ParsedMission {
     /// Where the file names the world.
     pub(crate) world_at: Option<Pos>,
     pub(crate) actions: Vec<raw::ParsedAction>,
+    /// `[requires]`: version requirements by operation key, where written.
+    pub(crate) requires: Vec<(String, semver::VersionReq, Pos)>,
 }
 
 impl ParsedMission {
@@ -362,6 +393,50 @@ impl ParsedMission {
     pub fn world_diagnostic(&self, message: impl Into<String>) -> Option<Diagnostic> {
         let at = self.world_at?;
         Some(Diagnostic::at(&self.file, at, message))
+    }
+
+    /// What the mission needs of the operation written as `key`: the parameters each
+    /// action supplies (as written, not yet checked) and the versions it accepts — what a
+    /// catalog chooses the instance to validate against by.
+    pub fn need(&self, key: &str) -> super::selection::Need {
+        let mut need = super::selection::Need::new(key);
+        need.version = self
+            .requires
+            .iter()
+            .find(|(k, _, _)| k == key)
+            .map(|(_, r, _)| r.clone());
+        need.supplied = self
+            .actions
+            .iter()
+            .flat_map(|a| a.ops.iter())
+            .filter(|o| o.key == key)
+            .map(|o| {
+                o.params
+                    .iter()
+                    .map(|p| (p.name.clone(), p.value.clone()))
+                    .collect()
+            })
+            .collect();
+        need
+    }
+
+    /// A diagnostic saying `message` at the first place the mission runs the operation
+    /// written as `key` (or at its `[requires]` entry, when it has one).
+    pub fn op_diagnostic(&self, key: &str, message: impl Into<String>) -> Diagnostic {
+        let at = self
+            .requires
+            .iter()
+            .find(|(k, _, _)| k == key)
+            .map(|(_, _, at)| *at)
+            .or_else(|| {
+                self.actions
+                    .iter()
+                    .flat_map(|a| a.ops.iter())
+                    .find(|o| o.key == key)
+                    .map(|o| o.at)
+            })
+            .unwrap_or_default();
+        Diagnostic::at(&self.file, at, message)
     }
 
     /// The operation keys (names or ids, as written) the mission uses, each once, in order of

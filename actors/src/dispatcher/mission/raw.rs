@@ -26,7 +26,7 @@ pub(crate) const MAX_SECONDS: f64 = 86_400.0;
 /// Deadline of an action that gives no `deadline_s`.
 pub(crate) const DEFAULT_ACTION_DEADLINE: Duration = Duration::from_secs(30);
 
-const TOP_KEYS: &[&str] = &["mission", "flags", "action"];
+const TOP_KEYS: &[&str] = &["mission", "flags", "action", "requires"];
 const MISSION_KEYS: &[&str] = &[
     "name",
     "description",
@@ -178,8 +178,48 @@ pub(crate) fn parse(src: &str, path: Option<&Path>) -> Result<ParsedMission, Dia
         }
         Some(v) => raw_actions(&mut ctx, v),
     };
-    let mission = check(&mut ctx, path, header, flags, actions);
+    let requires = match doc.get("requires") {
+        None => Vec::new(),
+        Some(v) => match v.get_ref() {
+            DeValue::Table(t) => raw_requires(&mut ctx, t),
+            other => {
+                ctx.err(
+                    &v.span(),
+                    format!(
+                        "expected a table `[requires]` of operations and version requirements \
+                         (e.g. wall-follower = \"^2\"), found {}",
+                        other.type_str()
+                    ),
+                );
+                Vec::new()
+            }
+        },
+    };
+    let mut mission = check(&mut ctx, path, header, flags, actions);
+    mission.requires = requires;
     Diagnostics(ctx.into_diagnostics()).into_result(mission)
+}
+
+/// `[requires]`: operation = "semver requirement", each at its position.
+fn raw_requires(ctx: &mut Ctx<'_>, table: &DeTable<'_>) -> Vec<(String, semver::VersionReq, Pos)> {
+    let mut out = Vec::new();
+    for (key, v) in in_file_order(table) {
+        let Some(text) = string(ctx, v, key.get_ref()) else {
+            continue;
+        };
+        match semver::VersionReq::parse(text.get_ref()) {
+            Ok(req) => out.push((key.get_ref().to_string(), req, ctx.pos(&key.span()))),
+            Err(e) => ctx.err(
+                &v.span(),
+                format!(
+                    "{} is not a version requirement for {}: {e} (e.g. \"^2\", \">=1.2, <3\")",
+                    q(text.get_ref()),
+                    q(key.get_ref())
+                ),
+            ),
+        }
+    }
+    out
 }
 
 /// Report every key of `table` not in `allowed`.
@@ -782,6 +822,7 @@ fn check(
             .world
             .map(|w| resolve_world(path, Path::new(w.get_ref()))),
         actions,
+        requires: Vec::new(),
     }
 }
 

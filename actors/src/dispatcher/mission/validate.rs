@@ -62,6 +62,23 @@ pub(crate) fn validate<C: Catalog + ?Sized>(
         });
     }
     v.check_raisable(pm);
+    let mut requires = BTreeMap::new();
+    for (key, req, at) in &pm.requires {
+        let op = actions
+            .iter()
+            .flat_map(|a| a.ops.iter())
+            .find(|o| &o.key == key || &o.name == key);
+        match op {
+            Some(op) => {
+                requires.insert(op.name.clone(), req.clone());
+            }
+            None => v.diags.push(Diagnostic::at(
+                v.file,
+                *at,
+                format!("`[requires]` names operation `{key}`, which no action runs"),
+            )),
+        }
+    }
     let mission = Mission {
         name: pm.name.clone(),
         description: pm.description.clone(),
@@ -73,6 +90,7 @@ pub(crate) fn validate<C: Catalog + ?Sized>(
         rebind_deadline: pm.rebind_deadline.unwrap_or(super::DEFAULT_REBIND_DEADLINE),
         actions,
         world: pm.world.clone(),
+        requires,
     };
     Diagnostics(v.diags).into_result(mission)
 }

@@ -1,0 +1,144 @@
+//! Self-configuration in one process, the thesis' experiments 1 and 2 (issue 11): with the
+//! wall follower's version 1 (one parameter) and version 2 (two, corridor-capable) hosted
+//! side by side, the dispatcher chooses by the properties it asks, following what the
+//! mission supplies — and a mission that needs version 2 where only version 1 runs does
+//! not start, and says why.
+
+mod common;
+
+use common::{marie, text};
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+
+/// docking.toml with its world made absolute, `extra` added to the wall follower's
+/// parameters and `tail` appended, written into `dir`.
+fn docking_variant(dir: &Path, extra: &str, tail: &str) -> PathBuf {
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let src = std::fs::read_to_string(repo.join("missions/docking.toml"))
+        .unwrap()
+        .replace(
+            "world = \"worlds/lab.toml\"",
+            &format!(
+                "world = \"{}\"",
+                repo.join("missions/worlds/lab.toml").display()
+            ),
+        )
+        .replace(
+            "[action.ops.wall-follower]\n",
+            &format!("[action.ops.wall-follower]\n{extra}"),
+        )
+        + tail;
+    let path = dir.join("docking-variant.toml");
+    std::fs::write(&path, src).unwrap();
+    path
+}
+
+/// Run `mission` at `--speed max` on `node` (the default node without), with a report:
+/// the exit code, the report (if written) and stderr.
+fn run(mission: &Path, node: Option<&str>, dir: &Path) -> (Option<i32>, Option<Value>, String) {
+    let report = dir.join("report.json");
+    let mut args = vec![
+        "run",
+        mission.to_str().unwrap(),
+        "--speed",
+        "max",
+        "--report",
+        report.to_str().unwrap(),
+    ];
+    if let Some(node) = node {
+        args.extend(["--node", node]);
+    }
+    let out = marie(&args);
+    let report = std::fs::read(&report)
+        .ok()
+        .map(|b| serde_json::from_slice(&b).unwrap());
+    (out.status.code(), report, text(&out.stderr))
+}
+
+/// The wall follower's choice in the report.
+fn wall_follower_choice(report: &Value) -> &Value {
+    report["selection"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["operation"] == "wall-follower")
+        .unwrap_or_else(|| panic!("no choice for the wall follower: {report:#}"))
+}
+
+fn candidate<'a>(choice: &'a Value, version: &str) -> &'a Value {
+    choice["candidates"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["version"] == version)
+        .unwrap_or_else(|| panic!("no version {version} among {choice:#}"))
+}
+
+#[test]
+fn a_mission_that_supplies_only_the_wall_distance_gets_version_1_and_is_told_why() {
+    let dir = tempfile::tempdir().unwrap();
+    let mission = docking_variant(dir.path(), "", "");
+    let (code, report, stderr) = run(&mission, None, dir.path());
+    assert_eq!(code, Some(0), "{stderr}");
+    let report = report.unwrap();
+    let choice = wall_follower_choice(&report);
+    assert_eq!(candidate(choice, "1.0.0")["verdict"]["type"], "chosen");
+    let v2 = candidate(choice, "2.0.0");
+    assert_eq!(v2["verdict"]["type"], "lost", "{v2}");
+    let reason = v2["verdict"]["reason"].as_str().unwrap();
+    assert!(
+        reason.contains("also declares mode") && reason.contains("fits exactly"),
+        "{reason}"
+    );
+    assert_eq!(v2["schema"], serde_json::json!(["distance", "mode"]));
+}
+
+#[test]
+fn a_mission_that_also_supplies_the_corridor_parameter_gets_version_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let mission = docking_variant(dir.path(), "mode = \"wall\"\n", "");
+    let (code, report, stderr) = run(&mission, None, dir.path());
+    assert_eq!(code, Some(0), "{stderr}");
+    let report = report.unwrap();
+    let choice = wall_follower_choice(&report);
+    assert_eq!(candidate(choice, "2.0.0")["verdict"]["type"], "chosen");
+    let v1 = candidate(choice, "1.0.0");
+    assert_eq!(v1["verdict"]["type"], "rejected", "{v1}");
+    assert!(
+        v1["verdict"]["reason"].as_str().unwrap().contains("mode"),
+        "{v1}"
+    );
+    // the actions ran on version 2
+    let follow = report["actions"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .flat_map(|a| a["operations"].as_array().unwrap())
+        .find(|op| op["name"] == "wall-follower")
+        .unwrap();
+    assert_eq!(follow["version"], "2.0.0", "{follow}");
+}
+
+#[test]
+fn a_mission_that_needs_version_2_where_only_version_1_runs_does_not_start() {
+    let dir = tempfile::tempdir().unwrap();
+    let v1_only = "missions/nodes/v1-only.toml";
+    // it supplies the corridor parameter, which version 1 does not take
+    let mission = docking_variant(dir.path(), "mode = \"corridor\"\n", "");
+    let (code, report, stderr) = run(&mission, Some(v1_only), dir.path());
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(report.is_none());
+    assert!(stderr.contains("mode"), "{stderr}");
+    // it requires version 2 in so many words
+    let mission = docking_variant(dir.path(), "", "\n[requires]\nwall-follower = \"^2\"\n");
+    let (code, report, stderr) = run(&mission, Some(v1_only), dir.path());
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(report.is_none());
+    // at the requirement's line, naming the operation and why its instance does not fit
+    assert!(
+        stderr.contains("docking-variant.toml:")
+            && stderr.contains("no instance of operation `wall-follower` fits")
+            && stderr.contains("does not match the mission's requirement ^2"),
+        "{stderr}"
+    );
+}
