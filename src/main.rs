@@ -10,6 +10,12 @@ use clap::Parser;
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
+    // Rust ignores SIGPIPE, which turns a closed stdout (`marie ls | head`) into a panic in
+    // the next println!; a command-line tool should just end, as others do.
+    // SAFETY: called first, before any thread exists; SIG_DFL is a valid handler.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let cli = cli::Cli::parse();
     cli::runtime::init_tracing(cli.log_format);
     let runtime = match cli::runtime::build(cli.command.virtual_time()) {

@@ -142,3 +142,64 @@ fn a_mission_that_needs_version_2_where_only_version_1_runs_does_not_start() {
         "{stderr}"
     );
 }
+
+#[test]
+fn run_explain_lists_every_candidate_with_why_it_lost() {
+    let out = marie(&[
+        "run",
+        "missions/docking.toml",
+        "--speed",
+        "max",
+        "--explain",
+    ]);
+    let stdout = text(&out.stdout);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let lines: Vec<&str> = stdout.lines().collect();
+    let at = lines
+        .iter()
+        .position(|l| l.starts_with("? wall-follower: 2 candidate(s)"))
+        .unwrap_or_else(|| panic!("{stdout}"));
+    assert!(
+        lines[at + 1].trim_start().starts_with("chosen")
+            && lines[at + 1].contains("version 1.0.0, schema [distance]"),
+        "{stdout}"
+    );
+    assert!(
+        lines[at + 2].trim_start().starts_with("lost")
+            && lines[at + 2].contains("version 2.0.0, schema [distance, mode]")
+            && lines[at + 2].contains("also declares mode"),
+        "{stdout}"
+    );
+}
+
+#[test]
+fn a_closed_stdout_ends_the_command_quietly() {
+    use std::os::unix::process::ExitStatusExt;
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_marie"))
+        .args([
+            "run",
+            "missions/docking.toml",
+            "--speed",
+            "max",
+            "--explain",
+        ])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // closed before the command prints anything, as `| head -0` would
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    assert!(
+        !text(&out.stderr).contains("panicked"),
+        "{}",
+        text(&out.stderr)
+    );
+    assert_eq!(
+        out.status.signal(),
+        Some(13),
+        "ended by SIGPIPE: {:?}",
+        out.status
+    );
+}

@@ -4,8 +4,10 @@ use marie::actors::dispatcher::{DispatchEvent, Outcome, RunReport};
 use marie::fault::plan::TargetError;
 
 /// One progress line per dispatcher event.
-pub fn print_event(evt: &DispatchEvent) {
+pub fn print_event(evt: &DispatchEvent, explain: bool) {
     match evt {
+        DispatchEvent::Selected(choice) if explain => print_choice(choice),
+        DispatchEvent::Selected(_) => {}
         DispatchEvent::Bound { operations } => {
             for (name, version, node) in operations {
                 println!("  bound {name} v{version} on {node}");
@@ -88,4 +90,31 @@ pub fn outcome_line(report: &RunReport) -> String {
 /// The message for an operation that names no running instance.
 pub fn not_found(e: TargetError) -> String {
     e.to_string()
+}
+
+/// `--explain`: the candidates for one operation, the chosen one first, each other with why
+/// it lost or was rejected.
+pub fn print_choice(choice: &marie::actors::dispatcher::selection::Choice) {
+    use marie::actors::dispatcher::selection::Verdict;
+    println!(
+        "? {}: {} candidate(s)",
+        choice.operation,
+        choice.candidates.len()
+    );
+    let mut rows: Vec<_> = choice.candidates.iter().collect();
+    rows.sort_by_key(|c| !matches!(c.verdict, Verdict::Chosen));
+    for c in rows {
+        let what = format!(
+            "{} on {}, version {}, schema [{}]",
+            c.address,
+            c.node,
+            c.version,
+            c.schema.join(", ")
+        );
+        match &c.verdict {
+            Verdict::Chosen => println!("    chosen    {what}"),
+            Verdict::Lost { reason } => println!("    lost      {what}: {reason}"),
+            Verdict::Rejected { reason } => println!("    rejected  {what}: {reason}"),
+        }
+    }
 }

@@ -27,6 +27,10 @@ pub struct RunArgs {
     /// Write the run report (JSON) here.
     #[arg(long, value_name = "FILE")]
     pub report: Option<PathBuf>,
+    /// Explain the self-configuration: for each operation, every live instance (node,
+    /// version, schema), the one chosen and why each other lost or was rejected.
+    #[arg(long)]
+    pub explain: bool,
     /// Write every event of the run here, one JSON object per line (the schema is in the
     /// docs of `marie_actors::events`): dispatcher, bindings, supervisors, registry, faults,
     /// the robot. The report can be rebuilt from it.
@@ -69,6 +73,7 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         mission: path,
         robot,
         report: report_path,
+        explain,
         events: events_path,
         svg: svg_path,
         speed,
@@ -142,7 +147,7 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     let (tx, mut rx) = mpsc::unbounded_channel();
     let printer = tokio::spawn(async move {
         while let Some(evt) = rx.recv().await {
-            print_event(&evt);
+            print_event(&evt, explain);
         }
     });
     // this member's events go to whoever watches the cluster; its events file has theirs

@@ -182,6 +182,7 @@ async fn serve(
         }
     };
     let run = RunArgs {
+        explain: false,
         mission: mission.clone(),
         robot: RobotArgs {
             world: args.world.clone(),

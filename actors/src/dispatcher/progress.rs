@@ -14,6 +14,8 @@ use tokio::sync::{mpsc, oneshot};
 /// printers of live output were written against ([`DispatchEvent::from_kind`]).
 #[derive(Clone, Debug, PartialEq)]
 pub enum DispatchEvent {
+    /// An instance was chosen for an operation (or none fit): every candidate's verdict.
+    Selected(super::selection::Choice),
     /// All operations were found and bound.
     Bound {
         /// `(operation, version, node)` for each binding.
@@ -57,6 +59,7 @@ impl DispatchEvent {
     /// The live-line view of an event of the bus; `None` for kinds live lines do not show.
     pub fn from_kind(kind: &EventKind) -> Option<DispatchEvent> {
         Some(match kind {
+            EventKind::Selected { choice } => DispatchEvent::Selected(choice.clone()),
             EventKind::Bound { operations } => DispatchEvent::Bound {
                 operations: operations
                     .iter()
