@@ -203,3 +203,34 @@ fn a_closed_stdout_ends_the_command_quietly() {
         out.status
     );
 }
+
+#[test]
+fn check_names_the_instance_that_would_serve_each_operation_and_counts_control_details() {
+    let out = marie(&["check", "missions/docking.toml"]);
+    let stdout = text(&out.stdout);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let wf = stdout
+        .lines()
+        .find(|l| l.trim_start().starts_with("wall-follower"))
+        .unwrap_or_else(|| panic!("{stdout}"));
+    assert!(wf.contains("version 1.0.0, of 2 candidate(s)"), "{wf}");
+    let counts = stdout
+        .lines()
+        .find_map(|l| l.strip_prefix("control details: "))
+        .unwrap_or_else(|| panic!("{stdout}"));
+    let numbers: Vec<u32> = counts.split(' ').filter_map(|w| w.parse().ok()).collect();
+    assert!(
+        numbers.len() == 2 && numbers[0] > 0 && numbers[1] > 0,
+        "{counts}"
+    );
+    // a mission no running instance fits: refused before anything runs
+    let dir = tempfile::tempdir().unwrap();
+    let mission = docking_variant(dir.path(), "", "\n[requires]\nwall-follower = \"^3\"\n");
+    let out = marie(&["check", mission.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        text(&out.stderr).contains("no instance of operation `wall-follower` fits"),
+        "{}",
+        text(&out.stderr)
+    );
+}

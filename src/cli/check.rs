@@ -40,6 +40,36 @@ pub async fn check(args: CheckArgs) -> anyhow::Result<ExitCode> {
             .map(|r| format!(", world `{}`", r.world().name))
             .unwrap_or_default()
     );
+    // which instance would serve each operation, as the dispatcher would choose now
+    let choices = marie::actors::dispatcher::survey(m).await;
+    let (mut supplied, mut defaulted) = (0, 0);
+    for choice in &choices {
+        let Some(chosen) = choice.chosen() else {
+            println!("  {:<24} {}", choice.operation, choice.why_none());
+            continue;
+        };
+        println!(
+            "  {:<24} {} on {}, version {}, of {} candidate(s)",
+            choice.operation,
+            chosen.address,
+            chosen.node,
+            chosen.version,
+            choice.candidates.len()
+        );
+        for op in m.actions.iter().flat_map(|a| &a.ops) {
+            if op.name == choice.operation {
+                supplied += op.params.len();
+                defaulted += chosen
+                    .schema
+                    .iter()
+                    .filter(|p| !op.params.contains_key(*p))
+                    .count();
+            }
+        }
+    }
+    println!(
+        "control details: {supplied} supplied by the mission, {defaulted} from declared defaults"
+    );
     prepared.shutdown().await;
     Ok(ExitCode::SUCCESS)
 }

@@ -85,6 +85,30 @@ pub(crate) async fn examine(inst: &Instance, timeout: Duration) -> Result<Candid
     })
 }
 
+/// Every live instance of `operation`, asked at once (selection needs them all), in
+/// registry order; those that do not answer within `timeout` are left out.
+pub(crate) async fn candidates(operation: &str, timeout: Duration) -> Vec<Candidate> {
+    let mut asked = tokio::task::JoinSet::new();
+    for (i, inst) in crate::registry::lookup(crate::registry::ModuleKind::Operation, operation)
+        .into_iter()
+        .enumerate()
+    {
+        asked.spawn(async move { (i, examine(&inst, timeout).await) });
+    }
+    let mut answers = Vec::new();
+    while let Some(joined) = asked.join_next().await {
+        match joined {
+            Ok((i, Ok(cand))) => answers.push((i, cand)),
+            Ok((_, Err(e))) => {
+                tracing::debug!(op = %operation, error = %e, "a candidate does not answer")
+            }
+            Err(e) => tracing::debug!(op = %operation, error = %e, "asking a candidate failed"),
+        }
+    }
+    answers.sort_by_key(|(i, _)| *i);
+    answers.into_iter().map(|(_, c)| c).collect()
+}
+
 /// Why a binding's instance was let go.
 #[derive(Clone, Debug)]
 pub(crate) struct Lost {

@@ -15,7 +15,7 @@
 //!   incarnation are ignored.
 
 use super::actor::{DispatcherState, Start};
-use super::binding::{examine, Binding};
+use super::binding::{candidates, examine, Binding};
 use super::loss::LossCause;
 use super::messages::DispatcherMsg;
 use super::report::{Outcome, RebindRecord};
@@ -54,31 +54,7 @@ impl DispatcherState {
         let here = registry::local_node_name();
         for key in names {
             let need = self.mission.need(&key);
-            // every live instance, asked at once: selection needs them all
-            let mut asked = tokio::task::JoinSet::new();
-            for (i, inst) in registry::lookup(ModuleKind::Operation, &key)
-                .into_iter()
-                .enumerate()
-            {
-                asked.spawn(async move {
-                    (
-                        i,
-                        examine(&inst, crate::eo::EoClient::DEFAULT_TIMEOUT).await,
-                    )
-                });
-            }
-            let mut answers = Vec::new();
-            while let Some(joined) = asked.join_next().await {
-                match joined {
-                    Ok((i, Ok(cand))) => answers.push((i, cand)),
-                    Ok((_, Err(e))) => {
-                        tracing::debug!(op = %key, error = %e, "a candidate does not answer")
-                    }
-                    Err(e) => tracing::debug!(op = %key, error = %e, "asking a candidate failed"),
-                }
-            }
-            answers.sort_by_key(|(i, _)| *i);
-            let mut cands: Vec<_> = answers.into_iter().map(|(_, c)| c).collect();
+            let mut cands = candidates(&key, crate::eo::EoClient::DEFAULT_TIMEOUT).await;
             let offers: Vec<_> = cands.iter().map(|c| c.offer()).collect();
             let choice = super::selection::choose(&need, &offers, &here);
             let chosen = choice.chosen_index();

@@ -27,7 +27,7 @@ pub use actor::{
     DispatcherState, DISPATCHER_ID,
 };
 pub use builder::ReportBuilder;
-pub use catalog::{describe, RegistryCatalog};
+pub use catalog::{describe, survey, RegistryCatalog};
 pub use loss::LossCause;
 pub use messages::DispatcherMsg;
 pub use progress::{DispatchEvent, ProgressRelay};
