@@ -39,12 +39,7 @@ impl RegistryCatalog {
                 );
             }
         }
-        let mut names: Vec<String> = registry::list()
-            .into_iter()
-            .filter(|i| i.kind == ModuleKind::Operation)
-            .map(|i| i.name)
-            .collect();
-        names.dedup();
+        let names = running_names();
         Ok(RegistryCatalog {
             ops,
             names,
@@ -90,14 +85,20 @@ impl RegistryCatalog {
                 ops.insert(key.to_string(), offer.info);
             }
         }
-        let mut names: Vec<String> = registry::list()
-            .into_iter()
-            .filter(|i| i.kind == ModuleKind::Operation)
-            .map(|i| i.name)
-            .collect();
-        names.dedup();
+        let names = running_names();
         Ok(RegistryCatalog { ops, names, unfit })
     }
+}
+
+/// The names of the operations running now, for "available: ..." hints.
+fn running_names() -> Vec<String> {
+    let mut names: Vec<String> = registry::list()
+        .into_iter()
+        .filter(|i| i.kind == ModuleKind::Operation)
+        .map(|i| i.name)
+        .collect();
+    names.dedup();
+    names
 }
 
 /// Describe one operation through its property interface.
