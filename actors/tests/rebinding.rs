@@ -333,6 +333,15 @@ async fn a_version_the_mission_does_not_accept_does_not_stand_in_and_the_mission
         "{}",
         report.reason
     );
+    // and why the instance that did show up could not stand in
+    assert!(
+        report.reason.contains("refused as stand-ins")
+            && report
+                .reason
+                .contains("does not match the mission's requirement ^1"),
+        "{}",
+        report.reason
+    );
     assert!(report.rebinds.is_empty());
 }
 

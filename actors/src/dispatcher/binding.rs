@@ -122,6 +122,8 @@ pub(crate) struct Lost {
     pub(crate) from_node: String,
     /// Its actor id, never to be adopted again.
     pub(crate) dead: ActorId,
+    /// Why instances that showed up since could not stand in, by address.
+    pub(crate) refused: Vec<(String, String)>,
 }
 
 /// The dispatcher's hold on one operation.
@@ -248,6 +250,7 @@ impl Binding {
             from: self.address(),
             from_node: self.node.clone(),
             dead: self.actor_id(),
+            refused: Vec::new(),
         });
     }
 }

@@ -228,6 +228,12 @@ impl DispatcherState {
         }
         if let Err(why) = b.accepts(&cand) {
             tracing::info!(op = %name, actor = %inst.actor.get_id(), %why, "instance cannot stand in");
+            if let Some(lost) = b.lost.as_mut() {
+                let address = inst.actor.get_id().to_string();
+                if !lost.refused.iter().any(|(a, _)| *a == address) {
+                    lost.refused.push((address, why));
+                }
+            }
             return false;
         }
         let Some((lost, downtime)) = b.adopt(cand, now) else {
@@ -432,11 +438,19 @@ impl DispatcherState {
         if b.incarnation != incarnation {
             return;
         }
-        let reason = format!(
+        let mut reason = format!(
             "operation `{name}` was lost ({}) and no compatible instance appeared within {:.1}s",
             lost.cause,
             self.mission.rebind_deadline.as_secs_f64()
         );
+        if !lost.refused.is_empty() {
+            let refused: Vec<String> = lost
+                .refused
+                .iter()
+                .map(|(address, why)| format!("{address}: {why}"))
+                .collect();
+            reason += &format!("; refused as stand-ins: {}", refused.join("; "));
+        }
         let gave_up = EventKind::RebindGaveUp {
             operation: name,
             cause: lost.cause.clone(),
