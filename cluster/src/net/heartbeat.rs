@@ -69,8 +69,6 @@ pub(crate) struct HeartbeatArgs {
     pub node: String,
     pub config: HeartbeatConfig,
     pub sessions: Sessions,
-    /// The address this node listens on, as peers name it.
-    pub listen: String,
     /// Where the addresses of peers that peers see go, to be dialed.
     pub learned: tokio::sync::mpsc::UnboundedSender<std::net::SocketAddr>,
     /// The protocol version it claims (another than [`PROTOCOL_VERSION`] only to test
@@ -263,24 +261,13 @@ impl State {
             return;
         }
         self.detector.heard(&beat.node, Instant::now());
-        if !beat.sees.is_empty() {
-            let known: Vec<String> = self
-                .args
-                .sessions
-                .peers()
-                .into_iter()
-                .map(|p| p.address)
-                .collect();
-            for address in beat.sees {
-                if address == self.args.listen || known.contains(&address) {
-                    continue;
+        // the dialer keeps what this node does not see yet
+        for address in beat.sees {
+            match address.parse() {
+                Ok(addr) => {
+                    let _ = self.args.learned.send(addr);
                 }
-                match address.parse() {
-                    Ok(addr) => {
-                        let _ = self.args.learned.send(addr);
-                    }
-                    Err(_) => tracing::debug!(%address, "a peer's peer address does not parse"),
-                }
+                Err(_) => tracing::debug!(%address, "a peer's peer address does not parse"),
             }
         }
     }

@@ -29,6 +29,7 @@ mod config;
 pub mod detector;
 mod events;
 pub mod heartbeat;
+pub mod listener;
 mod sessions;
 pub mod tls;
 mod transport;

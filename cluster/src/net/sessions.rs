@@ -94,13 +94,17 @@ impl Sessions {
     /// Close every session with the peer named `peer` (its modules leave the registry with
     /// them); the transport redials it with backoff.
     pub(crate) fn close(&self, peer: &str, reason: &str) {
-        let actors = self.actors.lock().unwrap_or_else(|e| e.into_inner());
+        let actors = self.open();
         for (name, actor) in actors.values() {
             if name.as_deref() == Some(peer) {
                 tracing::info!(node = %self.node, %peer, reason, "closing the session");
                 actor.stop(Some(reason.to_string()));
             }
         }
+    }
+
+    fn open(&self) -> std::sync::MutexGuard<'_, BTreeMap<u64, OpenSession>> {
+        self.actors.lock().unwrap_or_else(|e| e.into_inner())
     }
 
     fn table(&self) -> std::sync::MutexGuard<'_, BTreeMap<u64, Peer>> {
@@ -127,10 +131,7 @@ fn node_name(full: &str) -> &str {
 
 impl NodeEventSubscription for Sessions {
     fn node_session_opened(&self, ses: NodeServerSessionInformation) {
-        self.actors
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .insert(ses.node_id, (None, ses.actor.clone()));
+        self.open().insert(ses.node_id, (None, ses.actor.clone()));
         tracing::debug!(node = %self.node, peer_addr = %ses.peer_addr, incoming = ses.is_server, "session opened");
     }
 
@@ -144,13 +145,10 @@ impl NodeEventSubscription for Sessions {
             }
             // before the state exchange, so the peer's modules arrive already named
             registry::set_peer_node_name(ses.node_id, node_name(&peer.name));
-            self.actors
-                .lock()
-                .unwrap_or_else(|e| e.into_inner())
-                .insert(
-                    ses.node_id,
-                    (Some(node_name(&peer.name).to_string()), ses.actor.clone()),
-                );
+            self.open().insert(
+                ses.node_id,
+                (Some(node_name(&peer.name).to_string()), ses.actor.clone()),
+            );
         }
     }
 
@@ -180,10 +178,7 @@ impl NodeEventSubscription for Sessions {
     }
 
     fn node_session_disconnected(&self, ses: NodeServerSessionInformation) {
-        self.actors
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .remove(&ses.node_id);
+        self.open().remove(&ses.node_id);
         let gone = {
             let mut table = self.table();
             let gone = table.remove(&ses.node_id);

@@ -6,11 +6,8 @@
 //! the peer's certificate against the CA and the peer's IP address (or the configured
 //! `server_name`). The cookie is still checked inside the encrypted session.
 //!
-//! The handshake of an incoming connection runs here, not in ractor_cluster's listener:
-//! that listener awaits each TLS handshake before it accepts the next connection, with no
-//! time limit, so one silent client would stop a node from accepting any peer. Here each
-//! handshake runs on its own task, at most [`MAX_HANDSHAKES`] at once and for at most
-//! [`HANDSHAKE_TIMEOUT`]; only an authenticated stream reaches ractor_cluster.
+//! The handshake of an incoming connection runs in marie's listener
+//! ([`super::listener`]), on a task of its own and with a time limit.
 //!
 //! ```no_run
 //! use marie_cluster::net::{ClusterConfig, TlsFiles};
@@ -22,26 +19,16 @@
 //! });
 //! ```
 
-use super::events::NetEvent;
-use super::sessions::Sessions;
 use super::TransportError;
 use ractor::ActorRef;
-use ractor_cluster::{NetworkStream, NodeServerMessage};
+use ractor_cluster::NodeServerMessage;
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use std::time::Duration;
-use tokio::net::TcpListener;
-use tokio::sync::Semaphore;
 use tokio_rustls::rustls::pki_types::pem::PemObject;
 use tokio_rustls::rustls::pki_types::{CertificateDer, PrivateKeyDer, ServerName};
 use tokio_rustls::rustls::{self, server::WebPkiClientVerifier, RootCertStore};
 use tokio_rustls::{TlsAcceptor, TlsConnector};
-
-/// Longest an incoming connection may take to complete its TLS handshake.
-pub const HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(5);
-/// Most incoming handshakes in progress at once; a connection beyond them is closed.
-pub const MAX_HANDSHAKES: usize = 64;
 
 /// Where a node's TLS material is: PEM files (`[cluster.tls]` in a node config).
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -144,7 +131,7 @@ impl Tls {
         })
     }
 
-    /// The acceptor ractor_cluster's own (unadvertised) listener uses.
+    /// The server side of the handshake.
     pub(crate) fn acceptor(&self) -> TlsAcceptor {
         self.acceptor.clone()
     }
@@ -162,66 +149,5 @@ impl Tls {
         ractor_cluster::client_connect_enc(server, addr, self.connector.clone(), name)
             .await
             .map_err(|e| e.to_string())
-    }
-}
-
-/// Accept connections on `listener`, complete each TLS handshake on its own task, and hand
-/// the authenticated streams to `server`; a connection that fails its handshake is closed
-/// and told as [`NetEvent::ConnectionRefused`].
-pub(crate) async fn serve(
-    listener: TcpListener,
-    tls: Tls,
-    server: ActorRef<NodeServerMessage>,
-    sessions: Sessions,
-) {
-    let slots = Arc::new(Semaphore::new(MAX_HANDSHAKES));
-    loop {
-        let (stream, peer_addr) = match listener.accept().await {
-            Ok(s) => s,
-            Err(e) => {
-                // e.g. out of file descriptors: wait rather than spin
-                tracing::warn!(error = %e, "accepting a connection failed");
-                tokio::time::sleep(Duration::from_millis(100)).await;
-                continue;
-            }
-        };
-        let Ok(slot) = slots.clone().try_acquire_owned() else {
-            tracing::warn!(%peer_addr, "{MAX_HANDSHAKES} TLS handshakes in progress: connection closed");
-            continue;
-        };
-        let (acceptor, server, sessions) = (tls.acceptor.clone(), server.clone(), sessions.clone());
-        tokio::spawn(async move {
-            let _slot = slot;
-            let refuse = |reason: String| {
-                let event = NetEvent::ConnectionRefused {
-                    from: peer_addr,
-                    reason,
-                };
-                tracing::warn!("{event}");
-                sessions.tell(event);
-            };
-            let _ = stream.set_nodelay(true);
-            let local_addr = match stream.local_addr() {
-                Ok(a) => a,
-                Err(e) => return refuse(e.to_string()),
-            };
-            match tokio::time::timeout(HANDSHAKE_TIMEOUT, acceptor.accept(stream)).await {
-                Err(_) => refuse(format!(
-                    "no TLS handshake within {} s",
-                    HANDSHAKE_TIMEOUT.as_secs()
-                )),
-                Ok(Err(e)) => refuse(format!("TLS: {e}")),
-                Ok(Ok(stream)) => {
-                    let _ = server.cast(NodeServerMessage::ConnectionOpened {
-                        stream: Box::new(NetworkStream::TlsServer {
-                            peer_addr,
-                            local_addr,
-                            stream,
-                        }),
-                        is_server: true,
-                    });
-                }
-            }
-        });
     }
 }

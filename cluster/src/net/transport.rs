@@ -3,8 +3,9 @@
 use super::config::ClusterConfig;
 use super::events::NetEvent;
 use super::heartbeat::{Heartbeat, HeartbeatArgs};
+use super::listener;
 use super::sessions::Sessions;
-use super::tls::{self, Tls};
+use super::tls::Tls;
 use marie_actors::registry;
 use ractor::{Actor, ActorRef};
 use ractor_cluster::node::NodeConnectionMode;
@@ -73,8 +74,8 @@ pub struct Transport {
     server: ActorRef<NodeServerMessage>,
     server_handle: JoinHandle<()>,
     sessions: Sessions,
-    /// The dialers of configured peers, the dialer of peers learned from heartbeats and,
-    /// with TLS, the listener.
+    /// The listener, the dialers of configured peers and the dialer of peers learned from
+    /// heartbeats.
     tasks: Vec<JoinHandle<()>>,
     heartbeat: ActorRef<super::heartbeat::BeatMsg>,
     heartbeat_handle: JoinHandle<()>,
@@ -92,71 +93,45 @@ impl Transport {
             addr: listen,
             reason,
         };
+        // marie's listener takes the address peers dial (see `listener`): bound first, so
+        // that a node on port 0 knows its port before it names itself to peers
+        let listener = tokio::net::TcpListener::bind(listen)
+            .await
+            .map_err(|e| listen_err(e.to_string()))?;
+        let advertised = listener.local_addr().unwrap_or(listen);
         // Isolated: marie dials the peers' peers itself (`Dialer::learn`), once each and
         // from one side only — ractor_cluster's transitive mode dials a peer once per member
         // that names it, and the duplicate sessions it then closes make peers flap — and
-        // over TLS when on (its transitive dials are plain TCP).
-        // a node that listens on port 0 must know its port to compare addresses with its
-        // peers (see `Dialer::learn`): ask the OS for a free one first
-        let mut advertised = listen;
-        if listen.port() == 0 && tls.is_none() {
-            let free = std::net::TcpListener::bind(listen).and_then(|l| l.local_addr());
-            advertised = free.map_err(|e| listen_err(e.to_string()))?;
-        }
-        let server = match &tls {
-            None => NodeServer::new(
-                advertised.port(),
-                config.cookie.clone(),
-                node.to_string(),
-                listen.ip().to_string(),
-                None,
-                Some(NodeConnectionMode::Isolated),
-            ),
-            // its own listener (which would stall on a silent TLS client) takes an
-            // unadvertised port; `tls::serve` takes the real one
-            Some(tls) => NodeServer::new(
-                0,
-                config.cookie.clone(),
-                node.to_string(),
-                listen.ip().to_string(),
-                Some(IncomingEncryptionMode::Tls(tls.acceptor())),
-                Some(NodeConnectionMode::Isolated),
-            ),
-        }
+        // over TLS when on (its transitive dials are plain TCP). Its own listener takes a
+        // port nobody is told.
+        let server = NodeServer::new(
+            0,
+            config.cookie.clone(),
+            node.to_string(),
+            listen.ip().to_string(),
+            tls.as_ref()
+                .map(|t| IncomingEncryptionMode::Tls(t.acceptor())),
+            Some(NodeConnectionMode::Isolated),
+        )
         .with_listen_addr(listen.ip());
         let (server, server_handle) = Actor::spawn(None, server, ())
             .await
             .map_err(|e| listen_err(e.to_string()))?;
-        let mut tasks = Vec::new();
+        // peers are told the port marie listens on
+        let _ = server.cast(NodeServerMessage::PortChanged {
+            port: advertised.port(),
+        });
         let sessions = Sessions::new(node);
-        if let Some(tls) = &tls {
-            // peers are told the real port, not the unadvertised one
-            let bound = tokio::net::TcpListener::bind(listen).await;
-            let listener = match bound {
-                Ok(l) => l,
-                Err(e) => {
-                    server.stop(None);
-                    let _ = server_handle.await;
-                    return Err(listen_err(e.to_string()));
-                }
-            };
-            // (with port 0, the one the OS chose)
-            let port = listener.local_addr().map_or(listen.port(), |a| a.port());
-            advertised.set_port(port);
-            let _ = server.cast(NodeServerMessage::PortChanged { port });
-            tasks.push(tokio::spawn(tls::serve(
-                listener,
-                tls.clone(),
-                server.clone(),
-                sessions.clone(),
-            )));
-        }
-        server
-            .cast(NodeServerMessage::SubscribeToEvents {
-                id: "marie-sessions".into(),
-                subscription: Box::new(sessions.clone()),
-            })
-            .map_err(|e| listen_err(e.to_string()))?;
+        let _ = server.cast(NodeServerMessage::SubscribeToEvents {
+            id: "marie-sessions".into(),
+            subscription: Box::new(sessions.clone()),
+        });
+        let mut tasks = vec![tokio::spawn(listener::serve(
+            listener,
+            tls.clone(),
+            server.clone(),
+            sessions.clone(),
+        ))];
         let dialer = Dialer {
             node: node.to_string(),
             listen: advertised,
@@ -166,20 +141,27 @@ impl Transport {
             dialing: Arc::default(),
         };
         let (learned, heard) = mpsc::unbounded_channel();
-        let (heartbeat, heartbeat_handle) = Actor::spawn(
+        let started = Actor::spawn(
             None,
             Heartbeat,
             HeartbeatArgs {
                 node: node.to_string(),
-                listen: advertised.to_string(),
                 config: config.heartbeat,
                 sessions: sessions.clone(),
                 protocol: config.protocol,
                 learned,
             },
         )
-        .await
-        .map_err(|e| listen_err(format!("the heartbeat did not start: {e}")))?;
+        .await;
+        let (heartbeat, heartbeat_handle) = match started {
+            Ok(h) => h,
+            Err(e) => {
+                tasks.iter().for_each(JoinHandle::abort);
+                server.stop(None);
+                let _ = server_handle.await;
+                return Err(listen_err(format!("the heartbeat did not start: {e}")));
+            }
+        };
         tracing::info!(node, %listen, peers = ?config.peers, tls = dialer.tls.is_some(), "node listening");
         for &addr in &config.peers {
             tasks.push(tokio::spawn(dialer.clone().keep(addr)));
