@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::cluster::NodeProc;
+use common::cluster::{Listed, NodeProc};
 use common::{marie, text};
 use serde_json::Value;
 
@@ -15,32 +15,8 @@ const ALPHA_HOSTS: &str =
 const BETA_HOSTS: &str = "[[datamanager]]\nname = \"world\"\n[[operation]]\nname = \"averager\"\n";
 
 /// `marie ls --join ADDR --cookie C --json`: (kind, name, node) of every entry, sorted.
-fn ls_join(
-    addr: &std::net::SocketAddr,
-    cookie: &str,
-) -> (Option<i32>, Vec<(String, String, String)>, String) {
-    let out = marie(&[
-        "ls",
-        "--join",
-        &addr.to_string(),
-        "--cookie",
-        cookie,
-        "--json",
-    ]);
-    let stderr = text(&out.stderr);
-    let rows = serde_json::from_slice::<Value>(&out.stdout)
-        .ok()
-        .and_then(|v| v.as_array().cloned())
-        .unwrap_or_default();
-    let mut entries: Vec<(String, String, String)> = rows
-        .iter()
-        .map(|r| {
-            let s = |k: &str| r[k].as_str().unwrap_or_default().to_string();
-            (s("kind"), s("name"), s("node"))
-        })
-        .collect();
-    entries.sort();
-    (out.status.code(), entries, stderr)
+fn ls_join(addr: &std::net::SocketAddr, cookie: &str) -> (Option<i32>, Vec<Listed>, String) {
+    common::cluster::ls_join(&addr.to_string(), cookie, &[])
 }
 
 fn entry(kind: &str, name: &str, node: &str) -> (String, String, String) {
@@ -158,6 +134,9 @@ fn props_and_kill_reach_an_operation_on_another_node() {
     let text_of_replies = replies.to_string();
     assert!(text_of_replies.contains("\"sampler\""), "{text_of_replies}");
     assert!(text_of_replies.contains("\"alpha\""), "{text_of_replies}");
+    // the answers are the remote operation's own: its identity, on its node
+    assert_eq!(replies[0]["Identification"]["name"], "sampler", "{replies}");
+    assert_eq!(replies[1]["Location"]["node"], "alpha", "{replies}");
 
     // the kill reaches the instance on alpha (not just this member's stand-in for it), and
     // alpha's supervisor restarts it there

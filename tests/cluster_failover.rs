@@ -94,20 +94,17 @@ fn lose_the_wall_followers_node(
         })
         .expect("the node's pid");
     up.wait_line("> follow-wall: start");
-    let status = std::process::Command::new("kill")
-        .args([&format!("-{signal}"), &pid.to_string()])
-        .status()
-        .unwrap();
-    assert!(status.success());
+    // a stopped node is continued however the test ends
+    let stopped = match signal {
+        "STOP" => Some(common::cluster::Stopped::stop(pid)),
+        _ => {
+            common::cluster::signal_pid(pid, signal);
+            None
+        }
+    };
     up.wait_line("wall-follower rebound");
-    if signal == "STOP" {
-        // wake it while the mission goes on; it must end with the cluster
-        let status = std::process::Command::new("kill")
-            .args(["-CONT", &pid.to_string()])
-            .status()
-            .unwrap();
-        assert!(status.success());
-    }
+    // wake it while the mission goes on; it must end with the cluster
+    drop(stopped);
     up.wait_line("cluster stopped");
     let code = up.wait_exit();
     assert!(common::cluster::wait_gone(pid), "{node} outlived marie up");
@@ -187,7 +184,10 @@ fn freezing_the_wall_followers_node_gets_it_declared_down_rebound_and_the_missio
     let down = position("node_down", "peer", &lost);
     let rebound = position("rebound", "operation", "wall-follower");
     assert!(down < rebound, "{:?}", &events[down..=rebound]);
-    assert!(events[down]["kind"]["silent_ms"].as_u64().unwrap() >= 1200);
+    assert!(
+        events[down]["kind"]["silent_ms"].as_u64().unwrap()
+            >= common::cluster::default_deadline_ms()
+    );
     // and the rebind blames the node
     assert_eq!(
         events[rebound]["kind"]["cause"],
@@ -219,6 +219,15 @@ fn when_no_wall_follower_survives_a_node_that_allows_one_starts_it_and_the_missi
             && e["kind"]["supervisor"] == "dynamic"),
         "{events:?}"
     );
+    let started = events
+        .iter()
+        .filter(|e| {
+            e["node"] == "operations"
+                && e["kind"]["type"] == "child_started"
+                && e["kind"]["supervisor"] == "dynamic"
+        })
+        .count();
+    assert_eq!(started, 1, "{events:?}");
     let joined = events
         .iter()
         .filter(|e| {

@@ -5,9 +5,7 @@
 
 mod common;
 
-use common::cluster::NodeProc;
-use common::{marie, text};
-use serde_json::Value;
+use common::cluster::{silence_ms, NodeProc};
 
 const COOKIE: &str = "detector";
 const ALPHA: &str = "[[datamanager]]\nname = \"feature\"\n";
@@ -15,30 +13,11 @@ const BETA: &str = "[[operation]]\nname = \"sampler\"\n";
 
 /// The nodes of every module `ls --join addr` lists.
 fn nodes_listed(addr: &std::net::SocketAddr) -> Vec<String> {
-    let out = marie(&[
-        "ls",
-        "--join",
-        &addr.to_string(),
-        "--cookie",
-        COOKIE,
-        "--json",
-    ]);
-    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
-    let rows: Vec<Value> = serde_json::from_slice(&out.stdout).unwrap();
-    let mut nodes: Vec<String> = rows
-        .iter()
-        .map(|r| r["node"].as_str().unwrap().to_string())
-        .collect();
+    let (code, listed, stderr) = common::cluster::ls_join(&addr.to_string(), COOKIE, &[]);
+    assert_eq!(code, Some(0), "{stderr}");
+    let mut nodes: Vec<String> = listed.into_iter().map(|(_, _, node)| node).collect();
     nodes.sort();
     nodes
-}
-
-/// `... no heartbeat for 1234 ms` → 1234.
-fn silence_ms(line: &str) -> u64 {
-    line.rsplit_once("for ")
-        .and_then(|(_, rest)| rest.split_whitespace().next())
-        .and_then(|n| n.parse().ok())
-        .unwrap_or_else(|| panic!("no silence in {line:?}"))
 }
 
 #[test]
@@ -80,6 +59,13 @@ fn a_frozen_node_is_declared_down_after_its_deadline_and_rejoins_when_it_wakes()
         beta_mark,
         "node beta restarted its 1 operation instance(s) as a new incarnation",
     );
+    assert_eq!(nodes_listed(&alpha.addr), ["alpha", "beta"]);
+    for node in [&mut alpha, &mut beta] {
+        node.signal("TERM");
+        node.wait_line("stopped");
+        assert_eq!(node.wait_exit(), Some(0));
+    }
+    // every line beta printed is in now, not only those waited for
     assert!(
         !beta
             .seen()
@@ -88,11 +74,6 @@ fn a_frozen_node_is_declared_down_after_its_deadline_and_rejoins_when_it_wakes()
         "{:?}",
         beta.seen()
     );
-    assert_eq!(nodes_listed(&alpha.addr), ["alpha", "beta"]);
-    for node in [&mut alpha, &mut beta] {
-        node.signal("TERM");
-        assert_eq!(node.wait_exit(), Some(0));
-    }
 }
 
 #[test]
@@ -117,8 +98,15 @@ fn a_node_of_another_protocol_version_is_refused_naming_both_versions() {
     future.wait_line("node future refused alpha");
     // its session closed (after the grace that lets alpha's own beat tell it why), the
     // refused node's modules have left; alpha keeps serving, and refuses it at every redial
-    alpha.wait_line_since(mark - 1, "node alpha lost future");
+    alpha.wait_line_since(mark, "node alpha lost future");
     assert_eq!(nodes_listed(&alpha.addr), ["alpha"]);
     alpha.signal("TERM");
+    alpha.wait_line("stopped");
     assert_eq!(alpha.wait_exit(), Some(0));
+    // future kept redialling (its dialer backs off to 2 s): alpha never saw it again
+    let after: Vec<&String> = alpha.seen()[mark..]
+        .iter()
+        .filter(|l| l.contains("sees future"))
+        .collect();
+    assert!(after.is_empty(), "{after:?}");
 }

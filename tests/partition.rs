@@ -23,7 +23,7 @@
 
 mod common;
 
-use common::cluster::{node_config, NodeProc, Proc};
+use common::cluster::{default_deadline_ms, node_config, silence_ms, NodeProc, Proc};
 use common::netns::Netns;
 use serde_json::Value;
 use std::path::Path;
@@ -31,16 +31,6 @@ use std::time::{Duration, Instant};
 
 /// The port every node listens on, each in a namespace of its own.
 const PORT: u16 = 7100;
-/// The failure detector's default deadline (the nodes run with the defaults).
-const DEADLINE_MS: u64 = 1200;
-
-/// `... no heartbeat for 1234 ms` → 1234.
-fn silence_ms(line: &str) -> u64 {
-    line.rsplit_once("for ")
-        .and_then(|(_, rest)| rest.split_whitespace().next())
-        .and_then(|n| n.parse().ok())
-        .unwrap_or_else(|| panic!("no silence in {line:?}"))
-}
 
 /// Wait until the last node of `nodes` (named `names`) and every earlier one see each
 /// other. The tests start their nodes one at a time, each waited for, so that two nodes do
@@ -129,7 +119,8 @@ fn a_partition_between_two_live_nodes_is_detected_like_a_freeze_and_heals() {
         );
         // not before the deadline; and by the detector's rule (a tick more than a
         // deadline late is this node's own freeze) before twice the deadline
-        assert!((DEADLINE_MS..2 * DEADLINE_MS).contains(&silent), "{line}");
+        let deadline = default_deadline_ms();
+        assert!((deadline..2 * deadline).contains(&silent), "{line}");
         assert!(at - cut < Duration::from_secs(10), "{line}");
         // its session closed: the peer's modules left this node's registry
         nodes[me].wait_line_since(start[me], &format!("node {name} lost {peer}"));
@@ -344,7 +335,7 @@ fn a_partial_partition_does_not_let_the_cut_off_wall_follower_drive_the_cart() {
     let down = position("node_down", "peer", &old_name);
     let rebound = position("rebound", "operation", "wall-follower");
     assert!(down < rebound, "{:?}", &events[down..=rebound]);
-    assert!(events[down]["kind"]["silent_ms"].as_u64().unwrap() >= DEADLINE_MS);
+    assert!(events[down]["kind"]["silent_ms"].as_u64().unwrap() >= default_deadline_ms());
     // and the rebind blames the node
     assert_eq!(
         events[rebound]["kind"]["cause"],

@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{marie, text};
+use common::{marie, report_of, text};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 
@@ -14,8 +14,15 @@ use std::path::{Path, PathBuf};
 /// parameters and `tail` appended, written into `dir`.
 fn docking_variant(dir: &Path, extra: &str, tail: &str) -> PathBuf {
     let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let src = std::fs::read_to_string(repo.join("missions/docking.toml"))
-        .unwrap()
+    let original = std::fs::read_to_string(repo.join("missions/docking.toml")).unwrap();
+    // a variant that missed its anchors would test docking.toml itself
+    for anchor in [
+        "world = \"worlds/lab.toml\"",
+        "[action.ops.wall-follower]\n",
+    ] {
+        assert!(original.contains(anchor), "docking.toml lost {anchor:?}");
+    }
+    let src = original
         .replace(
             "world = \"worlds/lab.toml\"",
             &format!(
@@ -35,23 +42,13 @@ fn docking_variant(dir: &Path, extra: &str, tail: &str) -> PathBuf {
 
 /// Run `mission` at `--speed max` on `node` (the default node without), with a report:
 /// the exit code, the report (if written) and stderr.
-fn run(mission: &Path, node: Option<&str>, dir: &Path) -> (Option<i32>, Option<Value>, String) {
-    let report = dir.join("report.json");
-    let mut args = vec![
-        "run",
-        mission.to_str().unwrap(),
-        "--speed",
-        "max",
-        "--report",
-        report.to_str().unwrap(),
-    ];
+fn run(mission: &Path, node: Option<&str>) -> (Option<i32>, Option<Value>, String) {
+    let mut args = vec!["run", mission.to_str().unwrap(), "--speed", "max"];
     if let Some(node) = node {
         args.extend(["--node", node]);
     }
-    let out = marie(&args);
-    let report = std::fs::read(&report)
-        .ok()
-        .map(|b| serde_json::from_slice(&b).unwrap());
+    let (out, report) = report_of(&args);
+    let report = (!report.is_null()).then_some(report);
     (out.status.code(), report, text(&out.stderr))
 }
 
@@ -78,7 +75,7 @@ fn candidate<'a>(choice: &'a Value, version: &str) -> &'a Value {
 fn a_mission_that_supplies_only_the_wall_distance_gets_version_1_and_is_told_why() {
     let dir = tempfile::tempdir().unwrap();
     let mission = docking_variant(dir.path(), "", "");
-    let (code, report, stderr) = run(&mission, None, dir.path());
+    let (code, report, stderr) = run(&mission, None);
     assert_eq!(code, Some(0), "{stderr}");
     let report = report.unwrap();
     let choice = wall_follower_choice(&report);
@@ -97,7 +94,7 @@ fn a_mission_that_supplies_only_the_wall_distance_gets_version_1_and_is_told_why
 fn a_mission_that_also_supplies_the_corridor_parameter_gets_version_2() {
     let dir = tempfile::tempdir().unwrap();
     let mission = docking_variant(dir.path(), "mode = \"wall\"\n", "");
-    let (code, report, stderr) = run(&mission, None, dir.path());
+    let (code, report, stderr) = run(&mission, None);
     assert_eq!(code, Some(0), "{stderr}");
     let report = report.unwrap();
     let choice = wall_follower_choice(&report);
@@ -125,13 +122,13 @@ fn a_mission_that_needs_version_2_where_only_version_1_runs_does_not_start() {
     let v1_only = "missions/nodes/v1-only.toml";
     // it supplies the corridor parameter, which version 1 does not take
     let mission = docking_variant(dir.path(), "mode = \"corridor\"\n", "");
-    let (code, report, stderr) = run(&mission, Some(v1_only), dir.path());
+    let (code, report, stderr) = run(&mission, Some(v1_only));
     assert_eq!(code, Some(2), "{stderr}");
     assert!(report.is_none());
     assert!(stderr.contains("mode"), "{stderr}");
     // it requires version 2 in so many words
     let mission = docking_variant(dir.path(), "", "\n[requires]\nwall-follower = \"^2\"\n");
-    let (code, report, stderr) = run(&mission, Some(v1_only), dir.path());
+    let (code, report, stderr) = run(&mission, Some(v1_only));
     assert_eq!(code, Some(2), "{stderr}");
     assert!(report.is_none());
     // at the requirement's line, naming the operation and why its instance does not fit
@@ -223,6 +220,9 @@ fn check_names_the_instance_that_would_serve_each_operation_and_counts_control_d
         numbers.len() == 2 && numbers[0] > 0 && numbers[1] > 0,
         "{counts}"
     );
+    // docking.toml supplies 16 values; the operations it runs declare 66 more it leaves at
+    // their defaults (counted per action that runs them)
+    assert_eq!(numbers, [16, 66], "{counts}");
     // a mission no running instance fits: refused before anything runs
     let dir = tempfile::tempdir().unwrap();
     let mission = docking_variant(dir.path(), "", "\n[requires]\nwall-follower = \"^3\"\n");

@@ -9,7 +9,6 @@ mod common;
 
 use common::cluster::NodeProc;
 use common::{marie, text};
-use serde_json::Value;
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -137,30 +136,13 @@ fn start(dir: &Path, name: &str, hosts: &str, peers: &[SocketAddr], tls: &str) -
 /// `marie ls --join ADDR --cookie C --json` with `tls` flags: exit code, (name, node) of
 /// every entry sorted, stderr.
 fn ls_join(addr: SocketAddr, tls: &[String]) -> (Option<i32>, Vec<(String, String)>, String) {
-    let mut args = vec![
-        "ls".to_string(),
-        "--join".into(),
-        addr.to_string(),
-        "--cookie".into(),
-        COOKIE.into(),
-        "--json".into(),
-    ];
-    args.extend_from_slice(tls);
-    let args: Vec<&str> = args.iter().map(String::as_str).collect();
-    let out = marie(&args);
-    let rows = serde_json::from_slice::<Value>(&out.stdout)
-        .ok()
-        .and_then(|v| v.as_array().cloned())
-        .unwrap_or_default();
-    let mut entries: Vec<(String, String)> = rows
-        .iter()
-        .map(|r| {
-            let s = |k: &str| r[k].as_str().unwrap_or_default().to_string();
-            (s("name"), s("node"))
-        })
+    let (code, listed, stderr) = common::cluster::ls_join(&addr.to_string(), COOKIE, tls);
+    let mut pairs: Vec<(String, String)> = listed
+        .into_iter()
+        .map(|(_, name, node)| (name, node))
         .collect();
-    entries.sort();
-    (out.status.code(), entries, text(&out.stderr))
+    pairs.sort();
+    (code, pairs, stderr)
 }
 
 /// The `--tls-*` flags of a command with certificate `name` trusting authority `ca`.
@@ -218,12 +200,10 @@ fn nodes_with_certificates_of_the_cluster_ca_form_a_full_mesh_over_tls() {
             pair("sampler", "beta")
         ]
     );
-    for node in [&alpha, &beta, &gamma] {
-        assert!(
-            !node.seen().iter().any(|l| l.contains("refused")),
-            "{:?}",
-            node.seen()
-        );
+    for node in [&mut alpha, &mut beta, &mut gamma] {
+        // every line printed so far, not only those waited for
+        let lines = node.drain();
+        assert!(!lines.iter().any(|l| l.contains("refused")), "{lines:?}");
     }
 }
 
@@ -275,29 +255,32 @@ fn a_peer_without_a_valid_certificate_is_refused_and_changes_nothing() {
         entries,
         vec![pair("averager", "beta"), pair("feature", "alpha")]
     );
-    for (node, refused) in [(&alpha, "plain"), (&alpha, "rogue"), (&plain, "alpha")] {
-        let who = &node.name;
+    // the silent connection is closed after the handshake timeout, and told
+    alpha.wait_line("no TLS handshake within");
+    drop(silent);
+    // the refused nodes stopped, every line they printed is in: none saw alpha, nor alpha
+    // them
+    for node in [&mut rogue, &mut plain] {
+        node.signal("TERM");
+        node.wait_line("stopped");
+        assert_eq!(node.wait_exit(), Some(0));
+    }
+    let lines = alpha.drain().to_vec();
+    for (node, refused) in [(&lines, "plain"), (&lines, "rogue")] {
         assert!(
             !node
-                .seen()
                 .iter()
-                .any(|l| l.contains(&format!("node {who} sees {refused}"))),
+                .any(|l| l.contains(&format!("node alpha sees {refused}"))),
+            "{node:?}"
+        );
+    }
+    for node in [&rogue, &plain] {
+        assert!(
+            !node.seen().iter().any(|l| l.contains(" sees ")),
             "{:?}",
             node.seen()
         );
     }
-    assert!(
-        !rogue.seen().iter().any(|l| l.contains("sees")),
-        "{:?}",
-        rogue.seen()
-    );
-    // the silent connection is closed after the handshake timeout, and told
-    alpha.wait_line("no TLS handshake within");
-    drop(silent);
-    rogue.signal("TERM");
-    plain.signal("TERM");
-    assert_eq!(rogue.wait_exit(), Some(0));
-    assert_eq!(plain.wait_exit(), Some(0));
 }
 
 #[test]

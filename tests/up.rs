@@ -5,9 +5,8 @@
 
 mod common;
 
-use common::cluster::{wait_gone, Proc};
-use common::{marie, text};
-use serde_json::Value;
+use common::cluster::{ls_join, wait_gone, Proc};
+use common::{marie, report_of, text};
 use std::collections::BTreeSet;
 
 const THESIS: &str = "missions/clusters/thesis.toml";
@@ -16,17 +15,13 @@ const SPEED: &str = "4";
 
 #[test]
 fn the_thesis_layout_docks_with_the_dispatcher_on_a_process_of_its_own() {
-    let dir = tempfile::tempdir().unwrap();
-    let report_path = dir.path().join("report.json");
-    let out = marie(&[
+    let (out, report) = report_of(&[
         "up",
         THESIS,
         "--run",
         "missions/docking.toml",
         "--speed",
         SPEED,
-        "--report",
-        report_path.to_str().unwrap(),
     ]);
     let stdout = text(&out.stdout);
     assert_eq!(
@@ -38,7 +33,6 @@ fn the_thesis_layout_docks_with_the_dispatcher_on_a_process_of_its_own() {
     assert!(stdout.contains("4 nodes, 17 modules"), "{stdout}");
     assert!(stdout.contains("outcome: succeeded"), "{stdout}");
     assert!(stdout.contains("cluster stopped"), "{stdout}");
-    let report: Value = serde_json::from_slice(&std::fs::read(&report_path).unwrap()).unwrap();
     assert_eq!(report["outcome"], "succeeded");
     assert_eq!(report["collisions"], 0);
     // every operation ran where the layout put it, none on the dispatcher's process
@@ -91,24 +85,11 @@ fn up_lists_every_module_with_its_node_and_leaves_no_node_behind_when_killed() {
     assert_eq!(names, ["cart", "features", "operations", "spare"]);
 
     // any node lets a newcomer see the whole cluster
-    let out = marie(&[
-        "ls",
-        "--join",
-        &nodes[3].1,
-        "--cookie",
-        "marie-thesis",
-        "--json",
-    ]);
-    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
-    let rows: Vec<Value> = serde_json::from_slice(&out.stdout).unwrap();
+    let (code, rows, stderr) = ls_join(&nodes[3].1, "marie-thesis", &[]);
+    assert_eq!(code, Some(0), "{stderr}");
     let listed: BTreeSet<(String, String)> = rows
         .iter()
-        .map(|r| {
-            (
-                r["name"].as_str().unwrap().to_string(),
-                r["node"].as_str().unwrap().to_string(),
-            )
-        })
+        .map(|(_, name, node)| (name.clone(), node.clone()))
         .collect();
     assert_eq!(rows.len(), 17, "{listed:?}");
     for (module, node) in [
@@ -211,9 +192,8 @@ fn a_thousand_operations_on_three_nodes_converge_in_every_members_registry() {
     up.wait_line("Ctrl-C stops the cluster");
     let nodes: Vec<(String, String, u32)> = up.seen().iter().filter_map(|l| node_line(l)).collect();
     // a newcomer sees them all too, through any node
-    let out = marie(&["ls", "--join", &nodes[2].1, "--cookie", "big", "--json"]);
-    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
-    let rows: Vec<Value> = serde_json::from_slice(&out.stdout).unwrap();
+    let (code, rows, stderr) = ls_join(&nodes[2].1, "big", &[]);
+    assert_eq!(code, Some(0), "{stderr}");
     assert_eq!(rows.len(), 1002);
     up.signal("TERM");
     assert_eq!(up.wait_exit(), Some(0));

@@ -256,11 +256,7 @@ impl Proc {
 
     /// Send `signal` (e.g. `TERM`, `KILL`, `STOP`) to the process.
     pub fn signal(&self, signal: &str) {
-        let status = Command::new("kill")
-            .args([&format!("-{signal}"), &self.child.id().to_string()])
-            .status()
-            .expect("kill runs");
-        assert!(status.success(), "kill -{signal} {}", self.child.id());
+        signal_pid(self.child.id(), signal);
     }
 
     /// Wait for the process to end (at most [`EVENT_TIMEOUT`]); its exit code.
@@ -281,6 +277,75 @@ impl Drop for Proc {
     fn drop(&mut self) {
         let _ = self.child.kill();
         let _ = self.child.wait();
+    }
+}
+
+/// `... declared beta down: no heartbeat for 1234 ms` → 1234.
+pub fn silence_ms(line: &str) -> u64 {
+    line.rsplit_once("for ")
+        .and_then(|(_, rest)| rest.split_whitespace().next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no silence in {line:?}"))
+}
+
+/// The failure detector's default deadline, in ms (what `marie node` runs with unless its
+/// config says otherwise).
+pub fn default_deadline_ms() -> u64 {
+    marie::net::detector::DEFAULT_DEADLINE.as_millis() as u64
+}
+
+/// A module `marie ls` lists: (kind, name, node).
+pub type Listed = (String, String, String);
+
+/// `marie ls --join ADDR --cookie C --json` and `extra` flags: the exit code, every listed
+/// module sorted, and stderr.
+pub fn ls_join(addr: &str, cookie: &str, extra: &[String]) -> (Option<i32>, Vec<Listed>, String) {
+    let mut args = vec!["ls", "--join", addr, "--cookie", cookie, "--json"];
+    args.extend(extra.iter().map(String::as_str));
+    let out = super::marie(&args);
+    let rows = serde_json::from_slice::<serde_json::Value>(&out.stdout)
+        .ok()
+        .and_then(|v| v.as_array().cloned())
+        .unwrap_or_default();
+    let mut entries: Vec<Listed> = rows
+        .iter()
+        .map(|r| {
+            let s = |k: &str| r[k].as_str().unwrap_or_default().to_string();
+            (s("kind"), s("name"), s("node"))
+        })
+        .collect();
+    entries.sort();
+    (out.status.code(), entries, super::text(&out.stderr))
+}
+
+/// Send `signal` (e.g. `TERM`, `KILL`, `STOP`) to process `pid`.
+#[track_caller]
+pub fn signal_pid(pid: u32, signal: &str) {
+    let status = Command::new("kill")
+        .args([&format!("-{signal}"), &pid.to_string()])
+        .status()
+        .expect("kill runs");
+    assert!(status.success(), "kill -{signal} {pid}");
+}
+
+/// A process stopped with `SIGSTOP` (not a child of this one), continued when this drops —
+/// also when a test panics: a stopped process never reads the end of its stdin, so it
+/// would outlive the test frozen.
+pub struct Stopped(pub u32);
+
+impl Stopped {
+    /// Stop process `pid`.
+    pub fn stop(pid: u32) -> Stopped {
+        signal_pid(pid, "STOP");
+        Stopped(pid)
+    }
+}
+
+impl Drop for Stopped {
+    fn drop(&mut self) {
+        let _ = Command::new("kill")
+            .args(["-CONT", &self.0.to_string()])
+            .status();
     }
 }
 
