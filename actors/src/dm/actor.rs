@@ -118,6 +118,14 @@ impl DmState {
         }
     }
 
+    /// A put (no answer): stored, or counted and logged as refused.
+    fn put(&mut self, record: NewRecord) {
+        if let Err(e) = self.store(record) {
+            self.refused_puts += 1;
+            tracing::warn!(dm = %self.name, error = %e, "put refused");
+        }
+    }
+
     fn store(&mut self, record: NewRecord) -> Result<u64, DmError> {
         // The class is needed after the insert only if someone waits (the common high-rate
         // case has no waits and pays nothing).
@@ -247,20 +255,8 @@ impl Actor for Datamanager {
         state: &mut DmState,
     ) -> Result<(), ActorProcessingErr> {
         match msg {
-            DmMsg::Put { record } => {
-                if let Err(e) = state.store(record) {
-                    state.refused_puts += 1;
-                    tracing::warn!(dm = %state.name, error = %e, "put refused");
-                }
-            }
-            DmMsg::PutBatch { records } => {
-                for record in records {
-                    if let Err(e) = state.store(record) {
-                        state.refused_puts += 1;
-                        tracing::warn!(dm = %state.name, error = %e, "put refused");
-                    }
-                }
-            }
+            DmMsg::Put { record } => state.put(record),
+            DmMsg::PutBatch { records } => records.into_iter().for_each(|r| state.put(r)),
             DmMsg::Store { record, reply } => {
                 let outcome = state.store(*record);
                 if let Err(e) = &outcome {

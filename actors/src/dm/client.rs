@@ -26,8 +26,9 @@ pub struct DmClient {
     timeout: Duration,
     /// The epoch its records carry (0: unfenced).
     epoch: u64,
-    /// Flow control of puts to a remote datamanager, shared by clones.
-    credits: Arc<Credits>,
+    /// Flow control of puts, shared by clones: `Some` for a remote datamanager only (an
+    /// actor's locality never changes; local puts are not metered).
+    credits: Option<Arc<Credits>>,
 }
 
 impl DmClient {
@@ -40,24 +41,25 @@ impl DmClient {
             .get_name()
             .unwrap_or_else(|| actor.get_id().to_string());
         DmClient {
+            credits: Credits::for_actor(&actor),
             actor,
             dm,
             source: source.into(),
             timeout: Self::DEFAULT_TIMEOUT,
             epoch: 0,
-            credits: Arc::default(),
         }
     }
 
     /// A handle to a datamanager found in the registry.
     pub fn from_instance(instance: &Instance, source: impl Into<String>) -> DmClient {
+        let actor: ActorRef<DmMsg> = instance.actor.clone().into();
         DmClient {
-            actor: instance.actor.clone().into(),
+            credits: Credits::for_actor(&actor),
+            actor,
             dm: instance.name.clone(),
             source: source.into(),
             timeout: Self::DEFAULT_TIMEOUT,
             epoch: 0,
-            credits: Arc::default(),
         }
     }
 
@@ -189,21 +191,7 @@ impl DmClient {
     pub fn put_raw(&self, record: NewRecord) -> Result<(), DmError> {
         let record = self.fill_source(record);
         record.validate()?;
-        // a remote datamanager's puts spend credits (see `credits`): bounded in flight
-        let metered = self.metered();
-        if metered {
-            self.credits.take(1, &self.actor, &self.dm)?;
-        }
-        if self.actor.cast(DmMsg::Put { record }).is_err() {
-            if metered {
-                self.credits.refund(1);
-            }
-            return Err(self.unreachable());
-        }
-        if metered {
-            self.credits.sent(&self.actor);
-        }
-        Ok(())
+        self.send(1, [(1, DmMsg::Put { record })])
     }
 
     /// Store prepared records without waiting for the DM, in as few messages as their size
@@ -225,23 +213,35 @@ impl DmClient {
             })
             .collect::<Result<Vec<_>, _>>()?;
         let n = records.len();
-        let metered = self.metered();
-        if metered {
-            self.credits.take(n, &self.actor, &self.dm)?;
+        let messages = frames(records)
+            .into_iter()
+            .map(|chunk| (chunk.len(), DmMsg::PutBatch { records: chunk }));
+        self.send(n, messages)
+    }
+
+    /// Cast `messages` (each with the number of records it carries, `n` in all) to the
+    /// DM. A remote DM's puts spend credits first (see `credits`: bounded in flight); what
+    /// could not be sent gives its credits back.
+    fn send(
+        &self,
+        n: usize,
+        messages: impl IntoIterator<Item = (usize, DmMsg)>,
+    ) -> Result<(), DmError> {
+        if let Some(credits) = &self.credits {
+            credits.take(n, &self.actor, &self.dm)?;
         }
         let mut left = n;
-        for chunk in frames(records) {
-            let len = chunk.len();
-            if self.actor.cast(DmMsg::PutBatch { records: chunk }).is_err() {
-                if metered {
-                    self.credits.refund(left);
+        for (records, message) in messages {
+            if self.actor.cast(message).is_err() {
+                if let Some(credits) = &self.credits {
+                    credits.refund(left);
                 }
                 return Err(self.unreachable());
             }
-            left -= len;
+            left -= records;
         }
-        if metered {
-            self.credits.sent(&self.actor);
+        if let Some(credits) = &self.credits {
+            credits.sent(&self.actor);
         }
         Ok(())
     }
@@ -267,34 +267,16 @@ impl DmClient {
     /// at most [`DmClient::timeout`]: a producer that would rather wait than have its puts
     /// refused `Busy`. With one producer per client, the puts that follow are then accepted.
     pub async fn ready(&self, n: usize) -> Result<(), DmError> {
-        if !self.metered() || self.credits.in_flight() + n <= super::credits::WINDOW {
-            return Ok(());
+        match &self.credits {
+            None => Ok(()),
+            Some(credits) => credits.ready(n, &self.actor, &self.dm, self.timeout).await,
         }
-        if n > super::credits::WINDOW {
-            return Err(DmError::BatchTooLarge {
-                records: n as u64,
-                window: super::credits::WINDOW as u64,
-            });
-        }
-        if self.credits.ready(n, &self.actor, self.timeout).await {
-            Ok(())
-        } else {
-            Err(DmError::Timeout {
-                dm: self.dm.clone(),
-                after: self.timeout,
-            })
-        }
-    }
-
-    /// Puts to a remote datamanager are metered by credits; local ones are not.
-    fn metered(&self) -> bool {
-        !self.actor.get_id().is_local()
     }
 
     /// Puts sent to a remote datamanager and not yet acknowledged (at most
     /// [`super::credits::WINDOW`]; always 0 for a local one).
     pub fn puts_in_flight(&self) -> usize {
-        self.credits.in_flight()
+        self.credits.as_ref().map_or(0, |c| c.in_flight())
     }
 
     /// Every record matching `query`, oldest-first.

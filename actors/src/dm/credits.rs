@@ -47,6 +47,17 @@ pub const BATCH: usize = WINDOW / 4;
 /// again (by the next put).
 const ACK_TIMEOUT: Duration = Duration::from_secs(5);
 
+/// `BatchTooLarge` for `n` records that the window could never hold at once.
+fn fits(n: usize) -> Result<(), DmError> {
+    if n > WINDOW {
+        return Err(DmError::BatchTooLarge {
+            records: n as u64,
+            window: WINDOW as u64,
+        });
+    }
+    Ok(())
+}
+
 /// The credits of one producer towards one datamanager.
 #[derive(Debug, Default)]
 pub(crate) struct Credits {
@@ -57,6 +68,11 @@ pub(crate) struct Credits {
 }
 
 impl Credits {
+    /// The credits of a client of `actor`: `Some` for a remote datamanager only.
+    pub(crate) fn for_actor(actor: &ActorRef<DmMsg>) -> Option<Arc<Credits>> {
+        (!actor.get_id().is_local()).then(Arc::default)
+    }
+
     /// Take `n` credits for puts to `actor`, all or none; `Busy` when fewer are left (an
     /// acknowledgement is then asked for, so that they come back).
     pub(crate) fn take(
@@ -65,12 +81,7 @@ impl Credits {
         actor: &ActorRef<DmMsg>,
         dm: &str,
     ) -> Result<(), DmError> {
-        if n > WINDOW {
-            return Err(DmError::BatchTooLarge {
-                records: n as u64,
-                window: WINDOW as u64,
-            });
-        }
+        fits(n)?;
         let took = self
             .in_flight
             .fetch_update(Ordering::AcqRel, Ordering::Acquire, |spent| {
@@ -96,8 +107,18 @@ impl Credits {
 
     /// Puts that were counted but could not be sent give their credits back.
     pub(crate) fn refund(&self, n: usize) {
-        self.in_flight.fetch_sub(n, Ordering::AcqRel);
+        self.give_back(n);
         self.freed.notify_waiters();
+    }
+
+    /// `n` credits back: an acknowledgement and a refund may both count the same puts
+    /// (a refund between the reading of `spent` and the answer), so never below zero.
+    fn give_back(&self, n: usize) {
+        let _ = self
+            .in_flight
+            .fetch_update(Ordering::AcqRel, Ordering::Acquire, |f| {
+                Some(f.saturating_sub(n))
+            });
     }
 
     /// Puts in flight now (for tests and stats).
@@ -105,13 +126,16 @@ impl Credits {
         self.in_flight.load(Ordering::Acquire)
     }
 
-    /// Wait until `n` more puts fit in the window, at most `timeout`; false if they did not.
+    /// Wait until `n` more puts fit in the window, at most `timeout`: `Timeout` if they did
+    /// not, `BatchTooLarge` if they never could.
     pub(crate) async fn ready(
         self: &Arc<Self>,
         n: usize,
         actor: &ActorRef<DmMsg>,
+        dm: &str,
         timeout: Duration,
-    ) -> bool {
+    ) -> Result<(), DmError> {
+        fits(n)?;
         let deadline = tokio::time::Instant::now() + timeout;
         loop {
             let freed = self.freed.notified();
@@ -119,11 +143,14 @@ impl Credits {
             // registered before looking, so that an acknowledgement in between is not missed
             freed.as_mut().enable();
             if self.in_flight() + n <= WINDOW {
-                return true;
+                return Ok(());
             }
             self.ask_ack(actor);
             if tokio::time::timeout_at(deadline, freed).await.is_err() {
-                return false;
+                return Err(DmError::Timeout {
+                    dm: dm.to_string(),
+                    after: timeout,
+                });
             }
         }
     }
@@ -134,15 +161,21 @@ impl Credits {
         if self.acking.swap(true, Ordering::AcqRel) {
             return;
         }
+        // no runtime (a put from a plain thread): no acknowledgement now; the next put
+        // from within one, or `ready`, asks again
+        let Ok(runtime) = tokio::runtime::Handle::try_current() else {
+            self.acking.store(false, Ordering::Release);
+            return;
+        };
         let spent = self.in_flight.load(Ordering::Acquire);
         let (credits, actor) = (self.clone(), actor.clone());
-        tokio::spawn(async move {
+        runtime.spawn(async move {
             let answered = actor
                 .call(|reply| DmMsg::Stats { reply }, Some(ACK_TIMEOUT))
                 .await
                 .is_ok_and(|r| r.is_success());
             if answered {
-                credits.in_flight.fetch_sub(spent, Ordering::AcqRel);
+                credits.give_back(spent);
             } else {
                 tracing::debug!("a datamanager did not acknowledge puts: credits held");
             }
