@@ -193,6 +193,7 @@ pub fn unpublish(kind: ModuleKind, id: u32, name: &str, actor: &ActorCell) {
     ] {
         pg::leave_scoped(SCOPE.to_string(), group, vec![actor.clone()]);
     }
+    index::remove(&actor.get_id());
 }
 
 /// Every live instance of a module, by name (`wall-follower`) or numeric id (`1512`),
@@ -204,31 +205,27 @@ pub fn lookup(kind: ModuleKind, name_or_id: &str) -> Vec<Instance> {
         return Vec::new();
     }
     // name the members from the index; a member it does not know yet (a remote module that
-    // just joined) rebuilds it once
+    // just joined) rebuilds it once; one in no entry group yet (between its key group and
+    // its entry group) is not listed
     let ids: Vec<ActorId> = by_key.iter().map(ActorCell::get_id).collect();
-    let entries = index::entries(&ids).or_else(|| {
+    let mut entries = index::entries(&ids);
+    if entries.iter().any(Option::is_none) {
         index::rebuild();
-        index::entries(&ids)
-    });
-    let mut out: Vec<Instance> = match entries {
-        Some(entries) => by_key
-            .into_iter()
-            .zip(entries)
-            .filter(|(_, e)| e.kind == kind)
-            .map(|(actor, e)| Instance {
-                kind,
-                id: e.id,
-                name: e.name,
-                node: node_name_of(&actor.get_id()),
-                actor,
-            })
-            .collect(),
-        // a member between its key group and its entry group: the slow, exact way
-        None => list_kind(Some(kind))
-            .into_iter()
-            .filter(|inst| by_key.iter().any(|c| c.get_id() == inst.actor.get_id()))
-            .collect(),
-    };
+        entries = index::entries(&ids);
+    }
+    let mut out: Vec<Instance> = by_key
+        .into_iter()
+        .zip(entries)
+        .filter_map(|(actor, e)| Some((actor, e?)))
+        .filter(|(_, e)| e.kind == kind)
+        .map(|(actor, e)| Instance {
+            kind,
+            id: e.id,
+            name: e.name,
+            node: node_name_of(&actor.get_id()),
+            actor,
+        })
+        .collect();
     sort_instances(&mut out);
     out
 }
