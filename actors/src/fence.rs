@@ -60,7 +60,6 @@ pub struct Stale {
 #[derive(Clone, Debug, Default)]
 pub struct FenceTable {
     newest: HashMap<String, u64>,
-    refused: u64,
     refused_by: BTreeMap<String, u64>,
 }
 
@@ -79,7 +78,6 @@ impl FenceTable {
         }
         match self.newest.get_mut(operation) {
             Some(newest) if epoch < *newest => {
-                self.refused += 1;
                 *self.refused_by.entry(operation.to_string()).or_default() += 1;
                 Err(Stale {
                     operation: operation.to_string(),
@@ -100,7 +98,7 @@ impl FenceTable {
 
     /// Commands refused so far.
     pub fn refused(&self) -> u64 {
-        self.refused
+        self.refused_by.values().sum()
     }
 
     /// Commands refused so far, by operation (only those with at least one).

@@ -59,3 +59,34 @@ async fn a_replaced_incarnations_commands_are_refused_and_change_nothing() {
     actor.stop(None);
     handle.await.unwrap();
 }
+
+#[tokio::test]
+async fn a_halt_stops_the_cart_and_leaves_another_operations_emergency_stop_engaged() {
+    let world = World::builtin("lab").expect("the lab world");
+    let (actor, handle) = spawn_cart(CartArgs {
+        sim: Simulation::new(&world, 1),
+        clock: RealClock::shared(),
+        period: Duration::from_millis(20),
+    })
+    .await
+    .expect("cart");
+    let cart = CartClient::new(actor.clone());
+    let avoidance = fenced(&cart, "collision-avoidance", 3);
+    let follower = fenced(&cart, "wall-follower", 3);
+    follower.drive(0.3, 0.1).unwrap();
+    avoidance.emergency_stop(true).unwrap();
+    // the wall follower's clearance guard brakes while avoidance holds the cart
+    follower.halt().unwrap();
+    let status = cart.status().await.unwrap();
+    assert_eq!(status.commanded, (0.0, 0.0));
+    assert!(status.emergency_stop, "avoidance's hold was lifted");
+    // a replaced incarnation's halt is refused like any command
+    avoidance.emergency_stop(false).unwrap();
+    follower.drive(0.2, 0.0).unwrap();
+    fenced(&cart, "wall-follower", 2).halt().unwrap();
+    let status = cart.status().await.unwrap();
+    assert_eq!(status.commanded, (0.2, 0.0));
+    assert_eq!(status.refused, 1);
+    actor.stop(None);
+    handle.await.unwrap();
+}

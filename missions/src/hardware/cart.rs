@@ -96,6 +96,13 @@ marie_actors::remote_message! {
             /// one the cart has obeyed is refused.
             fence: Fence,
         },
+        /// Stop now: the drive commanded to 0 and the wheels stopped without the drive's
+        /// lag, the emergency stop left as it is (another operation may hold it).
+        Halt {
+            /// Who commands, under which epoch: an older epoch of an operation than
+            /// one the cart has obeyed is refused.
+            fence: Fence,
+        },
         /// Engage or release the emergency stop.
         EmergencyStop {
             /// Engage.
@@ -161,7 +168,14 @@ impl CartState {
         match self.fences.admit(fence) {
             Ok(()) => true,
             Err(stale) => {
-                tracing::warn!("cart command refused: {stale}");
+                // a replaced controller commands at its step rate: warn at the 1st, 2nd,
+                // 4th, 8th… refusal of each operation, not at every one
+                let n = self.fences.refused_by().get(&stale.operation).copied();
+                if n.is_some_and(u64::is_power_of_two) {
+                    tracing::warn!("cart command refused ({} so far): {stale}", n.unwrap_or(0));
+                } else {
+                    tracing::debug!("cart command refused: {stale}");
+                }
                 false
             }
         }
@@ -265,9 +279,16 @@ impl Actor for VirtualCart {
                 schedule(&myself, &state.clock, state.period);
             }
             CartMsg::Drive { fence, .. }
+            | CartMsg::Halt { fence }
             | CartMsg::SpeedCap { fence, .. }
             | CartMsg::EmergencyStop { fence, .. }
                 if !state.admit(&fence) => {}
+            CartMsg::Halt { .. } => {
+                state.advance();
+                state.command = (0.0, 0.0);
+                state.commanded_at = state.clock.now();
+                state.sim.halt();
+            }
             CartMsg::Drive { speed, steer, .. } => {
                 state.advance();
                 state.command = (speed, steer);
@@ -386,6 +407,15 @@ impl CartClient {
         self.actor
             .cast(CartMsg::SpeedCap {
                 max,
+                fence: self.fence.clone(),
+            })
+            .map_err(|_| CartError::Unreachable)
+    }
+
+    /// Stop now, leaving the emergency stop as it is ([`CartMsg::Halt`]).
+    pub fn halt(&self) -> Result<(), CartError> {
+        self.actor
+            .cast(CartMsg::Halt {
                 fence: self.fence.clone(),
             })
             .map_err(|_| CartError::Unreachable)

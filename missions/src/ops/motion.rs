@@ -573,8 +573,8 @@ const PARKED_ZONE: f64 = 0.7;
 const SETTLE_LENGTH: f64 = 0.35;
 
 /// Check `cmd` with the clearance guard against the cart's current sonar scan; when it
-/// trips, the cart is stopped at once (the emergency stop, engaged and released, halts the
-/// wheels without the drive's lag) and the trip returned.
+/// trips, the cart is halted at once (wheels stopped without the drive's lag; the emergency
+/// stop, which collision avoidance may hold, is left alone) and the trip returned.
 async fn guard(
     slot: &mut Option<CartClient>,
     ctx: &OpContext,
@@ -603,9 +603,7 @@ async fn guard(
     let Some(trip) = check(&echoes, footprint, cmd, &GuardParams::default()) else {
         return Ok(None);
     };
-    cart.emergency_stop(true).map_err(cart_err)?;
-    cart.drive(0.0, 0.0).map_err(cart_err)?;
-    cart.emergency_stop(false).map_err(cart_err)?;
+    cart.halt().map_err(cart_err)?;
     tracing::info!(
         clearance = trip.clearance,
         ahead = trip.ahead,

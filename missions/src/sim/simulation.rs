@@ -174,6 +174,13 @@ impl Simulation {
         (self.command_speed, self.command_steer)
     }
 
+    /// Command a stop and stop the wheels at once (without the drive's lag), leaving the
+    /// emergency stop as it is.
+    pub fn halt(&mut self) {
+        self.command(0.0, 0.0);
+        self.drive.halt();
+    }
+
     /// Engage (`true`) or release (`false`) the emergency stop. Engaging stops the wheels at
     /// once.
     pub fn emergency_stop(&mut self, on: bool) {
