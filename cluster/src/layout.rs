@@ -27,7 +27,7 @@
 //! assert_eq!(layout.nodes[0].config.name, "a");
 //! ```
 
-use crate::net::MAX_COOKIE_LEN;
+use crate::net::check_cookie;
 use crate::node::config::socket_addr;
 use crate::node::NodeConfig;
 use marie_actors::diagnostic::toml::{Reader, Rule, Tbl};
@@ -136,12 +136,9 @@ impl ClusterLayout {
     fn read_cluster_table(&mut self, r: &mut Reader<'_>, t: &Tbl<'_, '_>, dir: &Path) {
         r.unknown_keys(t, &["cookie", "speed", "world", "seed"]);
         if let Some(cookie) = r.required_string(t, "cookie") {
-            if cookie.len() > MAX_COOKIE_LEN {
+            if let Err(e) = check_cookie(&cookie) {
                 let span = t.get("cookie").map(|v| v.span()).unwrap_or(0..0);
-                r.err(
-                    &span,
-                    format!("`cookie` is longer than {MAX_COOKIE_LEN} bytes"),
-                );
+                r.err(&span, e);
             }
             self.cookie = cookie;
         }
@@ -149,10 +146,10 @@ impl ClusterLayout {
         self.speed = r
             .num(t, "speed", Some(1.0), Rule::Within(lo, hi))
             .unwrap_or(1.0);
-        self.world = r.string(t, "world").map(|w| resolve(dir, w));
-        self.seed = r
-            .integer(t, "seed", Some(-1), 0..=i64::MAX)
-            .filter(|s| *s >= 0 && t.get("seed").is_some())
+        self.world = r.string(t, "world").map(|w| dir.join(w));
+        self.seed = t
+            .get("seed")
+            .and_then(|_| r.integer(t, "seed", None, 0..=i64::MAX))
             .map(|s| s as u64);
     }
 
@@ -177,7 +174,7 @@ impl ClusterLayout {
         let Some(file) = r.required_string(t, "config") else {
             return;
         };
-        let path = resolve(dir, file);
+        let path = dir.join(file);
         let config = match NodeConfig::load(&path, catalog) {
             Ok(config) => config,
             Err(diags) => {
@@ -206,16 +203,6 @@ impl ClusterLayout {
             config,
             listen,
         });
-    }
-}
-
-/// `file` relative to the cluster file's directory (absolute paths stay).
-fn resolve(dir: &Path, file: String) -> PathBuf {
-    let file = PathBuf::from(file);
-    if file.is_relative() {
-        dir.join(file)
-    } else {
-        file
     }
 }
 

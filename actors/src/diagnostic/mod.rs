@@ -29,7 +29,7 @@ pub mod toml;
 use std::fmt;
 use std::io::Read;
 use std::ops::Range;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// A position in a text file: 1-based line and 1-based column (counted in characters, not
 /// bytes).
@@ -188,6 +188,25 @@ impl Diagnostics {
 /// KiB; anything this large is a mistake (a log, an image, `/dev/zero`), refused before
 /// it is read.
 pub const MAX_SOURCE_BYTES: u64 = 4 * 1024 * 1024;
+
+/// A file named in the file at `file` (a mission's world, a node config's certificates, a
+/// cluster file's node configs): relative to `file`'s directory, as a reader of that file
+/// expects; an absolute name, or one with no file to be relative to, stays as written.
+///
+/// ```
+/// use marie_actors::diagnostic::beside;
+/// use std::path::Path;
+/// let mission = Path::new("missions/docking.toml");
+/// assert_eq!(beside(Some(mission), "worlds/lab.toml"), Path::new("missions/worlds/lab.toml"));
+/// assert_eq!(beside(Some(mission), "/srv/lab.toml"), Path::new("/srv/lab.toml"));
+/// assert_eq!(beside(None, "lab.toml"), Path::new("lab.toml"));
+/// ```
+pub fn beside(file: Option<&Path>, named: impl AsRef<Path>) -> PathBuf {
+    match file.and_then(Path::parent) {
+        Some(dir) => dir.join(named),
+        None => named.as_ref().to_path_buf(),
+    }
+}
 
 /// Read the text of `path`, a `what` file (e.g. `"mission"`), as a loader needs it: a path that
 /// is not a regular file (a directory, a device, a fifo) or is larger than

@@ -9,6 +9,17 @@ use std::net::SocketAddr;
 /// Longest cookie accepted (ractor_cluster hashes it; a longer one gains nothing).
 pub const MAX_COOKIE_LEN: usize = 256;
 
+/// Whether `cookie` can be a cluster's cookie: not empty, at most [`MAX_COOKIE_LEN`] bytes.
+pub fn check_cookie(cookie: &str) -> Result<(), String> {
+    if cookie.is_empty() {
+        return Err("the cookie must not be empty".into());
+    }
+    if cookie.len() > MAX_COOKIE_LEN {
+        return Err(format!("the cookie is longer than {MAX_COOKIE_LEN} bytes"));
+    }
+    Ok(())
+}
+
 /// The `[cluster]` part of a node config.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct ClusterConfig {
@@ -59,16 +70,7 @@ impl ClusterConfig {
                 "node name {node:?} cannot join a cluster: it must be non-empty, without '@' or spaces"
             )));
         }
-        if self.cookie.is_empty() {
-            return Err(TransportError::Config(
-                "the cookie must not be empty".into(),
-            ));
-        }
-        if self.cookie.len() > MAX_COOKIE_LEN {
-            return Err(TransportError::Config(format!(
-                "the cookie is longer than {MAX_COOKIE_LEN} bytes"
-            )));
-        }
+        check_cookie(&self.cookie).map_err(TransportError::Config)?;
         self.heartbeat.validate().map_err(TransportError::Config)?;
         if let Some(p) = self.peers.iter().find(|p| p.port() == 0) {
             return Err(TransportError::Config(format!("peer {p} has no port")));

@@ -34,7 +34,7 @@ mod sessions;
 pub mod tls;
 mod transport;
 
-pub use config::{ClusterConfig, MAX_COOKIE_LEN};
+pub use config::{check_cookie, ClusterConfig, MAX_COOKIE_LEN};
 pub use detector::HeartbeatConfig;
 pub use events::publish_on;
 pub use events::NetEvent;

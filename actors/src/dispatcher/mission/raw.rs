@@ -12,7 +12,7 @@ use crate::diagnostic::{Diagnostics, Pos};
 use crate::property::Value;
 use std::collections::{BTreeMap, BTreeSet};
 use std::ops::Range;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Duration;
 use toml::de::{DeTable, DeValue};
 use toml::Spanned;
@@ -820,17 +820,8 @@ fn check(
         world_at: header.world.as_ref().map(|w| ctx.pos(&w.span())),
         world: header
             .world
-            .map(|w| resolve_world(path, Path::new(w.get_ref()))),
+            .map(|w| crate::diagnostic::beside(path, w.get_ref())),
         actions,
         requires: Vec::new(),
-    }
-}
-
-/// The `world` path as the mission names it, resolved against the mission file's directory
-/// (an absolute path, or a mission without a file, keeps the path as written).
-fn resolve_world(mission: Option<&Path>, world: &Path) -> PathBuf {
-    match mission.and_then(Path::parent) {
-        Some(dir) => dir.join(world),
-        None => world.to_path_buf(),
     }
 }

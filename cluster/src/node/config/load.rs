@@ -5,7 +5,7 @@ use super::*;
 use crate::net::detector::{HeartbeatConfig, DEFAULT_DEADLINE, MIN_DEADLINE};
 use crate::net::{ClusterConfig, TlsFiles};
 use marie_actors::diagnostic::toml::{quote, Reader, Rule, Span, Tbl};
-use marie_actors::diagnostic::{read_source, Diagnostic, Diagnostics};
+use marie_actors::diagnostic::{beside, read_source, Diagnostic, Diagnostics};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 
@@ -143,13 +143,7 @@ fn simulation(r: &mut Reader<'_>, t: &Tbl<'_, '_>, path: Option<&Path>) -> Simul
             "the world named here does not load:",
         )
     });
-    let world = r.string(t, "world").map(|w| {
-        let w = PathBuf::from(w);
-        match path.and_then(Path::parent) {
-            Some(dir) if w.is_relative() => dir.join(w),
-            _ => w,
-        }
-    });
+    let world = r.string(t, "world").map(|w| beside(path, w));
     let seed = r
         .integer(t, "seed", Some(-1), 0..=i64::MAX)
         .filter(|s| *s >= 0)
@@ -338,10 +332,10 @@ fn cluster(
             "tls",
         ],
     );
-    let tls = match t.get("tls") {
-        None => None,
-        Some(v) => Some(r.table(v, "[cluster.tls]").and_then(|t| tls(r, &t, path))?),
-    };
+    // every key is read, and every problem reported, before any is acted on
+    let tls = t
+        .get("tls")
+        .map(|v| r.table(v, "[cluster.tls]").and_then(|t| tls(r, &t, path)));
     let listen = t.get("listen").map(|v| (r.string(t, "listen"), v.span()));
     let listen = match listen {
         None => {
@@ -373,16 +367,23 @@ fn cluster(
         "deadline_ms",
         Some(DEFAULT_DEADLINE.as_millis() as i64),
         min..=3_600_000,
-    )?;
-    let mut heartbeat = HeartbeatConfig::with_deadline(Duration::from_millis(deadline as u64));
-    if t.get("heartbeat_ms").is_some() {
-        let period = r.integer(t, "heartbeat_ms", None, 1..=deadline / 2)?;
-        heartbeat.period = Duration::from_millis(period as u64);
+    );
+    // the period is checked against the deadline given, or the default one
+    let most = deadline.unwrap_or(DEFAULT_DEADLINE.as_millis() as i64) / 2;
+    let period = t
+        .get("heartbeat_ms")
+        .map(|_| r.integer(t, "heartbeat_ms", None, 1..=most));
+    let mut heartbeat = HeartbeatConfig::with_deadline(Duration::from_millis(deadline? as u64));
+    if let Some(period) = period {
+        heartbeat.period = Duration::from_millis(period? as u64);
     }
     let mut config = ClusterConfig::new(listen?, cookie?);
     config.peers = peers;
     config.heartbeat = heartbeat;
-    config.tls = tls;
+    config.tls = match tls {
+        None => None,
+        Some(files) => Some(files?),
+    };
     if let Err(e) = config.validate(node) {
         r.err(&t.span, e.to_string());
         return None;
@@ -396,12 +397,7 @@ fn cluster(
 fn tls(r: &mut Reader<'_>, t: &Tbl<'_, '_>, path: Option<&Path>) -> Option<TlsFiles> {
     r.unknown_keys(t, &["cert", "key", "ca", "server_name"]);
     let file = |r: &mut Reader<'_>, key: &str| -> Option<PathBuf> {
-        let name = r.required_string(t, key)?;
-        let f = PathBuf::from(&name);
-        let f = match path.and_then(Path::parent) {
-            Some(dir) if f.is_relative() => dir.join(f),
-            _ => f,
-        };
+        let f = beside(path, r.required_string(t, key)?);
         if let Err(e) = std::fs::File::open(&f) {
             let span = t.get(key).map(|v| v.span()).unwrap_or(t.span.clone());
             r.err(&span, format!("`{key}`: cannot read {}: {e}", f.display()));
@@ -492,6 +488,19 @@ mod tests {
             "gone.pem",
             "missing `key`",
             "node.toml:9:1: unknown key `sni`",
+        ] {
+            assert!(e.contains(want), "{want:?} not in:\n{e}");
+        }
+        // a bad [cluster.tls] hides nothing else in [cluster]
+        let both = bad.replace("127.0.0.1:7101", "nowhere");
+        let both = both.replace("[cluster.tls]", "deadline_ms = 5\n[cluster.tls]");
+        let e = NodeConfig::parse(&both, Some(&path), &[])
+            .unwrap_err()
+            .to_string();
+        for want in [
+            "`nowhere` is not an address",
+            "gone.pem",
+            "`deadline_ms` must be",
         ] {
             assert!(e.contains(want), "{want:?} not in:\n{e}");
         }
