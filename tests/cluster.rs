@@ -171,7 +171,7 @@ fn garbage_and_oversized_frames_on_a_nodes_port_change_nothing() {
         [u64::MAX.to_be_bytes().as_slice(), b"abc"].concat(),
         [(64u64 << 20).to_be_bytes().as_slice(), &[0u8; 1024]].concat(),
     ];
-    // seeded noise of every length up to 4 KiB
+    // seeded noise of lengths from a byte to 4 KiB (around the 8-byte length prefix)
     let mut x: u64 = 0x9e37_79b9_7f4a_7c15;
     for len in [1usize, 7, 8, 9, 100, 4096] {
         noise.push(
@@ -186,9 +186,19 @@ fn garbage_and_oversized_frames_on_a_nodes_port_change_nothing() {
         );
     }
     for bytes in &noise {
-        if let Ok(mut s) = std::net::TcpStream::connect(alpha.addr) {
-            let _ = s.write_all(bytes);
-        }
+        let mut s = std::net::TcpStream::connect(alpha.addr).expect("alpha accepts");
+        let _ = s.write_all(bytes);
+        // nothing more comes: alpha has read it all, and drops the connection, before the
+        // check below (no race between the noise and the listing)
+        s.shutdown(std::net::Shutdown::Write).unwrap();
+        s.set_read_timeout(Some(common::cluster::EVENT_TIMEOUT))
+            .unwrap();
+        let mut answer = Vec::new();
+        let closed = std::io::Read::read_to_end(&mut s, &mut answer);
+        assert!(
+            closed.is_ok(),
+            "alpha kept a garbage connection open: {closed:?}"
+        );
     }
     // alpha still serves, with what it hosted
     let (code, entries, stderr) = ls_join(&alpha.addr, COOKIE);
