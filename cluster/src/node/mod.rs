@@ -166,10 +166,9 @@ pub struct Node {
     bus: EventBus,
     _registry: Option<RegistryBridge>,
     bridges: Vec<tokio::task::JoinHandle<()>>,
-    /// Starts instances on request (the node's own and the provisioner's).
+    /// Starts instances on request (the node's own and the provisioner's); holds the
+    /// node's clock and root supervisor.
     starter: provisioner::Starter,
-    clock: SharedClock,
-    root: SupervisorRef,
     robot: Option<Arc<dyn Robot>>,
     runs: AtomicU64,
     /// Answers the cluster's requests for new instances (when the config hosts operations).
@@ -202,8 +201,8 @@ impl Node {
             node: config.name.clone(),
             operations: config.operations.clone(),
             catalog: options.catalog,
-            clock: options.clock.clone(),
-            root: root.clone(),
+            clock: options.clock,
+            root,
         };
         let mut node = Node {
             config,
@@ -211,8 +210,6 @@ impl Node {
             _registry: registry,
             bridges,
             starter,
-            clock: options.clock,
-            root,
             robot: options.robot,
             runs: AtomicU64::new(0),
             provisioner: None,
@@ -233,7 +230,7 @@ impl Node {
 
     /// The node's root supervisor (for introspection: `which_children`, events).
     pub fn supervisor(&self) -> &SupervisorRef {
-        &self.root
+        &self.starter.root
     }
 
     /// The default supervisor of the node's operations ([`OPERATIONS`]), as it is now (it is
@@ -249,7 +246,7 @@ impl Node {
 
     /// One of the root's child supervisors by name, as it is now.
     pub async fn child_supervisor(&self, id: &str) -> Result<SupervisorRef, NodeError> {
-        tree::child_supervisor(&self.root, id).await
+        tree::child_supervisor(&self.starter.root, id).await
     }
 
     /// The node's event bus: every dispatcher, binding, supervisor, registry, fault and robot
@@ -262,7 +259,7 @@ impl Node {
 
     /// The node's clock.
     pub fn clock(&self) -> &SharedClock {
-        &self.clock
+        &self.starter.clock
     }
 
     /// The robot the node drives, if any.
@@ -381,7 +378,7 @@ impl Node {
                 }
             }
         });
-        let injector = Injector::start(plan, self.clock.clone(), view, self.bus.clone());
+        let injector = Injector::start(plan, self.starter.clock.clone(), view, self.bus.clone());
         let result = self.dispatch(mission, inner).await;
         let faults = injector.finish();
         let _ = forwarder.await;
@@ -425,7 +422,7 @@ impl Node {
         let relay = ProgressRelay::start(&self.bus, events);
         let args = DispatcherArgs {
             mission,
-            clock: self.clock.clone(),
+            clock: self.starter.clock.clone(),
             bus: self.bus.clone(),
         };
         let spec = ChildSpec::worker(format!("dispatcher-{n}"), move |sup| {
@@ -446,7 +443,7 @@ impl Node {
                 Err(e) => tracing::warn!("running without supervisor `{}`: {e}", sup.name),
             }
         }
-        let dispatcher: ActorRef<DispatcherMsg> = self.root.start_child(spec).await?.into();
+        let dispatcher: ActorRef<DispatcherMsg> = self.starter.root.start_child(spec).await?.into();
         let guards: Vec<_> = give_ups
             .into_iter()
             .map(|(name, rx)| tokio::spawn(abort_on_give_up(name, rx, dispatcher.clone())))
@@ -464,7 +461,7 @@ impl Node {
         if let Some(p) = &self.provisioner {
             p.stop(None);
         }
-        self.root.stop().await;
+        self.starter.root.stop().await;
         for task in &self.bridges {
             task.abort();
         }
