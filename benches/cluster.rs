@@ -40,7 +40,7 @@ use marie::actors::dispatcher::mission::Mission;
 use marie::actors::dispatcher::{
     request_run, spawn_dispatcher, DispatcherArgs, DispatcherMsg, RegistryCatalog,
 };
-use marie::actors::dm::{DmClient, DmError, NewRecord, Payload};
+use marie::actors::dm::{DmClient, DmError, NewRecord};
 use marie::actors::eo::{EoMsg, Identity, OpContext, OpError, Operation, OperationFactory, Step};
 use marie::actors::events::{EventBus, EventKind};
 use marie::actors::flags::FlagDecl;
@@ -55,58 +55,20 @@ use ractor::{pg, Actor, ActorProcessingErr, ActorRef, BytesConvertable, RpcReply
 use ractor_cluster::RactorClusterMessage;
 use rand_core::{Rng, SeedableRng};
 use rand_xoshiro::Xoshiro256StarStar;
-use serde::Serialize;
-use std::alloc::{GlobalAlloc, Layout, System};
 use std::io::Write;
 use std::net::{SocketAddr, TcpListener};
 use std::process::{Command, Stdio};
-use std::sync::atomic::{AtomicIsize, Ordering};
 use std::time::{Duration, Instant};
 
+mod common;
+
 // ---------------------------------------------------------------------------------------
-// Memory: the system allocator, counting live heap bytes and their peak (in both roles).
-
-struct Counting;
-
-static LIVE: AtomicIsize = AtomicIsize::new(0);
-static PEAK: AtomicIsize = AtomicIsize::new(0);
-
-fn grew(by: isize) {
-    let now = LIVE.fetch_add(by, Ordering::Relaxed) + by;
-    // a load first: the peak is rarely exceeded, and a plain load costs next to nothing
-    if now > PEAK.load(Ordering::Relaxed) {
-        PEAK.fetch_max(now, Ordering::Relaxed);
-    }
-}
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        grew(layout.size() as isize);
-        System.alloc(layout)
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        LIVE.fetch_sub(layout.size() as isize, Ordering::Relaxed);
-        System.dealloc(ptr, layout)
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        grew(new_size as isize - layout.size() as isize);
-        System.realloc(ptr, layout, new_size)
-    }
-}
+// Memory: the live heap and its peak, counted in both roles.
 
 #[global_allocator]
-static ALLOC: Counting = Counting;
+static ALLOC: common::Counting = common::Counting;
 
-/// Start a new peak at the current live heap; gives that base.
-fn reset_peak() -> u64 {
-    let live = LIVE.load(Ordering::Relaxed);
-    PEAK.store(live, Ordering::Relaxed);
-    live.max(0) as u64
-}
-
-fn peak() -> u64 {
-    PEAK.load(Ordering::Relaxed).max(0) as u64
-}
+use common::{peak, percentile, reset_peak, Idle};
 
 // ---------------------------------------------------------------------------------------
 // What the children host.
@@ -115,21 +77,6 @@ const ROLE: &str = "MARIE_BENCH_CLUSTER_ROLE";
 const NODE: &str = "MARIE_BENCH_CLUSTER_NODE";
 const JOIN: &str = "MARIE_BENCH_CLUSTER_JOIN";
 const COOKIE: &str = "bench-cluster";
-
-/// The property target: does nothing, has a parameter (like `benches/property.rs`'s).
-#[derive(Default)]
-struct Idle;
-impl Operation for Idle {
-    fn identity(&self) -> Identity {
-        Identity::new("bench-idle", 9900, "1.0.0", "does nothing")
-    }
-    fn parameters(&self) -> ParamSchema {
-        ParamSchema::new(vec![ParamDecl::float("x", 1.0).range(0.0, 2.0)])
-    }
-    async fn step(&mut self, _: &mut OpContext) -> Result<Step, OpError> {
-        Ok(Step::Continue)
-    }
-}
 
 /// The failover target: runs until suspended.
 #[derive(Default)]
@@ -234,7 +181,7 @@ impl Actor for RawPeer {
                 let live = if reset {
                     reset_peak()
                 } else {
-                    LIVE.load(Ordering::Relaxed).max(0) as u64
+                    common::live().max(0) as u64
                 };
                 let _ = reply.send(HeapSample((live, peak())));
             }
@@ -392,11 +339,6 @@ fn say(line: &str) {
     let _ = out.flush();
 }
 
-fn percentile(sorted: &[Duration], p: f64) -> Duration {
-    let i = ((sorted.len() as f64 - 1.0) * p).round() as usize;
-    sorted[i.min(sorted.len() - 1)]
-}
-
 fn us(d: Duration) -> f64 {
     d.as_secs_f64() * 1e6
 }
@@ -526,25 +468,9 @@ const SIZES: [usize; 2] = [100_000, 400_000];
 /// Rounds of each method at each size.
 const REPEATS: usize = 2;
 
-#[derive(Serialize)]
-struct Echo {
-    range_m: f32,
-    bearing_rad: f32,
-}
-
-const SUB1: [&str; 4] = ["front", "rear", "left", "right"];
-
 /// A sonar reading like `benches/dm.rs`'s (and the ultrasonic EO's).
 fn sonar(i: usize) -> NewRecord {
-    let payload = Payload::encode(&Echo {
-        range_m: (i % 500) as f32 / 100.0,
-        bearing_rad: 0.1,
-    })
-    .unwrap_or_default();
-    NewRecord::new("sonar", payload)
-        .with_sub1(SUB1[i % 4])
-        .with_sub2(if i % 2 == 0 { "narrow" } else { "wide" })
-        .with_source("bench-producer")
+    common::sonar(i as u64, "bench-producer")
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]

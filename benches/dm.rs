@@ -16,34 +16,18 @@ use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughpu
 use marie_actors::clock::{Clock, RealClock};
 use marie_actors::dm::{self, DmArgs, DmClient, DmConfig, DmMsg, NewRecord, Payload, Query, Store};
 use ractor::{Actor, ActorProcessingErr, ActorRef, RpcReplyPort};
-use serde::Serialize;
 use std::time::{Duration, Instant};
+
+mod common;
 
 /// Messages per store iteration.
 const N: u64 = 10_000;
 /// Retention bound of the stored sonar class in the store benchmark.
 const SONAR_BOUND: usize = 100_000;
 
-#[derive(Serialize)]
-struct Echo {
-    range_m: f32,
-    bearing_rad: f32,
-}
-
-const SUB1: [&str; 4] = ["front", "rear", "left", "right"];
-const SUB2: [&str; 2] = ["narrow", "wide"];
-
 /// A sonar reading like the ultrasonic EO stores it.
 fn sonar(i: u64) -> NewRecord {
-    let payload = Payload::encode(&Echo {
-        range_m: (i % 500) as f32 / 100.0,
-        bearing_rad: 0.1,
-    })
-    .unwrap_or_default();
-    NewRecord::new("sonar", payload)
-        .with_sub1(SUB1[(i % 4) as usize])
-        .with_sub2(SUB2[(i % 2) as usize])
-        .with_source("ultrasonic")
+    common::sonar(i, "ultrasonic")
 }
 
 /// A mixed feature DM: 60 % sonar (four directions, two beams), 20 % segments, 20 % odometry.

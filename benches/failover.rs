@@ -21,41 +21,17 @@ use marie::actors::property::{ParamDecl, ParamSchema};
 use marie::actors::registry::{self, ModuleKind};
 use marie::fault::{self, FaultKind};
 use marie::supervision::{ChildSpec, Supervisor, SupervisorSpec};
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicIsize, Ordering};
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 use tokio::sync::mpsc;
 
-/// The system allocator, counting the bytes live on the heap: RSS alone cannot tell a leak
-/// from memory the allocator keeps for reuse.
-struct Counting;
-
-static LIVE: AtomicIsize = AtomicIsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        LIVE.fetch_add(layout.size() as isize, Ordering::Relaxed);
-        System.alloc(layout)
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        LIVE.fetch_sub(layout.size() as isize, Ordering::Relaxed);
-        System.dealloc(ptr, layout)
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        LIVE.fetch_add(
-            new_size as isize - layout.size() as isize,
-            Ordering::Relaxed,
-        );
-        System.realloc(ptr, layout, new_size)
-    }
-}
+mod common;
 
 #[global_allocator]
-static ALLOC: Counting = Counting;
+static ALLOC: common::Counting = common::Counting;
 
 fn live_kib() -> isize {
-    LIVE.load(Ordering::Relaxed) / 1024
+    common::live() / 1024
 }
 
 /// Where activations report when they ran.
@@ -96,11 +72,6 @@ fn rss_kib() -> u64 {
                 .and_then(|v| v.parse().ok())
         })
         .unwrap_or(0)
-}
-
-fn percentile(sorted: &[Duration], p: f64) -> Duration {
-    let i = ((sorted.len() as f64 - 1.0) * p).round() as usize;
-    sorted[i.min(sorted.len() - 1)]
 }
 
 /// Crash the running instance `n` times; the latency of each failover.
@@ -209,8 +180,8 @@ fn main() {
         println!("failover (panic -> supervisor restart -> rebind -> re-activation), {} crashes:", lat.len());
         println!(
             "  p50 {:>9.3} ms   (goal <= 1 ms)\n  p99 {:>9.3} ms   (goal <= 10 ms)\n  max {:>9.3} ms\n  mean {:>8.3} ms",
-            percentile(&lat, 0.50).as_secs_f64() * 1e3,
-            percentile(&lat, 0.99).as_secs_f64() * 1e3,
+            common::percentile(&lat, 0.50).as_secs_f64() * 1e3,
+            common::percentile(&lat, 0.99).as_secs_f64() * 1e3,
             lat.last().copied().unwrap_or_default().as_secs_f64() * 1e3,
             mean.as_secs_f64() * 1e3
         );

@@ -8,25 +8,13 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use marie_actors::eo::EoMsg;
-use marie_actors::eo::{
-    spawn_operation, HostOptions, Identity, OpContext, OpError, Operation, Step,
-};
-use marie_actors::property::{Group, Identification, ParamDecl, ParamSchema, PropertyRequest};
+use marie_actors::eo::{spawn_operation, HostOptions};
+use marie_actors::property::{Group, Identification, PropertyRequest};
 use ractor::{Actor, ActorProcessingErr, ActorRef, RpcReplyPort};
 use std::time::Duration;
 
-struct Idle;
-impl Operation for Idle {
-    fn identity(&self) -> Identity {
-        Identity::new("bench-idle", 9900, "1.0.0", "does nothing")
-    }
-    fn parameters(&self) -> ParamSchema {
-        ParamSchema::new(vec![ParamDecl::float("x", 1.0).range(0.0, 2.0)])
-    }
-    async fn step(&mut self, _: &mut OpContext) -> Result<Step, OpError> {
-        Ok(Step::Continue)
-    }
-}
+mod common;
+use common::Idle;
 
 /// The baseline: an actor that answers a call with a small struct.
 struct Echo;
