@@ -16,8 +16,12 @@ fn fenced(cart: &CartClient, op: &str, epoch: u64) -> CartClient {
     c
 }
 
-#[tokio::test]
-async fn a_replaced_incarnations_commands_are_refused_and_change_nothing() {
+/// A cart in the lab world, with a client that carries no fence.
+async fn lab_cart() -> (
+    ractor::ActorRef<marie_missions::hardware::CartMsg>,
+    tokio::task::JoinHandle<()>,
+    CartClient,
+) {
     let world = World::builtin("lab").expect("the lab world");
     let (actor, handle) = spawn_cart(CartArgs {
         sim: Simulation::new(&world, 1),
@@ -27,6 +31,12 @@ async fn a_replaced_incarnations_commands_are_refused_and_change_nothing() {
     .await
     .expect("cart");
     let cart = CartClient::new(actor.clone());
+    (actor, handle, cart)
+}
+
+#[tokio::test]
+async fn a_replaced_incarnations_commands_are_refused_and_change_nothing() {
+    let (actor, handle, cart) = lab_cart().await;
     let stand_in = fenced(&cart, "wall-follower", 8);
     let original = fenced(&cart, "wall-follower", 7);
 
@@ -62,15 +72,7 @@ async fn a_replaced_incarnations_commands_are_refused_and_change_nothing() {
 
 #[tokio::test]
 async fn a_halt_stops_the_cart_and_leaves_another_operations_emergency_stop_engaged() {
-    let world = World::builtin("lab").expect("the lab world");
-    let (actor, handle) = spawn_cart(CartArgs {
-        sim: Simulation::new(&world, 1),
-        clock: RealClock::shared(),
-        period: Duration::from_millis(20),
-    })
-    .await
-    .expect("cart");
-    let cart = CartClient::new(actor.clone());
+    let (actor, handle, cart) = lab_cart().await;
     let avoidance = fenced(&cart, "collision-avoidance", 3);
     let follower = fenced(&cart, "wall-follower", 3);
     follower.drive(0.3, 0.1).unwrap();
