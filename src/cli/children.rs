@@ -159,8 +159,50 @@ impl Drop for NodeChild {
     }
 }
 
-/// A free port on 127.0.0.1 (bound and released: another process could take it before the
-/// node does, which the node then reports as a listen error).
-pub fn free_loopback_addr() -> std::io::Result<SocketAddr> {
-    std::net::TcpListener::bind("127.0.0.1:0")?.local_addr()
+/// What a node prints once it listens: `node NAME listening on ADDR[ (mutual TLS)] with N
+/// module(s) ...` — the address it bound (its port, when it was given port 0) and how many
+/// modules it hosts itself.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Listening {
+    /// The address it bound.
+    pub addr: SocketAddr,
+    /// The modules it hosts itself.
+    pub modules: usize,
+}
+
+impl Listening {
+    /// The line's address and module count, if it is that line.
+    pub fn parse(line: &str) -> Option<Listening> {
+        let rest = line.strip_prefix("node ")?.split_once(" listening on ")?.1;
+        let addr = rest.split_whitespace().next()?.parse().ok()?;
+        let modules = rest
+            .split_once(" with ")?
+            .1
+            .split_whitespace()
+            .next()?
+            .parse()
+            .ok()?;
+        Some(Listening { addr, modules })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Listening;
+
+    #[test]
+    fn a_nodes_listening_line_gives_its_address_and_module_count() {
+        let line = "node alpha listening on 127.0.0.1:40211 with 7 module(s) at speed 1; \
+                    joining nobody (others join it)";
+        assert_eq!(
+            Listening::parse(line),
+            Some(Listening {
+                addr: "127.0.0.1:40211".parse().unwrap(),
+                modules: 7
+            })
+        );
+        let tls = "node b listening on 127.0.0.1:1 (mutual TLS) with 0 module(s) at speed 2";
+        assert_eq!(Listening::parse(tls).map(|l| l.modules), Some(0));
+        assert_eq!(Listening::parse("node alpha sees beta"), None);
+    }
 }

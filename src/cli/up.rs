@@ -8,7 +8,7 @@
 //! none outlives `marie up`, even when it is killed.
 
 use super::args::{parse_cluster_speed, parse_seed, RobotArgs};
-use super::children::{free_loopback_addr, stop_all, Line, NodeChild, NodeLaunch};
+use super::children::{stop_all, Line, Listening, NodeChild, NodeLaunch};
 use super::error::BadInput;
 use super::join::{join, member_name, JoinArgs};
 use super::run::RunArgs;
@@ -16,7 +16,8 @@ use marie::actors::dispatcher::mission::Mission;
 use marie::actors::registry::{self, Instance};
 use marie::layout::ClusterLayout;
 use std::collections::BTreeMap;
-use std::path::PathBuf;
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Duration;
 use tokio::sync::mpsc;
@@ -75,42 +76,64 @@ pub async fn up(args: UpArgs) -> anyhow::Result<ExitCode> {
     let seed = args.seed.or(layout.seed);
     let exe = std::env::current_exe()?;
 
-    let mut launches = Vec::new();
-    for node in &layout.nodes {
-        let listen = match node.listen {
-            Some(a) => a,
-            None => free_loopback_addr()?,
-        };
-        launches.push(NodeLaunch {
+    let mut launches: Vec<NodeLaunch> = layout
+        .nodes
+        .iter()
+        .map(|node| NodeLaunch {
             name: node.config.name.clone(),
             config: node.path.clone(),
-            listen,
+            // port 0: the node binds a port the OS picks and prints it. A port picked here
+            // and released would be free for anyone until the node binds it, and another
+            // node's outgoing dial may take it first
+            listen: node.listen.unwrap_or(SocketAddr::from(([127, 0, 0, 1], 0))),
             peers: Vec::new(),
             cookie: layout.cookie.clone(),
             speed,
             world: world.clone(),
             seed,
-        });
-    }
-    // everyone joins the first node; ractor_cluster's transitive mode meshes the rest
-    let first = launches[0].listen;
-    for l in launches.iter_mut().skip(1) {
-        l.peers = vec![first];
-    }
+        })
+        .collect();
 
+    if launches.is_empty() {
+        return Err(BadInput(format!(
+            "{}: `node = []` lists no node: a cluster file lists the nodes it runs",
+            args.cluster.display()
+        ))
+        .into());
+    }
     let (tx, mut lines) = mpsc::unbounded_channel();
     let mut children = Vec::new();
-    for l in &launches {
-        match NodeChild::start(&exe, l, tx.clone()) {
-            Ok(c) => children.push(c),
-            Err(e) => {
-                stop_all(&mut children);
-                anyhow::bail!("cannot start node `{}`: {e}", l.name);
-            }
+    // the first listens; once its address is known, everyone joins it and marie's dialer
+    // meshes the rest
+    let mut hosted = BTreeMap::new();
+    let mut started = start_children(&exe, &mut launches[..1], &tx, &mut children, &mut lines)
+        .await
+        .map(|h| hosted.extend(h));
+    if started.is_ok() {
+        let first = launches[0].listen;
+        for l in launches.iter_mut().skip(1) {
+            l.peers = vec![first];
         }
+        started = start_children(&exe, &mut launches[1..], &tx, &mut children, &mut lines)
+            .await
+            .map(|h| hosted.extend(h));
     }
     drop(tx);
-    let result = serve(&args, &layout, &launches, &mut children, &mut lines, speed).await;
+    let result = match started {
+        Ok(()) => {
+            serve(
+                &args,
+                &layout,
+                &launches,
+                &hosted,
+                &mut children,
+                &mut lines,
+                speed,
+            )
+            .await
+        }
+        Err(e) => Err(e),
+    };
     let stopped = tokio::task::spawn_blocking(move || stop_all(&mut children)).await?;
     for (name, code) in stopped {
         match code {
@@ -128,11 +151,11 @@ async fn serve(
     args: &UpArgs,
     layout: &ClusterLayout,
     launches: &[NodeLaunch],
+    hosted: &BTreeMap<String, usize>,
     children: &mut [NodeChild],
     lines: &mut mpsc::UnboundedReceiver<Line>,
     speed: f64,
 ) -> anyhow::Result<ExitCode> {
-    let hosted = wait_listening(launches, lines).await?;
     let listening = std::time::Instant::now();
     let total: usize = hosted.values().sum();
     let listing = converged(launches, &layout.cookie, total).await?;
@@ -214,12 +237,21 @@ async fn serve(
     }
 }
 
-/// Wait until every node printed that it listens; gives each node's own module count. A
-/// node that exits first fails the start.
-async fn wait_listening(
-    launches: &[NodeLaunch],
+/// Start a node process for each of `launches` and wait until every one printed that it
+/// listens; their addresses become the ones they bound. Gives each node's own module count.
+/// A node that exits first fails the start.
+async fn start_children(
+    exe: &Path,
+    launches: &mut [NodeLaunch],
+    tx: &mpsc::UnboundedSender<Line>,
+    children: &mut Vec<NodeChild>,
     lines: &mut mpsc::UnboundedReceiver<Line>,
 ) -> anyhow::Result<BTreeMap<String, usize>> {
+    for l in launches.iter() {
+        let child = NodeChild::start(exe, l, tx.clone())
+            .map_err(|e| anyhow::anyhow!("cannot start node `{}`: {e}", l.name))?;
+        children.push(child);
+    }
     let mut hosted = BTreeMap::new();
     let wait = async {
         while hosted.len() < launches.len() {
@@ -228,8 +260,12 @@ async fn wait_listening(
                     node,
                     text: Some(text),
                 }) => {
-                    if let Some(n) = modules_of(&text) {
-                        hosted.insert(node, n);
+                    let Some(listening) = Listening::parse(&text) else {
+                        continue;
+                    };
+                    if let Some(l) = launches.iter_mut().find(|l| l.name == node) {
+                        l.listen = listening.addr;
+                        hosted.insert(node, listening.modules);
                     }
                 }
                 Some(Line { node, text: None }) => {
@@ -249,12 +285,6 @@ async fn wait_listening(
         ),
     }
     Ok(hosted)
-}
-
-/// `node NAME listening on ADDR with N module(s) ...` → N.
-fn modules_of(line: &str) -> Option<usize> {
-    let rest = line.split_once(" with ")?.1;
-    rest.split_whitespace().next()?.parse().ok()
 }
 
 /// Join the cluster as a member of its own until its registry lists `total` modules of the

@@ -4,7 +4,7 @@
 //! never a sleep.
 
 use std::io::{BufRead, BufReader};
-use std::net::{SocketAddr, TcpListener};
+use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::sync::mpsc::{self, Receiver};
@@ -19,13 +19,6 @@ static LOGGED: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::
 
 /// Generous: a loaded 2-core machine may take seconds to start a process.
 pub const EVENT_TIMEOUT: Duration = Duration::from_secs(60);
-
-/// A free port on 127.0.0.1 (the OS picks it; it is free again when this returns).
-pub fn free_addr() -> SocketAddr {
-    TcpListener::bind("127.0.0.1:0")
-        .and_then(|l| l.local_addr())
-        .expect("a free port")
-}
 
 /// A running `marie` process whose stdout lines are awaited.
 pub struct Proc {
@@ -83,11 +76,18 @@ impl NodeProc {
         cluster_extra: &str,
         flags: &[&str],
     ) -> NodeProc {
-        let addr = free_addr();
-        let path = node_config(dir, name, hosts, addr, peers, cookie, cluster_extra);
+        // port 0: the node binds a port the OS picks and prints it. A port picked here and
+        // released would be free for anyone until the node binds it — another node's
+        // outgoing dial may take it first
+        let any = SocketAddr::from(([127, 0, 0, 1], 0));
+        let path = node_config(dir, name, hosts, any, peers, cookie, cluster_extra);
         let mut args = vec!["node", "--config", path.to_str().expect("utf-8 path")];
         args.extend_from_slice(flags);
-        NodeProc::launch(None, addr, name, &args)
+        let mut proc = Proc::spawn_in(None, name, &args);
+        let line = proc.wait_line(&format!("node {name} listening on "));
+        let addr =
+            listening_addr(&line).unwrap_or_else(|| panic!("{name}: no address in `{line}`"));
+        NodeProc { addr, proc }
     }
 
     /// Start `marie ARGS` (a `marie node` listening on `addr`), inside network namespace
@@ -98,6 +98,12 @@ impl NodeProc {
         node.wait_line(&format!("node {name} listening on {addr}"));
         node
     }
+}
+
+/// `node NAME listening on ADDR ...` → ADDR.
+fn listening_addr(line: &str) -> Option<SocketAddr> {
+    let rest = line.split_once(" listening on ")?.1;
+    rest.split_whitespace().next()?.parse().ok()
 }
 
 /// Write `dir/NAME.toml` — `[node]`, then `hosts` (TOML tables), then `[cluster]` with
