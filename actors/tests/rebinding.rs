@@ -6,6 +6,7 @@
 
 use marie_actors::clock::RealClock;
 use marie_actors::dispatcher::mission::Mission;
+use marie_actors::dispatcher::selection::Verdict;
 use marie_actors::dispatcher::{
     run_mission, LossCause, OpEnd, Outcome, RegistryCatalog, RunReport,
 };
@@ -42,11 +43,16 @@ impl Operation for Worker {
             "finishes after a number of steps",
         )
     }
+    /// Version 3 also takes a `mode`: a compatible superset of the others' schema.
     fn parameters(&self) -> ParamSchema {
-        ParamSchema::new(vec![
+        let mut params = vec![
             ParamDecl::int("steps", 2).range(1.0, 100_000.0),
             ParamDecl::float("gain", 0.5).range(0.0, 10.0),
-        ])
+        ];
+        if self.version.starts_with("3.") {
+            params.push(ParamDecl::choice("mode", &["fast", "slow"], "fast"));
+        }
+        ParamSchema::new(params)
     }
     fn flags(&self) -> Vec<FlagDecl> {
         vec![FlagDecl::new("done", "finished")]
@@ -291,6 +297,54 @@ async fn another_live_instance_stands_in_at_once() {
     assert_eq!(report.rebinds.len(), 1);
     assert_eq!(report.rebinds[0].to, twin.actor().get_id().to_string());
     assert_eq!(report.actions[0].operations[0].version, "1.0.0");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_stand_in_is_chosen_by_the_same_ranking_as_at_the_start_and_the_choice_is_explained() {
+    let first = start("rb-rank", "1.0.0").await;
+    let (run, mut events) =
+        launch(&mission("rank", "rb-rank", 100_000).replace("20.0", "5.0")).await;
+    activated(&first).await;
+    // the superset shows up first: taking the first that fits would take it
+    let superset = start("rb-rank", "3.0.0").await;
+    let exact = start("rb-rank", "1.1.0").await;
+    first.actor().kill();
+    let lost = first.actor().get_id().to_string();
+    let choice = event(&mut events, |e| match e {
+        EventKind::Selected { choice } if choice.replacing.is_some() => Some(choice.clone()),
+        _ => None,
+    })
+    .await;
+    assert_eq!(choice.replacing.as_deref(), Some(lost.as_str()));
+    let chosen = choice.chosen().expect("a stand-in was chosen");
+    assert_eq!(chosen.address, exact.actor().get_id().to_string());
+    let other = choice
+        .candidates
+        .iter()
+        .find(|c| c.address == superset.actor().get_id().to_string())
+        .expect("the superset was a candidate");
+    match &other.verdict {
+        Verdict::Lost { reason } => assert!(reason.contains("also declares mode"), "{reason}"),
+        v => panic!("the superset should have lost, not {v:?}"),
+    }
+    let record = event(&mut events, |e| match e {
+        EventKind::Rebound(r) => Some(r.clone()),
+        _ => None,
+    })
+    .await;
+    assert_eq!(record.to, chosen.address);
+    exact.actor().kill();
+    superset.actor().kill();
+    let report = run.await.unwrap();
+    // the report keeps the stand-in's choice beside the first one
+    assert!(
+        report
+            .selection
+            .iter()
+            .any(|c| c.replacing.as_deref() == Some(lost.as_str())),
+        "{:?}",
+        report.selection
+    );
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

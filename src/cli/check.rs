@@ -1,9 +1,14 @@
-//! `marie check MISSION`: load and check a mission (and its world) without running it.
+//! `marie check MISSION`: verify a mission against the instances that would serve it,
+//! without running it — each operation's choice, the source of every flag it waits for,
+//! and the control details it supplies against those left at declared defaults.
 
 use super::args::RobotArgs;
 use super::join::JoinArgs;
 use super::prepare::prepare;
-use std::path::PathBuf;
+use marie::actors::dispatcher::survey::Survey;
+use marie::actors::dispatcher::{mission::Mission, survey};
+use marie::node::NodeError;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 /// Flags of `marie check`.
@@ -16,60 +21,114 @@ pub struct CheckArgs {
     /// `--join ADDR --cookie C`: check against the instances of a running cluster.
     #[command(flatten)]
     pub cluster: JoinArgs,
+    /// Print the verdict as one JSON document on stdout (`ok`, the choices, the flags, the
+    /// control details — or `ok: false` and the errors); the exit code is the same.
+    #[arg(long)]
+    pub json: bool,
 }
 
-/// Check the mission against the operations of a freshly started node.
+/// Check the mission against the operations of a freshly started node, or of the cluster.
 pub async fn check(args: CheckArgs) -> anyhow::Result<ExitCode> {
     let CheckArgs {
         mission,
         robot,
         cluster,
+        json,
     } = args;
     let joining = cluster.joining("check", &robot, 1.0)?;
-    let prepared = prepare(&mission, robot, joining.as_ref()).await?;
+    let prepared = match prepare(&mission, robot, joining.as_ref()).await {
+        Ok(p) => p,
+        Err(e) => {
+            if json {
+                if let Some(NodeError::Mission(diags)) = e.downcast_ref::<NodeError>() {
+                    let doc = serde_json::json!({
+                        "ok": false,
+                        "mission": mission.display().to_string(),
+                        "errors": diags.0,
+                    });
+                    println!("{}", serde_json::to_string_pretty(&doc)?);
+                }
+            }
+            return Err(e);
+        }
+    };
     let m = &prepared.mission;
+    let surveyed = survey(m).await;
+    let world = prepared.robot.as_ref().map(|r| r.world().name.clone());
+    if json {
+        let doc = serde_json::json!({
+            "ok": true,
+            "mission": mission.display().to_string(),
+            "name": m.name,
+            "actions": m.actions.len(),
+            "operations": m.operation_names().len(),
+            "world": world,
+            "survey": surveyed,
+        });
+        println!("{}", serde_json::to_string_pretty(&doc)?);
+    } else {
+        print_text(&mission, m, world.as_deref(), &surveyed);
+    }
+    prepared.shutdown().await;
+    Ok(ExitCode::SUCCESS)
+}
+
+fn print_text(path: &Path, m: &Mission, world: Option<&str>, surveyed: &Survey) {
     println!(
         "{}: ok — mission `{}`, {} actions, {} operations{}",
-        mission.display(),
+        path.display(),
         m.name,
         m.actions.len(),
         m.operation_names().len(),
-        prepared
-            .robot
-            .as_ref()
-            .map(|r| format!(", world `{}`", r.world().name))
-            .unwrap_or_default()
+        world.map(|w| format!(", world `{w}`")).unwrap_or_default()
     );
     // which instance would serve each operation, as the dispatcher would choose now
-    let choices = marie::actors::dispatcher::survey(m).await;
-    let (mut supplied, mut defaulted) = (0, 0);
-    for choice in &choices {
-        let Some(chosen) = choice.chosen() else {
-            println!("  {:<24} {}", choice.operation, choice.why_none());
-            continue;
-        };
-        println!(
-            "  {:<24} {} on {}, version {}, of {} candidate(s)",
-            choice.operation,
-            chosen.address,
-            chosen.node,
-            chosen.version,
-            choice.candidates.len()
-        );
-        for op in m.actions.iter().flat_map(|a| &a.ops) {
-            if op.name == choice.operation {
-                supplied += op.params.len();
-                defaulted += chosen
-                    .schema
-                    .iter()
-                    .filter(|p| !op.params.contains_key(*p))
-                    .count();
-            }
+    for choice in &surveyed.choices {
+        match choice.chosen() {
+            None => println!("  {:<24} {}", choice.operation, choice.why_none()),
+            Some(chosen) => println!(
+                "  {:<24} {} on {}, version {}, of {} candidate(s)",
+                choice.operation,
+                chosen.address,
+                chosen.node,
+                chosen.version,
+                choice.candidates.len()
+            ),
         }
     }
+    let sources: Vec<String> = surveyed
+        .flags
+        .iter()
+        .map(|f| {
+            let mut from = f.raised_by.clone();
+            if f.initial {
+                from.push("initial".to_string());
+            }
+            format!("{} ← {}", f.flag, from.join(", "))
+        })
+        .collect();
+    let unraised: Vec<&str> = surveyed
+        .flags
+        .iter()
+        .filter(|f| !f.is_raised())
+        .map(|f| f.flag.as_str())
+        .collect();
+    if unraised.is_empty() {
+        println!(
+            "condition flags: {} awaited, each raised: {}",
+            surveyed.flags.len(),
+            sources.join("; ")
+        );
+    } else {
+        println!(
+            "condition flags: {} awaited, never raised: {}",
+            surveyed.flags.len(),
+            unraised.join(", ")
+        );
+    }
+    let c = surveyed.control_details;
     println!(
-        "control details: {supplied} supplied by the mission, {defaulted} from declared defaults"
+        "control details: {} supplied by the mission, {} from declared defaults",
+        c.supplied, c.defaulted
     );
-    prepared.shutdown().await;
-    Ok(ExitCode::SUCCESS)
 }

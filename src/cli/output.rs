@@ -3,10 +3,35 @@
 use marie::actors::dispatcher::{DispatchEvent, Outcome, RunReport};
 use marie::fault::plan::TargetError;
 
+/// How `marie run` prints its progress.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Progress {
+    /// Event lines.
+    Lines,
+    /// Event lines, each choice of an instance explained (`--explain`).
+    Explained,
+    /// Only the choices, one JSON object per line (`--explain --json`).
+    ChoicesAsJson,
+}
+
 /// One progress line per dispatcher event.
-pub fn print_event(evt: &DispatchEvent, explain: bool) {
+pub fn print_event(evt: &DispatchEvent, progress: Progress) {
+    match (evt, progress) {
+        (DispatchEvent::Selected(choice), Progress::ChoicesAsJson) => {
+            // a Choice is plain data: it always serializes
+            if let Ok(line) = serde_json::to_string(choice) {
+                println!("{line}");
+            }
+            return;
+        }
+        (_, Progress::ChoicesAsJson) => return,
+        (DispatchEvent::Selected(choice), Progress::Explained) => {
+            print_choice(choice);
+            return;
+        }
+        _ => {}
+    }
     match evt {
-        DispatchEvent::Selected(choice) if explain => print_choice(choice),
         DispatchEvent::Selected(_) => {}
         DispatchEvent::Bound { operations } => {
             for (name, version, node) in operations {
@@ -96,11 +121,18 @@ pub fn not_found(e: TargetError) -> String {
 /// it lost or was rejected.
 pub fn print_choice(choice: &marie::actors::dispatcher::selection::Choice) {
     use marie::actors::dispatcher::selection::Verdict;
-    println!(
-        "? {}: {} candidate(s)",
-        choice.operation,
-        choice.candidates.len()
-    );
+    match &choice.replacing {
+        None => println!(
+            "? {}: {} candidate(s)",
+            choice.operation,
+            choice.candidates.len()
+        ),
+        Some(lost) => println!(
+            "? {}: a stand-in for {lost}, {} candidate(s)",
+            choice.operation,
+            choice.candidates.len()
+        ),
+    }
     let mut rows: Vec<_> = choice.candidates.iter().collect();
     rows.sort_by_key(|c| !matches!(c.verdict, Verdict::Chosen));
     for c in rows {

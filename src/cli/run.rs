@@ -6,7 +6,7 @@ use super::error::BadInput;
 use super::events_file::EventsFile;
 use super::files;
 use super::join::JoinArgs;
-use super::output::{not_found, outcome_line, print_event, print_faults};
+use super::output::{not_found, outcome_line, print_event, print_faults, Progress};
 use super::prepare::{prepare, Prepared};
 use anyhow::Context;
 use marie::actors::clock::Pacer;
@@ -31,6 +31,12 @@ pub struct RunArgs {
     /// version, schema), the one chosen and why each other lost or was rejected.
     #[arg(long)]
     pub explain: bool,
+    /// With `--explain`: print only the choices, each as one JSON object per line (the
+    /// `choice` of the `selected` event: operation, candidates with node, version, schema,
+    /// flags and verdict, and `replacing` for a stand-in after a failure); the outcome is
+    /// the exit code, and the report if `--report` is given.
+    #[arg(long, requires = "explain")]
+    pub json: bool,
     /// Write every event of the run here, one JSON object per line (the schema is in the
     /// docs of `marie_actors::events`): dispatcher, bindings, supervisors, registry, faults,
     /// the robot. The report can be rebuilt from it.
@@ -74,6 +80,7 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         robot,
         report: report_path,
         explain,
+        json,
         events: events_path,
         svg: svg_path,
         speed,
@@ -81,6 +88,12 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         chaos,
         cluster,
     } = args;
+    let progress = match (explain, json) {
+        (true, true) => Progress::ChoicesAsJson,
+        (true, false) => Progress::Explained,
+        _ => Progress::Lines,
+    };
+    let say = progress != Progress::ChoicesAsJson;
     let joining = cluster.joining("run", &robot, speed.unwrap_or(1.0))?;
     // outputs first: a run must not end in a report it cannot write
     if let Some(p) = &report_path {
@@ -112,14 +125,16 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         ))
         .into());
     }
-    println!(
-        "mission `{}` ({} actions) from {}",
-        prepared.mission.name,
-        prepared.mission.actions.len(),
-        path.display()
-    );
-    if let Some(line) = prepared.world_line() {
-        println!("{line}");
+    if say {
+        println!(
+            "mission `{}` ({} actions) from {}",
+            prepared.mission.name,
+            prepared.mission.actions.len(),
+            path.display()
+        );
+        if let Some(line) = prepared.world_line() {
+            println!("{line}");
+        }
     }
     let bound = prepared.mission.operation_names();
     for f in &plan.faults {
@@ -147,7 +162,7 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     let (tx, mut rx) = mpsc::unbounded_channel();
     let printer = tokio::spawn(async move {
         while let Some(evt) = rx.recv().await {
-            print_event(&evt, explain);
+            print_event(&evt, progress);
         }
     });
     // this member's events go to whoever watches the cluster; its events file has theirs
@@ -184,9 +199,11 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         t.stop().await;
     }
     let report = report?;
-    print_faults(&report);
-    if world.is_some() {
-        println!("{}", outcome_line(&report));
+    if say {
+        print_faults(&report);
+        if world.is_some() {
+            println!("{}", outcome_line(&report));
+        }
     }
 
     // Write every output asked for, even when one of them cannot be written.

@@ -206,6 +206,7 @@ async fn serve(
     };
     let run = RunArgs {
         explain: false,
+        json: false,
         mission: mission.clone(),
         robot: RobotArgs {
             world: args.world.clone(),

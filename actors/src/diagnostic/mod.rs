@@ -108,7 +108,7 @@ impl fmt::Display for Pos {
 /// One problem in a file: where (`path:line:column`) and what was expected.
 ///
 /// Displays as `path:line:column: message`, the form editors and terminals link to.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error, serde::Serialize)]
 #[error("{path}:{line}:{column}: {message}")]
 pub struct Diagnostic {
     /// The file's path, or a placeholder such as `<mission>` for text given without one.

@@ -88,11 +88,19 @@ pub(crate) async fn examine(inst: &Instance, timeout: Duration) -> Result<Candid
 /// Every live instance of `operation`, asked at once (selection needs them all), in
 /// registry order; those that do not answer within `timeout` are left out.
 pub(crate) async fn candidates(operation: &str, timeout: Duration) -> Vec<Candidate> {
+    let found = crate::registry::lookup(crate::registry::ModuleKind::Operation, operation);
+    examine_all(operation, found, timeout).await
+}
+
+/// Every instance of `found` (of `operation`), asked at once, in the given order; those
+/// that do not answer within `timeout` are left out.
+pub(crate) async fn examine_all(
+    operation: &str,
+    found: Vec<Instance>,
+    timeout: Duration,
+) -> Vec<Candidate> {
     let mut asked = tokio::task::JoinSet::new();
-    for (i, inst) in crate::registry::lookup(crate::registry::ModuleKind::Operation, operation)
-        .into_iter()
-        .enumerate()
-    {
+    for (i, inst) in found.into_iter().enumerate() {
         asked.spawn(async move { (i, examine(&inst, timeout).await) });
     }
     let mut answers = Vec::new();
@@ -188,22 +196,54 @@ impl Binding {
         self.need.version.clone().unwrap_or(VersionReq::STAR)
     }
 
-    /// Whether `cand` may stand in for the lost instance: not the dead actor itself, the same
-    /// operation (name and id), and an instance the mission could have chosen at the start
-    /// ([`selection::admits`]: its version requirement, the parameters it supplies).
-    pub(crate) fn accepts(&self, cand: &Candidate) -> Result<(), String> {
-        if let Some(lost) = &self.lost {
-            if cand.client.actor().get_id() == lost.dead {
-                return Err("it is the instance that was lost".to_string());
+    /// Choose a stand-in for the lost instance among `cands` as the mission's start chose
+    /// ([`selection::choose`] on the binding's need), after ruling out what cannot stand in
+    /// whatever the mission needs: the lost actor itself, an instance on a node declared
+    /// down, another operation's. Gives the explanation (every candidate with its verdict,
+    /// [`Choice::replacing`](selection::Choice::replacing) the lost address) and the index
+    /// of the chosen one in `cands`.
+    pub(crate) fn choose_stand_in(
+        &self,
+        cands: &[Candidate],
+        here: &str,
+    ) -> (selection::Choice, Option<usize>) {
+        let (mut fit, mut ruled_out) = (Vec::new(), Vec::new());
+        for (i, cand) in cands.iter().enumerate() {
+            match self.cannot_stand_in(cand) {
+                Some(why) => ruled_out.push((i, why)),
+                None => fit.push(i),
             }
         }
+        let offers: Vec<Offer> = fit.iter().map(|&i| cands[i].offer()).collect();
+        let mut choice = selection::choose(&self.need, &offers, here);
+        let chosen = choice.chosen_index().map(|k| fit[k]);
+        for (i, reason) in ruled_out {
+            let verdict = selection::Verdict::Rejected { reason };
+            choice
+                .candidates
+                .push(selection::Candidate::of(&cands[i].offer(), verdict));
+        }
+        choice.replacing = self.lost.as_ref().map(|l| l.from.clone());
+        (choice, chosen)
+    }
+
+    /// Why `cand` cannot stand in for this binding whatever the mission needs, if it cannot.
+    fn cannot_stand_in(&self, cand: &Candidate) -> Option<String> {
+        if let Some(lost) = &self.lost {
+            if cand.client.actor().get_id() == lost.dead {
+                return Some("it is the instance that was lost".to_string());
+            }
+        }
+        if crate::registry::is_declared_down(&cand.node) {
+            return Some(format!("its node {} was declared down", cand.node));
+        }
         if cand.info.name != self.name || cand.info.id != self.id {
-            return Err(format!(
+            return Some(format!(
                 "it is {} ({}), not {} ({})",
                 cand.info.name, cand.info.id, self.name, self.id
             ));
         }
-        selection::admits(&self.need, &cand.info)
+        None
     }
 
     /// Take `cand` as the new incarnation; returns the record's `(from, downtime)` if the

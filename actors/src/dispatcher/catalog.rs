@@ -130,17 +130,3 @@ impl Catalog for RegistryCatalog {
         self.names.clone()
     }
 }
-
-/// How the dispatcher would choose now, for every operation `mission` uses: each live
-/// instance asked through its property interface, and [`choose`] — what `marie check`
-/// shows without running the mission.
-pub async fn survey(mission: &super::mission::Mission) -> Vec<super::selection::Choice> {
-    let here = registry::local_node_name();
-    let mut out = Vec::new();
-    for name in mission.operation_names() {
-        let cands = super::binding::candidates(name, EoClient::DEFAULT_TIMEOUT).await;
-        let offers: Vec<Offer> = cands.iter().map(|c| c.offer()).collect();
-        out.push(choose(&mission.need(name), &offers, &here));
-    }
-    out
-}

@@ -15,10 +15,11 @@
 //!   incarnation are ignored.
 
 use super::actor::{DispatcherState, Start};
-use super::binding::{candidates, examine, Binding};
+use super::binding::{candidates, examine, examine_all, Binding, Candidate};
 use super::loss::LossCause;
 use super::messages::DispatcherMsg;
 use super::report::{Outcome, RebindRecord};
+use super::selection::Verdict;
 use crate::clock::Timer;
 use crate::eo::{EoError, ParamOutcome};
 use crate::events::{BoundOp, BusError, Event, EventKind};
@@ -184,16 +185,22 @@ impl DispatcherState {
             b.deadline_timer = Some(timer);
             b.provision_timer = Some(provision);
         }
-        let found = registry::lookup(ModuleKind::Operation, name);
-        for inst in found {
-            if self.try_adopt(myself, name, &inst).await {
-                break;
-            }
-        }
+        // every live instance, asked at once and chosen among as at the start — but not
+        // the lost one, nor one on a node declared down: they would only be waited for
+        let Some(b) = self.bindings.get(name) else {
+            return;
+        };
+        let dead = b.lost.as_ref().map(|l| l.dead);
+        let found: Vec<Instance> = registry::lookup(ModuleKind::Operation, name)
+            .into_iter()
+            .filter(|i| Some(i.actor.get_id()) != dead && !registry::is_declared_down(&i.node))
+            .collect();
+        let cands = examine_all(name, found, b.deadline).await;
+        self.adopt_best(myself, name, cands).await;
     }
 
-    /// Adopt `inst` for the lost binding `name` if it passes the binding's selection; then
-    /// restore its parameters and, if its action runs, re-activate it. True if adopted.
+    /// An instance of the lost binding `name` joined the registry: adopt it if it passes
+    /// the binding's selection. True if adopted.
     pub(super) async fn try_adopt(
         &mut self,
         myself: &ActorRef<DispatcherMsg>,
@@ -214,29 +221,49 @@ impl DispatcherState {
             tracing::debug!(op = %name, node = %inst.node, "no stand-in from a node declared down");
             return false;
         }
-        let cand = match examine(inst, b.deadline).await {
-            Ok(c) => c,
+        match examine(inst, b.deadline).await {
+            Ok(cand) => self.adopt_best(myself, name, vec![cand]).await,
             Err(e) => {
                 tracing::debug!(op = %name, actor = %inst.actor.get_id(), error = %e, "stand-in does not answer");
-                return false;
+                false
             }
-        };
-        let now = self.clock.now();
-        let b = self.bindings.get_mut(name).expect("checked above");
-        if b.lost.is_none() {
-            return false; // adopted another while this one was examined
         }
-        if let Err(why) = b.accepts(&cand) {
-            tracing::info!(op = %name, actor = %inst.actor.get_id(), %why, "instance cannot stand in");
+    }
+
+    /// Choose a stand-in for the lost binding `name` among `cands` (the binding's
+    /// selection: the mission's needs, then the ranking), explain the choice on the bus,
+    /// and adopt the chosen one: its parameters restored and, if its action runs,
+    /// re-activated. True if one was adopted.
+    async fn adopt_best(
+        &mut self,
+        myself: &ActorRef<DispatcherMsg>,
+        name: &str,
+        mut cands: Vec<Candidate>,
+    ) -> bool {
+        let here = registry::local_node_name();
+        let Some(b) = self.bindings.get_mut(name) else {
+            return false;
+        };
+        if b.lost.is_none() || cands.is_empty() {
+            return false; // adopted another while these were examined, or nothing to choose
+        }
+        let (choice, chosen) = b.choose_stand_in(&cands, &here);
+        let Some(index) = chosen else {
             if let Some(lost) = b.lost.as_mut() {
-                let address = inst.actor.get_id().to_string();
-                if !lost.refused.iter().any(|(a, _)| *a == address) {
-                    lost.refused.push((address, why));
+                for c in &choice.candidates {
+                    if let Verdict::Rejected { reason } = &c.verdict {
+                        tracing::info!(op = %name, actor = %c.address, %reason, "instance cannot stand in");
+                        if !lost.refused.iter().any(|(a, _)| *a == c.address) {
+                            lost.refused.push((c.address.clone(), reason.clone()));
+                        }
+                    }
                 }
             }
+            self.emit(EventKind::Selected { choice });
             return false;
-        }
-        let Some((lost, downtime)) = b.adopt(cand, now) else {
+        };
+        let now = self.clock.now();
+        let Some((lost, downtime)) = b.adopt(cands.swap_remove(index), now) else {
             return false;
         };
         let record = RebindRecord {
@@ -251,6 +278,7 @@ impl DispatcherState {
         tracing::info!(op = %name, from = %record.from, to = %record.to, downtime_ms = record.downtime_ms, "operation rebound");
         let (client, epoch, params, incarnation) =
             (b.client.clone(), b.epoch, b.params.clone(), b.incarnation);
+        self.emit(EventKind::Selected { choice });
         // the report's record of the running action takes the stand-in's address from it
         self.emit(EventKind::Rebound(record));
         match self.running_key(name) {

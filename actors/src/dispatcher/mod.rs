@@ -20,6 +20,7 @@ mod progress;
 mod report;
 mod running;
 pub mod selection;
+pub mod survey;
 mod verdict;
 
 pub use actor::{
@@ -27,10 +28,11 @@ pub use actor::{
     DispatcherState, DISPATCHER_ID,
 };
 pub use builder::ReportBuilder;
-pub use catalog::{describe, survey, RegistryCatalog};
+pub use catalog::{describe, RegistryCatalog};
 pub use loss::LossCause;
 pub use messages::DispatcherMsg;
 pub use progress::{DispatchEvent, ProgressRelay};
 pub use report::{
     ActionRecord, FaultRecord, OpEnd, OpRecord, Outcome, RebindRecord, RunReport, REPORT_KEEPS,
 };
+pub use survey::{survey, Survey};

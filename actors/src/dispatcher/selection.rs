@@ -154,8 +154,31 @@ pub struct Candidate {
     pub version: String,
     /// The names of the parameters its schema declares.
     pub schema: Vec<String>,
+    /// The names of the condition flags it declares it can raise.
+    #[serde(default)]
+    pub flags: Vec<String>,
     /// What became of it.
     pub verdict: Verdict,
+}
+
+impl Candidate {
+    /// `offer` as the explanation shows it, with `verdict`.
+    pub fn of(offer: &Offer, verdict: Verdict) -> Candidate {
+        Candidate {
+            address: offer.address.clone(),
+            node: offer.node.clone(),
+            version: offer.info.version.clone(),
+            schema: offer
+                .info
+                .schema
+                .params
+                .iter()
+                .map(|d| d.name.clone())
+                .collect(),
+            flags: offer.info.flags.iter().map(|f| f.name.clone()).collect(),
+            verdict,
+        }
+    }
 }
 
 /// The choice for one operation: every candidate with its verdict.
@@ -165,6 +188,10 @@ pub struct Choice {
     pub operation: String,
     /// The candidates, in the order they were offered.
     pub candidates: Vec<Candidate>,
+    /// When the choice is of a stand-in after a failure: the address of the instance it
+    /// replaces (`None` for the binding at the mission's start).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub replacing: Option<String>,
 }
 
 impl Choice {
@@ -272,24 +299,13 @@ pub fn choose(need: &Need, offers: &[Offer], here: &str) -> Choice {
                 },
                 (Ok(()), None) => unreachable!("an admitted offer makes a best one"),
             };
-            Candidate {
-                address: o.address.clone(),
-                node: o.node.clone(),
-                version: o.info.version.clone(),
-                schema: o
-                    .info
-                    .schema
-                    .params
-                    .iter()
-                    .map(|d| d.name.clone())
-                    .collect(),
-                verdict,
-            }
+            Candidate::of(o, verdict)
         })
         .collect();
     Choice {
         operation: need.operation.clone(),
         candidates,
+        replacing: None,
     }
 }
 

@@ -20,7 +20,7 @@
 //!
 //! ```json
 //! {"at_ms":1200,"node":"marie@localhost","kind":{"type":"run_started","mission":"docking"}}
-//! {"at_ms":1240,"node":"marie@localhost","kind":{"type":"selected","choice":{"operation":"wall-follower","candidates":[{"address":"0.41","node":"marie@localhost","version":"1.0.0","schema":["distance"],"verdict":{"type":"chosen"}},{"address":"0.42","node":"marie@localhost","version":"2.0.0","schema":["distance","mode"],"verdict":{"type":"lost","reason":"its schema also declares mode the mission does not supply; 0.41 (version 1.0.0) fits exactly"}}]}}}
+//! {"at_ms":1240,"node":"marie@localhost","kind":{"type":"selected","choice":{"operation":"wall-follower","candidates":[{"address":"0.41","node":"marie@localhost","version":"1.0.0","schema":["distance"],"flags":["aligned"],"verdict":{"type":"chosen"}},{"address":"0.42","node":"marie@localhost","version":"2.0.0","schema":["distance","mode"],"flags":["aligned"],"verdict":{"type":"lost","reason":"its schema also declares mode the mission does not supply; 0.41 (version 1.0.0) fits exactly"}}]}}}
 //! {"at_ms":1250,"node":"marie@localhost","kind":{"type":"bound","operations":[{"name":"wall-follower","version":"1.0.0","node":"marie@localhost"}]}}
 //! {"at_ms":1260,"node":"marie@localhost","kind":{"type":"action_started","action":"follow","run_ms":60,"operations":[{"key":"wall-follower","name":"wall-follower","id":1512,"version":"1.0.0","node":"marie@localhost","address":"0.41"}]}}
 //! {"at_ms":9800,"node":"marie@localhost","kind":{"type":"op_ended","action":"follow","key":"wall-follower","ended":"suspended","flags":[]}}
