@@ -6,39 +6,10 @@
 
 mod common;
 
+use common::missions::docking_variant;
 use common::{marie, report_of, text};
 use serde_json::Value;
-use std::path::{Path, PathBuf};
-
-/// docking.toml with its world made absolute, `extra` added to the wall follower's
-/// parameters and `tail` appended, written into `dir`.
-fn docking_variant(dir: &Path, extra: &str, tail: &str) -> PathBuf {
-    let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let original = std::fs::read_to_string(repo.join("missions/docking.toml")).unwrap();
-    // a variant that missed its anchors would test docking.toml itself
-    for anchor in [
-        "world = \"worlds/lab.toml\"",
-        "[action.ops.wall-follower]\n",
-    ] {
-        assert!(original.contains(anchor), "docking.toml lost {anchor:?}");
-    }
-    let src = original
-        .replace(
-            "world = \"worlds/lab.toml\"",
-            &format!(
-                "world = \"{}\"",
-                repo.join("missions/worlds/lab.toml").display()
-            ),
-        )
-        .replace(
-            "[action.ops.wall-follower]\n",
-            &format!("[action.ops.wall-follower]\n{extra}"),
-        )
-        + tail;
-    let path = dir.join("docking-variant.toml");
-    std::fs::write(&path, src).unwrap();
-    path
-}
+use std::path::Path;
 
 /// Run `mission` at `--speed max` on `node` (the default node without), with a report:
 /// the exit code, the report (if written) and stderr.
@@ -74,7 +45,7 @@ fn candidate<'a>(choice: &'a Value, version: &str) -> &'a Value {
 #[test]
 fn a_mission_that_supplies_only_the_wall_distance_gets_version_1_and_is_told_why() {
     let dir = tempfile::tempdir().unwrap();
-    let mission = docking_variant(dir.path(), "", "");
+    let mission = docking_variant(dir.path(), "docking-variant", "", "");
     let (code, report, stderr) = run(&mission, None);
     assert_eq!(code, Some(0), "{stderr}");
     let report = report.unwrap();
@@ -93,7 +64,7 @@ fn a_mission_that_supplies_only_the_wall_distance_gets_version_1_and_is_told_why
 #[test]
 fn a_mission_that_also_supplies_the_corridor_parameter_gets_version_2() {
     let dir = tempfile::tempdir().unwrap();
-    let mission = docking_variant(dir.path(), "mode = \"wall\"\n", "");
+    let mission = docking_variant(dir.path(), "docking-variant", "mode = \"wall\"\n", "");
     let (code, report, stderr) = run(&mission, None);
     assert_eq!(code, Some(0), "{stderr}");
     let report = report.unwrap();
@@ -121,13 +92,18 @@ fn a_mission_that_needs_version_2_where_only_version_1_runs_does_not_start() {
     let dir = tempfile::tempdir().unwrap();
     let v1_only = "missions/nodes/v1-only.toml";
     // it supplies the corridor parameter, which version 1 does not take
-    let mission = docking_variant(dir.path(), "mode = \"corridor\"\n", "");
+    let mission = docking_variant(dir.path(), "docking-variant", "mode = \"corridor\"\n", "");
     let (code, report, stderr) = run(&mission, Some(v1_only));
     assert_eq!(code, Some(2), "{stderr}");
     assert!(report.is_none());
     assert!(stderr.contains("mode"), "{stderr}");
     // it requires version 2 in so many words
-    let mission = docking_variant(dir.path(), "", "\n[requires]\nwall-follower = \"^2\"\n");
+    let mission = docking_variant(
+        dir.path(),
+        "docking-variant",
+        "",
+        "\n[requires]\nwall-follower = \"^2\"\n",
+    );
     let (code, report, stderr) = run(&mission, Some(v1_only));
     assert_eq!(code, Some(2), "{stderr}");
     assert!(report.is_none());
@@ -225,7 +201,12 @@ fn check_names_the_instance_that_would_serve_each_operation_and_counts_control_d
     assert_eq!(numbers, [16, 66], "{counts}");
     // a mission no running instance fits: refused before anything runs
     let dir = tempfile::tempdir().unwrap();
-    let mission = docking_variant(dir.path(), "", "\n[requires]\nwall-follower = \"^3\"\n");
+    let mission = docking_variant(
+        dir.path(),
+        "docking-variant",
+        "",
+        "\n[requires]\nwall-follower = \"^3\"\n",
+    );
     let out = marie(&["check", mission.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(2));
     assert!(

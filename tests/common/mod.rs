@@ -4,6 +4,7 @@
 #![allow(dead_code)]
 
 pub mod cluster;
+pub mod missions;
 pub mod netns;
 
 use std::process::{Command, Output};
