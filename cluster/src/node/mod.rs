@@ -42,7 +42,7 @@ mod tree;
 
 pub use config::{
     ConfigError, DatamanagerConfig, NodeConfig, OperationConfig, SimulationConfig,
-    SupervisorConfig, OPERATIONS,
+    SupervisorConfig, MAX_INSTANCES, OPERATIONS,
 };
 pub use robot::{AprioriRecord, BoxFuture, Robot};
 
