@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::missions::docking_variant;
+use common::missions::{docking_edited, docking_variant};
 use common::{marie, report_of, text};
 use serde_json::Value;
 use std::path::Path;
@@ -213,5 +213,143 @@ fn check_names_the_instance_that_would_serve_each_operation_and_counts_control_d
         text(&out.stderr).contains("no instance of operation `wall-follower` fits"),
         "{}",
         text(&out.stderr)
+    );
+}
+
+/// `marie check --json` on `mission`: the exit code and the verdict.
+fn check_json(mission: &Path) -> (Option<i32>, Value) {
+    let out = marie(&["check", mission.to_str().unwrap(), "--json"]);
+    let verdict = serde_json::from_slice(&out.stdout)
+        .unwrap_or_else(|e| panic!("{e}: {}{}", text(&out.stdout), text(&out.stderr)));
+    (out.status.code(), verdict)
+}
+
+#[test]
+fn check_refuses_one_bad_mission_per_kind_of_error_naming_the_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let trajectory = "[action.ops.trajectory-controller]\nspeed = 0.3";
+    // (what is wrong, the edit, what the error must say, the line it must name)
+    let cases: [(&str, (&str, &str), &str, &str); 9] = [
+        (
+            "syntax",
+            ("[[action]]\nname = \"park\"", "[[action]\nname = \"park\""),
+            "",
+            "[[action]",
+        ),
+        (
+            "unknown operation",
+            ("[action.ops.path-planner]", "[action.ops.path-planer]"),
+            "path-planer",
+            "[action.ops.path-planer]",
+        ),
+        (
+            "unknown parameter",
+            ("breadth = 2.8", "broadth = 2.8"),
+            "broadth",
+            "broadth = 2.8",
+        ),
+        (
+            "wrong type",
+            ("breadth = 2.8", "breadth = \"wide\""),
+            "breadth",
+            "breadth = \"wide\"",
+        ),
+        (
+            "out of range",
+            (
+                trajectory,
+                "[action.ops.trajectory-controller]\nspeed = 9.0",
+            ),
+            "speed",
+            "speed = 9.0",
+        ),
+        (
+            "a flag no operation raises",
+            (
+                "success = [\"path-driven\"]\ndeadline_s = 600.0\n\n[flags]\n",
+                "success = [\"teleported\"]\ndeadline_s = 600.0\n\n[flags]\nteleported = 9\n",
+            ),
+            "teleported",
+            "success = [\"teleported\"]",
+        ),
+        (
+            "no instance fits the version required",
+            (
+                "[flags]\n",
+                "[requires]\nwall-follower = \"^3\"\n\n[flags]\n",
+            ),
+            "no instance of operation `wall-follower` fits",
+            "wall-follower = \"^3\"",
+        ),
+        (
+            "a requirement on an operation no action runs",
+            ("[flags]\n", "[requires]\naverager = \"1\"\n\n[flags]\n"),
+            "averager",
+            "averager = \"1\"",
+        ),
+        (
+            "a world file that does not load",
+            ("deadline_s = 600.0", "deadline_s = 600.0\n"),
+            "nowhere.toml",
+            "",
+        ),
+    ];
+    for (i, (kind, edit, needle, line)) in cases.into_iter().enumerate() {
+        let name = format!("bad-{i}");
+        let mission = if kind == "a world file that does not load" {
+            let p = docking_edited(dir.path(), &name, &[edit]);
+            let src = std::fs::read_to_string(&p).unwrap();
+            let src = src
+                .lines()
+                .map(|l| {
+                    if l.starts_with("world = ") {
+                        "world = \"nowhere.toml\"".to_string()
+                    } else {
+                        l.to_string()
+                    }
+                })
+                .collect::<Vec<_>>()
+                .join("\n");
+            std::fs::write(&p, src).unwrap();
+            p
+        } else {
+            docking_edited(dir.path(), &name, &[edit])
+        };
+        let (code, verdict) = check_json(&mission);
+        assert_eq!(code, Some(2), "{kind}: {verdict:#}");
+        assert_eq!(verdict["ok"], false, "{kind}: {verdict:#}");
+        let errors = verdict["errors"].as_array().unwrap();
+        assert!(!errors.is_empty(), "{kind}");
+        let all = verdict["errors"].to_string();
+        assert!(all.contains(needle), "{kind}: {all}");
+        // the first error names the line the fault is on (in the mission file)
+        if !line.is_empty() {
+            let src = std::fs::read_to_string(&mission).unwrap();
+            let at = src.lines().position(|l| l.trim() == line.trim()).unwrap() + 1;
+            let named = errors.iter().any(|e| {
+                e["line"] == at
+                    && e["path"]
+                        .as_str()
+                        .unwrap()
+                        .ends_with(&format!("{name}.toml"))
+            });
+            assert!(named, "{kind}: no error at line {at}: {all}");
+        }
+    }
+    // and a good one: ok, every choice made, every awaited flag raised
+    let (code, verdict) = check_json(Path::new("missions/docking.toml"));
+    assert_eq!(code, Some(0), "{verdict:#}");
+    assert_eq!(verdict["ok"], true);
+    let flags = verdict["survey"]["flags"].as_array().unwrap();
+    assert!(!flags.is_empty());
+    for f in flags {
+        assert!(
+            !f["raised_by"].as_array().unwrap().is_empty() || f["initial"] == true,
+            "{f}"
+        );
+    }
+    assert_eq!(
+        verdict["survey"]["control_details"],
+        serde_json::json!({"supplied": 16, "defaulted": 66})
     );
 }

@@ -7,6 +7,7 @@ use super::join::JoinArgs;
 use super::prepare::prepare;
 use marie::actors::dispatcher::survey::Survey;
 use marie::actors::dispatcher::{mission::Mission, survey};
+use marie::embedded::EmbeddedError;
 use marie::node::NodeError;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -40,14 +41,12 @@ pub async fn check(args: CheckArgs) -> anyhow::Result<ExitCode> {
         Ok(p) => p,
         Err(e) => {
             if json {
-                if let Some(NodeError::Mission(diags)) = e.downcast_ref::<NodeError>() {
-                    let doc = serde_json::json!({
-                        "ok": false,
-                        "mission": mission.display().to_string(),
-                        "errors": diags.0,
-                    });
-                    println!("{}", serde_json::to_string_pretty(&doc)?);
-                }
+                let doc = serde_json::json!({
+                    "ok": false,
+                    "mission": mission.display().to_string(),
+                    "errors": errors_of(&e),
+                });
+                println!("{}", serde_json::to_string_pretty(&doc)?);
             }
             return Err(e);
         }
@@ -71,6 +70,24 @@ pub async fn check(args: CheckArgs) -> anyhow::Result<ExitCode> {
     }
     prepared.shutdown().await;
     Ok(ExitCode::SUCCESS)
+}
+
+/// The errors of a failed check as JSON: each diagnostic (`path`, `line`, `column`,
+/// `message`) of a bad mission, node config or world; else the one message.
+fn errors_of(e: &anyhow::Error) -> serde_json::Value {
+    let diags = match (
+        e.downcast_ref::<NodeError>(),
+        e.downcast_ref::<EmbeddedError>(),
+    ) {
+        (Some(NodeError::Mission(d)), _) => Some(d),
+        (_, Some(EmbeddedError::Config(d) | EmbeddedError::World(d))) => Some(d),
+        (_, Some(EmbeddedError::Node(NodeError::Mission(d)))) => Some(d),
+        _ => None,
+    };
+    match diags {
+        Some(d) => serde_json::json!(d.0),
+        None => serde_json::json!([{ "message": format!("{e:#}") }]),
+    }
 }
 
 fn print_text(path: &Path, m: &Mission, world: Option<&str>, surveyed: &Survey) {
