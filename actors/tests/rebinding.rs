@@ -376,10 +376,17 @@ async fn a_version_the_mission_does_not_accept_does_not_stand_in_and_the_mission
     let first = start("rb-major", "1.0.0").await;
     let src = mission("major", "rb-major", 100_000).replace("20.0", "1.0")
         + "\n[requires]\nrb-major = \"^1\"\n";
-    let (run, _events) = launch(&src).await;
+    let (run, mut events) = launch(&src).await;
     activated(&first).await;
     let _v2 = start("rb-major", "2.0.0").await;
     first.actor().kill();
+    // it stops at the mission's rebind deadline (1 s), not the default (10 s)
+    let waited = event(&mut events, |e| match e {
+        EventKind::RebindGaveUp { waited_ms, .. } => Some(*waited_ms),
+        _ => None,
+    })
+    .await;
+    assert!((1000..10_000).contains(&waited), "{waited} ms");
     let report = run.await.unwrap();
     assert_eq!(report.outcome, Outcome::Failed);
     assert!(
