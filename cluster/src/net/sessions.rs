@@ -156,6 +156,12 @@ impl NodeEventSubscription for Sessions {
         let Some(name) = &ses.peer_name else {
             return;
         };
+        // refused after this session was authenticated (its first beat came before the
+        // session was ready): never news. The refusal's grace closes it, once this node's
+        // own beats have told the peer why
+        if self.is_refused(node_name(&name.name)) {
+            return;
+        }
         let peer = Peer {
             name: node_name(&name.name).to_string(),
             address: name.connection_string.clone(),
