@@ -15,7 +15,7 @@
 //! let config = NodeConfig::everything("solo", &catalog);
 //! let node = Node::start(config, NodeOptions::with_catalog(catalog)).await?;
 //! let mission = node.load_mission(std::path::Path::new("missions/demo.toml")).await?;
-//! let report = node.run(mission, None).await?;
+//! let report = node.run(mission).await?;
 //! println!("{:?}", report.outcome);
 //! node.shutdown().await;
 //! # Ok(()) }

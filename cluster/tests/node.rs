@@ -145,7 +145,7 @@ async fn a_node_without_a_dispatcher_refuses_to_run_missions() {
     )
     .unwrap();
     let mission = node.check_mission(&parsed).await.unwrap();
-    let err = node.run(mission, None).await.unwrap_err();
+    let err = node.run(mission).await.unwrap_err();
     assert!(matches!(err, NodeError::NoDispatcher(ref n) if n == "worker-only"));
     assert_eq!(
         err.to_string(),

@@ -21,7 +21,7 @@
 //! let options = NodeOptions::with_catalog(catalog).with_robot(robot.clone());
 //! let node = Node::start(config, options).await?;
 //! let mission = node.load_mission(std::path::Path::new("missions/docking.toml")).await?;
-//! let report = node.run(mission, None).await?;
+//! let report = node.run(mission).await?;
 //! println!("{:?} at {:?}: {:?}", report.outcome, report.final_pose, report.judgement);
 //! std::fs::write("run.svg", robot.picture(&report).await.render(&world, 50.0))?;
 //! node.shutdown().await;

@@ -49,6 +49,12 @@ impl OperationFactory {
         }
     }
 
+    /// The factory of operations built by `O::default()`, named as `O` names itself
+    /// ([`Operation::identity`]).
+    pub fn new<O: Operation + Default>() -> OperationFactory {
+        OperationFactory::of::<O>(intern(&O::default().identity().name))
+    }
+
     /// The operation's version, parsed (a factory built by [`OperationFactory::of`] always has
     /// a valid one).
     pub fn semver(&self) -> Option<semver::Version> {
@@ -58,6 +64,22 @@ impl OperationFactory {
     /// A child id unique among the factories: `name@version`.
     pub fn key(&self) -> String {
         format!("{}@{}", self.name, self.version)
+    }
+}
+
+/// `name` as a `&'static str`: a factory's name is static, and an operation type named at
+/// run time is kept once per distinct name (a handful per application).
+fn intern(name: &str) -> &'static str {
+    static NAMES: std::sync::Mutex<std::collections::BTreeSet<&'static str>> =
+        std::sync::Mutex::new(std::collections::BTreeSet::new());
+    let mut names = NAMES.lock().unwrap_or_else(|e| e.into_inner());
+    match names.get(name) {
+        Some(known) => known,
+        None => {
+            let leaked: &'static str = Box::leak(name.to_string().into_boxed_str());
+            names.insert(leaked);
+            leaked
+        }
     }
 }
 

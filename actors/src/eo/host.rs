@@ -313,20 +313,9 @@ impl<O: Operation> Actor for EoHost<O> {
     ) -> Result<HostState<O>, ActorProcessingErr> {
         let HostArgs { operation, options } = args;
         let identity = operation.identity();
+        super::check_declaration(&operation)?;
         let schema = operation.parameters();
-        let problems = schema.self_check();
-        if !problems.is_empty() {
-            return Err(format!(
-                "operation {} declares bad parameters: {}",
-                identity.name,
-                problems.join("; ")
-            )
-            .into());
-        }
         let flags = operation.flags();
-        if flags.len() > 32 {
-            return Err(format!("operation {} declares more than 32 flags", identity.name).into());
-        }
         let initial = schema
             .apply(&schema.defaults(), &options.params, true)
             .map_err(|rej| {

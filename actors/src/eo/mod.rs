@@ -33,6 +33,7 @@
 //! ```
 
 mod client;
+mod declaration;
 mod factory;
 mod fault;
 mod host;
@@ -40,6 +41,7 @@ mod messages;
 mod operation;
 
 pub use client::{EoClient, EoError};
+pub use declaration::{check_declaration, DeclarationError, MAX_FLAGS};
 pub use factory::{OperationFactory, StartOperation};
 pub use fault::{FaultKind, UnknownFault};
 pub use host::{spawn_operation, spawn_operation_linked, EoHost, HostArgs, HostOptions, HostState};

@@ -34,16 +34,20 @@
 //! # Ok(()) }
 //! ```
 
+mod builder;
 pub mod config;
 mod events;
+mod mission_input;
 mod provisioner;
 pub mod robot;
 mod tree;
 
+pub use builder::NodeBuilder;
 pub use config::{
     ConfigError, DatamanagerConfig, NodeConfig, OperationConfig, SimulationConfig,
     SupervisorConfig, MAX_INSTANCES, OPERATIONS,
 };
+pub use mission_input::MissionInput;
 pub use robot::{AprioriRecord, BoxFuture, Robot};
 
 use crate::fault::plan::{Injector, RunView};
@@ -120,6 +124,9 @@ pub enum NodeError {
     /// The config asks for what this node cannot host.
     #[error("node config: {0}")]
     Config(#[from] ConfigError),
+    /// An operation type declares something it cannot run with (found before it starts).
+    #[error(transparent)]
+    Declaration(marie_actors::eo::DeclarationError),
     /// The node's supervision tree did not start or refused a request.
     #[error("node supervisor: {0}")]
     Supervisor(#[from] SupervisorError),
@@ -338,17 +345,27 @@ impl Node {
         }
     }
 
-    /// Run a mission; progress events go to `events`.
+    /// Run a mission and give its report: a mission file's text, a [`MissionBuilder`]
+    /// (marie_actors::dispatcher::mission::MissionBuilder), a parsed or an already checked
+    /// [`Mission`]. Text and built missions are checked against the instances that run
+    /// first; a mission that does not fit is refused with its diagnostics
+    /// ([`NodeError::Mission`]).
     ///
     /// With a [`Robot`] the run is judged by the robot too ([`Robot::judge`]: for the
     /// simulated cart, its final pose, collisions, seed and the world's verdict, which may
-    /// turn the dispatcher's success into a failure). The [`DispatchEvent::Ended`] event
-    /// carries the outcome after this judgement.
-    pub async fn run(
+    /// turn the dispatcher's success into a failure).
+    pub async fn run(&self, mission: impl Into<MissionInput>) -> Result<RunReport, NodeError> {
+        self.run_observed(mission, None).await
+    }
+
+    /// [`Node::run`], its progress events sent to `events` as they happen. The
+    /// [`DispatchEvent::Ended`] event carries the outcome after the robot's judgement.
+    pub async fn run_observed(
         &self,
-        mission: Mission,
+        mission: impl Into<MissionInput>,
         events: Option<mpsc::UnboundedSender<DispatchEvent>>,
     ) -> Result<RunReport, NodeError> {
+        let mission = self.resolve(mission.into()).await?;
         self.run_with_faults(mission, events, FaultPlan::default())
             .await
     }

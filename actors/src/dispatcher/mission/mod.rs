@@ -140,10 +140,12 @@
 //! # Ok::<(), marie_actors::dispatcher::mission::Diagnostics>(())
 //! ```
 
+mod builder;
 mod raw;
 mod validate;
 
 pub use crate::diagnostic::{Diagnostic, Diagnostics, LineIndex, Pos};
+pub use builder::{ActionBuilder, MissionBuilder, BUILT};
 
 use crate::eo::{Identity, Operation};
 use crate::flags::{FlagDecl, StatusFlags};
