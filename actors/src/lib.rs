@@ -14,6 +14,8 @@
 //! - [`diagnostic`] — `file:line:column` diagnostics and the TOML reader every file format
 //!   (missions, worlds, node configs) shares.
 //! - [`events`] — one typed event stream per node: the [`events::EventBus`].
+//! - [`declare`] — typed declarations of an operation's parameters ([`params!`]), so that a
+//!   misspelt name is a compile error.
 //!
 //! Every message that may cross nodes is serializable with rmp-serde ([`wire`]).
 //!
@@ -26,6 +28,7 @@
 #![warn(missing_docs)]
 
 pub mod clock;
+pub mod declare;
 pub mod diagnostic;
 pub mod dispatcher;
 pub mod dm;

@@ -1,6 +1,7 @@
 //! What an operation author implements.
 
 use crate::clock::SharedClock;
+use crate::declare::{DeclaredParams, Param, ParamValue};
 use crate::flags::{FlagDecl, StatusFlags};
 use crate::property::{ParamMap, ParamSchema, Value};
 use serde::{Deserialize, Serialize};
@@ -139,6 +140,17 @@ impl Params {
             name: name.to_string(),
             problem: format!("expected text, found {}", v.kind()),
         })
+    }
+
+    /// One parameter by its typed key ([`Param`], e.g. `CollatzParams::start()` from
+    /// [`params!`](crate::params)).
+    pub fn value<T: ParamValue>(&self, key: Param<T>) -> Result<T, OpError> {
+        Ok(key.read(&self.values)?)
+    }
+
+    /// Every parameter of a declared set: `let p: CollatzParams = ctx.params().read()?`.
+    pub fn read<P: DeclaredParams>(&self) -> Result<P, OpError> {
+        P::read(self)
     }
 }
 
