@@ -1,5 +1,5 @@
-//! Typed declarations: an operation's parameters declared once, in Rust, so that a misspelt
-//! name is a compile error.
+//! Typed declarations: an operation's parameters and flags declared once, in Rust, so that a
+//! misspelt name is a compile error.
 //!
 //! # Why
 //! The interfaces name everything by string — parameters (`ctx.params().i64("start")`),
@@ -13,7 +13,9 @@
 //! - [`params!`](crate::params) — a struct of parameters: its [`ParamSchema`] (exactly the
 //!   [`ParamDecl`]s written by hand), its defaults, a typed read (`ctx.params().read()`) and
 //!   a typed key per parameter ([`Param<T>`]); [`choice!`](crate::choice) gives choice
-//!   parameters an enum ([`params`], [`choice`]).
+//!   parameters an enum ([`params`], [`choice`]);
+//! - [`flags!`](crate::flags!) — an enum of flags whose variant is both the declaration and the
+//!   bit ([`flags`]).
 //!
 //! None of it replaces the string interfaces: the generated code calls them, and operations
 //! declared by hand keep working. No proc-macro crate is involved; the macros are
@@ -39,6 +41,8 @@
 //! ```
 
 pub mod choice;
+pub mod flags;
 pub mod params;
 
+pub use flags::DeclaredFlags;
 pub use params::{Bound, DeclaredParams, IntoParam, Param, ParamError, ParamMapExt, ParamValue};

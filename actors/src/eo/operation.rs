@@ -48,6 +48,14 @@ pub enum Step {
     Finish(StatusFlags),
 }
 
+impl Step {
+    /// [`Step::Finish`] with `flags`: a [`StatusFlags`] word or a flag declared with
+    /// [`flags!`](crate::flags!) (`Step::finish(CollatzFlag::ReachedOne)`).
+    pub fn finish(flags: impl Into<StatusFlags>) -> Step {
+        Step::Finish(flags.into())
+    }
+}
+
 /// Why an operation could not go on. The host reports it to the dispatcher as a failure (a
 /// panic, by contrast, crashes the host and is a matter for its supervisor).
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -191,8 +199,10 @@ impl OpContext {
 
     /// Raise flags (operation bit order) now; they are reported when the activation ends,
     /// whether it finishes or is suspended.
-    pub fn raise(&mut self, flags: StatusFlags) {
-        self.raised |= flags;
+    ///
+    /// Takes a [`StatusFlags`] word or a flag declared with [`flags!`](crate::flags!).
+    pub fn raise(&mut self, flags: impl Into<StatusFlags>) {
+        self.raised |= flags.into();
     }
 
     /// Flags raised so far in this activation.
