@@ -14,8 +14,8 @@
 //! - [`diagnostic`] — `file:line:column` diagnostics and the TOML reader every file format
 //!   (missions, worlds, node configs) shares.
 //! - [`events`] — one typed event stream per node: the [`events::EventBus`].
-//! - [`declare`] — typed declarations of an operation's parameters ([`params!`]) and flags
-//!   ([`flags!`]), so that a misspelt name is a compile error.
+//! - [`declare`] — typed declarations of an operation's parameters ([`params!`]), flags
+//!   ([`flags!`]), datamanagers and record kinds, so that a misspelt name is a compile error.
 //!
 //! Every message that may cross nodes is serializable with rmp-serde ([`wire`]).
 //!

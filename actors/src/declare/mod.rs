@@ -1,5 +1,5 @@
-//! Typed declarations: an operation's parameters and flags declared once, in Rust, so that a
-//! misspelt name is a compile error.
+//! Typed declarations: an operation's parameters, flags, datamanagers and record kinds
+//! declared once, in Rust, so that a misspelt name is a compile error.
 //!
 //! # Why
 //! The interfaces name everything by string — parameters (`ctx.params().i64("start")`),
@@ -15,7 +15,9 @@
 //!   a typed key per parameter ([`Param<T>`]); [`choice!`](crate::choice) gives choice
 //!   parameters an enum ([`params`], [`choice`]);
 //! - [`flags!`](crate::flags!) — an enum of flags whose variant is both the declaration and the
-//!   bit ([`flags`]).
+//!   bit ([`flags`]);
+//! - [`DmName`] — datamanagers by constant ([`crate::dm::FEATURE`]) ([`dm`]);
+//! - [`RecordKind<T>`] — a record's class, sub-classes and payload type ([`records`]).
 //!
 //! None of it replaces the string interfaces: the generated code calls them, and operations
 //! declared by hand keep working. No proc-macro crate is involved; the macros are
@@ -41,8 +43,12 @@
 //! ```
 
 pub mod choice;
+pub mod dm;
 pub mod flags;
 pub mod params;
+pub mod records;
 
+pub use dm::DmName;
 pub use flags::DeclaredFlags;
 pub use params::{Bound, DeclaredParams, IntoParam, Param, ParamError, ParamMapExt, ParamValue};
+pub use records::RecordKind;

@@ -1,7 +1,8 @@
 //! What an operation author implements.
 
 use crate::clock::SharedClock;
-use crate::declare::{DeclaredParams, Param, ParamValue};
+use crate::declare::{DeclaredParams, DmName, Param, ParamValue};
+use crate::dm::DmError;
 use crate::flags::{FlagDecl, StatusFlags};
 use crate::property::{ParamMap, ParamSchema, Value};
 use serde::{Deserialize, Serialize};
@@ -85,6 +86,19 @@ impl OpError {
     /// An operation-specific failure.
     pub fn failed(msg: impl Into<String>) -> Self {
         OpError::Failed(msg.into())
+    }
+}
+
+/// A datamanager error inside an operation, so that `ctx.dm(FEATURE)?.store(..).await?`
+/// works in [`Operation::step`]. The datamanager is named where the error names it
+/// ([`DmError::datamanager`]), `?` otherwise (a payload that does not decode, a bad name):
+/// `map_err` to name it there.
+impl From<DmError> for OpError {
+    fn from(e: DmError) -> OpError {
+        OpError::Datamanager {
+            dm: e.datamanager().unwrap_or("?").to_string(),
+            problem: e.to_string(),
+        }
     }
 }
 
@@ -235,7 +249,11 @@ impl OpContext {
     /// source, under this activation's epoch (the DM refuses records of a replaced
     /// incarnation). Found through the registry and kept until its actor stops, then found
     /// again (a restarted datamanager is a new actor).
-    pub fn dm(&mut self, name: &str) -> Result<crate::dm::DmClient, OpError> {
+    ///
+    /// `name` is a constant such as [`crate::dm::FEATURE`] or text (`"feature"`, `"1201"`):
+    /// see [`DmName`].
+    pub fn dm(&mut self, name: impl DmName) -> Result<crate::dm::DmClient, OpError> {
+        let name = name.dm_name();
         let epoch = self.epoch;
         if let Some(c) = self.dms.get(name) {
             if c.actor().get_status() <= ractor::ActorStatus::Running {
