@@ -15,7 +15,8 @@
 //!   (missions, worlds, node configs) shares.
 //! - [`events`] — one typed event stream per node: the [`events::EventBus`].
 //! - [`declare`] — typed declarations of an operation's parameters ([`params!`]), flags
-//!   ([`flags!`]), datamanagers and record kinds, so that a misspelt name is a compile error.
+//!   ([`flags!`]), datamanagers and record kinds, so that a misspelt name is a compile error;
+//!   [`prelude`] brings everything an operation author needs in one `use`.
 //!
 //! Every message that may cross nodes is serializable with rmp-serde ([`wire`]).
 //!
@@ -36,6 +37,7 @@ pub mod eo;
 pub mod events;
 pub mod fence;
 pub mod flags;
+pub mod prelude;
 pub mod property;
 pub mod provision;
 pub mod registry;

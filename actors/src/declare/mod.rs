@@ -27,8 +27,7 @@
 //! [`ParamDecl`]: crate::property::ParamDecl
 //!
 //! ```
-//! use marie_actors::declare::{DeclaredParams, ParamMapExt};
-//! use marie_actors::property::ParamMap;
+//! use marie_actors::prelude::*;
 //!
 //! marie_actors::params! {
 //!     /// The countdown's parameters.
@@ -37,9 +36,40 @@
 //!         pub from: i64 = 3, range(0, 100);
 //!     }
 //! }
-//! assert_eq!(CountdownParams::schema().get("from").map(|d| d.max), Some(Some(100.0)));
+//!
+//! marie_actors::flags! {
+//!     /// What the countdown reports.
+//!     pub enum CountdownFlag {
+//!         /// reached zero
+//!         Zero = "zero",
+//!     }
+//! }
+//!
+//! #[derive(Default)]
+//! struct Countdown { left: i64 }
+//!
+//! impl Operation for Countdown {
+//!     fn identity(&self) -> Identity { Identity::new("countdown", 9002, "1.0.0", "counts to zero") }
+//!     fn parameters(&self) -> ParamSchema { CountdownParams::schema() }
+//!     fn flags(&self) -> Vec<FlagDecl> { CountdownFlag::decls() }
+//!     async fn activate(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
+//!         self.left = ctx.params().read::<CountdownParams>()?.from;
+//!         Ok(Step::Continue)
+//!     }
+//!     async fn step(&mut self, _ctx: &mut OpContext) -> Result<Step, OpError> {
+//!         self.left -= 1;
+//!         Ok(if self.left <= 0 { Step::finish(CountdownFlag::Zero) } else { Step::Continue })
+//!     }
+//! }
+//! # #[tokio::main(flavor = "current_thread")] async fn main() {
+//! use marie_actors::eo::{self, EoClient, EoReport};
+//! let (actor, _) = eo::spawn_operation(Countdown::default(), Default::default()).await.unwrap();
+//! let client = EoClient::new(actor.clone());
 //! let update = ParamMap::new().with(CountdownParams::from(), 5);
-//! assert_eq!(CountdownParams::from_map(&update), Ok(CountdownParams { from: 5 }));
+//! let report = client.activate(update, 1).unwrap().await.unwrap();
+//! assert!(matches!(report, EoReport::Finished { flags, .. } if flags == CountdownFlag::Zero.into()));
+//! actor.stop(None);
+//! # }
 //! ```
 
 pub mod choice;
