@@ -446,10 +446,10 @@ macro_rules! params {
 
         impl $name {
             $(
-                #[doc = concat!("The key of parameter `", stringify!($field), "`.")]
+                #[doc = ::core::concat!("The key of parameter `", ::core::stringify!($field), "`.")]
                 #[allow(dead_code)]
                 $vis const fn $field() -> $crate::declare::Param<$ty> {
-                    $crate::declare::Param::new(stringify!($field))
+                    $crate::declare::Param::new(::core::stringify!($field))
                 }
             )*
         }
@@ -460,7 +460,7 @@ macro_rules! params {
                 $crate::property::ParamSchema::new(::std::vec![
                     $({
                         let decl = <$ty as $crate::declare::ParamValue>::decl(
-                            stringify!($field),
+                            ::core::stringify!($field),
                             defaults.$field,
                         )
                         .describe(::core::concat!($($doc),*).trim_ascii());
@@ -477,7 +477,7 @@ macro_rules! params {
             ) -> ::core::result::Result<Self, $crate::declare::ParamError> {
                 ::core::result::Result::Ok($name {
                     $(
-                        $field: $crate::declare::Param::<$ty>::new(stringify!($field))
+                        $field: $crate::declare::Param::<$ty>::new(::core::stringify!($field))
                             .read(map)?,
                     )*
                 })
@@ -487,7 +487,7 @@ macro_rules! params {
                 let mut map = $crate::property::ParamMap::new();
                 $(
                     map.insert(
-                        stringify!($field).to_string(),
+                        ::core::stringify!($field).to_string(),
                         $crate::declare::ParamValue::into_value(
                             ::core::clone::Clone::clone(&self.$field),
                         ),
