@@ -1,15 +1,34 @@
 //! Embedding marie: a user-defined operation, hosted, asked for its properties, and driven by
-//! a mission — all in one process.
+//! a mission — all in one process. Its parameters and flags are declared with
+//! [`params!`](marie::actors::params) and [`flags!`](marie::actors::flags!): the operation's code
+//! names them by Rust identifiers, so a typo is a compile error, not a failed run.
 //!
 //! Run with `cargo run --example custom_operation`.
 
 use marie::actors::clock::RealClock;
 use marie::actors::dispatcher::{self, mission::Mission, RegistryCatalog};
-use marie::actors::eo::{self, EoClient, Identity, OpContext, OpError, Operation, Step};
-use marie::actors::flags::{FlagDecl, StatusFlags};
-use marie::actors::property::{Group, ParamDecl, ParamSchema, PropertyRequest, Value};
+use marie::actors::eo::{self, EoClient};
+use marie::actors::property::{Group, PropertyRequest};
+use marie::prelude::*;
+use std::time::Duration;
 
 // --- the operation: walks the Collatz sequence from `start` down to 1 -----------------------
+params! {
+    /// What a walk is given.
+    struct CollatzParams {
+        /// first number
+        start: i64 = 27, range(1, 1_000_000_000_000);
+    }
+}
+
+flags! {
+    /// What a walk reports.
+    enum CollatzFlag {
+        /// the sequence reached 1
+        ReachedOne = "reached-one",
+    }
+}
+
 #[derive(Default)]
 struct Collatz {
     n: i64,
@@ -21,23 +40,22 @@ impl Operation for Collatz {
         Identity::new("collatz", 7001, "1.0.0", "walks a Collatz sequence to 1")
     }
     fn parameters(&self) -> ParamSchema {
-        ParamSchema::new(vec![ParamDecl::int("start", 27)
-            .range(1.0, 1e12)
-            .describe("first number")])
+        CollatzParams::schema()
     }
     fn flags(&self) -> Vec<FlagDecl> {
-        vec![FlagDecl::new("reached-one", "the sequence reached 1")]
+        CollatzFlag::decls()
     }
-    fn period(&self) -> std::time::Duration {
-        std::time::Duration::from_millis(1)
+    fn period(&self) -> Duration {
+        Duration::from_millis(1)
     }
     async fn activate(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
-        (self.n, self.steps) = (ctx.params().i64("start")?, 0);
+        let p: CollatzParams = ctx.params().read()?;
+        (self.n, self.steps) = (p.start, 0);
         Ok(Step::Continue)
     }
     async fn step(&mut self, _ctx: &mut OpContext) -> Result<Step, OpError> {
         if self.n == 1 {
-            return Ok(Step::Finish(StatusFlags(1)));
+            return Ok(Step::finish(CollatzFlag::ReachedOne));
         }
         self.n = if self.n % 2 == 0 {
             self.n / 2

@@ -30,4 +30,8 @@ pub use marie_supervision as supervision;
 
 pub use marie_cluster::{fault, layout, net, node, relay};
 
+/// Everything an operation author needs in one import: `use marie::prelude::*;` (see
+/// [`actors::prelude`]).
+pub use marie_actors::prelude;
+
 pub mod embedded;

@@ -14,6 +14,9 @@
 //! - [`diagnostic`] — `file:line:column` diagnostics and the TOML reader every file format
 //!   (missions, worlds, node configs) shares.
 //! - [`events`] — one typed event stream per node: the [`events::EventBus`].
+//! - [`declare`] — typed declarations of an operation's parameters ([`params!`]), flags
+//!   ([`flags!`]), datamanagers and record kinds, so that a misspelt name is a compile error;
+//!   [`prelude`] brings everything an operation author needs in one `use`.
 //!
 //! Every message that may cross nodes is serializable with rmp-serde ([`wire`]).
 //!
@@ -26,6 +29,7 @@
 #![warn(missing_docs)]
 
 pub mod clock;
+pub mod declare;
 pub mod diagnostic;
 pub mod dispatcher;
 pub mod dm;
@@ -33,6 +37,7 @@ pub mod eo;
 pub mod events;
 pub mod fence;
 pub mod flags;
+pub mod prelude;
 pub mod property;
 pub mod provision;
 pub mod registry;

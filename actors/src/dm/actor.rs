@@ -32,6 +32,13 @@ pub struct DmSpec {
 }
 
 impl DmSpec {
+    /// The identity of a datamanager named `name` with numeric id `id`: an embedder's own
+    /// well-known datamanager, as a constant operations name it by
+    /// ([`crate::declare::DmName`]).
+    pub const fn new(name: &'static str, id: u32) -> DmSpec {
+        DmSpec { id, name }
+    }
+
     /// Start-up arguments for this DM with `clock` and the default limits.
     pub fn args(self, clock: SharedClock) -> DmArgs {
         DmArgs {

@@ -75,3 +75,22 @@ pub enum DmError {
         after: Duration,
     },
 }
+
+impl DmError {
+    /// The datamanager the error names, if it names one (it cannot be reached, is not
+    /// registered, is busy, or did not answer).
+    pub fn datamanager(&self) -> Option<&str> {
+        match self {
+            DmError::NotRegistered(dm) | DmError::Unreachable(dm) => Some(dm),
+            DmError::Busy { dm, .. } | DmError::Timeout { dm, .. } => Some(dm),
+            DmError::InvalidName { .. }
+            | DmError::Fenced(_)
+            | DmError::InvalidRecord(_)
+            | DmError::PayloadTooLarge { .. }
+            | DmError::SeqExhausted
+            | DmError::Encode(_)
+            | DmError::Decode(_)
+            | DmError::BatchTooLarge { .. } => None,
+        }
+    }
+}

@@ -4,6 +4,10 @@
 //! speaks [`EoMsg`]: activation, suspension, atomic reparameterization and the property
 //! interface, with [`EoClient`] as the typed way to send them.
 //!
+//! The example declares parameters and flags by hand, by name and bit; [`crate::declare`]
+//! declares them once as Rust types (`params!`, `flags!`), with one import from
+//! [`crate::prelude`].
+//!
 //! ```
 //! use marie_actors::eo::{self, Identity, Operation, OpContext, OpError, Step, EoClient};
 //! use marie_actors::flags::{FlagDecl, StatusFlags};

@@ -1,6 +1,8 @@
 //! What an operation author implements.
 
 use crate::clock::SharedClock;
+use crate::declare::{DeclaredParams, DmName, Param, ParamValue};
+use crate::dm::DmError;
 use crate::flags::{FlagDecl, StatusFlags};
 use crate::property::{ParamMap, ParamSchema, Value};
 use serde::{Deserialize, Serialize};
@@ -47,6 +49,14 @@ pub enum Step {
     Finish(StatusFlags),
 }
 
+impl Step {
+    /// [`Step::Finish`] with `flags`: a [`StatusFlags`] word or a flag declared with
+    /// [`flags!`](crate::flags!) (`Step::finish(CollatzFlag::ReachedOne)`).
+    pub fn finish(flags: impl Into<StatusFlags>) -> Step {
+        Step::Finish(flags.into())
+    }
+}
+
 /// Why an operation could not go on. The host reports it to the dispatcher as a failure (a
 /// panic, by contrast, crashes the host and is a matter for its supervisor).
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -76,6 +86,19 @@ impl OpError {
     /// An operation-specific failure.
     pub fn failed(msg: impl Into<String>) -> Self {
         OpError::Failed(msg.into())
+    }
+}
+
+/// A datamanager error inside an operation, so that `ctx.dm(FEATURE)?.store(..).await?`
+/// works in [`Operation::step`]. The datamanager is named where the error names it
+/// ([`DmError::datamanager`]), `?` otherwise (a payload that does not decode, a bad name):
+/// `map_err` to name it there.
+impl From<DmError> for OpError {
+    fn from(e: DmError) -> OpError {
+        OpError::Datamanager {
+            dm: e.datamanager().unwrap_or("?").to_string(),
+            problem: e.to_string(),
+        }
     }
 }
 
@@ -140,6 +163,17 @@ impl Params {
             problem: format!("expected text, found {}", v.kind()),
         })
     }
+
+    /// One parameter by its typed key ([`Param`], e.g. `CollatzParams::start()` from
+    /// [`params!`](crate::params)).
+    pub fn value<T: ParamValue>(&self, key: Param<T>) -> Result<T, OpError> {
+        Ok(key.read(&self.values)?)
+    }
+
+    /// Every parameter of a declared set: `let p: CollatzParams = ctx.params().read()?`.
+    pub fn read<P: DeclaredParams>(&self) -> Result<P, OpError> {
+        P::read(self)
+    }
 }
 
 /// What the host lends an operation while it runs.
@@ -179,8 +213,10 @@ impl OpContext {
 
     /// Raise flags (operation bit order) now; they are reported when the activation ends,
     /// whether it finishes or is suspended.
-    pub fn raise(&mut self, flags: StatusFlags) {
-        self.raised |= flags;
+    ///
+    /// Takes a [`StatusFlags`] word or a flag declared with [`flags!`](crate::flags!).
+    pub fn raise(&mut self, flags: impl Into<StatusFlags>) {
+        self.raised |= flags.into();
     }
 
     /// Flags raised so far in this activation.
@@ -213,7 +249,11 @@ impl OpContext {
     /// source, under this activation's epoch (the DM refuses records of a replaced
     /// incarnation). Found through the registry and kept until its actor stops, then found
     /// again (a restarted datamanager is a new actor).
-    pub fn dm(&mut self, name: &str) -> Result<crate::dm::DmClient, OpError> {
+    ///
+    /// `name` is a constant such as [`crate::dm::FEATURE`] or text (`"feature"`, `"1201"`):
+    /// see [`DmName`].
+    pub fn dm(&mut self, name: impl DmName) -> Result<crate::dm::DmClient, OpError> {
+        let name = name.dm_name();
         let epoch = self.epoch;
         if let Some(c) = self.dms.get(name) {
             if c.actor().get_status() <= ractor::ActorStatus::Running {
