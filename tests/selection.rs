@@ -353,3 +353,25 @@ fn check_refuses_one_bad_mission_per_kind_of_error_naming_the_line() {
         serde_json::json!({"supplied": 16, "defaulted": 66})
     );
 }
+
+#[test]
+fn with_only_version_2_hosted_a_wall_distance_mission_takes_it_as_a_compatible_superset() {
+    let dir = tempfile::tempdir().unwrap();
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let v1_only = std::fs::read_to_string(repo.join("missions/nodes/v1-only.toml")).unwrap();
+    let anchor = "version = \"1\"";
+    assert!(v1_only.contains(anchor), "v1-only.toml changed");
+    let v2_only = dir.path().join("v2-only.toml");
+    std::fs::write(&v2_only, v1_only.replace(anchor, "version = \"2\"")).unwrap();
+    let mission = docking_variant(dir.path(), "docking-variant", "", "");
+    let (code, report, stderr) = run(&mission, Some(v2_only.to_str().unwrap()));
+    assert_eq!(code, Some(0), "{stderr}");
+    let report = report.unwrap();
+    let choice = wall_follower_choice(&report);
+    assert_eq!(
+        choice["candidates"].as_array().unwrap().len(),
+        1,
+        "{choice:#}"
+    );
+    assert_eq!(candidate(choice, "2.0.0")["verdict"]["type"], "chosen");
+}
