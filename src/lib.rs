@@ -31,6 +31,31 @@ pub use marie_supervision as supervision;
 
 pub use marie_cluster::{fault, layout, net, node, relay};
 
+/// An application's hold on an operation by name: typed calls, no epochs, restarts followed
+/// (the same type as [`actors::eo::OperationHandle`], where its errors live too).
+///
+/// ```
+/// use marie::actors::eo::{self, Identity, OpContext, OpError, Operation, Step};
+/// use marie::actors::property::{params, ParamDecl, ParamSchema, Value};
+///
+/// struct Heater;
+/// impl Operation for Heater {
+///     fn identity(&self) -> Identity { Identity::new("heater", 7201, "1.0.0", "heats") }
+///     fn parameters(&self) -> ParamSchema {
+///         ParamSchema::new(vec![ParamDecl::float("target", 20.0).range(5.0, 30.0).unit("°C")])
+///     }
+///     async fn step(&mut self, _: &mut OpContext) -> Result<Step, OpError> { Ok(Step::Continue) }
+/// }
+///
+/// # #[tokio::main(flavor = "current_thread")] async fn main() {
+/// eo::spawn_operation(Heater, Default::default()).await.unwrap();
+/// let heater = marie::OperationHandle::lookup("heater").await.unwrap();
+/// heater.set(params([("target", Value::Float(22.5))])).await.unwrap();
+/// assert_eq!(heater.value::<f64>("target").await.unwrap(), 22.5);
+/// # }
+/// ```
+pub use marie_actors::eo::OperationHandle;
+
 /// Derive [`ractor::Message`] for a message type of your own ractor actors.
 ///
 /// marie runs on ractor with its `cluster` feature, which ractor_cluster turns on for the

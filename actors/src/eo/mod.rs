@@ -2,7 +2,9 @@
 //!
 //! An author implements [`Operation`]; [`spawn_operation`] runs it in an [`EoHost`] that
 //! speaks [`EoMsg`]: activation, suspension, atomic reparameterization and the property
-//! interface, with [`EoClient`] as the typed way to send them.
+//! interface, with [`EoClient`] as the typed way to send them. An application reads and sets
+//! an operation through an [`OperationHandle`]: by name, typed, without epochs, following
+//! the operation across restarts of its instances.
 //!
 //! ```
 //! use marie_actors::eo::{self, Identity, Operation, OpContext, OpError, Step, EoClient};
@@ -35,6 +37,8 @@
 mod client;
 mod factory;
 mod fault;
+mod handle;
+mod handle_error;
 mod host;
 mod messages;
 mod operation;
@@ -42,6 +46,8 @@ mod operation;
 pub use client::{EoClient, EoError};
 pub use factory::{OperationFactory, StartOperation};
 pub use fault::{FaultKind, UnknownFault};
+pub use handle::OperationHandle;
+pub use handle_error::{HandleError, SetError};
 pub use host::{spawn_operation, spawn_operation_linked, EoHost, HostArgs, HostOptions, HostState};
 pub use messages::{EoMsg, EoReport, Fault, ParamOutcome};
 
