@@ -36,7 +36,10 @@ use tokio::time::Instant;
 ///   registry (a supervisor's restart, a spare; [`crate::registry::watch`] so nothing is
 ///   polled) and retries the call there once. This is the dispatcher's rebind in miniature,
 ///   without its selection and restoring: a replacement starts with its own start-up
-///   parameters, and the handle does not replay earlier [`set`](OperationHandle::set)s;
+///   parameters, and the handle does not replay earlier [`set`](OperationHandle::set)s.
+///   Across nodes ractor_cluster usually answers a request that timed out as if its actor
+///   had died, so a hung remote instance is left like a gone one: the call waits for
+///   another instance instead of reporting a [`HandleError::Timeout`];
 /// - **answers in types**: [`Identity`], [`ParamSchema`], [`FlagDecl`]s, [`General`], a
 ///   parameter as any [`FromValue`] type;
 /// - **keeps epochs inside**: [`set`](OperationHandle::set) reads the instance's current
