@@ -6,7 +6,8 @@
 //!
 //! This crate is the facade: it re-exports the member crates — the node is
 //! [`cluster::node`] ([`node`] here too), the robot [`missions`] — and offers
-//! [`embedded::Embedded`], the single-process node the `marie` command runs.
+//! [`embedded::Embedded`], the single-process node the `marie` command runs. An application's
+//! own ractor actors need [`RactorMessage`] on their message types (see there for why).
 //!
 //! ```no_run
 //! use marie::node::{Node, NodeConfig, NodeOptions};
@@ -33,5 +34,93 @@ pub use marie_cluster::{fault, layout, net, node, relay};
 /// Everything an operation author needs in one import: `use marie::prelude::*;` (see
 /// [`actors::prelude`]).
 pub use marie_actors::prelude;
+
+/// An application's hold on an operation by name: typed calls, no epochs, restarts followed
+/// (the same type as [`actors::eo::OperationHandle`], where its errors live too).
+///
+/// ```
+/// use marie::actors::eo::{self, Identity, OpContext, OpError, Operation, Step};
+/// use marie::actors::property::{params, ParamDecl, ParamSchema, Value};
+///
+/// struct Heater;
+/// impl Operation for Heater {
+///     fn identity(&self) -> Identity { Identity::new("heater", 7201, "1.0.0", "heats") }
+///     fn parameters(&self) -> ParamSchema {
+///         ParamSchema::new(vec![ParamDecl::float("target", 20.0).range(5.0, 30.0).unit("°C")])
+///     }
+///     async fn step(&mut self, _: &mut OpContext) -> Result<Step, OpError> { Ok(Step::Continue) }
+/// }
+///
+/// # #[tokio::main(flavor = "current_thread")] async fn main() {
+/// eo::spawn_operation(Heater, Default::default()).await.unwrap();
+/// let heater = marie::OperationHandle::lookup("heater").await.unwrap();
+/// heater.set(params([("target", Value::Float(22.5))])).await.unwrap();
+/// assert_eq!(heater.value::<f64>("target").await.unwrap(), 22.5);
+/// # }
+/// ```
+pub use marie_actors::eo::OperationHandle;
+
+/// Derive [`ractor::Message`] for a message type of your own ractor actors.
+///
+/// marie runs on ractor with its `cluster` feature, which ractor_cluster turns on for the
+/// whole build — so for every crate that links marie, too. With that feature ractor drops
+/// its blanket `impl<T: Send + 'static> Message for T`: a plain `enum MyMsg { .. }` no
+/// longer compiles as an actor's message (`the trait bound `MyMsg: Message` is not
+/// satisfied`) until it has its own impl. This derive writes that impl, for messages that
+/// stay in the process (the trait's default, local-only methods). It is ractor_cluster's
+/// own `RactorMessage`, re-exported so you need no ractor_cluster dependency of your own.
+///
+/// The derive expands to `impl ractor::Message for MyMsg {}`: the crate using it must
+/// depend on `ractor` under that name (the one marie uses, 0.16). The hand-written
+/// equivalent, for a type the derive cannot reach, is that same line.
+///
+/// ```
+/// use ractor::{Actor, ActorProcessingErr, ActorRef, RpcReplyPort};
+///
+/// #[derive(marie::RactorMessage)]
+/// enum CounterMsg {
+///     Add(i64),
+///     Get(RpcReplyPort<i64>),
+/// }
+///
+/// struct Counter;
+///
+/// impl Actor for Counter {
+///     type Msg = CounterMsg;
+///     type State = i64;
+///     type Arguments = ();
+///     async fn pre_start(&self, _: ActorRef<CounterMsg>, _: ()) -> Result<i64, ActorProcessingErr> {
+///         Ok(0)
+///     }
+///     async fn handle(
+///         &self,
+///         _: ActorRef<CounterMsg>,
+///         msg: CounterMsg,
+///         total: &mut i64,
+///     ) -> Result<(), ActorProcessingErr> {
+///         match msg {
+///             CounterMsg::Add(n) => *total += n,
+///             CounterMsg::Get(reply) => {
+///                 let _ = reply.send(*total);
+///             }
+///         }
+///         Ok(())
+///     }
+/// }
+///
+/// # #[tokio::main(flavor = "current_thread")] async fn main() {
+/// let (counter, handle) = Actor::spawn(None, Counter, ()).await.unwrap();
+/// counter.cast(CounterMsg::Add(2)).unwrap();
+/// counter.cast(CounterMsg::Add(3)).unwrap();
+/// assert_eq!(ractor::call!(counter, CounterMsg::Get).unwrap(), 5);
+/// counter.stop(None);
+/// handle.await.unwrap();
+/// # }
+/// ```
+///
+/// Messages that must cross nodes need an impl that serializes them: marie's own interface
+/// messages get theirs from [`actors::remote_message!`] (rmp-serde); ractor_cluster's
+/// `RactorClusterMessage` derive is the other way.
+pub use ractor_cluster::RactorMessage;
 
 pub mod embedded;

@@ -58,5 +58,5 @@ pub use crate::dm::{
 };
 pub use crate::eo::{Identity, OpContext, OpError, Operation, Params, Step};
 pub use crate::flags::{FlagDecl, StatusFlags};
-pub use crate::property::{ParamDecl, ParamMap, ParamSchema, Value};
+pub use crate::property::{FromValue, ParamDecl, ParamMap, ParamSchema, Value};
 pub use crate::{choice, flags, params};

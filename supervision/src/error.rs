@@ -75,6 +75,17 @@ pub enum SupervisorError {
     /// The supervisor exceeded its restart intensity and gave up.
     #[error("{}", REACHED_MAX_RESTART_INTENSITY)]
     ReachedMaxRestartIntensity,
+    /// The program is built with `panic = "abort"`: a panicking child would end the process
+    /// instead of reaching its supervisor, so no supervisor starts (see
+    /// [`crate::require_unwinding`]).
+    #[error(
+        "supervisors need panics to unwind, but this program is built with `panic = \"abort\"`: \
+         the first panic in an actor would end the whole process instead of reaching its \
+         supervisor as a failure to restart from. Build with `panic = \"unwind\"` (Rust's \
+         default): remove `panic = \"abort\"` from the profile in Cargo.toml (e.g. \
+         `[profile.release]`) and `-C panic=abort` from RUSTFLAGS"
+    )]
+    PanicsAbort,
 }
 
 impl SupervisorError {

@@ -34,6 +34,9 @@
 //!   [`check_child_specs`]): specs that type-check but cannot work — a zero period, duplicate
 //!   or empty ids, a zero shutdown timeout, a simple-one-for-one supervisor without exactly
 //!   its template — are refused with a typed [`SpecError`] before anything starts.
+//! * **Unwinding required** ([`require_unwinding`]): a supervisor refuses to start in a
+//!   build with `panic = "abort"` ([`SupervisorError::PanicsAbort`]), where a panicking child
+//!   would end the process instead of being restarted.
 //! * **Introspection and events**: [`SupervisorRef::which_children`],
 //!   [`SupervisorRef::count_children`], per-child restart counts, and a broadcast of
 //!   [`SupervisorEvent`]s ([`SupervisorRef::subscribe`]) to wait on instead of sleeping.
@@ -145,6 +148,7 @@ mod start;
 mod strategy;
 mod supervisor;
 mod terminate;
+mod unwind;
 mod validate;
 
 pub use backoff::Backoff;
@@ -160,4 +164,5 @@ pub use simple::{ChildTemplate, DynamicArg};
 pub use spec::SupervisorSpec;
 pub use strategy::Strategy;
 pub use supervisor::{Supervisor, SupervisorArgs, SupervisorState};
+pub use unwind::{require_unwinding, PANICS_UNWIND};
 pub use validate::{check_child_specs, SpecError, MAX_BACKOFF, MAX_EVENT_CAPACITY};

@@ -23,7 +23,7 @@
 ///
 /// ```
 /// use marie_actors::declare::ParamValue;
-/// use marie_actors::property::{ParamDecl, Value};
+/// use marie_actors::property::{FromValue, ParamDecl, Value};
 ///
 /// marie_actors::choice! {
 ///     /// Which sonar beams to use.
@@ -82,18 +82,20 @@ macro_rules! choice {
             }
         }
 
-        impl $crate::declare::ParamValue for $name {
-            const KIND: &'static str = "choice";
-
-            fn decl(name: &str, default: Self) -> $crate::property::ParamDecl {
-                $crate::property::ParamDecl::choice(name, Self::WORDS, default.as_str())
-            }
+        impl $crate::property::FromValue for $name {
+            const EXPECTED: &'static str = "choice";
 
             fn from_value(value: &$crate::property::Value) -> ::core::option::Option<Self> {
                 match value.as_str()? {
                     $($word => ::core::option::Option::Some($name::$variant),)*
                     _ => ::core::option::Option::None,
                 }
+            }
+        }
+
+        impl $crate::declare::ParamValue for $name {
+            fn decl(name: &str, default: Self) -> $crate::property::ParamDecl {
+                $crate::property::ParamDecl::choice(name, Self::WORDS, default.as_str())
             }
 
             fn into_value(self) -> $crate::property::Value {

@@ -10,52 +10,42 @@
 //! misspell the name or give a value of the wrong type.
 
 use crate::eo::{OpError, Params};
-use crate::property::{ParamDecl, ParamMap, ParamSchema, Value};
+use crate::property::{FromValue, ParamDecl, ParamMap, ParamSchema, Value};
 use std::fmt;
 use std::marker::PhantomData;
 
-/// A Rust type a parameter can have: how it is declared and how it converts from and to a
-/// [`Value`].
+/// A Rust type a parameter can have: how it is declared and how it converts to a [`Value`]
+/// (and, as every [`FromValue`], from one).
 ///
 /// Implemented for `f64`, `i64`, `bool`, `String`, and for every enum declared with
 /// [`choice!`](crate::choice).
 ///
 /// ```
 /// use marie_actors::declare::ParamValue;
-/// use marie_actors::property::{ParamDecl, Value};
+/// use marie_actors::property::{FromValue, ParamDecl, Value};
 /// assert_eq!(<f64 as ParamValue>::decl("gain", 0.5), ParamDecl::float("gain", 0.5));
 /// assert_eq!(i64::from_value(&Value::Int(3)), Some(3));
 /// assert_eq!(f64::from_value(&Value::Int(3)), Some(3.0)); // ints convert to floats
 /// assert_eq!(bool::from_value(&Value::Int(3)), None);
 /// assert_eq!("wall".to_string().into_value(), Value::Text("wall".into()));
 /// ```
-pub trait ParamValue: Sized {
-    /// The kind of value expected, as errors name it (`"int"`, `"float"`, ...).
-    const KIND: &'static str;
-
+pub trait ParamValue: FromValue {
     /// The declaration of a parameter `name` of this type defaulting to `default`, without
     /// range, unit or description.
     fn decl(name: &str, default: Self) -> ParamDecl;
 
-    /// The value as this type; `None` when it is of another kind.
-    fn from_value(value: &Value) -> Option<Self>;
-
     /// This value as a [`Value`].
     fn into_value(self) -> Value;
 
-    /// Why `value`, which [`ParamValue::from_value`] refused, is not one of this type.
+    /// Why `value`, which [`FromValue::from_value`] refused, is not one of this type.
     fn mismatch(value: &Value) -> String {
-        format!("expected {}, found {}", Self::KIND, value.kind())
+        format!("expected {}, found {}", Self::EXPECTED, value.kind())
     }
 }
 
 impl ParamValue for f64 {
-    const KIND: &'static str = "float";
     fn decl(name: &str, default: f64) -> ParamDecl {
         ParamDecl::float(name, default)
-    }
-    fn from_value(value: &Value) -> Option<f64> {
-        value.as_f64()
     }
     fn into_value(self) -> Value {
         Value::Float(self)
@@ -63,12 +53,8 @@ impl ParamValue for f64 {
 }
 
 impl ParamValue for i64 {
-    const KIND: &'static str = "int";
     fn decl(name: &str, default: i64) -> ParamDecl {
         ParamDecl::int(name, default)
-    }
-    fn from_value(value: &Value) -> Option<i64> {
-        value.as_i64()
     }
     fn into_value(self) -> Value {
         Value::Int(self)
@@ -76,12 +62,8 @@ impl ParamValue for i64 {
 }
 
 impl ParamValue for bool {
-    const KIND: &'static str = "bool";
     fn decl(name: &str, default: bool) -> ParamDecl {
         ParamDecl::bool(name, default)
-    }
-    fn from_value(value: &Value) -> Option<bool> {
-        value.as_bool()
     }
     fn into_value(self) -> Value {
         Value::Bool(self)
@@ -89,12 +71,8 @@ impl ParamValue for bool {
 }
 
 impl ParamValue for String {
-    const KIND: &'static str = "text";
     fn decl(name: &str, default: String) -> ParamDecl {
         ParamDecl::text(name, default)
-    }
-    fn from_value(value: &Value) -> Option<String> {
-        value.as_str().map(str::to_string)
     }
     fn into_value(self) -> Value {
         Value::Text(self)

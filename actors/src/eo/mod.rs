@@ -2,7 +2,9 @@
 //!
 //! An author implements [`Operation`]; [`spawn_operation`] runs it in an [`EoHost`] that
 //! speaks [`EoMsg`]: activation, suspension, atomic reparameterization and the property
-//! interface, with [`EoClient`] as the typed way to send them.
+//! interface, with [`EoClient`] as the typed way to send them. An application reads and sets
+//! an operation through an [`OperationHandle`]: by name, typed, without epochs, following
+//! the operation across restarts of its instances.
 //!
 //! The example declares parameters and flags by hand, by name and bit; [`crate::declare`]
 //! declares them once as Rust types (`params!`, `flags!`), with one import from
@@ -40,6 +42,8 @@ mod client;
 mod declaration;
 mod factory;
 mod fault;
+mod handle;
+mod handle_error;
 mod host;
 mod messages;
 mod operation;
@@ -48,6 +52,8 @@ pub use client::{EoClient, EoError};
 pub use declaration::{check_declaration, DeclarationError, MAX_FLAGS};
 pub use factory::{OperationFactory, StartOperation};
 pub use fault::{FaultKind, UnknownFault};
+pub use handle::OperationHandle;
+pub use handle_error::{HandleError, SetError};
 pub use host::{spawn_operation, spawn_operation_linked, EoHost, HostArgs, HostOptions, HostState};
 pub use messages::{EoMsg, EoReport, Fault, ParamOutcome};
 

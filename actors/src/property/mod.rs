@@ -1,8 +1,9 @@
 //! The property interface: what an operation can tell about itself.
 //!
 //! [`schema`] declares parameters ([`ParamDecl`]) and validates updates atomically;
-//! [`value`] holds parameter values; [`messages`] are the requests and replies that any module
-//! sends an operation (thesis ch. 6). The EO host answers them for every operation.
+//! [`value`] holds parameter values and [`from_value`] reads them as Rust types;
+//! [`messages`] are the requests and replies that any module sends an operation (thesis
+//! ch. 6). The EO host answers them for every operation.
 //!
 //! ```
 //! use marie_actors::property::{ParamDecl, ParamSchema, Value, params};
@@ -13,10 +14,12 @@
 //! assert_eq!(err[0].name, "distance");
 //! ```
 
+pub mod from_value;
 pub mod messages;
 pub mod schema;
 pub mod value;
 
+pub use from_value::FromValue;
 pub use messages::{
     Address, Collection, General, Group, Identification, Limit, Location, PropertyReply,
     PropertyRequest, Signature, Specific, STANDARD_PROPERTIES,

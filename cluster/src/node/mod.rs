@@ -186,7 +186,13 @@ impl Node {
     /// Check `config` against the catalogue and start the node's supervision tree: the
     /// datamanagers (storing the robot's a-priori records), the robot's drivers, then each
     /// operation supervisor with the instances the config names.
+    ///
+    /// A program built with `panic = "abort"` is refused before anything starts
+    /// ([`SupervisorError::PanicsAbort`], displayed as `node supervisor: supervisors need
+    /// panics to unwind ...`): its supervisors could not restart a panicking operation.
     pub async fn start(config: NodeConfig, options: NodeOptions) -> Result<Node, NodeError> {
+        // first: a node that cannot heal itself must not half-start (publish, bridge events)
+        marie_supervision::require_unwinding()?;
         config.validate(&options.catalog)?;
         // one node per process (ractor's registry and pg are process-wide): its name is the
         // location every module published here shows
@@ -483,5 +489,23 @@ impl Node {
             task.abort();
         }
         tracing::info!(node = %self.config.name, "node stopped");
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A build with `panic = "abort"` cannot be run from a test (tests always unwind; the
+    /// refusal itself is tested by marie-supervision's `panic_abort` fixture): this pins what
+    /// `Node::start` then returns, as a user reads it.
+    #[test]
+    fn a_node_refused_for_aborting_panics_says_why_and_how_to_fix_it() {
+        let text = NodeError::from(SupervisorError::PanicsAbort).to_string();
+        assert!(
+            text.starts_with("node supervisor: supervisors need panics to unwind"),
+            "{text}"
+        );
+        assert!(text.contains("panic = \"unwind\""), "{text}");
     }
 }

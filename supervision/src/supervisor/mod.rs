@@ -30,6 +30,7 @@ use crate::spec::SupervisorSpec;
 use crate::start::run_start;
 use crate::strategy::Strategy;
 use crate::terminate::{shutdown_child, shutdown_together};
+use crate::unwind::require_unwinding;
 use crate::validate::validate_start;
 use rand_xoshiro::Xoshiro256StarStar;
 
@@ -87,12 +88,14 @@ pub struct SupervisorArgs {
 impl Supervisor {
     /// Spawn a supervisor (registered under `name`, if given) and start `children` in order.
     /// Returns once all started; if one fails to start, the ones already started are stopped
-    /// in reverse order and the error names the child.
+    /// in reverse order and the error names the child. In a build whose panics abort, nothing
+    /// starts: [`SupervisorError::PanicsAbort`].
     pub async fn start(
         name: Option<String>,
         spec: SupervisorSpec,
         children: Vec<ChildSpec>,
     ) -> Result<(SupervisorRef, JoinHandle<()>), SupervisorError> {
+        require_unwinding()?;
         validate_start(&spec, &children)?;
         let (actor, handle) = Actor::spawn(name, Supervisor, SupervisorArgs { spec, children })
             .await
@@ -109,6 +112,7 @@ impl Supervisor {
         children: Vec<ChildSpec>,
         parent: ActorCell,
     ) -> Result<(SupervisorRef, JoinHandle<()>), SupervisorError> {
+        require_unwinding()?;
         validate_start(&spec, &children)?;
         let (actor, handle) =
             Actor::spawn_linked(name, Supervisor, SupervisorArgs { spec, children }, parent)
@@ -206,6 +210,7 @@ impl Actor for Supervisor {
         myself: ActorRef<SupervisorMsg>,
         args: SupervisorArgs,
     ) -> Result<SupervisorState, ActorProcessingErr> {
+        require_unwinding()?;
         validate_start(&args.spec, &args.children).map_err(SupervisorError::from)?;
         let mut state = SupervisorState::new(args.spec);
         for spec in args.children {
