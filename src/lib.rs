@@ -4,24 +4,105 @@
 //! architecture of the MARIE mobile robot (elementary operations, datamanagers, an action
 //! dispatcher, a location table) re-created as [ractor] actors.
 //!
-//! This crate is the facade: it re-exports the member crates — the node is
-//! [`cluster::node`] ([`node`] here too), the robot [`missions`] — and offers
-//! [`embedded::Embedded`], the single-process node the `marie` command runs. An application's
-//! own ractor actors need [`RactorMessage`] on their message types (see there for why).
+//! This crate is the facade: it re-exports the member crates — [`actors`] (the interfaces,
+//! the registry, the dispatcher), [`supervision`], [`cluster`] (the node, its transport),
+//! [`missions`] (the simulated robot) — and offers [`embedded::Embedded`], the
+//! single-process node the `marie` command runs.
 //!
-//! ```no_run
-//! use marie::node::{Node, NodeConfig, NodeOptions};
-//! # #[tokio::main] async fn main() -> Result<(), Box<dyn std::error::Error>> {
-//! let catalog = marie::missions::catalog();
-//! let config = NodeConfig::everything("solo", &catalog);
-//! let node = Node::start(config, NodeOptions::with_catalog(catalog)).await?;
-//! let mission = node.load_mission(std::path::Path::new("missions/demo.toml")).await?;
+//! # Embedding marie: operation → node → mission → faults
+//!
+//! **1. An operation** is a type that implements [`actors::eo::Operation`]: who it is, the
+//! parameters and flags it declares, and what it does each step. Declare parameters with
+//! [`params!`](actors::params) and flags with [`flags!`](actors::flags): a misspelt name is
+//! then a compile error, and the prelude has all an operation needs.
+//!
+//! ```
+//! use marie::prelude::*;
+//!
+//! params! {
+//!     pub struct CountParams {
+//!         /// how far to count
+//!         to: i64 = 3, range(1, 1000);
+//!     }
+//! }
+//! flags! {
+//!     pub enum CountFlag {
+//!         /// the count is done
+//!         Counted = "counted",
+//!     }
+//! }
+//!
+//! #[derive(Default)]
+//! pub struct Counter { n: i64 }
+//!
+//! impl Operation for Counter {
+//!     fn identity(&self) -> Identity { Identity::new("counter", 7300, "1.0.0", "counts") }
+//!     fn parameters(&self) -> ParamSchema { CountParams::schema() }
+//!     fn flags(&self) -> Vec<FlagDecl> { CountFlag::decls() }
+//!     async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
+//!         self.n += 1;
+//!         let p: CountParams = ctx.params().read()?;
+//!         Ok(if self.n >= p.to { Step::finish(CountFlag::Counted) } else { Step::Continue })
+//!     }
+//! }
+//! ```
+//!
+//! **2. A node** hosts the application's operations and datamanagers under supervision,
+//! with one clock: [`node::Node::builder`]. Each operation type's declarations are checked
+//! before anything starts, and a build whose panics abort is refused (self-healing needs
+//! panics to unwind). [`OperationHandle`] then asks an operation about itself by name, with
+//! typed calls and no epochs, and follows it across restarts.
+//!
+//! **3. A mission** — the task tree the dispatcher runs — is a mission file's text or built
+//! in code ([`actors::dispatcher::mission::MissionBuilder`]); [`node::Node::run`] checks it
+//! against what runs and gives the report.
+//!
+//! ```
+//! # use marie::prelude::*;
+//! # params! { pub struct CountParams { /// how far
+//! #     to: i64 = 3, range(1, 1000); } }
+//! # flags! { pub enum CountFlag { /// done
+//! #     Counted = "counted", } }
+//! # #[derive(Default)] pub struct Counter { n: i64 }
+//! # impl Operation for Counter {
+//! #     fn identity(&self) -> Identity { Identity::new("counter", 7300, "1.0.0", "counts") }
+//! #     fn parameters(&self) -> ParamSchema { CountParams::schema() }
+//! #     fn flags(&self) -> Vec<FlagDecl> { CountFlag::decls() }
+//! #     async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
+//! #         self.n += 1;
+//! #         let p: CountParams = ctx.params().read()?;
+//! #         Ok(if self.n >= p.to { Step::finish(CountFlag::Counted) } else { Step::Continue })
+//! #     }
+//! # }
+//! use marie::actors::dispatcher::mission::{ActionBuilder, MissionBuilder};
+//! use marie::node::Node;
+//!
+//! # #[tokio::main(flavor = "multi_thread", worker_threads = 2)]
+//! # async fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! let node = Node::builder("guide").operation::<Counter>().start().await?;
+//! let counter = marie::OperationHandle::lookup("counter").await?;
+//! assert_eq!(counter.param(CountParams::to()).await?, 3);
+//!
+//! let mission = MissionBuilder::new("count")
+//!     .flags([CountFlag::Counted.name()])
+//!     .success([CountFlag::Counted.name()])
+//!     .action(ActionBuilder::new("count").op("counter", ParamMap::new().with(CountParams::to(), 5)));
 //! let report = node.run(mission).await?;
-//! println!("{:?}", report.outcome);
+//! assert!(report.succeeded());
 //! node.shutdown().await;
 //! # Ok(()) }
 //! ```
-
+//!
+//! **4. Faults.** A crashed operation is restarted by its supervisor and the dispatcher
+//! rebinds the mission to the new instance, restores its parameters and carries on;
+//! [`node::Node::run_with_faults`] injects kills, panics and hangs at given mission times to
+//! test exactly that ([`fault::FaultPlan`]), and the report lists each rebind.
+//! `examples/embedding.rs` puts the four steps together in one application.
+//!
+//! **Your own ractor actors** beside marie need [`RactorMessage`] on their message types:
+//! marie's cluster transport turns on ractor's `cluster` feature for the whole build (see
+//! there for why).
+//!
 #![warn(missing_docs)]
 
 pub use marie_actors as actors;

@@ -52,3 +52,28 @@ fn self_healing_rebinds_a_panicked_operation_and_the_mission_succeeds() {
         "{stdout}"
     );
 }
+
+#[test]
+fn embedding_hosts_its_own_operation_refuses_a_bad_value_and_heals_a_panic() {
+    let out = Command::new(example("embedding")).output().unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stdout.contains("pump 1.0.0 on plant: [\"litres\", \"rate\"]"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("refused: rate: 50 is out of range"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("healed: "), "{stdout}");
+    // 300 litres at 2 per step, the restarted pump resuming at the last level logged
+    assert!(
+        stdout.contains("Succeeded: 150 levels, the last 300 l"),
+        "{stdout}"
+    );
+}

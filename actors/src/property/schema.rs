@@ -392,6 +392,17 @@ impl ParamSchema {
         self.params.is_empty()
     }
 
+    /// The parameters' names, in declaration order.
+    ///
+    /// ```
+    /// use marie_actors::property::{ParamDecl, ParamSchema};
+    /// let s = ParamSchema::new(vec![ParamDecl::int("litres", 10), ParamDecl::float("rate", 1.0)]);
+    /// assert_eq!(s.names(), ["litres", "rate"]);
+    /// ```
+    pub fn names(&self) -> Vec<&str> {
+        self.params.iter().map(|d| d.name.as_str()).collect()
+    }
+
     /// The defaults of every parameter.
     pub fn defaults(&self) -> ParamMap {
         self.params

@@ -31,6 +31,16 @@ pub struct FaultPlan {
     pub chaos: Option<Chaos>,
 }
 
+impl From<Vec<FaultSpec>> for FaultPlan {
+    /// Faults at fixed times, no chaos.
+    fn from(faults: Vec<FaultSpec>) -> Self {
+        FaultPlan {
+            faults,
+            chaos: None,
+        }
+    }
+}
+
 impl FaultPlan {
     /// True when there is nothing to inject.
     pub fn is_empty(&self) -> bool {

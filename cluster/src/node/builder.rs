@@ -50,7 +50,10 @@
 //! # Ok(()) }
 //! ```
 
-use super::{DatamanagerConfig, Node, NodeConfig, NodeError, NodeOptions, OperationConfig, Robot};
+use super::{
+    DatamanagerConfig, Node, NodeConfig, NodeError, NodeOptions, OperationConfig, Robot,
+    SupervisorConfig,
+};
 use marie_actors::clock::{RealClock, SharedClock};
 use marie_actors::eo::{check_declaration, Operation, OperationFactory};
 use std::sync::Arc;
@@ -90,7 +93,31 @@ impl NodeBuilder {
 
     /// Host `n` instances of operation `O` (spares: when one crashes, the dispatcher takes
     /// another at once while the first restarts).
-    pub fn instances<O: Operation + Default>(mut self, n: usize) -> Self {
+    pub fn instances<O: Operation + Default>(self, n: usize) -> Self {
+        self.operation_with::<O>(|c| c.with_instances(n))
+    }
+
+    /// Host operation `O` as `configure` says: instances, supervisor (declared with
+    /// [`NodeBuilder::supervisor`]), restart policy.
+    ///
+    /// ```
+    /// # use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
+    /// # #[derive(Default)] struct Pump;
+    /// # impl Operation for Pump {
+    /// #     fn identity(&self) -> Identity { Identity::new("b-pump", 4300, "1.0.0", "pumps") }
+    /// #     async fn step(&mut self, _: &mut OpContext) -> Result<Step, OpError> { Ok(Step::Continue) }
+    /// # }
+    /// use marie_cluster::node::{Node, SupervisorConfig};
+    /// use std::time::Duration;
+    /// let builder = Node::builder("plant")
+    ///     .supervisor(SupervisorConfig::new("pumps").with_intensity(3, Duration::from_secs(5)))
+    ///     .operation_with::<Pump>(|c| c.with_instances(2).under("pumps"));
+    /// assert_eq!(builder.config().operations[0].supervisor, "pumps");
+    /// ```
+    pub fn operation_with<O: Operation + Default>(
+        mut self,
+        configure: impl FnOnce(OperationConfig) -> OperationConfig,
+    ) -> Self {
         let factory = OperationFactory::new::<O>();
         let name = factory.name.to_string();
         if !self
@@ -106,11 +133,16 @@ impl NodeBuilder {
         let version = O::default().identity().version;
         let exact =
             semver::VersionReq::parse(&format!("={version}")).unwrap_or(semver::VersionReq::STAR);
-        self.config.operations.push(
-            OperationConfig::new(name)
-                .with_version(exact)
-                .with_instances(n),
-        );
+        self.config
+            .operations
+            .push(configure(OperationConfig::new(name).with_version(exact)));
+        self
+    }
+
+    /// Declare a supervisor of operations (strategy, intensity) that
+    /// [`NodeBuilder::operation_with`] can put operations under.
+    pub fn supervisor(mut self, supervisor: SupervisorConfig) -> Self {
+        self.config.supervisors.push(supervisor);
         self
     }
 

@@ -351,8 +351,8 @@ impl Node {
         }
     }
 
-    /// Run a mission and give its report: a mission file's text, a [`MissionBuilder`]
-    /// (marie_actors::dispatcher::mission::MissionBuilder), a parsed or an already checked
+    /// Run a mission and give its report: a mission file's text, a
+    /// [`MissionBuilder`](marie_actors::dispatcher::mission::MissionBuilder), a parsed or an already checked
     /// [`Mission`]. Text and built missions are checked against the instances that run
     /// first; a mission that does not fit is refused with its diagnostics
     /// ([`NodeError::Mission`]).
@@ -371,7 +371,6 @@ impl Node {
         mission: impl Into<MissionInput>,
         events: Option<mpsc::UnboundedSender<DispatchEvent>>,
     ) -> Result<RunReport, NodeError> {
-        let mission = self.resolve(mission.into()).await?;
         self.run_with_faults(mission, events, FaultPlan::default())
             .await
     }
@@ -380,10 +379,11 @@ impl Node {
     /// tests of self-healing). The report lists what was injected in `faults`.
     pub async fn run_with_faults(
         &self,
-        mission: Mission,
+        mission: impl Into<MissionInput>,
         events: Option<mpsc::UnboundedSender<DispatchEvent>>,
         plan: FaultPlan,
     ) -> Result<RunReport, NodeError> {
+        let mission = self.resolve(mission.into()).await?;
         // Pass every event on as it comes, but hold back `Ended` until the world has judged.
         // The channel closes when the run's relay from the bus has finished (in `dispatch`),
         // so the forwarder ends by itself once it has passed everything on.

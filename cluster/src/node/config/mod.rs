@@ -128,6 +128,28 @@ pub struct SupervisorConfig {
 }
 
 impl SupervisorConfig {
+    /// A supervisor named `name`: one_for_one, 5 restarts in 10 s (the default intensity).
+    pub fn new(name: impl Into<String>) -> Self {
+        SupervisorConfig {
+            name: name.into(),
+            ..SupervisorConfig::operations()
+        }
+    }
+
+    /// Which children a failure restarts.
+    pub fn with_strategy(mut self, strategy: Strategy) -> Self {
+        self.strategy = strategy;
+        self
+    }
+
+    /// More than `max_restarts` within `period` and it gives up (the operations under it
+    /// stop; a mission that needs them fails naming them).
+    pub fn with_intensity(mut self, max_restarts: usize, period: Duration) -> Self {
+        self.max_restarts = max_restarts;
+        self.period = period;
+        self
+    }
+
     /// The node's default operation supervisor: one_for_one, 5 restarts in 10 s.
     pub fn operations() -> Self {
         SupervisorConfig {
@@ -176,6 +198,18 @@ impl OperationConfig {
     /// `n` instances of each matching version.
     pub fn with_instances(mut self, n: usize) -> Self {
         self.instances = n;
+        self
+    }
+
+    /// Under the supervisor named `supervisor` (declared in the node's config).
+    pub fn under(mut self, supervisor: impl Into<String>) -> Self {
+        self.supervisor = supervisor.into();
+        self
+    }
+
+    /// Restarted as `restart` says when it ends (default: always, [`Restart::Permanent`]).
+    pub fn with_restart(mut self, restart: Restart) -> Self {
+        self.restart = restart;
         self
     }
 
