@@ -90,6 +90,21 @@ impl RealClock {
     pub fn shared() -> SharedClock {
         Arc::new(Self::new())
     }
+
+    /// The process's clock: one real clock every default shares (an operation host's,
+    /// a node's), so that modules started without a clock of their own still agree on
+    /// what time it is — a record stamped by one is found by another's query for the last
+    /// second. Its epoch is its first use.
+    ///
+    /// ```
+    /// use marie_actors::clock::RealClock;
+    /// let (a, b) = (RealClock::process(), RealClock::process());
+    /// assert!(std::sync::Arc::ptr_eq(&a, &b));
+    /// ```
+    pub fn process() -> SharedClock {
+        static PROCESS: std::sync::OnceLock<SharedClock> = std::sync::OnceLock::new();
+        PROCESS.get_or_init(RealClock::shared).clone()
+    }
 }
 
 impl Default for RealClock {

@@ -29,7 +29,7 @@ use tokio::task::JoinHandle;
 /// How to host an operation.
 #[derive(Clone)]
 pub struct HostOptions {
-    /// The node's clock.
+    /// The clock the operation reads and sleeps on (default: the process's, [`RealClock::process`]).
     pub clock: SharedClock,
     /// Start-up parameter values (may set read-only parameters); the rest take defaults.
     pub params: ParamMap,
@@ -40,7 +40,7 @@ pub struct HostOptions {
 impl Default for HostOptions {
     fn default() -> Self {
         HostOptions {
-            clock: RealClock::shared(),
+            clock: RealClock::process(),
             params: ParamMap::new(),
             publish: true,
         }

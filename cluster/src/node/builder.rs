@@ -153,8 +153,9 @@ impl NodeBuilder {
         self
     }
 
-    /// The clock every actor of the node reads and sleeps on (default: tokio's). One clock
-    /// for the whole node: records are stamped and queried on it.
+    /// The clock every actor of the node reads and sleeps on (default: the process's,
+    /// [`RealClock::process`], which operations hosted outside the node share too). One
+    /// clock for the whole node: records are stamped and queried on it.
     pub fn clock(mut self, clock: SharedClock) -> Self {
         self.clock = Some(clock);
         self
@@ -191,7 +192,7 @@ impl NodeBuilder {
             check()?;
         }
         let mut options = NodeOptions::with_catalog(self.catalog)
-            .with_clock(self.clock.unwrap_or_else(RealClock::shared));
+            .with_clock(self.clock.unwrap_or_else(RealClock::process));
         if let Some(robot) = self.robot {
             options = options.with_robot(robot);
         }
@@ -248,6 +249,14 @@ mod tests {
             "bad-decl"
         )
         .is_empty());
+    }
+
+    #[tokio::test]
+    async fn by_default_the_node_and_operations_hosted_outside_it_share_one_clock() {
+        let node = Node::builder("one-clock").start().await.expect("starts");
+        let outside = marie_actors::eo::HostOptions::default().clock;
+        assert!(Arc::ptr_eq(node.clock(), &outside));
+        node.shutdown().await;
     }
 
     #[tokio::test]

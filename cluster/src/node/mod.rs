@@ -84,12 +84,12 @@ pub struct NodeOptions {
 }
 
 impl NodeOptions {
-    /// A catalogue, no robot, tokio's clock.
+    /// A catalogue, no robot, the process's clock ([`RealClock::process`]).
     pub fn with_catalog(catalog: Vec<OperationFactory>) -> Self {
         NodeOptions {
             catalog,
             robot: None,
-            clock: RealClock::shared(),
+            clock: RealClock::process(),
         }
     }
 
