@@ -13,7 +13,7 @@
 //!
 //! **1. An operation** is a type that implements [`actors::eo::Operation`]: who it is, the
 //! parameters and flags it declares, and what it does each step. Declare parameters with
-//! [`params!`](actors::params) and flags with [`flags!`](actors::flags): a misspelt name is
+//! [`params!`](actors::params) and flags with [`flags!`](macro@actors::flags): a misspelt name is
 //! then a compile error, and the prelude has all an operation needs.
 //!
 //! ```
