@@ -93,6 +93,20 @@ impl NodeBuilder {
 
     /// Host `n` instances of operation `O` (spares: when one crashes, the dispatcher takes
     /// another at once while the first restarts).
+    ///
+    /// ```
+    /// # use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
+    /// # #[derive(Default)] struct Pump;
+    /// # impl Operation for Pump {
+    /// #     fn identity(&self) -> Identity { Identity::new("i-pump", 4301, "1.0.0", "pumps") }
+    /// #     async fn step(&mut self, _: &mut OpContext) -> Result<Step, OpError> { Ok(Step::Continue) }
+    /// # }
+    /// # #[tokio::main] async fn main() -> Result<(), Box<dyn std::error::Error>> {
+    /// let node = marie_cluster::node::Node::builder("spares").instances::<Pump>(2).start().await?;
+    /// assert_eq!(node.instances("i-pump").len(), 2);
+    /// node.shutdown().await;
+    /// # Ok(()) }
+    /// ```
     pub fn instances<O: Operation + Default>(self, n: usize) -> Self {
         self.operation_with::<O>(|c| c.with_instances(n))
     }
@@ -148,6 +162,20 @@ impl NodeBuilder {
 
     /// Host a datamanager: one of marie's ([`marie_actors::dm::FEATURE`], `WORLD`,
     /// `PARAMETER`) or the application's own, by name and id.
+    ///
+    /// ```
+    /// use marie_actors::dm::{DmClient, DmSpec, FEATURE};
+    /// # #[tokio::main] async fn main() -> Result<(), Box<dyn std::error::Error>> {
+    /// const TANKS: DmSpec = DmSpec::new("b-tanks", 7901);
+    /// let node = marie_cluster::node::Node::builder("dms")
+    ///     .datamanager(FEATURE)
+    ///     .datamanager(TANKS)
+    ///     .start()
+    ///     .await?;
+    /// assert!(DmClient::lookup("b-tanks", "doc").is_ok());
+    /// node.shutdown().await;
+    /// # Ok(()) }
+    /// ```
     pub fn datamanager(mut self, dm: impl Into<DatamanagerConfig>) -> Self {
         self.config.datamanagers.push(dm.into());
         self
@@ -156,6 +184,16 @@ impl NodeBuilder {
     /// The clock every actor of the node reads and sleeps on (default: the process's,
     /// [`RealClock::process`], which operations hosted outside the node share too). One
     /// clock for the whole node: records are stamped and queried on it.
+    ///
+    /// ```
+    /// use marie_actors::clock::RealClock;
+    /// # #[tokio::main] async fn main() -> Result<(), Box<dyn std::error::Error>> {
+    /// let clock = RealClock::shared();
+    /// let node = marie_cluster::node::Node::builder("timed").clock(clock.clone()).start().await?;
+    /// assert!(std::sync::Arc::ptr_eq(node.clock(), &clock));
+    /// node.shutdown().await;
+    /// # Ok(()) }
+    /// ```
     pub fn clock(mut self, clock: SharedClock) -> Self {
         self.clock = Some(clock);
         self
@@ -174,6 +212,12 @@ impl NodeBuilder {
     }
 
     /// Change anything else of the config it builds (supervisors, restart policies, ...).
+    ///
+    /// ```
+    /// use marie_cluster::node::Node;
+    /// let builder = Node::builder("quiet").configure(|c| c.dispatcher = false);
+    /// assert!(!builder.config().dispatcher);
+    /// ```
     pub fn configure(mut self, change: impl FnOnce(&mut NodeConfig)) -> Self {
         change(&mut self.config);
         self
