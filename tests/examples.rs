@@ -71,9 +71,9 @@ fn embedding_hosts_its_own_operation_refuses_a_bad_value_and_heals_a_panic() {
         "{stdout}"
     );
     assert!(stdout.contains("healed: "), "{stdout}");
-    // 300 litres at 2 per step, the restarted pump resuming at the last level logged
+    // 40 litres at 2 per step, the restarted pump resuming at the last level logged
     assert!(
-        stdout.contains("Succeeded: 150 levels, the last 300 l"),
+        stdout.contains("Succeeded: 20 levels, the last 40 l"),
         "{stdout}"
     );
 }

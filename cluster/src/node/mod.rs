@@ -360,6 +360,31 @@ impl Node {
     /// With a [`Robot`] the run is judged by the robot too ([`Robot::judge`]: for the
     /// simulated cart, its final pose, collisions, seed and the world's verdict, which may
     /// turn the dispatcher's success into a failure).
+    ///
+    /// ```
+    /// # use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
+    /// # use marie_actors::flags::{FlagDecl, StatusFlags};
+    /// # #[derive(Default)] struct Ping;
+    /// # impl Operation for Ping {
+    /// #     fn identity(&self) -> Identity { Identity::new("r-ping", 4400, "1.0.0", "pings") }
+    /// #     fn flags(&self) -> Vec<FlagDecl> { vec![FlagDecl::new("pinged", "it ran")] }
+    /// #     async fn step(&mut self, _: &mut OpContext) -> Result<Step, OpError> {
+    /// #         Ok(Step::Finish(StatusFlags(1)))
+    /// #     }
+    /// # }
+    /// use marie_cluster::node::{Node, NodeError};
+    /// # #[tokio::main] async fn main() -> Result<(), Box<dyn std::error::Error>> {
+    /// let node = Node::builder("runs").operation::<Ping>().start().await?;
+    /// let mission = "[mission]\nname = \"m\"\nsuccess = [\"pinged\"]\n[flags]\npinged = 0\n\
+    ///                [[action]]\nname = \"a\"\n[action.ops.r-ping]\n";
+    /// assert!(node.run(mission).await?.succeeded());
+    /// // a mission the running instances do not fit is refused with its diagnostics
+    /// let typo = mission.replace("[action.ops.r-ping]", "[action.ops.r-pong]");
+    /// let Err(NodeError::Mission(diags)) = node.run(typo).await else { panic!() };
+    /// assert!(diags.to_string().contains("r-pong"));
+    /// node.shutdown().await;
+    /// # Ok(()) }
+    /// ```
     pub async fn run(&self, mission: impl Into<MissionInput>) -> Result<RunReport, NodeError> {
         self.run_observed(mission, None).await
     }
@@ -376,7 +401,36 @@ impl Node {
     }
 
     /// [`Node::run`], injecting the faults of `plan` while the mission runs (fault-injection
-    /// tests of self-healing). The report lists what was injected in `faults`.
+    /// tests of self-healing). The report lists what was injected in `faults`, and each
+    /// rebind in `rebinds`.
+    ///
+    /// ```
+    /// # use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
+    /// # use marie_actors::flags::{FlagDecl, StatusFlags};
+    /// # #[derive(Default)] struct Tick { n: u32 }
+    /// # impl Operation for Tick {
+    /// #     fn identity(&self) -> Identity { Identity::new("f-tick", 4401, "1.0.0", "ticks") }
+    /// #     fn flags(&self) -> Vec<FlagDecl> { vec![FlagDecl::new("ticked", "done")] }
+    /// #     fn period(&self) -> std::time::Duration { std::time::Duration::from_millis(10) }
+    /// #     async fn step(&mut self, _: &mut OpContext) -> Result<Step, OpError> {
+    /// #         self.n += 1;
+    /// #         Ok(if self.n >= 30 { Step::Finish(StatusFlags(1)) } else { Step::Continue })
+    /// #     }
+    /// # }
+    /// use marie_cluster::fault::FaultPlan;
+    /// use marie_cluster::node::Node;
+    /// # #[tokio::main] async fn main() -> Result<(), Box<dyn std::error::Error>> {
+    /// let node = Node::builder("faulty").operation::<Tick>().start().await?;
+    /// let mission = "[mission]\nname = \"m\"\nsuccess = [\"ticked\"]\n[flags]\nticked = 0\n\
+    ///                [[action]]\nname = \"a\"\n[action.ops.f-tick]\n";
+    /// // 0.1 s in, the operation panics: its supervisor restarts it, the mission is rebound
+    /// let plan = FaultPlan::from(vec!["panic:f-tick@0.1".parse()?]);
+    /// let report = node.run_with_faults(mission, None, plan).await?;
+    /// assert!(report.succeeded());
+    /// assert_eq!(report.rebinds.len(), 1);
+    /// node.shutdown().await;
+    /// # Ok(()) }
+    /// ```
     pub async fn run_with_faults(
         &self,
         mission: impl Into<MissionInput>,
