@@ -7,7 +7,7 @@
 //! cart's final pose, its collisions, the seed and the world's verdict, and a mission the
 //! dispatcher calls a success fails when the cart did not end in the world's goal area.
 //! [`SimRobot::picture`] draws a run after it; while it runs, the robot tells the node's
-//! event bus the same things as they happen ([`telemetry`](crate::telemetry): the world
+//! event bus the same things as they happen ([`crate::telemetry`]: the world
 //! when a run starts, the cart's pose, echoes, planned paths, the followed wall, the dock).
 //!
 //! ```no_run
