@@ -271,7 +271,7 @@ fn planned_path(record: &Record) -> Option<EventKind> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use marie_actors::clock::{Clock, ManualClock};
+    use marie_actors::clock::ManualClock;
 
     #[test]
     fn the_world_event_has_the_walls_dock_goal_and_cart() {
@@ -323,7 +323,49 @@ mod tests {
         sampler.sample(5.08, &pose);
         sampler.sample(5.1, &pose);
         assert_eq!(sub.drain().len(), 2);
-        let _ = clock.now();
+    }
+
+    fn record_of<T: serde::Serialize>(class: &str, value: &T) -> Record {
+        Record {
+            seq: 1,
+            timestamp: Duration::ZERO,
+            source: "test".into(),
+            class: class.into(),
+            sub1: None,
+            sub2: None,
+            payload: marie_actors::dm::Payload::encode(value).expect("encodes"),
+        }
+    }
+
+    #[test]
+    fn the_followed_wall_is_told_when_an_end_moves() {
+        let wall = |to_x: f64| WallRecord {
+            segment: Segment::new(Point::new(12.5, 0.0), Point::new(to_x, 0.0)),
+            distance: 1.5,
+            relative_angle: 0.0,
+            side: 1.0,
+            pose: Pose::new(12.5, 1.5, std::f64::consts::PI),
+            correction: Pose::default(),
+        };
+        let mut last = None;
+        let told: Vec<bool> = [11.5, 11.4, 11.3, 11.2, 10.0]
+            .iter()
+            .map(|x| followed_wall(&mut last, &record_of(records::WALL, &wall(*x))).is_some())
+            .collect();
+        assert_eq!(told, [true, false, false, true, true]);
+        let event = followed_wall(&mut None, &record_of(records::WALL, &wall(11.0)));
+        assert_eq!(
+            event,
+            Some(robot(
+                FOLLOWED_WALL,
+                json!({"from": [12.5, 0.0], "to": [11.0, 0.0]})
+            ))
+        );
+        // a record that does not decode is passed over
+        assert_eq!(
+            followed_wall(&mut None, &record_of(records::WALL, &1u8)),
+            None
+        );
     }
 
     #[test]
@@ -343,15 +385,7 @@ mod tests {
                 }],
                 correction: Pose::default(),
             };
-            Record {
-                seq: 1,
-                timestamp: Duration::ZERO,
-                source: "ultrasonic".into(),
-                class: records::SONAR.into(),
-                sub1: None,
-                sub2: None,
-                payload: marie_actors::dm::Payload::encode(&scan).expect("encodes"),
-            }
+            record_of(records::SONAR, &scan)
         };
         let mut out = Vec::new();
         // two seconds of scans, ten a second
