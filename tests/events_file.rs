@@ -80,3 +80,70 @@ fn an_events_path_that_cannot_be_written_is_refused_before_the_run() {
     assert!(text(&out.stderr).contains("--events no/such/dir/run.jsonl"));
     assert!(out.stdout.is_empty(), "nothing ran");
 }
+
+/// The robot's live events (`marie_missions::telemetry`): what the after-run picture shows,
+/// put into the stream as it happens, so a monitor or a replay of the file can draw the run.
+#[test]
+fn a_docking_runs_events_draw_the_robot_world_first_then_poses_path_and_dock() {
+    let dir = tempfile::tempdir().unwrap();
+    let events = dir.path().join("run.jsonl");
+    let out = marie(&[
+        "run",
+        "missions/docking.toml",
+        "--events",
+        events.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let lines = std::fs::read_to_string(&events).unwrap();
+    let robot: Vec<(u64, String, serde_json::Value)> = lines
+        .lines()
+        .map(|l| Event::from_json_line(l).unwrap_or_else(|e| panic!("{e}: {l}")))
+        .filter_map(|e| match e.kind {
+            EventKind::Robot { what, data } => Some((e.at_ms, what, data)),
+            _ => None,
+        })
+        .collect();
+    let of = |what: &'static str| robot.iter().filter(move |(_, w, _)| w == what);
+    let (_, first, world) = robot.first().expect("robot events");
+    assert_eq!(first, "world", "the world comes first");
+    assert_eq!(of("world").count(), 1, "one world per run");
+    assert_eq!(
+        world["walls"][0],
+        serde_json::json!([[0.0, 0.0], [4.0, 0.0]])
+    );
+    assert_eq!(world["goal"].as_array().map(Vec::len), Some(4));
+    assert_eq!(world["dock"].as_array().map(Vec::len), Some(4));
+    assert_eq!(world["cart"]["length"], serde_json::json!(1.0));
+
+    let poses: Vec<_> = of("pose").collect();
+    // about a minute of mission time, a pose every 100 ms
+    assert!(poses.len() > 200, "{} poses", poses.len());
+    assert!(
+        poses.windows(2).all(|w| w[0].0 < w[1].0),
+        "one pose per sample time, in order"
+    );
+    let gaps: Vec<u64> = poses.windows(2).map(|w| w[1].0 - w[0].0).collect();
+    assert!(gaps.iter().all(|g| (80..=200).contains(g)), "{gaps:?}");
+    let (_, _, start) = poses[0];
+    assert!(
+        start["x"].as_f64().is_some_and(|x| (x - 12.5).abs() < 0.5),
+        "{start}"
+    );
+    assert!(start["heading"].is_f64() && start["y"].is_f64());
+
+    let echoes: Vec<_> = of("echoes").collect();
+    assert!(echoes.len() > 20, "{} echo events", echoes.len());
+    assert!(echoes
+        .iter()
+        .any(|(_, _, d)| d["points"].as_array().is_some_and(|p| !p.is_empty())));
+    let (_, _, wall) = of("followed-wall").next().expect("a followed wall");
+    assert!(wall["from"][1].is_f64() && wall["to"][0].is_f64(), "{wall}");
+    let (dock_at, _, dock) = of("dock-found").next().expect("a dock found");
+    assert_eq!(dock["corners"].as_array().map(Vec::len), Some(4), "{dock}");
+    let (path_at, _, path) = of("planned-path").next().expect("a planned path");
+    assert!(
+        path["points"].as_array().is_some_and(|p| p.len() >= 2),
+        "{path}"
+    );
+    assert!(dock_at <= path_at, "the path is planned to the dock found");
+}

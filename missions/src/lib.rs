@@ -28,6 +28,7 @@ pub mod ops;
 pub mod picture;
 pub mod robot;
 pub mod sim;
+pub mod telemetry;
 pub mod world;
 
 use marie_actors::clock::SharedClock;
@@ -96,10 +97,22 @@ pub async fn spawn_cart(
     seed: u64,
     supervisor: Option<ActorCell>,
 ) -> Result<ActorCell, SpawnErr> {
+    spawn_cart_sampled(clock, world, seed, supervisor, None).await
+}
+
+/// [`spawn_cart`], publishing its pose through `poses` (see [`telemetry`]).
+pub async fn spawn_cart_sampled(
+    clock: SharedClock,
+    world: &world::World,
+    seed: u64,
+    supervisor: Option<ActorCell>,
+    poses: Option<telemetry::PoseSampler>,
+) -> Result<ActorCell, SpawnErr> {
     let args = hardware::CartArgs {
         sim: sim::Simulation::new(world, seed),
         clock,
         period: std::time::Duration::from_millis(20),
+        poses,
     };
     Ok(match supervisor {
         Some(sup) => hardware::spawn_cart_linked(args, sup).await?.0.get_cell(),

@@ -6,7 +6,9 @@
 //! node runs the cart's drivers), and judges every run by the world: the report gets the
 //! cart's final pose, its collisions, the seed and the world's verdict, and a mission the
 //! dispatcher calls a success fails when the cart did not end in the world's goal area.
-//! [`SimRobot::picture`] draws a run.
+//! [`SimRobot::picture`] draws a run after it; while it runs, the robot tells the node's
+//! event bus the same things as they happen ([`crate::telemetry`]: the world
+//! when a run starts, the cart's pose, echoes, planned paths, the followed wall, the dock).
 //!
 //! ```no_run
 //! use marie_cluster::node::{Node, NodeConfig, NodeOptions};
@@ -32,13 +34,18 @@ use crate::geom::{Point, Pose};
 use crate::hardware::{CartClient, CartError};
 use crate::ops::records::{self, DockRecord, EchoScan, PathRecord, SegmentSet, WallRecord};
 use crate::picture::Picture;
+use crate::telemetry::{self, PoseSampler};
 use crate::world::{Judgement, World};
 use marie_actors::clock::SharedClock;
 use marie_actors::dispatcher::{Outcome, RunReport};
 use marie_actors::dm::{self, DmClient, DmError, DmSpec, NewRecord, Query};
+use marie_actors::events::EventBus;
 use marie_cluster::node::{AprioriRecord, BoxFuture, Robot};
 use marie_supervision::{ChildSpec, Restart};
 use serde::de::DeserializeOwned;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use tokio::task::JoinHandle;
 
 /// The most sonar echo points [`SimRobot::picture`] draws; more are thinned out evenly.
 pub const MAX_PICTURE_ECHOES: usize = 5000;
@@ -56,6 +63,16 @@ pub struct SimRobot {
     world: World,
     seed: u64,
     drivers: bool,
+    telemetry: Telemetry,
+}
+
+/// What the robot's live events need across runs (shared by its clones).
+#[derive(Clone, Debug, Default)]
+struct Telemetry {
+    /// Raised once the first run's world is published: the cart's poses follow it.
+    live: Arc<AtomicBool>,
+    /// The current run's record taps.
+    taps: Arc<Mutex<Vec<JoinHandle<()>>>>,
 }
 
 impl SimRobot {
@@ -65,6 +82,7 @@ impl SimRobot {
             world,
             seed,
             drivers: true,
+            telemetry: Telemetry::default(),
         }
     }
 
@@ -165,16 +183,33 @@ impl Robot for SimRobot {
         }
     }
 
-    fn drivers(&self, clock: &SharedClock) -> Vec<ChildSpec> {
+    fn drivers(&self, clock: &SharedClock, events: &EventBus) -> Vec<ChildSpec> {
         if !self.drivers {
             return Vec::new();
         }
         let (clock, world, seed) = (clock.clone(), self.world.clone(), self.seed);
-        vec![ChildSpec::worker("cart", move |sup| {
-            let (clock, world) = (clock.clone(), world.clone());
-            async move { crate::spawn_cart(clock, &world, seed, Some(sup)).await }
+        let poses = PoseSampler::new(events.clone(), self.telemetry.live.clone());
+        vec![
+            ChildSpec::worker("cart", move |sup| {
+                let (clock, world, poses) = (clock.clone(), world.clone(), poses.clone());
+                async move {
+                    crate::spawn_cart_sampled(clock, &world, seed, Some(sup), Some(poses)).await
+                }
+            })
+            .with_restart(Restart::Temporary),
+        ]
+    }
+
+    fn run_starting<'a>(&'a self, events: &'a EventBus) -> BoxFuture<'a, ()> {
+        Box::pin(async move {
+            // the previous run's taps first, so no record is told twice
+            let previous = std::mem::take(&mut *lock(&self.telemetry.taps));
+            previous.iter().for_each(JoinHandle::abort);
+            events.publish(telemetry::world_event(&self.world));
+            self.telemetry.live.store(true, Ordering::Relaxed);
+            let taps = telemetry::tap_records(events.clone()).await;
+            *lock(&self.telemetry.taps) = taps;
         })
-        .with_restart(Restart::Temporary)]
     }
 
     fn judge<'a>(&'a self, report: &'a mut RunReport) -> BoxFuture<'a, ()> {
@@ -191,6 +226,13 @@ impl Robot for SimRobot {
             judge(report, self, status);
         })
     }
+}
+
+/// `mutex`'s guard, also after a panic of another holder (the taps stay abortable).
+fn lock<T>(mutex: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    mutex
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
 }
 
 /// A client of datamanager `spec`'s current incarnation.

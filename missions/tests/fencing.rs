@@ -27,6 +27,7 @@ async fn lab_cart() -> (
         sim: Simulation::new(&world, 1),
         clock: RealClock::shared(),
         period: Duration::from_millis(20),
+        poses: None,
     })
     .await
     .expect("cart");

@@ -3,6 +3,7 @@
 // each test crate uses its own subset
 #![allow(dead_code)]
 
+pub mod browser;
 pub mod cluster;
 pub mod missions;
 pub mod netns;

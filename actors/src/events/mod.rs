@@ -49,6 +49,26 @@
 //!
 //! (A test reads these lines back and writes them again, so they stay exact.)
 //!
+//! ## The robot's live events
+//!
+//! A robot reports what it sees as `robot` events, `what` naming it. The simulated robot
+//! (`marie_missions::telemetry` has the table of when and from where) puts onto the stream
+//! what its after-run picture shows, so a live monitor, or a replay of an events file, can
+//! draw the run from the stream alone. Points are `[x, y]` in metres in the world frame,
+//! angles radians counter-clockwise from +x; `world` comes once when a run starts, before
+//! any other robot event of it; `pose` (the cart's rear axle) every 100 ms of mission time;
+//! `echoes` the sonar echo points gathered over half a second of scans; `followed-wall`,
+//! `dock-found` and `planned-path` when the operations find them:
+//!
+//! ```json
+//! {"at_ms":0,"node":"embedded","kind":{"type":"robot","what":"world","data":{"cart":{"axle_to_centre":0.35,"length":1.0,"width":0.6},"dock":[[4.0,-0.8],[6.8,-0.8],[6.8,0.0],[4.0,0.0]],"goal":[[6.8,0.0],[4.0,0.0],[4.0,-0.8],[6.8,-0.8]],"walls":[[[0.0,0.0],[4.0,0.0]],[[4.0,0.0],[4.0,-0.8]]]}}}
+//! {"at_ms":20,"node":"embedded","kind":{"type":"robot","what":"pose","data":{"heading":3.14,"x":12.5,"y":1.5}}}
+//! {"at_ms":2000,"node":"embedded","kind":{"type":"robot","what":"echoes","data":{"points":[[12.1,0.02],[11.9,-0.01]]}}}
+//! {"at_ms":2250,"node":"embedded","kind":{"type":"robot","what":"followed-wall","data":{"from":[12.5,0.0],"to":[11.52,0.0]}}}
+//! {"at_ms":38750,"node":"embedded","kind":{"type":"robot","what":"dock-found","data":{"corners":[[6.75,0.0],[4.09,0.02],[4.08,-0.8],[6.75,-0.82]]}}}
+//! {"at_ms":38750,"node":"embedded","kind":{"type":"robot","what":"planned-path","data":{"points":[[4.66,0.82],[4.61,0.82],[5.4,-0.4]]}}}
+//! ```
+//!
 //! # Invariants
 //! - Publishing never blocks: the bus is bounded, a slow subscriber loses the oldest events
 //!   and is told how many ([`BusError::Lagged`]).
@@ -94,10 +114,15 @@ mod tests {
     use super::*;
     use std::collections::BTreeSet;
 
-    /// The example lines of the module docs.
-    fn doc_examples() -> Vec<String> {
+    /// The example lines of the `n`-th JSON block of the module docs.
+    fn doc_examples(n: usize) -> Vec<String> {
         let src = include_str!("mod.rs");
-        src.lines()
+        let mut lines = src.lines();
+        for _ in 0..n {
+            lines.by_ref().find(|l| *l == "//! ```json");
+            lines.by_ref().find(|l| *l == "//! ```");
+        }
+        lines
             .skip_while(|l| *l != "//! ```json")
             .skip(1)
             .take_while(|l| *l != "//! ```")
@@ -105,23 +130,52 @@ mod tests {
             .collect()
     }
 
+    /// `line` reads and writes back exactly, also over the wire; its `kind.type`.
+    fn reads_back(line: &str) -> serde_json::Value {
+        let event = Event::from_json_line(line).unwrap_or_else(|e| panic!("{line}: {e}"));
+        assert_eq!(&event.to_json_line().unwrap(), line);
+        let bytes = crate::wire::encode(&event).unwrap();
+        assert_eq!(
+            crate::wire::decode::<Event>(&bytes).unwrap(),
+            event,
+            "{line}"
+        );
+        serde_json::from_str(line).unwrap()
+    }
+
     #[test]
     fn every_kind_has_a_documented_line_that_reads_and_writes_back_exactly() {
-        let lines = doc_examples();
+        let lines = doc_examples(0);
         let mut types = BTreeSet::new();
         for line in &lines {
-            let event = Event::from_json_line(line).unwrap_or_else(|e| panic!("{line}: {e}"));
-            assert_eq!(&event.to_json_line().unwrap(), line);
-            let bytes = crate::wire::encode(&event).unwrap();
-            assert_eq!(
-                crate::wire::decode::<Event>(&bytes).unwrap(),
-                event,
-                "{line}"
-            );
-            let value: serde_json::Value = serde_json::from_str(line).unwrap();
+            let value = reads_back(line);
             types.insert(value["kind"]["type"].as_str().unwrap().to_string());
         }
         assert_eq!(types.len(), lines.len(), "one line per kind");
         assert_eq!(lines.len(), 26, "every kind is documented");
+    }
+
+    #[test]
+    fn the_robots_live_events_are_documented_lines_that_read_and_write_back_exactly() {
+        let lines = doc_examples(1);
+        let whats: Vec<String> = lines
+            .iter()
+            .map(|line| {
+                let value = reads_back(line);
+                assert_eq!(value["kind"]["type"], "robot", "{line}");
+                value["kind"]["what"].as_str().unwrap().to_string()
+            })
+            .collect();
+        assert_eq!(
+            whats,
+            [
+                "world",
+                "pose",
+                "echoes",
+                "followed-wall",
+                "dock-found",
+                "planned-path"
+            ]
+        );
     }
 }

@@ -206,7 +206,7 @@ impl Node {
                 None
             }
         };
-        let children = tree::children(&config, &options);
+        let children = tree::children(&config, &options, &bus);
         let (root, _) = tree::start_root(children).await?;
         let bridges = events::bridge_supervisors(&bus, &root).await;
         tracing::info!(node = %config.name, "node started");
@@ -456,6 +456,11 @@ impl Node {
             }
         });
         let injector = Injector::start(plan, self.starter.clock.clone(), view, self.bus.clone());
+        // the robot's world first, before the run's own events (a node without a dispatcher
+        // refuses the run at once: no run starts)
+        if let (Some(robot), true) = (&self.robot, self.config.dispatcher) {
+            robot.run_starting(&self.bus).await;
+        }
         let result = self.dispatch(mission, inner).await;
         let faults = injector.finish();
         let _ = forwarder.await;

@@ -6,10 +6,18 @@
 //! through the [`Robot`] trait, which `marie-missions` implements for its simulated cart and
 //! an embedder implements for theirs. The operations a node can host come separately, as
 //! [`OperationFactory`](marie_actors::eo::OperationFactory)s: a catalogue.
+//!
+//! A robot also gets the node's [`EventBus`]: its drivers when they start
+//! ([`Robot::drivers`]) and the robot itself when a run starts ([`Robot::run_starting`]), so
+//! it can put what it sees *as it happens* into the node's one event stream
+//! ([`EventKind::Robot`](marie_actors::events::EventKind::Robot)) — a live monitor, or a
+//! replay of an events file, draws the robot from that stream alone, not from a picture made
+//! after the run.
 
 use marie_actors::clock::SharedClock;
 use marie_actors::dispatcher::RunReport;
 use marie_actors::dm::NewRecord;
+use marie_actors::events::EventBus;
 use marie_supervision::ChildSpec;
 use std::future::Future;
 use std::pin::Pin;
@@ -36,8 +44,19 @@ pub trait Robot: Send + Sync + 'static {
     fn apriori(&self) -> Vec<AprioriRecord>;
 
     /// The drivers of its hardware, started under the node's root supervisor after the
-    /// datamanagers and before the operations (the cart). Empty when the node runs none.
-    fn drivers(&self, clock: &SharedClock) -> Vec<ChildSpec>;
+    /// datamanagers and before the operations (the cart), on the node's `clock`, publishing
+    /// what they report on the node's `events` bus. Empty when the node runs none.
+    fn drivers(&self, clock: &SharedClock, events: &EventBus) -> Vec<ChildSpec>;
+
+    /// A run is about to start on this node (called before its dispatcher starts): publish
+    /// on `events` what a viewer of the run needs first (the world), and start reporting
+    /// the run as it goes. Does nothing unless the robot says otherwise. Publishing never
+    /// blocks ([`EventBus::publish`]), so this holds a run back no longer than the robot's
+    /// own set-up takes.
+    fn run_starting<'a>(&'a self, events: &'a EventBus) -> BoxFuture<'a, ()> {
+        let _ = events;
+        Box::pin(async {})
+    }
 
     /// Judge a finished run: fill the robot's part of `report` (final pose, collisions, seed,
     /// verdict) and turn a success into a failure when the robot did not end where it should.

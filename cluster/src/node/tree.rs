@@ -9,6 +9,7 @@ use marie_actors::clock::SharedClock;
 use marie_actors::dispatcher::DispatcherMsg;
 use marie_actors::dm::{self, DmArgs, DmClient, DmConfig};
 use marie_actors::eo::{HostOptions, OperationFactory};
+use marie_actors::events::EventBus;
 use marie_supervision::{
     ChildSpec, ChildTemplate, Restart, Shutdown, Supervisor, SupervisorError, SupervisorEvent,
     SupervisorRef, SupervisorSpec,
@@ -104,7 +105,11 @@ fn dynamic_supervisor() -> ChildSpec {
 
 /// The root's children, in start order: datamanagers, the robot's drivers, then one
 /// supervisor per operation supervisor of the config with the instances it names.
-pub(super) fn children(config: &NodeConfig, options: &NodeOptions) -> Vec<ChildSpec> {
+pub(super) fn children(
+    config: &NodeConfig,
+    options: &NodeOptions,
+    events: &EventBus,
+) -> Vec<ChildSpec> {
     let apriori = options
         .robot
         .as_ref()
@@ -119,7 +124,7 @@ pub(super) fn children(config: &NodeConfig, options: &NodeOptions) -> Vec<ChildS
         ));
     }
     if let Some(robot) = &options.robot {
-        children.extend(robot.drivers(&options.clock));
+        children.extend(robot.drivers(&options.clock, events));
     }
     let host = HostOptions::with_clock(options.clock.clone());
     let hosted = config.hosted(&options.catalog);

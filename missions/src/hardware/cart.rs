@@ -13,6 +13,7 @@
 
 use crate::geom::{Point, Pose};
 use crate::sim::{Simulation, SonarReading, TracePoint};
+use crate::telemetry::PoseSampler;
 use crate::world::Judgement;
 use marie_actors::clock::{cast_after, SharedClock};
 use marie_actors::fence::{Fence, FenceTable};
@@ -142,6 +143,9 @@ pub struct CartArgs {
     pub clock: SharedClock,
     /// Physics period, clock time.
     pub period: Duration,
+    /// Publishes the cart's pose on the node's event bus as it drives (sampled on the
+    /// physics ticks); `None`: the cart tells nobody.
+    pub poses: Option<PoseSampler>,
 }
 
 /// The virtual cart actor.
@@ -159,6 +163,7 @@ pub struct CartState {
     cap: Option<f64>,
     /// The newest epoch of each operation that commanded the cart.
     fences: FenceTable,
+    poses: Option<PoseSampler>,
 }
 
 impl CartState {
@@ -263,6 +268,7 @@ impl Actor for VirtualCart {
             commanded_at: Duration::ZERO,
             cap: None,
             fences: FenceTable::default(),
+            poses: args.poses,
         })
     }
 
@@ -276,6 +282,9 @@ impl Actor for VirtualCart {
             CartMsg::Tick {} => {
                 state.advance();
                 state.watchdog();
+                if let Some(poses) = &mut state.poses {
+                    poses.sample(state.sim.time(), &state.sim.pose());
+                }
                 schedule(&myself, &state.clock, state.period);
             }
             CartMsg::Drive { fence, .. }
