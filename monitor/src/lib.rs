@@ -7,7 +7,7 @@
 //!
 //! - [`state`]: the [`MonitorState`] reduced from [`Event`](marie_actors::events::Event)s
 //!   — task tree, bindings, cluster, robot, timeline, outcome.
-//! - `Monitor`: the server — live on an [`EventBus`](marie_actors::events::EventBus)
+//! - [`Monitor`]: the server — live on an [`EventBus`](marie_actors::events::EventBus)
 //!   (and whatever else feeds it events), or replaying a `.jsonl` file.
 //!
 //! **Invariant:** the monitor never slows the node it watches: it reads the bus like any
@@ -18,3 +18,9 @@
 pub mod state;
 
 pub use state::MonitorState;
+pub mod error;
+pub mod server;
+
+pub use error::MonitorError;
+pub use server::live::Feed;
+pub use server::{Monitor, MonitorHandle, MonitorOptions, DEFAULT_LISTEN};
