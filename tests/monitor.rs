@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::cluster::Proc;
+use common::cluster::{NodeProc, Proc};
 use common::{http, marie, text};
 use std::net::SocketAddr;
 use std::time::{Duration, Instant};
@@ -179,4 +179,80 @@ fn a_run_serves_its_live_state_while_the_mission_runs_and_its_outcome_after() {
     assert_eq!(after["bindings"]["wall-follower"]["rebinds"], 1);
     run.signal("INT");
     assert_eq!(run.wait_exit(), Some(0));
+}
+
+/// Poll `/api/state` until `ok` holds (at most [`common::cluster::EVENT_TIMEOUT`]).
+fn state_until(
+    addr: SocketAddr,
+    what: &str,
+    ok: impl Fn(&serde_json::Value) -> bool,
+) -> serde_json::Value {
+    let deadline = Instant::now() + common::cluster::EVENT_TIMEOUT;
+    loop {
+        let state = http::get_json(addr, "/api/state");
+        if ok(&state) {
+            return state;
+        }
+        assert!(Instant::now() < deadline, "never {what}: {state}");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
+fn hosts(state: &serde_json::Value, node: &str, module: &str) -> bool {
+    state["cluster"][node]["modules"]
+        .as_object()
+        .is_some_and(|m| m.values().any(|m| m["name"] == module))
+}
+
+#[test]
+fn a_monitor_joined_to_a_cluster_shows_its_nodes_their_modules_and_a_restart_on_one() {
+    const COOKIE: &str = "monitored";
+    let dir = tempfile::tempdir().unwrap();
+    let alpha = NodeProc::start(
+        dir.path(),
+        "alpha",
+        "[[datamanager]]\nname = \"feature\"\n[[operation]]\nname = \"sampler\"\n",
+        &[],
+        COOKIE,
+    );
+    let alpha_addr = alpha.addr.to_string();
+    let mut monitor = Proc::spawn(
+        "monitor",
+        &[
+            "monitor",
+            "--join",
+            &alpha_addr,
+            "--cookie",
+            COOKIE,
+            "--listen",
+            "127.0.0.1:0",
+        ],
+    );
+    let (addr, _) = page_of(&monitor.wait_line("monitor: http://"));
+    // what was there before the monitor joined
+    state_until(addr, "alpha hosting the sampler", |s| {
+        hosts(s, "alpha", "sampler")
+    });
+    // a node that comes later, its modules told by itself through the relay
+    let _beta = NodeProc::start(
+        dir.path(),
+        "beta",
+        "[[datamanager]]\nname = \"world\"\n[[operation]]\nname = \"averager\"\n",
+        &[alpha.addr],
+        COOKIE,
+    );
+    state_until(addr, "beta hosting the averager", |s| {
+        hosts(s, "beta", "averager") && s["cluster"]["beta"]["status"] == "up"
+    });
+    // a restart on alpha reaches the timeline
+    let out = marie(&["kill", "sampler", "--join", &alpha_addr, "--cookie", COOKIE]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    state_until(addr, "the restart on alpha in the timeline", |s| {
+        s["timeline"]["entries"].as_array().is_some_and(|e| {
+            e.iter()
+                .any(|e| e["class"] == "restart" && e["node"] == "alpha")
+        })
+    });
+    monitor.signal("INT");
+    assert_eq!(monitor.wait_exit(), Some(0));
 }

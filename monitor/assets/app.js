@@ -57,7 +57,7 @@ function renderTree(m) {
     .map((a) => {
       const ops = a.ops
         .map((o) => `<li class="op" data-op="${esc(o.name)}" data-ended="${esc(o.ended || "waiting")}">` +
-          `${esc(o.key)}${a.ends_on.includes(o.key) ? " ⏹" : ""}` +
+          `${esc(o.key)}${a.ends_on.includes(o.key) ? " <span class=\"ends\" title=\"ends the action\">(ends)</span>" : ""}` +
           `${o.ended ? " · " + esc(o.ended) : ""}${o.flags.length ? " " + flags(o.flags) : ""}</li>`)
         .join("");
       const when = a.when.length ? `<div class="when">when ${flags(a.when)}</div>` : "";
@@ -170,8 +170,11 @@ function renderRobot(r) {
 
 function fitView(svg, r) {
   const all = [];
-  if (r.world) r.world.walls.forEach(([a, b]) => all.push(a, b));
-  (r.path || []).forEach((p) => all.push(p));
+  if (r.world) {
+    r.world.walls.forEach(([a, b]) => all.push(a, b));
+    all.push(...(r.world.dock || []), ...(r.world.goal || []));
+  }
+  all.push(...(r.path || []), ...(r.planned_path || []), ...(r.dock_found || []));
   if (r.pose) all.push([r.pose.x, r.pose.y]);
   if (!all.length) return;
   let [x0, y0, x1, y1] = [Infinity, Infinity, -Infinity, -Infinity];

@@ -10,7 +10,9 @@
 use super::error::BadInput;
 use super::join::{join, member_name, JoinArgs, Target};
 use marie::actors::clock::ScaledClock;
-use marie::actors::events::{Event, EventBus, EventKind, ModuleInfo};
+use marie::actors::events::{
+    bridge_registry, Event, EventBus, EventKind, ModuleInfo, RegistryBridge,
+};
 use marie::actors::registry;
 use marie_monitor::{Feed, Monitor, MonitorError, MonitorHandle, MonitorOptions};
 use std::io::Write;
@@ -134,6 +136,7 @@ pub struct ClusterWatch {
     monitor: MonitorHandle,
     transport: marie::net::Transport,
     tasks: Vec<JoinHandle<()>>,
+    _registry: RegistryBridge,
 }
 
 impl ClusterWatch {
@@ -151,8 +154,12 @@ impl ClusterWatch {
             }
         };
         let feed = monitor.feed().expect("a live monitor has a feed");
-        // watching before listing: nothing between the two goes unseen
+        // watching before listing: nothing between the two goes unseen. The relay carries
+        // what each node tells of itself from now on; this member's registry, what any node
+        // hosts — also a node that starts later, whose modules joined before its relay
+        // knew of this watcher.
         let relay = relay_into(feed.clone()).await?;
+        let registry = bridge_registry(bus.clone(), None).await?;
         feed_listing(&feed, &bus);
         let news = marie::net::publish_on(&transport, bus);
         announce(&monitor, &format!("watching the cluster as {me}"));
@@ -160,6 +167,7 @@ impl ClusterWatch {
             monitor,
             transport,
             tasks: vec![relay, news],
+            _registry: registry,
         })
     }
 
