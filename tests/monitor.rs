@@ -256,3 +256,29 @@ fn a_monitor_joined_to_a_cluster_shows_its_nodes_their_modules_and_a_restart_on_
     monitor.signal("INT");
     assert_eq!(monitor.wait_exit(), Some(0));
 }
+
+#[test]
+fn up_with_a_monitor_shows_every_node_of_the_cluster_and_what_it_hosts() {
+    let mut up = Proc::spawn(
+        "up",
+        &[
+            "up",
+            "missions/clusters/thesis.toml",
+            "--monitor",
+            "127.0.0.1:0",
+        ],
+    );
+    let (addr, _) = page_of(&up.wait_line("monitor: http://"));
+    let state = state_until(addr, "the thesis' four nodes with their modules", |s| {
+        hosts(s, "cart", "virtual-cart")
+            && hosts(s, "features", "feature")
+            && hosts(s, "operations", "path-planner")
+            && hosts(s, "spare", "wall-follower")
+    });
+    for node in ["cart", "features", "operations", "spare"] {
+        assert_eq!(state["cluster"][node]["status"], "up", "{node}: {state}");
+    }
+    up.signal("INT");
+    up.wait_line("cluster stopped");
+    assert_eq!(up.wait_exit(), Some(0));
+}

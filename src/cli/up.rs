@@ -236,6 +236,9 @@ async fn serve(
     };
     let stop = super::signal::shutdown_signal(false);
     tokio::select! {
+        // the run first: with --monitor it waits for the same Ctrl-C after the mission, and
+        // then its outcome is the exit code
+        biased;
         result = super::run::run(run) => result,
         signal = stop => {
             println!("stopping the cluster ({signal}) before the mission ended");

@@ -27,7 +27,8 @@ use robot::RobotView;
 use serde::Serialize;
 use timeline::Timeline;
 
-/// Everything the page shows. Serialized as JSON for it (see the crate docs for the shape).
+/// Everything the page shows. Serialized as JSON for it: an object with these fields, each
+/// part as its type documents (field names as written here, enums in snake_case).
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct MonitorState {
     /// Events applied so far.
