@@ -191,7 +191,13 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         Some(listen) => {
             let (monitor, relay) =
                 super::monitor::start_live(node.events(), listen, transport.is_some()).await?;
-            super::monitor::announce(&monitor, &format!("mission `{}`", mission.name));
+            let what = format!("mission `{}`", mission.name);
+            if say {
+                super::monitor::announce(&monitor, &what);
+            } else {
+                // `--explain --json`: stdout holds the choices alone
+                eprintln!("monitor: {} ({what})", monitor.url());
+            }
             Some((monitor, relay))
         }
         None => None,
@@ -225,10 +231,17 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     if let Some((monitor, relay)) = monitor {
         // virtual time need not run on while the page is read
         drop(pace);
-        println!("monitor: the run is over; its page stays up until Ctrl-C");
-        let _ = std::io::Write::flush(&mut std::io::stdout());
+        let over = "monitor: the run is over; its page stays up until Ctrl-C";
+        if say {
+            println!("{over}");
+            let _ = std::io::Write::flush(&mut std::io::stdout());
+        } else {
+            eprintln!("{over}");
+        }
         let signal = super::signal::shutdown_signal(false).await;
-        println!("monitor stopped ({signal})");
+        if say {
+            println!("monitor stopped ({signal})");
+        }
         if let Some(relay) = relay {
             relay.abort();
         }
