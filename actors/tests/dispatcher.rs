@@ -373,7 +373,7 @@ async fn progress_events_follow_the_run() {
     assert_eq!(report.status, 1 << 4);
     let kinds: Vec<&EventKind> = events.iter().map(|e| &e.kind).collect();
     assert!(
-        matches!(kinds[0], EventKind::RunStarted { mission } if mission == "events"),
+        matches!(kinds[0], EventKind::RunStarted { mission, .. } if mission == "events"),
         "{kinds:?}"
     );
     assert!(

@@ -98,6 +98,8 @@ async fn a_report_is_rebuilt_with_its_faults_judgement_and_latest_rebinds() {
     };
     bus.publish(EventKind::RunStarted {
         mission: "m".into(),
+        actions: vec![],
+        success: vec![],
     });
     bus.publish(EventKind::ActionStarted {
         action: "a".into(),
@@ -178,6 +180,8 @@ async fn a_report_is_rebuilt_with_its_faults_judgement_and_latest_rebinds() {
     assert_eq!(builder.report(), &report);
     builder.apply(&EventKind::RunStarted {
         mission: "next".into(),
+        actions: vec![],
+        success: vec![],
     });
     assert_eq!(builder.report().actions.len(), 0);
     assert_eq!(builder.finish().mission, "next");

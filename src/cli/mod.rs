@@ -1,6 +1,6 @@
 //! The `marie` command line: the flags of every verb, and which verb runs what.
 //!
-//! One module per verb (`run`, `check`, `ls`, `props`, `kill`, `node`), each holding its flags and
+//! One module per verb (`run`, `check`, `ls`, `props`, `kill`, `node`, `up`, `monitor`), each holding its flags and
 //! its work; the modules beside them hold what verbs share: flags and parsers (`args`), the
 //! node a mission is prepared on (`prepare`), the printed lines (`output`), the runtime and
 //! tracing set-up (`runtime`) and how an error becomes an exit code (`error`).
@@ -14,6 +14,7 @@ pub mod files;
 pub mod join;
 pub mod kill;
 pub mod ls;
+pub mod monitor;
 pub mod node;
 pub mod output;
 pub mod prepare;
@@ -55,6 +56,9 @@ pub enum Command {
     Node(node::NodeArgs),
     /// Start the nodes of a cluster file as processes on 127.0.0.1, run a mission on them.
     Up(up::UpArgs),
+    /// Show a run in the browser: a running cluster live (`--join`), or a past run's events
+    /// file replayed (`--events`).
+    Monitor(monitor::MonitorArgs),
 }
 
 impl Command {
@@ -74,6 +78,7 @@ impl Command {
             Command::Props(args) => props::props(args).await,
             Command::Node(args) => node::node(args).await,
             Command::Up(args) => up::up(args).await,
+            Command::Monitor(args) => monitor::monitor(args).await,
         }
     }
 }

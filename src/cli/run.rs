@@ -66,6 +66,12 @@ pub struct RunArgs {
     /// picked by a generator seeded with SEED.
     #[arg(long, value_name = "SEED", value_parser = parse_seed, allow_hyphen_values = true)]
     pub chaos: Option<u64>,
+    /// Show the run live in the browser: serve the monitor's page on ADDR (default
+    /// 127.0.0.1:7700; port 0: one the OS picks), print its address, and after the run keep
+    /// serving its final state until Ctrl-C. With `--join`, the other nodes' events too.
+    #[arg(long, value_name = "ADDR", num_args = 0..=1,
+          default_missing_value = marie_monitor::DEFAULT_LISTEN)]
+    pub monitor: Option<std::net::SocketAddr>,
 }
 
 /// Pixels per metre of `--svg` pictures.
@@ -87,6 +93,7 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         faults,
         chaos,
         cluster,
+        monitor: monitor_listen,
     } = args;
     let progress = match (explain, json) {
         (true, true) => Progress::ChoicesAsJson,
@@ -112,7 +119,7 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     // The runtime's paused clock is the mission clock (the node's "real" clock reads it);
     // the pacer only holds it back to `speed`, from before the node starts to the end.
     // (a member of a cluster runs on the cluster's wall clock instead)
-    let _pace = joining
+    let pace = joining
         .is_none()
         .then(|| Pacer::new(speed.unwrap_or(f64::INFINITY)).spawn());
     let prepared = prepare(&path, robot, joining.as_ref()).await?;
@@ -180,6 +187,21 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         ),
         None => None,
     };
+    let monitor = match monitor_listen {
+        Some(listen) => {
+            let (monitor, relay) =
+                super::monitor::start_live(node.events(), listen, transport.is_some()).await?;
+            let what = format!("mission `{}`", mission.name);
+            if say {
+                super::monitor::announce(&monitor, &what);
+            } else {
+                // `--explain --json`: stdout holds the choices alone
+                eprintln!("monitor: {} ({what})", monitor.url());
+            }
+            Some((monitor, relay))
+        }
+        None => None,
+    };
     let report = node.run_with_faults(mission, Some(tx), plan).await;
     let _ = printer.await;
     let events = match events {
@@ -204,6 +226,26 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         if world.is_some() {
             println!("{}", outcome_line(&report));
         }
+    }
+
+    if let Some((monitor, relay)) = monitor {
+        // virtual time need not run on while the page is read
+        drop(pace);
+        let over = "monitor: the run is over; its page stays up until Ctrl-C";
+        if say {
+            println!("{over}");
+            let _ = std::io::Write::flush(&mut std::io::stdout());
+        } else {
+            eprintln!("{over}");
+        }
+        let signal = super::signal::shutdown_signal(false).await;
+        if say {
+            println!("monitor stopped ({signal})");
+        }
+        if let Some(relay) = relay {
+            relay.abort();
+        }
+        monitor.stop();
     }
 
     // Write every output asked for, even when one of them cannot be written.

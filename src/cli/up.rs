@@ -52,6 +52,12 @@ pub struct UpArgs {
     /// With `--run`: draw the robot's run here (SVG).
     #[arg(long, value_name = "FILE.svg", requires = "run")]
     pub svg: Option<PathBuf>,
+    /// Show the cluster live in the browser: serve the monitor's page on ADDR (default
+    /// 127.0.0.1:7700), print its address. With `--run`: the mission's run (its page stays
+    /// up after the run until Ctrl-C).
+    #[arg(long, value_name = "ADDR", num_args = 0..=1,
+          default_missing_value = marie_monitor::DEFAULT_LISTEN)]
+    pub monitor: Option<SocketAddr>,
 }
 
 /// Start the cluster, wait for it, run the mission or wait for a signal, stop it.
@@ -184,26 +190,25 @@ async fn serve(
         );
     }
     let Some(mission) = &args.run else {
-        println!("Ctrl-C stops the cluster");
-        let stop = super::signal::shutdown_signal(false);
-        tokio::pin!(stop);
-        loop {
-            tokio::select! {
-                signal = &mut stop => {
-                    println!("stopping the cluster ({signal})");
-                    return Ok(ExitCode::SUCCESS);
-                }
-                line = lines.recv() => match line {
-                    Some(Line { node, text: Some(text) }) => println!("[{node}] {text}"),
-                    Some(Line { node, text: None }) => println!("[{node}] exited"),
-                    None => {
-                        println!("every node has exited");
-                        return Ok(ExitCode::from(1));
-                    }
-                },
+        let watching = match args.monitor {
+            Some(listen) => {
+                let target = super::join::Target {
+                    addr: launches[0].listen,
+                    cookie: layout.cookie.clone(),
+                    tls: None,
+                };
+                let options = marie_monitor::MonitorOptions::new(listen);
+                Some(super::monitor::ClusterWatch::start(&target, options).await?)
             }
+            None => None,
+        };
+        let result = wait_for_signal(lines).await;
+        if let Some(w) = watching {
+            w.stop().await;
         }
+        return result;
     };
+
     let run = RunArgs {
         explain: false,
         json: false,
@@ -219,6 +224,7 @@ async fn serve(
         speed: Some(speed),
         faults: Vec::new(),
         chaos: None,
+        monitor: args.monitor,
         cluster: JoinArgs {
             join: Some(launches[0].listen),
             cookie: Some(layout.cookie.clone()),
@@ -230,10 +236,37 @@ async fn serve(
     };
     let stop = super::signal::shutdown_signal(false);
     tokio::select! {
+        // the run first: with --monitor it waits for the same Ctrl-C after the mission, and
+        // then its outcome is the exit code
+        biased;
         result = super::run::run(run) => result,
         signal = stop => {
             println!("stopping the cluster ({signal}) before the mission ended");
             Ok(ExitCode::from(1))
+        }
+    }
+}
+
+/// Print the nodes' lines until SIGINT or SIGTERM (success) or every node has exited
+/// (failure).
+async fn wait_for_signal(lines: &mut mpsc::UnboundedReceiver<Line>) -> anyhow::Result<ExitCode> {
+    println!("Ctrl-C stops the cluster");
+    let stop = super::signal::shutdown_signal(false);
+    tokio::pin!(stop);
+    loop {
+        tokio::select! {
+            signal = &mut stop => {
+                println!("stopping the cluster ({signal})");
+                return Ok(ExitCode::SUCCESS);
+            }
+            line = lines.recv() => match line {
+                Some(Line { node, text: Some(text) }) => println!("[{node}] {text}"),
+                Some(Line { node, text: None }) => println!("[{node}] exited"),
+                None => {
+                    println!("every node has exited");
+                    return Ok(ExitCode::from(1));
+                }
+            },
         }
     }
 }

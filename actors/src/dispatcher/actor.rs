@@ -224,6 +224,8 @@ impl Actor for ActionDispatcher {
                 state.started = state.clock.now();
                 state.emit(EventKind::RunStarted {
                     mission: state.mission.name.clone(),
+                    actions: state.mission.plan(),
+                    success: state.mission.flags_to_names(state.mission.success),
                 });
                 if let Err(reason) = state.watch_registry(&myself).await {
                     state.finish(&myself, Outcome::Failed, reason);

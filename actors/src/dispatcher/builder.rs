@@ -48,7 +48,7 @@ impl ReportBuilder {
     /// starts a new report.
     pub fn apply(&mut self, kind: &EventKind) {
         match kind {
-            EventKind::RunStarted { mission } => {
+            EventKind::RunStarted { mission, .. } => {
                 *self = ReportBuilder::new();
                 self.report.mission = mission.clone();
             }

@@ -18,6 +18,14 @@ pub enum EventKind {
     RunStarted {
         /// Mission name.
         mission: String,
+        /// The mission's task tree: its actions in file order (absent in older streams,
+        /// and left out of a line when empty).
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        actions: Vec<ActionPlan>,
+        /// The flags that must all be set for the mission to succeed, as names (absent in
+        /// older streams).
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        success: Vec<String>,
     },
     /// Every operation of the mission was found and bound.
     Bound {
@@ -238,6 +246,19 @@ pub enum EventKind {
         /// Its details.
         data: serde_json::Value,
     },
+}
+
+/// An action of a mission as its run announces it: what a monitor draws as the task tree.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ActionPlan {
+    /// Action name.
+    pub name: String,
+    /// Its condition: the flags (by name) the status word must hold for it to run.
+    pub when: Vec<String>,
+    /// Its operations (names), in the mission's order.
+    pub ops: Vec<String>,
+    /// The keys of the operations whose finishing ends it.
+    pub ends_on: Vec<String>,
 }
 
 /// An operation instance a binding holds.

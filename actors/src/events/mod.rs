@@ -19,7 +19,7 @@
 //! `succeeded|failed`, `fault` `kill|panic|hang`. One example line per kind:
 //!
 //! ```json
-//! {"at_ms":1200,"node":"marie@localhost","kind":{"type":"run_started","mission":"docking"}}
+//! {"at_ms":1200,"node":"marie@localhost","kind":{"type":"run_started","mission":"docking","actions":[{"name":"follow","when":["wall_found"],"ops":["wall-follower","docking-detector"],"ends_on":["docking-detector"]}],"success":["parked"]}}
 //! {"at_ms":1240,"node":"marie@localhost","kind":{"type":"selected","choice":{"operation":"wall-follower","candidates":[{"address":"0.41","node":"marie@localhost","version":"1.0.0","schema":["distance"],"flags":["aligned"],"verdict":{"type":"chosen"}},{"address":"0.42","node":"marie@localhost","version":"2.0.0","schema":["distance","mode"],"flags":["aligned"],"verdict":{"type":"lost","reason":"its schema also declares mode the mission does not supply; 0.41 (version 1.0.0) fits exactly"}}]}}}
 //! {"at_ms":1250,"node":"marie@localhost","kind":{"type":"bound","operations":[{"name":"wall-follower","version":"1.0.0","node":"marie@localhost"}]}}
 //! {"at_ms":1260,"node":"marie@localhost","kind":{"type":"action_started","action":"follow","run_ms":60,"operations":[{"key":"wall-follower","name":"wall-follower","id":1512,"version":"1.0.0","node":"marie@localhost","address":"0.41"}]}}
@@ -81,7 +81,7 @@ mod kind;
 mod registry_bridge;
 
 pub use bus::{BusError, EventBus, EventSubscription, DEFAULT_CAPACITY};
-pub use kind::{BoundOp, EventKind, ModuleInfo, OpStarted};
+pub use kind::{ActionPlan, BoundOp, EventKind, ModuleInfo, OpStarted};
 pub use registry_bridge::{bridge_registry, RegistryBridge};
 
 use serde::{Deserialize, Serialize};

@@ -301,6 +301,20 @@ impl Mission {
             .collect()
     }
 
+    /// The task tree as a run announces it ([`EventKind::RunStarted`](crate::events::EventKind::RunStarted)):
+    /// each action's name, condition flags by name, operations and the keys it ends on.
+    pub fn plan(&self) -> Vec<crate::events::ActionPlan> {
+        self.actions
+            .iter()
+            .map(|a| crate::events::ActionPlan {
+                name: a.name.clone(),
+                when: self.flags_to_names(a.when),
+                ops: a.ops.iter().map(|o| o.name.clone()).collect(),
+                ends_on: a.ends_on.clone(),
+            })
+            .collect()
+    }
+
     /// The operation keys the mission uses, each once, in order of first use.
     pub fn ops(&self) -> impl Iterator<Item = &str> + '_ {
         let mut seen = BTreeSet::new();

@@ -1,0 +1,304 @@
+// marie monitor: draws the state the server reduces from the event stream.
+// Live: one EventSource on /api/live (snapshot, state, lagged). Replay: the state at time T
+// from /api/replay/state?at_ms=T, T moved by play/pause, speed and the slider.
+// Plain JavaScript, no build step; every element has a stable id, class or data attribute
+// (browser tests query them).
+"use strict";
+
+const token = new URLSearchParams(location.search).get("token");
+const withToken = (path) =>
+  token ? path + (path.includes("?") ? "&" : "?") + "token=" + encodeURIComponent(token) : path;
+const $ = (sel) => document.querySelector(sel);
+const esc = (s) =>
+  String(s ?? "").replace(/[&<>"']/g, (c) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;", "'": "&#39;" })[c]);
+const fmtMs = (ms) => (ms == null ? "" : (ms / 1000).toFixed(1) + " s");
+
+let selectedOp = null;
+let latest = null;
+
+async function getJson(path) {
+  const res = await fetch(withToken(path), { cache: "no-store" });
+  if (!res.ok) throw new Error(path + ": " + res.status);
+  return res.json();
+}
+
+// --- drawing -----------------------------------------------------------------------------
+
+function render(state) {
+  latest = state;
+  renderHeader(state);
+  renderTree(state.mission);
+  renderBindings(state.bindings);
+  renderCluster(state.cluster);
+  renderRobot(state.robot);
+  renderTimeline(state.timeline);
+}
+
+function renderHeader(state) {
+  const m = state.mission;
+  $("#mission-name").textContent = m.name ? "mission " + m.name : "no run yet";
+  $("#clock").textContent = fmtMs(state.at_ms) + " · " + state.events + " events" +
+    (state.missed ? " · " + state.missed + " missed" : "");
+  const out = $("#outcome");
+  const o = m.outcome;
+  const verdict = o ? o.outcome : m.name ? "running" : "waiting";
+  out.dataset.outcome = verdict;
+  out.textContent = o ? verdict + (o.reason ? ": " + o.reason : "") : verdict;
+  out.title = o && o.judgement ? o.judgement : "";
+}
+
+function flags(list, cls) {
+  return (list || []).map((f) => `<span class="flag ${cls || ""}" data-flag="${esc(f)}">${esc(f)}</span>`).join("");
+}
+
+function renderTree(m) {
+  $("#flags").innerHTML = flags(m.flags, "status");
+  $("#tree").innerHTML = m.actions
+    .map((a) => {
+      const ops = a.ops
+        .map((o) => `<li class="op" data-op="${esc(o.name)}" data-ended="${esc(o.ended || "waiting")}">` +
+          `${esc(o.key)}${a.ends_on.includes(o.key) ? " <span class=\"ends\" title=\"ends the action\">(ends)</span>" : ""}` +
+          `${o.ended ? " · " + esc(o.ended) : ""}${o.flags.length ? " " + flags(o.flags) : ""}</li>`)
+        .join("");
+      const when = a.when.length ? `<div class="when">when ${flags(a.when)}</div>` : "";
+      const span = a.started_ms != null ? ` ${fmtMs(a.started_ms)}${a.ended_ms != null ? "–" + fmtMs(a.ended_ms) : ""}` : "";
+      return `<li class="action" data-action="${esc(a.name)}" data-state="${a.state}">` +
+        `<span class="name">${esc(a.name)}</span><span class="state">${a.state}${span}</span>` +
+        `${when}<ul class="ops">${ops}</ul></li>`;
+    })
+    .join("");
+}
+
+function renderBindings(bindings) {
+  const rows = Object.values(bindings).map((b) => {
+    const hist = b.history.length
+      ? `<tr class="history-row" data-op="${esc(b.operation)}"><td colspan="6"><ul class="history">` +
+        b.history.map((h) => `<li class="${h.type}" data-type="${h.type}">${fmtMs(h.at_ms)} ${esc(describeStep(h))}</li>`).join("") +
+        `</ul></td></tr>`
+      : "";
+    return `<tr class="binding${selectedOp === b.operation ? " selected" : ""}" data-op="${esc(b.operation)}" ` +
+      `data-status="${b.status}" data-rebinds="${b.rebinds}">` +
+      `<td>${esc(b.operation)}</td><td class="address">${esc(b.address)}</td><td>${esc(b.node)}</td>` +
+      `<td>${esc(b.version)}</td><td>${b.rebinds}</td><td>${b.status}</td></tr>${hist}`;
+  });
+  $("#bindings tbody").innerHTML = rows.join("");
+  renderProps(bindings);
+}
+
+function describeStep(h) {
+  switch (h.type) {
+    case "lost": return "lost: " + h.cause;
+    case "rebound": return `rebound ${h.from} → ${h.to} (${h.to_node}) after ${h.downtime_ms} ms: ${h.cause}`;
+    case "gave_up": return `gave up after ${h.waited_ms} ms: ${h.cause}`;
+    default: return h.type;
+  }
+}
+
+function renderProps(bindings) {
+  const box = $("#props");
+  const b = selectedOp && bindings[selectedOp];
+  if (!b) { box.hidden = true; box.innerHTML = ""; return; }
+  box.hidden = false;
+  box.dataset.op = b.operation;
+  const cands = b.candidates
+    .map((c) => `<tr class="candidate" data-verdict="${c.verdict.type}"><td>${esc(c.address)}</td><td>${esc(c.node)}</td>` +
+      `<td>${esc(c.version)}</td><td>${esc(c.schema.join(", "))}</td><td>${flags(c.flags)}</td>` +
+      `<td>${esc(c.verdict.type)}${c.verdict.reason ? ": " + esc(c.verdict.reason) : ""}</td></tr>`)
+    .join("");
+  box.innerHTML = `<strong>${esc(b.operation)}</strong> — bound to ${esc(b.address)} on ${esc(b.node)}, version ${esc(b.version)}, ` +
+    `${b.rebinds} rebind(s), ${b.status}` +
+    (cands ? `<table class="candidates"><thead><tr><th>address</th><th>node</th><th>version</th><th>parameters</th><th>flags</th><th>verdict</th></tr></thead><tbody>${cands}</tbody></table>` : "");
+}
+
+function renderCluster(cluster) {
+  $("#cluster").innerHTML = Object.values(cluster)
+    .map((n) => {
+      const mods = Object.values(n.modules);
+      return `<div class="node" data-node="${esc(n.name)}" data-status="${n.status}">` +
+        `<strong>${esc(n.name)}</strong> <span class="status">${n.status}</span> ${esc(n.address || "")}` +
+        `<div class="modules">${mods.length} module(s): ` +
+        mods.map((m) => `<span class="module" data-kind="${m.kind}" data-module="${esc(m.name)}">${esc(m.name)}</span>`).join(", ") +
+        `</div></div>`;
+    })
+    .join("");
+}
+
+const pts = (list) => (list || []).map((p) => p[0].toFixed(3) + "," + p[1].toFixed(3)).join(" ");
+
+function thin(points, limit) {
+  if (points.length <= limit) return points;
+  const step = (points.length - 1) / (limit - 1);
+  const out = [];
+  for (let i = 0; i < limit; i++) out.push(points[Math.min(points.length - 1, Math.round(i * step))]);
+  return out;
+}
+
+function renderRobot(r) {
+  const w = r.world;
+  const svg = $("#world");
+  svg.dataset.hasWorld = w ? "true" : "false";
+  if (w) {
+    $("#walls").innerHTML = w.walls.map(([a, b]) => `<line x1="${a[0]}" y1="${a[1]}" x2="${b[0]}" y2="${b[1]}"></line>`).join("");
+    $("#dock").innerHTML = w.dock ? `<polygon points="${pts(w.dock)}"></polygon>` : "";
+    $("#goal").innerHTML = w.goal ? `<polygon points="${pts(w.goal)}"></polygon>` : "";
+  }
+  const path = thin(r.path || [], 1000);
+  $("#path").setAttribute("points", pts(path));
+  $("#path").dataset.points = String(path.length);
+  $("#planned-path").setAttribute("points", pts(r.planned_path));
+  $("#dock-found").setAttribute("points", pts(r.dock_found));
+  $("#echoes").innerHTML = (r.echoes || []).map((p) => `<circle cx="${p[0]}" cy="${p[1]}" r="0.04"></circle>`).join("");
+  const fw = $("#followed-wall");
+  if (r.followed_wall) {
+    const [a, b] = r.followed_wall;
+    fw.setAttribute("x1", a[0]); fw.setAttribute("y1", a[1]); fw.setAttribute("x2", b[0]); fw.setAttribute("y2", b[1]);
+    fw.setAttribute("visibility", "visible");
+  } else fw.setAttribute("visibility", "hidden");
+  const fp = $("#footprint");
+  if (r.pose && w && w.cart) {
+    const { x, y, heading } = r.pose;
+    const [l, wd] = [w.cart.length / 2, w.cart.width / 2];
+    const c = Math.cos(heading), s = Math.sin(heading);
+    const corners = [[l, wd], [-l, wd], [-l, -wd], [l, -wd]].map(([u, v]) => [x + u * c - v * s, y + u * s + v * c]);
+    fp.setAttribute("points", pts(corners));
+  } else fp.setAttribute("points", "");
+  fitView(svg, r);
+  $("#robot-info").textContent = r.pose
+    ? `pose (${r.pose.x.toFixed(2)}, ${r.pose.y.toFixed(2)}, ${(r.pose.heading * 180 / Math.PI).toFixed(0)}°) · ${r.poses} poses · ${r.collisions} collision(s)`
+    : w ? "no pose yet" : "no robot in this run";
+}
+
+function fitView(svg, r) {
+  const all = [];
+  if (r.world) {
+    r.world.walls.forEach(([a, b]) => all.push(a, b));
+    all.push(...(r.world.dock || []), ...(r.world.goal || []));
+  }
+  all.push(...(r.path || []), ...(r.planned_path || []), ...(r.dock_found || []));
+  if (r.pose) all.push([r.pose.x, r.pose.y]);
+  if (!all.length) return;
+  let [x0, y0, x1, y1] = [Infinity, Infinity, -Infinity, -Infinity];
+  for (const [x, y] of all) { x0 = Math.min(x0, x); y0 = Math.min(y0, y); x1 = Math.max(x1, x); y1 = Math.max(y1, y); }
+  const m = 0.5;
+  // the frame flips y (world y up): the view spans -y1..-y0
+  svg.setAttribute("viewBox", `${x0 - m} ${-y1 - m} ${x1 - x0 + 2 * m} ${y1 - y0 + 2 * m}`);
+}
+
+function renderTimeline(t) {
+  const list = $("#timeline");
+  const atBottom = list.scrollTop + list.clientHeight >= list.scrollHeight - 4;
+  list.innerHTML = (t.dropped ? `<li class="dropped">${t.dropped} earlier entries dropped</li>` : "") +
+    t.entries
+      .map((e) => `<li class="entry ${e.class}" data-class="${e.class}"><span class="at">${fmtMs(e.at_ms)}</span>` +
+        `<span class="src">${esc(e.node)}</span>${esc(e.text)}</li>`)
+      .join("");
+  if (atBottom) list.scrollTop = list.scrollHeight;
+}
+
+$("#bindings tbody").addEventListener("click", (ev) => {
+  const row = ev.target.closest("tr[data-op]");
+  if (!row) return;
+  selectedOp = selectedOp === row.dataset.op ? null : row.dataset.op;
+  if (latest) renderBindings(latest.bindings);
+});
+
+function banner(text) {
+  const b = $("#banner");
+  b.textContent = text;
+  b.hidden = false;
+  clearTimeout(banner.timer);
+  banner.timer = setTimeout(() => { b.hidden = true; }, 5000);
+}
+
+// --- live ----------------------------------------------------------------------------------
+
+function live() {
+  const source = new EventSource(withToken("/api/live"));
+  const take = (ev) => render(JSON.parse(ev.data));
+  source.addEventListener("snapshot", take);
+  source.addEventListener("state", take);
+  source.addEventListener("lagged", (ev) => {
+    const { missed } = JSON.parse(ev.data);
+    $("#banner").dataset.missed = String(missed);
+    banner(`this page fell behind and skipped ${missed} update(s); resynchronised from a snapshot`);
+  });
+  source.onerror = () => banner("the live connection was interrupted; reconnecting…");
+}
+
+// --- replay --------------------------------------------------------------------------------
+
+async function replay() {
+  const info = await getJson("/api/replay/info");
+  $("#replay-controls").hidden = false;
+  const slider = $("#slider");
+  slider.min = String(info.start_ms);
+  slider.max = String(info.end_ms);
+  slider.value = String(info.start_ms);
+  let t = info.start_ms;
+  let playing = false;
+  let inFlight = false;
+  let wanted = null;
+  let last = performance.now();
+
+  async function show(at) {
+    wanted = at;
+    if (inFlight) return;
+    inFlight = true;
+    try {
+      while (wanted !== null) {
+        const ask = wanted;
+        wanted = null;
+        render(await getJson("/api/replay/state?at_ms=" + Math.round(ask)));
+        $("#replay-time").textContent = fmtMs(ask - info.start_ms) + " / " + fmtMs(info.duration_ms);
+        $("#replay-time").dataset.atMs = String(Math.round(ask));
+      }
+    } catch (e) {
+      banner(String(e));
+    } finally {
+      inFlight = false;
+    }
+  }
+
+  function setPlaying(p) {
+    playing = p;
+    const b = $("#play");
+    b.dataset.playing = String(p);
+    b.textContent = p ? "pause" : "play";
+    last = performance.now();
+  }
+
+  $("#play").addEventListener("click", () => {
+    if (!playing && t >= info.end_ms) t = info.start_ms;
+    setPlaying(!playing);
+  });
+  slider.addEventListener("input", () => {
+    t = Number(slider.value);
+    show(t);
+  });
+  setInterval(() => {
+    const now = performance.now();
+    const dt = now - last;
+    last = now;
+    if (!playing) return;
+    t = Math.min(info.end_ms, t + dt * Number($("#speed").value));
+    slider.value = String(Math.round(t));
+    show(t);
+    if (t >= info.end_ms) setPlaying(false);
+  }, 100);
+  show(t);
+}
+
+// --- start ---------------------------------------------------------------------------------
+
+(async () => {
+  try {
+    const info = await getJson("/api/info");
+    const mode = $("#mode");
+    mode.dataset.mode = info.mode;
+    mode.textContent = info.mode;
+    if (info.mode === "replay") await replay();
+    else live();
+  } catch (e) {
+    banner("cannot reach the monitor: " + e);
+  }
+})();

@@ -1,0 +1,193 @@
+//! Live mode: the state kept up to date from a node's bus (and whatever else is fed in),
+//! and pushed to every viewer over one server-sent-events connection.
+//!
+//! Why it cannot stall the node: the monitor reads the bus as one more subscriber (the bus
+//! is a bounded broadcast; a subscriber that falls behind loses the oldest events, and the
+//! state counts them in `missed`), on the monitor's own thread. The reducer only applies an
+//! event under a short lock and bumps a version. At most [`UPDATES_PER_SECOND`] a ticker
+//! serializes the changed state once, for every viewer, into a bounded broadcast of
+//! [`VIEWER_BUFFER`] updates; each viewer's connection takes from it at its own pace. A
+//! viewer that fell more than that behind is told `lagged` (with how many updates it lost),
+//! then gets a fresh `snapshot` — its lag costs the node nothing.
+
+use crate::state::MonitorState;
+use axum::response::sse::{Event as SseEvent, KeepAlive, Sse};
+use futures_util::stream::{self, Stream};
+use marie_actors::events::{BusError, Event, EventSubscription};
+use std::convert::Infallible;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+use tokio::sync::{broadcast, mpsc, watch};
+
+/// Updates pushed to a viewer per second, at most.
+pub const UPDATES_PER_SECOND: u64 = 10;
+/// Updates a viewer may fall behind before it is told `lagged` and resynchronised.
+pub const VIEWER_BUFFER: usize = 8;
+/// Events fed in (not from the bus) that may wait for the reducer; more are lost, counted.
+pub const FEED_CAPACITY: usize = 4096;
+
+/// The live state shared by the reducer, the ticker and the viewers.
+pub struct Live {
+    state: Mutex<MonitorState>,
+    version: watch::Sender<u64>,
+    updates: broadcast::Sender<Arc<str>>,
+}
+
+/// A way to feed events into a live monitor besides its bus: another node's events from the
+/// cluster's relay, a listing of modules that joined before the monitor started. Never
+/// waits: when the monitor is behind, an event is lost and counted in the state's `missed`.
+#[derive(Clone)]
+pub struct Feed {
+    tx: mpsc::Sender<Event>,
+    lost: Arc<AtomicU64>,
+}
+
+impl Feed {
+    /// Offer one event; false when it was lost (the monitor behind, or stopped).
+    pub fn offer(&self, event: Event) -> bool {
+        let ok = self.tx.try_send(event).is_ok();
+        if !ok {
+            self.lost.fetch_add(1, Ordering::Relaxed);
+        }
+        ok
+    }
+}
+
+impl std::fmt::Debug for Feed {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Feed").finish_non_exhaustive()
+    }
+}
+
+impl Live {
+    /// A live state, and the feed and its receiving end for [`Live::reduce`].
+    pub fn new() -> (Arc<Live>, Feed, mpsc::Receiver<Event>) {
+        let (tx, rx) = mpsc::channel(FEED_CAPACITY);
+        let live = Arc::new(Live {
+            state: Mutex::new(MonitorState::default()),
+            version: watch::Sender::new(0),
+            updates: broadcast::Sender::new(VIEWER_BUFFER),
+        });
+        let feed = Feed {
+            tx,
+            lost: Arc::new(AtomicU64::new(0)),
+        };
+        (live, feed, rx)
+    }
+
+    fn apply(&self, event: &Event) {
+        self.lock().apply(event);
+        self.version.send_modify(|v| *v += 1);
+    }
+
+    fn missed(&self, n: u64) {
+        self.lock().missed += n;
+        self.version.send_modify(|v| *v += 1);
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, MonitorState> {
+        // a panic while applying leaves a state worth showing still
+        self.state.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// The state as the page draws it, as JSON.
+    pub fn snapshot(&self) -> Arc<str> {
+        let page = self.lock().for_page();
+        Arc::from(serde_json::to_string(&page).unwrap_or_else(|e| {
+            tracing::error!(error = %e, "cannot serialize the monitor's state");
+            "{}".into()
+        }))
+    }
+
+    /// Apply the bus's events and the fed ones until both end.
+    pub async fn reduce(
+        self: Arc<Self>,
+        mut bus: Option<EventSubscription>,
+        mut fed: mpsc::Receiver<Event>,
+        feed: Feed,
+    ) {
+        let mut fed_open = true;
+        loop {
+            tokio::select! {
+                received = next_of(&mut bus) => match received {
+                    Ok(event) => self.apply(&event),
+                    Err(BusError::Lagged { missed }) => {
+                        tracing::warn!(missed, "the monitor fell behind the node's bus");
+                        self.missed(missed);
+                    }
+                    Err(BusError::Closed) => bus = None,
+                },
+                event = fed.recv(), if fed_open => match event {
+                    Some(event) => {
+                        self.apply(&event);
+                        let lost = feed.lost.swap(0, Ordering::Relaxed);
+                        if lost > 0 {
+                            self.missed(lost);
+                        }
+                    }
+                    None => fed_open = false,
+                },
+            }
+            if bus.is_none() && !fed_open {
+                return;
+            }
+        }
+    }
+
+    /// Push the state to the viewers whenever it changed, at most
+    /// [`UPDATES_PER_SECOND`] times a second, until the state's last handle is gone.
+    pub async fn tick(self: Arc<Self>) {
+        let mut version = self.version.subscribe();
+        let period = Duration::from_millis(1000 / UPDATES_PER_SECOND);
+        loop {
+            if version.changed().await.is_err() {
+                return;
+            }
+            version.mark_unchanged();
+            if self.updates.receiver_count() > 0 {
+                let _ = self.updates.send(self.snapshot());
+            }
+            tokio::time::sleep(period).await;
+        }
+    }
+
+    /// A viewer's connection: `snapshot` first, then `state` on every update; after a lag,
+    /// `lagged` (`{"missed": n}`) and a fresh `snapshot`.
+    pub fn viewer(self: Arc<Self>) -> Sse<impl Stream<Item = Result<SseEvent, Infallible>>> {
+        let rx = self.updates.subscribe();
+        let first = SseEvent::default()
+            .event("snapshot")
+            .data(self.snapshot().as_ref());
+        let pending = vec![first];
+        let stream = stream::unfold((self, rx, pending), |(live, mut rx, mut pending)| async {
+            if let Some(next) = pending.pop() {
+                return Some((Ok(next), (live, rx, pending)));
+            }
+            let event = match rx.recv().await {
+                Ok(update) => SseEvent::default().event("state").data(update.as_ref()),
+                Err(broadcast::error::RecvError::Lagged(missed)) => {
+                    pending.push(
+                        SseEvent::default()
+                            .event("snapshot")
+                            .data(live.snapshot().as_ref()),
+                    );
+                    SseEvent::default()
+                        .event("lagged")
+                        .data(format!("{{\"missed\":{missed}}}"))
+                }
+                Err(broadcast::error::RecvError::Closed) => return None,
+            };
+            Some((Ok(event), (live, rx, pending)))
+        });
+        Sse::new(stream).keep_alive(KeepAlive::default())
+    }
+}
+
+/// The next event of the bus; pending forever without one.
+async fn next_of(bus: &mut Option<EventSubscription>) -> Result<Event, BusError> {
+    match bus {
+        Some(sub) => sub.recv().await,
+        None => std::future::pending().await,
+    }
+}

@@ -1,0 +1,329 @@
+//! The monitor's HTTP server: the page and its API, on a thread of its own.
+//!
+//! Routes (every one behind the token when one is required, see [`token`]):
+//!
+//! | route | answer |
+//! |---|---|
+//! | `GET /` | the page (`/app.js`, `/style.css` beside it) |
+//! | `GET /api/info` | `{"mode": "live" \| "replay", "token_required": bool}` |
+//! | `GET /api/state` | the state now (live) or after the whole run (replay), JSON |
+//! | `GET /api/live` | live only: server-sent events — `snapshot` (the state), then `state` on each change (at most 10 a second), `lagged` (`{"missed": n}`) then `snapshot` after a viewer fell behind |
+//! | `GET /api/replay/info` | replay only: `{"events", "start_ms", "end_ms", "duration_ms"}` |
+//! | `GET /api/replay/state?at_ms=T` | replay only: the state after every event up to T |
+//!
+//! Why a thread of its own: a node's `marie run` runs on a single-threaded runtime whose
+//! clock is virtual; the monitor's serving, serializing and rate limiting must take none of
+//! that thread's time and must tick in real time. The monitor runs a current-thread tokio
+//! runtime on its thread; the node's side only publishes on its bus, as it always does.
+
+pub mod assets;
+pub mod live;
+pub mod replay;
+pub mod token;
+
+use crate::error::MonitorError;
+use axum::extract::{Query, State};
+use axum::http::{header, StatusCode};
+use axum::response::{IntoResponse, Response};
+use axum::routing::get;
+use axum::Router;
+use live::{Feed, Live};
+use marie_actors::events::EventBus;
+use replay::Replay;
+use serde::Deserialize;
+use std::net::SocketAddr;
+use std::path::Path;
+use std::sync::Arc;
+use tokio::sync::oneshot;
+
+/// Where and how a monitor listens.
+#[derive(Clone, Debug)]
+pub struct MonitorOptions {
+    /// The address to listen on (port 0: one the OS picks; see [`MonitorHandle::addr`]).
+    pub listen: SocketAddr,
+    /// Require a token on loopback too (beyond loopback one is always required).
+    pub require_token: bool,
+}
+
+impl MonitorOptions {
+    /// Listen on `listen`, a token only beyond loopback.
+    pub fn new(listen: SocketAddr) -> MonitorOptions {
+        MonitorOptions {
+            listen,
+            require_token: false,
+        }
+    }
+}
+
+/// The default address of `marie monitor`.
+pub const DEFAULT_LISTEN: &str = "127.0.0.1:7700";
+
+/// The monitor's server.
+pub struct Monitor;
+
+/// A running monitor: where it listens, its token, a feed of more events (live), and how to
+/// stop it. Dropping it stops it too.
+pub struct MonitorHandle {
+    addr: SocketAddr,
+    token: Option<String>,
+    feed: Option<Feed>,
+    stop: Option<oneshot::Sender<()>>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+/// What the server serves.
+enum Source {
+    Live(Arc<Live>),
+    Replay(Arc<Replay>),
+}
+
+struct App {
+    source: Source,
+    token: Option<String>,
+}
+
+type Shared = Arc<App>;
+
+impl Monitor {
+    /// Serve the live state of the node whose bus is `bus`: every event it publishes from
+    /// now on (more may be fed in, [`MonitorHandle::feed`]).
+    pub fn live(bus: &EventBus, options: MonitorOptions) -> Result<MonitorHandle, MonitorError> {
+        Monitor::live_from(Some(bus), options)
+    }
+
+    /// Serve a live state fed only through [`MonitorHandle::feed`] (and `bus`, if given).
+    pub fn live_from(
+        bus: Option<&EventBus>,
+        options: MonitorOptions,
+    ) -> Result<MonitorHandle, MonitorError> {
+        let subscription = bus.map(EventBus::subscribe);
+        let (live, feed, fed) = Live::new();
+        let tasks_live = live.clone();
+        let tasks_feed = feed.clone();
+        let mut handle = start(options, Source::Live(live.clone()), move || {
+            tokio::spawn(tasks_live.clone().reduce(subscription, fed, tasks_feed));
+            tokio::spawn(tasks_live.tick());
+        })?;
+        handle.feed = Some(feed);
+        Ok(handle)
+    }
+
+    /// Serve the replay of the events file at `path`.
+    pub fn replay(path: &Path, options: MonitorOptions) -> Result<MonitorHandle, MonitorError> {
+        let replay = Arc::new(Replay::load(path)?);
+        start(options, Source::Replay(replay), || {})
+    }
+}
+
+impl MonitorHandle {
+    /// The address it listens on.
+    pub fn addr(&self) -> SocketAddr {
+        self.addr
+    }
+
+    /// The token every request must carry, when one is required.
+    pub fn token(&self) -> Option<&str> {
+        self.token.as_deref()
+    }
+
+    /// The page's URL, with the token when one is required.
+    pub fn url(&self) -> String {
+        match &self.token {
+            Some(t) => format!("http://{}/?token={t}", self.addr),
+            None => format!("http://{}/", self.addr),
+        }
+    }
+
+    /// Feed more events into a live monitor (`None` for a replay).
+    pub fn feed(&self) -> Option<Feed> {
+        self.feed.clone()
+    }
+
+    /// Stop serving (viewers' connections close) and wait for the monitor's thread.
+    pub fn stop(mut self) {
+        self.stop_now();
+    }
+
+    fn stop_now(&mut self) {
+        if let Some(stop) = self.stop.take() {
+            let _ = stop.send(());
+        }
+        if let Some(thread) = self.thread.take() {
+            let _ = thread.join();
+        }
+    }
+}
+
+impl Drop for MonitorHandle {
+    fn drop(&mut self) {
+        self.stop_now();
+    }
+}
+
+/// Bind, then serve `source` on a thread of its own; `spawn` starts the source's tasks on
+/// the monitor's runtime.
+fn start(
+    options: MonitorOptions,
+    source: Source,
+    spawn: impl FnOnce() + Send + 'static,
+) -> Result<MonitorHandle, MonitorError> {
+    let bind = |source| MonitorError::Bind {
+        addr: options.listen,
+        source,
+    };
+    let listener = std::net::TcpListener::bind(options.listen).map_err(bind)?;
+    listener.set_nonblocking(true).map_err(bind)?;
+    let addr = listener.local_addr().map_err(bind)?;
+    let token = token::required(options.listen, options.require_token).then(token::generate);
+    let app = Arc::new(App {
+        source,
+        token: token.clone(),
+    });
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .map_err(MonitorError::Runtime)?;
+    let (stop, stopped) = oneshot::channel::<()>();
+    let thread = std::thread::Builder::new()
+        .name("marie-monitor".into())
+        .spawn(move || {
+            runtime.block_on(async move {
+                spawn();
+                let listener = match tokio::net::TcpListener::from_std(listener) {
+                    Ok(l) => l,
+                    Err(e) => {
+                        tracing::error!(error = %e, "the monitor cannot listen");
+                        return;
+                    }
+                };
+                let serve = axum::serve(listener, router(app));
+                tokio::select! {
+                    served = serve => if let Err(e) = served {
+                        tracing::error!(error = %e, "the monitor stopped serving");
+                    },
+                    _ = stopped => {}
+                }
+            });
+            // dropping the runtime ends the viewers' connections and the source's tasks
+        })
+        .map_err(MonitorError::Runtime)?;
+    tracing::info!(%addr, "monitor listening");
+    Ok(MonitorHandle {
+        addr,
+        token,
+        feed: None,
+        stop: Some(stop),
+        thread: Some(thread),
+    })
+}
+
+fn router(app: Shared) -> Router {
+    let token = Arc::new(app.token.clone());
+    Router::new()
+        .route("/", get(index))
+        .route("/index.html", get(index))
+        .route("/app.js", get(app_js))
+        .route("/style.css", get(style_css))
+        .route("/api/info", get(info))
+        .route("/api/state", get(state))
+        .route("/api/live", get(live_events))
+        .route("/api/replay/info", get(replay_info))
+        .route("/api/replay/state", get(replay_state))
+        .layer(axum::middleware::from_fn_with_state(token, token::check))
+        .with_state(app)
+}
+
+fn json_of<T: serde::Serialize>(value: &T) -> Response {
+    match serde_json::to_string(value) {
+        Ok(body) => json_body(body),
+        Err(e) => (StatusCode::INTERNAL_SERVER_ERROR, e.to_string()).into_response(),
+    }
+}
+
+fn json_body(body: impl Into<axum::body::Body>) -> Response {
+    (
+        [
+            (header::CONTENT_TYPE, "application/json"),
+            (header::CACHE_CONTROL, "no-store"),
+        ],
+        body.into(),
+    )
+        .into_response()
+}
+
+fn not_here(what: &str) -> Response {
+    (StatusCode::NOT_FOUND, format!("{what}\n")).into_response()
+}
+
+async fn index(State(app): State<Shared>) -> Response {
+    (
+        [(header::CONTENT_TYPE, "text/html; charset=utf-8")],
+        assets::index(app.token.as_deref()),
+    )
+        .into_response()
+}
+
+async fn app_js() -> Response {
+    (
+        [(header::CONTENT_TYPE, "text/javascript; charset=utf-8")],
+        assets::APP_JS,
+    )
+        .into_response()
+}
+
+async fn style_css() -> Response {
+    (
+        [(header::CONTENT_TYPE, "text/css; charset=utf-8")],
+        assets::STYLE_CSS,
+    )
+        .into_response()
+}
+
+async fn info(State(app): State<Shared>) -> Response {
+    let mode = match app.source {
+        Source::Live(_) => "live",
+        Source::Replay(_) => "replay",
+    };
+    json_of(&serde_json::json!({"mode": mode, "token_required": app.token.is_some()}))
+}
+
+async fn state(State(app): State<Shared>) -> Response {
+    match &app.source {
+        Source::Live(live) => json_body(live.snapshot().to_string()),
+        Source::Replay(replay) => json_of(&replay.final_state()),
+    }
+}
+
+async fn live_events(State(app): State<Shared>) -> Response {
+    match &app.source {
+        Source::Live(live) => live.clone().viewer().into_response(),
+        Source::Replay(_) => not_here("a replay has no live stream: ask /api/replay/state?at_ms=T"),
+    }
+}
+
+async fn replay_info(State(app): State<Shared>) -> Response {
+    match &app.source {
+        Source::Replay(replay) => json_of(&replay.info()),
+        Source::Live(_) => not_here("a live monitor replays nothing: see /api/live"),
+    }
+}
+
+/// `?at_ms=T`.
+#[derive(Deserialize)]
+struct At {
+    at_ms: u64,
+}
+
+async fn replay_state(State(app): State<Shared>, Query(at): Query<At>) -> Response {
+    match &app.source {
+        Source::Replay(replay) => {
+            let replay = replay.clone();
+            // applying events is CPU work: off the serving task
+            match tokio::task::spawn_blocking(move || replay.state_at(at.at_ms)).await {
+                Ok(state) => json_of(&state),
+                Err(e) => (StatusCode::INTERNAL_SERVER_ERROR, e.to_string()).into_response(),
+            }
+        }
+        Source::Live(_) => not_here("a live monitor replays nothing: see /api/live"),
+    }
+}

@@ -1,0 +1,133 @@
+//! Replay mode: a past run's events file, the state at any moment of it.
+//!
+//! The page plays a run by asking for the state at successive times (at the speed chosen),
+//! pauses by not asking, and seeks with its slider: the state at T is every event up to T
+//! applied in order. A cursor remembers the latest state asked for, so playing forward
+//! applies only the events since; seeking back starts over (a run's file is small: a
+//! docking run is a few hundred events without the robot's, some thousands with them).
+
+use crate::error::MonitorError;
+use crate::state::MonitorState;
+use marie_actors::events::Event;
+use serde::Serialize;
+use std::path::Path;
+use std::sync::Mutex;
+
+/// A loaded run.
+pub struct Replay {
+    events: Vec<Event>,
+    cursor: Mutex<(usize, MonitorState)>,
+}
+
+/// What the page needs to set up its controls.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+pub struct ReplayInfo {
+    /// Events in the file.
+    pub events: usize,
+    /// Time of the first event, ms.
+    pub start_ms: u64,
+    /// Time of the last event, ms.
+    pub end_ms: u64,
+    /// `end_ms - start_ms`.
+    pub duration_ms: u64,
+}
+
+impl Replay {
+    /// Read `path` (one event per line; blank lines skipped), ordered by time (a cluster's
+    /// file interleaves nodes; their order at equal times is kept).
+    pub fn load(path: &Path) -> Result<Replay, MonitorError> {
+        let text = std::fs::read_to_string(path).map_err(|source| MonitorError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let mut events = Vec::new();
+        for (i, line) in text.lines().enumerate() {
+            if line.trim().is_empty() {
+                continue;
+            }
+            events.push(
+                Event::from_json_line(line).map_err(|source| MonitorError::Parse {
+                    path: path.to_path_buf(),
+                    line: i + 1,
+                    source,
+                })?,
+            );
+        }
+        Ok(Replay::new(events))
+    }
+
+    /// A replay of `events`.
+    pub fn new(mut events: Vec<Event>) -> Replay {
+        events.sort_by_key(|e| e.at_ms);
+        Replay {
+            events,
+            cursor: Mutex::new((0, MonitorState::default())),
+        }
+    }
+
+    /// Its extent.
+    pub fn info(&self) -> ReplayInfo {
+        let start_ms = self.events.first().map_or(0, |e| e.at_ms);
+        let end_ms = self.events.last().map_or(0, |e| e.at_ms);
+        ReplayInfo {
+            events: self.events.len(),
+            start_ms,
+            end_ms,
+            duration_ms: end_ms - start_ms,
+        }
+    }
+
+    /// The state after every event at or before `at_ms`, as the page draws it.
+    pub fn state_at(&self, at_ms: u64) -> MonitorState {
+        let mut cursor = self.cursor.lock().unwrap_or_else(|e| e.into_inner());
+        let (next, state) = &mut *cursor;
+        if *next > 0 && self.events[*next - 1].at_ms > at_ms {
+            *next = 0;
+            *state = MonitorState::default();
+        }
+        while let Some(e) = self.events.get(*next).filter(|e| e.at_ms <= at_ms) {
+            state.apply(e);
+            *next += 1;
+        }
+        state.for_page()
+    }
+
+    /// The state after the whole run.
+    pub fn final_state(&self) -> MonitorState {
+        self.state_at(u64::MAX)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use marie_actors::events::EventKind;
+
+    fn at(ms: u64) -> Event {
+        Event {
+            at_ms: ms,
+            node: "n".into(),
+            kind: EventKind::NodeFrozen { silent_ms: ms },
+        }
+    }
+
+    #[test]
+    fn the_state_at_a_time_has_every_event_up_to_it_forward_and_back() {
+        let replay = Replay::new(vec![at(30), at(10), at(20), at(20)]);
+        assert_eq!(
+            replay.info(),
+            ReplayInfo {
+                events: 4,
+                start_ms: 10,
+                end_ms: 30,
+                duration_ms: 20
+            }
+        );
+        assert_eq!(replay.state_at(5).events, 0);
+        assert_eq!(replay.state_at(20).events, 3);
+        assert_eq!(replay.state_at(25).events, 3);
+        assert_eq!(replay.state_at(10).events, 1);
+        assert_eq!(replay.final_state().events, 4);
+        assert_eq!(replay.state_at(0).events, 0);
+    }
+}

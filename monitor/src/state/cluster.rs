@@ -1,0 +1,129 @@
+//! The cluster: every node the stream names, whether it is up, and the modules it hosts —
+//! what the page's cluster panel draws.
+//!
+//! A node is known from any event it publishes (it is up then) and from its peers' news of
+//! it (seen, lost, declared down); what it hosts from the registry's joins and leaves, each
+//! told by the module's own node.
+
+use marie_actors::events::ModuleInfo;
+use serde::Serialize;
+use std::collections::BTreeMap;
+
+/// What is known of one node.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct NodeView {
+    /// Its name.
+    pub name: String,
+    /// `up`, `lost` (its sessions ended), `down` (declared down by a failure detector) or
+    /// `frozen` (it was frozen past its peers' deadline and restarts its operations).
+    pub status: &'static str,
+    /// The address it listens on, when a peer said.
+    pub address: Option<String>,
+    /// When its status last changed, ms of the reporting node's clock.
+    pub since_ms: u64,
+    /// The modules it hosts, by actor address.
+    pub modules: BTreeMap<String, ModuleView>,
+}
+
+/// A module in the location table.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ModuleView {
+    /// `operation`, `datamanager`, `dispatcher` or `hardware`.
+    pub kind: &'static str,
+    /// Its name.
+    pub name: String,
+    /// Its numeric id.
+    pub id: u32,
+    /// Its actor address.
+    pub address: String,
+}
+
+/// Every node, by name.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+#[serde(transparent)]
+pub struct Cluster(pub BTreeMap<String, NodeView>);
+
+impl Cluster {
+    fn of(&mut self, name: &str, at_ms: u64) -> &mut NodeView {
+        self.0.entry(name.to_string()).or_insert_with(|| NodeView {
+            name: name.to_string(),
+            status: "up",
+            address: None,
+            since_ms: at_ms,
+            modules: BTreeMap::new(),
+        })
+    }
+
+    fn set(&mut self, name: &str, at_ms: u64, status: &'static str) -> &mut NodeView {
+        let node = self.of(name, at_ms);
+        if node.status != status {
+            node.status = status;
+            node.since_ms = at_ms;
+        }
+        node
+    }
+
+    /// `node` published an event: it is alive (known, and up unless it said otherwise).
+    pub fn heard_from(&mut self, node: &str, at_ms: u64) {
+        let n = self.of(node, at_ms);
+        if n.status != "frozen" {
+            n.status = "up";
+        }
+    }
+
+    /// A peer's session is ready.
+    pub fn up(&mut self, peer: &str, address: &str, at_ms: u64) {
+        self.set(peer, at_ms, "up").address = Some(address.to_string());
+    }
+
+    /// A peer's sessions ended: its modules left.
+    pub fn lost(&mut self, peer: &str, address: &str, at_ms: u64) {
+        let node = self.of(peer, at_ms);
+        // declared down is the stronger news; losing the sessions follows it
+        if node.status != "down" {
+            node.status = "lost";
+            node.since_ms = at_ms;
+        }
+        node.address = Some(address.to_string());
+        node.modules.clear();
+    }
+
+    /// A failure detector declared a peer down.
+    pub fn down(&mut self, peer: &str, at_ms: u64) {
+        self.set(peer, at_ms, "down").modules.clear();
+    }
+
+    /// A node found it was frozen past its peers' deadline.
+    pub fn frozen(&mut self, node: &str, at_ms: u64) {
+        self.set(node, at_ms, "frozen");
+    }
+
+    /// A module joined the location table.
+    pub fn joined(&mut self, m: &ModuleInfo, at_ms: u64) {
+        let node = self.of(&m.node, at_ms);
+        node.modules.insert(
+            m.address.clone(),
+            ModuleView {
+                kind: kind_label(m),
+                name: m.name.clone(),
+                id: m.id,
+                address: m.address.clone(),
+            },
+        );
+    }
+
+    /// A module left the location table.
+    pub fn left(&mut self, m: &ModuleInfo, at_ms: u64) {
+        self.of(&m.node, at_ms).modules.remove(&m.address);
+    }
+}
+
+fn kind_label(m: &ModuleInfo) -> &'static str {
+    use marie_actors::registry::ModuleKind;
+    match m.module {
+        ModuleKind::Operation => "operation",
+        ModuleKind::Datamanager => "datamanager",
+        ModuleKind::Dispatcher => "dispatcher",
+        ModuleKind::Hardware => "hardware",
+    }
+}

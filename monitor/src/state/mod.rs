@@ -1,0 +1,283 @@
+//! The monitor's state: everything the page shows, reduced from the node's (or the
+//! cluster's) event stream one [`Event`] at a time.
+//!
+//! Why a reducer: the live page, a replay at any moment of a past run and the tests all
+//! need the same picture of a run, and the event stream is the one source that every node,
+//! every `--events` file and the relay of a cluster already carry. Applying the events of a
+//! file up to time T gives the page's state at T; applying them as they come gives the
+//! live state. Nothing here waits or does I/O.
+//!
+//! One concept per file: the mission's task tree ([`mission`]), the bindings
+//! ([`bindings`]), the cluster ([`cluster`]), the robot ([`robot`]), the timeline
+//! ([`timeline`]). Every part is bounded (history, timeline, path), so a long run cannot
+//! grow the monitor without limit.
+
+pub mod bindings;
+pub mod cluster;
+pub mod mission;
+pub mod robot;
+pub mod timeline;
+
+use bindings::Bindings;
+use cluster::Cluster;
+use marie_actors::dispatcher::Outcome;
+use marie_actors::events::{Event, EventKind};
+use mission::MissionView;
+use robot::RobotView;
+use serde::Serialize;
+use timeline::Timeline;
+
+/// Everything the page shows. Serialized as JSON for it: an object with these fields, each
+/// part as its type documents (field names as written here, enums in snake_case).
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct MonitorState {
+    /// Events applied so far.
+    pub events: u64,
+    /// The time of the latest event applied, ms of its node's clock.
+    pub at_ms: u64,
+    /// Events the monitor itself lost (it fell behind the bus or the relay).
+    pub missed: u64,
+    /// The mission's run: task tree, flags, outcome.
+    pub mission: MissionView,
+    /// The bindings, by operation.
+    pub bindings: Bindings,
+    /// The nodes, by name.
+    pub cluster: Cluster,
+    /// The robot in its world.
+    pub robot: RobotView,
+    /// Faults, restarts, rebinds, node news.
+    pub timeline: Timeline,
+}
+
+impl MonitorState {
+    /// The state after `events`, in order.
+    pub fn from_events<'a>(events: impl IntoIterator<Item = &'a Event>) -> MonitorState {
+        let mut state = MonitorState::default();
+        for e in events {
+            state.apply(e);
+        }
+        state
+    }
+
+    /// Apply one event.
+    pub fn apply(&mut self, event: &Event) {
+        self.events += 1;
+        self.at_ms = self.at_ms.max(event.at_ms);
+        let (at, node) = (event.at_ms, event.node.as_str());
+        self.cluster.heard_from(node, at);
+        let line = &mut self.timeline;
+        match &event.kind {
+            EventKind::RunStarted {
+                mission,
+                actions,
+                success,
+            } => {
+                self.mission.started(mission, actions, success);
+                self.bindings.clear();
+                line.push(at, node, "run", format!("mission `{mission}` started"));
+            }
+            EventKind::Selected { choice } => self.bindings.selected(choice),
+            EventKind::Bound { operations } => self.bindings.bound(operations),
+            EventKind::ActionStarted {
+                action,
+                run_ms,
+                operations,
+            } => {
+                self.mission.action_started(action, *run_ms, operations);
+                self.bindings.activated(operations);
+                line.push(at, node, "action", format!("action `{action}` started"));
+            }
+            EventKind::OpEnded {
+                action,
+                key,
+                ended,
+                flags,
+            } => self.mission.op_ended(action, key, *ended, flags),
+            EventKind::ActionEnded {
+                action,
+                run_ms,
+                flags,
+                ..
+            } => {
+                self.mission.action_ended(action, *run_ms, flags);
+                line.push(at, node, "action", format!("action `{action}` ended"));
+            }
+            EventKind::RunEnded {
+                outcome,
+                reason,
+                run_ms,
+                flags,
+                ..
+            } => {
+                self.mission.run_ended(*outcome, reason, *run_ms, flags);
+                line.push(at, node, "run", ended_text("run", *outcome, reason));
+            }
+            EventKind::Judged {
+                outcome,
+                reason,
+                final_pose,
+                collisions,
+                judgement,
+                ..
+            } => {
+                self.mission.judged(
+                    *outcome,
+                    reason,
+                    judgement.as_deref(),
+                    *final_pose,
+                    *collisions,
+                );
+                line.push(at, node, "run", ended_text("judged", *outcome, reason));
+            }
+            EventKind::Lost { operation, cause } => {
+                self.bindings.lost(at, operation, cause);
+                line.push(at, node, "lost", format!("{operation} lost: {cause}"));
+            }
+            EventKind::Rebound(r) => {
+                self.bindings.rebound(at, r);
+                line.push(
+                    at,
+                    node,
+                    "rebind",
+                    format!(
+                        "{} rebound: {} -> {} ({} ms)",
+                        r.operation, r.from, r.to, r.downtime_ms
+                    ),
+                );
+            }
+            EventKind::RebindGaveUp {
+                operation,
+                cause,
+                waited_ms,
+            } => {
+                self.bindings.gave_up(at, operation, cause, *waited_ms);
+                line.push(
+                    at,
+                    node,
+                    "gave_up",
+                    format!("no stand-in for {operation} within {waited_ms} ms"),
+                );
+            }
+            EventKind::Joined(m) => self.cluster.joined(m, at),
+            EventKind::Left(m) => self.cluster.left(m, at),
+            EventKind::ChildStarted { .. } => {}
+            EventKind::ChildExited {
+                supervisor,
+                child,
+                reason,
+            } => line.push(
+                at,
+                node,
+                "exit",
+                format!("{child} exited under {supervisor}: {reason}"),
+            ),
+            EventKind::ChildRestarted {
+                supervisor,
+                child,
+                restarts,
+                reason,
+                ..
+            } => line.push(
+                at,
+                node,
+                "restart",
+                format!("{supervisor} restarted {child} (restart {restarts}): {reason}"),
+            ),
+            EventKind::SupervisorGaveUp { supervisor, reason } => line.push(
+                at,
+                node,
+                "gave_up",
+                format!("supervisor {supervisor} gave up: {reason}"),
+            ),
+            EventKind::FaultInjected {
+                fault,
+                operation,
+                actor,
+                ..
+            } => line.push(
+                at,
+                node,
+                "fault",
+                format!("{} injected into {operation} ({actor})", fault_name(fault)),
+            ),
+            EventKind::FaultNotInjected {
+                fault,
+                operation,
+                why,
+                ..
+            } => line.push(
+                at,
+                node,
+                "fault",
+                format!("{} not injected into {operation}: {why}", fault_name(fault)),
+            ),
+            EventKind::NodeUp { peer, address } => {
+                self.cluster.up(peer, address, at);
+                line.push(at, node, "node", format!("{node} sees {peer} ({address})"));
+            }
+            EventKind::NodeLost { peer, address } => {
+                self.cluster.lost(peer, address, at);
+                line.push(at, node, "node", format!("{node} lost {peer} ({address})"));
+            }
+            EventKind::NodeDown { peer, silent_ms } => {
+                self.cluster.down(peer, at);
+                line.push(
+                    at,
+                    node,
+                    "node",
+                    format!("{node} declared {peer} down (silent {silent_ms} ms)"),
+                );
+            }
+            EventKind::NodeFrozen { silent_ms } => {
+                self.cluster.frozen(node, at);
+                line.push(
+                    at,
+                    node,
+                    "node",
+                    format!("{node} was frozen {silent_ms} ms: restarts its operations"),
+                );
+            }
+            EventKind::NodeRefused { peer, theirs, ours } => line.push(
+                at,
+                node,
+                "node",
+                format!("{node} refused {peer} (protocol {theirs}, ours {ours})"),
+            ),
+            EventKind::ConnectionRefused { from, reason } => line.push(
+                at,
+                node,
+                "node",
+                format!("{node} refused a connection from {from}: {reason}"),
+            ),
+            EventKind::Robot { what, data } => {
+                let drawn = self.robot.apply(what, data);
+                if !drawn || matches!(what.as_str(), "dock-found" | "collision") {
+                    line.push(at, node, "robot", format!("robot: {what}"));
+                }
+            }
+        }
+    }
+
+    /// The state as the page draws it: the robot's path thinned to at most
+    /// [`robot::DRAW_LIMIT`] points.
+    pub fn for_page(&self) -> MonitorState {
+        MonitorState {
+            robot: self.robot.for_drawing(),
+            ..self.clone()
+        }
+    }
+}
+
+fn ended_text(what: &str, outcome: Outcome, reason: &str) -> String {
+    match outcome {
+        Outcome::Succeeded => format!("{what}: succeeded"),
+        Outcome::Failed => format!("{what}: failed: {reason}"),
+    }
+}
+
+fn fault_name(fault: &marie_actors::eo::FaultKind) -> String {
+    serde_json::to_value(fault)
+        .ok()
+        .and_then(|v| v.as_str().map(str::to_string))
+        .unwrap_or_else(|| format!("{fault:?}"))
+}

@@ -1,0 +1,240 @@
+//! The robot in its world: walls, dock, goal, the cart's size, the driven path, the latest
+//! sonar echoes, the followed wall, the planned path and the dock found — what the page's
+//! robot panel draws, reduced from the robot's [`EventKind::Robot`] events.
+//!
+//! The contract with the simulated robot (`what` and its `data`): `world` once at the start
+//! `{"walls": [[[x1,y1],[x2,y2]], ...], "dock": [[x,y],...] | null, "goal": [[x,y],...] |
+//! null, "cart": {"length", "width"}}`; `pose` `{"x","y","heading"}` about every 100 ms;
+//! `echoes` `{"points": [[x,y], ...]}` (world frame); `planned-path` `{"points": [...]}`;
+//! `followed-wall` `{"from": [x,y], "to": [x,y]}`; `dock-found` `{"corners": [...]}`.
+//! Anything else is ignored here (it may still reach the timeline); data that does not fit
+//! the contract leaves the state as it was.
+//!
+//! Bounded: the path keeps the latest [`PATH_LIMIT`] poses (halving its resolution rather
+//! than dropping its start), and [`RobotView::for_drawing`] thins it to at most
+//! [`DRAW_LIMIT`] points for the page.
+//!
+//! [`EventKind::Robot`]: marie_actors::events::EventKind::Robot
+
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+
+/// The path keeps at most this many poses.
+pub const PATH_LIMIT: usize = 5000;
+/// The page is sent at most this many path points.
+pub const DRAW_LIMIT: usize = 1000;
+
+/// A point of the plane, metres.
+pub type Point = [f64; 2];
+
+/// The cart's pose.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Pose {
+    /// x, m.
+    pub x: f64,
+    /// y, m.
+    pub y: f64,
+    /// Heading, rad.
+    pub heading: f64,
+}
+
+/// The cart's footprint size.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CartSize {
+    /// Length, m.
+    pub length: f64,
+    /// Width, m.
+    pub width: f64,
+}
+
+/// The world, as the robot announced it.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct WorldView {
+    /// Wall segments.
+    #[serde(default)]
+    pub walls: Vec<[Point; 2]>,
+    /// The docking spot's outline.
+    #[serde(default)]
+    pub dock: Option<Vec<Point>>,
+    /// The goal area's outline.
+    #[serde(default)]
+    pub goal: Option<Vec<Point>>,
+    /// The cart's size.
+    #[serde(default)]
+    pub cart: Option<CartSize>,
+}
+
+/// The robot's part of the state.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct RobotView {
+    /// The world, once announced.
+    pub world: Option<WorldView>,
+    /// The latest pose.
+    pub pose: Option<Pose>,
+    /// The driven path (bounded, see the module docs).
+    pub path: Vec<Point>,
+    /// Poses received in all.
+    pub poses: u64,
+    /// The latest sonar echoes (world frame).
+    pub echoes: Vec<Point>,
+    /// The wall being followed.
+    pub followed_wall: Option<[Point; 2]>,
+    /// The planned path.
+    pub planned_path: Vec<Point>,
+    /// The dock the detector found.
+    pub dock_found: Option<Vec<Point>>,
+    /// Collisions reported.
+    pub collisions: u64,
+}
+
+#[derive(Deserialize)]
+struct Points {
+    points: Vec<Point>,
+}
+
+#[derive(Deserialize)]
+struct FromTo {
+    from: Point,
+    to: Point,
+}
+
+#[derive(Deserialize)]
+struct Corners {
+    corners: Vec<Point>,
+}
+
+impl RobotView {
+    /// Apply one robot event (`what`, `data`); false when it was not one of the contract's
+    /// (or its data did not fit).
+    pub fn apply(&mut self, what: &str, data: &Value) -> bool {
+        fn parse<T: for<'de> Deserialize<'de>>(data: &Value) -> Option<T> {
+            T::deserialize(data).ok()
+        }
+        match what {
+            "world" => parse::<WorldView>(data)
+                .map(|w| self.world = Some(w))
+                .is_some(),
+            "pose" => parse::<Pose>(data).map(|p| self.pose_at(p)).is_some(),
+            "echoes" => parse::<Points>(data)
+                .map(|p| self.echoes = p.points)
+                .is_some(),
+            "planned-path" => parse::<Points>(data)
+                .map(|p| self.planned_path = p.points)
+                .is_some(),
+            "followed-wall" => parse::<FromTo>(data)
+                .map(|w| self.followed_wall = Some([w.from, w.to]))
+                .is_some(),
+            "dock-found" => parse::<Corners>(data)
+                .map(|c| self.dock_found = Some(c.corners))
+                .is_some(),
+            "collision" => {
+                self.collisions += 1;
+                true
+            }
+            _ => false,
+        }
+    }
+
+    fn pose_at(&mut self, pose: Pose) {
+        self.pose = Some(pose);
+        self.poses += 1;
+        if self.path.len() >= PATH_LIMIT {
+            // halve the resolution of what was driven: the whole path stays drawn
+            self.path = thin(&self.path, PATH_LIMIT / 2);
+        }
+        self.path.push([pose.x, pose.y]);
+    }
+
+    /// This view with its path thinned to at most [`DRAW_LIMIT`] points (the first and the
+    /// latest kept).
+    pub fn for_drawing(&self) -> RobotView {
+        RobotView {
+            path: thin(&self.path, DRAW_LIMIT),
+            ..self.clone()
+        }
+    }
+}
+
+/// At most `limit` points of `points`, evenly spaced, the first and the last kept.
+pub fn thin(points: &[Point], limit: usize) -> Vec<Point> {
+    let n = points.len();
+    if n <= limit {
+        return points.to_vec();
+    }
+    if limit < 2 {
+        return points.last().copied().into_iter().collect();
+    }
+    let step = (n - 1) as f64 / (limit - 1) as f64;
+    (0..limit)
+        .map(|i| points[((i as f64 * step).round() as usize).min(n - 1)])
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    #[test]
+    fn the_contract_events_fill_the_view() {
+        let mut r = RobotView::default();
+        assert!(r.apply(
+            "world",
+            &json!({"walls": [[[0.0, 0.0], [5.0, 0.0]]], "dock": [[1.0, 1.0], [2.0, 1.0]],
+                    "goal": null, "cart": {"length": 0.6, "width": 0.4}})
+        ));
+        assert!(r.apply("pose", &json!({"x": 1.0, "y": 2.0, "heading": 0.5})));
+        assert!(r.apply("echoes", &json!({"points": [[1.0, 1.0], [2.0, 2.0]]})));
+        assert!(r.apply("planned-path", &json!({"points": [[0.0, 0.0], [3.0, 1.0]]})));
+        assert!(r.apply(
+            "followed-wall",
+            &json!({"from": [0.0, 0.0], "to": [5.0, 0.0]})
+        ));
+        assert!(r.apply("dock-found", &json!({"corners": [[1.0, 1.0], [2.0, 1.0]]})));
+        let world = r.world.as_ref().unwrap();
+        assert_eq!(world.walls, vec![[[0.0, 0.0], [5.0, 0.0]]]);
+        assert_eq!(world.goal, None);
+        assert_eq!(world.cart.unwrap().width, 0.4);
+        assert_eq!(r.pose.unwrap().heading, 0.5);
+        assert_eq!(r.path, vec![[1.0, 2.0]]);
+        assert_eq!(r.echoes.len(), 2);
+        assert_eq!(r.planned_path[1], [3.0, 1.0]);
+        assert_eq!(r.followed_wall, Some([[0.0, 0.0], [5.0, 0.0]]));
+        assert_eq!(r.dock_found.as_ref().unwrap().len(), 2);
+    }
+
+    #[test]
+    fn data_off_the_contract_changes_nothing() {
+        let mut r = RobotView::default();
+        assert!(!r.apply("pose", &json!({"x": "one"})));
+        assert!(!r.apply("echoes", &json!([1, 2])));
+        assert!(!r.apply("something-else", &json!({})));
+        assert_eq!(r, RobotView::default());
+    }
+
+    #[test]
+    fn the_path_stays_bounded_and_is_thinned_for_drawing() {
+        let mut r = RobotView::default();
+        for i in 0..20_000 {
+            r.apply("pose", &json!({"x": i as f64, "y": 0.0, "heading": 0.0}));
+        }
+        assert_eq!(r.poses, 20_000);
+        assert!(r.path.len() <= PATH_LIMIT);
+        assert_eq!(r.path[0], [0.0, 0.0]);
+        assert_eq!(*r.path.last().unwrap(), [19_999.0, 0.0]);
+        let drawn = r.for_drawing();
+        assert!(drawn.path.len() <= DRAW_LIMIT);
+        assert_eq!(drawn.path[0], [0.0, 0.0]);
+        assert_eq!(*drawn.path.last().unwrap(), [19_999.0, 0.0]);
+    }
+
+    #[test]
+    fn thinning_keeps_short_paths_whole() {
+        let pts: Vec<Point> = (0..10).map(|i| [i as f64, 0.0]).collect();
+        assert_eq!(thin(&pts, 1000), pts);
+        assert_eq!(
+            thin(&pts, 4),
+            vec![[0.0, 0.0], [3.0, 0.0], [6.0, 0.0], [9.0, 0.0]]
+        );
+    }
+}

@@ -1,0 +1,182 @@
+//! `marie monitor`: the web page of a run — live on a running cluster (`--join ADDR
+//! --cookie C`), or the replay of a past run (`--events FILE.jsonl`); and the live monitor
+//! `run --monitor` and `up --monitor` start on their own run.
+//!
+//! The server is `marie_monitor`'s (its own thread; the node it watches only publishes on its
+//! bus). This module joins the cluster when asked, feeds the monitor what the bus alone does
+//! not carry — the modules that joined before it started, the other nodes' events from the
+//! cluster's relay — prints the page's address and waits for Ctrl-C.
+
+use super::error::BadInput;
+use super::join::{join, member_name, JoinArgs, Target};
+use marie::actors::clock::ScaledClock;
+use marie::actors::events::{
+    bridge_registry, Event, EventBus, EventKind, ModuleInfo, RegistryBridge,
+};
+use marie::actors::registry;
+use marie_monitor::{Feed, Monitor, MonitorError, MonitorHandle, MonitorOptions};
+use std::io::Write;
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::Arc;
+use tokio::task::JoinHandle;
+
+/// Events of the other nodes a monitor keeps while it is behind.
+const FROM_OTHERS: usize = 4096;
+
+/// Flags of `marie monitor`.
+#[derive(clap::Args, Debug)]
+pub struct MonitorArgs {
+    /// Replay a past run from its events file (`run --events FILE.jsonl`): play, pause,
+    /// speed and a time slider on the page.
+    #[arg(long, value_name = "FILE.jsonl", conflicts_with = "join")]
+    pub events: Option<PathBuf>,
+    /// `--join ADDR --cookie C`: watch a running cluster live.
+    #[command(flatten)]
+    pub cluster: JoinArgs,
+    /// Serve the page here (port 0: one the OS picks; the address is printed). Beyond
+    /// loopback every request needs the token printed at the start.
+    #[arg(long, value_name = "ADDR", default_value = marie_monitor::DEFAULT_LISTEN)]
+    pub listen: SocketAddr,
+    /// Require the token on loopback too.
+    #[arg(long)]
+    pub require_token: bool,
+}
+
+/// Serve the replay or the live cluster until SIGINT or SIGTERM.
+pub async fn monitor(args: MonitorArgs) -> anyhow::Result<ExitCode> {
+    let options = MonitorOptions {
+        listen: args.listen,
+        require_token: args.require_token,
+    };
+    if let Some(path) = &args.events {
+        let monitor = Monitor::replay(path, options).map_err(bad_file)?;
+        announce(&monitor, &format!("replaying {}", path.display()));
+        let signal = super::signal::shutdown_signal(false).await;
+        println!("monitor stopped ({signal})");
+        monitor.stop();
+        return Ok(ExitCode::SUCCESS);
+    }
+    let Some(target) = args.cluster.target() else {
+        return Err(BadInput(
+            "marie monitor needs what to show: --events FILE.jsonl (a past run) or --join ADDR \
+             --cookie C (a running cluster)"
+                .into(),
+        )
+        .into());
+    };
+    let watching = ClusterWatch::start(&target, options).await?;
+    let signal = super::signal::shutdown_signal(false).await;
+    println!("monitor stopped ({signal})");
+    watching.stop().await;
+    Ok(ExitCode::SUCCESS)
+}
+
+/// A file that cannot be replayed is bad input (exit 2); anything else an error.
+fn bad_file(e: MonitorError) -> anyhow::Error {
+    match e {
+        e @ (MonitorError::Read { .. } | MonitorError::Parse { .. }) => {
+            BadInput(e.to_string()).into()
+        }
+        e => e.into(),
+    }
+}
+
+/// Print where the page is: `monitor: http://ADDR/` (with the token when one is required).
+pub fn announce(monitor: &MonitorHandle, what: &str) {
+    println!("monitor: {} ({what})", monitor.url());
+    let _ = std::io::stdout().flush();
+}
+
+/// A live monitor on `bus` (a run's own node): the modules already in the registry first,
+/// then every event of the bus. `other_nodes`: also the other nodes' events (a member of a
+/// cluster).
+pub async fn start_live(
+    bus: &EventBus,
+    listen: SocketAddr,
+    other_nodes: bool,
+) -> anyhow::Result<(MonitorHandle, Option<JoinHandle<()>>)> {
+    let monitor = Monitor::live(bus, MonitorOptions::new(listen))?;
+    let feed = monitor.feed().expect("a live monitor has a feed");
+    let relay = if other_nodes {
+        Some(relay_into(feed.clone()).await?)
+    } else {
+        None
+    };
+    feed_listing(&feed, bus);
+    Ok((monitor, relay))
+}
+
+/// Feed the modules in the registry now, as if they had just joined (they joined before the
+/// monitor started).
+fn feed_listing(feed: &Feed, bus: &EventBus) {
+    let at_ms = bus.clock().now().as_millis() as u64;
+    for inst in registry::list() {
+        feed.offer(Event {
+            at_ms,
+            node: inst.node.clone(),
+            kind: EventKind::Joined(ModuleInfo::from(&inst)),
+        });
+    }
+}
+
+/// Watch the other nodes' events (the cluster's relay) into `feed`, until aborted.
+async fn relay_into(feed: Feed) -> anyhow::Result<JoinHandle<()>> {
+    let mut watch = marie::relay::watch(FROM_OTHERS).await?;
+    Ok(tokio::spawn(async move {
+        while let Some(event) = watch.recv().await {
+            feed.offer(event);
+        }
+    }))
+}
+
+/// A live monitor of a running cluster from a member of its own that hosts nothing.
+pub struct ClusterWatch {
+    monitor: MonitorHandle,
+    transport: marie::net::Transport,
+    tasks: Vec<JoinHandle<()>>,
+    _registry: RegistryBridge,
+}
+
+impl ClusterWatch {
+    /// Join the cluster at `target`, watch every node's events and serve them.
+    pub async fn start(target: &Target, options: MonitorOptions) -> anyhow::Result<ClusterWatch> {
+        let me = member_name("monitor");
+        let transport = join(&me, target).await?;
+        // this member's own news of the cluster (nodes seen, lost, declared down)
+        let bus = EventBus::new(me.clone(), Arc::new(ScaledClock::cluster(1.0)));
+        let monitor = match Monitor::live(&bus, options) {
+            Ok(m) => m,
+            Err(e) => {
+                transport.stop().await;
+                return Err(e.into());
+            }
+        };
+        let feed = monitor.feed().expect("a live monitor has a feed");
+        // watching before listing: nothing between the two goes unseen. The relay carries
+        // what each node tells of itself from now on; this member's registry, what any node
+        // hosts — also a node that starts later, whose modules joined before its relay
+        // knew of this watcher.
+        let relay = relay_into(feed.clone()).await?;
+        let registry = bridge_registry(bus.clone(), None).await?;
+        feed_listing(&feed, &bus);
+        let news = marie::net::publish_on(&transport, bus);
+        announce(&monitor, &format!("watching the cluster as {me}"));
+        Ok(ClusterWatch {
+            monitor,
+            transport,
+            tasks: vec![relay, news],
+            _registry: registry,
+        })
+    }
+
+    /// Stop serving and leave the cluster.
+    pub async fn stop(self) {
+        for t in &self.tasks {
+            t.abort();
+        }
+        self.monitor.stop();
+        self.transport.stop().await;
+    }
+}

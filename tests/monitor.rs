@@ -1,0 +1,284 @@
+//! `marie monitor` and `run --monitor` as real processes, over HTTP on 127.0.0.1: a past
+//! run replayed (its extent, its final state), the token a monitor may require, and a run's
+//! own live page while the mission runs.
+
+mod common;
+
+use common::cluster::{NodeProc, Proc};
+use common::{http, marie, text};
+use std::net::SocketAddr;
+use std::time::{Duration, Instant};
+
+/// `monitor: http://127.0.0.1:PORT/?token=T (...)` → the address and the token.
+fn page_of(line: &str) -> (SocketAddr, Option<String>) {
+    let url = line
+        .split_whitespace()
+        .find(|w| w.starts_with("http://"))
+        .unwrap_or_else(|| panic!("no URL in {line:?}"));
+    let rest = url.trim_start_matches("http://");
+    let (addr, query) = rest.split_once('/').unwrap();
+    let token = query.strip_prefix("?token=").map(str::to_string);
+    (addr.parse().unwrap(), token)
+}
+
+/// A faulted docking run's events file, written by the binary under test.
+fn recorded_run(dir: &std::path::Path) -> std::path::PathBuf {
+    let events = dir.join("run.jsonl");
+    let out = marie(&[
+        "run",
+        "missions/docking.toml",
+        "--speed",
+        "max",
+        "--fault",
+        "kill:wall-follower@20",
+        "--events",
+        events.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    events
+}
+
+#[test]
+fn a_replayed_run_answers_its_extent_and_ends_with_every_action_succeeded_and_the_rebind() {
+    let dir = tempfile::tempdir().unwrap();
+    let events = recorded_run(dir.path());
+    let mut monitor = Proc::spawn(
+        "monitor",
+        &[
+            "monitor",
+            "--events",
+            events.to_str().unwrap(),
+            "--listen",
+            "127.0.0.1:0",
+        ],
+    );
+    let (addr, token) = page_of(&monitor.wait_line("monitor: http://"));
+    assert_eq!(token, None, "no token on loopback unless asked");
+    let info = http::get_json(addr, "/api/replay/info");
+    let lines = std::fs::read_to_string(&events).unwrap().lines().count();
+    assert_eq!(info["events"], lines);
+    let end = info["end_ms"].as_u64().unwrap();
+    let last = http::get_json(addr, &format!("/api/replay/state?at_ms={end}"));
+    let actions = last["mission"]["actions"].as_array().unwrap();
+    assert_eq!(actions.len(), 4);
+    for a in actions {
+        assert_eq!(a["state"], "succeeded", "{a}");
+    }
+    assert_eq!(last["bindings"]["wall-follower"]["rebinds"], 1);
+    assert_eq!(last["mission"]["outcome"]["outcome"], "succeeded");
+    let (status, page) = http::get(addr, "/", &[]);
+    assert_eq!(status, 200);
+    assert!(page.contains("id=\"tree\""), "{page}");
+    monitor.signal("INT");
+    assert_eq!(monitor.wait_exit(), Some(0));
+}
+
+#[test]
+fn a_monitor_that_requires_its_token_refuses_requests_without_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let events = dir.path().join("run.jsonl");
+    std::fs::write(
+        &events,
+        include_str!("../monitor/tests/fixtures/docking-kill.jsonl"),
+    )
+    .unwrap();
+    let mut monitor = Proc::spawn(
+        "monitor",
+        &[
+            "monitor",
+            "--events",
+            events.to_str().unwrap(),
+            "--listen",
+            "127.0.0.1:0",
+            "--require-token",
+        ],
+    );
+    let (addr, token) = page_of(&monitor.wait_line("monitor: http://"));
+    let token = token.expect("the printed URL carries the token");
+    for path in ["/", "/app.js", "/api/state", "/api/replay/info"] {
+        assert_eq!(http::get(addr, path, &[]).0, 401, "{path}");
+        assert_eq!(
+            http::get(addr, &format!("{path}?token=x{token}"), &[]).0,
+            401
+        );
+        assert_eq!(
+            http::get(addr, &format!("{path}?token={token}"), &[]).0,
+            200
+        );
+    }
+    let bearer = format!("Bearer {token}");
+    assert_eq!(
+        http::get(addr, "/api/replay/info", &[("Authorization", &bearer)]).0,
+        200
+    );
+}
+
+#[test]
+fn a_bad_events_file_is_bad_input() {
+    let out = marie(&[
+        "monitor",
+        "--events",
+        "missions/docking.toml",
+        "--listen",
+        "127.0.0.1:0",
+    ]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    assert!(text(&out.stderr).contains("docking.toml:1: not an event"));
+    let out = marie(&["monitor", "--listen", "127.0.0.1:0"]);
+    assert_eq!(out.status.code(), Some(2));
+}
+
+#[test]
+fn a_run_serves_its_live_state_while_the_mission_runs_and_its_outcome_after() {
+    let mut run = Proc::spawn(
+        "run",
+        &[
+            "run",
+            "missions/docking.toml",
+            "--speed",
+            "4",
+            "--fault",
+            "kill:wall-follower@20",
+            "--monitor",
+            "127.0.0.1:0",
+        ],
+    );
+    let (addr, _) = page_of(&run.wait_line("monitor: http://"));
+    assert_eq!(http::get_json(addr, "/api/info")["mode"], "live");
+    // while it runs: the tree, an action running, the node and its modules
+    let deadline = Instant::now() + common::cluster::EVENT_TIMEOUT;
+    let during = loop {
+        let state = http::get_json(addr, "/api/state");
+        let running = state["mission"]["actions"]
+            .as_array()
+            .is_some_and(|a| a.iter().any(|a| a["state"] == "running"));
+        if running {
+            break state;
+        }
+        assert!(Instant::now() < deadline, "no action ran: {state}");
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    assert_eq!(during["mission"]["name"], "docking");
+    assert_eq!(during["mission"]["actions"].as_array().unwrap().len(), 4);
+    assert!(during["mission"]["outcome"].is_null(), "{during}");
+    let modules = during["cluster"]["embedded"]["modules"]
+        .as_object()
+        .unwrap();
+    assert!(modules.len() >= 10, "{modules:?}");
+    // the live stream opens with a snapshot
+    let mut stream = http::EventStream::open(addr, "/api/live");
+    assert_eq!(stream.next().0, "snapshot");
+    drop(stream);
+    // after the run the page stays up with the outcome
+    run.wait_line("the run is over");
+    let after = http::get_json(addr, "/api/state");
+    assert_eq!(
+        after["mission"]["outcome"]["outcome"], "succeeded",
+        "{after}"
+    );
+    assert_eq!(after["bindings"]["wall-follower"]["rebinds"], 1);
+    run.signal("INT");
+    assert_eq!(run.wait_exit(), Some(0));
+}
+
+/// Poll `/api/state` until `ok` holds (at most [`common::cluster::EVENT_TIMEOUT`]).
+fn state_until(
+    addr: SocketAddr,
+    what: &str,
+    ok: impl Fn(&serde_json::Value) -> bool,
+) -> serde_json::Value {
+    let deadline = Instant::now() + common::cluster::EVENT_TIMEOUT;
+    loop {
+        let state = http::get_json(addr, "/api/state");
+        if ok(&state) {
+            return state;
+        }
+        assert!(Instant::now() < deadline, "never {what}: {state}");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
+fn hosts(state: &serde_json::Value, node: &str, module: &str) -> bool {
+    state["cluster"][node]["modules"]
+        .as_object()
+        .is_some_and(|m| m.values().any(|m| m["name"] == module))
+}
+
+#[test]
+fn a_monitor_joined_to_a_cluster_shows_its_nodes_their_modules_and_a_restart_on_one() {
+    const COOKIE: &str = "monitored";
+    let dir = tempfile::tempdir().unwrap();
+    let alpha = NodeProc::start(
+        dir.path(),
+        "alpha",
+        "[[datamanager]]\nname = \"feature\"\n[[operation]]\nname = \"sampler\"\n",
+        &[],
+        COOKIE,
+    );
+    let alpha_addr = alpha.addr.to_string();
+    let mut monitor = Proc::spawn(
+        "monitor",
+        &[
+            "monitor",
+            "--join",
+            &alpha_addr,
+            "--cookie",
+            COOKIE,
+            "--listen",
+            "127.0.0.1:0",
+        ],
+    );
+    let (addr, _) = page_of(&monitor.wait_line("monitor: http://"));
+    // what was there before the monitor joined
+    state_until(addr, "alpha hosting the sampler", |s| {
+        hosts(s, "alpha", "sampler")
+    });
+    // a node that comes later, its modules told by itself through the relay
+    let _beta = NodeProc::start(
+        dir.path(),
+        "beta",
+        "[[datamanager]]\nname = \"world\"\n[[operation]]\nname = \"averager\"\n",
+        &[alpha.addr],
+        COOKIE,
+    );
+    state_until(addr, "beta hosting the averager", |s| {
+        hosts(s, "beta", "averager") && s["cluster"]["beta"]["status"] == "up"
+    });
+    // a restart on alpha reaches the timeline
+    let out = marie(&["kill", "sampler", "--join", &alpha_addr, "--cookie", COOKIE]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    state_until(addr, "the restart on alpha in the timeline", |s| {
+        s["timeline"]["entries"].as_array().is_some_and(|e| {
+            e.iter()
+                .any(|e| e["class"] == "restart" && e["node"] == "alpha")
+        })
+    });
+    monitor.signal("INT");
+    assert_eq!(monitor.wait_exit(), Some(0));
+}
+
+#[test]
+fn up_with_a_monitor_shows_every_node_of_the_cluster_and_what_it_hosts() {
+    let mut up = Proc::spawn(
+        "up",
+        &[
+            "up",
+            "missions/clusters/thesis.toml",
+            "--monitor",
+            "127.0.0.1:0",
+        ],
+    );
+    let (addr, _) = page_of(&up.wait_line("monitor: http://"));
+    let state = state_until(addr, "the thesis' four nodes with their modules", |s| {
+        hosts(s, "cart", "virtual-cart")
+            && hosts(s, "features", "feature")
+            && hosts(s, "operations", "path-planner")
+            && hosts(s, "spare", "wall-follower")
+    });
+    for node in ["cart", "features", "operations", "spare"] {
+        assert_eq!(state["cluster"][node]["status"], "up", "{node}: {state}");
+    }
+    up.signal("INT");
+    up.wait_line("cluster stopped");
+    assert_eq!(up.wait_exit(), Some(0));
+}
