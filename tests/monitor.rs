@@ -5,38 +5,10 @@
 mod common;
 
 use common::cluster::{NodeProc, Proc};
+use common::monitor::{page_of, recorded_run};
 use common::{http, marie, text};
 use std::net::SocketAddr;
 use std::time::{Duration, Instant};
-
-/// `monitor: http://127.0.0.1:PORT/?token=T (...)` → the address and the token.
-fn page_of(line: &str) -> (SocketAddr, Option<String>) {
-    let url = line
-        .split_whitespace()
-        .find(|w| w.starts_with("http://"))
-        .unwrap_or_else(|| panic!("no URL in {line:?}"));
-    let rest = url.trim_start_matches("http://");
-    let (addr, query) = rest.split_once('/').unwrap();
-    let token = query.strip_prefix("?token=").map(str::to_string);
-    (addr.parse().unwrap(), token)
-}
-
-/// A faulted docking run's events file, written by the binary under test.
-fn recorded_run(dir: &std::path::Path) -> std::path::PathBuf {
-    let events = dir.join("run.jsonl");
-    let out = marie(&[
-        "run",
-        "missions/docking.toml",
-        "--speed",
-        "max",
-        "--fault",
-        "kill:wall-follower@20",
-        "--events",
-        events.to_str().unwrap(),
-    ]);
-    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
-    events
-}
 
 #[test]
 fn a_replayed_run_answers_its_extent_and_ends_with_every_action_succeeded_and_the_rebind() {

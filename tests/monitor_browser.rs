@@ -9,19 +9,11 @@ mod common;
 
 use common::browser::Browser;
 use common::cluster::Proc;
-use common::{marie, text};
+use common::monitor::{recorded_run, url_of};
 use std::time::Duration;
 
 /// Generous: the page is fed live while a loaded 2-core machine also runs the mission.
 const PAGE_TIMEOUT: Duration = Duration::from_secs(120);
-
-/// `monitor: http://127.0.0.1:PORT/?token=T (...)` → the page's URL as printed.
-fn url_of(line: &str) -> String {
-    line.split_whitespace()
-        .find(|w| w.starts_with("http://"))
-        .unwrap_or_else(|| panic!("no URL in {line:?}"))
-        .to_string()
-}
 
 /// How many elements `selector` matches on the page.
 fn count(browser: &mut Browser, selector: &str) -> u64 {
@@ -111,18 +103,7 @@ fn a_replayed_run_ends_with_every_action_of_the_task_tree_succeeded() {
         return;
     };
     let dir = tempfile::tempdir().unwrap();
-    let events = dir.path().join("run.jsonl");
-    let out = marie(&[
-        "run",
-        "missions/docking.toml",
-        "--speed",
-        "max",
-        "--fault",
-        "kill:wall-follower@20",
-        "--events",
-        events.to_str().unwrap(),
-    ]);
-    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let events = recorded_run(dir.path());
     let mut monitor = Proc::spawn(
         "monitor",
         &[

@@ -1,6 +1,8 @@
 //! The monitor's server over real HTTP on 127.0.0.1: the replay API on a recorded run, the
 //! live state and its stream on a bus, the token.
 
+// the one HTTP client of the tests, shared with the `marie` package's end-to-end tests
+#[path = "../../tests/common/http.rs"]
 mod http;
 
 use marie_actors::clock::ManualClock;

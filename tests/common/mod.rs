@@ -7,6 +7,7 @@ pub mod browser;
 pub mod cluster;
 pub mod http;
 pub mod missions;
+pub mod monitor;
 pub mod netns;
 
 use std::process::{Command, Output};

@@ -1,0 +1,41 @@
+//! What the tests of `marie monitor` share: a recorded run to replay, and the page's address
+//! as the monitor prints it.
+
+use super::{marie, text};
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+
+/// A docking run whose wall follower is killed at 20 s, its events file written into `dir`
+/// by the binary under test.
+pub fn recorded_run(dir: &Path) -> PathBuf {
+    let events = dir.join("run.jsonl");
+    let out = marie(&[
+        "run",
+        "missions/docking.toml",
+        "--speed",
+        "max",
+        "--fault",
+        "kill:wall-follower@20",
+        "--events",
+        events.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    events
+}
+
+/// `monitor: http://127.0.0.1:PORT/?token=T (...)` → the page's URL as printed.
+pub fn url_of(line: &str) -> String {
+    line.split_whitespace()
+        .find(|w| w.starts_with("http://"))
+        .unwrap_or_else(|| panic!("no URL in {line:?}"))
+        .to_string()
+}
+
+/// `monitor: http://127.0.0.1:PORT/?token=T (...)` → the address and the token.
+pub fn page_of(line: &str) -> (SocketAddr, Option<String>) {
+    let url = url_of(line);
+    let rest = url.trim_start_matches("http://");
+    let (addr, query) = rest.split_once('/').unwrap();
+    let token = query.strip_prefix("?token=").map(str::to_string);
+    (addr.parse().unwrap(), token)
+}
