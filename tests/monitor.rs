@@ -149,6 +149,10 @@ fn a_run_serves_its_live_state_while_the_mission_runs_and_its_outcome_after() {
         "{after}"
     );
     assert_eq!(after["bindings"]["wall-follower"]["rebinds"], 1);
+    // the stand-in's epoch is above every epoch bound at the start (it fences the lost one)
+    let epoch = |op: &str| after["bindings"][op]["epoch"].as_u64().unwrap_or(0);
+    assert!(epoch("ultrasonic") > 0, "{after}");
+    assert!(epoch("wall-follower") > epoch("ultrasonic"), "{after}");
     run.signal("INT");
     assert_eq!(run.wait_exit(), Some(0));
 }

@@ -70,6 +70,13 @@ fn the_page_shows_the_loss_the_rebind_and_the_success_of_a_docking_run_with_a_fa
         )
         .expect("the rebind shows");
     assert!(count(&mut browser, lost) >= 1, "the loss shows");
+    // with the epoch the stand-in's commands carry, above the first instance's
+    let epoch = browser
+        .evaluate(
+            "Number(document.querySelector('#bindings tr.binding[data-op=\"wall-follower\"]').dataset.epoch)",
+        )
+        .unwrap();
+    assert!(epoch.as_u64().unwrap_or(0) > 0, "epoch: {epoch}");
     // and the mission's success
     browser
         .wait_for(

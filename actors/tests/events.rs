@@ -95,6 +95,7 @@ async fn a_report_is_rebuilt_with_its_faults_judgement_and_latest_rebinds() {
         from_node: "n".into(),
         to_node: "n".into(),
         downtime_ms: 1,
+        epoch: i + 1,
     };
     bus.publish(EventKind::RunStarted {
         mission: "m".into(),

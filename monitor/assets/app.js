@@ -72,14 +72,14 @@ function renderTree(m) {
 function renderBindings(bindings) {
   const rows = Object.values(bindings).map((b) => {
     const hist = b.history.length
-      ? `<tr class="history-row" data-op="${esc(b.operation)}"><td colspan="6"><ul class="history">` +
+      ? `<tr class="history-row" data-op="${esc(b.operation)}"><td colspan="7"><ul class="history">` +
         b.history.map((h) => `<li class="${h.type}" data-type="${h.type}">${fmtMs(h.at_ms)} ${esc(describeStep(h))}</li>`).join("") +
         `</ul></td></tr>`
       : "";
     return `<tr class="binding${selectedOp === b.operation ? " selected" : ""}" data-op="${esc(b.operation)}" ` +
-      `data-status="${b.status}" data-rebinds="${b.rebinds}">` +
+      `data-status="${b.status}" data-rebinds="${b.rebinds}" data-epoch="${b.epoch}">` +
       `<td>${esc(b.operation)}</td><td class="address">${esc(b.address)}</td><td>${esc(b.node)}</td>` +
-      `<td>${esc(b.version)}</td><td>${b.rebinds}</td><td>${b.status}</td></tr>${hist}`;
+      `<td>${esc(b.version)}</td><td class="epoch">${b.epoch}</td><td>${b.rebinds}</td><td>${b.status}</td></tr>${hist}`;
   });
   $("#bindings tbody").innerHTML = rows.join("");
   renderProps(bindings);
@@ -105,7 +105,7 @@ function renderProps(bindings) {
       `<td>${esc(c.version)}</td><td>${esc(c.schema.join(", "))}</td><td>${flags(c.flags)}</td>` +
       `<td>${esc(c.verdict.type)}${c.verdict.reason ? ": " + esc(c.verdict.reason) : ""}</td></tr>`)
     .join("");
-  box.innerHTML = `<strong>${esc(b.operation)}</strong> — bound to ${esc(b.address)} on ${esc(b.node)}, version ${esc(b.version)}, ` +
+  box.innerHTML = `<strong>${esc(b.operation)}</strong> — bound to ${esc(b.address)} on ${esc(b.node)}, version ${esc(b.version)}, epoch ${b.epoch}, ` +
     `${b.rebinds} rebind(s), ${b.status}` +
     (cands ? `<table class="candidates"><thead><tr><th>address</th><th>node</th><th>version</th><th>parameters</th><th>flags</th><th>verdict</th></tr></thead><tbody>${cands}</tbody></table>` : "");
 }

@@ -76,6 +76,7 @@ impl DispatcherState {
                 name: b.name.clone(),
                 version: b.version.clone(),
                 node: b.node.clone(),
+                epoch: b.epoch,
             })
             .collect();
         self.emit(EventKind::Bound { operations });
@@ -274,6 +275,7 @@ impl DispatcherState {
             from_node: lost.from_node,
             to_node: b.node.clone(),
             downtime_ms: downtime.as_millis() as u64,
+            epoch: b.epoch,
         };
         tracing::info!(op = %name, from = %record.from, to = %record.to, downtime_ms = record.downtime_ms, "operation rebound");
         let (client, epoch, params, incarnation) =

@@ -122,6 +122,11 @@ pub struct RebindRecord {
     pub to_node: String,
     /// Time without a bound instance.
     pub downtime_ms: u64,
+    /// The binding's epoch from the rebind on: every command of the stand-in carries it,
+    /// and receivers refuse the lost instance's older one (0 in reports written before it
+    /// was recorded).
+    #[serde(default)]
+    pub epoch: u64,
 }
 
 /// The whole report.
@@ -310,6 +315,7 @@ mod tests {
                 from: "0.2".into(),
                 to: "0.3".into(),
                 downtime_ms: 4,
+                epoch: 7,
             }],
             rebinds_total: 1,
             duration_ms: 10,
@@ -354,6 +360,7 @@ mod tests {
             from: format!("0.{i}"),
             to: format!("0.{}", i + 1),
             downtime_ms: i,
+            epoch: i + 1,
         };
         for i in 0..1000 {
             report.record_rebind(rebind(i));

@@ -270,6 +270,10 @@ pub struct BoundOp {
     pub version: String,
     /// Node it runs on.
     pub node: String,
+    /// The binding's epoch: the fencing token its commands carry (0 in events written
+    /// before it was recorded).
+    #[serde(default)]
+    pub epoch: u64,
 }
 
 /// An operation an action activates, and the instance that runs it.

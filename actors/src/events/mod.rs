@@ -21,13 +21,13 @@
 //! ```json
 //! {"at_ms":1200,"node":"marie@localhost","kind":{"type":"run_started","mission":"docking","actions":[{"name":"follow","when":["wall_found"],"ops":["wall-follower","docking-detector"],"ends_on":["docking-detector"]}],"success":["parked"]}}
 //! {"at_ms":1240,"node":"marie@localhost","kind":{"type":"selected","choice":{"operation":"wall-follower","candidates":[{"address":"0.41","node":"marie@localhost","version":"1.0.0","schema":["distance"],"flags":["aligned"],"verdict":{"type":"chosen"}},{"address":"0.42","node":"marie@localhost","version":"2.0.0","schema":["distance","mode"],"flags":["aligned"],"verdict":{"type":"lost","reason":"its schema also declares mode the mission does not supply; 0.41 (version 1.0.0) fits exactly"}}]}}}
-//! {"at_ms":1250,"node":"marie@localhost","kind":{"type":"bound","operations":[{"name":"wall-follower","version":"1.0.0","node":"marie@localhost"}]}}
+//! {"at_ms":1250,"node":"marie@localhost","kind":{"type":"bound","operations":[{"name":"wall-follower","version":"1.0.0","node":"marie@localhost","epoch":1250000}]}}
 //! {"at_ms":1260,"node":"marie@localhost","kind":{"type":"action_started","action":"follow","run_ms":60,"operations":[{"key":"wall-follower","name":"wall-follower","id":1512,"version":"1.0.0","node":"marie@localhost","address":"0.41"}]}}
 //! {"at_ms":9800,"node":"marie@localhost","kind":{"type":"op_ended","action":"follow","key":"wall-follower","ended":"suspended","flags":[]}}
 //! {"at_ms":9810,"node":"marie@localhost","kind":{"type":"action_ended","action":"follow","run_ms":8610,"flags":["dock_found"],"status":4}}
 //! {"at_ms":30000,"node":"marie@localhost","kind":{"type":"run_ended","outcome":"succeeded","reason":"","run_ms":28800,"status":12,"flags":["dock_found","parked"]}}
 //! {"at_ms":5000,"node":"marie@localhost","kind":{"type":"lost","operation":"wall-follower","cause":{"type":"died_in_action","action":"follow"}}}
-//! {"at_ms":5001,"node":"marie@localhost","kind":{"type":"rebound","operation":"wall-follower","cause":{"type":"died_in_action","action":"follow"},"from":"0.41","to":"0.57","from_node":"n1","to_node":"n2","downtime_ms":1}}
+//! {"at_ms":5001,"node":"marie@localhost","kind":{"type":"rebound","operation":"wall-follower","cause":{"type":"died_in_action","action":"follow"},"from":"0.41","to":"0.57","from_node":"n1","to_node":"n2","downtime_ms":1,"epoch":1250001}}
 //! {"at_ms":8000,"node":"marie@localhost","kind":{"type":"rebind_gave_up","operation":"planner","cause":{"type":"hung","deadline_ms":300},"waited_ms":3000}}
 //! {"at_ms":100,"node":"marie@localhost","kind":{"type":"joined","module":"Operation","name":"wall-follower","id":1512,"node":"marie@localhost","address":"0.41"}}
 //! {"at_ms":5000,"node":"marie@localhost","kind":{"type":"left","module":"Operation","name":"wall-follower","id":1512,"node":"marie@localhost","address":"0.41"}}

@@ -65,6 +65,8 @@ pub struct BindingView {
     pub node: Option<String>,
     /// Its version.
     pub version: Option<String>,
+    /// The binding's epoch (its commands' fencing token; 0 until known).
+    pub epoch: u64,
     /// How many times it was rebound: the binding's incarnation is this plus one.
     pub rebinds: u32,
     /// `bound`, `lost` (looking for a stand-in) or `gave_up`.
@@ -114,6 +116,7 @@ impl Bindings {
             let b = self.of(&op.name);
             b.node = Some(op.node.clone());
             b.version = Some(op.version.clone());
+            b.epoch = op.epoch;
             b.status = "bound";
         }
     }
@@ -147,6 +150,7 @@ impl Bindings {
         b.status = "bound";
         b.rebinds += 1;
         b.address = Some(r.to.clone());
+        b.epoch = r.epoch.max(b.epoch);
         if !r.to_node.is_empty() {
             b.node = Some(r.to_node.clone());
         }
