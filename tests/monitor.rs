@@ -5,7 +5,7 @@
 mod common;
 
 use common::cluster::{NodeProc, Proc};
-use common::monitor::{page_of, recorded_run};
+use common::monitor::{monitored_run, page_of, recorded_run};
 use common::{http, marie, text};
 use std::net::SocketAddr;
 use std::time::{Duration, Instant};
@@ -102,19 +102,7 @@ fn a_bad_events_file_is_bad_input() {
 
 #[test]
 fn a_run_serves_its_live_state_while_the_mission_runs_and_its_outcome_after() {
-    let mut run = Proc::spawn(
-        "run",
-        &[
-            "run",
-            "missions/docking.toml",
-            "--speed",
-            "4",
-            "--fault",
-            "kill:wall-follower@20",
-            "--monitor",
-            "127.0.0.1:0",
-        ],
-    );
+    let mut run = monitored_run();
     let (addr, _) = page_of(&run.wait_line("monitor: http://"));
     assert_eq!(http::get_json(addr, "/api/info")["mode"], "live");
     // while it runs: the tree, an action running, the node and its modules

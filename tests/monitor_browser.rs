@@ -9,7 +9,7 @@ mod common;
 
 use common::browser::Browser;
 use common::cluster::Proc;
-use common::monitor::{recorded_run, url_of};
+use common::monitor::{monitored_run, recorded_run, url_of};
 use std::time::Duration;
 
 /// Generous: the page is fed live while a loaded 2-core machine also runs the mission.
@@ -30,19 +30,7 @@ fn the_page_shows_the_loss_the_rebind_and_the_success_of_a_docking_run_with_a_fa
     let Some(mut browser) = Browser::launch_or_skip("monitor_browser") else {
         return;
     };
-    let mut run = Proc::spawn(
-        "run",
-        &[
-            "run",
-            "missions/docking.toml",
-            "--speed",
-            "4",
-            "--fault",
-            "kill:wall-follower@20",
-            "--monitor",
-            "127.0.0.1:0",
-        ],
-    );
+    let mut run = monitored_run();
     let url = url_of(&run.wait_line("monitor: http://"));
     browser.navigate(&url).unwrap();
     // live: the task tree and the robot in its world while the mission runs

@@ -1,6 +1,7 @@
 //! What the tests of `marie monitor` share: a recorded run to replay, and the page's address
 //! as the monitor prints it.
 
+use super::cluster::Proc;
 use super::{marie, text};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
@@ -38,4 +39,22 @@ pub fn page_of(line: &str) -> (SocketAddr, Option<String>) {
     let (addr, query) = rest.split_once('/').unwrap();
     let token = query.strip_prefix("?token=").map(str::to_string);
     (addr.parse().unwrap(), token)
+}
+
+/// `marie run` of docking at speed 4 with its wall follower killed at 20 s and its own
+/// monitor on a port the OS picks: the process, its `monitor: http://…` line awaited next.
+pub fn monitored_run() -> Proc {
+    Proc::spawn(
+        "run",
+        &[
+            "run",
+            "missions/docking.toml",
+            "--speed",
+            "4",
+            "--fault",
+            "kill:wall-follower@20",
+            "--monitor",
+            "127.0.0.1:0",
+        ],
+    )
 }
