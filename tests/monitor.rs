@@ -5,7 +5,7 @@
 mod common;
 
 use common::cluster::{NodeProc, Proc};
-use common::monitor::{monitored_run, page_of, recorded_run};
+use common::monitor::{monitored_run, page_of, recorded_run, replay_monitor};
 use common::{http, marie, text};
 use std::net::SocketAddr;
 use std::time::{Duration, Instant};
@@ -14,17 +14,8 @@ use std::time::{Duration, Instant};
 fn a_replayed_run_answers_its_extent_and_ends_with_every_action_succeeded_and_the_rebind() {
     let dir = tempfile::tempdir().unwrap();
     let events = recorded_run(dir.path());
-    let mut monitor = Proc::spawn(
-        "monitor",
-        &[
-            "monitor",
-            "--events",
-            events.to_str().unwrap(),
-            "--listen",
-            "127.0.0.1:0",
-        ],
-    );
-    let (addr, token) = page_of(&monitor.wait_line("monitor: http://"));
+    let (mut monitor, line) = replay_monitor(&events, &[]);
+    let (addr, token) = page_of(&line);
     assert_eq!(token, None, "no token on loopback unless asked");
     let info = http::get_json(addr, "/api/replay/info");
     let lines = std::fs::read_to_string(&events).unwrap().lines().count();
@@ -54,18 +45,8 @@ fn a_monitor_that_requires_its_token_refuses_requests_without_it() {
         include_str!("../monitor/tests/fixtures/docking-kill.jsonl"),
     )
     .unwrap();
-    let mut monitor = Proc::spawn(
-        "monitor",
-        &[
-            "monitor",
-            "--events",
-            events.to_str().unwrap(),
-            "--listen",
-            "127.0.0.1:0",
-            "--require-token",
-        ],
-    );
-    let (addr, token) = page_of(&monitor.wait_line("monitor: http://"));
+    let (_monitor, line) = replay_monitor(&events, &["--require-token"]);
+    let (addr, token) = page_of(&line);
     let token = token.expect("the printed URL carries the token");
     for path in ["/", "/app.js", "/api/state", "/api/replay/info"] {
         assert_eq!(http::get(addr, path, &[]).0, 401, "{path}");

@@ -8,8 +8,7 @@
 mod common;
 
 use common::browser::Browser;
-use common::cluster::Proc;
-use common::monitor::{monitored_run, recorded_run, url_of};
+use common::monitor::{monitored_run, recorded_run, replay_monitor, url_of};
 use std::time::Duration;
 
 /// Generous: the page is fed live while a loaded 2-core machine also runs the mission.
@@ -99,17 +98,8 @@ fn a_replayed_run_ends_with_every_action_of_the_task_tree_succeeded() {
     };
     let dir = tempfile::tempdir().unwrap();
     let events = recorded_run(dir.path());
-    let mut monitor = Proc::spawn(
-        "monitor",
-        &[
-            "monitor",
-            "--events",
-            events.to_str().unwrap(),
-            "--listen",
-            "127.0.0.1:0",
-        ],
-    );
-    let url = url_of(&monitor.wait_line("monitor: http://"));
+    let (_monitor, line) = replay_monitor(&events, &[]);
+    let url = url_of(&line);
     browser.navigate(&url).unwrap();
     browser
         .wait_for(
@@ -159,18 +149,8 @@ fn a_viewer_without_the_token_is_refused() {
     let dir = tempfile::tempdir().unwrap();
     let events = dir.path().join("empty.jsonl");
     std::fs::write(&events, "").unwrap();
-    let mut monitor = Proc::spawn(
-        "monitor",
-        &[
-            "monitor",
-            "--events",
-            events.to_str().unwrap(),
-            "--listen",
-            "127.0.0.1:0",
-            "--require-token",
-        ],
-    );
-    let url = url_of(&monitor.wait_line("monitor: http://"));
+    let (_monitor, line) = replay_monitor(&events, &["--require-token"]);
+    let url = url_of(&line);
     assert!(url.contains("?token="), "{url}");
     let bare = url.split('?').next().unwrap().to_string();
     browser.navigate(&bare).unwrap();

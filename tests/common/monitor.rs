@@ -58,3 +58,19 @@ pub fn monitored_run() -> Proc {
         ],
     )
 }
+
+/// `marie monitor --events EVENTS --listen 127.0.0.1:0` plus `extra` flags: the process and
+/// its `monitor: http://…` line.
+pub fn replay_monitor(events: &Path, extra: &[&str]) -> (Proc, String) {
+    let mut args = vec![
+        "monitor",
+        "--events",
+        events.to_str().unwrap(),
+        "--listen",
+        "127.0.0.1:0",
+    ];
+    args.extend_from_slice(extra);
+    let mut monitor = Proc::spawn("monitor", &args);
+    let line = monitor.wait_line("monitor: http://");
+    (monitor, line)
+}

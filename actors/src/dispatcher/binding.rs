@@ -92,6 +92,16 @@ pub(crate) async fn candidates(operation: &str, timeout: Duration) -> Vec<Candid
     examine_all(operation, found, timeout).await
 }
 
+/// Every live instance of the operation `need` names, asked at once, and the choice among
+/// them for `need` on this node — what binding, surveying and validating a mission share,
+/// so the instance a mission is checked against is the one it binds.
+pub(crate) async fn select(need: &Need, timeout: Duration) -> (Vec<Candidate>, selection::Choice) {
+    let found = candidates(&need.operation, timeout).await;
+    let offers: Vec<Offer> = found.iter().map(Candidate::offer).collect();
+    let choice = selection::choose(need, &offers, &crate::registry::local_node_name());
+    (found, choice)
+}
+
 /// Every instance of `found` (of `operation`), asked at once, in the given order; those
 /// that do not answer within `timeout` are left out.
 pub(crate) async fn examine_all(

@@ -1,7 +1,7 @@
 //! A mission [`Catalog`] built from the live registry and the property interface.
 
+use super::binding::select;
 use super::mission::{Catalog, OpInfo, ParsedMission};
-use super::selection::{choose, Offer};
 use crate::eo::{EoClient, EoError};
 use crate::property::{Group, PropertyReply, PropertyRequest};
 use crate::registry::{self, ModuleKind};
@@ -63,26 +63,14 @@ impl RegistryCatalog {
     pub async fn for_mission(mission: &ParsedMission) -> Result<Self, EoError> {
         let mut ops = BTreeMap::new();
         let mut unfit = BTreeMap::new();
-        let here = registry::local_node_name();
         for key in mission.ops() {
-            let mut offers = Vec::new();
-            for inst in registry::lookup(ModuleKind::Operation, key) {
-                match describe(EoClient::from_cell(inst.actor.clone())).await {
-                    Ok(info) => offers.push(Offer::new(
-                        inst.actor.get_id().to_string(),
-                        inst.node.clone(),
-                        info,
-                    )),
-                    Err(e) => tracing::debug!(op = %key, error = %e, "an instance does not answer"),
-                }
-            }
-            let choice = choose(&mission.need(key), &offers, &here);
-            if !offers.is_empty() && choice.chosen_index().is_none() {
+            let (found, choice) = select(&mission.need(key), EoClient::DEFAULT_TIMEOUT).await;
+            if !found.is_empty() && choice.chosen_index().is_none() {
                 unfit.insert(key.to_string(), choice.why_none());
             }
             let pick = choice.chosen_index().unwrap_or(0);
-            if let Some(offer) = offers.into_iter().nth(pick) {
-                ops.insert(key.to_string(), offer.info);
+            if let Some(cand) = found.into_iter().nth(pick) {
+                ops.insert(key.to_string(), cand.info);
             }
         }
         let names = running_names();

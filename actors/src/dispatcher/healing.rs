@@ -15,7 +15,7 @@
 //!   incarnation are ignored.
 
 use super::actor::{DispatcherState, Start};
-use super::binding::{candidates, examine, examine_all, Binding, Candidate};
+use super::binding::{examine, examine_all, select, Binding, Candidate};
 use super::loss::LossCause;
 use super::messages::DispatcherMsg;
 use super::report::{Outcome, RebindRecord};
@@ -52,12 +52,9 @@ impl DispatcherState {
             .into_iter()
             .map(str::to_string)
             .collect();
-        let here = registry::local_node_name();
         for key in names {
             let need = self.mission.need(&key);
-            let mut cands = candidates(&key, crate::eo::EoClient::DEFAULT_TIMEOUT).await;
-            let offers: Vec<_> = cands.iter().map(|c| c.offer()).collect();
-            let choice = super::selection::choose(&need, &offers, &here);
+            let (mut cands, choice) = select(&need, crate::eo::EoClient::DEFAULT_TIMEOUT).await;
             let chosen = choice.chosen_index();
             self.emit(EventKind::Selected {
                 choice: choice.clone(),

@@ -7,11 +7,10 @@
 //! The thesis counted control details to show what self-configuration saves the operator:
 //! the fewer a mission must spell out, the more the system decides by itself.
 
-use super::binding::candidates;
+use super::binding::select;
 use super::mission::Mission;
-use super::selection::{choose, Choice, Offer};
+use super::selection::Choice;
 use crate::eo::EoClient;
-use crate::registry;
 use serde::{Deserialize, Serialize};
 
 /// The dispatcher's view of a mission before it runs.
@@ -65,12 +64,13 @@ impl Survey {
 /// Survey `mission` against the live registry: every instance of every operation it uses
 /// asked for its properties, and chosen among as the dispatcher would choose now.
 pub async fn survey(mission: &Mission) -> Survey {
-    let here = registry::local_node_name();
     let mut choices = Vec::new();
     for name in mission.operation_names() {
-        let found = candidates(name, EoClient::DEFAULT_TIMEOUT).await;
-        let offers: Vec<Offer> = found.iter().map(|c| c.offer()).collect();
-        choices.push(choose(&mission.need(name), &offers, &here));
+        choices.push(
+            select(&mission.need(name), EoClient::DEFAULT_TIMEOUT)
+                .await
+                .1,
+        );
     }
     tell(mission, choices)
 }
@@ -143,7 +143,7 @@ fn control_details(mission: &Mission, choices: &[Choice]) -> ControlDetails {
 mod tests {
     use super::*;
     use crate::dispatcher::mission::{Catalog, OpInfo};
-    use crate::dispatcher::selection::Offer;
+    use crate::dispatcher::selection::{choose, Offer};
     use crate::flags::FlagDecl;
     use crate::property::{ParamDecl, ParamSchema};
 
