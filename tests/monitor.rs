@@ -112,7 +112,8 @@ fn a_run_serves_its_live_state_while_the_mission_runs_and_its_outcome_after() {
     drop(stream);
     // after the run the page stays up with the outcome
     run.wait_line("the run is over");
-    let after = http::get_json(addr, "/api/state");
+    // the monitor takes the bus's events every 10 ms: its state may trail the line
+    let after = state_until(addr, "the outcome", |s| !s["mission"]["outcome"].is_null());
     assert_eq!(
         after["mission"]["outcome"]["outcome"], "succeeded",
         "{after}"
