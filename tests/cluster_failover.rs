@@ -9,52 +9,10 @@
 mod common;
 
 use common::cluster::Proc;
+use common::layouts::failover_layout;
 use serde_json::Value;
-use std::path::{Path, PathBuf};
 
 const SPEED: &str = "4";
-
-/// Write the layout into `dir`: the thesis' with a wall follower on each node of
-/// `followers` (none on the operations node, which may only start one on request when
-/// `standby`); gives the cluster file.
-fn layout(dir: &Path, followers: &[&str], standby: bool) -> PathBuf {
-    let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let thesis = repo.join("missions/clusters/thesis");
-    let operations = std::fs::read_to_string(thesis.join("operations.toml"))
-        .unwrap()
-        .replace(
-            "[[operation]]\nname = \"wall-follower\"\n",
-            if standby {
-                "[[operation]]\nname = \"wall-follower\"\ninstances = 0\n"
-            } else {
-                ""
-            },
-        );
-    std::fs::write(dir.join("operations.toml"), operations).unwrap();
-    for wf in followers {
-        std::fs::write(
-            dir.join(format!("{wf}.toml")),
-            format!(
-                "[node]\nname = \"{wf}\"\ndispatcher = false\n[[operation]]\nname = \"wall-follower\"\n"
-            ),
-        )
-        .unwrap();
-    }
-    let cluster = dir.join("cluster.toml");
-    let mut text = format!(
-        "[cluster]\ncookie = \"failover\"\nworld = \"{}\"\nseed = 1\n\
-         [[node]]\nconfig = \"{}\"\n[[node]]\nconfig = \"{}\"\n\
-         [[node]]\nconfig = \"operations.toml\"\n",
-        repo.join("missions/worlds/lab.toml").display(),
-        thesis.join("cart.toml").display(),
-        thesis.join("features.toml").display(),
-    );
-    for wf in followers {
-        text += &format!("[[node]]\nconfig = \"{wf}.toml\"\n");
-    }
-    std::fs::write(&cluster, text).unwrap();
-    cluster
-}
 
 /// Run docking on the layout; once the wall follower runs, send `signal` to its node.
 /// Gives the report, the node hit, `marie up`'s lines and the run's events.
@@ -64,7 +22,7 @@ fn lose_the_wall_followers_node(
     standby: bool,
 ) -> (Value, String, Vec<String>, Vec<Value>) {
     let dir = tempfile::tempdir().unwrap();
-    let cluster = layout(dir.path(), followers, standby);
+    let cluster = failover_layout(dir.path(), followers, standby);
     let report = dir.path().join("report.json");
     let events = dir.path().join("events.jsonl");
     let mut up = Proc::spawn(

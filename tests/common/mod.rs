@@ -6,6 +6,7 @@
 pub mod browser;
 pub mod cluster;
 pub mod http;
+pub mod layouts;
 pub mod missions;
 pub mod monitor;
 pub mod netns;
