@@ -5,9 +5,8 @@
 mod common;
 
 use common::cluster::{NodeProc, Proc};
-use common::monitor::{monitored_run, page_of, recorded_run, replay_monitor};
+use common::monitor::{monitored_run, page_of, recorded_run, replay_monitor, state_until};
 use common::{http, marie, text};
-use std::net::SocketAddr;
 use std::time::{Duration, Instant};
 
 #[test]
@@ -125,23 +124,6 @@ fn a_run_serves_its_live_state_while_the_mission_runs_and_its_outcome_after() {
     assert!(epoch("wall-follower") > epoch("ultrasonic"), "{after}");
     run.signal("INT");
     assert_eq!(run.wait_exit(), Some(0));
-}
-
-/// Poll `/api/state` until `ok` holds (at most [`common::cluster::EVENT_TIMEOUT`]).
-fn state_until(
-    addr: SocketAddr,
-    what: &str,
-    ok: impl Fn(&serde_json::Value) -> bool,
-) -> serde_json::Value {
-    let deadline = Instant::now() + common::cluster::EVENT_TIMEOUT;
-    loop {
-        let state = http::get_json(addr, "/api/state");
-        if ok(&state) {
-            return state;
-        }
-        assert!(Instant::now() < deadline, "never {what}: {state}");
-        std::thread::sleep(Duration::from_millis(100));
-    }
 }
 
 fn hosts(state: &serde_json::Value, node: &str, module: &str) -> bool {

@@ -1,14 +1,18 @@
 //! The monitor's page in a real headless Chromium (issue 13): opened during a docking run
-//! with a fault injected, it shows the loss, the rebind and the mission's success; a
-//! replayed events file ends with every action of the task tree succeeded; a viewer
-//! without the token of a monitor that requires one is refused.
+//! with a fault injected, it shows the loss, the rebind and the mission's success; on a
+//! cluster (`marie up --monitor --allow-faults`) it asks the bound wall follower for its
+//! properties and stops its node's process, and shows the cluster fail over; a replayed
+//! events file ends with every action of the task tree succeeded; a viewer without the
+//! token of a monitor that requires one is refused.
 //!
 //! Every `marie` process and the browser are killed when the test ends, also on panic.
 
 mod common;
 
 use common::browser::Browser;
-use common::monitor::{monitored_run, recorded_run, replay_monitor, url_of};
+use common::cluster::Proc;
+use common::layouts::failover_layout;
+use common::monitor::{monitored_run, page_of, recorded_run, replay_monitor, url_of};
 use std::time::Duration;
 
 /// Generous: the page is fed live while a loaded 2-core machine also runs the mission.
@@ -57,6 +61,12 @@ fn the_page_shows_the_loss_the_rebind_and_the_success_of_a_docking_run_with_a_fa
         )
         .expect("the rebind shows");
     assert!(count(&mut browser, lost) >= 1, "the loss shows");
+    // without --allow-faults the page offers no fault, and the API refuses one
+    assert_eq!(count(&mut browser, "button.fault, button.stop-node"), 0);
+    let (addr, _) = page_of(&url);
+    let kill = serde_json::json!({"fault": "kill", "operation": "wall-follower"});
+    let (status, answer) = common::http::post_json(addr, "/api/fault", &kill);
+    assert_eq!(status, 403, "{answer}");
     // with the epoch the stand-in's commands carry, above the first instance's
     let epoch = browser
         .evaluate(
@@ -89,6 +99,145 @@ fn the_page_shows_the_loss_the_rebind_and_the_success_of_a_docking_run_with_a_fa
     );
     run.signal("INT");
     assert_eq!(run.wait_exit(), Some(0), "{}", run.seen().join("\n"));
+}
+
+/// Evaluate `js` on the page, as a string.
+fn text_of(browser: &mut Browser, js: &str) -> String {
+    let v = browser
+        .evaluate(js)
+        .unwrap_or_else(|e| panic!("{js}: {e:#}"));
+    v.as_str().unwrap_or_default().to_string()
+}
+
+#[test]
+fn the_page_stops_the_wall_followers_node_and_shows_the_cluster_fail_over() {
+    let Some(mut browser) = Browser::launch_or_skip("monitor_browser") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let cluster = failover_layout(dir.path(), &["wf-a", "wf-b"], false);
+    let mut up = Proc::spawn(
+        "marie up",
+        &[
+            "up",
+            cluster.to_str().unwrap(),
+            "--run",
+            "missions/docking.toml",
+            "--speed",
+            "4",
+            "--monitor",
+            "127.0.0.1:0",
+            "--allow-faults",
+        ],
+    );
+    let url = url_of(&up.wait_line("monitor: http://"));
+    browser.navigate(&url).unwrap();
+    // the wall follower runs: its binding offers kill and hang, its node a stop
+    let kill = "#bindings button.fault[data-fault=\"kill\"][data-op=\"wall-follower\"]";
+    browser
+        .wait_for(
+            &format!(
+                "document.querySelector('#tree .action[data-action=\"follow-wall\"]')?.dataset.state \
+                 === 'running' && document.querySelector({kill:?}) !== null"
+            ),
+            PAGE_TIMEOUT,
+        )
+        .expect("the wall follower runs, with its faults offered");
+    let node = text_of(
+        &mut browser,
+        &format!("document.querySelector({kill:?}).dataset.node"),
+    );
+    assert!(
+        ["wf-a", "wf-b"].contains(&node.as_str()),
+        "bound on {node:?}"
+    );
+    let other = if node == "wf-a" { "wf-b" } else { "wf-a" };
+    // a click on the binding asks the live instance for its properties
+    browser
+        .evaluate(
+            "document.querySelector('#bindings tr.binding[data-op=\"wall-follower\"]').click()",
+        )
+        .unwrap();
+    browser
+        .wait_for(
+            "document.querySelector('#props')?.dataset.live === 'true' \
+             && document.querySelectorAll('#props .live-props tr.param').length > 0",
+            PAGE_TIMEOUT,
+        )
+        .expect("the live properties of the wall follower");
+    let version = text_of(
+        &mut browser,
+        "document.querySelector('#props .live-props').dataset.version",
+    );
+    assert!(!version.is_empty(), "its version");
+    // stop its node's process from the page
+    let stop = format!("#cluster button.stop-node[data-node=\"{node}\"]");
+    browser
+        .evaluate(&format!("document.querySelector({stop:?}).click()"))
+        .unwrap();
+    browser
+        .wait_for(
+            "document.querySelector('#control-result')?.dataset.ok === 'true'",
+            PAGE_TIMEOUT,
+        )
+        .expect("the stop is done");
+    // the cluster loses the node, the dispatcher rebinds to the other one, docking succeeds
+    let rebound =
+        "#bindings tr.history-row[data-op=\"wall-follower\"] .history li[data-type=\"rebound\"]";
+    browser
+        .wait_for(
+            &format!("document.querySelectorAll({rebound:?}).length > 0"),
+            PAGE_TIMEOUT,
+        )
+        .expect("the rebind shows");
+    browser
+        .wait_for(
+            &format!(
+                "['lost', 'down'].includes(document.querySelector('#cluster .node[data-node=\"{node}\"]')?.dataset.status)"
+            ),
+            PAGE_TIMEOUT,
+        )
+        .expect("the stopped node is no longer up");
+    browser
+        .wait_for(
+            &format!(
+                "document.querySelector({kill:?})?.dataset.node === {other:?} \
+                 || document.querySelector('#bindings tr.binding[data-op=\"wall-follower\"] td:nth-child(3)')?.textContent === {other:?}"
+            ),
+            PAGE_TIMEOUT,
+        )
+        .expect("the wall follower is bound on the other node");
+    assert!(
+        count(&mut browser, "#timeline li.entry.fault") >= 1,
+        "the stop is in the timeline"
+    );
+    browser
+        .wait_for(
+            "document.querySelector('#outcome')?.dataset.outcome === 'succeeded'",
+            PAGE_TIMEOUT,
+        )
+        .expect("the mission succeeds");
+    // tall enough for every panel: the bindings and the cluster under the robot
+    browser.set_viewport(1400, 1500).unwrap();
+    let shot =
+        std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("monitor-cluster-failover.png");
+    let png = browser.screenshot(&shot).unwrap();
+    assert!(
+        png.starts_with(b"\x89PNG") && png.len() > 20_000,
+        "{}",
+        png.len()
+    );
+    up.wait_line("the run is over");
+    up.signal("INT");
+    up.wait_line("cluster stopped");
+    assert_eq!(up.wait_exit(), Some(0), "{}", up.seen().join("\n"));
+    assert!(
+        up.seen()
+            .iter()
+            .any(|l| l.contains(&format!("node {node} was killed"))),
+        "{}",
+        up.seen().join("\n")
+    );
 }
 
 #[test]

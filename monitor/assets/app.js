@@ -1,6 +1,8 @@
 // marie monitor: draws the state the server reduces from the event stream.
 // Live: one EventSource on /api/live (snapshot, state, lagged). Replay: the state at time T
 // from /api/replay/state?at_ms=T, T moved by play/pause, speed and the slider.
+// A click on a binding asks the live operation for its properties (/api/props); with faults
+// allowed, buttons post kill, hang and stop-node requests (/api/fault).
 // Plain JavaScript, no build step; every element has a stable id, class or data attribute
 // (browser tests query them).
 "use strict";
@@ -12,9 +14,24 @@ const $ = (sel) => document.querySelector(sel);
 const esc = (s) =>
   String(s ?? "").replace(/[&<>"']/g, (c) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;", "'": "&#39;" })[c]);
 const fmtMs = (ms) => (ms == null ? "" : (ms / 1000).toFixed(1) + " s");
+// an event time (ms of its node's clock), shown from the first event of the stream
+const fmtAt = (ms) => (ms == null ? "" : fmtMs(ms - ((latest && latest.start_ms) || 0)));
 
 let selectedOp = null;
 let latest = null;
+// what /api/info says the page may offer
+let offers = { properties: false, operation_faults: false, stoppable_nodes: [] };
+// the live properties of the selected binding: {op, node, address, groups} or {error}
+let liveProps = null;
+
+// Replace an element's content only when it changed: a redraw ten times a second must not
+// swallow a click on the element under the pointer.
+function setHtml(el, html) {
+  if (el.dataset.html !== html) {
+    el.innerHTML = html;
+    el.dataset.html = html;
+  }
+}
 
 async function getJson(path) {
   const res = await fetch(withToken(path), { cache: "no-store" });
@@ -29,6 +46,7 @@ function render(state) {
   renderHeader(state);
   renderTree(state.mission);
   renderBindings(state.bindings);
+  refreshProps(state.bindings);
   renderCluster(state.cluster);
   renderRobot(state.robot);
   renderTimeline(state.timeline);
@@ -37,7 +55,7 @@ function render(state) {
 function renderHeader(state) {
   const m = state.mission;
   $("#mission-name").textContent = m.name ? "mission " + m.name : "no run yet";
-  $("#clock").textContent = fmtMs(state.at_ms) + " · " + state.events + " events" +
+  $("#clock").textContent = fmtAt(state.at_ms) + " · " + state.events + " events" +
     (state.missed ? " · " + state.missed + " missed" : "");
   const out = $("#outcome");
   const o = m.outcome;
@@ -70,18 +88,29 @@ function renderTree(m) {
 }
 
 function renderBindings(bindings) {
+  // epochs are fencing tokens (a run's start in ms × 1000, plus one per binding): shown
+  // from the lowest one of the table, the full value on hover
+  const epochs = Object.values(bindings).map((b) => b.epoch).filter((e) => e > 0);
+  const base = epochs.length ? Math.min(...epochs) : 0;
+  const epochText = (e) => (e > 0 && base > 0 ? "+" + (e - base) : String(e));
   const rows = Object.values(bindings).map((b) => {
     const hist = b.history.length
-      ? `<tr class="history-row" data-op="${esc(b.operation)}"><td colspan="7"><ul class="history">` +
-        b.history.map((h) => `<li class="${h.type}" data-type="${h.type}">${fmtMs(h.at_ms)} ${esc(describeStep(h))}</li>`).join("") +
+      ? `<tr class="history-row" data-op="${esc(b.operation)}"><td colspan="8"><ul class="history">` +
+        b.history.map((h) => `<li class="${h.type}" data-type="${h.type}">${fmtAt(h.at_ms)} ${esc(describeStep(h))}</li>`).join("") +
         `</ul></td></tr>`
+      : "";
+    const target = `data-op="${esc(b.operation)}" data-node="${esc(b.node)}" data-address="${esc(b.address)}"`;
+    const faults = offers.operation_faults && b.status === "bound"
+      ? `<button type="button" class="fault" data-fault="kill" ${target} title="kill its actor: its supervisor restarts it">kill</button>` +
+        `<button type="button" class="fault" data-fault="hang" ${target} title="stop it answering: the dispatcher's deadline kills it">hang</button>`
       : "";
     return `<tr class="binding${selectedOp === b.operation ? " selected" : ""}" data-op="${esc(b.operation)}" ` +
       `data-status="${b.status}" data-rebinds="${b.rebinds}" data-epoch="${b.epoch}">` +
       `<td>${esc(b.operation)}</td><td class="address">${esc(b.address)}</td><td>${esc(b.node)}</td>` +
-      `<td>${esc(b.version)}</td><td class="epoch">${b.epoch}</td><td>${b.rebinds}</td><td>${b.status}</td></tr>${hist}`;
+      `<td>${esc(b.version)}</td><td class="epoch" title="epoch ${b.epoch}">${epochText(b.epoch)}</td><td>${b.rebinds}</td><td>${b.status}</td>` +
+      `<td class="faults">${faults}</td></tr>${hist}`;
   });
-  $("#bindings tbody").innerHTML = rows.join("");
+  setHtml($("#bindings tbody"), rows.join(""));
   renderProps(bindings);
 }
 
@@ -97,30 +126,95 @@ function describeStep(h) {
 function renderProps(bindings) {
   const box = $("#props");
   const b = selectedOp && bindings[selectedOp];
-  if (!b) { box.hidden = true; box.innerHTML = ""; return; }
+  if (!b) { box.hidden = true; setHtml(box, ""); return; }
   box.hidden = false;
   box.dataset.op = b.operation;
+  // the live answer, while it is the bound instance's
+  const asked = liveProps && liveProps.op === b.operation && liveProps.address === b.address ? liveProps : null;
+  box.dataset.live = asked ? (asked.error ? "error" : "true") : "false";
   const cands = b.candidates
     .map((c) => `<tr class="candidate" data-verdict="${c.verdict.type}"><td>${esc(c.address)}</td><td>${esc(c.node)}</td>` +
       `<td>${esc(c.version)}</td><td>${esc(c.schema.join(", "))}</td><td>${flags(c.flags)}</td>` +
       `<td>${esc(c.verdict.type)}${c.verdict.reason ? ": " + esc(c.verdict.reason) : ""}</td></tr>`)
     .join("");
-  box.innerHTML = `<strong>${esc(b.operation)}</strong> — bound to ${esc(b.address)} on ${esc(b.node)}, version ${esc(b.version)}, epoch ${b.epoch}, ` +
+  setHtml(box, `<strong>${esc(b.operation)}</strong> — bound to ${esc(b.address)} on ${esc(b.node)}, version ${esc(b.version)}, epoch ${b.epoch}, ` +
     `${b.rebinds} rebind(s), ${b.status}` +
-    (cands ? `<table class="candidates"><thead><tr><th>address</th><th>node</th><th>version</th><th>parameters</th><th>flags</th><th>verdict</th></tr></thead><tbody>${cands}</tbody></table>` : "");
+    (asked ? liveHtml(asked) : offers.properties ? `<p class="asking">asking the operation…</p>` : "") +
+    (cands ? `<h3>the dispatcher's choice</h3><table class="candidates"><thead><tr><th>address</th><th>node</th><th>version</th><th>parameters</th><th>flags</th><th>verdict</th></tr></thead><tbody>${cands}</tbody></table>` : ""));
+}
+
+// a property value: {"Float": 0.6} -> 0.6
+const val = (v) => (v && typeof v === "object" ? Object.values(v)[0] : v);
+
+function liveHtml(p) {
+  if (p.error) return `<p class="live-error">${esc(p.error)}</p>`;
+  const g = {};
+  for (const reply of p.groups) Object.assign(g, reply);
+  const id = g.Identification || {}, loc = g.Location || {}, gen = g.General || {}, spec = g.Specific || { params: [] };
+  const params = spec.params.map((d) => {
+    const range = d.min != null || d.max != null ? `[${d.min ?? "−∞"}, ${d.max ?? "+∞"}]` : "";
+    const ty = typeof d.ty === "object" ? Object.keys(d.ty)[0] + " " + JSON.stringify(Object.values(d.ty)[0]) : d.ty;
+    return `<tr class="param" data-param="${esc(d.name)}"><td>${esc(d.name)}</td><td>${esc(ty)}</td>` +
+      `<td>${esc(val(d.default))}${d.unit ? " " + esc(d.unit) : ""}</td><td>${esc(range)}</td>` +
+      `<td>${esc(val((spec.previous || {})[d.name]))}</td><td class="current">${esc(val((spec.current || {})[d.name]))}</td>` +
+      `<td>${esc(d.description)}${d.read_only ? " (read-only)" : ""}</td></tr>`;
+  }).join("");
+  return `<div class="live-props" data-version="${esc(id.version)}" data-in-use="${gen.in_use}">` +
+    `<p>${esc(id.name)} (id ${esc(id.id)}) version ${esc(id.version)} — ${esc(id.description)}</p>` +
+    `<p>on ${esc(loc.node)} at ${esc(loc.address)} · up ${fmtMs(gen.uptime_ms)} · ${gen.in_use ? "in use" : "idle"} · ` +
+    `${gen.activations} activation(s) · epoch ${gen.epoch} · deadline ${gen.deadline_ms} ms</p>` +
+    `<table class="params"><thead><tr><th>parameter</th><th>type</th><th>default</th><th>range</th><th>previous</th><th>current</th><th></th></tr></thead>` +
+    `<tbody>${params}</tbody></table>` +
+    (spec.flags && spec.flags.length ? `<p>flags: ${flags(spec.flags.map((f) => f.name))}</p>` : "") +
+    `</div>`;
+}
+
+// Ask again when the selected binding moved to another instance (a rebind).
+function refreshProps(bindings) {
+  const b = selectedOp && bindings[selectedOp];
+  if (b && b.address && !askProps.inFlight && (!liveProps || liveProps.address !== b.address)) askProps(b);
+}
+
+async function askProps(b) {
+  if (!offers.properties || !b) return;
+  askProps.inFlight = true;
+  try {
+    await askPropsOf(b);
+  } finally {
+    askProps.inFlight = false;
+  }
+}
+
+async function askPropsOf(b) {
+  const q = new URLSearchParams({ operation: b.operation });
+  if (b.node) q.set("node", b.node);
+  if (b.address) q.set("address", b.address);
+  let answer;
+  try {
+    const res = await fetch(withToken("/api/props?" + q), { cache: "no-store" });
+    const body = await res.json().catch(() => ({ error: res.status + " " + res.statusText }));
+    answer = res.ok ? { groups: body } : { error: body.error || String(res.status) };
+  } catch (e) {
+    answer = { error: "cannot reach the monitor: " + e };
+  }
+  liveProps = { op: b.operation, address: b.address, ...answer };
+  if (latest) renderProps(latest.bindings);
 }
 
 function renderCluster(cluster) {
-  $("#cluster").innerHTML = Object.values(cluster)
+  setHtml($("#cluster"), Object.values(cluster)
     .map((n) => {
       const mods = Object.values(n.modules);
+      const stop = offers.stoppable_nodes.includes(n.name) && n.status === "up"
+        ? ` <button type="button" class="stop-node" data-node="${esc(n.name)}" title="kill its process (SIGKILL), as a crash would">stop</button>`
+        : "";
       return `<div class="node" data-node="${esc(n.name)}" data-status="${n.status}">` +
-        `<strong>${esc(n.name)}</strong> <span class="status">${n.status}</span> ${esc(n.address || "")}` +
+        `<strong>${esc(n.name)}</strong> <span class="status">${n.status}</span> ${esc(n.address || "")}${stop}` +
         `<div class="modules">${mods.length} module(s): ` +
         mods.map((m) => `<span class="module" data-kind="${m.kind}" data-module="${esc(m.name)}">${esc(m.name)}</span>`).join(", ") +
         `</div></div>`;
     })
-    .join("");
+    .join(""));
 }
 
 const pts = (list) => (list || []).map((p) => p[0].toFixed(3) + "," + p[1].toFixed(3)).join(" ");
@@ -189,18 +283,54 @@ function renderTimeline(t) {
   const atBottom = list.scrollTop + list.clientHeight >= list.scrollHeight - 4;
   list.innerHTML = (t.dropped ? `<li class="dropped">${t.dropped} earlier entries dropped</li>` : "") +
     t.entries
-      .map((e) => `<li class="entry ${e.class}" data-class="${e.class}"><span class="at">${fmtMs(e.at_ms)}</span>` +
+      .map((e) => `<li class="entry ${e.class}" data-class="${e.class}"><span class="at">${fmtAt(e.at_ms)}</span>` +
         `<span class="src">${esc(e.node)}</span>${esc(e.text)}</li>`)
       .join("");
   if (atBottom) list.scrollTop = list.scrollHeight;
 }
 
 $("#bindings tbody").addEventListener("click", (ev) => {
-  const row = ev.target.closest("tr[data-op]");
+  const button = ev.target.closest("button.fault");
+  if (button) {
+    const d = button.dataset;
+    injectFault({ fault: d.fault, operation: d.op, node: d.node || null, address: d.address || null });
+    return;
+  }
+  const row = ev.target.closest("tr.binding");
   if (!row) return;
   selectedOp = selectedOp === row.dataset.op ? null : row.dataset.op;
-  if (latest) renderBindings(latest.bindings);
+  liveProps = null;
+  if (latest) {
+    renderBindings(latest.bindings);
+    refreshProps(latest.bindings);
+  }
 });
+
+$("#cluster").addEventListener("click", (ev) => {
+  const button = ev.target.closest("button.stop-node");
+  if (button) injectFault({ fault: "stop-node", node: button.dataset.node });
+});
+
+// Post a fault; its answer (or refusal) goes to #control-result.
+async function injectFault(request) {
+  const out = $("#control-result");
+  out.hidden = false;
+  out.dataset.ok = "pending";
+  out.textContent = "asking: " + request.fault + " " + (request.operation || request.node) + "…";
+  try {
+    const res = await fetch(withToken("/api/fault"), {
+      method: "POST",
+      headers: { "Content-Type": "application/json" },
+      body: JSON.stringify(request),
+    });
+    const body = await res.json().catch(() => ({ error: res.status + " " + res.statusText }));
+    out.dataset.ok = String(res.ok);
+    out.textContent = res.ok ? body.done : "refused: " + (body.error || res.status);
+  } catch (e) {
+    out.dataset.ok = "false";
+    out.textContent = "cannot reach the monitor: " + e;
+  }
+}
 
 function banner(text) {
   const b = $("#banner");
@@ -293,6 +423,8 @@ async function replay() {
 (async () => {
   try {
     const info = await getJson("/api/info");
+    offers = info.offers || offers;
+    document.body.dataset.faults = String(info.faults_allowed);
     const mode = $("#mode");
     mode.dataset.mode = info.mode;
     mode.textContent = info.mode;

@@ -2,6 +2,7 @@
 //! live state and its stream on a bus, the token.
 
 // the one HTTP client of the tests, shared with the `marie` package's end-to-end tests
+#[allow(dead_code)] // each test file uses part of it
 #[path = "../../tests/common/http.rs"]
 mod http;
 

@@ -17,6 +17,7 @@ pub mod ls;
 pub mod monitor;
 pub mod node;
 pub mod output;
+pub mod page_control;
 pub mod prepare;
 pub mod props;
 pub mod run;

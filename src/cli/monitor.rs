@@ -9,6 +9,7 @@
 
 use super::error::BadInput;
 use super::join::{join, member_name, JoinArgs, Target};
+use super::page_control::{NodeProcesses, PageControl};
 use marie::actors::clock::ScaledClock;
 use marie::actors::events::{
     bridge_registry, Event, EventBus, EventKind, ModuleInfo, RegistryBridge,
@@ -42,13 +43,17 @@ pub struct MonitorArgs {
     /// Require the token on loopback too.
     #[arg(long)]
     pub require_token: bool,
+    /// Let the page inject faults into the cluster it watches: kill or hang an operation,
+    /// wherever it runs.
+    #[arg(long, conflicts_with = "events")]
+    pub allow_faults: bool,
 }
 
 /// Serve the replay or the live cluster until SIGINT or SIGTERM.
 pub async fn monitor(args: MonitorArgs) -> anyhow::Result<ExitCode> {
     let options = MonitorOptions {
-        listen: args.listen,
         require_token: args.require_token,
+        ..MonitorOptions::new(args.listen)
     };
     if let Some(path) = &args.events {
         let monitor = Monitor::replay(path, options).map_err(bad_file)?;
@@ -66,7 +71,13 @@ pub async fn monitor(args: MonitorArgs) -> anyhow::Result<ExitCode> {
         )
         .into());
     };
-    let watching = ClusterWatch::start(&target, options).await?;
+    let watching = ClusterWatch::start(
+        &target,
+        options,
+        args.allow_faults,
+        NodeProcesses::default(),
+    )
+    .await?;
     let signal = super::signal::shutdown_signal(false).await;
     println!("monitor stopped ({signal})");
     watching.stop().await;
@@ -94,10 +105,10 @@ pub fn announce(monitor: &MonitorHandle, what: &str) {
 /// cluster).
 pub async fn start_live(
     bus: &EventBus,
-    listen: SocketAddr,
+    options: MonitorOptions,
     other_nodes: bool,
 ) -> anyhow::Result<(MonitorHandle, Option<JoinHandle<()>>)> {
-    let monitor = Monitor::live(bus, MonitorOptions::new(listen))?;
+    let monitor = Monitor::live(bus, options)?;
     let feed = monitor.feed().expect("a live monitor has a feed");
     let relay = if other_nodes {
         Some(relay_into(feed.clone()).await?)
@@ -140,12 +151,21 @@ pub struct ClusterWatch {
 }
 
 impl ClusterWatch {
-    /// Join the cluster at `target`, watch every node's events and serve them.
-    pub async fn start(target: &Target, options: MonitorOptions) -> anyhow::Result<ClusterWatch> {
+    /// Join the cluster at `target`, watch every node's events and serve them; the page
+    /// asks operations for their properties, and injects faults when `allow_faults` (also
+    /// stopping `processes`).
+    pub async fn start(
+        target: &Target,
+        options: MonitorOptions,
+        allow_faults: bool,
+        processes: NodeProcesses,
+    ) -> anyhow::Result<ClusterWatch> {
         let me = member_name("monitor");
         let transport = join(&me, target).await?;
-        // this member's own news of the cluster (nodes seen, lost, declared down)
+        // this member's own news of the cluster (nodes seen, lost, declared down), and the
+        // faults its page injects
         let bus = EventBus::new(me.clone(), Arc::new(ScaledClock::cluster(1.0)));
+        let options = options.with_control(PageControl::new(bus.clone(), processes), allow_faults);
         let monitor = match Monitor::live(&bus, options) {
             Ok(m) => m,
             Err(e) => {

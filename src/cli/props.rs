@@ -5,8 +5,9 @@ use super::error::BadInput;
 use super::join::{join, member_name, JoinArgs};
 use super::output::not_found;
 use super::prepare::start_node;
-use marie::actors::eo::EoClient;
+use marie::actors::eo::{EoClient, EoError};
 use marie::actors::property::{Group, PropertyReply, PropertyRequest};
+use marie::actors::registry::Instance;
 use marie::fault::plan::{find, Target};
 use std::process::ExitCode;
 
@@ -47,7 +48,21 @@ async fn props_on(operation: &str, json: bool) -> anyhow::Result<ExitCode> {
         Err(e) => Err(e),
     };
     let inst = inst.map_err(|e| BadInput(not_found(e)))?;
-    let client = EoClient::from_cell(inst.actor);
+    let replies = ask_every_group(&inst).await?;
+    if json {
+        println!("{}", serde_json::to_string_pretty(&replies)?);
+        return Ok(ExitCode::SUCCESS);
+    }
+    for reply in &replies {
+        print_reply(reply);
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Every property group of `inst` (identification, location, general, specific), asked of
+/// the live instance: what `marie props` prints and the monitor's page shows on a click.
+pub async fn ask_every_group(inst: &Instance) -> Result<Vec<PropertyReply>, EoError> {
+    let client = EoClient::from_cell(inst.actor.clone());
     let mut replies = Vec::new();
     for req in [
         PropertyRequest::Group(Group::Identification),
@@ -57,14 +72,7 @@ async fn props_on(operation: &str, json: bool) -> anyhow::Result<ExitCode> {
     ] {
         replies.push(client.property(req).await?);
     }
-    if json {
-        println!("{}", serde_json::to_string_pretty(&replies)?);
-        return Ok(ExitCode::SUCCESS);
-    }
-    for reply in &replies {
-        print_reply(reply);
-    }
-    Ok(ExitCode::SUCCESS)
+    Ok(replies)
 }
 
 fn print_reply(reply: &PropertyReply) {

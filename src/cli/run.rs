@@ -7,12 +7,14 @@ use super::events_file::EventsFile;
 use super::files;
 use super::join::JoinArgs;
 use super::output::{not_found, outcome_line, print_event, print_faults, Progress};
+use super::page_control::{NodeProcesses, PageControl};
 use super::prepare::{prepare, Prepared};
 use anyhow::Context;
 use marie::actors::clock::Pacer;
 use marie::actors::dispatcher::{Outcome, RunReport};
 use marie::fault::plan::{check_target, Target};
 use marie::fault::{Chaos, FaultPlan, FaultSpec};
+use marie_monitor::MonitorOptions;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use tokio::sync::mpsc;
@@ -72,6 +74,13 @@ pub struct RunArgs {
     #[arg(long, value_name = "ADDR", num_args = 0..=1,
           default_missing_value = marie_monitor::DEFAULT_LISTEN)]
     pub monitor: Option<std::net::SocketAddr>,
+    /// With `--monitor`: let the page inject faults — kill or hang an operation (and, under
+    /// `marie up`, stop a node's process) — and watch the dispatcher rebind.
+    #[arg(long, requires = "monitor")]
+    pub allow_faults: bool,
+    /// The node processes the page may stop (`marie up`'s children; none otherwise).
+    #[arg(skip)]
+    pub node_processes: NodeProcesses,
 }
 
 /// Pixels per metre of `--svg` pictures.
@@ -94,6 +103,8 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         chaos,
         cluster,
         monitor: monitor_listen,
+        allow_faults,
+        node_processes,
     } = args;
     let progress = match (explain, json) {
         (true, true) => Progress::ChoicesAsJson,
@@ -189,8 +200,10 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     };
     let monitor = match monitor_listen {
         Some(listen) => {
+            let control = PageControl::new(node.events().clone(), node_processes);
+            let options = MonitorOptions::new(listen).with_control(control, allow_faults);
             let (monitor, relay) =
-                super::monitor::start_live(node.events(), listen, transport.is_some()).await?;
+                super::monitor::start_live(node.events(), options, transport.is_some()).await?;
             let what = format!("mission `{}`", mission.name);
             if say {
                 super::monitor::announce(&monitor, &what);

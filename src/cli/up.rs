@@ -11,6 +11,7 @@ use super::args::{parse_cluster_speed, parse_seed, RobotArgs};
 use super::children::{stop_all, Line, Listening, NodeChild, NodeLaunch};
 use super::error::BadInput;
 use super::join::{join, member_name, JoinArgs};
+use super::page_control::NodeProcesses;
 use super::run::RunArgs;
 use marie::actors::dispatcher::mission::Mission;
 use marie::actors::registry::{self, Instance};
@@ -58,6 +59,10 @@ pub struct UpArgs {
     #[arg(long, value_name = "ADDR", num_args = 0..=1,
           default_missing_value = marie_monitor::DEFAULT_LISTEN)]
     pub monitor: Option<SocketAddr>,
+    /// With `--monitor`: let the page inject faults — kill or hang an operation, stop a
+    /// node's process (`SIGKILL`) — and watch the cluster fail over.
+    #[arg(long, requires = "monitor")]
+    pub allow_faults: bool,
 }
 
 /// Start the cluster, wait for it, run the mission or wait for a signal, stop it.
@@ -189,6 +194,13 @@ async fn serve(
             modules.join(", ")
         );
     }
+    // what the page may stop: the nodes' processes, by name
+    let processes = NodeProcesses::new(
+        launches
+            .iter()
+            .zip(children.iter())
+            .map(|(l, c)| (l.name.clone(), c.pid())),
+    );
     let Some(mission) = &args.run else {
         let watching = match args.monitor {
             Some(listen) => {
@@ -198,7 +210,15 @@ async fn serve(
                     tls: None,
                 };
                 let options = marie_monitor::MonitorOptions::new(listen);
-                Some(super::monitor::ClusterWatch::start(&target, options).await?)
+                Some(
+                    super::monitor::ClusterWatch::start(
+                        &target,
+                        options,
+                        args.allow_faults,
+                        processes,
+                    )
+                    .await?,
+                )
             }
             None => None,
         };
@@ -225,6 +245,8 @@ async fn serve(
         faults: Vec::new(),
         chaos: None,
         monitor: args.monitor,
+        allow_faults: args.allow_faults,
+        node_processes: processes,
         cluster: JoinArgs {
             join: Some(launches[0].listen),
             cookie: Some(layout.cookie.clone()),

@@ -2,9 +2,11 @@
 //! as the monitor prints it.
 
 use super::cluster::Proc;
+use super::http;
 use super::{marie, text};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
 
 /// A docking run whose wall follower is killed at 20 s, its events file written into `dir`
 /// by the binary under test.
@@ -73,4 +75,21 @@ pub fn replay_monitor(events: &Path, extra: &[&str]) -> (Proc, String) {
     let mut monitor = Proc::spawn("monitor", &args);
     let line = monitor.wait_line("monitor: http://");
     (monitor, line)
+}
+
+/// Poll `/api/state` until `ok` holds (at most [`super::cluster::EVENT_TIMEOUT`]).
+pub fn state_until(
+    addr: SocketAddr,
+    what: &str,
+    ok: impl Fn(&serde_json::Value) -> bool,
+) -> serde_json::Value {
+    let deadline = Instant::now() + super::cluster::EVENT_TIMEOUT;
+    loop {
+        let state = http::get_json(addr, "/api/state");
+        if ok(&state) {
+            return state;
+        }
+        assert!(Instant::now() < deadline, "never {what}: {state}");
+        std::thread::sleep(Duration::from_millis(100));
+    }
 }

@@ -180,6 +180,7 @@ impl ReportBuilder {
             | EventKind::NodeLost { .. }
             | EventKind::NodeDown { .. }
             | EventKind::NodeFrozen { .. }
+            | EventKind::NodeKilled { .. }
             | EventKind::NodeRefused { .. }
             | EventKind::ConnectionRefused { .. }
             | EventKind::Robot { .. } => {}

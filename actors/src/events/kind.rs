@@ -192,6 +192,14 @@ pub enum EventKind {
         /// How long it was frozen, ms of real time.
         silent_ms: u64,
     },
+    /// A node's process was killed on purpose (`SIGKILL`: a fault asked from the monitor's
+    /// page); its peers will lose it and declare it down.
+    NodeKilled {
+        /// Its node name.
+        peer: String,
+        /// Its process id.
+        pid: u32,
+    },
     /// A peer node of another protocol version was refused.
     NodeRefused {
         /// Its node name.

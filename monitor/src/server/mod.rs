@@ -5,11 +5,17 @@
 //! | route | answer |
 //! |---|---|
 //! | `GET /` | the page (`/app.js`, `/style.css` beside it) |
-//! | `GET /api/info` | `{"mode": "live" \| "replay", "token_required": bool}` |
+//! | `GET /api/info` | `{"mode": "live" \| "replay", "token_required": bool, "faults_allowed": bool, "offers": {"properties", "operation_faults", "stoppable_nodes"}}`: what the page may offer ([`Offers`]) |
 //! | `GET /api/state` | the state now (live) or after the whole run (replay), JSON |
 //! | `GET /api/live` | live only: server-sent events — `snapshot` (the state), then `state` on each change (at most 10 a second), `lagged` (`{"missed": n}`) then `snapshot` after a viewer fell behind |
 //! | `GET /api/replay/info` | replay only: `{"events", "start_ms", "end_ms", "duration_ms"}` |
 //! | `GET /api/replay/state?at_ms=T` | replay only: the state after every event up to T |
+//! | `GET /api/props?operation=NAME&node=N&address=A` | live, with a [`Control`]: the operation's properties, asked of it now (404: not running; 502: it did not answer) |
+//! | `POST /api/fault` | live, with a [`Control`] and faults allowed: a [`FaultRequest`] as JSON (`Content-Type: application/json`); 200 `{"done": "…"}`, 403 when faults are not allowed, 404 when the target is gone |
+//!
+//! Why a fault needs `application/json`: a cross-site page cannot send that content type
+//! without the browser asking first (a CORS preflight, which the monitor never grants), so a
+//! page elsewhere cannot inject faults into a monitor on loopback.
 //!
 //! Why a thread of its own: a node's `marie run` runs on a single-threaded runtime whose
 //! clock is virtual; the monitor's serving, serializing and rate limiting must take none of
@@ -21,11 +27,13 @@ pub mod live;
 pub mod replay;
 pub mod token;
 
+use crate::control::{Control, ControlError, FaultRequest, Offers, OperationRef};
 use crate::error::MonitorError;
 use axum::extract::{Query, State};
 use axum::http::{header, StatusCode};
 use axum::response::{IntoResponse, Response};
-use axum::routing::get;
+use axum::routing::{get, post};
+use axum::Json;
 use axum::Router;
 use live::{Feed, Live};
 use marie_actors::events::EventBus;
@@ -36,22 +44,46 @@ use std::path::Path;
 use std::sync::Arc;
 use tokio::sync::oneshot;
 
-/// Where and how a monitor listens.
-#[derive(Clone, Debug)]
+/// Where and how a monitor listens, and what its viewers may do beyond watching.
+#[derive(Clone)]
 pub struct MonitorOptions {
     /// The address to listen on (port 0: one the OS picks; see [`MonitorHandle::addr`]).
     pub listen: SocketAddr,
     /// Require a token on loopback too (beyond loopback one is always required).
     pub require_token: bool,
+    /// What answers the page's clicks on a live run (properties; faults when allowed).
+    pub control: Option<Arc<dyn Control>>,
+    /// Let the page inject faults through [`control`](Self::control) (`--allow-faults`).
+    pub allow_faults: bool,
 }
 
 impl MonitorOptions {
-    /// Listen on `listen`, a token only beyond loopback.
+    /// Listen on `listen`, a token only beyond loopback, no control.
     pub fn new(listen: SocketAddr) -> MonitorOptions {
         MonitorOptions {
             listen,
             require_token: false,
+            control: None,
+            allow_faults: false,
         }
+    }
+
+    /// Answer the page's clicks with `control`; faults only when `allow_faults`.
+    pub fn with_control(mut self, control: Arc<dyn Control>, allow_faults: bool) -> Self {
+        self.control = Some(control);
+        self.allow_faults = allow_faults;
+        self
+    }
+}
+
+impl std::fmt::Debug for MonitorOptions {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("MonitorOptions")
+            .field("listen", &self.listen)
+            .field("require_token", &self.require_token)
+            .field("control", &self.control.as_ref().map(|c| c.offers()))
+            .field("allow_faults", &self.allow_faults)
+            .finish()
     }
 }
 
@@ -80,6 +112,34 @@ enum Source {
 struct App {
     source: Source,
     token: Option<String>,
+    /// Live only (a replay has no run to ask).
+    control: Option<Arc<dyn Control>>,
+    allow_faults: bool,
+}
+
+impl App {
+    /// What the page may offer: nothing on a replay; faults only when allowed.
+    fn offers(&self) -> Offers {
+        let Some(control) = self.live_control() else {
+            return Offers::default();
+        };
+        let offers = control.offers();
+        if self.allow_faults {
+            offers
+        } else {
+            Offers {
+                properties: offers.properties,
+                ..Offers::default()
+            }
+        }
+    }
+
+    fn live_control(&self) -> Option<&Arc<dyn Control>> {
+        match self.source {
+            Source::Live(_) => self.control.as_ref(),
+            Source::Replay(_) => None,
+        }
+    }
 }
 
 type Shared = Arc<App>;
@@ -178,6 +238,8 @@ fn start(
     let app = Arc::new(App {
         source,
         token: token.clone(),
+        control: options.control.clone(),
+        allow_faults: options.allow_faults,
     });
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
@@ -229,6 +291,8 @@ fn router(app: Shared) -> Router {
         .route("/api/live", get(live_events))
         .route("/api/replay/info", get(replay_info))
         .route("/api/replay/state", get(replay_state))
+        .route("/api/props", get(props))
+        .route("/api/fault", post(fault))
         .layer(axum::middleware::from_fn_with_state(token, token::check))
         .with_state(app)
 }
@@ -284,7 +348,59 @@ async fn info(State(app): State<Shared>) -> Response {
         Source::Live(_) => "live",
         Source::Replay(_) => "replay",
     };
-    json_of(&serde_json::json!({"mode": mode, "token_required": app.token.is_some()}))
+    json_of(&serde_json::json!({
+        "mode": mode,
+        "token_required": app.token.is_some(),
+        "faults_allowed": app.allow_faults && app.live_control().is_some(),
+        "offers": app.offers(),
+    }))
+}
+
+/// A control's refusal as an HTTP answer: `{"error": "…"}`.
+fn refused(status: StatusCode, why: impl std::fmt::Display) -> Response {
+    (status, Json(serde_json::json!({"error": why.to_string()}))).into_response()
+}
+
+fn control_error(e: ControlError) -> Response {
+    let status = match e {
+        ControlError::NotFound(_) => StatusCode::NOT_FOUND,
+        ControlError::Refused(_) => StatusCode::CONFLICT,
+        ControlError::Failed(_) => StatusCode::BAD_GATEWAY,
+    };
+    refused(status, e)
+}
+
+async fn props(State(app): State<Shared>, Query(op): Query<OperationRef>) -> Response {
+    let Some(control) = app.live_control() else {
+        return refused(
+            StatusCode::NOT_FOUND,
+            "this monitor asks no live operation (a replay shows the recorded choices)",
+        );
+    };
+    match control.properties(op).await {
+        Ok(props) => json_of(&props),
+        Err(e) => control_error(e),
+    }
+}
+
+async fn fault(State(app): State<Shared>, Json(request): Json<FaultRequest>) -> Response {
+    let Some(control) = app.live_control() else {
+        return refused(
+            StatusCode::NOT_FOUND,
+            "a replay has no run to inject faults into",
+        );
+    };
+    if !app.allow_faults {
+        return refused(
+            StatusCode::FORBIDDEN,
+            "faults from the page are off: start the monitor with --allow-faults",
+        );
+    }
+    tracing::warn!(?request, "fault asked from the monitor's page");
+    match control.fault(request).await {
+        Ok(done) => json_of(&serde_json::json!({ "done": done })),
+        Err(e) => control_error(e),
+    }
 }
 
 async fn state(State(app): State<Shared>) -> Response {

@@ -35,6 +35,9 @@ pub struct MonitorState {
     pub events: u64,
     /// The time of the latest event applied, ms of its node's clock.
     pub at_ms: u64,
+    /// The time of the earliest event applied: the page shows times relative to it (a
+    /// cluster's clocks count from the Unix epoch).
+    pub start_ms: Option<u64>,
     /// Events the monitor itself lost (it fell behind the bus or the relay).
     pub missed: u64,
     /// The mission's run: task tree, flags, outcome.
@@ -63,6 +66,7 @@ impl MonitorState {
     pub fn apply(&mut self, event: &Event) {
         self.events += 1;
         self.at_ms = self.at_ms.max(event.at_ms);
+        self.start_ms = Some(self.start_ms.map_or(event.at_ms, |s| s.min(event.at_ms)));
         let (at, node) = (event.at_ms, event.node.as_str());
         self.cluster.heard_from(node, at);
         let line = &mut self.timeline;
@@ -237,6 +241,12 @@ impl MonitorState {
                     format!("{node} was frozen {silent_ms} ms: restarts its operations"),
                 );
             }
+            EventKind::NodeKilled { peer, pid } => line.push(
+                at,
+                node,
+                "fault",
+                format!("{node} killed {peer}'s process (pid {pid})"),
+            ),
             EventKind::NodeRefused { peer, theirs, ours } => line.push(
                 at,
                 node,

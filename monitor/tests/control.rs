@@ -1,0 +1,172 @@
+//! The page's control routes over real HTTP on 127.0.0.1: what `/api/info` offers, the
+//! properties asked on a click, and faults — refused unless allowed, refused without a JSON
+//! content type, passed to the [`Control`] and answered with what it did.
+//!
+//! The control here records what it is asked (the real one, the CLI's, kills real actors
+//! and processes: the `marie` package's tests `monitor_faults` and `monitor_browser`).
+
+#[allow(dead_code)] // each test file uses part of it
+#[path = "../../tests/common/http.rs"]
+mod http;
+
+use marie_actors::clock::ManualClock;
+use marie_actors::events::EventBus;
+use marie_monitor::control::{Answer, Control, ControlError, FaultRequest, Offers, OperationRef};
+use marie_monitor::{Monitor, MonitorOptions};
+use serde_json::json;
+use std::path::Path;
+use std::sync::{Arc, Mutex};
+
+/// Answers properties for `wall-follower` only, does any fault, remembers the faults.
+#[derive(Default)]
+struct Recording {
+    faults: Mutex<Vec<FaultRequest>>,
+}
+
+impl Control for Recording {
+    fn offers(&self) -> Offers {
+        Offers {
+            properties: true,
+            operation_faults: true,
+            stoppable_nodes: vec!["wf-a".into()],
+        }
+    }
+
+    fn properties(&self, op: OperationRef) -> Answer<serde_json::Value> {
+        Box::pin(async move {
+            if op.operation == "wall-follower" {
+                Ok(json!([{"Identification": {"name": op.operation, "version": "1.0.0"}}]))
+            } else {
+                Err(ControlError::NotFound(format!("no {}", op.operation)))
+            }
+        })
+    }
+
+    fn fault(&self, fault: FaultRequest) -> Answer<String> {
+        let done = match &fault {
+            FaultRequest::StopNode { node } if node != "wf-a" => {
+                Err(ControlError::NotFound(format!("no node {node}")))
+            }
+            f => Ok(format!("did {f:?}")),
+        };
+        self.faults.lock().unwrap().push(fault);
+        Box::pin(std::future::ready(done))
+    }
+}
+
+fn live(control: Arc<Recording>, allow_faults: bool) -> marie_monitor::MonitorHandle {
+    let bus = EventBus::new("n1", Arc::new(ManualClock::new()));
+    let options =
+        MonitorOptions::new("127.0.0.1:0".parse().unwrap()).with_control(control, allow_faults);
+    Monitor::live(&bus, options).unwrap()
+}
+
+fn kill_wall_follower() -> serde_json::Value {
+    json!({"fault": "kill", "operation": "wall-follower", "node": "wf-a", "address": "2.3"})
+}
+
+#[test]
+fn faults_are_refused_unless_allowed_and_properties_are_always_asked() {
+    let control = Arc::new(Recording::default());
+    let monitor = live(control.clone(), false);
+    let addr = monitor.addr();
+    let info = http::get_json(addr, "/api/info");
+    assert_eq!(info["faults_allowed"], false);
+    assert_eq!(
+        info["offers"],
+        json!({"properties": true, "operation_faults": false, "stoppable_nodes": []})
+    );
+    let (status, answer) = http::post_json(addr, "/api/fault", &kill_wall_follower());
+    assert_eq!(status, 403, "{answer}");
+    assert!(
+        answer["error"].as_str().unwrap().contains("--allow-faults"),
+        "{answer}"
+    );
+    assert!(control.faults.lock().unwrap().is_empty(), "nothing done");
+    // properties need no permission
+    let props = http::get_json(addr, "/api/props?operation=wall-follower&node=wf-a");
+    assert_eq!(props[0]["Identification"]["version"], "1.0.0");
+    let (status, body) = http::get(addr, "/api/props?operation=ghost", &[]);
+    assert_eq!(status, 404, "{body}");
+    assert!(body.contains("no ghost"), "{body}");
+}
+
+#[test]
+fn an_allowed_fault_is_done_by_the_control_and_its_answer_returned() {
+    let control = Arc::new(Recording::default());
+    let monitor = live(control.clone(), true);
+    let addr = monitor.addr();
+    let info = http::get_json(addr, "/api/info");
+    assert_eq!(info["faults_allowed"], true);
+    assert_eq!(info["offers"]["stoppable_nodes"], json!(["wf-a"]));
+    let (status, answer) = http::post_json(addr, "/api/fault", &kill_wall_follower());
+    assert_eq!(status, 200, "{answer}");
+    assert!(
+        answer["done"].as_str().unwrap().starts_with("did Kill"),
+        "{answer}"
+    );
+    let (status, answer) = http::post_json(
+        addr,
+        "/api/fault",
+        &json!({"fault": "stop-node", "node": "wf-z"}),
+    );
+    assert_eq!(status, 404, "{answer}");
+    assert_eq!(answer["error"], "no node wf-z");
+    assert_eq!(
+        *control.faults.lock().unwrap(),
+        vec![
+            FaultRequest::Kill(OperationRef {
+                operation: "wall-follower".into(),
+                node: Some("wf-a".into()),
+                address: Some("2.3".into()),
+            }),
+            FaultRequest::StopNode {
+                node: "wf-z".into()
+            },
+        ]
+    );
+}
+
+#[test]
+fn a_fault_must_be_json_of_a_known_kind() {
+    let control = Arc::new(Recording::default());
+    let monitor = live(control.clone(), true);
+    let addr = monitor.addr();
+    // a form post (what a page elsewhere may send without asking) is refused
+    let body = kill_wall_follower().to_string();
+    let (status, _) = http::request(
+        addr,
+        "POST",
+        "/api/fault",
+        &[("Content-Type", "text/plain")],
+        &body,
+    );
+    assert_eq!(status, 415);
+    let (status, _) = http::post_json(addr, "/api/fault", &json!({"fault": "explode"}));
+    assert_eq!(status, 422);
+    assert_eq!(http::get(addr, "/api/fault", &[]).0, 405);
+    assert!(control.faults.lock().unwrap().is_empty());
+}
+
+#[test]
+fn a_replay_offers_no_control() {
+    let fixture = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/fixtures/docking-kill.jsonl"
+    );
+    let options = MonitorOptions::new("127.0.0.1:0".parse().unwrap())
+        .with_control(Arc::new(Recording::default()), true);
+    let monitor = Monitor::replay(Path::new(fixture), options).unwrap();
+    let addr = monitor.addr();
+    let info = http::get_json(addr, "/api/info");
+    assert_eq!(info["faults_allowed"], false);
+    assert_eq!(info["offers"]["properties"], false);
+    assert_eq!(
+        http::get(addr, "/api/props?operation=wall-follower", &[]).0,
+        404
+    );
+    assert_eq!(
+        http::post_json(addr, "/api/fault", &kill_wall_follower()).0,
+        404
+    );
+}
