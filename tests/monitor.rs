@@ -133,7 +133,7 @@ fn hosts(state: &serde_json::Value, node: &str, module: &str) -> bool {
 }
 
 #[test]
-fn a_monitor_joined_to_a_cluster_shows_its_nodes_their_modules_and_a_restart_on_one() {
+fn a_monitor_joined_to_a_cluster_shows_its_nodes_asks_their_operations_and_kills_one() {
     const COOKIE: &str = "monitored";
     let dir = tempfile::tempdir().unwrap();
     let alpha = NodeProc::start(
@@ -154,9 +154,17 @@ fn a_monitor_joined_to_a_cluster_shows_its_nodes_their_modules_and_a_restart_on_
             COOKIE,
             "--listen",
             "127.0.0.1:0",
+            "--allow-faults",
         ],
     );
     let (addr, _) = page_of(&monitor.wait_line("monitor: http://"));
+    let info = http::get_json(addr, "/api/info");
+    assert_eq!(info["offers"]["operation_faults"], true, "{info}");
+    assert_eq!(
+        info["offers"]["stoppable_nodes"],
+        serde_json::json!([]),
+        "a joined monitor started no node"
+    );
     // what was there before the monitor joined
     state_until(addr, "alpha hosting the sampler", |s| {
         hosts(s, "alpha", "sampler")
@@ -172,9 +180,13 @@ fn a_monitor_joined_to_a_cluster_shows_its_nodes_their_modules_and_a_restart_on_
     state_until(addr, "beta hosting the averager", |s| {
         hosts(s, "beta", "averager") && s["cluster"]["beta"]["status"] == "up"
     });
-    // a restart on alpha reaches the timeline
-    let out = marie(&["kill", "sampler", "--join", &alpha_addr, "--cookie", COOKIE]);
-    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    // the page asks beta's operation, a node away, for its properties
+    let props = http::get_json(addr, "/api/props?operation=averager&node=beta");
+    assert_eq!(props[1]["Location"]["node"], "beta", "{props}");
+    // a kill from the page: the restart on alpha reaches the timeline
+    let kill = serde_json::json!({"fault": "kill", "operation": "sampler", "node": "alpha"});
+    let (status, answer) = http::post_json(addr, "/api/fault", &kill);
+    assert_eq!(status, 200, "{answer}");
     state_until(addr, "the restart on alpha in the timeline", |s| {
         s["timeline"]["entries"].as_array().is_some_and(|e| {
             e.iter()
@@ -186,7 +198,7 @@ fn a_monitor_joined_to_a_cluster_shows_its_nodes_their_modules_and_a_restart_on_
 }
 
 #[test]
-fn up_with_a_monitor_shows_every_node_of_the_cluster_and_what_it_hosts() {
+fn up_with_a_monitor_shows_every_node_and_what_it_hosts_and_stops_one_from_the_page() {
     let mut up = Proc::spawn(
         "up",
         &[
@@ -194,9 +206,16 @@ fn up_with_a_monitor_shows_every_node_of_the_cluster_and_what_it_hosts() {
             "missions/clusters/thesis.toml",
             "--monitor",
             "127.0.0.1:0",
+            "--allow-faults",
         ],
     );
     let (addr, _) = page_of(&up.wait_line("monitor: http://"));
+    let info = http::get_json(addr, "/api/info");
+    assert_eq!(
+        info["offers"]["stoppable_nodes"],
+        serde_json::json!(["cart", "features", "operations", "spare"]),
+        "{info}"
+    );
     let state = state_until(addr, "the thesis' four nodes with their modules", |s| {
         hosts(s, "cart", "virtual-cart")
             && hosts(s, "features", "feature")
@@ -206,7 +225,18 @@ fn up_with_a_monitor_shows_every_node_of_the_cluster_and_what_it_hosts() {
     for node in ["cart", "features", "operations", "spare"] {
         assert_eq!(state["cluster"][node]["status"], "up", "{node}: {state}");
     }
+    // stop the spare's process from the page: the cluster loses it
+    let stop = serde_json::json!({"fault": "stop-node", "node": "spare"});
+    let (status, answer) = http::post_json(addr, "/api/fault", &stop);
+    assert_eq!(status, 200, "{answer}");
+    state_until(addr, "the spare lost", |s| {
+        ["lost", "down"].contains(&s["cluster"]["spare"]["status"].as_str().unwrap_or(""))
+    });
+    let (status, answer) = http::post_json(addr, "/api/fault", &stop);
+    assert_eq!(status, 404, "stopped once: {answer}");
+    up.wait_line("[spare] exited");
     up.signal("INT");
+    up.wait_line("node spare was killed");
     up.wait_line("cluster stopped");
     assert_eq!(up.wait_exit(), Some(0));
 }
