@@ -54,6 +54,17 @@ fn fault_times_out_of_range_are_refused() {
 }
 
 #[test]
+fn faults_from_the_page_need_a_live_page() {
+    let out = marie(&["run", "missions/demo.toml", "--allow-faults"]);
+    refused(&out, "--monitor");
+    let out = marie(&["up", "missions/clusters/thesis.toml", "--allow-faults"]);
+    refused(&out, "--monitor");
+    // a replay has no run to hurt
+    let out = marie(&["monitor", "--events", "run.jsonl", "--allow-faults"]);
+    refused(&out, "cannot be used with '--allow-faults'");
+}
+
+#[test]
 fn malformed_fault_targets_are_refused() {
     for spec in [
         "kill:wall follower@1",
