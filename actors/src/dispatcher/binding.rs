@@ -237,15 +237,23 @@ impl Binding {
         (choice, chosen)
     }
 
+    /// Why the instance `actor` on `node` cannot stand in, known before asking it anything:
+    /// it is the lost one, or its node was declared down (it may linger in the registry a
+    /// moment after).
+    pub(crate) fn ruled_out_unasked(&self, actor: ActorId, node: &str) -> Option<String> {
+        if self.lost.as_ref().is_some_and(|lost| actor == lost.dead) {
+            return Some("it is the instance that was lost".to_string());
+        }
+        if crate::registry::is_declared_down(node) {
+            return Some(format!("its node {node} was declared down"));
+        }
+        None
+    }
+
     /// Why `cand` cannot stand in for this binding whatever the mission needs, if it cannot.
     fn cannot_stand_in(&self, cand: &Candidate) -> Option<String> {
-        if let Some(lost) = &self.lost {
-            if cand.client.actor().get_id() == lost.dead {
-                return Some("it is the instance that was lost".to_string());
-            }
-        }
-        if crate::registry::is_declared_down(&cand.node) {
-            return Some(format!("its node {} was declared down", cand.node));
+        if let Some(why) = self.ruled_out_unasked(cand.client.actor().get_id(), &cand.node) {
+            return Some(why);
         }
         if cand.info.name != self.name || cand.info.id != self.id {
             return Some(format!(

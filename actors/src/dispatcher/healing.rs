@@ -208,15 +208,12 @@ impl DispatcherState {
         let Some(b) = self.bindings.get(name) else {
             return false;
         };
-        let Some(lost) = &b.lost else {
-            return false;
-        };
-        if inst.actor.get_id() == lost.dead {
+        if b.lost.is_none() {
             return false;
         }
-        if registry::is_declared_down(&inst.node) {
-            // still in the registry a moment after its node was declared down
-            tracing::debug!(op = %name, node = %inst.node, "no stand-in from a node declared down");
+        // what rules it out without a round trip to it
+        if let Some(why) = b.ruled_out_unasked(inst.actor.get_id(), &inst.node) {
+            tracing::debug!(op = %name, actor = %inst.actor.get_id(), %why, "no stand-in");
             return false;
         }
         match examine(inst, b.deadline).await {
