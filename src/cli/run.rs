@@ -76,6 +76,8 @@ pub struct RunArgs {
 
 /// Pixels per metre of `--svg` pictures.
 const SVG_SCALE: f64 = 50.0;
+/// How long the end of a run waits for its monitor to take the run's last events.
+const MONITOR_FLUSH: std::time::Duration = std::time::Duration::from_secs(5);
 /// Events of the other nodes a `run --join --events` keeps while its file writer is behind.
 const EVENTS_FROM_OTHERS: usize = 4096;
 
@@ -231,6 +233,12 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     if let Some((monitor, relay)) = monitor {
         // virtual time need not run on while the page is read
         drop(pace);
+        // the page must hold the run's last events (the outcome) once the line says so
+        if !monitor.flush(MONITOR_FLUSH) {
+            tracing::warn!(
+                "the monitor had not taken the run's last events within {MONITOR_FLUSH:?}"
+            );
+        }
         let over = "monitor: the run is over; its page stays up until Ctrl-C";
         if say {
             println!("{over}");
