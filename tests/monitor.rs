@@ -224,6 +224,74 @@ fn up_with_a_monitor_shows_every_node_of_the_cluster_and_what_it_hosts() {
     for node in ["cart", "features", "operations", "spare"] {
         assert_eq!(state["cluster"][node]["status"], "up", "{node}: {state}");
     }
+    // no run: the node that runs the cart draws it anyway — its world (told again for a
+    // monitor that joined after its start) and its poses
+    state_until(addr, "the cart in its world", |s| {
+        s["robot"]["world"]["walls"]
+            .as_array()
+            .is_some_and(|w| !w.is_empty())
+            && s["robot"]["poses"].as_u64().is_some_and(|n| n > 0)
+    });
+    up.signal("INT");
+    up.wait_line("cluster stopped");
+    assert_eq!(up.wait_exit(), Some(0));
+}
+
+#[test]
+fn up_running_a_mission_with_a_monitor_draws_the_cart_of_another_node_and_lists_every_node() {
+    let mut up = Proc::spawn(
+        "up",
+        &[
+            "up",
+            "missions/clusters/thesis.toml",
+            "--run",
+            "missions/docking.toml",
+            "--speed",
+            "4",
+            "--monitor",
+            "127.0.0.1:0",
+        ],
+    );
+    let (addr, _) = page_of(&up.wait_line("monitor: http://"));
+    up.wait_line("the run is over");
+    // the run's own events are in (flushed before the line)
+    let after = http::get_json(addr, "/api/state");
+    assert_eq!(
+        after["mission"]["outcome"]["outcome"], "succeeded",
+        "{after}"
+    );
+    // the dispatcher's process told the world and tapped the datamanagers on the other
+    // nodes (the planned path is stored on `operations`)
+    assert!(
+        after["robot"]["world"]["walls"]
+            .as_array()
+            .is_some_and(|w| !w.is_empty()),
+        "{after}"
+    );
+    assert!(
+        after["robot"]["planned_path"]
+            .as_array()
+            .is_some_and(|p| !p.is_empty()),
+        "{after}"
+    );
+    // the poses come from the node that runs the cart (no dispatcher there), through the
+    // cluster's relay
+    let driven = state_until(addr, "the cart's driven path", |s| {
+        s["robot"]["path"].as_array().is_some_and(|p| p.len() > 10)
+    });
+    assert!(driven["robot"]["pose"].is_object(), "{driven}");
+    // every node with its modules
+    for (node, module) in [
+        ("cart", "virtual-cart"),
+        ("features", "feature"),
+        ("operations", "path-planner"),
+        ("spare", "wall-follower"),
+    ] {
+        assert!(
+            hosts(&driven, node, module),
+            "{node} hosting {module}: {driven}"
+        );
+    }
     up.signal("INT");
     up.wait_line("cluster stopped");
     assert_eq!(up.wait_exit(), Some(0));
