@@ -296,3 +296,55 @@ fn up_running_a_mission_with_a_monitor_draws_the_cart_of_another_node_and_lists_
     up.wait_line("cluster stopped");
     assert_eq!(up.wait_exit(), Some(0));
 }
+
+#[test]
+fn a_run_joined_to_a_cluster_with_a_monitor_lists_the_modules_of_a_node_that_joins_later() {
+    const COOKIE: &str = "joined-run";
+    let dir = tempfile::tempdir().unwrap();
+    let alpha = NodeProc::start(
+        dir.path(),
+        "alpha",
+        "[[datamanager]]\nname = \"feature\"\n[[operation]]\nname = \"sampler\"\n",
+        &[],
+        COOKIE,
+    );
+    // a run that lasts: 100 000 samples, one every 2 ms (it is killed once seen)
+    let mission = dir.path().join("long.toml");
+    std::fs::write(
+        &mission,
+        "[mission]\nname = \"long\"\nsuccess = [\"sampled\"]\n[flags]\nsampled = 0\n\
+         [[action]]\nname = \"sample\"\ndeadline_s = 600.0\n\
+         [action.ops.sampler]\ncount = 100000\n",
+    )
+    .unwrap();
+    let alpha_addr = alpha.addr.to_string();
+    let mut run = Proc::spawn(
+        "run",
+        &[
+            "run",
+            mission.to_str().unwrap(),
+            "--join",
+            &alpha_addr,
+            "--cookie",
+            COOKIE,
+            "--monitor",
+            "127.0.0.1:0",
+        ],
+    );
+    let (addr, _) = page_of(&run.wait_line("monitor: http://"));
+    state_until(addr, "the action running on alpha's sampler", |s| {
+        hosts(s, "alpha", "sampler") && s["mission"]["actions"][0]["state"] == "running"
+    });
+    // a node that joins while the run goes on: its modules reach the run's registry
+    let _beta = NodeProc::start(
+        dir.path(),
+        "beta",
+        "[[datamanager]]\nname = \"world\"\n[[operation]]\nname = \"averager\"\n",
+        &[alpha.addr],
+        COOKIE,
+    );
+    state_until(addr, "beta hosting the averager and the world DM", |s| {
+        hosts(s, "beta", "averager") && hosts(s, "beta", "world")
+    });
+    assert!(run.alive(), "the run was still going on");
+}

@@ -92,6 +92,13 @@ pub fn announce(monitor: &MonitorHandle, what: &str) {
 /// A live monitor on `bus` (a run's own node): the modules already in the registry first,
 /// then every event of the bus. `other_nodes`: also the other nodes' events (a member of a
 /// cluster).
+///
+/// No registry bridge of its own, unlike [`ClusterWatch`]: `bus` is a node's, and the node
+/// bridges its registry onto it from its start for as long as it runs (`Node::start`) —
+/// the joins and leaves of every node's modules, also of a node that joins the cluster
+/// after the run started (its own relay told them before it knew of this watcher). A
+/// second bridge would publish each of them twice on the node's bus, and so into its
+/// `--events` file.
 pub async fn start_live(
     bus: &EventBus,
     listen: SocketAddr,
