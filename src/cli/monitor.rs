@@ -52,8 +52,10 @@ pub async fn monitor(args: MonitorArgs) -> anyhow::Result<ExitCode> {
     };
     if let Some(path) = &args.events {
         let monitor = Monitor::replay(path, options).map_err(bad_file)?;
+        // watched before the page's line: a Ctrl-C right after it is not missed
+        let stop = super::signal::shutdown_signal(false);
         announce(&monitor, &format!("replaying {}", path.display()));
-        let signal = super::signal::shutdown_signal(false).await;
+        let signal = stop.await;
         println!("monitor stopped ({signal})");
         monitor.stop();
         return Ok(ExitCode::SUCCESS);
@@ -66,8 +68,9 @@ pub async fn monitor(args: MonitorArgs) -> anyhow::Result<ExitCode> {
         )
         .into());
     };
+    let stop = super::signal::shutdown_signal(false);
     let watching = ClusterWatch::start(&target, options).await?;
-    let signal = super::signal::shutdown_signal(false).await;
+    let signal = stop.await;
     println!("monitor stopped ({signal})");
     watching.stop().await;
     Ok(ExitCode::SUCCESS)

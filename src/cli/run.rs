@@ -239,6 +239,8 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
                 "the monitor had not taken the run's last events within {MONITOR_FLUSH:?}"
             );
         }
+        // watched before the line: a Ctrl-C right after it is not missed
+        let stop = super::signal::shutdown_signal(false);
         let over = "monitor: the run is over; its page stays up until Ctrl-C";
         if say {
             println!("{over}");
@@ -246,7 +248,7 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         } else {
             eprintln!("{over}");
         }
-        let signal = super::signal::shutdown_signal(false).await;
+        let signal = stop.await;
         if say {
             println!("monitor stopped ({signal})");
         }
