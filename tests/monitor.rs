@@ -110,9 +110,9 @@ fn a_run_serves_its_live_state_while_the_mission_runs_and_its_outcome_after() {
     assert_eq!(stream.next().0, "snapshot");
     drop(stream);
     // after the run the page stays up with the outcome
+    // the run flushes its monitor before the line: the state holds the outcome by then
     run.wait_line("the run is over");
-    // the monitor takes the bus's events every 10 ms: its state may trail the line
-    let after = state_until(addr, "the outcome", |s| !s["mission"]["outcome"].is_null());
+    let after = http::get_json(addr, "/api/state");
     assert_eq!(
         after["mission"]["outcome"]["outcome"], "succeeded",
         "{after}"
@@ -225,6 +225,14 @@ fn up_with_a_monitor_shows_every_node_and_what_it_hosts_and_stops_one_from_the_p
     for node in ["cart", "features", "operations", "spare"] {
         assert_eq!(state["cluster"][node]["status"], "up", "{node}: {state}");
     }
+    // no run: the node that runs the cart draws it anyway — its world (told again for a
+    // monitor that joined after its start) and its poses
+    state_until(addr, "the cart in its world", |s| {
+        s["robot"]["world"]["walls"]
+            .as_array()
+            .is_some_and(|w| !w.is_empty())
+            && s["robot"]["poses"].as_u64().is_some_and(|n| n > 0)
+    });
     // stop the spare's process from the page: the cluster loses it
     let stop = serde_json::json!({"fault": "stop-node", "node": "spare"});
     let (status, answer) = http::post_json(addr, "/api/fault", &stop);
@@ -239,4 +247,116 @@ fn up_with_a_monitor_shows_every_node_and_what_it_hosts_and_stops_one_from_the_p
     up.wait_line("node spare was killed");
     up.wait_line("cluster stopped");
     assert_eq!(up.wait_exit(), Some(0));
+}
+
+#[test]
+fn up_running_a_mission_with_a_monitor_draws_the_cart_of_another_node_and_lists_every_node() {
+    let mut up = Proc::spawn(
+        "up",
+        &[
+            "up",
+            "missions/clusters/thesis.toml",
+            "--run",
+            "missions/docking.toml",
+            "--speed",
+            "4",
+            "--monitor",
+            "127.0.0.1:0",
+        ],
+    );
+    let (addr, _) = page_of(&up.wait_line("monitor: http://"));
+    up.wait_line("the run is over");
+    // the run's own events are in (flushed before the line)
+    let after = http::get_json(addr, "/api/state");
+    assert_eq!(
+        after["mission"]["outcome"]["outcome"], "succeeded",
+        "{after}"
+    );
+    // the dispatcher's process told the world and tapped the datamanagers on the other
+    // nodes (the planned path is stored on `operations`)
+    assert!(
+        after["robot"]["world"]["walls"]
+            .as_array()
+            .is_some_and(|w| !w.is_empty()),
+        "{after}"
+    );
+    assert!(
+        after["robot"]["planned_path"]
+            .as_array()
+            .is_some_and(|p| !p.is_empty()),
+        "{after}"
+    );
+    // the poses come from the node that runs the cart (no dispatcher there), through the
+    // cluster's relay
+    let driven = state_until(addr, "the cart's driven path", |s| {
+        s["robot"]["path"].as_array().is_some_and(|p| p.len() > 10)
+    });
+    assert!(driven["robot"]["pose"].is_object(), "{driven}");
+    // every node with its modules
+    for (node, module) in [
+        ("cart", "virtual-cart"),
+        ("features", "feature"),
+        ("operations", "path-planner"),
+        ("spare", "wall-follower"),
+    ] {
+        assert!(
+            hosts(&driven, node, module),
+            "{node} hosting {module}: {driven}"
+        );
+    }
+    up.signal("INT");
+    up.wait_line("cluster stopped");
+    assert_eq!(up.wait_exit(), Some(0));
+}
+
+#[test]
+fn a_run_joined_to_a_cluster_with_a_monitor_lists_the_modules_of_a_node_that_joins_later() {
+    const COOKIE: &str = "joined-run";
+    let dir = tempfile::tempdir().unwrap();
+    let alpha = NodeProc::start(
+        dir.path(),
+        "alpha",
+        "[[datamanager]]\nname = \"feature\"\n[[operation]]\nname = \"sampler\"\n",
+        &[],
+        COOKIE,
+    );
+    // a run that lasts: 100 000 samples, one every 2 ms (it is killed once seen)
+    let mission = dir.path().join("long.toml");
+    std::fs::write(
+        &mission,
+        "[mission]\nname = \"long\"\nsuccess = [\"sampled\"]\n[flags]\nsampled = 0\n\
+         [[action]]\nname = \"sample\"\ndeadline_s = 600.0\n\
+         [action.ops.sampler]\ncount = 100000\n",
+    )
+    .unwrap();
+    let alpha_addr = alpha.addr.to_string();
+    let mut run = Proc::spawn(
+        "run",
+        &[
+            "run",
+            mission.to_str().unwrap(),
+            "--join",
+            &alpha_addr,
+            "--cookie",
+            COOKIE,
+            "--monitor",
+            "127.0.0.1:0",
+        ],
+    );
+    let (addr, _) = page_of(&run.wait_line("monitor: http://"));
+    state_until(addr, "the action running on alpha's sampler", |s| {
+        hosts(s, "alpha", "sampler") && s["mission"]["actions"][0]["state"] == "running"
+    });
+    // a node that joins while the run goes on: its modules reach the run's registry
+    let _beta = NodeProc::start(
+        dir.path(),
+        "beta",
+        "[[datamanager]]\nname = \"world\"\n[[operation]]\nname = \"averager\"\n",
+        &[alpha.addr],
+        COOKIE,
+    );
+    state_until(addr, "beta hosting the averager and the world DM", |s| {
+        hosts(s, "beta", "averager") && hosts(s, "beta", "world")
+    });
+    assert!(run.alive(), "the run was still going on");
 }

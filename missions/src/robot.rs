@@ -9,6 +9,8 @@
 //! [`SimRobot::picture`] draws a run after it; while it runs, the robot tells the node's
 //! event bus the same things as they happen ([`crate::telemetry`]: the world
 //! when a run starts, the cart's pose, echoes, planned paths, the followed wall, the dock).
+//! On a node that runs the cart but no dispatcher (a cluster's cart node), it tells the
+//! world and the cart's poses from the node's start, since no run starts there.
 //!
 //! ```no_run
 //! use marie_cluster::node::{Node, NodeConfig, NodeOptions};
@@ -210,6 +212,20 @@ impl Robot for SimRobot {
             let taps = telemetry::tap_records(events.clone()).await;
             *lock(&self.telemetry.taps) = taps;
         })
+    }
+
+    /// A node that runs the cart but no dispatcher draws the robot without runs: the world
+    /// now and again (for viewers that join later), then the cart's poses from now on. The
+    /// records' taps stay with the dispatcher's node (see [`crate::telemetry`]). A node
+    /// without the cart tells nothing.
+    fn dispatched_elsewhere(&self, events: &EventBus) -> Vec<JoinHandle<()>> {
+        if !self.drivers {
+            return Vec::new();
+        }
+        // the world is published before this returns, so before the poses it frames
+        let world = telemetry::repeat_world(events.clone(), &self.world);
+        self.telemetry.live.store(true, Ordering::Relaxed);
+        vec![world]
     }
 
     fn judge<'a>(&'a self, report: &'a mut RunReport) -> BoxFuture<'a, ()> {
@@ -418,6 +434,35 @@ mod tests {
             "{}",
             r.reason
         );
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn a_cart_dispatched_from_elsewhere_tells_its_world_again_and_again_then_poses() {
+        use marie_actors::clock::ManualClock;
+        use marie_actors::events::EventKind;
+        let bus = EventBus::new("cart", Arc::new(ManualClock::new()));
+        let mut sub = bus.subscribe();
+        let lab = robot("lab");
+        assert!(!lab.telemetry.live.load(Ordering::Relaxed));
+        let tasks = lab.dispatched_elsewhere(&bus);
+        // the world before this returned, and the poses live after it
+        let first = sub.drain();
+        assert_eq!(first.len(), 1);
+        assert_eq!(first[0].kind, telemetry::world_event(&lab.world));
+        assert!(lab.telemetry.live.load(Ordering::Relaxed));
+        // then again every period, for viewers that come later
+        tokio::time::sleep(telemetry::WORLD_REPEAT * 3 + std::time::Duration::from_millis(1)).await;
+        let again = sub.drain();
+        assert_eq!(again.len(), 3);
+        assert!(again
+            .iter()
+            .all(|e| matches!(&e.kind, EventKind::Robot { what, .. } if what == telemetry::WORLD)));
+        tasks.iter().for_each(JoinHandle::abort);
+        // a node without the cart tells nothing
+        let elsewhere = robot("lab").with_drivers(false);
+        assert!(elsewhere.dispatched_elsewhere(&bus).is_empty());
+        assert!(sub.drain().is_empty());
+        assert!(!elsewhere.telemetry.live.load(Ordering::Relaxed));
     }
 
     #[test]

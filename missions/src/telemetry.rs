@@ -11,8 +11,8 @@
 //!
 //! | `what` | `data` | when | from |
 //! |---|---|---|---|
-//! | `world` | `{"walls": [[[x1,y1],[x2,y2]], ...], "dock": [[x,y],...] \| null, "goal": [[x,y],...] \| null, "cart": {"length", "width", "axle_to_centre"}}` | once when a run starts, before any other robot event of it | the world model: every wall and obstacle edge, the dock's recess and the goal area as their corners, the cart's size (the pose is the rear axle; the footprint's centre is `axle_to_centre` ahead of it) |
-//! | `pose` | `{"x", "y", "heading"}` | every [`POSE_PERIOD`] of simulated time, from the first run on | the cart's true pose (what the picture's driven path shows) |
+//! | `world` | `{"walls": [[[x1,y1],[x2,y2]], ...], "dock": [[x,y],...] \| null, "goal": [[x,y],...] \| null, "cart": {"length", "width", "axle_to_centre"}}` | once when a run starts, before any other robot event of it; on a node that runs the cart but no dispatcher, when the node starts and every [`WORLD_REPEAT`] after | the world model: every wall and obstacle edge, the dock's recess and the goal area as their corners, the cart's size (the pose is the rear axle; the footprint's centre is `axle_to_centre` ahead of it) |
+//! | `pose` | `{"x", "y", "heading"}` | every [`POSE_PERIOD`] of simulated time, from the first run on (on a node that runs the cart but no dispatcher: from the node's start) | the cart's true pose (what the picture's driven path shows) |
 //! | `echoes` | `{"points": [[x,y], ...]}` | every [`ECHOES_PERIOD`] of scans | the echo points of the sonar scans since the last `echoes` event, as the robot placed them (feature DM, class `sonar`) |
 //! | `planned-path` | `{"points": [[x,y], ...]}` | when the path planner stores a path | its waypoints, leg after leg (parameter DM, class `path`) |
 //! | `followed-wall` | `{"from": [x,y], "to": [x,y]}` | when the wall sensor first stores the followed wall, and when either end moves more than [`WALL_MOVED`] | world DM, class `wall` |
@@ -30,8 +30,25 @@
 //! - Publishing never blocks: [`EventBus::publish`] is a send on a bounded broadcast (a
 //!   slow subscriber loses the oldest events, the simulation never waits).
 //! - Poses start with the first run: before it nobody has told a viewer the world, so the
-//!   `world` event is always the first robot event of a stream. A node that runs the cart
-//!   but no dispatcher publishes no poses.
+//!   `world` event is always the first robot event of a node's stream.
+//!
+//! # In a cluster
+//! The cart and the dispatcher may run on different nodes (`missions/clusters/thesis.toml`:
+//! the cart on `cart`, which has no dispatcher; the dispatcher on the `run --join` member).
+//! Each tells what it has, and a viewer of the whole cluster (`marie monitor --join`,
+//! `up --monitor`, the relay into a `run --join --monitor`) gets both:
+//! - The node that runs the cart but no dispatcher never hears of a run
+//!   ([`SimRobot`](crate::robot::SimRobot)'s `Robot::dispatched_elsewhere`): it publishes
+//!   `world` when it starts and its poses from then on. Its first `world` goes out before
+//!   the node has joined anyone, and a viewer may join at any time; the relay forwards only
+//!   to the watchers present, so the node repeats `world` every [`WORLD_REPEAT`] (wall-clock
+//!   time; a late viewer may see a few poses before its first `world`, which a monitor
+//!   draws once it comes). A repeated `world` replaces the one drawn, never the driven path.
+//! - The record taps stay with the dispatcher's node (`world` and taps at each run start,
+//!   as in one process): only that node knows when a run starts — the taps of the previous
+//!   run end there, so no record is told twice — and a tap finds its datamanager through
+//!   the cluster's registry wherever it runs. A tap on the cart's node as well would tell
+//!   every record twice.
 
 use crate::geom::{Point, Pose, Segment};
 use crate::ops::records::{self, DockRecord, EchoScan, PathRecord, WallRecord};
@@ -57,6 +74,9 @@ pub const FOLLOWED_WALL: &str = "followed-wall";
 /// `what` of a detected docking spot.
 pub const DOCK_FOUND: &str = "dock-found";
 
+/// Wall-clock time between two `world` events of a node that runs the cart but no
+/// dispatcher: how long a viewer that joins the cluster late waits for the walls.
+pub const WORLD_REPEAT: Duration = Duration::from_secs(2);
 /// Simulated time between two `pose` events.
 pub const POSE_PERIOD: Duration = Duration::from_millis(100);
 /// Scan time gathered into one `echoes` event (ten scans a second make one event).
@@ -149,6 +169,23 @@ impl PoseSampler {
         self.next_ms = (ms / period + 1) * period;
         self.events.publish(pose_event(pose));
     }
+}
+
+/// Publish `world`'s event on `events` now (before this returns) and then every
+/// [`WORLD_REPEAT`] of wall-clock time, until the returned task is aborted: a node that runs
+/// the cart but no dispatcher cannot tell when a viewer joins (see the module docs).
+pub fn repeat_world(events: EventBus, world: &World) -> JoinHandle<()> {
+    let event = world_event(world);
+    events.publish(event.clone());
+    tokio::spawn(async move {
+        let start = tokio::time::Instant::now() + WORLD_REPEAT;
+        let mut every = tokio::time::interval_at(start, WORLD_REPEAT);
+        every.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+        loop {
+            every.tick().await;
+            events.publish(event.clone());
+        }
+    })
 }
 
 /// Start reading what the operations store for the picture — echoes, planned paths, the

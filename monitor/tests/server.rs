@@ -178,3 +178,36 @@ fn a_stuck_viewer_costs_the_publisher_nothing_and_is_told_it_lagged() {
         assert!(seen.len() < 1000, "never told it lagged: {seen:?}");
     }
 }
+
+#[test]
+fn after_a_flush_the_state_holds_every_event_published_and_fed_before_it() {
+    let clock = Arc::new(ManualClock::new());
+    let bus = EventBus::new("n1", clock);
+    let monitor = Monitor::live(&bus, loopback()).unwrap();
+    let addr = monitor.addr();
+    let feed = monitor.feed().unwrap();
+    // several rounds: each read comes right after the last publish, well within the
+    // reducer's poll period — only the flush makes the state whole by then
+    for round in 1..=5u64 {
+        for i in 0..100 {
+            bus.publish(EventKind::Robot {
+                what: "pose".into(),
+                data: serde_json::json!({"x": i as f64, "y": 0.0, "heading": 0.0}),
+            });
+        }
+        assert!(feed.offer(marie_actors::events::Event {
+            at_ms: round,
+            node: format!("fed-{round}"),
+            kind: EventKind::NodeFrozen { silent_ms: 1 },
+        }));
+        assert!(monitor.flush(http::TIMEOUT), "flushed in time");
+        let state = http::get_json(addr, "/api/state");
+        assert_eq!(state["events"], round * 101, "round {round}: {state}");
+        assert_eq!(state["robot"]["poses"], round * 100);
+        assert_eq!(state["cluster"][format!("fed-{round}")]["status"], "frozen");
+    }
+    // a replay is whole from the start
+    let replay = Monitor::replay(Path::new(FIXTURE), loopback()).unwrap();
+    assert!(replay.flush(Duration::ZERO));
+    monitor.stop();
+}

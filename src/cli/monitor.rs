@@ -57,8 +57,10 @@ pub async fn monitor(args: MonitorArgs) -> anyhow::Result<ExitCode> {
     };
     if let Some(path) = &args.events {
         let monitor = Monitor::replay(path, options).map_err(bad_file)?;
+        // watched before the page's line: a Ctrl-C right after it is not missed
+        let stop = super::signal::shutdown_signal(false);
         announce(&monitor, &format!("replaying {}", path.display()));
-        let signal = super::signal::shutdown_signal(false).await;
+        let signal = stop.await;
         println!("monitor stopped ({signal})");
         monitor.stop();
         return Ok(ExitCode::SUCCESS);
@@ -71,6 +73,7 @@ pub async fn monitor(args: MonitorArgs) -> anyhow::Result<ExitCode> {
         )
         .into());
     };
+    let stop = super::signal::shutdown_signal(false);
     let watching = ClusterWatch::start(
         &target,
         options,
@@ -78,7 +81,7 @@ pub async fn monitor(args: MonitorArgs) -> anyhow::Result<ExitCode> {
         NodeProcesses::default(),
     )
     .await?;
-    let signal = super::signal::shutdown_signal(false).await;
+    let signal = stop.await;
     println!("monitor stopped ({signal})");
     watching.stop().await;
     Ok(ExitCode::SUCCESS)
@@ -103,6 +106,13 @@ pub fn announce(monitor: &MonitorHandle, what: &str) {
 /// A live monitor on `bus` (a run's own node): the modules already in the registry first,
 /// then every event of the bus. `other_nodes`: also the other nodes' events (a member of a
 /// cluster).
+///
+/// No registry bridge of its own, unlike [`ClusterWatch`]: `bus` is a node's, and the node
+/// bridges its registry onto it from its start for as long as it runs (`Node::start`) —
+/// the joins and leaves of every node's modules, also of a node that joins the cluster
+/// after the run started (its own relay told them before it knew of this watcher). A
+/// second bridge would publish each of them twice on the node's bus, and so into its
+/// `--events` file.
 pub async fn start_live(
     bus: &EventBus,
     options: MonitorOptions,

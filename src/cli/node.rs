@@ -112,6 +112,9 @@ pub async fn node(args: NodeArgs) -> anyhow::Result<ExitCode> {
             });
         }
     };
+    // watched before the line that tells whoever waits for it that the node runs
+    let stop = super::signal::shutdown_signal(args.stop_with_stdin);
+    tokio::pin!(stop);
     say(&format!(
         "node {name} listening on {}{} with {modules} module(s) at speed {}; joining {}",
         transport.listen(),
@@ -132,8 +135,6 @@ pub async fn node(args: NodeArgs) -> anyhow::Result<ExitCode> {
                 .join(", ")
         }
     ));
-    let stop = super::signal::shutdown_signal(args.stop_with_stdin);
-    tokio::pin!(stop);
     let (ready, mut net) = transport.events();
     for peer in ready {
         say(&format!(

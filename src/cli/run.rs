@@ -85,6 +85,8 @@ pub struct RunArgs {
 
 /// Pixels per metre of `--svg` pictures.
 const SVG_SCALE: f64 = 50.0;
+/// How long the end of a run waits for its monitor to take the run's last events.
+const MONITOR_FLUSH: std::time::Duration = std::time::Duration::from_secs(5);
 /// Events of the other nodes a `run --join --events` keeps while its file writer is behind.
 const EVENTS_FROM_OTHERS: usize = 4096;
 
@@ -244,6 +246,14 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     if let Some((monitor, relay)) = monitor {
         // virtual time need not run on while the page is read
         drop(pace);
+        // the page must hold the run's last events (the outcome) once the line says so
+        if !monitor.flush(MONITOR_FLUSH) {
+            tracing::warn!(
+                "the monitor had not taken the run's last events within {MONITOR_FLUSH:?}"
+            );
+        }
+        // watched before the line: a Ctrl-C right after it is not missed
+        let stop = super::signal::shutdown_signal(false);
         let over = "monitor: the run is over; its page stays up until Ctrl-C";
         if say {
             println!("{over}");
@@ -251,7 +261,7 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         } else {
             eprintln!("{over}");
         }
-        let signal = super::signal::shutdown_signal(false).await;
+        let signal = stop.await;
         if say {
             println!("monitor stopped ({signal})");
         }

@@ -272,9 +272,9 @@ async fn serve(
 /// Print the nodes' lines until SIGINT or SIGTERM (success) or every node has exited
 /// (failure).
 async fn wait_for_signal(lines: &mut mpsc::UnboundedReceiver<Line>) -> anyhow::Result<ExitCode> {
-    println!("Ctrl-C stops the cluster");
     let stop = super::signal::shutdown_signal(false);
     tokio::pin!(stop);
+    println!("Ctrl-C stops the cluster");
     loop {
         tokio::select! {
             signal = &mut stop => {

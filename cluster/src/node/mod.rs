@@ -173,6 +173,8 @@ pub struct Node {
     bus: EventBus,
     _registry: Option<RegistryBridge>,
     bridges: Vec<tokio::task::JoinHandle<()>>,
+    /// The robot's own tasks on a node without a dispatcher ([`Robot::dispatched_elsewhere`]).
+    robot_tasks: Vec<tokio::task::JoinHandle<()>>,
     /// Starts instances on request (the node's own and the provisioner's); holds the
     /// node's clock and root supervisor.
     starter: provisioner::Starter,
@@ -222,11 +224,16 @@ impl Node {
             bus,
             _registry: registry,
             bridges,
+            robot_tasks: Vec::new(),
             starter,
             robot: options.robot,
             runs: AtomicU64::new(0),
             provisioner: None,
         };
+        // the runs are dispatched elsewhere: the robot tells what it sees without them
+        if let (Some(robot), false) = (&node.robot, node.config.dispatcher) {
+            node.robot_tasks = robot.dispatched_elsewhere(&node.bus);
+        }
         if !node.config.operations.is_empty() {
             match ractor::Actor::spawn(None, provisioner::Provisioner, node.starter.clone()).await {
                 Ok((actor, _)) => node.provisioner = Some(actor),
@@ -542,6 +549,9 @@ impl Node {
     pub async fn shutdown(self) {
         if let Some(p) = &self.provisioner {
             p.stop(None);
+        }
+        for task in &self.robot_tasks {
+            task.abort();
         }
         self.starter.root.stop().await;
         for task in &self.bridges {

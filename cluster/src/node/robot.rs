@@ -21,6 +21,7 @@ use marie_actors::events::EventBus;
 use marie_supervision::ChildSpec;
 use std::future::Future;
 use std::pin::Pin;
+use tokio::task::JoinHandle;
 
 /// A boxed future, as trait objects return them.
 pub type BoxFuture<'a, T> = Pin<Box<dyn Future<Output = T> + Send + 'a>>;
@@ -56,6 +57,19 @@ pub trait Robot: Send + Sync + 'static {
     fn run_starting<'a>(&'a self, events: &'a EventBus) -> BoxFuture<'a, ()> {
         let _ = events;
         Box::pin(async {})
+    }
+
+    /// The node started without a dispatcher: the runs that use this robot are dispatched
+    /// from another node, and [`Robot::run_starting`] is never called here — this node is
+    /// not told when a run starts. Start telling `events` what a viewer of those runs needs
+    /// from this node's part of the robot (for the simulated cart: the world and the cart's
+    /// poses, from now on), and give the tasks that keep doing it; the node aborts them at
+    /// its shutdown. Called once, after the node's tree (and so its drivers) started, before
+    /// it joins a cluster — a viewer may come at any time later, so whatever it needs first
+    /// must be told again now and then. Does nothing unless the robot says otherwise.
+    fn dispatched_elsewhere(&self, events: &EventBus) -> Vec<JoinHandle<()>> {
+        let _ = events;
+        Vec::new()
     }
 
     /// Judge a finished run: fill the robot's part of `report` (final pose, collisions, seed,

@@ -30,6 +30,9 @@ pub const VIEWER_BUFFER: usize = 8;
 /// Events fed in (not from the bus) that may wait for the reducer; more are lost, counted.
 pub const FEED_CAPACITY: usize = 4096;
 
+/// A request to [`Live::reduce`] to apply everything waiting, answered once it has.
+pub type FlushRequest = std::sync::mpsc::SyncSender<()>;
+
 /// The live state shared by the reducer, the ticker and the viewers.
 pub struct Live {
     state: Mutex<MonitorState>,
@@ -103,38 +106,72 @@ impl Live {
         }))
     }
 
-    /// Apply the bus's events and the fed ones until both end.
+    /// Apply the bus's events and the fed ones until both end and no flush can be asked
+    /// for any more.
     ///
     /// The bus is polled every [`BUS_POLL`], not awaited: a subscriber waiting on the bus
     /// is woken by every publish, a wake across threads that the robot's own thread pays
     /// for on each event (measured: 8 % of a `--speed max` docking run, `cargo bench
     /// --bench monitor`); a polled one costs the publisher nothing. The bus holds 4096
     /// events, far more than a run publishes in a poll period.
+    ///
+    /// So the state may trail the bus by a poll period. A [`FlushRequest`] from `flushes`
+    /// closes that gap for whoever needs the state complete (a run that says it is over):
+    /// the reducer takes everything waiting on the bus and in the feed at once, then
+    /// answers. It cannot miss an event published or fed before the request was sent: the
+    /// request reaches the reducer after it (a channel orders the two), a publish is in the
+    /// bus's buffer when `publish` returns, an offer in the feed's when `offer` returns, and
+    /// the reducer empties both after taking the request.
     pub async fn reduce(
         self: Arc<Self>,
         mut bus: Option<EventSubscription>,
         mut fed: mpsc::Receiver<Event>,
         feed: Feed,
+        mut flushes: mpsc::UnboundedReceiver<FlushRequest>,
     ) {
         let mut fed_open = true;
+        let mut flushes_open = true;
         let mut poll = tokio::time::interval(BUS_POLL);
         poll.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
         loop {
             tokio::select! {
                 _ = poll.tick(), if bus.is_some() => self.drain(&mut bus),
                 event = fed.recv(), if fed_open => match event {
-                    Some(event) => {
-                        self.apply(&event);
-                        let lost = feed.lost.swap(0, Ordering::Relaxed);
-                        if lost > 0 {
-                            self.missed(lost);
-                        }
-                    }
+                    Some(event) => self.apply_fed(&event, &feed),
                     None => fed_open = false,
                 },
+                request = flushes.recv(), if flushes_open => match request {
+                    Some(done) => {
+                        self.drain(&mut bus);
+                        fed_open = self.drain_fed(&mut fed, &feed);
+                        // the asker may have given up waiting: nothing to tell then
+                        let _ = done.send(());
+                    }
+                    None => flushes_open = false,
+                },
             }
-            if bus.is_none() && !fed_open {
+            if bus.is_none() && !fed_open && !flushes_open {
                 return;
+            }
+        }
+    }
+
+    /// Apply one fed event, and count the events the feed lost meanwhile.
+    fn apply_fed(&self, event: &Event, feed: &Feed) {
+        self.apply(event);
+        let lost = feed.lost.swap(0, Ordering::Relaxed);
+        if lost > 0 {
+            self.missed(lost);
+        }
+    }
+
+    /// Apply every fed event waiting; false once the feed has closed (after its last).
+    fn drain_fed(&self, fed: &mut mpsc::Receiver<Event>, feed: &Feed) -> bool {
+        loop {
+            match fed.try_recv() {
+                Ok(event) => self.apply_fed(&event, feed),
+                Err(mpsc::error::TryRecvError::Empty) => return true,
+                Err(mpsc::error::TryRecvError::Disconnected) => return false,
             }
         }
     }

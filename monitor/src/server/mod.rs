@@ -42,7 +42,8 @@ use serde::Deserialize;
 use std::net::SocketAddr;
 use std::path::Path;
 use std::sync::Arc;
-use tokio::sync::oneshot;
+use std::time::Duration;
+use tokio::sync::{mpsc, oneshot};
 
 /// Where and how a monitor listens, and what its viewers may do beyond watching.
 #[derive(Clone)]
@@ -99,6 +100,8 @@ pub struct MonitorHandle {
     addr: SocketAddr,
     token: Option<String>,
     feed: Option<Feed>,
+    /// Asks a live monitor's reducer to catch up ([`MonitorHandle::flush`]).
+    flushes: Option<mpsc::UnboundedSender<live::FlushRequest>>,
     stop: Option<oneshot::Sender<()>>,
     thread: Option<std::thread::JoinHandle<()>>,
 }
@@ -158,13 +161,19 @@ impl Monitor {
     ) -> Result<MonitorHandle, MonitorError> {
         let subscription = bus.map(EventBus::subscribe);
         let (live, feed, fed) = Live::new();
+        let (flushes, flush_requests) = mpsc::unbounded_channel();
         let tasks_live = live.clone();
         let tasks_feed = feed.clone();
         let mut handle = start(options, Source::Live(live.clone()), move || {
-            tokio::spawn(tasks_live.clone().reduce(subscription, fed, tasks_feed));
+            tokio::spawn(
+                tasks_live
+                    .clone()
+                    .reduce(subscription, fed, tasks_feed, flush_requests),
+            );
             tokio::spawn(tasks_live.tick());
         })?;
         handle.feed = Some(feed);
+        handle.flushes = Some(flushes);
         Ok(handle)
     }
 
@@ -197,6 +206,27 @@ impl MonitorHandle {
     /// Feed more events into a live monitor (`None` for a replay).
     pub fn feed(&self) -> Option<Feed> {
         self.feed.clone()
+    }
+
+    /// Wait until a live monitor's state holds every event published on its bus and fed
+    /// into it before this call — at most `timeout`; false when it did not in time (or the
+    /// monitor no longer reduces). A replay's state is complete from the start: true.
+    ///
+    /// Why: the monitor takes the bus's events every
+    /// [`BUS_POLL`](live::BUS_POLL), on its own thread, so its state may trail the bus; a
+    /// caller about to say "the run is over" flushes first, and whoever reads the page
+    /// after that line sees the run's last events. Blocks the calling thread (the monitor
+    /// needs nothing from the caller's runtime, and a deadline in real time holds also on a
+    /// runtime whose clock is paused).
+    pub fn flush(&self, timeout: Duration) -> bool {
+        let Some(flushes) = &self.flushes else {
+            return true;
+        };
+        let (done, acked) = std::sync::mpsc::sync_channel(1);
+        if flushes.send(done).is_err() {
+            return false;
+        }
+        acked.recv_timeout(timeout).is_ok()
     }
 
     /// Stop serving (viewers' connections close) and wait for the monitor's thread.
@@ -274,6 +304,7 @@ fn start(
         addr,
         token,
         feed: None,
+        flushes: None,
         stop: Some(stop),
         thread: Some(thread),
     })

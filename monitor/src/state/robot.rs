@@ -2,11 +2,13 @@
 //! sonar echoes, the followed wall, the planned path and the dock found — what the page's
 //! robot panel draws, reduced from the robot's [`EventKind::Robot`] events.
 //!
-//! The contract with the simulated robot (`what` and its `data`): `world` once at the start
+//! The contract with the simulated robot (`what` and its `data`): `world` at the start
 //! `{"walls": [[[x1,y1],[x2,y2]], ...], "dock": [[x,y],...] | null, "goal": [[x,y],...] |
-//! null, "cart": {"length", "width"}}`; `pose` `{"x","y","heading"}` about every 100 ms;
-//! `echoes` `{"points": [[x,y], ...]}` (world frame); `planned-path` `{"points": [...]}`;
-//! `followed-wall` `{"from": [x,y], "to": [x,y]}`; `dock-found` `{"corners": [...]}`.
+//! null, "cart": {"length", "width"}}` (a cluster's cart node tells it again every few
+//! seconds: it replaces the world drawn and leaves the driven path alone); `pose`
+//! `{"x","y","heading"}` about every 100 ms; `echoes` `{"points": [[x,y], ...]}` (world
+//! frame); `planned-path` `{"points": [...]}`; `followed-wall` `{"from": [x,y], "to":
+//! [x,y]}`; `dock-found` `{"corners": [...]}`.
 //! Anything else is ignored here (it may still reach the timeline); data that does not fit
 //! the contract leaves the state as it was.
 //!
@@ -226,6 +228,22 @@ mod tests {
         assert!(drawn.path.len() <= DRAW_LIMIT);
         assert_eq!(drawn.path[0], [0.0, 0.0]);
         assert_eq!(*drawn.path.last().unwrap(), [19_999.0, 0.0]);
+    }
+
+    #[test]
+    fn a_repeated_world_replaces_the_world_and_keeps_what_was_driven() {
+        // a cluster's cart node tells its world again every few seconds, mid-run
+        let mut r = RobotView::default();
+        let world = json!({"walls": [[[0.0, 0.0], [5.0, 0.0]]]});
+        // poses may come first to a monitor that joined late
+        assert!(r.apply("pose", &json!({"x": 1.0, "y": 1.0, "heading": 0.0})));
+        assert!(r.apply("world", &world));
+        assert!(r.apply("pose", &json!({"x": 2.0, "y": 1.0, "heading": 0.0})));
+        assert!(r.apply("planned-path", &json!({"points": [[2.0, 1.0], [4.0, 1.0]]})));
+        let before = r.clone();
+        assert!(r.apply("world", &world));
+        assert_eq!(r, before);
+        assert_eq!(r.path, vec![[1.0, 1.0], [2.0, 1.0]]);
     }
 
     #[test]
