@@ -18,6 +18,25 @@ use std::time::Duration;
 /// Generous: the page is fed live while a loaded 2-core machine also runs the mission.
 const PAGE_TIMEOUT: Duration = Duration::from_secs(120);
 
+/// The wall follower's losses and rebinds in its binding's history.
+const LOST: &str =
+    "#bindings tr.history-row[data-op=\"wall-follower\"] .history li[data-type=\"lost\"]";
+const REBOUND: &str =
+    "#bindings tr.history-row[data-op=\"wall-follower\"] .history li[data-type=\"rebound\"]";
+
+/// Wait until `js` holds on the page ([`PAGE_TIMEOUT`]); `what` names it if it never does.
+#[track_caller]
+fn shows(browser: &mut Browser, js: &str, what: &str) {
+    if let Err(e) = browser.wait_for(js, PAGE_TIMEOUT) {
+        panic!("{what}: {e:#}");
+    }
+}
+
+/// JavaScript: `selector` matches something.
+fn any(selector: &str) -> String {
+    format!("document.querySelectorAll({selector:?}).length > 0")
+}
+
 /// How many elements `selector` matches on the page.
 fn count(browser: &mut Browser, selector: &str) -> u64 {
     let js = format!("document.querySelectorAll({selector:?}).length");
@@ -37,30 +56,19 @@ fn the_page_shows_the_loss_the_rebind_and_the_success_of_a_docking_run_with_a_fa
     let url = url_of(&run.wait_line("monitor: http://"));
     browser.navigate(&url).unwrap();
     // live: the task tree and the robot in its world while the mission runs
-    browser
-        .wait_for(
-            "document.querySelectorAll('#tree .action[data-state=\"running\"]').length > 0",
-            PAGE_TIMEOUT,
-        )
-        .expect("an action runs on the page");
-    browser
-        .wait_for(
-            "document.querySelector('#world')?.dataset.hasWorld === 'true'",
-            PAGE_TIMEOUT,
-        )
-        .expect("the robot's world is drawn");
+    shows(
+        &mut browser,
+        "document.querySelectorAll('#tree .action[data-state=\"running\"]').length > 0",
+        "an action runs on the page",
+    );
+    shows(
+        &mut browser,
+        "document.querySelector('#world')?.dataset.hasWorld === 'true'",
+        "the robot's world is drawn",
+    );
     // the fault: the wall follower is lost, then rebound
-    let lost =
-        "#bindings tr.history-row[data-op=\"wall-follower\"] .history li[data-type=\"lost\"]";
-    let rebound =
-        "#bindings tr.history-row[data-op=\"wall-follower\"] .history li[data-type=\"rebound\"]";
-    browser
-        .wait_for(
-            &format!("document.querySelectorAll({rebound:?}).length > 0"),
-            PAGE_TIMEOUT,
-        )
-        .expect("the rebind shows");
-    assert!(count(&mut browser, lost) >= 1, "the loss shows");
+    shows(&mut browser, &any(REBOUND), "the rebind shows");
+    assert!(count(&mut browser, LOST) >= 1, "the loss shows");
     // without --allow-faults the page offers no fault, and the API refuses one
     assert_eq!(count(&mut browser, "button.fault, button.stop-node"), 0);
     let (addr, _) = page_of(&url);
@@ -75,12 +83,11 @@ fn the_page_shows_the_loss_the_rebind_and_the_success_of_a_docking_run_with_a_fa
         .unwrap();
     assert!(epoch.as_u64().unwrap_or(0) > 0, "epoch: {epoch}");
     // and the mission's success
-    browser
-        .wait_for(
-            "document.querySelector('#outcome')?.dataset.outcome === 'succeeded'",
-            PAGE_TIMEOUT,
-        )
-        .expect("the outcome shows");
+    shows(
+        &mut browser,
+        "document.querySelector('#outcome')?.dataset.outcome === 'succeeded'",
+        "the outcome shows",
+    );
     assert_eq!(
         count(&mut browser, "#tree .action[data-state=\"succeeded\"]"),
         4
@@ -90,15 +97,20 @@ fn the_page_shows_the_loss_the_rebind_and_the_success_of_a_docking_run_with_a_fa
         .evaluate("Number(document.querySelector('#path')?.dataset.points ?? 0)")
         .unwrap();
     assert!(points.as_u64().unwrap_or(0) > 100, "driven path: {points}");
-    let shot = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("monitor-docking.png");
+    screenshot(&mut browser, "monitor-docking.png");
+    run.signal("INT");
+    assert_eq!(run.wait_exit(), Some(0), "{}", run.seen().join("\n"));
+}
+
+/// Save the page as `name` in the tests' target directory; it must be a picture with content.
+fn screenshot(browser: &mut Browser, name: &str) {
+    let shot = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
     let png = browser.screenshot(&shot).unwrap();
     assert!(
         png.starts_with(b"\x89PNG") && png.len() > 20_000,
-        "{}",
+        "{name}: {} bytes",
         png.len()
     );
-    run.signal("INT");
-    assert_eq!(run.wait_exit(), Some(0), "{}", run.seen().join("\n"));
 }
 
 /// Evaluate `js` on the page, as a string.
@@ -134,15 +146,14 @@ fn the_page_stops_the_wall_followers_node_and_shows_the_cluster_fail_over() {
     browser.navigate(&url).unwrap();
     // the wall follower runs: its binding offers kill and hang, its node a stop
     let kill = "#bindings button.fault[data-fault=\"kill\"][data-op=\"wall-follower\"]";
-    browser
-        .wait_for(
-            &format!(
-                "document.querySelector('#tree .action[data-action=\"follow-wall\"]')?.dataset.state \
+    shows(
+        &mut browser,
+        &format!(
+            "document.querySelector('#tree .action[data-action=\"follow-wall\"]')?.dataset.state \
                  === 'running' && document.querySelector({kill:?}) !== null"
-            ),
-            PAGE_TIMEOUT,
-        )
-        .expect("the wall follower runs, with its faults offered");
+        ),
+        "the wall follower runs, with its faults offered",
+    );
     let node = text_of(
         &mut browser,
         &format!("document.querySelector({kill:?}).dataset.node"),
@@ -158,13 +169,12 @@ fn the_page_stops_the_wall_followers_node_and_shows_the_cluster_fail_over() {
             "document.querySelector('#bindings tr.binding[data-op=\"wall-follower\"]').click()",
         )
         .unwrap();
-    browser
-        .wait_for(
-            "document.querySelector('#props')?.dataset.live === 'true' \
+    shows(
+        &mut browser,
+        "document.querySelector('#props')?.dataset.live === 'true' \
              && document.querySelectorAll('#props .live-props tr.param').length > 0",
-            PAGE_TIMEOUT,
-        )
-        .expect("the live properties of the wall follower");
+        "the live properties of the wall follower",
+    );
     let version = text_of(
         &mut browser,
         "document.querySelector('#props .live-props').dataset.version",
@@ -175,58 +185,32 @@ fn the_page_stops_the_wall_followers_node_and_shows_the_cluster_fail_over() {
     browser
         .evaluate(&format!("document.querySelector({stop:?}).click()"))
         .unwrap();
-    browser
-        .wait_for(
-            "document.querySelector('#control-result')?.dataset.ok === 'true'",
-            PAGE_TIMEOUT,
-        )
-        .expect("the stop is done");
+    shows(
+        &mut browser,
+        "document.querySelector('#control-result')?.dataset.ok === 'true'",
+        "the stop is done",
+    );
     // the cluster loses the node, the dispatcher rebinds to the other one, docking succeeds
-    let rebound =
-        "#bindings tr.history-row[data-op=\"wall-follower\"] .history li[data-type=\"rebound\"]";
-    browser
-        .wait_for(
-            &format!("document.querySelectorAll({rebound:?}).length > 0"),
-            PAGE_TIMEOUT,
-        )
-        .expect("the rebind shows");
-    browser
-        .wait_for(
-            &format!(
+    shows(&mut browser, &any(REBOUND), "the rebind shows");
+    shows(&mut browser, &format!(
                 "['lost', 'down'].includes(document.querySelector('#cluster .node[data-node=\"{node}\"]')?.dataset.status)"
-            ),
-            PAGE_TIMEOUT,
-        )
-        .expect("the stopped node is no longer up");
-    browser
-        .wait_for(
-            &format!(
+            ), "the stopped node is no longer up");
+    shows(&mut browser, &format!(
                 "document.querySelector({kill:?})?.dataset.node === {other:?} \
                  || document.querySelector('#bindings tr.binding[data-op=\"wall-follower\"] td:nth-child(3)')?.textContent === {other:?}"
-            ),
-            PAGE_TIMEOUT,
-        )
-        .expect("the wall follower is bound on the other node");
+            ), "the wall follower is bound on the other node");
     assert!(
         count(&mut browser, "#timeline li.entry.fault") >= 1,
         "the stop is in the timeline"
     );
-    browser
-        .wait_for(
-            "document.querySelector('#outcome')?.dataset.outcome === 'succeeded'",
-            PAGE_TIMEOUT,
-        )
-        .expect("the mission succeeds");
+    shows(
+        &mut browser,
+        "document.querySelector('#outcome')?.dataset.outcome === 'succeeded'",
+        "the mission succeeds",
+    );
     // tall enough for every panel: the bindings and the cluster under the robot
     browser.set_viewport(1400, 1500).unwrap();
-    let shot =
-        std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("monitor-cluster-failover.png");
-    let png = browser.screenshot(&shot).unwrap();
-    assert!(
-        png.starts_with(b"\x89PNG") && png.len() > 20_000,
-        "{}",
-        png.len()
-    );
+    screenshot(&mut browser, "monitor-cluster-failover.png");
     up.wait_line("the run is over");
     up.signal("INT");
     up.wait_line("cluster stopped");
@@ -250,20 +234,18 @@ fn a_replayed_run_ends_with_every_action_of_the_task_tree_succeeded() {
     let (_monitor, line) = replay_monitor(&events, &[]);
     let url = url_of(&line);
     browser.navigate(&url).unwrap();
-    browser
-        .wait_for(
-            "document.querySelector('#mode')?.dataset.mode === 'replay' \
+    shows(
+        &mut browser,
+        "document.querySelector('#mode')?.dataset.mode === 'replay' \
              && !document.querySelector('#replay-controls').hidden",
-            PAGE_TIMEOUT,
-        )
-        .expect("replay controls");
+        "replay controls",
+    );
     // at the start nothing has run yet
-    browser
-        .wait_for(
-            "document.querySelectorAll('#tree .action').length === 4",
-            PAGE_TIMEOUT,
-        )
-        .expect("the task tree");
+    shows(
+        &mut browser,
+        "document.querySelectorAll('#tree .action').length === 4",
+        "the task tree",
+    );
     assert_eq!(
         count(&mut browser, "#tree .action[data-state=\"succeeded\"]"),
         0
@@ -275,18 +257,16 @@ fn a_replayed_run_ends_with_every_action_of_the_task_tree_succeeded() {
              s.dispatchEvent(new Event('input')); return s.max; })()",
         )
         .unwrap();
-    browser
-        .wait_for(
-            "document.querySelectorAll('#tree .action[data-state=\"succeeded\"]').length === 4",
-            PAGE_TIMEOUT,
-        )
-        .expect("every action succeeded at the end of the replay");
-    browser
-        .wait_for(
-            "document.querySelector('#outcome')?.dataset.outcome === 'succeeded'",
-            PAGE_TIMEOUT,
-        )
-        .expect("the outcome at the end");
+    shows(
+        &mut browser,
+        "document.querySelectorAll('#tree .action[data-state=\"succeeded\"]').length === 4",
+        "every action succeeded at the end of the replay",
+    );
+    shows(
+        &mut browser,
+        "document.querySelector('#outcome')?.dataset.outcome === 'succeeded'",
+        "the outcome at the end",
+    );
     assert!(count(&mut browser, "#timeline li.entry.rebind") >= 1);
 }
 
@@ -311,10 +291,9 @@ fn a_viewer_without_the_token_is_refused() {
     assert_eq!(count(&mut browser, "#tree"), 0, "the page must not load");
     // with the token the page loads
     browser.navigate(&url).unwrap();
-    browser
-        .wait_for(
-            "document.querySelector('#mode')?.dataset.mode === 'replay'",
-            PAGE_TIMEOUT,
-        )
-        .expect("the page with its token");
+    shows(
+        &mut browser,
+        "document.querySelector('#mode')?.dataset.mode === 'replay'",
+        "the page with its token",
+    );
 }
