@@ -25,6 +25,8 @@ fn with_fault(target: &Value, fault: &str) -> Value {
 
 #[test]
 fn the_page_asks_the_wall_follower_kills_it_hangs_its_stand_in_and_docking_succeeds() {
+    let dir = tempfile::tempdir().unwrap();
+    let report = dir.path().join("report.json");
     let mut run = Proc::spawn(
         "run",
         &[
@@ -35,6 +37,8 @@ fn the_page_asks_the_wall_follower_kills_it_hangs_its_stand_in_and_docking_succe
             "--monitor",
             "127.0.0.1:0",
             "--allow-faults",
+            "--report",
+            report.to_str().unwrap(),
         ],
     );
     let (addr, _) = page_of(&run.wait_line("monitor: http://"));
@@ -123,6 +127,14 @@ fn the_page_asks_the_wall_follower_kills_it_hangs_its_stand_in_and_docking_succe
     let end = state_until(addr, "the outcome", |s| !s["mission"]["outcome"].is_null());
     assert_eq!(end["mission"]["outcome"]["outcome"], "succeeded", "{end}");
     run.wait_line("the run is over");
+    // written when the run ended, not when the page is closed: two rebinds, one per fault
+    let written: Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    assert_eq!(written["outcome"], "succeeded");
+    assert_eq!(
+        written["rebinds"].as_array().map(Vec::len),
+        Some(2),
+        "{written:#}"
+    );
     run.signal("INT");
     assert_eq!(run.wait_exit(), Some(0), "{}", run.seen().join("\n"));
 }

@@ -243,6 +243,31 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         }
     }
 
+    // Write every output asked for, even when one of them cannot be written.
+    let mut written = true;
+    if let Some(Err(e)) = &events {
+        eprintln!("marie: {e:#}");
+        written = false;
+    }
+    if let Some(p) = &report_path {
+        if let Err(e) = write_report(p, &report) {
+            eprintln!("marie: {e:#}");
+            written = false;
+        }
+    }
+    if let (Some(p), Some(picture), Some(world)) = (&svg_path, &picture, &world) {
+        let svg = picture.render(world, SVG_SCALE);
+        if let Err(e) = std::fs::write(p, svg) {
+            eprintln!("marie: cannot write the picture to {}: {e}", p.display());
+            written = false;
+        }
+    }
+    let code = match (report.outcome, written) {
+        (Outcome::Succeeded, true) => ExitCode::SUCCESS,
+        _ => ExitCode::from(1),
+    };
+
+    // the outputs are written: the page stays up for as long as the user reads it
     if let Some((monitor, relay)) = monitor {
         // virtual time need not run on while the page is read
         drop(pace);
@@ -271,29 +296,7 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         monitor.stop();
     }
 
-    // Write every output asked for, even when one of them cannot be written.
-    let mut written = true;
-    if let Some(Err(e)) = &events {
-        eprintln!("marie: {e:#}");
-        written = false;
-    }
-    if let Some(p) = &report_path {
-        if let Err(e) = write_report(p, &report) {
-            eprintln!("marie: {e:#}");
-            written = false;
-        }
-    }
-    if let (Some(p), Some(picture), Some(world)) = (&svg_path, &picture, &world) {
-        let svg = picture.render(world, SVG_SCALE);
-        if let Err(e) = std::fs::write(p, svg) {
-            eprintln!("marie: cannot write the picture to {}: {e}", p.display());
-            written = false;
-        }
-    }
-    Ok(match (report.outcome, written) {
-        (Outcome::Succeeded, true) => ExitCode::SUCCESS,
-        _ => ExitCode::from(1),
-    })
+    Ok(code)
 }
 
 fn write_report(path: &Path, report: &RunReport) -> anyhow::Result<()> {
