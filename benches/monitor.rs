@@ -108,14 +108,14 @@ fn main() {
     );
     let ms = |d: Duration| d.as_secs_f64() * 1000.0;
     println!("docking at --speed max, median of {RUNS} runs each, interleaved");
-    println!("  without a monitor:              {:>8.1} ms", ms(b));
+    println!("  without a monitor:                 {:>6.1} ms", ms(b));
     println!(
-        "  monitor, no viewer:             {:>8.1} ms  ({:.2}×)",
+        "  monitor, no viewer:                {:>6.1} ms  ({:.2}×)",
         ms(u),
         ms(u) / ms(b)
     );
     println!(
-        "  monitor with {VIEWERS} viewers (1 stuck): {:>8.1} ms  ({:.2}×)",
+        "  monitor with {VIEWERS} viewers (1 stuck): {:>6.1} ms  ({:.2}×)",
         ms(w),
         ms(w) / ms(b)
     );
