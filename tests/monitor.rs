@@ -5,7 +5,12 @@
 mod common;
 
 use common::cluster::{NodeProc, Proc};
-use common::monitor::{monitored_run, page_of, recorded_run, replay_monitor, state_until};
+use common::monitor::{
+    monitored_run, monitored_up, page_of, recorded_run, replay_monitor, state_until,
+};
+
+/// The thesis' cluster.
+const THESIS: &str = "missions/clusters/thesis.toml";
 use common::{http, marie, text};
 use std::time::{Duration, Instant};
 
@@ -199,17 +204,8 @@ fn a_monitor_joined_to_a_cluster_shows_its_nodes_asks_their_operations_and_kills
 
 #[test]
 fn up_with_a_monitor_shows_every_node_and_what_it_hosts_and_stops_one_from_the_page() {
-    let mut up = Proc::spawn(
-        "up",
-        &[
-            "up",
-            "missions/clusters/thesis.toml",
-            "--monitor",
-            "127.0.0.1:0",
-            "--allow-faults",
-        ],
-    );
-    let (addr, _) = page_of(&up.wait_line("monitor: http://"));
+    let (mut up, line) = monitored_up(THESIS, &["--allow-faults"]);
+    let (addr, _) = page_of(&line);
     let info = http::get_json(addr, "/api/info");
     assert_eq!(
         info["offers"]["stoppable_nodes"],
@@ -251,20 +247,8 @@ fn up_with_a_monitor_shows_every_node_and_what_it_hosts_and_stops_one_from_the_p
 
 #[test]
 fn up_running_a_mission_with_a_monitor_draws_the_cart_of_another_node_and_lists_every_node() {
-    let mut up = Proc::spawn(
-        "up",
-        &[
-            "up",
-            "missions/clusters/thesis.toml",
-            "--run",
-            "missions/docking.toml",
-            "--speed",
-            "4",
-            "--monitor",
-            "127.0.0.1:0",
-        ],
-    );
-    let (addr, _) = page_of(&up.wait_line("monitor: http://"));
+    let (mut up, line) = monitored_up(THESIS, &["--run", "missions/docking.toml", "--speed", "4"]);
+    let (addr, _) = page_of(&line);
     up.wait_line("the run is over");
     // the run's own events are in (flushed before the line)
     let after = http::get_json(addr, "/api/state");

@@ -10,9 +10,8 @@
 mod common;
 
 use common::browser::Browser;
-use common::cluster::Proc;
 use common::layouts::failover_layout;
-use common::monitor::{monitored_run, page_of, recorded_run, replay_monitor, url_of};
+use common::monitor::{monitored_run, monitored_up, page_of, recorded_run, replay_monitor, url_of};
 use std::time::Duration;
 
 /// Generous: the page is fed live while a loaded 2-core machine also runs the mission.
@@ -128,21 +127,17 @@ fn the_page_stops_the_wall_followers_node_and_shows_the_cluster_fail_over() {
     };
     let dir = tempfile::tempdir().unwrap();
     let cluster = failover_layout(dir.path(), &["wf-a", "wf-b"], false);
-    let mut up = Proc::spawn(
-        "marie up",
+    let (mut up, line) = monitored_up(
+        cluster.to_str().unwrap(),
         &[
-            "up",
-            cluster.to_str().unwrap(),
             "--run",
             "missions/docking.toml",
             "--speed",
             "4",
-            "--monitor",
-            "127.0.0.1:0",
             "--allow-faults",
         ],
     );
-    let url = url_of(&up.wait_line("monitor: http://"));
+    let url = url_of(&line);
     browser.navigate(&url).unwrap();
     // the wall follower runs: its binding offers kill and hang, its node a stop
     let kill = "#bindings button.fault[data-fault=\"kill\"][data-op=\"wall-follower\"]";

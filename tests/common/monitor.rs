@@ -61,6 +61,16 @@ pub fn monitored_run() -> Proc {
     )
 }
 
+/// `marie up CLUSTER --monitor 127.0.0.1:0` plus `extra` flags (`--run`, `--speed`,
+/// `--allow-faults`, …): the process and its `monitor: http://…` line.
+pub fn monitored_up(cluster: &str, extra: &[&str]) -> (Proc, String) {
+    let mut args = vec!["up", cluster, "--monitor", "127.0.0.1:0"];
+    args.extend_from_slice(extra);
+    let mut up = Proc::spawn("marie up", &args);
+    let line = up.wait_line("monitor: http://");
+    (up, line)
+}
+
 /// `marie monitor --events EVENTS --listen 127.0.0.1:0` plus `extra` flags: the process and
 /// its `monitor: http://…` line.
 pub fn replay_monitor(events: &Path, extra: &[&str]) -> (Proc, String) {
