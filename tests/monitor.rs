@@ -11,6 +11,9 @@ use common::monitor::{
 
 /// The thesis' cluster.
 const THESIS: &str = "missions/clusters/thesis.toml";
+/// What the first node of a small cluster hosts (`alpha`), and one that joins later (`beta`).
+const ALPHA: &str = "[[datamanager]]\nname = \"feature\"\n[[operation]]\nname = \"sampler\"\n";
+const BETA: &str = "[[datamanager]]\nname = \"world\"\n[[operation]]\nname = \"averager\"\n";
 use common::{http, marie, text};
 use std::time::{Duration, Instant};
 
@@ -141,13 +144,7 @@ fn hosts(state: &serde_json::Value, node: &str, module: &str) -> bool {
 fn a_monitor_joined_to_a_cluster_shows_its_nodes_asks_their_operations_and_kills_one() {
     const COOKIE: &str = "monitored";
     let dir = tempfile::tempdir().unwrap();
-    let alpha = NodeProc::start(
-        dir.path(),
-        "alpha",
-        "[[datamanager]]\nname = \"feature\"\n[[operation]]\nname = \"sampler\"\n",
-        &[],
-        COOKIE,
-    );
+    let alpha = NodeProc::start(dir.path(), "alpha", ALPHA, &[], COOKIE);
     let alpha_addr = alpha.addr.to_string();
     let mut monitor = Proc::spawn(
         "monitor",
@@ -175,13 +172,7 @@ fn a_monitor_joined_to_a_cluster_shows_its_nodes_asks_their_operations_and_kills
         hosts(s, "alpha", "sampler")
     });
     // a node that comes later, its modules told by itself through the relay
-    let _beta = NodeProc::start(
-        dir.path(),
-        "beta",
-        "[[datamanager]]\nname = \"world\"\n[[operation]]\nname = \"averager\"\n",
-        &[alpha.addr],
-        COOKIE,
-    );
+    let _beta = NodeProc::start(dir.path(), "beta", BETA, &[alpha.addr], COOKIE);
     state_until(addr, "beta hosting the averager", |s| {
         hosts(s, "beta", "averager") && s["cluster"]["beta"]["status"] == "up"
     });
@@ -297,13 +288,7 @@ fn up_running_a_mission_with_a_monitor_draws_the_cart_of_another_node_and_lists_
 fn a_run_joined_to_a_cluster_with_a_monitor_lists_the_modules_of_a_node_that_joins_later() {
     const COOKIE: &str = "joined-run";
     let dir = tempfile::tempdir().unwrap();
-    let alpha = NodeProc::start(
-        dir.path(),
-        "alpha",
-        "[[datamanager]]\nname = \"feature\"\n[[operation]]\nname = \"sampler\"\n",
-        &[],
-        COOKIE,
-    );
+    let alpha = NodeProc::start(dir.path(), "alpha", ALPHA, &[], COOKIE);
     // a run that lasts: 100 000 samples, one every 2 ms (it is killed once seen)
     let mission = dir.path().join("long.toml");
     std::fs::write(
@@ -332,13 +317,7 @@ fn a_run_joined_to_a_cluster_with_a_monitor_lists_the_modules_of_a_node_that_joi
         hosts(s, "alpha", "sampler") && s["mission"]["actions"][0]["state"] == "running"
     });
     // a node that joins while the run goes on: its modules reach the run's registry
-    let _beta = NodeProc::start(
-        dir.path(),
-        "beta",
-        "[[datamanager]]\nname = \"world\"\n[[operation]]\nname = \"averager\"\n",
-        &[alpha.addr],
-        COOKIE,
-    );
+    let _beta = NodeProc::start(dir.path(), "beta", BETA, &[alpha.addr], COOKIE);
     state_until(addr, "beta hosting the averager and the world DM", |s| {
         hosts(s, "beta", "averager") && hosts(s, "beta", "world")
     });
