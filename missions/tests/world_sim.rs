@@ -42,7 +42,12 @@ speed_time_constant = 0
 /// sonar (1 m ahead of the rear axle, at the world's origin) looking along `angle_deg` with
 /// `beam`.
 fn sonar_world(wall_x: f64, angle_deg: f64, beam: &str, sigma: f64) -> World {
-    world(&format!(
+    world(&sonar_world_src(wall_x, angle_deg, beam, sigma))
+}
+
+/// The text of [`sonar_world`], its `[sim]` table last.
+fn sonar_world_src(wall_x: f64, angle_deg: f64, beam: &str, sigma: f64) -> String {
+    format!(
         r#"
 [world]
 name = "sonar"
@@ -60,7 +65,7 @@ range = 8
 sonar_sigma = {sigma}
 sonar_dropout = 0
 "#
-    ))
+    )
 }
 
 #[test]
@@ -438,6 +443,27 @@ fn driving_into_a_wall_counts_one_collision_and_stops_the_cart() {
     sim.command(0.3, 0.0);
     sim.step(0.5);
     assert_eq!(sim.collisions(), 3);
+}
+
+#[test]
+fn a_reading_carries_the_cone_of_its_beam_as_the_world_sets_it() {
+    // the default data sheet: narrow 8 degrees, wide 25 (half angles)
+    for (beam, deg) in [("narrow", 8.0), ("wide", 25.0)] {
+        let w = sonar_world(2.0, 0.0, beam, 0.0);
+        let r = Simulation::new(&w, 1).sonar_read(0).unwrap();
+        assert!(
+            (r.half_angle - f64::to_radians(deg)).abs() < 1e-12,
+            "{beam}"
+        );
+    }
+    // a world with other sensors: the reading says so (the clearance guard places its echo
+    // on that cone, not on an assumed one)
+    let src = format!(
+        "{}narrow_half_angle_deg = 12\nwide_half_angle_deg = 30\n",
+        sonar_world_src(2.0, 0.0, "narrow", 0.0)
+    );
+    let r = Simulation::new(&world(&src), 1).sonar_read(0).unwrap();
+    assert!((r.half_angle - 12f64.to_radians()).abs() < 1e-12);
 }
 
 #[test]

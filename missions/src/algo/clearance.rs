@@ -6,7 +6,7 @@
 //! is off by about as much (the odometry drifts through the turns, and the localizer has
 //! little to match there). The sonars measure the clearance directly, so the cart checks it
 //! before every command, as the thesis' cart had to: each echo puts a surface somewhere on
-//! the arc of its range across its beam cone ([`NARROW_HALF_ANGLE`], [`WIDE_HALF_ANGLE`]);
+//! the arc of its range across its beam cone (its [`Echo::half_angle`], as the sensor reports it);
 //! the footprint is moved [`GuardParams::reach`] metres ahead along the command (the
 //! kinematic bicycle model), and the guard trips when it would come nearer than
 //! [`GuardParams::margin`] to any such point *and* nearer than it is now — an echo close
@@ -20,12 +20,6 @@ use super::parking::Footprint;
 use super::{bicycle_step, Command};
 use crate::geom::{Point, Pose};
 use serde::{Deserialize, Serialize};
-
-/// Half the opening angle of a narrow sonar beam (the sensor's data sheet), radians: 8°.
-pub const NARROW_HALF_ANGLE: f64 = 8.0 * std::f64::consts::PI / 180.0;
-
-/// Half the opening angle of a wide sonar beam, radians: 25°.
-pub const WIDE_HALF_ANGLE: f64 = 25.0 * std::f64::consts::PI / 180.0;
 
 /// Points placed on each echo's arc.
 const ARC_POINTS: usize = 7;
@@ -150,7 +144,7 @@ mod tests {
     fn echo(x: f64, y: f64, deg: f64, range: f64) -> Echo {
         Echo {
             mount: Pose::new(x, y, deg.to_radians()),
-            half_angle: NARROW_HALF_ANGLE,
+            half_angle: 8f64.to_radians(), // a narrow beam
             range,
         }
     }

@@ -10,7 +10,7 @@ use super::records::{
     PROGRESS, SEGMENTS, WALL,
 };
 use super::{cart, cart_err, dm_err, located, newest, newest_with_seq};
-use crate::algo::clearance::{check, Echo, GuardParams, Trip, NARROW_HALF_ANGLE, WIDE_HALF_ANGLE};
+use crate::algo::clearance::{check, Echo, GuardParams, Trip};
 use crate::algo::follow::{follow_command, is_aligned, FollowMode, FollowParams};
 use crate::algo::parking::{plan_parking, Footprint, ParkError, ParkParams};
 use crate::algo::planner::{plan, Bounds, Path, PlannerParams};
@@ -592,10 +592,7 @@ async fn guard(
         .filter_map(|r| {
             Some(Echo {
                 mount: *scan.mounts.get(r.sensor)?,
-                half_angle: match r.beam {
-                    crate::world::Beam::Narrow => NARROW_HALF_ANGLE,
-                    crate::world::Beam::Wide => WIDE_HALF_ANGLE,
-                },
+                half_angle: r.half_angle,
                 range: r.range?,
             })
         })

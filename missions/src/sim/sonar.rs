@@ -19,6 +19,9 @@ pub struct SonarReading {
     pub sensor: usize,
     /// The sensor's beam.
     pub beam: Beam,
+    /// Half the opening angle of its beam cone, radians: the sensor's own (data sheet)
+    /// figure, so whoever places the echo on its arc uses the cone it was heard in.
+    pub half_angle: f64,
     /// The sensor's pose in the world at the time of the reading (its beam axis as heading).
     pub mount: Pose,
     /// Measured range, metres (noisy); `None` when no echo came back (max range).
@@ -74,8 +77,9 @@ pub fn read_sensor(
     let origin = mount_pose.point();
     let cos_limit = settings.incidence_limit.cos();
     let mut best: Option<(f64, Point)> = None;
+    let half_angle = settings.half_angle(mount.beam);
     if mount.range > 0.0 && mount.range.is_finite() {
-        for offset in cone_offsets(settings.half_angle(mount.beam), settings.rays_per_beam) {
+        for offset in cone_offsets(half_angle, settings.rays_per_beam) {
             let a = mount_pose.theta + offset;
             let dir = Vector::new(a.cos(), a.sin());
             if let Some(hit) = geometry.cast_ray(origin, dir, mount.range) {
@@ -103,6 +107,7 @@ pub fn read_sensor(
     SonarReading {
         sensor,
         beam: mount.beam,
+        half_angle,
         mount: mount_pose,
         range,
         max_range: mount.range,
