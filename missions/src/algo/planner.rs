@@ -65,7 +65,34 @@ impl Path {
     pub fn legs(&self) -> impl Iterator<Item = Segment> + '_ {
         self.waypoints.windows(2).map(|w| Segment::new(w[0], w[1]))
     }
+
+    /// The length of the straight run the path ends on, metres: back from the last
+    /// waypoint for as long as each leg keeps the last leg's direction (within
+    /// [`STRAIGHT_TOLERANCE`]). A parking manoeuvre's tail, whatever its planner was told.
+    pub fn straight_end(&self) -> f64 {
+        let mut legs = self.waypoints.windows(2).rev().map(|w| w[1] - w[0]);
+        let Some(last) = legs.find(|v| v.norm() > 1e-9) else {
+            return 0.0;
+        };
+        let direction = last.y.atan2(last.x);
+        let mut length = last.norm();
+        for v in legs {
+            if v.norm() <= 1e-9 {
+                continue;
+            }
+            let turn = crate::geom::wrap_angle(v.y.atan2(v.x) - direction).abs();
+            if turn > STRAIGHT_TOLERANCE {
+                break;
+            }
+            length += v.norm();
+        }
+        length
+    }
 }
+
+/// How far a leg's direction may stray from the path's last one and still count as the
+/// same straight run ([`Path::straight_end`]), radians: 1°.
+pub const STRAIGHT_TOLERANCE: f64 = std::f64::consts::PI / 180.0;
 
 /// The planning area, an axis-aligned rectangle.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -550,6 +577,41 @@ pub fn plan(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_straight_end_is_the_run_the_path_ends_on() {
+        // a quarter arc of radius 1 in 5° steps, then 0.5 m straight on in 0.1 m steps
+        let mut points: Vec<Point> = (0..=18)
+            .map(|k| {
+                let a = (k as f64 * 5.0).to_radians();
+                Point::new(a.sin(), 1.0 - a.cos())
+            })
+            .collect();
+        let end = *points.last().unwrap();
+        points.extend((1..=5).map(|k| end + crate::geom::Vector::new(0.0, 0.1 * k as f64)));
+        let path = Path::new(points);
+        assert!(
+            (path.straight_end() - 0.5).abs() < 1e-9,
+            "{}",
+            path.straight_end()
+        );
+        // all straight: the whole path; a point or nothing: none
+        let line = Path::new(vec![
+            Point::new(0.0, 0.0),
+            Point::new(1.0, 0.0),
+            Point::new(3.0, 0.0),
+        ]);
+        assert!((line.straight_end() - 3.0).abs() < 1e-9);
+        assert_eq!(Path::new(vec![Point::new(1.0, 1.0)]).straight_end(), 0.0);
+        assert_eq!(Path::new(vec![]).straight_end(), 0.0);
+        // a repeated last waypoint does not hide the direction
+        let repeated = Path::new(vec![
+            Point::new(0.0, 0.0),
+            Point::new(0.0, 2.0),
+            Point::new(0.0, 2.0),
+        ]);
+        assert!((repeated.straight_end() - 2.0).abs() < 1e-9);
+    }
 
     fn seg(ax: f64, ay: f64, bx: f64, by: f64) -> Segment {
         Segment::new(Point::new(ax, ay), Point::new(bx, by))

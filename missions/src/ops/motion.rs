@@ -344,7 +344,7 @@ impl TrajectoryController {
         true
     }
 
-    /// The clearance guard stopped the cart on the last, backing leg within [`PARKED_ZONE`] of
+    /// The clearance guard stopped the cart on the last, backing leg within [`parked_zone`] of
     /// its end: the cart is in the spot, its heading still swinging, and backing on would
     /// touch the spot's wall. So it pulls forward [`SETTLE_LENGTH`] along the leg's end line,
     /// as a driver straightens a car the parking sensor stopped. False (finish where it
@@ -527,7 +527,7 @@ impl Operation for TrajectoryController {
         let last_leg = self.legs.is_empty();
         let footprint = footprint_of(&status);
         if let Some(trip) = guard(&mut self.cart, ctx, &footprint, cmd).await? {
-            if last_leg && (self.settling || remaining <= PARKED_ZONE) {
+            if last_leg && (self.settling || remaining <= parked_zone(path)) {
                 if self.settle(&pose) {
                     tracing::info!(
                         clearance = trip.clearance,
@@ -561,10 +561,16 @@ impl Operation for TrajectoryController {
     }
 }
 
-/// On the last leg, how near its end (m) a stop by the clearance guard means the cart is in
-/// the spot: a parking manoeuvre's straight tail (0.5 m) and the end of the arc before it,
-/// where the cart is between the spot's ends and only its heading still settles.
-const PARKED_ZONE: f64 = 0.7;
+/// On the last leg `path`, how near its end (m) a stop by the clearance guard means the
+/// cart is in the spot: the manoeuvre's straight tail (as planned: [`Path::straight_end`])
+/// and the last [`ARC_END`] of the arc before it, where the cart is between the spot's ends
+/// and only its heading still settles.
+fn parked_zone(path: &Path) -> f64 {
+    path.straight_end() + ARC_END
+}
+
+/// The end of a parking arc that still counts as in the spot, m.
+const ARC_END: f64 = 0.2;
 
 /// How far ahead of where the clearance guard stopped it the cart aims when it straightens
 /// in the spot, m (it ends within the position tolerance of that, so it moves about 0.25 m):
