@@ -200,7 +200,8 @@ fn marie_kill_shows_the_operation_supervisor_restarting_the_operation() {
 }
 
 #[tokio::test(flavor = "current_thread", start_paused = true)]
-async fn the_node_tree_is_datamanagers_operations_dynamic_and_heals_a_killed_operation() {
+async fn the_node_tree_is_datamanagers_operations_dynamic_provisioner_and_heals_a_killed_operation()
+{
     let catalog = marie::missions::builtin_operations();
     let config = NodeConfig::everything("tree", &catalog);
     let node = Node::start(config, NodeOptions::with_catalog(catalog))
@@ -214,7 +215,10 @@ async fn the_node_tree_is_datamanagers_operations_dynamic_and_heals_a_killed_ope
         .into_iter()
         .map(|c| c.id)
         .collect();
-    assert_eq!(ids, ["datamanagers", "operations", "dynamic"]);
+    assert_eq!(
+        ids,
+        ["datamanagers", "operations", "dynamic", "provisioner"]
+    );
     let dms: Vec<String> = node
         .datamanager_supervisor()
         .await

@@ -32,6 +32,7 @@ operation!(ProbeV1, "probe", 9101, "1.0.0");
 operation!(ProbeV2, "probe", 9101, "2.1.0");
 operation!(Beacon, "beacon", 9102, "1.0.0");
 operation!(Silent, "silent", 9103, "1.0.0");
+operation!(Standby, "standby", 9104, "1.0.0");
 
 fn catalog() -> Vec<OperationFactory> {
     vec![
@@ -39,6 +40,7 @@ fn catalog() -> Vec<OperationFactory> {
         OperationFactory::of::<ProbeV2>("probe"),
         OperationFactory::of::<Beacon>("beacon"),
         OperationFactory::of::<Silent>("silent"),
+        OperationFactory::of::<Standby>("standby"),
     ]
 }
 
@@ -84,9 +86,10 @@ async fn a_node_hosts_exactly_its_config_and_starts_allowed_instances_on_request
         .await
         .unwrap();
 
-    // the tree: no datamanager asked for, so none; each supervisor; the dynamic one
+    // the tree: no datamanager asked for, so none; each supervisor; the dynamic one; the
+    // provisioner
     let root = child_ids(node.supervisor().which_children().await.unwrap());
-    assert_eq!(root, ["operations", "sensing", "dynamic"]);
+    assert_eq!(root, ["operations", "sensing", "dynamic", "provisioner"]);
     let ops = node.operation_supervisor().await.unwrap();
     let ops = child_ids(ops.which_children().await.unwrap());
     assert_eq!(ops, ["probe@1.0.0", "probe@1.0.0#2"]);
@@ -125,6 +128,47 @@ async fn a_node_hosts_exactly_its_config_and_starts_allowed_instances_on_request
     }
     node.shutdown().await;
     assert!(node_gone("probe"));
+}
+
+#[tokio::test(flavor = "current_thread", start_paused = true)]
+async fn a_crashed_provisioner_is_restarted_and_still_starts_instances_on_request() {
+    let mut config = NodeConfig::new("n3");
+    config
+        .operations
+        .push(OperationConfig::new("standby").with_instances(0));
+    let node = Node::start(config, NodeOptions::with_catalog(catalog()))
+        .await
+        .unwrap();
+    let root = node.supervisor();
+    let provisioner = |children: Vec<marie_supervision::ChildInfo>| {
+        children
+            .into_iter()
+            .find(|c| c.id == "provisioner")
+            .and_then(|c| c.state.actor().cloned())
+            .expect("a running provisioner")
+    };
+    let first = provisioner(root.which_children().await.unwrap());
+    let mut events = root.subscribe().await.unwrap();
+    first.kill();
+    loop {
+        match events.recv().await.unwrap() {
+            marie_supervision::SupervisorEvent::ChildRestarted { id, .. }
+                if id == "provisioner" =>
+            {
+                break
+            }
+            _ => {}
+        }
+    }
+    let second = provisioner(root.which_children().await.unwrap());
+    assert_ne!(first.get_id(), second.get_id());
+    // published again: a request reaches it (no other node here allows `standby`)
+    assert_eq!(node.instances("standby").len(), 0);
+    let started = marie_actors::provision::request("standby", &semver::VersionReq::STAR).await;
+    assert_eq!(started, Ok("n3".to_string()));
+    assert_eq!(node.instances("standby").len(), 1);
+    node.shutdown().await;
+    assert!(node_gone("standby"));
 }
 
 fn node_gone(name: &str) -> bool {
@@ -202,6 +246,12 @@ fn the_embedded_default_hosts_one_instance_of_every_operation() {
     let hosted: Vec<String> = c.hosted(&catalog).iter().map(|(_, f)| f.key()).collect();
     assert_eq!(
         hosted,
-        ["probe@1.0.0", "probe@2.1.0", "beacon@1.0.0", "silent@1.0.0"]
+        [
+            "probe@1.0.0",
+            "probe@2.1.0",
+            "beacon@1.0.0",
+            "silent@1.0.0",
+            "standby@1.0.0"
+        ]
     );
 }

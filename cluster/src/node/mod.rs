@@ -166,6 +166,8 @@ pub enum NodeError {
 ///  ├─ operations (one_for_one) ──── one EO host per operation instance
 ///  ├─ <other [[supervisor]]s> ───── their operations
 ///  ├─ dynamic (simple_one_for_one)─ instances started on request (start_instance)
+///  ├─ provisioner                   (another node's requests for an instance; when the
+///  │                                 config has operations)
 ///  └─ dispatcher-N                  (temporary, one per run; with `dispatcher = true`)
 /// ```
 pub struct Node {
@@ -180,8 +182,6 @@ pub struct Node {
     starter: provisioner::Starter,
     robot: Option<Arc<dyn Robot>>,
     runs: AtomicU64,
-    /// Answers the cluster's requests for new instances (when the config hosts operations).
-    provisioner: Option<ActorRef<marie_actors::provision::ProvisionMsg>>,
 }
 
 impl Node {
@@ -228,16 +228,15 @@ impl Node {
             starter,
             robot: options.robot,
             runs: AtomicU64::new(0),
-            provisioner: None,
         };
         // the runs are dispatched elsewhere: the robot tells what it sees without them
         if let (Some(robot), false) = (&node.robot, node.config.dispatcher) {
             node.robot_tasks = robot.dispatched_elsewhere(&node.bus);
         }
         if !node.config.operations.is_empty() {
-            match ractor::Actor::spawn(None, provisioner::Provisioner, node.starter.clone()).await {
-                Ok((actor, _)) => node.provisioner = Some(actor),
-                Err(e) => tracing::warn!("the node will not start instances on request: {e}"),
+            let spec = provisioner::child_spec(node.starter.clone());
+            if let Err(e) = node.starter.root.start_child(spec).await {
+                tracing::warn!("the node will not start instances on request: {e}");
             }
         }
         Ok(node)
@@ -547,9 +546,6 @@ impl Node {
 
     /// Stop the node's supervision tree, children in reverse start order, and wait for it.
     pub async fn shutdown(self) {
-        if let Some(p) = &self.provisioner {
-            p.stop(None);
-        }
         for task in &self.robot_tasks {
             task.abort();
         }

@@ -7,8 +7,24 @@ use super::{NodeError, OperationConfig};
 use marie_actors::clock::SharedClock;
 use marie_actors::eo::{HostOptions, OperationFactory};
 use marie_actors::provision::{self, ProvisionMsg};
-use marie_supervision::SupervisorRef;
+use marie_supervision::{ChildSpec, SupervisorRef};
 use ractor::{Actor, ActorCell, ActorProcessingErr, ActorRef};
+
+/// Child id of the provisioner under the node's root supervisor.
+pub(crate) const PROVISIONER: &str = "provisioner";
+
+/// The provisioner as a permanent child of the node's root: restarted (and published
+/// again) if it crashes, stopped with the node. Added once the root runs, since it starts
+/// instances through the root it is a child of.
+pub(crate) fn child_spec(starter: Starter) -> ChildSpec {
+    ChildSpec::worker(PROVISIONER, move |sup| {
+        let starter = starter.clone();
+        async move {
+            let (actor, _) = Actor::spawn_linked(None, Provisioner, starter, sup).await?;
+            Ok(actor.get_cell())
+        }
+    })
+}
 
 /// What starting an instance needs: what the config allows (its operations), the catalogue
 /// (how to build them), the clock, and the root supervisor (whose `dynamic` child starts
