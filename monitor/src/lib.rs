@@ -16,6 +16,30 @@
 //! subscriber (a bounded broadcast that drops for the slow), reduces on a thread of its own,
 //! and each viewer reads a bounded buffer of updates — a stuck viewer loses updates (and is
 //! told so, then resynchronised), never the node.
+//!
+//! An application watches its own node the way `marie run --monitor` does: a live monitor
+//! on the node's bus (`Node::events()`; here a bare bus), its page at [`MonitorHandle::url`]:
+//!
+//! ```
+//! use marie_actors::clock::ManualClock;
+//! use marie_actors::events::{EventBus, EventKind};
+//! use marie_monitor::{Monitor, MonitorOptions};
+//! use std::sync::Arc;
+//! use std::time::Duration;
+//!
+//! let bus = EventBus::new("robot-1", Arc::new(ManualClock::new()));
+//! // port 0: one the OS picks; loopback, so no token
+//! let monitor = Monitor::live(&bus, MonitorOptions::new("127.0.0.1:0".parse().unwrap())).unwrap();
+//! assert!(monitor.url().starts_with("http://127.0.0.1:"));
+//! bus.publish(EventKind::RunStarted { mission: "patrol".into(), actions: vec![], success: vec![] });
+//! // the page's state holds the run once the monitor took the event
+//! assert!(monitor.flush(Duration::from_secs(10)));
+//! monitor.stop();
+//! ```
+//!
+//! With a [`Control`] ([`MonitorOptions::with_control`]) the page also asks operations for
+//! their properties and, when allowed, injects faults; `marie`'s CLI hands it one that
+//! reaches the cluster's registry and `marie up`'s node processes.
 
 pub mod control;
 pub mod state;
