@@ -203,6 +203,23 @@ fn the_page_stops_the_wall_followers_node_and_shows_the_cluster_fail_over() {
         "document.querySelector('#outcome')?.dataset.outcome === 'succeeded'",
         "the mission succeeds",
     );
+    // any operation of the cluster panel answers a click with its live properties: here
+    // one of the survivor's wall followers
+    let module = format!(
+        "#cluster .module[data-kind=\"operation\"][data-module=\"wall-follower\"][data-node=\"{other}\"]"
+    );
+    browser
+        .evaluate(&format!("document.querySelector({module:?}).click()"))
+        .unwrap();
+    shows(
+        &mut browser,
+        &format!(
+            "document.querySelector('#module-props')?.dataset.live === 'true' \
+             && document.querySelector('#module-props').dataset.node === {other:?} \
+             && document.querySelector('#module-props .live-props') !== null"
+        ),
+        "the properties of a module in the cluster panel",
+    );
     // tall enough for every panel: the bindings and the cluster under the robot
     browser.set_viewport(1400, 1500).unwrap();
     screenshot(&mut browser, "monitor-cluster-failover.png");

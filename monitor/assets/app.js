@@ -211,7 +211,9 @@ function renderCluster(cluster) {
       return `<div class="node" data-node="${esc(n.name)}" data-status="${n.status}">` +
         `<strong>${esc(n.name)}</strong> <span class="status">${n.status}</span> ${esc(n.address || "")}${stop}` +
         `<div class="modules">${mods.length} module(s): ` +
-        mods.map((m) => `<span class="module" data-kind="${m.kind}" data-module="${esc(m.name)}">${esc(m.name)}</span>`).join(", ") +
+        mods.map((m) => `<span class="module" data-kind="${m.kind}" data-module="${esc(m.name)}" ` +
+          `data-node="${esc(n.name)}" data-address="${esc(m.address)}"` +
+          `${m.kind === "operation" && offers.properties ? ' title="its properties"' : ""}>${esc(m.name)}</span>`).join(", ") +
         `</div></div>`;
     })
     .join(""));
@@ -308,7 +310,41 @@ $("#bindings tbody").addEventListener("click", (ev) => {
 
 $("#cluster").addEventListener("click", (ev) => {
   const button = ev.target.closest("button.stop-node");
-  if (button) injectFault({ fault: "stop-node", node: button.dataset.node });
+  if (button) {
+    injectFault({ fault: "stop-node", node: button.dataset.node });
+    return;
+  }
+  const module = ev.target.closest(".module[data-kind=\"operation\"]");
+  if (module && offers.properties) {
+    const d = module.dataset;
+    showModuleProps({ operation: d.module, node: d.node, address: d.address });
+  }
+});
+
+// The properties of any operation in the cluster panel (bound or not), asked of it now.
+async function showModuleProps(op) {
+  const box = $("#module-props");
+  box.hidden = false;
+  box.dataset.op = op.operation;
+  box.dataset.node = op.node;
+  box.dataset.live = "pending";
+  box.innerHTML = `<strong>${esc(op.operation)}</strong> on ${esc(op.node)}: asking…`;
+  const q = new URLSearchParams(op);
+  let answer;
+  try {
+    const res = await fetch(withToken("/api/props?" + q), { cache: "no-store" });
+    const body = await res.json().catch(() => ({ error: res.status + " " + res.statusText }));
+    answer = res.ok ? { groups: body } : { error: body.error || String(res.status) };
+  } catch (e) {
+    answer = { error: "cannot reach the monitor: " + e };
+  }
+  box.dataset.live = answer.error ? "error" : "true";
+  box.innerHTML = `<button type="button" class="close" title="close">×</button>` +
+    `<strong>${esc(op.operation)}</strong> on ${esc(op.node)}` + liveHtml(answer);
+}
+
+$("#module-props").addEventListener("click", (ev) => {
+  if (ev.target.closest("button.close")) $("#module-props").hidden = true;
 });
 
 // Post a fault; its answer (or refusal) goes to #control-result.

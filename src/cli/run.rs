@@ -17,6 +17,8 @@ use marie::fault::{Chaos, FaultPlan, FaultSpec};
 use marie_monitor::MonitorOptions;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use tokio::sync::mpsc;
 
 /// Flags of `marie run`.
@@ -81,6 +83,27 @@ pub struct RunArgs {
     /// The node processes the page may stop (`marie up`'s children; none otherwise).
     #[arg(skip)]
     pub node_processes: NodeProcesses,
+    /// Set once the mission has ended and a Ctrl-C is the run's own to hear (see
+    /// [`MissionOver`]).
+    #[arg(skip)]
+    pub mission_over: MissionOver,
+}
+
+/// Set once a run's mission has ended, its outputs written — and, with a monitor, once the
+/// run listens for the Ctrl-C that closes its page. Whoever runs it (`marie up --run`) and
+/// hears a Ctrl-C then lets the run end by itself instead of cutting the mission short.
+#[derive(Clone, Debug, Default)]
+pub struct MissionOver(Arc<AtomicBool>);
+
+impl MissionOver {
+    fn set(&self) {
+        self.0.store(true, Ordering::SeqCst);
+    }
+
+    /// Whether the mission has ended (and the run hears a Ctrl-C itself).
+    pub fn is_set(&self) -> bool {
+        self.0.load(Ordering::SeqCst)
+    }
 }
 
 /// Pixels per metre of `--svg` pictures.
@@ -107,6 +130,7 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         monitor: monitor_listen,
         allow_faults,
         node_processes,
+        mission_over,
     } = args;
     let progress = match (explain, json) {
         (true, true) => Progress::ChoicesAsJson,
@@ -232,10 +256,24 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     for task in publisher.into_iter().chain(forwarder) {
         task.abort();
     }
-    if let Some(t) = transport {
-        t.stop().await;
-    }
-    let report = report?;
+    // a monitor's page still reaches the cluster after the run (its properties, its
+    // faults, the other nodes' news): the membership ends with the page
+    let transport = match (transport, &monitor) {
+        (Some(t), None) => {
+            t.stop().await;
+            None
+        }
+        (t, _) => t,
+    };
+    let report = match report {
+        Ok(report) => report,
+        Err(e) => {
+            if let Some(t) = transport {
+                t.stop().await;
+            }
+            return Err(e.into());
+        }
+    };
     if say {
         print_faults(&report);
         if world.is_some() {
@@ -268,6 +306,9 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     };
 
     // the outputs are written: the page stays up for as long as the user reads it
+    if monitor.is_none() {
+        mission_over.set();
+    }
     if let Some((monitor, relay)) = monitor {
         // virtual time need not run on while the page is read
         drop(pace);
@@ -279,6 +320,7 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         }
         // watched before the line: a Ctrl-C right after it is not missed
         let stop = super::signal::shutdown_signal(false);
+        mission_over.set();
         let over = "monitor: the run is over; its page stays up until Ctrl-C";
         if say {
             println!("{over}");
@@ -295,7 +337,9 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         }
         monitor.stop();
     }
-
+    if let Some(t) = transport {
+        t.stop().await;
+    }
     Ok(code)
 }
 

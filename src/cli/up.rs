@@ -247,6 +247,7 @@ async fn serve(
         monitor: args.monitor,
         allow_faults: args.allow_faults,
         node_processes: processes,
+        mission_over: Default::default(),
         cluster: JoinArgs {
             join: Some(launches[0].listen),
             cookie: Some(layout.cookie.clone()),
@@ -256,15 +257,22 @@ async fn serve(
             tls_server_name: None,
         },
     };
+    let over = run.mission_over.clone();
     let stop = super::signal::shutdown_signal(false);
+    let run = super::run::run(run);
+    tokio::pin!(run);
     tokio::select! {
-        // the run first: with --monitor it waits for the same Ctrl-C after the mission, and
-        // then its outcome is the exit code
         biased;
-        result = super::run::run(run) => result,
+        result = &mut run => result,
         signal = stop => {
-            println!("stopping the cluster ({signal}) before the mission ended");
-            Ok(ExitCode::from(1))
+            if over.is_set() {
+                // the mission is over: the run heard the same Ctrl-C (with --monitor it was
+                // waiting for it to close its page) and ends with the mission's outcome
+                run.await
+            } else {
+                println!("stopping the cluster ({signal}) before the mission ended");
+                Ok(ExitCode::from(1))
+            }
         }
     }
 }
