@@ -1,9 +1,8 @@
 //! A mission [`Catalog`] built from the live registry and the property interface.
 
-use super::binding::select;
+use super::candidates::{describe, select};
 use super::mission::{Catalog, OpInfo, ParsedMission};
 use crate::eo::{EoClient, EoError};
-use crate::property::{Group, PropertyReply, PropertyRequest};
 use crate::registry::{self, ModuleKind};
 use std::collections::BTreeMap;
 
@@ -87,26 +86,6 @@ fn running_names() -> Vec<String> {
         .collect();
     names.dedup();
     names
-}
-
-/// Describe one operation through its property interface.
-pub async fn describe(client: EoClient) -> Result<OpInfo, EoError> {
-    let ident = client
-        .property(PropertyRequest::Group(Group::Identification))
-        .await?;
-    let specific = client
-        .property(PropertyRequest::Group(Group::Specific))
-        .await?;
-    match (ident, specific) {
-        (PropertyReply::Identification(i), PropertyReply::Specific(s)) => Ok(OpInfo {
-            name: i.name.to_string(),
-            id: i.id,
-            version: i.version.to_string(),
-            schema: crate::property::ParamSchema::new(s.params),
-            flags: s.flags,
-        }),
-        _ => Err(EoError::Gone(client.actor().get_id().to_string())),
-    }
 }
 
 impl Catalog for RegistryCatalog {

@@ -15,7 +15,8 @@
 //!   incarnation are ignored.
 
 use super::actor::{DispatcherState, Start};
-use super::binding::{examine, examine_all, select, Binding, Candidate};
+use super::binding::Binding;
+use super::candidates::{examine, examine_all, select, Candidate};
 use super::loss::LossCause;
 use super::messages::DispatcherMsg;
 use super::report::{Outcome, RebindRecord};

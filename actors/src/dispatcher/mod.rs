@@ -11,6 +11,7 @@ mod actor;
 mod assembly;
 mod binding;
 mod builder;
+mod candidates;
 mod catalog;
 mod healing;
 mod loss;
@@ -28,7 +29,8 @@ pub use actor::{
     DispatcherState, DISPATCHER_ID,
 };
 pub use builder::ReportBuilder;
-pub use catalog::{describe, RegistryCatalog};
+pub use candidates::describe;
+pub use catalog::RegistryCatalog;
 pub use loss::LossCause;
 pub use messages::DispatcherMsg;
 pub use progress::{DispatchEvent, ProgressRelay};

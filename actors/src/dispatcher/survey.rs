@@ -7,7 +7,7 @@
 //! The thesis counted control details to show what self-configuration saves the operator:
 //! the fewer a mission must spell out, the more the system decides by itself.
 
-use super::binding::select;
+use super::candidates::select;
 use super::mission::Mission;
 use super::selection::Choice;
 use crate::eo::EoClient;

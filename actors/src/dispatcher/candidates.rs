@@ -1,0 +1,131 @@
+//! Candidates: the live instances of an operation, asked through their property interface
+//! what they are (identity, parameter schema, flags, epoch, deadline, in use, up-time), and
+//! the selection among them — what binding, surveying, healing and validating a mission all
+//! start from.
+
+use super::mission::OpInfo;
+use super::selection::{self, Need, Offer};
+use crate::eo::{EoClient, EoError};
+use crate::property::{General, Group, PropertyReply, PropertyRequest};
+use crate::registry::Instance;
+use std::time::Duration;
+
+/// Describe one operation through its property interface.
+pub async fn describe(client: EoClient) -> Result<OpInfo, EoError> {
+    let ident = client
+        .property(PropertyRequest::Group(Group::Identification))
+        .await?;
+    let specific = client
+        .property(PropertyRequest::Group(Group::Specific))
+        .await?;
+    match (ident, specific) {
+        (PropertyReply::Identification(i), PropertyReply::Specific(s)) => Ok(OpInfo {
+            name: i.name.to_string(),
+            id: i.id,
+            version: i.version.to_string(),
+            schema: crate::property::ParamSchema::new(s.params),
+            flags: s.flags,
+        }),
+        _ => Err(EoError::Gone(client.actor().get_id().to_string())),
+    }
+}
+
+/// A live instance the dispatcher looked at through its property interface.
+pub(crate) struct Candidate {
+    pub(crate) info: OpInfo,
+    pub(crate) client: EoClient,
+    pub(crate) node: String,
+    /// The epoch the instance accepted last.
+    pub(crate) epoch: u64,
+    /// How long it may take to answer a command.
+    pub(crate) deadline: Duration,
+    /// Bound by another binding.
+    pub(crate) in_use: bool,
+    /// How long it has run, ms.
+    pub(crate) uptime_ms: u64,
+}
+
+impl Candidate {
+    /// The candidate as selection sees it.
+    pub(crate) fn offer(&self) -> Offer {
+        Offer {
+            address: self.client.actor().get_id().to_string(),
+            node: self.node.clone(),
+            info: self.info.clone(),
+            in_use: self.in_use,
+            uptime_ms: self.uptime_ms,
+        }
+    }
+}
+
+/// Ask `inst` who it is, what it takes and which epoch it is at; `timeout` bounds each request.
+pub(crate) async fn examine(inst: &Instance, timeout: Duration) -> Result<Candidate, String> {
+    let client = EoClient::from_cell(inst.actor.clone()).with_timeout(timeout);
+    let info = describe(client.clone()).await.map_err(|e| e.to_string())?;
+    let general = match client
+        .property(PropertyRequest::Group(Group::General))
+        .await
+        .map_err(|e| e.to_string())?
+    {
+        PropertyReply::General(g) => g,
+        other => return Err(format!("answered {other:?} to the general group")),
+    };
+    let General {
+        epoch,
+        deadline_ms,
+        in_use,
+        uptime_ms,
+        ..
+    } = general;
+    Ok(Candidate {
+        info,
+        client: client.with_timeout(EoClient::DEFAULT_TIMEOUT),
+        node: inst.node.clone(),
+        epoch,
+        deadline: Duration::from_millis(deadline_ms.max(1)),
+        in_use,
+        uptime_ms,
+    })
+}
+
+/// Every live instance of `operation`, asked at once (selection needs them all), in
+/// registry order; those that do not answer within `timeout` are left out.
+pub(crate) async fn candidates(operation: &str, timeout: Duration) -> Vec<Candidate> {
+    let found = crate::registry::lookup(crate::registry::ModuleKind::Operation, operation);
+    examine_all(operation, found, timeout).await
+}
+
+/// Every live instance of the operation `need` names, asked at once, and the choice among
+/// them for `need` on this node — what binding, surveying and validating a mission share,
+/// so the instance a mission is checked against is the one it binds.
+pub(crate) async fn select(need: &Need, timeout: Duration) -> (Vec<Candidate>, selection::Choice) {
+    let found = candidates(&need.operation, timeout).await;
+    let offers: Vec<Offer> = found.iter().map(Candidate::offer).collect();
+    let choice = selection::choose(need, &offers, &crate::registry::local_node_name());
+    (found, choice)
+}
+
+/// Every instance of `found` (of `operation`), asked at once, in the given order; those
+/// that do not answer within `timeout` are left out.
+pub(crate) async fn examine_all(
+    operation: &str,
+    found: Vec<Instance>,
+    timeout: Duration,
+) -> Vec<Candidate> {
+    let mut asked = tokio::task::JoinSet::new();
+    for (i, inst) in found.into_iter().enumerate() {
+        asked.spawn(async move { (i, examine(&inst, timeout).await) });
+    }
+    let mut answers = Vec::new();
+    while let Some(joined) = asked.join_next().await {
+        match joined {
+            Ok((i, Ok(cand))) => answers.push((i, cand)),
+            Ok((_, Err(e))) => {
+                tracing::debug!(op = %operation, error = %e, "a candidate does not answer")
+            }
+            Err(e) => tracing::debug!(op = %operation, error = %e, "asking a candidate failed"),
+        }
+    }
+    answers.sort_by_key(|(i, _)| *i);
+    answers.into_iter().map(|(_, c)| c).collect()
+}
