@@ -4,8 +4,8 @@
 
 use super::args::RobotArgs;
 use super::error::BadInput;
-use super::prepare::Joining;
 use marie::net::{ClusterConfig, Peer, TlsFiles, Transport};
+use marie::node::{NodeConfig, SimulationConfig};
 use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -168,4 +168,32 @@ pub fn describe(peers: &[Peer]) -> String {
         .map(|p| format!("{} ({})", p.name, p.address))
         .collect::<Vec<_>>()
         .join(", ")
+}
+
+/// A mission run (or checked) from a member of a running cluster (`--join ADDR --cookie C`).
+#[derive(Clone, Debug)]
+pub struct Joining {
+    /// The member's name (`run-4242`).
+    pub me: String,
+    /// Where it joins.
+    pub target: Target,
+    /// The cluster's speed factor.
+    pub speed: f64,
+}
+
+impl Joining {
+    /// The member's node: a dispatcher and nothing else — the operations, datamanagers and
+    /// the cart are the cluster's — plus, when a world is known, the robot without drivers,
+    /// to judge the run by the cart's final pose (asked of the cart wherever it runs).
+    pub fn config(&self) -> NodeConfig {
+        NodeConfig {
+            simulation: Some(SimulationConfig {
+                world: None,
+                world_at: None,
+                seed: None,
+                drivers: false,
+            }),
+            ..NodeConfig::new(self.me.clone())
+        }
+    }
 }

@@ -2,43 +2,15 @@
 //! against the operations that run — shared by `run` and `check`.
 
 use super::args::RobotArgs;
-use super::join::join;
+use super::join::{join, Joining};
 use marie::actors::clock::ScaledClock;
 use marie::actors::dispatcher::mission::Mission;
 use marie::embedded::{Embedded, EmbeddedOptions};
 use marie::missions::robot::SimRobot;
 use marie::net::Transport;
-use marie::node::{Node, NodeConfig, NodeError, SimulationConfig};
+use marie::node::{Node, NodeError};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-
-/// A mission run (or checked) from a member of a running cluster (`--join ADDR --cookie C`).
-#[derive(Clone, Debug)]
-pub struct Joining {
-    /// The member's name (`run-4242`).
-    pub me: String,
-    /// Where it joins.
-    pub target: super::join::Target,
-    /// The cluster's speed factor.
-    pub speed: f64,
-}
-
-impl Joining {
-    /// The member's node: a dispatcher and nothing else — the operations, datamanagers and
-    /// the cart are the cluster's — plus, when a world is known, the robot without drivers,
-    /// to judge the run by the cart's final pose (asked of the cart wherever it runs).
-    fn config(&self) -> NodeConfig {
-        NodeConfig {
-            simulation: Some(SimulationConfig {
-                world: None,
-                world_at: None,
-                seed: None,
-                drivers: false,
-            }),
-            ..NodeConfig::new(self.me.clone())
-        }
-    }
-}
 
 /// A node started for a mission, with the mission checked against it.
 pub struct Prepared {
