@@ -40,7 +40,7 @@
 //! assert!(matches!(choice.candidates[0].verdict, Verdict::Rejected { .. }));
 //! ```
 
-use super::mission::OpInfo;
+use super::mission::operations::OpInfo;
 use crate::property::{ParamMap, Value};
 use semver::{Version, VersionReq};
 use serde::{Deserialize, Serialize};
