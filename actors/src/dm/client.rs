@@ -5,7 +5,6 @@ use super::error::DmError;
 use super::messages::{DmMsg, DmStats};
 use super::query::Query;
 use super::record::{NewRecord, Payload, Record, RecordHeader};
-use super::subscription::Subscription;
 use crate::registry::{self, Instance, ModuleKind};
 use ractor::rpc::CallResult;
 use ractor::{ActorRef, RpcReplyPort};
@@ -331,17 +330,6 @@ impl DmClient {
     pub async fn stats(&self) -> Result<DmStats, DmError> {
         self.call(self.timeout, |reply| DmMsg::Stats { reply })
             .await
-    }
-
-    /// Receive, in seq order, every record matching `query` that is stored after this call
-    /// returns — or from `query.seq_from` on, if the query sets it (a replay). The query's
-    /// newest/oldest limit is ignored. See [`Subscription`] for how it works and why.
-    pub async fn subscribe(&self, query: Query) -> Result<Subscription, DmError> {
-        let start = match query.seq_from {
-            Some(seq) => seq,
-            None => self.stats().await?.next_seq,
-        };
-        Ok(Subscription::start(self.clone(), query, start))
     }
 }
 

@@ -27,6 +27,19 @@ use std::time::Duration;
 use tokio::sync::mpsc;
 use tokio::task::JoinHandle;
 
+impl DmClient {
+    /// Receive, in seq order, every record matching `query` that is stored after this call
+    /// returns — or from `query.seq_from` on, if the query sets it (a replay). The query's
+    /// newest/oldest limit is ignored. See [`Subscription`] for how it works and why.
+    pub async fn subscribe(&self, query: Query) -> Result<Subscription, DmError> {
+        let start = match query.seq_from {
+            Some(seq) => seq,
+            None => self.stats().await?.next_seq,
+        };
+        Ok(Subscription::start(self.clone(), query, start))
+    }
+}
+
 /// Records stored after a [`DmClient::subscribe`], in seq order. Dropping it stops the
 /// polling task.
 #[derive(Debug)]
