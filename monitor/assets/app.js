@@ -186,19 +186,23 @@ async function askProps(b) {
 }
 
 async function askPropsOf(b) {
-  const q = new URLSearchParams({ operation: b.operation });
-  if (b.node) q.set("node", b.node);
-  if (b.address) q.set("address", b.address);
-  let answer;
+  const answer = await fetchProps({ operation: b.operation, node: b.node, address: b.address });
+  liveProps = { op: b.operation, address: b.address, ...answer };
+  if (latest) renderProps(latest.bindings);
+}
+
+// /api/props for {operation, node?, address?}: {groups} or {error}.
+async function fetchProps(op) {
+  const q = new URLSearchParams({ operation: op.operation });
+  if (op.node) q.set("node", op.node);
+  if (op.address) q.set("address", op.address);
   try {
     const res = await fetch(withToken("/api/props?" + q), { cache: "no-store" });
     const body = await res.json().catch(() => ({ error: res.status + " " + res.statusText }));
-    answer = res.ok ? { groups: body } : { error: body.error || String(res.status) };
+    return res.ok ? { groups: body } : { error: body.error || String(res.status) };
   } catch (e) {
-    answer = { error: "cannot reach the monitor: " + e };
+    return { error: "cannot reach the monitor: " + e };
   }
-  liveProps = { op: b.operation, address: b.address, ...answer };
-  if (latest) renderProps(latest.bindings);
 }
 
 function renderCluster(cluster) {
@@ -329,15 +333,7 @@ async function showModuleProps(op) {
   box.dataset.node = op.node;
   box.dataset.live = "pending";
   box.innerHTML = `<strong>${esc(op.operation)}</strong> on ${esc(op.node)}: asking…`;
-  const q = new URLSearchParams(op);
-  let answer;
-  try {
-    const res = await fetch(withToken("/api/props?" + q), { cache: "no-store" });
-    const body = await res.json().catch(() => ({ error: res.status + " " + res.statusText }));
-    answer = res.ok ? { groups: body } : { error: body.error || String(res.status) };
-  } catch (e) {
-    answer = { error: "cannot reach the monitor: " + e };
-  }
+  const answer = await fetchProps(op);
   box.dataset.live = answer.error ? "error" : "true";
   box.innerHTML = `<button type="button" class="close" title="close">×</button>` +
     `<strong>${esc(op.operation)}</strong> on ${esc(op.node)}` + liveHtml(answer);
