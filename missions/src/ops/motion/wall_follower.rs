@@ -1,0 +1,171 @@
+//! The wall follower (1514), versions 1 and 2: the cart kept at a distance from the
+//! followed wall (version 2 also along a corridor's middle), with a stall check.
+
+use super::follow::{follow_params, follow_step};
+use super::{stop_cart, CONTROL_PERIOD};
+use crate::algo::follow::{FollowMode, FollowParams};
+use crate::geom::Pose;
+use crate::hardware::CartClient;
+use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
+use marie_actors::property::{ParamDecl, ParamSchema};
+use std::time::Duration;
+
+/// How long a wall follower may see the cart make no progress before it gives up: something
+/// (an obstacle, the collision avoidance's stop) keeps it from following the wall.
+const STALL_TIME: Duration = Duration::from_secs(15);
+
+/// How far the cart must move to count as progress, m.
+const STALL_DISTANCE: f64 = 0.1;
+
+/// What both wall followers do with the cart: a follow step and a stall check per control
+/// step, stop on suspension.
+#[derive(Default)]
+struct Follower {
+    cart: Option<CartClient>,
+    stall: Stall,
+}
+
+impl Follower {
+    /// A new activation: the stall check starts afresh.
+    fn activate(&mut self) -> Result<Step, OpError> {
+        self.stall = Stall::default();
+        Ok(Step::Continue)
+    }
+
+    async fn step(&mut self, ctx: &mut OpContext, params: &FollowParams) -> Result<Step, OpError> {
+        let (_, pose) = follow_step(ctx, &mut self.cart, params).await?;
+        self.stall.check(pose, ctx.now())?;
+        Ok(Step::Continue)
+    }
+
+    fn suspend(&mut self, ctx: &OpContext) -> Result<(), OpError> {
+        stop_cart(&mut self.cart, ctx)
+    }
+}
+
+/// Watches that a follower's cart keeps moving.
+#[derive(Default)]
+struct Stall {
+    /// Where and when the cart last made progress.
+    anchor: Option<(Pose, Duration)>,
+}
+
+impl Stall {
+    /// Record the cart at `pose` at `now`; an error once it has not moved for [`STALL_TIME`].
+    fn check(&mut self, pose: Pose, now: Duration) -> Result<(), OpError> {
+        match self.anchor {
+            Some((at, since)) if (pose.point() - at.point()).norm() < STALL_DISTANCE => {
+                if now.saturating_sub(since) >= STALL_TIME {
+                    return Err(OpError::failed(format!(
+                        "the cart has made no progress along the wall for {:.0} s, blocked at ({:.2}, {:.2})",
+                        STALL_TIME.as_secs_f64(),
+                        pose.x,
+                        pose.y
+                    )));
+                }
+            }
+            _ => self.anchor = Some((pose, now)),
+        }
+        Ok(())
+    }
+}
+
+/// The wall follower, version 1: keeps the cart at `distance` from the followed wall, driving
+/// forwards, until suspended. One parameter.
+#[derive(Default)]
+pub struct WallFollowerV1 {
+    follower: Follower,
+}
+
+/// Forward speed of the wall followers.
+const FOLLOW_SPEED: f64 = 0.3;
+
+impl Operation for WallFollowerV1 {
+    fn identity(&self) -> Identity {
+        Identity::new(
+            "wall-follower",
+            1514,
+            "1.0.0",
+            "follows a wall at a distance",
+        )
+    }
+
+    fn parameters(&self) -> ParamSchema {
+        ParamSchema::new(vec![ParamDecl::float("distance", 0.6)
+            .range(0.3, 3.0)
+            .unit("m")
+            .describe("distance kept from the wall")])
+    }
+
+    fn period(&self) -> Duration {
+        CONTROL_PERIOD
+    }
+
+    async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
+        let params = follow_params(
+            ctx.params().f64("distance")?,
+            FollowMode::Wall,
+            FOLLOW_SPEED,
+        );
+        self.follower.step(ctx, &params).await
+    }
+
+    async fn activate(&mut self, _ctx: &mut OpContext) -> Result<Step, OpError> {
+        self.follower.activate()
+    }
+
+    async fn suspend(&mut self, ctx: &mut OpContext) -> Result<(), OpError> {
+        self.follower.suspend(ctx)
+    }
+}
+
+/// The wall follower, version 2: like version 1, and it can also keep to the middle of a
+/// corridor. Two parameters: same kind and id as version 1, another schema.
+#[derive(Default)]
+pub struct WallFollowerV2 {
+    follower: Follower,
+}
+
+impl Operation for WallFollowerV2 {
+    fn identity(&self) -> Identity {
+        Identity::new(
+            "wall-follower",
+            1514,
+            "2.0.0",
+            "follows a wall at a distance, or a corridor's middle",
+        )
+    }
+
+    fn parameters(&self) -> ParamSchema {
+        ParamSchema::new(vec![
+            ParamDecl::float("distance", 0.6)
+                .range(0.3, 3.0)
+                .unit("m")
+                .describe("distance kept from the wall (wall mode)"),
+            ParamDecl::choice("mode", &["wall", "corridor"], "wall")
+                .describe("follow one wall, or the middle between two"),
+        ])
+    }
+
+    fn period(&self) -> Duration {
+        CONTROL_PERIOD
+    }
+
+    async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
+        let p = ctx.params();
+        let mode = match p.text("mode")? {
+            "corridor" => FollowMode::Corridor,
+            _ => FollowMode::Wall,
+        };
+        let params = follow_params(p.f64("distance")?, mode, FOLLOW_SPEED);
+        self.follower.step(ctx, &params).await
+    }
+
+    async fn activate(&mut self, _ctx: &mut OpContext) -> Result<Step, OpError> {
+        self.follower.activate()
+    }
+
+    async fn suspend(&mut self, ctx: &mut OpContext) -> Result<(), OpError> {
+        self.follower.suspend(ctx)
+    }
+}
