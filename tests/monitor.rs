@@ -15,7 +15,6 @@ const THESIS: &str = "missions/clusters/thesis.toml";
 const ALPHA: &str = "[[datamanager]]\nname = \"feature\"\n[[operation]]\nname = \"sampler\"\n";
 const BETA: &str = "[[datamanager]]\nname = \"world\"\n[[operation]]\nname = \"averager\"\n";
 use common::{http, marie, text};
-use std::time::{Duration, Instant};
 
 #[test]
 fn a_replayed_run_answers_its_extent_and_ends_with_every_action_succeeded_and_the_rebind() {
@@ -94,18 +93,11 @@ fn a_run_serves_its_live_state_while_the_mission_runs_and_its_outcome_after() {
     let (addr, _) = page_of(&run.wait_line("monitor: http://"));
     assert_eq!(http::get_json(addr, "/api/info")["mode"], "live");
     // while it runs: the tree, an action running, the node and its modules
-    let deadline = Instant::now() + common::cluster::EVENT_TIMEOUT;
-    let during = loop {
-        let state = http::get_json(addr, "/api/state");
-        let running = state["mission"]["actions"]
+    let during = state_until(addr, "an action running", |s| {
+        s["mission"]["actions"]
             .as_array()
-            .is_some_and(|a| a.iter().any(|a| a["state"] == "running"));
-        if running {
-            break state;
-        }
-        assert!(Instant::now() < deadline, "no action ran: {state}");
-        std::thread::sleep(Duration::from_millis(50));
-    };
+            .is_some_and(|a| a.iter().any(|a| a["state"] == "running"))
+    });
     assert_eq!(during["mission"]["name"], "docking");
     assert_eq!(during["mission"]["actions"].as_array().unwrap().len(), 4);
     assert!(during["mission"]["outcome"].is_null(), "{during}");

@@ -123,11 +123,15 @@ fn a_live_monitor_streams_a_snapshot_then_the_changes() {
         node: "n2".into(),
         kind: EventKind::NodeFrozen { silent_ms: 1 },
     }));
-    let deadline = Instant::now() + http::TIMEOUT;
-    while http::get_json(addr, "/api/state")["cluster"]["n2"]["status"] != "frozen" {
-        assert!(Instant::now() < deadline, "the fed event never showed");
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    // once the monitor has taken it (flush), the state shows it
+    assert!(
+        monitor.flush(http::TIMEOUT),
+        "the fed event was never taken"
+    );
+    assert_eq!(
+        http::get_json(addr, "/api/state")["cluster"]["n2"]["status"],
+        "frozen"
+    );
     assert_eq!(http::get(addr, "/api/replay/info", &[]).0, 404);
     monitor.stop();
 }
