@@ -204,11 +204,7 @@ async fn serve(
     let Some(mission) = &args.run else {
         let watching = match args.monitor {
             Some(listen) => {
-                let target = super::join::Target {
-                    addr: launches[0].listen,
-                    cookie: layout.cookie.clone(),
-                    tls: None,
-                };
+                let target = first_node(launches, &layout.cookie);
                 let options = marie_monitor::MonitorOptions::new(listen);
                 Some(
                     super::monitor::ClusterWatch::start(
@@ -359,11 +355,7 @@ async fn converged(
     total: usize,
 ) -> anyhow::Result<Vec<Instance>> {
     let me = member_name("up");
-    let target = super::join::Target {
-        addr: launches[0].listen,
-        cookie: cookie.to_string(),
-        tls: None,
-    };
+    let target = first_node(launches, cookie);
     let transport = join(&me, &target).await?;
     // watching before the first listing: no change between the two goes unseen
     let mut watch = registry::watch(None).await?;
@@ -389,4 +381,14 @@ async fn converged(
             registry::list().len()
         )
     })
+}
+
+/// How a member of `up`'s own joins the cluster: at the first node, the one the others
+/// joined.
+fn first_node(launches: &[NodeLaunch], cookie: &str) -> super::join::Target {
+    super::join::Target {
+        addr: launches[0].listen,
+        cookie: cookie.to_string(),
+        tls: None,
+    }
 }
