@@ -27,9 +27,9 @@ let liveProps = null;
 // Replace an element's content only when it changed: a redraw ten times a second must not
 // swallow a click on the element under the pointer.
 function setHtml(el, html) {
-  if (el.dataset.html !== html) {
+  if (el.drawnHtml !== html) {
     el.innerHTML = html;
-    el.dataset.html = html;
+    el.drawnHtml = html; // a property, not an attribute: the DOM does not hold it twice
   }
 }
 
@@ -70,8 +70,8 @@ function flags(list, cls) {
 }
 
 function renderTree(m) {
-  $("#flags").innerHTML = flags(m.flags, "status");
-  $("#tree").innerHTML = m.actions
+  setHtml($("#flags"), flags(m.flags, "status"));
+  setHtml($("#tree"), m.actions
     .map((a) => {
       const ops = a.ops
         .map((o) => `<li class="op" data-op="${esc(o.name)}" data-ended="${esc(o.ended || "waiting")}">` +
@@ -84,7 +84,7 @@ function renderTree(m) {
         `<span class="name">${esc(a.name)}</span><span class="state">${a.state}${span}</span>` +
         `${when}<ul class="ops">${ops}</ul></li>`;
     })
-    .join("");
+    .join(""));
 }
 
 function renderBindings(bindings) {
@@ -225,29 +225,22 @@ function renderCluster(cluster) {
 
 const pts = (list) => (list || []).map((p) => p[0].toFixed(3) + "," + p[1].toFixed(3)).join(" ");
 
-function thin(points, limit) {
-  if (points.length <= limit) return points;
-  const step = (points.length - 1) / (limit - 1);
-  const out = [];
-  for (let i = 0; i < limit; i++) out.push(points[Math.min(points.length - 1, Math.round(i * step))]);
-  return out;
-}
-
 function renderRobot(r) {
   const w = r.world;
   const svg = $("#world");
   svg.dataset.hasWorld = w ? "true" : "false";
   if (w) {
-    $("#walls").innerHTML = w.walls.map(([a, b]) => `<line x1="${a[0]}" y1="${a[1]}" x2="${b[0]}" y2="${b[1]}"></line>`).join("");
-    $("#dock").innerHTML = w.dock ? `<polygon points="${pts(w.dock)}"></polygon>` : "";
-    $("#goal").innerHTML = w.goal ? `<polygon points="${pts(w.goal)}"></polygon>` : "";
+    setHtml($("#walls"), w.walls.map(([a, b]) => `<line x1="${a[0]}" y1="${a[1]}" x2="${b[0]}" y2="${b[1]}"></line>`).join(""));
+    setHtml($("#dock"), w.dock ? `<polygon points="${pts(w.dock)}"></polygon>` : "");
+    setHtml($("#goal"), w.goal ? `<polygon points="${pts(w.goal)}"></polygon>` : "");
   }
-  const path = thin(r.path || [], 1000);
+  // the server sends at most 1000 points of the driven path (thinned evenly)
+  const path = r.path || [];
   $("#path").setAttribute("points", pts(path));
   $("#path").dataset.points = String(path.length);
   $("#planned-path").setAttribute("points", pts(r.planned_path));
   $("#dock-found").setAttribute("points", pts(r.dock_found));
-  $("#echoes").innerHTML = (r.echoes || []).map((p) => `<circle cx="${p[0]}" cy="${p[1]}" r="0.04"></circle>`).join("");
+  setHtml($("#echoes"), (r.echoes || []).map((p) => `<circle cx="${p[0]}" cy="${p[1]}" r="0.04"></circle>`).join(""));
   const fw = $("#followed-wall");
   if (r.followed_wall) {
     const [a, b] = r.followed_wall;
@@ -287,11 +280,11 @@ function fitView(svg, r) {
 function renderTimeline(t) {
   const list = $("#timeline");
   const atBottom = list.scrollTop + list.clientHeight >= list.scrollHeight - 4;
-  list.innerHTML = (t.dropped ? `<li class="dropped">${t.dropped} earlier entries dropped</li>` : "") +
+  setHtml(list, (t.dropped ? `<li class="dropped">${t.dropped} earlier entries dropped</li>` : "") +
     t.entries
       .map((e) => `<li class="entry ${e.class}" data-class="${e.class}"><span class="at">${fmtAt(e.at_ms)}</span>` +
         `<span class="src">${esc(e.node)}</span>${esc(e.text)}</li>`)
-      .join("");
+      .join(""));
   if (atBottom) list.scrollTop = list.scrollHeight;
 }
 

@@ -98,7 +98,7 @@ fn the_timeline_is_bounded() {
 #[test]
 fn the_state_serializes_for_the_page() {
     let state = MonitorState::from_events(&recorded());
-    let json = serde_json::to_value(state.for_page()).unwrap();
+    let json = serde_json::to_value(&state).unwrap();
     assert_eq!(json["mission"]["actions"][0]["state"], "succeeded");
     assert_eq!(json["mission"]["outcome"]["outcome"], "succeeded");
     assert_eq!(json["bindings"]["wall-follower"]["rebinds"], 1);

@@ -137,7 +137,7 @@ fn a_live_monitor_streams_a_snapshot_then_the_changes() {
 }
 
 #[test]
-fn a_stuck_viewer_costs_the_publisher_nothing_and_is_told_it_lagged() {
+fn a_stuck_viewer_is_told_it_lagged_and_resynchronised_while_the_node_publishes_on() {
     let clock = Arc::new(ManualClock::new());
     let bus = EventBus::new("n1", clock.clone());
     let monitor = Monitor::live(&bus, loopback()).unwrap();

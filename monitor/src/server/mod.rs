@@ -151,15 +151,7 @@ impl Monitor {
     /// Serve the live state of the node whose bus is `bus`: every event it publishes from
     /// now on (more may be fed in, [`MonitorHandle::feed`]).
     pub fn live(bus: &EventBus, options: MonitorOptions) -> Result<MonitorHandle, MonitorError> {
-        Monitor::live_from(Some(bus), options)
-    }
-
-    /// Serve a live state fed only through [`MonitorHandle::feed`] (and `bus`, if given).
-    pub fn live_from(
-        bus: Option<&EventBus>,
-        options: MonitorOptions,
-    ) -> Result<MonitorHandle, MonitorError> {
-        let subscription = bus.map(EventBus::subscribe);
+        let subscription = Some(bus.subscribe());
         let (live, feed, fed) = Live::new();
         let (flushes, flush_requests) = mpsc::unbounded_channel();
         let tasks_live = live.clone();
@@ -437,7 +429,7 @@ async fn fault(State(app): State<Shared>, Json(request): Json<FaultRequest>) -> 
 async fn state(State(app): State<Shared>) -> Response {
     match &app.source {
         Source::Live(live) => json_body(live.snapshot().to_string()),
-        Source::Replay(replay) => json_of(&replay.final_state()),
+        Source::Replay(replay) => json_body(replay.final_json().to_string()),
     }
 }
 
@@ -466,8 +458,8 @@ async fn replay_state(State(app): State<Shared>, Query(at): Query<At>) -> Respon
         Source::Replay(replay) => {
             let replay = replay.clone();
             // applying events is CPU work: off the serving task
-            match tokio::task::spawn_blocking(move || replay.state_at(at.at_ms)).await {
-                Ok(state) => json_of(&state),
+            match tokio::task::spawn_blocking(move || replay.state_json_at(at.at_ms)).await {
+                Ok(state) => json_body(state),
                 Err(e) => (StatusCode::INTERNAL_SERVER_ERROR, e.to_string()).into_response(),
             }
         }

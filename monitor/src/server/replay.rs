@@ -4,7 +4,7 @@
 //! pauses by not asking, and seeks with its slider: the state at T is every event up to T
 //! applied in order. A cursor remembers the latest state asked for, so playing forward
 //! applies only the events since; seeking back starts over (a run's file is small: a
-//! docking run is a few hundred events without the robot's, some thousands with them).
+//! docking run writes 820 events, the robot's included).
 
 use crate::error::MonitorError;
 use crate::state::MonitorState;
@@ -17,6 +17,9 @@ use std::sync::Mutex;
 pub struct Replay {
     events: Vec<Event>,
     cursor: Mutex<(usize, MonitorState)>,
+    /// The state after the whole run, as JSON: asked for by every `/api/state`, computed
+    /// once (and without moving the cursor a playing page uses).
+    final_json: String,
 }
 
 /// What the page needs to set up its controls.
@@ -59,9 +62,11 @@ impl Replay {
     /// A replay of `events`.
     pub fn new(mut events: Vec<Event>) -> Replay {
         events.sort_by_key(|e| e.at_ms);
+        let final_json = to_json(&MonitorState::from_events(&events));
         Replay {
             events,
             cursor: Mutex::new((0, MonitorState::default())),
+            final_json,
         }
     }
 
@@ -77,8 +82,20 @@ impl Replay {
         }
     }
 
-    /// The state after every event at or before `at_ms`, as the page draws it.
-    pub fn state_at(&self, at_ms: u64) -> MonitorState {
+    /// The state after every event at or before `at_ms`, as JSON for the page (serialized
+    /// at the cursor: no copy of the state).
+    pub fn state_json_at(&self, at_ms: u64) -> String {
+        self.at(at_ms, to_json)
+    }
+
+    /// The state after the whole run, as JSON.
+    pub fn final_json(&self) -> &str {
+        &self.final_json
+    }
+
+    /// `read` of the state after every event at or before `at_ms`: the cursor moved there
+    /// (forward from where it is, or from the start when `at_ms` is earlier).
+    fn at<R>(&self, at_ms: u64, read: impl FnOnce(&MonitorState) -> R) -> R {
         let mut cursor = self.cursor.lock().unwrap_or_else(|e| e.into_inner());
         let (next, state) = &mut *cursor;
         if *next > 0 && self.events[*next - 1].at_ms > at_ms {
@@ -89,13 +106,15 @@ impl Replay {
             state.apply(e);
             *next += 1;
         }
-        state.for_page()
+        read(state)
     }
+}
 
-    /// The state after the whole run.
-    pub fn final_state(&self) -> MonitorState {
-        self.state_at(u64::MAX)
-    }
+fn to_json(state: &MonitorState) -> String {
+    serde_json::to_string(state).unwrap_or_else(|e| {
+        tracing::error!(error = %e, "cannot serialize a replayed state");
+        "{}".into()
+    })
 }
 
 #[cfg(test)]
@@ -123,11 +142,16 @@ mod tests {
                 duration_ms: 20
             }
         );
-        assert_eq!(replay.state_at(5).events, 0);
-        assert_eq!(replay.state_at(20).events, 3);
-        assert_eq!(replay.state_at(25).events, 3);
-        assert_eq!(replay.state_at(10).events, 1);
-        assert_eq!(replay.final_state().events, 4);
-        assert_eq!(replay.state_at(0).events, 0);
+        let events_at = |ms| replay.at(ms, |s| s.events);
+        assert_eq!(events_at(5), 0);
+        assert_eq!(events_at(20), 3);
+        assert_eq!(events_at(25), 3);
+        assert_eq!(events_at(10), 1);
+        let end: serde_json::Value = serde_json::from_str(replay.final_json()).unwrap();
+        assert_eq!(end["events"], 4);
+        assert_eq!(events_at(0), 0);
+        // the JSON at a time is that state's
+        let at_20: serde_json::Value = serde_json::from_str(&replay.state_json_at(20)).unwrap();
+        assert_eq!(at_20["events"], 3);
     }
 }

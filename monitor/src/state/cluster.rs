@@ -65,9 +65,9 @@ impl Cluster {
 
     /// `node` published an event: it is alive (known, and up unless it said otherwise).
     pub fn heard_from(&mut self, node: &str, at_ms: u64) {
-        let n = self.of(node, at_ms);
-        if n.status != "frozen" {
-            n.status = "up";
+        if self.of(node, at_ms).status != "frozen" {
+            // up again since now, not since it went down
+            self.set(node, at_ms, "up");
         }
     }
 
@@ -125,5 +125,24 @@ fn kind_label(m: &ModuleInfo) -> &'static str {
         ModuleKind::Datamanager => "datamanager",
         ModuleKind::Dispatcher => "dispatcher",
         ModuleKind::Hardware => "hardware",
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_node_heard_from_after_it_went_down_is_up_since_then() {
+        let mut c = Cluster::default();
+        c.heard_from("a", 10);
+        c.down("a", 20);
+        assert_eq!((c.0["a"].status, c.0["a"].since_ms), ("down", 20));
+        c.heard_from("a", 35);
+        assert_eq!((c.0["a"].status, c.0["a"].since_ms), ("up", 35));
+        // a frozen node stays frozen until it says otherwise
+        c.frozen("a", 40);
+        c.heard_from("a", 50);
+        assert_eq!((c.0["a"].status, c.0["a"].since_ms), ("frozen", 40));
     }
 }

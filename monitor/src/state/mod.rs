@@ -202,7 +202,7 @@ impl MonitorState {
                 at,
                 node,
                 "fault",
-                format!("{} injected into {operation} ({actor})", fault_name(fault)),
+                format!("{fault} injected into {operation} ({actor})"),
             ),
             EventKind::FaultNotInjected {
                 fault,
@@ -213,7 +213,7 @@ impl MonitorState {
                 at,
                 node,
                 "fault",
-                format!("{} not injected into {operation}: {why}", fault_name(fault)),
+                format!("{fault} not injected into {operation}: {why}"),
             ),
             EventKind::NodeUp { peer, address } => {
                 self.cluster.up(peer, address, at);
@@ -267,15 +267,6 @@ impl MonitorState {
             }
         }
     }
-
-    /// The state as the page draws it: the robot's path thinned to at most
-    /// [`robot::DRAW_LIMIT`] points.
-    pub fn for_page(&self) -> MonitorState {
-        MonitorState {
-            robot: self.robot.for_drawing(),
-            ..self.clone()
-        }
-    }
 }
 
 fn ended_text(what: &str, outcome: Outcome, reason: &str) -> String {
@@ -283,11 +274,4 @@ fn ended_text(what: &str, outcome: Outcome, reason: &str) -> String {
         Outcome::Succeeded => format!("{what}: succeeded"),
         Outcome::Failed => format!("{what}: failed: {reason}"),
     }
-}
-
-fn fault_name(fault: &marie_actors::eo::FaultKind) -> String {
-    serde_json::to_value(fault)
-        .ok()
-        .and_then(|v| v.as_str().map(str::to_string))
-        .unwrap_or_else(|| format!("{fault:?}"))
 }

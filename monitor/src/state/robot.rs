@@ -13,8 +13,8 @@
 //! the contract leaves the state as it was.
 //!
 //! Bounded: the path keeps the latest [`PATH_LIMIT`] poses (halving its resolution rather
-//! than dropping its start), and [`RobotView::for_drawing`] thins it to at most
-//! [`DRAW_LIMIT`] points for the page.
+//! than dropping its start), and is serialized thinned to at most [`DRAW_LIMIT`] points:
+//! the page draws no more, and serializing thins it without copying the state first.
 //!
 //! [`EventKind::Robot`]: marie_actors::events::EventKind::Robot
 
@@ -73,7 +73,9 @@ pub struct RobotView {
     pub world: Option<WorldView>,
     /// The latest pose.
     pub pose: Option<Pose>,
-    /// The driven path (bounded, see the module docs).
+    /// The driven path (bounded, see the module docs); serialized thinned to at most
+    /// [`DRAW_LIMIT`] points.
+    #[serde(serialize_with = "serialize_thinned")]
     pub path: Vec<Point>,
     /// Poses received in all.
     pub poses: u64,
@@ -146,14 +148,15 @@ impl RobotView {
         }
         self.path.push([pose.x, pose.y]);
     }
+}
 
-    /// This view with its path thinned to at most [`DRAW_LIMIT`] points (the first and the
-    /// latest kept).
-    pub fn for_drawing(&self) -> RobotView {
-        RobotView {
-            path: thin(&self.path, DRAW_LIMIT),
-            ..self.clone()
-        }
+/// The path as the page gets it: at most [`DRAW_LIMIT`] points.
+#[allow(clippy::ptr_arg)] // serde's `serialize_with` passes the field as it is declared
+fn serialize_thinned<S: serde::Serializer>(path: &Vec<Point>, s: S) -> Result<S::Ok, S::Error> {
+    if path.len() <= DRAW_LIMIT {
+        path.serialize(s)
+    } else {
+        thin(path, DRAW_LIMIT).serialize(s)
     }
 }
 
@@ -224,10 +227,12 @@ mod tests {
         assert!(r.path.len() <= PATH_LIMIT);
         assert_eq!(r.path[0], [0.0, 0.0]);
         assert_eq!(*r.path.last().unwrap(), [19_999.0, 0.0]);
-        let drawn = r.for_drawing();
-        assert!(drawn.path.len() <= DRAW_LIMIT);
-        assert_eq!(drawn.path[0], [0.0, 0.0]);
-        assert_eq!(*drawn.path.last().unwrap(), [19_999.0, 0.0]);
+        // what the page gets
+        let drawn = serde_json::to_value(&r).unwrap();
+        let drawn = drawn["path"].as_array().unwrap();
+        assert!(drawn.len() <= DRAW_LIMIT);
+        assert_eq!(drawn[0], json!([0.0, 0.0]));
+        assert_eq!(*drawn.last().unwrap(), json!([19_999.0, 0.0]));
     }
 
     #[test]
