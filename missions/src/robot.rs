@@ -46,7 +46,7 @@ use marie_cluster::node::{AprioriRecord, BoxFuture, Robot};
 use marie_supervision::{ChildSpec, Restart};
 use serde::de::DeserializeOwned;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 use tokio::task::JoinHandle;
 
 /// The most sonar echo points [`SimRobot::picture`] draws; more are thinned out evenly.
@@ -73,8 +73,6 @@ pub struct SimRobot {
 struct Telemetry {
     /// Raised once the first run's world is published: the cart's poses follow it.
     live: Arc<AtomicBool>,
-    /// The current run's record taps.
-    taps: Arc<Mutex<Vec<JoinHandle<()>>>>,
 }
 
 impl SimRobot {
@@ -202,15 +200,11 @@ impl Robot for SimRobot {
         ]
     }
 
-    fn run_starting<'a>(&'a self, events: &'a EventBus) -> BoxFuture<'a, ()> {
+    fn run_starting<'a>(&'a self, events: &'a EventBus) -> BoxFuture<'a, Vec<JoinHandle<()>>> {
         Box::pin(async move {
-            // the previous run's taps first, so no record is told twice
-            let previous = std::mem::take(&mut *lock(&self.telemetry.taps));
-            previous.iter().for_each(JoinHandle::abort);
             events.publish(telemetry::world_event(&self.world));
             self.telemetry.live.store(true, Ordering::Relaxed);
-            let taps = telemetry::tap_records(events.clone()).await;
-            *lock(&self.telemetry.taps) = taps;
+            telemetry::tap_records(events.clone()).await
         })
     }
 
@@ -242,13 +236,6 @@ impl Robot for SimRobot {
             judge(report, self, status);
         })
     }
-}
-
-/// `mutex`'s guard, also after a panic of another holder (the taps stay abortable).
-fn lock<T>(mutex: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
-    mutex
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner)
 }
 
 /// A client of datamanager `spec`'s current incarnation.

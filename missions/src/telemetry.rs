@@ -12,7 +12,7 @@
 //! | `what` | `data` | when | from |
 //! |---|---|---|---|
 //! | `world` | `{"walls": [[[x1,y1],[x2,y2]], ...], "dock": [[x,y],...] \| null, "goal": [[x,y],...] \| null, "cart": {"length", "width", "axle_to_centre"}}` | once when a run starts, before any other robot event of it; on a node that runs the cart but no dispatcher, when the node starts and every [`WORLD_REPEAT`] after | the world model: every wall and obstacle edge, the dock's recess and the goal area as their corners, the cart's size (the pose is the rear axle; the footprint's centre is `axle_to_centre` ahead of it) |
-//! | `pose` | `{"x", "y", "heading"}` | every [`POSE_PERIOD`] of simulated time, from the first run on (on a node that runs the cart but no dispatcher: from the node's start) | the cart's true pose (what the picture's driven path shows) |
+//! | `pose` | `{"x", "y", "heading"}` | every [`POSE_PERIOD`] of simulated time while the cart moves, every [`STILL_REPEAT`] while it stands still, from the first run on (on a node that runs the cart but no dispatcher: from the node's start) | the cart's true pose (what the picture's driven path shows) |
 //! | `echoes` | `{"points": [[x,y], ...]}` | every [`ECHOES_PERIOD`] of scans | the echo points of the sonar scans since the last `echoes` event, as the robot placed them (feature DM, class `sonar`) |
 //! | `planned-path` | `{"points": [[x,y], ...]}` | when the path planner stores a path | its waypoints, leg after leg (parameter DM, class `path`) |
 //! | `followed-wall` | `{"from": [x,y], "to": [x,y]}` | when the wall sensor first stores the followed wall, and when either end moves more than [`WALL_MOVED`] | world DM, class `wall` |
@@ -25,8 +25,8 @@
 //! - The rest is read from the datamanagers, where the operations store it anyway: one
 //!   subscription (a long poll of `SelectWait` calls, [`marie_actors::dm::Subscription`])
 //!   per class, started when a run starts ([`tap_records`]). The operations know nothing of
-//!   it. A tap ends with its datamanager (at the node's shutdown; a datamanager restarted
-//!   mid-run is not followed again until the next run).
+//!   it. A tap ends when the node's next run starts, at the node's shutdown, or with its
+//!   datamanager (one restarted mid-run is not followed again until the next run).
 //! - Publishing never blocks: [`EventBus::publish`] is a send on a bounded broadcast (a
 //!   slow subscriber loses the oldest events, the simulation never waits).
 //! - Poses start with the first run: before it nobody has told a viewer the world, so the
@@ -73,6 +73,10 @@ pub const PLANNED_PATH: &str = "planned-path";
 pub const FOLLOWED_WALL: &str = "followed-wall";
 /// `what` of a detected docking spot.
 pub const DOCK_FOUND: &str = "dock-found";
+
+/// How often the pose of a cart standing still is told again, simulated time: a viewer that
+/// joins late gets it, and the stream does not repeat it ten times a second.
+pub const STILL_REPEAT: Duration = Duration::from_secs(2);
 
 /// Wall-clock time between two `world` events of a node that runs the cart but no
 /// dispatcher: how long a viewer that joins the cluster late waits for the walls.
@@ -143,6 +147,9 @@ pub struct PoseSampler {
     live: Arc<AtomicBool>,
     /// Simulated time of the next sample, ms.
     next_ms: u64,
+    /// The latest pose published, and when (ms): a cart standing still is told again only
+    /// every [`STILL_REPEAT`].
+    last: Option<(Pose, u64)>,
 }
 
 impl PoseSampler {
@@ -152,6 +159,7 @@ impl PoseSampler {
             events,
             live,
             next_ms: 0,
+            last: None,
         }
     }
 
@@ -167,6 +175,14 @@ impl PoseSampler {
         let period = POSE_PERIOD.as_millis() as u64;
         // on the grid of the period, skipping what a long step jumped over
         self.next_ms = (ms / period + 1) * period;
+        let still = STILL_REPEAT.as_millis() as u64;
+        if self
+            .last
+            .is_some_and(|(last, at)| last == *pose && ms < at + still)
+        {
+            return; // standing still (a parked cart, a cluster between runs)
+        }
+        self.last = Some((*pose, ms));
         self.events.publish(pose_event(pose));
     }
 }
@@ -190,24 +206,32 @@ pub fn repeat_world(events: EventBus, world: &World) -> JoinHandle<()> {
 
 /// Start reading what the operations store for the picture — echoes, planned paths, the
 /// followed wall, the dock — and publishing it on `events` as it comes: one task per class,
-/// ending with its datamanager. A datamanager that is not running is left out with a
+/// ending with its datamanager or when aborted (by the node, at its next run). A datamanager that is not running is left out with a
 /// warning. Only records stored after this returns are read.
 pub async fn tap_records(events: EventBus) -> Vec<JoinHandle<()>> {
     let mut echoes = Echoes::default();
     let mut wall: Option<Segment> = None;
+    // subscribed side by side: in a cluster each is a round trip to another node, and
+    // the run waits for them
+    let (sonar, walls, docks, paths) = tokio::join!(
+        subscribe(dm::FEATURE, records::SONAR),
+        subscribe(dm::WORLD, records::WALL),
+        subscribe(dm::WORLD, records::DOCK),
+        subscribe(dm::PARAMETER, records::PATH),
+    );
     let mut taps = Vec::new();
-    if let Some(sub) = subscribe(dm::FEATURE, records::SONAR).await {
+    if let Some(sub) = sonar {
         taps.push(tap(sub, events.clone(), move |r| echoes.scan(r)));
     }
-    if let Some(sub) = subscribe(dm::WORLD, records::WALL).await {
+    if let Some(sub) = walls {
         taps.push(tap(sub, events.clone(), move |r| {
             followed_wall(&mut wall, r)
         }));
     }
-    if let Some(sub) = subscribe(dm::WORLD, records::DOCK).await {
+    if let Some(sub) = docks {
         taps.push(tap(sub, events.clone(), dock_found));
     }
-    if let Some(sub) = subscribe(dm::PARAMETER, records::PATH).await {
+    if let Some(sub) = paths {
         taps.push(tap(sub, events, planned_path));
     }
     taps
@@ -344,10 +368,10 @@ mod tests {
         sampler.sample(0.0, &pose);
         assert!(sub.drain().is_empty(), "not before a run");
         live.store(true, Ordering::Relaxed);
-        // 50 physics steps of 20 ms: one second, ten samples
+        // 50 physics steps of 20 ms, the cart moving: one second, ten samples
         for step in 0..50 {
-            clock.advance(Duration::from_millis(20));
-            sampler.sample(f64::from(step) * 0.02, &pose);
+            let moved = Pose::new(pose.x - f64::from(step) * 0.01, pose.y, pose.theta);
+            sampler.sample(f64::from(step) * 0.02, &moved);
         }
         let got = sub.drain();
         assert_eq!(got.len(), 10);
@@ -356,10 +380,19 @@ mod tests {
             robot(POSE, json!({"x": 1.0, "y": 2.0, "heading": 0.5}))
         );
         // a long step samples once, on the grid
-        sampler.sample(5.03, &pose);
-        sampler.sample(5.08, &pose);
-        sampler.sample(5.1, &pose);
+        sampler.sample(5.03, &Pose::new(3.0, 2.0, 0.5));
+        sampler.sample(5.08, &Pose::new(3.1, 2.0, 0.5));
+        sampler.sample(5.1, &Pose::new(3.2, 2.0, 0.5));
         assert_eq!(sub.drain().len(), 2);
+        // standing still: told again only every STILL_REPEAT
+        for step in 0..250 {
+            sampler.sample(6.0 + f64::from(step) * 0.02, &Pose::new(3.2, 2.0, 0.5));
+        }
+        assert_eq!(
+            sub.drain().len(),
+            2,
+            "at 7.1 s and 9.1 s: every 2 s since 5.1 s"
+        );
     }
 
     fn record_of<T: serde::Serialize>(class: &str, value: &T) -> Record {

@@ -177,6 +177,8 @@ pub struct Node {
     bridges: Vec<tokio::task::JoinHandle<()>>,
     /// The robot's own tasks on a node without a dispatcher ([`Robot::dispatched_elsewhere`]).
     robot_tasks: Vec<tokio::task::JoinHandle<()>>,
+    /// The robot's reporting of the latest run ([`Robot::run_starting`]).
+    run_tasks: std::sync::Mutex<Vec<tokio::task::JoinHandle<()>>>,
     /// Starts instances on request (the node's own and the provisioner's); holds the
     /// node's clock and root supervisor.
     starter: provisioner::Starter,
@@ -225,6 +227,7 @@ impl Node {
             _registry: registry,
             bridges,
             robot_tasks: Vec::new(),
+            run_tasks: Default::default(),
             starter,
             robot: options.robot,
             runs: AtomicU64::new(0),
@@ -462,11 +465,6 @@ impl Node {
             }
         });
         let injector = Injector::start(plan, self.starter.clock.clone(), view, self.bus.clone());
-        // the robot's world first, before the run's own events (a node without a dispatcher
-        // refuses the run at once: no run starts)
-        if let (Some(robot), true) = (&self.robot, self.config.dispatcher) {
-            robot.run_starting(&self.bus).await;
-        }
         let result = self.dispatch(mission, inner).await;
         let faults = injector.finish();
         let _ = forwarder.await;
@@ -504,6 +502,13 @@ impl Node {
     ) -> Result<RunReport, NodeError> {
         if !self.config.dispatcher {
             return Err(NodeError::NoDispatcher(self.config.name.clone()));
+        }
+        // the robot's world first, before the run's own events; the previous run's
+        // reporting ends first, so nothing is told twice
+        if let Some(robot) = &self.robot {
+            self.abort_run_tasks();
+            let tasks = robot.run_starting(&self.bus).await;
+            *self.run_tasks.lock().unwrap_or_else(|e| e.into_inner()) = tasks;
         }
         let n = self.runs.fetch_add(1, Ordering::Relaxed);
         // the run's part of the node's events, relayed to the live lines
@@ -544,11 +549,18 @@ impl Node {
         Ok(report?)
     }
 
+    /// Abort the robot's reporting of the latest run.
+    fn abort_run_tasks(&self) {
+        let tasks = std::mem::take(&mut *self.run_tasks.lock().unwrap_or_else(|e| e.into_inner()));
+        tasks.iter().for_each(tokio::task::JoinHandle::abort);
+    }
+
     /// Stop the node's supervision tree, children in reverse start order, and wait for it.
     pub async fn shutdown(self) {
         for task in &self.robot_tasks {
             task.abort();
         }
+        self.abort_run_tasks();
         self.starter.root.stop().await;
         for task in &self.bridges {
             task.abort();

@@ -50,13 +50,14 @@ pub trait Robot: Send + Sync + 'static {
     fn drivers(&self, clock: &SharedClock, events: &EventBus) -> Vec<ChildSpec>;
 
     /// A run is about to start on this node (called before its dispatcher starts): publish
-    /// on `events` what a viewer of the run needs first (the world), and start reporting
-    /// the run as it goes. Does nothing unless the robot says otherwise. Publishing never
-    /// blocks ([`EventBus::publish`]), so this holds a run back no longer than the robot's
-    /// own set-up takes.
-    fn run_starting<'a>(&'a self, events: &'a EventBus) -> BoxFuture<'a, ()> {
+    /// on `events` what a viewer of the run needs first (the world), start reporting the
+    /// run as it goes, and give the tasks that report it: the node aborts them when its
+    /// next run starts (so nothing is told twice) and at its shutdown. Does nothing unless
+    /// the robot says otherwise. Publishing never blocks ([`EventBus::publish`]), so this
+    /// holds a run back no longer than the robot's own set-up takes.
+    fn run_starting<'a>(&'a self, events: &'a EventBus) -> BoxFuture<'a, Vec<JoinHandle<()>>> {
         let _ = events;
-        Box::pin(async {})
+        Box::pin(async { Vec::new() })
     }
 
     /// The node started without a dispatcher: the runs that use this robot are dispatched
