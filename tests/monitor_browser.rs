@@ -57,7 +57,7 @@ fn the_page_shows_the_loss_the_rebind_and_the_success_of_a_docking_run_with_a_fa
     // live: the task tree and the robot in its world while the mission runs
     shows(
         &mut browser,
-        "document.querySelectorAll('#tree .action[data-state=\"running\"]').length > 0",
+        &any("#tree .action[data-state=\"running\"]"),
         "an action runs on the page",
     );
     shows(

@@ -1,8 +1,9 @@
 //! Faults from the monitor's page, over its HTTP API, on a real run (issue 13): with
 //! `--allow-faults` the page asks the bound wall follower for its live properties, kills it
 //! and hangs its stand-in, and the dispatcher rebinds each time until docking succeeds.
-//! (Without the flag the page's faults are refused: `monitor_browser`; stopping a node's
-//! process under `marie up`: `monitor_browser` too.)
+//! (Without the flag the page's faults are refused: `monitor/tests/control.rs`, and on a
+//! real run `monitor_browser`; stopping a node's process under `marie up`: `tests/monitor.rs`
+//! and `monitor_browser`.)
 
 mod common;
 

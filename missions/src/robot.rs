@@ -141,11 +141,7 @@ impl SimRobot {
 
         let feature = dm_client(dm::FEATURE);
         let scans: Vec<EchoScan> = decoded(&feature, Query::class(records::SONAR)).await;
-        let echoes: Vec<Point> = scans
-            .iter()
-            .flat_map(|s| s.echoes.iter().map(|e| e.point))
-            .filter(|p| p.x.is_finite() && p.y.is_finite())
-            .collect();
+        let echoes: Vec<Point> = scans.iter().flat_map(EchoScan::points).collect();
         picture.sonar = thin_out(echoes, MAX_PICTURE_ECHOES);
         if let Some(set) = newest::<SegmentSet>(&feature, records::SEGMENTS).await {
             picture.segments = set.segments;

@@ -289,12 +289,7 @@ impl Echoes {
             let gathered = std::mem::take(&mut self.points);
             robot(ECHOES, json!({ "points": points(&gathered) }))
         });
-        self.points.extend(
-            scan.echoes
-                .iter()
-                .map(|e| e.point)
-                .filter(|p| p.x.is_finite() && p.y.is_finite()),
-        );
+        self.points.extend(scan.points());
         event
     }
 }

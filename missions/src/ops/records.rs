@@ -108,6 +108,17 @@ pub struct EchoScan {
     pub correction: Pose,
 }
 
+impl EchoScan {
+    /// Where its echoes were placed, those with a finite position: what the picture and the
+    /// live stream draw.
+    pub fn points(&self) -> impl Iterator<Item = Point> + '_ {
+        self.echoes
+            .iter()
+            .map(|e| e.point)
+            .filter(|p| p.x.is_finite() && p.y.is_finite())
+    }
+}
+
 /// The segments extracted from recent echoes.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SegmentSet {
