@@ -46,7 +46,7 @@ pub mod state;
 
 pub use state::MonitorState;
 pub mod error;
-pub mod server;
+mod server;
 
 pub use control::{Control, ControlError, FaultRequest, Offers, OperationRef};
 pub use error::MonitorError;

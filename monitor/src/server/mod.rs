@@ -205,7 +205,7 @@ impl MonitorHandle {
     /// monitor no longer reduces). A replay's state is complete from the start: true.
     ///
     /// Why: the monitor takes the bus's events every
-    /// [`BUS_POLL`](live::BUS_POLL), on its own thread, so its state may trail the bus; a
+    /// 10 ms (its bus poll), on its own thread, so its state may trail the bus; a
     /// caller about to say "the run is over" flushes first, and whoever reads the page
     /// after that line sees the run's last events. Blocks the calling thread (the monitor
     /// needs nothing from the caller's runtime, and a deadline in real time holds also on a
