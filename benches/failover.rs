@@ -19,7 +19,8 @@ use marie::actors::eo::{
 use marie::actors::flags::FlagDecl;
 use marie::actors::property::{ParamDecl, ParamSchema};
 use marie::actors::registry::{self, ModuleKind};
-use marie::fault::{self, FaultKind};
+use marie::actors::run::FaultKind;
+use marie::fault;
 use marie::supervision::{ChildSpec, Supervisor, SupervisorSpec};
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
@@ -130,6 +131,8 @@ fn main() {
         let mission = parsed.validate(&catalog).expect("valid");
         let clock = RealClock::shared();
         let bus = marie::actors::events::EventBus::new("bench", clock.clone());
+        // the run's report: its events folded (bounded: the latest rebinds, and counts)
+        let folded = marie::actors::report::ReportBuilder::attach(&bus);
         let dispatcher = spawn_dispatcher(
             DispatcherArgs {
                 mission,
@@ -144,7 +147,7 @@ fn main() {
             let d = dispatcher.clone();
             tokio::spawn(async move { request_run(&d).await })
         };
-        // nobody subscribes to the bus: its events are not kept
+        // nobody subscribes to the bus: its events are not kept, only folded
         activated.recv().await.expect("first activation");
 
         let _ = crashes(200, &mut activated).await; // warm-up
@@ -166,7 +169,8 @@ fn main() {
         let _ = dispatcher.cast(DispatcherMsg::Abort {
             reason: "bench done".into(),
         });
-        let report = run.await.expect("join").expect("report");
+        run.await.expect("join").expect("the run's end");
+        let report = folded.finish();
         let report_keep = report.clone();
         tokio::time::sleep(Duration::from_millis(200)).await;
         println!("tasks after the dispatcher ended: {}", tokio::runtime::Handle::current().metrics().num_alive_tasks());

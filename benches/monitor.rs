@@ -79,7 +79,10 @@ fn run(mission: &Path, monitored: bool, viewers: usize) -> Duration {
         });
         let mission = node.check_mission(&parsed).await.expect("docking fits");
         let started = Instant::now();
-        let report = node.run(mission).await.expect("the run");
+        let report = node
+            .run(mission, marie::node::RunOptions::new())
+            .await
+            .expect("the run");
         let took = started.elapsed();
         assert!(report.succeeded(), "{}", report.reason);
         node.shutdown().await;

@@ -4,8 +4,7 @@
 
 use marie::actors::dispatcher::mission::{ActionBuilder, MissionBuilder};
 use marie::actors::eo::{OperationHandle, SetError};
-use marie::fault::FaultPlan;
-use marie::node::{Node, SupervisorConfig};
+use marie::node::{Node, RunOptions, SupervisorConfig};
 use marie::prelude::*;
 use std::time::Duration;
 
@@ -96,8 +95,8 @@ async fn main() -> Result<(), Box<dyn std::error::Error>> {
         .flags([FillFlag::Full.name()])
         .success([FillFlag::Full.name()])
         .action(ActionBuilder::new("pump").op("pump", fill));
-    let faults = FaultPlan::from(vec!["panic:pump@0.5".parse()?]);
-    let report = node.run_with_faults(mission, None, faults).await?;
+    let faults = RunOptions::new().fault("panic:pump@0.5".parse()?);
+    let report = node.run(mission, faults).await?;
     for r in &report.rebinds {
         println!("healed: {} -> {} in {} ms", r.from, r.to, r.downtime_ms);
     }

@@ -14,7 +14,8 @@ use marie::actors::events::{EventBus, EventKind};
 use marie::actors::flags::{FlagDecl, StatusFlags};
 use marie::actors::property::{Group, ParamDecl, ParamSchema, PropertyReply, PropertyRequest};
 use marie::actors::registry::{self, ModuleKind};
-use marie::fault::{self, FaultKind};
+use marie::actors::run::FaultKind;
+use marie::fault::{Injector, Target};
 use marie::supervision::{ChildSpec, Supervisor, SupervisorSpec};
 use std::time::Duration;
 
@@ -86,6 +87,7 @@ async fn main() -> Result<(), Box<dyn std::error::Error>> {
     let clock = marie::actors::clock::RealClock::shared();
     let bus = EventBus::new("example", clock.clone());
     let mut events = bus.subscribe();
+    let injector = Injector::new(&bus);
     let run = tokio::spawn(run_mission(mission, clock, Some(bus)));
 
     // Once the pump runs, make it panic.
@@ -102,8 +104,10 @@ async fn main() -> Result<(), Box<dyn std::error::Error>> {
             _ => tokio::time::sleep(Duration::from_millis(1)).await,
         }
     }
-    let hit = fault::inject(FaultKind::Panic, "pump")?;
-    println!("injected a panic into pump ({})", hit.actor);
+    let hit = injector
+        .inject(FaultKind::Panic, &Target::Bound("pump".into()))
+        .await?;
+    println!("injected a panic into pump ({})", hit.victim());
 
     let report = run.await??;
     for evt in events.drain() {

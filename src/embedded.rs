@@ -16,7 +16,7 @@
 //! };
 //! let embedded = Embedded::start(options).await?;
 //! let mission = embedded.node.load_mission("missions/docking.toml".as_ref()).await?;
-//! let report = embedded.node.run(mission).await?;
+//! let report = embedded.node.run(mission, marie::node::RunOptions::new()).await?;
 //! println!("{:?}", report.outcome);
 //! embedded.node.shutdown().await;
 //! # Ok(()) }

@@ -75,7 +75,7 @@
 //! #     }
 //! # }
 //! use marie::actors::dispatcher::mission::{ActionBuilder, MissionBuilder};
-//! use marie::node::Node;
+//! use marie::node::{Node, RunOptions};
 //!
 //! # #[tokio::main(flavor = "multi_thread", worker_threads = 2)]
 //! # async fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -87,7 +87,7 @@
 //!     .flags([CountFlag::Counted.name()])
 //!     .success([CountFlag::Counted.name()])
 //!     .action(ActionBuilder::new("count").op("counter", ParamMap::new().with(CountParams::to(), 5)));
-//! let report = node.run(mission).await?;
+//! let report = node.run(mission, RunOptions::new()).await?;
 //! assert!(report.succeeded());
 //! node.shutdown().await;
 //! # Ok(()) }
@@ -95,8 +95,8 @@
 //!
 //! **4. Faults.** A crashed operation is restarted by its supervisor and the dispatcher
 //! rebinds the mission to the new instance, restores its parameters and carries on;
-//! [`node::Node::run_with_faults`] injects kills, panics and hangs at given mission times to
-//! test exactly that ([`fault::FaultPlan`]), and the report lists each rebind.
+//! [`node::RunOptions`] injects kills, panics and hangs at given mission times (or at
+//! random: chaos) to test exactly that, and the report lists each fault and rebind.
 //! `examples/embedding.rs` puts the four steps together in one application.
 //!
 //! **Your own ractor actors** beside marie need [`RactorMessage`] on their message types:

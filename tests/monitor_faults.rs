@@ -139,3 +139,85 @@ fn the_page_asks_the_wall_follower_kills_it_hangs_its_stand_in_and_docking_succe
     run.signal("INT");
     assert_eq!(run.wait_exit(), Some(0), "{}", run.seen().join("\n"));
 }
+
+/// One run, one stream (issue 21): faults from a plan, from seeded chaos and from the page
+/// all reach the report the run writes — and that report is exactly the fold of the run's
+/// events file, whichever source a fault came from.
+#[test]
+fn faults_from_a_plan_chaos_and_the_page_are_in_the_report_which_is_the_fold_of_its_events() {
+    use marie::actors::events::Event;
+    use marie::actors::report::RunReport;
+    let dir = tempfile::tempdir().unwrap();
+    let report = dir.path().join("report.json");
+    let events = dir.path().join("events.jsonl");
+    let mut run = Proc::spawn(
+        "run",
+        &[
+            "run",
+            "missions/docking.toml",
+            "--speed",
+            "4",
+            "--monitor",
+            "127.0.0.1:0",
+            "--allow-faults",
+            "--fault",
+            "kill:wall-sensor@3",
+            "--chaos",
+            "5",
+            "--report",
+            report.to_str().unwrap(),
+            "--events",
+            events.to_str().unwrap(),
+        ],
+    );
+    let (addr, _) = page_of(&run.wait_line("monitor: http://"));
+    let state = state_until(addr, "the wall follower running", |s| {
+        s["mission"]["actions"].as_array().is_some_and(|a| {
+            a.iter()
+                .any(|a| a["name"] == "follow-wall" && a["state"] == "running")
+        }) && s["bindings"]["wall-follower"]["status"] == "bound"
+    });
+    let (status, answer) = http::post_json(
+        addr,
+        "/api/fault",
+        &with_fault(&wall_follower(&state), "kill"),
+    );
+    assert_eq!(status, 200, "{answer}");
+    state_until(addr, "the outcome", |s| !s["mission"]["outcome"].is_null());
+    run.wait_line("the run is over");
+    run.signal("INT");
+    assert_eq!(run.wait_exit(), Some(0), "{}", run.seen().join("\n"));
+
+    let written: Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    let lines = std::fs::read_to_string(&events).unwrap();
+    let stream: Vec<Event> = lines
+        .lines()
+        .map(|l| Event::from_json_line(l).unwrap_or_else(|e| panic!("{l}: {e}")))
+        .collect();
+    let rebuilt = serde_json::to_value(RunReport::from_events(&stream)).unwrap();
+    assert_eq!(rebuilt, written, "the report is the fold of its events");
+
+    // each source's fault is there: the plan's (due at 3 s), the page's (an instance on a
+    // node, as the page names it), and chaos' kills (the running action's operations by name)
+    let faults = written["faults"].as_array().unwrap();
+    let target = |f: &Value| f["operation"].as_str().unwrap_or_default().to_string();
+    assert!(
+        faults.iter().any(|f| target(f) == "wall-sensor"),
+        "the plan's: {written:#}"
+    );
+    assert!(
+        faults
+            .iter()
+            .any(|f| target(f).starts_with("wall-follower/") && f["error"].is_null()),
+        "the page's: {written:#}"
+    );
+    let chaos = stream.iter().filter(|e| {
+        matches!(&e.kind, marie::actors::events::EventKind::FaultInjected { due_ms: None, operation, .. } if !operation.contains('/'))
+    });
+    assert!(chaos.count() >= 1, "chaos struck: {written:#}");
+    assert_eq!(
+        written["faults_total"].as_u64(),
+        Some(faults.len() as u64),
+        "{written:#}"
+    );
+}

@@ -6,7 +6,8 @@ mod common;
 
 use common::{marie, report_of, text};
 use marie::actors::registry::{self, ModuleKind};
-use marie::fault::{self, FaultKind};
+use marie::actors::run::FaultKind;
+use marie::fault;
 use marie::node::{Node, NodeConfig, NodeOptions};
 use marie::supervision::SupervisorEvent;
 use std::time::Duration;
@@ -33,10 +34,10 @@ fn heals(mission: &str, fault: &str, op: &str, cause: &str) {
         "the faulty instance was left"
     );
     assert_ne!(rebind["to"], rebind["from"]);
-    let why: marie::actors::dispatcher::LossCause =
+    let why: marie::actors::run::LossCause =
         serde_json::from_value(rebind["cause"].clone()).expect("a typed loss cause");
     assert!(why.to_string().contains(cause), "{fault}: cause `{why}`");
-    if let marie::actors::dispatcher::LossCause::Hung { deadline_ms } = why {
+    if let marie::actors::run::LossCause::Hung { deadline_ms } = why {
         // a hung instance is down from its last sign of life, not from when it was found out
         let down = rebind["downtime_ms"].as_u64().unwrap();
         assert!(
@@ -232,11 +233,13 @@ async fn the_node_tree_is_datamanagers_operations_dynamic_provisioner_and_heals_
     assert_eq!(dms, ["feature", "parameter", "world"]);
     let ops = node.operation_supervisor().await.unwrap();
     let mut events = ops.subscribe().await.unwrap();
-    let killed = fault::inject(FaultKind::Kill, "sampler").unwrap();
+    let sampler = registry::lookup(ModuleKind::Operation, "sampler")[0].clone();
+    fault::inject_into(FaultKind::Kill, &sampler).unwrap();
+    let killed = sampler.actor_id();
     let new = tokio::time::timeout(Duration::from_secs(10), async {
         loop {
             if let SupervisorEvent::ChildRestarted { old, new, .. } = events.recv().await.unwrap() {
-                if old == Some(killed.actor) {
+                if old == Some(killed) {
                     return new;
                 }
             }
@@ -344,6 +347,8 @@ async fn a_thousand_crash_restart_cycles_during_a_mission_leave_the_actor_count_
     let clock = marie::actors::clock::RealClock::shared();
     let bus = marie::actors::events::EventBus::new("test", clock.clone());
     let mut events = bus.subscribe();
+    // the run's report: its events, folded
+    let folded = marie::actors::report::ReportBuilder::attach(&bus);
     let args = DispatcherArgs {
         mission,
         clock,
@@ -370,13 +375,11 @@ async fn a_thousand_crash_restart_cycles_during_a_mission_leave_the_actor_count_
     let _ = dispatcher.cast(DispatcherMsg::Abort {
         reason: "enough".into(),
     });
-    let report = run.await.unwrap().unwrap();
+    run.await.unwrap().unwrap();
+    let report = folded.finish();
     assert_eq!(report.reason, "enough");
     assert_eq!(report.rebinds_total, CYCLES as u64);
-    assert_eq!(
-        report.rebinds.len(),
-        marie::actors::dispatcher::REPORT_KEEPS
-    );
+    assert_eq!(report.rebinds.len(), marie::actors::report::REPORT_KEEPS);
     // the dispatcher (and its registry watcher) stop once they have reported; no timer or
     // waiter of the 1000 failovers outlives the run
     let settled = tokio::time::timeout(Duration::from_secs(30), async {

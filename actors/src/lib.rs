@@ -11,6 +11,9 @@
 //! - [`dm`] — datamanagers: records stored, selected (also by waiting), deleted by query;
 //! - [`registry`] — the cluster-wide location table over ractor `pg`;
 //! - [`dispatcher`] — missions (task trees) and the action dispatcher that runs them;
+//! - [`run`] — a run's vocabulary (outcomes, loss causes, rebinds, choices, fault kinds),
+//!   below both the events and the dispatcher; [`report`] — the run report, the fold of a
+//!   run's events;
 //! - [`diagnostic`] — `file:line:column` diagnostics and the TOML reader every file format
 //!   (missions, worlds, node configs) shares.
 //! - [`events`] — one typed event stream per node: the [`events::EventBus`].
@@ -41,4 +44,6 @@ pub mod prelude;
 pub mod property;
 pub mod provision;
 pub mod registry;
+pub mod report;
+pub mod run;
 pub mod wire;

@@ -2,7 +2,7 @@
 
 use marie_actors::clock::RealClock;
 use marie_actors::dispatcher::mission::Mission;
-use marie_actors::dispatcher::{run_mission, OpEnd, Outcome, RegistryCatalog, RunReport};
+use marie_actors::dispatcher::{run_mission, RegistryCatalog};
 use marie_actors::eo::{
     spawn_operation, EoClient, EoMsg, HostOptions, Identity, OpContext, OpError, Operation, Step,
 };
@@ -11,6 +11,8 @@ use marie_actors::flags::{FlagDecl, StatusFlags};
 use marie_actors::property::{
     Group, ParamDecl, ParamSchema, PropertyReply, PropertyRequest, Value,
 };
+use marie_actors::report::RunReport;
+use marie_actors::run::{OpEnd, Outcome};
 use ractor::ActorRef;
 use std::time::Duration;
 use tokio::time::timeout;

@@ -2,15 +2,14 @@
 //! events of a run that had faults and a judgement.
 
 use marie_actors::clock::{Clock, ManualClock, RealClock};
-use marie_actors::dispatcher::{
-    FaultRecord, LossCause, OpEnd, Outcome, RebindRecord, ReportBuilder, RunReport, REPORT_KEEPS,
-};
 use marie_actors::eo::{
-    spawn_operation, EoMsg, FaultKind, HostOptions, Identity, OpContext, OpError, Operation, Step,
+    spawn_operation, EoMsg, HostOptions, Identity, OpContext, OpError, Operation, Step,
 };
-use marie_actors::events::{bridge_registry, EventBus, EventKind, ModuleInfo, OpStarted};
+use marie_actors::events::{bridge_registry, Event, EventBus, EventKind, ModuleInfo, OpStarted};
 use marie_actors::property::ParamSchema;
 use marie_actors::registry::ModuleKind;
+use marie_actors::report::{FaultRecord, ReportBuilder, RunReport, REPORT_KEEPS};
+use marie_actors::run::{FaultKind, LossCause, OpEnd, Outcome, RebindRecord};
 use ractor::ActorRef;
 use std::sync::Arc;
 use std::time::Duration;
@@ -112,16 +111,17 @@ async fn a_report_is_rebuilt_with_its_faults_judgement_and_latest_rebinds() {
         bus.publish(EventKind::Rebound(rebind(i)));
     }
     bus.publish(EventKind::FaultInjected {
-        run_ms: 5,
         fault: FaultKind::Kill,
         operation: "op".into(),
         actor: "0.1".into(),
+        node: Some("n".into()),
+        due_ms: Some(5),
     });
     bus.publish(EventKind::FaultNotInjected {
-        run_ms: 6,
         fault: FaultKind::Hang,
         operation: "ghost".into(),
         why: "no operation `ghost` is running".into(),
+        due_ms: Some(6),
     });
     bus.publish(EventKind::RunEnded {
         outcome: Outcome::Succeeded,
@@ -130,15 +130,20 @@ async fn a_report_is_rebuilt_with_its_faults_judgement_and_latest_rebinds() {
         status: 1,
         flags: vec!["done".into()],
     });
+    // a robot's judgement: an outcome, and what it says of the run (untyped here)
+    let robot = serde_json::json!({
+        "final_pose": [1.0, 2.0, 0.5],
+        "collisions": 0,
+        "seed": 3,
+        "inside_goal": false,
+        "judgement": "failure: outside the goal area",
+        "refused_commands": {"wall-follower": 4},
+        "mission": "a robot cannot rename the run",
+    });
     bus.publish(EventKind::Judged {
         outcome: Outcome::Failed,
         reason: "outside the goal area".into(),
-        final_pose: Some([1.0, 2.0, 0.5]),
-        collisions: Some(0),
-        seed: Some(3),
-        inside_goal: Some(false),
-        judgement: Some("failure: outside the goal area".into()),
-        refused_commands: Some([("wall-follower".to_string(), 4)].into()),
+        robot: robot.as_object().cloned().unwrap_or_default(),
     });
     let events = sub.drain();
     let report = RunReport::from_events(&events);
@@ -147,11 +152,19 @@ async fn a_report_is_rebuilt_with_its_faults_judgement_and_latest_rebinds() {
         (report.outcome, report.reason.as_str()),
         (Outcome::Failed, "outside the goal area")
     );
-    assert_eq!(report.final_pose, Some([1.0, 2.0, 0.5]));
     assert_eq!(
-        report.refused_commands,
-        Some([("wall-follower".to_string(), 4)].into())
+        report.robot["final_pose"],
+        serde_json::json!([1.0, 2.0, 0.5])
     );
+    assert_eq!(
+        report.robot["refused_commands"],
+        serde_json::json!({"wall-follower": 4})
+    );
+    assert_eq!(
+        report.mission, "m",
+        "the report's own keys are not the robot's"
+    );
+    assert_eq!(report.robot.get("mission"), None);
     assert_eq!(
         (report.rebinds_total, report.rebinds.len()),
         (150, REPORT_KEEPS)
@@ -170,20 +183,66 @@ async fn a_report_is_rebuilt_with_its_faults_judgement_and_latest_rebinds() {
             fault: FaultKind::Hang,
             operation: "ghost".into(),
             actor: String::new(),
+            node: None,
             error: Some("no operation `ghost` is running".into()),
         }
     );
+    // an injected fault's time is its stamp, counted from the run's start
+    assert_eq!(report.faults[0].at_ms, 150);
     // a builder fed the same events agrees, and a new run starts over
     let mut builder = ReportBuilder::new();
     for e in &events {
-        builder.apply(&e.kind);
+        builder.apply(e);
     }
     assert_eq!(builder.report(), &report);
-    builder.apply(&EventKind::RunStarted {
-        mission: "next".into(),
-        actions: vec![],
-        success: vec![],
+    builder.apply(&Event {
+        at_ms: 200,
+        node: "n".into(),
+        kind: EventKind::RunStarted {
+            mission: "next".into(),
+            actions: vec![],
+            success: vec![],
+        },
     });
     assert_eq!(builder.report().actions.len(), 0);
     assert_eq!(builder.finish().mission, "next");
+}
+
+#[tokio::test]
+async fn a_report_attached_to_a_bus_equals_the_fold_of_what_a_subscriber_received() {
+    let clock = Arc::new(ManualClock::new());
+    let bus = EventBus::new("n", clock.clone());
+    let mut sub = bus.subscribe();
+    let attached = ReportBuilder::attach(&bus);
+    bus.publish(EventKind::RunStarted {
+        mission: "m".into(),
+        actions: vec![],
+        success: vec![],
+    });
+    clock.advance(Duration::from_millis(40));
+    // a fault from any source, with no time of its own: its stamp says when
+    bus.publish(EventKind::FaultInjected {
+        fault: FaultKind::Kill,
+        operation: "op".into(),
+        actor: "0.4".into(),
+        node: None,
+        due_ms: None,
+    });
+    bus.publish(EventKind::RunEnded {
+        outcome: Outcome::Succeeded,
+        reason: String::new(),
+        run_ms: 40,
+        status: 0,
+        flags: vec![],
+    });
+    let report = attached.finish();
+    bus.publish(EventKind::RunStarted {
+        mission: "after".into(),
+        actions: vec![],
+        success: vec![],
+    });
+    assert_eq!(report.faults[0].at_ms, 40);
+    assert_eq!(report.mission, "m", "a finished report is detached");
+    let events: Vec<Event> = sub.drain().into_iter().take(3).collect();
+    assert_eq!(RunReport::from_events(&events), report);
 }

@@ -5,7 +5,7 @@
 //! process, and so one registry.
 
 use marie_actors::eo::{
-    spawn_operation, EoClient, EoMsg, Fault, HandleError, Identity, OpContext, OpError, Operation,
+    spawn_operation, EoClient, EoMsg, HandleError, Identity, OpContext, OpError, Operation,
     OperationHandle, ParamOutcome, SetError, Step,
 };
 use marie_actors::flags::FlagDecl;
@@ -13,6 +13,7 @@ use marie_actors::property::{
     params, ParamDecl, ParamSchema, PropertyReply, PropertyRequest, RejectReason, Value,
 };
 use marie_actors::registry::{self, ModuleKind, RegistryEvent};
+use marie_actors::run::FaultKind;
 use ractor::{Actor, ActorProcessingErr, ActorRef};
 use semver::VersionReq;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -488,7 +489,7 @@ async fn a_hung_operation_is_reported_by_name_and_node() {
         .await
         .unwrap()
         .with_timeout(Duration::from_millis(300));
-    tank.client().inject(Fault::Hang).unwrap();
+    tank.client().inject(FaultKind::Hang).unwrap();
     let hung = timeout(T, tank.general()).await.unwrap().unwrap_err();
     assert_eq!(
         hung,

@@ -6,13 +6,9 @@
 
 use marie_actors::clock::RealClock;
 use marie_actors::dispatcher::mission::Mission;
-use marie_actors::dispatcher::selection::Verdict;
-use marie_actors::dispatcher::{
-    run_mission, LossCause, OpEnd, Outcome, RegistryCatalog, RunReport,
-};
+use marie_actors::dispatcher::{run_mission, RegistryCatalog};
 use marie_actors::eo::{
-    spawn_operation, EoClient, EoMsg, Fault, HostOptions, Identity, OpContext, OpError, Operation,
-    Step,
+    spawn_operation, EoClient, EoMsg, HostOptions, Identity, OpContext, OpError, Operation, Step,
 };
 use marie_actors::events::{EventBus, EventKind, EventSubscription};
 use marie_actors::flags::{FlagDecl, StatusFlags};
@@ -20,6 +16,10 @@ use marie_actors::property::{
     Collection, General, Group, ParamDecl, ParamSchema, PropertyReply, PropertyRequest, Value,
 };
 use marie_actors::registry::{self, ModuleKind, RegistryEvent};
+use marie_actors::report::RunReport;
+use marie_actors::run::FaultKind;
+use marie_actors::run::Verdict;
+use marie_actors::run::{LossCause, OpEnd, Outcome};
 use ractor::ActorRef;
 use std::time::Duration;
 use tokio::time::timeout;
@@ -251,7 +251,7 @@ async fn the_stand_in_gets_the_last_parameters_a_higher_epoch_and_resumes() {
         "a fresh activation"
     );
     let old_epoch = general(&first).await.epoch;
-    first.inject(Fault::Panic).unwrap();
+    first.inject(FaultKind::Panic).unwrap();
     let report = run.await.unwrap();
     assert_eq!(report.outcome, Outcome::Succeeded, "{}", report.reason);
     let lost = event(&mut events, |e| match e {
@@ -353,7 +353,7 @@ async fn a_hung_operation_is_killed_and_rebound() {
     let _sup = replace_on_death("rb-hang", 1).await;
     let (run, mut events) = launch(&mission("hang", "rb-hang", 150)).await;
     activated(&first).await;
-    first.inject(Fault::Hang).unwrap();
+    first.inject(FaultKind::Hang).unwrap();
     let cause = event(&mut events, |e| match e {
         EventKind::Lost { cause, .. } => Some(cause.clone()),
         _ => None,

@@ -189,7 +189,10 @@ async fn a_node_without_a_dispatcher_refuses_to_run_missions() {
     )
     .unwrap();
     let mission = node.check_mission(&parsed).await.unwrap();
-    let err = node.run(mission).await.unwrap_err();
+    let err = node
+        .run(mission, marie_cluster::node::RunOptions::new())
+        .await
+        .unwrap_err();
     assert!(matches!(err, NodeError::NoDispatcher(ref n) if n == "worker-only"));
     assert_eq!(
         err.to_string(),

@@ -4,8 +4,9 @@
 //! claims. Seeded (xoshiro256**, the project's generator), so a failure replays.
 
 use marie_actors::dm::{DmMsg, NewRecord, Payload, Query};
-use marie_actors::eo::{EoMsg, Fault};
+use marie_actors::eo::EoMsg;
 use marie_actors::events::{Event, EventKind};
+use marie_actors::run::FaultKind;
 use marie_actors::wire::{self, Envelope};
 use marie_cluster::net::heartbeat::BeatMsg;
 use ractor::message::SerializedMessage;
@@ -44,7 +45,9 @@ fn seeds() -> Vec<(&'static str, String, Vec<u8>)> {
     out.push(("dm", v, a));
     let (v, a) = cast_parts(EoMsg::Suspend { epoch: 7 });
     out.push(("eo", v, a));
-    let (v, a) = cast_parts(EoMsg::Inject { fault: Fault::Hang });
+    let (v, a) = cast_parts(EoMsg::Inject {
+        fault: FaultKind::Hang,
+    });
     out.push(("eo", v, a));
     let frame = Envelope::new("heartbeat", &("alpha", 3u64))
         .unwrap()

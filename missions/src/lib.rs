@@ -27,6 +27,7 @@ pub mod hardware;
 pub mod ops;
 pub mod picture;
 pub mod robot;
+mod robot_report;
 pub mod sim;
 pub mod telemetry;
 pub mod world;

@@ -3,8 +3,9 @@
 //! A [`SimRobot`] is a world and a seed. Plugged into a node it stores the world's walls in
 //! the world datamanager as the a-priori map (class [`records::MAP`], sub1 `walls`, a
 //! `Vec<Segment>`) before any operation runs, starts the virtual cart in that world (when the
-//! node runs the cart's drivers), and judges every run by the world: the report gets the
-//! cart's final pose, its collisions, the seed and the world's verdict, and a mission the
+//! node runs the cart's drivers), and judges every run by the world: its judgement
+//! ([`RobotReport`]: the cart's final pose, its collisions, the seed and the world's
+//! verdict) is the run's `judged` event and so the report's robot section, and a mission the
 //! dispatcher calls a success fails when the cart did not end in the world's goal area.
 //! [`SimRobot::picture`] draws a run after it; while it runs, the robot tells the node's
 //! event bus the same things as they happen ([`crate::telemetry`]: the world
@@ -13,8 +14,8 @@
 //! world and the cart's poses from the node's start, since no run starts there.
 //!
 //! ```no_run
-//! use marie_cluster::node::{Node, NodeConfig, NodeOptions};
-//! use marie_missions::robot::SimRobot;
+//! use marie_cluster::node::{Node, NodeConfig, NodeOptions, RunOptions};
+//! use marie_missions::robot::{RobotReport, SimRobot};
 //! use marie_missions::world::World;
 //! use std::sync::Arc;
 //! # #[tokio::main] async fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -25,26 +26,30 @@
 //! let options = NodeOptions::with_catalog(catalog).with_robot(robot.clone());
 //! let node = Node::start(config, options).await?;
 //! let mission = node.load_mission(std::path::Path::new("missions/docking.toml")).await?;
-//! let report = node.run(mission).await?;
-//! println!("{:?} at {:?}: {:?}", report.outcome, report.final_pose, report.judgement);
+//! let report = node.run(mission, RunOptions::new()).await?;
+//! let cart = RobotReport::of(&report);
+//! println!("{:?} at {:?}: {:?}", report.outcome, cart.final_pose, cart.judgement);
 //! std::fs::write("run.svg", robot.picture(&report).await.render(&world, 50.0))?;
 //! node.shutdown().await;
 //! # Ok(()) }
 //! ```
 
 use crate::geom::{Point, Pose};
-use crate::hardware::{CartClient, CartError};
+use crate::hardware::{CartClient, CartError, CartStatus};
 use crate::ops::records::{self, DockRecord, EchoScan, PathRecord, SegmentSet, WallRecord};
 use crate::picture::Picture;
+pub use crate::robot_report::RobotReport;
 use crate::telemetry::{self, PoseSampler};
 use crate::world::{Judgement, World};
 use marie_actors::clock::SharedClock;
-use marie_actors::dispatcher::{Outcome, RunReport};
 use marie_actors::dm::{self, DmClient, DmError, DmSpec, NewRecord, Query};
 use marie_actors::events::EventBus;
-use marie_cluster::node::{AprioriRecord, BoxFuture, Robot};
+use marie_actors::report::RunReport;
+use marie_actors::run::Outcome;
+use marie_cluster::node::{AprioriRecord, BoxFuture, Robot, RunJudgement};
 use marie_supervision::{ChildSpec, Restart};
 use serde::de::DeserializeOwned;
+use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use tokio::task::JoinHandle;
@@ -133,7 +138,7 @@ impl SimRobot {
             Err(e) => tracing::warn!("picture without the cart's path and footprint: {e}"),
         }
         if picture.footprint.is_none() {
-            if let Some([x, y, theta]) = report.final_pose {
+            if let Some([x, y, theta]) = RobotReport::of(report).final_pose {
                 let pose = Pose::new(x, y, theta);
                 picture.footprint = Some(robot.world.cart.footprint(&pose));
             }
@@ -218,18 +223,13 @@ impl Robot for SimRobot {
         vec![world]
     }
 
-    fn judge<'a>(&'a self, report: &'a mut RunReport) -> BoxFuture<'a, ()> {
+    fn judge<'a>(&'a self, outcome: Outcome, reason: &'a str) -> BoxFuture<'a, RunJudgement> {
         Box::pin(async move {
             let status = match CartClient::lookup() {
                 Ok(cart) => cart.status().await,
                 Err(e) => Err(e),
             };
-            let status = status.map(|s| {
-                // its fencing: the commands of replaced incarnations it refused
-                report.refused_commands = Some(s.refused_by);
-                (s.pose, s.collisions, s.judgement)
-            });
-            judge(report, self, status);
+            judge(self, outcome, reason, status.map(FinalState::from))
         })
     }
 }
@@ -239,33 +239,66 @@ fn dm_client(spec: DmSpec) -> Result<DmClient, DmError> {
     DmClient::lookup(spec.name, SOURCE)
 }
 
-/// judgement of them (or why the cart did not tell), and let the world overrule a success.
+/// What the cart says of its state at a run's end.
+struct FinalState {
+    pose: Pose,
+    collisions: u32,
+    judgement: Judgement,
+    /// Commands of replaced incarnations it refused, by operation (its fencing).
+    refused_by: BTreeMap<String, u64>,
+}
+
+impl From<CartStatus> for FinalState {
+    fn from(s: CartStatus) -> FinalState {
+        FinalState {
+            pose: s.pose,
+            collisions: s.collisions,
+            judgement: s.judgement,
+            refused_by: s.refused_by,
+        }
+    }
+}
+
+/// Judge a run the dispatcher ended with `outcome`: what the cart said of its final state
+/// (or why it did not tell), the seed, and the world's verdict, which overrules a success
+/// outside the goal.
 fn judge(
-    report: &mut RunReport,
     robot: &SimRobot,
-    status: Result<(Pose, u32, Judgement), CartError>,
-) {
-    report.seed = Some(robot.seed);
+    outcome: Outcome,
+    reason: &str,
+    status: Result<FinalState, CartError>,
+) -> RunJudgement {
+    let mut said = RobotReport {
+        seed: Some(robot.seed),
+        ..RobotReport::default()
+    };
+    let (mut outcome, mut reason) = (outcome, reason.to_string());
     let has_goal = robot.world.goal.is_some();
-    let (pose, collisions, judgement) = match status {
-        Ok(status) => status,
+    match status {
+        Ok(status) => {
+            let (pose, judgement) = (status.pose, status.judgement);
+            said.final_pose = Some([pose.x, pose.y, pose.theta]);
+            said.collisions = Some(u64::from(status.collisions));
+            said.inside_goal = has_goal.then_some(judgement.inside_goal);
+            said.judgement = Some(judgement.to_string());
+            said.refused_commands = Some(status.refused_by);
+            if has_goal && outcome == Outcome::Succeeded && !judgement.success {
+                outcome = Outcome::Failed;
+                reason = format!("the cart did not end in the goal area: {judgement}");
+            }
+        }
         Err(e) => {
             tracing::warn!("cannot judge the run: {e}");
-            if has_goal && report.succeeded() {
-                report.outcome = Outcome::Failed;
-                report.reason =
-                    format!("cannot judge the run in world `{}`: {e}", robot.world.name);
+            if has_goal && outcome == Outcome::Succeeded {
+                outcome = Outcome::Failed;
+                reason = format!("cannot judge the run in world `{}`: {e}", robot.world.name);
             }
-            return;
         }
-    };
-    report.final_pose = Some([pose.x, pose.y, pose.theta]);
-    report.collisions = Some(u64::from(collisions));
-    report.inside_goal = has_goal.then_some(judgement.inside_goal);
-    report.judgement = Some(judgement.to_string());
-    if has_goal && report.succeeded() && !judgement.success {
-        report.outcome = Outcome::Failed;
-        report.reason = format!("the cart did not end in the goal area: {judgement}");
+    }
+    RunJudgement {
+        outcome,
+        reason,
+        robot: said.section(),
     }
 }
 
@@ -336,19 +369,31 @@ mod tests {
         SimRobot::new(World::builtin(world).expect("a shipped world"), 9)
     }
 
-    fn at(
-        robot: &SimRobot,
-        pose: Pose,
-        collisions: u32,
-    ) -> Result<(Pose, u32, Judgement), CartError> {
-        Ok((pose, collisions, robot.world.judge(pose, collisions)))
+    fn at(robot: &SimRobot, pose: Pose, collisions: u32) -> Result<FinalState, CartError> {
+        Ok(FinalState {
+            pose,
+            collisions,
+            judgement: robot.world.judge(pose, collisions),
+            refused_by: BTreeMap::new(),
+        })
+    }
+
+    /// `r` judged by `robot` as the node does: its outcome, reason and robot section.
+    fn judged(r: &mut RunReport, robot: &SimRobot, status: Result<FinalState, CartError>) {
+        let j = judge(robot, r.outcome, &r.reason, status);
+        (r.outcome, r.reason, r.robot) = (j.outcome, j.reason, j.robot);
+    }
+
+    /// What the cart said, read back from the report.
+    fn cart(r: &RunReport) -> RobotReport {
+        RobotReport::of(r)
     }
 
     #[test]
     fn a_success_outside_the_goal_is_a_failure() {
         let lab = robot("lab");
         let mut r = report(Outcome::Succeeded);
-        judge(&mut r, &lab, at(&lab, lab.world.start, 0));
+        judged(&mut r, &lab, at(&lab, lab.world.start, 0));
         assert_eq!(r.outcome, Outcome::Failed);
         assert!(
             r.reason
@@ -356,9 +401,12 @@ mod tests {
             "{}",
             r.reason
         );
-        assert_eq!(r.final_pose, Some([12.5, 1.5, lab.world.start.theta]));
         assert_eq!(
-            (r.collisions, r.seed, r.inside_goal),
+            cart(&r).final_pose,
+            Some([12.5, 1.5, lab.world.start.theta])
+        );
+        assert_eq!(
+            (cart(&r).collisions, cart(&r).seed, cart(&r).inside_goal),
             (Some(0), Some(9), Some(false))
         );
     }
@@ -368,14 +416,17 @@ mod tests {
         let lab = robot("lab");
         let parked = Pose::new(4.9, -0.4, 0.0);
         let mut r = report(Outcome::Succeeded);
-        judge(&mut r, &lab, at(&lab, parked, 0));
-        assert_eq!((r.outcome, r.inside_goal), (Outcome::Succeeded, Some(true)));
-        assert!(r
+        judged(&mut r, &lab, at(&lab, parked, 0));
+        assert_eq!(
+            (r.outcome, cart(&r).inside_goal),
+            (Outcome::Succeeded, Some(true))
+        );
+        assert!(cart(&r)
             .judgement
             .as_deref()
             .is_some_and(|j| j.starts_with("success")));
         let mut r = report(Outcome::Succeeded);
-        judge(&mut r, &lab, at(&lab, parked, 2));
+        judged(&mut r, &lab, at(&lab, parked, 2));
         assert_eq!(r.outcome, Outcome::Failed);
         assert!(r.reason.contains("2 collision(s)"), "{}", r.reason);
     }
@@ -384,24 +435,24 @@ mod tests {
     fn a_failure_keeps_the_dispatchers_reason() {
         let lab = robot("lab");
         let mut r = report(Outcome::Failed);
-        judge(&mut r, &lab, at(&lab, lab.world.start, 0));
+        judged(&mut r, &lab, at(&lab, lab.world.start, 0));
         assert_eq!(r.reason, "the dispatcher's reason");
-        assert_eq!(r.collisions, Some(0));
+        assert_eq!(cart(&r).collisions, Some(0));
     }
 
     #[test]
     fn a_world_without_a_goal_never_fails_a_run_on_its_own() {
         let nodock = robot("nodock");
         let mut r = report(Outcome::Succeeded);
-        judge(&mut r, &nodock, at(&nodock, nodock.world.start, 1));
+        judged(&mut r, &nodock, at(&nodock, nodock.world.start, 1));
         assert_eq!(r.outcome, Outcome::Succeeded);
-        assert_eq!((r.inside_goal, r.collisions), (None, Some(1)));
-        assert!(r.judgement.is_some());
+        assert_eq!((cart(&r).inside_goal, cart(&r).collisions), (None, Some(1)));
+        assert!(cart(&r).judgement.is_some());
         // nor does a cart that does not answer
         let mut r = report(Outcome::Succeeded);
-        judge(&mut r, &nodock, Err(CartError::Unreachable));
+        judged(&mut r, &nodock, Err(CartError::Unreachable));
         assert_eq!(
-            (r.outcome, r.final_pose, r.seed),
+            (r.outcome, cart(&r).final_pose, cart(&r).seed),
             (Outcome::Succeeded, None, Some(9))
         );
     }
@@ -410,7 +461,7 @@ mod tests {
     fn an_unanswering_cart_fails_a_run_that_needs_judging() {
         let lab = robot("lab");
         let mut r = report(Outcome::Succeeded);
-        judge(&mut r, &lab, Err(CartError::NotFound));
+        judged(&mut r, &lab, Err(CartError::NotFound));
         assert_eq!(r.outcome, Outcome::Failed);
         assert!(
             r.reason.contains("no virtual cart is running"),

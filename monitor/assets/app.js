@@ -2,7 +2,7 @@
 // Live: one EventSource on /api/live (snapshot, state, lagged). Replay: the state at time T
 // from /api/replay/state?at_ms=T, T moved by play/pause, speed and the slider.
 // A click on a binding asks the live operation for its properties (/api/props); with faults
-// allowed, buttons post kill, hang and stop-node requests (/api/fault).
+// allowed, a button per fault kind the monitor names (/api/info) posts it (/api/fault).
 // Plain JavaScript, no build step; every element has a stable id, class or data attribute
 // (browser tests query them).
 "use strict";
@@ -21,6 +21,15 @@ let selectedOp = null;
 let latest = null;
 // what /api/info says the page may offer
 let offers = { properties: false, operation_faults: false, stoppable_nodes: [] };
+// the fault kinds by what they aim at (/api/info): a button per kind
+let faultKinds = { operation: [], node: [] };
+// what each kind does, for its button's title (a kind without one is titled by its name)
+const FAULT_TITLES = {
+  kill: "kill its actor: its supervisor restarts it",
+  panic: "make it panic: its supervisor restarts it",
+  hang: "stop it answering: the dispatcher's deadline kills it",
+  "stop-node": "kill its process (SIGKILL), as a crash would",
+};
 // the live properties of the selected binding: {op, node, address, groups} or {error}
 let liveProps = null;
 
@@ -101,8 +110,8 @@ function renderBindings(bindings) {
       : "";
     const target = `data-op="${esc(b.operation)}" data-node="${esc(b.node)}" data-address="${esc(b.address)}"`;
     const faults = offers.operation_faults && b.status === "bound"
-      ? `<button type="button" class="fault" data-fault="kill" ${target} title="kill its actor: its supervisor restarts it">kill</button>` +
-        `<button type="button" class="fault" data-fault="hang" ${target} title="stop it answering: the dispatcher's deadline kills it">hang</button>`
+      ? faultKinds.operation.map((k) =>
+        `<button type="button" class="fault" data-fault="${esc(k)}" ${target} title="${esc(FAULT_TITLES[k] || k)}">${esc(k)}</button>`).join("")
       : "";
     return `<tr class="binding${selectedOp === b.operation ? " selected" : ""}" data-op="${esc(b.operation)}" ` +
       `data-status="${b.status}" data-rebinds="${b.rebinds}" data-epoch="${b.epoch}">` +
@@ -210,7 +219,9 @@ function renderCluster(cluster) {
     .map((n) => {
       const mods = Object.values(n.modules);
       const stop = offers.stoppable_nodes.includes(n.name) && n.status === "up"
-        ? ` <button type="button" class="stop-node" data-node="${esc(n.name)}" title="kill its process (SIGKILL), as a crash would">stop</button>`
+        ? faultKinds.node.map((k) =>
+          ` <button type="button" class="node-fault ${esc(k)}" data-fault="${esc(k)}" data-node="${esc(n.name)}" ` +
+          `title="${esc(FAULT_TITLES[k] || k)}">${k === "stop-node" ? "stop" : esc(k)}</button>`).join("")
         : "";
       return `<div class="node" data-node="${esc(n.name)}" data-status="${n.status}">` +
         `<strong>${esc(n.name)}</strong> <span class="status">${n.status}</span> ${esc(n.address || "")}${stop}` +
@@ -306,9 +317,9 @@ $("#bindings tbody").addEventListener("click", (ev) => {
 });
 
 $("#cluster").addEventListener("click", (ev) => {
-  const button = ev.target.closest("button.stop-node");
+  const button = ev.target.closest("button.node-fault");
   if (button) {
-    injectFault({ fault: "stop-node", node: button.dataset.node });
+    injectFault({ fault: button.dataset.fault, node: button.dataset.node });
     return;
   }
   const module = ev.target.closest(".module[data-kind=\"operation\"]");
@@ -449,6 +460,7 @@ async function replay() {
   try {
     const info = await getJson("/api/info");
     offers = info.offers || offers;
+    faultKinds = info.fault_kinds || faultKinds;
     document.body.dataset.faults = String(info.faults_allowed);
     const mode = $("#mode");
     mode.dataset.mode = info.mode;

@@ -7,23 +7,32 @@
 //! CLI's business. The monitor only serves the page; whoever starts it hands it a
 //! [`Control`] that does the work. A replay has none: it shows a past run.
 //!
+//! A fault asked from the page names its kind in the one fault vocabulary
+//! ([`FaultKind`]) and what it aims at: an operation's instance, or a node.
+//!
 //! ```
-//! use marie_monitor::control::{FaultRequest, OperationRef};
+//! use marie_actors::run::FaultKind;
+//! use marie_monitor::control::{FaultOn, FaultRequest, OperationRef};
 //! let kill: FaultRequest =
 //!     serde_json::from_str(r#"{"fault": "kill", "operation": "wall-follower", "node": "wf-a"}"#)
 //!         .unwrap();
 //! assert_eq!(
 //!     kill,
-//!     FaultRequest::Kill(OperationRef {
-//!         operation: "wall-follower".into(),
-//!         node: Some("wf-a".into()),
-//!         address: None,
-//!     })
+//!     FaultRequest {
+//!         fault: FaultKind::Kill,
+//!         on: FaultOn::Operation(OperationRef {
+//!             operation: "wall-follower".into(),
+//!             node: Some("wf-a".into()),
+//!             address: None,
+//!         }),
+//!     }
 //! );
 //! let stop: FaultRequest = serde_json::from_str(r#"{"fault": "stop-node", "node": "wf-b"}"#).unwrap();
-//! assert_eq!(stop, FaultRequest::StopNode { node: "wf-b".into() });
+//! assert_eq!(stop.on, FaultOn::Node { node: "wf-b".into() });
+//! assert!(stop.fits());
 //! ```
 
+use marie_actors::run::{Aim, FaultKind};
 use serde::{Deserialize, Serialize};
 use std::future::Future;
 use std::pin::Pin;
@@ -44,18 +53,38 @@ pub struct OperationRef {
     pub address: Option<String>,
 }
 
-/// A fault asked for from the page: `{"fault": "kill" | "hang", "operation", "node"?,
-/// "address"?}` or `{"fault": "stop-node", "node"}`.
+/// A fault asked for from the page: `{"fault": KIND, "operation", "node"?, "address"?}` for
+/// a kind that aims at an operation, `{"fault": KIND, "node"}` for one that aims at a node
+/// (`stop-node`).
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(tag = "fault", rename_all = "kebab-case")]
-pub enum FaultRequest {
-    /// Kill the operation's actor: its supervisor restarts it, the dispatcher rebinds.
-    Kill(OperationRef),
-    /// Make the operation stop answering: the dispatcher's deadline kills it, then rebinds.
-    Hang(OperationRef),
-    /// Kill the node's process (`SIGKILL`, as a crash would): its peers' failure detectors
-    /// declare it down, the dispatcher rebinds to the survivors.
-    StopNode {
+pub struct FaultRequest {
+    /// What to do.
+    pub fault: FaultKind,
+    /// To what.
+    #[serde(flatten)]
+    pub on: FaultOn,
+}
+
+impl FaultRequest {
+    /// Whether the kind aims at what the request names (an operation kind at an operation,
+    /// a node kind at a node).
+    pub fn fits(&self) -> bool {
+        let aim = match self.on {
+            FaultOn::Operation(_) => Aim::Operation,
+            FaultOn::Node { .. } => Aim::Node,
+        };
+        self.fault.aim() == aim
+    }
+}
+
+/// What a fault from the page aims at.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum FaultOn {
+    /// An operation's instance.
+    Operation(OperationRef),
+    /// A node (its process).
+    Node {
         /// The node's name.
         node: String,
     },
@@ -66,7 +95,7 @@ pub enum FaultRequest {
 pub struct Offers {
     /// Properties on a click, asked of the live operation.
     pub properties: bool,
-    /// Kill and hang operations.
+    /// Faults that aim at operations (every such [`FaultKind`]).
     pub operation_faults: bool,
     /// The nodes whose process can be stopped (those the monitor's process started).
     pub stoppable_nodes: Vec<String>,

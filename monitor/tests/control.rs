@@ -11,7 +11,10 @@ mod http;
 
 use marie_actors::clock::ManualClock;
 use marie_actors::events::EventBus;
-use marie_monitor::control::{Answer, Control, ControlError, FaultRequest, Offers, OperationRef};
+use marie_actors::run::FaultKind;
+use marie_monitor::control::{
+    Answer, Control, ControlError, FaultOn, FaultRequest, Offers, OperationRef,
+};
 use marie_monitor::{Monitor, MonitorOptions};
 use serde_json::json;
 use std::path::Path;
@@ -43,11 +46,11 @@ impl Control for Recording {
     }
 
     fn fault(&self, fault: FaultRequest) -> Answer<String> {
-        let done = match &fault {
-            FaultRequest::StopNode { node } if node != "wf-a" => {
+        let done = match &fault.on {
+            FaultOn::Node { node } if node != "wf-a" => {
                 Err(ControlError::NotFound(format!("no node {node}")))
             }
-            f => Ok(format!("did {f:?}")),
+            _ => Ok(format!("did {:?} {:?}", fault.fault, fault.on)),
         };
         self.faults.lock().unwrap().push(fault);
         Box::pin(std::future::ready(done))
@@ -115,13 +118,19 @@ fn an_allowed_fault_is_done_by_the_control_and_its_answer_returned() {
     assert_eq!(
         *control.faults.lock().unwrap(),
         vec![
-            FaultRequest::Kill(OperationRef {
-                operation: "wall-follower".into(),
-                node: Some("wf-a".into()),
-                address: Some("2.3".into()),
-            }),
-            FaultRequest::StopNode {
-                node: "wf-z".into()
+            FaultRequest {
+                fault: FaultKind::Kill,
+                on: FaultOn::Operation(OperationRef {
+                    operation: "wall-follower".into(),
+                    node: Some("wf-a".into()),
+                    address: Some("2.3".into()),
+                }),
+            },
+            FaultRequest {
+                fault: FaultKind::StopNode,
+                on: FaultOn::Node {
+                    node: "wf-z".into()
+                },
             },
         ]
     );
@@ -144,6 +153,21 @@ fn a_fault_must_be_json_of_a_known_kind() {
     assert_eq!(status, 415);
     let (status, _) = http::post_json(addr, "/api/fault", &json!({"fault": "explode"}));
     assert_eq!(status, 422);
+    // a kind aimed at what it does not aim at
+    for wrong in [
+        json!({"fault": "stop-node", "operation": "wall-follower"}),
+        json!({"fault": "kill", "node": "wf-a"}),
+    ] {
+        let (status, answer) = http::post_json(addr, "/api/fault", &wrong);
+        assert_eq!(status, 422, "{wrong}: {answer}");
+    }
+    // the page is told every kind, by what it aims at
+    let info = http::get_json(addr, "/api/info");
+    assert_eq!(info["fault_kinds"]["node"], json!(["stop-node"]));
+    assert!(info["fault_kinds"]["operation"]
+        .as_array()
+        .unwrap()
+        .contains(&json!("kill")));
     assert_eq!(http::get(addr, "/api/fault", &[]).0, 405);
     assert!(control.faults.lock().unwrap().is_empty());
 }

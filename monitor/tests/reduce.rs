@@ -2,8 +2,8 @@
 //! kill:wall-follower@20 --events docking-kill.jsonl` (regenerate the fixture with that
 //! command when the event schema grows).
 
-use marie_actors::dispatcher::Outcome;
 use marie_actors::events::Event;
+use marie_actors::run::Outcome;
 use marie_monitor::state::mission::ActionState;
 use marie_monitor::state::timeline::TIMELINE_LIMIT;
 use marie_monitor::MonitorState;

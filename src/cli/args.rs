@@ -1,8 +1,6 @@
 //! Flags and value parsers shared by several verbs.
 
 use marie::embedded::EmbeddedOptions;
-use marie::fault::plan::Target;
-use marie::fault::FaultSpec;
 use std::path::{Path, PathBuf};
 
 /// What the embedded node hosts, and the simulated robot a mission runs with.
@@ -71,30 +69,4 @@ pub fn parse_cluster_speed(s: &str) -> Result<f64, String> {
         Ok(x) => marie::layout::cluster_speed(x),
         Err(_) => Err(format!("{}, got {s:?}", marie::layout::speed_expected())),
     }
-}
-
-/// The latest a `--fault` may be due, in seconds of mission time (a day, as long as a
-/// mission may wait): later is a typo, not a plan.
-pub use marie::fault::MAX_FAULT_SECS;
-
-/// `--fault KIND:TARGET@SECS`: the time range-checked before anything else reads it, the
-/// target a [`marie::fault::plan::Target`].
-pub fn parse_fault(s: &str) -> Result<FaultSpec, String> {
-    let expected = "expected KIND:TARGET@SECS, e.g. kill:wall-follower@20 \
-                    (TARGET: NAME, ID, NAME#VERSION or an actor id like 0.42)";
-    let Some((_, secs)) = s.rsplit_once('@') else {
-        return Err(format!("`{s}` is not a fault: {expected}"));
-    };
-    match secs.trim().parse::<f64>() {
-        Ok(x) if (0.0..=MAX_FAULT_SECS).contains(&x) => {}
-        Ok(_) => {
-            return Err(format!(
-                "the time of `{s}` must be from 0 to {MAX_FAULT_SECS} seconds of mission time"
-            ))
-        }
-        Err(_) => return Err(format!("`{secs}` in `{s}` is not a number of seconds")),
-    }
-    let spec: FaultSpec = s.parse().map_err(|e| format!("{e}"))?;
-    Target::parse(&spec.target).map_err(|e| e.to_string())?;
-    Ok(spec)
 }

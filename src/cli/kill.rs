@@ -4,11 +4,11 @@
 use super::args::RobotArgs;
 use super::error::BadInput;
 use super::join::{join, member_name, JoinArgs};
-use super::output::not_found;
 use super::prepare::start_node;
-use marie::actors::registry::{self, ModuleKind, RegistryEvent};
-use marie::fault::plan::{find, Target};
-use marie::fault::{self, FaultKind};
+use marie::actors::events::EventBus;
+use marie::actors::registry::{self, Instance, ModuleKind, RegistryEvent};
+use marie::actors::run::{Aim, FaultKind};
+use marie::fault::{FaultError, Hit, Injector, Target};
 use marie::node::Node;
 use marie::supervision::SupervisorEvent;
 use std::process::ExitCode;
@@ -17,8 +17,8 @@ use std::time::{Duration, Instant};
 /// Flags of `marie kill`.
 #[derive(clap::Args, Debug)]
 pub struct KillArgs {
-    /// The operation: its name or numeric id, `NAME#VERSION` when several versions run, or
-    /// an actor id like `0.42`.
+    /// The operation: its name or numeric id, `NAME#VERSION` when several versions run,
+    /// `NAME/NODE`, or an actor id like `0.42`.
     pub operation: String,
     #[command(flatten)]
     pub robot: RobotArgs,
@@ -40,8 +40,11 @@ pub async fn kill(args: KillArgs) -> anyhow::Result<ExitCode> {
         cluster,
     } = args;
     if let Some(target) = cluster.target_alone(&robot, "kills in")? {
-        let transport = join(&member_name("kill"), &target).await?;
-        let result = kill_in_cluster(&operation).await;
+        let name = member_name("kill");
+        let transport = join(&name, &target).await?;
+        // this member's own bus: the fault is told there, as every fault is
+        let bus = EventBus::new(name, marie::actors::clock::RealClock::shared());
+        let result = kill_in_cluster(&Injector::new(&bus), &operation).await;
         transport.stop().await;
         return result;
     }
@@ -51,21 +54,33 @@ pub async fn kill(args: KillArgs) -> anyhow::Result<ExitCode> {
     result
 }
 
-async fn kill_on(node: &Node, operation: &str) -> anyhow::Result<ExitCode> {
-    let inst = match Target::parse(operation) {
-        Ok(target) => find(&target).await,
-        Err(e) => Err(e),
+/// Kill what `operation` names, through the one road of faults (told on `injector`'s bus);
+/// the instance it hit.
+async fn strike(injector: &Injector, operation: &str) -> anyhow::Result<Instance> {
+    let target = Target::parse(operation, Aim::Operation).map_err(|e| BadInput(e.to_string()))?;
+    // outside a run a name several instances share is not guessed at: the user names one
+    let done = match injector.inject(FaultKind::Kill, &target).await {
+        Ok(done) => done,
+        Err(e @ FaultError::Target(_)) => return Err(BadInput(e.to_string()).into()),
+        Err(e) => return Err(e.into()),
     };
-    let inst = inst.map_err(|e| BadInput(not_found(e)))?;
+    match done.hit {
+        Hit::Instance(inst) => Ok(inst),
+        Hit::Process { node, .. } => Err(anyhow::anyhow!("{node} is a node, not an operation")),
+    }
+}
+
+async fn kill_on(node: &Node, operation: &str) -> anyhow::Result<ExitCode> {
     let supervisor = node.operation_supervisor().await?;
     let mut events = supervisor.subscribe().await?;
     let started = std::time::Instant::now();
-    let done = fault::inject_into(FaultKind::Kill, &inst)?;
-    println!("killed {} ({}) at {}", inst.name, inst.id, done.actor);
+    let inst = strike(&Injector::new(node.events()), operation).await?;
+    let killed = inst.actor_id();
+    println!("killed {} ({}) at {killed}", inst.name, inst.id);
     let restarted = tokio::time::timeout(std::time::Duration::from_secs(10), async {
         loop {
             match events.recv().await {
-                Ok(SupervisorEvent::ChildRestarted { old, new, .. }) if old == Some(done.actor) => {
+                Ok(SupervisorEvent::ChildRestarted { old, new, .. }) if old == Some(killed) => {
                     return Some(new)
                 }
                 Ok(_) | Err(tokio::sync::broadcast::error::RecvError::Lagged(_)) => {}
@@ -93,23 +108,19 @@ async fn kill_on(node: &Node, operation: &str) -> anyhow::Result<ExitCode> {
 /// Kill an instance wherever it runs (a remote one is told to die: killing its local
 /// stand-in would kill the stand-in alone) and wait for an instance of the same operation to
 /// appear on the same node: its supervisor's restart.
-async fn kill_in_cluster(operation: &str) -> anyhow::Result<ExitCode> {
-    let inst = match Target::parse(operation) {
-        Ok(target) => find(&target).await,
-        Err(e) => Err(e),
-    };
-    let inst = inst.map_err(|e| BadInput(not_found(e)))?;
+async fn kill_in_cluster(injector: &Injector, operation: &str) -> anyhow::Result<ExitCode> {
     let mut watch = registry::watch(Some(ModuleKind::Operation)).await?;
     let started = Instant::now();
-    let done = fault::inject_into(FaultKind::Kill, &inst)?;
+    let inst = strike(injector, operation).await?;
+    let killed = inst.actor_id();
     println!(
-        "killed {} ({}) on {} at {}",
-        inst.name, inst.id, inst.node, done.actor
+        "killed {} ({}) on {} at {killed}",
+        inst.name, inst.id, inst.node
     );
     let restarted = tokio::time::timeout(RESTART_TIMEOUT, async {
         while let Some(event) = watch.next().await {
             if let RegistryEvent::Joined(new) = event {
-                if new.name == inst.name && new.node == inst.node && new.actor_id() != done.actor {
+                if new.name == inst.name && new.node == inst.node && new.actor_id() != killed {
                     return Some(new);
                 }
             }

@@ -9,12 +9,13 @@
 
 use super::error::BadInput;
 use super::join::{join, member_name, JoinArgs, Target};
-use super::page_control::{NodeProcesses, PageControl};
+use super::page_control::PageControl;
 use marie::actors::clock::ScaledClock;
 use marie::actors::events::{
     bridge_registry, Event, EventBus, EventKind, ModuleInfo, RegistryBridge,
 };
 use marie::actors::registry;
+use marie::fault::NodeProcesses;
 use marie_monitor::{Feed, Monitor, MonitorError, MonitorHandle, MonitorOptions};
 use std::io::Write;
 use std::net::SocketAddr;

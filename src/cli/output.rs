@@ -1,7 +1,13 @@
-//! The lines a run prints on stdout: its progress events and its outcome.
+//! The lines a run prints on stdout: its events as they are published on the node's bus
+//! (a subscriber, as the monitor is), then its outcome from the report.
 
-use marie::actors::dispatcher::{DispatchEvent, Outcome, RunReport};
-use marie::fault::plan::TargetError;
+use marie::actors::events::{BusError, Event, EventBus, EventKind};
+use marie::actors::flags::StatusFlags;
+use marie::actors::report::RunReport;
+use marie::actors::run::{Choice, Outcome, Verdict};
+use marie_missions::robot::RobotReport;
+use tokio::sync::oneshot;
+use tokio::task::JoinHandle;
 
 /// How `marie run` prints its progress.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -14,80 +20,141 @@ pub enum Progress {
     ChoicesAsJson,
 }
 
-/// One progress line per dispatcher event.
-pub fn print_event(evt: &DispatchEvent, progress: Progress) {
-    match (evt, progress) {
-        (DispatchEvent::Selected(choice), Progress::ChoicesAsJson) => {
-            // a Choice is plain data: it always serializes
-            if let Ok(line) = serde_json::to_string(choice) {
-                println!("{line}");
+/// The live lines of a run: a subscriber of the node's bus that prints each event of the
+/// run as it comes, until [`finish`](LiveLines::finish)ed.
+pub struct LiveLines {
+    stop: oneshot::Sender<()>,
+    task: JoinHandle<()>,
+}
+
+impl LiveLines {
+    /// Print what `bus` publishes from now on.
+    pub fn start(bus: &EventBus, progress: Progress) -> LiveLines {
+        let mut sub = bus.subscribe();
+        let (stop, mut stopped) = oneshot::channel::<()>();
+        let task = tokio::spawn(async move {
+            let mut printer = Printer {
+                progress,
+                start_ms: None,
+            };
+            loop {
+                tokio::select! {
+                    biased;
+                    received = sub.recv() => match received {
+                        Ok(event) => printer.print(&event),
+                        Err(BusError::Lagged { missed }) => {
+                            tracing::warn!(missed, "the live lines fell behind the event bus")
+                        }
+                        Err(BusError::Closed) => break,
+                    },
+                    _ = &mut stopped => {
+                        for event in sub.drain() {
+                            printer.print(&event);
+                        }
+                        break;
+                    }
+                }
             }
-            return;
-        }
-        (_, Progress::ChoicesAsJson) => return,
-        (DispatchEvent::Selected(choice), Progress::Explained) => {
-            print_choice(choice);
-            return;
-        }
-        _ => {}
+        });
+        LiveLines { stop, task }
     }
-    match evt {
-        DispatchEvent::Selected(_) => {}
-        DispatchEvent::Bound { operations } => {
-            for (name, version, node) in operations {
-                println!("  bound {name} v{version} on {node}");
-            }
-        }
-        DispatchEvent::ActionStarted { action, operations } => {
-            println!("> {action}: start [{}]", operations.join(", "));
-        }
-        DispatchEvent::ActionEnded {
-            action,
-            flags,
-            status,
-        } => {
-            println!("< {action}: end, status {status} [{}]", flags.join(", "));
-        }
-        DispatchEvent::Lost { operation, cause } => {
-            println!("! {operation} lost: {cause}");
-        }
-        DispatchEvent::Rebound(r) if !r.from_node.is_empty() && r.from_node != r.to_node => {
-            println!(
-                "~ {} rebound: {} on {} -> {} on {} after {} ms",
-                r.operation, r.from, r.from_node, r.to, r.to_node, r.downtime_ms
-            );
-        }
-        DispatchEvent::Rebound(r) => {
-            println!(
-                "~ {} rebound: {} -> {} after {} ms",
-                r.operation, r.from, r.to, r.downtime_ms
-            );
-        }
-        DispatchEvent::Ended { outcome, reason } => match outcome {
-            Outcome::Succeeded => println!("mission succeeded"),
-            Outcome::Failed => println!("mission FAILED (full stop): {reason}"),
-        },
+
+    /// Print what was published before this call, then stop.
+    pub async fn finish(self) {
+        let _ = self.stop.send(());
+        let _ = self.task.await;
     }
 }
 
-/// One line per fault of the report: injected, or why it could not be.
-pub fn print_faults(report: &RunReport) {
-    for f in &report.faults {
-        match &f.error {
-            None => println!(
-                "* injected {} into {} ({}) at {:.1}s",
-                f.fault,
-                f.operation,
-                f.actor,
-                f.at_ms as f64 / 1000.0
-            ),
-            Some(e) => println!(
-                "* could not inject {} into {} at {:.1}s: {e}",
-                f.fault,
-                f.operation,
-                f.at_ms as f64 / 1000.0
-            ),
+/// Prints events, knowing when the run began (its fault lines say when, in run time).
+struct Printer {
+    progress: Progress,
+    /// The stamp of the run's `run_started`.
+    start_ms: Option<u64>,
+}
+
+impl Printer {
+    /// Seconds of the run at `at_ms`.
+    fn run_secs(&self, at_ms: u64) -> f64 {
+        at_ms.saturating_sub(self.start_ms.unwrap_or(at_ms)) as f64 / 1000.0
+    }
+
+    fn print(&mut self, event: &Event) {
+        match (&event.kind, self.progress) {
+            (EventKind::RunStarted { .. }, _) => self.start_ms = Some(event.at_ms),
+            (EventKind::Selected { choice }, Progress::ChoicesAsJson) => {
+                // a Choice is plain data: it always serializes
+                if let Ok(line) = serde_json::to_string(choice) {
+                    println!("{line}");
+                }
+            }
+            (_, Progress::ChoicesAsJson) => {}
+            (EventKind::Selected { choice }, Progress::Explained) => print_choice(choice),
+            (kind, _) => self.print_line(event, kind),
         }
+    }
+
+    fn print_line(&self, event: &Event, kind: &EventKind) {
+        match kind {
+            EventKind::Bound { operations } => {
+                for op in operations {
+                    println!("  bound {} v{} on {}", op.name, op.version, op.node);
+                }
+            }
+            EventKind::ActionStarted {
+                action, operations, ..
+            } => {
+                let keys: Vec<&str> = operations.iter().map(|o| o.key.as_str()).collect();
+                println!("> {action}: start [{}]", keys.join(", "));
+            }
+            EventKind::ActionEnded {
+                action,
+                flags,
+                status,
+                ..
+            } => {
+                let status = StatusFlags(*status);
+                println!("< {action}: end, status {status} [{}]", flags.join(", "));
+            }
+            EventKind::Lost { operation, cause } => println!("! {operation} lost: {cause}"),
+            EventKind::Rebound(r) if !r.from_node.is_empty() && r.from_node != r.to_node => {
+                println!(
+                    "~ {} rebound: {} on {} -> {} on {} after {} ms",
+                    r.operation, r.from, r.from_node, r.to, r.to_node, r.downtime_ms
+                );
+            }
+            EventKind::Rebound(r) => println!(
+                "~ {} rebound: {} -> {} after {} ms",
+                r.operation, r.from, r.to, r.downtime_ms
+            ),
+            EventKind::FaultInjected {
+                fault,
+                operation,
+                actor,
+                ..
+            } => println!(
+                "* injected {fault} into {operation} ({actor}) at {:.1}s",
+                self.run_secs(event.at_ms)
+            ),
+            EventKind::FaultNotInjected {
+                fault,
+                operation,
+                why,
+                due_ms,
+            } => {
+                let at = due_ms.map_or(self.run_secs(event.at_ms), |d| d as f64 / 1000.0);
+                println!("* could not inject {fault} into {operation} at {at:.1}s: {why}");
+            }
+            _ => {}
+        }
+    }
+}
+
+/// `mission succeeded`, or `mission FAILED (full stop): why` — after the robot's judgement.
+pub fn end_line(report: &RunReport) -> String {
+    match report.outcome {
+        Outcome::Succeeded => "mission succeeded".to_string(),
+        Outcome::Failed => format!("mission FAILED (full stop): {}", report.reason),
     }
 }
 
@@ -97,10 +164,11 @@ pub fn outcome_line(report: &RunReport) -> String {
         Outcome::Succeeded => "succeeded",
         Outcome::Failed => "failed",
     };
-    let Some([x, y, heading]) = report.final_pose else {
+    let cart = RobotReport::of(report);
+    let Some([x, y, heading]) = cart.final_pose else {
         return format!("outcome: {outcome} — the cart did not report its final pose");
     };
-    let inside = match report.inside_goal {
+    let inside = match cart.inside_goal {
         Some(true) => "yes",
         Some(false) => "no",
         None => "no goal area",
@@ -108,19 +176,13 @@ pub fn outcome_line(report: &RunReport) -> String {
     format!(
         "outcome: {outcome} — final pose ({x:.2}, {y:.2}, {:.1}°), inside goal: {inside}, collisions: {}",
         heading.to_degrees(),
-        report.collisions.unwrap_or_default()
+        cart.collisions.unwrap_or_default()
     )
-}
-
-/// The message for an operation that names no running instance.
-pub fn not_found(e: TargetError) -> String {
-    e.to_string()
 }
 
 /// `--explain`: the candidates for one operation, the chosen one first, each other with why
 /// it lost or was rejected.
-pub fn print_choice(choice: &marie::actors::dispatcher::selection::Choice) {
-    use marie::actors::dispatcher::selection::Verdict;
+pub fn print_choice(choice: &Choice) {
     match &choice.replacing {
         None => println!(
             "? {}: {} candidate(s)",

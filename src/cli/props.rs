@@ -3,19 +3,19 @@
 use super::args::RobotArgs;
 use super::error::BadInput;
 use super::join::{join, member_name, JoinArgs};
-use super::output::not_found;
 use super::prepare::start_node;
 use marie::actors::eo::{EoClient, EoError};
 use marie::actors::property::{Group, PropertyReply, PropertyRequest};
 use marie::actors::registry::Instance;
-use marie::fault::plan::{find, Target};
+use marie::actors::run::Aim;
+use marie::fault::{find, Target};
 use std::process::ExitCode;
 
 /// Flags of `marie props`.
 #[derive(clap::Args, Debug)]
 pub struct PropsArgs {
-    /// The operation: its name or numeric id, `NAME#VERSION` when several versions run, or
-    /// an actor id like `0.42`.
+    /// The operation: its name or numeric id, `NAME#VERSION` when several versions run,
+    /// `NAME/NODE`, or an actor id like `0.42`.
     pub operation: String,
     /// Print JSON.
     #[arg(long)]
@@ -43,11 +43,11 @@ pub async fn props(args: PropsArgs) -> anyhow::Result<ExitCode> {
 }
 
 async fn props_on(operation: &str, json: bool) -> anyhow::Result<ExitCode> {
-    let inst = match Target::parse(operation) {
+    let inst = match Target::parse(operation, Aim::Operation) {
         Ok(target) => find(&target).await,
         Err(e) => Err(e),
     };
-    let inst = inst.map_err(|e| BadInput(not_found(e)))?;
+    let inst = inst.map_err(|e| BadInput(e.to_string()))?;
     let replies = ask_every_group(&inst).await?;
     if json {
         println!("{}", serde_json::to_string_pretty(&replies)?);

@@ -1,25 +1,26 @@
 //! `marie run MISSION`: run a mission on the embedded node, print its progress and outcome,
 //! write the report and the picture.
 
-use super::args::{parse_fault, parse_seed, parse_speed, RobotArgs};
+use super::args::{parse_seed, parse_speed, RobotArgs};
 use super::error::BadInput;
 use super::events_file::EventsFile;
 use super::files;
 use super::join::JoinArgs;
-use super::output::{not_found, outcome_line, print_event, print_faults, Progress};
-use super::page_control::{NodeProcesses, PageControl};
+use super::output::{end_line, outcome_line, LiveLines, Progress};
+use super::page_control::PageControl;
 use super::prepare::{prepare, Prepared};
 use anyhow::Context;
 use marie::actors::clock::Pacer;
-use marie::actors::dispatcher::{Outcome, RunReport};
-use marie::fault::plan::{check_target, Target};
-use marie::fault::{Chaos, FaultPlan, FaultSpec};
+use marie::actors::report::RunReport;
+use marie::actors::run::Outcome;
+use marie::fault::{Chaos, FaultSpec, NodeProcesses};
+use marie::node::{NodeError, RunOptions};
+use marie_missions::robot::RobotReport;
 use marie_monitor::MonitorOptions;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
-use tokio::sync::mpsc;
 
 /// Flags of `marie run`.
 #[derive(clap::Args, Debug)]
@@ -60,11 +61,13 @@ pub struct RunArgs {
     /// operations, datamanagers and cart are the cluster's.
     #[command(flatten)]
     pub cluster: JoinArgs,
-    /// Inject a fault while the mission runs: KIND `kill`, `panic` or `hang`; TARGET the
-    /// operation's name or id (the instance the mission bound), `NAME#VERSION` (the instance
-    /// with that version) or an actor id like `0.42`; SECS mission time, 0 to 1000000.
-    /// Repeatable. A fault that cannot be injected is reported, never dropped.
-    #[arg(long = "fault", value_name = "KIND:TARGET@SECS", value_parser = parse_fault)]
+    /// Inject a fault while the mission runs: KIND `kill`, `panic` or `hang` (an operation)
+    /// or `stop-node` (a node process `marie up` started); TARGET the operation's name or id
+    /// (the instance the mission bound), `NAME#VERSION` (the instance with that version),
+    /// `NAME/NODE` (the one on that node) or an actor id like `0.42` — or a node's name;
+    /// SECS mission time, 0 to 86400 (a day). Repeatable. A fault that cannot be injected
+    /// is reported, never dropped.
+    #[arg(long = "fault", value_name = "KIND:TARGET@SECS")]
     pub faults: Vec<FaultSpec>,
     /// Kill a random operation of the running action every 4 to 12 s of mission time,
     /// picked by a generator seeded with SEED.
@@ -149,10 +152,12 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     if let Some(p) = &events_path {
         files::output("--events", p)?;
     }
-    let plan = FaultPlan {
-        faults,
-        chaos: chaos.map(Chaos::new),
-    };
+    let mut options = RunOptions::new()
+        .faults(faults)
+        .node_processes(node_processes.clone());
+    if let Some(seed) = chaos {
+        options = options.chaos(Chaos::new(seed));
+    }
     // The runtime's paused clock is the mission clock (the node's "real" clock reads it);
     // the pacer only holds it back to `speed`, from before the node starts to the end.
     // (a member of a cluster runs on the cluster's wall clock instead)
@@ -180,16 +185,20 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
             println!("{line}");
         }
     }
-    let bound = prepared.mission.operation_names();
-    for f in &plan.faults {
-        let checked = match Target::parse(&f.target) {
-            Ok(target) => check_target(&target, |name| bound.contains(&name)).await,
-            Err(e) => Err(e),
-        };
-        if let Err(e) = checked {
-            let why = not_found(e);
+    // a fault that names nothing is refused before anything runs
+    match prepared
+        .node
+        .check_faults(&prepared.mission, &options)
+        .await
+    {
+        Ok(()) => {}
+        Err(NodeError::Fault { spec, error }) => {
             prepared.shutdown().await;
-            return Err(BadInput(format!("--fault {f}: {why}")).into());
+            return Err(BadInput(format!("--fault {spec}: {error}")).into());
+        }
+        Err(e) => {
+            prepared.shutdown().await;
+            return Err(e.into());
         }
     }
     let Prepared {
@@ -203,12 +212,8 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     let publisher = transport
         .as_ref()
         .map(|t| marie::net::publish_on(t, node.events().clone()));
-    let (tx, mut rx) = mpsc::unbounded_channel();
-    let printer = tokio::spawn(async move {
-        while let Some(evt) = rx.recv().await {
-            print_event(&evt, progress);
-        }
-    });
+    // the live lines subscribe to the node's bus, as the events file and the monitor do
+    let lines = LiveLines::start(node.events(), progress);
     // this member's events go to whoever watches the cluster; its events file has theirs
     let forwarder = transport
         .as_ref()
@@ -241,8 +246,8 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         }
         None => None,
     };
-    let report = node.run_with_faults(mission, Some(tx), plan).await;
-    let _ = printer.await;
+    let report = node.run(mission, options).await;
+    lines.finish().await;
     let events = match events {
         Some(file) => Some(file.finish().await),
         None => None,
@@ -274,8 +279,13 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
             return Err(e.into());
         }
     };
+    // the report of `marie run` always holds the simulated robot's fields (null without one)
+    let mut report = report;
+    if report.robot.is_empty() {
+        report.robot = RobotReport::default().section();
+    }
     if say {
-        print_faults(&report);
+        println!("{}", end_line(&report));
         if world.is_some() {
             println!("{}", outcome_line(&report));
         }

@@ -9,7 +9,6 @@
 //! with its type, so code that sets or reads one value (a mission builder, a client) cannot
 //! misspell the name or give a value of the wrong type.
 
-use crate::eo::{OpError, Params};
 use crate::property::{FromValue, ParamDecl, ParamMap, ParamSchema, Value};
 use std::fmt;
 use std::marker::PhantomData;
@@ -110,7 +109,8 @@ impl IntoParam<String> for &str {
 }
 
 /// A value that did not have the type its parameter declares (or was missing): the
-/// parameter's name and what was wrong. An operation's `?` turns it into [`OpError::Param`].
+/// parameter's name and what was wrong. An operation's `?` turns it into
+/// [`OpError::Param`](crate::eo::OpError::Param).
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 #[error("parameter {name}: {problem}")]
 pub struct ParamError {
@@ -118,15 +118,6 @@ pub struct ParamError {
     pub name: String,
     /// What is wrong, e.g. `expected int, found text`.
     pub problem: String,
-}
-
-impl From<ParamError> for OpError {
-    fn from(e: ParamError) -> OpError {
-        OpError::Param {
-            name: e.name,
-            problem: e.problem,
-        }
-    }
 }
 
 /// The typed name of one parameter: its name and, in the type, the Rust type of its value.
@@ -277,12 +268,6 @@ pub trait DeclaredParams: Default {
 
     /// Every parameter's value, by name: a full update.
     fn to_map(&self) -> ParamMap;
-
-    /// The parameters from an operation's current values: `P::read(ctx.params())?`, or
-    /// `ctx.params().read::<P>()?`.
-    fn read(params: &Params) -> Result<Self, OpError> {
-        Ok(Self::from_map(params.all())?)
-    }
 }
 
 /// A number a [`params!`](crate::params) `range` or `step` accepts: a float or an int (an
@@ -498,6 +483,7 @@ macro_rules! __param_option {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::eo::{OpError, Params};
     use crate::property::{params, ParamType};
 
     crate::choice! {
@@ -567,7 +553,7 @@ mod tests {
         let schema = by_hand();
         let mut values = schema.defaults();
         values.remove("fresh");
-        let err = Extract::read(&Params::new(values)).unwrap_err();
+        let err = Params::new(values).read::<Extract>().unwrap_err();
         assert_eq!(
             err,
             OpError::Param {

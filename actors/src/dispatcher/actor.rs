@@ -26,9 +26,10 @@
 //! naming the operation.
 //!
 //! # Events and the report
-//! Every step of the run is published on the bus given in [`DispatcherArgs`]; the report is
-//! assembled from those same events, so it equals
-//! [`RunReport::from_events`](super::RunReport::from_events) of the run's events.
+//! Every step of the run is published on the bus given in [`DispatcherArgs`], and nothing
+//! else carries it: the run's report is those events folded
+//! ([`ReportBuilder`](crate::report::ReportBuilder)), by whoever runs the dispatcher. The
+//! dispatcher answers its run request with its outcome only.
 //!
 //! # Layout
 //! This file is the actor's shell: its arguments, state and message loop. What the state
@@ -36,14 +37,14 @@
 //! `healing.rs` (bindings), `assembly.rs` (events and the end of the run).
 
 use super::binding::Binding;
-use super::builder::ReportBuilder;
 use super::messages::DispatcherMsg;
 use super::mission::Mission;
-use super::report::{Outcome, RunReport};
 use crate::clock::{SharedClock, Timer};
 use crate::events::{EventBus, EventKind};
 use crate::flags::StatusFlags;
 use crate::registry::{self, ModuleKind};
+use crate::report::{ReportBuilder, RunReport};
+use crate::run::Outcome;
 use ractor::{Actor, ActorProcessingErr, ActorRef, RpcReplyPort, SpawnErr};
 use std::collections::{BTreeMap, BTreeSet};
 use std::time::Duration;
@@ -58,7 +59,7 @@ pub struct DispatcherArgs {
     pub mission: Mission,
     /// The node's clock.
     pub clock: SharedClock,
-    /// Where the run's events go (the node's bus); the report is assembled from them.
+    /// Where the run's events go (the node's bus); the report is folded from them.
     pub bus: EventBus,
 }
 
@@ -109,15 +110,13 @@ pub struct DispatcherState {
     pub(super) mission: Mission,
     pub(super) clock: SharedClock,
     pub(super) bus: EventBus,
-    /// The report, assembled from the events the dispatcher publishes.
-    pub(super) builder: ReportBuilder,
     pub(super) bindings: BTreeMap<String, Binding>,
     pub(super) status: StatusFlags,
     pub(super) done: Vec<bool>,
     pub(super) generation: u64,
     pub(super) current: Option<Current>,
     pub(super) started: Duration,
-    pub(super) reply: Option<RpcReplyPort<RunReport>>,
+    pub(super) reply: Option<RpcReplyPort<Outcome>>,
     /// Dropping it ends the registry watch.
     pub(super) _watch_guard: Option<tokio::sync::oneshot::Sender<()>>,
 
@@ -195,7 +194,6 @@ impl Actor for ActionDispatcher {
             mission: args.mission,
             clock: args.clock,
             bus: args.bus,
-            builder: ReportBuilder::new(),
             bindings: BTreeMap::new(),
             done: vec![false; n],
             generation: 0,
@@ -304,8 +302,8 @@ pub enum DispatchError {
     /// The dispatcher actor did not start.
     #[error("dispatcher did not start: {0}")]
     Spawn(#[from] SpawnErr),
-    /// The dispatcher stopped without a report.
-    #[error("dispatcher stopped without a report")]
+    /// The dispatcher stopped without ending its run.
+    #[error("dispatcher stopped without ending its run")]
     NoReport,
 }
 
@@ -325,8 +323,9 @@ pub async fn spawn_dispatcher(
     })
 }
 
-/// Ask `dispatcher` to run its mission and wait for the report (a dispatcher runs once).
-pub async fn request_run(dispatcher: &ActorRef<DispatcherMsg>) -> Result<RunReport, DispatchError> {
+/// Ask `dispatcher` to run its mission and wait for its end: the dispatcher's outcome (a
+/// dispatcher runs once; the run's events are on the bus it was given).
+pub async fn request_run(dispatcher: &ActorRef<DispatcherMsg>) -> Result<Outcome, DispatchError> {
     let (tx, rx) = ractor::concurrency::oneshot();
     dispatcher
         .cast(DispatcherMsg::Run { reply: tx.into() })
@@ -334,14 +333,19 @@ pub async fn request_run(dispatcher: &ActorRef<DispatcherMsg>) -> Result<RunRepo
     rx.await.map_err(|_| DispatchError::NoReport)
 }
 
-/// Run `mission` with a new, unsupervised dispatcher and wait for its report. Its events go
-/// to `bus` (subscribe before calling); without one, to a bus of its own that nobody reads.
+/// Run `mission` with a new, unsupervised dispatcher and give the report of its events.
+///
+/// The low layer, for tests and tools: no supervision, no faults, no robot's judgement —
+/// an application runs missions on a node (`marie_cluster::node::Node::run`). Its events go
+/// to `bus` (subscribe before calling), else to a bus of its own; the report is those
+/// events folded, as a node folds its own.
 pub async fn run_mission(
     mission: Mission,
     clock: SharedClock,
     bus: Option<EventBus>,
 ) -> Result<RunReport, DispatchError> {
     let bus = bus.unwrap_or_else(|| EventBus::new(registry::local_node_name(), clock.clone()));
+    let report = ReportBuilder::attach(&bus);
     let (actor, handle) = Actor::spawn(
         None,
         ActionDispatcher,
@@ -352,8 +356,8 @@ pub async fn run_mission(
         },
     )
     .await?;
-    let report = request_run(&actor).await;
-    // the dispatcher stops by itself once it has reported
+    let outcome = request_run(&actor).await;
+    // the dispatcher stops by itself once it has answered
     let _ = handle.await;
-    report
+    outcome.map(|_| report.finish())
 }

@@ -1,25 +1,23 @@
-//! Assembling the report: the dispatcher publishes every step of the run on its bus and
-//! feeds the same events to its [`ReportBuilder`](super::ReportBuilder); the report it sends
-//! is the builder's.
+//! Telling the run: every step is published on the bus, in one place
+//! ([`DispatcherState::emit`]), and the run ends with its outcome.
 //!
 //! # Invariants
-//! - Every event is published and applied in one place ([`DispatcherState::emit`]), so the
-//!   report and the event stream cannot disagree: [`RunReport::from_events`] on the run's
-//!   events gives the report the dispatcher sent.
-//! - The report is sent once, when the mission ends (success or full stop); what still runs
-//!   is suspended first, and the dispatcher then stops normally.
+//! - The bus is the dispatcher's only account of the run: whoever wants the report folds
+//!   the events ([`crate::report::ReportBuilder`]).
+//! - The run ends once (success or full stop): what still runs is suspended first,
+//!   `run_ended` is published, the outcome answered, and the dispatcher then stops
+//!   normally.
 
 use super::actor::DispatcherState;
 use super::messages::DispatcherMsg;
-use super::report::{Outcome, RunReport};
 use crate::events::EventKind;
+use crate::run::Outcome;
 use ractor::ActorRef;
 
 impl DispatcherState {
-    /// Publish `kind` on the bus and take it into the report.
+    /// Publish `kind` on the bus.
     pub(super) fn emit(&mut self, kind: EventKind) {
-        let event = self.bus.publish(kind);
-        self.builder.apply(&event.kind);
+        self.bus.publish(kind);
     }
 
     /// Mission clock time since the run began, in ms.
@@ -39,7 +37,7 @@ impl DispatcherState {
         }
     }
 
-    /// End the run: suspend what still runs, publish the end and send the report.
+    /// End the run: suspend what still runs, publish the end and answer the outcome.
     pub(super) fn finish(
         &mut self,
         myself: &ActorRef<DispatcherMsg>,
@@ -72,9 +70,8 @@ impl DispatcherState {
             status,
             flags,
         });
-        let report: RunReport = std::mem::take(&mut self.builder).finish();
         if let Some(reply) = self.reply.take() {
-            let _ = reply.send(report);
+            let _ = reply.send(outcome);
         }
         myself.stop(None); // a normal exit: its work is done
     }

@@ -15,11 +15,11 @@
 //!   older number are about an instance the dispatcher has let go of, and are ignored.
 
 use super::candidates::Candidate;
-use super::loss::LossCause;
 use super::selection::{self, Need, Offer};
 use crate::clock::Timer;
 use crate::eo::EoClient;
 use crate::property::ParamMap;
+use crate::run::LossCause;
 use ractor::ActorId;
 use semver::VersionReq;
 use std::time::Duration;
@@ -107,13 +107,13 @@ impl Binding {
     /// ([`selection::choose`] on the binding's need), after ruling out what cannot stand in
     /// whatever the mission needs: the lost actor itself, an instance on a node declared
     /// down, another operation's. Gives the explanation (every candidate with its verdict,
-    /// [`Choice::replacing`](selection::Choice::replacing) the lost address) and the index
+    /// [`Choice::replacing`](crate::run::Choice::replacing) the lost address) and the index
     /// of the chosen one in `cands`.
     pub(crate) fn choose_stand_in(
         &self,
         cands: &[Candidate],
         here: &str,
-    ) -> (selection::Choice, Option<usize>) {
+    ) -> (crate::run::Choice, Option<usize>) {
         let (mut fit, mut ruled_out) = (Vec::new(), Vec::new());
         for (i, cand) in cands.iter().enumerate() {
             match self.cannot_stand_in(cand) {
@@ -125,10 +125,8 @@ impl Binding {
         let mut choice = selection::choose(&self.need, &offers, here);
         let chosen = choice.chosen_index().map(|k| fit[k]);
         for (i, reason) in ruled_out {
-            let verdict = selection::Verdict::Rejected { reason };
-            choice
-                .candidates
-                .push(selection::Candidate::of(&cands[i].offer(), verdict));
+            let verdict = crate::run::Verdict::Rejected { reason };
+            choice.candidates.push(cands[i].offer().candidate(verdict));
         }
         choice.replacing = self.lost.as_ref().map(|l| l.from.clone());
         (choice, chosen)

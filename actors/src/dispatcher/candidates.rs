@@ -98,7 +98,7 @@ pub(crate) async fn candidates(operation: &str, timeout: Duration) -> Vec<Candid
 /// Every live instance of the operation `need` names, asked at once, and the choice among
 /// them for `need` on this node — what binding, surveying and validating a mission share,
 /// so the instance a mission is checked against is the one it binds.
-pub(crate) async fn select(need: &Need, timeout: Duration) -> (Vec<Candidate>, selection::Choice) {
+pub(crate) async fn select(need: &Need, timeout: Duration) -> (Vec<Candidate>, crate::run::Choice) {
     let found = candidates(&need.operation, timeout).await;
     let offers: Vec<Offer> = found.iter().map(Candidate::offer).collect();
     let choice = selection::choose(need, &offers, &crate::registry::local_node_name());

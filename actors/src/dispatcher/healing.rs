@@ -17,15 +17,15 @@
 use super::actor::{DispatcherState, Start};
 use super::binding::Binding;
 use super::candidates::{examine, examine_all, select, Candidate};
-use super::loss::LossCause;
 use super::messages::DispatcherMsg;
-use super::report::{Outcome, RebindRecord};
-use super::selection::Verdict;
 use crate::clock::Timer;
 use crate::eo::{EoError, ParamOutcome};
 use crate::events::{BoundOp, BusError, Event, EventKind};
 use crate::property::PropertyRequest;
 use crate::registry::{self, Instance, ModuleKind, RegistryEvent};
+use crate::run::LossCause;
+use crate::run::Verdict;
+use crate::run::{Outcome, RebindRecord};
 use ractor::ActorRef;
 use std::time::Duration;
 
@@ -75,6 +75,7 @@ impl DispatcherState {
                 version: b.version.clone(),
                 node: b.node.clone(),
                 epoch: b.epoch,
+                address: b.actor_id().to_string(),
             })
             .collect();
         self.emit(EventKind::Bound { operations });

@@ -1,14 +1,15 @@
 //! The dispatcher's messages.
 
-use super::report::RunReport;
 use crate::eo::{EoError, EoReport};
 use crate::registry::RegistryEvent;
+use crate::run::Outcome;
 
 crate::remote_message! {
     /// Messages of the action dispatcher.
     pub enum DispatcherMsg {
-        /// Run the mission; the answer comes when it has ended.
-        Run {} -> RunReport,
+        /// Run the mission; the answer, the dispatcher's outcome, comes when it has ended (the
+        /// run's report is its events, folded: [`crate::report`]).
+        Run {} -> Outcome,
     }
     local {
         /// An activation ended (`None`: its operation died before reporting).

@@ -1,24 +1,24 @@
 //! Missions and the action dispatcher.
 //!
 //! A [`mission::Mission`] is a task tree loaded from TOML and checked against the operations
-//! that are actually running ([`RegistryCatalog`]); [`run_mission`] runs it with an
-//! [`ActionDispatcher`] and returns a [`RunReport`]. Its progress is published on an
-//! [`EventBus`](crate::events::EventBus); the report is rebuilt from those events by
-//! [`RunReport::from_events`] (bounded: see [`REPORT_KEEPS`]), and [`DispatchEvent`] is the
-//! live-line view of them.
+//! that are actually running ([`RegistryCatalog`]). An [`ActionDispatcher`] runs it: every
+//! step is an event on the node's [`EventBus`](crate::events::EventBus), and the run's
+//! report is those events folded ([`crate::report`]).
+//!
+//! This is the low layer. An application runs missions on a node
+//! (`marie_cluster::node::Node::run`), which adds what a run needs around the dispatcher:
+//! the node's supervision, faults, a robot's judgement, and the report folded from the
+//! node's one bus. [`run_mission`] runs a dispatcher alone (a test, a tool), folding its
+//! own events into the report.
 
 mod actor;
 mod assembly;
 mod binding;
-mod builder;
 mod candidates;
 mod catalog;
 mod healing;
-mod loss;
 mod messages;
 pub mod mission;
-mod progress;
-mod report;
 mod running;
 pub mod selection;
 pub mod survey;
@@ -28,13 +28,7 @@ pub use actor::{
     request_run, run_mission, spawn_dispatcher, ActionDispatcher, DispatchError, DispatcherArgs,
     DispatcherState, DISPATCHER_ID,
 };
-pub use builder::ReportBuilder;
 pub use candidates::describe;
 pub use catalog::RegistryCatalog;
-pub use loss::LossCause;
 pub use messages::DispatcherMsg;
-pub use progress::{DispatchEvent, ProgressRelay};
-pub use report::{
-    ActionRecord, FaultRecord, OpEnd, OpRecord, Outcome, RebindRecord, RunReport, REPORT_KEEPS,
-};
 pub use survey::{survey, Survey};

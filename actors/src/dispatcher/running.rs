@@ -9,14 +9,14 @@
 //!   what still runs is suspended and gets [`SUSPEND_GRACE`] to report.
 
 use super::actor::{ActionState, Current, DispatcherState, Start};
-use super::loss::LossCause;
 use super::messages::DispatcherMsg;
 use super::mission::EndMode;
-use super::report::{OpEnd, Outcome};
 use super::verdict::Verdict;
 use crate::clock::Timer;
 use crate::eo::{EoError, EoReport};
 use crate::events::{EventKind, OpStarted};
+use crate::run::LossCause;
+use crate::run::{OpEnd, Outcome};
 use ractor::ActorRef;
 use std::collections::BTreeSet;
 use std::time::Duration;

@@ -9,8 +9,8 @@
 
 use super::candidates::select;
 use super::mission::Mission;
-use super::selection::Choice;
 use crate::eo::EoClient;
+use crate::run::Choice;
 use serde::{Deserialize, Serialize};
 
 /// The dispatcher's view of a mission before it runs.

@@ -1,9 +1,9 @@
 //! What an operation's report means for its action: how its part ended, the flags it
 //! raised, and — if the report breaks the action — the reason of the full stop.
 
-use super::report::OpEnd;
 use crate::eo::EoReport;
 use crate::flags::StatusFlags;
+use crate::run::OpEnd;
 
 /// An operation's report, judged.
 pub(super) struct Verdict {

@@ -1,7 +1,8 @@
 //! A typed handle for sending the eo-interface and property interface to an operation.
 
-use super::messages::{EoMsg, EoReport, Fault, ParamOutcome};
+use super::messages::{EoMsg, EoReport, ParamOutcome};
 use crate::property::{ParamMap, PropertyReply, PropertyRequest};
+use crate::run::FaultKind;
 use ractor::concurrency::OneshotReceiver;
 use ractor::rpc::CallResult;
 use ractor::{ActorCell, ActorRef};
@@ -105,7 +106,7 @@ impl EoClient {
     }
 
     /// Tell the operation to commit `fault` (fault injection).
-    pub fn inject(&self, fault: Fault) -> Result<(), EoError> {
+    pub fn inject(&self, fault: FaultKind) -> Result<(), EoError> {
         self.actor
             .cast(EoMsg::Inject { fault })
             .map_err(|_| EoError::Gone(self.who()))

@@ -12,7 +12,7 @@
 //! - Parameters change all at once or not at all.
 //! - A finished task suspends the operation; the host never stops because work is done.
 
-use super::messages::{EoMsg, EoReport, Fault, ParamOutcome};
+use super::messages::{EoMsg, EoReport, ParamOutcome};
 use super::operation::{Identity, OpContext, Operation, Params, Step};
 use crate::clock::{RealClock, SharedClock, Timer};
 use crate::flags::{FlagDecl, StatusFlags};
@@ -21,6 +21,7 @@ use crate::property::{
     PropertyReply, PropertyRequest, Signature, Specific, Value,
 };
 use crate::registry::{self, ModuleKind};
+use crate::run::FaultKind;
 use ractor::{Actor, ActorCell, ActorProcessingErr, ActorRef, RpcReplyPort, SpawnErr};
 use std::marker::PhantomData;
 use std::time::Duration;
@@ -443,12 +444,15 @@ impl<O: Operation> Actor for EoHost<O> {
             EoMsg::Inject { fault } => {
                 tracing::warn!(op = %state.identity.name, actor = %myself.get_id(), ?fault, "injected fault");
                 match fault {
-                    Fault::Panic => {
+                    FaultKind::Panic => {
                         panic!("injected fault: operation {} panics", state.identity.name)
                     }
                     // Only a kill ends this (ractor's kill signal interrupts a running handler).
-                    Fault::Hang => std::future::pending::<()>().await,
-                    Fault::Kill => myself.kill(),
+                    FaultKind::Hang => std::future::pending::<()>().await,
+                    FaultKind::Kill => myself.kill(),
+                    FaultKind::StopNode => {
+                        tracing::warn!(%fault, "a node's fault reached an operation: ignored")
+                    }
                 }
             }
         }

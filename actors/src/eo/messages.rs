@@ -2,6 +2,7 @@
 
 use crate::flags::StatusFlags;
 use crate::property::{ParamMap, PropertyReply, PropertyRequest, Rejection};
+use crate::run::FaultKind;
 use serde::{Deserialize, Serialize};
 
 /// How an activation ended, sent on the activation's reply port. Flags are in the operation's
@@ -61,21 +62,6 @@ pub enum ParamOutcome {
     },
 }
 
-/// A fault an operation's host can be told to commit, for fault-injection tests of
-/// self-healing (killing needs no cooperation: it is `ActorCell::kill`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-pub enum Fault {
-    /// Panic in the message handler: the host dies, its supervisor sees a failure.
-    Panic,
-    /// Stop answering: the handler never returns, so every later command goes unanswered
-    /// until someone kills the host.
-    Hang,
-    /// Die at once, as a kill would (no clean stop): how a kill reaches an instance on
-    /// another node, where killing the local stand-in of a remote actor would only kill the
-    /// stand-in.
-    Kill,
-}
-
 crate::remote_message! {
     /// Messages an EO host understands: the eo-interface plus the property interface.
     pub enum EoMsg {
@@ -114,10 +100,13 @@ crate::remote_message! {
             /// What is asked.
             request: PropertyRequest,
         } -> PropertyReply,
-        /// Commit `fault` (fault injection; see [`Fault`]).
+        /// Commit `fault` on purpose (fault injection). A host commits the kinds that aim
+        /// at an operation ([`Aim::Operation`](crate::run::Aim::Operation)) — a kill this
+        /// way is how one reaches an instance on another node, where killing its local
+        /// stand-in would only kill the stand-in — and ignores, with a warning, any other.
         Inject {
             /// The fault.
-            fault: Fault,
+            fault: FaultKind,
         },
     }
     local {

@@ -41,7 +41,6 @@
 mod client;
 mod declaration;
 mod factory;
-mod fault;
 mod handle;
 mod handle_error;
 mod host;
@@ -51,13 +50,13 @@ mod operation;
 pub use client::{EoClient, EoError};
 pub use declaration::{check_declaration, DeclarationError, MAX_FLAGS};
 pub use factory::{OperationFactory, StartOperation};
-pub use fault::{FaultKind, UnknownFault};
 pub use handle::OperationHandle;
 pub use handle_error::{HandleError, SetError};
 pub use host::{spawn_operation, spawn_operation_linked, EoHost, HostArgs, HostOptions, HostState};
-pub use messages::{EoMsg, EoReport, Fault, ParamOutcome};
+pub use messages::{EoMsg, EoReport, ParamOutcome};
 
 /// How long an operation may take to answer a command unless it declares otherwise
 /// ([`Operation::deadline`]).
-pub const DEFAULT_DEADLINE: std::time::Duration = std::time::Duration::from_secs(2);
+pub const DEFAULT_DEADLINE: std::time::Duration =
+    std::time::Duration::from_millis(crate::property::DEFAULT_DEADLINE_MS);
 pub use operation::{Identity, OpContext, OpError, Operation, Params, Step};

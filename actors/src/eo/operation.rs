@@ -1,7 +1,7 @@
 //! What an operation author implements.
 
 use crate::clock::SharedClock;
-use crate::declare::{DeclaredParams, DmName, Param, ParamValue};
+use crate::declare::{DeclaredParams, DmName, Param, ParamError, ParamValue};
 use crate::dm::DmError;
 use crate::flags::{FlagDecl, StatusFlags};
 use crate::property::{ParamMap, ParamSchema, Value};
@@ -172,7 +172,16 @@ impl Params {
 
     /// Every parameter of a declared set: `let p: CollatzParams = ctx.params().read()?`.
     pub fn read<P: DeclaredParams>(&self) -> Result<P, OpError> {
-        P::read(self)
+        Ok(P::from_map(self.all())?)
+    }
+}
+
+impl From<ParamError> for OpError {
+    fn from(e: ParamError) -> OpError {
+        OpError::Param {
+            name: e.name,
+            problem: e.problem,
+        }
     }
 }
 

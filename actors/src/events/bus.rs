@@ -3,7 +3,7 @@
 
 use super::{Event, EventKind};
 use crate::clock::SharedClock;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex, MutexGuard, Weak};
 use tokio::sync::broadcast;
 
 /// How many events a bus holds for its slowest subscriber before that one starts to lose
@@ -20,6 +20,19 @@ pub struct EventBus {
     tx: broadcast::Sender<Event>,
     node: Arc<str>,
     clock: SharedClock,
+    /// The taps, and the lock that gives every event one order: stamped, tapped and
+    /// broadcast under it.
+    taps: Arc<Mutex<Taps>>,
+}
+
+/// A tap's function.
+type TapFn = Arc<dyn Fn(&Event) + Send + Sync>;
+
+/// The taps attached to a bus.
+#[derive(Default)]
+struct Taps {
+    next: u64,
+    attached: Vec<(u64, TapFn)>,
 }
 
 impl EventBus {
@@ -36,21 +49,68 @@ impl EventBus {
             tx,
             node: Arc::from(node.into()),
             clock,
+            taps: Arc::default(),
         }
     }
 
     /// Publish `kind`, stamped with the mission clock (ms) and the node's name; returns
-    /// the event as published.
+    /// the event as published. Every [`Tap`] sees it before this returns; subscribers
+    /// receive it when they next ask.
     pub fn publish(&self, kind: EventKind) -> Event {
+        // one order for every event: stamped, tapped and broadcast under the lock
+        let taps = lock(&self.taps);
         let event = Event {
             at_ms: self.clock.now().as_millis() as u64,
             node: self.node.to_string(),
             kind,
         };
         tracing::trace!(?event, "event");
+        for (_, tap) in &taps.attached {
+            tap(&event);
+        }
         // no subscriber: nobody to tell, nothing kept
         let _ = self.tx.send(event.clone());
         event
+    }
+
+    /// Call `f` with every event published from now on, in publish order, until the
+    /// returned [`Tap`] is dropped.
+    ///
+    /// Unlike a [subscription](Self::subscribe), a tap never falls behind: `f` runs in the
+    /// publisher's call, under the lock that orders the bus's events. So it must be quick
+    /// (fold, count, forward into a channel of its own) and must not publish on this bus.
+    /// What must not lose an event of a run taps — its report
+    /// ([`ReportBuilder::attach`](crate::report::ReportBuilder::attach)), the fault
+    /// injector's view of the bindings; what may fall behind subscribes.
+    ///
+    /// ```
+    /// use marie_actors::clock::RealClock;
+    /// use marie_actors::events::{EventBus, EventKind};
+    /// use std::sync::atomic::{AtomicU64, Ordering};
+    /// use std::sync::Arc;
+    ///
+    /// let bus = EventBus::new("n", RealClock::shared());
+    /// let seen = Arc::new(AtomicU64::new(0));
+    /// let counter = seen.clone();
+    /// let tap = bus.tap(move |_| {
+    ///     counter.fetch_add(1, Ordering::Relaxed);
+    /// });
+    /// let robot = |what: &str| EventKind::Robot { what: what.into(), data: serde_json::Value::Null };
+    /// bus.publish(robot("a"));
+    /// bus.publish(robot("b"));
+    /// drop(tap);
+    /// bus.publish(robot("c"));
+    /// assert_eq!(seen.load(Ordering::Relaxed), 2);
+    /// ```
+    pub fn tap(&self, f: impl Fn(&Event) + Send + Sync + 'static) -> Tap {
+        let mut taps = lock(&self.taps);
+        let id = taps.next;
+        taps.next += 1;
+        taps.attached.push((id, Arc::new(f)));
+        Tap {
+            taps: Arc::downgrade(&self.taps),
+            id,
+        }
     }
 
     /// A subscription to every event published from now on.
@@ -71,11 +131,38 @@ impl EventBus {
     }
 }
 
+fn lock(taps: &Mutex<Taps>) -> MutexGuard<'_, Taps> {
+    // a tap that panicked leaves the list as it was
+    taps.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// A function attached to a bus by [`EventBus::tap`]; dropping it detaches the function.
+#[must_use = "a tap is detached when dropped"]
+pub struct Tap {
+    taps: Weak<Mutex<Taps>>,
+    id: u64,
+}
+
+impl Drop for Tap {
+    fn drop(&mut self) {
+        if let Some(taps) = self.taps.upgrade() {
+            lock(&taps).attached.retain(|(id, _)| *id != self.id);
+        }
+    }
+}
+
+impl std::fmt::Debug for Tap {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Tap").field("id", &self.id).finish()
+    }
+}
+
 impl std::fmt::Debug for EventBus {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("EventBus")
             .field("node", &self.node)
             .field("subscribers", &self.tx.receiver_count())
+            .field("taps", &lock(&self.taps).attached.len())
             .finish()
     }
 }
@@ -157,6 +244,28 @@ mod tests {
         assert_eq!(
             (got.at_ms, got.node.as_str()),
             (clock.now().as_millis() as u64, "n1@host")
+        );
+    }
+
+    #[tokio::test]
+    async fn a_tap_sees_every_event_in_publish_order_where_a_subscriber_lags() {
+        let clock = Arc::new(ManualClock::new());
+        let bus = EventBus::with_capacity("n", clock, 4);
+        let seen = Arc::new(Mutex::new(Vec::new()));
+        let into = seen.clone();
+        let tap = bus.tap(move |e| into.lock().unwrap().push(e.kind.clone()));
+        let mut sub = bus.subscribe();
+        for n in 0..10 {
+            bus.publish(kind(n));
+        }
+        assert_eq!(*seen.lock().unwrap(), (0..10).map(kind).collect::<Vec<_>>());
+        assert_eq!(sub.recv().await, Err(BusError::Lagged { missed: 6 }));
+        drop(tap);
+        bus.publish(kind(10));
+        assert_eq!(
+            seen.lock().unwrap().len(),
+            10,
+            "a dropped tap sees nothing more"
         );
     }
 

@@ -1,15 +1,13 @@
 //! What an event says: one enum of every kind of event a node publishes.
 
-use crate::dispatcher::{LossCause, OpEnd, Outcome, RebindRecord};
-use crate::eo::FaultKind;
 use crate::registry::{Instance, ModuleKind};
+use crate::run::{Choice, FaultKind, LossCause, OpEnd, Outcome, RebindRecord, RobotSection};
 use serde::{Deserialize, Serialize};
-use std::collections::BTreeMap;
 
 /// What happened. Serialized internally tagged with `type` in snake_case (see the module
 /// docs for one JSON line per kind); the tags are stable names — add kinds, never rename
-/// them. Times in a kind (`run_ms`) are mission clock ms since the run began, the times a
-/// [`RunReport`](crate::dispatcher::RunReport) shows.
+/// them. Times in a kind (`run_ms`, `due_ms`) are mission clock ms since the run began, the
+/// times a [`RunReport`](crate::report::RunReport) shows.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case")]
 pub enum EventKind {
@@ -140,28 +138,37 @@ pub enum EventKind {
         /// Why, as text.
         reason: String,
     },
-    // --- faults injected on purpose ---
-    /// A fault was injected.
+    // --- faults injected on purpose, from any source ---
+    /// A fault was injected (by a plan, chaos, the monitor's page or `marie kill`).
     FaultInjected {
-        /// When, in ms since the run began.
-        run_ms: u64,
         /// What.
         fault: FaultKind,
-        /// The operation it was meant for (name or id, as asked).
+        /// What it was meant for, as asked: an operation (name, id, `NAME#VERSION`, actor
+        /// id) or, for a node fault, the node's name.
         operation: String,
-        /// The instance that got it.
+        /// The instance that got it (its address), or for a node fault its process
+        /// (`pid N`).
         actor: String,
+        /// The node it landed on (absent in older streams).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        node: Option<String>,
+        /// When it was planned, in ms since the run began (a plan's faults; absent for one
+        /// asked at once).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        due_ms: Option<u64>,
     },
     /// A fault could not be injected.
     FaultNotInjected {
-        /// When, in ms since the run began.
-        run_ms: u64,
         /// What.
         fault: FaultKind,
-        /// The operation it was meant for.
+        /// What it was meant for, as asked.
         operation: String,
         /// Why not.
         why: String,
+        /// When it was planned, in ms since the run began (a plan's faults; absent for one
+        /// asked at once).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        due_ms: Option<u64>,
     },
     // --- the cluster ---
     /// A peer node's session became ready: its modules are in the registry.
@@ -192,14 +199,6 @@ pub enum EventKind {
         /// How long it was frozen, ms of real time.
         silent_ms: u64,
     },
-    /// A node's process was killed on purpose (`SIGKILL`: a fault asked from the monitor's
-    /// page); its peers will lose it and declare it down.
-    NodeKilled {
-        /// Its node name.
-        peer: String,
-        /// Its process id.
-        pid: u32,
-    },
     /// A peer node of another protocol version was refused.
     NodeRefused {
         /// Its node name.
@@ -222,29 +221,20 @@ pub enum EventKind {
     /// fit): every candidate with its verdict.
     Selected {
         /// The candidates and the choice.
-        choice: crate::dispatcher::selection::Choice,
+        choice: Choice,
     },
     // --- the robot ---
-    /// The world judged the robot's final state (fills a report's robot fields; its outcome
-    /// replaces the dispatcher's).
+    /// A robot judged the run after the dispatcher ended it: its outcome replaces the
+    /// dispatcher's, and what it says of the run (its [`RobotSection`], e.g. the cart's final
+    /// pose) goes into the report beside the report's own fields.
     Judged {
         /// Outcome after judgement.
         outcome: Outcome,
         /// Why it failed (empty on success).
         reason: String,
-        /// Final pose `[x, y, heading]`.
-        final_pose: Option<[f64; 3]>,
-        /// Collisions counted.
-        collisions: Option<u64>,
-        /// Seed of the simulation.
-        seed: Option<u64>,
-        /// Whether the footprint ended inside the goal area.
-        inside_goal: Option<bool>,
-        /// The world's verdict.
-        judgement: Option<String>,
-        /// Commands the drivers refused by epoch, by operation (absent in older streams).
-        #[serde(default)]
-        refused_commands: Option<BTreeMap<String, u64>>,
+        /// What the robot says of the run, written beside `outcome` and `reason`.
+        #[serde(flatten)]
+        robot: RobotSection,
     },
     /// Anything else a robot reports (a collision, a dock found): `what` names it, `data`
     /// holds it as JSON.
@@ -282,6 +272,9 @@ pub struct BoundOp {
     /// before it was recorded).
     #[serde(default)]
     pub epoch: u64,
+    /// Actor address of the instance (empty in events written before it was recorded).
+    #[serde(default)]
+    pub address: String,
 }
 
 /// An operation an action activates, and the instance that runs it.

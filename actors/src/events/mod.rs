@@ -1,27 +1,35 @@
 //! One event stream: every dispatcher, binding, registry, supervisor, fault and robot event
 //! as a typed, serializable value on the node's [`EventBus`] (DESIGN.md §6).
 //!
-//! The live lines, the run report, `--events` files, a remote dispatcher and the monitor all
-//! read the same stream. The report can be rebuilt from it
-//! ([`RunReport::from_events`](crate::dispatcher::RunReport::from_events)): the dispatcher
-//! assembles its own report from the events it publishes
-//! ([`ReportBuilder`](crate::dispatcher::ReportBuilder)), so the two cannot disagree — and
-//! while the report keeps only the latest rebinds and faults, the stream has them all.
+//! The bus is the only channel of a run's facts. The live lines, the fault injector,
+//! `--events` files, a remote watcher and the monitor subscribe to it; the run report is a
+//! [`ReportBuilder`](crate::report::ReportBuilder) folded over it — attached to the bus as a
+//! [`Tap`], which sees every event in publish order and never lags — so the report a node
+//! writes and [`RunReport::from_events`](crate::report::RunReport::from_events) of the run's
+//! events are equal by construction; while the report keeps only the latest rebinds and
+//! faults, the stream has them all.
+//!
+//! The vocabulary of the kinds (outcomes, loss causes, rebinds, choices, fault kinds) lives
+//! below this module, in [`crate::run`]: the events know no dispatcher, and no robot — a
+//! robot speaks through [`EventKind::Robot`] and the untyped section of
+//! [`EventKind::Judged`].
 //!
 //! # JSON schema (`.jsonl`: one event per line)
 //!
 //! Every line is an object `{"at_ms": u64, "node": string, "kind": {...}}`: `at_ms` is the
 //! node's mission clock in ms when the event was published, `node` the node's name, and
 //! `kind` the [`EventKind`], an object whose `type` names it (snake_case, stable) and whose
-//! other fields are the kind's. Times inside a kind (`run_ms`) are ms since its run began.
-//! Loss causes are objects tagged by `type` too ([`LossCause`](crate::dispatcher::LossCause));
+//! other fields are the kind's. Times inside a kind (`run_ms`, `due_ms`) are ms since its
+//! run began. Loss causes are objects tagged by `type` too ([`LossCause`](crate::run::LossCause));
 //! `ended` is `running|finished|suspended|failed|lost|unresponsive`, `outcome`
-//! `succeeded|failed`, `fault` `kill|panic|hang`. One example line per kind:
+//! `succeeded|failed`, `fault` one of [`FaultKind::ALL`](crate::run::FaultKind::ALL)'s names
+//! (`kill|panic|hang|stop-node`); a `judged` line's fields beyond `outcome` and `reason` are
+//! the robot's own. One example line per kind:
 //!
 //! ```json
 //! {"at_ms":1200,"node":"marie@localhost","kind":{"type":"run_started","mission":"docking","actions":[{"name":"follow","when":["wall_found"],"ops":["wall-follower","docking-detector"],"ends_on":["docking-detector"]}],"success":["parked"]}}
 //! {"at_ms":1240,"node":"marie@localhost","kind":{"type":"selected","choice":{"operation":"wall-follower","candidates":[{"address":"0.41","node":"marie@localhost","version":"1.0.0","schema":["distance"],"flags":["aligned"],"verdict":{"type":"chosen"}},{"address":"0.42","node":"marie@localhost","version":"2.0.0","schema":["distance","mode"],"flags":["aligned"],"verdict":{"type":"lost","reason":"its schema also declares mode the mission does not supply; 0.41 (version 1.0.0) fits exactly"}}]}}}
-//! {"at_ms":1250,"node":"marie@localhost","kind":{"type":"bound","operations":[{"name":"wall-follower","version":"1.0.0","node":"marie@localhost","epoch":1250000}]}}
+//! {"at_ms":1250,"node":"marie@localhost","kind":{"type":"bound","operations":[{"name":"wall-follower","version":"1.0.0","node":"marie@localhost","epoch":1250000,"address":"0.41"}]}}
 //! {"at_ms":1260,"node":"marie@localhost","kind":{"type":"action_started","action":"follow","run_ms":60,"operations":[{"key":"wall-follower","name":"wall-follower","id":1512,"version":"1.0.0","node":"marie@localhost","address":"0.41"}]}}
 //! {"at_ms":9800,"node":"marie@localhost","kind":{"type":"op_ended","action":"follow","key":"wall-follower","ended":"suspended","flags":[]}}
 //! {"at_ms":9810,"node":"marie@localhost","kind":{"type":"action_ended","action":"follow","run_ms":8610,"flags":["dock_found"],"status":4}}
@@ -35,16 +43,15 @@
 //! {"at_ms":5000,"node":"marie@localhost","kind":{"type":"child_exited","supervisor":"operations","child":"wall-follower","reason":"killed"}}
 //! {"at_ms":5001,"node":"marie@localhost","kind":{"type":"child_restarted","supervisor":"operations","child":"wall-follower","actor":"0.57","restarts":1,"reason":"killed"}}
 //! {"at_ms":9000,"node":"marie@localhost","kind":{"type":"supervisor_gave_up","supervisor":"operations","reason":"reached_max_restart_intensity"}}
-//! {"at_ms":5000,"node":"marie@localhost","kind":{"type":"fault_injected","run_ms":3800,"fault":"kill","operation":"wall-follower","actor":"0.41"}}
-//! {"at_ms":6000,"node":"marie@localhost","kind":{"type":"fault_not_injected","run_ms":4800,"fault":"hang","operation":"nobody","why":"no operation `nobody` is running"}}
+//! {"at_ms":5000,"node":"marie@localhost","kind":{"type":"fault_injected","fault":"kill","operation":"wall-follower","actor":"0.41","node":"marie@localhost","due_ms":3800}}
+//! {"at_ms":6000,"node":"marie@localhost","kind":{"type":"fault_not_injected","fault":"hang","operation":"nobody","why":"no operation `nobody` is running","due_ms":4800}}
 //! {"at_ms":700,"node":"marie@localhost","kind":{"type":"node_up","peer":"cart","address":"127.0.0.1:7101"}}
 //! {"at_ms":9500,"node":"marie@localhost","kind":{"type":"node_down","peer":"cart","silent_ms":1530}}
 //! {"at_ms":9501,"node":"marie@localhost","kind":{"type":"node_lost","peer":"cart","address":"127.0.0.1:7101"}}
 //! {"at_ms":9900,"node":"marie@localhost","kind":{"type":"node_frozen","silent_ms":4200}}
-//! {"at_ms":9950,"node":"marie@localhost","kind":{"type":"node_killed","peer":"wf-a","pid":4242}}
 //! {"at_ms":800,"node":"marie@localhost","kind":{"type":"node_refused","peer":"old","theirs":2,"ours":1}}
 //! {"at_ms":850,"node":"marie@localhost","kind":{"type":"connection_refused","from":"127.0.0.1:45042","reason":"TLS: invalid peer certificate: UnknownIssuer"}}
-//! {"at_ms":30001,"node":"marie@localhost","kind":{"type":"judged","outcome":"succeeded","reason":"","final_pose":[1.5,0.25,0.01],"collisions":0,"seed":7,"inside_goal":true,"judgement":"success: inside the goal area","refused_commands":{}}}
+//! {"at_ms":30001,"node":"marie@localhost","kind":{"type":"judged","outcome":"succeeded","reason":"","collisions":0,"final_pose":[1.5,0.25,0.01],"inside_goal":true,"judgement":"success: inside the goal area","refused_commands":{},"seed":7}}
 //! {"at_ms":4000,"node":"marie@localhost","kind":{"type":"robot","what":"collision","data":{"x":1.0,"y":2.0}}}
 //! ```
 //!
@@ -73,7 +80,11 @@
 //! # Invariants
 //! - Publishing never blocks: the bus is bounded, a slow subscriber loses the oldest events
 //!   and is told how many ([`BusError::Lagged`]).
-//! - Every event of a node carries the node's clock and name, stamped by the bus.
+//! - Every event of a node carries the node's clock and name, stamped by the bus; events
+//!   are stamped, tapped and broadcast in one order, so their times never go back.
+//! - A [`Tap`] sees every event published while it is attached, in that order: what must
+//!   not lose an event (a run's report, the fault injector's view of the bindings) taps;
+//!   what may fall behind (printers, files, the monitor) subscribes.
 //! - The supervision crate knows nothing of this module: a node translates its supervisors'
 //!   events into the plain-data supervisor kinds.
 
@@ -81,7 +92,7 @@ mod bus;
 mod kind;
 mod registry_bridge;
 
-pub use bus::{BusError, EventBus, EventSubscription, DEFAULT_CAPACITY};
+pub use bus::{BusError, EventBus, EventSubscription, Tap, DEFAULT_CAPACITY};
 pub use kind::{ActionPlan, BoundOp, EventKind, ModuleInfo, OpStarted};
 pub use registry_bridge::{bridge_registry, RegistryBridge};
 
@@ -169,7 +180,6 @@ mod tests {
             EventKind::NodeLost { .. } => "node_lost",
             EventKind::NodeDown { .. } => "node_down",
             EventKind::NodeFrozen { .. } => "node_frozen",
-            EventKind::NodeKilled { .. } => "node_killed",
             EventKind::NodeRefused { .. } => "node_refused",
             EventKind::ConnectionRefused { .. } => "connection_refused",
             EventKind::Selected { .. } => "selected",
@@ -179,7 +189,7 @@ mod tests {
     }
 
     /// The `type` of every kind, as [`type_of`] names them.
-    const KINDS: [&str; 27] = [
+    const KINDS: [&str; 26] = [
         "run_started",
         "bound",
         "action_started",
@@ -201,7 +211,6 @@ mod tests {
         "node_lost",
         "node_down",
         "node_frozen",
-        "node_killed",
         "node_refused",
         "connection_refused",
         "selected",

@@ -112,8 +112,12 @@ pub struct General {
     pub deadline_ms: u64,
 }
 
+/// The general property `deadline_ms` of an operation that declares no deadline of its own
+/// (and of an older peer's answer that lacks the field).
+pub const DEFAULT_DEADLINE_MS: u64 = 2_000;
+
 fn default_deadline_ms() -> u64 {
-    crate::eo::DEFAULT_DEADLINE.as_millis() as u64
+    DEFAULT_DEADLINE_MS
 }
 
 /// Specific group: the parameter descriptors (names, types, defaults, min, max, step, unit,

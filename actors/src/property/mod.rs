@@ -22,7 +22,7 @@ pub mod value;
 pub use from_value::FromValue;
 pub use messages::{
     Address, Collection, General, Group, Identification, Limit, Location, PropertyReply,
-    PropertyRequest, Signature, Specific, STANDARD_PROPERTIES,
+    PropertyRequest, Signature, Specific, DEFAULT_DEADLINE_MS, STANDARD_PROPERTIES,
 };
 pub use schema::{ParamDecl, ParamSchema, ParamType, RejectReason, Rejection};
 pub use value::{params, ParamMap, Value};

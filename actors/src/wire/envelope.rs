@@ -18,7 +18,10 @@ use serde::{Deserialize, Serialize};
 /// The protocol version this build speaks. Raise it when a frame's meaning changes in a way
 /// older nodes would misread (a renamed variant, a field with another meaning); adding
 /// variants and `#[serde(default)]` fields does not need a new version.
-pub const PROTOCOL_VERSION: u16 = 1;
+///
+/// 2: one fault vocabulary (`Inject` carries a `FaultKind`), the dispatcher answers a run
+/// with its outcome, fault events carry no run time of their own.
+pub const PROTOCOL_VERSION: u16 = 2;
 
 /// Why a frame was refused.
 #[derive(Debug, thiserror::Error)]

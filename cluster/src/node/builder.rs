@@ -12,7 +12,7 @@
 //! ```
 //! use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
 //! use marie_actors::flags::{FlagDecl, StatusFlags};
-//! use marie_cluster::node::Node;
+//! use marie_cluster::node::{Node, RunOptions};
 //!
 //! #[derive(Default)]
 //! struct Ping;
@@ -43,6 +43,7 @@
 //!         name = "ping"
 //!         [action.ops.ping]
 //!         "#,
+//!         RunOptions::new(),
 //!     )
 //!     .await?;
 //! assert!(report.succeeded());

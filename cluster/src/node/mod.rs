@@ -5,9 +5,9 @@
 //! simulated robot, a dispatcher. [`Node::start`] builds its supervision tree (DESIGN.md §2)
 //! from that config and nothing else; the operations come from a catalogue of
 //! [`OperationFactory`]s and a robot plugs in through the [`Robot`] trait — a node knows no
-//! robot. A crashed operation is restarted by its supervisor and the dispatcher rebinds to the
-//! new instance; [`Node::run_with_faults`] injects faults to test exactly that, and
-//! [`Node::start_instance`] starts another instance of an operation the config allows (a
+//! robot. [`Node::run`] runs a mission ([`RunOptions`]: faults, chaos, observers); a crashed
+//! operation is restarted by its supervisor and the dispatcher rebinds to the new instance,
+//! and [`Node::start_instance`] starts another instance of an operation the config allows (a
 //! dynamic child), for failover when no spare runs.
 //!
 //! ```
@@ -40,6 +40,7 @@ mod events;
 mod mission_input;
 mod provisioner;
 pub mod robot;
+mod run;
 mod tree;
 
 pub use builder::NodeBuilder;
@@ -48,28 +49,24 @@ pub use config::{
     SupervisorConfig, MAX_INSTANCES, OPERATIONS,
 };
 pub use mission_input::MissionInput;
-pub use robot::{AprioriRecord, BoxFuture, Robot};
+pub use robot::{AprioriRecord, BoxFuture, Robot, RunJudgement};
+pub use run::RunOptions;
 
-use crate::fault::plan::{Injector, RunView};
-use crate::fault::FaultPlan;
+use crate::fault::FaultError;
 use marie_actors::clock::{RealClock, SharedClock};
 use marie_actors::dispatcher::mission::{Diagnostics, Mission, ParsedMission};
-use marie_actors::dispatcher::{
-    self, DispatchError, DispatchEvent, DispatcherArgs, DispatcherMsg, ProgressRelay,
-    RegistryCatalog, RunReport,
-};
+use marie_actors::dispatcher::{DispatchError, RegistryCatalog};
 use marie_actors::dm::DmError;
 use marie_actors::eo::{EoError, OperationFactory};
-use marie_actors::events::{bridge_registry, EventBus, EventKind, RegistryBridge};
+use marie_actors::events::{bridge_registry, EventBus, RegistryBridge};
 use marie_actors::registry::{self, Instance, ModuleKind};
-use marie_supervision::{ChildSpec, Restart, Shutdown, SupervisorError, SupervisorRef};
-use ractor::{ActorCell, ActorRef};
+use marie_supervision::{SupervisorError, SupervisorRef};
+use ractor::ActorCell;
 use std::path::Path;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::AtomicU64;
 use std::sync::Arc;
 use std::time::Duration;
-use tokio::sync::mpsc;
-use tree::{abort_on_give_up, DATAMANAGERS};
+use tree::DATAMANAGERS;
 
 /// What a node is built with besides its config: the operations it can build, the robot it
 /// drives, the clock its actors share.
@@ -142,6 +139,14 @@ pub enum NodeError {
     /// A datamanager refused or did not answer a request of the node itself.
     #[error("datamanager request failed: {0}")]
     Datamanager(#[from] DmError),
+    /// A fault of a run names nothing to hit (checked before the run starts).
+    #[error("--fault {spec}: {error}")]
+    Fault {
+        /// The fault, as written.
+        spec: String,
+        /// Why.
+        error: FaultError,
+    },
     /// A run was asked of a node whose config runs no dispatcher.
     #[error("node `{0}` runs no dispatcher (its config says `dispatcher = false`)")]
     NoDispatcher(String),
@@ -184,6 +189,8 @@ pub struct Node {
     starter: provisioner::Starter,
     robot: Option<Arc<dyn Robot>>,
     runs: AtomicU64,
+    /// Held while a mission runs: one run at a time.
+    one_run: tokio::sync::Mutex<()>,
 }
 
 impl Node {
@@ -231,6 +238,7 @@ impl Node {
             starter,
             robot: options.robot,
             runs: AtomicU64::new(0),
+            one_run: tokio::sync::Mutex::new(()),
         };
         // the runs are dispatched elsewhere: the robot tells what it sees without them
         if let (Some(robot), false) = (&node.robot, node.config.dispatcher) {
@@ -360,197 +368,8 @@ impl Node {
         }
     }
 
-    /// Run a mission and give its report: a mission file's text, a
-    /// [`MissionBuilder`](marie_actors::dispatcher::mission::MissionBuilder), a parsed or an already checked
-    /// [`Mission`]. Text and built missions are checked against the instances that run
-    /// first; a mission that does not fit is refused with its diagnostics
-    /// ([`NodeError::Mission`]).
-    ///
-    /// With a [`Robot`] the run is judged by the robot too ([`Robot::judge`]: for the
-    /// simulated cart, its final pose, collisions, seed and the world's verdict, which may
-    /// turn the dispatcher's success into a failure).
-    ///
-    /// ```
-    /// # use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
-    /// # use marie_actors::flags::{FlagDecl, StatusFlags};
-    /// # #[derive(Default)] struct Ping;
-    /// # impl Operation for Ping {
-    /// #     fn identity(&self) -> Identity { Identity::new("r-ping", 4400, "1.0.0", "pings") }
-    /// #     fn flags(&self) -> Vec<FlagDecl> { vec![FlagDecl::new("pinged", "it ran")] }
-    /// #     async fn step(&mut self, _: &mut OpContext) -> Result<Step, OpError> {
-    /// #         Ok(Step::Finish(StatusFlags(1)))
-    /// #     }
-    /// # }
-    /// use marie_cluster::node::{Node, NodeError};
-    /// # #[tokio::main] async fn main() -> Result<(), Box<dyn std::error::Error>> {
-    /// let node = Node::builder("runs").operation::<Ping>().start().await?;
-    /// let mission = "[mission]\nname = \"m\"\nsuccess = [\"pinged\"]\n[flags]\npinged = 0\n\
-    ///                [[action]]\nname = \"a\"\n[action.ops.r-ping]\n";
-    /// assert!(node.run(mission).await?.succeeded());
-    /// // a mission the running instances do not fit is refused with its diagnostics
-    /// let typo = mission.replace("[action.ops.r-ping]", "[action.ops.r-pong]");
-    /// let Err(NodeError::Mission(diags)) = node.run(typo).await else { panic!() };
-    /// assert!(diags.to_string().contains("r-pong"));
-    /// node.shutdown().await;
-    /// # Ok(()) }
-    /// ```
-    pub async fn run(&self, mission: impl Into<MissionInput>) -> Result<RunReport, NodeError> {
-        self.run_observed(mission, None).await
-    }
-
-    /// [`Node::run`], its progress events sent to `events` as they happen. The
-    /// [`DispatchEvent::Ended`] event carries the outcome after the robot's judgement.
-    pub async fn run_observed(
-        &self,
-        mission: impl Into<MissionInput>,
-        events: Option<mpsc::UnboundedSender<DispatchEvent>>,
-    ) -> Result<RunReport, NodeError> {
-        self.run_with_faults(mission, events, FaultPlan::default())
-            .await
-    }
-
-    /// [`Node::run`], injecting the faults of `plan` while the mission runs (fault-injection
-    /// tests of self-healing). The report lists what was injected in `faults`, and each
-    /// rebind in `rebinds`.
-    ///
-    /// ```
-    /// # use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
-    /// # use marie_actors::flags::{FlagDecl, StatusFlags};
-    /// # #[derive(Default)] struct Tick { n: u32 }
-    /// # impl Operation for Tick {
-    /// #     fn identity(&self) -> Identity { Identity::new("f-tick", 4401, "1.0.0", "ticks") }
-    /// #     fn flags(&self) -> Vec<FlagDecl> { vec![FlagDecl::new("ticked", "done")] }
-    /// #     fn period(&self) -> std::time::Duration { std::time::Duration::from_millis(10) }
-    /// #     async fn step(&mut self, _: &mut OpContext) -> Result<Step, OpError> {
-    /// #         self.n += 1;
-    /// #         Ok(if self.n >= 30 { Step::Finish(StatusFlags(1)) } else { Step::Continue })
-    /// #     }
-    /// # }
-    /// use marie_cluster::fault::FaultPlan;
-    /// use marie_cluster::node::Node;
-    /// # #[tokio::main] async fn main() -> Result<(), Box<dyn std::error::Error>> {
-    /// let node = Node::builder("faulty").operation::<Tick>().start().await?;
-    /// let mission = "[mission]\nname = \"m\"\nsuccess = [\"ticked\"]\n[flags]\nticked = 0\n\
-    ///                [[action]]\nname = \"a\"\n[action.ops.f-tick]\n";
-    /// // 0.1 s in, the operation panics: its supervisor restarts it, the mission is rebound
-    /// let plan = FaultPlan::from(vec!["panic:f-tick@0.1".parse()?]);
-    /// let report = node.run_with_faults(mission, None, plan).await?;
-    /// assert!(report.succeeded());
-    /// assert_eq!(report.rebinds.len(), 1);
-    /// node.shutdown().await;
-    /// # Ok(()) }
-    /// ```
-    pub async fn run_with_faults(
-        &self,
-        mission: impl Into<MissionInput>,
-        events: Option<mpsc::UnboundedSender<DispatchEvent>>,
-        plan: FaultPlan,
-    ) -> Result<RunReport, NodeError> {
-        let mission = self.resolve(mission.into()).await?;
-        // Pass every event on as it comes, but hold back `Ended` until the world has judged.
-        // The channel closes when the run's relay from the bus has finished (in `dispatch`),
-        // so the forwarder ends by itself once it has passed everything on.
-        let (inner, mut rx) = mpsc::unbounded_channel();
-        let outer = events.clone();
-        // what the fault injector knows of the run: bindings, the running action
-        let (view_tx, view) = tokio::sync::watch::channel(RunView::default());
-        let forwarder = tokio::spawn(async move {
-            while let Some(evt) = rx.recv().await {
-                view_tx.send_modify(|v| v.observe(&evt));
-                if let Some(outer) = &outer {
-                    if !matches!(evt, DispatchEvent::Ended { .. }) {
-                        let _ = outer.send(evt);
-                    }
-                }
-            }
-        });
-        let injector = Injector::start(plan, self.starter.clock.clone(), view, self.bus.clone());
-        let result = self.dispatch(mission, inner).await;
-        let faults = injector.finish();
-        let _ = forwarder.await;
-        let mut report = result?;
-        faults.into_report(&mut report);
-        if let Some(robot) = &self.robot {
-            robot.judge(&mut report).await;
-            self.bus.publish(EventKind::Judged {
-                outcome: report.outcome,
-                reason: report.reason.clone(),
-                final_pose: report.final_pose,
-                collisions: report.collisions,
-                seed: report.seed,
-                inside_goal: report.inside_goal,
-                judgement: report.judgement.clone(),
-                refused_commands: report.refused_commands.clone(),
-            });
-        }
-        if let Some(outer) = events {
-            let _ = outer.send(DispatchEvent::Ended {
-                outcome: report.outcome,
-                reason: report.reason.clone(),
-            });
-        }
-        Ok(report)
-    }
-
-    /// Run `mission` on a dispatcher started as a temporary child of the node's supervisor.
-    /// Should the operation supervisor give up (restart intensity exceeded) during the run,
-    /// the mission is aborted with a reason naming the operation that kept failing.
-    async fn dispatch(
-        &self,
-        mission: Mission,
-        events: mpsc::UnboundedSender<DispatchEvent>,
-    ) -> Result<RunReport, NodeError> {
-        if !self.config.dispatcher {
-            return Err(NodeError::NoDispatcher(self.config.name.clone()));
-        }
-        // the robot's world first, before the run's own events; the previous run's
-        // reporting ends first, so nothing is told twice
-        if let Some(robot) = &self.robot {
-            self.abort_run_tasks();
-            let tasks = robot.run_starting(&self.bus).await;
-            *self.run_tasks.lock().unwrap_or_else(|e| e.into_inner()) = tasks;
-        }
-        let n = self.runs.fetch_add(1, Ordering::Relaxed);
-        // the run's part of the node's events, relayed to the live lines
-        let relay = ProgressRelay::start(&self.bus, events);
-        let args = DispatcherArgs {
-            mission,
-            clock: self.starter.clock.clone(),
-            bus: self.bus.clone(),
-        };
-        let spec = ChildSpec::worker(format!("dispatcher-{n}"), move |sup| {
-            let args = args.clone();
-            async move {
-                Ok(dispatcher::spawn_dispatcher(args, Some(sup))
-                    .await?
-                    .get_cell())
-            }
-        })
-        .with_restart(Restart::Temporary)
-        .with_shutdown(Shutdown::Timeout(Duration::from_secs(1)));
-        // subscribe before the run starts, so no give-up goes unseen
-        let mut give_ups = Vec::new();
-        for sup in self.config.operation_supervisors() {
-            match self.child_supervisor(&sup.name).await {
-                Ok(s) => give_ups.push((sup.name, s.subscribe().await?)),
-                Err(e) => tracing::warn!("running without supervisor `{}`: {e}", sup.name),
-            }
-        }
-        let dispatcher: ActorRef<DispatcherMsg> = self.starter.root.start_child(spec).await?.into();
-        let guards: Vec<_> = give_ups
-            .into_iter()
-            .map(|(name, rx)| tokio::spawn(abort_on_give_up(name, rx, dispatcher.clone())))
-            .collect();
-        let report = dispatcher::request_run(&dispatcher).await;
-        relay.finish().await;
-        for guard in guards {
-            guard.abort();
-        }
-        Ok(report?)
-    }
-
     /// Abort the robot's reporting of the latest run.
-    fn abort_run_tasks(&self) {
+    pub(super) fn abort_run_tasks(&self) {
         let tasks = std::mem::take(&mut *self.run_tasks.lock().unwrap_or_else(|e| e.into_inner()));
         tasks.iter().for_each(tokio::task::JoinHandle::abort);
     }

@@ -12,12 +12,14 @@
 //! it can put what it sees *as it happens* into the node's one event stream
 //! ([`EventKind::Robot`](marie_actors::events::EventKind::Robot)) — a live monitor, or a
 //! replay of an events file, draws the robot from that stream alone, not from a picture made
-//! after the run.
+//! after the run. Its judgement of a run ([`Robot::judge`]) goes onto the same stream
+//! ([`EventKind::Judged`](marie_actors::events::EventKind::Judged)), and so into the report:
+//! what it says of itself is a [`RobotSection`] the framework carries without typing.
 
 use marie_actors::clock::SharedClock;
-use marie_actors::dispatcher::RunReport;
 use marie_actors::dm::NewRecord;
 use marie_actors::events::EventBus;
+use marie_actors::run::{Outcome, RobotSection};
 use marie_supervision::ChildSpec;
 use std::future::Future;
 use std::pin::Pin;
@@ -73,7 +75,21 @@ pub trait Robot: Send + Sync + 'static {
         Vec::new()
     }
 
-    /// Judge a finished run: fill the robot's part of `report` (final pose, collisions, seed,
-    /// verdict) and turn a success into a failure when the robot did not end where it should.
-    fn judge<'a>(&'a self, report: &'a mut RunReport) -> BoxFuture<'a, ()>;
+    /// Judge a run the dispatcher ended with `outcome` (and `reason`, on a failure): the
+    /// outcome after judgement — a success turned into a failure when the robot did not end
+    /// where it should — and what the robot says of the run (for the simulated cart: final
+    /// pose, collisions, seed, verdict), which the node publishes as the run's `judged`
+    /// event.
+    fn judge<'a>(&'a self, outcome: Outcome, reason: &'a str) -> BoxFuture<'a, RunJudgement>;
+}
+
+/// A robot's judgement of a run ([`Robot::judge`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct RunJudgement {
+    /// The outcome after judgement.
+    pub outcome: Outcome,
+    /// Why it failed (empty on success).
+    pub reason: String,
+    /// What the robot says of the run, written into the report beside its own fields.
+    pub robot: RobotSection,
 }

@@ -5,13 +5,13 @@
 //! | route | answer |
 //! |---|---|
 //! | `GET /` | the page (`/app.js`, `/style.css` beside it) |
-//! | `GET /api/info` | `{"mode": "live" \| "replay", "token_required": bool, "faults_allowed": bool, "offers": {"properties", "operation_faults", "stoppable_nodes"}}`: what the page may offer ([`Offers`]) |
+//! | `GET /api/info` | `{"mode": "live" \| "replay", "token_required": bool, "faults_allowed": bool, "offers": {"properties", "operation_faults", "stoppable_nodes"}, "fault_kinds": {"operation": [..], "node": [..]}}`: what the page may offer ([`Offers`]), and the fault kinds by what they aim at (the page draws a button per kind) |
 //! | `GET /api/state` | the state now (live) or after the whole run (replay), JSON |
 //! | `GET /api/live` | live only: server-sent events — `snapshot` (the state), then `state` on each change (at most 10 a second), `lagged` (`{"missed": n}`) then `snapshot` after a viewer fell behind |
 //! | `GET /api/replay/info` | replay only: `{"events", "start_ms", "end_ms", "duration_ms"}` |
 //! | `GET /api/replay/state?at_ms=T` | replay only: the state after every event up to T |
 //! | `GET /api/props?operation=NAME&node=N&address=A` | live, with a [`Control`]: the operation's properties, asked of it now (404: not running; 502: it did not answer) |
-//! | `POST /api/fault` | live, with a [`Control`] and faults allowed: a [`FaultRequest`] as JSON (`Content-Type: application/json`); 200 `{"done": "…"}`, 403 when faults are not allowed, 404 when the target is gone |
+//! | `POST /api/fault` | live, with a [`Control`] and faults allowed: a [`FaultRequest`] as JSON (`Content-Type: application/json`); 200 `{"done": "…"}`, 403 when faults are not allowed, 404 when the target is gone, 422 for an unknown kind or one that aims at something else |
 //!
 //! Why a fault needs `application/json`: a cross-site page cannot send that content type
 //! without the browser asking first (a CORS preflight, which the monitor never grants), so a
@@ -37,6 +37,7 @@ use axum::Json;
 use axum::Router;
 use live::{Feed, Live};
 use marie_actors::events::EventBus;
+use marie_actors::run::{Aim, FaultKind};
 use replay::Replay;
 use serde::Deserialize;
 use std::net::SocketAddr;
@@ -376,6 +377,10 @@ async fn info(State(app): State<Shared>) -> Response {
         "token_required": app.token.is_some(),
         "faults_allowed": app.allow_faults && app.live_control().is_some(),
         "offers": app.offers(),
+        "fault_kinds": {
+            "operation": FaultKind::aiming_at(Aim::Operation).collect::<Vec<_>>(),
+            "node": FaultKind::aiming_at(Aim::Node).collect::<Vec<_>>(),
+        },
     }))
 }
 
@@ -417,6 +422,12 @@ async fn fault(State(app): State<Shared>, Json(request): Json<FaultRequest>) -> 
         return refused(
             StatusCode::FORBIDDEN,
             "faults from the page are off: start the monitor with --allow-faults",
+        );
+    }
+    if !request.fits() {
+        return refused(
+            StatusCode::UNPROCESSABLE_ENTITY,
+            format!("a {} fault does not aim at that", request.fault),
         );
     }
     tracing::warn!(?request, "fault asked from the monitor's page");

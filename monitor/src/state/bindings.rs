@@ -6,9 +6,9 @@
 //! their schemas and flags — the properties a click opens), the start-up binding, each
 //! action's activations, and the losses and rebinds.
 
-use marie_actors::dispatcher::selection::{Candidate, Choice};
-use marie_actors::dispatcher::{LossCause, RebindRecord};
 use marie_actors::events::{BoundOp, OpStarted};
+use marie_actors::run::{Candidate, Choice};
+use marie_actors::run::{LossCause, RebindRecord};
 use serde::Serialize;
 use std::collections::BTreeMap;
 

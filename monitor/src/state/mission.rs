@@ -4,8 +4,8 @@
 //! The tree comes from [`EventKind::RunStarted`](marie_actors::events::EventKind::RunStarted)'s plan; a stream without one (an older
 //! file, a monitor that joined mid-run) still shows every action it sees start.
 
-use marie_actors::dispatcher::{OpEnd, Outcome};
 use marie_actors::events::{ActionPlan, OpStarted};
+use marie_actors::run::{OpEnd, Outcome};
 use serde::Serialize;
 
 /// Where an action is in its run.

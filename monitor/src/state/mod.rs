@@ -20,8 +20,8 @@ pub mod timeline;
 
 use bindings::Bindings;
 use cluster::Cluster;
-use marie_actors::dispatcher::Outcome;
 use marie_actors::events::{Event, EventKind};
+use marie_actors::run::{Aim, Outcome};
 use mission::MissionView;
 use robot::RobotView;
 use serde::Serialize;
@@ -119,17 +119,19 @@ impl MonitorState {
             EventKind::Judged {
                 outcome,
                 reason,
-                final_pose,
-                collisions,
-                judgement,
-                ..
+                robot,
             } => {
+                // what marie's simulated robot says of a run, by its documented keys
+                // (another robot's may lack them)
+                let key = |k: &str| robot.get(k).cloned().unwrap_or_default();
+                let judgement: Option<String> =
+                    serde_json::from_value(key("judgement")).ok().flatten();
                 self.mission.judged(
                     *outcome,
                     reason,
                     judgement.as_deref(),
-                    *final_pose,
-                    *collisions,
+                    serde_json::from_value(key("final_pose")).ok().flatten(),
+                    serde_json::from_value(key("collisions")).ok().flatten(),
                 );
                 line.push(at, node, "run", ended_text("judged", *outcome, reason));
             }
@@ -202,7 +204,10 @@ impl MonitorState {
                 at,
                 node,
                 "fault",
-                format!("{fault} injected into {operation} ({actor})"),
+                match fault.aim() {
+                    Aim::Operation => format!("{fault} injected into {operation} ({actor})"),
+                    Aim::Node => format!("{node} did {fault} to {operation} ({actor})"),
+                },
             ),
             EventKind::FaultNotInjected {
                 fault,
@@ -241,12 +246,6 @@ impl MonitorState {
                     format!("{node} was frozen {silent_ms} ms: restarts its operations"),
                 );
             }
-            EventKind::NodeKilled { peer, pid } => line.push(
-                at,
-                node,
-                "fault",
-                format!("{node} killed {peer}'s process (pid {pid})"),
-            ),
             EventKind::NodeRefused { peer, theirs, ours } => line.push(
                 at,
                 node,

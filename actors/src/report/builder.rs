@@ -1,15 +1,20 @@
-//! Assembling a [`RunReport`] from events: the dispatcher feeds every event it publishes to
-//! a [`ReportBuilder`] and sends the report the builder holds, so a report replayed from the
-//! event stream ([`RunReport::from_events`]) equals the one the dispatcher sent.
+//! Assembling a [`RunReport`] from events: a [`ReportBuilder`] folds the events of one run.
+//! A node attaches one to its bus for each run ([`ReportBuilder::attach`]: a
+//! [`Tap`](crate::events::Tap), so it sees every event, in order), and
+//! [`RunReport::from_events`] folds an events file the same way — so the report a run wrote
+//! equals the one rebuilt from its events.
 //!
 //! # Invariants
-//! - Only the events decide the report: no other input, no clock.
+//! - Only the events decide the report: no other input, no clock. Times are the events'
+//!   own: a fault's time is its stamp less the run's start (`run_started`'s stamp), whoever
+//!   injected it.
 //! - Bounded: rebinds and faults go through [`RunReport::record_rebind`] /
 //!   [`RunReport::record_faults`] (the latest [`REPORT_KEEPS`](super::REPORT_KEEPS)).
 
-use super::report::{ActionRecord, OpEnd, OpRecord, Outcome, RunReport};
-use super::FaultRecord;
-use crate::events::{Event, EventKind};
+use super::{ActionRecord, FaultRecord, OpRecord, RunReport};
+use crate::events::{Event, EventBus, EventKind, Tap};
+use crate::run::{OpEnd, Outcome};
+use std::sync::{Arc, Mutex};
 
 /// A run report being assembled from the events of one run.
 #[derive(Clone, Debug)]
@@ -17,6 +22,8 @@ pub struct ReportBuilder {
     report: RunReport,
     /// The action that started and has not ended.
     open: Option<OpenAction>,
+    /// The stamp of the run's `run_started`: where its times count from.
+    start_ms: Option<u64>,
 }
 
 /// An action that started and has not ended.
@@ -40,17 +47,29 @@ impl ReportBuilder {
         ReportBuilder {
             report: RunReport::new("", Outcome::Failed, "the run has not ended"),
             open: None,
+            start_ms: None,
         }
+    }
+
+    /// Fold every event `bus` publishes from now on into a new builder, until the returned
+    /// [`AttachedReport`] is finished: the report of the run that runs on the bus
+    /// meanwhile.
+    pub fn attach(bus: &EventBus) -> AttachedReport {
+        let builder = Arc::new(Mutex::new(ReportBuilder::new()));
+        let fold = builder.clone();
+        let tap = bus.tap(move |event| lock(&fold).apply(event));
+        AttachedReport { builder, tap }
     }
 
     /// Take one event into account. Kinds that a report does not show (registry,
     /// supervisors, generic robot events) change nothing; a [`EventKind::RunStarted`]
     /// starts a new report.
-    pub fn apply(&mut self, kind: &EventKind) {
-        match kind {
+    pub fn apply(&mut self, event: &Event) {
+        match &event.kind {
             EventKind::RunStarted { mission, .. } => {
                 *self = ReportBuilder::new();
                 self.report.mission = mission.clone();
+                self.start_ms = Some(event.at_ms);
             }
             EventKind::Selected { choice } => self.report.selection.push(choice.clone()),
             EventKind::ActionStarted {
@@ -125,47 +144,52 @@ impl ReportBuilder {
                 self.report.duration_ms = *run_ms;
             }
             EventKind::FaultInjected {
-                run_ms,
                 fault,
                 operation,
                 actor,
-            } => self.report.record_faults([FaultRecord {
-                at_ms: *run_ms,
-                fault: *fault,
-                operation: operation.clone(),
-                actor: actor.clone(),
-                error: None,
-            }]),
+                node,
+                due_ms: _,
+            } => {
+                let at_ms = self.run_ms(event);
+                self.report.record_faults([FaultRecord {
+                    at_ms,
+                    fault: *fault,
+                    operation: operation.clone(),
+                    actor: actor.clone(),
+                    node: node.clone(),
+                    error: None,
+                }])
+            }
             EventKind::FaultNotInjected {
-                run_ms,
                 fault,
                 operation,
                 why,
-            } => self.report.record_faults([FaultRecord {
-                at_ms: *run_ms,
-                fault: *fault,
-                operation: operation.clone(),
-                actor: String::new(),
-                error: Some(why.clone()),
-            }]),
+                due_ms,
+            } => {
+                // a planned one is reported at the time it was due (the run may have
+                // ended before it)
+                let at_ms = due_ms.unwrap_or_else(|| self.run_ms(event));
+                self.report.record_faults([FaultRecord {
+                    at_ms,
+                    fault: *fault,
+                    operation: operation.clone(),
+                    actor: String::new(),
+                    node: None,
+                    error: Some(why.clone()),
+                }])
+            }
             EventKind::Judged {
                 outcome,
                 reason,
-                final_pose,
-                collisions,
-                seed,
-                inside_goal,
-                judgement,
-                refused_commands,
+                robot,
             } => {
                 self.report.outcome = *outcome;
                 self.report.reason = reason.clone();
-                self.report.final_pose = *final_pose;
-                self.report.collisions = *collisions;
-                self.report.seed = *seed;
-                self.report.inside_goal = *inside_goal;
-                self.report.judgement = judgement.clone();
-                self.report.refused_commands = refused_commands.clone();
+                self.report.robot = robot
+                    .iter()
+                    .filter(|(key, _)| !RunReport::OWN_KEYS.contains(&key.as_str()))
+                    .map(|(k, v)| (k.clone(), v.clone()))
+                    .collect();
             }
             EventKind::Bound { .. }
             | EventKind::Lost { .. }
@@ -180,11 +204,16 @@ impl ReportBuilder {
             | EventKind::NodeLost { .. }
             | EventKind::NodeDown { .. }
             | EventKind::NodeFrozen { .. }
-            | EventKind::NodeKilled { .. }
             | EventKind::NodeRefused { .. }
             | EventKind::ConnectionRefused { .. }
             | EventKind::Robot { .. } => {}
         }
+    }
+
+    /// Mission time of `event` since the run began, in ms (0 before a run began).
+    fn run_ms(&self, event: &Event) -> u64 {
+        self.start_ms
+            .map_or(0, |start| event.at_ms.saturating_sub(start))
     }
 
     /// The report as the events so far make it.
@@ -233,8 +262,33 @@ impl RunReport {
     pub fn from_events<'a>(events: impl IntoIterator<Item = &'a Event>) -> RunReport {
         let mut builder = ReportBuilder::new();
         for event in events {
-            builder.apply(&event.kind);
+            builder.apply(event);
         }
         builder.finish()
     }
+}
+
+/// A [`ReportBuilder`] attached to a bus ([`ReportBuilder::attach`]).
+#[derive(Debug)]
+pub struct AttachedReport {
+    builder: Arc<Mutex<ReportBuilder>>,
+    tap: Tap,
+}
+
+impl AttachedReport {
+    /// The report as the events so far make it.
+    pub fn report(&self) -> RunReport {
+        lock(&self.builder).report().clone()
+    }
+
+    /// Detach from the bus and give the report.
+    pub fn finish(self) -> RunReport {
+        drop(self.tap);
+        let builder = std::mem::take(&mut *lock(&self.builder));
+        builder.finish()
+    }
+}
+
+fn lock(builder: &Mutex<ReportBuilder>) -> std::sync::MutexGuard<'_, ReportBuilder> {
+    builder.lock().unwrap_or_else(|e| e.into_inner())
 }

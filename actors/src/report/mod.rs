@@ -1,70 +1,31 @@
-//! The run report (DESIGN.md §8): what happened during a mission, as JSON.
+//! The run report: what happened during a mission, as JSON — the fold of the run's events.
+//!
+//! A [`RunReport`] is made by one thing only: a [`ReportBuilder`] folded over the events of
+//! one run, in the order they were published. A node folds its bus while it runs a mission
+//! ([`ReportBuilder::attach`]), and [`RunReport::from_events`] folds an events file, so the
+//! report a run wrote and the one rebuilt from its events are equal by construction.
+//!
+//! The report is generic: it knows the dispatcher's actions, bindings, rebinds, faults and
+//! choices, and carries what a robot said of the run as an untyped section
+//! ([`RunReport::robot`], written as top-level keys: for marie's simulated cart
+//! `final_pose`, `collisions`, `seed`, `inside_goal`, `judgement`, `refused_commands`).
 //!
 //! # Invariant: bounded
 //! A long run (a chaos test, a robot on duty for days) keeps bounded memory: the report
 //! keeps the counts `rebinds_total` and `faults_total` and only the latest [`REPORT_KEEPS`]
 //! rebinds and faults; the full history is on the event stream ([`crate::events`]).
 
-use super::loss::LossCause;
-use crate::eo::FaultKind;
+mod builder;
+
+pub use builder::{AttachedReport, ReportBuilder};
+
+use crate::run::{Choice, FaultKind, OpEnd, Outcome, RebindRecord, RobotSection};
 use serde::{Deserialize, Serialize};
-use std::collections::BTreeMap;
-use std::fmt;
 
 /// How many of the latest rebinds, and of the latest faults, a report keeps (older ones are
 /// only counted). 100 covers every ordinary run in full and keeps a report of a long chaos
 /// run small enough to read.
 pub const REPORT_KEEPS: usize = 100;
-
-/// How a mission ended.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Outcome {
-    /// Every action ran and the success flags are set.
-    Succeeded,
-    /// Full stop: a stage failed, a deadline passed, or no action could run.
-    Failed,
-}
-
-/// How an operation's part in an action ended. Serialized as its snake_case name
-/// (`finished`, `suspended`, …), the values reports have always carried.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum OpEnd {
-    /// Still running (the action has not ended, e.g. a report written at a full stop).
-    Running,
-    /// It reported that its task is done.
-    Finished,
-    /// It was suspended (its action ended on other operations), or suspended by another
-    /// party — then the run failed.
-    Suspended,
-    /// It reported a failure, refused its parameters, or is bound by another dispatcher.
-    Failed,
-    /// Its instance was lost and no stand-in finished its part.
-    Lost,
-    /// It did not report within the suspension grace.
-    Unresponsive,
-}
-
-impl OpEnd {
-    /// The stable name, as serialized.
-    pub fn name(self) -> &'static str {
-        match self {
-            OpEnd::Running => "running",
-            OpEnd::Finished => "finished",
-            OpEnd::Suspended => "suspended",
-            OpEnd::Failed => "failed",
-            OpEnd::Lost => "lost",
-            OpEnd::Unresponsive => "unresponsive",
-        }
-    }
-}
-
-impl fmt::Display for OpEnd {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
-    }
-}
 
 /// One operation's part in an action.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -102,33 +63,6 @@ pub struct ActionRecord {
     pub operations: Vec<OpRecord>,
 }
 
-/// A rebinding of an operation to another instance (filled by self-healing).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct RebindRecord {
-    /// Operation name.
-    pub operation: String,
-    /// Why the old instance was left.
-    pub cause: LossCause,
-    /// Old instance address.
-    pub from: String,
-    /// New instance address.
-    pub to: String,
-    /// The node the old instance ran on (empty in reports written before nodes were
-    /// recorded).
-    #[serde(default)]
-    pub from_node: String,
-    /// The node the new instance runs on.
-    #[serde(default)]
-    pub to_node: String,
-    /// Time without a bound instance.
-    pub downtime_ms: u64,
-    /// The binding's epoch from the rebind on: every command of the stand-in carries it,
-    /// and receivers refuse the lost instance's older one (0 in reports written before it
-    /// was recorded).
-    #[serde(default)]
-    pub epoch: u64,
-}
-
 /// The whole report.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RunReport {
@@ -151,30 +85,11 @@ pub struct RunReport {
     pub rebinds_total: u64,
     /// Mission clock time the run took, in ms.
     pub duration_ms: u64,
-    /// Final pose `[x, y, heading]` of a robot, where the mission drives one: metres, and the
-    /// heading in radians.
-    #[serde(default)]
-    pub final_pose: Option<[f64; 3]>,
-    /// Collisions counted by a simulation, where there is one.
-    #[serde(default)]
-    pub collisions: Option<u64>,
-    /// Seed of a simulation, where there is one.
-    #[serde(default)]
-    pub seed: Option<u64>,
-    /// Whether the robot's footprint ended inside the world's goal area, where there is a
-    /// simulated robot in a world with a goal area.
-    #[serde(default)]
-    pub inside_goal: Option<bool>,
-    /// The world's verdict on the robot's final state (e.g. `success: inside the goal area,
-    /// heading error 2.1°, 0 collision(s)`), where there is a simulated robot.
-    #[serde(default)]
-    pub judgement: Option<String>,
-    /// Commands the robot's drivers refused because they came from a replaced incarnation
-    /// of an operation (an older epoch than its stand-in's: fencing, [`crate::fence`]), by
-    /// operation name, where a simulated robot's cart told — e.g. a wall follower on a
-    /// node cut off from the dispatcher, still driving after its binding moved.
-    #[serde(default)]
-    pub refused_commands: Option<BTreeMap<String, u64>>,
+    /// What a robot said of the run ([`RobotSection`]; empty without a robot). Its keys
+    /// are written beside the report's own (a key of the report's own is never
+    /// overwritten: the builder drops it).
+    #[serde(flatten)]
+    pub robot: RobotSection,
     /// The latest [`REPORT_KEEPS`] faults injected on purpose during the run
     /// (fault-injection tests, `--fault`, `--chaos`), oldest first.
     #[serde(default)]
@@ -185,26 +100,50 @@ pub struct RunReport {
     /// How each operation's instance was chosen: the candidates and their verdicts
     /// ([`crate::dispatcher::selection`]).
     #[serde(default)]
-    pub selection: Vec<crate::dispatcher::selection::Choice>,
+    pub selection: Vec<Choice>,
 }
 
-/// A fault injected during a run.
+/// A fault injected (or tried) during a run, from any source: a plan, chaos, the monitor's
+/// page, `marie kill`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct FaultRecord {
-    /// When, in ms of mission clock time since the run began.
+    /// When, in ms of mission clock time since the run began: when it was injected or
+    /// found impossible — or, for a planned fault the run ended before, when it was due.
     pub at_ms: u64,
     /// What was injected.
     pub fault: FaultKind,
-    /// The operation it was meant for (name or id, as asked).
+    /// What it was meant for, as asked: an operation (`NAME`, `ID`, `NAME#VERSION`, an
+    /// actor id) or, for a node fault, the node's name.
     pub operation: String,
-    /// The instance that got it; empty if none did.
+    /// The instance that got it (its address), or for a node fault the process (`pid N`);
+    /// empty if none did.
     pub actor: String,
+    /// The node it landed on, where known.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub node: Option<String>,
     /// Why it could not be injected, if it could not.
     #[serde(default)]
     pub error: Option<String>,
 }
 
 impl RunReport {
+    /// The report's own JSON keys: a robot's section cannot take them.
+    pub const OWN_KEYS: [&'static str; 13] = [
+        "mission",
+        "outcome",
+        "reason",
+        "status",
+        "flags",
+        "actions",
+        "rebinds",
+        "rebinds_total",
+        "duration_ms",
+        "faults",
+        "faults_total",
+        "selection",
+        "robot",
+    ];
+
     /// The report of mission `mission` that ended with `outcome` for `reason`, before any
     /// action, rebind, fault or judgement is recorded in it.
     pub fn new(mission: impl Into<String>, outcome: Outcome, reason: impl Into<String>) -> Self {
@@ -218,13 +157,8 @@ impl RunReport {
             rebinds: Vec::new(),
             rebinds_total: 0,
             duration_ms: 0,
-            final_pose: None,
-            collisions: None,
-            seed: None,
-            inside_goal: None,
-            judgement: None,
-            refused_commands: None,
             selection: Vec::new(),
+            robot: RobotSection::new(),
             faults: Vec::new(),
             faults_total: 0,
         }
@@ -262,6 +196,7 @@ fn keep_latest<T>(list: &mut Vec<T>, item: T) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::run::LossCause;
 
     #[test]
     fn reports_without_the_robot_fields_still_read() {
@@ -269,15 +204,18 @@ mod tests {
                        "actions":[],"rebinds":[],"duration_ms":5}"#;
         let report: RunReport = serde_json::from_str(json).expect("an older report reads");
         assert_eq!(report.outcome, Outcome::Failed);
-        assert_eq!(
-            (report.final_pose, report.collisions, report.seed),
-            (None, None, None)
-        );
-        assert_eq!(
-            (report.inside_goal, report.judgement.as_deref()),
-            (None, None)
-        );
-        assert_eq!(report.refused_commands, None);
+        // no robot said anything of it: its section is empty, none of a robot's keys is set
+        for key in [
+            "final_pose",
+            "collisions",
+            "seed",
+            "inside_goal",
+            "judgement",
+            "refused_commands",
+        ] {
+            assert_eq!(report.robot.get(key), None, "{key}");
+        }
+        assert!(report.robot.is_empty());
         let round: RunReport =
             serde_json::from_str(&serde_json::to_string(&report).expect("writes")).expect("reads");
         assert_eq!(round, report);
@@ -319,21 +257,20 @@ mod tests {
             }],
             rebinds_total: 1,
             duration_ms: 10,
-            final_pose: None,
-            collisions: None,
-            seed: None,
-            inside_goal: None,
-            judgement: None,
-            refused_commands: None,
             selection: Vec::new(),
             faults: vec![FaultRecord {
                 at_ms: 2,
                 fault: FaultKind::Hang,
                 operation: "op".into(),
                 actor: "0.2".into(),
+                node: Some("local".into()),
                 error: None,
             }],
             faults_total: 1,
+            robot: serde_json::json!({"final_pose": [1.0, 2.0, 0.5], "collisions": 0})
+                .as_object()
+                .cloned()
+                .unwrap_or_default(),
         };
         let json: serde_json::Value = serde_json::to_value(&report).expect("writes");
         assert_eq!(json["outcome"], "succeeded");
@@ -341,6 +278,10 @@ mod tests {
         assert_eq!(json["faults"][0]["fault"], "hang");
         assert_eq!(json["rebinds"][0]["cause"]["type"], "hung");
         assert_eq!(json["rebinds"][0]["cause"]["deadline_ms"], 300);
+        // the robot's section is written beside the report's own keys
+        assert_eq!(json["final_pose"][1], 2.0);
+        assert_eq!(json["collisions"], 0);
+        assert!(json.get("robot").is_none());
         let back: RunReport = serde_json::from_value(json).expect("reads");
         assert_eq!(back, report);
     }
@@ -370,6 +311,7 @@ mod tests {
             fault: FaultKind::Kill,
             operation: "op".into(),
             actor: String::new(),
+            node: None,
             error: None,
         }));
         assert_eq!((report.rebinds_total, report.faults_total), (1000, 250));

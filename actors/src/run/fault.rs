@@ -1,0 +1,138 @@
+//! The faults marie injects on purpose, as one vocabulary: what `--fault`, `--chaos`,
+//! `marie kill` and the monitor's page ask for, what an operation's host commits, and what
+//! the run's events and report record.
+//!
+//! Adding a kind is a variant here (its name, what it aims at) plus its behaviour where it
+//! is done: an operation's host for the operation kinds (`eo/host.rs`), the node-process
+//! table for the node kinds (`marie_cluster::fault`). Everything that parses, offers,
+//! resolves, publishes and reports faults reads this enum.
+
+use serde::{Deserialize, Serialize};
+use std::fmt;
+use std::str::FromStr;
+
+/// What is done, on purpose, to test self-healing. Serialized as its [`name`](Self::name)
+/// (`kill`, `panic`, `hang`, `stop-node`) — stable names, read back by reports and
+/// event files.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum FaultKind {
+    /// Kill the operation instance's actor: no cooperation needed, its supervisor sees an
+    /// abnormal exit.
+    Kill,
+    /// Make the instance's host panic in its message handler: its supervisor sees a
+    /// failure.
+    Panic,
+    /// Make the instance's host stop answering: only a kill ends it, which is what a
+    /// dispatcher does once the operation misses its answer deadline.
+    Hang,
+    /// Kill a node's process (`SIGKILL`, as a crash would): its peers lose it, their
+    /// failure detectors declare it down, the dispatcher rebinds to survivors. Only a
+    /// process that started the node can do it (`marie up`).
+    StopNode,
+}
+
+/// What a fault aims at: an operation instance or a node's process.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Aim {
+    /// An operation instance (named as `NAME`, `ID`, `NAME#VERSION`, an actor id, or an
+    /// instance on a node).
+    Operation,
+    /// A node, by name.
+    Node,
+}
+
+impl FaultKind {
+    /// Every kind, in a stable order.
+    pub const ALL: [FaultKind; 4] = [
+        FaultKind::Kill,
+        FaultKind::Panic,
+        FaultKind::Hang,
+        FaultKind::StopNode,
+    ];
+
+    /// The stable name: the serialized form and what `--fault` accepts.
+    pub fn name(self) -> &'static str {
+        match self {
+            FaultKind::Kill => "kill",
+            FaultKind::Panic => "panic",
+            FaultKind::Hang => "hang",
+            FaultKind::StopNode => "stop-node",
+        }
+    }
+
+    /// What it aims at.
+    pub fn aim(self) -> Aim {
+        match self {
+            FaultKind::Kill | FaultKind::Panic | FaultKind::Hang => Aim::Operation,
+            FaultKind::StopNode => Aim::Node,
+        }
+    }
+
+    /// The kinds that aim at `aim`, in [`ALL`](Self::ALL)'s order.
+    pub fn aiming_at(aim: Aim) -> impl Iterator<Item = FaultKind> {
+        FaultKind::ALL.into_iter().filter(move |k| k.aim() == aim)
+    }
+}
+
+impl fmt::Display for FaultKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A fault name that is none of [`FaultKind::ALL`] (e.g. in a `--fault` spec).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("unknown fault `{0}` (expected {names})", names = names())]
+pub struct UnknownFault(pub String);
+
+/// `kill, panic, hang or stop-node`.
+fn names() -> String {
+    let names: Vec<&str> = FaultKind::ALL.iter().map(|k| k.name()).collect();
+    match names.split_last() {
+        Some((last, rest)) if !rest.is_empty() => format!("{} or {last}", rest.join(", ")),
+        _ => names.join(""),
+    }
+}
+
+impl FromStr for FaultKind {
+    type Err = UnknownFault;
+
+    /// Parse a name a user typed (a command-line flag); reports and events are read with
+    /// serde instead.
+    fn from_str(s: &str) -> Result<Self, UnknownFault> {
+        FaultKind::ALL
+            .into_iter()
+            .find(|k| k.name() == s)
+            .ok_or_else(|| UnknownFault(s.to_string()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_parse_display_and_serialize_alike() {
+        for kind in FaultKind::ALL {
+            assert_eq!(kind.to_string().parse::<FaultKind>(), Ok(kind));
+            let json = serde_json::to_string(&kind).unwrap();
+            assert_eq!(json, format!("\"{kind}\""));
+            assert_eq!(serde_json::from_str::<FaultKind>(&json).unwrap(), kind);
+            let bytes = rmp_serde::to_vec_named(&kind).unwrap();
+            assert_eq!(rmp_serde::from_slice::<FaultKind>(&bytes).unwrap(), kind);
+        }
+        assert_eq!(
+            "boom".parse::<FaultKind>().unwrap_err().to_string(),
+            "unknown fault `boom` (expected kill, panic, hang or stop-node)"
+        );
+    }
+
+    #[test]
+    fn each_kind_aims_at_an_operation_or_a_node() {
+        let ops: Vec<FaultKind> = FaultKind::aiming_at(Aim::Operation).collect();
+        assert_eq!(ops, [FaultKind::Kill, FaultKind::Panic, FaultKind::Hang]);
+        let nodes: Vec<FaultKind> = FaultKind::aiming_at(Aim::Node).collect();
+        assert_eq!(nodes, [FaultKind::StopNode]);
+    }
+}

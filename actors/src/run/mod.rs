@@ -1,0 +1,36 @@
+//! A run's vocabulary: how a run and an operation's part end ([`Outcome`], [`OpEnd`]), why
+//! an instance was lost ([`LossCause`]), a rebind ([`RebindRecord`]), a choice among
+//! instances ([`Choice`]), the faults injected on purpose ([`FaultKind`]) and what a robot
+//! says of a run ([`RobotSection`]).
+//!
+//! Why a module of its own: these are the words both the event stream ([`crate::events`])
+//! and the dispatcher ([`crate::dispatcher`]) speak, and the report ([`crate::report`]) is
+//! written in. Kept below all three, they make one layering — `run` ← `events` ← `report`,
+//! and `dispatcher` above them — with no module importing one above it (checked by
+//! `actors/tests/layers.rs`). Every type here is plain serializable data under stable names.
+//!
+//! ```
+//! use marie_actors::run::{FaultKind, LossCause, Outcome};
+//! assert_eq!(serde_json::to_string(&Outcome::Succeeded).unwrap(), "\"succeeded\"");
+//! assert_eq!("stop-node".parse::<FaultKind>(), Ok(FaultKind::StopNode));
+//! assert_eq!(LossCause::Killed.to_string(), "died: killed");
+//! ```
+
+mod choice;
+mod fault;
+mod loss;
+mod outcome;
+mod rebind;
+
+pub use choice::{Candidate, Choice, Verdict};
+pub use fault::{Aim, FaultKind, UnknownFault};
+pub use loss::LossCause;
+pub use outcome::{OpEnd, Outcome};
+pub use rebind::RebindRecord;
+
+/// What a robot said of a run — its judgement beside the dispatcher's (for marie's
+/// simulated cart: where it ended, collisions, the seed, whether it ended in the goal area,
+/// the world's verdict, the commands its drivers refused by epoch) — as JSON fields this
+/// crate does not type: it knows no robot. The `judged` event carries it and the report
+/// writes it beside its own fields.
+pub type RobotSection = serde_json::Map<String, serde_json::Value>;

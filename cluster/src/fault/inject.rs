@@ -1,0 +1,294 @@
+//! The road every fault takes: an [`Injector`] resolves a target, does the fault, and tells
+//! the node's bus what became of it.
+
+use super::processes::NodeProcesses;
+use super::resolve::{resolve, Hit, RunBindings};
+use super::target::Target;
+use super::{FaultError, FaultSpec};
+use marie_actors::eo::EoClient;
+use marie_actors::events::{EventBus, EventKind, Tap};
+use marie_actors::registry::{self, Instance, ModuleKind};
+use marie_actors::run::{Aim, FaultKind};
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::Duration;
+use tokio::sync::watch;
+
+/// What was done, to whom.
+#[derive(Clone, Debug)]
+pub struct Injected {
+    /// The fault.
+    pub kind: FaultKind,
+    /// The target, as asked.
+    pub target: Target,
+    /// What got it.
+    pub hit: Hit,
+}
+
+impl Injected {
+    /// What got it, as events and reports name it: an instance's address, or a node's
+    /// process as `pid N`.
+    pub fn victim(&self) -> String {
+        match &self.hit {
+            Hit::Instance(inst) => inst.actor.get_id().to_string(),
+            Hit::Process { pid, .. } => format!("pid {pid}"),
+        }
+    }
+}
+
+/// Injects faults for one process, and tells its node's bus: the one road of `--fault`,
+/// `--chaos`, `marie kill` and the monitor's page.
+///
+/// It resolves a [`Target`] against the registry, the bindings of the run it follows (see
+/// [`following_runs`](Self::following_runs): a plain name then means the instance the
+/// mission bound, through its rebinds) and the node processes it may stop; does the fault
+/// ([`inject_into`] for an operation, `SIGKILL` for a node's process); and publishes
+/// `fault_injected` — or `fault_not_injected` and why — so every fault, whatever its
+/// source, is in the run's events and report. Cheap to clone; clones share what they
+/// follow.
+///
+/// ```
+/// use marie_actors::clock::RealClock;
+/// use marie_actors::events::EventBus;
+/// use marie_actors::run::FaultKind;
+/// use marie_cluster::fault::{Injector, Target};
+/// # #[tokio::main(flavor = "current_thread")] async fn main() {
+/// let bus = EventBus::new("doc", RealClock::shared());
+/// let injector = Injector::new(&bus);
+/// // only a process that started nodes may stop one
+/// assert!(injector.offers().contains(&FaultKind::Kill));
+/// assert!(!injector.offers().contains(&FaultKind::StopNode));
+/// let err = injector.inject(FaultKind::Kill, &Target::Bound("nobody".into())).await.unwrap_err();
+/// assert!(err.to_string().contains("no operation `nobody` is running"), "{err}");
+/// # }
+/// ```
+#[derive(Clone)]
+pub struct Injector {
+    bus: EventBus,
+    processes: NodeProcesses,
+    run: Option<Arc<Following>>,
+}
+
+/// The run an injector follows: its bindings, kept by a tap on the bus.
+struct Following {
+    bindings: Arc<Mutex<RunBindings>>,
+    bound: watch::Receiver<bool>,
+    _tap: Tap,
+}
+
+impl std::fmt::Debug for Injector {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Injector")
+            .field("bus", &self.bus)
+            .field("processes", &self.processes)
+            .field("follows_runs", &self.run.is_some())
+            .finish()
+    }
+}
+
+impl Injector {
+    /// An injector that tells `bus`, stops no node process and follows no run.
+    pub fn new(bus: &EventBus) -> Injector {
+        Injector {
+            bus: bus.clone(),
+            processes: NodeProcesses::default(),
+            run: None,
+        }
+    }
+
+    /// May stop these node processes (`marie up`'s children).
+    pub fn with_processes(mut self, processes: NodeProcesses) -> Injector {
+        self.processes = processes;
+        self
+    }
+
+    /// Follow the runs on the bus from now on: a plain name (`NAME`, `ID`) then means the
+    /// instance the latest run bound for that operation (after a rebind, its stand-in).
+    pub fn following_runs(mut self) -> Injector {
+        let bindings = Arc::new(Mutex::new(RunBindings::default()));
+        let (tell, bound) = watch::channel(false);
+        let fold = bindings.clone();
+        let tap = self.bus.tap(move |event| {
+            let mut b = lock(&fold);
+            b.observe(&event.kind);
+            tell.send_if_modified(|was| std::mem::replace(was, b.bound()) != b.bound());
+        });
+        self.run = Some(Arc::new(Following {
+            bindings,
+            bound,
+            _tap: tap,
+        }));
+        self
+    }
+
+    /// The kinds this injector can do: every operation kind, and the node kinds when it
+    /// may stop a node's process.
+    pub fn offers(&self) -> Vec<FaultKind> {
+        FaultKind::ALL
+            .into_iter()
+            .filter(|k| k.aim() == Aim::Operation || !self.processes.is_empty())
+            .collect()
+    }
+
+    /// The node processes it may stop.
+    pub fn processes(&self) -> &NodeProcesses {
+        &self.processes
+    }
+
+    /// The bus it tells.
+    pub fn bus(&self) -> &EventBus {
+        &self.bus
+    }
+
+    /// What the followed run has bound so far (nothing, when it follows no run).
+    pub fn bindings(&self) -> RunBindings {
+        match &self.run {
+            Some(run) => lock(&run.bindings).clone(),
+            None => RunBindings::none(),
+        }
+    }
+
+    /// Wait until the followed run has bound its operations (at once when it follows none).
+    pub(crate) async fn bound(&self) {
+        if let Some(run) = &self.run {
+            let mut bound = run.bound.clone();
+            let _ = bound.wait_for(|b| *b).await;
+        }
+    }
+
+    /// What `target` names now.
+    pub async fn find(&self, target: &Target) -> Result<Hit, FaultError> {
+        Ok(resolve(target, &self.bindings(), &self.processes).await?)
+    }
+
+    /// Check before a run that `spec` names something to hit: a running operation (and,
+    /// when several instances run, one the mission binds — `bound_by_mission` says which
+    /// names it binds; the fault then hits the bound one), a version, an actor id or an
+    /// instance on a node that runs, or a node process this injector may stop.
+    pub async fn check(
+        &self,
+        spec: &FaultSpec,
+        bound_by_mission: impl Fn(&str) -> bool,
+    ) -> Result<(), FaultError> {
+        if let Target::Bound(op) = &spec.target {
+            let instances = registry::lookup(ModuleKind::Operation, op);
+            if instances.first().is_some_and(|i| bound_by_mission(&i.name)) {
+                return Ok(());
+            }
+        }
+        resolve(&spec.target, &RunBindings::none(), &self.processes).await?;
+        Ok(())
+    }
+
+    /// Inject `kind` into what `target` names now, and tell the bus.
+    pub async fn inject(&self, kind: FaultKind, target: &Target) -> Result<Injected, FaultError> {
+        self.strike(kind, target, None).await
+    }
+
+    /// Inject a planned fault that is due now (`due`: its time in the run), and tell the
+    /// bus with the time it was due.
+    pub(crate) async fn inject_due(&self, spec: &FaultSpec) -> Result<Injected, FaultError> {
+        self.strike(spec.kind, &spec.target, Some(spec.at)).await
+    }
+
+    /// Tell the bus that a planned fault was not injected, and why.
+    pub(crate) fn not_injected(&self, spec: &FaultSpec, why: &str) {
+        tracing::warn!(fault = %spec.kind, target = %spec.target, "fault not injected: {why}");
+        self.bus.publish(EventKind::FaultNotInjected {
+            fault: spec.kind,
+            operation: spec.target.to_string(),
+            why: why.to_string(),
+            due_ms: Some(spec.at.as_millis() as u64),
+        });
+    }
+
+    async fn strike(
+        &self,
+        kind: FaultKind,
+        target: &Target,
+        due: Option<Duration>,
+    ) -> Result<Injected, FaultError> {
+        let due_ms = due.map(|d| d.as_millis() as u64);
+        let done = self.resolve_and_do(kind, target).await;
+        match &done {
+            Ok(injected) => {
+                tracing::warn!(fault = %kind, %target, victim = %injected.victim(), "fault injected");
+                self.bus.publish(EventKind::FaultInjected {
+                    fault: kind,
+                    operation: target.to_string(),
+                    actor: injected.victim(),
+                    node: Some(injected.hit.node().to_string()),
+                    due_ms,
+                });
+            }
+            Err(e) => {
+                tracing::warn!(fault = %kind, %target, error = %e, "fault not injected");
+                self.bus.publish(EventKind::FaultNotInjected {
+                    fault: kind,
+                    operation: target.to_string(),
+                    why: e.to_string(),
+                    due_ms,
+                });
+            }
+        }
+        done
+    }
+
+    async fn resolve_and_do(
+        &self,
+        kind: FaultKind,
+        target: &Target,
+    ) -> Result<Injected, FaultError> {
+        if kind.aim() != target.aim() {
+            return Err(FaultError::Mismatch {
+                kind,
+                wants: match kind.aim() {
+                    Aim::Operation => "an operation",
+                    Aim::Node => "a node",
+                },
+                target: target.to_string(),
+            });
+        }
+        let hit = self.find(target).await?;
+        match &hit {
+            Hit::Instance(inst) => inject_into(kind, inst)?,
+            Hit::Process { node, pid } => {
+                self.processes.kill(node).map_err(|e| FaultError::Signal {
+                    node: node.clone(),
+                    pid: *pid,
+                    why: e.to_string(),
+                })?;
+            }
+        }
+        Ok(Injected {
+            kind,
+            target: target.clone(),
+            hit,
+        })
+    }
+}
+
+/// Do `kind` to the operation instance `inst`, telling nobody — the behaviour of the
+/// operation kinds, under [`Injector::inject`] (which resolves, and tells the bus). A kill
+/// of a local instance kills its actor; a remote instance, and every other kind, is told
+/// through its host (killing a remote actor's local stand-in would kill the stand-in
+/// alone).
+pub fn inject_into(kind: FaultKind, inst: &Instance) -> Result<(), FaultError> {
+    if kind.aim() != Aim::Operation {
+        return Err(FaultError::Mismatch {
+            kind,
+            wants: "a node",
+            target: inst.name.clone(),
+        });
+    }
+    match kind {
+        FaultKind::Kill if inst.actor.get_id().is_local() => inst.actor.kill(),
+        _ => EoClient::from_cell(inst.actor.clone())
+            .inject(kind)
+            .map_err(|_| FaultError::Unreachable(inst.name.clone()))?,
+    }
+    Ok(())
+}
+
+fn lock(b: &Mutex<RunBindings>) -> MutexGuard<'_, RunBindings> {
+    b.lock().unwrap_or_else(|e| e.into_inner())
+}
