@@ -60,4 +60,7 @@ pub use messages::{EoMsg, EoReport, Fault, ParamOutcome};
 /// How long an operation may take to answer a command unless it declares otherwise
 /// ([`Operation::deadline`]).
 pub const DEFAULT_DEADLINE: std::time::Duration = std::time::Duration::from_secs(2);
+/// Time between an operation's steps unless it declares otherwise ([`Operation::period`]):
+/// 100 ms of the node's clock.
+pub const DEFAULT_PERIOD: std::time::Duration = std::time::Duration::from_millis(100);
 pub use operation::{Identity, OpContext, OpError, Operation, Params, Step};
