@@ -2,6 +2,10 @@
 //! built-in one that hosts everything, or a file's — with the simulated robot plugged in
 //! when there is a world.
 //!
+//! A config *file* with a `[cluster]` table is refused here (these commands run a node of
+//! their own in this process); a config given as a value joins its cluster, as any
+//! [`Node`] does — what `marie node` gives it.
+//!
 //! Which world the robot drives in: `--world FILE`, else the node config's
 //! `[simulation] world`, else the mission's `world`. With a node config file, a robot runs
 //! only if the file has a `[simulation]` table: the node hosts exactly what the file says.
@@ -24,6 +28,7 @@
 
 use marie_actors::clock::{RealClock, SharedClock};
 use marie_actors::diagnostic::{Diagnostic, Diagnostics};
+use marie_cluster::net::TransportError;
 use marie_cluster::node::{Node, NodeConfig, NodeError, NodeOptions, SimulationConfig};
 use marie_missions::robot::{SimRobot, DEFAULT_SEED};
 use marie_missions::world::World;
@@ -39,7 +44,8 @@ pub struct EmbeddedOptions {
     /// A node config file; `None`: the built-in config that hosts everything.
     pub node: Option<PathBuf>,
     /// A node config given as a value (e.g. the dispatcher-only member of `marie run
-    /// --join`); used when `node` is `None`.
+    /// --join`, or `marie node`'s config with its flags applied); used when `node` is
+    /// `None`. Its cluster, if it has one, is joined ([`Node::start`]).
     pub config: Option<NodeConfig>,
     /// `--world`: overrides the node config's and the mission's world.
     pub world: Option<PathBuf>,
@@ -78,6 +84,14 @@ pub enum EmbeddedError {
     /// first.
     #[error("{0}")]
     World(Diagnostics),
+    /// The node config file has a `[cluster]` table, but the command runs a node of its own
+    /// in this process (bad input): a cluster member is `marie node --config FILE`.
+    #[error(
+        "{0}: has a [cluster] table, but this command runs a node of its own in this \
+         process; start the member with `marie node --config {0}`, and act on the cluster \
+         with --join ADDR --cookie C"
+    )]
+    Clustered(String),
     /// The node did not start.
     #[error(transparent)]
     Node(#[from] NodeError),
@@ -90,7 +104,9 @@ impl EmbeddedError {
             self,
             EmbeddedError::Config(_)
                 | EmbeddedError::World(_)
+                | EmbeddedError::Clustered(_)
                 | EmbeddedError::Node(NodeError::Config(_))
+                | EmbeddedError::Node(NodeError::Cluster(TransportError::Tls(_)))
         )
     }
 }
@@ -110,7 +126,14 @@ impl Embedded {
     pub async fn start(options: EmbeddedOptions) -> Result<Embedded, EmbeddedError> {
         let catalog = marie_missions::catalog();
         let config = match (&options.node, options.config.clone()) {
-            (Some(path), _) => NodeConfig::load(path, &catalog).map_err(EmbeddedError::Config)?,
+            (Some(path), _) => {
+                let config = NodeConfig::load(path, &catalog).map_err(EmbeddedError::Config)?;
+                // honoured or refused, never ignored: this node is the command's own
+                if config.cluster.is_some() {
+                    return Err(EmbeddedError::Clustered(path.display().to_string()));
+                }
+                config
+            }
             (None, Some(config)) => config,
             // the built-in node runs the robot whenever there is a world
             (None, None) => NodeConfig {

@@ -99,6 +99,37 @@
 //! random: chaos) to test exactly that, and the report lists each fault and rebind.
 //! `examples/embedding.rs` puts the four steps together in one application.
 //!
+//! **5. A cluster from code.** Give the builder a cluster ([`node::NodeBuilder::cluster`]:
+//! listen address, peers, cookie, optionally TLS and the failure detector's heartbeat):
+//! `start()` joins it, [`node::Node::shutdown`] leaves, and the cluster's news (nodes up,
+//! lost, declared down) are on the node's bus. One node per process. Hand operations what
+//! they need with [`node::NodeBuilder::operation_from`] (a closure called for every
+//! instance and restart) or [`node::NodeBuilder::operation_value`]; each process builds its
+//! instances from its own factories — code is not shipped between nodes. A pump hosted
+//! with `operation_factory(.., |c| c.with_instances(0))` is a standby: started only when
+//! no instance runs anywhere, after the 1 s provisioning grace
+//! ([`actors::provision::GRACE`]). `embedding/failover` in the repository is a
+//! two-process application built this way whose mission fails over when the process
+//! running its operation is killed; its crate docs walk through it.
+//!
+//! ```no_run
+//! # use marie::prelude::*;
+//! # #[derive(Clone)] struct Pump;
+//! # impl Operation for Pump {
+//! #     fn identity(&self) -> Identity { Identity::new("pump", 7400, "1.0.0", "pumps") }
+//! #     async fn step(&mut self, _: &mut OpContext) -> Result<Step, OpError> { Ok(Step::Continue) }
+//! # }
+//! use marie::net::ClusterConfig;
+//! # #[tokio::main] async fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! let node = marie::node::Node::builder("b")
+//!     .operation_value(Pump)
+//!     .cluster(ClusterConfig::new("127.0.0.1:7101".parse()?, "secret")
+//!         .with_peer("127.0.0.1:7100".parse()?))
+//!     .start()
+//!     .await?;
+//! # node.shutdown().await; Ok(()) }
+//! ```
+//!
 //! **Your own ractor actors** beside marie need [`RactorMessage`] on their message types:
 //! marie's cluster transport turns on ractor's `cluster` feature for the whole build (see
 //! there for why).

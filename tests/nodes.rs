@@ -198,3 +198,33 @@ fn a_node_config_that_is_not_a_regular_file_is_refused_unread() {
     assert_eq!(out.status.code(), Some(2));
     assert!(text(&out.stderr).contains("not a regular file (a directory)"));
 }
+
+#[test]
+fn a_node_config_with_a_cluster_table_is_refused_by_a_command_that_runs_its_own_node() {
+    // `run`, `check`, `ls` run a node of their own in their process: a [cluster] table is
+    // refused (exit 2, pointing at `marie node`), neither ignored nor joined
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("member.toml");
+    std::fs::write(
+        &path,
+        "[node]\nname = \"member\"\n[[operation]]\nname = \"sampler\"\n\
+         [cluster]\nlisten = \"127.0.0.1:0\"\ncookie = \"c\"\n",
+    )
+    .unwrap();
+    let path = path.to_str().unwrap();
+    for args in [
+        vec!["run", "missions/demo.toml", "--node", path],
+        vec!["check", "missions/demo.toml", "--node", path],
+        vec!["ls", "--node", path],
+    ] {
+        let out = marie(&args);
+        let err = text(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(
+            err.contains(path)
+                && err.contains("[cluster] table")
+                && err.contains("marie node --config"),
+            "{args:?}: {err}"
+        );
+    }
+}

@@ -26,6 +26,13 @@ use std::time::Duration;
 pub const SCOPE: &str = "marie-provision";
 /// The `pg` group of provisioners.
 pub const GROUP: &str = "provision";
+/// How long a dispatcher's lost binding waits for a stand-in — a supervisor's restart, a
+/// spare instance anywhere in the cluster — before it asks the provisioners to start one:
+/// 1 s, or half the mission's rebind deadline if that is shorter. A restart or a spare
+/// usually shows up sooner; a lost node's instances never do, and a standby (an operation
+/// a node hosts with `instances = 0`) is started only then.
+pub const GRACE: Duration = Duration::from_secs(1);
+
 /// How long one provisioner may take to start an instance.
 pub const TIMEOUT: Duration = Duration::from_secs(5);
 

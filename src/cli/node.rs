@@ -12,8 +12,9 @@ use super::error::BadInput;
 use super::prepare::start_node;
 use marie::actors::clock::ScaledClock;
 use marie::actors::registry;
-use marie::embedded::EmbeddedOptions;
-use marie::net::{ClusterConfig, Transport};
+use marie::embedded::{EmbeddedError, EmbeddedOptions};
+use marie::net::ClusterConfig;
+use marie::node::NodeConfig;
 use std::io::Write;
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -78,20 +79,12 @@ impl NodeArgs {
     }
 }
 
-/// Start the node and its transport, report whom it sees, stop cleanly on a signal.
+/// Start the node as a cluster member (the node joins through its config's cluster: one
+/// road with embedders), report whom it sees, stop cleanly on a signal.
 pub async fn node(args: NodeArgs) -> anyhow::Result<ExitCode> {
-    let embedded = start_node(EmbeddedOptions {
-        node: Some(args.config.clone()),
-        world: args.world.clone(),
-        seed: args.seed,
-        clock: Arc::new(ScaledClock::cluster(args.speed)),
-        ..EmbeddedOptions::default()
-    })
-    .await?;
-    let node = embedded.node;
-    let name = node.config().name.clone();
-    let Some(cluster) = args.cluster(node.config().cluster.clone()) else {
-        node.shutdown().await;
+    let mut config = NodeConfig::load(&args.config, &marie::missions::catalog())
+        .map_err(EmbeddedError::Config)?;
+    let Some(cluster) = args.cluster(config.cluster.take()) else {
         return Err(BadInput(format!(
             "{}: no [cluster] table: a node needs `listen`, `peers` and `cookie` to join a \
              cluster, in the file or as --listen and --cookie (to run a mission on one \
@@ -100,35 +93,38 @@ pub async fn node(args: NodeArgs) -> anyhow::Result<ExitCode> {
         ))
         .into());
     };
-    // what it hosts itself, counted before any peer's modules arrive
-    let modules = registry::list().len();
-    let transport = match Transport::start(&name, &cluster).await {
-        Ok(t) => t,
-        Err(e) => {
-            node.shutdown().await;
-            return Err(match e {
-                marie::net::TransportError::Tls(_) => BadInput(e.to_string()).into(),
-                e => e.into(),
-            });
-        }
+    let tls = cluster.tls.is_some();
+    let peers = cluster.peers.clone();
+    let embedded = start_node(EmbeddedOptions {
+        config: Some(config.with_cluster(cluster)),
+        world: args.world.clone(),
+        seed: args.seed,
+        clock: Arc::new(ScaledClock::cluster(args.speed)),
+        ..EmbeddedOptions::default()
+    })
+    .await?;
+    let node = embedded.node;
+    let name = node.config().name.clone();
+    let Some(transport) = node.transport() else {
+        unreachable!("a node whose config has a cluster has joined it")
     };
     // watched before the line that tells whoever waits for it that the node runs
     let stop = super::signal::shutdown_signal(args.stop_with_stdin);
     tokio::pin!(stop);
+    // what it hosts itself (peers' modules may be in the registry already)
+    let modules = registry::list()
+        .iter()
+        .filter(|m| m.actor.get_id().is_local())
+        .count();
     say(&format!(
         "node {name} listening on {}{} with {modules} module(s) at speed {}; joining {}",
         transport.listen(),
-        if cluster.tls.is_some() {
-            " (mutual TLS)"
-        } else {
-            ""
-        },
+        if tls { " (mutual TLS)" } else { "" },
         args.speed,
-        if cluster.peers.is_empty() {
+        if peers.is_empty() {
             "nobody (others join it)".to_string()
         } else {
-            cluster
-                .peers
+            peers
                 .iter()
                 .map(ToString::to_string)
                 .collect::<Vec<_>>()
@@ -142,9 +138,10 @@ pub async fn node(args: NodeArgs) -> anyhow::Result<ExitCode> {
             peer.name, peer.address
         ));
     }
-    let publisher = marie::net::publish_on(&transport, node.events().clone());
-    // its events (restarts, peers down, …) to whoever watches the cluster
-    let forwarder = marie::relay::forward(node.events().clone());
+    // the node restarts its operations when it finds it was frozen; this tells it
+    let mut reincarnations = node
+        .reincarnations()
+        .expect("a node in a cluster tells its reincarnations");
     loop {
         tokio::select! {
             signal = &mut stop => {
@@ -153,20 +150,16 @@ pub async fn node(args: NodeArgs) -> anyhow::Result<ExitCode> {
             }
             event = net.recv() => if let Ok(event) = event {
                 say(&format!("node {name} {event}"));
-                if matches!(event, marie::net::NetEvent::Frozen { .. }) {
-                    match node.reincarnate().await {
-                        Ok(n) => say(&format!(
-                            "node {name} restarted its {n} operation instance(s) as a new incarnation"
-                        )),
-                        Err(e) => tracing::error!("node {name} could not restart its operations: {e}"),
-                    }
-                }
+            },
+            again = reincarnations.recv() => if let Ok(again) = again {
+                say(&format!(
+                    "node {name} restarted its {} operation instance(s) as a new incarnation",
+                    again.restarted
+                ));
             },
         }
     }
-    publisher.abort();
-    forwarder.abort();
-    transport.stop().await;
+    // leaves the cluster, then stops its tree
     node.shutdown().await;
     say(&format!("node {name} stopped"));
     Ok(ExitCode::SUCCESS)

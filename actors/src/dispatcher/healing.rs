@@ -22,16 +22,13 @@ use crate::clock::Timer;
 use crate::eo::{EoError, ParamOutcome};
 use crate::events::{BoundOp, BusError, Event, EventKind};
 use crate::property::PropertyRequest;
+use crate::provision::GRACE as PROVISION_GRACE;
 use crate::registry::{self, Instance, ModuleKind, RegistryEvent};
 use crate::run::LossCause;
 use crate::run::Verdict;
 use crate::run::{Outcome, RebindRecord};
 use ractor::ActorRef;
 use std::time::Duration;
-
-/// How long a lost binding waits for a stand-in (a supervisor's restart, a spare) before
-/// asking the cluster to start one.
-const PROVISION_GRACE: Duration = Duration::from_secs(1);
 
 /// How often bound operations are asked whether they still answer.
 const PROBE_PERIOD: Duration = Duration::from_millis(500);

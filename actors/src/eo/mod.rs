@@ -59,4 +59,7 @@ pub use messages::{EoMsg, EoReport, ParamOutcome};
 /// ([`Operation::deadline`]).
 pub const DEFAULT_DEADLINE: std::time::Duration =
     std::time::Duration::from_millis(crate::property::DEFAULT_DEADLINE_MS);
+/// Time between an operation's steps unless it declares otherwise ([`Operation::period`]):
+/// 100 ms of the node's clock.
+pub const DEFAULT_PERIOD: std::time::Duration = std::time::Duration::from_millis(100);
 pub use operation::{Identity, OpContext, OpError, Operation, Params, Step};

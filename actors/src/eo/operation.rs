@@ -302,9 +302,10 @@ pub trait Operation: Send + 'static {
         Vec::new()
     }
 
-    /// Clock time between steps.
+    /// Clock time between steps: [`DEFAULT_PERIOD`](super::DEFAULT_PERIOD) (100 ms)
+    /// unless the operation says otherwise.
     fn period(&self) -> Duration {
-        Duration::from_millis(100)
+        super::DEFAULT_PERIOD
     }
 
     /// The longest the operation may take to answer a command (a step included). It is

@@ -57,6 +57,15 @@ impl ClusterConfig {
         self
     }
 
+    /// The failure detector's heartbeat period and deadline (default:
+    /// [`DEFAULT_DEADLINE`](super::detector::DEFAULT_DEADLINE), 1.2 s of silence, with
+    /// a heartbeat every 240 ms — a frozen or cut-off peer is declared down within about
+    /// 1.5 s). Every node of a cluster should use the same.
+    pub fn with_heartbeat(mut self, heartbeat: HeartbeatConfig) -> Self {
+        self.heartbeat = heartbeat;
+        self
+    }
+
     /// Encrypt every session with mutual TLS from these files.
     pub fn with_tls(mut self, files: TlsFiles) -> Self {
         self.tls = Some(files);

@@ -12,6 +12,17 @@
 //! ractor_cluster has no failure detector: [`heartbeat`] adds one (default: a silent peer
 //! is declared down within 1.5 s), and refuses peers of another protocol version.
 //!
+//! A node joins a cluster through its config: [`NodeBuilder::cluster`] or
+//! [`NodeConfig::with_cluster`] — [`Node::start`] then starts its transport, puts the
+//! cluster's news on its bus, and [`Node::shutdown`] leaves. Starting a [`Transport`] by
+//! hand, as below, is the low road, for a member that runs no node of its own (the CLI's
+//! `ls --join`, `kill --join`).
+//!
+//! [`NodeBuilder::cluster`]: crate::node::NodeBuilder::cluster
+//! [`NodeConfig::with_cluster`]: crate::node::NodeConfig::with_cluster
+//! [`Node::start`]: crate::node::Node::start
+//! [`Node::shutdown`]: crate::node::Node::shutdown
+//!
 //! ```no_run
 //! # async fn demo() -> Result<(), marie_cluster::net::TransportError> {
 //! use marie_cluster::net::{ClusterConfig, Transport};

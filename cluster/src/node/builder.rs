@@ -1,13 +1,20 @@
 //! One entry point for an application that embeds marie: its own operations and
-//! datamanagers hosted under supervision, one clock for all of them, and a [`Node`] handle
-//! to run missions on.
+//! datamanagers hosted under supervision, one clock for all of them, optionally a cluster
+//! to join, and a [`Node`] handle to run missions on.
 //!
 //! A [`NodeConfig`] with a catalogue of [`OperationFactory`]s says the same, and the
 //! builder makes one; what it adds is what an embedder would otherwise get wrong: every
-//! operation *type* is checked before anything starts (a bad declaration names the
-//! operation and the problem, instead of an actor that failed during start-up), duplicate
-//! names are refused, and the one clock is the node's, so records stored by one module are
-//! found by a query of another.
+//! operation is checked before anything starts (on one instance built by its factory: a
+//! bad declaration names the operation and the problem, instead of an actor that failed
+//! during start-up), duplicate names are refused, and the one clock is the node's, so
+//! records stored by one module are found by a query of another.
+//!
+//! An operation is built by `Default` ([`NodeBuilder::operation`]), by the application's
+//! closure ([`NodeBuilder::operation_from`]: how it hands an operation its dependencies)
+//! or as a clone of a value ([`NodeBuilder::operation_value`]) — for every instance and
+//! every restart alike. Unless it says otherwise ([`Operation::period`]) an operation
+//! steps every [`DEFAULT_PERIOD`](marie_actors::eo::DEFAULT_PERIOD), 100 ms of the node's
+//! clock. [`NodeBuilder::cluster`] makes the node a cluster member at start.
 //!
 //! ```
 //! use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
@@ -52,22 +59,32 @@
 //! ```
 
 use super::{
-    DatamanagerConfig, Node, NodeConfig, NodeError, NodeOptions, OperationConfig, Robot,
-    SupervisorConfig,
+    ConfigError, DatamanagerConfig, Node, NodeConfig, NodeError, NodeOptions, OperationConfig,
+    Robot, SupervisorConfig,
 };
+use crate::net::ClusterConfig;
 use marie_actors::clock::{RealClock, SharedClock};
-use marie_actors::eo::{check_declaration, Operation, OperationFactory};
+use marie_actors::eo::{Operation, OperationFactory};
+use std::any::TypeId;
 use std::sync::Arc;
 
 /// Builds a [`Node`] that hosts an application's own operations and datamanagers; see the
 /// module docs.
 pub struct NodeBuilder {
     config: NodeConfig,
-    catalog: Vec<OperationFactory>,
-    /// Each operation type's declarations, checked at [`NodeBuilder::start`].
-    checks: Vec<Box<dyn Fn() -> Result<(), NodeError> + Send + Sync>>,
+    catalog: Vec<Registered>,
+    /// Problems found while building, refused at [`NodeBuilder::start`].
+    refused: Vec<ConfigError>,
     clock: Option<SharedClock>,
     robot: Option<Arc<dyn Robot>>,
+}
+
+/// A factory in the builder's catalogue, and the type whose `Default` builds it (`None`:
+/// the application's closure or value): a second registration of the same `name@version`
+/// is accepted only when it builds the same way.
+struct Registered {
+    factory: OperationFactory,
+    by_default: Option<TypeId>,
 }
 
 impl Node {
@@ -78,7 +95,7 @@ impl Node {
         NodeBuilder {
             config,
             catalog: Vec::new(),
-            checks: Vec::new(),
+            refused: Vec::new(),
             clock: None,
             robot: None,
         }
@@ -87,7 +104,9 @@ impl Node {
 
 impl NodeBuilder {
     /// Host one instance of operation `O` (built by `O::default()`, restarted the same way
-    /// by its supervisor when it crashes).
+    /// by its supervisor when it crashes). An operation that needs something from the
+    /// application is built by [`NodeBuilder::operation_from`] or
+    /// [`NodeBuilder::operation_value`] instead.
     pub fn operation<O: Operation + Default>(self) -> Self {
         self.instances::<O>(1)
     }
@@ -115,6 +134,14 @@ impl NodeBuilder {
     /// Host operation `O` as `configure` says: instances, supervisor (declared with
     /// [`NodeBuilder::supervisor`]), restart policy.
     ///
+    /// `with_instances(0)` makes a **standby**: the node starts no instance of its own,
+    /// but when a mission's operation is lost and no compatible instance runs anywhere in
+    /// the cluster, the dispatcher asks the nodes that allow it to start one
+    /// ([`marie_actors::provision`]) — after a grace of
+    /// [`provision::GRACE`](marie_actors::provision::GRACE) (1 s, or half the mission's
+    /// rebind deadline if shorter) in which a supervisor's restart or a spare may appear
+    /// first. The standby then runs like any instance.
+    ///
     /// ```
     /// # use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
     /// # #[derive(Default)] struct Pump;
@@ -130,24 +157,138 @@ impl NodeBuilder {
     /// assert_eq!(builder.config().operations[0].supervisor, "pumps");
     /// ```
     pub fn operation_with<O: Operation + Default>(
-        mut self,
+        self,
         configure: impl FnOnce(OperationConfig) -> OperationConfig,
     ) -> Self {
-        let factory = OperationFactory::new::<O>();
+        self.host(
+            OperationFactory::new::<O>(),
+            Some(TypeId::of::<O>()),
+            configure,
+        )
+    }
+
+    /// Host one instance of the operation `make` builds — called again for every instance
+    /// and every restart after a crash, so what it captures reaches each of them: how an
+    /// application hands its operations their dependencies (a driver handle, a channel, a
+    /// configuration) instead of having them look for them by a global name.
+    ///
+    /// `make` runs in this process: on a cluster, each node process builds its instances
+    /// from the factories its own program registered (code is not shipped over the
+    /// network), and can host — or start on a dispatcher's request — only those.
+    ///
+    /// ```
+    /// use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
+    /// use std::sync::atomic::{AtomicU64, Ordering};
+    /// use std::sync::Arc;
+    ///
+    /// struct Pump { litres: Arc<AtomicU64> }
+    /// impl Operation for Pump {
+    ///     fn identity(&self) -> Identity { Identity::new("m-pump", 4302, "1.0.0", "pumps") }
+    ///     async fn step(&mut self, _: &mut OpContext) -> Result<Step, OpError> {
+    ///         self.litres.fetch_add(1, Ordering::Relaxed);
+    ///         Ok(Step::Continue)
+    ///     }
+    /// }
+    ///
+    /// # #[tokio::main] async fn main() -> Result<(), Box<dyn std::error::Error>> {
+    /// let litres = Arc::new(AtomicU64::new(0));
+    /// let meter = litres.clone();
+    /// let node = marie_cluster::node::Node::builder("made")
+    ///     .operation_from(move || Pump { litres: meter.clone() })
+    ///     .start()
+    ///     .await?;
+    /// assert_eq!(node.instances("m-pump").len(), 1);
+    /// node.shutdown().await;
+    /// # Ok(()) }
+    /// ```
+    pub fn operation_from<O, F>(self, make: F) -> Self
+    where
+        O: Operation,
+        F: Fn() -> O + Send + Sync + 'static,
+    {
+        self.operation_factory(OperationFactory::from_fn(make), |c| c)
+    }
+
+    /// Host one instance of operation `op`'s kind, each instance (and each restart) a clone
+    /// of `op` — [`NodeBuilder::operation_from`] for an operation that is `Clone`.
+    ///
+    /// ```
+    /// use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
+    ///
+    /// #[derive(Clone)]
+    /// struct Valve { line: String }
+    /// impl Operation for Valve {
+    ///     fn identity(&self) -> Identity { Identity::new("v-valve", 4303, "1.0.0", "opens") }
+    ///     async fn step(&mut self, _: &mut OpContext) -> Result<Step, OpError> { Ok(Step::Continue) }
+    /// }
+    ///
+    /// let builder = marie_cluster::node::Node::builder("valves")
+    ///     .operation_value(Valve { line: "north".into() });
+    /// assert_eq!(builder.config().operations[0].name, "v-valve");
+    /// ```
+    pub fn operation_value<O: Operation + Clone>(self, op: O) -> Self {
+        self.operation_factory(OperationFactory::from_value(op), |c| c)
+    }
+
+    /// Host the operations `factory` builds ([`OperationFactory::from_fn`],
+    /// [`OperationFactory::from_value`], or any other) as `configure` says — what
+    /// [`NodeBuilder::operation_with`] is for `Default` operations.
+    ///
+    /// A node builds every instance of one `name@version` with one factory: registering
+    /// another factory of the same `name@version` (two closures the builder cannot tell
+    /// apart) is refused at [`NodeBuilder::start`]; host more instances with
+    /// `with_instances(n)` instead.
+    ///
+    /// ```
+    /// # use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
+    /// # struct Pump { rate: f64 }
+    /// # impl Operation for Pump {
+    /// #     fn identity(&self) -> Identity { Identity::new("s-pump", 4304, "1.0.0", "pumps") }
+    /// #     async fn step(&mut self, _: &mut OpContext) -> Result<Step, OpError> { Ok(Step::Continue) }
+    /// # }
+    /// use marie_actors::eo::OperationFactory;
+    /// // a standby: started only when a mission needs a pump and none runs anywhere
+    /// let builder = marie_cluster::node::Node::builder("standby").operation_factory(
+    ///     OperationFactory::from_fn(|| Pump { rate: 2.5 }),
+    ///     |c| c.with_instances(0),
+    /// );
+    /// assert_eq!(builder.config().operations[0].instances, 0);
+    /// ```
+    pub fn operation_factory(
+        self,
+        factory: OperationFactory,
+        configure: impl FnOnce(OperationConfig) -> OperationConfig,
+    ) -> Self {
+        self.host(factory, None, configure)
+    }
+
+    /// Add `factory` to the catalogue (once per `name@version`) and host it as `configure`
+    /// says, exactly that version.
+    fn host(
+        mut self,
+        factory: OperationFactory,
+        by_default: Option<TypeId>,
+        configure: impl FnOnce(OperationConfig) -> OperationConfig,
+    ) -> Self {
         let name = factory.name.to_string();
-        if !self
+        let exact = semver::VersionReq::parse(&format!("={}", factory.version))
+            .unwrap_or(semver::VersionReq::STAR);
+        match self
             .catalog
             .iter()
-            .any(|f| f.name == factory.name && f.version == factory.version)
+            .find(|r| r.factory.key() == factory.key())
         {
-            self.catalog.push(factory);
-            self.checks.push(Box::new(|| {
-                check_declaration(&O::default()).map_err(NodeError::Declaration)
-            }));
+            // the same `Default` type again: one factory, more entries
+            Some(known) if by_default.is_some() && known.by_default == by_default => {}
+            Some(_) => self.refused.push(ConfigError::Duplicate {
+                kind: "operation factory",
+                name: factory.key(),
+            }),
+            None => self.catalog.push(Registered {
+                factory,
+                by_default,
+            }),
         }
-        let version = O::default().identity().version;
-        let exact =
-            semver::VersionReq::parse(&format!("={version}")).unwrap_or(semver::VersionReq::STAR);
         self.config
             .operations
             .push(configure(OperationConfig::new(name).with_version(exact)));
@@ -206,6 +347,40 @@ impl NodeBuilder {
         self
     }
 
+    /// Join a cluster when the node starts, and leave it at [`Node::shutdown`]: listen on
+    /// `cluster.listen` (port 0: one the system picks, [`Node::transport`] tells which),
+    /// dial `cluster.peers` (any one member is enough: the cluster becomes a full mesh),
+    /// prove the cookie, optionally over mutual TLS, and run the failure detector
+    /// ([`ClusterConfig::with_heartbeat`]; by default a silent peer is declared down within
+    /// about 1.5 s — a 1.2 s deadline, [`DEFAULT_DEADLINE`](crate::net::detector::DEFAULT_DEADLINE),
+    /// with a heartbeat every 240 ms). The cluster's news (nodes up, lost, down) are on
+    /// the node's bus.
+    ///
+    /// One node per process: ractor's registry and process groups are process-wide, so two
+    /// nodes of one cluster are two processes (`embedding/failover` in marie's repository
+    /// is such an application, whose mission fails over from one process to the other).
+    ///
+    /// ```no_run
+    /// use marie_cluster::net::ClusterConfig;
+    /// use marie_cluster::node::Node;
+    /// # #[tokio::main] async fn main() -> Result<(), Box<dyn std::error::Error>> {
+    /// let node = Node::builder("beta")
+    ///     .cluster(
+    ///         ClusterConfig::new("127.0.0.1:7101".parse()?, "secret")
+    ///             .with_peer("127.0.0.1:7100".parse()?),
+    ///     )
+    ///     .start()
+    ///     .await?;
+    /// let transport = node.transport().expect("joined");
+    /// transport.wait_for_peers(1, std::time::Duration::from_secs(10)).await?;
+    /// node.shutdown().await; // leaves the cluster
+    /// # Ok(()) }
+    /// ```
+    pub fn cluster(mut self, cluster: ClusterConfig) -> Self {
+        self.config.cluster = Some(cluster);
+        self
+    }
+
     /// Whether the node runs a dispatcher (default: yes). A node without one only hosts.
     pub fn dispatcher(mut self, on: bool) -> Self {
         self.config.dispatcher = on;
@@ -229,14 +404,24 @@ impl NodeBuilder {
         &self.config
     }
 
-    /// Check every operation type's declarations and the config, then start the node's
-    /// supervision tree. Refused: a bad declaration (named), a duplicate datamanager or
-    /// supervisor, a build whose panics abort (self-healing needs them to unwind).
+    /// Check every operation's declarations (on one instance built by its factory, as
+    /// every start builds them) and the config, then start the node's supervision tree —
+    /// and join its cluster, if it has one ([`NodeBuilder::cluster`]). Refused: a bad
+    /// declaration (named), a duplicate datamanager or supervisor, two factories of one
+    /// operation version, cluster settings that cannot work, a build whose panics abort
+    /// (self-healing needs them to unwind).
     pub async fn start(self) -> Result<Node, NodeError> {
-        for check in &self.checks {
-            check()?;
+        if let Some(problem) = self.refused.into_iter().next() {
+            return Err(problem.into());
         }
-        let mut options = NodeOptions::with_catalog(self.catalog)
+        for registered in &self.catalog {
+            registered
+                .factory
+                .check_declaration()
+                .map_err(NodeError::Declaration)?;
+        }
+        let catalog = self.catalog.into_iter().map(|r| r.factory).collect();
+        let mut options = NodeOptions::with_catalog(catalog)
             .with_clock(self.clock.unwrap_or_else(RealClock::process));
         if let Some(robot) = self.robot {
             options = options.with_robot(robot);

@@ -10,6 +10,14 @@
 //! and [`Node::start_instance`] starts another instance of an operation the config allows (a
 //! dynamic child), for failover when no spare runs.
 //!
+//! A config with a cluster ([`NodeConfig::cluster`], or [`NodeBuilder::cluster`]) makes the
+//! node a cluster member: [`Node::start`] starts its transport once the tree runs (listens,
+//! dials the peers, runs the failure detector), publishes the cluster's news on the node's
+//! bus and forwards the node's events to whoever watches the cluster; [`Node::shutdown`]
+//! leaves. A cluster setting is never ignored: one that cannot work (an empty cookie, a
+//! node name with `@`, a taken port, TLS files that do not load) is refused
+//! ([`NodeError::Cluster`]).
+//!
 //! ```
 //! use marie_cluster::node::{Node, NodeConfig, NodeOptions, OperationConfig};
 //! use marie_actors::eo::OperationFactory;
@@ -37,6 +45,7 @@
 mod builder;
 pub mod config;
 mod events;
+mod membership;
 mod mission_input;
 mod provisioner;
 pub mod robot;
@@ -48,11 +57,13 @@ pub use config::{
     ConfigError, DatamanagerConfig, NodeConfig, OperationConfig, SimulationConfig,
     SupervisorConfig, MAX_INSTANCES, OPERATIONS,
 };
+pub use membership::Reincarnation;
 pub use mission_input::MissionInput;
 pub use robot::{AprioriRecord, BoxFuture, Robot, RunJudgement};
 pub use run::RunOptions;
 
 use crate::fault::FaultError;
+use crate::net::{Transport, TransportError};
 use marie_actors::clock::{RealClock, SharedClock};
 use marie_actors::dispatcher::mission::{Diagnostics, Mission, ParsedMission};
 use marie_actors::dispatcher::{DispatchError, RegistryCatalog};
@@ -61,6 +72,7 @@ use marie_actors::eo::{EoError, OperationFactory};
 use marie_actors::events::{bridge_registry, EventBus, RegistryBridge};
 use marie_actors::registry::{self, Instance, ModuleKind};
 use marie_supervision::{SupervisorError, SupervisorRef};
+use membership::Membership;
 use ractor::ActorCell;
 use std::path::Path;
 use std::sync::atomic::AtomicU64;
@@ -150,6 +162,10 @@ pub enum NodeError {
     /// A run was asked of a node whose config runs no dispatcher.
     #[error("node `{0}` runs no dispatcher (its config says `dispatcher = false`)")]
     NoDispatcher(String),
+    /// The node's cluster settings cannot work, or it could not join: a bad cookie or node
+    /// name, its listen address taken, TLS files that do not load.
+    #[error(transparent)]
+    Cluster(#[from] TransportError),
     /// An instance was asked of an operation the config does not allow.
     #[error("node `{node}` does not host operation `{operation}` (its config allows: {allowed})")]
     NotAllowed {
@@ -191,6 +207,8 @@ pub struct Node {
     runs: AtomicU64,
     /// Held while a mission runs: one run at a time.
     one_run: tokio::sync::Mutex<()>,
+    /// Its place in a cluster, when its config has one.
+    membership: Option<Membership>,
 }
 
 impl Node {
@@ -205,6 +223,9 @@ impl Node {
         // first: a node that cannot heal itself must not half-start (publish, bridge events)
         marie_supervision::require_unwinding()?;
         config.validate(&options.catalog)?;
+        if let Some(cluster) = &config.cluster {
+            cluster.validate(&config.name)?;
+        }
         // one node per process (ractor's registry and pg are process-wide): its name is the
         // location every module published here shows
         marie_actors::registry::set_local_node_name(&config.name);
@@ -239,6 +260,7 @@ impl Node {
             robot: options.robot,
             runs: AtomicU64::new(0),
             one_run: tokio::sync::Mutex::new(()),
+            membership: None,
         };
         // the runs are dispatched elsewhere: the robot tells what it sees without them
         if let (Some(robot), false) = (&node.robot, node.config.dispatcher) {
@@ -248,6 +270,18 @@ impl Node {
             let spec = provisioner::child_spec(node.starter.clone());
             if let Err(e) = node.starter.root.start_child(spec).await {
                 tracing::warn!("the node will not start instances on request: {e}");
+            }
+        }
+        // joined last: peers see the node's modules once they all run
+        if let Some(cluster) = &node.config.cluster {
+            let joined =
+                Membership::join(&node.config, cluster, &node.bus, node.starter.root.clone()).await;
+            match joined {
+                Ok(membership) => node.membership = Some(membership),
+                Err(e) => {
+                    node.shutdown().await;
+                    return Err(e.into());
+                }
             }
         }
         Ok(node)
@@ -297,6 +331,21 @@ impl Node {
         self.robot.as_ref()
     }
 
+    /// The node's transport, when its config has a cluster
+    /// ([`NodeConfig::cluster`], [`NodeBuilder::cluster`]): the address it listens on,
+    /// the peers it sees, [`Transport::wait_for_peers`], and the cluster's news as they
+    /// come ([`Transport::events`]; they are on the node's bus too).
+    pub fn transport(&self) -> Option<&Transport> {
+        self.membership.as_ref().map(Membership::transport)
+    }
+
+    /// Each time this node restarts its operations as a new incarnation because it was
+    /// itself frozen past its peers' deadline (it does so by itself when it joined a
+    /// cluster; see [`Node::reincarnate`]); `None` when the node is not in a cluster.
+    pub fn reincarnations(&self) -> Option<tokio::sync::broadcast::Receiver<Reincarnation>> {
+        self.membership.as_ref().map(Membership::reincarnations)
+    }
+
     /// The live instances of operation `name` (or id) in the registry.
     pub fn instances(&self, name: &str) -> Vec<Instance> {
         registry::lookup(ModuleKind::Operation, name)
@@ -320,25 +369,11 @@ impl Node {
     /// frozen past its failure detector's deadline: its peers have declared it down and
     /// replaced its operations, so whatever its old instances were doing is stale (the
     /// receivers refuse their commands by epoch anyway). Restarts through the supervisors'
-    /// API, which do not count as crashes. Gives how many instances were restarted.
+    /// API, which do not count as crashes. Gives how many instances were restarted. A node
+    /// that joined a cluster through its config does this by itself when its transport
+    /// finds it was frozen ([`Node::reincarnations`] tells each time).
     pub async fn reincarnate(&self) -> Result<usize, NodeError> {
-        let mut restarted = 0;
-        for sup in self.config.operation_supervisors() {
-            let sup = self.child_supervisor(&sup.name).await?;
-            for child in sup.which_children().await? {
-                sup.terminate_child(&child.id).await?;
-                sup.restart_child(&child.id).await?;
-                restarted += 1;
-            }
-        }
-        let dynamic = self.child_supervisor(tree::DYNAMIC).await?;
-        for child in dynamic.which_children().await? {
-            if let Some(actor) = child.state.actor() {
-                dynamic.terminate_actor(actor.get_id()).await?;
-            }
-        }
-        tracing::warn!(node = %self.config.name, restarted, "operations restarted as a new incarnation");
-        Ok(restarted)
+        tree::reincarnate(&self.starter.root, &self.config).await
     }
 
     /// Read, parse and check a mission against the operations running now.
@@ -374,8 +409,13 @@ impl Node {
         tasks.iter().for_each(tokio::task::JoinHandle::abort);
     }
 
-    /// Stop the node's supervision tree, children in reverse start order, and wait for it.
-    pub async fn shutdown(self) {
+    /// Leave the cluster if the node joined one (its sessions closed: the peers see its
+    /// modules leave at once), then stop the node's supervision tree, children in reverse
+    /// start order, and wait for it.
+    pub async fn shutdown(mut self) {
+        if let Some(membership) = self.membership.take() {
+            membership.leave().await;
+        }
         for task in &self.robot_tasks {
             task.abort();
         }

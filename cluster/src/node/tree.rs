@@ -240,3 +240,29 @@ pub(crate) async fn child_supervisor(
         .and_then(SupervisorRef::from_cell)
         .ok_or_else(|| NodeError::Supervisor(SupervisorError::NotFound(id.to_string())))
 }
+
+/// Restart every operation instance of the node rooted at `root` — as a new incarnation:
+/// new actors, no activation, no state — and stop the dynamic ones; how many were
+/// restarted. See [`Node::reincarnate`](super::Node::reincarnate).
+pub(super) async fn reincarnate(
+    root: &SupervisorRef,
+    config: &NodeConfig,
+) -> Result<usize, NodeError> {
+    let mut restarted = 0;
+    for sup in config.operation_supervisors() {
+        let sup = child_supervisor(root, &sup.name).await?;
+        for child in sup.which_children().await? {
+            sup.terminate_child(&child.id).await?;
+            sup.restart_child(&child.id).await?;
+            restarted += 1;
+        }
+    }
+    let dynamic = child_supervisor(root, DYNAMIC).await?;
+    for child in dynamic.which_children().await? {
+        if let Some(actor) = child.state.actor() {
+            dynamic.terminate_actor(actor.get_id()).await?;
+        }
+    }
+    tracing::warn!(node = %config.name, restarted, "operations restarted as a new incarnation");
+    Ok(restarted)
+}

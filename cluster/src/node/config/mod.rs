@@ -92,7 +92,12 @@ pub struct NodeConfig {
     pub operations: Vec<OperationConfig>,
     /// A simulated robot, if the node runs one.
     pub simulation: Option<SimulationConfig>,
-    /// Where it listens and whom it joins, when it is a cluster member (`marie node`).
+    /// Where it listens and whom it joins, when it is a cluster member: [`Node::start`]
+    /// joins the cluster with it and [`Node::shutdown`] leaves (`marie node --config FILE`
+    /// reads it from the file's `[cluster]` table).
+    ///
+    /// [`Node::start`]: super::Node::start
+    /// [`Node::shutdown`]: super::Node::shutdown
     pub cluster: Option<crate::net::ClusterConfig>,
 }
 
@@ -240,7 +245,10 @@ pub enum ConfigError {
     #[error("a node needs a name")]
     NoName,
     /// An operation no factory builds.
-    #[error("operation `{name}` cannot be hosted: no such operation (known: {known})")]
+    #[error(
+        "operation `{name}` cannot be hosted: no such operation in this program's catalogue \
+         (a node builds only the operations its own program registered; known: {known})"
+    )]
     UnknownOperation {
         /// Its name.
         name: String,
@@ -297,7 +305,8 @@ impl NodeConfig {
         }
     }
 
-    /// Join a cluster with `cluster` (listen address, peers, cookie).
+    /// Join a cluster with `cluster` (listen address, peers, cookie, heartbeat, TLS) when
+    /// the node starts ([`Node::start`](super::Node::start)), and leave it at its shutdown.
     pub fn with_cluster(mut self, cluster: crate::net::ClusterConfig) -> Self {
         self.cluster = Some(cluster);
         self

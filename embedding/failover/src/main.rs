@@ -1,0 +1,192 @@
+//! `failover-app`: one process of the two-process application of `marie_failover_app`
+//! (see the crate docs for the whole story and the numbers behind a failover).
+//!
+//! ```text
+//! failover-app --name NAME [--listen ADDR] [--peer ADDR]... [--cookie C] [--rate L]
+//!              [--standby] [--run LITRES]
+//! ```
+//!
+//! - `--listen` defaults to `127.0.0.1:0` (a port the system picks; the first line says
+//!   which): `node NAME listening on ADDR`.
+//! - `--rate`: litres its station moves per step (default 1).
+//! - `--standby`: its pump starts only when no pump runs anywhere in the cluster.
+//! - `--run LITRES`: this process runs the dispatcher and the mission (pump LITRES litres)
+//!   once a pump runs somewhere, prints what happens — `pump runs on node N`, `pump lost:
+//!   …`, `pump rebound from node X to node Y …`, then `rebind: pump from X to Y` for each
+//!   rebind of the report and `outcome: succeeded|failed …` — and exits 0 if the mission
+//!   succeeded, 1 if not.
+//! - Without `--run` it hosts until its standard input closes, then leaves the cluster.
+//!
+//! A bad flag is exit 2. The lines go to standard output, flushed at once, for whoever waits
+//! for them (a person, `tests/failover.rs`).
+
+use marie::actors::events::EventKind;
+use marie::node::RunOptions;
+use marie_failover_app::{mission, node, wait_for_pump, Setup, PUMP};
+use std::io::Write;
+use std::process::ExitCode;
+use std::time::Duration;
+
+/// How long the dispatcher's process waits for a pump to appear in the cluster.
+const PUMP_TIMEOUT: Duration = Duration::from_secs(60);
+
+fn main() -> ExitCode {
+    let (setup, run) = match parse(std::env::args().skip(1)) {
+        Ok(parsed) => parsed,
+        Err(e) => {
+            eprintln!("failover-app: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .expect("a tokio runtime");
+    match runtime.block_on(serve(setup, run)) {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("failover-app: {e}");
+            ExitCode::from(1)
+        }
+    }
+}
+
+/// Start the node (it joins the cluster), then run the mission or host until stdin closes.
+async fn serve(setup: Setup, run: Option<f64>) -> Result<ExitCode, Box<dyn std::error::Error>> {
+    let node = node(&setup).start().await?;
+    let name = setup.name.clone();
+    let listen = node.transport().map(|t| t.listen());
+    say(&format!(
+        "node {name} listening on {}",
+        listen.map_or_else(|| "?".into(), |a| a.to_string())
+    ));
+    let Some(litres) = run else {
+        stdin_closed().await;
+        node.shutdown().await;
+        say(&format!("node {name} stopped"));
+        return Ok(ExitCode::SUCCESS);
+    };
+    let Some(on) = wait_for_pump(PUMP_TIMEOUT).await else {
+        node.shutdown().await;
+        return Err(format!("no pump appeared in the cluster within {PUMP_TIMEOUT:?}").into());
+    };
+    say(&format!("pump found on node {on}"));
+    // the run's events as lines, as they are published (a line is quick to print)
+    let options = RunOptions::new().observe(|event| {
+        if let Some(line) = describe(&event.kind) {
+            say(&line);
+        }
+    });
+    let report = node.run(mission(litres), options).await;
+    node.shutdown().await;
+    let report = report?;
+    for r in &report.rebinds {
+        say(&format!(
+            "rebind: {} from {} to {}",
+            r.operation, r.from_node, r.to_node
+        ));
+    }
+    say(&format!(
+        "outcome: {}{}",
+        if report.succeeded() {
+            "succeeded"
+        } else {
+            "failed"
+        },
+        if report.reason.is_empty() {
+            String::new()
+        } else {
+            format!(" ({})", report.reason)
+        }
+    ));
+    Ok(if report.succeeded() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    })
+}
+
+/// The line an event of the run gives, if any.
+fn describe(kind: &EventKind) -> Option<String> {
+    match kind {
+        EventKind::ActionStarted { operations, .. } => operations
+            .iter()
+            .find(|o| o.name == PUMP)
+            .map(|o| format!("pump runs on node {}", o.node)),
+        EventKind::Lost { operation, cause } => Some(format!("{operation} lost: {cause}")),
+        EventKind::Rebound(r) => Some(format!(
+            "{} rebound from node {} to node {} after {} ms",
+            r.operation, r.from_node, r.to_node, r.downtime_ms
+        )),
+        _ => None,
+    }
+}
+
+/// Until standard input closes (the process that started this one holds the other end).
+async fn stdin_closed() {
+    let (tx, rx) = tokio::sync::oneshot::channel::<()>();
+    std::thread::spawn(move || {
+        let _ = std::io::copy(&mut std::io::stdin().lock(), &mut std::io::sink());
+        let _ = tx.send(());
+    });
+    let _ = rx.await;
+}
+
+/// The flags: the process's setup and, with `--run`, the litres of the mission.
+fn parse(mut args: impl Iterator<Item = String>) -> Result<(Setup, Option<f64>), String> {
+    let mut setup = Setup {
+        name: String::new(),
+        listen: ([127, 0, 0, 1], 0).into(),
+        peers: Vec::new(),
+        cookie: "failover".into(),
+        litres_per_step: 1.0,
+        standby: false,
+        dispatcher: false,
+    };
+    let mut run = None;
+    while let Some(flag) = args.next() {
+        let mut value = || args.next().ok_or_else(|| format!("{flag} needs a value"));
+        match flag.as_str() {
+            "--name" => setup.name = value()?,
+            "--listen" => setup.listen = address(&flag, &value()?)?,
+            "--peer" => {
+                let peer = value()?;
+                setup.peers.push(address(&flag, &peer)?);
+            }
+            "--cookie" => setup.cookie = value()?,
+            "--rate" => setup.litres_per_step = litres(&flag, &value()?)?,
+            "--standby" => setup.standby = true,
+            "--run" => {
+                run = Some(litres(&flag, &value()?)?);
+                setup.dispatcher = true;
+            }
+            other => return Err(format!("unknown flag {other}")),
+        }
+    }
+    if setup.name.is_empty() {
+        return Err("--name NAME is required".into());
+    }
+    Ok((setup, run))
+}
+
+fn address(flag: &str, text: &str) -> Result<std::net::SocketAddr, String> {
+    text.parse()
+        .map_err(|e| format!("{flag} {text}: not an address (ip:port): {e}"))
+}
+
+fn litres(flag: &str, text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(l) if l.is_finite() && l > 0.0 => Ok(l),
+        _ => Err(format!(
+            "{flag} {text}: expected a positive number of litres"
+        )),
+    }
+}
+
+/// A line on stdout, flushed at once (stdout is a pipe when a parent waits for it).
+fn say(line: &str) {
+    let mut out = std::io::stdout().lock();
+    let _ = writeln!(out, "{line}");
+    let _ = out.flush();
+}
