@@ -1,7 +1,7 @@
 //! The localizer (1520): corrects the cart's drifting odometry by matching sonar segments
 //! against the a-priori map's walls, and stores the correction in the world DM.
 
-use super::records::{EchoScan, LocationRecord, LOCATION, MAP, SONAR};
+use super::records::{LocationRecord, LOCATION, MAP, SONAR};
 use super::{cart, cart_err, correction, dm_err, newest};
 use crate::algo::localize::{
     localize, recent_travel, reframe, swept_segments, Fix, LocalizeParams, SensedPoint,
@@ -9,7 +9,7 @@ use crate::algo::localize::{
 use crate::algo::segments::SegmentParams;
 use crate::geom::Segment;
 use crate::hardware::CartClient;
-use marie_actors::dm::Query;
+use marie_actors::dm::{Query, FEATURE, WORLD};
 use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
 use marie_actors::property::{ParamDecl, ParamSchema, Value};
 use std::collections::BTreeMap;
@@ -81,7 +81,7 @@ impl Operation for Localizer {
 
     async fn activate(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
         self.map = Some(
-            newest(ctx, "world", MAP)
+            newest(ctx, WORLD, MAP)
                 .await?
                 .ok_or_else(|| OpError::failed("no map in the world DM to localize on"))?,
         );
@@ -105,14 +105,13 @@ impl Operation for Localizer {
         };
         let now = correction(ctx).await?;
         let since = ctx.now().saturating_sub(window);
-        let records = ctx
-            .dm("feature")?
-            .select(Query::class(SONAR).time_from(since))
+        let scans = ctx
+            .dm(FEATURE)?
+            .select_kind(SONAR, Query::all().time_from(since))
             .await
-            .map_err(dm_err("feature"))?;
+            .map_err(dm_err(FEATURE))?;
         let mut by_sensor: BTreeMap<usize, Vec<SensedPoint>> = BTreeMap::new();
-        for record in &records {
-            let scan: EchoScan = record.decode().map_err(dm_err("feature"))?;
+        for (_, scan) in &scans {
             for e in scan.echoes.iter().filter(|e| e.narrow) {
                 let origin =
                     e.point - crate::geom::Pose::new(0.0, 0.0, e.bearing).heading() * e.range;
@@ -153,10 +152,10 @@ impl Operation for Localizer {
             pose: corrected.compose(odometry),
             matched: fix.matched,
         };
-        ctx.dm("world")?
-            .store(LOCATION, Some("correction"), None, &record)
+        ctx.dm(WORLD)?
+            .store_kind(LOCATION, &record)
             .await
-            .map_err(dm_err("world"))?;
+            .map_err(dm_err(WORLD))?;
         self.fixes += 1;
         tracing::debug!(
             rotation = step.rotation,

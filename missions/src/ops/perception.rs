@@ -13,7 +13,7 @@ use crate::algo::track::{track_wall, TrackParams};
 use crate::algo::wall::{sense_wall, Side, WallEstimate, WallParams};
 use crate::geom::{Point, Pose, Segment};
 use crate::hardware::CartClient;
-use marie_actors::dm::Query;
+use marie_actors::dm::{Query, FEATURE, WORLD};
 use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
 use marie_actors::flags::{FlagDecl, StatusFlags};
 use marie_actors::property::{ParamDecl, ParamSchema, Value};
@@ -28,15 +28,14 @@ async fn scans_since(
     from_seq: u64,
 ) -> Result<(Vec<EchoScan>, u64), OpError> {
     let records = ctx
-        .dm("feature")?
-        .select(Query::class(SONAR).time_from(since).seq_from(from_seq))
+        .dm(FEATURE)?
+        .select_kind(SONAR, Query::all().time_from(since).seq_from(from_seq))
         .await
-        .map_err(dm_err("feature"))?;
-    let next = records.last().map_or(from_seq, |r| r.seq + 1);
-    let scans = records
-        .iter()
-        .map(|r| r.decode().map_err(dm_err("feature")))
-        .collect::<Result<_, _>>()?;
+        .map_err(dm_err(FEATURE))?;
+    let next = records
+        .last()
+        .map_or(from_seq, |(header, _)| header.seq + 1);
+    let scans = records.into_iter().map(|(_, scan)| scan).collect();
     Ok((scans, next))
 }
 
@@ -151,14 +150,9 @@ impl Operation for SegmentExtractor {
             .flat_map(|pts| extract_segments(pts, &params))
             .map(|f| f.segment)
             .collect();
-        ctx.dm("feature")?
-            .put(
-                SEGMENTS,
-                Some("current"),
-                None,
-                &SegmentSet { segments, points },
-            )
-            .map_err(dm_err("feature"))?;
+        ctx.dm(FEATURE)?
+            .put_kind(SEGMENTS, &SegmentSet { segments, points })
+            .map_err(dm_err(FEATURE))?;
         self.sets += 1;
         Ok(Step::Continue)
     }
@@ -228,7 +222,7 @@ impl Operation for WallSensor {
     }
 
     async fn activate(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
-        self.tracked = newest::<WallRecord>(ctx, "world", WALL)
+        self.tracked = newest(ctx, WORLD, WALL)
             .await?
             .map(|w| (w.segment, w.correction));
         Ok(Step::Continue)
@@ -248,7 +242,7 @@ impl Operation for WallSensor {
             ..WallParams::default()
         };
         let continuous = p.bool("continuous")?;
-        let Some(set) = newest::<SegmentSet>(ctx, "feature", SEGMENTS).await? else {
+        let Some(set) = newest(ctx, FEATURE, SEGMENTS).await? else {
             return Ok(Step::Continue);
         };
         let odometry = cart(&mut self.cart, ctx)?
@@ -289,10 +283,10 @@ impl Operation for WallSensor {
             y = pose.y,
             "wall sensed"
         );
-        ctx.dm("world")?
-            .store(WALL, Some("followed"), None, &record)
+        ctx.dm(WORLD)?
+            .store_kind(WALL, &record)
             .await
-            .map_err(dm_err("world"))?;
+            .map_err(dm_err(WORLD))?;
         if continuous {
             ctx.raise(StatusFlags(1));
             Ok(Step::Continue)
@@ -367,17 +361,17 @@ impl Operation for DockingDetector {
     async fn activate(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
         let history = Duration::from_secs_f64(ctx.params().f64("history")?);
         let resumed = match ctx.resumed() {
-            true => newest::<SearchRecord>(ctx, "world", SEARCH).await?,
+            true => newest(ctx, WORLD, SEARCH).await?,
             false => None,
         };
         self.since = match resumed {
             Some(search) => search.since,
             None => {
                 let since = ctx.now().saturating_sub(history);
-                ctx.dm("world")?
-                    .store(SEARCH, Some("since"), None, &SearchRecord { since })
+                ctx.dm(WORLD)?
+                    .store_kind(SEARCH, &SearchRecord { since })
                     .await
-                    .map_err(dm_err("world"))?;
+                    .map_err(dm_err(WORLD))?;
                 since
             }
         };
@@ -396,7 +390,7 @@ impl Operation for DockingDetector {
             ..DockParams::default()
         };
         let narrow_only = p.text("beams")? == "narrow";
-        let Some(wall) = newest::<WallRecord>(ctx, "world", WALL).await? else {
+        let Some(wall) = newest(ctx, WORLD, WALL).await? else {
             return Ok(Step::Continue);
         };
         let status = cart(&mut self.cart, ctx)?
@@ -435,10 +429,10 @@ impl Operation for DockingDetector {
             breadth: dock.breadth,
             depth: dock.depth,
         };
-        ctx.dm("world")?
-            .store(DOCK, Some("found"), None, &record)
+        ctx.dm(WORLD)?
+            .store_kind(DOCK, &record)
             .await
-            .map_err(dm_err("world"))?;
+            .map_err(dm_err(WORLD))?;
         tracing::info!(
             breadth = dock.breadth,
             depth = dock.depth,

@@ -4,6 +4,7 @@
 use super::records::{Echo, EchoScan, SONAR};
 use super::{cart, correction, dm_err};
 use crate::hardware::CartClient;
+use marie_actors::dm::FEATURE;
 use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
 use marie_actors::property::{ParamDecl, ParamSchema, Value};
 use std::time::Duration;
@@ -68,9 +69,9 @@ impl Operation for Ultrasonic {
             echoes,
             correction: fix,
         };
-        ctx.dm("feature")?
-            .put(SONAR, Some("scan"), None, &record)
-            .map_err(dm_err("feature"))?;
+        ctx.dm(FEATURE)?
+            .put_kind(SONAR, &record)
+            .map_err(dm_err(FEATURE))?;
         self.scans += 1;
         Ok(Step::Continue)
     }

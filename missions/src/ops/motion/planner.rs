@@ -8,6 +8,7 @@ use crate::geom::{Point, Pose, Segment, Vector};
 use crate::hardware::CartClient;
 use crate::ops::records::{DockRecord, LegRecord, PathRecord, DOCK, MAP, PATH};
 use crate::ops::{cart, cart_err, dm_err, located, newest};
+use marie_actors::dm::{PARAMETER, WORLD};
 use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
 use marie_actors::flags::{FlagDecl, StatusFlags};
 use marie_actors::property::{ParamDecl, ParamSchema};
@@ -122,7 +123,7 @@ impl Operation for PathPlanner {
             ..ParkParams::default()
         };
         let pose_goal = Pose::new(p.f64("x")?, p.f64("y")?, p.f64("heading")?.to_radians());
-        let map: Vec<Segment> = newest(ctx, "world", MAP)
+        let map = newest(ctx, WORLD, MAP)
             .await?
             .ok_or_else(|| OpError::failed("no map in the world DM"))?;
         let status = cart(&mut self.cart, ctx)?
@@ -131,14 +132,14 @@ impl Operation for PathPlanner {
             .map_err(cart_err)?;
         let start = located(ctx, &status.odometry).await?;
         if target == "dock" {
-            let dock: DockRecord = newest(ctx, "world", DOCK)
+            let dock = newest(ctx, WORLD, DOCK)
                 .await?
                 .ok_or_else(|| OpError::failed("no dock in the world DM to plan to"))?;
             let legs = parking_legs(&start, &dock, &status, &map, shape, shallow)?;
-            ctx.dm("parameter")?
-                .store(PATH, Some("planned"), None, &PathRecord { legs })
+            ctx.dm(PARAMETER)?
+                .store_kind(PATH, &PathRecord { legs })
                 .await
-                .map_err(dm_err("parameter"))?;
+                .map_err(dm_err(PARAMETER))?;
             return Ok(Step::Finish(StatusFlags(1)));
         }
         let goal = pose_goal;
@@ -157,10 +158,10 @@ impl Operation for PathPlanner {
                 reverse: params.reverse,
             }],
         };
-        ctx.dm("parameter")?
-            .store(PATH, Some("planned"), None, &record)
+        ctx.dm(PARAMETER)?
+            .store_kind(PATH, &record)
             .await
-            .map_err(dm_err("parameter"))?;
+            .map_err(dm_err(PARAMETER))?;
         Ok(Step::Finish(StatusFlags(1)))
     }
 

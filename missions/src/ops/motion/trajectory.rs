@@ -8,8 +8,9 @@ use crate::algo::planner::Path;
 use crate::algo::pursuit::{PurePursuit, PursuitParams, PursuitStatus};
 use crate::geom::Pose;
 use crate::hardware::CartClient;
-use crate::ops::records::{LegRecord, PathRecord, ProgressRecord, PATH, PROGRESS};
+use crate::ops::records::{LegRecord, ProgressRecord, PATH, PROGRESS};
 use crate::ops::{cart, cart_err, dm_err, located, newest, newest_with_seq};
+use marie_actors::dm::PARAMETER;
 use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
 use marie_actors::flags::{FlagDecl, StatusFlags};
 use marie_actors::property::{ParamDecl, ParamSchema};
@@ -106,9 +107,9 @@ impl TrajectoryController {
                 leg: self.leg,
                 along,
             };
-            ctx.dm("parameter")?
-                .put(PROGRESS, Some("driven"), None, &record)
-                .map_err(dm_err("parameter"))?;
+            ctx.dm(PARAMETER)?
+                .put_kind(PROGRESS, &record)
+                .map_err(dm_err(PARAMETER))?;
             self.saved = Some((self.leg, along));
         }
         Ok(())
@@ -159,7 +160,7 @@ impl Operation for TrajectoryController {
     }
 
     async fn activate(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
-        let (path_seq, record): (u64, PathRecord) = newest_with_seq(ctx, "parameter", PATH)
+        let (path_seq, record) = newest_with_seq(ctx, PARAMETER, PATH)
             .await?
             .ok_or_else(|| OpError::failed("no planned path in the parameter DM"))?;
         let p = ctx.params();
@@ -178,8 +179,8 @@ impl Operation for TrajectoryController {
         self.saved = None;
         self.settling = false;
         // a predecessor that crashed on this path left its progress behind: resume there
-        let progress: Option<ProgressRecord> = match ctx.resumed() {
-            true => newest(ctx, "parameter", PROGRESS).await?,
+        let progress = match ctx.resumed() {
+            true => newest(ctx, PARAMETER, PROGRESS).await?,
             false => None,
         };
         let resume = progress.filter(|p| p.path_seq == path_seq && p.leg < self.legs.len());
