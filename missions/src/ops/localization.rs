@@ -9,11 +9,35 @@ use crate::algo::localize::{
 use crate::algo::segments::SegmentParams;
 use crate::geom::Segment;
 use crate::hardware::CartClient;
+use marie_actors::declare::DeclaredParams;
 use marie_actors::dm::{Query, FEATURE, WORLD};
 use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
-use marie_actors::property::{ParamDecl, ParamSchema, Value};
+use marie_actors::property::{ParamSchema, Value};
 use std::collections::BTreeMap;
 use std::time::Duration;
+
+marie_actors::params! {
+    /// The localizer's parameters.
+    pub struct LocalizerParams {
+        /// how far back in time echoes are fitted at most
+        pub window: f64 = 20.0, range(0.5, 120.0), unit("s");
+        /// how far back along each sensor's path echoes are fitted (short: the odometry
+        /// drifts per metre)
+        pub travel: f64 = 2.0, range(0.3, 20.0), unit("m");
+        /// echoes from before the sensor turned by more than this are not fitted (wheels
+        /// slip in turns)
+        pub turn: f64 = 10.0, range(1.0, 180.0), unit("deg");
+        /// fraction of the measured error corrected per step
+        pub gain: f64 = 0.5, range(0.0, 1.0);
+        /// largest angle between a segment and its map wall
+        pub max_angle: f64 = LocalizeParams::default().max_angle.to_degrees(),
+            range(0.5, 45.0), unit("deg");
+        /// largest distance between a segment and its map wall
+        pub max_offset: f64 = LocalizeParams::default().max_offset, range(0.01, 2.0), unit("m");
+        /// shortest segment matched
+        pub min_length: f64 = LocalizeParams::default().min_length, range(0.1, 10.0), unit("m");
+    }
+}
 
 /// Keeps the cart's pose in the map frame while it runs (until suspended), as the thesis'
 /// cart had to: its wheels drift by about 1 % of the distance and half a degree of heading
@@ -43,36 +67,7 @@ impl Operation for Localizer {
     }
 
     fn parameters(&self) -> ParamSchema {
-        let d = LocalizeParams::default();
-        ParamSchema::new(vec![
-            ParamDecl::float("window", 20.0)
-                .range(0.5, 120.0)
-                .unit("s")
-                .describe("how far back in time echoes are fitted at most"),
-            ParamDecl::float("travel", 2.0)
-                .range(0.3, 20.0)
-                .unit("m")
-                .describe("how far back along each sensor's path echoes are fitted (short: the odometry drifts per metre)"),
-            ParamDecl::float("turn", 10.0)
-                .range(1.0, 180.0)
-                .unit("deg")
-                .describe("echoes from before the sensor turned by more than this are not fitted (wheels slip in turns)"),
-            ParamDecl::float("gain", 0.5)
-                .range(0.0, 1.0)
-                .describe("fraction of the measured error corrected per step"),
-            ParamDecl::float("max_angle", d.max_angle.to_degrees())
-                .range(0.5, 45.0)
-                .unit("deg")
-                .describe("largest angle between a segment and its map wall"),
-            ParamDecl::float("max_offset", d.max_offset)
-                .range(0.01, 2.0)
-                .unit("m")
-                .describe("largest distance between a segment and its map wall"),
-            ParamDecl::float("min_length", d.min_length)
-                .range(0.1, 10.0)
-                .unit("m")
-                .describe("shortest segment matched"),
-        ])
+        LocalizerParams::schema()
     }
 
     fn period(&self) -> Duration {
@@ -89,15 +84,15 @@ impl Operation for Localizer {
     }
 
     async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
-        let p = ctx.params();
-        let window = Duration::from_secs_f64(p.f64("window")?);
-        let travel = p.f64("travel")?;
-        let turn = p.f64("turn")?.to_radians();
-        let gain = p.f64("gain")?;
+        let p: LocalizerParams = ctx.params().read()?;
+        let window = Duration::from_secs_f64(p.window);
+        let travel = p.travel;
+        let turn = p.turn.to_radians();
+        let gain = p.gain;
         let params = LocalizeParams {
-            max_angle: p.f64("max_angle")?.to_radians(),
-            max_offset: p.f64("max_offset")?,
-            min_length: p.f64("min_length")?,
+            max_angle: p.max_angle.to_radians(),
+            max_offset: p.max_offset,
+            min_length: p.min_length,
             ..LocalizeParams::default()
         };
         let Some(map) = self.map.clone() else {

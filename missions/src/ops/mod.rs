@@ -2,6 +2,12 @@
 //! of [`crate::algo`]. They exchange data only through the datamanagers (see [`records`]) and
 //! reach the virtual hardware through the registry.
 //!
+//! Each declares itself with marie's typed declarations, as a user's operation would: its
+//! parameters with `params!` (`…Params`, choice parameters as `choice!` enums), its flags
+//! with `flags!` (`…Flag`), the datamanagers by constant and its records as [`records`]'
+//! kinds. The declarations are public, so a mission built in code names a parameter by its
+//! key (`WallSensorParams::continuous()`) rather than by a string.
+//!
 //! [`Operation`]: marie_actors::eo::Operation
 
 mod avoidance;
@@ -11,13 +17,21 @@ mod perception;
 pub mod records;
 mod ultrasonic;
 
-pub use avoidance::CollisionAvoidance;
-pub use localization::Localizer;
-pub use motion::{
-    PathPlanner, SensorBasedController, TrajectoryController, WallFollowerV1, WallFollowerV2,
+pub use avoidance::{
+    AvoidanceMode, CollisionAvoidance, CollisionAvoidanceFlag, CollisionAvoidanceParams,
 };
-pub use perception::{DockingDetector, SegmentExtractor, WallSensor};
-pub use ultrasonic::Ultrasonic;
+pub use localization::{Localizer, LocalizerParams};
+pub use motion::{
+    PathPlanner, PathPlannerFlag, PathPlannerParams, PlanTarget, SensorBasedController,
+    SensorBasedControllerFlag, SensorBasedControllerParams, SensorBasedMode, TrajectoryController,
+    TrajectoryControllerFlag, TrajectoryControllerParams, WallFollowerMode, WallFollowerV1,
+    WallFollowerV1Params, WallFollowerV2, WallFollowerV2Params,
+};
+pub use perception::{
+    Beams, DockingDetector, DockingDetectorFlag, DockingDetectorParams, SegmentExtractor,
+    SegmentExtractorParams, WallSensor, WallSensorFlag, WallSensorParams, WallSide,
+};
+pub use ultrasonic::{Ultrasonic, UltrasonicParams};
 
 use crate::hardware::CartClient;
 use marie_actors::declare::RecordKind;
