@@ -1,7 +1,7 @@
 //! The simulated robot as a node's [`Robot`]: the plug between `marie-missions` and a node.
 //!
 //! A [`SimRobot`] is a world and a seed. Plugged into a node it stores the world's walls in
-//! the world datamanager as the a-priori map (class [`records::MAP`], sub1 `walls`, a
+//! the world datamanager as the a-priori map ([`records::MAP`]: class `map`, sub1 `walls`, a
 //! `Vec<Segment>`) before any operation runs, starts the virtual cart in that world (when the
 //! node runs the cart's drivers), and judges every run by the world: its judgement
 //! ([`RobotReport`]: the cart's final pose, its collisions, the seed and the world's
@@ -42,7 +42,7 @@ pub use crate::robot_report::RobotReport;
 use crate::telemetry::{self, PoseSampler};
 use crate::world::{Judgement, World};
 use marie_actors::clock::SharedClock;
-use marie_actors::dm::{self, DmClient, DmError, DmSpec, NewRecord, Query};
+use marie_actors::dm::{self, DmClient, DmError, DmSpec, Query};
 use marie_actors::events::EventBus;
 use marie_actors::report::RunReport;
 use marie_actors::run::Outcome;
@@ -145,21 +145,21 @@ impl SimRobot {
         }
 
         let feature = dm_client(dm::FEATURE);
-        let scans: Vec<EchoScan> = decoded(&feature, Query::class(records::SONAR)).await;
+        let scans: Vec<EchoScan> = decoded(&feature, Query::class(records::SONAR.class())).await;
         let echoes: Vec<Point> = scans.iter().flat_map(EchoScan::points).collect();
         picture.sonar = thin_out(echoes, MAX_PICTURE_ECHOES);
-        if let Some(set) = newest::<SegmentSet>(&feature, records::SEGMENTS).await {
+        if let Some(set) = newest::<SegmentSet>(&feature, records::SEGMENTS.class()).await {
             picture.segments = set.segments;
         }
         let world = dm_client(dm::WORLD);
-        if let Some(wall) = newest::<WallRecord>(&world, records::WALL).await {
+        if let Some(wall) = newest::<WallRecord>(&world, records::WALL.class()).await {
             picture.wall = Some(wall.segment);
         }
-        if let Some(dock) = newest::<DockRecord>(&world, records::DOCK).await {
+        if let Some(dock) = newest::<DockRecord>(&world, records::DOCK.class()).await {
             picture.dock = Some(dock.corners);
         }
         let parameter = dm_client(dm::PARAMETER);
-        if let Some(path) = newest::<PathRecord>(&parameter, records::PATH).await {
+        if let Some(path) = newest::<PathRecord>(&parameter, records::PATH.class()).await {
             picture.planned = path.waypoints();
         }
         picture
@@ -172,10 +172,10 @@ impl Robot for SimRobot {
     }
 
     fn apriori(&self) -> Vec<AprioriRecord> {
-        match NewRecord::encode(records::MAP, &self.world.segments()) {
+        match records::MAP.record(&self.world.segments()) {
             Ok(record) => vec![AprioriRecord {
                 datamanager: dm::WORLD.name.to_string(),
-                record: record.with_sub1("walls"),
+                record,
             }],
             Err(e) => {
                 tracing::error!("the map of world {} does not encode: {e}", self.world.name);

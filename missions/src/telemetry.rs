@@ -214,10 +214,10 @@ pub async fn tap_records(events: EventBus) -> Vec<JoinHandle<()>> {
     // subscribed side by side: in a cluster each is a round trip to another node, and
     // the run waits for them
     let (sonar, walls, docks, paths) = tokio::join!(
-        subscribe(dm::FEATURE, records::SONAR),
-        subscribe(dm::WORLD, records::WALL),
-        subscribe(dm::WORLD, records::DOCK),
-        subscribe(dm::PARAMETER, records::PATH),
+        subscribe(dm::FEATURE, records::SONAR.class()),
+        subscribe(dm::WORLD, records::WALL.class()),
+        subscribe(dm::WORLD, records::DOCK.class()),
+        subscribe(dm::PARAMETER, records::PATH.class()),
     );
     let mut taps = Vec::new();
     if let Some(sub) = sonar {
@@ -415,10 +415,12 @@ mod tests {
         let mut last = None;
         let told: Vec<bool> = [11.5, 11.4, 11.3, 11.2, 10.0]
             .iter()
-            .map(|x| followed_wall(&mut last, &record_of(records::WALL, &wall(*x))).is_some())
+            .map(|x| {
+                followed_wall(&mut last, &record_of(records::WALL.class(), &wall(*x))).is_some()
+            })
             .collect();
         assert_eq!(told, [true, false, false, true, true]);
-        let event = followed_wall(&mut None, &record_of(records::WALL, &wall(11.0)));
+        let event = followed_wall(&mut None, &record_of(records::WALL.class(), &wall(11.0)));
         assert_eq!(
             event,
             Some(robot(
@@ -428,7 +430,7 @@ mod tests {
         );
         // a record that does not decode is passed over
         assert_eq!(
-            followed_wall(&mut None, &record_of(records::WALL, &1u8)),
+            followed_wall(&mut None, &record_of(records::WALL.class(), &1u8)),
             None
         );
     }
@@ -450,7 +452,7 @@ mod tests {
                 }],
                 correction: Pose::default(),
             };
-            record_of(records::SONAR, &scan)
+            record_of(records::SONAR.class(), &scan)
         };
         let mut out = Vec::new();
         // two seconds of scans, ten a second

@@ -1,12 +1,29 @@
 //! The averager: mean and variance of the samples in the feature DM, into the world DM.
 
-use super::{Sample, SAMPLE_CLASS, STATS_CLASS};
-use marie_actors::dm::Query;
+use super::{SAMPLES, STATISTICS};
+use marie_actors::declare::{DeclaredFlags, DeclaredParams};
+use marie_actors::dm::{Query, FEATURE, WORLD};
 use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
-use marie_actors::flags::{FlagDecl, StatusFlags};
-use marie_actors::property::{ParamDecl, ParamSchema};
+use marie_actors::flags::FlagDecl;
+use marie_actors::property::ParamSchema;
 use serde::{Deserialize, Serialize};
 use std::time::Duration;
+
+marie_actors::params! {
+    /// The averager's parameters.
+    pub struct AveragerParams {
+        /// samples to average before finishing
+        pub window: i64 = 200, range(1, 100_000);
+    }
+}
+
+marie_actors::flags! {
+    /// What the averager reports.
+    pub enum AveragerFlag {
+        /// stored the statistics of a full window
+        Averaged = "averaged",
+    }
+}
 
 /// Statistics of a window of samples.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -53,16 +70,11 @@ impl Operation for Averager {
     }
 
     fn parameters(&self) -> ParamSchema {
-        ParamSchema::new(vec![ParamDecl::int("window", 200)
-            .range(1.0, 100_000.0)
-            .describe("samples to average before finishing")])
+        AveragerParams::schema()
     }
 
     fn flags(&self) -> Vec<FlagDecl> {
-        vec![FlagDecl::new(
-            "averaged",
-            "stored the statistics of a full window",
-        )]
+        AveragerFlag::decls()
     }
 
     fn period(&self) -> Duration {
@@ -80,15 +92,17 @@ impl Operation for Averager {
     }
 
     async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
-        let window = ctx.params().i64("window")? as u64;
-        let query = Query::class(SAMPLE_CLASS)
-            .sub1("sine")
+        let window = ctx.params().value(AveragerParams::window())? as u64;
+        let query = Query::all()
             .time_from(self.since)
             .seq_from(self.last_seq + 1);
-        let records = ctx.dm("feature")?.select(query).await.map_err(dm_err)?;
-        for rec in records {
-            self.last_seq = rec.seq;
-            let s: Sample = rec.decode().map_err(dm_err)?;
+        let samples = ctx
+            .dm(FEATURE)?
+            .select_kind(SAMPLES, query)
+            .await
+            .map_err(dm_err)?;
+        for (header, s) in samples {
+            self.last_seq = header.seq;
             // Welford's online algorithm
             self.n += 1;
             let delta = s.value - self.mean;
@@ -110,10 +124,10 @@ impl Operation for Averager {
             min: self.min,
             max: self.max,
         };
-        ctx.dm("world")?
-            .store(STATS_CLASS, Some("sine"), None, &stats)
+        ctx.dm(WORLD)?
+            .store_kind(STATISTICS, &stats)
             .await
             .map_err(dm_err)?;
-        Ok(Step::Finish(StatusFlags(1)))
+        Ok(Step::finish(AveragerFlag::Averaged))
     }
 }

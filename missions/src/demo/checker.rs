@@ -1,10 +1,33 @@
 //! The checker: judges the newest statistics in the world DM.
 
-use super::{Statistics, STATS_CLASS};
-use marie_actors::dm::Query;
+use super::STATISTICS;
+use marie_actors::declare::{DeclaredFlags, DeclaredParams};
+use marie_actors::dm::{DmError, WORLD};
 use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
-use marie_actors::flags::{FlagDecl, StatusFlags};
-use marie_actors::property::{ParamDecl, ParamSchema};
+use marie_actors::flags::FlagDecl;
+use marie_actors::property::ParamSchema;
+
+marie_actors::params! {
+    /// The checker's parameters.
+    pub struct CheckerParams {
+        /// expected mean
+        pub expected_mean: f64 = 0.0;
+        /// accepted distance from the expected mean
+        pub mean_tolerance: f64 = 0.1, range(0.0, 1e6);
+        /// expected variance (a sine of amplitude A has A²/2)
+        pub expected_variance: f64 = 0.5, range(0.0, 1e6);
+        /// accepted distance from the expected variance
+        pub variance_tolerance: f64 = 0.1, range(0.0, 1e6);
+    }
+}
+
+marie_actors::flags! {
+    /// What the checker reports.
+    pub enum CheckerFlag {
+        /// the statistics are as expected
+        Verified = "verified",
+    }
+}
 
 /// Finishes with `verified` when the newest statistics match the expected mean and variance
 /// within their tolerances; fails otherwise.
@@ -22,49 +45,35 @@ impl Operation for Checker {
     }
 
     fn parameters(&self) -> ParamSchema {
-        ParamSchema::new(vec![
-            ParamDecl::float("expected_mean", 0.0).describe("expected mean"),
-            ParamDecl::float("mean_tolerance", 0.1)
-                .range(0.0, 1e6)
-                .describe("accepted distance from the expected mean"),
-            ParamDecl::float("expected_variance", 0.5)
-                .range(0.0, 1e6)
-                .describe("expected variance (a sine of amplitude A has A²/2)"),
-            ParamDecl::float("variance_tolerance", 0.1)
-                .range(0.0, 1e6)
-                .describe("accepted distance from the expected variance"),
-        ])
+        CheckerParams::schema()
     }
 
     fn flags(&self) -> Vec<FlagDecl> {
-        vec![FlagDecl::new("verified", "the statistics are as expected")]
+        CheckerFlag::decls()
     }
 
     async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
-        let records = ctx
-            .dm("world")?
-            .select(Query::class(STATS_CLASS).newest(1))
+        let in_world = |e: DmError| OpError::Datamanager {
+            dm: WORLD.name.into(),
+            problem: e.to_string(),
+        };
+        let newest = ctx
+            .dm(WORLD)?
+            .newest_kind(STATISTICS)
             .await
-            .map_err(|e| OpError::Datamanager {
-                dm: "world".into(),
-                problem: e.to_string(),
-            })?;
-        let Some(rec) = records.last() else {
+            .map_err(in_world)?;
+        let Some((_, stats)) = newest else {
             return Ok(Step::Continue); // nothing to judge yet
         };
-        let stats: Statistics = rec.decode().map_err(|e| OpError::Datamanager {
-            dm: "world".into(),
-            problem: e.to_string(),
-        })?;
-        let p = ctx.params();
-        let mean_err = (stats.mean - p.f64("expected_mean")?).abs();
-        let var_err = (stats.variance - p.f64("expected_variance")?).abs();
-        if mean_err > p.f64("mean_tolerance")? || var_err > p.f64("variance_tolerance")? {
+        let p: CheckerParams = ctx.params().read()?;
+        let mean_err = (stats.mean - p.expected_mean).abs();
+        let var_err = (stats.variance - p.expected_variance).abs();
+        if mean_err > p.mean_tolerance || var_err > p.variance_tolerance {
             return Err(OpError::failed(format!(
                 "statistics out of bounds: mean {:.4} (off by {mean_err:.4}), variance {:.4} (off by {var_err:.4}) over {} samples",
                 stats.mean, stats.variance, stats.n
             )));
         }
-        Ok(Step::Finish(StatusFlags(1)))
+        Ok(Step::finish(CheckerFlag::Verified))
     }
 }

@@ -12,11 +12,13 @@ mod averager;
 mod checker;
 mod sampler;
 
-pub use averager::{Averager, Statistics};
-pub use checker::Checker;
-pub use sampler::{Sample, Sampler};
+pub use averager::{Averager, AveragerFlag, AveragerParams, Statistics};
+pub use checker::{Checker, CheckerFlag, CheckerParams};
+pub use sampler::{Sample, Sampler, SamplerFlag, SamplerParams};
 
-/// Class of the sample records in the feature DM.
-pub const SAMPLE_CLASS: &str = "sample";
-/// Class of the statistics records in the world DM.
-pub const STATS_CLASS: &str = "statistics";
+use marie_actors::declare::RecordKind;
+
+/// The sampler's samples of its sine, in the feature DM.
+pub const SAMPLES: RecordKind<Sample> = RecordKind::new("sample").with_sub1("sine");
+/// The averager's statistics of the sine's samples, in the world DM.
+pub const STATISTICS: RecordKind<Statistics> = RecordKind::new("statistics").with_sub1("sine");

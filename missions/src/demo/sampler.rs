@@ -1,11 +1,39 @@
 //! The sampler: a noisy sine wave into the feature DM.
 
-use super::SAMPLE_CLASS;
+use super::SAMPLES;
+use marie_actors::declare::{DeclaredFlags, DeclaredParams};
+use marie_actors::dm::FEATURE;
 use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
-use marie_actors::flags::{FlagDecl, StatusFlags};
-use marie_actors::property::{ParamDecl, ParamSchema};
+use marie_actors::flags::FlagDecl;
+use marie_actors::property::ParamSchema;
 use serde::{Deserialize, Serialize};
 use std::time::Duration;
+
+marie_actors::params! {
+    /// The sampler's parameters.
+    pub struct SamplerParams {
+        /// samples to take before finishing
+        pub count: i64 = 400, range(1, 100_000);
+        /// samples per second of signal time
+        pub rate: f64 = 100.0, range(1.0, 10_000.0), unit("Hz");
+        /// frequency of the sine
+        pub frequency: f64 = 2.0, range(0.0, 1_000.0), unit("Hz");
+        /// amplitude of the sine
+        pub amplitude: f64 = 1.0, range(0.0, 1_000.0);
+        /// half-width of the uniform noise
+        pub noise: f64 = 0.1, range(0.0, 100.0);
+        /// noise seed: equal seeds give equal samples
+        pub seed: i64 = 1, range(0.0, 1e15);
+    }
+}
+
+marie_actors::flags! {
+    /// What the sampler reports.
+    pub enum SamplerFlag {
+        /// took every sample it was asked for
+        Sampled = "sampled",
+    }
+}
 
 /// One sample record.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -47,35 +75,11 @@ impl Operation for Sampler {
     }
 
     fn parameters(&self) -> ParamSchema {
-        ParamSchema::new(vec![
-            ParamDecl::int("count", 400)
-                .range(1.0, 100_000.0)
-                .describe("samples to take before finishing"),
-            ParamDecl::float("rate", 100.0)
-                .range(1.0, 10_000.0)
-                .unit("Hz")
-                .describe("samples per second of signal time"),
-            ParamDecl::float("frequency", 2.0)
-                .range(0.0, 1_000.0)
-                .unit("Hz")
-                .describe("frequency of the sine"),
-            ParamDecl::float("amplitude", 1.0)
-                .range(0.0, 1_000.0)
-                .describe("amplitude of the sine"),
-            ParamDecl::float("noise", 0.1)
-                .range(0.0, 100.0)
-                .describe("half-width of the uniform noise"),
-            ParamDecl::int("seed", 1)
-                .range(0.0, 1e15)
-                .describe("noise seed: equal seeds give equal samples"),
-        ])
+        SamplerParams::schema()
     }
 
     fn flags(&self) -> Vec<FlagDecl> {
-        vec![FlagDecl::new(
-            "sampled",
-            "took every sample it was asked for",
-        )]
+        SamplerFlag::decls()
     }
 
     fn period(&self) -> Duration {
@@ -84,14 +88,15 @@ impl Operation for Sampler {
 
     async fn activate(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
         self.index = 0;
-        self.rng = (ctx.params().i64("seed")? as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+        let seed = ctx.params().value(SamplerParams::seed())?;
+        self.rng = (seed as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
         Ok(Step::Continue)
     }
 
     async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
-        let p = ctx.params();
-        let (count, rate) = (p.i64("count")? as u64, p.f64("rate")?);
-        let (freq, amp, noise) = (p.f64("frequency")?, p.f64("amplitude")?, p.f64("noise")?);
+        let p: SamplerParams = ctx.params().read()?;
+        let (count, rate) = (p.count as u64, p.rate);
+        let (freq, amp, noise) = (p.frequency, p.amplitude, p.noise);
         let t = self.index as f64 / rate;
         let value = amp * (std::f64::consts::TAU * freq * t).sin() + noise * self.uniform();
         let sample = Sample {
@@ -99,16 +104,16 @@ impl Operation for Sampler {
             t,
             value,
         };
-        ctx.dm("feature")?
-            .store(SAMPLE_CLASS, Some("sine"), None, &sample)
+        ctx.dm(FEATURE)?
+            .store_kind(SAMPLES, &sample)
             .await
             .map_err(|e| OpError::Datamanager {
-                dm: "feature".into(),
+                dm: FEATURE.name.into(),
                 problem: e.to_string(),
             })?;
         self.index += 1;
         Ok(if self.index >= count {
-            Step::Finish(StatusFlags(1))
+            Step::finish(SamplerFlag::Sampled)
         } else {
             Step::Continue
         })

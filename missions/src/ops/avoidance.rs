@@ -5,14 +5,47 @@ use super::{cart, cart_err};
 use crate::algo::avoid::{avoid, AvoidDecision, AvoidMode, AvoidParams, SonarReading};
 use crate::algo::Command;
 use crate::hardware::CartClient;
+use marie_actors::declare::{DeclaredFlags, DeclaredParams};
 use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
-use marie_actors::flags::{FlagDecl, StatusFlags};
-use marie_actors::property::{ParamDecl, ParamSchema};
+use marie_actors::flags::FlagDecl;
+use marie_actors::property::ParamSchema;
 use std::time::Duration;
 
-/// Flag bits (the operation's own order).
-const OBSTACLE: StatusFlags = StatusFlags(0b01);
-const STOPPED: StatusFlags = StatusFlags(0b10);
+marie_actors::choice! {
+    /// What collision avoidance does about obstacles ahead (see [`CollisionAvoidance`]).
+    pub enum AvoidanceMode {
+        /// Nothing.
+        Off = "off",
+        /// Raise `obstacle`.
+        Warn = "warn",
+        /// Cap the speed near obstacles, hold the cart while one is within the stop range.
+        SlowDown = "slow-down",
+        /// Slow near an obstacle and stop for good within the stop range.
+        ControlledStop = "controlled-stop",
+    }
+}
+
+marie_actors::params! {
+    /// Collision avoidance's parameters.
+    pub struct CollisionAvoidanceParams {
+        /// what to do about obstacles ahead
+        pub mode: AvoidanceMode = AvoidanceMode::SlowDown;
+        /// obstacles nearer than this stop the cart
+        pub stop_range: f64 = AvoidParams::default().stop_range, range(0.05, 5.0), unit("m");
+        /// obstacles nearer than this slow the cart
+        pub slow_range: f64 = AvoidParams::default().slow_range, range(0.05, 10.0), unit("m");
+    }
+}
+
+marie_actors::flags! {
+    /// What collision avoidance reports.
+    pub enum CollisionAvoidanceFlag {
+        /// an obstacle is near in the direction of travel
+        Obstacle = "obstacle",
+        /// the controlled stop halted the cart before an obstacle
+        Stopped = "stopped",
+    }
+}
 
 /// Collision avoidance. Modes:
 /// - `off`: does nothing;
@@ -39,33 +72,11 @@ impl Operation for CollisionAvoidance {
     }
 
     fn parameters(&self) -> ParamSchema {
-        let d = AvoidParams::default();
-        ParamSchema::new(vec![
-            ParamDecl::choice(
-                "mode",
-                &["off", "warn", "slow-down", "controlled-stop"],
-                "slow-down",
-            )
-            .describe("what to do about obstacles ahead"),
-            ParamDecl::float("stop_range", d.stop_range)
-                .range(0.05, 5.0)
-                .unit("m")
-                .describe("obstacles nearer than this stop the cart"),
-            ParamDecl::float("slow_range", d.slow_range)
-                .range(0.05, 10.0)
-                .unit("m")
-                .describe("obstacles nearer than this slow the cart"),
-        ])
+        CollisionAvoidanceParams::schema()
     }
 
     fn flags(&self) -> Vec<FlagDecl> {
-        vec![
-            FlagDecl::new("obstacle", "an obstacle is near in the direction of travel"),
-            FlagDecl::new(
-                "stopped",
-                "the controlled stop halted the cart before an obstacle",
-            ),
-        ]
+        CollisionAvoidanceFlag::decls()
     }
 
     fn period(&self) -> Duration {
@@ -79,16 +90,16 @@ impl Operation for CollisionAvoidance {
     }
 
     async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
-        let p = ctx.params();
+        let p: CollisionAvoidanceParams = ctx.params().read()?;
         let params = AvoidParams {
-            mode: match p.text("mode")? {
-                "off" => AvoidMode::Off,
-                "warn" => AvoidMode::Warn,
-                "controlled-stop" => AvoidMode::ControlledStop,
-                _ => AvoidMode::SlowDown,
+            mode: match p.mode {
+                AvoidanceMode::Off => AvoidMode::Off,
+                AvoidanceMode::Warn => AvoidMode::Warn,
+                AvoidanceMode::SlowDown => AvoidMode::SlowDown,
+                AvoidanceMode::ControlledStop => AvoidMode::ControlledStop,
             },
-            stop_range: p.f64("stop_range")?,
-            slow_range: p.f64("slow_range")?,
+            stop_range: p.stop_range,
+            slow_range: p.slow_range,
             ..AvoidParams::default()
         };
         if params.mode == AvoidMode::Off {
@@ -116,21 +127,23 @@ impl Operation for CollisionAvoidance {
             AvoidDecision::Stopped { distance, .. } => {
                 cart.emergency_stop(true).map_err(cart_err)?;
                 tracing::info!(distance, "controlled stop");
-                return Ok(Step::Finish(OBSTACLE | STOPPED));
+                return Ok(Step::finish(
+                    CollisionAvoidanceFlag::Obstacle | CollisionAvoidanceFlag::Stopped,
+                ));
             }
             AvoidDecision::Hold { .. } => {
                 cart.emergency_stop(true).map_err(cart_err)?;
                 self.holding = true;
-                ctx.raise(OBSTACLE);
+                ctx.raise(CollisionAvoidanceFlag::Obstacle);
             }
             AvoidDecision::Slow { command, .. } => {
                 self.release_hold(&cart)?;
                 cart.speed_cap(Some(command.speed.abs()))
                     .map_err(cart_err)?;
                 self.capped = true;
-                ctx.raise(OBSTACLE);
+                ctx.raise(CollisionAvoidanceFlag::Obstacle);
             }
-            AvoidDecision::Warn { .. } => ctx.raise(OBSTACLE),
+            AvoidDecision::Warn { .. } => ctx.raise(CollisionAvoidanceFlag::Obstacle),
             AvoidDecision::Pass(_) => {
                 self.release_hold(&cart)?;
                 if self.capped {

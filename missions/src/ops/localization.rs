@@ -1,7 +1,7 @@
 //! The localizer (1520): corrects the cart's drifting odometry by matching sonar segments
 //! against the a-priori map's walls, and stores the correction in the world DM.
 
-use super::records::{EchoScan, LocationRecord, LOCATION, MAP, SONAR};
+use super::records::{LocationRecord, LOCATION, MAP, SONAR};
 use super::{cart, cart_err, correction, dm_err, newest};
 use crate::algo::localize::{
     localize, recent_travel, reframe, swept_segments, Fix, LocalizeParams, SensedPoint,
@@ -9,11 +9,35 @@ use crate::algo::localize::{
 use crate::algo::segments::SegmentParams;
 use crate::geom::Segment;
 use crate::hardware::CartClient;
-use marie_actors::dm::Query;
+use marie_actors::declare::DeclaredParams;
+use marie_actors::dm::{Query, FEATURE, WORLD};
 use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
-use marie_actors::property::{ParamDecl, ParamSchema, Value};
+use marie_actors::property::{ParamSchema, Value};
 use std::collections::BTreeMap;
 use std::time::Duration;
+
+marie_actors::params! {
+    /// The localizer's parameters.
+    pub struct LocalizerParams {
+        /// how far back in time echoes are fitted at most
+        pub window: f64 = 20.0, range(0.5, 120.0), unit("s");
+        /// how far back along each sensor's path echoes are fitted (short: the odometry
+        /// drifts per metre)
+        pub travel: f64 = 2.0, range(0.3, 20.0), unit("m");
+        /// echoes from before the sensor turned by more than this are not fitted (wheels
+        /// slip in turns)
+        pub turn: f64 = 10.0, range(1.0, 180.0), unit("deg");
+        /// fraction of the measured error corrected per step
+        pub gain: f64 = 0.5, range(0.0, 1.0);
+        /// largest angle between a segment and its map wall
+        pub max_angle: f64 = LocalizeParams::default().max_angle.to_degrees(),
+            range(0.5, 45.0), unit("deg");
+        /// largest distance between a segment and its map wall
+        pub max_offset: f64 = LocalizeParams::default().max_offset, range(0.01, 2.0), unit("m");
+        /// shortest segment matched
+        pub min_length: f64 = LocalizeParams::default().min_length, range(0.1, 10.0), unit("m");
+    }
+}
 
 /// Keeps the cart's pose in the map frame while it runs (until suspended), as the thesis'
 /// cart had to: its wheels drift by about 1 % of the distance and half a degree of heading
@@ -43,36 +67,7 @@ impl Operation for Localizer {
     }
 
     fn parameters(&self) -> ParamSchema {
-        let d = LocalizeParams::default();
-        ParamSchema::new(vec![
-            ParamDecl::float("window", 20.0)
-                .range(0.5, 120.0)
-                .unit("s")
-                .describe("how far back in time echoes are fitted at most"),
-            ParamDecl::float("travel", 2.0)
-                .range(0.3, 20.0)
-                .unit("m")
-                .describe("how far back along each sensor's path echoes are fitted (short: the odometry drifts per metre)"),
-            ParamDecl::float("turn", 10.0)
-                .range(1.0, 180.0)
-                .unit("deg")
-                .describe("echoes from before the sensor turned by more than this are not fitted (wheels slip in turns)"),
-            ParamDecl::float("gain", 0.5)
-                .range(0.0, 1.0)
-                .describe("fraction of the measured error corrected per step"),
-            ParamDecl::float("max_angle", d.max_angle.to_degrees())
-                .range(0.5, 45.0)
-                .unit("deg")
-                .describe("largest angle between a segment and its map wall"),
-            ParamDecl::float("max_offset", d.max_offset)
-                .range(0.01, 2.0)
-                .unit("m")
-                .describe("largest distance between a segment and its map wall"),
-            ParamDecl::float("min_length", d.min_length)
-                .range(0.1, 10.0)
-                .unit("m")
-                .describe("shortest segment matched"),
-        ])
+        LocalizerParams::schema()
     }
 
     fn period(&self) -> Duration {
@@ -81,7 +76,7 @@ impl Operation for Localizer {
 
     async fn activate(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
         self.map = Some(
-            newest(ctx, "world", MAP)
+            newest(ctx, WORLD, MAP)
                 .await?
                 .ok_or_else(|| OpError::failed("no map in the world DM to localize on"))?,
         );
@@ -89,15 +84,15 @@ impl Operation for Localizer {
     }
 
     async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
-        let p = ctx.params();
-        let window = Duration::from_secs_f64(p.f64("window")?);
-        let travel = p.f64("travel")?;
-        let turn = p.f64("turn")?.to_radians();
-        let gain = p.f64("gain")?;
+        let p: LocalizerParams = ctx.params().read()?;
+        let window = Duration::from_secs_f64(p.window);
+        let travel = p.travel;
+        let turn = p.turn.to_radians();
+        let gain = p.gain;
         let params = LocalizeParams {
-            max_angle: p.f64("max_angle")?.to_radians(),
-            max_offset: p.f64("max_offset")?,
-            min_length: p.f64("min_length")?,
+            max_angle: p.max_angle.to_radians(),
+            max_offset: p.max_offset,
+            min_length: p.min_length,
             ..LocalizeParams::default()
         };
         let Some(map) = self.map.clone() else {
@@ -105,14 +100,13 @@ impl Operation for Localizer {
         };
         let now = correction(ctx).await?;
         let since = ctx.now().saturating_sub(window);
-        let records = ctx
-            .dm("feature")?
-            .select(Query::class(SONAR).time_from(since))
+        let scans = ctx
+            .dm(FEATURE)?
+            .select_kind(SONAR, Query::all().time_from(since))
             .await
-            .map_err(dm_err("feature"))?;
+            .map_err(dm_err(FEATURE))?;
         let mut by_sensor: BTreeMap<usize, Vec<SensedPoint>> = BTreeMap::new();
-        for record in &records {
-            let scan: EchoScan = record.decode().map_err(dm_err("feature"))?;
+        for (_, scan) in &scans {
             for e in scan.echoes.iter().filter(|e| e.narrow) {
                 let origin =
                     e.point - crate::geom::Pose::new(0.0, 0.0, e.bearing).heading() * e.range;
@@ -153,10 +147,10 @@ impl Operation for Localizer {
             pose: corrected.compose(odometry),
             matched: fix.matched,
         };
-        ctx.dm("world")?
-            .store(LOCATION, Some("correction"), None, &record)
+        ctx.dm(WORLD)?
+            .store_kind(LOCATION, &record)
             .await
-            .map_err(dm_err("world"))?;
+            .map_err(dm_err(WORLD))?;
         self.fixes += 1;
         tracing::debug!(
             rotation = step.rotation,

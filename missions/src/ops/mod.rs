@@ -2,6 +2,12 @@
 //! of [`crate::algo`]. They exchange data only through the datamanagers (see [`records`]) and
 //! reach the virtual hardware through the registry.
 //!
+//! Each declares itself with marie's typed declarations, as a user's operation would: its
+//! parameters with `params!` (`…Params`, choice parameters as `choice!` enums), its flags
+//! with `flags!` (`…Flag`), the datamanagers by constant and its records as [`records`]'
+//! kinds. The declarations are public, so a mission built in code names a parameter by its
+//! key (`WallSensorParams::continuous()`) rather than by a string.
+//!
 //! [`Operation`]: marie_actors::eo::Operation
 
 mod avoidance;
@@ -11,17 +17,27 @@ mod perception;
 pub mod records;
 mod ultrasonic;
 
-pub use avoidance::CollisionAvoidance;
-pub use localization::Localizer;
-pub use motion::{
-    PathPlanner, SensorBasedController, TrajectoryController, WallFollowerV1, WallFollowerV2,
+pub use avoidance::{
+    AvoidanceMode, CollisionAvoidance, CollisionAvoidanceFlag, CollisionAvoidanceParams,
 };
-pub use perception::{DockingDetector, SegmentExtractor, WallSensor};
-pub use ultrasonic::Ultrasonic;
+pub use localization::{Localizer, LocalizerParams};
+pub use motion::{
+    PathPlanner, PathPlannerFlag, PathPlannerParams, PlanTarget, SensorBasedController,
+    SensorBasedControllerFlag, SensorBasedControllerParams, SensorBasedMode, TrajectoryController,
+    TrajectoryControllerFlag, TrajectoryControllerParams, WallFollowerMode, WallFollowerV1,
+    WallFollowerV1Params, WallFollowerV2, WallFollowerV2Params,
+};
+pub use perception::{
+    Beams, DockingDetector, DockingDetectorFlag, DockingDetectorParams, SegmentExtractor,
+    SegmentExtractorParams, WallSensor, WallSensorFlag, WallSensorParams, WallSide,
+};
+pub use ultrasonic::{Ultrasonic, UltrasonicParams};
 
 use crate::hardware::CartClient;
-use marie_actors::dm::DmError;
+use marie_actors::declare::RecordKind;
+use marie_actors::dm::{DmError, DmSpec, WORLD};
 use marie_actors::eo::{OpContext, OpError};
+use serde::de::DeserializeOwned;
 
 /// The cart client, found in the registry on first use and again after the cart restarted,
 /// carrying the running activation's fence: the cart obeys only the newest incarnation of
@@ -48,58 +64,47 @@ pub(crate) fn cart_err(e: crate::hardware::CartError) -> OpError {
     OpError::failed(e.to_string())
 }
 
-/// The newest record of `class` in datamanager `dm`, decoded; `None` when there is none.
-pub(crate) async fn newest<T: serde::de::DeserializeOwned>(
-    ctx: &mut marie_actors::eo::OpContext,
-    dm: &'static str,
-    class: &str,
+/// The newest record of `kind` in datamanager `dm`, decoded; `None` when there is none.
+pub(crate) async fn newest<T: DeserializeOwned>(
+    ctx: &mut OpContext,
+    dm: DmSpec,
+    kind: RecordKind<T>,
 ) -> Result<Option<T>, OpError> {
-    Ok(newest_with_seq(ctx, dm, class).await?.map(|(_, v)| v))
+    Ok(newest_with_seq(ctx, dm, kind).await?.map(|(_, v)| v))
 }
 
 /// Like [`newest`], with the record's sequence number.
-pub(crate) async fn newest_with_seq<T: serde::de::DeserializeOwned>(
-    ctx: &mut marie_actors::eo::OpContext,
-    dm: &'static str,
-    class: &str,
+pub(crate) async fn newest_with_seq<T: DeserializeOwned>(
+    ctx: &mut OpContext,
+    dm: DmSpec,
+    kind: RecordKind<T>,
 ) -> Result<Option<(u64, T)>, OpError> {
-    let records = ctx
-        .dm(dm)?
-        .select(marie_actors::dm::Query::class(class).newest(1))
-        .await
-        .map_err(dm_err(dm))?;
-    match records.last() {
-        Some(r) => Ok(Some((r.seq, r.decode().map_err(dm_err(dm))?))),
-        None => Ok(None),
-    }
+    let newest = ctx.dm(dm)?.newest_kind(kind).await.map_err(dm_err(dm))?;
+    Ok(newest.map(|(header, value)| (header.seq, value)))
 }
 
 /// Turn a datamanager error into an operation error naming the DM.
-pub(crate) fn dm_err(dm: &'static str) -> impl Fn(DmError) -> OpError {
+pub(crate) fn dm_err(dm: DmSpec) -> impl Fn(DmError) -> OpError {
     move |e| OpError::Datamanager {
-        dm: dm.to_string(),
+        dm: dm.name.to_string(),
         problem: e.to_string(),
     }
 }
 
-/// The localizer's newest odometry correction ([`records::LocationRecord`]); the identity
-/// when there is none yet (the odometry starts at the world's start pose).
-pub(crate) async fn correction(
-    ctx: &mut marie_actors::eo::OpContext,
-) -> Result<crate::geom::Pose, OpError> {
-    Ok(
-        newest::<records::LocationRecord>(ctx, "world", records::LOCATION)
-            .await?
-            .map(|r| r.correction)
-            .unwrap_or_default(),
-    )
+/// The localizer's newest odometry correction ([`records::LOCATION`]); the identity when
+/// there is none yet (the odometry starts at the world's start pose).
+pub(crate) async fn correction(ctx: &mut OpContext) -> Result<crate::geom::Pose, OpError> {
+    Ok(newest(ctx, WORLD, records::LOCATION)
+        .await?
+        .map(|r| r.correction)
+        .unwrap_or_default())
 }
 
 /// The cart's pose in the map frame: its `odometry` under the localizer's newest correction.
 /// Every operation that places things in the world or drives to a place uses this, never the
 /// raw odometry, which drifts.
 pub(crate) async fn located(
-    ctx: &mut marie_actors::eo::OpContext,
+    ctx: &mut OpContext,
     odometry: &crate::geom::Pose,
 ) -> Result<crate::geom::Pose, OpError> {
     Ok(crate::algo::localize::corrected(

@@ -13,12 +13,30 @@ use crate::algo::track::{track_wall, TrackParams};
 use crate::algo::wall::{sense_wall, Side, WallEstimate, WallParams};
 use crate::geom::{Point, Pose, Segment};
 use crate::hardware::CartClient;
-use marie_actors::dm::Query;
+use marie_actors::declare::{DeclaredFlags, DeclaredParams};
+use marie_actors::dm::{Query, FEATURE, WORLD};
 use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
-use marie_actors::flags::{FlagDecl, StatusFlags};
-use marie_actors::property::{ParamDecl, ParamSchema, Value};
+use marie_actors::flags::FlagDecl;
+use marie_actors::property::{ParamSchema, Value};
 use std::collections::BTreeMap;
 use std::time::Duration;
+
+marie_actors::choice! {
+    /// Which sonar beams an operation uses.
+    pub enum Beams {
+        /// Only narrow beams, whose echoes lie where the wall is.
+        Narrow = "narrow",
+        /// Every beam; a wide beam's echo is placed on its axis, nearer than its wall.
+        All = "all",
+    }
+}
+
+impl Beams {
+    /// Whether an echo of a narrow (`true`) or wide beam is used.
+    fn admits(self, narrow: bool) -> bool {
+        narrow || self == Beams::All
+    }
+}
 
 /// Echo scans stored since `since` (clock time) with a seq of at least `from_seq`, oldest
 /// first, with the seq that follows the last one returned.
@@ -28,15 +46,14 @@ async fn scans_since(
     from_seq: u64,
 ) -> Result<(Vec<EchoScan>, u64), OpError> {
     let records = ctx
-        .dm("feature")?
-        .select(Query::class(SONAR).time_from(since).seq_from(from_seq))
+        .dm(FEATURE)?
+        .select_kind(SONAR, Query::all().time_from(since).seq_from(from_seq))
         .await
-        .map_err(dm_err("feature"))?;
-    let next = records.last().map_or(from_seq, |r| r.seq + 1);
-    let scans = records
-        .iter()
-        .map(|r| r.decode().map_err(dm_err("feature")))
-        .collect::<Result<_, _>>()?;
+        .map_err(dm_err(FEATURE))?;
+    let next = records
+        .last()
+        .map_or(from_seq, |(header, _)| header.seq + 1);
+    let scans = records.into_iter().map(|(_, scan)| scan).collect();
     Ok((scans, next))
 }
 
@@ -53,6 +70,29 @@ pub(crate) fn wall_from(wall: &Segment, pose: &Pose) -> Option<WallEstimate> {
             ..WallParams::default()
         },
     )
+}
+
+marie_actors::params! {
+    /// The segment extractor's parameters.
+    pub struct SegmentExtractorParams {
+        /// how far back echoes are used
+        pub window: f64 = 8.0, range(0.5, 120.0), unit("s");
+        /// largest distance of an echo from its segment
+        pub distance_threshold: f64 = SegmentParams::default().distance_threshold,
+            range(0.005, 1.0), unit("m");
+        /// fewest echoes a segment needs
+        pub min_points: i64 = SegmentParams::default().min_points as i64, range(2, 1000);
+        /// larger jumps between consecutive echoes end a segment
+        pub max_gap: f64 = SegmentParams::default().max_gap, range(0.01, 5.0), unit("m");
+        /// shortest segment reported
+        pub min_length: f64 = SegmentParams::default().min_length, range(0.0, 50.0), unit("m");
+        /// which sonar beams to fit: a wide beam's echo is placed on its axis, so its
+        /// points sit nearer than the wall they came from
+        pub beams: Beams = Beams::Narrow;
+        /// only echoes heard since this activation (not an earlier stage's, which the
+        /// sonar may have heard for the localizer while the cart turned)
+        pub fresh: bool = false;
+    }
 }
 
 /// Fits line segments to the sonar echoes of a recent time window, sensor by sensor (each
@@ -76,36 +116,7 @@ impl Operation for SegmentExtractor {
     }
 
     fn parameters(&self) -> ParamSchema {
-        let d = SegmentParams::default();
-        ParamSchema::new(vec![
-            ParamDecl::float("window", 8.0)
-                .range(0.5, 120.0)
-                .unit("s")
-                .describe("how far back echoes are used"),
-            ParamDecl::float("distance_threshold", d.distance_threshold)
-                .range(0.005, 1.0)
-                .unit("m")
-                .describe("largest distance of an echo from its segment"),
-            ParamDecl::int("min_points", d.min_points as i64)
-                .range(2.0, 1000.0)
-                .describe("fewest echoes a segment needs"),
-            ParamDecl::float("max_gap", d.max_gap)
-                .range(0.01, 5.0)
-                .unit("m")
-                .describe("larger jumps between consecutive echoes end a segment"),
-            ParamDecl::float("min_length", d.min_length)
-                .range(0.0, 50.0)
-                .unit("m")
-                .describe("shortest segment reported"),
-            ParamDecl::choice("beams", &["narrow", "all"], "narrow").describe(
-                "which sonar beams to fit: a wide beam's echo is placed on its axis, so its \
-                 points sit nearer than the wall they came from",
-            ),
-            ParamDecl::bool("fresh", false).describe(
-                "only echoes heard since this activation (not an earlier stage's, which the \
-                 sonar may have heard for the localizer while the cart turned)",
-            ),
-        ])
+        SegmentExtractorParams::schema()
     }
 
     async fn activate(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
@@ -118,18 +129,17 @@ impl Operation for SegmentExtractor {
     }
 
     async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
-        let p = ctx.params();
-        let window = Duration::from_secs_f64(p.f64("window")?);
+        let p: SegmentExtractorParams = ctx.params().read()?;
+        let window = Duration::from_secs_f64(p.window);
         let params = SegmentParams {
-            distance_threshold: p.f64("distance_threshold")?,
-            min_points: p.i64("min_points")? as usize,
-            max_gap: p.f64("max_gap")?,
-            min_length: p.f64("min_length")?,
+            distance_threshold: p.distance_threshold,
+            min_points: p.min_points as usize,
+            max_gap: p.max_gap,
+            min_length: p.min_length,
             ..SegmentParams::default()
         };
-        let narrow_only = p.text("beams")? == "narrow";
         let mut since = ctx.now().saturating_sub(window);
-        if p.bool("fresh")? {
+        if p.fresh {
             since = since.max(self.activated);
         }
         let (scans, _) = scans_since(ctx, since, 0).await?;
@@ -137,7 +147,7 @@ impl Operation for SegmentExtractor {
         let now = correction(ctx).await?;
         let mut by_sensor: BTreeMap<usize, Vec<Point>> = BTreeMap::new();
         for scan in &scans {
-            for e in scan.echoes.iter().filter(|e| e.narrow || !narrow_only) {
+            for e in scan.echoes.iter().filter(|e| p.beams.admits(e.narrow)) {
                 by_sensor.entry(e.sensor).or_default().push(reframe(
                     e.point,
                     &scan.correction,
@@ -151,20 +161,52 @@ impl Operation for SegmentExtractor {
             .flat_map(|pts| extract_segments(pts, &params))
             .map(|f| f.segment)
             .collect();
-        ctx.dm("feature")?
-            .put(
-                SEGMENTS,
-                Some("current"),
-                None,
-                &SegmentSet { segments, points },
-            )
-            .map_err(dm_err("feature"))?;
+        ctx.dm(FEATURE)?
+            .put_kind(SEGMENTS, &SegmentSet { segments, points })
+            .map_err(dm_err(FEATURE))?;
         self.sets += 1;
         Ok(Step::Continue)
     }
 
     fn property(&self, name: &str) -> Option<Value> {
         (name == "sets").then_some(Value::Int(self.sets as i64))
+    }
+}
+
+marie_actors::choice! {
+    /// Which side of the cart a sensed wall must be on.
+    pub enum WallSide {
+        /// Either side.
+        Any = "any",
+        /// The cart's left.
+        Left = "left",
+        /// The cart's right.
+        Right = "right",
+    }
+}
+
+marie_actors::params! {
+    /// The wall sensor's parameters.
+    pub struct WallSensorParams {
+        /// farthest a wall may be
+        pub max_distance: f64 = WallParams::default().max_distance, range(0.1, 20.0), unit("m");
+        /// shortest wall accepted
+        pub min_length: f64 = WallParams::default().min_length, range(0.0, 50.0), unit("m");
+        /// which side of the cart the wall must be on
+        pub side: WallSide = WallSide::Any;
+        /// largest angle between the wall and the cart's heading
+        pub max_angle: f64 = WallParams::default().max_angle.to_degrees(),
+            range(0.0, 90.0), unit("deg");
+        /// keep updating the wall instead of finishing when found
+        pub continuous: bool = false;
+    }
+}
+
+marie_actors::flags! {
+    /// What the wall sensor reports.
+    pub enum WallSensorFlag {
+        /// a wall was found and stored in the world DM
+        Found = "wall-found",
     }
 }
 
@@ -195,32 +237,11 @@ impl Operation for WallSensor {
     }
 
     fn parameters(&self) -> ParamSchema {
-        let d = WallParams::default();
-        ParamSchema::new(vec![
-            ParamDecl::float("max_distance", d.max_distance)
-                .range(0.1, 20.0)
-                .unit("m")
-                .describe("farthest a wall may be"),
-            ParamDecl::float("min_length", d.min_length)
-                .range(0.0, 50.0)
-                .unit("m")
-                .describe("shortest wall accepted"),
-            ParamDecl::choice("side", &["any", "left", "right"], "any")
-                .describe("which side of the cart the wall must be on"),
-            ParamDecl::float("max_angle", d.max_angle.to_degrees())
-                .range(0.0, 90.0)
-                .unit("deg")
-                .describe("largest angle between the wall and the cart's heading"),
-            ParamDecl::bool("continuous", false)
-                .describe("keep updating the wall instead of finishing when found"),
-        ])
+        WallSensorParams::schema()
     }
 
     fn flags(&self) -> Vec<FlagDecl> {
-        vec![FlagDecl::new(
-            "wall-found",
-            "a wall was found and stored in the world DM",
-        )]
+        WallSensorFlag::decls()
     }
 
     fn period(&self) -> Duration {
@@ -228,27 +249,27 @@ impl Operation for WallSensor {
     }
 
     async fn activate(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
-        self.tracked = newest::<WallRecord>(ctx, "world", WALL)
+        self.tracked = newest(ctx, WORLD, WALL)
             .await?
             .map(|w| (w.segment, w.correction));
         Ok(Step::Continue)
     }
 
     async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
-        let p = ctx.params();
+        let p: WallSensorParams = ctx.params().read()?;
         let params = WallParams {
-            max_distance: p.f64("max_distance")?,
-            min_length: p.f64("min_length")?,
-            side: match p.text("side")? {
-                "left" => Some(Side::Left),
-                "right" => Some(Side::Right),
-                _ => None,
+            max_distance: p.max_distance,
+            min_length: p.min_length,
+            side: match p.side {
+                WallSide::Any => None,
+                WallSide::Left => Some(Side::Left),
+                WallSide::Right => Some(Side::Right),
             },
-            max_angle: p.f64("max_angle")?.to_radians(),
+            max_angle: p.max_angle.to_radians(),
             ..WallParams::default()
         };
-        let continuous = p.bool("continuous")?;
-        let Some(set) = newest::<SegmentSet>(ctx, "feature", SEGMENTS).await? else {
+        let continuous = p.continuous;
+        let Some(set) = newest(ctx, FEATURE, SEGMENTS).await? else {
             return Ok(Step::Continue);
         };
         let odometry = cart(&mut self.cart, ctx)?
@@ -268,7 +289,7 @@ impl Operation for WallSensor {
         };
         let Some(w) = found else {
             if continuous && self.tracked.is_some() {
-                ctx.raise(StatusFlags(1)); // still the same wall, nothing new seen
+                ctx.raise(WallSensorFlag::Found); // still the same wall, nothing new seen
             }
             return Ok(Step::Continue);
         };
@@ -289,16 +310,44 @@ impl Operation for WallSensor {
             y = pose.y,
             "wall sensed"
         );
-        ctx.dm("world")?
-            .store(WALL, Some("followed"), None, &record)
+        ctx.dm(WORLD)?
+            .store_kind(WALL, &record)
             .await
-            .map_err(dm_err("world"))?;
+            .map_err(dm_err(WORLD))?;
         if continuous {
-            ctx.raise(StatusFlags(1));
+            ctx.raise(WallSensorFlag::Found);
             Ok(Step::Continue)
         } else {
-            Ok(Step::Finish(StatusFlags(1)))
+            Ok(Step::finish(WallSensorFlag::Found))
         }
+    }
+}
+
+marie_actors::params! {
+    /// The docking detector's parameters.
+    pub struct DockingDetectorParams {
+        /// width of the spot's opening along the wall
+        pub breadth: f64 = DockParams::default().breadth, range(0.3, 20.0), unit("m");
+        /// depth of the spot behind the wall line
+        pub depth: f64 = DockParams::default().depth, range(0.1, 10.0), unit("m");
+        /// accepted breadth error
+        pub breadth_tolerance: f64 = DockParams::default().breadth_tolerance,
+            range(0.0, 5.0), unit("m");
+        /// accepted depth error
+        pub depth_tolerance: f64 = DockParams::default().depth_tolerance,
+            range(0.0, 5.0), unit("m");
+        /// which sonar beams to use: wide beams blur the spot's edges
+        pub beams: Beams = Beams::Narrow;
+        /// also use echoes from this long before the activation (0: only since)
+        pub history: f64 = 0.0, range(0.0, 3600.0), unit("s");
+    }
+}
+
+marie_actors::flags! {
+    /// What the docking detector reports.
+    pub enum DockingDetectorFlag {
+        /// a docking spot was found and stored in the world DM
+        Found = "dock-found",
     }
 }
 
@@ -326,38 +375,11 @@ impl Operation for DockingDetector {
     }
 
     fn parameters(&self) -> ParamSchema {
-        let d = DockParams::default();
-        ParamSchema::new(vec![
-            ParamDecl::float("breadth", d.breadth)
-                .range(0.3, 20.0)
-                .unit("m")
-                .describe("width of the spot's opening along the wall"),
-            ParamDecl::float("depth", d.depth)
-                .range(0.1, 10.0)
-                .unit("m")
-                .describe("depth of the spot behind the wall line"),
-            ParamDecl::float("breadth_tolerance", d.breadth_tolerance)
-                .range(0.0, 5.0)
-                .unit("m")
-                .describe("accepted breadth error"),
-            ParamDecl::float("depth_tolerance", d.depth_tolerance)
-                .range(0.0, 5.0)
-                .unit("m")
-                .describe("accepted depth error"),
-            ParamDecl::choice("beams", &["narrow", "all"], "narrow")
-                .describe("which sonar beams to use: wide beams blur the spot's edges"),
-            ParamDecl::float("history", 0.0)
-                .range(0.0, 3600.0)
-                .unit("s")
-                .describe("also use echoes from this long before the activation (0: only since)"),
-        ])
+        DockingDetectorParams::schema()
     }
 
     fn flags(&self) -> Vec<FlagDecl> {
-        vec![FlagDecl::new(
-            "dock-found",
-            "a docking spot was found and stored in the world DM",
-        )]
+        DockingDetectorFlag::decls()
     }
 
     fn period(&self) -> Duration {
@@ -365,19 +387,20 @@ impl Operation for DockingDetector {
     }
 
     async fn activate(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
-        let history = Duration::from_secs_f64(ctx.params().f64("history")?);
+        let p: DockingDetectorParams = ctx.params().read()?;
+        let history = Duration::from_secs_f64(p.history);
         let resumed = match ctx.resumed() {
-            true => newest::<SearchRecord>(ctx, "world", SEARCH).await?,
+            true => newest(ctx, WORLD, SEARCH).await?,
             false => None,
         };
         self.since = match resumed {
             Some(search) => search.since,
             None => {
                 let since = ctx.now().saturating_sub(history);
-                ctx.dm("world")?
-                    .store(SEARCH, Some("since"), None, &SearchRecord { since })
+                ctx.dm(WORLD)?
+                    .store_kind(SEARCH, &SearchRecord { since })
                     .await
-                    .map_err(dm_err("world"))?;
+                    .map_err(dm_err(WORLD))?;
                 since
             }
         };
@@ -387,16 +410,15 @@ impl Operation for DockingDetector {
     }
 
     async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
-        let p = ctx.params();
+        let p: DockingDetectorParams = ctx.params().read()?;
         let params = DockParams {
-            breadth: p.f64("breadth")?,
-            depth: p.f64("depth")?,
-            breadth_tolerance: p.f64("breadth_tolerance")?,
-            depth_tolerance: p.f64("depth_tolerance")?,
+            breadth: p.breadth,
+            depth: p.depth,
+            breadth_tolerance: p.breadth_tolerance,
+            depth_tolerance: p.depth_tolerance,
             ..DockParams::default()
         };
-        let narrow_only = p.text("beams")? == "narrow";
-        let Some(wall) = newest::<WallRecord>(ctx, "world", WALL).await? else {
+        let Some(wall) = newest(ctx, WORLD, WALL).await? else {
             return Ok(Step::Continue);
         };
         let status = cart(&mut self.cart, ctx)?
@@ -418,7 +440,7 @@ impl Operation for DockingDetector {
         let points: Vec<Point> = self
             .echoes
             .iter()
-            .filter(|e| e.narrow || !narrow_only)
+            .filter(|e| p.beams.admits(e.narrow))
             .map(|e| e.point)
             .collect();
         let Some(dock) = detect_dock(&estimate, &points, &params) else {
@@ -435,10 +457,10 @@ impl Operation for DockingDetector {
             breadth: dock.breadth,
             depth: dock.depth,
         };
-        ctx.dm("world")?
-            .store(DOCK, Some("found"), None, &record)
+        ctx.dm(WORLD)?
+            .store_kind(DOCK, &record)
             .await
-            .map_err(dm_err("world"))?;
+            .map_err(dm_err(WORLD))?;
         tracing::info!(
             breadth = dock.breadth,
             depth = dock.depth,
@@ -446,6 +468,6 @@ impl Operation for DockingDetector {
             y = park.y,
             "dock found"
         );
-        Ok(Step::Finish(StatusFlags(1)))
+        Ok(Step::finish(DockingDetectorFlag::Found))
     }
 }

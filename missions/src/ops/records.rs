@@ -1,38 +1,46 @@
-//! The records the robot's operations exchange through the datamanagers: classes and payload
-//! types, in one place so producer and consumer agree.
+//! The records the robot's operations exchange through the datamanagers: one [`RecordKind`]
+//! per kind of record — its class, sub-class and payload type — in one place, so producer and
+//! consumer agree (a misspelt kind does not compile, a payload of another type does not
+//! either).
 //!
-//! | DM | class | sub1 | payload | producer → consumers |
-//! |---|---|---|---|---|
-//! | feature | `sonar` | `scan` | [`EchoScan`] | ultrasonic → segment extractor, docking detector, picture |
-//! | feature | `segments` | `current` | [`SegmentSet`] | segment extractor → wall sensor, docking detector |
-//! | world | `map` | `walls` | `Vec<Segment>` | node start-up (the a-priori map) → path planner |
-//! | world | `wall` | `followed` | [`WallRecord`] | wall sensor → wall follower, controllers, docking detector |
-//! | world | `dock` | `found` | [`DockRecord`] | docking detector → path planner |
-//! | parameter | `path` | `planned` | [`PathRecord`] | path planner → trajectory controller |
-//! | parameter | `path-progress` | `driven` | [`ProgressRecord`] | trajectory controller → itself, after a restart |
-//! | world | `dock-search` | `since` | [`SearchRecord`] | docking detector → itself, after a restart |
-//! | world | `pose` | `correction` | [`LocationRecord`] | localizer → every operation that places or drives the cart in the map frame |
+//! | DM | kind | class | sub1 | payload | producer → consumers |
+//! |---|---|---|---|---|---|
+//! | feature | [`SONAR`] | `sonar` | `scan` | [`EchoScan`] | ultrasonic → segment extractor, docking detector, localizer, picture |
+//! | feature | [`SEGMENTS`] | `segments` | `current` | [`SegmentSet`] | segment extractor → wall sensor, wall followers, picture |
+//! | world | [`MAP`] | `map` | `walls` | `Vec<Segment>` | node start-up (the a-priori map) → path planner, localizer |
+//! | world | [`WALL`] | `wall` | `followed` | [`WallRecord`] | wall sensor → wall follower, controllers, docking detector |
+//! | world | [`DOCK`] | `dock` | `found` | [`DockRecord`] | docking detector → path planner |
+//! | parameter | [`PATH`] | `path` | `planned` | [`PathRecord`] | path planner → trajectory controller |
+//! | parameter | [`PROGRESS`] | `path-progress` | `driven` | [`ProgressRecord`] | trajectory controller → itself, after a restart |
+//! | world | [`SEARCH`] | `dock-search` | `since` | [`SearchRecord`] | docking detector → itself, after a restart |
+//! | world | [`LOCATION`] | `pose` | `correction` | [`LocationRecord`] | localizer → every operation that places or drives the cart in the map frame |
+//!
+//! Readers select by the whole kind, class and sub-class: every record of a class here has
+//! the one sub-class its kind names.
 
 use crate::geom::{Point, Pose, Segment};
+use marie_actors::declare::RecordKind;
 use serde::{Deserialize, Serialize};
 
-/// Feature DM class of sonar scans.
-pub const SONAR: &str = "sonar";
-/// Feature DM class of extracted segments.
-pub const SEGMENTS: &str = "segments";
-/// World DM class of the a-priori map.
-pub const MAP: &str = "map";
-/// World DM class of the followed wall.
-pub const WALL: &str = "wall";
-/// World DM class of the detected dock.
-pub const DOCK: &str = "dock";
-/// Parameter DM class of planned paths.
-pub const PATH: &str = "path";
-/// Parameter DM class of the trajectory controller's progress along a path.
-pub const PROGRESS: &str = "path-progress";
-
-/// World DM class of the localizer's odometry correction.
-pub const LOCATION: &str = "pose";
+/// Sonar scans, in the feature DM.
+pub const SONAR: RecordKind<EchoScan> = RecordKind::new("sonar").with_sub1("scan");
+/// Segments extracted from recent echoes, in the feature DM.
+pub const SEGMENTS: RecordKind<SegmentSet> = RecordKind::new("segments").with_sub1("current");
+/// The a-priori map (the world's walls), in the world DM.
+pub const MAP: RecordKind<Vec<Segment>> = RecordKind::new("map").with_sub1("walls");
+/// The followed wall, in the world DM.
+pub const WALL: RecordKind<WallRecord> = RecordKind::new("wall").with_sub1("followed");
+/// The detected dock, in the world DM.
+pub const DOCK: RecordKind<DockRecord> = RecordKind::new("dock").with_sub1("found");
+/// Planned paths, in the parameter DM.
+pub const PATH: RecordKind<PathRecord> = RecordKind::new("path").with_sub1("planned");
+/// The trajectory controller's progress along a path, in the parameter DM.
+pub const PROGRESS: RecordKind<ProgressRecord> =
+    RecordKind::new("path-progress").with_sub1("driven");
+/// The localizer's odometry correction, in the world DM.
+pub const LOCATION: RecordKind<LocationRecord> = RecordKind::new("pose").with_sub1("correction");
+/// Since when the docking detector gathers echoes, in the world DM.
+pub const SEARCH: RecordKind<SearchRecord> = RecordKind::new("dock-search").with_sub1("since");
 
 /// The localizer's correction of the cart's drifting odometry: the cart's pose in the map
 /// frame is `correction.compose(odometry)`. Kept in the world DM (the pose is the world's
@@ -50,9 +58,6 @@ pub struct LocationRecord {
     /// Segments matched to map walls for this correction.
     pub matched: usize,
 }
-
-/// World DM class of the docking detector's search.
-pub const SEARCH: &str = "dock-search";
 
 /// Since when the docking detector gathers echoes for its search. Kept in the world DM so a
 /// detector resuming a lost instance's search (`OpContext::resumed`) still sees the echoes of

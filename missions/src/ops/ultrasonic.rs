@@ -4,9 +4,19 @@
 use super::records::{Echo, EchoScan, SONAR};
 use super::{cart, correction, dm_err};
 use crate::hardware::CartClient;
+use marie_actors::declare::DeclaredParams;
+use marie_actors::dm::FEATURE;
 use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
-use marie_actors::property::{ParamDecl, ParamSchema, Value};
+use marie_actors::property::{ParamSchema, Value};
 use std::time::Duration;
+
+marie_actors::params! {
+    /// The ultrasonic operation's parameters.
+    pub struct UltrasonicParams {
+        /// echoes nearer than this are discarded as cross-talk
+        pub min_range: f64 = 0.05, range(0.0, 2.0), unit("m");
+    }
+}
 
 /// Reads the sonar ring at a fixed rate; never finishes by itself (it is suspended when its
 /// action ends).
@@ -27,10 +37,7 @@ impl Operation for Ultrasonic {
     }
 
     fn parameters(&self) -> ParamSchema {
-        ParamSchema::new(vec![ParamDecl::float("min_range", 0.05)
-            .range(0.0, 2.0)
-            .unit("m")
-            .describe("echoes nearer than this are discarded as cross-talk")])
+        UltrasonicParams::schema()
     }
 
     fn period(&self) -> Duration {
@@ -38,7 +45,7 @@ impl Operation for Ultrasonic {
     }
 
     async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
-        let min_range = ctx.params().f64("min_range")?;
+        let UltrasonicParams { min_range } = ctx.params().read()?;
         let scan = cart(&mut self.cart, ctx)?
             .scan()
             .await
@@ -68,9 +75,9 @@ impl Operation for Ultrasonic {
             echoes,
             correction: fix,
         };
-        ctx.dm("feature")?
-            .put(SONAR, Some("scan"), None, &record)
-            .map_err(dm_err("feature"))?;
+        ctx.dm(FEATURE)?
+            .put_kind(SONAR, &record)
+            .map_err(dm_err(FEATURE))?;
         self.scans += 1;
         Ok(Step::Continue)
     }

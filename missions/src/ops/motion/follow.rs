@@ -6,8 +6,9 @@ use crate::algo::wall::{sense_wall, WallParams};
 use crate::geom::Pose;
 use crate::hardware::CartClient;
 use crate::ops::perception::wall_from;
-use crate::ops::records::{SegmentSet, WallRecord, SEGMENTS, WALL};
+use crate::ops::records::{SEGMENTS, WALL};
 use crate::ops::{cart, cart_err, newest};
+use marie_actors::dm::{FEATURE, WORLD};
 use marie_actors::eo::{OpContext, OpError};
 
 /// How far the cart may run past the last seen end of the wall before the follower gives up,
@@ -40,7 +41,7 @@ pub(super) async fn follow_step(
             "the cart collided while following the wall",
         ));
     }
-    let Some(wall) = newest::<WallRecord>(ctx, "world", WALL).await? else {
+    let Some(wall) = newest(ctx, WORLD, WALL).await? else {
         return Err(OpError::failed("no wall in the world DM to follow"));
     };
     let now = crate::ops::correction(ctx).await?;
@@ -62,18 +63,16 @@ pub(super) async fn follow_step(
         )));
     }
     let opposite = if params.mode == FollowMode::Corridor {
-        newest::<SegmentSet>(ctx, "feature", SEGMENTS)
-            .await?
-            .and_then(|set| {
-                sense_wall(
-                    &set.segments,
-                    &pose,
-                    &WallParams {
-                        side: Some(est.side.opposite()),
-                        ..WallParams::default()
-                    },
-                )
-            })
+        newest(ctx, FEATURE, SEGMENTS).await?.and_then(|set| {
+            sense_wall(
+                &set.segments,
+                &pose,
+                &WallParams {
+                    side: Some(est.side.opposite()),
+                    ..WallParams::default()
+                },
+            )
+        })
     } else {
         None
     };

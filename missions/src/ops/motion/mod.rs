@@ -10,10 +10,14 @@ mod sensor_based;
 mod trajectory;
 mod wall_follower;
 
-pub use planner::PathPlanner;
-pub use sensor_based::SensorBasedController;
-pub use trajectory::TrajectoryController;
-pub use wall_follower::{WallFollowerV1, WallFollowerV2};
+pub use planner::{PathPlanner, PathPlannerFlag, PathPlannerParams, PlanTarget};
+pub use sensor_based::{
+    SensorBasedController, SensorBasedControllerFlag, SensorBasedControllerParams, SensorBasedMode,
+};
+pub use trajectory::{TrajectoryController, TrajectoryControllerFlag, TrajectoryControllerParams};
+pub use wall_follower::{
+    WallFollowerMode, WallFollowerV1, WallFollowerV1Params, WallFollowerV2, WallFollowerV2Params,
+};
 
 use super::{cart, cart_err};
 use crate::algo::parking::Footprint;

@@ -8,9 +8,67 @@ use crate::geom::{Point, Pose, Segment, Vector};
 use crate::hardware::CartClient;
 use crate::ops::records::{DockRecord, LegRecord, PathRecord, DOCK, MAP, PATH};
 use crate::ops::{cart, cart_err, dm_err, located, newest};
+use marie_actors::declare::{DeclaredFlags, DeclaredParams};
+use marie_actors::dm::{PARAMETER, WORLD};
 use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
-use marie_actors::flags::{FlagDecl, StatusFlags};
-use marie_actors::property::{ParamDecl, ParamSchema};
+use marie_actors::flags::FlagDecl;
+use marie_actors::property::ParamSchema;
+
+marie_actors::choice! {
+    /// Where the path planner plans to.
+    pub enum PlanTarget {
+        /// The dock the docking detector found: a parking manoeuvre into it.
+        Dock = "dock",
+        /// The pose given by the parameters `x`, `y` and `heading`.
+        Pose = "pose",
+    }
+}
+
+marie_actors::params! {
+    /// The path planner's parameters.
+    pub struct PathPlannerParams {
+        /// plan to the detected dock, or to the pose given below
+        pub target: PlanTarget = PlanTarget::Dock;
+        /// goal x (target = pose)
+        pub x: f64 = 0.0, range(-1e4, 1e4), unit("m");
+        /// goal y (target = pose)
+        pub y: f64 = 0.0, range(-1e4, 1e4), unit("m");
+        /// goal heading (target = pose)
+        pub heading: f64 = 0.0, range(-360.0, 360.0), unit("deg");
+        /// clearance kept from walls
+        pub inflation: f64 = PlannerParams::default().inflation, range(0.0, 5.0), unit("m");
+        /// grid cell size
+        pub resolution: f64 = PlannerParams::default().resolution, range(0.01, 1.0), unit("m");
+        /// straight final approach along the goal heading
+        pub approach: f64 = PlannerParams::default().approach_distance,
+            range(0.0, 10.0), unit("m");
+        /// the path is to be driven backwards
+        pub reverse: bool = false;
+        /// tightest arc of a parking manoeuvre (target = dock): above the cart's turning
+        /// radius, the trajectory controller has steering to spare to correct its errors
+        pub park_radius: f64 = ParkParams::default().min_radius, range(0.5, 10.0), unit("m");
+        /// straight end of a parking manoeuvre, to settle the heading on
+        pub park_tail: f64 = ParkParams::default().tail, range(0.0, 5.0), unit("m");
+        /// clearance every pose of a parking manoeuvre keeps from the walls: a margin for
+        /// the controller's tracking error and the pose's
+        pub park_clearance: f64 = ParkParams::default().clearance, range(0.0, 1.0), unit("m");
+        /// the parked cart's goal, this far from the spot's middle towards its opening:
+        /// backing along an S, the cart overshoots towards the spot's back wall while its
+        /// heading still swings
+        pub park_shallow: f64 = 0.0, range(-0.5, 0.5), unit("m");
+        /// a parking manoeuvre ends with this long a forward run along the spot, which
+        /// straightens the heading the backing left swinging (0: none)
+        pub park_settle: f64 = ParkParams::default().settle, range(0.0, 2.0), unit("m");
+    }
+}
+
+marie_actors::flags! {
+    /// What the path planner reports.
+    pub enum PathPlannerFlag {
+        /// a path is stored in the parameter DM
+        Planned = "path-planned",
+    }
+}
 
 /// Plans a collision-free path from the cart to a goal on the world map and stores it in the
 /// parameter DM; finishes with `path-planned`, fails when there is no path.
@@ -30,99 +88,32 @@ impl Operation for PathPlanner {
     }
 
     fn parameters(&self) -> ParamSchema {
-        let d = PlannerParams::default();
-        ParamSchema::new(vec![
-            ParamDecl::choice("target", &["dock", "pose"], "dock")
-                .describe("plan to the detected dock, or to the pose given below"),
-            ParamDecl::float("x", 0.0)
-                .range(-1e4, 1e4)
-                .unit("m")
-                .describe("goal x (target = pose)"),
-            ParamDecl::float("y", 0.0)
-                .range(-1e4, 1e4)
-                .unit("m")
-                .describe("goal y (target = pose)"),
-            ParamDecl::float("heading", 0.0)
-                .range(-360.0, 360.0)
-                .unit("deg")
-                .describe("goal heading (target = pose)"),
-            ParamDecl::float("inflation", d.inflation)
-                .range(0.0, 5.0)
-                .unit("m")
-                .describe("clearance kept from walls"),
-            ParamDecl::float("resolution", d.resolution)
-                .range(0.01, 1.0)
-                .unit("m")
-                .describe("grid cell size"),
-            ParamDecl::float("approach", d.approach_distance)
-                .range(0.0, 10.0)
-                .unit("m")
-                .describe("straight final approach along the goal heading"),
-            ParamDecl::bool("reverse", false).describe("the path is to be driven backwards"),
-            ParamDecl::float("park_radius", ParkParams::default().min_radius)
-                .range(0.5, 10.0)
-                .unit("m")
-                .describe(
-                    "tightest arc of a parking manoeuvre (target = dock): above the cart's \
-                     turning radius, the trajectory controller has steering to spare to \
-                     correct its errors",
-                ),
-            ParamDecl::float("park_tail", ParkParams::default().tail)
-                .range(0.0, 5.0)
-                .unit("m")
-                .describe("straight end of a parking manoeuvre, to settle the heading on"),
-            ParamDecl::float("park_clearance", ParkParams::default().clearance)
-                .range(0.0, 1.0)
-                .unit("m")
-                .describe(
-                    "clearance every pose of a parking manoeuvre keeps from the walls: a margin \
-                     for the controller's tracking error and the pose's",
-                ),
-            ParamDecl::float("park_shallow", 0.0)
-                .range(-0.5, 0.5)
-                .unit("m")
-                .describe(
-                    "the parked cart's goal, this far from the spot's middle towards its \
-                     opening: backing along an S, the cart overshoots towards the spot's back \
-                     wall while its heading still swings",
-                ),
-            ParamDecl::float("park_settle", ParkParams::default().settle)
-                .range(0.0, 2.0)
-                .unit("m")
-                .describe(
-                    "a parking manoeuvre ends with this long a forward run along the spot, \
-                     which straightens the heading the backing left swinging (0: none)",
-                ),
-        ])
+        PathPlannerParams::schema()
     }
 
     fn flags(&self) -> Vec<FlagDecl> {
-        vec![FlagDecl::new(
-            "path-planned",
-            "a path is stored in the parameter DM",
-        )]
+        PathPlannerFlag::decls()
     }
 
     async fn activate(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
-        let p = ctx.params();
+        let p: PathPlannerParams = ctx.params().read()?;
         let params = PlannerParams {
-            inflation: p.f64("inflation")?,
-            resolution: p.f64("resolution")?,
-            approach_distance: p.f64("approach")?,
-            reverse: p.bool("reverse")?,
+            inflation: p.inflation,
+            resolution: p.resolution,
+            approach_distance: p.approach,
+            reverse: p.reverse,
             ..PlannerParams::default()
         };
-        let target = p.text("target")?.to_string();
-        let shallow = p.f64("park_shallow")?;
+        let shallow = p.park_shallow;
         let shape = ParkParams {
-            min_radius: p.f64("park_radius")?,
-            tail: p.f64("park_tail")?,
-            clearance: p.f64("park_clearance")?,
-            settle: p.f64("park_settle")?,
+            min_radius: p.park_radius,
+            tail: p.park_tail,
+            clearance: p.park_clearance,
+            settle: p.park_settle,
             ..ParkParams::default()
         };
-        let pose_goal = Pose::new(p.f64("x")?, p.f64("y")?, p.f64("heading")?.to_radians());
-        let map: Vec<Segment> = newest(ctx, "world", MAP)
+        let pose_goal = Pose::new(p.x, p.y, p.heading.to_radians());
+        let map = newest(ctx, WORLD, MAP)
             .await?
             .ok_or_else(|| OpError::failed("no map in the world DM"))?;
         let status = cart(&mut self.cart, ctx)?
@@ -130,16 +121,16 @@ impl Operation for PathPlanner {
             .await
             .map_err(cart_err)?;
         let start = located(ctx, &status.odometry).await?;
-        if target == "dock" {
-            let dock: DockRecord = newest(ctx, "world", DOCK)
+        if p.target == PlanTarget::Dock {
+            let dock = newest(ctx, WORLD, DOCK)
                 .await?
                 .ok_or_else(|| OpError::failed("no dock in the world DM to plan to"))?;
             let legs = parking_legs(&start, &dock, &status, &map, shape, shallow)?;
-            ctx.dm("parameter")?
-                .store(PATH, Some("planned"), None, &PathRecord { legs })
+            ctx.dm(PARAMETER)?
+                .store_kind(PATH, &PathRecord { legs })
                 .await
-                .map_err(dm_err("parameter"))?;
-            return Ok(Step::Finish(StatusFlags(1)));
+                .map_err(dm_err(PARAMETER))?;
+            return Ok(Step::finish(PathPlannerFlag::Planned));
         }
         let goal = pose_goal;
         let bounds =
@@ -157,15 +148,15 @@ impl Operation for PathPlanner {
                 reverse: params.reverse,
             }],
         };
-        ctx.dm("parameter")?
-            .store(PATH, Some("planned"), None, &record)
+        ctx.dm(PARAMETER)?
+            .store_kind(PATH, &record)
             .await
-            .map_err(dm_err("parameter"))?;
-        Ok(Step::Finish(StatusFlags(1)))
+            .map_err(dm_err(PARAMETER))?;
+        Ok(Step::finish(PathPlannerFlag::Planned))
     }
 
     async fn step(&mut self, _ctx: &mut OpContext) -> Result<Step, OpError> {
-        Ok(Step::Finish(StatusFlags(1)))
+        Ok(Step::finish(PathPlannerFlag::Planned))
     }
 }
 

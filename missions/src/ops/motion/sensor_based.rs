@@ -6,10 +6,46 @@ use super::{stop_cart, CONTROL_PERIOD};
 use crate::algo::follow::{FollowMode, FollowParams};
 use crate::hardware::CartClient;
 use crate::ops::{cart, cart_err};
+use marie_actors::declare::{DeclaredFlags, DeclaredParams};
 use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
-use marie_actors::flags::{FlagDecl, StatusFlags};
-use marie_actors::property::{ParamDecl, ParamSchema};
+use marie_actors::flags::FlagDecl;
+use marie_actors::property::ParamSchema;
 use std::time::Duration;
+
+marie_actors::choice! {
+    /// What the sensor-based controller does.
+    pub enum SensorBasedMode {
+        /// Align with the followed wall, then finish.
+        Align = "align",
+        /// Back along the followed wall until suspended.
+        Back = "back",
+        /// Cruise straight ahead until suspended.
+        Cruise = "cruise",
+    }
+}
+
+marie_actors::params! {
+    /// The sensor-based controller's parameters.
+    pub struct SensorBasedControllerParams {
+        /// align with the wall (finishes), back along it, or cruise straight ahead (until
+        /// suspended)
+        pub mode: SensorBasedMode = SensorBasedMode::Align;
+        /// distance kept from the wall
+        pub distance: f64 = 0.6, range(0.3, 3.0), unit("m");
+        /// speed, forwards when aligning, backwards when backing
+        pub speed: f64 = 0.25, range(0.05, 1.0), unit("m/s");
+        /// distance error within which the cart counts as aligned
+        pub tolerance: f64 = 0.1, range(0.01, 1.0), unit("m");
+    }
+}
+
+marie_actors::flags! {
+    /// What the sensor-based controller reports.
+    pub enum SensorBasedControllerFlag {
+        /// the cart runs along the wall at the requested distance
+        Aligned = "aligned",
+    }
+}
 
 /// The sensor-based controller: aligns the cart with the followed wall (finishing with
 /// `aligned` once it has held the distance and heading for a moment), backs along it until
@@ -39,29 +75,11 @@ impl Operation for SensorBasedController {
     }
 
     fn parameters(&self) -> ParamSchema {
-        ParamSchema::new(vec![
-            ParamDecl::choice("mode", &["align", "back", "cruise"], "align")
-                .describe("align with the wall (finishes), back along it, or cruise straight ahead (until suspended)"),
-            ParamDecl::float("distance", 0.6)
-                .range(0.3, 3.0)
-                .unit("m")
-                .describe("distance kept from the wall"),
-            ParamDecl::float("speed", 0.25)
-                .range(0.05, 1.0)
-                .unit("m/s")
-                .describe("speed, forwards when aligning, backwards when backing"),
-            ParamDecl::float("tolerance", 0.1)
-                .range(0.01, 1.0)
-                .unit("m")
-                .describe("distance error within which the cart counts as aligned"),
-        ])
+        SensorBasedControllerParams::schema()
     }
 
     fn flags(&self) -> Vec<FlagDecl> {
-        vec![FlagDecl::new(
-            "aligned",
-            "the cart runs along the wall at the requested distance",
-        )]
+        SensorBasedControllerFlag::decls()
     }
 
     fn period(&self) -> Duration {
@@ -74,10 +92,9 @@ impl Operation for SensorBasedController {
     }
 
     async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
-        let p = ctx.params();
-        let mode = p.text("mode")?;
-        let speed = p.f64("speed")?;
-        if mode == "cruise" {
+        let p: SensorBasedControllerParams = ctx.params().read()?;
+        let speed = p.speed;
+        if p.mode == SensorBasedMode::Cruise {
             let status = cart(&mut self.cart, ctx)?
                 .status()
                 .await
@@ -90,13 +107,13 @@ impl Operation for SensorBasedController {
                 .map_err(cart_err)?;
             return Ok(Step::Continue);
         }
-        let back = mode == "back";
-        let tolerance = p.f64("tolerance")?;
+        let back = p.mode == SensorBasedMode::Back;
+        let tolerance = p.tolerance;
         let params = FollowParams {
             distance_tolerance: tolerance,
             angle_tolerance: ALIGN_ANGLE_TOLERANCE,
             ..follow_params(
-                p.f64("distance")?,
+                p.distance,
                 FollowMode::Wall,
                 if back { -speed } else { speed },
             )
@@ -108,7 +125,7 @@ impl Operation for SensorBasedController {
         self.aligned_steps = if aligned { self.aligned_steps + 1 } else { 0 };
         if self.aligned_steps >= ALIGNED_STEPS {
             stop_cart(&mut self.cart, ctx)?;
-            return Ok(Step::Finish(StatusFlags(1)));
+            return Ok(Step::finish(SensorBasedControllerFlag::Aligned));
         }
         Ok(Step::Continue)
     }

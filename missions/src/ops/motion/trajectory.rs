@@ -8,12 +8,37 @@ use crate::algo::planner::Path;
 use crate::algo::pursuit::{PurePursuit, PursuitParams, PursuitStatus};
 use crate::geom::Pose;
 use crate::hardware::CartClient;
-use crate::ops::records::{LegRecord, PathRecord, ProgressRecord, PATH, PROGRESS};
+use crate::ops::records::{LegRecord, ProgressRecord, PATH, PROGRESS};
 use crate::ops::{cart, cart_err, dm_err, located, newest, newest_with_seq};
+use marie_actors::declare::{DeclaredFlags, DeclaredParams};
+use marie_actors::dm::PARAMETER;
 use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
-use marie_actors::flags::{FlagDecl, StatusFlags};
-use marie_actors::property::{ParamDecl, ParamSchema};
+use marie_actors::flags::FlagDecl;
+use marie_actors::property::ParamSchema;
 use std::time::Duration;
+
+marie_actors::params! {
+    /// The trajectory controller's parameters.
+    pub struct TrajectoryControllerParams {
+        /// cruise speed
+        pub speed: f64 = PursuitParams::default().speed, range(0.05, 2.0), unit("m/s");
+        /// pure-pursuit lookahead distance
+        pub lookahead: f64 = PursuitParams::default().lookahead, range(0.1, 5.0), unit("m");
+        /// how close to the end counts as arrived
+        pub position_tolerance: f64 = PursuitParams::default().position_tolerance.max(0.1),
+            range(0.01, 2.0), unit("m");
+        /// heading error accepted at the end (0: not checked)
+        pub heading_tolerance: f64 = 0.0, range(0.0, 180.0), unit("deg");
+    }
+}
+
+marie_actors::flags! {
+    /// What the trajectory controller reports.
+    pub enum TrajectoryControllerFlag {
+        /// the planned path was driven to its end
+        Driven = "path-driven",
+    }
+}
 
 /// Drives the newest planned path with pure pursuit, leg by leg (changing direction between
 /// legs); finishes by itself with `path-driven`.
@@ -106,9 +131,9 @@ impl TrajectoryController {
                 leg: self.leg,
                 along,
             };
-            ctx.dm("parameter")?
-                .put(PROGRESS, Some("driven"), None, &record)
-                .map_err(dm_err("parameter"))?;
+            ctx.dm(PARAMETER)?
+                .put_kind(PROGRESS, &record)
+                .map_err(dm_err(PARAMETER))?;
             self.saved = Some((self.leg, along));
         }
         Ok(())
@@ -126,32 +151,11 @@ impl Operation for TrajectoryController {
     }
 
     fn parameters(&self) -> ParamSchema {
-        let d = PursuitParams::default();
-        ParamSchema::new(vec![
-            ParamDecl::float("speed", d.speed)
-                .range(0.05, 2.0)
-                .unit("m/s")
-                .describe("cruise speed"),
-            ParamDecl::float("lookahead", d.lookahead)
-                .range(0.1, 5.0)
-                .unit("m")
-                .describe("pure-pursuit lookahead distance"),
-            ParamDecl::float("position_tolerance", d.position_tolerance.max(0.1))
-                .range(0.01, 2.0)
-                .unit("m")
-                .describe("how close to the end counts as arrived"),
-            ParamDecl::float("heading_tolerance", 0.0)
-                .range(0.0, 180.0)
-                .unit("deg")
-                .describe("heading error accepted at the end (0: not checked)"),
-        ])
+        TrajectoryControllerParams::schema()
     }
 
     fn flags(&self) -> Vec<FlagDecl> {
-        vec![FlagDecl::new(
-            "path-driven",
-            "the planned path was driven to its end",
-        )]
+        TrajectoryControllerFlag::decls()
     }
 
     fn period(&self) -> Duration {
@@ -159,15 +163,15 @@ impl Operation for TrajectoryController {
     }
 
     async fn activate(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
-        let (path_seq, record): (u64, PathRecord) = newest_with_seq(ctx, "parameter", PATH)
+        let (path_seq, record) = newest_with_seq(ctx, PARAMETER, PATH)
             .await?
             .ok_or_else(|| OpError::failed("no planned path in the parameter DM"))?;
-        let p = ctx.params();
-        let heading_tol = p.f64("heading_tolerance")?;
+        let p: TrajectoryControllerParams = ctx.params().read()?;
+        let heading_tol = p.heading_tolerance;
         self.params = Some(PursuitParams {
-            speed: p.f64("speed")?,
-            lookahead: p.f64("lookahead")?,
-            position_tolerance: p.f64("position_tolerance")?,
+            speed: p.speed,
+            lookahead: p.lookahead,
+            position_tolerance: p.position_tolerance,
             heading_tolerance: (heading_tol > 0.0).then(|| heading_tol.to_radians()),
             ..PursuitParams::default()
         });
@@ -178,8 +182,8 @@ impl Operation for TrajectoryController {
         self.saved = None;
         self.settling = false;
         // a predecessor that crashed on this path left its progress behind: resume there
-        let progress: Option<ProgressRecord> = match ctx.resumed() {
-            true => newest(ctx, "parameter", PROGRESS).await?,
+        let progress = match ctx.resumed() {
+            true => newest(ctx, PARAMETER, PROGRESS).await?,
             false => None,
         };
         let resume = progress.filter(|p| p.path_seq == path_seq && p.leg < self.legs.len());
@@ -223,7 +227,7 @@ impl Operation for TrajectoryController {
                 if self.next_leg() {
                     return Ok(Step::Continue);
                 }
-                return Ok(Step::Finish(StatusFlags(1)));
+                return Ok(Step::finish(TrajectoryControllerFlag::Driven));
             }
             PursuitStatus::Overshot => {
                 stop_cart(&mut self.cart, ctx)?;
@@ -255,7 +259,7 @@ impl Operation for TrajectoryController {
                     remaining,
                     "the sonar says the spot's end is reached: stopped there"
                 );
-                return Ok(Step::Finish(StatusFlags(1)));
+                return Ok(Step::finish(TrajectoryControllerFlag::Driven));
             }
             return Err(OpError::failed(format!(
                 "stopped {remaining:.2} m before the end of leg {}: the sonar hears something \

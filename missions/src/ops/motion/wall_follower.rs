@@ -6,8 +6,9 @@ use super::{stop_cart, CONTROL_PERIOD};
 use crate::algo::follow::{FollowMode, FollowParams};
 use crate::geom::Pose;
 use crate::hardware::CartClient;
+use marie_actors::declare::DeclaredParams;
 use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
-use marie_actors::property::{ParamDecl, ParamSchema};
+use marie_actors::property::ParamSchema;
 use std::time::Duration;
 
 /// How long a wall follower may see the cart make no progress before it gives up: something
@@ -70,6 +71,14 @@ impl Stall {
     }
 }
 
+marie_actors::params! {
+    /// The parameters of the wall follower, version 1.
+    pub struct WallFollowerV1Params {
+        /// distance kept from the wall
+        pub distance: f64 = 0.6, range(0.3, 3.0), unit("m");
+    }
+}
+
 /// The wall follower, version 1: keeps the cart at `distance` from the followed wall, driving
 /// forwards, until suspended. One parameter.
 #[derive(Default)]
@@ -91,10 +100,7 @@ impl Operation for WallFollowerV1 {
     }
 
     fn parameters(&self) -> ParamSchema {
-        ParamSchema::new(vec![ParamDecl::float("distance", 0.6)
-            .range(0.3, 3.0)
-            .unit("m")
-            .describe("distance kept from the wall")])
+        WallFollowerV1Params::schema()
     }
 
     fn period(&self) -> Duration {
@@ -102,11 +108,8 @@ impl Operation for WallFollowerV1 {
     }
 
     async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
-        let params = follow_params(
-            ctx.params().f64("distance")?,
-            FollowMode::Wall,
-            FOLLOW_SPEED,
-        );
+        let WallFollowerV1Params { distance } = ctx.params().read()?;
+        let params = follow_params(distance, FollowMode::Wall, FOLLOW_SPEED);
         self.follower.step(ctx, &params).await
     }
 
@@ -116,6 +119,26 @@ impl Operation for WallFollowerV1 {
 
     async fn suspend(&mut self, ctx: &mut OpContext) -> Result<(), OpError> {
         self.follower.suspend(ctx)
+    }
+}
+
+marie_actors::choice! {
+    /// What the wall follower, version 2, follows.
+    pub enum WallFollowerMode {
+        /// One wall, at a distance.
+        Wall = "wall",
+        /// The middle between two walls.
+        Corridor = "corridor",
+    }
+}
+
+marie_actors::params! {
+    /// The parameters of the wall follower, version 2.
+    pub struct WallFollowerV2Params {
+        /// distance kept from the wall (wall mode)
+        pub distance: f64 = 0.6, range(0.3, 3.0), unit("m");
+        /// follow one wall, or the middle between two
+        pub mode: WallFollowerMode = WallFollowerMode::Wall;
     }
 }
 
@@ -137,14 +160,7 @@ impl Operation for WallFollowerV2 {
     }
 
     fn parameters(&self) -> ParamSchema {
-        ParamSchema::new(vec![
-            ParamDecl::float("distance", 0.6)
-                .range(0.3, 3.0)
-                .unit("m")
-                .describe("distance kept from the wall (wall mode)"),
-            ParamDecl::choice("mode", &["wall", "corridor"], "wall")
-                .describe("follow one wall, or the middle between two"),
-        ])
+        WallFollowerV2Params::schema()
     }
 
     fn period(&self) -> Duration {
@@ -152,12 +168,12 @@ impl Operation for WallFollowerV2 {
     }
 
     async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
-        let p = ctx.params();
-        let mode = match p.text("mode")? {
-            "corridor" => FollowMode::Corridor,
-            _ => FollowMode::Wall,
+        let p: WallFollowerV2Params = ctx.params().read()?;
+        let mode = match p.mode {
+            WallFollowerMode::Wall => FollowMode::Wall,
+            WallFollowerMode::Corridor => FollowMode::Corridor,
         };
-        let params = follow_params(p.f64("distance")?, mode, FOLLOW_SPEED);
+        let params = follow_params(p.distance, mode, FOLLOW_SPEED);
         self.follower.step(ctx, &params).await
     }
 
