@@ -274,3 +274,20 @@ fn logs_on_a_pipe_have_no_colour() {
     assert!(!stderr.is_empty());
     assert!(!stderr.contains('\u{1b}'), "no escape codes: {stderr:?}");
 }
+
+#[test]
+fn a_slow_fault_delays_the_bound_instance_and_is_reported() {
+    let (out, json) = report_of(&["run", "missions/demo.toml", "--fault", "slow:sampler@0.5"]);
+    let stdout = text(&out.stdout);
+    assert_ne!(out.status.code(), Some(2), "{stdout}{}", text(&out.stderr));
+    let f = &json["faults"][0];
+    assert_eq!(f["fault"], "slow", "{json:#}");
+    assert_eq!(f["error"], serde_json::Value::Null, "{json:#}");
+    // it hit the sampler the mission bound, and nothing replaced it: slow is not dead
+    assert_eq!(
+        f["actor"], json["actions"][0]["operations"][0]["address"],
+        "{json:#}"
+    );
+    assert_eq!(json["rebinds_total"], 0, "{json:#}");
+    assert!(stdout.contains("* injected slow into sampler"), "{stdout}");
+}

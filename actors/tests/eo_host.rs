@@ -492,3 +492,55 @@ async fn registry_entry_appears_and_vanishes_with_the_actor() {
         }
     }
 }
+
+/// Records when each of its steps came, on its node's clock; never finishes.
+struct Metronome {
+    steps: Arc<std::sync::Mutex<Vec<Duration>>>,
+}
+
+impl Operation for Metronome {
+    fn identity(&self) -> Identity {
+        Identity::new("metronome", 4243, "1.0.0", "steps at its period")
+    }
+    fn period(&self) -> Duration {
+        Duration::from_millis(100)
+    }
+    async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
+        self.steps.lock().unwrap().push(ctx.clock().now());
+        Ok(Step::Continue)
+    }
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_slow_fault_stretches_the_time_between_an_operations_steps() {
+    use marie_actors::run::FaultKind;
+    let steps = Arc::new(std::sync::Mutex::new(Vec::new()));
+    let (actor, _) = spawn_operation(
+        Metronome {
+            steps: steps.clone(),
+        },
+        HostOptions::default(),
+    )
+    .await
+    .unwrap();
+    let c = EoClient::new(actor.clone());
+    let _running = c.activate(Default::default(), 1).unwrap();
+    // virtual time: the paused runtime moves on whenever every task waits
+    tokio::time::sleep(Duration::from_millis(1050)).await;
+    c.inject(FaultKind::Slow).unwrap();
+    tokio::time::sleep(Duration::from_millis(3050)).await;
+    let at = steps.lock().unwrap().clone();
+    let gaps: Vec<u128> = at.windows(2).map(|w| (w[1] - w[0]).as_millis()).collect();
+    let slowed = gaps.iter().position(|g| *g > 100).expect("a longer gap");
+    assert!(slowed >= 8, "its period before the fault: {gaps:?}");
+    assert!(gaps[..slowed].iter().all(|g| *g == 100), "{gaps:?}");
+    let period = 100 * u128::from(FaultKind::SLOW_FACTOR);
+    assert!(gaps[slowed + 1..].iter().all(|g| *g == period), "{gaps:?}");
+    assert!(gaps.len() - slowed >= 5, "{gaps:?}");
+    // slow, not hung: it still answers
+    assert!(matches!(
+        ask(&c, PropertyRequest::Group(Group::General)).await,
+        PropertyReply::General(g) if g.in_use
+    ));
+    actor.stop(None);
+}

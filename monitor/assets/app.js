@@ -28,6 +28,7 @@ const FAULT_TITLES = {
   kill: "kill its actor: its supervisor restarts it",
   panic: "make it panic: its supervisor restarts it",
   hang: "stop it answering: the dispatcher's deadline kills it",
+  slow: "make its steps come five times slower: it keeps answering, its control suffers",
   "stop-node": "kill its process (SIGKILL), as a crash would",
 };
 // the live properties of the selected binding: {op, node, address, groups} or {error}

@@ -450,6 +450,8 @@ impl<O: Operation> Actor for EoHost<O> {
                     // Only a kill ends this (ractor's kill signal interrupts a running handler).
                     FaultKind::Hang => std::future::pending::<()>().await,
                     FaultKind::Kill => myself.kill(),
+                    // from the next step on (a step already due comes as it was planned)
+                    FaultKind::Slow => state.period *= FaultKind::SLOW_FACTOR,
                     FaultKind::StopNode => {
                         tracing::warn!(%fault, "a node's fault reached an operation: ignored")
                     }

@@ -23,7 +23,7 @@
 //! run began. Loss causes are objects tagged by `type` too ([`LossCause`](crate::run::LossCause));
 //! `ended` is `running|finished|suspended|failed|lost|unresponsive`, `outcome`
 //! `succeeded|failed`, `fault` one of [`FaultKind::ALL`](crate::run::FaultKind::ALL)'s names
-//! (`kill|panic|hang|stop-node`); a `judged` line's fields beyond `outcome` and `reason` are
+//! (`kill|panic|hang|slow|stop-node`); a `judged` line's fields beyond `outcome` and `reason` are
 //! the robot's own. One example line per kind:
 //!
 //! ```json

@@ -12,7 +12,7 @@ use std::fmt;
 use std::str::FromStr;
 
 /// What is done, on purpose, to test self-healing. Serialized as its [`name`](Self::name)
-/// (`kill`, `panic`, `hang`, `stop-node`) — stable names, read back by reports and
+/// (`kill`, `panic`, `hang`, `slow`, `stop-node`) — stable names, read back by reports and
 /// event files.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -26,6 +26,11 @@ pub enum FaultKind {
     /// Make the instance's host stop answering: only a kill ends it, which is what a
     /// dispatcher does once the operation misses its answer deadline.
     Hang,
+    /// Make the instance slow: from then on each of its steps comes
+    /// [`SLOW_FACTOR`](Self::SLOW_FACTOR) times
+    /// later than its period says (a starved or overloaded operation). It keeps answering,
+    /// so nothing replaces it: what suffers is the control it gives, until a restart.
+    Slow,
     /// Kill a node's process (`SIGKILL`, as a crash would): its peers lose it, their
     /// failure detectors declare it down, the dispatcher rebinds to survivors. Only a
     /// process that started the node can do it (`marie up`).
@@ -43,11 +48,15 @@ pub enum Aim {
 }
 
 impl FaultKind {
+    /// How many times its period a [`FaultKind::Slow`] instance waits between two steps.
+    pub const SLOW_FACTOR: u32 = 5;
+
     /// Every kind, in a stable order.
-    pub const ALL: [FaultKind; 4] = [
+    pub const ALL: [FaultKind; 5] = [
         FaultKind::Kill,
         FaultKind::Panic,
         FaultKind::Hang,
+        FaultKind::Slow,
         FaultKind::StopNode,
     ];
 
@@ -57,6 +66,7 @@ impl FaultKind {
             FaultKind::Kill => "kill",
             FaultKind::Panic => "panic",
             FaultKind::Hang => "hang",
+            FaultKind::Slow => "slow",
             FaultKind::StopNode => "stop-node",
         }
     }
@@ -64,7 +74,9 @@ impl FaultKind {
     /// What it aims at.
     pub fn aim(self) -> Aim {
         match self {
-            FaultKind::Kill | FaultKind::Panic | FaultKind::Hang => Aim::Operation,
+            FaultKind::Kill | FaultKind::Panic | FaultKind::Hang | FaultKind::Slow => {
+                Aim::Operation
+            }
             FaultKind::StopNode => Aim::Node,
         }
     }
@@ -86,7 +98,7 @@ impl fmt::Display for FaultKind {
 #[error("unknown fault `{0}` (expected {names})", names = names())]
 pub struct UnknownFault(pub String);
 
-/// `kill, panic, hang or stop-node`.
+/// `kill, panic, hang, slow or stop-node`.
 fn names() -> String {
     let names: Vec<&str> = FaultKind::ALL.iter().map(|k| k.name()).collect();
     match names.split_last() {
@@ -124,14 +136,22 @@ mod tests {
         }
         assert_eq!(
             "boom".parse::<FaultKind>().unwrap_err().to_string(),
-            "unknown fault `boom` (expected kill, panic, hang or stop-node)"
+            "unknown fault `boom` (expected kill, panic, hang, slow or stop-node)"
         );
     }
 
     #[test]
     fn each_kind_aims_at_an_operation_or_a_node() {
         let ops: Vec<FaultKind> = FaultKind::aiming_at(Aim::Operation).collect();
-        assert_eq!(ops, [FaultKind::Kill, FaultKind::Panic, FaultKind::Hang]);
+        assert_eq!(
+            ops,
+            [
+                FaultKind::Kill,
+                FaultKind::Panic,
+                FaultKind::Hang,
+                FaultKind::Slow
+            ]
+        );
         let nodes: Vec<FaultKind> = FaultKind::aiming_at(Aim::Node).collect();
         assert_eq!(nodes, [FaultKind::StopNode]);
     }
