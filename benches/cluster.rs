@@ -48,8 +48,8 @@ use marie::actors::property::{
     Group, Identification, ParamDecl, ParamSchema, PropertyReply, PropertyRequest,
 };
 use marie::actors::registry::{self, ModuleKind};
-use marie::net::{ClusterConfig, HeartbeatConfig, NetEvent, Transport};
-use marie::node::{DatamanagerConfig, Node, NodeConfig, NodeOptions, OperationConfig};
+use marie::cluster::net::{ClusterConfig, HeartbeatConfig, NetEvent, Transport};
+use marie::cluster::node::{DatamanagerConfig, Node, NodeConfig, NodeOptions, OperationConfig};
 use ractor::rpc::CallResult;
 use ractor::{pg, Actor, ActorProcessingErr, ActorRef, BytesConvertable, RpcReplyPort};
 use ractor_cluster::RactorClusterMessage;

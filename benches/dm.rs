@@ -13,8 +13,10 @@
 //! `cargo bench --bench dm` (about a minute).
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
-use marie_actors::clock::{Clock, RealClock};
-use marie_actors::dm::{self, DmArgs, DmClient, DmConfig, DmMsg, NewRecord, Payload, Query, Store};
+use marie::actors::clock::{Clock, RealClock};
+use marie::actors::dm::{
+    self, DmArgs, DmClient, DmConfig, DmMsg, NewRecord, Payload, Query, Store,
+};
 use ractor::{Actor, ActorProcessingErr, ActorRef, RpcReplyPort};
 use std::time::{Duration, Instant};
 

@@ -20,7 +20,7 @@ use marie::actors::flags::FlagDecl;
 use marie::actors::property::{ParamDecl, ParamSchema};
 use marie::actors::registry::{self, ModuleKind};
 use marie::actors::run::FaultKind;
-use marie::fault;
+use marie::cluster::fault;
 use marie::supervision::{ChildSpec, Supervisor, SupervisorSpec};
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};

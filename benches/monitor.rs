@@ -7,7 +7,7 @@
 
 use marie::actors::clock::Pacer;
 use marie::actors::dispatcher::mission::Mission;
-use marie::embedded::{Embedded, EmbeddedOptions};
+use marie_missions::embedded::{Embedded, EmbeddedOptions};
 use marie_monitor::{Monitor, MonitorOptions};
 use std::io::{Read, Write};
 use std::net::TcpStream;
@@ -80,7 +80,7 @@ fn run(mission: &Path, monitored: bool, viewers: usize) -> Duration {
         let mission = node.check_mission(&parsed).await.expect("docking fits");
         let started = Instant::now();
         let report = node
-            .run(mission, marie::node::RunOptions::new())
+            .run(mission, marie::cluster::node::RunOptions::new())
             .await
             .expect("the run");
         let took = started.elapsed();

@@ -21,7 +21,7 @@
 
 use marie::actors::dispatcher::mission::Mission;
 use marie::actors::dispatcher::survey;
-use marie::embedded::{Embedded, EmbeddedOptions};
+use marie_missions::embedded::{Embedded, EmbeddedOptions};
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -65,7 +65,7 @@ fn config(dir: &Path, n: usize) -> PathBuf {
         };
         let mut left = n;
         while left > 0 {
-            let here = left.min(marie::node::MAX_INSTANCES);
+            let here = left.min(marie::cluster::node::MAX_INSTANCES);
             text += &format!("[[operation]]\nname = \"{op}\"\n{version}instances = {here}\n");
             left -= here;
         }

@@ -1,7 +1,7 @@
 //! The `marie` command: run missions, list the location table, ask operations about
 //! themselves. Results go to stdout, diagnostics (tracing) to stderr.
 //!
-//! Exit codes (DESIGN.md §8): 0 success, 1 mission failed, 2 bad input. The verbs live in
+//! Exit codes (the README's): 0 success, 1 mission failed, 2 bad input. The verbs live in
 //! [`cli`], one module each; this file only parses, sets up and dispatches.
 
 mod cli;

@@ -204,7 +204,7 @@ fn speed_max_runs_the_mission_in_virtual_time() {
 // Missions with a world: the simulated robot
 
 fn world_file(name: &str) -> PathBuf {
-    marie::missions::world::worlds_dir().join(format!("{name}.toml"))
+    marie_missions::world::worlds_dir().join(format!("{name}.toml"))
 }
 
 /// The demo mission (demo operations only, so the cart never moves), naming `world`.
@@ -227,7 +227,7 @@ fn read_json(path: &std::path::Path) -> serde_json::Value {
 fn a_mission_with_a_world_runs_the_robot_and_writes_report_and_picture() {
     let dir = tempfile::tempdir().unwrap();
     let lab = world_file("lab");
-    let world = marie::missions::world::World::load(&lab).unwrap();
+    let world = marie_missions::world::World::load(&lab).unwrap();
     let mission = demo_in_world(&dir, "lab.toml", lab.to_str().unwrap());
     let (report, svg) = (dir.path().join("run.json"), dir.path().join("run.svg"));
     let out = marie(&[

@@ -9,7 +9,7 @@ mod common;
 use common::cluster::NodeProc;
 use marie::actors::dm::credits::{BATCH, WINDOW};
 use marie::actors::dm::{DmClient, DmError, NewRecord, Payload, Query};
-use marie::net::{ClusterConfig, Transport};
+use marie::cluster::net::{ClusterConfig, Transport};
 use std::time::Duration;
 
 const COOKIE: &str = "backpressure";

@@ -7,8 +7,8 @@ mod common;
 use common::{marie, report_of, text};
 use marie::actors::registry::{self, ModuleKind};
 use marie::actors::run::FaultKind;
-use marie::fault;
-use marie::node::{Node, NodeConfig, NodeOptions};
+use marie::cluster::fault;
+use marie::cluster::node::{Node, NodeConfig, NodeOptions};
 use marie::supervision::SupervisorEvent;
 use std::time::Duration;
 
@@ -203,7 +203,7 @@ fn marie_kill_shows_the_operation_supervisor_restarting_the_operation() {
 #[tokio::test(flavor = "current_thread", start_paused = true)]
 async fn the_node_tree_is_datamanagers_operations_dynamic_provisioner_and_heals_a_killed_operation()
 {
-    let catalog = marie::missions::builtin_operations();
+    let catalog = marie_missions::builtin_operations();
     let config = NodeConfig::everything("tree", &catalog);
     let node = Node::start(config, NodeOptions::with_catalog(catalog))
         .await

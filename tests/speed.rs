@@ -1,5 +1,5 @@
 //! `--speed` only paces a run: the same mission, world and seed end the same way at every
-//! speed (DESIGN.md §6, "Time"). The report has no wall-clock field — `duration_ms`,
+//! speed (ARCHITECTURE.md, the `marie` package: time). The report has no wall-clock field — `duration_ms`,
 //! `start_ms`/`end_ms`, `downtime_ms` and `at_ms` are mission clock time — so the reports
 //! must be identical, and so must the progress lines.
 

@@ -22,6 +22,7 @@
 
 pub mod algo;
 pub mod demo;
+pub mod embedded;
 pub mod geom;
 pub mod hardware;
 pub mod ops;

@@ -51,7 +51,7 @@ impl RobotReport {
     }
 
     /// As a report's robot section: every field, `null` where it has none — so a report of
-    /// the `marie` command always holds them (DESIGN §8), with or without a robot.
+    /// the `marie` command always holds them (the README's report), with or without a robot.
     pub fn section(&self) -> RobotSection {
         match serde_json::to_value(self) {
             Ok(serde_json::Value::Object(map)) => map,

@@ -1,6 +1,6 @@
 //! Flags and value parsers shared by several verbs.
 
-use marie::embedded::EmbeddedOptions;
+use marie_missions::embedded::EmbeddedOptions;
 use std::path::{Path, PathBuf};
 
 /// What the embedded node hosts, and the simulated robot a mission runs with.
@@ -63,10 +63,13 @@ pub fn parse_speed(s: &str) -> Result<f64, String> {
 }
 
 /// `--speed` of a cluster member (`node`, `up`): a factor within
-/// [`marie::layout::SPEED_RANGE`]; `max` is refused (a cluster runs on the wall clock).
+/// [`marie::cluster::layout::SPEED_RANGE`]; `max` is refused (a cluster runs on the wall clock).
 pub fn parse_cluster_speed(s: &str) -> Result<f64, String> {
     match s.parse::<f64>() {
-        Ok(x) => marie::layout::cluster_speed(x),
-        Err(_) => Err(format!("{}, got {s:?}", marie::layout::speed_expected())),
+        Ok(x) => marie::cluster::layout::cluster_speed(x),
+        Err(_) => Err(format!(
+            "{}, got {s:?}",
+            marie::cluster::layout::speed_expected()
+        )),
     }
 }

@@ -7,8 +7,8 @@ use super::join::JoinArgs;
 use super::prepare::prepare;
 use marie::actors::dispatcher::survey::Survey;
 use marie::actors::dispatcher::{mission::Mission, survey};
-use marie::embedded::EmbeddedError;
-use marie::node::NodeError;
+use marie::cluster::node::NodeError;
+use marie_missions::embedded::EmbeddedError;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 

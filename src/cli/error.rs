@@ -1,7 +1,7 @@
-//! How a failed command ends: bad input is exit 2 (DESIGN.md §8), everything else exit 1.
+//! How a failed command ends: bad input is exit 2 (see the README's exit codes), everything else exit 1.
 
-use marie::embedded::EmbeddedError;
-use marie::node::NodeError;
+use marie::cluster::node::NodeError;
+use marie_missions::embedded::EmbeddedError;
 use std::process::ExitCode;
 
 /// Input the command refuses (a flag, a file, a name): exit 2.

@@ -1,9 +1,9 @@
 //! `marie run --events FILE.jsonl`: every event of the node's bus during the run — and,
-//! for a member of a cluster, every other node's ([`marie::relay`]) — one JSON object per
+//! for a member of a cluster, every other node's ([`marie::cluster::relay`]) — one JSON object per
 //! line ([`marie::actors::events`] documents the schema), written as they come.
 
 use marie::actors::events::{BusError, EventBus};
-use marie::relay::Watch;
+use marie::cluster::relay::Watch;
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};

@@ -4,8 +4,8 @@
 
 use super::args::RobotArgs;
 use super::error::BadInput;
-use marie::net::{ClusterConfig, Peer, TlsFiles, Transport};
-use marie::node::{NodeConfig, SimulationConfig};
+use marie::cluster::net::{ClusterConfig, Peer, TlsFiles, Transport};
+use marie::cluster::node::{NodeConfig, SimulationConfig};
 use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -88,7 +88,7 @@ impl JoinArgs {
                 "--join {verb}s in a running cluster: --node starts a node of its own"
             )));
         }
-        let speed = marie::layout::cluster_speed(speed)
+        let speed = marie::cluster::layout::cluster_speed(speed)
             .map_err(|e| BadInput(format!("--speed with --join: {e}")))?;
         Ok(Some(Joining {
             me: member_name(verb),
@@ -126,7 +126,9 @@ pub async fn join(me: &str, target: &Target) -> anyhow::Result<Transport> {
     config.validate(me).map_err(|e| BadInput(e.to_string()))?;
     let transport = match Transport::start(me, &config).await {
         Ok(t) => t,
-        Err(e @ marie::net::TransportError::Tls(_)) => return Err(BadInput(e.to_string()).into()),
+        Err(e @ marie::cluster::net::TransportError::Tls(_)) => {
+            return Err(BadInput(e.to_string()).into())
+        }
         Err(e) => return Err(e.into()),
     };
     if let Err(e) = transport.wait_for_peers(1, JOIN_TIMEOUT).await {

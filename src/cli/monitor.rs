@@ -15,7 +15,7 @@ use marie::actors::events::{
     bridge_registry, Event, EventBus, EventKind, ModuleInfo, RegistryBridge,
 };
 use marie::actors::registry;
-use marie::fault::NodeProcesses;
+use marie::cluster::fault::NodeProcesses;
 use marie_monitor::{Feed, Monitor, MonitorError, MonitorHandle, MonitorOptions};
 use std::io::Write;
 use std::net::SocketAddr;
@@ -145,7 +145,7 @@ fn feed_listing(feed: &Feed, bus: &EventBus) {
 
 /// Watch the other nodes' events (the cluster's relay) into `feed`, until aborted.
 async fn relay_into(feed: Feed) -> anyhow::Result<JoinHandle<()>> {
-    let mut watch = marie::relay::watch(FROM_OTHERS).await?;
+    let mut watch = marie::cluster::relay::watch(FROM_OTHERS).await?;
     Ok(tokio::spawn(async move {
         while let Some(event) = watch.recv().await {
             feed.offer(event);
@@ -156,7 +156,7 @@ async fn relay_into(feed: Feed) -> anyhow::Result<JoinHandle<()>> {
 /// A live monitor of a running cluster from a member of its own that hosts nothing.
 pub struct ClusterWatch {
     monitor: MonitorHandle,
-    transport: marie::net::Transport,
+    transport: marie::cluster::net::Transport,
     tasks: Vec<JoinHandle<()>>,
     _registry: RegistryBridge,
 }
@@ -192,7 +192,7 @@ impl ClusterWatch {
         let relay = relay_into(feed.clone()).await?;
         let registry = bridge_registry(bus.clone(), None).await?;
         feed_listing(&feed, &bus);
-        let news = marie::net::publish_on(&transport, bus);
+        let news = marie::cluster::net::publish_on(&transport, bus);
         announce(&monitor, &format!("watching the cluster as {me}"));
         Ok(ClusterWatch {
             monitor,

@@ -12,9 +12,9 @@ use super::error::BadInput;
 use super::prepare::start_node;
 use marie::actors::clock::ScaledClock;
 use marie::actors::registry;
-use marie::embedded::{EmbeddedError, EmbeddedOptions};
-use marie::net::ClusterConfig;
-use marie::node::NodeConfig;
+use marie::cluster::net::ClusterConfig;
+use marie::cluster::node::NodeConfig;
+use marie_missions::embedded::{EmbeddedError, EmbeddedOptions};
 use std::io::Write;
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -82,7 +82,7 @@ impl NodeArgs {
 /// Start the node as a cluster member (the node joins through its config's cluster: one
 /// road with embedders), report whom it sees, stop cleanly on a signal.
 pub async fn node(args: NodeArgs) -> anyhow::Result<ExitCode> {
-    let mut config = NodeConfig::load(&args.config, &marie::missions::catalog())
+    let mut config = NodeConfig::load(&args.config, &marie_missions::catalog())
         .map_err(EmbeddedError::Config)?;
     let Some(cluster) = args.cluster(config.cluster.take()) else {
         return Err(BadInput(format!(

@@ -1,14 +1,14 @@
 //! What the monitor's page may ask of the run it shows: an operation's live properties on a
 //! click, and with `--allow-faults` a fault of any kind — to an operation (wherever it runs:
 //! the registry is the cluster's), or to a node whose process `marie up` started — through
-//! the one road of faults ([`marie::fault`]).
+//! the one road of faults ([`marie::cluster::fault`]).
 //!
 //! The monitor runs this on its own thread and runtime; everything here is a registry
 //! lookup, an actor message or a signal, none of which needs the node's runtime.
 
 use super::props::ask_every_group;
 use marie::actors::events::EventBus;
-use marie::fault::{self, FaultError, Hit, Injector, NodeProcesses, Target, TargetError};
+use marie::cluster::fault::{self, FaultError, Hit, Injector, NodeProcesses, Target, TargetError};
 use marie_monitor::control::{
     Answer, Control, ControlError, FaultOn, FaultRequest, Offers, OperationRef,
 };

@@ -5,10 +5,10 @@ use super::args::RobotArgs;
 use super::join::{join, Joining};
 use marie::actors::clock::ScaledClock;
 use marie::actors::dispatcher::mission::Mission;
-use marie::embedded::{Embedded, EmbeddedOptions};
-use marie::missions::robot::SimRobot;
-use marie::net::Transport;
-use marie::node::{Node, NodeError};
+use marie::cluster::net::Transport;
+use marie::cluster::node::{Node, NodeError};
+use marie_missions::embedded::{Embedded, EmbeddedOptions};
+use marie_missions::robot::SimRobot;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 

@@ -8,7 +8,7 @@ use marie::actors::eo::{EoClient, EoError};
 use marie::actors::property::{Group, PropertyReply, PropertyRequest};
 use marie::actors::registry::Instance;
 use marie::actors::run::Aim;
-use marie::fault::{find, Target};
+use marie::cluster::fault::{find, Target};
 use std::process::ExitCode;
 
 /// Flags of `marie props`.

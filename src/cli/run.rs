@@ -13,8 +13,8 @@ use anyhow::Context;
 use marie::actors::clock::Pacer;
 use marie::actors::report::RunReport;
 use marie::actors::run::Outcome;
-use marie::fault::{Chaos, FaultSpec, NodeProcesses};
-use marie::node::{NodeError, RunOptions};
+use marie::cluster::fault::{Chaos, FaultSpec, NodeProcesses};
+use marie::cluster::node::{NodeError, RunOptions};
 use marie_missions::robot::RobotReport;
 use marie_monitor::MonitorOptions;
 use std::path::{Path, PathBuf};
@@ -43,7 +43,7 @@ pub struct RunArgs {
     #[arg(long, requires = "explain")]
     pub json: bool,
     /// Write every event of the run here, one JSON object per line (the schema is in the
-    /// docs of `marie_actors::events`): dispatcher, bindings, supervisors, registry, faults,
+    /// docs of `marie::actors::events`): dispatcher, bindings, supervisors, registry, faults,
     /// the robot. The report can be rebuilt from it.
     #[arg(long, value_name = "FILE.jsonl")]
     pub events: Option<PathBuf>,
@@ -211,15 +211,15 @@ pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     // the cluster's news (nodes up, lost, down) join the run's events
     let publisher = transport
         .as_ref()
-        .map(|t| marie::net::publish_on(t, node.events().clone()));
+        .map(|t| marie::cluster::net::publish_on(t, node.events().clone()));
     // the live lines subscribe to the node's bus, as the events file and the monitor do
     let lines = LiveLines::start(node.events(), progress);
     // this member's events go to whoever watches the cluster; its events file has theirs
     let forwarder = transport
         .as_ref()
-        .map(|_| marie::relay::forward(node.events().clone()));
+        .map(|_| marie::cluster::relay::forward(node.events().clone()));
     let others = match (&transport, &events_path) {
-        (Some(_), Some(_)) => Some(marie::relay::watch(EVENTS_FROM_OTHERS).await?),
+        (Some(_), Some(_)) => Some(marie::cluster::relay::watch(EVENTS_FROM_OTHERS).await?),
         _ => None,
     };
     let events = match &events_path {

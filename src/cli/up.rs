@@ -14,8 +14,8 @@ use super::join::{join, member_name, JoinArgs};
 use super::run::RunArgs;
 use marie::actors::dispatcher::mission::Mission;
 use marie::actors::registry::{self, Instance};
-use marie::fault::NodeProcesses;
-use marie::layout::ClusterLayout;
+use marie::cluster::fault::NodeProcesses;
+use marie::cluster::layout::ClusterLayout;
 use std::collections::BTreeMap;
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
@@ -67,13 +67,13 @@ pub struct UpArgs {
 
 /// Start the cluster, wait for it, run the mission or wait for a signal, stop it.
 pub async fn up(args: UpArgs) -> anyhow::Result<ExitCode> {
-    let catalog = marie::missions::catalog();
+    let catalog = marie_missions::catalog();
     let layout =
         ClusterLayout::load(&args.cluster, &catalog).map_err(|d| BadInput(d.to_string()))?;
     // the mission is checked before any process starts; its world is the robot's
     let mission_world = match &args.run {
         Some(path) => Mission::parse_file(path)
-            .map_err(marie::node::NodeError::Mission)?
+            .map_err(marie::cluster::node::NodeError::Mission)?
             .world()
             .map(PathBuf::from),
         None => None,

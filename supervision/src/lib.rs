@@ -1,6 +1,6 @@
 //! # marie-supervision
 //!
-//! Supervision for marie's actors with Erlang/OTP semantics (DESIGN.md §5). ractor links
+//! Supervision for marie's actors with Erlang/OTP semantics. ractor links
 //! actors and reports a linked child's exit to its parent, but has no strategies, restart
 //! types, restart intensity, ordered shutdown or backoff — and its default
 //! `handle_supervisor_evt` stops the parent when any child stops. This crate adds a

@@ -297,7 +297,7 @@ pub fn silence_ms(line: &str) -> u64 {
 /// The failure detector's default deadline, in ms (what `marie node` runs with unless its
 /// config says otherwise).
 pub fn default_deadline_ms() -> u64 {
-    marie::net::detector::DEFAULT_DEADLINE.as_millis() as u64
+    marie::cluster::net::detector::DEFAULT_DEADLINE.as_millis() as u64
 }
 
 /// A module `marie ls` lists: (kind, name, node).

@@ -1,7 +1,7 @@
 //! Bindings: the dispatcher's hold on an operation, across failures of its instances.
 //!
 //! A restart makes a new actor, so the dispatcher never keeps a raw `ActorRef` as "the
-//! operation" (DESIGN.md §5). It keeps a [`Binding`]: the operation's logical name, what an
+//! operation". It keeps a [`Binding`]: the operation's logical name, what an
 //! instance must be to stand in for it (same id, a semver-compatible version, a parameter
 //! schema that accepts the parameters the mission gave), the current incarnation and the
 //! binding's epoch. When the incarnation dies the binding is *lost*; a live instance that

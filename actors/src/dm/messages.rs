@@ -1,4 +1,4 @@
-//! dm-interface messages (thesis 3.2.5.2, DESIGN.md §3).
+//! dm-interface messages (thesis 3.2.5.2; see `docs/thesis.md`).
 
 use super::error::DmError;
 use super::query::Query;

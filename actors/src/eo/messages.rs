@@ -1,4 +1,4 @@
-//! eo-interface messages (thesis 3.2.5.1, DESIGN.md §3).
+//! eo-interface messages (thesis 3.2.5.1; see `docs/thesis.md`).
 
 use crate::flags::StatusFlags;
 use crate::property::{ParamMap, PropertyReply, PropertyRequest, Rejection};

@@ -1,5 +1,5 @@
 //! One event stream: every dispatcher, binding, registry, supervisor, fault and robot event
-//! as a typed, serializable value on the node's [`EventBus`] (DESIGN.md §6).
+//! as a typed, serializable value on the node's [`EventBus`] — the only channel of a run's facts.
 //!
 //! The bus is the only channel of a run's facts. The live lines, the fault injector,
 //! `--events` files, a remote watcher and the monitor subscribe to it; the run report is a

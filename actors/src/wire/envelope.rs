@@ -125,7 +125,7 @@ impl Envelope {
     }
 
     /// [`Envelope::from_bytes`] for a frame from `peer`: a refused frame is logged as a
-    /// warning naming the peer (DESIGN.md §6: dropped with a warning, never a panic).
+    /// warning naming the peer (dropped with a warning, never a panic).
     pub fn from_peer(peer: &str, bytes: &[u8]) -> Result<Self, EnvelopeError> {
         Envelope::from_bytes(bytes).inspect_err(
             |e| tracing::warn!(%peer, error = %e, len = bytes.len(), "frame from a peer refused"),

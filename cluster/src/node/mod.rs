@@ -2,7 +2,7 @@
 //!
 //! A node is configured by what it hosts ([`NodeConfig`]): datamanagers, operations (by name,
 //! version and number of instances, under named supervisors with restart policies), a
-//! simulated robot, a dispatcher. [`Node::start`] builds its supervision tree (DESIGN.md §2)
+//! simulated robot, a dispatcher. [`Node::start`] builds its supervision tree
 //! from that config and nothing else; the operations come from a catalogue of
 //! [`OperationFactory`]s and a robot plugs in through the [`Robot`] trait — a node knows no
 //! robot. [`Node::run`] runs a mission ([`RunOptions`]: faults, chaos, observers); a crashed
@@ -178,7 +178,7 @@ pub enum NodeError {
     },
 }
 
-/// A running node: the supervision tree of DESIGN.md §2, built from its [`NodeConfig`].
+/// A running node: the supervision tree below, built from its [`NodeConfig`].
 ///
 /// ```text
 /// node (one_for_one)

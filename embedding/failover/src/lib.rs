@@ -32,7 +32,7 @@
 //!
 //! - B's sessions close with its process, so A sees B's pump leave its registry at once (a
 //!   *frozen* or cut-off B would be declared down by the failure detector instead: 1.2 s
-//!   of silence by default, [`DEFAULT_DEADLINE`](marie::net::detector::DEFAULT_DEADLINE),
+//!   of silence by default, [`DEFAULT_DEADLINE`](marie::cluster::net::detector::DEFAULT_DEADLINE),
 //!   with a heartbeat every 240 ms).
 //! - A's dispatcher looks for a stand-in. None runs anywhere — A's pump is a standby — so
 //!   after the provisioning grace, [`provision::GRACE`](marie::actors::provision::GRACE)
@@ -51,8 +51,8 @@
 use marie::actors::dispatcher::mission::{ActionBuilder, MissionBuilder};
 use marie::actors::eo::OperationFactory;
 use marie::actors::registry::{self, ModuleKind};
-use marie::net::ClusterConfig;
-use marie::node::{Node, NodeBuilder};
+use marie::cluster::net::ClusterConfig;
+use marie::cluster::node::{Node, NodeBuilder};
 use marie::prelude::*;
 use std::net::SocketAddr;
 use std::sync::{Arc, Mutex};

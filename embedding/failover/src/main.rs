@@ -21,7 +21,7 @@
 //! for them (a person, `tests/failover.rs`).
 
 use marie::actors::events::EventKind;
-use marie::node::RunOptions;
+use marie::cluster::node::RunOptions;
 use marie_failover_app::{mission, node, wait_for_pump, Setup, PUMP};
 use std::io::Write;
 use std::process::ExitCode;

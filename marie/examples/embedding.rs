@@ -4,7 +4,7 @@
 
 use marie::actors::dispatcher::mission::{ActionBuilder, MissionBuilder};
 use marie::actors::eo::{OperationHandle, SetError};
-use marie::node::{Node, RunOptions, SupervisorConfig};
+use marie::cluster::node::{Node, RunOptions, SupervisorConfig};
 use marie::prelude::*;
 use std::time::Duration;
 

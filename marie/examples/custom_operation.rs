@@ -1,15 +1,13 @@
-//! Embedding marie: a user-defined operation, hosted, asked for its properties, and driven by
-//! a mission — all in one process. Its parameters and flags are declared with
-//! [`params!`](marie::actors::params) and [`flags!`](marie::actors::flags!): the operation's code
-//! names them by Rust identifiers, so a typo is a compile error, not a failed run.
+//! Your own operation, hosted on a node, asked about itself and driven by a mission — all in
+//! one process. Its parameters and flags are declared with [`params!`](marie::actors::params)
+//! and [`flags!`](marie::actors::flags!): the operation's code names them by Rust
+//! identifiers, so a typo is a compile error, not a failed run.
 //!
-//! Run with `cargo run --example custom_operation`.
+//! Run with `cargo run -p marie --example custom_operation`.
 
-use marie::actors::clock::RealClock;
-use marie::actors::dispatcher::{self, mission::Mission, RegistryCatalog};
-use marie::actors::eo::{self, EoClient};
-use marie::actors::property::{Group, PropertyRequest};
+use marie::actors::property::PropertyRequest;
 use marie::prelude::*;
+use marie::{Node, OperationHandle, RunOptions};
 use std::time::Duration;
 
 // --- the operation: walks the Collatz sequence from `start` down to 1 -----------------------
@@ -65,6 +63,7 @@ impl Operation for Collatz {
         self.steps += 1;
         Ok(Step::Continue)
     }
+    /// An operation-specific property beside the standard ones: how far the walk went.
     fn property(&self, name: &str) -> Option<Value> {
         (name == "steps").then_some(Value::Int(self.steps))
     }
@@ -87,31 +86,31 @@ start = 97
 
 #[tokio::main]
 async fn main() -> Result<(), Box<dyn std::error::Error>> {
-    // 1. host it: it publishes itself in the location table
-    let (actor, _) = eo::spawn_operation(Collatz::default(), Default::default()).await?;
-    let client = EoClient::new(actor.clone());
-
-    // 2. ask it about itself
-    let ident = client
-        .property(PropertyRequest::Group(Group::Identification))
+    // 1. host it on a node: its declarations are checked first, then it runs under
+    //    supervision and publishes itself in the location table
+    let node = Node::builder("collatz-node")
+        .operation::<Collatz>()
+        .start()
         .await?;
-    let specific = client
-        .property(PropertyRequest::Group(Group::Specific))
-        .await?;
-    println!("{ident:?}\n{specific:?}");
 
-    // 3. drive it with a mission, checked against what is running
-    let parsed = Mission::parse(MISSION, None)?;
-    let catalog = RegistryCatalog::gather(parsed.ops()).await?;
-    let mission = parsed.validate(&catalog)?;
-    let report = dispatcher::run_mission(mission, RealClock::shared(), None).await?;
-    let steps = client
+    // 2. ask it about itself, by name
+    let collatz = OperationHandle::lookup("collatz").await?;
+    println!(
+        "{:?}\n{:?}",
+        collatz.identity().await?,
+        collatz.schema().await?
+    );
+
+    // 3. drive it with a mission, checked against what runs
+    let report = node.run(MISSION, RunOptions::new()).await?;
+    let steps = collatz
+        .client()
         .property(PropertyRequest::Get("steps".into()))
         .await?;
     println!(
         "outcome: {:?}, flags: {:?}, steps: {steps:?}",
         report.outcome, report.flags
     );
-    actor.stop(None);
+    node.shutdown().await;
     Ok(())
 }

@@ -11,7 +11,7 @@
 //! only if the file has a `[simulation]` table: the node hosts exactly what the file says.
 //!
 //! ```no_run
-//! use marie::embedded::{Embedded, EmbeddedOptions};
+//! use marie_missions::embedded::{Embedded, EmbeddedOptions};
 //! # #[tokio::main] async fn main() -> Result<(), Box<dyn std::error::Error>> {
 //! let options = EmbeddedOptions {
 //!     node: Some("missions/nodes/v1-only.toml".into()),
@@ -20,18 +20,18 @@
 //! };
 //! let embedded = Embedded::start(options).await?;
 //! let mission = embedded.node.load_mission("missions/docking.toml".as_ref()).await?;
-//! let report = embedded.node.run(mission, marie::node::RunOptions::new()).await?;
+//! let report = embedded.node.run(mission, marie::cluster::node::RunOptions::new()).await?;
 //! println!("{:?}", report.outcome);
 //! embedded.node.shutdown().await;
 //! # Ok(()) }
 //! ```
 
+use crate::robot::{SimRobot, DEFAULT_SEED};
+use crate::world::World;
 use marie_actors::clock::{RealClock, SharedClock};
 use marie_actors::diagnostic::{Diagnostic, Diagnostics};
 use marie_cluster::net::TransportError;
 use marie_cluster::node::{Node, NodeConfig, NodeError, NodeOptions, SimulationConfig};
-use marie_missions::robot::{SimRobot, DEFAULT_SEED};
-use marie_missions::world::World;
 use std::path::PathBuf;
 use std::sync::Arc;
 
@@ -124,7 +124,7 @@ pub struct Embedded {
 impl Embedded {
     /// Load the node config (or take the built-in one), the world, and start the node.
     pub async fn start(options: EmbeddedOptions) -> Result<Embedded, EmbeddedError> {
-        let catalog = marie_missions::catalog();
+        let catalog = crate::catalog();
         let config = match (&options.node, options.config.clone()) {
             (Some(path), _) => {
                 let config = NodeConfig::load(path, &catalog).map_err(EmbeddedError::Config)?;
