@@ -78,6 +78,8 @@ fn a_frozen_node_is_declared_down_after_its_deadline_and_rejoins_when_it_wakes()
 
 #[test]
 fn a_node_of_another_protocol_version_is_refused_naming_both_versions() {
+    let ours = marie::actors::wire::PROTOCOL_VERSION;
+    let theirs = (ours + 1).to_string();
     let dir = tempfile::tempdir().unwrap();
     let mut alpha = NodeProc::start(dir.path(), "alpha", ALPHA, &[], COOKIE);
     let mut future = NodeProc::start_with(
@@ -87,12 +89,13 @@ fn a_node_of_another_protocol_version_is_refused_naming_both_versions() {
         &[alpha.addr],
         COOKIE,
         "",
-        &["--protocol-version", "2"],
+        &["--protocol-version", &theirs],
     );
     let refused = alpha.wait_line("node alpha refused future");
     let mark = alpha.seen().len();
     assert!(
-        refused.contains("protocol version 2") && refused.contains("protocol version 1"),
+        refused.contains(&format!("protocol version {theirs}"))
+            && refused.contains(&format!("protocol version {ours}")),
         "{refused}"
     );
     future.wait_line("node future refused alpha");
