@@ -20,7 +20,8 @@
 //! };
 //! let embedded = Embedded::start(options).await?;
 //! let mission = embedded.node.load_mission("missions/docking.toml".as_ref()).await?;
-//! let report = embedded.node.run(mission, marie::cluster::node::RunOptions::new()).await?;
+//! let options = marie_cluster::node::RunOptions::new();
+//! let report = embedded.node.run(mission, options).await?;
 //! println!("{:?}", report.outcome);
 //! embedded.node.shutdown().await;
 //! # Ok(()) }
