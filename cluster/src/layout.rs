@@ -138,7 +138,7 @@ impl ClusterLayout {
         if let Some(cookie) = r.required_string(t, "cookie") {
             if let Err(e) = check_cookie(&cookie) {
                 let span = t.get("cookie").map(|v| v.span()).unwrap_or(0..0);
-                r.err(&span, e);
+                r.err(&span, e.to_string());
             }
             self.cookie = cookie;
         }

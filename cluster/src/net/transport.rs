@@ -1,6 +1,6 @@
 //! Starting and stopping a node's transport, and dialing its peers until they answer.
 
-use super::config::ClusterConfig;
+use super::config::{ClusterConfig, ClusterConfigError};
 use super::events::NetEvent;
 use super::heartbeat::{Heartbeat, HeartbeatArgs};
 use super::listener;
@@ -41,7 +41,7 @@ pub struct Peer {
 pub enum TransportError {
     /// The cluster settings cannot work.
     #[error("cluster config: {0}")]
-    Config(String),
+    Config(#[from] ClusterConfigError),
     /// The node server did not start (e.g. the port is taken).
     #[error("cannot listen on {addr}: {reason}")]
     Listen {
