@@ -49,5 +49,5 @@ pub use config::{check_cookie, ClusterConfig, ClusterConfigError, CookieError, M
 pub use detector::{HeartbeatConfig, HeartbeatError};
 pub use events::publish_on;
 pub use events::NetEvent;
-pub use tls::TlsFiles;
+pub use tls::{TlsError, TlsFile, TlsFiles};
 pub use transport::{Peer, Transport, TransportError};
