@@ -120,9 +120,8 @@ mod tests {
         );
         assert_eq!(err.to_string(), "Actor panicked during startup 'nope'");
 
-        let refused: StartFn = Arc::new(|_| {
-            Box::pin(async { Err(SpawnErr::ActorAlreadyRegistered("taken".into())) })
-        });
+        let refused: StartFn =
+            Arc::new(|_| Box::pin(async { Err(SpawnErr::ActorAlreadyRegistered("taken".into())) }));
         let err = run_start(&refused, sup.clone(), None).await.unwrap_err();
         assert_eq!(
             err,

@@ -11,8 +11,8 @@ use std::time::Duration;
 use common::*;
 use marie_supervision::{
     check_child_specs, Backoff, ChildKind, ChildSpec, ChildState, ChildTemplate, ExitReason,
-    RestartCause, Shutdown, SpecError, StartError, Strategy, Supervisor, SupervisorError, SupervisorEvent,
-    SupervisorSpec, REACHED_MAX_RESTART_INTENSITY, SHUTDOWN,
+    RestartCause, Shutdown, SpecError, StartError, Strategy, Supervisor, SupervisorError,
+    SupervisorEvent, SupervisorSpec, REACHED_MAX_RESTART_INTENSITY, SHUTDOWN,
 };
 use ractor::ActorStatus;
 

@@ -518,9 +518,21 @@ mod tests {
         let err = Rule::Any.check(f64::NAN).unwrap_err();
         assert!(matches!(err.rule, Rule::Any) && err.found.is_nan());
         assert_eq!(err.to_string(), "a finite number");
-        assert_eq!(Rule::AboveUpTo(0.0, 1.0).check(0.0).unwrap_err().to_string(), "in (0, 1]");
-        assert_eq!(Rule::Between(0.0, 1.0).check(1.0).unwrap_err().to_string(), "in (0, 1)");
-        assert_eq!(Rule::NonNegative.check(-1.0).unwrap_err().to_string(), "at least 0");
+        assert_eq!(
+            Rule::AboveUpTo(0.0, 1.0)
+                .check(0.0)
+                .unwrap_err()
+                .to_string(),
+            "in (0, 1]"
+        );
+        assert_eq!(
+            Rule::Between(0.0, 1.0).check(1.0).unwrap_err().to_string(),
+            "in (0, 1)"
+        );
+        assert_eq!(
+            Rule::NonNegative.check(-1.0).unwrap_err().to_string(),
+            "at least 0"
+        );
     }
 
     #[test]

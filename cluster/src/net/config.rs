@@ -179,7 +179,10 @@ mod tests {
             ),
             "{err:?}"
         );
-        assert_eq!(err.to_string(), "cluster config: the cookie must not be empty");
+        assert_eq!(
+            err.to_string(),
+            "cluster config: the cookie must not be empty"
+        );
         let slow = config("c").with_heartbeat(HeartbeatConfig {
             period: Duration::from_millis(800),
             deadline: Duration::from_millis(1500),
@@ -199,6 +202,9 @@ mod tests {
             ),
             "{err:?}"
         );
-        assert_eq!(err.to_string(), "cluster config: peer 127.0.0.1:0 has no port");
+        assert_eq!(
+            err.to_string(),
+            "cluster config: peer 127.0.0.1:0 has no port"
+        );
     }
 }

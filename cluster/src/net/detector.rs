@@ -251,7 +251,9 @@ mod tests {
 
     #[test]
     fn a_bad_heartbeat_setting_is_matched_by_its_kind_and_keeps_its_text() {
-        let short = HeartbeatConfig::with_deadline(MS(299)).validate().unwrap_err();
+        let short = HeartbeatConfig::with_deadline(MS(299))
+            .validate()
+            .unwrap_err();
         assert_eq!(
             short,
             HeartbeatError::DeadlineTooShort {
@@ -283,6 +285,8 @@ mod tests {
         };
         let err = zero.validate().unwrap_err();
         assert_eq!(err, HeartbeatError::ZeroPeriod { deadline: MS(1500) });
-        assert!(err.to_string().starts_with("the heartbeat period (0 ms) must be positive"));
+        assert!(err
+            .to_string()
+            .starts_with("the heartbeat period (0 ms) must be positive"));
     }
 }

@@ -201,15 +201,16 @@ impl Tls {
             .with_root_certificates(roots)
             .with_client_auth_cert(certs, key)
             .map_err(certified_key)?;
-        let server_name = match &files.server_name {
-            None => None,
-            Some(name) => Some(ServerName::try_from(name.clone()).map_err(|source| {
-                TlsError::ServerName {
-                    name: name.clone(),
-                    source,
-                }
-            })?),
-        };
+        let server_name =
+            match &files.server_name {
+                None => None,
+                Some(name) => Some(ServerName::try_from(name.clone()).map_err(|source| {
+                    TlsError::ServerName {
+                        name: name.clone(),
+                        source,
+                    }
+                })?),
+            };
         Ok(Tls {
             acceptor: TlsAcceptor::from(Arc::new(server)),
             connector: TlsConnector::from(Arc::new(client)),
