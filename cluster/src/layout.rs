@@ -50,13 +50,39 @@ pub fn speed_expected() -> String {
 }
 
 /// `speed` if it is a cluster's speed factor (within [`SPEED_RANGE`]), else why not.
-pub fn cluster_speed(speed: f64) -> Result<f64, String> {
+pub fn cluster_speed(speed: f64) -> Result<f64, SpeedError> {
     let (lo, hi) = SPEED_RANGE;
     if (lo..=hi).contains(&speed) {
         Ok(speed)
+    } else if speed < lo {
+        Err(SpeedError::TooSlow { speed })
+    } else if speed > hi {
+        Err(SpeedError::TooFast { speed })
     } else {
-        Err(format!("{}, got {speed}", speed_expected()))
+        Err(SpeedError::NotANumber)
     }
+}
+
+/// Why a number cannot be a cluster's speed factor ([`cluster_speed`]); each displays what
+/// was expected ([`speed_expected`]) and what was given.
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+pub enum SpeedError {
+    /// Below the slowest factor, [`SPEED_RANGE`]`.0` (zero and negatives included).
+    #[error("{}, got {speed}", speed_expected())]
+    TooSlow {
+        /// The factor given.
+        speed: f64,
+    },
+    /// Above the fastest factor, [`SPEED_RANGE`]`.1` (infinity, `max`, included): a step
+    /// period would be short against a message's trip between processes.
+    #[error("{}, got {speed}", speed_expected())]
+    TooFast {
+        /// The factor given.
+        speed: f64,
+    },
+    /// Not a number (NaN).
+    #[error("{}, got NaN", speed_expected())]
+    NotANumber,
 }
 
 /// A cluster file, checked.
@@ -138,7 +164,7 @@ impl ClusterLayout {
         if let Some(cookie) = r.required_string(t, "cookie") {
             if let Err(e) = check_cookie(&cookie) {
                 let span = t.get("cookie").map(|v| v.span()).unwrap_or(0..0);
-                r.err(&span, e);
+                r.err(&span, e.to_string());
             }
             self.cookie = cookie;
         }
@@ -209,6 +235,22 @@ impl ClusterLayout {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_speed_out_of_range_is_matched_by_its_side_and_keeps_its_text() {
+        assert_eq!(cluster_speed(4.0), Ok(4.0));
+        assert_eq!(cluster_speed(0.0), Err(SpeedError::TooSlow { speed: 0.0 }));
+        let err = cluster_speed(50.0).unwrap_err();
+        assert_eq!(err, SpeedError::TooFast { speed: 50.0 });
+        assert_eq!(err.to_string(), format!("{}, got 50", speed_expected()));
+        assert!(matches!(
+            cluster_speed(f64::INFINITY),
+            Err(SpeedError::TooFast { .. })
+        ));
+        let err = cluster_speed(f64::NAN).unwrap_err();
+        assert_eq!(err, SpeedError::NotANumber);
+        assert_eq!(err.to_string(), format!("{}, got NaN", speed_expected()));
+    }
 
     fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
         let p = dir.join(name);

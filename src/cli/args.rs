@@ -66,7 +66,7 @@ pub fn parse_speed(s: &str) -> Result<f64, String> {
 /// [`marie::cluster::layout::SPEED_RANGE`]; `max` is refused (a cluster runs on the wall clock).
 pub fn parse_cluster_speed(s: &str) -> Result<f64, String> {
     match s.parse::<f64>() {
-        Ok(x) => marie::cluster::layout::cluster_speed(x),
+        Ok(x) => marie::cluster::layout::cluster_speed(x).map_err(|e| e.to_string()),
         Err(_) => Err(format!(
             "{}, got {s:?}",
             marie::cluster::layout::speed_expected()

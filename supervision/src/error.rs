@@ -1,5 +1,7 @@
 //! Errors of the supervisor's operations.
 
+use std::time::Duration;
+
 use ractor::SpawnErr;
 
 use crate::exit::REACHED_MAX_RESTART_INTENSITY;
@@ -28,8 +30,9 @@ pub enum SupervisorError {
     StartFailed {
         /// The child's id.
         id: String,
-        /// The start function's error.
-        reason: String,
+        /// How the start failed: refused by ractor, failed in the actor's start-up, panicked
+        /// or timed out.
+        reason: StartError,
     },
     /// The pending start of a child was abandoned because the child was terminated.
     #[error("child {0:?} was terminated before it started")]
@@ -65,7 +68,7 @@ pub enum SupervisorError {
     },
     /// The supervisor actor could not be spawned (e.g. its name is taken).
     #[error("cannot spawn the supervisor: {0}")]
-    Spawn(String),
+    Spawn(StartError),
     /// The supervisor is not running (any more), so it cannot answer.
     #[error("the supervisor is not running")]
     NotRunning,
@@ -95,9 +98,59 @@ impl SupervisorError {
         match err {
             SpawnErr::StartupFailed(inner) => match inner.downcast_ref::<SupervisorError>() {
                 Some(own) => own.clone(),
-                None => SupervisorError::Spawn(inner.to_string()),
+                None => SupervisorError::Spawn(StartError::StartupFailed {
+                    reason: inner.to_string(),
+                }),
             },
-            other => SupervisorError::Spawn(other.to_string()),
+            other => SupervisorError::Spawn(StartError::from(other)),
+        }
+    }
+}
+
+/// Why a child's start failed, by kind, so a caller can tell a name clash (fix the spec)
+/// from a failing start-up (the child's own fault) from a start function that panicked or
+/// hung. Plain data (the start's error as text), so [`SupervisorError`] stays `Clone` and
+/// comparable; the texts are those of ractor's `SpawnErr` and of the supervisor's own
+/// checks.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum StartError {
+    /// ractor refused the spawn: another actor is registered under the child's name.
+    #[error("Actor '{name}' is already registered in the actor registry")]
+    NameTaken {
+        /// The name the child asked for.
+        name: String,
+    },
+    /// ractor refused the spawn: the actor had been started already.
+    #[error("Actor cannot be re-started more than once")]
+    AlreadyStarted,
+    /// The actor's start-up (its `pre_start`) returned an error or panicked.
+    #[error("Actor panicked during startup '{reason}'")]
+    StartupFailed {
+        /// The start-up's error, as text.
+        reason: String,
+    },
+    /// The start function itself panicked, when called or while its future ran.
+    #[error("start function panicked: {message}")]
+    Panicked {
+        /// The panic's message (`unknown panic` when it was neither a `String` nor a `&str`).
+        message: String,
+    },
+    /// The start did not finish within the child's start timeout; it was abandoned.
+    #[error("start timed out after {limit:?}")]
+    TimedOut {
+        /// The child's start timeout.
+        limit: Duration,
+    },
+}
+
+impl From<SpawnErr> for StartError {
+    fn from(err: SpawnErr) -> Self {
+        match err {
+            SpawnErr::ActorAlreadyRegistered(name) => StartError::NameTaken { name },
+            SpawnErr::ActorAlreadyStarted => StartError::AlreadyStarted,
+            SpawnErr::StartupFailed(inner) => StartError::StartupFailed {
+                reason: inner.to_string(),
+            },
         }
     }
 }

@@ -5,6 +5,7 @@ use std::time::Duration;
 
 use ractor::{ActorCell, ActorId};
 
+use crate::error::StartError;
 use crate::exit::ExitReason;
 
 /// Why a child is being restarted.
@@ -76,7 +77,7 @@ pub enum SupervisorEvent {
         /// The child's id.
         id: String,
         /// Why the start failed.
-        error: String,
+        error: StartError,
     },
     /// A child's start answered [`crate::ChildStart::Ignore`]: it does not run. A static
     /// child stays, not running ([`crate::ChildState::Undefined`]); a temporary child or a

@@ -153,7 +153,7 @@ mod validate;
 
 pub use backoff::Backoff;
 pub use child::{ChildKind, ChildSpec, ChildStart, Restart, Shutdown, StartFn, StartFuture};
-pub use error::SupervisorError;
+pub use error::{StartError, SupervisorError};
 pub use events::{RestartCause, SupervisorEvent};
 pub use exit::{ExitReason, NORMAL, REACHED_MAX_RESTART_INTENSITY, SHUTDOWN};
 pub use handle::SupervisorRef;

@@ -7,7 +7,7 @@ use ractor::{ActorCell, RpcReplyPort};
 use tokio::sync::broadcast;
 
 use crate::child::{ChildSpec, ChildStart};
-use crate::error::SupervisorError;
+use crate::error::{StartError, SupervisorError};
 use crate::events::SupervisorEvent;
 use crate::info::{ChildCounts, ChildInfo};
 use crate::simple::DynamicArg;
@@ -53,7 +53,7 @@ pub(crate) enum InternalKind {
     StartDone {
         token: u64,
         key: u64,
-        result: Result<ChildStart, String>,
+        result: Result<ChildStart, StartError>,
     },
     /// Try a failed restart again (OTP's `try_again_restart`).
     Retry { key: u64, generation: u64 },

@@ -11,6 +11,7 @@ use std::time::Duration;
 use ractor::ActorCell;
 
 use crate::child::{ChildStart, StartFn};
+use crate::error::StartError;
 
 /// Call `start` with the supervisor's cell and await the child, at most `timeout`. A start
 /// that is dropped (timeout, supervisor shutdown) is abandoned at whatever `.await` it was in;
@@ -19,7 +20,7 @@ pub(crate) async fn run_start(
     start: &StartFn,
     supervisor: ActorCell,
     timeout: Option<Duration>,
-) -> Result<ChildStart, String> {
+) -> Result<ChildStart, StartError> {
     let started = match catch_unwind(AssertUnwindSafe(|| start(supervisor))) {
         Ok(future) => CatchUnwind(future),
         Err(panic) => return Err(panicked(panic)),
@@ -27,24 +28,24 @@ pub(crate) async fn run_start(
     let outcome = match timeout {
         Some(limit) => match tokio::time::timeout(limit, started).await {
             Ok(outcome) => outcome,
-            Err(_) => return Err(format!("start timed out after {limit:?}")),
+            Err(_) => return Err(StartError::TimedOut { limit }),
         },
         None => started.await,
     };
     match outcome {
         Ok(Ok(started)) => Ok(started),
-        Ok(Err(e)) => Err(e.to_string()),
+        Ok(Err(e)) => Err(StartError::from(e)),
         Err(panic) => Err(panicked(panic)),
     }
 }
 
-fn panicked(panic: Box<dyn Any + Send>) -> String {
-    let text = panic
+fn panicked(panic: Box<dyn Any + Send>) -> StartError {
+    let message = panic
         .downcast_ref::<String>()
         .cloned()
         .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
         .unwrap_or_else(|| "unknown panic".to_string());
-    format!("start function panicked: {text}")
+    StartError::Panicked { message }
 }
 
 /// A future that catches a panic while it is polled (std has no async `catch_unwind`).
@@ -94,18 +95,44 @@ mod tests {
         let err = run_start(&panics_in_future, sup.clone(), None)
             .await
             .unwrap_err();
-        assert!(err.contains("in the future"), "{err}");
+        assert!(err.to_string().contains("in the future"), "{err}");
+        assert_eq!(
+            err,
+            StartError::Panicked {
+                message: "in the future".into()
+            }
+        );
 
         let panics_at_call: StartFn = Arc::new(|_| panic!("at the call"));
         let err = run_start(&panics_at_call, sup.clone(), None)
             .await
             .unwrap_err();
-        assert!(err.contains("at the call"), "{err}");
+        assert!(err.to_string().contains("at the call"), "{err}");
+        assert_eq!(err.to_string(), "start function panicked: at the call");
 
         let fails: StartFn =
             Arc::new(|_| Box::pin(async { Err(SpawnErr::StartupFailed("nope".into())) }));
         let err = run_start(&fails, sup.clone(), None).await.unwrap_err();
-        assert!(err.contains("nope"), "{err}");
+        assert!(err.to_string().contains("nope"), "{err}");
+        assert!(
+            matches!(&err, StartError::StartupFailed { reason } if reason == "nope"),
+            "{err:?}"
+        );
+        assert_eq!(err.to_string(), "Actor panicked during startup 'nope'");
+
+        let refused: StartFn =
+            Arc::new(|_| Box::pin(async { Err(SpawnErr::ActorAlreadyRegistered("taken".into())) }));
+        let err = run_start(&refused, sup.clone(), None).await.unwrap_err();
+        assert_eq!(
+            err,
+            StartError::NameTaken {
+                name: "taken".into()
+            }
+        );
+        assert_eq!(
+            err.to_string(),
+            "Actor 'taken' is already registered in the actor registry"
+        );
         sup.stop(None);
     }
 
@@ -116,7 +143,14 @@ mod tests {
         let err = run_start(&hangs, sup.clone(), Some(Duration::from_secs(3)))
             .await
             .unwrap_err();
-        assert!(err.contains("timed out"), "{err}");
+        assert!(err.to_string().contains("timed out"), "{err}");
+        assert_eq!(
+            err,
+            StartError::TimedOut {
+                limit: Duration::from_secs(3)
+            }
+        );
+        assert_eq!(err.to_string(), "start timed out after 3s");
         sup.stop(None);
     }
 }

@@ -11,8 +11,8 @@ use std::time::Duration;
 use common::*;
 use marie_supervision::{
     check_child_specs, Backoff, ChildKind, ChildSpec, ChildState, ChildTemplate, ExitReason,
-    RestartCause, Shutdown, SpecError, Strategy, Supervisor, SupervisorError, SupervisorEvent,
-    SupervisorSpec, REACHED_MAX_RESTART_INTENSITY, SHUTDOWN,
+    RestartCause, Shutdown, SpecError, StartError, Strategy, Supervisor, SupervisorError,
+    SupervisorEvent, SupervisorSpec, REACHED_MAX_RESTART_INTENSITY, SHUTDOWN,
 };
 use ractor::ActorStatus;
 
@@ -110,6 +110,16 @@ async fn sup_start_fail() {
         .unwrap_err();
     assert!(
         matches!(&err, SupervisorError::StartFailed { id, .. } if id == "c2"),
+        "{err:?}"
+    );
+    assert!(
+        matches!(
+            &err,
+            SupervisorError::StartFailed {
+                reason: StartError::StartupFailed { .. },
+                ..
+            }
+        ),
         "{err:?}"
     );
     assert_eq!(
@@ -955,7 +965,15 @@ async fn start_timeout_counts_as_failed_restart() {
     })
     .await
     {
-        SupervisorEvent::RestartFailed { error, .. } => assert!(error.contains("timed out")),
+        SupervisorEvent::RestartFailed { error, .. } => {
+            assert!(error.to_string().contains("timed out"));
+            assert_eq!(
+                error,
+                StartError::TimedOut {
+                    limit: Duration::from_secs(1)
+                }
+            );
+        }
         _ => unreachable!(),
     }
     hang.store(false, Ordering::SeqCst);

@@ -69,22 +69,51 @@ pub enum Rule {
 }
 
 impl Rule {
-    /// `Ok` when `x` satisfies the rule, otherwise what was expected, in words.
-    pub fn check(self, x: f64) -> Result<(), String> {
-        let (ok, want) = match self {
-            Rule::Any => (x.is_finite(), "a finite number".to_string()),
-            Rule::Positive => (x > 0.0, "greater than 0".to_string()),
-            Rule::NonNegative => (x >= 0.0, "at least 0".to_string()),
-            Rule::AboveUpTo(lo, hi) => (x > lo && x <= hi, format!("in ({lo}, {hi}]")),
-            Rule::Between(lo, hi) => (x > lo && x < hi, format!("in ({lo}, {hi})")),
-            Rule::Within(lo, hi) => (x >= lo && x <= hi, format!("in [{lo}, {hi}]")),
+    /// `Ok` when `x` satisfies the rule, otherwise the rule and the number that broke it.
+    pub fn check(self, x: f64) -> Result<(), OutOfRule> {
+        let ok = match self {
+            Rule::Any => x.is_finite(),
+            Rule::Positive => x > 0.0,
+            Rule::NonNegative => x >= 0.0,
+            Rule::AboveUpTo(lo, hi) => x > lo && x <= hi,
+            Rule::Between(lo, hi) => x > lo && x < hi,
+            Rule::Within(lo, hi) => x >= lo && x <= hi,
         };
         if ok {
             Ok(())
         } else {
-            Err(want)
+            Err(OutOfRule {
+                rule: self,
+                found: x,
+            })
         }
     }
+
+    /// What the rule expects, in words: `greater than 0`, `in [0, 10]`.
+    pub fn expected(self) -> String {
+        match self {
+            Rule::Any => "a finite number".to_string(),
+            Rule::Positive => "greater than 0".to_string(),
+            Rule::NonNegative => "at least 0".to_string(),
+            Rule::AboveUpTo(lo, hi) => format!("in ({lo}, {hi}]"),
+            Rule::Between(lo, hi) => format!("in ({lo}, {hi})"),
+            Rule::Within(lo, hi) => format!("in [{lo}, {hi}]"),
+        }
+    }
+}
+
+/// A number that breaks its [`Rule`]: which rule, and the number, so a caller can tell a
+/// bound from a non-finite number without reading text. The rule already names every kind
+/// of failure, so this carries it rather than repeating its variants. Displayed as what
+/// was expected (`greater than 0`), the words a message puts after "must be", since the
+/// number is best shown as the file wrote it ([`literal`]).
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+#[error("{}", .rule.expected())]
+pub struct OutOfRule {
+    /// The rule broken.
+    pub rule: Rule,
+    /// The number that broke it.
+    pub found: f64,
 }
 
 /// Text from the file, quoted for a message: `` `name` ``, with control characters escaped.
@@ -473,6 +502,36 @@ mod tests {
             out,
             "f.toml:1:5: `n` must be an integer in [1, 10], found 12\n\
              f.toml:2:5: `x` must be greater than 0, found 0"
+        );
+    }
+
+    #[test]
+    fn a_broken_rule_is_matched_by_the_rule_and_says_what_was_expected() {
+        assert_eq!(Rule::Positive.check(1.0), Ok(()));
+        let err = Rule::Within(0.0, 10.0).check(12.5).unwrap_err();
+        assert!(
+            matches!(err, OutOfRule { rule: Rule::Within(lo, hi), found }
+                if lo == 0.0 && hi == 10.0 && found == 12.5),
+            "{err:?}"
+        );
+        assert_eq!(err.to_string(), "in [0, 10]");
+        let err = Rule::Any.check(f64::NAN).unwrap_err();
+        assert!(matches!(err.rule, Rule::Any) && err.found.is_nan());
+        assert_eq!(err.to_string(), "a finite number");
+        assert_eq!(
+            Rule::AboveUpTo(0.0, 1.0)
+                .check(0.0)
+                .unwrap_err()
+                .to_string(),
+            "in (0, 1]"
+        );
+        assert_eq!(
+            Rule::Between(0.0, 1.0).check(1.0).unwrap_err().to_string(),
+            "in (0, 1)"
+        );
+        assert_eq!(
+            Rule::NonNegative.check(-1.0).unwrap_err().to_string(),
+            "at least 0"
         );
     }
 

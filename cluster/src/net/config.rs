@@ -1,6 +1,6 @@
 //! Where a node listens, whom it joins, and the cookie it proves itself with.
 
-use super::detector::HeartbeatConfig;
+use super::detector::{HeartbeatConfig, HeartbeatError};
 use super::tls::TlsFiles;
 use super::TransportError;
 use marie_actors::wire::PROTOCOL_VERSION;
@@ -10,14 +10,59 @@ use std::net::SocketAddr;
 pub const MAX_COOKIE_LEN: usize = 256;
 
 /// Whether `cookie` can be a cluster's cookie: not empty, at most [`MAX_COOKIE_LEN`] bytes.
-pub fn check_cookie(cookie: &str) -> Result<(), String> {
+pub fn check_cookie(cookie: &str) -> Result<(), CookieError> {
     if cookie.is_empty() {
-        return Err("the cookie must not be empty".into());
+        return Err(CookieError::Empty);
     }
     if cookie.len() > MAX_COOKIE_LEN {
-        return Err(format!("the cookie is longer than {MAX_COOKIE_LEN} bytes"));
+        return Err(CookieError::TooLong {
+            len: cookie.len(),
+            max: MAX_COOKIE_LEN,
+        });
     }
     Ok(())
+}
+
+/// Why a string cannot be a cluster's cookie ([`check_cookie`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum CookieError {
+    /// The cookie is empty: it would authenticate nothing.
+    #[error("the cookie must not be empty")]
+    Empty,
+    /// The cookie is longer than [`MAX_COOKIE_LEN`] bytes.
+    #[error("the cookie is longer than {max} bytes")]
+    TooLong {
+        /// Its length in bytes.
+        len: usize,
+        /// The longest accepted ([`MAX_COOKIE_LEN`]).
+        max: usize,
+    },
+}
+
+/// Cluster settings that cannot work ([`ClusterConfig::validate`]): what ractor_cluster
+/// would otherwise take silently or fail on later.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum ClusterConfigError {
+    /// The node's name is empty or holds `@` or whitespace: ractor names nodes `name@host`.
+    #[error(
+        "node name {name:?} cannot join a cluster: it must be non-empty, without '@' or spaces"
+    )]
+    NodeName {
+        /// The name given.
+        name: String,
+    },
+    /// The cookie cannot be a cluster's cookie.
+    #[error(transparent)]
+    Cookie(#[from] CookieError),
+    /// The heartbeat period and deadline cannot work together.
+    #[error(transparent)]
+    Heartbeat(#[from] HeartbeatError),
+    /// A peer's address has port 0: nobody listens there.
+    #[error("peer {peer} has no port")]
+    PeerWithoutPort {
+        /// The peer's address.
+        peer: SocketAddr,
+    },
 }
 
 /// The `[cluster]` part of a node config.
@@ -75,15 +120,91 @@ impl ClusterConfig {
     /// Check what ractor_cluster would otherwise take silently or fail on later.
     pub fn validate(&self, node: &str) -> Result<(), TransportError> {
         if node.is_empty() || node.contains('@') || node.chars().any(char::is_whitespace) {
-            return Err(TransportError::Config(format!(
-                "node name {node:?} cannot join a cluster: it must be non-empty, without '@' or spaces"
-            )));
+            return Err(ClusterConfigError::NodeName {
+                name: node.to_string(),
+            }
+            .into());
         }
-        check_cookie(&self.cookie).map_err(TransportError::Config)?;
-        self.heartbeat.validate().map_err(TransportError::Config)?;
-        if let Some(p) = self.peers.iter().find(|p| p.port() == 0) {
-            return Err(TransportError::Config(format!("peer {p} has no port")));
+        check_cookie(&self.cookie).map_err(ClusterConfigError::from)?;
+        self.heartbeat
+            .validate()
+            .map_err(ClusterConfigError::from)?;
+        if let Some(&peer) = self.peers.iter().find(|p| p.port() == 0) {
+            return Err(ClusterConfigError::PeerWithoutPort { peer }.into());
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::time::Duration;
+
+    #[test]
+    fn a_bad_cookie_is_matched_by_its_kind_and_keeps_its_text() {
+        assert_eq!(check_cookie("thesis"), Ok(()));
+        assert_eq!(check_cookie(""), Err(CookieError::Empty));
+        assert_eq!(
+            CookieError::Empty.to_string(),
+            "the cookie must not be empty"
+        );
+        let long = "x".repeat(MAX_COOKIE_LEN + 1);
+        let err = check_cookie(&long).unwrap_err();
+        assert_eq!(
+            err,
+            CookieError::TooLong {
+                len: MAX_COOKIE_LEN + 1,
+                max: MAX_COOKIE_LEN
+            }
+        );
+        assert_eq!(err.to_string(), "the cookie is longer than 256 bytes");
+    }
+
+    #[test]
+    fn cluster_settings_that_cannot_work_are_matched_by_their_kind() {
+        let listen: SocketAddr = "127.0.0.1:7100".parse().unwrap();
+        let config = |cookie: &str| ClusterConfig::new(listen, cookie);
+        let Err(TransportError::Config(ClusterConfigError::NodeName { name })) =
+            config("c").validate("a@b")
+        else {
+            panic!("a node name with '@' was accepted");
+        };
+        assert_eq!(name, "a@b");
+        let err = config("").validate("a").unwrap_err();
+        assert!(
+            matches!(
+                err,
+                TransportError::Config(ClusterConfigError::Cookie(CookieError::Empty))
+            ),
+            "{err:?}"
+        );
+        assert_eq!(
+            err.to_string(),
+            "cluster config: the cookie must not be empty"
+        );
+        let slow = config("c").with_heartbeat(HeartbeatConfig {
+            period: Duration::from_millis(800),
+            deadline: Duration::from_millis(1500),
+        });
+        assert!(matches!(
+            slow.validate("a"),
+            Err(TransportError::Config(ClusterConfigError::Heartbeat(
+                HeartbeatError::PeriodTooLong { .. }
+            )))
+        ));
+        let portless: SocketAddr = "127.0.0.1:0".parse().unwrap();
+        let err = config("c").with_peer(portless).validate("a").unwrap_err();
+        assert!(
+            matches!(
+                err,
+                TransportError::Config(ClusterConfigError::PeerWithoutPort { peer }) if peer == portless
+            ),
+            "{err:?}"
+        );
+        assert_eq!(
+            err.to_string(),
+            "cluster config: peer 127.0.0.1:0 has no port"
+        );
     }
 }

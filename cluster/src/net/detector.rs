@@ -46,24 +46,68 @@ impl HeartbeatConfig {
     }
 
     /// Check the deadline and period against each other.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), HeartbeatError> {
         if self.deadline < MIN_DEADLINE {
-            return Err(format!(
-                "the heartbeat deadline must be at least {} ms, got {} ms",
-                MIN_DEADLINE.as_millis(),
-                self.deadline.as_millis()
-            ));
+            return Err(HeartbeatError::DeadlineTooShort {
+                deadline: self.deadline,
+                min: MIN_DEADLINE,
+            });
         }
-        if self.period.is_zero() || self.period * 2 > self.deadline {
-            return Err(format!(
-                "the heartbeat period ({} ms) must be positive and at most half the deadline \
-                 ({} ms): one lost beat must not declare a peer down",
-                self.period.as_millis(),
-                self.deadline.as_millis()
-            ));
+        if self.period.is_zero() {
+            return Err(HeartbeatError::ZeroPeriod {
+                deadline: self.deadline,
+            });
+        }
+        if self.period * 2 > self.deadline {
+            return Err(HeartbeatError::PeriodTooLong {
+                period: self.period,
+                deadline: self.deadline,
+            });
         }
         Ok(())
     }
+}
+
+/// Heartbeat settings that cannot work ([`HeartbeatConfig::validate`]), with the durations
+/// a caller needs to correct them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum HeartbeatError {
+    /// The deadline is below [`MIN_DEADLINE`]: scheduling delays alone would declare
+    /// healthy peers down.
+    #[error(
+        "the heartbeat deadline must be at least {} ms, got {} ms",
+        .min.as_millis(),
+        .deadline.as_millis()
+    )]
+    DeadlineTooShort {
+        /// The deadline given.
+        deadline: Duration,
+        /// The smallest accepted ([`MIN_DEADLINE`]).
+        min: Duration,
+    },
+    /// The period is zero: heartbeats would go out without pause.
+    #[error(
+        "the heartbeat period (0 ms) must be positive and at most half the deadline \
+         ({} ms): one lost beat must not declare a peer down",
+        .deadline.as_millis()
+    )]
+    ZeroPeriod {
+        /// The deadline given.
+        deadline: Duration,
+    },
+    /// The period is more than half the deadline: one lost beat would declare a peer down.
+    #[error(
+        "the heartbeat period ({} ms) must be positive and at most half the deadline \
+         ({} ms): one lost beat must not declare a peer down",
+        .period.as_millis(),
+        .deadline.as_millis()
+    )]
+    PeriodTooLong {
+        /// The period given.
+        period: Duration,
+        /// The deadline given.
+        deadline: Duration,
+    },
 }
 
 /// When each ready peer was last heard from.
@@ -203,5 +247,46 @@ mod tests {
             deadline: MS(1500),
         };
         assert!(too_slow.validate().is_err());
+    }
+
+    #[test]
+    fn a_bad_heartbeat_setting_is_matched_by_its_kind_and_keeps_its_text() {
+        let short = HeartbeatConfig::with_deadline(MS(299))
+            .validate()
+            .unwrap_err();
+        assert_eq!(
+            short,
+            HeartbeatError::DeadlineTooShort {
+                deadline: MS(299),
+                min: MIN_DEADLINE
+            }
+        );
+        assert_eq!(
+            short.to_string(),
+            "the heartbeat deadline must be at least 300 ms, got 299 ms"
+        );
+        let too_slow = HeartbeatConfig {
+            period: MS(800),
+            deadline: MS(1500),
+        };
+        let err = too_slow.validate().unwrap_err();
+        assert!(
+            matches!(err, HeartbeatError::PeriodTooLong { period, .. } if period == MS(800)),
+            "{err:?}"
+        );
+        assert_eq!(
+            err.to_string(),
+            "the heartbeat period (800 ms) must be positive and at most half the deadline \
+             (1500 ms): one lost beat must not declare a peer down"
+        );
+        let zero = HeartbeatConfig {
+            period: MS(0),
+            deadline: MS(1500),
+        };
+        let err = zero.validate().unwrap_err();
+        assert_eq!(err, HeartbeatError::ZeroPeriod { deadline: MS(1500) });
+        assert!(err
+            .to_string()
+            .starts_with("the heartbeat period (0 ms) must be positive"));
     }
 }

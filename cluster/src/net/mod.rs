@@ -45,9 +45,9 @@ mod sessions;
 pub mod tls;
 mod transport;
 
-pub use config::{check_cookie, ClusterConfig, MAX_COOKIE_LEN};
-pub use detector::HeartbeatConfig;
+pub use config::{check_cookie, ClusterConfig, ClusterConfigError, CookieError, MAX_COOKIE_LEN};
+pub use detector::{HeartbeatConfig, HeartbeatError};
 pub use events::publish_on;
 pub use events::NetEvent;
-pub use tls::TlsFiles;
+pub use tls::{TlsError, TlsFile, TlsFiles};
 pub use transport::{Peer, Transport, TransportError};

@@ -19,14 +19,15 @@
 //! });
 //! ```
 
-use super::TransportError;
 use ractor::ActorRef;
-use ractor_cluster::NodeServerMessage;
+use ractor_cluster::{ClientConnectErr, NodeServerMessage};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use tokio_rustls::rustls::pki_types::pem::PemObject;
-use tokio_rustls::rustls::pki_types::{CertificateDer, PrivateKeyDer, ServerName};
+use tokio_rustls::rustls::pki_types::pem::{self, PemObject};
+use tokio_rustls::rustls::pki_types::{
+    CertificateDer, InvalidDnsNameError, PrivateKeyDer, ServerName,
+};
 use tokio_rustls::rustls::{self, server::WebPkiClientVerifier, RootCertStore};
 use tokio_rustls::{TlsAcceptor, TlsConnector};
 
@@ -59,71 +60,157 @@ impl std::fmt::Debug for Tls {
     }
 }
 
-fn tls_err(what: impl std::fmt::Display) -> TransportError {
-    TransportError::Tls(what.to_string())
+/// Which of a node's TLS files a [`TlsError`] is about; displayed as its messages name it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TlsFile {
+    /// The node's certificate chain ([`TlsFiles::cert`]).
+    Certificate,
+    /// The node's private key ([`TlsFiles::key`]).
+    PrivateKey,
+    /// The authority's certificate(s) ([`TlsFiles::ca`]).
+    CaCertificate,
 }
 
-fn read_certs(path: &Path, what: &str) -> Result<Vec<CertificateDer<'static>>, TransportError> {
+impl std::fmt::Display for TlsFile {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            TlsFile::Certificate => "certificate",
+            TlsFile::PrivateKey => "private key",
+            TlsFile::CaCertificate => "CA certificate",
+        })
+    }
+}
+
+/// Why a node's TLS files cannot be used (`TransportError::Tls`): every variant names the
+/// file (or setting) at fault and keeps the underlying error as its source, so a caller can
+/// tell a missing file from a key that does not match its certificate.
+#[derive(Debug, thiserror::Error)]
+pub enum TlsError {
+    /// A PEM file cannot be read or parsed.
+    #[error("{file} {}: {source}", .path.display())]
+    Read {
+        /// Which file.
+        file: TlsFile,
+        /// Its path.
+        path: PathBuf,
+        /// What reading it said.
+        source: pem::Error,
+    },
+    /// A certificate file holds no PEM certificate.
+    #[error("{file} {} holds no PEM certificate", .path.display())]
+    NoCertificate {
+        /// Which file.
+        file: TlsFile,
+        /// Its path.
+        path: PathBuf,
+    },
+    /// A CA certificate cannot be a trust anchor.
+    #[error("CA certificate {}: {source}", .path.display())]
+    Authority {
+        /// The CA file.
+        path: PathBuf,
+        /// What rustls said.
+        source: rustls::Error,
+    },
+    /// No client verifier can be built from the CA certificates.
+    #[error("CA {}: {source}", .path.display())]
+    Verifier {
+        /// The CA file.
+        path: PathBuf,
+        /// What rustls said.
+        source: rustls::server::VerifierBuilderError,
+    },
+    /// The crypto provider offers no safe protocol version.
+    #[error("{0}")]
+    Protocols(rustls::Error),
+    /// The certificate and the key do not go together (or either is unusable).
+    #[error("certificate {} with key {}: {source}", .cert.display(), .key.display())]
+    CertifiedKey {
+        /// The certificate file.
+        cert: PathBuf,
+        /// The key file.
+        key: PathBuf,
+        /// What rustls said.
+        source: rustls::Error,
+    },
+    /// `server_name` is not a DNS name or IP address.
+    #[error("server_name {name:?}: {source}")]
+    ServerName {
+        /// The name given.
+        name: String,
+        /// What parsing it said.
+        source: InvalidDnsNameError,
+    },
+}
+
+fn read_certs(path: &Path, file: TlsFile) -> Result<Vec<CertificateDer<'static>>, TlsError> {
     let certs = CertificateDer::pem_file_iter(path)
         .and_then(|it| it.collect::<Result<Vec<_>, _>>())
-        .map_err(|e| tls_err(format!("{what} {}: {e}", path.display())))?;
+        .map_err(|source| TlsError::Read {
+            file,
+            path: path.to_path_buf(),
+            source,
+        })?;
     if certs.is_empty() {
-        return Err(tls_err(format!(
-            "{what} {} holds no PEM certificate",
-            path.display()
-        )));
+        return Err(TlsError::NoCertificate {
+            file,
+            path: path.to_path_buf(),
+        });
     }
     Ok(certs)
 }
 
 impl Tls {
     /// Read and check the files: every problem names the file.
-    pub(crate) fn load(files: &TlsFiles) -> Result<Tls, TransportError> {
-        let certs = read_certs(&files.cert, "certificate")?;
-        let key = PrivateKeyDer::from_pem_file(&files.key)
-            .map_err(|e| tls_err(format!("private key {}: {e}", files.key.display())))?;
+    pub(crate) fn load(files: &TlsFiles) -> Result<Tls, TlsError> {
+        let certs = read_certs(&files.cert, TlsFile::Certificate)?;
+        let key = PrivateKeyDer::from_pem_file(&files.key).map_err(|source| TlsError::Read {
+            file: TlsFile::PrivateKey,
+            path: files.key.clone(),
+            source,
+        })?;
         let mut roots = RootCertStore::empty();
-        for ca in read_certs(&files.ca, "CA certificate")? {
-            roots
-                .add(ca)
-                .map_err(|e| tls_err(format!("CA certificate {}: {e}", files.ca.display())))?;
+        for ca in read_certs(&files.ca, TlsFile::CaCertificate)? {
+            roots.add(ca).map_err(|source| TlsError::Authority {
+                path: files.ca.clone(),
+                source,
+            })?;
         }
         let roots = Arc::new(roots);
         let provider = Arc::new(rustls::crypto::aws_lc_rs::default_provider());
         let verifier = WebPkiClientVerifier::builder_with_provider(roots.clone(), provider.clone())
             .build()
-            .map_err(|e| tls_err(format!("CA {}: {e}", files.ca.display())))?;
+            .map_err(|source| TlsError::Verifier {
+                path: files.ca.clone(),
+                source,
+            })?;
+        let certified_key = |source| TlsError::CertifiedKey {
+            cert: files.cert.clone(),
+            key: files.key.clone(),
+            source,
+        };
         let server = rustls::ServerConfig::builder_with_provider(provider.clone())
             .with_safe_default_protocol_versions()
-            .map_err(tls_err)?
+            .map_err(TlsError::Protocols)?
             .with_client_cert_verifier(verifier)
             .with_single_cert(certs.clone(), key.clone_key())
-            .map_err(|e| {
-                tls_err(format!(
-                    "certificate {} with key {}: {e}",
-                    files.cert.display(),
-                    files.key.display()
-                ))
-            })?;
+            .map_err(certified_key)?;
         let client = rustls::ClientConfig::builder_with_provider(provider)
             .with_safe_default_protocol_versions()
-            .map_err(tls_err)?
+            .map_err(TlsError::Protocols)?
             .with_root_certificates(roots)
             .with_client_auth_cert(certs, key)
-            .map_err(|e| {
-                tls_err(format!(
-                    "certificate {} with key {}: {e}",
-                    files.cert.display(),
-                    files.key.display()
-                ))
-            })?;
-        let server_name = match &files.server_name {
-            None => None,
-            Some(name) => Some(
-                ServerName::try_from(name.clone())
-                    .map_err(|e| tls_err(format!("server_name {name:?}: {e}")))?,
-            ),
-        };
+            .map_err(certified_key)?;
+        let server_name =
+            match &files.server_name {
+                None => None,
+                Some(name) => Some(ServerName::try_from(name.clone()).map_err(|source| {
+                    TlsError::ServerName {
+                        name: name.clone(),
+                        source,
+                    }
+                })?),
+            };
         Ok(Tls {
             acceptor: TlsAcceptor::from(Arc::new(server)),
             connector: TlsConnector::from(Arc::new(client)),
@@ -141,13 +228,52 @@ impl Tls {
         &self,
         server: &ActorRef<NodeServerMessage>,
         addr: SocketAddr,
-    ) -> Result<(), String> {
+    ) -> Result<(), ClientConnectErr> {
         let name = self
             .server_name
             .clone()
             .unwrap_or_else(|| ServerName::IpAddress(addr.ip().into()));
-        ractor_cluster::client_connect_enc(server, addr, self.connector.clone(), name)
-            .await
-            .map_err(|e| e.to_string())
+        ractor_cluster::client_connect_enc(server, addr, self.connector.clone(), name).await
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn unusable_tls_files_are_matched_by_kind_and_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let files = |cert: &Path| TlsFiles {
+            cert: cert.to_path_buf(),
+            key: dir.path().join("node.key"),
+            ca: dir.path().join("ca.pem"),
+            server_name: None,
+        };
+        let missing = dir.path().join("nowhere.pem");
+        let err = Tls::load(&files(&missing)).unwrap_err();
+        assert!(
+            matches!(&err, TlsError::Read { file: TlsFile::Certificate, path, .. } if *path == missing),
+            "{err:?}"
+        );
+        assert!(
+            err.to_string()
+                .starts_with(&format!("certificate {}: ", missing.display())),
+            "{err}"
+        );
+
+        let empty = dir.path().join("empty.pem");
+        std::fs::write(&empty, "no PEM here\n").unwrap();
+        let err = Tls::load(&files(&empty)).unwrap_err();
+        assert!(
+            matches!(&err, TlsError::NoCertificate { file: TlsFile::Certificate, path } if *path == empty),
+            "{err:?}"
+        );
+        assert_eq!(
+            err.to_string(),
+            format!("certificate {} holds no PEM certificate", empty.display())
+        );
+        assert_eq!(TlsFile::CaCertificate.to_string(), "CA certificate");
+        assert_eq!(TlsFile::PrivateKey.to_string(), "private key");
     }
 }

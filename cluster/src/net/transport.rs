@@ -1,11 +1,11 @@
 //! Starting and stopping a node's transport, and dialing its peers until they answer.
 
-use super::config::ClusterConfig;
+use super::config::{ClusterConfig, ClusterConfigError};
 use super::events::NetEvent;
 use super::heartbeat::{Heartbeat, HeartbeatArgs};
 use super::listener;
 use super::sessions::Sessions;
-use super::tls::Tls;
+use super::tls::{Tls, TlsError};
 use marie_actors::registry;
 use ractor::{Actor, ActorRef};
 use ractor_cluster::node::NodeConnectionMode;
@@ -41,7 +41,7 @@ pub struct Peer {
 pub enum TransportError {
     /// The cluster settings cannot work.
     #[error("cluster config: {0}")]
-    Config(String),
+    Config(#[from] ClusterConfigError),
     /// The node server did not start (e.g. the port is taken).
     #[error("cannot listen on {addr}: {reason}")]
     Listen {
@@ -52,7 +52,7 @@ pub enum TransportError {
     },
     /// The TLS files cannot be used.
     #[error("TLS: {0}")]
-    Tls(String),
+    Tls(#[from] TlsError),
     /// Fewer peers than awaited answered in time.
     #[error("saw {seen} of {wanted} peer(s) within {waited:?}: {}", if .names.is_empty() { "none".to_string() } else { .names.join(", ") })]
     PeersMissing {
@@ -290,9 +290,7 @@ impl Dialer {
         let mut changes = self.sessions.subscribe();
         let dialed = tokio::time::timeout(DIAL_TIMEOUT, async {
             match &self.tls {
-                None => ractor_cluster::client_connect(&self.server, addr)
-                    .await
-                    .map_err(|e| e.to_string()),
+                None => ractor_cluster::client_connect(&self.server, addr).await,
                 Some(tls) => tls.dial(&self.server, addr).await,
             }
         })

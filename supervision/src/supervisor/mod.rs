@@ -18,7 +18,7 @@ use tokio::sync::broadcast;
 use tokio::time::Instant;
 
 use crate::child::{ChildKind, ChildSpec, ChildStart, Restart, StartFn};
-use crate::error::SupervisorError;
+use crate::error::{StartError, SupervisorError};
 use crate::events::{RestartCause, SupervisorEvent};
 use crate::exit::{ExitReason, REACHED_MAX_RESTART_INTENSITY, SHUTDOWN};
 use crate::handle::SupervisorRef;

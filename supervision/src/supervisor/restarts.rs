@@ -207,7 +207,7 @@ impl SupervisorState {
         myself: &ActorRef<SupervisorMsg>,
         token: u64,
         key: u64,
-        result: Result<ChildStart, String>,
+        result: Result<ChildStart, StartError>,
     ) -> Result<(), Escalation> {
         self.tasks.remove(&token);
         let outcome = if self.in_flight == Some(token) {
@@ -234,7 +234,7 @@ impl SupervisorState {
         &mut self,
         myself: &ActorRef<SupervisorMsg>,
         key: u64,
-        result: Result<ChildStart, String>,
+        result: Result<ChildStart, StartError>,
     ) -> Result<(), Escalation> {
         let simple = self.is_simple();
         let Some(child) = self.children.get_mut(&key) else {
