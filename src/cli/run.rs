@@ -61,8 +61,8 @@ pub struct RunArgs {
     /// operations, datamanagers and cart are the cluster's.
     #[command(flatten)]
     pub cluster: JoinArgs,
-    /// Inject a fault while the mission runs: KIND `kill`, `panic` or `hang` (an operation)
-    /// or `stop-node` (a node process `marie up` started); TARGET the operation's name or id
+    /// Inject a fault while the mission runs: KIND `kill`, `panic`, `hang` or `slow` (an
+    /// operation) or `stop-node` (a node process `marie up` started); TARGET the operation's name or id
     /// (the instance the mission bound), `NAME#VERSION` (the instance with that version),
     /// `NAME/NODE` (the one on that node) or an actor id like `0.42` — or a node's name;
     /// SECS mission time, 0 to 86400 (a day). Repeatable. A fault that cannot be injected
