@@ -294,6 +294,14 @@ pub struct ManualClock {
     inner: Arc<ManualInner>,
 }
 
+impl std::fmt::Debug for ManualClock {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ManualClock")
+            .field("now", &self.now())
+            .finish()
+    }
+}
+
 struct ManualInner {
     now: Mutex<Duration>,
     tick: watch::Sender<Duration>,

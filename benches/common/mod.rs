@@ -14,7 +14,7 @@ use std::time::Duration;
 
 /// The property target: does nothing, has one parameter.
 #[derive(Default)]
-pub struct Idle;
+pub(crate) struct Idle;
 
 impl Operation for Idle {
     fn identity(&self) -> Identity {
@@ -39,7 +39,7 @@ const SUB2: [&str; 2] = ["narrow", "wide"];
 
 /// A sonar reading as the ultrasonic EO stores it (four directions, two beams), from
 /// `source`.
-pub fn sonar(i: u64, source: &str) -> NewRecord {
+pub(crate) fn sonar(i: u64, source: &str) -> NewRecord {
     let payload = Payload::encode(&Echo {
         range_m: (i % 500) as f32 / 100.0,
         bearing_rad: 0.1,
@@ -52,14 +52,14 @@ pub fn sonar(i: u64, source: &str) -> NewRecord {
 }
 
 /// The `p`-quantile (0..=1) of `sorted`, nearest rank.
-pub fn percentile(sorted: &[Duration], p: f64) -> Duration {
+pub(crate) fn percentile(sorted: &[Duration], p: f64) -> Duration {
     let i = ((sorted.len() as f64 - 1.0) * p).round() as usize;
     sorted[i.min(sorted.len() - 1)]
 }
 
 /// The system allocator, counting the bytes live on the heap and their peak: RSS alone
 /// cannot tell a leak from memory the allocator keeps for reuse.
-pub struct Counting;
+pub(crate) struct Counting;
 
 static LIVE: AtomicIsize = AtomicIsize::new(0);
 static PEAK: AtomicIsize = AtomicIsize::new(0);
@@ -88,18 +88,18 @@ unsafe impl GlobalAlloc for Counting {
 }
 
 /// Bytes live on the heap now (with [`Counting`] installed).
-pub fn live() -> isize {
+pub(crate) fn live() -> isize {
     LIVE.load(Ordering::Relaxed)
 }
 
 /// Start a new peak at the current live heap; gives that base.
-pub fn reset_peak() -> u64 {
+pub(crate) fn reset_peak() -> u64 {
     let live = LIVE.load(Ordering::Relaxed);
     PEAK.store(live, Ordering::Relaxed);
     live.max(0) as u64
 }
 
 /// The live heap's peak since [`reset_peak`].
-pub fn peak() -> u64 {
+pub(crate) fn peak() -> u64 {
     PEAK.load(Ordering::Relaxed).max(0) as u64
 }

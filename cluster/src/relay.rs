@@ -104,6 +104,14 @@ pub struct Watch {
     actor: ActorRef<WatcherMsg>,
 }
 
+impl std::fmt::Debug for Watch {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Watch")
+            .field("lost", &self.lost())
+            .finish_non_exhaustive()
+    }
+}
+
 impl Watch {
     /// The next event of another node; `None` once the watch stopped.
     pub async fn recv(&mut self) -> Option<Event> {

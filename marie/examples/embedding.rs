@@ -13,6 +13,7 @@ const TANKS: DmSpec = DmSpec::new("tanks", 7900);
 const LEVEL: RecordKind<f64> = RecordKind::new("level");
 
 params! {
+    /// What a fill is given.
     pub struct FillParams {
         /// how much to pump
         litres: i64 = 10, range(1, 10_000), unit("l");
@@ -22,6 +23,7 @@ params! {
 }
 
 flags! {
+    /// What a fill reports.
     pub enum FillFlag {
         /// the tank is full
         Full = "full",

@@ -61,6 +61,18 @@ pub struct EmbeddedOptions {
     pub clock: SharedClock,
 }
 
+impl std::fmt::Debug for EmbeddedOptions {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("EmbeddedOptions")
+            .field("node", &self.node)
+            .field("config", &self.config)
+            .field("world", &self.world)
+            .field("mission_world", &self.mission_world)
+            .field("seed", &self.seed)
+            .finish_non_exhaustive()
+    }
+}
+
 impl Default for EmbeddedOptions {
     fn default() -> Self {
         EmbeddedOptions {
@@ -120,6 +132,16 @@ pub struct Embedded {
     pub robot: Option<Arc<SimRobot>>,
     /// The world file it drives in.
     pub world_path: Option<PathBuf>,
+}
+
+impl std::fmt::Debug for Embedded {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Embedded")
+            .field("node", &self.node)
+            .field("robot", &self.robot)
+            .field("world_path", &self.world_path)
+            .finish()
+    }
 }
 
 impl Embedded {

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 /// What the embedded node hosts, and the simulated robot a mission runs with.
 #[derive(clap::Args, Debug)]
-pub struct RobotArgs {
+pub(crate) struct RobotArgs {
     /// World file the simulated robot drives in; overrides the node config's and the
     /// mission's `world`. Without any, no robot is started.
     #[arg(long, value_name = "FILE")]
@@ -22,7 +22,7 @@ pub struct RobotArgs {
 
 impl RobotArgs {
     /// The embedded node's options, for a mission whose world is `mission_world`.
-    pub fn options(&self, mission_world: Option<&Path>) -> EmbeddedOptions {
+    pub(crate) fn options(&self, mission_world: Option<&Path>) -> EmbeddedOptions {
         EmbeddedOptions {
             node: self.node.clone(),
             world: self.world.clone(),
@@ -35,22 +35,22 @@ impl RobotArgs {
 
 /// A seed (`--seed`, `--chaos`): a whole number from 0 to 2^64 - 1. A negative one is read as
 /// a value (not as a flag) so that the message says what is wrong with it.
-pub fn parse_seed(s: &str) -> Result<u64, String> {
+pub(crate) fn parse_seed(s: &str) -> Result<u64, String> {
     s.parse::<u64>()
         .map_err(|_| format!("expected a whole number from 0 to {}, got {s:?}", u64::MAX))
 }
 
 /// `--speed max`: as fast as the CPU allows.
-pub const MAX_SPEED: f64 = f64::INFINITY;
+pub(crate) const MAX_SPEED: f64 = f64::INFINITY;
 
 /// The slowest `--speed`: a hundredth of real time (slower is a stall, not a run).
-pub const SLOWEST: f64 = 0.01;
+pub(crate) const SLOWEST: f64 = 0.01;
 
 /// The fastest `--speed` factor; beyond it a factor means `max` and should say so.
-pub const FASTEST: f64 = 1_000_000.0;
+pub(crate) const FASTEST: f64 = 1_000_000.0;
 
 /// `--speed X|max`: X a factor of real time from [`SLOWEST`] to [`FASTEST`].
-pub fn parse_speed(s: &str) -> Result<f64, String> {
+pub(crate) fn parse_speed(s: &str) -> Result<f64, String> {
     if s == "max" {
         return Ok(MAX_SPEED);
     }
@@ -64,7 +64,7 @@ pub fn parse_speed(s: &str) -> Result<f64, String> {
 
 /// `--speed` of a cluster member (`node`, `up`): a factor within
 /// [`marie::cluster::layout::SPEED_RANGE`]; `max` is refused (a cluster runs on the wall clock).
-pub fn parse_cluster_speed(s: &str) -> Result<f64, String> {
+pub(crate) fn parse_cluster_speed(s: &str) -> Result<f64, String> {
     match s.parse::<f64>() {
         Ok(x) => marie::cluster::layout::cluster_speed(x).map_err(|e| e.to_string()),
         Err(_) => Err(format!(

@@ -14,7 +14,7 @@ use std::process::ExitCode;
 
 /// Flags of `marie check`.
 #[derive(clap::Args, Debug)]
-pub struct CheckArgs {
+pub(crate) struct CheckArgs {
     /// Mission file.
     pub mission: PathBuf,
     #[command(flatten)]
@@ -29,7 +29,7 @@ pub struct CheckArgs {
 }
 
 /// Check the mission against the operations of a freshly started node, or of the cluster.
-pub async fn check(args: CheckArgs) -> anyhow::Result<ExitCode> {
+pub(crate) async fn check(args: CheckArgs) -> anyhow::Result<ExitCode> {
     let CheckArgs {
         mission,
         robot,

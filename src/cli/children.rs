@@ -14,7 +14,7 @@ const STOP_GRACE: Duration = Duration::from_secs(10);
 
 /// A line a child printed on its standard output.
 #[derive(Clone, Debug)]
-pub struct Line {
+pub(crate) struct Line {
     /// The child's node name.
     pub node: String,
     /// The line, or `None` once its output ended (it exited).
@@ -23,7 +23,7 @@ pub struct Line {
 
 /// How to start one node.
 #[derive(Clone, Debug)]
-pub struct NodeLaunch {
+pub(crate) struct NodeLaunch {
     /// Its node name (for messages).
     pub name: String,
     /// Its node config file.
@@ -43,7 +43,7 @@ pub struct NodeLaunch {
 }
 
 /// A running node process.
-pub struct NodeChild {
+pub(crate) struct NodeChild {
     /// Its node name.
     pub name: String,
     child: Child,
@@ -53,7 +53,7 @@ pub struct NodeChild {
 impl NodeChild {
     /// Start `marie node` (this same executable) as `launch` says; its output lines go to
     /// `lines`.
-    pub fn start(
+    pub(crate) fn start(
         exe: &Path,
         launch: &NodeLaunch,
         lines: mpsc::UnboundedSender<Line>,
@@ -107,13 +107,13 @@ impl NodeChild {
     }
 
     /// Its process id.
-    pub fn pid(&self) -> u32 {
+    pub(crate) fn pid(&self) -> u32 {
         self.child.id()
     }
 
     /// Ask it to stop (close its pipe); kill it if it has not within the grace period.
     /// Returns its exit code (`None` when killed by a signal).
-    pub fn stop(&mut self) -> Option<i32> {
+    pub(crate) fn stop(&mut self) -> Option<i32> {
         self.stdin.take();
         self.wait_until(Instant::now() + STOP_GRACE)
     }
@@ -139,7 +139,7 @@ impl NodeChild {
 
 /// Stop every child: all pipes closed at once, then each awaited (killed after the grace
 /// period). Gives each node's name and exit code.
-pub fn stop_all(children: &mut [NodeChild]) -> Vec<(String, Option<i32>)> {
+pub(crate) fn stop_all(children: &mut [NodeChild]) -> Vec<(String, Option<i32>)> {
     for c in children.iter_mut() {
         c.stdin.take();
     }
@@ -163,7 +163,7 @@ impl Drop for NodeChild {
 /// module(s) ...` — the address it bound (its port, when it was given port 0) and how many
 /// modules it hosts itself.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Listening {
+pub(crate) struct Listening {
     /// The address it bound.
     pub addr: SocketAddr,
     /// The modules it hosts itself.
@@ -172,7 +172,7 @@ pub struct Listening {
 
 impl Listening {
     /// The line's address and module count, if it is that line.
-    pub fn parse(line: &str) -> Option<Listening> {
+    pub(crate) fn parse(line: &str) -> Option<Listening> {
         let rest = line.strip_prefix("node ")?.split_once(" listening on ")?.1;
         let addr = rest.split_whitespace().next()?.parse().ok()?;
         let modules = rest

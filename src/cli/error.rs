@@ -7,10 +7,10 @@ use std::process::ExitCode;
 /// Input the command refuses (a flag, a file, a name): exit 2.
 #[derive(Debug, thiserror::Error)]
 #[error("{0}")]
-pub struct BadInput(pub String);
+pub(crate) struct BadInput(pub String);
 
 /// Print `e` on stderr and give its exit code.
-pub fn report(e: &anyhow::Error) -> ExitCode {
+pub(crate) fn report(e: &anyhow::Error) -> ExitCode {
     if let Some(NodeError::Mission(diags)) = e.downcast_ref::<NodeError>() {
         eprintln!("{diags}");
         return ExitCode::from(2);

@@ -11,7 +11,7 @@ use tokio::sync::oneshot;
 use tokio::task::JoinHandle;
 
 /// A file being written from a bus.
-pub struct EventsFile {
+pub(crate) struct EventsFile {
     stop: oneshot::Sender<()>,
     task: JoinHandle<std::io::Result<Written>>,
     path: PathBuf,
@@ -19,7 +19,7 @@ pub struct EventsFile {
 
 /// What was written.
 #[derive(Debug, Default)]
-pub struct Written {
+pub(crate) struct Written {
     /// Lines written.
     pub lines: u64,
     /// Events the writer fell behind on and lost (the bus is bounded).
@@ -29,7 +29,7 @@ pub struct Written {
 impl EventsFile {
     /// Create `path` and write every event `bus` publishes from now on, and those `others`
     /// receives from the other nodes, until [`finish`](EventsFile::finish).
-    pub fn start(
+    pub(crate) fn start(
         bus: &EventBus,
         mut others: Option<Watch>,
         path: &Path,
@@ -79,7 +79,7 @@ impl EventsFile {
     }
 
     /// Write what was published before this call, close the file, and say how it went.
-    pub async fn finish(self) -> anyhow::Result<Written> {
+    pub(crate) async fn finish(self) -> anyhow::Result<Written> {
         let _ = self.stop.send(());
         let written = self
             .task

@@ -12,7 +12,7 @@ use std::path::Path;
 /// fifo or socket, a missing or unwritable parent directory. A regular file is opened for
 /// writing without truncating; a new file is created and removed again. Character devices
 /// (`/dev/null`, `/dev/stdout`) are let through.
-pub fn output(flag: &str, path: &Path) -> Result<(), BadInput> {
+pub(crate) fn output(flag: &str, path: &Path) -> Result<(), BadInput> {
     let refuse = |why: String| BadInput(format!("{flag} {}: {why}", path.display()));
     match fs::metadata(path) {
         Ok(meta) if meta.is_file() => OpenOptions::new()

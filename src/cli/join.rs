@@ -11,14 +11,14 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 /// How long a joining command waits for the node it dials.
-pub const JOIN_TIMEOUT: Duration = Duration::from_secs(10);
+pub(crate) const JOIN_TIMEOUT: Duration = Duration::from_secs(10);
 /// A joining command acts once no new peer has appeared for this long (the members behind
 /// the one it dialed are dialed a moment after).
-pub const QUIET: Duration = Duration::from_millis(300);
+pub(crate) const QUIET: Duration = Duration::from_millis(300);
 
 /// The flags of a verb that can act on a running cluster.
 #[derive(clap::Args, Debug, Clone)]
-pub struct JoinArgs {
+pub(crate) struct JoinArgs {
     /// Act on a running cluster: the address of any one of its nodes (`marie node` or
     /// `marie up` print them).
     #[arg(long, value_name = "ADDR", requires = "cookie")]
@@ -43,7 +43,7 @@ pub struct JoinArgs {
 
 /// Where and how a command joins a running cluster.
 #[derive(Debug, Clone)]
-pub struct Target {
+pub(crate) struct Target {
     /// Any node of the cluster.
     pub addr: SocketAddr,
     /// The cluster's cookie.
@@ -54,7 +54,7 @@ pub struct Target {
 
 impl JoinArgs {
     /// Where to join, when `--join` was given.
-    pub fn target(&self) -> Option<Target> {
+    pub(crate) fn target(&self) -> Option<Target> {
         let tls = match (&self.tls_cert, &self.tls_key, &self.tls_ca) {
             (Some(cert), Some(key), Some(ca)) => Some(TlsFiles {
                 cert: cert.clone(),
@@ -74,7 +74,7 @@ impl JoinArgs {
     /// The member a mission verb (`run`, `check`) joins as, when `--join` was given: it
     /// hosts the dispatcher (and judges with `--world`), so only `--node` is refused. `speed`
     /// is the cluster's factor, checked.
-    pub fn joining(
+    pub(crate) fn joining(
         &self,
         verb: &str,
         robot: &RobotArgs,
@@ -100,7 +100,11 @@ impl JoinArgs {
     /// [`JoinArgs::target`] for a verb that otherwise starts a node of its own: `--node`
     /// and `--world` (in `robot`) make no sense with `--join` (bad input). `acts` says what
     /// the verb does in the cluster, for the message.
-    pub fn target_alone(&self, robot: &RobotArgs, acts: &str) -> Result<Option<Target>, BadInput> {
+    pub(crate) fn target_alone(
+        &self,
+        robot: &RobotArgs,
+        acts: &str,
+    ) -> Result<Option<Target>, BadInput> {
         match self.target() {
             Some(_) if robot.node.is_some() || robot.world.is_some() => Err(BadInput(format!(
                 "--join {acts} a running cluster: --node and --world start a node of their own"
@@ -111,14 +115,14 @@ impl JoinArgs {
 }
 
 /// The name a command's member takes: the verb and the process id.
-pub fn member_name(verb: &str) -> String {
+pub(crate) fn member_name(verb: &str) -> String {
     format!("{verb}-{}", std::process::id())
 }
 
 /// Join the cluster at `target` as member `me` (listening on a free port of the address
 /// it dials from): wait for the node dialed and the members behind it, say on stderr whom
 /// it sees.
-pub async fn join(me: &str, target: &Target) -> anyhow::Result<Transport> {
+pub(crate) async fn join(me: &str, target: &Target) -> anyhow::Result<Transport> {
     let addr = target.addr;
     let any_port = SocketAddr::new(local_ip_towards(addr), 0);
     let mut config = ClusterConfig::new(any_port, target.cookie.clone()).with_peer(addr);
@@ -161,7 +165,7 @@ fn local_ip_towards(peer: SocketAddr) -> std::net::IpAddr {
 }
 
 /// `alpha (127.0.0.1:7001), beta (127.0.0.1:7002)`.
-pub fn describe(peers: &[Peer]) -> String {
+pub(crate) fn describe(peers: &[Peer]) -> String {
     if peers.is_empty() {
         return "nobody".into();
     }
@@ -174,7 +178,7 @@ pub fn describe(peers: &[Peer]) -> String {
 
 /// A mission run (or checked) from a member of a running cluster (`--join ADDR --cookie C`).
 #[derive(Clone, Debug)]
-pub struct Joining {
+pub(crate) struct Joining {
     /// The member's name (`run-4242`).
     pub me: String,
     /// Where it joins.
@@ -187,7 +191,7 @@ impl Joining {
     /// The member's node: a dispatcher and nothing else — the operations, datamanagers and
     /// the cart are the cluster's — plus, when a world is known, the robot without drivers,
     /// to judge the run by the cart's final pose (asked of the cart wherever it runs).
-    pub fn config(&self) -> NodeConfig {
+    pub(crate) fn config(&self) -> NodeConfig {
         NodeConfig {
             simulation: Some(SimulationConfig {
                 world: None,

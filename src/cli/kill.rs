@@ -16,7 +16,7 @@ use std::time::{Duration, Instant};
 
 /// Flags of `marie kill`.
 #[derive(clap::Args, Debug)]
-pub struct KillArgs {
+pub(crate) struct KillArgs {
     /// The operation: its name or numeric id, `NAME#VERSION` when several versions run,
     /// `NAME/NODE`, or an actor id like `0.42`.
     pub operation: String,
@@ -33,7 +33,7 @@ const RESTART_TIMEOUT: Duration = Duration::from_secs(10);
 
 /// Start the embedded node, kill the operation's live instance and wait for the operation
 /// supervisor to restart it.
-pub async fn kill(args: KillArgs) -> anyhow::Result<ExitCode> {
+pub(crate) async fn kill(args: KillArgs) -> anyhow::Result<ExitCode> {
     let KillArgs {
         operation,
         robot,

@@ -9,7 +9,7 @@ use std::process::ExitCode;
 
 /// Flags of `marie ls`.
 #[derive(clap::Args, Debug)]
-pub struct LsArgs {
+pub(crate) struct LsArgs {
     /// Print JSON instead of the start-up log format.
     #[arg(long)]
     pub json: bool,
@@ -22,7 +22,7 @@ pub struct LsArgs {
 }
 
 /// Start the node (or join the cluster) and list what is published.
-pub async fn ls(args: LsArgs) -> anyhow::Result<ExitCode> {
+pub(crate) async fn ls(args: LsArgs) -> anyhow::Result<ExitCode> {
     if let Some(target) = args.cluster.target_alone(&args.robot, "lists")? {
         // a member that hosts nothing: what it lists is the others'
         let transport = join(&member_name("ls"), &target).await?;

@@ -5,25 +5,25 @@
 //! node a mission is prepared on (`prepare`), the printed lines (`output`), the runtime and
 //! tracing set-up (`runtime`) and how an error becomes an exit code (`error`).
 
-pub mod args;
-pub mod check;
-pub mod children;
-pub mod error;
-pub mod events_file;
-pub mod files;
-pub mod join;
-pub mod kill;
-pub mod ls;
-pub mod monitor;
-pub mod node;
-pub mod output;
-pub mod page_control;
-pub mod prepare;
-pub mod props;
-pub mod run;
-pub mod runtime;
-pub mod signal;
-pub mod up;
+pub(crate) mod args;
+pub(crate) mod check;
+pub(crate) mod children;
+pub(crate) mod error;
+pub(crate) mod events_file;
+pub(crate) mod files;
+pub(crate) mod join;
+pub(crate) mod kill;
+pub(crate) mod ls;
+pub(crate) mod monitor;
+pub(crate) mod node;
+pub(crate) mod output;
+pub(crate) mod page_control;
+pub(crate) mod prepare;
+pub(crate) mod props;
+pub(crate) mod run;
+pub(crate) mod runtime;
+pub(crate) mod signal;
+pub(crate) mod up;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -31,7 +31,7 @@ use std::process::ExitCode;
 /// `marie`: its global flags and the verb.
 #[derive(Parser, Debug)]
 #[command(name = "marie", version, about = "Run MARIE missions on ractor actors")]
-pub struct Cli {
+pub(crate) struct Cli {
     /// Diagnostics format on stderr (filter with RUST_LOG, default `warn`).
     #[arg(long, value_enum, default_value_t = runtime::LogFormat::Text, global = true)]
     pub log_format: runtime::LogFormat,
@@ -42,7 +42,7 @@ pub struct Cli {
 
 /// The verbs.
 #[derive(Subcommand, Debug)]
-pub enum Command {
+pub(crate) enum Command {
     /// Run a mission on the embedded node.
     Run(run::RunArgs),
     /// Check a mission against the running operations without running it.
@@ -65,12 +65,12 @@ pub enum Command {
 impl Command {
     /// True when the verb runs in virtual time (see [`runtime::build`]): a mission run,
     /// whose outcome must not depend on its speed.
-    pub fn virtual_time(&self) -> bool {
+    pub(crate) fn virtual_time(&self) -> bool {
         matches!(self, Command::Run(run) if run.cluster.join.is_none())
     }
 
     /// Do what the verb says.
-    pub async fn execute(self) -> anyhow::Result<ExitCode> {
+    pub(crate) async fn execute(self) -> anyhow::Result<ExitCode> {
         match self {
             Command::Run(args) => run::run(args).await,
             Command::Check(args) => check::check(args).await,

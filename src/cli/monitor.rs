@@ -29,7 +29,7 @@ const FROM_OTHERS: usize = 4096;
 
 /// Flags of `marie monitor`.
 #[derive(clap::Args, Debug)]
-pub struct MonitorArgs {
+pub(crate) struct MonitorArgs {
     /// Replay a past run from its events file (`run --events FILE.jsonl`): play, pause,
     /// speed and a time slider on the page.
     #[arg(long, value_name = "FILE.jsonl", conflicts_with = "join")]
@@ -51,7 +51,7 @@ pub struct MonitorArgs {
 }
 
 /// Serve the replay or the live cluster until SIGINT or SIGTERM.
-pub async fn monitor(args: MonitorArgs) -> anyhow::Result<ExitCode> {
+pub(crate) async fn monitor(args: MonitorArgs) -> anyhow::Result<ExitCode> {
     let options = MonitorOptions {
         require_token: args.require_token,
         ..MonitorOptions::new(args.listen)
@@ -99,7 +99,7 @@ fn bad_file(e: MonitorError) -> anyhow::Error {
 }
 
 /// Print where the page is: `monitor: http://ADDR/` (with the token when one is required).
-pub fn announce(monitor: &MonitorHandle, what: &str) {
+pub(crate) fn announce(monitor: &MonitorHandle, what: &str) {
     println!("monitor: {} ({what})", monitor.url());
     let _ = std::io::stdout().flush();
 }
@@ -114,7 +114,7 @@ pub fn announce(monitor: &MonitorHandle, what: &str) {
 /// after the run started (its own relay told them before it knew of this watcher). A
 /// second bridge would publish each of them twice on the node's bus, and so into its
 /// `--events` file.
-pub async fn start_live(
+pub(crate) async fn start_live(
     bus: &EventBus,
     options: MonitorOptions,
     other_nodes: bool,
@@ -154,7 +154,7 @@ async fn relay_into(feed: Feed) -> anyhow::Result<JoinHandle<()>> {
 }
 
 /// A live monitor of a running cluster from a member of its own that hosts nothing.
-pub struct ClusterWatch {
+pub(crate) struct ClusterWatch {
     monitor: MonitorHandle,
     transport: marie::cluster::net::Transport,
     tasks: Vec<JoinHandle<()>>,
@@ -165,7 +165,7 @@ impl ClusterWatch {
     /// Join the cluster at `target`, watch every node's events and serve them; the page
     /// asks operations for their properties, and injects faults when `allow_faults` (also
     /// stopping `processes`).
-    pub async fn start(
+    pub(crate) async fn start(
         target: &Target,
         options: MonitorOptions,
         allow_faults: bool,
@@ -203,7 +203,7 @@ impl ClusterWatch {
     }
 
     /// Stop serving and leave the cluster.
-    pub async fn stop(self) {
+    pub(crate) async fn stop(self) {
         for t in &self.tasks {
             t.abort();
         }

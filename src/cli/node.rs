@@ -23,7 +23,7 @@ use std::sync::Arc;
 
 /// Flags of `marie node`.
 #[derive(clap::Args, Debug)]
-pub struct NodeArgs {
+pub(crate) struct NodeArgs {
     /// The node config: `[node]`, what it hosts, and `[cluster]` (listen, peers, cookie).
     #[arg(long, value_name = "FILE")]
     pub config: PathBuf,
@@ -81,7 +81,7 @@ impl NodeArgs {
 
 /// Start the node as a cluster member (the node joins through its config's cluster: one
 /// road with embedders), report whom it sees, stop cleanly on a signal.
-pub async fn node(args: NodeArgs) -> anyhow::Result<ExitCode> {
+pub(crate) async fn node(args: NodeArgs) -> anyhow::Result<ExitCode> {
     let mut config = NodeConfig::load(&args.config, &marie_missions::catalog())
         .map_err(EmbeddedError::Config)?;
     let Some(cluster) = args.cluster(config.cluster.take()) else {

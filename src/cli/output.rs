@@ -11,7 +11,7 @@ use tokio::task::JoinHandle;
 
 /// How `marie run` prints its progress.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Progress {
+pub(crate) enum Progress {
     /// Event lines.
     Lines,
     /// Event lines, each choice of an instance explained (`--explain`).
@@ -22,14 +22,14 @@ pub enum Progress {
 
 /// The live lines of a run: a subscriber of the node's bus that prints each event of the
 /// run as it comes, until [`finish`](LiveLines::finish)ed.
-pub struct LiveLines {
+pub(crate) struct LiveLines {
     stop: oneshot::Sender<()>,
     task: JoinHandle<()>,
 }
 
 impl LiveLines {
     /// Print what `bus` publishes from now on.
-    pub fn start(bus: &EventBus, progress: Progress) -> LiveLines {
+    pub(crate) fn start(bus: &EventBus, progress: Progress) -> LiveLines {
         let mut sub = bus.subscribe();
         let (stop, mut stopped) = oneshot::channel::<()>();
         let task = tokio::spawn(async move {
@@ -60,7 +60,7 @@ impl LiveLines {
     }
 
     /// Print what was published before this call, then stop.
-    pub async fn finish(self) {
+    pub(crate) async fn finish(self) {
         let _ = self.stop.send(());
         let _ = self.task.await;
     }
@@ -151,7 +151,7 @@ impl Printer {
 }
 
 /// `mission succeeded`, or `mission FAILED (full stop): why` — after the robot's judgement.
-pub fn end_line(report: &RunReport) -> String {
+pub(crate) fn end_line(report: &RunReport) -> String {
     match report.outcome {
         Outcome::Succeeded => "mission succeeded".to_string(),
         Outcome::Failed => format!("mission FAILED (full stop): {}", report.reason),
@@ -159,7 +159,7 @@ pub fn end_line(report: &RunReport) -> String {
 }
 
 /// `outcome: succeeded — final pose (x, y, heading°), inside goal: yes, collisions: 0`.
-pub fn outcome_line(report: &RunReport) -> String {
+pub(crate) fn outcome_line(report: &RunReport) -> String {
     let outcome = match report.outcome {
         Outcome::Succeeded => "succeeded",
         Outcome::Failed => "failed",
@@ -182,7 +182,7 @@ pub fn outcome_line(report: &RunReport) -> String {
 
 /// `--explain`: the candidates for one operation, the chosen one first, each other with why
 /// it lost or was rejected.
-pub fn print_choice(choice: &Choice) {
+pub(crate) fn print_choice(choice: &Choice) {
     match &choice.replacing {
         None => println!(
             "? {}: {} candidate(s)",

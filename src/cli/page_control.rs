@@ -18,14 +18,14 @@ use std::sync::Arc;
 /// covers the cluster), and the one road of faults — an [`Injector`] on the node's bus (a
 /// fault done is told there, so the timeline, an events file and the run's report hold it)
 /// that may stop the node processes this process started.
-pub struct PageControl {
+pub(crate) struct PageControl {
     injector: Injector,
 }
 
 impl PageControl {
     /// Control through this process's registry, telling `bus`; `processes`: the node
     /// processes that may be stopped (none outside `marie up`).
-    pub fn new(bus: EventBus, processes: NodeProcesses) -> Arc<PageControl> {
+    pub(crate) fn new(bus: EventBus, processes: NodeProcesses) -> Arc<PageControl> {
         let injector = Injector::new(&bus)
             .with_processes(processes)
             .following_runs();

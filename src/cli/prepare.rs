@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 /// A node started for a mission, with the mission checked against it.
-pub struct Prepared {
+pub(crate) struct Prepared {
     /// The node, with the robot when there is a world.
     pub node: Node,
     /// The simulated robot, when one runs.
@@ -28,7 +28,7 @@ pub struct Prepared {
 
 impl Prepared {
     /// Stop the node, then leave the cluster if it joined one.
-    pub async fn shutdown(self) {
+    pub(crate) async fn shutdown(self) {
         self.node.shutdown().await;
         if let Some(t) = self.transport {
             t.stop().await;
@@ -36,7 +36,7 @@ impl Prepared {
     }
 
     /// `world `lab` from FILE, seed N`, when a robot runs.
-    pub fn world_line(&self) -> Option<String> {
+    pub(crate) fn world_line(&self) -> Option<String> {
         let robot = self.robot.as_ref()?;
         Some(format!(
             "world `{}` from {}, seed {}",
@@ -52,7 +52,7 @@ impl Prepared {
 /// Parse the mission, start the node (`--node FILE` or the built-in one; the robot's world
 /// from `--world`, else the node config's, else the mission's, else none) — or, `joining`,
 /// a dispatcher-only member of the cluster — and check the mission against it.
-pub async fn prepare(
+pub(crate) async fn prepare(
     path: &Path,
     robot: RobotArgs,
     joining: Option<&Joining>,
@@ -100,6 +100,6 @@ pub async fn prepare(
 /// Start the embedded node: the node config and world checked (bad ones → their
 /// diagnostics, exit 2), the robot plugged in when there is a world. The node's clock is the
 /// runtime's (virtual in `run`, paced there).
-pub async fn start_node(options: EmbeddedOptions) -> anyhow::Result<Embedded> {
+pub(crate) async fn start_node(options: EmbeddedOptions) -> anyhow::Result<Embedded> {
     Ok(Embedded::start(options).await?)
 }

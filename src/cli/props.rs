@@ -13,7 +13,7 @@ use std::process::ExitCode;
 
 /// Flags of `marie props`.
 #[derive(clap::Args, Debug)]
-pub struct PropsArgs {
+pub(crate) struct PropsArgs {
     /// The operation: its name or numeric id, `NAME#VERSION` when several versions run,
     /// `NAME/NODE`, or an actor id like `0.42`.
     pub operation: String,
@@ -29,7 +29,7 @@ pub struct PropsArgs {
 }
 
 /// Start the node, ask the operation and print its answers.
-pub async fn props(args: PropsArgs) -> anyhow::Result<ExitCode> {
+pub(crate) async fn props(args: PropsArgs) -> anyhow::Result<ExitCode> {
     if let Some(target) = args.cluster.target_alone(&args.robot, "asks")? {
         let transport = join(&member_name("props"), &target).await?;
         let result = props_on(&args.operation, args.json).await;
@@ -61,7 +61,7 @@ async fn props_on(operation: &str, json: bool) -> anyhow::Result<ExitCode> {
 
 /// Every property group of `inst` (identification, location, general, specific), asked of
 /// the live instance: what `marie props` prints and the monitor's page shows on a click.
-pub async fn ask_every_group(inst: &Instance) -> Result<Vec<PropertyReply>, EoError> {
+pub(crate) async fn ask_every_group(inst: &Instance) -> Result<Vec<PropertyReply>, EoError> {
     let client = EoClient::from_cell(inst.actor.clone());
     let mut replies = Vec::new();
     for req in [

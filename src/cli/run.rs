@@ -24,7 +24,7 @@ use std::sync::Arc;
 
 /// Flags of `marie run`.
 #[derive(clap::Args, Debug)]
-pub struct RunArgs {
+pub(crate) struct RunArgs {
     /// Mission file (TOML task tree).
     pub mission: PathBuf,
     #[command(flatten)]
@@ -96,7 +96,7 @@ pub struct RunArgs {
 /// run listens for the Ctrl-C that closes its page. Whoever runs it (`marie up --run`) and
 /// hears a Ctrl-C then lets the run end by itself instead of cutting the mission short.
 #[derive(Clone, Debug, Default)]
-pub struct MissionOver(Arc<AtomicBool>);
+pub(crate) struct MissionOver(Arc<AtomicBool>);
 
 impl MissionOver {
     fn set(&self) {
@@ -104,7 +104,7 @@ impl MissionOver {
     }
 
     /// Whether the mission has ended (and the run hears a Ctrl-C itself).
-    pub fn is_set(&self) -> bool {
+    pub(crate) fn is_set(&self) -> bool {
         self.0.load(Ordering::SeqCst)
     }
 }
@@ -117,7 +117,7 @@ const MONITOR_FLUSH: std::time::Duration = std::time::Duration::from_secs(5);
 const EVENTS_FROM_OTHERS: usize = 4096;
 
 /// Run the mission; exit 0 when it succeeded and every output was written, else 1.
-pub async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
+pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     let RunArgs {
         mission: path,
         robot,

@@ -5,7 +5,7 @@ use std::io::IsTerminal;
 
 /// Diagnostics format on stderr.
 #[derive(Clone, Copy, Debug, ValueEnum)]
-pub enum LogFormat {
+pub(crate) enum LogFormat {
     /// Human-readable lines.
     Text,
     /// One JSON object per line.
@@ -17,7 +17,7 @@ pub enum LogFormat {
 /// discrete-event clock, repeatable, that a [`marie::actors::clock::Pacer`] holds back to the
 /// speed asked for. Otherwise (verbs that measure or wait in real time) multi-threaded on
 /// the wall clock.
-pub fn build(virtual_time: bool) -> std::io::Result<tokio::runtime::Runtime> {
+pub(crate) fn build(virtual_time: bool) -> std::io::Result<tokio::runtime::Runtime> {
     if virtual_time {
         tokio::runtime::Builder::new_current_thread()
             .enable_all()
@@ -31,7 +31,7 @@ pub fn build(virtual_time: bool) -> std::io::Result<tokio::runtime::Runtime> {
 }
 
 /// Diagnostics on stderr, filtered by `RUST_LOG` (default `warn`, and `error` for ractor_cluster, whose warnings are routine session ends).
-pub fn init_tracing(format: LogFormat) {
+pub(crate) fn init_tracing(format: LogFormat) {
     let filter = tracing_subscriber::EnvFilter::try_from_default_env()
         .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn,ractor_cluster=error"));
     let builder = tracing_subscriber::fmt()

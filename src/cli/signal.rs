@@ -9,7 +9,7 @@ use std::future::Future;
 /// sent right after that line (by a person or a test) is never missed. (Once a process
 /// watches SIGINT, a SIGINT nobody watches at that moment is lost: the process neither
 /// stops nor hears of it.) Must be called on a tokio runtime.
-pub fn shutdown_signal(stdin: bool) -> impl Future<Output = &'static str> {
+pub(crate) fn shutdown_signal(stdin: bool) -> impl Future<Output = &'static str> {
     use tokio::signal::unix::{signal, Signal, SignalKind};
     let watch = |kind: SignalKind, name: &str| {
         signal(kind)

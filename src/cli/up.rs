@@ -28,7 +28,7 @@ const START_TIMEOUT: Duration = Duration::from_secs(60);
 
 /// Flags of `marie up`.
 #[derive(clap::Args, Debug)]
-pub struct UpArgs {
+pub(crate) struct UpArgs {
     /// The cluster file (`missions/clusters/thesis.toml`).
     pub cluster: PathBuf,
     /// Run this mission once the cluster has converged, from a dispatcher of its own; then
@@ -66,7 +66,7 @@ pub struct UpArgs {
 }
 
 /// Start the cluster, wait for it, run the mission or wait for a signal, stop it.
-pub async fn up(args: UpArgs) -> anyhow::Result<ExitCode> {
+pub(crate) async fn up(args: UpArgs) -> anyhow::Result<ExitCode> {
     let catalog = marie_missions::catalog();
     let layout =
         ClusterLayout::load(&args.cluster, &catalog).map_err(|d| BadInput(d.to_string()))?;

@@ -32,10 +32,10 @@ use tungstenite::stream::MaybeTlsStream;
 use tungstenite::{Message, WebSocket};
 
 /// Where Debian's `chromium` package puts the browser.
-pub const CHROMIUM: &str = "/usr/bin/chromium";
+pub(crate) const CHROMIUM: &str = "/usr/bin/chromium";
 
 /// The page's viewport, CSS pixels: screenshots are this size.
-pub const VIEWPORT: (u32, u32) = (1280, 800);
+pub(crate) const VIEWPORT: (u32, u32) = (1280, 800);
 /// How long Chromium may take to start and open its first page (a loaded 2-core machine).
 const START: Duration = Duration::from_secs(60);
 /// How long one CDP command may take to be answered.
@@ -44,7 +44,7 @@ const ANSWER: Duration = Duration::from_secs(30);
 const POLL: Duration = Duration::from_millis(50);
 
 /// A headless Chromium with one page, killed (with every process it started) when dropped.
-pub struct Browser {
+pub(crate) struct Browser {
     page: WebSocket<MaybeTlsStream<TcpStream>>,
     next_id: u64,
     chromium: Chromium,
@@ -60,7 +60,7 @@ struct Chromium {
 impl Browser {
     /// The Chromium binary: `$MARIE_CHROMIUM`, else [`CHROMIUM`], else `chromium` on the
     /// `PATH`; `None` when there is none.
-    pub fn chromium() -> Option<PathBuf> {
+    pub(crate) fn chromium() -> Option<PathBuf> {
         if let Some(path) = std::env::var_os("MARIE_CHROMIUM") {
             return Some(PathBuf::from(path));
         }
@@ -77,7 +77,7 @@ impl Browser {
     /// A browser for test `test`; `None` (after saying so on stderr) when no Chromium is
     /// installed — except under `CI`, where a missing browser fails the test.
     #[track_caller]
-    pub fn launch_or_skip(test: &str) -> Option<Browser> {
+    pub(crate) fn launch_or_skip(test: &str) -> Option<Browser> {
         match Browser::chromium() {
             Some(path) => Some(
                 Browser::launch(&path)
@@ -100,7 +100,7 @@ impl Browser {
     }
 
     /// Start the Chromium at `path` headless on `about:blank` and attach to its page.
-    pub fn launch(path: &Path) -> Result<Browser> {
+    pub(crate) fn launch(path: &Path) -> Result<Browser> {
         let profile = tempfile::tempdir().context("a profile directory")?;
         let mut child = Command::new(path)
             .args([
@@ -146,7 +146,7 @@ impl Browser {
 
     /// Make the page's viewport `width` × `height` CSS pixels at scale 1 (screenshots have
     /// that size; [`Browser::launch`] sets [`VIEWPORT`]).
-    pub fn set_viewport(&mut self, width: u32, height: u32) -> Result<()> {
+    pub(crate) fn set_viewport(&mut self, width: u32, height: u32) -> Result<()> {
         self.call(
             "Emulation.setDeviceMetricsOverride",
             json!({ "width": width, "height": height, "deviceScaleFactor": 1, "mobile": false }),
@@ -155,12 +155,12 @@ impl Browser {
     }
 
     /// Chromium's process id (also its process group's).
-    pub fn pid(&self) -> u32 {
+    pub(crate) fn pid(&self) -> u32 {
         self.chromium.child.id()
     }
 
     /// Load `url` in the page and wait until its document is complete.
-    pub fn navigate(&mut self, url: &str) -> Result<()> {
+    pub(crate) fn navigate(&mut self, url: &str) -> Result<()> {
         // a mark on the old page's window: gone once the new page has replaced it
         self.evaluate("window.__marieOld = true")?;
         let answer = self.call("Page.navigate", json!({ "url": url }))?;
@@ -176,7 +176,7 @@ impl Browser {
 
     /// The value of JavaScript `expression` in the page, as JSON (`null` for `undefined`; a
     /// promise is awaited). An exception is an error with its message.
-    pub fn evaluate(&mut self, expression: &str) -> Result<Value> {
+    pub(crate) fn evaluate(&mut self, expression: &str) -> Result<Value> {
         let answer = self.call(
             "Runtime.evaluate",
             json!({ "expression": expression, "returnByValue": true, "awaitPromise": true }),
@@ -196,7 +196,7 @@ impl Browser {
 
     /// Wait until JavaScript `expression` is `true`, asking every 50 ms for at most
     /// `timeout`; an error says what it was last (its value or what it threw).
-    pub fn wait_for(&mut self, expression: &str, timeout: Duration) -> Result<()> {
+    pub(crate) fn wait_for(&mut self, expression: &str, timeout: Duration) -> Result<()> {
         let deadline = Instant::now() + timeout;
         loop {
             let last = match self.evaluate(expression) {
@@ -212,7 +212,7 @@ impl Browser {
     }
 
     /// A PNG screenshot of the page's viewport, written to `path`; its bytes.
-    pub fn screenshot(&mut self, path: &Path) -> Result<Vec<u8>> {
+    pub(crate) fn screenshot(&mut self, path: &Path) -> Result<Vec<u8>> {
         let answer = self.call("Page.captureScreenshot", json!({ "format": "png" }))?;
         let data = answer["data"]
             .as_str()
@@ -226,7 +226,7 @@ impl Browser {
 
     /// Send CDP command `method` to the page and wait for its answer's `result` (events that
     /// come meanwhile are passed over).
-    pub fn call(&mut self, method: &str, params: Value) -> Result<Value> {
+    pub(crate) fn call(&mut self, method: &str, params: Value) -> Result<Value> {
         self.next_id += 1;
         let id = self.next_id;
         let command = json!({ "id": id, "method": method, "params": params });

@@ -12,16 +12,16 @@ use std::time::{Duration, Instant};
 
 /// With this environment variable set to a directory, each process's log (stderr, at
 /// `RUST_LOG=info`) is written there as `NAME-TESTPID-N.log`; else it is dropped.
-pub const LOGS: &str = "MARIE_TEST_LOGS";
+pub(crate) const LOGS: &str = "MARIE_TEST_LOGS";
 
 /// Processes logged so far (part of the log files' names).
 static LOGGED: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
 
 /// Generous: a loaded 2-core machine may take seconds to start a process.
-pub const EVENT_TIMEOUT: Duration = Duration::from_secs(60);
+pub(crate) const EVENT_TIMEOUT: Duration = Duration::from_secs(60);
 
 /// A running `marie` process whose stdout lines are awaited.
-pub struct Proc {
+pub(crate) struct Proc {
     /// What it is, for messages.
     pub name: String,
     child: Child,
@@ -33,7 +33,7 @@ pub struct Proc {
 }
 
 /// A running `marie node`.
-pub struct NodeProc {
+pub(crate) struct NodeProc {
     /// Where it listens.
     pub addr: SocketAddr,
     proc: Proc,
@@ -55,7 +55,7 @@ impl std::ops::DerefMut for NodeProc {
 impl NodeProc {
     /// Write `dir/NAME.toml` — `[node]`, then `hosts` (TOML tables), then `[cluster]` with
     /// `peers` and `cookie` — and start `marie node --config` on it.
-    pub fn start(
+    pub(crate) fn start(
         dir: &Path,
         name: &str,
         hosts: &str,
@@ -67,7 +67,7 @@ impl NodeProc {
 
     /// [`NodeProc::start`] with more `[cluster]` keys (`cluster_extra`, TOML lines) and
     /// more flags.
-    pub fn start_with(
+    pub(crate) fn start_with(
         dir: &Path,
         name: &str,
         hosts: &str,
@@ -92,7 +92,12 @@ impl NodeProc {
 
     /// Start `marie ARGS` (a `marie node` listening on `addr`), inside network namespace
     /// `netns` if one is given, and wait until it listens.
-    pub fn launch(netns: Option<&str>, addr: SocketAddr, name: &str, args: &[&str]) -> NodeProc {
+    pub(crate) fn launch(
+        netns: Option<&str>,
+        addr: SocketAddr,
+        name: &str,
+        args: &[&str],
+    ) -> NodeProc {
         let proc = Proc::spawn_in(netns, name, args);
         let mut node = NodeProc { addr, proc };
         node.wait_line(&format!("node {name} listening on {addr}"));
@@ -108,7 +113,7 @@ fn listening_addr(line: &str) -> Option<SocketAddr> {
 
 /// Write `dir/NAME.toml` — `[node]`, then `hosts` (TOML tables), then `[cluster]` with
 /// `listen`, `peers`, `cookie` and `cluster_extra` (TOML lines) — and give its path.
-pub fn node_config(
+pub(crate) fn node_config(
     dir: &Path,
     name: &str,
     hosts: &str,
@@ -129,7 +134,7 @@ pub fn node_config(
 
 impl Proc {
     /// Start `marie ARGS` in the repository's directory, its stdout read line by line.
-    pub fn spawn(name: &str, args: &[&str]) -> Proc {
+    pub(crate) fn spawn(name: &str, args: &[&str]) -> Proc {
         Proc::spawn_in(None, name, args)
     }
 
@@ -137,7 +142,7 @@ impl Proc {
     /// `ip netns exec NS`, which execs `marie` in place, so the child's pid is marie's (what
     /// [`Proc::signal`] and the drop kill). Its stdin is a pipe held until the drop: a
     /// `marie node --stop-with-stdin` stops even when this test process is killed.
-    pub fn spawn_in(netns: Option<&str>, name: &str, args: &[&str]) -> Proc {
+    pub(crate) fn spawn_in(netns: Option<&str>, name: &str, args: &[&str]) -> Proc {
         let marie = env!("CARGO_BIN_EXE_marie");
         let mut command = match netns {
             Some(ns) => {
@@ -190,37 +195,37 @@ impl Proc {
     }
 
     /// Its process id.
-    pub fn pid(&self) -> u32 {
+    pub(crate) fn pid(&self) -> u32 {
         self.child.id()
     }
 
     /// Whether it still runs.
-    pub fn alive(&mut self) -> bool {
+    pub(crate) fn alive(&mut self) -> bool {
         matches!(self.child.try_wait(), Ok(None))
     }
 
     /// Every line seen so far.
-    pub fn seen(&self) -> &[String] {
+    pub(crate) fn seen(&self) -> &[String] {
         &self.seen
     }
 
     /// Wait for a stdout line containing `needle` (lines seen earlier count too).
     #[track_caller]
-    pub fn wait_line(&mut self, needle: &str) -> String {
+    pub(crate) fn wait_line(&mut self, needle: &str) -> String {
         self.wait_line_since(0, needle)
     }
 
     /// Wait for a line containing `needle` among the lines from the `mark`-th on (a mark
     /// is `seen().len()` taken earlier).
     #[track_caller]
-    pub fn wait_line_since(&mut self, mark: usize, needle: &str) -> String {
+    pub(crate) fn wait_line_since(&mut self, mark: usize, needle: &str) -> String {
         self.wait_line_timed(mark, needle).0
     }
 
     /// [`Proc::wait_line_since`], with the moment the line was read (by a thread that
     /// reads every line as it comes, whenever the test waits).
     #[track_caller]
-    pub fn wait_line_timed(&mut self, mark: usize, needle: &str) -> (String, Instant) {
+    pub(crate) fn wait_line_timed(&mut self, mark: usize, needle: &str) -> (String, Instant) {
         if let Some(i) = (mark..self.seen.len()).find(|&i| self.seen[i].contains(needle)) {
             return (self.seen[i].clone(), self.arrived[i]);
         }
@@ -245,7 +250,7 @@ impl Proc {
     }
 
     /// Take in the lines printed so far without waiting; every line seen.
-    pub fn drain(&mut self) -> &[String] {
+    pub(crate) fn drain(&mut self) -> &[String] {
         while let Ok((at, line)) = self.lines.try_recv() {
             self.seen.push(line);
             self.arrived.push(at);
@@ -254,19 +259,19 @@ impl Proc {
     }
 
     /// The lines read at or after `at`, taking in those printed so far.
-    pub fn lines_since(&mut self, at: Instant) -> Vec<String> {
+    pub(crate) fn lines_since(&mut self, at: Instant) -> Vec<String> {
         self.drain();
         let first = self.arrived.partition_point(|t| *t < at);
         self.seen[first..].to_vec()
     }
 
     /// Send `signal` (e.g. `TERM`, `KILL`, `STOP`) to the process.
-    pub fn signal(&self, signal: &str) {
+    pub(crate) fn signal(&self, signal: &str) {
         signal_pid(self.child.id(), signal);
     }
 
     /// Wait for the process to end (at most [`EVENT_TIMEOUT`]); its exit code.
-    pub fn wait_exit(&mut self) -> Option<i32> {
+    pub(crate) fn wait_exit(&mut self) -> Option<i32> {
         let deadline = Instant::now() + EVENT_TIMEOUT;
         loop {
             if let Some(status) = self.child.try_wait().expect("try_wait") {
@@ -287,7 +292,7 @@ impl Drop for Proc {
 }
 
 /// `... declared beta down: no heartbeat for 1234 ms` → 1234.
-pub fn silence_ms(line: &str) -> u64 {
+pub(crate) fn silence_ms(line: &str) -> u64 {
     line.rsplit_once("for ")
         .and_then(|(_, rest)| rest.split_whitespace().next())
         .and_then(|n| n.parse().ok())
@@ -296,16 +301,20 @@ pub fn silence_ms(line: &str) -> u64 {
 
 /// The failure detector's default deadline, in ms (what `marie node` runs with unless its
 /// config says otherwise).
-pub fn default_deadline_ms() -> u64 {
+pub(crate) fn default_deadline_ms() -> u64 {
     marie::cluster::net::detector::DEFAULT_DEADLINE.as_millis() as u64
 }
 
 /// A module `marie ls` lists: (kind, name, node).
-pub type Listed = (String, String, String);
+pub(crate) type Listed = (String, String, String);
 
 /// `marie ls --join ADDR --cookie C --json` and `extra` flags: the exit code, every listed
 /// module sorted, and stderr.
-pub fn ls_join(addr: &str, cookie: &str, extra: &[String]) -> (Option<i32>, Vec<Listed>, String) {
+pub(crate) fn ls_join(
+    addr: &str,
+    cookie: &str,
+    extra: &[String],
+) -> (Option<i32>, Vec<Listed>, String) {
     let mut args = vec!["ls", "--join", addr, "--cookie", cookie, "--json"];
     args.extend(extra.iter().map(String::as_str));
     let out = super::marie(&args);
@@ -326,7 +335,7 @@ pub fn ls_join(addr: &str, cookie: &str, extra: &[String]) -> (Option<i32>, Vec<
 
 /// Send `signal` (e.g. `TERM`, `KILL`, `STOP`) to process `pid`.
 #[track_caller]
-pub fn signal_pid(pid: u32, signal: &str) {
+pub(crate) fn signal_pid(pid: u32, signal: &str) {
     let status = Command::new("kill")
         .args([&format!("-{signal}"), &pid.to_string()])
         .status()
@@ -337,11 +346,11 @@ pub fn signal_pid(pid: u32, signal: &str) {
 /// A process stopped with `SIGSTOP` (not a child of this one), continued when this drops —
 /// also when a test panics: a stopped process never reads the end of its stdin, so it
 /// would outlive the test frozen.
-pub struct Stopped(pub u32);
+pub(crate) struct Stopped(pub u32);
 
 impl Stopped {
     /// Stop process `pid`.
-    pub fn stop(pid: u32) -> Stopped {
+    pub(crate) fn stop(pid: u32) -> Stopped {
         signal_pid(pid, "STOP");
         Stopped(pid)
     }
@@ -357,7 +366,7 @@ impl Drop for Stopped {
 
 /// Wait until process `pid` (not a child of this one) has ended: gone from `/proc`, or a
 /// zombie waiting for its new parent to reap it. False after [`EVENT_TIMEOUT`].
-pub fn wait_gone(pid: u32) -> bool {
+pub(crate) fn wait_gone(pid: u32) -> bool {
     let deadline = Instant::now() + EVENT_TIMEOUT;
     while Instant::now() < deadline {
         match std::fs::read_to_string(format!("/proc/{pid}/stat")) {

@@ -6,15 +6,15 @@ use std::net::{SocketAddr, TcpStream};
 use std::time::Duration;
 
 /// Generous: a loaded 2-core machine.
-pub const TIMEOUT: Duration = Duration::from_secs(30);
+pub(crate) const TIMEOUT: Duration = Duration::from_secs(30);
 
 /// `GET path` (with `headers`); the status and the body.
-pub fn get(addr: SocketAddr, path: &str, headers: &[(&str, &str)]) -> (u16, String) {
+pub(crate) fn get(addr: SocketAddr, path: &str, headers: &[(&str, &str)]) -> (u16, String) {
     request(addr, "GET", path, headers, "")
 }
 
 /// `POST path` with `body` as JSON; the status and the answer as JSON (`Null` if it is not).
-pub fn post_json(
+pub(crate) fn post_json(
     addr: SocketAddr,
     path: &str,
     body: &serde_json::Value,
@@ -33,7 +33,7 @@ pub fn post_json(
 }
 
 /// `METHOD path` with `headers` and `body`; the status and the body.
-pub fn request(
+pub(crate) fn request(
     addr: SocketAddr,
     method: &str,
     path: &str,
@@ -73,7 +73,7 @@ pub fn request(
 }
 
 /// `GET path` as JSON, which must answer 200.
-pub fn get_json(addr: SocketAddr, path: &str) -> serde_json::Value {
+pub(crate) fn get_json(addr: SocketAddr, path: &str) -> serde_json::Value {
     let (status, body) = get(addr, path, &[]);
     assert_eq!(status, 200, "{path}: {body}");
     serde_json::from_str(&body).unwrap_or_else(|e| panic!("{path}: {e}: {body}"))
@@ -95,7 +95,7 @@ fn unchunk(body: &str) -> String {
 
 /// A live stream (`GET path`, server-sent events over a chunked body), read event by
 /// event.
-pub struct EventStream {
+pub(crate) struct EventStream {
     raw: BufReader<TcpStream>,
     /// De-chunked text not yet split into lines.
     text: String,
@@ -103,7 +103,7 @@ pub struct EventStream {
 
 impl EventStream {
     /// Open `path`; panics unless it answers 200.
-    pub fn open(addr: SocketAddr, path: &str) -> EventStream {
+    pub(crate) fn open(addr: SocketAddr, path: &str) -> EventStream {
         let mut s = TcpStream::connect_timeout(&addr, TIMEOUT).expect("connect");
         s.set_read_timeout(Some(TIMEOUT)).unwrap();
         write!(
@@ -153,7 +153,7 @@ impl EventStream {
 
     /// The next event: its name and data (keep-alive comments skipped); panics after
     /// [`TIMEOUT`] without one.
-    pub fn next(&mut self) -> (String, String) {
+    pub(crate) fn next(&mut self) -> (String, String) {
         let deadline = std::time::Instant::now() + TIMEOUT;
         let (mut name, mut data) = (String::new(), String::new());
         loop {

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 /// Write the layout into `dir`: the thesis' with a wall follower on each node of
 /// `followers` (none on the operations node, which may only start one on request when
 /// `standby`); gives the cluster file.
-pub fn failover_layout(dir: &Path, followers: &[&str], standby: bool) -> PathBuf {
+pub(crate) fn failover_layout(dir: &Path, followers: &[&str], standby: bool) -> PathBuf {
     let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
     let thesis = repo.join("missions/clusters/thesis");
     let operations = std::fs::read_to_string(thesis.join("operations.toml"))

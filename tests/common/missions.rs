@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 /// docking.toml with its world made absolute and each `(anchor, replacement)` of `edits`
 /// applied, written into `dir` as `NAME.toml`. Every anchor must be in the file: a variant
 /// that missed its anchor would test docking.toml itself.
-pub fn docking_edited(dir: &Path, name: &str, edits: &[(&str, &str)]) -> PathBuf {
+pub(crate) fn docking_edited(dir: &Path, name: &str, edits: &[(&str, &str)]) -> PathBuf {
     let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut src = std::fs::read_to_string(repo.join("missions/docking.toml")).unwrap();
     let world = format!(
@@ -26,7 +26,7 @@ pub fn docking_edited(dir: &Path, name: &str, edits: &[(&str, &str)]) -> PathBuf
 
 /// docking.toml with its world made absolute, `extra` added to the wall follower's
 /// parameters and `tail` appended, written into `dir` as `NAME.toml`.
-pub fn docking_variant(dir: &Path, name: &str, extra: &str, tail: &str) -> PathBuf {
+pub(crate) fn docking_variant(dir: &Path, name: &str, extra: &str, tail: &str) -> PathBuf {
     let anchor = "[action.ops.wall-follower]\n";
     let with = format!("{anchor}{extra}");
     let path = docking_edited(dir, name, &[(anchor, &with)]);

@@ -3,13 +3,13 @@
 // each test crate uses its own subset
 #![allow(dead_code)]
 
-pub mod browser;
-pub mod cluster;
-pub mod http;
-pub mod layouts;
-pub mod missions;
-pub mod monitor;
-pub mod netns;
+pub(crate) mod browser;
+pub(crate) mod cluster;
+pub(crate) mod http;
+pub(crate) mod layouts;
+pub(crate) mod missions;
+pub(crate) mod monitor;
+pub(crate) mod netns;
 
 use std::process::{Command, Output};
 
@@ -17,7 +17,7 @@ use std::process::{Command, Output};
 /// input, `marie` must not panic: its stderr may say `panicked` only when a `panic:` fault
 /// was injected on purpose.
 #[track_caller]
-pub fn marie(args: &[&str]) -> Output {
+pub(crate) fn marie(args: &[&str]) -> Output {
     let out = Command::new(env!("CARGO_BIN_EXE_marie"))
         .args(args)
         .current_dir(env!("CARGO_MANIFEST_DIR"))
@@ -35,13 +35,13 @@ pub fn marie(args: &[&str]) -> Output {
 }
 
 /// Command output as text.
-pub fn text(b: &[u8]) -> String {
+pub(crate) fn text(b: &[u8]) -> String {
     String::from_utf8_lossy(b).into_owned()
 }
 
 /// Run `marie` with `args` plus `--report FILE`; the output and the report (`Null` if none
 /// was written).
-pub fn report_of(args: &[&str]) -> (Output, serde_json::Value) {
+pub(crate) fn report_of(args: &[&str]) -> (Output, serde_json::Value) {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("report.json");
     let mut all = args.to_vec();

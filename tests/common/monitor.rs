@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 
 /// A docking run whose wall follower is killed at 20 s, its events file written into `dir`
 /// by the binary under test.
-pub fn recorded_run(dir: &Path) -> PathBuf {
+pub(crate) fn recorded_run(dir: &Path) -> PathBuf {
     let events = dir.join("run.jsonl");
     let out = marie(&[
         "run",
@@ -27,7 +27,7 @@ pub fn recorded_run(dir: &Path) -> PathBuf {
 }
 
 /// `monitor: http://127.0.0.1:PORT/?token=T (...)` → the page's URL as printed.
-pub fn url_of(line: &str) -> String {
+pub(crate) fn url_of(line: &str) -> String {
     line.split_whitespace()
         .find(|w| w.starts_with("http://"))
         .unwrap_or_else(|| panic!("no URL in {line:?}"))
@@ -35,7 +35,7 @@ pub fn url_of(line: &str) -> String {
 }
 
 /// `monitor: http://127.0.0.1:PORT/?token=T (...)` → the address and the token.
-pub fn page_of(line: &str) -> (SocketAddr, Option<String>) {
+pub(crate) fn page_of(line: &str) -> (SocketAddr, Option<String>) {
     let url = url_of(line);
     let rest = url.trim_start_matches("http://");
     let (addr, query) = rest.split_once('/').unwrap();
@@ -45,7 +45,7 @@ pub fn page_of(line: &str) -> (SocketAddr, Option<String>) {
 
 /// `marie run` of docking at speed 4 with its wall follower killed at 20 s and its own
 /// monitor on a port the OS picks: the process, its `monitor: http://…` line awaited next.
-pub fn monitored_run() -> Proc {
+pub(crate) fn monitored_run() -> Proc {
     Proc::spawn(
         "run",
         &[
@@ -63,7 +63,7 @@ pub fn monitored_run() -> Proc {
 
 /// `marie up CLUSTER --monitor 127.0.0.1:0` plus `extra` flags (`--run`, `--speed`,
 /// `--allow-faults`, …): the process and its `monitor: http://…` line.
-pub fn monitored_up(cluster: &str, extra: &[&str]) -> (Proc, String) {
+pub(crate) fn monitored_up(cluster: &str, extra: &[&str]) -> (Proc, String) {
     let mut args = vec!["up", cluster, "--monitor", "127.0.0.1:0"];
     args.extend_from_slice(extra);
     let mut up = Proc::spawn("marie up", &args);
@@ -73,7 +73,7 @@ pub fn monitored_up(cluster: &str, extra: &[&str]) -> (Proc, String) {
 
 /// `marie monitor --events EVENTS --listen 127.0.0.1:0` plus `extra` flags: the process and
 /// its `monitor: http://…` line.
-pub fn replay_monitor(events: &Path, extra: &[&str]) -> (Proc, String) {
+pub(crate) fn replay_monitor(events: &Path, extra: &[&str]) -> (Proc, String) {
     let mut args = vec![
         "monitor",
         "--events",
@@ -88,7 +88,7 @@ pub fn replay_monitor(events: &Path, extra: &[&str]) -> (Proc, String) {
 }
 
 /// Poll `/api/state` until `ok` holds (at most [`super::cluster::EVENT_TIMEOUT`]).
-pub fn state_until(
+pub(crate) fn state_until(
     addr: SocketAddr,
     what: &str,
     ok: impl Fn(&serde_json::Value) -> bool,

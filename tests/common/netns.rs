@@ -34,7 +34,7 @@ const PREFIX: &str = "mariep";
 static MADE: AtomicUsize = AtomicUsize::new(0);
 
 /// The hub and the node namespaces of one test.
-pub struct Netns {
+pub(crate) struct Netns {
     hub: String,
     nodes: Vec<String>,
 }
@@ -43,7 +43,7 @@ impl Netns {
     /// A hub and `n` node namespaces, each node reaching every other through the hub.
     /// `None` when namespaces cannot be made here (not root): the test should return at
     /// once; it was told on stderr. With `CI` set, that panics instead.
-    pub fn create(n: usize) -> Option<Netns> {
+    pub(crate) fn create(n: usize) -> Option<Netns> {
         assert!(n < 250, "at most 249 nodes");
         sweep_stale();
         let k = MADE.fetch_add(1, Ordering::Relaxed);
@@ -119,28 +119,28 @@ impl Netns {
     }
 
     /// Node `i`'s namespace (for `ip netns exec`).
-    pub fn ns(&self, i: usize) -> &str {
+    pub(crate) fn ns(&self, i: usize) -> &str {
         &self.nodes[i]
     }
 
     /// Node `i`'s address: `10.77.<i+1>.2`.
-    pub fn ip(&self, i: usize) -> Ipv4Addr {
+    pub(crate) fn ip(&self, i: usize) -> Ipv4Addr {
         assert!(i < self.nodes.len());
         Ipv4Addr::new(10, 77, i as u8 + 1, 2)
     }
 
     /// Node `i`'s address with `port` (any port is free in a namespace of its own).
-    pub fn addr(&self, i: usize, port: u16) -> SocketAddr {
+    pub(crate) fn addr(&self, i: usize, port: u16) -> SocketAddr {
         SocketAddr::new(self.ip(i).into(), port)
     }
 
     /// Drop every packet between nodes `a` and `b`, both ways; the others are untouched.
-    pub fn cut(&self, a: usize, b: usize) {
+    pub(crate) fn cut(&self, a: usize, b: usize) {
         self.blackhole("add", a, b);
     }
 
     /// Undo [`Netns::cut`] of `a` and `b`.
-    pub fn heal(&self, a: usize, b: usize) {
+    pub(crate) fn heal(&self, a: usize, b: usize) {
         self.blackhole("del", a, b);
     }
 

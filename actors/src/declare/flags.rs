@@ -211,7 +211,7 @@ mod tests {
 
     crate::flags! {
         /// The docking detector's flags.
-        pub enum Dock {
+        enum Dock {
             /// a docking spot was found
             Found = "dock-found",
             /// the search gave up

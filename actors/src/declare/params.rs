@@ -488,12 +488,12 @@ mod tests {
 
     crate::choice! {
         /// Test choice.
-        pub enum Beams { Narrow = "narrow", All = "all" }
+        enum Beams { Narrow = "narrow", All = "all" }
     }
 
     crate::params! {
         /// The segment extractor's parameters, as `missions` declares them by hand.
-        pub struct Extract {
+        struct Extract {
             /// how far back echoes are used
             pub window: f64 = 8.0, range(0.5, 120.0), unit("s");
             /// fewest echoes a segment needs

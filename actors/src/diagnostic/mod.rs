@@ -66,6 +66,15 @@ pub struct LineIndex<'s> {
     starts: Vec<usize>,
 }
 
+impl std::fmt::Debug for LineIndex<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("LineIndex")
+            .field("bytes", &self.src.len())
+            .field("lines", &self.starts.len())
+            .finish()
+    }
+}
+
 impl<'s> LineIndex<'s> {
     /// Index the lines of `src`.
     pub fn new(src: &'s str) -> Self {

@@ -26,6 +26,15 @@ pub struct Reader<'s> {
     diags: Vec<Diagnostic>,
 }
 
+impl std::fmt::Debug for Reader<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Reader")
+            .field("file", &self.file)
+            .field("lines", &self.lines)
+            .finish_non_exhaustive()
+    }
+}
+
 /// A table being read: its entries, where it starts, and how messages name it
 /// (e.g. `[cart]`, `[[operation]] #2`).
 pub struct Tbl<'a, 'i> {
@@ -35,6 +44,16 @@ pub struct Tbl<'a, 'i> {
     pub span: Span,
     /// How messages name the table.
     pub place: String,
+}
+
+impl std::fmt::Debug for Tbl<'_, '_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Tbl")
+            .field("place", &self.place)
+            .field("span", &self.span)
+            .field("keys", &self.t.len())
+            .finish()
+    }
 }
 
 impl<'a, 'i> Tbl<'a, 'i> {

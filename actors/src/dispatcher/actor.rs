@@ -63,7 +63,17 @@ pub struct DispatcherArgs {
     pub bus: EventBus,
 }
 
+impl std::fmt::Debug for DispatcherArgs {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("DispatcherArgs")
+            .field("mission", &self.mission.name)
+            .field("bus", &self.bus)
+            .finish_non_exhaustive()
+    }
+}
+
 /// The ActionDispatcher actor.
+#[derive(Debug)]
 pub struct ActionDispatcher;
 
 /// How an activation is sent: for which action generation and binding incarnation, with
@@ -123,6 +133,18 @@ pub struct DispatcherState {
     /// The run's own timers, cancelled with the dispatcher.
     pub(super) timers: RunTimers,
     pub(super) ended: bool,
+}
+
+impl std::fmt::Debug for DispatcherState {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("DispatcherState")
+            .field("mission", &self.mission.name)
+            .field("status", &self.status)
+            .field("generation", &self.generation)
+            .field("bindings", &self.bindings.keys().collect::<Vec<_>>())
+            .field("ended", &self.ended)
+            .finish_non_exhaustive()
+    }
 }
 
 impl Current {

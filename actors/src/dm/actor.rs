@@ -107,6 +107,17 @@ pub struct DmState {
     fences: crate::fence::FenceTable,
 }
 
+impl std::fmt::Debug for DmState {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("DmState")
+            .field("id", &self.id)
+            .field("name", &self.name)
+            .field("records", &self.store.len())
+            .field("refused_puts", &self.refused_puts)
+            .finish_non_exhaustive()
+    }
+}
+
 impl DmState {
     fn stats(&self) -> DmStats {
         DmStats {

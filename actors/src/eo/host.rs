@@ -38,6 +38,15 @@ pub struct HostOptions {
     pub publish: bool,
 }
 
+impl std::fmt::Debug for HostOptions {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("HostOptions")
+            .field("params", &self.params)
+            .field("publish", &self.publish)
+            .finish_non_exhaustive()
+    }
+}
+
 impl Default for HostOptions {
     fn default() -> Self {
         HostOptions {
@@ -61,6 +70,12 @@ impl HostOptions {
 /// The EO host actor for operation type `O`.
 pub struct EoHost<O>(PhantomData<fn() -> O>);
 
+impl<O> std::fmt::Debug for EoHost<O> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "EoHost<{}>", std::any::type_name::<O>())
+    }
+}
+
 impl<O> Default for EoHost<O> {
     fn default() -> Self {
         EoHost(PhantomData)
@@ -73,6 +88,15 @@ pub struct HostArgs<O> {
     pub operation: O,
     /// Hosting options.
     pub options: HostOptions,
+}
+
+impl<O> std::fmt::Debug for HostArgs<O> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("HostArgs")
+            .field("operation", &std::any::type_name::<O>())
+            .field("options", &self.options)
+            .finish()
+    }
 }
 
 struct Active {
@@ -100,6 +124,17 @@ pub struct HostState<O> {
     active: Option<Active>,
     activations: u64,
     started: Duration,
+}
+
+impl<O> std::fmt::Debug for HostState<O> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("HostState")
+            .field("identity", &self.identity)
+            .field("epoch", &self.epoch)
+            .field("active", &self.active.is_some())
+            .field("activations", &self.activations)
+            .finish_non_exhaustive()
+    }
 }
 
 impl<O: Operation> HostState<O> {

@@ -197,6 +197,15 @@ pub struct OpContext {
     pub(crate) dms: std::collections::HashMap<String, crate::dm::DmClient>,
 }
 
+impl std::fmt::Debug for OpContext {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("OpContext")
+            .field("params", &self.params)
+            .field("raised", &self.raised)
+            .finish_non_exhaustive()
+    }
+}
+
 impl OpContext {
     /// Current parameters.
     pub fn params(&self) -> &Params {

@@ -187,6 +187,14 @@ pub struct EventSubscription {
     rx: broadcast::Receiver<Event>,
 }
 
+impl std::fmt::Debug for EventSubscription {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("EventSubscription")
+            .field("waiting", &self.rx.len())
+            .finish()
+    }
+}
+
 impl EventSubscription {
     /// The next event; waits for one.
     pub async fn recv(&mut self) -> Result<Event, BusError> {

@@ -9,6 +9,14 @@ pub struct RegistryBridge {
     task: tokio::task::JoinHandle<()>,
 }
 
+impl std::fmt::Debug for RegistryBridge {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RegistryBridge")
+            .field("running", &!self.task.is_finished())
+            .finish()
+    }
+}
+
 impl Drop for RegistryBridge {
     fn drop(&mut self) {
         self.task.abort();

@@ -29,6 +29,14 @@ pub struct Watch {
     watcher: ActorRef<WatcherMsg>,
 }
 
+impl std::fmt::Debug for Watch {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Watch")
+            .field("waiting", &self.rx.len())
+            .finish_non_exhaustive()
+    }
+}
+
 impl Watch {
     /// The next event, or `None` if the watcher stopped.
     pub async fn next(&mut self) -> Option<RegistryEvent> {
@@ -48,7 +56,7 @@ impl Drop for Watch {
 }
 
 /// The watcher actor takes no messages; it only receives `pg` events.
-pub enum WatcherMsg {}
+pub(crate) enum WatcherMsg {}
 impl ractor::Message for WatcherMsg {}
 
 struct Watcher;

@@ -269,7 +269,7 @@ mod tests {
 
     crate::remote_message! {
         /// Test messages.
-        pub enum TestMsg {
+        enum TestMsg {
             /// A cast.
             Add { n: u64, label: String },
             /// A call.

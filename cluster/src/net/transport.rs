@@ -81,6 +81,15 @@ pub struct Transport {
     heartbeat_handle: JoinHandle<()>,
 }
 
+impl std::fmt::Debug for Transport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Transport")
+            .field("node", &self.node)
+            .field("listen", &self.listen)
+            .finish_non_exhaustive()
+    }
+}
+
 impl Transport {
     /// Listen on `config.listen` as node `node`, name this process' node in the registry,
     /// and dial every configured peer (again and again, with backoff, while it is absent).

@@ -79,6 +79,17 @@ pub struct NodeBuilder {
     robot: Option<Arc<dyn Robot>>,
 }
 
+impl std::fmt::Debug for NodeBuilder {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("NodeBuilder")
+            .field("config", &self.config)
+            .field("operations", &self.catalog.len())
+            .field("refused", &self.refused)
+            .field("robot", &self.robot.as_ref().map(|r| r.describe()))
+            .finish_non_exhaustive()
+    }
+}
+
 /// A factory in the builder's catalogue, and the type whose `Default` builds it (`None`:
 /// the application's closure or value): a second registration of the same `name@version`
 /// is accepted only when it builds the same way.

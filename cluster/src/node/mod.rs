@@ -92,6 +92,16 @@ pub struct NodeOptions {
     pub clock: SharedClock,
 }
 
+impl std::fmt::Debug for Node {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Node")
+            .field("name", &self.config.name)
+            .field("bus", &self.bus)
+            .field("robot", &self.robot.as_ref().map(|r| r.describe()))
+            .finish_non_exhaustive()
+    }
+}
+
 impl NodeOptions {
     /// A catalogue, no robot, the process's clock ([`RealClock::process`]).
     pub fn with_catalog(catalog: Vec<OperationFactory>) -> Self {

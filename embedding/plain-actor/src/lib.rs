@@ -39,7 +39,19 @@ pub enum TallyMsg {
     },
 }
 
+impl std::fmt::Debug for TallyMsg {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            TallyMsg::Add(n) => f.debug_tuple("Add").field(n).finish(),
+            TallyMsg::Reset => f.write_str("Reset"),
+            TallyMsg::Total(_) => f.write_str("Total"),
+            TallyMsg::AddAndGet { by, .. } => f.debug_struct("AddAndGet").field("by", by).finish(),
+        }
+    }
+}
+
 /// An actor that sums what it is sent.
+#[derive(Debug)]
 pub struct Tally;
 
 impl Actor for Tally {

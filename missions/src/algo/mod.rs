@@ -138,20 +138,20 @@ pub(crate) fn safe_div(x: f64, y: f64, fallback: f64) -> f64 {
 #[cfg(test)]
 pub(crate) mod test_rng {
     /// The seeded generator.
-    pub struct Rng(crate::sim::Rng);
+    pub(crate) struct Rng(crate::sim::Rng);
 
     impl Rng {
-        pub fn new(seed: u64) -> Self {
+        pub(crate) fn new(seed: u64) -> Self {
             Rng(crate::sim::Rng::new(seed))
         }
 
         /// Uniform in [0, 1).
-        pub fn uniform(&mut self) -> f64 {
+        pub(crate) fn uniform(&mut self) -> f64 {
             self.0.uniform()
         }
 
         /// Normal with standard deviation `sigma`.
-        pub fn gauss(&mut self, sigma: f64) -> f64 {
+        pub(crate) fn gauss(&mut self, sigma: f64) -> f64 {
             self.0.gaussian(sigma)
         }
     }

@@ -27,7 +27,7 @@ use tokio::task::JoinHandle;
 
 /// How long a drive command holds without being renewed; then the cart brakes (steering
 /// kept). Six of the controllers' 50 ms control periods.
-pub const COMMAND_HOLD: Duration = Duration::from_millis(300);
+pub(super) const COMMAND_HOLD: Duration = Duration::from_millis(300);
 
 /// Registry id of the virtual cart.
 pub const CART_ID: u32 = 1401;
@@ -148,7 +148,16 @@ pub struct CartArgs {
     pub poses: Option<PoseSampler>,
 }
 
+impl std::fmt::Debug for CartArgs {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("CartArgs")
+            .field("period", &self.period)
+            .finish_non_exhaustive()
+    }
+}
+
 /// The virtual cart actor.
+#[derive(Debug)]
 pub struct VirtualCart;
 
 /// State of the cart actor.
@@ -164,6 +173,15 @@ pub struct CartState {
     /// The newest epoch of each operation that commanded the cart.
     fences: FenceTable,
     poses: Option<PoseSampler>,
+}
+
+impl std::fmt::Debug for CartState {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("CartState")
+            .field("period", &self.period)
+            .field("command", &self.command)
+            .finish_non_exhaustive()
+    }
 }
 
 impl CartState {

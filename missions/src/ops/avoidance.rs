@@ -54,7 +54,7 @@ marie_actors::flags! {
 ///   is within the stop range, releasing when it is gone;
 /// - `controlled-stop`: slows near an obstacle and stops for good within the stop range,
 ///   finishing with `stopped` — the end of a manoeuvre such as backing into a corner.
-#[derive(Default)]
+#[derive(Debug, Default)]
 pub struct CollisionAvoidance {
     cart: Option<CartClient>,
     holding: bool,

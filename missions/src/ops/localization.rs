@@ -49,7 +49,7 @@ marie_actors::params! {
 /// the newest correction, matches them to the map's walls (world DM, class `map`), and
 /// stores the corrected correction ([`LocationRecord`]) with part (`gain`) of the measured
 /// error taken out. A direction no matched wall constrains keeps the odometry's estimate.
-#[derive(Default)]
+#[derive(Debug, Default)]
 pub struct Localizer {
     cart: Option<CartClient>,
     map: Option<Vec<Segment>>,

@@ -98,7 +98,7 @@ marie_actors::params! {
 /// Fits line segments to the sonar echoes of a recent time window, sensor by sensor (each
 /// sensor's echoes are ordered along the cart's path), and stores the set in the feature DM.
 /// Runs until suspended.
-#[derive(Default)]
+#[derive(Debug, Default)]
 pub struct SegmentExtractor {
     sets: u64,
     /// Clock time of the activation (for `fresh`).
@@ -219,7 +219,7 @@ marie_actors::flags! {
 /// direction from an early glimpse or an uncorrected pose does not stay) and extends the
 /// wall's known extent with them ([`track_wall`]). Without tracking, a recess in the wall — the docking spot — would, once
 /// the cart is alongside it, offer its back wall as "the" wall and lead the follower into it.
-#[derive(Default)]
+#[derive(Debug, Default)]
 pub struct WallSensor {
     cart: Option<CartClient>,
     /// The tracked wall and the correction it is placed with.
@@ -354,7 +354,7 @@ marie_actors::flags! {
 /// Looks for a docking spot of the given breadth (along the wall) and depth (into it) in the
 /// followed wall, among the echoes gathered since it was activated. Finishes with `dock-found`
 /// after storing the dock in the world DM; very sensitive to its parameters (thesis 9.3.2).
-#[derive(Default)]
+#[derive(Debug, Default)]
 pub struct DockingDetector {
     cart: Option<CartClient>,
     since: Duration,

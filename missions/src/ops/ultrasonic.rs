@@ -20,7 +20,7 @@ marie_actors::params! {
 
 /// Reads the sonar ring at a fixed rate; never finishes by itself (it is suspended when its
 /// action ends).
-#[derive(Default)]
+#[derive(Debug, Default)]
 pub struct Ultrasonic {
     cart: Option<CartClient>,
     scans: u64,

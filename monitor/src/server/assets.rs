@@ -2,14 +2,14 @@
 //! to install beside the `marie` binary).
 
 /// `GET /`: the page. `{{Q}}` is replaced by the query its asset links carry (the token).
-pub const INDEX_HTML: &str = include_str!("../../assets/index.html");
+pub(crate) const INDEX_HTML: &str = include_str!("../../assets/index.html");
 /// `GET /app.js`: what draws the state.
-pub const APP_JS: &str = include_str!("../../assets/app.js");
+pub(crate) const APP_JS: &str = include_str!("../../assets/app.js");
 /// `GET /style.css`.
-pub const STYLE_CSS: &str = include_str!("../../assets/style.css");
+pub(crate) const STYLE_CSS: &str = include_str!("../../assets/style.css");
 
 /// The page, its asset links carrying `token` when there is one.
-pub fn index(token: Option<&str>) -> String {
+pub(crate) fn index(token: Option<&str>) -> String {
     INDEX_HTML.replace(
         "{{Q}}",
         &token.map_or(String::new(), |t| format!("?token={t}")),

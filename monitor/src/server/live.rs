@@ -21,20 +21,20 @@ use std::time::Duration;
 use tokio::sync::{broadcast, mpsc, watch};
 
 /// How often the monitor takes the events waiting on the node's bus (see [`Live::reduce`]).
-pub const BUS_POLL: Duration = Duration::from_millis(10);
+pub(crate) const BUS_POLL: Duration = Duration::from_millis(10);
 
 /// Updates pushed to a viewer per second, at most.
-pub const UPDATES_PER_SECOND: u64 = 10;
+pub(crate) const UPDATES_PER_SECOND: u64 = 10;
 /// Updates a viewer may fall behind before it is told `lagged` and resynchronised.
-pub const VIEWER_BUFFER: usize = 8;
+pub(crate) const VIEWER_BUFFER: usize = 8;
 /// Events fed in (not from the bus) that may wait for the reducer; more are lost, counted.
-pub const FEED_CAPACITY: usize = 4096;
+pub(crate) const FEED_CAPACITY: usize = 4096;
 
 /// A request to [`Live::reduce`] to apply everything waiting, answered once it has.
-pub type FlushRequest = std::sync::mpsc::SyncSender<()>;
+pub(crate) type FlushRequest = std::sync::mpsc::SyncSender<()>;
 
 /// The live state shared by the reducer, the ticker and the viewers.
-pub struct Live {
+pub(crate) struct Live {
     state: Mutex<MonitorState>,
     version: watch::Sender<u64>,
     updates: broadcast::Sender<Arc<str>>,
@@ -68,7 +68,7 @@ impl std::fmt::Debug for Feed {
 
 impl Live {
     /// A live state, and the feed and its receiving end for [`Live::reduce`].
-    pub fn new() -> (Arc<Live>, Feed, mpsc::Receiver<Event>) {
+    pub(crate) fn new() -> (Arc<Live>, Feed, mpsc::Receiver<Event>) {
         let (tx, rx) = mpsc::channel(FEED_CAPACITY);
         let live = Arc::new(Live {
             state: Mutex::new(MonitorState::default()),
@@ -98,7 +98,7 @@ impl Live {
     }
 
     /// The state as the page draws it, as JSON.
-    pub fn snapshot(&self) -> Arc<str> {
+    pub(crate) fn snapshot(&self) -> Arc<str> {
         // serialized under the lock: the reducer shares the monitor's one thread, so it
         // waits no longer than it would for a copy, and nothing is copied
         Arc::from(serde_json::to_string(&*self.lock()).unwrap_or_else(|e| {
@@ -124,7 +124,7 @@ impl Live {
     /// request reaches the reducer after it (a channel orders the two), a publish is in the
     /// bus's buffer when `publish` returns, an offer in the feed's when `offer` returns, and
     /// the reducer empties both after taking the request.
-    pub async fn reduce(
+    pub(crate) async fn reduce(
         self: Arc<Self>,
         mut bus: Option<EventSubscription>,
         mut fed: mpsc::Receiver<Event>,
@@ -220,7 +220,7 @@ impl Live {
     /// Push the state to the viewers whenever it changed, at most
     /// [`UPDATES_PER_SECOND`] times a second, for as long as the monitor's runtime runs
     /// (it holds the state, and so the version's sender, itself).
-    pub async fn tick(self: Arc<Self>) {
+    pub(crate) async fn tick(self: Arc<Self>) {
         let mut version = self.version.subscribe();
         let period = Duration::from_millis(1000 / UPDATES_PER_SECOND);
         loop {
@@ -236,7 +236,7 @@ impl Live {
 
     /// A viewer's connection: `snapshot` first, then `state` on every update; after a lag,
     /// `lagged` (`{"missed": n}`) and a fresh `snapshot`.
-    pub fn viewer(self: Arc<Self>) -> Sse<impl Stream<Item = Result<SseEvent, Infallible>>> {
+    pub(crate) fn viewer(self: Arc<Self>) -> Sse<impl Stream<Item = Result<SseEvent, Infallible>>> {
         let rx = self.updates.subscribe();
         let first = SseEvent::default()
             .event("snapshot")

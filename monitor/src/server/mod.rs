@@ -22,10 +22,10 @@
 //! that thread's time and must tick in real time. The monitor runs a current-thread tokio
 //! runtime on its thread; the node's side only publishes on its bus, as it always does.
 
-pub mod assets;
-pub mod live;
-pub mod replay;
-pub mod token;
+pub(crate) mod assets;
+pub(crate) mod live;
+pub(crate) mod replay;
+pub(crate) mod token;
 
 use crate::control::{Control, ControlError, FaultRequest, Offers, OperationRef};
 use crate::error::MonitorError;
@@ -93,6 +93,7 @@ impl std::fmt::Debug for MonitorOptions {
 pub const DEFAULT_LISTEN: &str = "127.0.0.1:7700";
 
 /// The monitor's server.
+#[derive(Debug)]
 pub struct Monitor;
 
 /// A running monitor: where it listens, its token, a feed of more events (live), and how to
@@ -105,6 +106,15 @@ pub struct MonitorHandle {
     flushes: Option<mpsc::UnboundedSender<live::FlushRequest>>,
     stop: Option<oneshot::Sender<()>>,
     thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl std::fmt::Debug for MonitorHandle {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("MonitorHandle")
+            .field("addr", &self.addr)
+            .field("token", &self.token.as_ref().map(|_| "…"))
+            .finish_non_exhaustive()
+    }
 }
 
 /// What the server serves.

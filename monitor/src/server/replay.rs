@@ -14,7 +14,7 @@ use std::path::Path;
 use std::sync::Mutex;
 
 /// A loaded run.
-pub struct Replay {
+pub(crate) struct Replay {
     events: Vec<Event>,
     cursor: Mutex<(usize, MonitorState)>,
     /// The state after the whole run, as JSON: asked for by every `/api/state`, computed
@@ -24,7 +24,7 @@ pub struct Replay {
 
 /// What the page needs to set up its controls.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize)]
-pub struct ReplayInfo {
+pub(crate) struct ReplayInfo {
     /// Events in the file.
     pub events: usize,
     /// Time of the first event, ms.
@@ -38,7 +38,7 @@ pub struct ReplayInfo {
 impl Replay {
     /// Read `path` (one event per line; blank lines skipped), ordered by time (a cluster's
     /// file interleaves nodes; their order at equal times is kept).
-    pub fn load(path: &Path) -> Result<Replay, MonitorError> {
+    pub(crate) fn load(path: &Path) -> Result<Replay, MonitorError> {
         let text = std::fs::read_to_string(path).map_err(|source| MonitorError::Read {
             path: path.to_path_buf(),
             source,
@@ -60,7 +60,7 @@ impl Replay {
     }
 
     /// A replay of `events`.
-    pub fn new(mut events: Vec<Event>) -> Replay {
+    pub(crate) fn new(mut events: Vec<Event>) -> Replay {
         events.sort_by_key(|e| e.at_ms);
         let final_json = to_json(&MonitorState::from_events(&events));
         Replay {
@@ -71,7 +71,7 @@ impl Replay {
     }
 
     /// Its extent.
-    pub fn info(&self) -> ReplayInfo {
+    pub(crate) fn info(&self) -> ReplayInfo {
         let start_ms = self.events.first().map_or(0, |e| e.at_ms);
         let end_ms = self.events.last().map_or(0, |e| e.at_ms);
         ReplayInfo {
@@ -84,12 +84,12 @@ impl Replay {
 
     /// The state after every event at or before `at_ms`, as JSON for the page (serialized
     /// at the cursor: no copy of the state).
-    pub fn state_json_at(&self, at_ms: u64) -> String {
+    pub(crate) fn state_json_at(&self, at_ms: u64) -> String {
         self.at(at_ms, to_json)
     }
 
     /// The state after the whole run, as JSON.
-    pub fn final_json(&self) -> &str {
+    pub(crate) fn final_json(&self) -> &str {
         &self.final_json
     }
 

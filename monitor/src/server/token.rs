@@ -16,12 +16,12 @@ use std::sync::Arc;
 
 /// Whether a monitor on `listen` needs a token: beyond loopback always; on loopback when
 /// `forced`.
-pub fn required(listen: SocketAddr, forced: bool) -> bool {
+pub(crate) fn required(listen: SocketAddr, forced: bool) -> bool {
     forced || !listen.ip().is_loopback()
 }
 
 /// A fresh random token (32 hex digits).
-pub fn generate() -> String {
+pub(crate) fn generate() -> String {
     let mut bytes = [0u8; 16];
     let from_os = std::fs::File::open("/dev/urandom")
         .and_then(|mut f| std::io::Read::read_exact(&mut f, &mut bytes));
@@ -42,7 +42,7 @@ pub fn generate() -> String {
 }
 
 /// The token a request carries, if any: `token=` in the query, or a bearer token.
-pub fn carried(req: &Request) -> Option<String> {
+pub(crate) fn carried(req: &Request) -> Option<String> {
     let from_query = req.uri().query().and_then(|q| {
         q.split('&')
             .filter_map(|kv| kv.split_once('='))
@@ -69,7 +69,11 @@ fn same(a: &str, b: &str) -> bool {
 }
 
 /// The middleware: 401 for a request without the token (when one is required).
-pub async fn check(State(token): State<Arc<Option<String>>>, req: Request, next: Next) -> Response {
+pub(crate) async fn check(
+    State(token): State<Arc<Option<String>>>,
+    req: Request,
+    next: Next,
+) -> Response {
     match token.as_deref() {
         None => next.run(req).await,
         Some(expected) if carried(&req).is_some_and(|t| same(&t, expected)) => next.run(req).await,

@@ -167,6 +167,15 @@ pub struct SupervisorState {
     events: Option<broadcast::Sender<SupervisorEvent>>,
 }
 
+impl std::fmt::Debug for SupervisorState {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SupervisorState")
+            .field("spec", &self.spec)
+            .field("children", &self.children.len())
+            .finish_non_exhaustive()
+    }
+}
+
 struct Child {
     spec: ChildSpec,
     status: Status,

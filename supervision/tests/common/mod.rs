@@ -14,33 +14,33 @@ use tokio::sync::{broadcast, mpsc, oneshot};
 
 /// How long a test waits for something that must happen. Generous: the tests run on a
 /// loaded 2-core machine, and they never wait this long when things work.
-pub const PATIENCE: Duration = Duration::from_secs(10);
+pub(crate) const PATIENCE: Duration = Duration::from_secs(10);
 
 /// A shared record of what the workers did, in order ("start c1", "stop c1", "stopped c1").
 #[derive(Clone, Default)]
-pub struct Log(Arc<Mutex<Vec<String>>>);
+pub(crate) struct Log(Arc<Mutex<Vec<String>>>);
 
 impl Log {
-    pub fn push(&self, s: String) {
+    pub(crate) fn push(&self, s: String) {
         self.0.lock().unwrap().push(s);
     }
-    pub fn entries(&self) -> Vec<String> {
+    pub(crate) fn entries(&self) -> Vec<String> {
         self.0.lock().unwrap().clone()
     }
     /// The entries that start with `prefix` (e.g. "stop "), in order.
-    pub fn with_prefix(&self, prefix: &str) -> Vec<String> {
+    pub(crate) fn with_prefix(&self, prefix: &str) -> Vec<String> {
         self.entries()
             .into_iter()
             .filter(|e| e.starts_with(prefix))
             .collect()
     }
-    pub fn clear(&self) {
+    pub(crate) fn clear(&self) {
         self.0.lock().unwrap().clear();
     }
 }
 
 /// What a test can make a worker do.
-pub enum WorkerMsg {
+pub(crate) enum WorkerMsg {
     /// Return an error from the handler (ActorFailed).
     Fail,
     /// Panic in the handler (ActorFailed).
@@ -53,10 +53,10 @@ pub enum WorkerMsg {
 impl ractor::Message for WorkerMsg {}
 
 /// A worker that logs its start and stop, and may take its time to stop.
-pub struct Worker;
+pub(crate) struct Worker;
 
 #[derive(Clone)]
-pub struct WorkerArgs {
+pub(crate) struct WorkerArgs {
     pub name: String,
     pub log: Log,
     /// `post_stop` sleeps this long after logging "stop <name>" (to ignore a stop request).
@@ -125,7 +125,7 @@ impl Actor for Worker {
 
 /// Options of a test worker's spec.
 #[derive(Clone, Default)]
-pub struct WorkerOpts {
+pub(crate) struct WorkerOpts {
     pub stop_delay: Option<Duration>,
     pub unlink: bool,
     /// While set, starts fail (with a spawn error, as a failing `pre_start` would).
@@ -139,13 +139,13 @@ pub struct WorkerOpts {
 }
 
 /// A permanent worker with a 5 s shutdown.
-pub fn worker(id: &str, log: &Log) -> ChildSpec {
+pub(crate) fn worker(id: &str, log: &Log) -> ChildSpec {
     worker_with(id, log, WorkerOpts::default())
 }
 
 impl WorkerOpts {
     /// Starts fail while `flag` is set.
-    pub fn failing(flag: &Arc<AtomicBool>) -> Self {
+    pub(crate) fn failing(flag: &Arc<AtomicBool>) -> Self {
         WorkerOpts {
             fail_start: Some(flag.clone()),
             ..Default::default()
@@ -153,7 +153,7 @@ impl WorkerOpts {
     }
 
     /// Starts never finish while `flag` is set.
-    pub fn hanging(flag: &Arc<AtomicBool>) -> Self {
+    pub(crate) fn hanging(flag: &Arc<AtomicBool>) -> Self {
         WorkerOpts {
             hang_start: Some(flag.clone()),
             ..Default::default()
@@ -161,7 +161,7 @@ impl WorkerOpts {
     }
 
     /// Starts answer ignore while `flag` is set.
-    pub fn ignoring(flag: &Arc<AtomicBool>) -> Self {
+    pub(crate) fn ignoring(flag: &Arc<AtomicBool>) -> Self {
         WorkerOpts {
             ignore: Some(flag.clone()),
             ..Default::default()
@@ -169,7 +169,7 @@ impl WorkerOpts {
     }
 }
 
-pub fn worker_with(id: &str, log: &Log, opts: WorkerOpts) -> ChildSpec {
+pub(crate) fn worker_with(id: &str, log: &Log, opts: WorkerOpts) -> ChildSpec {
     let args = WorkerArgs {
         name: id.to_string(),
         log: log.clone(),
@@ -213,16 +213,16 @@ pub fn worker_with(id: &str, log: &Log, opts: WorkerOpts) -> ChildSpec {
     .with_shutdown(Shutdown::Timeout(Duration::from_secs(5)))
 }
 
-pub fn flag(initially: bool) -> Arc<AtomicBool> {
+pub(crate) fn flag(initially: bool) -> Arc<AtomicBool> {
     Arc::new(AtomicBool::new(initially))
 }
 
-pub fn counter(n: usize) -> Arc<AtomicUsize> {
+pub(crate) fn counter(n: usize) -> Arc<AtomicUsize> {
     Arc::new(AtomicUsize::new(n))
 }
 
 /// The running incarnation of child `id`.
-pub async fn running(sup: &SupervisorRef, id: &str) -> ActorCell {
+pub(crate) async fn running(sup: &SupervisorRef, id: &str) -> ActorCell {
     let children = sup.which_children().await.expect("supervisor answers");
     let child = children
         .iter()
@@ -237,25 +237,25 @@ pub async fn running(sup: &SupervisorRef, id: &str) -> ActorCell {
 
 /// Wait until `cell` has stopped. A crashed actor is reported to its supervisor a moment
 /// before ractor marks it stopped, so its status must be awaited, not asserted.
-pub async fn stopped(cell: &ActorCell) {
+pub(crate) async fn stopped(cell: &ActorCell) {
     cell.wait(Some(PATIENCE))
         .await
         .unwrap_or_else(|_| panic!("{cell:?} did not stop"));
 }
 
-pub fn send(cell: &ActorCell, msg: WorkerMsg) {
+pub(crate) fn send(cell: &ActorCell, msg: WorkerMsg) {
     ActorRef::<WorkerMsg>::from(cell.clone())
         .cast(msg)
         .expect("worker alive");
 }
 
 /// Make `cell` fail (an `Err` from its handler).
-pub fn crash(cell: &ActorCell) {
+pub(crate) fn crash(cell: &ActorCell) {
     send(cell, WorkerMsg::Fail);
 }
 
 /// The next event that satisfies `pred`, skipping others; panics after [`PATIENCE`].
-pub async fn wait_for(
+pub(crate) async fn wait_for(
     rx: &mut broadcast::Receiver<SupervisorEvent>,
     what: &str,
     pred: impl Fn(&SupervisorEvent) -> bool,
@@ -274,7 +274,10 @@ pub async fn wait_for(
 }
 
 /// Wait for the restart of child `id`; returns the new incarnation.
-pub async fn restarted(rx: &mut broadcast::Receiver<SupervisorEvent>, id: &str) -> ActorCell {
+pub(crate) async fn restarted(
+    rx: &mut broadcast::Receiver<SupervisorEvent>,
+    id: &str,
+) -> ActorCell {
     match wait_for(
         rx,
         &format!("restart of {id}"),
@@ -288,7 +291,7 @@ pub async fn restarted(rx: &mut broadcast::Receiver<SupervisorEvent>, id: &str) 
 }
 
 /// Collect events until (and including) the first that satisfies `last`.
-pub async fn events_until(
+pub(crate) async fn events_until(
     rx: &mut broadcast::Receiver<SupervisorEvent>,
     what: &str,
     last: impl Fn(&SupervisorEvent) -> bool,
@@ -317,9 +320,9 @@ pub async fn events_until(
 
 /// A parent that reports its children's exits: stands in for "the parent sees the supervisor
 /// fail".
-pub struct Probe;
+pub(crate) struct Probe;
 
-pub type Exits = mpsc::UnboundedReceiver<(ActorId, ExitReason)>;
+pub(crate) type Exits = mpsc::UnboundedReceiver<(ActorId, ExitReason)>;
 
 impl Actor for Probe {
     type Msg = ();
@@ -348,14 +351,14 @@ impl Actor for Probe {
 }
 
 /// A probe parent and the receiver of its children's exits.
-pub async fn probe() -> (ActorRef<()>, Exits) {
+pub(crate) async fn probe() -> (ActorRef<()>, Exits) {
     let (tx, rx) = mpsc::unbounded_channel();
     let (probe, _) = Actor::spawn(None, Probe, tx).await.expect("probe spawns");
     (probe, rx)
 }
 
 /// The exit reason of `who` as its probe parent saw it.
-pub async fn exit_of(exits: &mut Exits, who: ActorId) -> ExitReason {
+pub(crate) async fn exit_of(exits: &mut Exits, who: ActorId) -> ExitReason {
     let deadline = tokio::time::Instant::now() + PATIENCE;
     loop {
         match tokio::time::timeout_at(deadline, exits.recv()).await {
@@ -368,7 +371,7 @@ pub async fn exit_of(exits: &mut Exits, who: ActorId) -> ExitReason {
 }
 
 /// Start a supervisor linked to a fresh probe.
-pub async fn start_probed(
+pub(crate) async fn start_probed(
     spec: SupervisorSpec,
     children: Vec<ChildSpec>,
 ) -> (SupervisorRef, ActorRef<()>, Exits) {
@@ -382,7 +385,7 @@ pub async fn start_probed(
 
 /// The argument of one instance of the test template ([`template`]).
 #[derive(Clone, Default)]
-pub struct Inst {
+pub(crate) struct Inst {
     /// The worker's name in the log.
     pub name: String,
     /// While set, starts fail.
@@ -396,7 +399,7 @@ pub struct Inst {
 }
 
 impl Inst {
-    pub fn named(name: &str) -> Self {
+    pub(crate) fn named(name: &str) -> Self {
         Inst {
             name: name.to_string(),
             ..Default::default()
@@ -406,7 +409,7 @@ impl Inst {
 
 /// A simple-one-for-one template of permanent test workers (5 s shutdown) named "child",
 /// each started from an [`Inst`].
-pub fn template(log: &Log) -> ChildTemplate {
+pub(crate) fn template(log: &Log) -> ChildTemplate {
     let log = log.clone();
     ChildTemplate::worker("child", move |sup, inst: Inst| {
         let args = WorkerArgs {
@@ -435,17 +438,17 @@ pub fn template(log: &Log) -> ChildTemplate {
 }
 
 /// What the test tells a gated start to do.
-pub enum Verdict {
+pub(crate) enum Verdict {
     Start,
     Fail,
 }
 
 /// Starts waiting for a verdict: the child's id and where to send the verdict.
-pub type Gates = mpsc::UnboundedReceiver<(String, oneshot::Sender<Verdict>)>;
+pub(crate) type Gates = mpsc::UnboundedReceiver<(String, oneshot::Sender<Verdict>)>;
 
 /// A permanent worker whose every start asks the test (through `gates`) whether to start or
 /// fail: the test steps through a restart one start at a time (OTP's `supervisor_3`).
-pub fn gated(
+pub(crate) fn gated(
     id: &str,
     log: &Log,
     gates: &mpsc::UnboundedSender<(String, oneshot::Sender<Verdict>)>,
@@ -480,7 +483,7 @@ pub fn gated(
 }
 
 /// The next gated start; it must be `id`'s. Answer it with `verdict`.
-pub async fn answer(gates: &mut Gates, id: &str, verdict: Verdict) {
+pub(crate) async fn answer(gates: &mut Gates, id: &str, verdict: Verdict) {
     let (who, reply) = tokio::time::timeout(PATIENCE, gates.recv())
         .await
         .unwrap_or_else(|_| panic!("timed out waiting for the start of {id}"))

@@ -72,7 +72,7 @@ marie_actors::flags! {
 
 /// Plans a collision-free path from the cart to a goal on the world map and stores it in the
 /// parameter DM; finishes with `path-planned`, fails when there is no path.
-#[derive(Default)]
+#[derive(Debug, Default)]
 pub struct PathPlanner {
     cart: Option<CartClient>,
 }

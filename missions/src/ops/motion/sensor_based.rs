@@ -52,7 +52,7 @@ marie_actors::flags! {
 /// suspended — the corner mission's last two stages —, or cruises straight ahead until
 /// suspended (so that a sonar robot, which sees walls only by moving along them, can find
 /// one).
-#[derive(Default)]
+#[derive(Debug, Default)]
 pub struct SensorBasedController {
     cart: Option<CartClient>,
     aligned_steps: u32,

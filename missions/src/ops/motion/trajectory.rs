@@ -42,7 +42,7 @@ marie_actors::flags! {
 
 /// Drives the newest planned path with pure pursuit, leg by leg (changing direction between
 /// legs); finishes by itself with `path-driven`.
-#[derive(Default)]
+#[derive(Debug, Default)]
 pub struct TrajectoryController {
     cart: Option<CartClient>,
     params: Option<PursuitParams>,

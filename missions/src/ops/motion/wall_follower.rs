@@ -20,7 +20,7 @@ const STALL_DISTANCE: f64 = 0.1;
 
 /// What both wall followers do with the cart: a follow step and a stall check per control
 /// step, stop on suspension.
-#[derive(Default)]
+#[derive(Debug, Default)]
 struct Follower {
     cart: Option<CartClient>,
     stall: Stall,
@@ -45,7 +45,7 @@ impl Follower {
 }
 
 /// Watches that a follower's cart keeps moving.
-#[derive(Default)]
+#[derive(Debug, Default)]
 struct Stall {
     /// Where and when the cart last made progress.
     anchor: Option<(Pose, Duration)>,
@@ -81,7 +81,7 @@ marie_actors::params! {
 
 /// The wall follower, version 1: keeps the cart at `distance` from the followed wall, driving
 /// forwards, until suspended. One parameter.
-#[derive(Default)]
+#[derive(Debug, Default)]
 pub struct WallFollowerV1 {
     follower: Follower,
 }
@@ -144,7 +144,7 @@ marie_actors::params! {
 
 /// The wall follower, version 2: like version 1, and it can also keep to the middle of a
 /// corridor. Two parameters: same kind and id as version 1, another schema.
-#[derive(Default)]
+#[derive(Debug, Default)]
 pub struct WallFollowerV2 {
     follower: Follower,
 }
