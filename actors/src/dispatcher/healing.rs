@@ -437,11 +437,7 @@ impl DispatcherState {
         tokio::spawn(async move {
             match crate::provision::request(&name, &req).await {
                 Ok(node) => tracing::info!(op = %name, %node, "a stand-in is starting"),
-                Err(refusals) => tracing::warn!(
-                    op = %name,
-                    "no node can start a stand-in: {}",
-                    refusals.join("; ")
-                ),
+                Err(e) => tracing::warn!(op = %name, "no node can start a stand-in: {e}"),
             }
         });
     }
