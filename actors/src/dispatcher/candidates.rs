@@ -56,36 +56,63 @@ impl Candidate {
             uptime_ms: self.uptime_ms,
         }
     }
+
+    /// The candidate with what its general group says now: the epoch it accepted last,
+    /// its deadline, whether it is in use, its up-time.
+    pub(crate) fn refreshed(mut self, general: &General) -> Candidate {
+        self.epoch = general.epoch;
+        self.deadline = Duration::from_millis(general.deadline_ms.max(1));
+        self.in_use = general.in_use;
+        self.uptime_ms = general.uptime_ms;
+        self
+    }
+}
+
+/// Why an instance could not be looked at: it did not answer, or answered out of turn.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub(crate) enum ExamineError {
+    /// It did not answer within the time given, or is gone.
+    #[error(transparent)]
+    Unreachable(#[from] EoError),
+    /// It answered a group request with something else.
+    #[error("answered {answer:?} to the {group:?} group")]
+    Answer {
+        /// The group asked.
+        group: Group,
+        /// What came back.
+        answer: Box<PropertyReply>,
+    },
+}
+
+/// Ask `client` for its general group: epoch, deadline, in use, up-time.
+pub(crate) async fn general(client: &EoClient) -> Result<General, ExamineError> {
+    match client
+        .property(PropertyRequest::Group(Group::General))
+        .await?
+    {
+        PropertyReply::General(g) => Ok(g),
+        other => Err(ExamineError::Answer {
+            group: Group::General,
+            answer: Box::new(other),
+        }),
+    }
 }
 
 /// Ask `inst` who it is, what it takes and which epoch it is at; `timeout` bounds each request.
-pub(crate) async fn examine(inst: &Instance, timeout: Duration) -> Result<Candidate, String> {
+pub(crate) async fn examine(inst: &Instance, timeout: Duration) -> Result<Candidate, ExamineError> {
     let client = EoClient::from_cell(inst.actor.clone()).with_timeout(timeout);
-    let info = describe(client.clone()).await.map_err(|e| e.to_string())?;
-    let general = match client
-        .property(PropertyRequest::Group(Group::General))
-        .await
-        .map_err(|e| e.to_string())?
-    {
-        PropertyReply::General(g) => g,
-        other => return Err(format!("answered {other:?} to the general group")),
-    };
-    let General {
-        epoch,
-        deadline_ms,
-        in_use,
-        uptime_ms,
-        ..
-    } = general;
-    Ok(Candidate {
+    let info = describe(client.clone()).await?;
+    let general = general(&client).await?;
+    let cand = Candidate {
         info,
         client: client.with_timeout(EoClient::DEFAULT_TIMEOUT),
         node: inst.node.clone(),
-        epoch,
-        deadline: Duration::from_millis(deadline_ms.max(1)),
-        in_use,
-        uptime_ms,
-    })
+        epoch: 0,
+        deadline: Duration::ZERO,
+        in_use: false,
+        uptime_ms: 0,
+    };
+    Ok(cand.refreshed(&general))
 }
 
 /// Every live instance of `operation`, asked at once (selection needs them all), in

@@ -24,14 +24,27 @@ use crate::events::{BoundOp, BusError, Event, EventKind};
 use crate::property::PropertyRequest;
 use crate::provision::GRACE as PROVISION_GRACE;
 use crate::registry::{self, Instance, ModuleKind, RegistryEvent};
-use crate::run::LossCause;
-use crate::run::Verdict;
-use crate::run::{Outcome, RebindRecord};
+use crate::run::{Choice, LossCause, Outcome, RebindRecord, Verdict};
 use ractor::ActorRef;
 use std::time::Duration;
 
 /// How often bound operations are asked whether they still answer.
 const PROBE_PERIOD: Duration = Duration::from_millis(500);
+
+/// Why a run could not start: the run's reason (`run_ended`) says it in these words.
+#[derive(Debug, thiserror::Error)]
+pub(crate) enum StartError {
+    /// The registry's joins and leaves cannot be watched, so lost instances would go
+    /// unnoticed.
+    #[error("cannot watch the registry: {0}")]
+    Watch(#[source] ractor::SpawnErr),
+    /// No live instance of an operation fits the mission: the choice says why for each.
+    #[error("{}", .choice.why_none())]
+    NoInstance {
+        /// The choice that found nothing, every candidate with its reason.
+        choice: Choice,
+    },
+}
 
 impl DispatcherState {
     /// The lowest epoch this run binds under: its start in clock ms × 1000. A later run —
@@ -43,7 +56,7 @@ impl DispatcherState {
         (self.started.as_millis() as u64).saturating_mul(1000)
     }
 
-    pub(super) async fn bind(&mut self) -> Result<(), String> {
+    pub(super) async fn bind(&mut self) -> Result<(), StartError> {
         let names: Vec<String> = self
             .mission
             .operation_names()
@@ -58,7 +71,7 @@ impl DispatcherState {
                 choice: choice.clone(),
             });
             let Some(index) = chosen else {
-                return Err(choice.why_none());
+                return Err(StartError::NoInstance { choice });
             };
             let cand = cands.swap_remove(index);
             self.bindings
@@ -85,10 +98,10 @@ impl DispatcherState {
     pub(super) async fn watch_registry(
         &mut self,
         myself: &ActorRef<DispatcherMsg>,
-    ) -> Result<(), String> {
+    ) -> Result<(), StartError> {
         let mut watch = registry::watch(Some(ModuleKind::Operation))
             .await
-            .map_err(|e| format!("cannot watch the registry: {e}"))?;
+            .map_err(StartError::Watch)?;
         let (guard, mut gone) = tokio::sync::oneshot::channel::<()>();
         self._watch_guard = Some(guard);
         let me = myself.clone();
