@@ -8,6 +8,7 @@ use super::selection::{self, Need, Offer};
 use crate::eo::{EoClient, EoError};
 use crate::property::{General, Group, PropertyReply, PropertyRequest};
 use crate::registry::Instance;
+use ractor::ActorId;
 use std::time::Duration;
 
 /// Describe one operation through its property interface.
@@ -31,6 +32,7 @@ pub async fn describe(client: EoClient) -> Result<OpInfo, EoError> {
 }
 
 /// A live instance the dispatcher looked at through its property interface.
+#[derive(Clone, Debug)]
 pub(crate) struct Candidate {
     pub(crate) info: OpInfo,
     pub(crate) client: EoClient,
@@ -115,21 +117,37 @@ pub(crate) async fn examine(inst: &Instance, timeout: Duration) -> Result<Candid
     Ok(cand.refreshed(&general))
 }
 
+/// The instances of an operation found in the registry, and those of them that answered.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Examined {
+    /// Every instance the registry listed, answered or not.
+    pub(crate) seen: Vec<ActorId>,
+    /// The instances that answered, in registry order.
+    pub(crate) found: Vec<Candidate>,
+}
+
 /// Every live instance of `operation`, asked at once (selection needs them all), in
-/// registry order; those that do not answer within `timeout` are left out.
-pub(crate) async fn candidates(operation: &str, timeout: Duration) -> Vec<Candidate> {
-    let found = crate::registry::lookup(crate::registry::ModuleKind::Operation, operation);
-    examine_all(operation, found, timeout).await
+/// registry order; those that do not answer within `timeout` are left out of `found`.
+pub(crate) async fn candidates(operation: &str, timeout: Duration) -> Examined {
+    let listed = crate::registry::lookup(crate::registry::ModuleKind::Operation, operation);
+    let seen = listed.iter().map(Instance::actor_id).collect();
+    let found = examine_all(operation, listed, timeout).await;
+    Examined { seen, found }
 }
 
 /// Every live instance of the operation `need` names, asked at once, and the choice among
 /// them for `need` on this node — what binding, surveying and validating a mission share,
 /// so the instance a mission is checked against is the one it binds.
-pub(crate) async fn select(need: &Need, timeout: Duration) -> (Vec<Candidate>, crate::run::Choice) {
-    let found = candidates(&need.operation, timeout).await;
+pub(crate) async fn select(need: &Need, timeout: Duration) -> (Examined, crate::run::Choice) {
+    let examined = candidates(&need.operation, timeout).await;
+    let choice = choose(need, &examined.found);
+    (examined, choice)
+}
+
+/// The choice among `found` for `need` on this node.
+pub(crate) fn choose(need: &Need, found: &[Candidate]) -> crate::run::Choice {
     let offers: Vec<Offer> = found.iter().map(Candidate::offer).collect();
-    let choice = selection::choose(need, &offers, &crate::registry::local_node_name());
-    (found, choice)
+    selection::choose(need, &offers, &crate::registry::local_node_name())
 }
 
 /// Every instance of `found` (of `operation`), asked at once, in the given order; those

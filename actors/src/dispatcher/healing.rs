@@ -56,6 +56,11 @@ impl DispatcherState {
         (self.started.as_millis() as u64).saturating_mul(1000)
     }
 
+    /// Bind every operation of the mission, in order of first use, and tell each choice
+    /// (`selected`) and the bindings (`bound`) on the bus. An operation the mission's check
+    /// chose an instance for is bound to it as it is now, unless an instance changed since
+    /// ([`super::checked`]); the others — and those — are selected among every live
+    /// instance, as the check would have.
     pub(super) async fn bind(&mut self) -> Result<(), StartError> {
         let names: Vec<String> = self
             .mission
@@ -63,17 +68,41 @@ impl DispatcherState {
             .into_iter()
             .map(str::to_string)
             .collect();
+        // used once: a mission's run binds what its check chose, never a later run's
+        let checked = std::mem::take(&mut self.mission.checked);
         for key in names {
             let need = self.mission.need(&key);
-            let (mut cands, choice) = select(&need, crate::eo::EoClient::DEFAULT_TIMEOUT).await;
-            let chosen = choice.chosen_index();
-            self.emit(EventKind::Selected {
-                choice: choice.clone(),
-            });
-            let Some(index) = chosen else {
-                return Err(StartError::NoInstance { choice });
+            let held = match checked.get(&key) {
+                None => None,
+                Some(choice) => match choice.confirm(&need).await {
+                    Ok(cand) => Some((cand, choice.choice().clone())),
+                    Err(changed) => {
+                        tracing::info!(op = %key, %changed, "the check's choice no longer holds; selecting again");
+                        None
+                    }
+                },
             };
-            let cand = cands.swap_remove(index);
+            let (cand, choice) = match held {
+                Some(held) => held,
+                None => {
+                    let (found, choice) = select(&need, crate::eo::EoClient::DEFAULT_TIMEOUT).await;
+                    let Some(index) = choice.chosen_index() else {
+                        self.emit(EventKind::Selected {
+                            choice: choice.clone(),
+                        });
+                        return Err(StartError::NoInstance { choice });
+                    };
+                    (
+                        found
+                            .found
+                            .into_iter()
+                            .nth(index)
+                            .expect("chosen among found"),
+                        choice,
+                    )
+                }
+            };
+            self.emit(EventKind::Selected { choice });
             self.bindings
                 .insert(key, Binding::new(cand, self.epoch_base(), need));
         }
