@@ -247,12 +247,12 @@ impl Actor for ActionDispatcher {
                     actions: state.mission.plan(),
                     success: state.mission.flags_to_names(state.mission.success),
                 });
-                if let Err(reason) = state.watch_registry(&myself).await {
-                    state.finish(&myself, Outcome::Failed, reason);
+                if let Err(e) = state.watch_registry(&myself).await {
+                    state.finish(&myself, Outcome::Failed, e.to_string());
                     return Ok(());
                 }
-                if let Err(reason) = state.bind().await {
-                    state.finish(&myself, Outcome::Failed, reason);
+                if let Err(e) = state.bind().await {
+                    state.finish(&myself, Outcome::Failed, e.to_string());
                     return Ok(());
                 }
                 state.probe(&myself);

@@ -8,6 +8,7 @@ use super::selection::{self, Need, Offer};
 use crate::eo::{EoClient, EoError};
 use crate::property::{General, Group, PropertyReply, PropertyRequest};
 use crate::registry::Instance;
+use ractor::ActorId;
 use std::time::Duration;
 
 /// Describe one operation through its property interface.
@@ -31,6 +32,7 @@ pub async fn describe(client: EoClient) -> Result<OpInfo, EoError> {
 }
 
 /// A live instance the dispatcher looked at through its property interface.
+#[derive(Clone, Debug)]
 pub(crate) struct Candidate {
     pub(crate) info: OpInfo,
     pub(crate) client: EoClient,
@@ -56,53 +58,96 @@ impl Candidate {
             uptime_ms: self.uptime_ms,
         }
     }
+
+    /// The candidate with what its general group says now: the epoch it accepted last,
+    /// its deadline, whether it is in use, its up-time.
+    pub(crate) fn refreshed(mut self, general: &General) -> Candidate {
+        self.epoch = general.epoch;
+        self.deadline = Duration::from_millis(general.deadline_ms.max(1));
+        self.in_use = general.in_use;
+        self.uptime_ms = general.uptime_ms;
+        self
+    }
+}
+
+/// Why an instance could not be looked at: it did not answer, or answered out of turn.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub(crate) enum ExamineError {
+    /// It did not answer within the time given, or is gone.
+    #[error(transparent)]
+    Unreachable(#[from] EoError),
+    /// It answered a group request with something else.
+    #[error("answered {answer:?} to the {group:?} group")]
+    Answer {
+        /// The group asked.
+        group: Group,
+        /// What came back.
+        answer: Box<PropertyReply>,
+    },
+}
+
+/// Ask `client` for its general group: epoch, deadline, in use, up-time.
+pub(crate) async fn general(client: &EoClient) -> Result<General, ExamineError> {
+    match client
+        .property(PropertyRequest::Group(Group::General))
+        .await?
+    {
+        PropertyReply::General(g) => Ok(g),
+        other => Err(ExamineError::Answer {
+            group: Group::General,
+            answer: Box::new(other),
+        }),
+    }
 }
 
 /// Ask `inst` who it is, what it takes and which epoch it is at; `timeout` bounds each request.
-pub(crate) async fn examine(inst: &Instance, timeout: Duration) -> Result<Candidate, String> {
+pub(crate) async fn examine(inst: &Instance, timeout: Duration) -> Result<Candidate, ExamineError> {
     let client = EoClient::from_cell(inst.actor.clone()).with_timeout(timeout);
-    let info = describe(client.clone()).await.map_err(|e| e.to_string())?;
-    let general = match client
-        .property(PropertyRequest::Group(Group::General))
-        .await
-        .map_err(|e| e.to_string())?
-    {
-        PropertyReply::General(g) => g,
-        other => return Err(format!("answered {other:?} to the general group")),
-    };
-    let General {
-        epoch,
-        deadline_ms,
-        in_use,
-        uptime_ms,
-        ..
-    } = general;
-    Ok(Candidate {
+    let info = describe(client.clone()).await?;
+    let general = general(&client).await?;
+    let cand = Candidate {
         info,
         client: client.with_timeout(EoClient::DEFAULT_TIMEOUT),
         node: inst.node.clone(),
-        epoch,
-        deadline: Duration::from_millis(deadline_ms.max(1)),
-        in_use,
-        uptime_ms,
-    })
+        epoch: 0,
+        deadline: Duration::ZERO,
+        in_use: false,
+        uptime_ms: 0,
+    };
+    Ok(cand.refreshed(&general))
+}
+
+/// The instances of an operation found in the registry, and those of them that answered.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Examined {
+    /// Every instance the registry listed, answered or not.
+    pub(crate) seen: Vec<ActorId>,
+    /// The instances that answered, in registry order.
+    pub(crate) found: Vec<Candidate>,
 }
 
 /// Every live instance of `operation`, asked at once (selection needs them all), in
-/// registry order; those that do not answer within `timeout` are left out.
-pub(crate) async fn candidates(operation: &str, timeout: Duration) -> Vec<Candidate> {
-    let found = crate::registry::lookup(crate::registry::ModuleKind::Operation, operation);
-    examine_all(operation, found, timeout).await
+/// registry order; those that do not answer within `timeout` are left out of `found`.
+pub(crate) async fn candidates(operation: &str, timeout: Duration) -> Examined {
+    let listed = crate::registry::lookup(crate::registry::ModuleKind::Operation, operation);
+    let seen = listed.iter().map(Instance::actor_id).collect();
+    let found = examine_all(operation, listed, timeout).await;
+    Examined { seen, found }
 }
 
 /// Every live instance of the operation `need` names, asked at once, and the choice among
 /// them for `need` on this node — what binding, surveying and validating a mission share,
 /// so the instance a mission is checked against is the one it binds.
-pub(crate) async fn select(need: &Need, timeout: Duration) -> (Vec<Candidate>, crate::run::Choice) {
-    let found = candidates(&need.operation, timeout).await;
+pub(crate) async fn select(need: &Need, timeout: Duration) -> (Examined, crate::run::Choice) {
+    let examined = candidates(&need.operation, timeout).await;
+    let choice = choose(need, &examined.found);
+    (examined, choice)
+}
+
+/// The choice among `found` for `need` on this node.
+pub(crate) fn choose(need: &Need, found: &[Candidate]) -> crate::run::Choice {
     let offers: Vec<Offer> = found.iter().map(Candidate::offer).collect();
-    let choice = selection::choose(need, &offers, &crate::registry::local_node_name());
-    (found, choice)
+    selection::choose(need, &offers, &crate::registry::local_node_name())
 }
 
 /// Every instance of `found` (of `operation`), asked at once, in the given order; those

@@ -1,7 +1,8 @@
 //! A mission [`Catalog`] built from the live registry and the property interface.
 
-use super::candidates::{describe, select};
-use super::mission::{Catalog, OpInfo, ParsedMission};
+use super::candidates::{describe, select, Examined};
+use super::checked::CheckedChoices;
+use super::mission::{Catalog, Mission, OpInfo, ParsedMission};
 use crate::eo::{EoClient, EoError};
 use crate::registry::{self, ModuleKind};
 use std::collections::BTreeMap;
@@ -16,6 +17,9 @@ pub struct RegistryCatalog {
     names: Vec<String>,
     /// Operations with live instances none of which fits the mission, and why.
     unfit: BTreeMap<String, String>,
+    /// What [`RegistryCatalog::for_mission`] found of each mission key: the instances the
+    /// registry listed and those that answered — the check's choices are made among them.
+    examined: BTreeMap<String, Examined>,
 }
 
 impl RegistryCatalog {
@@ -43,6 +47,7 @@ impl RegistryCatalog {
             ops,
             names,
             unfit: BTreeMap::new(),
+            examined: BTreeMap::new(),
         })
     }
 
@@ -59,21 +64,32 @@ impl RegistryCatalog {
     /// instance asked, the best fit for what the mission supplies and requires) — so that
     /// a mission is validated against the instance that will run it. When none fits, the
     /// first instance is described, and validation names what it refuses.
+    ///
+    /// The mission validated against this catalog carries the choices made here to its
+    /// dispatcher ([`Mission::checked`]), which binds them without asking every instance
+    /// again unless one changed since ([`CheckedChoices`]).
     pub async fn for_mission(mission: &ParsedMission) -> Result<Self, EoError> {
         let mut ops = BTreeMap::new();
         let mut unfit = BTreeMap::new();
+        let mut examined = BTreeMap::new();
         for key in mission.ops() {
             let (found, choice) = select(&mission.need(key), EoClient::DEFAULT_TIMEOUT).await;
-            if !found.is_empty() && choice.chosen_index().is_none() {
+            if !found.found.is_empty() && choice.chosen_index().is_none() {
                 unfit.insert(key.to_string(), choice.why_none());
             }
             let pick = choice.chosen_index().unwrap_or(0);
-            if let Some(cand) = found.into_iter().nth(pick) {
-                ops.insert(key.to_string(), cand.info);
+            if let Some(cand) = found.found.get(pick) {
+                ops.insert(key.to_string(), cand.info.clone());
             }
+            examined.insert(key.to_string(), found);
         }
         let names = running_names();
-        Ok(RegistryCatalog { ops, names, unfit })
+        Ok(RegistryCatalog {
+            ops,
+            names,
+            unfit,
+            examined,
+        })
     }
 }
 
@@ -95,5 +111,9 @@ impl Catalog for RegistryCatalog {
 
     fn names(&self) -> Vec<String> {
         self.names.clone()
+    }
+
+    fn checked(&self, mission: &Mission) -> CheckedChoices {
+        CheckedChoices::gather(mission, &self.examined)
     }
 }

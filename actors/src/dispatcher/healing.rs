@@ -24,14 +24,27 @@ use crate::events::{BoundOp, BusError, Event, EventKind};
 use crate::property::PropertyRequest;
 use crate::provision::GRACE as PROVISION_GRACE;
 use crate::registry::{self, Instance, ModuleKind, RegistryEvent};
-use crate::run::LossCause;
-use crate::run::Verdict;
-use crate::run::{Outcome, RebindRecord};
+use crate::run::{Choice, LossCause, Outcome, RebindRecord, Verdict};
 use ractor::ActorRef;
 use std::time::Duration;
 
 /// How often bound operations are asked whether they still answer.
 const PROBE_PERIOD: Duration = Duration::from_millis(500);
+
+/// Why a run could not start: the run's reason (`run_ended`) says it in these words.
+#[derive(Debug, thiserror::Error)]
+pub(crate) enum StartError {
+    /// The registry's joins and leaves cannot be watched, so lost instances would go
+    /// unnoticed.
+    #[error("cannot watch the registry: {0}")]
+    Watch(#[source] ractor::SpawnErr),
+    /// No live instance of an operation fits the mission: the choice says why for each.
+    #[error("{}", .choice.why_none())]
+    NoInstance {
+        /// The choice that found nothing, every candidate with its reason.
+        choice: Choice,
+    },
+}
 
 impl DispatcherState {
     /// The lowest epoch this run binds under: its start in clock ms × 1000. A later run —
@@ -43,24 +56,53 @@ impl DispatcherState {
         (self.started.as_millis() as u64).saturating_mul(1000)
     }
 
-    pub(super) async fn bind(&mut self) -> Result<(), String> {
+    /// Bind every operation of the mission, in order of first use, and tell each choice
+    /// (`selected`) and the bindings (`bound`) on the bus. An operation the mission's check
+    /// chose an instance for is bound to it as it is now, unless an instance changed since
+    /// ([`super::checked`]); the others — and those — are selected among every live
+    /// instance, as the check would have.
+    pub(super) async fn bind(&mut self) -> Result<(), StartError> {
         let names: Vec<String> = self
             .mission
             .operation_names()
             .into_iter()
             .map(str::to_string)
             .collect();
+        // used once: a mission's run binds what its check chose, never a later run's
+        let checked = std::mem::take(&mut self.mission.checked);
         for key in names {
             let need = self.mission.need(&key);
-            let (mut cands, choice) = select(&need, crate::eo::EoClient::DEFAULT_TIMEOUT).await;
-            let chosen = choice.chosen_index();
-            self.emit(EventKind::Selected {
-                choice: choice.clone(),
-            });
-            let Some(index) = chosen else {
-                return Err(choice.why_none());
+            let held = match checked.get(&key) {
+                None => None,
+                Some(choice) => match choice.confirm(&need).await {
+                    Ok(cand) => Some((cand, choice.choice().clone())),
+                    Err(changed) => {
+                        tracing::info!(op = %key, %changed, "the check's choice no longer holds; selecting again");
+                        None
+                    }
+                },
             };
-            let cand = cands.swap_remove(index);
+            let (cand, choice) = match held {
+                Some(held) => held,
+                None => {
+                    let (found, choice) = select(&need, crate::eo::EoClient::DEFAULT_TIMEOUT).await;
+                    let Some(index) = choice.chosen_index() else {
+                        self.emit(EventKind::Selected {
+                            choice: choice.clone(),
+                        });
+                        return Err(StartError::NoInstance { choice });
+                    };
+                    (
+                        found
+                            .found
+                            .into_iter()
+                            .nth(index)
+                            .expect("chosen among found"),
+                        choice,
+                    )
+                }
+            };
+            self.emit(EventKind::Selected { choice });
             self.bindings
                 .insert(key, Binding::new(cand, self.epoch_base(), need));
         }
@@ -85,10 +127,10 @@ impl DispatcherState {
     pub(super) async fn watch_registry(
         &mut self,
         myself: &ActorRef<DispatcherMsg>,
-    ) -> Result<(), String> {
+    ) -> Result<(), StartError> {
         let mut watch = registry::watch(Some(ModuleKind::Operation))
             .await
-            .map_err(|e| format!("cannot watch the registry: {e}"))?;
+            .map_err(StartError::Watch)?;
         let (guard, mut gone) = tokio::sync::oneshot::channel::<()>();
         self._watch_guard = Some(guard);
         let me = myself.clone();
@@ -437,11 +479,7 @@ impl DispatcherState {
         tokio::spawn(async move {
             match crate::provision::request(&name, &req).await {
                 Ok(node) => tracing::info!(op = %name, %node, "a stand-in is starting"),
-                Err(refusals) => tracing::warn!(
-                    op = %name,
-                    "no node can start a stand-in: {}",
-                    refusals.join("; ")
-                ),
+                Err(e) => tracing::warn!(op = %name, "no node can start a stand-in: {e}"),
             }
         });
     }

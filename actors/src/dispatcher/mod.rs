@@ -1,9 +1,11 @@
 //! Missions and the action dispatcher.
 //!
 //! A [`mission::Mission`] is a task tree loaded from TOML and checked against the operations
-//! that are actually running ([`RegistryCatalog`]). An [`ActionDispatcher`] runs it: every
-//! step is an event on the node's [`EventBus`](crate::events::EventBus), and the run's
-//! report is those events folded ([`crate::report`]).
+//! that are actually running ([`RegistryCatalog`]), carrying the instances that check chose
+//! ([`CheckedChoices`]). An [`ActionDispatcher`] runs it, binding those choices unless an
+//! instance changed since: every step is an event on the node's
+//! [`EventBus`](crate::events::EventBus), and the run's report is those events folded
+//! ([`crate::report`]).
 //!
 //! This is the low layer. An application runs missions on a node
 //! (`marie_cluster::node::Node::run`), which adds what a run needs around the dispatcher:
@@ -16,6 +18,7 @@ mod assembly;
 mod binding;
 mod candidates;
 mod catalog;
+mod checked;
 mod healing;
 mod messages;
 pub mod mission;
@@ -30,5 +33,6 @@ pub use actor::{
 };
 pub use candidates::describe;
 pub use catalog::RegistryCatalog;
+pub use checked::CheckedChoices;
 pub use messages::DispatcherMsg;
 pub use survey::{survey, Survey};

@@ -42,7 +42,7 @@
 //! ```
 
 use super::mission::operations::OpInfo;
-use crate::property::{ParamMap, Value};
+use crate::property::{ParamMap, Rejection, Value};
 use crate::run::{Candidate, Choice, Verdict};
 use semver::{Version, VersionReq};
 use std::cmp::Ordering;
@@ -146,27 +146,61 @@ impl Offer {
     }
 }
 
+/// Why the mission cannot use an instance: what [`admits`] finds, and what a candidate's
+/// [`Verdict::Rejected`] says in words (the same words the check and the report show).
+#[derive(Debug, thiserror::Error)]
+pub enum Inadmissible {
+    /// The instance's version is not a semantic version, so no requirement can match it.
+    #[error("its version `{version}` is not semver: {error}")]
+    NotSemver {
+        /// The version as the instance declares it.
+        version: String,
+        /// Why it does not parse.
+        error: semver::Error,
+    },
+    /// The instance's version is outside the mission's `[requires]`.
+    #[error("its version {version} does not match the mission's requirement {required}")]
+    Version {
+        /// The instance's version.
+        version: Version,
+        /// What the mission requires.
+        required: VersionReq,
+    },
+    /// The instance's schema refuses a parameter the mission supplies (an unknown name, a
+    /// wrong type, a value out of range).
+    #[error("its schema refuses what the mission supplies: {}", list(.rejections))]
+    Schema {
+        /// Every value refused, with why.
+        rejections: Vec<Rejection>,
+    },
+}
+
+/// Rejections joined as one sentence.
+fn list(rejections: &[Rejection]) -> String {
+    let list: Vec<String> = rejections.iter().map(Rejection::to_string).collect();
+    list.join("; ")
+}
+
 /// Whether the mission can use an instance described by `info`: the version it requires,
-/// and every parameter it supplies accepted by the schema (names, types, ranges). The
-/// reason when not.
-pub fn admits(need: &Need, info: &OpInfo) -> Result<(), String> {
+/// and every parameter it supplies accepted by the schema (names, types, ranges). What
+/// stands in the way when not.
+pub fn admits(need: &Need, info: &OpInfo) -> Result<(), Inadmissible> {
     if let Some(req) = &need.version {
-        let version = Version::parse(&info.version)
-            .map_err(|e| format!("its version `{}` is not semver: {e}", info.version))?;
+        let version = Version::parse(&info.version).map_err(|error| Inadmissible::NotSemver {
+            version: info.version.clone(),
+            error,
+        })?;
         if !req.matches(&version) {
-            return Err(format!(
-                "its version {version} does not match the mission's requirement {req}"
-            ));
+            return Err(Inadmissible::Version {
+                version,
+                required: req.clone(),
+            });
         }
     }
     let defaults = info.schema.defaults();
     for supplied in &need.supplied {
         if let Err(rejections) = info.schema.apply(&defaults, supplied, false) {
-            let list: Vec<String> = rejections.iter().map(|r| r.to_string()).collect();
-            return Err(format!(
-                "its schema refuses what the mission supplies: {}",
-                list.join("; ")
-            ));
+            return Err(Inadmissible::Schema { rejections });
         }
     }
     Ok(())
@@ -186,7 +220,8 @@ fn unsupplied<'a>(need: &Need, info: &'a OpInfo) -> Vec<&'a str> {
 /// Choose among `offers` for `need`, preferring instances on node `here`; see the module
 /// docs for the order.
 pub fn choose(need: &Need, offers: &[Offer], here: &str) -> Choice {
-    let admitted: Vec<Result<(), String>> = offers.iter().map(|o| admits(need, &o.info)).collect();
+    let admitted: Vec<Result<(), Inadmissible>> =
+        offers.iter().map(|o| admits(need, &o.info)).collect();
     let key = |o: &Offer| (unsupplied(need, &o.info).len(), o.in_use, o.node != here);
     let better = |a: &Offer, b: &Offer| -> Ordering {
         key(a)
@@ -201,8 +236,8 @@ pub fn choose(need: &Need, offers: &[Offer], here: &str) -> Choice {
         .enumerate()
         .map(|(i, o)| {
             let verdict = match (&admitted[i], best) {
-                (Err(reason), _) => Verdict::Rejected {
-                    reason: reason.clone(),
+                (Err(why), _) => Verdict::Rejected {
+                    reason: why.to_string(),
                 },
                 (Ok(()), Some(b)) if b == i => Verdict::Chosen,
                 (Ok(()), Some(b)) => Verdict::Lost {
@@ -361,7 +396,24 @@ mod tests {
     #[test]
     fn a_stand_in_is_admitted_only_if_the_mission_could_have_chosen_it() {
         assert!(admits(&corridor(), &v2()).is_ok());
-        assert!(admits(&corridor(), &v1()).is_err());
+        assert!(matches!(
+            admits(&corridor(), &v1()),
+            Err(Inadmissible::Schema { rejections }) if rejections[0].name == "mode"
+        ));
         assert!(admits(&distance(), &v1()).is_ok());
+        let two = distance().version(VersionReq::parse("^2").unwrap());
+        let Err(why) = admits(&two, &v1()) else {
+            panic!("version 1 admitted for ^2")
+        };
+        assert!(matches!(&why, Inadmissible::Version { version, .. } if version.major == 1));
+        assert_eq!(
+            why.to_string(),
+            "its version 1.0.0 does not match the mission's requirement ^2"
+        );
+        let odd = OpInfo::new("wall-follower", 1514, "one");
+        assert!(matches!(
+            admits(&two, &odd),
+            Err(Inadmissible::NotSemver { version, .. }) if version == "one"
+        ));
     }
 }

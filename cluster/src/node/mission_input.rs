@@ -14,7 +14,8 @@ pub enum MissionInput {
     Built(MissionBuilder),
     /// Parsed, not yet checked against what runs.
     Parsed(ParsedMission),
-    /// Checked: it runs as it is.
+    /// Checked: it runs as it is, with the choices its check made
+    /// ([`Mission::checked`]): the dispatcher binds them unless an instance changed since.
     Checked(Mission),
 }
 
@@ -49,7 +50,8 @@ impl From<Mission> for MissionInput {
 }
 
 impl Node {
-    /// The mission `input` stands for, checked against the running instances.
+    /// The mission `input` stands for, checked against the running instances — carrying
+    /// the check's choices, so that the run selects once.
     pub(super) async fn resolve(&self, input: MissionInput) -> Result<Mission, NodeError> {
         let parsed = match input {
             MissionInput::Checked(m) => return Ok(m),

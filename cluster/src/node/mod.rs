@@ -393,7 +393,11 @@ impl Node {
     }
 
     /// Check a parsed mission against the operations running now (stage 2 of
-    /// [`marie_actors::dispatcher::mission`]).
+    /// [`marie_actors::dispatcher::mission`]). Every live instance of every operation is
+    /// asked and chosen among; the mission carries those choices
+    /// ([`Mission::checked`]) to its run, which binds them unless an instance changed
+    /// since (the chosen one gone, busy or silent, a new one of that operation) — so a
+    /// checked mission is not selected again at its run.
     pub async fn check_mission(&self, parsed: &ParsedMission) -> Result<Mission, NodeError> {
         let catalog = RegistryCatalog::for_mission(parsed).await?;
         let mission = parsed.validate(&catalog).map_err(NodeError::Mission)?;

@@ -6,7 +6,7 @@ use super::tree;
 use super::{NodeError, OperationConfig};
 use marie_actors::clock::SharedClock;
 use marie_actors::eo::{HostOptions, OperationFactory};
-use marie_actors::provision::{self, ProvisionMsg};
+use marie_actors::provision::{self, ProvisionMsg, Refusal};
 use marie_supervision::{ChildSpec, SupervisorRef};
 use ractor::{Actor, ActorCell, ActorProcessingErr, ActorRef};
 
@@ -108,10 +108,26 @@ impl Actor for Provisioner {
             reply,
         } = msg;
         let answer = match semver::VersionReq::parse(&version) {
-            Err(e) => Err(format!("`{version}` is not a version requirement: {e}")),
+            Err(e) => Err(Refusal::Requirement {
+                requirement: version,
+                reason: e.to_string(),
+            }),
             Ok(req) => match starter.start(&operation, &req).await {
                 Ok(_) => Ok(starter.node.clone()),
-                Err(e) => Err(e.to_string()),
+                Err(NodeError::NotAllowed {
+                    node,
+                    operation,
+                    allowed,
+                }) => Err(Refusal::NotAllowed {
+                    node,
+                    operation,
+                    allowed,
+                }),
+                Err(e) => Err(Refusal::Failed {
+                    node: starter.node.clone(),
+                    operation: format!("{operation}@{req}"),
+                    reason: e.to_string(),
+                }),
             },
         };
         let _ = reply.send(answer);

@@ -121,7 +121,9 @@ impl Node {
     /// already checked [`Mission`]. Text and built missions are checked against the
     /// instances that run first; a mission that does not fit is refused with its
     /// diagnostics ([`NodeError::Mission`]), a fault that names nothing with why
-    /// ([`NodeError::Fault`]) — before anything runs.
+    /// ([`NodeError::Fault`]) — before anything runs. The run binds the instances the
+    /// check chose, re-selecting only an operation whose instances changed since
+    /// ([`Mission::checked`]).
     ///
     /// The report is the run's events folded (see the module docs): with a
     /// [`Robot`](super::Robot), its judgement too (for the simulated cart its final pose,

@@ -149,6 +149,7 @@ pub use crate::diagnostic::{Diagnostic, Diagnostics, LineIndex, Pos};
 pub use builder::{ActionBuilder, MissionBuilder, BUILT};
 pub use operations::{Catalog, OpInfo, StaticCatalog};
 
+use super::checked::CheckedChoices;
 use crate::flags::StatusFlags;
 use crate::property::ParamMap;
 use serde::{Deserialize, Serialize};
@@ -254,6 +255,10 @@ pub struct Mission {
     /// instance of a matching version is chosen, or stands in after a failure.
     #[serde(default)]
     pub requires: BTreeMap<String, semver::VersionReq>,
+    /// The choices the check against the running instances made, handed to the dispatcher
+    /// so that the run selects once ([`Mission::checked`]). Never serialized.
+    #[serde(skip)]
+    pub(crate) checked: CheckedChoices,
 }
 
 /// How long a lost operation may stay unbound when the mission does not say.
@@ -336,6 +341,21 @@ impl Mission {
             .map(|o| o.name.as_str())
             .filter(|n| seen.insert(*n))
             .collect()
+    }
+
+    /// The choices its check against the running instances made, one per operation:
+    /// the dispatcher binds them as they are unless an instance changed since (see
+    /// [`crate::dispatcher::CheckedChoices`]). Empty for a mission validated against a
+    /// [`StaticCatalog`] or read back from JSON — its run selects every operation.
+    pub fn checked(&self) -> &CheckedChoices {
+        &self.checked
+    }
+
+    /// The mission without its check's choices: its run selects every operation among
+    /// the instances that run then, as if it had not been checked.
+    pub fn unchecked(mut self) -> Mission {
+        self.checked = CheckedChoices::default();
+        self
     }
 
     /// What the mission needs of operation `name`: the parameters each action supplies to

@@ -3,6 +3,8 @@
 //! the live registry's ([`crate::dispatcher::RegistryCatalog`]) or a fixed list
 //! ([`StaticCatalog`]).
 
+use super::Mission;
+use crate::dispatcher::CheckedChoices;
 use crate::eo::{Identity, Operation};
 use crate::flags::FlagDecl;
 use crate::property::ParamSchema;
@@ -78,6 +80,13 @@ pub trait Catalog {
     fn operation(&self, key: &str) -> Option<OpInfo>;
     /// The names of every available operation, for "available: ..." hints.
     fn names(&self) -> Vec<String>;
+    /// The choices made among running instances while this catalog was gathered, for the
+    /// validated `mission` to carry to its dispatcher ([`Mission::checked`]): none unless
+    /// the catalog asked the running instances (`RegistryCatalog::for_mission`).
+    fn checked(&self, mission: &Mission) -> CheckedChoices {
+        let _ = mission;
+        CheckedChoices::default()
+    }
 }
 
 /// A fixed list of operations, looked up by name or by id: for tests and for checking a

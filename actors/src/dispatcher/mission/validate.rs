@@ -91,8 +91,15 @@ pub(crate) fn validate<C: Catalog + ?Sized>(
         actions,
         world: pm.world.clone(),
         requires,
+        checked: Default::default(),
     };
-    Diagnostics(v.diags).into_result(mission)
+    Diagnostics(v.diags)
+        .into_result(mission)
+        .map(|mut mission| {
+            // what a check against the running instances chose, for the dispatcher to bind
+            mission.checked = catalog.checked(&mission);
+            mission
+        })
 }
 
 fn bits(bits: impl Iterator<Item = u8>) -> StatusFlags {
