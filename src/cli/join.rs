@@ -43,7 +43,7 @@ pub(crate) struct JoinArgs {
 
 /// Where and how a command joins a running cluster.
 #[derive(Debug, Clone)]
-pub(crate) struct Target {
+pub(crate) struct ClusterEntry {
     /// Any node of the cluster.
     pub addr: SocketAddr,
     /// The cluster's cookie.
@@ -54,7 +54,7 @@ pub(crate) struct Target {
 
 impl JoinArgs {
     /// Where to join, when `--join` was given.
-    pub(crate) fn target(&self) -> Option<Target> {
+    pub(crate) fn target(&self) -> Option<ClusterEntry> {
         let tls = match (&self.tls_cert, &self.tls_key, &self.tls_ca) {
             (Some(cert), Some(key), Some(ca)) => Some(TlsFiles {
                 cert: cert.clone(),
@@ -64,7 +64,7 @@ impl JoinArgs {
             }),
             _ => None,
         };
-        Some(Target {
+        Some(ClusterEntry {
             addr: self.join?,
             cookie: self.cookie.clone()?,
             tls,
@@ -104,7 +104,7 @@ impl JoinArgs {
         &self,
         robot: &RobotArgs,
         acts: &str,
-    ) -> Result<Option<Target>, BadInput> {
+    ) -> Result<Option<ClusterEntry>, BadInput> {
         match self.target() {
             Some(_) if robot.node.is_some() || robot.world.is_some() => Err(BadInput(format!(
                 "--join {acts} a running cluster: --node and --world start a node of their own"
@@ -122,7 +122,7 @@ pub(crate) fn member_name(verb: &str) -> String {
 /// Join the cluster at `target` as member `me` (listening on a free port of the address
 /// it dials from): wait for the node dialed and the members behind it, say on stderr whom
 /// it sees.
-pub(crate) async fn join(me: &str, target: &Target) -> anyhow::Result<Transport> {
+pub(crate) async fn join(me: &str, target: &ClusterEntry) -> anyhow::Result<Transport> {
     let addr = target.addr;
     let any_port = SocketAddr::new(local_ip_towards(addr), 0);
     let mut config = ClusterConfig::new(any_port, target.cookie.clone()).with_peer(addr);
@@ -182,7 +182,7 @@ pub(crate) struct Joining {
     /// The member's name (`run-4242`).
     pub me: String,
     /// Where it joins.
-    pub target: Target,
+    pub target: ClusterEntry,
     /// The cluster's speed factor.
     pub speed: f64,
 }

@@ -8,7 +8,7 @@
 //! cluster's relay — prints the page's address and waits for Ctrl-C.
 
 use super::error::BadInput;
-use super::join::{join, member_name, JoinArgs, Target};
+use super::join::{join, member_name, ClusterEntry, JoinArgs};
 use super::page_control::PageControl;
 use marie::actors::clock::ScaledClock;
 use marie::actors::events::{
@@ -166,7 +166,7 @@ impl ClusterWatch {
     /// asks operations for their properties, and injects faults when `allow_faults` (also
     /// stopping `processes`).
     pub(crate) async fn start(
-        target: &Target,
+        target: &ClusterEntry,
         options: MonitorOptions,
         allow_faults: bool,
         processes: NodeProcesses,

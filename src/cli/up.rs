@@ -385,8 +385,8 @@ async fn converged(
 
 /// How a member of `up`'s own joins the cluster: at the first node, the one the others
 /// joined.
-fn first_node(launches: &[NodeLaunch], cookie: &str) -> super::join::Target {
-    super::join::Target {
+fn first_node(launches: &[NodeLaunch], cookie: &str) -> super::join::ClusterEntry {
+    super::join::ClusterEntry {
         addr: launches[0].listen,
         cookie: cookie.to_string(),
         tls: None,

@@ -14,7 +14,7 @@
 //! - The incarnation number grows with every loss: reports and probe results that carry an
 //!   older number are about an instance the dispatcher has let go of, and are ignored.
 
-use super::candidates::Candidate;
+use super::candidates::Prospect;
 use super::selection::{self, Need, Offer};
 use crate::clock::Timer;
 use crate::eo::EoClient;
@@ -76,7 +76,7 @@ pub(crate) struct Binding {
 
 impl Binding {
     /// Bind to `cand`, chosen for `need`, at an epoch above both its own and `base`.
-    pub(crate) fn new(cand: Candidate, base: u64, need: Need) -> Binding {
+    pub(crate) fn new(cand: Prospect, base: u64, need: Need) -> Binding {
         Binding {
             client: cand.client,
             name: cand.info.name,
@@ -111,7 +111,7 @@ impl Binding {
     /// of the chosen one in `cands`.
     pub(crate) fn choose_stand_in(
         &self,
-        cands: &[Candidate],
+        cands: &[Prospect],
         here: &str,
     ) -> (crate::run::Choice, Option<usize>) {
         let (mut fit, mut ruled_out) = (Vec::new(), Vec::new());
@@ -146,7 +146,7 @@ impl Binding {
     }
 
     /// Why `cand` cannot stand in for this binding whatever the mission needs, if it cannot.
-    fn cannot_stand_in(&self, cand: &Candidate) -> Option<String> {
+    fn cannot_stand_in(&self, cand: &Prospect) -> Option<String> {
         if let Some(why) = self.ruled_out_unasked(cand.client.actor().get_id(), &cand.node) {
             return Some(why);
         }
@@ -161,7 +161,7 @@ impl Binding {
 
     /// Take `cand` as the new incarnation; returns the record's `(from, downtime)` if the
     /// binding was lost.
-    pub(crate) fn adopt(&mut self, cand: Candidate, now: Duration) -> Option<(Lost, Duration)> {
+    pub(crate) fn adopt(&mut self, cand: Prospect, now: Duration) -> Option<(Lost, Duration)> {
         self.epoch = self.epoch.max(cand.epoch) + 1;
         self.client = cand.client;
         self.version = cand.info.version;

@@ -33,7 +33,7 @@ pub async fn describe(client: EoClient) -> Result<OpInfo, EoError> {
 
 /// A live instance the dispatcher looked at through its property interface.
 #[derive(Clone, Debug)]
-pub(crate) struct Candidate {
+pub(crate) struct Prospect {
     pub(crate) info: OpInfo,
     pub(crate) client: EoClient,
     pub(crate) node: String,
@@ -47,7 +47,7 @@ pub(crate) struct Candidate {
     pub(crate) uptime_ms: u64,
 }
 
-impl Candidate {
+impl Prospect {
     /// The candidate as selection sees it.
     pub(crate) fn offer(&self) -> Offer {
         Offer {
@@ -61,7 +61,7 @@ impl Candidate {
 
     /// The candidate with what its general group says now: the epoch it accepted last,
     /// its deadline, whether it is in use, its up-time.
-    pub(crate) fn refreshed(mut self, general: &General) -> Candidate {
+    pub(crate) fn refreshed(mut self, general: &General) -> Prospect {
         self.epoch = general.epoch;
         self.deadline = Duration::from_millis(general.deadline_ms.max(1));
         self.in_use = general.in_use;
@@ -101,11 +101,11 @@ pub(crate) async fn general(client: &EoClient) -> Result<General, ExamineError> 
 }
 
 /// Ask `inst` who it is, what it takes and which epoch it is at; `timeout` bounds each request.
-pub(crate) async fn examine(inst: &Instance, timeout: Duration) -> Result<Candidate, ExamineError> {
+pub(crate) async fn examine(inst: &Instance, timeout: Duration) -> Result<Prospect, ExamineError> {
     let client = EoClient::from_cell(inst.actor.clone()).with_timeout(timeout);
     let info = describe(client.clone()).await?;
     let general = general(&client).await?;
-    let cand = Candidate {
+    let cand = Prospect {
         info,
         client: client.with_timeout(EoClient::DEFAULT_TIMEOUT),
         node: inst.node.clone(),
@@ -123,7 +123,7 @@ pub(crate) struct Examined {
     /// Every instance the registry listed, answered or not.
     pub(crate) seen: Vec<ActorId>,
     /// The instances that answered, in registry order.
-    pub(crate) found: Vec<Candidate>,
+    pub(crate) found: Vec<Prospect>,
 }
 
 /// Every live instance of `operation`, asked at once (selection needs them all), in
@@ -145,8 +145,8 @@ pub(crate) async fn select(need: &Need, timeout: Duration) -> (Examined, crate::
 }
 
 /// The choice among `found` for `need` on this node.
-pub(crate) fn choose(need: &Need, found: &[Candidate]) -> crate::run::Choice {
-    let offers: Vec<Offer> = found.iter().map(Candidate::offer).collect();
+pub(crate) fn choose(need: &Need, found: &[Prospect]) -> crate::run::Choice {
+    let offers: Vec<Offer> = found.iter().map(Prospect::offer).collect();
     selection::choose(need, &offers, &crate::registry::local_node_name())
 }
 
@@ -156,7 +156,7 @@ pub(crate) async fn examine_all(
     operation: &str,
     found: Vec<Instance>,
     timeout: Duration,
-) -> Vec<Candidate> {
+) -> Vec<Prospect> {
     let mut asked = tokio::task::JoinSet::new();
     for (i, inst) in found.into_iter().enumerate() {
         asked.spawn(async move { (i, examine(&inst, timeout).await) });

@@ -39,7 +39,7 @@
 //! The choices are not serialized: a mission read back from JSON has none, and its run
 //! selects everything.
 
-use super::candidates::{self, Candidate, ExamineError, Examined};
+use super::candidates::{self, ExamineError, Examined, Prospect};
 use super::mission::Mission;
 use super::selection::Need;
 use crate::registry::{self, ModuleKind};
@@ -79,7 +79,7 @@ pub(crate) struct CheckedChoice {
     /// Every candidate with its verdict, as the check chose.
     choice: Choice,
     /// The chosen instance, as the check saw it.
-    chosen: Candidate,
+    chosen: Prospect,
     /// Every instance the registry listed at the check, answered or not.
     seen: BTreeSet<ActorId>,
 }
@@ -163,7 +163,7 @@ impl CheckedChoices {
             else {
                 continue;
             };
-            let fit: Vec<Candidate> = found
+            let fit: Vec<Prospect> = found
                 .found
                 .iter()
                 .filter(|c| c.info.name == name)
@@ -227,7 +227,7 @@ impl CheckedChoice {
     /// The chosen instance, as it is now, if the choice still holds for `need`: nothing
     /// changed since the check (see the module docs). Asks the chosen instance its
     /// general group, within the deadline it declared; nobody else is asked.
-    pub(crate) async fn confirm(&self, need: &Need) -> Result<Candidate, Changed> {
+    pub(crate) async fn confirm(&self, need: &Need) -> Result<Prospect, Changed> {
         let chosen = &self.chosen;
         let id = chosen.client.actor().get_id();
         let address = id.to_string();

@@ -16,7 +16,7 @@
 
 use super::actor::{DispatcherState, Start};
 use super::binding::Binding;
-use super::candidates::{examine, examine_all, select, Candidate};
+use super::candidates::{examine, examine_all, select, Prospect};
 use super::messages::DispatcherMsg;
 use crate::clock::Timer;
 use crate::eo::{EoError, ParamOutcome};
@@ -274,7 +274,7 @@ impl DispatcherState {
         &mut self,
         myself: &ActorRef<DispatcherMsg>,
         name: &str,
-        mut cands: Vec<Candidate>,
+        mut cands: Vec<Prospect>,
     ) -> bool {
         let here = registry::local_node_name();
         let Some(b) = self.bindings.get_mut(name) else {

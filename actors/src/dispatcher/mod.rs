@@ -19,13 +19,13 @@ mod binding;
 mod candidates;
 mod catalog;
 mod checked;
+mod effect;
 mod healing;
 mod messages;
 pub mod mission;
 mod running;
 pub mod selection;
 pub mod survey;
-mod verdict;
 
 pub use actor::{
     request_run, run_mission, spawn_dispatcher, ActionDispatcher, DispatchError, DispatcherArgs,

@@ -9,9 +9,9 @@
 //!   what still runs is suspended and gets [`SUSPEND_GRACE`] to report.
 
 use super::actor::{ActionState, Current, DispatcherState, Start};
+use super::effect::Effect;
 use super::messages::DispatcherMsg;
 use super::mission::EndMode;
-use super::verdict::Verdict;
 use crate::clock::Timer;
 use crate::eo::{EoError, EoReport};
 use crate::events::{EventKind, OpStarted};
@@ -223,11 +223,11 @@ impl DispatcherState {
         let action = &self.mission.actions[cur.index];
         let action_name = action.name.clone();
         let ending = cur.ending();
-        let Verdict {
+        let Effect {
             ended,
             flags,
             failure,
-        } = Verdict::of(report, ending, &key, &action_name);
+        } = Effect::of(report, ending, &key, &action_name);
         let global = self.translate(&key, flags);
         self.status |= global;
         let names = self.mission.flags_to_names(global);

@@ -5,8 +5,8 @@ use crate::eo::EoReport;
 use crate::flags::StatusFlags;
 use crate::run::OpEnd;
 
-/// An operation's report, judged.
-pub(super) struct Verdict {
+/// What an operation's report does to its action: how its part ended, its flags, whether the run must stop.
+pub(super) struct Effect {
     /// How its part ended.
     pub(super) ended: OpEnd,
     /// Its own flag bits (not yet the mission's).
@@ -15,7 +15,7 @@ pub(super) struct Verdict {
     pub(super) failure: Option<String>,
 }
 
-impl Verdict {
+impl Effect {
     /// Judge `report` (`None`: the instance died) of operation `key` in action
     /// `action_name`; `ending` says the action had suspended it.
     pub(super) fn of(
@@ -23,7 +23,7 @@ impl Verdict {
         ending: bool,
         key: &str,
         action_name: &str,
-    ) -> Verdict {
+    ) -> Effect {
         let (ended, flags, failure) = match report {
             Some(EoReport::Finished { flags, .. }) => (OpEnd::Finished, flags, None),
             Some(EoReport::Suspended { flags, .. }) if ending => (OpEnd::Suspended, flags, None),
@@ -62,7 +62,7 @@ impl Verdict {
             ),
             None => (OpEnd::Lost, StatusFlags::EMPTY, None),
         };
-        Verdict {
+        Effect {
             ended,
             flags,
             failure,
