@@ -36,18 +36,18 @@
 //! A plain bench binary (not criterion): failover samples cannot be repeated in a tight loop.
 
 use marie::actors::clock::RealClock;
-use marie::actors::dispatcher::mission::Mission;
+use marie::actors::dispatcher::mission::ParsedMission;
 use marie::actors::dispatcher::{
     request_run, spawn_dispatcher, DispatcherArgs, DispatcherMsg, RegistryCatalog,
 };
 use marie::actors::dm::{DmClient, DmError, NewRecord};
 use marie::actors::eo::{EoMsg, Identity, OpContext, OpError, Operation, OperationFactory, Step};
 use marie::actors::events::{EventBus, EventKind};
-use marie::actors::flags::FlagDecl;
 use marie::actors::property::{
     Group, Identification, ParamDecl, ParamSchema, PropertyReply, PropertyRequest,
 };
 use marie::actors::registry::{self, ModuleKind};
+use marie::actors::status::FlagDecl;
 use marie::cluster::net::{ClusterConfig, HeartbeatConfig, NetEvent, Transport};
 use marie::cluster::node::{DatamanagerConfig, Node, NodeConfig, NodeOptions, OperationConfig};
 use ractor::rpc::CallResult;
@@ -696,7 +696,7 @@ async fn failover(transport: &Transport, signal: i32, label: &str, samples: usiz
         instances_on("bench-worker", &first.name) == 1
     })
     .await;
-    let parsed = Mission::parse(
+    let parsed = ParsedMission::parse(
         "[mission]\nname = \"bench-failover\"\n[flags]\nnever = 0\n[[action]]\nname = \"run\"\n\
          deadline_s = 36000.0\n[action.ops.bench-worker]\nlevel = 3\n",
         None,

@@ -9,17 +9,17 @@
 //! in a tight loop the way criterion wants.
 
 use marie::actors::clock::RealClock;
-use marie::actors::dispatcher::mission::Mission;
+use marie::actors::dispatcher::mission::ParsedMission;
 use marie::actors::dispatcher::{
     request_run, spawn_dispatcher, DispatcherArgs, DispatcherMsg, RegistryCatalog,
 };
 use marie::actors::eo::{
     spawn_operation_linked, HostOptions, Identity, OpContext, OpError, Operation, Step,
 };
-use marie::actors::flags::FlagDecl;
 use marie::actors::property::{ParamDecl, ParamSchema};
 use marie::actors::registry::{self, ModuleKind};
 use marie::actors::run::FaultKind;
+use marie::actors::status::FlagDecl;
 use marie::cluster::fault;
 use marie::supervision::{ChildSpec, Supervisor, SupervisorSpec};
 use std::sync::OnceLock;
@@ -121,7 +121,7 @@ fn main() {
         )
         .await
         .expect("supervisor");
-        let parsed = Mission::parse(
+        let parsed = ParsedMission::parse(
             "[mission]\nname = \"failover\"\n[flags]\nnever = 0\n[[action]]\nname = \"run\"\n\
              deadline_s = 36000.0\n[action.ops.failover-worker]\nlevel = 3\n",
             None,

@@ -6,7 +6,7 @@
 //! `cargo bench --bench monitor`
 
 use marie::actors::clock::Pacer;
-use marie::actors::dispatcher::mission::Mission;
+use marie::actors::dispatcher::mission::ParsedMission;
 use marie_missions::embedded::{Embedded, EmbeddedOptions};
 use marie_monitor::{Monitor, MonitorOptions};
 use std::io::{Read, Write};
@@ -56,7 +56,7 @@ fn run(mission: &Path, monitored: bool, viewers: usize) -> Duration {
         .expect("a runtime");
     rt.block_on(async {
         let _pace = Pacer::new(f64::INFINITY).spawn();
-        let parsed = Mission::parse_file(mission).expect("docking parses");
+        let parsed = ParsedMission::parse_file(mission).expect("docking parses");
         let embedded = Embedded::start(EmbeddedOptions {
             mission_world: parsed.world().map(PathBuf::from),
             ..EmbeddedOptions::default()

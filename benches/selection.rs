@@ -22,7 +22,7 @@
 //!
 //! Ratios are against N = 1, measured in the same run.
 
-use marie::actors::dispatcher::mission::Mission;
+use marie::actors::dispatcher::mission::ParsedMission;
 use marie::actors::dispatcher::survey;
 use marie_missions::embedded::{Embedded, EmbeddedOptions};
 use std::io::{BufRead, BufReader};
@@ -114,7 +114,8 @@ fn command(node: &Path) -> (Duration, Duration) {
 /// Surveys of the mission on a node hosting `n` of each: their durations, sorted.
 async fn surveys(node: &Path, n: usize) -> Vec<Duration> {
     let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let parsed = Mission::parse_file(&repo.join("missions/docking.toml")).expect("docking parses");
+    let parsed =
+        ParsedMission::parse_file(&repo.join("missions/docking.toml")).expect("docking parses");
     let embedded = Embedded::start(EmbeddedOptions {
         node: Some(node.to_path_buf()),
         mission_world: parsed.world().map(PathBuf::from),

@@ -271,8 +271,11 @@ impl marie::actors::eo::Operation for Endless {
         )
         .range(0.0, 10.0)])
     }
-    fn flags(&self) -> Vec<marie::actors::flags::FlagDecl> {
-        vec![marie::actors::flags::FlagDecl::new("never", "never raised")]
+    fn flags(&self) -> Vec<marie::actors::status::FlagDecl> {
+        vec![marie::actors::status::FlagDecl::new(
+            "never",
+            "never raised",
+        )]
     }
     async fn step(
         &mut self,
@@ -314,7 +317,7 @@ fn quiet_injected_panics() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_thousand_crash_restart_cycles_during_a_mission_leave_the_actor_count_at_its_baseline() {
     use marie::actors::dispatcher::{self, DispatcherArgs, DispatcherMsg};
-    use marie::actors::dispatcher::{mission::Mission, RegistryCatalog};
+    use marie::actors::dispatcher::{mission::ParsedMission, RegistryCatalog};
     use marie::supervision::{ChildSpec, Supervisor, SupervisorSpec};
     quiet_injected_panics();
     const CYCLES: usize = 1000;
@@ -337,7 +340,7 @@ async fn a_thousand_crash_restart_cycles_during_a_mission_leave_the_actor_count_
     };
     let baseline_tasks = tasks();
 
-    let parsed = Mission::parse(
+    let parsed = ParsedMission::parse(
         "[mission]\nname = \"endless\"\n[flags]\nnever = 0\n[[action]]\nname = \"run\"\ndeadline_s = 3600.0\n[action.ops.endless]\nlevel = 7\n",
         None,
     )

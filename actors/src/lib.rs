@@ -24,7 +24,7 @@
 //! Every message that may cross nodes is serializable with rmp-serde ([`wire`]).
 //!
 //! ```
-//! use marie_actors::flags::StatusFlags;
+//! use marie_actors::status::StatusFlags;
 //! let status = StatusFlags(0b0110);
 //! assert!(status.implies(StatusFlags(0b0100)));
 //! ```
@@ -39,11 +39,11 @@ pub mod dm;
 pub mod eo;
 pub mod events;
 pub mod fence;
-pub mod flags;
 pub mod prelude;
 pub mod property;
 pub mod provision;
 pub mod registry;
 pub mod report;
 pub mod run;
+pub mod status;
 pub mod wire;

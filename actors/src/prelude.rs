@@ -1,7 +1,7 @@
 //! Everything an operation author needs, in one import: `use marie_actors::prelude::*;`.
 //!
 //! An operation touches five modules — [`eo`](crate::eo) for the trait and its context,
-//! [`property`](crate::property) for parameters, [`flags`](mod@crate::flags) for its status
+//! [`property`](crate::property) for parameters, [`flags`](crate::status) for its status
 //! word, [`dm`](crate::dm) for the datamanagers, [`declare`](crate::declare) for the typed
 //! declarations — and an author should not have to learn that layout before writing the
 //! first one. The prelude re-exports the items of those modules that appear in an
@@ -57,6 +57,6 @@ pub use crate::dm::{
     DmClient, DmError, DmSpec, NewRecord, Query, Record, RecordHeader, FEATURE, PARAMETER, WORLD,
 };
 pub use crate::eo::{Identity, OpContext, OpError, Operation, Params, Step};
-pub use crate::flags::{FlagDecl, StatusFlags};
 pub use crate::property::{FromValue, ParamDecl, ParamMap, ParamSchema, Value};
+pub use crate::status::{FlagDecl, StatusFlags};
 pub use crate::{choice, flags, params};

@@ -4,7 +4,7 @@
 //! declarations meant.
 
 use marie_actors::clock::RealClock;
-use marie_actors::dispatcher::mission::Mission;
+use marie_actors::dispatcher::mission::ParsedMission;
 use marie_actors::dispatcher::{run_mission, RegistryCatalog};
 use marie_actors::dm::{self, DmArgs, DmConfig};
 use marie_actors::eo::{spawn_operation, HostOptions};
@@ -118,7 +118,7 @@ async fn a_typed_operation_reports_the_flags_the_mission_names_and_stores_typed_
         steps = 3
         mode = "loud"
     "#;
-    let parsed = Mission::parse(src, None).unwrap();
+    let parsed = ParsedMission::parse(src, None).unwrap();
     let catalog = RegistryCatalog::gather(parsed.ops()).await.unwrap();
     let mission = parsed.validate(&catalog).unwrap();
     let report = tokio::time::timeout(Duration::from_secs(30), run_mission(mission, clock, None))

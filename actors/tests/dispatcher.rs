@@ -1,18 +1,18 @@
 //! The action dispatcher, end to end: real EO hosts, the registry, missions from TOML.
 
 use marie_actors::clock::RealClock;
-use marie_actors::dispatcher::mission::Mission;
+use marie_actors::dispatcher::mission::ParsedMission;
 use marie_actors::dispatcher::{run_mission, RegistryCatalog};
 use marie_actors::eo::{
     spawn_operation, EoClient, EoMsg, HostOptions, Identity, OpContext, OpError, Operation, Step,
 };
 use marie_actors::events::{Event, EventBus, EventKind};
-use marie_actors::flags::{FlagDecl, StatusFlags};
 use marie_actors::property::{
     Group, ParamDecl, ParamSchema, PropertyReply, PropertyRequest, Value,
 };
 use marie_actors::report::RunReport;
 use marie_actors::run::{OpEnd, Outcome};
+use marie_actors::status::{FlagDecl, StatusFlags};
 use ractor::ActorRef;
 use std::time::Duration;
 use tokio::time::timeout;
@@ -87,7 +87,7 @@ async fn run(src: &str) -> RunReport {
 }
 
 async fn run_with_events(src: &str) -> (RunReport, Vec<Event>) {
-    let parsed = Mission::parse(src, None).expect("mission parses");
+    let parsed = ParsedMission::parse(src, None).expect("mission parses");
     let keys: Vec<String> = parsed.ops().map(str::to_string).collect();
     let catalog = RegistryCatalog::gather(keys).await.unwrap();
     let mission = parsed.validate(&catalog).expect("mission validates");

@@ -6,12 +6,12 @@ use marie_actors::eo::{
     spawn_operation, EoClient, EoReport, HostOptions, Identity, OpContext, OpError, Operation,
     ParamOutcome, Step,
 };
-use marie_actors::flags::{FlagDecl, StatusFlags};
 use marie_actors::property::{
-    params, Collection, Group, ParamDecl, ParamSchema, ParamType, PropertyReply, PropertyRequest,
-    RejectReason, Value,
+    param_map, Collection, Group, ParamDecl, ParamSchema, ParamType, PropertyReply,
+    PropertyRequest, RejectReason, Value,
 };
 use marie_actors::registry::{self, ModuleKind};
+use marie_actors::status::{FlagDecl, StatusFlags};
 use std::sync::Arc;
 use std::time::Duration;
 use tokio::time::timeout;
@@ -106,7 +106,9 @@ async fn ask(c: &EoClient, r: PropertyRequest) -> PropertyReply {
 #[tokio::test]
 async fn activation_finishes_with_flags_and_suspends() {
     let c = host("stepper-finish").await;
-    let rx = c.activate(params([("steps", Value::Int(4))]), 1).unwrap();
+    let rx = c
+        .activate(param_map([("steps", Value::Int(4))]), 1)
+        .unwrap();
     let report = timeout(T, rx).await.unwrap().unwrap();
     assert_eq!(
         report,
@@ -147,7 +149,7 @@ async fn suspend_reports_flags_raised_so_far() {
     let c = EoClient::new(actor);
     // with a manual clock that never advances, the operation stays active after activation
     let rx = c
-        .activate(params([("steps", Value::Int(1000))]), 7)
+        .activate(param_map([("steps", Value::Int(1000))]), 7)
         .unwrap();
     let PropertyReply::General(g) = ask(&c, PropertyRequest::Group(Group::General)).await else {
         panic!()
@@ -169,7 +171,7 @@ async fn failure_is_reported_and_the_operation_survives() {
     let c = host("stepper-fail").await;
     let rx = c
         .activate(
-            params([("steps", Value::Int(10)), ("fail_at", Value::Int(2))]),
+            param_map([("steps", Value::Int(10)), ("fail_at", Value::Int(2))]),
             1,
         )
         .unwrap();
@@ -188,13 +190,13 @@ async fn failure_is_reported_and_the_operation_survives() {
 async fn older_epochs_are_ignored() {
     let c = host("stepper-epoch").await;
     assert_eq!(
-        c.parameterize(params([("gain", Value::Float(0.25))]), 5)
+        c.parameterize(param_map([("gain", Value::Float(0.25))]), 5)
             .await
             .unwrap(),
         ParamOutcome::Applied
     );
     assert_eq!(
-        c.parameterize(params([("gain", Value::Float(0.75))]), 4)
+        c.parameterize(param_map([("gain", Value::Float(0.75))]), 4)
             .await
             .unwrap(),
         ParamOutcome::Stale { current: 5 }
@@ -220,7 +222,7 @@ async fn reparameterization_is_atomic_with_a_reason_per_value() {
     let before = ask(&c, PropertyRequest::Collection(Collection::Current)).await;
     let outcome = c
         .parameterize(
-            params([
+            param_map([
                 ("gain", Value::Float(0.9)),          // fine on its own
                 ("steps", Value::Int(5000)),          // out of range
                 ("speed", Value::Float(1.0)),         // unknown
@@ -254,7 +256,7 @@ async fn reparameterization_is_atomic_with_a_reason_per_value() {
     );
     // and an activation with a bad value does not start
     let rx = c
-        .activate(params([("gain", Value::Float(7.0))]), 1)
+        .activate(param_map([("gain", Value::Float(7.0))]), 1)
         .unwrap();
     assert!(matches!(
         timeout(T, rx).await.unwrap().unwrap(),
@@ -268,7 +270,7 @@ async fn every_property_group_and_collection() {
     let c = host("stepper-props").await;
     assert_eq!(
         c.parameterize(
-            params([
+            param_map([
                 ("gain", Value::Float(0.25)),
                 (
                     "pose",
@@ -410,7 +412,7 @@ async fn bad_declarations_and_start_up_values_fail_the_spawn() {
     }
     assert!(spawn_operation(Bad, HostOptions::default()).await.is_err());
     let opts = HostOptions {
-        params: params([("steps", Value::Int(-1))]),
+        params: param_map([("steps", Value::Int(-1))]),
         ..Default::default()
     };
     assert!(spawn_operation(
@@ -424,7 +426,7 @@ async fn bad_declarations_and_start_up_values_fail_the_spawn() {
     .is_err());
     // read-only parameters can be set at start-up
     let opts = HostOptions {
-        params: params([("serial", Value::Int(7))]),
+        params: param_map([("serial", Value::Int(7))]),
         ..Default::default()
     };
     let (actor, _) = spawn_operation(

@@ -8,12 +8,12 @@ use marie_actors::eo::{
     spawn_operation, EoClient, EoMsg, HandleError, Identity, OpContext, OpError, Operation,
     OperationHandle, ParamOutcome, SetError, Step,
 };
-use marie_actors::flags::FlagDecl;
 use marie_actors::property::{
-    params, ParamDecl, ParamSchema, PropertyReply, PropertyRequest, RejectReason, Value,
+    param_map, ParamDecl, ParamSchema, PropertyReply, PropertyRequest, RejectReason, Value,
 };
 use marie_actors::registry::{self, ModuleKind, RegistryEvent};
 use marie_actors::run::FaultKind;
+use marie_actors::status::FlagDecl;
 use ractor::{Actor, ActorProcessingErr, ActorRef};
 use semver::VersionReq;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -168,11 +168,11 @@ async fn typed_calls_answer_in_types_and_set_keeps_epochs_inside() {
     // a dispatcher drives the tank at epoch 7; the handle's set goes through without one
     let dispatcher = EoClient::new(actor.clone());
     let raised = dispatcher
-        .parameterize(params([("valves", Value::Int(4))]), 7)
+        .parameterize(param_map([("valves", Value::Int(4))]), 7)
         .await
         .unwrap();
     assert_eq!(raised, ParamOutcome::Applied);
-    tank.set(params([
+    tank.set(param_map([
         ("level", Value::Float(2.5)),
         ("heated", Value::Bool(true)),
     ]))
@@ -188,7 +188,7 @@ async fn typed_calls_answer_in_types_and_set_keeps_epochs_inside() {
     // ... so the dispatcher's next command at its epoch is not fenced off
     assert_eq!(
         dispatcher
-            .parameterize(params([("valves", Value::Int(5))]), 7)
+            .parameterize(param_map([("valves", Value::Int(5))]), 7)
             .await
             .unwrap(),
         ParamOutcome::Applied
@@ -197,7 +197,7 @@ async fn typed_calls_answer_in_types_and_set_keeps_epochs_inside() {
     // the rejection path: one value out of range refuses them all, each refusal listed
     let before = tank.current().await.unwrap();
     let refused = tank
-        .set(params([
+        .set(param_map([
             ("level", Value::Float(99.0)),
             ("valves", Value::Int(2)),
         ]))
@@ -227,7 +227,7 @@ async fn typed_calls_answer_in_types_and_set_keeps_epochs_inside() {
          level: 99 is out of range [0, 10]"
     );
     assert_eq!(tank.current().await.unwrap(), before, "nothing changed");
-    let unknown = tank.set(params([("colour", Value::from("red"))])).await;
+    let unknown = tank.set(param_map([("colour", Value::from("red"))])).await;
     assert!(
         matches!(&unknown, Err(SetError::Rejected { rejections, .. })
             if rejections[0].name == "colour" && rejections[0].reason == RejectReason::UnknownName),
@@ -328,7 +328,7 @@ async fn a_stale_answer_is_retried_once_at_the_epoch_it_names() {
         .await
         .unwrap();
     let handle = OperationHandle::lookup("h-stale-once").await.unwrap();
-    timeout(T, handle.set(params([("level", Value::Float(2.0))])))
+    timeout(T, handle.set(param_map([("level", Value::Float(2.0))])))
         .await
         .unwrap()
         .unwrap();
@@ -348,7 +348,7 @@ async fn a_stale_answer_is_retried_once_at_the_epoch_it_names() {
         .await
         .unwrap();
     let handle = OperationHandle::lookup("h-stale-always").await.unwrap();
-    let err = timeout(T, handle.set(params([("level", Value::Float(2.0))])))
+    let err = timeout(T, handle.set(param_map([("level", Value::Float(2.0))])))
         .await
         .unwrap()
         .unwrap_err();
@@ -371,7 +371,9 @@ async fn a_handle_follows_its_operation_to_the_instance_that_replaces_it() {
     let (first, first_done) = start("h-restart", 8301, "1.0.0").await;
     let tank = OperationHandle::lookup("h-restart").await.unwrap();
     let clone = tank.clone();
-    tank.set(params([("valves", Value::Int(6))])).await.unwrap();
+    tank.set(param_map([("valves", Value::Int(6))]))
+        .await
+        .unwrap();
     assert_eq!(tank.actor().get_id(), first.get_id());
 
     first.kill();
@@ -392,7 +394,9 @@ async fn a_handle_follows_its_operation_to_the_instance_that_replaces_it() {
         3,
         "a replacement starts with its own parameters: the handle replays nothing"
     );
-    tank.set(params([("valves", Value::Int(7))])).await.unwrap();
+    tank.set(param_map([("valves", Value::Int(7))]))
+        .await
+        .unwrap();
     assert_eq!(tank.value::<i64>("valves").await.unwrap(), 7);
     assert_eq!(
         clone.actor().get_id(),

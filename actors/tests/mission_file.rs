@@ -4,8 +4,8 @@
 use marie_actors::dispatcher::mission::{
     Catalog, Diagnostic, Diagnostics, EndMode, Mission, OpInfo, ParsedMission, StaticCatalog,
 };
-use marie_actors::flags::{FlagDecl, StatusFlags};
 use marie_actors::property::{ParamDecl, ParamSchema, ParamType, Value};
+use marie_actors::status::{FlagDecl, StatusFlags};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -90,7 +90,7 @@ fn positions(d: &Diagnostics) -> Vec<(usize, usize, String)> {
 
 /// Stage 1 must fail; its diagnostics.
 fn parse_err(src: &str) -> Vec<(usize, usize, String)> {
-    match Mission::parse(src, None) {
+    match ParsedMission::parse(src, None) {
         Ok(_) => panic!("expected stage 1 to reject:\n{src}"),
         Err(d) => positions(&d),
     }
@@ -98,7 +98,7 @@ fn parse_err(src: &str) -> Vec<(usize, usize, String)> {
 
 /// Stage 1 must pass and stage 2 fail; its diagnostics.
 fn validate_err(src: &str) -> Vec<(usize, usize, String)> {
-    let parsed = Mission::parse(src, None).unwrap_or_else(|d| panic!("stage 1 failed:\n{d}"));
+    let parsed = ParsedMission::parse(src, None).unwrap_or_else(|d| panic!("stage 1 failed:\n{d}"));
     match parsed.validate(&catalog()) {
         Ok(_) => panic!("expected stage 2 to reject:\n{src}"),
         Err(d) => positions(&d),
@@ -235,7 +235,8 @@ fn valid_mission_parses_and_validates_into_the_expected_model() {
 
 #[test]
 fn parsed_mission_lists_the_keys_a_catalog_must_answer() {
-    let parsed = Mission::parse(&read("docking.toml"), None).unwrap_or_else(|d| panic!("{d}"));
+    let parsed =
+        ParsedMission::parse(&read("docking.toml"), None).unwrap_or_else(|d| panic!("{d}"));
     assert_eq!(parsed.name(), "docking");
     assert_eq!(parsed.flags().get("parked"), Some(&5));
     assert_eq!(
@@ -267,7 +268,7 @@ fn parsed_mission_lists_the_keys_a_catalog_must_answer() {
 #[test]
 fn minimal_mission_uses_the_defaults() {
     let src = "[mission]\nname = \"m\"\n[[action]]\nname = \"a\"\n[action.ops.ultrasonic]\n";
-    let m = Mission::parse(src, None)
+    let m = ParsedMission::parse(src, None)
         .and_then(|p| p.validate(&catalog()))
         .unwrap_or_else(|d| panic!("{d}"));
     assert_eq!(m.description, "");
@@ -595,7 +596,7 @@ fn integers_out_of_range_are_reported() {
 #[test]
 fn all_structure_errors_of_a_file_are_reported_in_order() {
     let path = mission_path("structure_errors.toml");
-    let d = Mission::parse_file(&path).expect_err("broken mission");
+    let d = ParsedMission::parse_file(&path).expect_err("broken mission");
     let got: Vec<(usize, usize)> = d.iter().map(|d| (d.line, d.column)).collect();
     assert_eq!(
         got,
@@ -761,7 +762,7 @@ fn flags_never_raised_are_reported() {
         "[action.ops.trajectory-controller]\n[[action]]\nname = \"b\"\n\
          [action.ops.docking-detector]\n[action.ops.wall-follower]\n",
     );
-    assert!(Mission::parse(&ok, None)
+    assert!(ParsedMission::parse(&ok, None)
         .and_then(|p| p.validate(&catalog()))
         .is_ok());
 }
@@ -856,7 +857,7 @@ fn unreadable_file_is_one_diagnostic_at_the_start() {
 fn non_utf8_file_is_reported_at_the_first_bad_byte() {
     let path = std::env::temp_dir().join(format!("marie-mission-{}.toml", std::process::id()));
     std::fs::write(&path, b"[mission]\nname = \"caf\xe9\"\n").expect("write temp file");
-    let d = Mission::parse_file(&path).expect_err("not UTF-8");
+    let d = ParsedMission::parse_file(&path).expect_err("not UTF-8");
     let _ = std::fs::remove_file(&path);
     assert_eq!(d.len(), 1);
     assert_eq!((d.0[0].line, d.0[0].column), (2, 12));
@@ -886,7 +887,7 @@ impl Lcg {
 /// Parse and (when that succeeds) validate; a panic fails the test with the input.
 fn must_not_panic(src: &str, catalog: &StaticCatalog) -> Result<(), Diagnostics> {
     let run = || -> Result<(), Diagnostics> {
-        let parsed: ParsedMission = Mission::parse(src, None)?;
+        let parsed: ParsedMission = ParsedMission::parse(src, None)?;
         let _ = parsed.ops().count();
         let m = parsed.validate(catalog)?;
         let _ = m.flags_to_names(StatusFlags(u32::MAX));
@@ -1017,7 +1018,7 @@ fn the_mission_names_its_world_relative_to_its_own_file() {
     let body = "[mission]\nname = \"m\"\nworld = \"../worlds/lab.toml\"\n\
                 [[action]]\nname = \"a\"\n[action.ops.wall-sensor]\n";
     let file = Path::new("some/dir/m.toml");
-    let parsed = Mission::parse(body, Some(file)).unwrap_or_else(|d| panic!("{d}"));
+    let parsed = ParsedMission::parse(body, Some(file)).unwrap_or_else(|d| panic!("{d}"));
     let expected = Path::new("some/dir").join("../worlds/lab.toml");
     assert_eq!(parsed.world(), Some(expected.as_path()));
     let mission = parsed
@@ -1031,13 +1032,13 @@ fn the_mission_names_its_world_relative_to_its_own_file() {
         "../worlds/lab.toml",
         &abs.display().to_string().escape_debug().to_string(),
     );
-    let parsed = Mission::parse(&src, Some(file)).unwrap_or_else(|d| panic!("{d}"));
+    let parsed = ParsedMission::parse(&src, Some(file)).unwrap_or_else(|d| panic!("{d}"));
     assert_eq!(parsed.world(), Some(abs.as_path()));
-    let parsed = Mission::parse(body, None).unwrap_or_else(|d| panic!("{d}"));
+    let parsed = ParsedMission::parse(body, None).unwrap_or_else(|d| panic!("{d}"));
     assert_eq!(parsed.world(), Some(Path::new("../worlds/lab.toml")));
 
     // no world: none
-    let parsed = Mission::parse(&body.replace("world = \"../worlds/lab.toml\"\n", ""), None)
+    let parsed = ParsedMission::parse(&body.replace("world = \"../worlds/lab.toml\"\n", ""), None)
         .unwrap_or_else(|d| panic!("{d}"));
     assert_eq!(parsed.world(), None);
 

@@ -5,13 +5,12 @@
 //! self-healing on its own; the node's real supervision tree is tested in the `marie` package.
 
 use marie_actors::clock::RealClock;
-use marie_actors::dispatcher::mission::Mission;
+use marie_actors::dispatcher::mission::ParsedMission;
 use marie_actors::dispatcher::{run_mission, RegistryCatalog};
 use marie_actors::eo::{
     spawn_operation, EoClient, EoMsg, HostOptions, Identity, OpContext, OpError, Operation, Step,
 };
 use marie_actors::events::{EventBus, EventKind, EventSubscription};
-use marie_actors::flags::{FlagDecl, StatusFlags};
 use marie_actors::property::{
     Collection, General, Group, ParamDecl, ParamSchema, PropertyReply, PropertyRequest, Value,
 };
@@ -20,6 +19,7 @@ use marie_actors::report::RunReport;
 use marie_actors::run::FaultKind;
 use marie_actors::run::Verdict;
 use marie_actors::run::{LossCause, OpEnd, Outcome};
+use marie_actors::status::{FlagDecl, StatusFlags};
 use ractor::ActorRef;
 use std::time::Duration;
 use tokio::time::timeout;
@@ -153,7 +153,7 @@ struct Events {
 
 /// Start `src` on a dispatcher; returns the run and its events.
 async fn launch(src: &str) -> (tokio::task::JoinHandle<RunReport>, Events) {
-    let parsed = Mission::parse(src, None).expect("mission parses");
+    let parsed = ParsedMission::parse(src, None).expect("mission parses");
     let keys: Vec<String> = parsed.ops().map(str::to_string).collect();
     let catalog = RegistryCatalog::gather(keys).await.unwrap();
     let mission = parsed.validate(&catalog).expect("mission validates");

@@ -7,18 +7,18 @@
 //! Each test uses operations of its own name: the registry is one per process.
 
 use marie_actors::clock::RealClock;
-use marie_actors::dispatcher::mission::Mission;
+use marie_actors::dispatcher::mission::{Mission, ParsedMission};
 use marie_actors::dispatcher::{run_mission, RegistryCatalog};
 use marie_actors::eo::{
     spawn_operation, EoClient, EoMsg, HostOptions, Identity, OpContext, OpError, Operation,
     ParamOutcome, Step,
 };
 use marie_actors::events::{BoundOp, Event, EventBus, EventKind};
-use marie_actors::flags::{FlagDecl, StatusFlags};
 use marie_actors::property::{ParamDecl, ParamMap, ParamSchema, Value};
 use marie_actors::registry::{self, ModuleKind, RegistryEvent};
 use marie_actors::report::RunReport;
 use marie_actors::run::{Choice, FaultKind, Outcome, Verdict};
+use marie_actors::status::{FlagDecl, StatusFlags};
 use ractor::ActorRef;
 use std::time::Duration;
 use tokio::time::timeout;
@@ -108,7 +108,7 @@ fn mission_text(op: &str) -> String {
 
 /// The mission checked against the running instances, as `Node::check_mission` does.
 async fn check(op: &str) -> Mission {
-    let parsed = Mission::parse(&mission_text(op), None).expect("mission parses");
+    let parsed = ParsedMission::parse(&mission_text(op), None).expect("mission parses");
     let catalog = RegistryCatalog::for_mission(&parsed).await.unwrap();
     parsed.validate(&catalog).expect("mission validates")
 }

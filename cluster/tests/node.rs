@@ -4,9 +4,9 @@
 //! The registry is one per process and these tests run in parallel: each owns the operation
 //! names it starts.
 
-use marie_actors::dispatcher::mission::Mission;
+use marie_actors::dispatcher::mission::ParsedMission;
 use marie_actors::eo::{Identity, OpContext, OpError, Operation, OperationFactory, Step};
-use marie_actors::flags::StatusFlags;
+use marie_actors::status::StatusFlags;
 use marie_cluster::node::{
     ConfigError, Node, NodeConfig, NodeError, NodeOptions, OperationConfig, SupervisorConfig,
 };
@@ -183,7 +183,7 @@ async fn a_node_without_a_dispatcher_refuses_to_run_missions() {
     let node = Node::start(config, NodeOptions::with_catalog(catalog()))
         .await
         .unwrap();
-    let parsed = Mission::parse(
+    let parsed = ParsedMission::parse(
         "[mission]\nname = \"m\"\n[[action]]\nname = \"a\"\n[action.ops.silent]\n",
         None,
     )

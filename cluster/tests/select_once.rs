@@ -6,11 +6,11 @@
 //! The registry is one per process and these tests run in parallel: each owns the operation
 //! names it starts.
 
-use marie_actors::dispatcher::mission::Mission;
+use marie_actors::dispatcher::mission::ParsedMission;
 use marie_actors::eo::{EoClient, Identity, OpContext, OpError, Operation, Step};
-use marie_actors::flags::{FlagDecl, StatusFlags};
 use marie_actors::registry::{self, ModuleKind, RegistryEvent};
 use marie_actors::run::FaultKind;
+use marie_actors::status::{FlagDecl, StatusFlags};
 use marie_cluster::node::{Node, RunOptions};
 use std::time::Duration;
 
@@ -56,7 +56,7 @@ async fn a_checked_missions_instance_restarted_before_the_run_is_chosen_again_no
         .start()
         .await
         .expect("starts");
-    let parsed = Mission::parse(MISSION, None).unwrap();
+    let parsed = ParsedMission::parse(MISSION, None).unwrap();
     let mission = node.check_mission(&parsed).await.unwrap();
     let first = node.instances("so-ticker");
     assert_eq!(first.len(), 1);

@@ -2,9 +2,9 @@
 //! (a subscriber, as the monitor is), then its outcome from the report.
 
 use marie::actors::events::{BusError, Event, EventBus, EventKind};
-use marie::actors::flags::StatusFlags;
 use marie::actors::report::RunReport;
 use marie::actors::run::{Choice, Outcome, Verdict};
+use marie::actors::status::StatusFlags;
 use marie_missions::robot::RobotReport;
 use tokio::sync::oneshot;
 use tokio::task::JoinHandle;

@@ -4,7 +4,7 @@
 use super::args::RobotArgs;
 use super::join::{join, Joining};
 use marie::actors::clock::ScaledClock;
-use marie::actors::dispatcher::mission::Mission;
+use marie::actors::dispatcher::mission::{Mission, ParsedMission};
 use marie::cluster::net::Transport;
 use marie::cluster::node::{Node, NodeError};
 use marie_missions::embedded::{Embedded, EmbeddedOptions};
@@ -57,7 +57,7 @@ pub(crate) async fn prepare(
     robot: RobotArgs,
     joining: Option<&Joining>,
 ) -> anyhow::Result<Prepared> {
-    let parsed = Mission::parse_file(path).map_err(NodeError::Mission)?;
+    let parsed = ParsedMission::parse_file(path).map_err(NodeError::Mission)?;
     let mut options = robot.options(parsed.world());
     options.mission_world_at = parsed.world_diagnostic("the world named here does not load:");
     if let Some(j) = joining {

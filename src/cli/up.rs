@@ -12,7 +12,7 @@ use super::children::{stop_all, Line, Listening, NodeChild, NodeLaunch};
 use super::error::BadInput;
 use super::join::{join, member_name, JoinArgs};
 use super::run::RunArgs;
-use marie::actors::dispatcher::mission::Mission;
+use marie::actors::dispatcher::mission::ParsedMission;
 use marie::actors::registry::{self, Instance};
 use marie::cluster::fault::NodeProcesses;
 use marie::cluster::layout::ClusterLayout;
@@ -72,7 +72,7 @@ pub(crate) async fn up(args: UpArgs) -> anyhow::Result<ExitCode> {
         ClusterLayout::load(&args.cluster, &catalog).map_err(|d| BadInput(d.to_string()))?;
     // the mission is checked before any process starts; its world is the robot's
     let mission_world = match &args.run {
-        Some(path) => Mission::parse_file(path)
+        Some(path) => ParsedMission::parse_file(path)
             .map_err(marie::cluster::node::NodeError::Mission)?
             .world()
             .map(PathBuf::from),

@@ -9,14 +9,14 @@
 //! and its declaration, so `Step::Finish(WallFlag::Found.into())` cannot name a bit that
 //! means something else.
 
-use crate::flags::{FlagDecl, StatusFlags};
+use crate::status::{FlagDecl, StatusFlags};
 
 /// An enum of an operation's flags, in declaration order. [`flags!`](crate::flags!)
 /// implements it.
 ///
 /// ```
 /// use marie_actors::declare::DeclaredFlags;
-/// use marie_actors::flags::{FlagDecl, StatusFlags};
+/// use marie_actors::status::{FlagDecl, StatusFlags};
 ///
 /// marie_actors::flags! {
 ///     /// What the walk reports.
@@ -92,7 +92,7 @@ pub trait DeclaredFlags: Copy + Into<StatusFlags> + 'static {
 ///
 /// ```
 /// use marie_actors::declare::DeclaredFlags;
-/// use marie_actors::flags::StatusFlags;
+/// use marie_actors::status::StatusFlags;
 ///
 /// marie_actors::flags! {
 ///     /// What the docking detector reports.
@@ -122,7 +122,7 @@ pub trait DeclaredFlags: Copy + Into<StatusFlags> + 'static {
 ///         Found = "dock-found",
 ///     }
 /// }
-/// let _: marie_actors::flags::StatusFlags = Dock::Fuond.into();
+/// let _: marie_actors::status::StatusFlags = Dock::Fuond.into();
 /// ```
 #[macro_export]
 macro_rules! flags {
@@ -170,30 +170,30 @@ macro_rules! flags {
             }
         }
 
-        impl ::core::convert::From<$name> for $crate::flags::StatusFlags {
+        impl ::core::convert::From<$name> for $crate::status::StatusFlags {
             fn from(flag: $name) -> Self {
-                $crate::flags::StatusFlags(1 << (flag as u32))
+                $crate::status::StatusFlags(1 << (flag as u32))
             }
         }
 
         impl ::core::ops::BitOr for $name {
-            type Output = $crate::flags::StatusFlags;
-            fn bitor(self, rhs: $name) -> $crate::flags::StatusFlags {
-                $crate::flags::StatusFlags::from(self) | $crate::flags::StatusFlags::from(rhs)
+            type Output = $crate::status::StatusFlags;
+            fn bitor(self, rhs: $name) -> $crate::status::StatusFlags {
+                $crate::status::StatusFlags::from(self) | $crate::status::StatusFlags::from(rhs)
             }
         }
 
-        impl ::core::ops::BitOr<$name> for $crate::flags::StatusFlags {
-            type Output = $crate::flags::StatusFlags;
-            fn bitor(self, rhs: $name) -> $crate::flags::StatusFlags {
-                self | $crate::flags::StatusFlags::from(rhs)
+        impl ::core::ops::BitOr<$name> for $crate::status::StatusFlags {
+            type Output = $crate::status::StatusFlags;
+            fn bitor(self, rhs: $name) -> $crate::status::StatusFlags {
+                self | $crate::status::StatusFlags::from(rhs)
             }
         }
 
-        impl ::core::ops::BitOr<$crate::flags::StatusFlags> for $name {
-            type Output = $crate::flags::StatusFlags;
-            fn bitor(self, rhs: $crate::flags::StatusFlags) -> $crate::flags::StatusFlags {
-                $crate::flags::StatusFlags::from(self) | rhs
+        impl ::core::ops::BitOr<$crate::status::StatusFlags> for $name {
+            type Output = $crate::status::StatusFlags;
+            fn bitor(self, rhs: $crate::status::StatusFlags) -> $crate::status::StatusFlags {
+                $crate::status::StatusFlags::from(self) | rhs
             }
         }
 

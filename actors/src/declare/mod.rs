@@ -13,11 +13,11 @@
 //! - [`params!`](crate::params) — a struct of parameters: its [`ParamSchema`] (exactly the
 //!   [`ParamDecl`]s written by hand), its defaults, a typed read (`ctx.params().read()`) and
 //!   a typed key per parameter ([`Param<T>`]); [`choice!`](crate::choice) gives choice
-//!   parameters an enum ([`params`], [`choice`]);
+//!   parameters an enum (see [`DeclaredParams`], [`ParamValue`]);
 //! - [`flags!`](crate::flags!) — an enum of flags whose variant is both the declaration and the
-//!   bit ([`flags`]);
-//! - [`DmName`] — datamanagers by constant ([`crate::dm::FEATURE`]) ([`dm`]);
-//! - [`RecordKind<T>`] — a record's class, sub-classes and payload type ([`records`]).
+//!   bit (see [`DeclaredFlags`]);
+//! - [`DmName`] — datamanagers by constant ([`crate::dm::FEATURE`]);
+//! - [`RecordKind<T>`] — a record's class, sub-classes and payload type.
 //!
 //! None of it replaces the string interfaces: the generated code calls them, and operations
 //! declared by hand keep working. No proc-macro crate is involved; the macros are
@@ -72,11 +72,11 @@
 //! # }
 //! ```
 
-pub mod choice;
-pub mod dm;
-pub mod flags;
-pub mod params;
-pub mod records;
+mod choice;
+mod dm;
+mod flags;
+mod params;
+mod records;
 
 pub use dm::DmName;
 pub use flags::DeclaredFlags;

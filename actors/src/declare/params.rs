@@ -177,7 +177,7 @@ impl<T: ParamValue> Param<T> {
         }
     }
 
-    /// The name and `value` as a pair for [`crate::property::params`].
+    /// The name and `value` as a pair for [`crate::property::param_map`].
     pub fn pair(&self, value: impl IntoParam<T>) -> (&'static str, Value) {
         (self.name, value.into_param().into_value())
     }
@@ -206,13 +206,13 @@ impl<T> fmt::Debug for Param<T> {
 ///
 /// ```
 /// use marie_actors::declare::{Param, ParamMapExt};
-/// use marie_actors::property::{params, ParamMap, Value};
+/// use marie_actors::property::{param_map, ParamMap, Value};
 ///
 /// const GAIN: Param<f64> = Param::new("gain");
 /// const MODE: Param<String> = Param::new("mode");
 /// let mut update = ParamMap::new().with(GAIN, 0.5).with(MODE, "wall");
 /// update.set(GAIN, 0.25);
-/// assert_eq!(update, params([("gain", Value::Float(0.25)), ("mode", "wall".into())]));
+/// assert_eq!(update, param_map([("gain", Value::Float(0.25)), ("mode", "wall".into())]));
 /// ```
 pub trait ParamMapExt: Sized {
     /// The map with `key` set to `value`.
@@ -484,7 +484,7 @@ macro_rules! __param_option {
 mod tests {
     use super::*;
     use crate::eo::{OpError, Params};
-    use crate::property::{params, ParamType};
+    use crate::property::{param_map, ParamType};
 
     crate::choice! {
         /// Test choice.
@@ -589,7 +589,7 @@ mod tests {
             .with(Extract::label(), "x");
         assert_eq!(
             update,
-            params([
+            param_map([
                 ("window", Value::Float(2.5)),
                 ("min_points", Value::Int(1_000_000_000_000)),
                 ("beams", Value::Text("all".into())),
@@ -597,8 +597,8 @@ mod tests {
             ])
         );
         assert_eq!(
-            params([Extract::fresh().pair(true)]),
-            params([("fresh", Value::Bool(true))])
+            param_map([Extract::fresh().pair(true)]),
+            param_map([("fresh", Value::Bool(true))])
         );
         // the host checks the values against the declaration, which the key's type matches
         let rejected = by_hand().apply(&by_hand().defaults(), &update, true);

@@ -86,7 +86,7 @@ pub fn tell(mission: &Mission, choices: Vec<Choice>) -> Survey {
 
 fn flag_sources(mission: &Mission, choices: &[Choice]) -> Vec<FlagSource> {
     let mut out: Vec<FlagSource> = Vec::new();
-    let mut wait = |bits: crate::flags::StatusFlags, by: String| {
+    let mut wait = |bits: crate::status::StatusFlags, by: String| {
         for bit in bits.bits() {
             let Some(flag) = mission.flag_name(bit) else {
                 continue;
@@ -142,10 +142,10 @@ fn control_details(mission: &Mission, choices: &[Choice]) -> ControlDetails {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::dispatcher::mission::{Catalog, OpInfo};
+    use crate::dispatcher::mission::{Catalog, OpInfo, ParsedMission};
     use crate::dispatcher::selection::{choose, Offer};
-    use crate::flags::FlagDecl;
     use crate::property::{ParamDecl, ParamSchema};
+    use crate::status::FlagDecl;
 
     struct Ops(Vec<OpInfo>);
 
@@ -199,7 +199,7 @@ ends_on = ["finisher"]
 
     fn surveyed() -> Survey {
         let ops = ops();
-        let mission = Mission::parse(MISSION, None)
+        let mission = ParsedMission::parse(MISSION, None)
             .unwrap()
             .validate(&Ops(ops.clone()))
             .unwrap();

@@ -15,13 +15,13 @@
 use super::messages::{EoMsg, EoReport, ParamOutcome};
 use super::operation::{Identity, OpContext, Operation, Params, Step};
 use crate::clock::{RealClock, SharedClock, Timer};
-use crate::flags::{FlagDecl, StatusFlags};
 use crate::property::{
     Address, Collection, General, Group, Identification, Limit, Location, ParamMap, ParamSchema,
     PropertyReply, PropertyRequest, Signature, Specific, Value,
 };
 use crate::registry::{self, ModuleKind};
 use crate::run::FaultKind;
+use crate::status::{FlagDecl, StatusFlags};
 use ractor::{Actor, ActorCell, ActorProcessingErr, ActorRef, RpcReplyPort, SpawnErr};
 use std::marker::PhantomData;
 use std::time::Duration;

@@ -1,8 +1,8 @@
 //! eo-interface messages (thesis 3.2.5.1; see `docs/thesis.md`).
 
-use crate::flags::StatusFlags;
 use crate::property::{ParamMap, PropertyReply, PropertyRequest, Rejection};
 use crate::run::FaultKind;
+use crate::status::StatusFlags;
 use serde::{Deserialize, Serialize};
 
 /// How an activation ended, sent on the activation's reply port. Flags are in the operation's

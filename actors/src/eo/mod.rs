@@ -12,7 +12,7 @@
 //!
 //! ```
 //! use marie_actors::eo::{self, Identity, Operation, OpContext, OpError, Step, EoClient};
-//! use marie_actors::flags::{FlagDecl, StatusFlags};
+//! use marie_actors::status::{FlagDecl, StatusFlags};
 //! use marie_actors::property::{ParamDecl, ParamSchema, ParamMap};
 //!
 //! struct Countdown { left: i64 }

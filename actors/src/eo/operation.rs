@@ -3,8 +3,8 @@
 use crate::clock::SharedClock;
 use crate::declare::{DeclaredParams, DmName, Param, ParamError, ParamValue};
 use crate::dm::DmError;
-use crate::flags::{FlagDecl, StatusFlags};
 use crate::property::{ParamMap, ParamSchema, Value};
+use crate::status::{FlagDecl, StatusFlags};
 use serde::{Deserialize, Serialize};
 use std::future::Future;
 use std::time::Duration;

@@ -6,7 +6,7 @@
 
 use super::schema::{ParamDecl, ParamType};
 use super::value::{ParamMap, Value};
-use crate::flags::FlagDecl;
+use crate::status::FlagDecl;
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 

@@ -6,11 +6,11 @@
 //! ch. 6). The EO host answers them for every operation.
 //!
 //! ```
-//! use marie_actors::property::{ParamDecl, ParamSchema, Value, params};
+//! use marie_actors::property::{ParamDecl, ParamSchema, Value, param_map};
 //! let schema = ParamSchema::new(vec![ParamDecl::float("distance", 0.5).range(0.1, 2.0).unit("m")]);
 //! let current = schema.defaults();
 //! // one bad value rejects the whole update, with a reason per value
-//! let err = schema.apply(&current, &params([("distance", Value::Float(3.0))]), false).unwrap_err();
+//! let err = schema.apply(&current, &param_map([("distance", Value::Float(3.0))]), false).unwrap_err();
 //! assert_eq!(err[0].name, "distance");
 //! ```
 
@@ -25,4 +25,4 @@ pub use messages::{
     PropertyRequest, Signature, Specific, DEFAULT_DEADLINE_MS, STANDARD_PROPERTIES,
 };
 pub use schema::{ParamDecl, ParamSchema, ParamType, RejectReason, Rejection};
-pub use value::{params, ParamMap, Value};
+pub use value::{param_map, ParamMap, Value};

@@ -467,7 +467,7 @@ impl ParamSchema {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::property::value::params;
+    use crate::property::value::param_map;
 
     fn schema() -> ParamSchema {
         ParamSchema::new(vec![
@@ -514,7 +514,7 @@ mod tests {
     fn apply_is_all_or_nothing_with_a_reason_per_value() {
         let s = schema();
         let cur = s.defaults();
-        let upd = params([
+        let upd = param_map([
             ("distance", Value::Float(1.0)),
             ("count", Value::Int(3)),
             ("nope", Value::Bool(true)),
@@ -532,19 +532,19 @@ mod tests {
     #[test]
     fn nested_values_are_checked_by_path() {
         let s = schema();
-        let bad = params([(
+        let bad = param_map([(
             "pose",
             Value::Struct([("x".to_string(), Value::Float(11.0))].into()),
         )]);
         let err = s.apply(&s.defaults(), &bad, false).unwrap_err();
         assert_eq!(err[0].name, "pose.x");
-        let bad = params([(
+        let bad = param_map([(
             "gains",
             Value::Array(vec![Value::Int(1), Value::Float(9.0)]),
         )]);
         let err = s.apply(&s.defaults(), &bad, false).unwrap_err();
         assert_eq!(err[0].name, "gains[1]");
-        let ok = params([("distance", Value::Int(1))]);
+        let ok = param_map([("distance", Value::Int(1))]);
         let next = s.apply(&s.defaults(), &ok, false).unwrap();
         assert_eq!(next["distance"], Value::Float(1.0));
     }

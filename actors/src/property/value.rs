@@ -166,7 +166,7 @@ impl From<String> for Value {
 /// partial one (an update).
 pub type ParamMap = BTreeMap<String, Value>;
 
-/// Build a [`ParamMap`] from pairs: `params([("distance", 0.5.into())])`.
-pub fn params<K: Into<String>, const N: usize>(pairs: [(K, Value); N]) -> ParamMap {
+/// Build a [`ParamMap`] from pairs: `param_map([("distance", 0.5.into())])`.
+pub fn param_map<K: Into<String>, const N: usize>(pairs: [(K, Value); N]) -> ParamMap {
     pairs.into_iter().map(|(k, v)| (k.into(), v)).collect()
 }

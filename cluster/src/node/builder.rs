@@ -18,7 +18,7 @@
 //!
 //! ```
 //! use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
-//! use marie_actors::flags::{FlagDecl, StatusFlags};
+//! use marie_actors::status::{FlagDecl, StatusFlags};
 //! use marie_cluster::node::{Node, RunOptions};
 //!
 //! #[derive(Default)]

@@ -55,7 +55,9 @@ impl Node {
     pub(super) async fn resolve(&self, input: MissionInput) -> Result<Mission, NodeError> {
         let parsed = match input {
             MissionInput::Checked(m) => return Ok(m),
-            MissionInput::Text(text) => Mission::parse(&text, None).map_err(NodeError::Mission)?,
+            MissionInput::Text(text) => {
+                ParsedMission::parse(&text, None).map_err(NodeError::Mission)?
+            }
             MissionInput::Built(b) => b.build().map_err(NodeError::Mission)?,
             MissionInput::Parsed(p) => p,
         };

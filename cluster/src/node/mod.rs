@@ -28,7 +28,7 @@
 //! #   }
 //! #   async fn step(&mut self, _: &mut marie_actors::eo::OpContext)
 //! #       -> Result<marie_actors::eo::Step, marie_actors::eo::OpError> {
-//! #       Ok(marie_actors::eo::Step::Finish(marie_actors::flags::StatusFlags(0)))
+//! #       Ok(marie_actors::eo::Step::Finish(marie_actors::status::StatusFlags(0)))
 //! #   }
 //! # }
 //! # #[tokio::main] async fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -388,7 +388,7 @@ impl Node {
 
     /// Read, parse and check a mission against the operations running now.
     pub async fn load_mission(&self, path: &Path) -> Result<Mission, NodeError> {
-        let parsed = Mission::parse_file(path).map_err(NodeError::Mission)?;
+        let parsed = ParsedMission::parse_file(path).map_err(NodeError::Mission)?;
         self.check_mission(&parsed).await
     }
 

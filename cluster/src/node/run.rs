@@ -133,7 +133,7 @@ impl Node {
     ///
     /// ```
     /// # use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
-    /// # use marie_actors::flags::{FlagDecl, StatusFlags};
+    /// # use marie_actors::status::{FlagDecl, StatusFlags};
     /// # #[derive(Default)] struct Tick { n: u32 }
     /// # impl Operation for Tick {
     /// #     fn identity(&self) -> Identity { Identity::new("f-tick", 4401, "1.0.0", "ticks") }

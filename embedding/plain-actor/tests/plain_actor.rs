@@ -2,10 +2,10 @@
 //! are spawned, both answer, and the application's actor is fed what the operation reports.
 
 use marie::actors::eo::{self, EoClient, EoReport, Identity, OpContext, OpError, Operation, Step};
-use marie::actors::flags::{FlagDecl, StatusFlags};
 use marie::actors::property::{
-    params, ParamDecl, ParamSchema, PropertyReply, PropertyRequest, Value,
+    param_map, ParamDecl, ParamSchema, PropertyReply, PropertyRequest, Value,
 };
+use marie::actors::status::{FlagDecl, StatusFlags};
 use marie_plain_actor_check::{Tally, TallyMsg};
 use ractor::Actor;
 use std::time::Duration;
@@ -63,7 +63,9 @@ async fn a_plain_enum_actor_runs_beside_a_marie_operation() {
     assert_eq!(total, 7);
 
     // the operation, driven through marie, in the same process
-    let report = client.activate(params([("to", Value::Int(4))]), 1).unwrap();
+    let report = client
+        .activate(param_map([("to", Value::Int(4))]), 1)
+        .unwrap();
     let report = tokio::time::timeout(T, report).await.unwrap().unwrap();
     assert!(
         matches!(

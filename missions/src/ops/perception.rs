@@ -16,8 +16,8 @@ use crate::hardware::CartClient;
 use marie_actors::declare::{DeclaredFlags, DeclaredParams};
 use marie_actors::dm::{Query, FEATURE, WORLD};
 use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
-use marie_actors::flags::FlagDecl;
 use marie_actors::property::{ParamSchema, Value};
+use marie_actors::status::FlagDecl;
 use std::collections::BTreeMap;
 use std::time::Duration;
 

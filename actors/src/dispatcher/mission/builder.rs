@@ -24,7 +24,7 @@
 //! assert_eq!(parsed.ops().collect::<Vec<_>>(), ["collatz"]);
 //! ```
 
-use super::{Diagnostics, Mission, ParsedMission};
+use super::{Diagnostics, ParsedMission};
 use crate::property::{ParamMap, Value};
 use std::time::Duration;
 
@@ -159,7 +159,7 @@ impl MissionBuilder {
     /// Check its structure as the parser checks a file's; then validate the result against
     /// the operations that run ([`ParsedMission::validate`], or a node's `check_mission`).
     pub fn build(&self) -> Result<ParsedMission, Diagnostics> {
-        match Mission::parse(&self.to_toml(), None) {
+        match ParsedMission::parse(&self.to_toml(), None) {
             Ok(mut parsed) => {
                 parsed.file = BUILT.to_string();
                 Ok(parsed)
@@ -263,8 +263,8 @@ fn value(v: &Value) -> toml::Value {
 mod tests {
     use super::*;
     use crate::dispatcher::mission::{OpInfo, StaticCatalog};
-    use crate::flags::FlagDecl;
     use crate::property::{ParamDecl, ParamSchema};
+    use crate::status::FlagDecl;
 
     fn catalog() -> StaticCatalog {
         StaticCatalog::new(vec![OpInfo::new("walker", 7, "1.0.0")

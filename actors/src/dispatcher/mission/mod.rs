@@ -10,7 +10,7 @@
 //! Checking happens in two stages, and each reports *every* problem it finds, sorted by
 //! position, as `file:line:column: message` ([`Diagnostics`]):
 //!
-//! 1. [`Mission::parse`] — syntax and structure, no knowledge of operations needed: TOML
+//! 1. [`ParsedMission::parse`] — syntax and structure, no knowledge of operations needed: TOML
 //!    syntax; required keys; unknown keys anywhere (with the accepted ones); value types; flag
 //!    bits in `0..=31` and each used once; flag names in `initial`, `success` and `when`
 //!    declared in `[flags]`; unique action names; every action has operations; `ends_on` names
@@ -20,7 +20,7 @@
 //!    operation exists; every supplied parameter is declared, writable, of the right type and
 //!    in range ([`ParamDecl::check`](crate::property::ParamDecl::check)); every flag a
 //!    condition or `success` needs is set in `initial` or declared by some operation of the
-//!    mission ([`FlagDecl`](crate::flags::FlagDecl)) — a typo or an impossible condition is caught here.
+//!    mission ([`FlagDecl`](crate::status::FlagDecl)) — a typo or an impossible condition is caught here.
 //!
 //! [`Mission::load`] does both for a file. Nothing here panics on any input.
 //!
@@ -77,7 +77,7 @@
 //!
 //! ```
 //! use marie_actors::dispatcher::mission::{EndMode, Mission, OpInfo, StaticCatalog};
-//! use marie_actors::flags::{FlagDecl, StatusFlags};
+//! use marie_actors::status::{FlagDecl, StatusFlags};
 //! use marie_actors::property::{ParamDecl, ParamSchema, Value};
 //! use std::time::Duration;
 //!
@@ -115,7 +115,7 @@
 //!         .flags(vec![FlagDecl::new("summed", "sum stored")]),
 //! ]);
 //!
-//! let mission = Mission::parse(src, None)?.validate(&catalog)?;
+//! let mission = ParsedMission::parse(src, None)?.validate(&catalog)?;
 //! assert_eq!(mission.flags["summed"], 1);
 //! assert_eq!(mission.success, StatusFlags(0b10));
 //! let count = &mission.actions[0];
@@ -132,7 +132,7 @@
 //!
 //! // A typo is reported with its position and what was expected.
 //! let bad = src.replace("limit = 10", "limt = 10");
-//! let err = Mission::parse(&bad, None)?.validate(&catalog).unwrap_err();
+//! let err = ParsedMission::parse(&bad, None)?.validate(&catalog).unwrap_err();
 //! assert_eq!(
 //!     err.to_string(),
 //!     "<mission>:15:1: unknown parameter `limt` of operation `counter` (expected one of: limit)"
@@ -150,8 +150,8 @@ pub use builder::{ActionBuilder, MissionBuilder, BUILT};
 pub use operations::{Catalog, OpInfo, StaticCatalog};
 
 use super::checked::CheckedChoices;
-use crate::flags::StatusFlags;
 use crate::property::ParamMap;
+use crate::status::StatusFlags;
 use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt;
@@ -269,22 +269,10 @@ fn default_rebind_deadline() -> Duration {
 }
 
 impl Mission {
-    /// Stage 1: parse mission text and check its syntax and structure. `path` is used in
-    /// diagnostics (`<mission>` without one) and kept in the mission.
-    pub fn parse(src: &str, path: Option<&Path>) -> Result<ParsedMission, Diagnostics> {
-        raw::parse(src, path)
-    }
-
-    /// Stage 1 on a file. An unreadable file is one diagnostic at 1:1 naming the file and the
-    /// OS error; text that is not UTF-8 is reported at the first invalid byte.
-    pub fn parse_file(path: &Path) -> Result<ParsedMission, Diagnostics> {
-        let src = crate::diagnostic::read_source(path, "mission")?;
-        Mission::parse(&src, Some(path))
-    }
-
-    /// Both stages on a file: read, parse, and validate against `catalog`.
+    /// Both stages on a file: read, parse ([`ParsedMission::parse_file`]), and validate
+    /// against `catalog`.
     pub fn load<C: Catalog + ?Sized>(path: &Path, catalog: &C) -> Result<Mission, Diagnostics> {
-        Mission::parse_file(path)?.validate(catalog)
+        ParsedMission::parse_file(path)?.validate(catalog)
     }
 
     /// The name of the flag on bit `bit`.
@@ -397,6 +385,19 @@ pub struct ParsedMission {
 }
 
 impl ParsedMission {
+    /// Stage 1: parse mission text and check its syntax and structure. `path` is used in
+    /// diagnostics (`<mission>` without one) and kept in the mission.
+    pub fn parse(src: &str, path: Option<&Path>) -> Result<ParsedMission, Diagnostics> {
+        raw::parse(src, path)
+    }
+
+    /// Stage 1 on a file. An unreadable file is one diagnostic at 1:1 naming the file and the
+    /// OS error; text that is not UTF-8 is reported at the first invalid byte.
+    pub fn parse_file(path: &Path) -> Result<ParsedMission, Diagnostics> {
+        let src = crate::diagnostic::read_source(path, "mission")?;
+        ParsedMission::parse(&src, Some(path))
+    }
+
     /// Stage 2: check the mission against the operations `catalog` offers and build the
     /// [`Mission`]. Reports every problem, sorted by position.
     pub fn validate<C: Catalog + ?Sized>(&self, catalog: &C) -> Result<Mission, Diagnostics> {
@@ -496,8 +497,8 @@ pub(crate) fn display_path(path: Option<&Path>) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::flags::FlagDecl;
     use crate::property::{ParamDecl, ParamSchema, Value};
+    use crate::status::FlagDecl;
 
     fn catalog() -> StaticCatalog {
         StaticCatalog::new([
@@ -524,7 +525,7 @@ mod tests {
     fn one_operation_by_name_and_by_id_in_one_action_is_rejected() {
         let src = "[mission]\nname = \"m\"\n[[action]]\nname = \"a\"\n\
                    [action.ops.counter]\n[action.ops.\"1512\"]\n";
-        let err = Mission::parse(src, None)
+        let err = ParsedMission::parse(src, None)
             .and_then(|p| p.validate(&catalog()))
             .unwrap_err();
         assert_eq!(err.len(), 1);
@@ -537,7 +538,7 @@ mod tests {
                    [[action]]\nname = \"a\"\n[action.ops.\"1512\"]\n\
                    [[action]]\nname = \"b\"\n[action.ops.\"1512\"]\ngain = 2\n\
                    [[action]]\nname = \"c\"\n[action.ops.counter]\n";
-        let m = Mission::parse(src, None)
+        let m = ParsedMission::parse(src, None)
             .and_then(|p| p.validate(&catalog()))
             .unwrap_or_else(|d| panic!("{d}"));
         assert_eq!(m.ops().collect::<Vec<_>>(), ["1512", "counter"]);

@@ -6,8 +6,8 @@
 use super::Mission;
 use crate::dispatcher::CheckedChoices;
 use crate::eo::{Identity, Operation};
-use crate::flags::FlagDecl;
 use crate::property::ParamSchema;
+use crate::status::FlagDecl;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 

@@ -3,8 +3,8 @@
 use super::raw::{list, q, ParsedOp, ParsedParam};
 use super::{Action, Catalog, Mission, OpInfo, OpRun, ParsedMission};
 use crate::diagnostic::{Diagnostic, Diagnostics};
-use crate::flags::StatusFlags;
 use crate::property::{ParamMap, RejectReason};
+use crate::status::StatusFlags;
 use std::collections::{BTreeMap, BTreeSet};
 
 /// Stage 2 entry point.

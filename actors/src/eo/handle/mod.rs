@@ -39,7 +39,7 @@ use std::time::Duration;
 ///   had died, so a hung remote instance is left like a gone one: the call waits for
 ///   another instance instead of reporting a [`HandleError::Timeout`];
 /// - **answers in types**: [`Identity`](super::Identity), [`ParamSchema`](crate::property::ParamSchema),
-///   [`FlagDecl`](crate::flags::FlagDecl)s, [`General`](crate::property::General), a
+///   [`FlagDecl`](crate::status::FlagDecl)s, [`General`](crate::property::General), a
 ///   parameter as any [`FromValue`](crate::property::FromValue) type;
 /// - **keeps epochs inside**: [`set`](OperationHandle::set) reads the instance's current
 ///   epoch and commands at exactly that epoch — the host refuses only an epoch *below* its
@@ -50,7 +50,7 @@ use std::time::Duration;
 ///
 /// ```
 /// use marie_actors::eo::{self, Identity, OperationHandle, Operation, OpContext, OpError, SetError, Step};
-/// use marie_actors::property::{params, ParamDecl, ParamSchema, Value};
+/// use marie_actors::property::{param_map, ParamDecl, ParamSchema, Value};
 ///
 /// struct Pump;
 /// impl Operation for Pump {
@@ -65,11 +65,11 @@ use std::time::Duration;
 /// eo::spawn_operation(Pump, Default::default()).await.unwrap();
 ///
 /// let pump = OperationHandle::lookup("pump").await.unwrap();
-/// pump.set(params([("rate", Value::Float(2.5))])).await.unwrap();
+/// pump.set(param_map([("rate", Value::Float(2.5))])).await.unwrap();
 /// assert_eq!(pump.value::<f64>("rate").await.unwrap(), 2.5);
 ///
 /// // out of range: refused as a whole, each refused value listed, nothing changed
-/// let refused = pump.set(params([("rate", Value::Float(99.0))])).await.unwrap_err();
+/// let refused = pump.set(param_map([("rate", Value::Float(99.0))])).await.unwrap_err();
 /// assert!(matches!(&refused, SetError::Rejected { rejections, .. } if rejections[0].name == "rate"));
 /// assert_eq!(pump.value::<f64>("rate").await.unwrap(), 2.5);
 /// # }
@@ -307,7 +307,7 @@ impl OperationHandle {
     ///
     /// ```
     /// # use marie_actors::eo::{self, Identity, Operation, OpContext, OpError, Step};
-    /// # use marie_actors::flags::StatusFlags;
+    /// # use marie_actors::status::StatusFlags;
     /// # struct Pump;
     /// # impl Operation for Pump {
     /// #     fn identity(&self) -> Identity { Identity::new("pump", 7101, "1.2.0", "pumps") }

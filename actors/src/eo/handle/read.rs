@@ -5,11 +5,11 @@ use super::follow::Bound;
 use super::OperationHandle;
 use crate::eo::handle_error::HandleError;
 use crate::eo::operation::Identity;
-use crate::flags::FlagDecl;
 use crate::property::{
     Collection, FromValue, General, Group, ParamMap, ParamSchema, PropertyReply, PropertyRequest,
     Specific, Value,
 };
+use crate::status::FlagDecl;
 
 impl OperationHandle {
     /// Who the operation is: name, id, version, description.
@@ -76,7 +76,7 @@ impl OperationHandle {
     ///
     /// ```
     /// # use marie_actors::eo::{self, Identity, Operation, OpContext, OpError, Step};
-    /// # use marie_actors::flags::FlagDecl;
+    /// # use marie_actors::status::FlagDecl;
     /// # struct Pump;
     /// # impl Operation for Pump {
     /// #     fn identity(&self) -> Identity { Identity::new("pump", 7101, "1.2.0", "pumps") }

@@ -28,12 +28,12 @@ impl OperationHandle {
     /// # #[tokio::main(flavor = "current_thread")] async fn main() {
     /// # eo::spawn_operation(Pump, Default::default()).await.unwrap();
     /// use marie_actors::eo::{OperationHandle, SetError};
-    /// use marie_actors::property::{params, RejectReason, Value};
+    /// use marie_actors::property::{param_map, RejectReason, Value};
     /// let pump = OperationHandle::lookup("pump").await.unwrap();
-    /// pump.set(params([("rate", Value::Float(4.0)), ("stages", Value::Int(2))])).await.unwrap();
+    /// pump.set(param_map([("rate", Value::Float(4.0)), ("stages", Value::Int(2))])).await.unwrap();
     ///
     /// let Err(SetError::Rejected { rejections, .. }) =
-    ///     pump.set(params([("rate", Value::Float(12.0)), ("stages", Value::Int(3))])).await
+    ///     pump.set(param_map([("rate", Value::Float(12.0)), ("stages", Value::Int(3))])).await
     /// else { panic!("a rate of 12 is out of range") };
     /// assert_eq!(rejections.len(), 1);
     /// assert_eq!(rejections[0].name, "rate");

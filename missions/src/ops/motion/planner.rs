@@ -11,8 +11,8 @@ use crate::ops::{cart, cart_err, dm_err, located, newest};
 use marie_actors::declare::{DeclaredFlags, DeclaredParams};
 use marie_actors::dm::{PARAMETER, WORLD};
 use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
-use marie_actors::flags::FlagDecl;
 use marie_actors::property::ParamSchema;
+use marie_actors::status::FlagDecl;
 
 marie_actors::choice! {
     /// Where the path planner plans to.
