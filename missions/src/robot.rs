@@ -44,7 +44,6 @@ use marie_actors::dm::{self, DmClient, DmError, DmSpec, NewRecord, Query};
 use marie_actors::events::EventBus;
 use marie_cluster::node::{AprioriRecord, BoxFuture, Robot};
 use marie_supervision::{ChildSpec, Restart};
-use serde::de::DeserializeOwned;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use tokio::task::JoinHandle;
@@ -271,7 +270,7 @@ fn judge(
 
 /// Every record of `query`, decoded as `T`; records that do not decode, or a datamanager that
 /// does not answer, are skipped with a warning.
-async fn decoded<T: DeserializeOwned>(client: &Result<DmClient, DmError>, query: Query) -> Vec<T> {
+async fn decoded<T: dm::PayloadType>(client: &Result<DmClient, DmError>, query: Query) -> Vec<T> {
     let class = query.class.clone().unwrap_or_default();
     let selected = match client {
         Ok(client) => client.select(query).await,
@@ -307,7 +306,7 @@ async fn decoded<T: DeserializeOwned>(client: &Result<DmClient, DmError>, query:
 }
 
 /// The newest record of `class`, decoded; `None` when there is none or it does not decode.
-async fn newest<T: DeserializeOwned>(client: &Result<DmClient, DmError>, class: &str) -> Option<T> {
+async fn newest<T: dm::PayloadType>(client: &Result<DmClient, DmError>, class: &str) -> Option<T> {
     decoded(client, Query::class(class).newest(1)).await.pop()
 }
 

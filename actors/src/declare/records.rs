@@ -9,8 +9,9 @@
 //! payload's type is checked on both sides. The names are checked when the constant is
 //! evaluated, so an empty or over-long class is a compile error too.
 
-use crate::dm::{DmClient, DmError, NewRecord, Query, Record, RecordHeader, MAX_NAME_LEN};
-use serde::de::DeserializeOwned;
+use crate::dm::{
+    DmClient, DmError, NewRecord, PayloadType, Query, Record, RecordHeader, MAX_NAME_LEN,
+};
 use serde::Serialize;
 use std::fmt;
 use std::marker::PhantomData;
@@ -157,7 +158,7 @@ impl<T: Serialize> RecordKind<T> {
     }
 }
 
-impl<T: DeserializeOwned> RecordKind<T> {
+impl<T: PayloadType> RecordKind<T> {
     /// The payload of `record` as this kind's type.
     pub fn decode(&self, record: &Record) -> Result<T, DmError> {
         record.decode()
@@ -234,7 +235,7 @@ impl DmClient {
 
     /// The records of `kind` that `query` selects (its class and sub-classes are the
     /// kind's), oldest first, decoded. One payload that does not decode fails the answer.
-    pub async fn select_kind<T: DeserializeOwned>(
+    pub async fn select_kind<T: PayloadType>(
         &self,
         kind: RecordKind<T>,
         query: Query,
@@ -243,7 +244,7 @@ impl DmClient {
     }
 
     /// The newest record of `kind`, decoded; `None` when there is none.
-    pub async fn newest_kind<T: DeserializeOwned>(
+    pub async fn newest_kind<T: PayloadType>(
         &self,
         kind: RecordKind<T>,
     ) -> Result<Option<(RecordHeader, T)>, DmError> {

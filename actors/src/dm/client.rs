@@ -5,10 +5,10 @@ use super::error::DmError;
 use super::messages::{DmMsg, DmStats};
 use super::query::Query;
 use super::record::{NewRecord, Payload, Record, RecordHeader};
+use super::shared::PayloadType;
 use crate::registry::{self, Instance, ModuleKind};
 use ractor::rpc::CallResult;
 use ractor::{ActorRef, RpcReplyPort};
-use serde::de::DeserializeOwned;
 use serde::Serialize;
 use std::sync::Arc;
 use std::time::Duration;
@@ -287,9 +287,10 @@ impl DmClient {
         .await
     }
 
-    /// Every record matching `query`, with its payload decoded as a `T`. One payload that
-    /// does not decode fails the whole answer.
-    pub async fn select_typed<T: DeserializeOwned>(
+    /// Every record matching `query`, with its payload decoded as a `T` (once for every
+    /// reader in the datamanager's process: see [`PayloadType`]). One payload that does not
+    /// decode fails the whole answer.
+    pub async fn select_typed<T: PayloadType>(
         &self,
         query: Query,
     ) -> Result<Vec<(RecordHeader, T)>, DmError> {
@@ -373,7 +374,7 @@ mod tests {
     #[test]
     fn batches_are_cut_into_frames_by_size_in_order() {
         let rec = |i: usize, len: usize| {
-            NewRecord::new("c", Payload(vec![0; len])).with_source(format!("s{i}"))
+            NewRecord::new("c", Payload::from_bytes(vec![0; len])).with_source(format!("s{i}"))
         };
         let small: Vec<NewRecord> = (0..100).map(|i| rec(i, 10)).collect();
         assert_eq!(frames(small.clone()), vec![small]);

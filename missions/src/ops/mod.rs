@@ -49,7 +49,7 @@ pub(crate) fn cart_err(e: crate::hardware::CartError) -> OpError {
 }
 
 /// The newest record of `class` in datamanager `dm`, decoded; `None` when there is none.
-pub(crate) async fn newest<T: serde::de::DeserializeOwned>(
+pub(crate) async fn newest<T: marie_actors::dm::PayloadType>(
     ctx: &mut marie_actors::eo::OpContext,
     dm: &'static str,
     class: &str,
@@ -58,7 +58,7 @@ pub(crate) async fn newest<T: serde::de::DeserializeOwned>(
 }
 
 /// Like [`newest`], with the record's sequence number.
-pub(crate) async fn newest_with_seq<T: serde::de::DeserializeOwned>(
+pub(crate) async fn newest_with_seq<T: marie_actors::dm::PayloadType>(
     ctx: &mut marie_actors::eo::OpContext,
     dm: &'static str,
     class: &str,
