@@ -63,6 +63,7 @@ pub mod credits;
 mod error;
 mod index;
 mod messages;
+mod name;
 mod packed;
 mod query;
 mod record;
@@ -78,6 +79,7 @@ pub use actor::{
 pub use client::DmClient;
 pub use error::DmError;
 pub use messages::{DmMsg, DmStats};
+pub use name::Name;
 pub use query::{Query, Take};
 pub use record::{NewRecord, Payload, Record, RecordHeader, MAX_NAME_LEN};
 pub use shared::PayloadType;

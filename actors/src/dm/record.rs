@@ -6,6 +6,7 @@
 //! from its clock, and hands the result back as a [`Record`].
 
 use super::error::DmError;
+use super::name::Name;
 use super::shared::{decode_bytes, PayloadType, Shared};
 use serde::de::{self, SeqAccess, Visitor};
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
@@ -295,13 +296,13 @@ pub struct Record {
     /// When the DM stored it, on the DM's clock. Non-decreasing with `seq`.
     pub timestamp: Duration,
     /// The producer's name.
-    pub source: String,
+    pub source: Name,
     /// The producer's class.
-    pub class: String,
+    pub class: Name,
     /// First sub-class level.
-    pub sub1: Option<String>,
+    pub sub1: Option<Name>,
     /// Second sub-class level.
-    pub sub2: Option<String>,
+    pub sub2: Option<Name>,
     /// The MessagePack payload.
     pub payload: Payload,
 }
@@ -356,13 +357,13 @@ pub struct RecordHeader {
     /// Time stamp on the DM's clock.
     pub timestamp: Duration,
     /// The producer's name.
-    pub source: String,
+    pub source: Name,
     /// The producer's class.
-    pub class: String,
+    pub class: Name,
     /// First sub-class level.
-    pub sub1: Option<String>,
+    pub sub1: Option<Name>,
     /// Second sub-class level.
-    pub sub2: Option<String>,
+    pub sub2: Option<Name>,
 }
 
 #[cfg(test)]

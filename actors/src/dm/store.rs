@@ -28,6 +28,7 @@
 
 use super::error::DmError;
 use super::index::{NameMap, SeqDeque, TimeIndex};
+use super::name::Name;
 use super::packed::Packed;
 use super::query::{Query, Take};
 use super::record::{NewRecord, Payload, Record};
@@ -108,18 +109,17 @@ struct Entry {
 }
 
 impl Entry {
-    fn to_record(&self, seq: u64, class: &str) -> Record {
+    fn to_record(&self, seq: u64, class: &Arc<str>) -> Record {
         let shared = self
             .shared
             .get_or_init(|| Arc::new(Shared::new(self.payload.as_bytes())));
         Record {
             seq,
             timestamp: self.timestamp,
-            // `String::from`, not `to_string`: an `Arc<str>`'s goes through `Display`
-            source: String::from(&*self.source),
-            class: class.to_owned(),
-            sub1: self.sub1.as_deref().map(str::to_string),
-            sub2: self.sub2.as_deref().map(str::to_string),
+            source: Name::shared(&self.source),
+            class: Name::shared(class),
+            sub1: self.sub1.as_ref().map(Name::shared),
+            sub2: self.sub2.as_ref().map(Name::shared),
             payload: Payload::shared(shared.clone()),
         }
     }
