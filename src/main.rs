@@ -18,7 +18,7 @@ fn main() -> ExitCode {
     }
     let cli = cli::Cli::parse();
     cli::runtime::init_tracing(cli.log_format);
-    let runtime = match cli::runtime::build(cli.command.virtual_time()) {
+    let runtime = match cli::runtime::build(cli.command.virtual_time(), cli.command.io()) {
         Ok(rt) => rt,
         Err(e) => {
             eprintln!("marie: cannot start the runtime: {e}");
