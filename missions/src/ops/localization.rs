@@ -4,7 +4,7 @@
 use super::records::{EchoScan, LocationRecord, LOCATION, MAP, SONAR};
 use super::{cart, cart_err, correction, dm_err, newest};
 use crate::algo::localize::{
-    localize, recent_travel, reframe, swept_segments, Fix, LocalizeParams, SensedPoint,
+    localize, recent_travel, swept_segments, Fix, LocalizeParams, Reframe, SensedPoint,
 };
 use crate::algo::segments::SegmentParams;
 use crate::geom::Segment;
@@ -112,13 +112,17 @@ impl Operation for Localizer {
             .map_err(dm_err("feature"))?;
         let mut by_sensor: BTreeMap<usize, Vec<SensedPoint>> = BTreeMap::new();
         for record in &records {
-            let scan: EchoScan = record.decode().map_err(dm_err("feature"))?;
+            // shared with the scan's other readers: decoded once, not copied
+            let scan = record
+                .decode_shared::<EchoScan>()
+                .map_err(dm_err("feature"))?;
+            let frame = Reframe::new(&scan.correction, &now);
             for e in scan.echoes.iter().filter(|e| e.narrow) {
                 let origin =
                     e.point - crate::geom::Pose::new(0.0, 0.0, e.bearing).heading() * e.range;
                 by_sensor.entry(e.sensor).or_default().push(SensedPoint {
-                    origin: reframe(origin, &scan.correction, &now),
-                    point: reframe(e.point, &scan.correction, &now),
+                    origin: frame.apply(origin),
+                    point: frame.apply(e.point),
                 });
             }
         }

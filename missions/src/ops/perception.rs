@@ -7,7 +7,7 @@ use super::records::{
 };
 use super::{cart, cart_err, correction, dm_err, newest};
 use crate::algo::dock::{detect_dock, DockParams};
-use crate::algo::localize::reframe;
+use crate::algo::localize::{reframe, Reframe};
 use crate::algo::segments::{extract_segments, SegmentParams};
 use crate::algo::track::{track_wall, TrackParams};
 use crate::algo::wall::{sense_wall, Side, WallEstimate, WallParams};
@@ -18,15 +18,17 @@ use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
 use marie_actors::flags::{FlagDecl, StatusFlags};
 use marie_actors::property::{ParamDecl, ParamSchema, Value};
 use std::collections::BTreeMap;
+use std::sync::Arc;
 use std::time::Duration;
 
 /// Echo scans stored since `since` (clock time) with a seq of at least `from_seq`, oldest
-/// first, with the seq that follows the last one returned.
+/// first, with the seq that follows the last one returned. Shared with the other readers of
+/// the scans (decoded once, never copied).
 async fn scans_since(
     ctx: &mut OpContext,
     since: Duration,
     from_seq: u64,
-) -> Result<(Vec<EchoScan>, u64), OpError> {
+) -> Result<(Vec<Arc<EchoScan>>, u64), OpError> {
     let records = ctx
         .dm("feature")?
         .select(Query::class(SONAR).time_from(since).seq_from(from_seq))
@@ -35,7 +37,7 @@ async fn scans_since(
     let next = records.last().map_or(from_seq, |r| r.seq + 1);
     let scans = records
         .iter()
-        .map(|r| r.decode().map_err(dm_err("feature")))
+        .map(|r| r.decode_shared().map_err(dm_err("feature")))
         .collect::<Result<_, _>>()?;
     Ok((scans, next))
 }
@@ -137,12 +139,12 @@ impl Operation for SegmentExtractor {
         let now = correction(ctx).await?;
         let mut by_sensor: BTreeMap<usize, Vec<Point>> = BTreeMap::new();
         for scan in &scans {
+            let frame = Reframe::new(&scan.correction, &now);
             for e in scan.echoes.iter().filter(|e| e.narrow || !narrow_only) {
-                by_sensor.entry(e.sensor).or_default().push(reframe(
-                    e.point,
-                    &scan.correction,
-                    &now,
-                ));
+                by_sensor
+                    .entry(e.sensor)
+                    .or_default()
+                    .push(frame.apply(e.point));
             }
         }
         let points = by_sensor.values().map(Vec::len).sum();
@@ -414,7 +416,8 @@ impl Operation for DockingDetector {
         // each echo stays where it was placed: with the correction of its time, which was
         // right then (moving old echoes with a newer correction bends the spot out of shape
         // by the odometry's drift since)
-        self.echoes.extend(scans.into_iter().flat_map(|s| s.echoes));
+        self.echoes
+            .extend(scans.iter().flat_map(|s| s.echoes.iter().copied()));
         let points: Vec<Point> = self
             .echoes
             .iter()
