@@ -64,6 +64,7 @@ mod error;
 mod index;
 mod messages;
 mod name;
+pub mod outbox;
 mod packed;
 mod query;
 mod record;
