@@ -20,8 +20,9 @@ use std::time::Duration;
 #[derive(Clone, Debug)]
 pub struct DmClient {
     actor: ActorRef<DmMsg>,
-    dm: String,
-    source: String,
+    /// Shared, not copied: an operation's context hands out a clone per access.
+    dm: Arc<str>,
+    source: Arc<str>,
     timeout: Duration,
     /// The epoch its records carry (0: unfenced).
     epoch: u64,
@@ -43,8 +44,8 @@ impl DmClient {
         DmClient {
             outbox: Outbox::for_actor(&actor),
             actor,
-            dm,
-            source: source.into(),
+            dm: Arc::from(dm),
+            source: Arc::from(source.into()),
             timeout: Self::DEFAULT_TIMEOUT,
             epoch: 0,
         }
@@ -56,8 +57,8 @@ impl DmClient {
         DmClient {
             outbox: Outbox::for_actor(&actor),
             actor,
-            dm: instance.name.clone(),
-            source: source.into(),
+            dm: Arc::from(instance.name.as_str()),
+            source: Arc::from(source.into()),
             timeout: Self::DEFAULT_TIMEOUT,
             epoch: 0,
         }
@@ -106,7 +107,7 @@ impl DmClient {
     }
 
     fn unreachable(&self) -> DmError {
-        DmError::Unreachable(self.dm.clone())
+        DmError::Unreachable(self.dm.to_string())
     }
 
     async fn call<T: Send + 'static>(
@@ -119,7 +120,7 @@ impl DmClient {
         match self.actor.call(make, Some(deadline)).await {
             Ok(CallResult::Success(v)) => Ok(v),
             Ok(CallResult::Timeout) => Err(DmError::Timeout {
-                dm: self.dm.clone(),
+                dm: self.dm.to_string(),
                 after: deadline,
             }),
             Ok(CallResult::SenderError) | Err(_) => Err(self.unreachable()),
@@ -134,7 +135,7 @@ impl DmClient {
         value: &T,
     ) -> Result<NewRecord, DmError> {
         Ok(NewRecord {
-            source: self.source.clone(),
+            source: String::from(&*self.source),
             class: class.to_string(),
             sub1: sub1.map(str::to_string),
             sub2: sub2.map(str::to_string),
@@ -145,7 +146,7 @@ impl DmClient {
 
     fn fill_source(&self, mut record: NewRecord) -> NewRecord {
         if record.source.is_empty() {
-            record.source.clone_from(&self.source);
+            record.source = String::from(&*self.source);
         }
         if record.epoch == 0 {
             record.epoch = self.epoch;
