@@ -14,10 +14,14 @@
 //! [`DmClient`] is the typed way to talk to it, locally or across nodes:
 //!
 //! - [`Record`] / [`NewRecord`] / [`Payload`] — what is stored; payloads are MessagePack, with
-//!   typed helpers ([`Payload::encode`], [`Record::decode`]);
+//!   typed helpers ([`Payload::encode`], [`Record::decode`]); a record read in the DM's own
+//!   process is decoded once for all its readers ([`PayloadType`]), and its names are the
+//!   store's, shared ([`Name`]);
 //! - [`Query`] — what to select, delete, wait for or subscribe to;
 //! - [`Store`] — the indexed store itself, usable without an actor;
-//! - [`Subscription`] — new records as a stream, built as a long poll over `SelectWait`.
+//! - [`Subscription`] — new records as a stream, built as a long poll over `SelectWait`;
+//! - [`credits`] and [`outbox`] — puts to a DM on another node: held to a window, and
+//!   coalesced in flight into batches.
 //!
 //! # Indexing invariant: select cost grows with the answer, not with the store
 //! Each class keeps its records in seq order, with sorted seq sets per first sub-class, per

@@ -21,7 +21,7 @@
 //!   [`DmClient::flush`](super::DmClient::flush) flushes by hand (an operation host does so
 //!   after each step, so that what a step put leaves before what it reports);
 //! - batches leave in the order their records were put (one flush at a time), cut into
-//!   frames of at most [`FRAME_BYTES`].
+//!   frames of at most 1 MiB (far below ractor_cluster's 16 MiB frame limit).
 //!
 //! The window is the credits': a record takes its credit when it is put, queued or not, so
 //! at most [`WINDOW`](super::credits::WINDOW) records are queued or unacknowledged, and a
