@@ -36,8 +36,10 @@ fn sonar(i: u64) -> NewRecord {
 fn feature(i: u64) -> NewRecord {
     match i % 10 {
         0..=5 => sonar(i / 10 * 6 + i % 10),
-        6 | 7 => NewRecord::new("segment", Payload(vec![0x90])).with_source("extractor"),
-        _ => NewRecord::new("odometry", Payload(vec![0x90])).with_source("cart"),
+        6 | 7 => {
+            NewRecord::new("segment", Payload::from_bytes(vec![0x90])).with_source("extractor")
+        }
+        _ => NewRecord::new("odometry", Payload::from_bytes(vec![0x90])).with_source("cart"),
     }
 }
 

@@ -9,6 +9,14 @@ mod cli;
 use clap::Parser;
 use std::process::ExitCode;
 
+/// The binary's allocator. A mission run makes and drops a great many small blocks (records,
+/// messages, timers, tasks): with glibc's malloc, allocation and freeing were about a tenth
+/// of the samples of a docking run at `--speed max`, and mimalloc made that run about 6 %
+/// faster (interleaved runs, same binary). Only the binary: the library sets no allocator.
+#[cfg(feature = "mimalloc")]
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 fn main() -> ExitCode {
     // Rust ignores SIGPIPE, which turns a closed stdout (`marie ls | head`) into a panic in
     // the next println!; a command-line tool should just end, as others do.
@@ -18,7 +26,7 @@ fn main() -> ExitCode {
     }
     let cli = cli::Cli::parse();
     cli::runtime::init_tracing(cli.log_format);
-    let runtime = match cli::runtime::build(cli.command.virtual_time()) {
+    let runtime = match cli::runtime::build(cli.command.virtual_time(), cli.command.io()) {
         Ok(rt) => rt,
         Err(e) => {
             eprintln!("marie: cannot start the runtime: {e}");

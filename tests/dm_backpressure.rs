@@ -2,7 +2,8 @@
 //! a datamanager on a `marie node` process is held to a window of unacknowledged puts —
 //! refused with `Busy` when it is spent, never queueing without bound — and every put it
 //! was allowed reaches the datamanager; batches of puts spend one credit per record and
-//! arrive whole and in order. (Its own process: it joins the cluster as a member.)
+//! arrive whole and in order; single puts coalesced in flight arrive in order too. (Its own
+//! process: it joins the cluster as a member.)
 
 mod common;
 
@@ -135,6 +136,78 @@ fn batches_spend_a_credit_per_record_and_arrive_whole_and_in_order() {
             .map(|(_, v)| v)
             .collect();
         assert_eq!(newest, (total - 1000..total).collect::<Vec<_>>());
+        transport.stop().await;
+    });
+    alpha.signal("TERM");
+    assert_eq!(alpha.wait_exit(), Some(0));
+}
+
+#[test]
+fn single_puts_coalesced_in_flight_arrive_in_order_within_the_window() {
+    let _one = ONE_MEMBER.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = tempfile::tempdir().unwrap();
+    let (mut alpha, rt) = feature_node(dir.path());
+    rt.block_on(async {
+        let me = ClusterConfig::new("127.0.0.1:0".parse().unwrap(), COOKIE).with_peer(alpha.addr);
+        let transport = Transport::start("coalescer", &me).await.unwrap();
+        transport
+            .wait_for_peers(1, Duration::from_secs(60))
+            .await
+            .unwrap();
+        let client = DmClient::lookup("feature", "coalescer").unwrap();
+        assert!(!client.actor().get_id().is_local());
+        // two tasks of one producer (clones share the outbox and the window), each putting
+        // its own sequence one record at a time; one also stores a marker (a request) now
+        // and then. Under the datamanager's retention of 10 000 per class.
+        const EACH: u64 = 4_000;
+        let producer = |sub1: &'static str, client: DmClient| async move {
+            let mut max_in_flight = 0;
+            let mut markers = Vec::new();
+            for i in 0..EACH {
+                client.ready(1).await.unwrap();
+                client.put("seq", Some(sub1), None, &i).unwrap();
+                max_in_flight = max_in_flight.max(client.puts_in_flight());
+                if sub1 == "a" && i % 997 == 996 {
+                    let seq = client.store("marker", None, None, &i).await.unwrap();
+                    markers.push((i, seq));
+                }
+                if i % 100 == 99 {
+                    tokio::task::yield_now().await;
+                }
+            }
+            (max_in_flight, markers)
+        };
+        let (a, b) = tokio::join!(
+            tokio::spawn(producer("a", client.clone())),
+            tokio::spawn(producer("b", client.clone())),
+        );
+        let ((max_a, markers), (max_b, _)) = (a.unwrap(), b.unwrap());
+        assert!(max_a.max(max_b) <= WINDOW, "{max_a} / {max_b} in flight");
+        let stats = client.stats().await.unwrap();
+        assert_eq!(stats.refused_puts, 0);
+        assert_eq!(stats.dropped, 0);
+        for sub1 in ["a", "b"] {
+            let stored = client
+                .select_typed::<u64>(Query::class("seq").sub1(sub1))
+                .await
+                .unwrap();
+            let values: Vec<u64> = stored.iter().map(|(_, v)| *v).collect();
+            assert_eq!(
+                values,
+                (0..EACH).collect::<Vec<_>>(),
+                "{sub1}: every put, in order"
+            );
+            if sub1 == "a" {
+                // a request leaves after the puts made before it, and before those after
+                for (i, marker_seq) in &markers {
+                    let seq_of = |v: u64| stored[v as usize].0.seq;
+                    assert!(seq_of(*i) < *marker_seq, "put {i} before its marker");
+                    if *i + 1 < EACH {
+                        assert!(seq_of(*i + 1) > *marker_seq, "put {} after it", i + 1);
+                    }
+                }
+            }
+        }
         transport.stop().await;
     });
     alpha.signal("TERM");

@@ -139,7 +139,7 @@ async fn a_typed_operation_reports_the_flags_the_mission_names_and_stores_typed_
         .await
         .unwrap()
         .into_iter()
-        .map(|(h, n)| (h.source, n))
+        .map(|(h, n)| (String::from(h.source), n))
         .collect::<Vec<_>>();
     assert_eq!(
         taken,

@@ -490,7 +490,7 @@ async fn bad_records_are_refused_and_puts_keep_order() {
         Err(DmError::PayloadTooLarge { max: 64, .. })
     ));
     // a put the DM refuses is counted, not answered
-    c.put_raw(NewRecord::new("blob", Payload(vec![0; 65])))
+    c.put_raw(NewRecord::new("blob", Payload::from_bytes(vec![0; 65])))
         .unwrap();
     for i in 0..1000u32 {
         c.put("sonar", None, None, &i).unwrap();
@@ -578,7 +578,7 @@ async fn batches_store_in_order_all_or_nothing() {
     // what the DM refuses is counted and skipped, the rest of the batch is stored
     c.put_batch(vec![
         rec(10),
-        NewRecord::new("blob", Payload(vec![0; 65])),
+        NewRecord::new("blob", Payload::from_bytes(vec![0; 65])),
         rec(11),
     ])
     .unwrap();

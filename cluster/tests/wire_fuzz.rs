@@ -27,7 +27,7 @@ fn cast_parts<M: Message>(msg: M) -> (String, Vec<u8>) {
 
 /// Valid casts of the remote message types, as (type, variant, args).
 fn seeds() -> Vec<(&'static str, String, Vec<u8>)> {
-    let record = NewRecord::new("sonar", Payload(vec![1, 2, 3]))
+    let record = NewRecord::new("sonar", Payload::from_bytes(vec![1, 2, 3]))
         .with_sub1("front")
         .with_source("ultrasonic");
     let mut out = Vec::new();
@@ -38,7 +38,7 @@ fn seeds() -> Vec<(&'static str, String, Vec<u8>)> {
     let (v, a) = cast_parts(DmMsg::PutBatch {
         records: vec![
             record.clone(),
-            NewRecord::new("odometry", Payload(vec![9])),
+            NewRecord::new("odometry", Payload::from_bytes(vec![9])),
             record,
         ],
     });

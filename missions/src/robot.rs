@@ -48,7 +48,6 @@ use marie_actors::report::RunReport;
 use marie_actors::run::Outcome;
 use marie_cluster::node::{AprioriRecord, BoxFuture, Robot, RunJudgement};
 use marie_supervision::{ChildSpec, Restart};
-use serde::de::DeserializeOwned;
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -304,7 +303,7 @@ fn judge(
 
 /// Every record of `query`, decoded as `T`; records that do not decode, or a datamanager that
 /// does not answer, are skipped with a warning.
-async fn decoded<T: DeserializeOwned>(client: &Result<DmClient, DmError>, query: Query) -> Vec<T> {
+async fn decoded<T: dm::PayloadType>(client: &Result<DmClient, DmError>, query: Query) -> Vec<T> {
     let class = query.class.clone().unwrap_or_default();
     let selected = match client {
         Ok(client) => client.select(query).await,
@@ -340,7 +339,7 @@ async fn decoded<T: DeserializeOwned>(client: &Result<DmClient, DmError>, query:
 }
 
 /// The newest record of `class`, decoded; `None` when there is none or it does not decode.
-async fn newest<T: DeserializeOwned>(client: &Result<DmClient, DmError>, class: &str) -> Option<T> {
+async fn newest<T: dm::PayloadType>(client: &Result<DmClient, DmError>, class: &str) -> Option<T> {
     decoded(client, Query::class(class).newest(1)).await.pop()
 }
 

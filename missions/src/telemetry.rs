@@ -262,7 +262,7 @@ fn tap(
     })
 }
 
-fn decode<T: serde::de::DeserializeOwned>(record: &Record) -> Option<T> {
+fn decode<T: marie_actors::dm::PayloadType>(record: &Record) -> Option<T> {
     record
         .decode::<T>()
         .map_err(|e| tracing::debug!(class = %record.class, "no event of a record: {e}"))

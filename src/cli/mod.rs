@@ -69,6 +69,12 @@ impl Command {
         matches!(self, Command::Run(run) if run.cluster.join.is_none())
     }
 
+    /// True when the verb may use sockets or watch signals (tokio's I/O driver): every verb
+    /// but a run with neither a cluster to join nor a monitor to serve.
+    pub(crate) fn io(&self) -> bool {
+        !matches!(self, Command::Run(run) if run.cluster.join.is_none() && run.monitor.is_none())
+    }
+
     /// Do what the verb says.
     pub(crate) async fn execute(self) -> anyhow::Result<ExitCode> {
         match self {

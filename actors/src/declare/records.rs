@@ -9,11 +9,13 @@
 //! payload's type is checked on both sides. The names are checked when the constant is
 //! evaluated, so an empty or over-long class is a compile error too.
 
-use crate::dm::{DmClient, DmError, NewRecord, Query, Record, RecordHeader, MAX_NAME_LEN};
-use serde::de::DeserializeOwned;
+use crate::dm::{
+    DmClient, DmError, NewRecord, PayloadType, Query, Record, RecordHeader, MAX_NAME_LEN,
+};
 use serde::Serialize;
 use std::fmt;
 use std::marker::PhantomData;
+use std::sync::Arc;
 
 /// What records of one kind are: class, optional sub-classes, and payload type `T`.
 ///
@@ -157,7 +159,7 @@ impl<T: Serialize> RecordKind<T> {
     }
 }
 
-impl<T: DeserializeOwned> RecordKind<T> {
+impl<T: PayloadType> RecordKind<T> {
     /// The payload of `record` as this kind's type.
     pub fn decode(&self, record: &Record) -> Result<T, DmError> {
         record.decode()
@@ -234,7 +236,7 @@ impl DmClient {
 
     /// The records of `kind` that `query` selects (its class and sub-classes are the
     /// kind's), oldest first, decoded. One payload that does not decode fails the answer.
-    pub async fn select_kind<T: DeserializeOwned>(
+    pub async fn select_kind<T: PayloadType>(
         &self,
         kind: RecordKind<T>,
         query: Query,
@@ -242,8 +244,26 @@ impl DmClient {
         self.select_typed(kind.narrow(query)).await
     }
 
+    /// [`select_kind`](Self::select_kind), each value shared rather than copied: records
+    /// read in the datamanager's process are decoded once, and every reader of one gets the
+    /// same value (a large payload — a scan of echoes — read by several operations).
+    pub async fn select_kind_shared<T: PayloadType>(
+        &self,
+        kind: RecordKind<T>,
+        query: Query,
+    ) -> Result<Vec<(RecordHeader, Arc<T>)>, DmError> {
+        self.select(kind.narrow(query))
+            .await?
+            .into_iter()
+            .map(|r| {
+                let shared = r.decode_shared()?;
+                Ok((r.into_parts().0, shared))
+            })
+            .collect()
+    }
+
     /// The newest record of `kind`, decoded; `None` when there is none.
-    pub async fn newest_kind<T: DeserializeOwned>(
+    pub async fn newest_kind<T: PayloadType>(
         &self,
         kind: RecordKind<T>,
     ) -> Result<Option<(RecordHeader, T)>, DmError> {

@@ -1,14 +1,14 @@
 //! A typed handle for the dm-interface.
 
-use super::credits::Credits;
 use super::error::DmError;
 use super::messages::{DmMsg, DmStats};
+use super::outbox::{frames, Outbox};
 use super::query::Query;
 use super::record::{NewRecord, Payload, Record, RecordHeader};
+use super::shared::PayloadType;
 use crate::registry::{self, Instance, ModuleKind};
 use ractor::rpc::CallResult;
 use ractor::{ActorRef, RpcReplyPort};
-use serde::de::DeserializeOwned;
 use serde::Serialize;
 use std::sync::Arc;
 use std::time::Duration;
@@ -20,14 +20,16 @@ use std::time::Duration;
 #[derive(Clone, Debug)]
 pub struct DmClient {
     actor: ActorRef<DmMsg>,
-    dm: String,
-    source: String,
+    /// Shared, not copied: an operation's context hands out a clone per access.
+    dm: Arc<str>,
+    source: Arc<str>,
     timeout: Duration,
     /// The epoch its records carry (0: unfenced).
     epoch: u64,
-    /// Flow control of puts, shared by clones: `Some` for a remote datamanager only (an
-    /// actor's locality never changes; local puts are not metered).
-    credits: Option<Arc<Credits>>,
+    /// Puts to a remote datamanager — queued to leave together, and held to a window of
+    /// credits — shared by clones: `Some` for a remote datamanager only (an actor's locality
+    /// never changes; local puts are cast at once and not metered). See `outbox`.
+    outbox: Option<Arc<Outbox>>,
 }
 
 impl DmClient {
@@ -40,10 +42,10 @@ impl DmClient {
             .get_name()
             .unwrap_or_else(|| actor.get_id().to_string());
         DmClient {
-            credits: Credits::for_actor(&actor),
+            outbox: Outbox::for_actor(&actor),
             actor,
-            dm,
-            source: source.into(),
+            dm: Arc::from(dm),
+            source: Arc::from(source.into()),
             timeout: Self::DEFAULT_TIMEOUT,
             epoch: 0,
         }
@@ -53,10 +55,10 @@ impl DmClient {
     pub fn from_instance(instance: &Instance, source: impl Into<String>) -> DmClient {
         let actor: ActorRef<DmMsg> = instance.actor.clone().into();
         DmClient {
-            credits: Credits::for_actor(&actor),
+            outbox: Outbox::for_actor(&actor),
             actor,
-            dm: instance.name.clone(),
-            source: source.into(),
+            dm: Arc::from(instance.name.as_str()),
+            source: Arc::from(source.into()),
             timeout: Self::DEFAULT_TIMEOUT,
             epoch: 0,
         }
@@ -105,7 +107,7 @@ impl DmClient {
     }
 
     fn unreachable(&self) -> DmError {
-        DmError::Unreachable(self.dm.clone())
+        DmError::Unreachable(self.dm.to_string())
     }
 
     async fn call<T: Send + 'static>(
@@ -113,10 +115,12 @@ impl DmClient {
         deadline: Duration,
         make: impl FnOnce(RpcReplyPort<T>) -> DmMsg,
     ) -> Result<T, DmError> {
+        // the puts queued before the request leave before it (a failure shows in the call)
+        let _ = self.flush();
         match self.actor.call(make, Some(deadline)).await {
             Ok(CallResult::Success(v)) => Ok(v),
             Ok(CallResult::Timeout) => Err(DmError::Timeout {
-                dm: self.dm.clone(),
+                dm: self.dm.to_string(),
                 after: deadline,
             }),
             Ok(CallResult::SenderError) | Err(_) => Err(self.unreachable()),
@@ -131,7 +135,7 @@ impl DmClient {
         value: &T,
     ) -> Result<NewRecord, DmError> {
         Ok(NewRecord {
-            source: self.source.clone(),
+            source: String::from(&*self.source),
             class: class.to_string(),
             sub1: sub1.map(str::to_string),
             sub2: sub2.map(str::to_string),
@@ -142,7 +146,7 @@ impl DmClient {
 
     fn fill_source(&self, mut record: NewRecord) -> NewRecord {
         if record.source.is_empty() {
-            record.source.clone_from(&self.source);
+            record.source = String::from(&*self.source);
         }
         if record.epoch == 0 {
             record.epoch = self.epoch;
@@ -164,7 +168,9 @@ impl DmClient {
 
     /// Store `value` without waiting for the DM (for high-rate data). Bad names are refused
     /// here; what the DM refuses afterwards (e.g. a payload over its limit) is only logged and
-    /// counted there.
+    /// counted there. To a datamanager on another node the record takes a credit (`Busy`
+    /// when none is left, see [`super::credits`]) and leaves with the puts around it, in
+    /// order, before any later request of this client ([`super::outbox`]).
     pub fn put<T: Serialize + ?Sized>(
         &self,
         class: &str,
@@ -190,16 +196,22 @@ impl DmClient {
     pub fn put_raw(&self, record: NewRecord) -> Result<(), DmError> {
         let record = self.fill_source(record);
         record.validate()?;
-        self.send(1, [(1, DmMsg::Put { record })])
+        match &self.outbox {
+            Some(outbox) => outbox.put(record, &self.actor, &self.dm),
+            None => self
+                .actor
+                .cast(DmMsg::Put { record })
+                .map_err(|_| self.unreachable()),
+        }
     }
 
     /// Store prepared records without waiting for the DM, in as few messages as their size
     /// allows (one frame, one mailbox hop for many records: what a high-rate producer
-    /// sending to another node wants). All or nothing: a bad record refuses the whole batch
-    /// here, and to a remote DM the batch takes one credit per record at once — `Busy` if
-    /// the window lacks room for all of them, [`DmError::BatchTooLarge`] if it never could
-    /// ([`super::credits::WINDOW`]). What the DM refuses afterwards is counted there, as
-    /// for [`DmClient::put`].
+    /// sending to another node wants), after the puts queued before them. All or nothing: a
+    /// bad record refuses the whole batch here, and to a remote DM the batch takes one
+    /// credit per record at once — `Busy` if the window lacks room for all of them,
+    /// [`DmError::BatchTooLarge`] if it never could ([`super::credits::WINDOW`]). What the
+    /// DM refuses afterwards is counted there, as for [`DmClient::put`].
     pub fn put_batch(&self, records: Vec<NewRecord>) -> Result<(), DmError> {
         if records.is_empty() {
             return Ok(());
@@ -211,38 +223,27 @@ impl DmClient {
                 r.validate().map(|()| r)
             })
             .collect::<Result<Vec<_>, _>>()?;
-        let n = records.len();
-        let messages = frames(records)
-            .into_iter()
-            .map(|chunk| (chunk.len(), DmMsg::PutBatch { records: chunk }));
-        self.send(n, messages)
-    }
-
-    /// Cast `messages` (each with the number of records it carries, `n` in all) to the
-    /// DM. A remote DM's puts spend credits first (see `credits`: bounded in flight); what
-    /// could not be sent gives its credits back.
-    fn send(
-        &self,
-        n: usize,
-        messages: impl IntoIterator<Item = (usize, DmMsg)>,
-    ) -> Result<(), DmError> {
-        if let Some(credits) = &self.credits {
-            credits.take(n, &self.actor, &self.dm)?;
+        if let Some(outbox) = &self.outbox {
+            return outbox.put_batch(records, &self.actor, &self.dm);
         }
-        let mut left = n;
-        for (records, message) in messages {
-            if self.actor.cast(message).is_err() {
-                if let Some(credits) = &self.credits {
-                    credits.refund(left);
-                }
-                return Err(self.unreachable());
-            }
-            left -= records;
-        }
-        if let Some(credits) = &self.credits {
-            credits.sent(&self.actor);
+        for chunk in frames(records) {
+            self.actor
+                .cast(DmMsg::PutBatch { records: chunk })
+                .map_err(|_| self.unreachable())?;
         }
         Ok(())
+    }
+
+    /// Send the puts this client and its clones have queued for a datamanager on another
+    /// node now, instead of at the producer's next await: a causal boundary, e.g. before
+    /// telling another actor about them (an operation's host does it after every step).
+    /// Every request of the client does it first anyway. Nothing to do for a local
+    /// datamanager; `Unreachable` if the actor is gone (the queued records are dropped).
+    pub fn flush(&self) -> Result<(), DmError> {
+        match &self.outbox {
+            Some(outbox) => outbox.flush(&self.actor, &self.dm),
+            None => Ok(()),
+        }
     }
 
     /// Store every record of `records`, in order, waiting for credits rather than refusing
@@ -266,16 +267,16 @@ impl DmClient {
     /// at most [`DmClient::timeout`]: a producer that would rather wait than have its puts
     /// refused `Busy`. With one producer per client, the puts that follow are then accepted.
     pub async fn ready(&self, n: usize) -> Result<(), DmError> {
-        match &self.credits {
+        match &self.outbox {
             None => Ok(()),
-            Some(credits) => credits.ready(n, &self.actor, &self.dm, self.timeout).await,
+            Some(outbox) => outbox.ready(n, &self.actor, &self.dm, self.timeout).await,
         }
     }
 
-    /// Puts sent to a remote datamanager and not yet acknowledged (at most
+    /// Puts to a remote datamanager queued or sent and not yet acknowledged (at most
     /// [`super::credits::WINDOW`]; always 0 for a local one).
     pub fn puts_in_flight(&self) -> usize {
-        self.credits.as_ref().map_or(0, |c| c.in_flight())
+        self.outbox.as_ref().map_or(0, |o| o.in_flight())
     }
 
     /// Every record matching `query`, oldest-first.
@@ -287,9 +288,10 @@ impl DmClient {
         .await
     }
 
-    /// Every record matching `query`, with its payload decoded as a `T`. One payload that
-    /// does not decode fails the whole answer.
-    pub async fn select_typed<T: DeserializeOwned>(
+    /// Every record matching `query`, with its payload decoded as a `T` (once for every
+    /// reader in the datamanager's process: see [`PayloadType`]). One payload that does not
+    /// decode fails the whole answer.
+    pub async fn select_typed<T: PayloadType>(
         &self,
         query: Query,
     ) -> Result<Vec<(RecordHeader, T)>, DmError> {
@@ -333,58 +335,12 @@ impl DmClient {
     }
 }
 
-/// Most bytes of records (payloads and names) one `PutBatch` message carries: far below
-/// ractor_cluster's 16 MiB frame limit, whatever the payloads.
-const FRAME_BYTES: usize = 1 << 20;
-
-/// Cut `records` into messages of at most [`FRAME_BYTES`] (a larger record goes alone).
-fn frames(records: Vec<NewRecord>) -> Vec<Vec<NewRecord>> {
-    let size = |r: &NewRecord| {
-        r.payload.len()
-            + r.class.len()
-            + r.source.len()
-            + r.sub1.as_ref().map_or(0, String::len)
-            + r.sub2.as_ref().map_or(0, String::len)
-    };
-    if records.iter().map(size).sum::<usize>() <= FRAME_BYTES {
-        return vec![records];
-    }
-    let mut out = Vec::new();
-    let (mut frame, mut bytes) = (Vec::new(), 0);
-    for r in records {
-        let s = size(&r);
-        if !frame.is_empty() && bytes + s > FRAME_BYTES {
-            out.push(std::mem::take(&mut frame));
-            bytes = 0;
-        }
-        bytes += s;
-        frame.push(r);
-    }
-    if !frame.is_empty() {
-        out.push(frame);
-    }
-    out
-}
-
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn batches_are_cut_into_frames_by_size_in_order() {
-        let rec = |i: usize, len: usize| {
-            NewRecord::new("c", Payload(vec![0; len])).with_source(format!("s{i}"))
-        };
-        let small: Vec<NewRecord> = (0..100).map(|i| rec(i, 10)).collect();
-        assert_eq!(frames(small.clone()), vec![small]);
-        let big: Vec<NewRecord> = (0..5).map(|i| rec(i, FRAME_BYTES / 2)).collect();
-        let cut = frames(big.clone());
-        assert_eq!(cut.len(), 5, "two halves and their names exceed a frame");
-        assert_eq!(cut.concat(), big);
-        let huge = vec![rec(0, 3 * FRAME_BYTES), rec(1, 1)];
-        assert_eq!(
-            frames(huge).iter().map(Vec::len).collect::<Vec<_>>(),
-            [1, 1]
-        );
+impl DmClient {
+    /// The client with an outbox and credits, as a remote datamanager's client has: for
+    /// tests with a local stand-in.
+    pub(crate) fn metered(mut self) -> DmClient {
+        self.outbox = Some(Arc::default());
+        self
     }
 }

@@ -19,11 +19,13 @@
 //! and the acknowledgements stay one per half window. A batch larger than the window can
 //! never be sent whole and is refused ([`DmError::BatchTooLarge`]);
 //! [`DmClient::put_all`] cuts a long sequence into batches of [`BATCH`] and waits for
-//! credits between them.
+//! credits between them. Single puts are queued in the client's outbox and leave together
+//! too ([`super::outbox`]): a queued record holds its credit.
 //!
 //! The acknowledgement is asked for after the put that crossed half the window was cast,
-//! so it also covers that put. Clones of a client share its credits (one producer, one
-//! window).
+//! so it also covers that put; it gives back the credits of the records cast before it was
+//! asked, never those of records still queued. Clones of a client share its credits (one
+//! producer, one window).
 //!
 //! [`DmClient::ready`]: super::DmClient::ready
 //! [`DmClient::put_all`]: super::DmClient::put_all
@@ -48,7 +50,7 @@ pub const BATCH: usize = WINDOW / 4;
 const ACK_TIMEOUT: Duration = Duration::from_secs(5);
 
 /// `BatchTooLarge` for `n` records that the window could never hold at once.
-fn fits(n: usize) -> Result<(), DmError> {
+pub(crate) fn fits(n: usize) -> Result<(), DmError> {
     if n > WINDOW {
         return Err(DmError::BatchTooLarge {
             records: n as u64,
@@ -61,44 +63,37 @@ fn fits(n: usize) -> Result<(), DmError> {
 /// The credits of one producer towards one datamanager.
 #[derive(Debug, Default)]
 pub(crate) struct Credits {
+    /// Records put and not yet acknowledged: queued in the outbox, or cast.
     in_flight: AtomicUsize,
+    /// Of those, the records cast: what an acknowledgement asked now would cover.
+    cast: AtomicUsize,
     acking: AtomicBool,
     /// Woken when an acknowledgement returns (or fails): waiters look again.
     freed: Notify,
 }
 
 impl Credits {
-    /// The credits of a client of `actor`: `Some` for a remote datamanager only.
-    pub(crate) fn for_actor(actor: &ActorRef<DmMsg>) -> Option<Arc<Credits>> {
-        (!actor.get_id().is_local()).then(Arc::default)
-    }
-
-    /// Take `n` credits for puts to `actor`, all or none; `Busy` when fewer are left (an
-    /// acknowledgement is then asked for, so that they come back).
-    pub(crate) fn take(
-        self: &Arc<Self>,
-        n: usize,
-        actor: &ActorRef<DmMsg>,
-        dm: &str,
-    ) -> Result<(), DmError> {
+    /// Take `n` credits for puts to `dm`, all or none; `Busy` when fewer are left.
+    pub(crate) fn take(&self, n: usize, dm: &str) -> Result<(), DmError> {
         fits(n)?;
-        let took = self
-            .in_flight
+        self.in_flight
             .fetch_update(Ordering::AcqRel, Ordering::Acquire, |spent| {
                 (spent + n <= WINDOW).then_some(spent + n)
-            });
-        if took.is_err() {
-            self.ask_ack(actor);
-            return Err(DmError::Busy {
+            })
+            .map(|_| ())
+            .map_err(|_| DmError::Busy {
                 dm: dm.to_string(),
                 window: WINDOW as u64,
-            });
-        }
-        Ok(())
+            })
     }
 
-    /// The puts credits were taken for have been cast: ask for an acknowledgement once half
-    /// the window is spent (asked after the cast, so that it covers those puts too).
+    /// `n` of the records credits were taken for have been cast.
+    pub(crate) fn cast(&self, n: usize) {
+        self.cast.fetch_add(n, Ordering::AcqRel);
+    }
+
+    /// Records have been cast: ask for an acknowledgement once half the window is spent
+    /// (asked after the cast, so that it covers those puts too).
     pub(crate) fn sent(self: &Arc<Self>, actor: &ActorRef<DmMsg>) {
         if self.in_flight() >= WINDOW / 2 {
             self.ask_ack(actor);
@@ -107,18 +102,8 @@ impl Credits {
 
     /// Puts that were counted but could not be sent give their credits back.
     pub(crate) fn refund(&self, n: usize) {
-        self.give_back(n);
+        give_back(&self.in_flight, n);
         self.freed.notify_waiters();
-    }
-
-    /// `n` credits back: an acknowledgement and a refund may both count the same puts
-    /// (a refund between the reading of `spent` and the answer), so never below zero.
-    fn give_back(&self, n: usize) {
-        let _ = self
-            .in_flight
-            .fetch_update(Ordering::AcqRel, Ordering::Acquire, |f| {
-                Some(f.saturating_sub(n))
-            });
     }
 
     /// Puts in flight now (for tests and stats).
@@ -155,9 +140,9 @@ impl Credits {
         }
     }
 
-    /// Unless one is under way, ask `actor` for an acknowledgement of the puts spent so far
+    /// Unless one is under way, ask `actor` for an acknowledgement of the puts cast so far
     /// and give their credits back when it comes.
-    fn ask_ack(self: &Arc<Self>, actor: &ActorRef<DmMsg>) {
+    pub(crate) fn ask_ack(self: &Arc<Self>, actor: &ActorRef<DmMsg>) {
         if self.acking.swap(true, Ordering::AcqRel) {
             return;
         }
@@ -167,7 +152,8 @@ impl Credits {
             self.acking.store(false, Ordering::Release);
             return;
         };
-        let spent = self.in_flight.load(Ordering::Acquire);
+        // read after the casts it covers (the call goes out after them, in one session)
+        let covered = self.cast.load(Ordering::Acquire);
         let (credits, actor) = (self.clone(), actor.clone());
         runtime.spawn(async move {
             let answered = actor
@@ -175,7 +161,8 @@ impl Credits {
                 .await
                 .is_ok_and(|r| r.is_success());
             if answered {
-                credits.give_back(spent);
+                give_back(&credits.cast, covered);
+                give_back(&credits.in_flight, covered);
             } else {
                 tracing::debug!("a datamanager did not acknowledge puts: credits held");
             }
@@ -183,4 +170,11 @@ impl Credits {
             credits.freed.notify_waiters();
         });
     }
+}
+
+/// `n` credits back, never below zero.
+fn give_back(counter: &AtomicUsize, n: usize) {
+    let _ = counter.fetch_update(Ordering::AcqRel, Ordering::Acquire, |f| {
+        Some(f.saturating_sub(n))
+    });
 }

@@ -110,7 +110,7 @@ mod tests {
 
     #[test]
     fn put_crosses_the_wire() {
-        let rec = NewRecord::new("sonar", Payload(vec![1, 2]))
+        let rec = NewRecord::new("sonar", Payload::from_bytes(vec![1, 2]))
             .with_sub1("front")
             .with_source("us");
         let wire = DmMsg::Put {

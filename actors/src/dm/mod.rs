@@ -14,10 +14,14 @@
 //! [`DmClient`] is the typed way to talk to it, locally or across nodes:
 //!
 //! - [`Record`] / [`NewRecord`] / [`Payload`] — what is stored; payloads are MessagePack, with
-//!   typed helpers ([`Payload::encode`], [`Record::decode`]);
+//!   typed helpers ([`Payload::encode`], [`Record::decode`]); a record read in the DM's own
+//!   process is decoded once for all its readers ([`PayloadType`]), and its names are the
+//!   store's, shared ([`Name`]);
 //! - [`Query`] — what to select, delete, wait for or subscribe to;
 //! - [`Store`] — the indexed store itself, usable without an actor;
-//! - [`Subscription`] — new records as a stream, built as a long poll over `SelectWait`.
+//! - [`Subscription`] — new records as a stream, built as a long poll over `SelectWait`;
+//! - [`credits`] and [`outbox`] — puts to a DM on another node: held to a window, and
+//!   coalesced in flight into batches.
 //!
 //! # Indexing invariant: select cost grows with the answer, not with the store
 //! Each class keeps its records in seq order, with sorted seq sets per first sub-class, per
@@ -63,9 +67,12 @@ pub mod credits;
 mod error;
 mod index;
 mod messages;
+mod name;
+pub mod outbox;
 mod packed;
 mod query;
 mod record;
+mod shared;
 mod store;
 mod subscription;
 mod waits;
@@ -77,7 +84,9 @@ pub use actor::{
 pub use client::DmClient;
 pub use error::DmError;
 pub use messages::{DmMsg, DmStats};
+pub use name::Name;
 pub use query::{Query, Take};
 pub use record::{NewRecord, Payload, Record, RecordHeader, MAX_NAME_LEN};
+pub use shared::PayloadType;
 pub use store::{DmConfig, Plan, Store};
 pub use subscription::Subscription;

@@ -24,18 +24,27 @@ pub(crate) enum Packed {
 }
 
 impl Packed {
-    /// Keep `payload`: copied inline if small, else its buffer is kept as it is.
+    /// Keep `payload`: copied inline if small, else its buffer is kept as it is (a payload
+    /// shared with readers is copied).
     pub(crate) fn new(payload: Payload) -> Packed {
-        let data = payload.into_bytes();
+        match payload.into_owned_bytes() {
+            Ok(data) if data.len() > INLINE => Packed::Heap(data),
+            Ok(data) => Packed::copy_of(&data),
+            Err(shared) => Packed::copy_of(shared.bytes()),
+        }
+    }
+
+    /// A copy of `data`: inline if small, else in its own allocation.
+    pub(crate) fn copy_of(data: &[u8]) -> Packed {
         if data.len() <= INLINE {
             let mut bytes = [0u8; INLINE];
-            bytes[..data.len()].copy_from_slice(&data);
+            bytes[..data.len()].copy_from_slice(data);
             Packed::Inline {
                 len: data.len() as u8,
                 bytes,
             }
         } else {
-            Packed::Heap(data)
+            Packed::Heap(data.to_vec())
         }
     }
 
@@ -45,11 +54,6 @@ impl Packed {
             Packed::Inline { len, bytes } => &bytes[..usize::from(*len)],
             Packed::Heap(data) => data,
         }
-    }
-
-    /// A copy, as a [`Payload`] to hand out.
-    pub(crate) fn to_payload(&self) -> Payload {
-        Payload(self.as_bytes().to_vec())
     }
 }
 
@@ -61,9 +65,9 @@ mod tests {
     fn small_payloads_are_inline_and_large_ones_on_the_heap() {
         for n in [0, 1, INLINE - 1, INLINE, INLINE + 1, 10_000] {
             let data: Vec<u8> = (0..n).map(|i| (i % 251) as u8).collect();
-            let packed = Packed::new(Payload(data.clone()));
+            let packed = Packed::new(Payload::from_bytes(data.clone()));
             assert_eq!(packed.as_bytes(), &data[..], "{n} bytes");
-            assert_eq!(packed.to_payload(), Payload(data), "{n} bytes");
+            assert_eq!(Packed::copy_of(&data).as_bytes(), &data[..], "{n} bytes");
             assert_eq!(matches!(packed, Packed::Inline { .. }), n <= INLINE, "{n}");
         }
     }

@@ -6,9 +6,12 @@
 //! from its clock, and hands the result back as a [`Record`].
 
 use super::error::DmError;
-use serde::de::{self, DeserializeOwned, SeqAccess, Visitor};
+use super::name::Name;
+use super::shared::{decode_bytes, PayloadType, Shared};
+use serde::de::{self, SeqAccess, Visitor};
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use std::fmt;
+use std::sync::Arc;
 use std::time::Duration;
 
 /// Longest class, sub-class or source name, in bytes.
@@ -18,57 +21,127 @@ pub const MAX_NAME_LEN: usize = 255;
 ///
 /// It travels as MessagePack `bin` (one length prefix, not one tag per byte) and also reads a
 /// sequence of bytes, so JSON or a peer that wrote an array of `u8` can be decoded too.
-#[derive(Clone, Default, PartialEq, Eq, Hash)]
-pub struct Payload(pub Vec<u8>);
+///
+/// # Decoded once in the datamanager's process
+/// A payload a producer made, or one that came from another node, is its bytes. A payload a
+/// datamanager hands out in its own process is shared with the store and with every other
+/// reader of the same record, together with the value the first typed read decoded: later
+/// reads of that type take the value instead of decoding again (see
+/// [`PayloadType`](super::PayloadType)). What a read returns is what decoding the bytes
+/// returns, wherever the record was read; only the cost differs.
+#[derive(Clone, Default)]
+pub struct Payload(Repr);
+
+#[derive(Clone)]
+enum Repr {
+    /// Bytes of its own: a producer's, or a peer's.
+    Owned(Vec<u8>),
+    /// A stored record's bytes, shared with its readers, with the value decoded once.
+    Shared(Arc<Shared>),
+}
+
+impl Default for Repr {
+    fn default() -> Repr {
+        Repr::Owned(Vec::new())
+    }
+}
 
 impl Payload {
     /// Encode `value` as MessagePack (a map with field names, so fields can be added later).
     pub fn encode<T: Serialize + ?Sized>(value: &T) -> Result<Payload, DmError> {
         crate::wire::encode(value)
-            .map(Payload)
+            .map(Payload::from_bytes)
             .map_err(|e| DmError::Encode(e.to_string()))
     }
 
-    /// Decode the payload as a `T`.
-    pub fn decode<T: DeserializeOwned>(&self) -> Result<T, DmError> {
-        crate::wire::decode(&self.0).map_err(|e| DmError::Decode(e.to_string()))
+    /// Decode the payload as a `T` — or, for a stored record read in its datamanager's
+    /// process, a clone of the value an earlier read of the same type decoded.
+    pub fn decode<T: PayloadType>(&self) -> Result<T, DmError> {
+        match &self.0 {
+            Repr::Owned(bytes) => decode_bytes(bytes),
+            Repr::Shared(shared) => shared.value::<T>().map(Arc::unwrap_or_clone),
+        }
+    }
+
+    /// The payload as a `T` shared with the other readers of the record in this process: no
+    /// copy of the value, for a reader that only looks at it. Decoded as
+    /// [`Payload::decode`] decodes.
+    pub fn decode_shared<T: PayloadType>(&self) -> Result<Arc<T>, DmError> {
+        match &self.0 {
+            Repr::Owned(bytes) => decode_bytes(bytes).map(Arc::new),
+            Repr::Shared(shared) => shared.value::<T>(),
+        }
     }
 
     /// Wrap bytes that are already MessagePack.
     pub fn from_bytes(bytes: Vec<u8>) -> Payload {
-        Payload(bytes)
+        Payload(Repr::Owned(bytes))
+    }
+
+    /// A stored record's payload to hand out: `shared` with the store and the other readers.
+    pub(crate) fn shared(shared: Arc<Shared>) -> Payload {
+        Payload(Repr::Shared(shared))
     }
 
     /// The raw bytes.
     pub fn as_bytes(&self) -> &[u8] {
-        &self.0
+        match &self.0 {
+            Repr::Owned(bytes) => bytes,
+            Repr::Shared(shared) => shared.bytes(),
+        }
     }
 
     /// Size in bytes.
     pub fn len(&self) -> usize {
-        self.0.len()
+        self.as_bytes().len()
     }
 
     /// True for an empty payload.
     pub fn is_empty(&self) -> bool {
-        self.0.is_empty()
+        self.as_bytes().is_empty()
     }
 
-    /// The raw bytes, by value.
+    /// The raw bytes, by value (a copy, for a payload shared with other readers).
     pub fn into_bytes(self) -> Vec<u8> {
-        self.0
+        match self.into_owned_bytes() {
+            Ok(bytes) => bytes,
+            Err(shared) => shared.bytes().to_vec(),
+        }
+    }
+
+    /// The bytes if they are the payload's own, else what they are shared in.
+    pub(crate) fn into_owned_bytes(self) -> Result<Vec<u8>, Arc<Shared>> {
+        match self.0 {
+            Repr::Owned(bytes) => Ok(bytes),
+            Repr::Shared(shared) => Err(shared),
+        }
+    }
+}
+
+/// Payloads are equal when their bytes are (a kept decoded value is a cache of them).
+impl PartialEq for Payload {
+    fn eq(&self, other: &Payload) -> bool {
+        self.as_bytes() == other.as_bytes()
+    }
+}
+
+impl Eq for Payload {}
+
+impl std::hash::Hash for Payload {
+    fn hash<H: std::hash::Hasher>(&self, state: &mut H) {
+        self.as_bytes().hash(state);
     }
 }
 
 impl fmt::Debug for Payload {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "Payload({} bytes)", self.0.len())
+        write!(f, "Payload({} bytes)", self.len())
     }
 }
 
 impl Serialize for Payload {
     fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
-        serializer.serialize_bytes(&self.0)
+        serializer.serialize_bytes(self.as_bytes())
     }
 }
 
@@ -84,11 +157,11 @@ impl<'de> Deserialize<'de> for Payload {
             }
 
             fn visit_bytes<E: de::Error>(self, v: &[u8]) -> Result<Payload, E> {
-                Ok(Payload(v.to_vec()))
+                Ok(Payload::from_bytes(v.to_vec()))
             }
 
             fn visit_byte_buf<E: de::Error>(self, v: Vec<u8>) -> Result<Payload, E> {
-                Ok(Payload(v))
+                Ok(Payload::from_bytes(v))
             }
 
             fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Payload, A::Error> {
@@ -97,7 +170,7 @@ impl<'de> Deserialize<'de> for Payload {
                 while let Some(b) = seq.next_element::<u8>()? {
                     out.push(b);
                 }
-                Ok(Payload(out))
+                Ok(Payload::from_bytes(out))
             }
         }
 
@@ -223,21 +296,28 @@ pub struct Record {
     /// When the DM stored it, on the DM's clock. Non-decreasing with `seq`.
     pub timestamp: Duration,
     /// The producer's name.
-    pub source: String,
+    pub source: Name,
     /// The producer's class.
-    pub class: String,
+    pub class: Name,
     /// First sub-class level.
-    pub sub1: Option<String>,
+    pub sub1: Option<Name>,
     /// Second sub-class level.
-    pub sub2: Option<String>,
+    pub sub2: Option<Name>,
     /// The MessagePack payload.
     pub payload: Payload,
 }
 
 impl Record {
-    /// Decode the payload as a `T`.
-    pub fn decode<T: DeserializeOwned>(&self) -> Result<T, DmError> {
+    /// Decode the payload as a `T` (see [`Payload::decode`]: decoded once for every
+    /// reader in the datamanager's process).
+    pub fn decode<T: PayloadType>(&self) -> Result<T, DmError> {
         self.payload.decode()
+    }
+
+    /// The payload as a `T` shared with its other readers in this process, without a copy
+    /// ([`Payload::decode_shared`]).
+    pub fn decode_shared<T: PayloadType>(&self) -> Result<Arc<T>, DmError> {
+        self.payload.decode_shared()
     }
 
     /// Everything but the payload.
@@ -277,20 +357,20 @@ pub struct RecordHeader {
     /// Time stamp on the DM's clock.
     pub timestamp: Duration,
     /// The producer's name.
-    pub source: String,
+    pub source: Name,
     /// The producer's class.
-    pub class: String,
+    pub class: Name,
     /// First sub-class level.
-    pub sub1: Option<String>,
+    pub sub1: Option<Name>,
     /// Second sub-class level.
-    pub sub2: Option<String>,
+    pub sub2: Option<Name>,
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    #[derive(Debug, PartialEq, Serialize, Deserialize)]
+    #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
     struct Echo {
         range_m: f64,
         beam: String,
@@ -309,7 +389,7 @@ mod tests {
 
     #[test]
     fn payload_travels_as_bin_and_reads_sequences() {
-        let p = Payload(vec![1, 2, 3]);
+        let p = Payload::from_bytes(vec![1, 2, 3]);
         let bytes = crate::wire::encode(&p).unwrap();
         assert_eq!(bytes, vec![0xc4, 3, 1, 2, 3]); // msgpack bin8
         assert_eq!(crate::wire::decode::<Payload>(&bytes).unwrap(), p);

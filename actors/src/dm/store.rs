@@ -28,12 +28,14 @@
 
 use super::error::DmError;
 use super::index::{NameMap, SeqDeque, TimeIndex};
+use super::name::Name;
 use super::packed::Packed;
 use super::query::{Query, Take};
 use super::record::{NewRecord, Payload, Record};
+use super::shared::Shared;
 use serde::{Deserialize, Serialize};
 use std::collections::{vec_deque, BTreeMap, HashMap, VecDeque};
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 
 /// Limits of one datamanager.
@@ -100,18 +102,25 @@ struct Entry {
     sub1: Option<Arc<str>>,
     sub2: Option<Arc<str>>,
     payload: Packed,
+    /// The payload as its readers share it, made by the first select that hands the record
+    /// out ([`Shared`]: the value decoded once for every reader in the process). A record
+    /// nobody reads — most of a high-rate sensor's — never gets one.
+    shared: OnceLock<Arc<Shared>>,
 }
 
 impl Entry {
-    fn to_record(&self, seq: u64, class: &str) -> Record {
+    fn to_record(&self, seq: u64, class: &Arc<str>) -> Record {
+        let shared = self
+            .shared
+            .get_or_init(|| Arc::new(Shared::new(self.payload.as_bytes())));
         Record {
             seq,
             timestamp: self.timestamp,
-            source: self.source.to_string(),
-            class: class.to_string(),
-            sub1: self.sub1.as_deref().map(str::to_string),
-            sub2: self.sub2.as_deref().map(str::to_string),
-            payload: self.payload.to_payload(),
+            source: Name::shared(&self.source),
+            class: Name::shared(class),
+            sub1: self.sub1.as_ref().map(Name::shared),
+            sub2: self.sub2.as_ref().map(Name::shared),
+            payload: Payload::shared(shared.clone()),
         }
     }
 
@@ -244,6 +253,7 @@ impl ClassIndex {
                 sub1,
                 sub2,
                 payload: Packed::new(payload),
+                shared: OnceLock::new(),
             },
         ));
         // The class held at most `bound` records before, so one drop restores the bound.
@@ -398,6 +408,16 @@ impl<'a> Iterator for ClassIter<'a> {
     }
 }
 
+impl ClassIter<'_> {
+    /// Records left at most (fewer if some seqs of a set are stale).
+    fn len(&self) -> usize {
+        match self {
+            ClassIter::Entries(it) => it.len(),
+            ClassIter::Seqs(it, _) => it.len(),
+        }
+    }
+}
+
 impl<'a> DoubleEndedIterator for ClassIter<'a> {
     fn next_back(&mut self) -> Option<(u64, &'a Entry)> {
         match self {
@@ -418,6 +438,36 @@ struct Head<'a> {
     seq: u64,
     entry: &'a Entry,
     rest: ClassIter<'a>,
+}
+
+/// What a [`Store::walk`] does with the matches it finds.
+trait Visit<'a> {
+    /// At most `n` matches will follow.
+    fn most(&mut self, _n: usize) {}
+    /// The record `seq` of `class` matches.
+    fn visit(&mut self, seq: u64, class: &'a ClassIndex, entry: &'a Entry);
+}
+
+/// A select's answer: the matches as records.
+struct Answer(Vec<Record>);
+
+impl<'a> Visit<'a> for Answer {
+    fn most(&mut self, n: usize) {
+        // sized once (the walk may filter, so a large answer still grows as it comes)
+        self.0.reserve_exact(n.min(256));
+    }
+    fn visit(&mut self, seq: u64, class: &'a ClassIndex, entry: &'a Entry) {
+        self.0.push(entry.to_record(seq, &class.name));
+    }
+}
+
+/// A delete's victims: their seqs by class.
+struct Victims<'m>(&'m mut HashMap<Arc<str>, Vec<u64>>);
+
+impl<'a> Visit<'a> for Victims<'_> {
+    fn visit(&mut self, seq: u64, class: &'a ClassIndex, _: &'a Entry) {
+        self.0.entry(class.name.clone()).or_default().push(seq);
+    }
 }
 
 /// Which index a select walks (for tests and diagnostics).
@@ -589,8 +639,9 @@ impl Store {
 
     /// Call `out` for every match of `q` (newest-first for `Take::Newest`, else oldest-first):
     /// each class named (or every class) walks its narrowest set over the seq range, and
-    /// several classes are merged by seq. Returns how many records were looked at.
-    fn walk<'a>(&'a self, q: &Query, mut out: impl FnMut(u64, &'a ClassIndex, &'a Entry)) -> usize {
+    /// several classes are merged by seq. `most` is told first how many matches there can be
+    /// at most (to size an answer once). Returns how many records were looked at.
+    fn walk<'a>(&'a self, q: &Query, out: &mut impl Visit<'a>) -> usize {
         let (newest, limit) = match q.take {
             None => (false, usize::MAX),
             Some(Take::Oldest(n)) => (false, n),
@@ -618,6 +669,13 @@ impl Store {
                 });
             }
         }
+        out.most(
+            heads
+                .iter()
+                .map(|h| 1 + h.rest.len())
+                .sum::<usize>()
+                .min(limit),
+        );
         let mut visited = 0;
         let mut taken = 0;
         while !heads.is_empty() {
@@ -641,7 +699,7 @@ impl Store {
             }
             visited += 1;
             if entry.matches(seq, &class.name, q) {
-                out(seq, class, entry);
+                out.visit(seq, class, entry);
                 taken += 1;
                 if taken >= limit {
                     break;
@@ -658,8 +716,9 @@ impl Store {
 
     /// [`Store::select`], plus how many stored records it looked at.
     pub fn select_counting(&self, q: &Query) -> (Vec<Record>, usize) {
-        let mut out = Vec::new();
-        let visited = self.walk(q, |seq, ci, e| out.push(e.to_record(seq, &ci.name)));
+        let mut out = Answer(Vec::new());
+        let visited = self.walk(q, &mut out);
+        let Answer(mut out) = out;
         if matches!(q.take, Some(Take::Newest(_))) {
             out.reverse();
         }
@@ -670,9 +729,7 @@ impl Store {
     /// many were deleted.
     pub fn delete(&mut self, q: &Query) -> u64 {
         let mut victims: HashMap<Arc<str>, Vec<u64>> = HashMap::new();
-        self.walk(q, |seq, ci, _| {
-            victims.entry(ci.name.clone()).or_default().push(seq);
-        });
+        self.walk(q, &mut Victims(&mut victims));
         let mut n = 0;
         for (class, mut seqs) in victims {
             seqs.sort_unstable();
@@ -760,7 +817,7 @@ impl Store {
     pub fn class_counts(&self) -> BTreeMap<String, u64> {
         self.classes
             .iter()
-            .map(|(name, ci)| (name.to_string(), ci.entries.len() as u64))
+            .map(|(name, ci)| (String::from(&**name), ci.entries.len() as u64))
             .collect()
     }
 }
@@ -823,6 +880,36 @@ mod tests {
         assert_eq!(all[1].timestamp, secs(5));
         assert_eq!(all[0].source, "p");
         assert_eq!(s.next_seq(), 3);
+    }
+
+    #[test]
+    fn selects_hand_out_one_payload_decoded_once() {
+        let mut s = Store::new(DmConfig::default());
+        let scan = vec![(1.0f64, 2.0f64); 8]; // over the inline size: a heap payload
+        for v in [&scan, &vec![(3.0, 4.0)]] {
+            let rec = NewRecord::encode("scan", v).unwrap().with_source("us");
+            s.insert(rec, secs(1)).unwrap();
+        }
+        let a = s.select(&Query::class("scan"));
+        let b = s.select(&Query::class("scan").newest(2));
+        assert_eq!(a, b);
+        for (x, y) in a.iter().zip(&b) {
+            let (vx, vy) = (
+                x.decode_shared::<Vec<(f64, f64)>>().unwrap(),
+                y.decode_shared::<Vec<(f64, f64)>>().unwrap(),
+            );
+            assert!(Arc::ptr_eq(&vx, &vy), "decoded once for both selects");
+            // the same value and bytes as the record's own bytes decode to
+            let own = Payload::from_bytes(x.payload.as_bytes().to_vec());
+            assert_eq!(*vx, own.decode::<Vec<(f64, f64)>>().unwrap());
+            assert_eq!(x.payload, own);
+            // a wrong type stays a decoding error
+            assert!(matches!(x.decode::<String>(), Err(DmError::Decode(_))));
+        }
+        assert_eq!(a[0].decode::<Vec<(f64, f64)>>().unwrap(), scan);
+        // on the wire a shared payload is its bytes, as before
+        let wire = crate::wire::encode(&a[0]).unwrap();
+        assert_eq!(crate::wire::decode::<Record>(&wire).unwrap(), a[0]);
     }
 
     #[test]
@@ -1048,7 +1135,7 @@ mod tests {
     #[test]
     fn limits_and_bad_input() {
         let mut s = Store::new(DmConfig::default().with_max_payload(4));
-        let big = NewRecord::new("a", Payload(vec![0; 5])).with_source("p");
+        let big = NewRecord::new("a", Payload::from_bytes(vec![0; 5])).with_source("p");
         assert_eq!(
             s.insert(big, secs(0)),
             Err(DmError::PayloadTooLarge { size: 5, max: 4 })

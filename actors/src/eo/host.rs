@@ -304,6 +304,7 @@ impl<O: Operation> HostState<O> {
         myself: &ActorRef<EoMsg>,
         outcome: Result<Step, super::OpError>,
     ) {
+        self.ctx.flush_puts();
         match outcome {
             Ok(Step::Continue) => {
                 if let Some(active) = &self.active {

@@ -286,6 +286,17 @@ impl OpContext {
         self.dms.insert(name.to_string(), client.clone());
         Ok(client.with_epoch(epoch))
     }
+
+    /// Send what the operation put to datamanagers on other nodes and is still queued
+    /// ([`crate::dm::DmClient::flush`]): the host does it after every step, so that a step's
+    /// puts leave before anything the host then reports.
+    pub(crate) fn flush_puts(&self) {
+        for (dm, client) in &self.dms {
+            if let Err(e) = client.flush() {
+                tracing::debug!(%dm, error = %e, "queued puts not sent");
+            }
+        }
+    }
 }
 
 /// An elementary operation: a small concurrent unit that senses, reasons or acts (thesis

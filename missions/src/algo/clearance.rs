@@ -19,6 +19,7 @@
 use super::parking::Footprint;
 use super::{bicycle_step, Command};
 use crate::geom::{Point, Pose};
+use nalgebra::Isometry2;
 use serde::{Deserialize, Serialize};
 
 /// Points placed on each echo's arc.
@@ -84,10 +85,10 @@ fn arc(echo: &Echo) -> impl Iterator<Item = Point> + '_ {
     })
 }
 
-/// Distance from `p` (cart frame) to the outline of `footprint` at `pose` (cart frame); 0
-/// inside.
-fn distance(footprint: &Footprint, pose: &Pose, p: Point) -> f64 {
-    let local = pose.isometry().inverse_transform_point(&p);
+/// Distance from `p` (cart frame) to the outline of `footprint` at the pose whose transform
+/// is `pose` (cart frame; made once per pose, not per point); 0 inside.
+fn distance(footprint: &Footprint, pose: &Isometry2<f64>, p: Point) -> f64 {
+    let local = pose.inverse_transform_point(&p);
     let dx = (-footprint.rear - local.x)
         .max(local.x - footprint.front)
         .max(0.0);
@@ -110,12 +111,13 @@ pub fn check(
     let here = Pose::default();
     let step = params.reach.max(0.0) / REACH_STEPS as f64;
     let unit = Command::new(command.speed.signum(), command.steer);
-    let path: Vec<Pose> = (1..=REACH_STEPS)
+    let path: Vec<Isometry2<f64>> = (1..=REACH_STEPS)
         .scan(here, |pose, _| {
             *pose = bicycle_step(pose, unit, params.wheelbase, step);
-            Some(*pose)
+            Some(pose.isometry())
         })
         .collect();
+    let here = here.isometry();
     let mut worst: Option<Trip> = None;
     for p in echoes.iter().flat_map(arc) {
         let now = distance(footprint, &here, p);

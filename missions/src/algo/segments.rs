@@ -100,17 +100,22 @@ impl Line {
     /// Total-least-squares (orthogonal regression) fit; `None` for fewer than two distinct
     /// points.
     pub fn fit(points: &[Point]) -> Option<Line> {
-        let weighted: Vec<(Point, f64)> = points.iter().map(|p| (*p, 1.0)).collect();
-        Line::fit_weighted(&weighted)
+        // the weighted fit with every weight 1 (the same arithmetic), without a weighted
+        // copy of the points
+        Line::fit_pairs(|| points.iter().map(|p| (*p, 1.0)))
     }
 
     /// Weighted total-least-squares fit (non-positive or non-finite weights are ignored);
     /// `None` when the points do not determine a line.
     pub fn fit_weighted(points: &[(Point, f64)]) -> Option<Line> {
+        Line::fit_pairs(|| points.iter().copied())
+    }
+
+    /// [`Line::fit_weighted`] of the (point, weight) pairs `pairs()` yields (it is walked
+    /// four times).
+    fn fit_pairs<I: Iterator<Item = (Point, f64)>>(pairs: impl Fn() -> I) -> Option<Line> {
         let usable = || {
-            points
-                .iter()
-                .filter(|(p, w)| w.is_finite() && *w > 0.0 && p.x.is_finite() && p.y.is_finite())
+            pairs().filter(|(p, w)| w.is_finite() && *w > 0.0 && p.x.is_finite() && p.y.is_finite())
         };
         let wsum: f64 = usable().map(|(_, w)| w).sum();
         if !wsum.is_finite() || wsum <= 0.0 {
@@ -348,8 +353,9 @@ fn mergeable(
         return true;
     };
     let mut res: Vec<f64> = union.iter().map(|p| line.distance(*p)).collect();
-    res.sort_by(|x, y| x.total_cmp(y));
-    let p90 = res[((res.len() - 1) as f64 * 0.9).floor() as usize];
+    // the value a full sort would put there (one value per place in a total order)
+    let at = ((res.len() - 1) as f64 * 0.9).floor() as usize;
+    let p90 = *res.select_nth_unstable_by(at, |x, y| x.total_cmp(y)).1;
     if p90 > threshold {
         return false;
     }

@@ -4,7 +4,7 @@
 use super::records::{LocationRecord, LOCATION, MAP, SONAR};
 use super::{cart, cart_err, correction, dm_err, newest};
 use crate::algo::localize::{
-    localize, recent_travel, reframe, swept_segments, Fix, LocalizeParams, SensedPoint,
+    localize, recent_travel, swept_segments, Fix, LocalizeParams, Reframe, SensedPoint,
 };
 use crate::algo::segments::SegmentParams;
 use crate::geom::Segment;
@@ -100,19 +100,21 @@ impl Operation for Localizer {
         };
         let now = correction(ctx).await?;
         let since = ctx.now().saturating_sub(window);
+        // shared with the scans' other readers: decoded once, not copied
         let scans = ctx
             .dm(FEATURE)?
-            .select_kind(SONAR, Query::all().time_from(since))
+            .select_kind_shared(SONAR, Query::all().time_from(since))
             .await
             .map_err(dm_err(FEATURE))?;
         let mut by_sensor: BTreeMap<usize, Vec<SensedPoint>> = BTreeMap::new();
         for (_, scan) in &scans {
+            let frame = Reframe::new(&scan.correction, &now);
             for e in scan.echoes.iter().filter(|e| e.narrow) {
                 let origin =
                     e.point - crate::geom::Pose::new(0.0, 0.0, e.bearing).heading() * e.range;
                 by_sensor.entry(e.sensor).or_default().push(SensedPoint {
-                    origin: reframe(origin, &scan.correction, &now),
-                    point: reframe(e.point, &scan.correction, &now),
+                    origin: frame.apply(origin),
+                    point: frame.apply(e.point),
                 });
             }
         }

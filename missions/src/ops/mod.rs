@@ -37,7 +37,6 @@ use crate::hardware::CartClient;
 use marie_actors::declare::RecordKind;
 use marie_actors::dm::{DmError, DmSpec, WORLD};
 use marie_actors::eo::{OpContext, OpError};
-use serde::de::DeserializeOwned;
 
 /// The cart client, found in the registry on first use and again after the cart restarted,
 /// carrying the running activation's fence: the cart obeys only the newest incarnation of
@@ -65,7 +64,7 @@ pub(crate) fn cart_err(e: crate::hardware::CartError) -> OpError {
 }
 
 /// The newest record of `kind` in datamanager `dm`, decoded; `None` when there is none.
-pub(crate) async fn newest<T: DeserializeOwned>(
+pub(crate) async fn newest<T: marie_actors::dm::PayloadType>(
     ctx: &mut OpContext,
     dm: DmSpec,
     kind: RecordKind<T>,
@@ -74,7 +73,7 @@ pub(crate) async fn newest<T: DeserializeOwned>(
 }
 
 /// Like [`newest`], with the record's sequence number.
-pub(crate) async fn newest_with_seq<T: DeserializeOwned>(
+pub(crate) async fn newest_with_seq<T: marie_actors::dm::PayloadType>(
     ctx: &mut OpContext,
     dm: DmSpec,
     kind: RecordKind<T>,

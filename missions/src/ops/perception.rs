@@ -7,7 +7,7 @@ use super::records::{
 };
 use super::{cart, cart_err, correction, dm_err, newest};
 use crate::algo::dock::{detect_dock, DockParams};
-use crate::algo::localize::reframe;
+use crate::algo::localize::{reframe, Reframe};
 use crate::algo::segments::{extract_segments, SegmentParams};
 use crate::algo::track::{track_wall, TrackParams};
 use crate::algo::wall::{sense_wall, Side, WallEstimate, WallParams};
@@ -19,6 +19,7 @@ use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
 use marie_actors::property::{ParamSchema, Value};
 use marie_actors::status::FlagDecl;
 use std::collections::BTreeMap;
+use std::sync::Arc;
 use std::time::Duration;
 
 marie_actors::choice! {
@@ -39,15 +40,16 @@ impl Beams {
 }
 
 /// Echo scans stored since `since` (clock time) with a seq of at least `from_seq`, oldest
-/// first, with the seq that follows the last one returned.
+/// first, with the seq that follows the last one returned. Shared with the other readers of
+/// the scans (decoded once, never copied).
 async fn scans_since(
     ctx: &mut OpContext,
     since: Duration,
     from_seq: u64,
-) -> Result<(Vec<EchoScan>, u64), OpError> {
+) -> Result<(Vec<Arc<EchoScan>>, u64), OpError> {
     let records = ctx
         .dm(FEATURE)?
-        .select_kind(SONAR, Query::all().time_from(since).seq_from(from_seq))
+        .select_kind_shared(SONAR, Query::all().time_from(since).seq_from(from_seq))
         .await
         .map_err(dm_err(FEATURE))?;
     let next = records
@@ -147,12 +149,12 @@ impl Operation for SegmentExtractor {
         let now = correction(ctx).await?;
         let mut by_sensor: BTreeMap<usize, Vec<Point>> = BTreeMap::new();
         for scan in &scans {
+            let frame = Reframe::new(&scan.correction, &now);
             for e in scan.echoes.iter().filter(|e| p.beams.admits(e.narrow)) {
-                by_sensor.entry(e.sensor).or_default().push(reframe(
-                    e.point,
-                    &scan.correction,
-                    &now,
-                ));
+                by_sensor
+                    .entry(e.sensor)
+                    .or_default()
+                    .push(frame.apply(e.point));
             }
         }
         let points = by_sensor.values().map(Vec::len).sum();
@@ -436,7 +438,8 @@ impl Operation for DockingDetector {
         // each echo stays where it was placed: with the correction of its time, which was
         // right then (moving old echoes with a newer correction bends the spot out of shape
         // by the odometry's drift since)
-        self.echoes.extend(scans.into_iter().flat_map(|s| s.echoes));
+        self.echoes
+            .extend(scans.iter().flat_map(|s| s.echoes.iter().copied()));
         let points: Vec<Point> = self
             .echoes
             .iter()
