@@ -18,6 +18,24 @@ fn wall_follower(state: &Value) -> Value {
     json!({"operation": "wall-follower", "node": b["node"], "address": b["address"]})
 }
 
+/// `marie run missions/docking.toml` at speed 4 with a page that may inject faults, and
+/// `more` flags; the run and its page's address.
+fn docking_with_a_page(more: &[&str]) -> (Proc, std::net::SocketAddr) {
+    let mut args = vec![
+        "run",
+        "missions/docking.toml",
+        "--speed",
+        "4",
+        "--monitor",
+        "127.0.0.1:0",
+        "--allow-faults",
+    ];
+    args.extend_from_slice(more);
+    let mut run = Proc::spawn("run", &args);
+    let (addr, _) = page_of(&run.wait_line("monitor: http://"));
+    (run, addr)
+}
+
 fn with_fault(target: &Value, fault: &str) -> Value {
     let mut request = target.clone();
     request["fault"] = json!(fault);
@@ -28,21 +46,7 @@ fn with_fault(target: &Value, fault: &str) -> Value {
 fn the_page_asks_the_wall_follower_kills_it_hangs_its_stand_in_and_docking_succeeds() {
     let dir = tempfile::tempdir().unwrap();
     let report = dir.path().join("report.json");
-    let mut run = Proc::spawn(
-        "run",
-        &[
-            "run",
-            "missions/docking.toml",
-            "--speed",
-            "4",
-            "--monitor",
-            "127.0.0.1:0",
-            "--allow-faults",
-            "--report",
-            report.to_str().unwrap(),
-        ],
-    );
-    let (addr, _) = page_of(&run.wait_line("monitor: http://"));
+    let (mut run, addr) = docking_with_a_page(&["--report", report.to_str().unwrap()]);
     let info = http::get_json(addr, "/api/info");
     assert_eq!(info["faults_allowed"], true, "{info}");
     assert_eq!(
@@ -150,27 +154,16 @@ fn faults_from_a_plan_chaos_and_the_page_are_in_the_report_which_is_the_fold_of_
     let dir = tempfile::tempdir().unwrap();
     let report = dir.path().join("report.json");
     let events = dir.path().join("events.jsonl");
-    let mut run = Proc::spawn(
-        "run",
-        &[
-            "run",
-            "missions/docking.toml",
-            "--speed",
-            "4",
-            "--monitor",
-            "127.0.0.1:0",
-            "--allow-faults",
-            "--fault",
-            "kill:wall-sensor@3",
-            "--chaos",
-            "5",
-            "--report",
-            report.to_str().unwrap(),
-            "--events",
-            events.to_str().unwrap(),
-        ],
-    );
-    let (addr, _) = page_of(&run.wait_line("monitor: http://"));
+    let (mut run, addr) = docking_with_a_page(&[
+        "--fault",
+        "kill:wall-sensor@3",
+        "--chaos",
+        "5",
+        "--report",
+        report.to_str().unwrap(),
+        "--events",
+        events.to_str().unwrap(),
+    ]);
     let state = state_until(addr, "the wall follower running", |s| {
         s["mission"]["actions"].as_array().is_some_and(|a| {
             a.iter()

@@ -76,7 +76,7 @@
 //! # Example
 //!
 //! ```
-//! use marie_actors::dispatcher::mission::{EndMode, Mission, OpInfo, StaticCatalog};
+//! use marie_actors::dispatcher::mission::{EndMode, OpInfo, ParsedMission, StaticCatalog};
 //! use marie_actors::status::{FlagDecl, StatusFlags};
 //! use marie_actors::property::{ParamDecl, ParamSchema, Value};
 //! use std::time::Duration;
