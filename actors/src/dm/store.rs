@@ -357,12 +357,20 @@ impl ClassIndex {
         // a set with no live seq (only stale ones not yet swept) counts as missing
         let first = self.first_live();
         let live = |seqs: &SeqDeque| seqs.last().is_some_and(|s| s >= first);
+        // A set is walked only when it is narrower than the class: each of its seqs costs a
+        // lookup among the class's entries, which the class's own walk does not. A set that
+        // holds every record of its class — a class with one sub-class, the usual case of a
+        // typed kind — narrows nothing.
         if let Some(s1) = q.sub1.as_deref() {
             let si = self.subs.get(s1).filter(|si| live(&si.seqs))?;
-            best = (Pick::Seqs(&si.seqs), si.seqs.len(), Plan::Sub1);
+            if si.seqs.len() < best.1 {
+                best = (Pick::Seqs(&si.seqs), si.seqs.len(), Plan::Sub1);
+            }
             if let Some(s2) = q.sub2.as_deref() {
                 let x = si.subs.get(s2).filter(|x| live(&x.seqs))?;
-                best = (Pick::Seqs(&x.seqs), x.seqs.len(), Plan::Sub2);
+                if x.seqs.len() < best.1 {
+                    best = (Pick::Seqs(&x.seqs), x.seqs.len(), Plan::Sub2);
+                }
             }
         }
         if let Some(src) = q.source.as_deref() {
@@ -975,6 +983,24 @@ mod tests {
         assert_eq!(s.plan(&q), Plan::Sub1);
         assert_eq!(s.select(&q).len(), 6);
         assert_eq!(s.plan(&Query::all().source("nobody")), Plan::Empty);
+    }
+
+    #[test]
+    fn a_sub_class_every_record_of_its_class_has_walks_the_class_itself() {
+        let mut s = Store::new(DmConfig::default());
+        for i in 0..5u64 {
+            s.insert(new("scan", Some("sonar"), Some("all"), "us"), secs(i + 1))
+                .unwrap();
+        }
+        // the sets hold the whole class: no lookup per record, the same answer
+        let q = Query::class("scan").sub1("sonar").sub2("all").time_from(secs(2));
+        assert_eq!(s.plan(&q), Plan::Class);
+        assert_eq!(seqs(&s.select(&q)), vec![2, 3, 4, 5]);
+        // one record of another sub-class: the set is narrower again
+        s.insert(new("scan", Some("laser"), None, "us"), secs(6))
+            .unwrap();
+        assert_eq!(s.plan(&Query::class("scan").sub1("sonar")), Plan::Sub1);
+        assert_eq!(s.select(&Query::class("scan").sub1("sonar")).len(), 5);
     }
 
     #[test]
