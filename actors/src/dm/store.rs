@@ -993,7 +993,10 @@ mod tests {
                 .unwrap();
         }
         // the sets hold the whole class: no lookup per record, the same answer
-        let q = Query::class("scan").sub1("sonar").sub2("all").time_from(secs(2));
+        let q = Query::class("scan")
+            .sub1("sonar")
+            .sub2("all")
+            .time_from(secs(2));
         assert_eq!(s.plan(&q), Plan::Class);
         assert_eq!(seqs(&s.select(&q)), vec![2, 3, 4, 5]);
         // one record of another sub-class: the set is narrower again
