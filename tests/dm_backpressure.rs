@@ -164,8 +164,12 @@ fn single_puts_coalesced_in_flight_arrive_in_order_within_the_window() {
             let mut max_in_flight = 0;
             let mut markers = Vec::new();
             for i in 0..EACH {
-                client.ready(1).await.unwrap();
-                client.put("seq", Some(sub1), None, &i).unwrap();
+                // both tasks spend one window: waiting for a credit and taking it is one
+                // step, else the other task may take the credit `ready` saw free
+                client
+                    .put_waiting("seq", Some(sub1), None, &i)
+                    .await
+                    .unwrap();
                 max_in_flight = max_in_flight.max(client.puts_in_flight());
                 if sub1 == "a" && i % 997 == 996 {
                     let seq = client.store("marker", None, None, &i).await.unwrap();

@@ -182,6 +182,32 @@ impl DmClient {
         self.put_raw(record)
     }
 
+    /// [`DmClient::put`], waiting for a credit rather than refusing `Busy` (at most
+    /// [`DmClient::timeout`], then `Timeout`): for a producer that must not drop a sample.
+    /// Unlike [`DmClient::ready`] followed by `put`, it holds when several tasks put through
+    /// clones of one client, which share one window: the credit is taken as it is seen free.
+    pub async fn put_waiting<T: Serialize + ?Sized>(
+        &self,
+        class: &str,
+        sub1: Option<&str>,
+        sub2: Option<&str>,
+        value: &T,
+    ) -> Result<(), DmError> {
+        let record = self.fill_source(self.record(class, sub1, sub2, value)?);
+        record.validate()?;
+        match &self.outbox {
+            Some(outbox) => {
+                outbox
+                    .put_waiting(record, &self.actor, &self.dm, self.timeout)
+                    .await
+            }
+            None => self
+                .actor
+                .cast(DmMsg::Put { record })
+                .map_err(|_| self.unreachable()),
+        }
+    }
+
     /// Store a prepared record; an empty `source` becomes this client's. Returns its seq.
     pub async fn store_raw(&self, record: NewRecord) -> Result<u64, DmError> {
         let record = self.fill_source(record);
@@ -265,7 +291,8 @@ impl DmClient {
 
     /// Wait until `n` more puts fit in the window of a remote DM (at once for a local one),
     /// at most [`DmClient::timeout`]: a producer that would rather wait than have its puts
-    /// refused `Busy`. With one producer per client, the puts that follow are then accepted.
+    /// refused `Busy`. With one producer per client, the puts that follow are then accepted;
+    /// tasks that share a client's window put with [`DmClient::put_waiting`] instead.
     pub async fn ready(&self, n: usize) -> Result<(), DmError> {
         match &self.outbox {
             None => Ok(()),

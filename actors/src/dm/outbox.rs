@@ -78,6 +78,35 @@ impl Outbox {
         dm: &str,
     ) -> Result<(), DmError> {
         self.take(1, actor, dm)?;
+        self.enqueue(record, actor, dm)
+    }
+
+    /// Put `record` as [`Outbox::put`] does, but wait for its credit rather than refuse
+    /// `Busy`, at most `timeout` in all. The credit is taken the moment it is seen free, so
+    /// producers sharing this outbox (a client's clones on several tasks) never take each
+    /// other's: what `ready` then `put` cannot promise them.
+    pub(crate) async fn put_waiting(
+        self: &Arc<Self>,
+        record: NewRecord,
+        actor: &ActorRef<DmMsg>,
+        dm: &str,
+        timeout: Duration,
+    ) -> Result<(), DmError> {
+        let deadline = tokio::time::Instant::now() + timeout;
+        while self.credits.take(1, dm).is_err() {
+            let left = deadline.saturating_duration_since(tokio::time::Instant::now());
+            self.ready(1, actor, dm, left).await?;
+        }
+        self.enqueue(record, actor, dm)
+    }
+
+    /// Queue `record`, whose credit is taken, to leave with the records put around it.
+    fn enqueue(
+        self: &Arc<Self>,
+        record: NewRecord,
+        actor: &ActorRef<DmMsg>,
+        dm: &str,
+    ) -> Result<(), DmError> {
         if gone(actor) {
             self.credits.refund(1);
             return Err(DmError::Unreachable(dm.to_string()));
@@ -434,6 +463,57 @@ mod tests {
         );
         client.stats().await.unwrap();
         assert_eq!(lock(&probe.seen).values.len(), WINDOW + WINDOW / 2 + 100);
+        actor.stop(None);
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn producers_sharing_a_window_wait_for_credits_and_none_is_refused() {
+        let (client, probe, actor) = metered().await;
+        // two tasks, one window: each waits for a credit and takes it in one step
+        let each = 3 * WINDOW as u64;
+        let producer = |base: u64, client: DmClient| async move {
+            let mut most = 0;
+            for i in 0..each {
+                client
+                    .put_waiting("sonar", None, None, &(base + i))
+                    .await
+                    .unwrap();
+                most = most.max(client.puts_in_flight());
+            }
+            most
+        };
+        let (a, b) = tokio::join!(
+            tokio::spawn(producer(0, client.clone())),
+            tokio::spawn(producer(1_000_000, client.clone())),
+        );
+        let most = a.unwrap().max(b.unwrap());
+        assert!(most <= WINDOW, "{most} in flight");
+        client.stats().await.unwrap();
+        let seen = lock(&probe.seen);
+        for base in [0, 1_000_000] {
+            let mine: Vec<u64> = seen
+                .values
+                .iter()
+                .copied()
+                .filter(|v| (base..base + each).contains(v))
+                .collect();
+            assert_eq!(mine, (base..base + each).collect::<Vec<_>>(), "in order");
+        }
+        drop(seen);
+        actor.stop(None);
+    }
+
+    #[tokio::test]
+    async fn a_waiting_put_gives_up_after_the_clients_timeout() {
+        let (client, probe, actor) = metered().await;
+        let client = client.with_timeout(Duration::from_millis(200));
+        lock(&probe.seen).hold = true;
+        for i in 0..WINDOW as u64 {
+            client.put("sonar", None, None, &i).unwrap();
+        }
+        let late = client.put_waiting("sonar", None, None, &0u64).await;
+        assert!(matches!(late, Err(DmError::Timeout { .. })), "{late:?}");
+        assert_eq!(client.puts_in_flight(), WINDOW, "the late put took nothing");
         actor.stop(None);
     }
 
