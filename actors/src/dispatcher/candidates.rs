@@ -3,7 +3,7 @@
 //! the selection among them — what binding, surveying, healing and validating a mission all
 //! start from.
 
-use super::mission::OpInfo;
+use super::mission::op_info::OpInfo;
 use super::selection::{self, Need, Offer};
 use crate::eo::{EoClient, EoError};
 use crate::property::{General, Group, PropertyReply, PropertyRequest};

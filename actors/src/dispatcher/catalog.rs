@@ -114,6 +114,6 @@ impl Catalog for RegistryCatalog {
     }
 
     fn checked(&self, mission: &Mission) -> CheckedChoices {
-        CheckedChoices::gather(mission, &self.examined)
+        CheckedChoices::gather(mission.operation_needs(), &self.examined)
     }
 }

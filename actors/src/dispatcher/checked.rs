@@ -4,7 +4,8 @@
 //! Checking a mission against the running instances ([`RegistryCatalog::for_mission`], what
 //! `Node::check_mission` and so `marie run` do) asks every live instance of every operation
 //! it uses for its properties and chooses among them ([`selection`](super::selection)). A
-//! mission validated against that catalog carries those choices ([`Mission::checked`]): per
+//! mission validated against that catalog carries those choices
+//! ([`Mission::checked`](super::mission::Mission::checked)): per
 //! operation, the need it was chosen for, the choice with every candidate's verdict (what
 //! the run's `selected` event tells), the chosen instance as the check saw it (address,
 //! node, identity, schema, flags, epoch, deadline) and every instance the registry listed
@@ -40,7 +41,6 @@
 //! selects everything.
 
 use super::candidates::{self, ExamineError, Examined, Prospect};
-use super::mission::Mission;
 use super::selection::Need;
 use crate::registry::{self, ModuleKind};
 use crate::run::Choice;
@@ -51,7 +51,8 @@ use std::sync::Arc;
 
 /// The choices a mission's check made, by operation name: what a mission checked against
 /// the running instances ([`RegistryCatalog::for_mission`](super::RegistryCatalog::for_mission))
-/// carries to its run ([`Mission::checked`]), so that the run selects once.
+/// carries to its run ([`Mission::checked`](super::mission::Mission::checked)), so that the
+/// run selects once.
 ///
 /// Per operation it holds the need the choice was made for, the choice with every
 /// candidate's verdict (what the run's `selected` event tells), the chosen instance as the
@@ -140,36 +141,29 @@ pub(crate) enum Changed {
 }
 
 impl CheckedChoices {
-    /// The choices for `mission` among the instances a check examined, by mission key
-    /// (`examined`): for every operation, the choice for what the whole mission needs of it
-    /// (every action's parameters, its `[requires]`) among the instances of that operation
-    /// the check found — the choice the dispatcher would make among them. An operation
-    /// without a choice (no instance fits) is left out: the run selects it again.
-    pub(crate) fn gather(mission: &Mission, examined: &BTreeMap<String, Examined>) -> Self {
+    /// The choices for a mission among the instances a check examined, by mission key
+    /// (`examined`). `needs` are the mission's operations
+    /// ([`Mission::operation_needs`](super::mission::Mission::operation_needs)): the key each one's
+    /// instances were examined under and what the whole mission needs of it (every action's
+    /// parameters, its `[requires]`). Each gets the choice among the instances of it the
+    /// check found — the choice the dispatcher would make among them. An operation without
+    /// a choice (no instance fits) is left out: the run selects it again.
+    pub(crate) fn gather<'a>(
+        needs: impl IntoIterator<Item = (&'a str, Need)>,
+        examined: &BTreeMap<String, Examined>,
+    ) -> Self {
         let mut choices = BTreeMap::new();
-        for name in mission.operation_names() {
-            let keys = mission
-                .actions
-                .iter()
-                .flat_map(|a| &a.ops)
-                .filter(|o| o.name == name)
-                .map(|o| o.key.as_str());
-            // the instances found under the operation's name, else under its id
-            let Some(found) = keys
-                .clone()
-                .find(|k| *k == name)
-                .or_else(|| keys.clone().next())
-                .and_then(|k| examined.get(k))
-            else {
+        for (key, need) in needs {
+            let Some(found) = examined.get(key) else {
                 continue;
             };
+            let name = need.operation.as_str();
             let fit: Vec<Prospect> = found
                 .found
                 .iter()
                 .filter(|c| c.info.name == name)
                 .cloned()
                 .collect();
-            let need = mission.need(name);
             let choice = candidates::choose(&need, &fit);
             let Some(index) = choice.chosen_index() else {
                 continue;

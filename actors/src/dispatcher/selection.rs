@@ -41,7 +41,7 @@
 //! assert!(matches!(choice.candidates[0].verdict, Verdict::Rejected { .. }));
 //! ```
 
-use super::mission::operations::OpInfo;
+use super::mission::op_info::OpInfo;
 use crate::property::{ParamMap, Rejection, Value};
 use crate::run::{Candidate, Choice, Verdict};
 use semver::{Version, VersionReq};

@@ -9,8 +9,6 @@
 //! reused as a ring: storing and dropping them touches no allocator at all. The producer's
 //! buffer is freed at once, while it is still warm.
 
-use super::record::Payload;
-
 /// Payloads up to this many bytes are kept inline (a MessagePack map of two or three short
 /// numeric fields fits).
 pub(crate) const INLINE: usize = 46;
@@ -24,13 +22,12 @@ pub(crate) enum Packed {
 }
 
 impl Packed {
-    /// Keep `payload`: copied inline if small, else its buffer is kept as it is (a payload
-    /// shared with readers is copied).
-    pub(crate) fn new(payload: Payload) -> Packed {
-        match payload.into_owned_bytes() {
-            Ok(data) if data.len() > INLINE => Packed::Heap(data),
-            Ok(data) => Packed::copy_of(&data),
-            Err(shared) => Packed::copy_of(shared.bytes()),
+    /// Keep `data` as it is: inline if small, else the buffer itself (no copy).
+    pub(crate) fn from_vec(data: Vec<u8>) -> Packed {
+        if data.len() > INLINE {
+            Packed::Heap(data)
+        } else {
+            Packed::copy_of(&data)
         }
     }
 
@@ -65,7 +62,7 @@ mod tests {
     fn small_payloads_are_inline_and_large_ones_on_the_heap() {
         for n in [0, 1, INLINE - 1, INLINE, INLINE + 1, 10_000] {
             let data: Vec<u8> = (0..n).map(|i| (i % 251) as u8).collect();
-            let packed = Packed::new(Payload::from_bytes(data.clone()));
+            let packed = Packed::from_vec(data.clone());
             assert_eq!(packed.as_bytes(), &data[..], "{n} bytes");
             assert_eq!(Packed::copy_of(&data).as_bytes(), &data[..], "{n} bytes");
             assert_eq!(matches!(packed, Packed::Inline { .. }), n <= INLINE, "{n}");

@@ -7,6 +7,7 @@
 
 use super::error::DmError;
 use super::name::Name;
+use super::packed::Packed;
 use super::shared::{decode_bytes, PayloadType, Shared};
 use serde::de::{self, SeqAccess, Visitor};
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
@@ -106,6 +107,15 @@ impl Payload {
         match self.into_owned_bytes() {
             Ok(bytes) => bytes,
             Err(shared) => shared.bytes().to_vec(),
+        }
+    }
+
+    /// The payload as a store keeps it ([`Packed`]): its own buffer kept as it is if large,
+    /// copied inline if small; a payload shared with readers is copied.
+    pub(crate) fn into_packed(self) -> Packed {
+        match self.into_owned_bytes() {
+            Ok(data) => Packed::from_vec(data),
+            Err(shared) => Packed::copy_of(shared.bytes()),
         }
     }
 
@@ -369,11 +379,25 @@ pub struct RecordHeader {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::dm::packed::INLINE;
 
     #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
     struct Echo {
         range_m: f64,
         beam: String,
+    }
+
+    #[test]
+    fn a_payload_is_packed_inline_when_small_whether_its_own_or_shared() {
+        for n in [0, 1, INLINE, INLINE + 1, 10_000] {
+            let data: Vec<u8> = (0..n).map(|i| (i % 251) as u8).collect();
+            let own = Payload::from_bytes(data.clone()).into_packed();
+            let shared = Payload::shared(Arc::new(Shared::new(&data))).into_packed();
+            for packed in [own, shared] {
+                assert_eq!(packed.as_bytes(), &data[..], "{n} bytes");
+                assert_eq!(matches!(packed, Packed::Inline { .. }), n <= INLINE, "{n}");
+            }
+        }
     }
 
     #[test]

@@ -252,7 +252,7 @@ impl ClassIndex {
                 source,
                 sub1,
                 sub2,
-                payload: Packed::new(payload),
+                payload: payload.into_packed(),
                 shared: OnceLock::new(),
             },
         ));

@@ -141,13 +141,15 @@
 //! ```
 
 mod builder;
+pub(crate) mod op_info;
 pub(crate) mod operations;
 mod raw;
 mod validate;
 
 pub use crate::diagnostic::{Diagnostic, Diagnostics, LineIndex, Pos};
 pub use builder::{ActionBuilder, MissionBuilder, BUILT};
-pub use operations::{Catalog, OpInfo, StaticCatalog};
+pub use op_info::OpInfo;
+pub use operations::{Catalog, StaticCatalog};
 
 use super::checked::CheckedChoices;
 use crate::property::ParamMap;
@@ -328,6 +330,29 @@ impl Mission {
             .flat_map(|a| a.ops.iter())
             .map(|o| o.name.as_str())
             .filter(|n| seen.insert(*n))
+            .collect()
+    }
+
+    /// Each operation the mission uses, once, in order of first use: the key its
+    /// instances are looked up under (its name if an action names it so, else the id the
+    /// first action uses) and what the mission needs of it ([`Mission::need`]).
+    pub(crate) fn operation_needs(&self) -> Vec<(&str, super::selection::Need)> {
+        self.operation_names()
+            .into_iter()
+            .map(|name| {
+                let keys = || {
+                    self.actions
+                        .iter()
+                        .flat_map(|a| &a.ops)
+                        .filter(move |o| o.name == name)
+                        .map(|o| o.key.as_str())
+                };
+                let key = keys()
+                    .find(|k| *k == name)
+                    .or_else(|| keys().next())
+                    .unwrap_or(name);
+                (key, self.need(name))
+            })
             .collect()
     }
 
