@@ -201,10 +201,7 @@ impl DmClient {
                     .put_waiting(record, &self.actor, &self.dm, self.timeout)
                     .await
             }
-            None => self
-                .actor
-                .cast(DmMsg::Put { record })
-                .map_err(|_| self.unreachable()),
+            None => self.cast_put(record),
         }
     }
 
@@ -224,11 +221,15 @@ impl DmClient {
         record.validate()?;
         match &self.outbox {
             Some(outbox) => outbox.put(record, &self.actor, &self.dm),
-            None => self
-                .actor
-                .cast(DmMsg::Put { record })
-                .map_err(|_| self.unreachable()),
+            None => self.cast_put(record),
         }
+    }
+
+    /// A put to a datamanager in this process: cast at once, not metered.
+    fn cast_put(&self, record: NewRecord) -> Result<(), DmError> {
+        self.actor
+            .cast(DmMsg::Put { record })
+            .map_err(|_| self.unreachable())
     }
 
     /// Store prepared records without waiting for the DM, in as few messages as their size
