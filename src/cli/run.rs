@@ -64,7 +64,8 @@ pub(crate) struct RunArgs {
     /// Inject a fault while the mission runs: KIND `kill`, `panic`, `hang` or `slow` (an
     /// operation) or `stop-node` (a node process `marie up` started); TARGET the operation's name or id
     /// (the instance the mission bound), `NAME#VERSION` (the instance with that version),
-    /// `NAME/NODE` (the one on that node) or an actor id like `0.42` — or a node's name;
+    /// `NAME/NODE` (the one on that node) or an actor id like `0.42` — a datamanager's
+    /// name, id or address (`kill`, `panic`, `hang`) — or a node's name;
     /// SECS mission time, 0 to 86400 (a day). Repeatable. A fault that cannot be injected
     /// is reported, never dropped.
     #[arg(long = "fault", value_name = "KIND:TARGET@SECS")]

@@ -18,6 +18,7 @@ use super::store::{DmConfig, Store};
 use super::waits::{TimerGuard, Waiter, Waits};
 use crate::clock::{cast_after, SharedClock};
 use crate::registry::{self, ModuleKind};
+use crate::run::FaultKind;
 use ractor::{Actor, ActorCell, ActorProcessingErr, ActorRef, RpcReplyPort, SpawnErr};
 use std::time::Duration;
 use tokio::task::JoinHandle;
@@ -303,6 +304,18 @@ impl Actor for Datamanager {
             }
             DmMsg::Stats { reply } => {
                 let _ = reply.send(state.stats());
+            }
+            DmMsg::Inject { fault } => {
+                tracing::warn!(dm = %state.name, actor = %myself.get_id(), %fault, "injected fault");
+                match fault {
+                    FaultKind::Panic => panic!("injected fault: datamanager {} panics", state.name),
+                    // Only a kill ends this (ractor's kill signal interrupts a running handler).
+                    FaultKind::Hang => std::future::pending::<()>().await,
+                    FaultKind::Kill => myself.kill(),
+                    // the injector refuses these (`FaultKind::hits_datamanager`); a new
+                    // operation-only kind needs nothing here
+                    _ => tracing::warn!(%fault, "not a datamanager's fault: ignored"),
+                }
             }
         }
         Ok(())

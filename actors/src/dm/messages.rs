@@ -84,6 +84,14 @@ crate::remote_message! {
         } -> u64,
         /// What the DM holds.
         Stats {} -> DmStats,
+        /// Commit `fault` on purpose (fault injection): a kill, a panic or a hang (only a
+        /// kill ends it). Its supervisor restarts it. Any other kind is ignored with a
+        /// warning. A kill sent this way is how one reaches a DM on another node, where
+        /// killing its local stand-in would only kill the stand-in.
+        Inject {
+            /// The fault.
+            fault: crate::run::FaultKind,
+        },
     }
     local {
         /// The timeout of a pending wait passed.

@@ -37,11 +37,12 @@ pub enum FaultKind {
     StopNode,
 }
 
-/// What a fault aims at: an operation instance or a node's process.
+/// What a fault aims at: a module instance (an operation, or a datamanager for the kinds
+/// that [hit one](FaultKind::hits_datamanager)) or a node's process.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Aim {
     /// An operation instance (named as `NAME`, `ID`, `NAME#VERSION`, an actor id, or an
-    /// instance on a node).
+    /// instance on a node) — or a datamanager, named the same ways.
     Operation,
     /// A node, by name.
     Node,
@@ -79,6 +80,13 @@ impl FaultKind {
             }
             FaultKind::StopNode => Aim::Node,
         }
+    }
+
+    /// Whether a datamanager can suffer it: a kill, a panic or a hang hit a datamanager
+    /// as they hit an operation (its supervisor restarts it); a slow step means nothing to
+    /// a module without steps, and a node's kind aims at a node.
+    pub fn hits_datamanager(self) -> bool {
+        matches!(self, FaultKind::Kill | FaultKind::Panic | FaultKind::Hang)
     }
 
     /// The kinds that aim at `aim`, in [`ALL`](Self::ALL)'s order.

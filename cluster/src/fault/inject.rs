@@ -5,10 +5,12 @@ use super::processes::NodeProcesses;
 use super::resolve::{resolve, Hit, RunBindings};
 use super::target::Target;
 use super::{FaultError, FaultSpec};
+use marie_actors::dm::DmMsg;
 use marie_actors::eo::EoClient;
 use marie_actors::events::{EventBus, EventKind, Tap};
 use marie_actors::registry::{self, Instance, ModuleKind};
 use marie_actors::run::{Aim, FaultKind};
+use ractor::ActorRef;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 use tokio::sync::watch;
@@ -267,11 +269,12 @@ impl Injector {
     }
 }
 
-/// Do `kind` to the operation instance `inst`, telling nobody — the behaviour of the
-/// operation kinds, under [`Injector::inject`] (which resolves, and tells the bus). A kill
-/// of a local instance kills its actor; a remote instance, and every other kind, is told
-/// through its host (killing a remote actor's local stand-in would kill the stand-in
-/// alone).
+/// Do `kind` to the module instance `inst` (an operation or a datamanager), telling nobody
+/// — the behaviour of the operation kinds, under [`Injector::inject`] (which resolves, and
+/// tells the bus). A kill of a local instance kills its actor; a remote instance, and every
+/// other kind, is told through its actor (killing a remote actor's local stand-in would
+/// kill the stand-in alone). A datamanager suffers only the kinds that
+/// [hit one](FaultKind::hits_datamanager).
 pub fn inject_into(kind: FaultKind, inst: &Instance) -> Result<(), FaultError> {
     if kind.aim() != Aim::Operation {
         return Err(FaultError::Mismatch {
@@ -280,11 +283,23 @@ pub fn inject_into(kind: FaultKind, inst: &Instance) -> Result<(), FaultError> {
             target: inst.name.clone(),
         });
     }
+    let datamanager = inst.kind == ModuleKind::Datamanager;
+    if datamanager && !kind.hits_datamanager() {
+        return Err(FaultError::Mismatch {
+            kind,
+            wants: "an operation",
+            target: format!("{} (a datamanager)", inst.name),
+        });
+    }
+    let unreachable = || FaultError::Unreachable(inst.name.clone());
     match kind {
         FaultKind::Kill if inst.actor.get_id().is_local() => inst.actor.kill(),
+        _ if datamanager => ActorRef::<DmMsg>::from(inst.actor.clone())
+            .cast(DmMsg::Inject { fault: kind })
+            .map_err(|_| unreachable())?,
         _ => EoClient::from_cell(inst.actor.clone())
             .inject(kind)
-            .map_err(|_| FaultError::Unreachable(inst.name.clone()))?,
+            .map_err(|_| unreachable())?,
     }
     Ok(())
 }

@@ -125,8 +125,8 @@ pub enum FaultError {
         /// The target, as written.
         target: String,
     },
-    /// The operation's actor could not be reached.
-    #[error("operation `{0}` could not be reached")]
+    /// The operation's (or datamanager's) actor could not be reached.
+    #[error("`{0}` could not be reached")]
     Unreachable(String),
     /// The node's process could not be signalled.
     #[error("cannot kill node {node} (pid {pid}): {why}")]

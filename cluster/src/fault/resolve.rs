@@ -1,5 +1,6 @@
 //! The one resolver: what a [`Target`] names now — an operation instance in the registry
-//! (the one a run bound, for a plain name) or a node process this process may stop.
+//! (the one a run bound, for a plain name), a datamanager (a name no operation has), or a
+//! node process this process may stop.
 
 use super::processes::NodeProcesses;
 use super::target::{Target, TargetError};
@@ -12,7 +13,7 @@ use std::collections::HashMap;
 /// What a fault hits.
 #[derive(Clone, Debug)]
 pub enum Hit {
-    /// An operation instance.
+    /// A module instance: an operation, or a datamanager (its `kind` says which).
     Instance(Instance),
     /// A node's process.
     Process {
@@ -113,7 +114,7 @@ pub(super) async fn resolve(
                 },
             }),
         },
-        Target::Actor(id) => operations()
+        Target::Actor(id) => modules()
             .into_iter()
             .find(|i| i.actor.get_id().to_string() == *id)
             .map(Hit::Instance)
@@ -184,7 +185,7 @@ async fn bound(op: &str, run: &RunBindings) -> Result<Instance, TargetError> {
 /// The instance of `op` on `node`: the one whose actor has `address`'s pid when given (a
 /// pid is the same from every process; the `N.` of an address is not), else the only one.
 fn on_node(op: &str, node: &str, address: Option<&str>) -> Result<Instance, TargetError> {
-    let all = registry::lookup(ModuleKind::Operation, op);
+    let all = lookup(op);
     let there: Vec<Instance> = all.iter().filter(|i| i.node == node).cloned().collect();
     if let Some(address) = address {
         let pid = address.rsplit('.').next().unwrap_or(address);
@@ -220,26 +221,51 @@ fn on_node(op: &str, node: &str, address: Option<&str>) -> Result<Instance, Targ
     }
 }
 
-/// Every live operation instance.
-fn operations() -> Vec<Instance> {
+/// Every live module instance a fault may hit: operations and datamanagers.
+fn modules() -> Vec<Instance> {
     registry::list()
         .into_iter()
-        .filter(|i| i.kind == ModuleKind::Operation)
+        .filter(|i| matches!(i.kind, ModuleKind::Operation | ModuleKind::Datamanager))
         .collect()
 }
 
-/// The live operation instances, as an error lists them.
+/// The live modules, as an error lists them: the operations, then the datamanagers.
 fn running_list() -> String {
-    let names: Vec<String> = operations()
-        .iter()
-        .map(|i| format!("{} ({}) {}", i.name, i.id, i.actor.get_id()))
-        .collect();
-    names.join(", ")
+    let (operations, datamanagers): (Vec<Instance>, Vec<Instance>) = modules()
+        .into_iter()
+        .partition(|i| i.kind == ModuleKind::Operation);
+    let names = |instances: &[Instance]| {
+        instances
+            .iter()
+            .map(|i| format!("{} ({}) {}", i.name, i.id, i.actor.get_id()))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let mut parts = Vec::new();
+    if !operations.is_empty() {
+        parts.push(names(&operations));
+    }
+    if !datamanagers.is_empty() {
+        parts.push(format!("datamanagers: {}", names(&datamanagers)));
+    }
+    parts.join("; ")
 }
 
-/// The live instances of `op` (name or id); none is an error that lists what runs.
+/// The live instances of the operation `key` (name or id) — or, when no operation is
+/// known by it, of the datamanager (operations and datamanagers have names of their own).
+fn lookup(key: &str) -> Vec<Instance> {
+    let operations = registry::lookup(ModuleKind::Operation, key);
+    if operations.is_empty() {
+        registry::lookup(ModuleKind::Datamanager, key)
+    } else {
+        operations
+    }
+}
+
+/// The live instances of `op` (an operation's or a datamanager's name or id); none is an
+/// error that lists what runs.
 fn instances_of(op: &str) -> Result<Vec<Instance>, TargetError> {
-    let found = registry::lookup(ModuleKind::Operation, op);
+    let found = lookup(op);
     if found.is_empty() {
         Err(TargetError::NotRunning(op.to_string(), running_list()))
     } else {

@@ -146,7 +146,7 @@ pub enum TargetError {
     /// Not a target of a fault that aims at that.
     #[error("{}", syntax(.0, *.1))]
     Syntax(String, Aim),
-    /// No instance of that operation runs.
+    /// No instance of that operation (or datamanager) runs.
     #[error("no operation `{0}` is running (running: {1})")]
     NotRunning(String, String),
     /// No instance of that operation has that version.
@@ -159,7 +159,7 @@ pub enum TargetError {
         /// The versions that run.
         running: String,
     },
-    /// No operation instance has that actor id.
+    /// No operation or datamanager instance has that actor id.
     #[error("no operation instance {0} is running (running: {1})")]
     NoActor(String, String),
     /// Several instances run and no mission binds one of them.
