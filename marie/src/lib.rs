@@ -69,7 +69,9 @@
 //! An operation steps every [`DEFAULT_PERIOD`](actors::eo::DEFAULT_PERIOD) (100 ms of its
 //! node's clock) unless it says otherwise, and must answer any command within
 //! [`DEFAULT_DEADLINE`](actors::eo::DEFAULT_DEADLINE) (2 s) or it is taken for hung. What must
-//! survive its crash it keeps in a datamanager ([`actors::dm`]).
+//! survive its crash it keeps in a datamanager ([`actors::dm`]). When a datamanager it uses
+//! is gone (crashed, killed), the operation's steps wait for the DM's next incarnation, at
+//! most [`DATAMANAGER_RETURN`](actors::eo::DATAMANAGER_RETURN) (5 s), and go on.
 //!
 //! **2. A node** hosts the application's operations and datamanagers under supervision,
 //! with one clock: [`Node::builder`]. Each operation type's declarations are checked before

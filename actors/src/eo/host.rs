@@ -324,6 +324,32 @@ impl<O: Operation> HostState<O> {
                 self.end_activation(|flags, epoch| EoReport::Finished { flags, epoch })
                     .await;
             }
+            Err(super::OpError::Datamanager { dm, problem })
+                if self.active.is_some() && self.ctx.dm_gone(&dm) =>
+            {
+                // the DM is gone: wait for its next incarnation, then step again
+                let activation = self.active.as_ref().map_or(0, |a| a.number);
+                tracing::warn!(op = %self.identity.name, %dm, error = %problem, "datamanager gone: waiting for it");
+                let reason = super::OpError::Datamanager {
+                    dm: dm.clone(),
+                    problem,
+                }
+                .to_string();
+                let myself = myself.clone();
+                tokio::spawn(async move {
+                    let message = if wait_for_datamanager(&dm, super::DATAMANAGER_RETURN).await {
+                        tracing::info!(%dm, "datamanager back: stepping on");
+                        EoMsg::Tick { activation }
+                    } else {
+                        EoMsg::DatamanagerAbsent {
+                            activation,
+                            dm,
+                            reason,
+                        }
+                    };
+                    let _ = myself.cast(message);
+                });
+            }
             Err(e) => {
                 tracing::warn!(op = %self.identity.name, error = %e, "operation failed");
                 let reason = e.to_string();
@@ -444,6 +470,23 @@ impl<O: Operation> Actor for EoHost<O> {
                 let outcome = Box::pin(state.op.step(&mut state.ctx)).await;
                 Box::pin(state.after_step(&myself, outcome)).await;
             }
+            EoMsg::DatamanagerAbsent {
+                activation,
+                dm,
+                reason,
+            } => {
+                if state.active.as_ref().map(|a| a.number) != Some(activation) {
+                    return Ok(()); // the activation ended while it waited
+                }
+                tracing::warn!(op = %state.identity.name, %dm, "operation failed: its datamanager did not come back");
+                let reason = format!("{reason} (not back within {:?})", super::DATAMANAGER_RETURN);
+                Box::pin(state.end_activation(|flags, epoch| EoReport::Failed {
+                    reason,
+                    flags,
+                    epoch,
+                }))
+                .await;
+            }
             EoMsg::Suspend { epoch } => {
                 if epoch < state.epoch {
                     tracing::debug!(op = %state.identity.name, epoch, current = state.epoch, "stale suspend ignored");
@@ -496,6 +539,29 @@ impl<O: Operation> Actor for EoHost<O> {
         }
         Ok(())
     }
+}
+
+/// Wait until a datamanager named `dm` is registered, at most `within` (real time): true if
+/// it is.
+async fn wait_for_datamanager(dm: &str, within: std::time::Duration) -> bool {
+    let back = || !registry::lookup(ModuleKind::Datamanager, dm).is_empty();
+    // watching first, so that a DM published between the look and the wait is seen
+    let Ok(mut watch) = registry::watch(Some(ModuleKind::Datamanager)).await else {
+        return back();
+    };
+    if back() {
+        return true;
+    }
+    tokio::time::timeout(within, async {
+        while let Some(event) = watch.next().await {
+            if matches!(&event, registry::RegistryEvent::Joined(i) if i.name == dm || i.id.to_string() == dm) {
+                return true;
+            }
+        }
+        false
+    })
+    .await
+    .unwrap_or(false)
 }
 
 /// Spawn an operation in its host, unsupervised. The handle completes when the host stops.

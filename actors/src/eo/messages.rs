@@ -115,5 +115,15 @@ crate::remote_message! {
             /// Number of the activation the tick belongs to.
             activation: u64,
         },
+        /// The datamanager `dm` that activation number `activation` waited for did not
+        /// come back within [`DATAMANAGER_RETURN`](super::DATAMANAGER_RETURN).
+        DatamanagerAbsent {
+            /// Number of the activation that waited.
+            activation: u64,
+            /// The datamanager.
+            dm: String,
+            /// Why the step failed in the first place.
+            reason: String,
+        },
     }
 }

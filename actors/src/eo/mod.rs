@@ -62,4 +62,10 @@ pub const DEFAULT_DEADLINE: std::time::Duration =
 /// Time between an operation's steps unless it declares otherwise ([`Operation::period`]):
 /// 100 ms of the node's clock.
 pub const DEFAULT_PERIOD: std::time::Duration = std::time::Duration::from_millis(100);
+/// How long an operation whose datamanager is gone (killed, crashed: no longer registered,
+/// or its actor stopped) waits for the DM's next incarnation before it fails: its host
+/// holds its steps, answers every command meanwhile, and steps again once the DM's
+/// supervisor has published the new one. Real time, not the node's clock: a restart takes
+/// what it takes, whatever the mission's speed.
+pub const DATAMANAGER_RETURN: std::time::Duration = std::time::Duration::from_secs(5);
 pub use operation::{Identity, OpContext, OpError, Operation, Params, Step};

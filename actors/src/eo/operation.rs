@@ -287,6 +287,16 @@ impl OpContext {
         Ok(client.with_epoch(epoch))
     }
 
+    /// Whether the datamanager `dm` is gone now: no longer registered, or the actor this
+    /// context reached it through has stopped (a new incarnation may be on its way).
+    pub(crate) fn dm_gone(&self, dm: &str) -> bool {
+        let stopped = self
+            .dms
+            .get(dm)
+            .is_some_and(|c| c.actor().get_status() > ractor::ActorStatus::Running);
+        stopped || crate::registry::lookup(crate::registry::ModuleKind::Datamanager, dm).is_empty()
+    }
+
     /// Send what the operation put to datamanagers on other nodes and is still queued
     /// ([`crate::dm::DmClient::flush`]): the host does it after every step, so that a step's
     /// puts leave before anything the host then reports.

@@ -1,0 +1,167 @@
+//! An operation whose datamanager is gone waits for the DM's next incarnation and steps on:
+//! its host holds its steps (answering every command meanwhile) until a DM of that name is
+//! published again, at most `eo::DATAMANAGER_RETURN`, and only then fails the activation.
+//!
+//! Each test uses a datamanager of its own name: the registry is one per process.
+
+use marie_actors::clock::RealClock;
+use marie_actors::dm::{spawn_datamanager, DmArgs, DmClient, DmConfig, DmMsg, Query};
+use marie_actors::eo::{
+    spawn_operation, EoClient, EoReport, HostOptions, Identity, OpContext, OpError, Operation,
+    Step, DATAMANAGER_RETURN,
+};
+use marie_actors::property::{
+    param_map, Group, ParamDecl, ParamSchema, PropertyReply, PropertyRequest, Value,
+};
+use marie_actors::registry::{self, ModuleKind, RegistryEvent};
+use marie_actors::status::StatusFlags;
+use ractor::ActorRef;
+use std::time::Duration;
+use tokio::time::timeout;
+
+const T: Duration = Duration::from_secs(30);
+
+/// Stores its step number in its datamanager at every step (a call: it sees at once that
+/// the DM is gone); finishes after `steps` steps.
+struct Recorder {
+    dm: &'static str,
+    taken: i64,
+}
+
+impl Operation for Recorder {
+    fn identity(&self) -> Identity {
+        Identity::new(
+            &format!("recorder-{}", self.dm),
+            4300,
+            "1.0.0",
+            "logs its steps",
+        )
+    }
+    fn parameters(&self) -> ParamSchema {
+        ParamSchema::new(vec![ParamDecl::int("steps", 10).range(1.0, 100_000.0)])
+    }
+    fn period(&self) -> Duration {
+        Duration::from_millis(2)
+    }
+    async fn activate(&mut self, _: &mut OpContext) -> Result<Step, OpError> {
+        self.taken = 0;
+        Ok(Step::Continue)
+    }
+    async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
+        let n = self.taken.to_string();
+        ctx.dm(self.dm)?
+            .store("step", Some(&n), None, &self.taken)
+            .await?;
+        self.taken += 1;
+        Ok(if self.taken >= ctx.params().i64("steps")? {
+            Step::Finish(StatusFlags(0))
+        } else {
+            Step::Continue
+        })
+    }
+}
+
+async fn datamanager(name: &str) -> ActorRef<DmMsg> {
+    spawn_datamanager(DmArgs {
+        id: 4301,
+        name: name.to_string(),
+        clock: RealClock::shared(),
+        config: DmConfig::default(),
+    })
+    .await
+    .expect("the DM starts")
+    .0
+}
+
+async fn recorder(dm: &'static str) -> EoClient {
+    let (actor, _) = spawn_operation(Recorder { dm, taken: 0 }, HostOptions::default())
+        .await
+        .expect("the host starts");
+    EoClient::new(actor)
+}
+
+/// Wait until the DM `name` holds the step `n`.
+async fn until_step(name: &str, n: i64) {
+    let client = DmClient::lookup(name, "test").unwrap();
+    let query = Query::class("step").sub1(n.to_string());
+    let found = client.select_wait(query, T).await.unwrap();
+    assert_eq!(found.len(), 1, "the operation steps");
+}
+
+/// Kill the DM's actor and wait until it left the registry.
+async fn kill(dm: ActorRef<DmMsg>) {
+    let mut watch = registry::watch(Some(ModuleKind::Datamanager))
+        .await
+        .unwrap();
+    let id = dm.get_id();
+    dm.kill();
+    timeout(T, async {
+        while let Some(event) = watch.next().await {
+            if matches!(&event, RegistryEvent::Left(i) if i.actor.get_id() == id) {
+                return;
+            }
+        }
+    })
+    .await
+    .expect("the DM leaves the registry");
+}
+
+#[tokio::test]
+async fn an_operation_steps_on_into_its_datamanagers_next_incarnation() {
+    let first = datamanager("logbook-back").await;
+    let op = recorder("logbook-back").await;
+    let report = op
+        .activate(param_map([("steps", Value::Int(400))]), 1)
+        .unwrap();
+    until_step("logbook-back", 5).await;
+    kill(first).await;
+    // the DM is gone a while: the operation holds its steps, and still answers
+    let answer = timeout(T, op.property(PropertyRequest::Group(Group::General)))
+        .await
+        .unwrap()
+        .unwrap();
+    match answer {
+        PropertyReply::General(g) => assert!(g.in_use, "still active"),
+        other => panic!("{other:?}"),
+    }
+    tokio::time::sleep(Duration::from_millis(100)).await; // a gap, not a wait for an event
+    let second = datamanager("logbook-back").await;
+    let report = timeout(T, report).await.unwrap().unwrap();
+    assert!(matches!(report, EoReport::Finished { .. }), "{report:?}");
+    // the steps after the gap are in the new incarnation, the last one among them
+    let stored = DmClient::lookup("logbook-back", "test")
+        .unwrap()
+        .select_typed::<i64>(Query::class("step"))
+        .await
+        .unwrap();
+    assert_eq!(stored.last().map(|(_, v)| *v), Some(399));
+    assert!(
+        stored.len() < 400,
+        "the first incarnation's records went with it"
+    );
+    second.stop(None);
+    op.actor().stop(None);
+}
+
+#[tokio::test]
+async fn an_operation_fails_when_its_datamanager_does_not_come_back() {
+    let dm = datamanager("logbook-gone").await;
+    let op = recorder("logbook-gone").await;
+    let report = op
+        .activate(param_map([("steps", Value::Int(100_000))]), 1)
+        .unwrap();
+    until_step("logbook-gone", 2).await;
+    kill(dm).await;
+    let report = timeout(T + DATAMANAGER_RETURN, report)
+        .await
+        .unwrap()
+        .unwrap();
+    match report {
+        EoReport::Failed { reason, .. } => {
+            assert!(reason.contains("logbook-gone"), "{reason}");
+            assert!(reason.contains("not back within"), "{reason}");
+        }
+        other => panic!("{other:?}"),
+    }
+    op.actor().stop(None);
+}
