@@ -200,6 +200,40 @@ fn marie_kill_shows_the_operation_supervisor_restarting_the_operation() {
     assert_eq!(out.status.code(), Some(2));
 }
 
+#[test]
+fn marie_kill_shows_the_datamanager_supervisor_restarting_a_datamanager() {
+    for target in ["feature", "1201"] {
+        let out = marie(&["kill", target]);
+        let stdout = text(&out.stdout);
+        assert_eq!(out.status.code(), Some(0), "{stdout}{}", text(&out.stderr));
+        assert!(stdout.contains("killed feature (1201)"), "{stdout}");
+        assert!(
+            stdout.contains("restarted by the datamanager supervisor as"),
+            "{stdout}"
+        );
+    }
+}
+
+#[test]
+fn a_datamanager_fault_is_injected_and_in_the_report() {
+    let (out, json) = report_of(&[
+        "run",
+        "missions/demo.toml",
+        "--fault",
+        "panic:parameter@0.5",
+    ]);
+    let faults = json["faults"].as_array().unwrap();
+    assert_eq!(faults.len(), 1, "{json}");
+    assert_eq!(faults[0]["fault"], "panic");
+    assert_eq!(faults[0]["operation"], "parameter");
+    assert!(faults[0]["error"].is_null(), "{json}");
+    assert!(
+        text(&out.stdout).contains("* injected panic into parameter"),
+        "{}",
+        text(&out.stdout)
+    );
+}
+
 #[tokio::test(flavor = "current_thread", start_paused = true)]
 async fn the_node_tree_is_datamanagers_operations_dynamic_provisioner_and_heals_a_killed_operation()
 {

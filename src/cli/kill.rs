@@ -1,5 +1,5 @@
-//! `marie kill NAME|ID`: kill an operation on the embedded node and watch its supervisor
-//! restart it.
+//! `marie kill NAME|ID`: kill an operation (or a datamanager) on the embedded node and watch
+//! its supervisor restart it.
 
 use super::args::RobotArgs;
 use super::error::BadInput;
@@ -18,7 +18,7 @@ use std::time::{Duration, Instant};
 #[derive(clap::Args, Debug)]
 pub(crate) struct KillArgs {
     /// The operation: its name or numeric id, `NAME#VERSION` when several versions run,
-    /// `NAME/NODE`, or an actor id like `0.42`.
+    /// `NAME/NODE`, or an actor id like `0.42` — or a datamanager, by name, id or actor id.
     pub operation: String,
     #[command(flatten)]
     pub robot: RobotArgs,
@@ -71,13 +71,21 @@ async fn strike(injector: &Injector, operation: &str) -> anyhow::Result<Instance
 }
 
 async fn kill_on(node: &Node, operation: &str) -> anyhow::Result<ExitCode> {
-    let supervisor = node.operation_supervisor().await?;
-    let mut events = supervisor.subscribe().await?;
+    // both supervisors are listened to before the strike: the target may be either kind
+    let mut operations = node.operation_supervisor().await?.subscribe().await?;
+    let mut datamanagers = match node.datamanager_supervisor().await {
+        Ok(supervisor) => Some(supervisor.subscribe().await?),
+        Err(_) => None, // a node without datamanagers
+    };
     let started = std::time::Instant::now();
     let inst = strike(&Injector::new(node.events()), operation).await?;
     let killed = inst.actor_id();
     println!("killed {} ({}) at {killed}", inst.name, inst.id);
-    let restarted = tokio::time::timeout(std::time::Duration::from_secs(10), async {
+    let (events, supervisor) = match (inst.kind, datamanagers.as_mut()) {
+        (ModuleKind::Datamanager, Some(events)) => (events, "datamanager"),
+        _ => (&mut operations, "operation"),
+    };
+    let restarted = tokio::time::timeout(RESTART_TIMEOUT, async {
         loop {
             match events.recv().await {
                 Ok(SupervisorEvent::ChildRestarted { old, new, .. }) if old == Some(killed) => {
@@ -92,14 +100,14 @@ async fn kill_on(node: &Node, operation: &str) -> anyhow::Result<ExitCode> {
     match restarted {
         Ok(Some(new)) => {
             println!(
-                "restarted by the operation supervisor as {} after {:.2} ms",
+                "restarted by the {supervisor} supervisor as {} after {:.2} ms",
                 new.get_id(),
                 started.elapsed().as_secs_f64() * 1000.0
             );
             Ok(ExitCode::SUCCESS)
         }
         _ => {
-            println!("not restarted within 10 s");
+            println!("not restarted within {RESTART_TIMEOUT:?}");
             Ok(ExitCode::from(1))
         }
     }
@@ -109,7 +117,8 @@ async fn kill_on(node: &Node, operation: &str) -> anyhow::Result<ExitCode> {
 /// stand-in would kill the stand-in alone) and wait for an instance of the same operation to
 /// appear on the same node: its supervisor's restart.
 async fn kill_in_cluster(injector: &Injector, operation: &str) -> anyhow::Result<ExitCode> {
-    let mut watch = registry::watch(Some(ModuleKind::Operation)).await?;
+    // any kind: the target may be an operation or a datamanager
+    let mut watch = registry::watch(None).await?;
     let started = Instant::now();
     let inst = strike(injector, operation).await?;
     let killed = inst.actor_id();
@@ -120,7 +129,11 @@ async fn kill_in_cluster(injector: &Injector, operation: &str) -> anyhow::Result
     let restarted = tokio::time::timeout(RESTART_TIMEOUT, async {
         while let Some(event) = watch.next().await {
             if let RegistryEvent::Joined(new) = event {
-                if new.name == inst.name && new.node == inst.node && new.actor_id() != killed {
+                if new.kind == inst.kind
+                    && new.name == inst.name
+                    && new.node == inst.node
+                    && new.actor_id() != killed
+                {
                     return Some(new);
                 }
             }

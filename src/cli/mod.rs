@@ -49,7 +49,8 @@ pub(crate) enum Command {
     Check(check::CheckArgs),
     /// List the location table.
     Ls(ls::LsArgs),
-    /// Kill an operation on the embedded node and show its supervisor restarting it.
+    /// Kill an operation (or a datamanager) on the embedded node and show its supervisor
+    /// restarting it.
     Kill(kill::KillArgs),
     /// Show every property of an operation.
     Props(props::PropsArgs),
