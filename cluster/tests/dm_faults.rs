@@ -1,6 +1,6 @@
 //! Datamanagers are fault targets like operations: `kill`, `panic` and `hang` reach a DM
 //! named by its name, its id or its address, through the one injector; its supervisor
-//! restarts it after a kill or a panic; a kind that means nothing
+//! restarts it after a kill or a panic, and the node's watchdog kills a hung one; a kind that means nothing
 //! to a DM (`slow`) is refused, not ignored; every fault is told on the node's bus.
 //!
 //! Each test uses a datamanager of its own name: the registry is one per process.
@@ -10,7 +10,7 @@ use marie_actors::events::{EventKind, EventSubscription};
 use marie_actors::registry::{self, Instance, ModuleKind, RegistryEvent};
 use marie_actors::run::{Aim, FaultKind};
 use marie_cluster::fault::{FaultError, Injector, Target};
-use marie_cluster::node::Node;
+use marie_cluster::node::{watchdog, Node};
 use std::time::Duration;
 use tokio::time::timeout;
 
@@ -112,8 +112,10 @@ async fn a_killed_or_panicking_datamanager_is_restarted_by_its_supervisor() {
     node.shutdown().await;
 }
 
-#[tokio::test]
-async fn a_hung_datamanager_stops_answering_until_it_is_killed() {
+/// On the runtime's paused timer: the watchdog's period and deadline pass as soon as
+/// nothing else is left to do.
+#[tokio::test(flavor = "current_thread", start_paused = true)]
+async fn a_hung_datamanager_is_killed_by_the_nodes_watchdog_and_restarted() {
     let node = Node::builder("dmf2")
         .datamanager(("feature-h", 1292))
         .start()
@@ -121,6 +123,9 @@ async fn a_hung_datamanager_stops_answering_until_it_is_killed() {
         .unwrap();
     let injector = Injector::new(node.events());
     let hung = only("feature-h");
+    let mut watch = registry::watch(Some(ModuleKind::Datamanager))
+        .await
+        .unwrap();
     injector
         .inject(
             FaultKind::Hang,
@@ -135,9 +140,22 @@ async fn a_hung_datamanager_stops_answering_until_it_is_killed() {
         matches!(client.stats().await, Err(DmError::Timeout { .. })),
         "a hung DM answers nothing"
     );
-    // a kill ends the hang; the supervisor starts a DM that answers
-    let restarted =
-        strike_and_wait_restart(&injector, FaultKind::Kill, "feature-h", "feature-h").await;
+    // the watchdog asks within its period, gives up after its deadline and kills it; the
+    // supervisor starts a DM that answers
+    let restarted = timeout(watchdog::PERIOD + watchdog::DEADLINE + T, async {
+        loop {
+            match watch.next().await.expect("the registry") {
+                RegistryEvent::Joined(i)
+                    if i.name == "feature-h" && i.actor.get_id() != hung.actor.get_id() =>
+                {
+                    return i
+                }
+                _ => {}
+            }
+        }
+    })
+    .await
+    .expect("the hung DM restarted");
     assert_ne!(restarted.actor.get_id(), hung.actor.get_id());
     DmClient::lookup("feature-h", "test")
         .unwrap()

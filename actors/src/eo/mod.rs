@@ -65,7 +65,9 @@ pub const DEFAULT_PERIOD: std::time::Duration = std::time::Duration::from_millis
 /// How long an operation whose datamanager is gone (killed, crashed: no longer registered,
 /// or its actor stopped) waits for the DM's next incarnation before it fails: its host
 /// holds its steps, answers every command meanwhile, and steps again once the DM's
-/// supervisor has published the new one. Real time, not the node's clock: a restart takes
-/// what it takes, whatever the mission's speed.
+/// supervisor has published the new one. Measured on the runtime's timer, not the node's
+/// clock: real time on a node, and in a simulation's paused runtime virtual time that
+/// stands still while anything (a restart) is being done — so it runs out only when nothing
+/// is left that could bring the DM back.
 pub const DATAMANAGER_RETURN: std::time::Duration = std::time::Duration::from_secs(5);
 pub use operation::{Identity, OpContext, OpError, Operation, Params, Step};

@@ -51,6 +51,7 @@ mod provisioner;
 pub mod robot;
 mod run;
 mod tree;
+pub mod watchdog;
 
 pub use builder::NodeBuilder;
 pub use config::{
@@ -250,7 +251,11 @@ impl Node {
         };
         let children = tree::children(&config, &options, &bus);
         let (root, _) = tree::start_root(children).await?;
-        let bridges = events::bridge_supervisors(&bus, &root).await;
+        let mut bridges = events::bridge_supervisors(&bus, &root).await;
+        if !config.datamanagers.is_empty() {
+            let names = config.datamanagers.iter().map(|d| d.name.clone()).collect();
+            bridges.push(watchdog::spawn(names));
+        }
         tracing::info!(node = %config.name, "node started");
         let starter = provisioner::Starter {
             node: config.name.clone(),
