@@ -193,8 +193,7 @@ impl DmClient {
         sub2: Option<&str>,
         value: &T,
     ) -> Result<(), DmError> {
-        let record = self.fill_source(self.record(class, sub1, sub2, value)?);
-        record.validate()?;
+        let record = self.checked(self.record(class, sub1, sub2, value)?)?;
         match &self.outbox {
             Some(outbox) => {
                 outbox
@@ -217,12 +216,19 @@ impl DmClient {
 
     /// [`DmClient::put`] for a prepared record.
     pub fn put_raw(&self, record: NewRecord) -> Result<(), DmError> {
-        let record = self.fill_source(record);
-        record.validate()?;
+        let record = self.checked(record)?;
         match &self.outbox {
             Some(outbox) => outbox.put(record, &self.actor, &self.dm),
             None => self.cast_put(record),
         }
+    }
+
+    /// A record to put without waiting for the DM: its source filled in and the record
+    /// checked here, since what the DM refuses afterwards is only counted there.
+    fn checked(&self, record: NewRecord) -> Result<NewRecord, DmError> {
+        let record = self.fill_source(record);
+        record.validate()?;
+        Ok(record)
     }
 
     /// A put to a datamanager in this process: cast at once, not metered.
@@ -245,10 +251,7 @@ impl DmClient {
         }
         let records = records
             .into_iter()
-            .map(|r| {
-                let r = self.fill_source(r);
-                r.validate().map(|()| r)
-            })
+            .map(|r| self.checked(r))
             .collect::<Result<Vec<_>, _>>()?;
         if let Some(outbox) = &self.outbox {
             return outbox.put_batch(records, &self.actor, &self.dm);

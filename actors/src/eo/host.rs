@@ -324,17 +324,15 @@ impl<O: Operation> HostState<O> {
                 self.end_activation(|flags, epoch| EoReport::Finished { flags, epoch })
                     .await;
             }
-            Err(super::OpError::Datamanager { dm, problem })
-                if self.active.is_some() && self.ctx.dm_gone(&dm) =>
+            Err(e)
+                if self.active.is_some()
+                    && e.datamanager().is_some_and(|dm| self.ctx.dm_gone(dm)) =>
             {
                 // the DM is gone: wait for its next incarnation, then step again
                 let activation = self.active.as_ref().map_or(0, |a| a.number);
-                tracing::warn!(op = %self.identity.name, %dm, error = %problem, "datamanager gone: waiting for it");
-                let reason = super::OpError::Datamanager {
-                    dm: dm.clone(),
-                    problem,
-                }
-                .to_string();
+                let dm = e.datamanager().unwrap_or_default().to_string();
+                tracing::warn!(op = %self.identity.name, %dm, error = %e, "datamanager gone: waiting for it");
+                let reason = e.to_string();
                 let myself = myself.clone();
                 tokio::spawn(async move {
                     let message = if wait_for_datamanager(&dm, super::DATAMANAGER_RETURN).await {
@@ -541,20 +539,19 @@ impl<O: Operation> Actor for EoHost<O> {
     }
 }
 
-/// Wait until a datamanager named `dm` is registered, at most `within` (real time): true if
-/// it is.
+/// Wait until a datamanager named `dm` is registered, at most `within` on the runtime's
+/// timer: true if it is.
 async fn wait_for_datamanager(dm: &str, within: std::time::Duration) -> bool {
-    let back = || !registry::lookup(ModuleKind::Datamanager, dm).is_empty();
-    // watching first, so that a DM published between the look and the wait is seen
+    // watching first, then looking: a DM published in between is in one or the other
     let Ok(mut watch) = registry::watch(Some(ModuleKind::Datamanager)).await else {
-        return back();
+        return !registry::lookup(ModuleKind::Datamanager, dm).is_empty();
     };
-    if back() {
+    if !registry::lookup(ModuleKind::Datamanager, dm).is_empty() {
         return true;
     }
     tokio::time::timeout(within, async {
         while let Some(event) = watch.next().await {
-            if matches!(&event, registry::RegistryEvent::Joined(i) if i.name == dm || i.id.to_string() == dm) {
+            if matches!(&event, registry::RegistryEvent::Joined(i) if i.answers_to(dm)) {
                 return true;
             }
         }

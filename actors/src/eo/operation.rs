@@ -87,6 +87,14 @@ impl OpError {
     pub fn failed(msg: impl Into<String>) -> Self {
         OpError::Failed(msg.into())
     }
+
+    /// The datamanager it names, for a datamanager's error.
+    pub fn datamanager(&self) -> Option<&str> {
+        match self {
+            OpError::Datamanager { dm, .. } => Some(dm),
+            _ => None,
+        }
+    }
 }
 
 /// A datamanager error inside an operation, so that `ctx.dm(FEATURE)?.store(..).await?`

@@ -120,6 +120,12 @@ impl Instance {
         self.actor.get_id()
     }
 
+    /// Whether `key` names it: its name or its numeric id in decimal, as [`lookup`] takes.
+    pub fn answers_to(&self, key: &str) -> bool {
+        let key = key.trim();
+        self.name == key || self.id.to_string() == key
+    }
+
     /// True when the actor runs in this process.
     pub fn is_local(&self) -> bool {
         self.actor.get_id().is_local()

@@ -206,7 +206,9 @@ pub struct Node {
     config: NodeConfig,
     bus: EventBus,
     _registry: Option<RegistryBridge>,
-    bridges: Vec<tokio::task::JoinHandle<()>>,
+    /// The node's own tasks, aborted at shutdown: the supervisors' event bridges and the
+    /// datamanagers' watchdog.
+    tasks: Vec<tokio::task::JoinHandle<()>>,
     /// The robot's own tasks on a node without a dispatcher ([`Robot::dispatched_elsewhere`]).
     robot_tasks: Vec<tokio::task::JoinHandle<()>>,
     /// The robot's reporting of the latest run ([`Robot::run_starting`]).
@@ -251,10 +253,10 @@ impl Node {
         };
         let children = tree::children(&config, &options, &bus);
         let (root, _) = tree::start_root(children).await?;
-        let mut bridges = events::bridge_supervisors(&bus, &root).await;
+        let mut tasks = events::bridge_supervisors(&bus, &root).await;
         if !config.datamanagers.is_empty() {
             let names = config.datamanagers.iter().map(|d| d.name.clone()).collect();
-            bridges.push(watchdog::spawn(names));
+            tasks.push(watchdog::spawn(names));
         }
         tracing::info!(node = %config.name, "node started");
         let starter = provisioner::Starter {
@@ -268,7 +270,7 @@ impl Node {
             config,
             bus,
             _registry: registry,
-            bridges,
+            tasks,
             robot_tasks: Vec::new(),
             run_tasks: Default::default(),
             starter,
@@ -440,7 +442,7 @@ impl Node {
         }
         self.abort_run_tasks();
         self.starter.root.stop().await;
-        for task in &self.bridges {
+        for task in &self.tasks {
             task.abort();
         }
         tracing::info!(node = %self.config.name, "node stopped");

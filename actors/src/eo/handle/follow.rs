@@ -167,7 +167,7 @@ impl OperationHandle {
                 .map_err(|_| gone())?;
             match event {
                 Some(RegistryEvent::Joined(inst))
-                    if (inst.name == *self.key || inst.id.to_string() == *self.key)
+                    if inst.answers_to(&self.key)
                         && self.may_take(&inst, &dead, deadline).await =>
                 {
                     return Ok(self.adopt(inst, lost));
