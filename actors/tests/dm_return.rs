@@ -22,10 +22,12 @@ use tokio::time::timeout;
 const T: Duration = Duration::from_secs(30);
 
 /// Stores its step number in its datamanager at every step (a call: it sees at once that
-/// the DM is gone); finishes after `steps` steps.
+/// the DM is gone); finishes after `steps` steps. Its property `missed` counts the steps
+/// that found the DM gone.
 struct Recorder {
     dm: &'static str,
     taken: i64,
+    missed: i64,
 }
 
 impl Operation for Recorder {
@@ -43,15 +45,26 @@ impl Operation for Recorder {
     fn period(&self) -> Duration {
         Duration::from_millis(2)
     }
+    fn property(&self, name: &str) -> Option<Value> {
+        (name == "missed").then_some(Value::Int(self.missed))
+    }
     async fn activate(&mut self, _: &mut OpContext) -> Result<Step, OpError> {
         self.taken = 0;
         Ok(Step::Continue)
     }
     async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
         let n = self.taken.to_string();
-        ctx.dm(self.dm)?
-            .store("step", Some(&n), None, &self.taken)
-            .await?;
+        let stored = match ctx.dm(self.dm) {
+            Ok(dm) => dm
+                .store("step", Some(&n), None, &self.taken)
+                .await
+                .map_err(OpError::from),
+            Err(e) => Err(e),
+        };
+        if let Err(e) = stored {
+            self.missed += 1;
+            return Err(e);
+        }
         self.taken += 1;
         Ok(if self.taken >= ctx.params().i64("steps")? {
             Step::Finish(StatusFlags(0))
@@ -74,9 +87,16 @@ async fn datamanager(name: &str) -> ActorRef<DmMsg> {
 }
 
 async fn recorder(dm: &'static str) -> EoClient {
-    let (actor, _) = spawn_operation(Recorder { dm, taken: 0 }, HostOptions::default())
-        .await
-        .expect("the host starts");
+    let (actor, _) = spawn_operation(
+        Recorder {
+            dm,
+            taken: 0,
+            missed: 0,
+        },
+        HostOptions::default(),
+    )
+    .await
+    .expect("the host starts");
     EoClient::new(actor)
 }
 
@@ -106,6 +126,14 @@ async fn kill(dm: ActorRef<DmMsg>) {
     .expect("the DM leaves the registry");
 }
 
+/// How many of the operation's steps found its DM gone.
+async fn missed(op: &EoClient) -> i64 {
+    match op.property(PropertyRequest::Get("missed".into())).await {
+        Ok(PropertyReply::Value(Value::Int(n))) => n,
+        other => panic!("{other:?}"),
+    }
+}
+
 #[tokio::test]
 async fn an_operation_steps_on_into_its_datamanagers_next_incarnation() {
     let first = datamanager("logbook-back").await;
@@ -115,7 +143,14 @@ async fn an_operation_steps_on_into_its_datamanagers_next_incarnation() {
         .unwrap();
     until_step("logbook-back", 5).await;
     kill(first).await;
-    // the DM is gone a while: the operation holds its steps, and still answers
+    // the operation meets the gone DM: it holds its steps, and still answers
+    timeout(T, async {
+        while missed(&op).await == 0 {
+            tokio::task::yield_now().await;
+        }
+    })
+    .await
+    .expect("a step finds the DM gone");
     let answer = timeout(T, op.property(PropertyRequest::Group(Group::General)))
         .await
         .unwrap()
@@ -124,7 +159,6 @@ async fn an_operation_steps_on_into_its_datamanagers_next_incarnation() {
         PropertyReply::General(g) => assert!(g.in_use, "still active"),
         other => panic!("{other:?}"),
     }
-    tokio::time::sleep(Duration::from_millis(100)).await; // a gap, not a wait for an event
     let second = datamanager("logbook-back").await;
     let report = timeout(T, report).await.unwrap().unwrap();
     assert!(matches!(report, EoReport::Finished { .. }), "{report:?}");
@@ -135,6 +169,8 @@ async fn an_operation_steps_on_into_its_datamanagers_next_incarnation() {
         .await
         .unwrap();
     assert_eq!(stored.last().map(|(_, v)| *v), Some(399));
+    // it waited for the new incarnation: one missed step, not one per period
+    assert_eq!(missed(&op).await, 1);
     assert!(
         stored.len() < 400,
         "the first incarnation's records went with it"
