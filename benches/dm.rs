@@ -15,7 +15,7 @@
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
 use marie::actors::clock::{Clock, RealClock};
 use marie::actors::dm::{
-    self, DmArgs, DmClient, DmConfig, DmMsg, NewRecord, Payload, Query, Store,
+    self, DmArgs, DmClient, DmConfig, DmMsg, Durability, NewRecord, Payload, Query, Store,
 };
 use ractor::{Actor, ActorProcessingErr, ActorRef, RpcReplyPort};
 use std::time::{Duration, Instant};
@@ -96,6 +96,8 @@ fn store_rate(c: &mut Criterion) {
             name: "bench-store".into(),
             clock: RealClock::shared(),
             config,
+            durability: Durability::Memory,
+            journal_dir: None,
         }))
         .expect("spawn dm");
     let (counter, _counter_handle) = rt
@@ -252,6 +254,8 @@ fn select_scaling(c: &mut Criterion) {
                 name: format!("bench-select-{label}"),
                 clock: RealClock::shared(),
                 config: DmConfig::default().with_default_retention(usize::MAX),
+                durability: Durability::Memory,
+                journal_dir: None,
             }))
             .expect("spawn dm");
         let client = DmClient::new(dm_ref.clone(), "bench");

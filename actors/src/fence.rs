@@ -96,6 +96,11 @@ impl FenceTable {
         }
     }
 
+    /// The newest epoch seen for `operation`, if any.
+    pub fn newest(&self, operation: &str) -> Option<u64> {
+        self.newest.get(operation).copied()
+    }
+
     /// Commands refused so far.
     pub fn refused(&self) -> u64 {
         self.refused_by.values().sum()

@@ -96,6 +96,8 @@ async fn a_typed_operation_reports_the_flags_the_mission_names_and_stores_typed_
         name: STEPS_DM.name.into(),
         clock: clock.clone(),
         config: DmConfig::default(),
+        durability: Default::default(),
+        journal_dir: None,
     })
     .await
     .unwrap();

@@ -43,6 +43,8 @@ async fn spawn(name: &str, id: u32, clock: SharedClock, config: DmConfig) -> Dm 
         name: name.to_string(),
         clock,
         config,
+        durability: dm::Durability::Memory,
+        journal_dir: None,
     })
     .await
     .expect("spawn dm");

@@ -80,6 +80,8 @@ async fn datamanager(name: &str) -> ActorRef<DmMsg> {
         name: name.to_string(),
         clock: RealClock::shared(),
         config: DmConfig::default(),
+        durability: Default::default(),
+        journal_dir: None,
     })
     .await
     .expect("the DM starts")

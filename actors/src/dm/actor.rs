@@ -11,6 +11,7 @@
 //!   the entry even if it crashes.
 
 use super::error::DmError;
+use super::journal::{Durability, Journal, Recovery};
 use super::messages::{DmMsg, DmStats};
 use super::query::Query;
 use super::record::{NewRecord, Record};
@@ -20,6 +21,7 @@ use crate::clock::{cast_after, SharedClock};
 use crate::registry::{self, ModuleKind};
 use crate::run::FaultKind;
 use ractor::{Actor, ActorCell, ActorProcessingErr, ActorRef, RpcReplyPort, SpawnErr};
+use std::path::PathBuf;
 use std::time::Duration;
 use tokio::task::JoinHandle;
 
@@ -47,6 +49,8 @@ impl DmSpec {
             name: self.name.to_string(),
             clock,
             config: DmConfig::default(),
+            durability: Durability::Memory,
+            journal_dir: None,
         }
     }
 }
@@ -80,6 +84,21 @@ pub struct DmArgs {
     pub clock: SharedClock,
     /// Retention and payload limits.
     pub config: DmConfig,
+    /// How durable acknowledged writes are: at `memory` nothing is written to disk, at
+    /// `process` and `sync` the datamanager keeps a journal in `journal_dir` ([`super::journal`]).
+    pub durability: Durability,
+    /// Where the journal is (required unless `durability` is `memory`); see
+    /// [`super::journal::dir_in`] for a node's layout.
+    pub journal_dir: Option<PathBuf>,
+}
+
+impl DmArgs {
+    /// Keep a journal in `dir` at `durability`.
+    pub fn with_journal(mut self, dir: impl Into<PathBuf>, durability: Durability) -> DmArgs {
+        self.journal_dir = Some(dir.into());
+        self.durability = durability;
+        self
+    }
 }
 
 impl std::fmt::Debug for DmArgs {
@@ -88,6 +107,8 @@ impl std::fmt::Debug for DmArgs {
             .field("id", &self.id)
             .field("name", &self.name)
             .field("config", &self.config)
+            .field("durability", &self.durability)
+            .field("journal_dir", &self.journal_dir)
             .finish_non_exhaustive()
     }
 }
@@ -106,6 +127,10 @@ pub struct DmState {
     refused_puts: u64,
     /// The newest epoch per source: records of a replaced incarnation are refused.
     fences: crate::fence::FenceTable,
+    /// The journal, unless the durability is `memory`.
+    journal: Option<Journal>,
+    /// What the start read back from the journal.
+    recovery: Option<Recovery>,
 }
 
 impl std::fmt::Debug for DmState {
@@ -134,6 +159,12 @@ impl DmState {
             deleted: self.store.deleted(),
             refused_puts: self.refused_puts,
             fenced: self.fences.refused(),
+            durability: self
+                .journal
+                .as_ref()
+                .map_or(Durability::Memory, Journal::durability),
+            journal_bytes: self.journal.as_ref().map_or(0, Journal::bytes),
+            recovery: self.recovery.clone(),
         }
     }
 
@@ -152,7 +183,18 @@ impl DmState {
             .admit_parts(&record.source, record.epoch)
             .map_err(DmError::Fenced)?;
         let class = (!self.waits.is_empty()).then(|| record.class.clone());
-        let seq = self.store.insert(record, self.clock.now())?;
+        let seq = match &mut self.journal {
+            None => self.store.insert(record, self.clock.now())?,
+            Some(journal) => {
+                // on disk before it is indexed: what a select can see, the journal holds
+                journal.usable()?;
+                self.store.check(&record)?;
+                let (seq, timestamp) = self.store.stamp(self.clock.now());
+                journal.put(seq, timestamp, &record);
+                self.store.restore(seq, timestamp, record)?;
+                seq
+            }
+        };
         if let Some(class) = class {
             self.wake(&class, seq);
         }
@@ -169,6 +211,27 @@ impl DmState {
             let answer = self.store.select(&waiter.query);
             tracing::trace!(dm = %self.name, wait = waiter.id, records = answer.len(), "wait answered");
             let _ = waiter.reply.send(answer);
+        }
+    }
+
+    /// Send an answer that acknowledges writes: at once without a journal, else once what
+    /// came before it is durable (or with `Storage` if it cannot be).
+    fn acknowledge<T: Send + 'static>(
+        &mut self,
+        reply: RpcReplyPort<T>,
+        answer: T,
+        refused: impl FnOnce(DmError) -> T + Send + 'static,
+    ) {
+        match &mut self.journal {
+            None => {
+                let _ = reply.send(answer);
+            }
+            Some(journal) => journal.after_durable(Box::new(move |durable| {
+                let _ = reply.send(match durable {
+                    Ok(()) => answer,
+                    Err(e) => refused(e),
+                });
+            })),
         }
     }
 
@@ -231,6 +294,30 @@ impl Actor for Datamanager {
             )
             .into());
         }
+        let (store, fences, journal, recovery) = match args.durability {
+            Durability::Memory => (Store::new(args.config), Default::default(), None, None),
+            durability => {
+                let dir = args.journal_dir.as_deref().ok_or_else(|| {
+                    format!(
+                        "datamanager {}: durability {durability} needs a journal directory",
+                        args.name
+                    )
+                })?;
+                let mut opened = Journal::open(dir, durability, args.config, myself.clone())
+                    .await
+                    .map_err(|e| format!("datamanager {}: {e}", args.name))?;
+                let shifted = opened.store.rebase_times(args.clock.now());
+                if !shifted.is_zero() {
+                    tracing::info!(dm = %args.name, by = ?shifted, "journal time stamps moved back to this process's clock");
+                }
+                (
+                    opened.store,
+                    opened.fences,
+                    Some(opened.journal),
+                    Some(opened.recovery),
+                )
+            }
+        };
         // Published last, once nothing can fail any more: when `spawn_datamanager` returns
         // the DM is already listed, and messages sent before it runs wait in its mailbox.
         registry::publish(
@@ -244,10 +331,12 @@ impl Actor for Datamanager {
             id: args.id,
             name: args.name,
             clock: args.clock,
-            store: Store::new(args.config),
+            store,
             waits: Waits::default(),
             refused_puts: 0,
-            fences: Default::default(),
+            fences,
+            journal,
+            recovery,
         })
     }
 
@@ -263,6 +352,9 @@ impl Actor for Datamanager {
             &state.name,
             &myself.get_cell(),
         );
+        if let Some(journal) = state.journal.take() {
+            journal.close().await;
+        }
         tracing::debug!(dm = %state.name, records = state.store.len(), pending = state.waits.len(), "datamanager stopped");
         Ok(())
     }
@@ -281,7 +373,7 @@ impl Actor for Datamanager {
                 if let Err(e) = &outcome {
                     tracing::debug!(dm = %state.name, error = %e, "store refused");
                 }
-                let _ = reply.send(outcome);
+                state.acknowledge(reply, outcome, Err);
             }
             DmMsg::Select { query, reply } => {
                 let _ = reply.send(state.store.select(&query));
@@ -298,12 +390,37 @@ impl Actor for Datamanager {
                 }
             }
             DmMsg::Delete { query, reply } => {
-                let n = state.store.delete(&query);
-                tracing::debug!(dm = %state.name, deleted = n, "delete");
-                let _ = reply.send(n);
+                let seqs = state.store.delete_seqs(&query);
+                tracing::debug!(dm = %state.name, deleted = seqs.len(), "delete");
+                if let Some(journal) = &mut state.journal {
+                    journal.delete(&seqs);
+                }
+                // a delete that could not be journaled still happened in memory; its count
+                // stands (the records come back at the next start, which the log says)
+                let n = seqs.len() as u64;
+                let name = state.name.clone();
+                state.acknowledge(reply, n, move |e| {
+                    tracing::warn!(dm = %name, error = %e, "a delete was not journaled");
+                    n
+                });
             }
             DmMsg::Stats { reply } => {
-                let _ = reply.send(state.stats());
+                // it returns a remote producer's credits: it acknowledges the puts before it
+                let stats = state.stats();
+                state.acknowledge(reply, stats.clone(), move |_| stats);
+            }
+            DmMsg::JournalFlush {} => {
+                if let Some(journal) = &mut state.journal {
+                    journal.flush();
+                    if journal.wants_snapshot(state.store.len()) {
+                        journal.snapshot(&state.store, &state.fences);
+                    }
+                }
+            }
+            DmMsg::JournalRefused { seqs } => {
+                let n = state.store.remove_seqs(&seqs);
+                state.refused_puts += seqs.len() as u64;
+                tracing::warn!(dm = %state.name, records = seqs.len(), removed = n, "records refused: the journal could not write them");
             }
             DmMsg::Inject { fault } => {
                 tracing::warn!(dm = %state.name, actor = %myself.get_id(), %fault, "injected fault");

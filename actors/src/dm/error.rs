@@ -66,6 +66,10 @@ pub enum DmError {
         /// The window.
         window: u64,
     },
+    /// The datamanager could not make the write durable (a full or unwritable disk, a
+    /// failed sync, a journal it cannot open): the write is not acknowledged, and not kept.
+    #[error("storage: {0}")]
+    Storage(String),
     /// The datamanager did not answer within the deadline.
     #[error("datamanager {dm} did not answer within {after:?}")]
     Timeout {
@@ -90,7 +94,8 @@ impl DmError {
             | DmError::SeqExhausted
             | DmError::Encode(_)
             | DmError::Decode(_)
-            | DmError::BatchTooLarge { .. } => None,
+            | DmError::BatchTooLarge { .. }
+            | DmError::Storage(_) => None,
         }
     }
 }

@@ -254,6 +254,23 @@ impl TimeIndex {
             .map(|s| s.last)
     }
 
+    /// Move every time stamp `by` earlier (saturating at zero; slots that meet there merge).
+    pub(crate) fn shift_back(&mut self, by: Duration) {
+        let old = std::mem::take(&mut self.slots);
+        for mut slot in old {
+            slot.time = slot.time.saturating_sub(by);
+            match self.slots.back_mut() {
+                Some(prev) if prev.time == slot.time => {
+                    prev.last = slot.last;
+                    prev.live += slot.live;
+                }
+                _ => self.slots.push_back(slot),
+            }
+        }
+        self.slots.retain(|s| s.live > 0);
+        self.dead = 0;
+    }
+
     /// Number of slots kept (live and dead).
     #[cfg(test)]
     pub(crate) fn slots(&self) -> usize {

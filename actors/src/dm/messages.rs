@@ -37,6 +37,15 @@ pub struct DmStats {
     /// `refused_puts` too when they came as `Put`s).
     #[serde(default)]
     pub fenced: u64,
+    /// How durable its acknowledged writes are.
+    #[serde(default)]
+    pub durability: crate::dm::Durability,
+    /// Bytes of its journal on disk (0 at `memory`).
+    #[serde(default)]
+    pub journal_bytes: u64,
+    /// What its start read back from its journal (`None` at `memory`).
+    #[serde(default)]
+    pub recovery: Option<crate::dm::Recovery>,
 }
 
 crate::remote_message! {
@@ -98,6 +107,15 @@ crate::remote_message! {
         WaitExpired {
             /// The wait's id.
             id: u64,
+        },
+        /// Hand the journal's batch to its writer (sent by the datamanager to itself: it
+        /// lands behind the messages already waiting, which join the batch).
+        JournalFlush {},
+        /// The journal's writer could not write these records: take them out, count them
+        /// refused (their acknowledgements said so).
+        JournalRefused {
+            /// Their seqs.
+            seqs: Vec<u64>,
         },
     }
 }

@@ -66,6 +66,7 @@ mod client;
 pub mod credits;
 mod error;
 mod index;
+pub mod journal;
 mod messages;
 mod name;
 pub mod outbox;
@@ -83,6 +84,7 @@ pub use actor::{
 };
 pub use client::DmClient;
 pub use error::DmError;
+pub use journal::{Durability, Recovery};
 pub use messages::{DmMsg, DmStats};
 pub use name::Name;
 pub use query::{Query, Take};

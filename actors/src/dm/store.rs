@@ -497,6 +497,16 @@ pub enum Plan {
     Mixed,
 }
 
+/// A stored record's fields, borrowed from the store (what a journal's snapshot writes).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct LiveRecord<'a> {
+    pub source: &'a str,
+    pub class: &'a str,
+    pub sub1: Option<&'a str>,
+    pub sub2: Option<&'a str>,
+    pub payload: &'a [u8],
+}
+
 /// The indexed record store of one datamanager. See the module docs for the invariants.
 pub struct Store {
     config: DmConfig,
@@ -550,6 +560,15 @@ impl Store {
     /// or the previous stamp if the clock went back), index it, and drop the oldest record of
     /// its class if the class is over its bound. Returns the seq.
     pub fn insert(&mut self, record: NewRecord, now: Duration) -> Result<u64, DmError> {
+        self.check(&record)?;
+        let (seq, timestamp) = self.stamp(now);
+        self.place(seq, timestamp, record)?;
+        Ok(seq)
+    }
+
+    /// Whether [`Store::insert`] would take `record`: its names are valid and its payload
+    /// within the limit.
+    pub fn check(&self, record: &NewRecord) -> Result<(), DmError> {
         record.validate()?;
         if record.payload.len() > self.config.max_payload {
             return Err(DmError::PayloadTooLarge {
@@ -557,10 +576,43 @@ impl Store {
                 max: self.config.max_payload as u64,
             });
         }
-        let seq = self.next_seq;
+        Ok(())
+    }
+
+    /// The seq and the time stamp the next record stored at `now` gets (a journal writes
+    /// them before the record is indexed).
+    pub(crate) fn stamp(&self, now: Duration) -> (u64, Duration) {
+        (self.next_seq, now.max(self.last_time))
+    }
+
+    /// Index a record recovered from a journal with the seq and time stamp it was stored
+    /// with. Seqs must come in ascending order; the next record stored gets a larger one.
+    pub(crate) fn restore(
+        &mut self,
+        seq: u64,
+        timestamp: Duration,
+        record: NewRecord,
+    ) -> Result<(), DmError> {
+        if seq < self.next_seq {
+            return Err(DmError::InvalidRecord(format!(
+                "seq {seq} is below the next seq {}",
+                self.next_seq
+            )));
+        }
+        self.place(seq, timestamp, record)
+    }
+
+    /// Raise the next seq and the last time stamp to at least these (a snapshot's floor:
+    /// seqs handed out before it are never handed out again, even if their records are gone).
+    pub(crate) fn raise_floor(&mut self, next_seq: u64, last_time: Duration) {
+        self.next_seq = self.next_seq.max(next_seq);
+        self.last_time = self.last_time.max(last_time);
+    }
+
+    /// Index `record` as `seq` at `timestamp` (`seq` ≥ the next seq, names checked).
+    fn place(&mut self, seq: u64, timestamp: Duration, record: NewRecord) -> Result<(), DmError> {
         self.next_seq = seq.checked_add(1).ok_or(DmError::SeqExhausted)?;
-        let timestamp = now.max(self.last_time);
-        self.last_time = timestamp;
+        self.last_time = self.last_time.max(timestamp);
 
         let NewRecord {
             source,
@@ -596,7 +648,7 @@ impl Store {
             self.len -= 1;
             self.dropped += 1;
         }
-        Ok(seq)
+        Ok(())
     }
 
     /// The inclusive seq range a query allows, with its time range turned into seqs; `None`
@@ -736,26 +788,97 @@ impl Store {
     /// Delete every record matching `q` (respecting its newest/oldest limit). Returns how
     /// many were deleted.
     pub fn delete(&mut self, q: &Query) -> u64 {
+        self.delete_seqs(q).len() as u64
+    }
+
+    /// [`Store::delete`], returning the seqs deleted (ascending): what a journal writes.
+    pub(crate) fn delete_seqs(&mut self, q: &Query) -> Vec<u64> {
         let mut victims: HashMap<Arc<str>, Vec<u64>> = HashMap::new();
         self.walk(q, &mut Victims(&mut victims));
-        let mut n = 0;
+        let mut gone = Vec::new();
         for (class, mut seqs) in victims {
             seqs.sort_unstable();
-            let Some(ci) = self.classes.get_mut(&*class) else {
-                continue;
-            };
-            let removed = ci.remove_many(&seqs);
-            if ci.entries.is_empty() {
-                self.classes.remove(&*class);
-            }
-            for (_, e) in &removed {
-                self.times.remove(e.timestamp);
-            }
-            n += removed.len();
+            gone.extend(self.remove_from(&class, &seqs));
         }
-        self.len = self.len.saturating_sub(n);
-        self.deleted += n as u64;
-        n as u64
+        gone.sort_unstable();
+        self.deleted += gone.len() as u64;
+        gone
+    }
+
+    /// Take the records `seqs` out, whatever their classes (a journal's replayed delete, or
+    /// records whose journal write failed); how many were there. Counted in no statistic.
+    pub(crate) fn remove_seqs(&mut self, seqs: &[u64]) -> u64 {
+        let mut seqs = seqs.to_vec();
+        seqs.sort_unstable();
+        seqs.dedup();
+        let classes: Vec<Arc<str>> = self.classes.keys().cloned().collect();
+        let mut n = 0;
+        for class in classes {
+            n += self.remove_from(&class, &seqs).len() as u64;
+        }
+        n
+    }
+
+    /// Take the records `seqs` (ascending) of `class` out of every index; their seqs.
+    fn remove_from(&mut self, class: &str, seqs: &[u64]) -> Vec<u64> {
+        let Some(ci) = self.classes.get_mut(class) else {
+            return Vec::new();
+        };
+        let removed = ci.remove_many(seqs);
+        if ci.entries.is_empty() {
+            self.classes.remove(class);
+        }
+        for (_, e) in &removed {
+            self.times.remove(e.timestamp);
+        }
+        self.len = self.len.saturating_sub(removed.len());
+        removed.into_iter().map(|(s, _)| s).collect()
+    }
+
+    /// Every stored record, in seq order, as the journal's snapshot writes it.
+    pub(crate) fn for_each_in_seq_order(&self, mut f: impl FnMut(u64, Duration, LiveRecord<'_>)) {
+        let mut all: Vec<(u64, &ClassIndex, &Entry)> = Vec::with_capacity(self.len);
+        for ci in self.classes.values() {
+            all.extend(ci.entries.iter().map(|(s, e)| (*s, ci, e)));
+        }
+        all.sort_unstable_by_key(|(s, _, _)| *s);
+        for (seq, ci, e) in all {
+            f(
+                seq,
+                e.timestamp,
+                LiveRecord {
+                    source: &e.source,
+                    class: &ci.name,
+                    sub1: e.sub1.as_deref(),
+                    sub2: e.sub2.as_deref(),
+                    payload: e.payload.as_bytes(),
+                },
+            );
+        }
+    }
+
+    /// If the newest time stamp is later than `now` — a journal read back by a process whose
+    /// clock began anew — move every time stamp back so that the newest is `now`: records
+    /// keep their order and their ages relative to each other (the oldest saturate at zero),
+    /// new ones are stamped `now` and later, and a select by time means what it says again.
+    /// The time the datamanager was down is not counted. Returns by how much.
+    pub(crate) fn rebase_times(&mut self, now: Duration) -> Duration {
+        let Some(by) = self.last_time.checked_sub(now).filter(|d| !d.is_zero()) else {
+            return Duration::ZERO;
+        };
+        for ci in self.classes.values_mut() {
+            for (_, e) in ci.entries.iter_mut() {
+                e.timestamp = e.timestamp.saturating_sub(by);
+            }
+        }
+        self.times.shift_back(by);
+        self.last_time = now;
+        by
+    }
+
+    /// The newest time stamp handed out.
+    pub(crate) fn last_time(&self) -> Duration {
+        self.last_time
     }
 
     /// Whether the stored record `seq` matches `q` (false if there is none).

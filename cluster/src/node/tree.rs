@@ -7,7 +7,7 @@ use super::NodeError;
 use super::{NodeOptions, OPERATION_SHUTDOWN};
 use marie_actors::clock::SharedClock;
 use marie_actors::dispatcher::DispatcherMsg;
-use marie_actors::dm::{self, DmArgs, DmClient, DmConfig};
+use marie_actors::dm::{self, journal, DmArgs, DmClient, DmConfig, DmError, Durability};
 use marie_actors::eo::{HostOptions, OperationFactory};
 use marie_actors::events::EventBus;
 use marie_supervision::{
@@ -179,9 +179,11 @@ pub(super) fn operation_child(
         .with_restart(restart)
 }
 
-/// The datamanagers' child specs. Each datamanager's start stores the a-priori records meant
-/// for it before it counts as started, so they are there before any operation looks for them
-/// — and are there again after a restart.
+/// The datamanagers' child specs: each at its durability, with its journal in the node's
+/// data directory when it keeps one. Each datamanager's start stores the a-priori records
+/// meant for it before it counts as started, so they are there before any operation looks
+/// for them — and are there again after a restart (stored again in a memory datamanager,
+/// read back from the journal of a durable one).
 fn datamanagers(
     config: &NodeConfig,
     clock: &SharedClock,
@@ -200,25 +202,41 @@ fn datamanagers(
                     .collect(),
             );
             let (id, name) = (spec.id, spec.name.clone());
+            // validated: a durability other than memory comes with a data directory
+            let journal = match (config.durability_of(spec), &config.data_dir) {
+                (Durability::Memory, _) | (_, None) => None,
+                (durability, Some(data_dir)) => {
+                    Some((journal::dir_in(data_dir, &spec.name), durability))
+                }
+            };
             ChildSpec::worker(spec.name.clone(), move |sup| {
                 let (clock, records, name) = (clock.clone(), records.clone(), name.clone());
+                let journal = journal.clone();
                 async move {
-                    let (actor, _) = dm::spawn_datamanager_linked(
-                        DmArgs {
-                            id,
-                            name,
-                            clock,
-                            config: DmConfig::default(),
-                        },
-                        sup,
-                    )
-                    .await?;
+                    let mut args = DmArgs {
+                        id,
+                        name,
+                        clock,
+                        config: DmConfig::default(),
+                        durability: Durability::Memory,
+                        journal_dir: None,
+                    };
+                    if let Some((dir, durability)) = journal {
+                        args = args.with_journal(dir, durability);
+                    }
+                    let (actor, _) = dm::spawn_datamanager_linked(args, sup).await?;
+                    let startup = |e: DmError| SpawnErr::StartupFailed(Box::new(e));
                     let client = DmClient::new(actor.clone(), NODE_SOURCE);
-                    for record in records.iter() {
-                        client
-                            .store_raw(record.clone())
-                            .await
-                            .map_err(|e| SpawnErr::StartupFailed(Box::new(e)))?;
+                    // A durable datamanager read its journal back: the a-priori records it
+                    // ever stored are in it (the same seqs), and storing them again at every
+                    // restart of the datamanager or the node would pile up copies. So they
+                    // are stored only in a datamanager that starts fresh — nothing was ever
+                    // handed a seq, `next_seq == 1` — which a memory one always does.
+                    if !records.is_empty() && client.stats().await.map_err(startup)?.next_seq == 1
+                    {
+                        for record in records.iter() {
+                            client.store_raw(record.clone()).await.map_err(startup)?;
+                        }
                     }
                     Ok(actor.get_cell())
                 }
