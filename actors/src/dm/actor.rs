@@ -13,6 +13,7 @@
 use super::error::DmError;
 use super::journal::{Durability, Journal, Recovery};
 use super::messages::{DmMsg, DmStats};
+use super::producers::Producers;
 use super::query::Query;
 use super::record::{NewRecord, Record};
 use super::store::{DmConfig, Store};
@@ -131,6 +132,10 @@ pub struct DmState {
     journal: Option<Journal>,
     /// What the start read back from the journal.
     recovery: Option<Recovery>,
+    /// What each producer stored lately: a retried put is stored once.
+    producers: Producers,
+    /// Retried puts answered with the seq their first copy got.
+    duplicates: u64,
 }
 
 impl std::fmt::Debug for DmState {
@@ -165,6 +170,7 @@ impl DmState {
                 .map_or(Durability::Memory, Journal::durability),
             journal_bytes: self.journal.as_ref().map_or(0, Journal::bytes),
             recovery: self.recovery.clone(),
+            duplicates: self.duplicates,
         }
     }
 
@@ -182,6 +188,14 @@ impl DmState {
         self.fences
             .admit_parts(&record.source, record.epoch)
             .map_err(DmError::Fenced)?;
+        let who = (record.producer, record.producer_seq);
+        if who.0 != 0 {
+            if let Some(seq) = self.producers.seen(who.0, who.1) {
+                self.duplicates += 1;
+                tracing::debug!(dm = %self.name, seq, source = %record.source, "a retried put: stored once already");
+                return Ok(seq);
+            }
+        }
         let class = (!self.waits.is_empty()).then(|| record.class.clone());
         let seq = match &mut self.journal {
             None => self.store.insert(record, self.clock.now())?,
@@ -195,6 +209,9 @@ impl DmState {
                 seq
             }
         };
+        if who.0 != 0 {
+            self.producers.note(who.0, who.1, seq);
+        }
         if let Some(class) = class {
             self.wake(&class, seq);
         }
@@ -294,8 +311,14 @@ impl Actor for Datamanager {
             )
             .into());
         }
-        let (store, fences, journal, recovery) = match args.durability {
-            Durability::Memory => (Store::new(args.config), Default::default(), None, None),
+        let (store, fences, producers, journal, recovery) = match args.durability {
+            Durability::Memory => (
+                Store::new(args.config),
+                Default::default(),
+                Default::default(),
+                None,
+                None,
+            ),
             durability => {
                 let dir = args.journal_dir.as_deref().ok_or_else(|| {
                     format!(
@@ -313,6 +336,7 @@ impl Actor for Datamanager {
                 (
                     opened.store,
                     opened.fences,
+                    opened.producers,
                     Some(opened.journal),
                     Some(opened.recovery),
                 )
@@ -337,6 +361,8 @@ impl Actor for Datamanager {
             fences,
             journal,
             recovery,
+            producers,
+            duplicates: 0,
         })
     }
 
@@ -413,7 +439,7 @@ impl Actor for Datamanager {
                 if let Some(journal) = &mut state.journal {
                     journal.flush();
                     if journal.wants_snapshot(state.store.len()) {
-                        journal.snapshot(&state.store, &state.fences);
+                        journal.snapshot(&state.store, &state.fences, &state.producers);
                     }
                 }
             }

@@ -10,58 +10,130 @@ use crate::registry::{self, Instance, ModuleKind};
 use ractor::rpc::CallResult;
 use ractor::{ActorRef, RpcReplyPort};
 use serde::Serialize;
-use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
 /// A typed handle to a datamanager, for one producer/consumer (`source`). Cheap to clone.
 ///
 /// Requests that find the actor gone fail with [`DmError::Unreachable`]; requests that get no
 /// answer in time with [`DmError::Timeout`].
+///
+/// # It follows its datamanager
+/// When the datamanager's actor is gone — it crashed and its supervisor restarts it, or a
+/// copy is promoted elsewhere — a request waits (at most [`DmClient::follow_within`], 5 s by
+/// default) for the next instance published under the same name, moves there, and is sent
+/// again: `select`, `select_wait` (and so a [`super::Subscription`]), `stats`, and `store`.
+/// A store sent again is idempotent: every record carries this client's producer id and its
+/// own number, and a datamanager that already holds it answers with the seq it got
+/// ([`super::producers`]). A `delete` is not sent again (its outcome is unknown, and a
+/// query such as "the oldest 4" would delete others); it fails `Unreachable`. A `put` finds
+/// the next instance if it is already published, else fails `Unreachable` at once: a put
+/// never waits. Clones share what they follow.
 #[derive(Clone, Debug)]
 pub struct DmClient {
-    actor: ActorRef<DmMsg>,
+    /// The actor followed, shared by clones (one moves, all move).
+    target: Arc<Mutex<Target>>,
     /// Shared, not copied: an operation's context hands out a clone per access.
     dm: Arc<str>,
     source: Arc<str>,
     timeout: Duration,
+    follow: Duration,
     /// The epoch its records carry (0: unfenced).
     epoch: u64,
+    /// Its producer id and the numbers its records get (shared by clones).
+    producer: Arc<Producer>,
+}
+
+/// The actor a client talks to, and its outbox.
+#[derive(Clone, Debug)]
+struct Target {
+    actor: ActorRef<DmMsg>,
     /// Puts to a remote datamanager — queued to leave together, and held to a window of
     /// credits — shared by clones: `Some` for a remote datamanager only (an actor's locality
     /// never changes; local puts are cast at once and not metered). See `outbox`.
     outbox: Option<Arc<Outbox>>,
 }
 
+impl Target {
+    fn new(actor: ActorRef<DmMsg>) -> Target {
+        Target {
+            outbox: Outbox::for_actor(&actor),
+            actor,
+        }
+    }
+}
+
+/// A producer's identity and its next record number.
+#[derive(Debug)]
+struct Producer {
+    id: u64,
+    next: AtomicU64,
+}
+
+impl Producer {
+    /// A producer id no other client in any process is likely to have: 64 random bits
+    /// (std's per-process random hash keys, and a counter).
+    fn new() -> Arc<Producer> {
+        use std::hash::{BuildHasher, Hasher};
+        static COUNT: AtomicU64 = AtomicU64::new(0);
+        let mut h = std::collections::hash_map::RandomState::new().build_hasher();
+        h.write_u64(COUNT.fetch_add(1, Ordering::Relaxed));
+        h.write_u32(std::process::id());
+        Arc::new(Producer {
+            id: h.finish().max(1),
+            next: AtomicU64::new(1),
+        })
+    }
+}
+
+/// A poisoned lock still holds a consistent target (nothing panics while holding it).
+fn lock(m: &Mutex<Target>) -> MutexGuard<'_, Target> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// How many times one request follows its datamanager to a new instance before it gives up.
+const FOLLOWS: usize = 3;
+
 impl DmClient {
     /// Default deadline of a request (a `select_wait` gets its wait on top).
     pub const DEFAULT_TIMEOUT: Duration = Duration::from_secs(5);
 
-    /// A handle to `actor`, storing records as `source`.
+    /// Default of [`DmClient::follow_within`]: as long as an operation waits for a gone
+    /// datamanager ([`crate::eo::DATAMANAGER_RETURN`]).
+    pub const DEFAULT_FOLLOW: Duration = Duration::from_secs(5);
+
+    fn with_target(actor: ActorRef<DmMsg>, dm: &str, source: String) -> DmClient {
+        DmClient {
+            target: Arc::new(Mutex::new(Target::new(actor))),
+            dm: Arc::from(dm),
+            source: Arc::from(source),
+            timeout: Self::DEFAULT_TIMEOUT,
+            follow: Self::DEFAULT_FOLLOW,
+            epoch: 0,
+            producer: Producer::new(),
+        }
+    }
+
+    /// A handle to `actor`, storing records as `source`. It follows the datamanager by the
+    /// name `actor` is published under (its actor id if it is not published).
     pub fn new(actor: ActorRef<DmMsg>, source: impl Into<String>) -> DmClient {
+        let id = actor.get_id();
         let dm = actor
             .get_name()
-            .unwrap_or_else(|| actor.get_id().to_string());
-        DmClient {
-            outbox: Outbox::for_actor(&actor),
-            actor,
-            dm: Arc::from(dm),
-            source: Arc::from(source.into()),
-            timeout: Self::DEFAULT_TIMEOUT,
-            epoch: 0,
-        }
+            .or_else(|| {
+                registry::list_of(ModuleKind::Datamanager)
+                    .into_iter()
+                    .find(|i| i.actor.get_id() == id)
+                    .map(|i| i.name)
+            })
+            .unwrap_or_else(|| id.to_string());
+        DmClient::with_target(actor, &dm, source.into())
     }
 
     /// A handle to a datamanager found in the registry.
     pub fn from_instance(instance: &Instance, source: impl Into<String>) -> DmClient {
-        let actor: ActorRef<DmMsg> = instance.actor.clone().into();
-        DmClient {
-            outbox: Outbox::for_actor(&actor),
-            actor,
-            dm: Arc::from(instance.name.as_str()),
-            source: Arc::from(source.into()),
-            timeout: Self::DEFAULT_TIMEOUT,
-            epoch: 0,
-        }
+        DmClient::with_target(instance.actor.clone().into(), &instance.name, source.into())
     }
 
     /// A handle to the first live datamanager registered as `name_or_id` (`world`, `1203`),
@@ -79,6 +151,13 @@ impl DmClient {
         self
     }
 
+    /// Wait at most `within` for the next instance of a datamanager found gone (zero: do
+    /// not follow; a request to a gone datamanager fails `Unreachable` at once).
+    pub fn with_follow(mut self, within: Duration) -> DmClient {
+        self.follow = within;
+        self
+    }
+
     /// Stamp the records it stores with `epoch` (an operation's binding epoch): the DM then
     /// refuses records of older epochs from the same source ([`crate::fence`]).
     pub fn with_epoch(mut self, epoch: u64) -> DmClient {
@@ -86,9 +165,13 @@ impl DmClient {
         self
     }
 
-    /// The actor behind the handle.
-    pub fn actor(&self) -> &ActorRef<DmMsg> {
-        &self.actor
+    /// The actor behind the handle now (another after it has followed its datamanager).
+    pub fn actor(&self) -> ActorRef<DmMsg> {
+        lock(&self.target).actor.clone()
+    }
+
+    fn target(&self) -> Target {
+        lock(&self.target).clone()
     }
 
     /// The datamanager's name as errors report it.
@@ -106,24 +189,85 @@ impl DmClient {
         self.timeout
     }
 
+    /// How long a request waits for the next instance of a datamanager found gone.
+    pub fn follow_within(&self) -> Duration {
+        self.follow
+    }
+
+    /// The producer id its records carry.
+    pub fn producer(&self) -> u64 {
+        self.producer.id
+    }
+
     fn unreachable(&self) -> DmError {
         DmError::Unreachable(self.dm.to_string())
     }
 
+    /// Move to the instance that replaced `gone`: already there if a clone moved, else the
+    /// next one the registry publishes under the datamanager's name, waiting at most
+    /// [`DmClient::follow_within`]. Whether it moved.
+    async fn follow(&self, gone: &ActorRef<DmMsg>) -> bool {
+        if self.actor().get_id() != gone.get_id() {
+            return true;
+        }
+        if self.follow.is_zero() {
+            return false;
+        }
+        let Some(next) =
+            super::follow::next_instance(&self.dm, Some(gone.get_id()), self.follow).await
+        else {
+            tracing::debug!(dm = %self.dm, "no next instance of the datamanager: not followed");
+            return false;
+        };
+        self.moved(gone, next.actor.into());
+        true
+    }
+
+    /// [`DmClient::follow`] for the crate's own retries (a subscription's polls).
+    pub(crate) async fn follow_from(&self, gone: &ActorRef<DmMsg>) -> bool {
+        self.follow(gone).await
+    }
+
+    /// Take `next` as the target, unless a clone has moved from `gone` already.
+    fn moved(&self, gone: &ActorRef<DmMsg>, next: ActorRef<DmMsg>) {
+        let mut t = lock(&self.target);
+        if t.actor.get_id() == gone.get_id() {
+            tracing::info!(dm = %self.dm, from = %gone.get_id(), to = %next.get_id(), "following the datamanager to its next instance");
+            *t = Target::new(next);
+        }
+    }
+
+    /// Send the request `make` builds, following the datamanager to its next instance (and
+    /// sending it again there, built anew) if it is gone, when `again` allows.
     async fn call<T: Send + 'static>(
         &self,
         deadline: Duration,
-        make: impl FnOnce(RpcReplyPort<T>) -> DmMsg,
+        again: bool,
+        mut make: impl FnMut(RpcReplyPort<T>) -> DmMsg,
     ) -> Result<T, DmError> {
-        // the puts queued before the request leave before it (a failure shows in the call)
-        let _ = self.flush();
-        match self.actor.call(make, Some(deadline)).await {
-            Ok(CallResult::Success(v)) => Ok(v),
-            Ok(CallResult::Timeout) => Err(DmError::Timeout {
-                dm: self.dm.to_string(),
-                after: deadline,
-            }),
-            Ok(CallResult::SenderError) | Err(_) => Err(self.unreachable()),
+        let mut follows = 0;
+        loop {
+            let target = self.target();
+            // the puts queued before the request leave before it (a failure shows in the call)
+            if let Some(outbox) = &target.outbox {
+                let _ = outbox.flush(&target.actor, &self.dm);
+            }
+            match target.actor.call(&mut make, Some(deadline)).await {
+                Ok(CallResult::Success(v)) => return Ok(v),
+                Ok(CallResult::Timeout) => {
+                    return Err(DmError::Timeout {
+                        dm: self.dm.to_string(),
+                        after: deadline,
+                    })
+                }
+                Ok(CallResult::SenderError) | Err(_) => {
+                    // the actor went away with the request (its reply port dropped)
+                    if !again || follows == FOLLOWS || !self.follow(&target.actor).await {
+                        return Err(self.unreachable());
+                    }
+                    follows += 1;
+                }
+            }
         }
     }
 
@@ -141,15 +285,23 @@ impl DmClient {
             sub2: sub2.map(str::to_string),
             payload: Payload::encode(value)?,
             epoch: self.epoch,
+            producer: 0,
+            producer_seq: 0,
         })
     }
 
+    /// A record as it leaves: this client's source and epoch where it has none, and its
+    /// producer id and next number where it has none (what makes sending it again safe).
     fn fill_source(&self, mut record: NewRecord) -> NewRecord {
         if record.source.is_empty() {
             record.source = String::from(&*self.source);
         }
         if record.epoch == 0 {
             record.epoch = self.epoch;
+        }
+        if record.producer == 0 {
+            record.producer = self.producer.id;
+            record.producer_seq = self.producer.next.fetch_add(1, Ordering::Relaxed);
         }
         record
     }
@@ -194,21 +346,24 @@ impl DmClient {
         value: &T,
     ) -> Result<(), DmError> {
         let record = self.checked(self.record(class, sub1, sub2, value)?)?;
-        match &self.outbox {
+        let t = self.target();
+        match &t.outbox {
             Some(outbox) => {
                 outbox
-                    .put_waiting(record, &self.actor, &self.dm, self.timeout)
+                    .put_waiting(record, &t.actor, &self.dm, self.timeout)
                     .await
             }
-            None => self.cast_put(record),
+            None => self.cast_put(&t.actor, record),
         }
     }
 
     /// Store a prepared record; an empty `source` becomes this client's. Returns its seq.
+    /// Sent again to the datamanager's next instance if it is gone meanwhile, and stored
+    /// once (see the type's docs).
     pub async fn store_raw(&self, record: NewRecord) -> Result<u64, DmError> {
         let record = self.fill_source(record);
-        self.call(self.timeout, |reply| DmMsg::Store {
-            record: Box::new(record),
+        self.call(self.timeout, true, |reply| DmMsg::Store {
+            record: Box::new(record.clone()),
             reply,
         })
         .await?
@@ -217,9 +372,10 @@ impl DmClient {
     /// [`DmClient::put`] for a prepared record.
     pub fn put_raw(&self, record: NewRecord) -> Result<(), DmError> {
         let record = self.checked(record)?;
-        match &self.outbox {
-            Some(outbox) => outbox.put(record, &self.actor, &self.dm),
-            None => self.cast_put(record),
+        let t = self.target();
+        match &t.outbox {
+            Some(outbox) => outbox.put(record, &t.actor, &self.dm),
+            None => self.cast_put(&t.actor, record),
         }
     }
 
@@ -231,11 +387,36 @@ impl DmClient {
         Ok(record)
     }
 
-    /// A put to a datamanager in this process: cast at once, not metered.
-    fn cast_put(&self, record: NewRecord) -> Result<(), DmError> {
-        self.actor
-            .cast(DmMsg::Put { record })
-            .map_err(|_| self.unreachable())
+    /// A put to a datamanager in this process: cast at once, not metered. To a gone one,
+    /// cast to its next instance if that is published already.
+    fn cast_put(&self, actor: &ActorRef<DmMsg>, record: NewRecord) -> Result<(), DmError> {
+        match actor.cast(DmMsg::Put { record }) {
+            Ok(()) => Ok(()),
+            Err(ractor::MessagingErr::SendErr(DmMsg::Put { record })) => {
+                let next = self
+                    .next_published(actor)
+                    .ok_or_else(|| self.unreachable())?;
+                next.cast(DmMsg::Put { record })
+                    .map_err(|_| self.unreachable())
+            }
+            Err(_) => Err(self.unreachable()),
+        }
+    }
+
+    /// The instance that replaced `gone`, if it is published already (no wait: for puts).
+    fn next_published(&self, gone: &ActorRef<DmMsg>) -> Option<ActorRef<DmMsg>> {
+        let current = self.actor();
+        if current.get_id() != gone.get_id() {
+            return Some(current);
+        }
+        if self.follow.is_zero() {
+            return None;
+        }
+        let next: ActorRef<DmMsg> = super::follow::published(&self.dm, Some(gone.get_id()))?
+            .actor
+            .into();
+        self.moved(gone, next.clone());
+        Some(next)
     }
 
     /// Store prepared records without waiting for the DM, in as few messages as their size
@@ -253,13 +434,24 @@ impl DmClient {
             .into_iter()
             .map(|r| self.checked(r))
             .collect::<Result<Vec<_>, _>>()?;
-        if let Some(outbox) = &self.outbox {
-            return outbox.put_batch(records, &self.actor, &self.dm);
+        let t = self.target();
+        if let Some(outbox) = &t.outbox {
+            return outbox.put_batch(records, &t.actor, &self.dm);
         }
+        let mut actor = t.actor;
         for chunk in frames(records) {
-            self.actor
-                .cast(DmMsg::PutBatch { records: chunk })
-                .map_err(|_| self.unreachable())?;
+            match actor.cast(DmMsg::PutBatch { records: chunk }) {
+                Ok(()) => {}
+                Err(ractor::MessagingErr::SendErr(DmMsg::PutBatch { records })) => {
+                    actor = self
+                        .next_published(&actor)
+                        .ok_or_else(|| self.unreachable())?;
+                    actor
+                        .cast(DmMsg::PutBatch { records })
+                        .map_err(|_| self.unreachable())?;
+                }
+                Err(_) => return Err(self.unreachable()),
+            }
         }
         Ok(())
     }
@@ -270,8 +462,9 @@ impl DmClient {
     /// Every request of the client does it first anyway. Nothing to do for a local
     /// datamanager; `Unreachable` if the actor is gone (the queued records are dropped).
     pub fn flush(&self) -> Result<(), DmError> {
-        match &self.outbox {
-            Some(outbox) => outbox.flush(&self.actor, &self.dm),
+        let t = self.target();
+        match &t.outbox {
+            Some(outbox) => outbox.flush(&t.actor, &self.dm),
             None => Ok(()),
         }
     }
@@ -298,22 +491,26 @@ impl DmClient {
     /// refused `Busy`. With one producer per client, the puts that follow are then accepted;
     /// tasks that share a client's window put with [`DmClient::put_waiting`] instead.
     pub async fn ready(&self, n: usize) -> Result<(), DmError> {
-        match &self.outbox {
+        let t = self.target();
+        match &t.outbox {
             None => Ok(()),
-            Some(outbox) => outbox.ready(n, &self.actor, &self.dm, self.timeout).await,
+            Some(outbox) => outbox.ready(n, &t.actor, &self.dm, self.timeout).await,
         }
     }
 
     /// Puts to a remote datamanager queued or sent and not yet acknowledged (at most
     /// [`super::credits::WINDOW`]; always 0 for a local one).
     pub fn puts_in_flight(&self) -> usize {
-        self.outbox.as_ref().map_or(0, |o| o.in_flight())
+        lock(&self.target)
+            .outbox
+            .as_ref()
+            .map_or(0, |o| o.in_flight())
     }
 
     /// Every record matching `query`, oldest-first.
     pub async fn select(&self, query: Query) -> Result<Vec<Record>, DmError> {
-        self.call(self.timeout, |reply| DmMsg::Select {
-            query: Box::new(query),
+        self.call(self.timeout, true, |reply| DmMsg::Select {
+            query: Box::new(query.clone()),
             reply,
         })
         .await
@@ -339,11 +536,18 @@ impl DmClient {
     /// Records matching `query`; if none exist yet, wait up to `wait` (on the DM's clock) for
     /// one to be stored. An empty answer means the wait passed.
     pub async fn select_wait(&self, query: Query, wait: Duration) -> Result<Vec<Record>, DmError> {
-        let timeout_ms = u64::try_from(wait.as_millis()).unwrap_or(u64::MAX);
-        self.call(self.timeout.saturating_add(wait), |reply| {
+        // sent again to a next instance, it waits only what is left of the wait (on this
+        // process's timer: the DM's clock is not at hand here)
+        let until = tokio::time::Instant::now() + wait;
+        let mut first = true;
+        self.call(self.timeout.saturating_add(wait), true, |reply| {
+            let left = match std::mem::take(&mut first) {
+                true => wait,
+                false => until.saturating_duration_since(tokio::time::Instant::now()),
+            };
             DmMsg::SelectWait {
-                query: Box::new(query),
-                timeout_ms,
+                query: Box::new(query.clone()),
+                timeout_ms: u64::try_from(left.as_millis()).unwrap_or(u64::MAX),
                 reply,
             }
         })
@@ -352,8 +556,9 @@ impl DmClient {
 
     /// Delete the records matching `query`; returns how many.
     pub async fn delete(&self, query: Query) -> Result<u64, DmError> {
-        self.call(self.timeout, |reply| DmMsg::Delete {
-            query: Box::new(query),
+        let mut query = Some(query);
+        self.call(self.timeout, false, |reply| DmMsg::Delete {
+            query: Box::new(query.take().unwrap_or_default()),
             reply,
         })
         .await
@@ -361,7 +566,7 @@ impl DmClient {
 
     /// What the DM holds.
     pub async fn stats(&self) -> Result<DmStats, DmError> {
-        self.call(self.timeout, |reply| DmMsg::Stats { reply })
+        self.call(self.timeout, true, |reply| DmMsg::Stats { reply })
             .await
     }
 }
@@ -370,8 +575,8 @@ impl DmClient {
 impl DmClient {
     /// The client with an outbox and credits, as a remote datamanager's client has: for
     /// tests with a local stand-in.
-    pub(crate) fn metered(mut self) -> DmClient {
-        self.outbox = Some(Arc::default());
+    pub(crate) fn metered(self) -> DmClient {
+        lock(&self.target).outbox = Some(Arc::default());
         self
     }
 }

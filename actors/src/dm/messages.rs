@@ -46,6 +46,10 @@ pub struct DmStats {
     /// What its start read back from its journal (`None` at `memory`).
     #[serde(default)]
     pub recovery: Option<crate::dm::Recovery>,
+    /// Retried puts it found stored already and answered with their first seq
+    /// ([`crate::dm::producers`]).
+    #[serde(default)]
+    pub duplicates: u64,
 }
 
 crate::remote_message! {

@@ -207,6 +207,13 @@ pub struct NewRecord {
     /// in): a record of an older epoch than the newest the DM has seen from the same source
     /// is refused ([`crate::fence`]). 0: unfenced.
     pub epoch: u64,
+    /// The producer's id (a [`super::DmClient`] fills in its own, random): with
+    /// `producer_seq`, what makes a retried put idempotent. 0: none.
+    pub producer: u64,
+    /// The producer's own number for this record (1, 2, 3, …): a record the datamanager
+    /// has already stored under the same producer and number is not stored again
+    /// ([`super::producers`]). 0: none.
+    pub producer_seq: u64,
 }
 
 impl NewRecord {

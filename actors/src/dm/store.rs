@@ -621,6 +621,8 @@ impl Store {
             sub2,
             payload,
             epoch: _,
+            producer: _,
+            producer_seq: _,
         } = record;
         let config = &self.config;
         let evicted = with_slot(

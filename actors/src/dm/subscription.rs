@@ -88,15 +88,22 @@ impl Drop for Subscription {
 }
 
 async fn poll(client: DmClient, query: Query, mut next: u64, tx: mpsc::Sender<Record>) {
+    // Polls do not follow by themselves: the subscription does it, so that it can see where
+    // the next instance's seqs stand before it asks again.
+    let polls = client.clone().with_follow(Duration::ZERO);
     loop {
         // With a `seq_to`, the subscription ends once the DM has handed out every seq up to
         // it: then no future record can match, and a plain select fetches what is left.
+        let used = polls.actor();
         let last_round = match query.seq_to {
             Some(to) if next > to => return,
-            Some(to) => match client.stats().await {
+            Some(to) => match polls.stats().await {
                 Ok(stats) => stats.next_seq > to,
                 Err(DmError::Timeout { .. }) => continue,
-                Err(e) => return ended(&client, &e),
+                Err(e) => match followed(&client, &used, &e, &mut next).await {
+                    true => continue,
+                    false => return ended(&client, &e),
+                },
             },
             None => false,
         };
@@ -104,9 +111,9 @@ async fn poll(client: DmClient, query: Query, mut next: u64, tx: mpsc::Sender<Re
         q.seq_from = Some(next);
         q.take = Some(Take::Oldest(Subscription::BATCH));
         let answer = if last_round {
-            client.select(q).await
+            polls.select(q).await
         } else {
-            client.select_wait(q, Subscription::POLL).await
+            polls.select_wait(q, Subscription::POLL).await
         };
         match answer {
             Ok(records) => {
@@ -123,8 +130,38 @@ async fn poll(client: DmClient, query: Query, mut next: u64, tx: mpsc::Sender<Re
             }
             // The DM's clock may run slower than ours (e.g. a manual clock): ask again.
             Err(DmError::Timeout { .. }) => {}
-            Err(e) => return ended(&client, &e),
+            Err(e) => {
+                if !followed(&client, &used, &e, &mut next).await {
+                    return ended(&client, &e);
+                }
+            }
         }
+    }
+}
+
+/// After `error`: if the datamanager is gone, follow it to its next instance. One that
+/// replayed a journal (or a promoted copy) continues the seqs, and the subscription goes on
+/// where it was; one that started empty numbers from 1 again, and all it holds is new.
+async fn followed(
+    client: &DmClient,
+    gone: &ractor::ActorRef<super::DmMsg>,
+    error: &DmError,
+    next: &mut u64,
+) -> bool {
+    if !matches!(error, DmError::Unreachable(_)) {
+        return false;
+    }
+    if !client.follow_from(gone).await {
+        return false;
+    }
+    match client.stats().await {
+        Ok(stats) if stats.next_seq < *next => {
+            tracing::info!(dm = %client.dm_name(), "subscription: the datamanager started anew; from its first record");
+            *next = 1;
+            true
+        }
+        Ok(_) => true,
+        Err(_) => false,
     }
 }
 

@@ -335,7 +335,10 @@ impl<O: Operation> HostState<O> {
                 let reason = e.to_string();
                 let myself = myself.clone();
                 tokio::spawn(async move {
-                    let message = if wait_for_datamanager(&dm, super::DATAMANAGER_RETURN).await {
+                    let message = if crate::dm::next_instance(&dm, None, super::DATAMANAGER_RETURN)
+                        .await
+                        .is_some()
+                    {
                         tracing::info!(%dm, "datamanager back: stepping on");
                         EoMsg::Tick { activation }
                     } else {
@@ -537,28 +540,6 @@ impl<O: Operation> Actor for EoHost<O> {
         }
         Ok(())
     }
-}
-
-/// Wait until a datamanager named `dm` is registered, at most `within` on the runtime's
-/// timer: true if it is.
-async fn wait_for_datamanager(dm: &str, within: std::time::Duration) -> bool {
-    // watching first, then looking: a DM published in between is in one or the other
-    let Ok(mut watch) = registry::watch(Some(ModuleKind::Datamanager)).await else {
-        return !registry::lookup(ModuleKind::Datamanager, dm).is_empty();
-    };
-    if !registry::lookup(ModuleKind::Datamanager, dm).is_empty() {
-        return true;
-    }
-    tokio::time::timeout(within, async {
-        while let Some(event) = watch.next().await {
-            if matches!(&event, registry::RegistryEvent::Joined(i) if i.answers_to(dm)) {
-                return true;
-            }
-        }
-        false
-    })
-    .await
-    .unwrap_or(false)
 }
 
 /// Spawn an operation in its host, unsupervised. The handle completes when the host stops.

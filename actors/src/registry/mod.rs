@@ -248,6 +248,11 @@ pub fn list() -> Vec<Instance> {
     list_kind(None)
 }
 
+/// Every live instance of one kind of module, sorted by id and location.
+pub fn list_of(kind: ModuleKind) -> Vec<Instance> {
+    list_kind(Some(kind))
+}
+
 fn list_kind(kind: Option<ModuleKind>) -> Vec<Instance> {
     let scope = SCOPE.to_string();
     let mut out = Vec::new();

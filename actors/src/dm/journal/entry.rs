@@ -3,10 +3,13 @@
 //! ```text
 //! entry   = len: u32 LE | crc: u32 LE (CRC-32C of body) | body (len bytes)
 //! body    = kind: u8 | fields
-//! Put      (1) = seq u64 | time_ns u64 | epoch u64 | source str | class str | sub1 opt | sub2 opt | payload bytes
+//! Put      (1) = seq u64 | time_ns u64 | epoch u64 | producer u64 | producer_seq u64
+//!                | source str | class str | sub1 opt | sub2 opt | payload bytes
 //! Delete   (2) = count u32 | seq u64 × count
 //! SnapOpen (3) = next_seq u64 | last_time_ns u64      (a snapshot of the live records follows)
 //! SnapEnd  (4) = records u64                           (the snapshot is whole)
+//! Producer (5) = producer u64 | count u32 | (producer_seq u64 | seq u64) × count
+//!                                                      (a snapshot's idempotence table)
 //! str     = u16 LE length | UTF-8 bytes;  opt = u16 LE length (0xFFFF: none) | bytes
 //! bytes   = u32 LE length | bytes
 //! ```
@@ -32,6 +35,7 @@ const PUT: u8 = 1;
 const DELETE: u8 = 2;
 const SNAP_OPEN: u8 = 3;
 const SNAP_END: u8 = 4;
+const PRODUCER: u8 = 5;
 const NONE: u16 = u16::MAX;
 
 /// What one entry says.
@@ -49,6 +53,11 @@ pub(crate) enum Entry {
     SnapOpen { next_seq: u64, last_time: Duration },
     /// The snapshot that began at the last `SnapOpen` is whole.
     SnapEnd { records: u64 },
+    /// A producer's recent (producer seq, seq) pairs, in a snapshot.
+    Producer {
+        producer: u64,
+        pairs: Vec<(u64, u64)>,
+    },
 }
 
 /// Why the bytes at some offset are not a whole entry.
@@ -118,7 +127,8 @@ pub(crate) fn encode_put(out: &mut Vec<u8>, seq: u64, timestamp: Duration, recor
         sub2: record.sub2.as_deref(),
         payload: record.payload.as_bytes(),
     };
-    encode_parts(out, seq, timestamp, record.epoch, parts);
+    let who = (record.producer, record.producer_seq);
+    encode_parts(out, seq, timestamp, record.epoch, who, parts);
 }
 
 /// Append a put of a record given by its fields (a snapshot's, borrowed from the store).
@@ -127,12 +137,15 @@ pub(crate) fn encode_parts(
     seq: u64,
     timestamp: Duration,
     epoch: u64,
+    (producer, producer_seq): (u64, u64),
     record: LiveRecord<'_>,
 ) {
     let at = begin(out, PUT);
     out.extend_from_slice(&seq.to_le_bytes());
     out.extend_from_slice(&nanos(timestamp).to_le_bytes());
     out.extend_from_slice(&epoch.to_le_bytes());
+    out.extend_from_slice(&producer.to_le_bytes());
+    out.extend_from_slice(&producer_seq.to_le_bytes());
     put_str(out, record.source);
     put_str(out, record.class);
     put_opt(out, record.sub1);
@@ -164,6 +177,22 @@ pub(crate) fn encode_snap_open(out: &mut Vec<u8>, next_seq: u64, last_time: Dura
 pub(crate) fn encode_snap_end(out: &mut Vec<u8>, records: u64) {
     let at = begin(out, SNAP_END);
     out.extend_from_slice(&records.to_le_bytes());
+    finish(out, at);
+}
+
+/// Append a producer's recent pairs (a snapshot's).
+pub(crate) fn encode_producer(
+    out: &mut Vec<u8>,
+    producer: u64,
+    pairs: impl ExactSizeIterator<Item = (u64, u64)>,
+) {
+    let at = begin(out, PRODUCER);
+    out.extend_from_slice(&producer.to_le_bytes());
+    out.extend_from_slice(&(pairs.len() as u32).to_le_bytes());
+    for (pseq, seq) in pairs {
+        out.extend_from_slice(&pseq.to_le_bytes());
+        out.extend_from_slice(&seq.to_le_bytes());
+    }
     finish(out, at);
 }
 
@@ -214,6 +243,8 @@ fn decode_body(body: &[u8]) -> Option<Entry> {
             let seq = b.u64()?;
             let timestamp = Duration::from_nanos(b.u64()?);
             let epoch = b.u64()?;
+            let producer = b.u64()?;
+            let producer_seq = b.u64()?;
             let source = b.string()?;
             let class = b.string()?;
             let sub1 = b.opt()?;
@@ -230,6 +261,8 @@ fn decode_body(body: &[u8]) -> Option<Entry> {
                     sub2,
                     payload,
                     epoch,
+                    producer,
+                    producer_seq,
                 },
             }
         }
@@ -247,6 +280,17 @@ fn decode_body(body: &[u8]) -> Option<Entry> {
             last_time: Duration::from_nanos(b.u64()?),
         },
         SNAP_END => Entry::SnapEnd { records: b.u64()? },
+        PRODUCER => {
+            let producer = b.u64()?;
+            let n = b.u32()? as usize;
+            if b.0.len() != n.checked_mul(16)? {
+                return None;
+            }
+            let pairs = (0..n)
+                .map(|_| Some((b.u64()?, b.u64()?)))
+                .collect::<Option<_>>()?;
+            Entry::Producer { producer, pairs }
+        }
         _ => return None,
     };
     // every byte of the body belongs to a field
@@ -289,12 +333,15 @@ mod tests {
         let mut out = Vec::new();
         let mut r = record();
         r.epoch = 9;
+        r.producer = 0xfeed;
+        r.producer_seq = 3;
         encode_put(&mut out, 41, Duration::from_millis(1500), &r);
         let plain = NewRecord::new("wall", Payload::from_bytes(vec![])).with_source("x");
         encode_put(&mut out, 42, Duration::from_millis(1501), &plain);
         encode_delete(&mut out, &[3, 41]);
         encode_snap_open(&mut out, 43, Duration::from_secs(2));
         encode_snap_end(&mut out, 1);
+        encode_producer(&mut out, 0xfeed, [(2, 40), (3, 41)].into_iter());
         let entries = vec![
             Entry::Put {
                 seq: 41,
@@ -312,6 +359,10 @@ mod tests {
                 last_time: Duration::from_secs(2),
             },
             Entry::SnapEnd { records: 1 },
+            Entry::Producer {
+                producer: 0xfeed,
+                pairs: vec![(2, 40), (3, 41)],
+            },
         ];
         (out, entries)
     }

@@ -40,6 +40,7 @@ pub use recover::Recovery;
 
 use super::error::DmError;
 use super::messages::DmMsg;
+use super::producers::Producers;
 use super::record::NewRecord;
 use super::store::{DmConfig, Store};
 use crate::fence::FenceTable;
@@ -132,6 +133,7 @@ pub(crate) struct Opened {
     pub journal: Journal,
     pub store: Store,
     pub fences: FenceTable,
+    pub producers: Producers,
     pub recovery: Recovery,
 }
 
@@ -214,6 +216,7 @@ impl Journal {
             },
             store: recovered.store,
             fences: recovered.fences,
+            producers: recovered.producers,
             recovery: recovered.report,
         })
     }
@@ -322,16 +325,19 @@ impl Journal {
     }
 
     /// Hand the batch gathered so far, then a snapshot of `store` (the state right after it).
-    pub(crate) fn snapshot(&mut self, store: &Store, fences: &FenceTable) {
+    pub(crate) fn snapshot(&mut self, store: &Store, fences: &FenceTable, producers: &Producers) {
         self.flush();
         let mut bytes = Vec::with_capacity(store.len() * 96 + 64);
         entry::encode_snap_open(&mut bytes, store.next_seq(), store.last_time());
         let mut n = 0;
         store.for_each_in_seq_order(|seq, timestamp, record| {
             let epoch = fences.newest(record.source).unwrap_or(0);
-            entry::encode_parts(&mut bytes, seq, timestamp, epoch, record);
+            entry::encode_parts(&mut bytes, seq, timestamp, epoch, (0, 0), record);
             n += 1;
         });
+        for (producer, pairs) in producers.each() {
+            entry::encode_producer(&mut bytes, producer, pairs.iter().copied());
+        }
         entry::encode_snap_end(&mut bytes, n);
         self.puts = n;
         self.send(Job::Snapshot { bytes });

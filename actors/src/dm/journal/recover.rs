@@ -11,6 +11,7 @@
 
 use super::entry::{self, Entry, Torn};
 use super::segment;
+use crate::dm::producers::Producers;
 use crate::dm::store::{DmConfig, Store};
 use crate::fence::FenceTable;
 use serde::{Deserialize, Serialize};
@@ -42,6 +43,7 @@ pub struct Recovery {
 pub(crate) struct Recovered {
     pub store: Store,
     pub fences: FenceTable,
+    pub producers: Producers,
     pub report: Recovery,
     /// The segment to append to (the newest kept), and how many put entries the journal
     /// holds since its last snapshot (what decides the next one).
@@ -49,14 +51,22 @@ pub(crate) struct Recovered {
     pub puts: u64,
 }
 
+/// What a replay rebuilds.
+#[derive(Default)]
+struct State {
+    store: Option<Store>,
+    fences: FenceTable,
+    producers: Producers,
+    /// Put entries since the last snapshot.
+    puts: u64,
+}
+
 /// The state being rebuilt: the store, and a snapshot being read into a store of its own.
 struct Replay {
     config: DmConfig,
-    store: Store,
-    fences: FenceTable,
-    puts: u64,
-    /// A snapshot opened and not yet ended: its store, fences, puts, and where it began.
-    open: Option<(Store, FenceTable, u64, u64, usize)>,
+    state: State,
+    /// A snapshot opened and not yet ended: its state, and where it began.
+    open: Option<(State, u64, usize)>,
     report: Recovery,
     /// The newest segment that holds a whole snapshot: the ones before it are garbage.
     snapshot_segment: Option<u64>,
@@ -65,9 +75,12 @@ struct Replay {
 impl Replay {
     fn apply(&mut self, entry: Entry, segment: u64, at: usize) {
         self.report.entries += 1;
-        let (store, fences, puts) = match &mut self.open {
-            Some((s, f, p, _, _)) => (s, f, p),
-            None => (&mut self.store, &mut self.fences, &mut self.puts),
+        let state = match &mut self.open {
+            Some((s, _, _)) => s,
+            None => &mut self.state,
+        };
+        let Some(store) = state.store.as_mut() else {
+            return;
         };
         match entry {
             Entry::Put {
@@ -75,8 +88,13 @@ impl Replay {
                 timestamp,
                 record,
             } => {
-                let _ = fences.admit_parts(&record.source, record.epoch);
-                *puts += 1;
+                let _ = state.fences.admit_parts(&record.source, record.epoch);
+                if record.producer != 0 {
+                    state
+                        .producers
+                        .note(record.producer, record.producer_seq, seq);
+                }
+                state.puts += 1;
                 if let Err(e) = store.restore(seq, timestamp, record) {
                     tracing::warn!(seq, error = %e, "journal: a put could not be restored; skipped");
                 }
@@ -84,19 +102,26 @@ impl Replay {
             Entry::Delete { seqs } => {
                 store.remove_seqs(&seqs);
             }
+            Entry::Producer { producer, pairs } => {
+                for (pseq, seq) in pairs {
+                    state.producers.note(producer, pseq, seq);
+                }
+            }
             Entry::SnapOpen {
                 next_seq,
                 last_time,
             } => {
                 let mut s = Store::new(self.config.clone());
                 s.raise_floor(next_seq, last_time);
-                self.open = Some((s, FenceTable::default(), 0, segment, at));
+                let fresh = State {
+                    store: Some(s),
+                    ..State::default()
+                };
+                self.open = Some((fresh, segment, at));
             }
             Entry::SnapEnd { .. } => match self.open.take() {
-                Some((s, f, p, seg, _)) => {
-                    self.store = s;
-                    self.fences = f;
-                    self.puts = p;
+                Some((s, seg, _)) => {
+                    self.state = s;
                     self.snapshot_segment = Some(seg);
                 }
                 None => tracing::warn!(
@@ -125,10 +150,11 @@ pub(crate) fn recover(dir: &Path, config: DmConfig) -> io::Result<Recovered> {
     let started = Instant::now();
     let segments = segment::list(dir)?;
     let mut r = Replay {
-        store: Store::new(config.clone()),
+        state: State {
+            store: Some(Store::new(config.clone())),
+            ..State::default()
+        },
         config,
-        fences: FenceTable::default(),
-        puts: 0,
         open: None,
         report: Recovery::default(),
         snapshot_segment: None,
@@ -176,7 +202,8 @@ pub(crate) fn recover(dir: &Path, config: DmConfig) -> io::Result<Recovered> {
         tail = *n;
     }
     // A snapshot left open: the state before it stands; its bytes go.
-    if let Some((_, _, puts, seg, at)) = r.open.take() {
+    if let Some((open, seg, at)) = r.open.take() {
+        let puts = open.puts;
         let path = segment::path(dir, seg);
         let len = std::fs::metadata(&path)?.len();
         r.report.dropped_bytes += len - at as u64;
@@ -217,14 +244,20 @@ pub(crate) fn recover(dir: &Path, config: DmConfig) -> io::Result<Recovered> {
     if r.report.torn.is_some() || r.snapshot_segment.is_some() {
         segment::sync_dir(dir)?;
     }
-    r.report.records = r.store.len() as u64;
+    let store = r
+        .state
+        .store
+        .take()
+        .unwrap_or_else(|| Store::new(r.config.clone()));
+    r.report.records = store.len() as u64;
     r.report.millis = started.elapsed().as_millis() as u64;
     Ok(Recovered {
-        store: r.store,
-        fences: r.fences,
+        store,
+        fences: r.state.fences,
+        producers: r.state.producers,
         report: r.report,
         tail,
-        puts: r.puts,
+        puts: r.state.puts,
     })
 }
 
