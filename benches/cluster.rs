@@ -231,10 +231,9 @@ fn child(role: &str) {
         match role {
             "server" => {
                 config.operations.push(OperationConfig::new("bench-idle"));
-                config.datamanagers.push(DatamanagerConfig {
-                    name: DM_NAME.into(),
-                    id: DM_ID,
-                });
+                config
+                    .datamanagers
+                    .push(DatamanagerConfig::new(DM_NAME, DM_ID));
             }
             "worker" => config.operations.push(OperationConfig::new("bench-worker")),
             other => panic!("unknown role {other}"),

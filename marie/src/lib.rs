@@ -79,7 +79,11 @@
 //! unwind). An operation is built by `Default`, by a closure of the application's
 //! ([`NodeBuilder::operation_from`]) or from a value ([`NodeBuilder::operation_value`]), so
 //! it can be handed what it needs. [`OperationHandle`] then asks an operation about itself
-//! by name, with typed calls and no epochs, and follows it across restarts.
+//! by name, with typed calls and no epochs, and follows it across restarts. Its
+//! datamanagers are in memory unless it has a data directory ([`NodeBuilder::data_dir`]):
+//! there they keep journals, so what they acknowledged survives their crash and the
+//! process's (`process` by default, `sync` for a power loss too:
+//! [`cluster::node::DatamanagerConfig::with_durability`]).
 //!
 //! **3. A mission** — the task tree the dispatcher runs — is a mission file's text or built
 //! in code ([`actors::dispatcher::mission::MissionBuilder`]); [`Node::run`] checks it

@@ -57,6 +57,10 @@ pub struct EmbeddedOptions {
     pub mission_world_at: Option<Diagnostic>,
     /// `--seed`: overrides the node config's; default [`DEFAULT_SEED`].
     pub seed: Option<u64>,
+    /// `--data-dir`: overrides the node config's `data_dir` — its datamanagers then keep
+    /// journals there (`process` unless the config says otherwise). Default: the config's,
+    /// and none for the built-in node (nothing written to disk).
+    pub data_dir: Option<PathBuf>,
     /// The clock the node's actors share.
     pub clock: SharedClock,
 }
@@ -82,6 +86,7 @@ impl Default for EmbeddedOptions {
             mission_world: None,
             mission_world_at: None,
             seed: None,
+            data_dir: None,
             clock: RealClock::shared(),
         }
     }
@@ -148,7 +153,7 @@ impl Embedded {
     /// Load the node config (or take the built-in one), the world, and start the node.
     pub async fn start(options: EmbeddedOptions) -> Result<Embedded, EmbeddedError> {
         let catalog = crate::catalog();
-        let config = match (&options.node, options.config.clone()) {
+        let mut config = match (&options.node, options.config.clone()) {
             (Some(path), _) => {
                 let config = NodeConfig::load(path, &catalog).map_err(EmbeddedError::Config)?;
                 // honoured or refused, never ignored: this node is the command's own
@@ -169,6 +174,9 @@ impl Embedded {
                 ..NodeConfig::everything(EMBEDDED_NODE, &catalog)
             },
         };
+        if let Some(dir) = &options.data_dir {
+            config.data_dir = Some(dir.clone());
+        }
         let mut robot = None;
         let mut world_path = None;
         if let Some(sim) = &config.simulation {

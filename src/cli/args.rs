@@ -18,6 +18,10 @@ pub(crate) struct RobotArgs {
     /// node that hosts every operation, the three datamanagers and the robot.
     #[arg(long, value_name = "FILE")]
     pub node: Option<PathBuf>,
+    /// The node's data directory (`marie run --data-dir`; not a flag of the other verbs,
+    /// whose nodes live only as long as one request).
+    #[arg(skip)]
+    pub data_dir: Option<PathBuf>,
 }
 
 impl RobotArgs {
@@ -28,6 +32,7 @@ impl RobotArgs {
             world: self.world.clone(),
             mission_world: mission_world.map(Path::to_path_buf),
             seed: self.seed,
+            data_dir: self.data_dir.clone(),
             ..EmbeddedOptions::default()
         }
     }

@@ -40,6 +40,8 @@ pub(crate) struct NodeLaunch {
     pub world: Option<PathBuf>,
     /// The simulation's seed.
     pub seed: Option<u64>,
+    /// Its data directory (`--data-dir`), unless its config names one.
+    pub data_dir: Option<PathBuf>,
 }
 
 /// A running node process.
@@ -77,6 +79,9 @@ impl NodeChild {
         }
         if let Some(s) = launch.seed {
             cmd.arg("--seed").arg(s.to_string());
+        }
+        if let Some(d) = &launch.data_dir {
+            cmd.arg("--data-dir").arg(d);
         }
         let mut child = cmd
             .stdin(Stdio::piped())

@@ -4,9 +4,10 @@
 //! It prints one line when it listens and one whenever it starts or stops seeing a peer, so
 //! whoever started it (a person, `marie up`, a test) can wait for those lines.
 //!
-//! `--listen`, `--peer` and `--cookie` give or override the config's `[cluster]` table (what
-//! `marie up` does for the nodes of a cluster file). Its actors run on the cluster clock
-//! ([`ScaledClock::cluster`]): wall-clock time at `--speed`, the same on every node.
+//! `--listen`, `--peer` and `--cookie` give or override the config's `[cluster]` table, and
+//! `--data-dir` its `data_dir` (what `marie up` does for the nodes of a cluster file). Its
+//! actors run on the cluster clock ([`ScaledClock::cluster`]): wall-clock time at `--speed`,
+//! the same on every node.
 
 use super::error::BadInput;
 use super::prepare::start_node;
@@ -42,6 +43,12 @@ pub(crate) struct NodeArgs {
     /// The cluster's cookie (overrides the config's `cookie`).
     #[arg(long, value_name = "C")]
     pub cookie: Option<String>,
+    /// Keep the node's datamanager journals in DIR/dm/NAME (overrides the config's
+    /// `data_dir`): its datamanagers are then `process` durable unless the config says
+    /// otherwise, and a node started again on DIR finds their records. Locked while the node
+    /// runs: one node per DIR. Without it or a `data_dir`, nothing is written to disk.
+    #[arg(long, value_name = "DIR")]
+    pub data_dir: Option<PathBuf>,
     /// The cluster's speed factor: wall-clock time times X, the same on every node.
     #[arg(long, default_value = "1", value_parser = super::args::parse_cluster_speed, allow_hyphen_values = true)]
     pub speed: f64,
@@ -93,6 +100,9 @@ pub(crate) async fn node(args: NodeArgs) -> anyhow::Result<ExitCode> {
         ))
         .into());
     };
+    if let Some(dir) = &args.data_dir {
+        config.data_dir = Some(dir.clone());
+    }
     let tls = cluster.tls.is_some();
     let peers = cluster.peers.clone();
     let embedded = start_node(EmbeddedOptions {

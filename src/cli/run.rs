@@ -29,6 +29,13 @@ pub(crate) struct RunArgs {
     pub mission: PathBuf,
     #[command(flatten)]
     pub robot: RobotArgs,
+    /// Keep the datamanagers' records in journals in DIR (`process` durability: what they
+    /// acknowledged survives their crash and the process's); DIR is locked while the run
+    /// lasts. Default: the node config's `data_dir`, and none for the built-in node —
+    /// in memory, nothing written to disk. Not with `--join` (the cluster's datamanagers
+    /// are its nodes').
+    #[arg(long, value_name = "DIR", conflicts_with = "join")]
+    pub data_dir: Option<PathBuf>,
     /// Write the run report (JSON) here.
     #[arg(long, value_name = "FILE")]
     pub report: Option<PathBuf>,
@@ -121,7 +128,8 @@ const EVENTS_FROM_OTHERS: usize = 4096;
 pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     let RunArgs {
         mission: path,
-        robot,
+        mut robot,
+        data_dir,
         report: report_path,
         explain,
         json,
@@ -136,6 +144,7 @@ pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         node_processes,
         mission_over,
     } = args;
+    robot.data_dir = data_dir;
     let progress = match (explain, json) {
         (true, true) => Progress::ChoicesAsJson,
         (true, false) => Progress::Explained,

@@ -6,6 +6,12 @@
 //! modules, runs the mission if asked (`run --join` from this process) and stops every child
 //! on exit, on Ctrl-C or SIGTERM. The children hold a pipe to it and stop when it closes, so
 //! none outlives `marie up`, even when it is killed.
+//!
+//! Every node keeps its datamanagers' journals in a data directory of its own (so they are
+//! `process` durable: a datamanager or node process that crashes comes back with its
+//! records), unless its config names one: `--data-dir DIR`/NODE, kept after `up` exits, or
+//! else a fresh directory under the system's temporary one, removed when `up` exits (one a
+//! `kill -9` left, the next `up` removes) — two `marie up` of one cluster file never share one.
 
 use super::args::{parse_cluster_speed, parse_seed, RobotArgs};
 use super::children::{stop_all, Line, Listening, NodeChild, NodeLaunch};
@@ -16,6 +22,7 @@ use marie::actors::dispatcher::mission::ParsedMission;
 use marie::actors::registry::{self, Instance};
 use marie::cluster::fault::NodeProcesses;
 use marie::cluster::layout::ClusterLayout;
+use marie::cluster::node::NodeConfig;
 use std::collections::BTreeMap;
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
@@ -63,6 +70,121 @@ pub(crate) struct UpArgs {
     /// node's process (`SIGKILL`) — and watch the cluster fail over.
     #[arg(long, requires = "monitor")]
     pub allow_faults: bool,
+    /// Keep every node's datamanager journals in DIR/NODE (a node config's own `data_dir`
+    /// wins), after exit too: a later `up --data-dir DIR` finds their records. Default: a
+    /// fresh directory under the system's temporary one, removed when `up` exits.
+    #[arg(long, value_name = "DIR")]
+    pub data_dir: Option<PathBuf>,
+}
+
+/// Where `up`'s nodes keep their data: DIR/NODE for each node whose config names no
+/// `data_dir`.
+#[derive(Debug)]
+struct DataDirs {
+    base: PathBuf,
+    /// Made for this invocation (no `--data-dir`): removed on drop, once the nodes stopped.
+    temporary: bool,
+}
+
+impl DataDirs {
+    /// `--data-dir`, created if missing; else a new directory
+    /// `marie-up-CLUSTER-PID[.N]` under [`std::env::temp_dir`] — new, never one left by an
+    /// earlier process of the same pid, whose journals the nodes would read back.
+    fn new(kept: Option<&Path>, cluster: &Path) -> anyhow::Result<DataDirs> {
+        if let Some(dir) = kept {
+            std::fs::create_dir_all(dir)
+                .map_err(|e| BadInput(format!("--data-dir {}: {e}", dir.display())))?;
+            return Ok(DataDirs {
+                base: dir.to_path_buf(),
+                temporary: false,
+            });
+        }
+        let stem: String = cluster
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default()
+            .chars()
+            .map(|c| if c.is_ascii_alphanumeric() { c } else { '-' })
+            .collect();
+        let name = format!("marie-up-{stem}-{}", std::process::id());
+        let tmp = std::env::temp_dir();
+        sweep_left_behind(&tmp);
+        for n in 0..1000 {
+            let base = match n {
+                0 => tmp.join(&name),
+                n => tmp.join(format!("{name}.{n}")),
+            };
+            match std::fs::create_dir(&base) {
+                Ok(()) => {
+                    return Ok(DataDirs {
+                        base,
+                        temporary: true,
+                    })
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
+                Err(e) => anyhow::bail!(
+                    "cannot make the nodes' data directory {}: {e} (give one with --data-dir)",
+                    base.display()
+                ),
+            }
+        }
+        anyhow::bail!(
+            "cannot make the nodes' data directory: {}/{name}.N all exist (give one with \
+             --data-dir)",
+            tmp.display()
+        )
+    }
+
+    /// The data directory of `node`, unless its config names one.
+    fn of(&self, node: &NodeConfig) -> Option<PathBuf> {
+        match node.data_dir {
+            Some(_) => None,
+            None => Some(self.base.join(&node.name)),
+        }
+    }
+}
+
+/// Remove the temporary data directories of `marie up`s that were killed (`kill -9` leaves
+/// them): `marie-up-…-PID[.N]` whose process is gone. Where a process's liveness cannot be
+/// read (no `/proc`), nothing is removed.
+fn sweep_left_behind(tmp: &Path) {
+    if !Path::new("/proc/self").exists() {
+        return;
+    }
+    let Ok(entries) = std::fs::read_dir(tmp) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(name) = name.to_str() else { continue };
+        let Some(rest) = name.strip_prefix("marie-up-") else {
+            continue;
+        };
+        // …-PID, or …-PID.N
+        let last = rest.rsplit('-').next().unwrap_or_default();
+        let Ok(pid) = last.split('.').next().unwrap_or_default().parse::<u32>() else {
+            continue;
+        };
+        if Path::new(&format!("/proc/{pid}")).exists() {
+            continue;
+        }
+        match std::fs::remove_dir_all(entry.path()) {
+            Ok(()) => {
+                tracing::debug!(dir = %entry.path().display(), "a killed marie up's data directory removed")
+            }
+            Err(e) => tracing::debug!(dir = %entry.path().display(), "left: {e}"),
+        }
+    }
+}
+
+impl Drop for DataDirs {
+    fn drop(&mut self) {
+        if self.temporary {
+            if let Err(e) = std::fs::remove_dir_all(&self.base) {
+                tracing::warn!(dir = %self.base.display(), "the nodes' data directory is left: {e}");
+            }
+        }
+    }
 }
 
 /// Start the cluster, wait for it, run the mission or wait for a signal, stop it.
@@ -86,6 +208,8 @@ pub(crate) async fn up(args: UpArgs) -> anyhow::Result<ExitCode> {
     let speed = args.speed.unwrap_or(layout.speed);
     let seed = args.seed.or(layout.seed);
     let exe = std::env::current_exe()?;
+    // dropped (a temporary one removed) after `children`, whose nodes have stopped by then
+    let data = DataDirs::new(args.data_dir.as_deref(), &args.cluster)?;
 
     let mut launches: Vec<NodeLaunch> = layout
         .nodes
@@ -102,6 +226,7 @@ pub(crate) async fn up(args: UpArgs) -> anyhow::Result<ExitCode> {
             speed,
             world: world.clone(),
             seed,
+            data_dir: data.of(&node.config),
         })
         .collect();
 
@@ -233,7 +358,9 @@ async fn serve(
             world: args.world.clone(),
             seed: args.seed.or(layout.seed),
             node: None,
+            data_dir: None,
         },
+        data_dir: None,
         report: args.report.clone(),
         events: args.events.clone(),
         svg: args.svg.clone(),

@@ -329,9 +329,15 @@ impl Actor for Datamanager {
                 let mut opened = Journal::open(dir, durability, args.config, myself.clone())
                     .await
                     .map_err(|e| format!("datamanager {}: {e}", args.name))?;
+                // A journal whose time stamps run ahead of this clock was written under
+                // another (an earlier process's): its stamps are moved back onto this one,
+                // and the epochs its sources had — numbered by that clock's runs
+                // (`dispatcher::healing`'s epoch base) — are forgotten, or a new run's
+                // first epochs would be refused as stale.
                 let shifted = opened.store.rebase_times(args.clock.now());
                 if !shifted.is_zero() {
-                    tracing::info!(dm = %args.name, by = ?shifted, "journal time stamps moved back to this process's clock");
+                    opened.fences = Default::default();
+                    tracing::info!(dm = %args.name, by = ?shifted, "journal written under an earlier clock: time stamps moved back onto this one, epochs forgotten");
                 }
                 (
                     opened.store,

@@ -14,7 +14,8 @@
 //! or as a clone of a value ([`NodeBuilder::operation_value`]) — for every instance and
 //! every restart alike. Unless it says otherwise ([`Operation::period`]) an operation
 //! steps every [`DEFAULT_PERIOD`](marie_actors::eo::DEFAULT_PERIOD), 100 ms of the node's
-//! clock. [`NodeBuilder::cluster`] makes the node a cluster member at start.
+//! clock. [`NodeBuilder::cluster`] makes the node a cluster member at start;
+//! [`NodeBuilder::data_dir`] gives its datamanagers journals on disk.
 //!
 //! ```
 //! use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
@@ -314,7 +315,10 @@ impl NodeBuilder {
     }
 
     /// Host a datamanager: one of marie's ([`marie_actors::dm::FEATURE`], `WORLD`,
-    /// `PARAMETER`) or the application's own, by name and id.
+    /// `PARAMETER`) or the application's own, by name and id — at the node's default
+    /// durability (`process` with a [`data_dir`](NodeBuilder::data_dir), else `memory`), or
+    /// at its own: `DatamanagerConfig::from(FEATURE).with_durability(Durability::Sync)`
+    /// ([`DatamanagerConfig::with_durability`]; `process` and `sync` need the data_dir).
     ///
     /// ```
     /// use marie_actors::dm::{DmClient, DmSpec, FEATURE};
@@ -331,6 +335,36 @@ impl NodeBuilder {
     /// ```
     pub fn datamanager(mut self, dm: impl Into<DatamanagerConfig>) -> Self {
         self.config.datamanagers.push(dm.into());
+        self
+    }
+
+    /// Keep the node's files in `dir` ([`NodeConfig::data_dir`]): each durable
+    /// datamanager's journal in `dir/dm/NAME`, so what it acknowledged survives a crash of
+    /// the datamanager and of the process, and a node started again on `dir` finds its
+    /// records with their seqs. The node locks `dir` while it runs: another node on it is
+    /// refused ([`NodeError::DataDirInUse`]). Its datamanagers are at `process` unless they
+    /// say otherwise ([`DatamanagerConfig::with_durability`]); without a data_dir they are
+    /// in memory and the node writes no file.
+    ///
+    /// ```
+    /// use marie_actors::dm::{DmClient, Durability, FEATURE, WORLD};
+    /// use marie_cluster::node::{DatamanagerConfig, Node};
+    /// # #[tokio::main] async fn main() -> Result<(), Box<dyn std::error::Error>> {
+    /// let dir = tempfile::tempdir()?;
+    /// let node = Node::builder("kept")
+    ///     .data_dir(dir.path())
+    ///     .datamanager(FEATURE) // process: the node's default with a data_dir
+    ///     .datamanager(DatamanagerConfig::from(WORLD).with_durability(Durability::Sync))
+    ///     .start()
+    ///     .await?;
+    /// let world = DmClient::lookup("world", "doc")?;
+    /// assert_eq!(world.stats().await?.durability, Durability::Sync);
+    /// assert!(dir.path().join("dm/feature").is_dir());
+    /// node.shutdown().await;
+    /// # Ok(()) }
+    /// ```
+    pub fn data_dir(mut self, dir: impl Into<std::path::PathBuf>) -> Self {
+        self.config.data_dir = Some(dir.into());
         self
     }
 
@@ -419,8 +453,9 @@ impl NodeBuilder {
     /// every start builds them) and the config, then start the node's supervision tree —
     /// and join its cluster, if it has one ([`NodeBuilder::cluster`]). Refused: a bad
     /// declaration (named), a duplicate datamanager or supervisor, two factories of one
-    /// operation version, cluster settings that cannot work, a build whose panics abort
-    /// (self-healing needs them to unwind).
+    /// operation version, a durable datamanager without a data_dir, a data_dir another node
+    /// holds, cluster settings that cannot work, a build whose panics abort (self-healing
+    /// needs them to unwind).
     pub async fn start(self) -> Result<Node, NodeError> {
         if let Some(problem) = self.refused.into_iter().next() {
             return Err(problem.into());
@@ -443,10 +478,7 @@ impl NodeBuilder {
 
 impl From<(&str, u32)> for DatamanagerConfig {
     fn from((name, id): (&str, u32)) -> Self {
-        DatamanagerConfig {
-            name: name.to_string(),
-            id,
-        }
+        DatamanagerConfig::new(name, id)
     }
 }
 

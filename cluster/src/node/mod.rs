@@ -18,6 +18,13 @@
 //! node name with `@`, a taken port, TLS files that do not load) is refused
 //! ([`NodeError::Cluster`]).
 //!
+//! A config with a data directory ([`NodeConfig::data_dir`], [`NodeBuilder::data_dir`])
+//! keeps its datamanagers' journals there, `process` durable unless a datamanager says
+//! otherwise; [`Node::start`] locks the directory before anything starts and the node
+//! holds it until it is dropped, so a second node on it is refused
+//! ([`NodeError::DataDirInUse`]). A node started again on the directory finds its records,
+//! and the robot's a-priori records are stored only in a datamanager that starts empty.
+//!
 //! ```
 //! use marie_cluster::node::{Node, NodeConfig, NodeOptions, OperationConfig};
 //! use marie_actors::eo::OperationFactory;
@@ -68,6 +75,7 @@ use crate::net::{Transport, TransportError};
 use marie_actors::clock::{RealClock, SharedClock};
 use marie_actors::dispatcher::mission::{Diagnostics, Mission, ParsedMission};
 use marie_actors::dispatcher::{DispatchError, RegistryCatalog};
+use marie_actors::dm::journal::{DirLock, LockError};
 use marie_actors::dm::DmError;
 use marie_actors::eo::{EoError, OperationFactory};
 use marie_actors::events::{bridge_registry, EventBus, RegistryBridge};
@@ -75,7 +83,7 @@ use marie_actors::registry::{self, Instance, ModuleKind};
 use marie_supervision::{SupervisorError, SupervisorRef};
 use membership::Membership;
 use ractor::ActorCell;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicU64;
 use std::sync::Arc;
 use std::time::Duration;
@@ -177,6 +185,28 @@ pub enum NodeError {
     /// name, its listen address taken, TLS files that do not load.
     #[error(transparent)]
     Cluster(#[from] TransportError),
+    /// The node's data directory is held by another node — of another process or of this
+    /// one — still running (its datamanagers' journals take one writer at a time).
+    #[error(
+        "data_dir {} is in use by another marie node{}: one node per data_dir (stop that \
+         node, or give this one another data_dir)",
+        dir.display(),
+        holder.map(|pid| format!(" (pid {pid})")).unwrap_or_default()
+    )]
+    DataDirInUse {
+        /// The directory.
+        dir: PathBuf,
+        /// The holder's process id, as its lock file says.
+        holder: Option<u32>,
+    },
+    /// The node's data directory cannot be created or locked.
+    #[error("data_dir {}: {source}", dir.display())]
+    DataDir {
+        /// The directory.
+        dir: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
     /// An instance was asked of an operation the config does not allow.
     #[error("node `{node}` does not host operation `{operation}` (its config allows: {allowed})")]
     NotAllowed {
@@ -193,7 +223,7 @@ pub enum NodeError {
 ///
 /// ```text
 /// node (one_for_one)
-///  ├─ datamanagers (one_for_one) ── one per [[datamanager]], a-priori records stored at start
+///  ├─ datamanagers (one_for_one) ── one per [[datamanager]]; a-priori records in an empty one
 ///  ├─ the robot's drivers           (temporary: a simulation is not restarted)
 ///  ├─ operations (one_for_one) ──── one EO host per operation instance
 ///  ├─ <other [[supervisor]]s> ───── their operations
@@ -222,6 +252,9 @@ pub struct Node {
     one_run: tokio::sync::Mutex<()>,
     /// Its place in a cluster, when its config has one.
     membership: Option<Membership>,
+    /// The lock on its data directory, when its config has one: held as long as the node
+    /// (declared last, so dropped after everything else of it).
+    _data_dir: Option<DirLock>,
 }
 
 impl Node {
@@ -239,6 +272,9 @@ impl Node {
         if let Some(cluster) = &config.cluster {
             cluster.validate(&config.name)?;
         }
+        // before anything starts: a second node on the directory must not get as far as a
+        // datamanager (which would wait for the first's journal) or a published module
+        let data_dir = config.data_dir.as_deref().map(lock_data_dir).transpose()?;
         // one node per process (ractor's registry and pg are process-wide): its name is the
         // location every module published here shows
         marie_actors::registry::set_local_node_name(&config.name);
@@ -278,6 +314,7 @@ impl Node {
             runs: AtomicU64::new(0),
             one_run: tokio::sync::Mutex::new(()),
             membership: None,
+            _data_dir: data_dir,
         };
         // the runs are dispatched elsewhere: the robot tells what it sees without them
         if let (Some(robot), false) = (&node.robot, node.config.dispatcher) {
@@ -432,7 +469,8 @@ impl Node {
 
     /// Leave the cluster if the node joined one (its sessions closed: the peers see its
     /// modules leave at once), then stop the node's supervision tree, children in reverse
-    /// start order, and wait for it.
+    /// start order, and wait for it (a datamanager's journal is written out as it stops);
+    /// last, let go of the data directory.
     pub async fn shutdown(mut self) {
         if let Some(membership) = self.membership.take() {
             membership.leave().await;
@@ -447,6 +485,14 @@ impl Node {
         }
         tracing::info!(node = %self.config.name, "node stopped");
     }
+}
+
+/// Lock a node's data directory (creating it), or say who holds it.
+fn lock_data_dir(dir: &Path) -> Result<DirLock, NodeError> {
+    DirLock::acquire(dir).map_err(|e| match e {
+        LockError::Held { dir, holder } => NodeError::DataDirInUse { dir, holder },
+        LockError::Io { dir, source } => NodeError::DataDir { dir, source },
+    })
 }
 
 #[cfg(test)]

@@ -29,7 +29,8 @@ use tokio::task::JoinHandle;
 pub type BoxFuture<'a, T> = Pin<Box<dyn Future<Output = T> + Send + 'a>>;
 
 /// A record a robot stores in a datamanager before any operation starts (and again after
-/// that datamanager restarts): a-priori knowledge such as the map of the walls.
+/// that datamanager restarts empty; a durable one reads it back from its journal instead):
+/// a-priori knowledge such as the map of the walls.
 #[derive(Clone, Debug)]
 pub struct AprioriRecord {
     /// The datamanager's registry name (e.g. `world`).

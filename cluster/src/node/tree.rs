@@ -232,8 +232,7 @@ fn datamanagers(
                     // restart of the datamanager or the node would pile up copies. So they
                     // are stored only in a datamanager that starts fresh — nothing was ever
                     // handed a seq, `next_seq == 1` — which a memory one always does.
-                    if !records.is_empty() && client.stats().await.map_err(startup)?.next_seq == 1
-                    {
+                    if !records.is_empty() && client.stats().await.map_err(startup)?.next_seq == 1 {
                         for record in records.iter() {
                             client.store_raw(record.clone()).await.map_err(startup)?;
                         }

@@ -11,7 +11,8 @@ use std::path::{Path, PathBuf};
 
 impl NodeConfig {
     /// Read and check a node config file against `catalog`. Every problem is a diagnostic
-    /// at its `file:line:column`; a relative `world` is resolved against the file's directory.
+    /// at its `file:line:column`; a relative `world`, `data_dir` or TLS file is resolved
+    /// against the file's directory.
     pub fn load(path: &Path, catalog: &[OperationFactory]) -> Result<NodeConfig, Diagnostics> {
         let src = read_source(path, "node config")?;
         NodeConfig::parse(&src, Some(path), catalog)
@@ -48,15 +49,17 @@ impl NodeConfig {
             ),
             Some(v) => {
                 if let Some(t) = r.table(v, "[node]") {
-                    r.unknown_keys(&t, &["name", "dispatcher"]);
+                    r.unknown_keys(&t, &["name", "dispatcher", "data_dir"]);
                     config.name = r.required_string(&t, "name").unwrap_or_default();
                     config.dispatcher = r.boolean(&t, "dispatcher", true);
+                    config.data_dir = data_dir(&mut r, &t, path);
                 }
             }
         }
         if let Some(v) = top.get("datamanager") {
+            let has_data_dir = config.data_dir.is_some();
             for t in r.table_array(v, "datamanager").into_iter().flatten() {
-                if let Some(d) = datamanager(&mut r, &t, &config.datamanagers) {
+                if let Some(d) = datamanager(&mut r, &t, &config.datamanagers, has_data_dir) {
                     config.datamanagers.push(d);
                 }
             }
@@ -94,13 +97,67 @@ impl NodeConfig {
     }
 }
 
-/// One `[[datamanager]]`: a known name (feature, parameter, world) or a name with an `id`.
+/// `[node] data_dir`: a directory, relative to the config file's; `None` when absent.
+fn data_dir(r: &mut Reader<'_>, t: &Tbl<'_, '_>, path: Option<&Path>) -> Option<PathBuf> {
+    let dir = r.string(t, "data_dir")?;
+    if dir.trim().is_empty() {
+        let span = t.get("data_dir").map_or(t.span.clone(), |v| v.span());
+        r.err(
+            &span,
+            "`data_dir` must name a directory (leave it out to keep nothing on disk)",
+        );
+        return None;
+    }
+    Some(beside(path, dir))
+}
+
+/// `durability` of a `[[datamanager]]`: memory, process or sync; `None` when absent (the
+/// node's default). `process` and `sync` need the node's `data_dir`.
+fn durability(
+    r: &mut Reader<'_>,
+    t: &Tbl<'_, '_>,
+    has_data_dir: bool,
+) -> Result<Option<Durability>, ()> {
+    let Some(v) = t.get("durability") else {
+        return Ok(None);
+    };
+    let text = r.string_value(v, "durability").ok_or(())?;
+    let Some(durability) = Durability::ALL.into_iter().find(|d| d.as_str() == text) else {
+        let expected: Vec<&str> = Durability::ALL.iter().map(|d| d.as_str()).collect();
+        r.err(
+            &v.span(),
+            format!(
+                "unknown durability {} (expected one of: {})",
+                quote(&text),
+                expected.join(", ")
+            ),
+        );
+        return Err(());
+    };
+    if durability != Durability::Memory && !has_data_dir {
+        r.err(
+            &v.span(),
+            format!(
+                "durability {} keeps a journal on disk, and this node has no `data_dir` \
+                 (set `data_dir` in [node], or use \"memory\")",
+                quote(&text)
+            ),
+        );
+        return Err(());
+    }
+    Ok(Some(durability))
+}
+
+/// One `[[datamanager]]`: a known name (feature, parameter, world) or a name with an `id`,
+/// and its durability.
 fn datamanager(
     r: &mut Reader<'_>,
     t: &Tbl<'_, '_>,
     seen: &[DatamanagerConfig],
+    has_data_dir: bool,
 ) -> Option<DatamanagerConfig> {
-    r.unknown_keys(t, &["name", "id"]);
+    r.unknown_keys(t, &["name", "id", "durability"]);
+    let durability = durability(r, t, has_data_dir);
     let name = r.required_string(t, "name")?;
     let known = [dm::FEATURE, dm::PARAMETER, dm::WORLD];
     let id = r.integer(t, "id", Some(0), 0..=i64::from(u32::MAX));
@@ -117,10 +174,7 @@ fn datamanager(
                 );
                 return None;
             };
-            DatamanagerConfig {
-                id: id as u32,
-                name,
-            }
+            DatamanagerConfig::new(name, id as u32)
         }
     };
     if seen.iter().any(|d| d.name == spec.name) {
@@ -130,7 +184,10 @@ fn datamanager(
         );
         return None;
     }
-    Some(spec)
+    Some(DatamanagerConfig {
+        durability: durability.ok()?,
+        ..spec
+    })
 }
 
 /// The `[simulation]` table.
@@ -504,6 +561,107 @@ mod tests {
         ] {
             assert!(e.contains(want), "{want:?} not in:\n{e}");
         }
+    }
+
+    #[test]
+    fn a_data_dir_is_relative_to_the_config_and_makes_datamanagers_durable_by_default() {
+        let dir = Path::new("/etc/marie/nodes");
+        let path = dir.join("n.toml");
+        let c = NodeConfig::parse(
+            "[node]\nname = \"n\"\ndata_dir = \"../data/n\"\n\
+             [[datamanager]]\nname = \"feature\"\n\
+             [[datamanager]]\nname = \"world\"\ndurability = \"sync\"\n\
+             [[datamanager]]\nname = \"parameter\"\ndurability = \"memory\"\n",
+            Some(&path),
+            &[],
+        )
+        .unwrap();
+        assert_eq!(c.data_dir, Some(dir.join("../data/n")));
+        let durability: Vec<_> = c.datamanagers.iter().map(|d| d.durability).collect();
+        assert_eq!(
+            durability,
+            [None, Some(Durability::Sync), Some(Durability::Memory)]
+        );
+        let resolved: Vec<_> = c.datamanagers.iter().map(|d| c.durability_of(d)).collect();
+        assert_eq!(
+            resolved,
+            [Durability::Process, Durability::Sync, Durability::Memory]
+        );
+        // an absolute data_dir stays as written
+        let c = NodeConfig::parse(
+            "[node]\nname = \"n\"\ndata_dir = \"/var/lib/marie\"\n",
+            Some(&path),
+            &[],
+        )
+        .unwrap();
+        assert_eq!(c.data_dir, Some(PathBuf::from("/var/lib/marie")));
+    }
+
+    #[test]
+    fn without_a_data_dir_datamanagers_are_in_memory_and_nothing_is_on_disk() {
+        let c = parse(
+            "[node]\nname = \"n\"\n[[datamanager]]\nname = \"feature\"\n\
+             [[datamanager]]\nname = \"world\"\ndurability = \"memory\"\n",
+        )
+        .unwrap();
+        assert_eq!(c.data_dir, None);
+        for d in &c.datamanagers {
+            assert_eq!(c.durability_of(d), Durability::Memory, "{}", d.name);
+        }
+        c.validate(&[]).unwrap();
+    }
+
+    #[test]
+    fn a_durable_datamanager_without_a_data_dir_and_an_unknown_durability_are_refused_at_their_value(
+    ) {
+        let e = parse(
+            "[node]\nname = \"n\"\n\
+             [[datamanager]]\nname = \"feature\"\ndurability = \"process\"\n\
+             [[datamanager]]\nname = \"world\"\ndurability =  \"sync\"\n\
+             [[datamanager]]\nname = \"parameter\"\ndurability = \"disk\"\n\
+             [[datamanager]]\nname = \"map\"\nid = 7\ndurability = 1\n",
+        )
+        .unwrap_err();
+        for want in [
+            "<node>:5:14: durability `process` keeps a journal on disk, and this node has no \
+             `data_dir` (set `data_dir` in [node], or use \"memory\")",
+            "<node>:8:15: durability `sync` keeps a journal on disk",
+            "<node>:11:14: unknown durability `disk` (expected one of: memory, process, sync)",
+            "<node>:15:14: expected a string for `durability`",
+        ] {
+            assert!(e.contains(want), "{want:?} not in:\n{e}");
+        }
+        // with a data_dir, an unknown value is still refused
+        let e = parse(
+            "[node]\nname = \"n\"\ndata_dir = \"d\"\n\
+             [[datamanager]]\nname = \"feature\"\ndurability = \"Sync\"\n",
+        )
+        .unwrap_err();
+        assert!(e.contains("<node>:6:14: unknown durability `Sync`"), "{e}");
+        let e = parse("[node]\nname = \"n\"\ndata_dir = \" \"\n").unwrap_err();
+        assert!(
+            e.contains("<node>:3:12: `data_dir` must name a directory"),
+            "{e}"
+        );
+        let e = parse("[node]\nname = \"n\"\ndata_dir = 3\n").unwrap_err();
+        assert!(e.contains("<node>:3:12:"), "{e}");
+    }
+
+    #[test]
+    fn a_config_value_with_a_durable_datamanager_needs_a_data_dir() {
+        let mut c = NodeConfig::new("n");
+        c.datamanagers
+            .push(DatamanagerConfig::from(dm::FEATURE).with_durability(Durability::Sync));
+        let e = c.validate(&[]).unwrap_err();
+        assert_eq!(
+            e,
+            ConfigError::NoDataDir {
+                datamanager: "feature".into(),
+                durability: Durability::Sync
+            }
+        );
+        assert!(e.to_string().contains("needs the node's data_dir"), "{e}");
+        c.with_data_dir("/tmp/n").validate(&[]).unwrap();
     }
 
     #[test]

@@ -2,18 +2,23 @@
 //!
 //! A node config says the node's name; which operations it hosts — by name, with a version
 //! requirement and a number of instances, each under which supervisor and restart policy —;
-//! which datamanagers; whether it runs the simulation (world, seed) and the cart's drivers;
-//! whether it runs a dispatcher. [`Node::start`](super::Node::start) builds its supervision
-//! tree from that and nothing else. The same config is a TOML file (for `marie run --node
-//! FILE`, `missions/nodes/*.toml`) and a Rust value (for embedders).
+//! which datamanagers, and how durable each is; whether it runs the simulation (world, seed)
+//! and the cart's drivers; whether it runs a dispatcher; where it keeps its files.
+//! [`Node::start`](super::Node::start) builds its supervision tree from that and nothing
+//! else. The same config is a TOML file (for `marie run --node FILE`, `missions/nodes/*.toml`)
+//! and a Rust value (for embedders).
 //!
 //! ```toml
 //! [node]
 //! name = "v1-only"
 //! dispatcher = true            # default true
+//! data_dir = "data/v1-only"    # optional, relative to this file: the datamanagers' journals
+//!                              # (locked: one node at a time); default none: no file written
 //!
 //! [[datamanager]]              # the thesis' three by name; another needs an `id`
 //! name = "feature"
+//! durability = "sync"          # memory | process | sync; default process with a data_dir,
+//!                              # memory without (process and sync need the data_dir)
 //! [[datamanager]]
 //! name = "parameter"
 //! [[datamanager]]
@@ -44,15 +49,16 @@
 //! ```
 //!
 //! Every problem — unknown key, wrong type, a number out of range, an operation or version
-//! the node cannot host, a supervisor nobody declared — is a diagnostic at its
-//! `file:line:column` (the shared [`marie_actors::diagnostic`] reader).
+//! the node cannot host, a supervisor nobody declared, a durable datamanager on a node
+//! without a `data_dir` — is a diagnostic at its `file:line:column` (the shared
+//! [`marie_actors::diagnostic`] reader).
 
 mod load;
 
 pub(crate) use load::socket_addr;
 
 use marie_actors::diagnostic::Diagnostic;
-use marie_actors::dm::{self, DmSpec};
+use marie_actors::dm::{self, DmSpec, Durability};
 use marie_actors::eo::OperationFactory;
 use marie_supervision::{Restart, Strategy};
 use std::path::PathBuf;
@@ -99,6 +105,19 @@ pub struct NodeConfig {
     /// [`Node::start`]: super::Node::start
     /// [`Node::shutdown`]: super::Node::shutdown
     pub cluster: Option<crate::net::ClusterConfig>,
+    /// Where the node keeps what must outlive its process: each durable datamanager's
+    /// journal in `DATA_DIR/dm/NAME` ([`marie_actors::dm::journal::dir_in`]). `None`: the
+    /// node writes no file, and its datamanagers are in memory only.
+    ///
+    /// [`Node::start`](super::Node::start) locks the directory for the node's life, before
+    /// anything starts: a second node on it — another process, or a second start by mistake
+    /// — is refused at once and by name
+    /// ([`NodeError::DataDirInUse`](super::NodeError::DataDirInUse)) instead of half
+    /// starting and finding each journal held. Its presence also makes `process` the
+    /// default durability of the node's datamanagers ([`NodeConfig::durability_of`]): a
+    /// node given a place for its data means to keep it. In a file it is `[node] data_dir`,
+    /// relative to the file's directory.
+    pub data_dir: Option<PathBuf>,
 }
 
 /// One datamanager a node hosts.
@@ -108,14 +127,42 @@ pub struct DatamanagerConfig {
     pub name: String,
     /// Numeric id (the thesis': feature 1201, parameter 1202, world 1203).
     pub id: u32,
+    /// How durable its acknowledged writes are; `None`: the node's default
+    /// ([`NodeConfig::durability_of`]: `process` when the node has a
+    /// [`data_dir`](NodeConfig::data_dir), else `memory`). Per datamanager because their
+    /// data differ: sensor echoes a run recomputes need no disk, a map learned over days
+    /// may need `sync` (survives a power loss, at an `fdatasync` per batch). `process` and
+    /// `sync` need the node's `data_dir`; a config asking for them without one is refused.
+    pub durability: Option<Durability>,
+}
+
+impl DatamanagerConfig {
+    /// Datamanager `name` with numeric `id`, at the node's default durability.
+    pub fn new(name: impl Into<String>, id: u32) -> Self {
+        DatamanagerConfig {
+            name: name.into(),
+            id,
+            durability: None,
+        }
+    }
+
+    /// At `durability` rather than the node's default.
+    ///
+    /// ```
+    /// use marie_actors::dm::{Durability, FEATURE};
+    /// use marie_cluster::node::DatamanagerConfig;
+    /// let dm = DatamanagerConfig::from(FEATURE).with_durability(Durability::Sync);
+    /// assert_eq!(dm.durability, Some(Durability::Sync));
+    /// ```
+    pub fn with_durability(mut self, durability: Durability) -> Self {
+        self.durability = Some(durability);
+        self
+    }
 }
 
 impl From<DmSpec> for DatamanagerConfig {
     fn from(spec: DmSpec) -> Self {
-        DatamanagerConfig {
-            name: spec.name.to_string(),
-            id: spec.id,
-        }
+        DatamanagerConfig::new(spec.name, spec.id)
     }
 }
 
@@ -289,6 +336,17 @@ pub enum ConfigError {
         /// What was expected.
         message: String,
     },
+    /// A datamanager asks for a journal on a node that has no place for one.
+    #[error(
+        "datamanager `{datamanager}`: durability `{durability}` needs the node's data_dir \
+         (give the node one, or use `memory`)"
+    )]
+    NoDataDir {
+        /// The datamanager.
+        datamanager: String,
+        /// The durability it asks for.
+        durability: Durability,
+    },
 }
 
 impl NodeConfig {
@@ -302,6 +360,7 @@ impl NodeConfig {
             operations: Vec::new(),
             simulation: None,
             cluster: None,
+            data_dir: None,
         }
     }
 
@@ -312,9 +371,29 @@ impl NodeConfig {
         self
     }
 
+    /// Keep the node's files — its datamanagers' journals — in `dir`
+    /// ([`NodeConfig::data_dir`]): locked while the node runs, and its datamanagers at
+    /// `process` unless they say otherwise.
+    pub fn with_data_dir(mut self, dir: impl Into<PathBuf>) -> Self {
+        self.data_dir = Some(dir.into());
+        self
+    }
+
+    /// How durable datamanager `dm` of this node is: its own
+    /// [`durability`](DatamanagerConfig::durability), else `process` when the node has a
+    /// [`data_dir`](NodeConfig::data_dir) and `memory` when it has none.
+    pub fn durability_of(&self, dm: &DatamanagerConfig) -> Durability {
+        dm.durability.unwrap_or(if self.data_dir.is_some() {
+            Durability::Process
+        } else {
+            Durability::Memory
+        })
+    }
+
     /// The embedded default: the thesis' three datamanagers, one instance of every operation
     /// of `catalog` under [`OPERATIONS`], a dispatcher — everything a mission may need. This is
-    /// what `marie run MISSION` runs without `--node`.
+    /// what `marie run MISSION` runs without `--node`: no data directory, so its datamanagers
+    /// are in memory and it leaves no file behind.
     pub fn everything(name: impl Into<String>, catalog: &[OperationFactory]) -> Self {
         // each name once, in catalogue order (an entry hosts every version of its name)
         let mut seen = std::collections::BTreeSet::new();
@@ -396,6 +475,17 @@ impl NodeConfig {
                     kind: "datamanager",
                     name: d.name.clone(),
                 });
+            }
+            match d.durability {
+                Some(durability @ (Durability::Process | Durability::Sync))
+                    if self.data_dir.is_none() =>
+                {
+                    return Err(ConfigError::NoDataDir {
+                        datamanager: d.name.clone(),
+                        durability,
+                    });
+                }
+                _ => {}
             }
         }
         let supervisors = self.operation_supervisors();
