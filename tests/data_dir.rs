@@ -125,10 +125,14 @@ fn up_with_a_data_dir_keeps_it_and_a_second_up_on_it_is_refused() {
 fn a_run_with_a_data_dir_docks_although_its_feature_datamanager_is_killed() {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("data");
+    let events = dir.path().join("events.jsonl");
+    let events_arg = events.display().to_string();
     let run = |data_dir: Option<&Path>| {
         let mut args = vec![
             "run",
             "missions/docking.toml",
+            "--events",
+            events_arg.as_str(),
             "--speed",
             "max",
             "--fault",
@@ -160,6 +164,19 @@ fn a_run_with_a_data_dir_docks_although_its_feature_datamanager_is_killed() {
         );
         assert!(stdout.contains("injected kill into feature"), "{stdout}");
         assert!(stdout.contains("outcome: succeeded"), "{stdout}");
+        // the restarted DM said what it read back (`dm_recovered`): the records it held
+        let recovered: Vec<serde_json::Value> = std::fs::read_to_string(&events)
+            .unwrap()
+            .lines()
+            .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+            .filter(|e| e["kind"]["type"] == "dm_recovered" && e["kind"]["dm"] == "feature")
+            .collect();
+        assert!(
+            recovered
+                .iter()
+                .any(|e| e["kind"]["records"].as_u64() > Some(0) && e["kind"]["torn"].is_null()),
+            "{attempt}: {recovered:?}"
+        );
     }
     let journal = files_under(&data);
     assert!(

@@ -223,6 +223,25 @@ pub enum EventKind {
         /// The candidates and the choice.
         choice: Choice,
     },
+    // --- datamanagers ---
+    /// A datamanager with a journal started (at the node's start, or restarted after a
+    /// crash) and read it back: what it kept, and what it dropped from a torn or corrupt end.
+    DmRecovered {
+        /// The datamanager's name.
+        dm: String,
+        /// Records it holds after the replay.
+        records: u64,
+        /// Bytes of journal kept.
+        bytes: u64,
+        /// How long the replay took, in ms.
+        ms: u64,
+        /// Bytes dropped.
+        dropped_bytes: u64,
+        /// Whole records among the dropped bytes.
+        dropped_records: u64,
+        /// Where and why the replay stopped early, if it did.
+        torn: Option<String>,
+    },
     // --- the robot ---
     /// A robot judged the run after the dispatcher ended it: its outcome replaces the
     /// dispatcher's, and what it says of the run (its [`RobotSection`], e.g. the cart's final

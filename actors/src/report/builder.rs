@@ -206,6 +206,7 @@ impl ReportBuilder {
             | EventKind::NodeFrozen { .. }
             | EventKind::NodeRefused { .. }
             | EventKind::ConnectionRefused { .. }
+            | EventKind::DmRecovered { .. }
             | EventKind::Robot { .. } => {}
         }
     }

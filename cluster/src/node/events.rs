@@ -3,6 +3,8 @@
 //! live lines, the `--events` file and a remote monitor see restarts and give-ups as they
 //! happen.
 
+use super::tree::DATAMANAGERS;
+use marie_actors::dm::DmClient;
 use marie_actors::events::{EventBus, EventKind};
 use marie_supervision::{RestartCause, SupervisorEvent, SupervisorRef};
 use tokio::sync::broadcast::{self, error::RecvError};
@@ -82,6 +84,16 @@ pub(crate) async fn bridge_supervisors(
                 continue;
             };
             if let Ok(rx) = sup.subscribe().await {
+                if child.id == DATAMANAGERS {
+                    // the datamanagers started before the bridge: their recoveries now
+                    if let Ok(dms) = sup.which_children().await {
+                        for dm in dms {
+                            if let Some(actor) = dm.state.actor() {
+                                tell_recovery(bus, actor.clone());
+                            }
+                        }
+                    }
+                }
                 tasks.push(spawn_relay(bus, child.id, rx, false));
             }
         }
@@ -105,6 +117,15 @@ async fn relay(
             Ok(event) => {
                 if let Some(kind) = translate(&name, &event) {
                     bus.publish(kind);
+                }
+                if name == DATAMANAGERS {
+                    match &event {
+                        SupervisorEvent::ChildStarted { actor, .. }
+                        | SupervisorEvent::ChildRestarted { new: actor, .. } => {
+                            tell_recovery(&bus, actor.clone())
+                        }
+                        _ => {}
+                    }
                 }
                 if follow {
                     if let Some((id, sub)) = child_supervisor(&event).await {
@@ -134,6 +155,29 @@ async fn child_supervisor(
         .await
         .ok()?;
     Some((id.clone(), sub))
+}
+
+/// Ask the datamanager `actor` what its start read back from its journal, and publish it
+/// (`dm_recovered`) if it has a journal.
+fn tell_recovery(bus: &EventBus, actor: ractor::ActorCell) {
+    let bus = bus.clone();
+    tokio::spawn(async move {
+        let client = DmClient::new(actor.into(), "node");
+        let Ok(stats) = client.stats().await else {
+            return;
+        };
+        if let Some(r) = stats.recovery {
+            bus.publish(EventKind::DmRecovered {
+                dm: stats.name,
+                records: r.records,
+                bytes: r.bytes,
+                ms: r.millis,
+                dropped_bytes: r.dropped_bytes,
+                dropped_records: r.dropped_records,
+                torn: r.torn,
+            });
+        }
+    });
 }
 
 /// Relay a supervisor's events in a task of their own (a plain function, so that the root's

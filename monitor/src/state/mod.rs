@@ -252,6 +252,27 @@ impl MonitorState {
                 "node",
                 format!("{node} refused {peer} (protocol {theirs}, ours {ours})"),
             ),
+            EventKind::DmRecovered {
+                dm,
+                records,
+                bytes,
+                ms,
+                dropped_bytes,
+                dropped_records,
+                torn,
+            } => line.push(
+                at,
+                node,
+                "datamanager",
+                match torn {
+                    None => format!(
+                        "datamanager {dm} on {node} read its journal back: {records} records ({bytes} bytes) in {ms} ms"
+                    ),
+                    Some(why) => format!(
+                        "datamanager {dm} on {node} read its journal back up to a torn end ({why}): {records} records ({bytes} bytes) kept, {dropped_records} records ({dropped_bytes} bytes) dropped, in {ms} ms"
+                    ),
+                },
+            ),
             EventKind::ConnectionRefused { from, reason } => line.push(
                 at,
                 node,

@@ -14,8 +14,9 @@
 //! acknowledged by nothing but a later answer to the same producer.
 //!
 //! # On disk
-//! Segments of CRC-32C-checksummed entries ([`segment`], [`entry`]), written by a thread of
-//! the journal's own with group commit ([`writer`]). Deletes and retention make records
+//! Segments of CRC-32C-checksummed entries (the `segment` and `entry` modules), written on
+//! tokio's blocking pool with group commit (the `writer` module: why not a thread of its
+//! own, too). Deletes and retention make records
 //! garbage; once the journal holds more than twice the live records (and at least
 //! [`SNAPSHOT_MIN`] puts), the datamanager writes a snapshot of its live records to a new
 //! segment and the older segments are deleted, so the journal stays within about three times
@@ -48,7 +49,6 @@ use ractor::ActorRef;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::Ordering;
-use std::sync::mpsc::{self, Sender};
 use std::sync::Arc;
 use std::time::Duration;
 use writer::{Ack, Job, Shared, Writer};
@@ -109,7 +109,8 @@ const BATCH_BYTES: usize = 1 << 20;
 /// the journal (it finishes the batches it was handed, at most one sync).
 const LOCK_WAIT: Duration = Duration::from_secs(10);
 
-/// The journal as its datamanager holds it: the batch being gathered and the writer's queue.
+/// The journal as its datamanager holds it: the batch being gathered, the jobs waiting for
+/// the writer, and the writer when it is idle.
 pub(crate) struct Journal {
     durability: Durability,
     dir: PathBuf,
@@ -118,14 +119,25 @@ pub(crate) struct Journal {
     seqs: Vec<u64>,
     /// A `JournalFlush` is in the mailbox.
     flush_sent: bool,
-    /// Batches handed to the writer.
-    handed: u64,
+    /// Jobs handed over, waiting for the writer.
+    pending: Vec<Job>,
+    /// The writer when idle; `None` while a group is being written (or if it was lost).
+    writer: Option<Writer>,
+    /// A group is being written.
+    in_flight: bool,
+    /// Where a group's writer comes back.
+    returned: Arc<Returned>,
     /// Put entries in the journal since its last snapshot.
     puts: u64,
     shared: Arc<Shared>,
-    jobs: Option<Sender<Job>>,
-    thread: Option<std::thread::JoinHandle<()>>,
     myself: ActorRef<DmMsg>,
+}
+
+/// The writer, back from writing a group (`None` in the slot after a panic in it).
+#[derive(Default)]
+struct Returned {
+    slot: std::sync::Mutex<Option<Writer>>,
+    done: tokio::sync::Notify,
 }
 
 /// A store read back from its journal, and the journal ready to append to.
@@ -186,13 +198,8 @@ impl Journal {
             refused: Box::new(move |seqs| {
                 let _ = refused_to.cast(DmMsg::JournalRefused { seqs });
             }),
-            lock,
+            _lock: lock,
         };
-        let (tx, rx) = mpsc::channel();
-        let thread = std::thread::Builder::new()
-            .name("marie-journal".into())
-            .spawn(move || writer.run(rx))
-            .map_err(|e| storage("starting the writer of", &e))?;
         let report = &recovered.report;
         if report.torn.is_some() {
             tracing::warn!(journal = %dir.display(), records = report.records, bytes = report.bytes, dropped_bytes = report.dropped_bytes, dropped_records = report.dropped_records, ms = report.millis, torn = report.torn.as_deref().unwrap_or(""), "journal recovered up to a torn end");
@@ -207,11 +214,12 @@ impl Journal {
                 acks: Vec::new(),
                 seqs: Vec::new(),
                 flush_sent: false,
-                handed: 0,
+                pending: Vec::new(),
+                writer: Some(writer),
+                in_flight: false,
+                returned: Arc::default(),
                 puts: recovered.puts,
                 shared,
-                jobs: Some(tx),
-                thread: Some(thread),
                 myself,
             },
             store: recovered.store,
@@ -261,7 +269,8 @@ impl Journal {
     pub(crate) fn after_durable(&mut self, ack: Ack) {
         let idle = self.batch.is_empty()
             && self.acks.is_empty()
-            && self.shared.done.load(Ordering::Acquire) == self.handed;
+            && self.pending.is_empty()
+            && self.writer.is_some();
         if idle {
             ack(self.usable());
             return;
@@ -292,30 +301,86 @@ impl Journal {
         if self.batch.is_empty() && self.acks.is_empty() {
             return;
         }
-        let job = Job::Batch {
+        self.pending.push(Job::Batch {
             bytes: std::mem::replace(&mut self.batch, Vec::with_capacity(64 << 10)),
             acks: std::mem::take(&mut self.acks),
             seqs: std::mem::take(&mut self.seqs),
-        };
-        self.send(job);
+        });
+        self.pump();
     }
 
-    fn send(&mut self, job: Job) {
-        let Some(jobs) = &self.jobs else { return };
-        let counted = matches!(job, Job::Batch { .. });
-        if let Err(mpsc::SendError(job)) = jobs.send(job) {
-            // the writer is gone (it cannot be, short of a panic in it): refuse what waits
-            tracing::error!(journal = %self.dir.display(), "journal writer gone");
-            self.shared.fail("the journal's writer stopped".to_string());
-            if let Job::Batch { acks, .. } = job {
-                for ack in acks {
-                    ack(self.usable());
+    /// If the writer is idle, give it every job waiting: on the blocking pool, as one group.
+    fn pump(&mut self) {
+        if self.pending.is_empty() {
+            return;
+        }
+        let Some(mut writer) = self.writer.take() else {
+            if !self.in_flight {
+                // the writer was lost (a panic in it): nothing can be made durable any more
+                self.shared.fail("the journal's writer stopped".to_string());
+                for job in std::mem::take(&mut self.pending) {
+                    if let Job::Batch { acks, .. } = job {
+                        acks.into_iter().for_each(|ack| ack(self.usable()));
+                    }
                 }
             }
             return;
+        };
+        // Only acknowledgements waiting, and the writer idle: all before them is durable.
+        let only_acks = self
+            .pending
+            .iter()
+            .all(|j| matches!(j, Job::Batch { bytes, .. } if bytes.is_empty()));
+        if only_acks {
+            for job in std::mem::take(&mut self.pending) {
+                if let Job::Batch { acks, .. } = job {
+                    acks.into_iter().for_each(|ack| ack(self.usable()));
+                }
+            }
+            self.writer = Some(writer);
+            return;
         }
-        if counted {
-            self.handed += 1;
+        let jobs = std::mem::take(&mut self.pending);
+        self.in_flight = true;
+        let returned = self.returned.clone();
+        let shared = self.shared.clone();
+        let myself = self.myself.clone();
+        tokio::task::spawn_blocking(move || {
+            let ran = std::panic::catch_unwind(std::panic::AssertUnwindSafe(move || {
+                writer.run(jobs);
+                writer
+            }));
+            match ran {
+                Ok(writer) => {
+                    *returned.slot.lock().unwrap_or_else(|e| e.into_inner()) = Some(writer);
+                }
+                Err(_) => shared.fail("the journal's writer panicked".to_string()),
+            }
+            returned.done.notify_one();
+            // the datamanager takes its writer back (a stopping one is waiting in `close`)
+            let _ = myself.cast(DmMsg::JournalDone {});
+        });
+    }
+
+    /// The writer is back from a group (the datamanager's `JournalDone`): hand it the jobs
+    /// that gathered meanwhile.
+    pub(crate) fn on_done(&mut self) {
+        self.take_back();
+        self.pump();
+    }
+
+    fn take_back(&mut self) {
+        if let Some(writer) = self
+            .returned
+            .slot
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .take()
+        {
+            self.writer = Some(writer);
+            self.in_flight = false;
+        } else if self.shared.failure().is_some() {
+            self.in_flight = false;
         }
     }
 
@@ -340,16 +405,27 @@ impl Journal {
         }
         entry::encode_snap_end(&mut bytes, n);
         self.puts = n;
-        self.send(Job::Snapshot { bytes });
+        self.pending.push(Job::Snapshot { bytes });
+        self.pump();
     }
 
     /// Hand what is left to the writer and wait for it to finish (a graceful stop: nothing
-    /// journaled is left behind).
+    /// journaled is left behind). The writer, and with it the directory's lock, is dropped.
     pub(crate) async fn close(mut self) {
         self.flush();
-        self.jobs = None;
-        if let Some(thread) = self.thread.take() {
-            let _ = tokio::task::spawn_blocking(move || thread.join()).await;
+        loop {
+            if self.writer.is_some() {
+                if self.pending.is_empty() {
+                    return;
+                }
+                self.pump();
+                continue;
+            }
+            if !self.in_flight {
+                return; // lost: nothing more can be written
+            }
+            self.returned.done.notified().await;
+            self.take_back();
         }
     }
 }

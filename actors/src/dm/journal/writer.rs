@@ -1,22 +1,29 @@
-//! The journal's writer: a thread of its own that writes the datamanager's batches, makes
-//! them durable, and only then acknowledges them.
+//! The journal's writer: it writes the datamanager's batches, makes them durable, and only
+//! then acknowledges them — on tokio's blocking pool, one group of batches at a time.
 //!
 //! # Group commit
-//! The datamanager hands over a batch each time its mailbox has drained of puts (a
-//! `JournalFlush` it sent itself lands behind them). The writer takes *every* batch waiting
-//! in its queue, writes them in order and — at `sync` durability — makes them durable with one
-//! `fdatasync`; then it runs their acknowledgements. While one `fdatasync` runs, the next
-//! group gathers: the busier the datamanager, the larger the group, and the cost of a sync
-//! is shared by every record in it. At `process` durability the same path skips the sync: a
-//! record acknowledged has been written to the OS, which keeps it through `kill -9`.
+//! The datamanager gathers the records and deletes it handles into a batch, and hands the
+//! batch over each time its mailbox has drained (a `JournalFlush` it sent itself lands
+//! behind the messages waiting). One group of batches is written at a time: while it is
+//! being written — and at `sync` durability made durable with one `fdatasync` — every batch
+//! handed over waits, and the next group takes them all. The busier the datamanager, the
+//! larger the group, and the cost of a sync is shared by every record in it. At `process`
+//! durability the same path skips the sync: a record acknowledged has been written to the
+//! OS, which keeps it through `kill -9`.
+//!
+//! # Why the blocking pool, not a thread of its own
+//! Under a simulated clock (tokio's paused time, `marie run --speed max`) the runtime moves
+//! time forward whenever it has nothing to run, so a wait on a thread tokio does not know
+//! would see every timeout fire at once. A blocking-pool task holds time still while it runs
+//! (tokio does not auto-advance then): disk I/O takes no simulated time, as it should.
 //!
 //! # Failures
 //! A write that fails (a full or unwritable disk) is cut back to the last whole batch, its
-//! records are refused (their acknowledgements say [`DmError::Storage`], and the datamanager
-//! takes them out of its store), and the writer goes on: the next batch may find room. A
-//! failed `fdatasync` cannot be retried (the kernel may have dropped the dirty pages it could
-//! not write), so the journal is then *failed*: every later put is refused until the
-//! datamanager is restarted and reads back what the disk really holds.
+//! records are refused (the datamanager takes them out of its store, then their
+//! acknowledgements say [`DmError::Storage`]), and the writer goes on: the next batch may
+//! find room. A failed `fdatasync` cannot be retried (the kernel may have dropped the dirty
+//! pages it could not write), so the journal is then *failed*: every later put is refused
+//! until the datamanager is restarted and reads back what the disk really holds.
 
 use super::lock::DirLock;
 use super::segment;
@@ -25,7 +32,6 @@ use std::fs::File;
 use std::io::Write;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::mpsc::Receiver;
 use std::sync::{Arc, Mutex};
 
 /// An acknowledgement the writer runs once what came before it is durable (or refused).
@@ -47,13 +53,11 @@ pub(crate) enum Job {
 /// What the writer and the datamanager both see.
 #[derive(Debug, Default)]
 pub(crate) struct Shared {
-    /// Batches the writer has finished (written, or refused).
-    pub done: AtomicU64,
     /// Bytes of the journal on disk.
     pub bytes: AtomicU64,
-    /// Set when a sync failed: why; every later put is refused.
-    pub failed: Mutex<Option<String>>,
-    pub is_failed: AtomicBool,
+    /// Why the journal failed (a sync failed), if it did; every later put is refused.
+    failed: Mutex<Option<String>>,
+    is_failed: AtomicBool,
 }
 
 impl Shared {
@@ -75,7 +79,7 @@ impl Shared {
     }
 }
 
-/// The writer thread's state.
+/// The files the journal writes, and how.
 pub(crate) struct Writer {
     pub dir: PathBuf,
     pub segment: u64,
@@ -86,39 +90,24 @@ pub(crate) struct Writer {
     /// Called with the seqs of records whose write failed (the datamanager removes them).
     pub refused: Box<dyn Fn(Vec<u64>) + Send>,
     /// Held for as long as the writer may write.
-    pub lock: DirLock,
+    pub _lock: DirLock,
 }
 
-/// Largest group written before its acknowledgements go out.
-const GROUP_BYTES: usize = 8 << 20;
-
 impl Writer {
-    /// Run until the datamanager drops its end of the queue and every job is done.
-    pub(crate) fn run(mut self, jobs: Receiver<Job>) {
-        let name = self.lock.dir().display().to_string();
-        while let Ok(first) = jobs.recv() {
-            let mut group = Vec::new();
-            let mut size = 0;
-            let mut next = Some(first);
-            while let Some(job) = next.take() {
-                match job {
-                    Job::Snapshot { bytes } => {
-                        self.commit(std::mem::take(&mut group));
-                        size = 0;
-                        self.snapshot(bytes);
-                    }
-                    Job::Batch { bytes, acks, seqs } => {
-                        size += bytes.len();
-                        group.push((bytes, acks, seqs));
-                    }
-                }
-                if size < GROUP_BYTES {
-                    next = jobs.try_recv().ok();
+    /// Do `jobs` in order: each run of batches written and synced as one group, then
+    /// acknowledged; each snapshot after the batches before it.
+    pub(crate) fn run(&mut self, jobs: Vec<Job>) {
+        let mut group = Vec::new();
+        for job in jobs {
+            match job {
+                Job::Batch { bytes, acks, seqs } => group.push((bytes, acks, seqs)),
+                Job::Snapshot { bytes } => {
+                    self.commit(std::mem::take(&mut group));
+                    self.snapshot(bytes);
                 }
             }
-            self.commit(group);
         }
-        tracing::debug!(journal = %name, "journal writer done");
+        self.commit(group);
     }
 
     /// Write a group of batches, sync them once, and acknowledge them.
@@ -128,17 +117,21 @@ impl Writer {
         }
         let failed = self.shared.failure();
         let mut written = Vec::with_capacity(group.len());
+        let mut wrote = false;
         for (bytes, acks, seqs) in group {
             let outcome = match &failed {
                 Some(why) => Err(why.clone()),
                 None => self.append(&bytes),
             };
             match outcome {
-                Ok(()) => written.push((acks, seqs)),
+                Ok(()) => {
+                    wrote |= !bytes.is_empty();
+                    written.push((acks, seqs));
+                }
                 Err(why) => self.refuse(acks, seqs, &why),
             }
         }
-        if self.sync && !written.is_empty() {
+        if self.sync && wrote {
             if let Err(e) = self.file.sync_data() {
                 let why = format!("fdatasync of {}: {e}", self.dir.display());
                 self.shared.fail(why.clone());
@@ -152,21 +145,19 @@ impl Writer {
             for ack in acks {
                 ack(Ok(()));
             }
-            self.shared.done.fetch_add(1, Ordering::AcqRel);
         }
     }
 
     /// Refuse a batch: its records are taken out first (the message is in the datamanager's
     /// mailbox before any producer hears of the refusal, so nothing it asks next sees them),
     /// then its acknowledgements say why.
-    fn refuse(&self, acks: Vec<Ack>, seqs: Vec<u64>, why: &str) {
+    pub(crate) fn refuse(&self, acks: Vec<Ack>, seqs: Vec<u64>, why: &str) {
         if !seqs.is_empty() {
             (self.refused)(seqs);
         }
         for ack in acks {
             ack(Err(DmError::Storage(why.to_string())));
         }
-        self.shared.done.fetch_add(1, Ordering::AcqRel);
     }
 
     /// Append one batch to the current segment (a new one if it is full); on failure cut the
