@@ -128,9 +128,22 @@ fn ls_lists_datamanagers_and_operations_like_the_thesis_log() {
         "{stdout}"
     );
     assert!(stdout.contains("name: world"), "{stdout}");
+    // each datamanager's state: the built-in node keeps them in memory
+    assert!(
+        stdout.contains("DM feature on embedded: 0 records, in memory"),
+        "{stdout}"
+    );
     let out = marie(&["ls", "--json"]);
     let rows: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert!(rows.as_array().unwrap().len() >= 6);
+    let world = rows
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|r| r["name"] == "world")
+        .unwrap();
+    assert_eq!(world["durability"], "memory", "{world}");
+    assert!(world["records"].as_u64().is_some(), "{world}");
 }
 
 #[test]

@@ -184,3 +184,44 @@ fn a_run_with_a_data_dir_docks_although_its_feature_datamanager_is_killed() {
         "{journal:?}"
     );
 }
+
+/// `--chaos SEED --chaos-dms`: the datamanagers are among chaos's victims. Seed 4 kills
+/// `feature` twice and `parameter` twice among the operations; with a data dir each comes
+/// back with its records and the mission docks.
+#[test]
+fn chaos_with_datamanagers_and_a_data_dir_still_docks() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("data").display().to_string();
+    let report = dir.path().join("report.json");
+    let report_arg = report.display().to_string();
+    let out = marie(&[
+        "run",
+        "missions/docking.toml",
+        "--chaos",
+        "4",
+        "--chaos-dms",
+        "--data-dir",
+        &data,
+        "--report",
+        &report_arg,
+    ]);
+    let stdout = text(&out.stdout);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{stdout}\n{}",
+        text(&out.stderr)
+    );
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let hit: Vec<&str> = report["faults"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f["operation"].as_str().unwrap())
+        .collect();
+    for dm in ["feature", "parameter"] {
+        assert!(hit.contains(&dm), "{dm} among {hit:?}");
+    }
+    assert!(hit.len() > 4, "operations too: {hit:?}");
+}

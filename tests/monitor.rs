@@ -204,6 +204,35 @@ fn up_with_a_monitor_shows_every_node_and_what_it_hosts_and_stops_one_from_the_p
     for node in ["cart", "features", "operations", "spare"] {
         assert_eq!(state["cluster"][node]["status"], "up", "{node}: {state}");
     }
+    // a datamanager from the page (its buttons: the kinds that hit one): its supervisor
+    // restarts it, and — `up` gives the node a data dir — it reads its journal back
+    assert_eq!(
+        info["fault_kinds"]["datamanager"],
+        serde_json::json!(["kill", "panic", "hang"]),
+        "{info}"
+    );
+    let kill = serde_json::json!({"fault": "kill", "operation": "feature", "node": "features"});
+    let (status, answer) = http::post_json(addr, "/api/fault", &kill);
+    assert_eq!(status, 200, "{answer}");
+    state_until(
+        addr,
+        "the feature DM's restart and recovery in the timeline",
+        |s| {
+            s["timeline"]["entries"].as_array().is_some_and(|e| {
+                let at = |class: &str| {
+                    e.iter()
+                        .position(|e| e["class"] == class && e["node"] == "features")
+                };
+                let restart = at("restart");
+                // the recovery told after the restart (the timeline is in order)
+                restart.is_some_and(|r| {
+                    e[r..]
+                        .iter()
+                        .any(|e| e["class"] == "datamanager" && e["node"] == "features")
+                })
+            })
+        },
+    );
     // no run: the node that runs the cart draws it anyway — its world (told again for a
     // monitor that joined after its start) and its poses
     state_until(addr, "the cart in its world", |s| {

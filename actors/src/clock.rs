@@ -58,6 +58,12 @@ impl Timer {
     ) -> Timer {
         Timer(cast_after(clock, d, to, msg))
     }
+
+    /// A task that ends in a message of its own making (e.g. a wait for something to
+    /// appear), cancelled like a timer when the returned value is dropped.
+    pub fn task(task: tokio::task::JoinHandle<()>) -> Timer {
+        Timer(task)
+    }
 }
 
 impl Drop for Timer {

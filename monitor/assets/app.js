@@ -22,7 +22,7 @@ let latest = null;
 // what /api/info says the page may offer
 let offers = { properties: false, operation_faults: false, stoppable_nodes: [] };
 // the fault kinds by what they aim at (/api/info): a button per kind
-let faultKinds = { operation: [], node: [] };
+let faultKinds = { operation: [], node: [], datamanager: [] };
 // what each kind does, for its button's title (a kind without one is titled by its name)
 const FAULT_TITLES = {
   kill: "kill its actor: its supervisor restarts it",
@@ -229,10 +229,21 @@ function renderCluster(cluster) {
         `<div class="modules">${mods.length} module(s): ` +
         mods.map((m) => `<span class="module" data-kind="${m.kind}" data-module="${esc(m.name)}" ` +
           `data-node="${esc(n.name)}" data-address="${esc(m.address)}"` +
-          `${m.kind === "operation" && offers.properties ? ' title="its properties"' : ""}>${esc(m.name)}</span>`).join(", ") +
+          `${m.kind === "operation" && offers.properties ? ' title="its properties"' : ""}>${esc(m.name)}</span>` +
+          dmFaults(m, n)).join(", ") +
         `</div></div>`;
     })
     .join(""));
+}
+
+// A datamanager's fault buttons (kill, panic, hang: its supervisor restarts it), when the
+// page may inject faults and its node is up.
+function dmFaults(m, n) {
+  if (m.kind !== "datamanager" || !offers.operation_faults || n.status !== "up") return "";
+  return faultKinds.datamanager.map((k) =>
+    ` <button type="button" class="fault dm-fault" data-fault="${esc(k)}" data-op="${esc(m.name)}" ` +
+    `data-node="${esc(n.name)}" data-address="${esc(m.address)}" ` +
+    `title="${esc(FAULT_TITLES[k] || k)} (datamanager ${esc(m.name)})">${esc(k)}</button>`).join("");
 }
 
 const pts = (list) => (list || []).map((p) => p[0].toFixed(3) + "," + p[1].toFixed(3)).join(" ");
@@ -299,6 +310,13 @@ function renderTimeline(t) {
       .join(""));
   if (atBottom) list.scrollTop = list.scrollHeight;
 }
+
+$("#cluster").addEventListener("click", (ev) => {
+  const button = ev.target.closest("button.dm-fault");
+  if (!button) return;
+  const d = button.dataset;
+  injectFault({ fault: d.fault, operation: d.op, node: d.node || null, address: d.address || null });
+});
 
 $("#bindings tbody").addEventListener("click", (ev) => {
   const button = ev.target.closest("button.fault");

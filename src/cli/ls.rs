@@ -4,8 +4,10 @@
 use super::args::RobotArgs;
 use super::join::{join, member_name, JoinArgs};
 use super::prepare::start_node;
-use marie::actors::registry::{self, Instance};
+use marie::actors::dm::{DmClient, DmStats, Durability};
+use marie::actors::registry::{self, Instance, ModuleKind};
 use std::process::ExitCode;
+use std::time::Duration;
 
 /// Flags of `marie ls`.
 #[derive(clap::Args, Debug)]
@@ -26,30 +28,75 @@ pub(crate) async fn ls(args: LsArgs) -> anyhow::Result<ExitCode> {
     if let Some(target) = args.cluster.target_alone(&args.robot, "lists")? {
         // a member that hosts nothing: what it lists is the others'
         let transport = join(&member_name("ls"), &target).await?;
-        let result = print_listing(&registry::list(), args.json);
+        let result = print_listing(&registry::list(), args.json).await;
         transport.stop().await;
         return result.map(|()| ExitCode::SUCCESS);
     }
     let node = start_node(args.robot.options(None)).await?.node;
-    print_listing(&registry::list(), args.json)?;
+    print_listing(&registry::list(), args.json).await?;
     node.shutdown().await;
     Ok(ExitCode::SUCCESS)
 }
 
-fn print_listing(list: &[Instance], json: bool) -> anyhow::Result<()> {
+/// How long `ls` waits for a datamanager's stats.
+const STATS_WITHIN: Duration = Duration::from_secs(2);
+
+/// What `ls` shows of a datamanager beyond its place: its durability, records and journal.
+async fn dm_state(i: &Instance) -> Option<DmStats> {
+    if i.kind != ModuleKind::Datamanager {
+        return None;
+    }
+    let client = DmClient::from_instance(i, "ls")
+        .with_timeout(STATS_WITHIN)
+        .with_follow(Duration::ZERO);
+    client.stats().await.ok()
+}
+
+async fn print_listing(list: &[Instance], json: bool) -> anyhow::Result<()> {
+    let mut dms = Vec::with_capacity(list.len());
+    for i in list {
+        dms.push(dm_state(i).await);
+    }
     if json {
         let rows: Vec<_> = list
             .iter()
-            .map(|i| {
-                serde_json::json!({
+            .zip(&dms)
+            .map(|(i, dm)| {
+                let mut row = serde_json::json!({
                     "kind": i.kind.label(), "id": i.id, "name": i.name,
                     "node": i.node, "address": i.actor.get_id().to_string(),
-                })
+                });
+                if let Some(s) = dm {
+                    row["durability"] = s.durability.as_str().into();
+                    row["records"] = s.records.into();
+                    row["journal_bytes"] = s.journal_bytes.into();
+                }
+                row
             })
             .collect();
         println!("{}", serde_json::to_string_pretty(&rows)?);
     } else {
         print!("{}", registry::render_listing(list));
+        for (i, s) in list.iter().zip(&dms) {
+            let Some(s) = s else { continue };
+            let journal = match s.durability {
+                Durability::Memory => "in memory".to_string(),
+                d => format!("{d}, journal {}", bytes(s.journal_bytes)),
+            };
+            println!(
+                "DM {} on {}: {} records, {journal}",
+                i.name, i.node, s.records
+            );
+        }
     }
     Ok(())
+}
+
+/// A size as people read it.
+fn bytes(n: u64) -> String {
+    match n {
+        n if n >= 1 << 20 => format!("{:.1} MiB", n as f64 / (1u64 << 20) as f64),
+        n if n >= 1 << 10 => format!("{:.1} KiB", n as f64 / 1024.0),
+        n => format!("{n} B"),
+    }
 }

@@ -81,6 +81,11 @@ pub(crate) struct RunArgs {
     /// picked by a generator seeded with SEED.
     #[arg(long, value_name = "SEED", value_parser = parse_seed, allow_hyphen_values = true)]
     pub chaos: Option<u64>,
+    /// With `--chaos`: the datamanagers are among the victims too (a kill of a
+    /// datamanager, which its supervisor restarts: with `--data-dir` it comes back with its
+    /// records).
+    #[arg(long, requires = "chaos")]
+    pub chaos_dms: bool,
     /// Show the run live in the browser: serve the monitor's page on ADDR (default
     /// 127.0.0.1:7700; port 0: one the OS picks), print its address, and after the run keep
     /// serving its final state until Ctrl-C. With `--join`, the other nodes' events too.
@@ -138,6 +143,7 @@ pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         speed,
         faults,
         chaos,
+        chaos_dms,
         cluster,
         monitor: monitor_listen,
         allow_faults,
@@ -166,7 +172,11 @@ pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         .faults(faults)
         .node_processes(node_processes.clone());
     if let Some(seed) = chaos {
-        options = options.chaos(Chaos::new(seed));
+        let chaos = Chaos::new(seed);
+        options = options.chaos(match chaos_dms {
+            true => chaos.with_datamanagers(),
+            false => chaos,
+        });
     }
     // The runtime's paused clock is the mission clock (the node's "real" clock reads it);
     // the pacer only holds it back to `speed`, from before the node starts to the end.

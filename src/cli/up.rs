@@ -367,6 +367,7 @@ async fn serve(
         speed: Some(speed),
         faults: Vec::new(),
         chaos: None,
+        chaos_dms: false,
         monitor: args.monitor,
         allow_faults: args.allow_faults,
         node_processes: processes,

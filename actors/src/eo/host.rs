@@ -334,7 +334,10 @@ impl<O: Operation> HostState<O> {
                 tracing::warn!(op = %self.identity.name, %dm, error = %e, "datamanager gone: waiting for it");
                 let reason = e.to_string();
                 let myself = myself.clone();
-                tokio::spawn(async move {
+                // held where the next tick is: it dies with the host, and a later tick or
+                // wait replaces (cancels) it; its message names its activation, which a
+                // host that has moved on ignores
+                self.tick = Some(Timer::task(tokio::spawn(async move {
                     let message = if crate::dm::next_instance(&dm, None, super::DATAMANAGER_RETURN)
                         .await
                         .is_some()
@@ -349,7 +352,7 @@ impl<O: Operation> HostState<O> {
                         }
                     };
                     let _ = myself.cast(message);
-                });
+                })));
             }
             Err(e) => {
                 tracing::warn!(op = %self.identity.name, error = %e, "operation failed");

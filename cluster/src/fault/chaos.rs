@@ -13,6 +13,9 @@ pub struct Chaos {
     pub min_gap: Duration,
     /// Longest gap between two kills.
     pub max_gap: Duration,
+    /// Whether the datamanagers are among the victims, beside the running action's
+    /// operations.
+    pub datamanagers: bool,
 }
 
 impl Chaos {
@@ -22,7 +25,15 @@ impl Chaos {
             rng: Xoshiro256StarStar::seed_from_u64(seed),
             min_gap: Duration::from_secs(4),
             max_gap: Duration::from_secs(12),
+            datamanagers: false,
         }
+    }
+
+    /// Kill datamanagers too: each draw picks among the running action's operations and
+    /// every datamanager (by name, sorted: the same picks for the same seed).
+    pub fn with_datamanagers(mut self) -> Chaos {
+        self.datamanagers = true;
+        self
     }
 
     /// Use gaps between `min` and `max`.

@@ -9,6 +9,7 @@
 
 use super::{Chaos, FaultSpec, Injector, Target};
 use marie_actors::clock::SharedClock;
+use marie_actors::registry::{self, ModuleKind};
 use marie_actors::run::FaultKind;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
@@ -64,7 +65,17 @@ impl PlanRun {
                 loop {
                     clock.sleep(chaos.next_gap()).await;
                     let bindings = injector.bindings();
-                    if let Some(key) = chaos.pick(bindings.running()) {
+                    let mut victims = bindings.running().to_vec();
+                    if chaos.datamanagers {
+                        let mut dms: Vec<String> = registry::list_of(ModuleKind::Datamanager)
+                            .into_iter()
+                            .map(|i| i.name)
+                            .collect();
+                        dms.sort();
+                        dms.dedup();
+                        victims.extend(dms);
+                    }
+                    if let Some(key) = chaos.pick(&victims) {
                         let target = Target::Bound(key.clone());
                         let _ = injector.inject(FaultKind::Kill, &target).await;
                     }
