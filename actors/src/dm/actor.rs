@@ -449,11 +449,6 @@ impl Actor for Datamanager {
                     }
                 }
             }
-            DmMsg::JournalDone {} => {
-                if let Some(journal) = &mut state.journal {
-                    journal.on_done();
-                }
-            }
             DmMsg::JournalRefused { seqs } => {
                 let n = state.store.remove_seqs(&seqs);
                 state.refused_puts += seqs.len() as u64;

@@ -115,8 +115,6 @@ crate::remote_message! {
         /// Hand the journal's batch to its writer (sent by the datamanager to itself: it
         /// lands behind the messages already waiting, which join the batch).
         JournalFlush {},
-        /// The journal's writer is back from writing a group.
-        JournalDone {},
         /// The journal's writer could not write these records: take them out, count them
         /// refused (their acknowledgements said so).
         JournalRefused {

@@ -119,25 +119,65 @@ pub(crate) struct Journal {
     seqs: Vec<u64>,
     /// A `JournalFlush` is in the mailbox.
     flush_sent: bool,
-    /// Jobs handed over, waiting for the writer.
-    pending: Vec<Job>,
-    /// The writer when idle; `None` while a group is being written (or if it was lost).
-    writer: Option<Writer>,
-    /// A group is being written.
-    in_flight: bool,
-    /// Where a group's writer comes back.
-    returned: Arc<Returned>,
+    /// The writer and the jobs waiting for it, shared with the blocking task that writes.
+    core: Arc<Core>,
     /// Put entries in the journal since its last snapshot.
     puts: u64,
     shared: Arc<Shared>,
     myself: ActorRef<DmMsg>,
 }
 
-/// The writer, back from writing a group (`None` in the slot after a panic in it).
+/// The writer and its queue. While a blocking task writes (`running`), jobs handed over
+/// join the queue and the same task takes them all as its next group when it is done — no
+/// hop through the datamanager's mailbox between two groups; once the queue is empty the task
+/// puts the writer back and ends.
 #[derive(Default)]
-struct Returned {
-    slot: std::sync::Mutex<Option<Writer>>,
-    done: tokio::sync::Notify,
+struct Core {
+    inner: std::sync::Mutex<Inner>,
+    /// Told when a task ends (a stopping datamanager waits for it in `close`).
+    idle: tokio::sync::Notify,
+}
+
+#[derive(Default)]
+struct Inner {
+    queue: Vec<Job>,
+    /// `None` while a task writes, or once the writer was lost (a panic in it).
+    writer: Option<Writer>,
+    running: bool,
+}
+
+impl Core {
+    fn lock(&self) -> std::sync::MutexGuard<'_, Inner> {
+        self.inner.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Write `jobs`, then every group that queued meanwhile, then put the writer back.
+    fn drain(self: Arc<Self>, mut writer: Writer, mut jobs: Vec<Job>, shared: Arc<Shared>) {
+        loop {
+            let ran = std::panic::catch_unwind(std::panic::AssertUnwindSafe(move || {
+                writer.run(jobs);
+                writer
+            }));
+            let mut inner = self.lock();
+            match ran {
+                Ok(w) if !inner.queue.is_empty() => {
+                    writer = w;
+                    jobs = std::mem::take(&mut inner.queue);
+                }
+                Ok(w) => {
+                    inner.writer = Some(w);
+                    inner.running = false;
+                    break;
+                }
+                Err(_) => {
+                    shared.fail("the journal's writer panicked".to_string());
+                    inner.running = false;
+                    break;
+                }
+            }
+        }
+        self.idle.notify_one();
+    }
 }
 
 /// A store read back from its journal, and the journal ready to append to.
@@ -214,10 +254,14 @@ impl Journal {
                 acks: Vec::new(),
                 seqs: Vec::new(),
                 flush_sent: false,
-                pending: Vec::new(),
-                writer: Some(writer),
-                in_flight: false,
-                returned: Arc::default(),
+                core: Arc::new(Core {
+                    inner: std::sync::Mutex::new(Inner {
+                        queue: Vec::new(),
+                        writer: Some(writer),
+                        running: false,
+                    }),
+                    idle: Default::default(),
+                }),
                 puts: recovered.puts,
                 shared,
                 myself,
@@ -267,10 +311,10 @@ impl Journal {
     /// Run `ack` once everything journaled before it is durable (at once if it is already),
     /// or with `Storage` if it could not be made so.
     pub(crate) fn after_durable(&mut self, ack: Ack) {
-        let idle = self.batch.is_empty()
-            && self.acks.is_empty()
-            && self.pending.is_empty()
-            && self.writer.is_some();
+        let idle = self.batch.is_empty() && self.acks.is_empty() && {
+            let inner = self.core.lock();
+            !inner.running && inner.queue.is_empty() && inner.writer.is_some()
+        };
         if idle {
             ack(self.usable());
             return;
@@ -301,86 +345,55 @@ impl Journal {
         if self.batch.is_empty() && self.acks.is_empty() {
             return;
         }
-        self.pending.push(Job::Batch {
+        let job = Job::Batch {
             bytes: std::mem::replace(&mut self.batch, Vec::with_capacity(64 << 10)),
             acks: std::mem::take(&mut self.acks),
             seqs: std::mem::take(&mut self.seqs),
-        });
-        self.pump();
+        };
+        self.submit(job);
     }
 
-    /// If the writer is idle, give it every job waiting: on the blocking pool, as one group.
-    fn pump(&mut self) {
-        if self.pending.is_empty() {
+    /// Give `job` to the writer: to the running task's queue, or to a new blocking task.
+    fn submit(&mut self, job: Job) {
+        let mut inner = self.core.lock();
+        inner.queue.push(job);
+        if inner.running {
             return;
         }
-        let Some(mut writer) = self.writer.take() else {
-            if !self.in_flight {
-                // the writer was lost (a panic in it): nothing can be made durable any more
-                self.shared.fail("the journal's writer stopped".to_string());
-                for job in std::mem::take(&mut self.pending) {
-                    if let Job::Batch { acks, .. } = job {
-                        acks.into_iter().for_each(|ack| ack(self.usable()));
-                    }
-                }
-            }
+        let Some(writer) = inner.writer.take() else {
+            // the writer was lost (a panic in it): nothing can be made durable any more
+            let jobs = std::mem::take(&mut inner.queue);
+            drop(inner);
+            self.shared.fail("the journal's writer stopped".to_string());
+            self.answer_only(jobs);
             return;
         };
         // Only acknowledgements waiting, and the writer idle: all before them is durable.
-        let only_acks = self
-            .pending
+        let only_acks = inner
+            .queue
             .iter()
             .all(|j| matches!(j, Job::Batch { bytes, .. } if bytes.is_empty()));
         if only_acks {
-            for job in std::mem::take(&mut self.pending) {
-                if let Job::Batch { acks, .. } = job {
-                    acks.into_iter().for_each(|ack| ack(self.usable()));
-                }
-            }
-            self.writer = Some(writer);
+            let jobs = std::mem::take(&mut inner.queue);
+            inner.writer = Some(writer);
+            drop(inner);
+            self.answer_only(jobs);
             return;
         }
-        let jobs = std::mem::take(&mut self.pending);
-        self.in_flight = true;
-        let returned = self.returned.clone();
-        let shared = self.shared.clone();
-        let myself = self.myself.clone();
-        tokio::task::spawn_blocking(move || {
-            let ran = std::panic::catch_unwind(std::panic::AssertUnwindSafe(move || {
-                writer.run(jobs);
-                writer
-            }));
-            match ran {
-                Ok(writer) => {
-                    *returned.slot.lock().unwrap_or_else(|e| e.into_inner()) = Some(writer);
-                }
-                Err(_) => shared.fail("the journal's writer panicked".to_string()),
+        let jobs = std::mem::take(&mut inner.queue);
+        inner.running = true;
+        drop(inner);
+        let (core, shared) = (self.core.clone(), self.shared.clone());
+        tokio::task::spawn_blocking(move || core.drain(writer, jobs, shared));
+    }
+
+    /// Run the acknowledgements of `jobs` (nothing of theirs to write): `Storage` if the
+    /// journal failed.
+    fn answer_only(&self, jobs: Vec<Job>) {
+        for job in jobs {
+            if let Job::Batch { acks, .. } = job {
+                acks.into_iter().for_each(|ack| ack(self.usable()));
             }
-            returned.done.notify_one();
-            // the datamanager takes its writer back (a stopping one is waiting in `close`)
-            let _ = myself.cast(DmMsg::JournalDone {});
-        });
-    }
-
-    /// The writer is back from a group (the datamanager's `JournalDone`): hand it the jobs
-    /// that gathered meanwhile.
-    pub(crate) fn on_done(&mut self) {
-        self.take_back();
-        self.pump();
-    }
-
-    fn take_back(&mut self) {
-        if let Some(writer) = self
-            .returned
-            .slot
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .take()
-        {
-            self.writer = Some(writer);
-            self.in_flight = false;
-        } else if self.shared.failure().is_some() {
-            self.in_flight = false;
         }
     }
 
@@ -405,8 +418,7 @@ impl Journal {
         }
         entry::encode_snap_end(&mut bytes, n);
         self.puts = n;
-        self.pending.push(Job::Snapshot { bytes });
-        self.pump();
+        self.submit(Job::Snapshot { bytes });
     }
 
     /// Hand what is left to the writer and wait for it to finish (a graceful stop: nothing
@@ -414,18 +426,11 @@ impl Journal {
     pub(crate) async fn close(mut self) {
         self.flush();
         loop {
-            if self.writer.is_some() {
-                if self.pending.is_empty() {
-                    return;
-                }
-                self.pump();
-                continue;
+            let idle = self.core.idle.notified();
+            if !self.core.lock().running {
+                return;
             }
-            if !self.in_flight {
-                return; // lost: nothing more can be written
-            }
-            self.returned.done.notified().await;
-            self.take_back();
+            idle.await;
         }
     }
 }

@@ -6,7 +6,8 @@
 //! batch over each time its mailbox has drained (a `JournalFlush` it sent itself lands
 //! behind the messages waiting). One group of batches is written at a time: while it is
 //! being written — and at `sync` durability made durable with one `fdatasync` — every batch
-//! handed over waits, and the next group takes them all. The busier the datamanager, the
+//! handed over queues, and the same blocking task takes them all as its next group (no hop
+//! through the datamanager's mailbox in between); it ends once the queue is empty. The busier the datamanager, the
 //! larger the group, and the cost of a sync is shared by every record in it. At `process`
 //! durability the same path skips the sync: a record acknowledged has been written to the
 //! OS, which keeps it through `kill -9`.
