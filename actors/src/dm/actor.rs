@@ -11,7 +11,7 @@
 //!   the entry even if it crashes.
 
 use super::error::DmError;
-use super::journal::{Durability, Journal, Recovery};
+use super::journal::{Durability, Hooks, Journal, Recovery};
 use super::messages::{DmMsg, DmStats};
 use super::producers::Producers;
 use super::query::Query;
@@ -326,7 +326,16 @@ impl Actor for Datamanager {
                         args.name
                     )
                 })?;
-                let mut opened = Journal::open(dir, durability, args.config, myself.clone())
+                let hooks = {
+                    let (me, me_too) = (myself.clone(), myself.clone());
+                    Hooks {
+                        flush: Box::new(move || me.cast(DmMsg::JournalFlush {}).is_ok()),
+                        refused: Box::new(move |seqs| {
+                            let _ = me_too.cast(DmMsg::JournalRefused { seqs });
+                        }),
+                    }
+                };
+                let mut opened = Journal::open(dir, durability, args.config, hooks)
                     .await
                     .map_err(|e| format!("datamanager {}: {e}", args.name))?;
                 // A journal whose time stamps run ahead of this clock was written under

@@ -39,13 +39,13 @@ pub struct DmStats {
     pub fenced: u64,
     /// How durable its acknowledged writes are.
     #[serde(default)]
-    pub durability: crate::dm::Durability,
+    pub durability: super::journal::Durability,
     /// Bytes of its journal on disk (0 at `memory`).
     #[serde(default)]
     pub journal_bytes: u64,
     /// What its start read back from its journal (`None` at `memory`).
     #[serde(default)]
-    pub recovery: Option<crate::dm::Recovery>,
+    pub recovery: Option<super::journal::Recovery>,
     /// Retried puts it found stored already and answered with their first seq
     /// ([`crate::dm::producers`]).
     #[serde(default)]

@@ -9,15 +9,16 @@
 //!
 //! Per producer the table keeps the last [`PER_PRODUCER`] (producer seq → seq) pairs, in the
 //! order they came (almost always increasing, so a new record costs one comparison); a retry
-//! is at most a window of puts behind ([`super::credits::WINDOW`]), well inside. At most
+//! is at most a window of puts behind (the credits' `WINDOW`), well inside. At most
 //! [`PRODUCERS`] producers are kept, the least recently heard from dropped first. The journal
 //! replays it (every put carries its pair) and snapshots it, so a restarted datamanager still
 //! knows what its predecessor stored.
 
 use std::collections::{HashMap, VecDeque};
 
-/// Pairs kept per producer: four windows of credits.
-pub const PER_PRODUCER: usize = 4 * super::credits::WINDOW;
+/// Pairs kept per producer: four windows of a remote producer's credits (the credits'
+/// tests hold it to that).
+pub const PER_PRODUCER: usize = 4096;
 
 /// Producers kept.
 pub const PRODUCERS: usize = 4096;

@@ -144,7 +144,7 @@ async fn poll(client: DmClient, query: Query, mut next: u64, tx: mpsc::Sender<Re
 /// where it was; one that started empty numbers from 1 again, and all it holds is new.
 async fn followed(
     client: &DmClient,
-    gone: &ractor::ActorRef<super::DmMsg>,
+    gone: &ractor::ActorRef<super::messages::DmMsg>,
     error: &DmError,
     next: &mut u64,
 ) -> bool {

@@ -19,9 +19,8 @@
 //! Decoding checks every length against what is left, so a torn or corrupt entry is an
 //! error ([`Torn`]), never a panic or an out-of-bounds read; the checksum catches the rest.
 
-use crate::dm::record::NewRecord;
+use crate::dm::record::{NewRecord, Payload};
 use crate::dm::store::LiveRecord;
-use crate::dm::Payload;
 use std::time::Duration;
 
 /// Bytes of an entry's header (length and checksum).

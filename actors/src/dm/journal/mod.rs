@@ -40,12 +40,10 @@ pub use lock::{DirLock, LockError};
 pub use recover::Recovery;
 
 use super::error::DmError;
-use super::messages::DmMsg;
 use super::producers::Producers;
 use super::record::NewRecord;
 use super::store::{DmConfig, Store};
 use crate::fence::FenceTable;
-use ractor::ActorRef;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::Ordering;
@@ -124,7 +122,18 @@ pub(crate) struct Journal {
     /// Put entries in the journal since its last snapshot.
     puts: u64,
     shared: Arc<Shared>,
-    myself: ActorRef<DmMsg>,
+    /// Sends the datamanager its `JournalFlush`.
+    flush: Box<dyn Fn() -> bool + Send>,
+}
+
+/// How the journal reaches its datamanager (given by the actor: the journal knows no
+/// message of it).
+pub(crate) struct Hooks {
+    /// Send the datamanager a `JournalFlush` (it lands behind the messages waiting); false
+    /// if it is gone.
+    pub flush: Box<dyn Fn() -> bool + Send>,
+    /// Tell the datamanager that these records could not be written (`JournalRefused`).
+    pub refused: Box<dyn Fn(Vec<u64>) + Send>,
 }
 
 /// The writer and its queue. While a blocking task writes (`running`), jobs handed over
@@ -196,7 +205,7 @@ impl Journal {
         dir: &Path,
         durability: Durability,
         config: DmConfig,
-        myself: ActorRef<DmMsg>,
+        hooks: Hooks,
     ) -> Result<Opened, DmError> {
         let storage = |what: &str, e: &dyn std::fmt::Display| {
             DmError::Storage(format!("{what} {}: {e}", dir.display()))
@@ -227,7 +236,7 @@ impl Journal {
             .map(|m| m.len())
             .sum();
         shared.bytes.store(on_disk, Ordering::Relaxed);
-        let refused_to = myself.clone();
+        let Hooks { flush, refused } = hooks;
         let writer = Writer {
             dir: dir.to_path_buf(),
             segment: recovered.tail,
@@ -235,9 +244,7 @@ impl Journal {
             len,
             sync: durability == Durability::Sync,
             shared: shared.clone(),
-            refused: Box::new(move |seqs| {
-                let _ = refused_to.cast(DmMsg::JournalRefused { seqs });
-            }),
+            refused,
             _lock: lock,
         };
         let report = &recovered.report;
@@ -264,7 +271,7 @@ impl Journal {
                 }),
                 puts: recovered.puts,
                 shared,
-                myself,
+                flush,
             },
             store: recovered.store,
             fences: recovered.fences,
@@ -335,7 +342,7 @@ impl Journal {
     /// mailbox, so everything they write joins one batch.
     fn schedule(&mut self) {
         if !self.flush_sent {
-            self.flush_sent = self.myself.cast(DmMsg::JournalFlush {}).is_ok();
+            self.flush_sent = (self.flush)();
         }
     }
 
