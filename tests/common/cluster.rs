@@ -286,8 +286,23 @@ impl Proc {
 
 impl Drop for Proc {
     fn drop(&mut self) {
+        let pid = self.child.id();
         let _ = self.child.kill();
         let _ = self.child.wait();
+        // a `marie up` killed here leaves its nodes' temporary data directory
+        // (`marie-up-CLUSTER-PID[.N]`, which it removes only when it exits by itself)
+        if let Ok(entries) = std::fs::read_dir(std::env::temp_dir()) {
+            for entry in entries.flatten() {
+                let name = entry.file_name().to_string_lossy().into_owned();
+                let ours = name.strip_prefix("marie-up-").is_some_and(|rest| {
+                    let last = rest.rsplit('-').next().unwrap_or_default();
+                    last.split('.').next() == Some(pid.to_string().as_str())
+                });
+                if ours {
+                    let _ = std::fs::remove_dir_all(entry.path());
+                }
+            }
+        }
     }
 }
 
