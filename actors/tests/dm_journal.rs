@@ -384,3 +384,34 @@ async fn a_full_disk_refuses_the_put_and_the_dm_carries_on() {
     assert_eq!(client.select(Query::class("note")).await.unwrap().len(), 1);
     stop(actor, handle).await;
 }
+
+/// A record written long before the last snapshot — a map stored once, then a sensor's
+/// stream — lives on only in the snapshot: after a restart it is there, with its seq.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_record_that_only_the_snapshot_holds_comes_back() {
+    let tmp = TempDir::new("snaponly");
+    let mut a = args("jr-snaponly", 4409, &tmp.0, Durability::Process);
+    a.config = DmConfig::default().with_retention("sonar", 100);
+    let (actor, handle, client) = start(a.clone()).await;
+    let map_seq = client.store("map", None, None, &"walls").await.unwrap();
+    // enough sonar for a snapshot, and few after it: the last snapshot is the map's only copy
+    let n = dm::journal::SNAPSHOT_MIN as u32 + 50;
+    for chunk in (0..n).collect::<Vec<_>>().chunks(1000) {
+        let batch = chunk
+            .iter()
+            .map(|i| NewRecord::encode("sonar", i).unwrap())
+            .collect();
+        client.put_batch(batch).unwrap();
+        client.stats().await.unwrap();
+    }
+    stop(actor, handle).await;
+    let (actor, handle, client) = start(a).await;
+    let map = client.select(Query::class("map")).await.unwrap();
+    assert_eq!(map.len(), 1, "the map, from the snapshot");
+    assert_eq!(map[0].seq, map_seq);
+    assert_eq!(map[0].decode::<String>().unwrap(), "walls");
+    let stats = client.stats().await.unwrap();
+    assert_eq!(stats.records, 101);
+    assert_eq!(stats.next_seq, n as u64 + 2);
+    stop(actor, handle).await;
+}

@@ -59,6 +59,9 @@ struct State {
     producers: Producers,
     /// Put entries since the last snapshot.
     puts: u64,
+    /// A snapshot's floor (next seq, last time stamp), raised once its records are in: they
+    /// carry seqs below it.
+    floor: Option<(u64, std::time::Duration)>,
 }
 
 /// The state being rebuilt: the store, and a snapshot being read into a store of its own.
@@ -111,16 +114,20 @@ impl Replay {
                 next_seq,
                 last_time,
             } => {
-                let mut s = Store::new(self.config.clone());
-                s.raise_floor(next_seq, last_time);
                 let fresh = State {
-                    store: Some(s),
+                    store: Some(Store::new(self.config.clone())),
+                    floor: Some((next_seq, last_time)),
                     ..State::default()
                 };
                 self.open = Some((fresh, segment, at));
             }
             Entry::SnapEnd { .. } => match self.open.take() {
-                Some((s, seg, _)) => {
+                Some((mut s, seg, _)) => {
+                    if let (Some(store), Some((next_seq, last_time))) =
+                        (s.store.as_mut(), s.floor.take())
+                    {
+                        store.raise_floor(next_seq, last_time);
+                    }
                     self.state = s;
                     self.snapshot_segment = Some(seg);
                 }
