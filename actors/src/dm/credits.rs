@@ -41,9 +41,9 @@ use tokio::sync::Notify;
 /// Unacknowledged records a client may have in flight to a remote datamanager.
 pub const WINDOW: usize = 1024;
 
-// A producer's retry is at most a window behind: well inside what a datamanager remembers
-// of each producer to store a retried put once.
-const _: () = assert!(super::producers::PER_PRODUCER >= 4 * WINDOW);
+// What a producer can have unacknowledged is within what a datamanager remembers of it to
+// store a record sent again once.
+const _: () = assert!(super::producers::PER_PRODUCER >= WINDOW);
 
 /// Records per message [`super::DmClient::put_all`] sends: a quarter of the window, so
 /// that two batches are on their way while the acknowledgement of two more comes back.

@@ -16,12 +16,13 @@
 
 use std::collections::{HashMap, VecDeque};
 
-/// Pairs kept per producer: four windows of a remote producer's credits (the credits'
-/// tests hold it to that).
-pub const PER_PRODUCER: usize = 4096;
+/// Pairs kept per producer: a remote producer's window of credits (a const assertion in
+/// the credits module holds it to that) — as many records as it can have unacknowledged.
+pub const PER_PRODUCER: usize = 1024;
 
-/// Producers kept.
-pub const PRODUCERS: usize = 4096;
+/// Producers kept. With [`PER_PRODUCER`] it bounds the table: at most 1024 × 1024 pairs of
+/// 16 bytes, 16 MiB, for a datamanager with a thousand busy producers at once.
+pub const PRODUCERS: usize = 1024;
 
 #[derive(Debug, Default)]
 struct Recent {
