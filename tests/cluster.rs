@@ -189,14 +189,23 @@ fn garbage_and_oversized_frames_on_a_nodes_port_change_nothing() {
         let mut s = std::net::TcpStream::connect(alpha.addr).expect("alpha accepts");
         let _ = s.write_all(bytes);
         // nothing more comes: alpha has read it all, and drops the connection, before the
-        // check below (no race between the noise and the listing)
-        s.shutdown(std::net::Shutdown::Write).unwrap();
+        // check below (no race between the noise and the listing). Alpha may have dropped
+        // it already (a length over the frame limit is refused from its prefix): then the
+        // shutdown finds the socket not connected, which is the outcome this test wants.
+        let _ = s.shutdown(std::net::Shutdown::Write);
         s.set_read_timeout(Some(common::cluster::EVENT_TIMEOUT))
             .unwrap();
         let mut answer = Vec::new();
         let closed = std::io::Read::read_to_end(&mut s, &mut answer);
+        // closed (a FIN, or a reset if it dropped unread bytes); only a timeout means open
+        let kept_open = closed.as_ref().is_err_and(|e| {
+            matches!(
+                e.kind(),
+                std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+            )
+        });
         assert!(
-            closed.is_ok(),
+            !kept_open,
             "alpha kept a garbage connection open: {closed:?}"
         );
     }
