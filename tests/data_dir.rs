@@ -7,7 +7,7 @@
 mod common;
 
 use common::cluster::Proc;
-use common::{marie, text};
+use common::{marie, report_of, text};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -59,7 +59,7 @@ fn the_readmes_first_command_leaves_no_file() {
 fn up_gives_each_node_a_temporary_data_dir_and_removes_it_at_exit() {
     let mut up = Proc::spawn("marie up", &["up", THESIS]);
     up.wait_line("Ctrl-C stops the cluster");
-    let base = std::env::temp_dir().join(format!("marie-up-thesis-{}", up.pid()));
+    let base = up.tmp().join(format!("marie-up-thesis-{}", up.pid()));
     // each node its own directory, locked; the durable datamanagers' journals in them
     for node in ["cart", "features", "operations", "spare"] {
         assert!(base.join(node).join("LOCK").is_file(), "{node}");
@@ -83,7 +83,7 @@ fn up_with_a_data_dir_keeps_it_and_a_second_up_on_it_is_refused() {
     let data_arg = data.to_str().unwrap();
     let mut up = Proc::spawn("marie up", &["up", THESIS, "--data-dir", data_arg]);
     up.wait_line("Ctrl-C stops the cluster");
-    let temporary = std::env::temp_dir().join(format!("marie-up-thesis-{}", up.pid()));
+    let temporary = up.tmp().join(format!("marie-up-thesis-{}", up.pid()));
     assert!(!temporary.exists());
 
     // its nodes hold their directories: another cluster's nodes on them are refused
@@ -192,9 +192,7 @@ fn a_run_with_a_data_dir_docks_although_its_feature_datamanager_is_killed() {
 fn chaos_with_datamanagers_and_a_data_dir_still_docks() {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("data").display().to_string();
-    let report = dir.path().join("report.json");
-    let report_arg = report.display().to_string();
-    let out = marie(&[
+    let (out, report) = report_of(&[
         "run",
         "missions/docking.toml",
         "--chaos",
@@ -202,8 +200,6 @@ fn chaos_with_datamanagers_and_a_data_dir_still_docks() {
         "--chaos-dms",
         "--data-dir",
         &data,
-        "--report",
-        &report_arg,
     ]);
     let stdout = text(&out.stdout);
     assert_eq!(
@@ -212,8 +208,6 @@ fn chaos_with_datamanagers_and_a_data_dir_still_docks() {
         "{stdout}\n{}",
         text(&out.stderr)
     );
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
     let hit: Vec<&str> = report["faults"]
         .as_array()
         .unwrap()

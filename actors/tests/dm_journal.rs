@@ -82,6 +82,31 @@ async fn everything(client: &DmClient) -> Vec<(u64, String, String, Option<Strin
         .collect()
 }
 
+/// Put `n` records of class `sonar` (numbered from 0) in batches of 1000, each batch
+/// acknowledged before the next.
+async fn put_sonar(client: &DmClient, n: u32) {
+    for chunk in (0..n).collect::<Vec<_>>().chunks(1000) {
+        let batch = chunk
+            .iter()
+            .map(|i| NewRecord::encode("sonar", i).unwrap())
+            .collect();
+        client.put_batch(batch).unwrap();
+        client.stats().await.unwrap();
+    }
+}
+
+/// Start a DM with `args`, store ten records of class `c` (numbered 0 to 9), stop it: the
+/// segment that holds them.
+async fn ten_stored(args: DmArgs) -> PathBuf {
+    let dir = args.journal_dir.clone().unwrap();
+    let (actor, handle, client) = start(args).await;
+    for i in 0..10u32 {
+        client.store("c", None, None, &i).await.unwrap();
+    }
+    stop(actor, handle).await;
+    segments(&dir).pop().unwrap()
+}
+
 fn segments(dir: &Path) -> Vec<PathBuf> {
     let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
         .unwrap()
@@ -133,6 +158,12 @@ async fn a_stopped_dm_starts_again_with_its_records_its_seqs_and_its_deletes() {
     let recovery = stats.recovery.clone().unwrap();
     assert_eq!(recovery.records, 90, "{recovery:?}");
     assert_eq!((recovery.dropped_bytes, recovery.torn.clone()), (0, None));
+    // the journal's size is what the replay kept, and what is on disk
+    let on_disk: u64 = segments(&tmp.0)
+        .iter()
+        .map(|p| std::fs::metadata(p).unwrap().len())
+        .sum();
+    assert_eq!((stats.journal_bytes, recovery.bytes), (on_disk, on_disk));
     assert_eq!(
         stats.next_seq, 101,
         "seqs continue after the last one handed out"
@@ -168,13 +199,8 @@ async fn what_a_crashed_dm_acknowledged_its_next_incarnation_holds() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_torn_tail_is_cut_off_reported_and_written_over() {
     let tmp = TempDir::new("torn");
-    let (actor, handle, client) = start(args("jr-torn", 4403, &tmp.0, Durability::Process)).await;
-    for i in 0..10u32 {
-        client.store("c", None, None, &i).await.unwrap();
-    }
-    stop(actor, handle).await;
+    let seg = ten_stored(args("jr-torn", 4403, &tmp.0, Durability::Process)).await;
     // a write cut short: half of an eleventh entry
-    let seg = segments(&tmp.0).pop().unwrap();
     let whole = std::fs::read(&seg).unwrap();
     let one = whole.len() / 10;
     let mut torn = whole.clone();
@@ -192,6 +218,11 @@ async fn a_torn_tail_is_cut_off_reported_and_written_over() {
         whole,
         "the segment is cut back to its last whole entry"
     );
+    assert_eq!(
+        r.bytes,
+        whole.len() as u64,
+        "what was kept is what is on disk"
+    );
     // the next write continues after the last whole entry, and is read back
     assert_eq!(client.store("c", None, None, &10u32).await.unwrap(), 11);
     stop(actor, handle).await;
@@ -204,12 +235,7 @@ async fn a_torn_tail_is_cut_off_reported_and_written_over() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_flipped_bit_stops_the_replay_before_it_and_nothing_corrupt_is_served() {
     let tmp = TempDir::new("flip");
-    let (actor, handle, client) = start(args("jr-flip", 4404, &tmp.0, Durability::Process)).await;
-    for i in 0..10u32 {
-        client.store("c", None, None, &i).await.unwrap();
-    }
-    stop(actor, handle).await;
-    let seg = segments(&tmp.0).pop().unwrap();
+    let seg = ten_stored(args("jr-flip", 4404, &tmp.0, Durability::Process)).await;
     let mut bytes = std::fs::read(&seg).unwrap();
     let one = bytes.len() / 10;
     bytes[6 * one + one / 2] ^= 0x10; // inside the 7th entry's body
@@ -242,14 +268,7 @@ async fn retention_and_snapshots_keep_the_journal_near_the_size_of_the_store() {
     a.config = config.clone();
     let (actor, handle, client) = start(a.clone()).await;
     let n = 4 * dm::journal::SNAPSHOT_MIN as u32;
-    for chunk in (0..n).collect::<Vec<_>>().chunks(1000) {
-        let batch = chunk
-            .iter()
-            .map(|i| NewRecord::encode("sonar", i).unwrap())
-            .collect();
-        client.put_batch(batch).unwrap();
-        client.stats().await.unwrap(); // one acknowledgement per batch
-    }
+    put_sonar(&client, n).await;
     let stats = client.stats().await.unwrap();
     assert_eq!(stats.records, 1000);
     let per_record = stats.journal_bytes as f64 / n as f64;
@@ -396,14 +415,7 @@ async fn a_record_that_only_the_snapshot_holds_comes_back() {
     let map_seq = client.store("map", None, None, &"walls").await.unwrap();
     // enough sonar for a snapshot, and few after it: the last snapshot is the map's only copy
     let n = dm::journal::SNAPSHOT_MIN as u32 + 50;
-    for chunk in (0..n).collect::<Vec<_>>().chunks(1000) {
-        let batch = chunk
-            .iter()
-            .map(|i| NewRecord::encode("sonar", i).unwrap())
-            .collect();
-        client.put_batch(batch).unwrap();
-        client.stats().await.unwrap();
-    }
+    put_sonar(&client, n).await;
     stop(actor, handle).await;
     let (actor, handle, client) = start(a).await;
     let map = client.select(Query::class("map")).await.unwrap();

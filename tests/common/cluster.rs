@@ -30,6 +30,10 @@ pub(crate) struct Proc {
     seen: Vec<String>,
     /// When each line of `seen` was read.
     arrived: Vec<Instant>,
+    /// The child's temporary directory (its `TMPDIR`), removed with the guard: what a
+    /// killed process leaves there — a `marie up`'s nodes' data directory — goes with it.
+    /// Declared after `child`: dropped once the child is dead.
+    tmp: tempfile::TempDir,
 }
 
 /// A running `marie node`.
@@ -168,9 +172,11 @@ impl Proc {
                 Stdio::null()
             }
         };
+        let tmp = tempfile::tempdir().expect("a temporary directory");
         let mut child = command
             .args(args)
             .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .env("TMPDIR", tmp.path())
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
             .stderr(stderr)
@@ -191,7 +197,13 @@ impl Proc {
             lines,
             seen: Vec::new(),
             arrived: Vec::new(),
+            tmp,
         }
+    }
+
+    /// Its temporary directory (its `TMPDIR`).
+    pub(crate) fn tmp(&self) -> &Path {
+        self.tmp.path()
     }
 
     /// Its process id.
@@ -286,23 +298,8 @@ impl Proc {
 
 impl Drop for Proc {
     fn drop(&mut self) {
-        let pid = self.child.id();
         let _ = self.child.kill();
         let _ = self.child.wait();
-        // a `marie up` killed here leaves its nodes' temporary data directory
-        // (`marie-up-CLUSTER-PID[.N]`, which it removes only when it exits by itself)
-        if let Ok(entries) = std::fs::read_dir(std::env::temp_dir()) {
-            for entry in entries.flatten() {
-                let name = entry.file_name().to_string_lossy().into_owned();
-                let ours = name.strip_prefix("marie-up-").is_some_and(|rest| {
-                    let last = rest.rsplit('-').next().unwrap_or_default();
-                    last.split('.').next() == Some(pid.to_string().as_str())
-                });
-                if ours {
-                    let _ = std::fs::remove_dir_all(entry.path());
-                }
-            }
-        }
     }
 }
 

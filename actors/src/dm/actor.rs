@@ -232,22 +232,19 @@ impl DmState {
     }
 
     /// Send an answer that acknowledges writes: at once without a journal, else once what
-    /// came before it is durable (or with `Storage` if it cannot be).
+    /// came before it is durable. `answer` is given whether it is (`Err(Storage)` if it
+    /// cannot be made so).
     fn acknowledge<T: Send + 'static>(
         &mut self,
         reply: RpcReplyPort<T>,
-        answer: T,
-        refused: impl FnOnce(DmError) -> T + Send + 'static,
+        answer: impl FnOnce(Result<(), DmError>) -> T + Send + 'static,
     ) {
         match &mut self.journal {
             None => {
-                let _ = reply.send(answer);
+                let _ = reply.send(answer(Ok(())));
             }
             Some(journal) => journal.after_durable(Box::new(move |durable| {
-                let _ = reply.send(match durable {
-                    Ok(()) => answer,
-                    Err(e) => refused(e),
-                });
+                let _ = reply.send(answer(durable));
             })),
         }
     }
@@ -414,7 +411,7 @@ impl Actor for Datamanager {
                 if let Err(e) = &outcome {
                     tracing::debug!(dm = %state.name, error = %e, "store refused");
                 }
-                state.acknowledge(reply, outcome, Err);
+                state.acknowledge(reply, move |durable| durable.and(outcome));
             }
             DmMsg::Select { query, reply } => {
                 let _ = reply.send(state.store.select(&query));
@@ -440,15 +437,17 @@ impl Actor for Datamanager {
                 // stands (the records come back at the next start, which the log says)
                 let n = seqs.len() as u64;
                 let name = state.name.clone();
-                state.acknowledge(reply, n, move |e| {
-                    tracing::warn!(dm = %name, error = %e, "a delete was not journaled");
+                state.acknowledge(reply, move |durable| {
+                    if let Err(e) = durable {
+                        tracing::warn!(dm = %name, error = %e, "a delete was not journaled");
+                    }
                     n
                 });
             }
             DmMsg::Stats { reply } => {
                 // it returns a remote producer's credits: it acknowledges the puts before it
                 let stats = state.stats();
-                state.acknowledge(reply, stats.clone(), move |_| stats);
+                state.acknowledge(reply, move |_| stats);
             }
             DmMsg::JournalFlush {} => {
                 if let Some(journal) = &mut state.journal {

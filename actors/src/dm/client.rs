@@ -100,7 +100,7 @@ impl DmClient {
     pub const DEFAULT_TIMEOUT: Duration = Duration::from_secs(5);
 
     /// Default of [`DmClient::follow_within`]: as long as an operation waits for a gone
-    /// datamanager ([`crate::eo::DATAMANAGER_RETURN`]).
+    /// datamanager ([`crate::eo::DATAMANAGER_RETURN`] is this).
     pub const DEFAULT_FOLLOW: Duration = Duration::from_secs(5);
 
     fn with_target(actor: ActorRef<DmMsg>, dm: &str, source: String) -> DmClient {
@@ -206,7 +206,7 @@ impl DmClient {
     /// Move to the instance that replaced `gone`: already there if a clone moved, else the
     /// next one the registry publishes under the datamanager's name, waiting at most
     /// [`DmClient::follow_within`]. Whether it moved.
-    async fn follow(&self, gone: &ActorRef<DmMsg>) -> bool {
+    pub(crate) async fn follow(&self, gone: &ActorRef<DmMsg>) -> bool {
         if self.actor().get_id() != gone.get_id() {
             return true;
         }
@@ -221,11 +221,6 @@ impl DmClient {
         };
         self.moved(gone, next.actor.into());
         true
-    }
-
-    /// [`DmClient::follow`] for the crate's own retries (a subscription's polls).
-    pub(crate) async fn follow_from(&self, gone: &ActorRef<DmMsg>) -> bool {
-        self.follow(gone).await
     }
 
     /// Take `next` as the target, unless a clone has moved from `gone` already.
@@ -387,17 +382,26 @@ impl DmClient {
         Ok(record)
     }
 
-    /// A put to a datamanager in this process: cast at once, not metered. To a gone one,
-    /// cast to its next instance if that is published already.
+    /// A put to a datamanager in this process: cast at once, not metered.
     fn cast_put(&self, actor: &ActorRef<DmMsg>, record: NewRecord) -> Result<(), DmError> {
-        match actor.cast(DmMsg::Put { record }) {
-            Ok(()) => Ok(()),
-            Err(ractor::MessagingErr::SendErr(DmMsg::Put { record })) => {
+        self.cast_following(actor, DmMsg::Put { record }).map(drop)
+    }
+
+    /// Cast `msg` to `actor` or, if it is gone, to its next instance if that is published
+    /// already (a put never waits); the instance it went to when that is another.
+    fn cast_following(
+        &self,
+        actor: &ActorRef<DmMsg>,
+        msg: DmMsg,
+    ) -> Result<Option<ActorRef<DmMsg>>, DmError> {
+        match actor.cast(msg) {
+            Ok(()) => Ok(None),
+            Err(ractor::MessagingErr::SendErr(msg)) => {
                 let next = self
                     .next_published(actor)
                     .ok_or_else(|| self.unreachable())?;
-                next.cast(DmMsg::Put { record })
-                    .map_err(|_| self.unreachable())
+                next.cast(msg).map_err(|_| self.unreachable())?;
+                Ok(Some(next))
             }
             Err(_) => Err(self.unreachable()),
         }
@@ -440,17 +444,8 @@ impl DmClient {
         }
         let mut actor = t.actor;
         for chunk in frames(records) {
-            match actor.cast(DmMsg::PutBatch { records: chunk }) {
-                Ok(()) => {}
-                Err(ractor::MessagingErr::SendErr(DmMsg::PutBatch { records })) => {
-                    actor = self
-                        .next_published(&actor)
-                        .ok_or_else(|| self.unreachable())?;
-                    actor
-                        .cast(DmMsg::PutBatch { records })
-                        .map_err(|_| self.unreachable())?;
-                }
-                Err(_) => return Err(self.unreachable()),
+            if let Some(next) = self.cast_following(&actor, DmMsg::PutBatch { records: chunk })? {
+                actor = next;
             }
         }
         Ok(())

@@ -151,7 +151,7 @@ async fn followed(
     if !matches!(error, DmError::Unreachable(_)) {
         return false;
     }
-    if !client.follow_from(gone).await {
+    if !client.follow(gone).await {
         return false;
     }
     match client.stats().await {

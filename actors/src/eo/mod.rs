@@ -69,5 +69,5 @@ pub const DEFAULT_PERIOD: std::time::Duration = std::time::Duration::from_millis
 /// clock: real time on a node, and in a simulation's paused runtime virtual time that
 /// stands still while anything (a restart) is being done — so it runs out only when nothing
 /// is left that could bring the DM back.
-pub const DATAMANAGER_RETURN: std::time::Duration = std::time::Duration::from_secs(5);
+pub const DATAMANAGER_RETURN: std::time::Duration = crate::dm::DmClient::DEFAULT_FOLLOW;
 pub use operation::{Identity, OpContext, OpError, Operation, Params, Step};

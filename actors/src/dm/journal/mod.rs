@@ -229,13 +229,10 @@ impl Journal {
         let file = segment::open(dir, recovered.tail).map_err(|e| storage("opening", &e))?;
         let len = file.metadata().map_err(|e| storage("opening", &e))?.len();
         let shared = Arc::new(Shared::default());
-        let on_disk: u64 = segment::list(dir)
-            .map_err(|e| storage("listing", &e))?
-            .iter()
-            .filter_map(|(_, p)| std::fs::metadata(p).ok())
-            .map(|m| m.len())
-            .sum();
-        shared.bytes.store(on_disk, Ordering::Relaxed);
+        // what the replay kept is what is on disk (it cut and removed the rest)
+        shared
+            .bytes
+            .store(recovered.report.bytes, Ordering::Relaxed);
         let Hooks { flush, refused } = hooks;
         let writer = Writer {
             dir: dir.to_path_buf(),
@@ -293,7 +290,7 @@ impl Journal {
     /// `Storage` if the journal has failed: nothing more can be made durable.
     pub(crate) fn usable(&self) -> Result<(), DmError> {
         match self.shared.failure() {
-            Some(why) => Err(DmError::Storage(why)),
+            Some(why) => Err(DmError::Storage(why.to_string())),
             None => Ok(()),
         }
     }

@@ -32,8 +32,8 @@ use crate::dm::error::DmError;
 use std::fs::File;
 use std::io::Write;
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, OnceLock};
 
 /// An acknowledgement the writer runs once what came before it is durable (or refused).
 pub(crate) type Ack = Box<dyn FnOnce(Result<(), DmError>) + Send>;
@@ -56,27 +56,23 @@ pub(crate) enum Job {
 pub(crate) struct Shared {
     /// Bytes of the journal on disk.
     pub bytes: AtomicU64,
-    /// Why the journal failed (a sync failed), if it did; every later put is refused.
-    failed: Mutex<Option<String>>,
-    is_failed: AtomicBool,
+    /// Why the journal failed (a sync failed), once it has; every later put is refused. Set
+    /// once (the first failure is the one that counts); read on every put, lock-free.
+    failed: OnceLock<String>,
 }
 
 impl Shared {
+    /// The journal has failed: nothing more can be made durable.
     pub(crate) fn fail(&self, why: String) {
-        tracing::error!(error = %why, "journal failed: puts are refused until the datamanager restarts");
-        *self.failed.lock().unwrap_or_else(|e| e.into_inner()) = Some(why);
-        self.is_failed.store(true, Ordering::Release);
+        if self.failed.set(why).is_ok() {
+            tracing::error!(error = %self.failed.get().map_or("", String::as_str),
+                "journal failed: puts are refused until the datamanager restarts");
+        }
     }
 
     /// Why the journal failed, if it did.
-    pub(crate) fn failure(&self) -> Option<String> {
-        if !self.is_failed.load(Ordering::Acquire) {
-            return None;
-        }
-        self.failed
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .clone()
+    pub(crate) fn failure(&self) -> Option<&str> {
+        self.failed.get().map(String::as_str)
     }
 }
 
@@ -116,7 +112,7 @@ impl Writer {
         if group.is_empty() {
             return;
         }
-        let failed = self.shared.failure();
+        let failed = self.shared.failure().map(str::to_string);
         let mut written = Vec::with_capacity(group.len());
         let mut wrote = false;
         for (bytes, acks, seqs) in group {
