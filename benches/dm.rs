@@ -98,6 +98,7 @@ fn store_rate(c: &mut Criterion) {
             config,
             durability: Durability::Memory,
             journal_dir: None,
+            replication: None,
         }))
         .expect("spawn dm");
     let (counter, _counter_handle) = rt
@@ -256,6 +257,7 @@ fn select_scaling(c: &mut Criterion) {
                 config: DmConfig::default().with_default_retention(usize::MAX),
                 durability: Durability::Memory,
                 journal_dir: None,
+                replication: None,
             }))
             .expect("spawn dm");
         let client = DmClient::new(dm_ref.clone(), "bench");

@@ -45,6 +45,7 @@ async fn spawn(name: &str, id: u32, clock: SharedClock, config: DmConfig) -> Dm 
         config,
         durability: dm::Durability::Memory,
         journal_dir: None,
+        replication: None,
     })
     .await
     .expect("spawn dm");

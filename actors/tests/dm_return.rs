@@ -82,6 +82,7 @@ async fn datamanager(name: &str) -> ActorRef<DmMsg> {
         config: DmConfig::default(),
         durability: Default::default(),
         journal_dir: None,
+        replication: None,
     })
     .await
     .expect("the DM starts")

@@ -52,6 +52,7 @@ impl DmSpec {
             config: DmConfig::default(),
             durability: Durability::Memory,
             journal_dir: None,
+            replication: None,
         }
     }
 }
@@ -91,6 +92,8 @@ pub struct DmArgs {
     /// Where the journal is (required unless `durability` is `memory`); see
     /// [`super::journal::dir_in`] for a node's layout.
     pub journal_dir: Option<PathBuf>,
+    /// Copies on other nodes ([`super::replica`]): this is one of them. Needs a journal.
+    pub replication: Option<super::replica::Replication>,
 }
 
 impl DmArgs {
@@ -98,6 +101,12 @@ impl DmArgs {
     pub fn with_journal(mut self, dir: impl Into<PathBuf>, durability: Durability) -> DmArgs {
         self.journal_dir = Some(dir.into());
         self.durability = durability;
+        self
+    }
+
+    /// Be one of the copies `replication` names (with a journal: see [`DmArgs::with_journal`]).
+    pub fn with_replication(mut self, replication: super::replica::Replication) -> DmArgs {
+        self.replication = Some(replication);
         self
     }
 }
@@ -110,6 +119,7 @@ impl std::fmt::Debug for DmArgs {
             .field("config", &self.config)
             .field("durability", &self.durability)
             .field("journal_dir", &self.journal_dir)
+            .field("replication", &self.replication)
             .finish_non_exhaustive()
     }
 }
@@ -120,22 +130,24 @@ pub struct Datamanager;
 
 /// State of a [`Datamanager`].
 pub struct DmState {
-    id: u32,
-    name: String,
-    clock: SharedClock,
-    store: Store,
-    waits: Waits,
-    refused_puts: u64,
+    pub(crate) id: u32,
+    pub(crate) name: String,
+    pub(crate) clock: SharedClock,
+    pub(crate) store: Store,
+    pub(crate) waits: Waits,
+    pub(crate) refused_puts: u64,
     /// The newest epoch per source: records of a replaced incarnation are refused.
-    fences: crate::fence::FenceTable,
+    pub(crate) fences: crate::fence::FenceTable,
     /// The journal, unless the durability is `memory`.
-    journal: Option<Journal>,
+    pub(crate) journal: Option<Journal>,
     /// What the start read back from the journal.
-    recovery: Option<Recovery>,
+    pub(crate) recovery: Option<Recovery>,
     /// What each producer stored lately: a retried put is stored once.
-    producers: Producers,
+    pub(crate) producers: Producers,
     /// Retried puts answered with the seq their first copy got.
-    duplicates: u64,
+    pub(crate) duplicates: u64,
+    /// A replicated datamanager's copy ([`super::replica`]).
+    pub(crate) replica: Option<super::replica::copy::Copy>,
 }
 
 impl std::fmt::Debug for DmState {
@@ -171,6 +183,18 @@ impl DmState {
             journal_bytes: self.journal.as_ref().map_or(0, Journal::bytes),
             recovery: self.recovery.clone(),
             duplicates: self.duplicates,
+            replica: self.replica.as_ref().map(|c| {
+                let (core, last) = (&c.core, c.core.last().0);
+                super::messages::ReplicaStats {
+                    node: core.me().to_string(),
+                    role: if core.is_leader() { "primary" } else { "copy" }.to_string(),
+                    term: core.term(),
+                    primary: core.leader().map(str::to_string),
+                    commit: core.commit(),
+                    last,
+                    lag: core.lag(),
+                }
+            }),
         }
     }
 
@@ -196,6 +220,10 @@ impl DmState {
                 return Ok(seq);
             }
         }
+        if self.replica.is_some() {
+            // applied (and its waits woken) once committed
+            return self.propose_put(record);
+        }
         let class = (!self.waits.is_empty()).then(|| record.class.clone());
         let seq = match &mut self.journal {
             None => self.store.insert(record, self.clock.now())?,
@@ -219,7 +247,7 @@ impl DmState {
     }
 
     /// Answer the waits that the record `seq` of `class` satisfies.
-    fn wake(&mut self, class: &str, seq: u64) {
+    pub(crate) fn wake(&mut self, class: &str, seq: u64) {
         let store = &self.store;
         let ready = self
             .waits
@@ -239,6 +267,13 @@ impl DmState {
         reply: RpcReplyPort<T>,
         answer: impl FnOnce(Result<(), DmError>) -> T + Send + 'static,
     ) {
+        if self.replica.is_some() {
+            // a copy's answer waits for the commit of everything proposed before it
+            self.after_commit(Box::new(move |committed| {
+                let _ = reply.send(answer(committed));
+            }));
+            return;
+        }
         match &mut self.journal {
             None => {
                 let _ = reply.send(answer(Ok(())));
@@ -280,6 +315,38 @@ impl DmState {
     }
 }
 
+impl DmMsg {
+    /// A message of the copies' own (a copy that is not the primary handles only these).
+    fn is_between_copies(&self) -> bool {
+        matches!(
+            self,
+            DmMsg::Replica { .. }
+                | DmMsg::ReplicaTick {}
+                | DmMsg::ReplicaDurable { .. }
+                | DmMsg::JournalFlush {}
+                | DmMsg::JournalRefused { .. }
+                | DmMsg::Inject { .. }
+                | DmMsg::Stats { .. }
+                | DmMsg::WaitExpired { .. }
+        )
+    }
+}
+
+impl DmState {
+    /// A client's request reached a copy that is not the primary (an old reference): it is
+    /// not answered — its reply port is dropped, so a `DmClient` follows the datamanager's
+    /// name to the primary — and a put is counted refused.
+    fn not_primary(&mut self, msg: DmMsg) {
+        match msg {
+            DmMsg::Put { .. } | DmMsg::PutBatch { .. } => {
+                self.refused_puts += 1;
+                tracing::debug!(dm = %self.name, "a put reached a copy, not the primary: refused");
+            }
+            other => drop(other),
+        }
+    }
+}
+
 /// Same rule as the registry's: a single word of letters, digits, `-`, `_`, `.`, not all
 /// digits (those are ids). Checked first in `pre_start`, so a bad name fails the spawn
 /// before anything is published.
@@ -308,11 +375,24 @@ impl Actor for Datamanager {
             )
             .into());
         }
-        let (store, fences, producers, journal, recovery) = match args.durability {
+        if let Some(r) = &args.replication {
+            r.check()
+                .map_err(|e| format!("datamanager {}: {e}", args.name))?;
+            if args.durability == Durability::Memory {
+                return Err(format!(
+                    "datamanager {}: copies need a journal (durability process or sync): a copy's \
+                     vote must survive its restart",
+                    args.name
+                )
+                .into());
+            }
+        }
+        let (store, fences, producers, journal, recovery, log) = match args.durability {
             Durability::Memory => (
                 Store::new(args.config),
                 Default::default(),
                 Default::default(),
+                None,
                 None,
                 None,
             ),
@@ -340,7 +420,12 @@ impl Actor for Datamanager {
                 // and the epochs its sources had — numbered by that clock's runs
                 // (`dispatcher::healing`'s epoch base) — are forgotten, or a new run's
                 // first epochs would be refused as stale.
-                let shifted = opened.store.rebase_times(args.clock.now());
+                // (not a copy's: its time stamps are the primary's, the same on every copy)
+                let shifted = if args.replication.is_none() {
+                    opened.store.rebase_times(args.clock.now())
+                } else {
+                    Duration::ZERO
+                };
                 if !shifted.is_zero() {
                     opened.fences = Default::default();
                     tracing::info!(dm = %args.name, by = ?shifted, "journal written under an earlier clock: time stamps moved back onto this one, epochs forgotten");
@@ -351,17 +436,28 @@ impl Actor for Datamanager {
                     opened.producers,
                     Some(opened.journal),
                     Some(opened.recovery),
+                    opened.log,
                 )
             }
         };
+        let replica = match (&args.replication, &args.journal_dir) {
+            (Some(r), Some(dir)) => Some(
+                super::replica::copy::Copy::start(&args.name, r, dir.clone(), log, &store, &myself)
+                    .map_err(|e| format!("datamanager {}: {e}", args.name))?,
+            ),
+            _ => None,
+        };
         // Published last, once nothing can fail any more: when `spawn_datamanager` returns
         // the DM is already listed, and messages sent before it runs wait in its mailbox.
-        registry::publish(
-            ModuleKind::Datamanager,
-            args.id,
-            &args.name,
-            myself.get_cell(),
-        )?;
+        // A copy is published once it is elected primary.
+        if replica.is_none() {
+            registry::publish(
+                ModuleKind::Datamanager,
+                args.id,
+                &args.name,
+                myself.get_cell(),
+            )?;
+        }
         tracing::debug!(dm = %args.name, id = args.id, actor = %myself.get_id(), "datamanager started");
         Ok(DmState {
             id: args.id,
@@ -375,6 +471,7 @@ impl Actor for Datamanager {
             recovery,
             producers,
             duplicates: 0,
+            replica,
         })
     }
 
@@ -397,12 +494,29 @@ impl Actor for Datamanager {
         Ok(())
     }
 
+    async fn handle_supervisor_evt(
+        &self,
+        myself: ActorRef<DmMsg>,
+        event: ractor::SupervisionEvent,
+        state: &mut DmState,
+    ) -> Result<(), ActorProcessingErr> {
+        // a copy monitors its copies' groups: one came or went
+        if let ractor::SupervisionEvent::ProcessGroupChanged(_) = event {
+            state.refresh_peers(&myself);
+        }
+        Ok(())
+    }
+
     async fn handle(
         &self,
         myself: ActorRef<DmMsg>,
         msg: DmMsg,
         state: &mut DmState,
     ) -> Result<(), ActorProcessingErr> {
+        if state.is_copy() && !msg.is_between_copies() {
+            state.not_primary(msg);
+            return Ok(());
+        }
         match msg {
             DmMsg::Put { record } => state.put(record),
             DmMsg::PutBatch { records } => records.into_iter().for_each(|r| state.put(r)),
@@ -427,6 +541,14 @@ impl Actor for Datamanager {
                     let _ = waiter.reply.send(Vec::new());
                 }
             }
+            DmMsg::Delete { query, reply } if state.replica.is_some() => {
+                let seqs = state.store.matching_seqs(&query);
+                let n = state.propose_delete(seqs);
+                state.acknowledge(reply, move |committed| match (committed, n) {
+                    (Ok(()), Ok(n)) => n,
+                    _ => 0,
+                });
+            }
             DmMsg::Delete { query, reply } => {
                 let seqs = state.store.delete_seqs(&query);
                 tracing::debug!(dm = %state.name, deleted = seqs.len(), "delete");
@@ -450,13 +572,26 @@ impl Actor for Datamanager {
                 state.acknowledge(reply, move |_| stats);
             }
             DmMsg::JournalFlush {} => {
+                state.replica_flush(&myself);
                 if let Some(journal) = &mut state.journal {
                     journal.flush();
                     if journal.wants_snapshot(state.store.len()) {
-                        journal.snapshot(&state.store, &state.fences, &state.producers);
+                        let log = state.replica.as_ref().map(|c| {
+                            let core = &c.core;
+                            let commit = core.commit().min(core.applied());
+                            let term = core.term_at(commit).unwrap_or(0);
+                            (
+                                (commit, term),
+                                core.ops(commit + 1, core.last().0).collect(),
+                            )
+                        });
+                        journal.snapshot(&state.store, &state.fences, &state.producers, log);
                     }
                 }
             }
+            DmMsg::Replica { msg } => state.replica_message(&myself, *msg),
+            DmMsg::ReplicaTick {} => state.replica_tick(&myself),
+            DmMsg::ReplicaDurable { seq, term } => state.replica_durable(&myself, seq, term),
             DmMsg::JournalRefused { seqs } => {
                 let n = state.store.remove_seqs(&seqs);
                 state.refused_puts += seqs.len() as u64;

@@ -70,6 +70,10 @@ pub enum DmError {
     /// failed sync, a journal it cannot open): the write is not acknowledged, and not kept.
     #[error("storage: {0}")]
     Storage(String),
+    /// The datamanager asked is a copy, not the primary (it stepped down, or a client held
+    /// an old reference): ask the one published under its name.
+    #[error("datamanager {0} is a copy, not the primary")]
+    NotPrimary(String),
     /// The datamanager did not answer within the deadline.
     #[error("datamanager {dm} did not answer within {after:?}")]
     Timeout {
@@ -85,7 +89,9 @@ impl DmError {
     /// registered, is busy, or did not answer).
     pub fn datamanager(&self) -> Option<&str> {
         match self {
-            DmError::NotRegistered(dm) | DmError::Unreachable(dm) => Some(dm),
+            DmError::NotRegistered(dm) | DmError::Unreachable(dm) | DmError::NotPrimary(dm) => {
+                Some(dm)
+            }
             DmError::Busy { dm, .. } | DmError::Timeout { dm, .. } => Some(dm),
             DmError::InvalidName { .. }
             | DmError::Fenced(_)

@@ -50,6 +50,29 @@ pub struct DmStats {
     /// ([`crate::dm::producers`]).
     #[serde(default)]
     pub duplicates: u64,
+    /// A replicated datamanager's copy: its role, term and how far each copy lags.
+    #[serde(default)]
+    pub replica: Option<ReplicaStats>,
+}
+
+/// A copy of a replicated datamanager, in its [`DmStats`].
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct ReplicaStats {
+    /// The node this copy runs on.
+    pub node: String,
+    /// `primary` or `copy`.
+    pub role: String,
+    /// Its term.
+    pub term: u64,
+    /// The primary it follows, if it knows one.
+    pub primary: Option<String>,
+    /// The last committed seq.
+    pub commit: u64,
+    /// The last seq in its log.
+    pub last: u64,
+    /// On the primary: how many entries each other copy lacks.
+    pub lag: BTreeMap<String, u64>,
 }
 
 crate::remote_message! {
@@ -105,6 +128,12 @@ crate::remote_message! {
             /// The fault.
             fault: crate::run::FaultKind,
         },
+        /// A message between the copies of a replicated datamanager
+        /// ([`super::replica`]).
+        Replica {
+            /// The message (boxed: it is seldom the hot path, and large).
+            msg: Box<super::replica::ReplicaMsg>,
+        },
     }
     local {
         /// The timeout of a pending wait passed.
@@ -120,6 +149,15 @@ crate::remote_message! {
         JournalRefused {
             /// Their seqs.
             seqs: Vec<u64>,
+        },
+        /// A copy's clock: campaign, send heartbeats, see who is reachable.
+        ReplicaTick {},
+        /// The journal made a copy's entries up to `seq` (of `term`) durable.
+        ReplicaDurable {
+            /// The last entry durable.
+            seq: u64,
+            /// Its term.
+            term: u64,
         },
     }
 }

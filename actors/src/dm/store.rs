@@ -807,6 +807,21 @@ impl Store {
         gone
     }
 
+    /// The seqs [`Store::delete`] would delete (ascending), without deleting them: what a
+    /// replicated datamanager's primary proposes.
+    pub(crate) fn matching_seqs(&self, q: &Query) -> Vec<u64> {
+        let mut victims: HashMap<Arc<str>, Vec<u64>> = HashMap::new();
+        self.walk(q, &mut Victims(&mut victims));
+        let mut seqs: Vec<u64> = victims.into_values().flatten().collect();
+        seqs.sort_unstable();
+        seqs
+    }
+
+    /// Count `n` records deleted (a replicated delete, applied by `remove_seqs`).
+    pub(crate) fn count_deleted(&mut self, n: u64) {
+        self.deleted += n;
+    }
+
     /// Take the records `seqs` out, whatever their classes (a journal's replayed delete, or
     /// records whose journal write failed); how many were there. Counted in no statistic.
     pub(crate) fn remove_seqs(&mut self, seqs: &[u64]) -> u64 {

@@ -202,6 +202,13 @@ fn datamanagers(
                     .collect(),
             );
             let (id, name) = (spec.id, spec.name.clone());
+            let replication = (!spec.copies.is_empty()).then(|| {
+                dm::Replication::new(config.name.clone(), spec.copies.clone())
+            });
+            if replication.is_some() && !records.is_empty() {
+                // a copy is not the primary when it starts; who stores them once is to do
+                tracing::warn!(dm = %spec.name, records = records.len(), "a replicated datamanager gets no a-priori records yet");
+            }
             // validated: a durability other than memory comes with a data directory
             let journal = match (config.durability_of(spec), &config.data_dir) {
                 (Durability::Memory, _) | (_, None) => None,
@@ -212,6 +219,7 @@ fn datamanagers(
             ChildSpec::worker(spec.name.clone(), move |sup| {
                 let (clock, records, name) = (clock.clone(), records.clone(), name.clone());
                 let journal = journal.clone();
+                let replication = replication.clone();
                 async move {
                     let mut args = DmArgs {
                         id,
@@ -220,9 +228,15 @@ fn datamanagers(
                         config: DmConfig::default(),
                         durability: Durability::Memory,
                         journal_dir: None,
+                        replication: None,
                     };
                     if let Some((dir, durability)) = journal {
                         args = args.with_journal(dir, durability);
+                    }
+                    if let Some(replication) = replication {
+                        let args = args.with_replication(replication);
+                        let (actor, _) = dm::spawn_datamanager_linked(args, sup).await?;
+                        return Ok(actor.get_cell());
                     }
                     let (actor, _) = dm::spawn_datamanager_linked(args, sup).await?;
                     let startup = |e: DmError| SpawnErr::StartupFailed(Box::new(e));

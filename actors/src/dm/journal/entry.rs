@@ -10,6 +10,12 @@
 //! SnapEnd  (4) = records u64                           (the snapshot is whole)
 //! Producer (5) = producer u64 | count u32 | (producer_seq u64 | seq u64) × count
 //!                                                      (a snapshot's idempotence table)
+//! Term     (6) = term u64          (a replicated DM: the entries after it are of this term)
+//! Commit   (7) = seq u64           (a replicated DM: the entries up to seq are committed)
+//! Truncate (8) = seq u64           (a replicated DM: its uncommitted entries from seq on go)
+//! Mark     (9) = seq u64 | count u32 | seq u64 × count
+//!                                  (a replicated DM's delete of seqs, or with none a no-op,
+//!                                   taking log place `seq`)
 //! str     = u16 LE length | UTF-8 bytes;  opt = u16 LE length (0xFFFF: none) | bytes
 //! bytes   = u32 LE length | bytes
 //! ```
@@ -35,6 +41,10 @@ const DELETE: u8 = 2;
 const SNAP_OPEN: u8 = 3;
 const SNAP_END: u8 = 4;
 const PRODUCER: u8 = 5;
+const TERM: u8 = 6;
+const COMMIT: u8 = 7;
+const TRUNCATE: u8 = 8;
+const MARK: u8 = 9;
 const NONE: u16 = u16::MAX;
 
 /// What one entry says.
@@ -57,6 +67,14 @@ pub(crate) enum Entry {
         producer: u64,
         pairs: Vec<(u64, u64)>,
     },
+    /// The entries after this are of `term` (a replicated datamanager's journal).
+    Term { term: u64 },
+    /// The entries up to `seq` are committed.
+    Commit { seq: u64 },
+    /// The uncommitted entries from `seq` on are gone.
+    Truncate { seq: u64 },
+    /// A replicated delete of `seqs` (or, with none, a no-op) at log place `seq`.
+    Mark { seq: u64, seqs: Vec<u64> },
 }
 
 /// Why the bytes at some offset are not a whole entry.
@@ -157,6 +175,39 @@ pub(crate) fn encode_parts(
 /// Append a delete of `seqs`.
 pub(crate) fn encode_delete(out: &mut Vec<u8>, seqs: &[u64]) {
     let at = begin(out, DELETE);
+    out.extend_from_slice(&(seqs.len() as u32).to_le_bytes());
+    for s in seqs {
+        out.extend_from_slice(&s.to_le_bytes());
+    }
+    finish(out, at);
+}
+
+/// Append a mark of `kind` (`Term`, `Commit`, `Truncate`) with one number.
+fn encode_number(out: &mut Vec<u8>, kind: u8, n: u64) {
+    let at = begin(out, kind);
+    out.extend_from_slice(&n.to_le_bytes());
+    finish(out, at);
+}
+
+/// Append: the entries after this are of `term`.
+pub(crate) fn encode_term(out: &mut Vec<u8>, term: u64) {
+    encode_number(out, TERM, term);
+}
+
+/// Append: the entries up to `seq` are committed.
+pub(crate) fn encode_commit(out: &mut Vec<u8>, seq: u64) {
+    encode_number(out, COMMIT, seq);
+}
+
+/// Append: the uncommitted entries from `seq` on are gone.
+pub(crate) fn encode_truncate(out: &mut Vec<u8>, seq: u64) {
+    encode_number(out, TRUNCATE, seq);
+}
+
+/// Append a replicated delete of `seqs` (a no-op if empty) at log place `seq`.
+pub(crate) fn encode_mark(out: &mut Vec<u8>, seq: u64, seqs: &[u64]) {
+    let at = begin(out, MARK);
+    out.extend_from_slice(&seq.to_le_bytes());
     out.extend_from_slice(&(seqs.len() as u32).to_le_bytes());
     for s in seqs {
         out.extend_from_slice(&s.to_le_bytes());
@@ -290,6 +341,20 @@ fn decode_body(body: &[u8]) -> Option<Entry> {
                 .collect::<Option<_>>()?;
             Entry::Producer { producer, pairs }
         }
+        TERM => Entry::Term { term: b.u64()? },
+        COMMIT => Entry::Commit { seq: b.u64()? },
+        TRUNCATE => Entry::Truncate { seq: b.u64()? },
+        MARK => {
+            let seq = b.u64()?;
+            let n = b.u32()? as usize;
+            if b.0.len() != n.checked_mul(8)? {
+                return None;
+            }
+            Entry::Mark {
+                seq,
+                seqs: (0..n).map(|_| b.u64()).collect::<Option<_>>()?,
+            }
+        }
         _ => return None,
     };
     // every byte of the body belongs to a field
@@ -341,6 +406,11 @@ mod tests {
         encode_snap_open(&mut out, 43, Duration::from_secs(2));
         encode_snap_end(&mut out, 1);
         encode_producer(&mut out, 0xfeed, [(2, 40), (3, 41)].into_iter());
+        encode_term(&mut out, 7);
+        encode_commit(&mut out, 44);
+        encode_truncate(&mut out, 46);
+        encode_mark(&mut out, 45, &[41]);
+        encode_mark(&mut out, 46, &[]);
         let entries = vec![
             Entry::Put {
                 seq: 41,
@@ -361,6 +431,17 @@ mod tests {
             Entry::Producer {
                 producer: 0xfeed,
                 pairs: vec![(2, 40), (3, 41)],
+            },
+            Entry::Term { term: 7 },
+            Entry::Commit { seq: 44 },
+            Entry::Truncate { seq: 46 },
+            Entry::Mark {
+                seq: 45,
+                seqs: vec![41],
+            },
+            Entry::Mark {
+                seq: 46,
+                seqs: vec![],
             },
         ];
         (out, entries)

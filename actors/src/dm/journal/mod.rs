@@ -38,10 +38,12 @@ mod writer;
 
 pub use lock::{DirLock, LockError};
 pub use recover::Recovery;
+pub(crate) use recover::ReplicaLog;
 
 use super::error::DmError;
 use super::producers::Producers;
 use super::record::NewRecord;
+use super::replica::{Op, OpBody};
 use super::store::{DmConfig, Store};
 use crate::fence::FenceTable;
 use serde::{Deserialize, Serialize};
@@ -124,6 +126,10 @@ pub(crate) struct Journal {
     shared: Arc<Shared>,
     /// Sends the datamanager its `JournalFlush`.
     flush: Box<dyn Fn() -> bool + Send>,
+    /// A replicated datamanager's: the term of the last entry written, and the last entry
+    /// written since [`Journal::take_last_op`] was asked.
+    term: Option<u64>,
+    last_op: Option<(u64, u64)>,
 }
 
 /// How the journal reaches its datamanager (given by the actor: the journal knows no
@@ -196,6 +202,8 @@ pub(crate) struct Opened {
     pub fences: FenceTable,
     pub producers: Producers,
     pub recovery: Recovery,
+    /// A replicated datamanager's log beyond the store.
+    pub log: Option<ReplicaLog>,
 }
 
 impl Journal {
@@ -269,11 +277,14 @@ impl Journal {
                 puts: recovered.puts,
                 shared,
                 flush,
+                term: recovered.log.as_ref().map(|l| l.term),
+                last_op: None,
             },
             store: recovered.store,
             fences: recovered.fences,
             producers: recovered.producers,
             recovery: recovered.report,
+            log: recovered.log,
         })
     }
 
@@ -310,6 +321,54 @@ impl Journal {
         }
         entry::encode_delete(&mut self.batch, seqs);
         self.written();
+    }
+
+    /// Journal a replicated datamanager's entry (after a term mark if its term is new here).
+    pub(crate) fn op(&mut self, op: &Op) {
+        self.term_mark(op.term);
+        match &op.body {
+            OpBody::Put { time_ns, record } => {
+                entry::encode_put(
+                    &mut self.batch,
+                    op.seq,
+                    Duration::from_nanos(*time_ns),
+                    record,
+                );
+                self.puts += 1;
+            }
+            OpBody::Delete { seqs } => entry::encode_mark(&mut self.batch, op.seq, seqs),
+            OpBody::Noop => entry::encode_mark(&mut self.batch, op.seq, &[]),
+        }
+        self.last_op = Some((op.seq, op.term));
+        self.written();
+    }
+
+    fn term_mark(&mut self, term: u64) {
+        if self.term != Some(term) {
+            entry::encode_term(&mut self.batch, term);
+            self.term = Some(term);
+        }
+    }
+
+    /// Journal that the entries up to `seq` are committed.
+    pub(crate) fn commit(&mut self, seq: u64) {
+        entry::encode_commit(&mut self.batch, seq);
+        self.written();
+    }
+
+    /// Journal that the uncommitted entries from `seq` on are gone.
+    pub(crate) fn truncate(&mut self, seq: u64) {
+        entry::encode_truncate(&mut self.batch, seq);
+        if self.last_op.is_some_and(|(s, _)| s >= seq) {
+            self.last_op = None;
+        }
+        self.written();
+    }
+
+    /// The last entry journaled since the last time this was asked (to learn when it is
+    /// durable).
+    pub(crate) fn take_last_op(&mut self) -> Option<(u64, u64)> {
+        self.last_op.take()
     }
 
     /// Run `ack` once everything journaled before it is durable (at once if it is already),
@@ -407,7 +466,16 @@ impl Journal {
     }
 
     /// Hand the batch gathered so far, then a snapshot of `store` (the state right after it).
-    pub(crate) fn snapshot(&mut self, store: &Store, fences: &FenceTable, producers: &Producers) {
+    /// A replicated datamanager's snapshot also says where its committed log ends, and
+    /// writes its uncommitted entries again after it (the older segments, which hold them,
+    /// are deleted).
+    pub(crate) fn snapshot(
+        &mut self,
+        store: &Store,
+        fences: &FenceTable,
+        producers: &Producers,
+        log: Option<((u64, u64), Vec<&Op>)>,
+    ) {
         self.flush();
         let mut bytes = Vec::with_capacity(store.len() * 96 + 64);
         entry::encode_snap_open(&mut bytes, store.next_seq(), store.last_time());
@@ -422,6 +490,17 @@ impl Journal {
         }
         entry::encode_snap_end(&mut bytes, n);
         self.puts = n;
+        if let Some(((seq, term), tail)) = log {
+            entry::encode_term(&mut bytes, term);
+            entry::encode_commit(&mut bytes, seq);
+            self.term = Some(term);
+            self.submit(Job::Snapshot { bytes });
+            for op in tail {
+                self.op(op);
+            }
+            self.flush();
+            return;
+        }
         self.submit(Job::Snapshot { bytes });
     }
 

@@ -12,6 +12,7 @@
 use super::entry::{self, Entry, Torn};
 use super::segment;
 use crate::dm::producers::Producers;
+use crate::dm::replica::{apply, Op, OpBody};
 use crate::dm::store::{DmConfig, Store};
 use crate::fence::FenceTable;
 use serde::{Deserialize, Serialize};
@@ -49,6 +50,19 @@ pub(crate) struct Recovered {
     /// holds since its last snapshot (what decides the next one).
     pub tail: u64,
     pub puts: u64,
+    /// A replicated datamanager's log, if the journal is one's.
+    pub log: Option<ReplicaLog>,
+}
+
+/// What a replicated datamanager's journal says about its log beyond the store.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub(crate) struct ReplicaLog {
+    /// (seq, term) of the last committed entry (applied to the store).
+    pub committed: (u64, u64),
+    /// The entries after it, not known committed, in order.
+    pub tail: Vec<Op>,
+    /// The term of the last entry written.
+    pub term: u64,
 }
 
 /// What a replay rebuilds.
@@ -73,11 +87,15 @@ struct Replay {
     report: Recovery,
     /// The newest segment that holds a whole snapshot: the ones before it are garbage.
     snapshot_segment: Option<u64>,
+    /// Set by the first `Term` entry: the journal is a replicated datamanager's, whose
+    /// entries count only once committed.
+    log: Option<ReplicaLog>,
 }
 
 impl Replay {
     fn apply(&mut self, entry: Entry, segment: u64, at: usize) {
         self.report.entries += 1;
+        let in_snapshot = self.open.is_some();
         let state = match &mut self.open {
             Some((s, _, _)) => s,
             None => &mut self.state,
@@ -85,7 +103,71 @@ impl Replay {
         let Some(store) = state.store.as_mut() else {
             return;
         };
+        // a replicated journal: outside a snapshot, entries wait for their commit
+        if let (Some(log), false) = (&mut self.log, in_snapshot) {
+            let term = log.term;
+            match entry {
+                Entry::Put {
+                    seq,
+                    timestamp,
+                    record,
+                } => {
+                    let time_ns = u64::try_from(timestamp.as_nanos()).unwrap_or(u64::MAX);
+                    log.tail.push(Op {
+                        seq,
+                        term,
+                        body: OpBody::Put { time_ns, record },
+                    });
+                    return;
+                }
+                Entry::Mark { seq, seqs } => {
+                    let body = if seqs.is_empty() {
+                        OpBody::Noop
+                    } else {
+                        OpBody::Delete { seqs }
+                    };
+                    log.tail.push(Op { seq, term, body });
+                    return;
+                }
+                Entry::Commit { seq } => {
+                    let upto = log.tail.partition_point(|o| o.seq <= seq);
+                    if upto == 0 && seq > log.committed.0 {
+                        // a commit mark after a snapshot: nothing to apply
+                        log.committed = (seq, term);
+                    }
+                    for op in log.tail.drain(..upto) {
+                        log.committed = (op.seq, op.term);
+                        state.puts += matches!(op.body, OpBody::Put { .. }) as u64;
+                        apply::apply(store, &mut state.fences, &mut state.producers, op);
+                    }
+                    return;
+                }
+                Entry::Truncate { seq } => {
+                    log.tail.retain(|o| o.seq < seq);
+                    return;
+                }
+                Entry::Term { term } => {
+                    log.term = term;
+                    return;
+                }
+                _ => {}
+            }
+        }
         match entry {
+            Entry::Term { term } => {
+                // the first one: from here on, a replicated datamanager's journal
+                self.log = Some(ReplicaLog {
+                    term,
+                    ..ReplicaLog::default()
+                });
+            }
+            Entry::Commit { .. } | Entry::Truncate { .. } | Entry::Mark { .. } => {
+                tracing::warn!(
+                    segment,
+                    at,
+                    "journal: a replica's mark outside a replicated journal; ignored"
+                );
+            }
             Entry::Put {
                 seq,
                 timestamp,
@@ -130,6 +212,11 @@ impl Replay {
                     }
                     self.state = s;
                     self.snapshot_segment = Some(seg);
+                    if let Some(log) = &mut self.log {
+                        // the snapshot holds the committed state; the uncommitted entries
+                        // written before it are written again after it
+                        log.tail.clear();
+                    }
                 }
                 None => tracing::warn!(
                     segment,
@@ -165,6 +252,7 @@ pub(crate) fn recover(dir: &Path, config: DmConfig) -> io::Result<Recovered> {
         open: None,
         report: Recovery::default(),
         snapshot_segment: None,
+        log: None,
     };
     let mut tail = segments.last().map_or(1, |(n, _)| *n);
     let mut stop: Option<(usize, usize)> = None; // (index of the segment, offset)
@@ -265,6 +353,7 @@ pub(crate) fn recover(dir: &Path, config: DmConfig) -> io::Result<Recovered> {
         report: r.report,
         tail,
         puts: r.state.puts,
+        log: r.log,
     })
 }
 

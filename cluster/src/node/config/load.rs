@@ -156,8 +156,14 @@ fn datamanager(
     seen: &[DatamanagerConfig],
     has_data_dir: bool,
 ) -> Option<DatamanagerConfig> {
-    r.unknown_keys(t, &["name", "id", "durability"]);
+    r.unknown_keys(t, &["name", "id", "durability", "copies"]);
     let durability = durability(r, t, has_data_dir);
+    let copies: Vec<String> = r
+        .string_array(t, "copies")
+        .unwrap_or_default()
+        .into_iter()
+        .map(|(s, _)| s)
+        .collect();
     let name = r.required_string(t, "name")?;
     let known = [dm::FEATURE, dm::PARAMETER, dm::WORLD];
     let id = r.integer(t, "id", Some(0), 0..=i64::from(u32::MAX));
@@ -186,6 +192,7 @@ fn datamanager(
     }
     Some(DatamanagerConfig {
         durability: durability.ok()?,
+        copies,
         ..spec
     })
 }

@@ -134,6 +134,12 @@ pub struct DatamanagerConfig {
     /// may need `sync` (survives a power loss, at an `fdatasync` per batch). `process` and
     /// `sync` need the node's `data_dir`; a config asking for them without one is refused.
     pub durability: Option<Durability>,
+    /// The nodes that keep a copy of it, the preferred primary first, this node among them
+    /// (empty: no copies). Every node named hosts a `[[datamanager]]` of the same name and
+    /// the same list; a write is acknowledged once a majority of them hold it, and when the
+    /// primary's node is lost another copy takes over ([`marie_actors::dm::replica`]).
+    /// Three or more, with a journal (`process` or `sync`).
+    pub copies: Vec<String>,
 }
 
 impl DatamanagerConfig {
@@ -143,7 +149,22 @@ impl DatamanagerConfig {
             name: name.into(),
             id,
             durability: None,
+            copies: Vec::new(),
         }
+    }
+
+    /// Keep copies on the nodes `nodes` (this node among them; the first is the preferred
+    /// primary).
+    ///
+    /// ```
+    /// use marie_actors::dm::FEATURE;
+    /// use marie_cluster::node::DatamanagerConfig;
+    /// let dm = DatamanagerConfig::from(FEATURE).with_copies(["features", "operations", "spare"]);
+    /// assert_eq!(dm.copies.len(), 3);
+    /// ```
+    pub fn with_copies(mut self, nodes: impl IntoIterator<Item = impl Into<String>>) -> Self {
+        self.copies = nodes.into_iter().map(Into::into).collect();
+        self
     }
 
     /// At `durability` rather than the node's default.
@@ -486,6 +507,23 @@ impl NodeConfig {
                     });
                 }
                 _ => {}
+            }
+            if !d.copies.is_empty() {
+                let replication =
+                    marie_actors::dm::Replication::new(self.name.clone(), d.copies.clone());
+                let durable = self.durability_of(d) != Durability::Memory;
+                let problem = replication.check().err().or_else(|| {
+                    (!durable).then(|| {
+                        "copies need a journal: give the node a data_dir (durability process or sync)"
+                            .to_string()
+                    })
+                });
+                if let Some(message) = problem {
+                    return Err(ConfigError::Range {
+                        what: format!("datamanager `{}`: copies", d.name),
+                        message,
+                    });
+                }
             }
         }
         let supervisors = self.operation_supervisors();

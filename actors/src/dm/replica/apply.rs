@@ -1,0 +1,46 @@
+//! What a committed entry does to a datamanager's store: the same on every copy, and in a
+//! replay of its journal.
+
+use super::op::{Op, OpBody};
+use crate::dm::producers::Producers;
+use crate::dm::store::Store;
+use crate::fence::FenceTable;
+use std::time::Duration;
+
+/// Apply the committed entry `op` to `store` (with the sources' epochs and the producers'
+/// recent puts). A put the store refuses (it cannot be: the primary checked it) is logged
+/// and skipped; what it was is returned, so the caller can wake its waits.
+pub(crate) fn apply(
+    store: &mut Store,
+    fences: &mut FenceTable,
+    producers: &mut Producers,
+    op: Op,
+) -> Option<String> {
+    match op.body {
+        OpBody::Put { time_ns, record } => {
+            // a copy takes the primary's word: the epoch is noted, not judged
+            let _ = fences.admit_parts(&record.source, record.epoch);
+            if record.producer != 0 {
+                producers.note(record.producer, record.producer_seq, op.seq);
+            }
+            let class = record.class.clone();
+            match store.restore(op.seq, Duration::from_nanos(time_ns), record) {
+                Ok(()) => Some(class),
+                Err(e) => {
+                    tracing::warn!(seq = op.seq, error = %e, "replica: a committed put could not be applied; skipped");
+                    None
+                }
+            }
+        }
+        OpBody::Delete { seqs } => {
+            let n = store.remove_seqs(&seqs);
+            store.count_deleted(n);
+            store.raise_floor(op.seq + 1, Duration::ZERO);
+            None
+        }
+        OpBody::Noop => {
+            store.raise_floor(op.seq + 1, Duration::ZERO);
+            None
+        }
+    }
+}

@@ -1,0 +1,546 @@
+//! One copy of a replicated datamanager, as its actor runs it: the protocol's [`Core`], the
+//! other copies it can reach, the acknowledgements waiting for a commit, a snapshot being
+//! received. The actor's handlers for the copies' messages are here too (`impl DmState`).
+
+use super::core::{Core, Out, Restored};
+use super::msg::{InstallPart, ReplicaMsg};
+use super::op::{Op, OpBody};
+use super::{apply, vote, Replication, SCOPE};
+use crate::dm::actor::DmState;
+use crate::dm::error::DmError;
+use crate::dm::journal::ReplicaLog;
+use crate::dm::messages::DmMsg;
+use crate::dm::producers::Producers;
+use crate::dm::record::NewRecord;
+use crate::dm::store::{DmConfig, Store};
+use crate::fence::FenceTable;
+use crate::registry::{self, ModuleKind};
+use ractor::{pg, ActorCell, ActorRef};
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::time::Duration;
+
+/// An answer waiting for its entry's commit.
+pub(crate) type Ack = Box<dyn FnOnce(Result<(), DmError>) + Send>;
+
+/// Records per snapshot part sent to a copy.
+const INSTALL_PART: usize = 2048;
+
+/// The replication side of a datamanager's state.
+pub(crate) struct Copy {
+    pub(crate) core: Core,
+    dir: PathBuf,
+    /// The other copies reachable now, by node.
+    peers: BTreeMap<String, ActorCell>,
+    acks: BTreeMap<u64, Vec<Ack>>,
+    started: tokio::time::Instant,
+    /// The newest time stamp handed out.
+    last_time: Duration,
+    incoming: Option<Incoming>,
+    ticker: tokio::task::JoinHandle<()>,
+    members: Vec<String>,
+    name: String,
+}
+
+impl Drop for Copy {
+    fn drop(&mut self) {
+        self.ticker.abort();
+    }
+}
+
+/// A snapshot being received.
+struct Incoming {
+    last: (u64, u64),
+    store: Store,
+    fences: FenceTable,
+    records: u64,
+}
+
+/// The group a copy of `dm` on node `me` joins (in [`SCOPE`]).
+fn group(dm: &str, me: &str) -> String {
+    format!("{dm}/{me}")
+}
+
+impl Copy {
+    /// The copy `replication.me` of datamanager `name`, with what its journal (in `dir`)
+    /// held: joins its group, starts its ticker.
+    pub(crate) fn start(
+        name: &str,
+        replication: &Replication,
+        dir: PathBuf,
+        log: Option<ReplicaLog>,
+        store: &Store,
+        myself: &ActorRef<DmMsg>,
+    ) -> Result<Copy, String> {
+        let (term, voted_for) =
+            vote::load(&dir).map_err(|e| format!("reading the vote in {}: {e}", dir.display()))?;
+        let restored = match log {
+            Some(log) => Restored {
+                term: term.max(log.term),
+                voted_for,
+                committed: log.committed,
+                tail: log.tail,
+            },
+            None if store.next_seq() > 1 => {
+                return Err(format!(
+                    "the journal in {} was written by a datamanager without copies: its records \
+                     are on no other copy (start the copies on empty directories)",
+                    dir.display()
+                ))
+            }
+            None => Restored {
+                term,
+                voted_for,
+                ..Restored::default()
+            },
+        };
+        let eager = replication.members.first() == Some(&replication.me);
+        let started = tokio::time::Instant::now();
+        let core = Core::new(
+            &replication.me,
+            &replication.members,
+            replication.timing,
+            restored,
+            eager,
+            Duration::ZERO,
+        );
+        pg::join_scoped(
+            SCOPE.to_string(),
+            group(name, &replication.me),
+            vec![myself.get_cell()],
+        );
+        pg::monitor_scope(SCOPE.to_string(), myself.get_cell());
+        let me = myself.clone();
+        let every = replication.timing.heartbeat / 2;
+        let ticker = tokio::spawn(async move {
+            let mut ticks = tokio::time::interval(every);
+            ticks.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+            loop {
+                ticks.tick().await;
+                if me.cast(DmMsg::ReplicaTick {}).is_err() {
+                    break;
+                }
+            }
+        });
+        Ok(Copy {
+            core,
+            dir,
+            peers: BTreeMap::new(),
+            acks: BTreeMap::new(),
+            started,
+            last_time: store.last_time(),
+            incoming: None,
+            ticker,
+            members: replication.members.clone(),
+            name: name.to_string(),
+        })
+    }
+
+    fn now(&self) -> Duration {
+        self.started.elapsed()
+    }
+
+    /// Run `ack` once the entries up to `seq` are applied (at once if they are).
+    fn after_applied(&mut self, seq: u64, ack: Ack) {
+        if seq <= self.core.applied() {
+            ack(Ok(()));
+        } else {
+            self.acks.entry(seq).or_default().push(ack);
+        }
+    }
+
+    fn send(&self, to: &str, msg: ReplicaMsg) {
+        match self.peers.get(to) {
+            Some(cell) => {
+                let actor: ActorRef<DmMsg> = cell.clone().into();
+                if let Err(e) = actor.cast(DmMsg::Replica { msg: Box::new(msg) }) {
+                    tracing::debug!(dm = %self.name, to, error = %e, "replica: a message not sent");
+                }
+            }
+            None => tracing::trace!(dm = %self.name, to, "replica: not reachable; not sent"),
+        }
+    }
+}
+
+impl DmState {
+    /// Whether this datamanager is a copy that is not the primary (it answers no client).
+    pub(crate) fn is_copy(&self) -> bool {
+        self.replica.as_ref().is_some_and(|c| !c.core.is_leader())
+    }
+
+    /// The primary's side of a store: propose the record. Its seq, once it is checked.
+    pub(crate) fn propose_put(&mut self, record: NewRecord) -> Result<u64, DmError> {
+        let now = self.clock.now();
+        let Some(copy) = self.replica.as_mut() else {
+            return Err(DmError::NotPrimary(self.name.clone()));
+        };
+        if !copy.core.is_leader() {
+            return Err(DmError::NotPrimary(self.name.clone()));
+        }
+        let journal = self.journal.as_mut().expect("a copy has a journal");
+        journal.usable()?;
+        self.store.check(&record)?;
+        copy.last_time = copy.last_time.max(now);
+        let time_ns = u64::try_from(copy.last_time.as_nanos()).unwrap_or(u64::MAX);
+        let who = (record.producer, record.producer_seq);
+        let op = copy
+            .core
+            .propose(OpBody::Put { time_ns, record })
+            .expect("the primary proposes");
+        journal.op(op);
+        let seq = op.seq;
+        if who.0 != 0 {
+            self.producers.note(who.0, who.1, seq);
+        }
+        Ok(seq)
+    }
+
+    /// The primary's side of a delete: propose it; how many records it deletes.
+    pub(crate) fn propose_delete(&mut self, seqs: Vec<u64>) -> Result<u64, DmError> {
+        let Some(copy) = self.replica.as_mut() else {
+            return Err(DmError::NotPrimary(self.name.clone()));
+        };
+        let n = seqs.len() as u64;
+        if n == 0 {
+            return Ok(0);
+        }
+        let op = copy
+            .core
+            .propose(OpBody::Delete { seqs })
+            .ok_or_else(|| DmError::NotPrimary(self.name.clone()))?;
+        self.journal.as_mut().expect("a copy has a journal").op(op);
+        Ok(n)
+    }
+
+    /// Send an answer once everything proposed so far is committed and applied.
+    pub(crate) fn after_commit(&mut self, ack: Ack) {
+        let copy = self.replica.as_mut().expect("called on a copy");
+        let last = copy.core.last().0;
+        copy.after_applied(last, ack);
+    }
+
+    /// The journal's batch is handed over: learn when it is durable, and send the copies
+    /// what they lack.
+    pub(crate) fn replica_flush(&mut self, myself: &ActorRef<DmMsg>) {
+        let (Some(copy), Some(journal)) = (self.replica.as_mut(), self.journal.as_mut()) else {
+            return;
+        };
+        if let Some((seq, term)) = journal.take_last_op() {
+            let me = myself.clone();
+            journal.after_durable(Box::new(move |durable| {
+                if durable.is_ok() {
+                    let _ = me.cast(DmMsg::ReplicaDurable { seq, term });
+                }
+            }));
+        }
+        let mut out = Vec::new();
+        let now = copy.now();
+        copy.core.replicate(now, &mut out);
+        self.carry_out(myself, out);
+    }
+
+    /// Time passed.
+    pub(crate) fn replica_tick(&mut self, myself: &ActorRef<DmMsg>) {
+        self.refresh_peers(myself);
+        let Some(copy) = self.replica.as_mut() else {
+            return;
+        };
+        let mut out = Vec::new();
+        let now = copy.now();
+        copy.core.tick(now, &mut out);
+        self.carry_out(myself, out);
+    }
+
+    /// The journal made the entries up to `seq` (of `term`) durable.
+    pub(crate) fn replica_durable(&mut self, myself: &ActorRef<DmMsg>, seq: u64, term: u64) {
+        let Some(copy) = self.replica.as_mut() else {
+            return;
+        };
+        let mut out = Vec::new();
+        copy.core.durable(seq, term, &mut out);
+        self.carry_out(myself, out);
+    }
+
+    /// Which copies are reachable now (from the copies' groups): tell the core who came
+    /// and went.
+    pub(crate) fn refresh_peers(&mut self, myself: &ActorRef<DmMsg>) {
+        let Some(copy) = self.replica.as_mut() else {
+            return;
+        };
+        let now = copy.now();
+        let mut out = Vec::new();
+        for m in copy.members.clone() {
+            if m == copy.core.me() {
+                continue;
+            }
+            let found = pg::get_scoped_members(&SCOPE.to_string(), &group(&copy.name, &m))
+                .into_iter()
+                .find(|c| c.get_status() <= ractor::ActorStatus::Running);
+            let known = copy.peers.get(&m).map(ActorCell::get_id);
+            match (known, found) {
+                (Some(a), Some(b)) if a == b.get_id() => {}
+                (_, Some(b)) => {
+                    copy.peers.insert(m.clone(), b);
+                    tracing::debug!(dm = %copy.name, peer = %m, "replica: a copy is reachable");
+                    copy.core.peer_up(&m, now, &mut out);
+                }
+                (Some(_), None) => {
+                    copy.peers.remove(&m);
+                    tracing::debug!(dm = %copy.name, peer = %m, "replica: a copy is gone");
+                    copy.core.peer_down(&m, now);
+                }
+                (None, None) => {}
+            }
+        }
+        self.carry_out(myself, out);
+    }
+
+    /// A message from another copy.
+    pub(crate) fn replica_message(&mut self, myself: &ActorRef<DmMsg>, msg: ReplicaMsg) {
+        let Some(copy) = self.replica.as_mut() else {
+            return;
+        };
+        let now = copy.now();
+        let mut out = Vec::new();
+        match msg {
+            ReplicaMsg::Install {
+                term,
+                leader,
+                last_seq,
+                last_term,
+                part,
+            } => {
+                if copy
+                    .core
+                    .install_from(term, &leader, last_seq, now, &mut out)
+                {
+                    self.carry_out(myself, out);
+                    self.take_part((last_seq, last_term), part, myself);
+                    return;
+                }
+            }
+            msg => copy.core.receive(msg, now, &mut out),
+        }
+        self.carry_out(myself, out);
+    }
+
+    /// A part of a snapshot sent by the primary.
+    fn take_part(&mut self, last: (u64, u64), part: InstallPart, myself: &ActorRef<DmMsg>) {
+        let config: DmConfig = self.store.config().clone();
+        let Some(copy) = self.replica.as_mut() else {
+            return;
+        };
+        match part {
+            InstallPart::Records { first, records } => {
+                if first {
+                    copy.incoming = Some(Incoming {
+                        last,
+                        store: Store::new(config),
+                        fences: FenceTable::default(),
+                        records: 0,
+                    });
+                }
+                let Some(inc) = copy.incoming.as_mut().filter(|i| i.last == last) else {
+                    return;
+                };
+                for (seq, time_ns, record) in records {
+                    let _ = inc.fences.admit_parts(&record.source, record.epoch);
+                    if let Err(e) = inc
+                        .store
+                        .restore(seq, Duration::from_nanos(time_ns), record)
+                    {
+                        tracing::warn!(dm = %copy.name, seq, error = %e, "replica: a snapshot record refused");
+                    }
+                    inc.records += 1;
+                }
+            }
+            InstallPart::End {
+                records,
+                producers,
+                last_time_ns,
+            } => {
+                let Some(mut inc) = copy.incoming.take().filter(|i| i.last == last) else {
+                    return;
+                };
+                if inc.records != records {
+                    tracing::warn!(dm = %copy.name, got = inc.records, sent = records, "replica: a snapshot came incomplete; dropped");
+                    return;
+                }
+                inc.store
+                    .raise_floor(last.0 + 1, Duration::from_nanos(last_time_ns));
+                let mut table = Producers::default();
+                for (producer, pairs) in producers {
+                    for (pseq, seq) in pairs {
+                        table.note(producer, pseq, seq);
+                    }
+                }
+                tracing::info!(dm = %copy.name, records, upto = last.0, "replica: a snapshot from the primary taken in");
+                self.store = inc.store;
+                self.fences = inc.fences;
+                self.producers = table;
+                copy.core.installed(last.0, last.1);
+                copy.last_time = copy.last_time.max(self.store.last_time());
+                let journal = self.journal.as_mut().expect("a copy has a journal");
+                journal.snapshot(
+                    &self.store,
+                    &self.fences,
+                    &self.producers,
+                    Some((last, Vec::new())),
+                );
+                let me = myself.clone();
+                journal.after_durable(Box::new(move |durable| {
+                    if durable.is_ok() {
+                        let _ = me.cast(DmMsg::ReplicaDurable {
+                            seq: last.0,
+                            term: last.1,
+                        });
+                    }
+                }));
+            }
+        }
+    }
+
+    /// Carry out what the core asked for, in order.
+    fn carry_out(&mut self, myself: &ActorRef<DmMsg>, out: Vec<Out>) {
+        for o in out {
+            let Some(copy) = self.replica.as_mut() else {
+                return;
+            };
+            match o {
+                Out::Persist => {
+                    let (term, vote) = (copy.core.term(), copy.core.voted_for());
+                    if let Err(e) = vote::save(&copy.dir, term, vote) {
+                        // a copy that cannot keep its vote must not take part
+                        tracing::error!(dm = %copy.name, error = %e, "replica: cannot persist its term and vote: stopping");
+                        myself.stop(Some(format!("cannot persist its vote: {e}")));
+                        return;
+                    }
+                }
+                Out::Send(to, msg) => copy.send(&to, msg),
+                Out::Truncate(seq) => {
+                    if let Some(j) = self.journal.as_mut() {
+                        j.truncate(seq);
+                    }
+                }
+                Out::Journal(from, to) => {
+                    let journal = self.journal.as_mut().expect("a copy has a journal");
+                    for op in copy.core.ops(from, to) {
+                        journal.op(op);
+                    }
+                }
+                Out::Apply(from, to) => {
+                    let ops: Vec<Op> = copy.core.ops(from, to).cloned().collect();
+                    if let Some(t) = ops.iter().filter_map(Op::time).max() {
+                        copy.last_time = copy.last_time.max(t);
+                    }
+                    for op in ops {
+                        let seq = op.seq;
+                        let class = apply::apply(
+                            &mut self.store,
+                            &mut self.fences,
+                            &mut self.producers,
+                            op,
+                        );
+                        if let Some(class) = class {
+                            if !self.waits.is_empty() {
+                                self.wake(&class, seq);
+                            }
+                        }
+                    }
+                    if let Some(j) = self.journal.as_mut() {
+                        j.commit(to);
+                    }
+                    let copy = self.replica.as_mut().expect("checked above");
+                    let later = copy.acks.split_off(&(to + 1));
+                    for ack in std::mem::replace(&mut copy.acks, later)
+                        .into_values()
+                        .flatten()
+                    {
+                        ack(Ok(()));
+                    }
+                }
+                Out::Lead => {
+                    tracing::info!(dm = %copy.name, node = %copy.core.me(), term = copy.core.term(), "replica: this copy is the primary");
+                    if let Err(e) = registry::publish(
+                        ModuleKind::Datamanager,
+                        self.id,
+                        &self.name,
+                        myself.get_cell(),
+                    ) {
+                        tracing::error!(dm = %self.name, error = %e, "replica: cannot publish the primary");
+                    }
+                }
+                Out::StepDown(why) => {
+                    // every client's reference dies with this actor: they follow the name
+                    // to the new primary; the supervisor starts this copy again, from its
+                    // journal, as a follower
+                    tracing::warn!(dm = %copy.name, node = %copy.core.me(), term = copy.core.term(), why, "replica: no longer the primary: restarting as a copy");
+                    myself.stop(Some(format!("no longer the primary: {why}")));
+                    return;
+                }
+                Out::Install(to, seq, term) => self.send_snapshot(&to, (seq, term)),
+            }
+        }
+        if let Some(copy) = self.replica.as_mut() {
+            copy.core.trim();
+        }
+    }
+
+    /// Send the copy on node `to` the committed store, which ends at `last`.
+    fn send_snapshot(&mut self, to: &str, last: (u64, u64)) {
+        let Some(copy) = self.replica.as_ref() else {
+            return;
+        };
+        let (term, leader) = (copy.core.term(), copy.core.me().to_string());
+        let part = |part| ReplicaMsg::Install {
+            term,
+            leader: leader.clone(),
+            last_seq: last.0,
+            last_term: last.1,
+            part,
+        };
+        let mut batch = Vec::with_capacity(INSTALL_PART);
+        let mut first = true;
+        let mut n = 0u64;
+        let mut parts = Vec::new();
+        self.store.for_each_in_seq_order(|seq, timestamp, r| {
+            let record = NewRecord {
+                source: r.source.to_string(),
+                class: r.class.to_string(),
+                sub1: r.sub1.map(str::to_string),
+                sub2: r.sub2.map(str::to_string),
+                payload: crate::dm::Payload::from_bytes(r.payload.to_vec()),
+                epoch: self.fences.newest(r.source).unwrap_or(0),
+                producer: 0,
+                producer_seq: 0,
+            };
+            let t = u64::try_from(timestamp.as_nanos()).unwrap_or(u64::MAX);
+            batch.push((seq, t, record));
+            n += 1;
+            if batch.len() == INSTALL_PART {
+                parts.push(InstallPart::Records {
+                    first,
+                    records: std::mem::take(&mut batch),
+                });
+                first = false;
+            }
+        });
+        parts.push(InstallPart::Records {
+            first,
+            records: batch,
+        });
+        parts.push(InstallPart::End {
+            records: n,
+            producers: self
+                .producers
+                .each()
+                .map(|(p, pairs)| (p, pairs.iter().copied().collect()))
+                .collect(),
+            last_time_ns: u64::try_from(self.store.last_time().as_nanos()).unwrap_or(u64::MAX),
+        });
+        tracing::info!(dm = %copy.name, to, records = n, upto = last.0, "replica: sending a snapshot to a copy too far behind");
+        for p in parts {
+            copy.send(to, part(p));
+        }
+    }
+}

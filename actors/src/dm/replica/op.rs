@@ -1,0 +1,48 @@
+//! One entry of a replicated datamanager's log, as it is journaled and sent to copies.
+
+use crate::dm::record::NewRecord;
+use serde::{Deserialize, Serialize};
+use std::time::Duration;
+
+/// One entry of the replicated log. Its `seq` is its place in the log *and* the seq the
+/// datamanager's record gets: every entry takes one, so a delete or a no-op leaves a gap in
+/// the record seqs (a subscriber already reads a gap as records it will not see).
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Op {
+    /// Place in the log (1, 2, 3, … without gaps).
+    pub seq: u64,
+    /// The term of the primary that appended it.
+    pub term: u64,
+    /// What it does once committed.
+    pub body: OpBody,
+}
+
+/// What an [`Op`] does to the datamanager's store once it is committed.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum OpBody {
+    /// Store `record` as record `seq`, stamped `time_ns` on the primary's clock.
+    Put {
+        /// The time stamp, in nanoseconds of the primary's clock.
+        time_ns: u64,
+        /// The record.
+        record: NewRecord,
+    },
+    /// Delete these records.
+    Delete {
+        /// Their seqs.
+        seqs: Vec<u64>,
+    },
+    /// Nothing: a new primary's first entry, which commits what its predecessors left
+    /// uncommitted (Raft's rule: a primary counts copies only of its own term's entries).
+    Noop,
+}
+
+impl Op {
+    /// The time stamp of a put.
+    pub fn time(&self) -> Option<Duration> {
+        match &self.body {
+            OpBody::Put { time_ns, .. } => Some(Duration::from_nanos(*time_ns)),
+            _ => None,
+        }
+    }
+}
