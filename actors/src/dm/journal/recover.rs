@@ -362,3 +362,83 @@ fn truncate(path: &Path, len: u64) -> io::Result<()> {
     f.set_len(len)?;
     f.sync_all()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dm::record::{NewRecord, Payload};
+    use std::time::Duration;
+
+    /// A fresh directory of this test's own (removed when dropped).
+    struct Dir(std::path::PathBuf);
+    impl Dir {
+        fn new(name: &str) -> Dir {
+            let d =
+                std::env::temp_dir().join(format!("marie-recover-{name}-{}", std::process::id()));
+            let _ = std::fs::remove_dir_all(&d);
+            std::fs::create_dir_all(&d).unwrap();
+            Dir(d)
+        }
+        fn path(&self) -> &Path {
+            &self.0
+        }
+    }
+    impl Drop for Dir {
+        fn drop(&mut self) {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
+
+    fn rec(v: u8) -> NewRecord {
+        NewRecord::new("c", Payload::from_bytes(vec![v])).with_source("p")
+    }
+
+    #[test]
+    fn a_replicated_journal_applies_only_committed_entries_and_keeps_the_rest_aside() {
+        let dir = Dir::new("replicated");
+        let mut b = Vec::new();
+        let t = Duration::from_millis;
+        entry::encode_term(&mut b, 1);
+        entry::encode_mark(&mut b, 1, &[]); // a primary's no-op
+        entry::encode_put(&mut b, 2, t(10), &rec(2));
+        entry::encode_put(&mut b, 3, t(11), &rec(3));
+        entry::encode_commit(&mut b, 2);
+        entry::encode_put(&mut b, 4, t(12), &rec(4));
+        // a new primary cut entry 4 and wrote its own
+        entry::encode_truncate(&mut b, 4);
+        entry::encode_term(&mut b, 2);
+        entry::encode_mark(&mut b, 4, &[]);
+        entry::encode_mark(&mut b, 5, &[2]); // a delete of record 2
+        entry::encode_commit(&mut b, 5);
+        entry::encode_put(&mut b, 6, t(13), &rec(6));
+        std::fs::write(segment::path(dir.path(), 1), &b).unwrap();
+        let r = recover(dir.path(), DmConfig::default()).unwrap();
+        let log = r.log.expect("a replicated journal");
+        assert_eq!(log.committed, (5, 2));
+        assert_eq!(log.term, 2);
+        assert_eq!(
+            log.tail.iter().map(|o| (o.seq, o.term)).collect::<Vec<_>>(),
+            [(6, 2)]
+        );
+        // committed: 3 stays, 2 deleted, 4 (the cut put) never applied
+        let seqs: Vec<u64> = r
+            .store
+            .select(&crate::dm::Query::all())
+            .iter()
+            .map(|r| r.seq)
+            .collect();
+        assert_eq!(seqs, [3]);
+        assert_eq!(r.store.next_seq(), 6);
+    }
+
+    #[test]
+    fn a_journal_without_term_marks_is_applied_as_it_is_read() {
+        let dir = Dir::new("plain");
+        let mut b = Vec::new();
+        entry::encode_put(&mut b, 1, Duration::from_millis(1), &rec(1));
+        std::fs::write(segment::path(dir.path(), 1), &b).unwrap();
+        let r = recover(dir.path(), DmConfig::default()).unwrap();
+        assert!(r.log.is_none());
+        assert_eq!(r.store.len(), 1);
+    }
+}
