@@ -99,6 +99,7 @@ fn store_rate(c: &mut Criterion) {
             durability: Durability::Memory,
             journal_dir: None,
             replication: None,
+            events: None,
         }))
         .expect("spawn dm");
     let (counter, _counter_handle) = rt
@@ -258,6 +259,7 @@ fn select_scaling(c: &mut Criterion) {
                 durability: Durability::Memory,
                 journal_dir: None,
                 replication: None,
+                events: None,
             }))
             .expect("spawn dm");
         let client = DmClient::new(dm_ref.clone(), "bench");

@@ -1,13 +1,15 @@
 //! A datamanager kept in three copies on three `marie node` processes survives `kill -9` of
-//! its primary's process: a copy is elected primary, the record seqs continue, the producer
-//! (a member of the cluster in this process) follows the name to it, and nothing it had
-//! acknowledged is lost or stored twice; the killed node, started again on its data
-//! directory, comes back as a copy and catches up, and the three copies end equal.
+//! its primary's process, and a freeze (SIGSTOP) of the next one past the failure
+//! detector's deadline: each time a copy is elected primary, the record seqs continue, the
+//! producer (a member of the cluster in this process) follows the name to it, and nothing
+//! it had acknowledged is lost or stored twice; the killed node, started again on its data
+//! directory, and the frozen one, woken, come back as copies and catch up (the woken one
+//! fenced by the newer term), and the three copies end equal with one primary.
 
 mod common;
 
 use common::cluster::NodeProc;
-use marie::actors::dm::{self, DmClient, DmMsg, DmStats, Query};
+use marie::actors::dm::{self, DmClient, DmMsg, DmStats, NewRecord, Query};
 use marie::actors::registry::{self, ModuleKind};
 use marie::cluster::net::{ClusterConfig, Transport};
 use ractor::ActorRef;
@@ -60,8 +62,114 @@ async fn primary(not: Option<&str>) -> (String, Instant) {
     }
 }
 
+/// The producer id of this test's records: a retry of record `v` is the same put.
+const PRODUCER: u64 = 0x5eed;
+
+/// Store value `v` until it is acknowledged (a store cut off by a fault is sent again as the
+/// same put, which the datamanager stores once); its seq.
+async fn store_acked(client: &DmClient, v: u64) -> u64 {
+    let start = Instant::now();
+    loop {
+        let mut record = NewRecord::encode("echo", &v).unwrap();
+        record.producer = PRODUCER;
+        record.producer_seq = v + 1;
+        match client.store_raw(record).await {
+            Ok(seq) => return seq,
+            Err(e) => {
+                assert!(
+                    start.elapsed() < T,
+                    "value {v} not acknowledged within {T:?}: {e}"
+                );
+                eprintln!("store of {v}: {e}; again");
+                tokio::time::sleep(Duration::from_millis(50)).await;
+            }
+        }
+    }
+}
+
+/// Store values `range`, each acknowledged, into `acked` (seq -> value); the time of the
+/// first acknowledgement.
+async fn store_all(
+    client: &DmClient,
+    range: std::ops::Range<u64>,
+    acked: &mut BTreeMap<u64, u64>,
+) -> Instant {
+    let mut first = None;
+    for v in range {
+        let seq = store_acked(client, v).await;
+        first.get_or_insert_with(Instant::now);
+        if let Some(old) = acked.insert(seq, v) {
+            assert_eq!(old, v, "seq {seq} acknowledged for {old} and {v}");
+        }
+    }
+    first.expect("a store")
+}
+
+/// Every acknowledged record is in the primary once, at its seq.
+async fn check_acked(client: &DmClient, acked: &BTreeMap<u64, u64>) {
+    let records = client.select(Query::class("echo")).await.unwrap();
+    let mut values: BTreeMap<u64, u64> = BTreeMap::new();
+    for r in &records {
+        let v: u64 = r.decode().unwrap();
+        assert!(values.insert(r.seq, v).is_none());
+    }
+    let mut seen = std::collections::BTreeSet::new();
+    for v in values.values() {
+        assert!(seen.insert(*v), "value {v} stored twice");
+    }
+    for (seq, v) in acked {
+        assert_eq!(
+            values.get(seq),
+            Some(v),
+            "acknowledged record {seq} ({v}) lost"
+        );
+    }
+    eprintln!(
+        "{} acknowledged, {} stored, 0 lost, 0 duplicated",
+        acked.len(),
+        values.len()
+    );
+}
+
+/// Wait until the three copies hold the same (records, last seq, commit) with one primary;
+/// the copies' stats.
+async fn converged() -> Vec<DmStats> {
+    let start = Instant::now();
+    loop {
+        let mut all = Vec::new();
+        for n in NODES {
+            if let Some(c) = copy_on(n) {
+                if let Some(s) = stats_of(&c).await {
+                    all.push(s);
+                }
+            }
+        }
+        let view = |s: &DmStats| {
+            let r = s.replica.as_ref().unwrap();
+            (s.records, s.last_seq, r.commit, s.classes.clone())
+        };
+        let primaries = all
+            .iter()
+            .filter(|s| s.replica.as_ref().unwrap().role == "primary")
+            .count();
+        if all.len() == 3 && primaries == 1 && all.iter().all(|s| view(s) == view(&all[0])) {
+            let roles: Vec<_> = all
+                .iter()
+                .map(|s| {
+                    let r = s.replica.as_ref().unwrap();
+                    format!("{} {} term {}", r.node, r.role, r.term)
+                })
+                .collect();
+            eprintln!("copies equal: {:?}; {}", view(&all[0]), roles.join(", "));
+            return all;
+        }
+        assert!(start.elapsed() < T, "the copies did not converge: {all:#?}");
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+}
+
 #[test]
-fn a_killed_primary_is_replaced_by_a_copy_and_no_acknowledged_record_is_lost() {
+fn a_killed_and_a_frozen_primary_are_replaced_by_copies_and_no_acknowledged_record_is_lost() {
     let dir = tempfile::tempdir().unwrap();
     let mut nodes: Vec<NodeProc> = Vec::new();
     for name in NODES {
@@ -80,7 +188,8 @@ fn a_killed_primary_is_replaced_by_a_copy_and_no_acknowledged_record_is_lost() {
         .build()
         .unwrap();
     let addrs: Vec<_> = nodes.iter().map(|n| n.addr).collect();
-    rt.block_on(async {
+    let mut acked: BTreeMap<u64, u64> = BTreeMap::new();
+    let (client, _transport) = rt.block_on(async {
         let mut me = ClusterConfig::new("127.0.0.1:0".parse().unwrap(), COOKIE);
         for a in &addrs {
             me = me.with_peer(*a);
@@ -92,96 +201,56 @@ fn a_killed_primary_is_replaced_by_a_copy_and_no_acknowledged_record_is_lost() {
         let client = DmClient::lookup("feature", "producer")
             .unwrap()
             .with_follow(T);
+        store_all(&client, 0..300, &mut acked).await;
 
-        // acknowledged stores before the kill
-        let mut acked: BTreeMap<u64, u64> = BTreeMap::new(); // seq -> value
-        for v in 0..300u64 {
-            let seq = client.store("echo", None, None, &v).await.expect("store");
-            assert!(acked.insert(seq, v).is_none(), "seq {seq} handed out twice");
-        }
-
-        // kill -9 the primary's process while a store is on its way
+        // kill -9 the primary's process
         let killed = Instant::now();
         nodes[0].signal("KILL");
-        let mut first_after = None;
-        for v in 300..600u64 {
-            let seq = client
-                .store("echo", None, None, &v)
-                .await
-                .expect("store after the kill");
-            first_after.get_or_insert_with(Instant::now);
-            assert!(acked.insert(seq, v).is_none(), "seq {seq} handed out twice");
-        }
+        let first_after = store_all(&client, 300..600, &mut acked).await;
         let (second, _) = primary(Some("r1")).await;
         eprintln!(
             "r1 killed; {second} is primary; the first store acknowledged {} ms after the kill",
-            (first_after.unwrap() - killed).as_millis()
+            (first_after - killed).as_millis()
         );
-        assert_ne!(second, "r1");
-
-        // every acknowledged record is there once, at its seq
-        let records = client.select(Query::class("echo")).await.unwrap();
-        let mut values: BTreeMap<u64, u64> = BTreeMap::new();
-        for r in &records {
-            let v: u64 = r.decode().unwrap();
-            assert!(values.insert(r.seq, v).is_none());
-        }
-        let mut seen = std::collections::BTreeSet::new();
-        for v in values.values() {
-            assert!(seen.insert(*v), "value {v} stored twice");
-        }
-        for (seq, v) in &acked {
-            assert_eq!(
-                values.get(seq),
-                Some(v),
-                "acknowledged record {seq} ({v}) lost"
-            );
-        }
-        eprintln!(
-            "{} acknowledged, {} stored, 0 lost, 0 duplicated",
-            acked.len(),
-            values.len()
-        );
-        values
+        check_acked(&client, &acked).await;
+        (client, transport)
     });
 
     // r1 starts again on its data directory: a copy, which catches up
     let peers: Vec<_> = nodes[1..].iter().map(|n| n.addr).collect();
     nodes[0] = NodeProc::start(dir.path(), "r1", &hosts(dir.path(), "r1"), &peers, COOKIE);
     rt.block_on(async {
-        let start = Instant::now();
-        loop {
-            let mut all = Vec::new();
-            for n in NODES {
-                if let Some(c) = copy_on(n) {
-                    if let Some(s) = stats_of(&c).await {
-                        all.push(s);
-                    }
-                }
-            }
-            let view = |s: &DmStats| {
-                let r = s.replica.as_ref().unwrap();
-                (s.records, s.last_seq, r.commit, s.classes.clone())
-            };
-            if all.len() == 3 && all.iter().all(|s| view(s) == view(&all[0])) {
-                let roles: Vec<_> = all
-                    .iter()
-                    .map(|s| {
-                        let r = s.replica.as_ref().unwrap();
-                        format!("{} {} term {}", r.node, r.role, r.term)
-                    })
-                    .collect();
-                eprintln!("copies equal: {:?}; {}", view(&all[0]), roles.join(", "));
-                assert_eq!(
-                    all.iter()
-                        .filter(|s| s.replica.as_ref().unwrap().role == "primary")
-                        .count(),
-                    1
-                );
-                break;
-            }
-            assert!(start.elapsed() < T, "the copies did not converge: {all:#?}");
-            tokio::time::sleep(Duration::from_millis(100)).await;
-        }
+        let all = converged().await;
+        let r1 = all.iter().find(|s| s.replica.as_ref().unwrap().node == "r1").unwrap();
+        assert_eq!(r1.replica.as_ref().unwrap().role, "copy", "the killed primary came back a copy");
+
+        // freeze the primary past the failure detector's deadline, storing on
+        let (frozen, _) = primary(None).await;
+        let term_before = all
+            .iter()
+            .find(|s| s.replica.as_ref().unwrap().node == frozen)
+            .map(|s| s.replica.as_ref().unwrap().term)
+            .unwrap();
+        let i = NODES.iter().position(|n| *n == frozen).unwrap();
+        let stopped = Instant::now();
+        nodes[i].signal("STOP");
+        let first_after = store_all(&client, 600..900, &mut acked).await;
+        let (next, _) = primary(Some(&frozen)).await;
+        eprintln!(
+            "{frozen} frozen; {next} is primary; the first store acknowledged {} ms after the freeze",
+            (first_after - stopped).as_millis()
+        );
+        nodes[i].signal("CONT");
+        let all = converged().await;
+        let woken = all
+            .iter()
+            .find(|s| s.replica.as_ref().unwrap().node == frozen)
+            .unwrap()
+            .replica
+            .clone()
+            .unwrap();
+        assert_eq!(woken.role, "copy", "the frozen primary was fenced");
+        assert!(woken.term > term_before, "it took the newer term");
+        check_acked(&client, &acked).await;
     });
 }

@@ -99,6 +99,7 @@ async fn a_typed_operation_reports_the_flags_the_mission_names_and_stores_typed_
         durability: Default::default(),
         journal_dir: None,
         replication: None,
+        events: None,
     })
     .await
     .unwrap();

@@ -46,6 +46,7 @@ async fn spawn(name: &str, id: u32, clock: SharedClock, config: DmConfig) -> Dm 
         durability: dm::Durability::Memory,
         journal_dir: None,
         replication: None,
+        events: None,
     })
     .await
     .expect("spawn dm");

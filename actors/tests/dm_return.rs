@@ -83,6 +83,7 @@ async fn datamanager(name: &str) -> ActorRef<DmMsg> {
         durability: Default::default(),
         journal_dir: None,
         replication: None,
+        events: None,
     })
     .await
     .expect("the DM starts")

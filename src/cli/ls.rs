@@ -70,6 +70,9 @@ async fn print_listing(list: &[Instance], json: bool) -> anyhow::Result<()> {
                     row["durability"] = s.durability.as_str().into();
                     row["records"] = s.records.into();
                     row["journal_bytes"] = s.journal_bytes.into();
+                    if let Some(r) = &s.replica {
+                        row["replica"] = serde_json::to_value(r).unwrap_or_default();
+                    }
                 }
                 row
             })
@@ -83,8 +86,24 @@ async fn print_listing(list: &[Instance], json: bool) -> anyhow::Result<()> {
                 Durability::Memory => "in memory".to_string(),
                 d => format!("{d}, journal {}", bytes(s.journal_bytes)),
             };
+            let copies = match &s.replica {
+                None => String::new(),
+                Some(r) => {
+                    let lags: Vec<String> = r
+                        .lag
+                        .iter()
+                        .map(|(node, lag)| format!("{node} (lag {lag})"))
+                        .collect();
+                    format!(
+                        "; {}, term {}, copies on {}",
+                        r.role,
+                        r.term,
+                        lags.join(", ")
+                    )
+                }
+            };
             println!(
-                "DM {} on {}: {} records, {journal}",
+                "DM {} on {}: {} records, {journal}{copies}",
                 i.name, i.node, s.records
             );
         }

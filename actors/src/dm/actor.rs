@@ -53,6 +53,7 @@ impl DmSpec {
             durability: Durability::Memory,
             journal_dir: None,
             replication: None,
+            events: None,
         }
     }
 }
@@ -94,6 +95,9 @@ pub struct DmArgs {
     pub journal_dir: Option<PathBuf>,
     /// Copies on other nodes ([`super::replica`]): this is one of them. Needs a journal.
     pub replication: Option<super::replica::Replication>,
+    /// Where a copy tells that it became the primary or stepped down (`dm_promoted`,
+    /// `dm_fenced`); a node gives its bus.
+    pub events: Option<crate::events::EventBus>,
 }
 
 impl DmArgs {
@@ -147,7 +151,7 @@ pub struct DmState {
     /// Retried puts answered with the seq their first copy got.
     pub(crate) duplicates: u64,
     /// A replicated datamanager's copy ([`super::replica`]).
-    pub(crate) replica: Option<super::replica::copy::Copy>,
+    pub(crate) replica: Option<super::copy::Copy>,
 }
 
 impl std::fmt::Debug for DmState {
@@ -442,8 +446,16 @@ impl Actor for Datamanager {
         };
         let replica = match (&args.replication, &args.journal_dir) {
             (Some(r), Some(dir)) => Some(
-                super::replica::copy::Copy::start(&args.name, r, dir.clone(), log, &store, &myself)
-                    .map_err(|e| format!("datamanager {}: {e}", args.name))?,
+                super::copy::Copy::start(
+                    &args.name,
+                    r,
+                    dir.clone(),
+                    log,
+                    &store,
+                    &myself,
+                    args.events.clone(),
+                )
+                .map_err(|e| format!("datamanager {}: {e}", args.name))?,
             ),
             _ => None,
         };

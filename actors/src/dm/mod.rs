@@ -63,6 +63,7 @@
 
 mod actor;
 mod client;
+mod copy;
 pub mod credits;
 mod error;
 mod follow;
@@ -76,6 +77,7 @@ pub mod producers;
 mod query;
 mod record;
 pub mod replica;
+mod replicated;
 mod shared;
 mod store;
 mod subscription;

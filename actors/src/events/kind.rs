@@ -242,6 +242,29 @@ pub enum EventKind {
         /// Where and why the replay stopped early, if it did.
         torn: Option<String>,
     },
+    /// A copy of a replicated datamanager was elected its primary: clients find it under
+    /// the datamanager's name from now on.
+    DmPromoted {
+        /// The datamanager's name.
+        dm: String,
+        /// The node the new primary runs on.
+        node: String,
+        /// Its term (each election raises it).
+        term: u64,
+    },
+    /// The primary of a replicated datamanager stopped being one — a newer term exists, or
+    /// it lost its majority — and restarts as a copy: its late answers and writes count
+    /// for nothing.
+    DmFenced {
+        /// The datamanager's name.
+        dm: String,
+        /// The node it runs on.
+        node: String,
+        /// Its term now (the newer one it met, or its own if it lost its majority).
+        term: u64,
+        /// Why.
+        why: String,
+    },
     // --- the robot ---
     /// A robot judged the run after the dispatcher ended it: its outcome replaces the
     /// dispatcher's, and what it says of the run (its [`RobotSection`], e.g. the cart's final

@@ -52,6 +52,8 @@
 //! {"at_ms":800,"node":"marie@localhost","kind":{"type":"node_refused","peer":"old","theirs":2,"ours":1}}
 //! {"at_ms":850,"node":"marie@localhost","kind":{"type":"connection_refused","from":"127.0.0.1:45042","reason":"TLS: invalid peer certificate: UnknownIssuer"}}
 //! {"at_ms":20003,"node":"features","kind":{"type":"dm_recovered","dm":"feature","records":1210,"bytes":139150,"ms":4,"dropped_bytes":0,"dropped_records":0,"torn":null}}
+//! {"at_ms":20090,"node":"operations","kind":{"type":"dm_promoted","dm":"feature","node":"operations","term":3}}
+//! {"at_ms":21000,"node":"features","kind":{"type":"dm_fenced","dm":"feature","node":"features","term":2,"why":"a newer term"}}
 //! {"at_ms":30001,"node":"marie@localhost","kind":{"type":"judged","outcome":"succeeded","reason":"","collisions":0,"final_pose":[1.5,0.25,0.01],"inside_goal":true,"judgement":"success: inside the goal area","refused_commands":{},"seed":7}}
 //! {"at_ms":4000,"node":"marie@localhost","kind":{"type":"robot","what":"collision","data":{"x":1.0,"y":2.0}}}
 //! ```
@@ -185,13 +187,15 @@ mod tests {
             EventKind::ConnectionRefused { .. } => "connection_refused",
             EventKind::Selected { .. } => "selected",
             EventKind::DmRecovered { .. } => "dm_recovered",
+            EventKind::DmPromoted { .. } => "dm_promoted",
+            EventKind::DmFenced { .. } => "dm_fenced",
             EventKind::Judged { .. } => "judged",
             EventKind::Robot { .. } => "robot",
         }
     }
 
     /// The `type` of every kind, as [`type_of`] names them.
-    const KINDS: [&str; 27] = [
+    const KINDS: [&str; 29] = [
         "run_started",
         "bound",
         "action_started",
@@ -217,6 +221,8 @@ mod tests {
         "connection_refused",
         "selected",
         "dm_recovered",
+        "dm_promoted",
+        "dm_fenced",
         "judged",
         "robot",
     ];

@@ -207,6 +207,8 @@ impl ReportBuilder {
             | EventKind::NodeRefused { .. }
             | EventKind::ConnectionRefused { .. }
             | EventKind::DmRecovered { .. }
+            | EventKind::DmPromoted { .. }
+            | EventKind::DmFenced { .. }
             | EventKind::Robot { .. } => {}
         }
     }

@@ -7,7 +7,7 @@ use super::NodeError;
 use super::{NodeOptions, OPERATION_SHUTDOWN};
 use marie_actors::clock::SharedClock;
 use marie_actors::dispatcher::DispatcherMsg;
-use marie_actors::dm::{self, journal, DmArgs, DmClient, DmConfig, DmError, Durability};
+use marie_actors::dm::{self, journal, DmArgs, DmClient, DmConfig, DmError, Durability, NewRecord};
 use marie_actors::eo::{HostOptions, OperationFactory};
 use marie_actors::events::EventBus;
 use marie_supervision::{
@@ -120,7 +120,7 @@ pub(super) fn children(
         children.push(ChildSpec::supervisor(
             DATAMANAGERS,
             SupervisorSpec::one_for_one().with_intensity(3, Duration::from_secs(5)),
-            datamanagers(config, &options.clock, &apriori),
+            datamanagers(config, &options.clock, &apriori, events),
         ));
     }
     if let Some(robot) = &options.robot {
@@ -188,12 +188,14 @@ fn datamanagers(
     config: &NodeConfig,
     clock: &SharedClock,
     apriori: &[AprioriRecord],
+    events: &EventBus,
 ) -> Vec<ChildSpec> {
     config
         .datamanagers
         .iter()
         .map(|spec| {
             let clock = clock.clone();
+            let events = events.clone();
             let records: Arc<Vec<_>> = Arc::new(
                 apriori
                     .iter()
@@ -202,13 +204,8 @@ fn datamanagers(
                     .collect(),
             );
             let (id, name) = (spec.id, spec.name.clone());
-            let replication = (!spec.copies.is_empty()).then(|| {
-                dm::Replication::new(config.name.clone(), spec.copies.clone())
-            });
-            if replication.is_some() && !records.is_empty() {
-                // a copy is not the primary when it starts; who stores them once is to do
-                tracing::warn!(dm = %spec.name, records = records.len(), "a replicated datamanager gets no a-priori records yet");
-            }
+            let replication = (!spec.copies.is_empty())
+                .then(|| dm::Replication::new(config.name.clone(), spec.copies.clone()));
             // validated: a durability other than memory comes with a data directory
             let journal = match (config.durability_of(spec), &config.data_dir) {
                 (Durability::Memory, _) | (_, None) => None,
@@ -220,6 +217,7 @@ fn datamanagers(
                 let (clock, records, name) = (clock.clone(), records.clone(), name.clone());
                 let journal = journal.clone();
                 let replication = replication.clone();
+                let events = events.clone();
                 async move {
                     let mut args = DmArgs {
                         id,
@@ -229,13 +227,17 @@ fn datamanagers(
                         durability: Durability::Memory,
                         journal_dir: None,
                         replication: None,
+                        events: Some(events),
                     };
                     if let Some((dir, durability)) = journal {
                         args = args.with_journal(dir, durability);
                     }
                     if let Some(replication) = replication {
                         let args = args.with_replication(replication);
-                        let (actor, _) = dm::spawn_datamanager_linked(args, sup).await?;
+                        let (actor, _) = dm::spawn_datamanager_linked(args.clone(), sup).await?;
+                        if !records.is_empty() {
+                            tokio::spawn(apriori_to_primary(args.name.clone(), records.clone()));
+                        }
                         return Ok(actor.get_cell());
                     }
                     let (actor, _) = dm::spawn_datamanager_linked(args, sup).await?;
@@ -256,6 +258,48 @@ fn datamanagers(
             })
         })
         .collect()
+}
+
+/// How long a copy's node waits for its replicated datamanager's primary to store the
+/// a-priori records in it.
+const APRIORI_WAIT: Duration = Duration::from_secs(120);
+
+/// Store the a-priori `records` in the primary of the replicated datamanager `name`,
+/// wherever it is elected. A copy is not the primary when it starts, and every node
+/// hosting a copy may hold the same records: each stores them as one producer — a fixed id
+/// per datamanager, numbered 1, 2, 3, … — so the primary keeps them once
+/// ([`marie_actors::dm::producers`]), however many nodes or restarts send them.
+async fn apriori_to_primary(name: String, records: Arc<Vec<NewRecord>>) {
+    let producer = name
+        .bytes()
+        .chain(b"/marie-apriori".iter().copied())
+        .fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
+            (h ^ u64::from(b)).wrapping_mul(0x100_0000_01b3)
+        })
+        | 1;
+    let waited = tokio::time::Instant::now();
+    let client = loop {
+        match DmClient::lookup(&name, NODE_SOURCE) {
+            Ok(c) => break c,
+            Err(_) if waited.elapsed() < APRIORI_WAIT => {
+                tokio::time::sleep(Duration::from_millis(50)).await;
+            }
+            Err(e) => {
+                tracing::warn!(dm = %name, error = %e, "a-priori records not stored: no primary");
+                return;
+            }
+        }
+    };
+    for (i, record) in records.iter().enumerate() {
+        let mut record = record.clone();
+        record.producer = producer;
+        record.producer_seq = i as u64 + 1;
+        if let Err(e) = client.store_raw(record).await {
+            tracing::warn!(dm = %name, error = %e, "an a-priori record not stored");
+            return;
+        }
+    }
+    tracing::debug!(dm = %name, records = records.len(), "a-priori records stored in the primary");
 }
 
 /// The root's child supervisor `id`, as it is now (a new actor after it was restarted).

@@ -252,6 +252,23 @@ impl MonitorState {
                 "node",
                 format!("{node} refused {peer} (protocol {theirs}, ours {ours})"),
             ),
+            EventKind::DmPromoted { dm, node: on, term } => line.push(
+                at,
+                node,
+                "datamanager",
+                format!("datamanager {dm}: the copy on {on} is the primary now (term {term})"),
+            ),
+            EventKind::DmFenced {
+                dm,
+                node: on,
+                term,
+                why,
+            } => line.push(
+                at,
+                node,
+                "datamanager",
+                format!("datamanager {dm}: the primary on {on} (term {term}) stepped down: {why}; it restarts as a copy"),
+            ),
             EventKind::DmRecovered {
                 dm,
                 records,

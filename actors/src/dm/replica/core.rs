@@ -129,6 +129,8 @@ pub(crate) struct Core {
     rng: u64,
     /// Applied entries kept in memory ([`TAIL_KEEP`]; less in tests).
     keep: usize,
+    /// The configured primary: it campaigns first.
+    preferred: bool,
 }
 
 /// What a copy recovered from its disk.
@@ -188,6 +190,7 @@ impl Core {
             visible: BTreeSet::new(),
             rng: seed,
             keep: TAIL_KEEP,
+            preferred: eager,
         };
         core.deadline = if eager {
             now + timing.heartbeat
@@ -958,6 +961,15 @@ impl Core {
             return;
         }
         self.visible.insert(node.to_string());
+        if matches!(self.role, Role::Follower)
+            && self.leader.is_none()
+            && self.visible.len() + 1 >= self.majority()
+        {
+            // a majority is reachable and no primary is known (a cluster starting): campaign
+            // soon, the configured primary first, rather than after an election timeout
+            let soon = now + self.rank_delay(None);
+            self.deadline = self.deadline.min(soon);
+        }
         if let Role::Leader { peers, .. } = &mut self.role {
             if let Some(pr) = peers.get_mut(node) {
                 // one append at a time until it answers (what it has is unknown)
@@ -976,16 +988,26 @@ impl Core {
         if self.leader.as_deref() == Some(node) && !self.is_leader() {
             self.leader = None;
             self.heard = None;
-            let rank = self
-                .members
-                .iter()
-                .filter(|m| m.as_str() != node)
-                .position(|m| *m == self.me)
-                .unwrap_or(0) as u64;
-            let jitter = self.random(30);
-            let soon = now + Duration::from_millis(rank * 60 + jitter);
+            let soon = now + self.rank_delay(Some(node));
             self.deadline = self.deadline.min(soon);
         }
+    }
+
+    /// How long to wait before campaigning when no primary is known: the configured primary
+    /// at once, the others by their rank among the members (but `gone`), 60 ms apart, with a
+    /// little randomness, so that they rarely split the votes.
+    fn rank_delay(&mut self, gone: Option<&str>) -> Duration {
+        let rank = if self.preferred {
+            0
+        } else {
+            1 + self
+                .members
+                .iter()
+                .filter(|m| Some(m.as_str()) != gone)
+                .position(|m| *m == self.me)
+                .unwrap_or(0) as u64
+        };
+        Duration::from_millis(rank * 60 + self.random(30))
     }
 }
 

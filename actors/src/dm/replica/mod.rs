@@ -35,7 +35,6 @@
 //! survive a restart.
 
 pub(crate) mod apply;
-pub(crate) mod copy;
 pub(crate) mod core;
 mod msg;
 mod op;

@@ -1,166 +1,24 @@
-//! One copy of a replicated datamanager, as its actor runs it: the protocol's [`Core`], the
-//! other copies it can reach, the acknowledgements waiting for a commit, a snapshot being
-//! received. The actor's handlers for the copies' messages are here too (`impl DmState`).
+//! How a replicated datamanager's actor takes part in its copies' protocol
+//! ([`super::replica`]): the primary proposes writes and answers them once committed, every
+//! copy carries out what the protocol's core asks (persist the vote, send, journal, apply,
+//! publish itself or step down), and a copy too far behind takes in a snapshot.
 
-use super::core::{Core, Out, Restored};
-use super::msg::{InstallPart, ReplicaMsg};
-use super::op::{Op, OpBody};
-use super::{apply, vote, Replication, SCOPE};
-use crate::dm::actor::DmState;
-use crate::dm::error::DmError;
-use crate::dm::journal::ReplicaLog;
-use crate::dm::messages::DmMsg;
-use crate::dm::producers::Producers;
-use crate::dm::record::NewRecord;
-use crate::dm::store::{DmConfig, Store};
+use super::actor::DmState;
+use super::copy::{group, Incoming};
+use super::error::DmError;
+use super::messages::DmMsg;
+use super::producers::Producers;
+use super::record::NewRecord;
+use super::replica::core::Out;
+use super::replica::{apply, vote, InstallPart, Op, OpBody, ReplicaMsg, SCOPE};
+use super::store::{DmConfig, Store};
 use crate::fence::FenceTable;
 use crate::registry::{self, ModuleKind};
 use ractor::{pg, ActorCell, ActorRef};
-use std::collections::BTreeMap;
-use std::path::PathBuf;
 use std::time::Duration;
-
-/// An answer waiting for its entry's commit.
-pub(crate) type Ack = Box<dyn FnOnce(Result<(), DmError>) + Send>;
 
 /// Records per snapshot part sent to a copy.
 const INSTALL_PART: usize = 2048;
-
-/// The replication side of a datamanager's state.
-pub(crate) struct Copy {
-    pub(crate) core: Core,
-    dir: PathBuf,
-    /// The other copies reachable now, by node.
-    peers: BTreeMap<String, ActorCell>,
-    acks: BTreeMap<u64, Vec<Ack>>,
-    started: tokio::time::Instant,
-    /// The newest time stamp handed out.
-    last_time: Duration,
-    incoming: Option<Incoming>,
-    ticker: tokio::task::JoinHandle<()>,
-    members: Vec<String>,
-    name: String,
-}
-
-impl Drop for Copy {
-    fn drop(&mut self) {
-        self.ticker.abort();
-    }
-}
-
-/// A snapshot being received.
-struct Incoming {
-    last: (u64, u64),
-    store: Store,
-    fences: FenceTable,
-    records: u64,
-}
-
-/// The group a copy of `dm` on node `me` joins (in [`SCOPE`]).
-fn group(dm: &str, me: &str) -> String {
-    format!("{dm}/{me}")
-}
-
-impl Copy {
-    /// The copy `replication.me` of datamanager `name`, with what its journal (in `dir`)
-    /// held: joins its group, starts its ticker.
-    pub(crate) fn start(
-        name: &str,
-        replication: &Replication,
-        dir: PathBuf,
-        log: Option<ReplicaLog>,
-        store: &Store,
-        myself: &ActorRef<DmMsg>,
-    ) -> Result<Copy, String> {
-        let (term, voted_for) =
-            vote::load(&dir).map_err(|e| format!("reading the vote in {}: {e}", dir.display()))?;
-        let restored = match log {
-            Some(log) => Restored {
-                term: term.max(log.term),
-                voted_for,
-                committed: log.committed,
-                tail: log.tail,
-            },
-            None if store.next_seq() > 1 => {
-                return Err(format!(
-                    "the journal in {} was written by a datamanager without copies: its records \
-                     are on no other copy (start the copies on empty directories)",
-                    dir.display()
-                ))
-            }
-            None => Restored {
-                term,
-                voted_for,
-                ..Restored::default()
-            },
-        };
-        let eager = replication.members.first() == Some(&replication.me);
-        let started = tokio::time::Instant::now();
-        let core = Core::new(
-            &replication.me,
-            &replication.members,
-            replication.timing,
-            restored,
-            eager,
-            Duration::ZERO,
-        );
-        pg::join_scoped(
-            SCOPE.to_string(),
-            group(name, &replication.me),
-            vec![myself.get_cell()],
-        );
-        pg::monitor_scope(SCOPE.to_string(), myself.get_cell());
-        let me = myself.clone();
-        let every = replication.timing.heartbeat / 2;
-        let ticker = tokio::spawn(async move {
-            let mut ticks = tokio::time::interval(every);
-            ticks.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
-            loop {
-                ticks.tick().await;
-                if me.cast(DmMsg::ReplicaTick {}).is_err() {
-                    break;
-                }
-            }
-        });
-        Ok(Copy {
-            core,
-            dir,
-            peers: BTreeMap::new(),
-            acks: BTreeMap::new(),
-            started,
-            last_time: store.last_time(),
-            incoming: None,
-            ticker,
-            members: replication.members.clone(),
-            name: name.to_string(),
-        })
-    }
-
-    fn now(&self) -> Duration {
-        self.started.elapsed()
-    }
-
-    /// Run `ack` once the entries up to `seq` are applied (at once if they are).
-    fn after_applied(&mut self, seq: u64, ack: Ack) {
-        if seq <= self.core.applied() {
-            ack(Ok(()));
-        } else {
-            self.acks.entry(seq).or_default().push(ack);
-        }
-    }
-
-    fn send(&self, to: &str, msg: ReplicaMsg) {
-        match self.peers.get(to) {
-            Some(cell) => {
-                let actor: ActorRef<DmMsg> = cell.clone().into();
-                if let Err(e) = actor.cast(DmMsg::Replica { msg: Box::new(msg) }) {
-                    tracing::debug!(dm = %self.name, to, error = %e, "replica: a message not sent");
-                }
-            }
-            None => tracing::trace!(dm = %self.name, to, "replica: not reachable; not sent"),
-        }
-    }
-}
 
 impl DmState {
     /// Whether this datamanager is a copy that is not the primary (it answers no client).
@@ -213,7 +71,7 @@ impl DmState {
     }
 
     /// Send an answer once everything proposed so far is committed and applied.
-    pub(crate) fn after_commit(&mut self, ack: Ack) {
+    pub(crate) fn after_commit(&mut self, ack: super::copy::Ack) {
         let copy = self.replica.as_mut().expect("called on a copy");
         let last = copy.core.last().0;
         copy.after_applied(last, ack);
@@ -461,6 +319,13 @@ impl DmState {
                 }
                 Out::Lead => {
                     tracing::info!(dm = %copy.name, node = %copy.core.me(), term = copy.core.term(), "replica: this copy is the primary");
+                    if let Some(bus) = &copy.events {
+                        bus.publish(crate::events::EventKind::DmPromoted {
+                            dm: copy.name.clone(),
+                            node: copy.core.me().to_string(),
+                            term: copy.core.term(),
+                        });
+                    }
                     if let Err(e) = registry::publish(
                         ModuleKind::Datamanager,
                         self.id,
@@ -475,6 +340,14 @@ impl DmState {
                     // to the new primary; the supervisor starts this copy again, from its
                     // journal, as a follower
                     tracing::warn!(dm = %copy.name, node = %copy.core.me(), term = copy.core.term(), why, "replica: no longer the primary: restarting as a copy");
+                    if let Some(bus) = &copy.events {
+                        bus.publish(crate::events::EventKind::DmFenced {
+                            dm: copy.name.clone(),
+                            node: copy.core.me().to_string(),
+                            term: copy.core.term(),
+                            why: why.clone(),
+                        });
+                    }
                     myself.stop(Some(format!("no longer the primary: {why}")));
                     return;
                 }
