@@ -218,10 +218,14 @@ fn a_partial_partition_does_not_let_the_cut_off_wall_follower_drive_the_cart() {
         let config = dir.path().join(format!("{name}.toml"));
         let listen = net.addr(i, PORT);
         let listen_arg = listen.to_string();
+        // the thesis' datamanagers keep copies: a journal each
+        let data_dir = dir.path().join(format!("data-{name}"));
         let mut args = vec![
             "node",
             "--config",
             config.to_str().unwrap(),
+            "--data-dir",
+            data_dir.to_str().unwrap(),
             "--listen",
             &listen_arg,
             "--cookie",

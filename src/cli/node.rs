@@ -121,11 +121,30 @@ pub(crate) async fn node(args: NodeArgs) -> anyhow::Result<ExitCode> {
     // watched before the line that tells whoever waits for it that the node runs
     let stop = super::signal::shutdown_signal(args.stop_with_stdin);
     tokio::pin!(stop);
-    // what it hosts itself (peers' modules may be in the registry already)
+    // what it hosts itself (peers' modules may be in the registry already). A replicated
+    // datamanager is one module wherever its primary is elected: counted by the node that
+    // prefers it (the first of its copies), not by the node that may host it now
+    let replicated: Vec<&str> = node
+        .config()
+        .datamanagers
+        .iter()
+        .filter(|d| !d.copies.is_empty())
+        .map(|d| d.name.as_str())
+        .collect();
+    let preferred = node
+        .config()
+        .datamanagers
+        .iter()
+        .filter(|d| d.copies.first() == Some(&name))
+        .count();
     let modules = registry::list()
         .iter()
         .filter(|m| m.actor.get_id().is_local())
-        .count();
+        .filter(|m| {
+            !(m.kind == registry::ModuleKind::Datamanager && replicated.contains(&m.name.as_str()))
+        })
+        .count()
+        + preferred;
     say(&format!(
         "node {name} listening on {}{} with {modules} module(s) at speed {}; joining {}",
         transport.listen(),
