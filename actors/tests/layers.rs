@@ -153,10 +153,9 @@ fn words(code: &str) -> Vec<String> {
     let mut word = String::new();
     let mut prev_lower = false;
     for c in code.chars() {
-        if !c.is_alphanumeric() || (c.is_uppercase() && prev_lower) {
-            if !word.is_empty() {
-                out.push(std::mem::take(&mut word).to_lowercase());
-            }
+        let cut = !c.is_alphanumeric() || (c.is_uppercase() && prev_lower);
+        if cut && !word.is_empty() {
+            out.push(std::mem::take(&mut word).to_lowercase());
         }
         if c.is_alphanumeric() {
             word.push(c);
