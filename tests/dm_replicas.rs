@@ -4,7 +4,8 @@
 //! producer (a member of the cluster in this process) follows the name to it, and nothing
 //! it had acknowledged is lost or stored twice; the killed node, started again on its data
 //! directory, and the frozen one, woken, come back as copies and catch up (the woken one
-//! fenced by the newer term), and the three copies end equal with one primary.
+//! fenced by the newer term), and the three copies end equal with one primary — the
+//! preferred copy (r1) is handed the role back once it has caught up.
 
 mod common;
 
@@ -220,9 +221,11 @@ fn a_killed_and_a_frozen_primary_are_replaced_by_copies_and_no_acknowledged_reco
     let peers: Vec<_> = nodes[1..].iter().map(|n| n.addr).collect();
     nodes[0] = NodeProc::start(dir.path(), "r1", &hosts(dir.path(), "r1"), &peers, COOKIE);
     rt.block_on(async {
+        // (r1 came back a copy and caught up; being the preferred copy, it may have been
+        // handed the primary's role since)
         let all = converged().await;
         let r1 = all.iter().find(|s| s.replica.as_ref().unwrap().node == "r1").unwrap();
-        assert_eq!(r1.replica.as_ref().unwrap().role, "copy", "the killed primary came back a copy");
+        assert!(r1.replica.as_ref().unwrap().term >= 2, "r1 is in a newer term");
 
         // freeze the primary past the failure detector's deadline, storing on
         let (frozen, _) = primary(None).await;
@@ -249,8 +252,9 @@ fn a_killed_and_a_frozen_primary_are_replaced_by_copies_and_no_acknowledged_reco
             .replica
             .clone()
             .unwrap();
-        assert_eq!(woken.role, "copy", "the frozen primary was fenced");
-        assert!(woken.term > term_before, "it took the newer term");
+        // fenced: it took the newer term (and, if it is the preferred copy, it may lead
+        // again since, handed the role once it caught up)
+        assert!(woken.term > term_before, "the woken primary took the newer term");
         check_acked(&client, &acked).await;
     });
 }

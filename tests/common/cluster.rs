@@ -147,15 +147,34 @@ impl Proc {
     /// [`Proc::signal`] and the drop kill). Its stdin is a pipe held until the drop: a
     /// `marie node --stop-with-stdin` stops even when this test process is killed.
     pub(crate) fn spawn_in(netns: Option<&str>, name: &str, args: &[&str]) -> Proc {
-        let marie = env!("CARGO_BIN_EXE_marie");
+        Proc::spawn_exe(
+            netns,
+            name,
+            Path::new(env!("CARGO_BIN_EXE_marie")),
+            args,
+            &[],
+        )
+    }
+
+    /// Start program `exe` with `args` and the environment variables `env` (inside network
+    /// namespace `netns` if one is given), guarded like `marie`: a test's own binary run
+    /// again as a child, for one.
+    pub(crate) fn spawn_exe(
+        netns: Option<&str>,
+        name: &str,
+        exe: &Path,
+        args: &[&str],
+        env: &[(&str, String)],
+    ) -> Proc {
         let mut command = match netns {
             Some(ns) => {
                 let mut c = Command::new("ip");
-                c.args(["netns", "exec", ns, marie]);
+                c.args(["netns", "exec", ns]).arg(exe);
                 c
             }
-            None => Command::new(marie),
+            None => Command::new(exe),
         };
+        command.envs(env.iter().map(|(k, v)| (k, v)));
         let stderr = match std::env::var_os(LOGS) {
             Some(dir) => {
                 command.env("RUST_LOG", "info");
@@ -181,7 +200,7 @@ impl Proc {
             .stdout(Stdio::piped())
             .stderr(stderr)
             .spawn()
-            .expect("marie starts");
+            .unwrap_or_else(|e| panic!("{} starts: {e}", exe.display()));
         let stdout = child.stdout.take().expect("stdout");
         let (tx, lines) = mpsc::channel();
         std::thread::spawn(move || {
@@ -275,6 +294,15 @@ impl Proc {
         self.drain();
         let first = self.arrived.partition_point(|t| *t < at);
         self.seen[first..].to_vec()
+    }
+
+    /// Write `line` to the process's standard input.
+    pub(crate) fn tell(&mut self, line: &str) {
+        use std::io::Write;
+        if let Some(stdin) = self.child.stdin.as_mut() {
+            let _ = writeln!(stdin, "{line}");
+            let _ = stdin.flush();
+        }
     }
 
     /// Send `signal` (e.g. `TERM`, `KILL`, `STOP`) to the process.

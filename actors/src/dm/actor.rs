@@ -331,6 +331,7 @@ impl DmMsg {
                 | DmMsg::JournalRefused { .. }
                 | DmMsg::Inject { .. }
                 | DmMsg::Stats { .. }
+                | DmMsg::Digest { .. }
                 | DmMsg::WaitExpired { .. }
         )
     }
@@ -600,6 +601,17 @@ impl Actor for Datamanager {
                         journal.snapshot(&state.store, &state.fences, &state.producers, log);
                     }
                 }
+            }
+            DmMsg::Digest { reply } => {
+                let upto = match &state.replica {
+                    Some(c) => c.core.applied(),
+                    None => state.store.next_seq().saturating_sub(1),
+                };
+                let _ = reply.send(super::messages::StoreDigest {
+                    upto,
+                    records: state.store.len() as u64,
+                    digest: state.store.digest(),
+                });
             }
             DmMsg::Replica { msg } => state.replica_message(&myself, *msg),
             DmMsg::ReplicaTick {} => state.replica_tick(&myself),

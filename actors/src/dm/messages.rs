@@ -55,6 +55,18 @@ pub struct DmStats {
     pub replica: Option<ReplicaStats>,
 }
 
+/// What a datamanager's records come to, from a `Digest` request.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct StoreDigest {
+    /// The last seq applied to the store (the committed seq of a copy).
+    pub upto: u64,
+    /// Records stored.
+    pub records: u64,
+    /// [`crate::dm::Store::digest`].
+    pub digest: u64,
+}
+
 /// A copy of a replicated datamanager, in its [`DmStats`].
 #[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(default)]
@@ -128,6 +140,9 @@ crate::remote_message! {
             /// The fault.
             fault: crate::run::FaultKind,
         },
+        /// A digest of the records it holds, and up to which seq (a checker compares the
+        /// copies of a replicated datamanager by it; a copy answers it too).
+        Digest {} -> StoreDigest,
         /// A message between the copies of a replicated datamanager
         /// ([`super::replica`]).
         Replica {

@@ -91,7 +91,7 @@ pub use client::DmClient;
 pub use error::DmError;
 pub(crate) use follow::next_instance;
 pub use journal::{Durability, Recovery};
-pub use messages::{DmMsg, DmStats, ReplicaStats};
+pub use messages::{DmMsg, DmStats, ReplicaStats, StoreDigest};
 pub use name::Name;
 pub use query::{Query, Take};
 pub use record::{NewRecord, Payload, Record, RecordHeader, MAX_NAME_LEN};

@@ -318,6 +318,18 @@ impl DmState {
                     }
                 }
                 Out::Lead => {
+                    // its uncommitted entries will all be committed (a primary never cuts
+                    // its own log): a producer retrying one of them must get its seq, not
+                    // a second copy
+                    let (commit, last) = (copy.core.commit(), copy.core.last().0);
+                    for op in copy.core.ops(commit + 1, last) {
+                        if let OpBody::Put { record, .. } = &op.body {
+                            if record.producer != 0 {
+                                self.producers
+                                    .note(record.producer, record.producer_seq, op.seq);
+                            }
+                        }
+                    }
                     tracing::info!(dm = %copy.name, node = %copy.core.me(), term = copy.core.term(), "replica: this copy is the primary");
                     if let Some(bus) = &copy.events {
                         bus.publish(crate::events::EventKind::DmPromoted {

@@ -131,6 +131,11 @@ pub(crate) struct Core {
     keep: usize,
     /// The configured primary: it campaigns first.
     preferred: bool,
+    /// The configured primary's node (the first member as configured).
+    preferred_member: String,
+    /// On a primary that is not the preferred copy: when it last asked that copy to take
+    /// over (`TimeoutNow`).
+    handed: Option<Duration>,
 }
 
 /// What a copy recovered from its disk.
@@ -157,6 +162,7 @@ impl Core {
         eager: bool,
         now: Duration,
     ) -> Core {
+        let preferred_member = members.first().cloned().unwrap_or_default();
         let mut members = members.to_vec();
         members.sort();
         members.dedup();
@@ -191,6 +197,8 @@ impl Core {
             rng: seed,
             keep: TAIL_KEEP,
             preferred: eager,
+            preferred_member,
+            handed: None,
         };
         core.deadline = if eager {
             now + timing.heartbeat
@@ -427,7 +435,11 @@ impl Core {
             pr.next = pr.next.max(last + 1);
             pr.probing = false;
             pr.installing = None;
+            let caught_up = pr.matched >= self.last().0;
             self.advance_commit(out);
+            if caught_up && from == self.preferred_member && self.me != self.preferred_member {
+                self.hand_over(now, out);
+            }
         } else {
             let n = (last + 1).max(pr.matched + 1);
             if n < pr.next || pr.installing.is_some() {
@@ -438,6 +450,25 @@ impl Core {
             pr.sent = None;
         }
         self.send_to(from, now, false, out);
+    }
+
+    /// Ask the preferred copy, as up to date as this primary, to take over — at most once
+    /// per election timeout (if it cannot win, this primary goes on).
+    fn hand_over(&mut self, now: Duration, out: &mut Vec<Out>) {
+        if self
+            .handed
+            .is_some_and(|t| now.saturating_sub(t) < self.timing.election)
+        {
+            return;
+        }
+        self.handed = Some(now);
+        out.push(Out::Send(
+            self.preferred_member.clone(),
+            ReplicaMsg::TimeoutNow {
+                term: self.term,
+                from: self.me.clone(),
+            },
+        ));
     }
 
     fn advance_commit(&mut self, out: &mut Vec<Out>) {
@@ -553,7 +584,24 @@ impl Core {
                 last_seq,
                 last_term,
                 pre,
-            } => self.on_vote(term, candidate, (last_term, last_seq), pre, now, out),
+                transfer,
+            } => self.on_vote(
+                term,
+                candidate,
+                (last_term, last_seq),
+                (pre, transfer),
+                now,
+                out,
+            ),
+            ReplicaMsg::TimeoutNow { term, from } => {
+                // from this term's primary only: campaign at once, no pre-vote
+                if term == self.term
+                    && self.leader.as_deref() == Some(from.as_str())
+                    && !self.is_leader()
+                {
+                    self.campaign_as(false, true, now, out);
+                }
+            }
             ReplicaMsg::VoteAck {
                 term,
                 asked,
@@ -780,7 +828,7 @@ impl Core {
         term: u64,
         candidate: String,
         last: (u64, u64),
-        pre: bool,
+        (pre, transfer): (bool, bool),
         now: Duration,
         out: &mut Vec<Out>,
     ) {
@@ -798,7 +846,7 @@ impl Core {
                 },
             ));
         };
-        if self.sticky(now) && self.leader.as_deref() != Some(candidate.as_str()) {
+        if !transfer && self.sticky(now) && self.leader.as_deref() != Some(candidate.as_str()) {
             answer(self, false, out);
             return;
         }
@@ -859,6 +907,11 @@ impl Core {
 
     /// Ask every visible copy for its (pre-)vote.
     fn campaign(&mut self, pre: bool, now: Duration, out: &mut Vec<Out>) {
+        self.campaign_as(pre, false, now, out);
+    }
+
+    /// [`Core::campaign`]; `transfer`: at the primary's word (voters ignore stickiness).
+    fn campaign_as(&mut self, pre: bool, transfer: bool, now: Duration, out: &mut Vec<Out>) {
         if !pre {
             self.term += 1;
             self.voted_for = Some(self.me.clone());
@@ -882,6 +935,7 @@ impl Core {
                     last_seq,
                     last_term,
                     pre,
+                    transfer,
                 },
             ));
         }
@@ -913,6 +967,7 @@ impl Core {
             })
             .collect();
         self.role = Role::Leader { peers, since: now };
+        self.handed = None;
         self.leader = Some(self.me.clone());
         self.verified = 0;
         // a new primary's first entry: committing it commits everything before it
@@ -966,8 +1021,15 @@ impl Core {
             && self.visible.len() + 1 >= self.majority()
         {
             // a majority is reachable and no primary is known (a cluster starting): campaign
-            // soon, the configured primary first, rather than after an election timeout
-            let soon = now + self.rank_delay(None);
+            // soon rather than after an election timeout — the configured primary at once,
+            // the others a quarter of a timeout later, so that it rarely has to be handed
+            // the role afterwards (its node may be busy starting)
+            let grace = if self.preferred {
+                Duration::ZERO
+            } else {
+                self.timing.election / 4
+            };
+            let soon = now + grace + self.rank_delay(None);
             self.deadline = self.deadline.min(soon);
         }
         if let Role::Leader { peers, .. } = &mut self.role {

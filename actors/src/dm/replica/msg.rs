@@ -48,6 +48,19 @@ pub enum ReplicaMsg {
         last_term: u64,
         /// A pre-vote: nobody changes their term for it.
         pre: bool,
+        /// Asked at the primary's word (`TimeoutNow`): a copy that heard from that primary
+        /// lately votes all the same.
+        #[serde(default)]
+        transfer: bool,
+    },
+    /// The primary hands its role to the preferred copy, which is as up to date as it:
+    /// campaign now (Raft's leadership transfer). So the primary is where the configuration
+    /// puts it — beside the operations that use it — whenever that copy runs.
+    TimeoutNow {
+        /// The primary's term.
+        term: u64,
+        /// The primary (its node).
+        from: String,
     },
     /// An answer to a `Vote`.
     VoteAck {
@@ -107,7 +120,8 @@ impl ReplicaMsg {
             | ReplicaMsg::AppendAck { term, .. }
             | ReplicaMsg::Vote { term, .. }
             | ReplicaMsg::VoteAck { term, .. }
-            | ReplicaMsg::Install { term, .. } => *term,
+            | ReplicaMsg::Install { term, .. }
+            | ReplicaMsg::TimeoutNow { term, .. } => *term,
         }
     }
 }

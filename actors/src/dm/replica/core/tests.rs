@@ -591,6 +591,30 @@ fn a_lost_primary_is_replaced_and_nothing_acknowledged_is_lost() {
 }
 
 #[test]
+fn the_configured_primary_takes_over_once_it_is_back_and_caught_up() {
+    let mut sim = Sim::new(13, TAIL_KEEP);
+    sim.crash("a");
+    for _ in 0..4000 {
+        sim.step(false);
+    }
+    let stand_in = sim.leader().expect("a primary without a");
+    assert_ne!(stand_in, "a");
+    let acked = sim.acked.len();
+    sim.start("a");
+    for _ in 0..6000 {
+        sim.step(false);
+    }
+    assert_eq!(
+        sim.leader().as_deref(),
+        Some("a"),
+        "the preferred copy leads again"
+    );
+    sim.settle();
+    sim.check();
+    assert!(sim.acked.len() > acked);
+}
+
+#[test]
 fn a_cut_off_primary_cannot_commit_and_rejoins_as_a_copy() {
     let mut sim = Sim::new(5, TAIL_KEEP);
     for _ in 0..2000 {

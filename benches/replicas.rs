@@ -1,0 +1,362 @@
+//! What a datamanager's copies cost and how fast they take over (issue 22), on real
+//! `marie node` processes on 127.0.0.1:
+//!
+//! - **put-all**: a producer (this bench run again as a child, a member of the cluster)
+//!   stores N records with `put_all` into `feature` and waits for the acknowledgement of the
+//!   last: records per second into a datamanager on one node without copies, and into one
+//!   kept in three copies (a record is acknowledged once two of them journaled it); rounds
+//!   interleaved, the ratio in the same run. Goal: copies ≥ 0.5× no copies.
+//! - **failover**: the producer stores one record after another; the primary's node is
+//!   killed (`kill -9`) or frozen (SIGSTOP): the time from the signal to the first store
+//!   acknowledged by a copy on another node. p50 over the rounds. Goals: `kill -9` p50
+//!   ≤ 200 ms; SIGSTOP p50 ≤ the failure detector's deadline (1.2 s) + 200 ms.
+//!
+//! ```text
+//! cargo bench --bench replicas                 # both
+//! cargo bench --bench replicas -- failover     # one section: put-all, failover
+//! ```
+
+use marie::actors::dm::{DmClient, NewRecord, Payload};
+use marie::actors::registry::{self, ModuleKind};
+use marie::cluster::net::{ClusterConfig, Transport};
+use std::io::{BufRead, BufReader, Write};
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::mpsc;
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+const COOKIE: &str = "bench-replicas";
+const PUTS: u64 = 200_000;
+const ROUNDS: usize = 3;
+const FAILOVERS: usize = 5;
+/// The child's role, and what it needs.
+const ROLE: &str = "MARIE_BENCH_ROLE";
+const PEERS: &str = "MARIE_BENCH_PEERS";
+
+fn runtime() -> tokio::runtime::Runtime {
+    tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .expect("runtime")
+}
+
+fn unix_ns() -> u128 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos())
+}
+
+// ---------------------------------------------------------------------------------------
+// Processes
+
+/// A child process and its stdout lines, killed when dropped.
+struct Kid {
+    child: Child,
+    lines: mpsc::Receiver<String>,
+}
+
+impl Kid {
+    fn spawn(mut command: Command) -> Kid {
+        let mut child = command
+            .env_remove("RUST_LOG")
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("a child starts");
+        let out = child.stdout.take().expect("stdout");
+        let (tx, lines) = mpsc::channel();
+        std::thread::spawn(move || {
+            for line in BufReader::new(out).lines().map_while(Result::ok) {
+                if tx.send(line).is_err() {
+                    break;
+                }
+            }
+        });
+        Kid { child, lines }
+    }
+
+    fn wait_line(&self, needle: &str) -> String {
+        let deadline = Instant::now() + Duration::from_secs(120);
+        loop {
+            let left = deadline.saturating_duration_since(Instant::now());
+            let line = self
+                .lines
+                .recv_timeout(left)
+                .unwrap_or_else(|_| panic!("no line with {needle:?}"));
+            if line.contains(needle) {
+                return line;
+            }
+        }
+    }
+
+    fn signal(&self, signal: i32) {
+        // SAFETY: kill(2) on our own child's pid, which is not reaped before `Drop`.
+        unsafe { libc::kill(self.child.id() as libc::pid_t, signal) };
+    }
+}
+
+impl Drop for Kid {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// `marie node` NAME hosting `feature` (with `copies`, if any), its journal under `dir`.
+fn node(dir: &Path, name: &str, copies: &[&str], peers: &[SocketAddr]) -> (Kid, SocketAddr) {
+    let copies = if copies.is_empty() {
+        String::new()
+    } else {
+        let list: Vec<String> = copies.iter().map(|c| format!("\"{c}\"")).collect();
+        format!("copies = [{}]\n", list.join(", "))
+    };
+    let peers: Vec<String> = peers.iter().map(|p| format!("\"{p}\"")).collect();
+    let config = format!(
+        "[node]\nname = \"{name}\"\ndata_dir = \"{}\"\n[[datamanager]]\nname = \"feature\"\n{copies}\
+         [cluster]\nlisten = \"127.0.0.1:0\"\npeers = [{}]\ncookie = \"{COOKIE}\"\n",
+        dir.join(name).display(),
+        peers.join(", ")
+    );
+    let path = dir.join(format!("{name}.toml"));
+    std::fs::write(&path, config).expect("config");
+    let mut c = Command::new(env!("CARGO_BIN_EXE_marie"));
+    c.args([
+        "node",
+        "--config",
+        path.to_str().unwrap(),
+        "--stop-with-stdin",
+    ]);
+    let kid = Kid::spawn(c);
+    let line = kid.wait_line(&format!("node {name} listening on "));
+    let addr = line
+        .split_once(" listening on ")
+        .and_then(|(_, r)| r.split_whitespace().next()?.parse().ok())
+        .expect("an address");
+    (kid, addr)
+}
+
+/// The producer child, with `role` and the nodes' addresses.
+fn producer(role: &str, peers: &[SocketAddr]) -> Kid {
+    let list: Vec<String> = peers.iter().map(ToString::to_string).collect();
+    let mut c = Command::new(std::env::current_exe().expect("own path"));
+    c.env(ROLE, role).env(PEERS, list.join(","));
+    Kid::spawn(c)
+}
+
+fn fresh_dir(what: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!(
+        "marie-bench-replicas-{what}-{}",
+        std::process::id()
+    ));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("bench dir");
+    dir
+}
+
+// ---------------------------------------------------------------------------------------
+// The child: a member of the cluster that produces
+
+fn child(role: &str) {
+    let peers: Vec<SocketAddr> = std::env::var(PEERS)
+        .expect("peers")
+        .split(',')
+        .map(|p| p.parse().expect("an address"))
+        .collect();
+    runtime().block_on(async {
+        let mut me = ClusterConfig::new("127.0.0.1:0".parse().unwrap(), COOKIE);
+        for p in &peers {
+            me = me.with_peer(*p);
+        }
+        let transport = Transport::start("producer", &me).await.expect("joins");
+        transport
+            .wait_for_peers(peers.len(), Duration::from_secs(60))
+            .await
+            .expect("peers");
+        let start = Instant::now();
+        while registry::lookup(ModuleKind::Datamanager, "feature").is_empty() {
+            assert!(start.elapsed() < Duration::from_secs(60), "no primary");
+            tokio::time::sleep(Duration::from_millis(10)).await;
+        }
+        let client = DmClient::lookup("feature", "producer")
+            .expect("feature")
+            .with_follow(Duration::from_secs(30));
+        match role {
+            "put-all" => {
+                let records = (0..PUTS).map(|i| {
+                    NewRecord::new("sonar", Payload::encode(&(i, [0.5f64; 4])).unwrap())
+                        .with_sub1("front")
+                });
+                let start = Instant::now();
+                client.put_all(records).await.expect("put_all");
+                // the answer that acknowledges them all
+                let stats = client.stats().await.expect("stats");
+                let secs = start.elapsed().as_secs_f64();
+                assert!(stats.records >= PUTS, "{} of {PUTS} stored", stats.records);
+                println!("rate {:.0}", PUTS as f64 / secs);
+            }
+            _ => {
+                // one store after another, each acknowledged: when, and by which node
+                let mut n = 0u64;
+                loop {
+                    let mut record = NewRecord::encode("echo", &n).unwrap();
+                    record.producer = 7;
+                    record.producer_seq = n + 1;
+                    if client.store_raw(record).await.is_ok() {
+                        let node = registry::node_name_of(&client.actor().get_id());
+                        println!("ack {} {node}", unix_ns());
+                        n += 1;
+                    }
+                }
+            }
+        }
+        transport.stop().await;
+    });
+}
+
+// ---------------------------------------------------------------------------------------
+// The parent
+
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn put_all() {
+    println!("put-all: {PUTS} records with put_all, acknowledged; {ROUNDS} rounds interleaved");
+    let (mut plain, mut copied) = (Vec::new(), Vec::new());
+    for round in 0..ROUNDS {
+        for copies in [false, true] {
+            let dir = fresh_dir("put-all");
+            let names: &[&str] = if copies { &["r1", "r2", "r3"] } else { &["p1"] };
+            let list: &[&str] = if copies { names } else { &[] };
+            let mut nodes = Vec::new();
+            let mut addrs = Vec::new();
+            for name in names {
+                let (kid, addr) = node(&dir, name, list, &addrs);
+                nodes.push(kid);
+                addrs.push(addr);
+            }
+            let kid = producer("put-all", &addrs);
+            let line = kid.wait_line("rate ");
+            let rate: f64 = line[5..].trim().parse().expect("a rate");
+            println!(
+                "  round {round}: {} {rate:.0} records/s",
+                if copies { "3 copies " } else { "no copies" }
+            );
+            if copies { &mut copied } else { &mut plain }.push(rate);
+            drop(kid);
+            drop(nodes);
+            let _ = std::fs::remove_dir_all(&dir);
+        }
+    }
+    let (p, c) = (median(&mut plain), median(&mut copied));
+    println!(
+        "put-all medians: no copies {p:.0}/s, 3 copies {c:.0}/s: {:.2}x (goal >= 0.5x)",
+        c / p
+    );
+}
+
+fn failover() {
+    println!("failover: from the signal to the first store acknowledged by another node's copy");
+    let dir = fresh_dir("failover");
+    let names = ["r1", "r2", "r3"];
+    let mut nodes: Vec<Option<Kid>> = Vec::new();
+    let mut addrs = Vec::new();
+    for name in names {
+        let (kid, addr) = node(&dir, name, &names, &addrs);
+        nodes.push(Some(kid));
+        addrs.push(addr);
+    }
+    let kid = producer("stream", &addrs);
+    let mut gaps: Vec<(&str, f64)> = Vec::new();
+    for round in 0..2 * FAILOVERS {
+        let kind = if round < FAILOVERS {
+            "kill -9"
+        } else {
+            "SIGSTOP"
+        };
+        // settle, then hit the node of the copy that acknowledges now
+        std::thread::sleep(Duration::from_secs(2));
+        while kid.lines.try_recv().is_ok() {}
+        let line = kid.wait_line("ack ");
+        let primary = line.split_whitespace().nth(2).expect("a node").to_string();
+        let i = names
+            .iter()
+            .position(|n| *n == primary)
+            .expect("a known node");
+        let hit = unix_ns();
+        nodes[i]
+            .as_ref()
+            .expect("running")
+            .signal(if kind == "kill -9" {
+                libc::SIGKILL
+            } else {
+                libc::SIGSTOP
+            });
+        let gap = loop {
+            let line = kid.wait_line("ack ");
+            let mut w = line.split_whitespace().skip(1);
+            let at: u128 = w.next().and_then(|t| t.parse().ok()).expect("a time");
+            let by = w.next().unwrap_or_default();
+            if by != primary && at > hit {
+                break (at - hit) as f64 / 1e6;
+            }
+        };
+        println!(
+            "  {kind} of {primary}: the first store acknowledged by another copy after {gap:.0} ms"
+        );
+        gaps.push((kind, gap));
+        if kind == "kill -9" {
+            nodes[i] = None;
+            let peers: Vec<SocketAddr> = addrs
+                .iter()
+                .enumerate()
+                .filter(|(j, _)| *j != i)
+                .map(|(_, a)| *a)
+                .collect();
+            let (k, a) = node(&dir, names[i], &names, &peers);
+            nodes[i] = Some(k);
+            addrs[i] = a;
+        } else {
+            nodes[i].as_ref().expect("running").signal(libc::SIGCONT);
+        }
+    }
+    for kind in ["kill -9", "SIGSTOP"] {
+        let mut v: Vec<f64> = gaps
+            .iter()
+            .filter(|(k, _)| *k == kind)
+            .map(|(_, g)| *g)
+            .collect();
+        let goal = if kind == "kill -9" { 200.0 } else { 1400.0 };
+        println!(
+            "failover {kind}: p50 {:.0} ms over {} rounds (goal <= {goal:.0} ms)",
+            median(&mut v),
+            v.len()
+        );
+    }
+    drop(kid);
+    drop(nodes);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+fn main() {
+    if let Ok(role) = std::env::var(ROLE) {
+        child(&role);
+        return;
+    }
+    let wanted: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| !a.starts_with('-'))
+        .collect();
+    let runs = |s: &str| wanted.is_empty() || wanted.iter().any(|w| w == s);
+    let _ = std::io::stdout().flush();
+    if runs("put-all") {
+        put_all();
+    }
+    if runs("failover") {
+        failover();
+    }
+}

@@ -1,0 +1,454 @@
+//! The checker of a replicated datamanager: several producers store records, each
+//! acknowledged, into `feature` kept in three copies on three `marie node` processes, while
+//! a seeded schedule of faults hits the node of whichever copy is primary at that moment —
+//! `kill -9` (and a restart on its data directory), a freeze (SIGSTOP, then SIGCONT), a
+//! partition that cuts it off from everyone (network namespaces), a crash of the
+//! datamanager itself (a panic, restarted by its supervisor). At the end it reads the
+//! primary's records and every copy's digest and checks: every acknowledged record present
+//! exactly once at its seq, each producer's records in its order, no record that was never
+//! put, all copies equal. It prints the table.
+//!
+//! CI runs a short schedule. For long runs (1000 faults):
+//!
+//! ```sh
+//! MARIE_CHECKER_FAULTS=1000 MARIE_CHECKER_SEED=7 \
+//!     cargo test --release --test dm_checker -- --nocapture
+//! ```
+//! (`scripts/dm-checker` does that.)
+//!
+//! The producers run in a child process — this test binary again — inside a network
+//! namespace of its own, so a partition can cut them off too; they print what they put and
+//! what was acknowledged, and take orders (`crash`, `stop`) on stdin. Needs root for the
+//! namespaces; skipped without (fails when `CI` is set).
+
+mod common;
+
+use common::cluster::{NodeProc, Proc};
+use common::netns::Netns;
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+const COOKIE: &str = "checker";
+const NODES: [&str; 3] = ["r1", "r2", "r3"];
+const PORT: u16 = 7100;
+/// The producers' namespace (after the nodes').
+const PRODUCERS_NS: usize = 3;
+/// Producers in the child.
+const PRODUCERS: u64 = 4;
+/// The child's orders and answers wait this long at most.
+const T: Duration = Duration::from_secs(120);
+
+fn env_or(name: &str, default: u64) -> u64 {
+    std::env::var(name)
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(default)
+}
+
+struct Rng(u64);
+impl Rng {
+    fn below(&mut self, n: u64) -> u64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        self.0 % n.max(1)
+    }
+    fn ms(&mut self, from: u64, to: u64) -> Duration {
+        Duration::from_millis(from + self.below(to - from + 1))
+    }
+}
+
+fn config(dir: &Path, name: &str) -> String {
+    format!(
+        "data_dir = \"{}\"\n[[datamanager]]\nname = \"feature\"\ncopies = [\"r1\", \"r2\", \"r3\"]\n",
+        dir.join(format!("data-{name}")).display()
+    )
+}
+
+/// Start node `i` in its namespace (the others joining node 0).
+fn start_node(net: &Netns, dir: &Path, i: usize) -> NodeProc {
+    let name = NODES[i];
+    let listen = net.addr(i, PORT);
+    let peers = if i == 0 {
+        Vec::new()
+    } else {
+        vec![net.addr(0, PORT)]
+    };
+    let path =
+        common::cluster::node_config(dir, name, &config(dir, name), listen, &peers, COOKIE, "");
+    NodeProc::launch(
+        Some(net.ns(i)),
+        listen,
+        name,
+        &[
+            "node",
+            "--config",
+            path.to_str().unwrap(),
+            "--stop-with-stdin",
+        ],
+    )
+}
+
+/// What the child said, read so far.
+#[derive(Default)]
+struct Heard {
+    read: usize,
+    primary: Option<String>,
+    /// How many times a primary was announced.
+    primaries: u64,
+    put: BTreeSet<(u64, u64)>,
+    acked: BTreeMap<(u64, u64), u64>,
+    have: Vec<(u64, u64, u64)>,
+    copies: Vec<(String, u64, u64, u64)>,
+    done: bool,
+}
+
+impl Heard {
+    fn take(&mut self, child: &mut Proc) {
+        let lines = child.drain().to_vec();
+        for line in &lines[self.read..] {
+            let w: Vec<&str> = line.split_whitespace().collect();
+            let n = |i: usize| w.get(i).and_then(|s| s.parse::<u64>().ok()).unwrap_or(0);
+            match w.first().copied() {
+                Some("primary") => {
+                    self.primary = w.get(1).map(|s| s.to_string());
+                    self.primaries += 1;
+                }
+                Some("put") => {
+                    self.put.insert((n(1), n(2)));
+                }
+                Some("ack") => {
+                    let old = self.acked.insert((n(1), n(2)), n(3));
+                    assert!(
+                        old.is_none_or(|s| s == n(3)),
+                        "record {} {} acknowledged with two seqs",
+                        n(1),
+                        n(2)
+                    );
+                }
+                Some("have") => self.have.push((n(1), n(2), n(3))),
+                Some("copy") => {
+                    self.copies
+                        .push((w.get(1).unwrap_or(&"").to_string(), n(2), n(3), n(4)))
+                }
+                Some("done") => self.done = true,
+                _ => {}
+            }
+        }
+        self.read = lines.len();
+    }
+}
+
+#[test]
+fn replicated_datamanager_checker_under_kill_freeze_partition_and_crash() {
+    if std::env::var_os("MARIE_CHECKER_CHILD").is_some() {
+        return; // the child runs the producers' test instead
+    }
+    let Some(net) = Netns::create(NODES.len() + 1) else {
+        return;
+    };
+    let faults = env_or("MARIE_CHECKER_FAULTS", 8);
+    let seed = env_or("MARIE_CHECKER_SEED", 1);
+    let mut rng = Rng(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1);
+    let dir = tempfile::tempdir().unwrap();
+    let mut nodes: Vec<NodeProc> = (0..NODES.len())
+        .map(|i| start_node(&net, dir.path(), i))
+        .collect();
+    let peers: Vec<String> = (0..NODES.len())
+        .map(|i| net.addr(i, PORT).to_string())
+        .collect();
+    let mut child = Proc::spawn_exe(
+        Some(net.ns(PRODUCERS_NS)),
+        "producers",
+        &std::env::current_exe().unwrap(),
+        &["--exact", "producers", "--nocapture", "--test-threads", "1"],
+        &[
+            ("MARIE_CHECKER_CHILD", "1".to_string()),
+            ("MARIE_CHECKER_PEERS", peers.join(",")),
+            (
+                "MARIE_CHECKER_LISTEN",
+                net.addr(PRODUCERS_NS, 0).to_string(),
+            ),
+        ],
+    );
+    let mut heard = Heard::default();
+    let wait = |child: &mut Proc, heard: &mut Heard, what: &str, until: &dyn Fn(&Heard) -> bool| {
+        let start = Instant::now();
+        loop {
+            heard.take(child);
+            if until(heard) {
+                return;
+            }
+            assert!(start.elapsed() < T, "the producers: no {what} within {T:?}");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    };
+    wait(&mut child, &mut heard, "primary", &|h| h.primary.is_some());
+    let mut done: BTreeMap<&str, u64> = BTreeMap::new();
+    for k in 0..faults {
+        std::thread::sleep(rng.ms(300, 1500));
+        heard.take(&mut child);
+        let Some(primary) = heard.primary.clone() else {
+            continue;
+        };
+        let i = NODES.iter().position(|n| *n == primary).expect("a node");
+        // each kind once first, then as the seed draws them
+        let pick = if k < 4 { k } else { rng.below(4) };
+        let kind = ["kill", "freeze", "partition", "crash"][pick as usize];
+        eprintln!("fault {k}: {kind} {primary}");
+        match kind {
+            "kill" => {
+                nodes[i].signal("KILL");
+                std::thread::sleep(rng.ms(300, 1500));
+                nodes[i] = start_node(&net, dir.path(), i);
+            }
+            "freeze" => {
+                let stopped = common::cluster::Stopped::stop(nodes[i].pid());
+                std::thread::sleep(rng.ms(500, 3000));
+                drop(stopped);
+            }
+            "partition" => {
+                for j in 0..=PRODUCERS_NS {
+                    if j != i {
+                        net.cut(i, j);
+                    }
+                }
+                std::thread::sleep(rng.ms(500, 3000));
+                for j in 0..=PRODUCERS_NS {
+                    if j != i {
+                        net.heal(i, j);
+                    }
+                }
+            }
+            _ => child.tell("crash"),
+        }
+        *done.entry(kind).or_default() += 1;
+        // the datamanager takes writes again (under a primary elected anew, or the same one
+        // if the fault was shorter than the failure detector's deadline) before the next
+        heard.take(&mut child);
+        let acked = heard.acked.len();
+        wait(&mut child, &mut heard, "progress after the fault", &|h| {
+            h.acked.len() >= acked + PRODUCERS as usize
+        });
+    }
+    child.tell("stop");
+    wait(&mut child, &mut heard, "final reading", &|h| h.done);
+
+    // the verdict
+    let mut lost = 0;
+    let mut where_is: BTreeMap<(u64, u64), Vec<u64>> = BTreeMap::new();
+    for (seq, p, n) in &heard.have {
+        where_is.entry((*p, *n)).or_default().push(*seq);
+    }
+    for (rec, seq) in &heard.acked {
+        if where_is.get(rec).is_none_or(|s| !s.contains(seq)) {
+            lost += 1;
+            eprintln!(
+                "LOST: producer {} record {} (acknowledged as seq {seq})",
+                rec.0, rec.1
+            );
+        }
+    }
+    let duplicated = where_is.values().filter(|s| s.len() > 1).count();
+    let never_put = where_is.keys().filter(|r| !heard.put.contains(r)).count();
+    let mut out_of_order = 0;
+    for p in 0..PRODUCERS {
+        let seqs: Vec<u64> = where_is
+            .range((p, 0)..(p + 1, 0))
+            .map(|(_, s)| s[0])
+            .collect();
+        out_of_order += seqs.windows(2).filter(|w| w[0] >= w[1]).count();
+    }
+    let first = heard.copies.first().cloned().expect("a copy read");
+    let divergent = heard
+        .copies
+        .iter()
+        .filter(|c| (c.1, c.2, c.3) != (first.1, first.2, first.3))
+        .count();
+    let kinds: Vec<String> = done.iter().map(|(k, n)| format!("{n} {k}")).collect();
+    println!(
+        "| seed | faults | acknowledged | stored | lost | duplicated | out of order | never put | divergent copies |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|");
+    println!(
+        "| {seed} | {faults} ({}) | {} | {} | {lost} | {duplicated} | {out_of_order} | {never_put} | {divergent} of {} |",
+        kinds.join(", "),
+        heard.acked.len(),
+        heard.have.len(),
+        heard.copies.len()
+    );
+    assert_eq!(heard.copies.len(), 3, "every copy read: {:?}", heard.copies);
+    assert!(
+        heard.acked.len() as u64 > faults,
+        "the producers made progress"
+    );
+    assert_eq!(
+        (lost, duplicated, out_of_order, never_put, divergent),
+        (0, 0, 0, 0, 0)
+    );
+}
+
+/// The child: the producers, in their own namespace. Does nothing unless run by the test
+/// above.
+#[test]
+fn producers() {
+    if std::env::var_os("MARIE_CHECKER_CHILD").is_none() {
+        return;
+    }
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .unwrap();
+    rt.block_on(producers_run());
+}
+
+async fn producers_run() {
+    use marie::actors::dm::{self, DmClient, DmMsg, NewRecord, Query};
+    use marie::actors::registry::{self, ModuleKind};
+    use marie::actors::run::FaultKind;
+    use marie::cluster::net::{ClusterConfig, Transport};
+    use ractor::ActorRef;
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::Arc;
+
+    // a line at a time, whole (libtest's own output may share the line otherwise)
+    let say = |s: String| println!("\n{s}");
+    let listen = std::env::var("MARIE_CHECKER_LISTEN")
+        .unwrap()
+        .parse()
+        .unwrap();
+    let mut me = ClusterConfig::new(listen, COOKIE);
+    for p in std::env::var("MARIE_CHECKER_PEERS").unwrap().split(',') {
+        me = me.with_peer(p.parse().unwrap());
+    }
+    let transport = Transport::start("producers", &me).await.unwrap();
+    transport.wait_for_peers(3, T).await.unwrap();
+    let primary = || {
+        registry::lookup(ModuleKind::Datamanager, "feature")
+            .into_iter()
+            .next()
+    };
+    let start = Instant::now();
+    while primary().is_none() {
+        assert!(start.elapsed() < T, "no primary");
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    let client = DmClient::lookup("feature", "producers")
+        .unwrap()
+        .with_follow(T);
+    let stop = Arc::new(AtomicBool::new(false));
+    // who is primary, told at each change
+    let watcher = {
+        let stop = stop.clone();
+        tokio::spawn(async move {
+            let mut last: Option<ractor::ActorId> = None;
+            while !stop.load(Ordering::Relaxed) {
+                if let Some(p) = primary() {
+                    if Some(p.actor.get_id()) != last {
+                        last = Some(p.actor.get_id());
+                        say(format!("primary {}", p.node));
+                    }
+                }
+                tokio::time::sleep(Duration::from_millis(20)).await;
+            }
+        })
+    };
+    let mut tasks = Vec::new();
+    for p in 0..PRODUCERS {
+        let (client, stop) = (client.clone(), stop.clone());
+        tasks.push(tokio::spawn(async move {
+            let mut n = 0u64;
+            while !stop.load(Ordering::Relaxed) {
+                say(format!("put {p} {n}"));
+                let start = Instant::now();
+                let seq = loop {
+                    // a class per producer and 8192 records: no class reaches the default
+                    // retention bound (10 000), so every record put must still be there
+                    let class = format!("rec-{p}-{}", n / 8192);
+                    let mut record = NewRecord::encode(&class, &(p, n)).unwrap();
+                    record.producer = 1000 + p;
+                    record.producer_seq = n + 1;
+                    match client.store_raw(record).await {
+                        Ok(seq) => break seq,
+                        Err(e) => {
+                            assert!(start.elapsed() < T, "producer {p} record {n}: {e}");
+                            tokio::time::sleep(Duration::from_millis(50)).await;
+                        }
+                    }
+                };
+                say(format!("ack {p} {n} {seq}"));
+                n += 1;
+            }
+        }));
+    }
+    // orders
+    let (tx, mut orders) = tokio::sync::mpsc::unbounded_channel::<String>();
+    std::thread::spawn(move || {
+        use std::io::BufRead;
+        for line in std::io::stdin().lock().lines().map_while(Result::ok) {
+            if tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    while let Some(line) = orders.recv().await {
+        match line.trim() {
+            "crash" => {
+                if let Some(p) = primary() {
+                    let actor: ActorRef<DmMsg> = p.actor.into();
+                    let _ = actor.cast(DmMsg::Inject {
+                        fault: FaultKind::Panic,
+                    });
+                }
+            }
+            "stop" => break,
+            _ => {}
+        }
+    }
+    stop.store(true, Ordering::Relaxed);
+    for t in tasks {
+        t.await.unwrap();
+    }
+    watcher.await.unwrap();
+    // the copies settle: the same seq applied everywhere, then their digests
+    let start = Instant::now();
+    let copies = loop {
+        let mut copies = Vec::new();
+        for node in NODES {
+            let member = ractor::pg::get_scoped_members(
+                &dm::replica::SCOPE.to_string(),
+                &format!("feature/{node}"),
+            )
+            .into_iter()
+            .next();
+            if let Some(cell) = member {
+                let actor: ActorRef<DmMsg> = cell.into();
+                if let Ok(ractor::rpc::CallResult::Success(d)) = actor
+                    .call(
+                        |reply| DmMsg::Digest { reply },
+                        Some(Duration::from_secs(5)),
+                    )
+                    .await
+                {
+                    copies.push((node, d));
+                }
+            }
+        }
+        if copies.len() == 3 && copies.iter().all(|(_, d)| d.upto == copies[0].1.upto) {
+            break copies;
+        }
+        assert!(start.elapsed() < T, "the copies did not settle: {copies:?}");
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    };
+    for (node, d) in copies {
+        say(format!("copy {node} {} {} {}", d.upto, d.records, d.digest));
+    }
+    for r in client.select(Query::all()).await.unwrap() {
+        let (p, n): (u64, u64) = r.decode().unwrap();
+        say(format!("have {} {p} {n}", r.seq));
+    }
+    say("done".to_string());
+    transport.stop().await;
+}
