@@ -203,6 +203,15 @@ fn the_page_stops_the_wall_followers_node_and_shows_the_cluster_fail_over() {
         "document.querySelector('#outcome')?.dataset.outcome === 'succeeded'",
         "the mission succeeds",
     );
+    // a datamanager says what it holds: the layout keeps copies, so its role and term too
+    shows(
+        &mut browser,
+        "document.querySelector('#cluster .module[data-module=\"feature\"] + .dm-state')\
+             ?.textContent.includes('records, process, journal')\
+             && document.querySelector('#cluster .module[data-module=\"feature\"] + .dm-state')\
+             .textContent.includes('primary (term ')",
+        "the feature datamanager's records, journal and role",
+    );
     // any operation of the cluster panel answers a click with its live properties: here
     // one of the survivor's wall followers
     let module = format!(

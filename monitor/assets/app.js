@@ -230,10 +230,29 @@ function renderCluster(cluster) {
         mods.map((m) => `<span class="module" data-kind="${m.kind}" data-module="${esc(m.name)}" ` +
           `data-node="${esc(n.name)}" data-address="${esc(m.address)}"` +
           `${m.kind === "operation" && offers.properties ? ' title="its properties"' : ""}>${esc(m.name)}</span>` +
-          dmFaults(m, n)).join(", ") +
+          dmState(m) + dmFaults(m, n)).join(", ") +
         `</div></div>`;
     })
     .join(""));
+}
+
+// What a datamanager holds, as last asked: durability, records, journal; for one kept in
+// copies, its role and term and how far each copy lags.
+function dmState(m) {
+  const d = m.dm;
+  if (!d) return "";
+  const journal = d.durability === "memory" ? "in memory" : `${esc(d.durability)}, journal ${bytes(d.journal_bytes)}`;
+  const copies = d.role
+    ? ` · ${esc(d.role)} (term ${d.term}); copies: ` +
+      Object.entries(d.lag).map(([node, lag]) => `${esc(node)} lag ${lag}`).join(", ")
+    : "";
+  return ` <span class="dm-state">(${d.records} records, ${journal}${copies})</span>`;
+}
+
+function bytes(n) {
+  if (n >= 1 << 20) return (n / (1 << 20)).toFixed(1) + " MiB";
+  if (n >= 1 << 10) return (n / 1024).toFixed(1) + " KiB";
+  return n + " B";
 }
 
 // A datamanager's fault buttons (kill, panic, hang: its supervisor restarts it), when the

@@ -122,12 +122,68 @@ pub(crate) async fn start_live(
     let monitor = Monitor::live(bus, options)?;
     let feed = monitor.feed().expect("a live monitor has a feed");
     let relay = if other_nodes {
-        Some(relay_into(feed.clone()).await?)
+        let relay = relay_into(feed.clone()).await?;
+        let poll = poll_datamanagers(feed.clone(), bus.clone());
+        // one handle for both: the poller ends with the relay, and the relay (and with it
+        // the poller) when this task is aborted
+        Some(tokio::spawn(async move {
+            struct Abort(JoinHandle<()>);
+            impl Drop for Abort {
+                fn drop(&mut self) {
+                    self.0.abort();
+                }
+            }
+            let _poll = Abort(poll);
+            let mut relay = Abort(relay);
+            let _ = (&mut relay.0).await;
+        }))
     } else {
         None
     };
     feed_listing(&feed, bus);
     Ok((monitor, relay))
+}
+
+/// How often the page's datamanagers are asked what they hold.
+const DM_POLL: std::time::Duration = std::time::Duration::from_secs(2);
+
+/// Ask every datamanager in the registry what it holds — durability, records, journal, and
+/// for a replicated one its role, term and copies' lag — every [`DM_POLL`], and feed it to
+/// the page (`dm_state`), until aborted. Only the monitor sees these: the bus does not.
+fn poll_datamanagers(feed: Feed, bus: EventBus) -> JoinHandle<()> {
+    use marie::actors::dm::DmClient;
+    tokio::spawn(async move {
+        let mut ticks = tokio::time::interval(DM_POLL);
+        ticks.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+        loop {
+            ticks.tick().await;
+            for inst in registry::list_of(registry::ModuleKind::Datamanager) {
+                let client = DmClient::from_instance(&inst, "monitor")
+                    .with_timeout(std::time::Duration::from_secs(1))
+                    .with_follow(std::time::Duration::ZERO);
+                let Ok(s) = client.stats().await else {
+                    continue;
+                };
+                let (role, term, lag) = match s.replica {
+                    Some(r) => (Some(r.role), r.term, r.lag),
+                    None => (None, 0, Default::default()),
+                };
+                feed.offer(Event {
+                    at_ms: bus.clock().now().as_millis() as u64,
+                    node: inst.node.clone(),
+                    kind: EventKind::DmState {
+                        dm: s.name,
+                        durability: s.durability.as_str().to_string(),
+                        records: s.records,
+                        journal_bytes: s.journal_bytes,
+                        role,
+                        term,
+                        lag,
+                    },
+                });
+            }
+        }
+    })
 }
 
 /// Feed the modules in the registry now, as if they had just joined (they joined before the
@@ -192,12 +248,13 @@ impl ClusterWatch {
         let relay = relay_into(feed.clone()).await?;
         let registry = bridge_registry(bus.clone(), None).await?;
         feed_listing(&feed, &bus);
+        let poll = poll_datamanagers(feed.clone(), bus.clone());
         let news = marie::cluster::net::publish_on(&transport, bus);
         announce(&monitor, &format!("watching the cluster as {me}"));
         Ok(ClusterWatch {
             monitor,
             transport,
-            tasks: vec![relay, news],
+            tasks: vec![relay, news, poll],
             _registry: registry,
         })
     }

@@ -265,6 +265,24 @@ pub enum EventKind {
         /// Why.
         why: String,
     },
+    /// What a datamanager holds now, as a monitor asked it (fed to the monitor's page every
+    /// few seconds; never on a node's bus, so never in an events file).
+    DmState {
+        /// The datamanager's name.
+        dm: String,
+        /// `memory`, `process` or `sync`.
+        durability: String,
+        /// Records stored.
+        records: u64,
+        /// Bytes of its journal.
+        journal_bytes: u64,
+        /// `primary` of a replicated datamanager; `None` without copies.
+        role: Option<String>,
+        /// Its term (0 without copies).
+        term: u64,
+        /// How many entries each other copy lacks.
+        lag: std::collections::BTreeMap<String, u64>,
+    },
     // --- the robot ---
     /// A robot judged the run after the dispatcher ended it: its outcome replaces the
     /// dispatcher's, and what it says of the run (its [`RobotSection`], e.g. the cart's final

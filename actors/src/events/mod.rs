@@ -54,6 +54,7 @@
 //! {"at_ms":20003,"node":"features","kind":{"type":"dm_recovered","dm":"feature","records":1210,"bytes":139150,"ms":4,"dropped_bytes":0,"dropped_records":0,"torn":null}}
 //! {"at_ms":20090,"node":"operations","kind":{"type":"dm_promoted","dm":"feature","node":"operations","term":3}}
 //! {"at_ms":21000,"node":"features","kind":{"type":"dm_fenced","dm":"feature","node":"features","term":2,"why":"a newer term"}}
+//! {"at_ms":22000,"node":"features","kind":{"type":"dm_state","dm":"feature","durability":"process","records":1210,"journal_bytes":139150,"role":"primary","term":3,"lag":{"operations":0,"spare":2}}}
 //! {"at_ms":30001,"node":"marie@localhost","kind":{"type":"judged","outcome":"succeeded","reason":"","collisions":0,"final_pose":[1.5,0.25,0.01],"inside_goal":true,"judgement":"success: inside the goal area","refused_commands":{},"seed":7}}
 //! {"at_ms":4000,"node":"marie@localhost","kind":{"type":"robot","what":"collision","data":{"x":1.0,"y":2.0}}}
 //! ```
@@ -189,13 +190,14 @@ mod tests {
             EventKind::DmRecovered { .. } => "dm_recovered",
             EventKind::DmPromoted { .. } => "dm_promoted",
             EventKind::DmFenced { .. } => "dm_fenced",
+            EventKind::DmState { .. } => "dm_state",
             EventKind::Judged { .. } => "judged",
             EventKind::Robot { .. } => "robot",
         }
     }
 
     /// The `type` of every kind, as [`type_of`] names them.
-    const KINDS: [&str; 29] = [
+    const KINDS: [&str; 30] = [
         "run_started",
         "bound",
         "action_started",
@@ -223,6 +225,7 @@ mod tests {
         "dm_recovered",
         "dm_promoted",
         "dm_fenced",
+        "dm_state",
         "judged",
         "robot",
     ];

@@ -209,6 +209,7 @@ impl ReportBuilder {
             | EventKind::DmRecovered { .. }
             | EventKind::DmPromoted { .. }
             | EventKind::DmFenced { .. }
+            | EventKind::DmState { .. }
             | EventKind::Robot { .. } => {}
         }
     }

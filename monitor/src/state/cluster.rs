@@ -36,6 +36,26 @@ pub struct ModuleView {
     pub id: u32,
     /// Its actor address.
     pub address: String,
+    /// A datamanager's state, as last asked.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub dm: Option<DmView>,
+}
+
+/// What a datamanager holds, as the monitor last asked it.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct DmView {
+    /// `memory`, `process` or `sync`.
+    pub durability: String,
+    /// Records stored.
+    pub records: u64,
+    /// Bytes of its journal.
+    pub journal_bytes: u64,
+    /// `primary` of a replicated datamanager.
+    pub role: Option<String>,
+    /// Its term.
+    pub term: u64,
+    /// How many entries each other copy lacks.
+    pub lag: BTreeMap<String, u64>,
 }
 
 /// Every node, by name.
@@ -108,8 +128,19 @@ impl Cluster {
                 name: m.name.clone(),
                 id: m.id,
                 address: m.address.clone(),
+                dm: None,
             },
         );
+    }
+
+    /// What datamanager `dm` on `node` holds now.
+    pub fn dm_state(&mut self, node: &str, dm: &str, view: DmView, at_ms: u64) {
+        let node = self.of(node, at_ms);
+        for m in node.modules.values_mut() {
+            if m.kind == "datamanager" && m.name == dm {
+                m.dm = Some(view.clone());
+            }
+        }
     }
 
     /// A module left the location table.

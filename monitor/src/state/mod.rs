@@ -165,6 +165,27 @@ impl MonitorState {
                 );
             }
             EventKind::Joined(m) => self.cluster.joined(m, at),
+            EventKind::DmState {
+                dm,
+                durability,
+                records,
+                journal_bytes,
+                role,
+                term,
+                lag,
+            } => self.cluster.dm_state(
+                node,
+                dm,
+                cluster::DmView {
+                    durability: durability.clone(),
+                    records: *records,
+                    journal_bytes: *journal_bytes,
+                    role: role.clone(),
+                    term: *term,
+                    lag: lag.clone(),
+                },
+                at,
+            ),
             EventKind::Left(m) => self.cluster.left(m, at),
             EventKind::ChildStarted { .. } => {}
             EventKind::ChildExited {
