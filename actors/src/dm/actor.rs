@@ -331,6 +331,7 @@ impl DmMsg {
                 | DmMsg::JournalRefused { .. }
                 | DmMsg::Inject { .. }
                 | DmMsg::Stats { .. }
+                | DmMsg::AnswerStats { .. }
                 | DmMsg::Digest { .. }
                 | DmMsg::WaitExpired { .. }
         )
@@ -578,6 +579,17 @@ impl Actor for Datamanager {
                     }
                     n
                 });
+            }
+            DmMsg::Stats { reply } if state.replica.is_some() && !state.is_copy() => {
+                // a primary's answer waits for the commit of the puts before it; its numbers
+                // are taken then, once they are applied (not the state they were asked in)
+                let me = myself.clone();
+                state.after_commit(Box::new(move |_| {
+                    let _ = me.cast(DmMsg::AnswerStats { reply });
+                }));
+            }
+            DmMsg::AnswerStats { reply } => {
+                let _ = reply.send(state.stats());
             }
             DmMsg::Stats { reply } => {
                 // it returns a remote producer's credits: it acknowledges the puts before it

@@ -165,6 +165,11 @@ crate::remote_message! {
             /// Their seqs.
             seqs: Vec<u64>,
         },
+        /// Answer a `Stats` now (a primary's, once the puts before it are committed).
+        AnswerStats {
+            /// Where the answer goes.
+            reply: ractor::RpcReplyPort<DmStats>,
+        },
         /// A copy's clock: campaign, send heartbeats, see who is reachable.
         ReplicaTick {},
         /// The journal made a copy's entries up to `seq` (of `term`) durable.
