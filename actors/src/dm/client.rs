@@ -468,6 +468,11 @@ impl DmClient {
     /// with `Busy`: batches of [`super::credits::BATCH`] records. For bulk transfers (a log,
     /// a replay) where nothing may be dropped; `Timeout` if the DM acknowledges nothing for
     /// [`DmClient::timeout`].
+    ///
+    /// Like every put, a batch is acknowledged by a later answer of the same instance: puts
+    /// on their way to an instance that is lost meanwhile (a crash, a primary stepping down)
+    /// are not sent again to the next one. What must survive that is stored with
+    /// [`DmClient::store`], which follows the datamanager and is stored once.
     pub async fn put_all(
         &self,
         records: impl IntoIterator<Item = NewRecord>,
