@@ -67,12 +67,7 @@ fn lose_the_wall_followers_node(
     let code = up.wait_exit();
     assert!(common::cluster::wait_gone(pid), "{node} outlived marie up");
     assert_eq!(code, Some(0), "{}", up.seen().join("\n"));
-    let report: Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
-    let events = std::fs::read_to_string(&events)
-        .unwrap()
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect();
+    let (report, events) = common::cluster::report_and_events(&report, &events);
     (report, node, up.seen().to_vec(), events)
 }
 

@@ -58,13 +58,7 @@ fn lose_the_features_node(signal: &str, moment: &str, wake: &str) -> (Value, Vec
         "features outlived marie up"
     );
     assert_eq!(code, Some(0), "{}", up.seen().join("\n"));
-    let report: Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
-    let events = std::fs::read_to_string(&events)
-        .unwrap()
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect();
-    (report, events)
+    common::cluster::report_and_events(&report, &events)
 }
 
 /// The mission succeeded, and the feature datamanager was promoted on another node.

@@ -425,3 +425,18 @@ pub(crate) fn wait_gone(pid: u32) -> bool {
     }
     false
 }
+
+/// A run's report (`--report FILE`) and its events, one per line (`--events FILE`).
+pub(crate) fn report_and_events(
+    report: &Path,
+    events: &Path,
+) -> (serde_json::Value, Vec<serde_json::Value>) {
+    let report =
+        serde_json::from_slice(&std::fs::read(report).expect("the report")).expect("a JSON report");
+    let events = std::fs::read_to_string(events)
+        .expect("the events file")
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("a JSON event"))
+        .collect();
+    (report, events)
+}

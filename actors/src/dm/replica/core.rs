@@ -506,18 +506,22 @@ impl Core {
             self.advance_commit(out);
         } else if let Some(leader) = self.leader.clone() {
             if leader != self.me {
-                let last = self.durable_here().min(self.verified);
-                out.push(Out::Send(
-                    leader,
-                    ReplicaMsg::AppendAck {
-                        term: self.term,
-                        from: self.me.clone(),
-                        ok: true,
-                        last,
-                    },
-                ));
+                out.push(self.held_ack(leader));
             }
         }
+    }
+
+    /// Tell `leader` how far this copy holds its log, durably.
+    fn held_ack(&self, leader: String) -> Out {
+        Out::Send(
+            leader,
+            ReplicaMsg::AppendAck {
+                term: self.term,
+                from: self.me.clone(),
+                ok: true,
+                last: self.durable_here().min(self.verified),
+            },
+        )
     }
 
     fn apply(&mut self, out: &mut Vec<Out>) {
@@ -794,16 +798,7 @@ impl Core {
         }
         if first_new.is_none() {
             // nothing new to make durable: answer now (it also says this copy is alive)
-            let last = self.durable_here().min(self.verified);
-            out.push(Out::Send(
-                leader,
-                ReplicaMsg::AppendAck {
-                    term: self.term,
-                    from: self.me.clone(),
-                    ok: true,
-                    last,
-                },
-            ));
+            out.push(self.held_ack(leader));
         }
     }
 
