@@ -145,6 +145,20 @@ impl DmClient {
             .ok_or_else(|| DmError::NotRegistered(name_or_id.to_string()))
     }
 
+    /// [`DmClient::lookup`], waiting at most `within` for an instance to be published (a
+    /// replicated datamanager's primary being elected, a datamanager starting elsewhere):
+    /// it watches the registry, it does not poll.
+    pub async fn lookup_within(
+        name_or_id: &str,
+        source: &str,
+        within: Duration,
+    ) -> Result<DmClient, DmError> {
+        super::follow::next_instance(name_or_id, None, within)
+            .await
+            .map(|inst| DmClient::from_instance(&inst, source))
+            .ok_or_else(|| DmError::NotRegistered(name_or_id.to_string()))
+    }
+
     /// Use `timeout` as the deadline of requests.
     pub fn with_timeout(mut self, timeout: Duration) -> DmClient {
         self.timeout = timeout;

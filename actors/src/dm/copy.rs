@@ -32,8 +32,6 @@ pub(crate) struct Copy {
     /// A snapshot being received from the primary.
     pub(crate) incoming: Option<Incoming>,
     ticker: tokio::task::JoinHandle<()>,
-    /// Every node that keeps a copy.
-    pub(crate) members: Vec<String>,
     /// The datamanager's name.
     pub(crate) name: String,
     /// Where it tells that it became the primary or stepped down.
@@ -134,7 +132,6 @@ impl Copy {
             last_time: store.last_time(),
             incoming: None,
             ticker,
-            members: replication.members.clone(),
             name: name.to_string(),
             events,
         })

@@ -127,10 +127,7 @@ impl DmState {
         };
         let now = copy.now();
         let mut out = Vec::new();
-        for m in copy.members.clone() {
-            if m == copy.core.me() {
-                continue;
-            }
+        for m in copy.core.others() {
             let found = pg::get_scoped_members(&SCOPE.to_string(), &group(&copy.name, &m))
                 .into_iter()
                 .find(|c| c.get_status() <= ractor::ActorStatus::Running);

@@ -277,17 +277,11 @@ async fn apriori_to_primary(name: String, records: Arc<Vec<NewRecord>>) {
             (h ^ u64::from(b)).wrapping_mul(0x100_0000_01b3)
         })
         | 1;
-    let waited = tokio::time::Instant::now();
-    let client = loop {
-        match DmClient::lookup(&name, NODE_SOURCE) {
-            Ok(c) => break c,
-            Err(_) if waited.elapsed() < APRIORI_WAIT => {
-                tokio::time::sleep(Duration::from_millis(50)).await;
-            }
-            Err(e) => {
-                tracing::warn!(dm = %name, error = %e, "a-priori records not stored: no primary");
-                return;
-            }
+    let client = match DmClient::lookup_within(&name, NODE_SOURCE, APRIORI_WAIT).await {
+        Ok(c) => c,
+        Err(e) => {
+            tracing::warn!(dm = %name, error = %e, "a-priori records not stored: no primary");
+            return;
         }
     };
     for (i, record) in records.iter().enumerate() {

@@ -302,6 +302,11 @@ impl Core {
         self.members.iter().filter(move |m| **m != self.me)
     }
 
+    /// The other copies' nodes.
+    pub(crate) fn others(&self) -> Vec<String> {
+        self.peers().cloned().collect()
+    }
+
     fn random(&mut self, below: u64) -> u64 {
         // xorshift64*: enough to spread the copies' timeouts
         self.rng ^= self.rng >> 12;
