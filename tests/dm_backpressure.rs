@@ -2,7 +2,9 @@
 //! a datamanager on a `marie node` process is held to a window of unacknowledged puts —
 //! refused with `Busy` when it is spent, never queueing without bound — and every put it
 //! was allowed reaches the datamanager; batches of puts spend one credit per record and
-//! arrive whole and in order; single puts coalesced in flight arrive in order too. (Its own
+//! arrive whole and in order; single puts coalesced in flight arrive in order too; and a
+//! select whose answer is larger than ractor_cluster's 16 MiB frame comes back whole, in
+//! pages (answered in one frame, it would end the session between the nodes). (Its own
 //! process: it joins the cluster as a member.)
 
 mod common;
@@ -212,6 +214,55 @@ fn single_puts_coalesced_in_flight_arrive_in_order_within_the_window() {
                 }
             }
         }
+        transport.stop().await;
+    });
+    alpha.signal("TERM");
+    assert_eq!(alpha.wait_exit(), Some(0));
+}
+
+#[test]
+fn a_select_larger_than_a_frame_comes_back_whole_in_pages() {
+    let _one = ONE_MEMBER.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = tempfile::tempdir().unwrap();
+    let (mut alpha, rt) = feature_node(dir.path());
+    rt.block_on(async {
+        let me = ClusterConfig::new("127.0.0.1:0".parse().unwrap(), COOKIE).with_peer(alpha.addr);
+        let transport = Transport::start("pager", &me).await.unwrap();
+        transport
+            .wait_for_peers(1, Duration::from_secs(60))
+            .await
+            .unwrap();
+        let client = DmClient::lookup("feature", "pager")
+            .unwrap()
+            .with_timeout(Duration::from_secs(60));
+        assert!(!client.actor().get_id().is_local());
+        // 40 MiB in 40 records, and small ones between them
+        const BIG: usize = 1 << 20;
+        let mut want = Vec::new();
+        for i in 0..40u8 {
+            let seq = client
+                .store_raw(NewRecord::new("scan", Payload::from_bytes(vec![i; BIG])))
+                .await
+                .unwrap();
+            want.push((seq, i, BIG));
+            let seq = client.store("note", None, None, &i).await.unwrap();
+            want.push((seq, i, 0));
+        }
+        let got = client.select(Query::all()).await.unwrap();
+        let got: Vec<(u64, u8, usize)> = got
+            .iter()
+            .map(|r| match r.class.as_ref() {
+                "scan" => (r.seq, r.payload.as_bytes()[0], r.payload.len()),
+                _ => (r.seq, r.decode::<u8>().unwrap(), 0),
+            })
+            .collect();
+        assert_eq!(got, want);
+        // the newest 3 scans: a limit keeps its meaning across pages
+        let newest = client.select(Query::class("scan").newest(3)).await.unwrap();
+        let firsts: Vec<u8> = newest.iter().map(|r| r.payload.as_bytes()[0]).collect();
+        assert_eq!(firsts, vec![37, 38, 39]);
+        // the session held: the node still answers
+        assert_eq!(client.stats().await.unwrap().records, 80);
         transport.stop().await;
     });
     alpha.signal("TERM");

@@ -544,6 +544,17 @@ impl Actor for Datamanager {
             DmMsg::Select { query, reply } => {
                 let _ = reply.send(state.store.select(&query));
             }
+            DmMsg::SelectPage {
+                query,
+                max_bytes,
+                reply,
+            } => {
+                // never above the frame limit, whatever the caller asked
+                let max = usize::try_from(max_bytes)
+                    .unwrap_or(usize::MAX)
+                    .clamp(1, super::PAGE_BYTES);
+                let _ = reply.send(state.store.select_page(&query, max));
+            }
             DmMsg::SelectWait {
                 query,
                 timeout_ms,

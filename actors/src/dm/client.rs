@@ -521,13 +521,33 @@ impl DmClient {
             .map_or(0, |o| o.in_flight())
     }
 
-    /// Every record matching `query`, oldest-first.
+    /// Every record matching `query`, oldest-first. From a datamanager on another node the
+    /// answer comes in pages of about [`PAGE_BYTES`](super::PAGE_BYTES) (each request with
+    /// the client's deadline), which add up to the answer as it was at the first page
+    /// ([`super::page`]).
     pub async fn select(&self, query: Query) -> Result<Vec<Record>, DmError> {
-        self.call(self.timeout, true, |reply| DmMsg::Select {
-            query: Box::new(query.clone()),
-            reply,
-        })
-        .await
+        if self.actor().get_id().is_local() {
+            return self
+                .call(self.timeout, true, |reply| DmMsg::Select {
+                    query: Box::new(query.clone()),
+                    reply,
+                })
+                .await;
+        }
+        let mut records = Vec::new();
+        let mut next = Some(query);
+        while let Some(query) = next.take() {
+            let page = self
+                .call(self.timeout, true, |reply| DmMsg::SelectPage {
+                    query: Box::new(query.clone()),
+                    max_bytes: super::PAGE_BYTES as u64,
+                    reply,
+                })
+                .await?;
+            records.extend(page.records);
+            next = page.rest;
+        }
+        Ok(records)
     }
 
     /// Every record matching `query`, with its payload decoded as a `T` (once for every
@@ -548,7 +568,9 @@ impl DmClient {
     }
 
     /// Records matching `query`; if none exist yet, wait up to `wait` (on the DM's clock) for
-    /// one to be stored. An empty answer means the wait passed.
+    /// one to be stored. An empty answer means the wait passed. Its answer crosses to another
+    /// node in one frame (not in pages, as [`DmClient::select`]'s): keep it below 16 MiB,
+    /// e.g. with [`Query::newest`].
     pub async fn select_wait(&self, query: Query, wait: Duration) -> Result<Vec<Record>, DmError> {
         // sent again to a next instance, it waits only what is left of the wait (on this
         // process's timer: the DM's clock is not at hand here)

@@ -110,7 +110,9 @@ crate::remote_message! {
             /// The records, without the headers the DM fills in.
             records: Vec<NewRecord>,
         },
-        /// Every stored record matching the query, oldest-first.
+        /// Every stored record matching the query, oldest-first. The answer crosses to another
+        /// node in one frame: [`super::DmClient::select`] asks such a datamanager for pages
+        /// (`SelectPage`) instead.
         Select {
             /// What to select.
             query: Box<Query>,
@@ -143,6 +145,16 @@ crate::remote_message! {
         /// A digest of the records it holds, and up to which seq (a checker compares the
         /// copies of a replicated datamanager by it; a copy answers it too).
         Digest {} -> StoreDigest,
+        /// The first page, of about `max_bytes`, of what `Select` answers, and the query
+        /// for the rest: how a client on another node selects ([`super::page`]; an answer
+        /// above ractor_cluster's 16 MiB frame limit would end the session between the
+        /// nodes).
+        SelectPage {
+            /// What to select.
+            query: Box<Query>,
+            /// About how many bytes of records the page may carry.
+            max_bytes: u64,
+        } -> super::page::Page,
         /// A message between the copies of a replicated datamanager
         /// ([`super::replica`]).
         Replica {

@@ -17,8 +17,11 @@ use crate::registry::{self, ModuleKind};
 use ractor::{pg, ActorCell, ActorRef};
 use std::time::Duration;
 
-/// Records per snapshot part sent to a copy.
+/// Records per snapshot part sent to a copy, at most.
 const INSTALL_PART: usize = 2048;
+/// Bytes of records per part, about (a part is one frame: ractor_cluster ends the session
+/// on a frame above 16 MiB).
+const INSTALL_BYTES: usize = super::PAGE_BYTES;
 
 impl DmState {
     /// Whether this datamanager is a copy that is not the primary (it answers no client).
@@ -384,6 +387,7 @@ impl DmState {
         let mut batch = Vec::with_capacity(INSTALL_PART);
         let mut first = true;
         let mut n = 0u64;
+        let mut bytes = 0usize;
         let mut parts = Vec::new();
         self.store.for_each_in_seq_order(|seq, timestamp, r| {
             let record = NewRecord {
@@ -397,9 +401,11 @@ impl DmState {
                 producer_seq: 0,
             };
             let t = u64::try_from(timestamp.as_nanos()).unwrap_or(u64::MAX);
+            bytes += 48 + record.payload.len() + record.class.len() + record.source.len();
             batch.push((seq, t, record));
             n += 1;
-            if batch.len() == INSTALL_PART {
+            if batch.len() == INSTALL_PART || bytes >= INSTALL_BYTES {
+                bytes = 0;
                 parts.push(InstallPart::Records {
                     first,
                     records: std::mem::take(&mut batch),

@@ -454,6 +454,10 @@ trait Visit<'a> {
     fn most(&mut self, _n: usize) {}
     /// The record `seq` of `class` matches.
     fn visit(&mut self, seq: u64, class: &'a ClassIndex, entry: &'a Entry);
+    /// Whether it wants no more (the walk stops).
+    fn full(&self) -> bool {
+        false
+    }
 }
 
 /// A select's answer: the matches as records.
@@ -466,6 +470,35 @@ impl<'a> Visit<'a> for Answer {
     }
     fn visit(&mut self, seq: u64, class: &'a ClassIndex, entry: &'a Entry) {
         self.0.push(entry.to_record(seq, &class.name));
+    }
+}
+
+/// A page of a select's answer: records until about `max` bytes.
+struct Budget {
+    records: Vec<Record>,
+    bytes: usize,
+    max: usize,
+}
+
+impl<'a> Visit<'a> for Budget {
+    fn visit(&mut self, seq: u64, class: &'a ClassIndex, entry: &'a Entry) {
+        let record = entry.to_record(seq, &class.name);
+        self.bytes += super::page::record_bytes(&record);
+        self.records.push(record);
+    }
+    fn full(&self) -> bool {
+        self.bytes >= self.max
+    }
+}
+
+/// The first and last seq of an answer.
+#[derive(Default)]
+struct Ends(Option<(u64, u64)>);
+
+impl<'a> Visit<'a> for Ends {
+    fn visit(&mut self, seq: u64, _: &'a ClassIndex, _: &'a Entry) {
+        let (lo, hi) = self.0.unwrap_or((seq, seq));
+        self.0 = Some((lo.min(seq), hi.max(seq)));
     }
 }
 
@@ -763,7 +796,7 @@ impl Store {
             if entry.matches(seq, &class.name, q) {
                 out.visit(seq, class, entry);
                 taken += 1;
-                if taken >= limit {
+                if taken >= limit || out.full() {
                     break;
                 }
             }
@@ -785,6 +818,43 @@ impl Store {
             out.reverse();
         }
         (out, visited)
+    }
+
+    /// The first page, of about `max_bytes`, of what [`Store::select`] answers to `q`, and
+    /// the query for the rest ([`super::page`]: the pages add up to the answer as it is
+    /// now).
+    pub fn select_page(&self, q: &Query, max_bytes: usize) -> super::page::Page {
+        let mut q = q.clone();
+        // the answer's seq range, fixed now: later pages ask for the rest of it
+        if q.take.is_some() {
+            let mut ends = Ends::default();
+            self.walk(&q, &mut ends);
+            let Some((lo, hi)) = ends.0 else {
+                return super::page::Page::default();
+            };
+            q.take = None;
+            q.seq_from = Some(lo);
+            q.seq_to = Some(hi);
+        } else {
+            let last = self.next_seq().saturating_sub(1);
+            q.seq_to = Some(q.seq_to.map_or(last, |to| to.min(last)));
+        }
+        let mut page = Budget {
+            records: Vec::new(),
+            bytes: 0,
+            max: max_bytes,
+        };
+        self.walk(&q, &mut page);
+        let rest = match page.records.last() {
+            Some(last) if page.full() && Some(last.seq) < q.seq_to => {
+                Some(q.seq_from(last.seq + 1))
+            }
+            _ => None,
+        };
+        super::page::Page {
+            records: page.records,
+            rest,
+        }
     }
 
     /// Delete every record matching `q` (respecting its newest/oldest limit). Returns how
@@ -1016,6 +1086,7 @@ impl std::fmt::Debug for Store {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::dm::page;
 
     fn secs(s: u64) -> Duration {
         Duration::from_secs(s)
@@ -1047,6 +1118,89 @@ mod tests {
             assert_eq!(s.insert(new(c, s1, s2, src), secs(i + 1)).unwrap(), i + 1);
         }
         s
+    }
+
+    /// Every page of `q` at `max` bytes a page, read one after another with `between` run
+    /// before each later page.
+    fn pages(s: &mut Store, q: &Query, max: usize, between: impl Fn(&mut Store)) -> Vec<Vec<u64>> {
+        let mut out = Vec::new();
+        let mut next = Some(q.clone());
+        while let Some(q) = next.take() {
+            if !out.is_empty() {
+                between(s);
+            }
+            let page = s.select_page(&q, max);
+            out.push(seqs(&page.records));
+            next = page.rest;
+        }
+        out
+    }
+
+    #[test]
+    fn pages_add_up_to_the_select_they_stand_for() {
+        // every sample record is at most `one` bytes; a page ends at the record that reaches
+        // its bound, so it holds at most `per_page` of them
+        let one = sample()
+            .select(&Query::all())
+            .iter()
+            .map(page::record_bytes)
+            .max()
+            .unwrap();
+        for q in [
+            Query::all(),
+            Query::class("sonar"),
+            Query::class("sonar").sub1("front"),
+            Query::all().newest(5),
+            Query::all().oldest(5),
+            Query::class("sonar").seq_from(3).newest(4),
+            Query::all().time_from(secs(4)).seq_to(10),
+            Query::class("none"),
+        ] {
+            for per_page in [1, 2, 3, 100] {
+                let mut s = sample();
+                let whole = seqs(&s.select(&q));
+                let got = pages(&mut s, &q, one * (per_page - 1) + 1, |_| {});
+                assert!(got.iter().all(|p| p.len() <= per_page), "{q:?}: {got:?}");
+                assert_eq!(got.concat(), whole, "{q:?} at {per_page} a page");
+            }
+        }
+    }
+
+    #[test]
+    fn pages_stand_for_the_answer_at_the_first_page() {
+        // records stored between pages are not in it (they would move a "newest 5"); a
+        // record deleted before its page is read is not either
+        for q in [Query::all(), Query::class("sonar").newest(5)] {
+            let mut s = sample();
+            let mut whole = seqs(&s.select(&q));
+            let one = page::record_bytes(&s.select(&Query::all())[0]);
+            let got = pages(&mut s, &q, one * 2, |s| {
+                s.insert(new("sonar", Some("front"), None, "us"), secs(99))
+                    .unwrap();
+            });
+            assert_eq!(got.concat(), whole, "{q:?}");
+            let mut s = sample();
+            let last = *whole.last().unwrap();
+            let got = pages(&mut s, &q, one * 2, |s| {
+                s.delete(&Query::all().seq_range(last, last));
+            });
+            whole.pop();
+            assert_eq!(got.concat(), whole, "{q:?}");
+        }
+    }
+
+    #[test]
+    fn a_record_larger_than_a_page_is_a_page_alone() {
+        let mut s = Store::new(DmConfig::default());
+        for n in [10usize, 5000, 10] {
+            s.insert(
+                NewRecord::new("scan", Payload::from_bytes(vec![7; n])).with_source("lidar"),
+                secs(1),
+            )
+            .unwrap();
+        }
+        let got = pages(&mut s, &Query::all(), 1000, |_| {});
+        assert_eq!(got, vec![vec![1, 2], vec![3]]);
     }
 
     #[test]
