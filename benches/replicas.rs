@@ -27,7 +27,13 @@ use std::sync::mpsc;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 const COOKIE: &str = "bench-replicas";
-const PUTS: u64 = 200_000;
+/// Records per put-all round (`MARIE_BENCH_PUTS` to change it, e.g. for a profile).
+fn puts() -> u64 {
+    std::env::var("MARIE_BENCH_PUTS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(200_000)
+}
 const ROUNDS: usize = 3;
 const FAILOVERS: usize = 5;
 /// The child's role, and what it needs.
@@ -199,7 +205,9 @@ fn child(role: &str) {
             .with_follow(Duration::from_secs(30));
         match role {
             "put-all" => {
-                let records = (0..PUTS).map(|i| {
+                let puts = puts();
+                println!("putting");
+                let records = (0..puts).map(|i| {
                     NewRecord::new("sonar", Payload::encode(&(i, [0.5f64; 4])).unwrap())
                         .with_sub1("front")
                 });
@@ -210,8 +218,8 @@ fn child(role: &str) {
                 let secs = start.elapsed().as_secs_f64();
                 // (retention keeps the newest 10 000 of the class; the rest it dropped)
                 let stored = stats.records + stats.dropped;
-                assert!(stored >= PUTS, "{stored} of {PUTS} stored");
-                println!("rate {:.0}", PUTS as f64 / secs);
+                assert!(stored >= puts, "{stored} of {puts} stored");
+                println!("rate {:.0}", puts as f64 / secs);
             }
             _ => {
                 // one store after another, each acknowledged: when, and by which node
@@ -241,7 +249,10 @@ fn median(v: &mut [f64]) -> f64 {
 }
 
 fn put_all() {
-    println!("put-all: {PUTS} records with put_all, acknowledged; {ROUNDS} rounds interleaved");
+    println!(
+        "put-all: {} records with put_all, acknowledged; {ROUNDS} rounds interleaved",
+        puts()
+    );
     let (mut plain, mut copied) = (Vec::new(), Vec::new());
     for round in 0..ROUNDS {
         for copies in [false, true] {
@@ -256,6 +267,12 @@ fn put_all() {
                 addrs.push(addr);
             }
             let kid = producer("put-all", &addrs, names[0]);
+            kid.wait_line("putting");
+            // (a mark for a profiler started by hand: the round's puts begin)
+            eprintln!(
+                "  round {round}: putting, {}",
+                if copies { "3 copies" } else { "no copies" }
+            );
             let line = kid.wait_line("rate ");
             let rate: f64 = line[5..].trim().parse().expect("a rate");
             println!(

@@ -10,7 +10,7 @@ use super::messages::DmMsg;
 use super::producers::Producers;
 use super::record::NewRecord;
 use super::replica::core::Out;
-use super::replica::{apply, vote, InstallPart, Op, OpBody, ReplicaMsg, SCOPE};
+use super::replica::{apply, vote, InstallPart, OpBody, ReplicaMsg, SCOPE};
 use super::store::{DmConfig, Store};
 use crate::fence::FenceTable;
 use crate::registry::{self, ModuleKind};
@@ -287,23 +287,23 @@ impl DmState {
                     }
                 }
                 Out::Apply(from, to) => {
-                    let ops: Vec<Op> = copy.core.ops(from, to).cloned().collect();
-                    if let Some(t) = ops.iter().filter_map(Op::time).max() {
-                        copy.last_time = copy.last_time.max(t);
-                    }
-                    for op in ops {
-                        let seq = op.seq;
+                    let mut woken = Vec::new();
+                    for op in copy.core.ops(from, to) {
+                        if let Some(t) = op.time() {
+                            copy.last_time = copy.last_time.max(t);
+                        }
                         let class = apply::apply(
                             &mut self.store,
                             &mut self.fences,
                             &mut self.producers,
                             op,
                         );
-                        if let Some(class) = class {
-                            if !self.waits.is_empty() {
-                                self.wake(&class, seq);
-                            }
+                        if let Some(class) = class.filter(|_| !self.waits.is_empty()) {
+                            woken.push((class.to_string(), op.seq));
                         }
+                    }
+                    for (class, seq) in woken {
+                        self.wake(&class, seq);
                     }
                     if let Some(j) = self.journal.as_mut() {
                         j.commit(to);

@@ -226,7 +226,7 @@ impl ClassIndex {
         source: &str,
         sub1: Option<&str>,
         sub2: Option<&str>,
-        payload: Payload,
+        payload: Packed,
     ) -> Option<(u64, Entry)> {
         let (sub1, sub2) = match sub1 {
             None => (None, None),
@@ -252,7 +252,7 @@ impl ClassIndex {
                 source,
                 sub1,
                 sub2,
-                payload: payload.into_packed(),
+                payload,
                 shared: OnceLock::new(),
             },
         ));
@@ -644,9 +644,6 @@ impl Store {
 
     /// Index `record` as `seq` at `timestamp` (`seq` ≥ the next seq, names checked).
     fn place(&mut self, seq: u64, timestamp: Duration, record: NewRecord) -> Result<(), DmError> {
-        self.next_seq = seq.checked_add(1).ok_or(DmError::SeqExhausted)?;
-        self.last_time = self.last_time.max(timestamp);
-
         let NewRecord {
             source,
             class,
@@ -657,24 +654,53 @@ impl Store {
             producer: _,
             producer_seq: _,
         } = record;
+        let names = (&*class, &*source, sub1.as_deref(), sub2.as_deref());
+        self.place_parts(seq, timestamp, names, payload.into_packed())
+    }
+
+    /// [`Store::restore`] of a record it does not own (a replicated entry, which its log
+    /// keeps): its names are interned as ever, its payload copied once.
+    pub(crate) fn restore_ref(
+        &mut self,
+        seq: u64,
+        timestamp: Duration,
+        record: &NewRecord,
+    ) -> Result<(), DmError> {
+        if seq < self.next_seq {
+            return Err(DmError::InvalidRecord(format!(
+                "seq {seq} is below the next seq {}",
+                self.next_seq
+            )));
+        }
+        let names = (
+            &*record.class,
+            &*record.source,
+            record.sub1.as_deref(),
+            record.sub2.as_deref(),
+        );
+        let payload = Packed::copy_of(record.payload.as_bytes());
+        self.place_parts(seq, timestamp, names, payload)
+    }
+
+    /// Index a record of (class, source, sub1, sub2) as `seq` at `timestamp`.
+    fn place_parts(
+        &mut self,
+        seq: u64,
+        timestamp: Duration,
+        (class, source, sub1, sub2): (&str, &str, Option<&str>, Option<&str>),
+        payload: Packed,
+    ) -> Result<(), DmError> {
+        self.next_seq = seq.checked_add(1).ok_or(DmError::SeqExhausted)?;
+        self.last_time = self.last_time.max(timestamp);
         let config = &self.config;
         let evicted = with_slot(
             &mut self.classes,
-            &class,
+            class,
             |name| {
                 let bound = config.retention_for(&name);
                 ClassIndex::new(name, bound)
             },
-            |ci| {
-                ci.add(
-                    seq,
-                    timestamp,
-                    &source,
-                    sub1.as_deref(),
-                    sub2.as_deref(),
-                    payload,
-                )
-            },
+            |ci| ci.add(seq, timestamp, source, sub1, sub2, payload),
         );
         self.times.push(timestamp, seq);
         self.len += 1;

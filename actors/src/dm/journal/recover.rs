@@ -138,7 +138,7 @@ impl Replay {
                     for op in log.tail.drain(..upto) {
                         log.committed = (op.seq, op.term);
                         state.puts += matches!(op.body, OpBody::Put { .. }) as u64;
-                        apply::apply(store, &mut state.fences, &mut state.producers, op);
+                        apply::apply(store, &mut state.fences, &mut state.producers, &op);
                     }
                     return;
                 }

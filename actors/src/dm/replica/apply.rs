@@ -8,24 +8,23 @@ use crate::fence::FenceTable;
 use std::time::Duration;
 
 /// Apply the committed entry `op` to `store` (with the sources' epochs and the producers'
-/// recent puts). A put the store refuses (it cannot be: the primary checked it) is logged
+/// recent puts), which its log keeps. A put the store refuses (it cannot be: the primary checked it) is logged
 /// and skipped; what it was is returned, so the caller can wake its waits.
-pub(crate) fn apply(
+pub(crate) fn apply<'a>(
     store: &mut Store,
     fences: &mut FenceTable,
     producers: &mut Producers,
-    op: Op,
-) -> Option<String> {
-    match op.body {
+    op: &'a Op,
+) -> Option<&'a str> {
+    match &op.body {
         OpBody::Put { time_ns, record } => {
             // a copy takes the primary's word: the epoch is noted, not judged
             let _ = fences.admit_parts(&record.source, record.epoch);
             if record.producer != 0 {
                 producers.note(record.producer, record.producer_seq, op.seq);
             }
-            let class = record.class.clone();
-            match store.restore(op.seq, Duration::from_nanos(time_ns), record) {
-                Ok(()) => Some(class),
+            match store.restore_ref(op.seq, Duration::from_nanos(*time_ns), record) {
+                Ok(()) => Some(&record.class),
                 Err(e) => {
                     tracing::warn!(seq = op.seq, error = %e, "replica: a committed put could not be applied; skipped");
                     None
@@ -33,7 +32,7 @@ pub(crate) fn apply(
             }
         }
         OpBody::Delete { seqs } => {
-            let n = store.remove_seqs(&seqs);
+            let n = store.remove_seqs(seqs);
             store.count_deleted(n);
             store.raise_floor(op.seq + 1, Duration::ZERO);
             None

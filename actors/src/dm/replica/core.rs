@@ -14,7 +14,7 @@
 //!   same order;
 //! - a copy votes only for a log at least as up to date as its own, once per term.
 
-use super::msg::ReplicaMsg;
+use super::msg::{Ops, ReplicaMsg};
 use super::op::{Op, OpBody};
 use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::time::Duration;
@@ -344,12 +344,22 @@ impl Core {
             return;
         };
         let names: Vec<String> = peers.keys().cloned().collect();
+        let mut shared = Vec::new();
         for peer in names {
-            self.send_to(&peer, now, false, out);
+            self.send_to(&peer, now, false, &mut shared, out);
         }
     }
 
-    fn send_to(&mut self, peer: &str, now: Duration, force: bool, out: &mut Vec<Out>) {
+    /// Send `peer` what it lacks (or a heartbeat). `shared`: the entries sent to other
+    /// copies in this round, by the seq they start at.
+    fn send_to(
+        &mut self,
+        peer: &str,
+        now: Duration,
+        force: bool,
+        shared: &mut Vec<(u64, Ops)>,
+        out: &mut Vec<Out>,
+    ) {
         let (last, base, commit, term) = (self.last().0, self.base, self.commit, self.term);
         let commit_term = self.term_at(commit).unwrap_or(0);
         let (heartbeat, election) = (self.timing.heartbeat, self.timing.election);
@@ -393,7 +403,18 @@ impl Core {
             0
         };
         let start = (pr.next - base.0 - 1) as usize;
-        let ops: Vec<Op> = self.tail.range(start..start + n).cloned().collect();
+        // the copies that lack the same entries share them (encoded once when sent)
+        let ops = match shared
+            .iter()
+            .find(|(at, o)| *at == prev_seq + 1 && o.len() == n)
+        {
+            Some((_, o)) => o.clone(),
+            None => {
+                let o = Ops::new(self.tail.range(start..start + n).cloned().collect());
+                shared.push((prev_seq + 1, o.clone()));
+                o
+            }
+        };
         let prev_term = if prev_seq == base.0 {
             base.1
         } else {
@@ -454,7 +475,7 @@ impl Core {
             pr.probing = true;
             pr.sent = None;
         }
-        self.send_to(from, now, false, out);
+        self.send_to(from, now, false, &mut Vec::new(), out);
     }
 
     /// Ask the preferred copy, as up to date as this primary, to take over — at most once
@@ -574,7 +595,16 @@ impl Core {
                 prev_term,
                 ops,
                 commit,
-            } => self.on_append(term, leader, prev_seq, prev_term, ops, commit, now, out),
+            } => self.on_append(
+                term,
+                leader,
+                prev_seq,
+                prev_term,
+                ops.into_vec(),
+                commit,
+                now,
+                out,
+            ),
             ReplicaMsg::AppendAck {
                 term,
                 from,
@@ -1039,7 +1069,7 @@ impl Core {
                 pr.sent = None;
                 pr.installing = None;
             }
-            self.send_to(node, now, true, out);
+            self.send_to(node, now, true, &mut Vec::new(), out);
         }
     }
 

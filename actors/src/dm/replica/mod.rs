@@ -41,7 +41,7 @@ mod op;
 pub(crate) mod vote;
 
 pub use self::core::Timing;
-pub use msg::{InstallPart, ReplicaMsg};
+pub use msg::{InstallPart, Ops, ReplicaMsg};
 pub use op::{Op, OpBody};
 
 /// The `pg` scope the copies of replicated datamanagers meet in.

@@ -2,7 +2,8 @@
 
 use super::op::Op;
 use crate::dm::record::NewRecord;
-use serde::{Deserialize, Serialize};
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
+use std::sync::{Arc, OnceLock};
 
 /// One message between the copies of a datamanager; Raft's, with pre-votes.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -19,7 +20,7 @@ pub enum ReplicaMsg {
         /// Its term.
         prev_term: u64,
         /// The entries.
-        ops: Vec<Op>,
+        ops: Ops,
         /// The primary's commit seq.
         commit: u64,
     },
@@ -123,5 +124,138 @@ impl ReplicaMsg {
             | ReplicaMsg::Install { term, .. }
             | ReplicaMsg::TimeoutNow { term, .. } => *term,
         }
+    }
+}
+
+/// The entries of an `Append`. The primary sends the same new entries to every copy: the
+/// `Append`s of one round share them, and they are encoded once for all (each copy's
+/// message is serialized on its own when it is cast; without this, every copy cost the
+/// primary's actor a clone and an encoding of every entry). On the wire: the entries'
+/// MessagePack, as bytes.
+#[derive(Clone)]
+pub struct Ops(Arc<OpsInner>);
+
+struct OpsInner {
+    ops: Vec<Op>,
+    wire: OnceLock<Result<Vec<u8>, String>>,
+}
+
+impl Ops {
+    /// These entries.
+    pub fn new(ops: Vec<Op>) -> Ops {
+        Ops(Arc::new(OpsInner {
+            ops,
+            wire: OnceLock::new(),
+        }))
+    }
+
+    /// The entries, owned (a copy of them if they are shared).
+    pub fn into_vec(self) -> Vec<Op> {
+        match Arc::try_unwrap(self.0) {
+            Ok(inner) => inner.ops,
+            Err(shared) => shared.ops.clone(),
+        }
+    }
+}
+
+impl std::ops::Deref for Ops {
+    type Target = [Op];
+    fn deref(&self) -> &[Op] {
+        &self.0.ops
+    }
+}
+
+impl From<Vec<Op>> for Ops {
+    fn from(ops: Vec<Op>) -> Ops {
+        Ops::new(ops)
+    }
+}
+
+impl PartialEq for Ops {
+    fn eq(&self, other: &Ops) -> bool {
+        self.0.ops == other.0.ops
+    }
+}
+
+impl Eq for Ops {}
+
+impl std::fmt::Debug for Ops {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        self.0.ops.fmt(f)
+    }
+}
+
+impl Serialize for Ops {
+    fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        let wire = self
+            .0
+            .wire
+            .get_or_init(|| rmp_serde::to_vec(&self.0.ops).map_err(|e| e.to_string()));
+        match wire {
+            Ok(bytes) => serializer.serialize_bytes(bytes),
+            Err(e) => Err(serde::ser::Error::custom(e)),
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for Ops {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Ops, D::Error> {
+        struct Bytes;
+        impl<'de> serde::de::Visitor<'de> for Bytes {
+            type Value = Ops;
+            fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str("entries as MessagePack bytes")
+            }
+            fn visit_bytes<E: serde::de::Error>(self, v: &[u8]) -> Result<Ops, E> {
+                rmp_serde::from_slice::<Vec<Op>>(v)
+                    .map(Ops::new)
+                    .map_err(E::custom)
+            }
+        }
+        deserializer.deserialize_bytes(Bytes)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dm::replica::OpBody;
+
+    #[test]
+    fn shared_entries_are_encoded_once_and_cross_the_wire_whole() {
+        let ops = Ops::new(vec![
+            Op {
+                seq: 7,
+                term: 2,
+                body: OpBody::Put {
+                    time_ns: 5,
+                    record: NewRecord::new("sonar", crate::dm::Payload::from_bytes(vec![1, 2]))
+                        .with_source("us"),
+                },
+            },
+            Op {
+                seq: 8,
+                term: 2,
+                body: OpBody::Delete { seqs: vec![3, 4] },
+            },
+        ]);
+        let msg = |ops: Ops| ReplicaMsg::Append {
+            term: 2,
+            leader: "r1".into(),
+            prev_seq: 6,
+            prev_term: 1,
+            ops,
+            commit: 5,
+        };
+        let (a, b) = (msg(ops.clone()), msg(ops.clone()));
+        let wa = rmp_serde::to_vec(&a).unwrap();
+        assert!(ops.0.wire.get().is_some(), "encoded by the first");
+        assert_eq!(rmp_serde::to_vec(&b).unwrap(), wa);
+        let back: ReplicaMsg = rmp_serde::from_slice(&wa).unwrap();
+        assert_eq!(back, a);
+        let ReplicaMsg::Append { ops: got, .. } = back else {
+            unreachable!()
+        };
+        assert_eq!(got.into_vec(), ops.into_vec());
     }
 }
