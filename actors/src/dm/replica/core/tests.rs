@@ -685,3 +685,101 @@ fn thousands_of_seeded_faults_keep_every_invariant() {
         );
     }
 }
+
+/// Deliver every message in flight, and every one they bring about, through `pass`, which
+/// may drop one (`false`) or change it; time stands still.
+fn exchange(sim: &mut Sim, pass: &mut dyn FnMut(&str, &str, &mut ReplicaMsg) -> bool) {
+    for _ in 0..100_000 {
+        let Some((f, t)) = sim
+            .wires
+            .iter()
+            .find(|(_, q)| !q.is_empty())
+            .map(|(k, _)| k.clone())
+        else {
+            return;
+        };
+        let mut msg = sim
+            .wires
+            .get_mut(&(f.clone(), t.clone()))
+            .unwrap()
+            .pop_front()
+            .unwrap();
+        if !sim.reachable(&f, &t) || !pass(&f, &t, &mut msg) {
+            continue;
+        }
+        let mut out = Vec::new();
+        let now = sim.now;
+        sim.core(&t).receive(msg, now, &mut out);
+        sim.run(&t, out);
+    }
+    panic!("the copies never fell quiet");
+}
+
+/// Let time pass until a primary is elected, every message through `pass`; the primary.
+fn elect(sim: &mut Sim, pass: &mut dyn FnMut(&str, &str, &mut ReplicaMsg) -> bool) -> String {
+    for _ in 0..1000 {
+        exchange(sim, pass);
+        if let Some(l) = sim.leader() {
+            return l;
+        }
+        sim.now += timing().election / 4;
+        sim.tick_all();
+    }
+    panic!("no primary elected");
+}
+
+#[test]
+fn an_entry_of_an_older_term_on_a_majority_is_not_committed_until_one_of_the_primarys_own_is() {
+    // Raft's figure 8: counting the copies of an older term's entry would commit an entry
+    // that a copy with a newer last term can still overwrite
+    let mut sim = Sim::new(3, TAIL_KEEP);
+    sim.settle();
+    let all = &mut |_: &str, _: &str, _: &mut ReplicaMsg| true;
+    // 1. the primary proposes X, which reaches no other copy; it crashes
+    let l1 = sim.leader().expect("a primary");
+    let x_id = sim.next_id;
+    sim.propose(&l1);
+    sim.wires.clear();
+    let (x_seq, t1) = sim.core(&l1).last();
+    sim.crash(&l1);
+    // 2. another is elected; its no-op (at X's seq, a newer term) reaches nobody; it crashes
+    let l2 = elect(
+        &mut sim,
+        &mut |_, _, m| !matches!(m, ReplicaMsg::Append { ops, .. } if !ops.is_empty()),
+    );
+    assert_ne!(l2, l1);
+    let (seq2, t2) = sim.core(&l2).last();
+    assert_eq!(seq2, x_seq, "the no-op takes X's seq");
+    assert!(t2 > t1);
+    sim.crash(&l2);
+    let f = MEMBERS
+        .iter()
+        .find(|m| **m != l1 && **m != l2)
+        .unwrap()
+        .to_string();
+    // 3. X's primary is back and elected (its log is the longer); it gets X to the third
+    //    copy, but not its own no-op: X is on a majority, in an older term
+    sim.start(&l1);
+    let l3 = elect(&mut sim, &mut |_, _, m| {
+        if let ReplicaMsg::Append { ops, .. } = m {
+            *ops = Ops::new(ops.iter().filter(|o| o.seq <= x_seq).cloned().collect());
+        }
+        true
+    });
+    assert_eq!(l3, l1);
+    assert_eq!(sim.core(&f).last(), (x_seq, t1), "{f} holds X");
+    assert!(
+        sim.core(&l1).commit() < x_seq,
+        "X committed by counting copies of an older term"
+    );
+    assert!(!sim.acked.iter().any(|(_, id)| *id == x_id));
+    // 4. the no-op's primary is back, X's goes: the no-op's log wins, X is overwritten —
+    //    rightly, it was never acknowledged
+    sim.crash(&l1);
+    sim.start(&l2);
+    assert_eq!(elect(&mut sim, all), l2);
+    sim.settle();
+    sim.check();
+    assert_eq!(id_of(&sim.truth[&x_seq]), None, "the no-op holds X's seq");
+    assert!(!sim.acked.iter().any(|(_, id)| *id == x_id));
+}
