@@ -5,7 +5,9 @@
 //! it had acknowledged is lost or stored twice; the killed node, started again on its data
 //! directory, and the frozen one, woken, come back as copies and catch up (the woken one
 //! fenced by the newer term), and the three copies end equal with one primary — the
-//! preferred copy (r1) is handed the role back once it has caught up.
+//! preferred copy (r1) is handed the role back once it has caught up. And a `put_all` under
+//! way when the primary's process is killed stores every record once, in order: what was on
+//! its way to the lost primary is sent again to the next.
 
 mod common;
 
@@ -22,6 +24,45 @@ const COOKIE: &str = "replicas";
 const NODES: [&str; 3] = ["r1", "r2", "r3"];
 /// Generous: elections, a node's start, a journal replay, on a loaded 2-core machine.
 const T: Duration = Duration::from_secs(60);
+
+/// ractor's registry and `pg` are process-wide: one member of one cluster at a time in
+/// this test process, whatever the tests running in parallel.
+static ONE_MEMBER: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+/// The three nodes, each keeping a copy of `feature`.
+fn start_nodes(dir: &Path) -> Vec<NodeProc> {
+    let mut nodes: Vec<NodeProc> = Vec::new();
+    for name in NODES {
+        let peers: Vec<_> = nodes.iter().map(|n| n.addr).collect();
+        nodes.push(NodeProc::start(
+            dir,
+            name,
+            &hosts(dir, name),
+            &peers,
+            COOKIE,
+        ));
+    }
+    nodes
+}
+
+/// This process as a member of the nodes' cluster.
+async fn join(nodes: &[NodeProc]) -> Transport {
+    let mut me = ClusterConfig::new("127.0.0.1:0".parse().unwrap(), COOKIE);
+    for n in nodes {
+        me = me.with_peer(n.addr);
+    }
+    let transport = Transport::start("producer", &me).await.unwrap();
+    transport.wait_for_peers(nodes.len(), T).await.unwrap();
+    transport
+}
+
+fn runtime() -> tokio::runtime::Runtime {
+    tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .unwrap()
+}
 
 fn hosts(dir: &Path, name: &str) -> String {
     format!(
@@ -171,32 +212,13 @@ async fn converged() -> Vec<DmStats> {
 
 #[test]
 fn a_killed_and_a_frozen_primary_are_replaced_by_copies_and_no_acknowledged_record_is_lost() {
+    let _one = ONE_MEMBER.lock().unwrap_or_else(|e| e.into_inner());
     let dir = tempfile::tempdir().unwrap();
-    let mut nodes: Vec<NodeProc> = Vec::new();
-    for name in NODES {
-        let peers: Vec<_> = nodes.iter().map(|n| n.addr).collect();
-        nodes.push(NodeProc::start(
-            dir.path(),
-            name,
-            &hosts(dir.path(), name),
-            &peers,
-            COOKIE,
-        ));
-    }
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .unwrap();
-    let addrs: Vec<_> = nodes.iter().map(|n| n.addr).collect();
+    let mut nodes = start_nodes(dir.path());
+    let rt = runtime();
     let mut acked: BTreeMap<u64, u64> = BTreeMap::new();
     let (client, _transport) = rt.block_on(async {
-        let mut me = ClusterConfig::new("127.0.0.1:0".parse().unwrap(), COOKIE);
-        for a in &addrs {
-            me = me.with_peer(*a);
-        }
-        let transport = Transport::start("producer", &me).await.unwrap();
-        transport.wait_for_peers(3, T).await.unwrap();
+        let transport = join(&nodes).await;
         let (first, _) = primary(None).await;
         assert_eq!(first, "r1", "the preferred copy is the first primary");
         let client = DmClient::lookup("feature", "producer")
@@ -256,5 +278,63 @@ fn a_killed_and_a_frozen_primary_are_replaced_by_copies_and_no_acknowledged_reco
         // again since, handed the role once it caught up)
         assert!(woken.term > term_before, "the woken primary took the newer term");
         check_acked(&client, &acked).await;
+    });
+}
+
+#[test]
+fn a_put_all_under_way_when_the_primary_is_killed_stores_every_record_once_in_order() {
+    let _one = ONE_MEMBER.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = tempfile::tempdir().unwrap();
+    let nodes = start_nodes(dir.path());
+    let rt = runtime();
+    rt.block_on(async {
+        let transport = join(&nodes).await;
+        let (first, _) = primary(None).await;
+        assert_eq!(first, "r1");
+        let client = DmClient::lookup("feature", "bulk")
+            .unwrap()
+            .with_follow(T)
+            .with_timeout(T);
+        // a class per 8192 records: none reaches the retention bound (10 000)
+        const N: u64 = 300_000;
+        let class = |v: u64| format!("bulk-{}", v / 8192);
+        let records = (0..N).map(move |v| NewRecord::encode(class(v), &v).unwrap());
+        let bulk = tokio::spawn({
+            let client = client.clone();
+            async move { client.put_all(records).await }
+        });
+        // kill -9 the primary's process with the transfer under way
+        let r1 = copy_on("r1").unwrap();
+        loop {
+            let next = stats_of(&r1).await.map_or(0, |s| s.next_seq);
+            if next > N / 5 {
+                break;
+            }
+            assert!(!bulk.is_finished(), "the transfer ended before the kill");
+            tokio::time::sleep(Duration::from_millis(5)).await;
+        }
+        nodes[0].signal("KILL");
+        eprintln!("r1 killed with the transfer under way");
+        bulk.await
+            .unwrap()
+            .expect("put_all completes on the next primary");
+        let (second, _) = primary(Some("r1")).await;
+        let stored = client.select(Query::all()).await.unwrap();
+        let values: Vec<u64> = stored
+            .iter()
+            .filter(|r| r.class.starts_with("bulk-"))
+            .map(|r| r.decode::<u64>().unwrap())
+            .collect();
+        eprintln!(
+            "{second} is primary; {} of {N} records stored",
+            values.len()
+        );
+        // every record once, in the order put (seqs increase with the values)
+        assert_eq!(values.len() as u64, N, "records lost or stored twice");
+        assert!(
+            values.iter().copied().eq(0..N),
+            "every record once, in order"
+        );
+        transport.stop().await;
     });
 }

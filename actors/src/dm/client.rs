@@ -64,6 +64,44 @@ impl Target {
     }
 }
 
+/// The records a `put_all` sent and its datamanager has not acknowledged yet, and the
+/// instance they went to: at most about a window of records (the credits bound them).
+struct Unacked {
+    to: ActorRef<DmMsg>,
+    /// Batches, each with the count of records cast through the target's outbox once it
+    /// was (its acknowledgement is in when the outbox's acknowledged count reaches it).
+    batches: std::collections::VecDeque<(u64, Vec<NewRecord>)>,
+}
+
+impl Unacked {
+    fn new(to: ActorRef<DmMsg>) -> Unacked {
+        Unacked {
+            to,
+            batches: Default::default(),
+        }
+    }
+
+    /// `batch` was sent through `target`: keep it, drop what is acknowledged.
+    fn sent(&mut self, target: &Target, batch: Vec<NewRecord>) {
+        let Some(outbox) = &target.outbox else {
+            // a datamanager in this process: a put reaches its mailbox, which dies with the
+            // process; nothing to keep
+            return;
+        };
+        let (cast, acked) = outbox.totals();
+        self.batches.push_back((cast, batch));
+        while self.batches.front().is_some_and(|(mark, _)| *mark <= acked) {
+            self.batches.pop_front();
+        }
+    }
+
+    /// Every record kept, in order; from now on they go to `to`.
+    fn take_all(&mut self, to: ActorRef<DmMsg>) -> Vec<NewRecord> {
+        self.to = to;
+        self.batches.drain(..).flat_map(|(_, b)| b).collect()
+    }
+}
+
 /// A producer's identity and its next record number.
 #[derive(Debug)]
 struct Producer {
@@ -480,22 +518,95 @@ impl DmClient {
 
     /// Store every record of `records`, in order, waiting for credits rather than refusing
     /// with `Busy`: batches of [`super::credits::BATCH`] records. For bulk transfers (a log,
-    /// a replay) where nothing may be dropped; `Timeout` if the DM acknowledges nothing for
-    /// [`DmClient::timeout`].
+    /// a replay) where nothing may be dropped: when it returns `Ok`, every record is stored
+    /// (acknowledged by the datamanager, at its durability); `Timeout` if the DM acknowledges
+    /// nothing for [`DmClient::timeout`].
     ///
-    /// Like every put, a batch is acknowledged by a later answer of the same instance: puts
-    /// on their way to an instance that is lost meanwhile (a crash, a primary stepping down)
-    /// are not sent again to the next one. What must survive that is stored with
-    /// [`DmClient::store`], which follows the datamanager and is stored once.
+    /// It follows a datamanager on another node: the records on their way to an instance
+    /// that is lost meanwhile (a crash, a primary stepping down, its node lost) — at most a
+    /// window of them, kept until acknowledged — are sent again to the next instance
+    /// (waiting for it at most [`DmClient::follow_within`]), where each is stored once:
+    /// every record carries this client's producer id and its own number
+    /// (`tests/dm_replicas.rs` kills a primary's process under a transfer of 300 000). A
+    /// datamanager in this process shares its fate with the producer; its puts are not
+    /// kept.
     pub async fn put_all(
         &self,
         records: impl IntoIterator<Item = NewRecord>,
     ) -> Result<(), DmError> {
         let mut records = records.into_iter().peekable();
+        let mut unacked = Unacked::new(self.actor());
         while records.peek().is_some() {
-            let batch: Vec<NewRecord> = records.by_ref().take(super::credits::BATCH).collect();
-            self.ready(batch.len()).await?;
-            self.put_batch(batch)?;
+            let batch = records
+                .by_ref()
+                .take(super::credits::BATCH)
+                .map(|r| self.checked(r))
+                .collect::<Result<Vec<_>, _>>()?;
+            self.put_all_batch(batch, &mut unacked).await?;
+        }
+        // the answer to a request acknowledges every put before it, if the instance that
+        // answers is the one they were sent to
+        loop {
+            let answer = self.stats().await;
+            if answer.is_ok() && self.actor().get_id() == unacked.to.get_id() {
+                return Ok(());
+            }
+            self.send_again(&mut unacked, answer.err()).await?;
+        }
+    }
+
+    /// Send `batch` (checked, numbered) as part of a `put_all`, keeping it until it is
+    /// acknowledged; the unacknowledged records go again to the next instance first if the
+    /// one they went to is gone.
+    async fn put_all_batch(
+        &self,
+        batch: Vec<NewRecord>,
+        unacked: &mut Unacked,
+    ) -> Result<(), DmError> {
+        loop {
+            if self.actor().get_id() != unacked.to.get_id() {
+                // a request (or a clone) followed the datamanager meanwhile
+                self.send_again(unacked, None).await?;
+            }
+            let sent = match self.ready(batch.len()).await {
+                Ok(()) => self.put_batch(batch.clone()),
+                Err(e) => Err(e),
+            };
+            match sent {
+                Ok(()) if self.actor().get_id() == unacked.to.get_id() => {
+                    unacked.sent(&self.target(), batch);
+                    return Ok(());
+                }
+                // it went to an instance other than the one the unacknowledged went to:
+                // those go again (and this one with them, stored once)
+                Ok(()) => {
+                    unacked.sent(&self.target(), batch);
+                    return self.send_again(unacked, None).await;
+                }
+                Err(DmError::Unreachable(_)) | Err(DmError::Timeout { .. }) => {
+                    self.send_again(unacked, sent.err()).await?;
+                }
+                Err(e) => return Err(e),
+            }
+        }
+    }
+
+    /// The instance `unacked` went to is gone (or did not answer: `why`): follow the
+    /// datamanager to its next instance and send them all there again.
+    async fn send_again(&self, unacked: &mut Unacked, why: Option<DmError>) -> Result<(), DmError> {
+        let gone = unacked.to.clone();
+        if self.actor().get_id() == gone.get_id() && !self.follow(&gone).await {
+            return Err(why.unwrap_or_else(|| self.unreachable()));
+        }
+        let records = unacked.take_all(self.actor());
+        tracing::info!(dm = %self.dm, records = records.len(), "put_all: sending the unacknowledged records again to the next instance");
+        let mut records = records.into_iter().peekable();
+        while records.peek().is_some() {
+            let chunk: Vec<NewRecord> = records.by_ref().take(super::credits::BATCH).collect();
+            // an instance lost again meanwhile: the caller comes back here
+            self.ready(chunk.len()).await?;
+            self.put_batch(chunk.clone())?;
+            unacked.sent(&self.target(), chunk);
         }
         Ok(())
     }

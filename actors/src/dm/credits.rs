@@ -33,7 +33,7 @@
 use super::error::DmError;
 use super::messages::DmMsg;
 use ractor::ActorRef;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 use tokio::sync::Notify;
@@ -74,6 +74,12 @@ pub(crate) struct Credits {
     acking: AtomicBool,
     /// Woken when an acknowledgement returns (or fails): waiters look again.
     freed: Notify,
+    /// Records ever cast, and of those, ever acknowledged: acknowledgements cover records in
+    /// the order they were cast (one session, one mailbox), so the record that made
+    /// `cast_total` reach N is acknowledged once `acked_total` reaches N
+    /// ([`super::DmClient::put_all`] keeps what is not, to send it again).
+    cast_total: AtomicU64,
+    acked_total: AtomicU64,
 }
 
 impl Credits {
@@ -94,6 +100,13 @@ impl Credits {
     /// `n` of the records credits were taken for have been cast.
     pub(crate) fn cast(&self, n: usize) {
         self.cast.fetch_add(n, Ordering::AcqRel);
+        self.cast_total.fetch_add(n as u64, Ordering::AcqRel);
+    }
+
+    /// (records ever cast, records ever acknowledged), in cast order.
+    pub(crate) fn totals(&self) -> (u64, u64) {
+        let acked = self.acked_total.load(Ordering::Acquire);
+        (self.cast_total.load(Ordering::Acquire), acked)
     }
 
     /// Records have been cast: ask for an acknowledgement once half the window is spent
@@ -134,6 +147,10 @@ impl Credits {
             if self.in_flight() + n <= WINDOW {
                 return Ok(());
             }
+            if actor.get_status() > ractor::ActorStatus::Running {
+                // gone (a remote actor's shim stops with it): nothing will come back
+                return Err(DmError::Unreachable(dm.to_string()));
+            }
             self.ask_ack(actor);
             if tokio::time::timeout_at(deadline, freed).await.is_err() {
                 return Err(DmError::Timeout {
@@ -167,6 +184,9 @@ impl Credits {
             if answered {
                 give_back(&credits.cast, covered);
                 give_back(&credits.in_flight, covered);
+                credits
+                    .acked_total
+                    .fetch_add(covered as u64, Ordering::AcqRel);
             } else {
                 tracing::debug!("a datamanager did not acknowledge puts: credits held");
             }

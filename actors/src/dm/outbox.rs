@@ -229,6 +229,11 @@ impl Outbox {
     pub(crate) fn in_flight(&self) -> usize {
         self.credits.in_flight()
     }
+
+    /// (records ever cast, records ever acknowledged), in cast order.
+    pub(crate) fn totals(&self) -> (u64, u64) {
+        self.credits.totals()
+    }
 }
 
 /// Whether `actor` has stopped (a remote actor's shim stops with its session).
