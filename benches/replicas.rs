@@ -40,8 +40,8 @@ const FAILOVERS: usize = 5;
 const ROLE: &str = "MARIE_BENCH_ROLE";
 const PEERS: &str = "MARIE_BENCH_PEERS";
 /// The node the primary is wanted on before the child starts (the preferred copy's: a
-/// primary elected elsewhere at the start hands it the role, and puts in flight to the
-/// old one would be lost — they are never acknowledged).
+/// primary elected elsewhere at the start hands it the role, and the puts in flight to the
+/// old one would be sent again — a hand-over inside the measured rounds).
 const PREFERRED: &str = "MARIE_BENCH_PREFERRED";
 
 fn runtime() -> tokio::runtime::Runtime {

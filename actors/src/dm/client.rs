@@ -29,7 +29,9 @@ use std::time::Duration;
 /// ([`super::producers`]). A `delete` is not sent again (its outcome is unknown, and a
 /// query such as "the oldest 4" would delete others); it fails `Unreachable`. A `put` finds
 /// the next instance if it is already published, else fails `Unreachable` at once: a put
-/// never waits. Clones share what they follow.
+/// never waits, and a put cast to an instance lost before it acknowledged it is gone with
+/// it — [`DmClient::put_all`] keeps what it sent until it is acknowledged, and sends it
+/// again. Clones share what they follow.
 #[derive(Clone, Debug)]
 pub struct DmClient {
     /// The actor followed, shared by clones (one moves, all move).
