@@ -7,7 +7,9 @@
 //! fenced by the newer term), and the three copies end equal with one primary — the
 //! preferred copy (r1) is handed the role back once it has caught up. And a `put_all` under
 //! way when the primary's process is killed stores every record once, in order: what was on
-//! its way to the lost primary is sent again to the next.
+//! its way to the lost primary is sent again to the next. A copy that comes back further
+//! behind than the primary keeps entries for is sent a snapshot of the store, and ends
+//! equal.
 
 mod common;
 
@@ -29,18 +31,13 @@ const T: Duration = Duration::from_secs(60);
 /// this test process, whatever the tests running in parallel.
 static ONE_MEMBER: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
-/// The three nodes, each keeping a copy of `feature`.
-fn start_nodes(dir: &Path) -> Vec<NodeProc> {
+/// The three nodes, each keeping a copy of `feature` (`extra`: more of its keys).
+fn start_nodes(dir: &Path, extra: &str) -> Vec<NodeProc> {
     let mut nodes: Vec<NodeProc> = Vec::new();
     for name in NODES {
         let peers: Vec<_> = nodes.iter().map(|n| n.addr).collect();
-        nodes.push(NodeProc::start(
-            dir,
-            name,
-            &hosts(dir, name),
-            &peers,
-            COOKIE,
-        ));
+        let config = hosts_with(dir, name, extra);
+        nodes.push(NodeProc::start(dir, name, &config, &peers, COOKIE));
     }
     nodes
 }
@@ -65,8 +62,13 @@ fn runtime() -> tokio::runtime::Runtime {
 }
 
 fn hosts(dir: &Path, name: &str) -> String {
+    hosts_with(dir, name, "")
+}
+
+/// [`hosts`], with more keys for the datamanager.
+fn hosts_with(dir: &Path, name: &str, extra: &str) -> String {
     format!(
-        "data_dir = \"{}\"\n[[datamanager]]\nname = \"feature\"\ncopies = [\"r1\", \"r2\", \"r3\"]\n",
+        "data_dir = \"{}\"\n[[datamanager]]\nname = \"feature\"\ncopies = [\"r1\", \"r2\", \"r3\"]\n{extra}",
         dir.join(name).display()
     )
 }
@@ -214,7 +216,7 @@ async fn converged() -> Vec<DmStats> {
 fn a_killed_and_a_frozen_primary_are_replaced_by_copies_and_no_acknowledged_record_is_lost() {
     let _one = ONE_MEMBER.lock().unwrap_or_else(|e| e.into_inner());
     let dir = tempfile::tempdir().unwrap();
-    let mut nodes = start_nodes(dir.path());
+    let mut nodes = start_nodes(dir.path(), "");
     let rt = runtime();
     let mut acked: BTreeMap<u64, u64> = BTreeMap::new();
     let (client, _transport) = rt.block_on(async {
@@ -285,7 +287,7 @@ fn a_killed_and_a_frozen_primary_are_replaced_by_copies_and_no_acknowledged_reco
 fn a_put_all_under_way_when_the_primary_is_killed_stores_every_record_once_in_order() {
     let _one = ONE_MEMBER.lock().unwrap_or_else(|e| e.into_inner());
     let dir = tempfile::tempdir().unwrap();
-    let nodes = start_nodes(dir.path());
+    let nodes = start_nodes(dir.path(), "");
     let rt = runtime();
     rt.block_on(async {
         let transport = join(&nodes).await;
@@ -335,6 +337,49 @@ fn a_put_all_under_way_when_the_primary_is_killed_stores_every_record_once_in_or
             values.iter().copied().eq(0..N),
             "every record once, in order"
         );
+        transport.stop().await;
+    });
+}
+
+#[test]
+fn a_copy_further_behind_than_the_primary_keeps_entries_for_takes_in_a_snapshot() {
+    let _one = ONE_MEMBER.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = tempfile::tempdir().unwrap();
+    // the primary keeps 100 applied entries in memory: a copy 600 behind needs a snapshot
+    let extra = "catch_up = 100\n";
+    let mut nodes = start_nodes(dir.path(), extra);
+    let rt = runtime();
+    rt.block_on(async {
+        let transport = join(&nodes).await;
+        let (first, _) = primary(None).await;
+        assert_eq!(first, "r1");
+        let client = DmClient::lookup("feature", "producer")
+            .unwrap()
+            .with_follow(T);
+        let mut acked = BTreeMap::new();
+        store_all(&client, 0..200, &mut acked).await;
+        // r3 is lost; the others go on
+        nodes[2].signal("KILL");
+        store_all(&client, 200..800, &mut acked).await;
+        let peers: Vec<_> = nodes[..2].iter().map(|n| n.addr).collect();
+        let config = hosts_with(dir.path(), "r3", extra);
+        nodes[2] = NodeProc::start(dir.path(), "r3", &config, &peers, COOKIE);
+        let all = converged().await;
+        let r3 = all
+            .iter()
+            .find(|s| s.replica.as_ref().unwrap().node == "r3")
+            .unwrap();
+        assert!(
+            r3.replica.as_ref().unwrap().snapshots_taken >= 1,
+            "r3 caught up from a snapshot: {r3:#?}"
+        );
+        // the snapshot carried the producers' numbers: a retried store is stored once
+        let again = store_acked(&client, 799).await;
+        assert_eq!(
+            acked.iter().find(|(_, v)| **v == 799).map(|(s, _)| *s),
+            Some(again)
+        );
+        check_acked(&client, &acked).await;
         transport.stop().await;
     });
 }

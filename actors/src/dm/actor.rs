@@ -197,6 +197,7 @@ impl DmState {
                     commit: core.commit(),
                     last,
                     lag: core.lag(),
+                    snapshots_taken: c.snapshots_taken,
                 }
             }),
         }

@@ -31,6 +31,8 @@ pub(crate) struct Copy {
     pub(crate) last_time: Duration,
     /// A snapshot being received from the primary.
     pub(crate) incoming: Option<Incoming>,
+    /// Snapshots taken in since it started.
+    pub(crate) snapshots_taken: u64,
     ticker: tokio::task::JoinHandle<()>,
     /// The datamanager's name.
     pub(crate) name: String,
@@ -54,6 +56,8 @@ pub(crate) struct Incoming {
     pub(crate) fences: FenceTable,
     /// How many came.
     pub(crate) records: u64,
+    /// The producers' recent pairs so far.
+    pub(crate) producers: super::producers::Producers,
 }
 
 /// The group a copy of `dm` on node `me` joins (in [`SCOPE`]).
@@ -104,7 +108,8 @@ impl Copy {
             restored,
             eager,
             Duration::ZERO,
-        );
+        )
+        .with_tail_keep(replication.catch_up);
         pg::join_scoped(
             SCOPE.to_string(),
             group(name, &replication.me),
@@ -131,6 +136,7 @@ impl Copy {
             started,
             last_time: store.last_time(),
             incoming: None,
+            snapshots_taken: 0,
             ticker,
             name: name.to_string(),
             events,

@@ -85,6 +85,9 @@ pub struct ReplicaStats {
     pub last: u64,
     /// On the primary: how many entries each other copy lacks.
     pub lag: BTreeMap<String, u64>,
+    /// Snapshots of the store this copy took in from a primary (it lagged further than the
+    /// primary keeps entries for), since it started.
+    pub snapshots_taken: u64,
 }
 
 crate::remote_message! {

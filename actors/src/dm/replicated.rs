@@ -22,6 +22,8 @@ const INSTALL_PART: usize = 2048;
 /// Bytes of records per part, about (a part is one frame: ractor_cluster ends the session
 /// on a frame above 16 MiB).
 const INSTALL_BYTES: usize = super::PAGE_BYTES;
+/// Producers per part of their pairs (at most 1024 pairs each: ~1 MiB).
+const INSTALL_PRODUCERS: usize = 64;
 
 impl DmState {
     /// Whether this datamanager is a copy that is not the primary (it answers no client).
@@ -196,6 +198,7 @@ impl DmState {
                         store: Store::new(config),
                         fences: FenceTable::default(),
                         records: 0,
+                        producers: Producers::default(),
                     });
                 }
                 let Some(inc) = copy.incoming.as_mut().filter(|i| i.last == last) else {
@@ -212,6 +215,16 @@ impl DmState {
                     inc.records += 1;
                 }
             }
+            InstallPart::Producers { producers } => {
+                let Some(inc) = copy.incoming.as_mut().filter(|i| i.last == last) else {
+                    return;
+                };
+                for (producer, pairs) in producers {
+                    for (pseq, seq) in pairs {
+                        inc.producers.note(producer, pseq, seq);
+                    }
+                }
+            }
             InstallPart::End {
                 records,
                 producers,
@@ -226,7 +239,7 @@ impl DmState {
                 }
                 inc.store
                     .raise_floor(last.0 + 1, Duration::from_nanos(last_time_ns));
-                let mut table = Producers::default();
+                let mut table = std::mem::take(&mut inc.producers);
                 for (producer, pairs) in producers {
                     for (pseq, seq) in pairs {
                         table.note(producer, pseq, seq);
@@ -237,6 +250,7 @@ impl DmState {
                 self.fences = inc.fences;
                 self.producers = table;
                 copy.core.installed(last.0, last.1);
+                copy.snapshots_taken += 1;
                 copy.last_time = copy.last_time.max(self.store.last_time());
                 let journal = self.journal.as_mut().expect("a copy has a journal");
                 journal.snapshot(
@@ -384,11 +398,13 @@ impl DmState {
             last_term: last.1,
             part,
         };
+        tracing::info!(dm = %copy.name, to, records = self.store.len(), upto = last.0, "replica: sending a snapshot to a copy too far behind");
+        // sent part by part as the store is walked (a part is serialized when it is cast)
         let mut batch = Vec::with_capacity(INSTALL_PART);
         let mut first = true;
         let mut n = 0u64;
         let mut bytes = 0usize;
-        let mut parts = Vec::new();
+        let fences = &self.fences;
         self.store.for_each_in_seq_order(|seq, timestamp, r| {
             let record = NewRecord {
                 source: r.source.to_string(),
@@ -396,7 +412,7 @@ impl DmState {
                 sub1: r.sub1.map(str::to_string),
                 sub2: r.sub2.map(str::to_string),
                 payload: crate::dm::Payload::from_bytes(r.payload.to_vec()),
-                epoch: self.fences.newest(r.source).unwrap_or(0),
+                epoch: fences.newest(r.source).unwrap_or(0),
                 producer: 0,
                 producer_seq: 0,
             };
@@ -406,29 +422,34 @@ impl DmState {
             n += 1;
             if batch.len() == INSTALL_PART || bytes >= INSTALL_BYTES {
                 bytes = 0;
-                parts.push(InstallPart::Records {
-                    first,
-                    records: std::mem::take(&mut batch),
-                });
+                let records = std::mem::take(&mut batch);
+                copy.send(to, part(InstallPart::Records { first, records }));
                 first = false;
             }
         });
-        parts.push(InstallPart::Records {
-            first,
-            records: batch,
-        });
-        parts.push(InstallPart::End {
-            records: n,
-            producers: self
-                .producers
-                .each()
-                .map(|(p, pairs)| (p, pairs.iter().copied().collect()))
-                .collect(),
-            last_time_ns: u64::try_from(self.store.last_time().as_nanos()).unwrap_or(u64::MAX),
-        });
-        tracing::info!(dm = %copy.name, to, records = n, upto = last.0, "replica: sending a snapshot to a copy too far behind");
-        for p in parts {
-            copy.send(to, part(p));
+        copy.send(
+            to,
+            part(InstallPart::Records {
+                first,
+                records: batch,
+            }),
+        );
+        let producers: Vec<(u64, Vec<(u64, u64)>)> = self
+            .producers
+            .each()
+            .map(|(p, pairs)| (p, pairs.iter().copied().collect()))
+            .collect();
+        for chunk in producers.chunks(INSTALL_PRODUCERS) {
+            let producers = chunk.to_vec();
+            copy.send(to, part(InstallPart::Producers { producers }));
         }
+        copy.send(
+            to,
+            part(InstallPart::End {
+                records: n,
+                producers: Vec::new(),
+                last_time_ns: u64::try_from(self.store.last_time().as_nanos()).unwrap_or(u64::MAX),
+            }),
+        );
     }
 }

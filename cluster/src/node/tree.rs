@@ -204,8 +204,13 @@ fn datamanagers(
                     .collect(),
             );
             let (id, name) = (spec.id, spec.name.clone());
-            let replication = (!spec.copies.is_empty())
-                .then(|| dm::Replication::new(config.name.clone(), spec.copies.clone()));
+            let replication = (!spec.copies.is_empty()).then(|| {
+                let r = dm::Replication::new(config.name.clone(), spec.copies.clone());
+                match spec.catch_up {
+                    Some(n) => r.with_catch_up(n),
+                    None => r,
+                }
+            });
             // validated: a durability other than memory comes with a data directory
             let journal = match (config.durability_of(spec), &config.data_dir) {
                 (Durability::Memory, _) | (_, None) => None,

@@ -208,10 +208,10 @@ impl Core {
         core
     }
 
-    /// Keep at most `n` applied entries in memory (tests make snapshots happen sooner).
-    #[cfg(test)]
+    /// Keep at most `n` applied entries in memory (beyond them a lagging copy is sent a
+    /// snapshot).
     pub(crate) fn with_tail_keep(mut self, n: usize) -> Core {
-        self.keep = n;
+        self.keep = n.max(1);
         self
     }
 

@@ -57,9 +57,17 @@ pub struct Replication {
     pub members: Vec<String>,
     /// The protocol's clocks.
     pub timing: Timing,
+    /// Applied entries the primary keeps in memory to catch a lagging copy up; a copy
+    /// further behind is sent a snapshot of the store instead
+    /// ([`Replication::DEFAULT_CATCH_UP`]).
+    pub catch_up: usize,
 }
 
 impl Replication {
+    /// Default [`Replication::catch_up`]: about a second of puts at full rate (a freeze
+    /// shorter than the failure detector's deadline catches up from memory).
+    pub const DEFAULT_CATCH_UP: usize = core::TAIL_KEEP;
+
     /// Copy `me` of a datamanager kept on `members` (the first is the preferred primary).
     pub fn new(
         me: impl Into<String>,
@@ -69,7 +77,14 @@ impl Replication {
             me: me.into(),
             members: members.into_iter().map(Into::into).collect(),
             timing: Timing::default(),
+            catch_up: Self::DEFAULT_CATCH_UP,
         }
+    }
+
+    /// Keep `entries` applied entries in memory to catch a lagging copy up (at least 1).
+    pub fn with_catch_up(mut self, entries: usize) -> Replication {
+        self.catch_up = entries.max(1);
+        self
     }
 
     /// Why this cannot work, if it cannot: `me` not among the members, a duplicate member,

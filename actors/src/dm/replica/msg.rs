@@ -102,7 +102,14 @@ pub enum InstallPart {
         /// (seq, time stamp in ns, record, the epoch its source had).
         records: Vec<(u64, u64, NewRecord)>,
     },
-    /// The snapshot is whole: the producers' recent pairs and the store's floor.
+    /// Some producers' recent (producer seq, seq) pairs (a part of its own: a full table
+    /// is larger than a frame).
+    Producers {
+        /// Each producer's pairs.
+        producers: Vec<(u64, Vec<(u64, u64)>)>,
+    },
+    /// The snapshot is whole: the producers' recent pairs (any not sent in `Producers`
+    /// parts) and the store's floor.
     End {
         /// Records sent in all parts (a check).
         records: u64,

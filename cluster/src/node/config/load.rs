@@ -156,7 +156,11 @@ fn datamanager(
     seen: &[DatamanagerConfig],
     has_data_dir: bool,
 ) -> Option<DatamanagerConfig> {
-    r.unknown_keys(t, &["name", "id", "durability", "copies"]);
+    r.unknown_keys(t, &["name", "id", "durability", "copies", "catch_up"]);
+    let catch_up = r
+        .integer(t, "catch_up", Some(0), 1..=i64::from(u32::MAX))
+        .filter(|n| *n > 0)
+        .map(|n| n as usize);
     let durability = durability(r, t, has_data_dir);
     let copies: Vec<String> = r
         .string_array(t, "copies")
@@ -193,6 +197,7 @@ fn datamanager(
     Some(DatamanagerConfig {
         durability: durability.ok()?,
         copies,
+        catch_up,
         ..spec
     })
 }
@@ -669,6 +674,28 @@ mod tests {
         );
         assert!(e.to_string().contains("needs the node's data_dir"), "{e}");
         c.with_data_dir("/tmp/n").validate(&[]).unwrap();
+    }
+
+    #[test]
+    fn copies_and_their_catch_up_are_read_and_a_bad_catch_up_is_refused_at_its_value() {
+        let c = parse(
+            "[node]\nname = \"r1\"\ndata_dir = \"d\"\n\
+             [[datamanager]]\nname = \"feature\"\ncopies = [\"r1\", \"r2\", \"r3\"]\n\
+             catch_up = 500\n\
+             [[datamanager]]\nname = \"world\"\ncopies = [\"r1\", \"r2\", \"r3\"]\n",
+        )
+        .unwrap();
+        assert_eq!(c.datamanagers[0].copies, ["r1", "r2", "r3"]);
+        assert_eq!(c.datamanagers[0].catch_up, Some(500));
+        assert_eq!(c.datamanagers[1].catch_up, None);
+        for bad in ["0", "-3", "\"many\""] {
+            let e = parse(&format!(
+                "[node]\nname = \"r1\"\ndata_dir = \"d\"\n\
+                 [[datamanager]]\nname = \"feature\"\ncatch_up = {bad}\n"
+            ))
+            .unwrap_err();
+            assert!(e.contains("<node>:6:12:"), "{bad}: {e}");
+        }
     }
 
     #[test]

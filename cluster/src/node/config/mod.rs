@@ -140,6 +140,11 @@ pub struct DatamanagerConfig {
     /// primary's node is lost another copy takes over ([`marie_actors::dm::replica`]).
     /// Three or more, with a journal (`process` or `sync`).
     pub copies: Vec<String>,
+    /// With copies: applied entries the primary keeps in memory to catch a lagging copy
+    /// up, beyond which it sends a snapshot of the store (`None`:
+    /// [`Replication::DEFAULT_CATCH_UP`](marie_actors::dm::Replication::DEFAULT_CATCH_UP)).
+    /// In a file, `catch_up = 10000`.
+    pub catch_up: Option<usize>,
 }
 
 impl DatamanagerConfig {
@@ -150,6 +155,7 @@ impl DatamanagerConfig {
             id,
             durability: None,
             copies: Vec::new(),
+            catch_up: None,
         }
     }
 
