@@ -9,7 +9,7 @@
 //! way when the primary's process is killed stores every record once, in order: what was on
 //! its way to the lost primary is sent again to the next. A copy that comes back further
 //! behind than the primary keeps entries for is sent a snapshot of the store, and ends
-//! equal.
+//! equal; a primary started again catches copies up from the entries its journal holds.
 
 mod common;
 
@@ -378,6 +378,57 @@ fn a_copy_further_behind_than_the_primary_keeps_entries_for_takes_in_a_snapshot(
         assert_eq!(
             acked.iter().find(|(_, v)| **v == 799).map(|(s, _)| *s),
             Some(again)
+        );
+        check_acked(&client, &acked).await;
+        transport.stop().await;
+    });
+}
+
+#[test]
+fn a_restarted_primary_catches_a_copy_up_from_its_journal_without_a_snapshot() {
+    let _one = ONE_MEMBER.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = tempfile::tempdir().unwrap();
+    let mut nodes = start_nodes(dir.path(), "");
+    let restart = |nodes: &mut Vec<NodeProc>, i: usize| {
+        let peers: Vec<_> = (0..3).filter(|j| *j != i).map(|j| nodes[j].addr).collect();
+        let name = NODES[i];
+        let config = hosts(dir.path(), name);
+        nodes[i] = NodeProc::start(dir.path(), name, &config, &peers, COOKIE);
+    };
+    let rt = runtime();
+    let transport = rt.block_on(join(&nodes));
+    assert_eq!(rt.block_on(primary(None)).0, "r1");
+    let client = DmClient::lookup("feature", "producer")
+        .unwrap()
+        .with_follow(T);
+    let mut acked = BTreeMap::new();
+    rt.block_on(store_all(&client, 0..100, &mut acked));
+    // r3 is lost; 100 more; then the primary's process is killed and started again: it
+    // leads again with the entries its journal holds, and r3, back, lacks entries from
+    // before that restart
+    nodes[2].signal("KILL");
+    rt.block_on(store_all(&client, 100..200, &mut acked));
+    nodes[0].signal("KILL");
+    restart(&mut nodes, 0);
+    rt.block_on(async {
+        let start = Instant::now();
+        while primary(None).await.0 != "r1" {
+            assert!(start.elapsed() < T, "r1 does not lead again");
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+        store_all(&client, 200..250, &mut acked).await;
+    });
+    restart(&mut nodes, 2);
+    rt.block_on(async {
+        let all = converged().await;
+        let r3 = all
+            .iter()
+            .find(|s| s.replica.as_ref().unwrap().node == "r3")
+            .unwrap();
+        assert_eq!(
+            r3.replica.as_ref().unwrap().snapshots_taken,
+            0,
+            "r3 caught up from entries: {r3:#?}"
         );
         check_acked(&client, &acked).await;
         transport.stop().await;

@@ -85,6 +85,8 @@ impl Copy {
                 voted_for,
                 committed: log.committed,
                 tail: log.tail,
+                applied: log.applied.into(),
+                before: log.before,
             },
             None if store.next_seq() > 1 => {
                 return Err(format!(

@@ -63,7 +63,16 @@ pub(crate) struct ReplicaLog {
     pub tail: Vec<Op>,
     /// The term of the last entry written.
     pub term: u64,
+    /// Committed entries the journal holds, ending with `committed` (at most
+    /// [`TAIL_KEEP`]): a copy that becomes the primary catches a lagging copy up from them
+    /// rather than with a snapshot of its store.
+    pub applied: std::collections::VecDeque<Op>,
+    /// (seq, term) of the entry just before the first of `applied`.
+    pub before: (u64, u64),
 }
+
+/// Committed entries a replay keeps ([`ReplicaLog::applied`]).
+const TAIL_KEEP: usize = crate::dm::replica::core::TAIL_KEEP;
 
 /// What a replay rebuilds.
 #[derive(Default)]
@@ -134,11 +143,21 @@ impl Replay {
                     if upto == 0 && seq > log.committed.0 {
                         // a commit mark after a snapshot: nothing to apply
                         log.committed = (seq, term);
+                        log.applied.clear();
                     }
                     for op in log.tail.drain(..upto) {
+                        if log.applied.is_empty() {
+                            log.before = log.committed;
+                        }
                         log.committed = (op.seq, op.term);
                         state.puts += matches!(op.body, OpBody::Put { .. }) as u64;
                         apply::apply(store, &mut state.fences, &mut state.producers, &op);
+                        log.applied.push_back(op);
+                        if log.applied.len() > TAIL_KEEP {
+                            if let Some(o) = log.applied.pop_front() {
+                                log.before = (o.seq, o.term);
+                            }
+                        }
                     }
                     return;
                 }
@@ -216,6 +235,7 @@ impl Replay {
                         // the snapshot holds the committed state; the uncommitted entries
                         // written before it are written again after it
                         log.tail.clear();
+                        log.applied.clear();
                     }
                 }
                 None => tracing::warn!(
@@ -420,6 +440,15 @@ mod tests {
             log.tail.iter().map(|o| (o.seq, o.term)).collect::<Vec<_>>(),
             [(6, 2)]
         );
+        // the committed entries are kept too (a primary catches a copy up from them)
+        assert_eq!(
+            log.applied
+                .iter()
+                .map(|o| (o.seq, o.term))
+                .collect::<Vec<_>>(),
+            [(1, 1), (2, 1), (3, 1), (4, 2), (5, 2)]
+        );
+        assert_eq!(log.before, (0, 0));
         // committed: 3 stays, 2 deleted, 4 (the cut put) never applied
         let seqs: Vec<u64> = r
             .store

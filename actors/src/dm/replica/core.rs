@@ -149,6 +149,11 @@ pub(crate) struct Restored {
     pub(crate) committed: (u64, u64),
     /// Its entries after it, not known committed.
     pub(crate) tail: Vec<Op>,
+    /// Committed (applied) entries its journal still holds, ending with `committed`: kept
+    /// to catch a lagging copy up without a snapshot, should it become the primary.
+    pub(crate) applied: Vec<Op>,
+    /// (seq, term) of the entry just before the first of `applied` (unused when empty).
+    pub(crate) before: (u64, u64),
 }
 
 impl Core {
@@ -177,14 +182,22 @@ impl Core {
             .tail
             .last()
             .map_or(restored.committed, |o| (o.seq, o.term));
+        // the applied entries it still has, if they end where the committed ones do
+        let (base, mut tail) = match restored.applied.last() {
+            Some(last) if (last.seq, last.term) == restored.committed => {
+                (restored.before, restored.applied)
+            }
+            _ => (restored.committed, Vec::new()),
+        };
+        tail.extend(restored.tail);
         let mut core = Core {
             me: me.to_string(),
             members,
             timing,
             term: restored.term,
             voted_for: restored.voted_for,
-            base: restored.committed,
-            tail: restored.tail.into(),
+            base,
+            tail: tail.into(),
             commit: restored.committed.0,
             applied: restored.committed.0,
             durable: durable_last,

@@ -143,6 +143,14 @@ impl Sim {
                 .filter(|o| o.seq > disk.applied)
                 .cloned()
                 .collect(),
+            // the applied entries its journal holds (those after its snapshot)
+            applied: disk
+                .log
+                .iter()
+                .filter(|o| o.seq <= disk.applied)
+                .cloned()
+                .collect(),
+            before: disk.snap,
         };
         let core = Core::new(m, &Sim::members(), timing(), restored, m == "a", self.now)
             .with_tail_keep(self.keep);
