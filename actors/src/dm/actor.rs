@@ -553,7 +553,7 @@ impl Actor for Datamanager {
                 // never above the frame limit, whatever the caller asked
                 let max = usize::try_from(max_bytes)
                     .unwrap_or(usize::MAX)
-                    .clamp(1, super::PAGE_BYTES);
+                    .clamp(1, super::page::PAGE_BYTES);
                 let _ = reply.send(state.store.select_page(&query, max));
             }
             DmMsg::SelectWait {

@@ -635,7 +635,7 @@ impl DmClient {
     }
 
     /// Every record matching `query`, oldest-first. From a datamanager on another node the
-    /// answer comes in pages of about [`PAGE_BYTES`](super::PAGE_BYTES) (each request with
+    /// answer comes in pages of about [`PAGE_BYTES`](super::page::PAGE_BYTES) (each request with
     /// the client's deadline), which add up to the answer as it was at the first page
     /// ([`super::page`]).
     pub async fn select(&self, query: Query) -> Result<Vec<Record>, DmError> {
@@ -653,7 +653,7 @@ impl DmClient {
             let page = self
                 .call(self.timeout, true, |reply| DmMsg::SelectPage {
                     query: Box::new(query.clone()),
-                    max_bytes: super::PAGE_BYTES as u64,
+                    max_bytes: super::page::PAGE_BYTES as u64,
                     reply,
                 })
                 .await?;

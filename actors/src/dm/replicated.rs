@@ -21,7 +21,7 @@ use std::time::Duration;
 const INSTALL_PART: usize = 2048;
 /// Bytes of records per part, about (a part is one frame: ractor_cluster ends the session
 /// on a frame above 16 MiB).
-const INSTALL_BYTES: usize = super::PAGE_BYTES;
+const INSTALL_BYTES: usize = super::page::PAGE_BYTES;
 /// Producers per part of their pairs (at most 1024 pairs each: ~1 MiB).
 const INSTALL_PRODUCERS: usize = 64;
 
