@@ -73,7 +73,7 @@ mod messages;
 mod name;
 pub mod outbox;
 mod packed;
-mod page;
+pub mod page;
 pub mod producers;
 mod query;
 mod record;
