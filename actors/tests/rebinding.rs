@@ -26,6 +26,11 @@ use tokio::time::timeout;
 
 const T: Duration = Duration::from_secs(30);
 
+/// Steps of an action whose operation the test kills while it runs: 3 s of 2 ms steps, so
+/// that a test task slowed down on a loaded machine still finds it running (at 150 steps,
+/// 0.3 s, a CI run once saw the action over before its first look: "never activated").
+const STEPS: u32 = 1500;
+
 /// Finishes after `steps` steps of 2 ms, raising its one flag.
 struct Worker {
     name: String,
@@ -212,7 +217,7 @@ fn mission(name: &str, op: &str, steps: u32) -> String {
 async fn a_killed_operation_is_rebound_to_its_replacement_and_the_action_completes() {
     let first = start("rb-kill", "1.0.0").await;
     let _sup = replace_on_death("rb-kill", 1).await;
-    let (run, mut events) = launch(&mission("kill", "rb-kill", 150)).await;
+    let (run, mut events) = launch(&mission("kill", "rb-kill", STEPS)).await;
     activated(&first).await;
     first.actor().kill();
     let record = event(&mut events, |e| match e {
@@ -243,7 +248,7 @@ async fn a_killed_operation_is_rebound_to_its_replacement_and_the_action_complet
 async fn the_stand_in_gets_the_last_parameters_a_higher_epoch_and_resumes() {
     let first = start("rb-params", "1.0.0").await;
     let _sup = replace_on_death("rb-params", 1).await;
-    let (run, mut events) = launch(&mission("params", "rb-params", 150)).await;
+    let (run, mut events) = launch(&mission("params", "rb-params", STEPS)).await;
     activated(&first).await;
     assert_eq!(
         resumed(&first).await,
@@ -269,7 +274,7 @@ async fn the_stand_in_gets_the_last_parameters_a_higher_epoch_and_resumes() {
         .unwrap()
     {
         PropertyReply::Current(p) => {
-            assert_eq!(p.get("steps"), Some(&Value::Int(150)));
+            assert_eq!(p.get("steps"), Some(&Value::Int(STEPS.into())));
             assert_eq!(p.get("gain"), Some(&Value::Float(2.5)));
         }
         other => panic!("{other:?}"),
@@ -288,7 +293,7 @@ async fn the_stand_in_gets_the_last_parameters_a_higher_epoch_and_resumes() {
 async fn another_live_instance_stands_in_at_once() {
     let first = start("rb-twin", "1.0.0").await;
     let twin = start("rb-twin", "1.2.0").await;
-    let (run, _events) = launch(&mission("twin", "rb-twin", 150)).await;
+    let (run, _events) = launch(&mission("twin", "rb-twin", STEPS)).await;
     // the dispatcher binds the first instance in registry order
     activated(&first).await;
     first.actor().kill();
@@ -351,7 +356,7 @@ async fn a_stand_in_is_chosen_by_the_same_ranking_as_at_the_start_and_the_choice
 async fn a_hung_operation_is_killed_and_rebound() {
     let first = start("rb-hang", "1.0.0").await;
     let _sup = replace_on_death("rb-hang", 1).await;
-    let (run, mut events) = launch(&mission("hang", "rb-hang", 150)).await;
+    let (run, mut events) = launch(&mission("hang", "rb-hang", STEPS)).await;
     activated(&first).await;
     first.inject(FaultKind::Hang).unwrap();
     let cause = event(&mut events, |e| match e {
@@ -441,7 +446,7 @@ async fn an_operation_lost_between_actions_is_rebound_before_its_next_action() {
         [[action]]
         name = "first"
         [action.ops.rb-between-a]
-        steps = 150
+        steps = 1500
         [[action]]
         name = "second"
         when = ["done"]
