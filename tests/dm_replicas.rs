@@ -93,17 +93,35 @@ async fn stats_of(actor: &ActorRef<DmMsg>) -> Option<DmStats> {
 
 /// Wait until the primary of `feature` is published (on a node other than `not`).
 async fn primary(not: Option<&str>) -> (String, Instant) {
-    let start = Instant::now();
-    loop {
-        if let Some(i) = registry::lookup(ModuleKind::Datamanager, "feature")
-            .into_iter()
-            .find(|i| Some(i.node.as_str()) != not)
-        {
-            return (i.node, Instant::now());
-        }
-        assert!(start.elapsed() < T, "no primary of feature within {T:?}");
-        tokio::time::sleep(Duration::from_millis(20)).await;
+    primary_where(|node| Some(node) != not).await
+}
+
+/// Wait until the primary of `feature` is published on a node `fits` accepts: the registry
+/// watched (an event awaited, not a poll).
+async fn primary_where(fits: impl Fn(&str) -> bool) -> (String, Instant) {
+    // watching first, then looking: a primary published in between is in one or the other
+    let mut watch = registry::watch(Some(ModuleKind::Datamanager))
+        .await
+        .unwrap();
+    let found = |i: &registry::Instance| i.answers_to("feature") && fits(&i.node);
+    if let Some(i) = registry::lookup(ModuleKind::Datamanager, "feature")
+        .into_iter()
+        .find(|i| found(i))
+    {
+        return (i.node, Instant::now());
     }
+    tokio::time::timeout(T, async {
+        while let Some(event) = watch.next().await {
+            if let registry::RegistryEvent::Joined(i) = event {
+                if found(&i) {
+                    return (i.node, Instant::now());
+                }
+            }
+        }
+        panic!("the registry watch ended");
+    })
+    .await
+    .unwrap_or_else(|_| panic!("no primary of feature within {T:?}"))
 }
 
 /// The producer id of this test's records: a retry of record `v` is the same put.
@@ -411,11 +429,8 @@ fn a_restarted_primary_catches_a_copy_up_from_its_journal_without_a_snapshot() {
     nodes[0].signal("KILL");
     restart(&mut nodes, 0);
     rt.block_on(async {
-        let start = Instant::now();
-        while primary(None).await.0 != "r1" {
-            assert!(start.elapsed() < T, "r1 does not lead again");
-            tokio::time::sleep(Duration::from_millis(50)).await;
-        }
+        // r1 leads again
+        primary_where(|node| node == "r1").await;
         store_all(&client, 200..250, &mut acked).await;
     });
     restart(&mut nodes, 2);

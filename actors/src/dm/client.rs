@@ -575,15 +575,15 @@ impl DmClient {
                 Err(e) => Err(e),
             };
             match sent {
-                Ok(()) if self.actor().get_id() == unacked.to.get_id() => {
-                    unacked.sent(&self.target(), batch);
-                    return Ok(());
-                }
-                // it went to an instance other than the one the unacknowledged went to:
-                // those go again (and this one with them, stored once)
                 Ok(()) => {
+                    let moved = self.actor().get_id() != unacked.to.get_id();
                     unacked.sent(&self.target(), batch);
-                    return self.send_again(unacked, None).await;
+                    // it went to an instance other than the one the unacknowledged went
+                    // to: those go again (and this one with them, stored once)
+                    return match moved {
+                        true => self.send_again(unacked, None).await,
+                        false => Ok(()),
+                    };
                 }
                 Err(DmError::Unreachable(_)) | Err(DmError::Timeout { .. }) => {
                     self.send_again(unacked, sent.err()).await?;

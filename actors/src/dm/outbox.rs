@@ -243,13 +243,7 @@ fn gone(actor: &ActorRef<DmMsg>) -> bool {
 
 /// Cut `records` into messages of at most [`FRAME_BYTES`] (a larger record goes alone).
 pub(crate) fn frames(records: Vec<NewRecord>) -> Vec<Vec<NewRecord>> {
-    let size = |r: &NewRecord| {
-        r.payload.len()
-            + r.class.len()
-            + r.source.len()
-            + r.sub1.as_ref().map_or(0, String::len)
-            + r.sub2.as_ref().map_or(0, String::len)
-    };
+    let size = NewRecord::wire_bytes;
     if records.iter().map(size).sum::<usize>() <= FRAME_BYTES {
         return vec![records];
     }

@@ -217,6 +217,17 @@ pub struct NewRecord {
 }
 
 impl NewRecord {
+    /// About the bytes it takes in a message: its payload and names (what cuts a batch of
+    /// records into frames below ractor_cluster's 16 MiB, [`super::outbox::frames`], and a
+    /// snapshot into parts).
+    pub(crate) fn wire_bytes(&self) -> usize {
+        self.payload.len()
+            + self.class.len()
+            + self.source.len()
+            + self.sub1.as_ref().map_or(0, String::len)
+            + self.sub2.as_ref().map_or(0, String::len)
+    }
+
     /// A record of `class` with `payload`, no sub-classes and no source yet.
     pub fn new(class: impl Into<String>, payload: Payload) -> NewRecord {
         NewRecord {

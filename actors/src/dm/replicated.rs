@@ -227,7 +227,6 @@ impl DmState {
             }
             InstallPart::End {
                 records,
-                producers,
                 last_time_ns,
             } => {
                 let Some(mut inc) = copy.incoming.take().filter(|i| i.last == last) else {
@@ -239,12 +238,7 @@ impl DmState {
                 }
                 inc.store
                     .raise_floor(last.0 + 1, Duration::from_nanos(last_time_ns));
-                let mut table = std::mem::take(&mut inc.producers);
-                for (producer, pairs) in producers {
-                    for (pseq, seq) in pairs {
-                        table.note(producer, pseq, seq);
-                    }
-                }
+                let table = std::mem::take(&mut inc.producers);
                 tracing::info!(dm = %copy.name, records, upto = last.0, "replica: a snapshot from the primary taken in");
                 self.store = inc.store;
                 self.fences = inc.fences;
@@ -417,7 +411,7 @@ impl DmState {
                 producer_seq: 0,
             };
             let t = u64::try_from(timestamp.as_nanos()).unwrap_or(u64::MAX);
-            bytes += 48 + record.payload.len() + record.class.len() + record.source.len();
+            bytes += record.wire_bytes();
             batch.push((seq, t, record));
             n += 1;
             if batch.len() == INSTALL_PART || bytes >= INSTALL_BYTES {
@@ -434,20 +428,21 @@ impl DmState {
                 records: batch,
             }),
         );
-        let producers: Vec<(u64, Vec<(u64, u64)>)> = self
-            .producers
-            .each()
-            .map(|(p, pairs)| (p, pairs.iter().copied().collect()))
-            .collect();
-        for chunk in producers.chunks(INSTALL_PRODUCERS) {
-            let producers = chunk.to_vec();
+        let mut producers = Vec::with_capacity(INSTALL_PRODUCERS);
+        for (p, pairs) in self.producers.each() {
+            producers.push((p, pairs.iter().copied().collect()));
+            if producers.len() == INSTALL_PRODUCERS {
+                let producers = std::mem::take(&mut producers);
+                copy.send(to, part(InstallPart::Producers { producers }));
+            }
+        }
+        if !producers.is_empty() {
             copy.send(to, part(InstallPart::Producers { producers }));
         }
         copy.send(
             to,
             part(InstallPart::End {
                 records: n,
-                producers: Vec::new(),
                 last_time_ns: u64::try_from(self.store.last_time().as_nanos()).unwrap_or(u64::MAX),
             }),
         );

@@ -626,13 +626,19 @@ impl Store {
         timestamp: Duration,
         record: NewRecord,
     ) -> Result<(), DmError> {
+        self.check_restored_seq(seq)?;
+        self.place(seq, timestamp, record)
+    }
+
+    /// A restored record's seq is at least the next seq.
+    fn check_restored_seq(&self, seq: u64) -> Result<(), DmError> {
         if seq < self.next_seq {
             return Err(DmError::InvalidRecord(format!(
                 "seq {seq} is below the next seq {}",
                 self.next_seq
             )));
         }
-        self.place(seq, timestamp, record)
+        Ok(())
     }
 
     /// Raise the next seq and the last time stamp to at least these (a snapshot's floor:
@@ -666,12 +672,7 @@ impl Store {
         timestamp: Duration,
         record: &NewRecord,
     ) -> Result<(), DmError> {
-        if seq < self.next_seq {
-            return Err(DmError::InvalidRecord(format!(
-                "seq {seq} is below the next seq {}",
-                self.next_seq
-            )));
-        }
+        self.check_restored_seq(seq)?;
         let names = (
             &*record.class,
             &*record.source,

@@ -108,13 +108,10 @@ pub enum InstallPart {
         /// Each producer's pairs.
         producers: Vec<(u64, Vec<(u64, u64)>)>,
     },
-    /// The snapshot is whole: the producers' recent pairs (any not sent in `Producers`
-    /// parts) and the store's floor.
+    /// The snapshot is whole (records and producers sent): the store's floor.
     End {
         /// Records sent in all parts (a check).
         records: u64,
-        /// Each producer's recent (producer seq, seq) pairs.
-        producers: Vec<(u64, Vec<(u64, u64)>)>,
         /// The newest time stamp handed out, in ns.
         last_time_ns: u64,
     },
