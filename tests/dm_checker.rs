@@ -36,6 +36,11 @@ const PORT: u16 = 7100;
 const PRODUCERS_NS: usize = 3;
 /// Producers in the child.
 const PRODUCERS: u64 = 4;
+/// Records per class: a producer's records go in classes of this many, and once a class is
+/// full it deletes the class two before it, so the store stays bounded however long the run
+/// (and deletes are checked under faults too). No class reaches the default retention bound
+/// (10 000), so every record put and not deleted must still be there.
+const CLASS: u64 = 8192;
 /// The child's orders and answers wait this long at most.
 const T: Duration = Duration::from_secs(120);
 
@@ -100,6 +105,8 @@ struct Heard {
     put: BTreeSet<(u64, u64)>,
     acked: BTreeMap<(u64, u64), u64>,
     have: Vec<(u64, u64, u64)>,
+    /// (producer, class) deleted, acknowledged.
+    deleted: BTreeSet<(u64, u64)>,
     copies: Vec<(String, u64, u64, u64)>,
     done: bool,
 }
@@ -128,6 +135,9 @@ impl Heard {
                     );
                 }
                 Some("have") => self.have.push((n(1), n(2), n(3))),
+                Some("deleted") => {
+                    self.deleted.insert((n(1), n(2)));
+                }
                 Some("copy") => {
                     self.copies
                         .push((w.get(1).unwrap_or(&"").to_string(), n(2), n(3), n(4)))
@@ -241,8 +251,18 @@ fn replicated_datamanager_checker_under_kill_freeze_partition_and_crash() {
     for (seq, p, n) in &heard.have {
         where_is.entry((*p, *n)).or_default().push(*seq);
     }
+    // a record of a class whose delete was acknowledged must be gone; any other must be there
+    let mut resurrected = 0;
     for (rec, seq) in &heard.acked {
-        if where_is.get(rec).is_none_or(|s| !s.contains(seq)) {
+        if heard.deleted.contains(&(rec.0, rec.1 / CLASS)) {
+            if where_is.contains_key(rec) {
+                resurrected += 1;
+                eprintln!(
+                    "RESURRECTED: producer {} record {} (its class deleted, acknowledged)",
+                    rec.0, rec.1
+                );
+            }
+        } else if where_is.get(rec).is_none_or(|s| !s.contains(seq)) {
             lost += 1;
             eprintln!(
                 "LOST: producer {} record {} (acknowledged as seq {seq})",
@@ -268,13 +288,14 @@ fn replicated_datamanager_checker_under_kill_freeze_partition_and_crash() {
         .count();
     let kinds: Vec<String> = done.iter().map(|(k, n)| format!("{n} {k}")).collect();
     println!(
-        "| seed | faults | acknowledged | stored | lost | duplicated | out of order | never put | divergent copies |"
+        "| seed | faults | acknowledged | deleted (classes) | stored | lost | duplicated | deleted yet there | out of order | never put | divergent copies |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
     println!(
-        "| {seed} | {faults} ({}) | {} | {} | {lost} | {duplicated} | {out_of_order} | {never_put} | {divergent} of {} |",
+        "| {seed} | {faults} ({}) | {} | {} | {} | {lost} | {duplicated} | {resurrected} | {out_of_order} | {never_put} | {divergent} of {} |",
         kinds.join(", "),
         heard.acked.len(),
+        heard.deleted.len(),
         heard.have.len(),
         heard.copies.len()
     );
@@ -284,8 +305,15 @@ fn replicated_datamanager_checker_under_kill_freeze_partition_and_crash() {
         "the producers made progress"
     );
     assert_eq!(
-        (lost, duplicated, out_of_order, never_put, divergent),
-        (0, 0, 0, 0, 0)
+        (
+            lost,
+            duplicated,
+            resurrected,
+            out_of_order,
+            never_put,
+            divergent
+        ),
+        (0, 0, 0, 0, 0, 0)
     );
 }
 
@@ -364,9 +392,7 @@ async fn producers_run() {
                 say(format!("put {p} {n}"));
                 let start = Instant::now();
                 let seq = loop {
-                    // a class per producer and 8192 records: no class reaches the default
-                    // retention bound (10 000), so every record put must still be there
-                    let class = format!("rec-{p}-{}", n / 8192);
+                    let class = format!("rec-{p}-{}", n / CLASS);
                     let mut record = NewRecord::encode(&class, &(p, n)).unwrap();
                     record.producer = 1000 + p;
                     record.producer_seq = n + 1;
@@ -380,6 +406,16 @@ async fn producers_run() {
                 };
                 say(format!("ack {p} {n} {seq}"));
                 n += 1;
+                if n % CLASS == 0 && n / CLASS >= 3 {
+                    // retried until acknowledged: deleting a class twice deletes it once
+                    let c = n / CLASS - 3;
+                    let start = Instant::now();
+                    while let Err(e) = client.delete(Query::class(format!("rec-{p}-{c}"))).await {
+                        assert!(start.elapsed() < T, "producer {p} delete {c}: {e}");
+                        tokio::time::sleep(Duration::from_millis(50)).await;
+                    }
+                    say(format!("deleted {p} {c}"));
+                }
             }
         }));
     }

@@ -310,8 +310,10 @@ impl DmClient {
                     })
                 }
                 Ok(CallResult::SenderError) | Err(_) => {
-                    // the actor went away with the request (its reply port dropped)
-                    if !again || follows == FOLLOWS || !self.follow(&target.actor).await {
+                    // the actor went away with the request (its reply port dropped); the
+                    // client moves to its next instance even when the request is not sent
+                    // again, so that the caller's retry reaches it
+                    if follows == FOLLOWS || !self.follow(&target.actor).await || !again {
                         return Err(self.unreachable());
                     }
                     follows += 1;
@@ -704,6 +706,12 @@ impl DmClient {
     }
 
     /// Delete the records matching `query`; returns how many.
+    ///
+    /// Unlike a put, a delete is not sent again by itself when the datamanager goes away
+    /// with it: it may have been done, and the same query sent again could take records
+    /// stored in between. The error ([`DmError::Unreachable`]) comes once the client has
+    /// followed the datamanager to its next instance, so a retry, if the caller wants one,
+    /// reaches it.
     pub async fn delete(&self, query: Query) -> Result<u64, DmError> {
         let mut query = Some(query);
         self.call(self.timeout, false, |reply| DmMsg::Delete {
