@@ -141,6 +141,31 @@ async fn a_store_to_a_gone_dm_waits_for_the_next_instance_and_lands_there() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_delete_to_a_gone_dm_is_not_sent_again_but_a_retry_reaches_the_next_instance() {
+    let spec = DmSpec::new("fw-delete", 4507);
+    let (actor, handle) = start(spec.args(RealClock::shared())).await;
+    let client = DmClient::new(actor.clone(), "planner");
+    crash(actor, handle).await;
+    let delete = {
+        let c = client.clone();
+        tokio::spawn(async move { c.delete(Query::class("path")).await })
+    };
+    let (next, next_handle) = start(spec.args(RealClock::shared())).await;
+    let producer = DmClient::new(next.clone(), "x");
+    producer.store("path", None, None, &1u8).await.unwrap();
+    // it may have been done before the DM went: not sent again by itself
+    let err = within("the delete", delete).await.unwrap().unwrap_err();
+    assert_eq!(err, dm::DmError::Unreachable("fw-delete".into()));
+    assert_eq!(producer.select(Query::all()).await.unwrap().len(), 1);
+    // but the client moved: the caller's retry reaches the next instance
+    assert_eq!(client.actor().get_id(), next.get_id(), "the client moved");
+    assert_eq!(client.delete(Query::class("path")).await, Ok(1));
+    assert!(producer.select(Query::all()).await.unwrap().is_empty());
+    next.stop(None);
+    next_handle.await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn without_a_next_instance_a_request_fails_unreachable_after_the_follow_wait() {
     let spec = DmSpec::new("fw-none", 4504);
     let (actor, handle) = start(spec.args(RealClock::shared())).await;
