@@ -221,7 +221,7 @@ fn single_puts_coalesced_in_flight_arrive_in_order_within_the_window() {
 }
 
 #[test]
-fn a_select_larger_than_a_frame_comes_back_whole_in_pages() {
+fn a_select_larger_than_a_frame_comes_back_whole_in_pages_also_waiting_or_subscribed() {
     let _one = ONE_MEMBER.lock().unwrap_or_else(|e| e.into_inner());
     let dir = tempfile::tempdir().unwrap();
     let (mut alpha, rt) = feature_node(dir.path());
@@ -261,8 +261,46 @@ fn a_select_larger_than_a_frame_comes_back_whole_in_pages() {
         let newest = client.select(Query::class("scan").newest(3)).await.unwrap();
         let firsts: Vec<u8> = newest.iter().map(|r| r.payload.as_bytes()[0]).collect();
         assert_eq!(firsts, vec![37, 38, 39]);
+        // a wait-select that finds records at once answers in pages too
+        let waited = client
+            .select_wait(Query::all(), Duration::from_secs(1))
+            .await
+            .unwrap();
+        let waited: Vec<u64> = waited.iter().map(|r| r.seq).collect();
+        let seqs: Vec<u64> = want.iter().map(|w| w.0).collect();
+        assert_eq!(waited, seqs);
+        // a subscription's polls (up to 256 records each: 40 MiB here) as well
+        let mut sub = client
+            .subscribe(Query::class("scan").seq_from(1))
+            .await
+            .unwrap();
+        for i in 0..40u8 {
+            let r = tokio::time::timeout(Duration::from_secs(60), sub.next())
+                .await
+                .expect("a scan within 60 s")
+                .expect("the subscription goes on");
+            assert_eq!((r.payload.as_bytes()[0], r.payload.len()), (i, BIG));
+        }
+        // and a wait answered when its record comes
+        let waiter = {
+            let c = client.clone();
+            tokio::spawn(async move {
+                c.select_wait(Query::class("late"), Duration::from_secs(60))
+                    .await
+            })
+        };
+        while client.stats().await.unwrap().pending_waits == 0 {
+            tokio::time::sleep(Duration::from_millis(10)).await;
+        }
+        let seq = client
+            .store_raw(NewRecord::new("late", Payload::from_bytes(vec![7; BIG])))
+            .await
+            .unwrap();
+        let late = waiter.await.unwrap().unwrap();
+        assert_eq!(late.len(), 1);
+        assert_eq!((late[0].seq, late[0].payload.len()), (seq, BIG));
         // the session held: the node still answers
-        assert_eq!(client.stats().await.unwrap().records, 80);
+        assert_eq!(client.stats().await.unwrap().records, 81);
         transport.stop().await;
     });
     alpha.signal("TERM");

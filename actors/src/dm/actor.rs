@@ -15,9 +15,9 @@ use super::journal::{Durability, Hooks, Journal, Recovery};
 use super::messages::{DmMsg, DmStats};
 use super::producers::Producers;
 use super::query::Query;
-use super::record::{NewRecord, Record};
+use super::record::NewRecord;
 use super::store::{DmConfig, Store};
-use super::waits::{TimerGuard, Waiter, Waits};
+use super::waits::{TimerGuard, WaitReply, Waiter, Waits};
 use crate::clock::{cast_after, SharedClock};
 use crate::registry::{self, ModuleKind};
 use crate::run::FaultKind;
@@ -258,9 +258,8 @@ impl DmState {
             .waits
             .take_satisfied(class, |query| store.matches_in(class, seq, query));
         for waiter in ready {
-            let answer = self.store.select(&waiter.query);
-            tracing::trace!(dm = %self.name, wait = waiter.id, records = answer.len(), "wait answered");
-            let _ = waiter.reply.send(answer);
+            let records = waiter.reply.answer(&self.store, &waiter.query);
+            tracing::trace!(dm = %self.name, wait = waiter.id, records, "wait answered");
         }
     }
 
@@ -294,11 +293,10 @@ impl DmState {
         myself: &ActorRef<DmMsg>,
         query: Query,
         timeout_ms: u64,
-        reply: RpcReplyPort<Vec<Record>>,
+        reply: WaitReply,
     ) {
-        let answer = self.store.select(&query);
-        if !answer.is_empty() || timeout_ms == 0 {
-            let _ = reply.send(answer);
+        if timeout_ms == 0 || self.store.matches_any(&query) {
+            reply.answer(&self.store, &query);
             return;
         }
         if reply.is_closed() {
@@ -357,6 +355,13 @@ impl DmState {
 /// Same rule as the registry's: a single word of letters, digits, `-`, `_`, `.`, not all
 /// digits (those are ids). Checked first in `pre_start`, so a bad name fails the spawn
 /// before anything is published.
+/// A page's bound in bytes: what the caller asked, never above the frame limit.
+fn page_max(max_bytes: u64) -> usize {
+    usize::try_from(max_bytes)
+        .unwrap_or(usize::MAX)
+        .clamp(1, super::page::PAGE_BYTES)
+}
+
 fn valid_name(name: &str) -> bool {
     !name.is_empty()
         && name
@@ -550,21 +555,27 @@ impl Actor for Datamanager {
                 max_bytes,
                 reply,
             } => {
-                // never above the frame limit, whatever the caller asked
-                let max = usize::try_from(max_bytes)
-                    .unwrap_or(usize::MAX)
-                    .clamp(1, super::page::PAGE_BYTES);
-                let _ = reply.send(state.store.select_page(&query, max));
+                let _ = reply.send(state.store.select_page(&query, page_max(max_bytes)));
             }
             DmMsg::SelectWait {
                 query,
                 timeout_ms,
                 reply,
-            } => state.select_wait(&myself, *query, timeout_ms, reply),
+            } => state.select_wait(&myself, *query, timeout_ms, WaitReply::Whole(reply)),
+            DmMsg::SelectWaitPage {
+                query,
+                timeout_ms,
+                max_bytes,
+                reply,
+            } => {
+                let max_bytes = page_max(max_bytes);
+                let reply = WaitReply::Paged { reply, max_bytes };
+                state.select_wait(&myself, *query, timeout_ms, reply)
+            }
             DmMsg::WaitExpired { id } => {
                 if let Some(waiter) = state.waits.take(id) {
                     tracing::trace!(dm = %state.name, wait = id, "wait timed out");
-                    let _ = waiter.reply.send(Vec::new());
+                    waiter.reply.nothing();
                 }
             }
             DmMsg::Delete { query, reply } if state.replica.is_some() => {

@@ -3,6 +3,7 @@
 use super::error::DmError;
 use super::messages::{DmMsg, DmStats};
 use super::outbox::{frames, Outbox};
+use super::page::{Page, PAGE_BYTES};
 use super::query::Query;
 use super::record::{NewRecord, Payload, Record, RecordHeader};
 use super::shared::PayloadType;
@@ -649,13 +650,22 @@ impl DmClient {
                 })
                 .await;
         }
-        let mut records = Vec::new();
-        let mut next = Some(query);
+        self.rest_of(Page {
+            records: Vec::new(),
+            rest: Some(query),
+        })
+        .await
+    }
+
+    /// The records of `page` and of the pages that make up the rest of its answer.
+    async fn rest_of(&self, page: Page) -> Result<Vec<Record>, DmError> {
+        let mut records = page.records;
+        let mut next = page.rest;
         while let Some(query) = next.take() {
             let page = self
                 .call(self.timeout, true, |reply| DmMsg::SelectPage {
                     query: Box::new(query.clone()),
-                    max_bytes: super::page::PAGE_BYTES as u64,
+                    max_bytes: PAGE_BYTES as u64,
                     reply,
                 })
                 .await?;
@@ -683,26 +693,39 @@ impl DmClient {
     }
 
     /// Records matching `query`; if none exist yet, wait up to `wait` (on the DM's clock) for
-    /// one to be stored. An empty answer means the wait passed. Its answer crosses to another
-    /// node in one frame (not in pages, as [`DmClient::select`]'s): keep it below 16 MiB,
-    /// e.g. with [`Query::newest`].
+    /// one to be stored. An empty answer means the wait passed. From a datamanager on
+    /// another node the answer comes in pages, as [`DmClient::select`]'s does.
     pub async fn select_wait(&self, query: Query, wait: Duration) -> Result<Vec<Record>, DmError> {
         // sent again to a next instance, it waits only what is left of the wait (on this
         // process's timer: the DM's clock is not at hand here)
         let until = tokio::time::Instant::now() + wait;
         let mut first = true;
-        self.call(self.timeout.saturating_add(wait), true, |reply| {
+        let mut left = move || {
             let left = match std::mem::take(&mut first) {
                 true => wait,
                 false => until.saturating_duration_since(tokio::time::Instant::now()),
             };
-            DmMsg::SelectWait {
+            u64::try_from(left.as_millis()).unwrap_or(u64::MAX)
+        };
+        let deadline = self.timeout.saturating_add(wait);
+        if self.actor().get_id().is_local() {
+            return self
+                .call(deadline, true, |reply| DmMsg::SelectWait {
+                    query: Box::new(query.clone()),
+                    timeout_ms: left(),
+                    reply,
+                })
+                .await;
+        }
+        let first = self
+            .call(deadline, true, |reply| DmMsg::SelectWaitPage {
                 query: Box::new(query.clone()),
-                timeout_ms: u64::try_from(left.as_millis()).unwrap_or(u64::MAX),
+                timeout_ms: left(),
+                max_bytes: PAGE_BYTES as u64,
                 reply,
-            }
-        })
-        .await
+            })
+            .await?;
+        self.rest_of(first).await
     }
 
     /// Delete the records matching `query`; returns how many.

@@ -122,13 +122,26 @@ crate::remote_message! {
         } -> Vec<Record>,
         /// Like `Select`, but if nothing matches yet, wait until a matching record is stored
         /// (then answer as `Select` would) or until `timeout_ms` pass on the DM's clock (then
-        /// answer with nothing). The thesis DM's pending wait.
+        /// answer with nothing). The thesis DM's pending wait. The answer crosses to
+        /// another node in one frame: [`super::DmClient::select_wait`] asks such a
+        /// datamanager with `SelectWaitPage` instead.
         SelectWait {
             /// What to select, or wait for.
             query: Box<Query>,
             /// How long to wait, in milliseconds of the DM's clock; 0 is a plain select.
             timeout_ms: u64,
         } -> Vec<Record>,
+        /// `SelectWait` for a caller on another node: the answer's first page of about
+        /// `max_bytes` (at most [`super::page::PAGE_BYTES`]), whose `rest` the caller asks
+        /// for with `SelectPage` (see [`super::page`]). An empty page means the wait passed.
+        SelectWaitPage {
+            /// What to select, or wait for.
+            query: Box<Query>,
+            /// How long to wait, in milliseconds of the DM's clock; 0 is a plain select.
+            timeout_ms: u64,
+            /// About how many bytes of records the page may carry.
+            max_bytes: u64,
+        } -> super::page::Page,
         /// Delete every record matching the query (respecting its newest/oldest limit); the
         /// reply is how many were deleted.
         Delete {

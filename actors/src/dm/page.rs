@@ -5,7 +5,9 @@
 //! the client's node off from the datamanager's (and from everything else on it) and fail
 //! as if the datamanager were gone. So [`DmClient::select`](super::DmClient::select) asks a
 //! datamanager on another node for [`Page`]s of about [`PAGE_BYTES`] each, and puts them
-//! together.
+//! together; [`DmClient::select_wait`](super::DmClient::select_wait) (and so a
+//! subscription's poll) gets its first page from `SelectWaitPage`, at once or when a
+//! record comes, and the rest the same way.
 //!
 //! The pages add up to the one answer a single select would have given when the first page
 //! was read: the first page fixes the answer's seq range (a limit to the newest or oldest N

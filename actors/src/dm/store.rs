@@ -502,6 +502,19 @@ impl<'a> Visit<'a> for Ends {
     }
 }
 
+/// Whether anything matches (the walk stops at the first match).
+#[derive(Default)]
+struct Any(bool);
+
+impl<'a> Visit<'a> for Any {
+    fn visit(&mut self, _: u64, _: &'a ClassIndex, _: &'a Entry) {
+        self.0 = true;
+    }
+    fn full(&self) -> bool {
+        self.0
+    }
+}
+
 /// A delete's victims: their seqs by class.
 struct Victims<'m>(&'m mut HashMap<Arc<str>, Vec<u64>>);
 
@@ -1036,6 +1049,13 @@ impl Store {
     }
 
     /// Whether the stored record `seq` of `class` matches `q` (false if there is none).
+    /// Whether any stored record matches `q` (a wait answers at once if one does).
+    pub(crate) fn matches_any(&self, q: &Query) -> bool {
+        let mut any = Any::default();
+        self.walk(q, &mut any);
+        any.0
+    }
+
     pub(crate) fn matches_in(&self, class: &str, seq: u64, q: &Query) -> bool {
         self.classes
             .get(class)

@@ -4,8 +4,10 @@
 //! looks at the waiters that could match it. Each has a timer task that is aborted when the
 //! waiter leaves the list, answered or not.
 
+use super::page::Page;
 use super::query::Query;
 use super::record::Record;
+use super::store::Store;
 use ractor::RpcReplyPort;
 use std::collections::HashMap;
 use tokio::task::JoinHandle;
@@ -23,8 +25,58 @@ impl Drop for TimerGuard {
 pub(crate) struct Waiter {
     pub(crate) id: u64,
     pub(crate) query: Query,
-    pub(crate) reply: RpcReplyPort<Vec<Record>>,
+    pub(crate) reply: WaitReply,
     pub(crate) _timer: Option<TimerGuard>,
+}
+
+/// Where a wait's answer goes: whole (a caller in the datamanager's process), or its first
+/// page (a caller on another node, which asks for the rest: see [`super::page`]).
+pub(crate) enum WaitReply {
+    Whole(RpcReplyPort<Vec<Record>>),
+    Paged {
+        reply: RpcReplyPort<Page>,
+        max_bytes: usize,
+    },
+}
+
+impl WaitReply {
+    /// Answer with what matches `query` in `store` now; how many records went.
+    pub(crate) fn answer(self, store: &Store, query: &Query) -> usize {
+        match self {
+            WaitReply::Whole(reply) => {
+                let answer = store.select(query);
+                let n = answer.len();
+                let _ = reply.send(answer);
+                n
+            }
+            WaitReply::Paged { reply, max_bytes } => {
+                let page = store.select_page(query, max_bytes);
+                let n = page.records.len();
+                let _ = reply.send(page);
+                n
+            }
+        }
+    }
+
+    /// Answer with nothing: the wait passed.
+    pub(crate) fn nothing(self) {
+        match self {
+            WaitReply::Whole(reply) => {
+                let _ = reply.send(Vec::new());
+            }
+            WaitReply::Paged { reply, .. } => {
+                let _ = reply.send(Page::default());
+            }
+        }
+    }
+
+    /// Whether the caller has gone.
+    pub(crate) fn is_closed(&self) -> bool {
+        match self {
+            WaitReply::Whole(reply) => reply.is_closed(),
+            WaitReply::Paged { reply, .. } => reply.is_closed(),
+        }
+    }
 }
 
 /// The pending waits of one datamanager.
@@ -150,7 +202,7 @@ mod tests {
         w.add(Waiter {
             id,
             query: q,
-            reply: tx.into(),
+            reply: WaitReply::Whole(tx.into()),
             _timer: None,
         });
         (id, rx)
