@@ -352,9 +352,6 @@ impl DmState {
     }
 }
 
-/// Same rule as the registry's: a single word of letters, digits, `-`, `_`, `.`, not all
-/// digits (those are ids). Checked first in `pre_start`, so a bad name fails the spawn
-/// before anything is published.
 /// A page's bound in bytes: what the caller asked, never above the frame limit.
 fn page_max(max_bytes: u64) -> usize {
     usize::try_from(max_bytes)
@@ -362,6 +359,9 @@ fn page_max(max_bytes: u64) -> usize {
         .clamp(1, super::page::PAGE_BYTES)
 }
 
+/// Same rule as the registry's: a single word of letters, digits, `-`, `_`, `.`, not all
+/// digits (those are ids). Checked first in `pre_start`, so a bad name fails the spawn
+/// before anything is published.
 fn valid_name(name: &str) -> bool {
     !name.is_empty()
         && name
