@@ -113,7 +113,8 @@ struct Heard {
 
 impl Heard {
     fn take(&mut self, child: &mut Proc) {
-        let lines = child.drain().to_vec();
+        // only the lines not read yet (a long run prints millions)
+        let lines = child.drain();
         for line in &lines[self.read..] {
             let w: Vec<&str> = line.split_whitespace().collect();
             let n = |i: usize| w.get(i).and_then(|s| s.parse::<u64>().ok()).unwrap_or(0);
@@ -190,7 +191,17 @@ fn replicated_datamanager_checker_under_kill_freeze_partition_and_crash() {
             if until(heard) {
                 return;
             }
-            assert!(start.elapsed() < T, "the producers: no {what} within {T:?}");
+            if start.elapsed() >= T {
+                // what the child said last, to tell where it stands
+                let lines = child.drain();
+                let last = &lines[lines.len().saturating_sub(8)..];
+                panic!(
+                    "the producers: no {what} within {T:?} ({} acknowledged, primary {:?}); \
+                     their last lines: {last:?}",
+                    heard.acked.len(),
+                    heard.primary
+                );
+            }
             std::thread::sleep(Duration::from_millis(20));
         }
     };
