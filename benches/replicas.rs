@@ -17,6 +17,8 @@
 //! ```text
 //! cargo bench --bench replicas                 # both
 //! cargo bench --bench replicas -- failover     # one section: put-all, failover
+//! MARIE_BENCH_DM='catch_up = 100000' cargo bench --bench replicas -- put-all
+//!                                              # more lines for the datamanager's config
 //! ```
 
 use marie::actors::dm::{DmClient, NewRecord, Payload};
@@ -127,8 +129,12 @@ fn node(dir: &Path, name: &str, copies: &[&str], peers: &[SocketAddr]) -> (Kid, 
         format!("copies = [{}]\n", list.join(", "))
     };
     let peers: Vec<String> = peers.iter().map(|p| format!("\"{p}\"")).collect();
+    // more of the datamanager's settings, to compare (e.g. `catch_up = 16384`)
+    let extra = std::env::var("MARIE_BENCH_DM")
+        .map(|s| format!("{s}\n"))
+        .unwrap_or_default();
     let config = format!(
-        "[node]\nname = \"{name}\"\ndata_dir = \"{}\"\n[[datamanager]]\nname = \"feature\"\n{copies}\
+        "[node]\nname = \"{name}\"\ndata_dir = \"{}\"\n[[datamanager]]\nname = \"feature\"\n{copies}{extra}\
          [cluster]\nlisten = \"127.0.0.1:0\"\npeers = [{}]\ncookie = \"{COOKIE}\"\n",
         dir.join(name).display(),
         peers.join(", ")

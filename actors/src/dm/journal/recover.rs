@@ -64,15 +64,16 @@ pub(crate) struct ReplicaLog {
     /// The term of the last entry written.
     pub term: u64,
     /// Committed entries the journal holds, ending with `committed` (at most
-    /// [`TAIL_KEEP`]): a copy that becomes the primary catches a lagging copy up from them
-    /// rather than with a snapshot of its store.
-    pub applied: std::collections::VecDeque<Op>,
+    /// [`TAIL_KEEP`], and [`KEEP_BYTES`]): a copy that becomes the primary catches a lagging
+    /// copy up from them rather than with a snapshot of its store.
+    pub applied: Tail,
     /// (seq, term) of the entry just before the first of `applied`.
     pub before: (u64, u64),
 }
 
 /// Committed entries a replay keeps ([`ReplicaLog::applied`]).
 const TAIL_KEEP: usize = crate::dm::replica::core::TAIL_KEEP;
+use crate::dm::replica::tail::{Tail, KEEP_BYTES};
 
 /// What a replay rebuilds.
 #[derive(Default)]
@@ -153,7 +154,7 @@ impl Replay {
                         state.puts += matches!(op.body, OpBody::Put { .. }) as u64;
                         apply::apply(store, &mut state.fences, &mut state.producers, &op);
                         log.applied.push_back(op);
-                        if log.applied.len() > TAIL_KEEP {
+                        while log.applied.over(TAIL_KEEP, KEEP_BYTES) {
                             if let Some(o) = log.applied.pop_front() {
                                 log.before = (o.seq, o.term);
                             }

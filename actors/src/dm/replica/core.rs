@@ -16,7 +16,8 @@
 
 use super::msg::{Ops, ReplicaMsg};
 use super::op::{Op, OpBody};
-use std::collections::{BTreeMap, BTreeSet, VecDeque};
+use super::tail::{Tail, KEEP_BYTES};
+use std::collections::{BTreeMap, BTreeSet};
 use std::time::Duration;
 
 /// The protocol's clocks.
@@ -46,9 +47,9 @@ impl Default for Timing {
 const OPS_PER_APPEND: usize = 4096;
 /// Entries a primary has in flight to one copy at most.
 const INFLIGHT: u64 = 65_536;
-/// Applied entries a copy keeps in memory to catch a lagging copy up (beyond them a
-/// snapshot is sent).
-pub(crate) const TAIL_KEEP: usize = 262_144;
+/// Applied entries a copy keeps in memory to catch a lagging copy up (beyond them, or
+/// beyond [`KEEP_BYTES`], a snapshot is sent).
+pub(crate) const TAIL_KEEP: usize = 16_384;
 
 /// What the actor must do, in order.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -113,7 +114,7 @@ pub(crate) struct Core {
     voted_for: Option<String>,
     /// (seq, term) of the entry just before `tail` (0, 0: the log's start).
     base: (u64, u64),
-    tail: VecDeque<Op>,
+    tail: Tail,
     commit: u64,
     applied: u64,
     /// The last entry known durable here, as (seq, term).
@@ -129,6 +130,8 @@ pub(crate) struct Core {
     rng: u64,
     /// Applied entries kept in memory ([`TAIL_KEEP`]; less in tests).
     keep: usize,
+    /// Bytes of entries kept in memory ([`KEEP_BYTES`]).
+    keep_bytes: usize,
     /// The configured primary: it campaigns first.
     preferred: bool,
     /// The configured primary's node (the first member as configured).
@@ -197,7 +200,7 @@ impl Core {
             term: restored.term,
             voted_for: restored.voted_for,
             base,
-            tail: tail.into(),
+            tail: tail.into_iter().collect(),
             commit: restored.committed.0,
             applied: restored.committed.0,
             durable: durable_last,
@@ -209,6 +212,7 @@ impl Core {
             visible: BTreeSet::new(),
             rng: seed,
             keep: TAIL_KEEP,
+            keep_bytes: KEEP_BYTES,
             preferred: eager,
             preferred_member,
             handed: None,
@@ -225,6 +229,13 @@ impl Core {
     /// snapshot).
     pub(crate) fn with_tail_keep(mut self, n: usize) -> Core {
         self.keep = n.max(1);
+        self
+    }
+
+    /// Keep at most `bytes` of applied entries in memory ([`KEEP_BYTES`]; less in tests).
+    #[cfg(test)]
+    pub(crate) fn with_tail_bytes(mut self, bytes: usize) -> Core {
+        self.keep_bytes = bytes;
         self
     }
 
@@ -584,12 +595,12 @@ impl Core {
         } else {
             self.applied
         };
-        while self.tail.len() > self.keep {
+        while self.tail.over(self.keep, self.keep_bytes) {
             let Some(front) = self.tail.front() else {
                 break;
             };
             if front.seq > self.applied
-                || (front.seq > keep_from && self.tail.len() <= 2 * self.keep)
+                || (front.seq > keep_from && !self.tail.over(2 * self.keep, 2 * self.keep_bytes))
             {
                 break;
             }

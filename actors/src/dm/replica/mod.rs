@@ -38,11 +38,13 @@ pub(crate) mod apply;
 pub(crate) mod core;
 mod msg;
 mod op;
+pub(crate) mod tail;
 pub(crate) mod vote;
 
 pub use self::core::Timing;
 pub use msg::{InstallPart, Ops, ReplicaMsg};
 pub use op::{Op, OpBody};
+pub use tail::KEEP_BYTES;
 
 /// The `pg` scope the copies of replicated datamanagers meet in.
 pub const SCOPE: &str = "marie.dm";
@@ -57,15 +59,18 @@ pub struct Replication {
     pub members: Vec<String>,
     /// The protocol's clocks.
     pub timing: Timing,
-    /// Applied entries the primary keeps in memory to catch a lagging copy up; a copy
-    /// further behind is sent a snapshot of the store instead
-    /// ([`Replication::DEFAULT_CATCH_UP`]).
+    /// Applied entries the primary keeps in memory to catch a lagging copy up (and at most
+    /// [`KEEP_BYTES`] of them); a copy further behind is sent a snapshot of the store
+    /// instead ([`Replication::DEFAULT_CATCH_UP`]).
     pub catch_up: usize,
 }
 
 impl Replication {
-    /// Default [`Replication::catch_up`]: about a second of puts at full rate (a freeze
-    /// shorter than the failure detector's deadline catches up from memory).
+    /// Default [`Replication::catch_up`]: 16 384 entries — over a second of puts at
+    /// 10 000 a second, so a copy frozen for less than the failure detector's deadline
+    /// catches up from memory, at a few MB with small records. (It was 262 144, about a
+    /// second at the bench's full rate: ~100 MB per copy, and a fifth of a copy's time
+    /// spent filling fresh memory.) A faster producer's lagging copy takes a snapshot.
     pub const DEFAULT_CATCH_UP: usize = core::TAIL_KEEP;
 
     /// Copy `me` of a datamanager kept on `members` (the first is the preferred primary).

@@ -3,7 +3,7 @@
 //! every entry a primary committed (a client's acknowledgement) survives.
 
 use super::*;
-use std::collections::HashMap;
+use std::collections::{HashMap, VecDeque};
 
 const MEMBERS: [&str; 3] = ["a", "b", "c"];
 
@@ -59,15 +59,18 @@ struct Sim {
     pending: Vec<(String, u64, u64, u64)>,
     next_id: u64,
     keep: usize,
+    /// Bytes of entries kept in memory, and of each put's payload.
+    keep_bytes: usize,
+    payload: usize,
     /// What happened: crashes, partitions, snapshots installed, step-downs.
     counts: BTreeMap<&'static str, u64>,
     harsh: bool,
 }
 
-fn put(id: u64) -> OpBody {
+fn put(id: u64, payload: usize) -> OpBody {
     OpBody::Put {
         time_ns: id,
-        record: crate::dm::NewRecord::new("c", crate::dm::Payload::from_bytes(vec![]))
+        record: crate::dm::NewRecord::new("c", crate::dm::Payload::from_bytes(vec![0; payload]))
             .with_source(format!("p{id}")),
     }
 }
@@ -93,6 +96,8 @@ impl Sim {
             pending: Vec::new(),
             next_id: 1,
             keep,
+            keep_bytes: crate::dm::replica::KEEP_BYTES,
+            payload: 0,
             counts: BTreeMap::new(),
             harsh: false,
         };
@@ -153,7 +158,8 @@ impl Sim {
             before: disk.snap,
         };
         let core = Core::new(m, &Sim::members(), timing(), restored, m == "a", self.now)
-            .with_tail_keep(self.keep);
+            .with_tail_keep(self.keep)
+            .with_tail_bytes(self.keep_bytes);
         let copy = self.copies.get_mut(m).unwrap();
         // the store is rebuilt from the disk: the applied prefix
         copy.applied.retain(|o| o.seq <= disk.applied);
@@ -414,7 +420,7 @@ impl Sim {
         let Some(core) = self.copies.get_mut(m).unwrap().core.as_mut() else {
             return;
         };
-        let Some(op) = core.propose(put(id)) else {
+        let Some(op) = core.propose(put(id, self.payload)) else {
             return;
         };
         let (seq, term) = (op.seq, op.term);
@@ -559,6 +565,44 @@ impl Sim {
             assert_eq!(seen.get(id), Some(seq), "acknowledged proposal {id} lost");
         }
     }
+}
+
+#[test]
+fn the_entries_kept_in_memory_are_bounded_in_bytes_too() {
+    // 200 puts of 16 KiB (~3.2 MiB) on copies that may keep 1 MiB: far fewer entries than
+    // the bound in entries, far more bytes
+    let mut sim = Sim::new(5, TAIL_KEEP);
+    sim.keep_bytes = 1 << 20;
+    for m in MEMBERS {
+        sim.crash(m);
+        sim.start(m);
+    }
+    sim.settle();
+    sim.payload = 16 << 10;
+    let leader = sim.leader().expect("a primary");
+    for _ in 0..200 {
+        sim.propose(&leader);
+    }
+    sim.settle();
+    sim.check();
+    for m in MEMBERS {
+        let tail = &sim.copies[m].core.as_ref().expect("running").tail;
+        assert!(
+            tail.bytes() <= 1 << 20 && tail.len() < 100,
+            "{m} keeps {} entries, {} bytes",
+            tail.len(),
+            tail.bytes()
+        );
+    }
+    // and a copy started again on its disk keeps no more than that either
+    sim.crash("b");
+    sim.start("b");
+    let tail = &sim.copies["b"].core.as_ref().unwrap().tail;
+    assert!(
+        tail.bytes() <= 1 << 20,
+        "b restarted keeps {} bytes",
+        tail.bytes()
+    );
 }
 
 #[test]

@@ -1,0 +1,175 @@
+//! The entries a copy holds in memory, and the memory they take.
+//!
+//! A copy keeps its log's newest entries — the uncommitted ones, and the last applied
+//! ones, to catch a lagging copy up without a snapshot. That tail was bounded in entries
+//! only, 262 144 by default: with records of a few dozen bytes that was already ~100 MB
+//! per copy, with 100 KB scans it would have been tens of GB, and filling that much fresh
+//! memory took a fifth of a copy's time in the put-all bench. So it is bounded in bytes too
+//! ([`KEEP_BYTES`]): each entry counts what it holds ([`op_bytes`]), and the tail knows its
+//! sum without walking it; and the default in entries is 16 384.
+
+use super::op::{Op, OpBody};
+use std::collections::VecDeque;
+
+/// Bytes of applied entries a copy keeps in memory at most (with
+/// [`super::Replication::catch_up`] entries at most); a copy further behind is sent a
+/// snapshot.
+pub const KEEP_BYTES: usize = 32 << 20;
+
+/// About what `op` takes in memory: the entry and what its record holds on the heap.
+pub(crate) fn op_bytes(op: &Op) -> usize {
+    std::mem::size_of::<Op>()
+        + match &op.body {
+            OpBody::Put { record, .. } => record.wire_bytes(),
+            OpBody::Delete { seqs } => seqs.len() * std::mem::size_of::<u64>(),
+            OpBody::Noop => 0,
+        }
+}
+
+/// Entries in log order, with the bytes they take.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub(crate) struct Tail {
+    ops: VecDeque<Op>,
+    bytes: usize,
+}
+
+impl Tail {
+    /// How many entries.
+    pub(crate) fn len(&self) -> usize {
+        self.ops.len()
+    }
+
+    /// Whether it holds none.
+    pub(crate) fn is_empty(&self) -> bool {
+        self.ops.is_empty()
+    }
+
+    /// What its entries take ([`op_bytes`] summed).
+    #[cfg(test)]
+    pub(crate) fn bytes(&self) -> usize {
+        self.bytes
+    }
+
+    pub(crate) fn front(&self) -> Option<&Op> {
+        self.ops.front()
+    }
+
+    pub(crate) fn back(&self) -> Option<&Op> {
+        self.ops.back()
+    }
+
+    /// The entry at place `i` (0: the oldest held).
+    pub(crate) fn get(&self, i: usize) -> Option<&Op> {
+        self.ops.get(i)
+    }
+
+    /// The entries, oldest first.
+    #[cfg(test)]
+    pub(crate) fn iter(&self) -> std::collections::vec_deque::Iter<'_, Op> {
+        self.ops.iter()
+    }
+
+    /// The entries at places `range`.
+    pub(crate) fn range(
+        &self,
+        range: std::ops::Range<usize>,
+    ) -> std::collections::vec_deque::Iter<'_, Op> {
+        self.ops.range(range)
+    }
+
+    pub(crate) fn push_back(&mut self, op: Op) {
+        self.bytes += op_bytes(&op);
+        self.ops.push_back(op);
+    }
+
+    pub(crate) fn pop_front(&mut self) -> Option<Op> {
+        let op = self.ops.pop_front()?;
+        self.bytes -= op_bytes(&op);
+        Some(op)
+    }
+
+    /// Keep the first `n` entries.
+    pub(crate) fn truncate(&mut self, n: usize) {
+        for op in self.ops.range(n.min(self.ops.len())..) {
+            self.bytes -= op_bytes(op);
+        }
+        self.ops.truncate(n);
+    }
+
+    pub(crate) fn clear(&mut self) {
+        self.ops.clear();
+        self.bytes = 0;
+    }
+
+    /// Whether it holds more than `entries` or more than `bytes`.
+    pub(crate) fn over(&self, entries: usize, bytes: usize) -> bool {
+        self.ops.len() > entries || self.bytes > bytes
+    }
+}
+
+impl From<Tail> for Vec<Op> {
+    fn from(tail: Tail) -> Vec<Op> {
+        tail.ops.into()
+    }
+}
+
+impl std::ops::Index<usize> for Tail {
+    type Output = Op;
+    fn index(&self, i: usize) -> &Op {
+        &self.ops[i]
+    }
+}
+
+impl Extend<Op> for Tail {
+    fn extend<I: IntoIterator<Item = Op>>(&mut self, ops: I) {
+        for op in ops {
+            self.push_back(op);
+        }
+    }
+}
+
+impl FromIterator<Op> for Tail {
+    fn from_iter<I: IntoIterator<Item = Op>>(ops: I) -> Tail {
+        let mut tail = Tail::default();
+        tail.extend(ops);
+        tail
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dm::record::{NewRecord, Payload};
+
+    fn put(seq: u64, payload: usize) -> Op {
+        Op {
+            seq,
+            term: 1,
+            body: OpBody::Put {
+                time_ns: 0,
+                record: NewRecord::new("c", Payload::from_bytes(vec![0; payload])),
+            },
+        }
+    }
+
+    #[test]
+    fn it_counts_what_its_entries_take_through_every_change() {
+        let mut tail: Tail = (1..=4).map(|s| put(s, 100 * s as usize)).collect();
+        let sum = |t: &Tail| (0..t.len()).map(|i| op_bytes(&t[i])).sum::<usize>();
+        assert_eq!(tail.bytes(), sum(&tail));
+        assert!(tail.bytes() > 1000);
+        tail.pop_front();
+        assert_eq!(tail.bytes(), sum(&tail));
+        tail.truncate(1);
+        assert_eq!((tail.len(), tail.bytes()), (1, op_bytes(&put(2, 200))));
+        tail.push_back(Op {
+            seq: 3,
+            term: 1,
+            body: OpBody::Delete { seqs: vec![1, 2] },
+        });
+        assert_eq!(tail.bytes(), sum(&tail));
+        assert!(tail.over(1, usize::MAX) && tail.over(9, 10) && !tail.over(2, usize::MAX));
+        tail.clear();
+        assert_eq!((tail.len(), tail.bytes()), (0, 0));
+    }
+}
