@@ -904,6 +904,14 @@ impl Core {
             answer(self, false, out);
             return;
         }
+        if !up_to_date && self.leader.is_none() && !self.is_leader() {
+            // the candidate cannot win this copy's vote, and no primary is known: campaign
+            // soon rather than at this copy's election timeout — else, when this copy's own
+            // campaign was refused by one that had not yet seen the primary go (stickiness),
+            // nobody could win until that timeout (the failover bench's 3.2 s rounds)
+            let soon = now + self.rank_delay(None);
+            self.deadline = self.deadline.min(soon);
+        }
         if pre {
             answer(self, term > self.term && up_to_date, out);
             return;

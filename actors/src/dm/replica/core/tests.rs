@@ -62,6 +62,8 @@ struct Sim {
     /// Bytes of entries kept in memory, and of each put's payload.
     keep_bytes: usize,
     payload: usize,
+    /// The protocol's clocks ([`timing`] unless a test sets them).
+    timing: Timing,
     /// What happened: crashes, partitions, snapshots installed, step-downs.
     counts: BTreeMap<&'static str, u64>,
     harsh: bool,
@@ -98,6 +100,7 @@ impl Sim {
             keep,
             keep_bytes: crate::dm::replica::KEEP_BYTES,
             payload: 0,
+            timing: timing(),
             counts: BTreeMap::new(),
             harsh: false,
         };
@@ -157,9 +160,16 @@ impl Sim {
                 .collect(),
             before: disk.snap,
         };
-        let core = Core::new(m, &Sim::members(), timing(), restored, m == "a", self.now)
-            .with_tail_keep(self.keep)
-            .with_tail_bytes(self.keep_bytes);
+        let core = Core::new(
+            m,
+            &Sim::members(),
+            self.timing,
+            restored,
+            m == "a",
+            self.now,
+        )
+        .with_tail_keep(self.keep)
+        .with_tail_bytes(self.keep_bytes);
         let copy = self.copies.get_mut(m).unwrap();
         // the store is rebuilt from the disk: the applied prefix
         copy.applied.retain(|o| o.seq <= disk.applied);
@@ -602,6 +612,68 @@ fn the_entries_kept_in_memory_are_bounded_in_bytes_too() {
         tail.bytes() <= 1 << 20,
         "b restarted keeps {} bytes",
         tail.bytes()
+    );
+}
+
+#[test]
+fn a_more_up_to_date_copy_refused_by_a_copy_that_had_not_seen_the_primary_go_is_elected_soon() {
+    // the failover bench's 3.2 s rounds: b, more up to date, campaigns first and is refused
+    // by c, which has not yet seen the primary go; c, once it has, campaigns and b refuses
+    // it (c lacks an entry). Nobody campaigned again before b's election timeout (2.5 s
+    // and more): now b, refusing a less up-to-date candidate with no primary known,
+    // campaigns again soon
+    let mut sim = Sim::new(11, TAIL_KEEP);
+    sim.timing = Timing {
+        heartbeat: Duration::from_millis(250),
+        election: Duration::from_millis(2500),
+    };
+    for m in MEMBERS {
+        sim.crash(m);
+    }
+    for m in MEMBERS {
+        sim.start(m);
+    }
+    let all = &mut |_: &str, _: &str, _: &mut ReplicaMsg| true;
+    for _ in 0..200 {
+        sim.now += Duration::from_millis(5);
+        sim.tick_all();
+        exchange(&mut sim, all);
+    }
+    sim.settle();
+    assert_eq!(sim.leader().as_deref(), Some("a"));
+    // a's last entry reaches b only; then a is lost, and only b sees it go
+    sim.propose("a");
+    sim.wires.remove(&("a".to_string(), "c".to_string()));
+    exchange(&mut sim, &mut |f, t, _| !(f == "c" || t == "c"));
+    assert!(
+        sim.core("b").last() > sim.core("c").last(),
+        "b holds one more"
+    );
+    sim.copies.get_mut("a").unwrap().core = None;
+    for other in ["b", "c"] {
+        sim.wires.remove(&("a".to_string(), other.to_string()));
+        sim.wires.remove(&(other.to_string(), "a".to_string()));
+    }
+    let lost = sim.now;
+    sim.core("b").peer_down("a", lost);
+    let mut c_saw = false;
+    while sim.leader().is_none() {
+        sim.now += Duration::from_millis(5);
+        if !c_saw && sim.now - lost >= Duration::from_millis(300) {
+            // c's failure detector, later than b's (b has campaigned and been refused by now)
+            let now = sim.now;
+            sim.core("c").peer_down("a", now);
+            c_saw = true;
+        }
+        sim.tick_all();
+        exchange(&mut sim, all);
+        assert!(sim.now - lost < Duration::from_secs(10), "no primary");
+    }
+    let took = sim.now - lost;
+    assert_eq!(sim.leader().as_deref(), Some("b"), "the more up to date");
+    assert!(
+        took < Duration::from_millis(1000),
+        "a primary only {took:?} after the loss"
     );
 }
 
