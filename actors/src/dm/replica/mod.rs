@@ -26,7 +26,9 @@
 //!   copy leave its group (the node's failure detector closes a lost node's sessions), the
 //!   lower-ranked copies first; an election timeout is the backstop. Pre-votes and leader
 //!   stickiness keep a copy that was cut off from unseating a working primary when it
-//!   comes back.
+//!   comes back; a copy that refuses a less up-to-date candidate while no primary is known
+//!   campaigns soon itself (the candidate cannot win, and this copy may have been refused
+//!   by one that had not yet seen the primary go).
 //! - **Catching up**: a copy that lags gets the entries it lacks, or — when the primary
 //!   no longer holds them in memory — a snapshot of the committed store in parts.
 //!
