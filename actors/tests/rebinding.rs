@@ -437,7 +437,8 @@ async fn an_operation_lost_between_actions_is_rebound_before_its_next_action() {
     let b = start("rb-between-b", "1.0.0").await;
     let _sup = replace_on_death("rb-between-b", 1).await;
     // both raise `done`: the second action runs once the first has finished
-    let src = r#"
+    let src = format!(
+        r#"
         [mission]
         name = "between"
         success = ["done"]
@@ -446,14 +447,15 @@ async fn an_operation_lost_between_actions_is_rebound_before_its_next_action() {
         [[action]]
         name = "first"
         [action.ops.rb-between-a]
-        steps = 1500
+        steps = {STEPS}
         [[action]]
         name = "second"
         when = ["done"]
         [action.ops.rb-between-b]
         steps = 5
-    "#;
-    let (run, mut events) = launch(src).await;
+    "#
+    );
+    let (run, mut events) = launch(&src).await;
     activated(&a).await;
     b.actor().kill(); // b is bound but idle
     let record = event(&mut events, |e| match e {

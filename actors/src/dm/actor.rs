@@ -352,13 +352,6 @@ impl DmState {
     }
 }
 
-/// A page's bound in bytes: what the caller asked, never above the frame limit.
-fn page_max(max_bytes: u64) -> usize {
-    usize::try_from(max_bytes)
-        .unwrap_or(usize::MAX)
-        .clamp(1, super::page::PAGE_BYTES)
-}
-
 /// Same rule as the registry's: a single word of letters, digits, `-`, `_`, `.`, not all
 /// digits (those are ids). Checked first in `pre_start`, so a bad name fails the spawn
 /// before anything is published.
@@ -555,7 +548,11 @@ impl Actor for Datamanager {
                 max_bytes,
                 reply,
             } => {
-                let _ = reply.send(state.store.select_page(&query, page_max(max_bytes)));
+                let _ = reply.send(
+                    state
+                        .store
+                        .select_page(&query, super::page::bound(max_bytes)),
+                );
             }
             DmMsg::SelectWait {
                 query,
@@ -568,7 +565,7 @@ impl Actor for Datamanager {
                 max_bytes,
                 reply,
             } => {
-                let max_bytes = page_max(max_bytes);
+                let max_bytes = super::page::bound(max_bytes);
                 let reply = WaitReply::Paged { reply, max_bytes };
                 state.select_wait(&myself, *query, timeout_ms, reply)
             }

@@ -583,9 +583,10 @@ impl DmClient {
                     unacked.sent(&self.target(), batch);
                     // it went to an instance other than the one the unacknowledged went
                     // to: those go again (and this one with them, stored once)
-                    return match moved {
-                        true => self.send_again(unacked, None).await,
-                        false => Ok(()),
+                    return if moved {
+                        self.send_again(unacked, None).await
+                    } else {
+                        Ok(())
                     };
                 }
                 Err(DmError::Unreachable(_)) | Err(DmError::Timeout { .. }) => {

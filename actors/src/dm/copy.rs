@@ -85,7 +85,7 @@ impl Copy {
                 voted_for,
                 committed: log.committed,
                 tail: log.tail,
-                applied: log.applied.into(),
+                applied: log.applied,
                 before: log.before,
             },
             None if store.next_seq() > 1 => {

@@ -34,6 +34,14 @@ pub struct Page {
     pub rest: Option<Query>,
 }
 
+/// A page's bound in bytes: what the caller asked, never above [`PAGE_BYTES`] (the frame
+/// limit), at least 1.
+pub(crate) fn bound(max_bytes: u64) -> usize {
+    usize::try_from(max_bytes)
+        .unwrap_or(usize::MAX)
+        .clamp(1, PAGE_BYTES)
+}
+
 /// About what `record` takes in a frame.
 pub(crate) fn record_bytes(record: &Record) -> usize {
     // the header's numbers and the encoding's marks

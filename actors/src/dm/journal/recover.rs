@@ -12,6 +12,7 @@
 use super::entry::{self, Entry, Torn};
 use super::segment;
 use crate::dm::producers::Producers;
+use crate::dm::replica::tail::{Tail, KEEP_BYTES};
 use crate::dm::replica::{apply, Op, OpBody};
 use crate::dm::store::{DmConfig, Store};
 use crate::fence::FenceTable;
@@ -73,7 +74,6 @@ pub(crate) struct ReplicaLog {
 
 /// Committed entries a replay keeps ([`ReplicaLog::applied`]).
 const TAIL_KEEP: usize = crate::dm::replica::core::TAIL_KEEP;
-use crate::dm::replica::tail::{Tail, KEEP_BYTES};
 
 /// What a replay rebuilds.
 #[derive(Default)]

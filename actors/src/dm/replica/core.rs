@@ -154,7 +154,7 @@ pub(crate) struct Restored {
     pub(crate) tail: Vec<Op>,
     /// Committed (applied) entries its journal still holds, ending with `committed`: kept
     /// to catch a lagging copy up without a snapshot, should it become the primary.
-    pub(crate) applied: Vec<Op>,
+    pub(crate) applied: Tail,
     /// (seq, term) of the entry just before the first of `applied` (unused when empty).
     pub(crate) before: (u64, u64),
 }
@@ -186,11 +186,11 @@ impl Core {
             .last()
             .map_or(restored.committed, |o| (o.seq, o.term));
         // the applied entries it still has, if they end where the committed ones do
-        let (base, mut tail) = match restored.applied.last() {
+        let (base, mut tail) = match restored.applied.back() {
             Some(last) if (last.seq, last.term) == restored.committed => {
                 (restored.before, restored.applied)
             }
-            _ => (restored.committed, Vec::new()),
+            _ => (restored.committed, Tail::default()),
         };
         tail.extend(restored.tail);
         let mut core = Core {
@@ -200,7 +200,7 @@ impl Core {
             term: restored.term,
             voted_for: restored.voted_for,
             base,
-            tail: tail.into_iter().collect(),
+            tail,
             commit: restored.committed.0,
             applied: restored.committed.0,
             durable: durable_last,
@@ -908,7 +908,7 @@ impl Core {
             // the candidate cannot win this copy's vote, and no primary is known: campaign
             // soon rather than at this copy's election timeout — else, when this copy's own
             // campaign was refused by one that had not yet seen the primary go (stickiness),
-            // nobody could win until that timeout (the failover bench's 3.2 s rounds)
+            // nobody could win until that timeout (a 3.2 s election with the default clocks)
             let soon = now + self.rank_delay(None);
             self.deadline = self.deadline.min(soon);
         }

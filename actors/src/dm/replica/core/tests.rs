@@ -617,11 +617,11 @@ fn the_entries_kept_in_memory_are_bounded_in_bytes_too() {
 
 #[test]
 fn a_more_up_to_date_copy_refused_by_a_copy_that_had_not_seen_the_primary_go_is_elected_soon() {
-    // the failover bench's 3.2 s rounds: b, more up to date, campaigns first and is refused
-    // by c, which has not yet seen the primary go; c, once it has, campaigns and b refuses
-    // it (c lacks an entry). Nobody campaigned again before b's election timeout (2.5 s
-    // and more): now b, refusing a less up-to-date candidate with no primary known,
-    // campaigns again soon
+    // b, more up to date, campaigns first and is refused by c, which has not yet seen the
+    // primary go; c, once it has, campaigns and b refuses it (c lacks an entry). Nobody
+    // campaigned again before b's election timeout (2.5 s and more: 3.245 s in all, with
+    // the default clocks): now b, refusing a less up-to-date candidate with no primary
+    // known, campaigns again soon. (Not the failover bench's slow rounds: those remain.)
     let mut sim = Sim::new(11, TAIL_KEEP);
     sim.timing = Timing {
         heartbeat: Duration::from_millis(250),
