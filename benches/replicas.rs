@@ -19,6 +19,8 @@
 //! cargo bench --bench replicas -- failover     # one section: put-all, failover
 //! MARIE_BENCH_DM='catch_up = 100000' cargo bench --bench replicas -- put-all
 //!                                              # more lines for the datamanager's config
+//! MARIE_BENCH_LOGS=/tmp/logs cargo bench --bench replicas -- failover
+//!                                              # each node's log (info) in /tmp/logs/NAME.log
 //! ```
 
 use marie::actors::dm::{DmClient, NewRecord, Payload};
@@ -74,8 +76,11 @@ struct Kid {
 
 impl Kid {
     fn spawn(mut command: Command, stderr: Stdio) -> Kid {
+        // the parent's RUST_LOG is not the child's, unless the caller set one for it
+        if !command.get_envs().any(|(k, _)| k == "RUST_LOG") {
+            command.env_remove("RUST_LOG");
+        }
         let mut child = command
-            .env_remove("RUST_LOG")
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
             .stderr(stderr)
@@ -148,8 +153,22 @@ fn node(dir: &Path, name: &str, copies: &[&str], peers: &[SocketAddr]) -> (Kid, 
         path.to_str().unwrap(),
         "--stop-with-stdin",
     ]);
-    // a node's warnings (peers declared down, a primary stepping down) are the point here
-    let kid = Kid::spawn(c, Stdio::null());
+    // a node's log, to read a slow round afterwards: `MARIE_BENCH_LOGS=DIR` keeps each
+    // node's (RUST_LOG=info, appended per incarnation) in DIR/NAME.log
+    let stderr = match std::env::var_os("MARIE_BENCH_LOGS") {
+        Some(logs) => {
+            let _ = std::fs::create_dir_all(&logs);
+            c.env("RUST_LOG", "info");
+            let file = std::fs::OpenOptions::new()
+                .create(true)
+                .append(true)
+                .open(Path::new(&logs).join(format!("{name}.log")))
+                .expect("a log file");
+            Stdio::from(file)
+        }
+        None => Stdio::null(),
+    };
+    let kid = Kid::spawn(c, stderr);
     let line = kid.wait_line(&format!("node {name} listening on "));
     let addr = line
         .split_once(" listening on ")
@@ -366,7 +385,8 @@ fn failover() {
             }
         };
         println!(
-            "  {kind} of {primary}: the first store acknowledged by another copy after {gap:.0} ms"
+            "  {kind} of {primary} at {:.3} (unix s): the first store acknowledged by another copy after {gap:.0} ms",
+            hit as f64 / 1e9
         );
         gaps.push((kind, gap));
         if kind == "kill -9" {

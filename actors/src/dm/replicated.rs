@@ -268,10 +268,17 @@ impl DmState {
 
     /// Carry out what the core asked for, in order.
     fn carry_out(&mut self, myself: &ActorRef<DmMsg>, out: Vec<Out>) {
+        // once it steps down, it still keeps its term and vote and sends its answers (a
+        // vote it granted, a refusal), and then stops: a granted vote dropped with the
+        // actor could cost the candidate its election
+        let mut stopping: Option<String> = None;
         for o in out {
             let Some(copy) = self.replica.as_mut() else {
                 return;
             };
+            if stopping.is_some() && !matches!(o, Out::Persist | Out::Send(..)) {
+                continue;
+            }
             match o {
                 Out::Persist => {
                     let (term, vote) = (copy.core.term(), copy.core.voted_for());
@@ -368,11 +375,14 @@ impl DmState {
                             why: why.clone(),
                         });
                     }
-                    myself.stop(Some(format!("no longer the primary: {why}")));
-                    return;
+                    stopping = Some(why);
                 }
                 Out::Install(to, seq, term) => self.send_snapshot(&to, (seq, term)),
             }
+        }
+        if let Some(why) = stopping {
+            myself.stop(Some(format!("no longer the primary: {why}")));
+            return;
         }
         if let Some(copy) = self.replica.as_mut() {
             copy.core.trim();

@@ -254,7 +254,12 @@ impl Sim {
 
     fn carry_out(&mut self, m: &str, out: Vec<Out>) {
         let mut queue: VecDeque<Out> = out.into();
+        // as the actor: once stepped down, only its term, vote and answers, then a restart
+        let mut stopping = false;
         while let Some(o) = queue.pop_front() {
+            if stopping && !matches!(o, Out::Persist | Out::Send(..)) {
+                continue;
+            }
             if std::env::var_os("SIM_TRACE").is_some() {
                 let c = self.copies[m].core.as_ref();
                 eprintln!(
@@ -367,11 +372,7 @@ impl Sim {
                 }
                 Out::StepDown(_) => {
                     *self.counts.entry("step-downs").or_default() += 1;
-                    // the actor stops and its supervisor starts it again from its disk
-                    self.pending.retain(|p| p.0 != m);
-                    self.crash(m);
-                    self.start(m);
-                    return;
+                    stopping = true;
                 }
                 Out::Install(to, seq, term) => {
                     // the committed store up to `seq`, taken in by `to` in one go
@@ -406,6 +407,25 @@ impl Sim {
                 }
             }
         }
+        if stopping {
+            // the actor stops and its supervisor starts it again from its disk
+            self.restart(m);
+        }
+    }
+
+    /// Copy `m`'s actor stopped and was started again (its node lives on): what it sent
+    /// is still on its way, what was on its way to it is lost.
+    fn restart(&mut self, m: &str) {
+        self.copies.get_mut(m).unwrap().core = None;
+        self.pending.retain(|p| p.0 != m);
+        for other in MEMBERS {
+            self.wires.remove(&(other.to_string(), m.to_string()));
+            if other != m && self.copies[other].core.is_some() {
+                let now = self.now;
+                self.core(other).peer_down(m, now);
+            }
+        }
+        self.start(m);
     }
 
     fn deliver(&mut self, from: &str, to: &str) {
@@ -675,6 +695,137 @@ fn a_more_up_to_date_copy_refused_by_a_copy_that_had_not_seen_the_primary_go_is_
         took < Duration::from_millis(1000),
         "a primary only {took:?} after the loss"
     );
+}
+
+/// A stand-in primary (not `a`, the configured one) elected while `a` was down, and `a`
+/// back and caught up, with the stand-in's `TimeoutNow` to it held back: (stand-in, the
+/// third copy, the held message).
+fn a_hand_over_held(sim: &mut Sim) -> (String, String, ReplicaMsg) {
+    sim.crash("a");
+    let all = &mut |_: &str, _: &str, _: &mut ReplicaMsg| true;
+    let stand_in = elect(sim, all);
+    assert_ne!(stand_in, "a");
+    let third = if stand_in == "b" { "c" } else { "b" }.to_string();
+    sim.propose(&stand_in);
+    exchange(sim, all);
+    let mut held = None;
+    sim.start("a");
+    exchange(sim, &mut |_, _, m| {
+        if matches!(m, ReplicaMsg::TimeoutNow { .. }) {
+            held = Some(m.clone());
+            return false;
+        }
+        true
+    });
+    let held = held.expect("the stand-in hands over once a is caught up");
+    assert_eq!(sim.core("a").last(), sim.core(&stand_in).last());
+    (stand_in, third, held)
+}
+
+#[test]
+fn a_primary_handing_over_while_it_takes_writes_gets_the_configured_copy_elected_at_once() {
+    // The failover bench's rounds of failed hand-overs: the stand-in asked a to take over
+    // and went on taking writes; the third copy got one a had not yet, refused a its vote,
+    // the stand-in stepped down at a's campaign all the same — and the next primary handed
+    // over again, one failed round every ~0.8 s. Now the other copies get nothing past the
+    // hand-over's seq for a while: a wins at its first campaign.
+    let mut sim = Sim::new(17, TAIL_KEEP);
+    sim.settle();
+    let (stand_in, third, held) = a_hand_over_held(&mut sim);
+    let term = sim.core(&stand_in).term();
+    // a write after the hand-over: it reaches the third copy only (a's copy is delayed)
+    sim.propose(&stand_in);
+    exchange(&mut sim, &mut |_, t, _| t != "a");
+    sim.wires
+        .entry((stand_in.clone(), "a".to_string()))
+        .or_default()
+        .push_back(held);
+    exchange(&mut sim, &mut |_, _, _| true);
+    assert_eq!(
+        sim.leader().as_deref(),
+        Some("a"),
+        "a elected at the hand-over; the third copy {third} holds {:?}, a {:?}",
+        sim.core(&third).last(),
+        sim.core("a").last()
+    );
+    assert_eq!(sim.core("a").term(), term + 1, "at its first campaign");
+    sim.settle();
+    sim.check();
+}
+
+#[test]
+fn a_copy_that_took_a_less_up_to_date_candidates_term_campaigns_soon_once_its_primary_is_lost() {
+    // The failover bench's slow SIGSTOP rounds: a campaigned (asked to take over) lacking
+    // an entry the third copy had; the third copy took a's term, refused it, and forgot its
+    // primary — which was frozen just then. Its failure detector's word about that node no
+    // longer moved its election (not its primary any more): nobody campaigned until its
+    // election timeout (3.25 s in the bench). Now it campaigns soon after refusing.
+    let mut sim = Sim::new(19, TAIL_KEEP);
+    sim.timing = Timing {
+        heartbeat: Duration::from_millis(100),
+        election: Duration::from_millis(2500),
+    };
+    for m in MEMBERS {
+        sim.crash(m);
+    }
+    for m in MEMBERS {
+        sim.start(m);
+    }
+    let all = &mut |_: &str, _: &str, _: &mut ReplicaMsg| true;
+    for _ in 0..200 {
+        sim.now += Duration::from_millis(5);
+        sim.tick_all();
+        exchange(&mut sim, all);
+    }
+    sim.settle();
+    let (stand_in, third, held) = a_hand_over_held(&mut sim);
+    let term = sim.core(&stand_in).term() + 1;
+    // past the hand-over's quiet while, a write reaches the third copy and not a
+    sim.now += sim.timing.election / 2;
+    sim.propose(&stand_in);
+    exchange(&mut sim, &mut |_, t, _| t != "a");
+    assert!(sim.core(&third).last() > sim.core("a").last());
+    // a campaigns, and the stand-in is frozen before a's vote request reaches it
+    sim.wires
+        .entry((stand_in.clone(), "a".to_string()))
+        .or_default()
+        .push_back(held);
+    exchange(&mut sim, &mut |f, t, _| f != "a" || t != stand_in);
+    sim.copies.get_mut(&stand_in).unwrap().core = None;
+    for other in MEMBERS {
+        sim.wires.remove(&(stand_in.clone(), other.to_string()));
+        sim.wires.remove(&(other.to_string(), stand_in.clone()));
+    }
+    assert_eq!(sim.core(&third).leader(), None, "it took a's term");
+    let lost = sim.now;
+    let mut seen = false;
+    while sim.leader().is_none() {
+        sim.now += Duration::from_millis(5);
+        if !seen && sim.now - lost >= Duration::from_millis(1200) {
+            // the failure detectors' word, about a node no longer anyone's primary
+            for m in ["a", third.as_str()] {
+                let now = sim.now;
+                sim.core(m).peer_down(&stand_in, now);
+            }
+            seen = true;
+        }
+        sim.tick_all();
+        exchange(&mut sim, all);
+        assert!(sim.now - lost < Duration::from_secs(10), "no primary");
+    }
+    let took = sim.now - lost;
+    // (the third copy, more up to date, is elected; it may have handed a the role since)
+    assert!(
+        sim.leaders.range(term..).any(|(_, l)| *l == third),
+        "the more up to date elected: {:?}",
+        sim.leaders
+    );
+    assert!(
+        took < Duration::from_millis(1000),
+        "a primary only {took:?} after the loss"
+    );
+    sim.settle();
+    sim.check();
 }
 
 #[test]
