@@ -31,6 +31,8 @@ pub(crate) struct Copy {
     pub(crate) last_time: Duration,
     /// A snapshot being received from the primary.
     pub(crate) incoming: Option<Incoming>,
+    /// The entries of the `Append` being handled, as they came: journaled as they are.
+    pub(crate) arrived: Option<std::sync::Arc<super::replica::RawOps>>,
     /// Snapshots taken in since it started.
     pub(crate) snapshots_taken: u64,
     ticker: tokio::task::JoinHandle<()>,
@@ -138,6 +140,7 @@ impl Copy {
             started,
             last_time: store.last_time(),
             incoming: None,
+            arrived: None,
             snapshots_taken: 0,
             ticker,
             name: name.to_string(),

@@ -179,9 +179,17 @@ impl DmState {
                     return;
                 }
             }
-            msg => copy.core.receive(msg, now, &mut out),
+            msg => {
+                if let ReplicaMsg::Append { ops, .. } = &msg {
+                    copy.arrived = Some(ops.raw());
+                }
+                copy.core.receive(msg, now, &mut out);
+            }
         }
         self.carry_out(myself, out);
+        if let Some(copy) = self.replica.as_mut() {
+            copy.arrived = None;
+        }
     }
 
     /// A part of a snapshot sent by the primary.
@@ -298,7 +306,11 @@ impl DmState {
                 Out::Journal(from, to) => {
                     let journal = self.journal.as_mut().expect("a copy has a journal");
                     for op in copy.core.ops(from, to) {
-                        journal.op(op);
+                        // the entries just arrived: their bytes as the primary encoded them
+                        match copy.arrived.as_ref().and_then(|r| r.entry(op.seq, op.term)) {
+                            Some((bytes, put)) => journal.op_encoded(op.seq, op.term, bytes, put),
+                            None => journal.op(op),
+                        }
                     }
                 }
                 Out::Apply(from, to) => {

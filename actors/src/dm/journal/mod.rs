@@ -30,7 +30,7 @@
 //! puts), and both need a newer Rust and tens of crates more. A datamanager needs an ordered
 //! log and a replay, not a B-tree: its index is in memory already.
 
-mod entry;
+pub(crate) mod entry;
 mod lock;
 mod recover;
 mod segment;
@@ -340,6 +340,18 @@ impl Journal {
             OpBody::Noop => entry::encode_mark(&mut self.batch, op.seq, &[]),
         }
         self.last_op = Some((op.seq, op.term));
+        self.written();
+    }
+
+    /// Journal a replicated datamanager's entry `seq` of `term` given as its journal entry
+    /// `bytes` (as the primary sent it: see `replica::Ops`), a put or not.
+    pub(crate) fn op_encoded(&mut self, seq: u64, term: u64, bytes: &[u8], put: bool) {
+        self.term_mark(term);
+        self.batch.extend_from_slice(bytes);
+        if put {
+            self.puts += 1;
+        }
+        self.last_op = Some((seq, term));
         self.written();
     }
 

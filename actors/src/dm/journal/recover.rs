@@ -154,10 +154,12 @@ impl Replay {
                         state.puts += matches!(op.body, OpBody::Put { .. }) as u64;
                         apply::apply(store, &mut state.fences, &mut state.producers, &op);
                         log.applied.push_back(op);
-                        while log.applied.over(TAIL_KEEP, KEEP_BYTES) {
-                            if let Some(o) = log.applied.pop_front() {
-                                log.before = (o.seq, o.term);
-                            }
+                        let over = |len: usize, bytes: usize| len > TAIL_KEEP || bytes > KEEP_BYTES;
+                        if let Some(last) = log
+                            .applied
+                            .drop_front_while(|_, len, bytes| over(len, bytes))
+                        {
+                            log.before = last;
                         }
                     }
                     return;

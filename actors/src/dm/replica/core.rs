@@ -444,7 +444,7 @@ impl Core {
         {
             Some((_, o)) => o.clone(),
             None => {
-                let o = Ops::new(self.tail.range(start..start + n).cloned().collect());
+                let o = Ops::encode(self.tail.range(start..start + n));
                 shared.push((prev_seq + 1, o.clone()));
                 o
             }
@@ -612,17 +612,13 @@ impl Core {
         } else {
             self.applied
         };
-        while self.tail.over(self.keep, self.keep_bytes) {
-            let Some(front) = self.tail.front() else {
-                break;
-            };
-            if front.seq > self.applied
-                || (front.seq > keep_from && !self.tail.over(2 * self.keep, 2 * self.keep_bytes))
-            {
-                break;
-            }
-            let op = self.tail.pop_front().expect("front exists");
-            self.base = (op.seq, op.term);
+        let (keep, keep_bytes, applied) = (self.keep, self.keep_bytes, self.applied);
+        let over = |len: usize, bytes: usize, k: usize| len > keep * k || bytes > keep_bytes * k;
+        let dropped = self.tail.drop_front_while(|op, len, bytes| {
+            over(len, bytes, 1) && op.seq <= applied && (op.seq <= keep_from || over(len, bytes, 2))
+        });
+        if let Some(last) = dropped {
+            self.base = last;
         }
     }
 

@@ -44,6 +44,7 @@ pub(crate) mod tail;
 pub(crate) mod vote;
 
 pub use self::core::Timing;
+pub(crate) use msg::RawOps;
 pub use msg::{InstallPart, Ops, ReplicaMsg};
 pub use op::{Op, OpBody};
 pub use tail::KEEP_BYTES;

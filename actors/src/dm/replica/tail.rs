@@ -54,10 +54,6 @@ impl Tail {
         self.bytes
     }
 
-    pub(crate) fn front(&self) -> Option<&Op> {
-        self.ops.front()
-    }
-
     pub(crate) fn back(&self) -> Option<&Op> {
         self.ops.back()
     }
@@ -86,10 +82,27 @@ impl Tail {
         self.ops.push_back(op);
     }
 
-    pub(crate) fn pop_front(&mut self) -> Option<Op> {
-        let op = self.ops.pop_front()?;
-        self.bytes -= op_bytes(&op);
-        Some(op)
+    /// Drop the oldest entries while `drop(entry, entries held, bytes held)` says so, where
+    /// they lie (no entry is moved out: a trim of hundreds at a time after every batch was a
+    /// copy of each); (seq, term) of the last dropped, if any.
+    pub(crate) fn drop_front_while(
+        &mut self,
+        mut drop: impl FnMut(&Op, usize, usize) -> bool,
+    ) -> Option<(u64, u64)> {
+        let (mut n, mut len, mut bytes) = (0, self.ops.len(), self.bytes);
+        let mut last = None;
+        for op in &self.ops {
+            if !drop(op, len, bytes) {
+                break;
+            }
+            n += 1;
+            len -= 1;
+            bytes -= op_bytes(op);
+            last = Some((op.seq, op.term));
+        }
+        self.ops.drain(..n);
+        self.bytes = bytes;
+        last
     }
 
     /// Keep the first `n` entries.
@@ -106,6 +119,7 @@ impl Tail {
     }
 
     /// Whether it holds more than `entries` or more than `bytes`.
+    #[cfg(test)]
     pub(crate) fn over(&self, entries: usize, bytes: usize) -> bool {
         self.ops.len() > entries || self.bytes > bytes
     }
@@ -150,14 +164,28 @@ mod tests {
         }
     }
 
+    /// The last `len` of the four entries the test starts with.
+    fn tail_of(len: usize) -> Tail {
+        (5 - len as u64..=4)
+            .map(|s| put(s, 100 * s as usize))
+            .collect()
+    }
+
     #[test]
     fn it_counts_what_its_entries_take_through_every_change() {
         let mut tail: Tail = (1..=4).map(|s| put(s, 100 * s as usize)).collect();
         let sum = |t: &Tail| (0..t.len()).map(|i| op_bytes(&t[i])).sum::<usize>();
         assert_eq!(tail.bytes(), sum(&tail));
         assert!(tail.bytes() > 1000);
-        tail.pop_front();
-        assert_eq!(tail.bytes(), sum(&tail));
+        // dropped from the front while the count held, as it is told, is above 3
+        let last = tail.drop_front_while(|_, len, bytes| {
+            assert_eq!(bytes, sum(&tail_of(len)));
+            len > 3
+        });
+        assert_eq!(last, Some((1, 1)));
+        assert_eq!((tail.len(), tail.bytes()), (3, sum(&tail)));
+        assert_eq!(tail.drop_front_while(|_, _, _| false), None);
+        assert_eq!(tail.len(), 3);
         tail.truncate(1);
         assert_eq!((tail.len(), tail.bytes()), (1, op_bytes(&put(2, 200))));
         tail.push_back(Op {
