@@ -28,7 +28,9 @@
 //!   stickiness keep a copy that was cut off from unseating a working primary when it
 //!   comes back; a copy that refuses a less up-to-date candidate while no primary is known
 //!   campaigns soon itself (the candidate cannot win, and this copy may have been refused
-//!   by one that had not yet seen the primary go).
+//!   by one that had not yet seen the primary go). A primary not on the configured node
+//!   hands its role there once that copy caught up, and meanwhile sends the others nothing
+//!   that copy may lack (so none of them refuses it its vote).
 //! - **Catching up**: a copy that lags gets the entries it lacks, or — when the primary
 //!   no longer holds them in memory — a snapshot of the committed store in parts.
 //!
