@@ -635,16 +635,12 @@ fn the_entries_kept_in_memory_are_bounded_in_bytes_too() {
     );
 }
 
-#[test]
-fn a_more_up_to_date_copy_refused_by_a_copy_that_had_not_seen_the_primary_go_is_elected_soon() {
-    // b, more up to date, campaigns first and is refused by c, which has not yet seen the
-    // primary go; c, once it has, campaigns and b refuses it (c lacks an entry). Nobody
-    // campaigned again before b's election timeout (2.5 s and more: 3.245 s in all, with
-    // the default clocks): now b, refusing a less up-to-date candidate with no primary
-    // known, campaigns again soon. (Not the failover bench's slow rounds: those remain.)
-    let mut sim = Sim::new(11, TAIL_KEEP);
+/// Copies on a 2.5 s election timeout and a `heartbeat_ms` heartbeat (the production
+/// clocks' order), started together and settled with a primary.
+fn with_clocks(seed: u64, heartbeat_ms: u64) -> Sim {
+    let mut sim = Sim::new(seed, TAIL_KEEP);
     sim.timing = Timing {
-        heartbeat: Duration::from_millis(250),
+        heartbeat: Duration::from_millis(heartbeat_ms),
         election: Duration::from_millis(2500),
     };
     for m in MEMBERS {
@@ -660,6 +656,18 @@ fn a_more_up_to_date_copy_refused_by_a_copy_that_had_not_seen_the_primary_go_is_
         exchange(&mut sim, all);
     }
     sim.settle();
+    sim
+}
+
+#[test]
+fn a_more_up_to_date_copy_refused_by_a_copy_that_had_not_seen_the_primary_go_is_elected_soon() {
+    // b, more up to date, campaigns first and is refused by c, which has not yet seen the
+    // primary go; c, once it has, campaigns and b refuses it (c lacks an entry). Nobody
+    // campaigned again before b's election timeout (2.5 s and more: 3.245 s in all, with
+    // the default clocks): now b, refusing a less up-to-date candidate with no primary
+    // known, campaigns again soon.
+    let mut sim = with_clocks(11, 250);
+    let all = &mut |_: &str, _: &str, _: &mut ReplicaMsg| true;
     assert_eq!(sim.leader().as_deref(), Some("a"));
     // a's last entry reaches b only; then a is lost, and only b sees it go
     sim.propose("a");
@@ -760,24 +768,8 @@ fn a_copy_that_took_a_less_up_to_date_candidates_term_campaigns_soon_once_its_pr
     // primary — which was frozen just then. Its failure detector's word about that node no
     // longer moved its election (not its primary any more): nobody campaigned until its
     // election timeout (3.25 s in the bench). Now it campaigns soon after refusing.
-    let mut sim = Sim::new(19, TAIL_KEEP);
-    sim.timing = Timing {
-        heartbeat: Duration::from_millis(100),
-        election: Duration::from_millis(2500),
-    };
-    for m in MEMBERS {
-        sim.crash(m);
-    }
-    for m in MEMBERS {
-        sim.start(m);
-    }
+    let mut sim = with_clocks(19, 100);
     let all = &mut |_: &str, _: &str, _: &mut ReplicaMsg| true;
-    for _ in 0..200 {
-        sim.now += Duration::from_millis(5);
-        sim.tick_all();
-        exchange(&mut sim, all);
-    }
-    sim.settle();
     let (stand_in, third, held) = a_hand_over_held(&mut sim);
     let term = sim.core(&stand_in).term() + 1;
     // past the hand-over's quiet while, a write reaches the third copy and not a
