@@ -140,10 +140,11 @@ impl ReplicaMsg {
 /// On the wire: `count u32 LE | journal entries`, in the datamanager journal's own format
 /// ([`crate::dm::journal`]: length, CRC-32C, body): a `Term` entry before the first entry
 /// and wherever the term changes, then the entries (puts, and marks for deletes and
-/// no-ops) — every byte but the count under a checksum. So a
-/// copy decodes them with the journal's hand-written decoder (a fifth of MessagePack's cost
-/// with field names) and journals each entry's bytes as they came ([`RawOps`]), instead of
-/// encoding every record again; the checksum is checked on arrival.
+/// no-ops) — every byte but the count under a checksum. So a copy decodes them with the
+/// journal's hand-written decoder, not MessagePack with field names, and journals each
+/// entry's bytes as they came instead of encoding every record again (with the primary's
+/// clone of each entry gone too, a copy's CPU per million records in the put-all bench went
+/// from 1.05 s to 0.85 s); the checksum is checked on arrival.
 #[derive(Clone)]
 pub struct Ops(Arc<OpsInner>);
 
