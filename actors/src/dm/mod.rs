@@ -65,6 +65,7 @@ mod actor;
 mod client;
 mod copy;
 pub mod credits;
+mod entry;
 mod error;
 mod follow;
 mod index;

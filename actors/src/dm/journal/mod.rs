@@ -30,7 +30,6 @@
 //! puts), and both need a newer Rust and tens of crates more. A datamanager needs an ordered
 //! log and a replay, not a B-tree: its index is in memory already.
 
-pub(crate) mod entry;
 mod lock;
 mod recover;
 mod segment;
@@ -40,6 +39,7 @@ pub use lock::{DirLock, LockError};
 pub use recover::Recovery;
 pub(crate) use recover::ReplicaLog;
 
+use super::entry;
 use super::error::DmError;
 use super::producers::Producers;
 use super::record::NewRecord;

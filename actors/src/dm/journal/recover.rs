@@ -9,8 +9,8 @@
 //! by a crash is dropped, and the state before it kept. What was kept and dropped is the
 //! [`Recovery`] report. Nothing here panics on any bytes, and nothing corrupt is served.
 
-use super::entry::{self, Entry, Torn};
 use super::segment;
+use crate::dm::entry::{self, Entry, Torn};
 use crate::dm::producers::Producers;
 use crate::dm::replica::tail::{Tail, KEEP_BYTES};
 use crate::dm::replica::{apply, Op, OpBody};

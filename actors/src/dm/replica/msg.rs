@@ -1,7 +1,7 @@
 //! What the copies of a replicated datamanager tell each other (inside `DmMsg::Replica`).
 
 use super::op::{Op, OpBody};
-use crate::dm::journal::entry::{self, Entry};
+use crate::dm::entry::{self, Entry};
 use crate::dm::record::NewRecord;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use std::sync::{Arc, OnceLock};

@@ -1,4 +1,6 @@
-//! One journal entry on disk: a length, a checksum and a body.
+//! One journal entry: a length, a checksum and a body — on disk, and on the wire between
+//! a replicated datamanager's copies (`replica::Ops`), so a copy journals what it was sent
+//! as it came. Below both `journal/` and `replica/`.
 //!
 //! ```text
 //! entry   = len: u32 LE | crc: u32 LE (CRC-32C of body) | body (len bytes)
