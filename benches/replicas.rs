@@ -39,9 +39,12 @@ fn puts() -> u64 {
     std::env::var("MARIE_BENCH_PUTS")
         .ok()
         .and_then(|v| v.parse().ok())
-        .unwrap_or(200_000)
+        .unwrap_or(1_000_000)
 }
-const ROUNDS: usize = 3;
+/// Put-all rounds of each kind. With 200 000 records and 3 rounds a 3-copy round ran at
+/// either ~270 k/s or ~400 k/s (the first of a run often slow), and the median ratio swung
+/// from 0.34x to 0.51x between runs of one build; a million records and 5 rounds steady it.
+const ROUNDS: usize = 5;
 const FAILOVERS: usize = 5;
 /// The child's role, and what it needs.
 const ROLE: &str = "MARIE_BENCH_ROLE";
