@@ -279,6 +279,14 @@ impl<'a> Body<'a> {
         let len = self.u16()?;
         self.str_of(len)
     }
+    /// A count and that many seqs, which must be the rest of the body.
+    fn seqs(&mut self) -> Option<Vec<u64>> {
+        let n = self.u32()? as usize;
+        if self.0.len() != n.checked_mul(8)? {
+            return None;
+        }
+        (0..n).map(|_| self.u64()).collect()
+    }
     fn opt(&mut self) -> Option<Option<String>> {
         match self.u16()? {
             NONE => Some(None),
@@ -318,15 +326,7 @@ fn decode_body(body: &[u8]) -> Option<Entry> {
                 },
             }
         }
-        DELETE => {
-            let n = b.u32()? as usize;
-            if b.0.len() != n.checked_mul(8)? {
-                return None;
-            }
-            Entry::Delete {
-                seqs: (0..n).map(|_| b.u64()).collect::<Option<_>>()?,
-            }
-        }
+        DELETE => Entry::Delete { seqs: b.seqs()? },
         SNAP_OPEN => Entry::SnapOpen {
             next_seq: b.u64()?,
             last_time: Duration::from_nanos(b.u64()?),
@@ -346,17 +346,10 @@ fn decode_body(body: &[u8]) -> Option<Entry> {
         TERM => Entry::Term { term: b.u64()? },
         COMMIT => Entry::Commit { seq: b.u64()? },
         TRUNCATE => Entry::Truncate { seq: b.u64()? },
-        MARK => {
-            let seq = b.u64()?;
-            let n = b.u32()? as usize;
-            if b.0.len() != n.checked_mul(8)? {
-                return None;
-            }
-            Entry::Mark {
-                seq,
-                seqs: (0..n).map(|_| b.u64()).collect::<Option<_>>()?,
-            }
-        }
+        MARK => Entry::Mark {
+            seq: b.u64()?,
+            seqs: b.seqs()?,
+        },
         _ => return None,
     };
     // every byte of the body belongs to a field

@@ -308,7 +308,7 @@ impl DmState {
                     for op in copy.core.ops(from, to) {
                         // the entries just arrived: their bytes as the primary encoded them
                         match copy.arrived.as_ref().and_then(|r| r.entry(op.seq, op.term)) {
-                            Some((bytes, put)) => journal.op_encoded(op.seq, op.term, bytes, put),
+                            Some(bytes) => journal.op_encoded(op, bytes),
                             None => journal.op(op),
                         }
                     }

@@ -328,30 +328,29 @@ impl Journal {
         self.term_mark(op.term);
         match &op.body {
             OpBody::Put { time_ns, record } => {
-                entry::encode_put(
-                    &mut self.batch,
-                    op.seq,
-                    Duration::from_nanos(*time_ns),
-                    record,
-                );
-                self.puts += 1;
+                let time = Duration::from_nanos(*time_ns);
+                entry::encode_put(&mut self.batch, op.seq, time, record);
             }
             OpBody::Delete { seqs } => entry::encode_mark(&mut self.batch, op.seq, seqs),
             OpBody::Noop => entry::encode_mark(&mut self.batch, op.seq, &[]),
         }
-        self.last_op = Some((op.seq, op.term));
-        self.written();
+        self.logged(op);
     }
 
-    /// Journal a replicated datamanager's entry `seq` of `term` given as its journal entry
-    /// `bytes` (as the primary sent it: see `replica::Ops`), a put or not.
-    pub(crate) fn op_encoded(&mut self, seq: u64, term: u64, bytes: &[u8], put: bool) {
-        self.term_mark(term);
+    /// [`Journal::op`] of an entry given as its journal entry `bytes` (as the primary sent
+    /// it: see `replica::Ops`).
+    pub(crate) fn op_encoded(&mut self, op: &Op, bytes: &[u8]) {
+        self.term_mark(op.term);
         self.batch.extend_from_slice(bytes);
-        if put {
+        self.logged(op);
+    }
+
+    /// `op` is in the batch.
+    fn logged(&mut self, op: &Op) {
+        if matches!(op.body, OpBody::Put { .. }) {
             self.puts += 1;
         }
-        self.last_op = Some((seq, term));
+        self.last_op = Some((op.seq, op.term));
         self.written();
     }
 

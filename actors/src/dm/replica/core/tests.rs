@@ -203,15 +203,33 @@ impl Sim {
 
     fn crash(&mut self, m: &str) {
         *self.counts.entry("crashes").or_default() += 1;
+        self.stop(m, true);
+    }
+
+    /// Copy `m` stops, and the others see it go; what was on its way to it is lost, and
+    /// what it sent too if `its_node` went with it (else its node's sessions carry it on).
+    fn stop(&mut self, m: &str, its_node: bool) {
         self.copies.get_mut(m).unwrap().core = None;
         self.pending.retain(|p| p.0 != m);
         for other in MEMBERS {
-            self.wires.remove(&(m.to_string(), other.to_string()));
+            if its_node {
+                self.wires.remove(&(m.to_string(), other.to_string()));
+            }
             self.wires.remove(&(other.to_string(), m.to_string()));
             if other != m && self.copies[other].core.is_some() {
                 let now = self.now;
                 self.core(other).peer_down(m, now);
             }
+        }
+    }
+
+    /// Copy `m`'s node is frozen or cut off: nothing more comes from it or reaches it, and
+    /// nobody has seen it go yet (their failure detectors have not spoken).
+    fn vanish(&mut self, m: &str) {
+        self.copies.get_mut(m).unwrap().core = None;
+        for other in MEMBERS {
+            self.wires.remove(&(m.to_string(), other.to_string()));
+            self.wires.remove(&(other.to_string(), m.to_string()));
         }
     }
 
@@ -416,15 +434,7 @@ impl Sim {
     /// Copy `m`'s actor stopped and was started again (its node lives on): what it sent
     /// is still on its way, what was on its way to it is lost.
     fn restart(&mut self, m: &str) {
-        self.copies.get_mut(m).unwrap().core = None;
-        self.pending.retain(|p| p.0 != m);
-        for other in MEMBERS {
-            self.wires.remove(&(other.to_string(), m.to_string()));
-            if other != m && self.copies[other].core.is_some() {
-                let now = self.now;
-                self.core(other).peer_down(m, now);
-            }
-        }
+        self.stop(m, false);
         self.start(m);
     }
 
@@ -667,7 +677,6 @@ fn a_more_up_to_date_copy_refused_by_a_copy_that_had_not_seen_the_primary_go_is_
     // the default clocks): now b, refusing a less up-to-date candidate with no primary
     // known, campaigns again soon.
     let mut sim = with_clocks(11, 250);
-    let all = &mut |_: &str, _: &str, _: &mut ReplicaMsg| true;
     assert_eq!(sim.leader().as_deref(), Some("a"));
     // a's last entry reaches b only; then a is lost, and only b sees it go
     sim.propose("a");
@@ -677,32 +686,37 @@ fn a_more_up_to_date_copy_refused_by_a_copy_that_had_not_seen_the_primary_go_is_
         sim.core("b").last() > sim.core("c").last(),
         "b holds one more"
     );
-    sim.copies.get_mut("a").unwrap().core = None;
-    for other in ["b", "c"] {
-        sim.wires.remove(&("a".to_string(), other.to_string()));
-        sim.wires.remove(&(other.to_string(), "a".to_string()));
-    }
-    let lost = sim.now;
-    sim.core("b").peer_down("a", lost);
-    let mut c_saw = false;
-    while sim.leader().is_none() {
-        sim.now += Duration::from_millis(5);
-        if !c_saw && sim.now - lost >= Duration::from_millis(300) {
-            // c's failure detector, later than b's (b has campaigned and been refused by now)
-            let now = sim.now;
-            sim.core("c").peer_down("a", now);
-            c_saw = true;
-        }
-        sim.tick_all();
-        exchange(&mut sim, all);
-        assert!(sim.now - lost < Duration::from_secs(10), "no primary");
-    }
-    let took = sim.now - lost;
+    sim.vanish("a");
+    // c's failure detector speaks later than b's (b has campaigned and been refused by then)
+    let took = elected_after_loss(&mut sim, "a", &[("b", 0), ("c", 300)]);
     assert_eq!(sim.leader().as_deref(), Some("b"), "the more up to date");
     assert!(
         took < Duration::from_millis(1000),
         "a primary only {took:?} after the loss"
     );
+}
+
+/// Time passing in steps of 5 ms, every message delivered, until a primary is elected after
+/// `gone` vanished; each `(copy, ms)` sees `gone` leave `ms` after. How long it took.
+fn elected_after_loss(sim: &mut Sim, gone: &str, detectors: &[(&str, u64)]) -> Duration {
+    let lost = sim.now;
+    let mut told = vec![false; detectors.len()];
+    loop {
+        for (i, (m, after)) in detectors.iter().enumerate() {
+            if !told[i] && sim.now - lost >= Duration::from_millis(*after) {
+                let now = sim.now;
+                sim.core(m).peer_down(gone, now);
+                told[i] = true;
+            }
+        }
+        if sim.leader().is_some() {
+            return sim.now - lost;
+        }
+        assert!(sim.now - lost < Duration::from_secs(10), "no primary");
+        sim.now += Duration::from_millis(5);
+        sim.tick_all();
+        exchange(sim, &mut |_, _, _| true);
+    }
 }
 
 /// A stand-in primary (not `a`, the configured one) elected while `a` was down, and `a`
@@ -769,7 +783,6 @@ fn a_copy_that_took_a_less_up_to_date_candidates_term_campaigns_soon_once_its_pr
     // longer moved its election (not its primary any more): nobody campaigned until its
     // election timeout (3.25 s in the bench). Now it campaigns soon after refusing.
     let mut sim = with_clocks(19, 100);
-    let all = &mut |_: &str, _: &str, _: &mut ReplicaMsg| true;
     let (stand_in, third, held) = a_hand_over_held(&mut sim);
     let term = sim.core(&stand_in).term() + 1;
     // past the hand-over's quiet while, a write reaches the third copy and not a
@@ -783,29 +796,11 @@ fn a_copy_that_took_a_less_up_to_date_candidates_term_campaigns_soon_once_its_pr
         .or_default()
         .push_back(held);
     exchange(&mut sim, &mut |f, t, _| f != "a" || t != stand_in);
-    sim.copies.get_mut(&stand_in).unwrap().core = None;
-    for other in MEMBERS {
-        sim.wires.remove(&(stand_in.clone(), other.to_string()));
-        sim.wires.remove(&(other.to_string(), stand_in.clone()));
-    }
+    sim.vanish(&stand_in);
     assert_eq!(sim.core(&third).leader(), None, "it took a's term");
-    let lost = sim.now;
-    let mut seen = false;
-    while sim.leader().is_none() {
-        sim.now += Duration::from_millis(5);
-        if !seen && sim.now - lost >= Duration::from_millis(1200) {
-            // the failure detectors' word, about a node no longer anyone's primary
-            for m in ["a", third.as_str()] {
-                let now = sim.now;
-                sim.core(m).peer_down(&stand_in, now);
-            }
-            seen = true;
-        }
-        sim.tick_all();
-        exchange(&mut sim, all);
-        assert!(sim.now - lost < Duration::from_secs(10), "no primary");
-    }
-    let took = sim.now - lost;
+    // the failure detectors' word comes at their deadline, about a node that is no longer
+    // anyone's primary
+    let took = elected_after_loss(&mut sim, &stand_in, &[("a", 1200), (&third, 1200)]);
     // (the third copy, more up to date, is elected; it may have handed a the role since)
     assert!(
         sim.leaders.range(term..).any(|(_, l)| *l == third),
