@@ -15,8 +15,8 @@
 //!
 //! # On disk
 //! Segments of CRC-32C-checksummed entries (the `segment` and `entry` modules), written on
-//! tokio's blocking pool with group commit (the `writer` module: why not a thread of its
-//! own, too). Deletes and retention make records
+//! tokio's blocking pool with group commit (at `process`, by the datamanager itself when
+//! the writer is idle; the `writer` module says why, and why not a thread of its own). Deletes and retention make records
 //! garbage; once the journal holds more than twice the live records (and at least
 //! [`SNAPSHOT_MIN`] puts), the datamanager writes a snapshot of its live records to a new
 //! segment and the older segments are deleted, so the journal stays within about three times
@@ -164,6 +164,24 @@ struct Inner {
 impl Core {
     fn lock(&self) -> std::sync::MutexGuard<'_, Inner> {
         self.inner.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Write `jobs` on this thread, then put the writer back (nothing queues meanwhile: the
+    /// datamanager that hands jobs over is the one writing).
+    fn write(&self, writer: Writer, jobs: Vec<Job>, shared: &Shared) {
+        let ran = std::panic::catch_unwind(std::panic::AssertUnwindSafe(move || {
+            let mut writer = writer;
+            writer.run(jobs);
+            writer
+        }));
+        let mut inner = self.lock();
+        inner.running = false;
+        match ran {
+            Ok(w) => inner.writer = Some(w),
+            Err(_) => shared.fail("the journal's writer panicked".to_string()),
+        }
+        drop(inner);
+        self.idle.notify_one();
     }
 
     /// Write `jobs`, then every group that queued meanwhile, then put the writer back.
@@ -455,10 +473,19 @@ impl Journal {
             return;
         }
         let jobs = std::mem::take(&mut inner.queue);
+        // At `process` a batch only goes to the page cache: one write(2), done here — the
+        // hop to the blocking pool and back cost more (see the writer module). Syncs, and
+        // snapshots, stay on the pool.
+        let inline = self.durability == Durability::Process
+            && jobs.iter().all(|j| matches!(j, Job::Batch { .. }));
         inner.running = true;
         drop(inner);
         let (core, shared) = (self.core.clone(), self.shared.clone());
-        tokio::task::spawn_blocking(move || core.drain(writer, jobs, shared));
+        if inline {
+            core.write(writer, jobs, &shared);
+        } else {
+            tokio::task::spawn_blocking(move || core.drain(writer, jobs, shared));
+        }
     }
 
     /// Run the acknowledgements of `jobs` (nothing of theirs to write): `Storage` if the
