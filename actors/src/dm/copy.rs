@@ -35,6 +35,11 @@ pub(crate) struct Copy {
     pub(crate) arrived: Option<std::sync::Arc<super::replica::RawOps>>,
     /// Snapshots taken in since it started.
     pub(crate) snapshots_taken: u64,
+    /// The last entry whose producer's pair was noted before it was applied (a primary
+    /// notes its proposals, and at election what it inherited uncommitted): applying one
+    /// up to it notes nothing again — a pair noted twice halved the retries a primary
+    /// recognised (the table keeps a producer's last 1024 pairs, and a window is 1024).
+    pub(crate) noted: u64,
     ticker: tokio::task::JoinHandle<()>,
     /// The datamanager's name.
     pub(crate) name: String,
@@ -142,6 +147,7 @@ impl Copy {
             incoming: None,
             arrived: None,
             snapshots_taken: 0,
+            noted: 0,
             ticker,
             name: name.to_string(),
             events,

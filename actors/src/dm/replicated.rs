@@ -52,6 +52,7 @@ impl DmState {
             .expect("the primary proposes");
         journal.op(op);
         let seq = op.seq;
+        copy.noted = seq;
         if who.0 != 0 {
             self.producers.note(who.0, who.1, seq);
         }
@@ -319,12 +320,8 @@ impl DmState {
                         if let Some(t) = op.time() {
                             copy.last_time = copy.last_time.max(t);
                         }
-                        let class = apply::apply(
-                            &mut self.store,
-                            &mut self.fences,
-                            &mut self.producers,
-                            op,
-                        );
+                        let producers = (op.seq > copy.noted).then_some(&mut self.producers);
+                        let class = apply::apply(&mut self.store, &mut self.fences, producers, op);
                         if let Some(class) = class.filter(|_| !self.waits.is_empty()) {
                             woken.push((class.to_string(), op.seq));
                         }
@@ -347,9 +344,11 @@ impl DmState {
                 Out::Lead => {
                     // its uncommitted entries will all be committed (a primary never cuts
                     // its own log): a producer retrying one of them must get its seq, not
-                    // a second copy
-                    let (commit, last) = (copy.core.commit(), copy.core.last().0);
-                    for op in copy.core.ops(commit + 1, last) {
+                    // a second copy. Those, and any committed not yet applied, are noted
+                    // here, once (applying them notes nothing again).
+                    let (applied, last) = (copy.core.applied(), copy.core.last().0);
+                    copy.noted = last;
+                    for op in copy.core.ops(applied + 1, last) {
                         if let OpBody::Put { record, .. } = &op.body {
                             if record.producer != 0 {
                                 self.producers

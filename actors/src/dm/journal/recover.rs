@@ -152,7 +152,7 @@ impl Replay {
                         }
                         log.committed = (op.seq, op.term);
                         state.puts += matches!(op.body, OpBody::Put { .. }) as u64;
-                        apply::apply(store, &mut state.fences, &mut state.producers, &op);
+                        apply::apply(store, &mut state.fences, Some(&mut state.producers), &op);
                         log.applied.push_back(op);
                         let over = |len: usize, bytes: usize| len > TAIL_KEEP || bytes > KEEP_BYTES;
                         if let Some(last) = log

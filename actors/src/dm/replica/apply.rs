@@ -7,20 +7,21 @@ use crate::dm::store::Store;
 use crate::fence::FenceTable;
 use std::time::Duration;
 
-/// Apply the committed entry `op` to `store` (with the sources' epochs and the producers'
-/// recent puts), which its log keeps. A put the store refuses (it cannot be: the primary checked it) is logged
+/// Apply the committed entry `op` to `store` (with the sources' epochs and, unless they
+/// were noted when it was proposed — `None` —, the producers' recent puts), which its log
+/// keeps. A put the store refuses (it cannot be: the primary checked it) is logged
 /// and skipped; what it was is returned, so the caller can wake its waits.
 pub(crate) fn apply<'a>(
     store: &mut Store,
     fences: &mut FenceTable,
-    producers: &mut Producers,
+    producers: Option<&mut Producers>,
     op: &'a Op,
 ) -> Option<&'a str> {
     match &op.body {
         OpBody::Put { time_ns, record } => {
             // a copy takes the primary's word: the epoch is noted, not judged
             let _ = fences.admit_parts(&record.source, record.epoch);
-            if record.producer != 0 {
+            if let Some(producers) = producers.filter(|_| record.producer != 0) {
                 producers.note(record.producer, record.producer_seq, op.seq);
             }
             match store.restore_ref(op.seq, Duration::from_nanos(*time_ns), record) {
