@@ -10,7 +10,7 @@ use marie_actors::clock::RealClock;
 use marie_actors::dm::replica::{Replication, Timing};
 use marie_actors::dm::{self, DmClient, DmMsg, DmSpec, DmStats, Durability, NewRecord};
 use ractor::ActorRef;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Duration;
 use tokio::task::JoinHandle;
 
@@ -18,26 +18,6 @@ use tokio::task::JoinHandle;
 const DEADLINE: Duration = Duration::from_secs(60);
 const NAME: &str = "copies-handover";
 const MEMBERS: [&str; 3] = ["r1", "r2", "r3"];
-
-/// A fresh directory for one test, removed when it passes.
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(name: &str) -> TempDir {
-        let dir = std::env::temp_dir().join(format!("marie-copies-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        TempDir(dir)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        if !std::thread::panicking() {
-            let _ = std::fs::remove_dir_all(&self.0);
-        }
-    }
-}
 
 /// Copy `me` of [`NAME`], journaled in `dir/me`, with no supervisor (the test starts an
 /// actor that stepped down again, as its node's supervisor would), and its task.
@@ -94,9 +74,9 @@ async fn a_primary_handing_over_sends_its_vote_before_it_stops_so_the_preferred_
     // when it grants it. An actor that stopped at its step-down without sending its answer
     // (as it did) cost r1 that election: r1 won only a later one, once its election timeout
     // passed, with the vote of the old primary started again as a copy.
-    let dir = TempDir::new("handover");
-    let (r2, r2_task) = copy(&dir.0, "r2").await;
-    let (r3, r3_task) = copy(&dir.0, "r3").await;
+    let dir = tempfile::tempdir().unwrap();
+    let (r2, r2_task) = copy(dir.path(), "r2").await;
+    let (r3, r3_task) = copy(dir.path(), "r3").await;
     let (i, term) = primary_among(&[&r2, &r3]).await;
     let ((primary, task, name), other) = if i == 0 {
         ((r2, r2_task, "r2"), r3)
@@ -112,14 +92,14 @@ async fn a_primary_handing_over_sends_its_vote_before_it_stops_so_the_preferred_
             .expect("stored and committed");
     }
     other.stop(None);
-    let (r1, _) = copy(&dir.0, "r1").await;
+    let (r1, _) = copy(dir.path(), "r1").await;
     // the old primary steps down when it votes for r1; it comes back as a copy (a primary's
     // writes are committed only with a second copy)
     tokio::time::timeout(DEADLINE, task)
         .await
         .expect("the old primary stepped down")
         .unwrap();
-    let (again, _) = copy(&dir.0, name).await;
+    let (again, _) = copy(dir.path(), name).await;
     let (_, won) = primary_among(&[&r1]).await;
     assert_eq!(won, term + 1, "r1 won the hand-over's own election");
     let s = stats(&r1).await.expect("r1 answers");
