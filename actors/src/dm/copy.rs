@@ -36,9 +36,9 @@ pub(crate) struct Copy {
     /// Snapshots taken in since it started.
     pub(crate) snapshots_taken: u64,
     /// The last entry whose producer's pair was noted before it was applied (a primary
-    /// notes its proposals, and at election what it inherited uncommitted): applying one
-    /// up to it notes nothing again — a pair noted twice halved the retries a primary
-    /// recognised (the table keeps a producer's last 1024 pairs, and a window is 1024).
+    /// notes its proposals, and at election every entry it holds not yet applied):
+    /// applying one up to it notes nothing again — a pair noted twice halved the retries a
+    /// primary recognised (the table keeps a producer's last 1024 pairs, one window).
     pub(crate) noted: u64,
     ticker: tokio::task::JoinHandle<()>,
     /// The datamanager's name.
