@@ -318,24 +318,27 @@ fn a_put_all_under_way_when_the_primary_is_killed_stores_every_record_once_in_or
         // a class per 8192 records: none reaches the retention bound (10 000)
         const N: u64 = 300_000;
         let class = |v: u64| format!("bulk-{}", v / 8192);
-        // how many records put_all has taken (it takes them as its window lets it send)
-        let taken = std::sync::Arc::new(std::sync::atomic::AtomicU64::new(0));
+        // told when put_all takes the record a fifth of the way (it takes them as its window
+        // lets it send)
+        let fifth = std::sync::Arc::new(tokio::sync::Notify::new());
         let records = (0..N).map({
-            let taken = taken.clone();
+            let fifth = fifth.clone();
             move |v| {
-                taken.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                if v == N / 5 {
+                    fifth.notify_one();
+                }
                 NewRecord::encode(class(v), &v).unwrap()
             }
         });
-        let bulk = tokio::spawn({
+        let mut bulk = tokio::spawn({
             let client = client.clone();
             async move { client.put_all(records).await }
         });
         // kill -9 the primary's process with the transfer under way (watched from here:
         // polling r1's stats once saw the whole transfer end before it saw a fifth of it)
-        while taken.load(std::sync::atomic::Ordering::Relaxed) <= N / 5 {
-            assert!(!bulk.is_finished(), "the transfer ended before the kill");
-            tokio::time::sleep(Duration::from_millis(5)).await;
+        tokio::select! {
+            _ = fifth.notified() => {}
+            ended = &mut bulk => panic!("the transfer ended before the kill: {ended:?}"),
         }
         nodes[0].signal("KILL");
         eprintln!("r1 killed with the transfer under way");

@@ -9,6 +9,7 @@
 use marie_actors::clock::RealClock;
 use marie_actors::dm::replica::{Replication, Timing};
 use marie_actors::dm::{self, DmClient, DmMsg, DmSpec, DmStats, Durability, NewRecord};
+use marie_actors::events::{EventBus, EventKind, EventSubscription};
 use ractor::ActorRef;
 use std::path::Path;
 use std::time::Duration;
@@ -21,16 +22,17 @@ const MEMBERS: [&str; 3] = ["r1", "r2", "r3"];
 
 /// Copy `me` of [`NAME`], journaled in `dir/me`, with no supervisor (the test starts an
 /// actor that stepped down again, as its node's supervisor would), and its task.
-async fn copy(dir: &Path, me: &str) -> (ActorRef<DmMsg>, JoinHandle<()>) {
+async fn copy(dir: &Path, me: &str, bus: &EventBus) -> (ActorRef<DmMsg>, JoinHandle<()>) {
     let mut replication = Replication::new(me, MEMBERS);
     replication.timing = Timing {
         heartbeat: Duration::from_millis(50),
         election: Duration::from_millis(1500),
     };
-    let args = DmSpec::new(NAME, 1201)
+    let mut args = DmSpec::new(NAME, 1201)
         .args(RealClock::shared())
         .with_journal(dir.join(me), Durability::Process)
         .with_replication(replication);
+    args.events = Some(bus.clone());
     tokio::time::timeout(DEADLINE, dm::spawn_datamanager(args))
         .await
         .expect("spawned in time")
@@ -47,18 +49,17 @@ async fn stats(actor: &ActorRef<DmMsg>) -> Option<DmStats> {
     }
 }
 
-/// Wait until one of `copies` says it is the primary: which one, and its term.
-async fn primary_among(copies: &[&ActorRef<DmMsg>]) -> (usize, u64) {
+/// Wait for the next copy of `among` to become the primary (its `dm_promoted` event):
+/// which one, and its term.
+async fn promoted(events: &mut EventSubscription, among: &[&str]) -> (String, u64) {
     tokio::time::timeout(DEADLINE, async {
         loop {
-            for (i, c) in copies.iter().enumerate() {
-                if let Some(r) = stats(c).await.and_then(|s| s.replica) {
-                    if r.role == "primary" {
-                        return (i, r.term);
-                    }
+            let event = events.recv().await.expect("the bus");
+            if let EventKind::DmPromoted { node, term, .. } = event.kind {
+                if among.contains(&node.as_str()) {
+                    return (node, term);
                 }
             }
-            tokio::time::sleep(Duration::from_millis(20)).await;
         }
     })
     .await
@@ -75,13 +76,15 @@ async fn a_primary_handing_over_sends_its_vote_before_it_stops_so_the_preferred_
     // (as it did) cost r1 that election: r1 won only a later one, once its election timeout
     // passed, with the vote of the old primary started again as a copy.
     let dir = tempfile::tempdir().unwrap();
-    let (r2, r2_task) = copy(dir.path(), "r2").await;
-    let (r3, r3_task) = copy(dir.path(), "r3").await;
-    let (i, term) = primary_among(&[&r2, &r3]).await;
-    let ((primary, task, name), other) = if i == 0 {
-        ((r2, r2_task, "r2"), r3)
+    let bus = EventBus::new("test", RealClock::shared());
+    let mut events = bus.subscribe();
+    let (r2, r2_task) = copy(dir.path(), "r2", &bus).await;
+    let (r3, r3_task) = copy(dir.path(), "r3", &bus).await;
+    let (name, term) = promoted(&mut events, &["r2", "r3"]).await;
+    let ((primary, task), other) = if name == "r2" {
+        ((r2, r2_task), r3)
     } else {
-        ((r3, r3_task, "r3"), r2)
+        ((r3, r3_task), r2)
     };
     eprintln!("{name} primary at term {term}");
     let client = DmClient::new(primary.clone(), "tester");
@@ -91,16 +94,20 @@ async fn a_primary_handing_over_sends_its_vote_before_it_stops_so_the_preferred_
             .await
             .expect("stored and committed");
     }
-    other.stop(None);
-    let (r1, _) = copy(dir.path(), "r1").await;
+    // gone before r1 comes (else its vote could elect r1 without the old primary's)
+    other
+        .stop_and_wait(None, Some(DEADLINE))
+        .await
+        .expect("the third copy stops");
+    let (r1, _) = copy(dir.path(), "r1", &bus).await;
     // the old primary steps down when it votes for r1; it comes back as a copy (a primary's
     // writes are committed only with a second copy)
     tokio::time::timeout(DEADLINE, task)
         .await
         .expect("the old primary stepped down")
         .unwrap();
-    let (again, _) = copy(dir.path(), name).await;
-    let (_, won) = primary_among(&[&r1]).await;
+    let (again, _) = copy(dir.path(), &name, &bus).await;
+    let (_, won) = promoted(&mut events, &["r1"]).await;
     assert_eq!(won, term + 1, "r1 won the hand-over's own election");
     let s = stats(&r1).await.expect("r1 answers");
     assert_eq!(

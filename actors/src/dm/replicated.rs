@@ -349,12 +349,7 @@ impl DmState {
                     let (applied, last) = (copy.core.applied(), copy.core.last().0);
                     copy.noted = last;
                     for op in copy.core.ops(applied + 1, last) {
-                        if let OpBody::Put { record, .. } = &op.body {
-                            if record.producer != 0 {
-                                self.producers
-                                    .note(record.producer, record.producer_seq, op.seq);
-                            }
-                        }
+                        apply::note(&mut self.producers, op);
                     }
                     tracing::info!(dm = %copy.name, node = %copy.core.me(), term = copy.core.term(), "replica: this copy is the primary");
                     if let Some(bus) = &copy.events {

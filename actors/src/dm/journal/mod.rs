@@ -167,24 +167,6 @@ impl Core {
         self.inner.lock().unwrap_or_else(|e| e.into_inner())
     }
 
-    /// Write `jobs` on this thread, then put the writer back (nothing queues meanwhile: the
-    /// datamanager that hands jobs over is the one writing).
-    fn write(&self, writer: Writer, jobs: Vec<Job>, shared: &Shared) {
-        let ran = std::panic::catch_unwind(std::panic::AssertUnwindSafe(move || {
-            let mut writer = writer;
-            writer.run(jobs);
-            writer
-        }));
-        let mut inner = self.lock();
-        inner.running = false;
-        match ran {
-            Ok(w) => inner.writer = Some(w),
-            Err(_) => shared.fail("the journal's writer panicked".to_string()),
-        }
-        drop(inner);
-        self.idle.notify_one();
-    }
-
     /// Write `jobs`, then every group that queued meanwhile, then put the writer back.
     fn drain(self: Arc<Self>, mut writer: Writer, mut jobs: Vec<Job>, shared: Arc<Shared>) {
         loop {
@@ -345,14 +327,7 @@ impl Journal {
     /// Journal a replicated datamanager's entry (after a term mark if its term is new here).
     pub(crate) fn op(&mut self, op: &Op) {
         self.term_mark(op.term);
-        match &op.body {
-            OpBody::Put { time_ns, record } => {
-                let time = Duration::from_nanos(*time_ns);
-                entry::encode_put(&mut self.batch, op.seq, time, record);
-            }
-            OpBody::Delete { seqs } => entry::encode_mark(&mut self.batch, op.seq, seqs),
-            OpBody::Noop => entry::encode_mark(&mut self.batch, op.seq, &[]),
-        }
+        op.encode(&mut self.batch);
         self.logged(op);
     }
 
@@ -483,7 +458,8 @@ impl Journal {
         drop(inner);
         let (core, shared) = (self.core.clone(), self.shared.clone());
         if inline {
-            core.write(writer, jobs, &shared);
+            // (nothing queues meanwhile: this datamanager is the one writing)
+            core.drain(writer, jobs, shared);
         } else {
             tokio::task::spawn_blocking(move || core.drain(writer, jobs, shared));
         }

@@ -113,32 +113,21 @@ impl Replay {
         let Some(store) = state.store.as_mut() else {
             return;
         };
-        // a replicated journal: outside a snapshot, entries wait for their commit
+        // a replicated journal: outside a snapshot, entries (puts, marks) wait in the tail
+        // for their commit
+        let entry = match (&mut self.log, in_snapshot) {
+            (Some(log), false) => match Op::from_entry(entry, log.term) {
+                Ok(op) => {
+                    log.tail.push(op);
+                    return;
+                }
+                Err(other) => other,
+            },
+            _ => entry,
+        };
         if let (Some(log), false) = (&mut self.log, in_snapshot) {
             let term = log.term;
             match entry {
-                Entry::Put {
-                    seq,
-                    timestamp,
-                    record,
-                } => {
-                    let time_ns = u64::try_from(timestamp.as_nanos()).unwrap_or(u64::MAX);
-                    log.tail.push(Op {
-                        seq,
-                        term,
-                        body: OpBody::Put { time_ns, record },
-                    });
-                    return;
-                }
-                Entry::Mark { seq, seqs } => {
-                    let body = if seqs.is_empty() {
-                        OpBody::Noop
-                    } else {
-                        OpBody::Delete { seqs }
-                    };
-                    log.tail.push(Op { seq, term, body });
-                    return;
-                }
                 Entry::Commit { seq } => {
                     let upto = log.tail.partition_point(|o| o.seq <= seq);
                     if upto == 0 && seq > log.committed.0 {

@@ -21,8 +21,8 @@ pub(crate) fn apply<'a>(
         OpBody::Put { time_ns, record } => {
             // a copy takes the primary's word: the epoch is noted, not judged
             let _ = fences.admit_parts(&record.source, record.epoch);
-            if let Some(producers) = producers.filter(|_| record.producer != 0) {
-                producers.note(record.producer, record.producer_seq, op.seq);
+            if let Some(producers) = producers {
+                note(producers, op);
             }
             match store.restore_ref(op.seq, Duration::from_nanos(*time_ns), record) {
                 Ok(()) => Some(&record.class),
@@ -41,6 +41,16 @@ pub(crate) fn apply<'a>(
         OpBody::Noop => {
             store.raise_floor(op.seq + 1, Duration::ZERO);
             None
+        }
+    }
+}
+
+/// Note the producer's pair of `op` if it is a put with a producer (so that a retry of it
+/// is stored once).
+pub(crate) fn note(producers: &mut Producers, op: &Op) {
+    if let OpBody::Put { record, .. } = &op.body {
+        if record.producer != 0 {
+            producers.note(record.producer, record.producer_seq, op.seq);
         }
     }
 }

@@ -1,11 +1,10 @@
 //! What the copies of a replicated datamanager tell each other (inside `DmMsg::Replica`).
 
-use super::op::{Op, OpBody};
+use super::op::Op;
 use crate::dm::entry::{self, Entry};
 use crate::dm::record::NewRecord;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use std::sync::{Arc, OnceLock};
-use std::time::Duration;
 
 /// One message between the copies of a datamanager; Raft's, with pre-votes.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -182,13 +181,7 @@ impl RawOps {
                 term = Some(op.term);
             }
             let at = wire.len();
-            match &op.body {
-                OpBody::Put { time_ns, record } => {
-                    entry::encode_put(&mut wire, op.seq, Duration::from_nanos(*time_ns), record);
-                }
-                OpBody::Delete { seqs } => entry::encode_mark(&mut wire, op.seq, seqs),
-                OpBody::Noop => entry::encode_mark(&mut wire, op.seq, &[]),
-            }
+            op.encode(&mut wire);
             spans.push(Span {
                 seq: op.seq,
                 term: op.term,
@@ -223,29 +216,15 @@ impl RawOps {
                 continue;
             }
             let term = term.ok_or_else(|| bad("an entry before its term"))?;
-            let (seq, body) = match e {
-                Entry::Put {
-                    seq,
-                    timestamp,
-                    record,
-                } => (
-                    seq,
-                    OpBody::Put {
-                        time_ns: u64::try_from(timestamp.as_nanos()).unwrap_or(u64::MAX),
-                        record,
-                    },
-                ),
-                Entry::Mark { seq, seqs } if seqs.is_empty() => (seq, OpBody::Noop),
-                Entry::Mark { seq, seqs } => (seq, OpBody::Delete { seqs }),
-                _ => return Err(bad("an entry that is not a log entry")),
-            };
+            let op =
+                Op::from_entry(e, term).map_err(|_| bad("an entry that is not a log entry"))?;
             spans.push(Span {
-                seq,
+                seq: op.seq,
                 term,
                 at,
                 end: at + len,
             });
-            ops.push(Op { seq, term, body });
+            ops.push(op);
             at += len;
         }
         if at != bytes.len() {
@@ -387,7 +366,9 @@ impl<'de> Deserialize<'de> for Ops {
 
 #[cfg(test)]
 mod tests {
+    use super::super::op::OpBody;
     use super::*;
+    use std::time::Duration;
 
     fn entries() -> Vec<Op> {
         let mut record = NewRecord::new("sonar", crate::dm::Payload::from_bytes(vec![1, 2]))

@@ -1,5 +1,6 @@
 //! One entry of a replicated datamanager's log, as it is journaled and sent to copies.
 
+use crate::dm::entry::{self, Entry};
 use crate::dm::record::NewRecord;
 use serde::{Deserialize, Serialize};
 use std::time::Duration;
@@ -38,6 +39,39 @@ pub enum OpBody {
 }
 
 impl Op {
+    /// Append its journal entry to `out` ([`crate::dm::entry`]'s format: a put, or a mark
+    /// for a delete or a no-op) — what the journal writes and an `Append` carries.
+    pub(crate) fn encode(&self, out: &mut Vec<u8>) {
+        match &self.body {
+            OpBody::Put { time_ns, record } => {
+                entry::encode_put(out, self.seq, Duration::from_nanos(*time_ns), record);
+            }
+            OpBody::Delete { seqs } => entry::encode_mark(out, self.seq, seqs),
+            OpBody::Noop => entry::encode_mark(out, self.seq, &[]),
+        }
+    }
+
+    /// The log entry of `term` that journal entry `entry` is ([`Op::encode`]'s inverse), or
+    /// the entry back if it is no log entry (a term, a commit, a snapshot's part …).
+    // (the `Err` is the caller's entry handed back by move, not an error carried up)
+    #[allow(clippy::result_large_err)]
+    pub(crate) fn from_entry(entry: Entry, term: u64) -> Result<Op, Entry> {
+        let (seq, body) = match entry {
+            Entry::Put {
+                seq,
+                timestamp,
+                record,
+            } => {
+                let time_ns = u64::try_from(timestamp.as_nanos()).unwrap_or(u64::MAX);
+                (seq, OpBody::Put { time_ns, record })
+            }
+            Entry::Mark { seq, seqs } if seqs.is_empty() => (seq, OpBody::Noop),
+            Entry::Mark { seq, seqs } => (seq, OpBody::Delete { seqs }),
+            other => return Err(other),
+        };
+        Ok(Op { seq, term, body })
+    }
+
     /// The time stamp of a put.
     pub fn time(&self) -> Option<Duration> {
         match &self.body {
