@@ -5,7 +5,9 @@
 //!   stores N records with `put_all` into `feature` and waits for the acknowledgement of the
 //!   last: records per second into a datamanager on one node without copies, and into one
 //!   kept in three copies (a record is acknowledged once two of them journaled it); rounds
-//!   interleaved, the ratio in the same run. Goal: copies ≥ 0.5× no copies.
+//!   interleaved, the ratio in the same run. Goal: copies ≥ 0.5× no copies. (Each
+//!   datamanager grants its own window of credits: the replicated one a wider one, as its
+//!   acknowledgements take a round to the copies — `marie_actors::dm::credits`.)
 //! - **failover**: the producer stores one record after another; the primary's node is
 //!   killed (`kill -9`) or frozen (SIGSTOP): the time from the signal to the first store
 //!   acknowledged by a copy on another node. p50 over the rounds. Each round waits for a

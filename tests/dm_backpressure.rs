@@ -118,6 +118,8 @@ fn batches_spend_a_credit_per_record_and_arrive_whole_and_in_order() {
             max_in_flight = max_in_flight.max(client.puts_in_flight());
         }
         assert!(max_in_flight <= WINDOW, "{max_in_flight} in flight");
+        // (the window a datamanager without copies grants, acknowledgements in)
+        assert_eq!(client.window(), Some(WINDOW));
         // and put_all does the same by itself
         tokio::time::timeout(
             Duration::from_secs(60),

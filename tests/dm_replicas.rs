@@ -345,6 +345,9 @@ fn a_put_all_under_way_when_the_primary_is_killed_stores_every_record_once_in_or
         bulk.await
             .unwrap()
             .expect("put_all completes on the next primary");
+        // (which granted the wide window of a replicated datamanager: its acknowledgements
+        // wait for a copy, and a window of puts was on its way at the kill)
+        assert_eq!(client.window(), Some(dm::credits::REPLICATED_WINDOW));
         let (second, _) = primary(Some("r1")).await;
         let stored = client.select(Query::all()).await.unwrap();
         let values: Vec<u64> = stored
@@ -459,16 +462,17 @@ fn a_restarted_primary_catches_a_copy_up_from_its_journal_without_a_snapshot() {
 
 #[test]
 fn the_primary_recognises_a_retry_of_any_put_of_a_whole_window_and_answers_its_first_seq() {
-    // a producer may have a window of puts unacknowledged; each one retried must be stored
-    // once. The primary notes each put's pair when it proposes it: noting it again when it
-    // is applied filled the table (a producer's last 1024 pairs) twice as fast, and a retry
-    // of a put 513 back was stored a second time
+    // a producer may have a window of puts unacknowledged (the wide one a replicated
+    // datamanager grants); each one retried must be stored once. The primary notes each
+    // put's pair when it proposes it: noting it again when it is applied filled the table
+    // (then a producer's last 1024 pairs) twice as fast, and a retry of a put 513 back was
+    // stored a second time
     let _one = ONE_MEMBER.lock().unwrap_or_else(|e| e.into_inner());
     let dir = tempfile::tempdir().unwrap();
     let nodes = start_nodes(dir.path(), "");
     let rt = runtime();
     let transport = rt.block_on(join(&nodes));
-    let window = dm::credits::WINDOW as u64;
+    let window = dm::credits::REPLICATED_WINDOW as u64;
     rt.block_on(async {
         primary(None).await;
         let client = DmClient::lookup("feature", "producer")

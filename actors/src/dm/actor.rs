@@ -187,6 +187,7 @@ impl DmState {
             journal_bytes: self.journal.as_ref().map_or(0, Journal::bytes),
             recovery: self.recovery.clone(),
             duplicates: self.duplicates,
+            window: self.window() as u64,
             replica: self.replica.as_ref().map(|c| {
                 let (core, last) = (&c.core, c.core.last().0);
                 super::messages::ReplicaStats {
@@ -200,6 +201,16 @@ impl DmState {
                     snapshots_taken: c.snapshots_taken,
                 }
             }),
+        }
+    }
+
+    /// The window of credits it grants a remote producer ([`super::credits`]), and how
+    /// many of a producer's puts it remembers to store a retry once.
+    pub(crate) fn window(&self) -> usize {
+        if self.replica.is_some() {
+            super::credits::REPLICATED_WINDOW
+        } else {
+            super::credits::WINDOW
         }
     }
 

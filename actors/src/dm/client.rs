@@ -629,13 +629,21 @@ impl DmClient {
         }
     }
 
-    /// Puts to a remote datamanager queued or sent and not yet acknowledged (at most
-    /// [`super::credits::WINDOW`]; always 0 for a local one).
+    /// Puts to a remote datamanager queued or sent and not yet acknowledged (at most its
+    /// [`DmClient::window`]; always 0 for a local one).
     pub fn puts_in_flight(&self) -> usize {
         lock(&self.target)
             .outbox
             .as_ref()
             .map_or(0, |o| o.in_flight())
+    }
+
+    /// The window of credits a remote datamanager grants this producer now: puts it may
+    /// have unacknowledged ([`super::credits::WINDOW`] until its first acknowledgement; a
+    /// replicated one grants [`super::credits::REPLICATED_WINDOW`]). `None` for a local one
+    /// (its puts are not metered).
+    pub fn window(&self) -> Option<usize> {
+        lock(&self.target).outbox.as_ref().map(|o| o.window())
     }
 
     /// Every record matching `query`, oldest-first. From a datamanager on another node the

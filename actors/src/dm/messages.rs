@@ -53,6 +53,11 @@ pub struct DmStats {
     /// A replicated datamanager's copy: its role, term and how far each copy lags.
     #[serde(default)]
     pub replica: Option<ReplicaStats>,
+    /// The window of credits it grants a remote producer: records it may have
+    /// unacknowledged ([`super::credits`]; 0 from a node that does not say, read as
+    /// [`super::credits::WINDOW`]).
+    #[serde(default)]
+    pub window: u64,
 }
 
 /// What a datamanager's records come to, from a `Digest` request.

@@ -24,7 +24,7 @@
 //!   frames of at most 1 MiB (far below ractor_cluster's 16 MiB frame limit).
 //!
 //! The window is the credits': a record takes its credit when it is put, queued or not, so
-//! at most [`WINDOW`](super::credits::WINDOW) records are queued or unacknowledged, and a
+//! at most a window (the datamanager's grant) of records are queued or unacknowledged, and a
 //! put that finds none left is refused `Busy` at once, as before. An acknowledgement gives
 //! back only the credits of records cast before it was asked.
 //!
@@ -219,7 +219,7 @@ impl Outbox {
         timeout: Duration,
     ) -> Result<(), DmError> {
         super::credits::fits(n)?;
-        if self.credits.in_flight() + n > super::credits::WINDOW {
+        if self.credits.in_flight() + n > self.credits.window() {
             let _ = self.flush(actor, dm);
         }
         self.credits.ready(n, actor, dm, timeout).await
@@ -228,6 +228,11 @@ impl Outbox {
     /// Records queued or unacknowledged.
     pub(crate) fn in_flight(&self) -> usize {
         self.credits.in_flight()
+    }
+
+    /// The window the datamanager grants now.
+    pub(crate) fn window(&self) -> usize {
+        self.credits.window()
     }
 
     /// (records ever cast, records ever acknowledged), in cast order.

@@ -9,19 +9,23 @@
 //!
 //! Per producer the table keeps the last [`PER_PRODUCER`] (producer seq → seq) pairs, in the
 //! order they came (almost always increasing, so a new record costs one comparison); a retry
-//! is at most a window of puts behind (the credits' `WINDOW`), well inside. At most
+//! is at most a window of puts behind (the widest a datamanager grants, the credits'
+//! `REPLICATED_WINDOW`), inside. At most
 //! [`PRODUCERS`] producers are kept, the least recently heard from dropped first. The journal
 //! replays it (every put carries its pair) and snapshots it, so a restarted datamanager still
 //! knows what its predecessor stored.
 
 use std::collections::{HashMap, VecDeque};
 
-/// Pairs kept per producer: a remote producer's window of credits (a const assertion in
-/// the credits module holds it to that) — as many records as it can have unacknowledged.
-pub const PER_PRODUCER: usize = 1024;
+/// Pairs kept per producer: the widest window of credits a datamanager grants (a const
+/// assertion in the credits module holds it to that) — as many records as a producer can
+/// have unacknowledged. One bound for every datamanager, so that a journal's replay keeps
+/// as many as the datamanager that wrote it did.
+pub const PER_PRODUCER: usize = 4096;
 
-/// Producers kept. With [`PER_PRODUCER`] it bounds the table: at most 1024 × 1024 pairs of
-/// 16 bytes, 16 MiB, for a datamanager with a thousand busy producers at once.
+/// Producers kept. With [`PER_PRODUCER`] it bounds the table: at most 1024 × 4096 pairs of
+/// 16 bytes, 64 MiB, for a datamanager with a thousand producers that each put thousands of
+/// records lately (a producer's pairs take 16 bytes per record it put, up to the bound).
 pub const PRODUCERS: usize = 1024;
 
 #[derive(Debug, Default)]

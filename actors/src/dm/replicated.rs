@@ -22,8 +22,9 @@ const INSTALL_PART: usize = 2048;
 /// Bytes of records per part, about (a part is one frame: ractor_cluster ends the session
 /// on a frame above 16 MiB).
 const INSTALL_BYTES: usize = super::page::PAGE_BYTES;
-/// Producers per part of their pairs (at most 1024 pairs each: ~1 MiB).
-const INSTALL_PRODUCERS: usize = 64;
+/// Producers per part of their pairs (at most [`super::producers::PER_PRODUCER`], 4096,
+/// pairs each: ~1 MiB).
+const INSTALL_PRODUCERS: usize = 16;
 
 impl DmState {
     /// Whether this datamanager is a copy that is not the primary (it answers no client).
