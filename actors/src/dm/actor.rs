@@ -204,8 +204,8 @@ impl DmState {
         }
     }
 
-    /// The window of credits it grants a remote producer ([`super::credits`]), and how
-    /// many of a producer's puts it remembers to store a retry once.
+    /// The window of credits it grants a remote producer ([`super::credits`]): wider for a
+    /// replicated one, whose acknowledgements wait for its copies.
     pub(crate) fn window(&self) -> usize {
         if self.replica.is_some() {
             super::credits::REPLICATED_WINDOW

@@ -60,7 +60,7 @@ pub const WINDOW: usize = 1024;
 pub const REPLICATED_WINDOW: usize = 4 * WINDOW;
 
 // What a producer can have unacknowledged is within what a datamanager remembers of it to
-// store a record sent again once (the widest grant: `Producers::keep_window` narrows it).
+// store a record sent again once: the widest grant.
 const _: () = assert!(super::producers::PER_PRODUCER >= REPLICATED_WINDOW);
 
 /// The window a datamanager's grant gives: within [`WINDOW`] and [`REPLICATED_WINDOW`]
@@ -71,8 +71,9 @@ pub(crate) fn granted(window: u64) -> usize {
         .clamp(WINDOW, REPLICATED_WINDOW)
 }
 
-/// Records per message [`super::DmClient::put_all`] sends: a quarter of the window, so
-/// that two batches are on their way while the acknowledgement of two more comes back.
+/// Records per message [`super::DmClient::put_all`] sends: a quarter of the plain window,
+/// so that two batches are on their way while the acknowledgement of two more comes back
+/// (towards a replicated datamanager, eight while eight more are acknowledged).
 pub const BATCH: usize = WINDOW / 4;
 
 /// How long an acknowledgement may take before the credits it would return are asked for
