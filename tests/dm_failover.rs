@@ -57,7 +57,13 @@ fn lose_the_features_node(signal: &str, moment: &str, wake: &str) -> (Value, Vec
         common::cluster::wait_gone(pid),
         "features outlived marie up"
     );
-    assert_eq!(code, Some(0), "{}", up.seen().join("\n"));
+    assert_eq!(
+        code,
+        Some(0),
+        "{}\n(stderr:)\n{}",
+        up.seen().join("\n"),
+        up.stderr_tail()
+    );
     common::cluster::report_and_events(&report, &events)
 }
 

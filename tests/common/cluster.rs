@@ -3,11 +3,13 @@
 //! handle drops (also when a test panics), each line of its stdout awaited as an event,
 //! never a sleep.
 
+use std::collections::VecDeque;
 use std::io::{BufRead, BufReader};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
-use std::sync::mpsc::{self, Receiver};
+use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 /// With this environment variable set to a directory, each process's log (stderr, at
@@ -20,6 +22,9 @@ static LOGGED: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::
 /// Generous: a loaded 2-core machine may take seconds to start a process.
 pub(crate) const EVENT_TIMEOUT: Duration = Duration::from_secs(60);
 
+/// Lines of a child's stderr kept for a failure's message.
+const STDERR_TAIL: usize = 40;
+
 /// A running `marie` process whose stdout lines are awaited.
 pub(crate) struct Proc {
     /// What it is, for messages.
@@ -30,6 +35,8 @@ pub(crate) struct Proc {
     seen: Vec<String>,
     /// When each line of `seen` was read.
     arrived: Vec<Instant>,
+    /// The last lines of its stderr (unless they go to a log file): what a panic shows.
+    stderr_tail: Arc<Mutex<VecDeque<String>>>,
     /// The child's temporary directory (its `TMPDIR`), removed with the guard: what a
     /// killed process leaves there — a `marie up`'s nodes' data directory — goes with it.
     /// Declared after `child`: dropped once the child is dead.
@@ -188,7 +195,7 @@ impl Proc {
             }
             None => {
                 command.env_remove("RUST_LOG");
-                Stdio::null()
+                Stdio::piped()
             }
         };
         let tmp = tempfile::tempdir().expect("a temporary directory");
@@ -201,6 +208,21 @@ impl Proc {
             .stderr(stderr)
             .spawn()
             .unwrap_or_else(|e| panic!("{} starts: {e}", exe.display()));
+        // its stderr's last lines, for a failure's message (a child that ends at once
+        // says why there)
+        let stderr_tail = Arc::new(Mutex::new(VecDeque::new()));
+        if let Some(err) = child.stderr.take() {
+            let tail = stderr_tail.clone();
+            std::thread::spawn(move || {
+                for line in BufReader::new(err).lines().map_while(Result::ok) {
+                    let mut tail = tail.lock().unwrap_or_else(|e| e.into_inner());
+                    if tail.len() == STDERR_TAIL {
+                        tail.pop_front();
+                    }
+                    tail.push_back(line);
+                }
+            });
+        }
         let stdout = child.stdout.take().expect("stdout");
         let (tx, lines) = mpsc::channel();
         std::thread::spawn(move || {
@@ -216,6 +238,7 @@ impl Proc {
             lines,
             seen: Vec::new(),
             arrived: Vec::new(),
+            stderr_tail,
             tmp,
         }
     }
@@ -233,6 +256,12 @@ impl Proc {
     /// Whether it still runs.
     pub(crate) fn alive(&mut self) -> bool {
         matches!(self.child.try_wait(), Ok(None))
+    }
+
+    /// The last lines its stderr printed (none if they go to a log file).
+    pub(crate) fn stderr_tail(&self) -> String {
+        let tail = self.stderr_tail.lock().unwrap_or_else(|e| e.into_inner());
+        Vec::from(tail.clone()).join("\n")
     }
 
     /// Every line seen so far.
@@ -271,10 +300,15 @@ impl Proc {
                         return (line, at);
                     }
                 }
-                Err(_) => panic!(
-                    "{}: no line with {needle:?} within {EVENT_TIMEOUT:?}; saw:\n{}",
+                Err(why) => panic!(
+                    "{}: no line with {needle:?} {}; saw:\n{}\n(the last lines of its stderr:)\n{}",
                     self.name,
-                    self.seen.join("\n")
+                    match why {
+                        RecvTimeoutError::Timeout => format!("within {EVENT_TIMEOUT:?}"),
+                        RecvTimeoutError::Disconnected => "before its stdout closed".into(),
+                    },
+                    self.seen.join("\n"),
+                    self.stderr_tail()
                 ),
             }
         }
