@@ -18,6 +18,9 @@ use std::path::{Path, PathBuf};
 const COOKIE: &str = "selection";
 /// The cluster's speed: a docking run takes about 8 s of wall time.
 const SPEED: &str = "8";
+/// The cluster's seed: not the default (1), so a run that names its own seed instead of the
+/// cart's is seen.
+const CLUSTER_SEED: u64 = 4;
 
 /// Write the cluster file into `dir`: the thesis' cart, features and operations nodes (the
 /// operations node without a wall follower), and for each `(node, version)` of `followers`
@@ -30,7 +33,7 @@ fn layout(dir: &Path, followers: &[(&str, &str)]) -> PathBuf {
     assert!(operations.contains(without), "operations.toml changed");
     std::fs::write(dir.join("operations.toml"), operations.replace(without, "")).unwrap();
     let mut text = format!(
-        "[cluster]\ncookie = \"{COOKIE}\"\nworld = \"{}\"\nseed = 1\n\
+        "[cluster]\ncookie = \"{COOKIE}\"\nworld = \"{}\"\nseed = {CLUSTER_SEED}\n\
          [[node]]\nconfig = \"{}\"\n[[node]]\nconfig = \"{}\"\n\
          [[node]]\nconfig = \"operations.toml\"\n",
         repo.join("missions/worlds/lab.toml").display(),
@@ -98,6 +101,12 @@ impl Cluster {
     /// `marie run MISSION --join --report`: the exit code, the report (`Null` if none) and
     /// stderr.
     fn run(&self, mission: &Path) -> (Option<i32>, Value, String) {
+        let (code, report, stderr, _) = self.run_out(mission);
+        (code, report, stderr)
+    }
+
+    /// [`Cluster::run`], with its stdout.
+    fn run_out(&self, mission: &Path) -> (Option<i32>, Value, String, String) {
         let dir = tempfile::tempdir().unwrap();
         let report = dir.path().join("report.json");
         let out = marie(&[
@@ -116,7 +125,12 @@ impl Cluster {
             .ok()
             .and_then(|s| serde_json::from_str(&s).ok())
             .unwrap_or(Value::Null);
-        (out.status.code(), report, text(&out.stderr))
+        (
+            out.status.code(),
+            report,
+            text(&out.stderr),
+            text(&out.stdout),
+        )
     }
 }
 
@@ -194,7 +208,7 @@ fn with_both_versions_on_other_nodes_the_missions_parameters_choose_the_node() {
     assert_eq!(on(choice, "wf-one")["verdict"]["type"], "rejected");
 
     // and a dispatcher on a process of its own binds it and docks with it
-    let (code, report, stderr) = cluster.run(&corridor);
+    let (code, report, stderr, stdout) = cluster.run_out(&corridor);
     assert_eq!(code, Some(0), "{stderr}\n{report:#}");
     assert_eq!(report["outcome"], "succeeded");
     let choice = wall_follower(&report["selection"]);
@@ -204,6 +218,12 @@ fn with_both_versions_on_other_nodes_the_missions_parameters_choose_the_node() {
         "{choice:#}"
     );
     assert_eq!(ran_on(&report), ("wf-two".into(), "2.0.0".into()));
+    // the seed the cart drove with is the cluster's, which the run (given none) names
+    assert_eq!(report["seed"], CLUSTER_SEED, "{report:#}");
+    assert!(
+        stdout.contains(&format!(", seed {CLUSTER_SEED}\n")),
+        "{stdout}"
+    );
 }
 
 #[test]

@@ -120,7 +120,11 @@ impl SimRobot {
             Outcome::Failed => "failed",
         };
         let mut picture = Picture {
-            caption: format!("{} — {outcome} — seed {}", report.mission, robot.seed),
+            caption: format!(
+                "{} — {outcome} — seed {}",
+                report.mission,
+                RobotReport::of(report).seed.unwrap_or(robot.seed)
+            ),
             ..Picture::default()
         };
         match CartClient::lookup() {
@@ -245,6 +249,9 @@ struct FinalState {
     judgement: Judgement,
     /// Commands of replaced incarnations it refused, by operation (its fencing).
     refused_by: BTreeMap<String, u64>,
+    /// The seed it drove with, if it says (the cart may run on another node, with that
+    /// node's seed).
+    seed: Option<u64>,
 }
 
 impl From<CartStatus> for FinalState {
@@ -254,6 +261,7 @@ impl From<CartStatus> for FinalState {
             collisions: s.collisions,
             judgement: s.judgement,
             refused_by: s.refused_by,
+            seed: s.seed,
         }
     }
 }
@@ -275,6 +283,9 @@ fn judge(
     let has_goal = robot.world.goal.is_some();
     match status {
         Ok(status) => {
+            // the seed the cart drove with: its node's, which a run joined to a cluster
+            // does not choose
+            said.seed = status.seed.or(said.seed);
             let (pose, judgement) = (status.pose, status.judgement);
             said.final_pose = Some([pose.x, pose.y, pose.theta]);
             said.collisions = Some(u64::from(status.collisions));
@@ -374,6 +385,7 @@ mod tests {
             collisions,
             judgement: robot.world.judge(pose, collisions),
             refused_by: BTreeMap::new(),
+            seed: None,
         })
     }
 
@@ -428,6 +440,16 @@ mod tests {
         judged(&mut r, &lab, at(&lab, parked, 2));
         assert_eq!(r.outcome, Outcome::Failed);
         assert!(r.reason.contains("2 collision(s)"), "{}", r.reason);
+    }
+
+    #[test]
+    fn a_cart_on_another_node_names_the_seed_it_drove_with() {
+        // this process's robot has seed 9; the cart, on another node, drove with 4
+        let lab = robot("lab");
+        let mut r = report(Outcome::Succeeded);
+        let status = at(&lab, lab.world.start, 0).map(|s| FinalState { seed: Some(4), ..s });
+        judged(&mut r, &lab, status);
+        assert_eq!(cart(&r).seed, Some(4));
     }
 
     #[test]

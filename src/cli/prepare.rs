@@ -8,6 +8,7 @@ use marie::actors::dispatcher::mission::{Mission, ParsedMission};
 use marie::cluster::net::Transport;
 use marie::cluster::node::{Node, NodeError};
 use marie_missions::embedded::{Embedded, EmbeddedOptions};
+use marie_missions::hardware::CartClient;
 use marie_missions::robot::SimRobot;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -24,6 +25,9 @@ pub(crate) struct Prepared {
     pub world_path: Option<PathBuf>,
     /// The cluster transport, when the node joined one.
     pub transport: Option<Transport>,
+    /// The seed the cart drives with, when it runs on another node of a cluster joined
+    /// (that node's: this process's `--seed` does not reach it).
+    pub cart_seed: Option<u64>,
 }
 
 impl Prepared {
@@ -44,7 +48,7 @@ impl Prepared {
             self.world_path
                 .as_deref()
                 .map_or_else(|| "?".into(), |p| p.display().to_string()),
-            robot.seed()
+            self.cart_seed.unwrap_or_else(|| robot.seed())
         ))
     }
 }
@@ -58,6 +62,7 @@ pub(crate) async fn prepare(
     joining: Option<&Joining>,
 ) -> anyhow::Result<Prepared> {
     let parsed = ParsedMission::parse_file(path).map_err(NodeError::Mission)?;
+    let asked_seed = robot.seed;
     let mut options = robot.options(parsed.world());
     options.mission_world_at = parsed.world_diagnostic("the world named here does not load:");
     if let Some(j) = joining {
@@ -80,13 +85,20 @@ pub(crate) async fn prepare(
         None => None,
     };
     match node.check_mission(&parsed).await {
-        Ok(mission) => Ok(Prepared {
-            node,
-            robot,
-            mission,
-            world_path,
-            transport,
-        }),
+        Ok(mission) => {
+            let cart_seed = match (&transport, &robot) {
+                (Some(_), Some(_)) => cart_seed(asked_seed).await,
+                _ => None,
+            };
+            Ok(Prepared {
+                node,
+                robot,
+                mission,
+                world_path,
+                transport,
+                cart_seed,
+            })
+        }
         Err(e) => {
             node.shutdown().await;
             if let Some(t) = transport {
@@ -102,4 +114,27 @@ pub(crate) async fn prepare(
 /// runtime's (virtual in `run`, paced there).
 pub(crate) async fn start_node(options: EmbeddedOptions) -> anyhow::Result<Embedded> {
     Ok(Embedded::start(options).await?)
+}
+
+/// The seed of the cart a joined run drives (on another node: that node's), if it answers;
+/// a `--seed` given here that differs is said not to reach it.
+async fn cart_seed(asked: Option<u64>) -> Option<u64> {
+    let status = match CartClient::lookup() {
+        Ok(cart) => cart.status().await,
+        Err(e) => Err(e),
+    };
+    let seed = match status {
+        Ok(status) => status.seed?,
+        Err(e) => {
+            tracing::warn!("the cart's seed is not known: {e}");
+            return None;
+        }
+    };
+    if let Some(asked) = asked.filter(|a| *a != seed) {
+        eprintln!(
+            "marie: --seed {asked} does not reach the cart, which runs on another node with \
+             seed {seed} (its node's, e.g. `marie up --seed`): the run drives with seed {seed}"
+        );
+    }
+    Some(seed)
 }

@@ -82,6 +82,10 @@ pub struct CartStatus {
     /// Those commands by operation name (only operations with at least one).
     #[serde(default)]
     pub refused_by: BTreeMap<String, u64>,
+    /// The seed of the simulation's noise: the cart's node's (a run joined to a cluster
+    /// reports this one, not its own). `None` from a node that does not say.
+    #[serde(default)]
+    pub seed: Option<u64>,
 }
 
 marie_actors::remote_message! {
@@ -256,6 +260,7 @@ impl CartState {
             judgement: self.sim.judge(),
             refused: self.fences.refused(),
             refused_by: self.fences.refused_by().clone(),
+            seed: Some(self.sim.seed()),
         }
     }
 }
