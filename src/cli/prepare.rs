@@ -126,7 +126,8 @@ async fn cart_seed(asked: Option<u64>) -> Option<u64> {
     let seed = match status {
         Ok(status) => status.seed?,
         Err(e) => {
-            tracing::warn!("the cart's seed is not known: {e}");
+            // (a cluster without a cart, e.g. for `marie check`: this process's seed stands)
+            tracing::debug!("the cart's seed is not known: {e}");
             return None;
         }
     };
