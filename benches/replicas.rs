@@ -46,9 +46,9 @@ fn puts() -> u64 {
 /// Put-all rounds of each kind. With 200 000 records and 3 rounds a 3-copy round ran at
 /// either ~270 k/s or ~400 k/s (the first of a run often slow), and the median ratio swung
 /// from 0.34x to 0.51x between runs of one build; with a million records and 5 rounds the
-/// runs of one build stay within about ±0.03 (0.47x–0.52x over seven runs of b133ae9's
-/// replication), still more than a change worth making moves it: compare builds by each
-/// process's CPU too.
+/// runs of one build still spread by ±0.03–0.04 (0.47x–0.52x over seven runs of b133ae9's
+/// replication; 0.55x, 0.55x, 0.55x, 0.63x of f282138's window grant): compare builds by
+/// each process's CPU too.
 const ROUNDS: usize = 5;
 const FAILOVERS: usize = 5;
 /// The child's role, and what it needs.

@@ -346,7 +346,7 @@ fn a_put_all_under_way_when_the_primary_is_killed_stores_every_record_once_in_or
             .unwrap()
             .expect("put_all completes on the next primary");
         // (which granted the wide window of a replicated datamanager: its acknowledgements
-        // wait for a copy, and a window of puts was on its way at the kill)
+        // wait for a copy)
         assert_eq!(client.window(), Some(dm::credits::REPLICATED_WINDOW));
         let (second, _) = primary(Some("r1")).await;
         let stored = client.select(Query::all()).await.unwrap();

@@ -38,7 +38,7 @@ pub(crate) struct Copy {
     /// The last entry whose producer's pair was noted before it was applied (a primary
     /// notes its proposals, and at election every entry it holds not yet applied):
     /// applying one up to it notes nothing again — a pair noted twice halved the retries a
-    /// primary recognised (the table keeps a producer's last 1024 pairs, one window).
+    /// primary recognised (the table then kept a producer's last 1024 pairs, one window).
     pub(crate) noted: u64,
     ticker: tokio::task::JoinHandle<()>,
     /// The datamanager's name.

@@ -92,10 +92,11 @@ pub(crate) fn fits(n: usize) -> Result<(), DmError> {
 }
 
 /// The credits of one producer towards one datamanager.
-#[derive(Debug)]
+#[derive(Debug, Default)]
 pub(crate) struct Credits {
-    /// The window the datamanager grants ([`WINDOW`] until its first acknowledgement).
-    window: AtomicUsize,
+    /// The window the datamanager granted in its last acknowledgement, as it said it (0
+    /// before the first: [`granted`] reads it).
+    grant: AtomicU64,
     /// Records put and not yet acknowledged: queued in the outbox, or cast.
     in_flight: AtomicUsize,
     /// Of those, the records cast: what an acknowledgement asked now would cover.
@@ -111,24 +112,10 @@ pub(crate) struct Credits {
     acked_total: AtomicU64,
 }
 
-impl Default for Credits {
-    fn default() -> Credits {
-        Credits {
-            window: AtomicUsize::new(WINDOW),
-            in_flight: AtomicUsize::default(),
-            cast: AtomicUsize::default(),
-            acking: AtomicBool::default(),
-            freed: Notify::default(),
-            cast_total: AtomicU64::default(),
-            acked_total: AtomicU64::default(),
-        }
-    }
-}
-
 impl Credits {
-    /// The window granted now.
+    /// The window granted now ([`WINDOW`] until the first acknowledgement).
     pub(crate) fn window(&self) -> usize {
-        self.window.load(Ordering::Acquire)
+        granted(self.grant.load(Ordering::Acquire))
     }
 
     /// Take `n` credits for puts to `dm`, all or none; `Busy` when fewer are left.
@@ -230,9 +217,7 @@ impl Credits {
                 .call(|reply| DmMsg::Stats { reply }, Some(ACK_TIMEOUT))
                 .await;
             if let Ok(ractor::rpc::CallResult::Success(stats)) = answer {
-                credits
-                    .window
-                    .store(granted(stats.window), Ordering::Release);
+                credits.grant.store(stats.window, Ordering::Release);
                 give_back(&credits.cast, covered);
                 give_back(&credits.in_flight, covered);
                 credits
@@ -277,8 +262,8 @@ mod tests {
             Err(DmError::Busy { window, .. }) if window == WINDOW as u64
         ));
         credits
-            .window
-            .store(granted(REPLICATED_WINDOW as u64), Ordering::Release);
+            .grant
+            .store(REPLICATED_WINDOW as u64, Ordering::Release);
         for _ in 1..REPLICATED_WINDOW / WINDOW {
             assert!(credits.take(WINDOW, "dm").is_ok());
         }

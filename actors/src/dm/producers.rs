@@ -10,10 +10,9 @@
 //! Per producer the table keeps the last [`PER_PRODUCER`] (producer seq → seq) pairs, in the
 //! order they came (almost always increasing, so a new record costs one comparison); a retry
 //! is at most a window of puts behind (the widest a datamanager grants, the credits'
-//! `REPLICATED_WINDOW`), inside. At most
-//! [`PRODUCERS`] producers are kept, the least recently heard from dropped first. The journal
-//! replays it (every put carries its pair) and snapshots it, so a restarted datamanager still
-//! knows what its predecessor stored.
+//! `REPLICATED_WINDOW`), inside. At most [`PRODUCERS`] producers are kept, the least
+//! recently heard from dropped first. The journal replays it (every put carries its pair)
+//! and snapshots it, so a restarted datamanager still knows what its predecessor stored.
 
 use std::collections::{HashMap, VecDeque};
 

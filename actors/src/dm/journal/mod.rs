@@ -17,10 +17,9 @@
 //! Segments of CRC-32C-checksummed entries (the `segment` and `entry` modules), written on
 //! tokio's blocking pool with group commit (at `process`, by the datamanager itself when
 //! the writer is idle; the `writer` module says why, and why not a thread of its own).
-//! Deletes and retention make records
-//! garbage; once the journal holds more than twice the live records (and at least
-//! [`SNAPSHOT_MIN`] puts), the datamanager writes a snapshot of its live records to a new
-//! segment and the older segments are deleted, so the journal stays within about three times
+//! Deletes and retention make records garbage; once the journal holds more than twice the
+//! live records (and at least [`SNAPSHOT_MIN`] puts), the datamanager writes a snapshot of
+//! its live records to a new segment and the older segments are deleted, so the journal stays within about three times
 //! the store.
 //!
 //! # Why a journal of our own

@@ -75,6 +75,58 @@ pub(crate) struct ReplicaLog {
 /// Committed entries a replay keeps ([`ReplicaLog::applied`]).
 const TAIL_KEEP: usize = crate::dm::replica::core::TAIL_KEEP;
 
+impl ReplicaLog {
+    /// Replay `entry` of the log: a put or a mark waits in the tail for its commit; a commit
+    /// applies the tail up to it to `state`'s store; a truncation cuts the tail; a term mark
+    /// sets the term. Any other entry (a snapshot's, a delete's) is handed back.
+    fn replay(&mut self, entry: Entry, state: &mut State) -> Option<Entry> {
+        let entry = match Op::from_entry(entry, self.term) {
+            Ok(op) => {
+                self.tail.push(op);
+                return None;
+            }
+            Err(other) => other,
+        };
+        match entry {
+            Entry::Commit { seq } => {
+                let store = state.store.as_mut()?;
+                let upto = self.tail.partition_point(|o| o.seq <= seq);
+                if upto == 0 && seq > self.committed.0 {
+                    // a commit mark after a snapshot: nothing to apply
+                    self.committed = (seq, self.term);
+                    self.applied.clear();
+                }
+                for op in self.tail.drain(..upto) {
+                    if self.applied.is_empty() {
+                        self.before = self.committed;
+                    }
+                    self.committed = (op.seq, op.term);
+                    state.puts += matches!(op.body, OpBody::Put { .. }) as u64;
+                    apply::apply(store, &mut state.fences, Some(&mut state.producers), &op);
+                    self.applied.push_back(op);
+                    let over = |len: usize, bytes: usize| len > TAIL_KEEP || bytes > KEEP_BYTES;
+                    if let Some(last) = self
+                        .applied
+                        .drop_front_while(|_, len, bytes| over(len, bytes))
+                    {
+                        self.before = last;
+                    }
+                }
+                None
+            }
+            Entry::Truncate { seq } => {
+                self.tail.retain(|o| o.seq < seq);
+                None
+            }
+            Entry::Term { term } => {
+                self.term = term;
+                None
+            }
+            other => Some(other),
+        }
+    }
+}
+
 /// What a replay rebuilds.
 #[derive(Default)]
 struct State {
@@ -110,60 +162,20 @@ impl Replay {
             Some((s, _, _)) => s,
             None => &mut self.state,
         };
-        let Some(store) = state.store.as_mut() else {
+        if state.store.is_none() {
             return;
-        };
-        // a replicated journal: outside a snapshot, entries (puts, marks) wait in the tail
-        // for their commit
+        }
+        // a replicated journal, outside a snapshot: its log takes what is its own
         let entry = match (&mut self.log, in_snapshot) {
-            (Some(log), false) => match Op::from_entry(entry, log.term) {
-                Ok(op) => {
-                    log.tail.push(op);
-                    return;
-                }
-                Err(other) => other,
+            (Some(log), false) => match log.replay(entry, state) {
+                Some(entry) => entry,
+                None => return,
             },
             _ => entry,
         };
-        if let (Some(log), false) = (&mut self.log, in_snapshot) {
-            let term = log.term;
-            match entry {
-                Entry::Commit { seq } => {
-                    let upto = log.tail.partition_point(|o| o.seq <= seq);
-                    if upto == 0 && seq > log.committed.0 {
-                        // a commit mark after a snapshot: nothing to apply
-                        log.committed = (seq, term);
-                        log.applied.clear();
-                    }
-                    for op in log.tail.drain(..upto) {
-                        if log.applied.is_empty() {
-                            log.before = log.committed;
-                        }
-                        log.committed = (op.seq, op.term);
-                        state.puts += matches!(op.body, OpBody::Put { .. }) as u64;
-                        apply::apply(store, &mut state.fences, Some(&mut state.producers), &op);
-                        log.applied.push_back(op);
-                        let over = |len: usize, bytes: usize| len > TAIL_KEEP || bytes > KEEP_BYTES;
-                        if let Some(last) = log
-                            .applied
-                            .drop_front_while(|_, len, bytes| over(len, bytes))
-                        {
-                            log.before = last;
-                        }
-                    }
-                    return;
-                }
-                Entry::Truncate { seq } => {
-                    log.tail.retain(|o| o.seq < seq);
-                    return;
-                }
-                Entry::Term { term } => {
-                    log.term = term;
-                    return;
-                }
-                _ => {}
-            }
-        }
+        let Some(store) = state.store.as_mut() else {
+            return;
+        };
         match entry {
             Entry::Term { term } => {
                 // the first one: from here on, a replicated datamanager's journal
