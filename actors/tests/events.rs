@@ -116,6 +116,7 @@ async fn a_report_is_rebuilt_with_its_faults_judgement_and_latest_rebinds() {
         actor: "0.1".into(),
         node: Some("n".into()),
         due_ms: Some(5),
+        lasting_ms: None,
     });
     bus.publish(EventKind::FaultNotInjected {
         fault: FaultKind::Hang,
@@ -185,6 +186,8 @@ async fn a_report_is_rebuilt_with_its_faults_judgement_and_latest_rebinds() {
             actor: String::new(),
             node: None,
             error: Some("no operation `ghost` is running".into()),
+            lasting_ms: None,
+            healed_at_ms: None,
         }
     );
     // an injected fault's time is its stamp, counted from the run's start
@@ -227,6 +230,7 @@ async fn a_report_attached_to_a_bus_equals_the_fold_of_what_a_subscriber_receive
         actor: "0.4".into(),
         node: None,
         due_ms: None,
+        lasting_ms: None,
     });
     bus.publish(EventKind::RunEnded {
         outcome: Outcome::Succeeded,

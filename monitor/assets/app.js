@@ -20,9 +20,9 @@ const fmtAt = (ms) => (ms == null ? "" : fmtMs(ms - ((latest && latest.start_ms)
 let selectedOp = null;
 let latest = null;
 // what /api/info says the page may offer
-let offers = { properties: false, operation_faults: false, stoppable_nodes: [] };
+let offers = { properties: false, operation_faults: false, stoppable_nodes: [], cuttable: false };
 // the fault kinds by what they aim at (/api/info): a button per kind
-let faultKinds = { operation: [], node: [], datamanager: [] };
+let faultKinds = { operation: [], node: [], cut: [], datamanager: [] };
 // what each kind does, for its button's title (a kind without one is titled by its name)
 const FAULT_TITLES = {
   kill: "kill its actor: its supervisor restarts it",
@@ -30,7 +30,11 @@ const FAULT_TITLES = {
   hang: "stop it answering: the dispatcher's deadline kills it",
   slow: "make its steps come five times slower: it keeps answering, its control suffers",
   "stop-node": "kill its process (SIGKILL), as a crash would",
+  "freeze-node": "freeze its process (SIGSTOP) for 5 s, then let it go on (SIGCONT)",
+  partition: "cut it off from every other node for 5 s, both ways, then heal",
 };
+// a node button's label, by kind
+const NODE_FAULT_LABELS = { "stop-node": "stop", "freeze-node": "freeze", partition: "cut off" };
 // the live properties of the selected binding: {op, node, address, groups} or {error}
 let liveProps = null;
 
@@ -219,10 +223,11 @@ function renderCluster(cluster) {
   setHtml($("#cluster"), Object.values(cluster)
     .map((n) => {
       const mods = Object.values(n.modules);
+      const kinds = faultKinds.node.concat(offers.cuttable ? (faultKinds.cut || []) : []);
       const stop = offers.stoppable_nodes.includes(n.name) && n.status === "up"
-        ? faultKinds.node.map((k) =>
+        ? kinds.map((k) =>
           ` <button type="button" class="node-fault ${esc(k)}" data-fault="${esc(k)}" data-node="${esc(n.name)}" ` +
-          `title="${esc(FAULT_TITLES[k] || k)}">${k === "stop-node" ? "stop" : esc(k)}</button>`).join("")
+          `title="${esc(FAULT_TITLES[k] || k)}">${esc(NODE_FAULT_LABELS[k] || k)}</button>`).join("")
         : "";
       return `<div class="node" data-node="${esc(n.name)}" data-status="${n.status}">` +
         `<strong>${esc(n.name)}</strong> <span class="status">${n.status}</span> ${esc(n.address || "")}${stop}` +

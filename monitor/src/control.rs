@@ -55,7 +55,8 @@ pub struct OperationRef {
 
 /// A fault asked for from the page: `{"fault": KIND, "operation", "node"?, "address"?}` for
 /// a kind that aims at an operation, `{"fault": KIND, "node"}` for one that aims at a node
-/// (`stop-node`).
+/// (`stop-node`, `freeze-node`) — or, for a `partition`, at the node cut off from all the
+/// others.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct FaultRequest {
     /// What to do.
@@ -67,13 +68,12 @@ pub struct FaultRequest {
 
 impl FaultRequest {
     /// Whether the kind aims at what the request names (an operation kind at an operation,
-    /// a node kind at a node).
+    /// a node kind or a cut at a node).
     pub fn fits(&self) -> bool {
-        let aim = match self.on {
-            FaultOn::Operation(_) => Aim::Operation,
-            FaultOn::Node { .. } => Aim::Node,
-        };
-        self.fault.aim() == aim
+        match self.on {
+            FaultOn::Operation(_) => self.fault.aim() == Aim::Operation,
+            FaultOn::Node { .. } => matches!(self.fault.aim(), Aim::Node | Aim::Cut),
+        }
     }
 }
 
@@ -97,8 +97,13 @@ pub struct Offers {
     pub properties: bool,
     /// Faults that aim at operations (every such [`FaultKind`]).
     pub operation_faults: bool,
-    /// The nodes whose process can be stopped (those the monitor's process started).
+    /// The nodes whose process can be stopped or frozen (those the monitor's process
+    /// started).
     pub stoppable_nodes: Vec<String>,
+    /// Whether those nodes run in a network that can be cut: a node can then be cut off
+    /// from all the others for a while (`partition`).
+    #[serde(default)]
+    pub cuttable: bool,
 }
 
 /// Why a control request was not done.

@@ -32,6 +32,7 @@ impl Control for Recording {
             properties: true,
             operation_faults: true,
             stoppable_nodes: vec!["wf-a".into()],
+            cuttable: false,
         }
     }
 
@@ -77,7 +78,7 @@ fn faults_are_refused_unless_allowed_and_properties_are_always_asked() {
     assert_eq!(info["faults_allowed"], false);
     assert_eq!(
         info["offers"],
-        json!({"properties": true, "operation_faults": false, "stoppable_nodes": []})
+        json!({"properties": true, "operation_faults": false, "stoppable_nodes": [], "cuttable": false})
     );
     let (status, answer) = http::post_json(addr, "/api/fault", &kill_wall_follower());
     assert_eq!(status, 403, "{answer}");
@@ -163,7 +164,11 @@ fn a_fault_must_be_json_of_a_known_kind() {
     }
     // the page is told every kind, by what it aims at
     let info = http::get_json(addr, "/api/info");
-    assert_eq!(info["fault_kinds"]["node"], json!(["stop-node"]));
+    assert_eq!(
+        info["fault_kinds"]["node"],
+        json!(["stop-node", "freeze-node"])
+    );
+    assert_eq!(info["fault_kinds"]["cut"], json!(["partition"]));
     assert!(info["fault_kinds"]["operation"]
         .as_array()
         .unwrap()

@@ -119,8 +119,19 @@ impl NodeChild {
     /// Ask it to stop (close its pipe); kill it if it has not within the grace period.
     /// Returns its exit code (`None` when killed by a signal).
     pub(crate) fn stop(&mut self) -> Option<i32> {
+        self.go_on();
         self.stdin.take();
         self.wait_until(Instant::now() + STOP_GRACE)
+    }
+
+    /// Let it go on if a fault froze it (`SIGCONT`; nothing happens to a running process):
+    /// a stopped process would not hear its pipe close.
+    fn go_on(&self) {
+        if let Ok(pid) = libc::pid_t::try_from(self.child.id()) {
+            // SAFETY: a signal to our own child, not yet reaped — so the pid is still its
+            // own, even once it exited (a zombie ignores it)
+            unsafe { libc::kill(pid, libc::SIGCONT) };
+        }
     }
 
     /// Wait for it to exit until `deadline`, then kill it. Polling: a child's exit has no
@@ -146,6 +157,7 @@ impl NodeChild {
 /// period). Gives each node's name and exit code.
 pub(crate) fn stop_all(children: &mut [NodeChild]) -> Vec<(String, Option<i32>)> {
     for c in children.iter_mut() {
+        c.go_on();
         c.stdin.take();
     }
     // one grace for all: they stop side by side

@@ -67,6 +67,7 @@ async fn strike(injector: &Injector, operation: &str) -> anyhow::Result<Instance
     match done.hit {
         Hit::Instance(inst) => Ok(inst),
         Hit::Process { node, .. } => Err(anyhow::anyhow!("{node} is a node, not an operation")),
+        Hit::Cut { .. } => Err(anyhow::anyhow!("{target} is a cut, not an operation")),
     }
 }
 

@@ -8,6 +8,7 @@
 
 use super::props::ask_every_group;
 use marie::actors::events::EventBus;
+use marie::actors::run::{Aim, FaultKind};
 use marie::cluster::fault::{self, FaultError, Hit, Injector, NodeProcesses, Target, TargetError};
 use marie_monitor::control::{
     Answer, Control, ControlError, FaultOn, FaultRequest, Offers, OperationRef,
@@ -39,6 +40,7 @@ impl Control for PageControl {
             properties: true,
             operation_faults: true,
             stoppable_nodes: self.injector.processes().names(),
+            cuttable: self.injector.processes().can_cut(),
         }
     }
 
@@ -58,7 +60,19 @@ impl Control for PageControl {
     fn fault(&self, request: FaultRequest) -> Answer<String> {
         let injector = self.injector.clone();
         Box::pin(async move {
-            let target = target_of(&request.on);
+            let target = match (&request.on, request.fault.aim()) {
+                // the page cuts a node off from every other node `marie up` started
+                (FaultOn::Node { node }, Aim::Cut) => Target::Cut {
+                    a: vec![node.clone()],
+                    b: injector
+                        .processes()
+                        .names()
+                        .into_iter()
+                        .filter(|n| n != node)
+                        .collect(),
+                },
+                (on, _) => target_of(on),
+            };
             let done = injector
                 .inject(request.fault, &target)
                 .await
@@ -71,12 +85,24 @@ impl Control for PageControl {
                     done.victim(),
                     inst.node
                 ),
-                Hit::Process { node, pid } => {
-                    format!(
+                Hit::Process { node, pid } => match done.kind {
+                    FaultKind::FreezeNode => format!(
+                        "{} done: froze node {node}'s process (pid {pid}) for {:.1} s",
+                        done.kind,
+                        done.lasting.unwrap_or_default().as_secs_f64()
+                    ),
+                    _ => format!(
                         "{} done: killed node {node}'s process (pid {pid})",
                         done.kind
-                    )
-                }
+                    ),
+                },
+                Hit::Cut { a, b } => format!(
+                    "{} done: cut {} off from {} for {:.1} s",
+                    done.kind,
+                    a.join(", "),
+                    b.join(", "),
+                    done.lasting.unwrap_or_default().as_secs_f64()
+                ),
             })
         })
     }

@@ -13,7 +13,7 @@ use anyhow::Context;
 use marie::actors::clock::Pacer;
 use marie::actors::report::RunReport;
 use marie::actors::run::Outcome;
-use marie::cluster::fault::{Chaos, FaultSpec, NodeProcesses};
+use marie::cluster::fault::{Chaos, FaultSpec, NodeChaos, NodeProcesses};
 use marie::cluster::node::{NodeError, RunOptions};
 use marie_missions::robot::RobotReport;
 use marie_monitor::MonitorOptions;
@@ -69,7 +69,8 @@ pub(crate) struct RunArgs {
     #[command(flatten)]
     pub cluster: JoinArgs,
     /// Inject a fault while the mission runs: KIND `kill`, `panic`, `hang` or `slow` (an
-    /// operation) or `stop-node` (a node process `marie up` started); TARGET the operation's name or id
+    /// operation) or `stop-node`, `freeze-node` or `partition` (node processes `marie up`
+    /// started: see `marie up --fault`); TARGET the operation's name or id
     /// (the instance the mission bound), `NAME#VERSION` (the instance with that version),
     /// `NAME/NODE` (the one on that node) or an actor id like `0.42` — a datamanager's
     /// name, id or address (`kill`, `panic`, `hang`) — or a node's name;
@@ -96,9 +97,13 @@ pub(crate) struct RunArgs {
     /// `marie up`, stop a node's process) — and watch the dispatcher rebind.
     #[arg(long, requires = "monitor")]
     pub allow_faults: bool,
-    /// The node processes the page may stop (`marie up`'s children; none otherwise).
+    /// The node processes the page and the faults may stop, freeze or cut apart (`marie
+    /// up`'s children; none otherwise).
     #[arg(skip)]
     pub node_processes: NodeProcesses,
+    /// Random node faults (`marie up --chaos-nodes`).
+    #[arg(skip)]
+    pub node_chaos: Option<Box<NodeChaos>>,
     /// Set once the mission has ended and a Ctrl-C is the run's own to hear (see
     /// [`MissionOver`]).
     #[arg(skip)]
@@ -144,6 +149,7 @@ pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         faults,
         chaos,
         chaos_dms,
+        node_chaos,
         cluster,
         monitor: monitor_listen,
         allow_faults,
@@ -177,6 +183,9 @@ pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
             true => chaos.with_datamanagers(),
             false => chaos,
         });
+    }
+    if let Some(chaos) = node_chaos {
+        options = options.node_chaos(*chaos);
     }
     // The runtime's paused clock is the mission clock (the node's "real" clock reads it);
     // the pacer only holds it back to `speed`, from before the node starts to the end.
@@ -215,6 +224,10 @@ pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         Err(NodeError::Fault { spec, error }) => {
             prepared.shutdown().await;
             return Err(BadInput(format!("--fault {spec}: {error}")).into());
+        }
+        Err(e @ NodeError::NodeChaos(_)) => {
+            prepared.shutdown().await;
+            return Err(BadInput(e.to_string()).into());
         }
         Err(e) => {
             prepared.shutdown().await;

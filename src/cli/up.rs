@@ -20,7 +20,7 @@ use super::join::{join, member_name, JoinArgs};
 use super::run::RunArgs;
 use marie::actors::dispatcher::mission::ParsedMission;
 use marie::actors::registry::{self, Instance};
-use marie::cluster::fault::NodeProcesses;
+use marie::cluster::fault::{FaultSpec, NodeChaos, NodeProcesses};
 use marie::cluster::layout::ClusterLayout;
 use marie::cluster::node::NodeConfig;
 use std::collections::BTreeMap;
@@ -67,9 +67,27 @@ pub(crate) struct UpArgs {
           default_missing_value = marie_monitor::DEFAULT_LISTEN)]
     pub monitor: Option<SocketAddr>,
     /// With `--monitor`: let the page inject faults — kill or hang an operation, stop a
-    /// node's process (`SIGKILL`) — and watch the cluster fail over.
+    /// node's process (`SIGKILL`), freeze it or cut it off for 5 s — and watch the cluster
+    /// fail over.
     #[arg(long, requires = "monitor")]
     pub allow_faults: bool,
+    /// With `--run`: inject a fault while the mission runs, as `marie run --fault` does,
+    /// and the node faults only `marie up` can do: `stop-node:NODE@SECS` (`SIGKILL`),
+    /// `freeze-node:NODE@SECS+SECS` (`SIGSTOP`, then `SIGCONT`), `partition:A,B|C,D@SECS+SECS`
+    /// (the two groups cannot reach each other; needs root and `ip`: the nodes then run in
+    /// a private network of namespaces). Repeatable; checked before the run (exit 2).
+    #[arg(
+        long = "fault",
+        value_name = "KIND:TARGET@SECS[+SECS]",
+        requires = "run"
+    )]
+    pub faults: Vec<FaultSpec>,
+    /// With `--run`: every 8 to 16 s of mission time, stop, freeze (2 to 6 s) or cut off
+    /// (2 to 6 s, where the nodes run in a private network) a random node other than the
+    /// cart's, drawn by a generator seeded with SEED. A stopped node stays down.
+    #[arg(long, value_name = "SEED", value_parser = parse_seed, allow_hyphen_values = true,
+          requires = "run")]
+    pub chaos_nodes: Option<u64>,
     /// Keep every node's datamanager journals in DIR/NODE (a node config's own `data_dir`
     /// wins), after exit too: a later `up --data-dir DIR` finds their records. Default: a
     /// fresh directory under the system's temporary one, removed when `up` exits.
@@ -365,9 +383,12 @@ async fn serve(
         events: args.events.clone(),
         svg: args.svg.clone(),
         speed: Some(speed),
-        faults: Vec::new(),
+        faults: args.faults.clone(),
         chaos: None,
         chaos_dms: false,
+        node_chaos: args
+            .chaos_nodes
+            .map(|seed| Box::new(NodeChaos::new(seed, cart_nodes(layout)))),
         monitor: args.monitor,
         allow_faults: args.allow_faults,
         node_processes: processes,
@@ -509,6 +530,17 @@ async fn converged(
             registry::list().len()
         )
     })
+}
+
+/// The nodes that run the cart's drivers: a node chaos spares them (their loss is the
+/// robot's).
+fn cart_nodes(layout: &ClusterLayout) -> Vec<String> {
+    layout
+        .nodes
+        .iter()
+        .filter(|n| n.config.simulation.as_ref().is_some_and(|s| s.drivers))
+        .map(|n| n.config.name.clone())
+        .collect()
 }
 
 /// How a member of `up`'s own joins the cluster: at the first node, the one the others

@@ -535,7 +535,7 @@ impl<O: Operation> Actor for EoHost<O> {
                     FaultKind::Kill => myself.kill(),
                     // from the next step on (a step already due comes as it was planned)
                     FaultKind::Slow => state.period *= FaultKind::SLOW_FACTOR,
-                    FaultKind::StopNode => {
+                    FaultKind::StopNode | FaultKind::FreezeNode | FaultKind::Partition => {
                         tracing::warn!(%fault, "a node's fault reached an operation: ignored")
                     }
                 }

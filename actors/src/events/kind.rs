@@ -156,6 +156,18 @@ pub enum EventKind {
         /// asked at once).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         due_ms: Option<u64>,
+        /// For a fault that [lasts](FaultKind::lasts) (a freeze, a cut): for how long, in
+        /// ms of mission time; a `fault_healed` follows when it is undone.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        lasting_ms: Option<u64>,
+    },
+    /// A lasting fault was undone: a frozen node's process let go on (`SIGCONT`), a cut
+    /// between two groups of nodes healed.
+    FaultHealed {
+        /// What.
+        fault: FaultKind,
+        /// What it was meant for, as asked (the node's name, or the cut `A,B|C,D`).
+        operation: String,
     },
     /// A fault could not be injected.
     FaultNotInjected {

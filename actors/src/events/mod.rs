@@ -23,8 +23,9 @@
 //! run began. Loss causes are objects tagged by `type` too ([`LossCause`](crate::run::LossCause));
 //! `ended` is `running|finished|suspended|failed|lost|unresponsive`, `outcome`
 //! `succeeded|failed`, `fault` one of [`FaultKind::ALL`](crate::run::FaultKind::ALL)'s names
-//! (`kill|panic|hang|slow|stop-node`); a `judged` line's fields beyond `outcome` and `reason` are
-//! the robot's own. One example line per kind:
+//! (`kill|panic|hang|slow|stop-node|freeze-node|partition`); a `judged` line's fields beyond `outcome` and `reason` are
+//! the robot's own; a fault that lasts (`freeze-node`, `partition`) has `lasting_ms` in its
+//! `fault_injected`, and a `fault_healed` when it is undone. One example line per kind:
 //!
 //! ```json
 //! {"at_ms":1200,"node":"marie@localhost","kind":{"type":"run_started","mission":"docking","actions":[{"name":"follow","when":["wall_found"],"ops":["wall-follower","docking-detector"],"ends_on":["docking-detector"]}],"success":["parked"]}}
@@ -44,6 +45,7 @@
 //! {"at_ms":5001,"node":"marie@localhost","kind":{"type":"child_restarted","supervisor":"operations","child":"wall-follower","actor":"0.57","restarts":1,"reason":"killed"}}
 //! {"at_ms":9000,"node":"marie@localhost","kind":{"type":"supervisor_gave_up","supervisor":"operations","reason":"reached_max_restart_intensity"}}
 //! {"at_ms":5000,"node":"marie@localhost","kind":{"type":"fault_injected","fault":"kill","operation":"wall-follower","actor":"0.41","node":"marie@localhost","due_ms":3800}}
+//! {"at_ms":12000,"node":"marie@localhost","kind":{"type":"fault_healed","fault":"freeze-node","operation":"features"}}
 //! {"at_ms":6000,"node":"marie@localhost","kind":{"type":"fault_not_injected","fault":"hang","operation":"nobody","why":"no operation `nobody` is running","due_ms":4800}}
 //! {"at_ms":700,"node":"marie@localhost","kind":{"type":"node_up","peer":"cart","address":"127.0.0.1:7101"}}
 //! {"at_ms":9500,"node":"marie@localhost","kind":{"type":"node_down","peer":"cart","silent_ms":1530}}
@@ -180,6 +182,7 @@ mod tests {
             EventKind::SupervisorGaveUp { .. } => "supervisor_gave_up",
             EventKind::FaultInjected { .. } => "fault_injected",
             EventKind::FaultNotInjected { .. } => "fault_not_injected",
+            EventKind::FaultHealed { .. } => "fault_healed",
             EventKind::NodeUp { .. } => "node_up",
             EventKind::NodeLost { .. } => "node_lost",
             EventKind::NodeDown { .. } => "node_down",
@@ -197,7 +200,7 @@ mod tests {
     }
 
     /// The `type` of every kind, as [`type_of`] names them.
-    const KINDS: [&str; 30] = [
+    const KINDS: [&str; 31] = [
         "run_started",
         "bound",
         "action_started",
@@ -215,6 +218,7 @@ mod tests {
         "supervisor_gave_up",
         "fault_injected",
         "fault_not_injected",
+        "fault_healed",
         "node_up",
         "node_lost",
         "node_down",

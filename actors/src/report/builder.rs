@@ -149,6 +149,7 @@ impl ReportBuilder {
                 actor,
                 node,
                 due_ms: _,
+                lasting_ms,
             } => {
                 let at_ms = self.run_ms(event);
                 self.report.record_faults([FaultRecord {
@@ -158,7 +159,21 @@ impl ReportBuilder {
                     actor: actor.clone(),
                     node: node.clone(),
                     error: None,
+                    lasting_ms: *lasting_ms,
+                    healed_at_ms: None,
                 }])
+            }
+            EventKind::FaultHealed { fault, operation } => {
+                let at_ms = self.run_ms(event);
+                // the latest of that fault on that target not healed yet
+                if let Some(f) = self.report.faults.iter_mut().rev().find(|f| {
+                    f.fault == *fault
+                        && f.operation == *operation
+                        && f.error.is_none()
+                        && f.healed_at_ms.is_none()
+                }) {
+                    f.healed_at_ms = Some(at_ms);
+                }
             }
             EventKind::FaultNotInjected {
                 fault,
@@ -176,6 +191,8 @@ impl ReportBuilder {
                     actor: String::new(),
                     node: None,
                     error: Some(why.clone()),
+                    lasting_ms: None,
+                    healed_at_ms: None,
                 }])
             }
             EventKind::Judged {

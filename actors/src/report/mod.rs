@@ -124,6 +124,12 @@ pub struct FaultRecord {
     /// Why it could not be injected, if it could not.
     #[serde(default)]
     pub error: Option<String>,
+    /// For a fault that lasts (a freeze, a cut): for how long it was asked, in ms.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lasting_ms: Option<u64>,
+    /// For a fault that lasts: when it was undone (ms since the run began), once it was.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub healed_at_ms: Option<u64>,
 }
 
 impl RunReport {
@@ -265,6 +271,8 @@ mod tests {
                 actor: "0.2".into(),
                 node: Some("local".into()),
                 error: None,
+                lasting_ms: None,
+                healed_at_ms: None,
             }],
             faults_total: 1,
             robot: serde_json::json!({"final_pose": [1.0, 2.0, 0.5], "collisions": 0})
@@ -313,6 +321,8 @@ mod tests {
             actor: String::new(),
             node: None,
             error: None,
+            lasting_ms: None,
+            healed_at_ms: None,
         }));
         assert_eq!((report.rebinds_total, report.faults_total), (1000, 250));
         assert_eq!(report.rebinds.len(), REPORT_KEEPS);

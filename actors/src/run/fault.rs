@@ -4,16 +4,16 @@
 //!
 //! Adding a kind is a variant here (its name, what it aims at) plus its behaviour where it
 //! is done: an operation's host for the operation kinds (`eo/host.rs`), the node-process
-//! table for the node kinds (`marie_cluster::fault`). Everything that parses, offers,
-//! resolves, publishes and reports faults reads this enum.
+//! table and the private network of `marie up` for the node kinds (`marie_cluster::fault`).
+//! Everything that parses, offers, resolves, publishes and reports faults reads this enum.
 
 use serde::{Deserialize, Serialize};
 use std::fmt;
 use std::str::FromStr;
 
 /// What is done, on purpose, to test self-healing. Serialized as its [`name`](Self::name)
-/// (`kill`, `panic`, `hang`, `slow`, `stop-node`) — stable names, read back by reports and
-/// event files.
+/// (`kill`, `panic`, `hang`, `slow`, `stop-node`, `freeze-node`, `partition`) — stable
+/// names, read back by reports and event files.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum FaultKind {
@@ -35,6 +35,16 @@ pub enum FaultKind {
     /// failure detectors declare it down, the dispatcher rebinds to survivors. Only a
     /// process that started the node can do it (`marie up`).
     StopNode,
+    /// Freeze a node's process (`SIGSTOP`) for a while, then let it go on (`SIGCONT`): a
+    /// node that stops answering without closing a socket (a stalled host, a long GC
+    /// pause). Its peers' failure detectors declare it down past their deadline; when it
+    /// wakes, its old sessions and epochs are fenced. Only `marie up` can do it.
+    FreezeNode,
+    /// Cut two groups of nodes apart for a while, both ways, then heal: every packet
+    /// between them vanishes, as behind a cut cable, while each group goes on talking
+    /// within itself. Only `marie up` can do it, on a cluster it started in a private
+    /// network of namespaces.
+    Partition,
 }
 
 /// What a fault aims at: a module instance (an operation, or a datamanager for the kinds
@@ -46,6 +56,8 @@ pub enum Aim {
     Operation,
     /// A node, by name.
     Node,
+    /// Two groups of nodes, by name: the two sides of a cut.
+    Cut,
 }
 
 impl FaultKind {
@@ -53,12 +65,14 @@ impl FaultKind {
     pub const SLOW_FACTOR: u32 = 5;
 
     /// Every kind, in a stable order.
-    pub const ALL: [FaultKind; 5] = [
+    pub const ALL: [FaultKind; 7] = [
         FaultKind::Kill,
         FaultKind::Panic,
         FaultKind::Hang,
         FaultKind::Slow,
         FaultKind::StopNode,
+        FaultKind::FreezeNode,
+        FaultKind::Partition,
     ];
 
     /// The stable name: the serialized form and what `--fault` accepts.
@@ -69,6 +83,8 @@ impl FaultKind {
             FaultKind::Hang => "hang",
             FaultKind::Slow => "slow",
             FaultKind::StopNode => "stop-node",
+            FaultKind::FreezeNode => "freeze-node",
+            FaultKind::Partition => "partition",
         }
     }
 
@@ -78,9 +94,21 @@ impl FaultKind {
             FaultKind::Kill | FaultKind::Panic | FaultKind::Hang | FaultKind::Slow => {
                 Aim::Operation
             }
-            FaultKind::StopNode => Aim::Node,
+            FaultKind::StopNode | FaultKind::FreezeNode => Aim::Node,
+            FaultKind::Partition => Aim::Cut,
         }
     }
+
+    /// Whether it lasts a while and is then undone (a freeze is thawed, a cut healed): a
+    /// plan gives its duration (`@T+D`); the page and `marie kill` use
+    /// [`DEFAULT_LASTING`](Self::DEFAULT_LASTING).
+    pub fn lasts(self) -> bool {
+        matches!(self, FaultKind::FreezeNode | FaultKind::Partition)
+    }
+
+    /// How long a [lasting](Self::lasts) fault lasts when nobody said: 5 s, past the
+    /// default failure detector's deadline, so the peers declare the node down.
+    pub const DEFAULT_LASTING: std::time::Duration = std::time::Duration::from_secs(5);
 
     /// Whether a datamanager can suffer it: a kill, a panic or a hang hit a datamanager
     /// as they hit an operation (its supervisor restarts it); a slow step means nothing to
@@ -106,7 +134,7 @@ impl fmt::Display for FaultKind {
 #[error("unknown fault `{0}` (expected {names})", names = names())]
 pub struct UnknownFault(pub String);
 
-/// `kill, panic, hang, slow or stop-node`.
+/// `kill, panic, hang, slow, stop-node, freeze-node or partition`.
 fn names() -> String {
     let names: Vec<&str> = FaultKind::ALL.iter().map(|k| k.name()).collect();
     match names.split_last() {
@@ -144,12 +172,13 @@ mod tests {
         }
         assert_eq!(
             "boom".parse::<FaultKind>().unwrap_err().to_string(),
-            "unknown fault `boom` (expected kill, panic, hang, slow or stop-node)"
+            "unknown fault `boom` (expected kill, panic, hang, slow, stop-node, freeze-node or \
+             partition)"
         );
     }
 
     #[test]
-    fn each_kind_aims_at_an_operation_or_a_node() {
+    fn each_kind_aims_at_an_operation_a_node_or_a_cut() {
         let ops: Vec<FaultKind> = FaultKind::aiming_at(Aim::Operation).collect();
         assert_eq!(
             ops,
@@ -161,6 +190,10 @@ mod tests {
             ]
         );
         let nodes: Vec<FaultKind> = FaultKind::aiming_at(Aim::Node).collect();
-        assert_eq!(nodes, [FaultKind::StopNode]);
+        assert_eq!(nodes, [FaultKind::StopNode, FaultKind::FreezeNode]);
+        let cuts: Vec<FaultKind> = FaultKind::aiming_at(Aim::Cut).collect();
+        assert_eq!(cuts, [FaultKind::Partition]);
+        let lasting: Vec<FaultKind> = FaultKind::ALL.into_iter().filter(|k| k.lasts()).collect();
+        assert_eq!(lasting, [FaultKind::FreezeNode, FaultKind::Partition]);
     }
 }

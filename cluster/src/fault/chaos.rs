@@ -45,8 +45,13 @@ impl Chaos {
 
     /// The time until the next kill.
     pub fn next_gap(&mut self) -> Duration {
-        let span = self.max_gap.saturating_sub(self.min_gap).as_secs_f64();
-        self.min_gap + Duration::from_secs_f64(span * unit(self.rng.next_u64()))
+        self.between(self.min_gap, self.max_gap)
+    }
+
+    /// A duration drawn uniformly between `min` and `max`.
+    pub fn between(&mut self, min: Duration, max: Duration) -> Duration {
+        let span = max.saturating_sub(min).as_secs_f64();
+        min + Duration::from_secs_f64(span * unit(self.rng.next_u64()))
     }
 
     /// Pick one of `candidates` (`None` if there are none).

@@ -24,15 +24,18 @@ pub struct Injected {
     pub target: Target,
     /// What got it.
     pub hit: Hit,
+    /// For a fault that lasts: for how long (it is undone after that).
+    pub lasting: Option<Duration>,
 }
 
 impl Injected {
-    /// What got it, as events and reports name it: an instance's address, or a node's
-    /// process as `pid N`.
+    /// What got it, as events and reports name it: an instance's address, a node's
+    /// process as `pid N`, or a cut as its two groups `A,B|C,D`.
     pub fn victim(&self) -> String {
         match &self.hit {
             Hit::Instance(inst) => inst.actor.get_id().to_string(),
             Hit::Process { pid, .. } => format!("pid {pid}"),
+            Hit::Cut { a, b } => format!("{}|{}", a.join(","), b.join(",")),
         }
     }
 }
@@ -122,12 +125,17 @@ impl Injector {
         self
     }
 
-    /// The kinds this injector can do: every operation kind, and the node kinds when it
-    /// may stop a node's process.
+    /// The kinds this injector can do: every operation kind, the node kinds when it may
+    /// stop a node's process, and a partition when those nodes run in a network it can
+    /// cut.
     pub fn offers(&self) -> Vec<FaultKind> {
         FaultKind::ALL
             .into_iter()
-            .filter(|k| k.aim() == Aim::Operation || !self.processes.is_empty())
+            .filter(|k| match k.aim() {
+                Aim::Operation => true,
+                Aim::Node => !self.processes.is_empty(),
+                Aim::Cut => self.processes.can_cut(),
+            })
             .collect()
     }
 
@@ -181,15 +189,30 @@ impl Injector {
         Ok(())
     }
 
-    /// Inject `kind` into what `target` names now, and tell the bus.
+    /// Inject `kind` into what `target` names now, and tell the bus. A fault that
+    /// [lasts](FaultKind::lasts) lasts [`FaultKind::DEFAULT_LASTING`].
     pub async fn inject(&self, kind: FaultKind, target: &Target) -> Result<Injected, FaultError> {
-        self.strike(kind, target, None).await
+        let lasting = kind.lasts().then_some(FaultKind::DEFAULT_LASTING);
+        self.strike(kind, target, None, lasting).await
     }
 
     /// Inject a planned fault that is due now (`due`: its time in the run), and tell the
     /// bus with the time it was due.
     pub(crate) async fn inject_due(&self, spec: &FaultSpec) -> Result<Injected, FaultError> {
-        self.strike(spec.kind, &spec.target, Some(spec.at)).await
+        self.strike(spec.kind, &spec.target, Some(spec.at), spec.lasting)
+            .await
+    }
+
+    /// Inject `kind` (one that [lasts](FaultKind::lasts)) into what `target` names now for
+    /// `lasting` of mission time, and tell the bus — what the seeded node chaos does.
+    pub async fn inject_lasting(
+        &self,
+        kind: FaultKind,
+        target: &Target,
+        lasting: Duration,
+    ) -> Result<Injected, FaultError> {
+        self.strike(kind, target, None, kind.lasts().then_some(lasting))
+            .await
     }
 
     /// Tell the bus that a planned fault was not injected, and why.
@@ -208,9 +231,10 @@ impl Injector {
         kind: FaultKind,
         target: &Target,
         due: Option<Duration>,
+        lasting: Option<Duration>,
     ) -> Result<Injected, FaultError> {
         let due_ms = due.map(|d| d.as_millis() as u64);
-        let done = self.resolve_and_do(kind, target).await;
+        let done = self.resolve_and_do(kind, target, lasting).await;
         match &done {
             Ok(injected) => {
                 tracing::warn!(fault = %kind, %target, victim = %injected.victim(), "fault injected");
@@ -218,9 +242,13 @@ impl Injector {
                     fault: kind,
                     operation: target.to_string(),
                     actor: injected.victim(),
-                    node: Some(injected.hit.node().to_string()),
+                    node: injected.hit.node().map(str::to_string),
                     due_ms,
+                    lasting_ms: injected.lasting.map(|d| d.as_millis() as u64),
                 });
+                if let Some(lasting) = injected.lasting {
+                    self.undo_after(injected.clone(), lasting);
+                }
             }
             Err(e) => {
                 tracing::warn!(fault = %kind, %target, error = %e, "fault not injected");
@@ -239,6 +267,7 @@ impl Injector {
         &self,
         kind: FaultKind,
         target: &Target,
+        lasting: Option<Duration>,
     ) -> Result<Injected, FaultError> {
         if kind.aim() != target.aim() {
             return Err(FaultError::Mismatch {
@@ -246,17 +275,34 @@ impl Injector {
                 wants: match kind.aim() {
                     Aim::Operation => "an operation",
                     Aim::Node => "a node",
+                    Aim::Cut => "two groups of nodes",
                 },
                 target: target.to_string(),
             });
         }
+        let lasting = match (kind.lasts(), lasting) {
+            (true, Some(d)) => Some(d),
+            (true, None) => Some(FaultKind::DEFAULT_LASTING),
+            (false, _) => None,
+        };
         let hit = self.find(target).await?;
         match &hit {
             Hit::Instance(inst) => inject_into(kind, inst)?,
             Hit::Process { node, pid } => {
-                self.processes.kill(node).map_err(|e| FaultError::Signal {
+                let done = match kind {
+                    FaultKind::FreezeNode => self.processes.freeze(node),
+                    _ => self.processes.kill(node),
+                };
+                done.map_err(|e| FaultError::Signal {
+                    kind,
                     node: node.clone(),
                     pid: *pid,
+                    why: e.to_string(),
+                })?;
+            }
+            Hit::Cut { a, b } => {
+                self.processes.cut(a, b).map_err(|e| FaultError::Network {
+                    cut: target.to_string(),
                     why: e.to_string(),
                 })?;
             }
@@ -265,7 +311,37 @@ impl Injector {
             kind,
             target: target.clone(),
             hit,
+            lasting,
         })
+    }
+
+    /// Undo a lasting fault once `lasting` of mission time has passed — a frozen node let
+    /// go on, a cut healed — and tell the bus (`fault_healed`). A task of its own: the
+    /// run may end meanwhile, and the fault is undone all the same (`marie up` lets every
+    /// frozen node go on before stopping them, whatever is pending).
+    fn undo_after(&self, injected: Injected, lasting: Duration) {
+        let (processes, bus) = (self.processes.clone(), self.bus.clone());
+        tokio::spawn(async move {
+            bus.clock().sleep(lasting).await;
+            let undone = match &injected.hit {
+                Hit::Process { node, .. } => processes.thaw(node),
+                Hit::Cut { a, b } => processes.heal(a, b),
+                Hit::Instance(_) => Ok(()),
+            };
+            let target = injected.target.to_string();
+            match undone {
+                Ok(()) => {
+                    tracing::warn!(fault = %injected.kind, %target, "fault healed");
+                    bus.publish(EventKind::FaultHealed {
+                        fault: injected.kind,
+                        operation: target,
+                    });
+                }
+                Err(e) => {
+                    tracing::error!(fault = %injected.kind, %target, "cannot undo the fault: {e}")
+                }
+            }
+        });
     }
 }
 

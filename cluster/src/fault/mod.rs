@@ -1,5 +1,5 @@
-//! Fault injection: kill, panic or hang an operation, or stop a node's process, on purpose,
-//! to test self-healing.
+//! Fault injection: kill, panic or hang an operation or a datamanager, stop or freeze a
+//! node's process, or cut the network between nodes, on purpose, to test self-healing.
 //!
 //! Every source of faults — a run's plan (`marie run --fault KIND:TARGET@SECS`), seeded
 //! chaos (`--chaos SEED`), `marie kill`, the monitor's page — takes one road:
@@ -7,12 +7,14 @@
 //! 1. the kind is a [`FaultKind`] (`marie_actors::run`, the one vocabulary the events and
 //!    reports share), and says what it aims at: an operation or a node;
 //! 2. the target is parsed once into a [`Target`] (`NAME`, `ID`, `NAME#VERSION`, an actor
-//!    id, `NAME/NODE[/ADDRESS]`, or a node's name), carried in the [`FaultSpec`];
+//!    id, `NAME/NODE[/ADDRESS]`, a node's name, or two groups of nodes `A,B|C,D`), carried
+//!    in the [`FaultSpec`] with, for a fault that lasts (a freeze, a cut), its duration;
 //! 3. an [`Injector`] resolves it — against the registry, the bindings of the run it follows
 //!    (a name means the instance the mission bound, through rebinds) and the node processes
-//!    this process may stop ([`NodeProcesses`]) — does it, and publishes what became of it
-//!    on the node's event bus (`fault_injected`, or `fault_not_injected` and why), so the
-//!    run's report, an events file and the monitor all hold it.
+//!    this process may stop, freeze or cut apart ([`NodeProcesses`], with a
+//!    [`NodeNetwork`]) — does it, and publishes what became of it on the node's event bus
+//!    (`fault_injected`, or `fault_not_injected` and why; `fault_healed` when a lasting one
+//!    is undone), so the run's report, an events file and the monitor all hold it.
 //!
 //! It lives with the node, not in `marie-supervision` (which knows no operation).
 //!
@@ -26,11 +28,18 @@
 //! assert_eq!(spec.at, Duration::from_millis(12_500));
 //! let stop: FaultSpec = "stop-node:wf-a@20".parse().unwrap();
 //! assert_eq!(stop.target, Target::Node("wf-a".into()));
+//! let freeze: FaultSpec = "freeze-node:wf-a@20+5".parse().unwrap();
+//! assert_eq!(freeze.lasting, Some(Duration::from_secs(5)));
+//! let cut: FaultSpec = "partition:cart,features|operations@30+3".parse().unwrap();
+//! assert_eq!(cut.target.to_string(), "cart,features|operations");
+//! assert!("freeze-node:wf-a@20".parse::<FaultSpec>().is_err(), "a freeze says how long");
 //! assert!("explode:wall-sensor@1".parse::<FaultSpec>().is_err());
 //! ```
 
 mod chaos;
 mod inject;
+mod network;
+mod node_chaos;
 mod plan;
 mod processes;
 mod resolve;
@@ -38,6 +47,8 @@ mod target;
 
 pub use chaos::Chaos;
 pub use inject::{inject_into, Injected, Injector};
+pub use network::NodeNetwork;
+pub use node_chaos::{NodeChaos, NodeStrike};
 pub(crate) use plan::{FaultPlan, PlanRun};
 pub use processes::NodeProcesses;
 pub use resolve::{find, Hit, RunBindings};
@@ -60,47 +71,86 @@ pub struct FaultSpec {
     pub target: Target,
     /// When, in mission clock time since the run began.
     pub at: Duration,
+    /// For a kind that [lasts](FaultKind::lasts) (a freeze, a cut): for how long, in
+    /// mission clock time (`@T+D`); `None` for the others.
+    pub lasting: Option<Duration>,
 }
 
 impl fmt::Display for FaultSpec {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}:{}@{}", self.kind, self.target, self.at.as_secs_f64())
+        write!(f, "{}:{}@{}", self.kind, self.target, self.at.as_secs_f64())?;
+        match self.lasting {
+            Some(d) => write!(f, "+{}", d.as_secs_f64()),
+            None => Ok(()),
+        }
     }
 }
 
 impl FromStr for FaultSpec {
     type Err = FaultError;
 
-    /// `KIND:TARGET@SECONDS`: the kind, then a target of what the kind aims at, then a
-    /// time from 0 to [`MAX_FAULT_SECS`] — each checked here, once.
+    /// `KIND:TARGET@SECONDS`, and `+SECONDS` for a kind that lasts: the kind, then a
+    /// target of what the kind aims at, then a time from 0 to [`MAX_FAULT_SECS`] (and a
+    /// duration above 0 up to it) — each checked here, once.
     fn from_str(s: &str) -> Result<Self, FaultError> {
         let syntax = || {
             FaultError::Syntax(format!(
                 "`{s}` is not a fault: expected KIND:TARGET@SECONDS, e.g. \
                  kill:wall-follower@12 (TARGET: NAME, ID, NAME#VERSION, NAME/NODE or an \
-                 actor id like 0.42; a node's name for stop-node)"
+                 actor id like 0.42; a node's name for stop-node; freeze-node:NODE@T+D and \
+                 partition:A,B|C,D@T+D last D seconds)"
             ))
         };
         let (kind, rest) = s.split_once(':').ok_or_else(syntax)?;
-        let (target, at) = rest.rsplit_once('@').ok_or_else(syntax)?;
+        let (target, when) = rest.rsplit_once('@').ok_or_else(syntax)?;
         let kind: FaultKind = kind
             .trim()
             .parse()
             .map_err(|e: UnknownFault| FaultError::Syntax(e.to_string()))?;
-        let secs: f64 = at.trim().parse().map_err(|_| {
-            FaultError::Syntax(format!("`{at}` in `{s}` is not a number of seconds"))
-        })?;
-        if !secs.is_finite() || !(0.0..=MAX_FAULT_SECS).contains(&secs) {
-            return Err(FaultError::Syntax(format!(
-                "the time in `{s}` must be a number of seconds of mission time from 0 to \
-                 {MAX_FAULT_SECS}"
-            )));
-        }
+        let (at, lasting) = match when.split_once('+') {
+            Some((at, lasting)) => (at, Some(lasting)),
+            None => (when, None),
+        };
+        let seconds = |text: &str, what: &str, min_exclusive: bool| {
+            let secs: f64 = text.trim().parse().map_err(|_| {
+                FaultError::Syntax(format!("`{text}` in `{s}` is not a number of seconds"))
+            })?;
+            let low_ok = if min_exclusive {
+                secs > 0.0
+            } else {
+                secs >= 0.0
+            };
+            if !secs.is_finite() || !low_ok || secs > MAX_FAULT_SECS {
+                return Err(FaultError::Syntax(format!(
+                    "the {what} in `{s}` must be a number of seconds of mission time from \
+                     {} to {MAX_FAULT_SECS}",
+                    if min_exclusive { "above 0" } else { "0" }
+                )));
+            }
+            Ok(Duration::from_secs_f64(secs))
+        };
+        let at = seconds(at, "time", false)?;
+        let lasting = match (lasting, kind.lasts()) {
+            (Some(d), true) => Some(seconds(d, "duration", true)?),
+            (None, false) => None,
+            (None, true) => {
+                return Err(FaultError::Syntax(format!(
+                    "`{s}`: a {kind} lasts a while: say how long, as {kind}:TARGET@SECONDS+SECONDS"
+                )))
+            }
+            (Some(_), false) => {
+                return Err(FaultError::Syntax(format!(
+                    "`{s}`: a {kind} does not last a while: no +SECONDS (only freeze-node and \
+                     partition take one)"
+                )))
+            }
+        };
         let target = Target::parse(target.trim(), kind.aim())?;
         Ok(FaultSpec {
             kind,
             target,
-            at: Duration::from_secs_f64(secs),
+            at,
+            lasting,
         })
     }
 }
@@ -128,14 +178,24 @@ pub enum FaultError {
     /// The operation's (or datamanager's) actor could not be reached.
     #[error("`{0}` could not be reached")]
     Unreachable(String),
-    /// The node's process could not be signalled.
-    #[error("cannot kill node {node} (pid {pid}): {why}")]
+    /// The node's process could not be signalled, or the network cut.
+    #[error("cannot {kind} {node} (pid {pid}): {why}")]
     Signal {
+        /// The fault.
+        kind: FaultKind,
         /// The node.
         node: String,
         /// Its process.
         pid: u32,
         /// What the OS said.
+        why: String,
+    },
+    /// The network between two groups of nodes could not be cut.
+    #[error("cannot cut {cut} apart: {why}")]
+    Network {
+        /// The cut, as written (`A,B|C,D`).
+        cut: String,
+        /// What went wrong.
         why: String,
     },
 }
@@ -161,6 +221,9 @@ mod tests {
             "kill:wall-follower#2.0.0@20",
             "kill:wall-follower/wf-b@20",
             "stop-node:wf-a@20",
+            "freeze-node:wf-a@20+5",
+            "freeze-node:wf-a@0+0.5",
+            "partition:cart,features|operations,spare@30.5+3",
         ] {
             let spec: FaultSpec = text.parse().unwrap();
             assert_eq!(spec.to_string(), text);
@@ -181,6 +244,13 @@ mod tests {
             ("kill:x@nan", "from 0 to 86400"),
             ("stop-node:wf-a#1.0.0@1", "is not a node's name"),
             ("kill:wall follower@1", "is not a fault target"),
+            ("freeze-node:wf-a@1", "say how long"),
+            ("partition:a|b@1", "say how long"),
+            ("kill:x@1+2", "does not last a while"),
+            ("freeze-node:wf-a@1+0", "from above 0"),
+            ("freeze-node:wf-a@1+x", "`x` in"),
+            ("partition:a|a@1+1", "is not a cut"),
+            ("partition:a@1+1", "is not a cut"),
         ];
         for (text, want) in cases {
             let err = text.parse::<FaultSpec>().unwrap_err().to_string();

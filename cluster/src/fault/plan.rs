@@ -1,5 +1,5 @@
-//! Faults injected into a run on a schedule — `--fault KIND:TARGET@SECS` and `--chaos SEED`
-//! — through the run's [`Injector`].
+//! Faults injected into a run on a schedule — `--fault KIND:TARGET@SECS`, `--chaos SEED`
+//! and `--chaos-nodes SEED` — through the run's [`Injector`].
 //!
 //! Times are mission clock time since the run began, so a fault lands at the same point of a
 //! simulated run whatever the speed. Fixed faults wait until the mission has bound its
@@ -7,7 +7,7 @@
 //! up on the bus, so in the report — injected, or why not (no such instance, the mission
 //! was over first); none is dropped silently.
 
-use super::{Chaos, FaultSpec, Injector, Target};
+use super::{Chaos, FaultSpec, Injector, NodeChaos, Target};
 use marie_actors::clock::SharedClock;
 use marie_actors::registry::{self, ModuleKind};
 use marie_actors::run::FaultKind;
@@ -22,6 +22,8 @@ pub(crate) struct FaultPlan {
     pub(crate) faults: Vec<FaultSpec>,
     /// Random kills of the running action's operations, seeded.
     pub(crate) chaos: Option<Chaos>,
+    /// Random node faults, seeded.
+    pub(crate) node_chaos: Option<NodeChaos>,
 }
 
 /// The injection tasks of one run.
@@ -79,6 +81,27 @@ impl PlanRun {
                         let target = Target::Bound(key.clone());
                         let _ = injector.inject(FaultKind::Kill, &target).await;
                     }
+                }
+            }));
+        }
+        if let Some(mut chaos) = plan.node_chaos {
+            let (clock, injector) = (clock.clone(), injector.clone());
+            tasks.push(tokio::spawn(async move {
+                injector.bound().await;
+                loop {
+                    clock.sleep(chaos.next_gap()).await;
+                    let Some(strike) = chaos.draw(injector.processes()) else {
+                        tracing::info!("node chaos: no node left to hit");
+                        return;
+                    };
+                    let _ = match strike.lasting {
+                        Some(d) => {
+                            injector
+                                .inject_lasting(strike.kind, &strike.target, d)
+                                .await
+                        }
+                        None => injector.inject(strike.kind, &strike.target).await,
+                    };
                 }
             }));
         }

@@ -22,14 +22,22 @@ pub enum Hit {
         /// Its process id.
         pid: u32,
     },
+    /// The network between two groups of nodes.
+    Cut {
+        /// One side.
+        a: Vec<String>,
+        /// The other side.
+        b: Vec<String>,
+    },
 }
 
 impl Hit {
-    /// The node it is on.
-    pub fn node(&self) -> &str {
+    /// The node it is on (none for a cut, which is between nodes).
+    pub fn node(&self) -> Option<&str> {
         match self {
-            Hit::Instance(inst) => &inst.node,
-            Hit::Process { node, .. } => node,
+            Hit::Instance(inst) => Some(&inst.node),
+            Hit::Process { node, .. } => Some(node),
+            Hit::Cut { .. } => None,
         }
     }
 }
@@ -99,21 +107,34 @@ pub(super) async fn resolve(
     run: &RunBindings,
     processes: &NodeProcesses,
 ) -> Result<Hit, TargetError> {
+    let no_process = |node: &String| TargetError::NoProcess {
+        node: node.clone(),
+        why: if processes.is_empty() {
+            "only `marie up` stops node processes, the ones it started".into()
+        } else {
+            format!("it may stop {}", processes.names().join(", "))
+        },
+    };
     match target {
         Target::Node(node) => match processes.pid(node) {
             Some(pid) => Ok(Hit::Process {
                 node: node.clone(),
                 pid,
             }),
-            None => Err(TargetError::NoProcess {
-                node: node.clone(),
-                why: if processes.is_empty() {
-                    "only `marie up` stops node processes, the ones it started".into()
-                } else {
-                    format!("it may stop {}", processes.names().join(", "))
-                },
-            }),
+            None => Err(no_process(node)),
         },
+        Target::Cut { a, b } => {
+            if let Some(node) = a.iter().chain(b).find(|n| processes.pid(n).is_none()) {
+                return Err(no_process(node));
+            }
+            if !processes.can_cut() {
+                return Err(TargetError::NoNetwork);
+            }
+            Ok(Hit::Cut {
+                a: a.clone(),
+                b: b.clone(),
+            })
+        }
         Target::Actor(id) => modules()
             .into_iter()
             .find(|i| i.actor.get_id().to_string() == *id)
@@ -153,6 +174,10 @@ pub async fn find(target: &Target) -> Result<Instance, TargetError> {
         Hit::Process { node, .. } => Err(TargetError::NoProcess {
             node,
             why: "a node is no operation".into(),
+        }),
+        Hit::Cut { a, .. } => Err(TargetError::NoProcess {
+            node: a.join(","),
+            why: "a cut is no operation".into(),
         }),
     }
 }

@@ -13,7 +13,8 @@ use std::fmt;
 /// | an actor id (`0.42`: an operation's `address` in a run's report; a run is repeatable, so it is the same in the next run of that mission, world and seed) | that instance |
 /// | `NAME/NODE` (`wall-follower/wf-b`) | the instance of that operation on that node (the only one there) |
 /// | `NAME/NODE/ADDRESS` (`wall-follower/wf-b/3.41`) | the instance on that node whose actor has that address's pid — the same pid from every process, where the `N.` of an address differs (how the monitor's page names an instance) |
-/// | a node's name, for a fault that aims at a node (`stop-node:wf-a`) | that node's process |
+/// | a node's name, for a fault that aims at a node (`stop-node:wf-a`, `freeze-node:wf-a`) | that node's process |
+/// | two groups of node names, for a cut (`partition:cart,features|operations`) | the network between the two groups |
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
 pub enum Target {
     /// The instance the mission bound (name or id).
@@ -38,6 +39,14 @@ pub enum Target {
     },
     /// A node, by name (for a fault that aims at a node).
     Node(String),
+    /// Two groups of nodes, by name, for a cut between them (`A,B|C,D`): disjoint, neither
+    /// empty.
+    Cut {
+        /// One side.
+        a: Vec<String>,
+        /// The other side.
+        b: Vec<String>,
+    },
 }
 
 impl Target {
@@ -49,7 +58,22 @@ impl Target {
                 .then(|| Target::Node(s.to_string()))
                 .ok_or_else(syntax),
             Aim::Operation => Target::parse_operation(s).ok_or_else(syntax),
+            Aim::Cut => Target::parse_cut(s).ok_or_else(syntax),
         }
+    }
+
+    /// `A,B|C,D`: two non-empty groups of node names, none in both, none twice.
+    fn parse_cut(s: &str) -> Option<Target> {
+        let (a, b) = s.split_once('|')?;
+        let group = |g: &str| -> Option<Vec<String>> {
+            let names: Vec<String> = g.split(',').map(|n| n.trim().to_string()).collect();
+            names.iter().all(|n| node_name(n)).then_some(names)
+        };
+        let (a, b) = (group(a)?, group(b)?);
+        let mut all: Vec<&String> = a.iter().chain(&b).collect();
+        all.sort();
+        let distinct = all.windows(2).all(|w| w[0] != w[1]);
+        distinct.then_some(Target::Cut { a, b })
     }
 
     fn parse_operation(s: &str) -> Option<Target> {
@@ -87,7 +111,7 @@ impl Target {
             Target::Bound(op)
             | Target::Version { operation: op, .. }
             | Target::OnNode { operation: op, .. } => Some(op),
-            Target::Actor(_) | Target::Node(_) => None,
+            Target::Actor(_) | Target::Node(_) | Target::Cut { .. } => None,
         }
     }
 
@@ -95,6 +119,7 @@ impl Target {
     pub fn aim(&self) -> Aim {
         match self {
             Target::Node(_) => Aim::Node,
+            Target::Cut { .. } => Aim::Cut,
             _ => Aim::Operation,
         }
     }
@@ -136,6 +161,7 @@ impl fmt::Display for Target {
                 node,
                 address: Some(address),
             } => write!(f, "{operation}/{node}/{address}"),
+            Target::Cut { a, b } => write!(f, "{}|{}", a.join(","), b.join(",")),
         }
     }
 }
@@ -192,13 +218,20 @@ pub enum TargetError {
     },
     /// This process cannot do that fault to that node: it did not start its process, or
     /// has stopped it already.
-    #[error("no node process `{node}` to stop here ({why})")]
+    #[error("no node process `{node}` to stop, freeze or cut off here ({why})")]
     NoProcess {
         /// The node asked for.
         node: String,
         /// What this process can stop, or why it can stop none.
         why: String,
     },
+    /// The nodes do not run in a network that can be cut.
+    #[error(
+        "the nodes do not run in a network marie can cut: `marie up` starts its nodes in a \
+         private network of namespaces when a partition is planned (--fault partition:…, \
+         --chaos-nodes) or the page may inject faults, and that needs root and `ip`"
+    )]
+    NoNetwork,
 }
 
 impl TargetError {
@@ -214,6 +247,7 @@ impl TargetError {
                 | TargetError::NoLongerRunning(_)
                 | TargetError::NotOnNode { .. }
                 | TargetError::NoProcess { .. }
+                | TargetError::NoNetwork
         )
     }
 }
@@ -225,6 +259,9 @@ fn syntax(s: &str, aim: Aim) -> String {
              actor id like 0.42"
         ),
         Aim::Node => format!("`{s}` is not a node's name"),
+        Aim::Cut => {
+            format!("`{s}` is not a cut: expected two groups of node names, A,B|C,D, none in both")
+        }
     }
 }
 
@@ -279,6 +316,26 @@ mod tests {
         for bad in ["", "a b", "wf-a/x", "x#1"] {
             assert!(
                 matches!(Target::parse(bad, Aim::Node), Err(TargetError::Syntax(..))),
+                "{bad:?}"
+            );
+        }
+        let cut = Target::parse("cart,features|operations", Aim::Cut).unwrap();
+        assert_eq!(
+            cut,
+            Target::Cut {
+                a: vec!["cart".into(), "features".into()],
+                b: vec!["operations".into()]
+            }
+        );
+        assert_eq!(
+            (cut.to_string().as_str(), cut.aim()),
+            ("cart,features|operations", Aim::Cut)
+        );
+        for bad in [
+            "", "a", "a|", "|b", "a,|b", "a|a", "a,b|c,a", "a,a|b", "a|b|c", "a b|c",
+        ] {
+            assert!(
+                matches!(Target::parse(bad, Aim::Cut), Err(TargetError::Syntax(..))),
                 "{bad:?}"
             );
         }

@@ -178,6 +178,9 @@ pub enum NodeError {
         /// Why.
         error: FaultError,
     },
+    /// Node chaos was asked where no node process may be hit.
+    #[error("--chaos-nodes: {0}")]
+    NodeChaos(String),
     /// A run was asked of a node whose config runs no dispatcher.
     #[error("node `{0}` runs no dispatcher (its config says `dispatcher = false`)")]
     NoDispatcher(String),

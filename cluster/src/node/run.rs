@@ -18,7 +18,7 @@
 
 use super::robot::RunJudgement;
 use super::{Node, NodeError};
-use crate::fault::{Chaos, FaultPlan, FaultSpec, Injector, NodeProcesses, PlanRun};
+use crate::fault::{Chaos, FaultPlan, FaultSpec, Injector, NodeChaos, NodeProcesses, PlanRun};
 use marie_actors::dispatcher::mission::Mission;
 use marie_actors::dispatcher::{self, DispatcherArgs, DispatcherMsg};
 use marie_actors::events::{Event, EventKind};
@@ -52,6 +52,7 @@ type Observer = Arc<dyn Fn(&Event) + Send + Sync>;
 pub struct RunOptions {
     faults: Vec<FaultSpec>,
     chaos: Option<Chaos>,
+    node_chaos: Option<NodeChaos>,
     processes: NodeProcesses,
     observers: Vec<Observer>,
 }
@@ -61,6 +62,7 @@ impl std::fmt::Debug for RunOptions {
         f.debug_struct("RunOptions")
             .field("faults", &self.faults)
             .field("chaos", &self.chaos)
+            .field("node_chaos", &self.node_chaos)
             .field("processes", &self.processes)
             .field("observers", &self.observers.len())
             .finish()
@@ -93,7 +95,15 @@ impl RunOptions {
         self
     }
 
-    /// The node processes a fault may stop (`stop-node:NAME@SECS`): `marie up`'s children.
+    /// Stop, freeze or cut off a random node (never one the chaos spares) at the gaps
+    /// `chaos` draws (seeded). Needs [node processes](Self::node_processes) to hit.
+    pub fn node_chaos(mut self, chaos: NodeChaos) -> RunOptions {
+        self.node_chaos = Some(chaos);
+        self
+    }
+
+    /// The node processes a fault may stop, freeze or cut apart (`stop-node:NAME@SECS`,
+    /// `freeze-node:NAME@SECS+SECS`, `partition:A|B@SECS+SECS`): `marie up`'s children.
     /// Without them a node fault is refused before the run.
     pub fn node_processes(mut self, processes: NodeProcesses) -> RunOptions {
         self.processes = processes;
@@ -181,6 +191,7 @@ impl Node {
         let RunOptions {
             faults,
             chaos,
+            node_chaos,
             processes,
             observers,
         } = options;
@@ -200,7 +211,11 @@ impl Node {
             .with_processes(processes)
             .following_runs();
         let plan = PlanRun::start(
-            FaultPlan { faults, chaos },
+            FaultPlan {
+                faults,
+                chaos,
+                node_chaos,
+            },
             injector,
             self.starter.clock.clone(),
         );
@@ -241,6 +256,12 @@ impl Node {
                     spec: spec.to_string(),
                     error,
                 })?;
+        }
+        if options.node_chaos.is_some() && options.processes.is_empty() {
+            return Err(NodeError::NodeChaos(
+                "only `marie up` stops, freezes or cuts off node processes, the ones it started"
+                    .into(),
+            ));
         }
         Ok(())
     }

@@ -5,7 +5,7 @@
 //! | route | answer |
 //! |---|---|
 //! | `GET /` | the page (`/app.js`, `/style.css` beside it) |
-//! | `GET /api/info` | `{"mode": "live" \| "replay", "token_required": bool, "faults_allowed": bool, "offers": {"properties", "operation_faults", "stoppable_nodes"}, "fault_kinds": {"operation": [..], "node": [..], "datamanager": [..]}}`: what the page may offer ([`Offers`]), and the fault kinds by what they aim at (the page draws a button per kind) |
+//! | `GET /api/info` | `{"mode": "live" \| "replay", "token_required": bool, "faults_allowed": bool, "offers": {"properties", "operation_faults", "stoppable_nodes", "cuttable"}, "fault_kinds": {"operation": [..], "node": [..], "cut": [..], "datamanager": [..]}}`: what the page may offer ([`Offers`]), and the fault kinds by what they aim at (the page draws a button per kind) |
 //! | `GET /api/state` | the state now (live) or after the whole run (replay), JSON |
 //! | `GET /api/live` | live only: server-sent events — `snapshot` (the state), then `state` on each change (at most 10 a second), `lagged` (`{"missed": n}`) then `snapshot` after a viewer fell behind |
 //! | `GET /api/replay/info` | replay only: `{"events", "start_ms", "end_ms", "duration_ms"}` |
@@ -390,6 +390,7 @@ async fn info(State(app): State<Shared>) -> Response {
         "fault_kinds": {
             "operation": FaultKind::aiming_at(Aim::Operation).collect::<Vec<_>>(),
             "node": FaultKind::aiming_at(Aim::Node).collect::<Vec<_>>(),
+            "cut": FaultKind::aiming_at(Aim::Cut).collect::<Vec<_>>(),
             "datamanager": FaultKind::ALL
                 .into_iter()
                 .filter(|k| k.hits_datamanager())

@@ -220,15 +220,28 @@ impl MonitorState {
                 fault,
                 operation,
                 actor,
+                lasting_ms,
                 ..
-            } => line.push(
+            } => {
+                let lasting = lasting_ms
+                    .map(|ms| format!(" for {:.1} s", ms as f64 / 1000.0))
+                    .unwrap_or_default();
+                line.push(
+                    at,
+                    node,
+                    "fault",
+                    match fault.aim() {
+                        Aim::Operation => format!("{fault} injected into {operation} ({actor})"),
+                        Aim::Node => format!("{node} did {fault} to {operation} ({actor}){lasting}"),
+                        Aim::Cut => format!("{node} cut {operation} apart{lasting}"),
+                    },
+                )
+            }
+            EventKind::FaultHealed { fault, operation } => line.push(
                 at,
                 node,
                 "fault",
-                match fault.aim() {
-                    Aim::Operation => format!("{fault} injected into {operation} ({actor})"),
-                    Aim::Node => format!("{node} did {fault} to {operation} ({actor})"),
-                },
+                format!("{fault} of {operation} healed"),
             ),
             EventKind::FaultNotInjected {
                 fault,

@@ -1,0 +1,188 @@
+//! Node faults a test scripts in one command: `marie up --run … --fault` with the node kinds
+//! (`stop-node`, `freeze-node`, `partition`) and `--chaos-nodes SEED`, on the thesis' layout
+//! as real processes on 127.0.0.1 — each parsed and checked before the run (exit 2 when it
+//! cannot be done), injected at its time, undone after its duration, and in the report.
+
+mod common;
+
+use common::{marie, report_of, text};
+
+const THESIS: &str = "missions/clusters/thesis.toml";
+/// Wall-clock time × 4 on every node: a 3 s freeze of mission time is 0.75 s of real time,
+/// an 8 s one 2 s (past the failure detector's 1.2 s deadline, which is real time).
+const SPEED: &str = "4";
+
+/// The events of an events file, as JSON values.
+fn events(path: &std::path::Path) -> Vec<serde_json::Value> {
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect()
+}
+
+#[test]
+fn a_frozen_node_is_let_go_on_after_its_duration_and_the_mission_docks() {
+    let dir = tempfile::tempdir().unwrap();
+    let events_path = dir.path().join("events.jsonl");
+    // the spare node (a wall follower the mission may bind) frozen for 8 s of mission time
+    // during the wall following: past the failure detector's deadline
+    let (out, report) = report_of(&[
+        "up",
+        THESIS,
+        "--run",
+        "missions/docking.toml",
+        "--speed",
+        SPEED,
+        "--fault",
+        "freeze-node:spare@6+8",
+        "--events",
+        events_path.to_str().unwrap(),
+    ]);
+    let stdout = text(&out.stdout);
+    let stderr = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{stdout}\n{stderr}");
+    assert!(
+        stdout.contains("* injected freeze-node into spare (pid "),
+        "{stdout}"
+    );
+    assert_eq!(report["outcome"], "succeeded");
+    assert_eq!(report["collisions"], 0);
+    let faults = report["faults"].as_array().unwrap();
+    assert_eq!(faults.len(), 1, "{faults:?}");
+    let freeze = &faults[0];
+    assert_eq!(freeze["fault"], "freeze-node");
+    assert_eq!(freeze["operation"], "spare");
+    assert_eq!(freeze["node"], "spare");
+    assert_eq!(freeze["lasting_ms"], 8000);
+    assert!(freeze["actor"].as_str().unwrap().starts_with("pid "));
+    // thawed once its duration was over (mission time; scheduling may add a little)
+    let (at, healed) = (
+        freeze["at_ms"].as_u64().unwrap(),
+        freeze["healed_at_ms"]
+            .as_u64()
+            .expect("the freeze was healed"),
+    );
+    // (the report counts from the run's start, the plan from a few ms before it)
+    assert!((5900..7000).contains(&at), "{freeze}");
+    assert!(healed >= at + 8000 && healed < at + 8000 + 4000, "{freeze}");
+    // the events file holds the injection and the healing, in that order
+    let kinds: Vec<String> = events(&events_path)
+        .iter()
+        .map(|e| e["kind"]["type"].as_str().unwrap().to_string())
+        .filter(|t| t.starts_with("fault_"))
+        .collect();
+    assert_eq!(kinds, ["fault_injected", "fault_healed"]);
+    // the frozen node's peers declared it down while it was frozen (2 s of real time)
+    assert!(
+        events(&events_path)
+            .iter()
+            .any(|e| e["kind"]["type"] == "node_down" && e["kind"]["peer"] == "spare"),
+        "no node_down of spare in the events"
+    );
+}
+
+#[test]
+fn node_faults_that_cannot_be_done_are_refused_before_the_run_with_exit_2() {
+    for (args, want) in [
+        // not a node `marie up` started
+        (
+            vec![
+                "up",
+                THESIS,
+                "--run",
+                "missions/docking.toml",
+                "--fault",
+                "freeze-node:moon@1+2",
+            ],
+            "no node process `moon`",
+        ),
+        // a freeze says how long
+        (
+            vec![
+                "up",
+                THESIS,
+                "--run",
+                "missions/docking.toml",
+                "--fault",
+                "freeze-node:spare@1",
+            ],
+            "say how long",
+        ),
+        // a stop does not last
+        (
+            vec![
+                "up",
+                THESIS,
+                "--run",
+                "missions/docking.toml",
+                "--fault",
+                "stop-node:spare@1+2",
+            ],
+            "does not last a while",
+        ),
+        // faults need a run
+        (vec!["up", THESIS, "--fault", "stop-node:spare@1"], "--run"),
+        (vec!["up", THESIS, "--chaos-nodes", "3"], "--run"),
+        // a single process starts no node: nothing to stop, freeze or cut off
+        (
+            vec![
+                "run",
+                "missions/docking.toml",
+                "--fault",
+                "freeze-node:spare@1+2",
+            ],
+            "only `marie up` stops node processes",
+        ),
+    ] {
+        let out = marie(&args);
+        let stderr = text(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {stderr}");
+        assert!(stderr.contains(want), "{args:?}: {stderr}");
+        assert!(
+            !text(&out.stdout).contains("outcome:"),
+            "{args:?} ran a mission"
+        );
+    }
+}
+
+#[test]
+fn node_chaos_hits_nodes_other_than_the_carts_and_says_what_it_did() {
+    let dir = tempfile::tempdir().unwrap();
+    let events_path = dir.path().join("events.jsonl");
+    let (out, report) = report_of(&[
+        "up",
+        THESIS,
+        "--run",
+        "missions/docking.toml",
+        "--speed",
+        SPEED,
+        "--chaos-nodes",
+        "5",
+        "--events",
+        events_path.to_str().unwrap(),
+    ]);
+    let stdout = text(&out.stdout);
+    // the mission may or may not survive what chaos drew; the cluster stops either way
+    assert!(
+        stdout.contains("cluster stopped"),
+        "{stdout}\n{}",
+        text(&out.stderr)
+    );
+    assert!(report.is_object(), "no report: {stdout}");
+    let injected: Vec<serde_json::Value> = events(&events_path)
+        .into_iter()
+        .filter(|e| e["kind"]["type"] == "fault_injected")
+        .map(|e| e["kind"].clone())
+        .collect();
+    assert!(!injected.is_empty(), "chaos injected nothing: {stdout}");
+    for f in &injected {
+        let kind = f["fault"].as_str().unwrap();
+        assert!(
+            ["stop-node", "freeze-node", "partition"].contains(&kind),
+            "{f}"
+        );
+        assert_ne!(f["node"], "cart", "the cart's node was hit: {f}");
+        assert_ne!(f["operation"], "cart", "the cart's node was hit: {f}");
+    }
+}
