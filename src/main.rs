@@ -26,6 +26,11 @@ fn main() -> ExitCode {
     }
     let cli = cli::Cli::parse();
     cli::runtime::init_tracing(cli.log_format);
+    // dropped last: the private network outlives the runtime and the nodes in it
+    let _network = match cli.command.before_runtime() {
+        Ok(guard) => guard,
+        Err(e) => return cli::error::report(&e),
+    };
     let runtime = match cli::runtime::build(cli.command.virtual_time(), cli.command.io()) {
         Ok(rt) => rt,
         Err(e) => {

@@ -186,3 +186,85 @@ fn node_chaos_hits_nodes_other_than_the_carts_and_says_what_it_did() {
         assert_ne!(f["operation"], "cart", "the cart's node was hit: {f}");
     }
 }
+
+#[test]
+fn a_partition_cuts_a_node_off_in_a_private_network_heals_and_leaves_no_namespace() {
+    if !common::netns::Netns::can_make() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let events_path = dir.path().join("events.jsonl");
+    // the features node (the feature datamanager's primary; its copies are on the others)
+    // cut off from every other node for 8 s of mission time (2 s of real time)
+    let (out, report) = report_of(&[
+        "up",
+        THESIS,
+        "--run",
+        "missions/docking.toml",
+        "--speed",
+        SPEED,
+        "--fault",
+        "partition:features|cart,operations,spare@6+8",
+        "--events",
+        events_path.to_str().unwrap(),
+    ]);
+    let stdout = text(&out.stdout);
+    let stderr = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{stdout}\n{stderr}");
+    // the nodes ran in the private network, each at its own address there
+    for (node, ip) in [
+        ("cart", "10.77.1.2"),
+        ("features", "10.77.2.2"),
+        ("operations", "10.77.3.2"),
+        ("spare", "10.77.4.2"),
+    ] {
+        assert!(stdout.contains(&format!("  {node} at {ip}:")), "{stdout}");
+    }
+    assert_eq!(report["outcome"], "succeeded", "{stdout}");
+    let cut = &report["faults"][0];
+    assert_eq!(cut["fault"], "partition");
+    assert_eq!(cut["operation"], "features|cart,operations,spare");
+    assert_eq!(cut["lasting_ms"], 8000);
+    assert!(cut["healed_at_ms"].as_u64().is_some(), "{cut}");
+    // both sides declared the other down: the cut was real, both ways
+    let downs: Vec<(String, String)> = events(&events_path)
+        .iter()
+        .filter(|e| e["kind"]["type"] == "node_down")
+        .map(|e| {
+            (
+                e["node"].as_str().unwrap().to_string(),
+                e["kind"]["peer"].as_str().unwrap().to_string(),
+            )
+        })
+        .collect();
+    assert!(
+        downs
+            .iter()
+            .any(|(by, peer)| by == "features" && peer != "features"),
+        "features declared nobody down: {downs:?}"
+    );
+    assert!(
+        downs
+            .iter()
+            .any(|(by, peer)| by != "features" && peer == "features"),
+        "nobody declared features down: {downs:?}"
+    );
+    // the namespaces of that `marie up` are gone
+    let up_pid = stderr
+        .lines()
+        .find_map(|l| {
+            l.strip_prefix("up-")?
+                .split_once(' ')
+                .map(|(p, _)| p.to_string())
+        })
+        .expect("the up member's line");
+    let list = std::process::Command::new("ip")
+        .args(["netns", "list"])
+        .output()
+        .unwrap();
+    assert!(
+        !text(&list.stdout).contains(&format!("marieup{up_pid}-")),
+        "namespaces left: {}",
+        text(&list.stdout)
+    );
+}

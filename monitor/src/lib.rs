@@ -51,4 +51,4 @@ mod server;
 pub use control::{Control, ControlError, FaultRequest, Offers, OperationRef};
 pub use error::MonitorError;
 pub use server::live::Feed;
-pub use server::{Monitor, MonitorHandle, MonitorOptions, DEFAULT_LISTEN};
+pub use server::{Binder, Monitor, MonitorHandle, MonitorOptions, DEFAULT_LISTEN};

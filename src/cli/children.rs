@@ -42,6 +42,8 @@ pub(crate) struct NodeLaunch {
     pub seed: Option<u64>,
     /// Its data directory (`--data-dir`), unless its config names one.
     pub data_dir: Option<PathBuf>,
+    /// The network namespace it runs in, in a private network (`super::netns`).
+    pub netns: Option<std::sync::Arc<std::fs::File>>,
 }
 
 /// A running node process.
@@ -82,6 +84,19 @@ impl NodeChild {
         }
         if let Some(d) = &launch.data_dir {
             cmd.arg("--data-dir").arg(d);
+        }
+        if let Some(ns) = &launch.netns {
+            let fd = std::os::fd::AsRawFd::as_raw_fd(ns.as_ref());
+            // SAFETY: between fork and exec the child only calls setns(2), which is
+            // async-signal-safe, on a descriptor the parent holds open
+            unsafe {
+                std::os::unix::process::CommandExt::pre_exec(&mut cmd, move || {
+                    if libc::setns(fd, libc::CLONE_NEWNET) != 0 {
+                        return Err(std::io::Error::last_os_error());
+                    }
+                    Ok(())
+                });
+            }
         }
         let mut child = cmd
             .stdin(Stdio::piped())

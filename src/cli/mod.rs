@@ -15,6 +15,7 @@ pub(crate) mod join;
 pub(crate) mod kill;
 pub(crate) mod ls;
 pub(crate) mod monitor;
+pub(crate) mod netns;
 pub(crate) mod node;
 pub(crate) mod output;
 pub(crate) mod page_control;
@@ -74,6 +75,16 @@ impl Command {
     /// but a run with neither a cluster to join nor a monitor to serve.
     pub(crate) fn io(&self) -> bool {
         !matches!(self, Command::Run(run) if run.cluster.join.is_none() && run.monitor.is_none())
+    }
+
+    /// What must be done before the runtime's threads exist: `marie up` may move the
+    /// process into a private network of namespaces ([`netns`]), which every thread must
+    /// share. The guard deletes it when dropped, after the runtime.
+    pub(crate) fn before_runtime(&self) -> anyhow::Result<Option<netns::NetGuard>> {
+        match self {
+            Command::Up(args) => up::private_network(args),
+            _ => Ok(None),
+        }
     }
 
     /// Do what the verb says.

@@ -16,7 +16,6 @@ use marie::actors::run::Outcome;
 use marie::cluster::fault::{Chaos, FaultSpec, NodeChaos, NodeProcesses};
 use marie::cluster::node::{NodeError, RunOptions};
 use marie_missions::robot::RobotReport;
-use marie_monitor::MonitorOptions;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -265,7 +264,8 @@ pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     let monitor = match monitor_listen {
         Some(listen) => {
             let control = PageControl::new(node.events().clone(), node_processes);
-            let options = MonitorOptions::new(listen).with_control(control, allow_faults);
+            let options = super::netns::PrivateNet::monitor_options(listen)
+                .with_control(control, allow_faults);
             let (monitor, relay) =
                 super::monitor::start_live(node.events(), options, transport.is_some()).await?;
             let what = format!("mission `{}`", mission.name);

@@ -17,9 +17,11 @@ use super::args::{parse_cluster_speed, parse_seed, RobotArgs};
 use super::children::{stop_all, Line, Listening, NodeChild, NodeLaunch};
 use super::error::BadInput;
 use super::join::{join, member_name, JoinArgs};
+use super::netns::{NetGuard, PrivateNet};
 use super::run::RunArgs;
 use marie::actors::dispatcher::mission::ParsedMission;
 use marie::actors::registry::{self, Instance};
+use marie::actors::run::FaultKind;
 use marie::cluster::fault::{FaultSpec, NodeChaos, NodeProcesses};
 use marie::cluster::layout::ClusterLayout;
 use marie::cluster::node::NodeConfig;
@@ -88,6 +90,13 @@ pub(crate) struct UpArgs {
     #[arg(long, value_name = "SEED", value_parser = parse_seed, allow_hyphen_values = true,
           requires = "run")]
     pub chaos_nodes: Option<u64>,
+    /// Start the nodes in a private network of Linux namespaces (needs root and `ip`), so
+    /// that they can be cut apart: by `--fault partition:…` (which makes one by itself),
+    /// `--chaos-nodes` (which makes one where it can) or the page (`--allow-faults`). Only
+    /// this `marie up` reaches such a cluster (its run, its page); `--join` from another
+    /// shell cannot.
+    #[arg(long)]
+    pub private_network: bool,
     /// Keep every node's datamanager journals in DIR/NODE (a node config's own `data_dir`
     /// wins), after exit too: a later `up --data-dir DIR` finds their records. Default: a
     /// fresh directory under the system's temporary one, removed when `up` exits.
@@ -205,6 +214,41 @@ impl Drop for DataDirs {
     }
 }
 
+/// Make the private network `args` need, and move this thread into it (see [`netns`]):
+/// when a partition is planned or `--private-network` given — refused (exit 2) where it
+/// cannot be made — and, where it can be, for `--chaos-nodes`.
+///
+/// [`netns`]: super::netns
+pub(crate) fn private_network(args: &UpArgs) -> anyhow::Result<Option<NetGuard>> {
+    let partitions = args.faults.iter().any(|f| f.kind == FaultKind::Partition);
+    if !(partitions || args.private_network || args.chaos_nodes.is_some()) {
+        return Ok(None);
+    }
+    let catalog = marie_missions::catalog();
+    // a bad file is said by `up` itself, as without a network
+    let Ok(layout) = ClusterLayout::load(&args.cluster, &catalog) else {
+        return Ok(None);
+    };
+    let names: Vec<String> = layout.nodes.iter().map(|n| n.config.name.clone()).collect();
+    match PrivateNet::enter(&names) {
+        Ok(guard) => Ok(Some(guard)),
+        Err(e) if partitions || args.private_network => Err(BadInput(format!(
+            "{}: the nodes must run in a private network of namespaces, and none can be made \
+             here (it needs root and `ip`): {e}",
+            if partitions {
+                "--fault partition"
+            } else {
+                "--private-network"
+            }
+        ))
+        .into()),
+        Err(e) => {
+            tracing::info!("--chaos-nodes without partitions: no private network ({e})");
+            Ok(None)
+        }
+    }
+}
+
 /// Start the cluster, wait for it, run the mission or wait for a signal, stop it.
 pub(crate) async fn up(args: UpArgs) -> anyhow::Result<ExitCode> {
     let catalog = marie_missions::catalog();
@@ -229,6 +273,7 @@ pub(crate) async fn up(args: UpArgs) -> anyhow::Result<ExitCode> {
     // dropped (a temporary one removed) after `children`, whose nodes have stopped by then
     let data = DataDirs::new(args.data_dir.as_deref(), &args.cluster)?;
 
+    let network = PrivateNet::current();
     let mut launches: Vec<NodeLaunch> = layout
         .nodes
         .iter()
@@ -237,8 +282,18 @@ pub(crate) async fn up(args: UpArgs) -> anyhow::Result<ExitCode> {
             config: node.path.clone(),
             // port 0: the node binds a port the OS picks and prints it. A port picked here
             // and released would be free for anyone until the node binds it, and another
-            // node's outgoing dial may take it first
-            listen: node.listen.unwrap_or(SocketAddr::from(([127, 0, 0, 1], 0))),
+            // node's outgoing dial may take it first. In a private network, the node's own
+            // address there
+            listen: {
+                let listen = node.listen.unwrap_or(SocketAddr::from(([127, 0, 0, 1], 0)));
+                match network.as_ref().and_then(|n| n.ip_of(&node.config.name)) {
+                    Some(ip) => SocketAddr::new(ip.into(), listen.port()),
+                    None => listen,
+                }
+            },
+            netns: network
+                .as_ref()
+                .and_then(|n| n.namespace_of(&node.config.name)),
             peers: Vec::new(),
             cookie: layout.cookie.clone(),
             speed,
@@ -337,18 +392,22 @@ async fn serve(
             modules.join(", ")
         );
     }
-    // what the page may stop: the nodes' processes, by name
-    let processes = NodeProcesses::new(
+    // what the page and the faults may stop, freeze or cut apart: the nodes' processes,
+    // by name, and their private network if they run in one
+    let mut processes = NodeProcesses::new(
         launches
             .iter()
             .zip(children.iter())
             .map(|(l, c)| (l.name.clone(), c.pid())),
     );
+    if let Some(network) = PrivateNet::current() {
+        processes = processes.with_network(network);
+    }
     let Some(mission) = &args.run else {
         let watching = match args.monitor {
             Some(listen) => {
                 let target = first_node(launches, &layout.cookie);
-                let options = marie_monitor::MonitorOptions::new(listen);
+                let options = PrivateNet::monitor_options(listen);
                 Some(
                     super::monitor::ClusterWatch::start(
                         &target,

@@ -118,6 +118,12 @@ impl Netns {
         Some(net)
     }
 
+    /// Whether namespaces can be made here (as [`Netns::create`]: told on stderr when not,
+    /// a panic under `CI`).
+    pub(crate) fn can_make() -> bool {
+        Netns::create(1).is_some()
+    }
+
     /// Node `i`'s namespace (for `ip netns exec`).
     pub(crate) fn ns(&self, i: usize) -> &str {
         &self.nodes[i]

@@ -57,7 +57,13 @@ pub struct MonitorOptions {
     pub control: Option<Arc<dyn Control>>,
     /// Let the page inject faults through [`control`](Self::control) (`--allow-faults`).
     pub allow_faults: bool,
+    /// How to bind the listener (default: [`std::net::TcpListener::bind`]) — e.g. in
+    /// another network namespace than the calling thread's, where a browser reaches it.
+    pub binder: Option<Binder>,
 }
+
+/// Binds a monitor's listener on an address ([`MonitorOptions::binder`]).
+pub type Binder = Arc<dyn Fn(SocketAddr) -> std::io::Result<std::net::TcpListener> + Send + Sync>;
 
 impl MonitorOptions {
     /// Listen on `listen`, a token only beyond loopback, no control.
@@ -67,7 +73,14 @@ impl MonitorOptions {
             require_token: false,
             control: None,
             allow_faults: false,
+            binder: None,
         }
+    }
+
+    /// Bind the listener with `binder` instead of [`std::net::TcpListener::bind`].
+    pub fn with_binder(mut self, binder: Binder) -> Self {
+        self.binder = Some(binder);
+        self
     }
 
     /// Answer the page's clicks with `control`; faults only when `allow_faults`.
@@ -85,6 +98,7 @@ impl std::fmt::Debug for MonitorOptions {
             .field("require_token", &self.require_token)
             .field("control", &self.control.as_ref().map(|c| c.offers()))
             .field("allow_faults", &self.allow_faults)
+            .field("binder", &self.binder.is_some())
             .finish()
     }
 }
@@ -264,7 +278,11 @@ fn start(
         addr: options.listen,
         source,
     };
-    let listener = std::net::TcpListener::bind(options.listen).map_err(bind)?;
+    let listener = match &options.binder {
+        Some(binder) => binder(options.listen),
+        None => std::net::TcpListener::bind(options.listen),
+    }
+    .map_err(bind)?;
     listener.set_nonblocking(true).map_err(bind)?;
     let addr = listener.local_addr().map_err(bind)?;
     let token = token::required(options.listen, options.require_token).then(token::generate);
