@@ -268,3 +268,34 @@ fn a_partition_cuts_a_node_off_in_a_private_network_heals_and_leaves_no_namespac
         text(&list.stdout)
     );
 }
+
+#[test]
+fn operations_cut_off_from_the_cart_hold_until_it_is_back_and_the_mission_docks() {
+    if !common::netns::Netns::can_make() {
+        return;
+    }
+    // the operations node (localizer, wall sensor, wall follower, ...) loses the cart for
+    // 8 s of mission time while both still reach everyone else: the operations that drive
+    // or read the cart hold their steps until it is back in their registry, instead of
+    // failing the mission (they did: `the virtual cart did not answer`, a full stop)
+    let (out, report) = report_of(&[
+        "up",
+        THESIS,
+        "--run",
+        "missions/docking.toml",
+        "--speed",
+        SPEED,
+        "--fault",
+        "partition:operations|cart@6+8",
+    ]);
+    let stdout = text(&out.stdout);
+    let stderr = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{stdout}\n{stderr}");
+    assert!(
+        stderr.contains("module gone: waiting for it") && stderr.contains("module=virtual-cart"),
+        "no operation waited for the cart: {stderr}"
+    );
+    assert_eq!(report["outcome"], "succeeded");
+    assert_eq!(report["collisions"], 0);
+    assert!(report["faults"][0]["healed_at_ms"].as_u64().is_some());
+}

@@ -91,7 +91,6 @@ pub use actor::{
 };
 pub use client::DmClient;
 pub use error::DmError;
-pub(crate) use follow::next_instance;
 pub use journal::{Durability, Recovery};
 pub use messages::{DmMsg, DmStats, ReplicaStats, StoreDigest};
 pub use name::Name;

@@ -326,28 +326,37 @@ impl<O: Operation> HostState<O> {
             }
             Err(e)
                 if self.active.is_some()
-                    && e.datamanager().is_some_and(|dm| self.ctx.dm_gone(dm)) =>
+                    && e.needed_module()
+                        .is_some_and(|(kind, m)| self.ctx.module_gone(kind, m)) =>
             {
-                // the DM is gone: wait for its next incarnation, then step again
+                // the module is gone (a DM crashed, the cart's node lost or cut off from
+                // this one): wait for its next incarnation, then step again
                 let activation = self.active.as_ref().map_or(0, |a| a.number);
-                let dm = e.datamanager().unwrap_or_default().to_string();
-                tracing::warn!(op = %self.identity.name, %dm, error = %e, "datamanager gone: waiting for it");
+                let (kind, module) = e
+                    .needed_module()
+                    .map(|(k, m)| (k, m.to_string()))
+                    .unwrap_or((ModuleKind::Datamanager, String::new()));
+                tracing::warn!(op = %self.identity.name, %module, error = %e, "module gone: waiting for it");
                 let reason = e.to_string();
                 let myself = myself.clone();
                 // held where the next tick is: it dies with the host, and a later tick or
                 // wait replaces (cancels) it; its message names its activation, which a
                 // host that has moved on ignores
                 self.tick = Some(Timer::task(tokio::spawn(async move {
-                    let message = if crate::dm::next_instance(&dm, None, super::DATAMANAGER_RETURN)
-                        .await
-                        .is_some()
-                    {
-                        tracing::info!(%dm, "datamanager back: stepping on");
+                    let back = crate::registry::follow::next_instance(
+                        kind,
+                        &module,
+                        None,
+                        super::DATAMANAGER_RETURN,
+                    )
+                    .await;
+                    let message = if back.is_some() {
+                        tracing::info!(%module, "module back: stepping on");
                         EoMsg::Tick { activation }
                     } else {
-                        EoMsg::DatamanagerAbsent {
+                        EoMsg::ModuleAbsent {
                             activation,
-                            dm,
+                            module,
                             reason,
                         }
                     };
@@ -474,15 +483,15 @@ impl<O: Operation> Actor for EoHost<O> {
                 let outcome = Box::pin(state.op.step(&mut state.ctx)).await;
                 Box::pin(state.after_step(&myself, outcome)).await;
             }
-            EoMsg::DatamanagerAbsent {
+            EoMsg::ModuleAbsent {
                 activation,
-                dm,
+                module,
                 reason,
             } => {
                 if state.active.as_ref().map(|a| a.number) != Some(activation) {
                     return Ok(()); // the activation ended while it waited
                 }
-                tracing::warn!(op = %state.identity.name, %dm, "operation failed: its datamanager did not come back");
+                tracing::warn!(op = %state.identity.name, %module, "operation failed: a module it needs did not come back");
                 let reason = format!("{reason} (not back within {:?})", super::DATAMANAGER_RETURN);
                 Box::pin(state.end_activation(|flags, epoch| EoReport::Failed {
                     reason,

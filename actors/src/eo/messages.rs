@@ -115,13 +115,14 @@ crate::remote_message! {
             /// Number of the activation the tick belongs to.
             activation: u64,
         },
-        /// The datamanager `dm` that activation number `activation` waited for did not
-        /// come back within [`DATAMANAGER_RETURN`](super::DATAMANAGER_RETURN).
-        DatamanagerAbsent {
+        /// The module (a datamanager, the cart) that activation number `activation` waited
+        /// for did not come back within [`DATAMANAGER_RETURN`](super::DATAMANAGER_RETURN).
+        /// Only a host sends it, to itself.
+        ModuleAbsent {
             /// Number of the activation that waited.
             activation: u64,
-            /// The datamanager.
-            dm: String,
+            /// The module's name.
+            module: String,
             /// Why the step failed in the first place.
             reason: String,
         },

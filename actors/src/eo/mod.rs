@@ -63,9 +63,11 @@ pub const DEFAULT_DEADLINE: std::time::Duration =
 /// 100 ms of the node's clock.
 pub const DEFAULT_PERIOD: std::time::Duration = std::time::Duration::from_millis(100);
 /// How long an operation whose datamanager is gone (killed, crashed: no longer registered,
-/// or its actor stopped) waits for the DM's next incarnation before it fails: its host
-/// holds its steps, answers every command meanwhile, and steps again once the DM's
-/// supervisor has published the new one. Measured on the runtime's timer, not the node's
+/// or its actor stopped) — or another module it needs ([`OpError::Unreachable`]: the cart,
+/// whose node was lost or cut off from the operation's) — waits for the module's next
+/// incarnation before it fails: its host holds its steps, answers every command meanwhile,
+/// and steps again once the module is published again (by its supervisor, or by its node
+/// coming back). Measured on the runtime's timer, not the node's
 /// clock: real time on a node, and in a simulation's paused runtime virtual time that
 /// stands still while anything (a restart) is being done — so it runs out only when nothing
 /// is left that could bring the DM back.

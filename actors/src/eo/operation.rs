@@ -4,6 +4,7 @@ use crate::clock::SharedClock;
 use crate::declare::{DeclaredParams, DmName, Param, ParamError, ParamValue};
 use crate::dm::DmError;
 use crate::property::{ParamMap, ParamSchema, Value};
+use crate::registry::ModuleKind;
 use crate::status::{FlagDecl, StatusFlags};
 use serde::{Deserialize, Serialize};
 use std::future::Future;
@@ -80,6 +81,20 @@ pub enum OpError {
         /// What went wrong.
         problem: String,
     },
+    /// Another module the operation needs (a hardware module such as the cart) could not
+    /// be reached. When the module is gone from the registry (its node lost, or cut off
+    /// from this one), the host holds the operation's steps until it is back, as for a
+    /// datamanager ([`DATAMANAGER_RETURN`](super::DATAMANAGER_RETURN)), instead of failing
+    /// the activation at once.
+    #[error("{problem}")]
+    Unreachable {
+        /// What kind of module.
+        kind: ModuleKind,
+        /// Its registry name.
+        module: String,
+        /// What went wrong.
+        problem: String,
+    },
 }
 
 impl OpError {
@@ -88,10 +103,33 @@ impl OpError {
         OpError::Failed(msg.into())
     }
 
+    /// A module `kind` named `module` could not be reached: `problem` says how.
+    pub fn unreachable(
+        kind: ModuleKind,
+        module: impl Into<String>,
+        problem: impl Into<String>,
+    ) -> Self {
+        OpError::Unreachable {
+            kind,
+            module: module.into(),
+            problem: problem.into(),
+        }
+    }
+
     /// The datamanager it names, for a datamanager's error.
     pub fn datamanager(&self) -> Option<&str> {
         match self {
             OpError::Datamanager { dm, .. } => Some(dm),
+            _ => None,
+        }
+    }
+
+    /// The module whose absence it may be (a datamanager's error, an unreachable module):
+    /// its kind and name.
+    pub fn needed_module(&self) -> Option<(ModuleKind, &str)> {
+        match self {
+            OpError::Datamanager { dm, .. } => Some((ModuleKind::Datamanager, dm)),
+            OpError::Unreachable { kind, module, .. } => Some((*kind, module)),
             _ => None,
         }
     }
@@ -297,6 +335,16 @@ impl OpContext {
 
     /// Whether the datamanager `dm` is gone now: no longer registered, or the actor this
     /// context reached it through has stopped (a new incarnation may be on its way).
+    /// Whether the module `kind` named `module` is gone: a datamanager as
+    /// [`dm_gone`](Self::dm_gone) says, any other when the registry has no live instance
+    /// of it.
+    pub(crate) fn module_gone(&self, kind: ModuleKind, module: &str) -> bool {
+        match kind {
+            ModuleKind::Datamanager => self.dm_gone(module),
+            _ => crate::registry::follow::published(kind, module, None).is_none(),
+        }
+    }
+
     pub(crate) fn dm_gone(&self, dm: &str) -> bool {
         let stopped = self
             .dms

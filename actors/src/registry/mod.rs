@@ -23,6 +23,7 @@
 //! # }
 //! ```
 
+pub(crate) mod follow;
 mod index;
 mod verdicts;
 mod watch;

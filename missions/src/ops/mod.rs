@@ -33,10 +33,11 @@ pub use perception::{
 };
 pub use ultrasonic::{Ultrasonic, UltrasonicParams};
 
-use crate::hardware::CartClient;
+use crate::hardware::{CartClient, CART_NAME};
 use marie_actors::declare::RecordKind;
 use marie_actors::dm::{DmError, DmSpec, WORLD};
 use marie_actors::eo::{OpContext, OpError};
+use marie_actors::registry::ModuleKind;
 
 /// The cart client, found in the registry on first use and again after the cart restarted,
 /// carrying the running activation's fence: the cart obeys only the newest incarnation of
@@ -46,11 +47,11 @@ pub(crate) fn cart<'s>(
     ctx: &OpContext,
 ) -> Result<&'s CartClient, OpError> {
     if !slot.as_ref().is_some_and(CartClient::is_alive) {
-        *slot = Some(CartClient::lookup().map_err(|e| OpError::failed(e.to_string()))?);
+        *slot = Some(CartClient::lookup().map_err(cart_err)?);
     }
     let client = slot
         .as_mut()
-        .ok_or_else(|| OpError::failed("no virtual cart is running"))?;
+        .ok_or_else(|| cart_err(crate::hardware::CartError::NotFound))?;
     // the slot is one operation's: only the epoch changes, once per activation
     if client.fence().epoch != ctx.epoch() {
         client.set_fence(ctx.fence());
@@ -58,9 +59,11 @@ pub(crate) fn cart<'s>(
     Ok(client)
 }
 
-/// Turn a cart error into an operation error.
+/// Turn a cart error into an operation error: the cart could not be reached, so the host
+/// holds the operation while the cart is gone from the registry (its node lost, or cut off
+/// from this one) and steps on once it is back.
 pub(crate) fn cart_err(e: crate::hardware::CartError) -> OpError {
-    OpError::failed(e.to_string())
+    OpError::unreachable(ModuleKind::Hardware, CART_NAME, e.to_string())
 }
 
 /// The newest record of `kind` in datamanager `dm`, decoded; `None` when there is none.
