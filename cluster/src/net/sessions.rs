@@ -1,5 +1,6 @@
 //! Who the node sees: ractor_cluster's session callbacks turned into a table of ready peers,
-//! and the names behind session numbers recorded in the registry.
+//! and the names behind session numbers recorded in the registry; and whom the node
+//! refused before a session (told once, at warn level, naming the peer).
 
 use super::events::NetEvent;
 use super::transport::Peer;
@@ -8,6 +9,7 @@ use ractor::ActorRef;
 use ractor_cluster::node::{NodeServerSessionInformation, NodeSessionMessage};
 use ractor_cluster::NodeEventSubscription;
 use std::collections::BTreeMap;
+use std::net::SocketAddr;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 use tokio::sync::{broadcast, watch};
@@ -29,6 +31,10 @@ pub(crate) struct Sessions {
     /// Peers refused (another protocol version): a session with one is closed as soon as
     /// it is authenticated, before its modules reach the registry.
     refused: Arc<Mutex<std::collections::BTreeSet<String>>>,
+    /// Why the peer at an address (`ip:port`) is refused before any session: what was last
+    /// told of it, so that a redial refused again is not told again. Forgotten when a
+    /// session with that address is ready.
+    refusals: Arc<Mutex<BTreeMap<String, String>>>,
 }
 
 impl Sessions {
@@ -37,6 +43,7 @@ impl Sessions {
             ready: Arc::default(),
             actors: Arc::default(),
             refused: Arc::default(),
+            refusals: Arc::default(),
             changed: watch::Sender::new(0),
             events: broadcast::Sender::new(256),
             node: node.to_string(),
@@ -51,6 +58,42 @@ impl Sessions {
     /// Tell `event` to whoever listens ([`Sessions::listen`]).
     pub(crate) fn tell(&self, event: NetEvent) {
         let _ = self.events.send(event);
+    }
+
+    /// Tell a refusal — a connection refused, a dialed node refused — at warn level (on a
+    /// `marie` command's stderr by default) and to whoever listens.
+    pub(crate) fn tell_refusal(&self, event: NetEvent) {
+        tracing::warn!("node {} {event}", self.node);
+        self.tell(event);
+    }
+
+    /// This node refused the node it dialed at `to` (its certificate): told unless the
+    /// same was told last for that address.
+    pub(crate) fn dial_refused(&self, to: SocketAddr, reason: String) {
+        if self.remember_refusal(&to.to_string(), &reason) {
+            self.tell_refusal(NetEvent::DialRefused { to, reason });
+        }
+    }
+
+    /// Record `reason` as the refusal of the peer at `address`: false if it was already
+    /// the one recorded.
+    fn remember_refusal(&self, address: &str, reason: &str) -> bool {
+        let mut refusals = self.refusals.lock().unwrap_or_else(|e| e.into_inner());
+        if refusals.get(address).is_some_and(|r| r == reason) {
+            return false;
+        }
+        refusals.insert(address.to_string(), reason.to_string());
+        true
+    }
+
+    /// Why the peer at `address` is refused before any session (this node refused its
+    /// certificate), if it is.
+    pub(crate) fn refusal(&self, address: &str) -> Option<String> {
+        self.refusals
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .get(address)
+            .cloned()
     }
 
     /// The peers ready now and the transport's news from then on: peers are told up and
@@ -167,6 +210,11 @@ impl NodeEventSubscription for Sessions {
             address: name.connection_string.clone(),
             session: ses.node_id,
         };
+        // whatever refused it before is over
+        self.refusals
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .remove(&peer.address);
         tracing::info!(node = %self.node, peer = %peer.name, address = %peer.address, "sees peer");
         registry::declare_up(&peer.name);
         {
