@@ -161,8 +161,8 @@ pub(crate) async fn join(me: &str, target: &ClusterEntry) -> anyhow::Result<Tran
     Ok(transport)
 }
 
-/// Once the node at `addr` is refused — this member refused its certificate —, why: a
-/// refusal is no reason to wait longer.
+/// Once the node at `addr` is refused — this member refused its certificate, or it refused
+/// this member at authentication —, why: a refusal is no reason to wait longer.
 async fn refused(transport: &Transport, addr: SocketAddr) -> String {
     // subscribed before the look at what was refused already: nothing told in between is
     // missed
@@ -174,6 +174,13 @@ async fn refused(transport: &Transport, addr: SocketAddr) -> String {
         match news.recv().await {
             Ok(NetEvent::DialRefused { to, reason }) if to == addr => {
                 return format!("this member refused the node's certificate: {reason}")
+            }
+            Ok(NetEvent::RefusedBy {
+                peer,
+                address,
+                reason,
+            }) if address == addr.to_string() => {
+                return format!("{peer} refused this member: {reason}")
             }
             Ok(_) | Err(RecvError::Lagged(_)) => {}
             Err(RecvError::Closed) => return std::future::pending().await,

@@ -1,7 +1,9 @@
 //! Who the node sees: ractor_cluster's session callbacks turned into a table of ready peers,
 //! and the names behind session numbers recorded in the registry; and whom the node
-//! refused before a session (told once, at warn level, naming the peer).
+//! refused, or was refused by, before a session (told once, at warn level, naming the
+//! peer).
 
+use super::auth::AuthWatch;
 use super::events::NetEvent;
 use super::transport::Peer;
 use marie_actors::registry;
@@ -14,15 +16,28 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 use tokio::sync::{broadcast, watch};
 
-/// An open session: the peer's node name once authenticated, and the session's actor.
-type OpenSession = (Option<String>, ActorRef<NodeSessionMessage>);
+/// An open session.
+struct OpenSession {
+    /// The peer's node name, once the session authenticated.
+    authenticated: Option<String>,
+    actor: ActorRef<NodeSessionMessage>,
+    /// When it opened, on the [`AuthWatch`]'s clock.
+    opened: u64,
+}
+
+/// The open sessions by session number, and the failed authentications they tell of.
+#[derive(Default)]
+struct Open {
+    sessions: BTreeMap<u64, OpenSession>,
+    auth: AuthWatch,
+}
 
 /// The ready sessions, by ractor's session number; `changed` ticks on every change.
 #[derive(Clone)]
 pub(crate) struct Sessions {
     ready: Arc<Mutex<BTreeMap<u64, Peer>>>,
-    /// Every open session's actor, by session number: what closing a peer stops.
-    actors: Arc<Mutex<BTreeMap<u64, OpenSession>>>,
+    /// Every open session, by session number: what closing a peer stops.
+    actors: Arc<Mutex<Open>>,
     changed: watch::Sender<u64>,
     /// What the transport tells ([`NetEvent`]): peers up and lost from here, the rest from
     /// the heartbeat.
@@ -31,9 +46,9 @@ pub(crate) struct Sessions {
     /// Peers refused (another protocol version): a session with one is closed as soon as
     /// it is authenticated, before its modules reach the registry.
     refused: Arc<Mutex<std::collections::BTreeSet<String>>>,
-    /// Why the peer at an address (`ip:port`) is refused before any session: what was last
-    /// told of it, so that a redial refused again is not told again. Forgotten when a
-    /// session with that address is ready.
+    /// Why the peer at an address (`ip:port`) is refused before any session, by this node
+    /// or by itself: what was last told of it, so that a redial refused again is not told
+    /// again. Forgotten when a session with that address is ready.
     refusals: Arc<Mutex<BTreeMap<String, String>>>,
 }
 
@@ -60,8 +75,9 @@ impl Sessions {
         let _ = self.events.send(event);
     }
 
-    /// Tell a refusal — a connection refused, a dialed node refused — at warn level (on a
-    /// `marie` command's stderr by default) and to whoever listens.
+    /// Tell a refusal, this node's or a peer's — a connection refused, a dialed node
+    /// refused, this node refused by a peer — at warn level (on a `marie` command's stderr
+    /// by default) and to whoever listens.
     pub(crate) fn tell_refusal(&self, event: NetEvent) {
         tracing::warn!("node {} {event}", self.node);
         self.tell(event);
@@ -87,7 +103,7 @@ impl Sessions {
     }
 
     /// Why the peer at `address` is refused before any session (this node refused its
-    /// certificate), if it is.
+    /// certificate, or it refused this node's authentication), if it is.
     pub(crate) fn refusal(&self, address: &str) -> Option<String> {
         self.refusals
             .lock()
@@ -137,16 +153,16 @@ impl Sessions {
     /// Close every session with the peer named `peer` (its modules leave the registry with
     /// them); the transport redials it with backoff.
     pub(crate) fn close(&self, peer: &str, reason: &str) {
-        let actors = self.open();
-        for (name, actor) in actors.values() {
-            if name.as_deref() == Some(peer) {
+        let open = self.open();
+        for session in open.sessions.values() {
+            if session.authenticated.as_deref() == Some(peer) {
                 tracing::info!(node = %self.node, %peer, reason, "closing the session");
-                actor.stop(Some(reason.to_string()));
+                session.actor.stop(Some(reason.to_string()));
             }
         }
     }
 
-    fn open(&self) -> std::sync::MutexGuard<'_, BTreeMap<u64, OpenSession>> {
+    fn open(&self) -> std::sync::MutexGuard<'_, Open> {
         self.actors.lock().unwrap_or_else(|e| e.into_inner())
     }
 
@@ -172,26 +188,97 @@ fn node_name(full: &str) -> &str {
     full.split_once('@').map_or(full, |(name, _)| name)
 }
 
+impl Sessions {
+    /// A session that ended before it authenticated, `opened` at that stamp: when its peer
+    /// had named itself and nothing else explains the end, one more failed authentication
+    /// in a row with that peer ([`AuthWatch`]), told as a refusal once there are enough.
+    fn ended_unauthenticated(&self, ses: &NodeServerSessionInformation, opened: u64) {
+        let Some(name) = &ses.peer_name else {
+            // it never got as far as names: a connection that closed, nothing refused
+            return;
+        };
+        let peer = node_name(&name.name);
+        let attempts = {
+            let mut open = self.open();
+            // a duplicate turned away while another session with the peer holds
+            if open
+                .sessions
+                .values()
+                .any(|s| s.authenticated.as_deref() == Some(peer))
+            {
+                return;
+            }
+            open.auth.failed(peer, opened)
+        };
+        let Some(attempts) = attempts else {
+            tracing::debug!(node = %self.node, %peer, peer_addr = %ses.peer_addr, "a session ended before it authenticated");
+            return;
+        };
+        let address = &name.connection_string;
+        if ses.is_server {
+            // this node checked the peer's answer to its challenge, and closed
+            let from = ses
+                .peer_addr
+                .parse()
+                .unwrap_or_else(|_| SocketAddr::from(([0, 0, 0, 0], 0)));
+            self.tell_refusal(NetEvent::ConnectionRefused {
+                from,
+                reason: format!(
+                    "{peer} (listening on {address}) failed authentication on {attempts} \
+                     connections in a row: it has another cookie"
+                ),
+            });
+        } else {
+            // the peer closed after this node answered its challenge
+            let reason = format!(
+                "authentication failed on {attempts} connections in a row: it has another \
+                 cookie"
+            );
+            if self.remember_refusal(address, &reason) {
+                self.tell_refusal(NetEvent::RefusedBy {
+                    peer: peer.to_string(),
+                    address: address.clone(),
+                    reason,
+                });
+            }
+        }
+    }
+}
+
 impl NodeEventSubscription for Sessions {
     fn node_session_opened(&self, ses: NodeServerSessionInformation) {
-        self.open().insert(ses.node_id, (None, ses.actor.clone()));
+        let mut open = self.open();
+        let opened = open.auth.opened();
+        open.sessions.insert(
+            ses.node_id,
+            OpenSession {
+                authenticated: None,
+                actor: ses.actor.clone(),
+                opened,
+            },
+        );
         tracing::debug!(node = %self.node, peer_addr = %ses.peer_addr, incoming = ses.is_server, "session opened");
     }
 
     fn node_session_authenticated(&self, ses: NodeServerSessionInformation) {
         if let Some(peer) = &ses.peer_name {
-            if self.is_refused(node_name(&peer.name)) {
+            let name = node_name(&peer.name);
+            {
+                // authenticated, whether or not it is refused below: its cookie is right
+                let mut open = self.open();
+                open.auth.authenticated(name);
+                if let Some(session) = open.sessions.get_mut(&ses.node_id) {
+                    session.authenticated = Some(name.to_string());
+                }
+            }
+            if self.is_refused(name) {
                 tracing::debug!(node = %self.node, peer = %peer.name, "a refused peer is back: closed");
                 ses.actor
                     .stop(Some("refused: another protocol version".into()));
                 return;
             }
             // before the state exchange, so the peer's modules arrive already named
-            registry::set_peer_node_name(ses.node_id, node_name(&peer.name));
-            self.open().insert(
-                ses.node_id,
-                (Some(node_name(&peer.name).to_string()), ses.actor.clone()),
-            );
+            registry::set_peer_node_name(ses.node_id, name);
         }
     }
 
@@ -232,7 +319,15 @@ impl NodeEventSubscription for Sessions {
     }
 
     fn node_session_disconnected(&self, ses: NodeServerSessionInformation) {
-        self.open().remove(&ses.node_id);
+        let ended = self.open().sessions.remove(&ses.node_id);
+        if let Some(OpenSession {
+            authenticated: None,
+            opened,
+            ..
+        }) = ended
+        {
+            self.ended_unauthenticated(&ses, opened);
+        }
         let gone = {
             let mut table = self.table();
             let gone = table.remove(&ses.node_id);

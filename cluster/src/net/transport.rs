@@ -212,8 +212,9 @@ impl Transport {
     }
 
     /// Why the node at `addr` is refused, if it is and no session with it is ready since:
-    /// this node refused its certificate ([`NetEvent::DialRefused`]). What a member that
-    /// joins through that node tells instead of waiting in vain.
+    /// this node refused its certificate ([`NetEvent::DialRefused`]), or it refused this
+    /// node at authentication ([`NetEvent::RefusedBy`]). What a member that joins through
+    /// that node tells instead of waiting in vain.
     pub fn refusal(&self, addr: SocketAddr) -> Option<String> {
         self.sessions.refusal(&addr.to_string())
     }
