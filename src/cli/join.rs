@@ -167,24 +167,34 @@ async fn refused(transport: &Transport, addr: SocketAddr) -> String {
     // subscribed before the look at what was refused already: nothing told in between is
     // missed
     let (_, mut news) = transport.events();
-    if let Some(why) = transport.refusal(addr) {
-        return format!("refused: {why}");
+    if let Some(why) = transport.refusal(addr).and_then(|e| why_refused(&e, addr)) {
+        return why;
     }
     loop {
         match news.recv().await {
-            Ok(NetEvent::DialRefused { to, reason }) if to == addr => {
-                return format!("this member refused the node's certificate: {reason}")
+            Ok(event) => {
+                if let Some(why) = why_refused(&event, addr) {
+                    return why;
+                }
             }
-            Ok(NetEvent::RefusedBy {
-                peer,
-                address,
-                reason,
-            }) if address == addr.to_string() => {
-                return format!("{peer} refused this member: {reason}")
-            }
-            Ok(_) | Err(RecvError::Lagged(_)) => {}
+            Err(RecvError::Lagged(_)) => {}
             Err(RecvError::Closed) => return std::future::pending().await,
         }
+    }
+}
+
+/// What `event` says of a refusal of the node at `addr`, if it is one.
+fn why_refused(event: &NetEvent, addr: SocketAddr) -> Option<String> {
+    match event {
+        NetEvent::DialRefused { to, reason } if *to == addr => Some(format!(
+            "this member refused the node's certificate: {reason}"
+        )),
+        NetEvent::RefusedBy {
+            peer,
+            address,
+            reason,
+        } if *address == addr.to_string() => Some(format!("{peer} refused this member: {reason}")),
+        _ => None,
     }
 }
 

@@ -49,7 +49,7 @@ pub(crate) struct Sessions {
     /// Why the peer at an address (`ip:port`) is refused before any session, by this node
     /// or by itself: what was last told of it, so that a redial refused again is not told
     /// again. Forgotten when a session with that address is ready.
-    refusals: Arc<Mutex<BTreeMap<String, String>>>,
+    refusals: Arc<Mutex<BTreeMap<String, NetEvent>>>,
 }
 
 impl Sessions {
@@ -86,25 +86,25 @@ impl Sessions {
     /// This node refused the node it dialed at `to` (its certificate): told unless the
     /// same was told last for that address.
     pub(crate) fn dial_refused(&self, to: SocketAddr, reason: String) {
-        if self.remember_refusal(&to.to_string(), &reason) {
-            self.tell_refusal(NetEvent::DialRefused { to, reason });
-        }
+        self.tell_refusal_once(&to.to_string(), NetEvent::DialRefused { to, reason });
     }
 
-    /// Record `reason` as the refusal of the peer at `address`: false if it was already
-    /// the one recorded.
-    fn remember_refusal(&self, address: &str, reason: &str) -> bool {
-        let mut refusals = self.refusals.lock().unwrap_or_else(|e| e.into_inner());
-        if refusals.get(address).is_some_and(|r| r == reason) {
-            return false;
+    /// Tell `event`, a refusal of the peer at `address`, and record it as that peer's —
+    /// unless it is the one recorded already.
+    fn tell_refusal_once(&self, address: &str, event: NetEvent) {
+        {
+            let mut refusals = self.refusals.lock().unwrap_or_else(|e| e.into_inner());
+            if refusals.get(address) == Some(&event) {
+                return;
+            }
+            refusals.insert(address.to_string(), event.clone());
         }
-        refusals.insert(address.to_string(), reason.to_string());
-        true
+        self.tell_refusal(event);
     }
 
-    /// Why the peer at `address` is refused before any session (this node refused its
-    /// certificate, or it refused this node's authentication), if it is.
-    pub(crate) fn refusal(&self, address: &str) -> Option<String> {
+    /// The refusal of the peer at `address` told last ([`NetEvent::DialRefused`],
+    /// [`NetEvent::RefusedBy`]), if no session with it was ready since.
+    pub(crate) fn refusal(&self, address: &str) -> Option<NetEvent> {
         self.refusals
             .lock()
             .unwrap_or_else(|e| e.into_inner())
@@ -234,13 +234,14 @@ impl Sessions {
                 "authentication failed on {attempts} connections in a row: it has another \
                  cookie"
             );
-            if self.remember_refusal(address, &reason) {
-                self.tell_refusal(NetEvent::RefusedBy {
+            self.tell_refusal_once(
+                address,
+                NetEvent::RefusedBy {
                     peer: peer.to_string(),
                     address: address.clone(),
                     reason,
-                });
-            }
+                },
+            );
         }
     }
 }

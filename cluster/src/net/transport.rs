@@ -211,11 +211,12 @@ impl Transport {
         self.sessions.peers()
     }
 
-    /// Why the node at `addr` is refused, if it is and no session with it is ready since:
+    /// The refusal told last of the node at `addr`, if no session with it was ready since:
     /// this node refused its certificate ([`NetEvent::DialRefused`]), or it refused this
     /// node at authentication ([`NetEvent::RefusedBy`]). What a member that joins through
-    /// that node tells instead of waiting in vain.
-    pub fn refusal(&self, addr: SocketAddr) -> Option<String> {
+    /// that node tells instead of waiting in vain, also when it was told before the member
+    /// listened to [`Transport::events`].
+    pub fn refusal(&self, addr: SocketAddr) -> Option<NetEvent> {
         self.sessions.refusal(&addr.to_string())
     }
 
