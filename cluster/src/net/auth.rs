@@ -11,15 +11,16 @@
 //!
 //! - only when no other session with that peer is authenticated (a duplicate turned away
 //!   has one);
-//! - once per attempt: an end counts only if its session opened after the previous counted
-//!   end, so a burst of stale sessions ending together (a node woken from a freeze) is one
-//!   attempt, however many sessions it held;
+//! - once per attempt: an end counts only if its session opened after the previous end
+//!   seen, so a burst of stale sessions ending together (a node woken from a freeze) is
+//!   one attempt, however many sessions it held;
 //! - and the peer is refused only at [`REFUSED_AFTER`] such attempts in a row, none
 //!   authenticated in between: a peer that stops once in mid-handshake (it was killed or
 //!   left) is not a peer with another cookie, which fails every attempt — a node redials
 //!   an absent peer every few seconds.
 //!
-//! [`AuthWatch`] is that bookkeeping, without I/O; [`super::sessions`] feeds it.
+//! [`AuthWatch`] is that bookkeeping, without I/O: [`super::sessions`] feeds it the
+//! session callbacks and tells what it concludes.
 
 use std::collections::BTreeMap;
 
@@ -30,12 +31,22 @@ pub(crate) const REFUSED_AFTER: u32 = 2;
 /// (any connection may claim a name; memory stays bounded).
 const MAX_FOLLOWED: usize = 1024;
 
-/// Failed authentications by peer, in a row.
+/// The open sessions and the failed authentications by peer, in a row.
 #[derive(Debug, Default)]
 pub(crate) struct AuthWatch {
     /// Ticks at every session opened and every failure: the order of both.
     clock: u64,
+    /// Open sessions by session number.
+    open: BTreeMap<u64, Open>,
     streaks: BTreeMap<String, Streak>,
+}
+
+#[derive(Debug)]
+struct Open {
+    /// When it opened (on [`AuthWatch::clock`]).
+    at: u64,
+    /// Its peer's node name, once it authenticated.
+    authenticated: Option<String>,
 }
 
 #[derive(Debug, Default)]
@@ -47,22 +58,50 @@ struct Streak {
 }
 
 impl AuthWatch {
-    /// A session opened: its stamp, for [`AuthWatch::failed`].
-    pub(crate) fn opened(&mut self) -> u64 {
+    /// Session `session` opened.
+    pub(crate) fn opened(&mut self, session: u64) {
         self.clock += 1;
-        self.clock
+        let at = self.clock;
+        self.open.insert(
+            session,
+            Open {
+                at,
+                authenticated: None,
+            },
+        );
     }
 
-    /// A session with `peer` authenticated: its streak of failures ends.
-    pub(crate) fn authenticated(&mut self, peer: &str) {
+    /// Session `session` authenticated with `peer`: the peer's streak of failures ends.
+    pub(crate) fn authenticated(&mut self, session: u64, peer: &str) {
+        if let Some(open) = self.open.get_mut(&session) {
+            open.authenticated = Some(peer.to_string());
+        }
         self.streaks.remove(peer);
     }
 
-    /// A session with `peer`, opened at stamp `opened`, ended after the peer named itself
-    /// but before it authenticated, and no other session with `peer` is authenticated.
-    /// `Some(attempts)` when this makes the attempts in a row reach [`REFUSED_AFTER`]: the
-    /// peer is to be told refused, once per streak.
-    pub(crate) fn failed(&mut self, peer: &str, opened: u64) -> Option<u32> {
+    /// Session `session` ended; `peer` is the node name its peer gave, if it gave one.
+    /// `Some(attempts)` when this end makes the failed attempts in a row with that peer
+    /// reach [`REFUSED_AFTER`]: the peer is to be told refused, once per streak.
+    pub(crate) fn ended(&mut self, session: u64, peer: Option<&str>) -> Option<u32> {
+        let open = self.open.remove(&session)?;
+        // it authenticated, or it never got as far as names (a connection that closed)
+        let peer = match (&open.authenticated, peer) {
+            (None, Some(peer)) => peer,
+            _ => return None,
+        };
+        // a duplicate turned away while another session with the peer holds
+        if self
+            .open
+            .values()
+            .any(|o| o.authenticated.as_deref() == Some(peer))
+        {
+            return None;
+        }
+        self.failed(peer, open.at)
+    }
+
+    /// A session with `peer`, opened at `opened`, failed to authenticate.
+    fn failed(&mut self, peer: &str, opened: u64) -> Option<u32> {
         self.clock += 1;
         let now = self.clock;
         if !self.streaks.contains_key(peer) && self.streaks.len() >= MAX_FOLLOWED {
@@ -92,52 +131,84 @@ impl AuthWatch {
 mod tests {
     use super::*;
 
+    /// Open session `n` and end it before it authenticated, its peer named `peer`.
+    fn fail(w: &mut AuthWatch, n: u64, peer: &str) -> Option<u32> {
+        w.opened(n);
+        w.ended(n, Some(peer))
+    }
+
     #[test]
     fn attempts_one_after_the_other_refuse_the_peer_once() {
         let mut w = AuthWatch::default();
-        let a = w.opened();
-        assert_eq!(w.failed("evil", a), None);
-        let b = w.opened();
-        assert_eq!(w.failed("evil", b), Some(REFUSED_AFTER));
+        assert_eq!(fail(&mut w, 1, "evil"), None);
+        assert_eq!(fail(&mut w, 2, "evil"), Some(REFUSED_AFTER));
         // told once per streak
-        let c = w.opened();
-        assert_eq!(w.failed("evil", c), None);
+        assert_eq!(fail(&mut w, 3, "evil"), None);
         // another peer has a streak of its own
-        let d = w.opened();
-        assert_eq!(w.failed("other", d), None);
+        assert_eq!(fail(&mut w, 4, "other"), None);
+        assert!(w.open.is_empty());
+    }
+
+    #[test]
+    fn a_session_that_authenticated_or_never_named_its_peer_is_no_failure() {
+        let mut w = AuthWatch::default();
+        for n in 1..=3 {
+            w.opened(n);
+            w.authenticated(n, "beta");
+            assert_eq!(w.ended(n, Some("beta")), None);
+        }
+        for n in 4..=6 {
+            w.opened(n);
+            assert_eq!(w.ended(n, None), None);
+        }
+        // a session never seen opening
+        assert_eq!(w.ended(99, Some("beta")), None);
+        assert!(w.streaks.is_empty());
+    }
+
+    #[test]
+    fn a_duplicate_turned_away_beside_an_authenticated_session_is_no_failure() {
+        // two nodes that dialed each other, again and again: the loser of each election
+        // ends unauthenticated while the winner holds
+        let mut w = AuthWatch::default();
+        w.opened(1);
+        w.authenticated(1, "beta");
+        for n in 2..=5 {
+            assert_eq!(fail(&mut w, n, "beta"), None);
+        }
+        assert!(w.streaks.is_empty());
     }
 
     #[test]
     fn sessions_open_together_are_one_attempt() {
         // stale connections to a node woken from a freeze all end at once
         let mut w = AuthWatch::default();
-        let stale: Vec<u64> = (0..5).map(|_| w.opened()).collect();
-        for s in stale {
-            assert_eq!(w.failed("woken", s), None);
+        for n in 1..=5 {
+            w.opened(n);
+        }
+        for n in 1..=5 {
+            assert_eq!(w.ended(n, Some("woken")), None);
         }
         // the next attempt, after them, is only the second
-        let next = w.opened();
-        assert_eq!(w.failed("woken", next), Some(REFUSED_AFTER));
+        assert_eq!(fail(&mut w, 6, "woken"), Some(REFUSED_AFTER));
     }
 
     #[test]
     fn an_authenticated_session_ends_the_streak() {
         let mut w = AuthWatch::default();
-        let a = w.opened();
-        assert_eq!(w.failed("beta", a), None);
-        w.authenticated("beta");
-        let b = w.opened();
-        assert_eq!(w.failed("beta", b), None);
-        let c = w.opened();
-        assert_eq!(w.failed("beta", c), Some(REFUSED_AFTER));
+        assert_eq!(fail(&mut w, 1, "beta"), None);
+        w.opened(2);
+        w.authenticated(2, "beta");
+        assert_eq!(w.ended(2, Some("beta")), None);
+        assert_eq!(fail(&mut w, 3, "beta"), None);
+        assert_eq!(fail(&mut w, 4, "beta"), Some(REFUSED_AFTER));
     }
 
     #[test]
     fn the_peers_followed_are_bounded() {
         let mut w = AuthWatch::default();
-        for i in 0..MAX_FOLLOWED + 10 {
-            let s = w.opened();
-            w.failed(&format!("peer-{i}"), s);
+        for i in 0..MAX_FOLLOWED as u64 + 10 {
+            fail(&mut w, i, &format!("peer-{i}"));
         }
         assert_eq!(w.streaks.len(), MAX_FOLLOWED);
         // the oldest went first

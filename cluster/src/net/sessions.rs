@@ -16,28 +16,17 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 use tokio::sync::{broadcast, watch};
 
-/// An open session.
-struct OpenSession {
-    /// The peer's node name, once the session authenticated.
-    authenticated: Option<String>,
-    actor: ActorRef<NodeSessionMessage>,
-    /// When it opened, on the [`AuthWatch`]'s clock.
-    opened: u64,
-}
-
-/// The open sessions by session number, and the failed authentications they tell of.
-#[derive(Default)]
-struct Open {
-    sessions: BTreeMap<u64, OpenSession>,
-    auth: AuthWatch,
-}
+/// An open session: the peer's node name once authenticated, and the session's actor.
+type OpenSession = (Option<String>, ActorRef<NodeSessionMessage>);
 
 /// The ready sessions, by ractor's session number; `changed` ticks on every change.
 #[derive(Clone)]
 pub(crate) struct Sessions {
     ready: Arc<Mutex<BTreeMap<u64, Peer>>>,
-    /// Every open session, by session number: what closing a peer stops.
-    actors: Arc<Mutex<Open>>,
+    /// Every open session's actor, by session number: what closing a peer stops.
+    actors: Arc<Mutex<BTreeMap<u64, OpenSession>>>,
+    /// Which sessions end before they authenticate, telling a peer with another cookie.
+    auth: Arc<Mutex<AuthWatch>>,
     changed: watch::Sender<u64>,
     /// What the transport tells ([`NetEvent`]): peers up and lost from here, the rest from
     /// the heartbeat.
@@ -57,6 +46,7 @@ impl Sessions {
         Sessions {
             ready: Arc::default(),
             actors: Arc::default(),
+            auth: Arc::default(),
             refused: Arc::default(),
             refusals: Arc::default(),
             changed: watch::Sender::new(0),
@@ -153,17 +143,21 @@ impl Sessions {
     /// Close every session with the peer named `peer` (its modules leave the registry with
     /// them); the transport redials it with backoff.
     pub(crate) fn close(&self, peer: &str, reason: &str) {
-        let open = self.open();
-        for session in open.sessions.values() {
-            if session.authenticated.as_deref() == Some(peer) {
+        let actors = self.open();
+        for (name, actor) in actors.values() {
+            if name.as_deref() == Some(peer) {
                 tracing::info!(node = %self.node, %peer, reason, "closing the session");
-                session.actor.stop(Some(reason.to_string()));
+                actor.stop(Some(reason.to_string()));
             }
         }
     }
 
-    fn open(&self) -> std::sync::MutexGuard<'_, Open> {
+    fn open(&self) -> std::sync::MutexGuard<'_, BTreeMap<u64, OpenSession>> {
         self.actors.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    fn auth(&self) -> std::sync::MutexGuard<'_, AuthWatch> {
+        self.auth.lock().unwrap_or_else(|e| e.into_inner())
     }
 
     fn table(&self) -> std::sync::MutexGuard<'_, BTreeMap<u64, Peer>> {
@@ -189,29 +183,16 @@ fn node_name(full: &str) -> &str {
 }
 
 impl Sessions {
-    /// A session that ended before it authenticated, `opened` at that stamp: when its peer
-    /// had named itself and nothing else explains the end, one more failed authentication
-    /// in a row with that peer ([`AuthWatch`]), told as a refusal once there are enough.
-    fn ended_unauthenticated(&self, ses: &NodeServerSessionInformation, opened: u64) {
-        let Some(name) = &ses.peer_name else {
-            // it never got as far as names: a connection that closed, nothing refused
+    /// Session `ses` ended: when it ended before it authenticated, after its peer named
+    /// itself, and nothing else explains the end, one more failed authentication in a row
+    /// with that peer ([`AuthWatch`]), told as a refusal once there are enough.
+    fn ended(&self, ses: &NodeServerSessionInformation) {
+        let name = ses.peer_name.as_ref();
+        let peer = name.map(|n| node_name(&n.name));
+        let Some(attempts) = self.auth().ended(ses.node_id, peer) else {
             return;
         };
-        let peer = node_name(&name.name);
-        let attempts = {
-            let mut open = self.open();
-            // a duplicate turned away while another session with the peer holds
-            if open
-                .sessions
-                .values()
-                .any(|s| s.authenticated.as_deref() == Some(peer))
-            {
-                return;
-            }
-            open.auth.failed(peer, opened)
-        };
-        let Some(attempts) = attempts else {
-            tracing::debug!(node = %self.node, %peer, peer_addr = %ses.peer_addr, "a session ended before it authenticated");
+        let (Some(name), Some(peer)) = (name, peer) else {
             return;
         };
         let address = &name.connection_string;
@@ -248,30 +229,16 @@ impl Sessions {
 
 impl NodeEventSubscription for Sessions {
     fn node_session_opened(&self, ses: NodeServerSessionInformation) {
-        let mut open = self.open();
-        let opened = open.auth.opened();
-        open.sessions.insert(
-            ses.node_id,
-            OpenSession {
-                authenticated: None,
-                actor: ses.actor.clone(),
-                opened,
-            },
-        );
+        self.open().insert(ses.node_id, (None, ses.actor.clone()));
+        self.auth().opened(ses.node_id);
         tracing::debug!(node = %self.node, peer_addr = %ses.peer_addr, incoming = ses.is_server, "session opened");
     }
 
     fn node_session_authenticated(&self, ses: NodeServerSessionInformation) {
         if let Some(peer) = &ses.peer_name {
             let name = node_name(&peer.name);
-            {
-                // authenticated, whether or not it is refused below: its cookie is right
-                let mut open = self.open();
-                open.auth.authenticated(name);
-                if let Some(session) = open.sessions.get_mut(&ses.node_id) {
-                    session.authenticated = Some(name.to_string());
-                }
-            }
+            // authenticated, whether or not it is refused below: its cookie is right
+            self.auth().authenticated(ses.node_id, name);
             if self.is_refused(name) {
                 tracing::debug!(node = %self.node, peer = %peer.name, "a refused peer is back: closed");
                 ses.actor
@@ -280,6 +247,8 @@ impl NodeEventSubscription for Sessions {
             }
             // before the state exchange, so the peer's modules arrive already named
             registry::set_peer_node_name(ses.node_id, name);
+            self.open()
+                .insert(ses.node_id, (Some(name.to_string()), ses.actor.clone()));
         }
     }
 
@@ -320,15 +289,8 @@ impl NodeEventSubscription for Sessions {
     }
 
     fn node_session_disconnected(&self, ses: NodeServerSessionInformation) {
-        let ended = self.open().sessions.remove(&ses.node_id);
-        if let Some(OpenSession {
-            authenticated: None,
-            opened,
-            ..
-        }) = ended
-        {
-            self.ended_unauthenticated(&ses, opened);
-        }
+        self.open().remove(&ses.node_id);
+        self.ended(&ses);
         let gone = {
             let mut table = self.table();
             let gone = table.remove(&ses.node_id);
