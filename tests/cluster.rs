@@ -1,6 +1,7 @@
 //! The cluster across real processes on 127.0.0.1: `marie node` members that find each
 //! other, `marie ls --join` listing every node's modules with their node, a member that
-//! leaves taking its entries along, and a wrong cookie refused.
+//! leaves taking its entries along, and a wrong cookie refused — a command's or a node's —
+//! with both sides saying so.
 
 mod common;
 
@@ -72,8 +73,22 @@ fn a_peer_with_another_cookie_is_refused_and_changes_nothing() {
     let mut alpha = NodeProc::start(dir.path(), "alpha", ALPHA_HOSTS, &[], COOKIE);
     let (code, entries, stderr) = ls_join(&alpha.addr, "not-the-cookie");
     assert_eq!(code, Some(1), "{stderr}");
-    assert!(stderr.contains("could not join the cluster"), "{stderr}");
+    // it says why, and which node refused it
+    assert!(
+        stderr.contains(&format!(
+            "could not join the cluster at {}: alpha refused this member: authentication \
+             failed on 2 connections in a row",
+            alpha.addr
+        )),
+        "{stderr}"
+    );
     assert!(entries.is_empty());
+    // and the node says whom it refused
+    let refused = alpha.wait_line("node alpha refused a connection from 127.0.0.1:");
+    assert!(
+        refused.contains(": ls-") && refused.contains("failed authentication"),
+        "{refused}"
+    );
     // the node still serves the right cookie, with what it hosted before
     let (code, entries, stderr) = ls_join(&alpha.addr, COOKIE);
     assert_eq!(code, Some(0), "{stderr}");
@@ -87,6 +102,81 @@ fn a_peer_with_another_cookie_is_refused_and_changes_nothing() {
     alpha.signal("TERM");
     assert_eq!(alpha.wait_exit(), Some(0));
     assert!(!alpha.wait_line("stopped").is_empty());
+}
+
+#[test]
+fn a_node_with_another_cookie_is_refused_and_both_sides_say_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut alpha = NodeProc::start(d, "alpha", ALPHA_HOSTS, &[], COOKIE);
+    let mut stranger = NodeProc::start(d, "stranger", BETA_HOSTS, &[alpha.addr], "another");
+    // each names the other, on stdout and at warn level on stderr (what `marie node`
+    // shows by default)
+    let refused = alpha.wait_line("node alpha refused a connection from 127.0.0.1:");
+    assert!(
+        refused.contains(&format!(
+            "stranger (listening on {}) failed authentication on 2 connections in a row: it \
+             has another cookie",
+            stranger.addr
+        )),
+        "{refused}"
+    );
+    alpha.wait_stderr("node alpha refused a connection from 127.0.0.1:");
+    let was = format!(
+        "node stranger was refused by alpha at {}: authentication failed",
+        alpha.addr
+    );
+    stranger.wait_line(&was);
+    let logged = stranger.wait_stderr(&was);
+    assert!(logged.contains("WARN"), "{logged}");
+    let logged = alpha.wait_stderr("(listening on");
+    assert!(
+        logged.contains("WARN") && logged.contains("stranger"),
+        "{logged}"
+    );
+
+    // it changes nothing: a node with the cluster's cookie joins, neither side refusing
+    // anything, and the cluster is alpha and beta
+    let mut beta = NodeProc::start(d, "beta", BETA_HOSTS, &[alpha.addr], COOKIE);
+    beta.wait_line("node beta sees alpha");
+    let (code, entries, stderr) = ls_join(&alpha.addr, COOKIE);
+    assert_eq!(code, Some(0), "{stderr}");
+    let nodes: std::collections::BTreeSet<&str> =
+        entries.iter().map(|(_, _, node)| node.as_str()).collect();
+    assert_eq!(nodes, ["alpha", "beta"].into(), "{entries:?}");
+    for node in [&mut alpha, &mut beta, &mut stranger] {
+        node.signal("TERM");
+        node.wait_line("stopped");
+        assert_eq!(node.wait_exit(), Some(0));
+    }
+    assert!(
+        !stranger.seen().iter().any(|l| l.contains(" sees ")),
+        "{:?}",
+        stranger.seen()
+    );
+    assert!(
+        !alpha.seen().iter().any(|l| l.contains("sees stranger")),
+        "{:?}",
+        alpha.seen()
+    );
+    // told once, though the stranger kept redialling; no refusal said of beta, on either
+    // side
+    let told = alpha
+        .seen()
+        .iter()
+        .filter(|l| l.contains("refused"))
+        .count();
+    assert_eq!(told, 1, "{:?}", alpha.seen());
+    assert!(
+        !beta.seen().iter().any(|l| l.contains("refused")),
+        "{:?}",
+        beta.seen()
+    );
+    assert!(
+        !beta.stderr_tail().contains("refused"),
+        "{}",
+        beta.stderr_tail()
+    );
 }
 
 #[test]

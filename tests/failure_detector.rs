@@ -74,6 +74,15 @@ fn a_frozen_node_is_declared_down_after_its_deadline_and_rejoins_when_it_wakes()
         "{:?}",
         beta.seen()
     );
+    // the handshakes that a freeze held up and its end cut short are no refusal, on
+    // either side
+    for node in [&alpha, &beta] {
+        assert!(
+            !node.seen().iter().any(|l| l.contains("refused")),
+            "{:?}",
+            node.seen()
+        );
+    }
 }
 
 #[test]
@@ -125,4 +134,17 @@ fn a_node_of_another_protocol_version_is_refused_naming_both_versions() {
         .filter(|l| l.contains("sees future"))
         .collect();
     assert!(after.is_empty(), "{after:?}");
+    // the sessions closed at authentication are the version's refusal, not the cookie's
+    future.signal("TERM");
+    future.wait_line("stopped");
+    for node in [&alpha, &future] {
+        assert!(
+            !node
+                .seen()
+                .iter()
+                .any(|l| l.contains("failed authentication") || l.contains("was refused by")),
+            "{:?}",
+            node.seen()
+        );
+    }
 }

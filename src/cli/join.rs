@@ -4,11 +4,12 @@
 
 use super::args::RobotArgs;
 use super::error::BadInput;
-use marie::cluster::net::{ClusterConfig, Peer, TlsFiles, Transport};
+use marie::cluster::net::{ClusterConfig, NetEvent, Peer, TlsFiles, Transport};
 use marie::cluster::node::{NodeConfig, SimulationConfig};
 use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::time::Duration;
+use tokio::sync::broadcast::error::RecvError;
 
 /// How long a joining command waits for the node it dials.
 pub(crate) const JOIN_TIMEOUT: Duration = Duration::from_secs(10);
@@ -135,21 +136,66 @@ pub(crate) async fn join(me: &str, target: &ClusterEntry) -> anyhow::Result<Tran
         }
         Err(e) => return Err(e.into()),
     };
-    if let Err(e) = transport.wait_for_peers(1, JOIN_TIMEOUT).await {
+    let joined = tokio::select! {
+        seen = transport.wait_for_peers(1, JOIN_TIMEOUT) => seen.map(|_| ()).map_err(|e| {
+            format!(
+                "{e} (is a node listening there, with this cookie{}?)",
+                match &target.tls {
+                    Some(_) => format!(
+                        " and a certificate from its CA naming {}, the address this member \
+                         dials from",
+                        any_port.ip()
+                    ),
+                    None => " and without TLS".into(),
+                }
+            )
+        }),
+        why = refused(&transport, addr) => Err(why),
+    };
+    if let Err(why) = joined {
         transport.stop().await;
-        anyhow::bail!(
-            "{me} could not join the cluster at {addr}: {e} (is a node listening there, with \
-             this cookie{}?)",
-            if target.tls.is_some() {
-                " and a certificate from its CA"
-            } else {
-                " and without TLS"
-            }
-        );
+        anyhow::bail!("{me} could not join the cluster at {addr}: {why}");
     }
     let peers = transport.settle(QUIET, JOIN_TIMEOUT).await;
     eprintln!("{me} sees {}", describe(&peers));
     Ok(transport)
+}
+
+/// Once the node at `addr` is refused — this member refused its certificate, or it refused
+/// this member at authentication —, why: a refusal is no reason to wait longer.
+async fn refused(transport: &Transport, addr: SocketAddr) -> String {
+    // subscribed before the look at what was refused already: nothing told in between is
+    // missed
+    let (_, mut news) = transport.events();
+    if let Some(why) = transport.refusal(addr).and_then(|e| why_refused(&e, addr)) {
+        return why;
+    }
+    loop {
+        match news.recv().await {
+            Ok(event) => {
+                if let Some(why) = why_refused(&event, addr) {
+                    return why;
+                }
+            }
+            Err(RecvError::Lagged(_)) => {}
+            Err(RecvError::Closed) => return std::future::pending().await,
+        }
+    }
+}
+
+/// What `event` says of a refusal of the node at `addr`, if it is one.
+fn why_refused(event: &NetEvent, addr: SocketAddr) -> Option<String> {
+    match event {
+        NetEvent::DialRefused { to, reason } if *to == addr => Some(format!(
+            "this member refused the node's certificate: {reason}"
+        )),
+        NetEvent::RefusedBy {
+            peer,
+            address,
+            reason,
+        } if *address == addr.to_string() => Some(format!("{peer} refused this member: {reason}")),
+        _ => None,
+    }
 }
 
 /// The local address a connection to `peer` leaves from (peers dial a member back there):

@@ -13,7 +13,8 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 /// With this environment variable set to a directory, each process's log (stderr, at
-/// `RUST_LOG=info`) is written there as `NAME-TESTPID-N.log`; else it is dropped.
+/// `RUST_LOG=info`) is also written there as `NAME-TESTPID-N.log`; else only its last
+/// lines are kept (at the default level: warnings and errors).
 pub(crate) const LOGS: &str = "MARIE_TEST_LOGS";
 
 /// Processes logged so far (part of the log files' names).
@@ -35,12 +36,19 @@ pub(crate) struct Proc {
     seen: Vec<String>,
     /// When each line of `seen` was read.
     arrived: Vec<Instant>,
-    /// The last lines of its stderr (unless they go to a log file): what a panic shows.
-    stderr_tail: Arc<Mutex<VecDeque<String>>>,
+    /// The last lines of its stderr: what a panic shows, what [`Proc::wait_stderr`] awaits.
+    stderr_tail: Arc<StderrTail>,
     /// The child's temporary directory (its `TMPDIR`), removed with the guard: what a
     /// killed process leaves there — a `marie up`'s nodes' data directory — goes with it.
     /// Declared after `child`: dropped once the child is dead.
     tmp: tempfile::TempDir,
+}
+
+/// The last [`STDERR_TAIL`] lines of a child's stderr, and a signal for each new one.
+#[derive(Default)]
+pub(crate) struct StderrTail {
+    lines: Mutex<VecDeque<String>>,
+    more: std::sync::Condvar,
 }
 
 /// A running `marie node`.
@@ -182,7 +190,7 @@ impl Proc {
             None => Command::new(exe),
         };
         command.envs(env.iter().map(|(k, v)| (k, v)));
-        let stderr = match std::env::var_os(LOGS) {
+        let mut log = match std::env::var_os(LOGS) {
             Some(dir) => {
                 command.env("RUST_LOG", "info");
                 let n = LOGGED.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
@@ -191,11 +199,11 @@ impl Proc {
                     name.replace(' ', "_"),
                     std::process::id()
                 ));
-                Stdio::from(std::fs::File::create(&file).expect("create a log file"))
+                Some(std::fs::File::create(&file).expect("create a log file"))
             }
             None => {
                 command.env_remove("RUST_LOG");
-                Stdio::piped()
+                None
             }
         };
         let tmp = tempfile::tempdir().expect("a temporary directory");
@@ -205,21 +213,26 @@ impl Proc {
             .env("TMPDIR", tmp.path())
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
-            .stderr(stderr)
+            .stderr(Stdio::piped())
             .spawn()
             .unwrap_or_else(|e| panic!("{} starts: {e}", exe.display()));
         // its stderr's last lines, for a failure's message (a child that ends at once
-        // says why there)
-        let stderr_tail = Arc::new(Mutex::new(VecDeque::new()));
+        // says why there) and for lines awaited; all of them to the log file if there is one
+        let stderr_tail = Arc::new(StderrTail::default());
         if let Some(err) = child.stderr.take() {
             let tail = stderr_tail.clone();
             std::thread::spawn(move || {
+                use std::io::Write;
                 for line in BufReader::new(err).lines().map_while(Result::ok) {
-                    let mut tail = tail.lock().unwrap_or_else(|e| e.into_inner());
-                    if tail.len() == STDERR_TAIL {
-                        tail.pop_front();
+                    if let Some(file) = log.as_mut() {
+                        let _ = writeln!(file, "{line}");
                     }
-                    tail.push_back(line);
+                    let mut lines = tail.lines.lock().unwrap_or_else(|e| e.into_inner());
+                    if lines.len() == STDERR_TAIL {
+                        lines.pop_front();
+                    }
+                    lines.push_back(line);
+                    tail.more.notify_all();
                 }
             });
         }
@@ -258,10 +271,44 @@ impl Proc {
         matches!(self.child.try_wait(), Ok(None))
     }
 
-    /// The last lines its stderr printed (none if they go to a log file).
+    /// The last lines its stderr printed.
     pub(crate) fn stderr_tail(&self) -> String {
-        let tail = self.stderr_tail.lock().unwrap_or_else(|e| e.into_inner());
+        let tail = self
+            .stderr_tail
+            .lines
+            .lock()
+            .unwrap_or_else(|e| e.into_inner());
         Vec::from(tail.clone()).join("\n")
+    }
+
+    /// Wait for a line of its stderr containing `needle`, among its last lines (those
+    /// printed earlier count too, while they are among the last [`STDERR_TAIL`]).
+    #[track_caller]
+    pub(crate) fn wait_stderr(&self, needle: &str) -> String {
+        let deadline = Instant::now() + EVENT_TIMEOUT;
+        let mut lines = self
+            .stderr_tail
+            .lines
+            .lock()
+            .unwrap_or_else(|e| e.into_inner());
+        loop {
+            if let Some(line) = lines.iter().find(|l| l.contains(needle)) {
+                return line.clone();
+            }
+            let left = deadline.saturating_duration_since(Instant::now());
+            assert!(
+                !left.is_zero(),
+                "{}: no line with {needle:?} on stderr within {EVENT_TIMEOUT:?}; its last lines:\n{}",
+                self.name,
+                Vec::from(lines.clone()).join("\n")
+            );
+            lines = self
+                .stderr_tail
+                .more
+                .wait_timeout(lines, left)
+                .unwrap_or_else(|e| e.into_inner())
+                .0;
+        }
     }
 
     /// Every line seen so far.

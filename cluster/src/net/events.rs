@@ -49,10 +49,31 @@ pub enum NetEvent {
         ours: u16,
     },
     /// An incoming connection was refused before it became a session: with TLS on, it
-    /// presented no valid certificate or no handshake in time.
+    /// presented no valid certificate (none, one of another CA, one naming another
+    /// address) or no handshake in time; or its node failed the cookie challenge on
+    /// several connections in a row.
     ConnectionRefused {
         /// Where it came from.
         from: std::net::SocketAddr,
+        /// Why.
+        reason: String,
+    },
+    /// This node refused the node it dialed before a session: with TLS on, that node's
+    /// certificate does not chain to the CA or names another address. Told once until a
+    /// session with that address is ready or the reason changes (the dial is retried).
+    DialRefused {
+        /// The address dialed.
+        to: std::net::SocketAddr,
+        /// Why.
+        reason: String,
+    },
+    /// A peer this node dialed refused it at authentication, on several connections in a
+    /// row: their cookies differ. Told once per such run of refusals.
+    RefusedBy {
+        /// The peer's node name.
+        peer: String,
+        /// The address it listens on.
+        address: String,
         /// Why.
         reason: String,
     },
@@ -81,6 +102,14 @@ impl std::fmt::Display for NetEvent {
             NetEvent::ConnectionRefused { from, reason } => {
                 write!(f, "refused a connection from {from}: {reason}")
             }
+            NetEvent::DialRefused { to, reason } => {
+                write!(f, "refused the node it dialed at {to}: {reason}")
+            }
+            NetEvent::RefusedBy {
+                peer,
+                address,
+                reason,
+            } => write!(f, "was refused by {peer} at {address}: {reason}"),
         }
     }
 }
@@ -114,6 +143,10 @@ pub fn publish_on(transport: &Transport, bus: EventBus) -> tokio::task::JoinHand
                     from: from.to_string(),
                     reason,
                 },
+                // refusals around this node's own dials: no kind of the events' vocabulary
+                // says them (`connection_refused` is an incoming connection's); they are
+                // told on the node's stderr, and by `marie node` on stdout
+                Ok(NetEvent::DialRefused { .. } | NetEvent::RefusedBy { .. }) => continue,
                 Err(RecvError::Lagged(n)) => {
                     tracing::warn!("{n} transport event(s) lost before the bus");
                     continue;

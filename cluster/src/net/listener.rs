@@ -4,9 +4,11 @@
 //! ractor_cluster's own listener awaits each TLS handshake before it accepts the next
 //! connection, with no time limit, so one silent client would stop a node from accepting
 //! any peer; and it cannot tell marie the port it bound before the node names itself. Here
-//! a plain connection is handed over at once, and a TLS one after its handshake, which runs
-//! on a task of its own — at most [`MAX_HANDSHAKES`] at once, each for at most
-//! [`HANDSHAKE_TIMEOUT`]. (ractor_cluster's listener still runs, on a port nobody is told.)
+//! a plain connection is handed over at once, and a TLS one after its handshake and the
+//! check of the name in its client certificate (`Tls::check_client`), which run on a task
+//! of its own — at most [`MAX_HANDSHAKES`] at once, each for at most [`HANDSHAKE_TIMEOUT`].
+//! (ractor_cluster's listener still runs, on a port nobody is told; with TLS it completes
+//! no handshake, since it would not check that name.)
 
 use super::events::NetEvent;
 use super::sessions::Sessions;
@@ -24,8 +26,9 @@ pub const HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(5);
 pub const MAX_HANDSHAKES: usize = 64;
 
 /// Accept connections on `listener` and hand them to `server`: at once without `tls`, after
-/// a handshake on a task of its own with it; a connection that fails its handshake is
-/// closed and told as [`NetEvent::ConnectionRefused`].
+/// a handshake on a task of its own with it; a connection that fails its handshake, or
+/// whose certificate names neither the address it comes from nor `server_name`, is closed
+/// and told as [`NetEvent::ConnectionRefused`].
 pub(crate) async fn serve(
     listener: TcpListener,
     tls: Option<Tls>,
@@ -66,31 +69,36 @@ pub(crate) async fn serve(
             tracing::warn!(%peer_addr, "{MAX_HANDSHAKES} TLS handshakes in progress: connection closed");
             continue;
         };
-        let (acceptor, server, sessions) = (tls.acceptor(), server.clone(), sessions.clone());
+        let (tls, server, sessions) = (tls.clone(), server.clone(), sessions.clone());
         tokio::spawn(async move {
             let _slot = slot;
             let refused = |reason: String| {
-                let event = NetEvent::ConnectionRefused {
+                sessions.tell_refusal(NetEvent::ConnectionRefused {
                     from: peer_addr,
                     reason,
-                };
-                tracing::warn!("{event}");
-                sessions.tell(event);
+                })
             };
-            match tokio::time::timeout(HANDSHAKE_TIMEOUT, acceptor.accept(stream)).await {
+            match tokio::time::timeout(HANDSHAKE_TIMEOUT, tls.acceptor().accept(stream)).await {
                 Err(_) => refused(format!(
                     "no TLS handshake within {} s",
                     HANDSHAKE_TIMEOUT.as_secs()
                 )),
                 Ok(Err(e)) => refused(format!("TLS: {e}")),
-                Ok(Ok(stream)) => open(
-                    &server,
-                    NetworkStream::TlsServer {
-                        peer_addr,
-                        local_addr,
-                        stream,
-                    },
-                ),
+                // a certificate of the cluster's CA, but made out to another address (or to
+                // none): dropped before ractor_cluster sees the stream
+                Ok(Ok(stream)) => {
+                    match tls.check_client(stream.get_ref().1.peer_certificates(), peer_addr.ip()) {
+                        Err(e) => refused(format!("TLS: {e}")),
+                        Ok(()) => open(
+                            &server,
+                            NetworkStream::TlsServer {
+                                peer_addr,
+                                local_addr,
+                                stream,
+                            },
+                        ),
+                    }
+                }
             }
         });
     }

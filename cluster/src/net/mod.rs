@@ -36,6 +36,7 @@
 //! # Ok(()) }
 //! ```
 
+mod auth;
 mod config;
 pub mod detector;
 mod events;

@@ -1,6 +1,9 @@
 //! Who the node sees: ractor_cluster's session callbacks turned into a table of ready peers,
-//! and the names behind session numbers recorded in the registry.
+//! and the names behind session numbers recorded in the registry; and whom the node
+//! refused, or was refused by, before a session (told once, at warn level, naming the
+//! peer).
 
+use super::auth::AuthWatch;
 use super::events::NetEvent;
 use super::transport::Peer;
 use marie_actors::registry;
@@ -8,6 +11,7 @@ use ractor::ActorRef;
 use ractor_cluster::node::{NodeServerSessionInformation, NodeSessionMessage};
 use ractor_cluster::NodeEventSubscription;
 use std::collections::BTreeMap;
+use std::net::SocketAddr;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 use tokio::sync::{broadcast, watch};
@@ -21,6 +25,8 @@ pub(crate) struct Sessions {
     ready: Arc<Mutex<BTreeMap<u64, Peer>>>,
     /// Every open session's actor, by session number: what closing a peer stops.
     actors: Arc<Mutex<BTreeMap<u64, OpenSession>>>,
+    /// Which sessions end before they authenticate, telling a peer with another cookie.
+    auth: Arc<Mutex<AuthWatch>>,
     changed: watch::Sender<u64>,
     /// What the transport tells ([`NetEvent`]): peers up and lost from here, the rest from
     /// the heartbeat.
@@ -29,6 +35,10 @@ pub(crate) struct Sessions {
     /// Peers refused (another protocol version): a session with one is closed as soon as
     /// it is authenticated, before its modules reach the registry.
     refused: Arc<Mutex<std::collections::BTreeSet<String>>>,
+    /// Why the peer at an address (`ip:port`) is refused before any session, by this node
+    /// or by itself: what was last told of it, so that a redial refused again is not told
+    /// again. Forgotten when a session with that address is ready.
+    refusals: Arc<Mutex<BTreeMap<String, NetEvent>>>,
 }
 
 impl Sessions {
@@ -36,7 +46,9 @@ impl Sessions {
         Sessions {
             ready: Arc::default(),
             actors: Arc::default(),
+            auth: Arc::default(),
             refused: Arc::default(),
+            refusals: Arc::default(),
             changed: watch::Sender::new(0),
             events: broadcast::Sender::new(256),
             node: node.to_string(),
@@ -51,6 +63,43 @@ impl Sessions {
     /// Tell `event` to whoever listens ([`Sessions::listen`]).
     pub(crate) fn tell(&self, event: NetEvent) {
         let _ = self.events.send(event);
+    }
+
+    /// Tell a refusal, this node's or a peer's — a connection refused, a dialed node
+    /// refused, this node refused by a peer — at warn level (on a `marie` command's stderr
+    /// by default) and to whoever listens.
+    pub(crate) fn tell_refusal(&self, event: NetEvent) {
+        tracing::warn!("node {} {event}", self.node);
+        self.tell(event);
+    }
+
+    /// This node refused the node it dialed at `to` (its certificate): told unless the
+    /// same was told last for that address.
+    pub(crate) fn dial_refused(&self, to: SocketAddr, reason: String) {
+        self.tell_refusal_once(&to.to_string(), NetEvent::DialRefused { to, reason });
+    }
+
+    /// Tell `event`, a refusal of the peer at `address`, and record it as that peer's —
+    /// unless it is the one recorded already.
+    fn tell_refusal_once(&self, address: &str, event: NetEvent) {
+        {
+            let mut refusals = self.refusals.lock().unwrap_or_else(|e| e.into_inner());
+            if refusals.get(address) == Some(&event) {
+                return;
+            }
+            refusals.insert(address.to_string(), event.clone());
+        }
+        self.tell_refusal(event);
+    }
+
+    /// The refusal of the peer at `address` told last ([`NetEvent::DialRefused`],
+    /// [`NetEvent::RefusedBy`]), if no session with it was ready since.
+    pub(crate) fn refusal(&self, address: &str) -> Option<NetEvent> {
+        self.refusals
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .get(address)
+            .cloned()
     }
 
     /// The peers ready now and the transport's news from then on: peers are told up and
@@ -107,6 +156,10 @@ impl Sessions {
         self.actors.lock().unwrap_or_else(|e| e.into_inner())
     }
 
+    fn auth(&self) -> std::sync::MutexGuard<'_, AuthWatch> {
+        self.auth.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
     fn table(&self) -> std::sync::MutexGuard<'_, BTreeMap<u64, Peer>> {
         self.ready.lock().unwrap_or_else(|e| e.into_inner())
     }
@@ -129,26 +182,73 @@ fn node_name(full: &str) -> &str {
     full.split_once('@').map_or(full, |(name, _)| name)
 }
 
+impl Sessions {
+    /// Session `ses` ended: when it ended before it authenticated, after its peer named
+    /// itself, and nothing else explains the end, one more failed authentication in a row
+    /// with that peer ([`AuthWatch`]), told as a refusal once there are enough.
+    fn ended(&self, ses: &NodeServerSessionInformation) {
+        let name = ses.peer_name.as_ref();
+        let peer = name.map(|n| node_name(&n.name));
+        let Some(attempts) = self.auth().ended(ses.node_id, peer) else {
+            return;
+        };
+        let (Some(name), Some(peer)) = (name, peer) else {
+            return;
+        };
+        let address = &name.connection_string;
+        if ses.is_server {
+            // this node checked the peer's answer to its challenge, and closed
+            let from = ses
+                .peer_addr
+                .parse()
+                .unwrap_or_else(|_| SocketAddr::from(([0, 0, 0, 0], 0)));
+            self.tell_refusal(NetEvent::ConnectionRefused {
+                from,
+                reason: format!(
+                    "{peer} (listening on {address}) failed authentication on {attempts} \
+                     connections in a row: it has another cookie"
+                ),
+            });
+        } else {
+            // the peer closed after this node answered its challenge
+            let reason = format!(
+                "authentication failed on {attempts} connections in a row: it has another \
+                 cookie"
+            );
+            self.tell_refusal_once(
+                address,
+                NetEvent::RefusedBy {
+                    peer: peer.to_string(),
+                    address: address.clone(),
+                    reason,
+                },
+            );
+        }
+    }
+}
+
 impl NodeEventSubscription for Sessions {
     fn node_session_opened(&self, ses: NodeServerSessionInformation) {
         self.open().insert(ses.node_id, (None, ses.actor.clone()));
+        self.auth().opened(ses.node_id);
         tracing::debug!(node = %self.node, peer_addr = %ses.peer_addr, incoming = ses.is_server, "session opened");
     }
 
     fn node_session_authenticated(&self, ses: NodeServerSessionInformation) {
         if let Some(peer) = &ses.peer_name {
-            if self.is_refused(node_name(&peer.name)) {
+            let name = node_name(&peer.name);
+            // authenticated, whether or not it is refused below: its cookie is right
+            self.auth().authenticated(ses.node_id, name);
+            if self.is_refused(name) {
                 tracing::debug!(node = %self.node, peer = %peer.name, "a refused peer is back: closed");
                 ses.actor
                     .stop(Some("refused: another protocol version".into()));
                 return;
             }
             // before the state exchange, so the peer's modules arrive already named
-            registry::set_peer_node_name(ses.node_id, node_name(&peer.name));
-            self.open().insert(
-                ses.node_id,
-                (Some(node_name(&peer.name).to_string()), ses.actor.clone()),
-            );
+            registry::set_peer_node_name(ses.node_id, name);
+            self.open()
+                .insert(ses.node_id, (Some(name.to_string()), ses.actor.clone()));
         }
     }
 
@@ -167,6 +267,11 @@ impl NodeEventSubscription for Sessions {
             address: name.connection_string.clone(),
             session: ses.node_id,
         };
+        // whatever refused it before is over
+        self.refusals
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .remove(&peer.address);
         tracing::info!(node = %self.node, peer = %peer.name, address = %peer.address, "sees peer");
         registry::declare_up(&peer.name);
         {
@@ -185,6 +290,7 @@ impl NodeEventSubscription for Sessions {
 
     fn node_session_disconnected(&self, ses: NodeServerSessionInformation) {
         self.open().remove(&ses.node_id);
+        self.ended(&ses);
         let gone = {
             let mut table = self.table();
             let gone = table.remove(&ses.node_id);

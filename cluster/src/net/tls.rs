@@ -1,13 +1,19 @@
 //! Mutual TLS between nodes: each node proves itself with a certificate signed by the
 //! cluster's certificate authority, and accepts only peers that do the same.
 //!
-//! A node with `[cluster.tls]` encrypts every session, in both directions, with rustls:
-//! its server side demands a client certificate chaining to the CA, its client side checks
-//! the peer's certificate against the CA and the peer's IP address (or the configured
-//! `server_name`). The cookie is still checked inside the encrypted session.
+//! A node with `[cluster.tls]` encrypts every session, in both directions, with rustls, and
+//! holds every peer to one rule, whichever side dialed: its certificate chains to the CA
+//! and names the peer's IP address (`subjectAltName = IP:…`: the address dialed, or the
+//! one an incoming connection comes from) or the configured `server_name`. Its client side
+//! has rustls check the node it dials against that name; its server side demands a client
+//! certificate chaining to the CA and then checks the name itself (`Tls::check_client`) —
+//! rustls' client verifier checks no name, and a certificate of the cluster's CA made out
+//! to another address must not let its holder in from this one. The cookie is still
+//! checked inside the encrypted session.
 //!
 //! The handshake of an incoming connection runs in marie's listener
-//! ([`super::listener`]), on a task of its own and with a time limit.
+//! ([`super::listener`]), on a task of its own and with a time limit; ractor_cluster's own
+//! listener, which would skip that check, completes no handshake.
 //!
 //! ```no_run
 //! use marie_cluster::net::{ClusterConfig, TlsFiles};
@@ -21,14 +27,15 @@
 
 use ractor::ActorRef;
 use ractor_cluster::{ClientConnectErr, NodeServerMessage};
-use std::net::SocketAddr;
+use std::net::{IpAddr, SocketAddr};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use tokio_rustls::rustls::pki_types::pem::{self, PemObject};
 use tokio_rustls::rustls::pki_types::{
     CertificateDer, InvalidDnsNameError, PrivateKeyDer, ServerName,
 };
-use tokio_rustls::rustls::{self, server::WebPkiClientVerifier, RootCertStore};
+use tokio_rustls::rustls::server::{ParsedCertificate, WebPkiClientVerifier};
+use tokio_rustls::rustls::{self, RootCertStore};
 use tokio_rustls::{TlsAcceptor, TlsConnector};
 
 /// Where a node's TLS material is: PEM files (`[cluster.tls]` in a node config).
@@ -48,8 +55,23 @@ pub struct TlsFiles {
 #[derive(Clone)]
 pub(crate) struct Tls {
     acceptor: TlsAcceptor,
+    /// What ractor_cluster's own listener gets (see [`Tls::refusing_acceptor`]).
+    refusing: TlsAcceptor,
     connector: TlsConnector,
     server_name: Option<ServerName<'static>>,
+}
+
+/// The certificates of a server that has none to offer: every handshake fails.
+#[derive(Debug)]
+struct NoCertificate;
+
+impl rustls::server::ResolvesServerCert for NoCertificate {
+    fn resolve(
+        &self,
+        _: rustls::server::ClientHello<'_>,
+    ) -> Option<Arc<rustls::sign::CertifiedKey>> {
+        None
+    }
 }
 
 impl std::fmt::Debug for Tls {
@@ -195,6 +217,11 @@ impl Tls {
             .with_client_cert_verifier(verifier)
             .with_single_cert(certs.clone(), key.clone_key())
             .map_err(certified_key)?;
+        let refusing = rustls::ServerConfig::builder_with_provider(provider.clone())
+            .with_safe_default_protocol_versions()
+            .map_err(TlsError::Protocols)?
+            .with_no_client_auth()
+            .with_cert_resolver(Arc::new(NoCertificate));
         let client = rustls::ClientConfig::builder_with_provider(provider)
             .with_safe_default_protocol_versions()
             .map_err(TlsError::Protocols)?
@@ -213,6 +240,7 @@ impl Tls {
             };
         Ok(Tls {
             acceptor: TlsAcceptor::from(Arc::new(server)),
+            refusing: TlsAcceptor::from(Arc::new(refusing)),
             connector: TlsConnector::from(Arc::new(client)),
             server_name,
         })
@@ -223,17 +251,62 @@ impl Tls {
         self.acceptor.clone()
     }
 
+    /// A server side that completes no handshake, for ractor_cluster's own listener: it
+    /// runs on a port nobody is told, but anyone may find it, and a stream it accepts goes
+    /// to a session without [`Tls::check_client`]. (Without TLS it would take plain
+    /// connections, which must pass the cookie either way.)
+    pub(crate) fn refusing_acceptor(&self) -> TlsAcceptor {
+        self.refusing.clone()
+    }
+
+    /// The name a peer at `ip` must carry in its certificate: the configured `server_name`,
+    /// else its address (an IPv4 peer seen through an IPv6 socket as the IPv4 address).
+    fn name_for(&self, ip: IpAddr) -> ServerName<'static> {
+        self.server_name
+            .clone()
+            .unwrap_or_else(|| ServerName::IpAddress(ip.to_canonical().into()))
+    }
+
+    /// Whether the certificate a client presented in an accepted handshake (`certs`, leaf
+    /// first; it already chains to the CA) names the address it connected from, `peer`, or
+    /// `server_name`: the check a dialing side gets from rustls, which the accepting side
+    /// must make itself. The error reads as rustls' own (`invalid peer certificate: …`).
+    pub(crate) fn check_client(
+        &self,
+        certs: Option<&[CertificateDer<'_>]>,
+        peer: IpAddr,
+    ) -> Result<(), rustls::Error> {
+        let leaf = certs
+            .and_then(|c| c.first())
+            .ok_or(rustls::Error::NoCertificatesPresented)?;
+        let parsed = ParsedCertificate::try_from(leaf)?;
+        rustls::client::verify_server_name(&parsed, &self.name_for(peer))
+    }
+
     /// Dial `addr` over TLS and hand the session to `server`.
     pub(crate) async fn dial(
         &self,
         server: &ActorRef<NodeServerMessage>,
         addr: SocketAddr,
     ) -> Result<(), ClientConnectErr> {
-        let name = self
-            .server_name
-            .clone()
-            .unwrap_or_else(|| ServerName::IpAddress(addr.ip().into()));
+        let name = self.name_for(addr.ip());
         ractor_cluster::client_connect_enc(server, addr, self.connector.clone(), name).await
+    }
+}
+
+/// Whether a failed dial is this node refusing the certificate of the node it dialed (it
+/// does not chain to the CA, or names another address): the reason, `TLS: …`, if so. Any
+/// other failure (no one listening, a peer that refused this node's certificate, a peer
+/// without TLS) is not.
+pub(crate) fn refused_certificate(err: &ClientConnectErr) -> Option<String> {
+    let ClientConnectErr::Encryption(io) = err else {
+        return None;
+    };
+    match io.get_ref()?.downcast_ref::<rustls::Error>()? {
+        e @ (rustls::Error::InvalidCertificate(_) | rustls::Error::NoCertificatesPresented) => {
+            Some(format!("TLS: {e}"))
+        }
+        _ => None,
     }
 }
 

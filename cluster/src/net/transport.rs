@@ -5,7 +5,7 @@ use super::events::NetEvent;
 use super::heartbeat::{Heartbeat, HeartbeatArgs};
 use super::listener;
 use super::sessions::Sessions;
-use super::tls::{Tls, TlsError};
+use super::tls::{self, Tls, TlsError};
 use marie_actors::registry;
 use ractor::{Actor, ActorRef};
 use ractor_cluster::node::NodeConnectionMode;
@@ -112,14 +112,15 @@ impl Transport {
         // from one side only — ractor_cluster's transitive mode dials a peer once per member
         // that names it, and the duplicate sessions it then closes make peers flap — and
         // over TLS when on (its transitive dials are plain TCP). Its own listener takes a
-        // port nobody is told.
+        // port nobody is told; with TLS, it completes no handshake (marie's listener checks
+        // what rustls does not, the name in a peer's certificate).
         let server = NodeServer::new(
             0,
             config.cookie.clone(),
             node.to_string(),
             listen.ip().to_string(),
             tls.as_ref()
-                .map(|t| IncomingEncryptionMode::Tls(t.acceptor())),
+                .map(|t| IncomingEncryptionMode::Tls(t.refusing_acceptor())),
             Some(NodeConnectionMode::Isolated),
         )
         .with_listen_addr(listen.ip());
@@ -208,6 +209,15 @@ impl Transport {
     /// The peers it has a ready session with now, by name.
     pub fn peers(&self) -> Vec<Peer> {
         self.sessions.peers()
+    }
+
+    /// The refusal told last of the node at `addr`, if no session with it was ready since:
+    /// this node refused its certificate ([`NetEvent::DialRefused`]), or it refused this
+    /// node at authentication ([`NetEvent::RefusedBy`]). What a member that joins through
+    /// that node tells instead of waiting in vain, also when it was told before the member
+    /// listened to [`Transport::events`].
+    pub fn refusal(&self, addr: SocketAddr) -> Option<NetEvent> {
+        self.sessions.refusal(&addr.to_string())
     }
 
     /// Wait until at least `n` peers are ready (their modules are then in the registry:
@@ -318,7 +328,11 @@ impl Dialer {
                 })
                 .await;
             }
-            Ok(Err(e)) => tracing::debug!(%node, peer = %addr, error = %e, "dial failed"),
+            Ok(Err(e)) => match tls::refused_certificate(&e) {
+                // this node's own refusal, told (once) like an incoming one
+                Some(reason) => self.sessions.dial_refused(addr, reason),
+                None => tracing::debug!(%node, peer = %addr, error = %e, "dial failed"),
+            },
             Err(_) => tracing::debug!(%node, peer = %addr, "dial timed out"),
         }
         lock().remove(&addr);
