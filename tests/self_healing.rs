@@ -417,6 +417,18 @@ async fn a_thousand_crash_restart_cycles_during_a_mission_leave_the_actor_count_
     assert_eq!(report.reason, "enough");
     assert_eq!(report.rebinds_total, CYCLES as u64);
     assert_eq!(report.rebinds.len(), marie::actors::report::REPORT_KEEPS);
+    // nor do the choices of the stand-ins pile up in it (every failover chooses one, ~350
+    // bytes kept per cycle before they were bounded): the start's choice and the latest
+    assert!(
+        report.selection_total > CYCLES as u64,
+        "{}",
+        report.selection_total
+    );
+    assert_eq!(
+        report.selection.len(),
+        1 + marie::actors::report::REPORT_KEEPS
+    );
+    assert_eq!(report.selection[0].replacing, None);
     // the dispatcher (and its registry watcher) stop once they have reported; no timer or
     // waiter of the 1000 failovers outlives the run
     let settled = tokio::time::timeout(Duration::from_secs(30), async {

@@ -8,8 +8,9 @@
 //! - Only the events decide the report: no other input, no clock. Times are the events'
 //!   own: a fault's time is its stamp less the run's start (`run_started`'s stamp), whoever
 //!   injected it.
-//! - Bounded: rebinds and faults go through [`RunReport::record_rebind`] /
-//!   [`RunReport::record_faults`] (the latest [`REPORT_KEEPS`](super::REPORT_KEEPS)).
+//! - Bounded: rebinds, faults and choices go through [`RunReport::record_rebind`],
+//!   [`RunReport::record_faults`] and [`RunReport::record_choice`] (the latest
+//!   [`REPORT_KEEPS`](super::REPORT_KEEPS); every choice of the run's start).
 
 use super::{ActionRecord, FaultRecord, OpRecord, RunReport};
 use crate::events::{Event, EventBus, EventKind, Tap};
@@ -71,7 +72,7 @@ impl ReportBuilder {
                 self.report.mission = mission.clone();
                 self.start_ms = Some(event.at_ms);
             }
-            EventKind::Selected { choice } => self.report.selection.push(choice.clone()),
+            EventKind::Selected { choice } => self.report.record_choice(choice.clone()),
             EventKind::ActionStarted {
                 action,
                 run_ms,

@@ -12,8 +12,10 @@
 //!
 //! # Invariant: bounded
 //! A long run (a chaos test, a robot on duty for days) keeps bounded memory: the report
-//! keeps the counts `rebinds_total` and `faults_total` and only the latest [`REPORT_KEEPS`]
-//! rebinds and faults; the full history is on the event stream ([`crate::events`]).
+//! keeps the counts `rebinds_total`, `faults_total` and `selection_total` and only the
+//! latest [`REPORT_KEEPS`] rebinds, faults and choices of stand-ins (the choices of the
+//! run's start, one per operation, are all kept); the full history is on the event stream
+//! ([`crate::events`]).
 
 mod builder;
 
@@ -98,9 +100,15 @@ pub struct RunReport {
     #[serde(default)]
     pub faults_total: u64,
     /// How each operation's instance was chosen: the candidates and their verdicts
-    /// ([`crate::dispatcher::selection`]).
+    /// ([`crate::dispatcher::selection`]), in the order the choices were made — every
+    /// choice of the run's start (one per operation), then the latest [`REPORT_KEEPS`]
+    /// choices of stand-ins ([`Choice::replacing`] set). Every rebind makes such a choice,
+    /// so a report that kept them all grew with the run (~350 bytes a failover).
     #[serde(default)]
     pub selection: Vec<Choice>,
+    /// How many choices the run made in all, those of its start included.
+    #[serde(default)]
+    pub selection_total: u64,
 }
 
 /// A fault injected (or tried) during a run, from any source: a plan, chaos, the monitor's
@@ -134,7 +142,7 @@ pub struct FaultRecord {
 
 impl RunReport {
     /// The report's own JSON keys: a robot's section cannot take them.
-    pub const OWN_KEYS: [&'static str; 13] = [
+    pub const OWN_KEYS: [&'static str; 14] = [
         "mission",
         "outcome",
         "reason",
@@ -147,6 +155,7 @@ impl RunReport {
         "faults",
         "faults_total",
         "selection",
+        "selection_total",
         "robot",
     ];
 
@@ -164,6 +173,7 @@ impl RunReport {
             rebinds_total: 0,
             duration_ms: 0,
             selection: Vec::new(),
+            selection_total: 0,
             robot: RobotSection::new(),
             faults: Vec::new(),
             faults_total: 0,
@@ -187,6 +197,28 @@ impl RunReport {
             self.faults_total += 1;
             keep_latest(&mut self.faults, fault);
         }
+    }
+
+    /// Count a choice and keep it: a choice of the run's start always (there is one per
+    /// operation of the mission), a stand-in's among the latest [`REPORT_KEEPS`] stand-ins'
+    /// (a run may rebind without end; what a choice at the start was is what `--explain`
+    /// and a reader of the report look for first).
+    pub fn record_choice(&mut self, choice: Choice) {
+        self.selection_total += 1;
+        if choice.replacing.is_some() {
+            let stand_ins = self
+                .selection
+                .iter()
+                .filter(|c| c.replacing.is_some())
+                .count();
+            if stand_ins >= REPORT_KEEPS {
+                // the oldest stand-in's choice goes; the start's stay where they are
+                if let Some(oldest) = self.selection.iter().position(|c| c.replacing.is_some()) {
+                    self.selection.remove(oldest);
+                }
+            }
+        }
+        self.selection.push(choice);
     }
 }
 
@@ -264,6 +296,7 @@ mod tests {
             rebinds_total: 1,
             duration_ms: 10,
             selection: Vec::new(),
+            selection_total: 0,
             faults: vec![FaultRecord {
                 at_ms: 2,
                 fault: FaultKind::Hang,
@@ -334,5 +367,34 @@ mod tests {
         );
         assert_eq!(report.rebinds.last(), Some(&rebind(999)));
         assert_eq!(report.faults[0].at_ms, 150);
+    }
+
+    #[test]
+    fn a_report_keeps_every_choice_of_the_start_and_only_the_latest_stand_ins() {
+        let mut report = RunReport::new("m", Outcome::Failed, "r");
+        let choice = |operation: &str, replacing: Option<u64>| Choice {
+            operation: operation.into(),
+            candidates: Vec::new(),
+            replacing: replacing.map(|i| format!("0.{i}")),
+        };
+        report.record_choice(choice("a", None));
+        report.record_choice(choice("b", None));
+        // a run that rebinds without end: a stand-in's choice per failover
+        for i in 0..1000 {
+            report.record_choice(choice("a", Some(i)));
+        }
+        assert_eq!(report.selection_total, 1002);
+        assert_eq!(report.selection.len(), 2 + REPORT_KEEPS);
+        assert_eq!(
+            report.selection[..2],
+            [choice("a", None), choice("b", None)],
+            "the start's choices stay, first"
+        );
+        assert_eq!(
+            report.selection[2],
+            choice("a", Some(900)),
+            "then the latest"
+        );
+        assert_eq!(report.selection.last(), Some(&choice("a", Some(999))));
     }
 }
