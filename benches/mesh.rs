@@ -124,7 +124,12 @@ fn cpu_ticks(pid: u32) -> u64 {
         .split_whitespace()
         .collect();
     // after the command: state is field 3, utime 14 and stime 15 (1-based)
-    let at = |i: usize| fields.get(i - 3).and_then(|f| f.parse::<u64>().ok()).unwrap_or(0);
+    let at = |i: usize| {
+        fields
+            .get(i - 3)
+            .and_then(|f| f.parse::<u64>().ok())
+            .unwrap_or(0)
+    };
     at(14) + at(15)
 }
 
@@ -155,7 +160,11 @@ fn measure(n: usize, seed: &mut u64) {
     let mut pids = BTreeMap::new();
     while pids.len() < n {
         let (_, line) = up.wait_line(" (pid ", START);
-        let name = line.split_whitespace().next().unwrap_or_default().to_string();
+        let name = line
+            .split_whitespace()
+            .next()
+            .unwrap_or_default()
+            .to_string();
         let pid: u32 = line
             .split("(pid ")
             .nth(1)
@@ -179,7 +188,10 @@ fn measure(n: usize, seed: &mut u64) {
         .zip(&before)
         .map(|(p, b)| (cpu_ticks(*p) - b) as f64 / tick / secs * 100.0)
         .collect();
-    let (idle_median, idle_max) = (median(shares.clone()), shares.iter().cloned().fold(0.0, f64::max));
+    let (idle_median, idle_max) = (
+        median(shares.clone()),
+        shares.iter().cloned().fold(0.0, f64::max),
+    );
     let idle_total: f64 = shares.iter().sum();
 
     // loss: freeze three nodes in turn (never the first, which everyone joined through)
@@ -202,7 +214,11 @@ fn measure(n: usize, seed: &mut u64) {
         while seen.len() < n - 1 {
             let (at, line) = up.wait_line(&want, Duration::from_secs(30));
             // `[n04] node n04 declared n01 down: no heartbeat for 1244 ms`
-            let by = line.trim_start_matches('[').split(']').next().unwrap_or_default();
+            let by = line
+                .trim_start_matches('[')
+                .split(']')
+                .next()
+                .unwrap_or_default();
             seen.entry(by.to_string()).or_insert(at - frozen);
         }
         let times: Vec<f64> = seen.values().map(|d| d.as_secs_f64() * 1000.0).collect();
@@ -223,11 +239,23 @@ fn measure(n: usize, seed: &mut u64) {
          listened{}; idle CPU per node median {idle_median:.2} % max {idle_max:.2} % of a core \
          (all {n}: {idle_total:.1} %){}; a frozen node declared down by every peer in p50 \
          {:.0} ms, slowest peer {:?} ms (goal ≤ {goal} ms){}",
-        if n == 16 && converged > 2.0 { " (goal ≤ 2 s: MISSED)" } else { "" },
-        if n == 16 && idle_max > 2.0 { " (goal ≤ 2 %: MISSED)" } else { "" },
+        if n == 16 && converged > 2.0 {
+            " (goal ≤ 2 s: MISSED)"
+        } else {
+            ""
+        },
+        if n == 16 && idle_max > 2.0 {
+            " (goal ≤ 2 %: MISSED)"
+        } else {
+            ""
+        },
         median(all),
         slowest.iter().map(|s| s.round() as u64).collect::<Vec<_>>(),
-        if slowest.iter().any(|s| *s > goal as f64) { " MISSED" } else { "" },
+        if slowest.iter().any(|s| *s > goal as f64) {
+            " MISSED"
+        } else {
+            ""
+        },
     );
     drop(up);
 }
@@ -237,7 +265,11 @@ fn main() {
         .skip(1)
         .filter_map(|a| a.parse().ok())
         .collect();
-    let sizes = if sizes.is_empty() { vec![4, 8, 16] } else { sizes };
+    let sizes = if sizes.is_empty() {
+        vec![4, 8, 16]
+    } else {
+        sizes
+    };
     let mut seed = 0x9E37_79B9_7F4A_7C15u64;
     for n in sizes {
         measure(n, &mut seed);

@@ -73,6 +73,18 @@ fn a_frozen_node_is_let_go_on_after_its_duration_and_the_mission_docks() {
         .filter(|t| t.starts_with("fault_"))
         .collect();
     assert_eq!(kinds, ["fault_injected", "fault_healed"]);
+    // the run's node (marie up's) lost the frozen node, and saw it back
+    let lost = report["nodes_lost"].as_array().unwrap();
+    assert!(
+        lost.iter().any(|n| n["peer"] == "spare"
+            && n["declared_down"] == true
+            && n["back_at_ms"].is_u64()),
+        "{lost:?}"
+    );
+    assert!(
+        stdout.contains("verdict: 1 fault injected (freeze-node 1), 1 node lost (1 back), "),
+        "{stdout}"
+    );
     // the frozen node's peers declared it down while it was frozen (2 s of real time)
     assert!(
         events(&events_path)

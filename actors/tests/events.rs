@@ -250,3 +250,73 @@ async fn a_report_attached_to_a_bus_equals_the_fold_of_what_a_subscriber_receive
     let events: Vec<Event> = sub.drain().into_iter().take(3).collect();
     assert_eq!(RunReport::from_events(&events), report);
 }
+
+#[test]
+fn a_report_folds_lasting_faults_and_the_nodes_lost_and_back() {
+    let clock = Arc::new(ManualClock::new());
+    let bus = EventBus::new("n", clock.clone());
+    let mut sub = bus.subscribe();
+    let at = |ms: u64| clock.advance(Duration::from_millis(ms).saturating_sub(clock.now()));
+    at(1000);
+    bus.publish(EventKind::RunStarted {
+        mission: "m".into(),
+        actions: vec![],
+        success: vec![],
+    });
+    at(3000);
+    bus.publish(EventKind::FaultInjected {
+        fault: FaultKind::FreezeNode,
+        operation: "spare".into(),
+        actor: "pid 9".into(),
+        node: Some("spare".into()),
+        due_ms: Some(2000),
+        lasting_ms: Some(4000),
+    });
+    // frozen: declared down, then its sessions end — one loss; then it is back
+    at(4300);
+    bus.publish(EventKind::NodeDown {
+        peer: "spare".into(),
+        silent_ms: 1300,
+    });
+    at(4301);
+    bus.publish(EventKind::NodeLost {
+        peer: "spare".into(),
+        address: "127.0.0.1:1".into(),
+    });
+    at(7000);
+    bus.publish(EventKind::FaultHealed {
+        fault: FaultKind::FreezeNode,
+        operation: "spare".into(),
+    });
+    at(7500);
+    bus.publish(EventKind::NodeUp {
+        peer: "spare".into(),
+        address: "127.0.0.1:1".into(),
+    });
+    // killed: its sessions end, it never comes back
+    at(9000);
+    bus.publish(EventKind::NodeLost {
+        peer: "features".into(),
+        address: "127.0.0.1:2".into(),
+    });
+    let events = sub.drain();
+    let report = RunReport::from_events(&events);
+    assert_eq!(report.faults.len(), 1);
+    let freeze = &report.faults[0];
+    assert_eq!(
+        (freeze.at_ms, freeze.lasting_ms, freeze.healed_at_ms),
+        (2000, Some(4000), Some(6000))
+    );
+    let lost: Vec<(String, u64, bool, Option<u64>)> = report
+        .nodes_lost
+        .iter()
+        .map(|n| (n.peer.clone(), n.at_ms, n.declared_down, n.back_at_ms))
+        .collect();
+    assert_eq!(
+        lost,
+        [
+            ("spare".to_string(), 3300, true, Some(6500)),
+            ("features".to_string(), 8000, false, None)
+        ]
+    );
+}

@@ -180,6 +180,63 @@ pub(crate) fn outcome_line(report: &RunReport) -> String {
     )
 }
 
+/// What a faulted run went through, in one line — `None` for a run without faults or lost
+/// nodes: `verdict: 2 faults injected (freeze-node 1, partition 1), 1 node lost (1 back),
+/// 3 rebinds, 12 commands refused by epoch, 0 collisions`.
+pub(crate) fn verdict_line(report: &RunReport) -> Option<String> {
+    if report.faults_total == 0 && report.nodes_lost.is_empty() {
+        return None;
+    }
+    let mut kinds: std::collections::BTreeMap<String, u64> = Default::default();
+    for f in report.faults.iter().filter(|f| f.error.is_none()) {
+        *kinds.entry(f.fault.to_string()).or_default() += 1;
+    }
+    let injected: u64 = kinds.values().sum();
+    let not_injected = report.faults.iter().filter(|f| f.error.is_some()).count();
+    let by_kind: Vec<String> = kinds.iter().map(|(k, n)| format!("{k} {n}")).collect();
+    let back = report
+        .nodes_lost
+        .iter()
+        .filter(|n| n.back_at_ms.is_some())
+        .count();
+    let cart = RobotReport::of(report);
+    let refused: u64 = cart
+        .refused_commands
+        .as_ref()
+        .map_or(0, |r| r.values().sum());
+    let plural =
+        |n: usize, one: &str, many: &str| format!("{n} {}", if n == 1 { one } else { many });
+    let mut parts = vec![format!(
+        "{injected} fault{} injected{}",
+        if injected == 1 { "" } else { "s" },
+        if by_kind.is_empty() {
+            String::new()
+        } else {
+            format!(" ({})", by_kind.join(", "))
+        }
+    )];
+    if not_injected > 0 {
+        parts.push(format!("{not_injected} not injected"));
+    }
+    if report.faults.len() as u64 != report.faults_total {
+        parts.push(format!(
+            "(of {} faults in all, the latest {} counted)",
+            report.faults_total,
+            report.faults.len()
+        ));
+    }
+    parts.push(format!(
+        "{} ({back} back)",
+        plural(report.nodes_lost.len(), "node lost", "nodes lost")
+    ));
+    parts.push(plural(report.rebinds_total as usize, "rebind", "rebinds"));
+    parts.push(format!("{refused} commands refused by epoch"));
+    if let Some(c) = cart.collisions {
+        parts.push(plural(c as usize, "collision", "collisions"));
+    }
+    Some(format!("verdict: {}", parts.join(", ")))
+}
+
 /// `--explain`: the candidates for one operation, the chosen one first, each other with why
 /// it lost or was rejected.
 pub(crate) fn print_choice(choice: &Choice) {

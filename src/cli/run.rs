@@ -6,7 +6,7 @@ use super::error::BadInput;
 use super::events_file::EventsFile;
 use super::files;
 use super::join::JoinArgs;
-use super::output::{end_line, outcome_line, LiveLines, Progress};
+use super::output::{end_line, outcome_line, verdict_line, LiveLines, Progress};
 use super::page_control::PageControl;
 use super::prepare::{prepare, Prepared};
 use anyhow::Context;
@@ -321,6 +321,9 @@ pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         println!("{}", end_line(&report));
         if world.is_some() {
             println!("{}", outcome_line(&report));
+        }
+        if let Some(line) = verdict_line(&report) {
+            println!("{line}");
         }
     }
 

@@ -12,7 +12,7 @@
 //!   [`RunReport::record_faults`] and [`RunReport::record_choice`] (the latest
 //!   [`REPORT_KEEPS`](super::REPORT_KEEPS); every choice of the run's start).
 
-use super::{ActionRecord, FaultRecord, OpRecord, RunReport};
+use super::{keep_latest, ActionRecord, FaultRecord, NodeLossRecord, OpRecord, RunReport};
 use crate::events::{Event, EventBus, EventKind, Tap};
 use crate::run::{OpEnd, Outcome};
 use std::sync::{Arc, Mutex};
@@ -196,6 +196,40 @@ impl ReportBuilder {
                     healed_at_ms: None,
                 }])
             }
+            EventKind::NodeLost { peer, .. } | EventKind::NodeDown { peer, .. } => {
+                let at_ms = self.run_ms(event);
+                let down = matches!(event.kind, EventKind::NodeDown { .. });
+                let lost = &mut self.report.nodes_lost;
+                // a peer declared down then loses its sessions: one loss
+                match lost
+                    .iter_mut()
+                    .rev()
+                    .find(|n| n.peer == *peer && n.back_at_ms.is_none())
+                {
+                    Some(open) => open.declared_down |= down,
+                    None => keep_latest(
+                        lost,
+                        NodeLossRecord {
+                            peer: peer.clone(),
+                            at_ms,
+                            declared_down: down,
+                            back_at_ms: None,
+                        },
+                    ),
+                }
+            }
+            EventKind::NodeUp { peer, .. } => {
+                let at_ms = self.run_ms(event);
+                if let Some(open) = self
+                    .report
+                    .nodes_lost
+                    .iter_mut()
+                    .rev()
+                    .find(|n| n.peer == *peer && n.back_at_ms.is_none())
+                {
+                    open.back_at_ms = Some(at_ms);
+                }
+            }
             EventKind::Judged {
                 outcome,
                 reason,
@@ -218,9 +252,6 @@ impl ReportBuilder {
             | EventKind::ChildExited { .. }
             | EventKind::ChildRestarted { .. }
             | EventKind::SupervisorGaveUp { .. }
-            | EventKind::NodeUp { .. }
-            | EventKind::NodeLost { .. }
-            | EventKind::NodeDown { .. }
             | EventKind::NodeFrozen { .. }
             | EventKind::NodeRefused { .. }
             | EventKind::ConnectionRefused { .. }

@@ -109,6 +109,26 @@ pub struct RunReport {
     /// How many choices the run made in all, those of its start included.
     #[serde(default)]
     pub selection_total: u64,
+    /// The peer nodes the run's node lost during the run — a session that ended, or a peer
+    /// its failure detector declared down — and whether each came back: the latest
+    /// [`REPORT_KEEPS`], oldest first.
+    #[serde(default)]
+    pub nodes_lost: Vec<NodeLossRecord>,
+}
+
+/// A peer node lost during a run, as the run's node saw it.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct NodeLossRecord {
+    /// The peer's node name.
+    pub peer: String,
+    /// When it was lost, in ms since the run began.
+    pub at_ms: u64,
+    /// Whether the failure detector declared it down (it fell silent: frozen, cut off),
+    /// rather than its sessions ending (its process gone).
+    pub declared_down: bool,
+    /// When it was seen again, in ms since the run began — if it was.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub back_at_ms: Option<u64>,
 }
 
 /// A fault injected (or tried) during a run, from any source: a plan, chaos, the monitor's
@@ -142,7 +162,7 @@ pub struct FaultRecord {
 
 impl RunReport {
     /// The report's own JSON keys: a robot's section cannot take them.
-    pub const OWN_KEYS: [&'static str; 14] = [
+    pub const OWN_KEYS: [&'static str; 15] = [
         "mission",
         "outcome",
         "reason",
@@ -156,6 +176,7 @@ impl RunReport {
         "faults_total",
         "selection",
         "selection_total",
+        "nodes_lost",
         "robot",
     ];
 
@@ -174,6 +195,7 @@ impl RunReport {
             duration_ms: 0,
             selection: Vec::new(),
             selection_total: 0,
+            nodes_lost: Vec::new(),
             robot: RobotSection::new(),
             faults: Vec::new(),
             faults_total: 0,
@@ -223,7 +245,7 @@ impl RunReport {
 }
 
 /// Append `item`, dropping the oldest so that at most [`REPORT_KEEPS`] remain.
-fn keep_latest<T>(list: &mut Vec<T>, item: T) {
+pub(super) fn keep_latest<T>(list: &mut Vec<T>, item: T) {
     if list.len() >= REPORT_KEEPS {
         let excess = list.len() + 1 - REPORT_KEEPS;
         list.drain(..excess);
@@ -297,6 +319,7 @@ mod tests {
             duration_ms: 10,
             selection: Vec::new(),
             selection_total: 0,
+            nodes_lost: Vec::new(),
             faults: vec![FaultRecord {
                 at_ms: 2,
                 fault: FaultKind::Hang,
