@@ -311,3 +311,37 @@ fn operations_cut_off_from_the_cart_hold_until_it_is_back_and_the_mission_docks(
     assert_eq!(report["collisions"], 0);
     assert!(report["faults"][0]["healed_at_ms"].as_u64().is_some());
 }
+
+#[test]
+fn a_killed_operations_node_is_replaced_by_the_spare_and_the_mission_docks() {
+    // the operations node — most of the mission's operations, the world and parameter
+    // datamanagers' preferred primaries — is killed while the wall is followed: its
+    // operations are rebound to their standbys on the spare node, the datamanagers fail
+    // over to a copy, and a stand-in whose `activate` waited for its datamanager runs it
+    // again once the datamanager is back (it stepped without its map before)
+    let (out, report) = report_of(&[
+        "up",
+        THESIS,
+        "--run",
+        "missions/docking.toml",
+        "--speed",
+        SPEED,
+        "--fault",
+        "stop-node:operations@20",
+    ]);
+    let stdout = text(&out.stdout);
+    let stderr = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{stdout}\n{stderr}");
+    assert_eq!(report["outcome"], "succeeded");
+    assert_eq!(report["collisions"], 0);
+    let rebinds = report["rebinds"].as_array().unwrap();
+    assert!(!rebinds.is_empty(), "{stdout}");
+    for r in rebinds {
+        assert_eq!(r["from_node"], "operations", "{r}");
+        assert_eq!(r["to_node"], "spare", "{r}");
+    }
+    assert!(
+        stdout.contains("verdict: 1 fault injected (stop-node 1), 1 node lost (0 back), "),
+        "{stdout}"
+    );
+}

@@ -30,7 +30,7 @@ fn the_thesis_layout_docks_with_the_dispatcher_on_a_process_of_its_own() {
         "{stdout}\n{}",
         text(&out.stderr)
     );
-    assert!(stdout.contains("4 nodes, 17 modules"), "{stdout}");
+    assert!(stdout.contains("4 nodes, 24 modules"), "{stdout}");
     assert!(stdout.contains("outcome: succeeded"), "{stdout}");
     assert!(stdout.contains("cluster stopped"), "{stdout}");
     assert_eq!(report["outcome"], "succeeded");
@@ -45,27 +45,27 @@ fn the_thesis_layout_docks_with_the_dispatcher_on_a_process_of_its_own() {
             ));
         }
     }
-    for (op, node) in [
-        ("ultrasonic", "cart"),
-        ("collision-avoidance", "cart"),
-        ("localizer", "operations"),
-        ("path-planner", "operations"),
-        ("trajectory-controller", "operations"),
-    ] {
+    for (op, node) in [("ultrasonic", "cart"), ("collision-avoidance", "cart")] {
         assert!(
             placed.contains(&(op.to_string(), node.to_string())),
             "{op} on {node}: {placed:?}"
         );
     }
-    let wall_follower: Vec<_> = placed
-        .iter()
-        .filter(|(op, _)| op == "wall-follower")
-        .collect();
-    assert_eq!(wall_follower.len(), 1, "{placed:?}");
-    assert!(
-        ["operations", "spare"].contains(&wall_follower[0].1.as_str()),
-        "{placed:?}"
-    );
+    // the other operations run on the operations node and have a standby on the spare
+    // one: one instance of each bound, on either
+    for op in [
+        "localizer",
+        "path-planner",
+        "trajectory-controller",
+        "wall-follower",
+    ] {
+        let on: Vec<_> = placed.iter().filter(|(o, _)| o == op).collect();
+        assert_eq!(on.len(), 1, "{op}: {placed:?}");
+        assert!(
+            ["operations", "spare"].contains(&on[0].1.as_str()),
+            "{op}: {placed:?}"
+        );
+    }
 }
 
 /// `  cart at 127.0.0.1:4242 (pid 77): EO ultrasonic, ...` → (name, address, pid).
@@ -91,7 +91,7 @@ fn up_lists_every_module_with_its_node_and_leaves_no_node_behind_when_killed() {
         .iter()
         .map(|(_, name, node)| (name.clone(), node.clone()))
         .collect();
-    assert_eq!(rows.len(), 17, "{listed:?}");
+    assert_eq!(rows.len(), 24, "{listed:?}");
     for (module, node) in [
         ("virtual-cart", "cart"),
         ("ultrasonic", "cart"),
@@ -101,6 +101,8 @@ fn up_lists_every_module_with_its_node_and_leaves_no_node_behind_when_killed() {
         ("docking-detector", "operations"),
         ("wall-follower", "spare"),
         ("wall-follower", "operations"),
+        ("localizer", "spare"),
+        ("trajectory-controller", "spare"),
     ] {
         assert!(
             listed.contains(&(module.to_string(), node.to_string())),

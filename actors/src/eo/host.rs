@@ -103,6 +103,11 @@ struct Active {
     number: u64,
     epoch: u64,
     reply: RpcReplyPort<EoReport>,
+    /// Whether the operation's `activate` hook has run through. Until it has, the next
+    /// tick runs it again instead of a step: an `activate` held because a module it needs
+    /// was gone (its datamanager failing over) is retried once the module is back — a
+    /// step would run on what `activate` never set up.
+    set_up: bool,
 }
 
 /// State of an [`EoHost`].
@@ -293,6 +298,7 @@ impl<O: Operation> HostState<O> {
             number: self.activations,
             epoch,
             reply,
+            set_up: false,
         });
         let outcome = self.op.activate(&mut self.ctx).await;
         self.after_step(myself, outcome).await;
@@ -305,6 +311,11 @@ impl<O: Operation> HostState<O> {
         outcome: Result<Step, super::OpError>,
     ) {
         self.ctx.flush_puts();
+        if outcome.is_ok() {
+            if let Some(active) = &mut self.active {
+                active.set_up = true;
+            }
+        }
         match outcome {
             Ok(Step::Continue) => {
                 if let Some(active) = &self.active {
@@ -480,7 +491,12 @@ impl<O: Operation> Actor for EoHost<O> {
                 // boxed, like every arm that awaits: the operation's step future would
                 // otherwise be part of every message's future (a property request pays for
                 // the size of the largest arm)
-                let outcome = Box::pin(state.op.step(&mut state.ctx)).await;
+                let set_up = state.active.as_ref().is_some_and(|a| a.set_up);
+                let outcome = if set_up {
+                    Box::pin(state.op.step(&mut state.ctx)).await
+                } else {
+                    Box::pin(state.op.activate(&mut state.ctx)).await
+                };
                 Box::pin(state.after_step(&myself, outcome)).await;
             }
             EoMsg::ModuleAbsent {
