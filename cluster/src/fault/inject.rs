@@ -192,8 +192,7 @@ impl Injector {
     /// Inject `kind` into what `target` names now, and tell the bus. A fault that
     /// [lasts](FaultKind::lasts) lasts [`FaultKind::DEFAULT_LASTING`].
     pub async fn inject(&self, kind: FaultKind, target: &Target) -> Result<Injected, FaultError> {
-        let lasting = kind.lasts().then_some(FaultKind::DEFAULT_LASTING);
-        self.strike(kind, target, None, lasting).await
+        self.strike(kind, target, None, None).await
     }
 
     /// Inject a planned fault that is due now (`due`: its time in the run), and tell the
@@ -211,8 +210,7 @@ impl Injector {
         target: &Target,
         lasting: Duration,
     ) -> Result<Injected, FaultError> {
-        self.strike(kind, target, None, kind.lasts().then_some(lasting))
-            .await
+        self.strike(kind, target, None, Some(lasting)).await
     }
 
     /// Tell the bus that a planned fault was not injected, and why.
@@ -280,11 +278,10 @@ impl Injector {
                 target: target.to_string(),
             });
         }
-        let lasting = match (kind.lasts(), lasting) {
-            (true, Some(d)) => Some(d),
-            (true, None) => Some(FaultKind::DEFAULT_LASTING),
-            (false, _) => None,
-        };
+        // a kind that lasts lasts as asked, or the default; any other does not
+        let lasting = kind
+            .lasts()
+            .then(|| lasting.unwrap_or(FaultKind::DEFAULT_LASTING));
         let hit = self.find(target).await?;
         match &hit {
             Hit::Instance(inst) => inject_into(kind, inst)?,
