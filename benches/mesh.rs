@@ -63,10 +63,11 @@ impl Up {
     fn start(file: &Path) -> Up {
         let mut child = Command::new(env!("CARGO_BIN_EXE_marie"))
             .args(["up", file.to_str().expect("a UTF-8 path")])
-            .env_remove("RUST_LOG")
+            // its errors only: a frozen node's peers warn of it, as they should
+            .env("RUST_LOG", "error")
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
-            .stderr(Stdio::null())
+            .stderr(Stdio::inherit())
             .spawn()
             .expect("marie up starts");
         let out = child.stdout.take().expect("piped");
@@ -89,7 +90,12 @@ impl Up {
             match self.lines.recv_timeout(left) {
                 Ok((at, line)) if line.contains(what) => return (at, line),
                 Ok(_) => {}
-                Err(_) => panic!("no line with `{what}` within {within:?}"),
+                Err(mpsc::RecvTimeoutError::Timeout) => {
+                    panic!("no line with `{what}` within {within:?}")
+                }
+                Err(mpsc::RecvTimeoutError::Disconnected) => {
+                    panic!("marie up ended before a line with `{what}` (its errors are above)")
+                }
             }
         }
     }
@@ -104,7 +110,13 @@ fn cluster_file(dir: &Path, n: usize) -> std::path::PathBuf {
         let name = format!("n{i:02}");
         let mut config = format!("[node]\nname = \"{name}\"\ndispatcher = false\n");
         for op in OPERATIONS {
-            config += &format!("[[operation]]\nname = \"{op}\"\ninstances = {per_op}\n");
+            // a config entry starts at most 64 instances: as many entries as it takes
+            let mut left = per_op;
+            while left > 0 {
+                let these = left.min(64);
+                config += &format!("[[operation]]\nname = \"{op}\"\ninstances = {these}\n");
+                left -= these;
+            }
         }
         std::fs::write(dir.join(format!("{name}.toml")), config).expect("write a config");
         cluster += &format!("[[node]]\nconfig = \"{name}.toml\"\n");
