@@ -113,7 +113,11 @@ impl Cluster {
         self.set(peer, at_ms, "down").modules.clear();
     }
 
-    /// A node found it was frozen past its peers' deadline.
+    /// A node found it was frozen past its peers' deadline. Its own news, which reaches a
+    /// watcher only once the node is back in session (its forwarder resends it then): by
+    /// then its peers have usually said it is up again. So the news is taken as it
+    /// arrives, not by its stamp, and the node shows frozen — woken, its operations
+    /// restarted — until a peer's next news of it.
     pub fn frozen(&mut self, node: &str, at_ms: u64) {
         self.set(node, at_ms, "frozen");
     }
@@ -175,5 +179,19 @@ mod tests {
         c.frozen("a", 40);
         c.heard_from("a", 50);
         assert_eq!((c.0["a"].status, c.0["a"].since_ms), ("frozen", 40));
+    }
+
+    #[test]
+    fn a_freeze_told_after_the_peers_saw_the_node_again_shows_until_their_next_news() {
+        let mut c = Cluster::default();
+        c.up("a", "127.0.0.1:1", 10);
+        c.down("a", 20);
+        c.up("a", "127.0.0.1:1", 31);
+        // the node's own news, stamped when it woke, arrives after the peers saw it
+        c.frozen("a", 30);
+        c.heard_from("a", 32);
+        assert_eq!((c.0["a"].status, c.0["a"].since_ms), ("frozen", 30));
+        c.lost("a", "127.0.0.1:1", 40);
+        assert_eq!(c.0["a"].status, "lost");
     }
 }
