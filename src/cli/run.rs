@@ -9,6 +9,7 @@ use super::join::JoinArgs;
 use super::output::{end_line, outcome_line, LiveLines, Progress};
 use super::page_control::PageControl;
 use super::prepare::{prepare, Prepared};
+use super::signal::Shutdown;
 use anyhow::Context;
 use marie::actors::clock::Pacer;
 use marie::actors::report::RunReport;
@@ -108,17 +109,46 @@ pub(crate) struct RunArgs {
 /// Set once a run's mission has ended, its outputs written — and, with a monitor, once the
 /// run listens for the Ctrl-C that closes its page. Whoever runs it (`marie up --run`) and
 /// hears a Ctrl-C then lets the run end by itself instead of cutting the mission short.
+///
+/// That runner hands the run its own Ctrl-C watch ([`MissionOver::heard_by`]), watching
+/// since before the run: the page closes on the same watch, so one Ctrl-C ends both,
+/// whenever it comes. With a watch each, a Ctrl-C between the run's last line and the
+/// moment it watched for itself was the runner's alone, and the run waited for another.
 #[derive(Clone, Debug, Default)]
-pub(crate) struct MissionOver(Arc<AtomicBool>);
+pub(crate) struct MissionOver(Arc<Over>);
+
+#[derive(Debug, Default)]
+struct Over {
+    set: AtomicBool,
+    /// The runner's Ctrl-C watch; `None`: the run watches for itself from the moment its
+    /// page's last line is due.
+    heard_by: Option<Shutdown>,
+}
 
 impl MissionOver {
+    /// For a run whose runner watches Ctrl-C with `shutdown`.
+    pub(crate) fn heard_by(shutdown: Shutdown) -> MissionOver {
+        MissionOver(Arc::new(Over {
+            set: AtomicBool::new(false),
+            heard_by: Some(shutdown),
+        }))
+    }
+
     fn set(&self) {
-        self.0.store(true, Ordering::SeqCst);
+        self.0.set.store(true, Ordering::SeqCst);
     }
 
     /// Whether the mission has ended (and the run hears a Ctrl-C itself).
     pub(crate) fn is_set(&self) -> bool {
-        self.0.load(Ordering::SeqCst)
+        self.0.set.load(Ordering::SeqCst)
+    }
+
+    /// The Ctrl-C watch the page closes on: the runner's, else one from now on.
+    fn ctrl_c(&self) -> Shutdown {
+        self.0
+            .heard_by
+            .clone()
+            .unwrap_or_else(|| Shutdown::watch(false))
     }
 }
 
@@ -348,8 +378,9 @@ pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
                 "the monitor had not taken the run's last events within {MONITOR_FLUSH:?}"
             );
         }
-        // watched before the line: a Ctrl-C right after it is not missed
-        let stop = super::signal::shutdown_signal(false);
+        // watched before the line: a Ctrl-C right after it is not missed (under `marie up`,
+        // watched since before the run: nor is one that came before the line)
+        let stop = mission_over.ctrl_c();
         mission_over.set();
         let over = "monitor: the run is over; its page stays up until Ctrl-C";
         if say {
@@ -358,7 +389,7 @@ pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         } else {
             eprintln!("{over}");
         }
-        let signal = stop.await;
+        let signal = stop.wait().await;
         if say {
             println!("monitor stopped ({signal})");
         }
