@@ -6,8 +6,10 @@
 mod common;
 
 use common::cluster::{ls_join, wait_gone, Proc};
+use common::monitor::page_of;
 use common::{marie, report_of, text};
 use std::collections::BTreeSet;
+use std::io::Write;
 
 const THESIS: &str = "missions/clusters/thesis.toml";
 /// The cluster's speed factor in these tests: wall-clock time × 4, on every node.
@@ -199,5 +201,87 @@ fn a_thousand_operations_on_three_nodes_converge_in_every_members_registry() {
     assert_eq!(up.wait_exit(), Some(0));
     for (name, _, pid) in &nodes {
         assert!(wait_gone(*pid), "node {name} (pid {pid}) outlived marie up");
+    }
+}
+
+/// A cluster of one node that hosts everything the docking mission needs, at the cluster's
+/// top speed: `marie up --run` of docking over it is short.
+fn one_node_cluster(dir: &std::path::Path) -> std::path::PathBuf {
+    let repo = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let file = dir.join("one.toml");
+    std::fs::write(
+        &file,
+        format!(
+            "[cluster]\ncookie = \"one\"\nspeed = 20\n[[node]]\nconfig = \"{}\"\n",
+            repo.join("missions/nodes/everything.toml").display()
+        ),
+    )
+    .unwrap();
+    file
+}
+
+/// One Ctrl-C stops `marie up --run --monitor` whenever it comes once the mission is over:
+/// right with the `outcome:` line (before the run listens for the Ctrl-C that closes its
+/// page), or once the run says its page stays up. It exits with the mission's code and
+/// leaves no node behind.
+#[test]
+fn one_ctrl_c_at_the_end_of_a_monitored_run_stops_up_whenever_it_comes() {
+    let dir = tempfile::tempdir().unwrap();
+    let cluster = one_node_cluster(dir.path());
+    // the signal is sent the moment the line is read, by this process itself: the run's
+    // end between its last line and its wait is short, and a `kill` process would be late
+    for moment in [
+        "mission succeeded",
+        "outcome:",
+        "outcome:",
+        "outcome:",
+        "monitor: the run is over",
+    ] {
+        let mut up = Proc::spawn(
+            &format!("marie up (Ctrl-C at {moment:?})"),
+            &[
+                "up",
+                cluster.to_str().unwrap(),
+                "--run",
+                "missions/docking.toml",
+                "--monitor",
+                "127.0.0.1:0",
+            ],
+        );
+        // a viewer on the page, as a user who watches the run has: the monitor's thread
+        // streams to it as the run ends
+        let (page, _) = page_of(&up.wait_line("monitor: http://"));
+        let mut viewer = std::net::TcpStream::connect(page).unwrap();
+        write!(
+            viewer,
+            "GET /api/live HTTP/1.1\r\nHost: {page}\r\nAccept: text/event-stream\r\n\r\n"
+        )
+        .unwrap();
+        std::thread::spawn(move || std::io::copy(&mut viewer, &mut std::io::sink()));
+        let node = up.wait_line("  everything at ");
+        let pid: u32 = node
+            .split_once("(pid ")
+            .and_then(|(_, rest)| rest.split_once(')')?.0.parse().ok())
+            .unwrap_or_else(|| panic!("no pid in {node:?}"));
+        up.wait_line(moment);
+        up.signal_now(libc::SIGINT);
+        let code = up.wait_exit();
+        assert_eq!(
+            code,
+            Some(0),
+            "Ctrl-C at {moment:?}:\n{}\n{}",
+            up.seen().join("\n"),
+            up.stderr_tail()
+        );
+        let lines = up.drain().to_vec();
+        assert!(
+            lines.iter().any(|l| l.contains("outcome: succeeded")),
+            "{lines:?}"
+        );
+        assert!(lines.iter().any(|l| l == "cluster stopped"), "{lines:?}");
+        assert!(
+            wait_gone(pid),
+            "the node outlived marie up (Ctrl-C at {moment:?})"
+        );
     }
 }
