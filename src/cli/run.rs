@@ -69,6 +69,11 @@ pub(crate) struct RunArgs {
     /// operations, datamanagers and cart are the cluster's.
     #[command(flatten)]
     pub cluster: JoinArgs,
+    /// With `--join`: put the cluster's simulated cart back at rest at the world's start
+    /// before the run, its collisions and path started anew. Without it a run starts where
+    /// the cluster's last run left the cart (parked in the dock, after docking).
+    #[arg(long, requires = "join")]
+    pub from_start: bool,
     /// Inject a fault while the mission runs: KIND `kill`, `panic`, `hang` or `slow` (an
     /// operation) or `stop-node` (a node process `marie up` started); TARGET the operation's name or id
     /// (the instance the mission bound), `NAME#VERSION` (the instance with that version),
@@ -175,6 +180,7 @@ pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         chaos,
         chaos_dms,
         cluster,
+        from_start,
         monitor: monitor_listen,
         allow_faults,
         node_processes,
@@ -215,6 +221,14 @@ pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         .is_none()
         .then(|| Pacer::new(speed.unwrap_or(f64::INFINITY)).spawn());
     let prepared = prepare(&path, robot, joining.as_ref()).await?;
+    // a joined run drives the cluster's cart from where it is, or from the world's start
+    let start_line = match prepared.cart_start(from_start).await {
+        Ok(line) => line,
+        Err(e) => {
+            prepared.shutdown().await;
+            return Err(e.into());
+        }
+    };
     if svg_path.is_some() && prepared.robot.is_none() {
         prepared.shutdown().await;
         return Err(BadInput(format!(
@@ -232,6 +246,9 @@ pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
             path.display()
         );
         if let Some(line) = prepared.world_line() {
+            println!("{line}");
+        }
+        if let Some(line) = start_line {
             println!("{line}");
         }
     }

@@ -375,6 +375,8 @@ async fn serve(
         allow_faults: args.allow_faults,
         node_processes: processes,
         mission_over: MissionOver::heard_by(stop.clone()),
+        // a cluster of its own: the cart is at the world's start
+        from_start: false,
         cluster: JoinArgs {
             join: Some(launches[0].listen),
             cookie: Some(layout.cookie.clone()),
