@@ -287,3 +287,90 @@ fn one_ctrl_c_at_the_end_of_a_monitored_run_stops_up_whenever_it_comes() {
         );
     }
 }
+
+/// A cluster kept up keeps its cart between runs: a second `run --join` of docking starts
+/// where the first parked it, and says so; `--from-start` puts the cart back at rest at the
+/// world's start, its collisions and path anew, and docking succeeds from there again.
+#[test]
+fn a_run_on_a_cluster_kept_up_starts_where_the_last_left_the_cart_or_from_the_start_if_asked() {
+    // a run of its own starts from the world's start anyway: the flag is refused there
+    let out = marie(&["run", "missions/docking.toml", "--from-start"]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    assert!(
+        text(&out.stderr).contains("--join"),
+        "{}",
+        text(&out.stderr)
+    );
+
+    let dir = tempfile::tempdir().unwrap();
+    let mut up = Proc::spawn("marie up", &["up", THESIS, "--speed", SPEED]);
+    up.wait_line("Ctrl-C stops the cluster");
+    let nodes: Vec<(String, String, u32)> = up.seen().iter().filter_map(|l| node_line(l)).collect();
+    let run = |name: &str, extra: &[&str]| {
+        let report = dir.path().join(format!("{name}.json"));
+        let mut args = vec![
+            "run",
+            "missions/docking.toml",
+            "--join",
+            &nodes[0].1,
+            "--cookie",
+            "marie-thesis",
+            "--speed",
+            SPEED,
+            "--report",
+            report.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let out = marie(&args);
+        let report: serde_json::Value = std::fs::read_to_string(&report)
+            .ok()
+            .and_then(|s| serde_json::from_str(&s).ok())
+            .unwrap_or_default();
+        (out, report)
+    };
+    let starts = "the cart starts";
+
+    let (first, report) = run("first", &[]);
+    let stdout = text(&first.stdout);
+    assert_eq!(
+        first.status.code(),
+        Some(0),
+        "{stdout}{}",
+        text(&first.stderr)
+    );
+    assert!(
+        !stdout.contains(starts),
+        "a fresh cluster's cart is at the start: {stdout}"
+    );
+    assert_eq!(report["outcome"], "succeeded");
+
+    // the next run finds the cart parked (docking's goal is the dock), and says so
+    let (second, _) = run("second", &[]);
+    let stdout = text(&second.stdout);
+    assert!(
+        stdout.contains("the cart starts where the cluster's last run left it, at (6."),
+        "{stdout}{}",
+        text(&second.stderr)
+    );
+
+    let (third, report) = run("third", &["--from-start"]);
+    let stdout = text(&third.stdout);
+    assert_eq!(
+        third.status.code(),
+        Some(0),
+        "{stdout}{}",
+        text(&third.stderr)
+    );
+    assert!(
+        stdout.contains("the cart starts at the world's start (--from-start)"),
+        "{stdout}"
+    );
+    assert_eq!(report["outcome"], "succeeded", "{report:#}");
+    assert_eq!(report["collisions"], 0);
+
+    up.signal("INT");
+    assert_eq!(up.wait_exit(), Some(0));
+    for (name, _, pid) in &nodes {
+        assert!(wait_gone(*pid), "node {name} (pid {pid}) outlived marie up");
+    }
+}
