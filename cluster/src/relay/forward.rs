@@ -2,29 +2,33 @@
 //! watcher missed while out of reach, from the backlog, when it comes back.
 
 use super::backlog::Backlog;
+use super::scope::Changes;
 use super::watchers::{WatcherKey, Watchers};
 use super::{WatcherMsg, GROUP, KIND, SCOPE};
 use marie_actors::events::{BusError, Event, EventBus, EventKind};
 use marie_actors::registry::node_name_of;
 use marie_actors::wire::Envelope;
 use ractor::{pg, ActorRef};
-use std::time::Duration;
 use tokio::task::JoinHandle;
-use tokio::time::{Instant, MissedTickBehavior};
-
-/// How often a forwarder looks for a watcher out of reach to be back, while one is (a
-/// node that publishes nothing else would otherwise keep what it missed until its next
-/// event).
-const RETURN_POLL: Duration = Duration::from_millis(100);
+use tokio::time::Instant;
 
 /// Forward every event `bus` publishes to the remote watchers, until the bus closes or the
-/// task is aborted.
+/// task is aborted. The watchers are looked at on every event, and whenever one comes or
+/// goes: one back in reach gets what it missed at once, even from a node that publishes
+/// nothing more.
 pub fn forward(bus: EventBus) -> JoinHandle<()> {
     let mut sub = bus.subscribe();
     tokio::spawn(async move {
         let mut forwarder = Forwarder::new(bus.node());
-        let mut poll = tokio::time::interval(RETURN_POLL);
-        poll.set_missed_tick_behavior(MissedTickBehavior::Delay);
+        let mut changes = match Changes::watch().await {
+            Ok(changes) => Some(changes),
+            Err(e) => {
+                tracing::error!(error = %e, "cannot watch the event watchers come and go: they are looked at on this node's events only");
+                None
+            }
+        };
+        // the watchers already there
+        forwarder.look_around();
         loop {
             tokio::select! {
                 received = sub.recv() => match received {
@@ -35,12 +39,20 @@ pub fn forward(bus: EventBus) -> JoinHandle<()> {
                     }
                     Err(BusError::Closed) => return,
                 },
-                _ = poll.tick(), if forwarder.watchers.awaiting() => {
+                () = next_change(&mut changes) => {
                     forwarder.look_around();
                 }
             }
         }
     })
+}
+
+/// The next change of the watchers; pending forever without a watch of them.
+async fn next_change(changes: &mut Option<Changes>) {
+    match changes {
+        Some(c) => c.next().await,
+        None => std::future::pending().await,
+    }
 }
 
 /// What a node's forwarder keeps.

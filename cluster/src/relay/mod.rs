@@ -43,6 +43,7 @@
 mod backlog;
 mod forward;
 mod order;
+mod scope;
 mod watch;
 mod watchers;
 

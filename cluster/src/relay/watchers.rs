@@ -107,11 +107,6 @@ impl Watchers {
     pub(super) fn any(&self) -> bool {
         !self.known.is_empty()
     }
-
-    /// Whether a known watcher is out of reach (its return is looked for).
-    pub(super) fn awaiting(&self) -> bool {
-        self.known.values().any(|k| k.reached.is_none())
-    }
 }
 
 #[cfg(test)]
@@ -139,17 +134,15 @@ mod tests {
         assert!(!w.any());
         // first seen before event 5: due 5 on, and nothing is resent to a newcomer
         assert!(w.observe([(key("run", 7), via(1, 7))], 5, t0).is_empty());
-        assert!(w.any() && !w.awaiting());
+        assert!(w.any());
         // the same session: nothing to resend
         assert!(w.observe([(key("run", 7), via(1, 7))], 9, t0).is_empty());
         // gone, then back through session 2
         assert!(w.observe([], 12, t0).is_empty());
-        assert!(w.awaiting());
         assert_eq!(
             w.observe([(key("run", 7), via(2, 7))], 15, t0),
             [(key("run", 7), 5)]
         );
-        assert!(!w.awaiting());
         // a new session without the absence ever seen counts as a return too
         assert_eq!(
             w.observe([(key("run", 7), via(3, 7))], 16, t0),
@@ -168,7 +161,7 @@ mod tests {
         w.observe([], 2, t0 + ABSENCE_KEPT - Duration::from_millis(1));
         assert!(w.any(), "still kept just before the limit");
         w.observe([], 2, t0 + ABSENCE_KEPT);
-        assert!(!w.any() && !w.awaiting());
+        assert!(!w.any());
         // back after that: a newcomer, due what comes from now on
         assert!(w
             .observe([(key("run", 7), via(2, 7))], 40, t0 + ABSENCE_KEPT)
