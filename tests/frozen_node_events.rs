@@ -18,8 +18,8 @@ const ALPHA: &str = "[[datamanager]]\nname = \"feature\"\n[[operation]]\nname = 
 /// The node that is frozen: an operation the mission does not use, restarted as a new
 /// incarnation when the node wakes.
 const OPERATIONS: &str = "[[operation]]\nname = \"checker\"\n";
-/// One action: 5000 samples, a step every 2 ms of the cluster's clock (wall-clock time
-/// here) — at least 10 s, however fast the machine, for the freeze and the wake.
+/// One action: 7500 samples, a step every 2 ms of the cluster's clock (wall-clock time
+/// here) — at least 15 s, however fast the machine, for the freeze and the wake.
 const MISSION: &str = r#"
 [mission]
 name = "sample"
@@ -36,7 +36,7 @@ ends_on = ["sampler"]
 deadline_s = 600.0
 
 [action.ops.sampler]
-count = 5000
+count = 7500
 "#;
 
 #[test]
@@ -45,7 +45,18 @@ fn a_woken_nodes_freeze_and_restart_reach_the_events_file_and_the_page_once_each
     let mission = dir.path().join("sample.toml");
     std::fs::write(&mission, MISSION).unwrap();
     let events = dir.path().join("run.jsonl");
-    let mut alpha = NodeProc::start(dir.path(), "alpha", ALPHA, &[], COOKIE);
+    // alpha declares a silent peer down only after 2.4 s (beating every 100 ms, so that its
+    // peers' 1.2 s deadline never finds it silent): once it has, operations has been
+    // frozen twice its own deadline, and finds so when it wakes
+    let mut alpha = NodeProc::start_with(
+        dir.path(),
+        "alpha",
+        ALPHA,
+        &[],
+        COOKIE,
+        "deadline_ms = 2400\nheartbeat_ms = 100\n",
+        &[],
+    );
     let mut operations =
         NodeProc::start(dir.path(), "operations", OPERATIONS, &[alpha.addr], COOKIE);
     operations.wait_line("node operations sees alpha");
@@ -70,7 +81,8 @@ fn a_woken_nodes_freeze_and_restart_reach_the_events_file_and_the_page_once_each
 
     operations.signal("STOP");
     // the run's own member declares it down (and closes their session): only then is
-    // what the node publishes as it wakes cut off from the run's watchers
+    // what the node publishes as it wakes cut off from the run's watchers. The page has
+    // every peer's news of the node's loss before it wakes
     let said = |state: &serde_json::Value, node: &str, text: &str| {
         state["timeline"]["entries"]
             .as_array()
@@ -80,9 +92,15 @@ fn a_woken_nodes_freeze_and_restart_reach_the_events_file_and_the_page_once_each
                 })
             })
     };
-    state_until(page, "the run's member declaring operations down", |s| {
-        said(s, &member, "declared operations down")
-    });
+    state_until(
+        page,
+        "the run's member and alpha declaring operations down",
+        |s| {
+            [member.as_str(), "alpha"].iter().all(|node| {
+                said(s, node, "declared operations down") && said(s, node, "lost operations")
+            })
+        },
+    );
     let mark = operations.seen().len();
     operations.signal("CONT");
     operations.wait_line_since(mark, "node operations was frozen for");
@@ -90,15 +108,11 @@ fn a_woken_nodes_freeze_and_restart_reach_the_events_file_and_the_page_once_each
         mark,
         "node operations restarted its 1 operation instance(s) as a new incarnation",
     );
-    // the page: the node's own news, forwarded once it was back in reach
-    let state = state_until(page, "operations' freeze on the page", |s| {
-        said(s, "operations", "was frozen")
+    // the page: the node's own news, forwarded once it was back in reach, and the node
+    // shown frozen (up again, its operations restarted)
+    state_until(page, "operations' freeze on the page", |s| {
+        said(s, "operations", "was frozen") && s["cluster"]["operations"]["status"] == "frozen"
     });
-    assert_eq!(
-        state["cluster"]["operations"]["status"], "frozen",
-        "{:#}",
-        state["cluster"]
-    );
 
     run.wait_line("monitor: the run is over");
     run.signal("INT");
@@ -130,37 +144,38 @@ fn a_woken_nodes_freeze_and_restart_reach_the_events_file_and_the_page_once_each
             .filter(|&i| pred(&theirs[i].1.kind))
             .collect()
     };
-    let frozen = all(&|k| matches!(k, EventKind::NodeFrozen { .. }));
-    assert_eq!(frozen.len(), 1, "one freeze in\n{lines}");
-    let frozen = frozen[0];
+    // what it published as it woke, each once: that it was frozen (past its deadline) and
+    // then restarted the checker; that it lost the run's member (its session, closed by the
+    // member, may end before or after it finds it was frozen), then saw it again
+    let once = |what: &str, found: Vec<usize>| {
+        assert_eq!(found.len(), 1, "{what}: {found:?} in\n{lines}");
+        found[0]
+    };
+    let frozen = once(
+        "one freeze",
+        all(&|k| matches!(k, EventKind::NodeFrozen { .. })),
+    );
     let EventKind::NodeFrozen { silent_ms } = theirs[frozen].1.kind else {
         unreachable!()
     };
     assert!(silent_ms >= default_deadline_ms(), "{}", theirs[frozen].0);
-    // what it published as it woke: the run's member lost, the checker restarted, then
-    // the member seen again — after the freeze, once each
-    let after = |what: &str, pred: &dyn Fn(&EventKind) -> bool| {
-        let found: Vec<usize> = all(pred).into_iter().filter(|&i| i > frozen).collect();
-        assert_eq!(
-            found.len(),
-            1,
-            "{what} after the freeze: {found:?} in\n{lines}"
-        );
-        found[0]
-    };
-    let lost = after(
-        "the run's member lost",
-        &|k| matches!(k, EventKind::NodeLost { peer, .. } if *peer == member),
+    let restarted = once(
+        "one restart of the checker",
+        all(&|k| {
+            matches!(k, EventKind::ChildRestarted { supervisor, child, .. }
+                if supervisor == "operations" && child.starts_with("checker@"))
+        }),
     );
-    let restarted = after("the checker's restart", &|k| {
-        matches!(k, EventKind::ChildRestarted { supervisor, child, .. }
-            if supervisor == "operations" && child.starts_with("checker@"))
-    });
-    let back = after(
+    assert!(frozen < restarted, "{lines}");
+    let lost = once(
+        "the run's member lost once",
+        all(&|k| matches!(k, EventKind::NodeLost { peer, .. } if *peer == member)),
+    );
+    let back = all(&|k| matches!(k, EventKind::NodeUp { peer, .. } if *peer == member));
+    once(
         "the run's member seen again",
-        &|k| matches!(k, EventKind::NodeUp { peer, .. } if *peer == member),
+        back.into_iter().filter(|&i| i > lost).collect(),
     );
-    assert!(lost < back && restarted < back, "{lines}");
     // in the order the node published them, each once
     for pair in theirs.windows(2) {
         assert!(
