@@ -6,8 +6,10 @@
 mod common;
 
 use common::cluster::{ls_join, wait_gone, Proc};
+use common::monitor::page_of;
 use common::{marie, report_of, text};
 use std::collections::BTreeSet;
+use std::io::Write;
 
 const THESIS: &str = "missions/clusters/thesis.toml";
 /// The cluster's speed factor in these tests: wall-clock time × 4, on every node.
@@ -198,6 +200,177 @@ fn a_thousand_operations_on_three_nodes_converge_in_every_members_registry() {
     assert_eq!(code, Some(0), "{stderr}");
     assert_eq!(rows.len(), 1002);
     up.signal("TERM");
+    assert_eq!(up.wait_exit(), Some(0));
+    for (name, _, pid) in &nodes {
+        assert!(wait_gone(*pid), "node {name} (pid {pid}) outlived marie up");
+    }
+}
+
+/// A cluster of one node that hosts everything the docking mission needs, at 10 times
+/// wall-clock speed: `marie up --run` of docking over it is short.
+fn one_node_cluster(dir: &std::path::Path) -> std::path::PathBuf {
+    let repo = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let file = dir.join("one.toml");
+    std::fs::write(
+        &file,
+        format!(
+            "[cluster]\ncookie = \"one\"\nspeed = 10\n[[node]]\nconfig = \"{}\"\n",
+            repo.join("missions/nodes/everything.toml").display()
+        ),
+    )
+    .unwrap();
+    file
+}
+
+/// One Ctrl-C stops `marie up --run --monitor` whenever it comes once the mission is over:
+/// right with the `outcome:` line (before the run listens for the Ctrl-C that closes its
+/// page), or once the run says its page stays up. It exits with the mission's code and
+/// leaves no node behind.
+#[test]
+fn one_ctrl_c_at_the_end_of_a_monitored_run_stops_up_whenever_it_comes() {
+    let dir = tempfile::tempdir().unwrap();
+    let cluster = one_node_cluster(dir.path());
+    // the signal is sent the moment the line is read, by this process itself: the stretch
+    // between the run's last lines and its wait is short (hence the outcome line thrice),
+    // and a `kill` process would come late
+    for moment in [
+        "mission succeeded",
+        "outcome:",
+        "outcome:",
+        "outcome:",
+        "monitor: the run is over",
+    ] {
+        let mut up = Proc::spawn(
+            &format!("marie up (Ctrl-C at {moment:?})"),
+            &[
+                "up",
+                cluster.to_str().unwrap(),
+                "--run",
+                "missions/docking.toml",
+                "--monitor",
+                "127.0.0.1:0",
+            ],
+        );
+        // a viewer on the page, as a user who watches the run has: the monitor's thread
+        // streams to it as the run ends
+        let (page, _) = page_of(&up.wait_line("monitor: http://"));
+        let mut viewer = std::net::TcpStream::connect(page).unwrap();
+        write!(
+            viewer,
+            "GET /api/live HTTP/1.1\r\nHost: {page}\r\nAccept: text/event-stream\r\n\r\n"
+        )
+        .unwrap();
+        std::thread::spawn(move || std::io::copy(&mut viewer, &mut std::io::sink()));
+        let node = up.wait_line("  everything at ");
+        let pid: u32 = node
+            .split_once("(pid ")
+            .and_then(|(_, rest)| rest.split_once(')')?.0.parse().ok())
+            .unwrap_or_else(|| panic!("no pid in {node:?}"));
+        up.wait_line(moment);
+        up.signal_now(libc::SIGINT);
+        let code = up.wait_exit();
+        let lines = up.drain().to_vec();
+        // the mission's own code
+        assert_eq!(
+            code,
+            Some(0),
+            "Ctrl-C at {moment:?}:\n{}\n{}",
+            lines.join("\n"),
+            up.stderr_tail()
+        );
+        assert!(
+            lines.iter().any(|l| l.contains("outcome: succeeded")),
+            "{lines:?}"
+        );
+        assert!(lines.iter().any(|l| l == "cluster stopped"), "{lines:?}");
+        assert!(
+            wait_gone(pid),
+            "the node outlived marie up (Ctrl-C at {moment:?})"
+        );
+    }
+}
+
+/// A cluster kept up keeps its cart between runs: a second `run --join` of docking starts
+/// where the first parked it, and says so; `--from-start` puts the cart back at rest at the
+/// world's start, its collisions and path anew, and docking succeeds from there again.
+#[test]
+fn a_run_on_a_cluster_kept_up_starts_where_the_last_left_the_cart_or_from_the_start_if_asked() {
+    // a run of its own starts from the world's start anyway: the flag is refused there
+    let out = marie(&["run", "missions/docking.toml", "--from-start"]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    assert!(
+        text(&out.stderr).contains("--join"),
+        "{}",
+        text(&out.stderr)
+    );
+
+    let dir = tempfile::tempdir().unwrap();
+    let mut up = Proc::spawn("marie up", &["up", THESIS, "--speed", SPEED]);
+    up.wait_line("Ctrl-C stops the cluster");
+    let nodes: Vec<(String, String, u32)> = up.seen().iter().filter_map(|l| node_line(l)).collect();
+    let run = |name: &str, extra: &[&str]| {
+        let report = dir.path().join(format!("{name}.json"));
+        let mut args = vec![
+            "run",
+            "missions/docking.toml",
+            "--join",
+            &nodes[0].1,
+            "--cookie",
+            "marie-thesis",
+            "--speed",
+            SPEED,
+            "--report",
+            report.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let out = marie(&args);
+        let report: serde_json::Value = std::fs::read_to_string(&report)
+            .ok()
+            .and_then(|s| serde_json::from_str(&s).ok())
+            .unwrap_or_default();
+        (out, report)
+    };
+    let starts = "the cart starts";
+
+    let (first, report) = run("first", &[]);
+    let stdout = text(&first.stdout);
+    assert_eq!(
+        first.status.code(),
+        Some(0),
+        "{stdout}{}",
+        text(&first.stderr)
+    );
+    assert!(
+        !stdout.contains(starts),
+        "a fresh cluster's cart is at the start: {stdout}"
+    );
+    assert_eq!(report["outcome"], "succeeded");
+
+    // the next run finds the cart parked (docking's goal is the dock), and says so
+    let (second, _) = run("second", &[]);
+    let stdout = text(&second.stdout);
+    assert!(
+        stdout.contains("the cart starts where the cluster's last run left it, at (6."),
+        "{stdout}{}",
+        text(&second.stderr)
+    );
+
+    let (third, report) = run("third", &["--from-start"]);
+    let stdout = text(&third.stdout);
+    assert_eq!(
+        third.status.code(),
+        Some(0),
+        "{stdout}{}",
+        text(&third.stderr)
+    );
+    assert!(
+        stdout.contains("the cart starts at the world's start (--from-start)"),
+        "{stdout}"
+    );
+    assert_eq!(report["outcome"], "succeeded", "{report:#}");
+    assert_eq!(report["collisions"], 0);
+
+    up.signal("INT");
     assert_eq!(up.wait_exit(), Some(0));
     for (name, _, pid) in &nodes {
         assert!(wait_gone(*pid), "node {name} (pid {pid}) outlived marie up");

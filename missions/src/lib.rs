@@ -23,6 +23,7 @@
 pub mod algo;
 pub mod demo;
 pub mod embedded;
+pub mod fresh_start;
 pub mod geom;
 pub mod hardware;
 pub mod ops;

@@ -446,6 +446,38 @@ fn driving_into_a_wall_counts_one_collision_and_stops_the_cart() {
 }
 
 #[test]
+fn a_restart_puts_the_cart_back_at_rest_at_the_start_with_nothing_counted_while_time_goes_on() {
+    let mut w = World::builtin("lab").unwrap();
+    w.start = Pose::new(12.0, 3.0, 0.0);
+    let mut sim = Simulation::new(&w, 0);
+    sim.command(0.5, 0.1);
+    for _ in 0..1000 {
+        sim.step(0.02);
+    }
+    assert!(sim.collisions() > 0 && sim.is_collided());
+    sim.emergency_stop(true);
+    let then = sim.time();
+    sim.restart();
+    assert_eq!((sim.pose(), sim.odometry()), (w.start, w.start));
+    assert_eq!((sim.collisions(), sim.is_collided()), (0, false));
+    assert!(sim.collision_events().is_empty());
+    assert_eq!(
+        (sim.speed(), sim.steer(), sim.commanded()),
+        (0.0, 0.0, (0.0, 0.0))
+    );
+    assert!(!sim.is_emergency_stopped());
+    assert_eq!(sim.time(), then, "time goes on from where it was");
+    assert_eq!(sim.trace().len(), 1);
+    assert_eq!((sim.trace()[0].time, sim.trace()[0].pose), (then, w.start));
+    // at rest until commanded, then it drives from the start as it did the first time
+    sim.step(1.0);
+    assert_eq!(sim.pose(), w.start);
+    sim.command(0.5, 0.0);
+    sim.step(1.0);
+    assert!(sim.pose().x > w.start.x + 0.2 && sim.collisions() == 0);
+}
+
+#[test]
 fn a_reading_carries_the_cone_of_its_beam_as_the_world_sets_it() {
     // the default data sheet: narrow 8 degrees, wide 25 (half angles)
     for (beam, deg) in [("narrow", 8.0), ("wide", 25.0)] {

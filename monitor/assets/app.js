@@ -219,12 +219,18 @@ async function fetchProps(op) {
   }
 }
 
+// Whether a node is up: `frozen` is a node up again after a freeze (its operations new
+// incarnations), which may be faulted as any other.
+function isUp(n) {
+  return n.status === "up" || n.status === "frozen";
+}
+
 function renderCluster(cluster) {
   setHtml($("#cluster"), Object.values(cluster)
     .map((n) => {
       const mods = Object.values(n.modules);
       const kinds = faultKinds.node.concat(offers.cuttable ? (faultKinds.cut || []) : []);
-      const stop = offers.stoppable_nodes.includes(n.name) && n.status === "up"
+      const stop = offers.stoppable_nodes.includes(n.name) && isUp(n)
         ? kinds.map((k) =>
           ` <button type="button" class="node-fault ${esc(k)}" data-fault="${esc(k)}" data-node="${esc(n.name)}" ` +
           `title="${esc(FAULT_TITLES[k] || k)}">${esc(NODE_FAULT_LABELS[k] || k)}</button>`).join("")
@@ -263,7 +269,7 @@ function bytes(n) {
 // A datamanager's fault buttons (kill, panic, hang: its supervisor restarts it), when the
 // page may inject faults and its node is up.
 function dmFaults(m, n) {
-  if (m.kind !== "datamanager" || !offers.operation_faults || n.status !== "up") return "";
+  if (m.kind !== "datamanager" || !offers.operation_faults || !isUp(n)) return "";
   return faultKinds.datamanager.map((k) =>
     ` <button type="button" class="fault dm-fault" data-fault="${esc(k)}" data-op="${esc(m.name)}" ` +
     `data-node="${esc(n.name)}" data-address="${esc(m.address)}" ` +

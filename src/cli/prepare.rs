@@ -8,6 +8,7 @@ use marie::actors::dispatcher::mission::{Mission, ParsedMission};
 use marie::cluster::net::Transport;
 use marie::cluster::node::{Node, NodeError};
 use marie_missions::embedded::{Embedded, EmbeddedOptions};
+use marie_missions::fresh_start::{at_world_start, restart_at_world_start, FreshStartError};
 use marie_missions::hardware::CartClient;
 use marie_missions::robot::SimRobot;
 use std::path::{Path, PathBuf};
@@ -37,6 +38,40 @@ impl Prepared {
         if let Some(t) = self.transport {
             t.stop().await;
         }
+    }
+
+    /// Where the cart of a cluster joined starts the run: put back at the world's start
+    /// first if `from_start` (the run fails if it cannot be), else where the cluster's last
+    /// run left it — said when that is not the world's start, since a mission written for
+    /// the start fails from there. `None` without a cluster's cart (the embedded node's
+    /// starts at the world's start) or when nothing needs saying.
+    pub(crate) async fn cart_start(
+        &self,
+        from_start: bool,
+    ) -> Result<Option<String>, FreshStartError> {
+        let (Some(_), Some(robot)) = (&self.transport, &self.robot) else {
+            return Ok(None);
+        };
+        if from_start {
+            restart_at_world_start().await?;
+            return Ok(Some(
+                "the cart starts at the world's start (--from-start)".into(),
+            ));
+        }
+        let pose = match CartClient::lookup() {
+            Ok(cart) => cart.status().await.map(|s| s.pose),
+            Err(e) => Err(e),
+        };
+        Ok(match pose {
+            Ok(p) if !at_world_start(robot.world(), &p) => Some(format!(
+                "the cart starts where the cluster's last run left it, at ({:.2}, {:.2}, \
+                 {:.1}°), not at the world's start: --from-start puts it back there",
+                p.x,
+                p.y,
+                p.theta.to_degrees()
+            )),
+            _ => None,
+        })
     }
 
     /// `world `lab` from FILE, seed N`, when a robot runs.

@@ -9,6 +9,7 @@ use super::join::JoinArgs;
 use super::output::{end_line, outcome_line, verdict_line, LiveLines, Progress};
 use super::page_control::PageControl;
 use super::prepare::{prepare, Prepared};
+use super::signal::Shutdown;
 use anyhow::Context;
 use marie::actors::clock::Pacer;
 use marie::actors::report::RunReport;
@@ -67,6 +68,11 @@ pub(crate) struct RunArgs {
     /// operations, datamanagers and cart are the cluster's.
     #[command(flatten)]
     pub cluster: JoinArgs,
+    /// With `--join`: put the cluster's simulated cart back at rest at the world's start
+    /// before the run, its collisions and path started anew. Without it a run starts where
+    /// the cluster's last run left the cart (parked in the dock, after docking).
+    #[arg(long, requires = "join")]
+    pub from_start: bool,
     /// Inject a fault while the mission runs: KIND `kill`, `panic`, `hang` or `slow` (an
     /// operation) or `stop-node`, `freeze-node` or `partition` (node processes `marie up`
     /// started: see `marie up --fault`); TARGET the operation's name or id
@@ -112,17 +118,46 @@ pub(crate) struct RunArgs {
 /// Set once a run's mission has ended, its outputs written — and, with a monitor, once the
 /// run listens for the Ctrl-C that closes its page. Whoever runs it (`marie up --run`) and
 /// hears a Ctrl-C then lets the run end by itself instead of cutting the mission short.
+///
+/// That runner hands the run its own Ctrl-C watch ([`MissionOver::heard_by`]), watching
+/// since before the run: the page closes on the same watch, so one Ctrl-C ends both,
+/// whenever it comes. With a watch each, a Ctrl-C between the run's last line and the
+/// moment it watched for itself was the runner's alone, and the run waited for another.
 #[derive(Clone, Debug, Default)]
-pub(crate) struct MissionOver(Arc<AtomicBool>);
+pub(crate) struct MissionOver(Arc<Over>);
+
+#[derive(Debug, Default)]
+struct Over {
+    set: AtomicBool,
+    /// The runner's Ctrl-C watch; `None`: the run watches for itself from the moment its
+    /// page's last line is due.
+    heard_by: Option<Shutdown>,
+}
 
 impl MissionOver {
+    /// For a run whose runner watches Ctrl-C with `shutdown`.
+    pub(crate) fn heard_by(shutdown: Shutdown) -> MissionOver {
+        MissionOver(Arc::new(Over {
+            set: AtomicBool::new(false),
+            heard_by: Some(shutdown),
+        }))
+    }
+
     fn set(&self) {
-        self.0.store(true, Ordering::SeqCst);
+        self.0.set.store(true, Ordering::SeqCst);
     }
 
     /// Whether the mission has ended (and the run hears a Ctrl-C itself).
     pub(crate) fn is_set(&self) -> bool {
-        self.0.load(Ordering::SeqCst)
+        self.0.set.load(Ordering::SeqCst)
+    }
+
+    /// The Ctrl-C watch the page closes on: the runner's, else one from now on.
+    fn ctrl_c(&self) -> Shutdown {
+        self.0
+            .heard_by
+            .clone()
+            .unwrap_or_else(|| Shutdown::watch(false))
     }
 }
 
@@ -150,6 +185,7 @@ pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         chaos_dms,
         node_chaos,
         cluster,
+        from_start,
         monitor: monitor_listen,
         allow_faults,
         node_processes,
@@ -193,6 +229,14 @@ pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         .is_none()
         .then(|| Pacer::new(speed.unwrap_or(f64::INFINITY)).spawn());
     let prepared = prepare(&path, robot, joining.as_ref()).await?;
+    // a joined run drives the cluster's cart from where it is, or from the world's start
+    let start_line = match prepared.cart_start(from_start).await {
+        Ok(line) => line,
+        Err(e) => {
+            prepared.shutdown().await;
+            return Err(e.into());
+        }
+    };
     if svg_path.is_some() && prepared.robot.is_none() {
         prepared.shutdown().await;
         return Err(BadInput(format!(
@@ -210,6 +254,9 @@ pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
             path.display()
         );
         if let Some(line) = prepared.world_line() {
+            println!("{line}");
+        }
+        if let Some(line) = start_line {
             println!("{line}");
         }
     }
@@ -364,8 +411,9 @@ pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
                 "the monitor had not taken the run's last events within {MONITOR_FLUSH:?}"
             );
         }
-        // watched before the line: a Ctrl-C right after it is not missed
-        let stop = super::signal::shutdown_signal(false);
+        // watched before the line: a Ctrl-C right after it is not missed (under `marie up`,
+        // watched since before the run: nor is one that came before the line)
+        let stop = mission_over.ctrl_c();
         mission_over.set();
         let over = "monitor: the run is over; its page stays up until Ctrl-C";
         if say {
@@ -374,7 +422,7 @@ pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         } else {
             eprintln!("{over}");
         }
-        let signal = stop.await;
+        let signal = stop.wait().await;
         if say {
             println!("monitor stopped ({signal})");
         }

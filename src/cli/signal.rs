@@ -52,3 +52,54 @@ pub(crate) fn shutdown_signal(stdin: bool) -> impl Future<Output = &'static str>
         }
     }
 }
+
+/// A watch of SIGINT and SIGTERM (or standard input closing) shared by everyone who stops on
+/// it: it watches from [`Shutdown::watch`] on and remembers, so [`Shutdown::wait`] ends at
+/// once for a signal that came before it was called, in every clone. Two watches made one
+/// after the other would each miss what came before it was made: `marie up --run` and its
+/// run share one (see `run::MissionOver`), so one Ctrl-C stops both whenever it comes.
+#[derive(Clone, Debug)]
+pub(crate) struct Shutdown {
+    heard: tokio::sync::watch::Receiver<Option<&'static str>>,
+    _watching: std::sync::Arc<Watching>,
+}
+
+/// The task that watches, stopped with the last clone.
+#[derive(Debug)]
+struct Watching(tokio::task::JoinHandle<()>);
+
+impl Drop for Watching {
+    fn drop(&mut self) {
+        self.0.abort();
+    }
+}
+
+impl Shutdown {
+    /// Watch from now on (see [`shutdown_signal`]). Must be called on a tokio runtime.
+    pub(crate) fn watch(stdin: bool) -> Shutdown {
+        let signal = shutdown_signal(stdin);
+        let (tell, heard) = tokio::sync::watch::channel(None);
+        let task = tokio::spawn(async move {
+            let _ = tell.send(Some(signal.await));
+        });
+        Shutdown {
+            heard,
+            _watching: std::sync::Arc::new(Watching(task)),
+        }
+    }
+
+    /// The signal's name once one came (or standard input closed) since [`Shutdown::watch`].
+    pub(crate) async fn wait(&self) -> &'static str {
+        let mut heard = self.heard.clone();
+        let why = heard
+            .wait_for(Option::is_some)
+            .await
+            .ok()
+            .and_then(|why| *why);
+        match why {
+            Some(why) => why,
+            // the watching task ended without a word: it was aborted, nothing will come
+            None => std::future::pending().await,
+        }
+    }
+}

@@ -18,7 +18,7 @@ use super::children::{stop_all, Line, Listening, NodeChild, NodeLaunch};
 use super::error::BadInput;
 use super::join::{join, member_name, JoinArgs};
 use super::netns::{NetGuard, PrivateNet};
-use super::run::RunArgs;
+use super::run::{MissionOver, RunArgs};
 use marie::actors::dispatcher::mission::ParsedMission;
 use marie::actors::registry::{self, Instance};
 use marie::actors::run::FaultKind;
@@ -427,6 +427,9 @@ async fn serve(
         return result;
     };
 
+    // one Ctrl-C watch for up and its run, from before the run: a Ctrl-C between the
+    // run's last line and its page's wait is heard by both
+    let stop = super::signal::Shutdown::watch(false);
     let run = RunArgs {
         explain: false,
         json: false,
@@ -451,7 +454,9 @@ async fn serve(
         monitor: args.monitor,
         allow_faults: args.allow_faults,
         node_processes: processes,
-        mission_over: Default::default(),
+        mission_over: MissionOver::heard_by(stop.clone()),
+        // a cluster of its own: the cart is at the world's start
+        from_start: false,
         cluster: JoinArgs {
             join: Some(launches[0].listen),
             cookie: Some(layout.cookie.clone()),
@@ -462,13 +467,12 @@ async fn serve(
         },
     };
     let over = run.mission_over.clone();
-    let stop = super::signal::shutdown_signal(false);
     let run = super::run::run(run);
     tokio::pin!(run);
     tokio::select! {
         biased;
         result = &mut run => result,
-        signal = stop => {
+        signal = stop.wait() => {
             if over.is_set() {
                 // the mission is over: the run heard the same Ctrl-C (with --monitor it was
                 // waiting for it to close its page) and ends with the mission's outcome

@@ -391,6 +391,21 @@ impl Proc {
         signal_pid(self.child.id(), signal);
     }
 
+    /// Send `signal` (`libc::SIGINT`, …) to the process at once, from this process: no
+    /// `kill` command is started between the moment the test chose and the signal (a
+    /// process start takes milliseconds, longer than some races this aims at).
+    pub(crate) fn signal_now(&self, signal: i32) {
+        let pid = i32::try_from(self.child.id()).expect("a pid fits in pid_t");
+        // SAFETY: kill(2) takes plain integers and touches no memory of this process
+        let sent = unsafe { libc::kill(pid, signal) };
+        assert_eq!(
+            sent,
+            0,
+            "kill({pid}, {signal}): {}",
+            std::io::Error::last_os_error()
+        );
+    }
+
     /// Wait for the process to end (at most [`EVENT_TIMEOUT`]); its exit code.
     pub(crate) fn wait_exit(&mut self) -> Option<i32> {
         let deadline = Instant::now() + EVENT_TIMEOUT;

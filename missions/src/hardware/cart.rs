@@ -132,6 +132,10 @@ marie_actors::remote_message! {
         Status {} -> CartStatus,
         /// The driven path so far.
         Trace {} -> Vec<TracePoint>,
+        /// Put the cart back at rest at the world's start pose, its collisions and path
+        /// started anew ([`Simulation::restart`]), between the runs of a cluster kept up;
+        /// answers the status from there.
+        Restart {} -> CartStatus,
     }
     local {
         /// Time for the next physics step.
@@ -353,6 +357,16 @@ impl Actor for VirtualCart {
             CartMsg::Trace { reply } => {
                 let _ = reply.send(state.sim.trace().to_vec());
             }
+            CartMsg::Restart { reply } => {
+                state.advance();
+                state.sim.restart();
+                // what held before holds no more: a controller of the next run commands anew
+                state.command = (0.0, 0.0);
+                state.commanded_at = state.clock.now();
+                state.cap = None;
+                tracing::info!("the cart is back at rest at the world's start");
+                let _ = reply.send(state.status());
+            }
         }
         Ok(())
     }
@@ -486,5 +500,11 @@ impl CartClient {
     /// The driven path.
     pub async fn trace(&self) -> Result<Vec<TracePoint>, CartError> {
         self.call(|reply| CartMsg::Trace { reply }).await
+    }
+
+    /// Put the cart back at rest at the world's start pose ([`CartMsg::Restart`]); its
+    /// status from there.
+    pub async fn restart(&self) -> Result<CartStatus, CartError> {
+        self.call(|reply| CartMsg::Restart { reply }).await
     }
 }

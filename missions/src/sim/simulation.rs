@@ -108,14 +108,7 @@ impl Simulation {
         let mut odometry_rng = Rng::stream(seed, STREAM_ODOMETRY);
         let odometry_scale = 1.0 + odometry_rng.gaussian(world.sim.odometry_distance_sigma);
         let odometry_drift = odometry_rng.gaussian(world.sim.odometry_heading_sigma);
-        let start = if world.start.x.is_finite()
-            && world.start.y.is_finite()
-            && world.start.theta.is_finite()
-        {
-            world.start
-        } else {
-            Pose::default()
-        };
+        let start = start_pose(&world);
         Simulation {
             drive: Drive::new(world.cart),
             geometry,
@@ -140,6 +133,29 @@ impl Simulation {
             odometry_rng,
             world,
         }
+    }
+
+    /// Put the cart back at rest at the world's start pose, as [`Simulation::new`] left it:
+    /// no collision counted or latched, its path starting there anew, no command, the
+    /// emergency stop released, the odometry at the start pose. Time goes on, and so does
+    /// the noise (a run after this is no replay of the first). Why: a simulation kept
+    /// running between runs — a cluster's cart — has its cart where the last run left it, as
+    /// a real cart would; a user may rather start the next run as the first one started.
+    pub fn restart(&mut self) {
+        let start = start_pose(&self.world);
+        self.drive = Drive::new(self.world.cart);
+        self.pose = start;
+        self.odometry = start;
+        self.command_speed = 0.0;
+        self.command_steer = 0.0;
+        self.emergency = false;
+        self.latched = None;
+        self.collisions = 0;
+        self.events.clear();
+        self.trace = vec![TracePoint {
+            time: self.time,
+            pose: start,
+        }];
     }
 
     /// The world simulated.
@@ -415,5 +431,15 @@ impl Simulation {
             time: self.time,
             pose,
         });
+    }
+}
+
+/// Where the cart starts in `world`: its start pose, or the origin when that is not finite
+/// (a hand-made world).
+fn start_pose(world: &World) -> Pose {
+    if world.start.x.is_finite() && world.start.y.is_finite() && world.start.theta.is_finite() {
+        world.start
+    } else {
+        Pose::default()
     }
 }

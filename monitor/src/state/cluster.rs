@@ -15,7 +15,8 @@ pub struct NodeView {
     /// Its name.
     pub name: String,
     /// `up`, `lost` (its sessions ended), `down` (declared down by a failure detector) or
-    /// `frozen` (it was frozen past its peers' deadline and restarts its operations).
+    /// `frozen` (up again after it was frozen past its peers' deadline, its operations
+    /// restarted as new incarnations: shown until it is lost or declared down again).
     pub status: &'static str,
     /// The address it listens on, when a peer said.
     pub address: Option<String>,
@@ -91,9 +92,14 @@ impl Cluster {
         }
     }
 
-    /// A peer's session is ready.
+    /// A peer's session is ready. A frozen node stays frozen: being up again is part of
+    /// what that tells.
     pub fn up(&mut self, peer: &str, address: &str, at_ms: u64) {
-        self.set(peer, at_ms, "up").address = Some(address.to_string());
+        let node = self.of(peer, at_ms);
+        if node.status != "frozen" {
+            self.set(peer, at_ms, "up");
+        }
+        self.of(peer, at_ms).address = Some(address.to_string());
     }
 
     /// A peer's sessions ended: its modules left.
@@ -113,7 +119,11 @@ impl Cluster {
         self.set(peer, at_ms, "down").modules.clear();
     }
 
-    /// A node found it was frozen past its peers' deadline.
+    /// A node found it was frozen past its peers' deadline. Its own news, which reaches a
+    /// watcher only once the node is back in session (its forwarder resends it then):
+    /// before or after its peers' news that they see it again, as the streams of two
+    /// nodes happen to interleave. So neither undoes the other: the node shows frozen —
+    /// up again, its operations restarted — until it is lost or declared down again.
     pub fn frozen(&mut self, node: &str, at_ms: u64) {
         self.set(node, at_ms, "frozen");
     }
@@ -175,5 +185,29 @@ mod tests {
         c.frozen("a", 40);
         c.heard_from("a", 50);
         assert_eq!((c.0["a"].status, c.0["a"].since_ms), ("frozen", 40));
+    }
+
+    #[test]
+    fn a_woken_node_shows_frozen_whichever_news_comes_first_until_it_is_gone_again() {
+        for freeze_first in [true, false] {
+            let mut c = Cluster::default();
+            c.up("a", "127.0.0.1:1", 10);
+            c.down("a", 20);
+            // the node's own news, stamped when it woke, and a peer's seeing it again
+            if freeze_first {
+                c.frozen("a", 30);
+                c.up("a", "127.0.0.1:1", 31);
+            } else {
+                c.up("a", "127.0.0.1:1", 31);
+                c.frozen("a", 30);
+            }
+            c.heard_from("a", 32);
+            assert_eq!(c.0["a"].status, "frozen", "freeze first: {freeze_first}");
+            assert_eq!(c.0["a"].address.as_deref(), Some("127.0.0.1:1"));
+            c.lost("a", "127.0.0.1:1", 40);
+            assert_eq!(c.0["a"].status, "lost");
+            c.up("a", "127.0.0.1:1", 50);
+            assert_eq!((c.0["a"].status, c.0["a"].since_ms), ("up", 50));
+        }
     }
 }

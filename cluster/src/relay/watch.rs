@@ -1,0 +1,226 @@
+//! The watcher: an actor in `pg` that takes the other nodes' numbered events, each
+//! forwarder's stream in order and once, and hands them to a bounded [`Watch`].
+
+use super::order::{Admit, Order};
+use super::{WatcherMsg, GROUP, KIND, SCOPE};
+use marie_actors::events::Event;
+use marie_actors::wire::Envelope;
+use ractor::{pg, Actor, ActorProcessingErr, ActorRef, SpawnErr};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+use tokio::sync::mpsc;
+
+/// The events of the other nodes, as they arrive.
+pub struct Watch {
+    events: mpsc::Receiver<Event>,
+    lost: Arc<AtomicU64>,
+    actor: ActorRef<WatcherMsg>,
+}
+
+impl std::fmt::Debug for Watch {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Watch")
+            .field("lost", &self.lost())
+            .finish_non_exhaustive()
+    }
+}
+
+impl Watch {
+    /// The next event of another node; `None` once the watch stopped.
+    pub async fn recv(&mut self) -> Option<Event> {
+        self.events.recv().await
+    }
+
+    /// The next event if one is waiting.
+    pub fn try_recv(&mut self) -> Option<Event> {
+        self.events.try_recv().ok()
+    }
+
+    /// Events lost: dropped because the watch was full or their frame did not decode, or
+    /// never to come — a gap in a node's numbers, events its forwarder no longer held
+    /// when this watch was in reach again (or fell behind its own bus on).
+    pub fn lost(&self) -> u64 {
+        self.lost.load(Ordering::Relaxed)
+    }
+
+    #[cfg(test)]
+    pub(super) fn actor(&self) -> &ActorRef<WatcherMsg> {
+        &self.actor
+    }
+}
+
+impl Drop for Watch {
+    fn drop(&mut self) {
+        self.actor.stop(None);
+    }
+}
+
+/// Watch every other node's events, keeping at most `capacity` not yet taken. The
+/// watcher is in `pg` when this returns: nodes forward to it from their next event on
+/// (once the membership has reached them), and resend what it missed while out of their
+/// reach.
+pub async fn watch(capacity: usize) -> Result<Watch, SpawnErr> {
+    let (tx, events) = mpsc::channel(capacity.max(1));
+    let lost = Arc::new(AtomicU64::new(0));
+    let (actor, _) = Actor::spawn(
+        None,
+        Watcher,
+        WatcherState {
+            tx,
+            lost: lost.clone(),
+            order: Order::default(),
+        },
+    )
+    .await?;
+    Ok(Watch {
+        events,
+        lost,
+        actor,
+    })
+}
+
+struct Watcher;
+
+struct WatcherState {
+    tx: mpsc::Sender<Event>,
+    lost: Arc<AtomicU64>,
+    order: Order,
+}
+
+impl Actor for Watcher {
+    type Msg = WatcherMsg;
+    type State = WatcherState;
+    type Arguments = WatcherState;
+
+    async fn pre_start(
+        &self,
+        myself: ActorRef<WatcherMsg>,
+        state: WatcherState,
+    ) -> Result<WatcherState, ActorProcessingErr> {
+        pg::join_scoped(SCOPE.into(), GROUP.into(), vec![myself.get_cell()]);
+        Ok(state)
+    }
+
+    async fn handle(
+        &self,
+        _myself: ActorRef<WatcherMsg>,
+        msg: WatcherMsg,
+        state: &mut WatcherState,
+    ) -> Result<(), ActorProcessingErr> {
+        let WatcherMsg::Numbered { stream, seq, frame } = msg;
+        match state.order.admit(stream, seq) {
+            Admit::Duplicate => return Ok(()),
+            Admit::Take { missed } if missed > 0 => {
+                tracing::warn!(
+                    missed,
+                    "events of another node never came: its forwarder no longer held them"
+                );
+                state.lost.fetch_add(missed, Ordering::Relaxed);
+            }
+            Admit::Take { .. } => {}
+        }
+        let event = Envelope::from_bytes(&frame)
+            .map_err(|e| e.to_string())
+            .and_then(|env| {
+                if env.kind != KIND {
+                    return Err(format!("a frame of kind {:?}", env.kind));
+                }
+                env.payload::<Event>().map_err(|e| e.to_string())
+            });
+        match event {
+            Ok(event) => {
+                if state.tx.try_send(event).is_err() {
+                    state.lost.fetch_add(1, Ordering::Relaxed);
+                }
+            }
+            Err(e) => {
+                state.lost.fetch_add(1, Ordering::Relaxed);
+                tracing::warn!(error = %e, "a forwarded event that does not decode: dropped");
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use marie_actors::events::{EventKind, ModuleInfo};
+    use marie_actors::registry::ModuleKind;
+
+    fn event(name: &str) -> Event {
+        Event {
+            at_ms: 7,
+            node: "alpha".into(),
+            kind: EventKind::Joined(ModuleInfo {
+                module: ModuleKind::Operation,
+                name: name.into(),
+                id: 1,
+                node: "alpha".into(),
+                address: "0.1".into(),
+            }),
+        }
+    }
+
+    fn frame(e: &Event) -> Vec<u8> {
+        Envelope::new(KIND, e).unwrap().to_bytes().unwrap()
+    }
+
+    #[tokio::test]
+    async fn a_watcher_drops_what_does_not_decode_and_counts_it() {
+        let mut watch = watch(8).await.unwrap();
+        let first = event("sampler");
+        for (seq, frame) in [
+            b"garbage".to_vec(),
+            Envelope::new("heartbeat", &1u64)
+                .unwrap()
+                .to_bytes()
+                .unwrap(),
+            frame(&first),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let seq = seq as u64 + 1;
+            let msg = WatcherMsg::Numbered {
+                stream: 1,
+                seq,
+                frame,
+            };
+            watch.actor().cast(msg).unwrap();
+        }
+        // the actor handles its messages in order: the two bad frames came first
+        assert_eq!(watch.recv().await, Some(first));
+        assert_eq!(watch.lost(), 2);
+    }
+
+    #[tokio::test]
+    async fn a_resent_backlog_gives_each_event_once_in_order_and_counts_what_it_lacked() {
+        let mut watch = watch(16).await.unwrap();
+        let names = ["a", "b", "c", "d", "e", "f"];
+        let events: Vec<Event> = names.iter().map(|n| event(n)).collect();
+        let send = |seq: u64| {
+            let msg = WatcherMsg::Numbered {
+                stream: 9,
+                seq,
+                frame: frame(&events[seq as usize - 1]),
+            };
+            watch.actor().cast(msg).unwrap();
+        };
+        // 1 and 2 arrive; 3 is lost with its session; the node's backlog, resent, holds
+        // 2 to 4 (1 was pushed out); then 6 (5 fell off its bus)
+        for seq in [1, 2, 2, 3, 4, 6] {
+            send(seq);
+        }
+        let mut got = Vec::new();
+        for _ in 0..5 {
+            got.push(watch.recv().await.unwrap());
+        }
+        assert_eq!(
+            got,
+            [&events[0], &events[1], &events[2], &events[3], &events[5]].map(Clone::clone)
+        );
+        assert_eq!(watch.try_recv(), None);
+        assert_eq!(watch.lost(), 1, "5 never came");
+    }
+}
