@@ -5,6 +5,8 @@
 
 mod common;
 
+use common::http;
+use common::monitor::{monitored_up, page_of};
 use common::{marie, report_of, text};
 
 const THESIS: &str = "missions/clusters/thesis.toml";
@@ -286,10 +288,11 @@ fn operations_cut_off_from_the_cart_hold_until_it_is_back_and_the_mission_docks(
     if !common::netns::Netns::can_make() {
         return;
     }
-    // the operations node (localizer, wall sensor, wall follower, ...) loses the cart for
-    // 8 s of mission time while both still reach everyone else: the operations that drive
-    // or read the cart hold their steps until it is back in their registry, instead of
-    // failing the mission (they did: `the virtual cart did not answer`, a full stop)
+    // the operations and spare nodes (the localizer, wall sensor, wall follower, ... are
+    // bound on one of them) lose the cart for 8 s of mission time while all still reach
+    // the features node and marie up: the operations that drive or read the cart hold
+    // their steps until it is back in their registry, instead of failing the mission (they
+    // did: `the virtual cart did not answer`, a full stop)
     let (out, report) = report_of(&[
         "up",
         THESIS,
@@ -298,7 +301,7 @@ fn operations_cut_off_from_the_cart_hold_until_it_is_back_and_the_mission_docks(
         "--speed",
         SPEED,
         "--fault",
-        "partition:operations|cart@6+8",
+        "partition:operations,spare|cart@6+8",
     ]);
     let stdout = text(&out.stdout);
     let stderr = text(&out.stderr);
@@ -313,35 +316,54 @@ fn operations_cut_off_from_the_cart_hold_until_it_is_back_and_the_mission_docks(
 }
 
 #[test]
-fn a_killed_operations_node_is_replaced_by_the_spare_and_the_mission_docks() {
-    // the operations node — most of the mission's operations, the world and parameter
-    // datamanagers' preferred primaries — is killed while the wall is followed: its
-    // operations are rebound to their standbys on the spare node, the datamanagers fail
-    // over to a copy, and a stand-in whose `activate` waited for its datamanager runs it
-    // again once the datamanager is back (it stepped without its map before)
-    let (out, report) = report_of(&[
-        "up",
+fn the_killed_node_of_the_bound_operations_is_replaced_by_the_other_and_the_mission_docks() {
+    // the node the mission bound most of its operations on (operations or spare: the
+    // layout has a standby of each on the other; which is bound is the selection's call) is
+    // killed from the page while the wall is followed: its operations are rebound to their
+    // standbys, the datamanagers fail over to a copy where the node held a primary, and a
+    // stand-in whose `activate` waited for its datamanager runs it again once it is back
+    // (it stepped without its map before)
+    let (mut up, line) = monitored_up(
         THESIS,
-        "--run",
-        "missions/docking.toml",
-        "--speed",
-        SPEED,
-        "--fault",
-        "stop-node:operations@20",
-    ]);
-    let stdout = text(&out.stdout);
-    let stderr = text(&out.stderr);
-    assert_eq!(out.status.code(), Some(0), "{stdout}\n{stderr}");
-    assert_eq!(report["outcome"], "succeeded");
-    assert_eq!(report["collisions"], 0);
-    let rebinds = report["rebinds"].as_array().unwrap();
-    assert!(!rebinds.is_empty(), "{stdout}");
-    for r in rebinds {
-        assert_eq!(r["from_node"], "operations", "{r}");
-        assert_eq!(r["to_node"], "spare", "{r}");
-    }
-    assert!(
-        stdout.contains("verdict: 1 fault injected (stop-node 1), 1 node lost (0 back), "),
-        "{stdout}"
+        &[
+            "--run",
+            "missions/docking.toml",
+            "--speed",
+            SPEED,
+            "--allow-faults",
+        ],
     );
+    let (addr, _) = page_of(&line);
+    // `  bound localizer v1.0.0 on spare`
+    let bound = up.wait_line("bound localizer v1.0.0 on ");
+    let node = bound.rsplit(' ').next().unwrap().to_string();
+    assert!(["operations", "spare"].contains(&node.as_str()), "{bound}");
+    let other = if node == "operations" {
+        "spare"
+    } else {
+        "operations"
+    };
+    up.wait_line("> follow-wall: start");
+    let stop = serde_json::json!({"fault": "stop-node", "node": node});
+    let (status, answer) = http::post_json(addr, "/api/fault", &stop);
+    assert_eq!(status, 200, "{answer}");
+    let rebound = up.wait_line("localizer rebound: ");
+    assert!(
+        rebound.contains(&format!(" on {node} -> "))
+            && rebound.contains(&format!(" on {other} after ")),
+        "{rebound}"
+    );
+    up.wait_line("mission succeeded");
+    let outcome = up.wait_line("outcome: ");
+    assert!(outcome.contains("outcome: succeeded"), "{outcome}");
+    assert!(outcome.ends_with("collisions: 0"), "{outcome}");
+    let verdict = up.wait_line("verdict: ");
+    assert!(
+        verdict.starts_with("verdict: 1 fault injected (stop-node 1), 1 node lost (0 back), "),
+        "{verdict}"
+    );
+    up.wait_line("the run is over");
+    up.signal("INT");
+    up.wait_line("cluster stopped");
+    assert_eq!(up.wait_exit(), Some(0), "{}", up.seen().join("\n"));
 }
