@@ -85,16 +85,12 @@ impl NodeChild {
         if let Some(d) = &launch.data_dir {
             cmd.arg("--data-dir").arg(d);
         }
-        if let Some(ns) = &launch.netns {
-            let fd = std::os::fd::AsRawFd::as_raw_fd(ns.as_ref());
+        if let Some(ns) = launch.netns.clone() {
             // SAFETY: between fork and exec the child only calls setns(2), which is
             // async-signal-safe, on a descriptor the parent holds open
             unsafe {
                 std::os::unix::process::CommandExt::pre_exec(&mut cmd, move || {
-                    if libc::setns(fd, libc::CLONE_NEWNET) != 0 {
-                        return Err(std::io::Error::last_os_error());
-                    }
-                    Ok(())
+                    super::netns::set_ns(&ns)
                 });
             }
         }

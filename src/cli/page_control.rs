@@ -62,15 +62,9 @@ impl Control for PageControl {
         Box::pin(async move {
             let target = match (&request.on, request.fault.aim()) {
                 // the page cuts a node off from every other node `marie up` started
-                (FaultOn::Node { node }, Aim::Cut) => Target::Cut {
-                    a: vec![node.clone()],
-                    b: injector
-                        .processes()
-                        .names()
-                        .into_iter()
-                        .filter(|n| n != node)
-                        .collect(),
-                },
+                (FaultOn::Node { node }, Aim::Cut) => {
+                    Target::cut_off(node, &injector.processes().names())
+                }
                 (on, _) => target_of(on),
             };
             let done = injector

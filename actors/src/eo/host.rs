@@ -304,6 +304,17 @@ impl<O: Operation> HostState<O> {
         self.after_step(myself, outcome).await;
     }
 
+    /// The module whose absence `e` is, if it is gone and an activation runs: the
+    /// activation's number and the module's kind and name — what the host then waits for
+    /// instead of failing the activation.
+    fn held_for(&self, e: &super::OpError) -> Option<(u64, ModuleKind, String)> {
+        let activation = self.active.as_ref()?.number;
+        let (kind, module) = e.needed_module()?;
+        self.ctx
+            .module_gone(kind, module)
+            .then(|| (activation, kind, module.to_string()))
+    }
+
     /// React to the outcome of `activate` or `step`.
     async fn after_step(
         &mut self,
@@ -335,55 +346,48 @@ impl<O: Operation> HostState<O> {
                 self.end_activation(|flags, epoch| EoReport::Finished { flags, epoch })
                     .await;
             }
-            Err(e)
-                if self.active.is_some()
-                    && e.needed_module()
-                        .is_some_and(|(kind, m)| self.ctx.module_gone(kind, m)) =>
-            {
-                // the module is gone (a DM crashed, the cart's node lost or cut off from
-                // this one): wait for its next incarnation, then step again
-                let activation = self.active.as_ref().map_or(0, |a| a.number);
-                let (kind, module) = e
-                    .needed_module()
-                    .map(|(k, m)| (k, m.to_string()))
-                    .unwrap_or((ModuleKind::Datamanager, String::new()));
-                tracing::warn!(op = %self.identity.name, %module, error = %e, "module gone: waiting for it");
-                let reason = e.to_string();
-                let myself = myself.clone();
-                // held where the next tick is: it dies with the host, and a later tick or
-                // wait replaces (cancels) it; its message names its activation, which a
-                // host that has moved on ignores
-                self.tick = Some(Timer::task(tokio::spawn(async move {
-                    let back = crate::registry::follow::next_instance(
-                        kind,
-                        &module,
-                        None,
-                        super::DATAMANAGER_RETURN,
-                    )
+            Err(e) => match self.held_for(&e) {
+                Some((activation, kind, module)) => {
+                    // the module is gone (a DM crashed, the cart's node lost or cut off from
+                    // this one): wait for its next incarnation, then step again
+                    tracing::warn!(op = %self.identity.name, %module, error = %e, "module gone: waiting for it");
+                    let reason = e.to_string();
+                    let myself = myself.clone();
+                    // held where the next tick is: it dies with the host, and a later tick or
+                    // wait replaces (cancels) it; its message names its activation, which a
+                    // host that has moved on ignores
+                    self.tick = Some(Timer::task(tokio::spawn(async move {
+                        let back = crate::registry::follow::next_instance(
+                            kind,
+                            &module,
+                            None,
+                            super::DATAMANAGER_RETURN,
+                        )
+                        .await;
+                        let message = if back.is_some() {
+                            tracing::info!(%module, "module back: stepping on");
+                            EoMsg::Tick { activation }
+                        } else {
+                            EoMsg::ModuleAbsent {
+                                activation,
+                                module,
+                                reason,
+                            }
+                        };
+                        let _ = myself.cast(message);
+                    })));
+                }
+                None => {
+                    tracing::warn!(op = %self.identity.name, error = %e, "operation failed");
+                    let reason = e.to_string();
+                    self.end_activation(|flags, epoch| EoReport::Failed {
+                        reason,
+                        flags,
+                        epoch,
+                    })
                     .await;
-                    let message = if back.is_some() {
-                        tracing::info!(%module, "module back: stepping on");
-                        EoMsg::Tick { activation }
-                    } else {
-                        EoMsg::ModuleAbsent {
-                            activation,
-                            module,
-                            reason,
-                        }
-                    };
-                    let _ = myself.cast(message);
-                })));
-            }
-            Err(e) => {
-                tracing::warn!(op = %self.identity.name, error = %e, "operation failed");
-                let reason = e.to_string();
-                self.end_activation(|flags, epoch| EoReport::Failed {
-                    reason,
-                    flags,
-                    epoch,
-                })
-                .await;
-            }
+                }
+            },
         }
     }
 }

@@ -333,8 +333,6 @@ impl OpContext {
         Ok(client.with_epoch(epoch))
     }
 
-    /// Whether the datamanager `dm` is gone now: no longer registered, or the actor this
-    /// context reached it through has stopped (a new incarnation may be on its way).
     /// Whether the module `kind` named `module` is gone: a datamanager as
     /// [`dm_gone`](Self::dm_gone) says, any other when the registry has no live instance
     /// of it.
@@ -345,6 +343,8 @@ impl OpContext {
         }
     }
 
+    /// Whether the datamanager `dm` is gone now: no longer registered, or the actor this
+    /// context reached it through has stopped (a new incarnation may be on its way).
     pub(crate) fn dm_gone(&self, dm: &str) -> bool {
         let stopped = self
             .dms

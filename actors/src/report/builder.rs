@@ -12,7 +12,7 @@
 //!   [`RunReport::record_faults`] and [`RunReport::record_choice`] (the latest
 //!   [`REPORT_KEEPS`](super::REPORT_KEEPS); every choice of the run's start).
 
-use super::{keep_latest, ActionRecord, FaultRecord, NodeLossRecord, OpRecord, RunReport};
+use super::{ActionRecord, FaultRecord, OpRecord, RunReport};
 use crate::events::{Event, EventBus, EventKind, Tap};
 use crate::run::{OpEnd, Outcome};
 use std::sync::{Arc, Mutex};
@@ -199,34 +199,11 @@ impl ReportBuilder {
             EventKind::NodeLost { peer, .. } | EventKind::NodeDown { peer, .. } => {
                 let at_ms = self.run_ms(event);
                 let down = matches!(event.kind, EventKind::NodeDown { .. });
-                let lost = &mut self.report.nodes_lost;
-                // a peer declared down then loses its sessions: one loss
-                match lost
-                    .iter_mut()
-                    .rev()
-                    .find(|n| n.peer == *peer && n.back_at_ms.is_none())
-                {
-                    Some(open) => open.declared_down |= down,
-                    None => keep_latest(
-                        lost,
-                        NodeLossRecord {
-                            peer: peer.clone(),
-                            at_ms,
-                            declared_down: down,
-                            back_at_ms: None,
-                        },
-                    ),
-                }
+                self.report.record_node_lost(peer, at_ms, down);
             }
             EventKind::NodeUp { peer, .. } => {
                 let at_ms = self.run_ms(event);
-                if let Some(open) = self
-                    .report
-                    .nodes_lost
-                    .iter_mut()
-                    .rev()
-                    .find(|n| n.peer == *peer && n.back_at_ms.is_none())
-                {
+                if let Some(open) = self.report.node_loss_open(peer) {
                     open.back_at_ms = Some(at_ms);
                 }
             }

@@ -221,6 +221,32 @@ impl RunReport {
         }
     }
 
+    /// Record that the run's node lost `peer` at `at_ms` (`declared_down` by its failure
+    /// detector, or its sessions ended): a peer still lost is one loss however it is told
+    /// (declared down, then its sessions closed), the latest [`REPORT_KEEPS`] kept.
+    pub fn record_node_lost(&mut self, peer: &str, at_ms: u64, declared_down: bool) {
+        match self.node_loss_open(peer) {
+            Some(open) => open.declared_down |= declared_down,
+            None => keep_latest(
+                &mut self.nodes_lost,
+                NodeLossRecord {
+                    peer: peer.to_string(),
+                    at_ms,
+                    declared_down,
+                    back_at_ms: None,
+                },
+            ),
+        }
+    }
+
+    /// The loss of `peer` it has not come back from yet.
+    pub(crate) fn node_loss_open(&mut self, peer: &str) -> Option<&mut NodeLossRecord> {
+        self.nodes_lost
+            .iter_mut()
+            .rev()
+            .find(|n| n.peer == peer && n.back_at_ms.is_none())
+    }
+
     /// Count a choice and keep it: a choice of the run's start always (there is one per
     /// operation of the mission), a stand-in's among the latest [`REPORT_KEEPS`] stand-ins'
     /// (a run may rebind without end; what a choice at the start was is what `--explain`
@@ -245,7 +271,7 @@ impl RunReport {
 }
 
 /// Append `item`, dropping the oldest so that at most [`REPORT_KEEPS`] remain.
-pub(super) fn keep_latest<T>(list: &mut Vec<T>, item: T) {
+fn keep_latest<T>(list: &mut Vec<T>, item: T) {
     if list.len() >= REPORT_KEEPS {
         let excess = list.len() + 1 - REPORT_KEEPS;
         list.drain(..excess);

@@ -202,15 +202,16 @@ impl Injector {
             .await
     }
 
-    /// Inject `kind` (one that [lasts](FaultKind::lasts)) into what `target` names now for
-    /// `lasting` of mission time, and tell the bus — what the seeded node chaos does.
-    pub async fn inject_lasting(
+    /// Inject `kind` into what `target` names now, for `lasting` of mission time if it
+    /// [lasts](FaultKind::lasts) (`None`: the default), and tell the bus — what the seeded
+    /// node chaos does.
+    pub(crate) async fn inject_for(
         &self,
         kind: FaultKind,
         target: &Target,
-        lasting: Duration,
+        lasting: Option<Duration>,
     ) -> Result<Injected, FaultError> {
-        self.strike(kind, target, None, Some(lasting)).await
+        self.strike(kind, target, None, lasting).await
     }
 
     /// Tell the bus that a planned fault was not injected, and why.

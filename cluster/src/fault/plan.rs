@@ -94,14 +94,9 @@ impl PlanRun {
                         tracing::info!("node chaos: no node left to hit");
                         return;
                     };
-                    let _ = match strike.lasting {
-                        Some(d) => {
-                            injector
-                                .inject_lasting(strike.kind, &strike.target, d)
-                                .await
-                        }
-                        None => injector.inject(strike.kind, &strike.target).await,
-                    };
+                    let _ = injector
+                        .inject_for(strike.kind, &strike.target, strike.lasting)
+                        .await;
                 }
             }));
         }

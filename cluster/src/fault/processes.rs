@@ -96,17 +96,6 @@ impl NodeProcesses {
         }
     }
 
-    /// Let every frozen node go on: before the nodes are asked to stop (a stopped process
-    /// hears nothing).
-    pub fn thaw_all(&self) {
-        let frozen: Vec<String> = self.lock().frozen.iter().cloned().collect();
-        for node in frozen {
-            if let Err(e) = self.thaw(&node) {
-                tracing::warn!(%node, "cannot let the frozen node go on: {e}");
-            }
-        }
-    }
-
     /// Cut the nodes of `a` off from those of `b` (see [`NodeNetwork::cut`]). Every node
     /// must be one of this process's, and the nodes must run in a network that can be cut.
     pub(crate) fn cut(&self, a: &[String], b: &[String]) -> Result<(), Error> {

@@ -62,6 +62,15 @@ impl Target {
         }
     }
 
+    /// The cut of `node` from every other of `nodes` (the page's *cut off*, the node
+    /// chaos's partition).
+    pub fn cut_off(node: &str, nodes: &[String]) -> Target {
+        Target::Cut {
+            a: vec![node.to_string()],
+            b: nodes.iter().filter(|n| *n != node).cloned().collect(),
+        }
+    }
+
     /// `A,B|C,D`: two non-empty groups of node names, none in both, none twice.
     fn parse_cut(s: &str) -> Option<Target> {
         let (a, b) = s.split_once('|')?;
