@@ -708,16 +708,9 @@ async fn failover(transport: &Transport, signal: i32, label: &str, samples: usiz
     let clock = RealClock::shared();
     let bus = EventBus::new("bench", clock.clone());
     let mut events = bus.subscribe();
-    let dispatcher = spawn_dispatcher(
-        DispatcherArgs {
-            mission,
-            clock,
-            bus,
-        },
-        None,
-    )
-    .await
-    .expect("dispatcher");
+    let dispatcher = spawn_dispatcher(DispatcherArgs::new(mission, clock, bus), None)
+        .await
+        .expect("dispatcher");
     let run = {
         let d = dispatcher.clone();
         tokio::spawn(async move { request_run(&d).await })

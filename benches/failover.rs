@@ -202,14 +202,7 @@ fn main() {
         // the run's report: its events folded (bounded: the latest rebinds and choices,
         // and counts)
         let folded = marie::actors::report::ReportBuilder::attach(&bus);
-        let dispatcher = spawn_dispatcher(
-            DispatcherArgs {
-                mission,
-                clock,
-                bus,
-            },
-            None,
-        )
+        let dispatcher = spawn_dispatcher(DispatcherArgs::new(mission, clock, bus), None)
         .await
         .expect("dispatcher");
         let run = {

@@ -386,11 +386,7 @@ async fn a_thousand_crash_restart_cycles_during_a_mission_leave_the_actor_count_
     let mut events = bus.subscribe();
     // the run's report: its events, folded
     let folded = marie::actors::report::ReportBuilder::attach(&bus);
-    let args = DispatcherArgs {
-        mission,
-        clock,
-        bus,
-    };
+    let args = DispatcherArgs::new(mission, clock, bus);
     let dispatcher = dispatcher::spawn_dispatcher(args, None).await.unwrap();
     let run = {
         let d = dispatcher.clone();

@@ -102,6 +102,27 @@ pub struct ClusterLayout {
     pub nodes: Vec<LayoutNode>,
 }
 
+impl ClusterLayout {
+    /// The node whose config says `dispatcher = "active"`: where `marie up --run`
+    /// dispatches the run (its standbys take it over should it be lost); `None`: the run is
+    /// dispatched by `marie up` itself.
+    pub fn dispatch_node(&self) -> Option<&str> {
+        self.nodes
+            .iter()
+            .find(|n| n.config.desk == Some(crate::node::DeskRole::Active))
+            .map(|n| n.config.name.as_str())
+    }
+
+    /// The nodes whose config says `dispatcher = "standby"`.
+    pub fn standby_nodes(&self) -> Vec<&str> {
+        self.nodes
+            .iter()
+            .filter(|n| n.config.desk == Some(crate::node::DeskRole::Standby))
+            .map(|n| n.config.name.as_str())
+            .collect()
+    }
+}
+
 /// One `[[node]]` of a cluster file.
 #[derive(Clone, Debug)]
 pub struct LayoutNode {
@@ -213,6 +234,22 @@ impl ClusterLayout {
                 return;
             }
         };
+        let active = |c: &NodeConfig| c.desk == Some(crate::node::DeskRole::Active);
+        if let Some(other) = self
+            .nodes
+            .iter()
+            .find(|n| active(&n.config) && active(&config))
+        {
+            r.err(
+                &config_at,
+                format!(
+                    "node `{}` and node `{}` both say `dispatcher = \"active\"`: a cluster \
+                     dispatches its runs on one node (make the others `\"standby\"`)",
+                    other.config.name, config.name
+                ),
+            );
+            return;
+        }
         if let Some(twin) = self.nodes.iter().find(|n| n.config.name == config.name) {
             r.err(
                 &config_at,

@@ -42,6 +42,8 @@ pub(crate) struct Cli {
 }
 
 /// The verbs.
+// parsed once per process: the size of the largest variant costs nothing
+#[allow(clippy::large_enum_variant)]
 #[derive(Subcommand, Debug)]
 pub(crate) enum Command {
     /// Run a mission on the embedded node.

@@ -118,11 +118,12 @@ pub(crate) async fn start_live(
     bus: &EventBus,
     options: MonitorOptions,
     other_nodes: bool,
+    dispatched_elsewhere: bool,
 ) -> anyhow::Result<(MonitorHandle, Option<JoinHandle<()>>)> {
     let monitor = Monitor::live(bus, options)?;
     let feed = monitor.feed().expect("a live monitor has a feed");
     let relay = if other_nodes {
-        let relay = relay_into(feed.clone()).await?;
+        let relay = relay_into(feed.clone(), dispatched_elsewhere).await?;
         let poll = poll_datamanagers(feed.clone(), bus.clone());
         // one handle for both: the poller ends with the relay, and the relay (and with it
         // the poller) when this task is aborted
@@ -200,8 +201,12 @@ fn feed_listing(feed: &Feed, bus: &EventBus) {
 }
 
 /// Watch the other nodes' events (the cluster's relay) into `feed`, until aborted.
-async fn relay_into(feed: Feed) -> anyhow::Result<JoinHandle<()>> {
+async fn relay_into(feed: Feed, without_dispatch: bool) -> anyhow::Result<JoinHandle<()>> {
     let mut watch = marie::cluster::relay::watch(FROM_OTHERS).await?;
+    // a run dispatched elsewhere is on the bus, republished: not twice
+    if without_dispatch {
+        watch = watch.without_dispatch();
+    }
     Ok(tokio::spawn(async move {
         while let Some(event) = watch.recv().await {
             feed.offer(event);
@@ -245,7 +250,7 @@ impl ClusterWatch {
         // what each node tells of itself from now on; this member's registry, what any node
         // hosts — also a node that starts later, whose modules joined before its relay
         // knew of this watcher.
-        let relay = relay_into(feed.clone()).await?;
+        let relay = relay_into(feed.clone(), false).await?;
         let registry = bridge_registry(bus.clone(), None).await?;
         feed_listing(&feed, &bus);
         let poll = poll_datamanagers(feed.clone(), bus.clone());

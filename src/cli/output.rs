@@ -36,6 +36,8 @@ impl LiveLines {
             let mut printer = Printer {
                 progress,
                 start_ms: None,
+                bound: Default::default(),
+                dispatcher: None,
             };
             loop {
                 tokio::select! {
@@ -71,6 +73,12 @@ struct Printer {
     progress: Progress,
     /// The stamp of the run's `run_started`.
     start_ms: Option<u64>,
+    /// Where each operation was bound, as printed (a takeover's bindings print only
+    /// what moved).
+    bound: std::collections::BTreeMap<String, String>,
+    /// The node whose dispatcher speaks for the run: what another node's dispatcher says
+    /// (one fenced off, woken from a freeze) is not printed, as the report does not fold it.
+    dispatcher: Option<String>,
 }
 
 impl Printer {
@@ -80,6 +88,17 @@ impl Printer {
     }
 
     fn print(&mut self, event: &Event) {
+        match &event.kind {
+            EventKind::RunStarted { .. } => self.dispatcher = Some(event.node.clone()),
+            EventKind::Takeover { to, .. } => self.dispatcher = Some(to.clone()),
+            EventKind::DispatcherFenced { .. } => {}
+            kind if kind.is_dispatch()
+                && self.dispatcher.as_ref().is_some_and(|d| *d != event.node) =>
+            {
+                return;
+            }
+            _ => {}
+        }
         match (&event.kind, self.progress) {
             (EventKind::RunStarted { .. }, _) => self.start_ms = Some(event.at_ms),
             (EventKind::Selected { choice }, Progress::ChoicesAsJson) => {
@@ -94,13 +113,36 @@ impl Printer {
         }
     }
 
-    fn print_line(&self, event: &Event, kind: &EventKind) {
+    fn print_line(&mut self, event: &Event, kind: &EventKind) {
         match kind {
             EventKind::Bound { operations } => {
                 for op in operations {
-                    println!("  bound {} v{} on {}", op.name, op.version, op.node);
+                    let before = self.bound.insert(op.name.clone(), op.node.clone());
+                    match before {
+                        None => println!("  bound {} v{} on {}", op.name, op.version, op.node),
+                        Some(node) if node != op.node => println!(
+                            "  bound {} v{} on {} (was on {node})",
+                            op.name, op.version, op.node
+                        ),
+                        Some(_) => {}
+                    }
                 }
             }
+            EventKind::Takeover {
+                from,
+                to,
+                term,
+                gap_ms,
+                ..
+            } => println!(
+                "# the run taken over by {to} from {from} at {:.1}s (term {term}, first \
+                 command {gap_ms} ms after the loss was noticed)",
+                self.run_secs(event.at_ms)
+            ),
+            EventKind::DispatcherFenced { term, newer, .. } => println!(
+                "# the dispatcher on {} (term {term}) fenced off by term {newer}",
+                event.node
+            ),
             EventKind::ActionStarted {
                 action, operations, ..
             } => {
@@ -229,6 +271,7 @@ pub(crate) fn verdict_line(report: &RunReport) -> Option<String> {
         "{} ({back} back)",
         plural(report.nodes_lost.len(), "node lost", "nodes lost")
     ));
+    parts.push(plural(report.takeovers.len(), "takeover", "takeovers"));
     parts.push(plural(report.rebinds_total as usize, "rebind", "rebinds"));
     parts.push(format!("{refused} commands refused by epoch"));
     if let Some(c) = cart.collisions {

@@ -113,6 +113,10 @@ pub(crate) struct RunArgs {
     /// [`MissionOver`]).
     #[arg(skip)]
     pub mission_over: MissionOver,
+    /// Dispatch the run on this cluster node's desk (`marie up` of a cluster file whose
+    /// node says `dispatcher = "active"`) and follow it there.
+    #[arg(skip)]
+    pub dispatch_on: Option<String>,
 }
 
 /// Set once a run's mission has ended, its outputs written — and, with a monitor, once the
@@ -190,6 +194,7 @@ pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         allow_faults,
         node_processes,
         mission_over,
+        dispatch_on,
     } = args;
     robot.data_dir = data_dir;
     let progress = match (explain, json) {
@@ -221,6 +226,12 @@ pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     }
     if let Some(chaos) = node_chaos {
         options = options.node_chaos(*chaos);
+    }
+    // a run dispatched on a node: its dispatcher's events come to this node's bus, not
+    // (again) with the other nodes' events
+    let remote = dispatch_on.is_some();
+    if let Some(node) = dispatch_on {
+        options = options.dispatch_on(node);
     }
     // The runtime's paused clock is the mission clock (the node's "real" clock reads it);
     // the pacer only holds it back to `speed`, from before the node starts to the end.
@@ -298,7 +309,13 @@ pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         .as_ref()
         .map(|_| marie::cluster::relay::forward(node.events().clone()));
     let others = match (&transport, &events_path) {
-        (Some(_), Some(_)) => Some(marie::cluster::relay::watch(EVENTS_FROM_OTHERS).await?),
+        (Some(_), Some(_)) => {
+            let watch = marie::cluster::relay::watch(EVENTS_FROM_OTHERS).await?;
+            Some(match remote {
+                true => watch.without_dispatch(),
+                false => watch,
+            })
+        }
         _ => None,
     };
     let events = match &events_path {
@@ -314,7 +331,8 @@ pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
             let options = super::netns::PrivateNet::monitor_options(listen)
                 .with_control(control, allow_faults);
             let (monitor, relay) =
-                super::monitor::start_live(node.events(), options, transport.is_some()).await?;
+                super::monitor::start_live(node.events(), options, transport.is_some(), remote)
+                    .await?;
             let what = format!("mission `{}`", mission.name);
             if say {
                 super::monitor::announce(&monitor, &what);

@@ -455,6 +455,9 @@ async fn serve(
         allow_faults: args.allow_faults,
         node_processes: processes,
         mission_over: MissionOver::heard_by(stop.clone()),
+        // a node that says `dispatcher = "active"` runs the dispatcher: it can be lost
+        // like any other, and its standbys take the run over
+        dispatch_on: layout.dispatch_node().map(str::to_string),
         // a cluster of its own: the cart is at the world's start
         from_start: false,
         cluster: JoinArgs {
@@ -466,6 +469,16 @@ async fn serve(
             tls_server_name: None,
         },
     };
+    if let Some(node) = &run.dispatch_on {
+        let standbys = layout.standby_nodes();
+        println!(
+            "the run is dispatched on {node}{}",
+            match standbys.is_empty() {
+                true => " (no standby: its loss ends the run)".to_string(),
+                false => format!(", standby on {}", standbys.join(", ")),
+            }
+        );
+    }
     let over = run.mission_over.clone();
     let run = super::run::run(run);
     tokio::pin!(run);

@@ -370,6 +370,16 @@ impl<'s> Reader<'s> {
         self.string_value(v, key)
     }
 
+    /// `key` of `tbl` if it is a string, with its span; `None`, without a diagnostic, when
+    /// it is absent or of another type (for a key that takes a string or something else).
+    pub fn string_if_one(&self, tbl: &Tbl<'_, '_>, key: &str) -> Option<(String, Span)> {
+        let v = tbl.get(key)?;
+        match v.get_ref() {
+            DeValue::String(s) => Some((s.to_string(), v.span())),
+            _ => None,
+        }
+    }
+
     /// The value as a string, or a diagnostic naming `field`.
     pub fn string_value(&mut self, v: &Val<'_>, field: &str) -> Option<String> {
         match v.get_ref() {

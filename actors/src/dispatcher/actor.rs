@@ -37,13 +37,14 @@
 //! `healing.rs` (bindings), `assembly.rs` (events and the end of the run).
 
 use super::binding::Binding;
+use super::checkpoint::{Checkpoint, CheckpointArgs, Checkpointer};
 use super::messages::DispatcherMsg;
 use super::mission::Mission;
 use crate::clock::{SharedClock, Timer};
 use crate::events::{EventBus, EventKind};
 use crate::registry::{self, ModuleKind};
 use crate::report::{ReportBuilder, RunReport};
-use crate::run::Outcome;
+use crate::run::{FaultKind, Outcome};
 use crate::status::StatusFlags;
 use ractor::{Actor, ActorProcessingErr, ActorRef, RpcReplyPort, SpawnErr};
 use std::collections::{BTreeMap, BTreeSet};
@@ -61,6 +62,35 @@ pub struct DispatcherArgs {
     pub clock: SharedClock,
     /// Where the run's events go (the node's bus); the report is folded from them.
     pub bus: EventBus,
+    /// Record the run's progress in a run datamanager, under a term
+    /// ([`super::checkpoint`]); `None`: the run is recorded nowhere and no standby can
+    /// take it over.
+    pub checkpoint: Option<CheckpointArgs>,
+    /// Take over a lost dispatcher's run from its last checkpoint instead of starting
+    /// one (with `checkpoint` of a higher term).
+    pub take_over: Option<TakeOver>,
+}
+
+impl DispatcherArgs {
+    /// A dispatcher of `mission` on `clock`, telling its run on `bus`, recording nothing.
+    pub fn new(mission: Mission, clock: SharedClock, bus: EventBus) -> DispatcherArgs {
+        DispatcherArgs {
+            mission,
+            clock,
+            bus,
+            checkpoint: None,
+            take_over: None,
+        }
+    }
+}
+
+/// A lost dispatcher's run to carry on ([`DispatcherArgs::take_over`]).
+#[derive(Clone, Debug)]
+pub struct TakeOver {
+    /// The lost dispatcher's last checkpoint.
+    pub from: Checkpoint,
+    /// When the loss was noticed (the takeover's gap counts from here).
+    pub noticed: std::time::Instant,
 }
 
 impl std::fmt::Debug for DispatcherArgs {
@@ -107,6 +137,8 @@ pub(super) enum ActionState {
 pub(super) struct Current {
     pub(super) generation: u64,
     pub(super) index: usize,
+    /// When it started, ms since the run began.
+    pub(super) started_ms: u64,
     pub(super) running: BTreeSet<String>,
     pub(super) enders_done: BTreeSet<String>,
     /// Running, or ending (its others suspended, waiting for their reports).
@@ -133,6 +165,12 @@ pub struct DispatcherState {
     /// The run's own timers, cancelled with the dispatcher.
     pub(super) timers: RunTimers,
     pub(super) ended: bool,
+    /// Records the run's progress, if it is recorded.
+    pub(super) checkpoints: Option<Checkpointer>,
+    /// What to record it with, until the run starts.
+    pub(super) checkpoint_args: Option<CheckpointArgs>,
+    /// The run to take over, until the run starts.
+    pub(super) take_over: Option<TakeOver>,
 }
 
 impl std::fmt::Debug for DispatcherState {
@@ -225,6 +263,9 @@ impl Actor for ActionDispatcher {
 
             timers: RunTimers::default(),
             ended: false,
+            checkpoints: None,
+            checkpoint_args: args.checkpoint,
+            take_over: args.take_over,
         })
     }
 
@@ -242,6 +283,13 @@ impl Actor for ActionDispatcher {
                 }
                 state.reply = Some(reply);
                 state.started = state.clock.now();
+                if let Some(args) = state.checkpoint_args.take() {
+                    state.checkpoints = Some(Checkpointer::start(args, myself.clone()));
+                }
+                if let Some(take_over) = state.take_over.take() {
+                    state.carry_on(&myself, take_over).await;
+                    return Ok(());
+                }
                 state.emit(EventKind::RunStarted {
                     mission: state.mission.name.clone(),
                     actions: state.mission.plan(),
@@ -254,6 +302,10 @@ impl Actor for ActionDispatcher {
                 if let Err(e) = state.bind().await {
                     state.finish(&myself, Outcome::Failed, e.to_string());
                     return Ok(());
+                }
+                // the run's first epochs are recorded before any command carries them
+                if state.checkpoint_now().await.is_err() {
+                    return Ok(()); // fenced: told by the writer
                 }
                 state.probe(&myself);
                 if let Some(deadline) = state.mission.deadline {
@@ -301,6 +353,22 @@ impl Actor for ActionDispatcher {
                 state.on_suspend_grace(&myself, generation)
             }
             DispatcherMsg::Abort { reason } => state.finish(&myself, Outcome::Failed, reason),
+            DispatcherMsg::Fenced { newer } => state.fenced(&myself, newer),
+            DispatcherMsg::Alive { reply } => {
+                let _ = reply.send(state.elapsed_ms());
+            }
+            DispatcherMsg::Inject { fault } => {
+                tracing::warn!(actor = %myself.get_id(), %fault, "injected fault into the dispatcher");
+                match fault {
+                    FaultKind::Panic => panic!("injected fault: the dispatcher panics"),
+                    // only a kill ends this (ractor's kill signal interrupts a handler)
+                    FaultKind::Hang => std::future::pending::<()>().await,
+                    FaultKind::Kill => myself.kill(),
+                    // the injector refuses the others (`FaultKind::hits_datamanager`)
+                    _ => tracing::warn!(%fault, "not a dispatcher's fault: ignored"),
+                }
+            }
+            DispatcherMsg::Conclude { outcome, reason } => state.conclude(&myself, outcome, reason),
             DispatcherMsg::MissionDeadline {} => {
                 let deadline = state.mission.deadline.unwrap_or_default();
                 state.finish(
@@ -371,11 +439,7 @@ pub async fn run_mission(
     let (actor, handle) = Actor::spawn(
         None,
         ActionDispatcher,
-        DispatcherArgs {
-            mission,
-            clock,
-            bus,
-        },
+        DispatcherArgs::new(mission, clock, bus),
     )
     .await?;
     let outcome = request_run(&actor).await;

@@ -56,6 +56,20 @@ impl DispatcherState {
             }
         }
         self.record_current();
+        // a recorded run ends once its end is stored: a dispatcher fenced off meanwhile
+        // never ends the run its successor carries on
+        if self.checkpoint_end(myself, outcome, &reason) {
+            self.conclude(myself, outcome, reason);
+        }
+    }
+
+    /// Publish the run's end and answer its outcome; the dispatcher then stops.
+    pub(super) fn conclude(
+        &mut self,
+        myself: &ActorRef<DispatcherMsg>,
+        outcome: Outcome,
+        reason: String,
+    ) {
         match outcome {
             Outcome::Succeeded => tracing::info!(mission = %self.mission.name, "mission succeeded"),
             Outcome::Failed => {

@@ -60,7 +60,8 @@ impl Effect {
                     "operation `{key}` is now bound by another dispatcher (epoch {current})"
                 )),
             ),
-            None => (OpEnd::Lost, StatusFlags::EMPTY, None),
+            // only an `Attach` is answered so, and a takeover handles it before
+            Some(EoReport::Idle { .. }) | None => (OpEnd::Lost, StatusFlags::EMPTY, None),
         };
         Effect {
             ended,

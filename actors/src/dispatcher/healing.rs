@@ -192,6 +192,7 @@ impl DispatcherState {
             operation: name.to_string(),
             cause,
         });
+        self.checkpoint();
         // A lost operation of an action that is ending has nothing left to do in it.
         if let Some(key) = self.running_key(name) {
             let ending = self.current.as_ref().is_some_and(|c| c.ending());
@@ -315,6 +316,11 @@ impl DispatcherState {
         tracing::info!(op = %name, from = %record.from, to = %record.to, downtime_ms = record.downtime_ms, "operation rebound");
         let (client, epoch, params, incarnation) =
             (b.client.clone(), b.epoch, b.params.clone(), b.incarnation);
+        // the raised epoch is recorded before any command carries it: a dispatcher that a
+        // standby replaced is refused here and never outbids its successor
+        if self.checkpoint_now().await.is_err() {
+            return false;
+        }
         self.emit(EventKind::Selected { choice });
         // the report's record of the running action takes the stand-in's address from it
         self.emit(EventKind::Rebound(record));

@@ -2,7 +2,7 @@
 
 use crate::eo::{EoError, EoReport};
 use crate::registry::RegistryEvent;
-use crate::run::Outcome;
+use crate::run::{FaultKind, Outcome};
 
 crate::remote_message! {
     /// Messages of the action dispatcher.
@@ -10,6 +10,16 @@ crate::remote_message! {
         /// Run the mission; the answer, the dispatcher's outcome, comes when it has ended (the
         /// run's report is its events, folded: [`crate::report`]).
         Run {} -> Outcome,
+        /// Commit `fault` on purpose (fault injection): a kill, a panic or a hang, as a
+        /// datamanager suffers them ([`FaultKind::hits_datamanager`]); a standby dispatcher
+        /// then takes the run over.
+        Inject {
+            /// The fault.
+            fault: FaultKind,
+        },
+        /// Answer at once, with the run's mission time in ms: how a standby's desk tells a
+        /// dispatcher that hangs from one that works.
+        Alive {} -> u64,
     }
     local {
         /// An activation ended (`None`: its operation died before reporting).
@@ -71,6 +81,19 @@ crate::remote_message! {
         },
         /// The whole mission's deadline passed.
         MissionDeadline {},
+        /// A checkpoint was refused for the newer term `newer`: a standby carries the run
+        /// on; this dispatcher stops without ending it.
+        Fenced {
+            /// The newer term.
+            newer: u64,
+        },
+        /// The run's last checkpoint is stored: publish its end and answer.
+        Conclude {
+            /// The outcome.
+            outcome: Outcome,
+            /// Why it failed (empty on success).
+            reason: String,
+        },
         /// Stop the mission now (full stop) for `reason` — e.g. the node's operation
         /// supervisor gave up.
         Abort {

@@ -19,6 +19,7 @@ mod binding;
 mod candidates;
 mod catalog;
 mod checked;
+pub mod checkpoint;
 mod effect;
 mod healing;
 mod messages;
@@ -26,10 +27,11 @@ pub mod mission;
 mod running;
 pub mod selection;
 pub mod survey;
+mod takeover;
 
 pub use actor::{
     request_run, run_mission, spawn_dispatcher, ActionDispatcher, DispatchError, DispatcherArgs,
-    DispatcherState, DISPATCHER_ID,
+    DispatcherState, TakeOver, DISPATCHER_ID,
 };
 pub use candidates::describe;
 pub use catalog::RegistryCatalog;

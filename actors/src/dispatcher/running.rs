@@ -117,6 +117,7 @@ impl DispatcherState {
         let mut current = Current {
             generation,
             index,
+            started_ms: self.elapsed_ms(),
             running: BTreeSet::new(),
             enders_done: BTreeSet::new(),
             state: ActionState::Running,
@@ -155,6 +156,7 @@ impl DispatcherState {
             ));
         }
         self.current = Some(current);
+        self.checkpoint();
         self.emit(EventKind::ActionStarted {
             action: action.name.clone(),
             run_ms: self.elapsed_ms(),
@@ -210,9 +212,21 @@ impl DispatcherState {
         if b.incarnation != incarnation || b.lost.is_some() {
             return; // about an instance already let go
         }
+        let name = b.name.clone();
+        if matches!(report, Some(EoReport::Idle { .. })) {
+            // attached after a takeover, and nothing ran: it carries on resumed
+            self.resume_idle(myself, &key, generation, incarnation);
+            return;
+        }
+        if matches!(report, Some(EoReport::Stale { .. }))
+            && self.checkpoints.is_some()
+            && self.checkpoint_now().await.is_err()
+        {
+            return; // a newer dispatcher bound it: this one is fenced
+        }
+        let cur = self.current.as_ref().expect("checked above");
         if report.is_none() && !cur.ending() {
             // The instance died mid-action: rebind and carry on.
-            let name = b.name.clone();
             let action = self.mission.actions[cur.index].name.clone();
             self.lose(myself, &name, LossCause::DiedInAction { action })
                 .await;
@@ -237,6 +251,7 @@ impl DispatcherState {
             ended,
             flags: names,
         });
+        self.checkpoint();
         let cur = self.current.as_mut().expect("checked above");
         tracing::debug!(op = %key, %ended, flags = %global, "operation report");
         if let Some(reason) = failure {
@@ -285,6 +300,7 @@ impl DispatcherState {
         }
         let generation = cur.generation;
         let running: Vec<String> = cur.running.iter().cloned().collect();
+        self.checkpoint();
         let mut lost = Vec::new();
         for key in &running {
             match self.binding(key) {

@@ -76,6 +76,14 @@ pub const PARAMETER: DmSpec = DmSpec {
     name: "parameter",
 };
 
+/// The run datamanager: where a dispatcher records its run's progress at every
+/// transition (its checkpoints, see `marie_actors::dispatcher`), kept in copies on other
+/// nodes so that a standby dispatcher can take the run over.
+pub const RUN: DmSpec = DmSpec {
+    id: 1204,
+    name: "run",
+};
+
 /// Start-up arguments of a [`Datamanager`].
 #[derive(Clone)]
 pub struct DmArgs {

@@ -87,7 +87,7 @@ mod waits;
 
 pub use actor::{
     spawn_datamanager, spawn_datamanager_linked, Datamanager, DmArgs, DmSpec, DmState, FEATURE,
-    PARAMETER, WORLD,
+    PARAMETER, RUN, WORLD,
 };
 pub use client::DmClient;
 pub use error::DmError;

@@ -86,6 +86,16 @@ impl EoClient {
         })
     }
 
+    /// Take over the running activation (if one of epoch `since` or newer runs) under
+    /// `epoch`: the port its end is reported on ([`EoMsg::Attach`]).
+    pub fn attach(&self, epoch: u64, since: u64) -> Result<OneshotReceiver<EoReport>, EoError> {
+        self.start(|reply| EoMsg::Attach {
+            epoch,
+            since,
+            reply,
+        })
+    }
+
     /// Send an activation built by `make`; the port its end is reported on.
     fn start(
         &self,

@@ -262,6 +262,31 @@ impl<O: Operation> HostState<O> {
         let _ = active.reply.send(report);
     }
 
+    /// Hand the running activation's report to a dispatcher taking over a lost one's run
+    /// (see [`EoMsg::Attach`]).
+    fn attach(&mut self, epoch: u64, since: u64, reply: RpcReplyPort<EoReport>) {
+        if epoch < self.epoch {
+            let _ = reply.send(EoReport::Stale {
+                epoch,
+                current: self.epoch,
+            });
+            return;
+        }
+        self.epoch = epoch;
+        match &mut self.active {
+            Some(active) if active.epoch >= since => {
+                tracing::info!(op = %self.identity.name, activation = active.number, epoch, "activation attached to a new dispatcher");
+                active.epoch = epoch;
+                self.ctx.epoch = epoch;
+                // the lost dispatcher's port is dropped: it hears nothing more
+                active.reply = reply;
+            }
+            _ => {
+                let _ = reply.send(EoReport::Idle { epoch });
+            }
+        }
+    }
+
     /// Start an activation (`resumed`: taking over a lost instance's).
     async fn activate(
         &mut self,
@@ -488,6 +513,11 @@ impl<O: Operation> Actor for EoHost<O> {
                 epoch,
                 reply,
             } => Box::pin(state.activate(&myself, params, epoch, reply, true)).await,
+            EoMsg::Attach {
+                epoch,
+                since,
+                reply,
+            } => state.attach(epoch, since, reply),
             EoMsg::Tick { activation } => {
                 if state.active.as_ref().map(|a| a.number) != Some(activation) {
                     return Ok(()); // a tick of an activation that already ended

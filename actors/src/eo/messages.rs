@@ -39,6 +39,12 @@ pub enum EoReport {
         /// Epoch of the refused command.
         epoch: u64,
     },
+    /// Answer to `Attach`: no activation of the epoch asked for runs, so there is nothing
+    /// to attach to (it ended, and its report went to the dispatcher that was lost).
+    Idle {
+        /// The epoch now in force (the `Attach`'s).
+        epoch: u64,
+    },
     /// The command carried an older epoch than one already accepted and was ignored.
     Stale {
         /// Epoch of the ignored command.
@@ -82,6 +88,17 @@ crate::remote_message! {
             params: ParamMap,
             /// Epoch of the sender's binding.
             epoch: u64,
+        } -> EoReport,
+        /// Take over the running activation's report, as a dispatcher taking over a lost
+        /// dispatcher's run does: if an activation of epoch `since` or newer runs, it goes
+        /// on undisturbed under `epoch` and its end is reported on this port (the lost
+        /// dispatcher's port is dropped); otherwise the answer is [`EoReport::Idle`] at
+        /// once. Either way `epoch` is in force from now on.
+        Attach {
+            /// Epoch of the new dispatcher's binding.
+            epoch: u64,
+            /// The epoch the lost dispatcher activated it under.
+            since: u64,
         } -> EoReport,
         /// End the running activation, if any.
         Suspend {

@@ -73,6 +73,24 @@ impl EventBus {
         event
     }
 
+    /// Publish `kind` as node `origin` told it, stamped with this bus's clock: how a member
+    /// that follows a run dispatched on another node puts that dispatcher's events onto its
+    /// own bus, so that its report, fault injector and outputs see them as if published
+    /// here (in this bus's one order, and on its clock, beside the faults it injects).
+    pub fn republish(&self, origin: &str, kind: EventKind) -> Event {
+        let taps = lock(&self.taps);
+        let event = Event {
+            at_ms: self.clock.now().as_millis() as u64,
+            node: origin.to_string(),
+            kind,
+        };
+        for (_, tap) in &taps.attached {
+            tap(&event);
+        }
+        let _ = self.tx.send(event.clone());
+        event
+    }
+
     /// Call `f` with every event published from now on, in publish order, until the
     /// returned [`Tap`] is dropped.
     ///

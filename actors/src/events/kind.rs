@@ -94,6 +94,36 @@ pub enum EventKind {
         /// How long the dispatcher waited, in ms.
         waited_ms: u64,
     },
+    /// A standby dispatcher took the run over from a dispatcher whose node was lost (its
+    /// process gone, or declared down): the run goes on from the lost one's last checkpoint,
+    /// under a higher term that fences the old one off.
+    Takeover {
+        /// The run's id.
+        run: String,
+        /// The node of the dispatcher that was lost.
+        from: String,
+        /// The node of the dispatcher that carries the run on.
+        to: String,
+        /// The new dispatcher's term.
+        term: u64,
+        /// Real ms from the standby learning of the loss to its first command.
+        gap_ms: u64,
+        /// Real ms between the lost dispatcher's last checkpoint and that first command.
+        since_checkpoint_ms: u64,
+        /// Wall-clock time of the first command, ms since the Unix epoch (to compare with
+        /// when a test killed the lost one).
+        unix_ms: u64,
+    },
+    /// A dispatcher found that its run is carried on by a newer one (its checkpoint, or an
+    /// adoption, was refused for an older term): it stops, without ending the run.
+    DispatcherFenced {
+        /// The run's id.
+        run: String,
+        /// Its term.
+        term: u64,
+        /// The newer term that refused it.
+        newer: u64,
+    },
     // --- registry ---
     /// A module published itself in the location table.
     Joined(ModuleInfo),
@@ -316,6 +346,30 @@ pub enum EventKind {
         /// Its details.
         data: serde_json::Value,
     },
+}
+
+impl EventKind {
+    /// True for the kinds a dispatcher publishes about its run (the run, its actions,
+    /// bindings, choices, takeovers): a run's report folds these from its dispatcher's node
+    /// only, and a member that follows a run dispatched on another node republishes them
+    /// on its own bus.
+    pub fn is_dispatch(&self) -> bool {
+        matches!(
+            self,
+            EventKind::RunStarted { .. }
+                | EventKind::Bound { .. }
+                | EventKind::ActionStarted { .. }
+                | EventKind::OpEnded { .. }
+                | EventKind::ActionEnded { .. }
+                | EventKind::RunEnded { .. }
+                | EventKind::Lost { .. }
+                | EventKind::Rebound(_)
+                | EventKind::RebindGaveUp { .. }
+                | EventKind::Selected { .. }
+                | EventKind::Takeover { .. }
+                | EventKind::DispatcherFenced { .. }
+        )
+    }
 }
 
 /// An action of a mission as its run announces it: what a monitor draws as the task tree.

@@ -38,6 +38,8 @@
 //! {"at_ms":5000,"node":"marie@localhost","kind":{"type":"lost","operation":"wall-follower","cause":{"type":"died_in_action","action":"follow"}}}
 //! {"at_ms":5001,"node":"marie@localhost","kind":{"type":"rebound","operation":"wall-follower","cause":{"type":"died_in_action","action":"follow"},"from":"0.41","to":"0.57","from_node":"n1","to_node":"n2","downtime_ms":1,"epoch":1250001}}
 //! {"at_ms":8000,"node":"marie@localhost","kind":{"type":"rebind_gave_up","operation":"planner","cause":{"type":"hung","deadline_ms":300},"waited_ms":3000}}
+//! {"at_ms":21400,"node":"spare","kind":{"type":"takeover","run":"up-4242-1764216000000","from":"features","to":"spare","term":2,"gap_ms":84,"since_checkpoint_ms":2130,"unix_ms":1764216021400}}
+//! {"at_ms":23000,"node":"features","kind":{"type":"dispatcher_fenced","run":"up-4242-1764216000000","term":1,"newer":2}}
 //! {"at_ms":100,"node":"marie@localhost","kind":{"type":"joined","module":"Operation","name":"wall-follower","id":1512,"node":"marie@localhost","address":"0.41"}}
 //! {"at_ms":5000,"node":"marie@localhost","kind":{"type":"left","module":"Operation","name":"wall-follower","id":1512,"node":"marie@localhost","address":"0.41"}}
 //! {"at_ms":90,"node":"marie@localhost","kind":{"type":"child_started","supervisor":"operations","child":"wall-follower","actor":"0.41"}}
@@ -174,6 +176,8 @@ mod tests {
             EventKind::Lost { .. } => "lost",
             EventKind::Rebound(_) => "rebound",
             EventKind::RebindGaveUp { .. } => "rebind_gave_up",
+            EventKind::Takeover { .. } => "takeover",
+            EventKind::DispatcherFenced { .. } => "dispatcher_fenced",
             EventKind::Joined(_) => "joined",
             EventKind::Left(_) => "left",
             EventKind::ChildStarted { .. } => "child_started",
@@ -200,7 +204,7 @@ mod tests {
     }
 
     /// The `type` of every kind, as [`type_of`] names them.
-    const KINDS: [&str; 31] = [
+    const KINDS: [&str; 33] = [
         "run_started",
         "bound",
         "action_started",
@@ -210,6 +214,8 @@ mod tests {
         "lost",
         "rebound",
         "rebind_gave_up",
+        "takeover",
+        "dispatcher_fenced",
         "joined",
         "left",
         "child_started",

@@ -11,10 +11,14 @@
 //! - Bounded: rebinds, faults and choices go through [`RunReport::record_rebind`],
 //!   [`RunReport::record_faults`] and [`RunReport::record_choice`] (the latest
 //!   [`REPORT_KEEPS`](super::REPORT_KEEPS); every choice of the run's start).
+//! - One dispatcher speaks for the run: the node of its `run_started`, then the `to` of each
+//!   `takeover`. What another node's dispatcher says of the run (one fenced off, woken from a
+//!   freeze or back from a partition) is not folded — a stream that holds every node's events
+//!   makes the same report as the run's own bus.
 
 use super::{ActionRecord, FaultRecord, OpRecord, RunReport};
 use crate::events::{Event, EventBus, EventKind, Tap};
-use crate::run::{OpEnd, Outcome};
+use crate::run::{OpEnd, Outcome, TakeoverRecord};
 use std::sync::{Arc, Mutex};
 
 /// A run report being assembled from the events of one run.
@@ -25,6 +29,8 @@ pub struct ReportBuilder {
     open: Option<OpenAction>,
     /// The stamp of the run's `run_started`: where its times count from.
     start_ms: Option<u64>,
+    /// The node whose dispatcher speaks for the run (see the module invariants).
+    dispatcher: Option<String>,
 }
 
 /// An action that started and has not ended.
@@ -49,6 +55,7 @@ impl ReportBuilder {
             report: RunReport::new("", Outcome::Failed, "the run has not ended"),
             open: None,
             start_ms: None,
+            dispatcher: None,
         }
     }
 
@@ -66,11 +73,37 @@ impl ReportBuilder {
     /// supervisors, generic robot events) change nothing; a [`EventKind::RunStarted`]
     /// starts a new report.
     pub fn apply(&mut self, event: &Event) {
+        let speaks = match (&event.kind, &self.dispatcher) {
+            (EventKind::RunStarted { .. } | EventKind::Takeover { .. }, _) => true,
+            (kind, Some(node)) if kind.is_dispatch() => *node == event.node,
+            _ => true,
+        };
+        if !speaks {
+            return;
+        }
         match &event.kind {
             EventKind::RunStarted { mission, .. } => {
                 *self = ReportBuilder::new();
                 self.report.mission = mission.clone();
                 self.start_ms = Some(event.at_ms);
+                self.dispatcher = Some(event.node.clone());
+            }
+            EventKind::Takeover {
+                from,
+                to,
+                term,
+                gap_ms,
+                ..
+            } => {
+                let at_ms = self.run_ms(event);
+                self.dispatcher = Some(to.clone());
+                self.report.record_takeover(TakeoverRecord {
+                    at_ms,
+                    from: from.clone(),
+                    to: to.clone(),
+                    term: *term,
+                    gap_ms: *gap_ms,
+                });
             }
             EventKind::Selected { choice } => self.report.record_choice(choice.clone()),
             EventKind::ActionStarted {
@@ -221,6 +254,7 @@ impl ReportBuilder {
                     .collect();
             }
             EventKind::Bound { .. }
+            | EventKind::DispatcherFenced { .. }
             | EventKind::Lost { .. }
             | EventKind::RebindGaveUp { .. }
             | EventKind::Joined(_)

@@ -21,7 +21,7 @@ mod builder;
 
 pub use builder::{AttachedReport, ReportBuilder};
 
-use crate::run::{Choice, FaultKind, OpEnd, Outcome, RebindRecord, RobotSection};
+use crate::run::{Choice, FaultKind, OpEnd, Outcome, RebindRecord, RobotSection, TakeoverRecord};
 use serde::{Deserialize, Serialize};
 
 /// How many of the latest rebinds, and of the latest faults, a report keeps (older ones are
@@ -114,6 +114,10 @@ pub struct RunReport {
     /// [`REPORT_KEEPS`], oldest first.
     #[serde(default)]
     pub nodes_lost: Vec<NodeLossRecord>,
+    /// The run's dispatcher lost and its run taken over by a standby: the latest
+    /// [`REPORT_KEEPS`], oldest first.
+    #[serde(default)]
+    pub takeovers: Vec<TakeoverRecord>,
 }
 
 /// A peer node lost during a run, as the run's node saw it.
@@ -196,6 +200,7 @@ impl RunReport {
             selection: Vec::new(),
             selection_total: 0,
             nodes_lost: Vec::new(),
+            takeovers: Vec::new(),
             robot: RobotSection::new(),
             faults: Vec::new(),
             faults_total: 0,
@@ -205,6 +210,11 @@ impl RunReport {
     /// True when the mission succeeded.
     pub fn succeeded(&self) -> bool {
         self.outcome == Outcome::Succeeded
+    }
+
+    /// Keep a takeover among the latest [`REPORT_KEEPS`].
+    pub fn record_takeover(&mut self, takeover: TakeoverRecord) {
+        keep_latest(&mut self.takeovers, takeover);
     }
 
     /// Count a rebind and keep it among the latest [`REPORT_KEEPS`].
@@ -346,6 +356,13 @@ mod tests {
             selection: Vec::new(),
             selection_total: 0,
             nodes_lost: Vec::new(),
+            takeovers: vec![TakeoverRecord {
+                at_ms: 5,
+                from: "a".into(),
+                to: "b".into(),
+                term: 2,
+                gap_ms: 80,
+            }],
             faults: vec![FaultRecord {
                 at_ms: 2,
                 fault: FaultKind::Hang,

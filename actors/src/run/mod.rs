@@ -1,5 +1,6 @@
 //! A run's vocabulary: how a run and an operation's part end ([`Outcome`], [`OpEnd`]), why
-//! an instance was lost ([`LossCause`]), a rebind ([`RebindRecord`]), a choice among
+//! an instance was lost ([`LossCause`]), a rebind ([`RebindRecord`]), a
+//! dispatcher's run taken over by a standby ([`TakeoverRecord`]), a choice among
 //! instances ([`Choice`]), the faults injected on purpose ([`FaultKind`]) and what a robot
 //! says of a run ([`RobotSection`]).
 //!
@@ -21,12 +22,14 @@ mod fault;
 mod loss;
 mod outcome;
 mod rebind;
+mod takeover;
 
 pub use choice::{Candidate, Choice, Verdict};
 pub use fault::{Aim, FaultKind, UnknownFault};
 pub use loss::LossCause;
 pub use outcome::{OpEnd, Outcome};
 pub use rebind::RebindRecord;
+pub use takeover::TakeoverRecord;
 
 /// What a robot said of a run — its judgement beside the dispatcher's (for marie's
 /// simulated cart: where it ended, collisions, the seed, whether it ended in the goal area,

@@ -5,6 +5,7 @@ use super::processes::NodeProcesses;
 use super::resolve::{resolve, Hit, RunBindings};
 use super::target::Target;
 use super::{FaultError, FaultSpec};
+use marie_actors::dispatcher::{DispatcherMsg, DISPATCHER_ID};
 use marie_actors::dm::DmMsg;
 use marie_actors::eo::EoClient;
 use marie_actors::events::{EventBus, EventKind, Tap};
@@ -184,6 +185,18 @@ impl Injector {
             if instances.first().is_some_and(|i| bound_by_mission(&i.name)) {
                 return Ok(());
             }
+            // the run's own dispatcher, which starts with the run
+            let dispatcher = op == "dispatcher" || *op == DISPATCHER_ID.to_string();
+            if dispatcher && registry::lookup(ModuleKind::Operation, op).is_empty() {
+                if !spec.kind.hits_datamanager() {
+                    return Err(FaultError::Mismatch {
+                        kind: spec.kind,
+                        wants: "an operation",
+                        target: "dispatcher (the run's dispatcher)".into(),
+                    });
+                }
+                return Ok(());
+            }
         }
         resolve(&spec.target, &RunBindings::none(), &self.processes).await?;
         Ok(())
@@ -358,16 +371,28 @@ pub fn inject_into(kind: FaultKind, inst: &Instance) -> Result<(), FaultError> {
         });
     }
     let datamanager = inst.kind == ModuleKind::Datamanager;
-    if datamanager && !kind.hits_datamanager() {
+    let dispatcher = inst.kind == ModuleKind::Dispatcher;
+    if (datamanager || dispatcher) && !kind.hits_datamanager() {
         return Err(FaultError::Mismatch {
             kind,
             wants: "an operation",
-            target: format!("{} (a datamanager)", inst.name),
+            target: format!(
+                "{} (a {})",
+                inst.name,
+                if dispatcher {
+                    "dispatcher"
+                } else {
+                    "datamanager"
+                }
+            ),
         });
     }
     let unreachable = || FaultError::Unreachable(inst.name.clone());
     match kind {
         FaultKind::Kill if inst.actor.get_id().is_local() => inst.actor.kill(),
+        _ if dispatcher => ActorRef::<DispatcherMsg>::from(inst.actor.clone())
+            .cast(DispatcherMsg::Inject { fault: kind })
+            .map_err(|_| unreachable())?,
         _ if datamanager => ActorRef::<DmMsg>::from(inst.actor.clone())
             .cast(DmMsg::Inject { fault: kind })
             .map_err(|_| unreachable())?,

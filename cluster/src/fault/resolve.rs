@@ -4,6 +4,7 @@
 
 use super::processes::NodeProcesses;
 use super::target::{Target, TargetError};
+use marie_actors::dispatcher::DISPATCHER_ID;
 use marie_actors::eo::EoClient;
 use marie_actors::events::EventKind;
 use marie_actors::property::{Group, PropertyReply, PropertyRequest};
@@ -246,19 +247,27 @@ fn on_node(op: &str, node: &str, address: Option<&str>) -> Result<Instance, Targ
     }
 }
 
-/// Every live module instance a fault may hit: operations and datamanagers.
+/// Every live module instance a fault may hit: operations, datamanagers and the running
+/// dispatchers (not their desks).
 fn modules() -> Vec<Instance> {
     registry::list()
         .into_iter()
-        .filter(|i| matches!(i.kind, ModuleKind::Operation | ModuleKind::Datamanager))
+        .filter(|i| match i.kind {
+            ModuleKind::Operation | ModuleKind::Datamanager => true,
+            ModuleKind::Dispatcher => i.id == DISPATCHER_ID,
+            _ => false,
+        })
         .collect()
 }
 
 /// The live modules, as an error lists them: the operations, then the datamanagers.
 fn running_list() -> String {
-    let (operations, datamanagers): (Vec<Instance>, Vec<Instance>) = modules()
+    let (operations, others): (Vec<Instance>, Vec<Instance>) = modules()
         .into_iter()
         .partition(|i| i.kind == ModuleKind::Operation);
+    let (datamanagers, dispatchers): (Vec<Instance>, Vec<Instance>) = others
+        .into_iter()
+        .partition(|i| i.kind == ModuleKind::Datamanager);
     let names = |instances: &[Instance]| {
         instances
             .iter()
@@ -273,18 +282,28 @@ fn running_list() -> String {
     if !datamanagers.is_empty() {
         parts.push(format!("datamanagers: {}", names(&datamanagers)));
     }
+    if !dispatchers.is_empty() {
+        parts.push(format!("dispatchers: {}", names(&dispatchers)));
+    }
     parts.join("; ")
 }
 
 /// The live instances of the operation `key` (name or id) — or, when no operation is
-/// known by it, of the datamanager (operations and datamanagers have names of their own).
+/// known by it, of the datamanager, or of the dispatcher (`dispatcher`, 1500: operations,
+/// datamanagers and the dispatcher have names of their own).
 fn lookup(key: &str) -> Vec<Instance> {
     let operations = registry::lookup(ModuleKind::Operation, key);
-    if operations.is_empty() {
-        registry::lookup(ModuleKind::Datamanager, key)
-    } else {
-        operations
+    if !operations.is_empty() {
+        return operations;
     }
+    let datamanagers = registry::lookup(ModuleKind::Datamanager, key);
+    if !datamanagers.is_empty() {
+        return datamanagers;
+    }
+    registry::lookup(ModuleKind::Dispatcher, key)
+        .into_iter()
+        .filter(|i| i.id == DISPATCHER_ID)
+        .collect()
 }
 
 /// The live instances of `op` (an operation's or a datamanager's name or id); none is an

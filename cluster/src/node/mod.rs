@@ -51,7 +51,9 @@
 
 mod builder;
 pub mod config;
+pub mod desk;
 mod events;
+mod followed_run;
 mod membership;
 mod mission_input;
 mod provisioner;
@@ -65,6 +67,8 @@ pub use config::{
     ConfigError, DatamanagerConfig, NodeConfig, OperationConfig, SimulationConfig,
     SupervisorConfig, MAX_INSTANCES, OPERATIONS,
 };
+pub use desk::DeskRole;
+pub use followed_run::TAKEOVER_WAIT;
 pub use membership::Reincarnation;
 pub use mission_input::MissionInput;
 pub use robot::{AprioriRecord, BoxFuture, Robot, RunJudgement};
@@ -181,6 +185,12 @@ pub enum NodeError {
     /// Node chaos was asked where no node process may be hit.
     #[error("--chaos-nodes: {0}")]
     NodeChaos(String),
+    /// A run dispatched on a desk could not be recorded: no run datamanager.
+    #[error("{0}")]
+    NoRunDm(String),
+    /// A run could not be dispatched on another node's desk.
+    #[error("{0}")]
+    Desk(String),
     /// A run was asked of a node whose config runs no dispatcher.
     #[error("node `{0}` runs no dispatcher (its config says `dispatcher = false`)")]
     NoDispatcher(String),
@@ -327,6 +337,19 @@ impl Node {
             let spec = provisioner::child_spec(node.starter.clone());
             if let Err(e) = node.starter.root.start_child(spec).await {
                 tracing::warn!("the node will not start instances on request: {e}");
+            }
+        }
+        if let Some(role) = node.config.desk {
+            let spec = desk::child_spec(desk::DeskArgs {
+                node: node.config.name.clone(),
+                role,
+                clock: node.starter.clock.clone(),
+                bus: node.bus.clone(),
+                root: node.starter.root.clone(),
+            });
+            if let Err(e) = node.starter.root.start_child(spec).await {
+                node.shutdown().await;
+                return Err(e.into());
             }
         }
         // joined last: peers see the node's modules once they all run

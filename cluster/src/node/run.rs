@@ -55,6 +55,7 @@ pub struct RunOptions {
     node_chaos: Option<NodeChaos>,
     processes: NodeProcesses,
     observers: Vec<Observer>,
+    dispatch_on: Option<String>,
 }
 
 impl std::fmt::Debug for RunOptions {
@@ -65,6 +66,7 @@ impl std::fmt::Debug for RunOptions {
             .field("node_chaos", &self.node_chaos)
             .field("processes", &self.processes)
             .field("observers", &self.observers.len())
+            .field("dispatch_on", &self.dispatch_on)
             .finish()
     }
 }
@@ -117,6 +119,21 @@ impl RunOptions {
     pub fn observe(mut self, f: impl Fn(&Event) + Send + Sync + 'static) -> RunOptions {
         self.observers.push(Arc::new(f));
         self
+    }
+
+    /// Dispatch the run on the desk of node `node` ([`super::desk`]: a node config with
+    /// `dispatcher = "active"` or `"standby"`) instead of this node, and follow it there —
+    /// and to whichever standby takes it over should that node be lost. Its events are
+    /// republished on this node's bus, so the report, faults and observers work as for a
+    /// run dispatched here.
+    pub fn dispatch_on(mut self, node: impl Into<String>) -> RunOptions {
+        self.dispatch_on = Some(node.into());
+        self
+    }
+
+    /// The node the run is dispatched on, if not this one ([`RunOptions::dispatch_on`]).
+    pub fn dispatched_on(&self) -> Option<&str> {
+        self.dispatch_on.as_deref()
     }
 
     /// The faults planned at fixed times.
@@ -194,6 +211,7 @@ impl Node {
             node_chaos,
             processes,
             observers,
+            dispatch_on,
         } = options;
         let report = ReportBuilder::attach(&self.bus);
         let _observers: Vec<_> = observers
@@ -219,7 +237,10 @@ impl Node {
             injector,
             self.starter.clock.clone(),
         );
-        let ended = self.dispatch(mission).await;
+        let ended = match &dispatch_on {
+            Some(on) => self.dispatch_on(mission, on).await,
+            None => self.dispatch(mission).await,
+        };
         plan.finish();
         ended?;
         if let Some(robot) = &self.robot {
@@ -272,11 +293,7 @@ impl Node {
     /// that kept failing.
     async fn dispatch(&self, mission: Mission) -> Result<Outcome, NodeError> {
         let n = self.runs.fetch_add(1, Ordering::Relaxed);
-        let args = DispatcherArgs {
-            mission,
-            clock: self.starter.clock.clone(),
-            bus: self.bus.clone(),
-        };
+        let args = DispatcherArgs::new(mission, self.starter.clock.clone(), self.bus.clone());
         let spec = ChildSpec::worker(format!("dispatcher-{n}"), move |sup| {
             let args = args.clone();
             async move {

@@ -15,6 +15,8 @@ pub struct Watch {
     events: mpsc::Receiver<Event>,
     lost: Arc<AtomicU64>,
     actor: ActorRef<WatcherMsg>,
+    /// Leave out the dispatchers' events ([`Watch::without_dispatch`]).
+    without_dispatch: bool,
 }
 
 impl std::fmt::Debug for Watch {
@@ -28,12 +30,32 @@ impl std::fmt::Debug for Watch {
 impl Watch {
     /// The next event of another node; `None` once the watch stopped.
     pub async fn recv(&mut self) -> Option<Event> {
-        self.events.recv().await
+        loop {
+            let event = self.events.recv().await?;
+            if !(self.without_dispatch && event.kind.is_dispatch()) {
+                return Some(event);
+            }
+        }
     }
 
     /// The next event if one is waiting.
     pub fn try_recv(&mut self) -> Option<Event> {
-        self.events.try_recv().ok()
+        loop {
+            let event = self.events.try_recv().ok()?;
+            if !(self.without_dispatch && event.kind.is_dispatch()) {
+                return Some(event);
+            }
+        }
+    }
+
+    /// Leave out what dispatchers say of their runs ([`EventKind::is_dispatch`]): for a
+    /// member that follows a run dispatched elsewhere, which republishes those on its own
+    /// bus (where whoever watches both would see them twice).
+    ///
+    /// [`EventKind::is_dispatch`]: marie_actors::events::EventKind::is_dispatch
+    pub fn without_dispatch(mut self) -> Watch {
+        self.without_dispatch = true;
+        self
     }
 
     /// Events lost: dropped because the watch was full or their frame did not decode, or
@@ -43,9 +65,40 @@ impl Watch {
         self.lost.load(Ordering::Relaxed)
     }
 
+    /// The watcher's actor number on this node: with the node's name, how another node
+    /// knows it ([`reaches`]).
+    pub fn pid(&self) -> u64 {
+        self.actor.get_id().pid()
+    }
+
     #[cfg(test)]
     pub(super) fn actor(&self) -> &ActorRef<WatcherMsg> {
         &self.actor
+    }
+}
+
+/// Wait at most `within` until this node reaches the watcher `pid` of node `node` (the
+/// membership of watchers spreads through the cluster a moment after a watch starts, and
+/// a node forwards its events only to the watchers it knows): true once it does. A node
+/// about to publish what a new watcher must not miss — a run's first events — asks first.
+pub async fn reaches(node: &str, pid: u64, within: std::time::Duration) -> bool {
+    let deadline = tokio::time::Instant::now() + within;
+    loop {
+        let known = pg::get_scoped_members(&SCOPE.to_string(), &GROUP.to_string())
+            .into_iter()
+            .any(|c| {
+                let id = c.get_id();
+                !id.is_local()
+                    && id.pid() == pid
+                    && marie_actors::registry::node_name_of(&id) == node
+            });
+        if known {
+            return true;
+        }
+        if tokio::time::Instant::now() >= deadline {
+            return false;
+        }
+        tokio::time::sleep(std::time::Duration::from_millis(20)).await;
     }
 }
 
@@ -76,6 +129,7 @@ pub async fn watch(capacity: usize) -> Result<Watch, SpawnErr> {
         events,
         lost,
         actor,
+        without_dispatch: false,
     })
 }
 

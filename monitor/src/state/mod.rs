@@ -164,6 +164,24 @@ impl MonitorState {
                     format!("no stand-in for {operation} within {waited_ms} ms"),
                 );
             }
+            EventKind::Takeover {
+                from,
+                to,
+                term,
+                gap_ms,
+                ..
+            } => line.push(
+                at,
+                node,
+                "takeover",
+                format!("the run taken over by {to} from {from} (term {term}, {gap_ms} ms)"),
+            ),
+            EventKind::DispatcherFenced { term, newer, .. } => line.push(
+                at,
+                node,
+                "fenced",
+                format!("the dispatcher of term {term} fenced off by term {newer}"),
+            ),
             EventKind::Joined(m) => self.cluster.joined(m, at),
             EventKind::DmState {
                 dm,

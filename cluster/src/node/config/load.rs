@@ -51,7 +51,17 @@ impl NodeConfig {
                 if let Some(t) = r.table(v, "[node]") {
                     r.unknown_keys(&t, &["name", "dispatcher", "data_dir"]);
                     config.name = r.required_string(&t, "name").unwrap_or_default();
-                    config.dispatcher = r.boolean(&t, "dispatcher", true);
+                    match r.string_if_one(&t, "dispatcher") {
+                        Some((role, span)) => match role.parse() {
+                            // a desk runs the cluster's runs: none of its own
+                            Ok(role) => {
+                                config.desk = Some(role);
+                                config.dispatcher = false;
+                            }
+                            Err(e) => r.err(&span, e),
+                        },
+                        _ => config.dispatcher = r.boolean(&t, "dispatcher", true),
+                    }
                     config.data_dir = data_dir(&mut r, &t, path);
                 }
             }
@@ -169,7 +179,7 @@ fn datamanager(
         .map(|(s, _)| s)
         .collect();
     let name = r.required_string(t, "name")?;
-    let known = [dm::FEATURE, dm::PARAMETER, dm::WORLD];
+    let known = [dm::FEATURE, dm::PARAMETER, dm::WORLD, dm::RUN];
     let id = r.integer(t, "id", Some(0), 0..=i64::from(u32::MAX));
     let spec = match known.iter().find(|k| k.name == name) {
         Some(k) => DatamanagerConfig::from(*k),
@@ -178,7 +188,7 @@ fn datamanager(
                 r.err(
                     &t.span,
                     format!(
-                        "datamanager {} is not one of feature, parameter, world: it needs an `id`",
+                        "datamanager {} is not one of feature, parameter, world, run: it needs an `id`",
                         quote(&name)
                     ),
                 );

@@ -11,7 +11,8 @@
 //! ```toml
 //! [node]
 //! name = "v1-only"
-//! dispatcher = true            # default true
+//! dispatcher = true            # default true; "active" or "standby": a dispatcher desk
+//!                              # (runs a cluster's missions / takes a lost one's run over)
 //! data_dir = "data/v1-only"    # optional, relative to this file: the datamanagers' journals
 //!                              # (locked: one node at a time); default none: no file written
 //!
@@ -90,6 +91,10 @@ pub struct NodeConfig {
     pub name: String,
     /// Whether the node runs missions (a dispatcher per run).
     pub dispatcher: bool,
+    /// The node's dispatcher desk, if it runs one (`dispatcher = "active"` or
+    /// `"standby"`): it runs missions other members of a cluster dispatch on it, and takes
+    /// a lost dispatcher's run over ([`super::desk`]).
+    pub desk: Option<super::DeskRole>,
     /// The datamanagers it hosts.
     pub datamanagers: Vec<DatamanagerConfig>,
     /// Operation supervisors besides [`OPERATIONS`], which always exists.
@@ -382,6 +387,7 @@ impl NodeConfig {
         NodeConfig {
             name: name.into(),
             dispatcher: true,
+            desk: None,
             datamanagers: Vec::new(),
             supervisors: Vec::new(),
             operations: Vec::new(),

@@ -1,0 +1,267 @@
+//! Checkpoints: a run's progress as its dispatcher records it at every transition, in the
+//! run datamanager ([`RUN`](crate::dm::RUN), kept in copies on other nodes), so that a
+//! standby dispatcher can take the run over when the dispatcher's node is lost.
+//!
+//! A [`Checkpoint`] is everything a standby needs to carry the run on: the run's id, the
+//! mission and its hash, the status word, which actions are done, the running action (its
+//! operations still running, its enders done, whether it is ending), every binding with
+//! its instance, epoch and the parameters sent last, and the dispatcher's *term*. It is
+//! stored as one record (class [`CHECKPOINT_CLASS`], sub-class the run's id) stamped with
+//! the term as its epoch, from the source [`CHECKPOINT_SOURCE`]: the datamanager's fence
+//! ([`crate::fence`]) then refuses every checkpoint of an older term once a newer one was
+//! stored. That refusal is how a dispatcher learns that a standby carries its run on (it
+//! was frozen, or cut off, and declared lost): it stops without ending the run.
+//!
+//! # Invariants
+//! - Checkpoints are written in the order of the transitions, one at a time.
+//! - What raises an epoch — the run's first bindings, an adoption, a takeover — and the
+//!   run's end wait for their checkpoint before any command or `run_ended` goes out: a
+//!   dispatcher that has been replaced can never outbid its successor's epochs, nor end the
+//!   run. The other transitions (an action started or ended, an operation's report) are
+//!   recorded as they happen, without waiting: their commands carry epochs already in force,
+//!   which the operations fence.
+//! - A checkpoint that cannot be stored for want of the datamanager (its primary failing
+//!   over, a partition) is retried until it is stored or refused: a dispatcher cut off from
+//!   the majority of the run's copies waits.
+
+use super::messages::DispatcherMsg;
+use super::mission::Mission;
+use crate::dm::{DmClient, DmError, Query};
+use crate::property::ParamMap;
+use crate::run::Outcome;
+use ractor::ActorRef;
+use serde::{Deserialize, Serialize};
+use std::time::Duration;
+use tokio::sync::{mpsc, oneshot};
+
+/// The class of checkpoint records in the run datamanager.
+pub const CHECKPOINT_CLASS: &str = "checkpoint";
+/// The source checkpoints are stored under (the term is their epoch).
+pub const CHECKPOINT_SOURCE: &str = "dispatcher";
+/// How long a checkpoint write waits before it is tried again.
+const RETRY: Duration = Duration::from_millis(200);
+
+/// A run's progress at one transition (see the module docs).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Checkpoint {
+    /// The run's id.
+    pub run: String,
+    /// The term of the dispatcher that wrote it: 1 for the run's first, one more for each
+    /// takeover.
+    pub term: u64,
+    /// Its number among its term's checkpoints.
+    pub seq: u64,
+    /// The node of the dispatcher that wrote it.
+    pub node: String,
+    /// The mission.
+    pub mission: Mission,
+    /// A hash of the mission (FNV-1a of its MessagePack), to tell two missions apart.
+    pub mission_hash: u64,
+    /// Mission time since the run began, ms.
+    pub run_ms: u64,
+    /// The node's clock when the run began, ms: a cluster's nodes read one clock
+    /// (`ScaledClock::cluster`), so a standby's run time carries on from the same start.
+    pub started_ms: u64,
+    /// Wall-clock time it was written, ms since the Unix epoch.
+    pub unix_ms: u64,
+    /// The status word.
+    pub status: u32,
+    /// Which actions are done, in file order.
+    pub done: Vec<bool>,
+    /// The generation of the latest action started.
+    pub generation: u64,
+    /// The running action, if one runs.
+    pub current: Option<CurrentCheckpoint>,
+    /// Every binding.
+    pub bindings: Vec<BindingCheckpoint>,
+    /// The run's outcome, once it ended.
+    pub ended: Option<Outcome>,
+}
+
+/// The running action in a [`Checkpoint`].
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct CurrentCheckpoint {
+    /// Its index among the mission's actions.
+    pub index: usize,
+    /// Its operations (keys) still running.
+    pub running: Vec<String>,
+    /// Its enders that finished.
+    pub enders_done: Vec<String>,
+    /// True once it ended and waits for its suspended operations.
+    pub ending: bool,
+    /// When it started, ms since the run began.
+    pub started_ms: u64,
+}
+
+/// A binding in a [`Checkpoint`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BindingCheckpoint {
+    /// Operation name.
+    pub name: String,
+    /// The node of the instance held.
+    pub node: String,
+    /// The instance's actor number on its node.
+    pub pid: u64,
+    /// The binding's epoch.
+    pub epoch: u64,
+    /// The parameters sent last.
+    pub params: ParamMap,
+    /// True while its instance is lost and no stand-in adopted.
+    pub lost: bool,
+}
+
+impl Checkpoint {
+    /// The newest checkpoint in the run datamanager `dm` (of any run: a dispatcher of an
+    /// older term can no longer store one once a newer term has).
+    pub async fn newest(dm: &DmClient) -> Result<Option<Checkpoint>, DmError> {
+        let found = dm
+            .select_typed::<Checkpoint>(Query::class(CHECKPOINT_CLASS).newest(1))
+            .await?;
+        Ok(found.into_iter().next().map(|(_, c)| c))
+    }
+
+    /// The hash a checkpoint carries of `mission`.
+    pub fn hash_of(mission: &Mission) -> u64 {
+        let bytes = rmp_serde::to_vec(mission).unwrap_or_default();
+        // FNV-1a, 64 bits: stable across processes and builds, unlike std's hasher
+        bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, b| {
+            (h ^ u64::from(*b)).wrapping_mul(0x0100_0000_01b3)
+        })
+    }
+}
+
+/// Where and under which term a dispatcher records its run ([`super::DispatcherArgs`]).
+#[derive(Clone, Debug)]
+pub struct CheckpointArgs {
+    /// The run's id.
+    pub run: String,
+    /// The dispatcher's term.
+    pub term: u64,
+    /// The run datamanager (its epoch is set to the term).
+    pub dm: DmClient,
+}
+
+/// Why a checkpoint was not stored: a dispatcher of a newer term carries the run on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct Superseded {
+    /// The newer term.
+    pub(super) newer: u64,
+}
+
+/// A checkpoint to write, and who waits for it.
+struct Job {
+    checkpoint: Box<Checkpoint>,
+    done: Option<oneshot::Sender<Result<(), Superseded>>>,
+}
+
+/// The dispatcher's writer of checkpoints: a task that stores them in order (see the
+/// module invariants), and tells the dispatcher [`DispatcherMsg::Fenced`] once one is
+/// refused for a newer term.
+pub(super) struct Checkpointer {
+    pub(super) run: String,
+    pub(super) term: u64,
+    seq: u64,
+    jobs: mpsc::UnboundedSender<Job>,
+    /// The writing task, aborted with the dispatcher: a write it retries for a dispatcher
+    /// that stopped must not land later.
+    task: tokio::task::JoinHandle<()>,
+}
+
+impl Drop for Checkpointer {
+    fn drop(&mut self) {
+        self.task.abort();
+    }
+}
+
+impl Checkpointer {
+    /// Start writing `args`' checkpoints for `dispatcher`.
+    pub(super) fn start(args: CheckpointArgs, dispatcher: ActorRef<DispatcherMsg>) -> Checkpointer {
+        let (jobs, mut rx) = mpsc::unbounded_channel::<Job>();
+        let dm = args.dm.with_epoch(args.term);
+        let run = args.run.clone();
+        let task = tokio::spawn(async move {
+            while let Some(job) = rx.recv().await {
+                let result = write(&dm, &run, &job.checkpoint).await;
+                if let Err(superseded) = result {
+                    let _ = dispatcher.cast(DispatcherMsg::Fenced {
+                        newer: superseded.newer,
+                    });
+                }
+                if let Some(done) = job.done {
+                    let _ = done.send(result);
+                }
+                if result.is_err() {
+                    break; // nothing more of this term is stored
+                }
+            }
+        });
+        Checkpointer {
+            run: args.run,
+            term: args.term,
+            seq: 0,
+            jobs,
+            task,
+        }
+    }
+
+    /// Number `checkpoint` and queue it; the receiver says when it is stored (or refused).
+    pub(super) fn write(
+        &mut self,
+        mut checkpoint: Checkpoint,
+    ) -> oneshot::Receiver<Result<(), Superseded>> {
+        self.seq += 1;
+        checkpoint.seq = self.seq;
+        let (tx, rx) = oneshot::channel();
+        let job = Job {
+            checkpoint: Box::new(checkpoint),
+            done: Some(tx),
+        };
+        if let Err(mpsc::error::SendError(job)) = self.jobs.send(job) {
+            // the writer stopped after a refusal: so is this one
+            if let Some(done) = job.done {
+                let _ = done.send(Err(Superseded {
+                    newer: self.term + 1,
+                }));
+            }
+        }
+        rx
+    }
+}
+
+/// Store `checkpoint` until it is stored or refused for a newer term.
+async fn write(dm: &DmClient, run: &str, checkpoint: &Checkpoint) -> Result<(), Superseded> {
+    let mut tries = 0u32;
+    loop {
+        match dm
+            .store(CHECKPOINT_CLASS, Some(run), None, checkpoint)
+            .await
+        {
+            Ok(_) => return Ok(()),
+            Err(DmError::Fenced(stale)) => {
+                tracing::warn!(
+                    run,
+                    term = checkpoint.term,
+                    newer = stale.current,
+                    "checkpoint refused: a newer dispatcher carries the run on"
+                );
+                return Err(Superseded {
+                    newer: stale.current,
+                });
+            }
+            Err(e) => {
+                tries += 1;
+                if tries == 1 || tries % 25 == 0 {
+                    tracing::warn!(run, error = %e, tries, "checkpoint not stored yet; trying again");
+                }
+                tokio::time::sleep(RETRY).await;
+            }
+        }
+    }
+}
+
+/// Wall-clock ms since the Unix epoch.
+pub fn unix_ms() -> u64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_millis() as u64)
+}

@@ -1,0 +1,407 @@
+//! A run that survives its dispatcher: recording the run's progress ([`super::checkpoint`])
+//! and carrying a lost dispatcher's run on from its last checkpoint.
+//!
+//! A standby carries the run on ([`DispatcherState::carry_on`]) in this order: it stores
+//! the checkpoint it read under its own term (which fences the old dispatcher off; not
+//! stored within a bound, it leaves the run alone: it is cut off from the run's copies); binds
+//! every operation — the instance the lost dispatcher held, if it still runs, else one
+//! chosen as at the start — above the epochs the checkpoint recorded, and records them;
+//! tells the `takeover` and the bindings; and only then commands. The running action's
+//! operations are *attached* ([`crate::eo::EoMsg::Attach`]): an activation still running
+//! goes on undisturbed and reports to the new dispatcher, and one that ended while no
+//! dispatcher listened is resumed ([`crate::eo::EoMsg::Resume`]), carrying on from what it
+//! stored. The other operations get their last parameters at the new epoch, so every
+//! operation the run holds refuses the old dispatcher's commands from then on.
+//!
+//! # Invariants
+//! - Mission time carries on from the run's start: the time without a dispatcher counts
+//!   (a cluster's nodes read one clock), so a takeover's cost shows in the run's duration.
+//! - The action's own deadline keeps counting from when the action started; the mission's
+//!   from when the run began.
+
+use super::actor::{ActionState, Current, DispatcherState, Start, TakeOver};
+use super::binding::Binding;
+use super::candidates::{choose, examine_all, Prospect};
+use super::checkpoint::{self, BindingCheckpoint, Checkpoint, CurrentCheckpoint, Superseded};
+use super::messages::DispatcherMsg;
+use crate::clock::Timer;
+use crate::eo::EoError;
+use crate::events::{BoundOp, EventKind};
+use crate::registry::{self, ModuleKind};
+use crate::run::Outcome;
+use crate::status::StatusFlags;
+use ractor::ActorRef;
+use std::collections::BTreeSet;
+use std::time::Duration;
+
+/// How long a standby may take to store its term in the run datamanager before it leaves
+/// the run alone.
+const CLAIM_WITHIN: Duration = Duration::from_secs(3);
+
+impl DispatcherState {
+    /// The run's progress now, as a checkpoint (numbered by the writer).
+    fn snapshot(&self, ended: Option<Outcome>) -> Option<Checkpoint> {
+        let writer = self.checkpoints.as_ref()?;
+        Some(Checkpoint {
+            run: writer.run.clone(),
+            term: writer.term,
+            seq: 0,
+            node: registry::local_node_name(),
+            mission_hash: Checkpoint::hash_of(&self.mission),
+            mission: self.mission.clone(),
+            run_ms: self.elapsed_ms(),
+            started_ms: self.started.as_millis() as u64,
+            unix_ms: checkpoint::unix_ms(),
+            status: self.status.0,
+            done: self.done.clone(),
+            generation: self.generation,
+            current: self.current.as_ref().map(|c| CurrentCheckpoint {
+                index: c.index,
+                running: c.running.iter().cloned().collect(),
+                enders_done: c.enders_done.iter().cloned().collect(),
+                ending: c.ending(),
+                started_ms: c.started_ms,
+            }),
+            bindings: self
+                .bindings
+                .values()
+                .map(|b| BindingCheckpoint {
+                    name: b.name.clone(),
+                    node: b.node.clone(),
+                    pid: b.actor_id().pid(),
+                    epoch: b.epoch,
+                    params: b.params.clone(),
+                    lost: b.lost.is_some(),
+                })
+                .collect(),
+            ended,
+        })
+    }
+
+    /// Record the run's progress, without waiting for it to be stored (see the invariants
+    /// of [`super::checkpoint`]). Nothing happens when the run is recorded nowhere.
+    pub(super) fn checkpoint(&mut self) {
+        if let Some(snapshot) = self.snapshot(None) {
+            if let Some(writer) = self.checkpoints.as_mut() {
+                drop(writer.write(snapshot));
+            }
+        }
+    }
+
+    /// Record the run's progress and wait until it is stored: `Err` when a newer term
+    /// refused it (the writer tells the dispatcher, which then stops).
+    pub(super) async fn checkpoint_now(&mut self) -> Result<(), Superseded> {
+        let Some(snapshot) = self.snapshot(None) else {
+            return Ok(());
+        };
+        let Some(writer) = self.checkpoints.as_mut() else {
+            return Ok(());
+        };
+        let term = writer.term;
+        writer
+            .write(snapshot)
+            .await
+            .unwrap_or(Err(Superseded { newer: term + 1 }))
+    }
+
+    /// Record the run's end; `Conclude` publishes it once it is stored. Without
+    /// checkpoints, at once. False when the run is recorded and its end must wait.
+    pub(super) fn checkpoint_end(
+        &mut self,
+        myself: &ActorRef<DispatcherMsg>,
+        outcome: Outcome,
+        reason: &str,
+    ) -> bool {
+        let Some(snapshot) = self.snapshot(Some(outcome)) else {
+            return true;
+        };
+        let Some(writer) = self.checkpoints.as_mut() else {
+            return true;
+        };
+        let stored = writer.write(snapshot);
+        let me = myself.clone();
+        let reason = reason.to_string();
+        ractor::concurrency::spawn(async move {
+            if let Ok(Ok(())) = stored.await {
+                let _ = me.cast(DispatcherMsg::Conclude { outcome, reason });
+            }
+            // refused: the writer told the dispatcher it is fenced
+        });
+        false
+    }
+
+    /// A newer term refused a checkpoint: a standby carries the run on. Stop without
+    /// ending the run (no `run_ended`, no answer: the run is not over) and without
+    /// commanding anything (the operations obey the newer dispatcher's epochs).
+    pub(super) fn fenced(&mut self, myself: &ActorRef<DispatcherMsg>, newer: u64) {
+        let Some(writer) = &self.checkpoints else {
+            return;
+        };
+        let (run, term) = (writer.run.clone(), writer.term);
+        tracing::warn!(%run, term, newer, "fenced off: a newer dispatcher carries the run on");
+        self.ended = true;
+        self.current = None;
+        self.emit(EventKind::DispatcherFenced { run, term, newer });
+        // dropping the reply port tells whoever waits that this dispatcher did not end it
+        self.reply = None;
+        myself.stop(None);
+    }
+
+    /// Carry on the run `take_over` holds the last checkpoint of (see the module docs).
+    pub(super) async fn carry_on(&mut self, myself: &ActorRef<DispatcherMsg>, take_over: TakeOver) {
+        let TakeOver { from, noticed } = take_over;
+        let Some(term) = self.checkpoints.as_ref().map(|w| w.term) else {
+            self.finish(
+                myself,
+                Outcome::Failed,
+                "a takeover needs a run datamanager to record the run in".into(),
+            );
+            return;
+        };
+        tracing::info!(run = %from.run, from = %from.node, term, "taking the run over");
+        // the term first: stored within a bound, or this standby is cut off from the
+        // run's copies (what it read may be stale by the time it could store) and leaves
+        // the run alone
+        let claim = Checkpoint {
+            term,
+            node: registry::local_node_name(),
+            unix_ms: checkpoint::unix_ms(),
+            ..from.clone()
+        };
+        let claimed = match self.checkpoints.as_mut() {
+            Some(writer) => tokio::time::timeout(CLAIM_WITHIN, writer.write(claim)).await,
+            None => return,
+        };
+        match claimed {
+            Ok(Ok(Ok(()))) => {}
+            Ok(_) => return, // refused: a newer term has the run (the writer said so)
+            Err(_) => {
+                tracing::warn!(run = %from.run, "the run's copies did not take this standby's term in time: leaving the run alone");
+                self.ended = true;
+                self.reply = None;
+                myself.stop(None);
+                return;
+            }
+        }
+        // mission time carries on from the run's start (the cluster's nodes read one
+        // clock); a clock behind the checkpoint's (another host, out of sync) carries on
+        // from the checkpoint
+        let now = self.clock.now();
+        let started = Duration::from_millis(from.started_ms);
+        self.started = match now.saturating_sub(started) >= Duration::from_millis(from.run_ms) {
+            true => started,
+            false => now.saturating_sub(Duration::from_millis(from.run_ms)),
+        };
+        self.status = StatusFlags(from.status);
+        self.done = from.done.clone();
+        self.generation = from.generation;
+        if let Err(e) = self.watch_registry(myself).await {
+            self.finish(myself, Outcome::Failed, e.to_string());
+            return;
+        }
+        for held in &from.bindings {
+            match self.bind_held(held).await {
+                Some(binding) => {
+                    self.bindings.insert(held.name.clone(), binding);
+                }
+                None => {
+                    let reason = format!(
+                        "taking the run over from {}: no instance of operation `{}` answers",
+                        from.node, held.name
+                    );
+                    self.finish(myself, Outcome::Failed, reason);
+                    return;
+                }
+            }
+        }
+        let generation = self.generation;
+        self.current = from.current.as_ref().map(|c| Current {
+            generation,
+            index: c.index,
+            started_ms: c.started_ms,
+            running: c.running.iter().cloned().collect::<BTreeSet<_>>(),
+            enders_done: c.enders_done.iter().cloned().collect(),
+            state: match c.ending {
+                true => ActionState::Ending,
+                false => ActionState::Running,
+            },
+            timer: None,
+        });
+        // the bindings' new epochs, before any command carries them
+        if self.checkpoint_now().await.is_err() {
+            return;
+        }
+        let gap_ms = noticed.elapsed().as_millis() as u64;
+        let unix_ms = checkpoint::unix_ms();
+        self.emit(EventKind::Takeover {
+            run: from.run.clone(),
+            from: from.node.clone(),
+            to: registry::local_node_name(),
+            term,
+            gap_ms,
+            since_checkpoint_ms: unix_ms.saturating_sub(from.unix_ms),
+            unix_ms,
+        });
+        let operations = self
+            .bindings
+            .values()
+            .map(|b| BoundOp {
+                name: b.name.clone(),
+                version: b.version.clone(),
+                node: b.node.clone(),
+                epoch: b.epoch,
+                address: b.actor_id().to_string(),
+            })
+            .collect();
+        self.emit(EventKind::Bound { operations });
+        self.command_after_takeover(myself, &from);
+        self.probe(myself);
+        if let Some(deadline) = self.mission.deadline {
+            let left = deadline.saturating_sub(Duration::from_millis(self.elapsed_ms()));
+            self.timers.mission = Some(Timer::cast_after(
+                &self.clock,
+                left,
+                myself,
+                DispatcherMsg::MissionDeadline {},
+            ));
+        }
+        if self.current.is_none() {
+            self.next_action(myself);
+        }
+    }
+
+    /// The instance to hold for `held`: the one the lost dispatcher held if it still
+    /// answers, else the one a selection picks now; bound above the recorded epoch.
+    async fn bind_held(&mut self, held: &BindingCheckpoint) -> Option<Binding> {
+        let need = self.mission.need(&held.name);
+        let found: Vec<_> = registry::lookup(ModuleKind::Operation, &held.name)
+            .into_iter()
+            .filter(|i| !registry::is_declared_down(&i.node))
+            .collect();
+        let mut examined: Vec<Prospect> =
+            examine_all(&held.name, found, crate::eo::EoClient::DEFAULT_TIMEOUT).await;
+        let same = examined
+            .iter()
+            .position(|c| c.node == held.node && c.client.actor().get_id().pid() == held.pid);
+        let index = match same {
+            Some(i) => i,
+            None => {
+                let choice = choose(&need, &examined);
+                let index = choice.chosen_index();
+                self.emit(EventKind::Selected { choice });
+                index?
+            }
+        };
+        let mut binding = Binding::new(examined.swap_remove(index), held.epoch + 1, need);
+        binding.params = held.params.clone();
+        Some(binding)
+    }
+
+    /// The takeover's commands: attach the running action's operations (or suspend them
+    /// again if it was ending), give every other its last parameters at the new epoch.
+    fn command_after_takeover(&mut self, myself: &ActorRef<DispatcherMsg>, from: &Checkpoint) {
+        let since = |name: &str| {
+            from.bindings
+                .iter()
+                .find(|b| b.name == name)
+                .map_or(0, |b| b.epoch)
+        };
+        let (running, ending, generation) = match &self.current {
+            Some(c) => (c.running.clone(), c.ending(), c.generation),
+            None => (BTreeSet::new(), false, 0),
+        };
+        let mut running_names = BTreeSet::new();
+        for key in &running {
+            let Some(b) = self.binding(key) else { continue };
+            running_names.insert(b.name.clone());
+            let (name, epoch, incarnation) = (b.name.clone(), b.epoch, b.incarnation);
+            let result = match ending {
+                true => b.client.suspend(epoch),
+                false => self.attach(myself, key, generation, incarnation, since(&name)),
+            };
+            if let Err(e) = result {
+                self.report_gone(myself, &name, incarnation, e);
+            }
+        }
+        for b in self.bindings.values() {
+            if running_names.contains(&b.name) {
+                continue;
+            }
+            let (client, params, epoch) = (b.client.clone(), b.params.clone(), b.epoch);
+            let name = b.name.clone();
+            ractor::concurrency::spawn(async move {
+                if let Err(e) = client.parameterize(params, epoch).await {
+                    tracing::warn!(op = %name, error = %e, "parameters not restored after the takeover");
+                }
+            });
+        }
+        let elapsed = self.elapsed_ms();
+        if let Some(cur) = self.current.as_mut() {
+            let message = match ending {
+                true => DispatcherMsg::SuspendGrace { generation },
+                false => DispatcherMsg::ActionDeadline { generation },
+            };
+            let wait = match ending {
+                true => super::running::SUSPEND_GRACE,
+                false => {
+                    let deadline = self.mission.actions[cur.index].deadline;
+                    let ran = Duration::from_millis(elapsed.saturating_sub(cur.started_ms));
+                    deadline.saturating_sub(ran)
+                }
+            };
+            cur.timer = Some(Timer::cast_after(&self.clock, wait, myself, message));
+        }
+    }
+
+    /// Attach the running activation of the operation written `key` (see
+    /// [`crate::eo::EoMsg::Attach`]); its report comes back as `OpEnded`, or `Idle` when
+    /// nothing ran to attach to.
+    fn attach(
+        &self,
+        myself: &ActorRef<DispatcherMsg>,
+        key: &str,
+        generation: u64,
+        incarnation: u64,
+        since: u64,
+    ) -> Result<(), EoError> {
+        let Some(b) = self.binding(key) else {
+            return Err(EoError::Gone(key.to_string()));
+        };
+        let rx = b.client.attach(b.epoch, since)?;
+        let me = myself.clone();
+        let key = key.to_string();
+        ractor::concurrency::spawn(async move {
+            let report = rx.await.ok();
+            let _ = me.cast(DispatcherMsg::OpEnded {
+                generation,
+                key,
+                incarnation,
+                report,
+            });
+        });
+        Ok(())
+    }
+
+    /// An attached operation had no activation running (it ended while no dispatcher
+    /// listened): resume it, so it carries on from what it stored.
+    pub(super) fn resume_idle(
+        &self,
+        myself: &ActorRef<DispatcherMsg>,
+        key: &str,
+        generation: u64,
+        incarnation: u64,
+    ) {
+        let Some(b) = self.binding(key) else { return };
+        let start = Start {
+            generation,
+            incarnation,
+            epoch: b.epoch,
+            resume: true,
+        };
+        let (name, params) = (b.name.clone(), b.params.clone());
+        tracing::info!(op = %name, "nothing ran to attach to: resumed");
+        if let Err(e) = self.activate(myself, key, start, params) {
+            self.report_gone(myself, &name, incarnation, e);
+        }
+    }
+}

@@ -1,0 +1,429 @@
+//! The dispatcher desk: a node that runs a cluster's missions for others, and takes a lost
+//! dispatcher's run over.
+//!
+//! A node config with `dispatcher = "active"` or `"standby"` ([`DeskRole`]) runs a desk, a
+//! permanent child of its root published in the registry as [`DESK_NAME`]. A member of the
+//! cluster (`marie up --run`, [`RunOptions::dispatch_on`](super::RunOptions::dispatch_on))
+//! asks a desk to [`DeskMsg::Start`] a run: the desk starts a dispatcher on its node that
+//! records the run's progress in the run datamanager ([`RUN`], kept in copies on other
+//! nodes) at every transition ([`marie_actors::dispatcher::checkpoint`]). The member follows
+//! the run through the cluster's relayed events.
+//!
+//! Every desk watches the cluster's dispatchers: when one leaves the registry (its process
+//! died, its actor was killed) or its node is declared down (frozen, cut off), the desk
+//! reads the run datamanager's newest checkpoint; if it belongs to a run that has not
+//! ended and was written on the lost dispatcher's node, the desk takes the run over under a
+//! higher term ([`TakeOver`]). A dispatcher that hangs — registered, its node up, but not
+//! answering a desk's [`DispatcherMsg::Alive`] within [`ALIVE_DEADLINE`] — is lost too. A
+//! standby's desk does so at once; an active node's desk
+//! waits [`ACTIVE_STAGGER`] first and, should both take over, binds under a higher term
+//! still, which fences the standby's off: two desks never carry one run on together.
+//!
+//! # Invariants
+//! - A desk runs at most one dispatcher at a time.
+//! - A takeover needs a checkpoint that has not ended and was written on the lost node.
+
+use super::NodeError;
+use marie_actors::clock::SharedClock;
+use marie_actors::dispatcher::checkpoint::{Checkpoint, CheckpointArgs, CHECKPOINT_SOURCE};
+use marie_actors::dispatcher::mission::Mission;
+use marie_actors::dispatcher::{self, DispatcherArgs, DispatcherMsg, TakeOver};
+use marie_actors::dm::{DmClient, RUN};
+use marie_actors::events::{BusError, Event, EventBus, EventKind};
+use marie_actors::registry::{self, ModuleKind, RegistryEvent};
+use marie_supervision::{ChildSpec, Restart, Shutdown, SupervisorRef};
+use ractor::{Actor, ActorProcessingErr, ActorRef};
+use serde::{Deserialize, Serialize};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+use tokio::task::JoinHandle;
+
+/// Registry name of a desk.
+pub const DESK_NAME: &str = "dispatcher-desk";
+/// Registry id of a desk.
+pub const DESK_ID: u32 = 1501;
+/// Child id of the desk under the node's root supervisor.
+pub(crate) const DESK: &str = "dispatcher-desk";
+/// How long an active node's desk lets a standby take a lost run over first.
+pub const ACTIVE_STAGGER: Duration = Duration::from_secs(1);
+/// How long a desk waits for the run datamanager (a copy being promoted).
+const RUN_DM_WAIT: Duration = Duration::from_secs(10);
+/// How long a desk waits for the requester's event watcher to reach its node.
+const WATCHER_WAIT: Duration = Duration::from_secs(5);
+/// How often a desk asks the other nodes' dispatchers whether they still answer.
+const ALIVE_PERIOD: Duration = Duration::from_millis(500);
+/// A dispatcher that has not answered for this long hangs: its run is taken over. Far
+/// above the failure detector's deadline, and above the time a dispatcher may wait for a
+/// checkpoint while the run datamanager fails over: a node frozen or cut off is declared
+/// down long before, and a dispatcher that is only slow is left alone.
+pub const ALIVE_DEADLINE: Duration = Duration::from_secs(5);
+
+/// What a node's desk does ([`super::NodeConfig::desk`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DeskRole {
+    /// Runs the cluster's missions (`marie up --run` dispatches here), and takes a lost
+    /// dispatcher's run over after [`ACTIVE_STAGGER`].
+    Active,
+    /// Takes a lost dispatcher's run over at once.
+    Standby,
+}
+
+impl DeskRole {
+    /// As a config writes it.
+    pub fn label(self) -> &'static str {
+        match self {
+            DeskRole::Active => "active",
+            DeskRole::Standby => "standby",
+        }
+    }
+
+    /// How long it waits before taking a lost run over, and by how much it raises the
+    /// term: an active desk that takes over after a standby did fences the standby off.
+    fn rank(self) -> (Duration, u64) {
+        match self {
+            DeskRole::Standby => (Duration::ZERO, 1),
+            DeskRole::Active => (ACTIVE_STAGGER, 2),
+        }
+    }
+}
+
+impl std::str::FromStr for DeskRole {
+    type Err = String;
+    fn from_str(s: &str) -> Result<DeskRole, String> {
+        match s {
+            "active" => Ok(DeskRole::Active),
+            "standby" => Ok(DeskRole::Standby),
+            other => Err(format!(
+                "`{other}` is not a dispatcher role: active or standby (or true, false)"
+            )),
+        }
+    }
+}
+
+marie_actors::remote_message! {
+    /// Messages of a dispatcher desk.
+    pub enum DeskMsg {
+        /// Start run `run` of `mission` (a checked [`Mission`] as MessagePack), recorded
+        /// in the run datamanager; the answer comes once the dispatcher runs (or why not).
+        /// `watcher` is the requester's event watcher (its node and actor number): the
+        /// desk waits until it can reach it, so the run's first events reach it too.
+        Start {
+            /// The run's id.
+            run: String,
+            /// The mission, checked, as MessagePack.
+            mission: Vec<u8>,
+            /// The requester's node name.
+            watcher_node: String,
+            /// Its watcher's actor number there.
+            watcher_pid: u64,
+        } -> Result<(), String>,
+    }
+    local {
+        /// The dispatcher on `node` is gone, noticed at `noticed`.
+        Lost {
+            /// Its node.
+            node: String,
+            /// When it was noticed.
+            noticed: Instant,
+        },
+        /// Take over the run whose last checkpoint is `from`.
+        TakeOver {
+            /// The checkpoint.
+            from: Box<Checkpoint>,
+            /// When the loss was noticed.
+            noticed: Instant,
+        },
+    }
+}
+
+/// What a desk starts dispatchers with.
+#[derive(Clone)]
+pub(crate) struct DeskArgs {
+    pub(crate) node: String,
+    pub(crate) role: DeskRole,
+    pub(crate) clock: SharedClock,
+    pub(crate) bus: EventBus,
+    pub(crate) root: SupervisorRef,
+}
+
+/// The desk as a permanent child of the node's root.
+pub(crate) fn child_spec(args: DeskArgs) -> ChildSpec {
+    ChildSpec::worker(DESK, move |sup| {
+        let args = args.clone();
+        async move {
+            let (actor, _) = Actor::spawn_linked(None, Desk, args, sup).await?;
+            Ok(actor.get_cell())
+        }
+    })
+}
+
+struct Desk;
+
+struct DeskState {
+    args: DeskArgs,
+    /// The dispatcher this desk runs, if any.
+    running: Option<ActorRef<DispatcherMsg>>,
+    /// Numbers the dispatchers' child ids.
+    runs: Arc<AtomicU64>,
+    watching: JoinHandle<()>,
+}
+
+impl Drop for DeskState {
+    fn drop(&mut self) {
+        self.watching.abort();
+    }
+}
+
+impl Actor for Desk {
+    type Msg = DeskMsg;
+    type State = DeskState;
+    type Arguments = DeskArgs;
+
+    async fn pre_start(
+        &self,
+        myself: ActorRef<DeskMsg>,
+        args: DeskArgs,
+    ) -> Result<DeskState, ActorProcessingErr> {
+        let watching = watch_dispatchers(&args, myself.clone()).await?;
+        registry::publish(
+            ModuleKind::Dispatcher,
+            DESK_ID,
+            DESK_NAME,
+            myself.get_cell(),
+        )?;
+        tracing::info!(node = %args.node, role = args.role.label(), "dispatcher desk ready");
+        Ok(DeskState {
+            args,
+            running: None,
+            runs: Arc::default(),
+            watching,
+        })
+    }
+
+    async fn handle(
+        &self,
+        myself: ActorRef<DeskMsg>,
+        msg: DeskMsg,
+        state: &mut DeskState,
+    ) -> Result<(), ActorProcessingErr> {
+        match msg {
+            DeskMsg::Start {
+                run,
+                mission,
+                watcher_node,
+                watcher_pid,
+                reply,
+            } => {
+                let answer = state.start(run, &mission, &watcher_node, watcher_pid).await;
+                let _ = reply.send(answer);
+            }
+            DeskMsg::Lost { node, noticed } => {
+                if state.busy() || node == state.args.node {
+                    return Ok(());
+                }
+                let (stagger, _) = state.args.role.rank();
+                let me = myself.clone();
+                tokio::spawn(async move {
+                    tokio::time::sleep(stagger).await;
+                    let Ok(dm) =
+                        DmClient::lookup_within(RUN.name, CHECKPOINT_SOURCE, RUN_DM_WAIT).await
+                    else {
+                        return; // no run recorded in this cluster
+                    };
+                    match Checkpoint::newest(&dm.with_follow(RUN_DM_WAIT)).await {
+                        Ok(Some(from)) if from.ended.is_none() && from.node == node => {
+                            let _ = me.cast(DeskMsg::TakeOver {
+                                from: Box::new(from),
+                                noticed,
+                            });
+                        }
+                        Ok(_) => {}
+                        Err(e) => {
+                            tracing::warn!(%node, error = %e, "cannot read the run's checkpoints")
+                        }
+                    }
+                });
+            }
+            DeskMsg::TakeOver { from, noticed } => {
+                if state.busy() {
+                    return Ok(());
+                }
+                if let Err(e) = state.take_over(*from, noticed).await {
+                    tracing::error!(error = %e, "cannot take the run over");
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+impl DeskState {
+    /// True while a dispatcher of this desk runs.
+    fn busy(&self) -> bool {
+        self.running
+            .as_ref()
+            .is_some_and(|d| d.get_status() == ractor::ActorStatus::Running)
+    }
+
+    async fn start(
+        &mut self,
+        run: String,
+        mission: &[u8],
+        watcher_node: &str,
+        watcher_pid: u64,
+    ) -> Result<(), String> {
+        if self.busy() {
+            return Err(format!(
+                "node `{}` already dispatches a run: one at a time",
+                self.args.node
+            ));
+        }
+        let mission: Mission = rmp_serde::from_slice(mission)
+            .map_err(|e| format!("the mission did not arrive whole: {e}"))?;
+        if !crate::relay::reaches(watcher_node, watcher_pid, WATCHER_WAIT).await {
+            tracing::warn!(%watcher_node, "the requester's event watcher is not in reach yet: it may miss the run's first events");
+        }
+        let dm = run_dm().await?;
+        let checkpoint = CheckpointArgs { run, term: 1, dm };
+        self.spawn(DispatcherArgs {
+            checkpoint: Some(checkpoint),
+            ..DispatcherArgs::new(mission, self.args.clock.clone(), self.args.bus.clone())
+        })
+        .await
+        .map_err(|e| e.to_string())
+    }
+
+    async fn take_over(&mut self, from: Checkpoint, noticed: Instant) -> Result<(), NodeError> {
+        let (_, raise) = self.args.role.rank();
+        let dm = run_dm().await.map_err(NodeError::NoRunDm)?;
+        let checkpoint = CheckpointArgs {
+            run: from.run.clone(),
+            term: from.term + raise,
+            dm,
+        };
+        let mission = from.mission.clone();
+        self.spawn(DispatcherArgs {
+            checkpoint: Some(checkpoint),
+            take_over: Some(TakeOver { from, noticed }),
+            ..DispatcherArgs::new(mission, self.args.clock.clone(), self.args.bus.clone())
+        })
+        .await
+    }
+
+    /// Start a dispatcher with `args` as a temporary child of the node's root and ask it
+    /// to run (it answers when the run is over; the run's events tell everything).
+    async fn spawn(&mut self, args: DispatcherArgs) -> Result<(), NodeError> {
+        let n = self.runs.fetch_add(1, Ordering::Relaxed);
+        let spec = ChildSpec::worker(format!("desk-dispatcher-{n}"), move |sup| {
+            let args = args.clone();
+            async move {
+                Ok(dispatcher::spawn_dispatcher(args, Some(sup))
+                    .await?
+                    .get_cell())
+            }
+        })
+        .with_restart(Restart::Temporary)
+        .with_shutdown(Shutdown::Timeout(Duration::from_secs(1)));
+        let dispatcher: ActorRef<DispatcherMsg> = self.args.root.start_child(spec).await?.into();
+        self.running = Some(dispatcher.clone());
+        tokio::spawn(async move {
+            let outcome = dispatcher::request_run(&dispatcher).await;
+            tracing::info!(?outcome, "dispatched run over");
+        });
+        Ok(())
+    }
+}
+
+/// The run datamanager, waiting for one (a copy being promoted).
+async fn run_dm() -> Result<DmClient, String> {
+    DmClient::lookup_within(RUN.name, CHECKPOINT_SOURCE, RUN_DM_WAIT)
+        .await
+        .map(|dm| dm.with_follow(RUN_DM_WAIT))
+        .map_err(|_| {
+            format!(
+                "no run datamanager `{}` in the cluster: a dispatched run records its \
+                 progress there so that a standby can take it over (a node config hosts it: \
+                 `[[datamanager]] name = \"run\"`, best with copies on other nodes)",
+                RUN.name
+            )
+        })
+}
+
+/// Tell the desk `desk` whenever a dispatcher on another node leaves the registry or its
+/// node is lost (declared down, or its sessions ended).
+async fn watch_dispatchers(
+    args: &DeskArgs,
+    desk: ActorRef<DeskMsg>,
+) -> Result<JoinHandle<()>, ractor::SpawnErr> {
+    let mut leaves = registry::watch(Some(ModuleKind::Dispatcher)).await?;
+    let mut bus = args.bus.subscribe();
+    let me = args.node.clone();
+    let hangs = watch_hangs(me.clone(), desk.clone());
+    Ok(tokio::spawn(async move {
+        // ends the hang watch with this one
+        struct Abort(JoinHandle<()>);
+        impl Drop for Abort {
+            fn drop(&mut self) {
+                self.0.abort();
+            }
+        }
+        let _hangs = Abort(hangs);
+        loop {
+            let node = tokio::select! {
+                event = leaves.next() => match event {
+                    Some(RegistryEvent::Left(inst)) if inst.name == "dispatcher" => inst.node,
+                    Some(_) => continue,
+                    None => return,
+                },
+                event = bus.recv() => match event {
+                    Ok(Event { kind: EventKind::NodeDown { peer, .. } | EventKind::NodeLost { peer, .. }, .. }) => peer,
+                    Ok(_) | Err(BusError::Lagged { .. }) => continue,
+                    Err(BusError::Closed) => return,
+                },
+            };
+            if node == me {
+                continue;
+            }
+            let noticed = Instant::now();
+            if desk.cast(DeskMsg::Lost { node, noticed }).is_err() {
+                return;
+            }
+        }
+    }))
+}
+
+/// Ask every other node's dispatcher every [`ALIVE_PERIOD`] whether it answers; tell the
+/// desk of one that has not for [`ALIVE_DEADLINE`] (a dispatcher that hangs).
+fn watch_hangs(me: String, desk: ActorRef<DeskMsg>) -> JoinHandle<()> {
+    tokio::spawn(async move {
+        let mut ticks = tokio::time::interval(ALIVE_PERIOD);
+        ticks.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+        loop {
+            ticks.tick().await;
+            let others = registry::list_of(ModuleKind::Dispatcher)
+                .into_iter()
+                .filter(|i| i.id == dispatcher::DISPATCHER_ID && i.node != me);
+            for inst in others {
+                let actor: ActorRef<DispatcherMsg> = inst.actor.clone().into();
+                let asked = Instant::now();
+                let answer = actor
+                    .call(|reply| DispatcherMsg::Alive { reply }, Some(ALIVE_DEADLINE))
+                    .await;
+                if let Ok(ractor::rpc::CallResult::Timeout) = answer {
+                    tracing::warn!(node = %inst.node, "the dispatcher there does not answer: it hangs");
+                    if desk
+                        .cast(DeskMsg::Lost {
+                            node: inst.node.clone(),
+                            noticed: asked + ALIVE_DEADLINE,
+                        })
+                        .is_err()
+                    {
+                        return;
+                    }
+                }
+            }
+        }
+    })
+}

@@ -1,0 +1,157 @@
+//! A dispatcher that fails over: `marie up --run` on the thesis' layout dispatches the run on
+//! the features node (`dispatcher = "active"`) with a standby on spare, as real processes on
+//! 127.0.0.1. Whatever happens to the active dispatcher — its node killed (`SIGKILL`) or
+//! frozen (`SIGSTOP`) past the failure detector's deadline, its actor killed, panicking or
+//! hanging — the standby takes the run over from its last checkpoint, the old one is fenced
+//! off should it wake, and the mission docks: one run, one report, with its takeover.
+
+mod common;
+
+use common::{marie, report_of, text};
+use marie::actors::events::Event;
+use marie::actors::report::RunReport;
+
+const THESIS: &str = "missions/clusters/thesis.toml";
+/// Wall-clock time × 4 on every node (the failure detector's deadline is real time).
+const SPEED: &str = "4";
+
+/// Run the docking mission on the thesis' layout with `fault`; stdout, the report and the
+/// events.
+fn faulted_run(fault: &str) -> (String, serde_json::Value, Vec<Event>) {
+    let dir = tempfile::tempdir().unwrap();
+    let events_path = dir.path().join("events.jsonl");
+    let (out, report) = report_of(&[
+        "up",
+        THESIS,
+        "--run",
+        "missions/docking.toml",
+        "--speed",
+        SPEED,
+        "--fault",
+        fault,
+        "--events",
+        events_path.to_str().unwrap(),
+    ]);
+    let stdout = text(&out.stdout);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{fault}: {stdout}\n{}",
+        text(&out.stderr)
+    );
+    let events = std::fs::read_to_string(&events_path)
+        .unwrap()
+        .lines()
+        .map(|l| Event::from_json_line(l).unwrap())
+        .collect();
+    (stdout, report, events)
+}
+
+/// The run was taken over once, from features by spare, and docked; the report is the
+/// events folded (one run across the takeover), its end told by spare's dispatcher only.
+fn assert_taken_over(fault: &str, stdout: &str, report: &serde_json::Value, events: &[Event]) {
+    assert!(
+        stdout.contains("the run is dispatched on features, standby on spare"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("# the run taken over by spare from features at "),
+        "{fault}: {stdout}"
+    );
+    assert_eq!(report["outcome"], "succeeded", "{fault}: {stdout}");
+    assert_eq!(report["collisions"], 0);
+    let takeovers = report["takeovers"].as_array().unwrap();
+    assert_eq!(takeovers.len(), 1, "{fault}: {takeovers:?}");
+    assert_eq!(takeovers[0]["from"], "features");
+    assert_eq!(takeovers[0]["to"], "spare");
+    assert_eq!(takeovers[0]["term"], 2);
+    assert!(stdout.contains(", 1 takeover, "), "{fault}: {stdout}");
+    // one run: started once (on features), ended once (on spare)
+    let of = |t: &str| -> Vec<&Event> {
+        events
+            .iter()
+            .filter(|e| serde_json::to_value(&e.kind).unwrap()["type"] == t)
+            .collect()
+    };
+    let started = of("run_started");
+    assert_eq!(started.len(), 1, "{fault}");
+    assert_eq!(started[0].node, "features");
+    let ended = of("run_ended");
+    assert_eq!(ended.len(), 1, "{fault}: {ended:?}");
+    assert_eq!(ended[0].node, "spare");
+    // every action of the mission ran once, the running one carried across the takeover
+    let folded = RunReport::from_events(events);
+    let written: RunReport = serde_json::from_value(report.clone()).unwrap();
+    assert_eq!(folded.takeovers, written.takeovers, "{fault}");
+    assert_eq!(folded.actions, written.actions, "{fault}");
+    let actions: Vec<&str> = written.actions.iter().map(|a| a.name.as_str()).collect();
+    assert_eq!(
+        actions,
+        ["find-wall", "follow-wall", "plan-parking", "park"],
+        "{fault}"
+    );
+}
+
+#[test]
+fn the_dispatchers_node_killed_mid_run_is_taken_over_by_the_standby_and_the_mission_docks() {
+    let fault = "stop-node:features@6";
+    let (stdout, report, events) = faulted_run(fault);
+    assert_taken_over(fault, &stdout, &report, &events);
+    assert!(stdout.contains("node features was killed"), "{stdout}");
+}
+
+#[test]
+fn a_dispatcher_frozen_past_the_deadline_is_taken_over_and_fenced_off_when_it_wakes() {
+    // 8 s of mission time: 2 s of real time, past the detector's 1.2 s
+    let fault = "freeze-node:features@6+8";
+    let (stdout, report, events) = faulted_run(fault);
+    assert_taken_over(fault, &stdout, &report, &events);
+    // woken, the old dispatcher found its checkpoint refused for the newer term, and
+    // stopped without ending the run (asserted above: the one run_ended is spare's)
+    let fenced: Vec<&Event> = events
+        .iter()
+        .filter(|e| {
+            let kind = serde_json::to_value(&e.kind).unwrap();
+            kind["type"] == "dispatcher_fenced" && kind["term"] == 1 && kind["newer"] == 2
+        })
+        .collect();
+    assert_eq!(fenced.len(), 1, "{stdout}");
+    assert_eq!(fenced[0].node, "features");
+    assert!(
+        stdout.contains("# the dispatcher on features (term 1) fenced off by term 2"),
+        "{stdout}"
+    );
+}
+
+#[test]
+fn a_killed_panicking_or_hanging_dispatcher_is_taken_over_and_the_mission_docks() {
+    for fault in [
+        "kill:dispatcher@6",
+        "panic:dispatcher@6",
+        "hang:dispatcher@6",
+    ] {
+        let (stdout, report, events) = faulted_run(fault);
+        assert_taken_over(fault, &stdout, &report, &events);
+        let kind = fault.split(':').next().unwrap();
+        assert!(
+            stdout.contains(&format!("* injected {kind} into dispatcher (")),
+            "{stdout}"
+        );
+    }
+}
+
+#[test]
+fn a_dispatcher_fault_it_cannot_suffer_is_refused_before_the_run() {
+    let out = marie(&[
+        "up",
+        THESIS,
+        "--run",
+        "missions/docking.toml",
+        "--fault",
+        "slow:dispatcher@1",
+    ]);
+    let stderr = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("dispatcher"), "{stderr}");
+    assert!(!text(&out.stdout).contains("outcome:"));
+}
