@@ -32,7 +32,12 @@ fn the_thesis_layout_docks_with_the_dispatcher_on_a_process_of_its_own() {
         "{stdout}\n{}",
         text(&out.stderr)
     );
-    assert!(stdout.contains("4 nodes, 24 modules"), "{stdout}");
+    // 24 modules and the run datamanager's primary and the active and standby desks
+    assert!(stdout.contains("4 nodes, 27 modules"), "{stdout}");
+    assert!(
+        stdout.contains("the run is dispatched on features, standby on spare"),
+        "{stdout}"
+    );
     assert!(stdout.contains("outcome: succeeded"), "{stdout}");
     assert!(stdout.contains("cluster stopped"), "{stdout}");
     assert_eq!(report["outcome"], "succeeded");

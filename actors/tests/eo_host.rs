@@ -546,3 +546,60 @@ async fn a_slow_fault_stretches_the_time_between_an_operations_steps() {
     ));
     actor.stop(None);
 }
+
+#[tokio::test]
+async fn a_new_dispatcher_attaches_to_the_running_activation_without_disturbing_it() {
+    let (actor, _) = spawn_operation(
+        Stepper {
+            name: "stepper-attach",
+            taken: 0,
+        },
+        HostOptions::with_clock(Arc::new(ManualClock::new())),
+    )
+    .await
+    .unwrap();
+    let c = EoClient::new(actor);
+    // the lost dispatcher's activation, under epoch 7: it runs (the clock never advances)
+    let lost = c
+        .activate(param_map([("steps", Value::Int(1000))]), 7)
+        .unwrap();
+    // an older epoch cannot attach
+    let stale = c.attach(6, 7).unwrap();
+    assert_eq!(
+        timeout(T, stale).await.unwrap().unwrap(),
+        EoReport::Stale {
+            epoch: 6,
+            current: 7
+        }
+    );
+    // the standby, under epoch 8, takes the activation over: still the one activation
+    let attached = c.attach(8, 7).unwrap();
+    let PropertyReply::General(g) = ask(&c, PropertyRequest::Group(Group::General)).await else {
+        panic!()
+    };
+    assert!(g.in_use);
+    assert_eq!(g.activations, 1, "attaching started no new activation");
+    // the lost dispatcher's port hears nothing more; its commands are stale now
+    assert!(timeout(T, lost).await.unwrap().is_err());
+    c.suspend(7).unwrap();
+    let PropertyReply::General(g) = ask(&c, PropertyRequest::Group(Group::General)).await else {
+        panic!()
+    };
+    assert!(g.in_use, "a suspend of the old epoch was obeyed");
+    // the new one's suspend ends it, reported on the attached port
+    c.suspend(8).unwrap();
+    assert_eq!(
+        timeout(T, attached).await.unwrap().unwrap(),
+        EoReport::Suspended {
+            flags: StatusFlags::EMPTY,
+            epoch: 8
+        }
+    );
+    // nothing runs now: an attach is answered at once, idle
+    let idle = c.attach(9, 8).unwrap();
+    assert_eq!(
+        timeout(T, idle).await.unwrap().unwrap(),
+        EoReport::Idle { epoch: 9 }
+    );
+    c.actor().stop(None);
+}

@@ -320,3 +320,87 @@ fn a_report_folds_lasting_faults_and_the_nodes_lost_and_back() {
         ]
     );
 }
+
+#[test]
+fn a_report_is_one_run_across_a_takeover_and_folds_only_the_current_dispatchers_word() {
+    let clock = Arc::new(ManualClock::new());
+    let bus = EventBus::new("up", clock.clone());
+    let mut sub = bus.subscribe();
+    let at = |ms: u64| clock.advance(Duration::from_millis(ms).saturating_sub(clock.now()));
+    let ended = |outcome, reason: &str, run_ms| EventKind::RunEnded {
+        outcome,
+        reason: reason.into(),
+        run_ms,
+        status: 0,
+        flags: vec![],
+    };
+    at(1000);
+    bus.republish(
+        "features",
+        EventKind::RunStarted {
+            mission: "m".into(),
+            actions: vec![],
+            success: vec![],
+        },
+    );
+    at(2000);
+    bus.republish(
+        "features",
+        EventKind::ActionStarted {
+            action: "a".into(),
+            run_ms: 1000,
+            operations: vec![],
+        },
+    );
+    at(5000);
+    bus.republish(
+        "spare",
+        EventKind::Takeover {
+            run: "r".into(),
+            from: "features".into(),
+            to: "spare".into(),
+            term: 2,
+            gap_ms: 40,
+            since_checkpoint_ms: 3000,
+            unix_ms: 1,
+        },
+    );
+    // the old dispatcher, woken: what it says is not the run's any more
+    at(6000);
+    bus.republish(
+        "features",
+        EventKind::Lost {
+            operation: "op".into(),
+            cause: LossCause::Gone,
+        },
+    );
+    bus.republish("features", ended(Outcome::Failed, "cut off", 5000));
+    bus.republish(
+        "features",
+        EventKind::DispatcherFenced {
+            run: "r".into(),
+            term: 1,
+            newer: 2,
+        },
+    );
+    at(9000);
+    bus.republish(
+        "spare",
+        EventKind::ActionEnded {
+            action: "a".into(),
+            run_ms: 8000,
+            flags: vec![],
+            status: 1,
+        },
+    );
+    bus.republish("spare", ended(Outcome::Succeeded, "", 8000));
+    let report = RunReport::from_events(&sub.drain());
+    assert_eq!(report.outcome, Outcome::Succeeded, "{}", report.reason);
+    assert_eq!(report.duration_ms, 8000);
+    assert_eq!(report.takeovers.len(), 1);
+    let t = &report.takeovers[0];
+    assert_eq!((t.at_ms, t.from.as_str(), t.to.as_str(), t.term), (4000, "features", "spare", 2));
+    // the action started under features and ended under spare: one record
+    assert_eq!(report.actions.len(), 1);
+    assert_eq!((report.actions[0].start_ms, report.actions[0].end_ms), (1000, 8000));
+}

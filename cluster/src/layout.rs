@@ -351,6 +351,50 @@ mod tests {
     }
 
     #[test]
+    fn a_cluster_dispatches_on_its_one_active_node_and_says_where_the_standbys_are() {
+        let dir = tempfile::tempdir().unwrap();
+        write(dir.path(), "a.toml", "[node]\nname = \"a\"\ndispatcher = \"active\"\n");
+        write(dir.path(), "b.toml", "[node]\nname = \"b\"\ndispatcher = \"standby\"\n");
+        write(dir.path(), "c.toml", "[node]\nname = \"c\"\ndispatcher = false\n");
+        write(dir.path(), "d.toml", "[node]\nname = \"d\"\ndispatcher = \"active\"\n");
+        write(dir.path(), "e.toml", "[node]\nname = \"e\"\ndispatcher = \"boss\"\n");
+        let c = write(
+            dir.path(),
+            "c1.toml",
+            "[cluster]\ncookie = \"k\"\n[[node]]\nconfig = \"a.toml\"\n\
+             [[node]]\nconfig = \"b.toml\"\n[[node]]\nconfig = \"c.toml\"\n",
+        );
+        let l = ClusterLayout::load(&c, &[]).unwrap();
+        assert_eq!(l.dispatch_node(), Some("a"));
+        assert_eq!(l.standby_nodes(), ["b"]);
+        assert!(!l.nodes[0].config.dispatcher, "a desk runs no run of its own");
+        // two active nodes: refused at the second
+        let c = write(
+            dir.path(),
+            "c2.toml",
+            "[cluster]\ncookie = \"k\"\n[[node]]\nconfig = \"a.toml\"\n\
+             [[node]]\nconfig = \"d.toml\"\n",
+        );
+        let text = ClusterLayout::load(&c, &[]).unwrap_err().to_string();
+        let f = c.display();
+        assert!(
+            text.contains(&format!("{f}:6:10: node `a` and node `d` both say")),
+            "{text}"
+        );
+        // a role that is none: at its place in the node config
+        let c = write(
+            dir.path(),
+            "c3.toml",
+            "[cluster]\ncookie = \"k\"\n[[node]]\nconfig = \"e.toml\"\n",
+        );
+        let text = ClusterLayout::load(&c, &[]).unwrap_err().to_string();
+        assert!(
+            text.contains("e.toml:3:14: `boss` is not a dispatcher role"),
+            "{text}"
+        );
+    }
+
+    #[test]
     fn a_cluster_file_without_cookie_or_nodes_is_refused() {
         let dir = tempfile::tempdir().unwrap();
         let c = write(dir.path(), "c.toml", "[cluster]\nspeed = 1\n");

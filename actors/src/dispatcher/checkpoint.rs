@@ -265,3 +265,64 @@ pub fn unix_ms() -> u64 {
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0, |d| d.as_millis() as u64)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dispatcher::mission::ParsedMission;
+
+    fn mission(name: &str) -> Mission {
+        let text = format!(
+            "[mission]\nname = \"{name}\"\nsuccess = [\"done\"]\n[flags]\ndone = 0\n\
+             [[action]]\nname = \"a\"\n[action.ops.op]\n"
+        );
+        let mut ops = std::collections::BTreeMap::new();
+        let mut op = crate::dispatcher::mission::OpInfo::new("op", 1, "1.0.0");
+        op.flags = vec![crate::status::FlagDecl::new("done", "done")];
+        ops.insert("op".to_string(), op);
+        ParsedMission::parse(&text, None)
+            .unwrap()
+            .validate(&ops)
+            .unwrap()
+    }
+
+    #[test]
+    fn a_checkpoint_crosses_nodes_whole_and_its_hash_tells_missions_apart() {
+        let m = mission("m");
+        assert_eq!(Checkpoint::hash_of(&m), Checkpoint::hash_of(&m.clone()));
+        assert_ne!(Checkpoint::hash_of(&m), Checkpoint::hash_of(&mission("n")));
+        let checkpoint = Checkpoint {
+            run: "r".into(),
+            term: 2,
+            seq: 5,
+            node: "spare".into(),
+            mission_hash: Checkpoint::hash_of(&m),
+            mission: m,
+            run_ms: 1200,
+            started_ms: 7,
+            unix_ms: 9,
+            status: 1,
+            done: vec![false],
+            generation: 1,
+            current: Some(CurrentCheckpoint {
+                index: 0,
+                running: vec!["op".into()],
+                enders_done: vec![],
+                ending: false,
+                started_ms: 3,
+            }),
+            bindings: vec![BindingCheckpoint {
+                name: "op".into(),
+                node: "n".into(),
+                pid: 42,
+                epoch: 1000,
+                params: Default::default(),
+                lost: false,
+            }],
+            ended: None,
+        };
+        let bytes = rmp_serde::to_vec(&checkpoint).unwrap();
+        let back: Checkpoint = rmp_serde::from_slice(&bytes).unwrap();
+        assert_eq!(back, checkpoint);
+    }
+}
