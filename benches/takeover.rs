@@ -54,14 +54,19 @@ fn run(fault: Option<&str>, dir: &Path, n: usize) -> Measured {
     let events = dir.join(format!("events-{n}.jsonl"));
     let report = dir.join(format!("report-{n}.json"));
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_marie"));
-    cmd.args(["up", "missions/clusters/thesis.toml", "--run", "missions/docking.toml"])
-        .args(["--speed", &SPEED.to_string()])
-        .arg("--events")
-        .arg(&events)
-        .arg("--report")
-        .arg(&report)
-        .stdout(Stdio::null())
-        .stderr(Stdio::null());
+    cmd.args([
+        "up",
+        "missions/clusters/thesis.toml",
+        "--run",
+        "missions/docking.toml",
+    ])
+    .args(["--speed", &SPEED.to_string()])
+    .arg("--events")
+    .arg(&events)
+    .arg("--report")
+    .arg(&report)
+    .stdout(Stdio::null())
+    .stderr(Stdio::null());
     if let Some(fault) = fault {
         cmd.args(["--fault", fault]);
     }
@@ -123,7 +128,11 @@ fn main() {
     baseline.sort_by(f64::total_cmp);
     let base = percentile(&baseline, 0.5);
     let kinds = [
-        ("kill -9", format!("stop-node:features@{AT}"), Duration::from_millis(300)),
+        (
+            "kill -9",
+            format!("stop-node:features@{AT}"),
+            Duration::from_millis(300),
+        ),
         (
             "SIGSTOP",
             format!("freeze-node:features@{AT}+{FREEZE}"),

@@ -98,8 +98,11 @@ fn up_lists_every_module_with_its_node_and_leaves_no_node_behind_when_killed() {
         .iter()
         .map(|(_, name, node)| (name.clone(), node.clone()))
         .collect();
-    assert_eq!(rows.len(), 24, "{listed:?}");
+    assert_eq!(rows.len(), 27, "{listed:?}");
     for (module, node) in [
+        ("dispatcher-desk", "features"),
+        ("dispatcher-desk", "spare"),
+        ("run", "operations"),
         ("virtual-cart", "cart"),
         ("ultrasonic", "cart"),
         ("feature", "features"),
@@ -360,7 +363,37 @@ fn a_run_on_a_cluster_kept_up_starts_where_the_last_left_the_cart_or_from_the_st
         text(&second.stderr)
     );
 
-    let (third, report) = run("third", &["--from-start"]);
+    // a node without a desk cannot dispatch a run: refused before it starts
+    let (refused, _) = run("refused", &["--dispatch-on", "cart"]);
+    let stderr = text(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("--dispatch-on cart: that node runs no dispatcher desk")
+            && stderr.contains("these do: ")
+            && stderr.contains("features")
+            && stderr.contains("spare"),
+        "{stderr}"
+    );
+    // from the start, dispatched on the features node's desk (as `marie up --run` does)
+    let events = dir.path().join("third.jsonl");
+    let (third, report) = run(
+        "third",
+        &[
+            "--from-start",
+            "--dispatch-on",
+            "features",
+            "--events",
+            events.to_str().unwrap(),
+        ],
+    );
+    let started: Vec<String> = std::fs::read_to_string(&events)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+        .filter(|e| e["kind"]["type"] == "run_started")
+        .map(|e| e["node"].as_str().unwrap().to_string())
+        .collect();
+    assert_eq!(started, ["features"]);
     let stdout = text(&third.stdout);
     assert_eq!(
         third.status.code(),

@@ -399,8 +399,14 @@ fn a_report_is_one_run_across_a_takeover_and_folds_only_the_current_dispatchers_
     assert_eq!(report.duration_ms, 8000);
     assert_eq!(report.takeovers.len(), 1);
     let t = &report.takeovers[0];
-    assert_eq!((t.at_ms, t.from.as_str(), t.to.as_str(), t.term), (4000, "features", "spare", 2));
+    assert_eq!(
+        (t.at_ms, t.from.as_str(), t.to.as_str(), t.term),
+        (4000, "features", "spare", 2)
+    );
     // the action started under features and ended under spare: one record
     assert_eq!(report.actions.len(), 1);
-    assert_eq!((report.actions[0].start_ms, report.actions[0].end_ms), (1000, 8000));
+    assert_eq!(
+        (report.actions[0].start_ms, report.actions[0].end_ms),
+        (1000, 8000)
+    );
 }

@@ -353,11 +353,31 @@ mod tests {
     #[test]
     fn a_cluster_dispatches_on_its_one_active_node_and_says_where_the_standbys_are() {
         let dir = tempfile::tempdir().unwrap();
-        write(dir.path(), "a.toml", "[node]\nname = \"a\"\ndispatcher = \"active\"\n");
-        write(dir.path(), "b.toml", "[node]\nname = \"b\"\ndispatcher = \"standby\"\n");
-        write(dir.path(), "c.toml", "[node]\nname = \"c\"\ndispatcher = false\n");
-        write(dir.path(), "d.toml", "[node]\nname = \"d\"\ndispatcher = \"active\"\n");
-        write(dir.path(), "e.toml", "[node]\nname = \"e\"\ndispatcher = \"boss\"\n");
+        write(
+            dir.path(),
+            "a.toml",
+            "[node]\nname = \"a\"\ndispatcher = \"active\"\n",
+        );
+        write(
+            dir.path(),
+            "b.toml",
+            "[node]\nname = \"b\"\ndispatcher = \"standby\"\n",
+        );
+        write(
+            dir.path(),
+            "c.toml",
+            "[node]\nname = \"c\"\ndispatcher = false\n",
+        );
+        write(
+            dir.path(),
+            "d.toml",
+            "[node]\nname = \"d\"\ndispatcher = \"active\"\n",
+        );
+        write(
+            dir.path(),
+            "e.toml",
+            "[node]\nname = \"e\"\ndispatcher = \"boss\"\n",
+        );
         let c = write(
             dir.path(),
             "c1.toml",
@@ -367,7 +387,10 @@ mod tests {
         let l = ClusterLayout::load(&c, &[]).unwrap();
         assert_eq!(l.dispatch_node(), Some("a"));
         assert_eq!(l.standby_nodes(), ["b"]);
-        assert!(!l.nodes[0].config.dispatcher, "a desk runs no run of its own");
+        assert!(
+            !l.nodes[0].config.dispatcher,
+            "a desk runs no run of its own"
+        );
         // two active nodes: refused at the second
         let c = write(
             dir.path(),

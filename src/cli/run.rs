@@ -113,9 +113,11 @@ pub(crate) struct RunArgs {
     /// [`MissionOver`]).
     #[arg(skip)]
     pub mission_over: MissionOver,
-    /// Dispatch the run on this cluster node's desk (`marie up` of a cluster file whose
-    /// node says `dispatcher = "active"`) and follow it there.
-    #[arg(skip)]
+    /// With `--join`: dispatch the run on NODE (a node whose config says `dispatcher =
+    /// "active"` or `"standby"`, e.g. `features` of the thesis layout) instead of this
+    /// member, and follow it there — and to the standby that takes it over should NODE be
+    /// lost. `marie up --run` does so on the cluster file's active node.
+    #[arg(long, value_name = "NODE", requires = "join")]
     pub dispatch_on: Option<String>,
 }
 
@@ -289,6 +291,26 @@ pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         Err(e) => {
             prepared.shutdown().await;
             return Err(e.into());
+        }
+    }
+    // a run dispatched on a node that runs no desk is refused before it starts
+    if let Some(on) = options.dispatched_on() {
+        let desks = marie::actors::registry::lookup(
+            marie::actors::registry::ModuleKind::Dispatcher,
+            marie::cluster::node::desk::DESK_NAME,
+        );
+        if !desks.iter().any(|d| d.node == on) {
+            let nodes: Vec<String> = desks.iter().map(|d| d.node.clone()).collect();
+            prepared.shutdown().await;
+            return Err(BadInput(format!(
+                "--dispatch-on {on}: that node runs no dispatcher desk (`dispatcher = \
+                 \"active\"` or `\"standby\"` in its config); {}",
+                match nodes.is_empty() {
+                    true => "no node of this cluster runs one".to_string(),
+                    false => format!("these do: {}", nodes.join(", ")),
+                }
+            ))
+            .into());
         }
     }
     let Prepared {

@@ -145,6 +145,8 @@ pub(super) struct Current {
     pub(super) state: ActionState,
     /// The action's deadline, then its suspension grace; cancelled with the action.
     pub(super) timer: Option<Timer>,
+    /// Its operations were activated (a recorded run's action waits for its checkpoint).
+    pub(super) launched: bool,
 }
 
 /// State of the dispatcher.
@@ -354,6 +356,7 @@ impl Actor for ActionDispatcher {
             }
             DispatcherMsg::Abort { reason } => state.finish(&myself, Outcome::Failed, reason),
             DispatcherMsg::Fenced { newer } => state.fenced(&myself, newer),
+            DispatcherMsg::Launch { generation } => state.launch(&myself, generation),
             DispatcherMsg::Alive { reply } => {
                 let _ = reply.send(state.elapsed_ms());
             }

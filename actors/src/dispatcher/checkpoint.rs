@@ -236,7 +236,17 @@ async fn write(dm: &DmClient, run: &str, checkpoint: &Checkpoint) -> Result<(), 
             .store(CHECKPOINT_CLASS, Some(run), None, checkpoint)
             .await
         {
-            Ok(_) => return Ok(()),
+            Ok(seq) => {
+                tracing::debug!(
+                    run,
+                    term = checkpoint.term,
+                    n = checkpoint.seq,
+                    seq,
+                    generation = checkpoint.generation,
+                    "checkpoint stored"
+                );
+                return Ok(());
+            }
             Err(DmError::Fenced(stale)) => {
                 tracing::warn!(
                     run,

@@ -324,7 +324,8 @@ impl DispatcherState {
         self.emit(EventKind::Selected { choice });
         // the report's record of the running action takes the stand-in's address from it
         self.emit(EventKind::Rebound(record));
-        match self.running_key(name) {
+        let launched = self.current.as_ref().is_some_and(|c| c.launched);
+        match self.running_key(name).filter(|_| launched) {
             Some(key) => {
                 let cur = self.current.as_ref().expect("running_key found it");
                 let generation = cur.generation;

@@ -87,6 +87,11 @@ crate::remote_message! {
             /// The newer term.
             newer: u64,
         },
+        /// The checkpoint of action `generation`'s start is stored: launch it.
+        Launch {
+            /// Generation of the action.
+            generation: u64,
+        },
         /// The run's last checkpoint is stored: publish its end and answer.
         Conclude {
             /// The outcome.

@@ -110,6 +110,9 @@ impl DispatcherState {
         }
     }
 
+    /// Start action `index`: its operations' parameters set, the action recorded — and,
+    /// for a recorded run, once that checkpoint is stored, launched ([`Self::launch`]): a
+    /// standby never carries on from an action older than the one whose commands went out.
     pub(super) fn start_action(&mut self, myself: &ActorRef<DispatcherMsg>, index: usize) {
         self.generation += 1;
         let generation = self.generation;
@@ -122,20 +125,53 @@ impl DispatcherState {
             enders_done: BTreeSet::new(),
             state: ActionState::Running,
             timer: None,
+            launched: false,
         };
         tracing::info!(action = %action.name, "action started");
-        let mut started = Vec::new();
-        let mut unreachable = None;
-        let mut activations = Vec::new();
         for op in &action.ops {
             let Some(b) = self.bindings.get_mut(&op.name) else {
-                unreachable = Some(format!("operation `{}` is not bound", op.key));
-                break;
+                let reason = format!("operation `{}` is not bound", op.key);
+                self.finish(myself, Outcome::Failed, reason);
+                return;
             };
             let mut params = b.defaults.clone();
             params.extend(op.params.clone());
-            b.params = params.clone();
-            let (epoch, incarnation, lost) = (b.epoch, b.incarnation, b.lost.is_some());
+            b.params = params;
+            current.running.insert(op.key.clone());
+        }
+        self.current = Some(current);
+        match self.checkpoint_stored() {
+            Some(stored) => {
+                let me = myself.clone();
+                ractor::concurrency::spawn(async move {
+                    // refused: the writer told the dispatcher it is fenced
+                    if let Ok(Ok(())) = stored.await {
+                        let _ = me.cast(DispatcherMsg::Launch { generation });
+                    }
+                });
+            }
+            None => self.launch(myself, generation),
+        }
+    }
+
+    /// Tell the action of `generation` started and activate its operations (a lost one is
+    /// activated when a stand-in is adopted).
+    pub(super) fn launch(&mut self, myself: &ActorRef<DispatcherMsg>, generation: u64) {
+        let Some(cur) = self.current.as_mut() else {
+            return;
+        };
+        if cur.generation != generation || cur.launched || self.ended {
+            return;
+        }
+        cur.launched = true;
+        let (index, started_ms) = (cur.index, cur.started_ms);
+        let action = self.mission.actions[index].clone();
+        let mut started = Vec::new();
+        let mut activations = Vec::new();
+        for op in &action.ops {
+            let Some(b) = self.bindings.get(&op.name) else {
+                continue;
+            };
             started.push(OpStarted {
                 key: op.key.clone(),
                 name: b.name.clone(),
@@ -144,28 +180,22 @@ impl DispatcherState {
                 node: b.node.clone(),
                 address: b.address(),
             });
-            // A lost operation is activated when a stand-in is adopted.
-            current.running.insert(op.key.clone());
-            activations.push((
-                op.key.clone(),
-                op.name.clone(),
-                incarnation,
-                params,
-                epoch,
-                lost,
-            ));
+            if b.lost.is_none() {
+                activations.push((
+                    op.key.clone(),
+                    op.name.clone(),
+                    b.incarnation,
+                    b.params.clone(),
+                    b.epoch,
+                ));
+            }
         }
-        self.current = Some(current);
-        self.checkpoint();
         self.emit(EventKind::ActionStarted {
             action: action.name.clone(),
-            run_ms: self.elapsed_ms(),
+            run_ms: started_ms,
             operations: started,
         });
-        for (key, name, incarnation, params, epoch, lost) in activations {
-            if lost || unreachable.is_some() {
-                continue;
-            }
+        for (key, name, incarnation, params, epoch) in activations {
             let start = Start {
                 generation,
                 incarnation,
@@ -177,13 +207,10 @@ impl DispatcherState {
                 self.report_gone(myself, &name, incarnation, e);
             }
         }
-        if let Some(reason) = unreachable {
-            self.finish(myself, Outcome::Failed, reason);
-            return;
-        }
+        let ran = Duration::from_millis(self.elapsed_ms().saturating_sub(started_ms));
         let timer = Timer::cast_after(
             &self.clock,
-            action.deadline,
+            action.deadline.saturating_sub(ran),
             myself,
             DispatcherMsg::ActionDeadline { generation },
         );

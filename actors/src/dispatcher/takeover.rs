@@ -88,6 +88,15 @@ impl DispatcherState {
         }
     }
 
+    /// Record the run's progress; the receiver says when it is stored (`None`: the run is
+    /// recorded nowhere).
+    pub(super) fn checkpoint_stored(
+        &mut self,
+    ) -> Option<tokio::sync::oneshot::Receiver<Result<(), Superseded>>> {
+        let snapshot = self.snapshot(None)?;
+        Some(self.checkpoints.as_mut()?.write(snapshot))
+    }
+
     /// Record the run's progress and wait until it is stored: `Err` when a newer term
     /// refused it (the writer tells the dispatcher, which then stops).
     pub(super) async fn checkpoint_now(&mut self) -> Result<(), Superseded> {
@@ -226,6 +235,8 @@ impl DispatcherState {
                 false => ActionState::Running,
             },
             timer: None,
+            // what its checkpoint recorded was sent (or is resumed when attached)
+            launched: true,
         });
         // the bindings' new epochs, before any command carries them
         if self.checkpoint_now().await.is_err() {

@@ -165,6 +165,9 @@ struct DeskState {
     args: DeskArgs,
     /// The dispatcher this desk runs, if any.
     running: Option<ActorRef<DispatcherMsg>>,
+    /// The run and term this desk took over last: a second word of the same loss (its
+    /// registry leave, then its node declared down) takes nothing over again.
+    took: Option<(String, u64)>,
     /// Numbers the dispatchers' child ids.
     runs: Arc<AtomicU64>,
     watching: JoinHandle<()>,
@@ -197,6 +200,7 @@ impl Actor for Desk {
         Ok(DeskState {
             args,
             running: None,
+            took: None,
             runs: Arc::default(),
             watching,
         })
@@ -247,9 +251,16 @@ impl Actor for Desk {
                 });
             }
             DeskMsg::TakeOver { from, noticed } => {
-                if state.busy() {
+                let term = from.term + state.args.role.rank().1;
+                if state.busy()
+                    || state
+                        .took
+                        .as_ref()
+                        .is_some_and(|(run, t)| *run == from.run && *t >= term)
+                {
                     return Ok(());
                 }
+                state.took = Some((from.run.clone(), term));
                 if let Err(e) = state.take_over(*from, noticed).await {
                     tracing::error!(error = %e, "cannot take the run over");
                 }
@@ -262,9 +273,12 @@ impl Actor for Desk {
 impl DeskState {
     /// True while a dispatcher of this desk runs.
     fn busy(&self) -> bool {
-        self.running
-            .as_ref()
-            .is_some_and(|d| d.get_status() == ractor::ActorStatus::Running)
+        self.running.as_ref().is_some_and(|d| {
+            !matches!(
+                d.get_status(),
+                ractor::ActorStatus::Stopping | ractor::ActorStatus::Stopped
+            )
+        })
     }
 
     async fn start(
