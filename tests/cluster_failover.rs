@@ -121,14 +121,21 @@ fn killing_the_wall_followers_node_rebinds_to_the_other_node_and_the_mission_suc
 fn freezing_the_wall_followers_node_gets_it_declared_down_rebound_and_the_mission_succeeds() {
     let (report, lost, _, events) = lose_the_wall_followers_node("STOP", &["wf-a", "wf-b"], false);
     assert_rebound_across_nodes(&report, &lost, other(&lost));
-    // noticed by the failure detector — the dispatcher's member declared the node down,
+    // noticed by the failure detector — the dispatcher's node declared it down,
     // then the instance was lost and rebound — not by a broken connection
+    // the node the run was dispatched on (`marie up`'s member, or a node's desk)
+    let dispatcher = events
+        .iter()
+        .find(|e| e["kind"]["type"] == "run_started")
+        .and_then(|e| e["node"].as_str())
+        .expect("a run_started")
+        .to_string();
     let position = |kind: &str, key: &str, value: &str| {
         events
             .iter()
             .position(|e| {
-                // the dispatcher's member's own events, not those other nodes forward
-                e["node"].as_str().is_some_and(|n| n.starts_with("run-"))
+                // the dispatcher's node's own events, not those other nodes forward
+                e["node"].as_str() == Some(dispatcher.as_str())
                     && e["kind"]["type"] == kind
                     && e["kind"][key] == value
             })

@@ -117,6 +117,10 @@ fn each_bad_node_config_names_its_file_line_and_column() {
         ),
         (
             "[node]\nname = \"x\"\ndispatcher = \"yes\"\n",
+            ":3:14: `yes` is not a dispatcher role: active or standby (or true, false)",
+        ),
+        (
+            "[node]\nname = \"x\"\ndispatcher = 3\n",
             ":3:14: expected true or false for `dispatcher`",
         ),
         (
@@ -161,7 +165,7 @@ fn each_bad_node_config_names_its_file_line_and_column() {
         ),
         (
             "[node]\nname = \"x\"\n[[datamanager]]\nname = \"cache\"\n",
-            ":3:1: datamanager `cache` is not one of feature, parameter, world: it needs an `id`",
+            ":3:1: datamanager `cache` is not one of feature, parameter, world, run: it needs an `id`",
         ),
         (
             "[node]\nname = \"x\"\n[simulation]\nseed = -1\n",

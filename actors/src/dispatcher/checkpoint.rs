@@ -91,6 +91,10 @@ pub struct CurrentCheckpoint {
     pub ending: bool,
     /// When it started, ms since the run began.
     pub started_ms: u64,
+    /// Whether its operations were activated: an action is recorded before its commands
+    /// go out, and a standby launches one that was not.
+    #[serde(default)]
+    pub launched: bool,
 }
 
 /// A binding in a [`Checkpoint`].
@@ -320,6 +324,7 @@ mod tests {
                 enders_done: vec![],
                 ending: false,
                 started_ms: 3,
+                launched: true,
             }),
             bindings: vec![BindingCheckpoint {
                 name: "op".into(),

@@ -61,6 +61,7 @@ impl DispatcherState {
                 enders_done: c.enders_done.iter().cloned().collect(),
                 ending: c.ending(),
                 started_ms: c.started_ms,
+                launched: c.launched,
             }),
             bindings: self
                 .bindings
@@ -235,8 +236,9 @@ impl DispatcherState {
                 false => ActionState::Running,
             },
             timer: None,
-            // what its checkpoint recorded was sent (or is resumed when attached)
-            launched: true,
+            // not launched: the lost dispatcher sent none of its commands (it sends them
+            // once this was stored); the standby launches it
+            launched: c.launched,
         });
         // the bindings' new epochs, before any command carries them
         if self.checkpoint_now().await.is_err() {
@@ -311,6 +313,12 @@ impl DispatcherState {
     /// The takeover's commands: attach the running action's operations (or suspend them
     /// again if it was ending), give every other its last parameters at the new epoch.
     fn command_after_takeover(&mut self, myself: &ActorRef<DispatcherMsg>, from: &Checkpoint) {
+        if let Some(cur) = self.current.as_ref().filter(|c| !c.launched) {
+            let generation = cur.generation;
+            self.restore_parameters(&BTreeSet::new());
+            self.launch(myself, generation);
+            return;
+        }
         let since = |name: &str| {
             from.bindings
                 .iter()
@@ -334,18 +342,7 @@ impl DispatcherState {
                 self.report_gone(myself, &name, incarnation, e);
             }
         }
-        for b in self.bindings.values() {
-            if running_names.contains(&b.name) {
-                continue;
-            }
-            let (client, params, epoch) = (b.client.clone(), b.params.clone(), b.epoch);
-            let name = b.name.clone();
-            ractor::concurrency::spawn(async move {
-                if let Err(e) = client.parameterize(params, epoch).await {
-                    tracing::warn!(op = %name, error = %e, "parameters not restored after the takeover");
-                }
-            });
-        }
+        self.restore_parameters(&running_names);
         let elapsed = self.elapsed_ms();
         if let Some(cur) = self.current.as_mut() {
             let message = match ending {
@@ -361,6 +358,23 @@ impl DispatcherState {
                 }
             };
             cur.timer = Some(Timer::cast_after(&self.clock, wait, myself, message));
+        }
+    }
+
+    /// Give every bound operation but `except` its last parameters at its new epoch: they
+    /// refuse the lost dispatcher's commands from then on.
+    fn restore_parameters(&self, except: &BTreeSet<String>) {
+        for b in self.bindings.values() {
+            if except.contains(&b.name) {
+                continue;
+            }
+            let (client, params, epoch) = (b.client.clone(), b.params.clone(), b.epoch);
+            let name = b.name.clone();
+            ractor::concurrency::spawn(async move {
+                if let Err(e) = client.parameterize(params, epoch).await {
+                    tracing::warn!(op = %name, error = %e, "parameters not restored after the takeover");
+                }
+            });
         }
     }
 

@@ -111,7 +111,15 @@ impl ReportBuilder {
                 run_ms,
                 operations,
             } => {
-                self.close(*run_ms);
+                // the same start told again — by a standby that launched an action its lost
+                // predecessor had recorded, and may have launched — is one action
+                let again = self
+                    .open
+                    .as_ref()
+                    .is_some_and(|o| o.name == *action && o.start_ms == *run_ms);
+                if !again {
+                    self.close(*run_ms);
+                }
                 let ops = operations
                     .iter()
                     .map(|o| {
