@@ -489,7 +489,6 @@ mod tests {
 
     #[test]
     fn a_node_told_it_was_declared_down_takes_itself_as_frozen_once_per_freeze() {
-        let t0 = Instant::now();
         let notice = |life, seq| DownNotice {
             node: "x".to_string(),
             life,
