@@ -5,10 +5,13 @@
 //!
 //! The layout is the thesis' with the wall follower on two nodes of its own (`wf-a`,
 //! `wf-b`), so that whichever one the dispatcher binds can be lost alone.
+//!
+//! And the other way round: the only instance of an operation is on a node frozen past
+//! the deadline; woken, the node restarts it, and the dispatcher adopts that one.
 
 mod common;
 
-use common::cluster::Proc;
+use common::cluster::{NodeProc, Proc};
 use common::layouts::failover_layout;
 use serde_json::Value;
 
@@ -197,4 +200,119 @@ fn when_no_wall_follower_survives_a_node_that_allows_one_starts_it_and_the_missi
         })
         .count();
     assert_eq!(joined, 0, "a node echoed another node's module");
+}
+
+/// The frozen node's layout: `alpha` with the feature datamanager, `ops` with the only
+/// sampler of the cluster (and no other node that could start one).
+const ALPHA: &str = "[[datamanager]]\nname = \"feature\"\n";
+const OPS: &str = "[[operation]]\nname = \"sampler\"\n";
+/// One action: 3000 samples, a step every 2 ms of the cluster's clock (at least 6 s).
+const SAMPLE: &str = r#"
+[mission]
+name = "sample"
+description = "sample while the only sampler's node is frozen past the deadline and woken"
+success = ["sampled"]
+deadline_s = 600.0
+rebind_deadline_s = 20.0
+
+[flags]
+sampled = 0
+
+[[action]]
+name = "sample"
+ends_on = ["sampler"]
+deadline_s = 600.0
+
+[action.ops.sampler]
+count = 3000
+"#;
+
+#[test]
+fn the_only_instance_restarted_by_its_node_woken_from_a_freeze_is_adopted_and_the_mission_succeeds()
+{
+    let dir = tempfile::tempdir().unwrap();
+    let mission = dir.path().join("sample.toml");
+    std::fs::write(&mission, SAMPLE).unwrap();
+    let report = dir.path().join("report.json");
+    let events = dir.path().join("events.jsonl");
+    const COOKIE: &str = "adopt";
+    let alpha = NodeProc::start(dir.path(), "alpha", ALPHA, &[], COOKIE);
+    let mut ops = NodeProc::start(dir.path(), "ops", OPS, &[alpha.addr], COOKIE);
+    ops.wait_line("node ops sees alpha");
+    let mut run = Proc::spawn(
+        "run",
+        &[
+            "run",
+            mission.to_str().unwrap(),
+            "--join",
+            &alpha.addr.to_string(),
+            "--cookie",
+            COOKIE,
+            "--report",
+            report.to_str().unwrap(),
+            "--events",
+            events.to_str().unwrap(),
+        ],
+    );
+    run.wait_line("bound sampler v1.0.0 on ops");
+    run.wait_line("> sample: start");
+    // (every process is a child of this test, killed with SIGKILL when its handle drops:
+    // also when it is stopped)
+    ops.signal_now(libc::SIGSTOP);
+    run.wait_line("! sampler lost: its node `ops` went down");
+    // its grace passed, the dispatcher asked the cluster for a stand-in while ops was
+    // still frozen: no node could start one
+    run.wait_stderr("no node can start a stand-in");
+    // the dispatcher's process is held while ops wakes and restarts its sampler as a new
+    // incarnation: that one reaches the dispatcher's registry as their session opens, and
+    // so before ops is up again there (its verdict lifted only by a ready session)
+    run.signal_now(libc::SIGSTOP);
+    let mark = ops.seen().len();
+    ops.signal_now(libc::SIGCONT);
+    ops.wait_line_since(
+        mark,
+        "node ops restarted its 1 operation instance(s) as a new incarnation",
+    );
+    run.signal_now(libc::SIGCONT);
+    run.wait_line("~ sampler rebound");
+    assert_eq!(
+        run.wait_exit(),
+        Some(0),
+        "{}\n{}",
+        run.seen().join("\n"),
+        run.stderr_tail()
+    );
+    let (report, events) = common::cluster::report_and_events(&report, &events);
+    assert_eq!(report["outcome"], "succeeded", "{report:#}");
+    let rebinds = report["rebinds"].as_array().unwrap();
+    assert_eq!(rebinds.len(), 1, "{report:#}");
+    let rebind = &rebinds[0];
+    assert_eq!(rebind["operation"], "sampler");
+    assert_eq!(rebind["from_node"], "ops", "{rebind}");
+    assert_eq!(rebind["to_node"], "ops", "{rebind}");
+    assert_ne!(rebind["from"], rebind["to"], "{rebind}");
+    assert_eq!(
+        rebind["cause"],
+        serde_json::json!({"type": "node_down", "node": "ops"}),
+        "{rebind}"
+    );
+    // the stand-in is the sampler ops restarted when it woke, not one started on request
+    // (its provisioner was asked while it was frozen)
+    let restarted = events
+        .iter()
+        .filter(|e| {
+            e["node"] == "ops"
+                && e["kind"]["type"] == "child_restarted"
+                && e["kind"]["child"]
+                    .as_str()
+                    .is_some_and(|c| c.starts_with("sampler@"))
+        })
+        .count();
+    assert_eq!(restarted, 1, "{events:?}");
+    assert!(
+        !events.iter().any(|e| e["node"] == "ops"
+            && e["kind"]["type"] == "child_started"
+            && e["kind"]["supervisor"] == "dynamic"),
+        "{events:?}"
+    );
 }

@@ -1,7 +1,8 @@
 //! The failure detector across real processes on 127.0.0.1: a frozen node (`SIGSTOP`) is
 //! declared down after its deadline, its modules leave the registry, and it rejoins when it
-//! wakes; a node of another protocol version is refused, naming both versions, and the
-//! cluster keeps serving.
+//! wakes; a node frozen just past its peer's deadline — also one whose own deadline is longer
+//! than its peer's — finds out when it wakes and restarts its operations; a node of another
+//! protocol version is refused, naming both versions, and the cluster keeps serving.
 
 mod common;
 
@@ -49,7 +50,8 @@ fn a_frozen_node_is_declared_down_after_its_deadline_and_rejoins_when_it_wakes()
 
     let mark = alpha.seen().len();
     let beta_mark = beta.seen().len();
-    beta.signal("CONT");
+    // at once: the sooner it wakes after alpha's verdict, the shorter its own timer gap
+    beta.signal_now(libc::SIGCONT);
     alpha.wait_line_since(mark, "node alpha sees beta");
     beta.wait_line_since(beta_mark, "node beta sees alpha");
     // beta, which was asleep, declared nobody down: the silence was its own; knowing its
@@ -83,6 +85,88 @@ fn a_frozen_node_is_declared_down_after_its_deadline_and_rejoins_when_it_wakes()
             node.seen()
         );
     }
+}
+
+/// Start alpha and beta with these `[cluster]` settings, freeze beta (`SIGSTOP`) until alpha
+/// has declared it down, and wake it (`SIGCONT`) at once: beta must find out it was frozen
+/// past its peer's deadline, say so once, restart its operation once, and declare nobody
+/// down (the silence was its own). Gives beta's lines.
+fn beta_frozen_just_past_alphas_deadline(alpha_detector: &str, beta_detector: &str) -> Vec<String> {
+    let dir = tempfile::tempdir().unwrap();
+    let mut alpha =
+        NodeProc::start_with(dir.path(), "alpha", ALPHA, &[], COOKIE, alpha_detector, &[]);
+    let mut beta = NodeProc::start_with(
+        dir.path(),
+        "beta",
+        BETA,
+        &[alpha.addr],
+        COOKIE,
+        beta_detector,
+        &[],
+    );
+    alpha.wait_line("node alpha sees beta");
+    beta.wait_line("node beta sees alpha");
+    // (and both beat for a while: a freeze right after the greeting beats comes just
+    // after a beat, when a node's own timer gap is longest against its peers' view)
+    assert_eq!(nodes_listed(&alpha.addr), ["alpha", "beta"]);
+
+    let mark = alpha.seen().len();
+    beta.signal("STOP");
+    alpha.wait_line_since(mark, "node alpha declared beta down");
+    let beta_mark = beta.seen().len();
+    // at once: the sooner it wakes after alpha's verdict, the shorter its own timer gap
+    beta.signal_now(libc::SIGCONT);
+    alpha.wait_line_since(mark, "node alpha lost beta");
+    alpha.wait_line_since(mark, "node alpha sees beta");
+    beta.wait_line_since(beta_mark, "node beta was frozen for");
+    beta.wait_line_since(
+        beta_mark,
+        "node beta restarted its 1 operation instance(s) as a new incarnation",
+    );
+    assert_eq!(nodes_listed(&alpha.addr), ["alpha", "beta"]);
+    for node in [&mut alpha, &mut beta] {
+        node.signal("TERM");
+        node.wait_line("stopped");
+        assert_eq!(node.wait_exit(), Some(0));
+    }
+    // every line beta printed is in now: since it woke, one freeze, one restart, nobody
+    // declared down
+    let woke = &beta.seen()[beta_mark..];
+    let count = |what: &str| woke.iter().filter(|l| l.contains(what)).count();
+    assert_eq!(count("was frozen for"), 1, "{woke:?}");
+    assert_eq!(count("as a new incarnation"), 1, "{woke:?}");
+    assert_eq!(count("declared alpha down"), 0, "{woke:?}");
+    woke.to_vec()
+}
+
+#[test]
+fn a_node_frozen_past_a_shorter_peer_deadline_than_its_own_learns_it_from_the_peer() {
+    // alpha declares a silent peer down after 600 ms; beta would take itself for frozen
+    // only after 5 s without a tick of its own: its timer gap cannot tell it, alpha does
+    let beta = beta_frozen_just_past_alphas_deadline(
+        "deadline_ms = 600\nheartbeat_ms = 100\n",
+        "deadline_ms = 5000\nheartbeat_ms = 100\n",
+    );
+    let frozen = beta.iter().find(|l| l.contains("was frozen for")).unwrap();
+    // the silence alpha measured: past alpha's deadline, short of beta's own
+    let ms = frozen_ms(frozen);
+    assert!((600..5000).contains(&ms), "{frozen}");
+}
+
+#[test]
+fn a_node_frozen_just_past_its_peers_deadline_finds_out_when_it_wakes() {
+    // the default deadline on both: alpha counts beta's silence from beta's last beat, up
+    // to a beat period before beta's last tick, so beta's own timer gap is often shorter
+    // than the deadline alpha found it silent past
+    beta_frozen_just_past_alphas_deadline("", "");
+}
+
+/// `node beta was frozen for 1234 ms: ...` → 1234.
+fn frozen_ms(line: &str) -> u64 {
+    line.split_once("frozen for ")
+        .and_then(|(_, rest)| rest.split_whitespace().next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no duration in {line:?}"))
 }
 
 #[test]

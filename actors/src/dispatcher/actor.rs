@@ -332,6 +332,7 @@ impl Actor for ActionDispatcher {
             }
             DispatcherMsg::Registry { event } => state.on_registry(&myself, event).await,
             DispatcherMsg::NodeDown { node } => state.on_node_down(&myself, node).await,
+            DispatcherMsg::NodeUp { node } => state.on_node_up(&myself, node).await,
             DispatcherMsg::Probe {} => {
                 if !state.ended {
                     state.probe(&myself);

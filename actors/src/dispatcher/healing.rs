@@ -5,8 +5,12 @@
 //! any time), or it does not answer a liveness probe within its declared deadline (it hangs:
 //! the dispatcher kills it). It then adopts a live instance that passes the binding's
 //! selection — the restarted one, or another — gives it the last parameters, re-activates it
-//! (as `Resume`) if its action is running, and records the rebind. If none appears within the
-//! mission's `rebind_deadline`, the mission comes to a full stop naming the operation.
+//! (as `Resume`) if its action is running, and records the rebind. Stand-ins are looked for
+//! when the loss is noticed, whenever an instance of the operation joins the registry, and
+//! when a node is up again (what it hosts joined the registry while it was still declared
+//! down, and was ruled out then: a node frozen past the deadline that restarts its
+//! operations as it wakes). If none appears within the mission's `rebind_deadline`, the
+//! mission comes to a full stop naming the operation.
 //!
 //! # Invariants
 //! - Losing and adopting never recurse: an adopted instance that fails at once is reported
@@ -121,9 +125,9 @@ impl DispatcherState {
         Ok(())
     }
 
-    /// Start forwarding the registry's operation joins and leaves, and the failure
-    /// detector's verdicts on nodes (from the bus), to the dispatcher, until the
-    /// dispatcher's state is dropped.
+    /// Start forwarding the registry's operation joins and leaves, the failure detector's
+    /// verdicts on nodes and the nodes seen again (from the bus), to the dispatcher, until
+    /// the dispatcher's state is dropped.
     pub(super) async fn watch_registry(
         &mut self,
         myself: &ActorRef<DispatcherMsg>,
@@ -146,12 +150,17 @@ impl DispatcherState {
                         }
                     }
                     event = bus.recv() => {
-                        let node = match event {
-                            Ok(Event { kind: EventKind::NodeDown { peer, .. }, .. }) => peer,
+                        let msg = match event {
+                            Ok(Event { kind: EventKind::NodeDown { peer, .. }, .. }) => {
+                                DispatcherMsg::NodeDown { node: peer }
+                            }
+                            Ok(Event { kind: EventKind::NodeUp { peer, .. }, .. }) => {
+                                DispatcherMsg::NodeUp { node: peer }
+                            }
                             Ok(_) | Err(BusError::Lagged { .. }) => continue,
                             Err(BusError::Closed) => break,
                         };
-                        if me.cast(DispatcherMsg::NodeDown { node }).is_err() {
+                        if me.cast(msg).is_err() {
                             break;
                         }
                     }
@@ -438,6 +447,30 @@ impl DispatcherState {
         for name in there {
             self.lose(myself, &name, LossCause::NodeDown { node: node.clone() })
                 .await;
+        }
+    }
+
+    /// `node` is up again (a session with it is ready; the failure detector's verdict on
+    /// it, if any, is lifted). Its instances reached the registry before that — a
+    /// session's modules are exchanged before it is ready —, so those that joined while
+    /// it was still declared down were ruled out as stand-ins: each lost binding
+    /// considers its instances there now.
+    pub(super) async fn on_node_up(&mut self, myself: &ActorRef<DispatcherMsg>, node: String) {
+        let lost: Vec<String> = self
+            .bindings
+            .values()
+            .filter(|b| b.lost.is_some())
+            .map(|b| b.name.clone())
+            .collect();
+        for name in lost {
+            let there = registry::lookup(ModuleKind::Operation, &name)
+                .into_iter()
+                .filter(|i| i.node == node);
+            for inst in there {
+                if self.try_adopt(myself, &name, &inst).await {
+                    break;
+                }
+            }
         }
     }
 

@@ -43,6 +43,12 @@ crate::remote_message! {
             /// The node's name.
             node: String,
         },
+        /// `node`, perhaps declared down before, has a ready session again: what it hosts
+        /// may stand in now.
+        NodeUp {
+            /// The node's name.
+            node: String,
+        },
         /// Time to ask the bound operations whether they still answer.
         Probe {},
         /// A liveness probe of `name`'s incarnation `incarnation` ended.

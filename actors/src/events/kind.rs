@@ -235,10 +235,12 @@ pub enum EventKind {
         /// How long it had been silent, ms of real time.
         silent_ms: u64,
     },
-    /// This node was frozen longer than its failure detector's deadline (its peers have
-    /// declared it down): it restarts its operations as a new incarnation.
+    /// This node was frozen past its peers' failure-detector deadline (they have declared
+    /// it down; it found so by its own clock, or a peer told it once back): it restarts its
+    /// operations as a new incarnation.
     NodeFrozen {
-        /// How long it was frozen, ms of real time.
+        /// How long it was frozen, ms of real time (as its own clock or the peer that told
+        /// it measured).
         silent_ms: u64,
     },
     /// A peer node of another protocol version was refused.

@@ -32,11 +32,13 @@ pub enum NetEvent {
         /// How long it had been silent.
         silent: Duration,
     },
-    /// This node itself was frozen (stopped, starved) longer than the deadline: its peers
-    /// have declared it down and replaced its operations, so it must rejoin as a new
-    /// incarnation.
+    /// This node itself was frozen (stopped, starved) past its peers' deadline: they have
+    /// declared it down and replaced its operations, so it must rejoin as a new
+    /// incarnation. Found by its own ticks (one came more than its deadline late) or told
+    /// by a peer's heartbeat once back; once per freeze.
     Frozen {
-        /// How long it was frozen.
+        /// How long it was frozen: the gap between its own ticks, or the silence the peer
+        /// that told it measured.
         silent: Duration,
     },
     /// A peer speaks another protocol version and was refused.

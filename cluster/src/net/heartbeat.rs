@@ -9,12 +9,18 @@
 //! registry with them), a [`NetEvent::PeerDown`] published — and redialled by the transport
 //! with backoff, to rejoin once they answer.
 //!
+//! A node learns that it was frozen past its peers' deadline from its own ticks (one came
+//! more than its own deadline late) or, when those did not show it — its deadline is longer
+//! than theirs, or the freeze just passed theirs —, from them: a beat names the peers its
+//! sender declared down ([`DownNotice`]), and a node that reads its own name there once its
+//! sessions are back tells [`NetEvent::Frozen`] (see [`Detector::told`]).
+//!
 //! A beat of another protocol version refuses its sender for the transport's life: a
 //! [`NetEvent::PeerRefused`] names both versions, its sessions are closed two periods later
 //! (time for this node's own beat to tell it the same), and a later session with it is
 //! closed as soon as it is authenticated, before its modules reach the registry.
 
-use super::detector::{Detector, HeartbeatConfig};
+use super::detector::{BeatId, Detector, DownNotice, HeartbeatConfig};
 use super::events::NetEvent;
 use super::sessions::Sessions;
 use marie_actors::wire::{self, Envelope};
@@ -44,6 +50,14 @@ struct Beat {
     /// older builds, which ignore it in ours.
     #[serde(default)]
     sees: Vec<String>,
+    /// The sender's life ([`BeatId::life`]; 0 from older builds).
+    #[serde(default)]
+    life: u64,
+    /// The peers the sender declared down and that have not been back long: a receiver
+    /// named here learns that it was silent past the sender's deadline, also when it did
+    /// not notice it had stopped.
+    #[serde(default)]
+    down: Vec<DownNotice>,
 }
 
 marie_actors::remote_message! {
@@ -81,7 +95,6 @@ pub(crate) struct Heartbeat;
 pub(crate) struct State {
     args: HeartbeatArgs,
     detector: Detector,
-    seq: u64,
     ticker: tokio::task::JoinHandle<()>,
     greeter: tokio::task::JoinHandle<()>,
 }
@@ -140,9 +153,8 @@ impl Actor for Heartbeat {
             }
         });
         Ok(State {
-            detector: Detector::new(args.config.deadline),
+            detector: Detector::new(args.config, draw_life()),
             args,
-            seq: 0,
             ticker,
             greeter,
         })
@@ -165,11 +177,12 @@ impl Actor for Heartbeat {
 impl State {
     /// Cast a beat naming the `ready` peers to every remote heartbeat actor.
     fn beat(&mut self, ready: &[super::transport::Peer]) {
-        self.seq += 1;
         let beat = Beat {
             node: self.args.node.clone(),
-            seq: self.seq,
+            seq: self.detector.beat(),
             sees: ready.iter().map(|p| p.address.clone()).collect(),
+            life: self.detector.life(),
+            down: self.detector.notices(),
         };
         let frame = Envelope::new(KIND, &beat)
             .map(|mut env| {
@@ -202,9 +215,7 @@ impl State {
         let ready: Vec<String> = ready.into_iter().map(|p| p.name).collect();
         let overdue = self.detector.tick(&ready, Instant::now());
         if let Some(silent) = self.detector.take_freeze() {
-            let event = NetEvent::Frozen { silent };
-            tracing::warn!(node = %self.args.node, "{event}");
-            self.args.sessions.tell(event);
+            self.frozen(silent);
         }
         for (peer, silent) in overdue {
             // recorded and told before its sessions close: whoever sees the peer's modules
@@ -219,8 +230,15 @@ impl State {
             self.args
                 .sessions
                 .close(&peer, "declared down: no heartbeat");
-            self.detector.forget(&peer);
         }
+    }
+
+    /// This node was frozen `silent` past its peers' deadline (found by its own ticks, or
+    /// told by a peer): tell it, so that the node restarts its operations.
+    fn frozen(&self, silent: std::time::Duration) {
+        let event = NetEvent::Frozen { silent };
+        tracing::warn!(node = %self.args.node, "{event}");
+        self.args.sessions.tell(event);
     }
 
     /// A beat arrived: note its sender's life, or refuse a sender of another version.
@@ -260,7 +278,20 @@ impl State {
             }
             return;
         }
-        self.detector.heard(&beat.node, Instant::now());
+        let id = BeatId {
+            life: beat.life,
+            seq: beat.seq,
+        };
+        self.detector.heard(&beat.node, id, Instant::now());
+        // the sender declared this node down: if this node did not notice it had stopped
+        // (its own deadline is longer than the sender's, or its freeze was just past it),
+        // it learns it here
+        for notice in beat.down.iter().filter(|n| n.node == self.args.node) {
+            if let Some(silent) = self.detector.told(&beat.node, notice) {
+                tracing::info!(node = %self.args.node, peer = %beat.node, "told by a peer that it was declared down");
+                self.frozen(silent);
+            }
+        }
         // the dialer keeps what this node does not see yet
         for address in beat.sees {
             match address.parse() {
@@ -271,4 +302,15 @@ impl State {
             }
         }
     }
+}
+
+/// A life for this process's heartbeat ([`BeatId::life`]): random, never 0.
+fn draw_life() -> u64 {
+    use std::hash::{BuildHasher, Hasher};
+    let mut h = std::collections::hash_map::RandomState::new().build_hasher();
+    h.write_u32(std::process::id());
+    if let Ok(t) = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH) {
+        h.write_u128(t.as_nanos());
+    }
+    h.finish().max(1)
 }
