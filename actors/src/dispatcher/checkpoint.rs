@@ -14,12 +14,14 @@
 //!
 //! # Invariants
 //! - Checkpoints are written in the order of the transitions, one at a time.
-//! - What raises an epoch — the run's first bindings, an adoption, a takeover — and the
-//!   run's end wait for their checkpoint before any command or `run_ended` goes out: a
-//!   dispatcher that has been replaced can never outbid its successor's epochs, nor end the
-//!   run. The other transitions (an action started or ended, an operation's report) are
-//!   recorded as they happen, without waiting: their commands carry epochs already in force,
-//!   which the operations fence.
+//! - What raises an epoch — the run's first bindings, an adoption, a takeover —, an
+//!   action's start and the run's end wait for their checkpoint before any command or
+//!   `run_ended` goes out: a dispatcher that has been replaced can never outbid its
+//!   successor's epochs, nor end the run, and a standby never carries on from an action
+//!   older than the one whose commands went out. The other transitions (an operation's
+//!   report, an action's end) are recorded as they happen, without waiting: their commands
+//!   carry epochs already in force, which the operations fence, and an operation whose
+//!   report a standby never saw is attached again (or resumed, if it ended).
 //! - A checkpoint that cannot be stored for want of the datamanager (its primary failing
 //!   over, a partition) is retried until it is stored or refused: a dispatcher cut off from
 //!   the majority of the run's copies waits.
