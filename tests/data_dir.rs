@@ -185,6 +185,100 @@ fn a_run_with_a_data_dir_docks_although_its_feature_datamanager_is_killed() {
     );
 }
 
+/// The check of the datamanagers at a run's end can fail: the world datamanager killed
+/// 20 s into a run in memory comes back empty (but for the map), and the wall, pose and
+/// search records its producers were told were stored are gone — the check counts them
+/// lost, the report and the verdict say how many. The same run with a data directory loses
+/// none: the restarted datamanager reads them back from its journal.
+#[test]
+fn the_check_counts_the_records_a_killed_datamanager_in_memory_lost_and_none_with_a_journal() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("data").display().to_string();
+    let events = dir.path().join("events.jsonl");
+    let events_arg = events.display().to_string();
+    let world_check = |report: &serde_json::Value| {
+        let checks = report["dm_checks"]
+            .as_array()
+            .expect("the datamanagers checked");
+        let names: Vec<&str> = checks.iter().map(|c| c["dm"].as_str().unwrap()).collect();
+        assert_eq!(names, ["feature", "parameter", "world"], "{checks:?}");
+        checks[2].clone()
+    };
+    let (out, report) = report_of(&[
+        "run",
+        "missions/docking.toml",
+        "--fault",
+        "kill:world@20",
+        "--events",
+        &events_arg,
+    ]);
+    let stdout = text(&out.stdout);
+    assert_eq!(out.status.code(), Some(1), "{stdout}");
+    let world = world_check(&report);
+    let (acknowledged, held, lost) = (
+        world["acknowledged"].as_u64().unwrap(),
+        world["held"].as_u64().unwrap(),
+        world["lost"].as_u64().unwrap(),
+    );
+    // what was stored before the kill is gone; what was stored after it is there
+    assert!(lost > 10 && held + lost == acknowledged, "{world}");
+    assert_eq!(world["node"], "embedded");
+    assert_eq!(report["acknowledged_lost"], lost, "{report}");
+    assert!(
+        stdout.contains(&format!(
+            "! datamanager world: {lost} of {acknowledged} acknowledged records lost"
+        )),
+        "{stdout}"
+    );
+    // (the run lost every record after 20 s: the parameter datamanager acknowledged none)
+    assert!(
+        stdout.contains(&format!(
+            "{lost} of {acknowledged} acknowledged records lost, "
+        )),
+        "the verdict: {stdout}"
+    );
+    // the events file holds the acknowledgements the check looked up, and its result
+    let lines: Vec<serde_json::Value> = std::fs::read_to_string(&events)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let acked = lines
+        .iter()
+        .filter(|e| e["kind"]["type"] == "dm_acked" && e["kind"]["dm"] == "world")
+        .count() as u64;
+    assert_eq!(acked, acknowledged);
+    assert!(lines
+        .iter()
+        .any(|e| e["kind"]["type"] == "dm_checked" && e["kind"]["lost"] == lost));
+
+    let (out, report) = report_of(&[
+        "run",
+        "missions/docking.toml",
+        "--fault",
+        "kill:world@20",
+        "--data-dir",
+        &data,
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stdout));
+    let world = world_check(&report);
+    assert!(world["acknowledged"].as_u64().unwrap() > 100, "{world}");
+    assert_eq!(world["held"], world["acknowledged"], "{world}");
+    assert_eq!(report["acknowledged_lost"], 0);
+    let all: u64 = report["dm_checks"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["acknowledged"].as_u64().unwrap())
+        .sum();
+    let verdict = format!("0 of {all} acknowledged records lost");
+    assert!(
+        text(&out.stdout).contains(&verdict),
+        "{}",
+        text(&out.stdout)
+    );
+}
+
 /// `--chaos SEED --chaos-dms`: the datamanagers are among chaos's victims. Seed 4 kills
 /// `feature` twice and `parameter` twice among the operations; with a data dir each comes
 /// back with its records and the mission docks.
@@ -218,4 +312,6 @@ fn chaos_with_datamanagers_and_a_data_dir_still_docks() {
         assert!(hit.contains(&dm), "{dm} among {hit:?}");
     }
     assert!(hit.len() > 4, "operations too: {hit:?}");
+    // the killed datamanagers came back with every record they acknowledged
+    assert_eq!(report["acknowledged_lost"], 0, "{:?}", report["dm_checks"]);
 }

@@ -50,6 +50,8 @@ fn a_frozen_node_is_let_go_on_after_its_duration_and_the_mission_docks() {
     );
     assert_eq!(report["outcome"], "succeeded");
     assert_eq!(report["collisions"], 0);
+    // every record the operations were told was stored is still held at the end
+    assert_eq!(report["acknowledged_lost"], 0, "{}", report["dm_checks"]);
     let faults = report["faults"].as_array().unwrap();
     assert_eq!(faults.len(), 1, "{faults:?}");
     let freeze = &faults[0];
@@ -362,6 +364,17 @@ fn the_killed_node_of_the_bound_operations_is_replaced_by_the_other_and_the_miss
         verdict.starts_with("verdict: 1 fault injected (stop-node 1), 1 node lost (0 back), "),
         "{verdict}"
     );
+    // the datamanagers' primaries on the killed node failed over to copies that hold every
+    // record the operations were told was stored, the killed node's own producers' too
+    // (`N of M acknowledged records lost`, M > 0: the stores were heard from the nodes)
+    let counts: Vec<u64> = verdict
+        .split(", ")
+        .find(|part| part.ends_with(" acknowledged records lost"))
+        .unwrap_or_else(|| panic!("no check in {verdict}"))
+        .split(' ')
+        .filter_map(|w| w.parse().ok())
+        .collect();
+    assert!(counts[0] == 0 && counts[1] > 0, "{verdict}");
     up.wait_line("the run is over");
     up.signal("INT");
     up.wait_line("cluster stopped");

@@ -187,6 +187,21 @@ impl Printer {
                 let at = due_ms.map_or(self.run_secs(event.at_ms), |d| d as f64 / 1000.0);
                 println!("* could not inject {fault} into {operation} at {at:.1}s: {why}");
             }
+            EventKind::DmChecked(check) if check.lost > 0 => match &check.error {
+                None => println!(
+                    "! datamanager {}: {} of {} acknowledged records lost (its primary on {} \
+                     no longer holds them)",
+                    check.dm,
+                    check.lost,
+                    check.acknowledged,
+                    check.node.as_deref().unwrap_or("?")
+                ),
+                Some(why) => println!(
+                    "! datamanager {}: could not be checked, its {} acknowledged records count \
+                     lost: {why}",
+                    check.dm, check.acknowledged
+                ),
+            },
             _ => {}
         }
     }
@@ -222,11 +237,13 @@ pub(crate) fn outcome_line(report: &RunReport) -> String {
     )
 }
 
-/// What a faulted run went through, in one line — `None` for a run without faults or lost
-/// nodes: `verdict: 2 faults injected (freeze-node 1, partition 1), 1 node lost (1 back),
-/// 3 rebinds, 12 commands refused by epoch, 0 collisions`.
+/// What a faulted run went through, in one line — `None` for a run without faults, lost
+/// nodes or lost records: `verdict: 2 faults injected (freeze-node 1, partition 1), 1 node
+/// lost (1 back), 3 rebinds, 0 of 412 acknowledged records lost, 12 commands refused by
+/// epoch, 0 collisions`.
 pub(crate) fn verdict_line(report: &RunReport) -> Option<String> {
-    if report.faults_total == 0 && report.nodes_lost.is_empty() {
+    let lost = report.acknowledged_lost.unwrap_or_default();
+    if report.faults_total == 0 && report.nodes_lost.is_empty() && lost == 0 {
         return None;
     }
     let mut kinds: std::collections::BTreeMap<String, u64> = Default::default();
@@ -273,6 +290,12 @@ pub(crate) fn verdict_line(report: &RunReport) -> Option<String> {
     ));
     parts.push(plural(report.takeovers.len(), "takeover", "takeovers"));
     parts.push(plural(report.rebinds_total as usize, "rebind", "rebinds"));
+    if report.acknowledged_lost.is_some() {
+        let acknowledged: u64 = report.dm_checks.iter().map(|c| c.acknowledged).sum();
+        parts.push(format!(
+            "{lost} of {acknowledged} acknowledged records lost"
+        ));
+    }
     parts.push(format!("{refused} commands refused by epoch"));
     if let Some(c) = cart.collisions {
         parts.push(plural(c as usize, "collision", "collisions"));

@@ -173,6 +173,11 @@ impl std::fmt::Debug for DmState {
     }
 }
 
+/// A retention bound as stats tell it.
+fn bound(n: usize) -> u64 {
+    u64::try_from(n).unwrap_or(u64::MAX)
+}
+
 impl DmState {
     fn stats(&self) -> DmStats {
         DmStats {
@@ -209,6 +214,14 @@ impl DmState {
                     snapshots_taken: c.snapshots_taken,
                 }
             }),
+            retention: Some(bound(self.store.config().default_retention)),
+            retention_by_class: self
+                .store
+                .config()
+                .retention
+                .iter()
+                .map(|(class, n)| (class.clone(), bound(*n)))
+                .collect(),
         }
     }
 

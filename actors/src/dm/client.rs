@@ -1,5 +1,6 @@
 //! A typed handle for the dm-interface.
 
+use super::acks::{Ack, AckSink};
 use super::error::DmError;
 use super::messages::{DmMsg, DmStats};
 use super::outbox::{frames, Outbox};
@@ -46,6 +47,8 @@ pub struct DmClient {
     epoch: u64,
     /// Its producer id and the numbers its records get (shared by clones).
     producer: Arc<Producer>,
+    /// Told of every store and delete acknowledged ([`DmClient::with_acks`]).
+    acks: Option<AckSink>,
 }
 
 /// The actor a client talks to, and its outbox.
@@ -153,6 +156,7 @@ impl DmClient {
             follow: Self::DEFAULT_FOLLOW,
             epoch: 0,
             producer: Producer::new(),
+            acks: None,
         }
     }
 
@@ -217,6 +221,14 @@ impl DmClient {
     /// refuses records of older epochs from the same source ([`crate::fence`]).
     pub fn with_epoch(mut self, epoch: u64) -> DmClient {
         self.epoch = epoch;
+        self
+    }
+
+    /// Tell `sink` of every record a `store` of this client (and of its clones made from now
+    /// on) gets acknowledged, and of every delete done ([`super::acks`]): what a check of
+    /// the datamanager looks up later.
+    pub fn with_acks(mut self, sink: AckSink) -> DmClient {
+        self.acks = Some(sink);
         self
     }
 
@@ -414,11 +426,20 @@ impl DmClient {
     /// once (see the type's docs).
     pub async fn store_raw(&self, record: NewRecord) -> Result<u64, DmError> {
         let record = self.fill_source(record);
-        self.call(self.timeout, true, |reply| DmMsg::Store {
-            record: Box::new(record.clone()),
-            reply,
-        })
-        .await?
+        let seq = self
+            .call(self.timeout, true, |reply| DmMsg::Store {
+                record: Box::new(record.clone()),
+                reply,
+            })
+            .await??;
+        if let Some(acks) = &self.acks {
+            acks.tell(Ack::Stored {
+                dm: &self.dm,
+                record: &record,
+                seq,
+            });
+        }
+        Ok(seq)
     }
 
     /// [`DmClient::put`] for a prepared record.
@@ -745,12 +766,23 @@ impl DmClient {
     /// followed the datamanager to its next instance, so a retry, if the caller wants one,
     /// reaches it.
     pub async fn delete(&self, query: Query) -> Result<u64, DmError> {
+        let class = query.class.clone();
         let mut query = Some(query);
-        self.call(self.timeout, false, |reply| DmMsg::Delete {
-            query: Box::new(query.take().unwrap_or_default()),
-            reply,
-        })
-        .await
+        let deleted = self
+            .call(self.timeout, false, |reply| DmMsg::Delete {
+                query: Box::new(query.take().unwrap_or_default()),
+                reply,
+            })
+            .await?;
+        if let Some(acks) = &self.acks {
+            acks.tell(Ack::Deleted {
+                dm: &self.dm,
+                source: &self.source,
+                class: class.as_deref(),
+                deleted,
+            });
+        }
+        Ok(deleted)
     }
 
     /// What the DM holds.

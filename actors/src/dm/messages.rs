@@ -58,6 +58,25 @@ pub struct DmStats {
     /// [`super::credits::WINDOW`]).
     #[serde(default)]
     pub window: u64,
+    /// The retention bound of a class it has no bound of its own for: at most this many
+    /// records of a class are kept, the oldest dropped first (`None` from a node that does
+    /// not say).
+    #[serde(default)]
+    pub retention: Option<u64>,
+    /// The classes with a retention bound of their own, and their bounds.
+    #[serde(default)]
+    pub retention_by_class: BTreeMap<String, u64>,
+}
+
+impl DmStats {
+    /// The retention bound of `class`, if the datamanager said (see
+    /// [`DmStats::retention`]).
+    pub fn retention_of(&self, class: &str) -> Option<u64> {
+        self.retention_by_class
+            .get(class)
+            .copied()
+            .or(self.retention)
+    }
 }
 
 /// What a datamanager's records come to, from a `Digest` request.

@@ -61,7 +61,9 @@
 //! # }
 //! ```
 
+pub mod acks;
 mod actor;
+pub mod audit;
 mod client;
 mod copy;
 pub mod credits;
@@ -85,6 +87,7 @@ mod store;
 mod subscription;
 mod waits;
 
+pub use acks::{Ack, AckSink};
 pub use actor::{
     spawn_datamanager, spawn_datamanager_linked, Datamanager, DmArgs, DmSpec, DmState, FEATURE,
     PARAMETER, RUN, WORLD,

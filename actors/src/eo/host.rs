@@ -36,6 +36,9 @@ pub struct HostOptions {
     pub params: ParamMap,
     /// Publish in the registry (on by default).
     pub publish: bool,
+    /// Told of every store and delete its datamanager clients get acknowledged
+    /// ([`crate::dm::acks`]; a node publishes them on its bus). `None` by default.
+    pub acks: Option<crate::dm::AckSink>,
 }
 
 impl std::fmt::Debug for HostOptions {
@@ -43,6 +46,7 @@ impl std::fmt::Debug for HostOptions {
         f.debug_struct("HostOptions")
             .field("params", &self.params)
             .field("publish", &self.publish)
+            .field("acks", &self.acks.is_some())
             .finish_non_exhaustive()
     }
 }
@@ -53,6 +57,7 @@ impl Default for HostOptions {
             clock: RealClock::process(),
             params: ParamMap::new(),
             publish: true,
+            acks: None,
         }
     }
 }
@@ -466,6 +471,7 @@ impl<O: Operation> Actor for EoHost<O> {
                 epoch: 0,
                 resumed: false,
                 dms: Default::default(),
+                acks: options.acks,
             },
             previous: initial,
             op: operation,

@@ -241,6 +241,8 @@ pub struct OpContext {
     pub(crate) epoch: u64,
     pub(crate) resumed: bool,
     pub(crate) dms: std::collections::HashMap<String, crate::dm::DmClient>,
+    /// Handed to every datamanager client it makes ([`super::HostOptions::acks`]).
+    pub(crate) acks: Option<crate::dm::AckSink>,
 }
 
 impl std::fmt::Debug for OpContext {
@@ -324,11 +326,14 @@ impl OpContext {
                 return Ok(c.clone().with_epoch(epoch));
             }
         }
-        let client =
+        let mut client =
             crate::dm::DmClient::lookup(name, &self.source).map_err(|e| OpError::Datamanager {
                 dm: name.to_string(),
                 problem: e.to_string(),
             })?;
+        if let Some(acks) = &self.acks {
+            client = client.with_acks(acks.clone());
+        }
         self.dms.insert(name.to_string(), client.clone());
         Ok(client.with_epoch(epoch))
     }

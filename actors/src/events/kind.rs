@@ -1,7 +1,9 @@
 //! What an event says: one enum of every kind of event a node publishes.
 
 use crate::registry::{Instance, ModuleKind};
-use crate::run::{Choice, FaultKind, LossCause, OpEnd, Outcome, RebindRecord, RobotSection};
+use crate::run::{
+    Choice, DmCheck, FaultKind, LossCause, OpEnd, Outcome, RebindRecord, RobotSection,
+};
 use serde::{Deserialize, Serialize};
 
 /// What happened. Serialized internally tagged with `type` in snake_case (see the module
@@ -327,6 +329,36 @@ pub enum EventKind {
         /// How many entries each other copy lacks.
         lag: std::collections::BTreeMap<String, u64>,
     },
+    /// A producer of this node was told a record was stored: a `store` answered with its
+    /// seq. What the check at the end of a run ([`DmChecked`](Self::DmChecked)) looks up.
+    DmAcked {
+        /// The datamanager's name.
+        dm: String,
+        /// The producer (the record's source).
+        source: String,
+        /// The record's class.
+        class: String,
+        /// The seq it was acknowledged with.
+        seq: u64,
+        /// A digest of its payload's bytes (64-bit FNV-1a), to tell it from another record
+        /// at the same seq.
+        digest: u64,
+    },
+    /// A producer of this node was told a delete was done: records it matched are gone on
+    /// purpose, not lost.
+    DmDeleted {
+        /// The datamanager's name.
+        dm: String,
+        /// The producer that deleted.
+        source: String,
+        /// The class the delete named; `None`: it could match any class.
+        class: Option<String>,
+        /// How many records it deleted.
+        deleted: u64,
+    },
+    /// The check of a datamanager at the end of a run: of the records acknowledged during
+    /// it, how many its primary still holds and how many are lost.
+    DmChecked(DmCheck),
     // --- the robot ---
     /// A robot judged the run after the dispatcher ended it: its outcome replaces the
     /// dispatcher's, and what it says of the run (its [`RobotSection`], e.g. the cart's final

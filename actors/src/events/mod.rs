@@ -59,6 +59,9 @@
 //! {"at_ms":20090,"node":"operations","kind":{"type":"dm_promoted","dm":"feature","node":"operations","term":3}}
 //! {"at_ms":21000,"node":"features","kind":{"type":"dm_fenced","dm":"feature","node":"features","term":2,"why":"a newer term"}}
 //! {"at_ms":22000,"node":"features","kind":{"type":"dm_state","dm":"feature","durability":"process","records":1210,"journal_bytes":139150,"role":"primary","term":3,"lag":{"operations":0,"spare":2}}}
+//! {"at_ms":4100,"node":"operations","kind":{"type":"dm_acked","dm":"world","source":"wall-sensor","class":"wall","seq":212,"digest":1311768467463790320}}
+//! {"at_ms":4200,"node":"operations","kind":{"type":"dm_deleted","dm":"parameter","source":"path-planner","class":"path","deleted":3}}
+//! {"at_ms":64100,"node":"marie@localhost","kind":{"type":"dm_checked","dm":"world","node":"features","acknowledged":412,"held":410,"dropped_by_retention":0,"deleted":0,"unchecked":0,"lost":2}}
 //! {"at_ms":30001,"node":"marie@localhost","kind":{"type":"judged","outcome":"succeeded","reason":"","collisions":0,"final_pose":[1.5,0.25,0.01],"inside_goal":true,"judgement":"success: inside the goal area","refused_commands":{},"seed":7}}
 //! {"at_ms":4000,"node":"marie@localhost","kind":{"type":"robot","what":"collision","data":{"x":1.0,"y":2.0}}}
 //! ```
@@ -198,13 +201,16 @@ mod tests {
             EventKind::DmPromoted { .. } => "dm_promoted",
             EventKind::DmFenced { .. } => "dm_fenced",
             EventKind::DmState { .. } => "dm_state",
+            EventKind::DmAcked { .. } => "dm_acked",
+            EventKind::DmDeleted { .. } => "dm_deleted",
+            EventKind::DmChecked(_) => "dm_checked",
             EventKind::Judged { .. } => "judged",
             EventKind::Robot { .. } => "robot",
         }
     }
 
     /// The `type` of every kind, as [`type_of`] names them.
-    const KINDS: [&str; 33] = [
+    const KINDS: [&str; 36] = [
         "run_started",
         "bound",
         "action_started",
@@ -236,6 +242,9 @@ mod tests {
         "dm_promoted",
         "dm_fenced",
         "dm_state",
+        "dm_acked",
+        "dm_deleted",
+        "dm_checked",
         "judged",
         "robot",
     ];

@@ -261,6 +261,7 @@ impl ReportBuilder {
                     .map(|(k, v)| (k.clone(), v.clone()))
                     .collect();
             }
+            EventKind::DmChecked(check) => self.report.record_dm_check(check.clone()),
             EventKind::Bound { .. }
             | EventKind::DispatcherFenced { .. }
             | EventKind::Lost { .. }
@@ -278,6 +279,8 @@ impl ReportBuilder {
             | EventKind::DmPromoted { .. }
             | EventKind::DmFenced { .. }
             | EventKind::DmState { .. }
+            | EventKind::DmAcked { .. }
+            | EventKind::DmDeleted { .. }
             | EventKind::Robot { .. } => {}
         }
     }

@@ -21,7 +21,9 @@ mod builder;
 
 pub use builder::{AttachedReport, ReportBuilder};
 
-use crate::run::{Choice, FaultKind, OpEnd, Outcome, RebindRecord, RobotSection, TakeoverRecord};
+use crate::run::{
+    Choice, DmCheck, FaultKind, OpEnd, Outcome, RebindRecord, RobotSection, TakeoverRecord,
+};
 use serde::{Deserialize, Serialize};
 
 /// How many of the latest rebinds, and of the latest faults, a report keeps (older ones are
@@ -118,6 +120,16 @@ pub struct RunReport {
     /// [`REPORT_KEEPS`], oldest first.
     #[serde(default)]
     pub takeovers: Vec<TakeoverRecord>,
+    /// The check of the datamanagers at the run's end, one per datamanager (`dm_checked`
+    /// events): of the records the run's producers were told were stored, how many the
+    /// datamanager's primary still held, and how many were lost ([`DmCheck`]).
+    #[serde(default)]
+    pub dm_checks: Vec<DmCheck>,
+    /// Acknowledged records lost: the sum of `dm_checks`' `lost` — records a producer was
+    /// told were stored that the datamanager's primary no longer held at the end, retention
+    /// and acknowledged deletes accounted for. `None` when the run checked no datamanager.
+    #[serde(default)]
+    pub acknowledged_lost: Option<u64>,
 }
 
 /// A peer node lost during a run, as the run's node saw it.
@@ -166,7 +178,7 @@ pub struct FaultRecord {
 
 impl RunReport {
     /// The report's own JSON keys: a robot's section cannot take them.
-    pub const OWN_KEYS: [&'static str; 15] = [
+    pub const OWN_KEYS: [&'static str; 17] = [
         "mission",
         "outcome",
         "reason",
@@ -181,6 +193,8 @@ impl RunReport {
         "selection",
         "selection_total",
         "nodes_lost",
+        "dm_checks",
+        "acknowledged_lost",
         "robot",
     ];
 
@@ -201,6 +215,8 @@ impl RunReport {
             selection_total: 0,
             nodes_lost: Vec::new(),
             takeovers: Vec::new(),
+            dm_checks: Vec::new(),
+            acknowledged_lost: None,
             robot: RobotSection::new(),
             faults: Vec::new(),
             faults_total: 0,
@@ -229,6 +245,14 @@ impl RunReport {
             self.faults_total += 1;
             keep_latest(&mut self.faults, fault);
         }
+    }
+
+    /// Record the check of a datamanager at the run's end (a second check of the same
+    /// datamanager replaces the first), and the sum of the records lost.
+    pub fn record_dm_check(&mut self, check: DmCheck) {
+        self.dm_checks.retain(|c| c.dm != check.dm);
+        self.dm_checks.push(check);
+        self.acknowledged_lost = Some(self.dm_checks.iter().map(|c| c.lost).sum());
     }
 
     /// Record that the run's node lost `peer` at `at_ms` (`declared_down` by its failure
@@ -363,6 +387,8 @@ mod tests {
                 term: 2,
                 gap_ms: 80,
             }],
+            dm_checks: Vec::new(),
+            acknowledged_lost: None,
             faults: vec![FaultRecord {
                 at_ms: 2,
                 fault: FaultKind::Hang,

@@ -1,8 +1,9 @@
 //! A run's vocabulary: how a run and an operation's part end ([`Outcome`], [`OpEnd`]), why
 //! an instance was lost ([`LossCause`]), a rebind ([`RebindRecord`]), a
 //! dispatcher's run taken over by a standby ([`TakeoverRecord`]), a choice among
-//! instances ([`Choice`]), the faults injected on purpose ([`FaultKind`]) and what a robot
-//! says of a run ([`RobotSection`]).
+//! instances ([`Choice`]), the faults injected on purpose ([`FaultKind`]), what the check
+//! of the datamanagers found at the end ([`DmCheck`]) and what a robot says of a run
+//! ([`RobotSection`]).
 //!
 //! Why a module of its own: these are the words both the event stream ([`crate::events`])
 //! and the dispatcher ([`crate::dispatcher`]) speak, and the report ([`crate::report`]) is
@@ -17,6 +18,7 @@
 //! assert_eq!(LossCause::Killed.to_string(), "died: killed");
 //! ```
 
+mod check;
 mod choice;
 mod fault;
 mod loss;
@@ -24,6 +26,7 @@ mod outcome;
 mod rebind;
 mod takeover;
 
+pub use check::DmCheck;
 pub use choice::{Candidate, Choice, Verdict};
 pub use fault::{Aim, FaultKind, UnknownFault};
 pub use loss::LossCause;

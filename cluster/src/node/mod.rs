@@ -49,6 +49,7 @@
 //! # Ok(()) }
 //! ```
 
+mod audit;
 mod builder;
 pub mod config;
 pub mod desk;
@@ -314,6 +315,7 @@ impl Node {
             catalog: options.catalog,
             clock: options.clock,
             root,
+            acks: marie_actors::dm::AckSink::publishing_on(bus.clone()),
         };
         let mut node = Node {
             config,

@@ -36,6 +36,9 @@ pub(crate) struct Starter {
     pub(crate) catalog: Vec<OperationFactory>,
     pub(crate) clock: SharedClock,
     pub(crate) root: SupervisorRef,
+    /// Where the instances' datamanager clients tell what they get acknowledged (the
+    /// node's bus).
+    pub(crate) acks: marie_actors::dm::AckSink,
 }
 
 impl Starter {
@@ -71,7 +74,10 @@ impl Starter {
             .await?
             .start_dynamic(tree::DynamicOp {
                 factory: factory.clone(),
-                host: HostOptions::with_clock(self.clock.clone()),
+                host: HostOptions {
+                    acks: Some(self.acks.clone()),
+                    ..HostOptions::with_clock(self.clock.clone())
+                },
             })
             .await?;
         tracing::info!(node = %self.node, op = %factory.key(), "dynamic instance started");

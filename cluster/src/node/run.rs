@@ -214,6 +214,8 @@ impl Node {
             dispatch_on,
         } = options;
         let report = ReportBuilder::attach(&self.bus);
+        // what the run's stores get acknowledged, for the check of the datamanagers
+        let audit = super::audit::RunAudit::start(&self.bus).await;
         let _observers: Vec<_> = observers
             .into_iter()
             .map(|f| self.bus.tap(move |event| f(event)))
@@ -256,6 +258,8 @@ impl Node {
                 robot,
             });
         }
+        // the mission is over: is everything acknowledged during it still there?
+        audit.finish(&self.bus).await;
         Ok(report.finish())
     }
 

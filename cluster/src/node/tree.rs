@@ -7,6 +7,7 @@ use super::NodeError;
 use super::{NodeOptions, OPERATION_SHUTDOWN};
 use marie_actors::clock::SharedClock;
 use marie_actors::dispatcher::DispatcherMsg;
+use marie_actors::dm::AckSink;
 use marie_actors::dm::{self, journal, DmArgs, DmClient, DmConfig, DmError, Durability, NewRecord};
 use marie_actors::eo::{HostOptions, OperationFactory};
 use marie_actors::events::EventBus;
@@ -126,7 +127,12 @@ pub(super) fn children(
     if let Some(robot) = &options.robot {
         children.extend(robot.drivers(&options.clock, events));
     }
-    let host = HostOptions::with_clock(options.clock.clone());
+    // what the operations' stores get acknowledged is told on the bus, for the check of
+    // the datamanagers at a run's end
+    let host = HostOptions {
+        acks: Some(AckSink::publishing_on(events.clone())),
+        ..HostOptions::with_clock(options.clock.clone())
+    };
     let hosted = config.hosted(&options.catalog);
     for sup in config.operation_supervisors() {
         let mut seen = std::collections::BTreeMap::<String, usize>::new();

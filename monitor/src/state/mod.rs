@@ -342,6 +342,28 @@ impl MonitorState {
                     ),
                 },
             ),
+            // a store acknowledged is what the check at the run's end looks up: too many to
+            // list, and told by the check
+            EventKind::DmAcked { .. } | EventKind::DmDeleted { .. } => {}
+            EventKind::DmChecked(check) => line.push(
+                at,
+                node,
+                "datamanager",
+                match &check.error {
+                    None => format!(
+                        "datamanager {}: {} acknowledged records, {} held on {}, {} lost",
+                        check.dm,
+                        check.acknowledged,
+                        check.held,
+                        check.node.as_deref().unwrap_or("?"),
+                        check.lost
+                    ),
+                    Some(why) => format!(
+                        "datamanager {}: could not be checked ({why}): {} acknowledged records count lost",
+                        check.dm, check.lost
+                    ),
+                },
+            ),
             EventKind::ConnectionRefused { from, reason } => line.push(
                 at,
                 node,
