@@ -3,6 +3,7 @@
 // each test crate uses its own subset
 #![allow(dead_code)]
 
+pub(crate) mod acceptance;
 pub(crate) mod browser;
 pub(crate) mod cluster;
 pub(crate) mod http;
