@@ -28,7 +28,7 @@ use marie_actors::clock::SharedClock;
 use marie_actors::dispatcher::checkpoint::{Checkpoint, CheckpointArgs, CHECKPOINT_SOURCE};
 use marie_actors::dispatcher::mission::Mission;
 use marie_actors::dispatcher::{self, DispatcherArgs, DispatcherMsg, TakeOver};
-use marie_actors::dm::{DmClient, RUN};
+use marie_actors::dm::{AckSink, DmClient, RUN};
 use marie_actors::events::{BusError, Event, EventBus, EventKind};
 use marie_actors::registry::{self, ModuleKind, RegistryEvent};
 use marie_supervision::{ChildSpec, Restart, Shutdown, SupervisorRef};
@@ -300,6 +300,9 @@ impl DeskState {
             tracing::warn!(%watcher_node, "the requester's event watcher is not in reach yet: it may miss the run's first events");
         }
         let dm = run_dm().await?;
+        // the checkpoints are acknowledged records too: the check at the run's end looks
+        // them up
+        let dm = dm.with_acks(AckSink::publishing_on(self.args.bus.clone()));
         let checkpoint = CheckpointArgs { run, term: 1, dm };
         self.spawn(DispatcherArgs {
             checkpoint: Some(checkpoint),
@@ -312,6 +315,7 @@ impl DeskState {
     async fn take_over(&mut self, from: Checkpoint, noticed: Instant) -> Result<(), NodeError> {
         let (_, raise) = self.args.role.rank();
         let dm = run_dm().await.map_err(NodeError::NoRunDm)?;
+        let dm = dm.with_acks(AckSink::publishing_on(self.args.bus.clone()));
         let checkpoint = CheckpointArgs {
             run: from.run.clone(),
             term: from.term + raise,
