@@ -464,7 +464,8 @@ pub(crate) fn summary(verdicts: &[Verdict]) -> (String, bool) {
     let not_injected = verdicts.iter().filter(|v| v.injected.is_err()).count();
     let refused: u64 = verdicts.iter().map(|v| v.refused).sum();
     let allowed = n / 30;
-    let goal = docked + allowed >= n
+    let goal = n > 0
+        && docked + allowed >= n
         && lost == 0
         && unchecked == 0
         && collisions == 0
