@@ -98,6 +98,21 @@ fn the_dispatchers_node_killed_mid_run_is_taken_over_by_the_standby_and_the_miss
     let (stdout, report, events) = faulted_run(fault);
     assert_taken_over(fault, &stdout, &report, &events);
     assert!(stdout.contains("node features was killed"), "{stdout}");
+    // killed during the wall following, which the lost dispatcher had launched: the
+    // standby attached to its activations, it did not start the action anew (the wall
+    // follower would have lost its progress: acceptance schedule 20 failed so)
+    let starts: Vec<(String, String)> = events
+        .iter()
+        .filter_map(|e| {
+            let kind = serde_json::to_value(&e.kind).unwrap();
+            (kind["type"] == "action_started")
+                .then(|| (kind["action"].as_str().unwrap().to_string(), e.node.clone()))
+        })
+        .collect();
+    let follows: Vec<&(String, String)> =
+        starts.iter().filter(|(a, _)| a == "follow-wall").collect();
+    assert_eq!(follows.len(), 1, "{starts:?}");
+    assert_eq!(follows[0].1, "features", "{starts:?}");
 }
 
 #[test]

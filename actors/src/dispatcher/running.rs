@@ -195,6 +195,8 @@ impl DispatcherState {
             run_ms: started_ms,
             operations: started,
         });
+        // launched: a standby attaches to these activations rather than starting them anew
+        self.checkpoint();
         for (key, name, incarnation, params, epoch) in activations {
             let start = Start {
                 generation,
