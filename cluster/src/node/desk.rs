@@ -426,10 +426,14 @@ fn watch_hangs(me: String, desk: ActorRef<DeskMsg>) -> JoinHandle<()> {
             for inst in others {
                 let actor: ActorRef<DispatcherMsg> = inst.actor.clone().into();
                 let asked = Instant::now();
-                let answer = actor
-                    .call(|reply| DispatcherMsg::Alive { reply }, Some(ALIVE_DEADLINE))
-                    .await;
-                if let Ok(ractor::rpc::CallResult::Timeout) = answer {
+                // the deadline is kept here: a remote call's own timeout was seen to take
+                // 30 s instead of 5 under load
+                let answer = tokio::time::timeout(
+                    ALIVE_DEADLINE,
+                    actor.call(|reply| DispatcherMsg::Alive { reply }, Some(ALIVE_DEADLINE)),
+                )
+                .await;
+                if matches!(answer, Err(_) | Ok(Ok(ractor::rpc::CallResult::Timeout))) {
                     tracing::warn!(node = %inst.node, "the dispatcher there does not answer: it hangs");
                     if desk
                         .cast(DeskMsg::Lost {
