@@ -10,12 +10,13 @@
 //!   runs' measured in the same bench run.
 //!
 //! ```text
-//! cargo bench --bench takeover          # 5 runs of each, about 6 minutes
+//! cargo bench --bench takeover          # 2 fault-free runs and 5 of each fault
 //! cargo bench --bench takeover -- 3     # 3 of each
 //! ```
 //!
 //! A plain bench binary: a node's loss cannot be repeated in a tight loop. It runs at
-//! `--speed 2` (the detector's deadline is real time; the times below are real time too).
+//! `--speed 2` (the detector's deadline is real time; the times below are real time too):
+//! a docking run is about 64 s of mission time, 32 s of real time, plus the cluster's start.
 //! Each `marie up` stops its nodes when it exits, and is killed by its pid if this bench is.
 
 use std::path::Path;

@@ -26,18 +26,7 @@ fn a_frozen_node_is_declared_down_after_its_deadline_and_rejoins_when_it_wakes()
     let dir = tempfile::tempdir().unwrap();
     // a short deadline (the configurable minimum is 300 ms); beats every 100 ms
     let detector = "deadline_ms = 600\nheartbeat_ms = 100\n";
-    let mut alpha = NodeProc::start_with(dir.path(), "alpha", ALPHA, &[], COOKIE, detector, &[]);
-    let mut beta = NodeProc::start_with(
-        dir.path(),
-        "beta",
-        BETA,
-        &[alpha.addr],
-        COOKIE,
-        detector,
-        &[],
-    );
-    alpha.wait_line("node alpha sees beta");
-    beta.wait_line("node beta sees alpha");
+    let (mut alpha, mut beta) = alpha_and_beta(dir.path(), detector, detector);
     assert_eq!(nodes_listed(&alpha.addr), ["alpha", "beta"]);
 
     let mark = alpha.seen().len();
@@ -93,19 +82,7 @@ fn a_frozen_node_is_declared_down_after_its_deadline_and_rejoins_when_it_wakes()
 /// down (the silence was its own). Gives beta's lines.
 fn beta_frozen_just_past_alphas_deadline(alpha_detector: &str, beta_detector: &str) -> Vec<String> {
     let dir = tempfile::tempdir().unwrap();
-    let mut alpha =
-        NodeProc::start_with(dir.path(), "alpha", ALPHA, &[], COOKIE, alpha_detector, &[]);
-    let mut beta = NodeProc::start_with(
-        dir.path(),
-        "beta",
-        BETA,
-        &[alpha.addr],
-        COOKIE,
-        beta_detector,
-        &[],
-    );
-    alpha.wait_line("node alpha sees beta");
-    beta.wait_line("node beta sees alpha");
+    let (mut alpha, mut beta) = alpha_and_beta(dir.path(), alpha_detector, beta_detector);
     // (and both beat for a while: a freeze right after the greeting beats comes just
     // after a beat, when a node's own timer gap is longest against its peers' view)
     assert_eq!(nodes_listed(&alpha.addr), ["alpha", "beta"]);
@@ -231,4 +208,19 @@ fn a_node_of_another_protocol_version_is_refused_naming_both_versions() {
             node.seen()
         );
     }
+}
+
+/// Nodes alpha and beta (which joins alpha) with their `[cluster]` detector settings, once
+/// each sees the other.
+fn alpha_and_beta(
+    dir: &std::path::Path,
+    alpha_detector: &str,
+    beta_detector: &str,
+) -> (NodeProc, NodeProc) {
+    let mut alpha = NodeProc::start_with(dir, "alpha", ALPHA, &[], COOKIE, alpha_detector, &[]);
+    let mut beta =
+        NodeProc::start_with(dir, "beta", BETA, &[alpha.addr], COOKIE, beta_detector, &[]);
+    alpha.wait_line("node alpha sees beta");
+    beta.wait_line("node beta sees alpha");
+    (alpha, beta)
 }

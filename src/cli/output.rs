@@ -1,7 +1,7 @@
 //! The lines a run prints on stdout: its events as they are published on the node's bus
 //! (a subscriber, as the monitor is), then its outcome from the report.
 
-use marie::actors::events::{BusError, Event, EventBus, EventKind};
+use marie::actors::events::{BusError, DispatcherVoice, Event, EventBus, EventKind};
 use marie::actors::report::RunReport;
 use marie::actors::run::{Choice, Outcome, Verdict};
 use marie::actors::status::StatusFlags;
@@ -37,7 +37,7 @@ impl LiveLines {
                 progress,
                 start_ms: None,
                 bound: Default::default(),
-                dispatcher: None,
+                voice: DispatcherVoice::default(),
             };
             loop {
                 tokio::select! {
@@ -76,9 +76,9 @@ struct Printer {
     /// Where each operation was bound, as printed (a takeover's bindings print only
     /// what moved).
     bound: std::collections::BTreeMap<String, String>,
-    /// The node whose dispatcher speaks for the run: what another node's dispatcher says
-    /// (one fenced off, woken from a freeze) is not printed, as the report does not fold it.
-    dispatcher: Option<String>,
+    /// Whose word the run is: what another node's dispatcher says (one fenced off, woken
+    /// from a freeze) is not printed, as the report does not fold it.
+    voice: DispatcherVoice,
 }
 
 impl Printer {
@@ -88,16 +88,8 @@ impl Printer {
     }
 
     fn print(&mut self, event: &Event) {
-        match &event.kind {
-            EventKind::RunStarted { .. } => self.dispatcher = Some(event.node.clone()),
-            EventKind::Takeover { to, .. } => self.dispatcher = Some(to.clone()),
-            EventKind::DispatcherFenced { .. } => {}
-            kind if kind.is_dispatch()
-                && self.dispatcher.as_ref().is_some_and(|d| *d != event.node) =>
-            {
-                return;
-            }
-            _ => {}
+        if !self.voice.hears(event) {
+            return;
         }
         match (&event.kind, self.progress) {
             (EventKind::RunStarted { .. }, _) => self.start_ms = Some(event.at_ms),

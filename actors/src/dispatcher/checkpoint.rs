@@ -57,7 +57,7 @@ pub struct Checkpoint {
     pub node: String,
     /// The mission.
     pub mission: Mission,
-    /// A hash of the mission (FNV-1a of its MessagePack), to tell two missions apart.
+    /// A hash of the mission ([`Checkpoint::hash_of`]), to tell two missions apart.
     pub mission_hash: u64,
     /// Mission time since the run began, ms.
     pub run_ms: u64,
@@ -126,13 +126,10 @@ impl Checkpoint {
         Ok(found.into_iter().next().map(|(_, c)| c))
     }
 
-    /// The hash a checkpoint carries of `mission`.
+    /// The hash a checkpoint carries of `mission`: the datamanagers' payload digest
+    /// ([`crate::dm::acks::digest`]) of its MessagePack.
     pub fn hash_of(mission: &Mission) -> u64 {
-        let bytes = rmp_serde::to_vec(mission).unwrap_or_default();
-        // FNV-1a, 64 bits: stable across processes and builds, unlike std's hasher
-        bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, b| {
-            (h ^ u64::from(*b)).wrapping_mul(0x0100_0000_01b3)
-        })
+        crate::dm::acks::digest(&rmp_serde::to_vec(mission).unwrap_or_default())
     }
 }
 

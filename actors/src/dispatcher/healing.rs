@@ -110,6 +110,13 @@ impl DispatcherState {
             self.bindings
                 .insert(key, Binding::new(cand, self.epoch_base(), need));
         }
+        self.emit_bound();
+        Ok(())
+    }
+
+    /// Tell every binding's instance and epoch (`bound`): at the run's start, and after a
+    /// takeover.
+    pub(super) fn emit_bound(&mut self) {
         let operations = self
             .bindings
             .values()
@@ -122,7 +129,6 @@ impl DispatcherState {
             })
             .collect();
         self.emit(EventKind::Bound { operations });
-        Ok(())
     }
 
     /// Start forwarding the registry's operation joins and leaves, the failure detector's

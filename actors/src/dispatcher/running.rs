@@ -21,6 +21,28 @@ use ractor::ActorRef;
 use std::collections::BTreeSet;
 use std::time::Duration;
 
+/// Tell `myself` the report `rx` brings (`None`: the instance died first) as `OpEnded` of
+/// the operation written `key` in action `generation`, incarnation `incarnation`.
+pub(super) fn forward_report(
+    myself: &ActorRef<DispatcherMsg>,
+    rx: ractor::concurrency::OneshotReceiver<EoReport>,
+    generation: u64,
+    key: &str,
+    incarnation: u64,
+) {
+    let me = myself.clone();
+    let key = key.to_string();
+    ractor::concurrency::spawn(async move {
+        let report = rx.await.ok();
+        let _ = me.cast(DispatcherMsg::OpEnded {
+            generation,
+            key,
+            incarnation,
+            report,
+        });
+    });
+}
+
 /// How long suspended operations get to report before the dispatcher moves on.
 pub(super) const SUSPEND_GRACE: Duration = Duration::from_secs(5);
 
@@ -48,17 +70,7 @@ impl DispatcherState {
         } else {
             b.client.activate(params, epoch)?
         };
-        let me = myself.clone();
-        let key = key.to_string();
-        ractor::concurrency::spawn(async move {
-            let report = rx.await.ok();
-            let _ = me.cast(DispatcherMsg::OpEnded {
-                generation,
-                key,
-                incarnation,
-                report,
-            });
-        });
+        forward_report(myself, rx, generation, key, incarnation);
         Ok(())
     }
 
@@ -140,7 +152,7 @@ impl DispatcherState {
             current.running.insert(op.key.clone());
         }
         self.current = Some(current);
-        match self.checkpoint_stored() {
+        match self.record(None) {
             Some(stored) => {
                 let me = myself.clone();
                 ractor::concurrency::spawn(async move {
@@ -247,10 +259,7 @@ impl DispatcherState {
             self.resume_idle(myself, &key, generation, incarnation);
             return;
         }
-        if matches!(report, Some(EoReport::Stale { .. }))
-            && self.checkpoints.is_some()
-            && self.checkpoint_now().await.is_err()
-        {
+        if matches!(report, Some(EoReport::Stale { .. })) && self.checkpoint_now().await.is_err() {
             return; // a newer dispatcher bound it: this one is fenced
         }
         let cur = self.current.as_ref().expect("checked above");

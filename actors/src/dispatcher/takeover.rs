@@ -26,7 +26,7 @@ use super::checkpoint::{self, BindingCheckpoint, Checkpoint, CurrentCheckpoint, 
 use super::messages::DispatcherMsg;
 use crate::clock::Timer;
 use crate::eo::EoError;
-use crate::events::{BoundOp, EventKind};
+use crate::events::EventKind;
 use crate::registry::{self, ModuleKind};
 use crate::run::Outcome;
 use crate::status::StatusFlags;
@@ -79,39 +79,30 @@ impl DispatcherState {
         })
     }
 
-    /// Record the run's progress, without waiting for it to be stored (see the invariants
-    /// of [`super::checkpoint`]). Nothing happens when the run is recorded nowhere.
-    pub(super) fn checkpoint(&mut self) {
-        if let Some(snapshot) = self.snapshot(None) {
-            if let Some(writer) = self.checkpoints.as_mut() {
-                drop(writer.write(snapshot));
-            }
-        }
+    /// Record the run's progress (and its end, `ended`); the receiver says when it is
+    /// stored (`None`: the run is recorded nowhere).
+    pub(super) fn record(
+        &mut self,
+        ended: Option<Outcome>,
+    ) -> Option<tokio::sync::oneshot::Receiver<Result<(), Superseded>>> {
+        let snapshot = self.snapshot(ended)?;
+        Some(self.checkpoints.as_mut()?.write(snapshot))
     }
 
-    /// Record the run's progress; the receiver says when it is stored (`None`: the run is
-    /// recorded nowhere).
-    pub(super) fn checkpoint_stored(
-        &mut self,
-    ) -> Option<tokio::sync::oneshot::Receiver<Result<(), Superseded>>> {
-        let snapshot = self.snapshot(None)?;
-        Some(self.checkpoints.as_mut()?.write(snapshot))
+    /// Record the run's progress, without waiting for it to be stored (see the invariants
+    /// of [`super::checkpoint`]).
+    pub(super) fn checkpoint(&mut self) {
+        drop(self.record(None));
     }
 
     /// Record the run's progress and wait until it is stored: `Err` when a newer term
     /// refused it (the writer tells the dispatcher, which then stops).
     pub(super) async fn checkpoint_now(&mut self) -> Result<(), Superseded> {
-        let Some(snapshot) = self.snapshot(None) else {
-            return Ok(());
-        };
-        let Some(writer) = self.checkpoints.as_mut() else {
-            return Ok(());
-        };
-        let term = writer.term;
-        writer
-            .write(snapshot)
-            .await
-            .unwrap_or(Err(Superseded { newer: term + 1 }))
+        let term = self.checkpoints.as_ref().map_or(0, |w| w.term);
+        match self.record(None) {
+            None => Ok(()),
+            Some(stored) => stored.await.unwrap_or(Err(Superseded { newer: term + 1 })),
+        }
     }
 
     /// Record the run's end; `Conclude` publishes it once it is stored. Without
@@ -122,13 +113,9 @@ impl DispatcherState {
         outcome: Outcome,
         reason: &str,
     ) -> bool {
-        let Some(snapshot) = self.snapshot(Some(outcome)) else {
+        let Some(stored) = self.record(Some(outcome)) else {
             return true;
         };
-        let Some(writer) = self.checkpoints.as_mut() else {
-            return true;
-        };
-        let stored = writer.write(snapshot);
         let me = myself.clone();
         let reason = reason.to_string();
         ractor::concurrency::spawn(async move {
@@ -255,18 +242,7 @@ impl DispatcherState {
             since_checkpoint_ms: unix_ms.saturating_sub(from.unix_ms),
             unix_ms,
         });
-        let operations = self
-            .bindings
-            .values()
-            .map(|b| BoundOp {
-                name: b.name.clone(),
-                version: b.version.clone(),
-                node: b.node.clone(),
-                epoch: b.epoch,
-                address: b.actor_id().to_string(),
-            })
-            .collect();
-        self.emit(EventKind::Bound { operations });
+        self.emit_bound();
         self.command_after_takeover(myself, &from);
         self.probe(myself);
         if let Some(deadline) = self.mission.deadline {
@@ -393,17 +369,7 @@ impl DispatcherState {
             return Err(EoError::Gone(key.to_string()));
         };
         let rx = b.client.attach(b.epoch, since)?;
-        let me = myself.clone();
-        let key = key.to_string();
-        ractor::concurrency::spawn(async move {
-            let report = rx.await.ok();
-            let _ = me.cast(DispatcherMsg::OpEnded {
-                generation,
-                key,
-                incarnation,
-                report,
-            });
-        });
+        super::running::forward_report(myself, rx, generation, key, incarnation);
         Ok(())
     }
 

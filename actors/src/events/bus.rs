@@ -57,20 +57,7 @@ impl EventBus {
     /// the event as published. Every [`Tap`] sees it before this returns; subscribers
     /// receive it when they next ask.
     pub fn publish(&self, kind: EventKind) -> Event {
-        // one order for every event: stamped, tapped and broadcast under the lock
-        let taps = lock(&self.taps);
-        let event = Event {
-            at_ms: self.clock.now().as_millis() as u64,
-            node: self.node.to_string(),
-            kind,
-        };
-        tracing::trace!(?event, "event");
-        for (_, tap) in &taps.attached {
-            tap(&event);
-        }
-        // no subscriber: nobody to tell, nothing kept
-        let _ = self.tx.send(event.clone());
-        event
+        self.send(&self.node, kind)
     }
 
     /// Publish `kind` as node `origin` told it, stamped with this bus's clock: how a member
@@ -78,15 +65,22 @@ impl EventBus {
     /// own bus, so that its report, fault injector and outputs see them as if published
     /// here (in this bus's one order, and on its clock, beside the faults it injects).
     pub fn republish(&self, origin: &str, kind: EventKind) -> Event {
+        self.send(origin, kind)
+    }
+
+    /// Stamp `kind` as `node`'s, tap and broadcast it, under the lock that orders the bus.
+    fn send(&self, node: &str, kind: EventKind) -> Event {
         let taps = lock(&self.taps);
         let event = Event {
             at_ms: self.clock.now().as_millis() as u64,
-            node: origin.to_string(),
+            node: node.to_string(),
             kind,
         };
+        tracing::trace!(?event, "event");
         for (_, tap) in &taps.attached {
             tap(&event);
         }
+        // no subscriber: nobody to tell, nothing kept
         let _ = self.tx.send(event.clone());
         event
     }

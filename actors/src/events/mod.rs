@@ -102,10 +102,12 @@
 mod bus;
 mod kind;
 mod registry_bridge;
+mod voice;
 
 pub use bus::{BusError, EventBus, EventSubscription, Tap, DEFAULT_CAPACITY};
 pub use kind::{ActionPlan, BoundOp, EventKind, ModuleInfo, OpStarted};
 pub use registry_bridge::{bridge_registry, RegistryBridge};
+pub use voice::DispatcherVoice;
 
 use serde::{Deserialize, Serialize};
 

@@ -17,7 +17,7 @@
 //!   makes the same report as the run's own bus.
 
 use super::{ActionRecord, FaultRecord, OpRecord, RunReport};
-use crate::events::{Event, EventBus, EventKind, Tap};
+use crate::events::{DispatcherVoice, Event, EventBus, EventKind, Tap};
 use crate::run::{OpEnd, Outcome, TakeoverRecord};
 use std::sync::{Arc, Mutex};
 
@@ -29,8 +29,8 @@ pub struct ReportBuilder {
     open: Option<OpenAction>,
     /// The stamp of the run's `run_started`: where its times count from.
     start_ms: Option<u64>,
-    /// The node whose dispatcher speaks for the run (see the module invariants).
-    dispatcher: Option<String>,
+    /// Whose word the run is (see the module invariants).
+    voice: DispatcherVoice,
 }
 
 /// An action that started and has not ended.
@@ -55,7 +55,7 @@ impl ReportBuilder {
             report: RunReport::new("", Outcome::Failed, "the run has not ended"),
             open: None,
             start_ms: None,
-            dispatcher: None,
+            voice: DispatcherVoice::default(),
         }
     }
 
@@ -73,20 +73,16 @@ impl ReportBuilder {
     /// supervisors, generic robot events) change nothing; a [`EventKind::RunStarted`]
     /// starts a new report.
     pub fn apply(&mut self, event: &Event) {
-        let speaks = match (&event.kind, &self.dispatcher) {
-            (EventKind::RunStarted { .. } | EventKind::Takeover { .. }, _) => true,
-            (kind, Some(node)) if kind.is_dispatch() => *node == event.node,
-            _ => true,
-        };
-        if !speaks {
+        if !self.voice.hears(event) {
             return;
         }
         match &event.kind {
             EventKind::RunStarted { mission, .. } => {
+                let voice = std::mem::take(&mut self.voice);
                 *self = ReportBuilder::new();
+                self.voice = voice;
                 self.report.mission = mission.clone();
                 self.start_ms = Some(event.at_ms);
-                self.dispatcher = Some(event.node.clone());
             }
             EventKind::Takeover {
                 from,
@@ -96,7 +92,6 @@ impl ReportBuilder {
                 ..
             } => {
                 let at_ms = self.run_ms(event);
-                self.dispatcher = Some(to.clone());
                 self.report.record_takeover(TakeoverRecord {
                     at_ms,
                     from: from.clone(),

@@ -19,7 +19,7 @@
 use super::desk::{DeskMsg, DESK_NAME};
 use super::{Node, NodeError};
 use marie_actors::dispatcher::mission::Mission;
-use marie_actors::events::{BusError, Event, EventKind};
+use marie_actors::events::{BusError, DispatcherVoice, Event, EventKind};
 use marie_actors::registry::{self, ModuleKind};
 use marie_actors::run::Outcome;
 use ractor::rpc::CallResult;
@@ -91,7 +91,9 @@ impl Node {
             }
         }
         tracing::info!(%run, node = %on, "run dispatched; following it");
-        let mut current = on.to_string();
+        // the dispatcher speaking for the run (its run_ended ends it): on `on`, until a
+        // takeover
+        let mut voice = DispatcherVoice::default();
         // the run's time as its dispatcher last told it, and when
         let mut told = (0u64, tokio::time::Instant::now());
         let mut lost_since: Option<tokio::time::Instant> = None;
@@ -102,23 +104,25 @@ impl Node {
                     None => std::future::pending().await,
                 }
             };
+            let current = voice.node().unwrap_or(on).to_string();
             tokio::select! {
                 event = watch.recv() => {
-                    let Some(Event { node, kind, .. }) = event else {
+                    let Some(event) = event else {
                         return Err(NodeError::Desk("the run's events stopped coming".into()));
                     };
-                    if !kind.is_dispatch() {
+                    if !event.kind.is_dispatch() {
                         continue;
                     }
+                    let heard = voice.hears(&event);
+                    let Event { node, kind, .. } = event;
                     if let EventKind::ActionStarted { run_ms, .. } | EventKind::ActionEnded { run_ms, .. } = &kind {
                         told = (*run_ms, tokio::time::Instant::now());
                     }
-                    if let EventKind::Takeover { to, .. } = &kind {
-                        current = to.clone();
+                    if let EventKind::Takeover { .. } = &kind {
                         lost_since = None;
                     }
                     let ended = match &kind {
-                        EventKind::RunEnded { outcome, .. } if node == current => Some(*outcome),
+                        EventKind::RunEnded { outcome, .. } if heard => Some(*outcome),
                         _ => None,
                     };
                     self.bus.republish(&node, kind);

@@ -298,16 +298,7 @@ impl Node {
     async fn dispatch(&self, mission: Mission) -> Result<Outcome, NodeError> {
         let n = self.runs.fetch_add(1, Ordering::Relaxed);
         let args = DispatcherArgs::new(mission, self.starter.clock.clone(), self.bus.clone());
-        let spec = ChildSpec::worker(format!("dispatcher-{n}"), move |sup| {
-            let args = args.clone();
-            async move {
-                Ok(dispatcher::spawn_dispatcher(args, Some(sup))
-                    .await?
-                    .get_cell())
-            }
-        })
-        .with_restart(Restart::Temporary)
-        .with_shutdown(Shutdown::Timeout(Duration::from_secs(1)));
+        let spec = dispatcher_child(format!("dispatcher-{n}"), args);
         // subscribe before the run starts, so no give-up goes unseen
         let mut give_ups = Vec::new();
         for sup in self.config.operation_supervisors() {
@@ -327,4 +318,19 @@ impl Node {
         }
         Ok(outcome?)
     }
+}
+
+/// A run's dispatcher with `args` as a temporary child `id` of a node's root: not restarted
+/// (a run is not run twice), given a second to stop.
+pub(super) fn dispatcher_child(id: String, args: DispatcherArgs) -> ChildSpec {
+    ChildSpec::worker(id, move |sup| {
+        let args = args.clone();
+        async move {
+            Ok(dispatcher::spawn_dispatcher(args, Some(sup))
+                .await?
+                .get_cell())
+        }
+    })
+    .with_restart(Restart::Temporary)
+    .with_shutdown(Shutdown::Timeout(Duration::from_secs(1)))
 }

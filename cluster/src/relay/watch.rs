@@ -82,24 +82,26 @@ impl Watch {
 /// a node forwards its events only to the watchers it knows): true once it does. A node
 /// about to publish what a new watcher must not miss — a run's first events — asks first.
 pub async fn reaches(node: &str, pid: u64, within: std::time::Duration) -> bool {
-    let deadline = tokio::time::Instant::now() + within;
-    loop {
-        let known = pg::get_scoped_members(&SCOPE.to_string(), &GROUP.to_string())
+    let known = || {
+        pg::get_scoped_members(&SCOPE.to_string(), &GROUP.to_string())
             .into_iter()
             .any(|c| {
                 let id = c.get_id();
                 !id.is_local()
                     && id.pid() == pid
                     && marie_actors::registry::node_name_of(&id) == node
-            });
-        if known {
-            return true;
+            })
+    };
+    // watched before the first look: a change between the two is not missed
+    let Ok(mut changes) = super::scope::Changes::watch().await else {
+        return known();
+    };
+    let wait = async {
+        while !known() {
+            changes.next().await;
         }
-        if tokio::time::Instant::now() >= deadline {
-            return false;
-        }
-        tokio::time::sleep(std::time::Duration::from_millis(20)).await;
-    }
+    };
+    tokio::time::timeout(within, wait).await.is_ok()
 }
 
 impl Drop for Watch {
