@@ -342,6 +342,8 @@ pub(crate) struct Verdict {
     pub docked: bool,
     /// Why not, if not (the report's reason, or what went wrong with the run).
     pub why: String,
+    /// The run wrote a report.
+    pub reported: bool,
     /// The fault was injected (`Err`: why not).
     pub injected: Result<(), String>,
     /// Acknowledged records lost (`None`: the report has no check).
@@ -384,6 +386,10 @@ impl Verdict {
         };
         let docked = report["outcome"] == "succeeded" && report["inside_goal"] == true;
         let why = match (&report, docked) {
+            (Value::Null, _) if wall >= RUN_TIMEOUT => format!(
+                "no report: still running after {:.0} s, stopped",
+                RUN_TIMEOUT.as_secs_f64()
+            ),
             (Value::Null, _) => format!("no report (exit {exit:?})"),
             (_, true) => String::new(),
             (r, false) => r["reason"]
@@ -403,6 +409,7 @@ impl Verdict {
             exit,
             docked,
             why,
+            reported: !report.is_null(),
             injected,
             lost: report["acknowledged_lost"].as_u64(),
             acknowledged,
@@ -423,6 +430,7 @@ impl Verdict {
     /// The table's row.
     pub(crate) fn row(&self) -> String {
         let outcome = match (&self.injected, self.docked) {
+            _ if !self.reported => format!("FAILED: {}", self.why),
             (Err(why), _) => format!("fault not injected: {why}"),
             (Ok(()), true) => "docked".to_string(),
             (Ok(()), false) => format!("FAILED: {}", self.why),
@@ -461,7 +469,10 @@ pub(crate) fn summary(verdicts: &[Verdict]) -> (String, bool) {
     let lost: u64 = verdicts.iter().map(|v| v.lost.unwrap_or(0)).sum();
     let unchecked = verdicts.iter().filter(|v| v.lost.is_none()).count();
     let collisions: u64 = verdicts.iter().map(|v| v.collisions.unwrap_or(0)).sum();
-    let not_injected = verdicts.iter().filter(|v| v.injected.is_err()).count();
+    let not_injected = verdicts
+        .iter()
+        .filter(|v| v.reported && v.injected.is_err())
+        .count();
     let refused: u64 = verdicts.iter().map(|v| v.refused).sum();
     let allowed = n / 30;
     let goal = n > 0
@@ -480,11 +491,16 @@ pub(crate) fn summary(verdicts: &[Verdict]) -> (String, bool) {
     if unchecked > 0 {
         let _ = write!(
             s,
-            ", {unchecked} runs without a check of their datamanagers"
+            ", {unchecked} run{} without a check of its datamanagers (no report)",
+            if unchecked == 1 { "" } else { "s" }
         );
     }
     if not_injected > 0 {
-        let _ = write!(s, ", {not_injected} faults not injected");
+        let _ = write!(
+            s,
+            ", {not_injected} fault{} not injected",
+            if not_injected == 1 { "" } else { "s" }
+        );
     }
     let _ = write!(
         s,

@@ -34,10 +34,20 @@ const CAPACITY: usize = 4096;
 /// ([`RunAudit::finish`]).
 pub(super) struct RunAudit {
     ledger: Arc<Mutex<Ledger>>,
-    tap: Tap,
+    _tap: Tap,
+    /// The task that takes the other nodes' acknowledgements from the relay (aborted when
+    /// the audit is dropped: a run that failed to start leaves no watcher behind).
     relay: Option<JoinHandle<()>>,
     /// When the relay last brought an acknowledgement.
     heard: Arc<Mutex<Option<Instant>>>,
+}
+
+impl Drop for RunAudit {
+    fn drop(&mut self) {
+        if let Some(relay) = self.relay.take() {
+            relay.abort();
+        }
+    }
 }
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -73,7 +83,7 @@ impl RunAudit {
         };
         RunAudit {
             ledger,
-            tap,
+            _tap: tap,
             relay,
             heard,
         }
@@ -81,14 +91,9 @@ impl RunAudit {
 
     /// Once the other nodes' acknowledgements have come, check every datamanager the run
     /// heard of or that is published, and publish each check on `bus` (`dm_checked`).
-    pub(super) async fn finish(self, bus: &EventBus) {
-        let RunAudit {
-            ledger,
-            tap,
-            relay,
-            heard,
-        } = self;
-        if let Some(relay) = relay {
+    pub(super) async fn finish(mut self, bus: &EventBus) {
+        let (ledger, heard) = (self.ledger.clone(), self.heard.clone());
+        if let Some(relay) = self.relay.take() {
             let remote = registry::list()
                 .iter()
                 .any(|i| !i.actor.get_id().is_local());
@@ -105,7 +110,8 @@ impl RunAudit {
             }
             relay.abort();
         }
-        drop(tap);
+        // nothing more to hear
+        drop(self);
         let ledger = std::mem::take(&mut *lock(&ledger));
         let mut names: BTreeSet<String> = ledger.datamanagers().into_iter().collect();
         names.extend(
