@@ -6,7 +6,8 @@
 //! stored within a bound, it leaves the run alone: it is cut off from the run's copies); binds
 //! every operation — the instance the lost dispatcher held, if it still runs, else one
 //! chosen as at the start — above the epochs the checkpoint recorded, and records them;
-//! tells the `takeover` and the bindings; and only then commands. The running action's
+//! tells the bindings; and only then commands. The `takeover` is told as soon as the term
+//! is stored: the run's word is the standby's from then on, whatever follows. The running action's
 //! operations are *attached* ([`crate::eo::EoMsg::Attach`]): an activation still running
 //! goes on undisturbed and reports to the new dispatcher, and one that ended while no
 //! dispatcher listened is resumed ([`crate::eo::EoMsg::Resume`]), carrying on from what it
@@ -180,6 +181,20 @@ impl DispatcherState {
                 return;
             }
         }
+        // the run is this dispatcher's from the claim on: told at once, so that whoever
+        // follows the run listens to it (what it selects, binds, and how it ends) — also
+        // should it fail before its first command
+        let gap_ms = noticed.elapsed().as_millis() as u64;
+        let unix_ms = checkpoint::unix_ms();
+        self.emit(EventKind::Takeover {
+            run: from.run.clone(),
+            from: from.node.clone(),
+            to: registry::local_node_name(),
+            term,
+            gap_ms,
+            since_checkpoint_ms: unix_ms.saturating_sub(from.unix_ms),
+            unix_ms,
+        });
         // mission time carries on from the run's start (the cluster's nodes read one
         // clock); a clock behind the checkpoint's (another host, out of sync) carries on
         // from the checkpoint
@@ -231,17 +246,6 @@ impl DispatcherState {
         if self.checkpoint_now().await.is_err() {
             return;
         }
-        let gap_ms = noticed.elapsed().as_millis() as u64;
-        let unix_ms = checkpoint::unix_ms();
-        self.emit(EventKind::Takeover {
-            run: from.run.clone(),
-            from: from.node.clone(),
-            to: registry::local_node_name(),
-            term,
-            gap_ms,
-            since_checkpoint_ms: unix_ms.saturating_sub(from.unix_ms),
-            unix_ms,
-        });
         self.emit_bound();
         self.command_after_takeover(myself, &from);
         self.probe(myself);

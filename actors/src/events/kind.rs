@@ -108,11 +108,12 @@ pub enum EventKind {
         to: String,
         /// The new dispatcher's term.
         term: u64,
-        /// Real ms from the standby learning of the loss to its first command.
+        /// Real ms from the standby learning of the loss to its term stored (the run is its
+        /// own from then on; its bindings and first command follow, told by a `bound`).
         gap_ms: u64,
-        /// Real ms between the lost dispatcher's last checkpoint and that first command.
+        /// Real ms between the lost dispatcher's last checkpoint and the term stored.
         since_checkpoint_ms: u64,
-        /// Wall-clock time of the first command, ms since the Unix epoch (to compare with
+        /// Wall-clock time the term was stored, ms since the Unix epoch (to compare with
         /// when a test killed the lost one).
         unix_ms: u64,
     },

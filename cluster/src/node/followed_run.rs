@@ -7,8 +7,8 @@
 //! node's bus ([`EventBus::republish`]), so the run's report, its fault injector, its
 //! lines, events file and page see one continuous run, wherever it is dispatched. The run
 //! ends with the `run_ended` of its current dispatcher. Should that dispatcher's node be
-//! lost and no standby take the run over within [`TAKEOVER_WAIT`], the run fails, saying
-//! so.
+//! lost, or the dispatcher be fenced off, and no standby tell its takeover within
+//! [`TAKEOVER_WAIT`], the run fails, saying so.
 //!
 //! # Invariants
 //! - The watch of the relayed events starts before the run does, and the desk waits until
@@ -33,6 +33,10 @@ const START_TIMEOUT: Duration = Duration::from_secs(20);
 /// How many relayed events the follower holds before it takes them (it takes them as they
 /// come; a run's events arrive far slower).
 const FOLLOW_CAPACITY: usize = 1 << 16;
+/// Why a run waits for a takeover: its dispatcher's node was lost …
+const LOST_WITH_NODE: &str = "was lost with its node";
+/// … or its dispatcher was fenced off by a standby's term.
+const FENCED: &str = "was fenced off";
 
 impl Node {
     /// Run `mission` on the desk of node `on` and follow it to its end (see the module
@@ -96,11 +100,12 @@ impl Node {
         let mut voice = DispatcherVoice::default();
         // the run's time as its dispatcher last told it, and when
         let mut told = (0u64, tokio::time::Instant::now());
-        let mut lost_since: Option<tokio::time::Instant> = None;
+        // since when the run has no dispatcher, and why
+        let mut lost_since: Option<(tokio::time::Instant, &str)> = None;
         loop {
             let no_takeover = async {
                 match lost_since {
-                    Some(since) => tokio::time::sleep_until(since + TAKEOVER_WAIT).await,
+                    Some((since, _)) => tokio::time::sleep_until(since + TAKEOVER_WAIT).await,
                     None => std::future::pending().await,
                 }
             };
@@ -118,8 +123,18 @@ impl Node {
                     if let EventKind::ActionStarted { run_ms, .. } | EventKind::ActionEnded { run_ms, .. } = &kind {
                         told = (*run_ms, tokio::time::Instant::now());
                     }
-                    if let EventKind::Takeover { .. } = &kind {
-                        lost_since = None;
+                    match &kind {
+                        EventKind::Takeover { .. } => lost_since = None,
+                        // the dispatcher speaking for the run was fenced off: a standby
+                        // stored a newer term, and its `takeover` is on its way — or it
+                        // never comes (the standby was lost right after), and the run fails
+                        EventKind::DispatcherFenced { .. }
+                            if node == current && lost_since.is_none() =>
+                        {
+                            tracing::warn!(node = %current, "the run's dispatcher was fenced off: waiting for the standby's takeover");
+                            lost_since = Some((tokio::time::Instant::now(), FENCED));
+                        }
+                        _ => {}
                     }
                     let ended = match &kind {
                         EventKind::RunEnded { outcome, .. } if heard => Some(*outcome),
@@ -135,18 +150,22 @@ impl Node {
                         if peer == current && lost_since.is_none() =>
                     {
                         tracing::warn!(node = %current, "the run's dispatcher node is lost: waiting for a standby to take the run over");
-                        lost_since = Some(tokio::time::Instant::now());
+                        lost_since = Some((tokio::time::Instant::now(), LOST_WITH_NODE));
                     }
-                    Ok(Event { kind: EventKind::NodeUp { peer, .. }, .. }) if peer == current => {
+                    // its node back: the dispatcher goes on (unless it was fenced off)
+                    Ok(Event { kind: EventKind::NodeUp { peer, .. }, .. })
+                        if peer == current && lost_since.is_some_and(|(_, why)| why == LOST_WITH_NODE) =>
+                    {
                         lost_since = None;
                     }
                     Ok(_) | Err(BusError::Lagged { .. }) => {}
                     Err(BusError::Closed) => return Err(NodeError::Desk("the node's bus closed".into())),
                 },
                 () = no_takeover => {
+                    let why = lost_since.map_or("was lost", |(_, why)| why);
                     let reason = format!(
-                        "the dispatcher's node `{current}` was lost and no standby took the run \
-                         over within {:.0} s",
+                        "the dispatcher on `{current}` {why} and no standby took the run over \
+                         within {:.0} s",
                         TAKEOVER_WAIT.as_secs_f64()
                     );
                     // told as the lost dispatcher's end: the run's report folds its
