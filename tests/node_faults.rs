@@ -96,6 +96,13 @@ fn a_frozen_node_is_let_go_on_after_its_duration_and_the_mission_docks() {
             .any(|e| e["kind"]["type"] == "node_down" && e["kind"]["peer"] == "spare"),
         "no node_down of spare in the events"
     );
+    // spare also runs the standby dispatcher: woken, it saw every peer lost until they
+    // redialled it, but the run's dispatcher (on features) never was — nothing taken over
+    let takeovers: Vec<_> = events(&events_path)
+        .into_iter()
+        .filter(|e| e["kind"]["type"] == "takeover")
+        .collect();
+    assert!(takeovers.is_empty(), "{takeovers:?}");
 }
 
 #[test]

@@ -17,7 +17,10 @@
 //! answering a desk's [`DispatcherMsg::Alive`] within [`ALIVE_DEADLINE`] — is lost too. A
 //! standby's desk does so at once; an active node's desk
 //! waits [`ACTIVE_STAGGER`] first and, should both take over, binds under a higher term
-//! still, which fences the standby's off: two desks never carry one run on together.
+//! still, which fences the standby's off: two desks never carry one run on together. A
+//! desk whose own node was just frozen weighs a loss only after [`OWN_FREEZE_SETTLE`], and
+//! only if the dispatcher is still out of reach then: woken, a node sees every peer lost
+//! until they redial it, and would otherwise take a run over that was never lost.
 //!
 //! # Invariants
 //! - A desk runs at most one dispatcher at a time.
@@ -58,6 +61,10 @@ const ALIVE_PERIOD: Duration = Duration::from_millis(500);
 /// checkpoint while the run datamanager fails over: a node frozen or cut off is declared
 /// down long before, and a dispatcher that is only slow is left alone.
 pub const ALIVE_DEADLINE: Duration = Duration::from_secs(5);
+/// How long after its own node was frozen a desk doubts what it sees lost: woken, its node
+/// finds every peer gone (they had closed their sessions to it) until they redial it. A
+/// loss told in that window is weighed only once it has passed, if it still holds.
+pub const OWN_FREEZE_SETTLE: Duration = Duration::from_secs(3);
 
 /// What a node's desk does ([`super::NodeConfig::desk`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -128,6 +135,8 @@ marie_actors::remote_message! {
             /// When it was noticed.
             noticed: Instant,
         },
+        /// This desk's node was frozen (it just woke).
+        OwnFreeze {},
         /// Take over the run whose last checkpoint is `from`.
         TakeOver {
             /// The checkpoint.
@@ -172,6 +181,8 @@ struct DeskState {
     runs: Arc<AtomicU64>,
     /// The watches of the other dispatchers (their leaves and losses, their hangs).
     watching: [JoinHandle<()>; 2],
+    /// When this desk's node last woke from a freeze.
+    woke: Option<Instant>,
 }
 
 impl Drop for DeskState {
@@ -209,6 +220,7 @@ impl Actor for Desk {
             took: None,
             runs: Arc::default(),
             watching,
+            woke: None,
         })
     }
 
@@ -229,14 +241,25 @@ impl Actor for Desk {
                 let answer = state.start(run, &mission, &watcher_node, watcher_pid).await;
                 let _ = reply.send(answer);
             }
+            DeskMsg::OwnFreeze {} => state.woke = Some(Instant::now()),
             DeskMsg::Lost { node, noticed } => {
                 if state.busy() || node == state.args.node {
                     return Ok(());
                 }
                 let (stagger, _) = state.args.role.rank();
+                let doubt = state
+                    .woke
+                    .is_some_and(|woke| woke.elapsed() < OWN_FREEZE_SETTLE);
                 let me = myself.clone();
                 tokio::spawn(async move {
                     tokio::time::sleep(stagger).await;
+                    if doubt {
+                        tokio::time::sleep(OWN_FREEZE_SETTLE).await;
+                        if dispatcher_in_reach(&node) {
+                            tracing::info!(%node, "this node was frozen, the dispatcher there is in reach again: nothing to take over");
+                            return;
+                        }
+                    }
                     let Ok(dm) = run_dm().await else {
                         return; // no run recorded in this cluster
                     };
@@ -349,6 +372,14 @@ impl DeskState {
     }
 }
 
+/// True if a dispatcher of node `node` is in the registry and its node not declared down.
+fn dispatcher_in_reach(node: &str) -> bool {
+    !registry::is_declared_down(node)
+        && registry::list_of(ModuleKind::Dispatcher)
+            .iter()
+            .any(|i| i.id == dispatcher::DISPATCHER_ID && i.node == node)
+}
+
 /// The run datamanager, waiting for one (a copy being promoted).
 async fn run_dm() -> Result<DmClient, String> {
     DmClient::lookup_within(RUN.name, CHECKPOINT_SOURCE, RUN_DM_WAIT)
@@ -365,7 +396,8 @@ async fn run_dm() -> Result<DmClient, String> {
 }
 
 /// Tell the desk `desk` whenever a dispatcher on another node leaves the registry or its
-/// node is lost (declared down, or its sessions ended).
+/// node is lost (declared down, or its sessions ended), and when its own node woke from a
+/// freeze.
 async fn watch_dispatchers(
     args: &DeskArgs,
     desk: ActorRef<DeskMsg>,
@@ -383,6 +415,12 @@ async fn watch_dispatchers(
                 },
                 event = bus.recv() => match event {
                     Ok(Event { kind: EventKind::NodeDown { peer, .. } | EventKind::NodeLost { peer, .. }, .. }) => peer,
+                    Ok(Event { kind: EventKind::NodeFrozen { .. }, node, .. }) if node == me => {
+                        if desk.cast(DeskMsg::OwnFreeze {}).is_err() {
+                            return;
+                        }
+                        continue;
+                    }
                     Ok(_) | Err(BusError::Lagged { .. }) => continue,
                     Err(BusError::Closed) => return,
                 },
@@ -419,7 +457,10 @@ fn watch_hangs(me: String, desk: ActorRef<DeskMsg>) -> JoinHandle<()> {
                     actor.call(|reply| DispatcherMsg::Alive { reply }, None),
                 )
                 .await;
-                if answer.is_err() {
+                // a deadline noticed far too late: this node itself stood still (frozen),
+                // not the dispatcher; asked again at the next tick
+                let stood_still = asked.elapsed() > ALIVE_DEADLINE + 2 * ALIVE_PERIOD;
+                if answer.is_err() && !stood_still {
                     tracing::warn!(node = %inst.node, "the dispatcher there does not answer: it hangs");
                     if desk
                         .cast(DeskMsg::Lost {
