@@ -119,8 +119,18 @@ impl RunAudit {
                 .into_iter()
                 .map(|i| i.name),
         );
-        for dm in names {
-            let check = ledger.check(&dm, WITHIN).await;
+        // all at once: each may wait up to WITHIN for a primary (none comes when every
+        // node of its copies is gone), and a run's end should not wait that long per
+        // datamanager; told in name order
+        let ledger = Arc::new(ledger);
+        let mut checks = tokio::task::JoinSet::new();
+        for (i, dm) in names.into_iter().enumerate() {
+            let ledger = ledger.clone();
+            checks.spawn(async move { (i, ledger.check(&dm, WITHIN).await) });
+        }
+        let mut done = checks.join_all().await;
+        done.sort_by_key(|(i, _)| *i);
+        for (_, check) in done {
             if check.lost > 0 {
                 tracing::warn!(
                     dm = %check.dm,
