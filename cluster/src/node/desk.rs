@@ -17,10 +17,14 @@
 //! answering a desk's [`DispatcherMsg::Alive`] within [`ALIVE_DEADLINE`] — is lost too. A
 //! standby's desk does so at once; an active node's desk
 //! waits [`ACTIVE_STAGGER`] first and, should both take over, binds under a higher term
-//! still, which fences the standby's off: two desks never carry one run on together. A
-//! desk whose own node was just frozen weighs a loss only after [`OWN_FREEZE_SETTLE`], and
-//! only if the dispatcher is still out of reach then: woken, a node sees every peer lost
-//! until they redial it, and would otherwise take a run over that was never lost.
+//! still, which fences the standby's off: two desks never carry one run on together.
+//!
+//! A desk in doubt weighs a loss only once the doubt is over, and only if the dispatcher
+//! is still out of reach then: its own node was just frozen (woken, a node sees every peer
+//! lost until they redial it; [`OWN_FREEZE_SETTLE`]), or it reaches fewer than a majority
+//! of the nodes it has known (it is the one cut off, most likely: it waits up to
+//! [`MINORITY_WAIT`] for a majority back). Otherwise it would take over a run that was
+//! never lost: safe — the dispatcher it replaces is fenced off — but a needless takeover.
 //!
 //! # Invariants
 //! - A desk runs at most one dispatcher at a time.
@@ -65,6 +69,11 @@ pub const ALIVE_DEADLINE: Duration = Duration::from_secs(5);
 /// finds every peer gone (they had closed their sessions to it) until they redial it. A
 /// loss told in that window is weighed only once it has passed, if it still holds.
 pub const OWN_FREEZE_SETTLE: Duration = Duration::from_secs(3);
+/// How long a desk that reaches fewer than a majority of the nodes it has known (it is the
+/// one cut off, most likely) waits for a majority back before it weighs a loss.
+pub const MINORITY_WAIT: Duration = Duration::from_secs(10);
+/// Once a majority is back, how long the registry gets to hear their modules again.
+const REJOIN_SETTLE: Duration = Duration::from_secs(1);
 
 /// What a node's desk does ([`super::NodeConfig::desk`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -183,6 +192,8 @@ struct DeskState {
     watching: [JoinHandle<()>; 2],
     /// When this desk's node last woke from a freeze.
     woke: Option<Instant>,
+    /// The nodes it has known, and how many it reaches.
+    peers: Peers,
 }
 
 impl Drop for DeskState {
@@ -203,9 +214,10 @@ impl Actor for Desk {
         myself: ActorRef<DeskMsg>,
         args: DeskArgs,
     ) -> Result<DeskState, ActorProcessingErr> {
+        let peers = Peers::default();
         let watching = [
             watch_dispatchers(&args, myself.clone()).await?,
-            watch_hangs(args.node.clone(), myself.clone()),
+            watch_hangs(args.node.clone(), myself.clone(), peers.clone()),
         ];
         registry::publish(
             ModuleKind::Dispatcher,
@@ -221,6 +233,7 @@ impl Actor for Desk {
             runs: Arc::default(),
             watching,
             woke: None,
+            peers,
         })
     }
 
@@ -247,16 +260,24 @@ impl Actor for Desk {
                     return Ok(());
                 }
                 let (stagger, _) = state.args.role.rank();
-                let doubt = state
+                let frozen = state
                     .woke
                     .is_some_and(|woke| woke.elapsed() < OWN_FREEZE_SETTLE);
+                let (peers, here) = (state.peers.clone(), state.args.node.clone());
                 let me = myself.clone();
                 tokio::spawn(async move {
                     tokio::time::sleep(stagger).await;
-                    if doubt {
-                        tokio::time::sleep(OWN_FREEZE_SETTLE).await;
+                    if frozen || !peers.majority(&here) {
+                        if frozen {
+                            tokio::time::sleep(OWN_FREEZE_SETTLE).await;
+                        }
+                        let until = Instant::now() + MINORITY_WAIT;
+                        while !peers.majority(&here) && Instant::now() < until {
+                            tokio::time::sleep(Duration::from_millis(200)).await;
+                        }
+                        tokio::time::sleep(REJOIN_SETTLE).await;
                         if dispatcher_in_reach(&node) {
-                            tracing::info!(%node, "this node was frozen, the dispatcher there is in reach again: nothing to take over");
+                            tracing::warn!(%node, "this node was frozen or cut off, not the dispatcher there, in reach again: nothing to take over");
                             return;
                         }
                     }
@@ -372,6 +393,28 @@ impl DeskState {
     }
 }
 
+/// The nodes a desk has known (whose modules it saw in the registry), to tell whether it
+/// reaches a majority of them.
+#[derive(Clone, Default)]
+struct Peers {
+    known: Arc<std::sync::Mutex<std::collections::BTreeSet<String>>>,
+}
+
+impl Peers {
+    /// Note the nodes the registry shows now (besides `me`, none declared down); true if
+    /// they and `me` are a majority of all it has known.
+    fn majority(&self, me: &str) -> bool {
+        let reached: std::collections::BTreeSet<String> = registry::list()
+            .into_iter()
+            .map(|i| i.node)
+            .filter(|n| n != me && !registry::is_declared_down(n))
+            .collect();
+        let mut known = self.known.lock().unwrap_or_else(|e| e.into_inner());
+        known.extend(reached.iter().cloned());
+        (reached.len() + 1) * 2 > known.len() + 1
+    }
+}
+
 /// True if a dispatcher of node `node` is in the registry and its node not declared down.
 fn dispatcher_in_reach(node: &str) -> bool {
     !registry::is_declared_down(node)
@@ -437,13 +480,16 @@ async fn watch_dispatchers(
 }
 
 /// Ask every other node's dispatcher every [`ALIVE_PERIOD`] whether it answers; tell the
-/// desk of one that has not for [`ALIVE_DEADLINE`] (a dispatcher that hangs).
-fn watch_hangs(me: String, desk: ActorRef<DeskMsg>) -> JoinHandle<()> {
+/// desk of one that has not for [`ALIVE_DEADLINE`] (a dispatcher that hangs). Note the
+/// nodes in reach at each tick (`peers`).
+fn watch_hangs(me: String, desk: ActorRef<DeskMsg>, peers: Peers) -> JoinHandle<()> {
     tokio::spawn(async move {
         let mut ticks = tokio::time::interval(ALIVE_PERIOD);
         ticks.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
         loop {
             ticks.tick().await;
+            // the nodes known, kept up to date for a loss's weighing
+            peers.majority(&me);
             let others = registry::list_of(ModuleKind::Dispatcher)
                 .into_iter()
                 .filter(|i| i.id == dispatcher::DISPATCHER_ID && i.node != me);
