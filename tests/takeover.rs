@@ -3,7 +3,9 @@
 //! 127.0.0.1. Whatever happens to the active dispatcher — its node killed (`SIGKILL`) or
 //! frozen (`SIGSTOP`) past the failure detector's deadline, its actor killed, panicking or
 //! hanging — the standby takes the run over from its last checkpoint, the old one is fenced
-//! off should it wake, and the mission docks: one run, one report, with its takeover.
+//! off should it wake, and the mission docks: one run, one report, with its takeover. And
+//! again and again: the dispatcher that took over may be lost in turn, and the other desk
+//! takes the run back.
 
 mod common;
 
@@ -18,25 +20,32 @@ const SPEED: &str = "4";
 /// Run the docking mission on the thesis' layout with `fault`; stdout, the report and the
 /// events.
 fn faulted_run(fault: &str) -> (String, serde_json::Value, Vec<Event>) {
+    faulted_runs(&[fault])
+}
+
+/// The same with every fault of `faults`.
+fn faulted_runs(faults: &[&str]) -> (String, serde_json::Value, Vec<Event>) {
     let dir = tempfile::tempdir().unwrap();
     let events_path = dir.path().join("events.jsonl");
-    let (out, report) = report_of(&[
+    let mut args = vec![
         "up",
         THESIS,
         "--run",
         "missions/docking.toml",
         "--speed",
         SPEED,
-        "--fault",
-        fault,
         "--events",
         events_path.to_str().unwrap(),
-    ]);
+    ];
+    for fault in faults {
+        args.extend(["--fault", fault]);
+    }
+    let (out, report) = report_of(&args);
     let stdout = text(&out.stdout);
     assert_eq!(
         out.status.code(),
         Some(0),
-        "{fault}: {stdout}\n{}",
+        "{faults:?}: {stdout}\n{}",
         text(&out.stderr)
     );
     let events = std::fs::read_to_string(&events_path)
@@ -66,7 +75,13 @@ fn assert_taken_over(fault: &str, stdout: &str, report: &serde_json::Value, even
     assert_eq!(takeovers[0]["to"], "spare");
     assert_eq!(takeovers[0]["term"], 2);
     assert!(stdout.contains(", 1 takeover, "), "{fault}: {stdout}");
-    // one run: started once (on features), ended once (on spare)
+    assert_one_run(fault, report, events, "spare");
+}
+
+/// One run across its takeovers: started once (on features), ended once (on `end`); the
+/// report is the events folded, every action of the mission in it once, the running one
+/// carried across each takeover.
+fn assert_one_run(what: &str, report: &serde_json::Value, events: &[Event], end: &str) {
     let of = |t: &str| -> Vec<&Event> {
         events
             .iter()
@@ -74,21 +89,20 @@ fn assert_taken_over(fault: &str, stdout: &str, report: &serde_json::Value, even
             .collect()
     };
     let started = of("run_started");
-    assert_eq!(started.len(), 1, "{fault}");
+    assert_eq!(started.len(), 1, "{what}");
     assert_eq!(started[0].node, "features");
     let ended = of("run_ended");
-    assert_eq!(ended.len(), 1, "{fault}: {ended:?}");
-    assert_eq!(ended[0].node, "spare");
-    // every action of the mission ran once, the running one carried across the takeover
+    assert_eq!(ended.len(), 1, "{what}: {ended:?}");
+    assert_eq!(ended[0].node, end);
     let folded = RunReport::from_events(events);
     let written: RunReport = serde_json::from_value(report.clone()).unwrap();
-    assert_eq!(folded.takeovers, written.takeovers, "{fault}");
-    assert_eq!(folded.actions, written.actions, "{fault}");
+    assert_eq!(folded.takeovers, written.takeovers, "{what}");
+    assert_eq!(folded.actions, written.actions, "{what}");
     let actions: Vec<&str> = written.actions.iter().map(|a| a.name.as_str()).collect();
     assert_eq!(
         actions,
         ["find-wall", "follow-wall", "plan-parking", "park"],
-        "{fault}"
+        "{what}"
     );
 }
 
@@ -139,20 +153,56 @@ fn a_dispatcher_frozen_past_the_deadline_is_taken_over_and_fenced_off_when_it_wa
 }
 
 #[test]
-fn a_killed_panicking_or_hanging_dispatcher_is_taken_over_and_the_mission_docks() {
-    for fault in [
+fn a_dispatcher_killed_then_panicking_then_hanging_is_taken_over_each_time_and_the_mission_docks() {
+    // one run, three takeovers in turn, back and forth between the two desks: features'
+    // dispatcher killed (spare's standby takes over, term 2), spare's panicking (features'
+    // active desk takes over after its stagger, term 2 + 2), features' hanging (found by
+    // spare's desk within its 5 s deadline, term 4 + 1)
+    let faults = [
         "kill:dispatcher@6",
-        "panic:dispatcher@6",
-        "hang:dispatcher@6",
-    ] {
-        let (stdout, report, events) = faulted_run(fault);
-        assert_taken_over(fault, &stdout, &report, &events);
+        "panic:dispatcher@20",
+        "hang:dispatcher@32",
+    ];
+    let (stdout, report, events) = faulted_runs(&faults);
+    assert_eq!(report["outcome"], "succeeded", "{stdout}");
+    assert_eq!(report["collisions"], 0);
+    for (fault, node) in faults.iter().zip(["features", "spare", "features"]) {
         let kind = fault.split(':').next().unwrap();
         assert!(
             stdout.contains(&format!("* injected {kind} into dispatcher (")),
-            "{stdout}"
+            "{fault}: {stdout}"
+        );
+        assert!(
+            report["faults"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .any(|f| f["fault"] == kind && f["node"] == node),
+            "{fault} on {node}: {}",
+            report["faults"]
         );
     }
+    let takeovers: Vec<(String, String, u64)> = report["takeovers"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| {
+            (
+                t["from"].as_str().unwrap().to_string(),
+                t["to"].as_str().unwrap().to_string(),
+                t["term"].as_u64().unwrap(),
+            )
+        })
+        .collect();
+    let expected = [
+        ("features", "spare", 2),
+        ("spare", "features", 4),
+        ("features", "spare", 5),
+    ]
+    .map(|(f, t, n)| (f.to_string(), t.to_string(), n));
+    assert_eq!(takeovers, expected, "{stdout}");
+    assert!(stdout.contains(", 3 takeovers, "), "{stdout}");
+    assert_one_run(&format!("{faults:?}"), &report, &events, "spare");
 }
 
 #[test]
