@@ -127,8 +127,8 @@ impl Printer {
                 gap_ms,
                 ..
             } => println!(
-                "# the run taken over by {to} from {from} at {:.1}s (term {term}, first \
-                 command {gap_ms} ms after the loss was noticed)",
+                "# the run taken over by {to} from {from} at {:.1}s (term {term}, claimed \
+                 {gap_ms} ms after the loss was noticed)",
                 self.run_secs(event.at_ms)
             ),
             EventKind::DispatcherFenced { term, newer, .. } => println!(

@@ -14,6 +14,7 @@ pub struct TakeoverRecord {
     pub to: String,
     /// The new dispatcher's term: a checkpoint or an adoption of an older term is refused.
     pub term: u64,
-    /// Real ms from the standby learning of the loss to its first command.
+    /// Real ms from the standby learning of the loss to its term stored (the run claimed;
+    /// its first command follows once it has bound the operations).
     pub gap_ms: u64,
 }

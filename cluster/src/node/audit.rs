@@ -20,8 +20,10 @@ use tokio::task::JoinHandle;
 use tokio::time::Instant;
 
 /// How long a datamanager's primary has to answer the check: one being failed over as the
-/// run ends is elected within a few seconds.
-const WITHIN: Duration = Duration::from_secs(30);
+/// run ends is elected within a few seconds (the failure detector's 1.2 s deadline, then
+/// an election); none comes when every node of its copies is gone, and the run's end
+/// should not wait long for that.
+const WITHIN: Duration = Duration::from_secs(15);
 /// The acknowledgements on their way from other nodes have all come once none came for
 /// this long (the operations are suspended: they store nothing more)…
 const QUIET: Duration = Duration::from_millis(500);
