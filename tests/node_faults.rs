@@ -181,7 +181,7 @@ fn node_chaos_hits_nodes_other_than_the_carts_and_says_what_it_did() {
         "--speed",
         SPEED,
         "--chaos-nodes",
-        "5",
+        "1",
         "--events",
         events_path.to_str().unwrap(),
     ]);

@@ -206,6 +206,34 @@ fn a_dispatcher_killed_then_panicking_then_hanging_is_taken_over_each_time_and_t
 }
 
 #[test]
+fn a_desk_taken_over_from_takes_the_run_back_when_the_standby_is_lost_in_turn() {
+    // features' dispatcher hangs: spare's desk takes the run over (term 2), while features'
+    // desk still runs the hung one — superseded, but it writes no checkpoint to learn so;
+    // then spare's node is killed: features' desk kills its hung dispatcher and takes the
+    // run back (term 4)
+    let faults = ["hang:dispatcher@6", "stop-node:spare@34"];
+    let (stdout, report, events) = faulted_runs(&faults);
+    assert_eq!(report["outcome"], "succeeded", "{stdout}");
+    assert_eq!(report["collisions"], 0);
+    let takeovers: Vec<(String, String, u64)> = report["takeovers"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| {
+            (
+                t["from"].as_str().unwrap().to_string(),
+                t["to"].as_str().unwrap().to_string(),
+                t["term"].as_u64().unwrap(),
+            )
+        })
+        .collect();
+    let expected = [("features", "spare", 2), ("spare", "features", 4)]
+        .map(|(f, t, n)| (f.to_string(), t.to_string(), n));
+    assert_eq!(takeovers, expected, "{stdout}");
+    assert_one_run(&format!("{faults:?}"), &report, &events, "features");
+}
+
+#[test]
 fn a_dispatcher_fault_it_cannot_suffer_is_refused_before_the_run() {
     let out = marie(&[
         "up",

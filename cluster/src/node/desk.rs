@@ -26,6 +26,10 @@
 //! [`MINORITY_WAIT`] for a majority back). Otherwise it would take over a run that was
 //! never lost: safe — the dispatcher it replaces is fenced off — but a needless takeover.
 //!
+//! A desk whose own dispatcher was taken over from (its node frozen or cut off, then back)
+//! may find the run lost again — the standby that took it over gone in turn: its dispatcher
+//! is superseded, so the desk kills it and takes the run back.
+//!
 //! # Invariants
 //! - A desk runs at most one dispatcher at a time.
 //! - A takeover needs a checkpoint that has not ended and was written on the lost node.
@@ -143,6 +147,8 @@ marie_actors::remote_message! {
             node: String,
             /// When it was noticed.
             noticed: Instant,
+            /// It hangs (still registered, its node up), rather than gone.
+            hung: bool,
         },
         /// This desk's node was frozen (it just woke).
         OwnFreeze {},
@@ -255,8 +261,14 @@ impl Actor for Desk {
                 let _ = reply.send(answer);
             }
             DeskMsg::OwnFreeze {} => state.woke = Some(Instant::now()),
-            DeskMsg::Lost { node, noticed } => {
-                if state.busy() || node == state.args.node {
+            DeskMsg::Lost {
+                node,
+                noticed,
+                hung,
+            } => {
+                // (busy or not: a dispatcher of this desk that another node's took over
+                // from is superseded, and the run may be this desk's again)
+                if node == state.args.node {
                     return Ok(());
                 }
                 let (stagger, _) = state.args.role.rank();
@@ -276,10 +288,13 @@ impl Actor for Desk {
                             tokio::time::sleep(Duration::from_millis(200)).await;
                         }
                         tokio::time::sleep(REJOIN_SETTLE).await;
-                        if dispatcher_in_reach(&node) {
-                            tracing::warn!(%node, "this node was frozen or cut off, not the dispatcher there, in reach again: nothing to take over");
-                            return;
-                        }
+                    }
+                    // gone, unless another dispatcher of that node answers for it (this
+                    // node was frozen or cut off, not that one; or the one that left was
+                    // superseded there)
+                    if !hung && dispatcher_in_reach(&node) {
+                        tracing::info!(%node, "a dispatcher there is in reach: nothing to take over");
+                        return;
                     }
                     let Ok(dm) = run_dm().await else {
                         return; // no run recorded in this cluster
@@ -300,13 +315,21 @@ impl Actor for Desk {
             }
             DeskMsg::TakeOver { from, noticed } => {
                 let term = from.term + state.args.role.rank().1;
-                if state.busy()
-                    || state
-                        .took
-                        .as_ref()
-                        .is_some_and(|(run, t)| *run == from.run && *t >= term)
+                if state
+                    .took
+                    .as_ref()
+                    .is_some_and(|(run, t)| *run == from.run && *t >= term)
                 {
                     return Ok(());
+                }
+                if let Some(stale) = state.running.clone().filter(|_| state.busy()) {
+                    // the run's newest checkpoint is another node's: the dispatcher this
+                    // desk runs was taken over from (its next checkpoint would be refused
+                    // for the newer term; it may write none for long) — stopped, so that
+                    // this desk can take the run back
+                    tracing::warn!(run = %from.run, term = from.term, "this desk's dispatcher was superseded: killed to take the run back");
+                    // killed, not stopped: it may hang (what the standby took over from)
+                    let _ = stale.kill_and_wait(Some(Duration::from_secs(5))).await;
                 }
                 state.took = Some((from.run.clone(), term));
                 if let Err(e) = state.take_over(*from, noticed).await {
@@ -472,7 +495,14 @@ async fn watch_dispatchers(
                 continue;
             }
             let noticed = Instant::now();
-            if desk.cast(DeskMsg::Lost { node, noticed }).is_err() {
+            if desk
+                .cast(DeskMsg::Lost {
+                    node,
+                    noticed,
+                    hung: false,
+                })
+                .is_err()
+            {
                 return;
             }
         }
@@ -512,6 +542,7 @@ fn watch_hangs(me: String, desk: ActorRef<DeskMsg>, peers: Peers) -> JoinHandle<
                         .cast(DeskMsg::Lost {
                             node: inst.node.clone(),
                             noticed: asked + ALIVE_DEADLINE,
+                            hung: true,
                         })
                         .is_err()
                     {
