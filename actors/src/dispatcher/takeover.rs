@@ -5,7 +5,8 @@
 //! the checkpoint it read under its own term (which fences the old dispatcher off; not
 //! stored within a bound, it leaves the run alone: it is cut off from the run's copies); binds
 //! every operation — the instance the lost dispatcher held, if it still runs, else one
-//! chosen as at the start — above the epochs the checkpoint recorded, and records them;
+//! chosen as at the start, looked for a little while (a partition just healed: modules
+//! rejoining the registry) — above the epochs the checkpoint recorded, and records them;
 //! tells the bindings; and only then commands. The `takeover` is told as soon as the term
 //! is stored: the run's word is the standby's from then on, whatever follows. The running action's
 //! operations are *attached* ([`crate::eo::EoMsg::Attach`]): an activation still running
@@ -38,6 +39,13 @@ use std::time::Duration;
 /// How long a standby may take to store its term in the run datamanager before it leaves
 /// the run alone.
 const CLAIM_WITHIN: Duration = Duration::from_secs(3);
+/// How long a standby keeps looking for an instance of an operation the run holds before
+/// the run fails: right after a partition heals, a node's modules leave and rejoin the
+/// registry while its sessions are redialled. Short: the dispatcher answers no desk's
+/// `Alive` meanwhile.
+const BIND_WITHIN: Duration = Duration::from_secs(2);
+/// The pause between two looks.
+const BIND_RETRY: Duration = Duration::from_millis(200);
 
 impl DispatcherState {
     /// The run's progress now, as a checkpoint (numbered by the writer).
@@ -212,7 +220,15 @@ impl DispatcherState {
             return;
         }
         for held in &from.bindings {
-            match self.bind_held(held).await {
+            let looking = tokio::time::Instant::now();
+            let found = loop {
+                let last = looking.elapsed() >= BIND_WITHIN;
+                match self.bind_held(held, last).await {
+                    None if !last => tokio::time::sleep(BIND_RETRY).await,
+                    found => break found,
+                }
+            };
+            match found {
                 Some(binding) => {
                     self.bindings.insert(held.name.clone(), binding);
                 }
@@ -264,8 +280,9 @@ impl DispatcherState {
     }
 
     /// The instance to hold for `held`: the one the lost dispatcher held if it still
-    /// answers, else the one a selection picks now; bound above the recorded epoch.
-    async fn bind_held(&mut self, held: &BindingCheckpoint) -> Option<Binding> {
+    /// answers, else the one a selection picks now; bound above the recorded epoch. A
+    /// selection that finds none is told only on the `last` look.
+    async fn bind_held(&mut self, held: &BindingCheckpoint, last: bool) -> Option<Binding> {
         let need = self.mission.need(&held.name);
         let found: Vec<_> = registry::lookup(ModuleKind::Operation, &held.name)
             .into_iter()
@@ -281,7 +298,9 @@ impl DispatcherState {
             None => {
                 let choice = choose(&need, &examined);
                 let index = choice.chosen_index();
-                self.emit(EventKind::Selected { choice });
+                if index.is_some() || last {
+                    self.emit(EventKind::Selected { choice });
+                }
                 index?
             }
         };
