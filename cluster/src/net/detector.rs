@@ -251,6 +251,15 @@ impl Detector {
         Some(Duration::from_millis(notice.silent_ms))
     }
 
+    /// The ready peers heard from within `within` of `now`.
+    pub fn heard_within(&self, within: Duration, now: Instant) -> Vec<String> {
+        self.judged
+            .iter()
+            .filter(|(_, j)| now.saturating_duration_since(j.heard) <= within)
+            .map(|(p, _)| p.clone())
+            .collect()
+    }
+
     /// A tick at `now` with `ready` the peers that have a ready session: starts counting
     /// for new ones, forgets the gone ones, and gives the overdue ones with their silence
     /// (each then also gets a notice, until it has been back for two deadlines).
@@ -372,6 +381,27 @@ mod tests {
             d.heard("a", beat(1, i), now);
             assert!(d.tick(&peers(&["a"]), now).is_empty());
         }
+    }
+
+    #[test]
+    fn the_peers_heard_within_a_while_are_those_still_beating() {
+        let t0 = Instant::now();
+        let mut d = detector(1200, 7);
+        let both = peers(&["a", "b"]);
+        assert!(d.tick(&both, t0).is_empty());
+        // a goes on beating, b falls silent after 200 ms (cut off)
+        d.heard("b", beat(1, 1), t0 + MS(200));
+        for i in 1..=8 {
+            let now = t0 + MS(100 * i);
+            d.heard("a", beat(1, i), now);
+            assert!(d.tick(&both, now).is_empty());
+        }
+        let now = t0 + MS(800);
+        assert_eq!(d.heard_within(MS(600), now), ["a", "b"]);
+        assert_eq!(d.heard_within(MS(500), now), ["a"]);
+        // a peer whose session is gone is not heard from at all
+        d.tick(&peers(&["b"]), t0 + MS(900));
+        assert_eq!(d.heard_within(MS(600), t0 + MS(900)), Vec::<String>::new());
     }
 
     #[test]

@@ -75,6 +75,33 @@ marie_actors::remote_message! {
             /// Beat to every peer too.
             beat: bool,
         },
+        /// The peers heard from within half the deadline: those this node reaches now
+        /// ([`fresh_peers`]).
+        Fresh {
+            /// Where they go.
+            reply: ractor::RpcReplyPort<Vec<String>>,
+        },
+    }
+}
+
+/// The peers this process's heartbeat actor heard from within half its deadline — the nodes
+/// it reaches now, which a node cut off or just woken does not (its sessions may look
+/// ready a while longer) —, or `None` without one (no transport) or when it does not
+/// answer within a second.
+pub async fn fresh_peers() -> Option<Vec<String>> {
+    let cell = pg::get_scoped_local_members(&SCOPE.to_string(), &GROUP.to_string())
+        .into_iter()
+        .next()?;
+    let heartbeat: ActorRef<BeatMsg> = cell.into();
+    match heartbeat
+        .call(
+            |reply| BeatMsg::Fresh { reply },
+            Some(std::time::Duration::from_secs(1)),
+        )
+        .await
+    {
+        Ok(ractor::rpc::CallResult::Success(peers)) => Some(peers),
+        _ => None,
     }
 }
 
@@ -169,6 +196,10 @@ impl Actor for Heartbeat {
         match msg {
             BeatMsg::Tick { beat } => state.tick(beat),
             BeatMsg::Beat { frame } => state.received(&frame),
+            BeatMsg::Fresh { reply } => {
+                let within = state.args.config.deadline / 2;
+                let _ = reply.send(state.detector.heard_within(within, Instant::now()));
+            }
         }
         Ok(())
     }

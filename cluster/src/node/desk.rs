@@ -279,12 +279,12 @@ impl Actor for Desk {
                 let me = myself.clone();
                 tokio::spawn(async move {
                     tokio::time::sleep(stagger).await;
-                    if frozen || !peers.majority(&here) {
+                    if frozen || !peers.majority(&here).await {
                         if frozen {
                             tokio::time::sleep(OWN_FREEZE_SETTLE).await;
                         }
                         let until = Instant::now() + MINORITY_WAIT;
-                        while !peers.majority(&here) && Instant::now() < until {
+                        while !peers.majority(&here).await && Instant::now() < until {
                             tokio::time::sleep(Duration::from_millis(200)).await;
                         }
                         tokio::time::sleep(REJOIN_SETTLE).await;
@@ -416,22 +416,30 @@ impl DeskState {
     }
 }
 
-/// The nodes a desk has known (whose modules it saw in the registry), to tell whether it
-/// reaches a majority of them.
+/// The nodes a desk has known (whose heartbeats its node heard, or whose modules it saw in
+/// the registry), to tell whether it reaches a majority of them.
 #[derive(Clone, Default)]
 struct Peers {
     known: Arc<std::sync::Mutex<std::collections::BTreeSet<String>>>,
 }
 
 impl Peers {
-    /// Note the nodes the registry shows now (besides `me`, none declared down); true if
-    /// they and `me` are a majority of all it has known.
-    fn majority(&self, me: &str) -> bool {
-        let reached: std::collections::BTreeSet<String> = registry::list()
-            .into_iter()
-            .map(|i| i.node)
-            .filter(|n| n != me && !registry::is_declared_down(n))
-            .collect();
+    /// Note the nodes this node reaches now — heard from within half the failure
+    /// detector's deadline ([`crate::net::heartbeat::fresh_peers`]; without a heartbeat,
+    /// those with modules in the registry, none declared down) —; true if they and `me`
+    /// are a majority of all it has known. The heartbeats, not the sessions: a node cut
+    /// off declares its peers down one by one, a tick or so apart, and the first loss it
+    /// sees must not find the others still "in reach".
+    async fn majority(&self, me: &str) -> bool {
+        let reached: std::collections::BTreeSet<String> =
+            match crate::net::heartbeat::fresh_peers().await {
+                Some(fresh) => fresh.into_iter().filter(|n| n != me).collect(),
+                None => registry::list()
+                    .into_iter()
+                    .map(|i| i.node)
+                    .filter(|n| n != me && !registry::is_declared_down(n))
+                    .collect(),
+            };
         let mut known = self.known.lock().unwrap_or_else(|e| e.into_inner());
         known.extend(reached.iter().cloned());
         (reached.len() + 1) * 2 > known.len() + 1
@@ -519,7 +527,7 @@ fn watch_hangs(me: String, desk: ActorRef<DeskMsg>, peers: Peers) -> JoinHandle<
         loop {
             ticks.tick().await;
             // the nodes known, kept up to date for a loss's weighing
-            peers.majority(&me);
+            peers.majority(&me).await;
             let others = registry::list_of(ModuleKind::Dispatcher)
                 .into_iter()
                 .filter(|i| i.id == dispatcher::DISPATCHER_ID && i.node != me);
