@@ -156,6 +156,9 @@ struct Judged {
     since: Instant,
     /// When it was last heard from (or `since`), less this node's own stalls.
     heard: Instant,
+    /// When its last beat really came (or `since`): unlike `heard`, not moved on when this
+    /// node finds it was frozen — a woken node has heard nobody lately.
+    beat: Instant,
 }
 
 /// When each ready peer was last heard from; which peers this node declared down, to tell
@@ -232,6 +235,7 @@ impl Detector {
         self.beats.insert(peer.to_string(), beat);
         if let Some(j) = self.judged.get_mut(peer) {
             j.heard = j.heard.max(now);
+            j.beat = j.beat.max(now);
         }
     }
 
@@ -251,11 +255,12 @@ impl Detector {
         Some(Duration::from_millis(notice.silent_ms))
     }
 
-    /// The ready peers heard from within `within` of `now`.
+    /// The ready peers whose last beat came within `within` of `now` (a freeze of this
+    /// node does not make them fresh).
     pub fn heard_within(&self, within: Duration, now: Instant) -> Vec<String> {
         self.judged
             .iter()
-            .filter(|(_, j)| now.saturating_duration_since(j.heard) <= within)
+            .filter(|(_, j)| now.saturating_duration_since(j.beat) <= within)
             .map(|(p, _)| p.clone())
             .collect()
     }
@@ -269,6 +274,7 @@ impl Detector {
             self.judged.entry(p.clone()).or_insert(Judged {
                 since: now,
                 heard: now,
+                beat: now,
             });
         }
         let back_for = self.deadline * 2;
@@ -399,9 +405,17 @@ mod tests {
         let now = t0 + MS(800);
         assert_eq!(d.heard_within(MS(600), now), ["a", "b"]);
         assert_eq!(d.heard_within(MS(500), now), ["a"]);
-        // a peer whose session is gone is not heard from at all
-        d.tick(&peers(&["b"]), t0 + MS(900));
-        assert_eq!(d.heard_within(MS(600), t0 + MS(900)), Vec::<String>::new());
+        // this node frozen for 2 s: woken, it has heard nobody lately
+        let woken = t0 + MS(2800);
+        assert!(d.tick(&both, woken).is_empty());
+        assert_eq!(d.heard_within(MS(600), woken), Vec::<String>::new());
+        // a peer whose session is gone is not heard from at all, even beating
+        d.heard("a", beat(1, 9), woken + MS(100));
+        d.tick(&peers(&["b"]), woken + MS(100));
+        assert_eq!(
+            d.heard_within(MS(600), woken + MS(100)),
+            Vec::<String>::new()
+        );
     }
 
     #[test]
