@@ -69,13 +69,29 @@ fn assert_taken_over(fault: &str, stdout: &str, report: &serde_json::Value, even
     );
     assert_eq!(report["outcome"], "succeeded", "{fault}: {stdout}");
     assert_eq!(report["collisions"], 0);
-    let takeovers = report["takeovers"].as_array().unwrap();
-    assert_eq!(takeovers.len(), 1, "{fault}: {takeovers:?}");
-    assert_eq!(takeovers[0]["from"], "features");
-    assert_eq!(takeovers[0]["to"], "spare");
-    assert_eq!(takeovers[0]["term"], 2);
+    assert_eq!(
+        takeovers_of(report),
+        [("features".to_string(), "spare".to_string(), 2)],
+        "{fault}"
+    );
     assert!(stdout.contains(", 1 takeover, "), "{fault}: {stdout}");
     assert_one_run(fault, report, events, "spare");
+}
+
+/// The report's takeovers as (from, to, term).
+fn takeovers_of(report: &serde_json::Value) -> Vec<(String, String, u64)> {
+    report["takeovers"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| {
+            (
+                t["from"].as_str().unwrap().to_string(),
+                t["to"].as_str().unwrap().to_string(),
+                t["term"].as_u64().unwrap(),
+            )
+        })
+        .collect()
 }
 
 /// One run across its takeovers: started once (on features), ended once (on `end`); the
@@ -182,18 +198,7 @@ fn a_dispatcher_killed_then_panicking_then_hanging_is_taken_over_each_time_and_t
             report["faults"]
         );
     }
-    let takeovers: Vec<(String, String, u64)> = report["takeovers"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|t| {
-            (
-                t["from"].as_str().unwrap().to_string(),
-                t["to"].as_str().unwrap().to_string(),
-                t["term"].as_u64().unwrap(),
-            )
-        })
-        .collect();
+    let takeovers = takeovers_of(&report);
     let expected = [
         ("features", "spare", 2),
         ("spare", "features", 4),
@@ -215,18 +220,7 @@ fn a_desk_taken_over_from_takes_the_run_back_when_the_standby_is_lost_in_turn() 
     let (stdout, report, events) = faulted_runs(&faults);
     assert_eq!(report["outcome"], "succeeded", "{stdout}");
     assert_eq!(report["collisions"], 0);
-    let takeovers: Vec<(String, String, u64)> = report["takeovers"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|t| {
-            (
-                t["from"].as_str().unwrap().to_string(),
-                t["to"].as_str().unwrap().to_string(),
-                t["term"].as_u64().unwrap(),
-            )
-        })
-        .collect();
+    let takeovers = takeovers_of(&report);
     let expected = [("features", "spare", 2), ("spare", "features", 4)]
         .map(|(f, t, n)| (f.to_string(), t.to_string(), n));
     assert_eq!(takeovers, expected, "{stdout}");

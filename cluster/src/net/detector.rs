@@ -161,6 +161,23 @@ struct Judged {
     beat: Instant,
 }
 
+/// Whom a node reaches ([`Detector::reach`]).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Reach {
+    /// The peers heard from lately.
+    pub fresh: Vec<String>,
+    /// How many peers it ever heard from.
+    pub known: usize,
+}
+
+impl Reach {
+    /// True if the fresh peers and this node are a majority of all it knows, itself
+    /// included: a node cut off, or just woken from a freeze, is not.
+    pub fn majority(&self) -> bool {
+        (self.fresh.len() + 1) * 2 > self.known + 1
+    }
+}
+
 /// When each ready peer was last heard from; which peers this node declared down, to tell
 /// them; and whether this node itself was frozen, seen from its own ticks or told by a peer.
 #[derive(Debug)]
@@ -255,14 +272,18 @@ impl Detector {
         Some(Duration::from_millis(notice.silent_ms))
     }
 
-    /// The ready peers whose last beat came within `within` of `now` (a freeze of this
-    /// node does not make them fresh).
-    pub fn heard_within(&self, within: Duration, now: Instant) -> Vec<String> {
-        self.judged
-            .iter()
-            .filter(|(_, j)| now.saturating_duration_since(j.beat) <= within)
-            .map(|(p, _)| p.clone())
-            .collect()
+    /// Whom this node reaches at `now`: the ready peers whose last beat came within
+    /// `within` (a freeze of this node does not make them fresh), of all it ever heard.
+    pub fn reach(&self, within: Duration, now: Instant) -> Reach {
+        Reach {
+            fresh: self
+                .judged
+                .iter()
+                .filter(|(_, j)| now.saturating_duration_since(j.beat) <= within)
+                .map(|(p, _)| p.clone())
+                .collect(),
+            known: self.beats.len(),
+        }
     }
 
     /// A tick at `now` with `ready` the peers that have a ready session: starts counting
@@ -403,17 +424,20 @@ mod tests {
             assert!(d.tick(&both, now).is_empty());
         }
         let now = t0 + MS(800);
-        assert_eq!(d.heard_within(MS(600), now), ["a", "b"]);
-        assert_eq!(d.heard_within(MS(500), now), ["a"]);
+        assert_eq!(d.reach(MS(600), now).fresh, ["a", "b"]);
+        assert_eq!(d.reach(MS(500), now).fresh, ["a"]);
+        assert_eq!(d.reach(MS(500), now).known, 2);
+        assert!(d.reach(MS(600), now).majority());
         // this node frozen for 2 s: woken, it has heard nobody lately
         let woken = t0 + MS(2800);
         assert!(d.tick(&both, woken).is_empty());
-        assert_eq!(d.heard_within(MS(600), woken), Vec::<String>::new());
+        assert_eq!(d.reach(MS(600), woken).fresh, Vec::<String>::new());
+        assert!(!d.reach(MS(600), woken).majority());
         // a peer whose session is gone is not heard from at all, even beating
         d.heard("a", beat(1, 9), woken + MS(100));
         d.tick(&peers(&["b"]), woken + MS(100));
         assert_eq!(
-            d.heard_within(MS(600), woken + MS(100)),
+            d.reach(MS(600), woken + MS(100)).fresh,
             Vec::<String>::new()
         );
     }

@@ -20,7 +20,7 @@
 //! (time for this node's own beat to tell it the same), and a later session with it is
 //! closed as soon as it is authenticated, before its modules reach the registry.
 
-use super::detector::{BeatId, Detector, DownNotice, HeartbeatConfig};
+use super::detector::{BeatId, Detector, DownNotice, HeartbeatConfig, Reach};
 use super::events::NetEvent;
 use super::sessions::Sessions;
 use marie_actors::wire::{self, Envelope};
@@ -75,32 +75,32 @@ marie_actors::remote_message! {
             /// Beat to every peer too.
             beat: bool,
         },
-        /// The peers heard from within half the deadline: those this node reaches now
-        /// ([`fresh_peers`]).
-        Fresh {
-            /// Where they go.
-            reply: ractor::RpcReplyPort<Vec<String>>,
+        /// Whom this node reaches now: the peers heard from within half the deadline, of
+        /// all it ever heard ([`reach`]).
+        Reach {
+            /// Where the answer goes.
+            reply: ractor::RpcReplyPort<Reach>,
         },
     }
 }
 
-/// The peers this process's heartbeat actor heard from within half its deadline — the nodes
-/// it reaches now, which a node cut off or just woken does not (its sessions may look
-/// ready a while longer) —, or `None` without one (no transport) or when it does not
-/// answer within a second.
-pub async fn fresh_peers() -> Option<Vec<String>> {
+/// Whom this process's heartbeat actor reaches: the peers heard from within half its
+/// deadline — which a node cut off or just woken does not hear (its sessions may look ready
+/// a while longer) — of all it ever heard; `None` without one (no transport) or when it
+/// does not answer within a second.
+pub async fn reach() -> Option<Reach> {
     let cell = pg::get_scoped_local_members(&SCOPE.to_string(), &GROUP.to_string())
         .into_iter()
         .next()?;
     let heartbeat: ActorRef<BeatMsg> = cell.into();
     match heartbeat
         .call(
-            |reply| BeatMsg::Fresh { reply },
+            |reply| BeatMsg::Reach { reply },
             Some(std::time::Duration::from_secs(1)),
         )
         .await
     {
-        Ok(ractor::rpc::CallResult::Success(peers)) => Some(peers),
+        Ok(ractor::rpc::CallResult::Success(reach)) => Some(reach),
         _ => None,
     }
 }
@@ -196,9 +196,9 @@ impl Actor for Heartbeat {
         match msg {
             BeatMsg::Tick { beat } => state.tick(beat),
             BeatMsg::Beat { frame } => state.received(&frame),
-            BeatMsg::Fresh { reply } => {
+            BeatMsg::Reach { reply } => {
                 let within = state.args.config.deadline / 2;
-                let _ = reply.send(state.detector.heard_within(within, Instant::now()));
+                let _ = reply.send(state.detector.reach(within, Instant::now()));
             }
         }
         Ok(())

@@ -125,14 +125,21 @@ impl RunAudit {
         // node of its copies is gone), and a run's end should not wait that long per
         // datamanager; told in name order
         let ledger = Arc::new(ledger);
-        let mut checks = tokio::task::JoinSet::new();
-        for (i, dm) in names.into_iter().enumerate() {
-            let ledger = ledger.clone();
-            checks.spawn(async move { (i, ledger.check(&dm, WITHIN).await) });
-        }
-        let mut done = checks.join_all().await;
-        done.sort_by_key(|(i, _)| *i);
-        for (_, check) in done {
+        let checks: Vec<_> = names
+            .into_iter()
+            .map(|dm| {
+                let ledger = ledger.clone();
+                tokio::spawn(async move { ledger.check(&dm, WITHIN).await })
+            })
+            .collect();
+        for check in checks {
+            let check = match check.await {
+                Ok(check) => check,
+                // a check that panicked: its panic goes on (a lost count must not pass
+                // for a clean one)
+                Err(e) if e.is_panic() => std::panic::resume_unwind(e.into_panic()),
+                Err(_) => continue, // not cancelled: nothing aborts these tasks
+            };
             if check.lost > 0 {
                 tracing::warn!(
                     dm = %check.dm,

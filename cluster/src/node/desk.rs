@@ -20,11 +20,12 @@
 //! still, which fences the standby's off: two desks never carry one run on together.
 //!
 //! A desk in doubt weighs a loss only once the doubt is over, and only if the dispatcher
-//! is still out of reach then: its own node was just frozen (woken, a node sees every peer
-//! lost until they redial it; [`OWN_FREEZE_SETTLE`]), or it reaches fewer than a majority
-//! of the nodes it has known (it is the one cut off, most likely: it waits up to
-//! [`MINORITY_WAIT`] for a majority back). Otherwise it would take over a run that was
-//! never lost: safe — the dispatcher it replaces is fenced off — but a needless takeover.
+//! is still out of reach then: in doubt is a desk whose node hears fewer than a majority
+//! of the nodes it ever heard (by their heartbeats: [`crate::net::heartbeat::reach`]) —
+//! it is the one cut off, or it just woke from a freeze and sees every peer lost until
+//! they redial it; it waits up to [`MINORITY_WAIT`] for a majority back. Otherwise it
+//! would take over a run that was never lost: safe — the dispatcher it replaces is fenced
+//! off — but a needless takeover.
 //!
 //! A desk whose own dispatcher was taken over from (its node frozen or cut off, then back)
 //! may find the run lost again — the standby that took it over gone in turn: its dispatcher
@@ -69,12 +70,9 @@ const ALIVE_PERIOD: Duration = Duration::from_millis(500);
 /// checkpoint while the run datamanager fails over: a node frozen or cut off is declared
 /// down long before, and a dispatcher that is only slow is left alone.
 pub const ALIVE_DEADLINE: Duration = Duration::from_secs(5);
-/// How long after its own node was frozen a desk doubts what it sees lost: woken, its node
-/// finds every peer gone (they had closed their sessions to it) until they redial it. A
-/// loss told in that window is weighed only once it has passed, if it still holds.
-pub const OWN_FREEZE_SETTLE: Duration = Duration::from_secs(3);
-/// How long a desk that reaches fewer than a majority of the nodes it has known (it is the
-/// one cut off, most likely) waits for a majority back before it weighs a loss.
+/// How long a desk that hears fewer than a majority of the nodes it ever heard (it is the
+/// one cut off, or just woke from a freeze) waits for a majority back before it weighs a
+/// loss.
 pub const MINORITY_WAIT: Duration = Duration::from_secs(10);
 /// Once a majority is back, how long the registry gets to hear their modules again.
 const REJOIN_SETTLE: Duration = Duration::from_secs(1);
@@ -150,8 +148,6 @@ marie_actors::remote_message! {
             /// It hangs (still registered, its node up), rather than gone.
             hung: bool,
         },
-        /// This desk's node was frozen (it just woke).
-        OwnFreeze {},
         /// Take over the run whose last checkpoint is `from`.
         TakeOver {
             /// The checkpoint.
@@ -196,10 +192,6 @@ struct DeskState {
     runs: Arc<AtomicU64>,
     /// The watches of the other dispatchers (their leaves and losses, their hangs).
     watching: [JoinHandle<()>; 2],
-    /// When this desk's node last woke from a freeze.
-    woke: Option<Instant>,
-    /// The nodes it has known, and how many it reaches.
-    peers: Peers,
 }
 
 impl Drop for DeskState {
@@ -220,10 +212,9 @@ impl Actor for Desk {
         myself: ActorRef<DeskMsg>,
         args: DeskArgs,
     ) -> Result<DeskState, ActorProcessingErr> {
-        let peers = Peers::default();
         let watching = [
             watch_dispatchers(&args, myself.clone()).await?,
-            watch_hangs(args.node.clone(), myself.clone(), peers.clone()),
+            watch_hangs(args.node.clone(), myself.clone()),
         ];
         registry::publish(
             ModuleKind::Dispatcher,
@@ -238,8 +229,6 @@ impl Actor for Desk {
             took: None,
             runs: Arc::default(),
             watching,
-            woke: None,
-            peers,
         })
     }
 
@@ -260,7 +249,6 @@ impl Actor for Desk {
                 let answer = state.start(run, &mission, &watcher_node, watcher_pid).await;
                 let _ = reply.send(answer);
             }
-            DeskMsg::OwnFreeze {} => state.woke = Some(Instant::now()),
             DeskMsg::Lost {
                 node,
                 noticed,
@@ -272,19 +260,12 @@ impl Actor for Desk {
                     return Ok(());
                 }
                 let (stagger, _) = state.args.role.rank();
-                let frozen = state
-                    .woke
-                    .is_some_and(|woke| woke.elapsed() < OWN_FREEZE_SETTLE);
-                let (peers, here) = (state.peers.clone(), state.args.node.clone());
                 let me = myself.clone();
                 tokio::spawn(async move {
                     tokio::time::sleep(stagger).await;
-                    if frozen || !peers.majority(&here).await {
-                        if frozen {
-                            tokio::time::sleep(OWN_FREEZE_SETTLE).await;
-                        }
+                    if !in_majority().await {
                         let until = Instant::now() + MINORITY_WAIT;
-                        while !peers.majority(&here).await && Instant::now() < until {
+                        while !in_majority().await && Instant::now() < until {
                             tokio::time::sleep(Duration::from_millis(200)).await;
                         }
                         tokio::time::sleep(REJOIN_SETTLE).await;
@@ -416,42 +397,27 @@ impl DeskState {
     }
 }
 
-/// The nodes a desk has known (whose heartbeats its node heard, or whose modules it saw in
-/// the registry), to tell whether it reaches a majority of them.
-#[derive(Clone, Default)]
-struct Peers {
-    known: Arc<std::sync::Mutex<std::collections::BTreeSet<String>>>,
-}
-
-impl Peers {
-    /// Note the nodes this node reaches now — heard from within half the failure
-    /// detector's deadline ([`crate::net::heartbeat::fresh_peers`]; without a heartbeat,
-    /// those with modules in the registry, none declared down) —; true if they and `me`
-    /// are a majority of all it has known. The heartbeats, not the sessions: a node cut
-    /// off declares its peers down one by one, a tick or so apart, and the first loss it
-    /// sees must not find the others still "in reach".
-    async fn majority(&self, me: &str) -> bool {
-        let reached: std::collections::BTreeSet<String> =
-            match crate::net::heartbeat::fresh_peers().await {
-                Some(fresh) => fresh.into_iter().filter(|n| n != me).collect(),
-                None => registry::list()
-                    .into_iter()
-                    .map(|i| i.node)
-                    .filter(|n| n != me && !registry::is_declared_down(n))
-                    .collect(),
-            };
-        let mut known = self.known.lock().unwrap_or_else(|e| e.into_inner());
-        known.extend(reached.iter().cloned());
-        (reached.len() + 1) * 2 > known.len() + 1
-    }
+/// True if this node hears a majority of the nodes it ever heard, or has no heartbeat to
+/// tell (no cluster: nothing to doubt). The heartbeats, not the sessions or the registry:
+/// a node cut off declares its peers down one by one, a tick or so apart, and the first
+/// loss it sees must not find the others still "in reach"; a node woken from a freeze has
+/// heard nobody lately.
+async fn in_majority() -> bool {
+    crate::net::heartbeat::reach()
+        .await
+        .is_none_or(|reach| reach.majority())
 }
 
 /// True if a dispatcher of node `node` is in the registry and its node not declared down.
 fn dispatcher_in_reach(node: &str) -> bool {
-    !registry::is_declared_down(node)
-        && registry::list_of(ModuleKind::Dispatcher)
-            .iter()
-            .any(|i| i.id == dispatcher::DISPATCHER_ID && i.node == node)
+    !registry::is_declared_down(node) && dispatchers().any(|i| i.node == node)
+}
+
+/// The runs' dispatchers in the registry (not the desks).
+fn dispatchers() -> impl Iterator<Item = registry::Instance> {
+    registry::list_of(ModuleKind::Dispatcher)
+        .into_iter()
+        .filter(|i| i.id == dispatcher::DISPATCHER_ID)
 }
 
 /// The run datamanager, waiting for one (a copy being promoted).
@@ -470,8 +436,7 @@ async fn run_dm() -> Result<DmClient, String> {
 }
 
 /// Tell the desk `desk` whenever a dispatcher on another node leaves the registry or its
-/// node is lost (declared down, or its sessions ended), and when its own node woke from a
-/// freeze.
+/// node is lost (declared down, or its sessions ended).
 async fn watch_dispatchers(
     args: &DeskArgs,
     desk: ActorRef<DeskMsg>,
@@ -489,12 +454,6 @@ async fn watch_dispatchers(
                 },
                 event = bus.recv() => match event {
                     Ok(Event { kind: EventKind::NodeDown { peer, .. } | EventKind::NodeLost { peer, .. }, .. }) => peer,
-                    Ok(Event { kind: EventKind::NodeFrozen { .. }, node, .. }) if node == me => {
-                        if desk.cast(DeskMsg::OwnFreeze {}).is_err() {
-                            return;
-                        }
-                        continue;
-                    }
                     Ok(_) | Err(BusError::Lagged { .. }) => continue,
                     Err(BusError::Closed) => return,
                 },
@@ -518,19 +477,14 @@ async fn watch_dispatchers(
 }
 
 /// Ask every other node's dispatcher every [`ALIVE_PERIOD`] whether it answers; tell the
-/// desk of one that has not for [`ALIVE_DEADLINE`] (a dispatcher that hangs). Note the
-/// nodes in reach at each tick (`peers`).
-fn watch_hangs(me: String, desk: ActorRef<DeskMsg>, peers: Peers) -> JoinHandle<()> {
+/// desk of one that has not for [`ALIVE_DEADLINE`] (a dispatcher that hangs).
+fn watch_hangs(me: String, desk: ActorRef<DeskMsg>) -> JoinHandle<()> {
     tokio::spawn(async move {
         let mut ticks = tokio::time::interval(ALIVE_PERIOD);
         ticks.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
         loop {
             ticks.tick().await;
-            // the nodes known, kept up to date for a loss's weighing
-            peers.majority(&me).await;
-            let others = registry::list_of(ModuleKind::Dispatcher)
-                .into_iter()
-                .filter(|i| i.id == dispatcher::DISPATCHER_ID && i.node != me);
+            let others = dispatchers().filter(|i| i.node != me);
             for inst in others {
                 let actor: ActorRef<DispatcherMsg> = inst.actor.clone().into();
                 let asked = Instant::now();

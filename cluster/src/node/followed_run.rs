@@ -33,10 +33,23 @@ const START_TIMEOUT: Duration = Duration::from_secs(20);
 /// How many relayed events the follower holds before it takes them (it takes them as they
 /// come; a run's events arrive far slower).
 const FOLLOW_CAPACITY: usize = 1 << 16;
-/// Why a run waits for a takeover: its dispatcher's node was lost …
-const LOST_WITH_NODE: &str = "was lost with its node";
-/// … or its dispatcher was fenced off by a standby's term.
-const FENCED: &str = "was fenced off";
+/// Why a run waits for a takeover.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Orphaned {
+    /// Its dispatcher's node was lost (it may come back).
+    WithNode,
+    /// Its dispatcher was fenced off by a standby's term.
+    Fenced,
+}
+
+impl Orphaned {
+    fn why(self) -> &'static str {
+        match self {
+            Orphaned::WithNode => "was lost with its node",
+            Orphaned::Fenced => "was fenced off",
+        }
+    }
+}
 
 impl Node {
     /// Run `mission` on the desk of node `on` and follow it to its end (see the module
@@ -101,7 +114,7 @@ impl Node {
         // the run's time as its dispatcher last told it, and when
         let mut told = (0u64, tokio::time::Instant::now());
         // since when the run has no dispatcher, and why
-        let mut lost_since: Option<(tokio::time::Instant, &str)> = None;
+        let mut lost_since: Option<(tokio::time::Instant, Orphaned)> = None;
         loop {
             let no_takeover = async {
                 match lost_since {
@@ -132,7 +145,7 @@ impl Node {
                             if node == current && lost_since.is_none() =>
                         {
                             tracing::warn!(node = %current, "the run's dispatcher was fenced off: waiting for the standby's takeover");
-                            lost_since = Some((tokio::time::Instant::now(), FENCED));
+                            lost_since = Some((tokio::time::Instant::now(), Orphaned::Fenced));
                         }
                         _ => {}
                     }
@@ -150,11 +163,11 @@ impl Node {
                         if peer == current && lost_since.is_none() =>
                     {
                         tracing::warn!(node = %current, "the run's dispatcher node is lost: waiting for a standby to take the run over");
-                        lost_since = Some((tokio::time::Instant::now(), LOST_WITH_NODE));
+                        lost_since = Some((tokio::time::Instant::now(), Orphaned::WithNode));
                     }
                     // its node back: the dispatcher goes on (unless it was fenced off)
                     Ok(Event { kind: EventKind::NodeUp { peer, .. }, .. })
-                        if peer == current && lost_since.is_some_and(|(_, why)| why == LOST_WITH_NODE) =>
+                        if peer == current && lost_since.is_some_and(|(_, why)| why == Orphaned::WithNode) =>
                     {
                         lost_since = None;
                     }
@@ -162,7 +175,7 @@ impl Node {
                     Err(BusError::Closed) => return Err(NodeError::Desk("the node's bus closed".into())),
                 },
                 () = no_takeover => {
-                    let why = lost_since.map_or("was lost", |(_, why)| why);
+                    let why = lost_since.map_or("was lost", |(_, why)| why.why());
                     let reason = format!(
                         "the dispatcher on `{current}` {why} and no standby took the run over \
                          within {:.0} s",
