@@ -450,6 +450,7 @@ fn without_a_world_no_robot_runs_and_svg_is_refused() {
         "inside_goal",
         "judgement",
         "refused_commands",
+        "obeyed_late",
     ] {
         assert_eq!(json[key], serde_json::Value::Null, "{key}");
     }

@@ -323,6 +323,10 @@ fn a_partial_partition_does_not_let_the_cut_off_wall_follower_drive_the_cart() {
     let by_wall_follower = refused["wall-follower"].as_u64().unwrap_or(0);
     eprintln!("the cart refused {refused}");
     assert!(by_wall_follower > 0, "{report:#}");
+    // and not one was obeyed after the rebind: the dispatcher announced the stand-in's
+    // epoch to the cart before its first command (without that, the cut-off instance is
+    // obeyed until the stand-in's first command reaches the cart)
+    assert_eq!(report["obeyed_late"], serde_json::json!([]), "{report:#}");
 
     // noticed by the failure detector of the dispatcher's member, then rebound
     let events: Vec<Value> = std::fs::read_to_string(&events)

@@ -114,6 +114,11 @@ fn assert_one_run(what: &str, report: &serde_json::Value, events: &[Event], end:
     let written: RunReport = serde_json::from_value(report.clone()).unwrap();
     assert_eq!(folded.takeovers, written.takeovers, "{what}");
     assert_eq!(folded.actions, written.actions, "{what}");
+    // every takeover's epochs were announced to the cart before the standby's first
+    // command: the cart obeyed no replaced one (its log checked against the bindings)
+    assert_eq!(folded.bound_epochs, written.bound_epochs, "{what}");
+    assert!(!written.bound_epochs.is_empty(), "{what}");
+    assert_eq!(report["obeyed_late"], serde_json::json!([]), "{what}");
     let actions: Vec<&str> = written.actions.iter().map(|a| a.name.as_str()).collect();
     assert_eq!(
         actions,

@@ -10,7 +10,8 @@ use marie_actors::clock::SharedClock;
 use marie_actors::dm::{DmClient, Durability, NewRecord, Query, Record};
 use marie_actors::events::EventBus;
 use marie_actors::registry::{self, ModuleKind, RegistryEvent};
-use marie_actors::run::{Outcome, RobotSection};
+use marie_actors::report::RunReport;
+use marie_actors::run::RobotSection;
 use marie_cluster::node::{
     AprioriRecord, BoxFuture, DatamanagerConfig, Node, NodeError, Robot, RunJudgement,
 };
@@ -40,11 +41,11 @@ impl Robot for Mapped {
     fn drivers(&self, _: &SharedClock, _: &EventBus) -> Vec<ChildSpec> {
         Vec::new()
     }
-    fn judge<'a>(&'a self, outcome: Outcome, reason: &'a str) -> BoxFuture<'a, RunJudgement> {
+    fn judge<'a>(&'a self, run: &'a RunReport) -> BoxFuture<'a, RunJudgement> {
         Box::pin(async move {
             RunJudgement {
-                outcome,
-                reason: reason.to_string(),
+                outcome: run.outcome,
+                reason: run.reason.clone(),
                 robot: RobotSection::default(),
             }
         })

@@ -44,6 +44,7 @@ use crate::world::{Judgement, World};
 use marie_actors::clock::SharedClock;
 use marie_actors::dm::{self, DmClient, DmError, DmSpec, Query};
 use marie_actors::events::EventBus;
+use marie_actors::fence::{obeyed_late, Obeyed};
 use marie_actors::report::RunReport;
 use marie_actors::run::Outcome;
 use marie_cluster::node::{AprioriRecord, BoxFuture, Robot, RunJudgement};
@@ -226,13 +227,13 @@ impl Robot for SimRobot {
         vec![world]
     }
 
-    fn judge<'a>(&'a self, outcome: Outcome, reason: &'a str) -> BoxFuture<'a, RunJudgement> {
+    fn judge<'a>(&'a self, run: &'a RunReport) -> BoxFuture<'a, RunJudgement> {
         Box::pin(async move {
             let status = match CartClient::lookup() {
                 Ok(cart) => cart.status().await,
                 Err(e) => Err(e),
             };
-            judge(self, outcome, reason, status.map(FinalState::from))
+            judge(self, run, status.map(FinalState::from))
         })
     }
 }
@@ -252,6 +253,8 @@ struct FinalState {
     /// The seed it drove with, if it says (the cart may run on another node, with that
     /// node's seed).
     seed: Option<u64>,
+    /// What it obeyed, by operation and epoch.
+    obeyed: Vec<Obeyed>,
 }
 
 impl From<CartStatus> for FinalState {
@@ -262,19 +265,16 @@ impl From<CartStatus> for FinalState {
             judgement: s.judgement,
             refused_by: s.refused_by,
             seed: s.seed,
+            obeyed: s.obeyed,
         }
     }
 }
 
-/// Judge a run the dispatcher ended with `outcome`: what the cart said of its final state
-/// (or why it did not tell), the seed, and the world's verdict, which overrules a success
-/// outside the goal.
-fn judge(
-    robot: &SimRobot,
-    outcome: Outcome,
-    reason: &str,
-    status: Result<FinalState, CartError>,
-) -> RunJudgement {
+/// Judge `run`, which the dispatcher ended: what the cart said of its final state (or why
+/// it did not tell), the seed, the world's verdict, which overrules a success outside the
+/// goal, and whether the cart obeyed an epoch after `run` had bound a newer one.
+fn judge(robot: &SimRobot, run: &RunReport, status: Result<FinalState, CartError>) -> RunJudgement {
+    let (outcome, reason) = (run.outcome, run.reason.as_str());
     let mut said = RobotReport {
         seed: Some(robot.seed),
         ..RobotReport::default()
@@ -292,6 +292,11 @@ fn judge(
             said.inside_goal = has_goal.then_some(judgement.inside_goal);
             said.judgement = Some(judgement.to_string());
             said.refused_commands = Some(status.refused_by);
+            let late = obeyed_late(&run.bound_epochs, &status.obeyed);
+            for l in &late {
+                tracing::warn!("fencing failed: {l}");
+            }
+            said.obeyed_late = Some(late);
             if has_goal && outcome == Outcome::Succeeded && !judgement.success {
                 outcome = Outcome::Failed;
                 reason = format!("the cart did not end in the goal area: {judgement}");
@@ -386,12 +391,13 @@ mod tests {
             judgement: robot.world.judge(pose, collisions),
             refused_by: BTreeMap::new(),
             seed: None,
+            obeyed: Vec::new(),
         })
     }
 
     /// `r` judged by `robot` as the node does: its outcome, reason and robot section.
     fn judged(r: &mut RunReport, robot: &SimRobot, status: Result<FinalState, CartError>) {
-        let j = judge(robot, r.outcome, &r.reason, status);
+        let j = judge(robot, r, status);
         (r.outcome, r.reason, r.robot) = (j.outcome, j.reason, j.robot);
     }
 

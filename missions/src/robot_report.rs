@@ -4,6 +4,7 @@
 //! ([`RobotSection`]); this is the simulated cart's own reading of them, for whoever knows
 //! it is that robot (the `marie` command's outcome line, the picture, tests).
 
+use marie_actors::fence::Late;
 use marie_actors::report::RunReport;
 use marie_actors::run::RobotSection;
 use serde::{Deserialize, Serialize};
@@ -11,7 +12,7 @@ use std::collections::BTreeMap;
 
 /// The simulated cart's judgement of a run: its part of a report, written beside the
 /// report's own fields (`final_pose`, `collisions`, `seed`, `inside_goal`, `judgement`,
-/// `refused_commands`).
+/// `refused_commands`, `obeyed_late`).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct RobotReport {
     /// Final pose `[x, y, heading]`: metres, and the heading in radians.
@@ -37,6 +38,11 @@ pub struct RobotReport {
     /// binding moved.
     #[serde(default)]
     pub refused_commands: Option<BTreeMap<String, u64>>,
+    /// Epochs the cart obeyed after the run had bound a newer epoch of their operation —
+    /// each at least one command of a replaced incarnation obeyed, so fencing failed — with
+    /// how late ([`Late`]); empty when fencing held. `None` when the cart did not say.
+    #[serde(default)]
+    pub obeyed_late: Option<Vec<Late>>,
 }
 
 impl RobotReport {
@@ -74,17 +80,25 @@ mod tests {
             inside_goal: Some(true),
             judgement: Some("success".into()),
             refused_commands: Some([("wall-follower".to_string(), 3)].into()),
+            obeyed_late: Some(vec![Late {
+                operation: "wall-follower".into(),
+                epoch: 5,
+                replaced_by: 6,
+                replaced_clock_ms: 100,
+                last_clock_ms: 120,
+            }]),
         };
         let mut report = RunReport::new("m", Outcome::Succeeded, "");
         report.robot = said.section();
         let json = serde_json::to_value(&report).unwrap();
         assert_eq!(json["final_pose"][0], 1.0);
         assert_eq!(json["refused_commands"]["wall-follower"], 3);
+        assert_eq!(json["obeyed_late"][0]["replaced_by"], 6);
         let back: RunReport = serde_json::from_value(json).unwrap();
         assert_eq!(RobotReport::of(&back), said);
         // without a robot: every key, null
         let none = RobotReport::default().section();
-        assert_eq!(none.len(), 6);
+        assert_eq!(none.len(), 7);
         assert!(none.values().all(serde_json::Value::is_null));
         assert_eq!(
             RobotReport::of(&RunReport::new("m", Outcome::Failed, "")),

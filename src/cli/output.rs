@@ -232,7 +232,7 @@ pub(crate) fn outcome_line(report: &RunReport) -> String {
 /// What a faulted run went through, in one line — `None` for a run without faults, lost
 /// nodes or lost records: `verdict: 2 faults injected (freeze-node 1, partition 1), 1 node
 /// lost (1 back), 3 rebinds, 0 of 412 acknowledged records lost, 12 commands refused by
-/// epoch, 0 collisions`.
+/// epoch, 0 obeyed from an old epoch, 0 collisions`.
 pub(crate) fn verdict_line(report: &RunReport) -> Option<String> {
     let lost = report.acknowledged_lost.unwrap_or_default();
     if report.faults_total == 0 && report.nodes_lost.is_empty() && lost == 0 {
@@ -289,6 +289,18 @@ pub(crate) fn verdict_line(report: &RunReport) -> Option<String> {
         ));
     }
     parts.push(format!("{refused} commands refused by epoch"));
+    match &cart.obeyed_late {
+        Some(late) if late.is_empty() => parts.push("0 obeyed from an old epoch".to_string()),
+        Some(late) => parts.push(format!(
+            "{} obeyed from an old epoch ({})",
+            plural(late.len(), "epoch", "epochs"),
+            late.iter()
+                .map(ToString::to_string)
+                .collect::<Vec<_>>()
+                .join("; ")
+        )),
+        None => {}
+    }
     if let Some(c) = cart.collisions {
         parts.push(plural(c as usize, "collision", "collisions"));
     }

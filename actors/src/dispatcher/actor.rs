@@ -309,6 +309,8 @@ impl Actor for ActionDispatcher {
                 if state.checkpoint_now().await.is_err() {
                     return Ok(()); // fenced: told by the writer
                 }
+                state.announce(None).await;
+                state.emit_bound();
                 state.probe(&myself);
                 if let Some(deadline) = state.mission.deadline {
                     state.timers.mission = Some(Timer::cast_after(

@@ -25,6 +25,7 @@ use super::messages::DispatcherMsg;
 use crate::clock::Timer;
 use crate::eo::{EoError, ParamOutcome};
 use crate::events::{BoundOp, BusError, Event, EventKind};
+use crate::fence::{self, Fence};
 use crate::property::PropertyRequest;
 use crate::provision::GRACE as PROVISION_GRACE;
 use crate::registry::{self, Instance, ModuleKind, RegistryEvent};
@@ -110,12 +111,33 @@ impl DispatcherState {
             self.bindings
                 .insert(key, Binding::new(cand, self.epoch_base(), need));
         }
-        self.emit_bound();
         Ok(())
     }
 
+    /// Announce the epochs of the bindings of operation `only` (of every binding with
+    /// `None`) to the receivers' fence keepers ([`crate::fence::announce`]): after the
+    /// epochs are recorded, before a command carries them and before they are told on the
+    /// bus — so from the `bound` or `rebound` event on, the receivers in reach refuse the
+    /// epochs they replace.
+    pub(super) async fn announce(&self, only: Option<&str>) {
+        let fences: Vec<Fence> = self
+            .bindings
+            .values()
+            .filter(|b| only.is_none_or(|name| b.name == name))
+            .map(|b| Fence::new(b.name.clone(), b.epoch))
+            .collect();
+        let announced = fence::announce(&fences).await;
+        if announced.told < announced.keepers {
+            tracing::warn!(
+                "new epochs reached {} of {} fence keepers: the others learn them from the first commands",
+                announced.told,
+                announced.keepers
+            );
+        }
+    }
+
     /// Tell every binding's instance and epoch (`bound`): at the run's start, and after a
-    /// takeover.
+    /// takeover — once the epochs are recorded and announced.
     pub(super) fn emit_bound(&mut self) {
         let operations = self
             .bindings
@@ -336,6 +358,7 @@ impl DispatcherState {
         if self.checkpoint_now().await.is_err() {
             return false;
         }
+        self.announce(Some(name)).await;
         self.emit(EventKind::Selected { choice });
         // the report's record of the running action takes the stand-in's address from it
         self.emit(EventKind::Rebound(record));

@@ -262,6 +262,7 @@ impl DispatcherState {
         if self.checkpoint_now().await.is_err() {
             return;
         }
+        self.announce(None).await;
         self.emit_bound();
         self.command_after_takeover(myself, &from);
         self.probe(myself);

@@ -12,6 +12,12 @@
 //!
 //! The fence is per operation *name*: one binding drives an operation at a time.
 //!
+//! A receiver learns an epoch from two sides: the commands themselves, and the dispatcher,
+//! which *announces* every epoch it binds to the receivers that keep a [`keeper`] before any
+//! command carries it — so no command of a replaced incarnation is obeyed in the moment
+//! between a rebind and its stand-in's first command. What a receiver obeyed, by epoch and
+//! when ([`ObeyedLog`]), is checked against when each epoch was bound ([`obeyed_late`]).
+//!
 //! ```
 //! use marie_actors::fence::{Fence, FenceTable};
 //! let mut cart = FenceTable::default();
@@ -21,6 +27,14 @@
 //! assert_eq!(cart.refused(), 1);
 //! assert_eq!(cart.refused_by()["wall-follower"], 1);
 //! ```
+
+mod keeper;
+mod obeyed;
+
+pub use keeper::{
+    announce, spawn_keeper, Announced, FenceKeeper, FenceMsg, ANNOUNCE_TIMEOUT, GROUP, SCOPE,
+};
+pub use obeyed::{obeyed_late, BoundEpoch, Late, Obeyed, ObeyedLog};
 
 use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, HashMap};
@@ -96,6 +110,16 @@ impl FenceTable {
         }
     }
 
+    /// Raise `fence.operation`'s newest epoch to `fence.epoch` (a dispatcher announced it,
+    /// [`keeper`]); an older or unfenced one changes nothing and is not counted as refused.
+    pub fn advance(&mut self, fence: &Fence) {
+        if fence.epoch == 0 {
+            return;
+        }
+        let newest = self.newest.entry(fence.operation.clone()).or_default();
+        *newest = (*newest).max(fence.epoch);
+    }
+
     /// The newest epoch seen for `operation`, if any.
     pub fn newest(&self, operation: &str) -> Option<u64> {
         self.newest.get(operation).copied()
@@ -137,6 +161,29 @@ mod tests {
             t.refused_by().iter().collect::<Vec<_>>(),
             [(&"a".to_string(), &2)]
         );
+    }
+
+    #[test]
+    fn an_announced_epoch_fences_before_any_command_carries_it() {
+        let mut t = FenceTable::default();
+        t.admit(&Fence::new("a", 3)).unwrap();
+        t.advance(&Fence::new("a", 5));
+        assert!(
+            t.admit(&Fence::new("a", 3)).is_err(),
+            "the replaced incarnation"
+        );
+        assert!(
+            t.admit(&Fence::new("a", 5)).is_ok(),
+            "the announced stand-in"
+        );
+        t.advance(&Fence::new("a", 4));
+        t.advance(&Fence::new("a", 0));
+        assert_eq!(
+            t.newest("a"),
+            Some(5),
+            "an announcement never lowers a fence"
+        );
+        assert_eq!(t.refused(), 1, "an announcement is no refused command");
     }
 
     #[test]

@@ -154,7 +154,15 @@ impl ReportBuilder {
                 self.report.flags = flags.clone();
                 self.close(*run_ms);
             }
+            EventKind::Bound { operations } => {
+                for op in operations {
+                    self.report
+                        .record_bound_epoch(&op.name, op.epoch, event.at_ms);
+                }
+            }
             EventKind::Rebound(rebind) => {
+                self.report
+                    .record_bound_epoch(&rebind.operation, rebind.epoch, event.at_ms);
                 // the stand-in carries on the running part of its operation
                 let name = rebind.operation.as_str();
                 if let Some(rec) = self.open_op(|_, r| r.name == name && r.ended == OpEnd::Running)
@@ -257,8 +265,7 @@ impl ReportBuilder {
                     .collect();
             }
             EventKind::DmChecked(check) => self.report.record_dm_check(check.clone()),
-            EventKind::Bound { .. }
-            | EventKind::DispatcherFenced { .. }
+            EventKind::DispatcherFenced { .. }
             | EventKind::Lost { .. }
             | EventKind::RebindGaveUp { .. }
             | EventKind::Joined(_)

@@ -21,6 +21,7 @@ mod builder;
 
 pub use builder::{AttachedReport, ReportBuilder};
 
+use crate::fence::BoundEpoch;
 use crate::run::{
     Choice, DmCheck, FaultKind, OpEnd, Outcome, RebindRecord, RobotSection, TakeoverRecord,
 };
@@ -130,7 +131,18 @@ pub struct RunReport {
     /// and acknowledged deletes accounted for. `None` when the run checked no datamanager.
     #[serde(default)]
     pub acknowledged_lost: Option<u64>,
+    /// When the dispatcher bound each operation at each epoch (the run's start, a takeover,
+    /// a rebind), on its node's clock: what the receivers' logs of obeyed commands are
+    /// checked against ([`crate::fence::obeyed_late`]). The latest
+    /// [`BOUND_EPOCHS_KEEPS`], oldest first.
+    #[serde(default)]
+    pub bound_epochs: Vec<BoundEpoch>,
 }
+
+/// How many bindings' epochs a report keeps ([`RunReport::bound_epochs`]): the latest.
+/// Several per rebind kept ([`REPORT_KEEPS`]), so a long chaos run's are all there while a
+/// receiver still logs the epochs they replace ([`crate::fence::ObeyedLog::KEEPS`]).
+pub const BOUND_EPOCHS_KEEPS: usize = 4 * REPORT_KEEPS;
 
 /// A peer node lost during a run, as the run's node saw it.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -178,7 +190,7 @@ pub struct FaultRecord {
 
 impl RunReport {
     /// The report's own JSON keys: a robot's section cannot take them.
-    pub const OWN_KEYS: [&'static str; 17] = [
+    pub const OWN_KEYS: [&'static str; 18] = [
         "mission",
         "outcome",
         "reason",
@@ -195,6 +207,7 @@ impl RunReport {
         "nodes_lost",
         "dm_checks",
         "acknowledged_lost",
+        "bound_epochs",
         "robot",
     ];
 
@@ -217,6 +230,7 @@ impl RunReport {
             takeovers: Vec::new(),
             dm_checks: Vec::new(),
             acknowledged_lost: None,
+            bound_epochs: Vec::new(),
             robot: RobotSection::new(),
             faults: Vec::new(),
             faults_total: 0,
@@ -231,6 +245,19 @@ impl RunReport {
     /// Keep a takeover among the latest [`REPORT_KEEPS`].
     pub fn record_takeover(&mut self, takeover: TakeoverRecord) {
         keep_latest(&mut self.takeovers, takeover);
+    }
+
+    /// Keep when operation `operation` was bound at `epoch`, among the latest
+    /// [`BOUND_EPOCHS_KEEPS`].
+    pub fn record_bound_epoch(&mut self, operation: &str, epoch: u64, clock_ms: u64) {
+        if self.bound_epochs.len() >= BOUND_EPOCHS_KEEPS {
+            self.bound_epochs.remove(0);
+        }
+        self.bound_epochs.push(BoundEpoch {
+            operation: operation.to_string(),
+            epoch,
+            clock_ms,
+        });
     }
 
     /// Count a rebind and keep it among the latest [`REPORT_KEEPS`].
@@ -389,6 +416,11 @@ mod tests {
             }],
             dm_checks: Vec::new(),
             acknowledged_lost: None,
+            bound_epochs: vec![BoundEpoch {
+                operation: "op".into(),
+                epoch: 7,
+                clock_ms: 1_764_216_000_004,
+            }],
             faults: vec![FaultRecord {
                 at_ms: 2,
                 fault: FaultKind::Hang,

@@ -19,6 +19,7 @@
 use marie_actors::clock::SharedClock;
 use marie_actors::dm::NewRecord;
 use marie_actors::events::EventBus;
+use marie_actors::report::RunReport;
 use marie_actors::run::{Outcome, RobotSection};
 use marie_supervision::ChildSpec;
 use std::future::Future;
@@ -76,12 +77,13 @@ pub trait Robot: Send + Sync + 'static {
         Vec::new()
     }
 
-    /// Judge a run the dispatcher ended with `outcome` (and `reason`, on a failure): the
-    /// outcome after judgement — a success turned into a failure when the robot did not end
-    /// where it should — and what the robot says of the run (for the simulated cart: final
-    /// pose, collisions, seed, verdict), which the node publishes as the run's `judged`
-    /// event.
-    fn judge<'a>(&'a self, outcome: Outcome, reason: &'a str) -> BoxFuture<'a, RunJudgement>;
+    /// Judge a run the dispatcher ended — `run`, its report so far: its outcome (and
+    /// reason, on a failure), and what it bound when (`bound_epochs`, to check the robot's
+    /// fences against): the outcome after judgement — a success turned into a failure when
+    /// the robot did not end where it should — and what the robot says of the run (for
+    /// the simulated cart: final pose, collisions, seed, verdict, commands refused and
+    /// obeyed late by epoch), which the node publishes as the run's `judged` event.
+    fn judge<'a>(&'a self, run: &'a RunReport) -> BoxFuture<'a, RunJudgement>;
 }
 
 /// A robot's judgement of a run ([`Robot::judge`]).

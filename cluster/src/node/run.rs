@@ -251,7 +251,7 @@ impl Node {
                 outcome,
                 reason,
                 robot,
-            } = robot.judge(so_far.outcome, &so_far.reason).await;
+            } = robot.judge(&so_far).await;
             self.bus.publish(EventKind::Judged {
                 outcome,
                 reason,

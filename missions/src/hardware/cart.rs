@@ -16,12 +16,13 @@ use crate::sim::{Simulation, SonarReading, TracePoint};
 use crate::telemetry::PoseSampler;
 use crate::world::Judgement;
 use marie_actors::clock::{cast_after, SharedClock};
-use marie_actors::fence::{Fence, FenceTable};
+use marie_actors::fence::{spawn_keeper, Fence, FenceTable, Obeyed, ObeyedLog};
 use marie_actors::registry::{self, ModuleKind};
 use ractor::rpc::CallResult;
-use ractor::{Actor, ActorProcessingErr, ActorRef, SpawnErr};
+use ractor::{Actor, ActorProcessingErr, ActorRef, SpawnErr, SupervisionEvent};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 use tokio::task::JoinHandle;
 
@@ -86,6 +87,12 @@ pub struct CartStatus {
     /// reports this one, not its own). `None` from a node that does not say.
     #[serde(default)]
     pub seed: Option<u64>,
+    /// The commands the cart obeyed, by operation and epoch, with the first and the last
+    /// one's time on its node's clock ([`ObeyedLog`]; the latest epochs of each operation):
+    /// checked against when each epoch was bound, it shows whether a replaced incarnation
+    /// was ever obeyed ([`marie_actors::fence::obeyed_late`]).
+    #[serde(default)]
+    pub obeyed: Vec<Obeyed>,
 }
 
 marie_actors::remote_message! {
@@ -178,8 +185,11 @@ pub struct CartState {
     /// Clock time of the last drive command.
     commanded_at: Duration,
     cap: Option<f64>,
-    /// The newest epoch of each operation that commanded the cart.
-    fences: FenceTable,
+    /// The newest epoch of each operation that commanded the cart, shared with its fence
+    /// keeper (a dispatcher announces new epochs there before their first command).
+    fences: Arc<Mutex<FenceTable>>,
+    /// What it obeyed, by operation and epoch.
+    obeyed: ObeyedLog,
     poses: Option<PoseSampler>,
 }
 
@@ -196,12 +206,16 @@ impl CartState {
     /// Whether a command under `fence` is obeyed: not when it comes from a replaced
     /// incarnation of its operation (then it changes nothing, and is counted).
     fn admit(&mut self, fence: &Fence) -> bool {
-        match self.fences.admit(fence) {
-            Ok(()) => true,
+        let mut fences = self.fences.lock().unwrap_or_else(|e| e.into_inner());
+        match fences.admit(fence) {
+            Ok(()) => {
+                self.obeyed.record(fence, self.clock.now());
+                true
+            }
             Err(stale) => {
                 // a replaced controller commands at its step rate: warn at the 1st, 2nd,
                 // 4th, 8th… refusal of each operation, not at every one
-                let n = self.fences.refused_by().get(&stale.operation).copied();
+                let n = fences.refused_by().get(&stale.operation).copied();
                 if n.is_some_and(u64::is_power_of_two) {
                     tracing::warn!("cart command refused ({} so far): {stale}", n.unwrap_or(0));
                 } else {
@@ -248,6 +262,7 @@ impl CartState {
     }
 
     fn status(&self) -> CartStatus {
+        let fences = self.fences.lock().unwrap_or_else(|e| e.into_inner());
         CartStatus {
             time: self.sim.time(),
             pose: self.sim.pose(),
@@ -262,9 +277,10 @@ impl CartState {
             axle_to_centre: self.sim.world().cart.center_offset(),
             footprint: self.sim.footprint(),
             judgement: self.sim.judge(),
-            refused: self.fences.refused(),
-            refused_by: self.fences.refused_by().clone(),
+            refused: fences.refused(),
+            refused_by: fences.refused_by().clone(),
             seed: Some(self.sim.seed()),
+            obeyed: self.obeyed.entries(),
         }
     }
 }
@@ -284,6 +300,8 @@ impl Actor for VirtualCart {
         args: CartArgs,
     ) -> Result<CartState, ActorProcessingErr> {
         registry::publish(ModuleKind::Hardware, CART_ID, CART_NAME, myself.get_cell())?;
+        let fences = Arc::new(Mutex::new(FenceTable::default()));
+        spawn_keeper(fences.clone(), myself.get_cell()).await?;
         let period = args.period.max(Duration::from_millis(1));
         schedule(&myself, &args.clock, period);
         Ok(CartState {
@@ -294,7 +312,8 @@ impl Actor for VirtualCart {
             command: (0.0, 0.0),
             commanded_at: Duration::ZERO,
             cap: None,
-            fences: FenceTable::default(),
+            fences,
+            obeyed: ObeyedLog::default(),
             poses: args.poses,
         })
     }
@@ -364,11 +383,33 @@ impl Actor for VirtualCart {
                 state.command = (0.0, 0.0);
                 state.commanded_at = state.clock.now();
                 state.cap = None;
+                state.obeyed.clear();
                 tracing::info!("the cart is back at rest at the world's start");
                 let _ = reply.send(state.status());
             }
         }
         Ok(())
+    }
+
+    /// The only linked child is the cart's fence keeper: should it stop, the cart fails
+    /// with it (its supervisor restarts both) rather than go on deaf to announced epochs.
+    async fn handle_supervisor_evt(
+        &self,
+        _myself: ActorRef<CartMsg>,
+        event: SupervisionEvent,
+        _state: &mut CartState,
+    ) -> Result<(), ActorProcessingErr> {
+        match event {
+            SupervisionEvent::ActorTerminated(who, _, reason) => Err(format!(
+                "the cart's fence keeper {} stopped: {reason:?}",
+                who.get_id()
+            )
+            .into()),
+            SupervisionEvent::ActorFailed(who, error) => {
+                Err(format!("the cart's fence keeper {} failed: {error}", who.get_id()).into())
+            }
+            _ => Ok(()),
+        }
     }
 }
 
