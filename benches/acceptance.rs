@@ -3,7 +3,7 @@
 //! cart's, at a moment drawn over the whole run — in one `marie up
 //! missions/clusters/thesis.toml --run missions/docking.toml`; then the table of their
 //! verdicts from the reports and a summary: the goal is that at least 29 of 30 dock, none
-//! loses an acknowledged record, none collides. Exits 1 when the goal does not hold, 130
+//! loses an acknowledged record, none obeys a command from an old epoch, none collides. Exits 1 when the goal does not hold, 130
 //! when interrupted.
 //!
 //! ```text
