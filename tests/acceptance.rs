@@ -20,7 +20,7 @@
 //! at speed 1 a run of the layout (five processes) takes about a fifth of a core, so the
 //! test lasts one run, about 75 s.
 
-mod common;
+use crate::common;
 
 use common::acceptance::{header, summary, Draw, Kind, Layout, Running, Schedule, Verdict};
 use std::collections::BTreeSet;

@@ -2,7 +2,7 @@
 //! with exit 2 and a message that names it — before anything runs — and a fault that could
 //! not be injected is reported, never dropped.
 
-mod common;
+use crate::common;
 
 use common::{marie, report_of, text};
 use std::process::Output;

@@ -2,7 +2,7 @@
 //! own: it navigates, waits for a script that runs later, evaluates values, takes a
 //! screenshot, reports exceptions and timeouts, and leaves no process behind.
 
-mod common;
+use crate::common;
 
 use common::browser::Browser;
 use serde_json::json;

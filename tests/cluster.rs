@@ -3,7 +3,7 @@
 //! leaves taking its entries along, and a wrong cookie refused — a command's or a node's —
 //! with both sides saying so.
 
-mod common;
+use crate::common;
 
 use common::cluster::{Listed, NodeProc};
 use common::{marie, text};

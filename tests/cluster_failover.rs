@@ -9,7 +9,7 @@
 //! And the other way round: the only instance of an operation is on a node frozen past
 //! the deadline; woken, the node restarts it, and the dispatcher adopts that one.
 
-mod common;
+use crate::common;
 
 use common::cluster::{NodeProc, Proc};
 use common::layouts::failover_layout;

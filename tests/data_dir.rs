@@ -4,7 +4,7 @@
 //! DIR`/NODE, kept and locked: a second `up` on it is refused by its nodes, naming the
 //! holder.
 
-mod common;
+use crate::common;
 
 use common::cluster::Proc;
 use common::{marie, report_of, text};

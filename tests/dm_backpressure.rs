@@ -7,7 +7,7 @@
 //! pages (answered in one frame, it would end the session between the nodes). (Its own
 //! process: it joins the cluster as a member.)
 
-mod common;
+use crate::common;
 
 use common::cluster::NodeProc;
 use marie::actors::dm::credits::{BATCH, WINDOW};

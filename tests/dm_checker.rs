@@ -12,7 +12,7 @@
 //!
 //! ```sh
 //! MARIE_CHECKER_FAULTS=1000 MARIE_CHECKER_SEED=7 \
-//!     cargo test --release --test dm_checker -- --nocapture
+//!     cargo test --release --test e2e -- dm_checker:: --nocapture
 //! ```
 //! (`scripts/dm-checker` does that.)
 //!
@@ -21,7 +21,7 @@
 //! what was acknowledged, and take orders (`crash`, `stop`) on stdin. Needs root for the
 //! namespaces; skipped without (fails when `CI` is set).
 
-mod common;
+use crate::common;
 
 use common::cluster::{NodeProc, Proc};
 use common::netns::Netns;
@@ -173,7 +173,7 @@ fn replicated_datamanager_checker_under_kill_freeze_partition_and_crash() {
         Some(net.ns(PRODUCERS_NS)),
         "producers",
         &std::env::current_exe().unwrap(),
-        &["--exact", "producers", "--nocapture", "--test-threads", "1"],
+        &["--exact", "dm_checker::producers", "--nocapture", "--test-threads", "1"],
         &[
             ("MARIE_CHECKER_CHILD", "1".to_string()),
             ("MARIE_CHECKER_PEERS", peers.join(",")),

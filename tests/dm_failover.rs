@@ -6,7 +6,7 @@
 //! is elected primary (`dm_promoted` in the run's events), the operations' clients follow
 //! it, and they carry on from the records they stored.
 
-mod common;
+use crate::common;
 
 use common::cluster::Proc;
 use serde_json::Value;

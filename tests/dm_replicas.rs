@@ -11,7 +11,7 @@
 //! behind than the primary keeps entries for is sent a snapshot of the store, and ends
 //! equal; a primary started again catches copies up from the entries its journal holds.
 
-mod common;
+use crate::common;
 
 use common::cluster::NodeProc;
 use marie::actors::dm::{self, DmClient, DmMsg, DmStats, NewRecord, Query};

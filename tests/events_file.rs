@@ -2,7 +2,7 @@
 //! line — a faulted docking run holds the loss, the restart and the rebind in that order, and
 //! replays into the very report the run wrote.
 
-mod common;
+use crate::common;
 
 use common::{marie, text};
 use marie::actors::events::{Event, EventKind};

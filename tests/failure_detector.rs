@@ -4,7 +4,7 @@
 //! than its peer's — finds out when it wakes and restarts its operations; a node of another
 //! protocol version is refused, naming both versions, and the cluster keeps serving.
 
-mod common;
+use crate::common;
 
 use common::cluster::{silence_ms, NodeProc};
 

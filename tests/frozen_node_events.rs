@@ -6,7 +6,7 @@
 //! forwarder keeps it and sends it once the run's watchers are in reach again. So the
 //! events file holds it, once each, in order, and the run's page shows the node frozen.
 
-mod common;
+use crate::common;
 
 use common::cluster::{default_deadline_ms, NodeProc, Proc};
 use common::monitor::{page_of, state_until};

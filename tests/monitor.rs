@@ -2,7 +2,7 @@
 //! run replayed (its extent, its final state), the token a monitor may require, and a run's
 //! own live page while the mission runs.
 
-mod common;
+use crate::common;
 
 use common::cluster::{NodeProc, Proc};
 use common::monitor::{

@@ -7,7 +7,7 @@
 //!
 //! Every `marie` process and the browser are killed when the test ends, also on panic.
 
-mod common;
+use crate::common;
 
 use common::browser::Browser;
 use common::layouts::failover_layout;

@@ -5,7 +5,7 @@
 //! real run `monitor_browser`; stopping a node's process under `marie up`: `tests/monitor.rs`
 //! and `monitor_browser`.)
 
-mod common;
+use crate::common;
 
 use common::cluster::Proc;
 use common::http;

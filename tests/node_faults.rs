@@ -3,7 +3,7 @@
 //! as real processes on 127.0.0.1 — each parsed and checked before the run (exit 2 when it
 //! cannot be done), injected at its time, undone after its duration, and in the report.
 
-mod common;
+use crate::common;
 
 use common::http;
 use common::monitor::{monitored_up, page_of};

@@ -1,7 +1,7 @@
 //! `marie run --node FILE`: a node hosts exactly what its config says — the shipped node
 //! configs of `missions/nodes/`, and a bad config's `file:line:col` diagnostics.
 
-mod common;
+use crate::common;
 
 use common::{marie, report_of, text};
 

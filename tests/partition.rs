@@ -21,7 +21,7 @@
 //! Every address is inside namespaces the test creates and deletes. Needs root; without it
 //! the tests are skipped with a line on stderr (they fail when `CI` is set).
 
-mod common;
+use crate::common;
 
 use common::cluster::{default_deadline_ms, node_config, silence_ms, NodeProc, Proc};
 use common::netns::Netns;

@@ -5,7 +5,7 @@
 //! Each run is its own process (ractor's registry is per process), in virtual time. The full
 //! 100-seed table (the 95/100 goal) is `missions/seed-table.sh`, run by hand in release.
 
-mod common;
+use crate::common;
 
 use common::{marie, report_of, text};
 

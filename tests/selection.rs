@@ -4,7 +4,7 @@
 //! mission supplies — and a mission that needs version 2 where only version 1 runs does
 //! not start, and says why.
 
-mod common;
+use crate::common;
 
 use common::missions::{docking_edited, docking_variant};
 use common::{marie, report_of, text};

@@ -7,7 +7,7 @@
 //! Each case is a `marie up` cluster: the thesis' layout without its wall followers, plus
 //! a node per version. A docking run moves the cart, so each cluster runs one mission.
 
-mod common;
+use crate::common;
 
 use common::cluster::Proc;
 use common::missions::docking_variant;

@@ -2,7 +2,7 @@
 //! the thesis' missions run in the simulated world, through the `marie` binary (one process
 //! per run, in virtual time), and the node's supervision tree through the library.
 
-mod common;
+use crate::common;
 
 use common::{marie, report_of, text};
 use marie::actors::registry::{self, ModuleKind};

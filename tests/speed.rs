@@ -3,7 +3,7 @@
 //! `start_ms`/`end_ms`, `downtime_ms` and `at_ms` are mission clock time — so the reports
 //! must be identical, and so must the progress lines.
 
-mod common;
+use crate::common;
 
 use common::{report_of, text};
 

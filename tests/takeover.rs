@@ -7,7 +7,7 @@
 //! again and again: the dispatcher that took over may be lost in turn, and the other desk
 //! takes the run back.
 
-mod common;
+use crate::common;
 
 use common::{marie, report_of, text};
 use marie::actors::events::Event;

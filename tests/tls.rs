@@ -7,7 +7,7 @@
 //! or none, whether it dials or is dialed, a node or a `--join` command; `--join` commands
 //! join with `--tls-cert/--tls-key/--tls-ca`.
 
-mod common;
+use crate::common;
 
 use common::cluster::NodeProc;
 use common::{marie, text};

@@ -3,7 +3,7 @@
 //! process of its own), the converged registry listed by `ls --join`, and no node left
 //! running when `marie up` is killed.
 
-mod common;
+use crate::common;
 
 use common::cluster::{ls_join, wait_gone, Proc};
 use common::monitor::page_of;
@@ -353,15 +353,27 @@ fn a_run_on_a_cluster_kept_up_starts_where_the_last_left_the_cart_or_from_the_st
         "a fresh cluster's cart is at the start: {stdout}"
     );
     assert_eq!(report["outcome"], "succeeded");
+    let parked = &report["final_pose"];
 
-    // the next run finds the cart parked (docking's goal is the dock), and says so
+    // the next run finds the cart where the first parked it (docking's goal is the dock —
+    // where in it varies with the run), and says so
     let (second, _) = run("second", &[]);
     let stdout = text(&second.stdout);
-    assert!(
-        stdout.contains("the cart starts where the cluster's last run left it, at (6."),
-        "{stdout}{}",
-        text(&second.stderr)
-    );
+    let said = "the cart starts where the cluster's last run left it, at (";
+    let line = stdout
+        .lines()
+        .find_map(|l| l.strip_prefix(said))
+        .unwrap_or_else(|| panic!("{stdout}{}", text(&second.stderr)));
+    let xy: Vec<f64> = line
+        .split([',', ')'])
+        .take(2)
+        .map(|v| v.trim().parse().unwrap())
+        .collect();
+    for (said, parked) in xy.iter().zip([&parked[0], &parked[1]]) {
+        let parked = parked.as_f64().unwrap();
+        // within 2 cm: the cart settles under the watchdog's brake after the report
+        assert!((said - parked).abs() < 0.02, "{line} vs {parked}: {stdout}");
+    }
 
     // a node without a desk cannot dispatch a run: refused before it starts
     let (refused, _) = run("refused", &["--dispatch-on", "cart"]);
