@@ -37,7 +37,7 @@ const RUN_SECS: f64 = 62.0;
 const AT_ONCE: usize = 5;
 
 #[test]
-fn five_seeded_node_faults_each_dock_with_nothing_lost_nothing_obeyed_from_an_old_epoch_and_no_collision() {
+fn five_seeded_node_faults_dock_with_nothing_lost_no_old_epoch_obeyed_no_collision() {
     if !common::netns::Netns::can_make() {
         // partitions need root and `ip` (CI has both: there this fails instead)
         return;

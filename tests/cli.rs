@@ -1,7 +1,7 @@
 //! The `marie` command, end to end: exit codes, stdout results, stderr diagnostics.
 
-use std::path::PathBuf;
 use crate::common;
+use std::path::PathBuf;
 
 use common::{marie, text};
 use std::process::Command;

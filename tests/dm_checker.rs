@@ -173,7 +173,13 @@ fn replicated_datamanager_checker_under_kill_freeze_partition_and_crash() {
         Some(net.ns(PRODUCERS_NS)),
         "producers",
         &std::env::current_exe().unwrap(),
-        &["--exact", "dm_checker::producers", "--nocapture", "--test-threads", "1"],
+        &[
+            "--exact",
+            "dm_checker::producers",
+            "--nocapture",
+            "--test-threads",
+            "1",
+        ],
         &[
             ("MARIE_CHECKER_CHILD", "1".to_string()),
             ("MARIE_CHECKER_PEERS", peers.join(",")),

@@ -13,7 +13,7 @@
 //! The fence is per operation *name*: one binding drives an operation at a time.
 //!
 //! A receiver learns an epoch from two sides: the commands themselves, and the dispatcher,
-//! which *announces* every epoch it binds to the receivers that keep a [`keeper`] before any
+//! which *announces* every epoch it binds to the receivers that keep a [`FenceKeeper`] before any
 //! command carries it — so no command of a replaced incarnation is obeyed in the moment
 //! between a rebind and its stand-in's first command. What a receiver obeyed, by epoch and
 //! when ([`ObeyedLog`]), is checked against when each epoch was bound ([`obeyed_late`]).
@@ -111,7 +111,7 @@ impl FenceTable {
     }
 
     /// Raise `fence.operation`'s newest epoch to `fence.epoch` (a dispatcher announced it,
-    /// [`keeper`]); an older or unfenced one changes nothing and is not counted as refused.
+    /// [`announce`]); an older or unfenced one changes nothing and is not counted as refused.
     pub fn advance(&mut self, fence: &Fence) {
         if fence.epoch == 0 {
             return;
