@@ -28,6 +28,7 @@ mod running;
 pub mod selection;
 pub mod survey;
 mod takeover;
+pub mod tree;
 
 pub use actor::{
     request_run, run_mission, spawn_dispatcher, ActionDispatcher, DispatchError, DispatcherArgs,

@@ -1,0 +1,625 @@
+//! Behaviour-tree control of a mission: what runs next, what is halted, when a retry or a
+//! timeout fires — a pure state machine, with time passed in (issue 24's core; the
+//! dispatcher does not run it yet).
+//!
+//! Why pure: the semantics of retries, fallbacks, timeouts, parallels and reactive
+//! conditions are where behaviour-tree engines go wrong (a halt that takes more than one
+//! tick; a reactive sequence that briefly runs two children at once). Here they are one
+//! function of (tree, leaf results, flags, now), tested construct by construct; the
+//! dispatcher only turns its [`Command`]s into activations and suspensions and its
+//! [`Wake`]s into timers.
+//!
+//! A tree is [`Node`]s over the mission's actions (leaves, by index). [`Tree::tick`] walks
+//! it from the root as BehaviorTree.CPP v4 does: each node answers
+//! [`Status::Running`], [`Status::Succeeded`] or [`Status::Failed`]; a leaf is started the
+//! first time it is ticked and answers `Running` until the dispatcher reports its end
+//! ([`Tree::leaf_ended`]). Halting a node (a reactive condition that no longer holds, a
+//! timeout, a parallel decided) halts every leaf running under it **within the same tick**:
+//! the commands of one tick hold the halts before any start.
+//!
+//! | marie | BehaviorTree.CPP v4 | where marie differs |
+//! |---|---|---|
+//! | [`Node::Sequence`] | `Sequence` | — |
+//! | [`Node::Reactive`] | `ReactiveSequence` | its conditions are flags of the status word, re-checked at every tick; at most one child runs |
+//! | [`Node::Fallback`] | `Fallback` | — |
+//! | [`Node::Parallel`] | `Parallel` (thresholds) | — |
+//! | [`Node::Retry`] | `RetryUntilSuccessful` | a backoff between attempts |
+//! | [`Node::Timeout`] | `Timeout` | — |
+//! | [`Node::Recover`] | (Nav2's recovery) | the recovery runs, then the node fails, so a retry above it tries again |
+//!
+//! ```
+//! use marie_actors::dispatcher::tree::{Command, Node, Status, Tree};
+//! use std::time::Duration;
+//! // try action 0; if it fails, fall back to action 1
+//! let mut tree = Tree::new(Node::Fallback(vec![Node::Action(0), Node::Action(1)]));
+//! let t = tree.tick(0, Duration::ZERO);
+//! assert_eq!((t.status, t.commands), (Status::Running, vec![Command::Start(0)]));
+//! tree.leaf_ended(0, false);
+//! let t = tree.tick(0, Duration::ZERO);
+//! assert_eq!(t.commands, vec![Command::Start(1)]);
+//! tree.leaf_ended(1, true);
+//! assert_eq!(tree.tick(0, Duration::ZERO).status, Status::Succeeded);
+//! ```
+
+use std::time::Duration;
+
+/// A node of a mission's tree.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Node {
+    /// A leaf: the mission's action of this index.
+    Action(usize),
+    /// A condition leaf: succeeds when every flag of the mask is set in the status word,
+    /// fails otherwise (never runs).
+    Condition(u32),
+    /// The children in order; fails at the first that fails, succeeds when all did.
+    Sequence(Vec<Node>),
+    /// A sequence whose `while_` flags are re-checked at every tick while a child runs: when
+    /// they no longer all hold, the running child is halted and the sequence fails.
+    Reactive {
+        /// Flags that must hold while the sequence runs.
+        while_: u32,
+        /// The children, in order.
+        children: Vec<Node>,
+    },
+    /// The children in order until one succeeds; fails when all failed.
+    Fallback(Vec<Node>),
+    /// Every child at once: succeeds once `success` of them succeeded, fails once
+    /// `failure` of them failed (the others halted then).
+    Parallel {
+        /// The children.
+        children: Vec<Node>,
+        /// How many successes make it succeed.
+        success: usize,
+        /// How many failures make it fail.
+        failure: usize,
+    },
+    /// The child again after a failure, up to `attempts` in all, waiting `backoff` between.
+    Retry {
+        /// The child.
+        child: Box<Node>,
+        /// Attempts in all (at least 1).
+        attempts: u32,
+        /// Time between a failure and the next attempt.
+        backoff: Duration,
+    },
+    /// The child, failed and halted when it runs longer than `limit`.
+    Timeout {
+        /// The child.
+        child: Box<Node>,
+        /// How long it may run.
+        limit: Duration,
+    },
+    /// The child; when it fails, `recovery` runs, and then the node fails (a retry above
+    /// tries again after the recovery).
+    Recover {
+        /// The child.
+        child: Box<Node>,
+        /// What runs after its failure.
+        recovery: Box<Node>,
+    },
+}
+
+/// What a node answers a tick.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Status {
+    /// Not done yet.
+    Running,
+    /// Done, succeeded.
+    Succeeded,
+    /// Done, failed.
+    Failed,
+}
+
+/// What the dispatcher must do after a tick, in this order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Command {
+    /// Halt action `i` (suspend its operations).
+    Halt(usize),
+    /// Start action `i` (activate its operations).
+    Start(usize),
+}
+
+/// One tick's answer.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Tick {
+    /// The root's status.
+    pub status: Status,
+    /// The halts, then the starts.
+    pub commands: Vec<Command>,
+    /// Tick again at this time at the latest (a backoff or a timeout), if anything waits.
+    pub wake: Option<Wake>,
+}
+
+/// When the tree must be ticked again though no leaf ended.
+pub type Wake = Duration;
+
+/// A node's state between ticks.
+#[derive(Clone, Debug, Default)]
+struct NodeState {
+    status: Option<Status>,
+    /// Composite: the child being run; Retry: attempts made; Recover: 1 once recovering.
+    cursor: usize,
+    /// Timeout: when the child's run ends; Retry: when the backoff ends.
+    deadline: Option<Duration>,
+    /// Action: started and not ended yet.
+    running: bool,
+}
+
+/// A tree and its state.
+#[derive(Clone, Debug)]
+pub struct Tree {
+    root: Node,
+    /// By node, in preorder.
+    state: Vec<NodeState>,
+    /// Results of leaves since they were started, by action index.
+    ended: Vec<(usize, bool)>,
+}
+
+/// Node ids in preorder: the id of `node`'s first child is its own + 1.
+fn size(node: &Node) -> usize {
+    1 + children(node).iter().map(|c| size(c)).sum::<usize>()
+}
+
+fn children(node: &Node) -> Vec<&Node> {
+    match node {
+        Node::Action(_) | Node::Condition(_) => Vec::new(),
+        Node::Sequence(c) | Node::Fallback(c) => c.iter().collect(),
+        Node::Reactive { children, .. } | Node::Parallel { children, .. } => {
+            children.iter().collect()
+        }
+        Node::Retry { child, .. } | Node::Timeout { child, .. } => vec![child],
+        Node::Recover { child, recovery } => vec![child, recovery],
+    }
+}
+
+/// The ids of `node`'s (id `id`) children.
+fn child_ids(node: &Node, id: usize) -> Vec<usize> {
+    let mut next = id + 1;
+    children(node)
+        .into_iter()
+        .map(|c| {
+            let this = next;
+            next += size(c);
+            this
+        })
+        .collect()
+}
+
+struct Ctx {
+    flags: u32,
+    now: Duration,
+    halts: Vec<Command>,
+    starts: Vec<Command>,
+    wake: Option<Duration>,
+}
+
+impl Ctx {
+    fn wake_at(&mut self, at: Duration) {
+        self.wake = Some(self.wake.map_or(at, |w| w.min(at)));
+    }
+}
+
+impl Tree {
+    /// A tree at rest: nothing started.
+    pub fn new(root: Node) -> Tree {
+        let n = size(&root);
+        Tree {
+            root,
+            state: vec![NodeState::default(); n],
+            ended: Vec::new(),
+        }
+    }
+
+    /// Action `action` ended: succeeded or not. Taken into account at the next tick.
+    pub fn leaf_ended(&mut self, action: usize, succeeded: bool) {
+        self.ended.push((action, succeeded));
+    }
+
+    /// Walk the tree with the status word `flags` at time `now`: the root's status and what
+    /// to halt and start.
+    pub fn tick(&mut self, flags: u32, now: Duration) -> Tick {
+        let mut ctx = Ctx {
+            flags,
+            now,
+            halts: Vec::new(),
+            starts: Vec::new(),
+            wake: None,
+        };
+        let root = self.root.clone();
+        let status = self.tick_node(&root, 0, &mut ctx);
+        self.ended.clear();
+        let mut commands = ctx.halts;
+        commands.extend(ctx.starts);
+        Tick {
+            status,
+            commands,
+            wake: if status == Status::Running {
+                ctx.wake
+            } else {
+                None
+            },
+        }
+    }
+
+    fn done(&mut self, id: usize, status: Status) -> Status {
+        self.state[id].status = Some(status);
+        status
+    }
+
+    fn tick_node(&mut self, node: &Node, id: usize, ctx: &mut Ctx) -> Status {
+        if let Some(done) = self.state[id].status {
+            return done;
+        }
+        match node {
+            Node::Condition(mask) => {
+                let holds = ctx.flags & mask == *mask;
+                self.done(
+                    id,
+                    if holds {
+                        Status::Succeeded
+                    } else {
+                        Status::Failed
+                    },
+                )
+            }
+            Node::Action(i) => {
+                let st = &mut self.state[id];
+                if st.running {
+                    match self.ended.iter().find(|(a, _)| a == i) {
+                        Some((_, ok)) => {
+                            self.state[id].running = false;
+                            let s = if *ok {
+                                Status::Succeeded
+                            } else {
+                                Status::Failed
+                            };
+                            self.done(id, s)
+                        }
+                        None => Status::Running,
+                    }
+                } else {
+                    st.running = true;
+                    ctx.starts.push(Command::Start(*i));
+                    Status::Running
+                }
+            }
+            Node::Sequence(_) | Node::Fallback(_) | Node::Reactive { .. } => {
+                let ids = child_ids(node, id);
+                let kids = children(node);
+                if let Node::Reactive { while_, .. } = node {
+                    if ctx.flags & while_ != *while_ {
+                        self.halt(node, id, ctx);
+                        return self.done(id, Status::Failed);
+                    }
+                }
+                let (go_on, stop) = match node {
+                    Node::Fallback(_) => (Status::Failed, Status::Succeeded),
+                    _ => (Status::Succeeded, Status::Failed),
+                };
+                loop {
+                    let at = self.state[id].cursor;
+                    if at == kids.len() {
+                        return self.done(id, go_on);
+                    }
+                    match self.tick_node(kids[at], ids[at], ctx) {
+                        Status::Running => return Status::Running,
+                        s if s == stop => return self.done(id, stop),
+                        _ => self.state[id].cursor += 1,
+                    }
+                }
+            }
+            Node::Parallel {
+                children: kids,
+                success,
+                failure,
+            } => {
+                let ids = child_ids(node, id);
+                let (mut ok, mut failed) = (0, 0);
+                for (k, kid) in kids.iter().enumerate() {
+                    match self.tick_node(kid, ids[k], ctx) {
+                        Status::Succeeded => ok += 1,
+                        Status::Failed => failed += 1,
+                        Status::Running => {}
+                    }
+                }
+                if ok >= *success || failed >= *failure {
+                    self.halt(node, id, ctx);
+                    let s = if ok >= *success {
+                        Status::Succeeded
+                    } else {
+                        Status::Failed
+                    };
+                    return self.done(id, s);
+                }
+                Status::Running
+            }
+            Node::Retry {
+                child,
+                attempts,
+                backoff,
+            } => {
+                let kid = id + 1;
+                loop {
+                    if let Some(until) = self.state[id].deadline {
+                        if ctx.now < until {
+                            ctx.wake_at(until);
+                            return Status::Running;
+                        }
+                        self.state[id].deadline = None;
+                        self.reset(child, kid);
+                    }
+                    match self.tick_node(child, kid, ctx) {
+                        Status::Failed => {
+                            self.state[id].cursor += 1;
+                            if self.state[id].cursor as u32 >= (*attempts).max(1) {
+                                return self.done(id, Status::Failed);
+                            }
+                            self.state[id].deadline = Some(ctx.now + *backoff);
+                        }
+                        s => {
+                            if s == Status::Succeeded {
+                                return self.done(id, s);
+                            }
+                            return s;
+                        }
+                    }
+                }
+            }
+            Node::Timeout { child, limit } => {
+                let kid = id + 1;
+                let until = *self.state[id].deadline.get_or_insert(ctx.now + *limit);
+                if ctx.now >= until {
+                    self.halt(child, kid, ctx);
+                    return self.done(id, Status::Failed);
+                }
+                match self.tick_node(child, kid, ctx) {
+                    Status::Running => {
+                        ctx.wake_at(until);
+                        Status::Running
+                    }
+                    s => self.done(id, s),
+                }
+            }
+            Node::Recover { child, recovery } => {
+                let ids = child_ids(node, id);
+                if self.state[id].cursor == 0 {
+                    match self.tick_node(child, ids[0], ctx) {
+                        Status::Failed => self.state[id].cursor = 1,
+                        s if s == Status::Succeeded => return self.done(id, s),
+                        s => return s,
+                    }
+                }
+                match self.tick_node(recovery, ids[1], ctx) {
+                    Status::Running => Status::Running,
+                    // recovered or not, the node failed: a retry above tries again
+                    _ => self.done(id, Status::Failed),
+                }
+            }
+        }
+    }
+
+    /// Halt every leaf running under `node` (id `id`), in this tick.
+    fn halt(&mut self, node: &Node, id: usize, ctx: &mut Ctx) {
+        if let Node::Action(i) = node {
+            if self.state[id].running {
+                self.state[id].running = false;
+                ctx.halts.push(Command::Halt(*i));
+            }
+            return;
+        }
+        for (kid, kid_id) in children(node).into_iter().zip(child_ids(node, id)) {
+            self.halt(kid, kid_id, ctx);
+        }
+    }
+
+    /// Forget `node`'s (id `id`) state and its subtree's, for another attempt.
+    fn reset(&mut self, node: &Node, id: usize) {
+        for st in &mut self.state[id..id + size(node)] {
+            *st = NodeState::default();
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const T0: Duration = Duration::ZERO;
+
+    fn secs(s: u64) -> Duration {
+        Duration::from_secs(s)
+    }
+
+    /// Actions `0..n` in parallel.
+    fn parallel(n: usize, success: usize, failure: usize) -> Tree {
+        Tree::new(Node::Parallel {
+            children: (0..n).map(Node::Action).collect(),
+            success,
+            failure,
+        })
+    }
+
+    /// Action 0, retried.
+    fn retried(attempts: u32, backoff: Duration) -> Tree {
+        Tree::new(Node::Retry {
+            child: Box::new(Node::Action(0)),
+            attempts,
+            backoff,
+        })
+    }
+
+    fn starts(t: &Tick) -> Vec<usize> {
+        t.commands
+            .iter()
+            .filter_map(|c| match c {
+                Command::Start(i) => Some(*i),
+                Command::Halt(_) => None,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_sequence_runs_its_children_in_order_and_fails_at_the_first_failure() {
+        let mut tree = Tree::new(Node::Sequence(vec![
+            Node::Action(0),
+            Node::Action(1),
+            Node::Action(2),
+        ]));
+        assert_eq!(starts(&tree.tick(0, T0)), [0]);
+        assert_eq!(tree.tick(0, T0).commands, [], "nothing new while 0 runs");
+        tree.leaf_ended(0, true);
+        assert_eq!(starts(&tree.tick(0, T0)), [1]);
+        tree.leaf_ended(1, false);
+        let t = tree.tick(0, T0);
+        assert_eq!((t.status, t.commands), (Status::Failed, vec![]));
+    }
+
+    #[test]
+    fn a_fallback_tries_its_children_until_one_succeeds_and_fails_when_all_failed() {
+        let mut tree = Tree::new(Node::Fallback(vec![Node::Action(0), Node::Action(1)]));
+        tree.tick(0, T0);
+        tree.leaf_ended(0, false);
+        assert_eq!(starts(&tree.tick(0, T0)), [1]);
+        tree.leaf_ended(1, false);
+        assert_eq!(tree.tick(0, T0).status, Status::Failed);
+    }
+
+    #[test]
+    fn a_retry_runs_its_child_again_after_the_backoff_and_gives_up_after_its_attempts() {
+        let mut tree = retried(3, secs(2));
+        assert_eq!(starts(&tree.tick(0, T0)), [0]);
+        tree.leaf_ended(0, false);
+        let t = tree.tick(0, secs(10));
+        assert_eq!((t.status, t.wake), (Status::Running, Some(secs(12))));
+        assert_eq!(t.commands, [], "not before the backoff");
+        assert_eq!(starts(&tree.tick(0, secs(12))), [0], "attempt 2");
+        tree.leaf_ended(0, false);
+        tree.tick(0, secs(13));
+        assert_eq!(starts(&tree.tick(0, secs(15))), [0], "attempt 3");
+        tree.leaf_ended(0, false);
+        assert_eq!(tree.tick(0, secs(16)).status, Status::Failed, "3 in all");
+    }
+
+    #[test]
+    fn a_retry_ends_at_the_first_success() {
+        let mut tree = retried(5, T0);
+        tree.tick(0, T0);
+        tree.leaf_ended(0, false);
+        assert_eq!(starts(&tree.tick(0, T0)), [0]);
+        tree.leaf_ended(0, true);
+        assert_eq!(tree.tick(0, T0).status, Status::Succeeded);
+    }
+
+    #[test]
+    fn a_timeout_halts_its_child_in_the_tick_it_passes_and_fails() {
+        let mut tree = Tree::new(Node::Timeout {
+            child: Box::new(Node::Action(4)),
+            limit: secs(40),
+        });
+        let t = tree.tick(0, secs(1));
+        assert_eq!((starts(&t), t.wake), (vec![4], Some(secs(41))));
+        assert_eq!(tree.tick(0, secs(40)).status, Status::Running);
+        let t = tree.tick(0, secs(41));
+        assert_eq!(
+            (t.status, t.commands),
+            (Status::Failed, vec![Command::Halt(4)])
+        );
+        // its end reported after the halt changes nothing
+        tree.leaf_ended(4, true);
+        assert_eq!(tree.tick(0, secs(42)).status, Status::Failed);
+    }
+
+    #[test]
+    fn a_reactive_sequence_halts_its_running_child_when_its_condition_no_longer_holds() {
+        let mut tree = Tree::new(Node::Reactive {
+            while_: 0b1,
+            children: vec![Node::Action(0), Node::Action(1)],
+        });
+        assert_eq!(starts(&tree.tick(0b1, T0)), [0]);
+        let t = tree.tick(0b0, T0);
+        assert_eq!(
+            (t.status, t.commands),
+            (Status::Failed, vec![Command::Halt(0)])
+        );
+    }
+
+    #[test]
+    fn a_reactive_sequence_never_runs_two_children_at_once() {
+        let mut tree = Tree::new(Node::Reactive {
+            while_: 0b1,
+            children: vec![Node::Action(0), Node::Action(1), Node::Action(2)],
+        });
+        let mut running = std::collections::BTreeSet::new();
+        for (ended, flags) in [(None, 1), (Some(0), 1), (None, 1), (Some(1), 1), (None, 0)] {
+            if let Some(i) = ended {
+                tree.leaf_ended(i, true);
+                running.remove(&i);
+            }
+            // within one tick the halts come before the starts: apply them in order
+            for c in tree.tick(flags, T0).commands {
+                match c {
+                    Command::Halt(i) => assert!(running.remove(&i)),
+                    Command::Start(i) => {
+                        running.insert(i);
+                        assert_eq!(running.len(), 1, "{running:?}");
+                    }
+                }
+            }
+        }
+        assert!(running.is_empty(), "the last was halted: {running:?}");
+    }
+
+    #[test]
+    fn a_parallel_succeeds_at_its_threshold_and_halts_the_others_in_that_tick() {
+        let mut tree = parallel(3, 2, 2);
+        assert_eq!(starts(&tree.tick(0, T0)), [0, 1, 2]);
+        tree.leaf_ended(0, true);
+        assert_eq!(tree.tick(0, T0).status, Status::Running);
+        tree.leaf_ended(2, true);
+        let t = tree.tick(0, T0);
+        assert_eq!(
+            (t.status, t.commands),
+            (Status::Succeeded, vec![Command::Halt(1)])
+        );
+    }
+
+    #[test]
+    fn a_parallel_fails_at_its_failure_threshold() {
+        let mut tree = parallel(2, 2, 1);
+        tree.tick(0, T0);
+        tree.leaf_ended(1, false);
+        let t = tree.tick(0, T0);
+        assert_eq!(
+            (t.status, t.commands),
+            (Status::Failed, vec![Command::Halt(0)])
+        );
+    }
+
+    #[test]
+    fn a_recovery_runs_after_a_failure_and_a_retry_above_it_tries_again() {
+        // back off and turn (action 9) after a failed docking pass (action 0), 2 attempts
+        let mut tree = Tree::new(Node::Retry {
+            child: Box::new(Node::Recover {
+                child: Box::new(Node::Action(0)),
+                recovery: Box::new(Node::Action(9)),
+            }),
+            attempts: 2,
+            backoff: T0,
+        });
+        assert_eq!(starts(&tree.tick(0, T0)), [0]);
+        tree.leaf_ended(0, false);
+        assert_eq!(starts(&tree.tick(0, T0)), [9], "the recovery");
+        tree.leaf_ended(9, true);
+        assert_eq!(starts(&tree.tick(0, T0)), [0], "the second attempt");
+        tree.leaf_ended(0, true);
+        assert_eq!(tree.tick(0, T0).status, Status::Succeeded);
+    }
+
+    #[test]
+    fn a_condition_gates_a_sequence_by_the_status_word() {
+        let mut tree = Tree::new(Node::Sequence(vec![Node::Condition(0b10), Node::Action(0)]));
+        assert_eq!(tree.tick(0b01, T0).status, Status::Failed);
+        let mut tree = Tree::new(Node::Sequence(vec![Node::Condition(0b10), Node::Action(0)]));
+        assert_eq!(starts(&tree.tick(0b11, T0)), [0]);
+    }
+}
