@@ -149,15 +149,24 @@ struct NodeState {
 #[derive(Clone, Debug)]
 pub struct Tree {
     root: Node,
-    /// By node, in preorder.
+    /// By node id (preorder: a node's first child is its id + 1), its subtree's size.
+    sizes: Vec<usize>,
+    /// By node id.
     state: Vec<NodeState>,
-    /// Results of leaves since they were started, by action index.
+    /// Results of leaves since the last tick, by action index.
     ended: Vec<(usize, bool)>,
 }
 
-/// Node ids in preorder: the id of `node`'s first child is its own + 1.
-fn size(node: &Node) -> usize {
-    1 + children(node).iter().map(|c| size(c)).sum::<usize>()
+/// Push the sizes of `node`'s subtrees in preorder; `node`'s own.
+fn fill_sizes(node: &Node, sizes: &mut Vec<usize>) -> usize {
+    let id = sizes.len();
+    sizes.push(0);
+    let size = 1 + children(node)
+        .into_iter()
+        .map(|c| fill_sizes(c, sizes))
+        .sum::<usize>();
+    sizes[id] = size;
+    size
 }
 
 fn children(node: &Node) -> Vec<&Node> {
@@ -172,19 +181,18 @@ fn children(node: &Node) -> Vec<&Node> {
     }
 }
 
-/// The ids of `node`'s (id `id`) children.
-fn child_ids(node: &Node, id: usize) -> Vec<usize> {
-    let mut next = id + 1;
-    children(node)
-        .into_iter()
-        .map(|c| {
-            let this = next;
-            next += size(c);
-            this
-        })
-        .collect()
+impl Status {
+    /// Succeeded or failed.
+    fn of(succeeded: bool) -> Status {
+        if succeeded {
+            Status::Succeeded
+        } else {
+            Status::Failed
+        }
+    }
 }
 
+/// What one tick sees and says.
 struct Ctx {
     flags: u32,
     now: Duration,
@@ -199,12 +207,21 @@ impl Ctx {
     }
 }
 
+/// One tick's walk: the tree's state, borrowed apart from its nodes (which it reads).
+struct Walk<'t> {
+    sizes: &'t [usize],
+    state: &'t mut [NodeState],
+    ended: &'t [(usize, bool)],
+}
+
 impl Tree {
     /// A tree at rest: nothing started.
     pub fn new(root: Node) -> Tree {
-        let n = size(&root);
+        let mut sizes = Vec::new();
+        let n = fill_sizes(&root, &mut sizes);
         Tree {
             root,
+            sizes,
             state: vec![NodeState::default(); n],
             ended: Vec::new(),
         }
@@ -225,8 +242,12 @@ impl Tree {
             starts: Vec::new(),
             wake: None,
         };
-        let root = self.root.clone();
-        let status = self.tick_node(&root, 0, &mut ctx);
+        let mut walk = Walk {
+            sizes: &self.sizes,
+            state: &mut self.state,
+            ended: &self.ended,
+        };
+        let status = walk.tick_node(&self.root, 0, &mut ctx);
         self.ended.clear();
         let mut commands = ctx.halts;
         commands.extend(ctx.starts);
@@ -240,6 +261,21 @@ impl Tree {
             },
         }
     }
+}
+
+impl Walk<'_> {
+    /// The ids of `node`'s (id `id`) children.
+    fn child_ids(&self, node: &Node, id: usize) -> Vec<usize> {
+        let mut next = id + 1;
+        children(node)
+            .into_iter()
+            .map(|_| {
+                let this = next;
+                next += self.sizes[this];
+                this
+            })
+            .collect()
+    }
 
     fn done(&mut self, id: usize, status: Status) -> Status {
         self.state[id].status = Some(status);
@@ -251,40 +287,23 @@ impl Tree {
             return done;
         }
         match node {
-            Node::Condition(mask) => {
-                let holds = ctx.flags & mask == *mask;
-                self.done(
-                    id,
-                    if holds {
-                        Status::Succeeded
-                    } else {
-                        Status::Failed
-                    },
-                )
-            }
+            Node::Condition(mask) => self.done(id, Status::of(ctx.flags & mask == *mask)),
             Node::Action(i) => {
-                let st = &mut self.state[id];
-                if st.running {
-                    match self.ended.iter().find(|(a, _)| a == i) {
-                        Some((_, ok)) => {
-                            self.state[id].running = false;
-                            let s = if *ok {
-                                Status::Succeeded
-                            } else {
-                                Status::Failed
-                            };
-                            self.done(id, s)
-                        }
-                        None => Status::Running,
-                    }
-                } else {
-                    st.running = true;
+                if !self.state[id].running {
+                    self.state[id].running = true;
                     ctx.starts.push(Command::Start(*i));
-                    Status::Running
+                    return Status::Running;
+                }
+                match self.ended.iter().find(|(a, _)| a == i) {
+                    Some(&(_, ok)) => {
+                        self.state[id].running = false;
+                        self.done(id, Status::of(ok))
+                    }
+                    None => Status::Running,
                 }
             }
             Node::Sequence(_) | Node::Fallback(_) | Node::Reactive { .. } => {
-                let ids = child_ids(node, id);
+                let ids = self.child_ids(node, id);
                 let kids = children(node);
                 if let Node::Reactive { while_, .. } = node {
                     if ctx.flags & while_ != *while_ {
@@ -313,7 +332,7 @@ impl Tree {
                 success,
                 failure,
             } => {
-                let ids = child_ids(node, id);
+                let ids = self.child_ids(node, id);
                 let (mut ok, mut failed) = (0, 0);
                 for (k, kid) in kids.iter().enumerate() {
                     match self.tick_node(kid, ids[k], ctx) {
@@ -324,12 +343,7 @@ impl Tree {
                 }
                 if ok >= *success || failed >= *failure {
                     self.halt(node, id, ctx);
-                    let s = if ok >= *success {
-                        Status::Succeeded
-                    } else {
-                        Status::Failed
-                    };
-                    return self.done(id, s);
+                    return self.done(id, Status::of(ok >= *success));
                 }
                 Status::Running
             }
@@ -346,7 +360,7 @@ impl Tree {
                             return Status::Running;
                         }
                         self.state[id].deadline = None;
-                        self.reset(child, kid);
+                        self.reset(kid);
                     }
                     match self.tick_node(child, kid, ctx) {
                         Status::Failed => {
@@ -356,12 +370,8 @@ impl Tree {
                             }
                             self.state[id].deadline = Some(ctx.now + *backoff);
                         }
-                        s => {
-                            if s == Status::Succeeded {
-                                return self.done(id, s);
-                            }
-                            return s;
-                        }
+                        Status::Succeeded => return self.done(id, Status::Succeeded),
+                        Status::Running => return Status::Running,
                     }
                 }
             }
@@ -381,12 +391,12 @@ impl Tree {
                 }
             }
             Node::Recover { child, recovery } => {
-                let ids = child_ids(node, id);
+                let ids = self.child_ids(node, id);
                 if self.state[id].cursor == 0 {
                     match self.tick_node(child, ids[0], ctx) {
                         Status::Failed => self.state[id].cursor = 1,
-                        s if s == Status::Succeeded => return self.done(id, s),
-                        s => return s,
+                        Status::Succeeded => return self.done(id, Status::Succeeded),
+                        Status::Running => return Status::Running,
                     }
                 }
                 match self.tick_node(recovery, ids[1], ctx) {
@@ -407,14 +417,14 @@ impl Tree {
             }
             return;
         }
-        for (kid, kid_id) in children(node).into_iter().zip(child_ids(node, id)) {
+        for (kid, kid_id) in children(node).into_iter().zip(self.child_ids(node, id)) {
             self.halt(kid, kid_id, ctx);
         }
     }
 
     /// Forget `node`'s (id `id`) state and its subtree's, for another attempt.
-    fn reset(&mut self, node: &Node, id: usize) {
-        for st in &mut self.state[id..id + size(node)] {
+    fn reset(&mut self, id: usize) {
+        for st in &mut self.state[id..id + self.sizes[id]] {
             *st = NodeState::default();
         }
     }

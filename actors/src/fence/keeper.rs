@@ -13,15 +13,33 @@
 //! down) is passed over: the rebind goes on, and the stand-in's first command fences as
 //! before. A keeper on a node the failure detector declared down is not asked.
 //!
-//! ```no_run
-//! # async fn demo() -> Result<(), ractor::SpawnErr> {
+//! ```
 //! use marie_actors::fence::{announce, spawn_keeper, Fence, FenceTable};
 //! use std::sync::{Arc, Mutex};
-//! # let receiver: ractor::ActorCell = unimplemented!();
+//! # marie_actors::remote_message! { enum CartMsg { Drive { fence: Fence } } }
+//! # struct Cart;
+//! # impl ractor::Actor for Cart {
+//! #     type Msg = CartMsg;
+//! #     type State = ();
+//! #     type Arguments = ();
+//! #     async fn pre_start(
+//! #         &self,
+//! #         _: ractor::ActorRef<CartMsg>,
+//! #         _: (),
+//! #     ) -> Result<(), ractor::ActorProcessingErr> {
+//! #         Ok(())
+//! #     }
+//! # }
+//! # #[tokio::main]
+//! # async fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! # let (cart, _) = ractor::Actor::spawn(None, Cart, ()).await?;
+//! // the receiver (here a cart) shares its table with a keeper linked to it
 //! let table = Arc::new(Mutex::new(FenceTable::default()));
-//! spawn_keeper(table.clone(), receiver).await?; // linked: it dies with the receiver
+//! spawn_keeper(table.clone(), cart.get_cell()).await?;
+//! // a dispatcher binds wall-follower at epoch 8 and says so before any command
 //! let told = announce(&[Fence::new("wall-follower", 8)]).await;
-//! assert_eq!(told.told, told.keepers);
+//! assert_eq!((told.keepers, told.told), (1, 1));
+//! // the replaced incarnation's next command is refused
 //! assert!(table.lock().unwrap().admit(&Fence::new("wall-follower", 7)).is_err());
 //! # Ok(()) }
 //! ```

@@ -66,6 +66,7 @@ impl ObeyedLog {
             return;
         }
         let ms = at.as_millis() as u64;
+        // looked up before `entry`: no name cloned per command, only per new operation
         let epochs = match self.by_operation.get_mut(&fence.operation) {
             Some(epochs) => epochs,
             None => self
@@ -73,8 +74,9 @@ impl ObeyedLog {
                 .entry(fence.operation.clone())
                 .or_default(),
         };
-        // a fence admits an operation's epochs in rising order: the newest is last
-        if let Some(o) = epochs.iter_mut().rev().find(|o| o.epoch == fence.epoch) {
+        // a fence admits an operation's epochs in rising order: only the newest, last, can
+        // be this one
+        if let Some(o) = epochs.back_mut().filter(|o| o.epoch == fence.epoch) {
             o.commands += 1;
             o.last_clock_ms = o.last_clock_ms.max(ms);
             return;

@@ -250,14 +250,12 @@ impl RunReport {
     /// Keep when operation `operation` was bound at `epoch`, among the latest
     /// [`BOUND_EPOCHS_KEEPS`].
     pub fn record_bound_epoch(&mut self, operation: &str, epoch: u64, clock_ms: u64) {
-        if self.bound_epochs.len() >= BOUND_EPOCHS_KEEPS {
-            self.bound_epochs.remove(0);
-        }
-        self.bound_epochs.push(BoundEpoch {
+        let bound = BoundEpoch {
             operation: operation.to_string(),
             epoch,
             clock_ms,
-        });
+        };
+        keep_last(&mut self.bound_epochs, bound, BOUND_EPOCHS_KEEPS);
     }
 
     /// Count a rebind and keep it among the latest [`REPORT_KEEPS`].
@@ -333,8 +331,13 @@ impl RunReport {
 
 /// Append `item`, dropping the oldest so that at most [`REPORT_KEEPS`] remain.
 fn keep_latest<T>(list: &mut Vec<T>, item: T) {
-    if list.len() >= REPORT_KEEPS {
-        let excess = list.len() + 1 - REPORT_KEEPS;
+    keep_last(list, item, REPORT_KEEPS);
+}
+
+/// Append `item`, dropping the oldest so that at most `keeps` remain.
+fn keep_last<T>(list: &mut Vec<T>, item: T, keeps: usize) {
+    if list.len() >= keeps {
+        let excess = list.len() + 1 - keeps;
         list.drain(..excess);
     }
     list.push(item);
@@ -344,6 +347,16 @@ fn keep_latest<T>(list: &mut Vec<T>, item: T) {
 mod tests {
     use super::*;
     use crate::run::LossCause;
+
+    #[test]
+    fn a_report_keeps_only_the_latest_bound_epochs() {
+        let mut report = RunReport::new("m", Outcome::Succeeded, "");
+        for epoch in 0..(BOUND_EPOCHS_KEEPS as u64 + 5) {
+            report.record_bound_epoch("op", epoch, epoch);
+        }
+        assert_eq!(report.bound_epochs.len(), BOUND_EPOCHS_KEEPS);
+        assert_eq!(report.bound_epochs[0].epoch, 5);
+    }
 
     #[test]
     fn reports_without_the_robot_fields_still_read() {
