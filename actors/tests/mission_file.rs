@@ -823,7 +823,7 @@ fn three_errors_render_one_per_line_with_file_line_column() {
     let expected = format!(
         "{file}:7:11: bit 3 of flag `aligned` is already used by flag `in-corner` (each flag needs its own bit)\n\
          {file}:11:9: unknown flag `wall-fuond` in `action.when` (expected one of: aligned, in-corner)\n\
-         {file}:12:1: unknown key `dedline_s` in `[[action]]` (expected one of: name, when, ends_on, end_mode, deadline_s, ops)"
+         {file}:12:1: unknown key `dedline_s` in `[[action]]` (expected one of: name, when, ends_on, end_mode, deadline_s, ops, retry, timeout_s, on_failure, while, unless)"
     );
     assert_eq!(d.to_string(), expected);
     // Diagnostics is an std error

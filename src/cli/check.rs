@@ -1,14 +1,17 @@
 //! `marie check MISSION`: verify a mission against the instances that would serve it,
 //! without running it — each operation's choice, the source of every flag it waits for,
-//! and the control details it supplies against those left at declared defaults.
+//! the control details it supplies against those left at declared defaults, and, for a
+//! mission with recoveries (`on_failure`), the mission flags each recovery can raise.
 
 use super::args::RobotArgs;
 use super::join::JoinArgs;
 use super::prepare::prepare;
 use marie::actors::dispatcher::survey::Survey;
 use marie::actors::dispatcher::{mission::Mission, survey};
+use marie::actors::run::Choice;
 use marie::cluster::node::NodeError;
 use marie_missions::embedded::EmbeddedError;
+use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -54,8 +57,9 @@ pub(crate) async fn check(args: CheckArgs) -> anyhow::Result<ExitCode> {
     let m = &prepared.mission;
     let surveyed = survey(m).await;
     let world = prepared.robot.as_ref().map(|r| r.world().name.clone());
+    let recoveries = recoveries(m, &surveyed.choices);
     if json {
-        let doc = serde_json::json!({
+        let mut doc = serde_json::json!({
             "ok": true,
             "mission": mission.display().to_string(),
             "name": m.name,
@@ -64,12 +68,82 @@ pub(crate) async fn check(args: CheckArgs) -> anyhow::Result<ExitCode> {
             "world": world,
             "survey": surveyed,
         });
+        if !recoveries.is_empty() {
+            doc["recoveries"] = serde_json::json!(recoveries);
+        }
         println!("{}", serde_json::to_string_pretty(&doc)?);
     } else {
         print_text(&mission, m, world.as_deref(), &surveyed);
+        for r in &recoveries {
+            println!("{}", r.line());
+        }
     }
     prepared.shutdown().await;
     Ok(ExitCode::SUCCESS)
+}
+
+/// A recovery of the mission (`on_failure`) and the mission flags its operations can raise.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
+struct Raisable {
+    /// The action or group that recovers.
+    recovery: String,
+    /// The action or group whose failure it follows.
+    of: String,
+    /// The mission's flags (lowest bit first) that the chosen instances of the operations
+    /// the recovery runs declare they can raise.
+    can_raise: Vec<String>,
+}
+
+impl Raisable {
+    /// Its line in the text output.
+    fn line(&self) -> String {
+        let flags = if self.can_raise.is_empty() {
+            "no flags".to_string()
+        } else {
+            self.can_raise.join(", ")
+        };
+        format!(
+            "recovery `{}` (on failure of `{}`) can raise: {flags}",
+            self.recovery, self.of
+        )
+    }
+}
+
+/// Each recovery of `m` once (one used after several failures is listed for each), with
+/// what its operations can raise as `choices` chose their instances: what a status word
+/// may hold once it ran — the flags a `when` after it could be waiting for.
+fn recoveries(m: &Mission, choices: &[Choice]) -> Vec<Raisable> {
+    let mut out: Vec<Raisable> = Vec::new();
+    for r in &m.control.recoveries {
+        if out.iter().any(|o| o.recovery == r.recovery && o.of == r.of) {
+            continue;
+        }
+        let ops: BTreeSet<&str> = r
+            .actions
+            .iter()
+            .filter_map(|a| m.actions.get(*a))
+            .flat_map(|a| a.ops.iter().map(|o| o.name.as_str()))
+            .collect();
+        let declared: BTreeSet<&str> = choices
+            .iter()
+            .filter(|c| ops.contains(c.operation.as_str()))
+            .filter_map(Choice::chosen)
+            .flat_map(|c| c.flags.iter().map(String::as_str))
+            .collect();
+        let mut flags: Vec<(u8, &str)> = m
+            .flags
+            .iter()
+            .filter(|(name, _)| declared.contains(name.as_str()))
+            .map(|(name, bit)| (*bit, name.as_str()))
+            .collect();
+        flags.sort();
+        out.push(Raisable {
+            recovery: r.recovery.clone(),
+            of: r.of.clone(),
+            can_raise: flags.into_iter().map(|(_, n)| n.to_string()).collect(),
+        });
+    }
+    out
 }
 
 /// The errors of a failed check as JSON: each diagnostic (`path`, `line`, `column`,
@@ -148,4 +222,56 @@ fn print_text(path: &Path, m: &Mission, world: Option<&str>, surveyed: &Survey) 
         "control details: {} supplied by the mission, {} from declared defaults",
         c.supplied, c.defaulted
     );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use marie::actors::dispatcher::mission::{OpInfo, ParsedMission, StaticCatalog};
+    use marie::actors::dispatcher::selection::{choose, Offer};
+    use marie::actors::status::FlagDecl;
+
+    #[test]
+    fn each_recovery_says_which_mission_flags_its_operations_can_raise() {
+        let src = "[mission]\nname = \"m\"\n[flags]\nwall-found = 0\nclear = 1\n\
+                   [[action]]\nname = \"follow-wall\"\non_failure = \"back-off\"\n[action.ops.follower]\n\
+                   [[action]]\nname = \"park\"\non_failure = \"wait\"\n[action.ops.driver]\n\
+                   [[action]]\nname = \"back-off\"\n[action.ops.reverse]\n[action.ops.sensor]\n\
+                   [[action]]\nname = \"wait\"\n[action.ops.idle]\n";
+        let flags = |names: &[&str]| names.iter().map(|n| FlagDecl::new(*n, "")).collect();
+        let ops = [
+            OpInfo::new("follower", 1, "1.0.0"),
+            OpInfo::new("driver", 2, "1.0.0"),
+            // `other` is not a flag of the mission: left out
+            OpInfo::new("reverse", 3, "1.0.0").flags(flags(&["clear", "other"])),
+            OpInfo::new("sensor", 4, "1.0.0").flags(flags(&["wall-found"])),
+            OpInfo::new("idle", 5, "1.0.0"),
+        ];
+        let m = ParsedMission::parse(src, None)
+            .and_then(|p| p.validate(&StaticCatalog::new(ops.clone())))
+            .unwrap_or_else(|d| panic!("{d}"));
+        let choices: Vec<Choice> = m
+            .operation_names()
+            .into_iter()
+            .map(|name| {
+                let offers: Vec<Offer> = ops
+                    .iter()
+                    .filter(|o| o.name == name)
+                    .map(|o| Offer::new("a", "n1", o.clone()))
+                    .collect();
+                choose(&m.need(name), &offers, "n1")
+            })
+            .collect();
+        let lines: Vec<String> = recoveries(&m, &choices)
+            .iter()
+            .map(Raisable::line)
+            .collect();
+        assert_eq!(
+            lines,
+            [
+                "recovery `back-off` (on failure of `follow-wall`) can raise: wall-found, clear",
+                "recovery `wait` (on failure of `park`) can raise: no flags",
+            ]
+        );
+    }
 }

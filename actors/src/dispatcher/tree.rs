@@ -41,23 +41,33 @@
 //! assert_eq!(tree.tick(0, Duration::ZERO).status, Status::Succeeded);
 //! ```
 
+use serde::{Deserialize, Serialize};
 use std::time::Duration;
 
 /// A node of a mission's tree.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum Node {
     /// A leaf: the mission's action of this index.
     Action(usize),
     /// A condition leaf: succeeds when every flag of the mask is set in the status word,
     /// fails otherwise (never runs).
     Condition(u32),
+    /// The thesis' dispatching (3.2.4.1), a mission's root: again and again, the first
+    /// child not yet done whose `when` flags the status word implies runs; succeeds once
+    /// every child is done, fails when one fails or when none can run.
+    Schedule(Vec<Scheduled>),
     /// The children in order; fails at the first that fails, succeeds when all did.
     Sequence(Vec<Node>),
-    /// A sequence whose `while_` flags are re-checked at every tick while a child runs: when
-    /// they no longer all hold, the running child is halted and the sequence fails.
+    /// A sequence whose conditions are re-checked at every tick while a child runs: when
+    /// the `while_` flags no longer all hold, or one of the `unless` flags is set, the
+    /// running child is halted and the sequence fails.
     Reactive {
-        /// Flags that must hold while the sequence runs.
+        /// Flags that must all be set while the sequence runs.
         while_: u32,
+        /// Flags none of which may be set while the sequence runs.
+        #[serde(default)]
+        unless: u32,
         /// The children, in order.
         children: Vec<Node>,
     },
@@ -99,8 +109,18 @@ pub enum Node {
     },
 }
 
+/// A child of a [`Node::Schedule`]: it may start once the status word implies `when`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Scheduled {
+    /// The flags it waits for.
+    pub when: u32,
+    /// The child.
+    pub node: Node,
+}
+
 /// What a node answers a tick.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum Status {
     /// Not done yet.
     Running,
@@ -128,14 +148,70 @@ pub struct Tick {
     pub commands: Vec<Command>,
     /// Tick again at this time at the latest (a backoff or a timeout), if anything waits.
     pub wake: Option<Wake>,
+    /// The control decisions the tick took, in the order it took them.
+    pub decisions: Vec<Decision>,
+}
+
+/// A control decision, for the run's events and `--explain`. Nodes are named by their id
+/// (preorder, the root 0: [`Tree::preorder`]).
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(tag = "decision", rename_all = "snake_case")]
+pub enum Decision {
+    /// A retry starts attempt `attempt` of `of` of its child (after the backoff).
+    Retry {
+        /// The retry node.
+        node: usize,
+        /// This attempt, from 2.
+        attempt: u32,
+        /// Attempts in all.
+        of: u32,
+    },
+    /// A retry gave up: its child failed `of` times.
+    GaveUp {
+        /// The retry node.
+        node: usize,
+        /// Attempts in all.
+        of: u32,
+    },
+    /// A fallback's child failed: the next one (`to`) is tried.
+    Fallback {
+        /// The fallback node.
+        node: usize,
+        /// The child tried next.
+        to: usize,
+    },
+    /// A timeout passed: its child is halted and the node fails.
+    Timeout {
+        /// The timeout node.
+        node: usize,
+        /// Its limit, ms.
+        limit_ms: u64,
+    },
+    /// A reactive sequence's condition no longer holds: its running child is halted.
+    ConditionLost {
+        /// The reactive node.
+        node: usize,
+    },
+    /// A node's child failed: its recovery runs.
+    Recovery {
+        /// The recover node.
+        node: usize,
+    },
+    /// A parallel reached a threshold: the children still running are halted.
+    Decided {
+        /// The parallel node.
+        node: usize,
+        /// Whether it succeeded.
+        succeeded: bool,
+    },
 }
 
 /// When the tree must be ticked again though no leaf ended.
 pub type Wake = Duration;
 
 /// A node's state between ticks.
-#[derive(Clone, Debug, Default)]
-struct NodeState {
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct NodeState {
     status: Option<Status>,
     /// Composite: the child being run; Retry: attempts made; Recover: 1 once recovering.
     cursor: usize,
@@ -172,6 +248,7 @@ fn fill_sizes(node: &Node, sizes: &mut Vec<usize>) -> usize {
 fn children(node: &Node) -> Vec<&Node> {
     match node {
         Node::Action(_) | Node::Condition(_) => Vec::new(),
+        Node::Schedule(c) => c.iter().map(|s| &s.node).collect(),
         Node::Sequence(c) | Node::Fallback(c) => c.iter().collect(),
         Node::Reactive { children, .. } | Node::Parallel { children, .. } => {
             children.iter().collect()
@@ -199,6 +276,7 @@ struct Ctx {
     halts: Vec<Command>,
     starts: Vec<Command>,
     wake: Option<Duration>,
+    decisions: Vec<Decision>,
 }
 
 impl Ctx {
@@ -241,6 +319,7 @@ impl Tree {
             halts: Vec::new(),
             starts: Vec::new(),
             wake: None,
+            decisions: Vec::new(),
         };
         let mut walk = Walk {
             sizes: &self.sizes,
@@ -259,7 +338,84 @@ impl Tree {
             } else {
                 None
             },
+            decisions: ctx.decisions,
         }
+    }
+
+    /// The tree's nodes in preorder: a node's id is its position here.
+    pub fn preorder(&self) -> Vec<&Node> {
+        fn walk<'n>(node: &'n Node, out: &mut Vec<&'n Node>) {
+            out.push(node);
+            for c in children(node) {
+                walk(c, out);
+            }
+        }
+        let mut out = Vec::with_capacity(self.sizes.len());
+        walk(&self.root, &mut out);
+        out
+    }
+
+    /// The root.
+    pub fn root(&self) -> &Node {
+        &self.root
+    }
+
+    /// The ids of the children of node `id`.
+    pub fn child_ids(&self, id: usize) -> Vec<usize> {
+        let nodes = self.preorder();
+        let mut next = id + 1;
+        children(nodes[id])
+            .into_iter()
+            .map(|_| {
+                let this = next;
+                next += self.sizes[this];
+                this
+            })
+            .collect()
+    }
+
+    /// The state of every node, by id (for a checkpoint: [`Tree::restore`]).
+    pub fn state(&self) -> Vec<NodeState> {
+        self.state.clone()
+    }
+
+    /// A tree in the state `state` recorded by [`Tree::state`] of the same root; `None` when
+    /// the state does not fit the tree.
+    pub fn restore(root: Node, state: Vec<NodeState>) -> Option<Tree> {
+        let mut tree = Tree::new(root);
+        if state.len() != tree.state.len() {
+            return None;
+        }
+        tree.state = state;
+        Some(tree)
+    }
+
+    /// For each node, whether it runs now (started, not done), by id: the branch a monitor
+    /// draws as running.
+    pub fn running(&self) -> Vec<bool> {
+        self.state
+            .iter()
+            .map(|s| s.status.is_none() && (s.running || s.cursor > 0 || s.deadline.is_some()))
+            .collect()
+    }
+
+    /// For each node, its status once done, by id.
+    pub fn statuses(&self) -> Vec<Option<Status>> {
+        self.state.iter().map(|s| s.status).collect()
+    }
+
+    /// A root [`Node::Schedule`]'s children not done yet, as (id, the flags each waits
+    /// for): what a stuck mission waits for.
+    pub fn waiting(&self) -> Vec<(usize, u32)> {
+        let Node::Schedule(kids) = &self.root else {
+            return Vec::new();
+        };
+        let ids = self.child_ids(0);
+        kids.iter()
+            .zip(ids)
+            .filter(|(_, id)| self.state[*id].status.is_none())
+            .map(|(k, id)| (id, k.when))
+            .collect()
     }
 }
 
@@ -302,11 +458,38 @@ impl Walk<'_> {
                     None => Status::Running,
                 }
             }
+            Node::Schedule(kids) => {
+                let ids = self.child_ids(node, id);
+                loop {
+                    let at = match self.state[id].cursor {
+                        0 => {
+                            let next = kids.iter().zip(&ids).position(|(k, kid)| {
+                                self.state[*kid].status.is_none() && ctx.flags & k.when == k.when
+                            });
+                            match next {
+                                Some(k) => k,
+                                None => {
+                                    let all = ids.iter().all(|k| self.state[*k].status.is_some());
+                                    return self.done(id, Status::of(all));
+                                }
+                            }
+                        }
+                        c => c - 1,
+                    };
+                    self.state[id].cursor = at + 1;
+                    match self.tick_node(&kids[at].node, ids[at], ctx) {
+                        Status::Running => return Status::Running,
+                        Status::Failed => return self.done(id, Status::Failed),
+                        Status::Succeeded => self.state[id].cursor = 0,
+                    }
+                }
+            }
             Node::Sequence(_) | Node::Fallback(_) | Node::Reactive { .. } => {
                 let ids = self.child_ids(node, id);
                 let kids = children(node);
-                if let Node::Reactive { while_, .. } = node {
-                    if ctx.flags & while_ != *while_ {
+                if let Node::Reactive { while_, unless, .. } = node {
+                    if ctx.flags & while_ != *while_ || ctx.flags & unless != 0 {
+                        ctx.decisions.push(Decision::ConditionLost { node: id });
                         self.halt(node, id, ctx);
                         return self.done(id, Status::Failed);
                     }
@@ -323,7 +506,15 @@ impl Walk<'_> {
                     match self.tick_node(kids[at], ids[at], ctx) {
                         Status::Running => return Status::Running,
                         s if s == stop => return self.done(id, stop),
-                        _ => self.state[id].cursor += 1,
+                        _ => {
+                            self.state[id].cursor += 1;
+                            if matches!(node, Node::Fallback(_)) && at + 1 < kids.len() {
+                                ctx.decisions.push(Decision::Fallback {
+                                    node: id,
+                                    to: ids[at + 1],
+                                });
+                            }
+                        }
                     }
                 }
             }
@@ -342,6 +533,10 @@ impl Walk<'_> {
                     }
                 }
                 if ok >= *success || failed >= *failure {
+                    ctx.decisions.push(Decision::Decided {
+                        node: id,
+                        succeeded: ok >= *success,
+                    });
                     self.halt(node, id, ctx);
                     return self.done(id, Status::of(ok >= *success));
                 }
@@ -361,11 +556,22 @@ impl Walk<'_> {
                         }
                         self.state[id].deadline = None;
                         self.reset(kid);
+                        ctx.decisions.push(Decision::Retry {
+                            node: id,
+                            attempt: self.state[id].cursor as u32 + 1,
+                            of: (*attempts).max(1),
+                        });
                     }
                     match self.tick_node(child, kid, ctx) {
                         Status::Failed => {
                             self.state[id].cursor += 1;
                             if self.state[id].cursor as u32 >= (*attempts).max(1) {
+                                if *attempts > 1 {
+                                    ctx.decisions.push(Decision::GaveUp {
+                                        node: id,
+                                        of: *attempts,
+                                    });
+                                }
                                 return self.done(id, Status::Failed);
                             }
                             self.state[id].deadline = Some(ctx.now + *backoff);
@@ -379,6 +585,10 @@ impl Walk<'_> {
                 let kid = id + 1;
                 let until = *self.state[id].deadline.get_or_insert(ctx.now + *limit);
                 if ctx.now >= until {
+                    ctx.decisions.push(Decision::Timeout {
+                        node: id,
+                        limit_ms: limit.as_millis() as u64,
+                    });
                     self.halt(child, kid, ctx);
                     return self.done(id, Status::Failed);
                 }
@@ -394,7 +604,10 @@ impl Walk<'_> {
                 let ids = self.child_ids(node, id);
                 if self.state[id].cursor == 0 {
                     match self.tick_node(child, ids[0], ctx) {
-                        Status::Failed => self.state[id].cursor = 1,
+                        Status::Failed => {
+                            self.state[id].cursor = 1;
+                            ctx.decisions.push(Decision::Recovery { node: id });
+                        }
                         Status::Succeeded => return self.done(id, Status::Succeeded),
                         Status::Running => return Status::Running,
                     }
@@ -543,6 +756,7 @@ mod tests {
     fn a_reactive_sequence_halts_its_running_child_when_its_condition_no_longer_holds() {
         let mut tree = Tree::new(Node::Reactive {
             while_: 0b1,
+            unless: 0,
             children: vec![Node::Action(0), Node::Action(1)],
         });
         assert_eq!(starts(&tree.tick(0b1, T0)), [0]);
@@ -557,6 +771,7 @@ mod tests {
     fn a_reactive_sequence_never_runs_two_children_at_once() {
         let mut tree = Tree::new(Node::Reactive {
             while_: 0b1,
+            unless: 0,
             children: vec![Node::Action(0), Node::Action(1), Node::Action(2)],
         });
         let mut running = std::collections::BTreeSet::new();

@@ -5,22 +5,35 @@
 //! and the *condition* under which it may run: a set of flags of the 32-bit status word that
 //! must all be set. The dispatcher combines the flags the operations report into that word and
 //! runs the next action whose condition is implied by it; once the `success` flags are all
-//! set the mission has succeeded.
+//! set the mission has succeeded. Control keys and groups (issue 24, "missions that
+//! recover") add retries, timeouts, recoveries, reactive conditions, fallbacks and parallels:
+//! a behaviour tree over the actions ([`Mission::control`]; see
+//! [Control](#control-behaviour-tree-semantics)).
 //!
 //! Checking happens in two stages, and each reports *every* problem it finds, sorted by
 //! position, as `file:line:column: message` ([`Diagnostics`]):
 //!
 //! 1. [`ParsedMission::parse`] — syntax and structure, no knowledge of operations needed: TOML
 //!    syntax; required keys; unknown keys anywhere (with the accepted ones); value types; flag
-//!    bits in `0..=31` and each used once; flag names in `initial`, `success` and `when`
-//!    declared in `[flags]`; unique action names; every action has operations; `ends_on` names
-//!    operations of its action; deadlines positive and finite; parameter values of a TOML type
-//!    that no parameter type holds (datetimes).
+//!    bits in `0..=31` and each used once; flag names in `initial`, `success`, `when`,
+//!    `while` and `unless` declared in `[flags]` (and no flag both in `while` and `unless`);
+//!    action and group names unique among both; every action has operations; `ends_on` names
+//!    operations of its action; deadlines and timeouts positive and finite, backoffs zero or
+//!    more; parameter values of a TOML type that no parameter type holds (datetimes); a retry
+//!    of at least one attempt; a group of a known kind with children; `children` and
+//!    `on_failure` naming actions or groups (with the closest name, or the names there are);
+//!    each item the child of one group at most; no group containing itself, no recovery
+//!    leading back to what it recovers; a reactive group with `while` or `unless`; parallel
+//!    thresholds from 1 to the number of children, and only on a parallel; a tree at most 32
+//!    levels deep and of at most 10 000 nodes.
 //! 2. [`ParsedMission::validate`] — against the operations a [`Catalog`] offers: every
 //!    operation exists; every supplied parameter is declared, writable, of the right type and
 //!    in range ([`ParamDecl::check`](crate::property::ParamDecl::check)); every flag a
-//!    condition or `success` needs is set in `initial` or declared by some operation of the
-//!    mission ([`FlagDecl`](crate::status::FlagDecl)) — a typo or an impossible condition is caught here.
+//!    condition (`when`, `while`) or `success` needs is set in `initial` or declared by some
+//!    operation of the mission ([`FlagDecl`](crate::status::FlagDecl)) — a typo or an
+//!    impossible condition is caught here; no two children of a parallel run one operation;
+//!    in a mission with control keys, no top-level item waits for a flag that only its own
+//!    operations (a group's: those run inside it) raise.
 //!
 //! [`Mission::load`] does both for a file. Nothing here panics on any input.
 //!
@@ -57,6 +70,48 @@
 //! counter = "^1"
 //! ```
 //!
+//! With control keys and groups (all optional; a file without them means what it always
+//! did):
+//!
+//! ```toml
+//! [[action]]
+//! name = "follow-wall"
+//! when = ["wall-found"]      # at the top level, what it waits for; inside a group (or as a
+//!                            #   recovery), a guard: it fails at once unless all are set
+//! retry = { attempts = 3, backoff_s = 2.0 }
+//!                            # attempts in all, the first included (at least 1), and the
+//!                            #   wait between a failure and the next attempt (default 0)
+//! timeout_s = 40.0           # halted, and failed, once it has run this long (> 0)
+//! on_failure = "back-off"    # an action or group run after each failure, before a retry
+//! while = ["wall-found"]     # flags that must all stay set while it runs
+//! unless = ["obstacle"]      # flags none of which may become set while it runs
+//! [action.ops.wall-follower]
+//!
+//! [[action]]
+//! name = "back-off"          # a recovery: it runs after a failure, not scheduled itself
+//! [action.ops.reverse]
+//!
+//! [[group]]                  # a construct over actions and groups
+//! name = "look"              # required, unique among actions and groups
+//! kind = "parallel"          # required: "sequence", "fallback", "parallel" or "reactive"
+//! children = ["sonar", "camera"]
+//!                            # required: actions and groups, in order, each the child of
+//!                            #   one group at most (a child is not scheduled itself)
+//! success = 1                # "parallel" only: how many must succeed (default: all)
+//! failure = 2                # "parallel" only: how many failing make it fail (default 1)
+//! # when, retry, timeout_s, on_failure, while, unless: as for an action. A "reactive" group
+//! # is a sequence whose own `while`/`unless` (one at least) hold while any child runs.
+//! ```
+//!
+//! The tree ([`Mission::control`]): at its root the thesis' schedule of every item (action
+//! or group) that is neither a child of a group nor any item's `on_failure`, in file order,
+//! each waiting for its `when`. An item is, from the inside out: the action, or the group's
+//! construct over its children's trees; a reactive sequence of it alone for its
+//! `while`/`unless` (not for a reactive group, whose own they are); its timeout; its
+//! recovery; its retry; and, below the top level, the guard of its `when`. So a retry's
+//! every attempt has its own timeout, and its recovery runs between a failure and the next
+//! attempt. A recovery named by several items is in the tree once for each.
+//!
 //! Where several instances of an operation run, the dispatcher chooses one by their
 //! properties ([`selection`](super::selection)): the schema that takes what the mission
 //! supplies most exactly, a version `[requires]` accepts, one not in use, on its own node,
@@ -72,6 +127,114 @@
 //! operation's declared defaults. Supplied values are canonicalized (an integer given for a
 //! float parameter becomes a float). Flags an operation declares but `[flags]` does not name
 //! are allowed; the dispatcher ignores them.
+//!
+//! # Control: behaviour-tree semantics
+//!
+//! The tree is ticked whenever something changes — an action ended, the status word
+//! changed, a timeout or a backoff is due — and each node answers *running*, *succeeded* or
+//! *failed* ([`tree`](super::tree), the pure machine that runs it). A node that succeeded or
+//! failed stays so (until a retry above it starts a new attempt).
+//!
+//! | construct | written as | status | BehaviorTree.CPP v4 |
+//! |---|---|---|---|
+//! | action | `[[action]]` | running once started, until it ends: succeeded when its `ends_on` operations finished; failed when one failed or its `deadline_s` passed | an action node |
+//! | sequence | `kind = "sequence"` | its children one after another; failed at the first that fails (the rest never start); succeeded when all did | `Sequence` |
+//! | fallback | `kind = "fallback"` | its children one after another until one succeeds (then succeeded); failed when all failed | `Fallback` |
+//! | parallel | `kind = "parallel"` | every child at once; succeeded once `success` of them succeeded, failed once `failure` failed; the children still running are halted then | `Parallel` (`success_count`, `failure_count`) |
+//! | reactive | `kind = "reactive"`; `while`/`unless` on any item | a sequence whose conditions are re-checked at every tick while a child runs: once a `while` flag is cleared or an `unless` flag set, the running child is halted and it fails; a condition that does not hold at the start fails it at once | `ReactiveSequence` with a condition first |
+//! | timeout | `timeout_s` | as its child, until it has run `timeout_s`: then the child is halted and it fails | `Timeout` |
+//! | recovery | `on_failure` | as its child when it succeeds; when it fails, the recovery runs, and then it fails, whatever the recovery did | Nav2's `RecoveryNode`, split in two (below) |
+//! | retry | `retry` | its child again after a failure, `attempts` in all; succeeded at the first success, failed when the last attempt failed | `RetryUntilSuccessful` |
+//! | guard | `when` below the top level | failed at once when the flags are not all set; else as the item | a `Sequence` of a condition and the item |
+//! | schedule | the top level | the thesis' dispatching: again and again, the first item not yet done whose `when` the status word implies runs, one at a time; failed at the first failure, or when nothing can run | — |
+//!
+//! **Halting.** Halting a node halts every action running under it: the action's
+//! operations are suspended, and the dispatcher waits for their reports — bounded by its
+//! suspension grace, 5 s — before it starts any other action. The halts a tick decides come
+//! before its starts, so no two actions of a sequence ever run at once, not even while one
+//! is being halted.
+//!
+//! **Retries.** `attempts` counts every attempt, the first included: `attempts = 3` runs the
+//! item at most three times, and `attempts = 1` is the item alone. After a failure its
+//! recovery (`on_failure`) runs — after every failed attempt, the last one too — then
+//! `backoff_s` passes, then the next attempt starts afresh (every node below at rest again,
+//! its timeout restarted). A recovery that fails does not stop the retry.
+//!
+//! **Where marie differs, and why.**
+//! - *Conditions are flags of the status word*, re-checked at every tick — not condition
+//!   nodes running code. The operations report them anyway, so checking costs nothing and
+//!   has no side effect, and a file can be checked before it runs (every flag declared,
+//!   raised by some operation or set initially).
+//! - *The thesis' schedule is at the root*, where BehaviorTree.CPP has one tree ticked from
+//!   the top: a mission without control keys is exactly the thesis' ([`Control::thesis`])
+//!   and runs as it always did, and `when` keeps its meaning at the top level.
+//! - *A halt completes before anything else starts.* BehaviorTree.CPP halts a node by a
+//!   synchronous call in the process; marie's actions are operations on other nodes, whose
+//!   suspension takes messages, so the dispatcher waits for them (within the grace) rather
+//!   than let two actions drive the robot at once.
+//! - *A recovery is not a retry.* Nav2's `RecoveryNode` retries its first child after its
+//!   second succeeds and fails when the recovery fails; marie's `on_failure` runs the
+//!   recovery and fails, and `retry` (the same key as everywhere) does the trying again —
+//!   a recovery without a retry runs once, and a failed recovery still leads to the next
+//!   attempt.
+//! - *A retry waits* `backoff_s` between attempts, where `RetryUntilSuccessful` retries at
+//!   once: a robot's retry usually needs the world to change.
+//! - *The children of a parallel may not share an operation* (checked): an operation serves
+//!   one action at a time.
+//!
+//! ```
+//! use marie_actors::dispatcher::mission::{OpInfo, ParsedMission, StaticCatalog};
+//! use marie_actors::dispatcher::tree::Node;
+//! use marie_actors::status::FlagDecl;
+//! use std::time::Duration;
+//!
+//! let src = r#"
+//! [mission]
+//! name = "find"
+//! success = ["wall-found"]
+//! [flags]
+//! wall-found = 0
+//!
+//! [[action]]
+//! name = "find-wall"
+//! retry = { attempts = 3, backoff_s = 2.0 }
+//! on_failure = "back-off"
+//! [action.ops.wall-sensor]
+//!
+//! [[action]]
+//! name = "back-off"
+//! [action.ops.reverse]
+//! "#;
+//! let catalog = StaticCatalog::new([
+//!     OpInfo::new("wall-sensor", 1512, "1.0.0")
+//!         .flags(vec![FlagDecl::new("wall-found", "a wall is in range")]),
+//!     OpInfo::new("reverse", 1601, "1.0.0"),
+//! ]);
+//! let mission = ParsedMission::parse(src, None)?.validate(&catalog)?;
+//! let Node::Schedule(top) = &mission.control.root else { panic!("a schedule") };
+//! assert_eq!(top.len(), 1); // back-off runs only as find-wall's recovery
+//! assert_eq!(
+//!     top[0].node,
+//!     Node::Retry {
+//!         child: Box::new(Node::Recover {
+//!             child: Box::new(Node::Action(0)),
+//!             recovery: Box::new(Node::Action(1)),
+//!         }),
+//!         attempts: 3,
+//!         backoff: Duration::from_secs(2),
+//!     }
+//! );
+//! assert_eq!(mission.control.label(1), "retry(find-wall)");
+//!
+//! // a recovery that leads back to what it recovers is refused where it is named
+//! let bad = src.replace("on_failure = \"back-off\"", "on_failure = \"find-wall\"");
+//! let err = ParsedMission::parse(&bad, None).unwrap_err();
+//! assert_eq!(
+//!     err.to_string(),
+//!     "<mission>:11:14: action `find-wall` names itself in `on_failure` (a recovery cannot be what it recovers)"
+//! );
+//! # Ok::<(), marie_actors::dispatcher::mission::Diagnostics>(())
+//! ```
 //!
 //! # Example
 //!
@@ -141,13 +304,16 @@
 //! ```
 
 mod builder;
+mod control;
 pub(crate) mod op_info;
 pub(crate) mod operations;
 mod raw;
+mod structure;
 mod validate;
 
 pub use crate::diagnostic::{Diagnostic, Diagnostics, LineIndex, Pos};
 pub use builder::{ActionBuilder, MissionBuilder, BUILT};
+pub use control::{Control, Recovery};
 pub use op_info::OpInfo;
 pub use operations::{Catalog, StaticCatalog};
 
@@ -248,6 +414,9 @@ pub struct Mission {
     pub rebind_deadline: Duration,
     /// The actions, in file order.
     pub actions: Vec<Action>,
+    /// How the actions are controlled: the thesis' schedule ([`Control::thesis`]) unless
+    /// the file says otherwise.
+    pub control: Control,
     /// The world file the mission names (`world = "..."` in `[mission]`), resolved against the
     /// mission file's directory; `None` when it names none. Just a path: this crate never
     /// reads it.
@@ -405,6 +574,10 @@ pub struct ParsedMission {
     /// Where the file names the world.
     pub(crate) world_at: Option<Pos>,
     pub(crate) actions: Vec<raw::ParsedAction>,
+    /// The `[[group]]`s, in file order.
+    pub(crate) groups: Vec<raw::ParsedGroup>,
+    /// Every action and group, in file order.
+    pub(crate) items: Vec<raw::Item>,
     /// `[requires]`: version requirements by operation key, where written.
     pub(crate) requires: Vec<(String, semver::VersionReq, Pos)>,
 }
@@ -513,6 +686,9 @@ impl ParsedMission {
             .filter(move |k| seen.insert(*k))
     }
 }
+
+#[cfg(test)]
+mod control_tests;
 
 /// How a mission's source is named in diagnostics.
 pub(crate) fn display_path(path: Option<&Path>) -> String {

@@ -8,7 +8,7 @@
 
 use super::{EndMode, ParsedMission};
 use crate::diagnostic::toml::{quote, Reader, Tbl};
-use crate::diagnostic::{Diagnostics, Pos};
+use crate::diagnostic::{Diagnostic, Diagnostics, Pos};
 use crate::property::Value;
 use std::collections::{BTreeMap, BTreeSet};
 use std::ops::Range;
@@ -26,7 +26,7 @@ pub(crate) const MAX_SECONDS: f64 = 86_400.0;
 /// Deadline of an action that gives no `deadline_s`.
 pub(crate) const DEFAULT_ACTION_DEADLINE: Duration = Duration::from_secs(30);
 
-const TOP_KEYS: &[&str] = &["mission", "flags", "action", "requires"];
+const TOP_KEYS: &[&str] = &["mission", "flags", "action", "requires", "group"];
 const MISSION_KEYS: &[&str] = &[
     "name",
     "description",
@@ -36,7 +36,33 @@ const MISSION_KEYS: &[&str] = &[
     "rebind_deadline_s",
     "world",
 ];
-const ACTION_KEYS: &[&str] = &["name", "when", "ends_on", "end_mode", "deadline_s", "ops"];
+const ACTION_KEYS: &[&str] = &[
+    "name",
+    "when",
+    "ends_on",
+    "end_mode",
+    "deadline_s",
+    "ops",
+    "retry",
+    "timeout_s",
+    "on_failure",
+    "while",
+    "unless",
+];
+const GROUP_KEYS: &[&str] = &[
+    "name",
+    "kind",
+    "children",
+    "when",
+    "retry",
+    "timeout_s",
+    "on_failure",
+    "while",
+    "unless",
+    "success",
+    "failure",
+];
+const RETRY_KEYS: &[&str] = &["attempts", "backoff_s"];
 
 /// A flag named in `initial`, `success` or `when`, resolved to its bit.
 #[derive(Clone, Debug)]
@@ -71,11 +97,121 @@ pub(crate) struct ParsedOp {
 #[derive(Clone, Debug)]
 pub(crate) struct ParsedAction {
     pub(crate) name: String,
+    /// Where its name is written.
+    pub(crate) at: Pos,
     pub(crate) when: Vec<FlagRef>,
     pub(crate) ops: Vec<ParsedOp>,
     pub(crate) ends_on: Vec<String>,
     pub(crate) end_mode: EndMode,
     pub(crate) deadline: Duration,
+    pub(crate) control: ParsedControl,
+}
+
+/// An action or a group of a mission, by its index among the mission's actions or groups.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub(crate) enum Item {
+    /// `actions[i]`.
+    Action(usize),
+    /// `groups[i]`.
+    Group(usize),
+}
+
+/// A name in `children` or `on_failure`, resolved to the item it names.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct ItemRef {
+    pub(crate) item: Item,
+    /// Where the name is written.
+    pub(crate) at: Pos,
+}
+
+/// `retry = { attempts = 3, backoff_s = 2.0 }`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Retry {
+    /// Attempts in all, the first included (at least 1).
+    pub(crate) attempts: u32,
+    /// Time between a failure and the next attempt.
+    pub(crate) backoff: Duration,
+}
+
+/// The control keys of an `[[action]]` or a `[[group]]`.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct ParsedControl {
+    pub(crate) retry: Option<Retry>,
+    pub(crate) timeout: Option<Duration>,
+    pub(crate) on_failure: Option<ItemRef>,
+    /// `while`: flags that must all stay set while it runs.
+    pub(crate) while_: Vec<FlagRef>,
+    /// `unless`: flags none of which may become set while it runs.
+    pub(crate) unless: Vec<FlagRef>,
+}
+
+impl ParsedControl {
+    /// True when it has reactive conditions (`while` or `unless`).
+    pub(crate) fn reactive(&self) -> bool {
+        !(self.while_.is_empty() && self.unless.is_empty())
+    }
+
+    /// True when no control key is given.
+    pub(crate) fn is_empty(&self) -> bool {
+        self.retry.is_none()
+            && self.timeout.is_none()
+            && self.on_failure.is_none()
+            && self.while_.is_empty()
+            && self.unless.is_empty()
+    }
+}
+
+/// What a `[[group]]` does with its children (`kind`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum GroupKind {
+    /// In order; fails at the first failure.
+    Sequence,
+    /// In order until one succeeds.
+    Fallback,
+    /// All at once, with thresholds.
+    Parallel,
+    /// A sequence whose `while`/`unless` are re-checked while a child runs.
+    Reactive,
+}
+
+impl GroupKind {
+    const NAMES: &'static str = "\"sequence\", \"fallback\", \"parallel\" or \"reactive\"";
+
+    fn parse(word: &str) -> Option<GroupKind> {
+        match word {
+            "sequence" => Some(GroupKind::Sequence),
+            "fallback" => Some(GroupKind::Fallback),
+            "parallel" => Some(GroupKind::Parallel),
+            "reactive" => Some(GroupKind::Reactive),
+            _ => None,
+        }
+    }
+
+    /// The kind as the file writes it.
+    pub(crate) fn word(self) -> &'static str {
+        match self {
+            GroupKind::Sequence => "sequence",
+            GroupKind::Fallback => "fallback",
+            GroupKind::Parallel => "parallel",
+            GroupKind::Reactive => "reactive",
+        }
+    }
+}
+
+/// One `[[group]]`, structurally sound.
+#[derive(Clone, Debug)]
+pub(crate) struct ParsedGroup {
+    pub(crate) name: String,
+    /// Where its name is written.
+    pub(crate) at: Pos,
+    pub(crate) kind: GroupKind,
+    pub(crate) children: Vec<ItemRef>,
+    pub(crate) when: Vec<FlagRef>,
+    pub(crate) control: ParsedControl,
+    /// Parallel: how many children must succeed (default: all).
+    pub(crate) success: usize,
+    /// Parallel: how many failures make it fail (default 1).
+    pub(crate) failure: usize,
 }
 
 /// The `[mission]` table.
@@ -93,12 +229,92 @@ struct RawHeader {
 
 /// One `[[action]]` table, fields typed but not cross-checked.
 struct RawAction {
+    /// The table (for its place in the file).
+    at: Span,
     name: Option<Spanned<String>>,
     when: Vec<Spanned<String>>,
     ends_on: Option<Spanned<Vec<Spanned<String>>>>,
     end_mode: EndMode,
     deadline: Duration,
     ops: Vec<ParsedOp>,
+    control: RawControl,
+}
+
+/// The control keys of an `[[action]]` or a `[[group]]`, typed but not cross-checked.
+#[derive(Default)]
+struct RawControl {
+    retry: Option<Retry>,
+    timeout: Option<Duration>,
+    on_failure: Option<Spanned<String>>,
+    while_: Vec<Spanned<String>>,
+    unless: Vec<Spanned<String>>,
+}
+
+/// One `[[group]]` table, fields typed but not cross-checked.
+struct RawGroup {
+    /// The table (for its place in the file, and missing keys).
+    at: Span,
+    name: Option<Spanned<String>>,
+    /// `None` when missing or unknown (reported).
+    kind: Option<Spanned<GroupKind>>,
+    children: Vec<Spanned<String>>,
+    when: Vec<Spanned<String>>,
+    control: RawControl,
+    success: Option<usize>,
+    failure: Option<usize>,
+}
+
+/// Whose keys are read: an action's or a group's (for field names in messages).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Owner {
+    Action,
+    Group,
+}
+
+/// The names messages give the control keys of an action or a group (`action.while`).
+struct Fields {
+    when: &'static str,
+    while_: &'static str,
+    unless: &'static str,
+    on_failure: &'static str,
+    timeout: &'static str,
+    retry: &'static str,
+    attempts: &'static str,
+    backoff: &'static str,
+}
+
+impl Owner {
+    fn word(self) -> &'static str {
+        match self {
+            Owner::Action => "action",
+            Owner::Group => "group",
+        }
+    }
+
+    fn fields(self) -> &'static Fields {
+        match self {
+            Owner::Action => &Fields {
+                when: "action.when",
+                while_: "action.while",
+                unless: "action.unless",
+                on_failure: "action.on_failure",
+                timeout: "action.timeout_s",
+                retry: "action.retry",
+                attempts: "action.retry.attempts",
+                backoff: "action.retry.backoff_s",
+            },
+            Owner::Group => &Fields {
+                when: "group.when",
+                while_: "group.while",
+                unless: "group.unless",
+                on_failure: "group.on_failure",
+                timeout: "group.timeout_s",
+                retry: "group.retry",
+                attempts: "group.retry.attempts",
+                backoff: "group.retry.backoff_s",
+            },
+        }
+    }
 }
 
 /// Where problems go while walking the document: the shared TOML reader.
@@ -178,6 +394,10 @@ pub(crate) fn parse(src: &str, path: Option<&Path>) -> Result<ParsedMission, Dia
         }
         Some(v) => raw_actions(&mut ctx, v),
     };
+    let groups = match doc.get("group") {
+        None => Vec::new(),
+        Some(v) => raw_groups(&mut ctx, v),
+    };
     let requires = match doc.get("requires") {
         None => Vec::new(),
         Some(v) => match v.get_ref() {
@@ -195,8 +415,12 @@ pub(crate) fn parse(src: &str, path: Option<&Path>) -> Result<ParsedMission, Dia
             }
         },
     };
-    let mut mission = check(&mut ctx, path, header, flags, actions);
+    let mut mission = check(&mut ctx, path, header, flags, actions, groups);
     mission.requires = requires;
+    if !ctx.has_errors() {
+        // how actions and groups name each other: only once every name is known
+        super::structure::check(&mut ctx, &mission);
+    }
     Diagnostics(ctx.into_diagnostics()).into_result(mission)
 }
 
@@ -334,6 +558,16 @@ fn float(ctx: &mut Ctx<'_>, v: &Spanned<DeValue<'_>>) -> Option<f64> {
 }
 
 fn seconds(ctx: &mut Ctx<'_>, v: &Spanned<DeValue<'_>>, field: &str) -> Option<Duration> {
+    seconds_from(ctx, v, field, false)
+}
+
+/// A number of seconds, at most a day: positive, or, with `zero`, positive or zero.
+fn seconds_from(
+    ctx: &mut Ctx<'_>,
+    v: &Spanned<DeValue<'_>>,
+    field: &str,
+    zero: bool,
+) -> Option<Duration> {
     let x = match v.get_ref() {
         DeValue::Integer(_) => integer(ctx, v)? as f64,
         DeValue::Float(_) => float(ctx, v)?,
@@ -349,10 +583,12 @@ fn seconds(ctx: &mut Ctx<'_>, v: &Spanned<DeValue<'_>>, field: &str) -> Option<D
         }
     };
     let shown = ctx.src().get(v.span()).unwrap_or_default().to_string();
-    if !(x.is_finite() && x > 0.0) {
+    let in_range = if zero { x >= 0.0 } else { x > 0.0 };
+    if !(x.is_finite() && in_range) {
+        let what = if zero { "non-negative" } else { "positive" };
         ctx.err(
             &v.span(),
-            format!("`{field}` must be a positive, finite number of seconds, found {shown}"),
+            format!("`{field}` must be a {what}, finite number of seconds, found {shown}"),
         );
         return None;
     }
@@ -364,7 +600,7 @@ fn seconds(ctx: &mut Ctx<'_>, v: &Spanned<DeValue<'_>>, field: &str) -> Option<D
         return None;
     }
     match Duration::try_from_secs_f64(x) {
-        Ok(d) if !d.is_zero() => Some(d),
+        Ok(d) if zero || !d.is_zero() => Some(d),
         Ok(_) => {
             ctx.err(
                 &v.span(),
@@ -500,6 +736,7 @@ fn raw_actions(ctx: &mut Ctx<'_>, v: &Spanned<DeValue<'_>>) -> Vec<RawAction> {
 
 fn raw_action(ctx: &mut Ctx<'_>, t: &DeTable<'_>, at: Span) -> RawAction {
     unknown_keys(ctx, t, ACTION_KEYS, "`[[action]]`");
+    let control = raw_control(ctx, t, Owner::Action);
     let name = match t.get("name") {
         None => {
             ctx.err(
@@ -572,12 +809,300 @@ fn raw_action(ctx: &mut Ctx<'_>, t: &DeTable<'_>, at: Span) -> RawAction {
         },
     };
     RawAction {
+        at,
         name,
         when,
         ends_on,
         end_mode,
         deadline,
         ops,
+        control,
+    }
+}
+
+/// The control keys of an action or a group: `retry`, `timeout_s`, `on_failure`, `while`,
+/// `unless`.
+fn raw_control(ctx: &mut Ctx<'_>, t: &DeTable<'_>, owner: Owner) -> RawControl {
+    let mut c = RawControl::default();
+    if let Some(v) = t.get("retry") {
+        c.retry = raw_retry(ctx, v, owner);
+    }
+    if let Some(v) = t.get("timeout_s") {
+        c.timeout = seconds(ctx, v, owner.fields().timeout);
+    }
+    if let Some(v) = t.get("on_failure") {
+        c.on_failure = non_empty_string(ctx, v, owner.fields().on_failure);
+    }
+    if let Some(v) = t.get("while") {
+        c.while_ = string_list(ctx, v, owner.fields().while_).unwrap_or_default();
+    }
+    if let Some(v) = t.get("unless") {
+        c.unless = string_list(ctx, v, owner.fields().unless).unwrap_or_default();
+    }
+    c
+}
+
+/// `retry = { attempts = 3, backoff_s = 2.0 }`.
+fn raw_retry(ctx: &mut Ctx<'_>, v: &Spanned<DeValue<'_>>, owner: Owner) -> Option<Retry> {
+    let field = owner.fields().retry;
+    let DeValue::Table(t) = v.get_ref() else {
+        ctx.err(
+            &v.span(),
+            format!(
+                "expected a table for `{field}` (e.g. retry = {{ attempts = 3, backoff_s = 2.0 }}), found {}",
+                v.get_ref().type_str()
+            ),
+        );
+        return None;
+    };
+    unknown_keys(ctx, t, RETRY_KEYS, &format!("`{field}`"));
+    let backoff = match t.get("backoff_s") {
+        None => Some(Duration::ZERO),
+        Some(b) => seconds_from(ctx, b, owner.fields().backoff, true),
+    };
+    let Some(a) = t.get("attempts") else {
+        ctx.err(
+            &v.span(),
+            format!(
+                "missing key `attempts` in `{field}` (expected the attempts in all, the first included: an integer of at least 1)"
+            ),
+        );
+        return None;
+    };
+    let attempts_field = owner.fields().attempts;
+    let DeValue::Integer(_) = a.get_ref() else {
+        ctx.err(
+            &a.span(),
+            format!(
+                "expected an integer for `{attempts_field}`, found {}",
+                a.get_ref().type_str()
+            ),
+        );
+        return None;
+    };
+    let n = integer(ctx, a)?;
+    let shown = ctx.src().get(a.span()).unwrap_or_default().to_string();
+    let attempts = match u32::try_from(n) {
+        Ok(0) => {
+            ctx.err(
+                &a.span(),
+                format!(
+                    "a retry of 0 attempts never runs the {} (`attempts` counts every attempt, the first included: expected at least 1)",
+                    owner.word()
+                ),
+            );
+            return None;
+        }
+        Ok(n) => n,
+        Err(_) if n < 0 => {
+            ctx.err(
+                &a.span(),
+                format!("`{attempts_field}` must be an integer of at least 1, found {shown}"),
+            );
+            return None;
+        }
+        Err(_) => {
+            ctx.err(
+                &a.span(),
+                format!(
+                    "`{attempts_field}` = {shown} is too large (expected at most {})",
+                    u32::MAX
+                ),
+            );
+            return None;
+        }
+    };
+    Some(Retry {
+        attempts,
+        backoff: backoff?,
+    })
+}
+
+fn raw_groups(ctx: &mut Ctx<'_>, v: &Spanned<DeValue<'_>>) -> Vec<RawGroup> {
+    let DeValue::Array(items) = v.get_ref() else {
+        ctx.err(
+            &v.span(),
+            format!(
+                "expected an array of tables `[[group]]` for `group`, found {}",
+                v.get_ref().type_str()
+            ),
+        );
+        return Vec::new();
+    };
+    let mut out = Vec::new();
+    for item in items.iter() {
+        match item.get_ref() {
+            DeValue::Table(t) => out.push(raw_group(ctx, t, item.span())),
+            other => ctx.err(
+                &item.span(),
+                format!(
+                    "expected a table `[[group]]` for each group, found {}",
+                    other.type_str()
+                ),
+            ),
+        }
+    }
+    out
+}
+
+fn raw_group(ctx: &mut Ctx<'_>, t: &DeTable<'_>, at: Span) -> RawGroup {
+    let owner = Owner::Group;
+    unknown_keys(ctx, t, GROUP_KEYS, "`[[group]]`");
+    let name = match t.get("name") {
+        None => {
+            ctx.err(
+                &at,
+                "missing key `name` in `[[group]]` (expected a name for the group, unique among actions and groups, a string)",
+            );
+            None
+        }
+        Some(v) => non_empty_string(ctx, v, "group.name"),
+    };
+    let label = name
+        .as_ref()
+        .map_or_else(|| "without a name".to_string(), |n| q(n.get_ref()));
+    let kind = match t.get("kind") {
+        None => {
+            ctx.err(
+                &at,
+                format!(
+                    "missing key `kind` in group {label} (expected {})",
+                    GroupKind::NAMES
+                ),
+            );
+            None
+        }
+        Some(v) => match v.get_ref() {
+            DeValue::String(s) => match GroupKind::parse(s) {
+                Some(k) => Some(Spanned::new(v.span(), k)),
+                None => {
+                    ctx.err(
+                        &v.span(),
+                        format!(
+                            "unknown group kind \"{}\" (expected {})",
+                            s.escape_debug(),
+                            GroupKind::NAMES
+                        ),
+                    );
+                    None
+                }
+            },
+            other => {
+                ctx.err(
+                    &v.span(),
+                    format!(
+                        "expected a string for `group.kind` ({}), found {}",
+                        GroupKind::NAMES,
+                        other.type_str()
+                    ),
+                );
+                None
+            }
+        },
+    };
+    let kind_word = kind.as_ref().map_or("group", |k| k.get_ref().word());
+    let children = match t.get("children") {
+        None => {
+            ctx.err(
+                &at,
+                format!(
+                    "missing key `children` in group {label} (expected the names of the actions and groups it runs, in order)"
+                ),
+            );
+            Vec::new()
+        }
+        Some(v) => {
+            let children = string_list(ctx, v, "group.children");
+            if children.as_ref().is_some_and(Vec::is_empty) {
+                ctx.err(
+                    &v.span(),
+                    format!(
+                        "a {kind_word} with no child: group {label} names no action or group in `children`"
+                    ),
+                );
+            }
+            children.unwrap_or_default()
+        }
+    };
+    let when = t
+        .get("when")
+        .and_then(|v| string_list(ctx, v, owner.fields().when))
+        .unwrap_or_default();
+    let control = raw_control(ctx, t, owner);
+    if let Some(k) = &kind {
+        if *k.get_ref() == GroupKind::Reactive
+            && control.while_.is_empty()
+            && control.unless.is_empty()
+        {
+            ctx.err(
+                &k.span(),
+                format!(
+                    "reactive group {label} has neither `while` nor `unless` (a reactive group re-checks them while its children run: give at least one)"
+                ),
+            );
+        }
+    }
+    let mut threshold = |key: &str, what: &str| -> Option<usize> {
+        let (k, v) = t.get_key_value(key)?;
+        match kind.as_ref().map(|k| *k.get_ref()) {
+            Some(GroupKind::Parallel) | None => {}
+            Some(other) => {
+                ctx.err(
+                    &k.span(),
+                    format!(
+                        "`{key}` applies to a parallel group only (group {label} is a {})",
+                        other.word()
+                    ),
+                );
+                return None;
+            }
+        }
+        let DeValue::Integer(_) = v.get_ref() else {
+            ctx.err(
+                &v.span(),
+                format!(
+                    "expected an integer for `group.{key}`, found {}",
+                    v.get_ref().type_str()
+                ),
+            );
+            return None;
+        };
+        let x = integer(ctx, v)?;
+        let n = children.len();
+        if n == 0 {
+            return None; // "no child" is reported already
+        }
+        match usize::try_from(x).ok().filter(|x| (1..=n).contains(x)) {
+            Some(x) => Some(x),
+            None => {
+                let shown = ctx.src().get(v.span()).unwrap_or_default().to_string();
+                let expected = if n == 1 {
+                    "1".to_string()
+                } else {
+                    format!("1 to {n}")
+                };
+                ctx.err(
+                    &v.span(),
+                    format!(
+                        "`{key}` = {shown} of parallel {label} is out of range (expected {expected}: how many of its {n} {} {what})",
+                        if n == 1 { "child" } else { "children" }
+                    ),
+                );
+                None
+            }
+        }
+    };
+    let success = threshold("success", "must succeed");
+    let failure = threshold("failure", "failing make it fail");
+    RawGroup {
+        at,
+        name,
+        kind,
+        children,
+        when,
+        control,
+        success,
+        failure,
     }
 }
 
@@ -725,6 +1250,7 @@ fn check(
     header: RawHeader,
     raw_flags: Vec<RawFlag>,
     raw_actions: Vec<RawAction>,
+    raw_groups: Vec<RawGroup>,
 ) -> ParsedMission {
     let mut flags = BTreeMap::new();
     let mut owner: BTreeMap<u8, String> = BTreeMap::new();
@@ -747,25 +1273,66 @@ fn check(
     let initial = flag_refs(ctx, &header.initial, &flags, &declared, "mission.initial");
     let success = flag_refs(ctx, &header.success, &flags, &declared, "mission.success");
 
-    let mut actions = Vec::new();
+    // actions and groups share one name space; in file order, so that a duplicate is
+    // reported where it is written again
+    let mut items: Vec<(usize, Item)> = raw_actions
+        .iter()
+        .enumerate()
+        .map(|(i, a)| (a.at.start, Item::Action(i)))
+        .chain(
+            raw_groups
+                .iter()
+                .enumerate()
+                .map(|(i, g)| (g.at.start, Item::Group(i))),
+        )
+        .collect();
+    items.sort();
+    let items: Vec<Item> = items.into_iter().map(|(_, item)| item).collect();
+    let mut names: BTreeMap<String, Item> = BTreeMap::new();
     let mut first_use: BTreeMap<String, Pos> = BTreeMap::new();
-    for raw in raw_actions {
-        let name = raw.name.map(|n| {
-            let at = ctx.pos(&n.span());
-            match first_use.get(n.get_ref()) {
-                Some(first) => {
-                    let msg = format!(
-                        "duplicate action name {} (first used at {first}; action names must be unique)",
-                        q(n.get_ref())
-                    );
-                    ctx.err(&n.span(), msg);
-                }
-                None => {
-                    first_use.insert(n.get_ref().clone(), at);
-                }
+    for item in &items {
+        let name = match item {
+            Item::Action(i) => raw_actions[*i].name.as_ref(),
+            Item::Group(i) => raw_groups[*i].name.as_ref(),
+        };
+        let Some(n) = name else { continue };
+        match (first_use.get(n.get_ref()), names.get(n.get_ref())) {
+            (Some(first), Some(Item::Action(_))) if matches!(item, Item::Action(_)) => {
+                let msg = format!(
+                    "duplicate action name {} (first used at {first}; action names must be unique)",
+                    q(n.get_ref())
+                );
+                ctx.err(&n.span(), msg);
             }
-            n.into_inner()
-        });
+            (Some(first), Some(by)) => {
+                let msg = format!(
+                    "duplicate name {} (first used at {first} by {}; action and group names must be unique)",
+                    q(n.get_ref()),
+                    match by {
+                        Item::Action(_) => "an action",
+                        Item::Group(_) => "a group",
+                    }
+                );
+                ctx.err(&n.span(), msg);
+            }
+            _ => {
+                first_use.insert(n.get_ref().clone(), ctx.pos(&n.span()));
+                names.insert(n.get_ref().clone(), *item);
+            }
+        }
+    }
+    let refs = Refs {
+        flags: &flags,
+        declared: &declared,
+        names: &names,
+    };
+
+    let mut actions = Vec::new();
+    for raw in raw_actions {
+        let at = raw.name.as_ref().map_or(raw.at.clone(), Spanned::span);
+        let at = ctx.pos(&at);
+        let name = raw.name.map(Spanned::into_inner);
+        let control = refs.control(ctx, raw.control, Owner::Action, name.as_deref());
         let when = flag_refs(ctx, &raw.when, &flags, &declared, "action.when");
         let keys: Vec<String> = raw.ops.iter().map(|o| o.key.clone()).collect();
         let ends_on = match raw.ends_on {
@@ -797,11 +1364,37 @@ fn check(
         };
         actions.push(ParsedAction {
             name: name.unwrap_or_default(),
+            at,
             when,
             ops: raw.ops,
             ends_on,
             end_mode: raw.end_mode,
             deadline: raw.deadline,
+            control,
+        });
+    }
+    let mut groups = Vec::new();
+    for raw in raw_groups {
+        let at = raw.name.as_ref().map_or(raw.at.clone(), Spanned::span);
+        let at = ctx.pos(&at);
+        let name = raw.name.map(Spanned::into_inner);
+        let when = flag_refs(ctx, &raw.when, &flags, &declared, "group.when");
+        let control = refs.control(ctx, raw.control, Owner::Group, name.as_deref());
+        let children = raw
+            .children
+            .iter()
+            .filter_map(|c| refs.item(ctx, c, "group.children"))
+            .collect::<Vec<_>>();
+        let n = raw.children.len();
+        groups.push(ParsedGroup {
+            name: name.unwrap_or_default(),
+            at,
+            kind: raw.kind.map_or(GroupKind::Sequence, Spanned::into_inner),
+            children,
+            when,
+            control,
+            success: raw.success.unwrap_or(n),
+            failure: raw.failure.unwrap_or(1),
         });
     }
     ParsedMission {
@@ -822,6 +1415,88 @@ fn check(
             .world
             .map(|w| crate::diagnostic::beside(path, w.get_ref())),
         actions,
+        groups,
+        items,
         requires: Vec::new(),
+    }
+}
+
+/// What names in the control keys are resolved against.
+struct Refs<'a> {
+    flags: &'a BTreeMap<String, u8>,
+    declared: &'a BTreeSet<String>,
+    names: &'a BTreeMap<String, Item>,
+}
+
+impl Refs<'_> {
+    /// The control keys of an action or a group, their names resolved.
+    fn control(
+        &self,
+        ctx: &mut Ctx<'_>,
+        raw: RawControl,
+        owner: Owner,
+        name: Option<&str>,
+    ) -> ParsedControl {
+        let while_ = flag_refs(
+            ctx,
+            &raw.while_,
+            self.flags,
+            self.declared,
+            owner.fields().while_,
+        );
+        let unless = flag_refs(
+            ctx,
+            &raw.unless,
+            self.flags,
+            self.declared,
+            owner.fields().unless,
+        );
+        for u in &unless {
+            if while_.iter().any(|w| w.name == u.name) {
+                let label = name.map_or_else(|| "without a name".to_string(), q);
+                ctx.push(Diagnostic::at(
+                    ctx.file(),
+                    u.at,
+                    format!(
+                        "flag {} is in both `while` and `unless` of {} {label}: it could never run",
+                        q(&u.name),
+                        owner.word()
+                    ),
+                ));
+            }
+        }
+        ParsedControl {
+            retry: raw.retry,
+            timeout: raw.timeout,
+            on_failure: raw
+                .on_failure
+                .and_then(|r| self.item(ctx, &r, owner.fields().on_failure)),
+            while_,
+            unless,
+        }
+    }
+
+    /// The action or group `name` names, or a diagnostic with the closest name or the
+    /// names there are.
+    fn item(&self, ctx: &mut Ctx<'_>, name: &Spanned<String>, field: &str) -> Option<ItemRef> {
+        if let Some(item) = self.names.get(name.get_ref()) {
+            return Some(ItemRef {
+                item: *item,
+                at: ctx.pos(&name.span()),
+            });
+        }
+        let hint = match super::structure::closest(name.get_ref(), self.names.keys()) {
+            Some(near) => format!("did you mean {}?", q(near)),
+            None if self.names.is_empty() => "the mission names none".to_string(),
+            None => format!("expected one of: {}", list(self.names.keys())),
+        };
+        ctx.err(
+            &name.span(),
+            format!(
+                "unknown action or group {} in `{field}` ({hint})",
+                q(name.get_ref())
+            ),
+        );
+        None
     }
 }

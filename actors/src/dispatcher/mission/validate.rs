@@ -1,6 +1,6 @@
 //! Stage 2: a [`ParsedMission`] checked against the operations a [`Catalog`] offers.
 
-use super::raw::{list, q, ParsedOp, ParsedParam};
+use super::raw::{list, q, GroupKind, Item, ParsedOp, ParsedParam};
 use super::{Action, Catalog, Mission, OpInfo, OpRun, ParsedMission};
 use crate::diagnostic::{Diagnostic, Diagnostics};
 use crate::property::{ParamMap, RejectReason};
@@ -20,6 +20,7 @@ pub(crate) fn validate<C: Catalog + ?Sized>(
         available: None,
         all_resolved: true,
         raised: BTreeSet::new(),
+        op_flags: BTreeMap::new(),
     };
     let mut actions = Vec::new();
     for a in &pm.actions {
@@ -44,6 +45,9 @@ pub(crate) fn validate<C: Catalog + ?Sized>(
                 }
             }
             v.raised.extend(info.flags.iter().map(|f| f.name.clone()));
+            v.op_flags
+                .entry(info.name.clone())
+                .or_insert_with(|| info.flags.iter().map(|f| f.name.clone()).collect());
             let params = v.params(op, &info);
             ops.push(OpRun {
                 key: op.key.clone(),
@@ -62,6 +66,8 @@ pub(crate) fn validate<C: Catalog + ?Sized>(
         });
     }
     v.check_raisable(pm);
+    v.check_parallels(pm, &actions);
+    v.check_waits(pm, &actions);
     let mut requires = BTreeMap::new();
     for (key, req, at) in &pm.requires {
         let op = actions
@@ -88,6 +94,7 @@ pub(crate) fn validate<C: Catalog + ?Sized>(
         success: bits(pm.success.iter().map(|r| r.bit)),
         deadline: pm.deadline,
         rebind_deadline: pm.rebind_deadline.unwrap_or(super::DEFAULT_REBIND_DEADLINE),
+        control: super::control::build(pm, &actions),
         actions,
         world: pm.world.clone(),
         requires,
@@ -119,6 +126,8 @@ struct Validator<'a, C: ?Sized> {
     all_resolved: bool,
     /// Names of the flags the mission's operations declare.
     raised: BTreeSet<String>,
+    /// The flags each operation of the mission declares, by canonical name.
+    op_flags: BTreeMap<String, BTreeSet<String>>,
 }
 
 impl<C: Catalog + ?Sized> Validator<'_, C> {
@@ -236,7 +245,16 @@ impl<C: Catalog + ?Sized> Validator<'_, C> {
         let needed = pm
             .success
             .iter()
-            .chain(pm.actions.iter().flat_map(|a| a.when.iter()));
+            .chain(
+                pm.actions
+                    .iter()
+                    .flat_map(|a| a.when.iter().chain(&a.control.while_)),
+            )
+            .chain(
+                pm.groups
+                    .iter()
+                    .flat_map(|g| g.when.iter().chain(&g.control.while_)),
+            );
         let raised: Vec<&str> = self
             .raised
             .iter()
@@ -258,6 +276,97 @@ impl<C: Catalog + ?Sized> Validator<'_, C> {
                 r.field
             );
             self.diags.push(Diagnostic::at(self.file, r.at, msg));
+        }
+    }
+
+    /// The children of a parallel group run at once: no two of them may run one operation
+    /// (each runs for one action at a time).
+    fn check_parallels(&mut self, pm: &ParsedMission, actions: &[Action]) {
+        for g in &pm.groups {
+            if g.kind != GroupKind::Parallel {
+                continue;
+            }
+            let ops: Vec<BTreeSet<&str>> = g
+                .children
+                .iter()
+                .map(|c| {
+                    pm.reach(c.item)
+                        .into_iter()
+                        .filter_map(|a| actions.get(a))
+                        .flat_map(|a| a.ops.iter().map(|o| o.name.as_str()))
+                        .collect()
+                })
+                .collect();
+            for (j, later) in g.children.iter().enumerate() {
+                for (i, earlier) in g.children[..j].iter().enumerate() {
+                    let shared: Vec<&str> = ops[i].intersection(&ops[j]).copied().collect();
+                    if shared.is_empty() {
+                        continue;
+                    }
+                    let what = if shared.len() == 1 {
+                        format!("operation {}", q(shared[0]))
+                    } else {
+                        let all: Vec<String> = shared.iter().map(|o| q(o)).collect();
+                        format!("operations {}", all.join(", "))
+                    };
+                    let msg = format!(
+                        "children {} and {} of parallel {} both run {what} (they would run at once, and an operation runs for one action at a time)",
+                        q(pm.item_name(earlier.item)),
+                        q(pm.item_name(later.item)),
+                        q(&g.name)
+                    );
+                    self.diags.push(Diagnostic::at(self.file, later.at, msg));
+                }
+            }
+        }
+    }
+
+    /// A top-level item may not wait (`when`) for a flag that only the operations of its
+    /// own tree raise: they run only once it started, so it would wait forever. Skipped
+    /// when an operation is unknown (what it raises is unknown too), and for a mission
+    /// without control keys: the thesis' mission keeps its meaning, such a wait a failure
+    /// the run reports ("no runnable action").
+    fn check_waits(&mut self, pm: &ParsedMission, actions: &[Action]) {
+        if !self.all_resolved || !pm.has_control() {
+            return;
+        }
+        let initial: BTreeSet<&str> = pm.initial.iter().map(|r| r.name.as_str()).collect();
+        for item in pm.roots() {
+            let own = pm.reach(item);
+            for f in pm.item_when(item) {
+                if initial.contains(f.name.as_str()) {
+                    continue;
+                }
+                // (action, operation) of every operation that raises it
+                let raisers: Vec<(usize, &str)> = actions
+                    .iter()
+                    .enumerate()
+                    .flat_map(|(i, a)| a.ops.iter().map(move |o| (i, o.name.as_str())))
+                    .filter(|(_, o)| self.op_flags.get(*o).is_some_and(|fl| fl.contains(&f.name)))
+                    .collect();
+                if raisers.is_empty() || !raisers.iter().all(|(a, _)| own.contains(a)) {
+                    continue;
+                }
+                let mut by: Vec<String> = raisers
+                    .iter()
+                    .map(|(a, o)| match item {
+                        Item::Action(_) => q(o),
+                        Item::Group(_) => format!("{} in {}", q(o), q(&actions[*a].name)),
+                    })
+                    .collect();
+                by.dedup();
+                let whose = match item {
+                    Item::Action(_) => "its own operations",
+                    Item::Group(_) => "operations run inside it",
+                };
+                let msg = format!(
+                    "{} waits for flag {}, which only {whose} raise ({}): it would wait for itself forever",
+                    pm.describe(item),
+                    q(&f.name),
+                    by.join(", ")
+                );
+                self.diags.push(Diagnostic::at(self.file, f.at, msg));
+            }
         }
     }
 }
