@@ -378,18 +378,23 @@ async fn progress_events_follow_the_run() {
         matches!(kinds[0], EventKind::RunStarted { mission, .. } if mission == "events"),
         "{kinds:?}"
     );
+    // the tree right after the start: a thesis mission's schedule of its one action
     assert!(
-        matches!(kinds[1], EventKind::Selected { choice } if choice.operation == "events-a" && choice.chosen().is_some()),
+        matches!(kinds[1], EventKind::ControlPlan { nodes } if nodes.len() == 2 && nodes[1].label == "only"),
         "{kinds:?}"
     );
-    assert!(matches!(kinds[2], EventKind::Bound { .. }));
     assert!(
-        matches!(kinds[3], EventKind::ActionStarted { action, operations, .. } if action == "only" && operations[0].key == "events-a")
+        matches!(kinds[2], EventKind::Selected { choice } if choice.operation == "events-a" && choice.chosen().is_some()),
+        "{kinds:?}"
+    );
+    assert!(matches!(kinds[3], EventKind::Bound { .. }));
+    assert!(
+        matches!(kinds[4], EventKind::ActionStarted { action, operations, .. } if action == "only" && operations[0].key == "events-a")
     );
     assert!(
-        matches!(kinds[4], EventKind::OpEnded { key, ended: OpEnd::Finished, flags, .. } if key == "events-a" && flags == &["events-a-done"])
+        matches!(kinds[5], EventKind::OpEnded { key, ended: OpEnd::Finished, flags, .. } if key == "events-a" && flags == &["events-a-done"])
     );
-    assert!(matches!(kinds[5], EventKind::ActionEnded { status, .. } if *status == 1 << 4));
+    assert!(matches!(kinds[6], EventKind::ActionEnded { status, .. } if *status == 1 << 4));
     assert!(matches!(
         kinds.last(),
         Some(EventKind::RunEnded {
@@ -397,7 +402,7 @@ async fn progress_events_follow_the_run() {
             ..
         })
     ));
-    assert_eq!(kinds.len(), 7, "{kinds:?}");
+    assert_eq!(kinds.len(), 8, "{kinds:?}");
     assert!(events.iter().all(|e| e.node == "test"));
     assert!(events.windows(2).all(|w| w[0].at_ms <= w[1].at_ms));
 }

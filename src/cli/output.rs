@@ -150,6 +150,11 @@ impl Printer {
                 let status = StatusFlags(*status);
                 println!("< {action}: end, status {status} [{}]", flags.join(", "));
             }
+            EventKind::Control {
+                node,
+                decision,
+                run_ms,
+            } => println!("? {node}: {decision} at {:.1}s", *run_ms as f64 / 1000.0),
             EventKind::Lost { operation, cause } => println!("! {operation} lost: {cause}"),
             EventKind::Rebound(r) if !r.from_node.is_empty() && r.from_node != r.to_node => {
                 println!(

@@ -1,9 +1,12 @@
 //! The ActionDispatcher actor: runs a validated mission against live operations.
 //!
-//! It never does the work itself (thesis 3.2.4.1): for each action whose condition flags are
-//! implied by the status word it parameterizes and activates the action's operations, waits
-//! for the operations that end the action, suspends the others, combines the flags they
-//! report, and picks the next action. Any failure is a full stop (thesis 9.3.1).
+//! It never does the work itself (thesis 3.2.4.1): for each action its mission's tree starts
+//! — in a thesis mission, the next whose condition flags are implied by the status word —
+//! it parameterizes and activates the action's operations, waits for the operations that
+//! end the action, suspends the others, combines the flags they report, and tells the
+//! tree how the action ended. In a thesis mission any failure is a full stop (thesis
+//! 9.3.1); a mission's control keys add retries, fallbacks, timeouts, recoveries,
+//! parallels and reactive conditions ([`super::tree`]).
 //!
 //! # Invariants
 //! - Every wait has a deadline: an action's own, the suspension grace, the mission's; a stuck
@@ -40,6 +43,7 @@ use super::binding::Binding;
 use super::checkpoint::{Checkpoint, CheckpointArgs, Checkpointer};
 use super::messages::DispatcherMsg;
 use super::mission::Mission;
+use super::tree::Tree;
 use crate::clock::{SharedClock, Timer};
 use crate::events::{EventBus, EventKind};
 use crate::registry::{self, ModuleKind};
@@ -133,7 +137,18 @@ pub(super) enum ActionState {
     Ending,
 }
 
-/// The action that runs now.
+/// How an action that is ending ends, for the tree.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub(super) enum End {
+    /// Its enders finished (or nothing ran any more): succeeded.
+    Done,
+    /// It failed, for this reason.
+    Failed(String),
+    /// The tree halted it: its end is not the tree's news.
+    Halted,
+}
+
+/// An action that runs now (several under a parallel).
 pub(super) struct Current {
     pub(super) generation: u64,
     pub(super) index: usize,
@@ -143,6 +158,8 @@ pub(super) struct Current {
     pub(super) enders_done: BTreeSet<String>,
     /// Running, or ending (its others suspended, waiting for their reports).
     pub(super) state: ActionState,
+    /// Once ending: how it ends.
+    pub(super) end: End,
     /// The action's deadline, then its suspension grace; cancelled with the action.
     pub(super) timer: Option<Timer>,
     /// Its operations were activated (a recorded run's action waits for its checkpoint).
@@ -158,7 +175,19 @@ pub struct DispatcherState {
     pub(super) status: StatusFlags,
     pub(super) done: Vec<bool>,
     pub(super) generation: u64,
-    pub(super) current: Option<Current>,
+    /// The actions that run or end now, by generation.
+    pub(super) live: BTreeMap<u64, Current>,
+    /// The mission's behaviour tree and its state.
+    pub(super) tree: Tree,
+    /// Actions the tree started that wait for halted actions to end first (a halt ends
+    /// before anything else starts).
+    pub(super) pending: Vec<usize>,
+    /// Why the latest action failed: the run's reason if the tree fails.
+    pub(super) failure: Option<String>,
+    /// When the tree must be ticked again (a backoff, a timeout).
+    pub(super) wake: Option<Timer>,
+    /// The run's outcome once the tree's root is done, while halted actions still end.
+    pub(super) due: Option<(Outcome, String)>,
     pub(super) started: Duration,
     pub(super) reply: Option<RpcReplyPort<Outcome>>,
     /// Dropping it ends the registry watch.
@@ -212,24 +241,26 @@ impl DispatcherState {
         out
     }
 
-    /// The binding of the operation written as `key` in the current action. Bindings are
-    /// per operation (canonical name), so an operation named by name in one action and by id
-    /// in another is one binding with one epoch.
+    /// The binding of the operation written as `key` (a name or an id: one operation
+    /// wherever it is written). Bindings are per operation (canonical name), so an
+    /// operation named by name in one action and by id in another is one binding with one
+    /// epoch.
     pub(super) fn binding(&self, key: &str) -> Option<&Binding> {
-        let cur = self.current.as_ref()?;
-        let op = self.mission.actions[cur.index].op(key)?;
+        let op = self.mission.actions.iter().find_map(|a| a.op(key))?;
         self.bindings.get(&op.name)
     }
 
-    /// The current action's key for operation `name`, if it is among the running ones.
-    pub(super) fn running_key(&self, name: &str) -> Option<String> {
-        let cur = self.current.as_ref()?;
-        let action = &self.mission.actions[cur.index];
-        action
-            .ops
-            .iter()
-            .find(|o| o.name == name && cur.running.contains(&o.key))
-            .map(|o| o.key.clone())
+    /// The live action running operation `name` and the key it writes it as: at most one
+    /// (a parallel's children never share an operation, and an action starts only once
+    /// the halted ones ended).
+    pub(super) fn running_key(&self, name: &str) -> Option<(u64, String)> {
+        self.live.values().find_map(|cur| {
+            self.mission.actions[cur.index]
+                .ops
+                .iter()
+                .find(|o| o.name == name && cur.running.contains(&o.key))
+                .map(|o| (cur.generation, o.key.clone()))
+        })
     }
 }
 
@@ -250,6 +281,7 @@ impl Actor for ActionDispatcher {
             myself.get_cell(),
         )?;
         let n = args.mission.actions.len();
+        let tree = Tree::new(args.mission.control.root.clone());
         Ok(DispatcherState {
             status: args.mission.initial,
             started: args.clock.now(),
@@ -259,7 +291,12 @@ impl Actor for ActionDispatcher {
             bindings: BTreeMap::new(),
             done: vec![false; n],
             generation: 0,
-            current: None,
+            live: BTreeMap::new(),
+            tree,
+            pending: Vec::new(),
+            failure: None,
+            wake: None,
+            due: None,
             reply: None,
             _watch_guard: None,
 
@@ -297,6 +334,9 @@ impl Actor for ActionDispatcher {
                     actions: state.mission.plan(),
                     success: state.mission.flags_to_names(state.mission.success),
                 });
+                state.emit(EventKind::ControlPlan {
+                    nodes: super::plan::control_plan(&state.mission),
+                });
                 if let Err(e) = state.watch_registry(&myself).await {
                     state.finish(&myself, Outcome::Failed, e.to_string());
                     return Ok(());
@@ -320,7 +360,7 @@ impl Actor for ActionDispatcher {
                         DispatcherMsg::MissionDeadline {},
                     ));
                 }
-                state.next_action(&myself);
+                state.tick(&myself);
             }
             DispatcherMsg::OpEnded {
                 generation,
@@ -360,6 +400,7 @@ impl Actor for ActionDispatcher {
             DispatcherMsg::Abort { reason } => state.finish(&myself, Outcome::Failed, reason),
             DispatcherMsg::Fenced { newer } => state.fenced(&myself, newer),
             DispatcherMsg::Launch { generation } => state.launch(&myself, generation),
+            DispatcherMsg::Wake {} => state.tick(&myself),
             DispatcherMsg::Alive { reply } => {
                 let _ = reply.send(state.elapsed_ms());
             }

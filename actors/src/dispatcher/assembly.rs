@@ -30,13 +30,6 @@ impl DispatcherState {
         (self.status.0, self.mission.flags_to_names(self.status))
     }
 
-    /// The current action is over: mark it done (its record is closed by the next event).
-    pub(super) fn record_current(&mut self) {
-        if let Some(cur) = self.current.take() {
-            self.done[cur.index] = true;
-        }
-    }
-
     /// End the run: suspend what still runs, publish the end and answer the outcome.
     pub(super) fn finish(
         &mut self,
@@ -48,14 +41,14 @@ impl DispatcherState {
             return;
         }
         self.ended = true;
-        if let Some(cur) = &self.current {
+        self.wake = None;
+        for cur in std::mem::take(&mut self.live).into_values() {
             for key in &cur.running {
                 if let Some(b) = self.binding(key).filter(|b| b.lost.is_none()) {
                     let _ = b.client.suspend(b.epoch);
                 }
             }
         }
-        self.record_current();
         // a recorded run ends once its end is stored: a dispatcher fenced off meanwhile
         // never ends the run its successor carries on
         if self.checkpoint_end(myself, outcome, &reason) {

@@ -72,8 +72,16 @@ pub struct Checkpoint {
     pub done: Vec<bool>,
     /// The generation of the latest action started.
     pub generation: u64,
-    /// The running action, if one runs.
-    pub current: Option<CurrentCheckpoint>,
+    /// The actions that run or end (more than one under a parallel).
+    pub live: Vec<CurrentCheckpoint>,
+    /// The state of the mission's tree, by node id
+    /// ([`Tree::state`](super::tree::Tree::state)): a standby carries on mid-retry,
+    /// mid-fallback, with the same timeouts.
+    pub tree: Vec<super::tree::NodeState>,
+    /// Actions the tree started that waited for halted ones to end.
+    pub pending: Vec<usize>,
+    /// Why the latest action failed.
+    pub failure: Option<String>,
     /// Every binding.
     pub bindings: Vec<BindingCheckpoint>,
     /// The run's outcome, once it ended.
@@ -97,6 +105,12 @@ pub struct CurrentCheckpoint {
     /// go out, and a standby launches one that was not.
     #[serde(default)]
     pub launched: bool,
+    /// When ending: whether the tree halted it (its end is not the tree's news).
+    #[serde(default)]
+    pub halted: bool,
+    /// When ending: why it failed, if it did.
+    #[serde(default)]
+    pub failure: Option<String>,
 }
 
 /// A binding in a [`Checkpoint`].
@@ -317,14 +331,19 @@ mod tests {
             status: 1,
             done: vec![false],
             generation: 1,
-            current: Some(CurrentCheckpoint {
+            live: vec![CurrentCheckpoint {
                 index: 0,
                 running: vec!["op".into()],
                 enders_done: vec![],
                 ending: false,
                 started_ms: 3,
                 launched: true,
-            }),
+                halted: false,
+                failure: None,
+            }],
+            tree: vec![Default::default(); 2],
+            pending: vec![],
+            failure: None,
             bindings: vec![BindingCheckpoint {
                 name: "op".into(),
                 node: "n".into(),

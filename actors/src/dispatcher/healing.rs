@@ -231,9 +231,9 @@ impl DispatcherState {
         });
         self.checkpoint();
         // A lost operation of an action that is ending has nothing left to do in it.
-        if let Some(key) = self.running_key(name) {
-            let ending = self.current.as_ref().is_some_and(|c| c.ending());
-            if ending && self.give_up_on(myself, &[key]) {
+        if let Some((generation, key)) = self.running_key(name) {
+            let ending = self.live.get(&generation).is_some_and(|c| c.ending());
+            if ending && self.give_up_on(myself, generation, &[key]) {
                 return;
             }
         }
@@ -362,11 +362,11 @@ impl DispatcherState {
         self.emit(EventKind::Selected { choice });
         // the report's record of the running action takes the stand-in's address from it
         self.emit(EventKind::Rebound(record));
-        let launched = self.current.as_ref().is_some_and(|c| c.launched);
-        match self.running_key(name).filter(|_| launched) {
-            Some(key) => {
-                let cur = self.current.as_ref().expect("running_key found it");
-                let generation = cur.generation;
+        let running = self
+            .running_key(name)
+            .filter(|(g, _)| self.live.get(g).is_some_and(|c| c.launched));
+        match running {
+            Some((generation, key)) => {
                 let start = Start {
                     generation,
                     incarnation,

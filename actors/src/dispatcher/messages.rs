@@ -87,6 +87,8 @@ crate::remote_message! {
         },
         /// The whole mission's deadline passed.
         MissionDeadline {},
+        /// Tick the mission's tree: a backoff or a timeout is due.
+        Wake {},
         /// A checkpoint was refused for the newer term `newer`: a standby carries the run
         /// on; this dispatcher stops without ending it.
         Fenced {

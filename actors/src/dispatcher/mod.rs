@@ -24,6 +24,7 @@ mod effect;
 mod healing;
 mod messages;
 pub mod mission;
+pub mod plan;
 mod running;
 pub mod selection;
 pub mod survey;

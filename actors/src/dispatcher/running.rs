@@ -1,22 +1,35 @@
-//! Running actions: choosing the next action by flag implication, activating its operations,
-//! collecting their reports, ending the action on its enders, suspending the rest.
+//! Running actions: the mission's tree ([`super::tree`]) says which actions start and which
+//! are halted; this file activates their operations, collects their reports, ends each
+//! action on its enders, suspends the rest, and tells the tree how each ended.
+//!
+//! The tree is ticked when an action completes, when the status word gains a flag (a
+//! reactive condition may no longer hold) and when a backoff or a timeout is due
+//! ([`DispatcherMsg::Wake`]). A thesis mission's tree is a schedule: the first action not
+//! yet done whose flags hold runs next, and a failure fails the run.
 //!
 //! # Invariants
-//! - Events of an earlier action (by generation number) never touch the current one.
+//! - Events of an earlier action (by generation number) never touch a later one; several
+//!   actions live at once only under a parallel, and never share an operation.
 //! - Parameters omitted by the mission are sent as the declared defaults, so values left by an
 //!   earlier action or mission never leak into this one.
-//! - An action ends when its enders say so (`any` or `all`), or when nothing runs any more;
-//!   what still runs is suspended and gets [`SUSPEND_GRACE`] to report.
+//! - An action ends when its enders say so (`any` or `all`), when nothing runs any more,
+//!   when it fails, or when the tree halts it; what still runs is suspended and gets
+//!   [`SUSPEND_GRACE`] to report.
+//! - A halt completes before anything else starts: the actions a tick starts wait until
+//!   every halted action's operations reported (or the grace passed). The run ends the
+//!   same way: once the root is done, after the halted actions ended.
 
-use super::actor::{ActionState, Current, DispatcherState, Start};
+use super::actor::{ActionState, Current, DispatcherState, End, Start};
 use super::effect::Effect;
 use super::messages::DispatcherMsg;
 use super::mission::EndMode;
+use super::tree::{Command, Decision, Status};
 use crate::clock::Timer;
 use crate::eo::{EoError, EoReport};
 use crate::events::{EventKind, OpStarted};
 use crate::run::LossCause;
 use crate::run::{OpEnd, Outcome};
+use crate::status::StatusFlags;
 use ractor::ActorRef;
 use std::collections::BTreeSet;
 use std::time::Duration;
@@ -74,52 +87,158 @@ impl DispatcherState {
         Ok(())
     }
 
-    pub(super) fn next_action(&mut self, myself: &ActorRef<DispatcherMsg>) {
-        let next = self
-            .mission
-            .actions
-            .iter()
-            .enumerate()
-            .find(|(i, a)| !self.done[*i] && self.status.implies(a.when))
-            .map(|(i, _)| i);
-        match next {
-            Some(i) => self.start_action(myself, i),
-            None if self.done.iter().all(|d| *d) => {
-                if self.status.implies(self.mission.success) {
-                    self.finish(myself, Outcome::Succeeded, String::new());
-                } else {
-                    let missing = self
-                        .mission
-                        .flags_to_names(self.mission.success & !self.status);
-                    self.finish(
-                        myself,
-                        Outcome::Failed,
-                        format!(
-                            "every action ran but success flags are missing: {}",
-                            missing.join(", ")
-                        ),
-                    );
+    /// Tick the mission's tree: tell its decisions, halt what it halts, start what it
+    /// starts (once every halted action ended), arm its next wake, and end the run once
+    /// its root is done.
+    pub(super) fn tick(&mut self, myself: &ActorRef<DispatcherMsg>) {
+        if self.ended || self.due.is_some() {
+            return;
+        }
+        let now = Duration::from_millis(self.elapsed_ms());
+        let tick = self.tree.tick(self.status.0, now);
+        for decision in tick.decisions {
+            self.tell_decision(decision);
+        }
+        let mut halted = Vec::new();
+        for command in &tick.commands {
+            match *command {
+                Command::Halt(index) => {
+                    let found = self
+                        .live
+                        .values_mut()
+                        .find(|c| c.index == index && c.end != End::Halted);
+                    if let Some(cur) = found {
+                        cur.end = End::Halted;
+                        cur.state = ActionState::Ending;
+                        halted.push(cur.generation);
+                    } else {
+                        // not started yet: it waited for an earlier halt
+                        self.pending.retain(|p| *p != index);
+                    }
                 }
-            }
-            None => {
-                let waiting: Vec<String> = self
-                    .mission
-                    .actions
-                    .iter()
-                    .enumerate()
-                    .filter(|(i, _)| !self.done[*i])
-                    .map(|(_, a)| {
-                        let missing = self.mission.flags_to_names(a.when & !self.status);
-                        format!("`{}` waits for {}", a.name, missing.join(", "))
-                    })
-                    .collect();
-                self.finish(
-                    myself,
-                    Outcome::Failed,
-                    format!("no action can run: {}", waiting.join("; ")),
-                );
+                Command::Start(index) => self.pending.push(index),
             }
         }
+        self.wake = tick.wake.map(|at| {
+            Timer::cast_after(
+                &self.clock,
+                at.saturating_sub(now),
+                myself,
+                DispatcherMsg::Wake {},
+            )
+        });
+        let outcome = match tick.status {
+            Status::Running => None,
+            Status::Succeeded if self.status.implies(self.mission.success) => {
+                Some((Outcome::Succeeded, String::new()))
+            }
+            Status::Succeeded => {
+                let missing = self
+                    .mission
+                    .flags_to_names(self.mission.success & !self.status);
+                let reason = format!(
+                    "every action ran but success flags are missing: {}",
+                    missing.join(", ")
+                );
+                Some((Outcome::Failed, reason))
+            }
+            Status::Failed => {
+                let reason = self.failure.take().unwrap_or_else(|| self.stuck());
+                Some((Outcome::Failed, reason))
+            }
+        };
+        for generation in halted {
+            self.end_action(myself, generation);
+        }
+        match outcome {
+            // the run ends once the halted actions' operations reported (within the grace)
+            Some(outcome) => self.conclude_when_halted(myself, outcome),
+            None => self.start_pending(myself),
+        }
+    }
+
+    /// End the run with `outcome` once no action is live; until then, each one that
+    /// completes brings it closer ([`Self::complete_action`]).
+    fn conclude_when_halted(
+        &mut self,
+        myself: &ActorRef<DispatcherMsg>,
+        outcome: (Outcome, String),
+    ) {
+        self.pending.clear();
+        if self.live.is_empty() {
+            self.due = None;
+            self.finish(myself, outcome.0, outcome.1);
+        } else {
+            self.due = Some(outcome);
+        }
+    }
+
+    /// Start the actions the tree started, unless a halted action is still ending.
+    fn start_pending(&mut self, myself: &ActorRef<DispatcherMsg>) {
+        if self.ended || self.live.values().any(|c| c.end == End::Halted) {
+            return;
+        }
+        for index in std::mem::take(&mut self.pending) {
+            self.start_action(myself, index);
+            if self.ended {
+                return;
+            }
+        }
+    }
+
+    /// Why nothing can run: what each waiting item of the root schedule waits for.
+    fn stuck(&self) -> String {
+        let waiting: Vec<String> = self
+            .tree
+            .waiting()
+            .into_iter()
+            .map(|(id, when)| {
+                let missing = self
+                    .mission
+                    .flags_to_names(StatusFlags(when) & !self.status);
+                format!(
+                    "`{}` waits for {}",
+                    self.mission.control.label(id),
+                    missing.join(", ")
+                )
+            })
+            .collect();
+        format!("no action can run: {}", waiting.join("; "))
+    }
+
+    /// Publish a control decision of the tree, its nodes named.
+    fn tell_decision(&mut self, decision: Decision) {
+        let control = &self.mission.control;
+        let (node, what) = match decision {
+            Decision::Retry { node, attempt, of } => (node, format!("retry {attempt} of {of}")),
+            Decision::GaveUp { node, of } => (node, format!("gave up after {of} attempts")),
+            Decision::Fallback { node, to } => {
+                (node, format!("fallback to `{}`", control.label(to)))
+            }
+            Decision::Timeout { node, limit_ms } => (
+                node,
+                format!("timeout after {:.1} s", limit_ms as f64 / 1000.0),
+            ),
+            Decision::ConditionLost { node } => (node, "condition no longer holds".to_string()),
+            Decision::Recovery { node } => {
+                let recovery = self.tree.child_ids(node).get(1).copied().unwrap_or(node);
+                (node, format!("recovery `{}`", control.label(recovery)))
+            }
+            Decision::Decided { node, succeeded } => (
+                node,
+                match succeeded {
+                    true => "parallel succeeded".to_string(),
+                    false => "parallel failed".to_string(),
+                },
+            ),
+        };
+        let label = control.label(node).to_string();
+        tracing::info!(node = %label, decision = %what, "control");
+        self.emit(EventKind::Control {
+            node: label,
+            decision: what,
+            run_ms: self.elapsed_ms(),
+        });
     }
 
     /// Start action `index`: its operations' parameters set, the action recorded — and,
@@ -136,6 +255,7 @@ impl DispatcherState {
             running: BTreeSet::new(),
             enders_done: BTreeSet::new(),
             state: ActionState::Running,
+            end: End::Done,
             timer: None,
             launched: false,
         };
@@ -151,7 +271,7 @@ impl DispatcherState {
             b.params = params;
             current.running.insert(op.key.clone());
         }
-        self.current = Some(current);
+        self.live.insert(generation, current);
         match self.record(None) {
             Some(stored) => {
                 let me = myself.clone();
@@ -169,10 +289,10 @@ impl DispatcherState {
     /// Tell the action of `generation` started and activate its operations (a lost one is
     /// activated when a stand-in is adopted).
     pub(super) fn launch(&mut self, myself: &ActorRef<DispatcherMsg>, generation: u64) {
-        let Some(cur) = self.current.as_mut() else {
+        let Some(cur) = self.live.get_mut(&generation) else {
             return;
         };
-        if cur.generation != generation || cur.launched || self.ended {
+        if cur.launched || cur.ending() || self.ended {
             return;
         }
         cur.launched = true;
@@ -228,7 +348,7 @@ impl DispatcherState {
             myself,
             DispatcherMsg::ActionDeadline { generation },
         );
-        if let Some(cur) = self.current.as_mut() {
+        if let Some(cur) = self.live.get_mut(&generation) {
             cur.timer = Some(timer);
         }
     }
@@ -241,10 +361,10 @@ impl DispatcherState {
         incarnation: u64,
         report: Option<EoReport>,
     ) {
-        let Some(cur) = self.current.as_ref() else {
+        let Some(cur) = self.live.get(&generation) else {
             return;
         };
-        if cur.generation != generation || !cur.running.contains(&key) {
+        if !cur.running.contains(&key) {
             return;
         }
         let Some(b) = self.binding(&key) else {
@@ -259,10 +379,18 @@ impl DispatcherState {
             self.resume_idle(myself, &key, generation, incarnation);
             return;
         }
-        if matches!(report, Some(EoReport::Stale { .. })) && self.checkpoint_now().await.is_err() {
-            return; // a newer dispatcher bound it: this one is fenced
+        if let Some(EoReport::Stale { current, .. }) = &report {
+            if self.checkpoint_now().await.is_err() {
+                return; // a newer dispatcher bound it: this one is fenced
+            }
+            let reason =
+                format!("operation `{key}` is now bound by another dispatcher (epoch {current})");
+            self.finish(myself, Outcome::Failed, reason);
+            return;
         }
-        let cur = self.current.as_ref().expect("checked above");
+        let Some(cur) = self.live.get(&generation) else {
+            return;
+        };
         if report.is_none() && !cur.ending() {
             // The instance died mid-action: rebind and carry on.
             let action = self.mission.actions[cur.index].name.clone();
@@ -270,7 +398,9 @@ impl DispatcherState {
                 .await;
             return;
         }
-        let cur = self.current.as_mut().expect("checked above");
+        let Some(cur) = self.live.get_mut(&generation) else {
+            return;
+        };
         cur.running.remove(&key);
         let action = &self.mission.actions[cur.index];
         let action_name = action.name.clone();
@@ -281,6 +411,7 @@ impl DispatcherState {
             failure,
         } = Effect::of(report, ending, &key, &action_name);
         let global = self.translate(&key, flags);
+        let news = global & !self.status;
         self.status |= global;
         let names = self.mission.flags_to_names(global);
         self.emit(EventKind::OpEnded {
@@ -290,53 +421,72 @@ impl DispatcherState {
             flags: names,
         });
         self.checkpoint();
-        let cur = self.current.as_mut().expect("checked above");
         tracing::debug!(op = %key, %ended, flags = %global, "operation report");
         if let Some(reason) = failure {
             // say what the action still waited for: often the real news (a dock not found)
-            let waiting = self.awaited_enders(&key);
+            let waiting = self.awaited_enders(generation, &key);
             let reason = match waiting.is_empty() {
                 true => reason,
                 false => format!("{reason} (while waiting for {})", waiting.join(", ")),
             };
-            self.finish(myself, Outcome::Failed, reason);
+            self.fail_action(myself, generation, reason);
             return;
         }
+        let cur = self.live.get_mut(&generation).expect("checked above");
         if ending {
             if cur.running.is_empty() {
-                self.complete_action(myself);
+                self.complete_action(myself, generation);
             }
             return;
         }
         let action = &self.mission.actions[cur.index];
+        let mut end = cur.running.is_empty();
         if ended == OpEnd::Finished && action.ends_on(&key) {
             cur.enders_done.insert(key);
-            let end = match action.end_mode {
+            end |= match action.end_mode {
                 EndMode::Any => true,
                 EndMode::All => action.ends_on.iter().all(|k| cur.enders_done.contains(k)),
             };
-            if end {
-                self.end_action(myself);
-                return;
-            }
         }
-        if cur.running.is_empty() {
-            // Every operation finished but the enders' condition cannot hold any more.
-            self.end_action(myself);
+        if end {
+            // its enders finished — or every operation finished but the enders' condition
+            // cannot hold any more
+            self.end_action(myself, generation);
+        } else if !news.is_empty() {
+            // a reactive condition may no longer hold
+            self.tick(myself);
         }
     }
 
-    /// Suspend what still runs; the action completes when they have reported.
-    pub(super) fn end_action(&mut self, myself: &ActorRef<DispatcherMsg>) {
-        let Some(cur) = self.current.as_mut() else {
+    /// Action `generation` failed for `reason`: it ends (what still runs suspended) and the
+    /// tree hears of its failure.
+    pub(super) fn fail_action(
+        &mut self,
+        myself: &ActorRef<DispatcherMsg>,
+        generation: u64,
+        reason: String,
+    ) {
+        let Some(cur) = self.live.get_mut(&generation) else {
+            return;
+        };
+        if cur.end != End::Halted {
+            cur.end = End::Failed(reason);
+        }
+        cur.state = ActionState::Ending;
+        self.end_action(myself, generation);
+    }
+
+    /// Suspend what still runs of action `generation`; it completes when they have
+    /// reported.
+    pub(super) fn end_action(&mut self, myself: &ActorRef<DispatcherMsg>, generation: u64) {
+        let Some(cur) = self.live.get_mut(&generation) else {
             return;
         };
         cur.state = ActionState::Ending;
         if cur.running.is_empty() {
-            self.complete_action(myself);
+            self.complete_action(myself, generation);
             return;
         }
-        let generation = cur.generation;
         let running: Vec<String> = cur.running.iter().cloned().collect();
         self.checkpoint();
         let mut lost = Vec::new();
@@ -349,10 +499,12 @@ impl DispatcherState {
             }
         }
         // An operation still without a stand-in has nothing to suspend.
-        if self.give_up_on(myself, &lost) {
+        if self.give_up_on(myself, generation, &lost) {
             return;
         }
-        let cur = self.current.as_mut().expect("checked above");
+        let Some(cur) = self.live.get_mut(&generation) else {
+            return;
+        };
         // replaces (cancels) the action's deadline
         cur.timer = Some(Timer::cast_after(
             &self.clock,
@@ -362,9 +514,9 @@ impl DispatcherState {
         ));
     }
 
-    /// The current action's enders that have not finished (other than `except`), quoted.
-    pub(super) fn awaited_enders(&self, except: &str) -> Vec<String> {
-        let Some(cur) = &self.current else {
+    /// Action `generation`'s enders that have not finished (other than `except`), quoted.
+    pub(super) fn awaited_enders(&self, generation: u64, except: &str) -> Vec<String> {
+        let Some(cur) = self.live.get(&generation) else {
             return Vec::new();
         };
         self.mission.actions[cur.index]
@@ -375,10 +527,15 @@ impl DispatcherState {
             .collect()
     }
 
-    /// Stop waiting for `keys` in the current action, recording them as lost; completes the
-    /// action (and returns true) when nothing else runs.
-    pub(super) fn give_up_on(&mut self, myself: &ActorRef<DispatcherMsg>, keys: &[String]) -> bool {
-        let Some(cur) = self.current.as_mut() else {
+    /// Stop waiting for `keys` in action `generation`, recording them as lost; completes
+    /// the action (and returns true) when nothing else runs.
+    pub(super) fn give_up_on(
+        &mut self,
+        myself: &ActorRef<DispatcherMsg>,
+        generation: u64,
+        keys: &[String],
+    ) -> bool {
+        let Some(cur) = self.live.get_mut(&generation) else {
             return false;
         };
         let action = self.mission.actions[cur.index].name.clone();
@@ -391,19 +548,30 @@ impl DispatcherState {
         let nothing_runs = cur.running.is_empty();
         self.ended_without_report(&action, gone, OpEnd::Lost);
         if nothing_runs {
-            self.complete_action(myself);
+            self.complete_action(myself, generation);
             return true;
         }
         false
     }
 
-    pub(super) fn complete_action(&mut self, myself: &ActorRef<DispatcherMsg>) {
-        let name = self
-            .current
-            .as_ref()
-            .map(|c| self.mission.actions[c.index].name.clone())
-            .unwrap_or_default();
-        self.record_current();
+    /// Action `generation` is over: tell it, let the tree hear how it ended (unless the
+    /// tree halted it), and tick.
+    pub(super) fn complete_action(&mut self, myself: &ActorRef<DispatcherMsg>, generation: u64) {
+        let Some(cur) = self.live.remove(&generation) else {
+            return;
+        };
+        let name = self.mission.actions[cur.index].name.clone();
+        match &cur.end {
+            End::Done => {
+                self.done[cur.index] = true;
+                self.tree.leaf_ended(cur.index, true);
+            }
+            End::Failed(reason) => {
+                self.failure = Some(reason.clone());
+                self.tree.leaf_ended(cur.index, false);
+            }
+            End::Halted => {}
+        }
         tracing::info!(action = %name, status = %self.status, "action ended");
         let (status, flags) = self.status_now();
         self.emit(EventKind::ActionEnded {
@@ -412,35 +580,42 @@ impl DispatcherState {
             flags,
             status,
         });
-        self.next_action(myself);
+        self.checkpoint();
+        if let Some(outcome) = self.due.take() {
+            return self.conclude_when_halted(myself, outcome);
+        }
+        match cur.end {
+            End::Halted => self.start_pending(myself),
+            _ => self.tick(myself),
+        }
     }
 
-    /// The deadline of action `generation` passed: a full stop naming what it waited for.
+    /// The deadline of action `generation` passed: it fails, naming what it waited for.
     pub(super) fn on_action_deadline(&mut self, myself: &ActorRef<DispatcherMsg>, generation: u64) {
-        let Some(cur) = &self.current else {
+        let Some(cur) = self.live.get(&generation) else {
             return;
         };
-        if cur.generation != generation || cur.ending() {
+        if cur.ending() {
             return;
         }
         let action = &self.mission.actions[cur.index];
-        let waiting = self.awaited_enders("");
+        let waiting = self.awaited_enders(generation, "");
         let reason = format!(
             "action `{}` missed its deadline of {:.1}s waiting for {}",
             action.name,
             action.deadline.as_secs_f64(),
             waiting.join(", ")
         );
-        self.finish(myself, Outcome::Failed, reason);
+        self.fail_action(myself, generation, reason);
     }
 
     /// The suspended operations of action `generation` had their time: whatever has not
     /// reported is recorded as unresponsive and the action completes.
     pub(super) fn on_suspend_grace(&mut self, myself: &ActorRef<DispatcherMsg>, generation: u64) {
-        let Some(cur) = &mut self.current else {
+        let Some(cur) = self.live.get_mut(&generation) else {
             return;
         };
-        if cur.generation != generation || !cur.ending() {
+        if !cur.ending() {
             return;
         }
         let action = self.mission.actions[cur.index].name.clone();
@@ -449,7 +624,7 @@ impl DispatcherState {
             tracing::warn!(op = %key, "no report after suspension");
         }
         self.ended_without_report(&action, silent, OpEnd::Unresponsive);
-        self.complete_action(myself);
+        self.complete_action(myself, generation);
     }
 
     /// Record that `keys` of action `action` ended as `ended` without a report of theirs.

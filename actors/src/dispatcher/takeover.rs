@@ -21,11 +21,12 @@
 //! - The action's own deadline keeps counting from when the action started; the mission's
 //!   from when the run began.
 
-use super::actor::{ActionState, Current, DispatcherState, Start, TakeOver};
+use super::actor::{ActionState, Current, DispatcherState, End, Start, TakeOver};
 use super::binding::Binding;
 use super::candidates::{choose, examine_all, Prospect};
 use super::checkpoint::{self, BindingCheckpoint, Checkpoint, CurrentCheckpoint, Superseded};
 use super::messages::DispatcherMsg;
+use super::tree::Tree;
 use crate::clock::Timer;
 use crate::eo::EoError;
 use crate::events::EventKind;
@@ -64,14 +65,26 @@ impl DispatcherState {
             status: self.status.0,
             done: self.done.clone(),
             generation: self.generation,
-            current: self.current.as_ref().map(|c| CurrentCheckpoint {
-                index: c.index,
-                running: c.running.iter().cloned().collect(),
-                enders_done: c.enders_done.iter().cloned().collect(),
-                ending: c.ending(),
-                started_ms: c.started_ms,
-                launched: c.launched,
-            }),
+            live: self
+                .live
+                .values()
+                .map(|c| CurrentCheckpoint {
+                    index: c.index,
+                    running: c.running.iter().cloned().collect(),
+                    enders_done: c.enders_done.iter().cloned().collect(),
+                    ending: c.ending(),
+                    started_ms: c.started_ms,
+                    launched: c.launched,
+                    halted: c.end == End::Halted,
+                    failure: match &c.end {
+                        End::Failed(reason) => Some(reason.clone()),
+                        _ => None,
+                    },
+                })
+                .collect(),
+            tree: self.tree.state(),
+            pending: self.pending.clone(),
+            failure: self.failure.clone(),
             bindings: self
                 .bindings
                 .values()
@@ -146,7 +159,8 @@ impl DispatcherState {
         let (run, term) = (writer.run.clone(), writer.term);
         tracing::warn!(%run, term, newer, "fenced off: a newer dispatcher carries the run on");
         self.ended = true;
-        self.current = None;
+        self.live.clear();
+        self.wake = None;
         self.emit(EventKind::DispatcherFenced { run, term, newer });
         // dropping the reply port tells whoever waits that this dispatcher did not end it
         self.reply = None;
@@ -242,22 +256,45 @@ impl DispatcherState {
                 }
             }
         }
-        let generation = self.generation;
-        self.current = from.current.as_ref().map(|c| Current {
-            generation,
-            index: c.index,
-            started_ms: c.started_ms,
-            running: c.running.iter().cloned().collect::<BTreeSet<_>>(),
-            enders_done: c.enders_done.iter().cloned().collect(),
-            state: match c.ending {
-                true => ActionState::Ending,
-                false => ActionState::Running,
-            },
-            timer: None,
-            // not launched: the lost dispatcher sent none of its commands (it sends them
-            // once this was stored); the standby launches it
-            launched: c.launched,
-        });
+        let Some(tree) = Tree::restore(self.mission.control.root.clone(), from.tree.clone()) else {
+            let reason = format!(
+                "taking the run over from {}: its checkpoint's tree does not fit the mission",
+                from.node
+            );
+            self.finish(myself, Outcome::Failed, reason);
+            return;
+        };
+        self.tree = tree;
+        self.pending = from.pending.clone();
+        self.failure = from.failure.clone();
+        for c in &from.live {
+            self.generation += 1;
+            let generation = self.generation;
+            let end = match (c.halted, &c.failure) {
+                (true, _) => End::Halted,
+                (false, Some(reason)) => End::Failed(reason.clone()),
+                (false, None) => End::Done,
+            };
+            self.live.insert(
+                generation,
+                Current {
+                    generation,
+                    index: c.index,
+                    started_ms: c.started_ms,
+                    running: c.running.iter().cloned().collect::<BTreeSet<_>>(),
+                    enders_done: c.enders_done.iter().cloned().collect(),
+                    state: match c.ending {
+                        true => ActionState::Ending,
+                        false => ActionState::Running,
+                    },
+                    end,
+                    timer: None,
+                    // not launched: the lost dispatcher sent none of its commands (it
+                    // sends them once this was stored); the standby launches it
+                    launched: c.launched,
+                },
+            );
+        }
         // the bindings' new epochs, before any command carries them
         if self.checkpoint_now().await.is_err() {
             return;
@@ -275,9 +312,8 @@ impl DispatcherState {
                 DispatcherMsg::MissionDeadline {},
             ));
         }
-        if self.current.is_none() {
-            self.next_action(myself);
-        }
+        // re-arms the tree's timers; starts what it started and nothing carried on
+        self.tick(myself);
     }
 
     /// The instance to hold for `held`: the one the lost dispatcher held if it still
@@ -313,51 +349,56 @@ impl DispatcherState {
     /// The takeover's commands: attach the running action's operations (or suspend them
     /// again if it was ending), give every other its last parameters at the new epoch.
     fn command_after_takeover(&mut self, myself: &ActorRef<DispatcherMsg>, from: &Checkpoint) {
-        if let Some(cur) = self.current.as_ref().filter(|c| !c.launched) {
-            let generation = cur.generation;
-            self.restore_parameters(&BTreeSet::new());
-            self.launch(myself, generation);
-            return;
-        }
         let since = |name: &str| {
             from.bindings
                 .iter()
                 .find(|b| b.name == name)
                 .map_or(0, |b| b.epoch)
         };
-        let (running, ending, generation) = match &self.current {
-            Some(c) => (c.running.clone(), c.ending(), c.generation),
-            None => (BTreeSet::new(), false, 0),
-        };
         let mut running_names = BTreeSet::new();
-        for key in &running {
-            let Some(b) = self.binding(key) else { continue };
-            running_names.insert(b.name.clone());
-            let (name, epoch, incarnation) = (b.name.clone(), b.epoch, b.incarnation);
-            let result = match ending {
-                true => b.client.suspend(epoch),
-                false => self.attach(myself, key, generation, incarnation, since(&name)),
+        let mut unlaunched = Vec::new();
+        let generations: Vec<u64> = self.live.keys().copied().collect();
+        for generation in generations {
+            let Some(cur) = self.live.get(&generation) else {
+                continue;
             };
-            if let Err(e) = result {
-                self.report_gone(myself, &name, incarnation, e);
+            if !cur.launched {
+                unlaunched.push(generation);
+                continue;
+            }
+            let (running, ending) = (cur.running.clone(), cur.ending());
+            for key in &running {
+                let Some(b) = self.binding(key) else { continue };
+                running_names.insert(b.name.clone());
+                let (name, epoch, incarnation) = (b.name.clone(), b.epoch, b.incarnation);
+                let result = match ending {
+                    true => b.client.suspend(epoch),
+                    false => self.attach(myself, key, generation, incarnation, since(&name)),
+                };
+                if let Err(e) = result {
+                    self.report_gone(myself, &name, incarnation, e);
+                }
+            }
+            let elapsed = self.elapsed_ms();
+            if let Some(cur) = self.live.get_mut(&generation) {
+                let message = match ending {
+                    true => DispatcherMsg::SuspendGrace { generation },
+                    false => DispatcherMsg::ActionDeadline { generation },
+                };
+                let wait = match ending {
+                    true => super::running::SUSPEND_GRACE,
+                    false => {
+                        let deadline = self.mission.actions[cur.index].deadline;
+                        let ran = Duration::from_millis(elapsed.saturating_sub(cur.started_ms));
+                        deadline.saturating_sub(ran)
+                    }
+                };
+                cur.timer = Some(Timer::cast_after(&self.clock, wait, myself, message));
             }
         }
         self.restore_parameters(&running_names);
-        let elapsed = self.elapsed_ms();
-        if let Some(cur) = self.current.as_mut() {
-            let message = match ending {
-                true => DispatcherMsg::SuspendGrace { generation },
-                false => DispatcherMsg::ActionDeadline { generation },
-            };
-            let wait = match ending {
-                true => super::running::SUSPEND_GRACE,
-                false => {
-                    let deadline = self.mission.actions[cur.index].deadline;
-                    let ran = Duration::from_millis(elapsed.saturating_sub(cur.started_ms));
-                    deadline.saturating_sub(ran)
-                }
-            };
-            cur.timer = Some(Timer::cast_after(&self.clock, wait, myself, message));
+        for generation in unlaunched {
+            self.launch(myself, generation);
         }
     }
 

@@ -64,6 +64,22 @@ pub enum EventKind {
         /// The status word after it.
         status: u32,
     },
+    /// The mission's behaviour tree, told right after [`RunStarted`](Self::RunStarted):
+    /// what a monitor draws, its nodes in preorder.
+    ControlPlan {
+        /// The nodes, the root first.
+        nodes: Vec<PlanNode>,
+    },
+    /// A control decision of the mission's tree: a retry, a fallback, a timeout, a
+    /// condition that no longer holds, a recovery, a parallel decided.
+    Control {
+        /// The node that decided, by its label ([`Control::label`](crate::dispatcher::mission::Control::label)).
+        node: String,
+        /// What it decided, in words (`retry 2 of 3`, ``fallback to `back-along` ``).
+        decision: String,
+        /// When, in ms since the run began.
+        run_ms: u64,
+    },
     /// The run ended; the dispatcher's verdict (a node may judge further, [`Judged`](Self::Judged)).
     RunEnded {
         /// Outcome.
@@ -396,6 +412,8 @@ impl EventKind {
                 | EventKind::ActionStarted { .. }
                 | EventKind::OpEnded { .. }
                 | EventKind::ActionEnded { .. }
+                | EventKind::Control { .. }
+                | EventKind::ControlPlan { .. }
                 | EventKind::RunEnded { .. }
                 | EventKind::Lost { .. }
                 | EventKind::Rebound(_)
@@ -405,6 +423,25 @@ impl EventKind {
                 | EventKind::DispatcherFenced { .. }
         )
     }
+}
+
+/// A node of a mission's behaviour tree as its run announces it
+/// ([`EventKind::ControlPlan`]).
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct PlanNode {
+    /// Its id: its place in preorder (the root 0), as control decisions name it.
+    pub id: usize,
+    /// Its parent's id (none for the root).
+    pub parent: Option<usize>,
+    /// What it is: `schedule`, `sequence`, `reactive`, `fallback`, `parallel`, `retry`,
+    /// `timeout`, `recover`, `action` or `condition`.
+    pub kind: String,
+    /// Its label (an action's or a group's name, a decorator's kind and what it
+    /// decorates): what the run's control events call it.
+    pub label: String,
+    /// Its settings in words (`3 attempts, 2.0 s apart`, `40.0 s`, `unless dead-end`).
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub detail: String,
 }
 
 /// An action of a mission as its run announces it: what a monitor draws as the task tree.

@@ -105,7 +105,7 @@ mod registry_bridge;
 mod voice;
 
 pub use bus::{BusError, EventBus, EventSubscription, Tap, DEFAULT_CAPACITY};
-pub use kind::{ActionPlan, BoundOp, EventKind, ModuleInfo, OpStarted};
+pub use kind::{ActionPlan, BoundOp, EventKind, ModuleInfo, OpStarted, PlanNode};
 pub use registry_bridge::{bridge_registry, RegistryBridge};
 pub use voice::DispatcherVoice;
 
@@ -177,6 +177,8 @@ mod tests {
             EventKind::ActionStarted { .. } => "action_started",
             EventKind::OpEnded { .. } => "op_ended",
             EventKind::ActionEnded { .. } => "action_ended",
+            EventKind::Control { .. } => "control",
+            EventKind::ControlPlan { .. } => "control_plan",
             EventKind::RunEnded { .. } => "run_ended",
             EventKind::Lost { .. } => "lost",
             EventKind::Rebound(_) => "rebound",

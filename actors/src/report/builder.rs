@@ -25,8 +25,9 @@ use std::sync::{Arc, Mutex};
 #[derive(Clone, Debug)]
 pub struct ReportBuilder {
     report: RunReport,
-    /// The action that started and has not ended.
-    open: Option<OpenAction>,
+    /// The actions that started and have not ended (more than one under a parallel), in
+    /// the order they started.
+    open: Vec<OpenAction>,
     /// The stamp of the run's `run_started`: where its times count from.
     start_ms: Option<u64>,
     /// Whose word the run is (see the module invariants).
@@ -53,7 +54,7 @@ impl ReportBuilder {
     pub fn new() -> ReportBuilder {
         ReportBuilder {
             report: RunReport::new("", Outcome::Failed, "the run has not ended"),
-            open: None,
+            open: Vec::new(),
             start_ms: None,
             voice: DispatcherVoice::default(),
         }
@@ -110,10 +111,13 @@ impl ReportBuilder {
                 // predecessor had recorded, and may have launched — is one action
                 let again = self
                     .open
-                    .as_ref()
-                    .is_some_and(|o| o.name == *action && o.start_ms == *run_ms);
-                if !again {
-                    self.close(*run_ms);
+                    .iter()
+                    .position(|o| o.name == *action && o.start_ms == *run_ms);
+                match again {
+                    Some(at) => drop(self.open.remove(at)),
+                    // an action that starts again before its end was told: its first run
+                    // ends here
+                    None => self.close(action, *run_ms),
                 }
                 let ops = operations
                     .iter()
@@ -130,30 +134,42 @@ impl ReportBuilder {
                         (o.key.clone(), rec)
                     })
                     .collect();
-                self.open = Some(OpenAction {
+                self.open.push(OpenAction {
                     name: action.clone(),
                     start_ms: *run_ms,
                     ops,
                 });
             }
             EventKind::OpEnded {
-                key, ended, flags, ..
+                action,
+                key,
+                ended,
+                flags,
             } => {
-                if let Some(rec) = self.open_op(|k, _| k == key) {
+                if let Some(rec) = self.open_op(Some(action), |k, _| k == key) {
                     rec.ended = *ended;
                     rec.flags = flags.clone();
                 }
             }
             EventKind::ActionEnded {
+                action,
                 run_ms,
                 flags,
                 status,
-                ..
             } => {
                 self.report.status = *status;
                 self.report.flags = flags.clone();
-                self.close(*run_ms);
+                self.close(action, *run_ms);
             }
+            EventKind::Control {
+                node,
+                decision,
+                run_ms,
+            } => self.report.record_control(super::ControlRecord {
+                at_ms: *run_ms,
+                node: node.clone(),
+                decision: decision.clone(),
+            }),
             EventKind::Bound { operations } => {
                 for op in operations {
                     self.report
@@ -165,7 +181,8 @@ impl ReportBuilder {
                     .record_bound_epoch(&rebind.operation, rebind.epoch, event.at_ms);
                 // the stand-in carries on the running part of its operation
                 let name = rebind.operation.as_str();
-                if let Some(rec) = self.open_op(|_, r| r.name == name && r.ended == OpEnd::Running)
+                if let Some(rec) =
+                    self.open_op(None, |_, r| r.name == name && r.ended == OpEnd::Running)
                 {
                     rec.address = rebind.to.clone();
                     if !rebind.to_node.is_empty() {
@@ -183,7 +200,10 @@ impl ReportBuilder {
             } => {
                 self.report.status = *status;
                 self.report.flags = flags.clone();
-                self.close(*run_ms);
+                while let Some(open) = self.open.first() {
+                    let name = open.name.clone();
+                    self.close(&name, *run_ms);
+                }
                 self.report.outcome = *outcome;
                 self.report.reason = reason.clone();
                 self.report.duration_ms = *run_ms;
@@ -283,6 +303,7 @@ impl ReportBuilder {
             | EventKind::DmState { .. }
             | EventKind::DmAcked { .. }
             | EventKind::DmDeleted { .. }
+            | EventKind::ControlPlan { .. }
             | EventKind::Robot { .. } => {}
         }
     }
@@ -303,25 +324,32 @@ impl ReportBuilder {
         self.report
     }
 
-    /// The first operation record of the open action that `pick` chooses.
-    fn open_op(&mut self, pick: impl Fn(&str, &OpRecord) -> bool) -> Option<&mut OpRecord> {
-        let open = self.open.as_mut()?;
-        open.ops
+    /// The first operation record that `pick` chooses among the open actions (of the
+    /// action named `action`, if given).
+    fn open_op(
+        &mut self,
+        action: Option<&str>,
+        pick: impl Fn(&str, &OpRecord) -> bool,
+    ) -> Option<&mut OpRecord> {
+        self.open
             .iter_mut()
+            .filter(|o| action.is_none_or(|a| o.name == a))
+            .flat_map(|o| o.ops.iter_mut())
             .find(|(k, r)| pick(k, r))
             .map(|(_, r)| r)
     }
 
-    /// Record the open action as ended at `end_ms`, with the report's status word.
-    fn close(&mut self, end_ms: u64) {
-        let Some(OpenAction {
+    /// Record the open action `action` as ended at `end_ms`, with the report's status
+    /// word.
+    fn close(&mut self, action: &str, end_ms: u64) {
+        let Some(at) = self.open.iter().position(|o| o.name == action) else {
+            return;
+        };
+        let OpenAction {
             name,
             start_ms,
             ops,
-        }) = self.open.take()
-        else {
-            return;
-        };
+        } = self.open.remove(at);
         self.report.actions.push(ActionRecord {
             name,
             start_ms,

@@ -137,6 +137,22 @@ pub struct RunReport {
     /// [`BOUND_EPOCHS_KEEPS`], oldest first.
     #[serde(default)]
     pub bound_epochs: Vec<BoundEpoch>,
+    /// The control decisions of the mission's tree — retries, fallbacks, timeouts,
+    /// conditions lost, recoveries, parallels decided —, the latest [`REPORT_KEEPS`],
+    /// oldest first. Empty for a thesis mission: its schedule decides nothing of the kind.
+    #[serde(default)]
+    pub control: Vec<ControlRecord>,
+}
+
+/// A control decision of a mission's tree ([`crate::events::EventKind::Control`]).
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ControlRecord {
+    /// When, in ms since the run began.
+    pub at_ms: u64,
+    /// The node that decided, by its label.
+    pub node: String,
+    /// What it decided.
+    pub decision: String,
 }
 
 /// How many bindings' epochs a report keeps ([`RunReport::bound_epochs`]): the latest.
@@ -190,7 +206,7 @@ pub struct FaultRecord {
 
 impl RunReport {
     /// The report's own JSON keys: a robot's section cannot take them.
-    pub const OWN_KEYS: [&'static str; 18] = [
+    pub const OWN_KEYS: [&'static str; 19] = [
         "mission",
         "outcome",
         "reason",
@@ -208,6 +224,7 @@ impl RunReport {
         "dm_checks",
         "acknowledged_lost",
         "bound_epochs",
+        "control",
         "robot",
     ];
 
@@ -231,6 +248,7 @@ impl RunReport {
             dm_checks: Vec::new(),
             acknowledged_lost: None,
             bound_epochs: Vec::new(),
+            control: Vec::new(),
             robot: RobotSection::new(),
             faults: Vec::new(),
             faults_total: 0,
@@ -256,6 +274,11 @@ impl RunReport {
             clock_ms,
         };
         keep_last(&mut self.bound_epochs, bound, BOUND_EPOCHS_KEEPS);
+    }
+
+    /// Keep a control decision among the latest [`REPORT_KEEPS`].
+    pub fn record_control(&mut self, record: ControlRecord) {
+        keep_latest(&mut self.control, record);
     }
 
     /// Count a rebind and keep it among the latest [`REPORT_KEEPS`].
@@ -433,6 +456,11 @@ mod tests {
                 operation: "op".into(),
                 epoch: 7,
                 clock_ms: 1_764_216_000_004,
+            }],
+            control: vec![ControlRecord {
+                at_ms: 3,
+                node: "retry(a)".into(),
+                decision: "retry 2 of 3".into(),
             }],
             faults: vec![FaultRecord {
                 at_ms: 2,

@@ -67,7 +67,7 @@ impl PlanRun {
                 loop {
                     clock.sleep(chaos.next_gap()).await;
                     let bindings = injector.bindings();
-                    let mut victims = bindings.running().to_vec();
+                    let mut victims = bindings.running();
                     if chaos.datamanagers {
                         let mut dms: Vec<String> = registry::list_of(ModuleKind::Datamanager)
                             .into_iter()

@@ -48,8 +48,9 @@ impl Hit {
 /// event of the run ([`RunBindings::observe`]); a `run_started` starts over.
 #[derive(Clone, Debug, Default)]
 pub struct RunBindings {
-    /// The keys of the running action's operations (chaos picks among them).
-    running: Vec<String>,
+    /// The keys of the running actions' operations, by action (chaos picks among them;
+    /// more than one action runs under a parallel).
+    running: Vec<(String, Vec<String>)>,
     /// Whether the run has bound its operations.
     bound: bool,
     /// Operation name → the address of the instance that serves it now.
@@ -67,13 +68,18 @@ impl RunBindings {
                     self.serving.insert(op.name.clone(), op.address.clone());
                 }
             }
-            EventKind::ActionStarted { operations, .. } => {
-                self.running = operations.iter().map(|o| o.key.clone()).collect();
+            EventKind::ActionStarted {
+                action, operations, ..
+            } => {
+                self.running.retain(|(a, _)| a != action);
+                let keys = operations.iter().map(|o| o.key.clone()).collect();
+                self.running.push((action.clone(), keys));
                 for op in operations {
                     self.serving.insert(op.name.clone(), op.address.clone());
                 }
             }
-            EventKind::ActionEnded { .. } | EventKind::RunEnded { .. } => self.running.clear(),
+            EventKind::ActionEnded { action, .. } => self.running.retain(|(a, _)| a != action),
+            EventKind::RunEnded { .. } => self.running.clear(),
             EventKind::Rebound(r) => {
                 self.serving.insert(r.operation.clone(), r.to.clone());
             }
@@ -86,9 +92,15 @@ impl RunBindings {
         self.bound
     }
 
-    /// The keys of the running action's operations.
-    pub fn running(&self) -> &[String] {
-        &self.running
+    /// The keys of the running actions' operations, each once.
+    pub fn running(&self) -> Vec<String> {
+        let mut keys: Vec<String> = Vec::new();
+        for key in self.running.iter().flat_map(|(_, k)| k) {
+            if !keys.contains(key) {
+                keys.push(key.clone());
+            }
+        }
+        keys
     }
 
     /// The bindings of a run that binds none of the operations a target may name: a name
