@@ -55,15 +55,23 @@ async function getJson(path) {
 
 // --- drawing -----------------------------------------------------------------------------
 
+// How long the latest render took (ms, its script's part: the DOM updates, not the browser's
+// layout after), and how many renders there were: on <body> for whoever measures the page.
+let renders = 0;
+
 function render(state) {
+  const t0 = performance.now();
   latest = state;
   renderHeader(state);
   renderTree(state.mission);
+  renderControl(state);
   renderBindings(state.bindings);
   refreshProps(state.bindings);
   renderCluster(state.cluster);
   renderRobot(state.robot);
   renderTimeline(state.timeline);
+  document.body.dataset.renders = String(++renders);
+  document.body.dataset.renderMs = (performance.now() - t0).toFixed(2);
 }
 
 function renderHeader(state) {
@@ -100,6 +108,116 @@ function renderTree(m) {
     })
     .join(""));
 }
+
+// --- the behaviour tree ----------------------------------------------------------------------
+// A run that announces its behaviour tree (state.tree, issue 24) gets it drawn instead of the
+// list of actions (#tree: still drawn, hidden, and shown again for a stream without a tree).
+// One compact row per node, indented by its depth, in a scrolling list; nothing collapsed.
+// Built once per plan; an update then touches only the rows whose node changed (a
+// signature of what a row shows), so a tree of hundreds of nodes costs an update a few
+// hundred string comparisons and the DOM writes of what changed.
+const ctree = { key: null, rows: [], sigs: [], builds: 0 };
+// a retry's attempts in all, from its detail (`3 attempts, 2.0 s apart`)
+const attemptsOf = (detail) => parseInt(detail || "", 10) || null;
+const times = (n) => (n > 1 ? " ×" + n : "");
+
+function renderControl(state) {
+  const t0 = performance.now();
+  const t = state.tree;
+  const list = $("#control-tree");
+  const has = !!(t && t.nodes && t.nodes.length);
+  list.hidden = !has;
+  $("#control-summary").hidden = !has;
+  $("#tree").hidden = has;
+  if (!has) {
+    if (ctree.key !== null) {
+      list.replaceChildren();
+      Object.assign(ctree, { key: null, rows: [], sigs: [] });
+    }
+    return;
+  }
+  const key = state.mission.name + "#" + t.plan + "#" + t.nodes.length;
+  if (key !== ctree.key) buildControl(list, t.nodes, key);
+  const actions = new Map(state.mission.actions.map((a) => [a.name, a]));
+  let updated = 0;
+  const running = [];
+  for (const n of t.nodes) {
+    const a = n.kind === "action" ? actions.get(n.label) : undefined;
+    const sig = nodeSig(n, a);
+    if (sig !== ctree.sigs[n.id]) {
+      drawNode(ctree.rows[n.id], n, a);
+      ctree.sigs[n.id] = sig;
+      updated++;
+    }
+    if (n.running && n.kind === "action") running.push(n);
+  }
+  setHtml($("#control-summary"), `${t.nodes.length} nodes · ` +
+    (running.length
+      ? "running " + running.map((n) => `<button type="button" class="goto" data-id="${n.id}" title="show it">${esc(n.label)}</button>`).join(" ")
+      : "nothing runs"));
+  list.dataset.updated = String(updated);
+  list.dataset.renderMs = (performance.now() - t0).toFixed(2);
+}
+
+// The rows of a new plan, in one parse.
+function buildControl(list, nodes, key) {
+  list.innerHTML = nodes
+    .map((n) => `<li class="cnode" data-id="${n.id}" data-kind="${esc(n.kind)}" data-depth="${n.depth}" ` +
+      `data-label="${esc(n.label)}" data-state="waiting" style="--depth:${n.depth}">` +
+      `<span class="st"></span><span class="kind">${esc(n.kind)}</span><span class="label">${esc(n.label)}</span>` +
+      `<span class="marks"></span><span class="detail">${esc(n.detail)}</span></li>`)
+    .join("");
+  ctree.rows = Array.from(list.children, (li) => ({
+    li, marks: li.querySelector(".marks"), detail: li.querySelector(".detail"),
+  }));
+  ctree.sigs = [];
+  ctree.key = key;
+  list.dataset.builds = String(++ctree.builds);
+  list.dataset.nodes = String(nodes.length);
+}
+
+// What a row shows of node `n` (and of its action `a`): equal signatures, equal rows.
+function nodeSig(n, a) {
+  return [n.running, n.ended, n.starts, n.attempt, n.gave_up, n.timeouts, n.fallbacks,
+    n.conditions_lost, n.recoveries, n.told,
+    a ? a.ops.map((o) => o.key + ":" + (o.ended || "")).join(",") : ""].join("|");
+}
+
+function drawNode(row, n, a) {
+  const { li } = row;
+  li.dataset.state = n.running ? "running" : n.ended || "waiting";
+  const marks = [];
+  if (n.starts > 1) marks.push(`<span class="mark starts" title="started ${n.starts} times">run ${n.starts}</span>`);
+  if (n.kind === "retry") {
+    const [at, of] = n.attempt || [1, attemptsOf(n.detail)];
+    if (of && (n.attempt || n.running || n.ended)) {
+      marks.push(`<span class="mark attempt" data-attempt="${at}/${of}">attempt ${at} of ${of}</span>`);
+    }
+  }
+  if (n.gave_up) marks.push(`<span class="mark gave-up">gave up</span>`);
+  if (n.timeouts) marks.push(`<span class="mark timeout" data-timeouts="${n.timeouts}">timed out${times(n.timeouts)}</span>`);
+  if (n.fallbacks) marks.push(`<span class="mark fallback" data-fallbacks="${n.fallbacks}">fell back${times(n.fallbacks)}</span>`);
+  if (n.conditions_lost) marks.push(`<span class="mark condition-lost">condition lost${times(n.conditions_lost)}</span>`);
+  if (n.recoveries) marks.push(`<span class="mark recovery">recovered${times(n.recoveries)}</span>`);
+  row.marks.innerHTML = marks.join("");
+  // an action's operations, each as far as it got (after the flags it waits for, if any:
+  // a detail `when wall-found; ultrasonic, localizer`)
+  if (a && a.ops.length) {
+    const when = /^when [^;]*/.exec(n.detail || "");
+    row.detail.innerHTML = (when ? `<span class="when">${esc(when[0])}</span> ` : "") + a.ops
+      .map((o) => `<span class="op" data-op="${esc(o.name)}" data-ended="${esc(o.ended || "waiting")}">${esc(o.key)}</span>`)
+      .join(" ");
+  }
+  const told = (n.decisions || []).map((d) => `\n${fmtMs(d.run_ms)} ${d.text}`).join("");
+  li.title = n.label + (n.detail ? " — " + n.detail : "") +
+    (n.told > (n.decisions || []).length ? `\n(${n.told} decisions, the latest:)` : "") + told;
+}
+
+$("#control-summary").addEventListener("click", (ev) => {
+  const button = ev.target.closest("button.goto");
+  const row = button && ctree.rows[Number(button.dataset.id)];
+  if (row) row.li.scrollIntoView({ block: "center" });
+});
 
 function renderBindings(bindings) {
   // epochs are fencing tokens (a run's start in ms × 1000, plus one per binding): shown

@@ -7,16 +7,17 @@
 //! file up to time T gives the page's state at T; applying them as they come gives the
 //! live state. Nothing here waits or does I/O.
 //!
-//! One concept per file: the mission's task tree ([`mission`]), the bindings
-//! ([`bindings`]), the cluster ([`cluster`]), the robot ([`robot`]), the timeline
-//! ([`timeline`]). Every part is bounded (history, timeline, path), so a long run cannot
-//! grow the monitor without limit.
+//! One concept per file: the mission's task tree ([`mission`]), its behaviour tree
+//! ([`tree`]), the bindings ([`bindings`]), the cluster ([`cluster`]), the robot
+//! ([`robot`]), the timeline ([`timeline`]). Every part is bounded (history, timeline,
+//! path, a node's decisions), so a long run cannot grow the monitor without limit.
 
 pub mod bindings;
 pub mod cluster;
 pub mod mission;
 pub mod robot;
 pub mod timeline;
+pub mod tree;
 
 use bindings::Bindings;
 use cluster::Cluster;
@@ -26,6 +27,7 @@ use mission::MissionView;
 use robot::RobotView;
 use serde::Serialize;
 use timeline::Timeline;
+use tree::ControlTree;
 
 /// Everything the page shows. Serialized as JSON for it: an object with these fields, each
 /// part as its type documents (field names as written here, enums in snake_case).
@@ -42,6 +44,9 @@ pub struct MonitorState {
     pub missed: u64,
     /// The mission's run: task tree, flags, outcome.
     pub mission: MissionView,
+    /// The mission's behaviour tree, when the run announced one: nodes, the running
+    /// branch, the control decisions.
+    pub tree: ControlTree,
     /// The bindings, by operation.
     pub bindings: Bindings,
     /// The nodes, by name.
@@ -77,6 +82,7 @@ impl MonitorState {
                 success,
             } => {
                 self.mission.started(mission, actions, success);
+                self.tree.run_started();
                 self.bindings.clear();
                 line.push(at, node, "run", format!("mission `{mission}` started"));
             }
@@ -88,6 +94,7 @@ impl MonitorState {
                 operations,
             } => {
                 self.mission.action_started(action, *run_ms, operations);
+                self.tree.action_started(action);
                 self.bindings.activated(operations);
                 line.push(at, node, "action", format!("action `{action}` started"));
             }
@@ -96,7 +103,10 @@ impl MonitorState {
                 key,
                 ended,
                 flags,
-            } => self.mission.op_ended(action, key, *ended, flags),
+            } => {
+                self.mission.op_ended(action, key, *ended, flags);
+                self.tree.op_ended(action, *ended);
+            }
             EventKind::ActionEnded {
                 action,
                 run_ms,
@@ -104,7 +114,17 @@ impl MonitorState {
                 ..
             } => {
                 self.mission.action_ended(action, *run_ms, flags);
+                self.tree.action_ended(action);
                 line.push(at, node, "action", format!("action `{action}` ended"));
+            }
+            EventKind::ControlPlan { nodes } => self.tree.planned(nodes),
+            EventKind::Control {
+                node: by,
+                decision,
+                run_ms,
+            } => {
+                self.tree.decided(by, decision, *run_ms);
+                line.push(at, node, "control", format!("{by}: {decision}"));
             }
             EventKind::RunEnded {
                 outcome,
@@ -114,6 +134,7 @@ impl MonitorState {
                 ..
             } => {
                 self.mission.run_ended(*outcome, reason, *run_ms, flags);
+                self.tree.run_ended(*outcome);
                 line.push(at, node, "run", ended_text("run", *outcome, reason));
             }
             EventKind::Judged {

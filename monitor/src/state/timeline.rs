@@ -15,7 +15,7 @@ pub struct Entry {
     /// The node that published it.
     pub node: String,
     /// What kind of entry: `run`, `action`, `fault`, `restart`, `exit`, `gave_up`, `lost`,
-    /// `rebind`, `node` or `robot` — the page's CSS class of the entry.
+    /// `rebind`, `node`, `control` or `robot` — the page's CSS class of the entry.
     pub class: &'static str,
     /// One line of text.
     pub text: String,
