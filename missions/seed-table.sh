@@ -23,6 +23,9 @@ pairs=(
     "missions/docking-corridor.toml missions/worlds/corridor.toml"
     "missions/docking-lshape.toml missions/worlds/lshape.toml"
     "missions/corner.toml missions/worlds/corner.toml"
+    "missions/docking-recover.toml missions/worlds/deadend.toml"
+    "missions/docking-recover.toml missions/worlds/lab.toml"
+    "missions/docking.toml missions/worlds/deadend.toml"
 )
 
 printf '%-32s %-10s %9s %10s %9s  %s\n' mission world successes collisions median_s failed_seeds

@@ -96,9 +96,11 @@ const BUILTIN: &[(&str, &str)] = &[
     ("lshape", include_str!("../../worlds/lshape.toml")),
     ("corner", include_str!("../../worlds/corner.toml")),
     ("nodock", include_str!("../../worlds/nodock.toml")),
+    ("deadend", include_str!("../../worlds/deadend.toml")),
 ];
 
-/// The names of the shipped worlds (`lab`, `corridor`, `lshape`, `corner`, `nodock`).
+/// The names of the shipped worlds (`lab`, `corridor`, `lshape`, `corner`, `nodock`,
+/// `deadend`).
 pub fn builtin_names() -> Vec<&'static str> {
     BUILTIN.iter().map(|(n, _)| *n).collect()
 }
