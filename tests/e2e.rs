@@ -34,6 +34,7 @@ mod monitor_faults;
 mod node_faults;
 mod nodes;
 mod partition;
+mod recovery;
 mod robot;
 mod selection;
 mod selection_cluster;

@@ -452,6 +452,7 @@ impl Fed {
             run_ms: self.run_ms(),
             flags: vec![],
             status: 0,
+            result: None,
         }
     }
 

@@ -25,13 +25,19 @@ fn faulted_run(fault: &str) -> (String, serde_json::Value, Vec<Event>) {
 
 /// The same with every fault of `faults`.
 fn faulted_runs(faults: &[&str]) -> (String, serde_json::Value, Vec<Event>) {
+    faulted_runs_of("missions/docking.toml", faults)
+}
+
+/// Run `mission` on the thesis' layout with every fault of `faults`; stdout, the report and
+/// the events.
+fn faulted_runs_of(mission: &str, faults: &[&str]) -> (String, serde_json::Value, Vec<Event>) {
     let dir = tempfile::tempdir().unwrap();
     let events_path = dir.path().join("events.jsonl");
     let mut args = vec![
         "up",
         THESIS,
         "--run",
-        "missions/docking.toml",
+        mission,
         "--speed",
         SPEED,
         "--events",
@@ -246,4 +252,60 @@ fn a_dispatcher_fault_it_cannot_suffer_is_refused_before_the_run() {
     assert_eq!(out.status.code(), Some(2), "{stderr}");
     assert!(stderr.contains("dispatcher"), "{stderr}");
     assert!(!text(&out.stdout).contains("outcome:"));
+}
+
+#[test]
+fn a_dispatcher_lost_after_a_fallback_is_taken_over_inside_the_retry_and_the_recovery_mission_docks(
+) {
+    // 110 s of mission time: the wall ahead led to the dead end, the fallback chose to back
+    // along the wall (a retried action), and the cart backs towards the dock
+    let fault = "stop-node:features@110";
+    let (stdout, report, events) = faulted_runs_of("missions/docking-recover.toml", &[fault]);
+    assert!(
+        stdout.contains("# the run taken over by spare from features at "),
+        "{stdout}"
+    );
+    assert_eq!(report["outcome"], "succeeded", "{stdout}");
+    assert_eq!(report["collisions"], 0);
+    assert_eq!(
+        takeovers_of(&report),
+        [("features".to_string(), "spare".to_string(), 2)]
+    );
+    assert_eq!(report["obeyed_late"], serde_json::json!([]));
+    let folded = RunReport::from_events(&events);
+    let written: RunReport = serde_json::from_value(report.clone()).unwrap();
+    assert_eq!(folded.actions, written.actions);
+    assert_eq!(folded.control, written.control);
+    // the standby carried the tree on where it was: the fallback decided once (by
+    // features), the retried action attached to, not started again, nor the wall ahead
+    // followed again
+    let told: Vec<(String, String)> = events
+        .iter()
+        .filter_map(|e| match &e.kind {
+            marie::actors::events::EventKind::Control { node, decision, .. } => {
+                Some((format!("{node}: {decision}"), e.node.clone()))
+            }
+            _ => None,
+        })
+        .collect();
+    assert_eq!(
+        told,
+        [(
+            "find-dock: fallback to `retry(back-along-wall)`".to_string(),
+            "features".to_string()
+        )],
+        "{stdout}"
+    );
+    let actions: Vec<&str> = written.actions.iter().map(|a| a.name.as_str()).collect();
+    assert_eq!(
+        actions,
+        [
+            "find-wall",
+            "follow-wall",
+            "back-along-wall",
+            "plan-parking",
+            "park"
+        ],
+        "{stdout}"
+    );
 }

@@ -391,6 +391,7 @@ fn a_report_is_one_run_across_a_takeover_and_folds_only_the_current_dispatchers_
             run_ms: 8000,
             flags: vec![],
             status: 1,
+            result: None,
         },
     );
     bus.republish("spare", ended(Outcome::Succeeded, "", 8000));

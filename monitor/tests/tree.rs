@@ -126,6 +126,7 @@ fn ended(state: &mut MonitorState, action: &str) {
         run_ms: 0,
         flags: vec![],
         status: 0,
+        result: None,
     }));
 }
 

@@ -1,7 +1,7 @@
 //! The lines a run prints on stdout: its events as they are published on the node's bus
 //! (a subscriber, as the monitor is), then its outcome from the report.
 
-use marie::actors::events::{BusError, DispatcherVoice, Event, EventBus, EventKind};
+use marie::actors::events::{ActionResult, BusError, DispatcherVoice, Event, EventBus, EventKind};
 use marie::actors::report::RunReport;
 use marie::actors::run::{Choice, Outcome, Verdict};
 use marie::actors::status::StatusFlags;
@@ -145,10 +145,16 @@ impl Printer {
                 action,
                 flags,
                 status,
+                result,
                 ..
             } => {
                 let status = StatusFlags(*status);
-                println!("< {action}: end, status {status} [{}]", flags.join(", "));
+                let how = match result {
+                    Some(ActionResult::Failed) => "failed",
+                    Some(ActionResult::Halted) => "halted",
+                    _ => "end",
+                };
+                println!("< {action}: {how}, status {status} [{}]", flags.join(", "));
             }
             EventKind::Control {
                 node,

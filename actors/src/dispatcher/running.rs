@@ -26,7 +26,7 @@ use super::mission::EndMode;
 use super::tree::{Command, Decision, Status};
 use crate::clock::Timer;
 use crate::eo::{EoError, EoReport};
-use crate::events::{EventKind, OpStarted};
+use crate::events::{ActionResult, EventKind, OpStarted};
 use crate::run::LossCause;
 use crate::run::{OpEnd, Outcome};
 use crate::status::StatusFlags;
@@ -574,11 +574,17 @@ impl DispatcherState {
         }
         tracing::info!(action = %name, status = %self.status, "action ended");
         let (status, flags) = self.status_now();
+        let result = match cur.end {
+            End::Done => ActionResult::Succeeded,
+            End::Failed(_) => ActionResult::Failed,
+            End::Halted => ActionResult::Halted,
+        };
         self.emit(EventKind::ActionEnded {
             action: name,
             run_ms: self.elapsed_ms(),
             flags,
             status,
+            result: Some(result),
         });
         self.checkpoint();
         if let Some(outcome) = self.due.take() {

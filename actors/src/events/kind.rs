@@ -63,6 +63,9 @@ pub enum EventKind {
         flags: Vec<String>,
         /// The status word after it.
         status: u32,
+        /// How it ended, for the mission's tree (absent in older streams).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        result: Option<ActionResult>,
     },
     /// The mission's behaviour tree, told right after [`RunStarted`](Self::RunStarted):
     /// what a monitor draws, its nodes in preorder.
@@ -423,6 +426,18 @@ impl EventKind {
                 | EventKind::DispatcherFenced { .. }
         )
     }
+}
+
+/// How an action ended ([`EventKind::ActionEnded`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ActionResult {
+    /// Its enders finished (or nothing ran any more).
+    Succeeded,
+    /// An operation failed, or it missed its deadline.
+    Failed,
+    /// The tree halted it (a timeout, a condition lost, a parallel decided).
+    Halted,
 }
 
 /// A node of a mission's behaviour tree as its run announces it

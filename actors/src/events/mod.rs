@@ -105,7 +105,7 @@ mod registry_bridge;
 mod voice;
 
 pub use bus::{BusError, EventBus, EventSubscription, Tap, DEFAULT_CAPACITY};
-pub use kind::{ActionPlan, BoundOp, EventKind, ModuleInfo, OpStarted, PlanNode};
+pub use kind::{ActionPlan, ActionResult, BoundOp, EventKind, ModuleInfo, OpStarted, PlanNode};
 pub use registry_bridge::{bridge_registry, RegistryBridge};
 pub use voice::DispatcherVoice;
 

@@ -156,6 +156,7 @@ impl ReportBuilder {
                 run_ms,
                 flags,
                 status,
+                ..
             } => {
                 self.report.status = *status;
                 self.report.flags = flags.clone();

@@ -111,10 +111,11 @@ impl MonitorState {
                 action,
                 run_ms,
                 flags,
+                result,
                 ..
             } => {
                 self.mission.action_ended(action, *run_ms, flags);
-                self.tree.action_ended(action);
+                self.tree.action_ended(action, *result);
                 line.push(at, node, "action", format!("action `{action}` ended"));
             }
             EventKind::ControlPlan { nodes } => self.tree.planned(nodes),

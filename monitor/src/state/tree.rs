@@ -6,8 +6,8 @@
 //! What the events say, and what is inferred:
 //! - An `action` node runs between its action's `ActionStarted` and `ActionEnded`; any other
 //!   node runs while one of its descendants does (the running branch).
-//! - An action ended **failed** when one of its operations ended failed, lost or
-//!   unresponsive, **halted** when an ancestor halted it (a timeout, a condition that no
+//! - An action ended as its `ActionEnded` says (`result`); in an older stream that does not
+//!   say, **failed** when one of its operations ended failed, lost or unresponsive, **halted** when an ancestor halted it (a timeout, a condition that no
 //!   longer holds, a parallel decided) while it ran, **succeeded** otherwise — unless the
 //!   decision that follows at once (a fallback, a recovery, a retry giving up) shows that
 //!   it failed after all (it missed its deadline).
@@ -19,7 +19,7 @@
 //! A stream without a plan (an older file) leaves the tree empty: the page then draws the
 //! actions as [`mission`](super::mission) has them.
 
-use marie_actors::events::PlanNode;
+use marie_actors::events::{ActionResult, PlanNode};
 use marie_actors::run::{OpEnd, Outcome};
 use serde::Serialize;
 use std::collections::VecDeque;
@@ -240,8 +240,8 @@ impl ControlTree {
         }
     }
 
-    /// Action `name` ended.
-    pub fn action_ended(&mut self, name: &str) {
+    /// Action `name` ended, as `result` says (inferred when an older stream does not say).
+    pub fn action_ended(&mut self, name: &str, result: Option<ActionResult>) {
         self.last_ended = None;
         for id in self.actions_named(name) {
             let n = &mut self.nodes[id];
@@ -249,7 +249,13 @@ impl ControlTree {
                 continue;
             }
             n.active = false;
-            n.fact = Some(if n.halting {
+            n.fact = Some(if let Some(result) = result {
+                match result {
+                    ActionResult::Succeeded => NodeEnd::Succeeded,
+                    ActionResult::Failed => NodeEnd::Failed,
+                    ActionResult::Halted => NodeEnd::Halted,
+                }
+            } else if n.halting {
                 NodeEnd::Halted
             } else if n.op_failed {
                 NodeEnd::Failed
