@@ -1,6 +1,6 @@
 //! Behaviour-tree control of a mission: what runs next, what is halted, when a retry or a
-//! timeout fires — a pure state machine, with time passed in (issue 24's core; the
-//! dispatcher does not run it yet).
+//! timeout fires — a pure state machine, with time passed in, which the dispatcher runs
+//! (`running.rs`) and checkpoints ([`Tree::state`], [`Tree::restore`]).
 //!
 //! Why pure: the semantics of retries, fallbacks, timeouts, parallels and reactive
 //! conditions are where behaviour-tree engines go wrong (a halt that takes more than one
@@ -15,12 +15,14 @@
 //! first time it is ticked and answers `Running` until the dispatcher reports its end
 //! ([`Tree::leaf_ended`]). Halting a node (a reactive condition that no longer holds, a
 //! timeout, a parallel decided) halts every leaf running under it **within the same tick**:
-//! the commands of one tick hold the halts before any start.
+//! the commands of one tick hold the halts before any start. A tick also says the control
+//! decisions it took ([`Decision`]): what the run's events tell.
 //!
 //! | marie | BehaviorTree.CPP v4 | where marie differs |
 //! |---|---|---|
+//! | [`Node::Schedule`] | — | the thesis' dispatching by condition flags, at a mission's root |
 //! | [`Node::Sequence`] | `Sequence` | — |
-//! | [`Node::Reactive`] | `ReactiveSequence` | its conditions are flags of the status word, re-checked at every tick; at most one child runs |
+//! | [`Node::Reactive`] | `ReactiveSequence` | its conditions (`while_`, `unless`) are flags of the status word, re-checked at every tick; at most one child runs |
 //! | [`Node::Fallback`] | `Fallback` | — |
 //! | [`Node::Parallel`] | `Parallel` (thresholds) | — |
 //! | [`Node::Retry`] | `RetryUntilSuccessful` | a backoff between attempts |
@@ -838,6 +840,77 @@ mod tests {
         assert_eq!(starts(&tree.tick(0, T0)), [0], "the second attempt");
         tree.leaf_ended(0, true);
         assert_eq!(tree.tick(0, T0).status, Status::Succeeded);
+    }
+
+    #[test]
+    fn the_thesis_schedule_runs_the_first_action_whose_flags_hold_and_fails_when_none_can() {
+        // action 1 waits for flag 0b1, which action 0 raises; action 2 for 0b100, never
+        let schedule = |when: [u32; 3]| {
+            Tree::new(Node::Schedule(
+                when.iter()
+                    .enumerate()
+                    .map(|(i, w)| Scheduled {
+                        when: *w,
+                        node: Node::Action(i),
+                    })
+                    .collect(),
+            ))
+        };
+        let mut tree = schedule([0b1, 0, 0b100]);
+        assert_eq!(
+            starts(&tree.tick(0, T0)),
+            [1],
+            "file order yields to the flags"
+        );
+        tree.leaf_ended(1, true);
+        assert_eq!(starts(&tree.tick(0b1, T0)), [0]);
+        tree.leaf_ended(0, true);
+        let t = tree.tick(0b1, T0);
+        assert_eq!((t.status, t.commands), (Status::Failed, vec![]), "stuck");
+        assert_eq!(
+            tree.waiting(),
+            [(3, 0b100)],
+            "what the stuck mission waits for"
+        );
+        let mut tree = schedule([0, 0, 0]);
+        for i in 0..3 {
+            assert_eq!(starts(&tree.tick(0, T0)), [i]);
+            tree.leaf_ended(i, true);
+        }
+        assert_eq!(tree.tick(0, T0).status, Status::Succeeded);
+        let mut tree = schedule([0, 0, 0]);
+        tree.tick(0, T0);
+        tree.leaf_ended(0, false);
+        assert_eq!(tree.tick(0, T0).status, Status::Failed, "a full stop");
+    }
+
+    #[test]
+    fn a_trees_state_restored_from_a_checkpoint_carries_on_mid_retry() {
+        let mut tree = retried(3, secs(2));
+        tree.tick(0, T0);
+        tree.leaf_ended(0, false);
+        tree.tick(0, secs(1));
+        // a standby restores the state: attempt 2 after the same backoff, 3 in all
+        let mut standby = Tree::restore(tree.root().clone(), tree.state()).unwrap();
+        assert_eq!(
+            standby.tick(0, secs(2)).commands,
+            [],
+            "still in the backoff"
+        );
+        let t = standby.tick(0, secs(3));
+        assert_eq!(starts(&t), [0]);
+        assert_eq!(
+            t.decisions,
+            [Decision::Retry {
+                node: 0,
+                attempt: 2,
+                of: 3
+            }]
+        );
+        assert!(
+            Tree::restore(Node::Action(0), tree.state()).is_none(),
+            "another tree"
+        );
     }
 
     #[test]
