@@ -51,12 +51,12 @@ fn the_recovery_mission_docks_in_the_dead_end_world_on_ten_seeds_without_a_colli
         // the wall ahead led to the dead end: given up, and the dock found the other way
         let told = decisions(&report);
         assert!(
-            told.contains(&"find-dock: fallback to `retry(back-along-wall)`".to_string()),
+            told.contains(&"find-dock: fallback to `back-along-wall`".to_string()),
             "seed {seed}: {told:?}"
         );
         assert!(
             stdout.contains("< follow-wall: failed")
-                && stdout.contains("? find-dock: fallback to `retry(back-along-wall)` at "),
+                && stdout.contains("? find-dock: fallback to `back-along-wall` at "),
             "seed {seed}: the run says the decision: {stdout}"
         );
         let ran = actions(&report);
@@ -149,7 +149,7 @@ fn an_operation_killed_in_a_fallbacks_first_child_under_a_timeout_is_rebound_and
     // child, under a 100 s timeout), towards the dead end
     let told = heals_inside(RECOVER, "kill:wall-follower@40", "wall-follower");
     assert!(
-        told.contains(&"find-dock: fallback to `retry(back-along-wall)`".to_string()),
+        told.contains(&"find-dock: fallback to `back-along-wall`".to_string()),
         "{told:?}"
     );
 }

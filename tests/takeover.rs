@@ -291,7 +291,7 @@ fn a_dispatcher_lost_after_a_fallback_is_taken_over_inside_the_retry_and_the_rec
     assert_eq!(
         told,
         [(
-            "find-dock: fallback to `retry(back-along-wall)`".to_string(),
+            "find-dock: fallback to `back-along-wall`".to_string(),
             "features".to_string()
         )],
         "{stdout}"

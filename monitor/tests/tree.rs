@@ -217,11 +217,8 @@ fn fallback_recovery_timeout_and_retry_are_counted_on_their_nodes() {
     started(&mut state, "follow-wall");
     // it missed its deadline: no operation failed, the fallback says it failed
     ended(&mut state, "follow-wall");
-    decided(
-        &mut state,
-        "guarded",
-        "fallback to `recover(back-off, then turn)`",
-    );
+    // the decision names the item fallen back to, under its decorator
+    decided(&mut state, "guarded", "fallback to `back-off`");
     let tree = &state.tree;
     assert_eq!(tree.nodes[3].fallbacks, 1);
     assert_eq!(end(tree, 4), Some(NodeEnd::Failed), "the sequence failed");

@@ -23,7 +23,7 @@ use super::actor::{ActionState, Current, DispatcherState, End, Start};
 use super::effect::Effect;
 use super::messages::DispatcherMsg;
 use super::mission::EndMode;
-use super::tree::{Command, Decision, Status};
+use super::tree::{Command, Decision, Node, Status};
 use crate::clock::Timer;
 use crate::eo::{EoError, EoReport};
 use crate::events::{ActionResult, EventKind, OpStarted};
@@ -206,6 +206,24 @@ impl DispatcherState {
         format!("no action can run: {}", waiting.join("; "))
     }
 
+    /// The action or group node `id` decorates (through retries, timeouts, recoveries and
+    /// a reactive wrapper of one child), or `id` itself: what a decision names as the
+    /// item it turns to (`fallback to \`back-along-wall\``, not to its retry).
+    fn item_of(&self, mut id: usize) -> usize {
+        let nodes = self.tree.preorder();
+        loop {
+            let decorated = match nodes[id] {
+                Node::Retry { .. } | Node::Timeout { .. } | Node::Recover { .. } => true,
+                Node::Reactive { children, .. } => children.len() == 1,
+                _ => false,
+            };
+            match self.tree.child_ids(id).first() {
+                Some(child) if decorated => id = *child,
+                _ => return id,
+            }
+        }
+    }
+
     /// Publish a control decision of the tree, its nodes named.
     fn tell_decision(&mut self, decision: Decision) {
         let control = &self.mission.control;
@@ -213,6 +231,7 @@ impl DispatcherState {
             Decision::Retry { node, attempt, of } => (node, format!("retry {attempt} of {of}")),
             Decision::GaveUp { node, of } => (node, format!("gave up after {of} attempts")),
             Decision::Fallback { node, to } => {
+                let to = self.item_of(to);
                 (node, format!("fallback to `{}`", control.label(to)))
             }
             Decision::Timeout { node, limit_ms } => (
@@ -222,6 +241,7 @@ impl DispatcherState {
             Decision::ConditionLost { node } => (node, "condition no longer holds".to_string()),
             Decision::Recovery { node } => {
                 let recovery = self.tree.child_ids(node).get(1).copied().unwrap_or(node);
+                let recovery = self.item_of(recovery);
                 (node, format!("recovery `{}`", control.label(recovery)))
             }
             Decision::Decided { node, succeeded } => (

@@ -331,7 +331,13 @@ impl ControlTree {
             // the child before the one fallen back to failed
             let to = between_backticks(decision);
             let kids = &self.nodes[id].kids;
-            let at = to.and_then(|to| kids.iter().position(|&k| self.nodes[k].label == to));
+            // the decision names the item it turns to, under its decorators (a retry, a
+            // timeout): the child whose branch holds it
+            let holds = |k: usize, to: &str| {
+                let end = (k + self.nodes[k].size).min(self.nodes.len());
+                self.nodes[k..end].iter().any(|n| n.label == to)
+            };
+            let at = to.and_then(|to| kids.iter().position(|&k| holds(k, to)));
             if let Some(failed) = at.and_then(|at| at.checked_sub(1)).map(|at| kids[at]) {
                 self.failed_child(failed);
             }
