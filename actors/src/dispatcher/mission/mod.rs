@@ -312,10 +312,11 @@ mod structure;
 mod validate;
 
 pub use crate::diagnostic::{Diagnostic, Diagnostics, LineIndex, Pos};
-pub use builder::{ActionBuilder, MissionBuilder, BUILT};
+pub use builder::{ActionBuilder, GroupBuilder, MissionBuilder, BUILT};
 pub use control::{Control, Recovery};
 pub use op_info::OpInfo;
 pub use operations::{Catalog, StaticCatalog};
+pub use raw::GroupKind;
 
 use super::checked::CheckedChoices;
 use crate::property::ParamMap;

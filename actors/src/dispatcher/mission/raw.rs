@@ -163,7 +163,7 @@ impl ParsedControl {
 
 /// What a `[[group]]` does with its children (`kind`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) enum GroupKind {
+pub enum GroupKind {
     /// In order; fails at the first failure.
     Sequence,
     /// In order until one succeeds.
@@ -188,7 +188,7 @@ impl GroupKind {
     }
 
     /// The kind as the file writes it.
-    pub(crate) fn word(self) -> &'static str {
+    pub fn word(self) -> &'static str {
         match self {
             GroupKind::Sequence => "sequence",
             GroupKind::Fallback => "fallback",

@@ -138,7 +138,7 @@ impl ParsedMission {
 
     /// True when the file has groups or control keys: its tree is more than the thesis'
     /// schedule.
-    pub(crate) fn has_control(&self) -> bool {
+    pub fn has_control(&self) -> bool {
         !self.groups.is_empty() || self.actions.iter().any(|a| !a.control.is_empty())
     }
 
