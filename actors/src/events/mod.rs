@@ -33,7 +33,9 @@
 //! {"at_ms":1250,"node":"marie@localhost","kind":{"type":"bound","operations":[{"name":"wall-follower","version":"1.0.0","node":"marie@localhost","epoch":1250000,"address":"0.41"}]}}
 //! {"at_ms":1260,"node":"marie@localhost","kind":{"type":"action_started","action":"follow","run_ms":60,"operations":[{"key":"wall-follower","name":"wall-follower","id":1512,"version":"1.0.0","node":"marie@localhost","address":"0.41"}]}}
 //! {"at_ms":9800,"node":"marie@localhost","kind":{"type":"op_ended","action":"follow","key":"wall-follower","ended":"suspended","flags":[]}}
-//! {"at_ms":9810,"node":"marie@localhost","kind":{"type":"action_ended","action":"follow","run_ms":8610,"flags":["dock_found"],"status":4}}
+//! {"at_ms":9810,"node":"marie@localhost","kind":{"type":"action_ended","action":"follow","run_ms":8610,"flags":["dock_found"],"status":4,"result":"succeeded"}}
+//! {"at_ms":1201,"node":"marie@localhost","kind":{"type":"control_plan","nodes":[{"id":0,"parent":null,"kind":"schedule","label":"mission"},{"id":1,"parent":0,"kind":"retry","label":"retry(follow)","detail":"2 attempts, 1.0 s apart"},{"id":2,"parent":1,"kind":"action","label":"follow","detail":"wall-follower, docking-detector"}]}}
+//! {"at_ms":9811,"node":"marie@localhost","kind":{"type":"control","node":"retry(follow)","decision":"retry 2 of 2","run_ms":8611}}
 //! {"at_ms":30000,"node":"marie@localhost","kind":{"type":"run_ended","outcome":"succeeded","reason":"","run_ms":28800,"status":12,"flags":["dock_found","parked"]}}
 //! {"at_ms":5000,"node":"marie@localhost","kind":{"type":"lost","operation":"wall-follower","cause":{"type":"died_in_action","action":"follow"}}}
 //! {"at_ms":5001,"node":"marie@localhost","kind":{"type":"rebound","operation":"wall-follower","cause":{"type":"died_in_action","action":"follow"},"from":"0.41","to":"0.57","from_node":"n1","to_node":"n2","downtime_ms":1,"epoch":1250001}}
@@ -214,12 +216,14 @@ mod tests {
     }
 
     /// The `type` of every kind, as [`type_of`] names them.
-    const KINDS: [&str; 36] = [
+    const KINDS: [&str; 38] = [
         "run_started",
         "bound",
         "action_started",
         "op_ended",
         "action_ended",
+        "control_plan",
+        "control",
         "run_ended",
         "lost",
         "rebound",
