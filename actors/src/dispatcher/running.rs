@@ -503,6 +503,11 @@ impl DispatcherState {
             return;
         };
         cur.state = ActionState::Ending;
+        if !cur.launched {
+            // ended while its start's checkpoint was being stored: nothing was activated,
+            // nothing is suspended (its launch, when stored, finds it gone)
+            cur.running.clear();
+        }
         if cur.running.is_empty() {
             self.complete_action(myself, generation);
             return;

@@ -398,7 +398,11 @@ impl DispatcherState {
         }
         self.restore_parameters(&running_names);
         for generation in unlaunched {
-            self.launch(myself, generation);
+            match self.live.get(&generation).is_some_and(|c| c.ending()) {
+                // ended before its commands went out: nothing to suspend
+                true => self.end_action(myself, generation),
+                false => self.launch(myself, generation),
+            }
         }
     }
 
