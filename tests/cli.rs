@@ -496,3 +496,25 @@ fn an_unwritable_picture_is_refused_before_the_run() {
     assert!(out.stdout.is_empty(), "nothing ran: {}", text(&out.stdout));
     assert!(!report.exists());
 }
+
+#[test]
+fn the_version_names_the_commit_it_was_built_from() {
+    let out = marie(&["--version"]);
+    assert_eq!(out.status.code(), Some(0));
+    let line = text(&out.stdout);
+    let head = Command::new("git")
+        .args(["rev-parse", "HEAD"])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .ok()
+        .filter(|o| o.status.success())
+        .map(|o| text(&o.stdout).trim().to_string());
+    let expected = match head {
+        Some(commit) => format!("marie {} (commit {commit}", env!("CARGO_PKG_VERSION")),
+        None => format!("marie {} (commit unknown)", env!("CARGO_PKG_VERSION")),
+    };
+    assert!(
+        line.starts_with(&expected),
+        "{line:?} (expected {expected:?}…)"
+    );
+}

@@ -31,7 +31,11 @@ use std::process::ExitCode;
 
 /// `marie`: its global flags and the verb.
 #[derive(Parser, Debug)]
-#[command(name = "marie", version, about = "Run MARIE missions on ractor actors")]
+#[command(
+    name = "marie",
+    version = env!("MARIE_BUILD"),
+    about = "Run MARIE missions on ractor actors"
+)]
 pub(crate) struct Cli {
     /// Diagnostics format on stderr (filter with RUST_LOG, default `warn`).
     #[arg(long, value_enum, default_value_t = runtime::LogFormat::Text, global = true)]
