@@ -364,16 +364,7 @@ impl Tree {
 
     /// The ids of the children of node `id`.
     pub fn child_ids(&self, id: usize) -> Vec<usize> {
-        let nodes = self.preorder();
-        let mut next = id + 1;
-        children(nodes[id])
-            .into_iter()
-            .map(|_| {
-                let this = next;
-                next += self.sizes[this];
-                this
-            })
-            .collect()
+        child_ids(&self.sizes, id)
     }
 
     /// The state of every node, by id (for a checkpoint: [`Tree::restore`]).
@@ -421,20 +412,20 @@ impl Tree {
     }
 }
 
-impl Walk<'_> {
-    /// The ids of `node`'s (id `id`) children.
-    fn child_ids(&self, node: &Node, id: usize) -> Vec<usize> {
-        let mut next = id + 1;
-        children(node)
-            .into_iter()
-            .map(|_| {
-                let this = next;
-                next += self.sizes[this];
-                this
-            })
-            .collect()
+/// The ids of node `id`'s children, from the subtree sizes alone: in preorder the first
+/// child follows its parent, and each next one follows its elder sibling's subtree.
+fn child_ids(sizes: &[usize], id: usize) -> Vec<usize> {
+    let end = id + sizes[id];
+    let mut ids = Vec::new();
+    let mut next = id + 1;
+    while next < end {
+        ids.push(next);
+        next += sizes[next];
     }
+    ids
+}
 
+impl Walk<'_> {
     fn done(&mut self, id: usize, status: Status) -> Status {
         self.state[id].status = Some(status);
         status
@@ -461,7 +452,7 @@ impl Walk<'_> {
                 }
             }
             Node::Schedule(kids) => {
-                let ids = self.child_ids(node, id);
+                let ids = child_ids(self.sizes, id);
                 loop {
                     let at = match self.state[id].cursor {
                         0 => {
@@ -487,7 +478,7 @@ impl Walk<'_> {
                 }
             }
             Node::Sequence(_) | Node::Fallback(_) | Node::Reactive { .. } => {
-                let ids = self.child_ids(node, id);
+                let ids = child_ids(self.sizes, id);
                 let kids = children(node);
                 if let Node::Reactive { while_, unless, .. } = node {
                     if ctx.flags & while_ != *while_ || ctx.flags & unless != 0 {
@@ -525,7 +516,7 @@ impl Walk<'_> {
                 success,
                 failure,
             } => {
-                let ids = self.child_ids(node, id);
+                let ids = child_ids(self.sizes, id);
                 let (mut ok, mut failed) = (0, 0);
                 for (k, kid) in kids.iter().enumerate() {
                     match self.tick_node(kid, ids[k], ctx) {
@@ -603,7 +594,7 @@ impl Walk<'_> {
                 }
             }
             Node::Recover { child, recovery } => {
-                let ids = self.child_ids(node, id);
+                let ids = child_ids(self.sizes, id);
                 if self.state[id].cursor == 0 {
                     match self.tick_node(child, ids[0], ctx) {
                         Status::Failed => {
@@ -632,7 +623,7 @@ impl Walk<'_> {
             }
             return;
         }
-        for (kid, kid_id) in children(node).into_iter().zip(self.child_ids(node, id)) {
+        for (kid, kid_id) in children(node).into_iter().zip(child_ids(self.sizes, id)) {
             self.halt(kid, kid_id, ctx);
         }
     }
