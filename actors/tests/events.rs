@@ -85,6 +85,7 @@ async fn a_report_is_rebuilt_with_its_faults_judgement_and_latest_rebinds() {
         version: "1.0.0".into(),
         node: "n".into(),
         address: "0.1".into(),
+        params: Vec::new(),
     };
     let rebind = |i: u64| RebindRecord {
         operation: "op".into(),

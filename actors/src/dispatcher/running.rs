@@ -28,7 +28,7 @@ use crate::clock::Timer;
 use crate::eo::{EoError, EoReport};
 use crate::events::{ActionResult, EventKind, OpStarted};
 use crate::run::LossCause;
-use crate::run::{OpEnd, Outcome};
+use crate::run::{OpEnd, Outcome, ParamSource, ParamValue};
 use crate::status::StatusFlags;
 use ractor::ActorRef;
 use std::collections::BTreeSet;
@@ -331,6 +331,18 @@ impl DispatcherState {
                 version: b.version.clone(),
                 node: b.node.clone(),
                 address: b.address(),
+                params: b
+                    .params
+                    .iter()
+                    .map(|(name, value)| ParamValue {
+                        name: name.clone(),
+                        value: value.clone(),
+                        source: match op.params.contains_key(name) {
+                            true => ParamSource::Mission,
+                            false => ParamSource::Default,
+                        },
+                    })
+                    .collect(),
             });
             if b.lost.is_none() {
                 activations.push((

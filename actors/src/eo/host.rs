@@ -39,6 +39,9 @@ pub struct HostOptions {
     /// Told of every store and delete its datamanager clients get acknowledged
     /// ([`crate::dm::acks`]; a node publishes them on its bus). `None` by default.
     pub acks: Option<crate::dm::AckSink>,
+    /// Where a `Parameterize` that changes its values is told (`reparameterized`: a run's
+    /// provenance names every value an operation ran with). `None` by default.
+    pub events: Option<crate::events::EventBus>,
 }
 
 impl std::fmt::Debug for HostOptions {
@@ -47,6 +50,7 @@ impl std::fmt::Debug for HostOptions {
             .field("params", &self.params)
             .field("publish", &self.publish)
             .field("acks", &self.acks.is_some())
+            .field("events", &self.events.is_some())
             .finish_non_exhaustive()
     }
 }
@@ -58,6 +62,7 @@ impl Default for HostOptions {
             params: ParamMap::new(),
             publish: true,
             acks: None,
+            events: None,
         }
     }
 }
@@ -130,6 +135,8 @@ pub struct HostState<O> {
     deadline: Duration,
     ctx: OpContext,
     previous: ParamMap,
+    /// Where changed parameters are told ([`HostOptions::events`]).
+    events: Option<crate::events::EventBus>,
     epoch: u64,
     active: Option<Active>,
     activations: u64,
@@ -160,6 +167,28 @@ impl<O: Operation> HostState<O> {
         if &next != self.current() {
             self.previous = self.current().clone();
             self.ctx.params = Params::new(next);
+        }
+    }
+
+    /// Tell the values `next` changes ([`EventKind::Reparameterized`](crate::events::EventKind::Reparameterized)).
+    fn tell_changes(&self, myself: &ActorRef<EoMsg>, next: &ParamMap) {
+        let Some(bus) = &self.events else { return };
+        let current = self.current();
+        let values: Vec<crate::run::ParamValue> = next
+            .iter()
+            .filter(|(k, v)| current.get(*k) != Some(*v))
+            .map(|(k, v)| crate::run::ParamValue {
+                name: k.clone(),
+                value: v.clone(),
+                source: crate::run::ParamSource::Reparameterized,
+            })
+            .collect();
+        if !values.is_empty() {
+            bus.publish(crate::events::EventKind::Reparameterized {
+                operation: self.identity.name.clone(),
+                address: myself.get_id().to_string(),
+                values,
+            });
         }
     }
 
@@ -474,6 +503,7 @@ impl<O: Operation> Actor for EoHost<O> {
                 acks: options.acks,
             },
             previous: initial,
+            events: options.events,
             op: operation,
             identification: Identification {
                 name: identity.name.as_str().into(),
@@ -579,6 +609,7 @@ impl<O: Operation> Actor for EoHost<O> {
                 state.epoch = epoch;
                 let outcome = match state.schema.apply(state.current(), &values, false) {
                     Ok(next) => {
+                        state.tell_changes(&myself, &next);
                         state.set_params(next);
                         ParamOutcome::Applied
                     }

@@ -2,7 +2,8 @@
 
 use crate::registry::{Instance, ModuleKind};
 use crate::run::{
-    Choice, DmCheck, FaultKind, LossCause, OpEnd, Outcome, RebindRecord, RobotSection,
+    Choice, DmCheck, FaultKind, LossCause, OpEnd, Outcome, ParamValue, Provenance, RebindRecord,
+    RobotSection,
 };
 use serde::{Deserialize, Serialize};
 
@@ -14,6 +15,22 @@ use serde::{Deserialize, Serialize};
 #[serde(tag = "type", rename_all = "snake_case")]
 pub enum EventKind {
     // --- dispatcher ---
+    /// What runs — the build, the command, the files read with their texts, the nodes and
+    /// their builds, the seed and speed ([`Provenance`]; its `parameters` come from the
+    /// `action_started` and `reparameterized` events that follow): the first event of a
+    /// run, right before its `run_started`.
+    Provenance(Box<Provenance>),
+    /// An operation's parameters were set while it ran by someone other than the
+    /// dispatcher's activation (an application, a tool; the dispatcher restoring a
+    /// stand-in's values too, which a report does not count as a change).
+    Reparameterized {
+        /// Operation name.
+        operation: String,
+        /// Its actor address.
+        address: String,
+        /// The values that changed, with their new values.
+        values: Vec<ParamValue>,
+    },
     /// A dispatcher began to run `mission`; the events of one run follow it.
     RunStarted {
         /// Mission name.
@@ -491,7 +508,7 @@ pub struct BoundOp {
 }
 
 /// An operation an action activates, and the instance that runs it.
-#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct OpStarted {
     /// The operation as the action names it (name or id).
     pub key: String,
@@ -505,6 +522,10 @@ pub struct OpStarted {
     pub node: String,
     /// Actor address of the instance.
     pub address: String,
+    /// The parameter values it is activated with and where each came from (absent in
+    /// older streams, and left out of a line when empty).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub params: Vec<ParamValue>,
 }
 
 /// A module in the location table, as plain data.

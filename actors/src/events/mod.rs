@@ -28,14 +28,16 @@
 //! `fault_injected`, and a `fault_healed` when it is undone. One example line per kind:
 //!
 //! ```json
+//! {"at_ms":1199,"node":"marie@localhost","kind":{"type":"provenance","marie":{"version":"0.1.0","commit":"1f2e3d4c5b6a79881f2e3d4c5b6a79881f2e3d4c","uncommitted_changes":false},"command":["marie","run","m.toml","--seed","7"],"started_unix_ms":1795801800123,"started":"2026-11-27T17:50:00.123Z","files":[{"role":"mission","path":"m.toml","sha256":"ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad","text":"[mission]\nname = \"docking\"\n"}],"nodes":[{"node":"marie@localhost","marie":{"version":"0.1.0","commit":"1f2e3d4c5b6a79881f2e3d4c5b6a79881f2e3d4c","uncommitted_changes":false}}],"seed":7,"speed":"max","parameters":[]}}
 //! {"at_ms":1200,"node":"marie@localhost","kind":{"type":"run_started","mission":"docking","actions":[{"name":"follow","when":["wall_found"],"ops":["wall-follower","docking-detector"],"ends_on":["docking-detector"]}],"success":["parked"]}}
 //! {"at_ms":1240,"node":"marie@localhost","kind":{"type":"selected","choice":{"operation":"wall-follower","candidates":[{"address":"0.41","node":"marie@localhost","version":"1.0.0","schema":["distance"],"flags":["aligned"],"verdict":{"type":"chosen"}},{"address":"0.42","node":"marie@localhost","version":"2.0.0","schema":["distance","mode"],"flags":["aligned"],"verdict":{"type":"lost","reason":"its schema also declares mode the mission does not supply; 0.41 (version 1.0.0) fits exactly"}}]}}}
 //! {"at_ms":1250,"node":"marie@localhost","kind":{"type":"bound","operations":[{"name":"wall-follower","version":"1.0.0","node":"marie@localhost","epoch":1250000,"address":"0.41"}]}}
-//! {"at_ms":1260,"node":"marie@localhost","kind":{"type":"action_started","action":"follow","run_ms":60,"operations":[{"key":"wall-follower","name":"wall-follower","id":1512,"version":"1.0.0","node":"marie@localhost","address":"0.41"}]}}
+//! {"at_ms":1260,"node":"marie@localhost","kind":{"type":"action_started","action":"follow","run_ms":60,"operations":[{"key":"wall-follower","name":"wall-follower","id":1512,"version":"1.0.0","node":"marie@localhost","address":"0.41","params":[{"name":"distance","value":{"Float":0.5},"source":"mission"},{"name":"gain","value":{"Float":1.0},"source":"default"}]}]}}
 //! {"at_ms":9800,"node":"marie@localhost","kind":{"type":"op_ended","action":"follow","key":"wall-follower","ended":"suspended","flags":[]}}
 //! {"at_ms":9810,"node":"marie@localhost","kind":{"type":"action_ended","action":"follow","run_ms":8610,"flags":["dock_found"],"status":4,"result":"succeeded"}}
 //! {"at_ms":1201,"node":"marie@localhost","kind":{"type":"control_plan","nodes":[{"id":0,"parent":null,"kind":"schedule","label":"mission"},{"id":1,"parent":0,"kind":"retry","label":"retry(follow)","detail":"2 attempts, 1.0 s apart"},{"id":2,"parent":1,"kind":"action","label":"follow","detail":"wall-follower, docking-detector"}]}}
 //! {"at_ms":9811,"node":"marie@localhost","kind":{"type":"control","node":"retry(follow)","decision":"retry 2 of 2","run_ms":8611}}
+//! {"at_ms":9000,"node":"marie@localhost","kind":{"type":"reparameterized","operation":"wall-follower","address":"0.41","values":[{"name":"distance","value":{"Float":0.7},"source":"reparameterized"}]}}
 //! {"at_ms":30000,"node":"marie@localhost","kind":{"type":"run_ended","outcome":"succeeded","reason":"","run_ms":28800,"status":12,"flags":["dock_found","parked"]}}
 //! {"at_ms":5000,"node":"marie@localhost","kind":{"type":"lost","operation":"wall-follower","cause":{"type":"died_in_action","action":"follow"}}}
 //! {"at_ms":5001,"node":"marie@localhost","kind":{"type":"rebound","operation":"wall-follower","cause":{"type":"died_in_action","action":"follow"},"from":"0.41","to":"0.57","from_node":"n1","to_node":"n2","downtime_ms":1,"epoch":1250001}}
@@ -174,6 +176,8 @@ mod tests {
     /// here until it is named, and [`KINDS`] then wants its documented line.
     fn type_of(kind: &EventKind) -> &'static str {
         match kind {
+            EventKind::Provenance(_) => "provenance",
+            EventKind::Reparameterized { .. } => "reparameterized",
             EventKind::RunStarted { .. } => "run_started",
             EventKind::Bound { .. } => "bound",
             EventKind::ActionStarted { .. } => "action_started",
@@ -216,7 +220,9 @@ mod tests {
     }
 
     /// The `type` of every kind, as [`type_of`] names them.
-    const KINDS: [&str; 38] = [
+    const KINDS: [&str; 40] = [
+        "provenance",
+        "reparameterized",
         "run_started",
         "bound",
         "action_started",

@@ -18,7 +18,7 @@
 
 use super::{ActionRecord, FaultRecord, OpRecord, RunReport};
 use crate::events::{DispatcherVoice, Event, EventBus, EventKind, Tap};
-use crate::run::{OpEnd, Outcome, TakeoverRecord};
+use crate::run::{OpEnd, Outcome, ParamSetting, ParamSource, TakeoverRecord};
 use std::sync::{Arc, Mutex};
 
 /// A run report being assembled from the events of one run.
@@ -78,10 +78,16 @@ impl ReportBuilder {
             return;
         }
         match &event.kind {
+            EventKind::Provenance(provenance) => {
+                self.report.provenance = Some(provenance.as_ref().clone());
+            }
             EventKind::RunStarted { mission, .. } => {
                 let voice = std::mem::take(&mut self.voice);
+                // what runs was told right before
+                let provenance = self.report.provenance.take();
                 *self = ReportBuilder::new();
                 self.voice = voice;
+                self.report.provenance = provenance;
                 self.report.mission = mission.clone();
                 self.start_ms = Some(event.at_ms);
             }
@@ -118,6 +124,18 @@ impl ReportBuilder {
                     // an action that starts again before its end was told: its first run
                     // ends here
                     None => self.close(action, *run_ms),
+                }
+                for o in operations {
+                    for p in &o.params {
+                        self.report.record_parameter(ParamSetting {
+                            action: action.clone(),
+                            operation: o.name.clone(),
+                            name: p.name.clone(),
+                            value: p.value.clone(),
+                            source: p.source,
+                            at_ms: None,
+                        });
+                    }
                 }
                 let ops = operations
                     .iter()
@@ -161,6 +179,39 @@ impl ReportBuilder {
                 self.report.status = *status;
                 self.report.flags = flags.clone();
                 self.close(action, *run_ms);
+            }
+            EventKind::Reparameterized {
+                operation, values, ..
+            } => {
+                let at_ms = self.run_ms(event);
+                // the action it runs in, if any: the newest open one that runs it
+                let action = self
+                    .open
+                    .iter()
+                    .rev()
+                    .find(|o| o.ops.iter().any(|(_, r)| r.name == *operation))
+                    .map(|o| o.name.clone())
+                    .unwrap_or_default();
+                for v in values {
+                    // what it ran with so far in this action: the latest value told
+                    let so_far = self.report.provenance.as_ref().and_then(|p| {
+                        p.parameters.iter().rev().find(|s| {
+                            s.action == action && s.operation == *operation && s.name == v.name
+                        })
+                    });
+                    if so_far.is_some_and(|s| s.value == v.value) {
+                        // the dispatcher restoring a stand-in's values: no change
+                        continue;
+                    }
+                    self.report.record_parameter(ParamSetting {
+                        action: action.clone(),
+                        operation: operation.clone(),
+                        name: v.name.clone(),
+                        value: v.value.clone(),
+                        source: ParamSource::Reparameterized,
+                        at_ms: Some(at_ms),
+                    });
+                }
             }
             EventKind::Control {
                 node,
@@ -397,4 +448,121 @@ impl AttachedReport {
 
 fn lock(builder: &Mutex<ReportBuilder>) -> std::sync::MutexGuard<'_, ReportBuilder> {
     builder.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::events::OpStarted;
+    use crate::property::Value;
+    use crate::run::{ParamSource, ParamValue, Provenance};
+
+    fn event(at_ms: u64, kind: EventKind) -> Event {
+        Event {
+            at_ms,
+            node: "n".into(),
+            kind,
+        }
+    }
+
+    fn started(action: &str, run_ms: u64, distance: f64) -> EventKind {
+        EventKind::ActionStarted {
+            action: action.into(),
+            run_ms,
+            operations: vec![OpStarted {
+                key: "follower".into(),
+                name: "follower".into(),
+                id: 1,
+                version: "1.0.0".into(),
+                node: "n".into(),
+                address: "0.4".into(),
+                params: vec![
+                    ParamValue {
+                        name: "distance".into(),
+                        value: Value::Float(distance),
+                        source: ParamSource::Mission,
+                    },
+                    ParamValue {
+                        name: "gain".into(),
+                        value: Value::Float(1.0),
+                        source: ParamSource::Default,
+                    },
+                ],
+            }],
+        }
+    }
+
+    fn changed(distance: f64) -> EventKind {
+        EventKind::Reparameterized {
+            operation: "follower".into(),
+            address: "0.4".into(),
+            values: vec![ParamValue {
+                name: "distance".into(),
+                value: Value::Float(distance),
+                source: ParamSource::Reparameterized,
+            }],
+        }
+    }
+
+    #[test]
+    fn the_provenance_keeps_each_value_an_operation_ran_with_and_where_it_came_from() {
+        let provenance = Provenance {
+            seed: Some(3),
+            ..Provenance::default()
+        };
+        let events = [
+            event(0, EventKind::Provenance(Box::new(provenance))),
+            event(
+                10,
+                EventKind::RunStarted {
+                    mission: "m".into(),
+                    actions: Vec::new(),
+                    success: Vec::new(),
+                },
+            ),
+            event(20, started("follow", 10, 0.5)),
+            // a stand-in restored to the value it ran with: no change
+            event(30, changed(0.5)),
+            // an application's change while it runs
+            event(40, changed(0.7)),
+            // the same action run again with the mission's values: nothing new
+            event(50, started("follow", 40, 0.5)),
+        ];
+        let report = RunReport::from_events(&events);
+        let p = report.provenance.expect("told before run_started, kept");
+        assert_eq!(p.seed, Some(3));
+        let told: Vec<(&str, &str, String, ParamSource, Option<u64>)> = p
+            .parameters
+            .iter()
+            .map(|s| {
+                (
+                    s.action.as_str(),
+                    s.name.as_str(),
+                    s.value.to_string(),
+                    s.source,
+                    s.at_ms,
+                )
+            })
+            .collect();
+        assert_eq!(
+            told,
+            vec![
+                (
+                    "follow",
+                    "distance",
+                    "0.5".into(),
+                    ParamSource::Mission,
+                    None
+                ),
+                ("follow", "gain", "1".into(), ParamSource::Default, None),
+                (
+                    "follow",
+                    "distance",
+                    "0.7".into(),
+                    ParamSource::Reparameterized,
+                    Some(30)
+                ),
+            ]
+        );
+    }
 }

@@ -23,7 +23,8 @@ pub use builder::{AttachedReport, ReportBuilder};
 
 use crate::fence::BoundEpoch;
 use crate::run::{
-    Choice, DmCheck, FaultKind, OpEnd, Outcome, RebindRecord, RobotSection, TakeoverRecord,
+    Choice, DmCheck, FaultKind, OpEnd, Outcome, ParamSetting, ParamSource, Provenance,
+    RebindRecord, RobotSection, TakeoverRecord,
 };
 use serde::{Deserialize, Serialize};
 
@@ -142,6 +143,12 @@ pub struct RunReport {
     /// oldest first. Empty for a thesis mission: its schedule decides nothing of the kind.
     #[serde(default)]
     pub control: Vec<ControlRecord>,
+    /// What ran ([`Provenance`]): the build, the command line, the files read with their
+    /// texts, the nodes and their builds, the seed and speed — from the run's first event —
+    /// and every parameter value the operations ran with. `None` for a stream without a
+    /// `provenance` event (older files).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub provenance: Option<Provenance>,
 }
 
 /// A control decision of a mission's tree ([`crate::events::EventKind::Control`]).
@@ -206,7 +213,7 @@ pub struct FaultRecord {
 
 impl RunReport {
     /// The report's own JSON keys: a robot's section cannot take them.
-    pub const OWN_KEYS: [&'static str; 19] = [
+    pub const OWN_KEYS: [&'static str; 21] = [
         "mission",
         "outcome",
         "reason",
@@ -225,6 +232,8 @@ impl RunReport {
         "acknowledged_lost",
         "bound_epochs",
         "control",
+        "takeovers",
+        "provenance",
         "robot",
     ];
 
@@ -249,6 +258,7 @@ impl RunReport {
             acknowledged_lost: None,
             bound_epochs: Vec::new(),
             control: Vec::new(),
+            provenance: None,
             robot: RobotSection::new(),
             faults: Vec::new(),
             faults_total: 0,
@@ -279,6 +289,40 @@ impl RunReport {
     /// Keep a control decision among the latest [`REPORT_KEEPS`].
     pub fn record_control(&mut self, record: ControlRecord) {
         keep_latest(&mut self.control, record);
+    }
+
+    /// Keep a parameter's value as an operation ran with it: once per action, operation,
+    /// parameter, value and source (an action run again with the same values adds nothing);
+    /// of the re-parameterizations, the latest [`REPORT_KEEPS`].
+    pub fn record_parameter(&mut self, setting: ParamSetting) {
+        let provenance = self.provenance.get_or_insert_with(Provenance::default);
+        let params = &mut provenance.parameters;
+        if setting.source != ParamSource::Reparameterized {
+            let known = params.iter().any(|p| {
+                p.source == setting.source
+                    && p.action == setting.action
+                    && p.operation == setting.operation
+                    && p.name == setting.name
+                    && p.value == setting.value
+            });
+            if !known {
+                params.push(setting);
+            }
+            return;
+        }
+        params.push(setting);
+        let changes = params
+            .iter()
+            .filter(|p| p.source == ParamSource::Reparameterized)
+            .count();
+        if changes > REPORT_KEEPS {
+            if let Some(oldest) = params
+                .iter()
+                .position(|p| p.source == ParamSource::Reparameterized)
+            {
+                params.remove(oldest);
+            }
+        }
     }
 
     /// Count a rebind and keep it among the latest [`REPORT_KEEPS`].
@@ -462,6 +506,18 @@ mod tests {
                 node: "retry(a)".into(),
                 decision: "retry 2 of 3".into(),
             }],
+            provenance: Some(crate::run::Provenance {
+                seed: Some(7),
+                parameters: vec![ParamSetting {
+                    action: "a".into(),
+                    operation: "op".into(),
+                    name: "gain".into(),
+                    value: crate::property::Value::Float(0.5),
+                    source: ParamSource::Default,
+                    at_ms: None,
+                }],
+                ..Default::default()
+            }),
             faults: vec![FaultRecord {
                 at_ms: 2,
                 fault: FaultKind::Hang,

@@ -2,8 +2,8 @@
 //! an instance was lost ([`LossCause`]), a rebind ([`RebindRecord`]), a
 //! dispatcher's run taken over by a standby ([`TakeoverRecord`]), a choice among
 //! instances ([`Choice`]), the faults injected on purpose ([`FaultKind`]), what the check
-//! of the datamanagers found at the end ([`DmCheck`]) and what a robot says of a run
-//! ([`RobotSection`]).
+//! of the datamanagers found at the end ([`DmCheck`]), what a robot says of a run
+//! ([`RobotSection`]) and what ran ([`Provenance`]: the build, the files, the parameters).
 //!
 //! Why a module of its own: these are the words both the event stream ([`crate::events`])
 //! and the dispatcher ([`crate::dispatcher`]) speak, and the report ([`crate::report`]) is
@@ -23,6 +23,7 @@ mod choice;
 mod fault;
 mod loss;
 mod outcome;
+pub mod provenance;
 mod rebind;
 mod takeover;
 
@@ -31,6 +32,9 @@ pub use choice::{Candidate, Choice, Verdict};
 pub use fault::{Aim, FaultKind, UnknownFault};
 pub use loss::LossCause;
 pub use outcome::{OpEnd, Outcome};
+pub use provenance::{
+    Build, Digest, FileRead, FileRole, NodeBuild, ParamSetting, ParamSource, ParamValue, Provenance,
+};
 pub use rebind::RebindRecord;
 pub use takeover::TakeoverRecord;
 

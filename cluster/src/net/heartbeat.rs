@@ -23,9 +23,12 @@
 use super::detector::{BeatId, Detector, DownNotice, HeartbeatConfig, Reach};
 use super::events::NetEvent;
 use super::sessions::Sessions;
+use marie_actors::run::provenance::this_build;
+use marie_actors::run::Build;
 use marie_actors::wire::{self, Envelope};
 use ractor::{pg, Actor, ActorProcessingErr, ActorRef};
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 use std::time::Instant;
 
 /// `pg` scope of the heartbeat actors (apart from the location table's).
@@ -58,6 +61,10 @@ struct Beat {
     /// not notice it had stopped.
     #[serde(default)]
     down: Vec<DownNotice>,
+    /// The sender's marie build ([`this_build`]): a run's provenance names every node's,
+    /// and one of another commit (absent from older builds' beats).
+    #[serde(default)]
+    build: Option<Build>,
 }
 
 marie_actors::remote_message! {
@@ -74,6 +81,11 @@ marie_actors::remote_message! {
         Tick {
             /// Beat to every peer too.
             beat: bool,
+        },
+        /// The builds the ready peers said they run ([`peer_builds`]).
+        Builds {
+            /// Where the answer goes.
+            reply: ractor::RpcReplyPort<BTreeMap<String, Option<Build>>>,
         },
         /// Whom this node reaches now: the peers heard from within half the deadline, of
         /// all it ever heard ([`reach`]).
@@ -105,6 +117,29 @@ pub async fn reach() -> Option<Reach> {
     }
 }
 
+/// The marie builds of the peers this process has a ready session with, by node name
+/// (`None`: it has not said yet, or runs a build that does not say); empty without a
+/// transport or when its heartbeat actor does not answer within a second.
+pub async fn peer_builds() -> BTreeMap<String, Option<Build>> {
+    let Some(cell) = pg::get_scoped_local_members(&SCOPE.to_string(), &GROUP.to_string())
+        .into_iter()
+        .next()
+    else {
+        return BTreeMap::new();
+    };
+    let heartbeat: ActorRef<BeatMsg> = cell.into();
+    match heartbeat
+        .call(
+            |reply| BeatMsg::Builds { reply },
+            Some(std::time::Duration::from_secs(1)),
+        )
+        .await
+    {
+        Ok(ractor::rpc::CallResult::Success(builds)) => builds,
+        _ => BTreeMap::new(),
+    }
+}
+
 /// What a heartbeat actor is started with.
 pub(crate) struct HeartbeatArgs {
     pub node: String,
@@ -124,6 +159,8 @@ pub(crate) struct State {
     detector: Detector,
     ticker: tokio::task::JoinHandle<()>,
     greeter: tokio::task::JoinHandle<()>,
+    /// The build each peer's latest beat named.
+    builds: BTreeMap<String, Build>,
 }
 
 impl Drop for State {
@@ -184,6 +221,7 @@ impl Actor for Heartbeat {
             args,
             ticker,
             greeter,
+            builds: BTreeMap::new(),
         })
     }
 
@@ -196,6 +234,19 @@ impl Actor for Heartbeat {
         match msg {
             BeatMsg::Tick { beat } => state.tick(beat),
             BeatMsg::Beat { frame } => state.received(&frame),
+            BeatMsg::Builds { reply } => {
+                let builds = state
+                    .args
+                    .sessions
+                    .peers()
+                    .into_iter()
+                    .map(|p| {
+                        let build = state.builds.get(&p.name).cloned();
+                        (p.name, build)
+                    })
+                    .collect();
+                let _ = reply.send(builds);
+            }
             BeatMsg::Reach { reply } => {
                 let within = state.args.config.deadline / 2;
                 let _ = reply.send(state.detector.reach(within, Instant::now()));
@@ -214,6 +265,7 @@ impl State {
             sees: ready.iter().map(|p| p.address.clone()).collect(),
             life: self.detector.life(),
             down: self.detector.notices(),
+            build: Some(this_build()),
         };
         let frame = Envelope::new(KIND, &beat)
             .map(|mut env| {
@@ -314,6 +366,11 @@ impl State {
             seq: beat.seq,
         };
         self.detector.heard(&beat.node, id, Instant::now());
+        if let Some(build) = &beat.build {
+            if self.builds.get(&beat.node) != Some(build) {
+                self.builds.insert(beat.node.clone(), build.clone());
+            }
+        }
         // the sender declared this node down: if this node did not notice it had stopped
         // (its own deadline is longer than the sender's, or its freeze was just past it),
         // it learns it here

@@ -316,6 +316,7 @@ impl Node {
             clock: options.clock,
             root,
             acks: marie_actors::dm::AckSink::publishing_on(bus.clone()),
+            events: bus.clone(),
         };
         let mut node = Node {
             config,

@@ -39,6 +39,8 @@ pub(crate) struct Starter {
     /// Where the instances' datamanager clients tell what they get acknowledged (the
     /// node's bus).
     pub(crate) acks: marie_actors::dm::AckSink,
+    /// Where the instances tell a change of their parameters (the node's bus).
+    pub(crate) events: marie_actors::events::EventBus,
 }
 
 impl Starter {
@@ -76,6 +78,7 @@ impl Starter {
                 factory: factory.clone(),
                 host: HostOptions {
                     acks: Some(self.acks.clone()),
+                    events: Some(self.events.clone()),
                     ..HostOptions::with_clock(self.clock.clone())
                 },
             })

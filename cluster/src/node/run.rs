@@ -23,7 +23,8 @@ use marie_actors::dispatcher::mission::Mission;
 use marie_actors::dispatcher::{self, DispatcherArgs, DispatcherMsg};
 use marie_actors::events::{Event, EventKind};
 use marie_actors::report::{ReportBuilder, RunReport};
-use marie_actors::run::Outcome;
+use marie_actors::run::provenance::{rfc3339, this_build};
+use marie_actors::run::{NodeBuild, Outcome, Provenance};
 use marie_supervision::{ChildSpec, Restart, Shutdown};
 use ractor::ActorRef;
 use std::sync::atomic::Ordering;
@@ -32,6 +33,10 @@ use std::time::Duration;
 
 use super::tree::abort_on_give_up;
 use super::MissionInput;
+
+/// How long a run's start waits for a peer to name its build (heartbeats come every
+/// period; a peer just joined may not have beaten yet): wall-clock time.
+const PEER_BUILDS_WAIT: Duration = Duration::from_secs(2);
 
 /// An observer of a run's events ([`RunOptions::observe`]).
 type Observer = Arc<dyn Fn(&Event) + Send + Sync>;
@@ -56,6 +61,7 @@ pub struct RunOptions {
     processes: NodeProcesses,
     observers: Vec<Observer>,
     dispatch_on: Option<String>,
+    provenance: Option<Provenance>,
 }
 
 impl std::fmt::Debug for RunOptions {
@@ -67,6 +73,7 @@ impl std::fmt::Debug for RunOptions {
             .field("processes", &self.processes)
             .field("observers", &self.observers.len())
             .field("dispatch_on", &self.dispatch_on)
+            .field("provenance", &self.provenance.is_some())
             .finish()
     }
 }
@@ -128,6 +135,16 @@ impl RunOptions {
     /// run dispatched here.
     pub fn dispatch_on(mut self, node: impl Into<String>) -> RunOptions {
         self.dispatch_on = Some(node.into());
+        self
+    }
+
+    /// What runs, as the run's first event tells it ([`Provenance`]): the command line, the
+    /// files read with their texts, the seed and speed — what only the caller knows. The
+    /// node fills in the rest: this process's build ([`this_build`]) unless given, the
+    /// start time unless given, and every node of the run with its build (this one, then
+    /// its peers). Without it the run's provenance holds only what the node fills in.
+    pub fn provenance(mut self, provenance: Provenance) -> RunOptions {
+        self.provenance = Some(provenance);
         self
     }
 
@@ -212,6 +229,7 @@ impl Node {
             processes,
             observers,
             dispatch_on,
+            provenance,
         } = options;
         let report = ReportBuilder::attach(&self.bus);
         // what the run's stores get acknowledged, for the check of the datamanagers
@@ -220,6 +238,10 @@ impl Node {
             .into_iter()
             .map(|f| self.bus.tap(move |event| f(event)))
             .collect();
+        // what runs: the run's first event
+        let provenance = self.provenance(provenance.unwrap_or_default()).await;
+        self.bus
+            .publish(EventKind::Provenance(Box::new(provenance)));
         // the robot's world first, before the run's own events; the previous run's
         // reporting ends first, so nothing is told twice
         if let Some(robot) = &self.robot {
@@ -261,6 +283,39 @@ impl Node {
         // the mission is over: is everything acknowledged during it still there?
         audit.finish(&self.bus).await;
         Ok(report.finish())
+    }
+
+    /// `provenance` completed by what the node knows: this process's build, the start
+    /// time, and the nodes — this one, then each peer with the build its heartbeats named
+    /// (waited for up to [`PEER_BUILDS_WAIT`] should a peer not have said yet).
+    async fn provenance(&self, mut provenance: Provenance) -> Provenance {
+        let this = this_build();
+        provenance.marie.get_or_insert_with(|| this.clone());
+        if provenance.started_unix_ms == 0 {
+            provenance.started_unix_ms = std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map_or(0, |d| d.as_millis() as u64);
+        }
+        if provenance.started.is_empty() {
+            provenance.started = rfc3339(provenance.started_unix_ms);
+        }
+        let waited = std::time::Instant::now();
+        let mut peers = crate::net::heartbeat::peer_builds().await;
+        while peers.values().any(Option::is_none) && waited.elapsed() < PEER_BUILDS_WAIT {
+            tokio::time::sleep(Duration::from_millis(50)).await;
+            peers = crate::net::heartbeat::peer_builds().await;
+        }
+        provenance.nodes = std::iter::once(NodeBuild {
+            node: self.config.name.clone(),
+            marie: Some(this),
+        })
+        .chain(
+            peers
+                .into_iter()
+                .map(|(node, marie)| NodeBuild { node, marie }),
+        )
+        .collect();
+        provenance
     }
 
     /// Check that every fault of `options` names something to hit: an operation the

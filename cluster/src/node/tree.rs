@@ -137,6 +137,7 @@ pub(super) fn children(
     // the datamanagers at a run's end
     let host = HostOptions {
         acks: Some(AckSink::publishing_on(events.clone())),
+        events: Some(events.clone()),
         ..HostOptions::with_clock(options.clock.clone())
     };
     let hosted = config.hosted(&options.catalog);

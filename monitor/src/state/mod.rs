@@ -86,6 +86,32 @@ impl MonitorState {
                 self.bindings.clear();
                 line.push(at, node, "run", format!("mission `{mission}` started"));
             }
+            EventKind::Provenance(p) => {
+                let files: Vec<String> = p
+                    .files
+                    .iter()
+                    .map(|f| format!("{} {}", f.role, f.path))
+                    .collect();
+                let build = p
+                    .marie
+                    .as_ref()
+                    .map_or_else(|| "marie of unknown build".into(), |b| format!("marie {b}"));
+                line.push(at, node, "run", format!("{build}; {}", files.join(", ")));
+            }
+            EventKind::Reparameterized {
+                operation, values, ..
+            } => {
+                let values: Vec<String> = values
+                    .iter()
+                    .map(|v| format!("{} = {}", v.name, v.value))
+                    .collect();
+                line.push(
+                    at,
+                    node,
+                    "param",
+                    format!("`{operation}` parameters set: {}", values.join(", ")),
+                );
+            }
             EventKind::Selected { choice } => self.bindings.selected(choice),
             EventKind::Bound { operations } => self.bindings.bound(operations),
             EventKind::ActionStarted {
