@@ -32,6 +32,18 @@ fn main() {
         },
     };
     println!("cargo:rustc-env=MARIE_BUILD={build}");
+    // the same, in parts, for a run's provenance (`marie_actors::run::Build`)
+    println!(
+        "cargo:rustc-env=MARIE_COMMIT={}",
+        commit.as_deref().unwrap_or("")
+    );
+    let dirty = match (&commit, build.ends_with("uncommitted changes)")) {
+        (None, _) => "unknown",
+        (Some(_), true) => "true",
+        (Some(_), false) if build.ends_with("changes unknown)") => "unknown",
+        (Some(_), false) => "false",
+    };
+    println!("cargo:rustc-env=MARIE_UNCOMMITTED={dirty}");
     // run again on a new commit (HEAD, the branch's ref, packed refs) and on any change of
     // the tree (every top-level entry but the build's own output and git's directory)
     if let Some(git_dir) = git(root, &["rev-parse", "--absolute-git-dir"]) {

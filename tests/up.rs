@@ -42,6 +42,44 @@ fn the_thesis_layout_docks_with_the_dispatcher_on_a_process_of_its_own() {
     assert!(stdout.contains("cluster stopped"), "{stdout}");
     assert_eq!(report["outcome"], "succeeded");
     assert_eq!(report["collisions"], 0);
+    // its provenance: every file `up` and the run read, every node with its build
+    let p = &report["provenance"];
+    let files: Vec<(&str, &str)> = p["files"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| (f["role"].as_str().unwrap(), f["path"].as_str().unwrap()))
+        .collect();
+    assert_eq!(files[0], ("mission", "missions/docking.toml"), "{files:?}");
+    assert_eq!(files[1].0, "world", "{files:?}");
+    assert_eq!(files[2], ("cluster", THESIS), "{files:?}");
+    let configs: Vec<&str> = files[3..]
+        .iter()
+        .map(|(role, path)| {
+            assert_eq!(*role, "node", "{files:?}");
+            *path
+        })
+        .collect();
+    assert_eq!(configs.len(), 4, "{files:?}");
+    assert!(
+        configs
+            .iter()
+            .all(|c| c.contains("missions/clusters/thesis/")),
+        "{files:?}"
+    );
+    let nodes: BTreeSet<&str> = p["nodes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|n| {
+            assert_eq!(n["marie"], p["marie"], "every node runs this build: {n}");
+            n["node"].as_str().unwrap()
+        })
+        .collect();
+    for node in ["cart", "features", "operations", "spare"] {
+        assert!(nodes.contains(node), "{node}: {nodes:?}");
+    }
+    assert_eq!(p["speed"], SPEED);
     // every operation ran where the layout put it, none on the dispatcher's process
     let mut placed = BTreeSet::new();
     for action in report["actions"].as_array().unwrap() {

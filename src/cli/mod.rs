@@ -8,12 +8,15 @@
 pub(crate) mod args;
 pub(crate) mod check;
 pub(crate) mod children;
+pub(crate) mod diff;
 pub(crate) mod error;
 pub(crate) mod events_file;
+pub(crate) mod export;
 pub(crate) mod files;
 pub(crate) mod join;
 pub(crate) mod kill;
 pub(crate) mod ls;
+pub(crate) mod mcap;
 pub(crate) mod monitor;
 pub(crate) mod netns;
 pub(crate) mod node;
@@ -21,6 +24,8 @@ pub(crate) mod output;
 pub(crate) mod page_control;
 pub(crate) mod prepare;
 pub(crate) mod props;
+pub(crate) mod provenance;
+pub(crate) mod replay;
 pub(crate) mod run;
 pub(crate) mod runtime;
 pub(crate) mod signal;
@@ -68,9 +73,44 @@ pub(crate) enum Command {
     /// Show a run in the browser: a running cluster live (`--join`), or a past run's events
     /// file replayed (`--events`).
     Monitor(monitor::MonitorArgs),
+    /// Convert a run's events file (`marie run --events`) to MCAP (`--mcap FILE.mcap`):
+    /// Foxglove opens it and draws the world, the cart, the echoes and the paths, with every
+    /// event in its log and the task tree's state.
+    Export(export::ExportArgs),
+    /// Say what differs between two runs: marie build, seed, files, parameters, bindings,
+    /// faults, outcome, final pose — from their reports (`marie run --report`).
+    ///
+    /// The files are paired by role (mission, world, node, cluster) and shown as a unified
+    /// diff of their texts. Exit 0 when the runs are the same in every aspect, 1 when they
+    /// differ, 2 when a file is not a report.
+    Diff(diff::DiffArgs),
+}
+
+/// This binary's build, as its `build.rs` captured it (`--version` says the same).
+pub(crate) fn this_build() -> marie::actors::run::Build {
+    let dirty = match env!("MARIE_UNCOMMITTED") {
+        "true" => Some(true),
+        "false" => Some(false),
+        _ => None,
+    };
+    marie::actors::run::Build::new(env!("CARGO_PKG_VERSION"), Some(env!("MARIE_COMMIT")), dirty)
 }
 
 impl Command {
+    /// Say which build this process is, for its heartbeats and its runs' provenance:
+    /// [`this_build`], or the commit a node claims (`marie node --claim-commit`, hidden:
+    /// only to see a run name a node of another commit).
+    pub(crate) fn set_build(&self) {
+        let mut build = this_build();
+        if let Command::Node(node) = self {
+            if let Some(commit) = &node.claim_commit {
+                build.commit = Some(commit.clone());
+                build.uncommitted_changes = Some(false);
+            }
+        }
+        marie::actors::run::provenance::set_this_build(build);
+    }
+
     /// True when the verb runs in virtual time (see [`runtime::build`]): a mission run,
     /// whose outcome must not depend on its speed.
     pub(crate) fn virtual_time(&self) -> bool {
@@ -104,6 +144,8 @@ impl Command {
             Command::Node(args) => node::node(args).await,
             Command::Up(args) => up::up(args).await,
             Command::Monitor(args) => monitor::monitor(args).await,
+            Command::Export(args) => export::export(args).await,
+            Command::Diff(args) => diff::diff(args),
         }
     }
 }

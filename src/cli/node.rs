@@ -59,6 +59,10 @@ pub(crate) struct NodeArgs {
     /// Claim another protocol version in heartbeats: only to see a cluster refuse it.
     #[arg(long, hide = true, value_name = "N")]
     pub protocol_version: Option<u16>,
+    /// Claim to be built from another commit (40 hex digits) in heartbeats and
+    /// provenance: only to see a run name a node of another commit.
+    #[arg(long, hide = true, value_name = "COMMIT")]
+    pub claim_commit: Option<String>,
 }
 
 impl NodeArgs {

@@ -93,6 +93,18 @@ impl Printer {
         }
         match (&event.kind, self.progress) {
             (EventKind::RunStarted { .. }, _) => self.start_ms = Some(event.at_ms),
+            // a node of another commit is named, on stderr whatever the progress shown
+            (EventKind::Provenance(p), _) => {
+                let this = super::this_build();
+                for node in p.nodes_of_other_commits(&this) {
+                    if let Some(theirs) = &node.marie {
+                        eprintln!(
+                            "marie: warning: node `{}` runs marie {theirs}; this is marie {this}",
+                            node.node
+                        );
+                    }
+                }
+            }
             (EventKind::Selected { choice }, Progress::ChoicesAsJson) => {
                 // a Choice is plain data: it always serializes
                 if let Ok(line) = serde_json::to_string(choice) {

@@ -9,11 +9,12 @@ use super::join::JoinArgs;
 use super::output::{end_line, outcome_line, verdict_line, LiveLines, Progress};
 use super::page_control::PageControl;
 use super::prepare::{prepare, Prepared};
+use super::replay::Replay;
 use super::signal::Shutdown;
 use anyhow::Context;
 use marie::actors::clock::Pacer;
 use marie::actors::report::RunReport;
-use marie::actors::run::Outcome;
+use marie::actors::run::{FileRole, Outcome};
 use marie::cluster::fault::{Chaos, FaultSpec, NodeChaos, NodeProcesses};
 use marie::cluster::node::{NodeError, RunOptions};
 use marie_missions::robot::RobotReport;
@@ -26,7 +27,20 @@ use std::sync::Arc;
 #[derive(clap::Args, Debug)]
 pub(crate) struct RunArgs {
     /// Mission file (TOML task tree).
-    pub mission: PathBuf,
+    #[arg(required_unless_present = "replay")]
+    pub mission: Option<PathBuf>,
+    /// Run a past run again from its report alone (`--report`'s JSON: its provenance holds
+    /// the mission, world and node config texts, the seed, the command's faults), on this
+    /// node, and say whether the outcome, the bindings, the final pose and the parameters
+    /// match; exit 0 when they all do. A report of another marie commit is replayed with a
+    /// warning naming both.
+    #[arg(long, value_name = "REPORT.json",
+          conflicts_with_all = ["mission", "join", "world", "node", "seed", "faults", "chaos"])]
+    pub replay: Option<PathBuf>,
+    /// The files `marie up` read to start the run's nodes — its cluster file, then the node
+    /// configs it names — for the run's provenance.
+    #[arg(skip)]
+    pub read_by_up: Vec<(FileRole, PathBuf)>,
     #[command(flatten)]
     pub robot: RobotArgs,
     /// Keep the datamanagers' records in journals in DIR (`process` durability: what they
@@ -54,6 +68,11 @@ pub(crate) struct RunArgs {
     /// the robot. The report can be rebuilt from it.
     #[arg(long, value_name = "FILE.jsonl")]
     pub events: Option<PathBuf>,
+    /// Write the run as MCAP here, for Foxglove: the world, the cart, the sonar echoes and
+    /// the paths in its 3D panel, every event in its log, the task tree's state as JSON
+    /// (the same as `marie export` makes of an events file).
+    #[arg(long, value_name = "FILE.mcap")]
+    pub mcap: Option<PathBuf>,
     /// Draw the robot's run (walls, driven path, sonar echoes, segments, followed wall,
     /// detected dock, planned path, final footprint) as an SVG picture here. Needs a world.
     #[arg(long, value_name = "FILE.svg")]
@@ -177,13 +196,16 @@ const EVENTS_FROM_OTHERS: usize = 4096;
 /// Run the mission; exit 0 when it succeeded and every output was written, else 1.
 pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     let RunArgs {
-        mission: path,
+        mission,
+        replay,
+        read_by_up,
         mut robot,
         data_dir,
         report: report_path,
         explain,
         json,
         events: events_path,
+        mcap: mcap_path,
         svg: svg_path,
         speed,
         faults,
@@ -198,6 +220,32 @@ pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         mission_over,
         dispatch_on,
     } = args;
+    let this_build = super::this_build();
+    // a replay: the report's files written out, its seed, its command's faults and chaos
+    let replay = match replay {
+        Some(p) => Some(Replay::load(&p)?),
+        None => None,
+    };
+    let (path, faults, chaos, chaos_dms) = match &replay {
+        Some(r) => {
+            robot.world = r.world.clone();
+            robot.node = r.node.clone();
+            robot.seed = r.provenance.seed;
+            let (chaos, chaos_dms) = r.chaos();
+            let (faults, skipped) = r.faults()?;
+            for warning in skipped {
+                eprintln!("marie: {warning}");
+            }
+            (r.mission.clone(), faults, chaos, chaos_dms)
+        }
+        None => (
+            mission.expect("clap requires a mission without --replay"),
+            faults,
+            chaos,
+            chaos_dms,
+        ),
+    };
+    let node_path = robot.node.clone();
     robot.data_dir = data_dir;
     let progress = match (explain, json) {
         (true, true) => Progress::ChoicesAsJson,
@@ -215,6 +263,9 @@ pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     }
     if let Some(p) = &events_path {
         files::output("--events", p)?;
+    }
+    if let Some(p) = &mcap_path {
+        super::mcap::output("--mcap", p)?;
     }
     let mut options = RunOptions::new()
         .faults(faults)
@@ -258,6 +309,43 @@ pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
             path.display()
         ))
         .into());
+    }
+    // what runs, the run's first event: the files as read, the seed, the speed
+    let mut read: Vec<(FileRole, &Path)> = vec![(FileRole::Mission, path.as_path())];
+    if let Some(world) = &prepared.world_path {
+        read.push((FileRole::World, world));
+    }
+    if let Some(node) = &node_path {
+        read.push((FileRole::Node, node));
+    }
+    read.extend(read_by_up.iter().map(|(role, p)| (*role, p.as_path())));
+    let mut provenance = super::provenance::of_run(
+        &read,
+        prepared
+            .robot
+            .as_ref()
+            .map(|r| prepared.cart_seed.unwrap_or_else(|| r.seed())),
+        match &joining {
+            None => Some(speed.unwrap_or(super::args::MAX_SPEED)),
+            Some(j) => Some(j.speed),
+        },
+    );
+    if let Some(r) = &replay {
+        // the files as the report held them, under the paths it named
+        for (file, was) in provenance.files.iter_mut().zip(&r.provenance.files) {
+            if file.role == was.role && file.sha256 == was.sha256 {
+                file.path = was.path.clone();
+            }
+        }
+    }
+    options = options.provenance(provenance);
+    if let Some(r) = &replay {
+        if say {
+            println!("{}", r.header());
+        }
+        for warning in r.warnings(&this_build) {
+            eprintln!("marie: {warning}");
+        }
     }
     if say {
         println!(
@@ -347,6 +435,10 @@ pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         ),
         None => None,
     };
+    let mcap = match &mcap_path {
+        Some(p) => Some(super::mcap::McapFile::start(node.events(), p)?),
+        None => None,
+    };
     let monitor = match monitor_listen {
         Some(listen) => {
             let control = PageControl::new(node.events().clone(), node_processes);
@@ -369,6 +461,10 @@ pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     let report = node.run(mission, options).await;
     lines.finish().await;
     let events = match events {
+        Some(file) => Some(file.finish().await),
+        None => None,
+    };
+    let mcap = match mcap {
         Some(file) => Some(file.finish().await),
         None => None,
     };
@@ -420,6 +516,10 @@ pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         eprintln!("marie: {e:#}");
         written = false;
     }
+    if let Some(Err(e)) = &mcap {
+        eprintln!("marie: {e:#}");
+        written = false;
+    }
     if let Some(p) = &report_path {
         if let Err(e) = write_report(p, &report) {
             eprintln!("marie: {e:#}");
@@ -433,10 +533,21 @@ pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
             written = false;
         }
     }
-    let code = match (report.outcome, written) {
+    let mut code = match (report.outcome, written) {
         (Outcome::Succeeded, true) => ExitCode::SUCCESS,
         _ => ExitCode::from(1),
     };
+    // a replay's verdict is whether it matched, whatever the outcome it matched
+    if let Some(r) = &replay {
+        let comparison = r.compare(&report);
+        for line in comparison.lines() {
+            println!("{line}");
+        }
+        code = match (comparison.matches(), written) {
+            (true, true) => ExitCode::SUCCESS,
+            _ => ExitCode::from(1),
+        };
+    }
 
     // the outputs are written: the page stays up for as long as the user reads it
     if monitor.is_none() {

@@ -22,6 +22,7 @@ use super::run::{MissionOver, RunArgs};
 use marie::actors::dispatcher::mission::ParsedMission;
 use marie::actors::registry::{self, Instance};
 use marie::actors::run::FaultKind;
+use marie::actors::run::FileRole;
 use marie::cluster::fault::{FaultSpec, NodeChaos, NodeProcesses};
 use marie::cluster::layout::ClusterLayout;
 use marie::cluster::node::NodeConfig;
@@ -433,7 +434,16 @@ async fn serve(
     let run = RunArgs {
         explain: false,
         json: false,
-        mission: mission.clone(),
+        mission: Some(mission.clone()),
+        replay: None,
+        read_by_up: std::iter::once((FileRole::Cluster, args.cluster.clone()))
+            .chain(
+                layout
+                    .nodes
+                    .iter()
+                    .map(|n| (FileRole::Node, n.path.clone())),
+            )
+            .collect(),
         robot: RobotArgs {
             world: args.world.clone(),
             seed: args.seed.or(layout.seed),
@@ -443,6 +453,7 @@ async fn serve(
         data_dir: None,
         report: args.report.clone(),
         events: args.events.clone(),
+        mcap: None,
         svg: args.svg.clone(),
         speed: Some(speed),
         faults: args.faults.clone(),
