@@ -18,7 +18,9 @@
 
 use super::{ActionRecord, FaultRecord, OpRecord, RunReport};
 use crate::events::{DispatcherVoice, Event, EventBus, EventKind, Tap};
+use crate::property::Value;
 use crate::run::{OpEnd, Outcome, ParamSetting, ParamSource, TakeoverRecord};
+use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
 
 /// A run report being assembled from the events of one run.
@@ -32,6 +34,9 @@ pub struct ReportBuilder {
     start_ms: Option<u64>,
     /// Whose word the run is (see the module invariants).
     voice: DispatcherVoice,
+    /// The value each operation's parameter ran with last, by (operation, parameter): what
+    /// a `reparameterized` is a change from.
+    ran_with: BTreeMap<(String, String), Value>,
 }
 
 /// An action that started and has not ended.
@@ -57,6 +62,7 @@ impl ReportBuilder {
             open: Vec::new(),
             start_ms: None,
             voice: DispatcherVoice::default(),
+            ran_with: BTreeMap::new(),
         }
     }
 
@@ -127,6 +133,8 @@ impl ReportBuilder {
                 }
                 for o in operations {
                     for p in &o.params {
+                        self.ran_with
+                            .insert((o.name.clone(), p.name.clone()), p.value.clone());
                         self.report.record_parameter(ParamSetting {
                             action: action.clone(),
                             operation: o.name.clone(),
@@ -193,16 +201,13 @@ impl ReportBuilder {
                     .map(|o| o.name.clone())
                     .unwrap_or_default();
                 for v in values {
-                    // what it ran with so far in this action: the latest value told
-                    let so_far = self.report.provenance.as_ref().and_then(|p| {
-                        p.parameters.iter().rev().find(|s| {
-                            s.action == action && s.operation == *operation && s.name == v.name
-                        })
-                    });
-                    if so_far.is_some_and(|s| s.value == v.value) {
-                        // the dispatcher restoring a stand-in's values: no change
+                    let key = (operation.clone(), v.name.clone());
+                    if self.ran_with.get(&key) == Some(&v.value) {
+                        // the dispatcher restoring a stand-in to what its operation ran
+                        // with: no change
                         continue;
                     }
+                    self.ran_with.insert(key, v.value.clone());
                     self.report.record_parameter(ParamSetting {
                         action: action.clone(),
                         operation: operation.clone(),
@@ -527,6 +532,20 @@ mod tests {
             event(40, changed(0.7)),
             // the same action run again with the mission's values: nothing new
             event(50, started("follow", 40, 0.5)),
+            event(
+                60,
+                EventKind::ActionEnded {
+                    action: "follow".into(),
+                    run_ms: 50,
+                    flags: Vec::new(),
+                    status: 0,
+                    result: None,
+                },
+            ),
+            // between actions, a stand-in restored to what it last ran with: no change
+            event(70, changed(0.5)),
+            // and a change between actions
+            event(80, changed(0.9)),
         ];
         let report = RunReport::from_events(&events);
         let p = report.provenance.expect("told before run_started, kept");
@@ -561,6 +580,13 @@ mod tests {
                     "0.7".into(),
                     ParamSource::Reparameterized,
                     Some(30)
+                ),
+                (
+                    "",
+                    "distance",
+                    "0.9".into(),
+                    ParamSource::Reparameterized,
+                    Some(70)
                 ),
             ]
         );
