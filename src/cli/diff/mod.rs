@@ -184,6 +184,15 @@ fn compare(a: &RunReport, b: &RunReport) -> Comparison {
 }
 
 impl Comparison {
+    /// The aspects in which the runs do not differ, in the order compared.
+    fn same_aspects(&self) -> Vec<&'static str> {
+        self.aspects
+            .iter()
+            .filter(|a| a.diff.is_none())
+            .map(|a| a.name)
+            .collect()
+    }
+
     /// Whether the runs are the same in every aspect.
     fn same(&self) -> bool {
         self.aspects.iter().all(|a| a.diff.is_none())
@@ -212,12 +221,7 @@ impl Comparison {
             out.push(format!("{name}:"));
             out.extend(d.lines.iter().cloned());
         }
-        let same: Vec<&str> = self
-            .aspects
-            .iter()
-            .filter(|a| a.diff.is_none())
-            .map(|a| a.name)
-            .collect();
+        let same = self.same_aspects();
         if !same.is_empty() {
             if !differ.is_empty() {
                 out.push(String::new());
@@ -236,12 +240,7 @@ impl Comparison {
                 differ.insert(a.name.to_string(), d.json.clone());
             }
         }
-        let same: Vec<&str> = self
-            .aspects
-            .iter()
-            .filter(|a| a.diff.is_none())
-            .map(|a| a.name)
-            .collect();
+        let same = self.same_aspects();
         json!({
             "a": runs["a"],
             "b": runs["b"],
