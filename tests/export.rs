@@ -413,3 +413,51 @@ fn built_without_mcap_the_run_and_the_export_say_so() {
     assert_eq!(out.status.code(), Some(2));
     assert!(text(&out.stderr).contains("built without MCAP support"));
 }
+
+/// `marie up … --run … --mcap`: a cluster's run as MCAP holds every node's events — the
+/// cart's node's robot events draw the scene — as its events file does.
+#[cfg(feature = "mcap")]
+#[test]
+fn a_clusters_run_as_mcap_holds_every_nodes_events_and_the_carts_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    let (events, run_mcap) = (dir.path().join("up.jsonl"), dir.path().join("up.mcap"));
+    let out = marie(&[
+        "up",
+        "missions/clusters/thesis.toml",
+        "--run",
+        "missions/docking.toml",
+        "--speed",
+        "8",
+        "--events",
+        events.to_str().unwrap(),
+        "--mcap",
+        run_mcap.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let events_read: Vec<Event> = std::fs::read_to_string(&events)
+        .unwrap()
+        .lines()
+        .map(|l| Event::from_json_line(l).unwrap())
+        .collect();
+    let (_, counted) = read_mcap(&run_mcap);
+    let nodes: std::collections::BTreeSet<&str> =
+        events_read.iter().map(|e| e.node.as_str()).collect();
+    assert!(nodes.contains("cart") && nodes.len() > 2, "{nodes:?}");
+    // each file follows the bus and the relay on its own: both hold every event
+    assert_eq!(counted["/events"], events_read.len() as u64, "{counted:?}");
+    let poses = events_read
+        .iter()
+        .filter(|e| robot_what(e) == Some("pose"))
+        .count() as u64;
+    assert!(poses > 100, "the cart's node's poses: {poses}");
+    assert_eq!(counted["/cart"], poses, "{counted:?}");
+    assert_eq!(counted["/tf"], poses, "{counted:?}");
+    // each node that runs the world tells it (the scene is drawn again, the same)
+    let worlds = events_read
+        .iter()
+        .filter(|e| robot_what(e) == Some("world"))
+        .count() as u64;
+    assert!(worlds >= 1);
+    assert_eq!(counted["/world"], worlds, "{counted:?}");
+    assert!(counted["/echoes"] > 0, "{counted:?}");
+}

@@ -2,7 +2,8 @@
 //! for a member of a cluster, every other node's ([`marie::cluster::relay`]) — one JSON object per
 //! line ([`marie::actors::events`] documents the schema), written as they come.
 
-use marie::actors::events::{BusError, EventBus};
+use super::follow::{follow, Sink};
+use marie::actors::events::{Event, EventBus};
 use marie::cluster::relay::Watch;
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -13,15 +14,23 @@ use tokio::task::JoinHandle;
 /// A file being written from a bus.
 pub(crate) struct EventsFile {
     stop: oneshot::Sender<()>,
-    task: JoinHandle<std::io::Result<Written>>,
+    task: JoinHandle<anyhow::Result<Written>>,
     path: PathBuf,
+}
+
+/// The file's writer: one JSON line an event.
+struct Lines(BufWriter<File>);
+
+impl Sink for Lines {
+    fn take(&mut self, event: &Event) -> anyhow::Result<()> {
+        writeln!(self.0, "{}", event.to_json_line()?)?;
+        Ok(())
+    }
 }
 
 /// What was written.
 #[derive(Debug, Default)]
 pub(crate) struct Written {
-    /// Lines written.
-    pub lines: u64,
     /// Events the writer fell behind on and lost (the bus is bounded).
     pub missed: u64,
 }
@@ -31,45 +40,16 @@ impl EventsFile {
     /// receives from the other nodes, until [`finish`](EventsFile::finish).
     pub(crate) fn start(
         bus: &EventBus,
-        mut others: Option<Watch>,
+        others: Option<Watch>,
         path: &Path,
     ) -> std::io::Result<EventsFile> {
-        let mut out = BufWriter::new(File::create(path)?);
-        let mut sub = bus.subscribe();
-        let (stop, mut stopped) = oneshot::channel::<()>();
+        let out = BufWriter::new(File::create(path)?);
+        let sub = bus.subscribe();
+        let (stop, stopped) = oneshot::channel::<()>();
         let task = tokio::spawn(async move {
-            let mut written = Written::default();
-            loop {
-                tokio::select! {
-                    biased;
-                    received = sub.recv() => match received {
-                        Ok(event) => {
-                            writeln!(out, "{}", event.to_json_line()?)?;
-                            written.lines += 1;
-                        }
-                        Err(BusError::Lagged { missed }) => written.missed += missed,
-                        Err(BusError::Closed) => break,
-                    },
-                    Some(event) = next_of(&mut others) => {
-                        writeln!(out, "{}", event.to_json_line()?)?;
-                        written.lines += 1;
-                    }
-                    _ = &mut stopped => {
-                        for event in sub.drain() {
-                            writeln!(out, "{}", event.to_json_line()?)?;
-                            written.lines += 1;
-                        }
-                        while let Some(event) = others.as_mut().and_then(Watch::try_recv) {
-                            writeln!(out, "{}", event.to_json_line()?)?;
-                            written.lines += 1;
-                        }
-                        break;
-                    }
-                }
-            }
-            written.missed += others.as_ref().map_or(0, Watch::lost);
+            let (Lines(mut out), missed) = follow(sub, others, stopped, Lines(out)).await?;
             out.flush()?;
-            Ok(written)
+            Ok(Written { missed })
         });
         Ok(EventsFile {
             stop,
@@ -95,19 +75,5 @@ impl EventsFile {
             );
         }
         Ok(written)
-    }
-}
-
-/// The next event of the other nodes; pending forever without a watch (or once it ended).
-async fn next_of(others: &mut Option<Watch>) -> Option<marie::actors::events::Event> {
-    match others {
-        Some(w) => match w.recv().await {
-            Some(e) => Some(e),
-            None => {
-                *others = None;
-                std::future::pending().await
-            }
-        },
-        None => std::future::pending().await,
     }
 }

@@ -13,6 +13,7 @@ pub(crate) mod error;
 pub(crate) mod events_file;
 pub(crate) mod export;
 pub(crate) mod files;
+pub(crate) mod follow;
 pub(crate) mod join;
 pub(crate) mod kill;
 pub(crate) mod ls;

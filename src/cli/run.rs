@@ -239,7 +239,9 @@ pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
             (r.mission.clone(), faults, chaos, chaos_dms)
         }
         None => (
-            mission.expect("clap requires a mission without --replay"),
+            mission.ok_or_else(|| {
+                BadInput("a mission file is needed (or --replay REPORT.json)".into())
+            })?,
             faults,
             chaos,
             chaos_dms,
@@ -418,25 +420,31 @@ pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     let forwarder = transport
         .as_ref()
         .map(|_| marie::cluster::relay::forward(node.events().clone()));
-    let others = match (&transport, &events_path) {
-        (Some(_), Some(_)) => {
-            let watch = marie::cluster::relay::watch(EVENTS_FROM_OTHERS).await?;
-            Some(match remote {
-                true => watch.without_dispatch(),
-                false => watch,
-            })
+    // the other nodes' events, for each file that writes them (a watch each)
+    let others = || async {
+        match &transport {
+            Some(_) => marie::cluster::relay::watch(EVENTS_FROM_OTHERS)
+                .await
+                .map(|watch| match remote {
+                    true => Some(watch.without_dispatch()),
+                    false => Some(watch),
+                }),
+            None => Ok(None),
         }
-        _ => None,
     };
     let events = match &events_path {
         Some(p) => Some(
-            EventsFile::start(node.events(), others, p)
+            EventsFile::start(node.events(), others().await?, p)
                 .with_context(|| format!("cannot write the events to {}", p.display()))?,
         ),
         None => None,
     };
     let mcap = match &mcap_path {
-        Some(p) => Some(super::mcap::McapFile::start(node.events(), p)?),
+        Some(p) => Some(super::mcap::McapFile::start(
+            node.events(),
+            others().await?,
+            p,
+        )?),
         None => None,
     };
     let monitor = match monitor_listen {

@@ -60,6 +60,10 @@ pub(crate) struct UpArgs {
     /// With `--run`: write every event of the run here (JSON lines).
     #[arg(long, value_name = "FILE.jsonl", requires = "run")]
     pub events: Option<PathBuf>,
+    /// With `--run`: write the run as MCAP here, for Foxglove (every node's events: the
+    /// cart's node draws the scene).
+    #[arg(long, value_name = "FILE.mcap", requires = "run")]
+    pub mcap: Option<PathBuf>,
     /// With `--run`: draw the robot's run here (SVG).
     #[arg(long, value_name = "FILE.svg", requires = "run")]
     pub svg: Option<PathBuf>,
@@ -453,7 +457,7 @@ async fn serve(
         data_dir: None,
         report: args.report.clone(),
         events: args.events.clone(),
-        mcap: None,
+        mcap: args.mcap.clone(),
         svg: args.svg.clone(),
         speed: Some(speed),
         faults: args.faults.clone(),

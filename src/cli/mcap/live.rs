@@ -1,11 +1,13 @@
 //! `marie run --mcap FILE.mcap`: the run written as MCAP while it runs, from the node's
 //! bus — a subscriber like the events file ([`crate::cli::events_file`]), so a writer
 //! that falls behind loses the oldest events (and says how many) rather than slowing the
-//! run. The local bus only: a member of a cluster writes its own node's events (and the
-//! dispatcher's, which a run dispatched elsewhere republishes on it).
+//! run. A member of a cluster writes the other nodes' events too (the cart's node's robot
+//! events draw the scene), as the events file does ([`crate::cli::follow`]).
 
 use super::{McapWriter, Written};
-use marie::actors::events::{BusError, EventBus};
+use crate::cli::follow::follow;
+use marie::actors::events::EventBus;
+use marie::cluster::relay::Watch;
 use std::path::{Path, PathBuf};
 use tokio::sync::oneshot;
 use tokio::task::JoinHandle;
@@ -19,30 +21,18 @@ pub(crate) struct McapFile {
 }
 
 impl McapFile {
-    /// Create `path` and write every event `bus` publishes from now on, until
-    /// [`finish`](McapFile::finish).
-    pub(crate) fn start(bus: &EventBus, path: &Path) -> anyhow::Result<McapFile> {
-        let mut out = McapWriter::create(path)?;
-        let mut sub = bus.subscribe();
-        let (stop, mut stopped) = oneshot::channel::<()>();
+    /// Create `path` and write every event `bus` publishes from now on, and those `others`
+    /// receives from the other nodes of a cluster, until [`finish`](McapFile::finish).
+    pub(crate) fn start(
+        bus: &EventBus,
+        others: Option<Watch>,
+        path: &Path,
+    ) -> anyhow::Result<McapFile> {
+        let out = McapWriter::create(path)?;
+        let sub = bus.subscribe();
+        let (stop, stopped) = oneshot::channel::<()>();
         let task = tokio::spawn(async move {
-            let mut missed = 0;
-            loop {
-                tokio::select! {
-                    biased;
-                    received = sub.recv() => match received {
-                        Ok(event) => out.write(&event)?,
-                        Err(BusError::Lagged { missed: n }) => missed += n,
-                        Err(BusError::Closed) => break,
-                    },
-                    _ = &mut stopped => {
-                        for event in sub.drain() {
-                            out.write(&event)?;
-                        }
-                        break;
-                    }
-                }
-            }
+            let (out, missed) = follow(sub, others, stopped, out).await?;
             let mut written = out.finish()?;
             written.missed = missed;
             Ok(written)

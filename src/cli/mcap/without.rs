@@ -36,7 +36,11 @@ pub(crate) enum McapFile {}
 
 impl McapFile {
     /// Refused: see [`super::output`].
-    pub(crate) fn start(_bus: &EventBus, path: &Path) -> anyhow::Result<McapFile> {
+    pub(crate) fn start(
+        _bus: &EventBus,
+        _others: Option<marie::cluster::relay::Watch>,
+        path: &Path,
+    ) -> anyhow::Result<McapFile> {
         McapWriter::create(path).map(|w| match w {})
     }
 

@@ -141,3 +141,9 @@ impl McapWriter {
         Ok(())
     }
 }
+
+impl crate::cli::follow::Sink for McapWriter {
+    fn take(&mut self, event: &Event) -> anyhow::Result<()> {
+        self.write(event)
+    }
+}

@@ -1,0 +1,62 @@
+//! A run's events as a file writer takes them: every event the node's bus publishes from a
+//! subscription on, and — for a member of a cluster — every other node's
+//! ([`marie::cluster::relay`]), handed one at a time to a sink until told to stop, then what
+//! was published before the stop. The `--events` file and the `--mcap` file are two sinks.
+
+use marie::actors::events::{BusError, Event, EventSubscription};
+use marie::cluster::relay::Watch;
+use tokio::sync::oneshot;
+
+/// What takes a run's events, one at a time: a file's writer.
+pub(crate) trait Sink {
+    /// Take one event.
+    fn take(&mut self, event: &Event) -> anyhow::Result<()>;
+}
+
+/// Hand `sink` every event of `sub` and of `others` until `stopped`, then those published
+/// before it; give back the sink and how many events the subscription fell behind on and
+/// lost (the bus is bounded, the relay's backlog too). A sink's error ends it.
+pub(crate) async fn follow<S: Sink>(
+    mut sub: EventSubscription,
+    mut others: Option<Watch>,
+    mut stopped: oneshot::Receiver<()>,
+    mut sink: S,
+) -> anyhow::Result<(S, u64)> {
+    let mut missed = 0;
+    loop {
+        tokio::select! {
+            biased;
+            received = sub.recv() => match received {
+                Ok(event) => sink.take(&event)?,
+                Err(BusError::Lagged { missed: n }) => missed += n,
+                Err(BusError::Closed) => break,
+            },
+            Some(event) = next_of(&mut others) => sink.take(&event)?,
+            _ = &mut stopped => {
+                for event in sub.drain() {
+                    sink.take(&event)?;
+                }
+                while let Some(event) = others.as_mut().and_then(Watch::try_recv) {
+                    sink.take(&event)?;
+                }
+                break;
+            }
+        }
+    }
+    missed += others.as_ref().map_or(0, Watch::lost);
+    Ok((sink, missed))
+}
+
+/// The next event of the other nodes; pending forever without a watch (or once it ended).
+async fn next_of(others: &mut Option<Watch>) -> Option<Event> {
+    match others {
+        Some(w) => match w.recv().await {
+            Some(e) => Some(e),
+            None => {
+                *others = None;
+                std::future::pending().await
+            }
+        },
+        None => std::future::pending().await,
+    }
+}
