@@ -2,19 +2,16 @@
 //! for a member of a cluster, every other node's ([`marie::cluster::relay`]) — one JSON object per
 //! line ([`marie::actors::events`] documents the schema), written as they come.
 
-use super::follow::{follow, Sink};
+use super::follow::{Following, Sink};
 use marie::actors::events::{Event, EventBus};
 use marie::cluster::relay::Watch;
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
-use tokio::sync::oneshot;
-use tokio::task::JoinHandle;
 
 /// A file being written from a bus.
 pub(crate) struct EventsFile {
-    stop: oneshot::Sender<()>,
-    task: JoinHandle<anyhow::Result<Written>>,
+    following: Following<()>,
     path: PathBuf,
 }
 
@@ -28,13 +25,6 @@ impl Sink for Lines {
     }
 }
 
-/// What was written.
-#[derive(Debug, Default)]
-pub(crate) struct Written {
-    /// Events the writer fell behind on and lost (the bus is bounded).
-    pub missed: u64,
-}
-
 impl EventsFile {
     /// Create `path` and write every event `bus` publishes from now on, and those `others`
     /// receives from the other nodes, until [`finish`](EventsFile::finish).
@@ -43,37 +33,23 @@ impl EventsFile {
         others: Option<Watch>,
         path: &Path,
     ) -> std::io::Result<EventsFile> {
-        let out = BufWriter::new(File::create(path)?);
-        let sub = bus.subscribe();
-        let (stop, stopped) = oneshot::channel::<()>();
-        let task = tokio::spawn(async move {
-            let (Lines(mut out), missed) = follow(sub, others, stopped, Lines(out)).await?;
+        let out = Lines(BufWriter::new(File::create(path)?));
+        let following = Following::start(bus, others, out, |Lines(mut out)| {
             out.flush()?;
-            Ok(Written { missed })
+            Ok(())
         });
         Ok(EventsFile {
-            stop,
-            task,
+            following,
             path: path.to_path_buf(),
         })
     }
 
-    /// Write what was published before this call, close the file, and say how it went.
-    pub(crate) async fn finish(self) -> anyhow::Result<Written> {
-        let _ = self.stop.send(());
-        let written = self
-            .task
+    /// Write what was published before this call and close the file.
+    pub(crate) async fn finish(self) -> anyhow::Result<()> {
+        self.following
+            .finish("the events file")
             .await
-            .map_err(|e| anyhow::anyhow!("the events writer stopped: {e}"))?
-            .map_err(|e| {
-                anyhow::anyhow!("cannot write the events to {}: {e}", self.path.display())
-            })?;
-        if written.missed > 0 {
-            tracing::warn!(
-                missed = written.missed,
-                "the events file fell behind the node's bus and lacks some events"
-            );
-        }
-        Ok(written)
+            .map(drop)
+            .map_err(|e| anyhow::anyhow!("cannot write the events to {}: {e}", self.path.display()))
     }
 }

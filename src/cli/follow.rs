@@ -3,7 +3,7 @@
 //! ([`marie::cluster::relay`]), handed one at a time to a sink until told to stop, then what
 //! was published before the stop. The `--events` file and the `--mcap` file are two sinks.
 
-use marie::actors::events::{BusError, Event, EventSubscription};
+use marie::actors::events::{BusError, Event, EventBus, EventSubscription};
 use marie::cluster::relay::Watch;
 use tokio::sync::oneshot;
 
@@ -16,7 +16,7 @@ pub(crate) trait Sink {
 /// Hand `sink` every event of `sub` and of `others` until `stopped`, then those published
 /// before it; give back the sink and how many events the subscription fell behind on and
 /// lost (the bus is bounded, the relay's backlog too). A sink's error ends it.
-pub(crate) async fn follow<S: Sink>(
+async fn follow<S: Sink>(
     mut sub: EventSubscription,
     mut others: Option<Watch>,
     mut stopped: oneshot::Receiver<()>,
@@ -58,5 +58,52 @@ async fn next_of(others: &mut Option<Watch>) -> Option<Event> {
             }
         },
         None => std::future::pending().await,
+    }
+}
+
+/// A sink following a bus (and the relay) in a task of its own, until
+/// [`finish`](Following::finish): the one way a run's files are written.
+#[derive(Debug)]
+pub(crate) struct Following<T> {
+    stop: oneshot::Sender<()>,
+    task: tokio::task::JoinHandle<anyhow::Result<(T, u64)>>,
+}
+
+impl<T: Send + 'static> Following<T> {
+    /// Hand `sink` every event of `bus` from now on and of `others`; once stopped, `close`
+    /// makes of the sink what [`finish`](Following::finish) gives.
+    pub(crate) fn start<S>(
+        bus: &EventBus,
+        others: Option<Watch>,
+        sink: S,
+        close: impl FnOnce(S) -> anyhow::Result<T> + Send + 'static,
+    ) -> Following<T>
+    where
+        S: Sink + Send + 'static,
+    {
+        let sub = bus.subscribe();
+        let (stop, stopped) = oneshot::channel::<()>();
+        let task = tokio::spawn(async move {
+            let (sink, missed) = follow(sub, others, stopped, sink).await?;
+            Ok((close(sink)?, missed))
+        });
+        Following { stop, task }
+    }
+
+    /// Take what was published before this call, close the sink, and give what it made and
+    /// how many events it lost; a loss is warned of, naming `what` (`the events file`).
+    pub(crate) async fn finish(self, what: &str) -> anyhow::Result<(T, u64)> {
+        let _ = self.stop.send(());
+        let (made, missed) = self
+            .task
+            .await
+            .map_err(|e| anyhow::anyhow!("the writer of {what} stopped: {e}"))??;
+        if missed > 0 {
+            tracing::warn!(
+                missed,
+                "{what} fell behind the node's bus and lacks some events"
+            );
+        }
+        Ok((made, missed))
     }
 }

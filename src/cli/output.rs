@@ -161,11 +161,10 @@ impl Printer {
                 ..
             } => {
                 let status = StatusFlags(*status);
-                let how = match result {
-                    Some(ActionResult::Failed) => "failed",
-                    Some(ActionResult::Halted) => "halted",
-                    _ => "end",
-                };
+                // a success is the action's plain end
+                let how = result
+                    .filter(|r| *r != ActionResult::Succeeded)
+                    .map_or("end", ActionResult::name);
                 println!("< {action}: {how}, status {status} [{}]", flags.join(", "));
             }
             EventKind::Control {

@@ -3,6 +3,7 @@
 //! the build, the start time and the nodes, the dispatcher the parameters).
 
 use super::args::MAX_SPEED;
+use marie::actors::diagnostic::{read_source, Diagnostic};
 use marie::actors::run::{Digest, FileRead, FileRole, Provenance};
 use std::path::Path;
 
@@ -40,12 +41,10 @@ pub(crate) fn speed_text(speed: f64) -> String {
     }
 }
 
-/// `path` as the file of `role`: its text and SHA-256.
-fn read(role: FileRole, path: &Path) -> std::io::Result<FileRead> {
-    let bytes = std::fs::read(path)?;
-    let text = String::from_utf8(bytes).map_err(|e| {
-        std::io::Error::new(std::io::ErrorKind::InvalidData, format!("not UTF-8: {e}"))
-    })?;
+/// `path` as the file of `role`: its text (through the one reader of input files, with its
+/// checks) and SHA-256.
+fn read(role: FileRole, path: &Path) -> Result<FileRead, Diagnostic> {
+    let text = read_source(path, role.name())?;
     Ok(FileRead {
         role,
         path: path.display().to_string(),

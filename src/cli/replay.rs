@@ -158,38 +158,12 @@ impl Replay {
         out
     }
 
-    /// The faults its command planned (`--fault`), read back from its command line, and a
-    /// warning for each it cannot replay: a node's fault (`stop-node`, `freeze-node`,
-    /// `partition`) needs `marie up`'s processes, and a replay runs on one.
-    pub(crate) fn faults(&self) -> Result<(Vec<FaultSpec>, Vec<String>), BadInput> {
-        let mut faults = Vec::new();
-        let mut skipped = Vec::new();
-        for spec in flag_values(&self.provenance.command, "--fault") {
-            let parsed: FaultSpec = spec.parse().map_err(|e| {
-                BadInput(format!(
-                    "--replay {}: its command's --fault {spec}: {e}",
-                    self.path.display()
-                ))
-            })?;
-            match parsed.kind.aim() {
-                Aim::Operation => faults.push(parsed),
-                Aim::Node | Aim::Cut => skipped.push(format!(
-                    "warning: the run's --fault {spec} is a node's fault: not replayed on one \
-                     process"
-                )),
-            }
-        }
-        Ok((faults, skipped))
-    }
-
-    /// The chaos seed its command gave (`--chaos SEED`) and whether the datamanagers were
-    /// among its victims (`--chaos-dms`).
-    pub(crate) fn chaos(&self) -> (Option<u64>, bool) {
-        let seed = flag_values(&self.provenance.command, "--chaos")
-            .first()
-            .and_then(|s| s.parse().ok());
-        let dms = self.provenance.command.iter().any(|a| a == "--chaos-dms");
-        (seed, dms)
+    /// What its command planned — `--fault`s, `--chaos SEED`, `--chaos-dms` — read back by
+    /// the command's own parser, and a warning for what cannot be replayed: a node's fault
+    /// (`stop-node`, `freeze-node`, `partition`) needs `marie up`'s processes, and a replay
+    /// runs on one; a command this marie does not parse (another version's) plans nothing.
+    pub(crate) fn planned(&self) -> (Planned, Vec<String>) {
+        planned(&self.provenance.command)
     }
 
     /// Compare the replay's report `now` with the report replayed.
@@ -249,20 +223,51 @@ impl Replay {
     }
 }
 
-/// The values of `flag` in a command line (`--flag V` and `--flag=V`).
-fn flag_values(command: &[String], flag: &str) -> Vec<String> {
-    let mut out = Vec::new();
-    let mut args = command.iter();
-    while let Some(arg) = args.next() {
-        if arg == flag {
-            if let Some(v) = args.next() {
-                out.push(v.clone());
-            }
-        } else if let Some(v) = arg.strip_prefix(flag).and_then(|r| r.strip_prefix('=')) {
-            out.push(v.to_string());
+/// The faults and chaos a run's command planned ([`Replay::planned`]).
+#[derive(Debug, Default, PartialEq)]
+pub(crate) struct Planned {
+    /// Its operation faults.
+    pub faults: Vec<FaultSpec>,
+    /// Its chaos seed.
+    pub chaos: Option<u64>,
+    /// Whether the datamanagers were among the chaos' victims.
+    pub chaos_dms: bool,
+}
+
+/// What `command` planned, parsed as `marie` parses it; warnings for what is not replayed.
+fn planned(command: &[String]) -> (Planned, Vec<String>) {
+    use clap::Parser;
+    let (faults, chaos, chaos_dms) = match super::Cli::try_parse_from(command) {
+        Ok(cli) => match cli.command {
+            super::Command::Run(run) => (run.faults, run.chaos, run.chaos_dms),
+            super::Command::Up(up) => (up.faults, None, false),
+            _ => (Vec::new(), None, false),
+        },
+        Err(e) => {
+            let why = e.to_string();
+            let why = why.lines().next().unwrap_or_default();
+            let warning = format!(
+                "warning: the run's command line does not parse here ({why}): no fault \
+                 or chaos of it is replayed"
+            );
+            return (Planned::default(), vec![warning]);
         }
-    }
-    out
+    };
+    let (faults, node_faults): (Vec<FaultSpec>, Vec<FaultSpec>) = faults
+        .into_iter()
+        .partition(|f| f.kind.aim() == Aim::Operation);
+    let warnings = node_faults
+        .iter()
+        .map(|f| {
+            format!("warning: the run's --fault {f} is a node's fault: not replayed on one process")
+        })
+        .collect();
+    let planned = Planned {
+        faults,
+        chaos,
+        chaos_dms,
+    };
+    (planned, warnings)
 }
 
 fn outcome_text(r: &RunReport) -> String {
@@ -396,7 +401,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn a_command_lines_flag_values_are_read_in_both_spellings() {
+    fn a_command_lines_faults_and_chaos_are_read_in_both_spellings() {
         let cmd: Vec<String> = [
             "marie",
             "run",
@@ -404,11 +409,31 @@ mod tests {
             "--fault",
             "kill:a@1",
             "--fault=hang:b@2",
+            "--fault",
+            "stop-node:n@3",
         ]
         .iter()
         .map(|s| s.to_string())
         .collect();
-        assert_eq!(flag_values(&cmd, "--fault"), vec!["kill:a@1", "hang:b@2"]);
-        assert!(flag_values(&cmd, "--chaos").is_empty());
+        let (p, warnings) = planned(&cmd);
+        let faults: Vec<String> = p.faults.iter().map(|f| f.to_string()).collect();
+        assert_eq!(faults, vec!["kill:a@1", "hang:b@2"]);
+        assert_eq!(p.chaos, None);
+        assert_eq!(warnings.len(), 1, "{warnings:?}");
+        assert!(warnings[0].contains("stop-node:n@3"), "{warnings:?}");
+        let chaos: Vec<String> = ["marie", "run", "m.toml", "--chaos=7", "--chaos-dms"]
+            .iter()
+            .map(|s| s.to_string())
+            .collect();
+        let (p, _) = planned(&chaos);
+        assert_eq!((p.chaos, p.chaos_dms), (Some(7), true));
+        // another version's flags: nothing planned, and said
+        let other: Vec<String> = ["marie", "run", "m.toml", "--warp", "9"]
+            .iter()
+            .map(|s| s.to_string())
+            .collect();
+        let (p, warnings) = planned(&other);
+        assert_eq!(p, Planned::default());
+        assert!(warnings[0].contains("does not parse"), "{warnings:?}");
     }
 }

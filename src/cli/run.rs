@@ -9,7 +9,7 @@ use super::join::JoinArgs;
 use super::output::{end_line, outcome_line, verdict_line, LiveLines, Progress};
 use super::page_control::PageControl;
 use super::prepare::{prepare, Prepared};
-use super::replay::Replay;
+use super::replay::{Planned, Replay};
 use super::signal::Shutdown;
 use anyhow::Context;
 use marie::actors::clock::Pacer;
@@ -231,11 +231,15 @@ pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
             robot.world = r.world.clone();
             robot.node = r.node.clone();
             robot.seed = r.provenance.seed;
-            let (chaos, chaos_dms) = r.chaos();
-            let (faults, skipped) = r.faults()?;
-            for warning in skipped {
+            let (planned, warnings) = r.planned();
+            for warning in warnings {
                 eprintln!("marie: {warning}");
             }
+            let Planned {
+                faults,
+                chaos,
+                chaos_dms,
+            } = planned;
             (r.mission.clone(), faults, chaos, chaos_dms)
         }
         None => (

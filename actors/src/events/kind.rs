@@ -457,6 +457,17 @@ pub enum ActionResult {
     Halted,
 }
 
+impl ActionResult {
+    /// Its name, as lines and logs say it (`succeeded`, `failed`, `halted`).
+    pub fn name(self) -> &'static str {
+        match self {
+            ActionResult::Succeeded => "succeeded",
+            ActionResult::Failed => "failed",
+            ActionResult::Halted => "halted",
+        }
+    }
+}
+
 /// A node of a mission's behaviour tree as its run announces it
 /// ([`EventKind::ControlPlan`]).
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]

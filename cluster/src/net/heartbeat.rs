@@ -82,8 +82,11 @@ marie_actors::remote_message! {
             /// Beat to every peer too.
             beat: bool,
         },
-        /// The builds the ready peers said they run ([`peer_builds`]).
+        /// The builds the ready peers said they run ([`peer_builds`]): answered once every
+        /// one has said, or once `within` has passed.
         Builds {
+            /// How long the answer may wait for a peer that has not said yet.
+            within: std::time::Duration,
             /// Where the answer goes.
             reply: ractor::RpcReplyPort<BTreeMap<String, Option<Build>>>,
         },
@@ -118,9 +121,10 @@ pub async fn reach() -> Option<Reach> {
 }
 
 /// The marie builds of the peers this process has a ready session with, by node name
-/// (`None`: it has not said yet, or runs a build that does not say); empty without a
-/// transport or when its heartbeat actor does not answer within a second.
-pub async fn peer_builds() -> BTreeMap<String, Option<Build>> {
+/// (`None`: it has not said within `within` — a peer just joined has not beaten yet, or
+/// runs a build that does not say); answered as soon as every peer has said. Empty without
+/// a transport or when its heartbeat actor does not answer in time.
+pub async fn peer_builds(within: std::time::Duration) -> BTreeMap<String, Option<Build>> {
     let Some(cell) = pg::get_scoped_local_members(&SCOPE.to_string(), &GROUP.to_string())
         .into_iter()
         .next()
@@ -130,14 +134,20 @@ pub async fn peer_builds() -> BTreeMap<String, Option<Build>> {
     let heartbeat: ActorRef<BeatMsg> = cell.into();
     match heartbeat
         .call(
-            |reply| BeatMsg::Builds { reply },
-            Some(std::time::Duration::from_secs(1)),
+            |reply| BeatMsg::Builds { within, reply },
+            Some(within + std::time::Duration::from_secs(1)),
         )
         .await
     {
         Ok(ractor::rpc::CallResult::Success(builds)) => builds,
         _ => BTreeMap::new(),
     }
+}
+
+/// A [`BeatMsg::Builds`] waiting for a peer to name its build.
+struct BuildsAsked {
+    until: Instant,
+    reply: ractor::RpcReplyPort<BTreeMap<String, Option<Build>>>,
 }
 
 /// What a heartbeat actor is started with.
@@ -161,6 +171,8 @@ pub(crate) struct State {
     greeter: tokio::task::JoinHandle<()>,
     /// The build each peer's latest beat named.
     builds: BTreeMap<String, Build>,
+    /// Asks for the peers' builds waiting for one to say it.
+    builds_asked: Vec<BuildsAsked>,
 }
 
 impl Drop for State {
@@ -222,6 +234,7 @@ impl Actor for Heartbeat {
             ticker,
             greeter,
             builds: BTreeMap::new(),
+            builds_asked: Vec::new(),
         })
     }
 
@@ -232,20 +245,20 @@ impl Actor for Heartbeat {
         state: &mut State,
     ) -> Result<(), ActorProcessingErr> {
         match msg {
-            BeatMsg::Tick { beat } => state.tick(beat),
-            BeatMsg::Beat { frame } => state.received(&frame),
-            BeatMsg::Builds { reply } => {
-                let builds = state
-                    .args
-                    .sessions
-                    .peers()
-                    .into_iter()
-                    .map(|p| {
-                        let build = state.builds.get(&p.name).cloned();
-                        (p.name, build)
-                    })
-                    .collect();
-                let _ = reply.send(builds);
+            BeatMsg::Tick { beat } => {
+                state.tick(beat);
+                state.answer_builds();
+            }
+            BeatMsg::Beat { frame } => {
+                state.received(&frame);
+                state.answer_builds();
+            }
+            BeatMsg::Builds { within, reply } => {
+                state.builds_asked.push(BuildsAsked {
+                    until: Instant::now() + within,
+                    reply,
+                });
+                state.answer_builds();
             }
             BeatMsg::Reach { reply } => {
                 let within = state.args.config.deadline / 2;
@@ -257,6 +270,33 @@ impl Actor for Heartbeat {
 }
 
 impl State {
+    /// Answer each ask for the peers' builds that can be: every ready peer has named its
+    /// build, or the ask's time is up (then the silent ones are `None`).
+    fn answer_builds(&mut self) {
+        if self.builds_asked.is_empty() {
+            return;
+        }
+        let builds: BTreeMap<String, Option<Build>> = self
+            .args
+            .sessions
+            .peers()
+            .into_iter()
+            .map(|p| {
+                let build = self.builds.get(&p.name).cloned();
+                (p.name, build)
+            })
+            .collect();
+        let all_said = builds.values().all(Option::is_some);
+        let now = Instant::now();
+        let (due, waiting) = std::mem::take(&mut self.builds_asked)
+            .into_iter()
+            .partition(|a| all_said || a.until <= now);
+        self.builds_asked = waiting;
+        for asked in due {
+            let _ = asked.reply.send(builds.clone());
+        }
+    }
+
     /// Cast a beat naming the `ready` peers to every remote heartbeat actor.
     fn beat(&mut self, ready: &[super::transport::Peer]) {
         let beat = Beat {

@@ -299,12 +299,7 @@ impl Node {
         if provenance.started.is_empty() {
             provenance.started = rfc3339(provenance.started_unix_ms);
         }
-        let waited = std::time::Instant::now();
-        let mut peers = crate::net::heartbeat::peer_builds().await;
-        while peers.values().any(Option::is_none) && waited.elapsed() < PEER_BUILDS_WAIT {
-            tokio::time::sleep(Duration::from_millis(50)).await;
-            peers = crate::net::heartbeat::peer_builds().await;
-        }
+        let peers = crate::net::heartbeat::peer_builds(PEER_BUILDS_WAIT).await;
         provenance.nodes = std::iter::once(NodeBuild {
             node: self.config.name.clone(),
             marie: Some(this),

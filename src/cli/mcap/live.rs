@@ -5,18 +5,15 @@
 //! events draw the scene), as the events file does ([`crate::cli::follow`]).
 
 use super::{McapWriter, Written};
-use crate::cli::follow::follow;
+use crate::cli::follow::Following;
 use marie::actors::events::EventBus;
 use marie::cluster::relay::Watch;
 use std::path::{Path, PathBuf};
-use tokio::sync::oneshot;
-use tokio::task::JoinHandle;
 
 /// An MCAP file being written from a bus.
 #[derive(Debug)]
 pub(crate) struct McapFile {
-    stop: oneshot::Sender<()>,
-    task: JoinHandle<anyhow::Result<Written>>,
+    following: Following<Written>,
     path: PathBuf,
 }
 
@@ -29,35 +26,20 @@ impl McapFile {
         path: &Path,
     ) -> anyhow::Result<McapFile> {
         let out = McapWriter::create(path)?;
-        let sub = bus.subscribe();
-        let (stop, stopped) = oneshot::channel::<()>();
-        let task = tokio::spawn(async move {
-            let (out, missed) = follow(sub, others, stopped, out).await?;
-            let mut written = out.finish()?;
-            written.missed = missed;
-            Ok(written)
-        });
         Ok(McapFile {
-            stop,
-            task,
+            following: Following::start(bus, others, out, McapWriter::finish),
             path: path.to_path_buf(),
         })
     }
 
     /// Write what was published before this call, close the file, and say what it holds.
     pub(crate) async fn finish(self) -> anyhow::Result<Written> {
-        let _ = self.stop.send(());
-        let written = self
-            .task
+        let (mut written, missed) = self
+            .following
+            .finish("the MCAP file")
             .await
-            .map_err(|e| anyhow::anyhow!("the MCAP writer stopped: {e}"))?
             .map_err(|e| e.context(format!("--mcap {}", self.path.display())))?;
-        if written.missed > 0 {
-            tracing::warn!(
-                missed = written.missed,
-                "the MCAP file fell behind the node's bus and lacks some events"
-            );
-        }
+        written.missed = missed;
         Ok(written)
     }
 }

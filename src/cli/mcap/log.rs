@@ -129,12 +129,7 @@ pub(crate) fn text(kind: &EventKind) -> String {
             result,
             ..
         } => {
-            let how = match result {
-                Some(ActionResult::Failed) => "failed",
-                Some(ActionResult::Halted) => "halted",
-                Some(ActionResult::Succeeded) => "succeeded",
-                None => "ended",
-            };
+            let how = result.map_or("ended", ActionResult::name);
             format!(
                 "action `{action}` {how}, status {status:#010x}{}",
                 listed("", flags)
