@@ -32,7 +32,7 @@ fn main() {
         },
     };
     println!("cargo:rustc-env=MARIE_BUILD={build}");
-    // the same, in parts, for a run's provenance (`marie_actors::run::Build`)
+    // the same, in parts, for a run's provenance (`marie::run::Build`)
     println!(
         "cargo:rustc-env=MARIE_COMMIT={}",
         commit.as_deref().unwrap_or("")

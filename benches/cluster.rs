@@ -35,21 +35,21 @@
 //! and it exits when its stdin closes).
 //! A plain bench binary (not criterion): failover samples cannot be repeated in a tight loop.
 
-use marie::actors::clock::RealClock;
-use marie::actors::dispatcher::mission::ParsedMission;
-use marie::actors::dispatcher::{
-    request_run, spawn_dispatcher, DispatcherArgs, DispatcherMsg, RegistryCatalog,
-};
-use marie::actors::dm::{DmClient, DmError, NewRecord};
-use marie::actors::eo::{EoMsg, Identity, OpContext, OpError, Operation, OperationFactory, Step};
-use marie::actors::events::{EventBus, EventKind};
-use marie::actors::property::{
-    Group, Identification, ParamDecl, ParamSchema, PropertyReply, PropertyRequest,
-};
-use marie::actors::registry::{self, ModuleKind};
-use marie::actors::status::FlagDecl;
+use marie::clock::RealClock;
 use marie::cluster::net::{ClusterConfig, HeartbeatConfig, NetEvent, Transport};
 use marie::cluster::node::{DatamanagerConfig, Node, NodeConfig, NodeOptions, OperationConfig};
+use marie::dispatcher::mission::ParsedMission;
+use marie::dispatcher::{
+    request_run, spawn_dispatcher, DispatcherArgs, DispatcherMsg, RegistryCatalog,
+};
+use marie::dm::{DmClient, DmError, NewRecord};
+use marie::eo::{EoMsg, Identity, OpContext, OpError, Operation, OperationFactory, Step};
+use marie::events::{EventBus, EventKind};
+use marie::property::{
+    Group, Identification, ParamDecl, ParamSchema, PropertyReply, PropertyRequest,
+};
+use marie::registry::{self, ModuleKind};
+use marie::status::FlagDecl;
 use ractor::rpc::CallResult;
 use ractor::{pg, Actor, ActorProcessingErr, ActorRef, BytesConvertable, RpcReplyPort};
 use ractor_cluster::RactorClusterMessage;

@@ -13,8 +13,8 @@
 //! `cargo bench --bench dm` (about a minute).
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
-use marie::actors::clock::{Clock, RealClock};
-use marie::actors::dm::{
+use marie::clock::{Clock, RealClock};
+use marie::dm::{
     self, DmArgs, DmClient, DmConfig, DmMsg, Durability, NewRecord, Payload, Query, Store,
 };
 use ractor::{Actor, ActorProcessingErr, ActorRef, RpcReplyPort};
@@ -140,7 +140,7 @@ fn store_rate(c: &mut Criterion) {
             }
         })
     });
-    // The same records in `PutBatch` messages of `credits::BATCH` (what `put_all` sends).
+    // The same records in `PutBatch` messages of `marie::dm::PUT_BATCH` (what `put_all` sends).
     g.bench_function("dm_put_batch", |b| {
         b.to_async(&rt).iter_custom(|iters| {
             let client = client.clone();

@@ -22,8 +22,8 @@
 //! Journals go to a fresh directory under the system's temp dir (`MARIE_BENCH_DIR` to put
 //! them elsewhere, e.g. on the disk you want to measure), removed at the end.
 
-use marie::actors::clock::RealClock;
-use marie::actors::dm::{self, DmArgs, DmClient, DmSpec, Durability, NewRecord, Payload, Query};
+use marie::clock::RealClock;
+use marie::dm::{self, DmArgs, DmClient, DmSpec, Durability, NewRecord, Payload, Query};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 

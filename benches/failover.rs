@@ -17,19 +17,19 @@
 //! A plain bench binary (not criterion): each sample is one crash, which cannot be repeated
 //! in a tight loop the way criterion wants.
 
-use marie::actors::clock::RealClock;
-use marie::actors::dispatcher::mission::ParsedMission;
-use marie::actors::dispatcher::{
+use marie::clock::RealClock;
+use marie::cluster::fault;
+use marie::dispatcher::mission::ParsedMission;
+use marie::dispatcher::{
     request_run, spawn_dispatcher, DispatcherArgs, DispatcherMsg, RegistryCatalog,
 };
-use marie::actors::eo::{
+use marie::eo::{
     spawn_operation_linked, HostOptions, Identity, OpContext, OpError, Operation, Step,
 };
-use marie::actors::property::{ParamDecl, ParamSchema};
-use marie::actors::registry::{self, ModuleKind};
-use marie::actors::run::FaultKind;
-use marie::actors::status::FlagDecl;
-use marie::cluster::fault;
+use marie::property::{ParamDecl, ParamSchema};
+use marie::registry::{self, ModuleKind};
+use marie::run::FaultKind;
+use marie::status::FlagDecl;
 use marie::supervision::{ChildSpec, Supervisor, SupervisorSpec};
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
@@ -198,10 +198,10 @@ fn main() {
         let catalog = RegistryCatalog::gather(parsed.ops()).await.expect("catalog");
         let mission = parsed.validate(&catalog).expect("valid");
         let clock = RealClock::shared();
-        let bus = marie::actors::events::EventBus::new("bench", clock.clone());
+        let bus = marie::events::EventBus::new("bench", clock.clone());
         // the run's report: its events folded (bounded: the latest rebinds and choices,
         // and counts)
-        let folded = marie::actors::report::ReportBuilder::attach(&bus);
+        let folded = marie::report::ReportBuilder::attach(&bus);
         let dispatcher = spawn_dispatcher(DispatcherArgs::new(mission, clock, bus), None)
         .await
         .expect("dispatcher");

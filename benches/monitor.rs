@@ -5,8 +5,8 @@
 //!
 //! `cargo bench --bench monitor`
 
-use marie::actors::clock::Pacer;
-use marie::actors::dispatcher::mission::ParsedMission;
+use marie::clock::Pacer;
+use marie::dispatcher::mission::ParsedMission;
 use marie_missions::embedded::{Embedded, EmbeddedOptions};
 use marie_monitor::{Monitor, MonitorOptions};
 use std::io::{Read, Write};

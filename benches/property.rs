@@ -7,9 +7,9 @@
 //! comparison is not drowned by cross-thread wake-up noise on a shared 2-core machine.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use marie::actors::eo::EoMsg;
-use marie::actors::eo::{spawn_operation, HostOptions};
-use marie::actors::property::{Group, Identification, PropertyRequest};
+use marie::eo::EoMsg;
+use marie::eo::{spawn_operation, HostOptions};
+use marie::property::{Group, Identification, PropertyRequest};
 use ractor::{Actor, ActorProcessingErr, ActorRef, RpcReplyPort};
 use std::time::Duration;
 

@@ -4,7 +4,7 @@
 //! `cargo bench --bench registry`
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use marie::actors::registry::{self, ModuleKind};
+use marie::registry::{self, ModuleKind};
 use ractor::{pg, Actor, ActorProcessingErr, ActorRef};
 
 /// A module that does nothing: only its registry entry matters here.

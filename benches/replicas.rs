@@ -7,7 +7,7 @@
 //!   kept in three copies (a record is acknowledged once two of them journaled it); rounds
 //!   interleaved, the ratio in the same run. Goal: copies ≥ 0.5× no copies. (Each
 //!   datamanager grants its own window of credits: the replicated one a wider one, as its
-//!   acknowledgements take a round to the copies — `marie_actors::dm::credits`.)
+//!   acknowledgements take a round to the copies — `marie::dm::credits`.)
 //! - **failover**: the producer stores one record after another; the primary's node is
 //!   killed (`kill -9`) or frozen (SIGSTOP): the time from the signal to the first store
 //!   acknowledged by a copy on another node. p50 over the rounds. Each round waits for a
@@ -25,9 +25,9 @@
 //!                                              # each node's log (info) in /tmp/logs/NAME.log
 //! ```
 
-use marie::actors::dm::{DmClient, NewRecord, Payload};
-use marie::actors::registry::{self, ModuleKind};
 use marie::cluster::net::{ClusterConfig, Transport};
+use marie::dm::{DmClient, NewRecord, Payload};
+use marie::registry::{self, ModuleKind};
 use std::io::{BufRead, BufReader, Write};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};

@@ -16,14 +16,14 @@
 //!   check's choices (a registry read and one request to each chosen instance), so it
 //!   should not grow with N.
 //! - **selection**: in this process, on a node started from the same config,
-//!   [`survey`](marie::actors::dispatcher::survey): what the check does to choose — every
+//!   [`survey`](marie::dispatcher::survey): what the check does to choose — every
 //!   live instance of every operation asked at once for its identity, schema and general
 //!   properties, then chosen among.
 //!
 //! Ratios are against N = 1, measured in the same run.
 
-use marie::actors::dispatcher::mission::ParsedMission;
-use marie::actors::dispatcher::survey;
+use marie::dispatcher::mission::ParsedMission;
+use marie::dispatcher::survey;
 use marie_missions::embedded::{Embedded, EmbeddedOptions};
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};

@@ -10,9 +10,9 @@
 use crate::common;
 
 use common::cluster::NodeProc;
-use marie::actors::dm::credits::{BATCH, WINDOW};
-use marie::actors::dm::{DmClient, DmError, NewRecord, Payload, Query};
 use marie::cluster::net::{ClusterConfig, Transport};
+use marie::dm::{DmClient, DmError, NewRecord, Payload, Query};
+use marie::dm::{PUT_BATCH as BATCH, PUT_WINDOW as WINDOW};
 use std::time::Duration;
 
 const COOKIE: &str = "backpressure";

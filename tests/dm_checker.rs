@@ -350,10 +350,10 @@ fn producers() {
 }
 
 async fn producers_run() {
-    use marie::actors::dm::{self, DmClient, DmMsg, NewRecord, Query};
-    use marie::actors::registry::{self, ModuleKind};
-    use marie::actors::run::FaultKind;
     use marie::cluster::net::{ClusterConfig, Transport};
+    use marie::dm::{self, DmClient, DmMsg, NewRecord, Query};
+    use marie::registry::{self, ModuleKind};
+    use marie::run::FaultKind;
     use ractor::ActorRef;
     use std::sync::atomic::{AtomicBool, Ordering};
     use std::sync::Arc;
@@ -471,7 +471,7 @@ async fn producers_run() {
         let mut copies = Vec::new();
         for node in NODES {
             let member = ractor::pg::get_scoped_members(
-                &dm::replica::SCOPE.to_string(),
+                &dm::REPLICA_SCOPE.to_string(),
                 &format!("feature/{node}"),
             )
             .into_iter()

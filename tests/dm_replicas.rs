@@ -14,9 +14,9 @@
 use crate::common;
 
 use common::cluster::NodeProc;
-use marie::actors::dm::{self, DmClient, DmMsg, DmStats, NewRecord, Query};
-use marie::actors::registry::{self, ModuleKind};
 use marie::cluster::net::{ClusterConfig, Transport};
+use marie::dm::{self, DmClient, DmMsg, DmStats, NewRecord, Query};
+use marie::registry::{self, ModuleKind};
 use ractor::ActorRef;
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -75,7 +75,7 @@ fn hosts_with(dir: &Path, name: &str, extra: &str) -> String {
 
 /// The copy of `feature` on `node`, from the copies' groups.
 fn copy_on(node: &str) -> Option<ActorRef<DmMsg>> {
-    ractor::pg::get_scoped_members(&dm::replica::SCOPE.to_string(), &format!("feature/{node}"))
+    ractor::pg::get_scoped_members(&dm::REPLICA_SCOPE.to_string(), &format!("feature/{node}"))
         .into_iter()
         .next()
         .map(Into::into)
@@ -347,7 +347,7 @@ fn a_put_all_under_way_when_the_primary_is_killed_stores_every_record_once_in_or
             .expect("put_all completes on the next primary");
         // (which granted the wide window of a replicated datamanager: its acknowledgements
         // wait for a copy)
-        assert_eq!(client.window(), Some(dm::credits::REPLICATED_WINDOW));
+        assert_eq!(client.window(), Some(dm::REPLICATED_PUT_WINDOW));
         let (second, _) = primary(Some("r1")).await;
         let stored = client.select(Query::all()).await.unwrap();
         let values: Vec<u64> = stored
@@ -472,7 +472,7 @@ fn the_primary_recognises_a_retry_of_any_put_of_a_whole_window_and_answers_its_f
     let nodes = start_nodes(dir.path(), "");
     let rt = runtime();
     let transport = rt.block_on(join(&nodes));
-    let window = dm::credits::REPLICATED_WINDOW as u64;
+    let window = dm::REPLICATED_PUT_WINDOW as u64;
     rt.block_on(async {
         primary(None).await;
         let client = DmClient::lookup("feature", "producer")

@@ -30,6 +30,7 @@ mod examples;
 mod export;
 mod failure_detector;
 mod frozen_node_events;
+mod layers;
 mod monitor;
 mod monitor_browser;
 mod monitor_faults;

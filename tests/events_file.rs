@@ -5,8 +5,8 @@
 use crate::common;
 
 use common::{marie, text};
-use marie::actors::events::{Event, EventKind};
-use marie::actors::report::RunReport;
+use marie::events::{Event, EventKind};
+use marie::report::RunReport;
 
 #[test]
 fn the_events_of_a_faulted_docking_run_hold_loss_restart_rebind_in_order_and_replay_into_its_report(

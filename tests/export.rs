@@ -9,7 +9,7 @@ use crate::common::{marie, text};
 
 #[cfg(feature = "mcap")]
 use {
-    marie::actors::events::{Event, EventKind},
+    marie::events::{Event, EventKind},
     std::collections::BTreeMap,
     std::path::Path,
 };

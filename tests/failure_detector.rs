@@ -148,7 +148,7 @@ fn frozen_ms(line: &str) -> u64 {
 
 #[test]
 fn a_node_of_another_protocol_version_is_refused_naming_both_versions() {
-    let ours = marie::actors::wire::PROTOCOL_VERSION;
+    let ours = marie::wire::PROTOCOL_VERSION;
     let theirs = (ours + 1).to_string();
     let dir = tempfile::tempdir().unwrap();
     let mut alpha = NodeProc::start(dir.path(), "alpha", ALPHA, &[], COOKIE);

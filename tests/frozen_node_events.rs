@@ -10,7 +10,7 @@ use crate::common;
 
 use common::cluster::{default_deadline_ms, NodeProc, Proc};
 use common::monitor::{page_of, state_until};
-use marie::actors::events::{Event, EventKind};
+use marie::events::{Event, EventKind};
 
 const COOKIE: &str = "frozen";
 /// The mission's node: the sampler and the datamanager it stores into.

@@ -149,8 +149,8 @@ fn the_page_asks_the_wall_follower_kills_it_hangs_its_stand_in_and_docking_succe
 /// events file, whichever source a fault came from.
 #[test]
 fn faults_from_a_plan_chaos_and_the_page_are_in_the_report_which_is_the_fold_of_its_events() {
-    use marie::actors::events::Event;
-    use marie::actors::report::RunReport;
+    use marie::events::Event;
+    use marie::report::RunReport;
     let dir = tempfile::tempdir().unwrap();
     let report = dir.path().join("report.json");
     let events = dir.path().join("events.jsonl");
@@ -205,7 +205,7 @@ fn faults_from_a_plan_chaos_and_the_page_are_in_the_report_which_is_the_fold_of_
         "the page's: {written:#}"
     );
     let chaos = stream.iter().filter(|e| {
-        matches!(&e.kind, marie::actors::events::EventKind::FaultInjected { due_ms: None, operation, .. } if !operation.contains('/'))
+        matches!(&e.kind, marie::events::EventKind::FaultInjected { due_ms: None, operation, .. } if !operation.contains('/'))
     });
     assert!(chaos.count() >= 1, "chaos struck: {written:#}");
     assert_eq!(

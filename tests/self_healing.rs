@@ -5,10 +5,10 @@
 use crate::common;
 
 use common::{marie, report_of, text};
-use marie::actors::registry::{self, ModuleKind};
-use marie::actors::run::FaultKind;
 use marie::cluster::fault;
 use marie::cluster::node::{Node, NodeConfig, NodeOptions};
+use marie::registry::{self, ModuleKind};
+use marie::run::FaultKind;
 use marie::supervision::SupervisorEvent;
 use std::time::Duration;
 
@@ -34,10 +34,10 @@ fn heals(mission: &str, fault: &str, op: &str, cause: &str) {
         "the faulty instance was left"
     );
     assert_ne!(rebind["to"], rebind["from"]);
-    let why: marie::actors::run::LossCause =
+    let why: marie::run::LossCause =
         serde_json::from_value(rebind["cause"].clone()).expect("a typed loss cause");
     assert!(why.to_string().contains(cause), "{fault}: cause `{why}`");
-    if let marie::actors::run::LossCause::Hung { deadline_ms } = why {
+    if let marie::run::LossCause::Hung { deadline_ms } = why {
         // a hung instance is down from its last sign of life, not from when it was found out
         let down = rebind["downtime_ms"].as_u64().unwrap();
         assert!(
@@ -295,35 +295,31 @@ async fn the_node_tree_is_datamanagers_operations_dynamic_provisioner_and_heals_
 #[derive(Default)]
 struct Endless;
 
-impl marie::actors::eo::Operation for Endless {
-    fn identity(&self) -> marie::actors::eo::Identity {
-        marie::actors::eo::Identity::new("endless", 7101, "1.0.0", "never finishes")
+impl marie::eo::Operation for Endless {
+    fn identity(&self) -> marie::eo::Identity {
+        marie::eo::Identity::new("endless", 7101, "1.0.0", "never finishes")
     }
-    fn parameters(&self) -> marie::actors::property::ParamSchema {
-        marie::actors::property::ParamSchema::new(vec![marie::actors::property::ParamDecl::int(
-            "level", 1,
-        )
-        .range(0.0, 10.0)])
+    fn parameters(&self) -> marie::property::ParamSchema {
+        marie::property::ParamSchema::new(vec![
+            marie::property::ParamDecl::int("level", 1).range(0.0, 10.0)
+        ])
     }
-    fn flags(&self) -> Vec<marie::actors::status::FlagDecl> {
-        vec![marie::actors::status::FlagDecl::new(
-            "never",
-            "never raised",
-        )]
+    fn flags(&self) -> Vec<marie::status::FlagDecl> {
+        vec![marie::status::FlagDecl::new("never", "never raised")]
     }
     async fn step(
         &mut self,
-        _: &mut marie::actors::eo::OpContext,
-    ) -> Result<marie::actors::eo::Step, marie::actors::eo::OpError> {
-        Ok(marie::actors::eo::Step::Continue)
+        _: &mut marie::eo::OpContext,
+    ) -> Result<marie::eo::Step, marie::eo::OpError> {
+        Ok(marie::eo::Step::Continue)
     }
 }
 
 /// The next `ActionStarted` (`None`) or `Rebound` (the new instance's address) event.
 async fn next(
-    events: &mut marie::actors::events::EventSubscription,
+    events: &mut marie::events::EventSubscription,
 ) -> Result<Option<String>, tokio::time::error::Elapsed> {
-    use marie::actors::events::EventKind;
+    use marie::events::EventKind;
     tokio::time::timeout(Duration::from_secs(30), async {
         loop {
             match events.recv().await.map(|e| e.kind) {
@@ -350,8 +346,8 @@ fn quiet_injected_panics() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_thousand_crash_restart_cycles_during_a_mission_leave_the_actor_count_at_its_baseline() {
-    use marie::actors::dispatcher::{self, DispatcherArgs, DispatcherMsg};
-    use marie::actors::dispatcher::{mission::ParsedMission, RegistryCatalog};
+    use marie::dispatcher::{self, DispatcherArgs, DispatcherMsg};
+    use marie::dispatcher::{mission::ParsedMission, RegistryCatalog};
     use marie::supervision::{ChildSpec, Supervisor, SupervisorSpec};
     quiet_injected_panics();
     const CYCLES: usize = 1000;
@@ -359,8 +355,8 @@ async fn a_thousand_crash_restart_cycles_during_a_mission_leave_the_actor_count_
         None,
         SupervisorSpec::one_for_one().with_intensity(10 * CYCLES, Duration::from_secs(1)),
         vec![ChildSpec::worker("endless", |sup| async move {
-            let opts = marie::actors::eo::HostOptions::default();
-            let (a, _) = marie::actors::eo::spawn_operation_linked(Endless, opts, sup).await?;
+            let opts = marie::eo::HostOptions::default();
+            let (a, _) = marie::eo::spawn_operation_linked(Endless, opts, sup).await?;
             Ok(a.get_cell())
         })],
     )
@@ -381,11 +377,11 @@ async fn a_thousand_crash_restart_cycles_during_a_mission_leave_the_actor_count_
     .unwrap();
     let catalog = RegistryCatalog::gather(parsed.ops()).await.unwrap();
     let mission = parsed.validate(&catalog).unwrap();
-    let clock = marie::actors::clock::RealClock::shared();
-    let bus = marie::actors::events::EventBus::new("test", clock.clone());
+    let clock = marie::clock::RealClock::shared();
+    let bus = marie::events::EventBus::new("test", clock.clone());
     let mut events = bus.subscribe();
     // the run's report: its events, folded
-    let folded = marie::actors::report::ReportBuilder::attach(&bus);
+    let folded = marie::report::ReportBuilder::attach(&bus);
     let args = DispatcherArgs::new(mission, clock, bus);
     let dispatcher = dispatcher::spawn_dispatcher(args, None).await.unwrap();
     let run = {
@@ -412,7 +408,7 @@ async fn a_thousand_crash_restart_cycles_during_a_mission_leave_the_actor_count_
     let report = folded.finish();
     assert_eq!(report.reason, "enough");
     assert_eq!(report.rebinds_total, CYCLES as u64);
-    assert_eq!(report.rebinds.len(), marie::actors::report::REPORT_KEEPS);
+    assert_eq!(report.rebinds.len(), marie::report::REPORT_KEEPS);
     // nor do the choices of the stand-ins pile up in it (every failover chooses one, ~350
     // bytes kept per cycle before they were bounded): the start's choice and the latest
     assert!(
@@ -420,10 +416,7 @@ async fn a_thousand_crash_restart_cycles_during_a_mission_leave_the_actor_count_
         "{}",
         report.selection_total
     );
-    assert_eq!(
-        report.selection.len(),
-        1 + marie::actors::report::REPORT_KEEPS
-    );
+    assert_eq!(report.selection.len(), 1 + marie::report::REPORT_KEEPS);
     assert_eq!(report.selection[0].replacing, None);
     // the dispatcher (and its registry watcher) stop once they have reported; no timer or
     // waiter of the 1000 failovers outlives the run

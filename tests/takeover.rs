@@ -10,8 +10,8 @@
 use crate::common;
 
 use common::{marie, report_of, text};
-use marie::actors::events::Event;
-use marie::actors::report::RunReport;
+use marie::events::Event;
+use marie::report::RunReport;
 
 const THESIS: &str = "missions/clusters/thesis.toml";
 /// Wall-clock time × 4 on every node (the failure detector's deadline is real time).
@@ -282,7 +282,7 @@ fn a_dispatcher_lost_after_a_fallback_is_taken_over_inside_the_retry_and_the_rec
     let told: Vec<(String, String)> = events
         .iter()
         .filter_map(|e| match &e.kind {
-            marie::actors::events::EventKind::Control { node, decision, .. } => {
+            marie::events::EventKind::Control { node, decision, .. } => {
                 Some((format!("{node}: {decision}"), e.node.clone()))
             }
             _ => None,

@@ -1,49 +1,43 @@
 //! # marie-actors
 //!
-//! The three interfaces of the MARIE control architecture as [ractor] actors, plus the
-//! location table and the action dispatcher:
+//! Elementary operations and the action dispatcher that runs them, as [ractor] actors — the
+//! acting part of marie, on the words of `marie-vocabulary` and the datamanagers of
+//! `marie-dm`:
 //!
 //! - [`eo`] — elementary operations: the [`eo::Operation`] trait an author implements and the
 //!   EO host actor that runs it (activate, suspend, atomic reparameterization, 32-bit status
-//!   flags);
-//! - [`property`] — the property interface: parameter declarations, values, and the requests
-//!   any module can send an operation about itself;
-//! - [`dm`] — datamanagers: records stored, selected (also by waiting), deleted by query;
-//! - [`registry`] — the cluster-wide location table over ractor `pg`;
-//! - [`dispatcher`] — missions (task trees) and the action dispatcher that runs them;
-//! - [`run`] — a run's vocabulary (outcomes, loss causes, rebinds, choices, fault kinds),
-//!   below both the events and the dispatcher; [`report`] — the run report, the fold of a
-//!   run's events;
-//! - [`diagnostic`] — `file:line:column` diagnostics and the TOML reader every file format
-//!   (missions, worlds, node configs) shares.
-//! - [`events`] — one typed event stream per node: the [`events::EventBus`].
+//!   flags), and [`eo::OperationHandle`], an application's hold on one by name;
 //! - [`declare`] — typed declarations of an operation's parameters ([`params!`]), flags
 //!   ([`flags!`]), datamanagers and record kinds, so that a misspelt name is a compile error;
-//!   [`prelude`] brings everything an operation author needs in one `use`.
-//!
-//! Every message that may cross nodes is serializable with rmp-serde ([`wire`]).
+//!   [`prelude`] brings everything an operation author needs in one `use`;
+//! - [`provision`] — asking the cluster for an operation no node runs yet (standbys);
+//! - [`dispatcher`] — missions (task trees, behaviour trees) and the action dispatcher that
+//!   runs them: selection, binding, healing, checkpoints and takeover.
 //!
 //! ```
-//! use marie_actors::status::StatusFlags;
-//! let status = StatusFlags(0b0110);
-//! assert!(status.implies(StatusFlags(0b0100)));
+//! use marie_actors::prelude::*;
+//!
+//! flags! {
+//!     pub enum DoorFlag {
+//!         /// the door is open
+//!         Open = "open",
+//!     }
+//! }
+//! assert_eq!(DoorFlag::Open.name(), "open");
 //! ```
 
 #![warn(missing_docs)]
 
-pub mod clock;
 pub mod declare;
-pub mod diagnostic;
 pub mod dispatcher;
-pub mod dm;
 pub mod eo;
-pub mod events;
-pub mod fence;
 pub mod prelude;
-pub mod property;
 pub mod provision;
-pub mod registry;
-pub mod report;
-pub mod run;
-pub mod status;
-pub mod wire;
+
+/// What the declaration macros ([`params!`], [`flags!`], [`choice!`]) expand to names
+/// through `$crate`, so that a crate using them needs no dependency of its own on the
+/// vocabulary. Not a public path.
+#[doc(hidden)]
+pub mod __private {
+    pub use marie_vocabulary::{property, status};
+}

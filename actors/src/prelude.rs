@@ -1,8 +1,8 @@
 //! Everything an operation author needs, in one import: `use marie_actors::prelude::*;`.
 //!
 //! An operation touches five modules — [`eo`](crate::eo) for the trait and its context,
-//! [`property`](crate::property) for parameters, [`flags`](crate::status) for its status
-//! word, [`dm`](crate::dm) for the datamanagers, [`declare`](crate::declare) for the typed
+//! [`property`](marie_vocabulary::property) for parameters, [`flags`](marie_vocabulary::status) for its status
+//! word, [`dm`](marie_dm) for the datamanagers, [`declare`](crate::declare) for the typed
 //! declarations — and an author should not have to learn that layout before writing the
 //! first one. The prelude re-exports the items of those modules that appear in an
 //! operation's code, and the macros. Hosting, missions and the dispatcher are not an
@@ -51,12 +51,12 @@
 
 pub use crate::declare::{
     DeclaredFlags, DeclaredParams, DmName, IntoParam, Param, ParamError, ParamMapExt, ParamValue,
-    RecordKind,
-};
-pub use crate::dm::{
-    DmClient, DmError, DmSpec, NewRecord, Query, Record, RecordHeader, FEATURE, PARAMETER, WORLD,
 };
 pub use crate::eo::{Identity, OpContext, OpError, Operation, Params, Step};
-pub use crate::property::{FromValue, ParamDecl, ParamMap, ParamSchema, Value};
-pub use crate::status::{FlagDecl, StatusFlags};
 pub use crate::{choice, flags, params};
+pub use marie_dm::{
+    DmClient, DmError, DmSpec, NewRecord, Query, Record, RecordHeader, RecordKind, FEATURE,
+    PARAMETER, WORLD,
+};
+pub use marie_vocabulary::property::{FromValue, ParamDecl, ParamMap, ParamSchema, Value};
+pub use marie_vocabulary::status::{FlagDecl, StatusFlags};

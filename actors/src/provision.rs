@@ -37,7 +37,7 @@ pub const GRACE: Duration = Duration::from_secs(1);
 /// How long one provisioner may take to start an instance.
 pub const TIMEOUT: Duration = Duration::from_secs(5);
 
-crate::remote_message! {
+marie_vocabulary::remote_message! {
     /// Messages of a provisioner.
     pub enum ProvisionMsg {
         /// Start an instance of `operation` of a version matching `version` (a semver
@@ -154,7 +154,7 @@ pub async fn request(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::wire::{decode, encode};
+    use marie_vocabulary::wire::{decode, encode};
 
     #[test]
     fn a_refusal_crosses_nodes_as_data_and_an_earlier_builds_text_still_reads() {

@@ -6,18 +6,18 @@
 //! The trees are set on validated missions directly ([`Control::new`]); the mission file's
 //! syntax for them is tested with the parser.
 
-use marie_actors::clock::RealClock;
 use marie_actors::dispatcher::mission::{Control, Mission, ParsedMission};
 use marie_actors::dispatcher::tree::{Node, Scheduled};
 use marie_actors::dispatcher::{run_mission, RegistryCatalog};
 use marie_actors::eo::{
     spawn_operation, HostOptions, Identity, OpContext, OpError, Operation, Step,
 };
-use marie_actors::events::{Event, EventBus, EventKind};
-use marie_actors::property::{ParamDecl, ParamSchema};
-use marie_actors::report::RunReport;
-use marie_actors::run::{OpEnd, Outcome};
-use marie_actors::status::{FlagDecl, StatusFlags};
+use marie_vocabulary::clock::RealClock;
+use marie_vocabulary::events::{Event, EventBus, EventKind};
+use marie_vocabulary::property::{ParamDecl, ParamSchema};
+use marie_vocabulary::report::RunReport;
+use marie_vocabulary::run::{OpEnd, Outcome};
+use marie_vocabulary::status::{FlagDecl, StatusFlags};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use tokio::time::timeout;

@@ -3,12 +3,12 @@
 //! What the macros generate must mean, to the host and the dispatcher, what the hand-written
 //! declarations meant.
 
-use marie_actors::clock::RealClock;
 use marie_actors::dispatcher::mission::ParsedMission;
 use marie_actors::dispatcher::{run_mission, RegistryCatalog};
-use marie_actors::dm::{self, DmArgs, DmConfig};
 use marie_actors::eo::{spawn_operation, HostOptions};
 use marie_actors::prelude::*;
+use marie_dm::{self as dm, DmArgs, DmConfig};
+use marie_vocabulary::clock::RealClock;
 use std::time::Duration;
 
 marie_actors::choice! {

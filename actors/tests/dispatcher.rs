@@ -1,18 +1,18 @@
 //! The action dispatcher, end to end: real EO hosts, the registry, missions from TOML.
 
-use marie_actors::clock::RealClock;
 use marie_actors::dispatcher::mission::ParsedMission;
 use marie_actors::dispatcher::{run_mission, RegistryCatalog};
 use marie_actors::eo::{
     spawn_operation, EoClient, EoMsg, HostOptions, Identity, OpContext, OpError, Operation, Step,
 };
-use marie_actors::events::{Event, EventBus, EventKind};
-use marie_actors::property::{
+use marie_vocabulary::clock::RealClock;
+use marie_vocabulary::events::{Event, EventBus, EventKind};
+use marie_vocabulary::property::{
     Group, ParamDecl, ParamSchema, PropertyReply, PropertyRequest, Value,
 };
-use marie_actors::report::RunReport;
-use marie_actors::run::{OpEnd, Outcome};
-use marie_actors::status::{FlagDecl, StatusFlags};
+use marie_vocabulary::report::RunReport;
+use marie_vocabulary::run::{OpEnd, Outcome};
+use marie_vocabulary::status::{FlagDecl, StatusFlags};
 use ractor::ActorRef;
 use std::time::Duration;
 use tokio::time::timeout;
@@ -108,7 +108,7 @@ async fn run_with_events(src: &str) -> (RunReport, Vec<Event>) {
     (report, events)
 }
 
-async fn general(c: &EoClient) -> marie_actors::property::General {
+async fn general(c: &EoClient) -> marie_vocabulary::property::General {
     match c
         .property(PropertyRequest::Group(Group::General))
         .await
@@ -315,7 +315,7 @@ async fn omitted_parameters_take_the_declared_defaults() {
     assert_eq!(level, PropertyReply::Value(Value::Float(0.5)));
     let previous = op
         .property(PropertyRequest::Collection(
-            marie_actors::property::Collection::Previous,
+            marie_vocabulary::property::Collection::Previous,
         ))
         .await
         .unwrap();

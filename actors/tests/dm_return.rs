@@ -4,17 +4,17 @@
 //!
 //! Each test uses a datamanager of its own name: the registry is one per process.
 
-use marie_actors::clock::RealClock;
-use marie_actors::dm::{spawn_datamanager, DmArgs, DmClient, DmConfig, DmMsg, Query};
 use marie_actors::eo::{
     spawn_operation, EoClient, EoReport, HostOptions, Identity, OpContext, OpError, Operation,
     Step, DATAMANAGER_RETURN,
 };
-use marie_actors::property::{
+use marie_dm::{spawn_datamanager, DmArgs, DmClient, DmConfig, DmMsg, Query};
+use marie_vocabulary::clock::RealClock;
+use marie_vocabulary::property::{
     param_map, Group, ParamDecl, ParamSchema, PropertyReply, PropertyRequest, Value,
 };
-use marie_actors::registry::{self, ModuleKind, RegistryEvent};
-use marie_actors::status::StatusFlags;
+use marie_vocabulary::registry::{self, ModuleKind, RegistryEvent};
+use marie_vocabulary::status::StatusFlags;
 use ractor::ActorRef;
 use std::time::Duration;
 use tokio::time::timeout;

@@ -1,17 +1,17 @@
 //! The EO host, end to end through its actor: the eo-interface and every property group and
 //! collection.
 
-use marie_actors::clock::ManualClock;
 use marie_actors::eo::{
     spawn_operation, EoClient, EoReport, HostOptions, Identity, OpContext, OpError, Operation,
     ParamOutcome, Step,
 };
-use marie_actors::property::{
+use marie_vocabulary::clock::ManualClock;
+use marie_vocabulary::property::{
     param_map, Collection, Group, ParamDecl, ParamSchema, ParamType, PropertyReply,
     PropertyRequest, RejectReason, Value,
 };
-use marie_actors::registry::{self, ModuleKind};
-use marie_actors::status::{FlagDecl, StatusFlags};
+use marie_vocabulary::registry::{self, ModuleKind};
+use marie_vocabulary::status::{FlagDecl, StatusFlags};
 use std::sync::Arc;
 use std::time::Duration;
 use tokio::time::timeout;
@@ -376,7 +376,7 @@ async fn every_property_group_and_collection() {
     };
     assert_eq!(cur["gain"], Value::Float(0.25));
 
-    for name in marie_actors::property::STANDARD_PROPERTIES {
+    for name in marie_vocabulary::property::STANDARD_PROPERTIES {
         assert!(
             matches!(
                 ask(&c, PropertyRequest::Get(name.to_string())).await,
@@ -515,7 +515,7 @@ impl Operation for Metronome {
 
 #[tokio::test(start_paused = true)]
 async fn a_slow_fault_stretches_the_time_between_an_operations_steps() {
-    use marie_actors::run::FaultKind;
+    use marie_vocabulary::run::FaultKind;
     let steps = Arc::new(std::sync::Mutex::new(Vec::new()));
     let (actor, _) = spawn_operation(
         Metronome {

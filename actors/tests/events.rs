@@ -1,15 +1,17 @@
 //! The event stream, end to end: the registry bridge on a bus, and a report rebuilt from the
 //! events of a run that had faults and a judgement.
 
-use marie_actors::clock::{Clock, ManualClock, RealClock};
 use marie_actors::eo::{
     spawn_operation, EoMsg, HostOptions, Identity, OpContext, OpError, Operation, Step,
 };
-use marie_actors::events::{bridge_registry, Event, EventBus, EventKind, ModuleInfo, OpStarted};
-use marie_actors::property::ParamSchema;
-use marie_actors::registry::ModuleKind;
-use marie_actors::report::{FaultRecord, ReportBuilder, RunReport, REPORT_KEEPS};
-use marie_actors::run::{FaultKind, LossCause, OpEnd, Outcome, RebindRecord};
+use marie_vocabulary::clock::{Clock, ManualClock, RealClock};
+use marie_vocabulary::events::{
+    bridge_registry, Event, EventBus, EventKind, ModuleInfo, OpStarted,
+};
+use marie_vocabulary::property::ParamSchema;
+use marie_vocabulary::registry::ModuleKind;
+use marie_vocabulary::report::{FaultRecord, ReportBuilder, RunReport, REPORT_KEEPS};
+use marie_vocabulary::run::{FaultKind, LossCause, OpEnd, Outcome, RebindRecord};
 use ractor::ActorRef;
 use std::sync::Arc;
 use std::time::Duration;

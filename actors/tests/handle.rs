@@ -8,12 +8,12 @@ use marie_actors::eo::{
     spawn_operation, EoClient, EoMsg, HandleError, Identity, OpContext, OpError, Operation,
     OperationHandle, ParamOutcome, SetError, Step,
 };
-use marie_actors::property::{
+use marie_vocabulary::property::{
     param_map, ParamDecl, ParamSchema, PropertyReply, PropertyRequest, RejectReason, Value,
 };
-use marie_actors::registry::{self, ModuleKind, RegistryEvent};
-use marie_actors::run::FaultKind;
-use marie_actors::status::FlagDecl;
+use marie_vocabulary::registry::{self, ModuleKind, RegistryEvent};
+use marie_vocabulary::run::FaultKind;
+use marie_vocabulary::status::FlagDecl;
 use ractor::{Actor, ActorProcessingErr, ActorRef};
 use semver::VersionReq;
 use std::sync::atomic::{AtomicUsize, Ordering};

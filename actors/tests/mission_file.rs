@@ -4,8 +4,8 @@
 use marie_actors::dispatcher::mission::{
     Catalog, Diagnostic, Diagnostics, EndMode, Mission, OpInfo, ParsedMission, StaticCatalog,
 };
-use marie_actors::property::{ParamDecl, ParamSchema, ParamType, Value};
-use marie_actors::status::{FlagDecl, StatusFlags};
+use marie_vocabulary::property::{ParamDecl, ParamSchema, ParamType, Value};
+use marie_vocabulary::status::{FlagDecl, StatusFlags};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Duration;

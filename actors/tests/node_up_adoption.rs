@@ -12,19 +12,19 @@
 //! stand-in (the cluster's provisioners asked, after the grace), the verdict lifted and the
 //! node up on the bus.
 
-use marie_actors::clock::RealClock;
 use marie_actors::dispatcher::mission::ParsedMission;
 use marie_actors::dispatcher::{run_mission, RegistryCatalog};
 use marie_actors::eo::{
     spawn_operation, EoClient, EoMsg, HostOptions, Identity, OpContext, OpError, Operation, Step,
 };
-use marie_actors::events::{EventBus, EventKind};
-use marie_actors::property::PropertyRequest;
-use marie_actors::property::{General, Group, ParamDecl, ParamSchema, PropertyReply};
 use marie_actors::provision::{self, ProvisionMsg, Refusal};
-use marie_actors::registry;
-use marie_actors::run::{LossCause, Outcome};
-use marie_actors::status::{FlagDecl, StatusFlags};
+use marie_vocabulary::clock::RealClock;
+use marie_vocabulary::events::{EventBus, EventKind};
+use marie_vocabulary::property::PropertyRequest;
+use marie_vocabulary::property::{General, Group, ParamDecl, ParamSchema, PropertyReply};
+use marie_vocabulary::registry;
+use marie_vocabulary::run::{LossCause, Outcome};
+use marie_vocabulary::status::{FlagDecl, StatusFlags};
 use ractor::{Actor, ActorProcessingErr, ActorRef};
 use std::time::Duration;
 use tokio::sync::mpsc;

@@ -4,22 +4,22 @@
 //! instance leave the registry), so these tests pin down the dispatcher's half of
 //! self-healing on its own; the node's real supervision tree is tested in the `marie` package.
 
-use marie_actors::clock::RealClock;
 use marie_actors::dispatcher::mission::ParsedMission;
 use marie_actors::dispatcher::{run_mission, RegistryCatalog};
 use marie_actors::eo::{
     spawn_operation, EoClient, EoMsg, HostOptions, Identity, OpContext, OpError, Operation, Step,
 };
-use marie_actors::events::{EventBus, EventKind, EventSubscription};
-use marie_actors::property::{
+use marie_vocabulary::clock::RealClock;
+use marie_vocabulary::events::{EventBus, EventKind, EventSubscription};
+use marie_vocabulary::property::{
     Collection, General, Group, ParamDecl, ParamSchema, PropertyReply, PropertyRequest, Value,
 };
-use marie_actors::registry::{self, ModuleKind, RegistryEvent};
-use marie_actors::report::RunReport;
-use marie_actors::run::FaultKind;
-use marie_actors::run::Verdict;
-use marie_actors::run::{LossCause, OpEnd, Outcome};
-use marie_actors::status::{FlagDecl, StatusFlags};
+use marie_vocabulary::registry::{self, ModuleKind, RegistryEvent};
+use marie_vocabulary::report::RunReport;
+use marie_vocabulary::run::FaultKind;
+use marie_vocabulary::run::Verdict;
+use marie_vocabulary::run::{LossCause, OpEnd, Outcome};
+use marie_vocabulary::status::{FlagDecl, StatusFlags};
 use ractor::ActorRef;
 use std::time::Duration;
 use tokio::time::timeout;

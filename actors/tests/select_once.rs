@@ -6,19 +6,19 @@
 //!
 //! Each test uses operations of its own name: the registry is one per process.
 
-use marie_actors::clock::RealClock;
 use marie_actors::dispatcher::mission::{Mission, ParsedMission};
 use marie_actors::dispatcher::{run_mission, RegistryCatalog};
 use marie_actors::eo::{
     spawn_operation, EoClient, EoMsg, HostOptions, Identity, OpContext, OpError, Operation,
     ParamOutcome, Step,
 };
-use marie_actors::events::{BoundOp, Event, EventBus, EventKind};
-use marie_actors::property::{ParamDecl, ParamMap, ParamSchema, Value};
-use marie_actors::registry::{self, ModuleKind, RegistryEvent};
-use marie_actors::report::RunReport;
-use marie_actors::run::{Choice, FaultKind, Outcome, Verdict};
-use marie_actors::status::{FlagDecl, StatusFlags};
+use marie_vocabulary::clock::RealClock;
+use marie_vocabulary::events::{BoundOp, Event, EventBus, EventKind};
+use marie_vocabulary::property::{ParamDecl, ParamMap, ParamSchema, Value};
+use marie_vocabulary::registry::{self, ModuleKind, RegistryEvent};
+use marie_vocabulary::report::RunReport;
+use marie_vocabulary::run::{Choice, FaultKind, Outcome, Verdict};
+use marie_vocabulary::status::{FlagDecl, StatusFlags};
 use ractor::ActorRef;
 use std::time::Duration;
 use tokio::time::timeout;

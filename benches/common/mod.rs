@@ -4,9 +4,9 @@
 
 #![allow(dead_code)] // each bench uses a part
 
-use marie::actors::dm::{NewRecord, Payload};
-use marie::actors::eo::{Identity, OpContext, OpError, Operation, Step};
-use marie::actors::property::{ParamDecl, ParamSchema};
+use marie::dm::{NewRecord, Payload};
+use marie::eo::{Identity, OpContext, OpError, Operation, Step};
+use marie::property::{ParamDecl, ParamSchema};
 use serde::Serialize;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicIsize, Ordering};

@@ -30,9 +30,9 @@
 use crate::net::check_cookie;
 use crate::node::config::socket_addr;
 use crate::node::NodeConfig;
-use marie_actors::diagnostic::toml::{Reader, Rule, Tbl};
-use marie_actors::diagnostic::{read_source, Diagnostic, Diagnostics};
 use marie_actors::eo::OperationFactory;
+use marie_vocabulary::diagnostic::toml::{Reader, Rule, Tbl};
+use marie_vocabulary::diagnostic::{read_source, Diagnostic, Diagnostics};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 

@@ -6,7 +6,7 @@
 //! joining, a full mesh, heartbeats and the failure detector, TLS), a cluster file of
 //! several nodes ([`layout`]), and every node's events for whoever watches the cluster
 //! ([`relay`]). Every cross-node frame travels in the versioned wire envelope, which lives
-//! with the rest of the wire code in [`marie_actors::wire`] and is re-exported here as
+//! with the rest of the wire code in [`marie_vocabulary::wire`] and is re-exported here as
 //! [`envelope`].
 //!
 //! ```
@@ -19,7 +19,7 @@
 
 #![warn(missing_docs)]
 
-pub use marie_actors::wire::envelope;
+pub use marie_vocabulary::wire::envelope;
 
 pub mod fault;
 pub mod layout;

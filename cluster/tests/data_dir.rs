@@ -6,16 +6,16 @@
 //! The registry is one per process and these tests run in parallel: each owns the
 //! datamanager names it starts.
 
-use marie_actors::clock::SharedClock;
-use marie_actors::dm::{DmClient, Durability, NewRecord, Query, Record};
-use marie_actors::events::EventBus;
-use marie_actors::registry::{self, ModuleKind, RegistryEvent};
-use marie_actors::report::RunReport;
-use marie_actors::run::RobotSection;
 use marie_cluster::node::{
     AprioriRecord, BoxFuture, DatamanagerConfig, Node, NodeError, Robot, RunJudgement,
 };
+use marie_dm::{DmClient, Durability, NewRecord, Query, Record};
 use marie_supervision::ChildSpec;
+use marie_vocabulary::clock::SharedClock;
+use marie_vocabulary::events::EventBus;
+use marie_vocabulary::registry::{self, ModuleKind, RegistryEvent};
+use marie_vocabulary::report::RunReport;
+use marie_vocabulary::run::RobotSection;
 use std::sync::Arc;
 use std::time::Duration;
 use tokio::time::timeout;
@@ -59,7 +59,7 @@ async fn mapped_node(name: &str, dir: &std::path::Path) -> Node {
         T,
         Node::builder(name)
             .data_dir(dir)
-            .datamanager(marie_actors::dm::FEATURE)
+            .datamanager(marie_dm::FEATURE)
             .robot(Arc::new(Mapped))
             .start(),
     )

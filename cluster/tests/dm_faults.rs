@@ -5,12 +5,12 @@
 //!
 //! Each test uses a datamanager of its own name: the registry is one per process.
 
-use marie_actors::dm::{DmClient, DmError, Query};
-use marie_actors::events::{EventKind, EventSubscription};
-use marie_actors::registry::{self, Instance, ModuleKind, RegistryEvent};
-use marie_actors::run::{Aim, FaultKind};
 use marie_cluster::fault::{FaultError, Injector, Target};
 use marie_cluster::node::{watchdog, Node};
+use marie_dm::{DmClient, DmError, Query};
+use marie_vocabulary::events::{EventKind, EventSubscription};
+use marie_vocabulary::registry::{self, Instance, ModuleKind, RegistryEvent};
+use marie_vocabulary::run::{Aim, FaultKind};
 use std::time::Duration;
 use tokio::time::timeout;
 

@@ -10,10 +10,10 @@
 
 use marie_actors::eo::OperationFactory;
 use marie_actors::eo::{EoClient, Identity, OpContext, OpError, Operation, Step};
-use marie_actors::property::{ParamDecl, ParamSchema, PropertyReply, PropertyRequest, Value};
-use marie_actors::registry::{self, Instance, ModuleKind, RegistryEvent};
-use marie_actors::run::FaultKind;
 use marie_cluster::node::{ConfigError, Node, NodeConfig, NodeError, NodeOptions, OperationConfig};
+use marie_vocabulary::property::{ParamDecl, ParamSchema, PropertyReply, PropertyRequest, Value};
+use marie_vocabulary::registry::{self, Instance, ModuleKind, RegistryEvent};
+use marie_vocabulary::run::FaultKind;
 use std::sync::Arc;
 use std::time::Duration;
 

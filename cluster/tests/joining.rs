@@ -7,9 +7,9 @@
 //! it does. Two processes that fail over are `embedding/failover`'s test.
 
 use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
-use marie_actors::registry::{self, ModuleKind};
 use marie_cluster::net::{ClusterConfig, HeartbeatConfig, TransportError};
 use marie_cluster::node::{Node, NodeConfig, NodeError, NodeOptions};
+use marie_vocabulary::registry::{self, ModuleKind};
 use std::net::{SocketAddr, TcpListener, TcpStream};
 use std::time::Duration;
 

@@ -6,11 +6,11 @@
 
 use marie_actors::dispatcher::mission::ParsedMission;
 use marie_actors::eo::{Identity, OpContext, OpError, Operation, OperationFactory, Step};
-use marie_actors::status::StatusFlags;
 use marie_cluster::node::{
     ConfigError, Node, NodeConfig, NodeError, NodeOptions, OperationConfig, SupervisorConfig,
 };
 use marie_supervision::Strategy;
+use marie_vocabulary::status::StatusFlags;
 use std::time::Duration;
 
 macro_rules! operation {
@@ -45,8 +45,8 @@ fn catalog() -> Vec<OperationFactory> {
 }
 
 /// The versions the instances report through the property interface.
-async fn versions(instances: &[marie_actors::registry::Instance]) -> Vec<String> {
-    use marie_actors::property::{Group, PropertyReply, PropertyRequest};
+async fn versions(instances: &[marie_vocabulary::registry::Instance]) -> Vec<String> {
+    use marie_vocabulary::property::{Group, PropertyReply, PropertyRequest};
     let mut out = Vec::new();
     for i in instances {
         let client = marie_actors::eo::EoClient::from_cell(i.actor.clone());
@@ -172,7 +172,8 @@ async fn a_crashed_provisioner_is_restarted_and_still_starts_instances_on_reques
 }
 
 fn node_gone(name: &str) -> bool {
-    marie_actors::registry::lookup(marie_actors::registry::ModuleKind::Operation, name).is_empty()
+    marie_vocabulary::registry::lookup(marie_vocabulary::registry::ModuleKind::Operation, name)
+        .is_empty()
 }
 
 #[tokio::test(flavor = "current_thread", start_paused = true)]

@@ -3,11 +3,11 @@
 //! with and where it came from — the mission, a default, or a change while it ran.
 
 use marie_actors::eo::{Identity, OpContext, OpError, Operation, OperationHandle, Step};
-use marie_actors::events::EventKind;
-use marie_actors::property::{param_map, ParamDecl, ParamSchema, Value};
-use marie_actors::run::{ParamSource, Provenance};
-use marie_actors::status::{FlagDecl, StatusFlags};
 use marie_cluster::node::{Node, RunOptions};
+use marie_vocabulary::events::EventKind;
+use marie_vocabulary::property::{param_map, ParamDecl, ParamSchema, Value};
+use marie_vocabulary::run::{ParamSource, Provenance};
+use marie_vocabulary::status::{FlagDecl, StatusFlags};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
@@ -93,7 +93,7 @@ async fn a_runs_provenance_comes_first_and_names_every_value_and_its_source() {
     assert_eq!(p.seed, Some(11));
     assert_eq!(
         p.marie.as_ref(),
-        Some(&marie_actors::run::provenance::this_build())
+        Some(&marie_vocabulary::run::provenance::this_build())
     );
     assert_eq!(p.nodes.len(), 1);
     assert_eq!(p.nodes[0].node, "provenance-node");

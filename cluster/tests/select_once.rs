@@ -8,10 +8,10 @@
 
 use marie_actors::dispatcher::mission::ParsedMission;
 use marie_actors::eo::{EoClient, Identity, OpContext, OpError, Operation, Step};
-use marie_actors::registry::{self, ModuleKind, RegistryEvent};
-use marie_actors::run::FaultKind;
-use marie_actors::status::{FlagDecl, StatusFlags};
 use marie_cluster::node::{Node, RunOptions};
+use marie_vocabulary::registry::{self, ModuleKind, RegistryEvent};
+use marie_vocabulary::run::FaultKind;
+use marie_vocabulary::status::{FlagDecl, StatusFlags};
 use std::time::Duration;
 
 const T: Duration = Duration::from_secs(30);

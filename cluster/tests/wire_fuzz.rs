@@ -3,12 +3,12 @@
 //! inflated), must decode or be refused — never panic, never allocate what a frame merely
 //! claims. Seeded (xoshiro256**, the project's generator), so a failure replays.
 
-use marie_actors::dm::{DmMsg, NewRecord, Payload, Query};
 use marie_actors::eo::EoMsg;
-use marie_actors::events::{Event, EventKind};
-use marie_actors::run::FaultKind;
-use marie_actors::wire::{self, Envelope};
 use marie_cluster::net::heartbeat::BeatMsg;
+use marie_dm::{DmMsg, NewRecord, Payload, Query};
+use marie_vocabulary::events::{Event, EventKind};
+use marie_vocabulary::run::FaultKind;
+use marie_vocabulary::wire::{self, Envelope};
 use ractor::message::SerializedMessage;
 use ractor::Message;
 use rand_xoshiro::rand_core::{Rng, SeedableRng};
@@ -140,7 +140,7 @@ fn a_frame_of_another_protocol_version_is_refused_naming_both_versions() {
         text.contains(&format!("protocol version {}", env.version))
             && text.contains(&format!(
                 "protocol version {}",
-                marie_actors::wire::PROTOCOL_VERSION
+                marie_vocabulary::wire::PROTOCOL_VERSION
             )),
         "{text}"
     );

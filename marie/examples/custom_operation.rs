@@ -1,12 +1,12 @@
 //! Your own operation, hosted on a node, asked about itself and driven by a mission — all in
-//! one process. Its parameters and flags are declared with [`params!`](marie::actors::params)
-//! and [`flags!`](marie::actors::flags!): the operation's code names them by Rust
+//! one process. Its parameters and flags are declared with [`params!`](marie::params)
+//! and [`flags!`](marie::flags!): the operation's code names them by Rust
 //! identifiers, so a typo is a compile error, not a failed run.
 //!
 //! Run with `cargo run -p marie --example custom_operation`.
 
-use marie::actors::property::PropertyRequest;
 use marie::prelude::*;
+use marie::property::PropertyRequest;
 use marie::{Node, OperationHandle, RunOptions};
 use std::time::Duration;
 

@@ -2,9 +2,9 @@
 //! datamanager under its own supervisor, asked about itself, a mission built in code, and a
 //! panic healed while it runs.
 
-use marie::actors::dispatcher::mission::{ActionBuilder, MissionBuilder};
-use marie::actors::eo::{OperationHandle, SetError};
 use marie::cluster::node::{Node, RunOptions, SupervisorConfig};
+use marie::dispatcher::mission::{ActionBuilder, MissionBuilder};
+use marie::eo::{OperationHandle, SetError};
 use marie::prelude::*;
 use std::time::Duration;
 

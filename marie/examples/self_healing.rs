@@ -5,8 +5,8 @@
 //!
 //! Run with `cargo run -p marie --example self_healing`.
 
-use marie::actors::events::EventKind;
 use marie::cluster::node::SupervisorConfig;
+use marie::events::EventKind;
 use marie::prelude::*;
 use marie::{Node, RunOptions};
 use std::time::Duration;

@@ -17,18 +17,22 @@
 //! - [`OperationHandle`] — an application's hold on an operation by name;
 //! - [`RactorMessage`] — for the application's own ractor actors beside marie's;
 //!
-//! and, by module, the crates under it: [`actors`] (the three interfaces, the registry, the
-//! dispatcher and missions, the event stream and the run report), [`supervision`]
-//! (supervisors with OTP semantics) and [`cluster`] (the node, fault injection, the
+//! and, by module, what the crates under it hold: the operations ([`eo`], [`declare`]) and
+//! the dispatcher with its missions ([`dispatcher`], [`provision`]); the datamanagers
+//! ([`dm`]); the words every layer speaks — a run ([`run`]), its events ([`events`]) and
+//! report ([`report`]), properties ([`property`]), status flags ([`status`]), clocks
+//! ([`clock`]), the location table ([`registry`]), fencing ([`fence`]), the wire form
+//! ([`wire`]) and file diagnostics ([`diagnostic`]); [`supervision`] (supervisors with OTP
+//! semantics) and [`cluster`] (the node, fault injection, the
 //! transport and failure detector). The `marie` command, its web monitor and its simulated
 //! robot are not part of this crate: they are the repository's root package, which uses
 //! this one the way an application does.
 //!
 //! # Embedding marie: operation → node → mission → faults → cluster
 //!
-//! **1. An operation** is a type that implements [`actors::eo::Operation`]: who it is, the
+//! **1. An operation** is a type that implements [`eo::Operation`]: who it is, the
 //! parameters and flags it declares, and what it does each step. Declare parameters with
-//! [`params!`](actors::params) and flags with [`flags!`](macro@actors::flags): a misspelt
+//! [`params!`](params) and flags with [`flags!`](macro@flags): a misspelt
 //! name is then a compile error.
 //!
 //! ```
@@ -66,12 +70,12 @@
 //! }
 //! ```
 //!
-//! An operation steps every [`DEFAULT_PERIOD`](actors::eo::DEFAULT_PERIOD) (100 ms of its
+//! An operation steps every [`DEFAULT_PERIOD`](eo::DEFAULT_PERIOD) (100 ms of its
 //! node's clock) unless it says otherwise, and must answer any command within
-//! [`DEFAULT_DEADLINE`](actors::eo::DEFAULT_DEADLINE) (2 s) or it is taken for hung. What must
-//! survive its crash it keeps in a datamanager ([`actors::dm`]). When a datamanager it uses
+//! [`DEFAULT_DEADLINE`](eo::DEFAULT_DEADLINE) (2 s) or it is taken for hung. What must
+//! survive its crash it keeps in a datamanager ([`dm`]). When a datamanager it uses
 //! is gone (crashed, killed), the operation's steps wait for the DM's next incarnation, at
-//! most [`DATAMANAGER_RETURN`](actors::eo::DATAMANAGER_RETURN) (5 s), and go on.
+//! most [`DATAMANAGER_RETURN`](eo::DATAMANAGER_RETURN) (5 s), and go on.
 //!
 //! **2. A node** hosts the application's operations and datamanagers under supervision,
 //! with one clock: [`Node::builder`]. Each operation type's declarations are checked before
@@ -86,9 +90,9 @@
 //! [`cluster::node::DatamanagerConfig::with_durability`]).
 //!
 //! **3. A mission** — the task tree the dispatcher runs — is a mission file's text or built
-//! in code ([`actors::dispatcher::mission::MissionBuilder`]); [`Node::run`] checks it
+//! in code ([`dispatcher::mission::MissionBuilder`]); [`Node::run`] checks it
 //! against what runs, runs it and gives the report: the run's events, folded
-//! ([`actors::report`]).
+//! ([`report`]).
 //!
 //! ```
 //! # use marie::prelude::*;
@@ -108,7 +112,7 @@
 //! #         Ok(if self.n >= p.to { Step::finish(CountFlag::Counted) } else { Step::Continue })
 //! #     }
 //! # }
-//! use marie::actors::dispatcher::mission::{ActionBuilder, MissionBuilder};
+//! use marie::dispatcher::mission::{ActionBuilder, MissionBuilder};
 //! use marie::{Node, OperationHandle, RunOptions};
 //!
 //! # #[tokio::main(flavor = "multi_thread", worker_threads = 2)]
@@ -143,7 +147,7 @@
 //! that. Every fact of a run — each step of the dispatcher, each binding, choice and
 //! rebind, each supervisor's restart, each fault whatever its source, each node's news,
 //! the robot's judgement — is an event on the node's bus
-//! ([`Node::events`](cluster::node::Node::events), [`actors::events`]); the report is their
+//! ([`Node::events`](cluster::node::Node::events), [`events`]); the report is their
 //! fold, and an observer ([`RunOptions::observe`]) sees them as they happen.
 //!
 //! **5. A cluster from code.** Give the builder a cluster ([`NodeBuilder::cluster`]:
@@ -154,7 +158,7 @@
 //! not shipped between nodes. An operation hosted with
 //! `operation_with::<O>(|c| c.with_instances(0))` (or `operation_factory`) is a standby:
 //! started only when no instance runs anywhere, after the
-//! [provisioning grace](actors::provision::GRACE) (1 s). `embedding/failover` in the
+//! [provisioning grace](provision::GRACE) (1 s). `embedding/failover` in the
 //! repository is a two-process application built this way whose mission fails over when
 //! the process running its operation is killed; its crate docs walk through it.
 //!
@@ -177,9 +181,9 @@
 //! ```
 //!
 //! **The low road.** Each piece a node assembles can be had alone, for a test or a tool
-//! that wants one: [`actors::eo::spawn_operation`] hosts an operation with no node (and
-//! [`actors::eo::spawn_operation_linked`] under a [`supervision::Supervisor`] of your own),
-//! and [`actors::dispatcher::run_mission`] runs a checked mission with a bare dispatcher,
+//! that wants one: [`eo::spawn_operation`] hosts an operation with no node (and
+//! [`eo::spawn_operation_linked`] under a [`supervision::Supervisor`] of your own),
+//! and [`dispatcher::run_mission`] runs a checked mission with a bare dispatcher,
 //! folding its events into a report. Nothing there checks declarations before start, shares
 //! one clock, injects faults or judges a run: a node does, which is why the road above
 //! goes through one.
@@ -195,18 +199,26 @@
 
 #![warn(missing_docs)]
 
-pub use marie_actors as actors;
+// One path per public name: the modules of the crates under this one, side by side, so an
+// application never needs to know which crate holds what (marie-vocabulary, marie-dm,
+// marie-actors: ARCHITECTURE.md says why they are apart).
+pub use marie_actors::{choice, flags, params};
+pub use marie_actors::{declare, dispatcher, eo, provision};
 pub use marie_cluster as cluster;
+pub use marie_dm as dm;
 pub use marie_supervision as supervision;
+pub use marie_vocabulary::remote_message;
+pub use marie_vocabulary::{
+    clock, diagnostic, events, fence, property, registry, report, run, status, wire,
+};
 
-/// Everything an operation author needs in one import: `use marie::prelude::*;` (see
-/// [`actors::prelude`]).
+/// Everything an operation author needs in one import: `use marie::prelude::*;`.
 pub use marie_actors::prelude;
 
 pub use marie_cluster::node::{Node, NodeBuilder, RunOptions};
 
 /// An application's hold on an operation by name: typed calls, no epochs, restarts followed
-/// (the same type as [`actors::eo::OperationHandle`], where its errors live too).
+/// (the same type as [`eo::OperationHandle`], where its errors live too).
 ///
 /// ```
 /// use marie::prelude::*;
@@ -299,6 +311,6 @@ pub use marie_actors::eo::OperationHandle;
 /// ```
 ///
 /// Messages that must cross nodes need an impl that serializes them: marie's own interface
-/// messages get theirs from [`actors::remote_message!`] (rmp-serde); ractor_cluster's
+/// messages get theirs from [`remote_message!`] (rmp-serde); ractor_cluster's
 /// `RactorClusterMessage` derive is the other way.
 pub use ractor_cluster::RactorMessage;

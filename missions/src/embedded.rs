@@ -29,10 +29,10 @@
 
 use crate::robot::{SimRobot, DEFAULT_SEED};
 use crate::world::World;
-use marie_actors::clock::{RealClock, SharedClock};
-use marie_actors::diagnostic::{Diagnostic, Diagnostics};
 use marie_cluster::net::TransportError;
 use marie_cluster::node::{Node, NodeConfig, NodeError, NodeOptions, SimulationConfig};
+use marie_vocabulary::clock::{RealClock, SharedClock};
+use marie_vocabulary::diagnostic::{Diagnostic, Diagnostics};
 use std::path::PathBuf;
 use std::sync::Arc;
 

@@ -13,7 +13,7 @@ use crate::geom::{wrap_angle, Pose};
 use crate::hardware::{CartClient, CartError, CartStatus};
 use crate::ops::records::{LocationRecord, LOCATION};
 use crate::world::World;
-use marie_actors::dm::{DmClient, DmError, WORLD};
+use marie_dm::{DmClient, DmError, WORLD};
 use std::time::Duration;
 
 /// How far from the world's start pose the cart may be and still count as there: a

@@ -10,7 +10,7 @@
 //!
 //! ```no_run
 //! # #[tokio::main] async fn main() {
-//! let clock = marie_actors::clock::RealClock::shared();
+//! let clock = marie_vocabulary::clock::RealClock::shared();
 //! let names: Vec<&str> = marie_missions::builtin_operations().iter().map(|f| f.name).collect();
 //! assert_eq!(names, ["sampler", "averager", "checker"]);
 //! let actors = marie_missions::spawn_builtin(clock).await.unwrap();
@@ -34,9 +34,9 @@ pub mod sim;
 pub mod telemetry;
 pub mod world;
 
-use marie_actors::clock::SharedClock;
 use marie_actors::eo::HostOptions;
 pub use marie_actors::eo::{OperationFactory, StartOperation};
+use marie_vocabulary::clock::SharedClock;
 use ractor::{ActorCell, SpawnErr};
 
 /// The built-in demo operations (sampler, averager, checker).

@@ -41,14 +41,14 @@ use crate::picture::Picture;
 pub use crate::robot_report::RobotReport;
 use crate::telemetry::{self, PoseSampler};
 use crate::world::{Judgement, World};
-use marie_actors::clock::SharedClock;
-use marie_actors::dm::{self, DmClient, DmError, DmSpec, Query};
-use marie_actors::events::EventBus;
-use marie_actors::fence::{obeyed_late, Obeyed};
-use marie_actors::report::RunReport;
-use marie_actors::run::Outcome;
 use marie_cluster::node::{AprioriRecord, BoxFuture, Robot, RunJudgement};
+use marie_dm::{self as dm, DmClient, DmError, DmSpec, Query};
 use marie_supervision::{ChildSpec, Restart};
+use marie_vocabulary::clock::SharedClock;
+use marie_vocabulary::events::EventBus;
+use marie_vocabulary::fence::{obeyed_late, Obeyed};
+use marie_vocabulary::report::RunReport;
+use marie_vocabulary::run::Outcome;
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -499,8 +499,8 @@ mod tests {
 
     #[tokio::test(start_paused = true)]
     async fn a_cart_dispatched_from_elsewhere_tells_its_world_again_and_again_then_poses() {
-        use marie_actors::clock::ManualClock;
-        use marie_actors::events::EventKind;
+        use marie_vocabulary::clock::ManualClock;
+        use marie_vocabulary::events::EventKind;
         let bus = EventBus::new("cart", Arc::new(ManualClock::new()));
         let mut sub = bus.subscribe();
         let lab = robot("lab");

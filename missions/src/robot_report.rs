@@ -4,9 +4,9 @@
 //! ([`RobotSection`]); this is the simulated cart's own reading of them, for whoever knows
 //! it is that robot (the `marie` command's outcome line, the picture, tests).
 
-use marie_actors::fence::Late;
-use marie_actors::report::RunReport;
-use marie_actors::run::RobotSection;
+use marie_vocabulary::fence::Late;
+use marie_vocabulary::report::RunReport;
+use marie_vocabulary::run::RobotSection;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
@@ -69,7 +69,7 @@ impl RobotReport {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use marie_actors::run::Outcome;
+    use marie_vocabulary::run::Outcome;
 
     #[test]
     fn the_carts_section_reads_back_from_a_report() {

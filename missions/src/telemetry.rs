@@ -23,7 +23,7 @@
 //!   ticks): sampled, not every 20 ms physics step, so a run of a minute adds about 600
 //!   events.
 //! - The rest is read from the datamanagers, where the operations store it anyway: one
-//!   subscription (a long poll of `SelectWait` calls, [`marie_actors::dm::Subscription`])
+//!   subscription (a long poll of `SelectWait` calls, [`marie_dm::Subscription`])
 //!   per class, started when a run starts ([`tap_records`]). The operations know nothing of
 //!   it. A tap ends when the node's next run starts, at the node's shutdown, or with its
 //!   datamanager (one restarted mid-run is not followed again until the next run).
@@ -53,8 +53,8 @@
 use crate::geom::{Point, Pose, Segment};
 use crate::ops::records::{self, DockRecord, EchoScan, PathRecord, WallRecord};
 use crate::world::World;
-use marie_actors::dm::{self, DmClient, DmSpec, Query, Record, Subscription};
-use marie_actors::events::{EventBus, EventKind};
+use marie_dm::{self as dm, DmClient, DmSpec, Query, Record, Subscription};
+use marie_vocabulary::events::{EventBus, EventKind};
 use serde_json::{json, Value};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -262,7 +262,7 @@ fn tap(
     })
 }
 
-fn decode<T: marie_actors::dm::PayloadType>(record: &Record) -> Option<T> {
+fn decode<T: marie_dm::PayloadType>(record: &Record) -> Option<T> {
     record
         .decode::<T>()
         .map_err(|e| tracing::debug!(class = %record.class, "no event of a record: {e}"))
@@ -327,7 +327,7 @@ fn planned_path(record: &Record) -> Option<EventKind> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use marie_actors::clock::ManualClock;
+    use marie_vocabulary::clock::ManualClock;
 
     #[test]
     fn the_world_event_has_the_walls_dock_goal_and_cart() {
@@ -398,7 +398,7 @@ mod tests {
             class: class.into(),
             sub1: None,
             sub2: None,
-            payload: marie_actors::dm::Payload::encode(value).expect("encodes"),
+            payload: marie_dm::Payload::encode(value).expect("encodes"),
         }
     }
 

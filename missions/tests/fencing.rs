@@ -3,11 +3,11 @@
 //! after its stand-in took over — is refused and changes nothing.
 //! (Its own process: the cart publishes itself in the process-wide registry.)
 
-use marie_actors::clock::RealClock;
-use marie_actors::fence::Fence;
 use marie_missions::hardware::{spawn_cart, CartArgs, CartClient};
 use marie_missions::sim::Simulation;
 use marie_missions::world::World;
+use marie_vocabulary::clock::RealClock;
+use marie_vocabulary::fence::Fence;
 use std::time::Duration;
 
 fn fenced(cart: &CartClient, op: &str, epoch: u64) -> CartClient {

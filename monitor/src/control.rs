@@ -11,7 +11,7 @@
 //! ([`FaultKind`]) and what it aims at: an operation's instance, or a node.
 //!
 //! ```
-//! use marie_actors::run::FaultKind;
+//! use marie_vocabulary::run::FaultKind;
 //! use marie_monitor::control::{FaultOn, FaultRequest, OperationRef};
 //! let kill: FaultRequest =
 //!     serde_json::from_str(r#"{"fault": "kill", "operation": "wall-follower", "node": "wf-a"}"#)
@@ -32,7 +32,7 @@
 //! assert!(stop.fits());
 //! ```
 
-use marie_actors::run::{Aim, FaultKind};
+use marie_vocabulary::run::{Aim, FaultKind};
 use serde::{Deserialize, Serialize};
 use std::future::Future;
 use std::pin::Pin;

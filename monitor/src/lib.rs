@@ -5,11 +5,11 @@
 //! embedder of marie's library crates should not pay for; only the `marie` CLI depends on
 //! this crate.
 //!
-//! - [`state`]: the [`MonitorState`] reduced from [`Event`](marie_actors::events::Event)s
+//! - [`state`]: the [`MonitorState`] reduced from [`Event`](marie_vocabulary::events::Event)s
 //!   — task tree, bindings, cluster, robot, timeline, outcome.
 //! - [`control`]: what the page's clicks ask of a live run (an operation's properties;
 //!   faults when allowed), done by whoever started the monitor.
-//! - [`Monitor`]: the server — live on an [`EventBus`](marie_actors::events::EventBus)
+//! - [`Monitor`]: the server — live on an [`EventBus`](marie_vocabulary::events::EventBus)
 //!   (and whatever else feeds it events), or replaying a `.jsonl` file.
 //!
 //! **Invariant:** the monitor never slows the node it watches: it reads the bus like any
@@ -21,8 +21,8 @@
 //! on the node's bus (`Node::events()`; here a bare bus), its page at [`MonitorHandle::url`]:
 //!
 //! ```
-//! use marie_actors::clock::ManualClock;
-//! use marie_actors::events::{EventBus, EventKind};
+//! use marie_vocabulary::clock::ManualClock;
+//! use marie_vocabulary::events::{EventBus, EventKind};
 //! use marie_monitor::{Monitor, MonitorOptions};
 //! use std::sync::Arc;
 //! use std::time::Duration;

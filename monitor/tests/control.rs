@@ -9,13 +9,13 @@
 #[path = "../../tests/common/http.rs"]
 mod http;
 
-use marie_actors::clock::ManualClock;
-use marie_actors::events::EventBus;
-use marie_actors::run::FaultKind;
 use marie_monitor::control::{
     Answer, Control, ControlError, FaultOn, FaultRequest, Offers, OperationRef,
 };
 use marie_monitor::{Monitor, MonitorOptions};
+use marie_vocabulary::clock::ManualClock;
+use marie_vocabulary::events::EventBus;
+use marie_vocabulary::run::FaultKind;
 use serde_json::json;
 use std::path::Path;
 use std::sync::{Arc, Mutex};

@@ -2,11 +2,11 @@
 //! kill:wall-follower@20 --events docking-kill.jsonl` (regenerate the fixture with that
 //! command when the event schema grows).
 
-use marie_actors::events::Event;
-use marie_actors::run::Outcome;
 use marie_monitor::state::mission::ActionState;
 use marie_monitor::state::timeline::TIMELINE_LIMIT;
 use marie_monitor::MonitorState;
+use marie_vocabulary::events::Event;
+use marie_vocabulary::run::Outcome;
 
 fn recorded() -> Vec<Event> {
     include_str!("fixtures/docking-kill.jsonl")
@@ -56,7 +56,7 @@ fn a_state_midway_has_the_running_action_and_the_later_ones_waiting() {
     let second = events
         .iter()
         .position(|e| {
-            matches!(&e.kind, marie_actors::events::EventKind::ActionStarted { action, .. } if action == "follow-wall")
+            matches!(&e.kind, marie_vocabulary::events::EventKind::ActionStarted { action, .. } if action == "follow-wall")
         })
         .unwrap();
     let state = MonitorState::from_events(&events[..=second]);
@@ -82,7 +82,7 @@ fn the_timeline_is_bounded() {
         .find(|e| {
             matches!(
                 e.kind,
-                marie_actors::events::EventKind::FaultInjected { .. }
+                marie_vocabulary::events::EventKind::FaultInjected { .. }
             )
         })
         .unwrap()

@@ -6,9 +6,9 @@
 #[path = "../../tests/common/http.rs"]
 mod http;
 
-use marie_actors::clock::ManualClock;
-use marie_actors::events::{EventBus, EventKind};
 use marie_monitor::{Monitor, MonitorOptions};
+use marie_vocabulary::clock::ManualClock;
+use marie_vocabulary::events::{EventBus, EventKind};
 use std::path::Path;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -118,7 +118,7 @@ fn a_live_monitor_streams_a_snapshot_then_the_changes() {
     assert_eq!(http::get_json(addr, "/api/state")["mission"]["name"], "m");
     // events fed besides the bus count too
     let feed = monitor.feed().unwrap();
-    assert!(feed.offer(marie_actors::events::Event {
+    assert!(feed.offer(marie_vocabulary::events::Event {
         at_ms: 5,
         node: "n2".into(),
         kind: EventKind::NodeFrozen { silent_ms: 1 },
@@ -199,7 +199,7 @@ fn after_a_flush_the_state_holds_every_event_published_and_fed_before_it() {
                 data: serde_json::json!({"x": i as f64, "y": 0.0, "heading": 0.0}),
             });
         }
-        assert!(feed.offer(marie_actors::events::Event {
+        assert!(feed.offer(marie_vocabulary::events::Event {
             at_ms: round,
             node: format!("fed-{round}"),
             kind: EventKind::NodeFrozen { silent_ms: 1 },

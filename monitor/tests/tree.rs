@@ -2,10 +2,10 @@
 //! nodes, the running branch, how nodes ended, and each node's control decisions (retry
 //! counts, timeouts, fallbacks, conditions lost, recoveries).
 
-use marie_actors::events::{ActionPlan, Event, EventKind, PlanNode};
-use marie_actors::run::{OpEnd, Outcome};
 use marie_monitor::state::tree::{ControlTree, NodeEnd, DECISIONS_KEPT};
 use marie_monitor::MonitorState;
+use marie_vocabulary::events::{ActionPlan, Event, EventKind, PlanNode};
+use marie_vocabulary::run::{OpEnd, Outcome};
 
 fn event(kind: EventKind) -> Event {
     Event {

@@ -6,10 +6,10 @@
 use super::args::RobotArgs;
 use super::join::JoinArgs;
 use super::prepare::prepare;
-use marie::actors::dispatcher::survey::Survey;
-use marie::actors::dispatcher::{mission::Mission, survey};
-use marie::actors::run::Choice;
 use marie::cluster::node::NodeError;
+use marie::dispatcher::survey::Survey;
+use marie::dispatcher::{mission::Mission, survey};
+use marie::run::Choice;
 use marie_missions::embedded::EmbeddedError;
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
@@ -227,9 +227,9 @@ fn print_text(path: &Path, m: &Mission, world: Option<&str>, surveyed: &Survey) 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use marie::actors::dispatcher::mission::{OpInfo, ParsedMission, StaticCatalog};
-    use marie::actors::dispatcher::selection::{choose, Offer};
-    use marie::actors::status::FlagDecl;
+    use marie::dispatcher::mission::{OpInfo, ParsedMission, StaticCatalog};
+    use marie::dispatcher::selection::{choose, Offer};
+    use marie::status::FlagDecl;
 
     #[test]
     fn each_recovery_says_which_mission_flags_its_operations_can_raise() {

@@ -1,10 +1,10 @@
 //! `marie run --events FILE.jsonl`: every event of the node's bus during the run — and,
 //! for a member of a cluster, every other node's ([`marie::cluster::relay`]) — one JSON object per
-//! line ([`marie::actors::events`] documents the schema), written as they come.
+//! line ([`marie::events`] documents the schema), written as they come.
 
 use super::follow::{Following, Sink};
-use marie::actors::events::{Event, EventBus};
 use marie::cluster::relay::Watch;
+use marie::events::{Event, EventBus};
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};

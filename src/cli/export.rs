@@ -4,8 +4,8 @@
 
 use super::error::BadInput;
 use super::mcap::McapWriter;
-use marie::actors::diagnostic::file_kind;
-use marie::actors::events::Event;
+use marie::diagnostic::file_kind;
+use marie::events::Event;
 use std::fs::File;
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};

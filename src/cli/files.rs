@@ -1,10 +1,10 @@
 //! What an output path must be, checked before a command runs anything: a file that can be
 //! created or overwritten — so a run never ends in an output it cannot write. (Input files —
 //! missions, worlds, node configs — are checked by their one reader,
-//! [`marie::actors::diagnostic::read_source`], before it reads them.)
+//! [`marie::diagnostic::read_source`], before it reads them.)
 
 use super::error::BadInput;
-use marie::actors::diagnostic::file_kind;
+use marie::diagnostic::file_kind;
 use std::fs::{self, OpenOptions};
 use std::path::Path;
 

@@ -3,8 +3,8 @@
 //! ([`marie::cluster::relay`]), handed one at a time to a sink until told to stop, then what
 //! was published before the stop. The `--events` file and the `--mcap` file are two sinks.
 
-use marie::actors::events::{BusError, Event, EventBus, EventSubscription};
 use marie::cluster::relay::Watch;
+use marie::events::{BusError, Event, EventBus, EventSubscription};
 use tokio::sync::oneshot;
 
 /// What takes a run's events, one at a time: a file's writer.

@@ -5,11 +5,11 @@ use super::args::RobotArgs;
 use super::error::BadInput;
 use super::join::{join, member_name, JoinArgs};
 use super::prepare::start_node;
-use marie::actors::events::EventBus;
-use marie::actors::registry::{self, Instance, ModuleKind, RegistryEvent};
-use marie::actors::run::{Aim, FaultKind};
 use marie::cluster::fault::{FaultError, Hit, Injector, Target};
 use marie::cluster::node::Node;
+use marie::events::EventBus;
+use marie::registry::{self, Instance, ModuleKind, RegistryEvent};
+use marie::run::{Aim, FaultKind};
 use marie::supervision::SupervisorEvent;
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
@@ -43,7 +43,7 @@ pub(crate) async fn kill(args: KillArgs) -> anyhow::Result<ExitCode> {
         let name = member_name("kill");
         let transport = join(&name, &target).await?;
         // this member's own bus: the fault is told there, as every fault is
-        let bus = EventBus::new(name, marie::actors::clock::RealClock::shared());
+        let bus = EventBus::new(name, marie::clock::RealClock::shared());
         let result = kill_in_cluster(&Injector::new(&bus), &operation).await;
         transport.stop().await;
         return result;

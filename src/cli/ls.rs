@@ -4,8 +4,8 @@
 use super::args::RobotArgs;
 use super::join::{join, member_name, JoinArgs};
 use super::prepare::start_node;
-use marie::actors::dm::{DmClient, DmStats, Durability};
-use marie::actors::registry::{self, Instance, ModuleKind};
+use marie::dm::{DmClient, DmStats, Durability};
+use marie::registry::{self, Instance, ModuleKind};
 use std::process::ExitCode;
 use std::time::Duration;
 

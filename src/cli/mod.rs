@@ -88,13 +88,13 @@ pub(crate) enum Command {
 }
 
 /// This binary's build, as its `build.rs` captured it (`--version` says the same).
-pub(crate) fn this_build() -> marie::actors::run::Build {
+pub(crate) fn this_build() -> marie::run::Build {
     let dirty = match env!("MARIE_UNCOMMITTED") {
         "true" => Some(true),
         "false" => Some(false),
         _ => None,
     };
-    marie::actors::run::Build::new(env!("CARGO_PKG_VERSION"), Some(env!("MARIE_COMMIT")), dirty)
+    marie::run::Build::new(env!("CARGO_PKG_VERSION"), Some(env!("MARIE_COMMIT")), dirty)
 }
 
 impl Command {
@@ -109,7 +109,7 @@ impl Command {
                 build.uncommitted_changes = Some(false);
             }
         }
-        marie::actors::run::provenance::set_this_build(build);
+        marie::run::provenance::set_this_build(build);
     }
 
     /// True when the verb runs in virtual time (see [`runtime::build`]): a mission run,

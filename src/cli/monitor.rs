@@ -10,12 +10,10 @@
 use super::error::BadInput;
 use super::join::{join, member_name, ClusterEntry, JoinArgs};
 use super::page_control::PageControl;
-use marie::actors::clock::ScaledClock;
-use marie::actors::events::{
-    bridge_registry, Event, EventBus, EventKind, ModuleInfo, RegistryBridge,
-};
-use marie::actors::registry;
+use marie::clock::ScaledClock;
 use marie::cluster::fault::NodeProcesses;
+use marie::events::{bridge_registry, Event, EventBus, EventKind, ModuleInfo, RegistryBridge};
+use marie::registry;
 use marie_monitor::{Feed, Monitor, MonitorError, MonitorHandle, MonitorOptions};
 use std::io::Write;
 use std::net::SocketAddr;
@@ -152,7 +150,7 @@ const DM_POLL: std::time::Duration = std::time::Duration::from_secs(2);
 /// for a replicated one its role, term and copies' lag — every [`DM_POLL`], and feed it to
 /// the page (`dm_state`), until aborted. Only the monitor sees these: the bus does not.
 fn poll_datamanagers(feed: Feed, bus: EventBus) -> JoinHandle<()> {
-    use marie::actors::dm::DmClient;
+    use marie::dm::DmClient;
     tokio::spawn(async move {
         let mut ticks = tokio::time::interval(DM_POLL);
         ticks.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);

@@ -11,10 +11,10 @@
 
 use super::error::BadInput;
 use super::prepare::start_node;
-use marie::actors::clock::ScaledClock;
-use marie::actors::registry;
+use marie::clock::ScaledClock;
 use marie::cluster::net::ClusterConfig;
 use marie::cluster::node::NodeConfig;
+use marie::registry;
 use marie_missions::embedded::{EmbeddedError, EmbeddedOptions};
 use std::io::Write;
 use std::net::SocketAddr;

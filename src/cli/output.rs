@@ -1,10 +1,10 @@
 //! The lines a run prints on stdout: its events as they are published on the node's bus
 //! (a subscriber, as the monitor is), then its outcome from the report.
 
-use marie::actors::events::{ActionResult, BusError, DispatcherVoice, Event, EventBus, EventKind};
-use marie::actors::report::RunReport;
-use marie::actors::run::{Choice, Outcome, Verdict};
-use marie::actors::status::StatusFlags;
+use marie::events::{ActionResult, BusError, DispatcherVoice, Event, EventBus, EventKind};
+use marie::report::RunReport;
+use marie::run::{Choice, Outcome, Verdict};
+use marie::status::StatusFlags;
 use marie_missions::robot::RobotReport;
 use tokio::sync::oneshot;
 use tokio::task::JoinHandle;

@@ -7,9 +7,9 @@
 //! lookup, an actor message or a signal, none of which needs the node's runtime.
 
 use super::props::ask_every_group;
-use marie::actors::events::EventBus;
-use marie::actors::run::{Aim, FaultKind};
 use marie::cluster::fault::{self, FaultError, Hit, Injector, NodeProcesses, Target, TargetError};
+use marie::events::EventBus;
+use marie::run::{Aim, FaultKind};
 use marie_monitor::control::{
     Answer, Control, ControlError, FaultOn, FaultRequest, Offers, OperationRef,
 };

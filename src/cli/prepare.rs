@@ -3,10 +3,10 @@
 
 use super::args::RobotArgs;
 use super::join::{join, Joining};
-use marie::actors::clock::ScaledClock;
-use marie::actors::dispatcher::mission::{Mission, ParsedMission};
+use marie::clock::ScaledClock;
 use marie::cluster::net::Transport;
 use marie::cluster::node::{Node, NodeError};
+use marie::dispatcher::mission::{Mission, ParsedMission};
 use marie_missions::embedded::{Embedded, EmbeddedOptions};
 use marie_missions::fresh_start::{at_world_start, restart_at_world_start, FreshStartError};
 use marie_missions::hardware::CartClient;

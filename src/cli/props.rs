@@ -4,11 +4,11 @@ use super::args::RobotArgs;
 use super::error::BadInput;
 use super::join::{join, member_name, JoinArgs};
 use super::prepare::start_node;
-use marie::actors::eo::{EoClient, EoError};
-use marie::actors::property::{Group, PropertyReply, PropertyRequest};
-use marie::actors::registry::Instance;
-use marie::actors::run::Aim;
 use marie::cluster::fault::{find, Target};
+use marie::eo::{EoClient, EoError};
+use marie::property::{Group, PropertyReply, PropertyRequest};
+use marie::registry::Instance;
+use marie::run::Aim;
 use std::process::ExitCode;
 
 /// Flags of `marie props`.

@@ -3,8 +3,8 @@
 //! the build, the start time and the nodes, the dispatcher the parameters).
 
 use super::args::MAX_SPEED;
-use marie::actors::diagnostic::{read_source, Diagnostic};
-use marie::actors::run::{Digest, FileRead, FileRole, Provenance};
+use marie::diagnostic::{read_source, Diagnostic};
+use marie::run::{Digest, FileRead, FileRole, Provenance};
 use std::path::Path;
 
 /// A run's provenance as the command knows it: `files` in the order read (role and path;

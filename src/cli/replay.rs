@@ -8,9 +8,9 @@
 //! naming both: the same inputs may then give another run, and the table shows where.
 
 use super::error::BadInput;
-use marie::actors::report::RunReport;
-use marie::actors::run::{Aim, Build, FileRole, ParamSetting, ParamSource, Provenance};
 use marie::cluster::fault::FaultSpec;
+use marie::report::RunReport;
+use marie::run::{Aim, Build, FileRole, ParamSetting, ParamSource, Provenance};
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 

@@ -12,11 +12,11 @@ use super::prepare::{prepare, Prepared};
 use super::replay::{Planned, Replay};
 use super::signal::Shutdown;
 use anyhow::Context;
-use marie::actors::clock::Pacer;
-use marie::actors::report::RunReport;
-use marie::actors::run::{FileRole, Outcome};
+use marie::clock::Pacer;
 use marie::cluster::fault::{Chaos, FaultSpec, NodeChaos, NodeProcesses};
 use marie::cluster::node::{NodeError, RunOptions};
+use marie::report::RunReport;
+use marie::run::{FileRole, Outcome};
 use marie_missions::robot::RobotReport;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -64,7 +64,7 @@ pub(crate) struct RunArgs {
     #[arg(long, requires = "explain")]
     pub json: bool,
     /// Write every event of the run here, one JSON object per line (the schema is in the
-    /// docs of `marie::actors::events`): dispatcher, bindings, supervisors, registry, faults,
+    /// docs of `marie::events`): dispatcher, bindings, supervisors, registry, faults,
     /// the robot. The report can be rebuilt from it.
     #[arg(long, value_name = "FILE.jsonl")]
     pub events: Option<PathBuf>,
@@ -389,8 +389,8 @@ pub(crate) async fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     }
     // a run dispatched on a node that runs no desk is refused before it starts
     if let Some(on) = options.dispatched_on() {
-        let desks = marie::actors::registry::lookup(
-            marie::actors::registry::ModuleKind::Dispatcher,
+        let desks = marie::registry::lookup(
+            marie::registry::ModuleKind::Dispatcher,
             marie::cluster::node::desk::DESK_NAME,
         );
         if !desks.iter().any(|d| d.node == on) {

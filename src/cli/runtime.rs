@@ -14,7 +14,7 @@ pub(crate) enum LogFormat {
 
 /// The runtime. In virtual time (`marie run`, at every `--speed`): a single thread with
 /// tokio's paused clock, which jumps to the next timer whenever every actor is idle — a
-/// discrete-event clock, repeatable, that a [`marie::actors::clock::Pacer`] holds back to the
+/// discrete-event clock, repeatable, that a [`marie::clock::Pacer`] holds back to the
 /// speed asked for. Otherwise (verbs that measure or wait in real time) multi-threaded on
 /// the wall clock.
 ///

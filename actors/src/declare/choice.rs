@@ -1,6 +1,6 @@
 //! Choice parameters as enums.
 //!
-//! A choice parameter ([`ParamType::Choice`](crate::property::ParamType::Choice)) holds one
+//! A choice parameter ([`ParamType::Choice`](marie_vocabulary::property::ParamType::Choice)) holds one
 //! of a fixed set of words. Read as text, every comparison (`beams == "narrow"`) is a string
 //! an author can misspell and no compiler checks; declared with [`choice!`](crate::choice),
 //! the words are the variants of an enum, the declaration lists them, and a `match` on the
@@ -18,12 +18,12 @@
 /// It generates the enum (deriving `Clone`, `Copy`, `Debug`, `PartialEq`, `Eq`, `Hash`), its
 /// [`ParamValue`](crate::declare::ParamValue) (so it can be the type of a
 /// [`params!`](crate::params) field, declared with
-/// [`ParamDecl::choice`](crate::property::ParamDecl::choice)), `WORDS` (the words in
+/// [`ParamDecl::choice`](marie_vocabulary::property::ParamDecl::choice)), `WORDS` (the words in
 /// declaration order), `as_str` and `Display`.
 ///
 /// ```
 /// use marie_actors::declare::ParamValue;
-/// use marie_actors::property::{FromValue, ParamDecl, Value};
+/// use marie_vocabulary::property::{FromValue, ParamDecl, Value};
 ///
 /// marie_actors::choice! {
 ///     /// Which sonar beams to use.
@@ -82,10 +82,10 @@ macro_rules! choice {
             }
         }
 
-        impl $crate::property::FromValue for $name {
+        impl $crate::__private::property::FromValue for $name {
             const EXPECTED: &'static str = "choice";
 
-            fn from_value(value: &$crate::property::Value) -> ::core::option::Option<Self> {
+            fn from_value(value: &$crate::__private::property::Value) -> ::core::option::Option<Self> {
                 match value.as_str()? {
                     $($word => ::core::option::Option::Some($name::$variant),)*
                     _ => ::core::option::Option::None,
@@ -94,17 +94,17 @@ macro_rules! choice {
         }
 
         impl $crate::declare::ParamValue for $name {
-            fn decl(name: &str, default: Self) -> $crate::property::ParamDecl {
-                $crate::property::ParamDecl::choice(name, Self::WORDS, default.as_str())
+            fn decl(name: &str, default: Self) -> $crate::__private::property::ParamDecl {
+                $crate::__private::property::ParamDecl::choice(name, Self::WORDS, default.as_str())
             }
 
-            fn into_value(self) -> $crate::property::Value {
-                $crate::property::Value::Text(self.as_str().to_string())
+            fn into_value(self) -> $crate::__private::property::Value {
+                $crate::__private::property::Value::Text(self.as_str().to_string())
             }
 
-            fn mismatch(value: &$crate::property::Value) -> ::std::string::String {
+            fn mismatch(value: &$crate::__private::property::Value) -> ::std::string::String {
                 match value {
-                    $crate::property::Value::Text(_) => {
+                    $crate::__private::property::Value::Text(_) => {
                         ::std::format!("expected one of {}, found {}", Self::WORDS.join("|"), value)
                     }
                     _ => ::std::format!(

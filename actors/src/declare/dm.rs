@@ -2,18 +2,18 @@
 //!
 //! An operation finds a datamanager by name (`ctx.dm("feature")`); a misspelt name is found
 //! missing only when the operation runs. [`DmName`] lets the same calls take a constant
-//! instead — the well-known [`WORLD`](crate::dm::WORLD), [`FEATURE`](crate::dm::FEATURE),
-//! [`PARAMETER`](crate::dm::PARAMETER), or an embedder's own [`DmSpec`] — whose misspelling
+//! instead — the well-known [`WORLD`](marie_dm::WORLD), [`FEATURE`](marie_dm::FEATURE),
+//! [`PARAMETER`](marie_dm::PARAMETER), or an embedder's own [`DmSpec`] — whose misspelling
 //! the compiler catches. Strings keep working.
 
-use crate::dm::DmSpec;
+use marie_dm::DmSpec;
 
 /// Something that names a datamanager: a [`DmSpec`] constant, or its name (or numeric id)
 /// as text.
 ///
 /// ```
 /// use marie_actors::declare::DmName;
-/// use marie_actors::dm::{DmSpec, FEATURE};
+/// use marie_dm::{DmSpec, FEATURE};
 ///
 /// const ODOMETRY: DmSpec = DmSpec::new("odometry", 1210);
 /// fn name(dm: impl DmName) -> String { dm.dm_name().to_string() }

@@ -9,14 +9,14 @@
 //! and its declaration, so `Step::Finish(WallFlag::Found.into())` cannot name a bit that
 //! means something else.
 
-use crate::status::{FlagDecl, StatusFlags};
+use marie_vocabulary::status::{FlagDecl, StatusFlags};
 
 /// An enum of an operation's flags, in declaration order. [`flags!`](crate::flags!)
 /// implements it.
 ///
 /// ```
 /// use marie_actors::declare::DeclaredFlags;
-/// use marie_actors::status::{FlagDecl, StatusFlags};
+/// use marie_vocabulary::status::{FlagDecl, StatusFlags};
 ///
 /// marie_actors::flags! {
 ///     /// What the walk reports.
@@ -92,7 +92,7 @@ pub trait DeclaredFlags: Copy + Into<StatusFlags> + 'static {
 ///
 /// ```
 /// use marie_actors::declare::DeclaredFlags;
-/// use marie_actors::status::StatusFlags;
+/// use marie_vocabulary::status::StatusFlags;
 ///
 /// marie_actors::flags! {
 ///     /// What the docking detector reports.
@@ -122,7 +122,7 @@ pub trait DeclaredFlags: Copy + Into<StatusFlags> + 'static {
 ///         Found = "dock-found",
 ///     }
 /// }
-/// let _: marie_actors::status::StatusFlags = Dock::Fuond.into();
+/// let _: marie_vocabulary::status::StatusFlags = Dock::Fuond.into();
 /// ```
 #[macro_export]
 macro_rules! flags {
@@ -170,30 +170,30 @@ macro_rules! flags {
             }
         }
 
-        impl ::core::convert::From<$name> for $crate::status::StatusFlags {
+        impl ::core::convert::From<$name> for $crate::__private::status::StatusFlags {
             fn from(flag: $name) -> Self {
-                $crate::status::StatusFlags(1 << (flag as u32))
+                $crate::__private::status::StatusFlags(1 << (flag as u32))
             }
         }
 
         impl ::core::ops::BitOr for $name {
-            type Output = $crate::status::StatusFlags;
-            fn bitor(self, rhs: $name) -> $crate::status::StatusFlags {
-                $crate::status::StatusFlags::from(self) | $crate::status::StatusFlags::from(rhs)
+            type Output = $crate::__private::status::StatusFlags;
+            fn bitor(self, rhs: $name) -> $crate::__private::status::StatusFlags {
+                $crate::__private::status::StatusFlags::from(self) | $crate::__private::status::StatusFlags::from(rhs)
             }
         }
 
-        impl ::core::ops::BitOr<$name> for $crate::status::StatusFlags {
-            type Output = $crate::status::StatusFlags;
-            fn bitor(self, rhs: $name) -> $crate::status::StatusFlags {
-                self | $crate::status::StatusFlags::from(rhs)
+        impl ::core::ops::BitOr<$name> for $crate::__private::status::StatusFlags {
+            type Output = $crate::__private::status::StatusFlags;
+            fn bitor(self, rhs: $name) -> $crate::__private::status::StatusFlags {
+                self | $crate::__private::status::StatusFlags::from(rhs)
             }
         }
 
-        impl ::core::ops::BitOr<$crate::status::StatusFlags> for $name {
-            type Output = $crate::status::StatusFlags;
-            fn bitor(self, rhs: $crate::status::StatusFlags) -> $crate::status::StatusFlags {
-                $crate::status::StatusFlags::from(self) | rhs
+        impl ::core::ops::BitOr<$crate::__private::status::StatusFlags> for $name {
+            type Output = $crate::__private::status::StatusFlags;
+            fn bitor(self, rhs: $crate::__private::status::StatusFlags) -> $crate::__private::status::StatusFlags {
+                $crate::__private::status::StatusFlags::from(self) | rhs
             }
         }
 

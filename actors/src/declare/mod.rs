@@ -16,15 +16,16 @@
 //!   parameters an enum (see [`DeclaredParams`], [`ParamValue`]);
 //! - [`flags!`](crate::flags!) — an enum of flags whose variant is both the declaration and the
 //!   bit (see [`DeclaredFlags`]);
-//! - [`DmName`] — datamanagers by constant ([`crate::dm::FEATURE`]);
-//! - [`RecordKind<T>`] — a record's class, sub-classes and payload type.
+//! - [`DmName`] — datamanagers by constant ([`marie_dm::FEATURE`]);
+//! - [`RecordKind<T>`](marie_dm::RecordKind) — a record's class, sub-classes and payload
+//!   type (with the datamanagers, whose records it makes and selects).
 //!
 //! None of it replaces the string interfaces: the generated code calls them, and operations
 //! declared by hand keep working. No proc-macro crate is involved; the macros are
 //! `macro_rules!`, so the build stays as lean as it was.
 //!
-//! [`ParamSchema`]: crate::property::ParamSchema
-//! [`ParamDecl`]: crate::property::ParamDecl
+//! [`ParamSchema`]: marie_vocabulary::property::ParamSchema
+//! [`ParamDecl`]: marie_vocabulary::property::ParamDecl
 //!
 //! ```
 //! use marie_actors::prelude::*;
@@ -76,9 +77,7 @@ mod choice;
 mod dm;
 mod flags;
 mod params;
-mod records;
 
 pub use dm::DmName;
 pub use flags::DeclaredFlags;
 pub use params::{Bound, DeclaredParams, IntoParam, Param, ParamError, ParamMapExt, ParamValue};
-pub use records::RecordKind;

@@ -3,13 +3,13 @@
 //!
 //! [`params!`](crate::params) declares a struct whose fields are an operation's parameters;
 //! [`DeclaredParams`] is what it implements. Each parameter's Rust type decides its
-//! [`ParamType`](crate::property::ParamType) through [`ParamValue`]: `f64` is a float, `i64`
+//! [`ParamType`](marie_vocabulary::property::ParamType) through [`ParamValue`]: `f64` is a float, `i64`
 //! an int, `bool` a bool, `String` text, and an enum declared with
 //! [`choice!`](crate::choice) a choice among its words. A [`Param<T>`] names one parameter
 //! with its type, so code that sets or reads one value (a mission builder, a client) cannot
 //! misspell the name or give a value of the wrong type.
 
-use crate::property::{FromValue, ParamDecl, ParamMap, ParamSchema, Value};
+use marie_vocabulary::property::{FromValue, ParamDecl, ParamMap, ParamSchema, Value};
 use std::fmt;
 use std::marker::PhantomData;
 
@@ -21,7 +21,7 @@ use std::marker::PhantomData;
 ///
 /// ```
 /// use marie_actors::declare::ParamValue;
-/// use marie_actors::property::{FromValue, ParamDecl, Value};
+/// use marie_vocabulary::property::{FromValue, ParamDecl, Value};
 /// assert_eq!(<f64 as ParamValue>::decl("gain", 0.5), ParamDecl::float("gain", 0.5));
 /// assert_eq!(i64::from_value(&Value::Int(3)), Some(3));
 /// assert_eq!(f64::from_value(&Value::Int(3)), Some(3.0)); // ints convert to floats
@@ -128,7 +128,7 @@ pub struct ParamError {
 ///
 /// ```
 /// use marie_actors::declare::{Param, ParamMapExt};
-/// use marie_actors::property::{ParamMap, Value};
+/// use marie_vocabulary::property::{ParamMap, Value};
 ///
 /// const START: Param<i64> = Param::new("start");
 /// let update = ParamMap::new().with(START, 97);
@@ -177,7 +177,7 @@ impl<T: ParamValue> Param<T> {
         }
     }
 
-    /// The name and `value` as a pair for [`crate::property::param_map`].
+    /// The name and `value` as a pair for [`marie_vocabulary::property::param_map`].
     pub fn pair(&self, value: impl IntoParam<T>) -> (&'static str, Value) {
         (self.name, value.into_param().into_value())
     }
@@ -206,7 +206,7 @@ impl<T> fmt::Debug for Param<T> {
 ///
 /// ```
 /// use marie_actors::declare::{Param, ParamMapExt};
-/// use marie_actors::property::{param_map, ParamMap, Value};
+/// use marie_vocabulary::property::{param_map, ParamMap, Value};
 ///
 /// const GAIN: Param<f64> = Param::new("gain");
 /// const MODE: Param<String> = Param::new("mode");
@@ -238,7 +238,7 @@ impl ParamMapExt for ParamMap {
 ///
 /// ```
 /// use marie_actors::declare::DeclaredParams;
-/// use marie_actors::property::{ParamDecl, ParamSchema, Value};
+/// use marie_vocabulary::property::{ParamDecl, ParamSchema, Value};
 ///
 /// marie_actors::params! {
 ///     /// How far to walk.
@@ -315,7 +315,7 @@ impl Bound for i64 {
 ///
 /// ```
 /// use marie_actors::declare::{DeclaredParams, ParamMapExt};
-/// use marie_actors::property::{ParamDecl, ParamMap, ParamSchema};
+/// use marie_vocabulary::property::{ParamDecl, ParamMap, ParamSchema};
 ///
 /// marie_actors::choice! {
 ///     /// What to follow.
@@ -374,7 +374,7 @@ impl Bound for i64 {
 ///         pub start: i64 = 27;
 ///     }
 /// }
-/// let _ = marie_actors::property::ParamMap::new().with(P::start(), "27");
+/// let _ = marie_vocabulary::property::ParamMap::new().with(P::start(), "27");
 /// ```
 #[macro_export]
 macro_rules! params {
@@ -418,9 +418,9 @@ macro_rules! params {
         }
 
         impl $crate::declare::DeclaredParams for $name {
-            fn schema() -> $crate::property::ParamSchema {
+            fn schema() -> $crate::__private::property::ParamSchema {
                 let defaults = <$name as ::core::default::Default>::default();
-                $crate::property::ParamSchema::new(::std::vec![
+                $crate::__private::property::ParamSchema::new(::std::vec![
                     $({
                         let decl = <$ty as $crate::declare::ParamValue>::decl(
                             ::core::stringify!($field),
@@ -436,7 +436,7 @@ macro_rules! params {
             }
 
             fn from_map(
-                map: &$crate::property::ParamMap,
+                map: &$crate::__private::property::ParamMap,
             ) -> ::core::result::Result<Self, $crate::declare::ParamError> {
                 ::core::result::Result::Ok($name {
                     $(
@@ -446,8 +446,8 @@ macro_rules! params {
                 })
             }
 
-            fn to_map(&self) -> $crate::property::ParamMap {
-                let mut map = $crate::property::ParamMap::new();
+            fn to_map(&self) -> $crate::__private::property::ParamMap {
+                let mut map = $crate::__private::property::ParamMap::new();
                 $(
                     map.insert(
                         ::core::stringify!($field).to_string(),
@@ -484,7 +484,7 @@ macro_rules! __param_option {
 mod tests {
     use super::*;
     use crate::eo::{OpError, Params};
-    use crate::property::{param_map, ParamType};
+    use marie_vocabulary::property::{param_map, ParamType};
 
     crate::choice! {
         /// Test choice.

@@ -31,7 +31,7 @@
 //! # Events and the report
 //! Every step of the run is published on the bus given in [`DispatcherArgs`], and nothing
 //! else carries it: the run's report is those events folded
-//! ([`ReportBuilder`](crate::report::ReportBuilder)), by whoever runs the dispatcher. The
+//! ([`ReportBuilder`](marie_vocabulary::report::ReportBuilder)), by whoever runs the dispatcher. The
 //! dispatcher answers its run request with its outcome only.
 //!
 //! # Layout
@@ -44,12 +44,12 @@ use super::checkpoint::{Checkpoint, CheckpointArgs, Checkpointer};
 use super::messages::DispatcherMsg;
 use super::mission::Mission;
 use super::tree::Tree;
-use crate::clock::{SharedClock, Timer};
-use crate::events::{EventBus, EventKind};
-use crate::registry::{self, ModuleKind};
-use crate::report::{ReportBuilder, RunReport};
-use crate::run::{FaultKind, Outcome};
-use crate::status::StatusFlags;
+use marie_vocabulary::clock::{SharedClock, Timer};
+use marie_vocabulary::events::{EventBus, EventKind};
+use marie_vocabulary::registry::{self, ModuleKind};
+use marie_vocabulary::report::{ReportBuilder, RunReport};
+use marie_vocabulary::run::{FaultKind, Outcome};
+use marie_vocabulary::status::StatusFlags;
 use ractor::{Actor, ActorProcessingErr, ActorRef, RpcReplyPort, SpawnErr};
 use std::collections::{BTreeMap, BTreeSet};
 use std::time::Duration;

@@ -3,15 +3,15 @@
 //!
 //! # Invariants
 //! - The bus is the dispatcher's only account of the run: whoever wants the report folds
-//!   the events ([`crate::report::ReportBuilder`]).
+//!   the events ([`marie_vocabulary::report::ReportBuilder`]).
 //! - The run ends once (success or full stop): what still runs is suspended first,
 //!   `run_ended` is published, the outcome answered, and the dispatcher then stops
 //!   normally.
 
 use super::actor::DispatcherState;
 use super::messages::DispatcherMsg;
-use crate::events::EventKind;
-use crate::run::Outcome;
+use marie_vocabulary::events::EventKind;
+use marie_vocabulary::run::Outcome;
 use ractor::ActorRef;
 
 impl DispatcherState {

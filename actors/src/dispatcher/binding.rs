@@ -16,10 +16,10 @@
 
 use super::candidates::Prospect;
 use super::selection::{self, Need, Offer};
-use crate::clock::Timer;
 use crate::eo::EoClient;
-use crate::property::ParamMap;
-use crate::run::LossCause;
+use marie_vocabulary::clock::Timer;
+use marie_vocabulary::property::ParamMap;
+use marie_vocabulary::run::LossCause;
 use ractor::ActorId;
 use semver::VersionReq;
 use std::time::Duration;
@@ -107,13 +107,13 @@ impl Binding {
     /// ([`selection::choose`] on the binding's need), after ruling out what cannot stand in
     /// whatever the mission needs: the lost actor itself, an instance on a node declared
     /// down, another operation's. Gives the explanation (every candidate with its verdict,
-    /// [`Choice::replacing`](crate::run::Choice::replacing) the lost address) and the index
+    /// [`Choice::replacing`](marie_vocabulary::run::Choice::replacing) the lost address) and the index
     /// of the chosen one in `cands`.
     pub(crate) fn choose_stand_in(
         &self,
         cands: &[Prospect],
         here: &str,
-    ) -> (crate::run::Choice, Option<usize>) {
+    ) -> (marie_vocabulary::run::Choice, Option<usize>) {
         let (mut fit, mut ruled_out) = (Vec::new(), Vec::new());
         for (i, cand) in cands.iter().enumerate() {
             match self.cannot_stand_in(cand) {
@@ -125,7 +125,7 @@ impl Binding {
         let mut choice = selection::choose(&self.need, &offers, here);
         let chosen = choice.chosen_index().map(|k| fit[k]);
         for (i, reason) in ruled_out {
-            let verdict = crate::run::Verdict::Rejected { reason };
+            let verdict = marie_vocabulary::run::Verdict::Rejected { reason };
             choice.candidates.push(cands[i].offer().candidate(verdict));
         }
         choice.replacing = self.lost.as_ref().map(|l| l.from.clone());
@@ -139,7 +139,7 @@ impl Binding {
         if self.lost.as_ref().is_some_and(|lost| actor == lost.dead) {
             return Some("it is the instance that was lost".to_string());
         }
-        if crate::registry::is_declared_down(node) {
+        if marie_vocabulary::registry::is_declared_down(node) {
             return Some(format!("its node {node} was declared down"));
         }
         None

@@ -6,8 +6,8 @@
 use super::mission::op_info::OpInfo;
 use super::selection::{self, Need, Offer};
 use crate::eo::{EoClient, EoError};
-use crate::property::{General, Group, PropertyReply, PropertyRequest};
-use crate::registry::Instance;
+use marie_vocabulary::property::{General, Group, PropertyReply, PropertyRequest};
+use marie_vocabulary::registry::Instance;
 use ractor::ActorId;
 use std::time::Duration;
 
@@ -24,7 +24,7 @@ pub async fn describe(client: EoClient) -> Result<OpInfo, EoError> {
             name: i.name.to_string(),
             id: i.id,
             version: i.version.to_string(),
-            schema: crate::property::ParamSchema::new(s.params),
+            schema: marie_vocabulary::property::ParamSchema::new(s.params),
             flags: s.flags,
         }),
         _ => Err(EoError::Gone(client.actor().get_id().to_string())),
@@ -129,7 +129,10 @@ pub(crate) struct Examined {
 /// Every live instance of `operation`, asked at once (selection needs them all), in
 /// registry order; those that do not answer within `timeout` are left out of `found`.
 pub(crate) async fn candidates(operation: &str, timeout: Duration) -> Examined {
-    let listed = crate::registry::lookup(crate::registry::ModuleKind::Operation, operation);
+    let listed = marie_vocabulary::registry::lookup(
+        marie_vocabulary::registry::ModuleKind::Operation,
+        operation,
+    );
     let seen = listed.iter().map(Instance::actor_id).collect();
     let found = examine_all(operation, listed, timeout).await;
     Examined { seen, found }
@@ -138,16 +141,23 @@ pub(crate) async fn candidates(operation: &str, timeout: Duration) -> Examined {
 /// Every live instance of the operation `need` names, asked at once, and the choice among
 /// them for `need` on this node — what binding, surveying and validating a mission share,
 /// so the instance a mission is checked against is the one it binds.
-pub(crate) async fn select(need: &Need, timeout: Duration) -> (Examined, crate::run::Choice) {
+pub(crate) async fn select(
+    need: &Need,
+    timeout: Duration,
+) -> (Examined, marie_vocabulary::run::Choice) {
     let examined = candidates(&need.operation, timeout).await;
     let choice = choose(need, &examined.found);
     (examined, choice)
 }
 
 /// The choice among `found` for `need` on this node.
-pub(crate) fn choose(need: &Need, found: &[Prospect]) -> crate::run::Choice {
+pub(crate) fn choose(need: &Need, found: &[Prospect]) -> marie_vocabulary::run::Choice {
     let offers: Vec<Offer> = found.iter().map(Prospect::offer).collect();
-    selection::choose(need, &offers, &crate::registry::local_node_name())
+    selection::choose(
+        need,
+        &offers,
+        &marie_vocabulary::registry::local_node_name(),
+    )
 }
 
 /// Every instance of `found` (of `operation`), asked at once, in the given order; those

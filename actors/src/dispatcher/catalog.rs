@@ -4,7 +4,7 @@ use super::candidates::{describe, select, Examined};
 use super::checked::CheckedChoices;
 use super::mission::{Catalog, Mission, OpInfo, ParsedMission};
 use crate::eo::{EoClient, EoError};
-use crate::registry::{self, ModuleKind};
+use marie_vocabulary::registry::{self, ModuleKind};
 use std::collections::BTreeMap;
 
 /// The operations a mission may use, as the running system describes them: each key is

@@ -42,8 +42,8 @@
 
 use super::candidates::{self, ExamineError, Examined, Prospect};
 use super::selection::Need;
-use crate::registry::{self, ModuleKind};
-use crate::run::Choice;
+use marie_vocabulary::registry::{self, ModuleKind};
+use marie_vocabulary::run::Choice;
 use ractor::ActorId;
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt;

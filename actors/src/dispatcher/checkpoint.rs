@@ -1,5 +1,5 @@
 //! Checkpoints: a run's progress as its dispatcher records it at every transition, in the
-//! run datamanager ([`RUN`](crate::dm::RUN), kept in copies on other nodes), so that a
+//! run datamanager ([`RUN`](marie_dm::RUN), kept in copies on other nodes), so that a
 //! standby dispatcher can take the run over when the dispatcher's node is lost.
 //!
 //! A [`Checkpoint`] is everything a standby needs to carry the run on: the run's id, the
@@ -8,7 +8,7 @@
 //! its instance, epoch and the parameters sent last, and the dispatcher's *term*. It is
 //! stored as one record (class [`CHECKPOINT_CLASS`], sub-class the run's id) stamped with
 //! the term as its epoch, from the source [`CHECKPOINT_SOURCE`]: the datamanager's fence
-//! ([`crate::fence`]) then refuses every checkpoint of an older term once a newer one was
+//! ([`marie_vocabulary::fence`]) then refuses every checkpoint of an older term once a newer one was
 //! stored. That refusal is how a dispatcher learns that a standby carries its run on (it
 //! was frozen, or cut off, and declared lost): it stops without ending the run.
 //!
@@ -28,9 +28,9 @@
 
 use super::messages::DispatcherMsg;
 use super::mission::Mission;
-use crate::dm::{DmClient, DmError, Query};
-use crate::property::ParamMap;
-use crate::run::Outcome;
+use marie_dm::{DmClient, DmError, Query};
+use marie_vocabulary::property::ParamMap;
+use marie_vocabulary::run::Outcome;
 use ractor::ActorRef;
 use serde::{Deserialize, Serialize};
 use std::time::Duration;
@@ -141,9 +141,9 @@ impl Checkpoint {
     }
 
     /// The hash a checkpoint carries of `mission`: the datamanagers' payload digest
-    /// ([`crate::dm::acks::digest`]) of its MessagePack.
+    /// ([`marie_dm::digest`]) of its MessagePack.
     pub fn hash_of(mission: &Mission) -> u64 {
-        crate::dm::acks::digest(&rmp_serde::to_vec(mission).unwrap_or_default())
+        marie_dm::digest(&rmp_serde::to_vec(mission).unwrap_or_default())
     }
 }
 
@@ -305,7 +305,7 @@ mod tests {
         );
         let mut ops = std::collections::BTreeMap::new();
         let mut op = crate::dispatcher::mission::OpInfo::new("op", 1, "1.0.0");
-        op.flags = vec![crate::status::FlagDecl::new("done", "done")];
+        op.flags = vec![marie_vocabulary::status::FlagDecl::new("done", "done")];
         ops.insert("op".to_string(), op);
         ParsedMission::parse(&text, None)
             .unwrap()

@@ -2,8 +2,8 @@
 //! raised, and — if the report breaks the action — the reason of the full stop.
 
 use crate::eo::EoReport;
-use crate::run::OpEnd;
-use crate::status::StatusFlags;
+use marie_vocabulary::run::OpEnd;
+use marie_vocabulary::status::StatusFlags;
 
 /// What an operation's report does to its action: how its part ended, its flags, whether the run must stop.
 pub(super) struct Effect {

@@ -22,14 +22,14 @@ use super::actor::{DispatcherState, Start};
 use super::binding::Binding;
 use super::candidates::{examine, examine_all, select, Prospect};
 use super::messages::DispatcherMsg;
-use crate::clock::Timer;
 use crate::eo::{EoError, ParamOutcome};
-use crate::events::{BoundOp, BusError, Event, EventKind};
-use crate::fence::{self, Fence};
-use crate::property::PropertyRequest;
 use crate::provision::GRACE as PROVISION_GRACE;
-use crate::registry::{self, Instance, ModuleKind, RegistryEvent};
-use crate::run::{Choice, LossCause, Outcome, RebindRecord, Verdict};
+use marie_vocabulary::clock::Timer;
+use marie_vocabulary::events::{BoundOp, BusError, Event, EventKind};
+use marie_vocabulary::fence::{self, Fence};
+use marie_vocabulary::property::PropertyRequest;
+use marie_vocabulary::registry::{self, Instance, ModuleKind, RegistryEvent};
+use marie_vocabulary::run::{Choice, LossCause, Outcome, RebindRecord, Verdict};
 use ractor::ActorRef;
 use std::time::Duration;
 
@@ -55,7 +55,7 @@ impl DispatcherState {
     /// The lowest epoch this run binds under: its start in clock ms × 1000. A later run —
     /// of this dispatcher or of another on a synchronized clock — binds above every epoch an
     /// earlier one used (up to a thousand rebinds per ms of run), so the receivers' fences
-    /// ([`crate::fence`]) admit a new run's commands and keep refusing a replaced
+    /// ([`marie_vocabulary::fence`]) admit a new run's commands and keep refusing a replaced
     /// incarnation's.
     fn epoch_base(&self) -> u64 {
         (self.started.as_millis() as u64).saturating_mul(1000)
@@ -115,7 +115,7 @@ impl DispatcherState {
     }
 
     /// Announce the epochs of the bindings of operation `only` (of every binding with
-    /// `None`) to the receivers' fence keepers ([`crate::fence::announce`]): after the
+    /// `None`) to the receivers' fence keepers ([`marie_vocabulary::fence::announce`]): after the
     /// epochs are recorded, before a command carries them and before they are told on the
     /// bus — so from the `bound` or `rebound` event on, the receivers in reach refuse the
     /// epochs they replace.

@@ -1,14 +1,14 @@
 //! The dispatcher's messages.
 
 use crate::eo::{EoError, EoReport};
-use crate::registry::RegistryEvent;
-use crate::run::{FaultKind, Outcome};
+use marie_vocabulary::registry::RegistryEvent;
+use marie_vocabulary::run::{FaultKind, Outcome};
 
-crate::remote_message! {
+marie_vocabulary::remote_message! {
     /// Messages of the action dispatcher.
     pub enum DispatcherMsg {
         /// Run the mission; the answer, the dispatcher's outcome, comes when it has ended (the
-        /// run's report is its events, folded: [`crate::report`]).
+        /// run's report is its events, folded: [`marie_vocabulary::report`]).
         Run {} -> Outcome,
         /// Commit `fault` on purpose (fault injection): a kill, a panic or a hang, as a
         /// datamanager suffers them ([`FaultKind::hits_datamanager`]); a standby dispatcher

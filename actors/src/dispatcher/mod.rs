@@ -4,8 +4,8 @@
 //! that are actually running ([`RegistryCatalog`]), carrying the instances that check chose
 //! ([`CheckedChoices`]). An [`ActionDispatcher`] runs it, binding those choices unless an
 //! instance changed since: every step is an event on the node's
-//! [`EventBus`](crate::events::EventBus), and the run's report is those events folded
-//! ([`crate::report`]).
+//! [`EventBus`](marie_vocabulary::events::EventBus), and the run's report is those events folded
+//! ([`marie_vocabulary::report`]).
 //!
 //! This is the low layer. An application runs missions on a node
 //! (`marie_cluster::node::Node::run`), which adds what a run needs around the dispatcher:

@@ -1,12 +1,12 @@
 //! A mission's behaviour tree as its run announces it ([`EventKind::ControlPlan`]): each
 //! node with its parent, kind, label and settings in words — what a monitor draws.
 //!
-//! [`EventKind::ControlPlan`]: crate::events::EventKind::ControlPlan
+//! [`EventKind::ControlPlan`]: marie_vocabulary::events::EventKind::ControlPlan
 
 use super::mission::Mission;
 use super::tree::{Node, Tree};
-use crate::events::PlanNode;
-use crate::status::StatusFlags;
+use marie_vocabulary::events::PlanNode;
+use marie_vocabulary::status::StatusFlags;
 
 /// The nodes of `mission`'s tree in preorder, the root first.
 pub fn control_plan(mission: &Mission) -> Vec<PlanNode> {

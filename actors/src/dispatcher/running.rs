@@ -24,12 +24,12 @@ use super::effect::Effect;
 use super::messages::DispatcherMsg;
 use super::mission::EndMode;
 use super::tree::{Command, Decision, Node, Status};
-use crate::clock::Timer;
 use crate::eo::{EoError, EoReport};
-use crate::events::{ActionResult, EventKind, OpStarted};
-use crate::run::LossCause;
-use crate::run::{OpEnd, Outcome, ParamSource, ParamValue};
-use crate::status::StatusFlags;
+use marie_vocabulary::clock::Timer;
+use marie_vocabulary::events::{ActionResult, EventKind, OpStarted};
+use marie_vocabulary::run::LossCause;
+use marie_vocabulary::run::{OpEnd, Outcome, ParamSource, ParamValue};
+use marie_vocabulary::status::StatusFlags;
 use ractor::ActorRef;
 use std::collections::BTreeSet;
 use std::time::Duration;
@@ -67,7 +67,7 @@ impl DispatcherState {
         myself: &ActorRef<DispatcherMsg>,
         key: &str,
         start: Start,
-        params: crate::property::ParamMap,
+        params: marie_vocabulary::property::ParamMap,
     ) -> Result<(), EoError> {
         let Some(b) = self.binding(key) else {
             return Err(EoError::Gone(key.to_string()));

@@ -21,8 +21,8 @@
 //! ```
 //! use marie_actors::dispatcher::mission::OpInfo;
 //! use marie_actors::dispatcher::selection::{choose, Need, Offer};
-//! use marie_actors::run::Verdict;
-//! use marie_actors::property::{ParamDecl, ParamSchema, Value};
+//! use marie_vocabulary::run::Verdict;
+//! use marie_vocabulary::property::{ParamDecl, ParamSchema, Value};
 //!
 //! let v1 = OpInfo::new("wall-follower", 1514, "1.0.0")
 //!     .params(ParamSchema::new(vec![ParamDecl::float("distance", 0.6)]));
@@ -42,8 +42,8 @@
 //! ```
 
 use super::mission::op_info::OpInfo;
-use crate::property::{ParamMap, Rejection, Value};
-use crate::run::{Candidate, Choice, Verdict};
+use marie_vocabulary::property::{ParamMap, Rejection, Value};
+use marie_vocabulary::run::{Candidate, Choice, Verdict};
 use semver::{Version, VersionReq};
 use std::cmp::Ordering;
 use std::collections::BTreeSet;
@@ -297,7 +297,7 @@ fn why_lost(need: &Need, loser: &Offer, winner: &Offer, here: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::property::{ParamDecl, ParamSchema};
+    use marie_vocabulary::property::{ParamDecl, ParamSchema};
 
     fn v1() -> OpInfo {
         OpInfo::new("wall-follower", 1514, "1.0.0").params(ParamSchema::new(vec![

@@ -10,7 +10,7 @@
 use super::candidates::select;
 use super::mission::Mission;
 use crate::eo::EoClient;
-use crate::run::Choice;
+use marie_vocabulary::run::Choice;
 use serde::{Deserialize, Serialize};
 
 /// The dispatcher's view of a mission before it runs.
@@ -86,7 +86,7 @@ pub fn tell(mission: &Mission, choices: Vec<Choice>) -> Survey {
 
 fn flag_sources(mission: &Mission, choices: &[Choice]) -> Vec<FlagSource> {
     let mut out: Vec<FlagSource> = Vec::new();
-    let mut wait = |bits: crate::status::StatusFlags, by: String| {
+    let mut wait = |bits: marie_vocabulary::status::StatusFlags, by: String| {
         for bit in bits.bits() {
             let Some(flag) = mission.flag_name(bit) else {
                 continue;
@@ -144,8 +144,8 @@ mod tests {
     use super::*;
     use crate::dispatcher::mission::{Catalog, OpInfo, ParsedMission};
     use crate::dispatcher::selection::{choose, Offer};
-    use crate::property::{ParamDecl, ParamSchema};
-    use crate::status::FlagDecl;
+    use marie_vocabulary::property::{ParamDecl, ParamSchema};
+    use marie_vocabulary::status::FlagDecl;
 
     struct Ops(Vec<OpInfo>);
 

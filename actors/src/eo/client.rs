@@ -1,8 +1,8 @@
 //! A typed handle for sending the eo-interface and property interface to an operation.
 
 use super::messages::{EoMsg, EoReport, ParamOutcome};
-use crate::property::{ParamMap, PropertyReply, PropertyRequest};
-use crate::run::FaultKind;
+use marie_vocabulary::property::{ParamMap, PropertyReply, PropertyRequest};
+use marie_vocabulary::run::FaultKind;
 use ractor::concurrency::OneshotReceiver;
 use ractor::rpc::CallResult;
 use ractor::{ActorCell, ActorRef};
@@ -38,7 +38,7 @@ impl EoClient {
         }
     }
 
-    /// A handle to an actor found in the registry under [`crate::registry::ModuleKind::Operation`].
+    /// A handle to an actor found in the registry under [`marie_vocabulary::registry::ModuleKind::Operation`].
     pub fn from_cell(cell: ActorCell) -> Self {
         Self::new(cell.into())
     }

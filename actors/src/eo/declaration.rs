@@ -21,12 +21,12 @@ pub struct DeclarationError {
 }
 
 /// Check `op`'s declarations: parameters whose defaults and ranges
-/// agree and whose names differ ([`ParamSchema::self_check`](crate::property::ParamSchema::self_check)),
+/// agree and whose names differ ([`ParamSchema::self_check`](marie_vocabulary::property::ParamSchema::self_check)),
 /// at most [`MAX_FLAGS`] flags with distinct names.
 ///
 /// ```
 /// use marie_actors::eo::{check_declaration, Identity, OpContext, OpError, Operation, Step};
-/// use marie_actors::property::{ParamDecl, ParamSchema};
+/// use marie_vocabulary::property::{ParamDecl, ParamSchema};
 ///
 /// struct Bad;
 /// impl Operation for Bad {

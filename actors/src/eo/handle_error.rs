@@ -6,7 +6,7 @@
 //! ran on — `operation `collatz` on node `embedded` did not answer within 5 s` — and keeps
 //! them as fields for code that reacts to them.
 
-use crate::property::{Rejection, Value};
+use marie_vocabulary::property::{Rejection, Value};
 use std::fmt;
 use std::time::Duration;
 
@@ -94,7 +94,7 @@ pub enum HandleError {
         node: String,
         /// The parameter or property.
         name: String,
-        /// The type asked for ([`crate::property::FromValue::EXPECTED`]).
+        /// The type asked for ([`marie_vocabulary::property::FromValue::EXPECTED`]).
         expected: &'static str,
         /// The value it has.
         got: Value,
@@ -126,7 +126,7 @@ pub enum HandleError {
 ///
 /// ```
 /// use marie_actors::eo::SetError;
-/// use marie_actors::property::{RejectReason, Rejection};
+/// use marie_vocabulary::property::{RejectReason, Rejection};
 /// let e = SetError::Rejected {
 ///     operation: "pump".into(),
 ///     node: "embedded".into(),

@@ -14,14 +14,14 @@
 
 use super::messages::{EoMsg, EoReport, ParamOutcome};
 use super::operation::{Identity, OpContext, Operation, Params, Step};
-use crate::clock::{RealClock, SharedClock, Timer};
-use crate::property::{
+use marie_vocabulary::clock::{RealClock, SharedClock, Timer};
+use marie_vocabulary::property::{
     Address, Collection, General, Group, Identification, Limit, Location, ParamMap, ParamSchema,
     PropertyReply, PropertyRequest, Signature, Specific, Value,
 };
-use crate::registry::{self, ModuleKind};
-use crate::run::FaultKind;
-use crate::status::{FlagDecl, StatusFlags};
+use marie_vocabulary::registry::{self, ModuleKind};
+use marie_vocabulary::run::FaultKind;
+use marie_vocabulary::status::{FlagDecl, StatusFlags};
 use ractor::{Actor, ActorCell, ActorProcessingErr, ActorRef, RpcReplyPort, SpawnErr};
 use std::marker::PhantomData;
 use std::time::Duration;
@@ -37,11 +37,11 @@ pub struct HostOptions {
     /// Publish in the registry (on by default).
     pub publish: bool,
     /// Told of every store and delete its datamanager clients get acknowledged
-    /// ([`crate::dm::acks`]; a node publishes them on its bus). `None` by default.
-    pub acks: Option<crate::dm::AckSink>,
+    /// ([`marie_dm::AckSink`]; a node publishes them on its bus). `None` by default.
+    pub acks: Option<marie_dm::AckSink>,
     /// Where a `Parameterize` that changes its values is told (`reparameterized`: a run's
     /// provenance names every value an operation ran with). `None` by default.
-    pub events: Option<crate::events::EventBus>,
+    pub events: Option<marie_vocabulary::events::EventBus>,
 }
 
 impl std::fmt::Debug for HostOptions {
@@ -136,7 +136,7 @@ pub struct HostState<O> {
     ctx: OpContext,
     previous: ParamMap,
     /// Where changed parameters are told ([`HostOptions::events`]).
-    events: Option<crate::events::EventBus>,
+    events: Option<marie_vocabulary::events::EventBus>,
     epoch: u64,
     active: Option<Active>,
     activations: u64,
@@ -170,21 +170,21 @@ impl<O: Operation> HostState<O> {
         }
     }
 
-    /// Tell the values `next` changes ([`EventKind::Reparameterized`](crate::events::EventKind::Reparameterized)).
+    /// Tell the values `next` changes ([`EventKind::Reparameterized`](marie_vocabulary::events::EventKind::Reparameterized)).
     fn tell_changes(&self, myself: &ActorRef<EoMsg>, next: &ParamMap) {
         let Some(bus) = &self.events else { return };
         let current = self.current();
-        let values: Vec<crate::run::ParamValue> = next
+        let values: Vec<marie_vocabulary::run::ParamValue> = next
             .iter()
             .filter(|(k, v)| current.get(*k) != Some(*v))
-            .map(|(k, v)| crate::run::ParamValue {
+            .map(|(k, v)| marie_vocabulary::run::ParamValue {
                 name: k.clone(),
                 value: v.clone(),
-                source: crate::run::ParamSource::Reparameterized,
+                source: marie_vocabulary::run::ParamSource::Reparameterized,
             })
             .collect();
         if !values.is_empty() {
-            bus.publish(crate::events::EventKind::Reparameterized {
+            bus.publish(marie_vocabulary::events::EventKind::Reparameterized {
                 operation: self.identity.name.clone(),
                 address: myself.get_id().to_string(),
                 values,
@@ -416,7 +416,7 @@ impl<O: Operation> HostState<O> {
                     // wait replaces (cancels) it; its message names its activation, which a
                     // host that has moved on ignores
                     self.tick = Some(Timer::task(tokio::spawn(async move {
-                        let back = crate::registry::follow::next_instance(
+                        let back = marie_vocabulary::registry::follow::next_instance(
                             kind,
                             &module,
                             None,

@@ -1,8 +1,8 @@
 //! eo-interface messages (thesis 3.2.5.1; see `docs/thesis.md`).
 
-use crate::property::{ParamMap, PropertyReply, PropertyRequest, Rejection};
-use crate::run::FaultKind;
-use crate::status::StatusFlags;
+use marie_vocabulary::property::{ParamMap, PropertyReply, PropertyRequest, Rejection};
+use marie_vocabulary::run::FaultKind;
+use marie_vocabulary::status::StatusFlags;
 use serde::{Deserialize, Serialize};
 
 /// How an activation ended, sent on the activation's reply port. Flags are in the operation's
@@ -68,7 +68,7 @@ pub enum ParamOutcome {
     },
 }
 
-crate::remote_message! {
+marie_vocabulary::remote_message! {
     /// Messages an EO host understands: the eo-interface plus the property interface.
     pub enum EoMsg {
         /// Apply `params` (atomically, on top of the current values) and start the task. The
@@ -118,7 +118,7 @@ crate::remote_message! {
             request: PropertyRequest,
         } -> PropertyReply,
         /// Commit `fault` on purpose (fault injection). A host commits the kinds that aim
-        /// at an operation ([`Aim::Operation`](crate::run::Aim::Operation)) — a kill this
+        /// at an operation ([`Aim::Operation`](marie_vocabulary::run::Aim::Operation)) — a kill this
         /// way is how one reaches an instance on another node, where killing its local
         /// stand-in would only kill the stand-in — and ignores, with a warning, any other.
         Inject {

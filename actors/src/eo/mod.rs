@@ -12,8 +12,8 @@
 //!
 //! ```
 //! use marie_actors::eo::{self, Identity, Operation, OpContext, OpError, Step, EoClient};
-//! use marie_actors::status::{FlagDecl, StatusFlags};
-//! use marie_actors::property::{ParamDecl, ParamSchema, ParamMap};
+//! use marie_vocabulary::status::{FlagDecl, StatusFlags};
+//! use marie_vocabulary::property::{ParamDecl, ParamSchema, ParamMap};
 //!
 //! struct Countdown { left: i64 }
 //! impl Operation for Countdown {
@@ -58,7 +58,7 @@ pub use messages::{EoMsg, EoReport, ParamOutcome};
 /// How long an operation may take to answer a command unless it declares otherwise
 /// ([`Operation::deadline`]).
 pub const DEFAULT_DEADLINE: std::time::Duration =
-    std::time::Duration::from_millis(crate::property::DEFAULT_DEADLINE_MS);
+    std::time::Duration::from_millis(marie_vocabulary::property::DEFAULT_DEADLINE_MS);
 /// Time between an operation's steps unless it declares otherwise ([`Operation::period`]):
 /// 100 ms of the node's clock.
 pub const DEFAULT_PERIOD: std::time::Duration = std::time::Duration::from_millis(100);
@@ -71,5 +71,5 @@ pub const DEFAULT_PERIOD: std::time::Duration = std::time::Duration::from_millis
 /// clock: real time on a node, and in a simulation's paused runtime virtual time that
 /// stands still while anything (a restart) is being done — so it runs out only when nothing
 /// is left that could bring the DM back.
-pub const DATAMANAGER_RETURN: std::time::Duration = crate::dm::DmClient::DEFAULT_FOLLOW;
+pub const DATAMANAGER_RETURN: std::time::Duration = marie_dm::DmClient::DEFAULT_FOLLOW;
 pub use operation::{Identity, OpContext, OpError, Operation, Params, Step};

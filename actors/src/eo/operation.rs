@@ -1,11 +1,11 @@
 //! What an operation author implements.
 
-use crate::clock::SharedClock;
 use crate::declare::{DeclaredParams, DmName, Param, ParamError, ParamValue};
-use crate::dm::DmError;
-use crate::property::{ParamMap, ParamSchema, Value};
-use crate::registry::ModuleKind;
-use crate::status::{FlagDecl, StatusFlags};
+use marie_dm::DmError;
+use marie_vocabulary::clock::SharedClock;
+use marie_vocabulary::property::{ParamMap, ParamSchema, Value};
+use marie_vocabulary::registry::ModuleKind;
+use marie_vocabulary::status::{FlagDecl, StatusFlags};
 use serde::{Deserialize, Serialize};
 use std::future::Future;
 use std::time::Duration;
@@ -240,9 +240,9 @@ pub struct OpContext {
     pub(crate) activation: u64,
     pub(crate) epoch: u64,
     pub(crate) resumed: bool,
-    pub(crate) dms: std::collections::HashMap<String, crate::dm::DmClient>,
+    pub(crate) dms: std::collections::HashMap<String, marie_dm::DmClient>,
     /// Handed to every datamanager client it makes ([`super::HostOptions::acks`]).
-    pub(crate) acks: Option<crate::dm::AckSink>,
+    pub(crate) acks: Option<marie_dm::AckSink>,
 }
 
 impl std::fmt::Debug for OpContext {
@@ -306,9 +306,9 @@ impl OpContext {
     }
 
     /// This operation's fencing token: give it with every command to hardware, which then
-    /// obeys only the newest incarnation of the operation ([`crate::fence`]).
-    pub fn fence(&self) -> crate::fence::Fence {
-        crate::fence::Fence::new(self.source.clone(), self.epoch)
+    /// obeys only the newest incarnation of the operation ([`marie_vocabulary::fence`]).
+    pub fn fence(&self) -> marie_vocabulary::fence::Fence {
+        marie_vocabulary::fence::Fence::new(self.source.clone(), self.epoch)
     }
 
     /// A client of the datamanager `name` (or numeric id) that records this operation as the
@@ -316,9 +316,9 @@ impl OpContext {
     /// incarnation). Found through the registry and kept until its actor stops, then found
     /// again (a restarted datamanager is a new actor).
     ///
-    /// `name` is a constant such as [`crate::dm::FEATURE`] or text (`"feature"`, `"1201"`):
+    /// `name` is a constant such as [`marie_dm::FEATURE`] or text (`"feature"`, `"1201"`):
     /// see [`DmName`].
-    pub fn dm(&mut self, name: impl DmName) -> Result<crate::dm::DmClient, OpError> {
+    pub fn dm(&mut self, name: impl DmName) -> Result<marie_dm::DmClient, OpError> {
         let name = name.dm_name();
         let epoch = self.epoch;
         if let Some(c) = self.dms.get(name) {
@@ -327,7 +327,7 @@ impl OpContext {
             }
         }
         let mut client =
-            crate::dm::DmClient::lookup(name, &self.source).map_err(|e| OpError::Datamanager {
+            marie_dm::DmClient::lookup(name, &self.source).map_err(|e| OpError::Datamanager {
                 dm: name.to_string(),
                 problem: e.to_string(),
             })?;
@@ -344,7 +344,7 @@ impl OpContext {
     pub(crate) fn module_gone(&self, kind: ModuleKind, module: &str) -> bool {
         match kind {
             ModuleKind::Datamanager => self.dm_gone(module),
-            _ => crate::registry::follow::published(kind, module, None).is_none(),
+            _ => marie_vocabulary::registry::follow::published(kind, module, None).is_none(),
         }
     }
 
@@ -355,11 +355,16 @@ impl OpContext {
             .dms
             .get(dm)
             .is_some_and(|c| c.actor().get_status() > ractor::ActorStatus::Running);
-        stopped || crate::registry::lookup(crate::registry::ModuleKind::Datamanager, dm).is_empty()
+        stopped
+            || marie_vocabulary::registry::lookup(
+                marie_vocabulary::registry::ModuleKind::Datamanager,
+                dm,
+            )
+            .is_empty()
     }
 
     /// Send what the operation put to datamanagers on other nodes and is still queued
-    /// ([`crate::dm::DmClient::flush`]): the host does it after every step, so that a step's
+    /// ([`marie_dm::DmClient::flush`]): the host does it after every step, so that a step's
     /// puts leave before anything the host then reports.
     pub(crate) fn flush_puts(&self) {
         for (dm, client) in &self.dms {

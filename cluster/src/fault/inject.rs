@@ -6,11 +6,11 @@ use super::resolve::{resolve, Hit, RunBindings};
 use super::target::Target;
 use super::{FaultError, FaultSpec};
 use marie_actors::dispatcher::{DispatcherMsg, DISPATCHER_ID};
-use marie_actors::dm::DmMsg;
 use marie_actors::eo::EoClient;
-use marie_actors::events::{EventBus, EventKind, Tap};
-use marie_actors::registry::{self, Instance, ModuleKind};
-use marie_actors::run::{Aim, FaultKind};
+use marie_dm::DmMsg;
+use marie_vocabulary::events::{EventBus, EventKind, Tap};
+use marie_vocabulary::registry::{self, Instance, ModuleKind};
+use marie_vocabulary::run::{Aim, FaultKind};
 use ractor::ActorRef;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
@@ -53,9 +53,9 @@ impl Injected {
 /// follow.
 ///
 /// ```
-/// use marie_actors::clock::RealClock;
-/// use marie_actors::events::EventBus;
-/// use marie_actors::run::FaultKind;
+/// use marie_vocabulary::clock::RealClock;
+/// use marie_vocabulary::events::EventBus;
+/// use marie_vocabulary::run::FaultKind;
 /// use marie_cluster::fault::{Injector, Target};
 /// # #[tokio::main(flavor = "current_thread")] async fn main() {
 /// let bus = EventBus::new("doc", RealClock::shared());

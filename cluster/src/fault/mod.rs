@@ -4,7 +4,7 @@
 //! Every source of faults — a run's plan (`marie run --fault KIND:TARGET@SECS`), seeded
 //! chaos (`--chaos SEED`), `marie kill`, the monitor's page — takes one road:
 //!
-//! 1. the kind is a [`FaultKind`] (`marie_actors::run`, the one vocabulary the events and
+//! 1. the kind is a [`FaultKind`] (`marie_vocabulary::run`, the one vocabulary the events and
 //!    reports share), and says what it aims at: an operation or a node;
 //! 2. the target is parsed once into a [`Target`] (`NAME`, `ID`, `NAME#VERSION`, an actor
 //!    id, `NAME/NODE[/ADDRESS]`, a node's name, or two groups of nodes `A,B|C,D`), carried
@@ -19,7 +19,7 @@
 //! It lives with the node, not in `marie-supervision` (which knows no operation).
 //!
 //! ```
-//! use marie_actors::run::FaultKind;
+//! use marie_vocabulary::run::FaultKind;
 //! use marie_cluster::fault::{FaultSpec, Target};
 //! use std::time::Duration;
 //! let spec: FaultSpec = "panic:wall-sensor@12.5".parse().unwrap();
@@ -54,7 +54,7 @@ pub use processes::NodeProcesses;
 pub use resolve::{find, Hit, RunBindings};
 pub use target::{Target, TargetError};
 
-use marie_actors::run::{FaultKind, UnknownFault};
+use marie_vocabulary::run::{FaultKind, UnknownFault};
 use std::fmt;
 use std::str::FromStr;
 use std::time::Duration;
@@ -67,7 +67,7 @@ pub const MAX_FAULT_SECS: f64 = 86_400.0;
 pub struct FaultSpec {
     /// What to do.
     pub kind: FaultKind,
-    /// What to do it to (of the kind's [`Aim`](marie_actors::run::Aim)).
+    /// What to do it to (of the kind's [`Aim`](marie_vocabulary::run::Aim)).
     pub target: Target,
     /// When, in mission clock time since the run began.
     pub at: Duration,

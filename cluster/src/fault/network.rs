@@ -1,5 +1,5 @@
 //! The network between the nodes a process started, as a fault cuts it: what makes a
-//! [`FaultKind::Partition`](marie_actors::run::FaultKind::Partition) possible here.
+//! [`FaultKind::Partition`](marie_vocabulary::run::FaultKind::Partition) possible here.
 //!
 //! The node crate does not make networks: whoever starts the nodes in one it can cut
 //! (`marie up`, in a private network of Linux namespaces) hands an implementation to

@@ -3,7 +3,7 @@
 //! frozen for a while, or cut off from all the others for a while.
 
 use super::{Chaos, NodeProcesses, Target};
-use marie_actors::run::FaultKind;
+use marie_vocabulary::run::FaultKind;
 use std::time::Duration;
 
 /// Random node faults, seeded: the same seed and the same nodes give the same faults at the

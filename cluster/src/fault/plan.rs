@@ -8,9 +8,9 @@
 //! was over first); none is dropped silently.
 
 use super::{Chaos, FaultSpec, Injector, NodeChaos, Target};
-use marie_actors::clock::SharedClock;
-use marie_actors::registry::{self, ModuleKind};
-use marie_actors::run::FaultKind;
+use marie_vocabulary::clock::SharedClock;
+use marie_vocabulary::registry::{self, ModuleKind};
+use marie_vocabulary::run::FaultKind;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 use tokio::task::JoinHandle;

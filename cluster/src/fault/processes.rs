@@ -1,6 +1,6 @@
 //! The node processes a process may stop, freeze or cut off: what makes a fault that aims
-//! at a node ([`Aim::Node`](marie_actors::run::Aim::Node)) or a cut between nodes
-//! ([`Aim::Cut`](marie_actors::run::Aim::Cut)) possible here.
+//! at a node ([`Aim::Node`](marie_vocabulary::run::Aim::Node)) or a cut between nodes
+//! ([`Aim::Cut`](marie_vocabulary::run::Aim::Cut)) possible here.
 
 use super::network::NodeNetwork;
 use std::collections::{BTreeMap, BTreeSet};
@@ -33,7 +33,7 @@ impl NodeProcesses {
     }
 
     /// The nodes run in `network`, where they can be cut apart
-    /// ([`FaultKind::Partition`](marie_actors::run::FaultKind::Partition)).
+    /// ([`FaultKind::Partition`](marie_vocabulary::run::FaultKind::Partition)).
     pub fn with_network(self, network: Arc<dyn NodeNetwork>) -> NodeProcesses {
         self.lock().network = Some(network);
         self

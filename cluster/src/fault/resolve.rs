@@ -6,9 +6,9 @@ use super::processes::NodeProcesses;
 use super::target::{Target, TargetError};
 use marie_actors::dispatcher::DISPATCHER_ID;
 use marie_actors::eo::EoClient;
-use marie_actors::events::EventKind;
-use marie_actors::property::{Group, PropertyReply, PropertyRequest};
-use marie_actors::registry::{self, Instance, ModuleKind};
+use marie_vocabulary::events::EventKind;
+use marie_vocabulary::property::{Group, PropertyReply, PropertyRequest};
+use marie_vocabulary::registry::{self, Instance, ModuleKind};
 use std::collections::HashMap;
 
 /// What a fault hits.

@@ -1,7 +1,7 @@
 //! What a fault hits, as a user writes it: a [`Target`], parsed once — from `--fault`,
 //! `marie kill`, `marie props` or the monitor's page — and carried in the fault spec.
 
-use marie_actors::run::Aim;
+use marie_vocabulary::run::Aim;
 use std::fmt;
 
 /// The instance (or node) a fault hits, as written after `KIND:` in a fault spec.

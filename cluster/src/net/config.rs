@@ -3,7 +3,7 @@
 use super::detector::{HeartbeatConfig, HeartbeatError};
 use super::tls::TlsFiles;
 use super::TransportError;
-use marie_actors::wire::PROTOCOL_VERSION;
+use marie_vocabulary::wire::PROTOCOL_VERSION;
 use std::net::SocketAddr;
 
 /// Longest cookie accepted (ractor_cluster hashes it; a longer one gains nothing).

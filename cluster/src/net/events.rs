@@ -3,7 +3,7 @@
 //! supervisors' events, for the events file, a remote dispatcher and the monitor.
 
 use super::transport::{Peer, Transport};
-use marie_actors::events::{EventBus, EventKind};
+use marie_vocabulary::events::{EventBus, EventKind};
 use std::time::Duration;
 use tokio::sync::broadcast::error::RecvError;
 

@@ -23,9 +23,9 @@
 use super::detector::{BeatId, Detector, DownNotice, HeartbeatConfig, Reach};
 use super::events::NetEvent;
 use super::sessions::Sessions;
-use marie_actors::run::provenance::this_build;
-use marie_actors::run::Build;
-use marie_actors::wire::{self, Envelope};
+use marie_vocabulary::run::provenance::this_build;
+use marie_vocabulary::run::Build;
+use marie_vocabulary::wire::{self, Envelope};
 use ractor::{pg, Actor, ActorProcessingErr, ActorRef};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -67,7 +67,7 @@ struct Beat {
     build: Option<Build>,
 }
 
-marie_actors::remote_message! {
+marie_vocabulary::remote_message! {
     /// Messages of a heartbeat actor.
     pub enum BeatMsg {
         /// A peer's beat: an [`Envelope`] of kind `heartbeat`.
@@ -343,7 +343,7 @@ impl State {
         for (peer, silent) in overdue {
             // recorded and told before its sessions close: whoever sees the peer's modules
             // leave can tell why (a dispatcher blames the node)
-            marie_actors::registry::declare_down(&peer);
+            marie_vocabulary::registry::declare_down(&peer);
             let event = NetEvent::PeerDown {
                 peer: peer.clone(),
                 silent,

@@ -6,7 +6,7 @@
 use super::auth::AuthWatch;
 use super::events::NetEvent;
 use super::transport::Peer;
-use marie_actors::registry;
+use marie_vocabulary::registry;
 use ractor::ActorRef;
 use ractor_cluster::node::{NodeServerSessionInformation, NodeSessionMessage};
 use ractor_cluster::NodeEventSubscription;

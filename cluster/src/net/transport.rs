@@ -6,7 +6,7 @@ use super::heartbeat::{Heartbeat, HeartbeatArgs};
 use super::listener;
 use super::sessions::Sessions;
 use super::tls::{self, Tls, TlsError};
-use marie_actors::registry;
+use marie_vocabulary::registry;
 use ractor::{Actor, ActorRef};
 use ractor_cluster::node::NodeConnectionMode;
 use ractor_cluster::{IncomingEncryptionMode, NodeServer, NodeServerMessage};

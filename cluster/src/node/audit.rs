@@ -1,6 +1,6 @@
 //! The check of the datamanagers at a run's end: what the run's producers were told was
 //! stored, looked up in what each datamanager's primary holds once the mission is over
-//! ([`marie_actors::dm::audit`] compares; this gathers and asks).
+//! ([`marie_dm::Ledger`] compares; this gathers and asks).
 //!
 //! While the run lasts, the acknowledgements come as events: this node's own on its bus
 //! (a tap: none missed), every other node's through the relay ([`crate::relay::watch`]) —
@@ -10,9 +10,9 @@
 //! run's report folds (`dm_checks`, `acknowledged_lost`).
 
 use crate::relay;
-use marie_actors::dm::audit::Ledger;
-use marie_actors::events::{EventBus, EventKind, Tap};
-use marie_actors::registry::{self, ModuleKind};
+use marie_dm::Ledger;
+use marie_vocabulary::events::{EventBus, EventKind, Tap};
+use marie_vocabulary::registry::{self, ModuleKind};
 use std::collections::BTreeSet;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;

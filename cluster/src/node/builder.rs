@@ -19,7 +19,7 @@
 //!
 //! ```
 //! use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
-//! use marie_actors::status::{FlagDecl, StatusFlags};
+//! use marie_vocabulary::status::{FlagDecl, StatusFlags};
 //! use marie_cluster::node::{Node, RunOptions};
 //!
 //! #[derive(Default)]
@@ -64,8 +64,8 @@ use super::{
     Robot, SupervisorConfig,
 };
 use crate::net::ClusterConfig;
-use marie_actors::clock::{RealClock, SharedClock};
 use marie_actors::eo::{Operation, OperationFactory};
+use marie_vocabulary::clock::{RealClock, SharedClock};
 use std::any::TypeId;
 use std::sync::Arc;
 
@@ -314,14 +314,14 @@ impl NodeBuilder {
         self
     }
 
-    /// Host a datamanager: one of marie's ([`marie_actors::dm::FEATURE`], `WORLD`,
+    /// Host a datamanager: one of marie's ([`marie_dm::FEATURE`], `WORLD`,
     /// `PARAMETER`) or the application's own, by name and id — at the node's default
     /// durability (`process` with a [`data_dir`](NodeBuilder::data_dir), else `memory`), or
     /// at its own: `DatamanagerConfig::from(FEATURE).with_durability(Durability::Sync)`
     /// ([`DatamanagerConfig::with_durability`]; `process` and `sync` need the data_dir).
     ///
     /// ```
-    /// use marie_actors::dm::{DmClient, DmSpec, FEATURE};
+    /// use marie_dm::{DmClient, DmSpec, FEATURE};
     /// # #[tokio::main] async fn main() -> Result<(), Box<dyn std::error::Error>> {
     /// const TANKS: DmSpec = DmSpec::new("b-tanks", 7901);
     /// let node = marie_cluster::node::Node::builder("dms")
@@ -347,7 +347,7 @@ impl NodeBuilder {
     /// in memory and the node writes no file.
     ///
     /// ```
-    /// use marie_actors::dm::{DmClient, Durability, FEATURE, WORLD};
+    /// use marie_dm::{DmClient, Durability, FEATURE, WORLD};
     /// use marie_cluster::node::{DatamanagerConfig, Node};
     /// # #[tokio::main] async fn main() -> Result<(), Box<dyn std::error::Error>> {
     /// let dir = tempfile::tempdir()?;
@@ -373,7 +373,7 @@ impl NodeBuilder {
     /// clock for the whole node: records are stamped and queried on it.
     ///
     /// ```
-    /// use marie_actors::clock::RealClock;
+    /// use marie_vocabulary::clock::RealClock;
     /// # #[tokio::main] async fn main() -> Result<(), Box<dyn std::error::Error>> {
     /// let clock = RealClock::shared();
     /// let node = marie_cluster::node::Node::builder("timed").clock(clock.clone()).start().await?;
@@ -486,7 +486,7 @@ impl From<(&str, u32)> for DatamanagerConfig {
 mod tests {
     use super::*;
     use marie_actors::eo::{Identity, OpContext, OpError, Step};
-    use marie_actors::property::{ParamDecl, ParamSchema};
+    use marie_vocabulary::property::{ParamDecl, ParamSchema};
 
     #[derive(Default)]
     struct Bad;
@@ -517,8 +517,8 @@ mod tests {
             text.contains("operation `bad-decl`") && text.contains("speed"),
             "{text}"
         );
-        assert!(marie_actors::registry::lookup(
-            marie_actors::registry::ModuleKind::Operation,
+        assert!(marie_vocabulary::registry::lookup(
+            marie_vocabulary::registry::ModuleKind::Operation,
             "bad-decl"
         )
         .is_empty());
@@ -536,7 +536,7 @@ mod tests {
     async fn a_duplicate_datamanager_is_refused() {
         let err = refused(
             Node::builder("dup")
-                .datamanager(marie_actors::dm::FEATURE)
+                .datamanager(marie_dm::FEATURE)
                 .datamanager(("feature", 9999))
                 .start()
                 .await,

@@ -36,14 +36,14 @@
 //! - A takeover needs a checkpoint that has not ended and was written on the lost node.
 
 use super::NodeError;
-use marie_actors::clock::SharedClock;
 use marie_actors::dispatcher::checkpoint::{Checkpoint, CheckpointArgs, CHECKPOINT_SOURCE};
 use marie_actors::dispatcher::mission::Mission;
 use marie_actors::dispatcher::{self, DispatcherArgs, DispatcherMsg, TakeOver};
-use marie_actors::dm::{AckSink, DmClient, RUN};
-use marie_actors::events::{BusError, Event, EventBus, EventKind};
-use marie_actors::registry::{self, ModuleKind, RegistryEvent};
+use marie_dm::{AckSink, DmClient, RUN};
 use marie_supervision::{ChildSpec, SupervisorRef};
+use marie_vocabulary::clock::SharedClock;
+use marie_vocabulary::events::{BusError, Event, EventBus, EventKind};
+use marie_vocabulary::registry::{self, ModuleKind, RegistryEvent};
 use ractor::{Actor, ActorProcessingErr, ActorRef};
 use serde::{Deserialize, Serialize};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -120,7 +120,7 @@ impl std::str::FromStr for DeskRole {
     }
 }
 
-marie_actors::remote_message! {
+marie_vocabulary::remote_message! {
     /// Messages of a dispatcher desk.
     pub enum DeskMsg {
         /// Start run `run` of `mission` (a checked [`Mission`] as MessagePack), recorded

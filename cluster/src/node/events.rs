@@ -4,9 +4,9 @@
 //! happen.
 
 use super::tree::DATAMANAGERS;
-use marie_actors::dm::DmClient;
-use marie_actors::events::{EventBus, EventKind};
+use marie_dm::DmClient;
 use marie_supervision::{RestartCause, SupervisorEvent, SupervisorRef};
+use marie_vocabulary::events::{EventBus, EventKind};
 use tokio::sync::broadcast::{self, error::RecvError};
 use tokio::task::JoinHandle;
 

@@ -19,9 +19,9 @@
 use super::desk::{DeskMsg, DESK_NAME};
 use super::{Node, NodeError};
 use marie_actors::dispatcher::mission::Mission;
-use marie_actors::events::{BusError, DispatcherVoice, Event, EventKind};
-use marie_actors::registry::{self, ModuleKind};
-use marie_actors::run::Outcome;
+use marie_vocabulary::events::{BusError, DispatcherVoice, Event, EventKind};
+use marie_vocabulary::registry::{self, ModuleKind};
+use marie_vocabulary::run::Outcome;
 use ractor::rpc::CallResult;
 use ractor::ActorRef;
 use std::time::Duration;

@@ -14,8 +14,8 @@
 use super::config::NodeConfig;
 use super::tree;
 use crate::net::{ClusterConfig, NetEvent, Transport, TransportError};
-use marie_actors::events::EventBus;
 use marie_supervision::SupervisorRef;
+use marie_vocabulary::events::EventBus;
 use std::time::Duration;
 use tokio::sync::broadcast;
 use tokio::task::JoinHandle;

@@ -35,7 +35,7 @@
 //! #   }
 //! #   async fn step(&mut self, _: &mut marie_actors::eo::OpContext)
 //! #       -> Result<marie_actors::eo::Step, marie_actors::eo::OpError> {
-//! #       Ok(marie_actors::eo::Step::Finish(marie_actors::status::StatusFlags(0)))
+//! #       Ok(marie_actors::eo::Step::Finish(marie_vocabulary::status::StatusFlags(0)))
 //! #   }
 //! # }
 //! # #[tokio::main] async fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -77,15 +77,15 @@ pub use run::RunOptions;
 
 use crate::fault::FaultError;
 use crate::net::{Transport, TransportError};
-use marie_actors::clock::{RealClock, SharedClock};
 use marie_actors::dispatcher::mission::{Diagnostics, Mission, ParsedMission};
 use marie_actors::dispatcher::{DispatchError, RegistryCatalog};
-use marie_actors::dm::journal::{DirLock, LockError};
-use marie_actors::dm::DmError;
 use marie_actors::eo::{EoError, OperationFactory};
-use marie_actors::events::{bridge_registry, EventBus, RegistryBridge};
-use marie_actors::registry::{self, Instance, ModuleKind};
+use marie_dm::DmError;
+use marie_dm::{DirLock, LockError};
 use marie_supervision::{SupervisorError, SupervisorRef};
+use marie_vocabulary::clock::{RealClock, SharedClock};
+use marie_vocabulary::events::{bridge_registry, EventBus, RegistryBridge};
+use marie_vocabulary::registry::{self, Instance, ModuleKind};
 use membership::Membership;
 use ractor::ActorCell;
 use std::path::{Path, PathBuf};
@@ -291,7 +291,7 @@ impl Node {
         let data_dir = config.data_dir.as_deref().map(lock_data_dir).transpose()?;
         // one node per process (ractor's registry and pg are process-wide): its name is the
         // location every module published here shows
-        marie_actors::registry::set_local_node_name(&config.name);
+        marie_vocabulary::registry::set_local_node_name(&config.name);
         let bus = EventBus::new(config.name.clone(), options.clock.clone());
         // the registry's joins and leaves from the start, so the first publications are seen
         let registry = match bridge_registry(bus.clone(), None).await {
@@ -315,7 +315,7 @@ impl Node {
             catalog: options.catalog,
             clock: options.clock,
             root,
-            acks: marie_actors::dm::AckSink::publishing_on(bus.clone()),
+            acks: marie_dm::AckSink::publishing_on(bus.clone()),
             events: bus.clone(),
         };
         let mut node = Node {
@@ -398,7 +398,7 @@ impl Node {
 
     /// The node's event bus: every dispatcher, binding, supervisor, registry, fault and robot
     /// event of this node, stamped with the mission clock and the node's name
-    /// ([`marie_actors::events`] documents the schema). Subscribe before a run to see all of
+    /// ([`marie_vocabulary::events`] documents the schema). Subscribe before a run to see all of
     /// it.
     pub fn events(&self) -> &EventBus {
         &self.bus
@@ -484,9 +484,9 @@ impl Node {
         if unfit.is_empty() {
             Ok(mission)
         } else {
-            Err(NodeError::Mission(marie_actors::diagnostic::Diagnostics(
-                unfit,
-            )))
+            Err(NodeError::Mission(
+                marie_vocabulary::diagnostic::Diagnostics(unfit),
+            ))
         }
     }
 

@@ -4,10 +4,10 @@
 
 use super::tree;
 use super::{NodeError, OperationConfig};
-use marie_actors::clock::SharedClock;
 use marie_actors::eo::{HostOptions, OperationFactory};
 use marie_actors::provision::{self, ProvisionMsg, Refusal};
 use marie_supervision::{ChildSpec, SupervisorRef};
+use marie_vocabulary::clock::SharedClock;
 use ractor::{Actor, ActorCell, ActorProcessingErr, ActorRef};
 
 /// Child id of the provisioner under the node's root supervisor.
@@ -38,9 +38,9 @@ pub(crate) struct Starter {
     pub(crate) root: SupervisorRef,
     /// Where the instances' datamanager clients tell what they get acknowledged (the
     /// node's bus).
-    pub(crate) acks: marie_actors::dm::AckSink,
+    pub(crate) acks: marie_dm::AckSink,
     /// Where the instances tell a change of their parameters (the node's bus).
-    pub(crate) events: marie_actors::events::EventBus,
+    pub(crate) events: marie_vocabulary::events::EventBus,
 }
 
 impl Starter {

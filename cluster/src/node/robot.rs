@@ -10,18 +10,18 @@
 //! A robot also gets the node's [`EventBus`]: its drivers when they start
 //! ([`Robot::drivers`]) and the robot itself when a run starts ([`Robot::run_starting`]), so
 //! it can put what it sees *as it happens* into the node's one event stream
-//! ([`EventKind::Robot`](marie_actors::events::EventKind::Robot)) — a live monitor, or a
+//! ([`EventKind::Robot`](marie_vocabulary::events::EventKind::Robot)) — a live monitor, or a
 //! replay of an events file, draws the robot from that stream alone, not from a picture made
 //! after the run. Its judgement of a run ([`Robot::judge`]) goes onto the same stream
-//! ([`EventKind::Judged`](marie_actors::events::EventKind::Judged)), and so into the report:
+//! ([`EventKind::Judged`](marie_vocabulary::events::EventKind::Judged)), and so into the report:
 //! what it says of itself is a [`RobotSection`] the framework carries without typing.
 
-use marie_actors::clock::SharedClock;
-use marie_actors::dm::NewRecord;
-use marie_actors::events::EventBus;
-use marie_actors::report::RunReport;
-use marie_actors::run::{Outcome, RobotSection};
+use marie_dm::NewRecord;
 use marie_supervision::ChildSpec;
+use marie_vocabulary::clock::SharedClock;
+use marie_vocabulary::events::EventBus;
+use marie_vocabulary::report::RunReport;
+use marie_vocabulary::run::{Outcome, RobotSection};
 use std::future::Future;
 use std::pin::Pin;
 use tokio::task::JoinHandle;

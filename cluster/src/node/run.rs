@@ -5,7 +5,7 @@
 //! bindings and choices, the supervisors and the registry, every fault whatever its source
 //! (the options' plan and chaos, `marie kill`, the monitor's page), the nodes, the robot's
 //! live events and its judgement. The report is a
-//! [`ReportBuilder`](marie_actors::report::ReportBuilder) folded over those events while the
+//! [`ReportBuilder`](marie_vocabulary::report::ReportBuilder) folded over those events while the
 //! run lasts — so it equals [`RunReport::from_events`] of the run's events file — and
 //! observers see the same events as they are published.
 //!
@@ -21,11 +21,11 @@ use super::{Node, NodeError};
 use crate::fault::{Chaos, FaultPlan, FaultSpec, Injector, NodeChaos, NodeProcesses, PlanRun};
 use marie_actors::dispatcher::mission::Mission;
 use marie_actors::dispatcher::{self, DispatcherArgs, DispatcherMsg};
-use marie_actors::events::{Event, EventKind};
-use marie_actors::report::{ReportBuilder, RunReport};
-use marie_actors::run::provenance::{rfc3339, this_build};
-use marie_actors::run::{NodeBuild, Outcome, Provenance};
 use marie_supervision::{ChildSpec, Restart, Shutdown};
+use marie_vocabulary::events::{Event, EventKind};
+use marie_vocabulary::report::{ReportBuilder, RunReport};
+use marie_vocabulary::run::provenance::{rfc3339, this_build};
+use marie_vocabulary::run::{NodeBuild, Outcome, Provenance};
 use ractor::ActorRef;
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
@@ -177,7 +177,7 @@ impl Node {
     ///
     /// ```
     /// # use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
-    /// # use marie_actors::status::{FlagDecl, StatusFlags};
+    /// # use marie_vocabulary::status::{FlagDecl, StatusFlags};
     /// # #[derive(Default)] struct Tick { n: u32 }
     /// # impl Operation for Tick {
     /// #     fn identity(&self) -> Identity { Identity::new("f-tick", 4401, "1.0.0", "ticks") }

@@ -5,16 +5,16 @@ use super::config::{NodeConfig, DEFAULT_PERIOD, DEFAULT_RESTARTS, OPERATIONS};
 use super::robot::AprioriRecord;
 use super::NodeError;
 use super::{NodeOptions, OPERATION_SHUTDOWN};
-use marie_actors::clock::SharedClock;
 use marie_actors::dispatcher::DispatcherMsg;
-use marie_actors::dm::AckSink;
-use marie_actors::dm::{self, journal, DmArgs, DmClient, DmConfig, DmError, Durability, NewRecord};
 use marie_actors::eo::{HostOptions, OperationFactory};
-use marie_actors::events::EventBus;
+use marie_dm::AckSink;
+use marie_dm::{self as dm, DmArgs, DmClient, DmConfig, DmError, Durability, NewRecord};
 use marie_supervision::{
     ChildSpec, ChildTemplate, Restart, Shutdown, Supervisor, SupervisorError, SupervisorEvent,
     SupervisorRef, SupervisorSpec,
 };
+use marie_vocabulary::clock::SharedClock;
+use marie_vocabulary::events::EventBus;
 use ractor::{ActorRef, SpawnErr};
 use std::sync::Arc;
 use std::time::Duration;
@@ -228,7 +228,7 @@ fn datamanagers(
             let journal = match (config.durability_of(spec), &config.data_dir) {
                 (Durability::Memory, _) | (_, None) => None,
                 (durability, Some(data_dir)) => {
-                    Some((journal::dir_in(data_dir, &spec.name), durability))
+                    Some((dm::journal_dir(data_dir, &spec.name), durability))
                 }
             };
             ChildSpec::worker(spec.name.clone(), move |sup| {
@@ -286,7 +286,7 @@ const APRIORI_WAIT: Duration = Duration::from_secs(120);
 /// wherever it is elected. A copy is not the primary when it starts, and every node
 /// hosting a copy may hold the same records: each stores them as one producer — a fixed id
 /// per datamanager, numbered 1, 2, 3, … — so the primary keeps them once
-/// ([`marie_actors::dm::producers`]), however many nodes or restarts send them.
+/// (the datamanager's producer table), however many nodes or restarts send them.
 async fn apriori_to_primary(name: String, records: Arc<Vec<NewRecord>>) {
     let producer = name
         .bytes()

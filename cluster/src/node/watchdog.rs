@@ -12,8 +12,8 @@
 //! long backlog is never taken for hung there; on a real node the deadline is generous
 //! (twice a client's request deadline) for the same reason.
 
-use marie_actors::dm::{DmClient, DmMsg};
-use marie_actors::registry::{self, ModuleKind};
+use marie_dm::{DmClient, DmMsg};
+use marie_vocabulary::registry::{self, ModuleKind};
 use ractor::rpc::CallResult;
 use ractor::ActorRef;
 use std::time::Duration;

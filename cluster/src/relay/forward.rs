@@ -5,9 +5,9 @@ use super::backlog::Backlog;
 use super::scope::Changes;
 use super::watchers::{WatcherKey, Watchers};
 use super::{WatcherMsg, GROUP, KIND, SCOPE};
-use marie_actors::events::{BusError, Event, EventBus, EventKind};
-use marie_actors::registry::node_name_of;
-use marie_actors::wire::Envelope;
+use marie_vocabulary::events::{BusError, Event, EventBus, EventKind};
+use marie_vocabulary::registry::node_name_of;
+use marie_vocabulary::wire::Envelope;
 use ractor::{pg, ActorRef};
 use tokio::task::JoinHandle;
 use tokio::time::Instant;
@@ -185,8 +185,8 @@ fn echo_of_another_node(event: &Event, here: &str) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use marie_actors::events::ModuleInfo;
-    use marie_actors::registry::ModuleKind;
+    use marie_vocabulary::events::ModuleInfo;
+    use marie_vocabulary::registry::ModuleKind;
 
     fn event(kind: EventKind) -> Event {
         Event {

@@ -4,7 +4,7 @@
 //!
 //! A watcher is an actor in `pg` (scope [`SCOPE`], group [`GROUP`]); each node's forwarder
 //! ([`forward`]) subscribes to its bus and casts each event — a versioned
-//! [`Envelope`](marie_actors::wire::Envelope) of kind `event`, encoded once — to every remote watcher. A node that has no watcher only
+//! [`Envelope`](marie_vocabulary::wire::Envelope) of kind `event`, encoded once — to every remote watcher. A node that has no watcher only
 //! reads its bus. A module's joining and leaving is told by its own node only, not echoed
 //! by every node whose registry it reaches.
 //!
@@ -29,7 +29,7 @@
 //! a frame that does not decode is dropped with a warning.
 //!
 //! ```no_run
-//! # async fn demo(bus: marie_actors::events::EventBus) {
+//! # async fn demo(bus: marie_vocabulary::events::EventBus) {
 //! use marie_cluster::relay;
 //! let forwarder = relay::forward(bus); // on every node
 //! let mut watch = relay::watch(1024).await.unwrap(); // on the watcher
@@ -59,11 +59,11 @@ pub const GROUP: &str = "watchers";
 /// The envelope kind of a forwarded event.
 const KIND: &str = "event";
 
-marie_actors::remote_message! {
+marie_vocabulary::remote_message! {
     /// Messages of an event watcher.
     pub enum WatcherMsg {
         /// An event of another node: an
-        /// [`Envelope`](marie_actors::wire::Envelope) of kind `event`, the `seq`-th of the
+        /// [`Envelope`](marie_vocabulary::wire::Envelope) of kind `event`, the `seq`-th of the
         /// forwarder's numbered `stream` (a forwarder's numbers start anew with its
         /// process, so the stream tells them apart).
         Numbered {

@@ -3,8 +3,8 @@
 
 use super::order::{Admit, Order};
 use super::{WatcherMsg, GROUP, KIND, SCOPE};
-use marie_actors::events::Event;
-use marie_actors::wire::Envelope;
+use marie_vocabulary::events::Event;
+use marie_vocabulary::wire::Envelope;
 use ractor::{pg, Actor, ActorProcessingErr, ActorRef, SpawnErr};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
@@ -52,7 +52,7 @@ impl Watch {
     /// member that follows a run dispatched elsewhere, which republishes those on its own
     /// bus (where whoever watches both would see them twice).
     ///
-    /// [`EventKind::is_dispatch`]: marie_actors::events::EventKind::is_dispatch
+    /// [`EventKind::is_dispatch`]: marie_vocabulary::events::EventKind::is_dispatch
     pub fn without_dispatch(mut self) -> Watch {
         self.without_dispatch = true;
         self
@@ -89,7 +89,7 @@ pub async fn reaches(node: &str, pid: u64, within: std::time::Duration) -> bool 
                 let id = c.get_id();
                 !id.is_local()
                     && id.pid() == pid
-                    && marie_actors::registry::node_name_of(&id) == node
+                    && marie_vocabulary::registry::node_name_of(&id) == node
             })
     };
     // watched before the first look: a change between the two is not missed
@@ -201,8 +201,8 @@ impl Actor for Watcher {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use marie_actors::events::{EventKind, ModuleInfo};
-    use marie_actors::registry::ModuleKind;
+    use marie_vocabulary::events::{EventKind, ModuleInfo};
+    use marie_vocabulary::registry::ModuleKind;
 
     fn event(name: &str) -> Event {
         Event {

@@ -35,25 +35,25 @@
 //!   of silence by default, [`DEFAULT_DEADLINE`](marie::cluster::net::detector::DEFAULT_DEADLINE),
 //!   with a heartbeat every 240 ms).
 //! - A's dispatcher looks for a stand-in. None runs anywhere — A's pump is a standby — so
-//!   after the provisioning grace, [`provision::GRACE`](marie::actors::provision::GRACE)
+//!   after the provisioning grace, [`provision::GRACE`](marie::provision::GRACE)
 //!   (1 s, or half the mission's rebind deadline if shorter), it asks the nodes that allow
 //!   the pump to start one; A's own node is asked first and starts it from its factory,
 //!   with A's station.
 //! - The dispatcher adopts the new instance, restores the mission's parameters, resumes
 //!   it, and records the rebind in the report. The pump steps every 100 ms
-//!   ([`DEFAULT_PERIOD`](marie::actors::eo::DEFAULT_PERIOD)) until the volume is reached.
+//!   ([`DEFAULT_PERIOD`](marie::eo::DEFAULT_PERIOD)) until the volume is reached.
 //! - The whole failover must fit in the mission's rebind deadline ([`mission`] sets 30 s,
 //!   generous for a loaded machine; the default is 10 s) or the mission fails naming the
 //!   pump.
 //!
 //! `tests/failover.rs` runs exactly this with two real processes and `SIGKILL`.
 
-use marie::actors::dispatcher::mission::{ActionBuilder, MissionBuilder};
-use marie::actors::eo::OperationFactory;
-use marie::actors::registry::{self, ModuleKind};
 use marie::cluster::net::ClusterConfig;
 use marie::cluster::node::{Node, NodeBuilder};
+use marie::dispatcher::mission::{ActionBuilder, MissionBuilder};
+use marie::eo::OperationFactory;
 use marie::prelude::*;
+use marie::registry::{self, ModuleKind};
 use std::net::SocketAddr;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;

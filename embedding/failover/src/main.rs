@@ -20,8 +20,8 @@
 //! A bad flag is exit 2. The lines go to standard output, flushed at once, for whoever waits
 //! for them (a person, `tests/failover.rs`).
 
-use marie::actors::events::EventKind;
 use marie::cluster::node::RunOptions;
+use marie::events::EventKind;
 use marie_failover_app::{mission, node, wait_for_pump, Setup, PUMP};
 use std::io::Write;
 use std::process::ExitCode;

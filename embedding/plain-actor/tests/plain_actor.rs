@@ -1,11 +1,9 @@
 //! A plain enum actor of the application, beside a marie operation in the same process: both
 //! are spawned, both answer, and the application's actor is fed what the operation reports.
 
-use marie::actors::eo::{self, EoClient, EoReport, Identity, OpContext, OpError, Operation, Step};
-use marie::actors::property::{
-    param_map, ParamDecl, ParamSchema, PropertyReply, PropertyRequest, Value,
-};
-use marie::actors::status::{FlagDecl, StatusFlags};
+use marie::eo::{self, EoClient, EoReport, Identity, OpContext, OpError, Operation, Step};
+use marie::property::{param_map, ParamDecl, ParamSchema, PropertyReply, PropertyRequest, Value};
+use marie::status::{FlagDecl, StatusFlags};
 use marie_plain_actor_check::{Tally, TallyMsg};
 use ractor::Actor;
 use std::time::Duration;

@@ -2,10 +2,10 @@
 
 use super::STATISTICS;
 use marie_actors::declare::{DeclaredFlags, DeclaredParams};
-use marie_actors::dm::{DmError, WORLD};
 use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
-use marie_actors::property::ParamSchema;
-use marie_actors::status::FlagDecl;
+use marie_dm::{DmError, WORLD};
+use marie_vocabulary::property::ParamSchema;
+use marie_vocabulary::status::FlagDecl;
 
 marie_actors::params! {
     /// The checker's parameters.

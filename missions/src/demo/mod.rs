@@ -16,7 +16,7 @@ pub use averager::{Averager, AveragerFlag, AveragerParams, Statistics};
 pub use checker::{Checker, CheckerFlag, CheckerParams};
 pub use sampler::{Sample, Sampler, SamplerFlag, SamplerParams};
 
-use marie_actors::declare::RecordKind;
+use marie_dm::RecordKind;
 
 /// The sampler's samples of its sine, in the feature DM.
 pub const SAMPLES: RecordKind<Sample> = RecordKind::new("sample").with_sub1("sine");

@@ -2,10 +2,10 @@
 
 use super::SAMPLES;
 use marie_actors::declare::{DeclaredFlags, DeclaredParams};
-use marie_actors::dm::FEATURE;
 use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
-use marie_actors::property::ParamSchema;
-use marie_actors::status::FlagDecl;
+use marie_dm::FEATURE;
+use marie_vocabulary::property::ParamSchema;
+use marie_vocabulary::status::FlagDecl;
 use serde::{Deserialize, Serialize};
 use std::time::Duration;
 

@@ -15,9 +15,9 @@ use crate::geom::{Point, Pose};
 use crate::sim::{Simulation, SonarReading, TracePoint};
 use crate::telemetry::PoseSampler;
 use crate::world::Judgement;
-use marie_actors::clock::{cast_after, SharedClock};
-use marie_actors::fence::{spawn_keeper, Fence, FenceTable, Obeyed, ObeyedLog};
-use marie_actors::registry::{self, ModuleKind};
+use marie_vocabulary::clock::{cast_after, SharedClock};
+use marie_vocabulary::fence::{spawn_keeper, Fence, FenceTable, Obeyed, ObeyedLog};
+use marie_vocabulary::registry::{self, ModuleKind};
 use ractor::rpc::CallResult;
 use ractor::{Actor, ActorProcessingErr, ActorRef, SpawnErr, SupervisionEvent};
 use serde::{Deserialize, Serialize};
@@ -90,12 +90,12 @@ pub struct CartStatus {
     /// The commands the cart obeyed, by operation and epoch, with the first and the last
     /// one's time on its node's clock ([`ObeyedLog`]; the latest epochs of each operation):
     /// checked against when each epoch was bound, it shows whether a replaced incarnation
-    /// was ever obeyed ([`marie_actors::fence::obeyed_late`]).
+    /// was ever obeyed ([`marie_vocabulary::fence::obeyed_late`]).
     #[serde(default)]
     pub obeyed: Vec<Obeyed>,
 }
 
-marie_actors::remote_message! {
+marie_vocabulary::remote_message! {
     /// Messages of the virtual cart.
     pub enum CartMsg {
         /// Command the drive motor (m/s, negative backwards) and steering (rad, left positive).

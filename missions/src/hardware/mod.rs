@@ -2,7 +2,7 @@
 //! sensors) over the [`crate::sim`] simulation.
 //!
 //! Hardware-bound modules stay on the robot's node (thesis 8.7.1); operations find them in the
-//! registry under [`ModuleKind::Hardware`](marie_actors::registry::ModuleKind::Hardware) and
+//! registry under [`ModuleKind::Hardware`](marie_vocabulary::registry::ModuleKind::Hardware) and
 //! talk to them with [`CartClient`].
 
 mod cart;

@@ -10,9 +10,9 @@ use crate::algo::segments::SegmentParams;
 use crate::geom::Segment;
 use crate::hardware::CartClient;
 use marie_actors::declare::DeclaredParams;
-use marie_actors::dm::{Query, FEATURE, WORLD};
 use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
-use marie_actors::property::{ParamSchema, Value};
+use marie_dm::{Query, FEATURE, WORLD};
+use marie_vocabulary::property::{ParamSchema, Value};
 use std::collections::BTreeMap;
 use std::time::Duration;
 

@@ -34,14 +34,14 @@ pub use perception::{
 pub use ultrasonic::{Ultrasonic, UltrasonicParams};
 
 use crate::hardware::{CartClient, CART_NAME};
-use marie_actors::declare::RecordKind;
-use marie_actors::dm::{DmError, DmSpec, WORLD};
 use marie_actors::eo::{OpContext, OpError};
-use marie_actors::registry::ModuleKind;
+use marie_dm::RecordKind;
+use marie_dm::{DmError, DmSpec, WORLD};
+use marie_vocabulary::registry::ModuleKind;
 
 /// The cart client, found in the registry on first use and again after the cart restarted,
 /// carrying the running activation's fence: the cart obeys only the newest incarnation of
-/// an operation ([`marie_actors::fence`]).
+/// an operation ([`marie_vocabulary::fence`]).
 pub(crate) fn cart<'s>(
     slot: &'s mut Option<CartClient>,
     ctx: &OpContext,
@@ -67,7 +67,7 @@ pub(crate) fn cart_err(e: crate::hardware::CartError) -> OpError {
 }
 
 /// The newest record of `kind` in datamanager `dm`, decoded; `None` when there is none.
-pub(crate) async fn newest<T: marie_actors::dm::PayloadType>(
+pub(crate) async fn newest<T: marie_dm::PayloadType>(
     ctx: &mut OpContext,
     dm: DmSpec,
     kind: RecordKind<T>,
@@ -76,7 +76,7 @@ pub(crate) async fn newest<T: marie_actors::dm::PayloadType>(
 }
 
 /// Like [`newest`], with the record's sequence number.
-pub(crate) async fn newest_with_seq<T: marie_actors::dm::PayloadType>(
+pub(crate) async fn newest_with_seq<T: marie_dm::PayloadType>(
     ctx: &mut OpContext,
     dm: DmSpec,
     kind: RecordKind<T>,

@@ -19,7 +19,7 @@
 //! the one sub-class its kind names.
 
 use crate::geom::{Point, Pose, Segment};
-use marie_actors::declare::RecordKind;
+use marie_dm::RecordKind;
 use serde::{Deserialize, Serialize};
 
 /// Sonar scans, in the feature DM.

@@ -5,9 +5,9 @@ use super::records::{Echo, EchoScan, SONAR};
 use super::{cart, correction, dm_err};
 use crate::hardware::CartClient;
 use marie_actors::declare::DeclaredParams;
-use marie_actors::dm::FEATURE;
 use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
-use marie_actors::property::{ParamSchema, Value};
+use marie_dm::FEATURE;
+use marie_vocabulary::property::{ParamSchema, Value};
 use std::time::Duration;
 
 marie_actors::params! {

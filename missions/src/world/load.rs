@@ -8,8 +8,8 @@
 
 use super::model::{Beam, CartSpec, Dock, GoalArea, Rect, SimSettings, SonarMount, World};
 use crate::geom::{Point, Pose};
-use marie_actors::diagnostic::toml::{literal, Reader, Rule, Tbl, Val};
-use marie_actors::diagnostic::{read_source, Diagnostics};
+use marie_vocabulary::diagnostic::toml::{literal, Reader, Rule, Tbl, Val};
+use marie_vocabulary::diagnostic::{read_source, Diagnostics};
 use std::path::Path;
 use toml::de::DeValue;
 

@@ -75,7 +75,7 @@
 //! assert!(bad.to_string().contains("<world>:3:1: unknown key `colour` in [world]"));
 //! ```
 //!
-//! [`Diagnostic`]: marie_actors::diagnostic::Diagnostic
+//! [`Diagnostic`]: marie_vocabulary::diagnostic::Diagnostic
 
 mod load;
 mod model;
@@ -86,7 +86,7 @@ pub use model::{
     DEFAULT_ODOMETRY_HEADING_WALK_DEG,
 };
 
-use marie_actors::diagnostic::{Diagnostic, Diagnostics};
+use marie_vocabulary::diagnostic::{Diagnostic, Diagnostics};
 use std::path::{Path, PathBuf};
 
 /// The worlds shipped in `missions/worlds/`, by name, with their text.

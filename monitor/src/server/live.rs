@@ -13,7 +13,7 @@
 use crate::state::MonitorState;
 use axum::response::sse::{Event as SseEvent, KeepAlive, Sse};
 use futures_util::stream::{self, Stream};
-use marie_actors::events::{BusError, Event, EventSubscription};
+use marie_vocabulary::events::{BusError, Event, EventSubscription};
 use std::convert::Infallible;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};

@@ -8,7 +8,7 @@
 
 use crate::error::MonitorError;
 use crate::state::MonitorState;
-use marie_actors::events::Event;
+use marie_vocabulary::events::Event;
 use serde::Serialize;
 use std::path::Path;
 use std::sync::Mutex;
@@ -120,7 +120,7 @@ fn to_json(state: &MonitorState) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use marie_actors::events::EventKind;
+    use marie_vocabulary::events::EventKind;
 
     fn at(ms: u64) -> Event {
         Event {

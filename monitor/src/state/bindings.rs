@@ -2,13 +2,13 @@
 //! version), and its history of losses and rebinds — what the page's bindings panel draws.
 //!
 //! Built from the events that name instances: the self-configuration's choices
-//! ([`EventKind::Selected`](marie_actors::events::EventKind::Selected): the candidates,
+//! ([`EventKind::Selected`](marie_vocabulary::events::EventKind::Selected): the candidates,
 //! their schemas and flags — the properties a click opens), the start-up binding, each
 //! action's activations, and the losses and rebinds.
 
-use marie_actors::events::{BoundOp, OpStarted};
-use marie_actors::run::{Candidate, Choice};
-use marie_actors::run::{LossCause, RebindRecord};
+use marie_vocabulary::events::{BoundOp, OpStarted};
+use marie_vocabulary::run::{Candidate, Choice};
+use marie_vocabulary::run::{LossCause, RebindRecord};
 use serde::Serialize;
 use std::collections::BTreeMap;
 

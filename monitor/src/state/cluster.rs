@@ -5,7 +5,7 @@
 //! it (seen, lost, declared down); what it hosts from the registry's joins and leaves, each
 //! told by the module's own node.
 
-use marie_actors::events::ModuleInfo;
+use marie_vocabulary::events::ModuleInfo;
 use serde::Serialize;
 use std::collections::BTreeMap;
 
@@ -160,7 +160,7 @@ impl Cluster {
 }
 
 fn kind_label(m: &ModuleInfo) -> &'static str {
-    use marie_actors::registry::ModuleKind;
+    use marie_vocabulary::registry::ModuleKind;
     match m.module {
         ModuleKind::Operation => "operation",
         ModuleKind::Datamanager => "datamanager",

@@ -1,11 +1,11 @@
 //! The mission as a task tree: each action's condition flags, operations and state, and the
 //! status word by name — what the page's tree panel draws.
 //!
-//! The tree comes from [`EventKind::RunStarted`](marie_actors::events::EventKind::RunStarted)'s plan; a stream without one (an older
+//! The tree comes from [`EventKind::RunStarted`](marie_vocabulary::events::EventKind::RunStarted)'s plan; a stream without one (an older
 //! file, a monitor that joined mid-run) still shows every action it sees start.
 
-use marie_actors::events::{ActionPlan, OpStarted};
-use marie_actors::run::{OpEnd, Outcome};
+use marie_vocabulary::events::{ActionPlan, OpStarted};
+use marie_vocabulary::run::{OpEnd, Outcome};
 use serde::Serialize;
 
 /// Where an action is in its run.

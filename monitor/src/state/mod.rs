@@ -21,8 +21,8 @@ pub mod tree;
 
 use bindings::Bindings;
 use cluster::Cluster;
-use marie_actors::events::{Event, EventKind};
-use marie_actors::run::{Aim, Outcome};
+use marie_vocabulary::events::{Event, EventKind};
+use marie_vocabulary::run::{Aim, Outcome};
 use mission::MissionView;
 use robot::RobotView;
 use serde::Serialize;

@@ -16,7 +16,7 @@
 //! than dropping its start), and is serialized thinned to at most [`DRAW_LIMIT`] points:
 //! the page draws no more, and serializing thins it without copying the state first.
 //!
-//! [`EventKind::Robot`]: marie_actors::events::EventKind::Robot
+//! [`EventKind::Robot`]: marie_vocabulary::events::EventKind::Robot
 
 use serde::{Deserialize, Serialize};
 use serde_json::Value;

@@ -1,5 +1,5 @@
 //! The mission's behaviour tree (issue 24): its nodes as the run announced them
-//! ([`EventKind::ControlPlan`](marie_actors::events::EventKind::ControlPlan)), each with
+//! ([`EventKind::ControlPlan`](marie_vocabulary::events::EventKind::ControlPlan)), each with
 //! whether it runs now, how it ended when that is known, and the control decisions told of
 //! it — what the page's tree panel draws.
 //!
@@ -19,8 +19,8 @@
 //! A stream without a plan (an older file) leaves the tree empty: the page then draws the
 //! actions as [`mission`](super::mission) has them.
 
-use marie_actors::events::{ActionResult, PlanNode};
-use marie_actors::run::{OpEnd, Outcome};
+use marie_vocabulary::events::{ActionResult, PlanNode};
+use marie_vocabulary::run::{OpEnd, Outcome};
 use serde::Serialize;
 use std::collections::VecDeque;
 

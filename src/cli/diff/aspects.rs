@@ -7,8 +7,8 @@
 //! any two runs by nature (the start time, the command line with its report's path, actor
 //! addresses): a report diffed with a run of the same inputs is the same.
 
-use marie::actors::report::{FaultRecord, RunReport};
-use marie::actors::run::{Build, Provenance};
+use marie::report::{FaultRecord, RunReport};
+use marie::run::{Build, Provenance};
 use serde_json::{json, Value as Json};
 use std::fmt;
 
@@ -419,7 +419,7 @@ pub(crate) fn final_pose(a: &RunReport, b: &RunReport) -> Option<Difference> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use marie::actors::run::{FaultKind, NodeBuild, Outcome};
+    use marie::run::{FaultKind, NodeBuild, Outcome};
 
     fn report(seed: u64, pose: [f64; 3]) -> RunReport {
         let mut r = RunReport::new("docking", Outcome::Succeeded, "");

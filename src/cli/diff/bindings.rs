@@ -6,8 +6,8 @@
 //! question is whether the run used another version or node, or lost an instance.
 
 use super::aspects::{Difference, Side};
-use marie::actors::report::RunReport;
-use marie::actors::run::RebindRecord;
+use marie::report::RunReport;
+use marie::run::RebindRecord;
 use serde_json::json;
 
 /// Per operation, the instances it was bound to as `VERSION on NODE`, each once, in the
@@ -119,8 +119,8 @@ pub(crate) fn compare(a: &RunReport, b: &RunReport) -> Option<Difference> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use marie::actors::report::{ActionRecord, OpRecord};
-    use marie::actors::run::{LossCause, OpEnd, Outcome};
+    use marie::report::{ActionRecord, OpRecord};
+    use marie::run::{LossCause, OpEnd, Outcome};
 
     fn op(name: &str, version: &str, address: &str) -> OpRecord {
         OpRecord {

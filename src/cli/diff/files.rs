@@ -6,7 +6,7 @@
 //! what changed least usefully.
 
 use super::aspects::{Difference, Side};
-use marie::actors::run::{FileRead, FileRole, Provenance};
+use marie::run::{FileRead, FileRole, Provenance};
 use serde_json::json;
 use similar::{ChangeTag, TextDiff};
 use std::time::Duration;
@@ -119,7 +119,7 @@ fn counts(a: &str, b: &str) -> (usize, usize) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use marie::actors::run::Digest;
+    use marie::run::Digest;
 
     fn file(role: FileRole, path: &str, text: &str) -> FileRead {
         FileRead {

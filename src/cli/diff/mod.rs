@@ -5,7 +5,7 @@
 //! when they differ (as `diff` does), 2 when a file is not a report.
 //!
 //! Why: the thesis complained that old experiments could not be compared with new ones. A
-//! report carries what ran ([`Provenance`](marie::actors::run::Provenance)); this says
+//! report carries what ran ([`Provenance`](marie::run::Provenance)); this says
 //! what changed between two of them, so "why did this run end elsewhere?" starts from the
 //! answer to "what did I change?".
 //!
@@ -19,7 +19,7 @@ mod parameters;
 
 use super::error::BadInput;
 use aspects::Difference;
-use marie::actors::report::RunReport;
+use marie::report::RunReport;
 use serde_json::json;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -254,7 +254,7 @@ impl Comparison {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use marie::actors::run::{Outcome, Provenance};
+    use marie::run::{Outcome, Provenance};
 
     fn report(seed: u64) -> RunReport {
         let mut r = RunReport::new("docking", Outcome::Succeeded, "");

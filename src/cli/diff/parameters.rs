@@ -8,7 +8,7 @@
 //! someone did to it.
 
 use super::aspects::{secs, Difference};
-use marie::actors::run::{ParamSetting, ParamSource, Provenance};
+use marie::run::{ParamSetting, ParamSource, Provenance};
 use serde_json::json;
 
 /// A parameter of an action's operation, set at the action's start or re-set later.
@@ -112,7 +112,7 @@ pub(crate) fn compare(a: &Provenance, b: &Provenance) -> Option<Difference> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use marie::actors::property::Value;
+    use marie::property::Value;
 
     fn set(action: &str, op: &str, name: &str, value: Value, source: ParamSource) -> ParamSetting {
         ParamSetting {

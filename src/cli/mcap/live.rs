@@ -6,8 +6,8 @@
 
 use super::{McapWriter, Written};
 use crate::cli::follow::Following;
-use marie::actors::events::EventBus;
 use marie::cluster::relay::Watch;
+use marie::events::EventBus;
 use std::path::{Path, PathBuf};
 
 /// An MCAP file being written from a bus.

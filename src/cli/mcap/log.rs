@@ -12,8 +12,8 @@
 //! JSON, cut at [`GENERIC_LIMIT`] characters: every event reaches the log, readable or not.
 
 use super::schemas::{Log, Time};
-use marie::actors::events::{ActionResult, Event, EventKind};
-use marie::actors::run::{OpEnd, Outcome};
+use marie::events::{ActionResult, Event, EventKind};
+use marie::run::{OpEnd, Outcome};
 use serde_json::Value;
 
 /// `foxglove.LogLevel` DEBUG.

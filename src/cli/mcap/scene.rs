@@ -22,7 +22,7 @@ use super::schemas::{
     PointCloud, Pose, Quaternion, SceneEntity, SceneUpdate, Time, Topic, Vector3, CART_FRAME,
     WORLD_FRAME,
 };
-use marie::actors::events::{Event, EventKind};
+use marie::events::{Event, EventKind};
 use marie_monitor::state::robot::thin;
 use serde::Deserialize;
 use serde_json::Value;

@@ -15,8 +15,8 @@
 
 use super::log::text;
 use super::schemas::{Message, Time, Topic};
-use marie::actors::events::{Event, EventKind};
-use marie::actors::run::Outcome;
+use marie::events::{Event, EventKind};
+use marie::run::Outcome;
 use marie_monitor::state::tree::{ControlTree, NodeEnd, TreeNode};
 use serde::Serialize;
 use std::collections::BTreeSet;

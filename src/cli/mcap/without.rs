@@ -3,7 +3,7 @@
 //! ([`super::output`] refuses `--mcap` before anything runs).
 
 use super::Written;
-use marie::actors::events::{Event, EventBus};
+use marie::events::{Event, EventBus};
 use std::path::Path;
 
 /// No MCAP writer: none can be made.

@@ -7,7 +7,7 @@ use super::schemas::{Message, Topic};
 use super::tree::Control;
 use super::Written;
 use anyhow::Context;
-use marie::actors::events::Event;
+use marie::events::Event;
 use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::{BufWriter, Write};

@@ -10,7 +10,7 @@
 //!
 //! ```
 //! use marie_actors::dispatcher::mission::{ActionBuilder, MissionBuilder};
-//! use marie_actors::property::{ParamMap, Value};
+//! use marie_vocabulary::property::{ParamMap, Value};
 //!
 //! let parsed = MissionBuilder::new("collatz-demo")
 //!     .flags(["reached-one"])
@@ -45,7 +45,7 @@
 //! ```
 
 use super::{Diagnostics, GroupKind, ParsedMission};
-use crate::property::{ParamMap, Value};
+use marie_vocabulary::property::{ParamMap, Value};
 use std::time::Duration;
 
 /// What the diagnostics of a built mission name as its file.
@@ -458,8 +458,8 @@ fn value(v: &Value) -> toml::Value {
 mod tests {
     use super::*;
     use crate::dispatcher::mission::{OpInfo, StaticCatalog};
-    use crate::property::{ParamDecl, ParamSchema};
-    use crate::status::FlagDecl;
+    use marie_vocabulary::property::{ParamDecl, ParamSchema};
+    use marie_vocabulary::status::FlagDecl;
 
     fn catalog() -> StaticCatalog {
         StaticCatalog::new(vec![OpInfo::new("walker", 7, "1.0.0")

@@ -4,8 +4,8 @@
 
 use super::*;
 use crate::dispatcher::tree::{Command, Node, Scheduled, Status, Tree};
-use crate::property::{ParamDecl, ParamSchema, Value};
-use crate::status::FlagDecl;
+use marie_vocabulary::property::{ParamDecl, ParamSchema, Value};
+use marie_vocabulary::status::FlagDecl;
 
 /// The operations of these tests and the flags each raises.
 fn catalog() -> StaticCatalog {

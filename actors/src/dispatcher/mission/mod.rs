@@ -28,9 +28,9 @@
 //!    levels deep and of at most 10 000 nodes.
 //! 2. [`ParsedMission::validate`] — against the operations a [`Catalog`] offers: every
 //!    operation exists; every supplied parameter is declared, writable, of the right type and
-//!    in range ([`ParamDecl::check`](crate::property::ParamDecl::check)); every flag a
+//!    in range ([`ParamDecl::check`](marie_vocabulary::property::ParamDecl::check)); every flag a
 //!    condition (`when`, `while`) or `success` needs is set in `initial` or declared by some
-//!    operation of the mission ([`FlagDecl`](crate::status::FlagDecl)) — a typo or an
+//!    operation of the mission ([`FlagDecl`](marie_vocabulary::status::FlagDecl)) — a typo or an
 //!    impossible condition is caught here; no two children of a parallel run one operation;
 //!    in a mission with control keys, no top-level item waits for a flag that only its own
 //!    operations (a group's: those run inside it) raise.
@@ -185,7 +185,7 @@
 //! ```
 //! use marie_actors::dispatcher::mission::{OpInfo, ParsedMission, StaticCatalog};
 //! use marie_actors::dispatcher::tree::Node;
-//! use marie_actors::status::FlagDecl;
+//! use marie_vocabulary::status::FlagDecl;
 //! use std::time::Duration;
 //!
 //! let src = r#"
@@ -240,8 +240,8 @@
 //!
 //! ```
 //! use marie_actors::dispatcher::mission::{EndMode, OpInfo, ParsedMission, StaticCatalog};
-//! use marie_actors::status::{FlagDecl, StatusFlags};
-//! use marie_actors::property::{ParamDecl, ParamSchema, Value};
+//! use marie_vocabulary::status::{FlagDecl, StatusFlags};
+//! use marie_vocabulary::property::{ParamDecl, ParamSchema, Value};
 //! use std::time::Duration;
 //!
 //! let src = r#"
@@ -311,16 +311,16 @@ mod raw;
 mod structure;
 mod validate;
 
-pub use crate::diagnostic::{Diagnostic, Diagnostics, LineIndex, Pos};
 pub use builder::{ActionBuilder, GroupBuilder, MissionBuilder, BUILT};
 pub use control::{Control, Recovery};
+pub use marie_vocabulary::diagnostic::{Diagnostic, Diagnostics, LineIndex, Pos};
 pub use op_info::OpInfo;
 pub use operations::{Catalog, StaticCatalog};
 pub use raw::GroupKind;
 
 use super::checked::CheckedChoices;
-use crate::property::ParamMap;
-use crate::status::StatusFlags;
+use marie_vocabulary::property::ParamMap;
+use marie_vocabulary::status::StatusFlags;
 use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt;
@@ -357,7 +357,7 @@ pub struct OpRun {
     /// The operation's numeric id.
     pub id: u32,
     /// The parameters the mission supplies, canonicalized by
-    /// [`ParamDecl::check`](crate::property::ParamDecl::check). Omitted parameters are not
+    /// [`ParamDecl::check`](marie_vocabulary::property::ParamDecl::check). Omitted parameters are not
     /// here: the dispatcher leaves them at the declared defaults.
     pub params: ParamMap,
 }
@@ -467,12 +467,12 @@ impl Mission {
             .collect()
     }
 
-    /// The task tree as a run announces it ([`EventKind::RunStarted`](crate::events::EventKind::RunStarted)):
+    /// The task tree as a run announces it ([`EventKind::RunStarted`](marie_vocabulary::events::EventKind::RunStarted)):
     /// each action's name, condition flags by name, operations and the keys it ends on.
-    pub fn plan(&self) -> Vec<crate::events::ActionPlan> {
+    pub fn plan(&self) -> Vec<marie_vocabulary::events::ActionPlan> {
         self.actions
             .iter()
-            .map(|a| crate::events::ActionPlan {
+            .map(|a| marie_vocabulary::events::ActionPlan {
                 name: a.name.clone(),
                 when: self.flags_to_names(a.when),
                 ops: a.ops.iter().map(|o| o.name.clone()).collect(),
@@ -593,7 +593,7 @@ impl ParsedMission {
     /// Stage 1 on a file. An unreadable file is one diagnostic at 1:1 naming the file and the
     /// OS error; text that is not UTF-8 is reported at the first invalid byte.
     pub fn parse_file(path: &Path) -> Result<ParsedMission, Diagnostics> {
-        let src = crate::diagnostic::read_source(path, "mission")?;
+        let src = marie_vocabulary::diagnostic::read_source(path, "mission")?;
         ParsedMission::parse(&src, Some(path))
     }
 
@@ -699,8 +699,8 @@ pub(crate) fn display_path(path: Option<&Path>) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::property::{ParamDecl, ParamSchema, Value};
-    use crate::status::FlagDecl;
+    use marie_vocabulary::property::{ParamDecl, ParamSchema, Value};
+    use marie_vocabulary::status::FlagDecl;
 
     fn catalog() -> StaticCatalog {
         StaticCatalog::new([

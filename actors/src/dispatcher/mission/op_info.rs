@@ -4,8 +4,8 @@
 //! the other through it.
 
 use crate::eo::{Identity, Operation};
-use crate::property::ParamSchema;
-use crate::status::FlagDecl;
+use marie_vocabulary::property::ParamSchema;
+use marie_vocabulary::status::FlagDecl;
 use serde::{Deserialize, Serialize};
 
 /// What validation needs to know about one operation: identity, parameter declarations and

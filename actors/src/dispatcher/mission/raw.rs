@@ -7,9 +7,9 @@
 //! for what needs no catalog: flag bits, flag names, action names, `ends_on`, deadlines.
 
 use super::{EndMode, ParsedMission};
-use crate::diagnostic::toml::{quote, Reader, Tbl};
-use crate::diagnostic::{Diagnostic, Diagnostics, Pos};
-use crate::property::Value;
+use marie_vocabulary::diagnostic::toml::{quote, Reader, Tbl};
+use marie_vocabulary::diagnostic::{Diagnostic, Diagnostics, Pos};
+use marie_vocabulary::property::Value;
 use std::collections::{BTreeMap, BTreeSet};
 use std::ops::Range;
 use std::path::Path;
@@ -1413,7 +1413,7 @@ fn check(
         world_at: header.world.as_ref().map(|w| ctx.pos(&w.span())),
         world: header
             .world
-            .map(|w| crate::diagnostic::beside(path, w.get_ref())),
+            .map(|w| marie_vocabulary::diagnostic::beside(path, w.get_ref())),
         actions,
         groups,
         items,

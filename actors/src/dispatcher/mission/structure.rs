@@ -10,8 +10,8 @@
 
 use super::raw::{q, FlagRef, Item, ParsedControl};
 use super::ParsedMission;
-use crate::diagnostic::toml::Reader;
-use crate::diagnostic::{Diagnostic, Pos};
+use marie_vocabulary::diagnostic::toml::Reader;
+use marie_vocabulary::diagnostic::{Diagnostic, Pos};
 use std::collections::BTreeSet;
 
 /// How deeply groups and recoveries may nest (an item in a group in a group ... counts one

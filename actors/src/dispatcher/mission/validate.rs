@@ -2,9 +2,9 @@
 
 use super::raw::{list, q, GroupKind, Item, ParsedOp, ParsedParam};
 use super::{Action, Catalog, Mission, OpInfo, OpRun, ParsedMission};
-use crate::diagnostic::{Diagnostic, Diagnostics};
-use crate::property::{ParamMap, RejectReason};
-use crate::status::StatusFlags;
+use marie_vocabulary::diagnostic::{Diagnostic, Diagnostics};
+use marie_vocabulary::property::{ParamMap, RejectReason};
+use marie_vocabulary::status::StatusFlags;
 use std::collections::{BTreeMap, BTreeSet};
 
 /// Stage 2 entry point.
@@ -174,7 +174,11 @@ impl<C: Catalog + ?Sized> Validator<'_, C> {
         out
     }
 
-    fn param(&mut self, p: &ParsedParam, info: &OpInfo) -> Option<crate::property::Value> {
+    fn param(
+        &mut self,
+        p: &ParsedParam,
+        info: &OpInfo,
+    ) -> Option<marie_vocabulary::property::Value> {
         let Some(decl) = info.schema.get(&p.name) else {
             let hint = if info.schema.is_empty() {
                 format!("operation {} has no parameters", q(&info.name))

@@ -6,8 +6,8 @@
 use super::OperationHandle;
 use crate::eo::client::{EoClient, EoError};
 use crate::eo::handle_error::HandleError;
-use crate::property::{Group, PropertyReply, PropertyRequest};
-use crate::registry::{self, Instance, ModuleKind, RegistryEvent};
+use marie_vocabulary::property::{Group, PropertyReply, PropertyRequest};
+use marie_vocabulary::registry::{self, Instance, ModuleKind, RegistryEvent};
 use ractor::{ActorId, ActorStatus};
 use semver::VersionReq;
 use std::future::Future;

@@ -3,7 +3,7 @@
 //!
 //! Why a second client: [`EoClient`] is the interface as the dispatcher speaks it — one
 //! actor, commands under an explicit epoch (a wrong guess is answered `Stale` and changes
-//! nothing), property answers as an 11-variant [`PropertyReply`](crate::property::PropertyReply), errors that name an actor
+//! nothing), property answers as an 11-variant [`PropertyReply`](marie_vocabulary::property::PropertyReply), errors that name an actor
 //! id, and a client that is useless once its actor died. An application that only wants to
 //! read and set an operation's parameters needs none of that; [`OperationHandle`] says what
 //! it does instead.
@@ -17,7 +17,7 @@ use follow::{fits, Bound};
 use super::client::EoClient;
 use super::handle_error::HandleError;
 use super::messages::EoMsg;
-use crate::registry::{self, ModuleKind};
+use marie_vocabulary::registry::{self, ModuleKind};
 use ractor::ActorRef;
 use semver::VersionReq;
 use std::sync::{Arc, Mutex};
@@ -31,26 +31,26 @@ use std::time::Duration;
 /// - **follows restarts**: when its instance is gone — a call fails because the actor
 ///   stopped, or it is already dead when a call starts — it waits (bounded,
 ///   [`OperationHandle::DEFAULT_FOLLOW`]) for an instance of the same operation to be in the
-///   registry (a supervisor's restart, a spare; [`crate::registry::watch`] so nothing is
+///   registry (a supervisor's restart, a spare; [`marie_vocabulary::registry::watch`] so nothing is
 ///   polled) and retries the call there once. This is the dispatcher's rebind in miniature,
 ///   without its selection and restoring: a replacement starts with its own start-up
 ///   parameters, and the handle does not replay earlier [`set`](OperationHandle::set)s.
 ///   Across nodes ractor_cluster usually answers a request that timed out as if its actor
 ///   had died, so a hung remote instance is left like a gone one: the call waits for
 ///   another instance instead of reporting a [`HandleError::Timeout`];
-/// - **answers in types**: [`Identity`](super::Identity), [`ParamSchema`](crate::property::ParamSchema),
-///   [`FlagDecl`](crate::status::FlagDecl)s, [`General`](crate::property::General), a
-///   parameter as any [`FromValue`](crate::property::FromValue) type;
+/// - **answers in types**: [`Identity`](super::Identity), [`ParamSchema`](marie_vocabulary::property::ParamSchema),
+///   [`FlagDecl`](marie_vocabulary::status::FlagDecl)s, [`General`](marie_vocabulary::property::General), a
+///   parameter as any [`FromValue`](marie_vocabulary::property::FromValue) type;
 /// - **keeps epochs inside**: [`set`](OperationHandle::set) reads the instance's current
 ///   epoch and commands at exactly that epoch — the host refuses only an epoch *below* its
-///   current one ([`crate::fence`]) — and if a dispatcher raised it in between (the answer
+///   current one ([`marie_vocabulary::fence`]) — and if a dispatcher raised it in between (the answer
 ///   is `Stale`), once more at the epoch the answer names. The handle never raises an
 ///   epoch, so it never fences off a dispatcher that drives the same operation;
 /// - **names the operation and its node in every error** ([`HandleError`], [`SetError`](super::SetError)).
 ///
 /// ```
 /// use marie_actors::eo::{self, Identity, OperationHandle, Operation, OpContext, OpError, SetError, Step};
-/// use marie_actors::property::{param_map, ParamDecl, ParamSchema, Value};
+/// use marie_vocabulary::property::{param_map, ParamDecl, ParamSchema, Value};
 ///
 /// struct Pump;
 /// impl Operation for Pump {
@@ -276,7 +276,7 @@ impl OperationHandle {
     /// # #[tokio::main(flavor = "current_thread")] async fn main() {
     /// # eo::spawn_operation(Pump, Default::default()).await.unwrap();
     /// let pump = marie_actors::eo::OperationHandle::lookup("pump").await.unwrap();
-    /// assert_eq!(pump.node(), marie_actors::registry::local_node_name());
+    /// assert_eq!(pump.node(), marie_vocabulary::registry::local_node_name());
     /// # }
     /// ```
     pub fn node(&self) -> String {
@@ -307,7 +307,7 @@ impl OperationHandle {
     ///
     /// ```
     /// # use marie_actors::eo::{self, Identity, Operation, OpContext, OpError, Step};
-    /// # use marie_actors::status::StatusFlags;
+    /// # use marie_vocabulary::status::StatusFlags;
     /// # struct Pump;
     /// # impl Operation for Pump {
     /// #     fn identity(&self) -> Identity { Identity::new("pump", 7101, "1.2.0", "pumps") }

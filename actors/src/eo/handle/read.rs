@@ -5,11 +5,11 @@ use super::follow::Bound;
 use super::OperationHandle;
 use crate::eo::handle_error::HandleError;
 use crate::eo::operation::Identity;
-use crate::property::{
+use marie_vocabulary::property::{
     Collection, FromValue, General, Group, ParamMap, ParamSchema, PropertyReply, PropertyRequest,
     Specific, Value,
 };
-use crate::status::FlagDecl;
+use marie_vocabulary::status::FlagDecl;
 
 impl OperationHandle {
     /// Who the operation is: name, id, version, description.
@@ -51,7 +51,7 @@ impl OperationHandle {
     ///
     /// ```
     /// # use marie_actors::eo::{self, Identity, Operation, OpContext, OpError, Step};
-    /// # use marie_actors::property::{ParamDecl, ParamSchema};
+    /// # use marie_vocabulary::property::{ParamDecl, ParamSchema};
     /// # struct Pump;
     /// # impl Operation for Pump {
     /// #     fn identity(&self) -> Identity { Identity::new("pump", 7101, "1.2.0", "pumps") }
@@ -76,7 +76,7 @@ impl OperationHandle {
     ///
     /// ```
     /// # use marie_actors::eo::{self, Identity, Operation, OpContext, OpError, Step};
-    /// # use marie_actors::status::FlagDecl;
+    /// # use marie_vocabulary::status::FlagDecl;
     /// # struct Pump;
     /// # impl Operation for Pump {
     /// #     fn identity(&self) -> Identity { Identity::new("pump", 7101, "1.2.0", "pumps") }
@@ -143,7 +143,7 @@ impl OperationHandle {
     ///
     /// ```
     /// # use marie_actors::eo::{self, Identity, Operation, OpContext, OpError, Step};
-    /// # use marie_actors::property::{ParamDecl, ParamSchema, Value};
+    /// # use marie_vocabulary::property::{ParamDecl, ParamSchema, Value};
     /// # struct Pump;
     /// # impl Operation for Pump {
     /// #     fn identity(&self) -> Identity { Identity::new("pump", 7101, "1.2.0", "pumps") }
@@ -213,7 +213,7 @@ impl OperationHandle {
     ///
     /// ```
     /// # use marie_actors::eo::{self, Identity, Operation, OpContext, OpError, Step};
-    /// # use marie_actors::property::{ParamDecl, ParamSchema};
+    /// # use marie_vocabulary::property::{ParamDecl, ParamSchema};
     /// # struct Pump;
     /// # impl Operation for Pump {
     /// #     fn identity(&self) -> Identity { Identity::new("pump", 7101, "1.2.0", "pumps") }
@@ -254,14 +254,14 @@ impl OperationHandle {
         .await
     }
 
-    /// Property `name` as a `T`: a standard one ([`crate::property::STANDARD_PROPERTIES`]:
+    /// Property `name` as a `T`: a standard one ([`marie_vocabulary::property::STANDARD_PROPERTIES`]:
     /// `uptime_ms`, `in_use`, ...), `param.NAME`, or one the operation adds
     /// ([`Operation::property`](crate::eo::Operation::property)). [`HandleError::NoProperty`] if it has none of that
     /// name.
     ///
     /// ```
     /// # use marie_actors::eo::{self, Identity, Operation, OpContext, OpError, Step};
-    /// # use marie_actors::property::Value;
+    /// # use marie_vocabulary::property::Value;
     /// # struct Pump;
     /// # impl Operation for Pump {
     /// #     fn identity(&self) -> Identity { Identity::new("pump", 7101, "1.2.0", "pumps") }

@@ -4,11 +4,11 @@ use super::follow::{Attempt, Bound};
 use super::OperationHandle;
 use crate::eo::handle_error::SetError;
 use crate::eo::messages::ParamOutcome;
-use crate::property::{ParamMap, PropertyReply, PropertyRequest, Value};
+use marie_vocabulary::property::{ParamMap, PropertyReply, PropertyRequest, Value};
 
 impl OperationHandle {
     /// Change parameters: all of `values` or none. Refused values come back as
-    /// [`SetError::Rejected`], one [`crate::property::Rejection`] each, and nothing changed.
+    /// [`SetError::Rejected`], one [`marie_vocabulary::property::Rejection`] each, and nothing changed.
     ///
     /// The command goes at the instance's current epoch, read just before (see
     /// [`OperationHandle`]); answered `Stale` — a dispatcher raised the epoch in between — it is sent
@@ -16,7 +16,7 @@ impl OperationHandle {
     ///
     /// ```
     /// # use marie_actors::eo::{self, Identity, Operation, OpContext, OpError, Step};
-    /// # use marie_actors::property::{ParamDecl, ParamSchema};
+    /// # use marie_vocabulary::property::{ParamDecl, ParamSchema};
     /// # struct Pump;
     /// # impl Operation for Pump {
     /// #     fn identity(&self) -> Identity { Identity::new("pump", 7101, "1.2.0", "pumps") }
@@ -28,7 +28,7 @@ impl OperationHandle {
     /// # #[tokio::main(flavor = "current_thread")] async fn main() {
     /// # eo::spawn_operation(Pump, Default::default()).await.unwrap();
     /// use marie_actors::eo::{OperationHandle, SetError};
-    /// use marie_actors::property::{param_map, RejectReason, Value};
+    /// use marie_vocabulary::property::{param_map, RejectReason, Value};
     /// let pump = OperationHandle::lookup("pump").await.unwrap();
     /// pump.set(param_map([("rate", Value::Float(4.0)), ("stages", Value::Int(2))])).await.unwrap();
     ///

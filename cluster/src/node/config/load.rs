@@ -4,8 +4,8 @@
 use super::*;
 use crate::net::detector::{HeartbeatConfig, DEFAULT_DEADLINE, MIN_DEADLINE};
 use crate::net::{ClusterConfig, TlsFiles};
-use marie_actors::diagnostic::toml::{quote, Reader, Rule, Span, Tbl};
-use marie_actors::diagnostic::{beside, read_source, Diagnostic, Diagnostics};
+use marie_vocabulary::diagnostic::toml::{quote, Reader, Rule, Span, Tbl};
+use marie_vocabulary::diagnostic::{beside, read_source, Diagnostic, Diagnostics};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 

@@ -52,16 +52,16 @@
 //! Every problem — unknown key, wrong type, a number out of range, an operation or version
 //! the node cannot host, a supervisor nobody declared, a durable datamanager on a node
 //! without a `data_dir` — is a diagnostic at its `file:line:column` (the shared
-//! [`marie_actors::diagnostic`] reader).
+//! [`marie_vocabulary::diagnostic`] reader).
 
 mod load;
 
 pub(crate) use load::socket_addr;
 
-use marie_actors::diagnostic::Diagnostic;
-use marie_actors::dm::{self, DmSpec, Durability};
 use marie_actors::eo::OperationFactory;
+use marie_dm::{self as dm, DmSpec, Durability};
 use marie_supervision::{Restart, Strategy};
+use marie_vocabulary::diagnostic::Diagnostic;
 use std::path::PathBuf;
 use std::time::Duration;
 
@@ -111,7 +111,7 @@ pub struct NodeConfig {
     /// [`Node::shutdown`]: super::Node::shutdown
     pub cluster: Option<crate::net::ClusterConfig>,
     /// Where the node keeps what must outlive its process: each durable datamanager's
-    /// journal in `DATA_DIR/dm/NAME` ([`marie_actors::dm::journal::dir_in`]). `None`: the
+    /// journal in `DATA_DIR/dm/NAME` ([`marie_dm::journal_dir`]). `None`: the
     /// node writes no file, and its datamanagers are in memory only.
     ///
     /// [`Node::start`](super::Node::start) locks the directory for the node's life, before
@@ -142,12 +142,12 @@ pub struct DatamanagerConfig {
     /// The nodes that keep a copy of it, the preferred primary first, this node among them
     /// (empty: no copies). Every node named hosts a `[[datamanager]]` of the same name and
     /// the same list; a write is acknowledged once a majority of them hold it, and when the
-    /// primary's node is lost another copy takes over ([`marie_actors::dm::replica`]).
+    /// primary's node is lost another copy takes over ([`marie_dm::Replication`]).
     /// Three or more, with a journal (`process` or `sync`).
     pub copies: Vec<String>,
     /// With copies: applied entries the primary keeps in memory to catch a lagging copy
     /// up, beyond which it sends a snapshot of the store (`None`:
-    /// [`Replication::DEFAULT_CATCH_UP`](marie_actors::dm::Replication::DEFAULT_CATCH_UP)).
+    /// [`Replication::DEFAULT_CATCH_UP`](marie_dm::Replication::DEFAULT_CATCH_UP)).
     /// In a file, `catch_up = 10000`.
     pub catch_up: Option<usize>,
 }
@@ -168,7 +168,7 @@ impl DatamanagerConfig {
     /// primary).
     ///
     /// ```
-    /// use marie_actors::dm::FEATURE;
+    /// use marie_dm::FEATURE;
     /// use marie_cluster::node::DatamanagerConfig;
     /// let dm = DatamanagerConfig::from(FEATURE).with_copies(["features", "operations", "spare"]);
     /// assert_eq!(dm.copies.len(), 3);
@@ -181,7 +181,7 @@ impl DatamanagerConfig {
     /// At `durability` rather than the node's default.
     ///
     /// ```
-    /// use marie_actors::dm::{Durability, FEATURE};
+    /// use marie_dm::{Durability, FEATURE};
     /// use marie_cluster::node::DatamanagerConfig;
     /// let dm = DatamanagerConfig::from(FEATURE).with_durability(Durability::Sync);
     /// assert_eq!(dm.durability, Some(Durability::Sync));
@@ -521,8 +521,7 @@ impl NodeConfig {
                 _ => {}
             }
             if !d.copies.is_empty() {
-                let replication =
-                    marie_actors::dm::Replication::new(self.name.clone(), d.copies.clone());
+                let replication = marie_dm::Replication::new(self.name.clone(), d.copies.clone());
                 let durable = self.durability_of(d) != Durability::Memory;
                 let problem = replication.check().err().or_else(|| {
                     (!durable).then(|| {

@@ -8,8 +8,8 @@ use crate::hardware::CartClient;
 use crate::ops::perception::wall_from;
 use crate::ops::records::{SEGMENTS, WALL};
 use crate::ops::{cart, cart_err, newest};
-use marie_actors::dm::{FEATURE, WORLD};
 use marie_actors::eo::{OpContext, OpError};
+use marie_dm::{FEATURE, WORLD};
 
 /// How far the cart may run past the last seen end of the wall before the follower gives up,
 /// m: more than a docking spot's breadth, which looks like the wall's end until its far side

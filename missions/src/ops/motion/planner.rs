@@ -9,10 +9,10 @@ use crate::hardware::CartClient;
 use crate::ops::records::{DockRecord, LegRecord, PathRecord, DOCK, MAP, PATH};
 use crate::ops::{cart, cart_err, dm_err, located, newest};
 use marie_actors::declare::{DeclaredFlags, DeclaredParams};
-use marie_actors::dm::{PARAMETER, WORLD};
 use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
-use marie_actors::property::ParamSchema;
-use marie_actors::status::FlagDecl;
+use marie_dm::{PARAMETER, WORLD};
+use marie_vocabulary::property::ParamSchema;
+use marie_vocabulary::status::FlagDecl;
 
 marie_actors::choice! {
     /// Where the path planner plans to.

@@ -8,8 +8,8 @@ use crate::hardware::CartClient;
 use crate::ops::{cart, cart_err};
 use marie_actors::declare::{DeclaredFlags, DeclaredParams};
 use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
-use marie_actors::property::ParamSchema;
-use marie_actors::status::FlagDecl;
+use marie_vocabulary::property::ParamSchema;
+use marie_vocabulary::status::FlagDecl;
 use std::time::Duration;
 
 marie_actors::choice! {

@@ -11,10 +11,10 @@ use crate::hardware::CartClient;
 use crate::ops::records::{LegRecord, ProgressRecord, PATH, PROGRESS};
 use crate::ops::{cart, cart_err, dm_err, located, newest, newest_with_seq};
 use marie_actors::declare::{DeclaredFlags, DeclaredParams};
-use marie_actors::dm::PARAMETER;
 use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
-use marie_actors::property::ParamSchema;
-use marie_actors::status::FlagDecl;
+use marie_dm::PARAMETER;
+use marie_vocabulary::property::ParamSchema;
+use marie_vocabulary::status::FlagDecl;
 use std::time::Duration;
 
 marie_actors::params! {

@@ -8,7 +8,7 @@ use crate::geom::Pose;
 use crate::hardware::CartClient;
 use marie_actors::declare::DeclaredParams;
 use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
-use marie_actors::property::ParamSchema;
+use marie_vocabulary::property::ParamSchema;
 use std::time::Duration;
 
 /// How long a wall follower may see the cart make no progress before it gives up: something

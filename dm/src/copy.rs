@@ -1,0 +1,181 @@
+//! What a copy of a replicated datamanager holds beside its store: the protocol's
+//! [`Core`], the other copies it can reach, the answers waiting for a commit, a snapshot
+//! being received. Its actor's handlers for the copies' messages are in `replicated.rs`.
+
+use super::error::DmError;
+use super::journal::ReplicaLog;
+use super::messages::DmMsg;
+use super::replica::core::{Core, Restored};
+use super::replica::{vote, ReplicaMsg, Replication, SCOPE};
+use super::store::Store;
+use marie_vocabulary::fence::FenceTable;
+use ractor::{pg, ActorCell, ActorRef};
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::time::Duration;
+
+/// An answer waiting for its entry's commit.
+pub(crate) type Ack = Box<dyn FnOnce(Result<(), DmError>) + Send>;
+
+/// The replication side of a datamanager's state.
+pub(crate) struct Copy {
+    pub(crate) core: Core,
+    /// The journal's directory (where the vote is kept).
+    pub(crate) dir: PathBuf,
+    /// The other copies reachable now, by node.
+    pub(crate) peers: BTreeMap<String, ActorCell>,
+    /// Answers waiting for the commit of the entry they name.
+    pub(crate) acks: BTreeMap<u64, Vec<Ack>>,
+    started: tokio::time::Instant,
+    /// The newest time stamp handed out.
+    pub(crate) last_time: Duration,
+    /// A snapshot being received from the primary.
+    pub(crate) incoming: Option<Incoming>,
+    /// The entries of the `Append` being handled, as they came: journaled as they are.
+    pub(crate) arrived: Option<std::sync::Arc<super::replica::RawOps>>,
+    /// Snapshots taken in since it started.
+    pub(crate) snapshots_taken: u64,
+    /// The last entry whose producer's pair was noted before it was applied (a primary
+    /// notes its proposals, and at election every entry it holds not yet applied):
+    /// applying one up to it notes nothing again — a pair noted twice halved the retries a
+    /// primary recognised (the table then kept a producer's last 1024 pairs, one window).
+    pub(crate) noted: u64,
+    ticker: tokio::task::JoinHandle<()>,
+    /// The datamanager's name.
+    pub(crate) name: String,
+    /// Where it tells that it became the primary or stepped down.
+    pub(crate) events: Option<marie_vocabulary::events::EventBus>,
+}
+
+impl Drop for Copy {
+    fn drop(&mut self) {
+        self.ticker.abort();
+    }
+}
+
+/// A snapshot being received.
+pub(crate) struct Incoming {
+    /// Where the snapshot ends, (seq, term).
+    pub(crate) last: (u64, u64),
+    /// The records so far.
+    pub(crate) store: Store,
+    /// Their sources' epochs.
+    pub(crate) fences: FenceTable,
+    /// How many came.
+    pub(crate) records: u64,
+    /// The producers' recent pairs so far.
+    pub(crate) producers: super::producers::Producers,
+}
+
+/// The group a copy of `dm` on node `me` joins (in [`SCOPE`]).
+pub(crate) fn group(dm: &str, me: &str) -> String {
+    format!("{dm}/{me}")
+}
+
+impl Copy {
+    /// The copy `replication.me` of datamanager `name`, with what its journal (in `dir`)
+    /// held: joins its group, starts its ticker.
+    pub(crate) fn start(
+        name: &str,
+        replication: &Replication,
+        dir: PathBuf,
+        log: Option<ReplicaLog>,
+        store: &Store,
+        myself: &ActorRef<DmMsg>,
+        events: Option<marie_vocabulary::events::EventBus>,
+    ) -> Result<Copy, String> {
+        let (term, voted_for) =
+            vote::load(&dir).map_err(|e| format!("reading the vote in {}: {e}", dir.display()))?;
+        let restored = match log {
+            Some(log) => Restored {
+                term: term.max(log.term),
+                voted_for,
+                committed: log.committed,
+                tail: log.tail,
+                applied: log.applied,
+                before: log.before,
+            },
+            None if store.next_seq() > 1 => {
+                return Err(format!(
+                    "the journal in {} was written by a datamanager without copies: its records \
+                     are on no other copy (start the copies on empty directories)",
+                    dir.display()
+                ))
+            }
+            None => Restored {
+                term,
+                voted_for,
+                ..Restored::default()
+            },
+        };
+        let eager = replication.members.first() == Some(&replication.me);
+        let started = tokio::time::Instant::now();
+        let core = Core::new(
+            &replication.me,
+            &replication.members,
+            replication.timing,
+            restored,
+            eager,
+            Duration::ZERO,
+        )
+        .with_tail_keep(replication.catch_up);
+        pg::join_scoped(
+            SCOPE.to_string(),
+            group(name, &replication.me),
+            vec![myself.get_cell()],
+        );
+        pg::monitor_scope(SCOPE.to_string(), myself.get_cell());
+        let me = myself.clone();
+        let every = replication.timing.heartbeat / 2;
+        let ticker = tokio::spawn(async move {
+            let mut ticks = tokio::time::interval(every);
+            ticks.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+            loop {
+                ticks.tick().await;
+                if me.cast(DmMsg::ReplicaTick {}).is_err() {
+                    break;
+                }
+            }
+        });
+        Ok(Copy {
+            core,
+            dir,
+            peers: BTreeMap::new(),
+            acks: BTreeMap::new(),
+            started,
+            last_time: store.last_time(),
+            incoming: None,
+            arrived: None,
+            snapshots_taken: 0,
+            noted: 0,
+            ticker,
+            name: name.to_string(),
+            events,
+        })
+    }
+
+    pub(crate) fn now(&self) -> Duration {
+        self.started.elapsed()
+    }
+
+    /// Run `ack` once the entries up to `seq` are applied (at once if they are).
+    pub(crate) fn after_applied(&mut self, seq: u64, ack: Ack) {
+        if seq <= self.core.applied() {
+            ack(Ok(()));
+        } else {
+            self.acks.entry(seq).or_default().push(ack);
+        }
+    }
+
+    pub(crate) fn send(&self, to: &str, msg: ReplicaMsg) {
+        match self.peers.get(to) {
+            Some(cell) => {
+                let actor: ActorRef<DmMsg> = cell.clone().into();
+                if let Err(e) = actor.cast(DmMsg::Replica { msg: Box::new(msg) }) {
+                    tracing::debug!(dm = %self.name, to, error = %e, "replica: a message not sent");
+                }
+            }
+            None => tracing::trace!(dm = %self.name, to, "replica: not reachable; not sent"),
+        }
+    }
+}

@@ -1,0 +1,22 @@
+//! Finding a datamanager's next instance: after a crash its supervisor starts a new one
+//! under the same name (and, with copies, a copy is promoted elsewhere) — the registry's
+//! follow, for datamanagers.
+
+use marie_vocabulary::registry::{follow, Instance, ModuleKind};
+use ractor::ActorId;
+use std::time::Duration;
+
+/// A live instance published as `dm` (name or id) other than `gone`, local ones first.
+pub(crate) fn published(dm: &str, gone: Option<ActorId>) -> Option<Instance> {
+    follow::published(ModuleKind::Datamanager, dm, gone)
+}
+
+/// [`published`], or the first such instance the registry publishes within `within` (on the
+/// runtime's timer). `None` if none comes.
+pub(crate) async fn next_instance(
+    dm: &str,
+    gone: Option<ActorId>,
+    within: Duration,
+) -> Option<Instance> {
+    follow::next_instance(ModuleKind::Datamanager, dm, gone, within).await
+}

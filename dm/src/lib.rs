@@ -1,0 +1,116 @@
+//! # marie-dm
+//!
+//! The dm-interface: datamanagers, the only way operations share data.
+//!
+//! In MARIE (thesis 3.2.5.2 and appendix B) elementary operations never talk to each other;
+//! they store records in, and select records from, *datamanagers*. A record carries a class
+//! and up to two sub-class levels chosen by its producer and an opaque payload; on storing,
+//! the DM adds a sequence number, a time stamp and the source. One select retrieves by almost
+//! any criterion — class, sub-classes, source, sequence number, time — and a select can be
+//! held open until a matching record arrives or a timeout passes. The thesis runs three DMs:
+//! [`WORLD`] (world map, walls), [`FEATURE`] (sensor features) and [`PARAMETER`] (parameters
+//! planned for a later task).
+//!
+//! Here a DM is a ractor actor ([`Datamanager`], spawned with [`spawn_datamanager`]) that
+//! speaks [`DmMsg`] and publishes itself in the [registry](marie_vocabulary::registry) by name and id;
+//! [`DmClient`] is the typed way to talk to it, locally or across nodes:
+//!
+//! - [`Record`] / [`NewRecord`] / [`Payload`] — what is stored; payloads are MessagePack, with
+//!   typed helpers ([`Payload::encode`], [`Record::decode`]); a record read in the DM's own
+//!   process is decoded once for all its readers ([`PayloadType`]), and its names are the
+//!   store's, shared ([`Name`]);
+//! - [`Query`] — what to select, delete, wait for or subscribe to;
+//! - [`Store`] — the indexed store itself, usable without an actor;
+//! - [`Subscription`] — new records as a stream, built as a long poll over `SelectWait`;
+//! - `credits` and `outbox` — puts to a DM on another node: held to a window, and
+//!   coalesced in flight into batches.
+//!
+//! # Indexing invariant: select cost grows with the answer, not with the store
+//! Each class keeps its records in seq order, with sorted seq sets per first sub-class, per
+//! (first, second) sub-class and per source; a time index maps time stamps to seqs (they never
+//! decrease with seq, so a time range is a seq range). A select walks only the narrowest set
+//! its query names, only over the seq range it allows, backwards for "newest N" and stopping
+//! after N; a query without a class does so in each class and merges them by seq. Selecting
+//! the newest 10 front sonar readings costs the same with a thousand or a million records
+//! stored. Storing is a few appends (no tree to rebalance), so a high-rate sensor can `Put`
+//! at close to the speed of a bare actor message (see `benches/dm.rs`).
+//!
+//! # Retention
+//! Each class keeps at most a bounded number of records ([`DmConfig`]: a default bound and
+//! per-class bounds); storing one more drops the oldest record *of that class*, so a
+//! high-rate sensor cannot grow memory without limit nor push out a rarely written world map.
+//! A subscriber sees dropped records as a gap in seq numbers.
+//!
+//! ```
+//! use marie_vocabulary::clock::RealClock;
+//! use marie_dm::{self as dm, DmClient, Query};
+//!
+//! # #[tokio::main(flavor = "current_thread")] async fn main() {
+//! let mut args = dm::WORLD.args(RealClock::shared());
+//! args.name = "world-doc".into(); // registry names are process-wide
+//! let (actor, handle) = dm::spawn_datamanager(args).await.unwrap();
+//! let client = DmClient::new(actor.clone(), "wall-sensor");
+//! let seq = client.store("wall", Some("left"), None, &(0.0, 1.5)).await.unwrap();
+//! let walls = client
+//!     .select_typed::<(f64, f64)>(Query::class("wall").sub1("left").newest(1))
+//!     .await
+//!     .unwrap();
+//! assert_eq!(walls[0].0.seq, seq);
+//! assert_eq!(walls[0].0.source, "wall-sensor");
+//! assert_eq!(walls[0].1, (0.0, 1.5));
+//! actor.stop(None);
+//! handle.await.unwrap();
+//! # }
+//! ```
+
+#![warn(missing_docs)]
+
+mod acks;
+mod actor;
+mod audit;
+mod client;
+mod copy;
+mod credits;
+mod entry;
+mod error;
+mod follow;
+mod index;
+mod journal;
+mod kind;
+mod messages;
+mod name;
+mod outbox;
+mod packed;
+mod page;
+mod producers;
+mod query;
+mod record;
+mod replica;
+mod replicated;
+mod shared;
+mod store;
+mod subscription;
+mod waits;
+
+pub use acks::{digest, Ack, AckSink};
+pub use actor::{
+    spawn_datamanager, spawn_datamanager_linked, Datamanager, DmArgs, DmSpec, DmState, FEATURE,
+    PARAMETER, RUN, WORLD,
+};
+pub use audit::Ledger;
+pub use client::DmClient;
+pub use credits::{
+    BATCH as PUT_BATCH, REPLICATED_WINDOW as REPLICATED_PUT_WINDOW, WINDOW as PUT_WINDOW,
+};
+pub use error::DmError;
+pub use journal::{journal_dir, DirLock, Durability, LockError, Recovery, SNAPSHOT_MIN};
+pub use kind::RecordKind;
+pub use messages::{DmMsg, DmStats, ReplicaStats, StoreDigest};
+pub use name::Name;
+pub use page::{Page, PAGE_BYTES};
+pub use query::{Query, Take};
+pub use record::{NewRecord, Payload, Record, RecordHeader, MAX_NAME_LEN};
+pub use replica::{Replication, Timing as ReplicationTiming, SCOPE as REPLICA_SCOPE};
+pub use shared::PayloadType;
+pub use store::{DmConfig, Plan, Store};
+pub use subscription::Subscription;

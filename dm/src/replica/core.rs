@@ -1,0 +1,1160 @@
+//! The replication protocol of a datamanager's copies as a pure state machine: Raft with a
+//! fixed set of members, pre-votes and leader stickiness, with time passed in.
+//!
+//! The datamanager actor feeds it what arrives (a message, a tick, a durable write, a peer
+//! that came or went) and carries out what it returns ([`Out`]): persist the term and vote,
+//! send, journal, truncate, apply committed entries, publish or withdraw itself. Keeping
+//! the protocol here, without an actor, a clock or a disk, lets the tests run thousands of
+//! seeded schedules of lost messages, partitions and crashes against its invariants:
+//!
+//! - at most one primary per term, and a primary's term is persisted before it is used;
+//! - an entry is committed only once a majority holds it durably, and a primary commits
+//!   by counting only entries of its own term (Raft's figure 8);
+//! - a committed entry is never truncated, and every copy applies the same entries in the
+//!   same order;
+//! - a copy votes only for a log at least as up to date as its own, once per term.
+
+use super::msg::{Ops, ReplicaMsg};
+use super::op::{Op, OpBody};
+use super::tail::{Tail, KEEP_BYTES};
+use std::collections::{BTreeMap, BTreeSet};
+use std::time::Duration;
+
+/// The protocol's clocks.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Timing {
+    /// How often a primary sends to a copy it has nothing else to send (a heartbeat).
+    pub heartbeat: Duration,
+    /// How long a copy goes without hearing from a primary before it campaigns (plus a
+    /// random part of up to half of it), and how long a primary goes without hearing from a
+    /// majority before it steps down.
+    pub election: Duration,
+}
+
+impl Default for Timing {
+    fn default() -> Timing {
+        // The node's failure detector declares a lost node within 1.2 s and closes its
+        // sessions; a copy that sees the primary leave campaigns at once. The election
+        // timeout is the backstop (a primary hung with its node alive), not the fast path.
+        Timing {
+            heartbeat: Duration::from_millis(100),
+            election: Duration::from_millis(2500),
+        }
+    }
+}
+
+/// Entries a primary sends in one `Append` at most.
+const OPS_PER_APPEND: usize = 4096;
+/// Entries a primary has in flight to one copy at most.
+const INFLIGHT: u64 = 65_536;
+/// Applied entries a copy keeps in memory to catch a lagging copy up (beyond them, or
+/// beyond [`KEEP_BYTES`](tail::KEEP_BYTES), a snapshot is sent).
+pub(crate) const TAIL_KEEP: usize = 16_384;
+
+/// What the actor must do, in order.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub(crate) enum Out {
+    /// Persist the term and the vote before anything after this is sent.
+    Persist,
+    /// Send `msg` to the copy on node `to`.
+    Send(String, ReplicaMsg),
+    /// Drop the (uncommitted) entries from this seq on: from the journal too.
+    Truncate(u64),
+    /// Journal the entries from this seq to the last (they are in [`Core::op`]); tell
+    /// [`Core::durable`] when they are durable.
+    Journal(u64, u64),
+    /// Apply the committed entries from this seq to that one, in order ([`Core::op`]).
+    Apply(u64, u64),
+    /// This copy is the primary now: publish it under the datamanager's name.
+    Lead,
+    /// This copy was the primary and is not any more (a newer term, or it lost its
+    /// majority): it must stop answering as one.
+    StepDown(String),
+    /// Send the copy on node `to` a snapshot of the committed store (it needs entries this
+    /// copy no longer holds). The snapshot ends at seq `.1` of term `.2`.
+    Install(String, u64, u64),
+}
+
+#[derive(Clone, Debug)]
+struct Progress {
+    /// The next seq to send.
+    next: u64,
+    /// The highest seq known held (durably) by the copy as here.
+    matched: u64,
+    /// When the copy last answered in this term.
+    acked: Option<Duration>,
+    /// When something was last sent to it.
+    sent: Option<Duration>,
+    /// Sending one `Append` at a time until one is accepted (after a refusal).
+    probing: bool,
+    /// A snapshot was sent at this time and is not acknowledged yet.
+    installing: Option<Duration>,
+}
+
+#[derive(Clone, Debug)]
+enum Role {
+    Follower,
+    Candidate {
+        pre: bool,
+        votes: BTreeSet<String>,
+    },
+    Leader {
+        peers: BTreeMap<String, Progress>,
+        since: Duration,
+    },
+}
+
+/// The protocol state of one copy.
+#[derive(Clone, Debug)]
+pub(crate) struct Core {
+    me: String,
+    members: Vec<String>,
+    timing: Timing,
+    term: u64,
+    voted_for: Option<String>,
+    /// (seq, term) of the entry just before `tail` (0, 0: the log's start).
+    base: (u64, u64),
+    tail: Tail,
+    commit: u64,
+    applied: u64,
+    /// The last entry known durable here, as (seq, term).
+    durable: (u64, u64),
+    /// The highest seq this copy knows to match the current primary's log.
+    verified: u64,
+    role: Role,
+    leader: Option<String>,
+    /// When this copy last heard from the current primary.
+    heard: Option<Duration>,
+    deadline: Duration,
+    visible: BTreeSet<String>,
+    rng: u64,
+    /// Applied entries kept in memory ([`TAIL_KEEP`]; less in tests).
+    keep: usize,
+    /// Bytes of entries kept in memory ([`KEEP_BYTES`](tail::KEEP_BYTES)).
+    keep_bytes: usize,
+    /// The configured primary: it campaigns first.
+    preferred: bool,
+    /// The configured primary's node (the first member as configured).
+    preferred_member: String,
+    /// On a primary that is not the preferred copy: when it last asked that copy to take
+    /// over (`TimeoutNow`), and its last seq then. For a while after, the other copies get
+    /// nothing past that seq (see [`Core::hand_over`]).
+    handed: Option<(Duration, u64)>,
+}
+
+/// What a copy recovered from its disk.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Restored {
+    /// Its term and vote.
+    pub(crate) term: u64,
+    /// Its vote in that term.
+    pub(crate) voted_for: Option<String>,
+    /// (seq, term) of its last committed entry.
+    pub(crate) committed: (u64, u64),
+    /// Its entries after it, not known committed.
+    pub(crate) tail: Vec<Op>,
+    /// Committed (applied) entries its journal still holds, ending with `committed`: kept
+    /// to catch a lagging copy up without a snapshot, should it become the primary.
+    pub(crate) applied: Tail,
+    /// (seq, term) of the entry just before the first of `applied` (unused when empty).
+    pub(crate) before: (u64, u64),
+}
+
+impl Core {
+    /// A copy `me` of a datamanager kept on `members` (node names, `me` among them), with
+    /// what its journal held, at `now`. `eager`: campaign soon (the configured primary).
+    pub(crate) fn new(
+        me: &str,
+        members: &[String],
+        timing: Timing,
+        restored: Restored,
+        eager: bool,
+        now: Duration,
+    ) -> Core {
+        let preferred_member = members.first().cloned().unwrap_or_default();
+        let mut members = members.to_vec();
+        members.sort();
+        members.dedup();
+        let seed = me
+            .bytes()
+            .fold(0x9E37_79B9_7F4A_7C15u64, |h, b| {
+                (h ^ b as u64).wrapping_mul(0x100_0000_01B3)
+            })
+            .wrapping_add(now.as_nanos() as u64)
+            | 1;
+        let durable_last = restored
+            .tail
+            .last()
+            .map_or(restored.committed, |o| (o.seq, o.term));
+        // the applied entries it still has, if they end where the committed ones do
+        let (base, mut tail) = match restored.applied.back() {
+            Some(last) if (last.seq, last.term) == restored.committed => {
+                (restored.before, restored.applied)
+            }
+            _ => (restored.committed, Tail::default()),
+        };
+        tail.extend(restored.tail);
+        let mut core = Core {
+            me: me.to_string(),
+            members,
+            timing,
+            term: restored.term,
+            voted_for: restored.voted_for,
+            base,
+            tail,
+            commit: restored.committed.0,
+            applied: restored.committed.0,
+            durable: durable_last,
+            verified: 0,
+            role: Role::Follower,
+            leader: None,
+            heard: None,
+            deadline: now,
+            visible: BTreeSet::new(),
+            rng: seed,
+            keep: TAIL_KEEP,
+            keep_bytes: KEEP_BYTES,
+            preferred: eager,
+            preferred_member,
+            handed: None,
+        };
+        core.deadline = if eager {
+            now + timing.heartbeat
+        } else {
+            now + core.election_timeout()
+        };
+        core
+    }
+
+    /// Keep at most `n` applied entries in memory (beyond them a lagging copy is sent a
+    /// snapshot).
+    pub(crate) fn with_tail_keep(mut self, n: usize) -> Core {
+        self.keep = n.max(1);
+        self
+    }
+
+    /// Keep at most `bytes` of applied entries in memory ([`KEEP_BYTES`](tail::KEEP_BYTES); less in tests).
+    #[cfg(test)]
+    pub(crate) fn with_tail_bytes(mut self, bytes: usize) -> Core {
+        self.keep_bytes = bytes;
+        self
+    }
+
+    // ---- what it is --------------------------------------------------------------------
+
+    /// Its node.
+    pub(crate) fn me(&self) -> &str {
+        &self.me
+    }
+
+    /// The current term.
+    pub(crate) fn term(&self) -> u64 {
+        self.term
+    }
+
+    /// Its vote in the current term.
+    pub(crate) fn voted_for(&self) -> Option<&str> {
+        self.voted_for.as_deref()
+    }
+
+    /// Whether it is the primary.
+    pub(crate) fn is_leader(&self) -> bool {
+        matches!(self.role, Role::Leader { .. })
+    }
+
+    /// The primary it follows (itself if it is one), if it knows one.
+    pub(crate) fn leader(&self) -> Option<&str> {
+        self.leader.as_deref()
+    }
+
+    /// The committed seq.
+    pub(crate) fn commit(&self) -> u64 {
+        self.commit
+    }
+
+    /// The last seq handed to [`Out::Apply`].
+    pub(crate) fn applied(&self) -> u64 {
+        self.applied
+    }
+
+    /// (seq, term) of its last entry.
+    pub(crate) fn last(&self) -> (u64, u64) {
+        self.tail.back().map_or(self.base, |o| (o.seq, o.term))
+    }
+
+    /// The term of the entry `seq`, if it is still held (or is the one before the tail).
+    pub(crate) fn term_at(&self, seq: u64) -> Option<u64> {
+        if seq == self.base.0 {
+            return Some(self.base.1);
+        }
+        if seq < self.base.0 {
+            return None;
+        }
+        self.op(seq).map(|o| o.term)
+    }
+
+    /// The entry `seq`, if it is in memory.
+    pub(crate) fn op(&self, seq: u64) -> Option<&Op> {
+        let i = seq.checked_sub(self.base.0 + 1)?;
+        self.tail.get(usize::try_from(i).ok()?)
+    }
+
+    /// The entries from `from` to `to` that are in memory.
+    pub(crate) fn ops(&self, from: u64, to: u64) -> impl Iterator<Item = &Op> {
+        let start = from.saturating_sub(self.base.0 + 1) as usize;
+        let end = to.saturating_sub(self.base.0) as usize;
+        self.tail
+            .range(start.min(self.tail.len())..end.min(self.tail.len()))
+    }
+
+    /// How far each copy is behind the primary's last entry (on the primary).
+    pub(crate) fn lag(&self) -> BTreeMap<String, u64> {
+        let last = self.last().0;
+        match &self.role {
+            Role::Leader { peers, .. } => peers
+                .iter()
+                .map(|(p, pr)| (p.clone(), last.saturating_sub(pr.matched)))
+                .collect(),
+            _ => BTreeMap::new(),
+        }
+    }
+
+    fn majority(&self) -> usize {
+        self.members.len() / 2 + 1
+    }
+
+    fn peers(&self) -> impl Iterator<Item = &String> {
+        self.members.iter().filter(move |m| **m != self.me)
+    }
+
+    /// The other copies' nodes.
+    pub(crate) fn others(&self) -> Vec<String> {
+        self.peers().cloned().collect()
+    }
+
+    fn random(&mut self, below: u64) -> u64 {
+        // xorshift64*: enough to spread the copies' timeouts
+        self.rng ^= self.rng >> 12;
+        self.rng ^= self.rng << 25;
+        self.rng ^= self.rng >> 27;
+        self.rng.wrapping_mul(0x2545_F491_4F6C_DD1D) % below.max(1)
+    }
+
+    fn election_timeout(&mut self) -> Duration {
+        let half = self.timing.election.as_millis() as u64 / 2;
+        self.timing.election + Duration::from_millis(self.random(half + 1))
+    }
+
+    // ---- the primary's side --------------------------------------------------------------
+
+    /// Append `body` as the primary's next entry (its seq is the record's); `None` if this
+    /// copy is not the primary. The actor journals it and calls [`Core::replicate`] once it
+    /// has gathered a batch.
+    pub(crate) fn propose(&mut self, body: OpBody) -> Option<&Op> {
+        if !self.is_leader() {
+            return None;
+        }
+        let seq = self.last().0 + 1;
+        self.tail.push_back(Op {
+            seq,
+            term: self.term,
+            body,
+        });
+        self.tail.back()
+    }
+
+    /// Send each copy what it lacks (or a heartbeat, if it is due).
+    pub(crate) fn replicate(&mut self, now: Duration, out: &mut Vec<Out>) {
+        let Role::Leader { peers, .. } = &self.role else {
+            return;
+        };
+        let names: Vec<String> = peers.keys().cloned().collect();
+        let mut shared = Vec::new();
+        for peer in names {
+            self.send_to(&peer, now, false, &mut shared, out);
+        }
+    }
+
+    /// Send `peer` what it lacks (or a heartbeat). `shared`: the entries sent to other
+    /// copies in this round, by the seq they start at.
+    fn send_to(
+        &mut self,
+        peer: &str,
+        now: Duration,
+        force: bool,
+        shared: &mut Vec<(u64, Ops)>,
+        out: &mut Vec<Out>,
+    ) {
+        let (last, base, commit, term) = (self.last().0, self.base, self.commit, self.term);
+        let commit_term = self.term_at(commit).unwrap_or(0);
+        let (heartbeat, election) = (self.timing.heartbeat, self.timing.election);
+        // while the preferred copy takes over, the others get nothing it may lack
+        let last = match self.handed {
+            Some((at, upto))
+                if peer != self.preferred_member && now.saturating_sub(at) < election / 4 =>
+            {
+                last.min(upto)
+            }
+            _ => last,
+        };
+        let Role::Leader { peers, .. } = &mut self.role else {
+            return;
+        };
+        let Some(pr) = peers.get_mut(peer) else {
+            return;
+        };
+        if let Some(at) = pr.installing {
+            // its parts count as heartbeats; sent again if unanswered for long
+            if now.saturating_sub(at) < 2 * election {
+                return;
+            }
+            pr.installing = None;
+        }
+        if pr.next <= base.0 {
+            // the entries it needs are gone from memory: a snapshot of the committed store
+            pr.installing = Some(now);
+            pr.sent = Some(now);
+            pr.next = commit + 1;
+            pr.probing = true;
+            out.push(Out::Install(peer.to_string(), commit, commit_term));
+            return;
+        }
+        let due = pr.sent.is_none_or(|t| now.saturating_sub(t) >= heartbeat);
+        let has_new = pr.next <= last && pr.next - 1 - pr.matched.min(pr.next - 1) < INFLIGHT;
+        // probing: one append at a time, until one is taken; else as much as there is
+        let go = if pr.probing {
+            force || due
+        } else {
+            force || due || has_new
+        };
+        if !go {
+            return;
+        }
+        let prev_seq = pr.next - 1;
+        let n = if has_new {
+            (last - prev_seq).min(OPS_PER_APPEND as u64) as usize
+        } else {
+            0
+        };
+        let start = (pr.next - base.0 - 1) as usize;
+        // the copies that lack the same entries share them (encoded once when sent)
+        let ops = match shared
+            .iter()
+            .find(|(at, o)| *at == prev_seq + 1 && o.len() == n)
+        {
+            Some((_, o)) => o.clone(),
+            None => {
+                let o = Ops::encode(self.tail.range(start..start + n));
+                shared.push((prev_seq + 1, o.clone()));
+                o
+            }
+        };
+        let prev_term = if prev_seq == base.0 {
+            base.1
+        } else {
+            self.tail[(prev_seq - base.0 - 1) as usize].term
+        };
+        let Role::Leader { peers, .. } = &mut self.role else {
+            return;
+        };
+        let pr = peers.get_mut(peer).expect("looked up above");
+        pr.sent = Some(now);
+        if !pr.probing {
+            pr.next += n as u64;
+        }
+        out.push(Out::Send(
+            peer.to_string(),
+            ReplicaMsg::Append {
+                term,
+                leader: self.me.clone(),
+                prev_seq,
+                prev_term,
+                ops,
+                commit,
+            },
+        ));
+    }
+
+    fn on_append_ack(
+        &mut self,
+        from: &str,
+        ok: bool,
+        last: u64,
+        now: Duration,
+        out: &mut Vec<Out>,
+    ) {
+        let Role::Leader { peers, .. } = &mut self.role else {
+            return;
+        };
+        let Some(pr) = peers.get_mut(from) else {
+            return;
+        };
+        pr.acked = Some(now);
+        if ok {
+            pr.matched = pr.matched.max(last);
+            pr.next = pr.next.max(last + 1);
+            pr.probing = false;
+            pr.installing = None;
+            let caught_up = pr.matched >= self.last().0;
+            self.advance_commit(out);
+            if caught_up && from == self.preferred_member && self.me != self.preferred_member {
+                self.hand_over(now, out);
+            }
+        } else {
+            let n = (last + 1).max(pr.matched + 1);
+            if n < pr.next || pr.installing.is_some() {
+                pr.next = n;
+            }
+            pr.installing = None;
+            pr.probing = true;
+            pr.sent = None;
+        }
+        self.send_to(from, now, false, &mut Vec::new(), out);
+    }
+
+    /// Ask the preferred copy, as up to date as this primary, to take over — at most once
+    /// per election timeout (if it cannot win, this primary goes on).
+    ///
+    /// This primary goes on taking writes meanwhile, but for a quarter of an election
+    /// timeout the other copies get none past its last seq now (Raft stops taking writes
+    /// instead): else a copy that got one the preferred copy had not yet would refuse it
+    /// its vote, this primary would step down at its campaign all the same, and the next
+    /// primary would hand over again — a round of failed hand-overs, one every ~0.8 s, seen
+    /// in the failover bench. The preferred copy commits them with this one meanwhile.
+    fn hand_over(&mut self, now: Duration, out: &mut Vec<Out>) {
+        if self
+            .handed
+            .is_some_and(|(t, _)| now.saturating_sub(t) < self.timing.election)
+        {
+            return;
+        }
+        self.handed = Some((now, self.last().0));
+        out.push(Out::Send(
+            self.preferred_member.clone(),
+            ReplicaMsg::TimeoutNow {
+                term: self.term,
+                from: self.me.clone(),
+            },
+        ));
+    }
+
+    fn advance_commit(&mut self, out: &mut Vec<Out>) {
+        let Role::Leader { peers, .. } = &self.role else {
+            return;
+        };
+        let mut held: Vec<u64> = peers.values().map(|p| p.matched).collect();
+        held.push(self.durable_here());
+        held.sort_unstable_by(|a, b| b.cmp(a));
+        let n = held[self.majority() - 1];
+        if n > self.commit && self.term_at(n) == Some(self.term) {
+            self.commit = n;
+            self.apply(out);
+        }
+    }
+
+    /// The last seq durable here that is still this copy's entry.
+    fn durable_here(&self) -> u64 {
+        if self.term_at(self.durable.0) == Some(self.durable.1) {
+            self.durable.0
+        } else {
+            0
+        }
+    }
+
+    // ---- everyone ------------------------------------------------------------------------
+
+    /// The entries up to `seq` (of `term`) are durable here (the journal said so).
+    pub(crate) fn durable(&mut self, seq: u64, term: u64, out: &mut Vec<Out>) {
+        if self.term_at(seq) != Some(term) || seq < self.durable.0 && self.durable_here() != 0 {
+            return;
+        }
+        self.durable = (seq, term);
+        if self.is_leader() {
+            self.advance_commit(out);
+        } else if let Some(leader) = self.leader.clone() {
+            if leader != self.me {
+                out.push(self.held_ack(leader));
+            }
+        }
+    }
+
+    /// Tell `leader` how far this copy holds its log, durably.
+    fn held_ack(&self, leader: String) -> Out {
+        Out::Send(
+            leader,
+            ReplicaMsg::AppendAck {
+                term: self.term,
+                from: self.me.clone(),
+                ok: true,
+                last: self.durable_here().min(self.verified),
+            },
+        )
+    }
+
+    fn apply(&mut self, out: &mut Vec<Out>) {
+        let upto = self.commit.min(self.last().0);
+        if upto > self.applied {
+            out.push(Out::Apply(self.applied + 1, upto));
+            self.applied = upto;
+        }
+    }
+
+    /// Drop the oldest applied entries beyond what it keeps in memory (a copy that still
+    /// needs them gets a snapshot). Called once the actor has carried out the [`Out`]s that
+    /// name entries: they may name these.
+    pub(crate) fn trim(&mut self) {
+        let keep_from = if let Role::Leader { peers, .. } = &self.role {
+            peers
+                .values()
+                .map(|p| p.matched)
+                .min()
+                .unwrap_or(self.applied)
+        } else {
+            self.applied
+        };
+        let (keep, keep_bytes, applied) = (self.keep, self.keep_bytes, self.applied);
+        let over = |len: usize, bytes: usize, k: usize| len > keep * k || bytes > keep_bytes * k;
+        let dropped = self.tail.drop_front_while(|op, len, bytes| {
+            over(len, bytes, 1) && op.seq <= applied && (op.seq <= keep_from || over(len, bytes, 2))
+        });
+        if let Some(last) = dropped {
+            self.base = last;
+        }
+    }
+
+    /// A message from another copy.
+    pub(crate) fn receive(&mut self, msg: ReplicaMsg, now: Duration, out: &mut Vec<Out>) {
+        match msg {
+            ReplicaMsg::Append {
+                term,
+                leader,
+                prev_seq,
+                prev_term,
+                ops,
+                commit,
+            } => self.on_append(
+                term,
+                leader,
+                prev_seq,
+                prev_term,
+                ops.into_vec(),
+                commit,
+                now,
+                out,
+            ),
+            ReplicaMsg::AppendAck {
+                term,
+                from,
+                ok,
+                last,
+            } => {
+                if term > self.term {
+                    self.adopt(term, out);
+                } else if term == self.term {
+                    self.on_append_ack(&from, ok, last, now, out);
+                }
+            }
+            ReplicaMsg::Vote {
+                term,
+                candidate,
+                last_seq,
+                last_term,
+                pre,
+                transfer,
+            } => self.on_vote(
+                term,
+                candidate,
+                (last_term, last_seq),
+                (pre, transfer),
+                now,
+                out,
+            ),
+            ReplicaMsg::TimeoutNow { term, from } => {
+                // from this term's primary only: campaign at once, no pre-vote
+                if term == self.term
+                    && self.leader.as_deref() == Some(from.as_str())
+                    && !self.is_leader()
+                {
+                    self.campaign_as(false, true, now, out);
+                }
+            }
+            ReplicaMsg::VoteAck {
+                term,
+                asked,
+                from,
+                granted,
+                pre,
+            } => self.on_vote_ack(term, asked, from, granted, pre, now, out),
+            ReplicaMsg::Install { .. } => {
+                // the actor takes snapshots in: see `install_from`
+            }
+        }
+    }
+
+    /// A snapshot part from `leader` in `term`, of a snapshot ending at `seq`: whether to
+    /// take it in (else the answer is in `out`). Taking it in counts as hearing from the
+    /// primary. A snapshot this copy has committed past already is not taken: its own
+    /// committed entries are the same, and newer.
+    pub(crate) fn install_from(
+        &mut self,
+        term: u64,
+        leader: &str,
+        seq: u64,
+        now: Duration,
+        out: &mut Vec<Out>,
+    ) -> bool {
+        if term < self.term {
+            out.push(Out::Send(
+                leader.to_string(),
+                ReplicaMsg::AppendAck {
+                    term: self.term,
+                    from: self.me.clone(),
+                    ok: false,
+                    last: self.last().0,
+                },
+            ));
+            return false;
+        }
+        self.follow(term, leader, now, out);
+        if seq <= self.commit {
+            self.verified = self.verified.max(self.commit);
+            out.push(Out::Send(
+                leader.to_string(),
+                ReplicaMsg::AppendAck {
+                    term: self.term,
+                    from: self.me.clone(),
+                    ok: true,
+                    last: self.commit.min(self.durable_here().max(self.applied)),
+                },
+            ));
+            return false;
+        }
+        true
+    }
+
+    /// A snapshot ending at (`seq`, `term`) was taken in and journaled: the log starts
+    /// after it. The actor calls [`Core::durable`] once the journal has it.
+    pub(crate) fn installed(&mut self, seq: u64, term: u64) {
+        self.tail.clear();
+        self.base = (seq, term);
+        self.commit = seq;
+        self.applied = seq;
+        self.verified = seq;
+        self.durable = (0, 0);
+    }
+
+    /// Become a follower of `leader` in `term` (adopting a higher term).
+    fn follow(&mut self, term: u64, leader: &str, now: Duration, out: &mut Vec<Out>) {
+        if term > self.term {
+            self.adopt(term, out);
+        }
+        if self.is_leader() {
+            // two primaries in one term cannot happen: a bug, said loudly
+            tracing::error!(term, me = %self.me, other = leader, "two primaries in one term");
+            self.step_down("another primary in its term", out);
+        }
+        if self.leader.as_deref() != Some(leader) {
+            self.verified = 0;
+        }
+        self.role = Role::Follower;
+        self.leader = Some(leader.to_string());
+        self.heard = Some(now);
+        self.deadline = now + self.election_timeout();
+    }
+
+    /// A newer term: follow it (no vote given in it yet).
+    fn adopt(&mut self, term: u64, out: &mut Vec<Out>) {
+        self.term = term;
+        self.voted_for = None;
+        self.leader = None;
+        self.verified = 0;
+        if self.is_leader() {
+            self.step_down("a newer term", out);
+        }
+        self.role = Role::Follower;
+        out.push(Out::Persist);
+    }
+
+    fn step_down(&mut self, why: &str, out: &mut Vec<Out>) {
+        if self.is_leader() {
+            self.role = Role::Follower;
+            self.leader = None;
+            out.push(Out::StepDown(why.to_string()));
+        }
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn on_append(
+        &mut self,
+        term: u64,
+        leader: String,
+        prev_seq: u64,
+        prev_term: u64,
+        ops: Vec<Op>,
+        commit: u64,
+        now: Duration,
+        out: &mut Vec<Out>,
+    ) {
+        let refuse = |core: &Core, last: u64, out: &mut Vec<Out>| {
+            out.push(Out::Send(
+                leader.clone(),
+                ReplicaMsg::AppendAck {
+                    term: core.term,
+                    from: core.me.clone(),
+                    ok: false,
+                    last,
+                },
+            ));
+        };
+        if term < self.term {
+            refuse(self, self.last().0, out);
+            return;
+        }
+        self.follow(term, &leader, now, out);
+        let last = self.last().0;
+        if prev_seq > last {
+            refuse(self, last, out);
+            return;
+        }
+        if prev_seq >= self.base.0 && prev_seq > self.commit {
+            if self.term_at(prev_seq) != Some(prev_term) {
+                // from the first entry of the conflicting term (never below the commit)
+                let bad = self.term_at(prev_seq);
+                let mut hint = prev_seq - 1;
+                while hint > self.commit && hint > self.base.0 && self.term_at(hint) == bad {
+                    hint -= 1;
+                }
+                refuse(self, hint.max(self.commit), out);
+                return;
+            }
+        } else if prev_seq > self.commit && prev_seq < self.base.0 {
+            refuse(self, self.commit, out);
+            return;
+        }
+        let new_last = prev_seq + ops.len() as u64;
+        let mut first_new = None;
+        for op in ops {
+            let seq = op.seq;
+            if seq <= self.last().0 {
+                if seq <= self.commit || self.term_at(seq) == Some(op.term) {
+                    continue;
+                }
+                // a conflicting uncommitted entry: it and all after it go
+                let keep = (seq - self.base.0 - 1) as usize;
+                self.tail.truncate(keep);
+                if self.durable.0 >= seq {
+                    self.durable = (0, 0);
+                }
+                out.push(Out::Truncate(seq));
+            }
+            if seq != self.last().0 + 1 {
+                // not contiguous: a malformed append; take nothing more from it
+                tracing::warn!(
+                    seq,
+                    last = self.last().0,
+                    "replica: an append out of order; ignored"
+                );
+                break;
+            }
+            first_new.get_or_insert(seq);
+            self.tail.push_back(op);
+        }
+        if let Some(first) = first_new {
+            out.push(Out::Journal(first, self.last().0));
+        }
+        self.verified = self.verified.max(new_last.min(self.last().0));
+        let upto = commit.min(self.verified);
+        if upto > self.commit {
+            self.commit = upto;
+            self.apply(out);
+        }
+        if first_new.is_none() {
+            // nothing new to make durable: answer now (it also says this copy is alive)
+            out.push(self.held_ack(leader));
+        }
+    }
+
+    // ---- elections -----------------------------------------------------------------------
+
+    /// Whether it heard from a live primary within the election timeout (then it neither
+    /// votes for another nor takes its term: a copy that was cut off cannot unseat it).
+    fn sticky(&self, now: Duration) -> bool {
+        match &self.role {
+            Role::Leader { .. } => true,
+            _ => {
+                self.leader.is_some()
+                    && self
+                        .heard
+                        .is_some_and(|t| now.saturating_sub(t) < self.timing.election)
+            }
+        }
+    }
+
+    fn on_vote(
+        &mut self,
+        term: u64,
+        candidate: String,
+        last: (u64, u64),
+        (pre, transfer): (bool, bool),
+        now: Duration,
+        out: &mut Vec<Out>,
+    ) {
+        let (my_seq, my_term) = self.last();
+        let up_to_date = last >= (my_term, my_seq);
+        let answer = |core: &Core, granted: bool, out: &mut Vec<Out>| {
+            out.push(Out::Send(
+                candidate.clone(),
+                ReplicaMsg::VoteAck {
+                    term: core.term,
+                    asked: term,
+                    from: core.me.clone(),
+                    granted,
+                    pre,
+                },
+            ));
+        };
+        if !transfer && self.sticky(now) && self.leader.as_deref() != Some(candidate.as_str()) {
+            answer(self, false, out);
+            return;
+        }
+        if pre {
+            self.campaign_soon_if_behind(up_to_date, now);
+            answer(self, term > self.term && up_to_date, out);
+            return;
+        }
+        if term < self.term {
+            answer(self, false, out);
+            return;
+        }
+        if term > self.term {
+            self.adopt(term, out);
+        }
+        self.campaign_soon_if_behind(up_to_date, now);
+        let free = self.voted_for.as_deref().is_none_or(|v| v == candidate);
+        let granted = free && up_to_date;
+        if granted && self.voted_for.is_none() {
+            self.voted_for = Some(candidate.clone());
+            out.push(Out::Persist);
+            self.deadline = now + self.election_timeout();
+        }
+        answer(self, granted, out);
+    }
+
+    /// A candidate less up to date than this copy asked for its vote, and this copy knows
+    /// no primary (also after taking the candidate's term): campaign soon rather than at its
+    /// election timeout. Else nobody may win until that timeout (2.5 s and more): when this
+    /// copy's own campaign was refused by one that had not yet seen the primary go
+    /// (stickiness), or when the candidate took this copy's term from a primary that then
+    /// went (a hand-over to a copy that lacked an entry, the primary frozen at once: this
+    /// copy's failure detector then names a node that is no longer its primary).
+    fn campaign_soon_if_behind(&mut self, up_to_date: bool, now: Duration) {
+        if !up_to_date && self.leader.is_none() && !self.is_leader() {
+            let soon = now + self.rank_delay(None);
+            self.deadline = self.deadline.min(soon);
+        }
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn on_vote_ack(
+        &mut self,
+        term: u64,
+        asked: u64,
+        from: String,
+        granted: bool,
+        pre: bool,
+        now: Duration,
+        out: &mut Vec<Out>,
+    ) {
+        if term > self.term && !granted {
+            self.adopt(term, out);
+            return;
+        }
+        let expected = if pre { self.term + 1 } else { self.term };
+        let majority = self.majority();
+        let Role::Candidate { pre: p, votes } = &mut self.role else {
+            return;
+        };
+        if *p != pre || asked != expected || !granted {
+            return;
+        }
+        votes.insert(from);
+        if votes.len() < majority {
+            return;
+        }
+        if pre {
+            self.campaign(false, now, out);
+        } else {
+            self.lead(now, out);
+        }
+    }
+
+    /// Ask every visible copy for its (pre-)vote.
+    fn campaign(&mut self, pre: bool, now: Duration, out: &mut Vec<Out>) {
+        self.campaign_as(pre, false, now, out);
+    }
+
+    /// [`Core::campaign`]; `transfer`: at the primary's word (voters ignore stickiness).
+    fn campaign_as(&mut self, pre: bool, transfer: bool, now: Duration, out: &mut Vec<Out>) {
+        if !pre {
+            self.term += 1;
+            self.voted_for = Some(self.me.clone());
+            out.push(Out::Persist);
+        }
+        self.leader = None;
+        self.role = Role::Candidate {
+            pre,
+            votes: BTreeSet::from([self.me.clone()]),
+        };
+        self.deadline = now + self.election_timeout();
+        let (last_seq, last_term) = self.last();
+        let term = if pre { self.term + 1 } else { self.term };
+        let peers: Vec<String> = self.peers().cloned().collect();
+        for p in peers {
+            out.push(Out::Send(
+                p,
+                ReplicaMsg::Vote {
+                    term,
+                    candidate: self.me.clone(),
+                    last_seq,
+                    last_term,
+                    pre,
+                    transfer,
+                },
+            ));
+        }
+        if self.majority() == 1 {
+            if pre {
+                self.campaign(false, now, out);
+            } else {
+                self.lead(now, out);
+            }
+        }
+    }
+
+    fn lead(&mut self, now: Duration, out: &mut Vec<Out>) {
+        let next = self.last().0 + 1;
+        let peers = self
+            .peers()
+            .map(|p| {
+                (
+                    p.clone(),
+                    Progress {
+                        next,
+                        matched: 0,
+                        acked: None,
+                        sent: None,
+                        probing: true,
+                        installing: None,
+                    },
+                )
+            })
+            .collect();
+        self.role = Role::Leader { peers, since: now };
+        self.handed = None;
+        self.leader = Some(self.me.clone());
+        self.verified = 0;
+        // a new primary's first entry: committing it commits everything before it
+        self.tail.push_back(Op {
+            seq: next,
+            term: self.term,
+            body: OpBody::Noop,
+        });
+        out.push(Out::Journal(next, next));
+        out.push(Out::Lead);
+        self.replicate(now, out);
+    }
+
+    /// Time passed: campaign, send heartbeats, or step down without a majority.
+    pub(crate) fn tick(&mut self, now: Duration, out: &mut Vec<Out>) {
+        match &self.role {
+            Role::Leader { peers, since } => {
+                let fresh = 1 + peers
+                    .values()
+                    .filter(|p| {
+                        p.acked
+                            .is_some_and(|t| now.saturating_sub(t) < self.timing.election)
+                    })
+                    .count();
+                if fresh < self.majority() && now.saturating_sub(*since) >= self.timing.election {
+                    self.step_down("it lost its majority", out);
+                    self.deadline = now + self.election_timeout();
+                    return;
+                }
+                self.replicate(now, out);
+            }
+            _ if now >= self.deadline => {
+                if self.visible.len() + 1 >= self.majority() {
+                    self.campaign(true, now, out);
+                } else {
+                    self.deadline = now + self.election_timeout();
+                }
+            }
+            _ => {}
+        }
+    }
+
+    /// The copy on `node` is reachable (it joined the copies' group).
+    pub(crate) fn peer_up(&mut self, node: &str, now: Duration, out: &mut Vec<Out>) {
+        if node == self.me || !self.members.iter().any(|m| m == node) {
+            return;
+        }
+        self.visible.insert(node.to_string());
+        if matches!(self.role, Role::Follower)
+            && self.leader.is_none()
+            && self.visible.len() + 1 >= self.majority()
+        {
+            // a majority is reachable and no primary is known (a cluster starting): campaign
+            // soon rather than after an election timeout — the configured primary at once,
+            // the others a quarter of a timeout later, so that it rarely has to be handed
+            // the role afterwards (its node may be busy starting)
+            let grace = if self.preferred {
+                Duration::ZERO
+            } else {
+                self.timing.election / 4
+            };
+            let soon = now + grace + self.rank_delay(None);
+            self.deadline = self.deadline.min(soon);
+        }
+        if let Role::Leader { peers, .. } = &mut self.role {
+            if let Some(pr) = peers.get_mut(node) {
+                // one append at a time until it answers (what it has is unknown)
+                pr.probing = true;
+                pr.sent = None;
+                pr.installing = None;
+            }
+            self.send_to(node, now, true, &mut Vec::new(), out);
+        }
+    }
+
+    /// The copy on `node` is gone (its actor died, or its node was declared down). If it was
+    /// the primary, campaign soon: the lower-ranked copies first, so they rarely split.
+    pub(crate) fn peer_down(&mut self, node: &str, now: Duration) {
+        self.visible.remove(node);
+        if self.leader.as_deref() == Some(node) && !self.is_leader() {
+            self.leader = None;
+            self.heard = None;
+            let soon = now + self.rank_delay(Some(node));
+            self.deadline = self.deadline.min(soon);
+        }
+    }
+
+    /// How long to wait before campaigning when no primary is known: the configured primary
+    /// at once, the others by their rank among the members (but `gone`), 60 ms apart, with a
+    /// little randomness, so that they rarely split the votes.
+    fn rank_delay(&mut self, gone: Option<&str>) -> Duration {
+        let rank = if self.preferred {
+            0
+        } else {
+            1 + self
+                .members
+                .iter()
+                .filter(|m| Some(m.as_str()) != gone)
+                .position(|m| *m == self.me)
+                .unwrap_or(0) as u64
+        };
+        Duration::from_millis(rank * 60 + self.random(30))
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,1047 @@
+//! Seeded schedules of lost messages, partitions, crashes and restarts against the
+//! protocol's invariants: one primary per term, every copy applies the same entries, and
+//! every entry a primary committed (a client's acknowledgement) survives.
+
+use super::*;
+use std::collections::{HashMap, VecDeque};
+
+const MEMBERS: [&str; 3] = ["a", "b", "c"];
+
+fn timing() -> Timing {
+    Timing {
+        heartbeat: Duration::from_millis(10),
+        election: Duration::from_millis(100),
+    }
+}
+
+struct Rng(u64);
+impl Rng {
+    fn below(&mut self, n: u64) -> u64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        self.0 % n.max(1)
+    }
+}
+
+/// What survives a crash: the term and vote, the journaled entries, the applied prefix.
+#[derive(Clone, Default)]
+struct Disk {
+    term: u64,
+    voted_for: Option<String>,
+    log: Vec<Op>,
+    applied: u64,
+    /// A snapshot's end (seq, term): entries up to it are not in `log`.
+    snap: (u64, u64),
+}
+
+struct Copy {
+    core: Option<Core>,
+    disk: Disk,
+    /// What it applied, in order (its "store").
+    applied: Vec<Op>,
+}
+
+struct Sim {
+    now: Duration,
+    rng: Rng,
+    copies: HashMap<String, Copy>,
+    /// Messages in flight per (from, to), in order.
+    wires: BTreeMap<(String, String), VecDeque<ReplicaMsg>>,
+    /// Groups that cannot reach each other.
+    cut: BTreeSet<(String, String)>,
+    leaders: BTreeMap<u64, String>,
+    /// Every entry any copy applied, by seq: all must agree.
+    truth: BTreeMap<u64, Op>,
+    /// Proposals acknowledged (committed at their primary): (seq, id).
+    acked: Vec<(u64, u64)>,
+    /// Proposals made and not yet acknowledged, per primary: (seq, term, id).
+    pending: Vec<(String, u64, u64, u64)>,
+    next_id: u64,
+    keep: usize,
+    /// Bytes of entries kept in memory, and of each put's payload.
+    keep_bytes: usize,
+    payload: usize,
+    /// The protocol's clocks ([`timing`] unless a test sets them).
+    timing: Timing,
+    /// What happened: crashes, partitions, snapshots installed, step-downs.
+    counts: BTreeMap<&'static str, u64>,
+    harsh: bool,
+}
+
+fn put(id: u64, payload: usize) -> OpBody {
+    OpBody::Put {
+        time_ns: id,
+        record: crate::NewRecord::new("c", crate::Payload::from_bytes(vec![0; payload]))
+            .with_source(format!("p{id}")),
+    }
+}
+
+fn id_of(op: &Op) -> Option<u64> {
+    match &op.body {
+        OpBody::Put { time_ns, .. } => Some(*time_ns),
+        _ => None,
+    }
+}
+
+impl Sim {
+    fn new(seed: u64, keep: usize) -> Sim {
+        let mut sim = Sim {
+            now: Duration::ZERO,
+            rng: Rng(seed | 1),
+            copies: HashMap::new(),
+            wires: BTreeMap::new(),
+            cut: BTreeSet::new(),
+            leaders: BTreeMap::new(),
+            truth: BTreeMap::new(),
+            acked: Vec::new(),
+            pending: Vec::new(),
+            next_id: 1,
+            keep,
+            keep_bytes: crate::replica::tail::KEEP_BYTES,
+            payload: 0,
+            timing: timing(),
+            counts: BTreeMap::new(),
+            harsh: false,
+        };
+        for m in MEMBERS {
+            sim.copies.insert(
+                m.to_string(),
+                Copy {
+                    core: None,
+                    disk: Disk::default(),
+                    applied: Vec::new(),
+                },
+            );
+        }
+        for m in MEMBERS {
+            sim.start(m);
+        }
+        sim
+    }
+
+    fn members() -> Vec<String> {
+        MEMBERS.iter().map(|m| m.to_string()).collect()
+    }
+
+    fn reachable(&self, a: &str, b: &str) -> bool {
+        let up = |n: &str| self.copies.get(n).is_some_and(|c| c.core.is_some());
+        up(a) && up(b) && !self.cut.contains(&(a.to_string(), b.to_string()))
+    }
+
+    fn start(&mut self, m: &str) {
+        let disk = self.copies[m].disk.clone();
+        let committed = if disk.applied == disk.snap.0 {
+            disk.snap
+        } else {
+            let op = disk
+                .log
+                .iter()
+                .find(|o| o.seq == disk.applied)
+                .expect("applied is logged");
+            (op.seq, op.term)
+        };
+        let restored = Restored {
+            term: disk.term,
+            voted_for: disk.voted_for.clone(),
+            committed,
+            tail: disk
+                .log
+                .iter()
+                .filter(|o| o.seq > disk.applied)
+                .cloned()
+                .collect(),
+            // the applied entries its journal holds (those after its snapshot)
+            applied: disk
+                .log
+                .iter()
+                .filter(|o| o.seq <= disk.applied)
+                .cloned()
+                .collect(),
+            before: disk.snap,
+        };
+        let core = Core::new(
+            m,
+            &Sim::members(),
+            self.timing,
+            restored,
+            m == "a",
+            self.now,
+        )
+        .with_tail_keep(self.keep)
+        .with_tail_bytes(self.keep_bytes);
+        let copy = self.copies.get_mut(m).unwrap();
+        // the store is rebuilt from the disk: the applied prefix
+        copy.applied.retain(|o| o.seq <= disk.applied);
+        copy.core = Some(core);
+        let mut out = Vec::new();
+        for other in MEMBERS {
+            if other != m && self.reachable(m, other) {
+                let now = self.now;
+                self.core(m).peer_up(other, now, &mut out);
+            }
+        }
+        self.run(m, out);
+        for other in MEMBERS {
+            if other != m && self.reachable(m, other) {
+                let mut out = Vec::new();
+                let now = self.now;
+                self.core(other).peer_up(m, now, &mut out);
+                self.run(other, out);
+            }
+        }
+    }
+
+    fn core(&mut self, m: &str) -> &mut Core {
+        self.copies
+            .get_mut(m)
+            .unwrap()
+            .core
+            .as_mut()
+            .expect("running")
+    }
+
+    fn crash(&mut self, m: &str) {
+        *self.counts.entry("crashes").or_default() += 1;
+        self.stop(m, true);
+    }
+
+    /// Copy `m` stops, and the others see it go; what was on its way to it is lost, and
+    /// what it sent too if `its_node` went with it (else its node's sessions carry it on).
+    fn stop(&mut self, m: &str, its_node: bool) {
+        self.copies.get_mut(m).unwrap().core = None;
+        self.pending.retain(|p| p.0 != m);
+        for other in MEMBERS {
+            if its_node {
+                self.wires.remove(&(m.to_string(), other.to_string()));
+            }
+            self.wires.remove(&(other.to_string(), m.to_string()));
+            if other != m && self.copies[other].core.is_some() {
+                let now = self.now;
+                self.core(other).peer_down(m, now);
+            }
+        }
+    }
+
+    /// Copy `m`'s node is frozen or cut off: nothing more comes from it or reaches it, and
+    /// nobody has seen it go yet (their failure detectors have not spoken).
+    fn vanish(&mut self, m: &str) {
+        self.copies.get_mut(m).unwrap().core = None;
+        for other in MEMBERS {
+            self.wires.remove(&(m.to_string(), other.to_string()));
+            self.wires.remove(&(other.to_string(), m.to_string()));
+        }
+    }
+
+    fn partition(&mut self, alone: &str) {
+        *self.counts.entry("partitions").or_default() += 1;
+        for other in MEMBERS {
+            if other == alone {
+                continue;
+            }
+            for (x, y) in [(alone, other), (other, alone)] {
+                self.cut.insert((x.to_string(), y.to_string()));
+                self.wires.remove(&(x.to_string(), y.to_string()));
+                if self.copies[x].core.is_some() {
+                    let now = self.now;
+                    self.core(x).peer_down(y, now);
+                }
+            }
+        }
+    }
+
+    fn heal(&mut self) {
+        let cut = std::mem::take(&mut self.cut);
+        for (x, y) in cut {
+            if self.reachable(&x, &y) {
+                let mut out = Vec::new();
+                let now = self.now;
+                self.core(&x).peer_up(&y, now, &mut out);
+                self.run(&x, out);
+            }
+        }
+    }
+
+    /// Carry out what copy `m`'s core asked for (the actor's part).
+    fn run(&mut self, m: &str, out: Vec<Out>) {
+        self.carry_out(m, out);
+        if let Some(core) = self.copies.get_mut(m).and_then(|c| c.core.as_mut()) {
+            core.trim();
+        }
+    }
+
+    fn carry_out(&mut self, m: &str, out: Vec<Out>) {
+        let mut queue: VecDeque<Out> = out.into();
+        // as the actor: once stepped down, only its term, vote and answers, then a restart
+        let mut stopping = false;
+        while let Some(o) = queue.pop_front() {
+            if stopping && !matches!(o, Out::Persist | Out::Send(..)) {
+                continue;
+            }
+            if std::env::var_os("SIM_TRACE").is_some() {
+                let c = self.copies[m].core.as_ref();
+                eprintln!(
+                    "{:?} {m} t{:?} last{:?} c{:?}: {}",
+                    self.now,
+                    c.map(Core::term),
+                    c.map(Core::last),
+                    c.map(Core::commit),
+                    match &o {
+                        Out::Send(to, msg) => format!(
+                            "send {to} {}",
+                            match msg {
+                                ReplicaMsg::Append {
+                                    term,
+                                    prev_seq,
+                                    prev_term,
+                                    ops,
+                                    commit,
+                                    ..
+                                } => format!(
+                                    "append t{term} prev({prev_seq},{prev_term}) ops{:?} c{commit}",
+                                    ops.iter().map(|o| (o.seq, o.term)).collect::<Vec<_>>()
+                                ),
+                                other => format!("{other:?}"),
+                            }
+                        ),
+                        o => format!("{o:?}"),
+                    }
+                );
+            }
+            let copy = self.copies.get_mut(m).unwrap();
+            let Some(core) = copy.core.as_mut() else {
+                return;
+            };
+            match o {
+                Out::Persist => {
+                    copy.disk.term = core.term();
+                    copy.disk.voted_for = core.voted_for().map(str::to_string);
+                }
+                Out::Send(to, msg) => {
+                    if self.reachable(m, &to) {
+                        self.wires
+                            .entry((m.to_string(), to))
+                            .or_default()
+                            .push_back(msg);
+                    }
+                }
+                Out::Truncate(from) => {
+                    assert!(from > copy.disk.applied, "{m} truncates applied {from}");
+                    copy.disk.log.retain(|o| o.seq < from);
+                }
+                Out::Journal(from, to) => {
+                    let ops: Vec<Op> = core.ops(from, to).cloned().collect();
+                    assert_eq!(ops.len() as u64, to - from + 1);
+                    copy.disk.log.retain(|o| o.seq < from);
+                    copy.disk.log.extend(ops);
+                    // durable at once (written to the OS before the next step)
+                    let last = *copy
+                        .disk
+                        .log
+                        .last()
+                        .map(|o| (o.seq, o.term))
+                        .as_ref()
+                        .unwrap();
+                    let mut more = Vec::new();
+                    core.durable(last.0, last.1, &mut more);
+                    queue.extend(more);
+                }
+                Out::Apply(from, to) => {
+                    let ops: Vec<Op> = core.ops(from, to).cloned().collect();
+                    assert_eq!(ops.len() as u64, to - from + 1, "{m} applies what it holds");
+                    for op in ops {
+                        assert_eq!(
+                            op.seq,
+                            copy.applied.last().map_or(copy.disk.snap.0, |o| o.seq) + 1
+                        );
+                        if let Some(t) = self.truth.get(&op.seq) {
+                            assert_eq!(t, &op, "{m} applied another entry at {}", op.seq);
+                        }
+                        self.truth.insert(op.seq, op.clone());
+                        copy.disk.applied = op.seq;
+                        copy.applied.push(op);
+                    }
+                    // a primary acknowledges its committed proposals
+                    let applied = copy.disk.applied;
+                    let (mut keep, mut done) = (Vec::new(), Vec::new());
+                    for p in self.pending.drain(..) {
+                        if p.0 == m && p.1 <= applied {
+                            done.push(p);
+                        } else {
+                            keep.push(p);
+                        }
+                    }
+                    self.pending = keep;
+                    for (_, seq, term, id) in done {
+                        let op = &self.truth[&seq];
+                        assert_eq!(
+                            (op.term, id_of(op)),
+                            (term, Some(id)),
+                            "acked what it proposed"
+                        );
+                        self.acked.push((seq, id));
+                    }
+                }
+                Out::Lead => {
+                    let term = core.term();
+                    if let Some(other) = self.leaders.insert(term, m.to_string()) {
+                        assert_eq!(other, m, "two primaries in term {term}");
+                    }
+                }
+                Out::StepDown(_) => {
+                    *self.counts.entry("step-downs").or_default() += 1;
+                    stopping = true;
+                }
+                Out::Install(to, seq, term) => {
+                    // the committed store up to `seq`, taken in by `to` in one go
+                    let (a, b) = (m.to_string(), to.clone());
+                    let reachable = self.reachable(&a, &b);
+                    let copy = self.copies.get_mut(m).unwrap();
+                    let core = copy.core.as_mut().unwrap();
+                    if !reachable {
+                        continue;
+                    }
+                    let snapshot: Vec<Op> = copy
+                        .applied
+                        .iter()
+                        .filter(|o| o.seq <= seq)
+                        .cloned()
+                        .collect();
+                    let leader_term = core.term();
+                    let target = self.copies.get_mut(&to).unwrap();
+                    let core_to = target.core.as_mut().unwrap();
+                    let mut more = Vec::new();
+                    *self.counts.entry("installs").or_default() += 1;
+                    if core_to.install_from(leader_term, m, seq, self.now, &mut more) {
+                        core_to.installed(seq, term);
+                        target.applied = snapshot;
+                        target.disk.log.clear();
+                        target.disk.snap = (seq, term);
+                        target.disk.applied = seq;
+                        core_to.durable(seq, term, &mut more);
+                    }
+                    let to = to.clone();
+                    self.run(&to, more);
+                }
+            }
+        }
+        if stopping {
+            // the actor stops and its supervisor starts it again from its disk
+            self.restart(m);
+        }
+    }
+
+    /// Copy `m`'s actor stopped and was started again (its node lives on): what it sent
+    /// is still on its way, what was on its way to it is lost.
+    fn restart(&mut self, m: &str) {
+        self.stop(m, false);
+        self.start(m);
+    }
+
+    fn deliver(&mut self, from: &str, to: &str) {
+        let Some(msg) = self
+            .wires
+            .get_mut(&(from.to_string(), to.to_string()))
+            .and_then(VecDeque::pop_front)
+        else {
+            return;
+        };
+        if !self.reachable(from, to) {
+            return;
+        }
+        let mut out = Vec::new();
+        let now = self.now;
+        self.core(to).receive(msg, now, &mut out);
+        self.run(to, out);
+    }
+
+    fn propose(&mut self, m: &str) {
+        let id = self.next_id;
+        let Some(core) = self.copies.get_mut(m).unwrap().core.as_mut() else {
+            return;
+        };
+        let Some(op) = core.propose(put(id, self.payload)) else {
+            return;
+        };
+        let (seq, term) = (op.seq, op.term);
+        self.next_id += 1;
+        self.pending.push((m.to_string(), seq, term, id));
+        let now = self.now;
+        let mut out = vec![Out::Journal(seq, seq)];
+        self.core(m).replicate(now, &mut out);
+        self.run(m, out);
+    }
+
+    fn tick_all(&mut self) {
+        for m in MEMBERS {
+            if self.copies[m].core.is_some() {
+                let mut out = Vec::new();
+                let now = self.now;
+                self.core(m).tick(now, &mut out);
+                self.run(m, out);
+            }
+        }
+    }
+
+    fn leader(&self) -> Option<String> {
+        MEMBERS
+            .iter()
+            .find(|m| self.copies[**m].core.as_ref().is_some_and(Core::is_leader))
+            .map(|m| m.to_string())
+    }
+
+    /// One random step: deliver, drop, propose, time passes, or a fault.
+    fn step(&mut self, faults: bool) {
+        self.step_with(faults, true)
+    }
+
+    fn step_with(&mut self, faults: bool, proposals: bool) {
+        let pairs: Vec<(String, String)> = self
+            .wires
+            .iter()
+            .filter(|(_, q)| !q.is_empty())
+            .map(|(k, _)| k.clone())
+            .collect();
+        let mut r = self.rng.below(100);
+        if self.harsh && faults {
+            // a harsher mix: a tenth of the deliveries lost, and more crashes
+            r = match r {
+                45..=54 => 55,
+                88..=95 => 96,
+                r => r,
+            };
+        }
+        match r {
+            0..=54 if !pairs.is_empty() => {
+                let (f, t) = pairs[self.rng.below(pairs.len() as u64) as usize].clone();
+                self.deliver(&f, &t);
+            }
+            55..=56 if !pairs.is_empty() && faults => {
+                // a message lost with a session that broke
+                let (f, t) = pairs[self.rng.below(pairs.len() as u64) as usize].clone();
+                self.wires.get_mut(&(f, t)).unwrap().pop_front();
+            }
+            57..=74 if proposals => {
+                if let Some(l) = self.leader() {
+                    self.propose(&l);
+                }
+            }
+            75..=95 => {
+                self.now += Duration::from_millis(1 + self.rng.below(8));
+                self.tick_all();
+            }
+            96 if faults => {
+                let m = MEMBERS[self.rng.below(3) as usize];
+                if self.copies[m].core.is_some() && self.up() == 3 {
+                    self.crash(m);
+                } else if self.copies[m].core.is_none() {
+                    self.start(m);
+                }
+            }
+            97 if faults => {
+                let m = MEMBERS[self.rng.below(3) as usize];
+                if self.cut.is_empty() && self.up() == 3 {
+                    self.partition(m);
+                } else {
+                    self.heal();
+                }
+            }
+            98 if faults => self.heal(),
+            _ => {}
+        }
+    }
+
+    fn up(&self) -> usize {
+        self.copies.values().filter(|c| c.core.is_some()).count()
+    }
+
+    /// Heal everything and run without faults until every copy applied the same entries.
+    fn settle(&mut self) {
+        self.heal();
+        for m in MEMBERS {
+            if self.copies[m].core.is_none() {
+                self.start(m);
+            }
+        }
+        for _ in 0..200_000 {
+            self.step_with(false, false);
+            let applied: Vec<u64> = MEMBERS
+                .iter()
+                .map(|m| self.copies[*m].disk.applied)
+                .collect();
+            let settled = self.leader().is_some()
+                && self.pending.is_empty()
+                && applied.iter().all(|a| *a == applied[0])
+                && self.wires.values().all(VecDeque::is_empty);
+            if settled {
+                return;
+            }
+        }
+        panic!(
+            "did not settle: applied {:?}",
+            MEMBERS.map(|m| self.copies[m].disk.applied)
+        );
+    }
+
+    fn check(&self) {
+        // every copy applied the same entries: the truth, in full
+        for m in MEMBERS {
+            let c = &self.copies[m];
+            for op in &c.applied {
+                assert_eq!(&self.truth[&op.seq], op, "{m} at {}", op.seq);
+            }
+        }
+        // every acknowledged proposal is there once, at its seq
+        let mut seen = BTreeMap::new();
+        for op in self.truth.values() {
+            if let Some(id) = id_of(op) {
+                assert!(
+                    seen.insert(id, op.seq).is_none(),
+                    "proposal {id} applied twice"
+                );
+            }
+        }
+        for (seq, id) in &self.acked {
+            assert_eq!(seen.get(id), Some(seq), "acknowledged proposal {id} lost");
+        }
+    }
+}
+
+#[test]
+fn the_entries_kept_in_memory_are_bounded_in_bytes_too() {
+    // 200 puts of 16 KiB (~3.2 MiB) on copies that may keep 1 MiB: far fewer entries than
+    // the bound in entries, far more bytes
+    let mut sim = Sim::new(5, TAIL_KEEP);
+    sim.keep_bytes = 1 << 20;
+    for m in MEMBERS {
+        sim.crash(m);
+        sim.start(m);
+    }
+    sim.settle();
+    sim.payload = 16 << 10;
+    let leader = sim.leader().expect("a primary");
+    for _ in 0..200 {
+        sim.propose(&leader);
+    }
+    sim.settle();
+    sim.check();
+    for m in MEMBERS {
+        let tail = &sim.copies[m].core.as_ref().expect("running").tail;
+        assert!(
+            tail.bytes() <= 1 << 20 && tail.len() < 100,
+            "{m} keeps {} entries, {} bytes",
+            tail.len(),
+            tail.bytes()
+        );
+    }
+    // and a copy started again on its disk keeps no more than that either
+    sim.crash("b");
+    sim.start("b");
+    let tail = &sim.copies["b"].core.as_ref().unwrap().tail;
+    assert!(
+        tail.bytes() <= 1 << 20,
+        "b restarted keeps {} bytes",
+        tail.bytes()
+    );
+}
+
+/// Copies on a 2.5 s election timeout and a `heartbeat_ms` heartbeat (the production
+/// clocks' order), started together and settled with a primary.
+fn with_clocks(seed: u64, heartbeat_ms: u64) -> Sim {
+    let mut sim = Sim::new(seed, TAIL_KEEP);
+    sim.timing = Timing {
+        heartbeat: Duration::from_millis(heartbeat_ms),
+        election: Duration::from_millis(2500),
+    };
+    for m in MEMBERS {
+        sim.crash(m);
+    }
+    for m in MEMBERS {
+        sim.start(m);
+    }
+    let all = &mut |_: &str, _: &str, _: &mut ReplicaMsg| true;
+    for _ in 0..200 {
+        sim.now += Duration::from_millis(5);
+        sim.tick_all();
+        exchange(&mut sim, all);
+    }
+    sim.settle();
+    sim
+}
+
+#[test]
+fn a_more_up_to_date_copy_refused_by_a_copy_that_had_not_seen_the_primary_go_is_elected_soon() {
+    // b, more up to date, campaigns first and is refused by c, which has not yet seen the
+    // primary go; c, once it has, campaigns and b refuses it (c lacks an entry). Nobody
+    // campaigned again before b's election timeout (2.5 s and more: 3.245 s in all, with
+    // the default clocks): now b, refusing a less up-to-date candidate with no primary
+    // known, campaigns again soon.
+    let mut sim = with_clocks(11, 250);
+    assert_eq!(sim.leader().as_deref(), Some("a"));
+    // a's last entry reaches b only; then a is lost, and only b sees it go
+    sim.propose("a");
+    sim.wires.remove(&("a".to_string(), "c".to_string()));
+    exchange(&mut sim, &mut |f, t, _| !(f == "c" || t == "c"));
+    assert!(
+        sim.core("b").last() > sim.core("c").last(),
+        "b holds one more"
+    );
+    sim.vanish("a");
+    // c's failure detector speaks later than b's (b has campaigned and been refused by then)
+    let took = elected_after_loss(&mut sim, "a", &[("b", 0), ("c", 300)]);
+    assert_eq!(sim.leader().as_deref(), Some("b"), "the more up to date");
+    assert!(
+        took < Duration::from_millis(1000),
+        "a primary only {took:?} after the loss"
+    );
+}
+
+/// Time passing in steps of 5 ms, every message delivered, until a primary is elected after
+/// `gone` vanished; each `(copy, ms)` sees `gone` leave `ms` after. How long it took.
+fn elected_after_loss(sim: &mut Sim, gone: &str, detectors: &[(&str, u64)]) -> Duration {
+    let lost = sim.now;
+    let mut told = vec![false; detectors.len()];
+    loop {
+        for (i, (m, after)) in detectors.iter().enumerate() {
+            if !told[i] && sim.now - lost >= Duration::from_millis(*after) {
+                let now = sim.now;
+                sim.core(m).peer_down(gone, now);
+                told[i] = true;
+            }
+        }
+        if sim.leader().is_some() {
+            return sim.now - lost;
+        }
+        assert!(sim.now - lost < Duration::from_secs(10), "no primary");
+        sim.now += Duration::from_millis(5);
+        sim.tick_all();
+        exchange(sim, &mut |_, _, _| true);
+    }
+}
+
+/// A stand-in primary (not `a`, the configured one) elected while `a` was down, and `a`
+/// back and caught up, with the stand-in's `TimeoutNow` to it held back: (stand-in, the
+/// third copy, the held message).
+fn a_hand_over_held(sim: &mut Sim) -> (String, String, ReplicaMsg) {
+    sim.crash("a");
+    let all = &mut |_: &str, _: &str, _: &mut ReplicaMsg| true;
+    let stand_in = elect(sim, all);
+    assert_ne!(stand_in, "a");
+    let third = if stand_in == "b" { "c" } else { "b" }.to_string();
+    sim.propose(&stand_in);
+    exchange(sim, all);
+    let mut held = None;
+    sim.start("a");
+    exchange(sim, &mut |_, _, m| {
+        if matches!(m, ReplicaMsg::TimeoutNow { .. }) {
+            held = Some(m.clone());
+            return false;
+        }
+        true
+    });
+    let held = held.expect("the stand-in hands over once a is caught up");
+    assert_eq!(sim.core("a").last(), sim.core(&stand_in).last());
+    (stand_in, third, held)
+}
+
+#[test]
+fn a_primary_handing_over_while_it_takes_writes_gets_the_configured_copy_elected_at_once() {
+    // The failover bench's rounds of failed hand-overs: the stand-in asked a to take over
+    // and went on taking writes; the third copy got one a had not yet, refused a its vote,
+    // the stand-in stepped down at a's campaign all the same — and the next primary handed
+    // over again, one failed round every ~0.8 s. Now the other copies get nothing past the
+    // hand-over's seq for a while: a wins at its first campaign.
+    let mut sim = Sim::new(17, TAIL_KEEP);
+    sim.settle();
+    let (stand_in, third, held) = a_hand_over_held(&mut sim);
+    let term = sim.core(&stand_in).term();
+    // a write after the hand-over: it reaches the third copy only (a's copy is delayed)
+    sim.propose(&stand_in);
+    exchange(&mut sim, &mut |_, t, _| t != "a");
+    sim.wires
+        .entry((stand_in.clone(), "a".to_string()))
+        .or_default()
+        .push_back(held);
+    exchange(&mut sim, &mut |_, _, _| true);
+    assert_eq!(
+        sim.leader().as_deref(),
+        Some("a"),
+        "a elected at the hand-over; the third copy {third} holds {:?}, a {:?}",
+        sim.core(&third).last(),
+        sim.core("a").last()
+    );
+    assert_eq!(sim.core("a").term(), term + 1, "at its first campaign");
+    sim.settle();
+    sim.check();
+}
+
+#[test]
+fn a_copy_that_took_a_less_up_to_date_candidates_term_campaigns_soon_once_its_primary_is_lost() {
+    // The failover bench's slow SIGSTOP rounds: a campaigned (asked to take over) lacking
+    // an entry the third copy had; the third copy took a's term, refused it, and forgot its
+    // primary — which was frozen just then. Its failure detector's word about that node no
+    // longer moved its election (not its primary any more): nobody campaigned until its
+    // election timeout (3.25 s in the bench). Now it campaigns soon after refusing.
+    let mut sim = with_clocks(19, 100);
+    let (stand_in, third, held) = a_hand_over_held(&mut sim);
+    let term = sim.core(&stand_in).term() + 1;
+    // past the hand-over's quiet while, a write reaches the third copy and not a
+    sim.now += sim.timing.election / 2;
+    sim.propose(&stand_in);
+    exchange(&mut sim, &mut |_, t, _| t != "a");
+    assert!(sim.core(&third).last() > sim.core("a").last());
+    // a campaigns, and the stand-in is frozen before a's vote request reaches it
+    sim.wires
+        .entry((stand_in.clone(), "a".to_string()))
+        .or_default()
+        .push_back(held);
+    exchange(&mut sim, &mut |f, t, _| f != "a" || t != stand_in);
+    sim.vanish(&stand_in);
+    assert_eq!(sim.core(&third).leader(), None, "it took a's term");
+    // the failure detectors' word comes at their deadline, about a node that is no longer
+    // anyone's primary
+    let took = elected_after_loss(&mut sim, &stand_in, &[("a", 1200), (&third, 1200)]);
+    // (the third copy, more up to date, is elected; it may have handed a the role since)
+    assert!(
+        sim.leaders.range(term..).any(|(_, l)| *l == third),
+        "the more up to date elected: {:?}",
+        sim.leaders
+    );
+    assert!(
+        took < Duration::from_millis(1000),
+        "a primary only {took:?} after the loss"
+    );
+    sim.settle();
+    sim.check();
+}
+
+#[test]
+fn the_configured_primary_is_elected_and_commits() {
+    let mut sim = Sim::new(7, TAIL_KEEP);
+    for _ in 0..2000 {
+        sim.step(false);
+    }
+    assert_eq!(
+        sim.leader().as_deref(),
+        Some("a"),
+        "the eager copy wins a quiet start"
+    );
+    sim.settle();
+    sim.check();
+    assert!(sim.acked.len() > 100, "acked {}", sim.acked.len());
+    assert_eq!(sim.leaders.len(), 1, "one term: {:?}", sim.leaders);
+}
+
+#[test]
+fn a_lost_primary_is_replaced_and_nothing_acknowledged_is_lost() {
+    let mut sim = Sim::new(11, TAIL_KEEP);
+    for _ in 0..2000 {
+        sim.step(false);
+    }
+    let first = sim.leader().expect("a primary");
+    let acked = sim.acked.len();
+    sim.crash(&first);
+    for _ in 0..5000 {
+        sim.step(false);
+    }
+    let second = sim.leader().expect("a new primary");
+    assert_ne!(first, second);
+    sim.start(&first);
+    sim.settle();
+    sim.check();
+    assert!(sim.acked.len() > acked, "the new primary acknowledged more");
+}
+
+#[test]
+fn the_configured_primary_takes_over_once_it_is_back_and_caught_up() {
+    let mut sim = Sim::new(13, TAIL_KEEP);
+    sim.crash("a");
+    for _ in 0..4000 {
+        sim.step(false);
+    }
+    let stand_in = sim.leader().expect("a primary without a");
+    assert_ne!(stand_in, "a");
+    let acked = sim.acked.len();
+    sim.start("a");
+    for _ in 0..6000 {
+        sim.step(false);
+    }
+    assert_eq!(
+        sim.leader().as_deref(),
+        Some("a"),
+        "the preferred copy leads again"
+    );
+    sim.settle();
+    sim.check();
+    assert!(sim.acked.len() > acked);
+}
+
+#[test]
+fn a_cut_off_primary_cannot_commit_and_rejoins_as_a_copy() {
+    let mut sim = Sim::new(5, TAIL_KEEP);
+    for _ in 0..2000 {
+        sim.step(false);
+    }
+    let first = sim.leader().expect("a primary");
+    sim.partition(&first);
+    let acked = sim.acked.len();
+    // the cut-off primary goes on proposing: none of it may be acknowledged
+    for _ in 0..20 {
+        sim.propose(&first);
+    }
+    for _ in 0..5000 {
+        sim.step(false);
+    }
+    let new = MEMBERS
+        .iter()
+        .find(|m| **m != first && sim.copies[**m].core.as_ref().unwrap().is_leader());
+    assert!(new.is_some(), "the majority elected a primary");
+    assert!(
+        sim.acked[acked..].iter().all(|(seq, _)| sim.truth[seq].term
+            > sim
+                .leaders
+                .iter()
+                .find(|(_, l)| **l == first)
+                .map_or(0, |(t, _)| *t)),
+        "the cut-off primary acknowledged nothing"
+    );
+    sim.settle();
+    sim.check();
+}
+
+const SCHEDULES: u64 = 120;
+
+#[test]
+fn thousands_of_seeded_faults_keep_every_invariant() {
+    let mut counts = BTreeMap::new();
+    let (mut terms, mut acked) = (0, 0);
+    let only: Option<u64> = std::env::var("SIM_SEED").ok().and_then(|s| s.parse().ok());
+    for seed in 1..=SCHEDULES {
+        if only.is_some_and(|o| o != seed) {
+            continue;
+        }
+        let keep = if seed % 2 == 0 { 16 } else { TAIL_KEEP };
+        let mut sim = Sim::new(seed * 7919, keep);
+        sim.harsh = seed % 3 == 0;
+        eprintln!("seed {seed}");
+        for _ in 0..6000 {
+            sim.step(true);
+        }
+        sim.settle();
+        sim.check();
+        assert!(!sim.acked.is_empty(), "seed {seed}: nothing acknowledged");
+        for (k, v) in sim.counts {
+            *counts.entry(k).or_insert(0) += v;
+        }
+        terms += sim.leaders.len();
+        acked += sim.acked.len();
+    }
+    eprintln!(
+        "{SCHEDULES} schedules: {counts:?}, {terms} terms with a primary, {acked} acknowledged"
+    );
+    // the schedules did what they are for
+    for what in ["crashes", "partitions", "installs", "step-downs"] {
+        assert!(
+            counts.get(what).copied().unwrap_or(0) >= 10,
+            "{what}: {counts:?}"
+        );
+    }
+}
+
+/// Deliver every message in flight, and every one they bring about, through `pass`, which
+/// may drop one (`false`) or change it; time stands still.
+fn exchange(sim: &mut Sim, pass: &mut dyn FnMut(&str, &str, &mut ReplicaMsg) -> bool) {
+    for _ in 0..100_000 {
+        let Some((f, t)) = sim
+            .wires
+            .iter()
+            .find(|(_, q)| !q.is_empty())
+            .map(|(k, _)| k.clone())
+        else {
+            return;
+        };
+        let mut msg = sim
+            .wires
+            .get_mut(&(f.clone(), t.clone()))
+            .unwrap()
+            .pop_front()
+            .unwrap();
+        if !sim.reachable(&f, &t) || !pass(&f, &t, &mut msg) {
+            continue;
+        }
+        let mut out = Vec::new();
+        let now = sim.now;
+        sim.core(&t).receive(msg, now, &mut out);
+        sim.run(&t, out);
+    }
+    panic!("the copies never fell quiet");
+}
+
+/// Let time pass until a primary is elected, every message through `pass`; the primary.
+fn elect(sim: &mut Sim, pass: &mut dyn FnMut(&str, &str, &mut ReplicaMsg) -> bool) -> String {
+    for _ in 0..1000 {
+        exchange(sim, pass);
+        if let Some(l) = sim.leader() {
+            return l;
+        }
+        sim.now += timing().election / 4;
+        sim.tick_all();
+    }
+    panic!("no primary elected");
+}
+
+#[test]
+fn an_entry_of_an_older_term_on_a_majority_is_not_committed_until_one_of_the_primarys_own_is() {
+    // Raft's figure 8: counting the copies of an older term's entry would commit an entry
+    // that a copy with a newer last term can still overwrite
+    let mut sim = Sim::new(3, TAIL_KEEP);
+    sim.settle();
+    let all = &mut |_: &str, _: &str, _: &mut ReplicaMsg| true;
+    // 1. the primary proposes X, which reaches no other copy; it crashes
+    let l1 = sim.leader().expect("a primary");
+    let x_id = sim.next_id;
+    sim.propose(&l1);
+    sim.wires.clear();
+    let (x_seq, t1) = sim.core(&l1).last();
+    sim.crash(&l1);
+    // 2. another is elected; its no-op (at X's seq, a newer term) reaches nobody; it crashes
+    let l2 = elect(
+        &mut sim,
+        &mut |_, _, m| !matches!(m, ReplicaMsg::Append { ops, .. } if !ops.is_empty()),
+    );
+    assert_ne!(l2, l1);
+    let (seq2, t2) = sim.core(&l2).last();
+    assert_eq!(seq2, x_seq, "the no-op takes X's seq");
+    assert!(t2 > t1);
+    sim.crash(&l2);
+    let f = MEMBERS
+        .iter()
+        .find(|m| **m != l1 && **m != l2)
+        .unwrap()
+        .to_string();
+    // 3. X's primary is back and elected (its log is the longer); it gets X to the third
+    //    copy, but not its own no-op: X is on a majority, in an older term
+    sim.start(&l1);
+    let l3 = elect(&mut sim, &mut |_, _, m| {
+        if let ReplicaMsg::Append { ops, .. } = m {
+            *ops = Ops::new(ops.iter().filter(|o| o.seq <= x_seq).cloned().collect());
+        }
+        true
+    });
+    assert_eq!(l3, l1);
+    assert_eq!(sim.core(&f).last(), (x_seq, t1), "{f} holds X");
+    assert!(
+        sim.core(&l1).commit() < x_seq,
+        "X committed by counting copies of an older term"
+    );
+    assert!(!sim.acked.iter().any(|(_, id)| *id == x_id));
+    // 4. the no-op's primary is back, X's goes: the no-op's log wins, X is overwritten —
+    //    rightly, it was never acknowledged
+    sim.crash(&l1);
+    sim.start(&l2);
+    assert_eq!(elect(&mut sim, all), l2);
+    sim.settle();
+    sim.check();
+    assert_eq!(id_of(&sim.truth[&x_seq]), None, "the no-op holds X's seq");
+    assert!(!sim.acked.iter().any(|(_, id)| *id == x_id));
+}

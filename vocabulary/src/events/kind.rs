@@ -1,0 +1,567 @@
+//! What an event says: one enum of every kind of event a node publishes.
+
+use crate::registry::{Instance, ModuleKind};
+use crate::run::{
+    Choice, DmCheck, FaultKind, LossCause, OpEnd, Outcome, ParamValue, Provenance, RebindRecord,
+    RobotSection,
+};
+use serde::{Deserialize, Serialize};
+
+/// What happened. Serialized internally tagged with `type` in snake_case (see the module
+/// docs for one JSON line per kind); the tags are stable names — add kinds, never rename
+/// them. Times in a kind (`run_ms`, `due_ms`) are mission clock ms since the run began, the
+/// times a [`RunReport`](crate::report::RunReport) shows.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case")]
+pub enum EventKind {
+    // --- dispatcher ---
+    /// What runs — the build, the command, the files read with their texts, the nodes and
+    /// their builds, the seed and speed ([`Provenance`]; its `parameters` come from the
+    /// `action_started` and `reparameterized` events that follow): the first event of a
+    /// run, right before its `run_started`.
+    Provenance(Box<Provenance>),
+    /// An operation's parameters were set while it ran by someone other than the
+    /// dispatcher's activation (an application, a tool; the dispatcher restoring a
+    /// stand-in's values too, which a report does not count as a change).
+    Reparameterized {
+        /// Operation name.
+        operation: String,
+        /// Its actor address.
+        address: String,
+        /// The values that changed, with their new values.
+        values: Vec<ParamValue>,
+    },
+    /// A dispatcher began to run `mission`; the events of one run follow it.
+    RunStarted {
+        /// Mission name.
+        mission: String,
+        /// The mission's task tree: its actions in file order (absent in older streams,
+        /// and left out of a line when empty).
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        actions: Vec<ActionPlan>,
+        /// The flags that must all be set for the mission to succeed, as names (absent in
+        /// older streams).
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        success: Vec<String>,
+    },
+    /// Every operation of the mission was found and bound.
+    Bound {
+        /// The bound instances.
+        operations: Vec<BoundOp>,
+    },
+    /// An action started and its operations were activated.
+    ActionStarted {
+        /// Action name.
+        action: String,
+        /// When, in ms since the run began.
+        run_ms: u64,
+        /// Its operations, in the mission's order.
+        operations: Vec<OpStarted>,
+    },
+    /// An operation's part in the running action ended (finished, suspended, failed, lost,
+    /// unresponsive).
+    OpEnded {
+        /// Action name.
+        action: String,
+        /// The operation as the action names it (name or id).
+        key: String,
+        /// How its part ended.
+        ended: OpEnd,
+        /// The mission's flags it raised.
+        flags: Vec<String>,
+    },
+    /// An action ended.
+    ActionEnded {
+        /// Action name.
+        action: String,
+        /// When, in ms since the run began.
+        run_ms: u64,
+        /// The status word after it, as names.
+        flags: Vec<String>,
+        /// The status word after it.
+        status: u32,
+        /// How it ended, for the mission's tree (absent in older streams).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        result: Option<ActionResult>,
+    },
+    /// The mission's behaviour tree, told right after [`RunStarted`](Self::RunStarted):
+    /// what a monitor draws, its nodes in preorder.
+    ControlPlan {
+        /// The nodes, the root first.
+        nodes: Vec<PlanNode>,
+    },
+    /// A control decision of the mission's tree: a retry, a fallback, a timeout, a
+    /// condition that no longer holds, a recovery, a parallel decided.
+    Control {
+        /// The node that decided, by its label (`Control::label`).
+        node: String,
+        /// What it decided, in words (`retry 2 of 3`, ``fallback to `back-along` ``).
+        decision: String,
+        /// When, in ms since the run began.
+        run_ms: u64,
+    },
+    /// The run ended; the dispatcher's verdict (a node may judge further, [`Judged`](Self::Judged)).
+    RunEnded {
+        /// Outcome.
+        outcome: Outcome,
+        /// Why it failed (empty on success).
+        reason: String,
+        /// When, in ms since the run began: the run's duration.
+        run_ms: u64,
+        /// Final status word.
+        status: u32,
+        /// Final status word, as names.
+        flags: Vec<String>,
+    },
+    // --- bindings ---
+    /// A bound operation's instance was lost; the dispatcher looks for a stand-in.
+    Lost {
+        /// Operation name.
+        operation: String,
+        /// Why.
+        cause: LossCause,
+    },
+    /// A lost operation is bound again.
+    Rebound(RebindRecord),
+    /// No stand-in appeared within the rebind deadline: the run comes to a full stop.
+    RebindGaveUp {
+        /// Operation name.
+        operation: String,
+        /// Why it was lost.
+        cause: LossCause,
+        /// How long the dispatcher waited, in ms.
+        waited_ms: u64,
+    },
+    /// A standby dispatcher took the run over from a dispatcher whose node was lost (its
+    /// process gone, or declared down): the run goes on from the lost one's last checkpoint,
+    /// under a higher term that fences the old one off.
+    Takeover {
+        /// The run's id.
+        run: String,
+        /// The node of the dispatcher that was lost.
+        from: String,
+        /// The node of the dispatcher that carries the run on.
+        to: String,
+        /// The new dispatcher's term.
+        term: u64,
+        /// Real ms from the standby learning of the loss to its term stored (the run is its
+        /// own from then on; its bindings and first command follow, told by a `bound`).
+        gap_ms: u64,
+        /// Real ms between the lost dispatcher's last checkpoint and the term stored.
+        since_checkpoint_ms: u64,
+        /// Wall-clock time the term was stored, ms since the Unix epoch (to compare with
+        /// when a test killed the lost one).
+        unix_ms: u64,
+    },
+    /// A dispatcher found that its run is carried on by a newer one (its checkpoint, or an
+    /// adoption, was refused for an older term): it stops, without ending the run.
+    DispatcherFenced {
+        /// The run's id.
+        run: String,
+        /// Its term.
+        term: u64,
+        /// The newer term that refused it.
+        newer: u64,
+    },
+    // --- registry ---
+    /// A module published itself in the location table.
+    Joined(ModuleInfo),
+    /// A module left the location table (it died, or withdrew).
+    Left(ModuleInfo),
+    // --- supervisors (plain data: the node translates its supervisors' events) ---
+    /// A supervisor started a child for the first time.
+    ChildStarted {
+        /// The supervisor's id (its name in the node's tree).
+        supervisor: String,
+        /// The child's id.
+        child: String,
+        /// The new incarnation's actor address.
+        actor: String,
+    },
+    /// A child stopped by itself.
+    ChildExited {
+        /// The supervisor's id.
+        supervisor: String,
+        /// The child's id.
+        child: String,
+        /// Its exit reason, as text.
+        reason: String,
+    },
+    /// A supervisor started a child again.
+    ChildRestarted {
+        /// The supervisor's id.
+        supervisor: String,
+        /// The child's id.
+        child: String,
+        /// The new incarnation's actor address.
+        actor: String,
+        /// How many times the child was restarted, this time included.
+        restarts: u32,
+        /// Why, as text.
+        reason: String,
+    },
+    /// A supervisor gave up (restart intensity exceeded) and stopped.
+    SupervisorGaveUp {
+        /// The supervisor's id.
+        supervisor: String,
+        /// Why, as text.
+        reason: String,
+    },
+    // --- faults injected on purpose, from any source ---
+    /// A fault was injected (by a plan, chaos, the monitor's page or `marie kill`).
+    FaultInjected {
+        /// What.
+        fault: FaultKind,
+        /// What it was meant for, as asked: an operation (name, id, `NAME#VERSION`, actor
+        /// id) or, for a node fault, the node's name.
+        operation: String,
+        /// The instance that got it (its address), or for a node fault its process
+        /// (`pid N`).
+        actor: String,
+        /// The node it landed on (absent in older streams).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        node: Option<String>,
+        /// When it was planned, in ms since the run began (a plan's faults; absent for one
+        /// asked at once).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        due_ms: Option<u64>,
+        /// For a fault that [lasts](FaultKind::lasts) (a freeze, a cut): for how long, in
+        /// ms of mission time; a `fault_healed` follows when it is undone.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        lasting_ms: Option<u64>,
+    },
+    /// A lasting fault was undone: a frozen node's process let go on (`SIGCONT`), a cut
+    /// between two groups of nodes healed.
+    FaultHealed {
+        /// What.
+        fault: FaultKind,
+        /// What it was meant for, as asked (the node's name, or the cut `A,B|C,D`).
+        operation: String,
+    },
+    /// A fault could not be injected.
+    FaultNotInjected {
+        /// What.
+        fault: FaultKind,
+        /// What it was meant for, as asked.
+        operation: String,
+        /// Why not.
+        why: String,
+        /// When it was planned, in ms since the run began (a plan's faults; absent for one
+        /// asked at once).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        due_ms: Option<u64>,
+    },
+    // --- the cluster ---
+    /// A peer node's session became ready: its modules are in the registry.
+    NodeUp {
+        /// Its node name.
+        peer: String,
+        /// The address it listens on.
+        address: String,
+    },
+    /// A peer node's sessions ended (it left, its connection broke, or it was declared
+    /// down): its modules have left the registry.
+    NodeLost {
+        /// Its node name.
+        peer: String,
+        /// The address it listened on.
+        address: String,
+    },
+    /// The failure detector declared a silent peer node down and closed its sessions.
+    NodeDown {
+        /// Its node name.
+        peer: String,
+        /// How long it had been silent, ms of real time.
+        silent_ms: u64,
+    },
+    /// This node was frozen past its peers' failure-detector deadline (they have declared
+    /// it down; it found so by its own clock, or a peer told it once back): it restarts its
+    /// operations as a new incarnation.
+    NodeFrozen {
+        /// How long it was frozen, ms of real time (as its own clock or the peer that told
+        /// it measured).
+        silent_ms: u64,
+    },
+    /// A peer node of another protocol version was refused.
+    NodeRefused {
+        /// Its node name.
+        peer: String,
+        /// Its protocol version.
+        theirs: u16,
+        /// This node's.
+        ours: u16,
+    },
+    /// An incoming connection was refused before it could become a session (with TLS on:
+    /// no valid certificate, or no handshake in time).
+    ConnectionRefused {
+        /// Where it came from (`ip:port`).
+        from: String,
+        /// Why.
+        reason: String,
+    },
+    // --- self-configuration ---
+    /// The dispatcher chose an instance of an operation by its properties (or found none
+    /// fit): every candidate with its verdict.
+    Selected {
+        /// The candidates and the choice.
+        choice: Choice,
+    },
+    // --- datamanagers ---
+    /// A datamanager with a journal started (at the node's start, or restarted after a
+    /// crash) and read it back: what it kept, and what it dropped from a torn or corrupt end.
+    DmRecovered {
+        /// The datamanager's name.
+        dm: String,
+        /// Records it holds after the replay.
+        records: u64,
+        /// Bytes of journal kept.
+        bytes: u64,
+        /// How long the replay took, in ms.
+        ms: u64,
+        /// Bytes dropped.
+        dropped_bytes: u64,
+        /// Whole records among the dropped bytes.
+        dropped_records: u64,
+        /// Where and why the replay stopped early, if it did.
+        torn: Option<String>,
+    },
+    /// A copy of a replicated datamanager was elected its primary: clients find it under
+    /// the datamanager's name from now on.
+    DmPromoted {
+        /// The datamanager's name.
+        dm: String,
+        /// The node the new primary runs on.
+        node: String,
+        /// Its term (each election raises it).
+        term: u64,
+    },
+    /// The primary of a replicated datamanager stopped being one — a newer term exists, or
+    /// it lost its majority — and restarts as a copy: its late answers and writes count
+    /// for nothing.
+    DmFenced {
+        /// The datamanager's name.
+        dm: String,
+        /// The node it runs on.
+        node: String,
+        /// Its term now (the newer one it met, or its own if it lost its majority).
+        term: u64,
+        /// Why.
+        why: String,
+    },
+    /// What a datamanager holds now, as a monitor asked it (fed to the monitor's page every
+    /// few seconds; never on a node's bus, so never in an events file).
+    DmState {
+        /// The datamanager's name.
+        dm: String,
+        /// `memory`, `process` or `sync`.
+        durability: String,
+        /// Records stored.
+        records: u64,
+        /// Bytes of its journal.
+        journal_bytes: u64,
+        /// `primary` of a replicated datamanager; `None` without copies.
+        role: Option<String>,
+        /// Its term (0 without copies).
+        term: u64,
+        /// How many entries each other copy lacks.
+        lag: std::collections::BTreeMap<String, u64>,
+    },
+    /// A producer of this node was told a record was stored: a `store` answered with its
+    /// seq. What the check at the end of a run ([`DmChecked`](Self::DmChecked)) looks up.
+    DmAcked {
+        /// The datamanager's name.
+        dm: String,
+        /// The producer (the record's source).
+        source: String,
+        /// The record's class.
+        class: String,
+        /// The seq it was acknowledged with.
+        seq: u64,
+        /// A digest of its payload's bytes (64-bit FNV-1a), to tell it from another record
+        /// at the same seq.
+        digest: u64,
+    },
+    /// A producer of this node was told a delete was done: records it matched are gone on
+    /// purpose, not lost.
+    DmDeleted {
+        /// The datamanager's name.
+        dm: String,
+        /// The producer that deleted.
+        source: String,
+        /// The class the delete named; `None`: it could match any class.
+        class: Option<String>,
+        /// How many records it deleted.
+        deleted: u64,
+    },
+    /// The check of a datamanager at the end of a run: of the records acknowledged during
+    /// it, how many its primary still holds and how many are lost.
+    DmChecked(DmCheck),
+    // --- the robot ---
+    /// A robot judged the run after the dispatcher ended it: its outcome replaces the
+    /// dispatcher's, and what it says of the run (its [`RobotSection`], e.g. the cart's final
+    /// pose) goes into the report beside the report's own fields.
+    Judged {
+        /// Outcome after judgement.
+        outcome: Outcome,
+        /// Why it failed (empty on success).
+        reason: String,
+        /// What the robot says of the run, written beside `outcome` and `reason`.
+        #[serde(flatten)]
+        robot: RobotSection,
+    },
+    /// Anything else a robot reports (a collision, a dock found): `what` names it, `data`
+    /// holds it as JSON.
+    Robot {
+        /// What happened, e.g. `collision`.
+        what: String,
+        /// Its details.
+        data: serde_json::Value,
+    },
+}
+
+impl EventKind {
+    /// True for the kinds a dispatcher publishes about its run (the run, its actions,
+    /// bindings, choices, takeovers): a run's report folds these from its dispatcher's node
+    /// only, and a member that follows a run dispatched on another node republishes them
+    /// on its own bus.
+    pub fn is_dispatch(&self) -> bool {
+        matches!(
+            self,
+            EventKind::RunStarted { .. }
+                | EventKind::Bound { .. }
+                | EventKind::ActionStarted { .. }
+                | EventKind::OpEnded { .. }
+                | EventKind::ActionEnded { .. }
+                | EventKind::Control { .. }
+                | EventKind::ControlPlan { .. }
+                | EventKind::RunEnded { .. }
+                | EventKind::Lost { .. }
+                | EventKind::Rebound(_)
+                | EventKind::RebindGaveUp { .. }
+                | EventKind::Selected { .. }
+                | EventKind::Takeover { .. }
+                | EventKind::DispatcherFenced { .. }
+        )
+    }
+}
+
+/// How an action ended ([`EventKind::ActionEnded`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ActionResult {
+    /// Its enders finished (or nothing ran any more).
+    Succeeded,
+    /// An operation failed, or it missed its deadline.
+    Failed,
+    /// The tree halted it (a timeout, a condition lost, a parallel decided).
+    Halted,
+}
+
+impl ActionResult {
+    /// Its name, as lines and logs say it (`succeeded`, `failed`, `halted`).
+    pub fn name(self) -> &'static str {
+        match self {
+            ActionResult::Succeeded => "succeeded",
+            ActionResult::Failed => "failed",
+            ActionResult::Halted => "halted",
+        }
+    }
+}
+
+/// A node of a mission's behaviour tree as its run announces it
+/// ([`EventKind::ControlPlan`]).
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct PlanNode {
+    /// Its id: its place in preorder (the root 0), as control decisions name it.
+    pub id: usize,
+    /// Its parent's id (none for the root).
+    pub parent: Option<usize>,
+    /// What it is: `schedule`, `sequence`, `reactive`, `fallback`, `parallel`, `retry`,
+    /// `timeout`, `recover`, `action` or `condition`.
+    pub kind: String,
+    /// Its label (an action's or a group's name, a decorator's kind and what it
+    /// decorates): what the run's control events call it.
+    pub label: String,
+    /// Its settings in words (`3 attempts, 2.0 s apart`, `40.0 s`, `unless dead-end`).
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub detail: String,
+}
+
+/// An action of a mission as its run announces it: what a monitor draws as the task tree.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ActionPlan {
+    /// Action name.
+    pub name: String,
+    /// Its condition: the flags (by name) the status word must hold for it to run.
+    pub when: Vec<String>,
+    /// Its operations (names), in the mission's order.
+    pub ops: Vec<String>,
+    /// The keys of the operations whose finishing ends it.
+    pub ends_on: Vec<String>,
+}
+
+/// An operation instance a binding holds.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct BoundOp {
+    /// Operation name.
+    pub name: String,
+    /// Version of the instance.
+    pub version: String,
+    /// Node it runs on.
+    pub node: String,
+    /// The binding's epoch: the fencing token its commands carry (0 in events written
+    /// before it was recorded).
+    #[serde(default)]
+    pub epoch: u64,
+    /// Actor address of the instance (empty in events written before it was recorded).
+    #[serde(default)]
+    pub address: String,
+}
+
+/// An operation an action activates, and the instance that runs it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct OpStarted {
+    /// The operation as the action names it (name or id).
+    pub key: String,
+    /// Operation name.
+    pub name: String,
+    /// Numeric id.
+    pub id: u32,
+    /// Version of the instance.
+    pub version: String,
+    /// Node it runs on.
+    pub node: String,
+    /// Actor address of the instance.
+    pub address: String,
+    /// The parameter values it is activated with and where each came from (absent in
+    /// older streams, and left out of a line when empty).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub params: Vec<ParamValue>,
+}
+
+/// A module in the location table, as plain data.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ModuleInfo {
+    /// Kind of module.
+    pub module: ModuleKind,
+    /// Module name.
+    pub name: String,
+    /// Numeric id.
+    pub id: u32,
+    /// Node it runs on.
+    pub node: String,
+    /// Actor address.
+    pub address: String,
+}
+
+impl From<&Instance> for ModuleInfo {
+    fn from(inst: &Instance) -> ModuleInfo {
+        ModuleInfo {
+            module: inst.kind,
+            name: inst.name.clone(),
+            id: inst.id,
+            node: inst.node.clone(),
+            address: inst.actor.get_id().to_string(),
+        }
+    }
+}

@@ -1,0 +1,338 @@
+//! Wire form of the interface messages.
+//!
+//! With ractor's `cluster` feature a message reaches another node only if its type implements
+//! `ractor::Message::serialize` / `deserialize`. marie does not use ractor_cluster's derive,
+//! whose `BytesConvertable` bound is infallible (a bad frame panics and is dropped in silence);
+//! instead [`remote_message!`](crate::remote_message) writes the impl with rmp-serde, so a frame
+//! that does not decode is refused with a warning.
+//!
+//! Each variant travels as its name (the wire tag: never rename a variant, add new ones) and
+//! its fields as a MessagePack map (`to_vec_named`, so fields can be added later). A variant
+//! declared with `-> Reply` carries a `reply: RpcReplyPort<Reply>` field and travels as a call:
+//! its port is bridged to a byte port and back with [`bridge_out`] / [`bridge_in`].
+//!
+//! Frames marie sends between nodes outside ractor's own messages (heartbeats, membership,
+//! events) travel in the versioned [`envelope::Envelope`]: a peer that speaks another
+//! [`PROTOCOL_VERSION`] is refused with an error naming both versions, never misread.
+
+pub mod envelope;
+
+pub use envelope::{Envelope, EnvelopeError, PROTOCOL_VERSION};
+
+use ractor::concurrency::{self, Duration};
+use ractor::RpcReplyPort;
+use serde::de::DeserializeOwned;
+use serde::Serialize;
+
+/// Encode a value as a MessagePack map.
+pub fn encode<T: Serialize + ?Sized>(value: &T) -> Result<Vec<u8>, rmp_serde::encode::Error> {
+    rmp_serde::to_vec_named(value)
+}
+
+/// Decode MessagePack bytes.
+pub fn decode<T: DeserializeOwned>(bytes: &[u8]) -> Result<T, rmp_serde::decode::Error> {
+    rmp_serde::from_slice(bytes)
+}
+
+fn port_from<T>(tx: concurrency::OneshotSender<T>, timeout: Option<Duration>) -> RpcReplyPort<T> {
+    match timeout {
+        Some(t) => RpcReplyPort::from((tx, t)),
+        None => RpcReplyPort::from(tx),
+    }
+}
+
+/// Turn a typed reply port into a byte port for the sending side: bytes that arrive are
+/// decoded and forwarded. Undecodable replies are dropped with a warning, which the caller
+/// sees as a closed port.
+pub fn bridge_out<T>(port: RpcReplyPort<T>) -> RpcReplyPort<Vec<u8>>
+where
+    T: DeserializeOwned + Send + 'static,
+{
+    let timeout = port.get_timeout();
+    let (tx, rx) = concurrency::oneshot::<Vec<u8>>();
+    concurrency::spawn(async move {
+        let bytes = match timeout {
+            Some(t) => concurrency::timeout(t, rx).await.ok().and_then(|r| r.ok()),
+            None => rx.await.ok(),
+        };
+        if let Some(bytes) = bytes {
+            match decode::<T>(&bytes) {
+                Ok(v) => {
+                    let _ = port.send(v);
+                }
+                Err(e) => tracing::warn!(error = %e, "dropping a reply that does not decode"),
+            }
+        }
+    });
+    port_from(tx, timeout)
+}
+
+/// Turn a byte reply port (from a peer) into a typed port for the receiving actor: the typed
+/// answer is encoded and sent back.
+pub fn bridge_in<T>(port: RpcReplyPort<Vec<u8>>) -> RpcReplyPort<T>
+where
+    T: Serialize + Send + 'static,
+{
+    let timeout = port.get_timeout();
+    let (tx, rx) = concurrency::oneshot::<T>();
+    concurrency::spawn(async move {
+        let value = match timeout {
+            Some(t) => concurrency::timeout(t, rx).await.ok().and_then(|r| r.ok()),
+            None => rx.await.ok(),
+        };
+        if let Some(v) = value {
+            match encode(&v) {
+                Ok(bytes) => {
+                    let _ = port.send(bytes);
+                }
+                Err(e) => tracing::warn!(error = %e, "a reply could not be encoded"),
+            }
+        }
+    });
+    port_from(tx, timeout)
+}
+
+/// Define a message enum whose variants can cross nodes, and implement `ractor::Message` for
+/// it with rmp-serde.
+///
+/// Variants in the enum body are remote: each has named fields that are
+/// `Serialize + DeserializeOwned`; `-> R` makes it a call with an extra field
+/// `reply: RpcReplyPort<R>`. Variants in the optional `local { .. }` block are for the actor's
+/// own use (timers, local-only handles) and refuse to serialize.
+///
+/// ```
+/// use marie_vocabulary::remote_message;
+/// remote_message! {
+///     /// Messages of a counter.
+///     pub enum CounterMsg {
+///         /// Add to the count.
+///         Add { n: u64 },
+///         /// Read the count.
+///         Get {} -> u64,
+///     }
+///     local {
+///         /// A timer tick.
+///         Tick { generation: u64 },
+///     }
+/// }
+/// let _ = CounterMsg::Add { n: 1 };
+/// ```
+#[macro_export]
+macro_rules! remote_message {
+    (
+        $(#[$emeta:meta])*
+        $vis:vis enum $name:ident {
+            $(
+                $(#[$vmeta:meta])*
+                $variant:ident { $( $(#[$fmeta:meta])* $field:ident : $fty:ty ),* $(,)? } $(-> $reply:ty)?
+            ),* $(,)?
+        }
+        $( local {
+            $(
+                $(#[$lmeta:meta])*
+                $lvariant:ident { $( $(#[$lfmeta:meta])* $lfield:ident : $lfty:ty ),* $(,)? }
+            ),* $(,)?
+        } )?
+    ) => {
+        $(#[$emeta])*
+        $vis enum $name {
+            $(
+                $(#[$vmeta])*
+                $variant {
+                    $( $(#[$fmeta])* $field : $fty, )*
+                    $(
+                        /// Where the answer goes.
+                        reply: ::ractor::RpcReplyPort<$reply>,
+                    )?
+                },
+            )*
+            $($(
+                $(#[$lmeta])*
+                $lvariant { $( $(#[$lfmeta])* $lfield : $lfty, )* },
+            )*)?
+        }
+
+        impl ::std::fmt::Debug for $name {
+            fn fmt(&self, f: &mut ::std::fmt::Formatter<'_>) -> ::std::fmt::Result {
+                match self {
+                    $( $name::$variant { .. } => f.write_str(stringify!($variant)), )*
+                    $($( $name::$lvariant { .. } => f.write_str(stringify!($lvariant)), )*)?
+                }
+            }
+        }
+
+        impl ::ractor::Message for $name {
+            fn serializable() -> bool {
+                true
+            }
+
+            #[allow(unreachable_code, unused_variables)]
+            fn serialize(self) -> ::std::result::Result<::ractor::message::SerializedMessage, ::ractor::message::BoxedDowncastErr> {
+                let this = self;
+                $(
+                    #[allow(unreachable_patterns)]
+                    let this = $crate::remote_message!(@ser this, $name, $variant, [$($field : $fty),*] $(, $reply)?);
+                )*
+                ::tracing::warn!(message = ?this, "a local-only message cannot cross nodes");
+                Err(::ractor::message::BoxedDowncastErr)
+            }
+
+            #[allow(unused_variables)]
+            fn deserialize(m: ::ractor::message::SerializedMessage) -> ::std::result::Result<Self, ::ractor::message::BoxedDowncastErr> {
+                use ::ractor::message::SerializedMessage;
+                match m {
+                    SerializedMessage::Cast { variant, args, .. } => {
+                        $( $crate::remote_message!(@de_cast variant, args, $name, $variant, [$($field : $fty),*] $(, $reply)?); )*
+                        ::tracing::warn!(message = stringify!($name), %variant, "unknown cast variant dropped");
+                        Err(::ractor::message::BoxedDowncastErr)
+                    }
+                    SerializedMessage::Call { variant, args, reply, .. } => {
+                        $( $crate::remote_message!(@de_call variant, args, reply, $name, $variant, [$($field : $fty),*] $(, $reply)?); )*
+                        ::tracing::warn!(message = stringify!($name), %variant, "unknown call variant dropped");
+                        Err(::ractor::message::BoxedDowncastErr)
+                    }
+                    _ => Err(::ractor::message::BoxedDowncastErr),
+                }
+            }
+        }
+    };
+
+    // serialize one variant: returns early on a match, else yields the message back
+    (@ser $this:ident, $name:ident, $variant:ident, [$($field:ident : $fty:ty),*], $reply:ty) => {
+        match $this {
+            $name::$variant { $($field,)* reply } => {
+                #[derive(::serde::Serialize)]
+                struct Wire<'a> { $( $field: &'a $fty, )* #[serde(skip)] _p: ::std::marker::PhantomData<&'a ()> }
+                let args = $crate::wire::encode(&Wire { $( $field: &$field, )* _p: ::std::marker::PhantomData })
+                    .map_err(|_| ::ractor::message::BoxedDowncastErr)?;
+                return Ok(::ractor::message::SerializedMessage::Call {
+                    variant: stringify!($variant).to_string(),
+                    args,
+                    reply: $crate::wire::bridge_out::<$reply>(reply),
+                    metadata: None,
+                });
+            }
+            other => other,
+        }
+    };
+    (@ser $this:ident, $name:ident, $variant:ident, [$($field:ident : $fty:ty),*]) => {
+        match $this {
+            $name::$variant { $($field,)* } => {
+                #[derive(::serde::Serialize)]
+                struct Wire<'a> { $( $field: &'a $fty, )* #[serde(skip)] _p: ::std::marker::PhantomData<&'a ()> }
+                let args = $crate::wire::encode(&Wire { $( $field: &$field, )* _p: ::std::marker::PhantomData })
+                    .map_err(|_| ::ractor::message::BoxedDowncastErr)?;
+                return Ok(::ractor::message::SerializedMessage::Cast {
+                    variant: stringify!($variant).to_string(),
+                    args,
+                    metadata: None,
+                });
+            }
+            other => other,
+        }
+    };
+
+    (@de_cast $v:ident, $args:ident, $name:ident, $variant:ident, [$($field:ident : $fty:ty),*], $reply:ty) => {};
+    (@de_cast $v:ident, $args:ident, $name:ident, $variant:ident, [$($field:ident : $fty:ty),*]) => {
+        if $v == stringify!($variant) {
+            #[derive(::serde::Deserialize)]
+            struct Wire { $( $field: $fty, )* }
+            return match $crate::wire::decode::<Wire>(&$args) {
+                Ok(w) => Ok($name::$variant { $( $field: w.$field, )* }),
+                Err(e) => {
+                    ::tracing::warn!(message = stringify!($name), variant = stringify!($variant), error = %e, "dropping a message that does not decode");
+                    Err(::ractor::message::BoxedDowncastErr)
+                }
+            };
+        }
+    };
+    (@de_call $v:ident, $args:ident, $port:ident, $name:ident, $variant:ident, [$($field:ident : $fty:ty),*]) => {};
+    (@de_call $v:ident, $args:ident, $port:ident, $name:ident, $variant:ident, [$($field:ident : $fty:ty),*], $reply:ty) => {
+        if $v == stringify!($variant) {
+            #[derive(::serde::Deserialize)]
+            struct Wire { $( $field: $fty, )* }
+            return match $crate::wire::decode::<Wire>(&$args) {
+                Ok(w) => Ok($name::$variant { $( $field: w.$field, )* reply: $crate::wire::bridge_in::<$reply>($port) }),
+                Err(e) => {
+                    ::tracing::warn!(message = stringify!($name), variant = stringify!($variant), error = %e, "dropping a call that does not decode");
+                    Err(::ractor::message::BoxedDowncastErr)
+                }
+            };
+        }
+    };
+}
+
+#[cfg(test)]
+mod tests {
+    use ractor::message::SerializedMessage;
+    use ractor::Message;
+
+    crate::remote_message! {
+        /// Test messages.
+        enum TestMsg {
+            /// A cast.
+            Add { n: u64, label: String },
+            /// A call.
+            Get { key: String } -> Vec<u32>,
+            /// A call without fields.
+            Ping {} -> (),
+        }
+        local {
+            /// Local only.
+            Tick { generation: u64 },
+        }
+    }
+
+    #[test]
+    fn cast_round_trips() {
+        let wire = TestMsg::Add {
+            n: 7,
+            label: "x".into(),
+        }
+        .serialize()
+        .unwrap();
+        match TestMsg::deserialize(wire).unwrap() {
+            TestMsg::Add { n, label } => assert_eq!((n, label.as_str()), (7, "x")),
+            other => panic!("wrong variant {other:?}"),
+        }
+    }
+
+    #[tokio::test]
+    async fn call_reply_crosses_the_bridge() {
+        let (tx, rx) = ractor::concurrency::oneshot();
+        let wire = TestMsg::Get {
+            key: "k".into(),
+            reply: tx.into(),
+        }
+        .serialize()
+        .unwrap();
+        assert!(matches!(wire, SerializedMessage::Call { .. }));
+        match TestMsg::deserialize(wire).unwrap() {
+            TestMsg::Get { key, reply } => {
+                assert_eq!(key, "k");
+                reply.send(vec![1, 2, 3]).unwrap();
+            }
+            other => panic!("wrong variant {other:?}"),
+        }
+        assert_eq!(rx.await.unwrap(), vec![1, 2, 3]);
+    }
+
+    #[test]
+    fn local_variants_and_garbage_are_refused() {
+        let tick = TestMsg::Tick { generation: 1 };
+        assert!(matches!(tick, TestMsg::Tick { generation: 1 }));
+        assert!(tick.serialize().is_err());
+        let garbage = SerializedMessage::Cast {
+            variant: "Add".into(),
+            args: vec![0xc1, 0xff],
+            metadata: None,
+        };
+        assert!(TestMsg::deserialize(garbage).is_err());
+        let unknown = SerializedMessage::Cast {
+            variant: "Renamed".into(),
+            args: vec![],
+            metadata: None,
+        };
+        assert!(TestMsg::deserialize(unknown).is_err());
+    }
+}
