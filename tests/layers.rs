@@ -39,9 +39,11 @@ const LAYERS: &[(&str, &[&str])] = &[
             "marie-actors",
             "marie-supervision",
             "marie-cluster",
+            "marie-telemetry",
         ],
     ),
-    ("monitor", &["marie-vocabulary"]),
+    ("missions/telemetry", &["marie-vocabulary"]),
+    ("monitor", &["marie-vocabulary", "marie-telemetry"]),
     (
         "marie",
         &[
@@ -52,7 +54,15 @@ const LAYERS: &[(&str, &[&str])] = &[
             "marie-cluster",
         ],
     ),
-    (".", &["marie", "marie-missions", "marie-monitor"]),
+    (
+        ".",
+        &[
+            "marie",
+            "marie-missions",
+            "marie-monitor",
+            "marie-telemetry",
+        ],
+    ),
     ("embedding/plain-actor", &["marie"]),
     ("embedding/failover", &["marie"]),
 ];

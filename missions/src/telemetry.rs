@@ -54,25 +54,14 @@ use crate::geom::{Point, Pose, Segment};
 use crate::ops::records::{self, DockRecord, EchoScan, PathRecord, WallRecord};
 use crate::world::World;
 use marie_dm::{self as dm, DmClient, DmSpec, Query, Record, Subscription};
+use marie_telemetry::{CartPose, CartSize, Corners, FromTo, Points, Telemetry, WorldData};
 use marie_vocabulary::events::{EventBus, EventKind};
-use serde_json::{json, Value};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 use tokio::task::JoinHandle;
 
-/// `what` of the world the run drives in.
-pub const WORLD: &str = "world";
-/// `what` of the cart's sampled pose.
-pub const POSE: &str = "pose";
-/// `what` of sonar echo points.
-pub const ECHOES: &str = "echoes";
-/// `what` of a planned path.
-pub const PLANNED_PATH: &str = "planned-path";
-/// `what` of the followed wall.
-pub const FOLLOWED_WALL: &str = "followed-wall";
-/// `what` of a detected docking spot.
-pub const DOCK_FOUND: &str = "dock-found";
+pub use marie_telemetry::{DOCK_FOUND, ECHOES, FOLLOWED_WALL, PLANNED_PATH, POSE, WORLD};
 
 /// How often the pose of a cart standing still is told again, simulated time: a viewer that
 /// joins late gets it, and the stream does not repeat it ten times a second.
@@ -92,51 +81,41 @@ pub const WALL_MOVED: f64 = 0.25;
 /// The source name the taps read datamanagers as.
 const SOURCE: &str = "telemetry";
 
-fn point(p: &Point) -> Value {
-    json!([p.x, p.y])
+fn point(p: &Point) -> marie_telemetry::Point {
+    [p.x, p.y]
 }
 
-fn points<'a>(ps: impl IntoIterator<Item = &'a Point>) -> Value {
-    Value::Array(ps.into_iter().map(point).collect())
-}
-
-fn robot(what: &str, data: Value) -> EventKind {
-    EventKind::Robot {
-        what: what.to_string(),
-        data,
-    }
+fn points<'a>(ps: impl IntoIterator<Item = &'a Point>) -> Vec<marie_telemetry::Point> {
+    ps.into_iter().map(point).collect()
 }
 
 /// The `world` event of `world`.
 pub fn world_event(world: &World) -> EventKind {
-    let walls: Vec<Value> = world
-        .segments()
-        .iter()
-        .map(|s| json!([point(&s.a), point(&s.b)]))
-        .collect();
-    let dock = world.dock.map(|d| points(&d.rect().corners()));
-    let goal = world.goal.as_ref().map(|g| points(&g.area.corners()));
-    robot(
-        WORLD,
-        json!({
-            "walls": walls,
-            "dock": dock,
-            "goal": goal,
-            "cart": {
-                "length": world.cart.length,
-                "width": world.cart.width,
-                "axle_to_centre": world.cart.center_offset(),
-            },
+    Telemetry::World(WorldData {
+        walls: world
+            .segments()
+            .iter()
+            .map(|s| [point(&s.a), point(&s.b)])
+            .collect(),
+        dock: world.dock.map(|d| points(&d.rect().corners())),
+        goal: world.goal.as_ref().map(|g| points(&g.area.corners())),
+        cart: Some(CartSize {
+            length: world.cart.length,
+            width: world.cart.width,
+            axle_to_centre: world.cart.center_offset(),
         }),
-    )
+    })
+    .event()
 }
 
 /// The `pose` event of `pose`.
 pub fn pose_event(pose: &Pose) -> EventKind {
-    robot(
-        POSE,
-        json!({"x": pose.x, "y": pose.y, "heading": pose.theta}),
-    )
+    Telemetry::Pose(CartPose {
+        x: pose.x,
+        y: pose.y,
+        heading: pose.theta,
+    })
+    .event()
 }
 
 /// Publishes the cart's pose every [`POSE_PERIOD`] of simulated time, once a run has
@@ -287,7 +266,10 @@ impl Echoes {
         let event = (scan.time >= due - 1e-6).then(|| {
             self.due = Some(due.max(scan.time) + period);
             let gathered = std::mem::take(&mut self.points);
-            robot(ECHOES, json!({ "points": points(&gathered) }))
+            Telemetry::Echoes(Points {
+                points: points(&gathered),
+            })
+            .event()
         });
         self.points.extend(scan.points());
         event
@@ -302,32 +284,47 @@ fn followed_wall(last: &mut Option<Segment>, record: &Record) -> Option<EventKin
         return None;
     }
     *last = Some(s);
-    Some(robot(
-        FOLLOWED_WALL,
-        json!({"from": point(&s.a), "to": point(&s.b)}),
-    ))
+    Some(
+        Telemetry::FollowedWall(FromTo {
+            from: point(&s.a),
+            to: point(&s.b),
+        })
+        .event(),
+    )
 }
 
 fn dock_found(record: &Record) -> Option<EventKind> {
     let dock: DockRecord = decode(record)?;
-    Some(robot(
-        DOCK_FOUND,
-        json!({ "corners": points(&dock.corners) }),
-    ))
+    Some(
+        Telemetry::DockFound(Corners {
+            corners: points(&dock.corners),
+        })
+        .event(),
+    )
 }
 
 fn planned_path(record: &Record) -> Option<EventKind> {
     let path: PathRecord = decode(record)?;
-    Some(robot(
-        PLANNED_PATH,
-        json!({ "points": points(&path.waypoints()) }),
-    ))
+    Some(
+        Telemetry::PlannedPath(Points {
+            points: points(&path.waypoints()),
+        })
+        .event(),
+    )
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use marie_vocabulary::clock::ManualClock;
+    use serde_json::{json, Value};
+
+    fn robot(what: &str, data: Value) -> EventKind {
+        EventKind::Robot {
+            what: what.to_string(),
+            data,
+        }
+    }
 
     #[test]
     fn the_world_event_has_the_walls_dock_goal_and_cart() {

@@ -288,7 +288,7 @@ fn a_decision_that_names_no_node_only_goes_to_the_timeline_and_decisions_are_bou
         .timeline
         .entries
         .iter()
-        .any(|e| e.class == "control" && e.text == "nowhere: retry 2 of 3"));
+        .any(|e| e.class == "control" && e.text == "nowhere: retry 2 of 3 at 5.0s"));
     for i in 0..DECISIONS_KEPT + 3 {
         decided(&mut state, "guarded", &format!("fallback to `x{i}`"));
     }

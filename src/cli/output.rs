@@ -1,10 +1,10 @@
 //! The lines a run prints on stdout: its events as they are published on the node's bus
-//! (a subscriber, as the monitor is), then its outcome from the report.
+//! (a subscriber, as the monitor is), in the words every reader of events shares
+//! ([`Teller`]), then its outcome from the report.
 
-use marie::events::{ActionResult, BusError, DispatcherVoice, Event, EventBus, EventKind};
+use marie::events::{BusError, DispatcherVoice, Event, EventBus, EventKind, Teller};
 use marie::report::RunReport;
 use marie::run::{Choice, Outcome, Verdict};
-use marie::status::StatusFlags;
 use marie_missions::robot::RobotReport;
 use tokio::sync::oneshot;
 use tokio::task::JoinHandle;
@@ -33,12 +33,7 @@ impl LiveLines {
         let mut sub = bus.subscribe();
         let (stop, mut stopped) = oneshot::channel::<()>();
         let task = tokio::spawn(async move {
-            let mut printer = Printer {
-                progress,
-                start_ms: None,
-                bound: Default::default(),
-                voice: DispatcherVoice::default(),
-            };
+            let mut printer = Printer::new(progress);
             loop {
                 tokio::select! {
                     biased;
@@ -68,31 +63,31 @@ impl LiveLines {
     }
 }
 
-/// Prints events, knowing when the run began (its fault lines say when, in run time).
+/// Prints events as the one voice words them ([`Teller`]), each line after its mark.
 struct Printer {
     progress: Progress,
-    /// The stamp of the run's `run_started`.
-    start_ms: Option<u64>,
-    /// Where each operation was bound, as printed (a takeover's bindings print only
-    /// what moved).
-    bound: std::collections::BTreeMap<String, String>,
+    /// Words every event heard (also those not printed: it follows the run).
+    teller: Teller,
     /// Whose word the run is: what another node's dispatcher says (one fenced off, woken
     /// from a freeze) is not printed, as the report does not fold it.
     voice: DispatcherVoice,
 }
 
 impl Printer {
-    /// Seconds of the run at `at_ms`.
-    fn run_secs(&self, at_ms: u64) -> f64 {
-        at_ms.saturating_sub(self.start_ms.unwrap_or(at_ms)) as f64 / 1000.0
+    fn new(progress: Progress) -> Printer {
+        Printer {
+            progress,
+            teller: Teller::default().with_robot_words(marie_telemetry::words),
+            voice: DispatcherVoice::default(),
+        }
     }
 
     fn print(&mut self, event: &Event) {
         if !self.voice.hears(event) {
             return;
         }
+        let words = self.teller.tell(event);
         match (&event.kind, self.progress) {
-            (EventKind::RunStarted { .. }, _) => self.start_ms = Some(event.at_ms),
             // a node of another commit is named, on stderr whatever the progress shown
             (EventKind::Provenance(p), _) => {
                 let this = super::this_build();
@@ -113,111 +108,34 @@ impl Printer {
             }
             (_, Progress::ChoicesAsJson) => {}
             (EventKind::Selected { choice }, Progress::Explained) => print_choice(choice),
-            (kind, _) => self.print_line(event, kind),
-        }
-    }
-
-    fn print_line(&mut self, event: &Event, kind: &EventKind) {
-        match kind {
-            EventKind::Bound { operations } => {
-                for op in operations {
-                    let before = self.bound.insert(op.name.clone(), op.node.clone());
-                    match before {
-                        None => println!("  bound {} v{} on {}", op.name, op.version, op.node),
-                        Some(node) if node != op.node => println!(
-                            "  bound {} v{} on {} (was on {node})",
-                            op.name, op.version, op.node
-                        ),
-                        Some(_) => {}
-                    }
+            (kind, _) if words.news && printed(kind) => {
+                for line in words.text.lines() {
+                    println!("{} {line}", words.mark);
                 }
             }
-            EventKind::Takeover {
-                from,
-                to,
-                term,
-                gap_ms,
-                ..
-            } => println!(
-                "# the run taken over by {to} from {from} at {:.1}s (term {term}, claimed \
-                 {gap_ms} ms after the loss was noticed)",
-                self.run_secs(event.at_ms)
-            ),
-            EventKind::DispatcherFenced { term, newer, .. } => println!(
-                "# the dispatcher on {} (term {term}) fenced off by term {newer}",
-                event.node
-            ),
-            EventKind::ActionStarted {
-                action, operations, ..
-            } => {
-                let keys: Vec<&str> = operations.iter().map(|o| o.key.as_str()).collect();
-                println!("> {action}: start [{}]", keys.join(", "));
-            }
-            EventKind::ActionEnded {
-                action,
-                flags,
-                status,
-                result,
-                ..
-            } => {
-                let status = StatusFlags(*status);
-                // a success is the action's plain end
-                let how = result
-                    .filter(|r| *r != ActionResult::Succeeded)
-                    .map_or("end", ActionResult::name);
-                println!("< {action}: {how}, status {status} [{}]", flags.join(", "));
-            }
-            EventKind::Control {
-                node,
-                decision,
-                run_ms,
-            } => println!("? {node}: {decision} at {:.1}s", *run_ms as f64 / 1000.0),
-            EventKind::Lost { operation, cause } => println!("! {operation} lost: {cause}"),
-            EventKind::Rebound(r) if !r.from_node.is_empty() && r.from_node != r.to_node => {
-                println!(
-                    "~ {} rebound: {} on {} -> {} on {} after {} ms",
-                    r.operation, r.from, r.from_node, r.to, r.to_node, r.downtime_ms
-                );
-            }
-            EventKind::Rebound(r) => println!(
-                "~ {} rebound: {} -> {} after {} ms",
-                r.operation, r.from, r.to, r.downtime_ms
-            ),
-            EventKind::FaultInjected {
-                fault,
-                operation,
-                actor,
-                ..
-            } => println!(
-                "* injected {fault} into {operation} ({actor}) at {:.1}s",
-                self.run_secs(event.at_ms)
-            ),
-            EventKind::FaultNotInjected {
-                fault,
-                operation,
-                why,
-                due_ms,
-            } => {
-                let at = due_ms.map_or(self.run_secs(event.at_ms), |d| d as f64 / 1000.0);
-                println!("* could not inject {fault} into {operation} at {at:.1}s: {why}");
-            }
-            EventKind::DmChecked(check) if check.lost > 0 => match &check.error {
-                None => println!(
-                    "! datamanager {}: {} of {} acknowledged records lost (its primary on {} \
-                     no longer holds them)",
-                    check.dm,
-                    check.lost,
-                    check.acknowledged,
-                    check.node.as_deref().unwrap_or("?")
-                ),
-                Some(why) => println!(
-                    "! datamanager {}: could not be checked, its {} acknowledged records count \
-                     lost: {why}",
-                    check.dm, check.acknowledged
-                ),
-            },
             _ => {}
         }
+    }
+}
+
+/// The events `marie run` prints as lines: the run's story as it happens — bindings,
+/// actions, decisions, losses, rebinds, faults, takeovers, records lost — but not what
+/// the report and the outcome line tell at the end, nor the registry's, the supervisors',
+/// the cluster's or the robot's news (the monitor and `--events` have those).
+fn printed(kind: &EventKind) -> bool {
+    match kind {
+        EventKind::Bound { .. }
+        | EventKind::Takeover { .. }
+        | EventKind::DispatcherFenced { .. }
+        | EventKind::ActionStarted { .. }
+        | EventKind::ActionEnded { .. }
+        | EventKind::Control { .. }
+        | EventKind::Lost { .. }
+        | EventKind::Rebound(_)
+        | EventKind::FaultInjected { .. }
+        | EventKind::FaultNotInjected { .. } => true,
+        EventKind::DmChecked(check) => check.lost > 0,
+        _ => false,
     }
 }
 

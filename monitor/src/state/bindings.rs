@@ -6,7 +6,7 @@
 //! their schemas and flags — the properties a click opens), the start-up binding, each
 //! action's activations, and the losses and rebinds.
 
-use marie_vocabulary::events::{BoundOp, OpStarted};
+use marie_vocabulary::events::{BoundOp, EventKind, OpStarted};
 use marie_vocabulary::run::{Candidate, Choice};
 use marie_vocabulary::run::{LossCause, RebindRecord};
 use serde::Serialize;
@@ -92,6 +92,25 @@ impl Bindings {
                 status: "bound",
                 ..BindingView::default()
             })
+    }
+
+    /// Take the run's choices, bindings, losses and rebinds in (at `at_ms`); other events
+    /// pass by.
+    pub fn apply(&mut self, at_ms: u64, kind: &EventKind) {
+        match kind {
+            EventKind::RunStarted { .. } => self.clear(),
+            EventKind::Selected { choice } => self.selected(choice),
+            EventKind::Bound { operations } => self.bound(operations),
+            EventKind::ActionStarted { operations, .. } => self.activated(operations),
+            EventKind::Lost { operation, cause } => self.lost(at_ms, operation, cause),
+            EventKind::Rebound(r) => self.rebound(at_ms, r),
+            EventKind::RebindGaveUp {
+                operation,
+                cause,
+                waited_ms,
+            } => self.gave_up(at_ms, operation, cause, *waited_ms),
+            _ => {}
+        }
     }
 
     /// A run starts: bindings of an earlier run are forgotten.

@@ -5,7 +5,7 @@
 //! it (seen, lost, declared down); what it hosts from the registry's joins and leaves, each
 //! told by the module's own node.
 
-use marie_vocabulary::events::ModuleInfo;
+use marie_vocabulary::events::{Event, EventKind, ModuleInfo};
 use serde::Serialize;
 use std::collections::BTreeMap;
 
@@ -82,6 +82,42 @@ impl Cluster {
             node.since_ms = at_ms;
         }
         node
+    }
+
+    /// Take `event` in: its node was heard from, and the cluster's news — nodes up, lost,
+    /// down, frozen; modules that joined or left; a datamanager's state — change the
+    /// picture. Other events pass by.
+    pub fn apply(&mut self, event: &Event) {
+        let (node, at) = (event.node.as_str(), event.at_ms);
+        self.heard_from(node, at);
+        match &event.kind {
+            EventKind::Joined(m) => self.joined(m, at),
+            EventKind::Left(m) => self.left(m, at),
+            EventKind::DmState {
+                dm,
+                durability,
+                records,
+                journal_bytes,
+                role,
+                term,
+                lag,
+            } => {
+                let view = DmView {
+                    durability: durability.clone(),
+                    records: *records,
+                    journal_bytes: *journal_bytes,
+                    role: role.clone(),
+                    term: *term,
+                    lag: lag.clone(),
+                };
+                self.dm_state(node, dm, view, at)
+            }
+            EventKind::NodeUp { peer, address } => self.up(peer, address, at),
+            EventKind::NodeLost { peer, address } => self.lost(peer, address, at),
+            EventKind::NodeDown { peer, .. } => self.down(peer, at),
+            EventKind::NodeFrozen { .. } => self.frozen(node, at),
+            _ => {}
+        }
     }
 
     /// `node` published an event: it is alive (known, and up unless it said otherwise).

@@ -4,7 +4,7 @@
 //! The tree comes from [`EventKind::RunStarted`](marie_vocabulary::events::EventKind::RunStarted)'s plan; a stream without one (an older
 //! file, a monitor that joined mid-run) still shows every action it sees start.
 
-use marie_vocabulary::events::{ActionPlan, OpStarted};
+use marie_vocabulary::events::{ActionPlan, EventKind, OpStarted};
 use marie_vocabulary::run::{OpEnd, Outcome};
 use serde::Serialize;
 
@@ -89,6 +89,60 @@ pub struct OutcomeView {
 }
 
 impl MissionView {
+    /// Take the run's and its actions' events into the task tree; others pass by.
+    pub fn apply(&mut self, kind: &EventKind) {
+        match kind {
+            EventKind::RunStarted {
+                mission,
+                actions,
+                success,
+            } => self.started(mission, actions, success),
+            EventKind::ActionStarted {
+                action,
+                run_ms,
+                operations,
+            } => self.action_started(action, *run_ms, operations),
+            EventKind::OpEnded {
+                action,
+                key,
+                ended,
+                flags,
+            } => self.op_ended(action, key, *ended, flags),
+            EventKind::ActionEnded {
+                action,
+                run_ms,
+                flags,
+                ..
+            } => self.action_ended(action, *run_ms, flags),
+            EventKind::RunEnded {
+                outcome,
+                reason,
+                run_ms,
+                flags,
+                ..
+            } => self.run_ended(*outcome, reason, *run_ms, flags),
+            EventKind::Judged {
+                outcome,
+                reason,
+                robot,
+            } => {
+                // what marie's simulated robot says of a run, by its documented keys
+                // (another robot's may lack them)
+                let key = |k: &str| robot.get(k).cloned().unwrap_or_default();
+                let judgement: Option<String> =
+                    serde_json::from_value(key("judgement")).ok().flatten();
+                self.judged(
+                    *outcome,
+                    reason,
+                    judgement.as_deref(),
+                    serde_json::from_value(key("final_pose")).ok().flatten(),
+                    serde_json::from_value(key("collisions")).ok().flatten(),
+                );
+            }
+            _ => {}
+        }
+    }
+
     /// A run of `mission` begins: the tree from its plan, every action waiting.
     pub fn started(&mut self, mission: &str, plan: &[ActionPlan], success: &[String]) {
         *self = MissionView {

@@ -2,15 +2,10 @@
 //! sonar echoes, the followed wall, the planned path and the dock found — what the page's
 //! robot panel draws, reduced from the robot's [`EventKind::Robot`] events.
 //!
-//! The contract with the simulated robot (`what` and its `data`): `world` at the start
-//! `{"walls": [[[x1,y1],[x2,y2]], ...], "dock": [[x,y],...] | null, "goal": [[x,y],...] |
-//! null, "cart": {"length", "width"}}` (a cluster's cart node tells it again every few
-//! seconds: it replaces the world drawn and leaves the driven path alone); `pose`
-//! `{"x","y","heading"}` about every 100 ms; `echoes` `{"points": [[x,y], ...]}` (world
-//! frame); `planned-path` `{"points": [...]}`; `followed-wall` `{"from": [x,y], "to":
-//! [x,y]}`; `dock-found` `{"corners": [...]}`.
-//! Anything else is ignored here (it may still reach the timeline); data that does not fit
-//! the contract leaves the state as it was.
+//! The contract with the robot (`what` and its `data`) is `marie_telemetry`'s; a
+//! cluster's cart node tells its `world` again every few seconds: it replaces the world
+//! drawn and leaves the driven path alone. Anything off the contract is ignored here (it
+//! may still reach the timeline); data that does not fit it leaves the state as it was.
 //!
 //! Bounded: the path keeps the latest [`PATH_LIMIT`] poses (halving its resolution rather
 //! than dropping its start), and is serialized thinned to at most [`DRAW_LIMIT`] points:
@@ -18,7 +13,8 @@
 //!
 //! [`EventKind::Robot`]: marie_vocabulary::events::EventKind::Robot
 
-use serde::{Deserialize, Serialize};
+use marie_telemetry::{CartPose, Point, Telemetry, WorldData};
+use serde::Serialize;
 use serde_json::Value;
 
 /// The path keeps at most this many poses.
@@ -26,53 +22,13 @@ pub const PATH_LIMIT: usize = 5000;
 /// The page is sent at most this many path points.
 pub const DRAW_LIMIT: usize = 1000;
 
-/// A point of the plane, metres.
-pub type Point = [f64; 2];
-
-/// The cart's pose.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Pose {
-    /// x, m.
-    pub x: f64,
-    /// y, m.
-    pub y: f64,
-    /// Heading, rad.
-    pub heading: f64,
-}
-
-/// The cart's footprint size.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-pub struct CartSize {
-    /// Length, m.
-    pub length: f64,
-    /// Width, m.
-    pub width: f64,
-}
-
-/// The world, as the robot announced it.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct WorldView {
-    /// Wall segments.
-    #[serde(default)]
-    pub walls: Vec<[Point; 2]>,
-    /// The docking spot's outline.
-    #[serde(default)]
-    pub dock: Option<Vec<Point>>,
-    /// The goal area's outline.
-    #[serde(default)]
-    pub goal: Option<Vec<Point>>,
-    /// The cart's size.
-    #[serde(default)]
-    pub cart: Option<CartSize>,
-}
-
 /// The robot's part of the state.
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct RobotView {
     /// The world, once announced.
-    pub world: Option<WorldView>,
+    pub world: Option<WorldData>,
     /// The latest pose.
-    pub pose: Option<Pose>,
+    pub pose: Option<CartPose>,
     /// The driven path (bounded, see the module docs); serialized thinned to at most
     /// [`DRAW_LIMIT`] points.
     #[serde(serialize_with = "serialize_thinned")]
@@ -91,55 +47,26 @@ pub struct RobotView {
     pub collisions: u64,
 }
 
-#[derive(Deserialize)]
-struct Points {
-    points: Vec<Point>,
-}
-
-#[derive(Deserialize)]
-struct FromTo {
-    from: Point,
-    to: Point,
-}
-
-#[derive(Deserialize)]
-struct Corners {
-    corners: Vec<Point>,
-}
-
 impl RobotView {
     /// Apply one robot event (`what`, `data`); false when it was not one of the contract's
     /// (or its data did not fit).
     pub fn apply(&mut self, what: &str, data: &Value) -> bool {
-        fn parse<T: for<'de> Deserialize<'de>>(data: &Value) -> Option<T> {
-            T::deserialize(data).ok()
+        let Some(told) = Telemetry::read(what, data) else {
+            return false;
+        };
+        match told {
+            Telemetry::World(w) => self.world = Some(w),
+            Telemetry::Pose(p) => self.pose_at(p),
+            Telemetry::Echoes(p) => self.echoes = p.points,
+            Telemetry::PlannedPath(p) => self.planned_path = p.points,
+            Telemetry::FollowedWall(w) => self.followed_wall = Some([w.from, w.to]),
+            Telemetry::DockFound(c) => self.dock_found = Some(c.corners),
+            Telemetry::Collision(_) => self.collisions += 1,
         }
-        match what {
-            "world" => parse::<WorldView>(data)
-                .map(|w| self.world = Some(w))
-                .is_some(),
-            "pose" => parse::<Pose>(data).map(|p| self.pose_at(p)).is_some(),
-            "echoes" => parse::<Points>(data)
-                .map(|p| self.echoes = p.points)
-                .is_some(),
-            "planned-path" => parse::<Points>(data)
-                .map(|p| self.planned_path = p.points)
-                .is_some(),
-            "followed-wall" => parse::<FromTo>(data)
-                .map(|w| self.followed_wall = Some([w.from, w.to]))
-                .is_some(),
-            "dock-found" => parse::<Corners>(data)
-                .map(|c| self.dock_found = Some(c.corners))
-                .is_some(),
-            "collision" => {
-                self.collisions += 1;
-                true
-            }
-            _ => false,
-        }
+        true
     }
 
-    fn pose_at(&mut self, pose: Pose) {
+    fn pose_at(&mut self, pose: CartPose) {
         self.pose = Some(pose);
         self.poses += 1;
         if self.path.len() >= PATH_LIMIT {

@@ -1,6 +1,7 @@
 //! The timeline: faults, restarts, losses, rebinds, node news and the run's milestones, the
 //! latest [`TIMELINE_LIMIT`] — what the page's timeline panel lists.
 
+use marie_vocabulary::events::EventKind;
 use serde::Serialize;
 use std::collections::VecDeque;
 
@@ -44,4 +45,58 @@ impl Timeline {
             text,
         });
     }
+}
+
+/// The timeline's class (the page's CSS class) of `kind`, or `None` for an event it does
+/// not list: choices and bindings (the bindings panel shows them), an operation's part, the
+/// tree's plan, the registry's comings and goings and a datamanager's state (the cluster
+/// panel), a supervisor starting a child, records acknowledged or deleted (too many to
+/// list: the check at the run's end tells them), and the robot's events the robot panel
+/// draws (`drawn`) but a dock found and a collision.
+pub fn class(kind: &EventKind, drawn: bool) -> Option<&'static str> {
+    Some(match kind {
+        EventKind::RunStarted { .. }
+        | EventKind::Provenance(_)
+        | EventKind::RunEnded { .. }
+        | EventKind::Judged { .. } => "run",
+        EventKind::Reparameterized { .. } => "param",
+        EventKind::ActionStarted { .. } | EventKind::ActionEnded { .. } => "action",
+        EventKind::Control { .. } => "control",
+        EventKind::Lost { .. } => "lost",
+        EventKind::Rebound(_) => "rebind",
+        EventKind::RebindGaveUp { .. } | EventKind::SupervisorGaveUp { .. } => "gave_up",
+        EventKind::Takeover { .. } => "takeover",
+        EventKind::DispatcherFenced { .. } => "fenced",
+        EventKind::ChildExited { .. } => "exit",
+        EventKind::ChildRestarted { .. } => "restart",
+        EventKind::FaultInjected { .. }
+        | EventKind::FaultHealed { .. }
+        | EventKind::FaultNotInjected { .. } => "fault",
+        EventKind::NodeUp { .. }
+        | EventKind::NodeLost { .. }
+        | EventKind::NodeDown { .. }
+        | EventKind::NodeFrozen { .. }
+        | EventKind::NodeRefused { .. }
+        | EventKind::ConnectionRefused { .. } => "node",
+        EventKind::DmPromoted { .. }
+        | EventKind::DmFenced { .. }
+        | EventKind::DmRecovered { .. }
+        | EventKind::DmChecked(_) => "datamanager",
+        EventKind::Robot { what, .. }
+            if !drawn || matches!(what.as_str(), "dock-found" | "collision") =>
+        {
+            "robot"
+        }
+        EventKind::Selected { .. }
+        | EventKind::Bound { .. }
+        | EventKind::OpEnded { .. }
+        | EventKind::ControlPlan { .. }
+        | EventKind::Joined(_)
+        | EventKind::Left(_)
+        | EventKind::DmState { .. }
+        | EventKind::ChildStarted { .. }
+        | EventKind::DmAcked { .. }
+        | EventKind::DmDeleted { .. }
+        | EventKind::Robot { .. } => return None,
+    })
 }

@@ -19,7 +19,7 @@
 //! A stream without a plan (an older file) leaves the tree empty: the page then draws the
 //! actions as [`mission`](super::mission) has them.
 
-use marie_vocabulary::events::{ActionResult, PlanNode};
+use marie_vocabulary::events::{ActionResult, EventKind, PlanNode};
 use marie_vocabulary::run::{OpEnd, Outcome};
 use serde::Serialize;
 use std::collections::VecDeque;
@@ -147,6 +147,25 @@ pub struct ControlTree {
 }
 
 impl ControlTree {
+    /// Take the run's plan, its actions' events and its control decisions into the tree;
+    /// others pass by.
+    pub fn apply(&mut self, kind: &EventKind) {
+        match kind {
+            EventKind::RunStarted { .. } => self.run_started(),
+            EventKind::ControlPlan { nodes } => self.planned(nodes),
+            EventKind::ActionStarted { action, .. } => self.action_started(action),
+            EventKind::OpEnded { action, ended, .. } => self.op_ended(action, *ended),
+            EventKind::ActionEnded { action, result, .. } => self.action_ended(action, *result),
+            EventKind::Control {
+                node: item,
+                decision,
+                run_ms,
+            } => self.decided(item, decision, *run_ms),
+            EventKind::RunEnded { outcome, .. } => self.run_ended(*outcome),
+            _ => {}
+        }
+    }
+
     /// A run begins: its plan (if any) comes next.
     pub fn run_started(&mut self) {
         self.nodes.clear();

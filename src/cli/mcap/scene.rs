@@ -24,8 +24,7 @@ use super::schemas::{
 };
 use marie::events::{Event, EventKind};
 use marie_monitor::state::robot::thin;
-use serde::Deserialize;
-use serde_json::Value;
+use marie_telemetry::{CartPose, CartSize, Point, Telemetry, WorldData};
 
 /// The driven path keeps at most this many points.
 pub(crate) const PATH_LIMIT: usize = 2000;
@@ -47,55 +46,6 @@ const FOUND: Color = rgba(1.0, 0.9, 0.2, 1.0);
 
 const fn rgba(r: f64, g: f64, b: f64, a: f64) -> Color {
     Color { r, g, b, a }
-}
-
-/// A point of the plane, metres (world frame).
-type Point = [f64; 2];
-
-/// The world as the `world` event tells it.
-#[derive(Debug, Deserialize)]
-struct World {
-    #[serde(default)]
-    walls: Vec<[Point; 2]>,
-    #[serde(default)]
-    dock: Option<Vec<Point>>,
-    #[serde(default)]
-    goal: Option<Vec<Point>>,
-    #[serde(default)]
-    cart: Option<CartSize>,
-}
-
-/// The cart's footprint: the pose is its rear axle, the footprint's centre
-/// `axle_to_centre` ahead of it.
-#[derive(Clone, Copy, Debug, Deserialize)]
-struct CartSize {
-    length: f64,
-    width: f64,
-    #[serde(default)]
-    axle_to_centre: f64,
-}
-
-#[derive(Clone, Copy, Debug, Deserialize)]
-struct PoseData {
-    x: f64,
-    y: f64,
-    heading: f64,
-}
-
-#[derive(Debug, Deserialize)]
-struct Points {
-    points: Vec<Point>,
-}
-
-#[derive(Debug, Deserialize)]
-struct FromTo {
-    from: Point,
-    to: Point,
-}
-
-#[derive(Debug, Deserialize)]
-struct Corners {
-    corners: Vec<Point>,
 }
 
 /// What the scene's messages need of the run so far.
@@ -126,46 +76,33 @@ impl Scene {
             return Ok(());
         };
         let at = event.at_ms;
-        match what.as_str() {
-            "world" => {
-                if let Some(world) = parse::<World>(data) {
-                    self.cart = world.cart.or(self.cart);
-                    out.push(Message::new(Topic::World, at, &world_update(&world, at))?);
-                }
+        // data off the contract draws nothing (its log line still tells it)
+        match Telemetry::read(what, data) {
+            Some(Telemetry::World(world)) => {
+                self.cart = world.cart.or(self.cart);
+                out.push(Message::new(Topic::World, at, &world_update(&world, at))?);
             }
-            "pose" => {
-                if let Some(pose) = parse::<PoseData>(data) {
-                    self.pose(pose, at, out)?;
-                }
+            Some(Telemetry::Pose(pose)) => self.pose(pose, at, out)?,
+            Some(Telemetry::Echoes(echoes)) => {
+                out.push(Message::new(Topic::Echoes, at, &cloud(&echoes.points, at))?);
             }
-            "echoes" => {
-                if let Some(echoes) = parse::<Points>(data) {
-                    out.push(Message::new(Topic::Echoes, at, &cloud(&echoes.points, at))?);
-                }
+            Some(Telemetry::PlannedPath(path)) => {
+                let line = strip("planned-path", at, &path.points, PLANNED, 2.0);
+                out.push(Message::new(
+                    Topic::PlannedPath,
+                    at,
+                    &SceneUpdate::of(vec![line]),
+                )?);
             }
-            "planned-path" => {
-                if let Some(path) = parse::<Points>(data) {
-                    let line = strip("planned-path", at, &path.points, PLANNED, 2.0);
-                    out.push(Message::new(
-                        Topic::PlannedPath,
-                        at,
-                        &SceneUpdate::of(vec![line]),
-                    )?);
-                }
+            Some(Telemetry::FollowedWall(wall)) => {
+                self.followed = Some([wall.from, wall.to]);
+                out.push(self.detections(at)?);
             }
-            "followed-wall" => {
-                if let Some(wall) = parse::<FromTo>(data) {
-                    self.followed = Some([wall.from, wall.to]);
-                    out.push(self.detections(at)?);
-                }
+            Some(Telemetry::DockFound(dock)) => {
+                self.dock_found = Some(dock.corners);
+                out.push(self.detections(at)?);
             }
-            "dock-found" => {
-                if let Some(dock) = parse::<Corners>(data) {
-                    self.dock_found = Some(dock.corners);
-                    out.push(self.detections(at)?);
-                }
-            }
-            _ => {}
+            Some(Telemetry::Collision(_)) | None => {}
         }
         Ok(())
     }
@@ -180,7 +117,7 @@ impl Scene {
 
     fn pose(
         &mut self,
-        pose: PoseData,
+        pose: CartPose,
         at: u64,
         out: &mut Vec<Message>,
     ) -> Result<(), serde_json::Error> {
@@ -275,11 +212,6 @@ fn to_mm(m: f64) -> f64 {
     (m * 1000.0).round() / 1000.0
 }
 
-/// `data` as `T`, or `None` when it does not fit the contract.
-fn parse<T: for<'de> Deserialize<'de>>(data: &Value) -> Option<T> {
-    T::deserialize(data).ok()
-}
-
 fn on_floor(points: &[Point]) -> Vec<Vector3> {
     points.iter().map(|p| Vector3::at(*p, 0.0)).collect()
 }
@@ -304,7 +236,7 @@ fn strip(id: &'static str, at: u64, points: &[Point], color: Color, px: f64) -> 
 }
 
 /// The world: its walls (one line list: each wall a segment), its dock and goal outlines.
-fn world_update(world: &World, at: u64) -> SceneUpdate {
+fn world_update(world: &WorldData, at: u64) -> SceneUpdate {
     let mut walls = SceneEntity::new("walls", at);
     let ends: Vec<Point> = world.walls.iter().flatten().copied().collect();
     walls.lines.push(LinePrimitive::new(
@@ -382,7 +314,7 @@ fn base64(bytes: &[u8]) -> String {
 mod tests {
     use super::*;
     use crate::cli::mcap::schemas::tests::fits;
-    use serde_json::json;
+    use serde_json::{json, Value};
 
     fn robot(at_ms: u64, what: &str, data: Value) -> Event {
         Event {

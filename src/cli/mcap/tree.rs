@@ -13,7 +13,6 @@
 //! Bounded: the tree is the plan's size, each node keeps its latest
 //! [`DECISIONS_KEPT`](marie_monitor::state::tree::DECISIONS_KEPT) decisions.
 
-use super::log::text;
 use super::schemas::{Message, Time, Topic};
 use marie::events::{Event, EventKind};
 use marie::run::Outcome;
@@ -120,7 +119,11 @@ impl<'a> NodeState<'a> {
 
 impl Control {
     /// Apply `event`; the `/control` message when it changed the state.
-    pub(crate) fn apply(&mut self, event: &Event) -> Result<Option<Message>, serde_json::Error> {
+    pub(crate) fn apply(
+        &mut self,
+        event: &Event,
+        said: &str,
+    ) -> Result<Option<Message>, serde_json::Error> {
         let (name, run_ms) = match &event.kind {
             EventKind::RunStarted { mission, .. } => {
                 self.tree.run_started();
@@ -181,7 +184,7 @@ impl Control {
             timestamp: Time::from_ms(event.at_ms),
             run_ms,
             event: name,
-            text: text(&event.kind),
+            text: said.to_string(),
             mission: &self.mission,
             outcome: match self.outcome {
                 None => "",
@@ -221,11 +224,14 @@ mod tests {
     #[test]
     fn each_change_of_the_tree_is_a_whole_state() {
         let mut control = Control::default();
+        let mut teller = marie::events::Teller::default();
         let states: Vec<Value> = RUN
             .lines()
             .filter_map(|l| {
+                let event = Event::from_json_line(l).unwrap();
+                let said = teller.tell(&event).text;
                 control
-                    .apply(&Event::from_json_line(l).unwrap())
+                    .apply(&event, &said)
                     .unwrap()
                     .map(|m| serde_json::from_slice(&m.data).unwrap())
             })

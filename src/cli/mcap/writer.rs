@@ -7,7 +7,7 @@ use super::schemas::{Message, Topic};
 use super::tree::Control;
 use super::Written;
 use anyhow::Context;
-use marie::events::Event;
+use marie::events::{Event, Teller};
 use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -24,6 +24,8 @@ pub(crate) struct McapWriter {
     /// Each topic's messages so far.
     counts: [u64; CHANNELS],
     events: u64,
+    /// Words the events for the log and the tree's states (follows the run).
+    teller: Teller,
     scene: Scene,
     control: Control,
     /// The messages of the event at hand (reused).
@@ -60,6 +62,7 @@ impl McapWriter {
             channels: [None; CHANNELS],
             counts: [0; CHANNELS],
             events: 0,
+            teller: Teller::default().with_robot_words(marie_telemetry::words),
             scene: Scene::default(),
             control: Control::default(),
             batch: Vec::new(),
@@ -70,8 +73,13 @@ impl McapWriter {
     pub(crate) fn write(&mut self, event: &Event) -> anyhow::Result<()> {
         self.events += 1;
         let mut batch = std::mem::take(&mut self.batch);
-        batch.push(Message::new(Topic::Events, event.at_ms, &log(event))?);
-        if let Some(state) = self.control.apply(event)? {
+        let words = self.teller.tell(event);
+        batch.push(Message::new(
+            Topic::Events,
+            event.at_ms,
+            &log(event, &words),
+        )?);
+        if let Some(state) = self.control.apply(event, &words.text)? {
             batch.push(state);
         }
         self.scene.apply(event, &mut batch)?;

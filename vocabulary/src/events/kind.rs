@@ -419,7 +419,77 @@ pub enum EventKind {
     },
 }
 
+/// The families of events, by what they are about: a reader of a run's events (the report,
+/// the monitor) takes each family in a part of its own.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Family {
+    /// What runs, a run's start, end and judgement.
+    Run,
+    /// Actions, their operations' parts and parameters, the mission's tree and its decisions.
+    Action,
+    /// Choices, bindings, losses, rebinds.
+    Binding,
+    /// Takeovers and fenced dispatchers.
+    Dispatcher,
+    /// The location table's comings and goings.
+    Registry,
+    /// Supervisors and their children.
+    Supervisor,
+    /// Faults injected on purpose, healed, or not injected.
+    Fault,
+    /// The cluster's nodes and connections.
+    Node,
+    /// Datamanagers: journals, replicas, acknowledgements, checks.
+    Datamanager,
+    /// A robot's own events.
+    Robot,
+}
+
 impl EventKind {
+    /// The family this kind belongs to.
+    pub fn family(&self) -> Family {
+        match self {
+            EventKind::Provenance(_)
+            | EventKind::RunStarted { .. }
+            | EventKind::RunEnded { .. }
+            | EventKind::Judged { .. } => Family::Run,
+            EventKind::Reparameterized { .. }
+            | EventKind::ActionStarted { .. }
+            | EventKind::OpEnded { .. }
+            | EventKind::ActionEnded { .. }
+            | EventKind::ControlPlan { .. }
+            | EventKind::Control { .. } => Family::Action,
+            EventKind::Selected { .. }
+            | EventKind::Bound { .. }
+            | EventKind::Lost { .. }
+            | EventKind::Rebound(_)
+            | EventKind::RebindGaveUp { .. } => Family::Binding,
+            EventKind::Takeover { .. } | EventKind::DispatcherFenced { .. } => Family::Dispatcher,
+            EventKind::Joined(_) | EventKind::Left(_) => Family::Registry,
+            EventKind::ChildStarted { .. }
+            | EventKind::ChildExited { .. }
+            | EventKind::ChildRestarted { .. }
+            | EventKind::SupervisorGaveUp { .. } => Family::Supervisor,
+            EventKind::FaultInjected { .. }
+            | EventKind::FaultHealed { .. }
+            | EventKind::FaultNotInjected { .. } => Family::Fault,
+            EventKind::NodeUp { .. }
+            | EventKind::NodeLost { .. }
+            | EventKind::NodeDown { .. }
+            | EventKind::NodeFrozen { .. }
+            | EventKind::NodeRefused { .. }
+            | EventKind::ConnectionRefused { .. } => Family::Node,
+            EventKind::DmRecovered { .. }
+            | EventKind::DmPromoted { .. }
+            | EventKind::DmFenced { .. }
+            | EventKind::DmState { .. }
+            | EventKind::DmAcked { .. }
+            | EventKind::DmDeleted { .. }
+            | EventKind::DmChecked(_) => Family::Datamanager,
+            EventKind::Robot { .. } => Family::Robot,
+        }
+    }
+
     /// True for the kinds a dispatcher publishes about its run (the run, its actions,
     /// bindings, choices, takeovers): a run's report folds these from its dispatcher's node
     /// only, and a member that follows a run dispatched on another node republishes them

@@ -107,11 +107,15 @@ mod bus;
 mod kind;
 mod registry_bridge;
 mod voice;
+mod words;
 
 pub use bus::{BusError, EventBus, EventSubscription, Tap, DEFAULT_CAPACITY};
-pub use kind::{ActionPlan, ActionResult, BoundOp, EventKind, ModuleInfo, OpStarted, PlanNode};
+pub use kind::{
+    ActionPlan, ActionResult, BoundOp, EventKind, Family, ModuleInfo, OpStarted, PlanNode,
+};
 pub use registry_bridge::{bridge_registry, RegistryBridge};
 pub use voice::DispatcherVoice;
+pub use words::{gravity, mark, Gravity, Mark, RobotWords, Teller, Words, TEXT_LIMIT};
 
 use serde::{Deserialize, Serialize};
 
@@ -275,6 +279,23 @@ mod tests {
         }
         assert_eq!(types.len(), lines.len(), "one line per kind");
         assert_eq!(types, BTreeSet::from(KINDS), "every kind is documented");
+    }
+
+    #[test]
+    fn every_documented_kind_is_told_in_words_of_its_own() {
+        let mut teller = Teller::default();
+        for line in doc_examples(0) {
+            let event = Event::from_json_line(&line).unwrap();
+            let words = teller.tell(&event);
+            let generic = format!("{} {{", type_of(&event.kind));
+            assert!(!words.text.is_empty(), "{line}");
+            assert!(
+                !words.text.starts_with(&generic) || type_of(&event.kind) == "robot",
+                "{line} is told only as its fields: {}",
+                words.text
+            );
+            assert_eq!(words.mark, mark(&event.kind));
+        }
     }
 
     #[test]

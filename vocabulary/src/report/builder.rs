@@ -17,7 +17,7 @@
 //!   makes the same report as the run's own bus.
 
 use super::{ActionRecord, FaultRecord, OpRecord, RunReport};
-use crate::events::{DispatcherVoice, Event, EventBus, EventKind, Tap};
+use crate::events::{DispatcherVoice, Event, EventBus, EventKind, Family, Tap};
 use crate::property::Value;
 use crate::run::{OpEnd, Outcome, ParamSetting, ParamSource, TakeoverRecord};
 use std::collections::BTreeMap;
@@ -83,6 +83,22 @@ impl ReportBuilder {
         if !self.voice.hears(event) {
             return;
         }
+        match event.kind.family() {
+            Family::Run => self.on_run(event),
+            Family::Action => self.on_action(event),
+            Family::Binding => self.on_binding(event),
+            Family::Dispatcher => self.on_dispatcher(event),
+            Family::Fault => self.on_fault(event),
+            Family::Node => self.on_node(event),
+            Family::Datamanager => self.on_datamanager(event),
+            // the location table's, the supervisors' and the robot's own news are the
+            // monitor's; a robot's word on the run comes as its judgement
+            Family::Registry | Family::Supervisor | Family::Robot => {}
+        }
+    }
+
+    /// What runs, the run's start, end and judgement.
+    fn on_run(&mut self, event: &Event) {
         match &event.kind {
             EventKind::Provenance(provenance) => {
                 self.report.provenance = Some(provenance.as_ref().clone());
@@ -97,23 +113,43 @@ impl ReportBuilder {
                 self.report.mission = mission.clone();
                 self.start_ms = Some(event.at_ms);
             }
-            EventKind::Takeover {
-                from,
-                to,
-                term,
-                gap_ms,
-                ..
+            EventKind::RunEnded {
+                outcome,
+                reason,
+                run_ms,
+                status,
+                flags,
             } => {
-                let at_ms = self.run_ms(event);
-                self.report.record_takeover(TakeoverRecord {
-                    at_ms,
-                    from: from.clone(),
-                    to: to.clone(),
-                    term: *term,
-                    gap_ms: *gap_ms,
-                });
+                self.report.status = *status;
+                self.report.flags = flags.clone();
+                while let Some(open) = self.open.first() {
+                    let name = open.name.clone();
+                    self.close(&name, *run_ms);
+                }
+                self.report.outcome = *outcome;
+                self.report.reason = reason.clone();
+                self.report.duration_ms = *run_ms;
             }
-            EventKind::Selected { choice } => self.report.record_choice(choice.clone()),
+            EventKind::Judged {
+                outcome,
+                reason,
+                robot,
+            } => {
+                self.report.outcome = *outcome;
+                self.report.reason = reason.clone();
+                self.report.robot = robot
+                    .iter()
+                    .filter(|(key, _)| !RunReport::OWN_KEYS.contains(&key.as_str()))
+                    .map(|(k, v)| (k.clone(), v.clone()))
+                    .collect();
+            }
+            _ => {}
+        }
+    }
+
+    /// An action's start and end, its operations' parts and parameters, the tree's decisions.
+    fn on_action(&mut self, event: &Event) {
+        match &event.kind {
             EventKind::ActionStarted {
                 action,
                 run_ms,
@@ -227,6 +263,14 @@ impl ReportBuilder {
                 node: node.clone(),
                 decision: decision.clone(),
             }),
+            _ => {}
+        }
+    }
+
+    /// Choices, bindings and rebinds (a loss is told by the rebind or the run's end that follows it).
+    fn on_binding(&mut self, event: &Event) {
+        match &event.kind {
+            EventKind::Selected { choice } => self.report.record_choice(choice.clone()),
             EventKind::Bound { operations } => {
                 for op in operations {
                     self.report
@@ -248,23 +292,34 @@ impl ReportBuilder {
                 }
                 self.report.record_rebind(rebind.clone());
             }
-            EventKind::RunEnded {
-                outcome,
-                reason,
-                run_ms,
-                status,
-                flags,
-            } => {
-                self.report.status = *status;
-                self.report.flags = flags.clone();
-                while let Some(open) = self.open.first() {
-                    let name = open.name.clone();
-                    self.close(&name, *run_ms);
-                }
-                self.report.outcome = *outcome;
-                self.report.reason = reason.clone();
-                self.report.duration_ms = *run_ms;
-            }
+            _ => {}
+        }
+    }
+
+    /// A takeover (a dispatcher fenced off changes nothing of the run).
+    fn on_dispatcher(&mut self, event: &Event) {
+        if let EventKind::Takeover {
+            from,
+            to,
+            term,
+            gap_ms,
+            ..
+        } = &event.kind
+        {
+            let at_ms = self.run_ms(event);
+            self.report.record_takeover(TakeoverRecord {
+                at_ms,
+                from: from.clone(),
+                to: to.clone(),
+                term: *term,
+                gap_ms: *gap_ms,
+            });
+        }
+    }
+
+    /// Faults injected, healed, or not injected.
+    fn on_fault(&mut self, event: &Event) {
+        match &event.kind {
             EventKind::FaultInjected {
                 fault,
                 operation,
@@ -317,6 +372,13 @@ impl ReportBuilder {
                     healed_at_ms: None,
                 }])
             }
+            _ => {}
+        }
+    }
+
+    /// Nodes lost and back.
+    fn on_node(&mut self, event: &Event) {
+        match &event.kind {
             EventKind::NodeLost { peer, .. } | EventKind::NodeDown { peer, .. } => {
                 let at_ms = self.run_ms(event);
                 let down = matches!(event.kind, EventKind::NodeDown { .. });
@@ -328,40 +390,14 @@ impl ReportBuilder {
                     open.back_at_ms = Some(at_ms);
                 }
             }
-            EventKind::Judged {
-                outcome,
-                reason,
-                robot,
-            } => {
-                self.report.outcome = *outcome;
-                self.report.reason = reason.clone();
-                self.report.robot = robot
-                    .iter()
-                    .filter(|(key, _)| !RunReport::OWN_KEYS.contains(&key.as_str()))
-                    .map(|(k, v)| (k.clone(), v.clone()))
-                    .collect();
-            }
-            EventKind::DmChecked(check) => self.report.record_dm_check(check.clone()),
-            EventKind::DispatcherFenced { .. }
-            | EventKind::Lost { .. }
-            | EventKind::RebindGaveUp { .. }
-            | EventKind::Joined(_)
-            | EventKind::Left(_)
-            | EventKind::ChildStarted { .. }
-            | EventKind::ChildExited { .. }
-            | EventKind::ChildRestarted { .. }
-            | EventKind::SupervisorGaveUp { .. }
-            | EventKind::NodeFrozen { .. }
-            | EventKind::NodeRefused { .. }
-            | EventKind::ConnectionRefused { .. }
-            | EventKind::DmRecovered { .. }
-            | EventKind::DmPromoted { .. }
-            | EventKind::DmFenced { .. }
-            | EventKind::DmState { .. }
-            | EventKind::DmAcked { .. }
-            | EventKind::DmDeleted { .. }
-            | EventKind::ControlPlan { .. }
-            | EventKind::Robot { .. } => {}
+            _ => {}
+        }
+    }
+
+    /// The check of a datamanager at the run's end.
+    fn on_datamanager(&mut self, event: &Event) {
+        if let EventKind::DmChecked(check) = &event.kind {
+            self.report.record_dm_check(check.clone());
         }
     }
 
