@@ -67,13 +67,14 @@
 
 mod acks;
 mod actor;
+mod args;
 mod audit;
 mod client;
-mod copy;
 mod credits;
 mod entry;
 mod error;
 mod follow;
+mod handlers;
 mod index;
 mod journal;
 mod kind;
@@ -86,17 +87,19 @@ mod producers;
 mod query;
 mod record;
 mod replica;
+mod replica_state;
 mod replicated;
 mod shared;
+mod start;
+mod state;
+mod storage;
 mod store;
 mod subscription;
 mod waits;
 
 pub use acks::{digest, Ack, AckSink};
-pub use actor::{
-    spawn_datamanager, spawn_datamanager_linked, Datamanager, DmArgs, DmSpec, DmState, FEATURE,
-    PARAMETER, RUN, WORLD,
-};
+pub use actor::{spawn_datamanager, spawn_datamanager_linked, Datamanager};
+pub use args::{DmArgs, DmSpec, FEATURE, PARAMETER, RUN, WORLD};
 pub use audit::Ledger;
 pub use client::DmClient;
 pub use credits::{
@@ -110,7 +113,10 @@ pub use name::Name;
 pub use page::{Page, PAGE_BYTES};
 pub use query::{Query, Take};
 pub use record::{NewRecord, Payload, Record, RecordHeader, MAX_NAME_LEN};
-pub use replica::{Replication, Timing as ReplicationTiming, SCOPE as REPLICA_SCOPE};
+pub use replica::{
+    Replication, ReplicationError, Timing as ReplicationTiming, SCOPE as REPLICA_SCOPE,
+};
 pub use shared::PayloadType;
+pub use state::DatamanagerState;
 pub use store::{DmConfig, Plan, Store};
 pub use subscription::Subscription;

@@ -99,28 +99,42 @@ impl Replication {
 
     /// Why this cannot work, if it cannot: `me` not among the members, a duplicate member,
     /// fewer than three (no majority survives a loss then).
-    pub fn check(&self) -> Result<(), String> {
+    pub fn check(&self) -> Result<(), ReplicationError> {
         let mut sorted = self.members.clone();
         sorted.sort();
         sorted.dedup();
         if sorted.len() != self.members.len() {
-            return Err(format!(
-                "a node is named twice in the copies {:?}",
-                self.members
-            ));
+            return Err(ReplicationError::Duplicate(self.members.clone()));
         }
         if !self.members.contains(&self.me) {
-            return Err(format!(
-                "this node ({}) is not among the copies {:?}",
-                self.me, self.members
-            ));
+            return Err(ReplicationError::NotAMember {
+                me: self.me.clone(),
+                members: self.members.clone(),
+            });
         }
         if self.members.len() < 3 {
-            return Err(format!(
-                "{} copies: a majority of them cannot survive the loss of one; keep three or more",
-                self.members.len()
-            ));
+            return Err(ReplicationError::TooFew(self.members.len()));
         }
         Ok(())
     }
+}
+
+/// Why a [`Replication`] cannot work ([`Replication::check`]). Its texts speak of
+/// "copies", the word of a node's config (`copies = [...]`).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum ReplicationError {
+    /// A node is named twice among the members.
+    #[error("a node is named twice in the copies {0:?}")]
+    Duplicate(Vec<String>),
+    /// `me` is not among the members.
+    #[error("this node ({me}) is not among the copies {members:?}")]
+    NotAMember {
+        /// This node.
+        me: String,
+        /// The members.
+        members: Vec<String>,
+    },
+    /// Fewer than three members: a majority of them cannot survive the loss of one.
+    #[error("{0} copies: a majority of them cannot survive the loss of one; keep three or more")]
+    TooFew(usize),
 }
