@@ -24,6 +24,7 @@
 //! counted as acknowledged. A `put` is no acknowledged record (`acks`).
 
 use super::client::DmClient;
+use super::error::DmError;
 use super::messages::{DmMsg, DmStats};
 use super::query::Query;
 use marie_vocabulary::events::EventKind;
@@ -266,10 +267,31 @@ impl Ledger {
             node: None,
             acknowledged,
             lost: acknowledged,
-            error: Some(last),
+            error: Some(last.to_string()),
             ..DmCheck::default()
         }
     }
+}
+
+/// Why a datamanager could not be asked what it holds (the check's `error`).
+#[derive(Debug, thiserror::Error)]
+enum CheckError {
+    /// None was found under its name in time.
+    #[error("{0}")]
+    Lookup(DmError),
+    /// The one found did not answer a select.
+    #[error("{dm} on {node}: {error}")]
+    Select {
+        dm: String,
+        node: String,
+        error: DmError,
+    },
+    /// None is published under its name.
+    #[error("no instance of datamanager `{0}` is published")]
+    NonePublished(String),
+    /// The last one asked did not answer its stats in time.
+    #[error("`{dm}` on {node} did not answer within {:?}", ASK)]
+    NoAnswer { dm: String, node: String },
 }
 
 /// What `dm`'s primary holds of `classes`.
@@ -277,13 +299,13 @@ async fn held_by(
     dm: &str,
     classes: &BTreeSet<Arc<str>>,
     deadline: tokio::time::Instant,
-) -> Result<Held, String> {
+) -> Result<Held, CheckError> {
     let left = deadline.saturating_duration_since(tokio::time::Instant::now());
     if registry::lookup(ModuleKind::Datamanager, dm).is_empty() {
         // none published now: one may be on its way (a primary being elected)
         DmClient::lookup_within(dm, CHECKER, left)
             .await
-            .map_err(|e| e.to_string())?;
+            .map_err(CheckError::Lookup)?;
     }
     let (instance, stats) = primary(dm).await?;
     let client = DmClient::from_instance(&instance, CHECKER)
@@ -294,7 +316,11 @@ async fn held_by(
         let got = client
             .select(Query::class(&**class))
             .await
-            .map_err(|e| format!("{dm} on {}: {e}", instance.node))?;
+            .map_err(|error| CheckError::Select {
+                dm: dm.to_string(),
+                node: instance.node.clone(),
+                error,
+            })?;
         records.extend(got);
     }
     Ok(Held::new(instance.node, stats, records))
@@ -303,15 +329,18 @@ async fn held_by(
 /// The instance of `dm` to ask, and its stats: of those published under its name that
 /// answer, the primary with the newest term (an old primary cut off may still be published
 /// for a moment beside the new one); without copies, the first that answers.
-async fn primary(dm: &str) -> Result<(Instance, DmStats), String> {
+async fn primary(dm: &str) -> Result<(Instance, DmStats), CheckError> {
     let mut best: Option<(Instance, DmStats)> = None;
-    let mut why = format!("no instance of datamanager `{dm}` is published");
+    let mut why = CheckError::NonePublished(dm.to_string());
     for instance in registry::lookup(ModuleKind::Datamanager, dm) {
         let actor: ActorRef<DmMsg> = instance.actor.clone().into();
         let stats = match actor.call(|reply| DmMsg::Stats { reply }, Some(ASK)).await {
             Ok(CallResult::Success(stats)) => stats,
             Ok(_) | Err(_) => {
-                why = format!("`{dm}` on {} did not answer within {ASK:?}", instance.node);
+                why = CheckError::NoAnswer {
+                    dm: dm.to_string(),
+                    node: instance.node.clone(),
+                };
                 continue;
             }
         };

@@ -106,7 +106,9 @@ pub use credits::{
     BATCH as PUT_BATCH, REPLICATED_WINDOW as REPLICATED_PUT_WINDOW, WINDOW as PUT_WINDOW,
 };
 pub use error::DmError;
-pub use journal::{journal_dir, DirLock, Durability, LockError, Recovery, SNAPSHOT_MIN};
+pub use journal::{
+    journal_dir, DirLock, Durability, LockError, Recovery, UnknownDurability, SNAPSHOT_MIN,
+};
 pub use kind::RecordKind;
 pub use messages::{DmMsg, DmStats, ReplicaStats, StoreDigest};
 pub use name::Name;

@@ -257,4 +257,42 @@ mod tests {
         use crate::{FEATURE, PARAMETER, WORLD};
         assert_eq!((WORLD.id, FEATURE.id, PARAMETER.id), (1203, 1201, 1202));
     }
+
+    #[test]
+    fn a_combination_that_cannot_work_says_why() {
+        let clock = marie_vocabulary::clock::RealClock::shared();
+        let why = |args: DmArgs| Mode::of(&args).err().map(|e| e.to_string());
+        let args = crate::WORLD.args(clock);
+        assert_eq!(why(args.clone()), None);
+        let mut bad = args.clone();
+        bad.name = "12".into();
+        assert_eq!(
+            why(bad).as_deref(),
+            Some(r#"invalid datamanager name "12": use letters, digits, '-', '_' or '.'"#)
+        );
+        let replicated = args
+            .clone()
+            .with_replication(Replication::new("a", ["a", "b", "c"]));
+        assert_eq!(
+            why(replicated.clone()).as_deref(),
+            Some(
+                "datamanager world: copies need a journal (durability process or sync): a \
+                 copy's vote must survive its restart"
+            )
+        );
+        let mut no_dir = replicated;
+        no_dir.durability = Durability::Process;
+        assert_eq!(
+            why(no_dir).as_deref(),
+            Some("datamanager world: durability process needs a journal directory")
+        );
+        let too_few = args.with_replication(Replication::new("a", ["a", "b"]));
+        assert_eq!(
+            why(too_few).as_deref(),
+            Some(
+                "datamanager world: 2 copies: a majority of them cannot survive the loss of \
+                 one; keep three or more"
+            )
+        );
+    }
 }

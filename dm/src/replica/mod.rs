@@ -138,3 +138,33 @@ pub enum ReplicationError {
     #[error("{0} copies: a majority of them cannot survive the loss of one; keep three or more")]
     TooFew(usize),
 }
+
+#[cfg(test)]
+mod tests {
+    use super::Replication;
+
+    #[test]
+    fn a_replication_that_cannot_work_says_why() {
+        let check = |me: &str, members: &[&str]| {
+            Replication::new(me, members.iter().copied())
+                .check()
+                .map_err(|e| e.to_string())
+        };
+        assert_eq!(check("a", &["a", "b", "c"]), Ok(()));
+        assert_eq!(
+            check("a", &["a", "b", "a"]),
+            Err(r#"a node is named twice in the copies ["a", "b", "a"]"#.to_string())
+        );
+        assert_eq!(
+            check("d", &["a", "b", "c"]),
+            Err(r#"this node (d) is not among the copies ["a", "b", "c"]"#.to_string())
+        );
+        assert_eq!(
+            check("a", &["a", "b"]),
+            Err(
+                "2 copies: a majority of them cannot survive the loss of one; keep three or more"
+                    .to_string()
+            )
+        );
+    }
+}

@@ -170,6 +170,23 @@ struct Span {
     end: usize,
 }
 
+/// Why bytes that came as a replica's entries do not decode.
+#[derive(Debug, thiserror::Error)]
+enum BadEntries {
+    #[error("entries: no count")]
+    NoCount,
+    #[error("entries: a count beyond the bytes")]
+    CountBeyondBytes,
+    #[error("entries: {0}")]
+    Torn(entry::Torn),
+    #[error("entries: an entry before its term")]
+    BeforeItsTerm,
+    #[error("entries: an entry that is not a log entry")]
+    NotALogEntry,
+    #[error("entries: bytes after the last entry")]
+    Trailing,
+}
+
 impl RawOps {
     fn encode<'a>(ops: impl IntoIterator<Item = &'a Op>) -> RawOps {
         let mut wire = vec![0; 4];
@@ -195,29 +212,27 @@ impl RawOps {
     }
 
     /// The entries in `bytes` (as [`RawOps::encode`] wrote them), decoded, with the bytes.
-    fn decode(bytes: &[u8]) -> Result<(RawOps, Vec<Op>), String> {
-        let bad = |what: &str| format!("entries: {what}");
+    fn decode(bytes: &[u8]) -> Result<(RawOps, Vec<Op>), BadEntries> {
         let count = bytes
             .get(..4)
             .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-            .ok_or_else(|| bad("no count"))? as usize;
+            .ok_or(BadEntries::NoCount)? as usize;
         // every entry takes a header and a kind at least: a count beyond them is a lie
         if count > bytes.len() / (entry::HEADER + 1) {
-            return Err(bad("a count beyond the bytes"));
+            return Err(BadEntries::CountBeyondBytes);
         }
         let (mut spans, mut ops) = (Vec::with_capacity(count), Vec::with_capacity(count));
         let mut at = 4;
         let mut term = None;
         while ops.len() < count {
-            let (e, len) = entry::decode(&bytes[at..]).map_err(|t| bad(&t.to_string()))?;
+            let (e, len) = entry::decode(&bytes[at..]).map_err(BadEntries::Torn)?;
             if let Entry::Term { term: t } = e {
                 term = Some(t);
                 at += len;
                 continue;
             }
-            let term = term.ok_or_else(|| bad("an entry before its term"))?;
-            let op =
-                Op::from_entry(e, term).map_err(|_| bad("an entry that is not a log entry"))?;
+            let term = term.ok_or(BadEntries::BeforeItsTerm)?;
+            let op = Op::from_entry(e, term).map_err(|_| BadEntries::NotALogEntry)?;
             spans.push(Span {
                 seq: op.seq,
                 term,
@@ -228,7 +243,7 @@ impl RawOps {
             at += len;
         }
         if at != bytes.len() {
-            return Err(bad("bytes after the last entry"));
+            return Err(BadEntries::Trailing);
         }
         let raw = RawOps {
             wire: bytes.to_vec(),
