@@ -117,7 +117,7 @@ impl DatamanagerState {
     }
 
     /// Store `record`: its seq, or why it was refused. A retried put gets the seq its first
-    /// copy got; a replicated datamanager's leader proposes it (applied, and its waits
+    /// replica got; a replicated datamanager's leader proposes it (applied, and its waits
     /// woken, once committed).
     pub(crate) fn store(&mut self, record: NewRecord) -> Result<u64, DmError> {
         self.fences

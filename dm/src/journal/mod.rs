@@ -335,7 +335,7 @@ impl Journal {
         self.logged(op);
     }
 
-    /// [`Journal::op`] of an entry given as its journal entry `bytes` (as the primary sent
+    /// [`Journal::op`] of an entry given as its journal entry `bytes` (as the leader sent
     /// it: see `replica::Ops`).
     pub(crate) fn op_encoded(&mut self, op: &Op, bytes: &[u8]) {
         self.term_mark(op.term);

@@ -12,9 +12,9 @@
 //! durability there is no sync: a record acknowledged has been written to the OS, which
 //! keeps it through `kill -9`; and a batch handed over while the writer is idle is written
 //! by the datamanager itself, at once (one `write(2)` to the page cache: the hop to the
-//! blocking pool and back cost two thread wake-ups per batch — on a copy of a replicated
+//! blocking pool and back cost two thread wake-ups per batch — on a replica of a replicated
 //! datamanager, half of its context switches in the put-all bench: 13 k → 6 k per million
-//! records, the primary's 23 k → 12 k).
+//! records, the leader's 23 k → 12 k).
 //!
 //! # Why the blocking pool, not a thread of its own
 //! Under a simulated clock (tokio's paused time, `marie run --speed max`) the runtime moves
