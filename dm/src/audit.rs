@@ -1,10 +1,10 @@
 //! The check of a run's datamanagers: every record a producer was told was stored, looked
-//! up at the end in what the datamanager's primary holds.
+//! up at the end in what the datamanager's leader holds.
 //!
 //! A [`Ledger`] takes the acknowledgements the producers' nodes publish as they come
 //! (`dm_acked`, `dm_deleted`: `acks`) — each record's datamanager, seq, class,
 //! source and a digest of its payload. At the end, [`Ledger::check`] asks the datamanager's
-//! primary (the instance published under its name; of several, the primary with the newest
+//! leader (the instance published under its name; of several, the leader with the newest
 //! term) for its retention bounds and every record of the classes acknowledged, and
 //! [`Ledger::compare`] sorts each acknowledged record into exactly one of:
 //!
@@ -24,6 +24,7 @@
 //! counted as acknowledged. A `put` is no acknowledged record (`acks`).
 
 use super::client::DmClient;
+use super::error::DmError;
 use super::messages::{DmMsg, DmStats};
 use super::query::Query;
 use marie_vocabulary::events::EventKind;
@@ -45,7 +46,7 @@ const CHECKER: &str = "marie-checker";
 /// Lost records the check names one by one in the log (the rest are counted).
 const SAID: u64 = 3;
 
-/// How long the checker waits for one instance's stats when it looks for the primary.
+/// How long the checker waits for one instance's stats when it looks for the leader.
 const ASK: Duration = Duration::from_secs(2);
 
 /// A record a producer was told was stored.
@@ -76,7 +77,7 @@ pub struct Ledger {
     names: HashMap<String, Arc<str>>,
 }
 
-/// What a datamanager holds of the classes the ledger looks up, as its primary answered.
+/// What a datamanager holds of the classes the ledger looks up, as its leader answered.
 #[derive(Clone, Debug, Default)]
 pub struct Held {
     /// The node of the instance that answered.
@@ -193,7 +194,7 @@ impl Ledger {
         })
     }
 
-    /// Sort every acknowledged record of `dm` by what `held` — its primary's answer —
+    /// Sort every acknowledged record of `dm` by what `held` — its leader's answer —
     /// says of it (see the module docs).
     pub fn compare(&self, dm: &str, held: &Held) -> DmCheck {
         let mut check = DmCheck {
@@ -243,7 +244,7 @@ impl Ledger {
         check
     }
 
-    /// Check `dm`: ask its primary what it holds — waiting at most `within` for one to
+    /// Check `dm`: ask its leader what it holds — waiting at most `within` for one to
     /// answer (a datamanager being failed over at the end of a run elects one within a
     /// few seconds) — and [compare](Ledger::compare). A datamanager that cannot be asked
     /// has every acknowledged record counted lost, and why in `error`.
@@ -266,26 +267,47 @@ impl Ledger {
             node: None,
             acknowledged,
             lost: acknowledged,
-            error: Some(last),
+            error: Some(last.to_string()),
             ..DmCheck::default()
         }
     }
 }
 
-/// What `dm`'s primary holds of `classes`.
+/// Why a datamanager could not be asked what it holds (the check's `error`).
+#[derive(Debug, thiserror::Error)]
+enum CheckError {
+    /// None was found under its name in time.
+    #[error("{0}")]
+    Lookup(DmError),
+    /// The one found did not answer a select.
+    #[error("{dm} on {node}: {error}")]
+    Select {
+        dm: String,
+        node: String,
+        error: DmError,
+    },
+    /// None is published under its name.
+    #[error("no instance of datamanager `{0}` is published")]
+    NonePublished(String),
+    /// The last one asked did not answer its stats in time.
+    #[error("`{dm}` on {node} did not answer within {:?}", ASK)]
+    NoAnswer { dm: String, node: String },
+}
+
+/// What `dm`'s leader holds of `classes`.
 async fn held_by(
     dm: &str,
     classes: &BTreeSet<Arc<str>>,
     deadline: tokio::time::Instant,
-) -> Result<Held, String> {
+) -> Result<Held, CheckError> {
     let left = deadline.saturating_duration_since(tokio::time::Instant::now());
     if registry::lookup(ModuleKind::Datamanager, dm).is_empty() {
-        // none published now: one may be on its way (a primary being elected)
+        // none published now: one may be on its way (a leader being elected)
         DmClient::lookup_within(dm, CHECKER, left)
             .await
-            .map_err(|e| e.to_string())?;
+            .map_err(CheckError::Lookup)?;
     }
-    let (instance, stats) = primary(dm).await?;
+    let (instance, stats) = leader(dm).await?;
     let client = DmClient::from_instance(&instance, CHECKER)
         .with_follow(Duration::ZERO)
         .with_timeout(left.max(ASK));
@@ -294,24 +316,31 @@ async fn held_by(
         let got = client
             .select(Query::class(&**class))
             .await
-            .map_err(|e| format!("{dm} on {}: {e}", instance.node))?;
+            .map_err(|error| CheckError::Select {
+                dm: dm.to_string(),
+                node: instance.node.clone(),
+                error,
+            })?;
         records.extend(got);
     }
     Ok(Held::new(instance.node, stats, records))
 }
 
 /// The instance of `dm` to ask, and its stats: of those published under its name that
-/// answer, the primary with the newest term (an old primary cut off may still be published
-/// for a moment beside the new one); without copies, the first that answers.
-async fn primary(dm: &str) -> Result<(Instance, DmStats), String> {
+/// answer, the leader with the newest term (an old leader cut off may still be published
+/// for a moment beside the new one); without replicas, the first that answers.
+async fn leader(dm: &str) -> Result<(Instance, DmStats), CheckError> {
     let mut best: Option<(Instance, DmStats)> = None;
-    let mut why = format!("no instance of datamanager `{dm}` is published");
+    let mut why = CheckError::NonePublished(dm.to_string());
     for instance in registry::lookup(ModuleKind::Datamanager, dm) {
         let actor: ActorRef<DmMsg> = instance.actor.clone().into();
         let stats = match actor.call(|reply| DmMsg::Stats { reply }, Some(ASK)).await {
             Ok(CallResult::Success(stats)) => stats,
             Ok(_) | Err(_) => {
-                why = format!("`{dm}` on {} did not answer within {ASK:?}", instance.node);
+                why = CheckError::NoAnswer {
+                    dm: dm.to_string(),
+                    node: instance.node.clone(),
+                };
                 continue;
             }
         };
@@ -364,7 +393,7 @@ mod tests {
             assert!(ledger.note(&acked("world", "wall", "sensor", seq, payload)));
         }
         assert!(!ledger.note(&EventKind::NodeFrozen { silent_ms: 1 }));
-        // 1 held; 2 gone; 3 at its seq but another record (a new primary reused the seq);
+        // 1 held; 2 gone; 3 at its seq but another record (a new leader reused the seq);
         // 4 at its seq but from another source
         let held = Held::new(
             "features",

@@ -23,7 +23,7 @@ use std::time::Duration;
 ///
 /// # It follows its datamanager
 /// When the datamanager's actor is gone — it crashed and its supervisor restarts it, or a
-/// copy is promoted elsewhere — a request waits (at most [`DmClient::follow_within`], 5 s by
+/// replica is promoted elsewhere — a request waits (at most [`DmClient::follow_within`], 5 s by
 /// default) for the next instance published under the same name, moves there, and is sent
 /// again: `select`, `select_wait` (and so a [`super::Subscription`]), `stats`, and `store`.
 /// A store sent again is idempotent: every record carries this client's producer id and its
@@ -191,7 +191,7 @@ impl DmClient {
     }
 
     /// [`DmClient::lookup`], waiting at most `within` for an instance to be published (a
-    /// replicated datamanager's primary being elected, a datamanager starting elsewhere):
+    /// replicated datamanager's leader being elected, a datamanager starting elsewhere):
     /// it watches the registry, it does not poll.
     pub async fn lookup_within(
         name_or_id: &str,
@@ -549,11 +549,11 @@ impl DmClient {
     /// nothing for [`DmClient::timeout`].
     ///
     /// It follows a datamanager on another node: the records on their way to an instance
-    /// that is lost meanwhile (a crash, a primary stepping down, its node lost) — at most a
+    /// that is lost meanwhile (a crash, a leader stepping down, its node lost) — at most a
     /// window of them, kept until acknowledged — are sent again to the next instance
     /// (waiting for it at most [`DmClient::follow_within`]), where each is stored once:
     /// every record carries this client's producer id and its own number
-    /// (`tests/dm_replicas.rs` kills a primary's process under a transfer of 300 000). A
+    /// (`tests/dm_replicas.rs` kills a leader's process under a transfer of 300 000). A
     /// datamanager in this process shares its fate with the producer; its puts are not
     /// kept.
     pub async fn put_all(

@@ -31,12 +31,12 @@
 //! how many records it lets a producer have unacknowledged ([`DmStats::window`]). A
 //! producer starts with [`WINDOW`] and takes the grant from the first acknowledgement on.
 //! A plain datamanager grants [`WINDOW`]; a replicated one [`REPLICATED_WINDOW`], because
-//! its acknowledgement waits for a round to its copies, and a window must cover what a
+//! its acknowledgement waits for a round to its replicas, and a window must cover what a
 //! producer sends in that time. With one window for both, a producer putting into three
-//! copies (one process each, on 2 cores) mostly waited for credits: `cargo bench --bench
+//! replicas (one process each, on 2 cores) mostly waited for credits: `cargo bench --bench
 //! replicas -- put-all`, medians of one run each, 329 k records/s with a window of 1024,
-//! 377 k with 2048, 390 k with 4096 — into one datamanager without copies 679 k, 715 k and
-//! 754 k: the wider window helps copies 2.5 times as much. With the grant (1024 plain, 4096
+//! 377 k with 2048, 390 k with 4096 — into one datamanager without replicas 679 k, 715 k and
+//! 754 k: the wider window helps replicas 2.5 times as much. With the grant (1024 plain, 4096
 //! replicated) two runs gave 0.55× and 0.63× (0.47×–0.52× before).
 //!
 //! [`DmStats::window`]: super::DmStats::window
@@ -56,7 +56,7 @@ use tokio::sync::Notify;
 /// plain one grants, and what a producer starts with towards any (a batch must fit it).
 pub const WINDOW: usize = 1024;
 
-/// What a replicated datamanager grants: its acknowledgements wait for its copies.
+/// What a replicated datamanager grants: its acknowledgements wait for its replicas.
 pub const REPLICATED_WINDOW: usize = 4 * WINDOW;
 
 // What a producer can have unacknowledged is within what a datamanager remembers of it to

@@ -1,5 +1,5 @@
 //! One journal entry: a length, a checksum and a body — on disk, and on the wire between
-//! a replicated datamanager's copies (`replica::Ops`), so a copy journals what it was sent
+//! a replicated datamanager's replicas (`replica::Ops`), so a replica journals what it was sent
 //! as it came. Below both `journal/` and `replica/`.
 //!
 //! ```text

@@ -70,7 +70,7 @@ pub enum DmError {
     /// failed sync, a journal it cannot open): the write is not acknowledged, and not kept.
     #[error("storage: {0}")]
     Storage(String),
-    /// The datamanager asked is a copy, not the primary (it stepped down, or a client held
+    /// The datamanager asked is a replica, not the leader (it stepped down, or a client held
     /// an old reference): ask the one published under its name.
     #[error("datamanager {0} is a copy, not the primary")]
     NotPrimary(String),

@@ -1,5 +1,5 @@
 //! Finding a datamanager's next instance: after a crash its supervisor starts a new one
-//! under the same name (and, with copies, a copy is promoted elsewhere) — the registry's
+//! under the same name (and, with replicas, a replica is promoted elsewhere) — the registry's
 //! follow, for datamanagers.
 
 use marie_vocabulary::registry::{follow, Instance, ModuleKind};

@@ -67,13 +67,14 @@
 
 mod acks;
 mod actor;
+mod args;
 mod audit;
 mod client;
-mod copy;
 mod credits;
 mod entry;
 mod error;
 mod follow;
+mod handlers;
 mod index;
 mod journal;
 mod kind;
@@ -86,31 +87,38 @@ mod producers;
 mod query;
 mod record;
 mod replica;
+mod replica_state;
 mod replicated;
 mod shared;
+mod start;
+mod state;
+mod storage;
 mod store;
 mod subscription;
 mod waits;
 
 pub use acks::{digest, Ack, AckSink};
-pub use actor::{
-    spawn_datamanager, spawn_datamanager_linked, Datamanager, DmArgs, DmSpec, DmState, FEATURE,
-    PARAMETER, RUN, WORLD,
-};
+pub use actor::{spawn_datamanager, spawn_datamanager_linked, Datamanager};
+pub use args::{DmArgs, DmSpec, FEATURE, PARAMETER, RUN, WORLD};
 pub use audit::Ledger;
 pub use client::DmClient;
 pub use credits::{
     BATCH as PUT_BATCH, REPLICATED_WINDOW as REPLICATED_PUT_WINDOW, WINDOW as PUT_WINDOW,
 };
 pub use error::DmError;
-pub use journal::{journal_dir, DirLock, Durability, LockError, Recovery, SNAPSHOT_MIN};
+pub use journal::{
+    journal_dir, DirLock, Durability, LockError, Recovery, UnknownDurability, SNAPSHOT_MIN,
+};
 pub use kind::RecordKind;
 pub use messages::{DmMsg, DmStats, ReplicaStats, StoreDigest};
 pub use name::Name;
 pub use page::{Page, PAGE_BYTES};
 pub use query::{Query, Take};
 pub use record::{NewRecord, Payload, Record, RecordHeader, MAX_NAME_LEN};
-pub use replica::{Replication, Timing as ReplicationTiming, SCOPE as REPLICA_SCOPE};
+pub use replica::{
+    Replication, ReplicationError, Timing as ReplicationTiming, SCOPE as REPLICA_SCOPE,
+};
 pub use shared::PayloadType;
+pub use state::DatamanagerState;
 pub use store::{DmConfig, Plan, Store};
 pub use subscription::Subscription;

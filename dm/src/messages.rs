@@ -50,7 +50,7 @@ pub struct DmStats {
     /// (`producers`).
     #[serde(default)]
     pub duplicates: u64,
-    /// A replicated datamanager's copy: its role, term and how far each copy lags.
+    /// A replicated datamanager's replica: its role, term and how far each replica lags.
     #[serde(default)]
     pub replica: Option<ReplicaStats>,
     /// The window of credits it grants a remote producer: records it may have
@@ -83,7 +83,7 @@ impl DmStats {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct StoreDigest {
-    /// The last seq applied to the store (the committed seq of a copy).
+    /// The last seq applied to the store (the committed seq of a replica).
     pub upto: u64,
     /// Records stored.
     pub records: u64,
@@ -91,26 +91,26 @@ pub struct StoreDigest {
     pub digest: u64,
 }
 
-/// A copy of a replicated datamanager, in its [`DmStats`].
+/// A replica of a replicated datamanager, in its [`DmStats`].
 #[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct ReplicaStats {
-    /// The node this copy runs on.
+    /// The node this replica runs on.
     pub node: String,
     /// `primary` or `copy`.
     pub role: String,
     /// Its term.
     pub term: u64,
-    /// The primary it follows, if it knows one.
+    /// The leader it follows, if it knows one.
     pub primary: Option<String>,
     /// The last committed seq.
     pub commit: u64,
     /// The last seq in its log.
     pub last: u64,
-    /// On the primary: how many entries each other copy lacks.
+    /// On the leader: how many entries each other replica lacks.
     pub lag: BTreeMap<String, u64>,
-    /// Snapshots of the store this copy took in from a primary (it lagged further than the
-    /// primary keeps entries for), since it started.
+    /// Snapshots of the store this replica took in from a leader (it lagged further than the
+    /// leader keeps entries for), since it started.
     pub snapshots_taken: u64,
 }
 
@@ -183,7 +183,7 @@ marie_vocabulary::remote_message! {
             fault: marie_vocabulary::run::FaultKind,
         },
         /// A digest of the records it holds, and up to which seq (a checker compares the
-        /// copies of a replicated datamanager by it; a copy answers it too).
+        /// replicas of a replicated datamanager by it; a replica answers it too).
         Digest {} -> StoreDigest,
         /// The first page, of about `max_bytes`, of what `Select` answers, and the query
         /// for the rest: how a client on another node selects (`page`; an answer
@@ -195,7 +195,7 @@ marie_vocabulary::remote_message! {
             /// About how many bytes of records the page may carry.
             max_bytes: u64,
         } -> super::page::Page,
-        /// A message between the copies of a replicated datamanager: the replication
+        /// A message between the replicas of a replicated datamanager: the replication
         /// protocol's own, not part of the dm-interface (hidden, and its type private).
         #[doc(hidden)]
         Replica {
@@ -218,14 +218,14 @@ marie_vocabulary::remote_message! {
             /// Their seqs.
             seqs: Vec<u64>,
         },
-        /// Answer a `Stats` now (a primary's, once the puts before it are committed).
+        /// Answer a `Stats` now (a leader's, once the puts before it are committed).
         AnswerStats {
             /// Where the answer goes.
             reply: ractor::RpcReplyPort<DmStats>,
         },
-        /// A copy's clock: campaign, send heartbeats, see who is reachable.
+        /// A replica's clock: campaign, send heartbeats, see who is reachable.
         ReplicaTick {},
-        /// The journal made a copy's entries up to `seq` (of `term`) durable.
+        /// The journal made a replica's entries up to `seq` (of `term`) durable.
         ReplicaDurable {
             /// The last entry durable.
             seq: u64,

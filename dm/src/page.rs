@@ -13,8 +13,8 @@
 //! was read: the first page fixes the answer's seq range (a limit to the newest or oldest N
 //! becomes that range), and every later page asks for the rest of the range. A record
 //! stored meanwhile is not in it; a record deleted (or dropped by retention) before its page
-//! is read is not either. Seqs continue across a change of primary, so the rest of a range
-//! is asked of the new primary as it was of the old.
+//! is read is not either. Seqs continue across a change of leader, so the rest of a range
+//! is asked of the new leader as it was of the old.
 
 use super::query::Query;
 use super::record::Record;

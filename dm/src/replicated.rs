@@ -1,23 +1,25 @@
-//! How a replicated datamanager's actor takes part in its copies' protocol
-//! (`replica`): the primary proposes writes and answers them once committed, every
-//! copy carries out what the protocol's core asks (persist the vote, send, journal, apply,
-//! publish itself or step down), and a copy too far behind takes in a snapshot.
+//! How a replicated datamanager's actor takes part in its replicas' protocol
+//! (`replica`): the leader proposes writes and answers them once committed, every
+//! replica carries out what the protocol's core asks (persist the vote, send, journal,
+//! apply, publish itself or step down), and a replica too far behind takes in a snapshot.
 
-use super::actor::DmState;
-use super::copy::{group, Incoming};
-use super::error::DmError;
 use super::messages::DmMsg;
 use super::producers::Producers;
+use super::query::Query;
 use super::record::NewRecord;
 use super::replica::core::Out;
-use super::replica::{apply, vote, InstallPart, OpBody, ReplicaMsg, SCOPE};
-use super::store::{DmConfig, Store};
+use super::replica::{apply, InstallPart, OpBody, ReplicaMsg, SCOPE};
+use super::replica_state::{group, Incoming, ReplicaState};
+use super::state::DatamanagerState;
+use super::store::Store;
+use super::DmError;
+use marie_vocabulary::events::EventKind;
 use marie_vocabulary::fence::FenceTable;
 use marie_vocabulary::registry::{self, ModuleKind};
-use ractor::{pg, ActorCell, ActorRef};
+use ractor::{pg, ActorCell, ActorRef, RpcReplyPort};
 use std::time::Duration;
 
-/// Records per snapshot part sent to a copy, at most.
+/// Records per snapshot part sent to a replica, at most.
 const INSTALL_PART: usize = 2048;
 /// Bytes of records per part, about (a part is one frame: ractor_cluster ends the session
 /// on a frame above 16 MiB).
@@ -26,68 +28,76 @@ const INSTALL_BYTES: usize = super::page::PAGE_BYTES;
 /// pairs each: ~1 MiB).
 const INSTALL_PRODUCERS: usize = 16;
 
-impl DmState {
-    /// Whether this datamanager is a copy that is not the primary (it answers no client).
-    pub(crate) fn is_copy(&self) -> bool {
-        self.replica.as_ref().is_some_and(|c| !c.core.is_leader())
+impl DatamanagerState {
+    /// Whether this datamanager is a replica that is not the leader (it answers no client).
+    pub(crate) fn is_follower(&self) -> bool {
+        self.storage.replica().is_some_and(|r| !r.core.is_leader())
     }
 
-    /// The primary's side of a store: propose the record. Its seq, once it is checked.
+    /// The replica's state, if this datamanager is a replicated one's leader.
+    pub(crate) fn leader_mut(&mut self) -> Option<&mut ReplicaState> {
+        self.storage.replica_mut().filter(|r| r.core.is_leader())
+    }
+
+    /// The leader's side of a store: propose the record. Its seq, once it is checked.
     pub(crate) fn propose_put(&mut self, record: NewRecord) -> Result<u64, DmError> {
         let now = self.clock.now();
-        let Some(copy) = self.replica.as_mut() else {
+        let Some((replica, journal)) = self.storage.replicated_mut() else {
             return Err(DmError::NotPrimary(self.name.clone()));
         };
-        if !copy.core.is_leader() {
+        if !replica.core.is_leader() {
             return Err(DmError::NotPrimary(self.name.clone()));
         }
-        let journal = self.journal.as_mut().expect("a copy has a journal");
         journal.usable()?;
         self.store.check(&record)?;
-        copy.last_time = copy.last_time.max(now);
-        let time_ns = u64::try_from(copy.last_time.as_nanos()).unwrap_or(u64::MAX);
+        replica.last_time = replica.last_time.max(now);
+        let time_ns = u64::try_from(replica.last_time.as_nanos()).unwrap_or(u64::MAX);
         let who = (record.producer, record.producer_seq);
-        let op = copy
+        let op = replica
             .core
             .propose(OpBody::Put { time_ns, record })
-            .expect("the primary proposes");
+            .expect("the leader proposes");
         journal.op(op);
         let seq = op.seq;
-        copy.noted = seq;
+        replica.noted = seq;
         if who.0 != 0 {
             self.producers.note(who.0, who.1, seq);
         }
         Ok(seq)
     }
 
-    /// The primary's side of a delete: propose it; how many records it deletes.
-    pub(crate) fn propose_delete(&mut self, seqs: Vec<u64>) -> Result<u64, DmError> {
-        let Some(copy) = self.replica.as_mut() else {
+    /// The leader's side of a `Delete`: propose deleting what matches `query`, and answer
+    /// how many once it is committed (0 if it cannot be).
+    pub(crate) fn propose_delete_of(&mut self, query: &Query, reply: RpcReplyPort<u64>) {
+        let seqs = self.store.matching_seqs(query);
+        let n = self.propose_delete(seqs);
+        self.acknowledge(reply, move |committed| match (committed, n) {
+            (Ok(()), Ok(n)) => n,
+            _ => 0,
+        });
+    }
+
+    /// Propose a delete of `seqs`; how many records it deletes.
+    fn propose_delete(&mut self, seqs: Vec<u64>) -> Result<u64, DmError> {
+        let Some((replica, journal)) = self.storage.replicated_mut() else {
             return Err(DmError::NotPrimary(self.name.clone()));
         };
         let n = seqs.len() as u64;
         if n == 0 {
             return Ok(0);
         }
-        let op = copy
+        let op = replica
             .core
             .propose(OpBody::Delete { seqs })
             .ok_or_else(|| DmError::NotPrimary(self.name.clone()))?;
-        self.journal.as_mut().expect("a copy has a journal").op(op);
+        journal.op(op);
         Ok(n)
     }
 
-    /// Send an answer once everything proposed so far is committed and applied.
-    pub(crate) fn after_commit(&mut self, ack: super::copy::Ack) {
-        let copy = self.replica.as_mut().expect("called on a copy");
-        let last = copy.core.last().0;
-        copy.after_applied(last, ack);
-    }
-
-    /// The journal's batch is handed over: learn when it is durable, and send the copies
-    /// what they lack.
+    /// The journal's batch is handed over: learn when it is durable, and send the other
+    /// replicas what they lack.
     pub(crate) fn replica_flush(&mut self, myself: &ActorRef<DmMsg>) {
-        let (Some(copy), Some(journal)) = (self.replica.as_mut(), self.journal.as_mut()) else {
+        let Some((replica, journal)) = self.storage.replicated_mut() else {
             return;
         };
         if let Some((seq, term)) = journal.take_last_op() {
@@ -99,57 +109,57 @@ impl DmState {
             }));
         }
         let mut out = Vec::new();
-        let now = copy.now();
-        copy.core.replicate(now, &mut out);
+        let now = replica.now();
+        replica.core.replicate(now, &mut out);
         self.carry_out(myself, out);
     }
 
-    /// Time passed.
-    pub(crate) fn replica_tick(&mut self, myself: &ActorRef<DmMsg>) {
+    /// `ReplicaTick`: time passed.
+    pub(crate) fn on_replica_tick(&mut self, myself: &ActorRef<DmMsg>) {
         self.refresh_peers(myself);
-        let Some(copy) = self.replica.as_mut() else {
+        let Some(replica) = self.storage.replica_mut() else {
             return;
         };
         let mut out = Vec::new();
-        let now = copy.now();
-        copy.core.tick(now, &mut out);
+        let now = replica.now();
+        replica.core.tick(now, &mut out);
         self.carry_out(myself, out);
     }
 
-    /// The journal made the entries up to `seq` (of `term`) durable.
-    pub(crate) fn replica_durable(&mut self, myself: &ActorRef<DmMsg>, seq: u64, term: u64) {
-        let Some(copy) = self.replica.as_mut() else {
+    /// `ReplicaDurable`: the journal made the entries up to `seq` (of `term`) durable.
+    pub(crate) fn on_replica_durable(&mut self, myself: &ActorRef<DmMsg>, seq: u64, term: u64) {
+        let Some(replica) = self.storage.replica_mut() else {
             return;
         };
         let mut out = Vec::new();
-        copy.core.durable(seq, term, &mut out);
+        replica.core.durable(seq, term, &mut out);
         self.carry_out(myself, out);
     }
 
-    /// Which copies are reachable now (from the copies' groups): tell the core who came
+    /// Which replicas are reachable now (from the replicas' groups): tell the core who came
     /// and went.
     pub(crate) fn refresh_peers(&mut self, myself: &ActorRef<DmMsg>) {
-        let Some(copy) = self.replica.as_mut() else {
+        let Some(replica) = self.storage.replica_mut() else {
             return;
         };
-        let now = copy.now();
+        let now = replica.now();
         let mut out = Vec::new();
-        for m in copy.core.others() {
-            let found = pg::get_scoped_members(&SCOPE.to_string(), &group(&copy.name, &m))
+        for m in replica.core.others() {
+            let found = pg::get_scoped_members(&SCOPE.to_string(), &group(&replica.name, &m))
                 .into_iter()
                 .find(|c| c.get_status() <= ractor::ActorStatus::Running);
-            let known = copy.peers.get(&m).map(ActorCell::get_id);
+            let known = replica.peers.get(&m).map(ActorCell::get_id);
             match (known, found) {
                 (Some(a), Some(b)) if a == b.get_id() => {}
                 (_, Some(b)) => {
-                    copy.peers.insert(m.clone(), b);
-                    tracing::debug!(dm = %copy.name, peer = %m, "replica: a copy is reachable");
-                    copy.core.peer_up(&m, now, &mut out);
+                    replica.peers.insert(m.clone(), b);
+                    tracing::debug!(dm = %replica.name, peer = %m, "replica: a replica is reachable");
+                    replica.core.peer_up(&m, now, &mut out);
                 }
                 (Some(_), None) => {
-                    copy.peers.remove(&m);
-                    tracing::debug!(dm = %copy.name, peer = %m, "replica: a copy is gone");
-                    copy.core.peer_down(&m, now);
+                    replica.peers.remove(&m);
+                    tracing::debug!(dm = %replica.name, peer = %m, "replica: a replica is gone");
+                    replica.core.peer_down(&m, now);
                 }
                 (None, None) => {}
             }
@@ -157,12 +167,12 @@ impl DmState {
         self.carry_out(myself, out);
     }
 
-    /// A message from another copy.
-    pub(crate) fn replica_message(&mut self, myself: &ActorRef<DmMsg>, msg: ReplicaMsg) {
-        let Some(copy) = self.replica.as_mut() else {
+    /// `Replica`: a message from another replica.
+    pub(crate) fn on_replica(&mut self, myself: &ActorRef<DmMsg>, msg: ReplicaMsg) {
+        let Some(replica) = self.storage.replica_mut() else {
             return;
         };
-        let now = copy.now();
+        let now = replica.now();
         let mut out = Vec::new();
         match msg {
             ReplicaMsg::Install {
@@ -172,7 +182,7 @@ impl DmState {
                 last_term,
                 part,
             } => {
-                if copy
+                if replica
                     .core
                     .install_from(term, &leader, last_seq, now, &mut out)
                 {
@@ -183,97 +193,82 @@ impl DmState {
             }
             msg => {
                 if let ReplicaMsg::Append { ops, .. } = &msg {
-                    copy.arrived = Some(ops.raw());
+                    replica.arrived = Some(ops.raw());
                 }
-                copy.core.receive(msg, now, &mut out);
+                replica.core.receive(msg, now, &mut out);
             }
         }
         self.carry_out(myself, out);
-        if let Some(copy) = self.replica.as_mut() {
-            copy.arrived = None;
+        if let Some(replica) = self.storage.replica_mut() {
+            replica.arrived = None;
         }
     }
 
-    /// A part of a snapshot sent by the primary.
+    /// A part of a snapshot sent by the leader.
     fn take_part(&mut self, last: (u64, u64), part: InstallPart, myself: &ActorRef<DmMsg>) {
-        let config: DmConfig = self.store.config().clone();
-        let Some(copy) = self.replica.as_mut() else {
-            return;
-        };
         match part {
             InstallPart::Records { first, records } => {
-                if first {
-                    copy.incoming = Some(Incoming {
-                        last,
-                        store: Store::new(config),
-                        fences: FenceTable::default(),
-                        records: 0,
-                        producers: Producers::default(),
-                    });
-                }
-                let Some(inc) = copy.incoming.as_mut().filter(|i| i.last == last) else {
-                    return;
-                };
-                for (seq, time_ns, record) in records {
-                    let _ = inc.fences.admit_parts(&record.source, record.epoch);
-                    if let Err(e) = inc
-                        .store
-                        .restore(seq, Duration::from_nanos(time_ns), record)
-                    {
-                        tracing::warn!(dm = %copy.name, seq, error = %e, "replica: a snapshot record refused");
-                    }
-                    inc.records += 1;
+                let config = self.store.config().clone();
+                if let Some(replica) = self.storage.replica_mut() {
+                    replica.take_records(last, first, records, || Store::new(config));
                 }
             }
             InstallPart::Producers { producers } => {
-                let Some(inc) = copy.incoming.as_mut().filter(|i| i.last == last) else {
-                    return;
-                };
-                for (producer, pairs) in producers {
-                    for (pseq, seq) in pairs {
-                        inc.producers.note(producer, pseq, seq);
-                    }
+                if let Some(replica) = self.storage.replica_mut() {
+                    replica.take_producers(last, producers);
                 }
             }
             InstallPart::End {
                 records,
                 last_time_ns,
-            } => {
-                let Some(mut inc) = copy.incoming.take().filter(|i| i.last == last) else {
-                    return;
-                };
-                if inc.records != records {
-                    tracing::warn!(dm = %copy.name, got = inc.records, sent = records, "replica: a snapshot came incomplete; dropped");
-                    return;
-                }
-                inc.store
-                    .raise_floor(last.0 + 1, Duration::from_nanos(last_time_ns));
-                let table = std::mem::take(&mut inc.producers);
-                tracing::info!(dm = %copy.name, records, upto = last.0, "replica: a snapshot from the primary taken in");
-                self.store = inc.store;
-                self.fences = inc.fences;
-                self.producers = table;
-                copy.core.installed(last.0, last.1);
-                copy.snapshots_taken += 1;
-                copy.last_time = copy.last_time.max(self.store.last_time());
-                let journal = self.journal.as_mut().expect("a copy has a journal");
-                journal.snapshot(
-                    &self.store,
-                    &self.fences,
-                    &self.producers,
-                    Some((last, Vec::new())),
-                );
-                let me = myself.clone();
-                journal.after_durable(Box::new(move |durable| {
-                    if durable.is_ok() {
-                        let _ = me.cast(DmMsg::ReplicaDurable {
-                            seq: last.0,
-                            term: last.1,
-                        });
-                    }
-                }));
-            }
+            } => self.install(myself, last, records, last_time_ns),
         }
+    }
+
+    /// The snapshot ending at `last` came whole (`records` of them): it replaces the store,
+    /// and is journaled as a snapshot; the core hears once it is durable.
+    fn install(
+        &mut self,
+        myself: &ActorRef<DmMsg>,
+        last: (u64, u64),
+        records: u64,
+        last_time_ns: u64,
+    ) {
+        let Some((replica, journal)) = self.storage.replicated_mut() else {
+            return;
+        };
+        let Some(mut inc) = replica.incoming.take().filter(|i| i.last == last) else {
+            return;
+        };
+        if inc.records != records {
+            tracing::warn!(dm = %replica.name, got = inc.records, sent = records, "replica: a snapshot came incomplete; dropped");
+            return;
+        }
+        inc.store
+            .raise_floor(last.0 + 1, Duration::from_nanos(last_time_ns));
+        let table = std::mem::take(&mut inc.producers);
+        tracing::info!(dm = %replica.name, records, upto = last.0, "replica: a snapshot from the leader taken in");
+        self.store = inc.store;
+        self.fences = inc.fences;
+        self.producers = table;
+        replica.core.installed(last.0, last.1);
+        replica.snapshots_taken += 1;
+        replica.last_time = replica.last_time.max(self.store.last_time());
+        journal.snapshot(
+            &self.store,
+            &self.fences,
+            &self.producers,
+            Some((last, Vec::new())),
+        );
+        let me = myself.clone();
+        journal.after_durable(Box::new(move |durable| {
+            if durable.is_ok() {
+                let _ = me.cast(DmMsg::ReplicaDurable {
+                    seq: last.0,
+                    term: last.1,
+                });
+            }
+        }));
     }
 
     /// Carry out what the core asked for, in order.
@@ -283,7 +278,7 @@ impl DmState {
         // actor could cost the candidate its election
         let mut stopping: Option<String> = None;
         for o in out {
-            let Some(copy) = self.replica.as_mut() else {
+            let Some((replica, journal)) = self.storage.replicated_mut() else {
                 return;
             };
             if stopping.is_some() && !matches!(o, Out::Persist | Out::Send(..)) {
@@ -291,117 +286,100 @@ impl DmState {
             }
             match o {
                 Out::Persist => {
-                    let (term, vote) = (copy.core.term(), copy.core.voted_for());
-                    if let Err(e) = vote::save(&copy.dir, term, vote) {
-                        // a copy that cannot keep its vote must not take part
-                        tracing::error!(dm = %copy.name, error = %e, "replica: cannot persist its term and vote: stopping");
+                    if let Err(e) = replica.persist_vote() {
+                        // a replica that cannot keep its vote must not take part
+                        tracing::error!(dm = %replica.name, error = %e, "replica: cannot persist its term and vote: stopping");
                         myself.stop(Some(format!("cannot persist its vote: {e}")));
                         return;
                     }
                 }
-                Out::Send(to, msg) => copy.send(&to, msg),
-                Out::Truncate(seq) => {
-                    if let Some(j) = self.journal.as_mut() {
-                        j.truncate(seq);
-                    }
-                }
-                Out::Journal(from, to) => {
-                    let journal = self.journal.as_mut().expect("a copy has a journal");
-                    for op in copy.core.ops(from, to) {
-                        // the entries just arrived: their bytes as the primary encoded them
-                        match copy.arrived.as_ref().and_then(|r| r.entry(op.seq, op.term)) {
-                            Some(bytes) => journal.op_encoded(op, bytes),
-                            None => journal.op(op),
-                        }
-                    }
-                }
-                Out::Apply(from, to) => {
-                    let mut woken = Vec::new();
-                    for op in copy.core.ops(from, to) {
-                        if let Some(t) = op.time() {
-                            copy.last_time = copy.last_time.max(t);
-                        }
-                        let producers = (op.seq > copy.noted).then_some(&mut self.producers);
-                        let class = apply::apply(&mut self.store, &mut self.fences, producers, op);
-                        if let Some(class) = class.filter(|_| !self.waits.is_empty()) {
-                            woken.push((class.to_string(), op.seq));
-                        }
-                    }
-                    for (class, seq) in woken {
-                        self.wake(&class, seq);
-                    }
-                    if let Some(j) = self.journal.as_mut() {
-                        j.commit(to);
-                    }
-                    let copy = self.replica.as_mut().expect("checked above");
-                    let later = copy.acks.split_off(&(to + 1));
-                    for ack in std::mem::replace(&mut copy.acks, later)
-                        .into_values()
-                        .flatten()
-                    {
-                        ack(Ok(()));
-                    }
-                }
-                Out::Lead => {
-                    // its uncommitted entries will all be committed (a primary never cuts
-                    // its own log): a producer retrying one of them must get its seq, not
-                    // a second copy. Those, and any committed not yet applied, are noted
-                    // here, once (applying them notes nothing again).
-                    let (applied, last) = (copy.core.applied(), copy.core.last().0);
-                    copy.noted = last;
-                    for op in copy.core.ops(applied + 1, last) {
-                        apply::note(&mut self.producers, op);
-                    }
-                    tracing::info!(dm = %copy.name, node = %copy.core.me(), term = copy.core.term(), "replica: this copy is the primary");
-                    if let Some(bus) = &copy.events {
-                        bus.publish(marie_vocabulary::events::EventKind::DmPromoted {
-                            dm: copy.name.clone(),
-                            node: copy.core.me().to_string(),
-                            term: copy.core.term(),
-                        });
-                    }
-                    if let Err(e) = registry::publish(
-                        ModuleKind::Datamanager,
-                        self.id,
-                        &self.name,
-                        myself.get_cell(),
-                    ) {
-                        tracing::error!(dm = %self.name, error = %e, "replica: cannot publish the primary");
-                    }
-                }
+                Out::Send(to, msg) => replica.send(&to, msg),
+                Out::Truncate(seq) => journal.truncate(seq),
+                Out::Journal(from, to) => replica.journal_ops(journal, from, to),
+                Out::Apply(from, to) => self.apply_committed(from, to),
+                Out::Lead => self.lead(myself),
                 Out::StepDown(why) => {
-                    // every client's reference dies with this actor: they follow the name
-                    // to the new primary; the supervisor starts this copy again, from its
-                    // journal, as a follower
-                    tracing::warn!(dm = %copy.name, node = %copy.core.me(), term = copy.core.term(), why, "replica: no longer the primary: restarting as a copy");
-                    if let Some(bus) = &copy.events {
-                        bus.publish(marie_vocabulary::events::EventKind::DmFenced {
-                            dm: copy.name.clone(),
-                            node: copy.core.me().to_string(),
-                            term: copy.core.term(),
-                            why: why.clone(),
-                        });
-                    }
+                    replica.stepped_down(&why);
                     stopping = Some(why);
                 }
                 Out::Install(to, seq, term) => self.send_snapshot(&to, (seq, term)),
             }
         }
         if let Some(why) = stopping {
+            // (the stop's reason keeps the words it is known by)
             myself.stop(Some(format!("no longer the primary: {why}")));
             return;
         }
-        if let Some(copy) = self.replica.as_mut() {
-            copy.core.trim();
+        if let Some(replica) = self.storage.replica_mut() {
+            replica.core.trim();
         }
     }
 
-    /// Send the copy on node `to` the committed store, which ends at `last`.
-    fn send_snapshot(&mut self, to: &str, last: (u64, u64)) {
-        let Some(copy) = self.replica.as_ref() else {
+    /// Apply the committed entries `from` to `to` to the store, wake the waits they
+    /// satisfy, journal the commit, and send the answers that waited for it.
+    fn apply_committed(&mut self, from: u64, to: u64) {
+        let Some(replica) = self.storage.replica_mut() else {
             return;
         };
-        let (term, leader) = (copy.core.term(), copy.core.me().to_string());
+        let mut woken = Vec::new();
+        for op in replica.core.ops(from, to) {
+            if let Some(t) = op.time() {
+                replica.last_time = replica.last_time.max(t);
+            }
+            let producers = (op.seq > replica.noted).then_some(&mut self.producers);
+            let class = apply::apply(&mut self.store, &mut self.fences, producers, op);
+            if let Some(class) = class.filter(|_| !self.waits.is_empty()) {
+                woken.push((class.to_string(), op.seq));
+            }
+        }
+        for (class, seq) in woken {
+            self.wake(&class, seq);
+        }
+        if let Some((replica, journal)) = self.storage.replicated_mut() {
+            journal.commit(to);
+            replica.answer_upto(to);
+        }
+    }
+
+    /// This replica was elected leader: note the producers of the entries it holds not yet
+    /// applied, tell it, and publish it under the datamanager's name.
+    fn lead(&mut self, myself: &ActorRef<DmMsg>) {
+        let Some(replica) = self.storage.replica_mut() else {
+            return;
+        };
+        // its uncommitted entries will all be committed (a leader never cuts its own
+        // log): a producer retrying one of them must get its seq, not a second record.
+        // Those, and any committed not yet applied, are noted here, once (applying them
+        // notes nothing again).
+        let (applied, last) = (replica.core.applied(), replica.core.last().0);
+        replica.noted = last;
+        for op in replica.core.ops(applied + 1, last) {
+            apply::note(&mut self.producers, op);
+        }
+        tracing::info!(dm = %replica.name, node = %replica.core.me(), term = replica.core.term(), "replica: this replica is the leader");
+        if let Some(bus) = &replica.events {
+            bus.publish(EventKind::DmPromoted {
+                dm: replica.name.clone(),
+                node: replica.core.me().to_string(),
+                term: replica.core.term(),
+            });
+        }
+        if let Err(e) = registry::publish(
+            ModuleKind::Datamanager,
+            self.id,
+            &self.name,
+            myself.get_cell(),
+        ) {
+            tracing::error!(dm = %self.name, error = %e, "replica: cannot publish the leader");
+        }
+    }
+
+    /// Send the replica on node `to` the committed store, which ends at `last`.
+    fn send_snapshot(&mut self, to: &str, last: (u64, u64)) {
+        let Some(replica) = self.storage.replica() else {
+            return;
+        };
+        let (term, leader) = (replica.core.term(), replica.core.me().to_string());
         let part = |part| ReplicaMsg::Install {
             term,
             leader: leader.clone(),
@@ -409,7 +387,7 @@ impl DmState {
             last_term: last.1,
             part,
         };
-        tracing::info!(dm = %copy.name, to, records = self.store.len(), upto = last.0, "replica: sending a snapshot to a copy too far behind");
+        tracing::info!(dm = %replica.name, to, records = self.store.len(), upto = last.0, "replica: sending a snapshot to a replica too far behind");
         // sent part by part as the store is walked (a part is serialized when it is cast)
         let mut batch = Vec::with_capacity(INSTALL_PART);
         let mut first = true;
@@ -434,11 +412,11 @@ impl DmState {
             if batch.len() == INSTALL_PART || bytes >= INSTALL_BYTES {
                 bytes = 0;
                 let records = std::mem::take(&mut batch);
-                copy.send(to, part(InstallPart::Records { first, records }));
+                replica.send(to, part(InstallPart::Records { first, records }));
                 first = false;
             }
         });
-        copy.send(
+        replica.send(
             to,
             part(InstallPart::Records {
                 first,
@@ -450,18 +428,80 @@ impl DmState {
             producers.push((p, pairs.iter().copied().collect()));
             if producers.len() == INSTALL_PRODUCERS {
                 let producers = std::mem::take(&mut producers);
-                copy.send(to, part(InstallPart::Producers { producers }));
+                replica.send(to, part(InstallPart::Producers { producers }));
             }
         }
         if !producers.is_empty() {
-            copy.send(to, part(InstallPart::Producers { producers }));
+            replica.send(to, part(InstallPart::Producers { producers }));
         }
-        copy.send(
+        replica.send(
             to,
             part(InstallPart::End {
                 records: n,
                 last_time_ns: u64::try_from(self.store.last_time().as_nanos()).unwrap_or(u64::MAX),
             }),
         );
+    }
+}
+
+impl ReplicaState {
+    /// A part of records of the snapshot ending at `last`; the first part starts it afresh
+    /// (in a store `empty` makes).
+    fn take_records(
+        &mut self,
+        last: (u64, u64),
+        first: bool,
+        records: Vec<(u64, u64, NewRecord)>,
+        empty: impl FnOnce() -> Store,
+    ) {
+        if first {
+            self.incoming = Some(Incoming {
+                last,
+                store: empty(),
+                fences: FenceTable::default(),
+                records: 0,
+                producers: Producers::default(),
+            });
+        }
+        let Some(inc) = self.incoming.as_mut().filter(|i| i.last == last) else {
+            return;
+        };
+        for (seq, time_ns, record) in records {
+            let _ = inc.fences.admit_parts(&record.source, record.epoch);
+            if let Err(e) = inc
+                .store
+                .restore(seq, Duration::from_nanos(time_ns), record)
+            {
+                tracing::warn!(dm = %self.name, seq, error = %e, "replica: a snapshot record refused");
+            }
+            inc.records += 1;
+        }
+    }
+
+    /// A part of producers' pairs of the snapshot ending at `last`.
+    fn take_producers(&mut self, last: (u64, u64), producers: Vec<(u64, Vec<(u64, u64)>)>) {
+        let Some(inc) = self.incoming.as_mut().filter(|i| i.last == last) else {
+            return;
+        };
+        for (producer, pairs) in producers {
+            for (pseq, seq) in pairs {
+                inc.producers.note(producer, pseq, seq);
+            }
+        }
+    }
+
+    /// It was the leader and is not any more: say so (the log and the `dm_fenced` event).
+    fn stepped_down(&self, why: &str) {
+        // every client's reference dies with this actor: they follow the name to the new
+        // leader; the supervisor starts this replica again, from its journal, as a follower
+        tracing::warn!(dm = %self.name, node = %self.core.me(), term = self.core.term(), why, "replica: no longer the leader: restarting as a follower");
+        if let Some(bus) = &self.events {
+            bus.publish(EventKind::DmFenced {
+                dm: self.name.clone(),
+                node: self.core.me().to_string(),
+                term: self.core.term(),
+                why: why.to_string(),
+            });
+        }
     }
 }

@@ -918,7 +918,7 @@ impl Store {
     }
 
     /// The seqs [`Store::delete`] would delete (ascending), without deleting them: what a
-    /// replicated datamanager's primary proposes.
+    /// replicated datamanager's leader proposes.
     pub(crate) fn matching_seqs(&self, q: &Query) -> Vec<u64> {
         let mut victims: HashMap<Arc<str>, Vec<u64>> = HashMap::new();
         self.walk(q, &mut Victims(&mut victims));
@@ -970,9 +970,9 @@ impl Store {
 
     /// Every stored record, in seq order, as the journal's snapshot writes it.
     /// A digest of every stored record (seq, time stamp, names, payload), in seq order: two
-    /// stores with the same records have the same digest (a checker compares copies by it).
+    /// stores with the same records have the same digest (a checker compares replicas by it).
     pub fn digest(&self) -> u64 {
-        // FNV-1a, 64 bits: no dependency, and a copy differing in any byte differs here
+        // FNV-1a, 64 bits: no dependency, and a replica differing in any byte differs here
         // but with a chance of 2^-64
         let mut h: u64 = 0xcbf2_9ce4_8422_2325;
         let mut eat = |bytes: &[u8]| {

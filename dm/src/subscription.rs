@@ -140,7 +140,7 @@ async fn poll(client: DmClient, query: Query, mut next: u64, tx: mpsc::Sender<Re
 }
 
 /// After `error`: if the datamanager is gone, follow it to its next instance. One that
-/// replayed a journal (or a promoted copy) continues the seqs, and the subscription goes on
+/// replayed a journal (or a promoted replica) continues the seqs, and the subscription goes on
 /// where it was; one that started empty numbers from 1 again, and all it holds is new.
 async fn followed(
     client: &DmClient,

@@ -90,14 +90,19 @@ impl std::fmt::Display for Durability {
 }
 
 impl std::str::FromStr for Durability {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Durability, String> {
+    type Err = UnknownDurability;
+    fn from_str(s: &str) -> Result<Durability, UnknownDurability> {
         Durability::ALL
             .into_iter()
             .find(|d| d.as_str() == s)
-            .ok_or_else(|| format!("unknown durability {s:?}: use memory, process or sync"))
+            .ok_or_else(|| UnknownDurability(s.to_string()))
     }
 }
+
+/// A word that names no [`Durability`] (parsing one).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("unknown durability {0:?}: use memory, process or sync")]
+pub struct UnknownDurability(pub String);
 
 /// A journal of fewer put entries than this is never snapshotted.
 pub const SNAPSHOT_MIN: u64 = 65_536;
@@ -330,7 +335,7 @@ impl Journal {
         self.logged(op);
     }
 
-    /// [`Journal::op`] of an entry given as its journal entry `bytes` (as the primary sent
+    /// [`Journal::op`] of an entry given as its journal entry `bytes` (as the leader sent
     /// it: see `replica::Ops`).
     pub(crate) fn op_encoded(&mut self, op: &Op, bytes: &[u8]) {
         self.term_mark(op.term);
@@ -545,4 +550,22 @@ impl std::fmt::Debug for Journal {
 /// The journal directory of datamanager `name` under a node's data directory.
 pub fn journal_dir(data_dir: &Path, name: &str) -> PathBuf {
     data_dir.join("dm").join(name)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{Durability, UnknownDurability};
+
+    #[test]
+    fn durabilities_parse_by_their_names() {
+        for d in Durability::ALL {
+            assert_eq!(d.as_str().parse::<Durability>(), Ok(d));
+        }
+        let e = "disk".parse::<Durability>().unwrap_err();
+        assert_eq!(e, UnknownDurability("disk".into()));
+        assert_eq!(
+            e.to_string(),
+            "unknown durability \"disk\": use memory, process or sync"
+        );
+    }
 }

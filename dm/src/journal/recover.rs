@@ -65,8 +65,8 @@ pub(crate) struct ReplicaLog {
     /// The term of the last entry written.
     pub term: u64,
     /// Committed entries the journal holds, ending with `committed` (at most
-    /// [`TAIL_KEEP`], and [`KEEP_BYTES`](tail::KEEP_BYTES)): a copy that becomes the primary catches a lagging
-    /// copy up from them rather than with a snapshot of its store.
+    /// [`TAIL_KEEP`], and [`KEEP_BYTES`](tail::KEEP_BYTES)): a replica that becomes the leader catches a lagging
+    /// replica up from them rather than with a snapshot of its store.
     pub applied: Tail,
     /// (seq, term) of the entry just before the first of `applied`.
     pub before: (u64, u64),
@@ -423,12 +423,12 @@ mod tests {
         let mut b = Vec::new();
         let t = Duration::from_millis;
         entry::encode_term(&mut b, 1);
-        entry::encode_mark(&mut b, 1, &[]); // a primary's no-op
+        entry::encode_mark(&mut b, 1, &[]); // a leader's no-op
         entry::encode_put(&mut b, 2, t(10), &rec(2));
         entry::encode_put(&mut b, 3, t(11), &rec(3));
         entry::encode_commit(&mut b, 2);
         entry::encode_put(&mut b, 4, t(12), &rec(4));
-        // a new primary cut entry 4 and wrote its own
+        // a new leader cut entry 4 and wrote its own
         entry::encode_truncate(&mut b, 4);
         entry::encode_term(&mut b, 2);
         entry::encode_mark(&mut b, 4, &[]);
@@ -444,7 +444,7 @@ mod tests {
             log.tail.iter().map(|o| (o.seq, o.term)).collect::<Vec<_>>(),
             [(6, 2)]
         );
-        // the committed entries are kept too (a primary catches a copy up from them)
+        // the committed entries are kept too (a leader catches a replica up from them)
         assert_eq!(
             log.applied
                 .iter()

@@ -12,9 +12,9 @@
 //! durability there is no sync: a record acknowledged has been written to the OS, which
 //! keeps it through `kill -9`; and a batch handed over while the writer is idle is written
 //! by the datamanager itself, at once (one `write(2)` to the page cache: the hop to the
-//! blocking pool and back cost two thread wake-ups per batch — on a copy of a replicated
+//! blocking pool and back cost two thread wake-ups per batch — on a replica of a replicated
 //! datamanager, half of its context switches in the put-all bench: 13 k → 6 k per million
-//! records, the primary's 23 k → 12 k).
+//! records, the leader's 23 k → 12 k).
 //!
 //! # Why the blocking pool, not a thread of its own
 //! Under a simulated clock (tokio's paused time, `marie run --speed max`) the runtime moves
@@ -80,6 +80,17 @@ impl Shared {
     }
 }
 
+/// Why a batch could not be appended (its acknowledgements say it, as `Storage`).
+#[derive(Debug, thiserror::Error)]
+enum AppendError {
+    /// The current segment is full and the next could not be opened.
+    #[error("new segment in {}: {error}", dir.display())]
+    Roll { dir: PathBuf, error: std::io::Error },
+    /// The batch could not be written.
+    #[error("write to {}: {error}", dir.display())]
+    Write { dir: PathBuf, error: std::io::Error },
+}
+
 /// The files the journal writes, and how.
 pub(crate) struct Writer {
     pub dir: PathBuf,
@@ -122,7 +133,7 @@ impl Writer {
         for (bytes, acks, seqs) in group {
             let outcome = match &failed {
                 Some(why) => Err(why.clone()),
-                None => self.append(&bytes),
+                None => self.append(&bytes).map_err(|e| e.to_string()),
             };
             match outcome {
                 Ok(()) => {
@@ -163,13 +174,15 @@ impl Writer {
 
     /// Append one batch to the current segment (a new one if it is full); on failure cut the
     /// segment back to where the batch began.
-    fn append(&mut self, bytes: &[u8]) -> Result<(), String> {
+    fn append(&mut self, bytes: &[u8]) -> Result<(), AppendError> {
         if bytes.is_empty() {
             return Ok(());
         }
         if self.len >= segment::SEGMENT_BYTES {
-            self.roll()
-                .map_err(|e| format!("new segment in {}: {e}", self.dir.display()))?;
+            self.roll().map_err(|error| AppendError::Roll {
+                dir: self.dir.clone(),
+                error,
+            })?;
         }
         match self.file.write_all(bytes) {
             Ok(()) => {
@@ -179,8 +192,11 @@ impl Writer {
                     .fetch_add(bytes.len() as u64, Ordering::Relaxed);
                 Ok(())
             }
-            Err(e) => {
-                let why = format!("write to {}: {e}", self.dir.display());
+            Err(error) => {
+                let why = AppendError::Write {
+                    dir: self.dir.clone(),
+                    error,
+                };
                 if let Err(cut) = self.file.set_len(self.len) {
                     // a torn batch would hide every later one from recovery
                     self.shared

@@ -1,4 +1,4 @@
-//! What a committed entry does to a datamanager's store: the same on every copy, and in a
+//! What a committed entry does to a datamanager's store: the same on every replica, and in a
 //! replay of its journal.
 
 use super::op::{Op, OpBody};
@@ -9,7 +9,7 @@ use std::time::Duration;
 
 /// Apply the committed entry `op` to `store` (with the sources' epochs and, unless they
 /// were noted when it was proposed — `None` —, the producers' recent puts), which its log
-/// keeps. A put the store refuses (it cannot be: the primary checked it) is logged
+/// keeps. A put the store refuses (it cannot be: the leader checked it) is logged
 /// and skipped; what it was is returned, so the caller can wake its waits.
 pub(crate) fn apply<'a>(
     store: &mut Store,
@@ -19,7 +19,7 @@ pub(crate) fn apply<'a>(
 ) -> Option<&'a str> {
     match &op.body {
         OpBody::Put { time_ns, record } => {
-            // a copy takes the primary's word: the epoch is noted, not judged
+            // a replica takes the leader's word: the epoch is noted, not judged
             let _ = fences.admit_parts(&record.source, record.epoch);
             if let Some(producers) = producers {
                 note(producers, op);

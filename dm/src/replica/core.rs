@@ -1,4 +1,4 @@
-//! The replication protocol of a datamanager's copies as a pure state machine: Raft with a
+//! The replication protocol of a datamanager's replicas as a pure state machine: Raft with a
 //! fixed set of members, pre-votes and leader stickiness, with time passed in.
 //!
 //! The datamanager actor feeds it what arrives (a message, a tick, a durable write, a peer
@@ -7,12 +7,12 @@
 //! the protocol here, without an actor, a clock or a disk, lets the tests run thousands of
 //! seeded schedules of lost messages, partitions and crashes against its invariants:
 //!
-//! - at most one primary per term, and a primary's term is persisted before it is used;
-//! - an entry is committed only once a majority holds it durably, and a primary commits
+//! - at most one leader per term, and a leader's term is persisted before it is used;
+//! - an entry is committed only once a majority holds it durably, and a leader commits
 //!   by counting only entries of its own term (Raft's figure 8);
-//! - a committed entry is never truncated, and every copy applies the same entries in the
+//! - a committed entry is never truncated, and every replica applies the same entries in the
 //!   same order;
-//! - a copy votes only for a log at least as up to date as its own, once per term.
+//! - a replica votes only for a log at least as up to date as its own, once per term.
 
 use super::msg::{Ops, ReplicaMsg};
 use super::op::{Op, OpBody};
@@ -23,10 +23,10 @@ use std::time::Duration;
 /// The protocol's clocks.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Timing {
-    /// How often a primary sends to a copy it has nothing else to send (a heartbeat).
+    /// How often a leader sends to a replica it has nothing else to send (a heartbeat).
     pub heartbeat: Duration,
-    /// How long a copy goes without hearing from a primary before it campaigns (plus a
-    /// random part of up to half of it), and how long a primary goes without hearing from a
+    /// How long a replica goes without hearing from a leader before it campaigns (plus a
+    /// random part of up to half of it), and how long a leader goes without hearing from a
     /// majority before it steps down.
     pub election: Duration,
 }
@@ -34,8 +34,8 @@ pub struct Timing {
 impl Default for Timing {
     fn default() -> Timing {
         // The node's failure detector declares a lost node within 1.2 s and closes its
-        // sessions; a copy that sees the primary leave campaigns at once. The election
-        // timeout is the backstop (a primary hung with its node alive), not the fast path.
+        // sessions; a replica that sees the leader leave campaigns at once. The election
+        // timeout is the backstop (a leader hung with its node alive), not the fast path.
         Timing {
             heartbeat: Duration::from_millis(100),
             election: Duration::from_millis(2500),
@@ -43,11 +43,11 @@ impl Default for Timing {
     }
 }
 
-/// Entries a primary sends in one `Append` at most.
+/// Entries a leader sends in one `Append` at most.
 const OPS_PER_APPEND: usize = 4096;
-/// Entries a primary has in flight to one copy at most.
+/// Entries a leader has in flight to one replica at most.
 const INFLIGHT: u64 = 65_536;
-/// Applied entries a copy keeps in memory to catch a lagging copy up (beyond them, or
+/// Applied entries a replica keeps in memory to catch a lagging replica up (beyond them, or
 /// beyond [`KEEP_BYTES`](tail::KEEP_BYTES), a snapshot is sent).
 pub(crate) const TAIL_KEEP: usize = 16_384;
 
@@ -56,7 +56,7 @@ pub(crate) const TAIL_KEEP: usize = 16_384;
 pub(crate) enum Out {
     /// Persist the term and the vote before anything after this is sent.
     Persist,
-    /// Send `msg` to the copy on node `to`.
+    /// Send `msg` to the replica on node `to`.
     Send(String, ReplicaMsg),
     /// Drop the (uncommitted) entries from this seq on: from the journal too.
     Truncate(u64),
@@ -65,13 +65,13 @@ pub(crate) enum Out {
     Journal(u64, u64),
     /// Apply the committed entries from this seq to that one, in order ([`Core::op`]).
     Apply(u64, u64),
-    /// This copy is the primary now: publish it under the datamanager's name.
+    /// This replica is the leader now: publish it under the datamanager's name.
     Lead,
-    /// This copy was the primary and is not any more (a newer term, or it lost its
+    /// This replica was the leader and is not any more (a newer term, or it lost its
     /// majority): it must stop answering as one.
     StepDown(String),
-    /// Send the copy on node `to` a snapshot of the committed store (it needs entries this
-    /// copy no longer holds). The snapshot ends at seq `.1` of term `.2`.
+    /// Send the replica on node `to` a snapshot of the committed store (it needs entries this
+    /// replica no longer holds). The snapshot ends at seq `.1` of term `.2`.
     Install(String, u64, u64),
 }
 
@@ -79,9 +79,9 @@ pub(crate) enum Out {
 struct Progress {
     /// The next seq to send.
     next: u64,
-    /// The highest seq known held (durably) by the copy as here.
+    /// The highest seq known held (durably) by the replica as here.
     matched: u64,
-    /// When the copy last answered in this term.
+    /// When the replica last answered in this term.
     acked: Option<Duration>,
     /// When something was last sent to it.
     sent: Option<Duration>,
@@ -104,7 +104,7 @@ enum Role {
     },
 }
 
-/// The protocol state of one copy.
+/// The protocol state of one replica.
 #[derive(Clone, Debug)]
 pub(crate) struct Core {
     me: String,
@@ -119,11 +119,11 @@ pub(crate) struct Core {
     applied: u64,
     /// The last entry known durable here, as (seq, term).
     durable: (u64, u64),
-    /// The highest seq this copy knows to match the current primary's log.
+    /// The highest seq this replica knows to match the current leader's log.
     verified: u64,
     role: Role,
     leader: Option<String>,
-    /// When this copy last heard from the current primary.
+    /// When this replica last heard from the current leader.
     heard: Option<Duration>,
     deadline: Duration,
     visible: BTreeSet<String>,
@@ -132,17 +132,17 @@ pub(crate) struct Core {
     keep: usize,
     /// Bytes of entries kept in memory ([`KEEP_BYTES`](tail::KEEP_BYTES)).
     keep_bytes: usize,
-    /// The configured primary: it campaigns first.
+    /// The configured leader: it campaigns first.
     preferred: bool,
-    /// The configured primary's node (the first member as configured).
+    /// The configured leader's node (the first member as configured).
     preferred_member: String,
-    /// On a primary that is not the preferred copy: when it last asked that copy to take
-    /// over (`TimeoutNow`), and its last seq then. For a while after, the other copies get
+    /// On a leader that is not the preferred replica: when it last asked that replica to take
+    /// over (`TimeoutNow`), and its last seq then. For a while after, the other replicas get
     /// nothing past that seq (see [`Core::hand_over`]).
     handed: Option<(Duration, u64)>,
 }
 
-/// What a copy recovered from its disk.
+/// What a replica recovered from its disk.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct Restored {
     /// Its term and vote.
@@ -154,15 +154,15 @@ pub(crate) struct Restored {
     /// Its entries after it, not known committed.
     pub(crate) tail: Vec<Op>,
     /// Committed (applied) entries its journal still holds, ending with `committed`: kept
-    /// to catch a lagging copy up without a snapshot, should it become the primary.
+    /// to catch a lagging replica up without a snapshot, should it become the leader.
     pub(crate) applied: Tail,
     /// (seq, term) of the entry just before the first of `applied` (unused when empty).
     pub(crate) before: (u64, u64),
 }
 
 impl Core {
-    /// A copy `me` of a datamanager kept on `members` (node names, `me` among them), with
-    /// what its journal held, at `now`. `eager`: campaign soon (the configured primary).
+    /// A replica `me` of a datamanager kept on `members` (node names, `me` among them), with
+    /// what its journal held, at `now`. `eager`: campaign soon (the configured leader).
     pub(crate) fn new(
         me: &str,
         members: &[String],
@@ -226,7 +226,7 @@ impl Core {
         core
     }
 
-    /// Keep at most `n` applied entries in memory (beyond them a lagging copy is sent a
+    /// Keep at most `n` applied entries in memory (beyond them a lagging replica is sent a
     /// snapshot).
     pub(crate) fn with_tail_keep(mut self, n: usize) -> Core {
         self.keep = n.max(1);
@@ -257,12 +257,12 @@ impl Core {
         self.voted_for.as_deref()
     }
 
-    /// Whether it is the primary.
+    /// Whether it is the leader.
     pub(crate) fn is_leader(&self) -> bool {
         matches!(self.role, Role::Leader { .. })
     }
 
-    /// The primary it follows (itself if it is one), if it knows one.
+    /// The leader it follows (itself if it is one), if it knows one.
     pub(crate) fn leader(&self) -> Option<&str> {
         self.leader.as_deref()
     }
@@ -307,7 +307,7 @@ impl Core {
             .range(start.min(self.tail.len())..end.min(self.tail.len()))
     }
 
-    /// How far each copy is behind the primary's last entry (on the primary).
+    /// How far each replica is behind the leader's last entry (on the leader).
     pub(crate) fn lag(&self) -> BTreeMap<String, u64> {
         let last = self.last().0;
         match &self.role {
@@ -327,13 +327,13 @@ impl Core {
         self.members.iter().filter(move |m| **m != self.me)
     }
 
-    /// The other copies' nodes.
+    /// The other replicas' nodes.
     pub(crate) fn others(&self) -> Vec<String> {
         self.peers().cloned().collect()
     }
 
     fn random(&mut self, below: u64) -> u64 {
-        // xorshift64*: enough to spread the copies' timeouts
+        // xorshift64*: enough to spread the replicas' timeouts
         self.rng ^= self.rng >> 12;
         self.rng ^= self.rng << 25;
         self.rng ^= self.rng >> 27;
@@ -345,10 +345,10 @@ impl Core {
         self.timing.election + Duration::from_millis(self.random(half + 1))
     }
 
-    // ---- the primary's side --------------------------------------------------------------
+    // ---- the leader's side --------------------------------------------------------------
 
-    /// Append `body` as the primary's next entry (its seq is the record's); `None` if this
-    /// copy is not the primary. The actor journals it and calls [`Core::replicate`] once it
+    /// Append `body` as the leader's next entry (its seq is the record's); `None` if this
+    /// replica is not the leader. The actor journals it and calls [`Core::replicate`] once it
     /// has gathered a batch.
     pub(crate) fn propose(&mut self, body: OpBody) -> Option<&Op> {
         if !self.is_leader() {
@@ -363,7 +363,7 @@ impl Core {
         self.tail.back()
     }
 
-    /// Send each copy what it lacks (or a heartbeat, if it is due).
+    /// Send each replica what it lacks (or a heartbeat, if it is due).
     pub(crate) fn replicate(&mut self, now: Duration, out: &mut Vec<Out>) {
         let Role::Leader { peers, .. } = &self.role else {
             return;
@@ -376,7 +376,7 @@ impl Core {
     }
 
     /// Send `peer` what it lacks (or a heartbeat). `shared`: the entries sent to other
-    /// copies in this round, by the seq they start at.
+    /// replicas in this round, by the seq they start at.
     fn send_to(
         &mut self,
         peer: &str,
@@ -388,7 +388,7 @@ impl Core {
         let (last, base, commit, term) = (self.last().0, self.base, self.commit, self.term);
         let commit_term = self.term_at(commit).unwrap_or(0);
         let (heartbeat, election) = (self.timing.heartbeat, self.timing.election);
-        // while the preferred copy takes over, the others get nothing it may lack
+        // while the preferred replica takes over, the others get nothing it may lack
         let last = match self.handed {
             Some((at, upto))
                 if peer != self.preferred_member && now.saturating_sub(at) < election / 4 =>
@@ -437,7 +437,7 @@ impl Core {
             0
         };
         let start = (pr.next - base.0 - 1) as usize;
-        // the copies that lack the same entries share them (encoded once when sent)
+        // the replicas that lack the same entries share them (encoded once when sent)
         let ops = match shared
             .iter()
             .find(|(at, o)| *at == prev_seq + 1 && o.len() == n)
@@ -512,15 +512,15 @@ impl Core {
         self.send_to(from, now, false, &mut Vec::new(), out);
     }
 
-    /// Ask the preferred copy, as up to date as this primary, to take over — at most once
-    /// per election timeout (if it cannot win, this primary goes on).
+    /// Ask the preferred replica, as up to date as this leader, to take over — at most once
+    /// per election timeout (if it cannot win, this leader goes on).
     ///
-    /// This primary goes on taking writes meanwhile, but for a quarter of an election
-    /// timeout the other copies get none past its last seq now (Raft stops taking writes
-    /// instead): else a copy that got one the preferred copy had not yet would refuse it
-    /// its vote, this primary would step down at its campaign all the same, and the next
-    /// primary would hand over again — a round of failed hand-overs, one every ~0.8 s, seen
-    /// in the failover bench. The preferred copy commits them with this one meanwhile.
+    /// This leader goes on taking writes meanwhile, but for a quarter of an election
+    /// timeout the other replicas get none past its last seq now (Raft stops taking writes
+    /// instead): else a replica that got one the preferred replica had not yet would refuse it
+    /// its vote, this leader would step down at its campaign all the same, and the next
+    /// leader would hand over again — a round of failed hand-overs, one every ~0.8 s, seen
+    /// in the failover bench. The preferred replica commits them with this one meanwhile.
     fn hand_over(&mut self, now: Duration, out: &mut Vec<Out>) {
         if self
             .handed
@@ -552,7 +552,7 @@ impl Core {
         }
     }
 
-    /// The last seq durable here that is still this copy's entry.
+    /// The last seq durable here that is still this replica's entry.
     fn durable_here(&self) -> u64 {
         if self.term_at(self.durable.0) == Some(self.durable.1) {
             self.durable.0
@@ -578,7 +578,7 @@ impl Core {
         }
     }
 
-    /// Tell `leader` how far this copy holds its log, durably.
+    /// Tell `leader` how far this replica holds its log, durably.
     fn held_ack(&self, leader: String) -> Out {
         Out::Send(
             leader,
@@ -599,7 +599,7 @@ impl Core {
         }
     }
 
-    /// Drop the oldest applied entries beyond what it keeps in memory (a copy that still
+    /// Drop the oldest applied entries beyond what it keeps in memory (a replica that still
     /// needs them gets a snapshot). Called once the actor has carried out the [`Out`]s that
     /// name entries: they may name these.
     pub(crate) fn trim(&mut self) {
@@ -622,7 +622,7 @@ impl Core {
         }
     }
 
-    /// A message from another copy.
+    /// A message from another replica.
     pub(crate) fn receive(&mut self, msg: ReplicaMsg, now: Duration, out: &mut Vec<Out>) {
         match msg {
             ReplicaMsg::Append {
@@ -670,7 +670,7 @@ impl Core {
                 out,
             ),
             ReplicaMsg::TimeoutNow { term, from } => {
-                // from this term's primary only: campaign at once, no pre-vote
+                // from this term's leader only: campaign at once, no pre-vote
                 if term == self.term
                     && self.leader.as_deref() == Some(from.as_str())
                     && !self.is_leader()
@@ -693,7 +693,7 @@ impl Core {
 
     /// A snapshot part from `leader` in `term`, of a snapshot ending at `seq`: whether to
     /// take it in (else the answer is in `out`). Taking it in counts as hearing from the
-    /// primary. A snapshot this copy has committed past already is not taken: its own
+    /// leader. A snapshot this replica has committed past already is not taken: its own
     /// committed entries are the same, and newer.
     pub(crate) fn install_from(
         &mut self,
@@ -749,8 +749,9 @@ impl Core {
             self.adopt(term, out);
         }
         if self.is_leader() {
-            // two primaries in one term cannot happen: a bug, said loudly
-            tracing::error!(term, me = %self.me, other = leader, "two primaries in one term");
+            // two leaders in one term cannot happen: a bug, said loudly
+            tracing::error!(term, me = %self.me, other = leader, "two leaders in one term");
+            // (the reason reaches the `dm_fenced` event: its words stay)
             self.step_down("another primary in its term", out);
         }
         if self.leader.as_deref() != Some(leader) {
@@ -869,15 +870,15 @@ impl Core {
             self.apply(out);
         }
         if first_new.is_none() {
-            // nothing new to make durable: answer now (it also says this copy is alive)
+            // nothing new to make durable: answer now (it also says this replica is alive)
             out.push(self.held_ack(leader));
         }
     }
 
     // ---- elections -----------------------------------------------------------------------
 
-    /// Whether it heard from a live primary within the election timeout (then it neither
-    /// votes for another nor takes its term: a copy that was cut off cannot unseat it).
+    /// Whether it heard from a live leader within the election timeout (then it neither
+    /// votes for another nor takes its term: a replica that was cut off cannot unseat it).
     fn sticky(&self, now: Duration) -> bool {
         match &self.role {
             Role::Leader { .. } => true,
@@ -940,13 +941,13 @@ impl Core {
         answer(self, granted, out);
     }
 
-    /// A candidate less up to date than this copy asked for its vote, and this copy knows
-    /// no primary (also after taking the candidate's term): campaign soon rather than at its
+    /// A candidate less up to date than this replica asked for its vote, and this replica knows
+    /// no leader (also after taking the candidate's term): campaign soon rather than at its
     /// election timeout. Else nobody may win until that timeout (2.5 s and more): when this
-    /// copy's own campaign was refused by one that had not yet seen the primary go
-    /// (stickiness), or when the candidate took this copy's term from a primary that then
-    /// went (a hand-over to a copy that lacked an entry, the primary frozen at once: this
-    /// copy's failure detector then names a node that is no longer its primary).
+    /// replica's own campaign was refused by one that had not yet seen the leader go
+    /// (stickiness), or when the candidate took this replica's term from a leader that then
+    /// went (a hand-over to a replica that lacked an entry, the leader frozen at once: this
+    /// replica's failure detector then names a node that is no longer its leader).
     fn campaign_soon_if_behind(&mut self, up_to_date: bool, now: Duration) {
         if !up_to_date && self.leader.is_none() && !self.is_leader() {
             let soon = now + self.rank_delay(None);
@@ -988,12 +989,12 @@ impl Core {
         }
     }
 
-    /// Ask every visible copy for its (pre-)vote.
+    /// Ask every visible replica for its (pre-)vote.
     fn campaign(&mut self, pre: bool, now: Duration, out: &mut Vec<Out>) {
         self.campaign_as(pre, false, now, out);
     }
 
-    /// [`Core::campaign`]; `transfer`: at the primary's word (voters ignore stickiness).
+    /// [`Core::campaign`]; `transfer`: at the leader's word (voters ignore stickiness).
     fn campaign_as(&mut self, pre: bool, transfer: bool, now: Duration, out: &mut Vec<Out>) {
         if !pre {
             self.term += 1;
@@ -1053,7 +1054,7 @@ impl Core {
         self.handed = None;
         self.leader = Some(self.me.clone());
         self.verified = 0;
-        // a new primary's first entry: committing it commits everything before it
+        // a new leader's first entry: committing it commits everything before it
         self.tail.push_back(Op {
             seq: next,
             term: self.term,
@@ -1093,7 +1094,7 @@ impl Core {
         }
     }
 
-    /// The copy on `node` is reachable (it joined the copies' group).
+    /// The replica on `node` is reachable (it joined the replicas' group).
     pub(crate) fn peer_up(&mut self, node: &str, now: Duration, out: &mut Vec<Out>) {
         if node == self.me || !self.members.iter().any(|m| m == node) {
             return;
@@ -1103,8 +1104,8 @@ impl Core {
             && self.leader.is_none()
             && self.visible.len() + 1 >= self.majority()
         {
-            // a majority is reachable and no primary is known (a cluster starting): campaign
-            // soon rather than after an election timeout — the configured primary at once,
+            // a majority is reachable and no leader is known (a cluster starting): campaign
+            // soon rather than after an election timeout — the configured leader at once,
             // the others a quarter of a timeout later, so that it rarely has to be handed
             // the role afterwards (its node may be busy starting)
             let grace = if self.preferred {
@@ -1126,8 +1127,8 @@ impl Core {
         }
     }
 
-    /// The copy on `node` is gone (its actor died, or its node was declared down). If it was
-    /// the primary, campaign soon: the lower-ranked copies first, so they rarely split.
+    /// The replica on `node` is gone (its actor died, or its node was declared down). If it was
+    /// the leader, campaign soon: the lower-ranked replicas first, so they rarely split.
     pub(crate) fn peer_down(&mut self, node: &str, now: Duration) {
         self.visible.remove(node);
         if self.leader.as_deref() == Some(node) && !self.is_leader() {
@@ -1138,7 +1139,7 @@ impl Core {
         }
     }
 
-    /// How long to wait before campaigning when no primary is known: the configured primary
+    /// How long to wait before campaigning when no leader is known: the configured leader
     /// at once, the others by their rank among the members (but `gone`), 60 ms apart, with a
     /// little randomness, so that they rarely split the votes.
     fn rank_delay(&mut self, gone: Option<&str>) -> Duration {

@@ -1,40 +1,40 @@
-//! Copies of a datamanager on other nodes: a put is acknowledged once a majority of the
-//! copies hold it, and when the primary's node is lost a copy takes over, with no
-//! acknowledged record lost and never two primaries acknowledging.
+//! Replicas of a datamanager on other nodes: a put is acknowledged once a majority of the
+//! replicas hold it, and when the leader's node is lost a replica takes over, with no
+//! acknowledged record lost and never two leaders acknowledging.
 //!
 //! # The protocol: Raft, on the datamanager's own journal
-//! A replicated datamanager runs one copy on each of its member nodes (three, usually:
-//! a majority of three survives the loss of any one). The copies elect a *primary* by
+//! A replicated datamanager runs one replica on each of its member nodes (three, usually:
+//! a majority of three survives the loss of any one). The replicas elect a *leader* by
 //! Raft's rules (the `core` module, a pure state machine tested against thousands of seeded
-//! schedules of lost messages, partitions and crashes); only the primary is published
+//! schedules of lost messages, partitions and crashes); only the leader is published
 //! under the datamanager's name and id, so clients find it, and only it takes writes. Every
 //! write becomes an entry of a replicated log whose place *is* the record's seq: the
-//! sequence numbers continue across a change of primary. An entry is committed once a
-//! majority of copies have journaled it at the datamanager's durability; only then is it
-//! applied to a copy's store (on every copy alike), and only then does the primary answer
-//! the write. A select on the primary sees committed records only.
+//! sequence numbers continue across a change of leader. An entry is committed once a
+//! majority of replicas have journaled it at the datamanager's durability; only then is it
+//! applied to a replica's store (on every replica alike), and only then does the leader answer
+//! the write. A select on the leader sees committed records only.
 //!
-//! - **Terms fence.** Each election raises the term; a copy's term and vote are synced to
-//!   disk before they are used (`vote`). A primary that meets a newer term, or that has not
+//! - **Terms fence.** Each election raises the term; a replica's term and vote are synced to
+//!   disk before they are used (`vote`). A leader that meets a newer term, or that has not
 //!   heard from a majority for an election timeout, *steps down*: its actor stops, so every
-//!   client's reference to it dies and the clients follow the name to the new primary; its
-//!   supervisor starts it again from its journal as a copy, which catches up.
-//! - **Uncommitted entries** of a lost primary are kept or cut by the next one (Raft's log
+//!   client's reference to it dies and the clients follow the name to the new leader; its
+//!   supervisor starts it again from its journal as a follower, which catches up.
+//! - **Uncommitted entries** of a lost leader are kept or cut by the next one (Raft's log
 //!   matching); a client that got no answer retries with the same producer number, and the
 //!   `producers` table (replicated with the records) stores it once.
-//! - **Elections are fast and rare.** A copy campaigns as soon as it sees the primary's
-//!   copy leave its group (the node's failure detector closes a lost node's sessions), the
-//!   lower-ranked copies first; an election timeout is the backstop. Pre-votes and leader
-//!   stickiness keep a copy that was cut off from unseating a working primary when it
-//!   comes back; a copy that refuses a less up-to-date candidate while no primary is known
-//!   campaigns soon itself (the candidate cannot win, and this copy may have been refused
-//!   by one that had not yet seen the primary go). A primary not on the configured node
-//!   hands its role there once that copy caught up, and meanwhile sends the others nothing
-//!   that copy may lack (so none of them refuses it its vote).
-//! - **Catching up**: a copy that lags gets the entries it lacks, or — when the primary
+//! - **Elections are fast and rare.** A replica campaigns as soon as it sees the leader's
+//!   replica leave its group (the node's failure detector closes a lost node's sessions), the
+//!   lower-ranked replicas first; an election timeout is the backstop. Pre-votes and leader
+//!   stickiness keep a replica that was cut off from unseating a working leader when it
+//!   comes back; a replica that refuses a less up-to-date candidate while no leader is known
+//!   campaigns soon itself (the candidate cannot win, and this replica may have been refused
+//!   by one that had not yet seen the leader go). A leader not on the configured node
+//!   hands its role there once that replica caught up, and meanwhile sends the others nothing
+//!   that replica may lack (so none of them refuses it its vote).
+//! - **Catching up**: a replica that lags gets the entries it lacks, or — when the leader
 //!   no longer holds them in memory — a snapshot of the committed store in parts.
 //!
-//! Copies find each other in the `pg` scope [`SCOPE`], one group per (datamanager, node).
+//! Replicas find each other in the `pg` scope [`SCOPE`], one group per (datamanager, node).
 //! A replicated datamanager needs a journal (`process` or `sync`): Raft's vote must
 //! survive a restart.
 
@@ -50,35 +50,35 @@ pub(crate) use msg::RawOps;
 pub(crate) use msg::{InstallPart, ReplicaMsg};
 pub(crate) use op::{Op, OpBody};
 
-/// The `pg` scope the copies of replicated datamanagers meet in.
+/// The `pg` scope the replicas of replicated datamanagers meet in.
 pub const SCOPE: &str = "marie.dm";
 
-/// Where a datamanager's copies are: the nodes that keep one, and which is this one.
+/// Where a datamanager's replicas are: the nodes that keep one, and which is this one.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Replication {
-    /// The node this copy runs on (its name in `members`).
+    /// The node this replica runs on (its name in `members`).
     pub me: String,
-    /// Every node that keeps a copy, the preferred primary first (it campaigns at once when
+    /// Every node that keeps a replica, the preferred leader first (it campaigns at once when
     /// it starts; the others wait for an election timeout).
     pub members: Vec<String>,
     /// The protocol's clocks.
     pub timing: Timing,
-    /// Applied entries the primary keeps in memory to catch a lagging copy up (and at most
-    /// `KEEP_BYTES` (32 MiB) of them); a copy further behind is sent a snapshot of the store
+    /// Applied entries the leader keeps in memory to catch a lagging replica up (and at most
+    /// `KEEP_BYTES` (32 MiB) of them); a replica further behind is sent a snapshot of the store
     /// instead ([`Replication::DEFAULT_CATCH_UP`]).
     pub catch_up: usize,
 }
 
 impl Replication {
     /// Default [`Replication::catch_up`]: 16 384 entries — over a second of puts at
-    /// 10 000 a second, so a copy frozen for less than the failure detector's deadline
+    /// 10 000 a second, so a replica frozen for less than the failure detector's deadline
     /// catches up from memory, at a few MB with small records. (It was 262 144, about a
-    /// second at the bench's full rate: a copy's memory 141 MB against 81 MB now, even
-    /// under `KEEP_BYTES` (32 MiB), in a put-all round of 1 M records; and ~24 % of a copy's time
-    /// spent filling fresh memory.) A faster producer's lagging copy takes a snapshot.
+    /// second at the bench's full rate: a replica's memory 141 MB against 81 MB now, even
+    /// under `KEEP_BYTES` (32 MiB), in a put-all round of 1 M records; and ~24 % of a replica's time
+    /// spent filling fresh memory.) A faster producer's lagging replica takes a snapshot.
     pub const DEFAULT_CATCH_UP: usize = core::TAIL_KEEP;
 
-    /// Copy `me` of a datamanager kept on `members` (the first is the preferred primary).
+    /// Replica `me` of a datamanager kept on `members` (the first is the preferred leader).
     pub fn new(
         me: impl Into<String>,
         members: impl IntoIterator<Item = impl Into<String>>,
@@ -91,7 +91,7 @@ impl Replication {
         }
     }
 
-    /// Keep `entries` applied entries in memory to catch a lagging copy up (at least 1).
+    /// Keep `entries` applied entries in memory to catch a lagging replica up (at least 1).
     pub fn with_catch_up(mut self, entries: usize) -> Replication {
         self.catch_up = entries.max(1);
         self
@@ -99,28 +99,72 @@ impl Replication {
 
     /// Why this cannot work, if it cannot: `me` not among the members, a duplicate member,
     /// fewer than three (no majority survives a loss then).
-    pub fn check(&self) -> Result<(), String> {
+    pub fn check(&self) -> Result<(), ReplicationError> {
         let mut sorted = self.members.clone();
         sorted.sort();
         sorted.dedup();
         if sorted.len() != self.members.len() {
-            return Err(format!(
-                "a node is named twice in the copies {:?}",
-                self.members
-            ));
+            return Err(ReplicationError::Duplicate(self.members.clone()));
         }
         if !self.members.contains(&self.me) {
-            return Err(format!(
-                "this node ({}) is not among the copies {:?}",
-                self.me, self.members
-            ));
+            return Err(ReplicationError::NotAMember {
+                me: self.me.clone(),
+                members: self.members.clone(),
+            });
         }
         if self.members.len() < 3 {
-            return Err(format!(
-                "{} copies: a majority of them cannot survive the loss of one; keep three or more",
-                self.members.len()
-            ));
+            return Err(ReplicationError::TooFew(self.members.len()));
         }
         Ok(())
+    }
+}
+
+/// Why a [`Replication`] cannot work ([`Replication::check`]). Its texts speak of
+/// "copies", the word of a node's config (`copies = [...]`).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum ReplicationError {
+    /// A node is named twice among the members.
+    #[error("a node is named twice in the copies {0:?}")]
+    Duplicate(Vec<String>),
+    /// `me` is not among the members.
+    #[error("this node ({me}) is not among the copies {members:?}")]
+    NotAMember {
+        /// This node.
+        me: String,
+        /// The members.
+        members: Vec<String>,
+    },
+    /// Fewer than three members: a majority of them cannot survive the loss of one.
+    #[error("{0} copies: a majority of them cannot survive the loss of one; keep three or more")]
+    TooFew(usize),
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Replication;
+
+    #[test]
+    fn a_replication_that_cannot_work_says_why() {
+        let check = |me: &str, members: &[&str]| {
+            Replication::new(me, members.iter().copied())
+                .check()
+                .map_err(|e| e.to_string())
+        };
+        assert_eq!(check("a", &["a", "b", "c"]), Ok(()));
+        assert_eq!(
+            check("a", &["a", "b", "a"]),
+            Err(r#"a node is named twice in the copies ["a", "b", "a"]"#.to_string())
+        );
+        assert_eq!(
+            check("d", &["a", "b", "c"]),
+            Err(r#"this node (d) is not among the copies ["a", "b", "c"]"#.to_string())
+        );
+        assert_eq!(
+            check("a", &["a", "b"]),
+            Err(
+                "2 copies: a majority of them cannot survive the loss of one; keep three or more"
+                    .to_string()
+            )
+        );
     }
 }

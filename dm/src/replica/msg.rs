@@ -1,4 +1,4 @@
-//! What the copies of a replicated datamanager tell each other (inside `DmMsg::Replica`).
+//! What the replicas of a replicated datamanager tell each other (inside `DmMsg::Replica`).
 
 use super::op::Op;
 use crate::entry::{self, Entry};
@@ -6,38 +6,38 @@ use crate::record::NewRecord;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use std::sync::{Arc, OnceLock};
 
-/// One message between the copies of a datamanager; Raft's, with pre-votes.
+/// One message between the replicas of a datamanager; Raft's, with pre-votes.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum ReplicaMsg {
-    /// The primary's entries from `prev_seq + 1` on (none: a heartbeat), and how far it has
+    /// The leader's entries from `prev_seq + 1` on (none: a heartbeat), and how far it has
     /// committed.
     Append {
-        /// The primary's term.
+        /// The leader's term.
         term: u64,
-        /// The primary (its node).
+        /// The leader (its node).
         leader: String,
-        /// The entry just before `ops`, which the copy must hold with `prev_term`.
+        /// The entry just before `ops`, which the replica must hold with `prev_term`.
         prev_seq: u64,
         /// Its term.
         prev_term: u64,
         /// The entries.
         ops: Ops,
-        /// The primary's commit seq.
+        /// The leader's commit seq.
         commit: u64,
     },
-    /// A copy's answer to an `Append` or to an installed snapshot.
+    /// A replica's answer to an `Append` or to an installed snapshot.
     AppendAck {
-        /// The copy's term.
+        /// The replica's term.
         term: u64,
-        /// The copy (its node).
+        /// The replica (its node).
         from: String,
         /// Whether it holds the entries; if not, `last` says from where to send.
         ok: bool,
-        /// If `ok`, the last seq it holds as the primary does and durably; if not, the seq
-        /// after which the primary should send again.
+        /// If `ok`, the last seq it holds as the leader does and durably; if not, the seq
+        /// after which the leader should send again.
         last: u64,
     },
-    /// A request for a vote (or, `pre`, whether a vote would be given: a copy that cannot
+    /// A request for a vote (or, `pre`, whether a vote would be given: a replica that cannot
     /// win does not raise everyone's term).
     Vote {
         /// The term asked for.
@@ -50,18 +50,18 @@ pub enum ReplicaMsg {
         last_term: u64,
         /// A pre-vote: nobody changes their term for it.
         pre: bool,
-        /// Asked at the primary's word (`TimeoutNow`): a copy that heard from that primary
+        /// Asked at the leader's word (`TimeoutNow`): a replica that heard from that leader
         /// lately votes all the same.
         #[serde(default)]
         transfer: bool,
     },
-    /// The primary hands its role to the preferred copy, which is as up to date as it:
-    /// campaign now (Raft's leadership transfer). So the primary is where the configuration
-    /// puts it — beside the operations that use it — whenever that copy runs.
+    /// The leader hands its role to the preferred replica, which is as up to date as it:
+    /// campaign now (Raft's leadership transfer). So the leader is where the configuration
+    /// puts it — beside the operations that use it — whenever that replica runs.
     TimeoutNow {
-        /// The primary's term.
+        /// The leader's term.
         term: u64,
-        /// The primary (its node).
+        /// The leader (its node).
         from: String,
     },
     /// An answer to a `Vote`.
@@ -77,12 +77,12 @@ pub enum ReplicaMsg {
         /// An answer to a pre-vote.
         pre: bool,
     },
-    /// A part of a snapshot of the primary's committed records, for a copy too far behind
-    /// for entries (the primary no longer holds them).
+    /// A part of a snapshot of the leader's committed records, for a replica too far behind
+    /// for entries (the leader no longer holds them).
     Install {
-        /// The primary's term.
+        /// The leader's term.
         term: u64,
-        /// The primary (its node).
+        /// The leader (its node).
         leader: String,
         /// The seq the snapshot ends with.
         last_seq: u64,
@@ -93,12 +93,12 @@ pub enum ReplicaMsg {
     },
 }
 
-/// One part of a snapshot sent to a copy: records in seq order, then the end.
+/// One part of a snapshot sent to a replica: records in seq order, then the end.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum InstallPart {
     /// Records (the first part of a snapshot has `first`).
     Records {
-        /// The first part: a copy drops any snapshot it was receiving.
+        /// The first part: a replica drops any snapshot it was receiving.
         first: bool,
         /// (seq, time stamp in ns, record, the epoch its source had).
         records: Vec<(u64, u64, NewRecord)>,
@@ -132,25 +132,25 @@ impl ReplicaMsg {
     }
 }
 
-/// The entries of an `Append`. The primary sends the same new entries to every copy: the
+/// The entries of an `Append`. The leader sends the same new entries to every replica: the
 /// `Append`s of one round share them, encoded once for all, straight from its log (no clone
-/// of an entry; each copy's message is serialized on its own when it is cast).
+/// of an entry; each replica's message is serialized on its own when it is cast).
 ///
 /// On the wire: `count u32 LE | journal entries`, in the datamanager journal's own format
 /// (`journal`: length, CRC-32C, body): a `Term` entry before the first entry
 /// and wherever the term changes, then the entries (puts, and marks for deletes and
-/// no-ops) — every byte but the count under a checksum. So a copy decodes them with the
+/// no-ops) — every byte but the count under a checksum. So a replica decodes them with the
 /// journal's hand-written decoder, not MessagePack with field names, and journals each
 /// entry's bytes as they came instead of encoding every record again; the checksum is
-/// checked on arrival. (This, the primary's clone of each entry gone, and the log trimmed
-/// in place, in one commit: a copy's CPU per million records in the put-all bench went from
+/// checked on arrival. (This, the leader's clone of each entry gone, and the log trimmed
+/// in place, in one commit: a replica's CPU per million records in the put-all bench went from
 /// 1.05 s to 0.85 s — not measured apart.)
 #[derive(Clone)]
 pub struct Ops(Arc<OpsInner>);
 
 struct OpsInner {
     raw: Arc<RawOps>,
-    /// The entries, decoded: on a copy at arrival; on the primary only if asked (a test).
+    /// The entries, decoded: on a replica at arrival; on the leader only if asked (a test).
     ops: OnceLock<Vec<Op>>,
 }
 
@@ -168,6 +168,23 @@ struct Span {
     term: u64,
     at: usize,
     end: usize,
+}
+
+/// Why bytes that came as a replica's entries do not decode.
+#[derive(Debug, thiserror::Error)]
+enum BadEntries {
+    #[error("entries: no count")]
+    NoCount,
+    #[error("entries: a count beyond the bytes")]
+    CountBeyondBytes,
+    #[error("entries: {0}")]
+    Torn(entry::Torn),
+    #[error("entries: an entry before its term")]
+    BeforeItsTerm,
+    #[error("entries: an entry that is not a log entry")]
+    NotALogEntry,
+    #[error("entries: bytes after the last entry")]
+    Trailing,
 }
 
 impl RawOps {
@@ -195,29 +212,27 @@ impl RawOps {
     }
 
     /// The entries in `bytes` (as [`RawOps::encode`] wrote them), decoded, with the bytes.
-    fn decode(bytes: &[u8]) -> Result<(RawOps, Vec<Op>), String> {
-        let bad = |what: &str| format!("entries: {what}");
+    fn decode(bytes: &[u8]) -> Result<(RawOps, Vec<Op>), BadEntries> {
         let count = bytes
             .get(..4)
             .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-            .ok_or_else(|| bad("no count"))? as usize;
+            .ok_or(BadEntries::NoCount)? as usize;
         // every entry takes a header and a kind at least: a count beyond them is a lie
         if count > bytes.len() / (entry::HEADER + 1) {
-            return Err(bad("a count beyond the bytes"));
+            return Err(BadEntries::CountBeyondBytes);
         }
         let (mut spans, mut ops) = (Vec::with_capacity(count), Vec::with_capacity(count));
         let mut at = 4;
         let mut term = None;
         while ops.len() < count {
-            let (e, len) = entry::decode(&bytes[at..]).map_err(|t| bad(&t.to_string()))?;
+            let (e, len) = entry::decode(&bytes[at..]).map_err(BadEntries::Torn)?;
             if let Entry::Term { term: t } = e {
                 term = Some(t);
                 at += len;
                 continue;
             }
-            let term = term.ok_or_else(|| bad("an entry before its term"))?;
-            let op =
-                Op::from_entry(e, term).map_err(|_| bad("an entry that is not a log entry"))?;
+            let term = term.ok_or(BadEntries::BeforeItsTerm)?;
+            let op = Op::from_entry(e, term).map_err(|_| BadEntries::NotALogEntry)?;
             spans.push(Span {
                 seq: op.seq,
                 term,
@@ -228,7 +243,7 @@ impl RawOps {
             at += len;
         }
         if at != bytes.len() {
-            return Err(bad("bytes after the last entry"));
+            return Err(BadEntries::Trailing);
         }
         let raw = RawOps {
             wire: bytes.to_vec(),
@@ -270,7 +285,7 @@ impl Ops {
         }))
     }
 
-    /// The entries `ops`, encoded from where they are (the primary's log): none is cloned.
+    /// The entries `ops`, encoded from where they are (the leader's log): none is cloned.
     pub fn encode<'a>(ops: impl IntoIterator<Item = &'a Op>) -> Ops {
         Ops(Arc::new(OpsInner {
             raw: Arc::new(RawOps::encode(ops)),
@@ -288,7 +303,7 @@ impl Ops {
         self.0.raw.spans.is_empty()
     }
 
-    /// Their bytes, as they came: a copy journals them as they are.
+    /// Their bytes, as they came: a replica journals them as they are.
     pub(crate) fn raw(&self) -> Arc<RawOps> {
         self.0.raw.clone()
     }
@@ -409,10 +424,10 @@ mod tests {
     #[test]
     fn shared_entries_are_encoded_once_and_cross_the_wire_whole() {
         let log = entries();
-        // the primary encodes from its log, without cloning an entry
+        // the leader encodes from its log, without cloning an entry
         let ops = Ops::encode(&log);
         assert_eq!(ops.len(), 3);
-        assert!(ops.0.ops.get().is_none(), "nothing decoded on the primary");
+        assert!(ops.0.ops.get().is_none(), "nothing decoded on the leader");
         let (a, b) = (append(ops.clone()), append(ops.clone()));
         let wa = rmp_serde::to_vec(&a).unwrap();
         assert_eq!(rmp_serde::to_vec(&b).unwrap(), wa);

@@ -1,4 +1,4 @@
-//! One entry of a replicated datamanager's log, as it is journaled and sent to copies.
+//! One entry of a replicated datamanager's log, as it is journaled and sent to replicas.
 
 use crate::entry::{self, Entry};
 use crate::record::NewRecord;
@@ -12,7 +12,7 @@ use std::time::Duration;
 pub struct Op {
     /// Place in the log (1, 2, 3, … without gaps).
     pub seq: u64,
-    /// The term of the primary that appended it.
+    /// The term of the leader that appended it.
     pub term: u64,
     /// What it does once committed.
     pub body: OpBody,
@@ -21,9 +21,9 @@ pub struct Op {
 /// What an [`Op`] does to the datamanager's store once it is committed.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum OpBody {
-    /// Store `record` as record `seq`, stamped `time_ns` on the primary's clock.
+    /// Store `record` as record `seq`, stamped `time_ns` on the leader's clock.
     Put {
-        /// The time stamp, in nanoseconds of the primary's clock.
+        /// The time stamp, in nanoseconds of the leader's clock.
         time_ns: u64,
         /// The record.
         record: NewRecord,
@@ -33,8 +33,8 @@ pub enum OpBody {
         /// Their seqs.
         seqs: Vec<u64>,
     },
-    /// Nothing: a new primary's first entry, which commits what its predecessors left
-    /// uncommitted (Raft's rule: a primary counts copies only of its own term's entries).
+    /// Nothing: a new leader's first entry, which commits what its predecessors left
+    /// uncommitted (Raft's rule: a leader counts replicas only of its own term's entries).
     Noop,
 }
 

@@ -1,20 +1,20 @@
-//! The entries a copy holds in memory, and the memory they take.
+//! The entries a replica holds in memory, and the memory they take.
 //!
-//! A copy keeps its log's newest entries — the uncommitted ones, and the last applied
-//! ones, to catch a lagging copy up without a snapshot. That tail was bounded in entries
+//! A replica keeps its log's newest entries — the uncommitted ones, and the last applied
+//! ones, to catch a lagging replica up without a snapshot. That tail was bounded in entries
 //! only, 262 144 by default: with records of a few dozen bytes that was tens of MB per
-//! copy (with the byte bound too, a copy still took 141 MB against 81 MB with the new
+//! replica (with the byte bound too, a replica still took 141 MB against 81 MB with the new
 //! default, in a put-all round of 1 M records), with 100 KB scans it would have been tens
 //! of GB, and filling that much fresh
-//! memory took ~24 % of a copy's time in a put-all bench profile. So it is bounded in bytes too
+//! memory took ~24 % of a replica's time in a put-all bench profile. So it is bounded in bytes too
 //! ([`KEEP_BYTES`](tail::KEEP_BYTES)): each entry counts what it holds ([`op_bytes`]), and the tail knows its
 //! sum without walking it; and the default in entries is 16 384.
 
 use super::op::{Op, OpBody};
 use std::collections::VecDeque;
 
-/// Bytes of applied entries a copy keeps in memory at most (with
-/// [`super::Replication::catch_up`] entries at most); a copy further behind is sent a
+/// Bytes of applied entries a replica keeps in memory at most (with
+/// [`super::Replication::catch_up`] entries at most); a replica further behind is sent a
 /// snapshot. Counted as the entries and their records' heap bytes: the allocator's own
 /// overhead comes on top (the 1 M-record measurement above suggests up to about as much
 /// again).

@@ -1,4 +1,4 @@
-//! A copy's term and vote, kept on disk: a copy that restarts must not vote twice in a term
+//! A replica's term and vote, kept on disk: a replica that restarts must not vote twice in a term
 //! (Raft's safety rests on it), so both are synced before a vote or a new term is used.
 //!
 //! One small file, `VOTE` in the journal's directory (which the journal's lock guards):

@@ -523,7 +523,7 @@ impl NodeConfig {
             if !d.copies.is_empty() {
                 let replication = marie_dm::Replication::new(self.name.clone(), d.copies.clone());
                 let durable = self.durability_of(d) != Durability::Memory;
-                let problem = replication.check().err().or_else(|| {
+                let problem = replication.check().err().map(|e| e.to_string()).or_else(|| {
                     (!durable).then(|| {
                         "copies need a journal: give the node a data_dir (durability process or sync)"
                             .to_string()

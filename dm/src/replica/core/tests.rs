@@ -1,6 +1,6 @@
 //! Seeded schedules of lost messages, partitions, crashes and restarts against the
-//! protocol's invariants: one primary per term, every copy applies the same entries, and
-//! every entry a primary committed (a client's acknowledgement) survives.
+//! protocol's invariants: one leader per term, every replica applies the same entries, and
+//! every entry a leader committed (a client's acknowledgement) survives.
 
 use super::*;
 use std::collections::{HashMap, VecDeque};
@@ -35,7 +35,8 @@ struct Disk {
     snap: (u64, u64),
 }
 
-struct Copy {
+/// One simulated replica: its core (`None` while it is down), its disk, what it applied.
+struct SimReplica {
     core: Option<Core>,
     disk: Disk,
     /// What it applied, in order (its "store").
@@ -45,17 +46,17 @@ struct Copy {
 struct Sim {
     now: Duration,
     rng: Rng,
-    copies: HashMap<String, Copy>,
+    replicas: HashMap<String, SimReplica>,
     /// Messages in flight per (from, to), in order.
     wires: BTreeMap<(String, String), VecDeque<ReplicaMsg>>,
     /// Groups that cannot reach each other.
     cut: BTreeSet<(String, String)>,
     leaders: BTreeMap<u64, String>,
-    /// Every entry any copy applied, by seq: all must agree.
+    /// Every entry any replica applied, by seq: all must agree.
     truth: BTreeMap<u64, Op>,
-    /// Proposals acknowledged (committed at their primary): (seq, id).
+    /// Proposals acknowledged (committed at their leader): (seq, id).
     acked: Vec<(u64, u64)>,
-    /// Proposals made and not yet acknowledged, per primary: (seq, term, id).
+    /// Proposals made and not yet acknowledged, per leader: (seq, term, id).
     pending: Vec<(String, u64, u64, u64)>,
     next_id: u64,
     keep: usize,
@@ -89,7 +90,7 @@ impl Sim {
         let mut sim = Sim {
             now: Duration::ZERO,
             rng: Rng(seed | 1),
-            copies: HashMap::new(),
+            replicas: HashMap::new(),
             wires: BTreeMap::new(),
             cut: BTreeSet::new(),
             leaders: BTreeMap::new(),
@@ -105,9 +106,9 @@ impl Sim {
             harsh: false,
         };
         for m in MEMBERS {
-            sim.copies.insert(
+            sim.replicas.insert(
                 m.to_string(),
-                Copy {
+                SimReplica {
                     core: None,
                     disk: Disk::default(),
                     applied: Vec::new(),
@@ -125,12 +126,12 @@ impl Sim {
     }
 
     fn reachable(&self, a: &str, b: &str) -> bool {
-        let up = |n: &str| self.copies.get(n).is_some_and(|c| c.core.is_some());
+        let up = |n: &str| self.replicas.get(n).is_some_and(|c| c.core.is_some());
         up(a) && up(b) && !self.cut.contains(&(a.to_string(), b.to_string()))
     }
 
     fn start(&mut self, m: &str) {
-        let disk = self.copies[m].disk.clone();
+        let disk = self.replicas[m].disk.clone();
         let committed = if disk.applied == disk.snap.0 {
             disk.snap
         } else {
@@ -170,10 +171,10 @@ impl Sim {
         )
         .with_tail_keep(self.keep)
         .with_tail_bytes(self.keep_bytes);
-        let copy = self.copies.get_mut(m).unwrap();
+        let replica = self.replicas.get_mut(m).unwrap();
         // the store is rebuilt from the disk: the applied prefix
-        copy.applied.retain(|o| o.seq <= disk.applied);
-        copy.core = Some(core);
+        replica.applied.retain(|o| o.seq <= disk.applied);
+        replica.core = Some(core);
         let mut out = Vec::new();
         for other in MEMBERS {
             if other != m && self.reachable(m, other) {
@@ -193,7 +194,7 @@ impl Sim {
     }
 
     fn core(&mut self, m: &str) -> &mut Core {
-        self.copies
+        self.replicas
             .get_mut(m)
             .unwrap()
             .core
@@ -206,27 +207,27 @@ impl Sim {
         self.stop(m, true);
     }
 
-    /// Copy `m` stops, and the others see it go; what was on its way to it is lost, and
+    /// Replica `m` stops, and the others see it go; what was on its way to it is lost, and
     /// what it sent too if `its_node` went with it (else its node's sessions carry it on).
     fn stop(&mut self, m: &str, its_node: bool) {
-        self.copies.get_mut(m).unwrap().core = None;
+        self.replicas.get_mut(m).unwrap().core = None;
         self.pending.retain(|p| p.0 != m);
         for other in MEMBERS {
             if its_node {
                 self.wires.remove(&(m.to_string(), other.to_string()));
             }
             self.wires.remove(&(other.to_string(), m.to_string()));
-            if other != m && self.copies[other].core.is_some() {
+            if other != m && self.replicas[other].core.is_some() {
                 let now = self.now;
                 self.core(other).peer_down(m, now);
             }
         }
     }
 
-    /// Copy `m`'s node is frozen or cut off: nothing more comes from it or reaches it, and
+    /// Replica `m`'s node is frozen or cut off: nothing more comes from it or reaches it, and
     /// nobody has seen it go yet (their failure detectors have not spoken).
     fn vanish(&mut self, m: &str) {
-        self.copies.get_mut(m).unwrap().core = None;
+        self.replicas.get_mut(m).unwrap().core = None;
         for other in MEMBERS {
             self.wires.remove(&(m.to_string(), other.to_string()));
             self.wires.remove(&(other.to_string(), m.to_string()));
@@ -242,7 +243,7 @@ impl Sim {
             for (x, y) in [(alone, other), (other, alone)] {
                 self.cut.insert((x.to_string(), y.to_string()));
                 self.wires.remove(&(x.to_string(), y.to_string()));
-                if self.copies[x].core.is_some() {
+                if self.replicas[x].core.is_some() {
                     let now = self.now;
                     self.core(x).peer_down(y, now);
                 }
@@ -262,10 +263,10 @@ impl Sim {
         }
     }
 
-    /// Carry out what copy `m`'s core asked for (the actor's part).
+    /// Carry out what replica `m`'s core asked for (the actor's part).
     fn run(&mut self, m: &str, out: Vec<Out>) {
         self.carry_out(m, out);
-        if let Some(core) = self.copies.get_mut(m).and_then(|c| c.core.as_mut()) {
+        if let Some(core) = self.replicas.get_mut(m).and_then(|c| c.core.as_mut()) {
             core.trim();
         }
     }
@@ -279,7 +280,7 @@ impl Sim {
                 continue;
             }
             if std::env::var_os("SIM_TRACE").is_some() {
-                let c = self.copies[m].core.as_ref();
+                let c = self.replicas[m].core.as_ref();
                 eprintln!(
                     "{:?} {m} t{:?} last{:?} c{:?}: {}",
                     self.now,
@@ -308,14 +309,14 @@ impl Sim {
                     }
                 );
             }
-            let copy = self.copies.get_mut(m).unwrap();
-            let Some(core) = copy.core.as_mut() else {
+            let replica = self.replicas.get_mut(m).unwrap();
+            let Some(core) = replica.core.as_mut() else {
                 return;
             };
             match o {
                 Out::Persist => {
-                    copy.disk.term = core.term();
-                    copy.disk.voted_for = core.voted_for().map(str::to_string);
+                    replica.disk.term = core.term();
+                    replica.disk.voted_for = core.voted_for().map(str::to_string);
                 }
                 Out::Send(to, msg) => {
                     if self.reachable(m, &to) {
@@ -326,16 +327,16 @@ impl Sim {
                     }
                 }
                 Out::Truncate(from) => {
-                    assert!(from > copy.disk.applied, "{m} truncates applied {from}");
-                    copy.disk.log.retain(|o| o.seq < from);
+                    assert!(from > replica.disk.applied, "{m} truncates applied {from}");
+                    replica.disk.log.retain(|o| o.seq < from);
                 }
                 Out::Journal(from, to) => {
                     let ops: Vec<Op> = core.ops(from, to).cloned().collect();
                     assert_eq!(ops.len() as u64, to - from + 1);
-                    copy.disk.log.retain(|o| o.seq < from);
-                    copy.disk.log.extend(ops);
+                    replica.disk.log.retain(|o| o.seq < from);
+                    replica.disk.log.extend(ops);
                     // durable at once (written to the OS before the next step)
-                    let last = *copy
+                    let last = *replica
                         .disk
                         .log
                         .last()
@@ -352,17 +353,21 @@ impl Sim {
                     for op in ops {
                         assert_eq!(
                             op.seq,
-                            copy.applied.last().map_or(copy.disk.snap.0, |o| o.seq) + 1
+                            replica
+                                .applied
+                                .last()
+                                .map_or(replica.disk.snap.0, |o| o.seq)
+                                + 1
                         );
                         if let Some(t) = self.truth.get(&op.seq) {
                             assert_eq!(t, &op, "{m} applied another entry at {}", op.seq);
                         }
                         self.truth.insert(op.seq, op.clone());
-                        copy.disk.applied = op.seq;
-                        copy.applied.push(op);
+                        replica.disk.applied = op.seq;
+                        replica.applied.push(op);
                     }
-                    // a primary acknowledges its committed proposals
-                    let applied = copy.disk.applied;
+                    // a leader acknowledges its committed proposals
+                    let applied = replica.disk.applied;
                     let (mut keep, mut done) = (Vec::new(), Vec::new());
                     for p in self.pending.drain(..) {
                         if p.0 == m && p.1 <= applied {
@@ -396,19 +401,19 @@ impl Sim {
                     // the committed store up to `seq`, taken in by `to` in one go
                     let (a, b) = (m.to_string(), to.clone());
                     let reachable = self.reachable(&a, &b);
-                    let copy = self.copies.get_mut(m).unwrap();
-                    let core = copy.core.as_mut().unwrap();
+                    let replica = self.replicas.get_mut(m).unwrap();
+                    let core = replica.core.as_mut().unwrap();
                     if !reachable {
                         continue;
                     }
-                    let snapshot: Vec<Op> = copy
+                    let snapshot: Vec<Op> = replica
                         .applied
                         .iter()
                         .filter(|o| o.seq <= seq)
                         .cloned()
                         .collect();
                     let leader_term = core.term();
-                    let target = self.copies.get_mut(&to).unwrap();
+                    let target = self.replicas.get_mut(&to).unwrap();
                     let core_to = target.core.as_mut().unwrap();
                     let mut more = Vec::new();
                     *self.counts.entry("installs").or_default() += 1;
@@ -431,7 +436,7 @@ impl Sim {
         }
     }
 
-    /// Copy `m`'s actor stopped and was started again (its node lives on): what it sent
+    /// Replica `m`'s actor stopped and was started again (its node lives on): what it sent
     /// is still on its way, what was on its way to it is lost.
     fn restart(&mut self, m: &str) {
         self.stop(m, false);
@@ -457,7 +462,7 @@ impl Sim {
 
     fn propose(&mut self, m: &str) {
         let id = self.next_id;
-        let Some(core) = self.copies.get_mut(m).unwrap().core.as_mut() else {
+        let Some(core) = self.replicas.get_mut(m).unwrap().core.as_mut() else {
             return;
         };
         let Some(op) = core.propose(put(id, self.payload)) else {
@@ -474,7 +479,7 @@ impl Sim {
 
     fn tick_all(&mut self) {
         for m in MEMBERS {
-            if self.copies[m].core.is_some() {
+            if self.replicas[m].core.is_some() {
                 let mut out = Vec::new();
                 let now = self.now;
                 self.core(m).tick(now, &mut out);
@@ -486,7 +491,12 @@ impl Sim {
     fn leader(&self) -> Option<String> {
         MEMBERS
             .iter()
-            .find(|m| self.copies[**m].core.as_ref().is_some_and(Core::is_leader))
+            .find(|m| {
+                self.replicas[**m]
+                    .core
+                    .as_ref()
+                    .is_some_and(Core::is_leader)
+            })
             .map(|m| m.to_string())
     }
 
@@ -532,9 +542,9 @@ impl Sim {
             }
             96 if faults => {
                 let m = MEMBERS[self.rng.below(3) as usize];
-                if self.copies[m].core.is_some() && self.up() == 3 {
+                if self.replicas[m].core.is_some() && self.up() == 3 {
                     self.crash(m);
-                } else if self.copies[m].core.is_none() {
+                } else if self.replicas[m].core.is_none() {
                     self.start(m);
                 }
             }
@@ -552,14 +562,14 @@ impl Sim {
     }
 
     fn up(&self) -> usize {
-        self.copies.values().filter(|c| c.core.is_some()).count()
+        self.replicas.values().filter(|c| c.core.is_some()).count()
     }
 
-    /// Heal everything and run without faults until every copy applied the same entries.
+    /// Heal everything and run without faults until every replica applied the same entries.
     fn settle(&mut self) {
         self.heal();
         for m in MEMBERS {
-            if self.copies[m].core.is_none() {
+            if self.replicas[m].core.is_none() {
                 self.start(m);
             }
         }
@@ -567,7 +577,7 @@ impl Sim {
             self.step_with(false, false);
             let applied: Vec<u64> = MEMBERS
                 .iter()
-                .map(|m| self.copies[*m].disk.applied)
+                .map(|m| self.replicas[*m].disk.applied)
                 .collect();
             let settled = self.leader().is_some()
                 && self.pending.is_empty()
@@ -579,14 +589,14 @@ impl Sim {
         }
         panic!(
             "did not settle: applied {:?}",
-            MEMBERS.map(|m| self.copies[m].disk.applied)
+            MEMBERS.map(|m| self.replicas[m].disk.applied)
         );
     }
 
     fn check(&self) {
-        // every copy applied the same entries: the truth, in full
+        // every replica applied the same entries: the truth, in full
         for m in MEMBERS {
-            let c = &self.copies[m];
+            let c = &self.replicas[m];
             for op in &c.applied {
                 assert_eq!(&self.truth[&op.seq], op, "{m} at {}", op.seq);
             }
@@ -609,7 +619,7 @@ impl Sim {
 
 #[test]
 fn the_entries_kept_in_memory_are_bounded_in_bytes_too() {
-    // 200 puts of 16 KiB (~3.2 MiB) on copies that may keep 1 MiB: far fewer entries than
+    // 200 puts of 16 KiB (~3.2 MiB) on replicas that may keep 1 MiB: far fewer entries than
     // the bound in entries, far more bytes
     let mut sim = Sim::new(5, TAIL_KEEP);
     sim.keep_bytes = 1 << 20;
@@ -626,7 +636,7 @@ fn the_entries_kept_in_memory_are_bounded_in_bytes_too() {
     sim.settle();
     sim.check();
     for m in MEMBERS {
-        let tail = &sim.copies[m].core.as_ref().expect("running").tail;
+        let tail = &sim.replicas[m].core.as_ref().expect("running").tail;
         assert!(
             tail.bytes() <= 1 << 20 && tail.len() < 100,
             "{m} keeps {} entries, {} bytes",
@@ -634,10 +644,10 @@ fn the_entries_kept_in_memory_are_bounded_in_bytes_too() {
             tail.bytes()
         );
     }
-    // and a copy started again on its disk keeps no more than that either
+    // and a replica started again on its disk keeps no more than that either
     sim.crash("b");
     sim.start("b");
-    let tail = &sim.copies["b"].core.as_ref().unwrap().tail;
+    let tail = &sim.replicas["b"].core.as_ref().unwrap().tail;
     assert!(
         tail.bytes() <= 1 << 20,
         "b restarted keeps {} bytes",
@@ -645,8 +655,8 @@ fn the_entries_kept_in_memory_are_bounded_in_bytes_too() {
     );
 }
 
-/// Copies on a 2.5 s election timeout and a `heartbeat_ms` heartbeat (the production
-/// clocks' order), started together and settled with a primary.
+/// Replicas on a 2.5 s election timeout and a `heartbeat_ms` heartbeat (the production
+/// clocks' order), started together and settled with a leader.
 fn with_clocks(seed: u64, heartbeat_ms: u64) -> Sim {
     let mut sim = Sim::new(seed, TAIL_KEEP);
     sim.timing = Timing {
@@ -672,9 +682,9 @@ fn with_clocks(seed: u64, heartbeat_ms: u64) -> Sim {
 #[test]
 fn a_more_up_to_date_copy_refused_by_a_copy_that_had_not_seen_the_primary_go_is_elected_soon() {
     // b, more up to date, campaigns first and is refused by c, which has not yet seen the
-    // primary go; c, once it has, campaigns and b refuses it (c lacks an entry). Nobody
+    // leader go; c, once it has, campaigns and b refuses it (c lacks an entry). Nobody
     // campaigned again before b's election timeout (2.5 s and more: 3.245 s in all, with
-    // the default clocks): now b, refusing a less up-to-date candidate with no primary
+    // the default clocks): now b, refusing a less up-to-date candidate with no leader
     // known, campaigns again soon.
     let mut sim = with_clocks(11, 250);
     assert_eq!(sim.leader().as_deref(), Some("a"));
@@ -696,7 +706,7 @@ fn a_more_up_to_date_copy_refused_by_a_copy_that_had_not_seen_the_primary_go_is_
     );
 }
 
-/// Time passing in steps of 5 ms, every message delivered, until a primary is elected after
+/// Time passing in steps of 5 ms, every message delivered, until a leader is elected after
 /// `gone` vanished; each `(copy, ms)` sees `gone` leave `ms` after. How long it took.
 fn elected_after_loss(sim: &mut Sim, gone: &str, detectors: &[(&str, u64)]) -> Duration {
     let lost = sim.now;
@@ -719,9 +729,9 @@ fn elected_after_loss(sim: &mut Sim, gone: &str, detectors: &[(&str, u64)]) -> D
     }
 }
 
-/// A stand-in primary (not `a`, the configured one) elected while `a` was down, and `a`
+/// A stand-in leader (not `a`, the configured one) elected while `a` was down, and `a`
 /// back and caught up, with the stand-in's `TimeoutNow` to it held back: (stand-in, the
-/// third copy, the held message).
+/// third replica, the held message).
 fn a_hand_over_held(sim: &mut Sim) -> (String, String, ReplicaMsg) {
     sim.crash("a");
     let all = &mut |_: &str, _: &str, _: &mut ReplicaMsg| true;
@@ -747,15 +757,15 @@ fn a_hand_over_held(sim: &mut Sim) -> (String, String, ReplicaMsg) {
 #[test]
 fn a_primary_handing_over_while_it_takes_writes_gets_the_configured_copy_elected_at_once() {
     // The failover bench's rounds of failed hand-overs: the stand-in asked a to take over
-    // and went on taking writes; the third copy got one a had not yet, refused a its vote,
-    // the stand-in stepped down at a's campaign all the same — and the next primary handed
-    // over again, one failed round every ~0.8 s. Now the other copies get nothing past the
+    // and went on taking writes; the third replica got one a had not yet, refused a its vote,
+    // the stand-in stepped down at a's campaign all the same — and the next leader handed
+    // over again, one failed round every ~0.8 s. Now the other replicas get nothing past the
     // hand-over's seq for a while: a wins at its first campaign.
     let mut sim = Sim::new(17, TAIL_KEEP);
     sim.settle();
     let (stand_in, third, held) = a_hand_over_held(&mut sim);
     let term = sim.core(&stand_in).term();
-    // a write after the hand-over: it reaches the third copy only (a's copy is delayed)
+    // a write after the hand-over: it reaches the third replica only (its message to a is delayed)
     sim.propose(&stand_in);
     exchange(&mut sim, &mut |_, t, _| t != "a");
     sim.wires
@@ -778,14 +788,14 @@ fn a_primary_handing_over_while_it_takes_writes_gets_the_configured_copy_elected
 #[test]
 fn a_copy_that_took_a_less_up_to_date_candidates_term_campaigns_soon_once_its_primary_is_lost() {
     // The failover bench's slow SIGSTOP rounds: a campaigned (asked to take over) lacking
-    // an entry the third copy had; the third copy took a's term, refused it, and forgot its
-    // primary — which was frozen just then. Its failure detector's word about that node no
-    // longer moved its election (not its primary any more): nobody campaigned until its
+    // an entry the third replica had; the third replica took a's term, refused it, and forgot its
+    // leader — which was frozen just then. Its failure detector's word about that node no
+    // longer moved its election (not its leader any more): nobody campaigned until its
     // election timeout (3.25 s in the bench). Now it campaigns soon after refusing.
     let mut sim = with_clocks(19, 100);
     let (stand_in, third, held) = a_hand_over_held(&mut sim);
     let term = sim.core(&stand_in).term() + 1;
-    // past the hand-over's quiet while, a write reaches the third copy and not a
+    // past the hand-over's quiet while, a write reaches the third replica and not a
     sim.now += sim.timing.election / 2;
     sim.propose(&stand_in);
     exchange(&mut sim, &mut |_, t, _| t != "a");
@@ -799,9 +809,9 @@ fn a_copy_that_took_a_less_up_to_date_candidates_term_campaigns_soon_once_its_pr
     sim.vanish(&stand_in);
     assert_eq!(sim.core(&third).leader(), None, "it took a's term");
     // the failure detectors' word comes at their deadline, about a node that is no longer
-    // anyone's primary
+    // anyone's leader
     let took = elected_after_loss(&mut sim, &stand_in, &[("a", 1200), (&third, 1200)]);
-    // (the third copy, more up to date, is elected; it may have handed a the role since)
+    // (the third replica, more up to date, is elected; it may have handed a the role since)
     assert!(
         sim.leaders.range(term..).any(|(_, l)| *l == third),
         "the more up to date elected: {:?}",
@@ -885,7 +895,7 @@ fn a_cut_off_primary_cannot_commit_and_rejoins_as_a_copy() {
     let first = sim.leader().expect("a primary");
     sim.partition(&first);
     let acked = sim.acked.len();
-    // the cut-off primary goes on proposing: none of it may be acknowledged
+    // the cut-off leader goes on proposing: none of it may be acknowledged
     for _ in 0..20 {
         sim.propose(&first);
     }
@@ -894,7 +904,7 @@ fn a_cut_off_primary_cannot_commit_and_rejoins_as_a_copy() {
     }
     let new = MEMBERS
         .iter()
-        .find(|m| **m != first && sim.copies[**m].core.as_ref().unwrap().is_leader());
+        .find(|m| **m != first && sim.replicas[**m].core.as_ref().unwrap().is_leader());
     assert!(new.is_some(), "the majority elected a primary");
     assert!(
         sim.acked[acked..].iter().all(|(seq, _)| sim.truth[seq].term
@@ -977,7 +987,7 @@ fn exchange(sim: &mut Sim, pass: &mut dyn FnMut(&str, &str, &mut ReplicaMsg) -> 
     panic!("the copies never fell quiet");
 }
 
-/// Let time pass until a primary is elected, every message through `pass`; the primary.
+/// Let time pass until a leader is elected, every message through `pass`; the leader.
 fn elect(sim: &mut Sim, pass: &mut dyn FnMut(&str, &str, &mut ReplicaMsg) -> bool) -> String {
     for _ in 0..1000 {
         exchange(sim, pass);
@@ -992,12 +1002,12 @@ fn elect(sim: &mut Sim, pass: &mut dyn FnMut(&str, &str, &mut ReplicaMsg) -> boo
 
 #[test]
 fn an_entry_of_an_older_term_on_a_majority_is_not_committed_until_one_of_the_primarys_own_is() {
-    // Raft's figure 8: counting the copies of an older term's entry would commit an entry
-    // that a copy with a newer last term can still overwrite
+    // Raft's figure 8: counting the replicas holding an older term's entry would commit an entry
+    // that a replica with a newer last term can still overwrite
     let mut sim = Sim::new(3, TAIL_KEEP);
     sim.settle();
     let all = &mut |_: &str, _: &str, _: &mut ReplicaMsg| true;
-    // 1. the primary proposes X, which reaches no other copy; it crashes
+    // 1. the leader proposes X, which reaches no other replica; it crashes
     let l1 = sim.leader().expect("a primary");
     let x_id = sim.next_id;
     sim.propose(&l1);
@@ -1019,8 +1029,8 @@ fn an_entry_of_an_older_term_on_a_majority_is_not_committed_until_one_of_the_pri
         .find(|m| **m != l1 && **m != l2)
         .unwrap()
         .to_string();
-    // 3. X's primary is back and elected (its log is the longer); it gets X to the third
-    //    copy, but not its own no-op: X is on a majority, in an older term
+    // 3. X's leader is back and elected (its log is the longer); it gets X to the third
+    //    replica, but not its own no-op: X is on a majority, in an older term
     sim.start(&l1);
     let l3 = elect(&mut sim, &mut |_, _, m| {
         if let ReplicaMsg::Append { ops, .. } = m {
@@ -1035,7 +1045,7 @@ fn an_entry_of_an_older_term_on_a_majority_is_not_committed_until_one_of_the_pri
         "X committed by counting copies of an older term"
     );
     assert!(!sim.acked.iter().any(|(_, id)| *id == x_id));
-    // 4. the no-op's primary is back, X's goes: the no-op's log wins, X is overwritten —
+    // 4. the no-op's leader is back, X's goes: the no-op's log wins, X is overwritten —
     //    rightly, it was never acknowledged
     sim.crash(&l1);
     sim.start(&l2);

@@ -1,53 +1,78 @@
-//! What a copy of a replicated datamanager holds beside its store: the protocol's
-//! [`Core`], the other copies it can reach, the answers waiting for a commit, a snapshot
-//! being received. Its actor's handlers for the copies' messages are in `replicated.rs`.
+//! What a replica of a replicated datamanager holds beside its store and its journal: the
+//! protocol's [`Core`], the other replicas it can reach, the answers waiting for a commit, a
+//! snapshot being received. Its actor's handlers for the replicas' messages are in
+//! `replicated.rs`.
 
 use super::error::DmError;
-use super::journal::ReplicaLog;
+use super::journal::{Journal, ReplicaLog};
 use super::messages::DmMsg;
 use super::replica::core::{Core, Restored};
-use super::replica::{vote, ReplicaMsg, Replication, SCOPE};
+use super::replica::{vote, Op, ReplicaMsg, Replication, SCOPE};
 use super::store::Store;
 use marie_vocabulary::fence::FenceTable;
 use ractor::{pg, ActorCell, ActorRef};
 use std::collections::BTreeMap;
+use std::io;
 use std::path::PathBuf;
 use std::time::Duration;
+
+/// Why a replica could not start.
+#[derive(Debug, thiserror::Error)]
+pub(crate) enum ReplicaStartError {
+    /// Its term and vote could not be read.
+    #[error("reading the vote in {}: {error}", dir.display())]
+    Vote {
+        /// The journal's directory.
+        dir: PathBuf,
+        /// Why.
+        error: io::Error,
+    },
+    /// Its journal holds records, and no log: a datamanager without replicas wrote it.
+    #[error(
+        "the journal in {} was written by a datamanager without copies: its records are on \
+         no other copy (start the copies on empty directories)",
+        dir.display()
+    )]
+    Unreplicated {
+        /// The journal's directory.
+        dir: PathBuf,
+    },
+}
 
 /// An answer waiting for its entry's commit.
 pub(crate) type Ack = Box<dyn FnOnce(Result<(), DmError>) + Send>;
 
-/// The replication side of a datamanager's state.
-pub(crate) struct Copy {
+/// The replication side of a datamanager's state: one replica's part in the protocol.
+pub(crate) struct ReplicaState {
     pub(crate) core: Core,
     /// The journal's directory (where the vote is kept).
     pub(crate) dir: PathBuf,
-    /// The other copies reachable now, by node.
+    /// The other replicas reachable now, by node.
     pub(crate) peers: BTreeMap<String, ActorCell>,
     /// Answers waiting for the commit of the entry they name.
     pub(crate) acks: BTreeMap<u64, Vec<Ack>>,
     started: tokio::time::Instant,
     /// The newest time stamp handed out.
     pub(crate) last_time: Duration,
-    /// A snapshot being received from the primary.
+    /// A snapshot being received from the leader.
     pub(crate) incoming: Option<Incoming>,
     /// The entries of the `Append` being handled, as they came: journaled as they are.
     pub(crate) arrived: Option<std::sync::Arc<super::replica::RawOps>>,
     /// Snapshots taken in since it started.
     pub(crate) snapshots_taken: u64,
-    /// The last entry whose producer's pair was noted before it was applied (a primary
+    /// The last entry whose producer's pair was noted before it was applied (a leader
     /// notes its proposals, and at election every entry it holds not yet applied):
     /// applying one up to it notes nothing again — a pair noted twice halved the retries a
-    /// primary recognised (the table then kept a producer's last 1024 pairs, one window).
+    /// leader recognised (the table then kept a producer's last 1024 pairs, one window).
     pub(crate) noted: u64,
     ticker: tokio::task::JoinHandle<()>,
     /// The datamanager's name.
     pub(crate) name: String,
-    /// Where it tells that it became the primary or stepped down.
+    /// Where it tells that it became the leader or stepped down.
     pub(crate) events: Option<marie_vocabulary::events::EventBus>,
 }
 
-impl Drop for Copy {
+impl Drop for ReplicaState {
     fn drop(&mut self) {
         self.ticker.abort();
     }
@@ -67,13 +92,13 @@ pub(crate) struct Incoming {
     pub(crate) producers: super::producers::Producers,
 }
 
-/// The group a copy of `dm` on node `me` joins (in [`SCOPE`]).
+/// The group the replica of `dm` on node `me` joins (in [`SCOPE`]).
 pub(crate) fn group(dm: &str, me: &str) -> String {
     format!("{dm}/{me}")
 }
 
-impl Copy {
-    /// The copy `replication.me` of datamanager `name`, with what its journal (in `dir`)
+impl ReplicaState {
+    /// The replica `replication.me` of datamanager `name`, with what its journal (in `dir`)
     /// held: joins its group, starts its ticker.
     pub(crate) fn start(
         name: &str,
@@ -83,9 +108,11 @@ impl Copy {
         store: &Store,
         myself: &ActorRef<DmMsg>,
         events: Option<marie_vocabulary::events::EventBus>,
-    ) -> Result<Copy, String> {
-        let (term, voted_for) =
-            vote::load(&dir).map_err(|e| format!("reading the vote in {}: {e}", dir.display()))?;
+    ) -> Result<ReplicaState, ReplicaStartError> {
+        let (term, voted_for) = vote::load(&dir).map_err(|error| ReplicaStartError::Vote {
+            dir: dir.clone(),
+            error,
+        })?;
         let restored = match log {
             Some(log) => Restored {
                 term: term.max(log.term),
@@ -95,13 +122,7 @@ impl Copy {
                 applied: log.applied,
                 before: log.before,
             },
-            None if store.next_seq() > 1 => {
-                return Err(format!(
-                    "the journal in {} was written by a datamanager without copies: its records \
-                     are on no other copy (start the copies on empty directories)",
-                    dir.display()
-                ))
-            }
+            None if store.next_seq() > 1 => return Err(ReplicaStartError::Unreplicated { dir }),
             None => Restored {
                 term,
                 voted_for,
@@ -137,7 +158,7 @@ impl Copy {
                 }
             }
         });
-        Ok(Copy {
+        Ok(ReplicaState {
             core,
             dir,
             peers: BTreeMap::new(),
@@ -154,6 +175,7 @@ impl Copy {
         })
     }
 
+    /// Time since it started: the protocol's clock.
     pub(crate) fn now(&self) -> Duration {
         self.started.elapsed()
     }
@@ -167,6 +189,52 @@ impl Copy {
         }
     }
 
+    /// Run `ack` once everything proposed so far is committed and applied.
+    pub(crate) fn after_commit(&mut self, ack: Ack) {
+        let last = self.core.last().0;
+        self.after_applied(last, ack);
+    }
+
+    /// Where its committed log ends, (seq, term), and the entries after it: what a
+    /// snapshot of its journal writes again after the store (`Journal::snapshot`).
+    pub(crate) fn log_after_commit(&self) -> ((u64, u64), Vec<&Op>) {
+        let core = &self.core;
+        let commit = core.commit().min(core.applied());
+        let term = core.term_at(commit).unwrap_or(0);
+        (
+            (commit, term),
+            core.ops(commit + 1, core.last().0).collect(),
+        )
+    }
+
+    /// Send the answers waiting for the entries up to `seq`: they are committed and applied.
+    pub(crate) fn answer_upto(&mut self, seq: u64) {
+        let later = self.acks.split_off(&(seq + 1));
+        for ack in std::mem::replace(&mut self.acks, later)
+            .into_values()
+            .flatten()
+        {
+            ack(Ok(()));
+        }
+    }
+
+    /// Sync its term and vote to disk (before anything that depends on them is sent).
+    pub(crate) fn persist_vote(&self) -> io::Result<()> {
+        vote::save(&self.dir, self.core.term(), self.core.voted_for())
+    }
+
+    /// Journal the entries `from` to `to`: those that just arrived with their bytes as the
+    /// leader encoded them, the others encoded here.
+    pub(crate) fn journal_ops(&self, journal: &mut Journal, from: u64, to: u64) {
+        for op in self.core.ops(from, to) {
+            match self.arrived.as_ref().and_then(|r| r.entry(op.seq, op.term)) {
+                Some(bytes) => journal.op_encoded(op, bytes),
+                None => journal.op(op),
+            }
+        }
+    }
+
+    /// Send `msg` to the replica on node `to`, if it is reachable.
     pub(crate) fn send(&self, to: &str, msg: ReplicaMsg) {
         match self.peers.get(to) {
             Some(cell) => {
