@@ -3,7 +3,8 @@
 //! direction, so that an arrow the design does not have (the monitor on the datamanagers,
 //! the vocabulary on anything) is a failing test and a decision, not a quiet edit of a
 //! Cargo.toml. Inside the framework's crates, the top-level modules import one another
-//! without a cycle (the vocabulary's `run` below `events` below `report`). And the
+//! without a cycle (the vocabulary's `run` below `events` below `report`), and so do the
+//! files of the cluster's transport (`cluster/src/net`). And the
 //! framework's crates name no robot: no pose, no collision — what a
 //! robot says of a run is a section they carry untyped.
 
@@ -209,33 +210,41 @@ fn words_are_cut_at_underscores_and_capitals_and_code_is_read_without_comments()
     assert!(!code.contains("use y"));
 }
 
-/// The top-level modules of the crate whose sources are `src` and, for each, the modules its
-/// code names (`crate::MODULE`, comments and strings left out).
-fn module_arrows(src: &Path) -> BTreeMap<String, BTreeSet<String>> {
+/// The modules of the folder `src` — a crate's `src` (its top-level modules) or a module's
+/// folder such as `cluster/src/net` — and, for each, the sibling modules its code names by one
+/// of `paths` (`crate::` for a crate's, `super::` and `crate::net::` for `net`'s; comments and
+/// strings left out). `super::` is read only in the files directly in the folder: deeper, it
+/// names a module of its own.
+fn module_arrows(src: &Path, paths: &[&str]) -> BTreeMap<String, BTreeSet<String>> {
     let mut graph = BTreeMap::new();
-    for entry in fs::read_dir(src).expect("a crate's src") {
+    for entry in fs::read_dir(src).expect("a source folder") {
         let path = entry.expect("an entry").path();
         let name = path
             .file_stem()
             .and_then(|s| s.to_str())
             .expect("a name")
             .to_string();
-        if name == "lib" || name == "main" {
+        if name == "lib" || name == "main" || name == "mod" {
             continue;
         }
         let mut uses = BTreeSet::new();
         for file in files(&path) {
             let code = code(&fs::read_to_string(&file).expect("readable"));
-            for (at, _) in code.match_indices("crate::") {
-                let module: String = code[at + "crate::".len()..]
-                    .chars()
-                    .take_while(|c| c.is_alphanumeric() || *c == '_')
-                    .collect();
-                let a_module = module
-                    .chars()
-                    .all(|c| c.is_ascii_lowercase() || c == '_' || c.is_ascii_digit());
-                if !module.is_empty() && module != name && a_module {
-                    uses.insert(module);
+            for prefix in paths {
+                if *prefix == "super::" && file.parent() != Some(src) {
+                    continue;
+                }
+                for (at, _) in code.match_indices(prefix) {
+                    let module: String = code[at + prefix.len()..]
+                        .chars()
+                        .take_while(|c| c.is_alphanumeric() || *c == '_')
+                        .collect();
+                    let a_module = module
+                        .chars()
+                        .all(|c| c.is_ascii_lowercase() || c == '_' || c.is_ascii_digit());
+                    if !module.is_empty() && module != name && a_module {
+                        uses.insert(module);
+                    }
                 }
             }
         }
@@ -272,7 +281,7 @@ fn order(graph: &BTreeMap<String, BTreeSet<String>>) -> Result<Vec<String>, Vec<
 
 #[test]
 fn the_vocabulary_is_layered_run_below_events_below_report() {
-    let graph = module_arrows(&root().join("vocabulary/src"));
+    let graph = module_arrows(&root().join("vocabulary/src"), &["crate::"]);
     let order = order(&graph).unwrap_or_else(|stuck| panic!("a cycle among {stuck:?}: {graph:#?}"));
     let rank = |m: &str| order.iter().position(|o| o == m).expect(m);
     assert!(rank("run") < rank("events"), "{order:?}");
@@ -281,11 +290,28 @@ fn the_vocabulary_is_layered_run_below_events_below_report() {
 
 #[test]
 fn the_top_level_modules_of_the_framework_crates_import_each_other_without_a_cycle() {
-    for krate in ["vocabulary", "dm", "actors"] {
-        let graph = module_arrows(&root().join(krate).join("src"));
+    for krate in ["vocabulary", "dm", "actors", "supervision"] {
+        let graph = module_arrows(&root().join(krate).join("src"), &["crate::"]);
         if let Err(stuck) = order(&graph) {
             panic!("{krate}: a cycle among {stuck:?}: {graph:#?}");
         }
+    }
+}
+
+/// A module's folder is checked as a crate's `src` is: its files are its modules, and they
+/// name one another as `super::X` or by their whole path.
+#[test]
+fn the_modules_of_the_cluster_s_transport_import_each_other_without_a_cycle() {
+    let graph = module_arrows(
+        &root().join("cluster/src/net"),
+        &["super::", "crate::net::"],
+    );
+    assert!(
+        graph.contains_key("transport") && graph["transport"].contains("sessions"),
+        "the scan reads net's arrows: {graph:#?}"
+    );
+    if let Err(stuck) = order(&graph) {
+        panic!("cluster/src/net: a cycle among {stuck:?}: {graph:#?}");
     }
 }
 

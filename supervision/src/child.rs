@@ -11,8 +11,6 @@ use ractor::{Actor, ActorCell, SpawnErr};
 use serde::{Deserialize, Serialize};
 
 use crate::exit::ExitReason;
-use crate::spec::SupervisorSpec;
-use crate::supervisor::Supervisor;
 
 /// What a successful start function produced: OTP's `{ok, Pid}` or `ignore`.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -205,28 +203,6 @@ impl ChildSpec {
                 Ok(ChildStart::Started(actor.get_cell()))
             }
         })
-    }
-
-    /// A permanent child supervisor with infinite shutdown, so supervisors nest: it starts a
-    /// [`Supervisor`] with `spec` and `children` linked to the parent. When it gives up
-    /// (restart intensity exceeded) the parent sees an abnormal exit and applies its own
-    /// strategy.
-    pub fn supervisor(
-        id: impl Into<String>,
-        spec: SupervisorSpec,
-        children: Vec<ChildSpec>,
-    ) -> Self {
-        let start: StartFn = Arc::new(move |sup| {
-            let spec = spec.clone();
-            let children = children.clone();
-            Box::pin(async move {
-                let (handle, _) = Supervisor::start_linked(None, spec, children, sup)
-                    .await
-                    .map_err(|e| SpawnErr::StartupFailed(Box::new(e)))?;
-                Ok(ChildStart::Started(handle.get_cell()))
-            })
-        });
-        Self::new(id, ChildKind::Supervisor, start)
     }
 
     /// The same spec with another restart type.

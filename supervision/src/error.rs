@@ -1,11 +1,13 @@
-//! Errors of the supervisor's operations.
+//! Errors of the supervisor's operations, of a child's start, and of a spec refused before
+//! anything starts.
 
 use std::time::Duration;
 
 use ractor::SpawnErr;
 
 use crate::exit::REACHED_MAX_RESTART_INTENSITY;
-use crate::validate::SpecError;
+use crate::spec::MAX_EVENT_CAPACITY;
+use crate::strategy::Strategy;
 
 /// Why a supervisor operation failed.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
@@ -153,4 +155,47 @@ impl From<SpawnErr> for StartError {
             },
         }
     }
+}
+
+/// Why a supervisor spec or a child spec was refused.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum SpecError {
+    /// The restart intensity's period is zero: no window to count restarts in (OTP's
+    /// `invalid_period`).
+    #[error("invalid period: the restart intensity's period must be longer than zero")]
+    ZeroPeriod,
+    /// The event channel capacity is 0 or above [`MAX_EVENT_CAPACITY`].
+    #[error("invalid event capacity {0}: it must be within 1..={MAX_EVENT_CAPACITY}")]
+    EventCapacity(usize),
+    /// The backoff cannot work (the text says why).
+    #[error("invalid backoff: {0}")]
+    Backoff(String),
+    /// A child spec's id is empty (or only blanks): it could not be addressed (OTP's
+    /// `missing_id`).
+    #[error("invalid child spec: the id is empty")]
+    EmptyId,
+    /// Two child specs share an id (OTP's `duplicate_child_name`).
+    #[error("duplicate child id {0:?}")]
+    DuplicateChildId(String),
+    /// A shutdown timeout of zero: the child would be killed before it could stop (OTP's
+    /// `invalid_shutdown`; say
+    /// [`Shutdown::BrutalKill`](crate::Shutdown::BrutalKill) if that is meant).
+    #[error("invalid shutdown of child {0:?}: a timeout of zero (use BrutalKill to kill at once)")]
+    ZeroShutdownTimeout(String),
+    /// A start timeout of zero: every start would fail.
+    #[error("invalid start timeout of child {0:?}: zero would fail every start")]
+    ZeroStartTimeout(String),
+    /// A simple-one-for-one supervisor without a child template.
+    #[error("a simple_one_for_one supervisor needs exactly one child template, it has none")]
+    MissingTemplate,
+    /// A child template given to a supervisor of another strategy.
+    #[error("a child template is only for simple_one_for_one supervisors, not {0:?}")]
+    TemplateWithoutSimpleOneForOne(Strategy),
+    /// A simple-one-for-one supervisor given static children besides its template: its only
+    /// child spec is the template, and every child is an instance of it (OTP's
+    /// `bad_start_spec`).
+    #[error(
+        "a simple_one_for_one supervisor has exactly one child spec, its template; {0} static children given"
+    )]
+    SimpleOneForOneChildren(usize),
 }

@@ -12,9 +12,6 @@ use std::time::Duration;
 use ractor::{Actor, ActorCell, SpawnErr};
 
 use crate::child::{ChildKind, ChildSpec, ChildStart, Restart, Shutdown, StartFn, StartFuture};
-use crate::spec::SupervisorSpec;
-use crate::supervisor::Supervisor;
-use crate::validate::{validate_child, SpecError};
 
 /// The start argument of one instance, type-erased (see [`ChildTemplate`] for why).
 /// [`crate::SupervisorRef::start_dynamic`] builds it; build one yourself only to send
@@ -172,27 +169,6 @@ impl ChildTemplate {
         })
     }
 
-    /// A template of child supervisors (infinite shutdown): each instance is a
-    /// [`Supervisor`] with the spec and children `make` builds from the instance's argument.
-    pub fn supervisor<A, F>(id: impl Into<String>, make: F) -> Self
-    where
-        A: Clone + Send + Sync + 'static,
-        F: Fn(A) -> (SupervisorSpec, Vec<ChildSpec>) + Send + Sync + 'static,
-    {
-        let mut template = Self::worker(id, move |sup, arg: A| {
-            let (spec, children) = make(arg);
-            async move {
-                let (handle, _) = Supervisor::start_linked(None, spec, children, sup)
-                    .await
-                    .map_err(|e| SpawnErr::StartupFailed(Box::new(e)))?;
-                Ok(ChildStart::Started(handle.get_cell()))
-            }
-        });
-        template.kind = ChildKind::Supervisor;
-        template.shutdown = Shutdown::Infinity;
-        template
-    }
-
     /// The same template with another restart type.
     pub fn with_restart(mut self, restart: Restart) -> Self {
         self.restart = restart;
@@ -220,11 +196,6 @@ impl ChildTemplate {
     /// The name of the argument type the template's start function takes.
     pub fn arg_type_name(&self) -> &'static str {
         self.arg_type_name
-    }
-
-    /// Check the template as a child spec: a non-empty id and no zero timeouts.
-    pub fn validate(&self) -> Result<(), SpecError> {
-        validate_child(&self.id, self.shutdown, self.start_timeout)
     }
 
     /// Whether `arg` has the type the start function takes.

@@ -1,10 +1,19 @@
-//! A supervisor's own specification: strategy, restart intensity, backoff.
+//! A supervisor's own specification: strategy, restart intensity, backoff — and the bounds
+//! its event channel and backoff must keep.
 
 use std::time::Duration;
 
 use crate::backoff::Backoff;
 use crate::simple::ChildTemplate;
 use crate::strategy::Strategy;
+
+/// The largest event channel a supervisor accepts. tokio's broadcast channel allocates its
+/// whole capacity up front, so an absurd capacity would abort the process on allocation.
+pub const MAX_EVENT_CAPACITY: usize = 1 << 20;
+
+/// The longest backoff delay a supervisor accepts: a restart put off for more than a day is a
+/// unit mistake, not a policy.
+pub const MAX_BACKOFF: Duration = Duration::from_secs(24 * 3600);
 
 /// How a supervisor treats its children as a group (OTP's supervisor flags).
 #[derive(Clone, Debug, PartialEq)]
@@ -22,7 +31,7 @@ pub struct SupervisorSpec {
     pub backoff: Option<Backoff>,
     /// Capacity of the event channel ([`crate::SupervisorRef::subscribe`]); a subscriber that
     /// falls further behind misses events (it gets `RecvError::Lagged`). At most
-    /// [`crate::MAX_EVENT_CAPACITY`].
+    /// [`MAX_EVENT_CAPACITY`].
     pub event_capacity: usize,
     /// The child template of a [`Strategy::SimpleOneForOne`] supervisor (and only of one):
     /// its single child spec, of which every child is an instance.
@@ -103,9 +112,9 @@ impl SupervisorSpec {
     }
 
     /// The same spec with another event channel capacity (clamped to
-    /// `1..=`[`crate::MAX_EVENT_CAPACITY`]).
+    /// `1..=`[`MAX_EVENT_CAPACITY`]).
     pub fn with_event_capacity(mut self, capacity: usize) -> Self {
-        self.event_capacity = capacity.clamp(1, crate::validate::MAX_EVENT_CAPACITY);
+        self.event_capacity = capacity.clamp(1, MAX_EVENT_CAPACITY);
         self
     }
 }

@@ -14,58 +14,10 @@ use std::time::Duration;
 
 use crate::backoff::Backoff;
 use crate::child::{ChildSpec, Shutdown};
-use crate::spec::SupervisorSpec;
+use crate::error::SpecError;
+use crate::simple::ChildTemplate;
+use crate::spec::{SupervisorSpec, MAX_BACKOFF, MAX_EVENT_CAPACITY};
 use crate::strategy::Strategy;
-
-/// The largest event channel a supervisor accepts. tokio's broadcast channel allocates its
-/// whole capacity up front, so an absurd capacity would abort the process on allocation.
-pub const MAX_EVENT_CAPACITY: usize = 1 << 20;
-
-/// The longest backoff delay a supervisor accepts: a restart put off for more than a day is a
-/// unit mistake, not a policy.
-pub const MAX_BACKOFF: Duration = Duration::from_secs(24 * 3600);
-
-/// Why a supervisor spec or a child spec was refused.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-pub enum SpecError {
-    /// The restart intensity's period is zero: no window to count restarts in (OTP's
-    /// `invalid_period`).
-    #[error("invalid period: the restart intensity's period must be longer than zero")]
-    ZeroPeriod,
-    /// The event channel capacity is 0 or above [`MAX_EVENT_CAPACITY`].
-    #[error("invalid event capacity {0}: it must be within 1..={MAX_EVENT_CAPACITY}")]
-    EventCapacity(usize),
-    /// The backoff cannot work (the text says why).
-    #[error("invalid backoff: {0}")]
-    Backoff(String),
-    /// A child spec's id is empty (or only blanks): it could not be addressed (OTP's
-    /// `missing_id`).
-    #[error("invalid child spec: the id is empty")]
-    EmptyId,
-    /// Two child specs share an id (OTP's `duplicate_child_name`).
-    #[error("duplicate child id {0:?}")]
-    DuplicateChildId(String),
-    /// A shutdown timeout of zero: the child would be killed before it could stop (OTP's
-    /// `invalid_shutdown`; say [`Shutdown::BrutalKill`] if that is meant).
-    #[error("invalid shutdown of child {0:?}: a timeout of zero (use BrutalKill to kill at once)")]
-    ZeroShutdownTimeout(String),
-    /// A start timeout of zero: every start would fail.
-    #[error("invalid start timeout of child {0:?}: zero would fail every start")]
-    ZeroStartTimeout(String),
-    /// A simple-one-for-one supervisor without a child template.
-    #[error("a simple_one_for_one supervisor needs exactly one child template, it has none")]
-    MissingTemplate,
-    /// A child template given to a supervisor of another strategy.
-    #[error("a child template is only for simple_one_for_one supervisors, not {0:?}")]
-    TemplateWithoutSimpleOneForOne(Strategy),
-    /// A simple-one-for-one supervisor given static children besides its template: its only
-    /// child spec is the template, and every child is an instance of it (OTP's
-    /// `bad_start_spec`).
-    #[error(
-        "a simple_one_for_one supervisor has exactly one child spec, its template; {0} static children given"
-    )]
-    SimpleOneForOneChildren(usize),
-}
 
 impl SupervisorSpec {
     /// Check the supervisor's own flags: a period longer than zero, an event capacity within
@@ -97,6 +49,13 @@ impl ChildSpec {
     }
 }
 
+impl ChildTemplate {
+    /// Check the template as a child spec: a non-empty id and no zero timeouts.
+    pub fn validate(&self) -> Result<(), SpecError> {
+        validate_child(&self.id, self.shutdown, self.start_timeout)
+    }
+}
+
 /// Check child specs as a group, as OTP's `supervisor:check_childspecs`: each valid, and no
 /// two with the same id.
 pub fn check_child_specs(children: &[ChildSpec]) -> Result<(), SpecError> {
@@ -123,7 +82,7 @@ pub(crate) fn validate_start(
     check_child_specs(children)
 }
 
-pub(crate) fn validate_child(
+fn validate_child(
     id: &str,
     shutdown: Shutdown,
     start_timeout: Option<Duration>,

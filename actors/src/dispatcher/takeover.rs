@@ -167,45 +167,71 @@ impl DispatcherState {
         myself.stop(None);
     }
 
-    /// Carry on the run `take_over` holds the last checkpoint of (see the module docs).
+    /// Carry on the run `take_over` holds the last checkpoint of (see the module docs):
+    /// claim the run, tell it, bind its operations, restore where it stood, record the new
+    /// epochs, and only then command.
     pub(super) async fn carry_on(&mut self, myself: &ActorRef<DispatcherMsg>, take_over: TakeOver) {
         let TakeOver { from, noticed } = take_over;
+        let Some(term) = self.claim(myself, &from).await else {
+            return;
+        };
+        self.tell_takeover(&from, term, noticed);
+        self.carry_time_on(&from);
+        if let Err(reason) = self.bind_held_operations(myself, &from).await {
+            self.finish(myself, Outcome::Failed, reason);
+            return;
+        }
+        if let Err(reason) = self.restore(&from) {
+            self.finish(myself, Outcome::Failed, reason);
+            return;
+        }
+        // the bindings' new epochs, before any command carries them
+        if self.checkpoint_now().await.is_err() {
+            return;
+        }
+        self.command_again(myself, &from).await;
+    }
+
+    /// Store the checkpoint read under this dispatcher's term: the run is this
+    /// dispatcher's once it is stored, and the term is returned. `None`: the run is not
+    /// carried on — there is no run datamanager (the run fails), a newer term has it (the
+    /// writer said so), or the run's copies did not take the term within [`CLAIM_WITHIN`]
+    /// (this standby is cut off from them: what it read may be stale by the time it could
+    /// store, so it leaves the run alone and stops).
+    async fn claim(&mut self, myself: &ActorRef<DispatcherMsg>, from: &Checkpoint) -> Option<u64> {
         let Some(term) = self.checkpoints.as_ref().map(|w| w.term) else {
             self.finish(
                 myself,
                 Outcome::Failed,
                 "a takeover needs a run datamanager to record the run in".into(),
             );
-            return;
+            return None;
         };
         tracing::info!(run = %from.run, from = %from.node, term, "taking the run over");
-        // the term first: stored within a bound, or this standby is cut off from the
-        // run's copies (what it read may be stale by the time it could store) and leaves
-        // the run alone
         let claim = Checkpoint {
             term,
             node: registry::local_node_name(),
             unix_ms: checkpoint::unix_ms(),
             ..from.clone()
         };
-        let claimed = match self.checkpoints.as_mut() {
-            Some(writer) => tokio::time::timeout(CLAIM_WITHIN, writer.write(claim)).await,
-            None => return,
-        };
-        match claimed {
-            Ok(Ok(Ok(()))) => {}
-            Ok(_) => return, // refused: a newer term has the run (the writer said so)
+        let writer = self.checkpoints.as_mut()?;
+        match tokio::time::timeout(CLAIM_WITHIN, writer.write(claim)).await {
+            Ok(Ok(Ok(()))) => Some(term),
+            Ok(_) => None, // refused: a newer term has the run (the writer said so)
             Err(_) => {
                 tracing::warn!(run = %from.run, "the run's copies did not take this standby's term in time: leaving the run alone");
                 self.ended = true;
                 self.reply = None;
                 myself.stop(None);
-                return;
+                None
             }
         }
-        // the run is this dispatcher's from the claim on: told at once, so that whoever
-        // follows the run listens to it (what it selects, binds, and how it ends) — also
-        // should it fail before its first command
+    }
+
+    /// Tell the takeover: the run is this dispatcher's from the claim on, so whoever
+    /// follows the run listens to it (what it selects, binds, and how it ends) — also
+    /// should it fail before its first command.
+    fn tell_takeover(&mut self, from: &Checkpoint, term: u64, noticed: std::time::Instant) {
         let gap_ms = noticed.elapsed().as_millis() as u64;
         let unix_ms = checkpoint::unix_ms();
         self.emit(EventKind::Takeover {
@@ -217,9 +243,12 @@ impl DispatcherState {
             since_checkpoint_ms: unix_ms.saturating_sub(from.unix_ms),
             unix_ms,
         });
-        // mission time carries on from the run's start (the cluster's nodes read one
-        // clock); a clock behind the checkpoint's (another host, out of sync) carries on
-        // from the checkpoint
+    }
+
+    /// Mission time carries on from the run's start (the cluster's nodes read one clock);
+    /// a clock behind the checkpoint's (another host, out of sync) carries on from the
+    /// checkpoint. The status word, what is done and the action count carry on too.
+    fn carry_time_on(&mut self, from: &Checkpoint) {
         let now = self.clock.now();
         let started = Duration::from_millis(from.started_ms);
         self.started = match now.saturating_sub(started) >= Duration::from_millis(from.run_ms) {
@@ -229,10 +258,19 @@ impl DispatcherState {
         self.status = StatusFlags(from.status);
         self.done = from.done.clone();
         self.generation = from.generation;
-        if let Err(e) = self.watch_registry(myself).await {
-            self.finish(myself, Outcome::Failed, e.to_string());
-            return;
-        }
+    }
+
+    /// Watch the registry, then bind every operation the checkpoint holds (see
+    /// [`Self::bind_held`]), each looked for within [`BIND_WITHIN`]. `Err`: why the run
+    /// fails.
+    async fn bind_held_operations(
+        &mut self,
+        myself: &ActorRef<DispatcherMsg>,
+        from: &Checkpoint,
+    ) -> Result<(), String> {
+        self.watch_registry(myself)
+            .await
+            .map_err(|e| e.to_string())?;
         for held in &from.bindings {
             let looking = tokio::time::Instant::now();
             let found = loop {
@@ -242,66 +280,69 @@ impl DispatcherState {
                     found => break found,
                 }
             };
-            match found {
-                Some(binding) => {
-                    self.bindings.insert(held.name.clone(), binding);
-                }
-                None => {
-                    let reason = format!(
-                        "taking the run over from {}: no instance of operation `{}` answers",
-                        from.node, held.name
-                    );
-                    self.finish(myself, Outcome::Failed, reason);
-                    return;
-                }
-            }
+            let Some(binding) = found else {
+                return Err(format!(
+                    "taking the run over from {}: no instance of operation `{}` answers",
+                    from.node, held.name
+                ));
+            };
+            self.bindings.insert(held.name.clone(), binding);
         }
+        Ok(())
+    }
+
+    /// Restore where the run stood: its tree, what is pending, its failure, and the actions
+    /// that were live (each under a new generation). `Err`: why the run fails.
+    fn restore(&mut self, from: &Checkpoint) -> Result<(), String> {
         let Some(tree) = Tree::restore(self.mission.control.root.clone(), from.tree.clone()) else {
-            let reason = format!(
+            return Err(format!(
                 "taking the run over from {}: its checkpoint's tree does not fit the mission",
                 from.node
-            );
-            self.finish(myself, Outcome::Failed, reason);
-            return;
+            ));
         };
         self.tree = tree;
         self.pending = from.pending.clone();
         self.failure = from.failure.clone();
         for c in &from.live {
             self.generation += 1;
-            let generation = self.generation;
-            let end = match (c.halted, &c.failure) {
-                (true, _) => End::Halted,
-                (false, Some(reason)) => End::Failed(reason.clone()),
-                (false, None) => End::Done,
-            };
-            self.live.insert(
-                generation,
-                Current {
-                    generation,
-                    index: c.index,
-                    started_ms: c.started_ms,
-                    running: c.running.iter().cloned().collect::<BTreeSet<_>>(),
-                    enders_done: c.enders_done.iter().cloned().collect(),
-                    state: match c.ending {
-                        true => ActionState::Ending,
-                        false => ActionState::Running,
-                    },
-                    end,
-                    timer: None,
-                    // not launched: the lost dispatcher sent none of its commands (it
-                    // sends them once this was stored); the standby launches it
-                    launched: c.launched,
-                },
-            );
+            let current = Self::live_again(self.generation, c);
+            self.live.insert(self.generation, current);
         }
-        // the bindings' new epochs, before any command carries them
-        if self.checkpoint_now().await.is_err() {
-            return;
+        Ok(())
+    }
+
+    /// An action the checkpoint recorded as live, under `generation`.
+    fn live_again(generation: u64, c: &CurrentCheckpoint) -> Current {
+        let end = match (c.halted, &c.failure) {
+            (true, _) => End::Halted,
+            (false, Some(reason)) => End::Failed(reason.clone()),
+            (false, None) => End::Done,
+        };
+        Current {
+            generation,
+            index: c.index,
+            started_ms: c.started_ms,
+            running: c.running.iter().cloned().collect::<BTreeSet<_>>(),
+            enders_done: c.enders_done.iter().cloned().collect(),
+            state: match c.ending {
+                true => ActionState::Ending,
+                false => ActionState::Running,
+            },
+            end,
+            timer: None,
+            // not launched: the lost dispatcher sent none of its commands (it sends them
+            // once this was stored); the standby launches it
+            launched: c.launched,
         }
+    }
+
+    /// Command the run again, its new epochs stored: tell the bindings, attach or command
+    /// the operations ([`Self::command_after_takeover`]), watch the nodes, re-arm the
+    /// mission's deadline, and tick the tree.
+    async fn command_again(&mut self, myself: &ActorRef<DispatcherMsg>, from: &Checkpoint) {
         self.announce(None).await;
         self.emit_bound();
-        self.command_after_takeover(myself, &from);
+        self.command_after_takeover(myself, from);
         self.probe(myself);
         if let Some(deadline) = self.mission.deadline {
             let left = deadline.saturating_sub(Duration::from_millis(self.elapsed_ms()));

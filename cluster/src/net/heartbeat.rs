@@ -22,7 +22,7 @@
 
 use super::detector::{BeatId, Detector, DownNotice, HeartbeatConfig, Reach};
 use super::events::NetEvent;
-use super::sessions::Sessions;
+use super::sessions::{Peer, Sessions};
 use marie_vocabulary::run::provenance::this_build;
 use marie_vocabulary::run::Build;
 use marie_vocabulary::wire::{self, Envelope};
@@ -298,7 +298,7 @@ impl State {
     }
 
     /// Cast a beat naming the `ready` peers to every remote heartbeat actor.
-    fn beat(&mut self, ready: &[super::transport::Peer]) {
+    fn beat(&mut self, ready: &[Peer]) {
         let beat = Beat {
             node: self.args.node.clone(),
             seq: self.detector.beat(),

@@ -42,13 +42,15 @@ pub mod detector;
 mod events;
 pub mod heartbeat;
 pub mod listener;
+mod publish;
 mod sessions;
 pub mod tls;
 mod transport;
 
 pub use config::{check_cookie, ClusterConfig, ClusterConfigError, CookieError, MAX_COOKIE_LEN};
 pub use detector::{HeartbeatConfig, HeartbeatError};
-pub use events::publish_on;
 pub use events::NetEvent;
+pub use publish::publish_on;
+pub use sessions::Peer;
 pub use tls::{TlsError, TlsFile, TlsFiles};
-pub use transport::{Peer, Transport, TransportError};
+pub use transport::{Transport, TransportError};

@@ -5,7 +5,6 @@
 
 use super::auth::AuthWatch;
 use super::events::NetEvent;
-use super::transport::Peer;
 use marie_vocabulary::registry;
 use ractor::ActorRef;
 use ractor_cluster::node::{NodeServerSessionInformation, NodeSessionMessage};
@@ -15,6 +14,17 @@ use std::net::SocketAddr;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 use tokio::sync::{broadcast, watch};
+
+/// A peer node the transport has a ready session with.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Peer {
+    /// Its node name.
+    pub name: String,
+    /// The address it listens on (`host:port`).
+    pub address: String,
+    /// ractor's number for the session (changes on every reconnect).
+    pub session: u64,
+}
 
 /// An open session: the peer's node name once authenticated, and the session's actor.
 type OpenSession = (Option<String>, ActorRef<NodeSessionMessage>);

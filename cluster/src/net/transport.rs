@@ -4,7 +4,7 @@ use super::config::{ClusterConfig, ClusterConfigError};
 use super::events::NetEvent;
 use super::heartbeat::{Heartbeat, HeartbeatArgs};
 use super::listener;
-use super::sessions::Sessions;
+use super::sessions::{Peer, Sessions};
 use super::tls::{self, Tls, TlsError};
 use marie_vocabulary::registry;
 use ractor::{Actor, ActorRef};
@@ -24,17 +24,6 @@ const REDIAL_MAX: Duration = Duration::from_secs(2);
 /// Longest a dial may take: a peer behind a partition drops our SYNs silently, and the
 /// kernel would retry them for minutes — long after the partition healed.
 const DIAL_TIMEOUT: Duration = Duration::from_secs(2);
-
-/// A peer node the transport has a ready session with.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct Peer {
-    /// Its node name.
-    pub name: String,
-    /// The address it listens on (`host:port`).
-    pub address: String,
-    /// ractor's number for the session (changes on every reconnect).
-    pub session: u64,
-}
 
 /// Why the transport cannot start or did not see its peers.
 #[derive(Debug, thiserror::Error)]
@@ -87,6 +76,14 @@ impl std::fmt::Debug for Transport {
             .field("node", &self.node)
             .field("listen", &self.listen)
             .finish_non_exhaustive()
+    }
+}
+
+impl ClusterConfig {
+    /// Check what ractor_cluster would otherwise take silently or fail on later: the
+    /// transport's first step, so its error is the transport's.
+    pub fn validate(&self, node: &str) -> Result<(), TransportError> {
+        Ok(self.check(node)?)
     }
 }
 
@@ -374,5 +371,59 @@ impl Dialer {
                 this.dial(addr).await;
             });
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::net::config::CookieError;
+    use crate::net::detector::{HeartbeatConfig, HeartbeatError};
+
+    #[test]
+    fn cluster_settings_that_cannot_work_are_matched_by_their_kind() {
+        let listen: SocketAddr = "127.0.0.1:7100".parse().unwrap();
+        let config = |cookie: &str| ClusterConfig::new(listen, cookie);
+        let Err(TransportError::Config(ClusterConfigError::NodeName { name })) =
+            config("c").validate("a@b")
+        else {
+            panic!("a node name with '@' was accepted");
+        };
+        assert_eq!(name, "a@b");
+        let err = config("").validate("a").unwrap_err();
+        assert!(
+            matches!(
+                err,
+                TransportError::Config(ClusterConfigError::Cookie(CookieError::Empty))
+            ),
+            "{err:?}"
+        );
+        assert_eq!(
+            err.to_string(),
+            "cluster config: the cookie must not be empty"
+        );
+        let slow = config("c").with_heartbeat(HeartbeatConfig {
+            period: Duration::from_millis(800),
+            deadline: Duration::from_millis(1500),
+        });
+        assert!(matches!(
+            slow.validate("a"),
+            Err(TransportError::Config(ClusterConfigError::Heartbeat(
+                HeartbeatError::PeriodTooLong { .. }
+            )))
+        ));
+        let portless: SocketAddr = "127.0.0.1:0".parse().unwrap();
+        let err = config("c").with_peer(portless).validate("a").unwrap_err();
+        assert!(
+            matches!(
+                err,
+                TransportError::Config(ClusterConfigError::PeerWithoutPort { peer }) if peer == portless
+            ),
+            "{err:?}"
+        );
+        assert_eq!(
+            err.to_string(),
+            "cluster config: peer 127.0.0.1:0 has no port"
+        );
     }
 }

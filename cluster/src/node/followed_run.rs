@@ -18,13 +18,17 @@
 
 use super::desk::{DeskMsg, DESK_NAME};
 use super::{Node, NodeError};
+use crate::relay::Watch;
 use marie_actors::dispatcher::mission::Mission;
-use marie_vocabulary::events::{BusError, DispatcherVoice, Event, EventKind};
+use marie_vocabulary::events::{
+    BusError, DispatcherVoice, Event, EventBus, EventKind, EventSubscription,
+};
 use marie_vocabulary::registry::{self, ModuleKind};
 use marie_vocabulary::run::Outcome;
 use ractor::rpc::CallResult;
 use ractor::ActorRef;
 use std::time::Duration;
+use tokio::time::Instant;
 
 /// How long a run waits for a standby to take it over once its dispatcher's node is lost.
 pub const TAKEOVER_WAIT: Duration = Duration::from_secs(20);
@@ -51,6 +55,122 @@ impl Orphaned {
     }
 }
 
+/// What the follower knows of the run while it follows it.
+struct Follower {
+    /// The dispatcher speaking for the run (its run_ended ends it): on the desk's node,
+    /// until a takeover.
+    voice: DispatcherVoice,
+    /// The run's time as its dispatcher last told it, and when.
+    told: (u64, Instant),
+    /// Since when the run has no dispatcher, and why.
+    lost_since: Option<(Instant, Orphaned)>,
+}
+
+impl Follower {
+    fn new() -> Self {
+        Follower {
+            voice: DispatcherVoice::default(),
+            told: (0, Instant::now()),
+            lost_since: None,
+        }
+    }
+
+    /// A relayed event of the run, republished on `bus`; `current` is the node of the
+    /// dispatcher speaking for the run. The outcome once that dispatcher ended the run.
+    fn relayed(&mut self, bus: &EventBus, event: Event, current: &str) -> Option<Outcome> {
+        if !event.kind.is_dispatch() {
+            return None;
+        }
+        let heard = self.voice.hears(&event);
+        let Event { node, kind, .. } = event;
+        if let EventKind::ActionStarted { run_ms, .. } | EventKind::ActionEnded { run_ms, .. } =
+            &kind
+        {
+            self.told = (*run_ms, Instant::now());
+        }
+        match &kind {
+            EventKind::Takeover { .. } => self.lost_since = None,
+            // the dispatcher speaking for the run was fenced off: a standby stored a newer
+            // term, and its `takeover` is on its way — or it never comes (the standby was
+            // lost right after), and the run fails
+            EventKind::DispatcherFenced { .. } if node == current && self.lost_since.is_none() => {
+                tracing::warn!(node = %current, "the run's dispatcher was fenced off: waiting for the standby's takeover");
+                self.lost_since = Some((Instant::now(), Orphaned::Fenced));
+            }
+            _ => {}
+        }
+        let ended = match &kind {
+            EventKind::RunEnded { outcome, .. } if heard => Some(*outcome),
+            _ => None,
+        };
+        bus.republish(&node, kind);
+        ended
+    }
+
+    /// News of this node's own bus: the node of the run's dispatcher (`current`) lost, or
+    /// back. `Err` when the bus closed.
+    fn own(&mut self, news: Result<Event, BusError>, current: &str) -> Result<(), NodeError> {
+        match news {
+            Ok(Event {
+                kind: EventKind::NodeDown { peer, .. } | EventKind::NodeLost { peer, .. },
+                ..
+            }) if peer == current && self.lost_since.is_none() => {
+                tracing::warn!(node = %current, "the run's dispatcher node is lost: waiting for a standby to take the run over");
+                self.lost_since = Some((Instant::now(), Orphaned::WithNode));
+            }
+            // its node back: the dispatcher goes on (unless it was fenced off)
+            Ok(Event {
+                kind: EventKind::NodeUp { peer, .. },
+                ..
+            }) if peer == current
+                && self
+                    .lost_since
+                    .is_some_and(|(_, why)| why == Orphaned::WithNode) =>
+            {
+                self.lost_since = None;
+            }
+            Ok(_) | Err(BusError::Lagged { .. }) => {}
+            Err(BusError::Closed) => return Err(NodeError::Desk("the node's bus closed".into())),
+        }
+        Ok(())
+    }
+
+    /// When the run fails for want of a takeover, if it has no dispatcher now.
+    fn no_takeover_after(&self) -> Option<Instant> {
+        self.lost_since.map(|(since, _)| since + TAKEOVER_WAIT)
+    }
+
+    /// No standby took the run over in time: the run fails, told as the lost dispatcher's
+    /// end on `bus` (the run's report folds its dispatcher's events only).
+    fn no_takeover(&self, bus: &EventBus, current: &str) -> Outcome {
+        let why = self.lost_since.map_or("was lost", |(_, why)| why.why());
+        let reason = format!(
+            "the dispatcher on `{current}` {why} and no standby took the run over \
+             within {:.0} s",
+            TAKEOVER_WAIT.as_secs_f64()
+        );
+        bus.republish(
+            current,
+            EventKind::RunEnded {
+                outcome: Outcome::Failed,
+                reason,
+                run_ms: self.told.0 + self.told.1.elapsed().as_millis() as u64,
+                status: 0,
+                flags: Vec::new(),
+            },
+        );
+        Outcome::Failed
+    }
+}
+
+/// Wait until `deadline`, or for ever without one.
+async fn until(deadline: Option<Instant>) {
+    match deadline {
+        Some(at) => tokio::time::sleep_until(at).await,
+        None => std::future::pending().await,
+    }
+}
+
 impl Node {
     /// Run `mission` on the desk of node `on` and follow it to its end (see the module
     /// docs): the outcome its current dispatcher ends it with.
@@ -59,17 +179,8 @@ impl Node {
         mission: Mission,
         on: &str,
     ) -> Result<Outcome, NodeError> {
-        let desk = registry::lookup(ModuleKind::Dispatcher, DESK_NAME)
-            .into_iter()
-            .find(|i| i.node == on)
-            .ok_or_else(|| {
-                NodeError::Desk(format!(
-                    "node `{on}` runs no dispatcher desk (a node config runs one with \
-                     `dispatcher = \"active\"` or `\"standby\"` in its `[node]`)"
-                ))
-            })?;
-        let desk: ActorRef<DeskMsg> = desk.actor.into();
-        let mut watch = crate::relay::watch(FOLLOW_CAPACITY)
+        let desk = desk_on(on)?;
+        let watch = crate::relay::watch(FOLLOW_CAPACITY)
             .await
             .map_err(|e| NodeError::Desk(format!("cannot follow the run's events: {e}")))?;
         let run = format!(
@@ -79,13 +190,28 @@ impl Node {
         );
         let bytes = rmp_serde::to_vec(&mission)
             .map_err(|e| NodeError::Desk(format!("cannot send the mission: {e}")))?;
-        let (watcher_node, watcher_pid) = (self.config.name.clone(), watch.pid());
         // subscribed before the run starts: a loss of its dispatcher is not missed
-        let mut own = self.bus.subscribe();
+        let own = self.bus.subscribe();
+        self.start_on(&desk, on, &run, bytes, &watch).await?;
+        tracing::info!(%run, node = %on, "run dispatched; following it");
+        self.follow(on, watch, own).await
+    }
+
+    /// Ask the desk of node `on` to start `run` (the mission as `bytes`), its events
+    /// relayed to `watch`.
+    async fn start_on(
+        &self,
+        desk: &ActorRef<DeskMsg>,
+        on: &str,
+        run: &str,
+        bytes: Vec<u8>,
+        watch: &Watch,
+    ) -> Result<(), NodeError> {
+        let (watcher_node, watcher_pid) = (self.config.name.clone(), watch.pid());
         let answer = desk
             .call(
                 |reply| DeskMsg::Start {
-                    run: run.clone(),
+                    run: run.to_string(),
                     mission: bytes,
                     watcher_node,
                     watcher_pid,
@@ -95,104 +221,55 @@ impl Node {
             )
             .await;
         match answer {
-            Ok(CallResult::Success(Ok(()))) => {}
-            Ok(CallResult::Success(Err(why))) => {
-                return Err(NodeError::Desk(format!(
-                    "node `{on}` did not start the run: {why}"
-                )))
-            }
-            _ => {
-                return Err(NodeError::Desk(format!(
-                    "node `{on}`'s dispatcher desk did not answer within {START_TIMEOUT:?}"
-                )))
-            }
+            Ok(CallResult::Success(Ok(()))) => Ok(()),
+            Ok(CallResult::Success(Err(why))) => Err(NodeError::Desk(format!(
+                "node `{on}` did not start the run: {why}"
+            ))),
+            _ => Err(NodeError::Desk(format!(
+                "node `{on}`'s dispatcher desk did not answer within {START_TIMEOUT:?}"
+            ))),
         }
-        tracing::info!(%run, node = %on, "run dispatched; following it");
-        // the dispatcher speaking for the run (its run_ended ends it): on `on`, until a
-        // takeover
-        let mut voice = DispatcherVoice::default();
-        // the run's time as its dispatcher last told it, and when
-        let mut told = (0u64, tokio::time::Instant::now());
-        // since when the run has no dispatcher, and why
-        let mut lost_since: Option<(tokio::time::Instant, Orphaned)> = None;
+    }
+
+    /// Follow the run dispatched on `on` to its end: its relayed events from `watch`, the
+    /// news of the nodes from this node's bus (`own`), and the wait for a takeover.
+    async fn follow(
+        &self,
+        on: &str,
+        mut watch: Watch,
+        mut own: EventSubscription,
+    ) -> Result<Outcome, NodeError> {
+        let mut follower = Follower::new();
         loop {
-            let no_takeover = async {
-                match lost_since {
-                    Some((since, _)) => tokio::time::sleep_until(since + TAKEOVER_WAIT).await,
-                    None => std::future::pending().await,
-                }
-            };
-            let current = voice.node().unwrap_or(on).to_string();
+            let current = follower.voice.node().unwrap_or(on).to_string();
             tokio::select! {
                 event = watch.recv() => {
                     let Some(event) = event else {
                         return Err(NodeError::Desk("the run's events stopped coming".into()));
                     };
-                    if !event.kind.is_dispatch() {
-                        continue;
-                    }
-                    let heard = voice.hears(&event);
-                    let Event { node, kind, .. } = event;
-                    if let EventKind::ActionStarted { run_ms, .. } | EventKind::ActionEnded { run_ms, .. } = &kind {
-                        told = (*run_ms, tokio::time::Instant::now());
-                    }
-                    match &kind {
-                        EventKind::Takeover { .. } => lost_since = None,
-                        // the dispatcher speaking for the run was fenced off: a standby
-                        // stored a newer term, and its `takeover` is on its way — or it
-                        // never comes (the standby was lost right after), and the run fails
-                        EventKind::DispatcherFenced { .. }
-                            if node == current && lost_since.is_none() =>
-                        {
-                            tracing::warn!(node = %current, "the run's dispatcher was fenced off: waiting for the standby's takeover");
-                            lost_since = Some((tokio::time::Instant::now(), Orphaned::Fenced));
-                        }
-                        _ => {}
-                    }
-                    let ended = match &kind {
-                        EventKind::RunEnded { outcome, .. } if heard => Some(*outcome),
-                        _ => None,
-                    };
-                    self.bus.republish(&node, kind);
-                    if let Some(outcome) = ended {
+                    if let Some(outcome) = follower.relayed(&self.bus, event, &current) {
                         return Ok(outcome);
                     }
                 }
-                news = own.recv() => match news {
-                    Ok(Event { kind: EventKind::NodeDown { peer, .. } | EventKind::NodeLost { peer, .. }, .. })
-                        if peer == current && lost_since.is_none() =>
-                    {
-                        tracing::warn!(node = %current, "the run's dispatcher node is lost: waiting for a standby to take the run over");
-                        lost_since = Some((tokio::time::Instant::now(), Orphaned::WithNode));
-                    }
-                    // its node back: the dispatcher goes on (unless it was fenced off)
-                    Ok(Event { kind: EventKind::NodeUp { peer, .. }, .. })
-                        if peer == current && lost_since.is_some_and(|(_, why)| why == Orphaned::WithNode) =>
-                    {
-                        lost_since = None;
-                    }
-                    Ok(_) | Err(BusError::Lagged { .. }) => {}
-                    Err(BusError::Closed) => return Err(NodeError::Desk("the node's bus closed".into())),
-                },
-                () = no_takeover => {
-                    let why = lost_since.map_or("was lost", |(_, why)| why.why());
-                    let reason = format!(
-                        "the dispatcher on `{current}` {why} and no standby took the run over \
-                         within {:.0} s",
-                        TAKEOVER_WAIT.as_secs_f64()
-                    );
-                    // told as the lost dispatcher's end: the run's report folds its
-                    // dispatcher's events only
-                    self.bus.republish(&current, EventKind::RunEnded {
-                        outcome: Outcome::Failed,
-                        reason,
-                        run_ms: told.0 + told.1.elapsed().as_millis() as u64,
-                        status: 0,
-                        flags: Vec::new(),
-                    });
-                    return Ok(Outcome::Failed);
+                news = own.recv() => follower.own(news, &current)?,
+                () = until(follower.no_takeover_after()) => {
+                    return Ok(follower.no_takeover(&self.bus, &current));
                 }
             }
         }
     }
+}
+
+/// The dispatcher desk of node `on`.
+fn desk_on(on: &str) -> Result<ActorRef<DeskMsg>, NodeError> {
+    let desk = registry::lookup(ModuleKind::Dispatcher, DESK_NAME)
+        .into_iter()
+        .find(|i| i.node == on)
+        .ok_or_else(|| {
+            NodeError::Desk(format!(
+                "node `{on}` runs no dispatcher desk (a node config runs one with \
+                 `dispatcher = \"active\"` or `\"standby\"` in its `[node]`)"
+            ))
+        })?;
+    Ok(desk.actor.into())
 }
