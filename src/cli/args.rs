@@ -4,7 +4,7 @@ use marie_missions::embedded::EmbeddedOptions;
 use std::path::{Path, PathBuf};
 
 /// What the embedded node hosts, and the simulated robot a mission runs with.
-#[derive(clap::Args, Debug)]
+#[derive(clap::Args, Clone, Debug)]
 pub(crate) struct RobotArgs {
     /// World file the simulated robot drives in; overrides the node config's and the
     /// mission's `world`. Without any, no robot is started.

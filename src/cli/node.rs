@@ -13,9 +13,10 @@ use super::error::BadInput;
 use super::prepare::start_node;
 use marie::clock::ScaledClock;
 use marie::cluster::net::ClusterConfig;
-use marie::cluster::node::NodeConfig;
+use marie::cluster::node::{Node, NodeConfig};
 use marie::registry;
 use marie_missions::embedded::{EmbeddedError, EmbeddedOptions};
+use std::future::Future;
 use std::io::Write;
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -93,24 +94,10 @@ impl NodeArgs {
 /// Start the node as a cluster member (the node joins through its config's cluster: one
 /// road with embedders), report whom it sees, stop cleanly on a signal.
 pub(crate) async fn node(args: NodeArgs) -> anyhow::Result<ExitCode> {
-    let mut config = NodeConfig::load(&args.config, &marie_missions::catalog())
-        .map_err(EmbeddedError::Config)?;
-    let Some(cluster) = args.cluster(config.cluster.take()) else {
-        return Err(BadInput(format!(
-            "{}: no [cluster] table: a node needs `listen`, `peers` and `cookie` to join a \
-             cluster, in the file or as --listen and --cookie (to run a mission on one \
-             process: marie run MISSION --node {0})",
-            args.config.display()
-        ))
-        .into());
-    };
-    if let Some(dir) = &args.data_dir {
-        config.data_dir = Some(dir.clone());
-    }
-    let tls = cluster.tls.is_some();
-    let peers = cluster.peers.clone();
+    // the config with the flags applied, checked before the node starts
+    let (config, cluster) = args.config()?;
     let embedded = start_node(EmbeddedOptions {
-        config: Some(config.with_cluster(cluster)),
+        config: Some(config.with_cluster(cluster.clone())),
         world: args.world.clone(),
         seed: args.seed,
         clock: Arc::new(ScaledClock::cluster(args.speed)),
@@ -118,16 +105,75 @@ pub(crate) async fn node(args: NodeArgs) -> anyhow::Result<ExitCode> {
     })
     .await?;
     let node = embedded.node;
+    // watched before the line that tells whoever waits for it that the node runs
+    let stop = super::signal::shutdown_signal(args.stop_with_stdin);
+    say(&listening_line(&node, &cluster, args.speed));
+    // whom it sees, until a signal
+    let signal = tell_until(&node, stop).await;
     let name = node.config().name.clone();
+    say(&format!("node {name} stopping ({signal})"));
+    // leaves the cluster, then stops its tree
+    node.shutdown().await;
+    say(&format!("node {name} stopped"));
+    Ok(ExitCode::SUCCESS)
+}
+
+impl NodeArgs {
+    /// The node config with the flags applied — `--data-dir` — and its `[cluster]` with
+    /// theirs (bad input without one).
+    fn config(&self) -> anyhow::Result<(NodeConfig, ClusterConfig)> {
+        let mut config = NodeConfig::load(&self.config, &marie_missions::catalog())
+            .map_err(EmbeddedError::Config)?;
+        let Some(cluster) = self.cluster(config.cluster.take()) else {
+            return Err(BadInput(format!(
+                "{}: no [cluster] table: a node needs `listen`, `peers` and `cookie` to join a \
+                 cluster, in the file or as --listen and --cookie (to run a mission on one \
+                 process: marie run MISSION --node {0})",
+                self.config.display()
+            ))
+            .into());
+        };
+        if let Some(dir) = &self.data_dir {
+            config.data_dir = Some(dir.clone());
+        }
+        Ok((config, cluster))
+    }
+}
+
+/// `node NAME listening on ADDR with N module(s) at speed X; joining PEERS`: the line
+/// `marie up` and the tests wait for.
+fn listening_line(node: &Node, cluster: &ClusterConfig, speed: f64) -> String {
     let Some(transport) = node.transport() else {
         unreachable!("a node whose config has a cluster has joined it")
     };
-    // watched before the line that tells whoever waits for it that the node runs
-    let stop = super::signal::shutdown_signal(args.stop_with_stdin);
-    tokio::pin!(stop);
-    // what it hosts itself (peers' modules may be in the registry already). A replicated
-    // datamanager is one module wherever its primary is elected: counted by the node that
-    // prefers it (the first of its copies), not by the node that may host it now
+    format!(
+        "node {} listening on {}{} with {} module(s) at speed {speed}; joining {}",
+        node.config().name,
+        transport.listen(),
+        if cluster.tls.is_some() {
+            " (mutual TLS)"
+        } else {
+            ""
+        },
+        hosted_modules(node),
+        if cluster.peers.is_empty() {
+            "nobody (others join it)".to_string()
+        } else {
+            cluster
+                .peers
+                .iter()
+                .map(ToString::to_string)
+                .collect::<Vec<_>>()
+                .join(", ")
+        }
+    )
+}
+
+/// What the node hosts itself (peers' modules may be in the registry already). A
+/// replicated datamanager is one module wherever its primary is elected: counted by the
+/// node that prefers it (the first of its copies), not by the node that may host it now.
+fn hosted_modules(node: &Node) -> usize {
+    let name = &node.config().name;
     let replicated: Vec<&str> = node
         .config()
         .datamanagers
@@ -139,31 +185,26 @@ pub(crate) async fn node(args: NodeArgs) -> anyhow::Result<ExitCode> {
         .config()
         .datamanagers
         .iter()
-        .filter(|d| d.copies.first() == Some(&name))
+        .filter(|d| d.copies.first() == Some(name))
         .count();
-    let modules = registry::list()
+    registry::list()
         .iter()
         .filter(|m| m.actor.get_id().is_local())
         .filter(|m| {
             !(m.kind == registry::ModuleKind::Datamanager && replicated.contains(&m.name.as_str()))
         })
         .count()
-        + preferred;
-    say(&format!(
-        "node {name} listening on {}{} with {modules} module(s) at speed {}; joining {}",
-        transport.listen(),
-        if tls { " (mutual TLS)" } else { "" },
-        args.speed,
-        if peers.is_empty() {
-            "nobody (others join it)".to_string()
-        } else {
-            peers
-                .iter()
-                .map(ToString::to_string)
-                .collect::<Vec<_>>()
-                .join(", ")
-        }
-    ));
+        + preferred
+}
+
+/// Say whom the node sees — the peers it sees already, then every peer seen or lost — and
+/// when it restarts its operations after being frozen, until `stop`; gives the signal.
+async fn tell_until(node: &Node, stop: impl Future<Output = &'static str>) -> &'static str {
+    let name = &node.config().name;
+    let Some(transport) = node.transport() else {
+        unreachable!("a node whose config has a cluster has joined it")
+    };
+    tokio::pin!(stop);
     let (ready, mut net) = transport.events();
     for peer in ready {
         say(&format!(
@@ -177,10 +218,7 @@ pub(crate) async fn node(args: NodeArgs) -> anyhow::Result<ExitCode> {
         .expect("a node in a cluster tells its reincarnations");
     loop {
         tokio::select! {
-            signal = &mut stop => {
-                say(&format!("node {name} stopping ({signal})"));
-                break;
-            }
+            signal = &mut stop => return signal,
             event = net.recv() => if let Ok(event) = event {
                 say(&format!("node {name} {event}"));
             },
@@ -192,10 +230,6 @@ pub(crate) async fn node(args: NodeArgs) -> anyhow::Result<ExitCode> {
             },
         }
     }
-    // leaves the cluster, then stops its tree
-    node.shutdown().await;
-    say(&format!("node {name} stopped"));
-    Ok(ExitCode::SUCCESS)
 }
 
 /// A line on stdout, flushed at once (stdout is a pipe when a parent waits for it).
