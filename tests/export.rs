@@ -253,7 +253,7 @@ fn a_docking_run_as_mcap_holds_every_event_and_its_scene_in_foxglove_schemas_and
     let last: serde_json::Value = serde_json::from_slice(&last.data).unwrap();
     assert_eq!(last["outcome"], "succeeded");
     assert_eq!(last["active"], "");
-    assert!(last["nodes"].as_array().unwrap().len() > 1);
+    assert!(last["items"].as_array().unwrap().len() > 1);
     // the cart: a box of the world's cart at each pose
     let cart = messages.iter().find(|m| m.topic == "/cart").unwrap();
     let cart: serde_json::Value = serde_json::from_slice(&cart.data).unwrap();

@@ -15,7 +15,7 @@ use common::browser::Browser;
 use common::layouts::failover_layout;
 use common::monitor::{monitored_run, monitored_up, page_of, recorded_run, replay_monitor, url_of};
 use marie::clock::{Clock, ManualClock};
-use marie::events::{ActionPlan, EventBus, EventKind, PlanNode};
+use marie::events::{ActionPlan, EventBus, EventKind, PlanItem};
 use marie::run::OpEnd;
 use marie_monitor::{Monitor, MonitorHandle, MonitorOptions};
 use std::io::Write;
@@ -336,16 +336,16 @@ fn a_viewer_without_the_token_is_refused() {
 /// Group 0's ids: retry 1, timeout 2, fallback 3 (`g00`), sequence 4, `g00-approach` 5,
 /// recover 6, `g00-align` 7, `g00-back-off` 8, reactive 9, condition 10, `g00-creep` 11,
 /// parallel 12, `g00-left` 13, `g00-right` 14.
-fn big_plan() -> (Vec<PlanNode>, Vec<String>) {
+fn big_plan() -> (Vec<PlanItem>, Vec<String>) {
     #[derive(Default)]
     struct Plan {
-        nodes: Vec<PlanNode>,
+        nodes: Vec<PlanItem>,
         actions: Vec<String>,
     }
     impl Plan {
         fn add(&mut self, parent: Option<usize>, kind: &str, label: &str, detail: &str) -> usize {
             let id = self.nodes.len();
-            self.nodes.push(PlanNode {
+            self.nodes.push(PlanItem {
                 id,
                 parent,
                 kind: kind.into(),
@@ -458,7 +458,7 @@ impl Fed {
 
     fn decided(&self, node: &str, decision: &str) -> EventKind {
         EventKind::Control {
-            node: node.into(),
+            item: node.into(),
             decision: decision.into(),
             run_ms: self.run_ms(),
         }
@@ -476,7 +476,7 @@ fn op_ended(action: &str, ended: OpEnd) -> EventKind {
 
 /// JavaScript: the row of node `id` of the behaviour tree.
 fn row(id: usize) -> String {
-    format!("document.querySelector('#control-tree .cnode[data-id=\"{id}\"]')")
+    format!("document.querySelector('#control-tree .titem[data-id=\"{id}\"]')")
 }
 
 /// A number the page keeps in a data attribute (`document.body.dataset.renderMs`, …).
@@ -535,11 +535,11 @@ fn a_behaviour_tree_of_200_nodes_shows_its_running_branch_retries_and_timeouts()
 
     // the plan: every node drawn, in place of the list
     fed.publish([EventKind::ControlPlan {
-        nodes: plan.clone(),
+        items: plan.clone(),
     }]);
     shows(
         &mut browser,
-        "document.querySelectorAll('#control-tree .cnode').length === 200 \
+        "document.querySelectorAll('#control-tree .titem').length === 200 \
          && document.querySelector('#tree').hidden",
         "the 200 nodes of the behaviour tree",
     );
@@ -549,7 +549,7 @@ fn a_behaviour_tree_of_200_nodes_shows_its_running_branch_retries_and_timeouts()
     );
     let labels = browser
         .evaluate(
-            "Array.from(document.querySelectorAll('#control-tree .cnode'), \
+            "Array.from(document.querySelectorAll('#control-tree .titem'), \
              (li) => li.dataset.label + '/' + li.dataset.kind + '/' + li.dataset.depth)",
         )
         .unwrap();
@@ -609,15 +609,15 @@ fn a_behaviour_tree_of_200_nodes_shows_its_running_branch_retries_and_timeouts()
         "the align failed"
     );
     assert_eq!(
-        count(&mut browser, "#control-tree .cnode .mark.fallback"),
+        count(&mut browser, "#control-tree .titem .mark.fallback"),
         1
     );
     assert_eq!(
-        count(&mut browser, "#control-tree .cnode .mark.recovery"),
+        count(&mut browser, "#control-tree .titem .mark.recovery"),
         1
     );
     assert_eq!(
-        count(&mut browser, "#control-tree .cnode[data-state=\"running\"]"),
+        count(&mut browser, "#control-tree .titem[data-state=\"running\"]"),
         0
     );
 
@@ -636,7 +636,7 @@ fn a_behaviour_tree_of_200_nodes_shows_its_running_branch_retries_and_timeouts()
     );
     let running = browser
         .evaluate(
-            "Array.from(document.querySelectorAll('#control-tree .cnode[data-state=\"running\"]'), \
+            "Array.from(document.querySelectorAll('#control-tree .titem[data-state=\"running\"]'), \
              (li) => Number(li.dataset.id))",
         )
         .unwrap();
@@ -646,7 +646,7 @@ fn a_behaviour_tree_of_200_nodes_shows_its_running_branch_retries_and_timeouts()
         "the running branch"
     );
     assert_eq!(
-        count(&mut browser, "#control-tree .cnode .mark.timeout"),
+        count(&mut browser, "#control-tree .titem .mark.timeout"),
         1,
         "the timeout of the first attempt stays counted"
     );
@@ -696,7 +696,7 @@ fn a_behaviour_tree_of_200_nodes_shows_its_running_branch_retries_and_timeouts()
         shows(
             &mut browser,
             &format!(
-                "document.querySelector('#control-tree .cnode[data-label=\"{action}\"]')\
+                "document.querySelector('#control-tree .titem[data-label=\"{action}\"]')\
                  ?.dataset.state === '{state}'"
             ),
             &format!("{action} {state}"),
@@ -733,8 +733,8 @@ fn a_behaviour_tree_of_200_nodes_shows_its_running_branch_retries_and_timeouts()
     let with_layout = number(
         &mut browser,
         "(() => { const was = latest; const s = structuredClone(was); \
-           for (const n of s.tree.nodes) n.running = false; \
-           for (const id of [0, 43, 44, 45, 46, 47]) s.tree.nodes[id].running = true; \
+           for (const n of s.tree.items) n.running = false; \
+           for (const id of [0, 43, 44, 45, 46, 47]) s.tree.items[id].running = true; \
            const t0 = performance.now(); render(s); document.body.getBoundingClientRect(); \
            document.querySelector('#control-tree').scrollHeight; \
            const ms = performance.now() - t0; render(was); return ms; })()",

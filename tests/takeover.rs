@@ -282,9 +282,11 @@ fn a_dispatcher_lost_after_a_fallback_is_taken_over_inside_the_retry_and_the_rec
     let told: Vec<(String, String)> = events
         .iter()
         .filter_map(|e| match &e.kind {
-            marie::events::EventKind::Control { node, decision, .. } => {
-                Some((format!("{node}: {decision}"), e.node.clone()))
-            }
+            marie::events::EventKind::Control {
+                item: node,
+                decision,
+                ..
+            } => Some((format!("{node}: {decision}"), e.node.clone())),
             _ => None,
         })
         .collect();

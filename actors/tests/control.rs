@@ -140,7 +140,7 @@ fn decisions(report: &RunReport) -> Vec<String> {
     report
         .control
         .iter()
-        .map(|c| format!("{}: {}", c.node, c.decision))
+        .map(|c| format!("{}: {}", c.item, c.decision))
         .collect()
 }
 

@@ -380,7 +380,7 @@ async fn progress_events_follow_the_run() {
     );
     // the tree right after the start: a thesis mission's schedule of its one action
     assert!(
-        matches!(kinds[1], EventKind::ControlPlan { nodes } if nodes.len() == 2 && nodes[1].label == "only"),
+        matches!(kinds[1], EventKind::ControlPlan { items: nodes } if nodes.len() == 2 && nodes[1].label == "only"),
         "{kinds:?}"
     );
     assert!(

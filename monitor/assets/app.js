@@ -112,9 +112,9 @@ function renderTree(m) {
 // --- the behaviour tree ----------------------------------------------------------------------
 // A run that announces its behaviour tree (state.tree, issue 24) gets it drawn instead of the
 // list of actions (#tree: still drawn, hidden, and shown again for a stream without a tree).
-// One compact row per node, indented by its depth, in a scrolling list; nothing collapsed.
-// Built once per plan; an update then touches only the rows whose node changed (a
-// signature of what a row shows), so a tree of hundreds of nodes costs an update a few
+// One compact row per item, indented by its depth, in a scrolling list; nothing collapsed.
+// Built once per plan; an update then touches only the rows whose item changed (a
+// signature of what a row shows), so a tree of hundreds of items costs an update a few
 // hundred string comparisons and the DOM writes of what changed.
 const ctree = { key: null, rows: [], sigs: [], builds: 0 };
 // a retry's attempts in all, from its detail (`3 attempts, 2.0 s apart`)
@@ -125,7 +125,7 @@ function renderControl(state) {
   const t0 = performance.now();
   const t = state.tree;
   const list = $("#control-tree");
-  const has = !!(t && t.nodes && t.nodes.length);
+  const has = !!(t && t.items && t.items.length);
   list.hidden = !has;
   $("#control-summary").hidden = !has;
   $("#tree").hidden = has;
@@ -136,14 +136,14 @@ function renderControl(state) {
     }
     return;
   }
-  const key = state.mission.name + "#" + t.plan + "#" + t.nodes.length;
-  if (key !== ctree.key) buildControl(list, t.nodes, key);
+  const key = state.mission.name + "#" + t.plan + "#" + t.items.length;
+  if (key !== ctree.key) buildControl(list, t.items, key);
   const actions = new Map(state.mission.actions.map((a) => [a.name, a]));
   let updated = 0;
   const running = [];
-  for (const n of t.nodes) {
+  for (const n of t.items) {
     const a = n.kind === "action" ? actions.get(n.label) : undefined;
-    const sig = nodeSig(n, a);
+    const sig = itemSig(n, a);
     if (sig !== ctree.sigs[n.id]) {
       drawNode(ctree.rows[n.id], n, a);
       ctree.sigs[n.id] = sig;
@@ -151,7 +151,7 @@ function renderControl(state) {
     }
     if (n.running && n.kind === "action") running.push(n);
   }
-  setHtml($("#control-summary"), `${t.nodes.length} nodes · ` +
+  setHtml($("#control-summary"), `${t.items.length} items · ` +
     (running.length
       ? "running " + running.map((n) => `<button type="button" class="goto" data-id="${n.id}" title="show it">${esc(n.label)}</button>`).join(" ")
       : "nothing runs"));
@@ -160,9 +160,9 @@ function renderControl(state) {
 }
 
 // The rows of a new plan, in one parse.
-function buildControl(list, nodes, key) {
-  list.innerHTML = nodes
-    .map((n) => `<li class="cnode" data-id="${n.id}" data-kind="${esc(n.kind)}" data-depth="${n.depth}" ` +
+function buildControl(list, items, key) {
+  list.innerHTML = items
+    .map((n) => `<li class="titem" data-id="${n.id}" data-kind="${esc(n.kind)}" data-depth="${n.depth}" ` +
       `data-label="${esc(n.label)}" data-state="waiting" style="--depth:${n.depth}">` +
       `<span class="st"></span><span class="kind">${esc(n.kind)}</span><span class="label">${esc(n.label)}</span>` +
       `<span class="marks"></span><span class="detail">${esc(n.detail)}</span></li>`)
@@ -173,11 +173,11 @@ function buildControl(list, nodes, key) {
   ctree.sigs = [];
   ctree.key = key;
   list.dataset.builds = String(++ctree.builds);
-  list.dataset.nodes = String(nodes.length);
+  list.dataset.items = String(items.length);
 }
 
-// What a row shows of node `n` (and of its action `a`): equal signatures, equal rows.
-function nodeSig(n, a) {
+// What a row shows of item `n` (and of its action `a`): equal signatures, equal rows.
+function itemSig(n, a) {
   return [n.running, n.ended, n.starts, n.attempt, n.gave_up, n.timeouts, n.fallbacks,
     n.conditions_lost, n.recoveries, n.told,
     a ? a.ops.map((o) => o.key + ":" + (o.ended || "")).join(",") : ""].join("|");

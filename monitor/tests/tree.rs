@@ -4,7 +4,7 @@
 
 use marie_monitor::state::tree::{ControlTree, NodeEnd, DECISIONS_KEPT};
 use marie_monitor::MonitorState;
-use marie_vocabulary::events::{ActionPlan, Event, EventKind, PlanNode};
+use marie_vocabulary::events::{ActionPlan, Event, EventKind, PlanItem};
 use marie_vocabulary::run::{OpEnd, Outcome};
 
 fn event(kind: EventKind) -> Event {
@@ -15,8 +15,8 @@ fn event(kind: EventKind) -> Event {
     }
 }
 
-fn node(id: usize, parent: Option<usize>, kind: &str, label: &str, detail: &str) -> PlanNode {
-    PlanNode {
+fn node(id: usize, parent: Option<usize>, kind: &str, label: &str, detail: &str) -> PlanItem {
+    PlanItem {
         id,
         parent,
         kind: kind.into(),
@@ -43,7 +43,7 @@ fn node(id: usize, parent: Option<usize>, kind: &str, label: &str, detail: &str)
 /// 14    look
 /// 15    listen
 /// ```
-fn plan() -> Vec<PlanNode> {
+fn plan() -> Vec<PlanItem> {
     vec![
         node(0, None, "schedule", "patrol", ""),
         node(
@@ -99,7 +99,7 @@ fn planned() -> MonitorState {
         actions,
         success: vec![],
     }));
-    state.apply(&event(EventKind::ControlPlan { nodes: plan() }));
+    state.apply(&event(EventKind::ControlPlan { items: plan() }));
     state
 }
 
@@ -132,7 +132,7 @@ fn ended(state: &mut MonitorState, action: &str) {
 
 fn decided(state: &mut MonitorState, label: &str, decision: &str) {
     state.apply(&event(EventKind::Control {
-        node: label.into(),
+        item: label.into(),
         decision: decision.into(),
         run_ms: 5_000,
     }));
@@ -140,7 +140,7 @@ fn decided(state: &mut MonitorState, label: &str, decision: &str) {
 
 /// The ids of the nodes that run.
 fn running(tree: &ControlTree) -> Vec<usize> {
-    tree.nodes
+    tree.items
         .iter()
         .filter(|n| n.running)
         .map(|n| n.id)
@@ -148,7 +148,7 @@ fn running(tree: &ControlTree) -> Vec<usize> {
 }
 
 fn end(tree: &ControlTree, id: usize) -> Option<NodeEnd> {
-    tree.nodes[id].ended
+    tree.items[id].ended
 }
 
 #[test]
@@ -156,14 +156,14 @@ fn the_plan_gives_every_node_its_parent_depth_and_nothing_runs_yet() {
     let state = planned();
     let tree = &state.tree;
     assert_eq!(tree.plan, 1);
-    assert_eq!(tree.nodes.len(), 16);
-    let depths: Vec<_> = tree.nodes.iter().map(|n| n.depth).collect();
+    assert_eq!(tree.items.len(), 16);
+    let depths: Vec<_> = tree.items.iter().map(|n| n.depth).collect();
     assert_eq!(depths, [0, 1, 2, 3, 4, 5, 5, 4, 5, 5, 1, 2, 2, 1, 2, 2]);
-    assert_eq!(tree.nodes[6].parent, Some(4));
-    assert_eq!(tree.nodes[6].label, "follow-wall");
-    assert_eq!(tree.nodes[2].detail, "40.0 s");
+    assert_eq!(tree.items[6].parent, Some(4));
+    assert_eq!(tree.items[6].label, "follow-wall");
+    assert_eq!(tree.items[2].detail, "40.0 s");
     assert!(running(tree).is_empty());
-    assert!(tree.nodes.iter().all(|n| n.ended.is_none()));
+    assert!(tree.items.iter().all(|n| n.ended.is_none()));
 }
 
 #[test]
@@ -171,7 +171,7 @@ fn the_running_branch_is_the_running_action_and_its_ancestors() {
     let mut state = planned();
     started(&mut state, "find-wall");
     assert_eq!(running(&state.tree), [0, 1, 2, 3, 4, 5]);
-    assert_eq!(state.tree.nodes[5].starts, 1);
+    assert_eq!(state.tree.items[5].starts, 1);
     ended(&mut state, "find-wall");
     assert_eq!(end(&state.tree, 5), Some(NodeEnd::Succeeded));
     assert!(running(&state.tree).is_empty(), "between two actions");
@@ -206,7 +206,7 @@ fn a_parallel_runs_two_actions_at_once_and_halts_the_other_when_decided() {
         Some(NodeEnd::Failed),
         "the schedule fails"
     );
-    assert_eq!(state.tree.nodes[13].decisions[0].text, "parallel failed");
+    assert_eq!(state.tree.items[13].decisions[0].text, "parallel failed");
 }
 
 #[test]
@@ -220,7 +220,7 @@ fn fallback_recovery_timeout_and_retry_are_counted_on_their_nodes() {
     // the decision names the item fallen back to, under its decorator
     decided(&mut state, "guarded", "fallback to `back-off`");
     let tree = &state.tree;
-    assert_eq!(tree.nodes[3].fallbacks, 1);
+    assert_eq!(tree.items[3].fallbacks, 1);
     assert_eq!(end(tree, 4), Some(NodeEnd::Failed), "the sequence failed");
     assert_eq!(end(tree, 6), Some(NodeEnd::Failed), "its last action too");
     assert_eq!(end(tree, 5), Some(NodeEnd::Succeeded));
@@ -234,10 +234,10 @@ fn fallback_recovery_timeout_and_retry_are_counted_on_their_nodes() {
         "recover(back-off, then turn)",
         "recovery `turn`",
     );
-    assert_eq!(state.tree.nodes[7].recoveries, 1);
+    assert_eq!(state.tree.items[7].recoveries, 1);
     started(&mut state, "turn");
     decided(&mut state, "timeout(guarded)", "timeout after 40.0 s");
-    assert_eq!(state.tree.nodes[2].timeouts, 1);
+    assert_eq!(state.tree.items[2].timeouts, 1);
     assert_eq!(end(&state.tree, 2), None, "it runs until the halt is done");
     ended(&mut state, "turn");
     let tree = &state.tree;
@@ -248,22 +248,22 @@ fn fallback_recovery_timeout_and_retry_are_counted_on_their_nodes() {
     // the second attempt: the first one's ends are forgotten, its counts kept
     decided(&mut state, "retry(guarded)", "retry 2 of 3");
     let tree = &state.tree;
-    assert_eq!(tree.nodes[1].attempt, Some([2, 3]));
+    assert_eq!(tree.items[1].attempt, Some([2, 3]));
     assert!((2..=9).all(|id| end(tree, id).is_none()));
-    assert_eq!(tree.nodes[2].timeouts, 1);
+    assert_eq!(tree.items[2].timeouts, 1);
     started(&mut state, "find-wall");
-    assert_eq!(state.tree.nodes[5].starts, 2);
+    assert_eq!(state.tree.items[5].starts, 2);
     assert_eq!(running(&state.tree), [0, 1, 2, 3, 4, 5]);
     op_ended(&mut state, "find-wall", OpEnd::Failed);
     ended(&mut state, "find-wall");
     decided(&mut state, "retry(guarded)", "retry 3 of 3");
     decided(&mut state, "retry(guarded)", "gave up after 3 attempts");
     let tree = &state.tree;
-    assert!(tree.nodes[1].gave_up);
-    assert_eq!(tree.nodes[1].attempt, Some([3, 3]));
+    assert!(tree.items[1].gave_up);
+    assert_eq!(tree.items[1].attempt, Some([3, 3]));
     assert_eq!(end(tree, 1), Some(NodeEnd::Failed));
     assert_eq!(end(tree, 0), Some(NodeEnd::Failed));
-    assert_eq!(tree.nodes[1].told, 3);
+    assert_eq!(tree.items[1].told, 3);
 }
 
 #[test]
@@ -274,7 +274,7 @@ fn a_condition_lost_halts_the_reactive_sequence() {
     decided(&mut state, "careful", "condition no longer holds");
     ended(&mut state, "creep");
     let tree = &state.tree;
-    assert_eq!(tree.nodes[10].conditions_lost, 1);
+    assert_eq!(tree.items[10].conditions_lost, 1);
     assert_eq!(end(tree, 12), Some(NodeEnd::Halted));
     assert_eq!(end(tree, 10), Some(NodeEnd::Failed));
 }
@@ -283,7 +283,7 @@ fn a_condition_lost_halts_the_reactive_sequence() {
 fn a_decision_that_names_no_node_only_goes_to_the_timeline_and_decisions_are_bounded() {
     let mut state = planned();
     decided(&mut state, "nowhere", "retry 2 of 3");
-    assert!(state.tree.nodes.iter().all(|n| n.told == 0));
+    assert!(state.tree.items.iter().all(|n| n.told == 0));
     assert!(state
         .timeline
         .entries
@@ -292,7 +292,7 @@ fn a_decision_that_names_no_node_only_goes_to_the_timeline_and_decisions_are_bou
     for i in 0..DECISIONS_KEPT + 3 {
         decided(&mut state, "guarded", &format!("fallback to `x{i}`"));
     }
-    let fallback = &state.tree.nodes[3];
+    let fallback = &state.tree.items[3];
     assert_eq!(fallback.decisions.len(), DECISIONS_KEPT);
     assert_eq!(fallback.told as usize, DECISIONS_KEPT + 3);
     assert_eq!(fallback.fallbacks as usize, DECISIONS_KEPT + 3);
@@ -328,7 +328,7 @@ fn a_stream_without_a_plan_has_no_tree_and_a_new_run_forgets_the_old_one() {
         success: vec![],
     }));
     started(&mut state, "find-wall");
-    assert!(state.tree.nodes.is_empty());
+    assert!(state.tree.items.is_empty());
     assert_eq!(state.tree.plan, 0);
     assert_eq!(state.mission.actions.len(), 1, "the task tree still has it");
     let mut state = planned();
@@ -337,8 +337,8 @@ fn a_stream_without_a_plan_has_no_tree_and_a_new_run_forgets_the_old_one() {
         actions: vec![],
         success: vec![],
     }));
-    assert!(state.tree.nodes.is_empty());
-    state.apply(&event(EventKind::ControlPlan { nodes: plan() }));
+    assert!(state.tree.items.is_empty());
+    state.apply(&event(EventKind::ControlPlan { items: plan() }));
     assert_eq!(state.tree.plan, 2, "a new plan: the page draws it anew");
 }
 
@@ -348,7 +348,7 @@ fn the_tree_serializes_for_the_page_without_its_defaults() {
     started(&mut state, "find-wall");
     decided(&mut state, "timeout(guarded)", "timeout after 40.0 s");
     let json = serde_json::to_value(&state).unwrap();
-    let nodes = json["tree"]["nodes"].as_array().unwrap();
+    let nodes = json["tree"]["items"].as_array().unwrap();
     assert_eq!(nodes.len(), 16);
     assert_eq!(json["tree"]["plan"], 1);
     assert_eq!(

@@ -335,7 +335,7 @@ impl Actor for ActionDispatcher {
                     success: state.mission.flags_to_names(state.mission.success),
                 });
                 state.emit(EventKind::ControlPlan {
-                    nodes: super::plan::control_plan(&state.mission),
+                    items: super::plan::control_plan(&state.mission),
                 });
                 if let Err(e) = state.watch_registry(&myself).await {
                     state.finish(&myself, Outcome::Failed, e.to_string());

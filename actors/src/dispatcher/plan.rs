@@ -5,11 +5,11 @@
 
 use super::mission::Mission;
 use super::tree::{Node, Tree};
-use marie_vocabulary::events::PlanNode;
+use marie_vocabulary::events::PlanItem;
 use marie_vocabulary::status::StatusFlags;
 
 /// The nodes of `mission`'s tree in preorder, the root first.
-pub fn control_plan(mission: &Mission) -> Vec<PlanNode> {
+pub fn control_plan(mission: &Mission) -> Vec<PlanItem> {
     let tree = Tree::new(mission.control.root.clone());
     let nodes = tree.preorder();
     let mut parents = vec![None; nodes.len()];
@@ -83,7 +83,7 @@ pub fn control_plan(mission: &Mission) -> Vec<PlanNode> {
                 }
                 _ => detail,
             };
-            PlanNode {
+            PlanItem {
                 id,
                 parent: parents[id],
                 kind: kind.to_string(),

@@ -255,7 +255,7 @@ impl DispatcherState {
         let label = control.label(node).to_string();
         tracing::info!(node = %label, decision = %what, "control");
         self.emit(EventKind::Control {
-            node: label,
+            item: label,
             decision: what,
             run_ms: self.elapsed_ms(),
         });

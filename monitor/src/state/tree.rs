@@ -1,4 +1,5 @@
-//! The mission's behaviour tree (issue 24): its nodes as the run announced them
+//! The mission's behaviour tree: its items (groups, decorators, actions) as the run
+//! announced them
 //! ([`EventKind::ControlPlan`](marie_vocabulary::events::EventKind::ControlPlan)), each with
 //! whether it runs now, how it ended when that is known, and the control decisions told of
 //! it — what the page's tree panel draws.
@@ -19,7 +20,7 @@
 //! A stream without a plan (an older file) leaves the tree empty: the page then draws the
 //! actions as [`mission`](super::mission) has them.
 
-use marie_vocabulary::events::{ActionResult, EventKind, PlanNode};
+use marie_vocabulary::events::{ActionResult, EventKind, PlanItem};
 use marie_vocabulary::run::{OpEnd, Outcome};
 use serde::Serialize;
 use std::collections::VecDeque;
@@ -49,10 +50,10 @@ pub struct Told {
 }
 
 /// One node of the tree. Serialized without the counts that are zero, the flags that are
-/// false and the ends that are unknown: a tree of hundreds of nodes goes to every viewer
+/// false and the ends that are unknown: a tree of hundreds of items goes to every viewer
 /// ten times a second.
 #[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct TreeNode {
+pub struct TreeItem {
     /// Its id: its place in preorder, the root 0.
     pub id: usize,
     /// Its parent's id (none for the root).
@@ -138,8 +139,8 @@ pub struct ControlTree {
     /// Plans announced so far: a new value is a new tree (the page builds its drawing once
     /// per plan and updates it after).
     pub plan: u64,
-    /// The nodes by id (preorder, the root first); empty without a plan.
-    pub nodes: Vec<TreeNode>,
+    /// The items by id (preorder, the root first); empty without a plan.
+    pub items: Vec<TreeItem>,
     /// The action node whose end was the latest action event: the decision that follows it
     /// at once may show that it failed.
     #[serde(skip)]
@@ -152,12 +153,12 @@ impl ControlTree {
     pub fn apply(&mut self, kind: &EventKind) {
         match kind {
             EventKind::RunStarted { .. } => self.run_started(),
-            EventKind::ControlPlan { nodes } => self.planned(nodes),
+            EventKind::ControlPlan { items: nodes } => self.planned(nodes),
             EventKind::ActionStarted { action, .. } => self.action_started(action),
             EventKind::OpEnded { action, ended, .. } => self.op_ended(action, *ended),
             EventKind::ActionEnded { action, result, .. } => self.action_ended(action, *result),
             EventKind::Control {
-                node: item,
+                item,
                 decision,
                 run_ms,
             } => self.decided(item, decision, *run_ms),
@@ -168,19 +169,19 @@ impl ControlTree {
 
     /// A run begins: its plan (if any) comes next.
     pub fn run_started(&mut self) {
-        self.nodes.clear();
+        self.items.clear();
         self.last_ended = None;
     }
 
-    /// The run's plan: `nodes` in preorder, the root first. A node whose parent is not
+    /// The run's plan: `nodes` (its items) in preorder, the root first. An item whose parent is not
     /// before it is taken as a root of its own (the plan would not be preorder).
-    pub fn planned(&mut self, plan: &[PlanNode]) {
+    pub fn planned(&mut self, plan: &[PlanItem]) {
         self.plan += 1;
         self.last_ended = None;
-        self.nodes = plan
+        self.items = plan
             .iter()
             .enumerate()
-            .map(|(id, p)| TreeNode {
+            .map(|(id, p)| TreeItem {
                 id,
                 parent: p.parent.filter(|&parent| parent < id),
                 depth: 0,
@@ -206,22 +207,22 @@ impl ControlTree {
                 fact: None,
             })
             .collect();
-        for id in 1..self.nodes.len() {
-            if let Some(parent) = self.nodes[id].parent {
-                self.nodes[id].depth = self.nodes[parent].depth + 1;
-                self.nodes[parent].kids.push(id);
+        for id in 1..self.items.len() {
+            if let Some(parent) = self.items[id].parent {
+                self.items[id].depth = self.items[parent].depth + 1;
+                self.items[parent].kids.push(id);
             }
         }
-        for id in (1..self.nodes.len()).rev() {
-            if let Some(parent) = self.nodes[id].parent {
-                self.nodes[parent].size += self.nodes[id].size;
+        for id in (1..self.items.len()).rev() {
+            if let Some(parent) = self.items[id].parent {
+                self.items[parent].size += self.items[id].size;
             }
         }
     }
 
-    /// The action nodes of action `name`.
+    /// The action items of action `name`.
     fn actions_named(&self, name: &str) -> Vec<usize> {
-        self.nodes
+        self.items
             .iter()
             .filter(|n| n.kind == "action" && n.label == name)
             .map(|n| n.id)
@@ -230,14 +231,14 @@ impl ControlTree {
 
     /// The ids of `id`'s descendants (its subtree but itself).
     fn descendants(&self, id: usize) -> std::ops::Range<usize> {
-        let end = (id + self.nodes[id].size).min(self.nodes.len());
+        let end = (id + self.items[id].size).min(self.items.len());
         id + 1..end
     }
 
     /// Action `name` started.
     pub fn action_started(&mut self, name: &str) {
         for id in self.actions_named(name) {
-            let n = &mut self.nodes[id];
+            let n = &mut self.items[id];
             n.active = true;
             n.starts += 1;
             n.op_failed = false;
@@ -252,8 +253,8 @@ impl ControlTree {
     pub fn op_ended(&mut self, name: &str, ended: OpEnd) {
         if matches!(ended, OpEnd::Failed | OpEnd::Lost | OpEnd::Unresponsive) {
             for id in self.actions_named(name) {
-                if self.nodes[id].active {
-                    self.nodes[id].op_failed = true;
+                if self.items[id].active {
+                    self.items[id].op_failed = true;
                 }
             }
         }
@@ -263,7 +264,7 @@ impl ControlTree {
     pub fn action_ended(&mut self, name: &str, result: Option<ActionResult>) {
         self.last_ended = None;
         for id in self.actions_named(name) {
-            let n = &mut self.nodes[id];
+            let n = &mut self.items[id];
             if !n.active {
                 continue;
             }
@@ -291,7 +292,7 @@ impl ControlTree {
     pub fn decided(&mut self, label: &str, decision: &str, run_ms: u64) {
         // labels are unique enough; among equals, the one that runs
         let Some(id) = self
-            .nodes
+            .items
             .iter()
             .filter(|n| n.label == label)
             .max_by_key(|n| (n.running, std::cmp::Reverse(n.id)))
@@ -299,7 +300,7 @@ impl ControlTree {
         else {
             return;
         };
-        let node = &mut self.nodes[id];
+        let node = &mut self.items[id];
         node.told += 1;
         if node.decisions.len() >= DECISIONS_KEPT {
             node.decisions.pop_front();
@@ -317,14 +318,14 @@ impl ControlTree {
             node.fact = None;
             self.last_ended = None;
             for d in self.descendants(id) {
-                let n = &mut self.nodes[d];
+                let n = &mut self.items[d];
                 n.fact = None;
                 n.halting = false;
             }
         } else if decision.starts_with("gave up") {
             node.gave_up = true;
             node.fact = Some(NodeEnd::Failed);
-            if let Some(&kid) = self.nodes[id].kids.first() {
+            if let Some(&kid) = self.items[id].kids.first() {
                 self.failed_child(kid);
             }
         } else if decision.starts_with("timeout") {
@@ -349,12 +350,12 @@ impl ControlTree {
             node.fallbacks += 1;
             // the child before the one fallen back to failed
             let to = between_backticks(decision);
-            let kids = &self.nodes[id].kids;
+            let kids = &self.items[id].kids;
             // the decision names the item it turns to, under its decorators (a retry, a
             // timeout): the child whose branch holds it
             let holds = |k: usize, to: &str| {
-                let end = (k + self.nodes[k].size).min(self.nodes.len());
-                self.nodes[k..end].iter().any(|n| n.label == to)
+                let end = (k + self.items[k].size).min(self.items.len());
+                self.items[k..end].iter().any(|n| n.label == to)
             };
             let at = to.and_then(|to| kids.iter().position(|&k| holds(k, to)));
             if let Some(failed) = at.and_then(|at| at.checked_sub(1)).map(|at| kids[at]) {
@@ -362,7 +363,7 @@ impl ControlTree {
             }
         } else if decision.starts_with("recovery") {
             node.recoveries += 1;
-            if let Some(&kid) = self.nodes[id].kids.first() {
+            if let Some(&kid) = self.items[id].kids.first() {
                 self.failed_child(kid);
             }
         }
@@ -376,7 +377,7 @@ impl ControlTree {
             Outcome::Succeeded => NodeEnd::Succeeded,
             Outcome::Failed => NodeEnd::Failed,
         };
-        for n in &mut self.nodes {
+        for n in &mut self.items {
             if n.active {
                 n.active = false;
                 n.fact = Some(match end {
@@ -385,7 +386,7 @@ impl ControlTree {
                 });
             }
         }
-        if let Some(root) = self.nodes.first_mut() {
+        if let Some(root) = self.items.first_mut() {
             root.fact = Some(end);
         }
         self.settle();
@@ -396,27 +397,27 @@ impl ControlTree {
     /// it could have failed instead — that action failed after all (a missed deadline
     /// ends an action without a failed operation).
     fn failed_child(&mut self, id: usize) {
-        self.nodes[id].fact = Some(NodeEnd::Failed);
+        self.items[id].fact = Some(NodeEnd::Failed);
         let Some(action) = self.last_ended else {
             return;
         };
-        let end = (id + self.nodes[id].size).min(self.nodes.len());
-        if !(id..end).contains(&action) || self.nodes[action].fact != Some(NodeEnd::Succeeded) {
+        let end = (id + self.items[id].size).min(self.items.len());
+        if !(id..end).contains(&action) || self.items[action].fact != Some(NodeEnd::Succeeded) {
             return;
         }
-        if !self.nodes[action + 1..end]
+        if !self.items[action + 1..end]
             .iter()
             .any(|n| n.kind == "condition")
         {
-            self.nodes[action].fact = Some(NodeEnd::Failed);
+            self.items[action].fact = Some(NodeEnd::Failed);
         }
     }
 
     /// A decision of node `id` halts the actions running under it.
     fn halt_under(&mut self, id: usize) {
         for d in self.descendants(id) {
-            if self.nodes[d].active {
-                self.nodes[d].halting = true;
+            if self.items[d].active {
+                self.items[d].halting = true;
             }
         }
     }
@@ -424,26 +425,26 @@ impl ControlTree {
     /// Work out every node's `running` and `ended` from the actions and the facts,
     /// children before parents (in preorder a child's id is above its parent's).
     fn settle(&mut self) {
-        for n in &mut self.nodes {
+        for n in &mut self.items {
             n.running = n.active;
         }
-        for id in (0..self.nodes.len()).rev() {
-            let derived = match self.nodes[id].fact {
+        for id in (0..self.items.len()).rev() {
+            let derived = match self.items[id].fact {
                 Some(fact) => Some(fact),
                 None => self.derived_end(id),
             };
-            let n = &mut self.nodes[id];
+            let n = &mut self.items[id];
             n.ended = if n.running { None } else { derived };
             if let (true, Some(parent)) = (n.running, n.parent) {
-                self.nodes[parent].running = true;
+                self.items[parent].running = true;
             }
         }
     }
 
     /// A group's end as its children's ends say (its own decisions aside).
     fn derived_end(&self, id: usize) -> Option<NodeEnd> {
-        let n = &self.nodes[id];
-        let ends: Vec<Option<NodeEnd>> = n.kids.iter().map(|&k| self.nodes[k].ended).collect();
+        let n = &self.items[id];
+        let ends: Vec<Option<NodeEnd>> = n.kids.iter().map(|&k| self.items[k].ended).collect();
         let any = |e: NodeEnd| ends.contains(&Some(e));
         let all = |e: NodeEnd| !ends.is_empty() && ends.iter().all(|x| *x == Some(e));
         match n.kind.as_str() {

@@ -613,8 +613,8 @@ fn log() -> Value {
 /// `/control`'s: see [`super::tree::ControlState`].
 fn control_state() -> Value {
     let (s, i) = (typed("string"), typed("integer"));
-    let node = object(
-        "marie.TreeNode",
+    let item = object(
+        "marie.TreeItem",
         json!({
             "id": i, "parent": i, "depth": i, "kind": s, "label": s, "detail": s,
             "status": s, "starts": i, "attempt": array(i.clone()), "told": i,
@@ -633,7 +633,7 @@ fn control_state() -> Value {
             "active": s,
             "running": array(s.clone()),
             "plan": i,
-            "nodes": array(node),
+            "items": array(item),
         }),
     );
     schema["description"] = json!(

@@ -16,14 +16,14 @@
 use super::schemas::{Message, Time, Topic};
 use marie::events::{Event, EventKind};
 use marie::run::Outcome;
-use marie_monitor::state::tree::{ControlTree, NodeEnd, TreeNode};
+use marie_monitor::state::tree::{ControlTree, NodeEnd, TreeItem};
 use serde::Serialize;
 use std::collections::BTreeSet;
 
 /// The task tree so far.
 #[derive(Debug, Default)]
 pub(crate) struct Control {
-    /// The plan's nodes and their states.
+    /// The plan's items and their states.
     tree: ControlTree,
     /// The actions started and not ended (kept apart from the tree: an older stream has
     /// no plan, and its actions still run).
@@ -57,13 +57,13 @@ pub(crate) struct ControlState<'a> {
     running: &'a BTreeSet<String>,
     /// Plans told so far (a new value: a new tree).
     plan: u64,
-    /// The plan's nodes, the root first.
-    nodes: Vec<NodeState<'a>>,
+    /// The plan's items, the root first.
+    items: Vec<ItemState<'a>>,
 }
 
 /// A node of the plan and its status.
 #[derive(Debug, Serialize)]
-struct NodeState<'a> {
+struct ItemState<'a> {
     id: usize,
     #[serde(skip_serializing_if = "Option::is_none")]
     parent: Option<usize>,
@@ -86,9 +86,9 @@ struct Decision<'a> {
     text: &'a str,
 }
 
-impl<'a> NodeState<'a> {
-    fn of(n: &'a TreeNode) -> NodeState<'a> {
-        NodeState {
+impl<'a> ItemState<'a> {
+    fn of(n: &'a TreeItem) -> ItemState<'a> {
+        ItemState {
             id: n.id,
             parent: n.parent,
             depth: n.depth,
@@ -133,7 +133,7 @@ impl Control {
                 self.outcome = None;
                 ("run_started", None)
             }
-            EventKind::ControlPlan { nodes } => {
+            EventKind::ControlPlan { items: nodes } => {
                 self.tree.planned(nodes);
                 ("control_plan", None)
             }
@@ -158,7 +158,7 @@ impl Control {
                 ("action_ended", Some(*run_ms))
             }
             EventKind::Control {
-                node,
+                item: node,
                 decision,
                 run_ms,
             } => {
@@ -199,7 +199,7 @@ impl Control {
                 .join(", "),
             running: &self.running,
             plan: self.tree.plan,
-            nodes: self.tree.nodes.iter().map(NodeState::of).collect(),
+            items: self.tree.items.iter().map(ItemState::of).collect(),
         };
         Message::new(Topic::Control, event.at_ms, &state).map(Some)
     }
@@ -212,7 +212,7 @@ mod tests {
     use serde_json::Value;
 
     const RUN: &str = r#"{"at_ms":1200,"node":"n","kind":{"type":"run_started","mission":"docking"}}
-{"at_ms":1201,"node":"n","kind":{"type":"control_plan","nodes":[{"id":0,"parent":null,"kind":"schedule","label":"mission"},{"id":1,"parent":0,"kind":"retry","label":"retry(follow)","detail":"2 attempts, 1.0 s apart"},{"id":2,"parent":1,"kind":"action","label":"follow","detail":"wall-follower"}]}}
+{"at_ms":1201,"node":"n","kind":{"type":"control_plan","items":[{"id":0,"parent":null,"kind":"schedule","label":"mission"},{"id":1,"parent":0,"kind":"retry","label":"retry(follow)","detail":"2 attempts, 1.0 s apart"},{"id":2,"parent":1,"kind":"action","label":"follow","detail":"wall-follower"}]}}
 {"at_ms":1260,"node":"n","kind":{"type":"action_started","action":"follow","run_ms":60,"operations":[]}}
 {"at_ms":9800,"node":"n","kind":{"type":"op_ended","action":"follow","key":"wall-follower","ended":"failed","flags":[]}}
 {"at_ms":9810,"node":"n","kind":{"type":"action_ended","action":"follow","run_ms":8610,"flags":[],"status":0,"result":"failed"}}
@@ -243,28 +243,28 @@ mod tests {
             fits(s, &schema, "/control");
         }
         let status = |s: &Value| -> Vec<String> {
-            s["nodes"]
+            s["items"]
                 .as_array()
                 .unwrap()
                 .iter()
                 .map(|n| n["status"].as_str().unwrap().to_string())
                 .collect()
         };
-        assert_eq!(states[1]["nodes"][2]["detail"], "wall-follower");
+        assert_eq!(states[1]["items"][2]["detail"], "wall-follower");
         assert_eq!(states[2]["active"], "follow");
         assert_eq!(status(&states[2]), ["running", "running", "running"]);
         assert_eq!(states[3]["active"], "");
         assert_eq!(states[3]["run_ms"], 8610);
         assert_eq!(
-            states[4]["nodes"][1]["decisions"][0]["text"],
+            states[4]["items"][1]["decisions"][0]["text"],
             "retry 2 of 2"
         );
-        assert_eq!(states[4]["nodes"][1]["attempt"], serde_json::json!([2, 2]));
+        assert_eq!(states[4]["items"][1]["attempt"], serde_json::json!([2, 2]));
         let last = &states[7];
         assert_eq!(last["outcome"], "succeeded");
         assert_eq!(status(last), ["succeeded", "succeeded", "succeeded"]);
-        assert_eq!(last["nodes"][2]["starts"], 2);
-        assert!(last["nodes"][0].get("parent").is_none());
-        assert_eq!(last["nodes"][2]["parent"], 1);
+        assert_eq!(last["items"][2]["starts"], 2);
+        assert!(last["items"][0].get("parent").is_none());
+        assert_eq!(last["items"][2]["parent"], 1);
     }
 }

@@ -85,16 +85,19 @@ pub enum EventKind {
         result: Option<ActionResult>,
     },
     /// The mission's behaviour tree, told right after [`RunStarted`](Self::RunStarted):
-    /// what a monitor draws, its nodes in preorder.
+    /// what a monitor draws, its items in preorder.
     ControlPlan {
-        /// The nodes, the root first.
-        nodes: Vec<PlanNode>,
+        /// The items, the root first (`nodes` in streams written before: read either way).
+        #[serde(alias = "nodes")]
+        items: Vec<PlanItem>,
     },
     /// A control decision of the mission's tree: a retry, a fallback, a timeout, a
     /// condition that no longer holds, a recovery, a parallel decided.
     Control {
-        /// The node that decided, by its label (`Control::label`).
-        node: String,
+        /// The item that decided, by its label (`node` in streams written before: read either
+        /// way; `Control::label`).
+        #[serde(alias = "node")]
+        item: String,
         /// What it decided, in words (`retry 2 of 3`, ``fallback to `back-along` ``).
         decision: String,
         /// When, in ms since the run began.
@@ -538,10 +541,11 @@ impl ActionResult {
     }
 }
 
-/// A node of a mission's behaviour tree as its run announces it
+/// An item of a mission's behaviour tree — a group, a decorator, an action — as its run
+/// announces it
 /// ([`EventKind::ControlPlan`]).
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
-pub struct PlanNode {
+pub struct PlanItem {
     /// Its id: its place in preorder (the root 0), as control decisions name it.
     pub id: usize,
     /// Its parent's id (none for the root).

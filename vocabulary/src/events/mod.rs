@@ -35,8 +35,8 @@
 //! {"at_ms":1260,"node":"marie@localhost","kind":{"type":"action_started","action":"follow","run_ms":60,"operations":[{"key":"wall-follower","name":"wall-follower","id":1512,"version":"1.0.0","node":"marie@localhost","address":"0.41","params":[{"name":"distance","value":{"Float":0.5},"source":"mission"},{"name":"gain","value":{"Float":1.0},"source":"default"}]}]}}
 //! {"at_ms":9800,"node":"marie@localhost","kind":{"type":"op_ended","action":"follow","key":"wall-follower","ended":"suspended","flags":[]}}
 //! {"at_ms":9810,"node":"marie@localhost","kind":{"type":"action_ended","action":"follow","run_ms":8610,"flags":["dock_found"],"status":4,"result":"succeeded"}}
-//! {"at_ms":1201,"node":"marie@localhost","kind":{"type":"control_plan","nodes":[{"id":0,"parent":null,"kind":"schedule","label":"mission"},{"id":1,"parent":0,"kind":"retry","label":"retry(follow)","detail":"2 attempts, 1.0 s apart"},{"id":2,"parent":1,"kind":"action","label":"follow","detail":"wall-follower, docking-detector"}]}}
-//! {"at_ms":9811,"node":"marie@localhost","kind":{"type":"control","node":"retry(follow)","decision":"retry 2 of 2","run_ms":8611}}
+//! {"at_ms":1201,"node":"marie@localhost","kind":{"type":"control_plan","items":[{"id":0,"parent":null,"kind":"schedule","label":"mission"},{"id":1,"parent":0,"kind":"retry","label":"retry(follow)","detail":"2 attempts, 1.0 s apart"},{"id":2,"parent":1,"kind":"action","label":"follow","detail":"wall-follower, docking-detector"}]}}
+//! {"at_ms":9811,"node":"marie@localhost","kind":{"type":"control","item":"retry(follow)","decision":"retry 2 of 2","run_ms":8611}}
 //! {"at_ms":9000,"node":"marie@localhost","kind":{"type":"reparameterized","operation":"wall-follower","address":"0.41","values":[{"name":"distance","value":{"Float":0.7},"source":"reparameterized"}]}}
 //! {"at_ms":30000,"node":"marie@localhost","kind":{"type":"run_ended","outcome":"succeeded","reason":"","run_ms":28800,"status":12,"flags":["dock_found","parked"]}}
 //! {"at_ms":5000,"node":"marie@localhost","kind":{"type":"lost","operation":"wall-follower","cause":{"type":"died_in_action","action":"follow"}}}
@@ -111,7 +111,7 @@ mod words;
 
 pub use bus::{BusError, EventBus, EventSubscription, Tap, DEFAULT_CAPACITY};
 pub use kind::{
-    ActionPlan, ActionResult, BoundOp, EventKind, Family, ModuleInfo, OpStarted, PlanNode,
+    ActionPlan, ActionResult, BoundOp, EventKind, Family, ModuleInfo, OpStarted, PlanItem,
 };
 pub use registry_bridge::{bridge_registry, RegistryBridge};
 pub use voice::DispatcherVoice;
@@ -279,6 +279,28 @@ mod tests {
         }
         assert_eq!(types.len(), lines.len(), "one line per kind");
         assert_eq!(types, BTreeSet::from(KINDS), "every kind is documented");
+    }
+
+    #[test]
+    fn a_stream_written_before_the_tree_said_item_still_reads() {
+        // `control` and `control_plan` named the tree's items `node` and `nodes` before
+        let old = [
+            r#"{"at_ms":1201,"node":"n","kind":{"type":"control_plan","nodes":[{"id":0,"parent":null,"kind":"schedule","label":"mission"}]}}"#,
+            r#"{"at_ms":9811,"node":"n","kind":{"type":"control","node":"retry(follow)","decision":"retry 2 of 2","run_ms":8611}}"#,
+        ];
+        let plan = Event::from_json_line(old[0]).unwrap();
+        assert!(
+            matches!(&plan.kind, EventKind::ControlPlan { items } if items[0].label == "mission")
+        );
+        let control = Event::from_json_line(old[1]).unwrap();
+        assert!(
+            matches!(&control.kind, EventKind::Control { item, .. } if item == "retry(follow)")
+        );
+        // and is written with today's names
+        assert!(control
+            .to_json_line()
+            .unwrap()
+            .contains(r#""item":"retry(follow)""#));
     }
 
     #[test]

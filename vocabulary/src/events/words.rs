@@ -334,7 +334,7 @@ fn action(kind: &EventKind) -> String {
                 flags.join(", ")
             )
         }
-        EventKind::ControlPlan { nodes } => {
+        EventKind::ControlPlan { items: nodes } => {
             let actions = nodes.iter().filter(|n| n.kind == "action").count();
             format!(
                 "the mission's tree: {} items, {actions} actions",
@@ -342,7 +342,7 @@ fn action(kind: &EventKind) -> String {
             )
         }
         EventKind::Control {
-            node: item,
+            item,
             decision,
             run_ms,
         } => format!("{item}: {decision} at {:.1}s", *run_ms as f64 / 1000.0),

@@ -255,12 +255,12 @@ impl ReportBuilder {
                 }
             }
             EventKind::Control {
-                node,
+                item: node,
                 decision,
                 run_ms,
             } => self.report.record_control(super::ControlRecord {
                 at_ms: *run_ms,
-                node: node.clone(),
+                item: node.clone(),
                 decision: decision.clone(),
             }),
             _ => {}

@@ -156,8 +156,10 @@ pub struct RunReport {
 pub struct ControlRecord {
     /// When, in ms since the run began.
     pub at_ms: u64,
-    /// The node that decided, by its label.
-    pub node: String,
+    /// The item of the mission's tree that decided, by its label (`node` in reports written
+    /// before: read either way).
+    #[serde(alias = "node")]
+    pub item: String,
     /// What it decided.
     pub decision: String,
 }
@@ -416,6 +418,18 @@ mod tests {
     use crate::run::LossCause;
 
     #[test]
+    fn a_report_written_before_the_tree_said_item_still_reads() {
+        let old = r#"{"at_ms":3,"node":"retry(a)","decision":"retry 2 of 3"}"#;
+        let record: ControlRecord = serde_json::from_str(old).unwrap();
+        assert_eq!(record.item, "retry(a)");
+        let now = serde_json::to_string(&record).unwrap();
+        assert_eq!(
+            now,
+            r#"{"at_ms":3,"item":"retry(a)","decision":"retry 2 of 3"}"#
+        );
+    }
+
+    #[test]
     fn a_report_keeps_only_the_latest_bound_epochs() {
         let mut report = RunReport::new("m", Outcome::Succeeded, "");
         for epoch in 0..(BOUND_EPOCHS_KEEPS as u64 + 5) {
@@ -503,7 +517,7 @@ mod tests {
             }],
             control: vec![ControlRecord {
                 at_ms: 3,
-                node: "retry(a)".into(),
+                item: "retry(a)".into(),
                 decision: "retry 2 of 3".into(),
             }],
             provenance: Some(crate::run::Provenance {
