@@ -224,6 +224,57 @@ impl Current {
 }
 
 impl DispatcherState {
+    /// Run the mission, once: start its checkpoints, carry a lost dispatcher's run on when
+    /// this one takes over, else tell the run and its tree, watch the registry, bind every
+    /// operation, record the first epochs, and tick the tree.
+    async fn on_run(&mut self, myself: &ActorRef<DispatcherMsg>, reply: RpcReplyPort<Outcome>) {
+        if self.reply.is_some() || self.generation > 0 {
+            tracing::warn!("a dispatcher runs its mission once; request ignored");
+            return;
+        }
+        self.reply = Some(reply);
+        self.started = self.clock.now();
+        if let Some(args) = self.checkpoint_args.take() {
+            self.checkpoints = Some(Checkpointer::start(args, myself.clone()));
+        }
+        if let Some(take_over) = self.take_over.take() {
+            self.carry_on(myself, take_over).await;
+            return;
+        }
+        self.emit(EventKind::RunStarted {
+            mission: self.mission.name.clone(),
+            actions: self.mission.plan(),
+            success: self.mission.flags_to_names(self.mission.success),
+        });
+        self.emit(EventKind::ControlPlan {
+            items: super::plan::control_plan(&self.mission),
+        });
+        if let Err(e) = self.watch_registry(myself).await {
+            self.finish(myself, Outcome::Failed, e.to_string());
+            return;
+        }
+        if let Err(e) = self.bind().await {
+            self.finish(myself, Outcome::Failed, e.to_string());
+            return;
+        }
+        // the run's first epochs are recorded before any command carries them
+        if self.checkpoint_now().await.is_err() {
+            return; // fenced: told by the writer
+        }
+        self.announce(None).await;
+        self.emit_bound();
+        self.probe(myself);
+        if let Some(deadline) = self.mission.deadline {
+            self.timers.mission = Some(Timer::cast_after(
+                &self.clock,
+                deadline,
+                myself,
+                DispatcherMsg::MissionDeadline {},
+            ));
+        }
+        self.tick(myself);
+    }
+
     /// Translate an operation's own flag bits to the mission's status word.
     pub(super) fn translate(&self, key: &str, flags: StatusFlags) -> StatusFlags {
         let Some(binding) = self.binding(key) else {
@@ -308,6 +359,8 @@ impl Actor for ActionDispatcher {
         })
     }
 
+    // The dispatcher's shell: one arm per message, each handing it to its `on_*` (or to a
+    // one-line step); its length is the length of the message list.
     async fn handle(
         &self,
         myself: ActorRef<DispatcherMsg>,
@@ -315,53 +368,7 @@ impl Actor for ActionDispatcher {
         state: &mut DispatcherState,
     ) -> Result<(), ActorProcessingErr> {
         match msg {
-            DispatcherMsg::Run { reply } => {
-                if state.reply.is_some() || state.generation > 0 {
-                    tracing::warn!("a dispatcher runs its mission once; request ignored");
-                    return Ok(());
-                }
-                state.reply = Some(reply);
-                state.started = state.clock.now();
-                if let Some(args) = state.checkpoint_args.take() {
-                    state.checkpoints = Some(Checkpointer::start(args, myself.clone()));
-                }
-                if let Some(take_over) = state.take_over.take() {
-                    state.carry_on(&myself, take_over).await;
-                    return Ok(());
-                }
-                state.emit(EventKind::RunStarted {
-                    mission: state.mission.name.clone(),
-                    actions: state.mission.plan(),
-                    success: state.mission.flags_to_names(state.mission.success),
-                });
-                state.emit(EventKind::ControlPlan {
-                    items: super::plan::control_plan(&state.mission),
-                });
-                if let Err(e) = state.watch_registry(&myself).await {
-                    state.finish(&myself, Outcome::Failed, e.to_string());
-                    return Ok(());
-                }
-                if let Err(e) = state.bind().await {
-                    state.finish(&myself, Outcome::Failed, e.to_string());
-                    return Ok(());
-                }
-                // the run's first epochs are recorded before any command carries them
-                if state.checkpoint_now().await.is_err() {
-                    return Ok(()); // fenced: told by the writer
-                }
-                state.announce(None).await;
-                state.emit_bound();
-                state.probe(&myself);
-                if let Some(deadline) = state.mission.deadline {
-                    state.timers.mission = Some(Timer::cast_after(
-                        &state.clock,
-                        deadline,
-                        &myself,
-                        DispatcherMsg::MissionDeadline {},
-                    ));
-                }
-                state.tick(&myself);
-            }
+            DispatcherMsg::Run { reply } => state.on_run(&myself, reply).await,
             DispatcherMsg::OpEnded {
                 generation,
                 key,

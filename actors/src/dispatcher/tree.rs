@@ -431,6 +431,9 @@ impl Walk<'_> {
         status
     }
 
+    // One arm per construct, a few lines each: read together they are the table of the
+    // tree's semantics (as BehaviorTree.CPP documents its nodes), which is why the match is
+    // kept whole rather than cut into a function per construct.
     fn tick_node(&mut self, node: &Node, id: usize, ctx: &mut Ctx) -> Status {
         if let Some(done) = self.state[id].status {
             return done;

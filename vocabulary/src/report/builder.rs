@@ -17,7 +17,7 @@
 //!   makes the same report as the run's own bus.
 
 use super::{ActionRecord, FaultRecord, OpRecord, RunReport};
-use crate::events::{DispatcherVoice, Event, EventBus, EventKind, Family, Tap};
+use crate::events::{DispatcherVoice, Event, EventBus, EventKind, Family, OpStarted, Tap};
 use crate::property::Value;
 use crate::run::{OpEnd, Outcome, ParamSetting, ParamSource, TakeoverRecord};
 use std::collections::BTreeMap;
@@ -154,54 +154,7 @@ impl ReportBuilder {
                 action,
                 run_ms,
                 operations,
-            } => {
-                // the same start told again — by a standby that launched an action its lost
-                // predecessor had recorded, and may have launched — is one action
-                let again = self
-                    .open
-                    .iter()
-                    .position(|o| o.name == *action && o.start_ms == *run_ms);
-                match again {
-                    Some(at) => drop(self.open.remove(at)),
-                    // an action that starts again before its end was told: its first run
-                    // ends here
-                    None => self.close(action, *run_ms),
-                }
-                for o in operations {
-                    for p in &o.params {
-                        self.ran_with
-                            .insert((o.name.clone(), p.name.clone()), p.value.clone());
-                        self.report.record_parameter(ParamSetting {
-                            action: action.clone(),
-                            operation: o.name.clone(),
-                            name: p.name.clone(),
-                            value: p.value.clone(),
-                            source: p.source,
-                            at_ms: None,
-                        });
-                    }
-                }
-                let ops = operations
-                    .iter()
-                    .map(|o| {
-                        let rec = OpRecord {
-                            name: o.name.clone(),
-                            id: o.id,
-                            version: o.version.clone(),
-                            node: o.node.clone(),
-                            address: o.address.clone(),
-                            ended: OpEnd::Running,
-                            flags: Vec::new(),
-                        };
-                        (o.key.clone(), rec)
-                    })
-                    .collect();
-                self.open.push(OpenAction {
-                    name: action.clone(),
-                    start_ms: *run_ms,
-                    ops,
-                });
-            }
+            } => self.action_started(action, *run_ms, operations),
             EventKind::OpEnded {
                 action,
                 key,
@@ -399,6 +352,58 @@ impl ReportBuilder {
         if let EventKind::DmChecked(check) = &event.kind {
             self.report.record_dm_check(check.clone());
         }
+    }
+
+    /// An action started: a start told again (by a standby that launched what its lost
+    /// predecessor had recorded) is one action; the values each operation runs with are the
+    /// run's parameters.
+    fn action_started(&mut self, action: &str, run_ms: u64, operations: &[OpStarted]) {
+        // the same start told again — by a standby that launched an action its lost
+        // predecessor had recorded, and may have launched — is one action
+        let again = self
+            .open
+            .iter()
+            .position(|o| o.name == action && o.start_ms == run_ms);
+        match again {
+            Some(at) => drop(self.open.remove(at)),
+            // an action that starts again before its end was told: its first run
+            // ends here
+            None => self.close(action, run_ms),
+        }
+        for o in operations {
+            for p in &o.params {
+                self.ran_with
+                    .insert((o.name.clone(), p.name.clone()), p.value.clone());
+                self.report.record_parameter(ParamSetting {
+                    action: action.to_string(),
+                    operation: o.name.clone(),
+                    name: p.name.clone(),
+                    value: p.value.clone(),
+                    source: p.source,
+                    at_ms: None,
+                });
+            }
+        }
+        let ops = operations
+            .iter()
+            .map(|o| {
+                let rec = OpRecord {
+                    name: o.name.clone(),
+                    id: o.id,
+                    version: o.version.clone(),
+                    node: o.node.clone(),
+                    address: o.address.clone(),
+                    ended: OpEnd::Running,
+                    flags: Vec::new(),
+                };
+                (o.key.clone(), rec)
+            })
+            .collect();
+        self.open.push(OpenAction {
+            name: action.to_string(),
+            start_ms: run_ms,
+            ops,
+        });
     }
 
     /// Mission time of `event` since the run began, in ms (0 before a run began).
