@@ -3,7 +3,7 @@
 //! cluster (`marie up --monitor --allow-faults`) it asks the bound wall follower for its
 //! properties and stops its node's process, and shows the cluster fail over; a replayed
 //! events file ends with every action of the task tree succeeded; a viewer without the
-//! token of a monitor that requires one is refused; a behaviour tree of 200 nodes (issue
+//! token of a monitor that requires one is refused; a behaviour tree of 200 items (issue
 //! 24), fed live, is drawn whole with its running branch, retry counts and timeouts, and an
 //! update redraws only the rows that changed.
 //!
@@ -327,7 +327,7 @@ fn a_viewer_without_the_token_is_refused() {
     );
 }
 
-/// A behaviour tree of exactly 200 nodes over 86 actions, as a run announces it: a schedule
+/// A behaviour tree of exactly 200 items over 86 actions, as a run announces it: a schedule
 /// (`big`) of 14 guarded groups — each a retry of a timeout of a fallback over a sequence
 /// (an action, then a recover of two), a reactive sequence (a condition, an action) and a
 /// parallel of two actions — and a closing sequence of two actions. Its action names, in
@@ -488,7 +488,7 @@ fn number(browser: &mut Browser, js: &str) -> f64 {
 }
 
 #[test]
-fn a_behaviour_tree_of_200_nodes_shows_its_running_branch_retries_and_timeouts() {
+fn a_behaviour_tree_of_200_items_shows_its_running_branch_retries_and_timeouts() {
     let Some(mut browser) = Browser::launch_or_skip("monitor_browser") else {
         return;
     };
@@ -541,7 +541,7 @@ fn a_behaviour_tree_of_200_nodes_shows_its_running_branch_retries_and_timeouts()
         &mut browser,
         "document.querySelectorAll('#control-tree .titem').length === 200 \
          && document.querySelector('#tree').hidden",
-        "the 200 nodes of the behaviour tree",
+        "the 200 items of the behaviour tree",
     );
     let build_ms = number(
         &mut browser,
@@ -751,7 +751,7 @@ fn a_behaviour_tree_of_200_nodes_shows_its_running_branch_retries_and_timeouts()
     // past the harness's capture: the numbers are the point
     let _ = writeln!(
         std::io::stderr(),
-        "monitor_browser: a tree of 200 nodes: built and drawn in {build_ms:.2} ms; \
+        "monitor_browser: a tree of 200 items: built and drawn in {build_ms:.2} ms; \
          an update of the tree {tree_median:.2} ms (median of {}, max {tree_max:.2}), \
          of the whole page {page_median:.2} ms (max {page_max:.2}), \
          {with_layout:.2} ms with style and layout; rows redrawn per update {redrawn:?}; \
