@@ -2,7 +2,7 @@
 //! version), and its history of losses and rebinds — what the page's bindings panel draws.
 //!
 //! Built from the events that name instances: the self-configuration's choices
-//! ([`EventKind::Selected`](marie_vocabulary::events::EventKind::Selected): the candidates,
+//! ([`EventKind::Selected`]: the candidates,
 //! their schemas and flags — the properties a click opens), the start-up binding, each
 //! action's activations, and the losses and rebinds.
 

@@ -1,7 +1,7 @@
 //! The mission as a task tree: each action's condition flags, operations and state, and the
 //! status word by name — what the page's tree panel draws.
 //!
-//! The tree comes from [`EventKind::RunStarted`](marie_vocabulary::events::EventKind::RunStarted)'s plan; a stream without one (an older
+//! The tree comes from [`EventKind::RunStarted`]'s plan; a stream without one (an older
 //! file, a monitor that joined mid-run) still shows every action it sees start.
 
 use marie_vocabulary::events::{ActionPlan, EventKind, OpStarted};

@@ -1,6 +1,6 @@
 //! The mission's behaviour tree: its items (groups, decorators, actions) as the run
 //! announced them
-//! ([`EventKind::ControlPlan`](marie_vocabulary::events::EventKind::ControlPlan)), each with
+//! ([`EventKind::ControlPlan`]), each with
 //! whether it runs now, how it ended when that is known, and the control decisions told of
 //! it — what the page's tree panel draws.
 //!
