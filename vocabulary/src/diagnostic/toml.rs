@@ -62,6 +62,16 @@ impl<'a, 'i> Tbl<'a, 'i> {
         self.t.get(key)
     }
 
+    /// The same table named otherwise in messages — e.g. by the name it gives itself, once
+    /// that is read (`` group `g` `` rather than `[[group]]`).
+    pub fn named(&self, place: impl Into<String>) -> Tbl<'a, 'i> {
+        Tbl {
+            t: self.t,
+            span: self.span.clone(),
+            place: place.into(),
+        }
+    }
+
     /// The entries in file order (toml's map orders keys by name).
     pub fn in_file_order(&self) -> Vec<(&'a Spanned<std::borrow::Cow<'i, str>>, &'a Val<'i>)> {
         let mut entries: Vec<_> = self.t.iter().collect();
@@ -138,6 +148,16 @@ pub struct OutOfRule {
 /// Text from the file, quoted for a message: `` `name` ``, with control characters escaped.
 pub fn quote(text: &str) -> String {
     format!("`{}`", text.escape_debug())
+}
+
+/// Names from the file for an "expected one of" hint: `a, b, c`, each with control
+/// characters escaped (as [`quote`] does), without quotes — a hint lists many.
+pub fn name_list<S: AsRef<str>>(names: impl IntoIterator<Item = S>) -> String {
+    names
+        .into_iter()
+        .map(|n| n.as_ref().escape_debug().to_string())
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 impl<'s> Reader<'s> {
@@ -229,6 +249,19 @@ impl<'s> Reader<'s> {
 
     /// The value as a table, or a diagnostic.
     pub fn table<'a, 'i>(&mut self, v: &'a Val<'i>, place: &str) -> Option<Tbl<'a, 'i>> {
+        self.table_or(v, place, &format!("a table for {place}"))
+    }
+
+    /// The value as a table named `place` in messages; otherwise a diagnostic that says what
+    /// was expected in the caller's words — `expected {expected}, found {type}` — for a
+    /// format whose tables deserve more than "a table" (``a table `[flags]` of flag names
+    /// and bit numbers``).
+    pub fn table_or<'a, 'i>(
+        &mut self,
+        v: &'a Val<'i>,
+        place: &str,
+        expected: &str,
+    ) -> Option<Tbl<'a, 'i>> {
         match v.get_ref() {
             DeValue::Table(t) => Some(Tbl {
                 t,
@@ -238,11 +271,43 @@ impl<'s> Reader<'s> {
             other => {
                 self.err(
                     &v.span(),
-                    format!("expected a table for {place}, found {}", other.type_str()),
+                    format!("expected {expected}, found {}", other.type_str()),
                 );
                 None
             }
         }
+    }
+
+    /// The items of an array; otherwise a diagnostic, `expected {expected}, found {type}`.
+    pub fn array<'a, 'i>(&mut self, v: &'a Val<'i>, expected: &str) -> Option<&'a [Val<'i>]> {
+        match v.get_ref() {
+            DeValue::Array(items) => Some(items),
+            other => {
+                self.err(
+                    &v.span(),
+                    format!("expected {expected}, found {}", other.type_str()),
+                );
+                None
+            }
+        }
+    }
+
+    /// The value of `key` in `tbl`; when it is missing, a diagnostic at the table that says
+    /// what belongs there: ``missing key `{key}` in {place} (expected {expected})``.
+    pub fn required<'a, 'i>(
+        &mut self,
+        tbl: &Tbl<'a, 'i>,
+        key: &str,
+        expected: &str,
+    ) -> Option<&'a Val<'i>> {
+        let v = tbl.get(key);
+        if v.is_none() {
+            self.err(
+                &tbl.span,
+                format!("missing key `{key}` in {} (expected {expected})", tbl.place),
+            );
+        }
+        v
     }
 
     /// Record every key of `tbl` not in `allowed`, in file order.
@@ -397,20 +462,103 @@ impl<'s> Reader<'s> {
         }
     }
 
-    /// Array of strings `key` of `tbl`, each with its span; `None` if absent or not an array
-    /// (a diagnostic); an item that is not a string is a diagnostic and left out.
-    pub fn string_array(&mut self, tbl: &Tbl<'_, '_>, key: &str) -> Option<Vec<(String, Span)>> {
-        let v = tbl.get(key)?;
-        let DeValue::Array(items) = v.get_ref() else {
+    /// The value as a string with its span (for a name that later messages point back
+    /// to), or a diagnostic naming `field`.
+    pub fn spanned_string(&mut self, v: &Val<'_>, field: &str) -> Option<Spanned<String>> {
+        self.string_value(v, field)
+            .map(|s| Spanned::new(v.span(), s))
+    }
+
+    /// The value as a string that is not blank, with its span; another type or a blank
+    /// string is a diagnostic naming `field`.
+    pub fn non_empty_string(&mut self, v: &Val<'_>, field: &str) -> Option<Spanned<String>> {
+        let s = self.spanned_string(v, field)?;
+        if s.get_ref().trim().is_empty() {
+            self.err(&v.span(), format!("`{field}` must not be empty"));
+            return None;
+        }
+        Some(s)
+    }
+
+    /// The value as an array of strings, each with its span; `None` when it is not an
+    /// array (a diagnostic); an item that is not a string is a diagnostic —
+    /// ``expected a string in `{field}` `` — and left out.
+    pub fn string_list(&mut self, v: &Val<'_>, field: &str) -> Option<Vec<Spanned<String>>> {
+        let items = self.array(v, &format!("an array of strings for `{field}`"))?;
+        let mut out = Vec::new();
+        for item in items {
+            match item.get_ref() {
+                DeValue::String(s) => out.push(Spanned::new(item.span(), s.to_string())),
+                other => self.err(
+                    &item.span(),
+                    format!("expected a string in `{field}`, found {}", other.type_str()),
+                ),
+            }
+        }
+        Some(out)
+    }
+
+    /// The value as a 64-bit integer; another type, or an integer too large for 64 bits
+    /// (shown as the file wrote it), is a diagnostic.
+    pub fn int_value(&mut self, v: &Val<'_>, field: &str) -> Option<i64> {
+        let DeValue::Integer(i) = v.get_ref() else {
             self.err(
                 &v.span(),
                 format!(
-                    "expected an array of strings for `{key}`, found {}",
+                    "expected an integer for `{field}`, found {}",
                     v.get_ref().type_str()
                 ),
             );
             return None;
         };
+        let parsed = i64::from_str_radix(i.as_str(), i.radix()).ok();
+        if parsed.is_none() {
+            let shown = self.written(v);
+            self.err(
+                &v.span(),
+                format!("integer {shown} is out of range (expected a 64-bit signed integer)"),
+            );
+        }
+        parsed
+    }
+
+    /// The value as a 64-bit float, as written: `inf` and `nan` are kept (a caller that
+    /// needs a finite number says so in its own words); another type, or a literal beyond
+    /// a 64-bit float (`1e400`, shown as the file wrote it), is a diagnostic.
+    pub fn float_value(&mut self, v: &Val<'_>, field: &str) -> Option<f64> {
+        let DeValue::Float(f) = v.get_ref() else {
+            self.err(
+                &v.span(),
+                format!(
+                    "expected a float for `{field}`, found {}",
+                    v.get_ref().type_str()
+                ),
+            );
+            return None;
+        };
+        match f.as_str().parse::<f64>() {
+            Ok(x) if x.is_finite() || f.as_str().contains("inf") || x.is_nan() => Some(x),
+            _ => {
+                let shown = self.written(v);
+                self.err(
+                    &v.span(),
+                    format!("float {shown} is out of range (expected a 64-bit float)"),
+                );
+                None
+            }
+        }
+    }
+
+    /// The value's text as the file wrote it.
+    pub fn written(&self, v: &Val<'_>) -> String {
+        self.src.get(v.span()).unwrap_or_default().to_string()
+    }
+
+    /// Array of strings `key` of `tbl`, each with its span; `None` if absent or not an array
+    /// (a diagnostic); an item that is not a string is a diagnostic and left out.
+    pub fn string_array(&mut self, tbl: &Tbl<'_, '_>, key: &str) -> Option<Vec<(String, Span)>> {
+        let v = tbl.get(key)?;
+        let items = self.array(v, &format!("an array of strings for `{key}`"))?;
         Some(
             items
                 .iter()
@@ -425,12 +573,7 @@ impl<'s> Reader<'s> {
             self.err(&tbl.span, format!("missing `{key}` in {}", tbl.place));
             return None;
         };
-        let s = self.string_value(v, key)?;
-        if s.trim().is_empty() {
-            self.err(&v.span(), format!("`{key}` must not be empty"));
-            return None;
-        }
-        Some(s)
+        self.non_empty_string(v, key).map(Spanned::into_inner)
     }
 
     /// Boolean `key` of `tbl`, `default` when absent or not a boolean (then a diagnostic).
@@ -456,14 +599,7 @@ impl<'s> Reader<'s> {
     /// The tables of a `[[name]]` array, or diagnostics (`None` for an entry that is not a
     /// table, so callers keep their numbering).
     pub fn table_array<'a, 'i>(&mut self, v: &'a Val<'i>, name: &str) -> Vec<Option<Tbl<'a, 'i>>> {
-        let DeValue::Array(items) = v.get_ref() else {
-            self.err(
-                &v.span(),
-                format!(
-                    "expected `[[{name}]]` tables, found {}",
-                    v.get_ref().type_str()
-                ),
-            );
+        let Some(items) = self.array(v, &format!("`[[{name}]]` tables")) else {
             return Vec::new();
         };
         items
@@ -562,6 +698,66 @@ mod tests {
             Rule::NonNegative.check(-1.0).unwrap_err().to_string(),
             "at least 0"
         );
+    }
+
+    #[test]
+    fn value_getters_say_what_was_expected_in_the_callers_words() {
+        let src = "t = 1\na = \"x\"\ns = [\"p\", 2, \"q\"]\ne = \" \"\n\
+                   big = 99999999999999999999\nf = 1e400\ni = inf\nn = 7\nx = 2.5\n";
+        let out = read(src, |r, t| {
+            let v = |k: &str| t.get(k).expect(k);
+            assert!(r
+                .table_or(v("t"), "`t`", "a table `[t]` of things")
+                .is_none());
+            assert!(r.array(v("a"), "an array of names").is_none());
+            assert!(r.required(t, "zz", "a name, a string").is_none());
+            assert!(r
+                .required(&t.named("the thing `t`"), "yy", "more")
+                .is_none());
+            let list = r.string_list(v("s"), "things.s").expect("an array");
+            assert_eq!(
+                list.iter()
+                    .map(|s| s.get_ref().as_str())
+                    .collect::<Vec<_>>(),
+                ["p", "q"]
+            );
+            assert_eq!(
+                list[1].span(),
+                src.find("\"q\"").map(|at| at..at + 3).unwrap()
+            );
+            assert_eq!(
+                r.spanned_string(v("a"), "a").map(|s| s.into_inner()),
+                Some("x".into())
+            );
+            assert!(r.non_empty_string(v("e"), "things.e").is_none());
+            assert_eq!(r.int_value(v("n"), "n"), Some(7));
+            assert_eq!(r.int_value(v("big"), "big"), None);
+            assert_eq!(r.int_value(v("x"), "x"), None);
+            assert_eq!(r.float_value(v("x"), "x"), Some(2.5));
+            assert_eq!(r.float_value(v("i"), "i"), Some(f64::INFINITY));
+            assert_eq!(r.float_value(v("f"), "f"), None);
+            assert_eq!(r.float_value(v("n"), "n"), None);
+            assert_eq!(r.written(v("big")), "99999999999999999999");
+        });
+        assert_eq!(
+            out,
+            "f.toml:1:1: missing key `zz` in the file (expected a name, a string)\n\
+             f.toml:1:1: missing key `yy` in the thing `t` (expected more)\n\
+             f.toml:1:5: expected a table `[t]` of things, found integer\n\
+             f.toml:2:5: expected an array of names, found string\n\
+             f.toml:3:11: expected a string in `things.s`, found integer\n\
+             f.toml:4:5: `things.e` must not be empty\n\
+             f.toml:5:7: integer 99999999999999999999 is out of range (expected a 64-bit signed integer)\n\
+             f.toml:6:5: float 1e400 is out of range (expected a 64-bit float)\n\
+             f.toml:8:5: expected a float for `n`, found integer\n\
+             f.toml:9:5: expected an integer for `x`, found float"
+        );
+    }
+
+    #[test]
+    fn a_name_list_escapes_what_a_terminal_would_act_on() {
+        assert_eq!(name_list(["a", "b\u{7}c"]), "a, b\\u{7}c");
+        assert_eq!(name_list(Vec::<String>::new()), "");
     }
 
     #[test]

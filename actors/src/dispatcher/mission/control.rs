@@ -6,7 +6,7 @@
 //! `while`/`unless` on an action or a group, and `[[group]]`s) wrap actions and groups in
 //! the tree's other constructs ([`crate::dispatcher::tree`]).
 
-use super::raw::{GroupKind, Item};
+use super::parsed::{GroupKind, Item};
 use super::{Action, ParsedMission};
 use crate::dispatcher::tree::{Node, Scheduled};
 use serde::{Deserialize, Serialize};
@@ -205,7 +205,7 @@ enum Mark {
     },
 }
 
-fn bits(flags: &[super::raw::FlagRef]) -> u32 {
+fn bits(flags: &[super::parsed::FlagRef]) -> u32 {
     flags.iter().fold(0, |acc, f| acc | (1u32 << (f.bit & 31)))
 }
 

@@ -307,7 +307,8 @@ mod builder;
 mod control;
 pub(crate) mod op_info;
 pub(crate) mod operations;
-mod raw;
+mod parse;
+mod parsed;
 mod structure;
 mod validate;
 
@@ -316,7 +317,7 @@ pub use control::{Control, Recovery};
 pub use marie_vocabulary::diagnostic::{Diagnostic, Diagnostics, LineIndex, Pos};
 pub use op_info::OpInfo;
 pub use operations::{Catalog, StaticCatalog};
-pub use raw::GroupKind;
+pub use parsed::GroupKind;
 
 use super::checked::CheckedChoices;
 use marie_vocabulary::property::ParamMap;
@@ -567,18 +568,18 @@ pub struct ParsedMission {
     pub(crate) name: String,
     pub(crate) description: String,
     pub(crate) flags: BTreeMap<String, u8>,
-    pub(crate) initial: Vec<raw::FlagRef>,
-    pub(crate) success: Vec<raw::FlagRef>,
+    pub(crate) initial: Vec<parsed::FlagRef>,
+    pub(crate) success: Vec<parsed::FlagRef>,
     pub(crate) deadline: Option<Duration>,
     pub(crate) rebind_deadline: Option<Duration>,
     pub(crate) world: Option<PathBuf>,
     /// Where the file names the world.
     pub(crate) world_at: Option<Pos>,
-    pub(crate) actions: Vec<raw::ParsedAction>,
+    pub(crate) actions: Vec<parsed::ParsedAction>,
     /// The `[[group]]`s, in file order.
-    pub(crate) groups: Vec<raw::ParsedGroup>,
+    pub(crate) groups: Vec<parsed::ParsedGroup>,
     /// Every action and group, in file order.
-    pub(crate) items: Vec<raw::Item>,
+    pub(crate) items: Vec<parsed::Item>,
     /// `[requires]`: version requirements by operation key, where written.
     pub(crate) requires: Vec<(String, semver::VersionReq, Pos)>,
 }
@@ -587,7 +588,7 @@ impl ParsedMission {
     /// Stage 1: parse mission text and check its syntax and structure. `path` is used in
     /// diagnostics (`<mission>` without one) and kept in the mission.
     pub fn parse(src: &str, path: Option<&Path>) -> Result<ParsedMission, Diagnostics> {
-        raw::parse(src, path)
+        parse::parse(src, path)
     }
 
     /// Stage 1 on a file. An unreadable file is one diagnostic at 1:1 naming the file and the

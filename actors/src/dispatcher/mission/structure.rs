@@ -8,9 +8,9 @@
 //! top-level items, so a loop in it would be an infinite tree. Every walk here is iterative:
 //! nothing recurses on the file's nesting before the nesting is known to be bounded.
 
-use super::raw::{q, FlagRef, Item, ParsedControl};
+use super::parsed::{FlagRef, GroupKind, Item, ParsedControl};
 use super::ParsedMission;
-use marie_vocabulary::diagnostic::toml::Reader;
+use marie_vocabulary::diagnostic::toml::{quote, Reader};
 use marie_vocabulary::diagnostic::{Diagnostic, Pos};
 use std::collections::BTreeSet;
 
@@ -49,7 +49,7 @@ impl ParsedMission {
             Item::Action(_) => "action",
             Item::Group(_) => "group",
         };
-        format!("{kind} {}", q(self.item_name(item)))
+        format!("{kind} {}", quote(self.item_name(item)))
     }
 
     /// Where the item's name is written.
@@ -183,7 +183,7 @@ fn one_parent(ctx: &mut Reader<'_>, m: &ParsedMission) {
                     format!(
                         "{} is named twice among the children of group {} (first at {first})",
                         m.describe(c.item),
-                        q(&m.groups[g].name)
+                        quote(&m.groups[g].name)
                     ),
                 ),
                 Some((p, first)) => push(
@@ -192,7 +192,7 @@ fn one_parent(ctx: &mut Reader<'_>, m: &ParsedMission) {
                     format!(
                         "{} is already a child of group {} (named at {first}): an action or group is the child of one group at most",
                         m.describe(c.item),
-                        q(&m.groups[p].name)
+                        quote(&m.groups[p].name)
                     ),
                 ),
                 None => parent[slot] = Some((g, c.at)),
@@ -251,7 +251,7 @@ fn no_loops(ctx: &mut Reader<'_>, m: &ParsedMission) -> bool {
 
 /// A loop: `edges[i]` leads from `items[i]` to the next item (the last back to the first).
 fn report_loop(ctx: &mut Reader<'_>, m: &ParsedMission, items: &[Item], edges: &[Edge]) {
-    let name = |i: Item| q(m.item_name(i));
+    let name = |i: Item| quote(m.item_name(i));
     let Some(r) = edges.iter().position(|e| e.recovery) else {
         let first = items[0];
         let at = edges[edges.len() - 1].at;
@@ -316,7 +316,7 @@ fn measure(ctx: &mut Reader<'_>, m: &ParsedMission) {
             continue;
         };
         let reactive_group = matches!(item, Item::Group(g)
-            if m.groups[g].kind == super::raw::GroupKind::Reactive);
+            if m.groups[g].kind == GroupKind::Reactive);
         let wrappers = u64::from(!reactive_group && c.reactive())
             + u64::from(c.timeout.is_some())
             + u64::from(c.on_failure.is_some())
@@ -388,35 +388,4 @@ fn post_order(m: &ParsedMission) -> Vec<Item> {
         }
     }
     out
-}
-
-/// The name among `names` closest to `name` (by edit distance), when close enough to be a
-/// typo of it.
-pub(crate) fn closest<'n>(
-    name: &str,
-    names: impl IntoIterator<Item = &'n String>,
-) -> Option<&'n str> {
-    let within = (name.chars().count() / 3).max(1);
-    names
-        .into_iter()
-        .map(|n| (distance(name, n), n))
-        .filter(|(d, _)| *d <= within)
-        .min_by_key(|(d, _)| *d)
-        .map(|(_, n)| n.as_str())
-}
-
-/// Levenshtein distance, in characters.
-fn distance(a: &str, b: &str) -> usize {
-    let b: Vec<char> = b.chars().collect();
-    let mut row: Vec<usize> = (0..=b.len()).collect();
-    for (i, ca) in a.chars().enumerate() {
-        let mut diag = row[0];
-        row[0] = i + 1;
-        for (j, cb) in b.iter().enumerate() {
-            let up = row[j + 1];
-            row[j + 1] = (up + 1).min(row[j] + 1).min(diag + usize::from(ca != *cb));
-            diag = up;
-        }
-    }
-    row[b.len()]
 }

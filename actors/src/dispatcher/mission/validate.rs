@@ -1,7 +1,8 @@
 //! Stage 2: a [`ParsedMission`] checked against the operations a [`Catalog`] offers.
 
-use super::raw::{list, q, GroupKind, Item, ParsedOp, ParsedParam};
+use super::parsed::{GroupKind, Item, ParsedOp, ParsedParam};
 use super::{Action, Catalog, Mission, OpInfo, OpRun, ParsedMission};
+use marie_vocabulary::diagnostic::toml::{name_list, quote};
 use marie_vocabulary::diagnostic::{Diagnostic, Diagnostics};
 use marie_vocabulary::property::{ParamMap, RejectReason};
 use marie_vocabulary::status::StatusFlags;
@@ -33,10 +34,10 @@ pub(crate) fn validate<C: Catalog + ?Sized>(
                 Some(first) => {
                     let msg = format!(
                         "operation {} appears twice in action {} (as {} and {}; an operation runs once per action)",
-                        q(&info.name),
-                        q(&a.name),
-                        q(first),
-                        q(&op.key)
+                        quote(&info.name),
+                        quote(&a.name),
+                        quote(first),
+                        quote(&op.key)
                     );
                     v.diags.push(Diagnostic::at(v.file, op.at, msg));
                 }
@@ -149,13 +150,13 @@ impl<C: Catalog + ?Sized> Validator<'_, C> {
             let msg = if names.is_empty() {
                 format!(
                     "unknown operation {} (no operations are available)",
-                    q(&op.key)
+                    quote(&op.key)
                 )
             } else {
                 format!(
                     "unknown operation {} (available: {})",
-                    q(&op.key),
-                    list(names.iter())
+                    quote(&op.key),
+                    name_list(names.iter())
                 )
             };
             self.diags.push(Diagnostic::at(self.file, op.at, msg));
@@ -181,17 +182,17 @@ impl<C: Catalog + ?Sized> Validator<'_, C> {
     ) -> Option<marie_vocabulary::property::Value> {
         let Some(decl) = info.schema.get(&p.name) else {
             let hint = if info.schema.is_empty() {
-                format!("operation {} has no parameters", q(&info.name))
+                format!("operation {} has no parameters", quote(&info.name))
             } else {
                 format!(
                     "expected one of: {}",
-                    list(info.schema.params.iter().map(|d| d.name.as_str()))
+                    name_list(info.schema.params.iter().map(|d| d.name.as_str()))
                 )
             };
             let msg = format!(
                 "unknown parameter {} of operation {} ({hint})",
-                q(&p.name),
-                q(&info.name)
+                quote(&p.name),
+                quote(&info.name)
             );
             self.diags.push(Diagnostic::at(self.file, p.at, msg));
             return None;
@@ -199,8 +200,8 @@ impl<C: Catalog + ?Sized> Validator<'_, C> {
         if decl.read_only {
             let msg = format!(
                 "parameter {} of operation {} is read-only: a mission may not set it",
-                q(&p.name),
-                q(&info.name)
+                quote(&p.name),
+                quote(&info.name)
             );
             self.diags.push(Diagnostic::at(self.file, p.at, msg));
             return None;
@@ -221,15 +222,15 @@ impl<C: Catalog + ?Sized> Validator<'_, C> {
                 let msg = if r.name == p.name {
                     format!(
                         "invalid value for parameter {} of operation {}: {reason}",
-                        q(&p.name),
-                        q(&info.name)
+                        quote(&p.name),
+                        quote(&info.name)
                     )
                 } else {
                     format!(
                         "invalid value for parameter {} of operation {}: {}: {reason}",
-                        q(&p.name),
-                        q(&info.name),
-                        q(&r.name)
+                        quote(&p.name),
+                        quote(&info.name),
+                        quote(&r.name)
                     )
                 };
                 self.diags.push(Diagnostic::at(self.file, at, msg));
@@ -272,11 +273,11 @@ impl<C: Catalog + ?Sized> Validator<'_, C> {
             let hint = if raised.is_empty() {
                 "they raise none of the mission's flags".to_string()
             } else {
-                format!("they raise: {}", list(&raised))
+                format!("they raise: {}", name_list(&raised))
             };
             let msg = format!(
                 "flag {} is never raised by any operation of this mission, nor set in `mission.initial` (needed by `{}`; {hint})",
-                q(&r.name),
+                quote(&r.name),
                 r.field
             );
             self.diags.push(Diagnostic::at(self.file, r.at, msg));
@@ -308,16 +309,16 @@ impl<C: Catalog + ?Sized> Validator<'_, C> {
                         continue;
                     }
                     let what = if shared.len() == 1 {
-                        format!("operation {}", q(shared[0]))
+                        format!("operation {}", quote(shared[0]))
                     } else {
-                        let all: Vec<String> = shared.iter().map(|o| q(o)).collect();
+                        let all: Vec<String> = shared.iter().map(|o| quote(o)).collect();
                         format!("operations {}", all.join(", "))
                     };
                     let msg = format!(
                         "children {} and {} of parallel {} both run {what} (they would run at once, and an operation runs for one action at a time)",
-                        q(pm.item_name(earlier.item)),
-                        q(pm.item_name(later.item)),
-                        q(&g.name)
+                        quote(pm.item_name(earlier.item)),
+                        quote(pm.item_name(later.item)),
+                        quote(&g.name)
                     );
                     self.diags.push(Diagnostic::at(self.file, later.at, msg));
                 }
@@ -354,8 +355,8 @@ impl<C: Catalog + ?Sized> Validator<'_, C> {
                 let mut by: Vec<String> = raisers
                     .iter()
                     .map(|(a, o)| match item {
-                        Item::Action(_) => q(o),
-                        Item::Group(_) => format!("{} in {}", q(o), q(&actions[*a].name)),
+                        Item::Action(_) => quote(o),
+                        Item::Group(_) => format!("{} in {}", quote(o), quote(&actions[*a].name)),
                     })
                     .collect();
                 by.dedup();
@@ -366,7 +367,7 @@ impl<C: Catalog + ?Sized> Validator<'_, C> {
                 let msg = format!(
                     "{} waits for flag {}, which only {whose} raise ({}): it would wait for itself forever",
                     pm.describe(item),
-                    q(&f.name),
+                    quote(&f.name),
                     by.join(", ")
                 );
                 self.diags.push(Diagnostic::at(self.file, f.at, msg));
