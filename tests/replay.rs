@@ -250,3 +250,28 @@ fn a_replay_of_what_is_not_a_report_with_provenance_is_refused_naming_the_file()
     ]);
     assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
 }
+
+/// A report written before a mission's tree said `item` (its control decisions name a
+/// `node`: `tests/fixtures/report-before-items.json`, written by marie at 3af314e from
+/// `docking-recover.toml` in the dead-end world, seed 3, where the tree falls back once)
+/// still reads: `marie diff` finds it equal to itself, and `--replay` runs it again and
+/// matches it.
+#[test]
+fn a_report_written_before_the_tree_said_item_is_diffed_and_replayed() {
+    let dir = tempfile::tempdir().unwrap();
+    let fixture =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/report-before-items.json");
+    let old = read(&fixture);
+    assert_eq!(
+        old["control"][0]["node"], "find-dock",
+        "the fixture is of the old form"
+    );
+    let report = dir.path().join("before.json");
+    std::fs::copy(&fixture, &report).unwrap();
+    let same = marie(&["diff", report.to_str().unwrap(), report.to_str().unwrap()]);
+    assert_eq!(same.status.code(), Some(0), "{}", text(&same.stdout));
+    let (code, stdout, stderr, replayed) = replay(&report);
+    assert_eq!(code, Some(0), "{stdout}\n{stderr}");
+    assert!(stdout.contains("replay: matches the report"), "{stdout}");
+    assert_eq!(replayed["control"][0]["item"], "find-dock", "{replayed}");
+}
