@@ -39,7 +39,7 @@ mod refusal;
 mod role;
 
 pub use refusal::{DeskRefusal, NoRunDm};
-pub use role::{DeskRole, UnknownDeskRole};
+pub use role::{DeskRole, UnknownDeskRole, ACTIVE_STAGGER};
 
 use super::NodeError;
 use marie_actors::dispatcher::checkpoint::{Checkpoint, CheckpointArgs, CHECKPOINT_SOURCE};
@@ -62,8 +62,6 @@ pub const DESK_NAME: &str = "dispatcher-desk";
 pub const DESK_ID: u32 = 1501;
 /// Child id of the desk under the node's root supervisor.
 pub(crate) const DESK: &str = "dispatcher-desk";
-/// How long an active node's desk lets a standby take a lost run over first.
-pub const ACTIVE_STAGGER: Duration = Duration::from_secs(1);
 /// How long a desk waits for the run datamanager (a copy being promoted).
 const RUN_DM_WAIT: Duration = Duration::from_secs(10);
 /// How long a desk waits for the requester's event watcher to reach its node.

@@ -1,8 +1,10 @@
 //! What a node's desk does: run the cluster's missions (active) or stand by.
 
-use super::ACTIVE_STAGGER;
 use serde::{Deserialize, Serialize};
 use std::time::Duration;
+
+/// How long an active node's desk lets a standby take a lost run over first.
+pub const ACTIVE_STAGGER: Duration = Duration::from_secs(1);
 
 /// What a node's desk does ([`crate::node::NodeConfig::desk`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
