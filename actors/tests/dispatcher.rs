@@ -1,5 +1,8 @@
 //! The action dispatcher, end to end: real EO hosts, the registry, missions from TOML.
 
+mod common;
+
+use common::ops::general;
 use marie_actors::dispatcher::mission::ParsedMission;
 use marie_actors::dispatcher::{run_mission, RegistryCatalog};
 use marie_actors::eo::{
@@ -7,9 +10,7 @@ use marie_actors::eo::{
 };
 use marie_vocabulary::clock::RealClock;
 use marie_vocabulary::events::{Event, EventBus, EventKind};
-use marie_vocabulary::property::{
-    Group, ParamDecl, ParamSchema, PropertyReply, PropertyRequest, Value,
-};
+use marie_vocabulary::property::{ParamDecl, ParamSchema, PropertyReply, PropertyRequest, Value};
 use marie_vocabulary::report::RunReport;
 use marie_vocabulary::run::{OpEnd, Outcome};
 use marie_vocabulary::status::{FlagDecl, StatusFlags};
@@ -106,17 +107,6 @@ async fn run_with_events(src: &str) -> (RunReport, Vec<Event>) {
         "the report replays from the events"
     );
     (report, events)
-}
-
-async fn general(c: &EoClient) -> marie_vocabulary::property::General {
-    match c
-        .property(PropertyRequest::Group(Group::General))
-        .await
-        .unwrap()
-    {
-        PropertyReply::General(g) => g,
-        other => panic!("{other:?}"),
-    }
 }
 
 #[tokio::test]

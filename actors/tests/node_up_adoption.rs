@@ -12,19 +12,17 @@
 //! stand-in (the cluster's provisioners asked, after the grace), the verdict lifted and the
 //! node up on the bus.
 
+mod common;
+
+use common::ops::{general, Worker};
 use marie_actors::dispatcher::mission::ParsedMission;
 use marie_actors::dispatcher::{run_mission, RegistryCatalog};
-use marie_actors::eo::{
-    spawn_operation, EoClient, EoMsg, HostOptions, Identity, OpContext, OpError, Operation, Step,
-};
+use marie_actors::eo::EoClient;
 use marie_actors::provision::{self, ProvisionMsg, Refusal};
 use marie_vocabulary::clock::RealClock;
 use marie_vocabulary::events::{EventBus, EventKind};
-use marie_vocabulary::property::PropertyRequest;
-use marie_vocabulary::property::{General, Group, ParamDecl, ParamSchema, PropertyReply};
 use marie_vocabulary::registry;
 use marie_vocabulary::run::{LossCause, Outcome};
-use marie_vocabulary::status::{FlagDecl, StatusFlags};
 use ractor::{Actor, ActorProcessingErr, ActorRef};
 use std::time::Duration;
 use tokio::sync::mpsc;
@@ -33,60 +31,16 @@ use tokio::time::timeout;
 /// Generous: a loaded 2-core machine may be slow.
 const T: Duration = Duration::from_secs(30);
 
-/// Finishes after `steps` steps of 2 ms, raising its one flag.
-struct Worker {
-    taken: i64,
-}
-
-impl Operation for Worker {
-    fn identity(&self) -> Identity {
-        Identity::new(
-            "nu-worker",
-            4100,
-            "1.0.0",
-            "finishes after a number of steps",
-        )
-    }
-    fn parameters(&self) -> ParamSchema {
-        ParamSchema::new(vec![ParamDecl::int("steps", 2).range(1.0, 100_000.0)])
-    }
-    fn flags(&self) -> Vec<FlagDecl> {
-        vec![FlagDecl::new("done", "finished")]
-    }
-    fn period(&self) -> Duration {
-        Duration::from_millis(2)
-    }
-    async fn activate(&mut self, _ctx: &mut OpContext) -> Result<Step, OpError> {
-        self.taken = 0;
-        Ok(Step::Continue)
-    }
-    async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
-        self.taken += 1;
-        Ok(if self.taken >= ctx.params().i64("steps")? {
-            Step::Finish(StatusFlags(1))
-        } else {
-            Step::Continue
-        })
-    }
-}
-
+/// An instance of the test's [`Worker`].
 async fn start() -> EoClient {
-    let (actor, _): (ActorRef<EoMsg>, _) =
-        spawn_operation(Worker { taken: 0 }, HostOptions::default())
-            .await
-            .unwrap();
-    EoClient::new(actor)
+    Worker::new("nu-worker", 4100, "1.0.0")
+        .steps_only()
+        .start()
+        .await
 }
 
 async fn in_use(c: &EoClient) -> bool {
-    match c
-        .property(PropertyRequest::Group(Group::General))
-        .await
-        .unwrap()
-    {
-        PropertyReply::General(General { in_use, .. }) => in_use,
-        other => panic!("{other:?}"),
-    }
+    general(c).await.in_use
 }
 
 /// A provisioner that starts nothing: it tells the test each time it is asked, and refuses

@@ -4,23 +4,20 @@
 //! instance leave the registry), so these tests pin down the dispatcher's half of
 //! self-healing on its own; the node's real supervision tree is tested in the `marie` package.
 
+mod common;
+
+use common::ops::{general, Worker};
 use marie_actors::dispatcher::mission::ParsedMission;
 use marie_actors::dispatcher::{run_mission, RegistryCatalog};
-use marie_actors::eo::{
-    spawn_operation, EoClient, EoMsg, HostOptions, Identity, OpContext, OpError, Operation, Step,
-};
+use marie_actors::eo::EoClient;
 use marie_vocabulary::clock::RealClock;
 use marie_vocabulary::events::{EventBus, EventKind, EventSubscription};
-use marie_vocabulary::property::{
-    Collection, General, Group, ParamDecl, ParamSchema, PropertyReply, PropertyRequest, Value,
-};
+use marie_vocabulary::property::{Collection, PropertyReply, PropertyRequest, Value};
 use marie_vocabulary::registry::{self, ModuleKind, RegistryEvent};
 use marie_vocabulary::report::RunReport;
 use marie_vocabulary::run::FaultKind;
 use marie_vocabulary::run::Verdict;
 use marie_vocabulary::run::{LossCause, OpEnd, Outcome};
-use marie_vocabulary::status::{FlagDecl, StatusFlags};
-use ractor::ActorRef;
 use std::time::Duration;
 use tokio::time::timeout;
 
@@ -31,71 +28,12 @@ const T: Duration = Duration::from_secs(30);
 /// 0.3 s, a CI run once saw the action over before its first look: "never activated").
 const STEPS: u32 = 1500;
 
-/// Finishes after `steps` steps of 2 ms, raising its one flag.
-struct Worker {
-    name: String,
-    version: &'static str,
-    taken: i64,
-    resumed: bool,
-}
-
-impl Operation for Worker {
-    fn identity(&self) -> Identity {
-        Identity::new(
-            &self.name,
-            4000,
-            self.version,
-            "finishes after a number of steps",
-        )
-    }
-    /// Version 3 also takes a `mode`: a compatible superset of the others' schema.
-    fn parameters(&self) -> ParamSchema {
-        let mut params = vec![
-            ParamDecl::int("steps", 2).range(1.0, 100_000.0),
-            ParamDecl::float("gain", 0.5).range(0.0, 10.0),
-        ];
-        if self.version.starts_with("3.") {
-            params.push(ParamDecl::choice("mode", &["fast", "slow"], "fast"));
-        }
-        ParamSchema::new(params)
-    }
-    fn flags(&self) -> Vec<FlagDecl> {
-        vec![FlagDecl::new("done", "finished")]
-    }
-    fn period(&self) -> Duration {
-        Duration::from_millis(2)
-    }
-    fn deadline(&self) -> Duration {
-        Duration::from_millis(300)
-    }
-    async fn activate(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
-        self.taken = 0;
-        self.resumed = ctx.resumed();
-        Ok(Step::Continue)
-    }
-    fn property(&self, name: &str) -> Option<Value> {
-        (name == "resumed").then_some(Value::Bool(self.resumed))
-    }
-    async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
-        self.taken += 1;
-        Ok(if self.taken >= ctx.params().i64("steps")? {
-            Step::Finish(StatusFlags(1))
-        } else {
-            Step::Continue
-        })
-    }
-}
-
+/// An instance of [`Worker`] `name` in `version`, quick to be declared hung.
 async fn start(name: &str, version: &'static str) -> EoClient {
-    let op = Worker {
-        name: name.to_string(),
-        version,
-        taken: 0,
-        resumed: false,
-    };
-    let (actor, _): (ActorRef<EoMsg>, _) =
-        spawn_operation(op, HostOptions::default()).await.unwrap();
-    EoClient::new(actor)
+    Worker::new(name, 4000, version)
+        .deadline(Duration::from_millis(300))
+        .start()
+        .await
 }
 
 /// Act as a supervisor for `name`: each time an instance leaves the registry, start a new
@@ -116,17 +54,6 @@ async fn replace_on_death(name: &str, times: usize) -> tokio::task::JoinHandle<(
             }
         }
     })
-}
-
-async fn general(c: &EoClient) -> General {
-    match c
-        .property(PropertyRequest::Group(Group::General))
-        .await
-        .unwrap()
-    {
-        PropertyReply::General(g) => g,
-        other => panic!("{other:?}"),
-    }
 }
 
 /// The operation's `resumed` property: whether its last activation took over a lost one's.

@@ -6,81 +6,26 @@
 //!
 //! Each test uses operations of its own name: the registry is one per process.
 
+mod common;
+
+use common::ops::Worker;
 use marie_actors::dispatcher::mission::{Mission, ParsedMission};
 use marie_actors::dispatcher::{run_mission, RegistryCatalog};
-use marie_actors::eo::{
-    spawn_operation, EoClient, EoMsg, HostOptions, Identity, OpContext, OpError, Operation,
-    ParamOutcome, Step,
-};
+use marie_actors::eo::{EoClient, ParamOutcome};
 use marie_vocabulary::clock::RealClock;
 use marie_vocabulary::events::{BoundOp, Event, EventBus, EventKind};
-use marie_vocabulary::property::{ParamDecl, ParamMap, ParamSchema, Value};
+use marie_vocabulary::property::{ParamMap, Value};
 use marie_vocabulary::registry::{self, ModuleKind, RegistryEvent};
 use marie_vocabulary::report::RunReport;
 use marie_vocabulary::run::{Choice, FaultKind, Outcome, Verdict};
-use marie_vocabulary::status::{FlagDecl, StatusFlags};
-use ractor::ActorRef;
 use std::time::Duration;
 use tokio::time::timeout;
 
 const T: Duration = Duration::from_secs(30);
 
-/// Finishes after `steps` steps of 2 ms, raising its one flag.
-struct Worker {
-    name: String,
-    version: &'static str,
-    taken: i64,
-}
-
-impl Operation for Worker {
-    fn identity(&self) -> Identity {
-        Identity::new(
-            &self.name,
-            4100,
-            self.version,
-            "finishes after a number of steps",
-        )
-    }
-    /// Version 3 also takes a `mode`: a compatible superset of the others' schema.
-    fn parameters(&self) -> ParamSchema {
-        let mut params = vec![
-            ParamDecl::int("steps", 2).range(1.0, 100_000.0),
-            ParamDecl::float("gain", 0.5).range(0.0, 10.0),
-        ];
-        if self.version.starts_with("3.") {
-            params.push(ParamDecl::choice("mode", &["fast", "slow"], "fast"));
-        }
-        ParamSchema::new(params)
-    }
-    fn flags(&self) -> Vec<FlagDecl> {
-        vec![FlagDecl::new("done", "finished")]
-    }
-    fn period(&self) -> Duration {
-        Duration::from_millis(2)
-    }
-    async fn activate(&mut self, _: &mut OpContext) -> Result<Step, OpError> {
-        self.taken = 0;
-        Ok(Step::Continue)
-    }
-    async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
-        self.taken += 1;
-        Ok(if self.taken >= ctx.params().i64("steps")? {
-            Step::Finish(StatusFlags(1))
-        } else {
-            Step::Continue
-        })
-    }
-}
-
+/// An instance of [`Worker`] `name` in `version`.
 async fn start(name: &str, version: &'static str) -> EoClient {
-    let op = Worker {
-        name: name.to_string(),
-        version,
-        taken: 0,
-    };
-    let (actor, _): (ActorRef<EoMsg>, _) =
-        spawn_operation(op, HostOptions::default()).await.unwrap();
-    EoClient::new(actor)
+    Worker::new(name, 4100, version).start().await
 }
 
 fn address(c: &EoClient) -> String {

@@ -6,7 +6,7 @@
 //! averager and a checker that exchange data only through the datamanagers).
 //!
 //! Operations are offered as [`OperationFactory`]s, so a supervisor can start a fresh
-//! instance after every crash; [`spawn_builtin`] and [`spawn_robot`] start them unsupervised.
+//! instance after every crash; [`spawn_builtin`] starts the demo's unsupervised.
 //!
 //! ```no_run
 //! # #[tokio::main] async fn main() {
@@ -121,17 +121,4 @@ pub async fn spawn_cart_sampled(
         Some(sup) => hardware::spawn_cart_linked(args, sup).await?.0.get_cell(),
         None => hardware::spawn_cart(args).await?.0.get_cell(),
     })
-}
-
-/// Spawn the robot on `clock`, unsupervised: the virtual cart driving `world` (noise seeded
-/// by `seed`) and one host for each of [`robot_operations`]. The cart publishes itself before
-/// this returns.
-pub async fn spawn_robot(
-    clock: SharedClock,
-    world: &world::World,
-    seed: u64,
-) -> Result<Vec<ActorCell>, SpawnErr> {
-    let mut cells = vec![spawn_cart(clock.clone(), world, seed, None).await?];
-    cells.extend(start_all(robot_operations(), clock).await?);
-    Ok(cells)
 }

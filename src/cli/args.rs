@@ -40,9 +40,15 @@ impl RobotArgs {
 
 /// A seed (`--seed`, `--chaos`): a whole number from 0 to 2^64 - 1. A negative one is read as
 /// a value (not as a flag) so that the message says what is wrong with it.
-pub(crate) fn parse_seed(s: &str) -> Result<u64, String> {
-    s.parse::<u64>()
-        .map_err(|_| format!("expected a whole number from 0 to {}, got {s:?}", u64::MAX))
+pub(crate) fn parse_seed(s: &str) -> Result<u64, BadSeed> {
+    s.parse::<u64>().map_err(|_| BadSeed { got: s.to_string() })
+}
+
+/// A seed that is not one ([`parse_seed`]).
+#[derive(Debug, thiserror::Error)]
+#[error("expected a whole number from 0 to {}, got {got:?}", u64::MAX)]
+pub(crate) struct BadSeed {
+    got: String,
 }
 
 /// `--speed max`: as fast as the CPU allows.
@@ -55,26 +61,46 @@ pub(crate) const SLOWEST: f64 = 0.01;
 pub(crate) const FASTEST: f64 = 1_000_000.0;
 
 /// `--speed X|max`: X a factor of real time from [`SLOWEST`] to [`FASTEST`].
-pub(crate) fn parse_speed(s: &str) -> Result<f64, String> {
+pub(crate) fn parse_speed(s: &str) -> Result<f64, BadSpeed> {
     if s == "max" {
         return Ok(MAX_SPEED);
     }
     match s.parse::<f64>() {
         Ok(x) if (SLOWEST..=FASTEST).contains(&x) => Ok(x),
-        _ => Err(format!(
-            "expected a factor of real time from {SLOWEST} to {FASTEST}, or `max`, got {s:?}"
-        )),
+        _ => Err(BadSpeed { got: s.to_string() }),
     }
+}
+
+/// A `--speed` that is not one ([`parse_speed`]).
+#[derive(Debug, thiserror::Error)]
+#[error(
+    "expected a factor of real time from {} to {}, or `max`, got {got:?}",
+    SLOWEST,
+    FASTEST
+)]
+pub(crate) struct BadSpeed {
+    got: String,
 }
 
 /// `--speed` of a cluster member (`node`, `up`): a factor within
 /// [`marie::cluster::layout::SPEED_RANGE`]; `max` is refused (a cluster runs on the wall clock).
-pub(crate) fn parse_cluster_speed(s: &str) -> Result<f64, String> {
+pub(crate) fn parse_cluster_speed(s: &str) -> Result<f64, BadClusterSpeed> {
     match s.parse::<f64>() {
-        Ok(x) => marie::cluster::layout::cluster_speed(x).map_err(|e| e.to_string()),
-        Err(_) => Err(format!(
-            "{}, got {s:?}",
-            marie::cluster::layout::speed_expected()
-        )),
+        Ok(x) => Ok(marie::cluster::layout::cluster_speed(x)?),
+        Err(_) => Err(BadClusterSpeed::NotANumber { got: s.to_string() }),
     }
+}
+
+/// A cluster member's `--speed` that is not one ([`parse_cluster_speed`]).
+#[derive(Debug, thiserror::Error)]
+pub(crate) enum BadClusterSpeed {
+    /// A number outside the cluster's range.
+    #[error(transparent)]
+    OutOfRange(#[from] marie::cluster::layout::SpeedError),
+    /// Not a number.
+    #[error("{}, got {got:?}", marie::cluster::layout::speed_expected())]
+    NotANumber {
+        /// As written.
+        got: String,
+    },
 }

@@ -21,11 +21,19 @@
 //!
 //! Needs root (`CAP_NET_ADMIN`) and `ip`. Without them a test is skipped with a line on
 //! stderr — or fails, when the environment variable `CI` is set.
+//!
+//! The `ip` commands are `marie up`'s own ([`wiring`], included from the binary's sources:
+//! the tests cannot link to a binary), so the network these tests cut is wired as the one
+//! `marie up --fault partition:…` cuts.
+
+#[path = "../../src/cli/netns/wiring.rs"]
+mod wiring;
 
 use std::io::Write;
 use std::net::{Ipv4Addr, SocketAddr};
 use std::process::Command;
 use std::sync::atomic::{AtomicUsize, Ordering};
+use wiring::{ip, IpError};
 
 /// Prefix of every namespace these tests create: `mariep<pid>-<n>-hub`, `mariep<pid>-<n>-<i>`.
 const PREFIX: &str = "mariep";
@@ -45,7 +53,9 @@ impl Netns {
     /// once; it was told on stderr. With `CI` set, that panics instead.
     pub(crate) fn create(n: usize) -> Option<Netns> {
         assert!(n < 250, "at most 249 nodes");
-        sweep_stale();
+        // namespaces of test processes killed before their guards dropped (their
+        // processes, started with `--stop-with-stdin`, stopped with them)
+        wiring::sweep_left_behind(PREFIX);
         let k = MADE.fetch_add(1, Ordering::Relaxed);
         let base = format!("{PREFIX}{}-{k}", std::process::id());
         let hub = format!("{base}-hub");
@@ -65,49 +75,13 @@ impl Netns {
             hub,
             nodes: Vec::new(),
         };
-        let mut setup = || -> Result<(), String> {
-            ip(&["-n", &net.hub, "link", "set", "lo", "up"])?;
-            ip(&[
-                "netns",
-                "exec",
-                &net.hub,
-                "sysctl",
-                "-qw",
-                "net.ipv4.ip_forward=1",
-            ])?;
+        let mut setup = || -> Result<(), IpError> {
+            wiring::route_through(&net.hub)?;
             for i in 0..n {
                 let ns = format!("{base}-{i}");
                 ip(&["netns", "add", &ns])?;
                 net.nodes.push(ns.clone());
-                let hub_end = format!("h{i}"); // in the hub's namespace only: no clash
-                let (hub_ip, node_ip) =
-                    (format!("10.77.{}.1", i + 1), format!("10.77.{}.2", i + 1));
-                ip(&["-n", &ns, "link", "set", "lo", "up"])?;
-                ip(&[
-                    "-n", &net.hub, "link", "add", &hub_end, "type", "veth", "peer", "name",
-                    "eth0", "netns", &ns,
-                ])?;
-                ip(&[
-                    "-n",
-                    &net.hub,
-                    "addr",
-                    "add",
-                    &format!("{hub_ip}/24"),
-                    "dev",
-                    &hub_end,
-                ])?;
-                ip(&["-n", &net.hub, "link", "set", &hub_end, "up"])?;
-                ip(&[
-                    "-n",
-                    &ns,
-                    "addr",
-                    "add",
-                    &format!("{node_ip}/24"),
-                    "dev",
-                    "eth0",
-                ])?;
-                ip(&["-n", &ns, "link", "set", "eth0", "up"])?;
-                ip(&["-n", &ns, "route", "add", "default", "via", &hub_ip])?;
+                wiring::join(&net.hub, &ns, i)?;
             }
             Ok(())
         };
@@ -132,7 +106,7 @@ impl Netns {
     /// Node `i`'s address: `10.77.<i+1>.2`.
     pub(crate) fn ip(&self, i: usize) -> Ipv4Addr {
         assert!(i < self.nodes.len());
-        Ipv4Addr::new(10, 77, i as u8 + 1, 2)
+        wiring::addresses(i).1
     }
 
     /// Node `i`'s address with `port` (any port is free in a namespace of its own).
@@ -152,9 +126,10 @@ impl Netns {
 
     fn blackhole(&self, verb: &str, a: usize, b: usize) {
         for (from, to) in [(a, b), (b, a)] {
-            let target = format!("{}/32", self.ip(to));
-            ip(&["-n", self.ns(from), "route", verb, "blackhole", &target])
-                .unwrap_or_else(|e| panic!("route {verb} blackhole {target} in node {from}: {e}"));
+            let target = self.ip(to);
+            wiring::blackhole(verb, self.ns(from), target).unwrap_or_else(|e| {
+                panic!("route {verb} blackhole {target}/32 in node {from}: {e}")
+            });
         }
     }
 }
@@ -177,45 +152,5 @@ fn delete(ns: &str) {
     }
     if let Err(e) = ip(&["netns", "del", ns]) {
         eprintln!("could not delete network namespace {ns}: {e}");
-    }
-}
-
-/// Delete namespaces left by test processes that are gone (killed before their guards
-/// dropped). Their processes, started with `--stop-with-stdin`, stopped with them.
-fn sweep_stale() {
-    let Ok(out) = Command::new("ip").args(["netns", "list"]).output() else {
-        return;
-    };
-    for line in String::from_utf8_lossy(&out.stdout).lines() {
-        let Some(name) = line.split_whitespace().next() else {
-            continue;
-        };
-        let Some(pid) = name
-            .strip_prefix(PREFIX)
-            .and_then(|rest| rest.split_once('-'))
-            .and_then(|(pid, _)| pid.parse::<u32>().ok())
-        else {
-            continue;
-        };
-        if !std::path::Path::new(&format!("/proc/{pid}")).exists() {
-            let _ = ip(&["netns", "del", name]);
-        }
-    }
-}
-
-/// Run `ip ARGS`; its stderr on failure.
-fn ip(args: &[&str]) -> Result<(), String> {
-    let out = Command::new("ip")
-        .args(args)
-        .output()
-        .map_err(|e| format!("ip: {e}"))?;
-    if out.status.success() {
-        Ok(())
-    } else {
-        Err(format!(
-            "ip {}: {}",
-            args.join(" "),
-            String::from_utf8_lossy(&out.stderr).trim()
-        ))
     }
 }

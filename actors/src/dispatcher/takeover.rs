@@ -25,6 +25,7 @@ use super::actor::{ActionState, Current, DispatcherState, End, Start, TakeOver};
 use super::binding::Binding;
 use super::candidates::{choose, examine_all, Prospect};
 use super::checkpoint::{self, BindingCheckpoint, Checkpoint, CurrentCheckpoint, Superseded};
+use super::healing::StartError;
 use super::messages::DispatcherMsg;
 use super::tree::Tree;
 use crate::eo::EoError;
@@ -47,6 +48,28 @@ const CLAIM_WITHIN: Duration = Duration::from_secs(3);
 const BIND_WITHIN: Duration = Duration::from_secs(2);
 /// The pause between two looks.
 const BIND_RETRY: Duration = Duration::from_millis(200);
+
+/// Why a takeover fails the run it carries on: the run's reason says it in these words.
+#[derive(Debug, thiserror::Error)]
+pub(crate) enum TakeoverError {
+    /// The registry cannot be watched (see [`StartError::Watch`]).
+    #[error(transparent)]
+    Watch(#[from] StartError),
+    /// No instance of an operation the run holds answered within [`BIND_WITHIN`].
+    #[error("taking the run over from {from}: no instance of operation `{operation}` answers")]
+    Unbound {
+        /// The node of the checkpoint's writer.
+        from: String,
+        /// The operation.
+        operation: String,
+    },
+    /// The checkpoint's tree is not the mission's (another mission's run).
+    #[error("taking the run over from {from}: its checkpoint's tree does not fit the mission")]
+    TreeMisfit {
+        /// The node of the checkpoint's writer.
+        from: String,
+    },
+}
 
 impl DispatcherState {
     /// The run's progress now, as a checkpoint (numbered by the writer).
@@ -178,11 +201,11 @@ impl DispatcherState {
         self.tell_takeover(&from, term, noticed);
         self.carry_time_on(&from);
         if let Err(reason) = self.bind_held_operations(myself, &from).await {
-            self.finish(myself, Outcome::Failed, reason);
+            self.finish(myself, Outcome::Failed, reason.to_string());
             return;
         }
         if let Err(reason) = self.restore(&from) {
-            self.finish(myself, Outcome::Failed, reason);
+            self.finish(myself, Outcome::Failed, reason.to_string());
             return;
         }
         // the bindings' new epochs, before any command carries them
@@ -267,10 +290,8 @@ impl DispatcherState {
         &mut self,
         myself: &ActorRef<DispatcherMsg>,
         from: &Checkpoint,
-    ) -> Result<(), String> {
-        self.watch_registry(myself)
-            .await
-            .map_err(|e| e.to_string())?;
+    ) -> Result<(), TakeoverError> {
+        self.watch_registry(myself).await?;
         for held in &from.bindings {
             let looking = tokio::time::Instant::now();
             let found = loop {
@@ -281,10 +302,10 @@ impl DispatcherState {
                 }
             };
             let Some(binding) = found else {
-                return Err(format!(
-                    "taking the run over from {}: no instance of operation `{}` answers",
-                    from.node, held.name
-                ));
+                return Err(TakeoverError::Unbound {
+                    from: from.node.clone(),
+                    operation: held.name.clone(),
+                });
             };
             self.bindings.insert(held.name.clone(), binding);
         }
@@ -293,12 +314,11 @@ impl DispatcherState {
 
     /// Restore where the run stood: its tree, what is pending, its failure, and the actions
     /// that were live (each under a new generation). `Err`: why the run fails.
-    fn restore(&mut self, from: &Checkpoint) -> Result<(), String> {
+    fn restore(&mut self, from: &Checkpoint) -> Result<(), TakeoverError> {
         let Some(tree) = Tree::restore(self.mission.control.root.clone(), from.tree.clone()) else {
-            return Err(format!(
-                "taking the run over from {}: its checkpoint's tree does not fit the mission",
-                from.node
-            ));
+            return Err(TakeoverError::TreeMisfit {
+                from: from.node.clone(),
+            });
         };
         self.tree = tree;
         self.pending = from.pending.clone();

@@ -392,11 +392,6 @@ impl Tree {
             .collect()
     }
 
-    /// For each node, its status once done, by id.
-    pub fn statuses(&self) -> Vec<Option<Status>> {
-        self.state.iter().map(|s| s.status).collect()
-    }
-
     /// A root [`Node::Schedule`]'s children not done yet, as (id, the flags each waits
     /// for): what a stuck mission waits for.
     pub fn waiting(&self) -> Vec<(usize, u32)> {

@@ -187,8 +187,8 @@ pub enum NodeError {
     #[error("--chaos-nodes: {0}")]
     NodeChaos(String),
     /// A run dispatched on a desk could not be recorded: no run datamanager.
-    #[error("{0}")]
-    NoRunDm(String),
+    #[error(transparent)]
+    NoRunDm(#[from] desk::NoRunDm),
     /// A run could not be dispatched on another node's desk.
     #[error("{0}")]
     Desk(String),

@@ -134,7 +134,7 @@ async fn stdin_closed() {
 }
 
 /// The flags: the process's setup and, with `--run`, the litres of the mission.
-fn parse(mut args: impl Iterator<Item = String>) -> Result<(Setup, Option<f64>), String> {
+fn parse(mut args: impl Iterator<Item = String>) -> Result<(Setup, Option<f64>), FlagError> {
     let mut setup = Setup {
         name: String::new(),
         listen: ([127, 0, 0, 1], 0).into(),
@@ -146,7 +146,7 @@ fn parse(mut args: impl Iterator<Item = String>) -> Result<(Setup, Option<f64>),
     };
     let mut run = None;
     while let Some(flag) = args.next() {
-        let mut value = || args.next().ok_or_else(|| format!("{flag} needs a value"));
+        let mut value = || args.next().ok_or_else(|| FlagError::NoValue(flag.clone()));
         match flag.as_str() {
             "--name" => setup.name = value()?,
             "--listen" => setup.listen = address(&flag, &value()?)?,
@@ -161,28 +161,70 @@ fn parse(mut args: impl Iterator<Item = String>) -> Result<(Setup, Option<f64>),
                 run = Some(litres(&flag, &value()?)?);
                 setup.dispatcher = true;
             }
-            other => return Err(format!("unknown flag {other}")),
+            _ => return Err(FlagError::Unknown(flag)),
         }
     }
     if setup.name.is_empty() {
-        return Err("--name NAME is required".into());
+        return Err(FlagError::NoName);
     }
     Ok((setup, run))
 }
 
-fn address(flag: &str, text: &str) -> Result<std::net::SocketAddr, String> {
-    text.parse()
-        .map_err(|e| format!("{flag} {text}: not an address (ip:port): {e}"))
+fn address(flag: &str, text: &str) -> Result<std::net::SocketAddr, FlagError> {
+    text.parse().map_err(|e| FlagError::NotAnAddress {
+        flag: flag.to_string(),
+        text: text.to_string(),
+        error: e,
+    })
 }
 
-fn litres(flag: &str, text: &str) -> Result<f64, String> {
+fn litres(flag: &str, text: &str) -> Result<f64, FlagError> {
     match text.parse::<f64>() {
         Ok(l) if l.is_finite() && l > 0.0 => Ok(l),
-        _ => Err(format!(
-            "{flag} {text}: expected a positive number of litres"
-        )),
+        _ => Err(FlagError::NotLitres {
+            flag: flag.to_string(),
+            text: text.to_string(),
+        }),
     }
 }
+
+/// A command line that does not say what to do (exit 2). Written out by hand: the
+/// application depends on marie and tokio alone.
+#[derive(Debug)]
+enum FlagError {
+    /// A flag that takes a value ends the line.
+    NoValue(String),
+    /// A flag this program does not know.
+    Unknown(String),
+    /// No `--name`.
+    NoName,
+    /// An address flag whose value is none.
+    NotAnAddress {
+        flag: String,
+        text: String,
+        error: std::net::AddrParseError,
+    },
+    /// A litres flag whose value is not a positive number.
+    NotLitres { flag: String, text: String },
+}
+
+impl std::fmt::Display for FlagError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            FlagError::NoValue(flag) => write!(f, "{flag} needs a value"),
+            FlagError::Unknown(flag) => write!(f, "unknown flag {flag}"),
+            FlagError::NoName => write!(f, "--name NAME is required"),
+            FlagError::NotAnAddress { flag, text, error } => {
+                write!(f, "{flag} {text}: not an address (ip:port): {error}")
+            }
+            FlagError::NotLitres { flag, text } => {
+                write!(f, "{flag} {text}: expected a positive number of litres")
+            }
+        }
+    }
+}
+
+impl std::error::Error for FlagError {}
 
 /// A line on stdout, flushed at once (stdout is a pipe when a parent waits for it).
 fn say(line: &str) {

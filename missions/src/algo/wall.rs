@@ -92,13 +92,6 @@ pub struct WallEstimate {
     pub segments: usize,
 }
 
-impl WallEstimate {
-    /// The wall's infinite line, directed like [`WallEstimate::line`].
-    pub fn as_line(&self) -> Option<Line> {
-        Line::of_segment(&self.line)
-    }
-}
-
 /// Find the wall among `segments` as seen from `pose`; `None` when no wall qualifies.
 pub fn sense_wall(segments: &[Segment], pose: &Pose, params: &WallParams) -> Option<WallEstimate> {
     let segs: Vec<(Segment, Line)> = segments

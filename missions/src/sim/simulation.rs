@@ -415,23 +415,6 @@ impl Simulation {
     pub fn judge(&self) -> Judgement {
         self.world.judge(self.pose, self.collisions)
     }
-
-    /// Put the cart at `pose` at rest (true pose and odometry), clear the collision latch.
-    /// For tests and set-up. A pose whose footprint touches a wall is accepted, but the cart is
-    /// stuck there: every move counts as a collision. Non-finite poses are ignored.
-    pub fn teleport(&mut self, pose: Pose) {
-        if !(pose.x.is_finite() && pose.y.is_finite() && pose.theta.is_finite()) {
-            return;
-        }
-        self.pose = pose;
-        self.odometry = pose;
-        self.drive.halt();
-        self.latched = None;
-        self.trace.push(TracePoint {
-            time: self.time,
-            pose,
-        });
-    }
 }
 
 /// Where the cart starts in `world`: its start pose, or the origin when that is not finite

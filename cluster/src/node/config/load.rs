@@ -58,7 +58,7 @@ impl NodeConfig {
                                 config.desk = Some(role);
                                 config.dispatcher = false;
                             }
-                            Err(e) => r.err(&span, e),
+                            Err(e) => r.err(&span, e.to_string()),
                         },
                         _ => config.dispatcher = r.boolean(&t, "dispatcher", true),
                     }

@@ -35,6 +35,12 @@
 //! - A desk runs at most one dispatcher at a time.
 //! - A takeover needs a checkpoint that has not ended and was written on the lost node.
 
+mod refusal;
+mod role;
+
+pub use refusal::{DeskRefusal, NoRunDm};
+pub use role::{DeskRole, UnknownDeskRole, ACTIVE_STAGGER};
+
 use super::NodeError;
 use marie_actors::dispatcher::checkpoint::{Checkpoint, CheckpointArgs, CHECKPOINT_SOURCE};
 use marie_actors::dispatcher::mission::Mission;
@@ -45,7 +51,6 @@ use marie_vocabulary::clock::SharedClock;
 use marie_vocabulary::events::{BusError, Event, EventBus, EventKind};
 use marie_vocabulary::registry::{self, ModuleKind, RegistryEvent};
 use ractor::{Actor, ActorProcessingErr, ActorRef};
-use serde::{Deserialize, Serialize};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -57,8 +62,6 @@ pub const DESK_NAME: &str = "dispatcher-desk";
 pub const DESK_ID: u32 = 1501;
 /// Child id of the desk under the node's root supervisor.
 pub(crate) const DESK: &str = "dispatcher-desk";
-/// How long an active node's desk lets a standby take a lost run over first.
-pub const ACTIVE_STAGGER: Duration = Duration::from_secs(1);
 /// How long a desk waits for the run datamanager (a copy being promoted).
 const RUN_DM_WAIT: Duration = Duration::from_secs(10);
 /// How long a desk waits for the requester's event watcher to reach its node.
@@ -77,49 +80,6 @@ pub const MINORITY_WAIT: Duration = Duration::from_secs(10);
 /// Once a majority is back, how long the registry gets to hear their modules again.
 const REJOIN_SETTLE: Duration = Duration::from_secs(1);
 
-/// What a node's desk does ([`super::NodeConfig::desk`]).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum DeskRole {
-    /// Runs the cluster's missions (`marie up --run` dispatches here), and takes a lost
-    /// dispatcher's run over after [`ACTIVE_STAGGER`].
-    Active,
-    /// Takes a lost dispatcher's run over at once.
-    Standby,
-}
-
-impl DeskRole {
-    /// As a config writes it.
-    pub fn label(self) -> &'static str {
-        match self {
-            DeskRole::Active => "active",
-            DeskRole::Standby => "standby",
-        }
-    }
-
-    /// How long it waits before taking a lost run over, and by how much it raises the
-    /// term: an active desk that takes over after a standby did fences the standby off.
-    fn rank(self) -> (Duration, u64) {
-        match self {
-            DeskRole::Standby => (Duration::ZERO, 1),
-            DeskRole::Active => (ACTIVE_STAGGER, 2),
-        }
-    }
-}
-
-impl std::str::FromStr for DeskRole {
-    type Err = String;
-    fn from_str(s: &str) -> Result<DeskRole, String> {
-        match s {
-            "active" => Ok(DeskRole::Active),
-            "standby" => Ok(DeskRole::Standby),
-            other => Err(format!(
-                "`{other}` is not a dispatcher role: active or standby (or true, false)"
-            )),
-        }
-    }
-}
-
 marie_vocabulary::remote_message! {
     /// Messages of a dispatcher desk.
     pub enum DeskMsg {
@@ -136,7 +96,7 @@ marie_vocabulary::remote_message! {
             watcher_node: String,
             /// Its watcher's actor number there.
             watcher_pid: u64,
-        } -> Result<(), String>,
+        } -> Result<(), DeskRefusal>,
     }
     local {
         /// The dispatcher on `node` is gone, noticed at `noticed`.
@@ -339,15 +299,16 @@ impl DeskState {
         mission: &[u8],
         watcher_node: &str,
         watcher_pid: u64,
-    ) -> Result<(), String> {
+    ) -> Result<(), DeskRefusal> {
         if self.busy() {
-            return Err(format!(
-                "node `{}` already dispatches a run: one at a time",
-                self.args.node
-            ));
+            return Err(DeskRefusal::Busy {
+                node: self.args.node.clone(),
+            });
         }
-        let mission: Mission = rmp_serde::from_slice(mission)
-            .map_err(|e| format!("the mission did not arrive whole: {e}"))?;
+        let mission: Mission =
+            rmp_serde::from_slice(mission).map_err(|e| DeskRefusal::Garbled {
+                reason: e.to_string(),
+            })?;
         if !crate::relay::reaches(watcher_node, watcher_pid, WATCHER_WAIT).await {
             tracing::warn!(%watcher_node, "the requester's event watcher is not in reach yet: it may miss the run's first events");
         }
@@ -361,12 +322,14 @@ impl DeskState {
             ..DispatcherArgs::new(mission, self.args.clock.clone(), self.args.bus.clone())
         })
         .await
-        .map_err(|e| e.to_string())
+        .map_err(|e| DeskRefusal::NotStarted {
+            reason: e.to_string(),
+        })
     }
 
     async fn take_over(&mut self, from: Checkpoint, noticed: Instant) -> Result<(), NodeError> {
         let (_, raise) = self.args.role.rank();
-        let dm = run_dm().await.map_err(NodeError::NoRunDm)?;
+        let dm = run_dm().await?;
         let dm = dm.with_acks(AckSink::publishing_on(self.args.bus.clone()));
         let checkpoint = CheckpointArgs {
             run: from.run.clone(),
@@ -421,18 +384,11 @@ fn dispatchers() -> impl Iterator<Item = registry::Instance> {
 }
 
 /// The run datamanager, waiting for one (a copy being promoted).
-async fn run_dm() -> Result<DmClient, String> {
+async fn run_dm() -> Result<DmClient, NoRunDm> {
     DmClient::lookup_within(RUN.name, CHECKPOINT_SOURCE, RUN_DM_WAIT)
         .await
         .map(|dm| dm.with_follow(RUN_DM_WAIT))
-        .map_err(|_| {
-            format!(
-                "no run datamanager `{}` in the cluster: a dispatched run records its \
-                 progress there so that a standby can take it over (a node config hosts it: \
-                 `[[datamanager]] name = \"run\"`, best with copies on other nodes)",
-                RUN.name
-            )
-        })
+        .map_err(|_| NoRunDm)
 }
 
 /// Tell the desk `desk` whenever a dispatcher on another node leaves the registry or its

@@ -19,21 +19,57 @@
 //! Made only when a run may partition (a `partition` fault planned, `--chaos-nodes`) or
 //! `--private-network` asks; it needs root (`CAP_SYS_ADMIN`, `CAP_NET_ADMIN`) and `ip`.
 //! The namespaces are deleted when `marie up` exits; those a `kill -9` left are deleted by
-//! the next `marie up` that makes one.
+//! the next `marie up` that makes one. The `ip` commands are [`wiring`]'s, shared with the
+//! partition tests.
+
+mod wiring;
 
 use marie::cluster::fault::NodeNetwork;
 use std::collections::BTreeMap;
 use std::fs::File;
 use std::net::{Ipv4Addr, SocketAddr, TcpListener};
 use std::os::fd::AsRawFd;
-use std::process::Command;
 use std::sync::{Arc, Mutex, MutexGuard, OnceLock};
+use wiring::{ip, IpError};
 
 /// Prefix of every namespace made here: `marieup<pid>-hub`, `marieup<pid>-<i>`.
 const PREFIX: &str = "marieup";
 
 /// The private network this process runs in, once made ([`PrivateNet::enter`]).
 static CURRENT: OnceLock<Arc<PrivateNet>> = OnceLock::new();
+
+/// Why no private network could be made.
+#[derive(Debug, thiserror::Error)]
+pub(crate) enum NetError {
+    /// More nodes than the network's addresses.
+    #[error("a private network holds at most 249 nodes, not {0}")]
+    TooMany(usize),
+    /// An `ip` command failed (not root, no `ip`).
+    #[error(transparent)]
+    Ip(#[from] IpError),
+    /// This thread's own namespace cannot be held.
+    #[error("cannot open this thread's network namespace: {0}")]
+    Host(#[source] std::io::Error),
+    /// A namespace made cannot be opened.
+    #[error("cannot open namespace {ns}: {source}")]
+    Open {
+        /// The namespace.
+        ns: String,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// The hub cannot be entered.
+    #[error("cannot enter namespace {ns}: {source}")]
+    Enter {
+        /// The hub's namespace.
+        ns: String,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// [`PrivateNet::enter`] was called twice.
+    #[error("a private network was made twice")]
+    Twice,
+}
 
 /// The network of one `marie up`: a hub and a namespace per node.
 #[derive(Debug)]
@@ -74,89 +110,40 @@ impl PrivateNet {
     /// Make a hub and a namespace per node of `nodes` (at most 249), and move the calling
     /// thread into the hub — call it on the main thread before any other thread exists, so
     /// that every thread of the process (the runtime's) runs there.
-    pub(crate) fn enter(nodes: &[String]) -> Result<NetGuard, String> {
+    pub(crate) fn enter(nodes: &[String]) -> Result<NetGuard, NetError> {
         if nodes.len() > 249 {
-            return Err(format!(
-                "a private network holds at most 249 nodes, not {}",
-                nodes.len()
-            ));
+            return Err(NetError::TooMany(nodes.len()));
         }
-        sweep_left_behind();
+        wiring::sweep_left_behind(PREFIX);
         let base = format!("{PREFIX}{}", std::process::id());
         let hub = format!("{base}-hub");
         ip(&["netns", "add", &hub])?;
         let mut guard = NetGuard {
             names: vec![hub.clone()],
         };
-        let host = File::open("/proc/thread-self/ns/net")
-            .map_err(|e| format!("cannot open this thread's network namespace: {e}"))?;
-        ip(&["-n", &hub, "link", "set", "lo", "up"])?;
-        ip(&[
-            "netns",
-            "exec",
-            &hub,
-            "sysctl",
-            "-qw",
-            "net.ipv4.ip_forward=1",
-        ])?;
+        let host = File::open("/proc/thread-self/ns/net").map_err(NetError::Host)?;
+        wiring::route_through(&hub)?;
         let mut made = BTreeMap::new();
         for (i, node) in nodes.iter().enumerate() {
             let ns = format!("{base}-{i}");
             ip(&["netns", "add", &ns])?;
             guard.names.push(ns.clone());
-            let hub_end = format!("h{i}"); // in the hub's namespace only: no clash
-            let (hub_ip, node_ip) = (
-                Ipv4Addr::new(10, 77, i as u8 + 1, 1),
-                Ipv4Addr::new(10, 77, i as u8 + 1, 2),
-            );
-            ip(&["-n", &ns, "link", "set", "lo", "up"])?;
-            ip(&[
-                "-n", &hub, "link", "add", &hub_end, "type", "veth", "peer", "name", "eth0",
-                "netns", &ns,
-            ])?;
-            ip(&[
-                "-n",
-                &hub,
-                "addr",
-                "add",
-                &format!("{hub_ip}/24"),
-                "dev",
-                &hub_end,
-            ])?;
-            ip(&["-n", &hub, "link", "set", &hub_end, "up"])?;
-            ip(&[
-                "-n",
-                &ns,
-                "addr",
-                "add",
-                &format!("{node_ip}/24"),
-                "dev",
-                "eth0",
-            ])?;
-            ip(&["-n", &ns, "link", "set", "eth0", "up"])?;
-            ip(&[
-                "-n",
-                &ns,
-                "route",
-                "add",
-                "default",
-                "via",
-                &hub_ip.to_string(),
-            ])?;
-            let handle = File::open(format!("/var/run/netns/{ns}"))
-                .map_err(|e| format!("cannot open namespace {ns}: {e}"))?;
+            wiring::join(&hub, &ns, i)?;
+            let handle = open(&ns)?;
             made.insert(
                 node.clone(),
                 NodeNs {
                     name: ns,
                     handle: Arc::new(handle),
-                    ip: node_ip,
+                    ip: wiring::addresses(i).1,
                 },
             );
         }
-        let hub_handle = File::open(format!("/var/run/netns/{hub}"))
-            .map_err(|e| format!("cannot open namespace {hub}: {e}"))?;
-        set_ns(&hub_handle).map_err(|e| format!("cannot enter namespace {hub}: {e}"))?;
+        let hub_handle = open(&hub)?;
+        set_ns(&hub_handle).map_err(|source| NetError::Enter {
+            ns: hub.clone(),
+            source,
+        })?;
         let net = PrivateNet {
             hub,
             nodes: made,
@@ -164,9 +151,7 @@ impl PrivateNet {
             cuts: Mutex::new(BTreeMap::new()),
         };
         tracing::info!(hub = %net.hub, nodes = net.nodes.len(), "the nodes run in a private network");
-        CURRENT
-            .set(Arc::new(net))
-            .map_err(|_| "a private network was made twice".to_string())?;
+        CURRENT.set(Arc::new(net)).map_err(|_| NetError::Twice)?;
         Ok(guard)
     }
 
@@ -222,15 +207,7 @@ impl PrivateNet {
         };
         let (x, y) = (node(x)?, node(y)?);
         for (from, to) in [(x, y), (y, x)] {
-            ip(&[
-                "-n",
-                &from.name,
-                "route",
-                verb,
-                "blackhole",
-                &format!("{}/32", to.ip),
-            ])
-            .map_err(std::io::Error::other)?;
+            wiring::blackhole(verb, &from.name, to.ip).map_err(std::io::Error::other)?;
         }
         Ok(())
     }
@@ -289,41 +266,10 @@ pub(crate) fn set_ns(ns: &File) -> std::io::Result<()> {
     Ok(())
 }
 
-/// Delete the namespaces of `marie up`s that are gone (a `kill -9` leaves them).
-fn sweep_left_behind() {
-    let Ok(out) = Command::new("ip").args(["netns", "list"]).output() else {
-        return;
-    };
-    for line in String::from_utf8_lossy(&out.stdout).lines() {
-        let Some(name) = line.split_whitespace().next() else {
-            continue;
-        };
-        let Some(pid) = name
-            .strip_prefix(PREFIX)
-            .and_then(|rest| rest.split_once('-'))
-            .and_then(|(pid, _)| pid.parse::<u32>().ok())
-        else {
-            continue;
-        };
-        if !std::path::Path::new(&format!("/proc/{pid}")).exists() {
-            let _ = ip(&["netns", "del", name]);
-        }
-    }
-}
-
-/// Run `ip ARGS`; its stderr on failure.
-fn ip(args: &[&str]) -> Result<(), String> {
-    let out = Command::new("ip")
-        .args(args)
-        .output()
-        .map_err(|e| format!("cannot run `ip`: {e}"))?;
-    if out.status.success() {
-        Ok(())
-    } else {
-        Err(format!(
-            "ip {}: {}",
-            args.join(" "),
-            String::from_utf8_lossy(&out.stderr).trim()
-        ))
-    }
+/// Open namespace `ns` (one made here).
+fn open(ns: &str) -> Result<File, NetError> {
+    File::open(format!("/var/run/netns/{ns}")).map_err(|source| NetError::Open {
+        ns: ns.to_string(),
+        source,
+    })
 }
