@@ -8,7 +8,7 @@
 
 use super::model::{Beam, CartSpec, Dock, GoalArea, Rect, SimSettings, SonarMount, World};
 use crate::geom::{Point, Pose};
-use marie_vocabulary::diagnostic::toml::{literal, Reader, Rule, Tbl, Val};
+use marie_vocabulary::diagnostic::toml::{literal, Reader, Rule, Span, Tbl, Val};
 use marie_vocabulary::diagnostic::{read_source, Diagnostics};
 use std::path::Path;
 use toml::de::DeValue;
@@ -208,7 +208,9 @@ fn points(ctx: &mut Ctx<'_>, tbl: &Tbl<'_, '_>, min: usize, closed: bool) -> Opt
     Some(out)
 }
 
-/// Parse and validate a world.
+/// Parse and validate a world: the file's tables in turn, then the checks across them.
+///
+/// The order of the steps is the order of the diagnostics, which the tests pin.
 pub(crate) fn parse(src: &str, path: Option<&Path>) -> Result<World, Diagnostics> {
     let mut ctx = Ctx::new(src, display_path(path));
     let Some(doc) = ctx.parse() else {
@@ -217,106 +219,14 @@ pub(crate) fn parse(src: &str, path: Option<&Path>) -> Result<World, Diagnostics
     let top = ctx.top(&doc, "the world file");
     ctx.unknown_keys(&top, TOP_KEYS);
 
-    // [world]
-    let mut name = String::new();
-    let mut description = String::new();
-    match top.get("world") {
-        None => ctx.err(
-            &(0..0),
-            "missing table `[world]` (expected `name = \"...\"`)",
-        ),
-        Some(v) => {
-            if let Some(t) = ctx.table(v, "[world]") {
-                ctx.unknown_keys(&t, WORLD_KEYS);
-                match ctx.string(&t, "name") {
-                    Some(n) if !n.trim().is_empty() => name = n,
-                    Some(_) => {
-                        if let Some(v) = t.get("name") {
-                            ctx.err(&v.span(), "`name` must not be empty");
-                        }
-                    }
-                    None => {
-                        if t.get("name").is_none() {
-                            ctx.err(&t.span, "missing `name` in [world]");
-                        }
-                    }
-                }
-                description = ctx.string(&t, "description").unwrap_or_default();
-            }
-        }
-    }
-
-    // [[wall]], [[obstacle]]
-    let mut walls = Vec::new();
-    match top.get("wall") {
-        None => ctx.err(
-            &(0..0),
-            "the world has no walls (expected at least one `[[wall]]` with `points`)",
-        ),
-        Some(v) => {
-            for t in ctx.table_array(v, "wall").into_iter().flatten() {
-                ctx.unknown_keys(&t, POINTS_KEYS);
-                if let Some(p) = points(&mut ctx, &t, 2, false) {
-                    walls.push(p);
-                }
-            }
-        }
-    }
-    let mut obstacles = Vec::new();
-    if let Some(v) = top.get("obstacle") {
-        for t in ctx.table_array(v, "obstacle").into_iter().flatten() {
-            ctx.unknown_keys(&t, POINTS_KEYS);
-            if let Some(p) = points(&mut ctx, &t, 3, true) {
-                obstacles.push(p);
-            }
-        }
-    }
-
-    // [cart]
-    let mut cart = CartSpec::default();
-    let mut start = Pose::default();
-    let mut start_span = 0..0;
-    match top.get("cart") {
-        None => ctx.err(
-            &(0..0),
-            "missing table `[cart]` (expected at least `start = { x = .., y = .., heading_deg = .. }`)",
-        ),
-        Some(v) => {
-            if let Some(t) = ctx.table(v, "[cart]") {
-                ctx.unknown_keys(&t, CART_KEYS);
-                if let Some(pose) = start_pose(&mut ctx, &t) {
-                    start = pose;
-                }
-                start_span = t.get("start").map_or(t.span.clone(), |v| v.span());
-                cart = cart_spec(&mut ctx, &t);
-            }
-        }
-    }
-
-    // [[sonar]]
-    let sonars = match top.get("sonar") {
-        None => SonarMount::default_ring(&cart),
-        Some(v) => ctx
-            .table_array(v, "sonar")
-            .into_iter()
-            .flatten()
-            .filter_map(|t| sonar(&mut ctx, &t))
-            .collect(),
-    };
-
-    // [goal], [dock], [sim]
-    let goal = top
-        .get("goal")
-        .and_then(|v| ctx.table(v, "[goal]"))
-        .and_then(|t| goal(&mut ctx, &t).map(|g| (g, t.span.clone())));
-    let dock = top
-        .get("dock")
-        .and_then(|v| ctx.table(v, "[dock]"))
-        .and_then(|t| dock(&mut ctx, &t).map(|d| (d, t.span.clone())));
-    let sim = match top.get("sim").and_then(|v| ctx.table(v, "[sim]")) {
-        Some(t) => sim_settings(&mut ctx, &t),
-        None => SimSettings::default(),
-    };
+    let (name, description) = world_table(&mut ctx, &top);
+    let walls = wall_tables(&mut ctx, &top);
+    let obstacles = obstacle_tables(&mut ctx, &top);
+    let (cart, start, start_span) = cart_table(&mut ctx, &top);
+    let sonars = sonar_tables(&mut ctx, &top, &cart);
+    let (goal, goal_span) = goal_table(&mut ctx, &top).unzip();
+    let (dock, dock_span) = dock_table(&mut ctx, &top).unzip();
+    let sim = sim_table(&mut ctx, &top);
 
     let world = World {
         name,
@@ -326,49 +236,191 @@ pub(crate) fn parse(src: &str, path: Option<&Path>) -> Result<World, Diagnostics
         cart,
         start,
         sonars,
-        goal: goal.as_ref().map(|(g, _)| *g),
-        dock: dock.as_ref().map(|(d, _)| *d),
+        goal,
+        dock,
         sim,
     };
     if ctx.has_errors() {
         return finish(ctx, None);
     }
+    let spans = PartSpans {
+        start: start_span,
+        goal: goal_span,
+        dock: dock_span,
+    };
+    check_across_parts(&mut ctx, &world, &spans);
+    finish(ctx, Some(world))
+}
 
-    // Checks across the parts, on sound parts only.
+/// `[world]`: its `name` (required, not blank) and `description` (empty when absent).
+fn world_table(ctx: &mut Ctx<'_>, top: &Tbl<'_, '_>) -> (String, String) {
+    let Some(v) = top.get("world") else {
+        ctx.err(
+            &(0..0),
+            "missing table `[world]` (expected `name = \"...\"`)",
+        );
+        return (String::new(), String::new());
+    };
+    let Some(t) = ctx.table(v, "[world]") else {
+        return (String::new(), String::new());
+    };
+    ctx.unknown_keys(&t, WORLD_KEYS);
+    let mut name = String::new();
+    match ctx.string(&t, "name") {
+        Some(n) if !n.trim().is_empty() => name = n,
+        Some(_) => {
+            if let Some(v) = t.get("name") {
+                ctx.err(&v.span(), "`name` must not be empty");
+            }
+        }
+        None => {
+            // a `name` of the wrong type was reported by `string`
+            if t.get("name").is_none() {
+                ctx.err(&t.span, "missing `name` in [world]");
+            }
+        }
+    }
+    let description = ctx.string(&t, "description").unwrap_or_default();
+    (name, description)
+}
+
+/// `[[wall]]`: at least one, each an open polyline of two points or more.
+fn wall_tables(ctx: &mut Ctx<'_>, top: &Tbl<'_, '_>) -> Vec<Vec<Point>> {
+    let Some(v) = top.get("wall") else {
+        ctx.err(
+            &(0..0),
+            "the world has no walls (expected at least one `[[wall]]` with `points`)",
+        );
+        return Vec::new();
+    };
+    let mut walls = Vec::new();
+    for t in ctx.table_array(v, "wall").into_iter().flatten() {
+        ctx.unknown_keys(&t, POINTS_KEYS);
+        if let Some(p) = points(ctx, &t, 2, false) {
+            walls.push(p);
+        }
+    }
+    walls
+}
+
+/// `[[obstacle]]`: optional, each a closed polygon of three points or more with an area.
+fn obstacle_tables(ctx: &mut Ctx<'_>, top: &Tbl<'_, '_>) -> Vec<Vec<Point>> {
+    let mut obstacles = Vec::new();
+    if let Some(v) = top.get("obstacle") {
+        for t in ctx.table_array(v, "obstacle").into_iter().flatten() {
+            ctx.unknown_keys(&t, POINTS_KEYS);
+            if let Some(p) = points(ctx, &t, 3, true) {
+                obstacles.push(p);
+            }
+        }
+    }
+    obstacles
+}
+
+/// `[cart]`: the cart's build and its start pose, with where the start was written (the
+/// span the start-pose check points at).
+fn cart_table(ctx: &mut Ctx<'_>, top: &Tbl<'_, '_>) -> (CartSpec, Pose, Span) {
+    let Some(v) = top.get("cart") else {
+        ctx.err(
+            &(0..0),
+            "missing table `[cart]` (expected at least `start = { x = .., y = .., heading_deg = .. }`)",
+        );
+        return (CartSpec::default(), Pose::default(), 0..0);
+    };
+    let Some(t) = ctx.table(v, "[cart]") else {
+        return (CartSpec::default(), Pose::default(), 0..0);
+    };
+    ctx.unknown_keys(&t, CART_KEYS);
+    let start = start_pose(ctx, &t).unwrap_or_default();
+    let start_span = t.get("start").map_or(t.span.clone(), |v| v.span());
+    (cart_spec(ctx, &t), start, start_span)
+}
+
+/// `[[sonar]]`: the mounted sonars, or the default ring around `cart` when there is none.
+fn sonar_tables(ctx: &mut Ctx<'_>, top: &Tbl<'_, '_>, cart: &CartSpec) -> Vec<SonarMount> {
+    match top.get("sonar") {
+        None => SonarMount::default_ring(cart),
+        Some(v) => ctx
+            .table_array(v, "sonar")
+            .into_iter()
+            .flatten()
+            .filter_map(|t| sonar(ctx, &t))
+            .collect(),
+    }
+}
+
+/// `[goal]` (optional), with its table's span for the bounds check.
+fn goal_table(ctx: &mut Ctx<'_>, top: &Tbl<'_, '_>) -> Option<(GoalArea, Span)> {
+    let t = ctx.table(top.get("goal")?, "[goal]")?;
+    goal(ctx, &t).map(|g| (g, t.span.clone()))
+}
+
+/// `[dock]` (optional), with its table's span for the bounds check.
+fn dock_table(ctx: &mut Ctx<'_>, top: &Tbl<'_, '_>) -> Option<(Dock, Span)> {
+    let t = ctx.table(top.get("dock")?, "[dock]")?;
+    dock(ctx, &t).map(|d| (d, t.span.clone()))
+}
+
+/// `[sim]` (optional): the simulation's noise and sonar model, defaults where unwritten.
+fn sim_table(ctx: &mut Ctx<'_>, top: &Tbl<'_, '_>) -> SimSettings {
+    match top.get("sim").and_then(|v| ctx.table(v, "[sim]")) {
+        Some(t) => sim_settings(ctx, &t),
+        None => SimSettings::default(),
+    }
+}
+
+/// Where the parts the checks across the world blame were written.
+struct PartSpans {
+    /// The cart's `start` (or `[cart]` without one).
+    start: Span,
+    /// The `[goal]` table, when there is a goal.
+    goal: Option<Span>,
+    /// The `[dock]` table, when there is a dock.
+    dock: Option<Span>,
+}
+
+/// The checks that need several parts of the world, run only on a world whose parts are
+/// sound (so one mistake does not cascade): the cart starts clear of the walls and
+/// obstacles, and the goal and the dock lie within the walls.
+fn check_across_parts(ctx: &mut Ctx<'_>, world: &World, spans: &PartSpans) {
     if world.footprint_collides(&world.start) {
         ctx.err(
-            &start_span,
+            &spans.start,
             "the cart's footprint at its start pose touches a wall or an obstacle",
         );
     }
     let bounds = world.bounds();
-    let outside = |r: &Rect| {
-        bounds.is_none_or(|(lo, hi)| {
-            r.corners().iter().any(|c| {
-                c.x < lo.x - 1e-9 || c.y < lo.y - 1e-9 || c.x > hi.x + 1e-9 || c.y > hi.y + 1e-9
-            })
+    if let (Some(g), Some(span)) = (&world.goal, &spans.goal) {
+        check_within_walls(ctx, bounds, &g.area, span, "the goal area");
+    }
+    if let (Some(d), Some(span)) = (&world.dock, &spans.dock) {
+        check_within_walls(ctx, bounds, &d.rect(), span, "the dock");
+    }
+}
+
+/// `what` (a rectangle written at `span`) must lie within the walls' `bounds` (a world
+/// without bounds has room for nothing).
+fn check_within_walls(
+    ctx: &mut Ctx<'_>,
+    bounds: Option<(Point, Point)>,
+    r: &Rect,
+    span: &Span,
+    what: &str,
+) {
+    let outside = bounds.is_none_or(|(lo, hi)| {
+        r.corners().iter().any(|c| {
+            c.x < lo.x - 1e-9 || c.y < lo.y - 1e-9 || c.x > hi.x + 1e-9 || c.y > hi.y + 1e-9
         })
-    };
-    let bounds_text = bounds.map_or(String::new(), |(lo, hi)| {
-        format!(" (x {:.3}..{:.3}, y {:.3}..{:.3})", lo.x, hi.x, lo.y, hi.y)
     });
-    if let Some((g, span)) = &goal {
-        if outside(&g.area) {
-            ctx.err(
-                span,
-                format!("the goal area reaches outside the world's walls{bounds_text}"),
-            );
-        }
+    if outside {
+        let bounds_text = bounds.map_or(String::new(), |(lo, hi)| {
+            format!(" (x {:.3}..{:.3}, y {:.3}..{:.3})", lo.x, hi.x, lo.y, hi.y)
+        });
+        ctx.err(
+            span,
+            format!("{what} reaches outside the world's walls{bounds_text}"),
+        );
     }
-    if let Some((d, span)) = &dock {
-        if outside(&d.rect()) {
-            ctx.err(
-                span,
-                format!("the dock reaches outside the world's walls{bounds_text}"),
-            );
-        }
-    }
-    finish(ctx, Some(world))
 }
 
 fn finish(ctx: Ctx<'_>, world: Option<World>) -> Result<World, Diagnostics> {
