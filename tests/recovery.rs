@@ -12,7 +12,7 @@ use common::{report_of, text};
 const RECOVER: &str = "missions/docking-recover.toml";
 const PARALLEL: &str = "tests/missions/docking-parallel.toml";
 
-/// The report's control decisions as `node: decision`.
+/// The report's control decisions as `item: decision`.
 fn decisions(report: &serde_json::Value) -> Vec<String> {
     report["control"]
         .as_array()
@@ -21,7 +21,7 @@ fn decisions(report: &serde_json::Value) -> Vec<String> {
         .map(|c| {
             format!(
                 "{}: {}",
-                c["node"].as_str().unwrap(),
+                c["item"].as_str().unwrap(),
                 c["decision"].as_str().unwrap()
             )
         })
