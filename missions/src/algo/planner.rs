@@ -455,6 +455,10 @@ fn astar(grid: &Grid, start: (usize, usize), goal: (usize, usize)) -> Option<Vec
 /// `goal_heading = Some(goal.theta)`, and (when it fits) its last leg is a straight approach
 /// along the goal heading. Errors: [`PlanError::NoPath`] with the reason, or
 /// [`PlanError::InvalidInput`].
+///
+/// The steps: check the inputs and both ends, pick the pre-goal the final approach starts
+/// from, enter the inflated grid near the start and the pre-goal, search it with A*, then
+/// straighten the route by line of sight.
 pub fn plan(
     obstacles: &[Segment],
     start: &Pose,
@@ -462,109 +466,16 @@ pub fn plan(
     bounds: &Bounds,
     params: &PlannerParams,
 ) -> Result<Path, PlanError> {
-    let finite = |p: Point| p.x.is_finite() && p.y.is_finite();
-    if !finite(start.point()) || !finite(goal.point()) || !goal.theta.is_finite() {
-        return Err(PlanError::InvalidInput("non-finite start or goal".into()));
-    }
-    if !finite(bounds.min) || !finite(bounds.max) {
-        return Err(PlanError::InvalidInput("non-finite bounds".into()));
-    }
-    let res = params.resolution;
-    if !(res.is_finite() && res > 1e-4) {
-        return Err(PlanError::InvalidInput(format!(
-            "resolution {res} must be a positive number of metres"
-        )));
-    }
-    let inflation = if params.inflation.is_finite() {
-        params.inflation.max(0.0)
-    } else {
-        return Err(PlanError::InvalidInput("non-finite inflation".into()));
-    };
-    let cells =
-        ((bounds.max.x - bounds.min.x) / res).ceil() * ((bounds.max.y - bounds.min.y) / res).ceil();
-    if cells.is_nan() || cells > params.max_cells as f64 {
-        return Err(PlanError::InvalidInput(format!(
-            "{cells} grid cells exceed the limit of {}",
-            params.max_cells
-        )));
-    }
-    let obstacles: Vec<Segment> = obstacles
-        .iter()
-        .copied()
-        .filter(|o| finite(o.a) && finite(o.b))
-        .collect();
-    if !bounds.contains(start.point()) {
-        return Err(no_path(NoPathReason::StartOutOfBounds));
-    }
-    if !bounds.contains(goal.point()) {
-        return Err(no_path(NoPathReason::GoalOutOfBounds));
-    }
-    let goal_p = goal.point();
-    if point_clearance(goal_p, &obstacles) < inflation {
-        return Err(no_path(NoPathReason::GoalBlocked));
-    }
-    let grid_radius = inflation + res * std::f64::consts::FRAC_1_SQRT_2;
-    let grid = Grid::build(&obstacles, bounds, res, grid_radius);
-
-    // Pre-goal: a straight, clear approach along the goal heading.
-    let sign = if params.reverse { -1.0 } else { 1.0 };
-    let approach = params.approach_distance.max(0.0);
-    let mut pre_goal = goal_p;
-    for frac in [1.0, 0.75, 0.5, 0.25] {
-        let d = approach * frac;
-        if d < res {
-            break;
-        }
-        let p = goal_p - goal.heading() * (sign * d);
-        if bounds.contains(p) && leg_clear(p, goal_p, &obstacles, inflation) {
-            pre_goal = p;
-            break;
-        }
-    }
-
-    // Entry cells: free cells near the start / pre-goal with a clear straight connection.
-    let start_p = start.point();
-    let start_clear = point_clearance(start_p, &obstacles);
-    let start_cell = if start_clear >= inflation {
-        grid.free_cells_near(start_p, res * 2.0)
-            .into_iter()
-            .find(|&(i, j)| leg_clear(start_p, grid.centre(i, j), &obstacles, inflation))
-    } else {
-        let escape = params.start_escape.max(0.0);
-        grid.free_cells_near(start_p, escape)
-            .into_iter()
-            .find(|&(i, j)| leg_clear(start_p, grid.centre(i, j), &obstacles, 0.5 * start_clear))
-    }
-    .ok_or(no_path(NoPathReason::StartBlocked))?;
-    let goal_cell = grid
-        .free_cells_near(pre_goal, res * 2.0)
-        .into_iter()
-        .find(|&(i, j)| leg_clear(grid.centre(i, j), pre_goal, &obstacles, inflation))
-        .ok_or(no_path(NoPathReason::GoalBlocked))?;
-
+    let terrain = Terrain::checked(obstacles, start, goal, bounds, params)?;
+    terrain.check_ends(start, goal, bounds)?;
+    let grid = terrain.grid(bounds);
+    let pre_goal = terrain.pre_goal(goal, bounds, params);
+    let start_cell = terrain.start_cell(&grid, start.point(), params.start_escape)?;
+    let goal_cell = terrain.goal_cell(&grid, pre_goal)?;
     let cells = astar(&grid, start_cell, goal_cell).ok_or(no_path(NoPathReason::Unreachable))?;
-    let mut raw: Vec<Point> = Vec::with_capacity(cells.len() + 2);
-    raw.push(start_p);
-    raw.extend(cells.iter().map(|&(i, j)| grid.centre(i, j)));
-    raw.push(pre_goal);
-    raw.dedup_by(|a, b| (*a - *b).norm() < 1e-12);
-
-    // Line-of-sight shortcutting up to the pre-goal (the approach leg stays as it is). The
-    // raw legs are clear by construction (the first may only be as clear as the start), so
-    // each anchor always reaches at least its successor.
-    let mut waypoints = vec![raw[0]];
-    let mut i = 0;
-    while i + 1 < raw.len() {
-        let mut next = i + 1;
-        for j in (i + 2..raw.len()).rev() {
-            if leg_clear(raw[i], raw[j], &obstacles, inflation) {
-                next = j;
-                break;
-            }
-        }
-        waypoints.push(raw[next]);
-        i = next;
-    }
+    let route = grid_route(&grid, &cells, start.point(), pre_goal);
+    let mut waypoints = terrain.shortcut(&route);
+    let goal_p = goal.point();
     if (pre_goal - goal_p).norm() > 1e-12 {
         waypoints.push(goal_p);
     }
@@ -572,6 +483,183 @@ pub fn plan(
         waypoints,
         goal_heading: Some(goal.theta),
     })
+}
+
+/// What every step of [`plan`] plans among, once the inputs are checked.
+struct Terrain {
+    /// The obstacles with finite ends (the others are dropped).
+    obstacles: Vec<Segment>,
+    /// Grid cell size, metres.
+    res: f64,
+    /// Clearance every leg keeps from the obstacles, metres (never negative).
+    inflation: f64,
+}
+
+/// True when both coordinates of `p` are finite.
+fn finite(p: Point) -> bool {
+    p.x.is_finite() && p.y.is_finite()
+}
+
+impl Terrain {
+    /// Check the numbers planning needs ([`PlanError::InvalidInput`] otherwise: non-finite
+    /// start, goal or bounds, a bad resolution or inflation, a grid over the size limit).
+    fn checked(
+        obstacles: &[Segment],
+        start: &Pose,
+        goal: &Pose,
+        bounds: &Bounds,
+        params: &PlannerParams,
+    ) -> Result<Terrain, PlanError> {
+        if !finite(start.point()) || !finite(goal.point()) || !goal.theta.is_finite() {
+            return Err(PlanError::InvalidInput("non-finite start or goal".into()));
+        }
+        if !finite(bounds.min) || !finite(bounds.max) {
+            return Err(PlanError::InvalidInput("non-finite bounds".into()));
+        }
+        let res = params.resolution;
+        if !(res.is_finite() && res > 1e-4) {
+            return Err(PlanError::InvalidInput(format!(
+                "resolution {res} must be a positive number of metres"
+            )));
+        }
+        let inflation = if params.inflation.is_finite() {
+            params.inflation.max(0.0)
+        } else {
+            return Err(PlanError::InvalidInput("non-finite inflation".into()));
+        };
+        let cells = ((bounds.max.x - bounds.min.x) / res).ceil()
+            * ((bounds.max.y - bounds.min.y) / res).ceil();
+        if cells.is_nan() || cells > params.max_cells as f64 {
+            return Err(PlanError::InvalidInput(format!(
+                "{cells} grid cells exceed the limit of {}",
+                params.max_cells
+            )));
+        }
+        let obstacles = obstacles
+            .iter()
+            .copied()
+            .filter(|o| finite(o.a) && finite(o.b))
+            .collect();
+        Ok(Terrain {
+            obstacles,
+            res,
+            inflation,
+        })
+    }
+
+    /// Both ends lie within `bounds` and the goal is clear of the obstacles (the start may
+    /// escape from the inflated zone, see [`Terrain::start_cell`]).
+    fn check_ends(&self, start: &Pose, goal: &Pose, bounds: &Bounds) -> Result<(), PlanError> {
+        if !bounds.contains(start.point()) {
+            return Err(no_path(NoPathReason::StartOutOfBounds));
+        }
+        if !bounds.contains(goal.point()) {
+            return Err(no_path(NoPathReason::GoalOutOfBounds));
+        }
+        if point_clearance(goal.point(), &self.obstacles) < self.inflation {
+            return Err(no_path(NoPathReason::GoalBlocked));
+        }
+        Ok(())
+    }
+
+    /// The grid over `bounds` with every cell whose centre is closer than the inflation
+    /// (plus half a cell's diagonal, so a free cell is free all over) blocked.
+    fn grid(&self, bounds: &Bounds) -> Grid {
+        let grid_radius = self.inflation + self.res * std::f64::consts::FRAC_1_SQRT_2;
+        Grid::build(&self.obstacles, bounds, self.res, grid_radius)
+    }
+
+    /// Where the straight final approach starts: the goal backed off along its heading
+    /// (ahead of it when reversing) by the approach distance, or by ¾, ½ or ¼ of it, the
+    /// first that is in bounds with a clear approach; the goal itself when none is (or the
+    /// distance is under a cell).
+    fn pre_goal(&self, goal: &Pose, bounds: &Bounds, params: &PlannerParams) -> Point {
+        let goal_p = goal.point();
+        let sign = if params.reverse { -1.0 } else { 1.0 };
+        let approach = params.approach_distance.max(0.0);
+        for frac in [1.0, 0.75, 0.5, 0.25] {
+            let d = approach * frac;
+            if d < self.res {
+                break;
+            }
+            let p = goal_p - goal.heading() * (sign * d);
+            if bounds.contains(p) && self.clear(p, goal_p) {
+                return p;
+            }
+        }
+        goal_p
+    }
+
+    /// The grid cell the route enters from `start`: the nearest free cell with a clear
+    /// straight connection. A start inside the inflated zone may escape to a free cell
+    /// within `start_escape`, by a leg half as clear as the start itself.
+    fn start_cell(
+        &self,
+        grid: &Grid,
+        start: Point,
+        start_escape: f64,
+    ) -> Result<(usize, usize), PlanError> {
+        let start_clear = point_clearance(start, &self.obstacles);
+        if start_clear >= self.inflation {
+            grid.free_cells_near(start, self.res * 2.0)
+                .into_iter()
+                .find(|&(i, j)| self.clear(start, grid.centre(i, j)))
+        } else {
+            let escape = start_escape.max(0.0);
+            grid.free_cells_near(start, escape)
+                .into_iter()
+                .find(|&(i, j)| {
+                    leg_clear(start, grid.centre(i, j), &self.obstacles, 0.5 * start_clear)
+                })
+        }
+        .ok_or(no_path(NoPathReason::StartBlocked))
+    }
+
+    /// The grid cell the route leaves for the `pre_goal`: the nearest free cell with a clear
+    /// straight connection.
+    fn goal_cell(&self, grid: &Grid, pre_goal: Point) -> Result<(usize, usize), PlanError> {
+        grid.free_cells_near(pre_goal, self.res * 2.0)
+            .into_iter()
+            .find(|&(i, j)| self.clear(grid.centre(i, j), pre_goal))
+            .ok_or(no_path(NoPathReason::GoalBlocked))
+    }
+
+    /// Line-of-sight shortcutting of `route` up to the pre-goal (the approach leg stays as it
+    /// is): from each anchor, jump to the farthest point reached by a clear leg. The route's
+    /// legs are clear by construction (the first may only be as clear as the start), so each
+    /// anchor always reaches at least its successor.
+    fn shortcut(&self, route: &[Point]) -> Vec<Point> {
+        let mut waypoints = vec![route[0]];
+        let mut i = 0;
+        while i + 1 < route.len() {
+            let mut next = i + 1;
+            for j in (i + 2..route.len()).rev() {
+                if self.clear(route[i], route[j]) {
+                    next = j;
+                    break;
+                }
+            }
+            waypoints.push(route[next]);
+            i = next;
+        }
+        waypoints
+    }
+
+    /// True when the leg from `a` to `b` keeps the inflation clearance from every obstacle.
+    fn clear(&self, a: Point, b: Point) -> bool {
+        leg_clear(a, b, &self.obstacles, self.inflation)
+    }
+}
+
+/// The A* route as points: the start, the centres of the `cells`, the pre-goal, without
+/// repeats.
+fn grid_route(grid: &Grid, cells: &[(usize, usize)], start: Point, pre_goal: Point) -> Vec<Point> {
+    let mut route: Vec<Point> = Vec::with_capacity(cells.len() + 2);
+    route.push(start);
+    route.extend(cells.iter().map(|&(i, j)| grid.centre(i, j)));
+    route.push(pre_goal);
+    route.dedup_by(|a, b| (*a - *b).norm() < 1e-12);
+    route
 }
 
 #[cfg(test)]
