@@ -86,7 +86,6 @@ impl Printer {
         if !self.voice.hears(event) {
             return;
         }
-        let words = self.teller.tell(event);
         match (&event.kind, self.progress) {
             // a node of another commit is named, on stderr whatever the progress shown
             (EventKind::Provenance(p), _) => {
@@ -108,13 +107,18 @@ impl Printer {
             }
             (_, Progress::ChoicesAsJson) => {}
             (EventKind::Selected { choice }, Progress::Explained) => print_choice(choice),
-            (kind, _) if words.news && printed(kind) => {
-                for line in words.text.lines() {
-                    println!("{} {line}", words.mark);
+            (kind, Progress::Lines | Progress::Explained) if printed(kind) => {
+                let words = self.teller.tell(event);
+                if words.news {
+                    for line in words.text.lines() {
+                        println!("{} {line}", words.mark);
+                    }
                 }
+                return;
             }
             _ => {}
         }
+        self.teller.heed(event);
     }
 }
 

@@ -56,7 +56,7 @@ pub struct MonitorState {
     pub timeline: Timeline,
     /// Words the events for the timeline (follows the run).
     #[serde(skip)]
-    pub voice: Voice,
+    voice: Voice,
 }
 
 impl MonitorState {
@@ -75,7 +75,6 @@ impl MonitorState {
         self.events += 1;
         self.at_ms = self.at_ms.max(event.at_ms);
         self.start_ms = Some(self.start_ms.map_or(event.at_ms, |s| s.min(event.at_ms)));
-        let words = self.voice.0.tell(event);
         let kind = &event.kind;
         self.mission.apply(kind);
         self.tree.apply(kind);
@@ -85,9 +84,13 @@ impl MonitorState {
             EventKind::Robot { what, data } => self.robot.apply(what, data),
             _ => false,
         };
-        if let Some(class) = timeline::class(kind, drawn) {
-            self.timeline
-                .push(event.at_ms, &event.node, class, words.text);
+        match timeline::class(kind, drawn) {
+            Some(class) => {
+                let words = self.voice.0.tell(event);
+                self.timeline
+                    .push(event.at_ms, &event.node, class, words.text);
+            }
+            None => self.voice.0.heed(event),
         }
     }
 }
@@ -95,7 +98,7 @@ impl MonitorState {
 /// The words of a run's events, following the stream: the vocabulary's one voice, with the
 /// robot's words. Not part of what the page is sent, nor of what makes two states equal.
 #[derive(Clone, Debug)]
-pub struct Voice(Teller);
+struct Voice(Teller);
 
 impl Default for Voice {
     fn default() -> Voice {

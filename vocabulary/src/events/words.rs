@@ -107,8 +107,24 @@ impl Teller {
         self
     }
 
-    /// `event` in words. Tell every event of a stream, in order, even those not shown: the
-    /// teller follows the run.
+    /// Follow the run through `event` without wording it: a reader that shows only some
+    /// events [`tell`](Self::tell)s those and heeds the rest, so that it formats no text it
+    /// throws away (poses ten times a second, every acknowledgement) and its words still know
+    /// when the run began and where each operation was bound.
+    pub fn heed(&mut self, event: &Event) {
+        match &event.kind {
+            EventKind::RunStarted { .. } => self.start_ms = Some(event.at_ms),
+            EventKind::Bound { operations } => {
+                for op in operations {
+                    self.bound.insert(op.name.clone(), op.node.clone());
+                }
+            }
+            _ => {}
+        }
+    }
+
+    /// `event` in words. Tell (or [`heed`](Self::heed)) every event of a stream, in order:
+    /// the teller follows the run.
     pub fn tell(&mut self, event: &Event) -> Words {
         let kind = &event.kind;
         if let EventKind::RunStarted { .. } = kind {
@@ -788,6 +804,31 @@ mod tests {
         assert_eq!(
             (told.text.as_str(), told.gravity, told.mark),
             ("a beep", Gravity::Warning, '.')
+        );
+    }
+
+    #[test]
+    fn heeding_the_events_not_shown_words_the_rest_as_telling_them_all_does() {
+        let shown = |kind: &EventKind| {
+            !matches!(kind, EventKind::RunStarted { .. } | EventKind::Bound { .. })
+        };
+        let mut all = Teller::default();
+        let mut some = Teller::default();
+        for line in RUN.lines() {
+            let event = Event::from_json_line(line).unwrap();
+            let told = all.tell(&event);
+            if shown(&event.kind) {
+                assert_eq!(some.tell(&event), told, "{line}");
+            } else {
+                some.heed(&event);
+            }
+        }
+        // the takeover's binding, told after heeding the first: only what moved is news
+        let rebound = RUN.lines().nth(11).unwrap();
+        let event = Event::from_json_line(rebound).unwrap();
+        assert_eq!(
+            some.tell(&event).text,
+            "bound as before: wall-follower v1.0.0 on a, sampler v1.0.0 on c"
         );
     }
 
