@@ -1,17 +1,17 @@
-//! What a datamanager's copies cost and how fast they take over (issue 22), on real
+//! What a datamanager's replicas cost and how fast they take over (issue 22), on real
 //! `marie node` processes on 127.0.0.1:
 //!
 //! - **put-all**: a producer (this bench run again as a child, a member of the cluster)
 //!   stores N records with `put_all` into `feature` and waits for the acknowledgement of the
-//!   last: records per second into a datamanager on one node without copies, and into one
-//!   kept in three copies (a record is acknowledged once two of them journaled it); rounds
-//!   interleaved, the ratio in the same run. Goal: copies ≥ 0.5× no copies. (Each
+//!   last: records per second into a datamanager on one node without replicas, and into one
+//!   kept in three replicas (a record is acknowledged once two of them journaled it); rounds
+//!   interleaved, the ratio in the same run. Goal: replicas ≥ 0.5× no replicas. (Each
 //!   datamanager grants its own window of credits: the replicated one a wider one, as its
-//!   acknowledgements take a round to the copies — `marie::dm::credits`.)
-//! - **failover**: the producer stores one record after another; the primary's node is
+//!   acknowledgements take a round to the replicas — `marie::dm::credits`.)
+//! - **failover**: the producer stores one record after another; the leader's node is
 //!   killed (`kill -9`) or frozen (SIGSTOP): the time from the signal to the first store
-//!   acknowledged by a copy on another node. p50 over the rounds. Each round waits for a
-//!   whole cluster first (the primary has both copies caught up): the node hit in the round
+//!   acknowledged by a replica on another node. p50 over the rounds. Each round waits for a
+//!   whole cluster first (the leader has both replicas caught up): the node hit in the round
 //!   before rejoins with the failure detector's redial backoff, and a round hit before it
 //!   had was a second fault, not the first (one round in five took ~3.2 s so). Goals: `kill -9` p50
 //!   ≤ 200 ms; SIGSTOP p50 ≤ the failure detector's deadline (1.2 s) + 200 ms.
@@ -43,7 +43,7 @@ fn puts() -> u64 {
         .and_then(|v| v.parse().ok())
         .unwrap_or(1_000_000)
 }
-/// Put-all rounds of each kind. With 200 000 records and 3 rounds a 3-copy round ran at
+/// Put-all rounds of each kind. With 200 000 records and 3 rounds a 3-replica round ran at
 /// either ~270 k/s or ~400 k/s (the first of a run often slow), and the median ratio swung
 /// from 0.34x to 0.51x between runs of one build; with a million records and 5 rounds the
 /// runs of one build still spread by ±0.03–0.04 (0.47x–0.52x over seven runs of b133ae9's
@@ -54,8 +54,8 @@ const FAILOVERS: usize = 5;
 /// The child's role, and what it needs.
 const ROLE: &str = "MARIE_BENCH_ROLE";
 const PEERS: &str = "MARIE_BENCH_PEERS";
-/// The node the primary is wanted on before the child starts (the preferred copy's: a
-/// primary elected elsewhere at the start hands it the role, and the puts in flight to the
+/// The node the leader is wanted on before the child starts (the preferred replica's: a
+/// leader elected elsewhere at the start hands it the role, and the puts in flight to the
 /// old one would be sent again — a hand-over inside the measured rounds).
 const PREFERRED: &str = "MARIE_BENCH_PREFERRED";
 
@@ -133,13 +133,13 @@ impl Drop for Kid {
     }
 }
 
-/// `marie node` NAME hosting `feature` (with `copies`, if any), its journal under `dir`.
-fn node(dir: &Path, name: &str, copies: &[&str], peers: &[SocketAddr]) -> (Kid, SocketAddr) {
-    let copies = if copies.is_empty() {
+/// `marie node` NAME hosting `feature` (with `replicas`, if any), its journal under `dir`.
+fn node(dir: &Path, name: &str, replicas: &[&str], peers: &[SocketAddr]) -> (Kid, SocketAddr) {
+    let replicas = if replicas.is_empty() {
         String::new()
     } else {
-        let list: Vec<String> = copies.iter().map(|c| format!("\"{c}\"")).collect();
-        format!("copies = [{}]\n", list.join(", "))
+        let list: Vec<String> = replicas.iter().map(|c| format!("\"{c}\"")).collect();
+        format!("replicas = [{}]\n", list.join(", "))
     };
     let peers: Vec<String> = peers.iter().map(|p| format!("\"{p}\"")).collect();
     // more of the datamanager's settings, to compare (e.g. `catch_up = 16384`)
@@ -147,7 +147,7 @@ fn node(dir: &Path, name: &str, copies: &[&str], peers: &[SocketAddr]) -> (Kid, 
         .map(|s| format!("{s}\n"))
         .unwrap_or_default();
     let config = format!(
-        "[node]\nname = \"{name}\"\ndata_dir = \"{}\"\n[[datamanager]]\nname = \"feature\"\n{copies}{extra}\
+        "[node]\nname = \"{name}\"\ndata_dir = \"{}\"\n[[datamanager]]\nname = \"feature\"\n{replicas}{extra}\
          [cluster]\nlisten = \"127.0.0.1:0\"\npeers = [{}]\ncookie = \"{COOKIE}\"\n",
         dir.join(name).display(),
         peers.join(", ")
@@ -232,7 +232,7 @@ fn child(role: &str) {
         {
             assert!(
                 start.elapsed() < Duration::from_secs(60),
-                "no primary on {preferred}"
+                "no leader on {preferred}"
             );
             tokio::time::sleep(Duration::from_millis(10)).await;
         }
@@ -258,8 +258,8 @@ fn child(role: &str) {
                 println!("rate {:.0}", puts as f64 / secs);
             }
             _ => {
-                // whether the cluster is whole: the primary has both other copies, caught
-                // up (a copy frozen or killed in the round before rejoins with the failure
+                // whether the cluster is whole: the leader has both other replicas, caught
+                // up (a replica frozen or killed in the round before rejoins with the failure
                 // detector's redial backoff; a round must hit one node of a whole cluster,
                 // not the second of two)
                 let watcher = client.clone();
@@ -307,10 +307,14 @@ fn put_all() {
     );
     let (mut plain, mut copied) = (Vec::new(), Vec::new());
     for round in 0..ROUNDS {
-        for copies in [false, true] {
+        for replicas in [false, true] {
             let dir = fresh_dir("put-all");
-            let names: &[&str] = if copies { &["r1", "r2", "r3"] } else { &["p1"] };
-            let list: &[&str] = if copies { names } else { &[] };
+            let names: &[&str] = if replicas {
+                &["r1", "r2", "r3"]
+            } else {
+                &["p1"]
+            };
+            let list: &[&str] = if replicas { names } else { &[] };
             let mut nodes = Vec::new();
             let mut addrs = Vec::new();
             for name in names {
@@ -323,15 +327,23 @@ fn put_all() {
             // (a mark for a profiler started by hand: the round's puts begin)
             eprintln!(
                 "  round {round}: putting, {}",
-                if copies { "3 copies" } else { "no copies" }
+                if replicas {
+                    "3 replicas"
+                } else {
+                    "no replicas"
+                }
             );
             let line = kid.wait_line("rate ");
             let rate: f64 = line[5..].trim().parse().expect("a rate");
             println!(
                 "  round {round}: {} {rate:.0} records/s",
-                if copies { "3 copies " } else { "no copies" }
+                if replicas {
+                    "3 replicas "
+                } else {
+                    "no replicas"
+                }
             );
-            if copies { &mut copied } else { &mut plain }.push(rate);
+            if replicas { &mut copied } else { &mut plain }.push(rate);
             drop(kid);
             drop(nodes);
             let _ = std::fs::remove_dir_all(&dir);
@@ -339,13 +351,13 @@ fn put_all() {
     }
     let (p, c) = (median(&mut plain), median(&mut copied));
     println!(
-        "put-all medians: no copies {p:.0}/s, 3 copies {c:.0}/s: {:.2}x (goal >= 0.5x)",
+        "put-all medians: no replicas {p:.0}/s, 3 replicas {c:.0}/s: {:.2}x (goal >= 0.5x)",
         c / p
     );
 }
 
 fn failover() {
-    println!("failover: from the signal to the first store acknowledged by another node's copy");
+    println!("failover: from the signal to the first store acknowledged by another node's replica");
     let dir = fresh_dir("failover");
     let names = ["r1", "r2", "r3"];
     let mut nodes: Vec<Option<Kid>> = Vec::new();
@@ -363,16 +375,16 @@ fn failover() {
         } else {
             "SIGSTOP"
         };
-        // settle — the cluster whole again —, then hit the node of the copy that
+        // settle — the cluster whole again —, then hit the node of the replica that
         // acknowledges now
         std::thread::sleep(Duration::from_secs(2));
         while kid.lines.try_recv().is_ok() {}
         kid.wait_line("whole true");
         let line = kid.wait_line("ack ");
-        let primary = line.split_whitespace().nth(2).expect("a node").to_string();
+        let leader = line.split_whitespace().nth(2).expect("a node").to_string();
         let i = names
             .iter()
-            .position(|n| *n == primary)
+            .position(|n| *n == leader)
             .expect("a known node");
         let hit = unix_ns();
         nodes[i]
@@ -388,12 +400,12 @@ fn failover() {
             let mut w = line.split_whitespace().skip(1);
             let at: u128 = w.next().and_then(|t| t.parse().ok()).expect("a time");
             let by = w.next().unwrap_or_default();
-            if by != primary && at > hit {
+            if by != leader && at > hit {
                 break (at - hit) as f64 / 1e6;
             }
         };
         println!(
-            "  {kind} of {primary} at {:.3} (unix s): the first store acknowledged by another copy after {gap:.0} ms",
+            "  {kind} of {leader} at {:.3} (unix s): the first store acknowledged by another replica after {gap:.0} ms",
             hit as f64 / 1e9
         );
         gaps.push((kind, gap));

@@ -8,7 +8,7 @@
 //! A fixed, seeded subset: schedule numbers whose draws cover the three kinds and the three
 //! nodes a fault may hit (checked below, so a change in the cluster file or the draw that
 //! loses one is seen): a 3.3 s freeze of the operations node, a 3.9 s cut of it, a 5.9 s cut
-//! of the features node (its datamanager's primary), the spare node stopped late in the
+//! of the features node (its datamanager's leader), the spare node stopped late in the
 //! run, the operations node stopped early.
 //!
 //! At wall-clock speed, as the script's default: a failover's delays are real time (the

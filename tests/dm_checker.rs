@@ -1,12 +1,12 @@
 //! The checker of a replicated datamanager: several producers store records, each
-//! acknowledged, into `feature` kept in three copies on three `marie node` processes, while
-//! a seeded schedule of faults hits the node of whichever copy is primary at that moment —
+//! acknowledged, into `feature` kept in three replicas on three `marie node` processes, while
+//! a seeded schedule of faults hits the node of whichever replica is leader at that moment —
 //! `kill -9` (and a restart on its data directory), a freeze (SIGSTOP, then SIGCONT), a
 //! partition that cuts it off from everyone (network namespaces), a crash of the
 //! datamanager itself (a panic, restarted by its supervisor). At the end it reads the
-//! primary's records and every copy's digest and checks: every acknowledged record present
+//! leader's records and every replica's digest and checks: every acknowledged record present
 //! exactly once at its seq, each producer's records in its order, no record that was never
-//! put, all copies equal. It prints the table.
+//! put, all replicas equal. It prints the table.
 //!
 //! CI runs a short schedule. For long runs (1000 faults):
 //!
@@ -99,15 +99,15 @@ fn start_node(net: &Netns, dir: &Path, i: usize) -> NodeProc {
 #[derive(Default)]
 struct Heard {
     read: usize,
-    primary: Option<String>,
-    /// How many times a primary was announced.
-    primaries: u64,
+    leader: Option<String>,
+    /// How many times a leader was announced.
+    leaders: u64,
     put: BTreeSet<(u64, u64)>,
     acked: BTreeMap<(u64, u64), u64>,
     have: Vec<(u64, u64, u64)>,
     /// (producer, class) deleted, acknowledged.
     deleted: BTreeSet<(u64, u64)>,
-    copies: Vec<(String, u64, u64, u64)>,
+    replicas: Vec<(String, u64, u64, u64)>,
     done: bool,
 }
 
@@ -119,9 +119,9 @@ impl Heard {
             let w: Vec<&str> = line.split_whitespace().collect();
             let n = |i: usize| w.get(i).and_then(|s| s.parse::<u64>().ok()).unwrap_or(0);
             match w.first().copied() {
-                Some("primary") => {
-                    self.primary = w.get(1).map(|s| s.to_string());
-                    self.primaries += 1;
+                Some("leader") => {
+                    self.leader = w.get(1).map(|s| s.to_string());
+                    self.leaders += 1;
                 }
                 Some("put") => {
                     self.put.insert((n(1), n(2)));
@@ -139,8 +139,8 @@ impl Heard {
                 Some("deleted") => {
                     self.deleted.insert((n(1), n(2)));
                 }
-                Some("copy") => {
-                    self.copies
+                Some("replica") => {
+                    self.replicas
                         .push((w.get(1).unwrap_or(&"").to_string(), n(2), n(3), n(4)))
                 }
                 Some("done") => self.done = true,
@@ -202,28 +202,28 @@ fn replicated_datamanager_checker_under_kill_freeze_partition_and_crash() {
                 let lines = child.drain();
                 let last = &lines[lines.len().saturating_sub(8)..];
                 panic!(
-                    "the producers: no {what} within {T:?} ({} acknowledged, primary {:?}); \
+                    "the producers: no {what} within {T:?} ({} acknowledged, leader {:?}); \
                      their last lines: {last:?}",
                     heard.acked.len(),
-                    heard.primary
+                    heard.leader
                 );
             }
             std::thread::sleep(Duration::from_millis(20));
         }
     };
-    wait(&mut child, &mut heard, "primary", &|h| h.primary.is_some());
+    wait(&mut child, &mut heard, "leader", &|h| h.leader.is_some());
     let mut done: BTreeMap<&str, u64> = BTreeMap::new();
     for k in 0..faults {
         std::thread::sleep(rng.ms(300, 1500));
         heard.take(&mut child);
-        let Some(primary) = heard.primary.clone() else {
+        let Some(leader) = heard.leader.clone() else {
             continue;
         };
-        let i = NODES.iter().position(|n| *n == primary).expect("a node");
+        let i = NODES.iter().position(|n| *n == leader).expect("a node");
         // each kind once first, then as the seed draws them
         let pick = if k < 4 { k } else { rng.below(4) };
         let kind = ["kill", "freeze", "partition", "crash"][pick as usize];
-        eprintln!("fault {k}: {kind} {primary}");
+        eprintln!("fault {k}: {kind} {leader}");
         match kind {
             "kill" => {
                 nodes[i].signal("KILL");
@@ -251,7 +251,7 @@ fn replicated_datamanager_checker_under_kill_freeze_partition_and_crash() {
             _ => child.tell("crash"),
         }
         *done.entry(kind).or_default() += 1;
-        // the datamanager takes writes again (under a primary elected anew, or the same one
+        // the datamanager takes writes again (under a leader elected anew, or the same one
         // if the fault was shorter than the failure detector's deadline) before the next
         heard.take(&mut child);
         let acked = heard.acked.len();
@@ -297,15 +297,15 @@ fn replicated_datamanager_checker_under_kill_freeze_partition_and_crash() {
             .collect();
         out_of_order += seqs.windows(2).filter(|w| w[0] >= w[1]).count();
     }
-    let first = heard.copies.first().cloned().expect("a copy read");
+    let first = heard.replicas.first().cloned().expect("a replica read");
     let divergent = heard
-        .copies
+        .replicas
         .iter()
         .filter(|c| (c.1, c.2, c.3) != (first.1, first.2, first.3))
         .count();
     let kinds: Vec<String> = done.iter().map(|(k, n)| format!("{n} {k}")).collect();
     println!(
-        "| seed | faults | acknowledged | deleted (classes) | stored | lost | duplicated | deleted yet there | out of order | never put | divergent copies |"
+        "| seed | faults | acknowledged | deleted (classes) | stored | lost | duplicated | deleted yet there | out of order | never put | divergent replicas |"
     );
     println!("|---|---|---|---|---|---|---|---|---|---|---|");
     println!(
@@ -314,9 +314,14 @@ fn replicated_datamanager_checker_under_kill_freeze_partition_and_crash() {
         heard.acked.len(),
         heard.deleted.len(),
         heard.have.len(),
-        heard.copies.len()
+        heard.replicas.len()
     );
-    assert_eq!(heard.copies.len(), 3, "every copy read: {:?}", heard.copies);
+    assert_eq!(
+        heard.replicas.len(),
+        3,
+        "every replica read: {:?}",
+        heard.replicas
+    );
     assert!(
         heard.acked.len() as u64 > faults,
         "the producers made progress"
@@ -370,30 +375,30 @@ async fn producers_run() {
     }
     let transport = Transport::start("producers", &me).await.unwrap();
     transport.wait_for_peers(3, T).await.unwrap();
-    let primary = || {
+    let leader = || {
         registry::lookup(ModuleKind::Datamanager, "feature")
             .into_iter()
             .next()
     };
     let start = Instant::now();
-    while primary().is_none() {
-        assert!(start.elapsed() < T, "no primary");
+    while leader().is_none() {
+        assert!(start.elapsed() < T, "no leader");
         tokio::time::sleep(Duration::from_millis(20)).await;
     }
     let client = DmClient::lookup("feature", "producers")
         .unwrap()
         .with_follow(T);
     let stop = Arc::new(AtomicBool::new(false));
-    // who is primary, told at each change
+    // who is leader, told at each change
     let watcher = {
         let stop = stop.clone();
         tokio::spawn(async move {
             let mut last: Option<ractor::ActorId> = None;
             while !stop.load(Ordering::Relaxed) {
-                if let Some(p) = primary() {
+                if let Some(p) = leader() {
                     if Some(p.actor.get_id()) != last {
                         last = Some(p.actor.get_id());
-                        say(format!("primary {}", p.node));
+                        say(format!("leader {}", p.node));
                     }
                 }
                 tokio::time::sleep(Duration::from_millis(20)).await;
@@ -449,7 +454,7 @@ async fn producers_run() {
     while let Some(line) = orders.recv().await {
         match line.trim() {
             "crash" => {
-                if let Some(p) = primary() {
+                if let Some(p) = leader() {
                     let actor: ActorRef<DmMsg> = p.actor.into();
                     let _ = actor.cast(DmMsg::Inject {
                         fault: FaultKind::Panic,
@@ -465,10 +470,10 @@ async fn producers_run() {
         t.await.unwrap();
     }
     watcher.await.unwrap();
-    // the copies settle: the same seq applied everywhere, then their digests
+    // the replicas settle: the same seq applied everywhere, then their digests
     let start = Instant::now();
-    let copies = loop {
-        let mut copies = Vec::new();
+    let replicas = loop {
+        let mut replicas = Vec::new();
         for node in NODES {
             let member = ractor::pg::get_scoped_members(
                 &dm::REPLICA_SCOPE.to_string(),
@@ -485,18 +490,24 @@ async fn producers_run() {
                     )
                     .await
                 {
-                    copies.push((node, d));
+                    replicas.push((node, d));
                 }
             }
         }
-        if copies.len() == 3 && copies.iter().all(|(_, d)| d.upto == copies[0].1.upto) {
-            break copies;
+        if replicas.len() == 3 && replicas.iter().all(|(_, d)| d.upto == replicas[0].1.upto) {
+            break replicas;
         }
-        assert!(start.elapsed() < T, "the copies did not settle: {copies:?}");
+        assert!(
+            start.elapsed() < T,
+            "the replicas did not settle: {replicas:?}"
+        );
         tokio::time::sleep(Duration::from_millis(100)).await;
     };
-    for (node, d) in copies {
-        say(format!("copy {node} {} {} {}", d.upto, d.records, d.digest));
+    for (node, d) in replicas {
+        say(format!(
+            "replica {node} {} {} {}",
+            d.upto, d.records, d.digest
+        ));
     }
     for r in client.select(Query::all()).await.unwrap() {
         let (p, n): (u64, u64) = r.decode().unwrap();

@@ -1,9 +1,9 @@
 //! The thesis layout survives the loss of a datamanager's node: `missions/clusters/
-//! thesis.toml` keeps each datamanager in three copies (features, operations, spare), and the
+//! thesis.toml` keeps each datamanager in three replicas (features, operations, spare), and the
 //! docking mission run by `marie up` succeeds when the features node — the feature
-//! datamanager's primary, and copies of the other two — is killed (`kill -9`) or frozen past
-//! the failure detector's deadline at different moments of the run: a copy on another node
-//! is elected primary (`dm_promoted` in the run's events), the operations' clients follow
+//! datamanager's leader, and replicas of the other two — is killed (`kill -9`) or frozen past
+//! the failure detector's deadline at different moments of the run: a replica on another node
+//! is elected leader (`dm_promoted` in the run's events), the operations' clients follow
 //! it, and they carry on from the records they stored.
 
 use crate::common;
@@ -76,7 +76,7 @@ fn assert_survived(report: &Value, events: &[Value]) {
         .collect();
     assert!(
         promoted.iter().any(|e| e["kind"]["node"] != "features"),
-        "no copy of feature was promoted elsewhere: {promoted:?}"
+        "no replica of feature was promoted elsewhere: {promoted:?}"
     );
 }
 

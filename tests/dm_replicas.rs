@@ -1,15 +1,15 @@
-//! A datamanager kept in three copies on three `marie node` processes survives `kill -9` of
-//! its primary's process, and a freeze (SIGSTOP) of the next one past the failure
-//! detector's deadline: each time a copy is elected primary, the record seqs continue, the
+//! A datamanager kept in three replicas on three `marie node` processes survives `kill -9` of
+//! its leader's process, and a freeze (SIGSTOP) of the next one past the failure
+//! detector's deadline: each time a replica is elected leader, the record seqs continue, the
 //! producer (a member of the cluster in this process) follows the name to it, and nothing
 //! it had acknowledged is lost or stored twice; the killed node, started again on its data
-//! directory, and the frozen one, woken, come back as copies and catch up (the woken one
-//! fenced by the newer term), and the three copies end equal with one primary — the
-//! preferred copy (r1) is handed the role back once it has caught up. And a `put_all` under
-//! way when the primary's process is killed stores every record once, in order: what was on
-//! its way to the lost primary is sent again to the next. A copy that comes back further
-//! behind than the primary keeps entries for is sent a snapshot of the store, and ends
-//! equal; a primary started again catches copies up from the entries its journal holds.
+//! directory, and the frozen one, woken, come back as replicas and catch up (the woken one
+//! fenced by the newer term), and the three replicas end equal with one leader — the
+//! preferred replica (r1) is handed the role back once it has caught up. And a `put_all` under
+//! way when the leader's process is killed stores every record once, in order: what was on
+//! its way to the lost leader is sent again to the next. A replica that comes back further
+//! behind than the leader keeps entries for is sent a snapshot of the store, and ends
+//! equal; a leader started again catches replicas up from the entries its journal holds.
 
 use crate::common;
 
@@ -31,7 +31,7 @@ const T: Duration = Duration::from_secs(60);
 /// this test process, whatever the tests running in parallel.
 static ONE_MEMBER: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
-/// The three nodes, each keeping a copy of `feature` (`extra`: more of its keys).
+/// The three nodes, each keeping a replica of `feature` (`extra`: more of its keys).
 fn start_nodes(dir: &Path, extra: &str) -> Vec<NodeProc> {
     let mut nodes: Vec<NodeProc> = Vec::new();
     for name in NODES {
@@ -73,7 +73,7 @@ fn hosts_with(dir: &Path, name: &str, extra: &str) -> String {
     )
 }
 
-/// The copy of `feature` on `node`, from the copies' groups.
+/// The replica of `feature` on `node`, from the replicas' groups.
 fn copy_on(node: &str) -> Option<ActorRef<DmMsg>> {
     ractor::pg::get_scoped_members(&dm::REPLICA_SCOPE.to_string(), &format!("feature/{node}"))
         .into_iter()
@@ -91,15 +91,15 @@ async fn stats_of(actor: &ActorRef<DmMsg>) -> Option<DmStats> {
     }
 }
 
-/// Wait until the primary of `feature` is published (on a node other than `not`).
-async fn primary(not: Option<&str>) -> (String, Instant) {
+/// Wait until the leader of `feature` is published (on a node other than `not`).
+async fn leader(not: Option<&str>) -> (String, Instant) {
     primary_where(|node| Some(node) != not).await
 }
 
-/// Wait until the primary of `feature` is published on a node `fits` accepts: the registry
+/// Wait until the leader of `feature` is published on a node `fits` accepts: the registry
 /// watched (an event awaited, not a poll).
 async fn primary_where(fits: impl Fn(&str) -> bool) -> (String, Instant) {
-    // watching first, then looking: a primary published in between is in one or the other
+    // watching first, then looking: a leader published in between is in one or the other
     let mut watch = registry::watch(Some(ModuleKind::Datamanager))
         .await
         .unwrap();
@@ -121,7 +121,7 @@ async fn primary_where(fits: impl Fn(&str) -> bool) -> (String, Instant) {
         panic!("the registry watch ended");
     })
     .await
-    .unwrap_or_else(|_| panic!("no primary of feature within {T:?}"))
+    .unwrap_or_else(|_| panic!("no leader of feature within {T:?}"))
 }
 
 /// The producer id of this test's records: a retry of record `v` is the same put.
@@ -167,7 +167,7 @@ async fn store_all(
     first.expect("a store")
 }
 
-/// Every acknowledged record is in the primary once, at its seq.
+/// Every acknowledged record is in the leader once, at its seq.
 async fn check_acked(client: &DmClient, acked: &BTreeMap<u64, u64>) {
     let records = client.select(Query::class("echo")).await.unwrap();
     let mut values: BTreeMap<u64, u64> = BTreeMap::new();
@@ -193,8 +193,8 @@ async fn check_acked(client: &DmClient, acked: &BTreeMap<u64, u64>) {
     );
 }
 
-/// Wait until the three copies hold the same (records, last seq, commit) with one primary;
-/// the copies' stats.
+/// Wait until the three replicas hold the same (records, last seq, commit) with one leader;
+/// the replicas' stats.
 async fn converged() -> Vec<DmStats> {
     let start = Instant::now();
     loop {
@@ -210,11 +210,11 @@ async fn converged() -> Vec<DmStats> {
             let r = s.replica.as_ref().unwrap();
             (s.records, s.last_seq, r.commit, s.classes.clone())
         };
-        let primaries = all
+        let leaders = all
             .iter()
-            .filter(|s| s.replica.as_ref().unwrap().role == "primary")
+            .filter(|s| s.replica.as_ref().unwrap().role == marie::replica::ReplicaRole::Leader)
             .count();
-        if all.len() == 3 && primaries == 1 && all.iter().all(|s| view(s) == view(&all[0])) {
+        if all.len() == 3 && leaders == 1 && all.iter().all(|s| view(s) == view(&all[0])) {
             let roles: Vec<_> = all
                 .iter()
                 .map(|s| {
@@ -222,16 +222,19 @@ async fn converged() -> Vec<DmStats> {
                     format!("{} {} term {}", r.node, r.role, r.term)
                 })
                 .collect();
-            eprintln!("copies equal: {:?}; {}", view(&all[0]), roles.join(", "));
+            eprintln!("replicas equal: {:?}; {}", view(&all[0]), roles.join(", "));
             return all;
         }
-        assert!(start.elapsed() < T, "the copies did not converge: {all:#?}");
+        assert!(
+            start.elapsed() < T,
+            "the replicas did not converge: {all:#?}"
+        );
         tokio::time::sleep(Duration::from_millis(100)).await;
     }
 }
 
 #[test]
-fn a_killed_and_a_frozen_primary_are_replaced_by_copies_and_no_acknowledged_record_is_lost() {
+fn a_killed_and_a_frozen_leader_are_replaced_by_followers_and_no_acknowledged_record_is_lost() {
     let _one = ONE_MEMBER.lock().unwrap_or_else(|e| e.into_inner());
     let dir = tempfile::tempdir().unwrap();
     let mut nodes = start_nodes(dir.path(), "");
@@ -239,38 +242,38 @@ fn a_killed_and_a_frozen_primary_are_replaced_by_copies_and_no_acknowledged_reco
     let mut acked: BTreeMap<u64, u64> = BTreeMap::new();
     let (client, _transport) = rt.block_on(async {
         let transport = join(&nodes).await;
-        let (first, _) = primary(None).await;
-        assert_eq!(first, "r1", "the preferred copy is the first primary");
+        let (first, _) = leader(None).await;
+        assert_eq!(first, "r1", "the preferred replica is the first leader");
         let client = DmClient::lookup("feature", "producer")
             .unwrap()
             .with_follow(T);
         store_all(&client, 0..300, &mut acked).await;
 
-        // kill -9 the primary's process
+        // kill -9 the leader's process
         let killed = Instant::now();
         nodes[0].signal("KILL");
         let first_after = store_all(&client, 300..600, &mut acked).await;
-        let (second, _) = primary(Some("r1")).await;
+        let (second, _) = leader(Some("r1")).await;
         eprintln!(
-            "r1 killed; {second} is primary; the first store acknowledged {} ms after the kill",
+            "r1 killed; {second} is leader; the first store acknowledged {} ms after the kill",
             (first_after - killed).as_millis()
         );
         check_acked(&client, &acked).await;
         (client, transport)
     });
 
-    // r1 starts again on its data directory: a copy, which catches up
+    // r1 starts again on its data directory: a replica, which catches up
     let peers: Vec<_> = nodes[1..].iter().map(|n| n.addr).collect();
     nodes[0] = NodeProc::start(dir.path(), "r1", &hosts(dir.path(), "r1"), &peers, COOKIE);
     rt.block_on(async {
-        // (r1 came back a copy and caught up; being the preferred copy, it may have been
-        // handed the primary's role since)
+        // (r1 came back a follower and caught up; being the preferred replica, it may have been
+        // handed the leader's role since)
         let all = converged().await;
         let r1 = all.iter().find(|s| s.replica.as_ref().unwrap().node == "r1").unwrap();
         assert!(r1.replica.as_ref().unwrap().term >= 2, "r1 is in a newer term");
 
-        // freeze the primary past the failure detector's deadline, storing on
-        let (frozen, _) = primary(None).await;
+        // freeze the leader past the failure detector's deadline, storing on
+        let (frozen, _) = leader(None).await;
         let term_before = all
             .iter()
             .find(|s| s.replica.as_ref().unwrap().node == frozen)
@@ -280,9 +283,9 @@ fn a_killed_and_a_frozen_primary_are_replaced_by_copies_and_no_acknowledged_reco
         let stopped = Instant::now();
         nodes[i].signal("STOP");
         let first_after = store_all(&client, 600..900, &mut acked).await;
-        let (next, _) = primary(Some(&frozen)).await;
+        let (next, _) = leader(Some(&frozen)).await;
         eprintln!(
-            "{frozen} frozen; {next} is primary; the first store acknowledged {} ms after the freeze",
+            "{frozen} frozen; {next} is leader; the first store acknowledged {} ms after the freeze",
             (first_after - stopped).as_millis()
         );
         nodes[i].signal("CONT");
@@ -294,9 +297,9 @@ fn a_killed_and_a_frozen_primary_are_replaced_by_copies_and_no_acknowledged_reco
             .replica
             .clone()
             .unwrap();
-        // fenced: it took the newer term (and, if it is the preferred copy, it may lead
+        // fenced: it took the newer term (and, if it is the preferred replica, it may lead
         // again since, handed the role once it caught up)
-        assert!(woken.term > term_before, "the woken primary took the newer term");
+        assert!(woken.term > term_before, "the woken leader took the newer term");
         check_acked(&client, &acked).await;
     });
 }
@@ -309,7 +312,7 @@ fn a_put_all_under_way_when_the_primary_is_killed_stores_every_record_once_in_or
     let rt = runtime();
     rt.block_on(async {
         let transport = join(&nodes).await;
-        let (first, _) = primary(None).await;
+        let (first, _) = leader(None).await;
         assert_eq!(first, "r1");
         let client = DmClient::lookup("feature", "bulk")
             .unwrap()
@@ -334,7 +337,7 @@ fn a_put_all_under_way_when_the_primary_is_killed_stores_every_record_once_in_or
             let client = client.clone();
             async move { client.put_all(records).await }
         });
-        // kill -9 the primary's process with the transfer under way (watched from here:
+        // kill -9 the leader's process with the transfer under way (watched from here:
         // polling r1's stats once saw the whole transfer end before it saw a fifth of it)
         tokio::select! {
             _ = fifth.notified() => {}
@@ -344,21 +347,18 @@ fn a_put_all_under_way_when_the_primary_is_killed_stores_every_record_once_in_or
         eprintln!("r1 killed with the transfer under way");
         bulk.await
             .unwrap()
-            .expect("put_all completes on the next primary");
+            .expect("put_all completes on the next leader");
         // (which granted the wide window of a replicated datamanager: its acknowledgements
-        // wait for a copy)
+        // wait for a replica)
         assert_eq!(client.window(), Some(dm::REPLICATED_PUT_WINDOW));
-        let (second, _) = primary(Some("r1")).await;
+        let (second, _) = leader(Some("r1")).await;
         let stored = client.select(Query::all()).await.unwrap();
         let values: Vec<u64> = stored
             .iter()
             .filter(|r| r.class.starts_with("bulk-"))
             .map(|r| r.decode::<u64>().unwrap())
             .collect();
-        eprintln!(
-            "{second} is primary; {} of {N} records stored",
-            values.len()
-        );
+        eprintln!("{second} is leader; {} of {N} records stored", values.len());
         // every record once, in the order put (seqs increase with the values)
         assert_eq!(values.len() as u64, N, "records lost or stored twice");
         assert!(
@@ -373,13 +373,13 @@ fn a_put_all_under_way_when_the_primary_is_killed_stores_every_record_once_in_or
 fn a_copy_further_behind_than_the_primary_keeps_entries_for_takes_in_a_snapshot() {
     let _one = ONE_MEMBER.lock().unwrap_or_else(|e| e.into_inner());
     let dir = tempfile::tempdir().unwrap();
-    // the primary keeps 100 applied entries in memory: a copy 600 behind needs a snapshot
+    // the leader keeps 100 applied entries in memory: a replica 600 behind needs a snapshot
     let extra = "catch_up = 100\n";
     let mut nodes = start_nodes(dir.path(), extra);
     let rt = runtime();
     rt.block_on(async {
         let transport = join(&nodes).await;
-        let (first, _) = primary(None).await;
+        let (first, _) = leader(None).await;
         assert_eq!(first, "r1");
         let client = DmClient::lookup("feature", "producer")
             .unwrap()
@@ -425,13 +425,13 @@ fn a_restarted_primary_catches_a_copy_up_from_its_journal_without_a_snapshot() {
     };
     let rt = runtime();
     let transport = rt.block_on(join(&nodes));
-    assert_eq!(rt.block_on(primary(None)).0, "r1");
+    assert_eq!(rt.block_on(leader(None)).0, "r1");
     let client = DmClient::lookup("feature", "producer")
         .unwrap()
         .with_follow(T);
     let mut acked = BTreeMap::new();
     rt.block_on(store_all(&client, 0..100, &mut acked));
-    // r3 is lost; 100 more; then the primary's process is killed and started again: it
+    // r3 is lost; 100 more; then the leader's process is killed and started again: it
     // leads again with the entries its journal holds, and r3, back, lacks entries from
     // before that restart
     nodes[2].signal("KILL");
@@ -463,7 +463,7 @@ fn a_restarted_primary_catches_a_copy_up_from_its_journal_without_a_snapshot() {
 #[test]
 fn the_primary_recognises_a_retry_of_any_put_of_a_whole_window_and_answers_its_first_seq() {
     // a producer may have a window of puts unacknowledged (the wide one a replicated
-    // datamanager grants); each one retried must be stored once. The primary notes each
+    // datamanager grants); each one retried must be stored once. The leader notes each
     // put's pair when it proposes it: noting it again when it is applied filled the table
     // (then a producer's last 1024 pairs) twice as fast, and a retry of a put 513 back was
     // stored a second time
@@ -474,7 +474,7 @@ fn the_primary_recognises_a_retry_of_any_put_of_a_whole_window_and_answers_its_f
     let transport = rt.block_on(join(&nodes));
     let window = dm::REPLICATED_PUT_WINDOW as u64;
     rt.block_on(async {
-        primary(None).await;
+        leader(None).await;
         let client = DmClient::lookup("feature", "producer")
             .unwrap()
             .with_follow(T);

@@ -204,11 +204,11 @@ fn up_with_a_monitor_shows_every_node_and_what_it_hosts_and_stops_one_from_the_p
     for node in ["cart", "features", "operations", "spare"] {
         assert_eq!(state["cluster"][node]["status"], "up", "{node}: {state}");
     }
-    // each datamanager as last asked: the thesis keeps three copies, the primary on the
+    // each datamanager as last asked: the thesis keeps three replicas, the leader on the
     // features node says how far the two others lag
     let state = state_until(
         addr,
-        "the feature datamanager's state, with its copies",
+        "the feature datamanager's state, with its replicas",
         |s| {
             s["cluster"]["features"]["modules"]
                 .as_object()
@@ -216,7 +216,7 @@ fn up_with_a_monitor_shows_every_node_and_what_it_hosts_and_stops_one_from_the_p
                 .flat_map(|m| m.values())
                 .any(|m| {
                     m["name"] == "feature"
-                        && m["dm"]["role"] == "primary"
+                        && m["dm"]["role"] == "leader"
                         && m["dm"]["durability"] == "process"
                         && m["dm"]["lag"].as_object().is_some_and(|l| {
                             l.keys().cloned().collect::<Vec<_>>() == ["operations", "spare"]

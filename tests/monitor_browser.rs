@@ -217,7 +217,7 @@ fn the_page_stops_the_wall_followers_node_and_shows_the_cluster_fail_over() {
         "document.querySelector('#cluster .module[data-module=\"feature\"] + .dm-state')\
              ?.textContent.includes('records, process, journal')\
              && document.querySelector('#cluster .module[data-module=\"feature\"] + .dm-state')\
-             .textContent.includes('primary (term ')",
+             .textContent.includes('leader (term ')",
         "the feature datamanager's records, journal and role",
     );
     // any operation of the cluster panel answers a click with its live properties: here

@@ -217,7 +217,7 @@ fn a_partition_cuts_a_node_off_in_a_private_network_heals_and_leaves_no_namespac
     }
     let dir = tempfile::tempdir().unwrap();
     let events_path = dir.path().join("events.jsonl");
-    // the features node (the feature datamanager's primary; its copies are on the others)
+    // the features node (the feature datamanager's leader; its replicas are on the others)
     // cut off from every other node for 8 s of mission time (2 s of real time)
     let (out, report) = report_of(&[
         "up",
@@ -329,7 +329,7 @@ fn the_killed_node_of_the_bound_operations_is_replaced_by_the_other_and_the_miss
     // the node the mission bound most of its operations on (operations or spare: the
     // layout has a standby of each on the other; which is bound is the selection's call) is
     // killed from the page while the wall is followed: its operations are rebound to their
-    // standbys, the datamanagers fail over to a copy where the node held a primary, and a
+    // standbys, the datamanagers fail over to a replica where the node held a leader, and a
     // stand-in whose `activate` waited for its datamanager runs it again once it is back
     // (it stepped without its map before)
     let (mut up, line) = monitored_up(
@@ -371,7 +371,7 @@ fn the_killed_node_of_the_bound_operations_is_replaced_by_the_other_and_the_miss
         verdict.starts_with("verdict: 1 fault injected (stop-node 1), 1 node lost (0 back), "),
         "{verdict}"
     );
-    // the datamanagers' primaries on the killed node failed over to copies that hold every
+    // the datamanagers' leaders on the killed node failed over to replicas that hold every
     // record the operations were told was stored, the killed node's own producers' too
     // (`N of M acknowledged records lost`, M > 0: the stores were heard from the nodes)
     let counts: Vec<u64> = verdict

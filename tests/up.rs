@@ -32,7 +32,7 @@ fn the_thesis_layout_docks_with_the_dispatcher_on_a_process_of_its_own() {
         "{stdout}\n{}",
         text(&out.stderr)
     );
-    // 24 modules and the run datamanager's primary and the active and standby desks
+    // 24 modules and the run datamanager's leader and the active and standby desks
     assert!(stdout.contains("4 nodes, 27 modules"), "{stdout}");
     assert!(
         stdout.contains("the run is dispatched on features, standby on spare"),

@@ -29,6 +29,7 @@ use super::messages::{DmMsg, DmStats};
 use super::query::Query;
 use marie_vocabulary::events::EventKind;
 use marie_vocabulary::registry::{self, Instance, ModuleKind};
+use marie_vocabulary::replica::ReplicaRole;
 use marie_vocabulary::run::DmCheck;
 use ractor::rpc::CallResult;
 use ractor::ActorRef;
@@ -344,7 +345,11 @@ async fn leader(dm: &str) -> Result<(Instance, DmStats), CheckError> {
                 continue;
             }
         };
-        let term = |s: &DmStats| s.replica.as_ref().map(|r| (r.role == "primary", r.term));
+        let term = |s: &DmStats| {
+            s.replica
+                .as_ref()
+                .map(|r| (r.role == ReplicaRole::Leader, r.term))
+        };
         if best.as_ref().is_none_or(|(_, b)| term(&stats) > term(b)) {
             best = Some((instance, stats));
         }

@@ -70,9 +70,9 @@ pub enum DmError {
     /// failed sync, a journal it cannot open): the write is not acknowledged, and not kept.
     #[error("storage: {0}")]
     Storage(String),
-    /// The datamanager asked is a replica, not the leader (it stepped down, or a client held
+    /// The datamanager asked is a follower, not the leader (it stepped down, or a client held
     /// an old reference): ask the one published under its name.
-    #[error("datamanager {0} is a copy, not the primary")]
+    #[error("datamanager {0} is a follower, not the leader")]
     NotPrimary(String),
     /// The datamanager did not answer within the deadline.
     #[error("datamanager {dm} did not answer within {after:?}")]

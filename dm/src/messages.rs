@@ -3,6 +3,7 @@
 use super::error::DmError;
 use super::query::Query;
 use super::record::{NewRecord, Record};
+use marie_vocabulary::replica::ReplicaRole;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
@@ -97,12 +98,14 @@ pub struct StoreDigest {
 pub struct ReplicaStats {
     /// The node this replica runs on.
     pub node: String,
-    /// `primary` or `copy`.
-    pub role: String,
+    /// Leader or follower.
+    pub role: ReplicaRole,
     /// Its term.
     pub term: u64,
-    /// The leader it follows, if it knows one.
-    pub primary: Option<String>,
+    /// The leader's node, if it knows one (`primary` in builds before the word was
+    /// settled).
+    #[serde(alias = "primary")]
+    pub leader: Option<String>,
     /// The last committed seq.
     pub commit: u64,
     /// The last seq in its log.

@@ -29,8 +29,8 @@ pub(crate) enum ReplicaStartError {
     },
     /// Its journal holds records, and no log: a datamanager without replicas wrote it.
     #[error(
-        "the journal in {} was written by a datamanager without copies: its records are on \
-         no other copy (start the copies on empty directories)",
+        "the journal in {} was written by a datamanager without replicas: its records are on \
+         no other replica (start the replicas on empty directories)",
         dir.display()
     )]
     Unreplicated {

@@ -307,7 +307,7 @@ impl DatamanagerState {
         }
         if let Some(why) = stopping {
             // (the stop's reason keeps the words it is known by)
-            myself.stop(Some(format!("no longer the primary: {why}")));
+            myself.stop(Some(format!("no longer the leader: {why}")));
             return;
         }
         if let Some(replica) = self.storage.replica_mut() {

@@ -32,7 +32,7 @@ pub(crate) enum StartError {
     },
     /// Replicated at durability `memory`.
     #[error(
-        "datamanager {0}: copies need a journal (durability process or sync): a copy's \
+        "datamanager {0}: replicas need a journal (durability process or sync): a replica's \
          vote must survive its restart"
     )]
     ReplicasWithoutJournal(String),
@@ -276,8 +276,8 @@ mod tests {
         assert_eq!(
             why(replicated.clone()).as_deref(),
             Some(
-                "datamanager world: copies need a journal (durability process or sync): a \
-                 copy's vote must survive its restart"
+                "datamanager world: replicas need a journal (durability process or sync): a \
+                 replica's vote must survive its restart"
             )
         );
         let mut no_dir = replicated;
@@ -290,7 +290,7 @@ mod tests {
         assert_eq!(
             why(too_few).as_deref(),
             Some(
-                "datamanager world: 2 copies: a majority of them cannot survive the loss of \
+                "datamanager world: 2 replicas: a majority of them cannot survive the loss of \
                  one; keep three or more"
             )
         );

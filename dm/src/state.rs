@@ -13,6 +13,7 @@ use super::store::Store;
 use super::waits::{TimerGuard, WaitReply, Waiter, Waits};
 use marie_vocabulary::clock::{cast_after, SharedClock};
 use marie_vocabulary::fence::FenceTable;
+use marie_vocabulary::replica::ReplicaRole;
 use ractor::{ActorRef, RpcReplyPort};
 use std::time::Duration;
 
@@ -77,10 +78,13 @@ impl DatamanagerState {
                 let (core, last) = (&r.core, r.core.last().0);
                 ReplicaStats {
                     node: core.me().to_string(),
-                    // the role's words are the stats' (and their JSON's): `primary`, `copy`
-                    role: if core.is_leader() { "primary" } else { "copy" }.to_string(),
+                    role: if core.is_leader() {
+                        ReplicaRole::Leader
+                    } else {
+                        ReplicaRole::Follower
+                    },
                     term: core.term(),
-                    primary: core.leader().map(str::to_string),
+                    leader: core.leader().map(str::to_string),
                     commit: core.commit(),
                     last,
                     lag: core.lag(),

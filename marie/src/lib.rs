@@ -209,7 +209,7 @@ pub use marie_dm as dm;
 pub use marie_supervision as supervision;
 pub use marie_vocabulary::remote_message;
 pub use marie_vocabulary::{
-    clock, diagnostic, events, fence, property, registry, report, run, status, wire,
+    clock, diagnostic, events, fence, property, registry, replica, report, run, status, wire,
 };
 
 /// Everything an operation author needs in one import: `use marie::prelude::*;`.

@@ -20,7 +20,7 @@ use std::time::Duration;
 /// centimetre, a degree.
 const AT_START: (f64, f64) = (0.01, 1.0);
 
-/// How long the world datamanager may take to be found (a replicated one's primary being
+/// How long the world datamanager may take to be found (a replicated one's leader being
 /// elected).
 const FIND_WORLD_DM: Duration = Duration::from_secs(10);
 

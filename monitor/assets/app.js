@@ -366,16 +366,16 @@ function renderCluster(cluster) {
 }
 
 // What a datamanager holds, as last asked: durability, records, journal; for one kept in
-// copies, its role and term and how far each copy lags.
+// replicas, its role and term and how far each replica lags.
 function dmState(m) {
   const d = m.dm;
   if (!d) return "";
   const journal = d.durability === "memory" ? "in memory" : `${esc(d.durability)}, journal ${bytes(d.journal_bytes)}`;
-  const copies = d.role
-    ? ` · ${esc(d.role)} (term ${d.term}); copies: ` +
+  const replicas = d.role
+    ? ` · ${esc(d.role)} (term ${d.term}); replicas: ` +
       Object.entries(d.lag).map(([node, lag]) => `${esc(node)} lag ${lag}`).join(", ")
     : "";
-  return ` <span class="dm-state">(${d.records} records, ${journal}${copies})</span>`;
+  return ` <span class="dm-state">(${d.records} records, ${journal}${replicas})</span>`;
 }
 
 function bytes(n) {

@@ -2,7 +2,7 @@
 //! for a member of a cluster, every other node's ([`marie::cluster::relay`]) — one JSON object per
 //! line ([`marie::events`] documents the schema), written as they come.
 
-use super::follow::{Following, Sink};
+use super::feed::{Feed, Sink};
 use marie::cluster::relay::Watch;
 use marie::events::{Event, EventBus};
 use std::fs::File;
@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 
 /// A file being written from a bus.
 pub(crate) struct EventsFile {
-    following: Following<()>,
+    feed: Feed<()>,
     path: PathBuf,
 }
 
@@ -34,19 +34,19 @@ impl EventsFile {
         path: &Path,
     ) -> std::io::Result<EventsFile> {
         let out = Lines(BufWriter::new(File::create(path)?));
-        let following = Following::start(bus, others, out, |Lines(mut out)| {
+        let feed = Feed::start(bus, others, out, |Lines(mut out)| {
             out.flush()?;
             Ok(())
         });
         Ok(EventsFile {
-            following,
+            feed,
             path: path.to_path_buf(),
         })
     }
 
     /// Write what was published before this call and close the file.
     pub(crate) async fn finish(self) -> anyhow::Result<()> {
-        self.following
+        self.feed
             .finish("the events file")
             .await
             .map(drop)

@@ -86,7 +86,7 @@ async fn print_listing(list: &[Instance], json: bool) -> anyhow::Result<()> {
                 Durability::Memory => "in memory".to_string(),
                 d => format!("{d}, journal {}", bytes(s.journal_bytes)),
             };
-            let copies = match &s.replica {
+            let replicas = match &s.replica {
                 None => String::new(),
                 Some(r) => {
                     let lags: Vec<String> = r
@@ -95,7 +95,7 @@ async fn print_listing(list: &[Instance], json: bool) -> anyhow::Result<()> {
                         .map(|(node, lag)| format!("{node} (lag {lag})"))
                         .collect();
                     format!(
-                        "; {}, term {}, copies on {}",
+                        "; {}, term {}, replicas on {}",
                         r.role,
                         r.term,
                         lags.join(", ")
@@ -103,7 +103,7 @@ async fn print_listing(list: &[Instance], json: bool) -> anyhow::Result<()> {
                 }
             };
             println!(
-                "DM {} on {}: {} records, {journal}{copies}",
+                "DM {} on {}: {} records, {journal}{replicas}",
                 i.name, i.node, s.records
             );
         }

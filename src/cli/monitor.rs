@@ -147,7 +147,7 @@ pub(crate) async fn start_live(
 const DM_POLL: std::time::Duration = std::time::Duration::from_secs(2);
 
 /// Ask every datamanager in the registry what it holds — durability, records, journal, and
-/// for a replicated one its role, term and copies' lag — every [`DM_POLL`], and feed it to
+/// for a replicated one its role, term and replicas' lag — every [`DM_POLL`], and feed it to
 /// the page (`dm_state`), until aborted. Only the monitor sees these: the bus does not.
 fn poll_datamanagers(feed: Feed, bus: EventBus) -> JoinHandle<()> {
     use marie::dm::DmClient;

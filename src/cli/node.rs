@@ -170,22 +170,22 @@ fn listening_line(node: &Node, cluster: &ClusterConfig, speed: f64) -> String {
 }
 
 /// What the node hosts itself (peers' modules may be in the registry already). A
-/// replicated datamanager is one module wherever its primary is elected: counted by the
-/// node that prefers it (the first of its copies), not by the node that may host it now.
+/// replicated datamanager is one module wherever its leader is elected: counted by the
+/// node that prefers it (the first of its replicas), not by the node that may host it now.
 fn hosted_modules(node: &Node) -> usize {
     let name = &node.config().name;
     let replicated: Vec<&str> = node
         .config()
         .datamanagers
         .iter()
-        .filter(|d| !d.copies.is_empty())
+        .filter(|d| !d.replicas.is_empty())
         .map(|d| d.name.as_str())
         .collect();
     let preferred = node
         .config()
         .datamanagers
         .iter()
-        .filter(|d| d.copies.first() == Some(name))
+        .filter(|d| d.replicas.first() == Some(name))
         .count();
     registry::list()
         .iter()

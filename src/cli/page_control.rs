@@ -29,7 +29,7 @@ impl PageControl {
     pub(crate) fn new(bus: EventBus, processes: NodeProcesses) -> Arc<PageControl> {
         let injector = Injector::new(&bus)
             .with_processes(processes)
-            .following_runs();
+            .aiming_at_bindings();
         Arc::new(PageControl { injector })
     }
 }

@@ -16,13 +16,14 @@
 //! - [`status`] — the 32-bit status word operations report;
 //! - [`clock`] — time for operations and datamanagers: real, scaled or simulated;
 //! - [`registry`] — the cluster-wide location table over ractor `pg`;
+//! - [`replica`] — a replicated datamanager's replica roles: leader and follower;
 //! - [`fence`] — fencing tokens: the epochs a receiver of commands admits;
 //! - [`wire`] — the wire form of every message that may cross nodes (rmp-serde);
 //! - [`diagnostic`] — `file:line:column` diagnostics and the TOML reader every file format
 //!   (missions, worlds, node configs) shares.
 //!
 //! Its modules import one another without a cycle, in this order from the ground up:
-//! `clock`, `status`, `wire`, `registry`, `diagnostic`; `property`, `fence`; `run`;
+//! `clock`, `status`, `replica`, `wire`, `registry`, `diagnostic`; `property`, `fence`; `run`;
 //! `events`; `report`.
 //!
 //! ```
@@ -39,6 +40,7 @@ pub mod events;
 pub mod fence;
 pub mod property;
 pub mod registry;
+pub mod replica;
 pub mod report;
 pub mod run;
 pub mod status;

@@ -1,5 +1,5 @@
 //! Checkpoints: a run's progress as its dispatcher records it at every transition, in the
-//! run datamanager ([`RUN`](marie_dm::RUN), kept in copies on other nodes), so that a
+//! run datamanager ([`RUN`](marie_dm::RUN), kept in replicas on other nodes), so that a
 //! standby dispatcher can take the run over when the dispatcher's node is lost.
 //!
 //! A [`Checkpoint`] is everything a standby needs to carry the run on: the run's id, the
@@ -22,9 +22,9 @@
 //!   report, an action's end) are recorded as they happen, without waiting: their commands
 //!   carry epochs already in force, which the operations fence, and an operation whose
 //!   report a standby never saw is attached again (or resumed, if it ended).
-//! - A checkpoint that cannot be stored for want of the datamanager (its primary failing
+//! - A checkpoint that cannot be stored for want of the datamanager (its leader failing
 //!   over, a partition) is retried until it is stored or refused: a dispatcher cut off from
-//!   the majority of the run's copies waits.
+//!   the majority of the run's replicas waits.
 
 use super::messages::DispatcherMsg;
 use super::mission::Mission;

@@ -44,13 +44,13 @@ impl Injected {
 /// Injects faults for one process, and tells its node's bus: the one road of `--fault`,
 /// `--chaos`, `marie kill` and the monitor's page.
 ///
-/// It resolves a [`Target`] against the registry, the bindings of the run it follows (see
-/// [`following_runs`](Self::following_runs): a plain name then means the instance the
+/// It resolves a [`Target`] against the registry, the bindings of the runs on its bus (see
+/// [`aiming_at_bindings`](Self::aiming_at_bindings): a plain name then means the instance the
 /// mission bound, through its rebinds) and the node processes it may stop; does the fault
 /// ([`inject_into`] for an operation, `SIGKILL` for a node's process); and publishes
 /// `fault_injected` — or `fault_not_injected` and why — so every fault, whatever its
-/// source, is in the run's events and report. Cheap to clone; clones share what they
-/// follow.
+/// source, is in the run's events and report. Cheap to clone; clones share the bindings
+/// they aim at.
 ///
 /// ```
 /// use marie_vocabulary::clock::RealClock;
@@ -71,11 +71,11 @@ impl Injected {
 pub struct Injector {
     bus: EventBus,
     processes: NodeProcesses,
-    run: Option<Arc<Following>>,
+    run: Option<Arc<Bindings>>,
 }
 
-/// The run an injector follows: its bindings, kept by a tap on the bus.
-struct Following {
+/// The bindings of the runs on the bus, kept by a tap: what a plain name aims at.
+struct Bindings {
     bindings: Arc<Mutex<RunBindings>>,
     bound: watch::Receiver<bool>,
     _tap: Tap,
@@ -86,13 +86,13 @@ impl std::fmt::Debug for Injector {
         f.debug_struct("Injector")
             .field("bus", &self.bus)
             .field("processes", &self.processes)
-            .field("follows_runs", &self.run.is_some())
+            .field("aims_at_bindings", &self.run.is_some())
             .finish()
     }
 }
 
 impl Injector {
-    /// An injector that tells `bus`, stops no node process and follows no run.
+    /// An injector that tells `bus`, stops no node process and aims at no run's bindings.
     pub fn new(bus: &EventBus) -> Injector {
         Injector {
             bus: bus.clone(),
@@ -107,9 +107,9 @@ impl Injector {
         self
     }
 
-    /// Follow the runs on the bus from now on: a plain name (`NAME`, `ID`) then means the
+    /// Keep the bindings of the runs on the bus from now on: a plain name (`NAME`, `ID`) then means the
     /// instance the latest run bound for that operation (after a rebind, its stand-in).
-    pub fn following_runs(mut self) -> Injector {
+    pub fn aiming_at_bindings(mut self) -> Injector {
         let bindings = Arc::new(Mutex::new(RunBindings::default()));
         let (tell, bound) = watch::channel(false);
         let fold = bindings.clone();
@@ -118,7 +118,7 @@ impl Injector {
             b.observe(&event.kind);
             tell.send_if_modified(|was| std::mem::replace(was, b.bound()) != b.bound());
         });
-        self.run = Some(Arc::new(Following {
+        self.run = Some(Arc::new(Bindings {
             bindings,
             bound,
             _tap: tap,
@@ -150,7 +150,7 @@ impl Injector {
         &self.bus
     }
 
-    /// What the followed run has bound so far (nothing, when it follows no run).
+    /// What the latest run has bound so far (nothing, when it aims at no run's bindings).
     pub fn bindings(&self) -> RunBindings {
         match &self.run {
             Some(run) => lock(&run.bindings).clone(),
@@ -158,7 +158,7 @@ impl Injector {
         }
     }
 
-    /// Wait until the followed run has bound its operations (at once when it follows none).
+    /// Wait until the latest run has bound its operations (at once when it aims at no bindings).
     pub(crate) async fn bound(&self) {
         if let Some(run) = &self.run {
             let mut bound = run.bound.clone();

@@ -1,5 +1,5 @@
 //! The check of the datamanagers at a run's end: what the run's producers were told was
-//! stored, looked up in what each datamanager's primary holds once the mission is over
+//! stored, looked up in what each datamanager's leader holds once the mission is over
 //! ([`marie_dm::Ledger`] compares; this gathers and asks).
 //!
 //! While the run lasts, the acknowledgements come as events: this node's own on its bus
@@ -19,9 +19,9 @@ use std::time::Duration;
 use tokio::task::JoinHandle;
 use tokio::time::Instant;
 
-/// How long a datamanager's primary has to answer the check: one being failed over as the
+/// How long a datamanager's leader has to answer the check: one being failed over as the
 /// run ends is elected within a few seconds (the failure detector's 1.2 s deadline, then
-/// an election); none comes when every node of its copies is gone, and the run's end
+/// an election); none comes when every node of its replicas is gone, and the run's end
 /// should not wait long for that.
 const WITHIN: Duration = Duration::from_secs(15);
 /// The acknowledgements on their way from other nodes have all come once none came for
@@ -121,8 +121,8 @@ impl RunAudit {
                 .into_iter()
                 .map(|i| i.name),
         );
-        // all at once: each may wait up to WITHIN for a primary (none comes when every
-        // node of its copies is gone), and a run's end should not wait that long per
+        // all at once: each may wait up to WITHIN for a leader (none comes when every
+        // node of its replicas is gone), and a run's end should not wait that long per
         // datamanager; told in name order
         let ledger = Arc::new(ledger);
         let checks: Vec<_> = names

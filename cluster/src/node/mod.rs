@@ -54,10 +54,10 @@ mod builder;
 pub mod config;
 pub mod desk;
 mod events;
-mod followed_run;
 mod membership;
 mod mission_input;
 mod provisioner;
+mod remote_run;
 pub mod robot;
 mod run;
 mod tree;
@@ -69,9 +69,9 @@ pub use config::{
     SupervisorConfig, MAX_INSTANCES, OPERATIONS,
 };
 pub use desk::DeskRole;
-pub use followed_run::TAKEOVER_WAIT;
 pub use membership::Reincarnation;
 pub use mission_input::MissionInput;
+pub use remote_run::TAKEOVER_WAIT;
 pub use robot::{AprioriRecord, BoxFuture, Robot, RunJudgement};
 pub use run::RunOptions;
 

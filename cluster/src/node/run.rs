@@ -251,7 +251,7 @@ impl Node {
         }
         let injector = Injector::new(&self.bus)
             .with_processes(processes)
-            .following_runs();
+            .aiming_at_bindings();
         let plan = PlanRun::start(
             FaultPlan {
                 faults,

@@ -118,8 +118,8 @@ pub(super) fn children(
         .unwrap_or_default();
     let mut children = Vec::new();
     if !config.datamanagers.is_empty() {
-        // three restarts per datamanager: a replica changes role by restarting (a primary
-        // that sees a newer term restarts as a copy), and one election may step every
+        // three restarts per datamanager: a replica changes role by restarting (a leader
+        // that sees a newer term restarts as a follower), and one election may step every
         // replica of the node down at once — with four datamanagers, and a second term
         // right after the first, that was more than a fixed three, and the node gave its
         // datamanagers up (CI: `cluster_failover`, the world DM gone at the run's start)
@@ -217,8 +217,8 @@ fn datamanagers(
                     .collect(),
             );
             let (id, name) = (spec.id, spec.name.clone());
-            let replication = (!spec.copies.is_empty()).then(|| {
-                let r = dm::Replication::new(config.name.clone(), spec.copies.clone());
+            let replication = (!spec.replicas.is_empty()).then(|| {
+                let r = dm::Replication::new(config.name.clone(), spec.replicas.clone());
                 match spec.catch_up {
                     Some(n) => r.with_catch_up(n),
                     None => r,
@@ -263,7 +263,7 @@ fn datamanagers(
                     let client = DmClient::new(actor.clone(), NODE_SOURCE);
                     // A durable datamanager read its journal back: the a-priori records it
                     // ever stored are in it (the same seqs), and storing them again at every
-                    // restart of the datamanager or the node would pile up copies. So they
+                    // restart of the datamanager or the node would pile up replicas. So they
                     // are stored only in a datamanager that starts fresh — nothing was ever
                     // handed a seq, `next_seq == 1` — which a memory one always does.
                     if !records.is_empty() && client.stats().await.map_err(startup)?.next_seq == 1 {
@@ -278,14 +278,14 @@ fn datamanagers(
         .collect()
 }
 
-/// How long a copy's node waits for its replicated datamanager's primary to store the
+/// How long a replica's node waits for its replicated datamanager's leader to store the
 /// a-priori records in it.
 const APRIORI_WAIT: Duration = Duration::from_secs(120);
 
-/// Store the a-priori `records` in the primary of the replicated datamanager `name`,
-/// wherever it is elected. A copy is not the primary when it starts, and every node
-/// hosting a copy may hold the same records: each stores them as one producer — a fixed id
-/// per datamanager, numbered 1, 2, 3, … — so the primary keeps them once
+/// Store the a-priori `records` in the leader of the replicated datamanager `name`,
+/// wherever it is elected. A replica is not the leader when it starts, and every node
+/// hosting a replica may hold the same records: each stores them as one producer — a fixed id
+/// per datamanager, numbered 1, 2, 3, … — so the leader keeps them once
 /// (the datamanager's producer table), however many nodes or restarts send them.
 async fn apriori_to_primary(name: String, records: Arc<Vec<NewRecord>>) {
     let producer = name
@@ -298,7 +298,7 @@ async fn apriori_to_primary(name: String, records: Arc<Vec<NewRecord>>) {
     let client = match DmClient::lookup_within(&name, NODE_SOURCE, APRIORI_WAIT).await {
         Ok(c) => c,
         Err(e) => {
-            tracing::warn!(dm = %name, error = %e, "a-priori records not stored: no primary");
+            tracing::warn!(dm = %name, error = %e, "a-priori records not stored: no leader");
             return;
         }
     };
@@ -311,7 +311,7 @@ async fn apriori_to_primary(name: String, records: Arc<Vec<NewRecord>>) {
             return;
         }
     }
-    tracing::debug!(dm = %name, records = records.len(), "a-priori records stored in the primary");
+    tracing::debug!(dm = %name, records = records.len(), "a-priori records stored in the leader");
 }
 
 /// The root's child supervisor `id`, as it is now (a new actor after it was restarted).

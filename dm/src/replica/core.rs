@@ -752,7 +752,7 @@ impl Core {
             // two leaders in one term cannot happen: a bug, said loudly
             tracing::error!(term, me = %self.me, other = leader, "two leaders in one term");
             // (the reason reaches the `dm_fenced` event: its words stay)
-            self.step_down("another primary in its term", out);
+            self.step_down("another leader in its term", out);
         }
         if self.leader.as_deref() != Some(leader) {
             self.verified = 0;

@@ -120,14 +120,14 @@ impl Replication {
 }
 
 /// Why a [`Replication`] cannot work ([`Replication::check`]). Its texts speak of
-/// "copies", the word of a node's config (`copies = [...]`).
+/// "replicas", the word of a node's config (`replicas = [...]`).
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum ReplicationError {
     /// A node is named twice among the members.
-    #[error("a node is named twice in the copies {0:?}")]
+    #[error("a node is named twice in the replicas {0:?}")]
     Duplicate(Vec<String>),
     /// `me` is not among the members.
-    #[error("this node ({me}) is not among the copies {members:?}")]
+    #[error("this node ({me}) is not among the replicas {members:?}")]
     NotAMember {
         /// This node.
         me: String,
@@ -135,7 +135,7 @@ pub enum ReplicationError {
         members: Vec<String>,
     },
     /// Fewer than three members: a majority of them cannot survive the loss of one.
-    #[error("{0} copies: a majority of them cannot survive the loss of one; keep three or more")]
+    #[error("{0} replicas: a majority of them cannot survive the loss of one; keep three or more")]
     TooFew(usize),
 }
 
@@ -153,16 +153,16 @@ mod tests {
         assert_eq!(check("a", &["a", "b", "c"]), Ok(()));
         assert_eq!(
             check("a", &["a", "b", "a"]),
-            Err(r#"a node is named twice in the copies ["a", "b", "a"]"#.to_string())
+            Err(r#"a node is named twice in the replicas ["a", "b", "a"]"#.to_string())
         );
         assert_eq!(
             check("d", &["a", "b", "c"]),
-            Err(r#"this node (d) is not among the copies ["a", "b", "c"]"#.to_string())
+            Err(r#"this node (d) is not among the replicas ["a", "b", "c"]"#.to_string())
         );
         assert_eq!(
             check("a", &["a", "b"]),
             Err(
-                "2 copies: a majority of them cannot survive the loss of one; keep three or more"
+                "2 replicas: a majority of them cannot survive the loss of one; keep three or more"
                     .to_string()
             )
         );

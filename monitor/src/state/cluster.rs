@@ -51,11 +51,11 @@ pub struct DmView {
     pub records: u64,
     /// Bytes of its journal.
     pub journal_bytes: u64,
-    /// `primary` of a replicated datamanager.
-    pub role: Option<String>,
+    /// `leader` of a replicated datamanager.
+    pub role: Option<marie_vocabulary::replica::ReplicaRole>,
     /// Its term.
     pub term: u64,
-    /// How many entries each other copy lacks.
+    /// How many entries each other replica lacks.
     pub lag: BTreeMap<String, u64>,
 }
 
@@ -106,7 +106,7 @@ impl Cluster {
                     durability: durability.clone(),
                     records: *records,
                     journal_bytes: *journal_bytes,
-                    role: role.clone(),
+                    role: *role,
                     term: *term,
                     lag: lag.clone(),
                 };

@@ -2,10 +2,10 @@
 //! bus — a subscriber like the events file ([`crate::cli::events_file`]), so a writer
 //! that falls behind loses the oldest events (and says how many) rather than slowing the
 //! run. A member of a cluster writes the other nodes' events too (the cart's node's robot
-//! events draw the scene), as the events file does ([`crate::cli::follow`]).
+//! events draw the scene), as the events file does ([`crate::cli::feed`]).
 
 use super::{McapWriter, Written};
-use crate::cli::follow::Following;
+use crate::cli::feed::Feed;
 use marie::cluster::relay::Watch;
 use marie::events::EventBus;
 use std::path::{Path, PathBuf};
@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 /// An MCAP file being written from a bus.
 #[derive(Debug)]
 pub(crate) struct McapFile {
-    following: Following<Written>,
+    feed: Feed<Written>,
     path: PathBuf,
 }
 
@@ -27,7 +27,7 @@ impl McapFile {
     ) -> anyhow::Result<McapFile> {
         let out = McapWriter::create(path)?;
         Ok(McapFile {
-            following: Following::start(bus, others, out, McapWriter::finish),
+            feed: Feed::start(bus, others, out, McapWriter::finish),
             path: path.to_path_buf(),
         })
     }
@@ -35,7 +35,7 @@ impl McapFile {
     /// Write what was published before this call, close the file, and say what it holds.
     pub(crate) async fn finish(self) -> anyhow::Result<Written> {
         let (mut written, missed) = self
-            .following
+            .feed
             .finish("the MCAP file")
             .await
             .map_err(|e| e.context(format!("--mcap {}", self.path.display())))?;

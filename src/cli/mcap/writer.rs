@@ -150,7 +150,7 @@ impl McapWriter {
     }
 }
 
-impl crate::cli::follow::Sink for McapWriter {
+impl crate::cli::feed::Sink for McapWriter {
     fn take(&mut self, event: &Event) -> anyhow::Result<()> {
         self.write(event)
     }

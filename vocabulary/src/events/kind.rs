@@ -328,18 +328,18 @@ pub enum EventKind {
         /// Where and why the replay stopped early, if it did.
         torn: Option<String>,
     },
-    /// A copy of a replicated datamanager was elected its primary: clients find it under
+    /// A replica of a replicated datamanager was elected its leader: clients find it under
     /// the datamanager's name from now on.
     DmPromoted {
         /// The datamanager's name.
         dm: String,
-        /// The node the new primary runs on.
+        /// The node the new leader runs on.
         node: String,
         /// Its term (each election raises it).
         term: u64,
     },
-    /// The primary of a replicated datamanager stopped being one — a newer term exists, or
-    /// it lost its majority — and restarts as a copy: its late answers and writes count
+    /// The leader of a replicated datamanager stopped being one — a newer term exists, or
+    /// it lost its majority — and restarts as a follower: its late answers and writes count
     /// for nothing.
     DmFenced {
         /// The datamanager's name.
@@ -362,11 +362,11 @@ pub enum EventKind {
         records: u64,
         /// Bytes of its journal.
         journal_bytes: u64,
-        /// `primary` of a replicated datamanager; `None` without copies.
-        role: Option<String>,
-        /// Its term (0 without copies).
+        /// Its role in its replica set; `None` without replicas.
+        role: Option<crate::replica::ReplicaRole>,
+        /// Its term (0 without replicas).
         term: u64,
-        /// How many entries each other copy lacks.
+        /// On the leader: how many entries each other replica lacks.
         lag: std::collections::BTreeMap<String, u64>,
     },
     /// A producer of this node was told a record was stored: a `store` answered with its
@@ -397,7 +397,7 @@ pub enum EventKind {
         deleted: u64,
     },
     /// The check of a datamanager at the end of a run: of the records acknowledged during
-    /// it, how many its primary still holds and how many are lost.
+    /// it, how many its leader still holds and how many are lost.
     DmChecked(DmCheck),
     // --- the robot ---
     /// A robot judged the run after the dispatcher ended it: its outcome replaces the

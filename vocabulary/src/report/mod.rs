@@ -124,11 +124,11 @@ pub struct RunReport {
     pub takeovers: Vec<TakeoverRecord>,
     /// The check of the datamanagers at the run's end, one per datamanager (`dm_checked`
     /// events): of the records the run's producers were told were stored, how many the
-    /// datamanager's primary still held, and how many were lost ([`DmCheck`]).
+    /// datamanager's leader still held, and how many were lost ([`DmCheck`]).
     #[serde(default)]
     pub dm_checks: Vec<DmCheck>,
     /// Acknowledged records lost: the sum of `dm_checks`' `lost` — records a producer was
-    /// told were stored that the datamanager's primary no longer held at the end, retention
+    /// told were stored that the datamanager's leader no longer held at the end, retention
     /// and acknowledged deletes accounted for. `None` when the run checked no datamanager.
     #[serde(default)]
     pub acknowledged_lost: Option<u64>,

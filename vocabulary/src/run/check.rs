@@ -5,7 +5,7 @@ use serde::{Deserialize, Serialize};
 
 /// The check of one datamanager at the end of a run (`dm_checked` event, the report's
 /// `dm_checks`): every record a producer of the run was told was stored — a `store`
-/// answered with the record's seq — looked up in what the datamanager's primary holds at
+/// answered with the record's seq — looked up in what the datamanager's leader holds at
 /// the end. Each such record is counted once, in one of `held`, `dropped_by_retention`,
 /// `deleted`, `unchecked` or `lost`, which add up to `acknowledged`.
 #[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -13,7 +13,7 @@ use serde::{Deserialize, Serialize};
 pub struct DmCheck {
     /// The datamanager's name.
     pub dm: String,
-    /// The node of the instance that was asked (a replicated datamanager's primary); `None`
+    /// The node of the instance that was asked (a replicated datamanager's leader); `None`
     /// when none could be asked (see `error`).
     pub node: Option<String>,
     /// Records the run heard acknowledged: stores answered with a seq, as the producers'

@@ -166,18 +166,16 @@ fn datamanager(
     seen: &[DatamanagerConfig],
     has_data_dir: bool,
 ) -> Option<DatamanagerConfig> {
-    r.unknown_keys(t, &["name", "id", "durability", "copies", "catch_up"]);
+    r.unknown_keys(
+        t,
+        &["name", "id", "durability", "replicas", "copies", "catch_up"],
+    );
     let catch_up = r
         .integer(t, "catch_up", Some(0), 1..=i64::from(u32::MAX))
         .filter(|n| *n > 0)
         .map(|n| n as usize);
     let durability = durability(r, t, has_data_dir);
-    let copies: Vec<String> = r
-        .string_array(t, "copies")
-        .unwrap_or_default()
-        .into_iter()
-        .map(|(s, _)| s)
-        .collect();
+    let replicas = replicas(r, t);
     let name = r.required_string(t, "name")?;
     let known = [dm::FEATURE, dm::PARAMETER, dm::WORLD, dm::RUN];
     let id = r.integer(t, "id", Some(0), 0..=i64::from(u32::MAX));
@@ -206,10 +204,31 @@ fn datamanager(
     }
     Some(DatamanagerConfig {
         durability: durability.ok()?,
-        copies,
+        replicas: replicas?,
         catch_up,
         ..spec
     })
+}
+
+/// The nodes keeping replicas of a datamanager: `replicas = [...]`, or `copies`, its name in
+/// builds before the word was settled (read alike; both at once is an error).
+fn replicas(r: &mut Reader<'_>, t: &Tbl<'_, '_>) -> Option<Vec<String>> {
+    let names = |list: Option<Vec<(String, _)>>| -> Vec<String> {
+        list.unwrap_or_default()
+            .into_iter()
+            .map(|(s, _)| s)
+            .collect()
+    };
+    let replicas = r.string_array(t, "replicas");
+    let copies = r.string_array(t, "copies");
+    if replicas.is_some() && copies.is_some() {
+        r.err(
+            &t.span,
+            "give the datamanager's `replicas` once: `copies` is their old name",
+        );
+        return None;
+    }
+    Some(names(replicas.or(copies)))
 }
 
 /// The `[simulation]` table.
@@ -687,17 +706,28 @@ mod tests {
     }
 
     #[test]
-    fn copies_and_their_catch_up_are_read_and_a_bad_catch_up_is_refused_at_its_value() {
+    fn replicas_and_their_catch_up_are_read_and_a_bad_catch_up_is_refused_at_its_value() {
+        // `copies`, the old name, reads as `replicas`
         let c = parse(
             "[node]\nname = \"r1\"\ndata_dir = \"d\"\n\
-             [[datamanager]]\nname = \"feature\"\ncopies = [\"r1\", \"r2\", \"r3\"]\n\
+             [[datamanager]]\nname = \"feature\"\nreplicas = [\"r1\", \"r2\", \"r3\"]\n\
              catch_up = 500\n\
              [[datamanager]]\nname = \"world\"\ncopies = [\"r1\", \"r2\", \"r3\"]\n",
         )
         .unwrap();
-        assert_eq!(c.datamanagers[0].copies, ["r1", "r2", "r3"]);
+        assert_eq!(c.datamanagers[0].replicas, ["r1", "r2", "r3"]);
+        assert_eq!(c.datamanagers[1].replicas, ["r1", "r2", "r3"]);
         assert_eq!(c.datamanagers[0].catch_up, Some(500));
         assert_eq!(c.datamanagers[1].catch_up, None);
+        let e = parse(
+            "[node]\nname = \"r1\"\ndata_dir = \"d\"\n\
+             [[datamanager]]\nname = \"feature\"\nreplicas = [\"r1\"]\ncopies = [\"r1\"]\n",
+        )
+        .unwrap_err();
+        assert!(
+            e.contains("<node>:4:1:") && e.contains("`copies` is their old name"),
+            "{e}"
+        );
         for bad in ["0", "-3", "\"many\""] {
             let e = parse(&format!(
                 "[node]\nname = \"r1\"\ndata_dir = \"d\"\n\

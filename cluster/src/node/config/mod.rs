@@ -139,13 +139,13 @@ pub struct DatamanagerConfig {
     /// may need `sync` (survives a power loss, at an `fdatasync` per batch). `process` and
     /// `sync` need the node's `data_dir`; a config asking for them without one is refused.
     pub durability: Option<Durability>,
-    /// The nodes that keep a copy of it, the preferred primary first, this node among them
-    /// (empty: no copies). Every node named hosts a `[[datamanager]]` of the same name and
+    /// The nodes that keep a replica of it, the preferred leader first, this node among them
+    /// (empty: no replicas). Every node named hosts a `[[datamanager]]` of the same name and
     /// the same list; a write is acknowledged once a majority of them hold it, and when the
-    /// primary's node is lost another copy takes over ([`marie_dm::Replication`]).
+    /// leader's node is lost another replica takes over ([`marie_dm::Replication`]).
     /// Three or more, with a journal (`process` or `sync`).
-    pub copies: Vec<String>,
-    /// With copies: applied entries the primary keeps in memory to catch a lagging copy
+    pub replicas: Vec<String>,
+    /// With replicas: applied entries the leader keeps in memory to catch a lagging replica
     /// up, beyond which it sends a snapshot of the store (`None`:
     /// [`Replication::DEFAULT_CATCH_UP`](marie_dm::Replication::DEFAULT_CATCH_UP)).
     /// In a file, `catch_up = 10000`.
@@ -159,22 +159,22 @@ impl DatamanagerConfig {
             name: name.into(),
             id,
             durability: None,
-            copies: Vec::new(),
+            replicas: Vec::new(),
             catch_up: None,
         }
     }
 
-    /// Keep copies on the nodes `nodes` (this node among them; the first is the preferred
-    /// primary).
+    /// Keep replicas on the nodes `nodes` (this node among them; the first is the preferred
+    /// leader).
     ///
     /// ```
     /// use marie_dm::FEATURE;
     /// use marie_cluster::node::DatamanagerConfig;
-    /// let dm = DatamanagerConfig::from(FEATURE).with_copies(["features", "operations", "spare"]);
-    /// assert_eq!(dm.copies.len(), 3);
+    /// let dm = DatamanagerConfig::from(FEATURE).with_replicas(["features", "operations", "spare"]);
+    /// assert_eq!(dm.replicas.len(), 3);
     /// ```
-    pub fn with_copies(mut self, nodes: impl IntoIterator<Item = impl Into<String>>) -> Self {
-        self.copies = nodes.into_iter().map(Into::into).collect();
+    pub fn with_replicas(mut self, nodes: impl IntoIterator<Item = impl Into<String>>) -> Self {
+        self.replicas = nodes.into_iter().map(Into::into).collect();
         self
     }
 
@@ -520,18 +520,18 @@ impl NodeConfig {
                 }
                 _ => {}
             }
-            if !d.copies.is_empty() {
-                let replication = marie_dm::Replication::new(self.name.clone(), d.copies.clone());
+            if !d.replicas.is_empty() {
+                let replication = marie_dm::Replication::new(self.name.clone(), d.replicas.clone());
                 let durable = self.durability_of(d) != Durability::Memory;
                 let problem = replication.check().err().map(|e| e.to_string()).or_else(|| {
                     (!durable).then(|| {
-                        "copies need a journal: give the node a data_dir (durability process or sync)"
+                        "replicas need a journal: give the node a data_dir (durability process or sync)"
                             .to_string()
                     })
                 });
                 if let Some(message) = problem {
                     return Err(ConfigError::Range {
-                        what: format!("datamanager `{}`: copies", d.name),
+                        what: format!("datamanager `{}`: replicas", d.name),
                         message,
                     });
                 }

@@ -5,7 +5,7 @@
 //! permanent child of its root published in the registry as [`DESK_NAME`]. A member of the
 //! cluster (`marie up --run`, [`RunOptions::dispatch_on`](super::RunOptions::dispatch_on))
 //! asks a desk to [`DeskMsg::Start`] a run: the desk starts a dispatcher on its node that
-//! records the run's progress in the run datamanager ([`RUN`], kept in copies on other
+//! records the run's progress in the run datamanager ([`RUN`], kept in replicas on other
 //! nodes) at every transition ([`marie_actors::dispatcher::checkpoint`]). The member follows
 //! the run through the cluster's relayed events.
 //!
@@ -62,7 +62,7 @@ pub const DESK_NAME: &str = "dispatcher-desk";
 pub const DESK_ID: u32 = 1501;
 /// Child id of the desk under the node's root supervisor.
 pub(crate) const DESK: &str = "dispatcher-desk";
-/// How long a desk waits for the run datamanager (a copy being promoted).
+/// How long a desk waits for the run datamanager (a replica being promoted).
 const RUN_DM_WAIT: Duration = Duration::from_secs(10);
 /// How long a desk waits for the requester's event watcher to reach its node.
 const WATCHER_WAIT: Duration = Duration::from_secs(5);
@@ -383,7 +383,7 @@ fn dispatchers() -> impl Iterator<Item = registry::Instance> {
         .filter(|i| i.id == dispatcher::DISPATCHER_ID)
 }
 
-/// The run datamanager, waiting for one (a copy being promoted).
+/// The run datamanager, waiting for one (a replica being promoted).
 async fn run_dm() -> Result<DmClient, NoRunDm> {
     DmClient::lookup_within(RUN.name, CHECKPOINT_SOURCE, RUN_DM_WAIT)
         .await

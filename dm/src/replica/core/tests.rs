@@ -390,7 +390,7 @@ impl Sim {
                 Out::Lead => {
                     let term = core.term();
                     if let Some(other) = self.leaders.insert(term, m.to_string()) {
-                        assert_eq!(other, m, "two primaries in term {term}");
+                        assert_eq!(other, m, "two leaders in term {term}");
                     }
                 }
                 Out::StepDown(_) => {
@@ -629,7 +629,7 @@ fn the_entries_kept_in_memory_are_bounded_in_bytes_too() {
     }
     sim.settle();
     sim.payload = 16 << 10;
-    let leader = sim.leader().expect("a primary");
+    let leader = sim.leader().expect("a leader");
     for _ in 0..200 {
         sim.propose(&leader);
     }
@@ -702,7 +702,7 @@ fn a_more_up_to_date_copy_refused_by_a_copy_that_had_not_seen_the_primary_go_is_
     assert_eq!(sim.leader().as_deref(), Some("b"), "the more up to date");
     assert!(
         took < Duration::from_millis(1000),
-        "a primary only {took:?} after the loss"
+        "a leader only {took:?} after the loss"
     );
 }
 
@@ -722,7 +722,7 @@ fn elected_after_loss(sim: &mut Sim, gone: &str, detectors: &[(&str, u64)]) -> D
         if sim.leader().is_some() {
             return sim.now - lost;
         }
-        assert!(sim.now - lost < Duration::from_secs(10), "no primary");
+        assert!(sim.now - lost < Duration::from_secs(10), "no leader");
         sim.now += Duration::from_millis(5);
         sim.tick_all();
         exchange(sim, &mut |_, _, _| true);
@@ -776,7 +776,7 @@ fn a_primary_handing_over_while_it_takes_writes_gets_the_configured_copy_elected
     assert_eq!(
         sim.leader().as_deref(),
         Some("a"),
-        "a elected at the hand-over; the third copy {third} holds {:?}, a {:?}",
+        "a elected at the hand-over; the third replica {third} holds {:?}, a {:?}",
         sim.core(&third).last(),
         sim.core("a").last()
     );
@@ -819,7 +819,7 @@ fn a_copy_that_took_a_less_up_to_date_candidates_term_campaigns_soon_once_its_pr
     );
     assert!(
         took < Duration::from_millis(1000),
-        "a primary only {took:?} after the loss"
+        "a leader only {took:?} after the loss"
     );
     sim.settle();
     sim.check();
@@ -834,7 +834,7 @@ fn the_configured_primary_is_elected_and_commits() {
     assert_eq!(
         sim.leader().as_deref(),
         Some("a"),
-        "the eager copy wins a quiet start"
+        "the eager replica wins a quiet start"
     );
     sim.settle();
     sim.check();
@@ -848,18 +848,18 @@ fn a_lost_primary_is_replaced_and_nothing_acknowledged_is_lost() {
     for _ in 0..2000 {
         sim.step(false);
     }
-    let first = sim.leader().expect("a primary");
+    let first = sim.leader().expect("a leader");
     let acked = sim.acked.len();
     sim.crash(&first);
     for _ in 0..5000 {
         sim.step(false);
     }
-    let second = sim.leader().expect("a new primary");
+    let second = sim.leader().expect("a new leader");
     assert_ne!(first, second);
     sim.start(&first);
     sim.settle();
     sim.check();
-    assert!(sim.acked.len() > acked, "the new primary acknowledged more");
+    assert!(sim.acked.len() > acked, "the new leader acknowledged more");
 }
 
 #[test]
@@ -869,7 +869,7 @@ fn the_configured_primary_takes_over_once_it_is_back_and_caught_up() {
     for _ in 0..4000 {
         sim.step(false);
     }
-    let stand_in = sim.leader().expect("a primary without a");
+    let stand_in = sim.leader().expect("a leader without a");
     assert_ne!(stand_in, "a");
     let acked = sim.acked.len();
     sim.start("a");
@@ -879,7 +879,7 @@ fn the_configured_primary_takes_over_once_it_is_back_and_caught_up() {
     assert_eq!(
         sim.leader().as_deref(),
         Some("a"),
-        "the preferred copy leads again"
+        "the preferred replica leads again"
     );
     sim.settle();
     sim.check();
@@ -887,12 +887,12 @@ fn the_configured_primary_takes_over_once_it_is_back_and_caught_up() {
 }
 
 #[test]
-fn a_cut_off_primary_cannot_commit_and_rejoins_as_a_copy() {
+fn a_cut_off_leader_cannot_commit_and_rejoins_as_a_follower() {
     let mut sim = Sim::new(5, TAIL_KEEP);
     for _ in 0..2000 {
         sim.step(false);
     }
-    let first = sim.leader().expect("a primary");
+    let first = sim.leader().expect("a leader");
     sim.partition(&first);
     let acked = sim.acked.len();
     // the cut-off leader goes on proposing: none of it may be acknowledged
@@ -905,7 +905,7 @@ fn a_cut_off_primary_cannot_commit_and_rejoins_as_a_copy() {
     let new = MEMBERS
         .iter()
         .find(|m| **m != first && sim.replicas[**m].core.as_ref().unwrap().is_leader());
-    assert!(new.is_some(), "the majority elected a primary");
+    assert!(new.is_some(), "the majority elected a leader");
     assert!(
         sim.acked[acked..].iter().all(|(seq, _)| sim.truth[seq].term
             > sim
@@ -913,7 +913,7 @@ fn a_cut_off_primary_cannot_commit_and_rejoins_as_a_copy() {
                 .iter()
                 .find(|(_, l)| **l == first)
                 .map_or(0, |(t, _)| *t)),
-        "the cut-off primary acknowledged nothing"
+        "the cut-off leader acknowledged nothing"
     );
     sim.settle();
     sim.check();
@@ -947,7 +947,7 @@ fn thousands_of_seeded_faults_keep_every_invariant() {
         acked += sim.acked.len();
     }
     eprintln!(
-        "{SCHEDULES} schedules: {counts:?}, {terms} terms with a primary, {acked} acknowledged"
+        "{SCHEDULES} schedules: {counts:?}, {terms} terms with a leader, {acked} acknowledged"
     );
     // the schedules did what they are for
     for what in ["crashes", "partitions", "installs", "step-downs"] {
@@ -984,7 +984,7 @@ fn exchange(sim: &mut Sim, pass: &mut dyn FnMut(&str, &str, &mut ReplicaMsg) -> 
         sim.core(&t).receive(msg, now, &mut out);
         sim.run(&t, out);
     }
-    panic!("the copies never fell quiet");
+    panic!("the replicas never fell quiet");
 }
 
 /// Let time pass until a leader is elected, every message through `pass`; the leader.
@@ -997,7 +997,7 @@ fn elect(sim: &mut Sim, pass: &mut dyn FnMut(&str, &str, &mut ReplicaMsg) -> boo
         sim.now += timing().election / 4;
         sim.tick_all();
     }
-    panic!("no primary elected");
+    panic!("no leader elected");
 }
 
 #[test]
@@ -1008,7 +1008,7 @@ fn an_entry_of_an_older_term_on_a_majority_is_not_committed_until_one_of_the_pri
     sim.settle();
     let all = &mut |_: &str, _: &str, _: &mut ReplicaMsg| true;
     // 1. the leader proposes X, which reaches no other replica; it crashes
-    let l1 = sim.leader().expect("a primary");
+    let l1 = sim.leader().expect("a leader");
     let x_id = sim.next_id;
     sim.propose(&l1);
     sim.wires.clear();
@@ -1042,7 +1042,7 @@ fn an_entry_of_an_older_term_on_a_majority_is_not_committed_until_one_of_the_pri
     assert_eq!(sim.core(&f).last(), (x_seq, t1), "{f} holds X");
     assert!(
         sim.core(&l1).commit() < x_seq,
-        "X committed by counting copies of an older term"
+        "X committed by counting replicas of an older term"
     );
     assert!(!sim.acked.iter().any(|(_, id)| *id == x_id));
     // 4. the no-op's leader is back, X's goes: the no-op's log wins, X is overwritten —

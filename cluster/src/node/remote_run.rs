@@ -1,7 +1,7 @@
-//! A run dispatched on another node's desk ([`super::desk`]) and followed from this one:
+//! A run dispatched on another node's desk ([`super::desk`]) and watched from this one:
 //! what [`RunOptions::dispatch_on`](super::RunOptions::dispatch_on) does.
 //!
-//! The node asks the desk to start the run and then follows it through the cluster's
+//! The node asks the desk to start the run and then watches it through the cluster's
 //! relayed events ([`crate::relay`]): every event the run's dispatcher publishes — on the
 //! desk's node, then on each standby's that takes the run over — is republished on this
 //! node's bus ([`EventBus::republish`]), so the run's report, its fault injector, its
@@ -34,9 +34,9 @@ use tokio::time::Instant;
 pub const TAKEOVER_WAIT: Duration = Duration::from_secs(20);
 /// How long a desk may take to start a run.
 const START_TIMEOUT: Duration = Duration::from_secs(20);
-/// How many relayed events the follower holds before it takes them (it takes them as they
+/// How many relayed events the watch holds before it takes them (it takes them as they
 /// come; a run's events arrive far slower).
-const FOLLOW_CAPACITY: usize = 1 << 16;
+const RELAY_CAPACITY: usize = 1 << 16;
 /// Why a run waits for a takeover.
 #[derive(Clone, Copy, PartialEq, Eq)]
 enum Orphaned {
@@ -55,8 +55,8 @@ impl Orphaned {
     }
 }
 
-/// What the follower knows of the run while it follows it.
-struct Follower {
+/// What the run knows of the run while it watches it.
+struct RemoteRun {
     /// The dispatcher speaking for the run (its run_ended ends it): on the desk's node,
     /// until a takeover.
     voice: DispatcherVoice,
@@ -66,9 +66,9 @@ struct Follower {
     lost_since: Option<(Instant, Orphaned)>,
 }
 
-impl Follower {
+impl RemoteRun {
     fn new() -> Self {
-        Follower {
+        RemoteRun {
             voice: DispatcherVoice::default(),
             told: (0, Instant::now()),
             lost_since: None,
@@ -172,7 +172,7 @@ async fn until(deadline: Option<Instant>) {
 }
 
 impl Node {
-    /// Run `mission` on the desk of node `on` and follow it to its end (see the module
+    /// Run `mission` on the desk of node `on` and watch it to its end (see the module
     /// docs): the outcome its current dispatcher ends it with.
     pub(super) async fn dispatch_on(
         &self,
@@ -180,9 +180,9 @@ impl Node {
         on: &str,
     ) -> Result<Outcome, NodeError> {
         let desk = desk_on(on)?;
-        let watch = crate::relay::watch(FOLLOW_CAPACITY)
+        let watch = crate::relay::watch(RELAY_CAPACITY)
             .await
-            .map_err(|e| NodeError::Desk(format!("cannot follow the run's events: {e}")))?;
+            .map_err(|e| NodeError::Desk(format!("cannot watch the run's events: {e}")))?;
         let run = format!(
             "{}-{}",
             self.config.name,
@@ -193,8 +193,8 @@ impl Node {
         // subscribed before the run starts: a loss of its dispatcher is not missed
         let own = self.bus.subscribe();
         self.start_on(&desk, on, &run, bytes, &watch).await?;
-        tracing::info!(%run, node = %on, "run dispatched; following it");
-        self.follow(on, watch, own).await
+        tracing::info!(%run, node = %on, "run dispatched; watching it");
+        self.watch_run(on, watch, own).await
     }
 
     /// Ask the desk of node `on` to start `run` (the mission as `bytes`), its events
@@ -231,29 +231,29 @@ impl Node {
         }
     }
 
-    /// Follow the run dispatched on `on` to its end: its relayed events from `watch`, the
+    /// Watch the run dispatched on `on` to its end: its relayed events from `watch`, the
     /// news of the nodes from this node's bus (`own`), and the wait for a takeover.
-    async fn follow(
+    async fn watch_run(
         &self,
         on: &str,
         mut watch: Watch,
         mut own: EventSubscription,
     ) -> Result<Outcome, NodeError> {
-        let mut follower = Follower::new();
+        let mut run = RemoteRun::new();
         loop {
-            let current = follower.voice.node().unwrap_or(on).to_string();
+            let current = run.voice.node().unwrap_or(on).to_string();
             tokio::select! {
                 event = watch.recv() => {
                     let Some(event) = event else {
                         return Err(NodeError::Desk("the run's events stopped coming".into()));
                     };
-                    if let Some(outcome) = follower.relayed(&self.bus, event, &current) {
+                    if let Some(outcome) = run.relayed(&self.bus, event, &current) {
                         return Ok(outcome);
                     }
                 }
-                news = own.recv() => follower.own(news, &current)?,
-                () = until(follower.no_takeover_after()) => {
-                    return Ok(follower.no_takeover(&self.bus, &current));
+                news = own.recv() => run.own(news, &current)?,
+                () = until(run.no_takeover_after()) => {
+                    return Ok(run.no_takeover(&self.bus, &current));
                 }
             }
         }

@@ -1,4 +1,4 @@
-//! A run's events as a file writer takes them: every event the node's bus publishes from a
+//! A run's events fed to a file writer: every event the node's bus publishes from a
 //! subscription on, and — for a member of a cluster — every other node's
 //! ([`marie::cluster::relay`]), handed one at a time to a sink until told to stop, then what
 //! was published before the stop. The `--events` file and the `--mcap` file are two sinks.
@@ -16,7 +16,7 @@ pub(crate) trait Sink {
 /// Hand `sink` every event of `sub` and of `others` until `stopped`, then those published
 /// before it; give back the sink and how many events the subscription fell behind on and
 /// lost (the bus is bounded, the relay's backlog too). A sink's error ends it.
-async fn follow<S: Sink>(
+async fn feed<S: Sink>(
     mut sub: EventSubscription,
     mut others: Option<Watch>,
     mut stopped: oneshot::Receiver<()>,
@@ -61,33 +61,33 @@ async fn next_of(others: &mut Option<Watch>) -> Option<Event> {
     }
 }
 
-/// A sink following a bus (and the relay) in a task of its own, until
-/// [`finish`](Following::finish): the one way a run's files are written.
+/// A sink fed from a bus (and the relay) in a task of its own, until
+/// [`finish`](Feed::finish): the one way a run's files are written.
 #[derive(Debug)]
-pub(crate) struct Following<T> {
+pub(crate) struct Feed<T> {
     stop: oneshot::Sender<()>,
     task: tokio::task::JoinHandle<anyhow::Result<(T, u64)>>,
 }
 
-impl<T: Send + 'static> Following<T> {
+impl<T: Send + 'static> Feed<T> {
     /// Hand `sink` every event of `bus` from now on and of `others`; once stopped, `close`
-    /// makes of the sink what [`finish`](Following::finish) gives.
+    /// makes of the sink what [`finish`](Feed::finish) gives.
     pub(crate) fn start<S>(
         bus: &EventBus,
         others: Option<Watch>,
         sink: S,
         close: impl FnOnce(S) -> anyhow::Result<T> + Send + 'static,
-    ) -> Following<T>
+    ) -> Feed<T>
     where
         S: Sink + Send + 'static,
     {
         let sub = bus.subscribe();
         let (stop, stopped) = oneshot::channel::<()>();
         let task = tokio::spawn(async move {
-            let (sink, missed) = follow(sub, others, stopped, sink).await?;
+            let (sink, missed) = feed(sub, others, stopped, sink).await?;
             Ok((close(sink)?, missed))
         });
-        Following { stop, task }
+        Feed { stop, task }
     }
 
     /// Take what was published before this call, close the sink, and give what it made and
