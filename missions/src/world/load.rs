@@ -79,21 +79,9 @@ pub(crate) fn load(path: &Path) -> Result<World, Diagnostics> {
     parse(&src, Some(path))
 }
 
-/// Where problems go while walking the document: the shared TOML reader.
-type Ctx<'s> = Reader<'s>;
-
 /// A point written `[x, y]`.
-fn xy(ctx: &mut Ctx<'_>, v: &Val<'_>, field: &str) -> Option<Point> {
-    let DeValue::Array(items) = v.get_ref() else {
-        ctx.err(
-            &v.span(),
-            format!(
-                "expected a point `[x, y]` in `{field}`, found {}",
-                v.get_ref().type_str()
-            ),
-        );
-        return None;
-    };
+fn xy(ctx: &mut Reader<'_>, v: &Val<'_>, field: &str) -> Option<Point> {
+    let items = ctx.array(v, format_args!("a point `[x, y]` in `{field}`"))?;
     if items.len() != 2 {
         ctx.err(
             &v.span(),
@@ -110,7 +98,7 @@ fn xy(ctx: &mut Ctx<'_>, v: &Val<'_>, field: &str) -> Option<Point> {
 }
 
 /// A coordinate within ±[`MAX_COORD`], or a diagnostic.
-fn coordinate(ctx: &mut Ctx<'_>, v: &Val<'_>, field: &str) -> Option<f64> {
+fn coordinate(ctx: &mut Reader<'_>, v: &Val<'_>, field: &str) -> Option<f64> {
     let x = ctx.number(v, field)?;
     if let Err(want) = COORD.check(x) {
         ctx.err(
@@ -126,7 +114,7 @@ fn coordinate(ctx: &mut Ctx<'_>, v: &Val<'_>, field: &str) -> Option<f64> {
 }
 
 /// A point written `{ x = .., y = .. }` (or `[x, y]`).
-fn point(ctx: &mut Ctx<'_>, v: &Val<'_>, field: &str) -> Option<Point> {
+fn point(ctx: &mut Reader<'_>, v: &Val<'_>, field: &str) -> Option<Point> {
     if let DeValue::Array(_) = v.get_ref() {
         return xy(ctx, v, field);
     }
@@ -139,7 +127,7 @@ fn point(ctx: &mut Ctx<'_>, v: &Val<'_>, field: &str) -> Option<Point> {
 
 /// `points = [[x, y], ...]` of `tbl`: at least `min` points, no edge shorter than a
 /// millimetre.
-fn points(ctx: &mut Ctx<'_>, tbl: &Tbl<'_, '_>, min: usize, closed: bool) -> Option<Vec<Point>> {
+fn points(ctx: &mut Reader<'_>, tbl: &Tbl<'_, '_>, min: usize, closed: bool) -> Option<Vec<Point>> {
     let Some(v) = tbl.get("points") else {
         ctx.err(
             &tbl.span,
@@ -150,16 +138,7 @@ fn points(ctx: &mut Ctx<'_>, tbl: &Tbl<'_, '_>, min: usize, closed: bool) -> Opt
         );
         return None;
     };
-    let DeValue::Array(items) = v.get_ref() else {
-        ctx.err(
-            &v.span(),
-            format!(
-                "expected an array of points `[[x, y], ...]` for `points`, found {}",
-                v.get_ref().type_str()
-            ),
-        );
-        return None;
-    };
+    let items = ctx.array(v, "an array of points `[[x, y], ...]` for `points`")?;
     let mut out: Vec<Point> = Vec::new();
     let mut ok = true;
     for item in items.iter() {
@@ -212,7 +191,7 @@ fn points(ctx: &mut Ctx<'_>, tbl: &Tbl<'_, '_>, min: usize, closed: bool) -> Opt
 ///
 /// The order of the steps is the order of the diagnostics, which the tests pin.
 pub(crate) fn parse(src: &str, path: Option<&Path>) -> Result<World, Diagnostics> {
-    let mut ctx = Ctx::new(src, display_path(path));
+    let mut ctx = Reader::new(src, display_path(path));
     let Some(doc) = ctx.parse() else {
         return finish(ctx, None);
     };
@@ -253,7 +232,7 @@ pub(crate) fn parse(src: &str, path: Option<&Path>) -> Result<World, Diagnostics
 }
 
 /// `[world]`: its `name` (required, not blank) and `description` (empty when absent).
-fn world_table(ctx: &mut Ctx<'_>, top: &Tbl<'_, '_>) -> (String, String) {
+fn world_table(ctx: &mut Reader<'_>, top: &Tbl<'_, '_>) -> (String, String) {
     let Some(v) = top.get("world") else {
         ctx.err(
             &(0..0),
@@ -285,7 +264,7 @@ fn world_table(ctx: &mut Ctx<'_>, top: &Tbl<'_, '_>) -> (String, String) {
 }
 
 /// `[[wall]]`: at least one, each an open polyline of two points or more.
-fn wall_tables(ctx: &mut Ctx<'_>, top: &Tbl<'_, '_>) -> Vec<Vec<Point>> {
+fn wall_tables(ctx: &mut Reader<'_>, top: &Tbl<'_, '_>) -> Vec<Vec<Point>> {
     let Some(v) = top.get("wall") else {
         ctx.err(
             &(0..0),
@@ -304,7 +283,7 @@ fn wall_tables(ctx: &mut Ctx<'_>, top: &Tbl<'_, '_>) -> Vec<Vec<Point>> {
 }
 
 /// `[[obstacle]]`: optional, each a closed polygon of three points or more with an area.
-fn obstacle_tables(ctx: &mut Ctx<'_>, top: &Tbl<'_, '_>) -> Vec<Vec<Point>> {
+fn obstacle_tables(ctx: &mut Reader<'_>, top: &Tbl<'_, '_>) -> Vec<Vec<Point>> {
     let mut obstacles = Vec::new();
     if let Some(v) = top.get("obstacle") {
         for t in ctx.table_array(v, "obstacle").into_iter().flatten() {
@@ -319,7 +298,7 @@ fn obstacle_tables(ctx: &mut Ctx<'_>, top: &Tbl<'_, '_>) -> Vec<Vec<Point>> {
 
 /// `[cart]`: the cart's build and its start pose, with where the start was written (the
 /// span the start-pose check points at).
-fn cart_table(ctx: &mut Ctx<'_>, top: &Tbl<'_, '_>) -> (CartSpec, Pose, Span) {
+fn cart_table(ctx: &mut Reader<'_>, top: &Tbl<'_, '_>) -> (CartSpec, Pose, Span) {
     let Some(v) = top.get("cart") else {
         ctx.err(
             &(0..0),
@@ -337,7 +316,7 @@ fn cart_table(ctx: &mut Ctx<'_>, top: &Tbl<'_, '_>) -> (CartSpec, Pose, Span) {
 }
 
 /// `[[sonar]]`: the mounted sonars, or the default ring around `cart` when there is none.
-fn sonar_tables(ctx: &mut Ctx<'_>, top: &Tbl<'_, '_>, cart: &CartSpec) -> Vec<SonarMount> {
+fn sonar_tables(ctx: &mut Reader<'_>, top: &Tbl<'_, '_>, cart: &CartSpec) -> Vec<SonarMount> {
     match top.get("sonar") {
         None => SonarMount::default_ring(cart),
         Some(v) => ctx
@@ -350,19 +329,19 @@ fn sonar_tables(ctx: &mut Ctx<'_>, top: &Tbl<'_, '_>, cart: &CartSpec) -> Vec<So
 }
 
 /// `[goal]` (optional), with its table's span for the bounds check.
-fn goal_table(ctx: &mut Ctx<'_>, top: &Tbl<'_, '_>) -> Option<(GoalArea, Span)> {
+fn goal_table(ctx: &mut Reader<'_>, top: &Tbl<'_, '_>) -> Option<(GoalArea, Span)> {
     let t = ctx.table(top.get("goal")?, "[goal]")?;
     goal(ctx, &t).map(|g| (g, t.span.clone()))
 }
 
 /// `[dock]` (optional), with its table's span for the bounds check.
-fn dock_table(ctx: &mut Ctx<'_>, top: &Tbl<'_, '_>) -> Option<(Dock, Span)> {
+fn dock_table(ctx: &mut Reader<'_>, top: &Tbl<'_, '_>) -> Option<(Dock, Span)> {
     let t = ctx.table(top.get("dock")?, "[dock]")?;
     dock(ctx, &t).map(|d| (d, t.span.clone()))
 }
 
 /// `[sim]` (optional): the simulation's noise and sonar model, defaults where unwritten.
-fn sim_table(ctx: &mut Ctx<'_>, top: &Tbl<'_, '_>) -> SimSettings {
+fn sim_table(ctx: &mut Reader<'_>, top: &Tbl<'_, '_>) -> SimSettings {
     match top.get("sim").and_then(|v| ctx.table(v, "[sim]")) {
         Some(t) => sim_settings(ctx, &t),
         None => SimSettings::default(),
@@ -382,7 +361,7 @@ struct PartSpans {
 /// The checks that need several parts of the world, run only on a world whose parts are
 /// sound (so one mistake does not cascade): the cart starts clear of the walls and
 /// obstacles, and the goal and the dock lie within the walls.
-fn check_across_parts(ctx: &mut Ctx<'_>, world: &World, spans: &PartSpans) {
+fn check_across_parts(ctx: &mut Reader<'_>, world: &World, spans: &PartSpans) {
     if world.footprint_collides(&world.start) {
         ctx.err(
             &spans.start,
@@ -401,7 +380,7 @@ fn check_across_parts(ctx: &mut Ctx<'_>, world: &World, spans: &PartSpans) {
 /// `what` (a rectangle written at `span`) must lie within the walls' `bounds` (a world
 /// without bounds has room for nothing).
 fn check_within_walls(
-    ctx: &mut Ctx<'_>,
+    ctx: &mut Reader<'_>,
     bounds: Option<(Point, Point)>,
     r: &Rect,
     span: &Span,
@@ -423,11 +402,11 @@ fn check_within_walls(
     }
 }
 
-fn finish(ctx: Ctx<'_>, world: Option<World>) -> Result<World, Diagnostics> {
+fn finish(ctx: Reader<'_>, world: Option<World>) -> Result<World, Diagnostics> {
     ctx.finish(world, "the world file is not valid")
 }
 
-fn start_pose(ctx: &mut Ctx<'_>, cart: &Tbl<'_, '_>) -> Option<Pose> {
+fn start_pose(ctx: &mut Reader<'_>, cart: &Tbl<'_, '_>) -> Option<Pose> {
     let Some(v) = cart.get("start") else {
         ctx.err(
             &cart.span,
@@ -443,7 +422,7 @@ fn start_pose(ctx: &mut Ctx<'_>, cart: &Tbl<'_, '_>) -> Option<Pose> {
     Some(Pose::new(x?, y?, heading?.to_radians()))
 }
 
-fn cart_spec(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> CartSpec {
+fn cart_spec(ctx: &mut Reader<'_>, t: &Tbl<'_, '_>) -> CartSpec {
     let d = CartSpec::default();
     let length = ctx.num(t, "length", Some(d.length), CART_SIZE);
     let width = ctx.num(t, "width", Some(d.width), CART_SIZE);
@@ -505,7 +484,7 @@ fn cart_spec(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> CartSpec {
     }
 }
 
-fn sonar(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> Option<SonarMount> {
+fn sonar(ctx: &mut Reader<'_>, t: &Tbl<'_, '_>) -> Option<SonarMount> {
     ctx.unknown_keys(t, SONAR_KEYS);
     let x = ctx.num(t, "x", None, Rule::Within(-10.0, 10.0));
     let y = ctx.num(t, "y", None, Rule::Within(-10.0, 10.0));
@@ -534,16 +513,7 @@ fn sonar(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> Option<SonarMount> {
                 );
                 None
             }
-            other => {
-                ctx.err(
-                    &v.span(),
-                    format!(
-                        "expected \"narrow\" or \"wide\" for `beam`, found {}",
-                        other.type_str()
-                    ),
-                );
-                None
-            }
+            _ => ctx.expected(v, "\"narrow\" or \"wide\" for `beam`"),
         },
     };
     let default_range = match beam {
@@ -560,7 +530,7 @@ fn sonar(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> Option<SonarMount> {
     })
 }
 
-fn goal(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> Option<GoalArea> {
+fn goal(ctx: &mut Reader<'_>, t: &Tbl<'_, '_>) -> Option<GoalArea> {
     ctx.unknown_keys(t, GOAL_KEYS);
     let center = match t.get("center") {
         None => {
@@ -596,7 +566,7 @@ fn goal(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> Option<GoalArea> {
     })
 }
 
-fn dock(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> Option<Dock> {
+fn dock(ctx: &mut Reader<'_>, t: &Tbl<'_, '_>) -> Option<Dock> {
     ctx.unknown_keys(t, DOCK_KEYS);
     let opening = match t.get("opening") {
         None => {
@@ -651,7 +621,7 @@ fn dock(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> Option<Dock> {
     })
 }
 
-fn sim_settings(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> SimSettings {
+fn sim_settings(ctx: &mut Reader<'_>, t: &Tbl<'_, '_>) -> SimSettings {
     ctx.unknown_keys(t, SIM_KEYS);
     let d = SimSettings::default();
     let deg = |x: Option<f64>, default: f64| x.map_or(default, f64::to_radians);
@@ -683,16 +653,9 @@ fn sim_settings(ctx: &mut Ctx<'_>, t: &Tbl<'_, '_>) -> SimSettings {
                     d.rays_per_beam
                 }
             },
-            other => {
-                ctx.err(
-                    &v.span(),
-                    format!(
-                        "expected an integer for `rays_per_beam`, found {}",
-                        other.type_str()
-                    ),
-                );
-                d.rays_per_beam
-            }
+            _ => ctx
+                .expected(v, "an integer for `rays_per_beam`")
+                .unwrap_or(d.rays_per_beam),
         },
     };
     let narrow = ctx.num(

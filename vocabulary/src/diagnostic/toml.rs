@@ -192,6 +192,15 @@ impl<'s> Reader<'s> {
         self.diags.push(d);
     }
 
+    /// Record that `v` is of the wrong type: `expected {what}, found {its type}` — the one
+    /// wording of every getter's (and every format's) type mismatch. `None`, for the caller
+    /// to return (or `.unwrap_or(default)`).
+    pub fn expected<T>(&mut self, v: &Val<'_>, what: impl std::fmt::Display) -> Option<T> {
+        let found = v.get_ref().type_str();
+        self.err(&v.span(), format!("expected {what}, found {found}"));
+        None
+    }
+
     /// Record a diagnostic found elsewhere (e.g. in a file this one names).
     pub fn push(&mut self, d: Diagnostic) {
         self.diags.push(d);
@@ -249,7 +258,7 @@ impl<'s> Reader<'s> {
 
     /// The value as a table, or a diagnostic.
     pub fn table<'a, 'i>(&mut self, v: &'a Val<'i>, place: &str) -> Option<Tbl<'a, 'i>> {
-        self.table_or(v, place, &format!("a table for {place}"))
+        self.table_or(v, place, format!("a table for {place}"))
     }
 
     /// The value as a table named `place` in messages; otherwise a diagnostic that says what
@@ -260,7 +269,7 @@ impl<'s> Reader<'s> {
         &mut self,
         v: &'a Val<'i>,
         place: &str,
-        expected: &str,
+        expected: impl std::fmt::Display,
     ) -> Option<Tbl<'a, 'i>> {
         match v.get_ref() {
             DeValue::Table(t) => Some(Tbl {
@@ -268,27 +277,19 @@ impl<'s> Reader<'s> {
                 span: v.span(),
                 place: place.to_string(),
             }),
-            other => {
-                self.err(
-                    &v.span(),
-                    format!("expected {expected}, found {}", other.type_str()),
-                );
-                None
-            }
+            _ => self.expected(v, expected),
         }
     }
 
     /// The items of an array; otherwise a diagnostic, `expected {expected}, found {type}`.
-    pub fn array<'a, 'i>(&mut self, v: &'a Val<'i>, expected: &str) -> Option<&'a [Val<'i>]> {
+    pub fn array<'a, 'i>(
+        &mut self,
+        v: &'a Val<'i>,
+        expected: impl std::fmt::Display,
+    ) -> Option<&'a [Val<'i>]> {
         match v.get_ref() {
             DeValue::Array(items) => Some(items),
-            other => {
-                self.err(
-                    &v.span(),
-                    format!("expected {expected}, found {}", other.type_str()),
-                );
-                None
-            }
+            _ => self.expected(v, expected),
         }
     }
 
@@ -338,16 +339,7 @@ impl<'s> Reader<'s> {
                 }
             },
             DeValue::Float(f) => f.as_str().parse::<f64>().unwrap_or(f64::NAN),
-            other => {
-                self.err(
-                    &v.span(),
-                    format!(
-                        "expected a number for `{field}`, found {}",
-                        other.type_str()
-                    ),
-                );
-                return None;
-            }
+            _ => return self.expected(v, format_args!("a number for `{field}`")),
         };
         if !x.is_finite() {
             self.err(&v.span(), format!("`{field}` must be a finite number"));
@@ -401,16 +393,7 @@ impl<'s> Reader<'s> {
         };
         let n = match v.get_ref() {
             DeValue::Integer(i) => i64::from_str_radix(i.as_str(), i.radix()).ok(),
-            other => {
-                self.err(
-                    &v.span(),
-                    format!(
-                        "expected an integer for `{key}`, found {}",
-                        other.type_str()
-                    ),
-                );
-                return None;
-            }
+            _ => return self.expected(v, format_args!("an integer for `{key}`")),
         };
         match n {
             Some(n) if range.contains(&n) => Some(n),
@@ -449,16 +432,7 @@ impl<'s> Reader<'s> {
     pub fn string_value(&mut self, v: &Val<'_>, field: &str) -> Option<String> {
         match v.get_ref() {
             DeValue::String(s) => Some(s.to_string()),
-            other => {
-                self.err(
-                    &v.span(),
-                    format!(
-                        "expected a string for `{field}`, found {}",
-                        other.type_str()
-                    ),
-                );
-                None
-            }
+            _ => self.expected(v, format_args!("a string for `{field}`")),
         }
     }
 
@@ -484,32 +458,22 @@ impl<'s> Reader<'s> {
     /// array (a diagnostic); an item that is not a string is a diagnostic —
     /// ``expected a string in `{field}` `` — and left out.
     pub fn string_list(&mut self, v: &Val<'_>, field: &str) -> Option<Vec<Spanned<String>>> {
-        let items = self.array(v, &format!("an array of strings for `{field}`"))?;
-        let mut out = Vec::new();
-        for item in items {
-            match item.get_ref() {
-                DeValue::String(s) => out.push(Spanned::new(item.span(), s.to_string())),
-                other => self.err(
-                    &item.span(),
-                    format!("expected a string in `{field}`, found {}", other.type_str()),
-                ),
-            }
-        }
-        Some(out)
+        let items = self.array(v, format!("an array of strings for `{field}`"))?;
+        let strings = items
+            .iter()
+            .filter_map(|item| match item.get_ref() {
+                DeValue::String(s) => Some(Spanned::new(item.span(), s.to_string())),
+                _ => self.expected(item, format_args!("a string in `{field}`")),
+            })
+            .collect();
+        Some(strings)
     }
 
     /// The value as a 64-bit integer; another type, or an integer too large for 64 bits
     /// (shown as the file wrote it), is a diagnostic.
     pub fn int_value(&mut self, v: &Val<'_>, field: &str) -> Option<i64> {
         let DeValue::Integer(i) = v.get_ref() else {
-            self.err(
-                &v.span(),
-                format!(
-                    "expected an integer for `{field}`, found {}",
-                    v.get_ref().type_str()
-                ),
-            );
-            return None;
+            return self.expected(v, format_args!("an integer for `{field}`"));
         };
         let parsed = i64::from_str_radix(i.as_str(), i.radix()).ok();
         if parsed.is_none() {
@@ -527,14 +491,7 @@ impl<'s> Reader<'s> {
     /// a 64-bit float (`1e400`, shown as the file wrote it), is a diagnostic.
     pub fn float_value(&mut self, v: &Val<'_>, field: &str) -> Option<f64> {
         let DeValue::Float(f) = v.get_ref() else {
-            self.err(
-                &v.span(),
-                format!(
-                    "expected a float for `{field}`, found {}",
-                    v.get_ref().type_str()
-                ),
-            );
-            return None;
+            return self.expected(v, format_args!("a float for `{field}`"));
         };
         match f.as_str().parse::<f64>() {
             Ok(x) if x.is_finite() || f.as_str().contains("inf") || x.is_nan() => Some(x),
@@ -558,7 +515,7 @@ impl<'s> Reader<'s> {
     /// (a diagnostic); an item that is not a string is a diagnostic and left out.
     pub fn string_array(&mut self, tbl: &Tbl<'_, '_>, key: &str) -> Option<Vec<(String, Span)>> {
         let v = tbl.get(key)?;
-        let items = self.array(v, &format!("an array of strings for `{key}`"))?;
+        let items = self.array(v, format!("an array of strings for `{key}`"))?;
         Some(
             items
                 .iter()
@@ -583,23 +540,16 @@ impl<'s> Reader<'s> {
         };
         match v.get_ref() {
             DeValue::Boolean(b) => *b,
-            other => {
-                self.err(
-                    &v.span(),
-                    format!(
-                        "expected true or false for `{key}`, found {}",
-                        other.type_str()
-                    ),
-                );
-                default
-            }
+            _ => self
+                .expected(v, format_args!("true or false for `{key}`"))
+                .unwrap_or(default),
         }
     }
 
     /// The tables of a `[[name]]` array, or diagnostics (`None` for an entry that is not a
     /// table, so callers keep their numbering).
     pub fn table_array<'a, 'i>(&mut self, v: &'a Val<'i>, name: &str) -> Vec<Option<Tbl<'a, 'i>>> {
-        let Some(items) = self.array(v, &format!("`[[{name}]]` tables")) else {
+        let Some(items) = self.array(v, format!("`[[{name}]]` tables")) else {
             return Vec::new();
         };
         items

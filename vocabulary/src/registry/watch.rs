@@ -71,11 +71,6 @@ impl ractor::Message for WatcherMsg {}
 
 struct Watcher;
 
-struct WatcherArgs {
-    kind: Option<ModuleKind>,
-    tx: mpsc::UnboundedSender<RegistryEvent>,
-}
-
 struct WatcherState {
     kind: Option<ModuleKind>,
     tx: mpsc::UnboundedSender<RegistryEvent>,
@@ -101,23 +96,20 @@ fn parse_group(group: &str) -> Option<Group<'_>> {
     Some(Group::Key(ModuleKind::from_prefix(prefix)?))
 }
 
-/// Whether `actor` is in `group` of the table now.
-fn member(group: &str, actor: &ActorId) -> bool {
-    pg::get_scoped_members(&SCOPE.to_string(), &group.to_string())
-        .iter()
-        .any(|a| a.get_id() == *actor)
-}
-
 /// Whether a lookup by name or by id finds `inst` (all three of its groups hold it).
 fn complete(inst: &Instance) -> bool {
-    let actor = inst.actor.get_id();
+    let (scope, actor) = (SCOPE.to_string(), inst.actor.get_id());
     [
         key_group(inst.kind, &inst.name),
         key_group(inst.kind, &inst.id.to_string()),
         entry_group(inst.kind, inst.id, &inst.name),
     ]
     .iter()
-    .all(|g| member(g, &actor))
+    .all(|group| {
+        pg::get_scoped_members(&scope, group)
+            .iter()
+            .any(|a| a.get_id() == actor)
+    })
 }
 
 impl WatcherState {
@@ -181,19 +173,15 @@ fn instance(kind: ModuleKind, id: u32, name: &str, actor: ActorCell) -> Instance
 impl Actor for Watcher {
     type Msg = WatcherMsg;
     type State = WatcherState;
-    type Arguments = WatcherArgs;
+    type Arguments = WatcherState;
 
     async fn pre_start(
         &self,
         myself: ActorRef<Self::Msg>,
-        args: WatcherArgs,
+        state: WatcherState,
     ) -> Result<WatcherState, ActorProcessingErr> {
         pg::monitor_scope(SCOPE.to_string(), myself.get_cell());
-        Ok(WatcherState {
-            kind: args.kind,
-            tx: args.tx,
-            pending: HashMap::new(),
-        })
+        Ok(state)
     }
 
     async fn post_stop(
@@ -240,7 +228,12 @@ impl Actor for Watcher {
 /// after this call returns are delivered in order.
 pub async fn watch(kind: Option<ModuleKind>) -> Result<Watch, ractor::SpawnErr> {
     let (tx, rx) = mpsc::unbounded_channel();
-    let (watcher, _) = Actor::spawn(None, Watcher, WatcherArgs { kind, tx }).await?;
+    let state = WatcherState {
+        kind,
+        tx,
+        pending: HashMap::new(),
+    };
+    let (watcher, _) = Actor::spawn(None, Watcher, state).await?;
     Ok(Watch { rx, watcher })
 }
 

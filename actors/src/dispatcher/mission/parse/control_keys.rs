@@ -106,7 +106,7 @@ fn retry(ctx: &mut Reader<'_>, v: &Val<'_>, owner: Owner) -> Option<Retry> {
     let t = ctx.table_or(
         v,
         &format!("`{field}`"),
-        &format!("a table for `{field}` (e.g. retry = {{ attempts = 3, backoff_s = 2.0 }})"),
+        format!("a table for `{field}` (e.g. retry = {{ attempts = 3, backoff_s = 2.0 }})"),
     )?;
     ctx.unknown_keys(&t, RETRY_KEYS);
     let backoff = match t.get("backoff_s") {

@@ -37,15 +37,10 @@ pub(super) fn read(ctx: &mut Reader<'_>, v: &Val<'_>) -> Vec<RawFlag> {
 /// The bit of flag `name`: an integer of 0..=31.
 fn bit(ctx: &mut Reader<'_>, name: &Spanned<String>, v: &Val<'_>) -> Option<Spanned<u8>> {
     if !matches!(v.get_ref(), DeValue::Integer(_)) {
-        ctx.err(
-            &v.span(),
-            format!(
-                "expected a bit number 0..=31 for flag {}, found {}",
-                quote(name.get_ref()),
-                v.get_ref().type_str()
-            ),
+        return ctx.expected(
+            v,
+            format_args!("a bit number 0..=31 for flag {}", quote(name.get_ref())),
         );
-        return None;
     }
     let bit = ctx.int_value(v, name.get_ref())?;
     match u8::try_from(bit).ok().filter(|b| *b < 32) {

@@ -113,17 +113,10 @@ fn kind(ctx: &mut Reader<'_>, group: &Tbl<'_, '_>) -> Option<Spanned<GroupKind>>
                 None
             }
         },
-        other => {
-            ctx.err(
-                &v.span(),
-                format!(
-                    "expected a string for `group.kind` ({}), found {}",
-                    GroupKind::NAMES,
-                    other.type_str()
-                ),
-            );
-            None
-        }
+        _ => ctx.expected(
+            v,
+            format_args!("a string for `group.kind` ({})", GroupKind::NAMES),
+        ),
     }
 }
 

@@ -48,16 +48,7 @@ fn number(ctx: &mut Reader<'_>, v: &Val<'_>, field: &str) -> Option<f64> {
     match v.get_ref() {
         DeValue::Integer(_) => ctx.int_value(v, field).map(|n| n as f64),
         DeValue::Float(_) => ctx.float_value(v, field),
-        other => {
-            ctx.err(
-                &v.span(),
-                format!(
-                    "expected a number of seconds for `{field}`, found {}",
-                    other.type_str()
-                ),
-            );
-            None
-        }
+        _ => ctx.expected(v, format_args!("a number of seconds for `{field}`")),
     }
 }
 
