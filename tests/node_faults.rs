@@ -368,7 +368,8 @@ fn the_killed_node_of_the_bound_operations_is_replaced_by_the_other_and_the_miss
     assert!(outcome.ends_with("collisions: 0"), "{outcome}");
     let verdict = up.wait_line("verdict: ");
     assert!(
-        verdict.starts_with("verdict: 1 fault injected (stop-node 1), 1 node lost (0 back), "),
+        // `up` restarts the killed node (the thesis layout's nodes are permanent)
+        verdict.starts_with("verdict: 1 fault injected (stop-node 1), 1 node lost (1 back), "),
         "{verdict}"
     );
     // the datamanagers' leaders on the killed node failed over to replicas that hold every
@@ -386,4 +387,65 @@ fn the_killed_node_of_the_bound_operations_is_replaced_by_the_other_and_the_miss
     up.signal("INT");
     up.wait_line("cluster stopped");
     assert_eq!(up.wait_exit(), Some(0), "{}", up.seen().join("\n"));
+}
+
+#[test]
+fn two_nodes_of_every_datamanager_killed_six_seconds_apart_are_restarted_and_the_mission_docks() {
+    // the dispatcher's node (a replica of every datamanager) killed at 3 s, then the
+    // operations' node (another) at 9 s: `up` restarts each (permanent, the default), it
+    // recovers its journals and its replicas catch up, so when the second dies the first is
+    // back and every datamanager keeps its majority; the standby carries the run on
+    let dir = tempfile::tempdir().unwrap();
+    let report_path = dir.path().join("report.json");
+    let out = marie(&[
+        "up",
+        THESIS,
+        "--run",
+        "missions/docking.toml",
+        "--speed",
+        SPEED,
+        "--fault",
+        "stop-node:features@3",
+        "--fault",
+        "stop-node:operations@9",
+        "--report",
+        report_path.to_str().unwrap(),
+    ]);
+    let stdout = text(&out.stdout);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{stdout}\n{}",
+        text(&out.stderr)
+    );
+    for node in ["features", "operations"] {
+        assert!(
+            stdout.contains(&format!(
+                "node {node} was killed (SIGKILL): restarting it in 0.10 s (restart 1 of at \
+                 most 5 within 60 s)"
+            )),
+            "{stdout}"
+        );
+        assert!(
+            stdout.contains(&format!("node {node} restarted: listening on ")),
+            "{stdout}"
+        );
+    }
+    assert!(stdout.contains("mission succeeded"), "{stdout}");
+    assert!(
+        stdout.contains("2 nodes lost (2 back)") && stdout.contains("1 takeover"),
+        "{stdout}"
+    );
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report_path).unwrap()).unwrap();
+    assert_eq!(report["outcome"], "succeeded");
+    assert_eq!(report["acknowledged_lost"], 0, "{report}");
+    let lost = report["nodes_lost"].as_array().unwrap();
+    assert_eq!(lost.len(), 2, "{lost:?}");
+    for n in lost {
+        assert!(
+            n["back_at_ms"].as_u64().unwrap() > n["at_ms"].as_u64().unwrap(),
+            "{lost:?}"
+        );
+    }
 }

@@ -127,6 +127,24 @@ impl NodeChild {
         self.child.id()
     }
 
+    /// How it ended, once it has (reaped); `None` while it runs.
+    pub(crate) fn exit(&mut self) -> Option<marie::cluster::layout::Exit> {
+        use marie::cluster::layout::Exit;
+        use std::os::unix::process::ExitStatusExt;
+        let status = self.child.try_wait().ok()??;
+        Some(match (status.code(), status.signal()) {
+            (Some(code), _) => Exit::Code(code),
+            (None, Some(sig)) => Exit::Signal(sig),
+            (None, None) => Exit::Code(-1),
+        })
+    }
+
+    /// Kill it (`SIGKILL`) and reap it: for a child that closed its output but lives on.
+    pub(crate) fn kill(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+
     /// Ask it to stop (close its pipe); kill it if it has not within the grace period.
     /// Returns its exit code (`None` when killed by a signal).
     pub(crate) fn stop(&mut self) -> Option<i32> {

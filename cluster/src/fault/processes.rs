@@ -8,8 +8,8 @@ use std::io::{Error, ErrorKind};
 use std::sync::{Arc, Mutex, MutexGuard};
 
 /// The node processes this process may stop, by node name: the children `marie up`
-/// started and still holds (an exited child stays unreaped until `marie up` stops it, so
-/// its pid is never another process's) — and, when it started them in a network it can
+/// started and still holds (a child that ended is taken out before it is reaped, so a pid
+/// here is never another process's; one `up` restarted is put back) — and, when it started them in a network it can
 /// cut, that network. Empty in any other process: there, a node fault is refused before it
 /// is tried. Cheap to clone; clones share the table.
 #[derive(Clone, Debug, Default)]
@@ -57,6 +57,22 @@ impl NodeProcesses {
     /// Whether the nodes run in a network that can be cut.
     pub fn can_cut(&self) -> bool {
         self.lock().network.is_some()
+    }
+
+    /// `node`'s process was started again (by `marie up`'s restart) as `pid`: it may be
+    /// stopped, frozen and cut off again.
+    pub fn started(&self, node: &str, pid: u32) {
+        let mut table = self.lock();
+        table.pids.insert(node.to_string(), pid);
+        table.frozen.remove(node);
+    }
+
+    /// `node`'s process ended and was reaped: its pid may be another process's soon, so it
+    /// is no longer offered (until [`started`](Self::started) again).
+    pub fn ended(&self, node: &str) {
+        let mut table = self.lock();
+        table.pids.remove(node);
+        table.frozen.remove(node);
     }
 
     /// Kill `node`'s process (`SIGKILL`, as a crash would); its pid. A node is killed

@@ -18,6 +18,7 @@
 //! - `data_dirs.rs` — where the nodes keep their journals;
 //! - `network.rs` — the private network of namespaces, made before the runtime;
 //! - `nodes.rs` — the node processes started, converged, stopped;
+//! - `supervisor.rs` — a node whose process ends restarted as the cluster file says;
 //! - `serve.rs` — the listing, then the mission or the cluster served until a signal;
 //! - `mission.rs` — `--run`: the mission run as `run --join` would.
 
@@ -27,6 +28,7 @@ mod network;
 mod nodes;
 mod plan;
 mod serve;
+mod supervisor;
 
 pub(crate) use network::private_network;
 
@@ -94,7 +96,8 @@ pub(crate) struct UpArgs {
     pub faults: Vec<FaultSpec>,
     /// With `--run`: every 8 to 16 s of mission time, stop, freeze (2 to 6 s) or cut off
     /// (2 to 6 s, where the nodes run in a private network) a random node other than the
-    /// cart's, drawn by a generator seeded with SEED. A stopped node stays down.
+    /// cart's, drawn by a generator seeded with SEED. A stopped node is restarted as the
+    /// cluster file says (by default at once: `restart = "permanent"`).
     #[arg(long, value_name = "SEED", value_parser = parse_seed, allow_hyphen_values = true,
           requires = "run")]
     pub chaos_nodes: Option<u64>,

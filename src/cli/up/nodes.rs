@@ -1,7 +1,9 @@
 //! `marie up`'s node processes: started (the first listens, the others join it), waited for
-//! until the registry has converged, stopped on the way out.
+//! until the registry has converged, supervised (restarted as the cluster file says),
+//! stopped on the way out.
 
 use super::plan::UpPlan;
+use super::supervisor::{self, Lines, Supervised};
 use crate::cli::children::{stop_all, Line, Listening, NodeChild, NodeLaunch};
 use crate::cli::join::{join, member_name};
 use marie::cluster::fault::NodeProcesses;
@@ -21,6 +23,10 @@ pub(super) struct Nodes {
     pub(super) lines: mpsc::UnboundedReceiver<Line>,
     /// How many modules each node hosts itself, as it said when it listened.
     hosted: BTreeMap<String, usize>,
+    /// The sender the children hold, for children started again; taken by the supervisor.
+    raw_tx: Option<mpsc::UnboundedSender<Line>>,
+    /// Once the cluster is up: the task that restarts nodes (it holds the children).
+    supervised: Option<Supervised>,
 }
 
 impl Nodes {
@@ -37,6 +43,8 @@ impl Nodes {
             children: Vec::new(),
             lines,
             hosted: BTreeMap::new(),
+            raw_tx: Some(tx.clone()),
+            supervised: None,
         };
         let mut started = nodes.start_some(exe, &mut launches[..1], &tx).await;
         if started.is_ok() {
@@ -46,8 +54,6 @@ impl Nodes {
             }
             started = nodes.start_some(exe, &mut launches[1..], &tx).await;
         }
-        // the children hold the senders left: the lines end when every node has exited
-        drop(tx);
         (nodes, started)
     }
 
@@ -85,6 +91,7 @@ impl Nodes {
                     Some(Line { node, text: None }) => {
                         anyhow::bail!("node `{node}` exited while starting (its errors are above)")
                     }
+                    // never: `self.raw_tx` holds a sender
                     None => anyhow::bail!("every node exited while starting"),
                 }
             }
@@ -127,9 +134,33 @@ impl Nodes {
         }
     }
 
-    /// Stop every node, say how each that did not exit cleanly ended, and that the cluster
-    /// stopped.
-    pub(super) async fn stop(self) -> anyhow::Result<()> {
+    /// From now on, restart a node whose process ends as the cluster file says; `lines`
+    /// gives what the supervisor passes on (it ends when every node is down for good).
+    pub(super) fn supervise(&mut self, plan: &UpPlan, processes: NodeProcesses) {
+        let Some(raw_tx) = self.raw_tx.take() else {
+            return;
+        };
+        let (out, lines) = mpsc::unbounded_channel();
+        let raw = std::mem::replace(&mut self.lines, lines);
+        let restarts: Vec<_> = plan.layout.nodes.iter().map(|n| n.restart).collect();
+        self.supervised = Some(supervisor::supervise(
+            plan.exe.clone(),
+            std::mem::take(&mut self.children),
+            &plan.launches,
+            &restarts,
+            Lines { raw, raw_tx, out },
+            processes,
+        ));
+    }
+
+    /// Stop every node (first the restarts), say how each that did not exit cleanly ended,
+    /// and that the cluster stopped.
+    pub(super) async fn stop(mut self) -> anyhow::Result<()> {
+        // the children's lines are read until they have stopped (see `Stopped`)
+        let mut _raw = None;
+        if let Some(supervised) = self.supervised.take() {
+            (self.children, _raw) = supervised.stop().await;
+        }
         let mut children = self.children;
         let stopped = tokio::task::spawn_blocking(move || stop_all(&mut children)).await?;
         for (name, code) in stopped {

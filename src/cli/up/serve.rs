@@ -21,6 +21,7 @@ pub(super) async fn serve(
 ) -> anyhow::Result<ExitCode> {
     list_when_converged(plan, nodes).await?;
     let processes = nodes.processes(&plan.launches);
+    nodes.supervise(plan, processes.clone());
     match &args.run {
         Some(mission) => run_mission(args, plan, mission, processes).await,
         None => watch(args, plan, &mut nodes.lines, processes).await,

@@ -12,6 +12,7 @@
 //! [[node]]
 //! config = "thesis/features.toml"
 //! listen = "127.0.0.1:7102"    # optional: else a free port on 127.0.0.1
+//! restart = "transient"        # optional: how `marie up` restarts it (see `restart`)
 //! ```
 //!
 //! Every node config is loaded and checked with the file, and node names must differ (two
@@ -26,6 +27,10 @@
 //! let layout = ClusterLayout::load(&dir.path().join("c.toml"), &[]).unwrap();
 //! assert_eq!(layout.nodes[0].config.name, "a");
 //! ```
+
+mod restart;
+
+pub use restart::{Exit, NodeRestart, RestartPolicy, RestartTracker, Verdict};
 
 use crate::net::check_cookie;
 use crate::node::config::socket_addr;
@@ -100,6 +105,8 @@ pub struct ClusterLayout {
     pub seed: Option<u64>,
     /// The nodes, in file order.
     pub nodes: Vec<LayoutNode>,
+    /// How `marie up` restarts a node whose config gives no restart keys of its own.
+    pub restart: NodeRestart,
 }
 
 impl ClusterLayout {
@@ -132,6 +139,8 @@ pub struct LayoutNode {
     pub config: NodeConfig,
     /// Where it listens; `None`: a free port on 127.0.0.1.
     pub listen: Option<SocketAddr>,
+    /// How `marie up` restarts it when its process ends.
+    pub restart: NodeRestart,
 }
 
 impl ClusterLayout {
@@ -152,6 +161,7 @@ impl ClusterLayout {
             world: None,
             seed: None,
             nodes: Vec::new(),
+            restart: NodeRestart::default(),
         };
         match top.get("cluster").map(|v| r.table(v, "[cluster]")) {
             None => r.err(
@@ -179,9 +189,11 @@ impl ClusterLayout {
         Diagnostics(all).into_result(layout)
     }
 
-    /// `[cluster]`: cookie, speed, world, seed.
+    /// `[cluster]`: cookie, speed, world, seed, the nodes' restart settings.
     fn read_cluster_table(&mut self, r: &mut Reader<'_>, t: &Tbl<'_, '_>, dir: &Path) {
-        r.unknown_keys(t, &["cookie", "speed", "world", "seed"]);
+        let keys = ["cookie", "speed", "world", "seed"];
+        r.unknown_keys(t, &[&keys[..], &restart::KEYS[..]].concat());
+        self.restart = NodeRestart::default().read(r, t);
         if let Some(cookie) = r.required_string(t, "cookie") {
             if let Err(e) = check_cookie(&cookie) {
                 let span = t.get("cookie").map(|v| v.span()).unwrap_or(0..0);
@@ -209,7 +221,8 @@ impl ClusterLayout {
         catalog: &[OperationFactory],
         nested: &mut Vec<Diagnostic>,
     ) {
-        r.unknown_keys(t, &["config", "listen"]);
+        r.unknown_keys(t, &[&["config", "listen"][..], &restart::KEYS[..]].concat());
+        let restart = self.restart.read(r, t);
         let listen = t.get("listen").and_then(|v| {
             let s = r.string_value(v, "listen")?;
             socket_addr(r, &s, &v.span(), "listen")
@@ -265,6 +278,7 @@ impl ClusterLayout {
             path,
             config,
             listen,
+            restart,
         });
     }
 }
@@ -272,6 +286,7 @@ impl ClusterLayout {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::time::Duration;
 
     #[test]
     fn a_speed_out_of_range_is_matched_by_its_side_and_keeps_its_text() {
@@ -312,6 +327,57 @@ mod tests {
         let names: Vec<_> = l.nodes.iter().map(|n| n.config.name.as_str()).collect();
         assert_eq!(names, ["a", "b"]);
         assert_eq!(l.nodes[1].listen, Some("127.0.0.1:7001".parse().unwrap()));
+    }
+
+    #[test]
+    fn a_node_restarts_as_the_cluster_says_unless_its_own_keys_say_otherwise() {
+        let dir = tempfile::tempdir().unwrap();
+        write(dir.path(), "a.toml", "[node]\nname = \"a\"\n");
+        write(dir.path(), "b.toml", "[node]\nname = \"b\"\n");
+        let c = write(
+            dir.path(),
+            "c.toml",
+            "[cluster]\ncookie = \"k\"\nmax_restarts = 2\nbackoff = 0.5\n\
+             [[node]]\nconfig = \"a.toml\"\n\
+             [[node]]\nconfig = \"b.toml\"\nrestart = \"temporary\"\nrestart_period = 5\n",
+        );
+        let l = ClusterLayout::load(&c, &[]).unwrap();
+        let a = l.nodes[0].restart;
+        assert_eq!(a.policy, RestartPolicy::Permanent);
+        assert_eq!((a.max_restarts, a.backoff), (2, Duration::from_millis(500)));
+        let b = l.nodes[1].restart;
+        assert_eq!(b.policy, RestartPolicy::Temporary);
+        assert_eq!((b.max_restarts, b.period), (2, Duration::from_secs(5)));
+        // a file without restart keys: every node permanent, OTP-like defaults
+        let c = write(
+            dir.path(),
+            "plain.toml",
+            "[cluster]\ncookie = \"k\"\n[[node]]\nconfig = \"a.toml\"\n",
+        );
+        let l = ClusterLayout::load(&c, &[]).unwrap();
+        assert_eq!(l.nodes[0].restart, NodeRestart::default());
+    }
+
+    #[test]
+    fn bad_restart_settings_are_reported_at_their_line() {
+        let dir = tempfile::tempdir().unwrap();
+        write(dir.path(), "a.toml", "[node]\nname = \"a\"\n");
+        let c = write(
+            dir.path(),
+            "c.toml",
+            "[cluster]\ncookie = \"k\"\nrestart = \"always\"\nmax_restarts = -1\n\
+             [[node]]\nconfig = \"a.toml\"\nbackoff = 2\nmax_backoff = 1\nrestart_period = 0\n",
+        );
+        let text = ClusterLayout::load(&c, &[]).unwrap_err().to_string();
+        let f = c.display().to_string();
+        for want in [
+            format!("{f}:3:11: `restart` must be \"permanent\", \"transient\" or \"temporary\", found \"always\""),
+            format!("{f}:4:16: `max_restarts` must be an integer in [0, 1000], found -1"),
+            format!("{f}:9:18: `restart_period` must be in (0, 86400], found 0"),
+            format!("{f}:8:15: `max_backoff` (1 s) must be at least `backoff` (2 s)"),
+        ] {
+            assert!(text.contains(&want), "{want}\nnot in:\n{text}");
+        }
     }
 
     #[test]
