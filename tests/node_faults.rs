@@ -449,3 +449,48 @@ fn two_nodes_of_every_datamanager_killed_six_seconds_apart_are_restarted_and_the
         );
     }
 }
+
+#[test]
+fn a_datamanager_that_lost_its_majority_ends_the_run_in_bounded_time_naming_the_nodes_it_misses() {
+    // the same two kills, but the nodes stay down: the run datamanager (and the others)
+    // lose their majority; the run waits for it (marie_dm::MAJORITY_WAIT, 15 s), then
+    // fails with a reason an operator can act on — not a wait without end
+    let dir = tempfile::tempdir().unwrap();
+    let cluster = common::cluster::thesis_with(dir.path(), "restart = \"temporary\"");
+    let out = marie(&[
+        "up",
+        cluster.to_str().unwrap(),
+        "--run",
+        "missions/docking.toml",
+        "--speed",
+        SPEED,
+        "--fault",
+        "stop-node:features@3",
+        "--fault",
+        "stop-node:operations@9",
+    ]);
+    let stdout = text(&out.stdout);
+    assert_eq!(
+        out.status.code(),
+        Some(1),
+        "{stdout}\n{}",
+        text(&out.stderr)
+    );
+    assert!(
+        stdout.contains(
+            "node operations was killed (SIGKILL): it stays down (restart = \"temporary\")"
+        ),
+        "{stdout}"
+    );
+    let failed = stdout
+        .lines()
+        .find(|l| l.starts_with("mission FAILED (full stop): "))
+        .unwrap_or_else(|| panic!("no failure in {stdout}"));
+    assert!(
+        failed.contains(
+            "has no majority: 1 of its 3 replicas answers (spare), a leader needs 2; \
+                         missing: features, operations"
+        ),
+        "{failed}"
+    );
+}

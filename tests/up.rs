@@ -5,7 +5,7 @@
 
 use crate::common;
 
-use common::cluster::{ls_join, wait_gone, Proc};
+use common::cluster::{ls_join, signal_pid, thesis_with, wait_gone, Proc};
 use common::monitor::page_of;
 use common::{marie, report_of, text};
 use std::collections::BTreeSet;
@@ -463,4 +463,113 @@ fn a_run_on_a_cluster_kept_up_starts_where_the_last_left_the_cart_or_from_the_st
     for (name, _, pid) in &nodes {
         assert!(wait_gone(*pid), "node {name} (pid {pid}) outlived marie up");
     }
+}
+
+/// `marie ls --join ADDR --cookie marie-thesis --json`: its rows.
+fn ls_rows(addr: &str) -> Vec<serde_json::Value> {
+    let out = marie(&["ls", "--join", addr, "--cookie", "marie-thesis", "--json"]);
+    serde_json::from_slice::<serde_json::Value>(&out.stdout)
+        .ok()
+        .and_then(|v| v.as_array().cloned())
+        .unwrap_or_default()
+}
+
+/// Ask `ls` until `done` holds of its rows (every 250 ms, for at most 60 s); the last rows.
+fn ls_until(addr: &str, done: impl Fn(&[serde_json::Value]) -> bool) -> Vec<serde_json::Value> {
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+    loop {
+        let rows = ls_rows(addr);
+        if done(&rows) || std::time::Instant::now() > deadline {
+            return rows;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(250));
+    }
+}
+
+#[test]
+fn a_node_killed_under_up_is_restarted_rejoins_and_its_replicas_catch_up() {
+    let mut up = Proc::spawn("marie up", &["up", THESIS, "--speed", SPEED]);
+    up.wait_line("Ctrl-C stops the cluster");
+    let nodes: Vec<(String, String, u32)> = up.seen().iter().filter_map(|l| node_line(l)).collect();
+    let (_, cart, _) = &nodes[0];
+    let (name, _, pid) = &nodes[2];
+    assert_eq!(name, "operations");
+    // killed by something else than a fault of marie's: `up` sees its process end
+    signal_pid(*pid, "KILL");
+    up.wait_line("node operations was killed (SIGKILL): restarting it in 0.10 s");
+    let back = up.wait_line("node operations restarted: listening on ");
+    assert!(!back.contains(&format!("(pid {pid})")), "{back}");
+    // the whole cluster is listed again, and every datamanager's leader sees both of its
+    // followers with nothing left to catch up
+    let caught_up = |rows: &[serde_json::Value]| {
+        let dms: Vec<&serde_json::Value> =
+            rows.iter().filter(|r| r["replica"].is_object()).collect();
+        rows.len() == 27
+            && dms.len() == 4
+            && dms.iter().all(|r| {
+                let lag = r["replica"]["lag"].as_object().cloned().unwrap_or_default();
+                lag.len() == 2 && lag.values().all(|l| l == 0)
+            })
+    };
+    let rows = ls_until(cart, caught_up);
+    assert!(caught_up(&rows), "{rows:#?}");
+    assert!(
+        rows.iter()
+            .any(|r| r["node"] == "operations" && r["name"] == "localizer"),
+        "{rows:#?}"
+    );
+    up.signal("INT");
+    up.wait_line("cluster stopped");
+    assert_eq!(up.wait_exit(), Some(0), "{}", up.seen().join("\n"));
+}
+
+#[test]
+fn datamanagers_that_lost_their_majority_are_listed_with_the_nodes_they_miss() {
+    // the thesis layout, but nodes stay down once killed
+    let dir = tempfile::tempdir().unwrap();
+    let file = thesis_with(dir.path(), "restart = \"temporary\"");
+    let mut up = Proc::spawn(
+        "marie up",
+        &["up", file.to_str().unwrap(), "--speed", SPEED],
+    );
+    up.wait_line("Ctrl-C stops the cluster");
+    let nodes: Vec<(String, String, u32)> = up.seen().iter().filter_map(|l| node_line(l)).collect();
+    for (name, _, pid) in &nodes[1..3] {
+        signal_pid(*pid, "KILL");
+        up.wait_line(&format!(
+            "node {name} was killed (SIGKILL): it stays down (restart = \"temporary\")"
+        ));
+    }
+    let leaderless = |rows: &[serde_json::Value]| {
+        rows.iter().filter(|r| r["no_majority"].is_object()).count() == 4
+    };
+    let rows = ls_until(&nodes[3].1, leaderless);
+    assert!(leaderless(&rows), "{rows:#?}");
+    for r in rows.iter().filter(|r| r["no_majority"].is_object()) {
+        let lost = &r["no_majority"];
+        assert_eq!(lost["answering"], serde_json::json!(["spare"]), "{r}");
+        assert_eq!(
+            lost["missing"],
+            serde_json::json!(["features", "operations"]),
+            "{r}"
+        );
+        assert!(
+            lost["why"].as_str().unwrap().contains(&format!(
+                "datamanager `{}` has no majority: 1 of its 3 replicas answers (spare)",
+                r["name"].as_str().unwrap()
+            )),
+            "{r}"
+        );
+    }
+    // and in words
+    let out = marie(&["ls", "--join", &nodes[3].1, "--cookie", "marie-thesis"]);
+    let listing = text(&out.stdout);
+    assert!(
+        listing.contains("DM run: no majority — datamanager `run` has no majority: 1 of its 3 \
+                          replicas answers (spare), a leader needs 2; missing: features, operations"),
+        "{listing}"
+    );
+    up.signal("INT");
+    up.wait_line("cluster stopped");
+    assert_eq!(up.wait_exit(), Some(0), "{}", up.seen().join("\n"));
 }

@@ -78,6 +78,7 @@ mod handlers;
 mod index;
 mod journal;
 mod kind;
+mod majority;
 mod messages;
 mod name;
 mod outbox;
@@ -110,6 +111,7 @@ pub use journal::{
     journal_dir, DirLock, Durability, LockError, Recovery, UnknownDurability, SNAPSHOT_MIN,
 };
 pub use kind::RecordKind;
+pub use majority::{leaderless, without_leader, NoMajority, MAJORITY_WAIT, VIEW_TIMEOUT};
 pub use messages::{DmMsg, DmStats, ReplicaStats, StoreDigest};
 pub use name::Name;
 pub use page::{Page, PAGE_BYTES};

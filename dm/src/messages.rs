@@ -115,6 +115,13 @@ pub struct ReplicaStats {
     /// Snapshots of the store this replica took in from a leader (it lagged further than the
     /// leader keeps entries for), since it started.
     pub snapshots_taken: u64,
+    /// Every replica's node, this one's included (empty from builds before it was told).
+    #[serde(default)]
+    pub members: Vec<String>,
+    /// The other replicas' nodes it reaches now (it finds their actors): with itself, a
+    /// majority of [`members`](Self::members) is what a leader needs.
+    #[serde(default)]
+    pub reachable: Vec<String>,
 }
 
 marie_vocabulary::remote_message! {

@@ -89,6 +89,13 @@ impl DatamanagerState {
                     last,
                     lag: core.lag(),
                     snapshots_taken: r.snapshots_taken,
+                    members: {
+                        let mut all = core.others();
+                        all.push(core.me().to_string());
+                        all.sort();
+                        all
+                    },
+                    reachable: r.peers.keys().cloned().collect(),
                 }
             }),
             retention: Some(bound(self.store.config().default_retention)),

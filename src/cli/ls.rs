@@ -57,6 +57,9 @@ async fn print_listing(list: &[Instance], json: bool) -> anyhow::Result<()> {
     for i in list {
         dms.push(dm_state(i).await);
     }
+    // replicated datamanagers without a leader are in no listing of the registry: their
+    // replicas say why
+    let leaderless = marie::dm::leaderless(STATS_WITHIN).await;
     if json {
         let rows: Vec<_> = list
             .iter()
@@ -76,6 +79,16 @@ async fn print_listing(list: &[Instance], json: bool) -> anyhow::Result<()> {
                 }
                 row
             })
+            .chain(leaderless.iter().map(|lost| {
+                serde_json::json!({
+                    "kind": ModuleKind::Datamanager.label(), "name": lost.dm, "node": null,
+                    "no_majority": {
+                        "members": lost.members, "answering": lost.answering,
+                        "missing": lost.missing, "term": lost.term,
+                        "why": lost.to_string(),
+                    },
+                })
+            }))
             .collect();
         println!("{}", serde_json::to_string_pretty(&rows)?);
     } else {
@@ -106,6 +119,9 @@ async fn print_listing(list: &[Instance], json: bool) -> anyhow::Result<()> {
                 "DM {} on {}: {} records, {journal}{replicas}",
                 i.name, i.node, s.records
             );
+        }
+        for lost in &leaderless {
+            println!("DM {}: no majority — {lost}", lost.dm);
         }
     }
     Ok(())

@@ -406,6 +406,7 @@ impl Actor for ActionDispatcher {
             }
             DispatcherMsg::Abort { reason } => state.finish(&myself, Outcome::Failed, reason),
             DispatcherMsg::Fenced { newer } => state.fenced(&myself, newer),
+            DispatcherMsg::NoMajority { reason } => state.no_majority(&myself, reason),
             DispatcherMsg::Launch { generation } => state.launch(&myself, generation),
             DispatcherMsg::Wake {} => state.tick(&myself),
             DispatcherMsg::Alive { reply } => {

@@ -23,16 +23,23 @@
 //!   carry epochs already in force, which the operations fence, and an operation whose
 //!   report a standby never saw is attached again (or resumed, if it ended).
 //! - A checkpoint that cannot be stored for want of the datamanager (its leader failing
-//!   over, a partition) is retried until it is stored or refused: a dispatcher cut off from
-//!   the majority of the run's replicas waits.
+//!   over, a partition, a node of its replicas restarting) is retried until it is stored or
+//!   refused — for at most [`MAJORITY_WAIT`]: a run datamanager without a majority for that
+//!   long is an outcome, not a wait without end. The dispatcher is told
+//!   ([`DispatcherMsg::NoMajority`]) with a reason naming the datamanager and the nodes it
+//!   misses, and ends the run as failed without storing its end (it cannot); a task goes on
+//!   trying to store that end for [`END_AFTERLIFE`], so that no standby takes over a run
+//!   that ended once the majority is back.
 
 use super::messages::DispatcherMsg;
 use super::mission::Mission;
-use marie_dm::{DmClient, DmError, Query};
+use marie_dm::{DmClient, DmError, Query, MAJORITY_WAIT, VIEW_TIMEOUT};
 use marie_vocabulary::property::ParamMap;
 use marie_vocabulary::run::Outcome;
 use ractor::ActorRef;
 use serde::{Deserialize, Serialize};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::Duration;
 use tokio::sync::{mpsc, oneshot};
 
@@ -42,6 +49,9 @@ pub const CHECKPOINT_CLASS: &str = "checkpoint";
 pub const CHECKPOINT_SOURCE: &str = "dispatcher";
 /// How long a checkpoint write waits before it is tried again.
 const RETRY: Duration = Duration::from_millis(200);
+/// How long the end of a run that ended for want of a majority is still tried, once its
+/// dispatcher has stopped (see the module invariants).
+pub const END_AFTERLIFE: Duration = Duration::from_secs(300);
 
 /// A run's progress at one transition (see the module docs).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -165,6 +175,16 @@ pub(super) struct Superseded {
     pub(super) newer: u64,
 }
 
+/// Why [`write`] gave up on a checkpoint.
+#[derive(Clone, Debug, PartialEq, Eq)]
+enum Unstored {
+    /// A newer term refused it.
+    Superseded(Superseded),
+    /// The run datamanager stored nothing for [`MAJORITY_WAIT`]: why, naming it and the
+    /// nodes it misses.
+    NoMajority(String),
+}
+
 /// A checkpoint to write, and who waits for it.
 struct Job {
     checkpoint: Box<Checkpoint>,
@@ -178,6 +198,11 @@ pub(super) struct Checkpointer {
     pub(super) run: String,
     pub(super) term: u64,
     seq: u64,
+    /// The run datamanager, at the term's epoch.
+    dm: DmClient,
+    /// Set when the writer gave up for want of the run datamanager's majority (rather than
+    /// being refused by a newer term).
+    gave_up: Arc<AtomicBool>,
     jobs: mpsc::UnboundedSender<Job>,
     /// The writing task, aborted with the dispatcher: a write it retries for a dispatcher
     /// that stopped must not land later.
@@ -196,19 +221,34 @@ impl Checkpointer {
         let (jobs, mut rx) = mpsc::unbounded_channel::<Job>();
         let dm = args.dm.with_epoch(args.term);
         let run = args.run.clone();
+        let writer_dm = dm.clone();
+        let gave_up = Arc::new(AtomicBool::new(false));
+        let giving_up = gave_up.clone();
         let task = tokio::spawn(async move {
+            let dm = writer_dm;
             while let Some(job) = rx.recv().await {
-                let result = write(&dm, &run, &job.checkpoint).await;
-                if let Err(superseded) = result {
-                    let _ = dispatcher.cast(DispatcherMsg::Fenced {
-                        newer: superseded.newer,
-                    });
-                }
-                if let Some(done) = job.done {
-                    let _ = done.send(result);
-                }
-                if result.is_err() {
-                    break; // nothing more of this term is stored
+                match write(&dm, &run, &job.checkpoint, MAJORITY_WAIT).await {
+                    Ok(()) => {
+                        if let Some(done) = job.done {
+                            let _ = done.send(Ok(()));
+                        }
+                    }
+                    Err(Unstored::Superseded(superseded)) => {
+                        let _ = dispatcher.cast(DispatcherMsg::Fenced {
+                            newer: superseded.newer,
+                        });
+                        if let Some(done) = job.done {
+                            let _ = done.send(Err(superseded));
+                        }
+                        break; // nothing more of this term is stored
+                    }
+                    Err(Unstored::NoMajority(reason)) => {
+                        // the job's waiter is dropped: what waited for it never goes out
+                        // (but the run's end does: see `checkpoint_end`)
+                        giving_up.store(true, Ordering::SeqCst);
+                        let _ = dispatcher.cast(DispatcherMsg::NoMajority { reason });
+                        break;
+                    }
                 }
             }
         });
@@ -216,6 +256,8 @@ impl Checkpointer {
             run: args.run,
             term: args.term,
             seq: 0,
+            dm,
+            gave_up,
             jobs,
             task,
         }
@@ -234,8 +276,9 @@ impl Checkpointer {
             done: Some(tx),
         };
         if let Err(mpsc::error::SendError(job)) = self.jobs.send(job) {
-            // the writer stopped after a refusal: so is this one
-            if let Some(done) = job.done {
+            // the writer stopped after a refusal: so is this one; after it gave up for want
+            // of a majority, the waiter is dropped, as the job it gave up on was
+            if let (Some(done), false) = (job.done, self.gave_up.load(Ordering::SeqCst)) {
                 let _ = done.send(Err(Superseded {
                     newer: self.term + 1,
                 }));
@@ -245,8 +288,37 @@ impl Checkpointer {
     }
 }
 
-/// Store `checkpoint` until it is stored or refused for a newer term.
-async fn write(dm: &DmClient, run: &str, checkpoint: &Checkpoint) -> Result<(), Superseded> {
+impl Checkpointer {
+    /// Number the end of a run that ended for want of the run datamanager's majority and
+    /// store it once it has one again, for at most [`END_AFTERLIFE`], in a task of its own
+    /// (the dispatcher stops): refused by a newer term or given up, nothing more is done.
+    pub(super) fn store_end_later(mut self, mut checkpoint: Checkpoint) {
+        self.seq += 1;
+        checkpoint.seq = self.seq;
+        store_end_later(self.dm.clone(), checkpoint);
+    }
+}
+
+/// See [`Checkpointer::store_end_later`].
+fn store_end_later(dm: DmClient, checkpoint: Checkpoint) {
+    tokio::spawn(async move {
+        let run = checkpoint.run.clone();
+        match write(&dm, &run, &checkpoint, END_AFTERLIFE).await {
+            Ok(()) => tracing::info!(%run, "the end of the run is stored: its majority is back"),
+            Err(why) => tracing::warn!(%run, ?why, "the end of the run was never stored"),
+        }
+    });
+}
+
+/// Store `checkpoint` until it is stored, refused for a newer term, or nothing was stored
+/// for `patience`.
+async fn write(
+    dm: &DmClient,
+    run: &str,
+    checkpoint: &Checkpoint,
+    patience: Duration,
+) -> Result<(), Unstored> {
+    let since = tokio::time::Instant::now();
     let mut tries = 0u32;
     loop {
         match dm
@@ -271,9 +343,24 @@ async fn write(dm: &DmClient, run: &str, checkpoint: &Checkpoint) -> Result<(), 
                     newer = stale.current,
                     "checkpoint refused: a newer dispatcher carries the run on"
                 );
-                return Err(Superseded {
+                return Err(Unstored::Superseded(Superseded {
                     newer: stale.current,
-                });
+                }));
+            }
+            Err(e) if since.elapsed() >= patience => {
+                let why = match marie_dm::without_leader(dm.dm_name(), VIEW_TIMEOUT).await {
+                    Some(lost) => lost.to_string(),
+                    None => format!(
+                        "datamanager `{}` stored no checkpoint for {} s: {e}",
+                        dm.dm_name(),
+                        patience.as_secs()
+                    ),
+                };
+                tracing::warn!(run, %why, tries, "checkpoint given up");
+                return Err(Unstored::NoMajority(format!(
+                    "the run's progress could not be recorded for {} s: {why}",
+                    patience.as_secs()
+                )));
             }
             Err(e) => {
                 tries += 1;

@@ -95,6 +95,13 @@ marie_vocabulary::remote_message! {
             /// The newer term.
             newer: u64,
         },
+        /// A checkpoint could not be stored for
+        /// [`MAJORITY_WAIT`](marie_dm::MAJORITY_WAIT): the run datamanager has no majority.
+        /// The run ends as failed, with `reason`.
+        NoMajority {
+            /// Why, naming the datamanager and the nodes it misses.
+            reason: String,
+        },
         /// The checkpoint of action `generation`'s start is stored: launch it.
         Launch {
             /// Generation of the action.

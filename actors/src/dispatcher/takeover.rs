@@ -164,10 +164,18 @@ impl DispatcherState {
         let me = myself.clone();
         let reason = reason.to_string();
         ractor::concurrency::spawn(async move {
-            if let Ok(Ok(())) = stored.await {
-                let _ = me.cast(DispatcherMsg::Conclude { outcome, reason });
+            match stored.await {
+                Ok(Ok(())) => {
+                    let _ = me.cast(DispatcherMsg::Conclude { outcome, reason });
+                }
+                // refused: the writer told the dispatcher it is fenced
+                Ok(Err(_)) => {}
+                // given up for want of the run datamanager's majority (the writer dropped
+                // the job): the run ends all the same, with its own reason
+                Err(_) => {
+                    let _ = me.cast(DispatcherMsg::Conclude { outcome, reason });
+                }
             }
-            // refused: the writer told the dispatcher it is fenced
         });
         false
     }
@@ -188,6 +196,25 @@ impl DispatcherState {
         // dropping the reply port tells whoever waits that this dispatcher did not end it
         self.reply = None;
         myself.stop(None);
+    }
+
+    /// The run datamanager had no majority for [`MAJORITY_WAIT`](marie_dm::MAJORITY_WAIT)
+    /// (`reason` names it and the nodes it misses): end the run as failed now, without
+    /// waiting for its end to be stored — it cannot be — and store that end later, should
+    /// the majority come back (see the invariants of [`super::checkpoint`]).
+    pub(super) fn no_majority(&mut self, myself: &ActorRef<DispatcherMsg>, reason: String) {
+        if self.ended {
+            // its end was being stored: that wait concludes it (`checkpoint_end`)
+            return;
+        }
+        tracing::warn!(%reason, "the run datamanager has no majority: the run ends");
+        let end = self.snapshot(Some(Outcome::Failed));
+        // without a writer, the end is concluded at once
+        let writer = self.checkpoints.take();
+        self.finish(myself, Outcome::Failed, reason);
+        if let (Some(writer), Some(end)) = (writer, end) {
+            writer.store_end_later(end);
+        }
     }
 
     /// Carry on the run `take_over` holds the last checkpoint of (see the module docs):

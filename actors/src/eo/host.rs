@@ -416,23 +416,18 @@ impl<O: Operation> HostState<O> {
                     // wait replaces (cancels) it; its message names its activation, which a
                     // host that has moved on ignores
                     self.tick = Some(Timer::task(tokio::spawn(async move {
-                        let back = marie_vocabulary::registry::follow::next_instance(
-                            kind,
-                            &module,
-                            None,
-                            super::DATAMANAGER_RETURN,
-                        )
-                        .await;
-                        let message = if back.is_some() {
-                            tracing::info!(%module, "module back: stepping on");
-                            EoMsg::Tick { activation }
-                        } else {
-                            EoMsg::ModuleAbsent {
-                                activation,
-                                module,
-                                reason,
-                            }
-                        };
+                        let message =
+                            match super::absence::wait_for_module(kind, &module, reason).await {
+                                Ok(()) => {
+                                    tracing::info!(%module, "module back: stepping on");
+                                    EoMsg::Tick { activation }
+                                }
+                                Err(reason) => EoMsg::ModuleAbsent {
+                                    activation,
+                                    module,
+                                    reason,
+                                },
+                            };
                         let _ = myself.cast(message);
                     })));
                 }
@@ -577,8 +572,7 @@ impl<O: Operation> Actor for EoHost<O> {
                 if state.active.as_ref().map(|a| a.number) != Some(activation) {
                     return Ok(()); // the activation ended while it waited
                 }
-                tracing::warn!(op = %state.identity.name, %module, "operation failed: a module it needs did not come back");
-                let reason = format!("{reason} (not back within {:?})", super::DATAMANAGER_RETURN);
+                tracing::warn!(op = %state.identity.name, %module, %reason, "operation failed: a module it needs did not come back");
                 Box::pin(state.end_activation(|flags, epoch| EoReport::Failed {
                     reason,
                     flags,

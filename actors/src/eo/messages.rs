@@ -133,14 +133,15 @@ marie_vocabulary::remote_message! {
             activation: u64,
         },
         /// The module (a datamanager, the cart) that activation number `activation` waited
-        /// for did not come back within [`DATAMANAGER_RETURN`](super::DATAMANAGER_RETURN).
-        /// Only a host sends it, to itself.
+        /// for did not come back within [`DATAMANAGER_RETURN`](super::DATAMANAGER_RETURN)
+        /// (a datamanager without a majority: within
+        /// [`MAJORITY_WAIT`](marie_dm::MAJORITY_WAIT)). Only a host sends it, to itself.
         ModuleAbsent {
             /// Number of the activation that waited.
             activation: u64,
             /// The module's name.
             module: String,
-            /// Why the step failed in the first place.
+            /// Why the activation fails: why the step failed and how long it waited.
             reason: String,
         },
     }

@@ -38,6 +38,7 @@
 //! # }
 //! ```
 
+mod absence;
 mod client;
 mod declaration;
 mod factory;

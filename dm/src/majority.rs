@@ -1,0 +1,190 @@
+//! Why a replicated datamanager has no leader, as its replicas reachable from here see it —
+//! so that whoever waited for it in vain (a dispatcher's checkpoint, an operation, `marie
+//! ls`) can say which nodes it is missing instead of only "not reachable".
+//!
+//! A replica answers [`DmMsg::Stats`] whatever its role; its
+//! [`ReplicaStats`] say every member's node and the ones it reaches. Asking every replica
+//! found in the replicas' `pg` scope ([`SCOPE`]) gives the picture: a leader among them —
+//! there is a majority, perhaps just elected —, or none, and then the members nobody here
+//! reaches are the missing ones.
+
+use super::messages::{DmMsg, ReplicaStats};
+use super::replica::SCOPE;
+use marie_vocabulary::replica::ReplicaRole;
+use ractor::rpc::CallResult;
+use ractor::ActorRef;
+use std::collections::BTreeSet;
+use std::time::Duration;
+
+/// How long a run waits for a replicated datamanager that lost its majority to get it back
+/// — a node of its replicas restarted (by `marie up`, systemd, a container runtime) and
+/// caught up — before it fails, naming the datamanager and the nodes it misses: a node
+/// restarts in well under a second and its replicas catch up in a second or two, so 15 s
+/// of real time is ample for a restart and short enough that an operator learns of a
+/// cluster that cannot heal by itself while the robot still stands where it stopped.
+pub const MAJORITY_WAIT: Duration = Duration::from_secs(15);
+
+/// How long each replica gets to answer [`without_leader`]'s question, by default.
+pub const VIEW_TIMEOUT: Duration = Duration::from_secs(1);
+
+/// A replicated datamanager without a leader, as seen from here.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct NoMajority {
+    /// The datamanager.
+    pub dm: String,
+    /// Every replica's node (empty when no replica answered).
+    pub members: Vec<String>,
+    /// The nodes whose replica answered.
+    pub answering: Vec<String>,
+    /// The members that neither answered nor are reached by one that did.
+    pub missing: Vec<String>,
+    /// The highest term an answering replica is at.
+    pub term: u64,
+}
+
+impl std::fmt::Display for NoMajority {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if self.members.is_empty() {
+            return write!(
+                f,
+                "datamanager `{}` has no leader and none of its replicas answers from here",
+                self.dm
+            );
+        }
+        write!(
+            f,
+            "datamanager `{}` has no majority: {} of its {} replicas answer{} ({}), a leader \
+             needs {}; missing: {}",
+            self.dm,
+            self.answering.len(),
+            self.members.len(),
+            if self.answering.len() == 1 { "s" } else { "" },
+            self.answering.join(", "),
+            self.members.len() / 2 + 1,
+            if self.missing.is_empty() {
+                "none (an election is under way)".to_string()
+            } else {
+                self.missing.join(", ")
+            }
+        )
+    }
+}
+
+/// The replicas of `dm` this process can find, asked for their view (each within
+/// `timeout`): `None` when one of them leads, or when `dm` has no replica here at all (it
+/// is not replicated, or unknown); else who is missing.
+pub async fn without_leader(dm: &str, timeout: Duration) -> Option<NoMajority> {
+    let scope = SCOPE.to_string();
+    let prefix = format!("{dm}/");
+    let groups: Vec<String> = ractor::pg::which_scoped_groups(&scope)
+        .into_iter()
+        .filter(|g| g.starts_with(&prefix))
+        .collect();
+    if groups.is_empty() {
+        return None;
+    }
+    let mut views: Vec<ReplicaStats> = Vec::new();
+    for group in &groups {
+        for cell in ractor::pg::get_scoped_members(&scope, group) {
+            let actor: ActorRef<DmMsg> = cell.into();
+            if let Ok(CallResult::Success(stats)) = actor
+                .call(|reply| DmMsg::Stats { reply }, Some(timeout))
+                .await
+            {
+                if let Some(replica) = stats.replica {
+                    views.push(replica);
+                }
+            }
+        }
+    }
+    judge(dm, &views)
+}
+
+/// Every replicated datamanager whose replicas this process can find and none of which
+/// leads (each replica asked within `timeout`), by name.
+pub async fn leaderless(timeout: Duration) -> Vec<NoMajority> {
+    let names: BTreeSet<String> = ractor::pg::which_scoped_groups(&SCOPE.to_string())
+        .into_iter()
+        .filter_map(|g| g.split_once('/').map(|(dm, _)| dm.to_string()))
+        .collect();
+    let mut lost = Vec::new();
+    for dm in names {
+        lost.extend(without_leader(&dm, timeout).await);
+    }
+    lost
+}
+
+/// The verdict over the replicas' views: `None` when one leads.
+fn judge(dm: &str, views: &[ReplicaStats]) -> Option<NoMajority> {
+    if views.iter().any(|v| v.role == ReplicaRole::Leader) {
+        return None;
+    }
+    let members: BTreeSet<&String> = views.iter().flat_map(|v| &v.members).collect();
+    let answering: BTreeSet<&String> = views.iter().map(|v| &v.node).collect();
+    let reached: BTreeSet<&String> = views.iter().flat_map(|v| &v.reachable).collect();
+    Some(NoMajority {
+        dm: dm.to_string(),
+        members: members.iter().map(|m| m.to_string()).collect(),
+        answering: answering.iter().map(|m| m.to_string()).collect(),
+        missing: members
+            .iter()
+            .filter(|m| !answering.contains(*m) && !reached.contains(*m))
+            .map(|m| m.to_string())
+            .collect(),
+        term: views.iter().map(|v| v.term).max().unwrap_or(0),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn view(node: &str, role: ReplicaRole, reachable: &[&str]) -> ReplicaStats {
+        ReplicaStats {
+            node: node.to_string(),
+            role,
+            term: 3,
+            leader: None,
+            commit: 0,
+            last: 0,
+            lag: Default::default(),
+            snapshots_taken: 0,
+            members: ["a", "b", "c"].map(String::from).to_vec(),
+            reachable: reachable.iter().map(|s| s.to_string()).collect(),
+        }
+    }
+
+    #[test]
+    fn a_lone_follower_names_the_two_replicas_it_is_missing() {
+        let lost = judge("run", &[view("c", ReplicaRole::Follower, &[])]).unwrap();
+        assert_eq!(lost.missing, ["a", "b"]);
+        assert_eq!(lost.answering, ["c"]);
+        assert_eq!(
+            lost.to_string(),
+            "datamanager `run` has no majority: 1 of its 3 replicas answers (c), a leader \
+             needs 2; missing: a, b"
+        );
+    }
+
+    #[test]
+    fn a_leader_among_the_replicas_means_no_verdict() {
+        let views = [
+            view("a", ReplicaRole::Leader, &["c"]),
+            view("c", ReplicaRole::Follower, &["a"]),
+        ];
+        assert_eq!(judge("run", &views), None);
+    }
+
+    #[test]
+    fn a_member_another_replica_reaches_is_not_missing_and_no_answer_at_all_is_said() {
+        // c reaches b (an election is under way): only a is missing
+        let lost = judge("world", &[view("c", ReplicaRole::Follower, &["b"])]).unwrap();
+        assert_eq!(lost.missing, ["a"]);
+        let none = judge("world", &[]).unwrap();
+        assert!(none.members.is_empty());
+        assert_eq!(
+            none.to_string(),
+            "datamanager `world` has no leader and none of its replicas answers from here"
+        );
+    }
+}
