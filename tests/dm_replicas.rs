@@ -27,9 +27,8 @@ const NODES: [&str; 3] = ["r1", "r2", "r3"];
 /// Generous: elections, a node's start, a journal replay, on a loaded 2-core machine.
 const T: Duration = Duration::from_secs(60);
 
-/// ractor's registry and `pg` are process-wide: one member of one cluster at a time in
-/// this test process, whatever the tests running in parallel.
-static ONE_MEMBER: std::sync::Mutex<()> = std::sync::Mutex::new(());
+/// One member of one cluster at a time in this test process (see there).
+use common::ONE_MEMBER;
 
 /// The three nodes, each keeping a replica of `feature` (`extra`: more of its keys).
 fn start_nodes(dir: &Path, extra: &str) -> Vec<NodeProc> {
