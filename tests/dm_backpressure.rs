@@ -18,9 +18,8 @@ use std::time::Duration;
 const COOKIE: &str = "backpressure";
 const PUTS: usize = 100_000;
 
-/// ractor's registry and `pg` are process-wide: one member of one cluster at a time in
-/// this test process, whatever the tests running in parallel.
-static ONE_MEMBER: std::sync::Mutex<()> = std::sync::Mutex::new(());
+/// One member of one cluster at a time in this test process (see there).
+use common::ONE_MEMBER;
 
 /// `alpha`, a node with the feature datamanager, and a runtime for this process' member.
 fn feature_node(dir: &std::path::Path) -> (NodeProc, tokio::runtime::Runtime) {

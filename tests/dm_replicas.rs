@@ -27,9 +27,8 @@ const NODES: [&str; 3] = ["r1", "r2", "r3"];
 /// Generous: elections, a node's start, a journal replay, on a loaded 2-core machine.
 const T: Duration = Duration::from_secs(60);
 
-/// ractor's registry and `pg` are process-wide: one member of one cluster at a time in
-/// this test process, whatever the tests running in parallel.
-static ONE_MEMBER: std::sync::Mutex<()> = std::sync::Mutex::new(());
+/// One member of one cluster at a time in this test process (see there).
+use common::ONE_MEMBER;
 
 /// The three nodes, each keeping a replica of `feature` (`extra`: more of its keys).
 fn start_nodes(dir: &Path, extra: &str) -> Vec<NodeProc> {
@@ -491,6 +490,192 @@ fn the_primary_recognises_a_retry_of_any_put_of_a_whole_window_and_answers_its_f
         check_acked(&client, &acked).await;
         let stats = client.stats().await.unwrap();
         assert_eq!(stats.records, window, "{stats:#?}");
+        transport.stop().await;
+    });
+}
+
+/// How long a road of a client may take to reach the new leader once it is published:
+/// generous (a loaded 2-core machine); a road that does not follow fails for ever.
+const FOLLOWED_WITHIN: Duration = Duration::from_secs(20);
+
+/// Put (`waiting`: `put_waiting`) value after value into class `road` through `client`, from
+/// before the leader's node is killed until a put succeeds after the new leader is
+/// published (`published`): how long after the publication that was, and the errors seen
+/// since it; or the last error, if none succeeded within [`FOLLOWED_WITHIN`].
+async fn produce(
+    client: DmClient,
+    road: &'static str,
+    mut published: tokio::sync::watch::Receiver<Option<Instant>>,
+) -> Result<(Duration, usize), String> {
+    let waiting = road == "put_waiting";
+    let mut errors_since = 0;
+    for v in 0u64.. {
+        let put = match waiting {
+            true => client.put_waiting(road, None, None, &v).await,
+            false => client.put(road, None, None, &v),
+        };
+        let now = Instant::now();
+        let since = *published.borrow_and_update();
+        if let Some(at) = since.filter(|at| now > *at) {
+            match put {
+                Ok(()) => return Ok((now - at, errors_since)),
+                Err(e) if now - at >= FOLLOWED_WITHIN => return Err(e.to_string()),
+                Err(_) => errors_since += 1,
+            }
+        }
+        // about a thousand puts a second (a sensor's pace), awaiting as a sensor's loop does
+        tokio::time::sleep(Duration::from_millis(1)).await;
+    }
+    unreachable!()
+}
+
+/// Take a road until it succeeds: how long that took; or its last error, if it did not
+/// within [`FOLLOWED_WITHIN`].
+async fn until_ok<F, Fut, T>(mut go: F) -> Result<Duration, String>
+where
+    F: FnMut() -> Fut,
+    Fut: std::future::Future<Output = Result<T, dm::DmError>>,
+{
+    let start = Instant::now();
+    loop {
+        match go().await {
+            Ok(_) => return Ok(start.elapsed()),
+            Err(e) if start.elapsed() >= FOLLOWED_WITHIN => return Err(e.to_string()),
+            Err(_) => tokio::time::sleep(Duration::from_millis(20)).await,
+        }
+    }
+}
+
+#[test]
+fn after_the_leaders_node_is_killed_every_road_of_a_client_follows_the_new_leader() {
+    // an application's own clients on a member of the cluster: producers put and
+    // put_waiting in a loop, and clients of every other road were used once before the
+    // kill and not since. Once the new leader is published, each road reaches it by itself
+    // — no other request on the client needed to move it
+    let _one = ONE_MEMBER.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = tempfile::tempdir().unwrap();
+    let nodes = start_nodes(dir.path(), "");
+    let rt = runtime();
+    rt.block_on(async {
+        let transport = join(&nodes).await;
+        let (first, _) = leader(None).await;
+        assert_eq!(first, "r1");
+        let client = |source: &str| DmClient::lookup("feature", source).unwrap().with_follow(T);
+        let roads = [
+            "put_batch",
+            "ready",
+            "store",
+            "put_all",
+            "select",
+            "select_wait",
+            "delete",
+            "stats",
+            "leader_node",
+        ];
+        let mut clients = BTreeMap::new();
+        for road in roads {
+            let c = client(road);
+            c.put(road, None, None, &0u64).unwrap();
+            c.stats().await.unwrap();
+            clients.insert(road, c);
+        }
+        let mut subscription = client("subscriber")
+            .subscribe(Query::class("news"))
+            .await
+            .unwrap();
+        let (tell, published) = tokio::sync::watch::channel(None);
+        let producers = ["put", "put_waiting"]
+            .map(|road| tokio::spawn(produce(client(road), road, published.clone())));
+        // the producers are under way
+        clients["stats"]
+            .select(Query::class("put_waiting"))
+            .await
+            .unwrap();
+
+        nodes[0].signal("KILL");
+        let (second, at) = leader(Some("r1")).await;
+        let at = Instant::now().min(at);
+        tell.send(Some(at)).unwrap();
+        eprintln!("r1 killed; {second} published as leader");
+
+        let c = &clients;
+        let batch = || {
+            (0..10u64)
+                .map(|v| NewRecord::encode("put_batch", &v).unwrap())
+                .collect::<Vec<_>>()
+        };
+        let took = tokio::join!(
+            until_ok(|| async { c["put_batch"].put_batch(batch()) }),
+            until_ok(|| c["ready"].ready(1)),
+            until_ok(|| c["store"].store("news", None, None, &1u64)),
+            until_ok(|| c["put_all"].put_all(batch())),
+            until_ok(|| c["select"].select(Query::class("put"))),
+            until_ok(|| c["select_wait"]
+                .select_wait(Query::class("put_batch"), Duration::from_millis(100))),
+            until_ok(|| c["delete"].delete(Query::class("nothing"))),
+            until_ok(|| c["stats"].stats()),
+            until_ok(|| c["leader_node"].leader_node()),
+        );
+        let mut report = vec![
+            ("put_batch", took.0),
+            ("ready", took.1),
+            ("store", took.2),
+            ("put_all", took.3),
+            ("select", took.4),
+            ("select_wait", took.5),
+            ("delete", took.6),
+            ("stats", took.7),
+            ("leader_node", took.8),
+        ];
+        for (road, producer) in ["put", "put_waiting"].into_iter().zip(producers) {
+            let outcome = producer.await.unwrap().map(|(after, errors)| {
+                eprintln!("{road}: {errors} calls failed after the publication");
+                after
+            });
+            report.push((road, outcome));
+        }
+        // the record the store road stored, once it did, reaches the subscriber
+        let stored = report.iter().any(|(r, o)| *r == "store" && o.is_ok());
+        let waited = Instant::now();
+        let news = match stored {
+            true => tokio::time::timeout(FOLLOWED_WITHIN, subscription.next())
+                .await
+                .map_err(|_| "no record".to_string())
+                .and_then(|r| r.ok_or_else(|| "the subscription ended".to_string()))
+                .map(|r| {
+                    assert_eq!(r.decode::<u64>().unwrap(), 1);
+                    // (the time it waited for the stored record, once the store was done)
+                    waited.elapsed()
+                }),
+            false => Err("nothing was stored".to_string()),
+        };
+        report.push(("subscription", news));
+        for (road, outcome) in &report {
+            match outcome {
+                Ok(after) => eprintln!(
+                    "{road}: ok {} ms after the new leader was published",
+                    after.as_millis()
+                ),
+                Err(e) => eprintln!("{road}: still failing after {FOLLOWED_WITHIN:?}: {e}"),
+            }
+        }
+        let stuck: Vec<_> = report
+            .iter()
+            .filter(|(_, o)| o.is_err())
+            .map(|(r, _)| *r)
+            .collect();
+        assert!(
+            stuck.is_empty(),
+            "roads that did not follow the new leader: {stuck:?}"
+        );
+        // what they say is the new leader's
+        assert_eq!(c["leader_node"].leader_node().await.unwrap(), second);
+        let stats = c["stats"].stats().await.unwrap();
+        assert_eq!(stats.replica.unwrap().node, second);
+        for road in ["put", "put_waiting", "put_batch"] {
+            let n = c["select"].select(Query::class(road)).await.unwrap().len();
+            assert!(n > 0, "nothing of {road} reached the new leader");
+        }
         transport.stop().await;
     });
 }

@@ -86,6 +86,7 @@ impl Actor for Datamanager {
             recovery: held.recovery,
             producers: held.producers,
             duplicates: 0,
+            events: args.events,
         })
     }
 
@@ -164,6 +165,7 @@ impl Actor for Datamanager {
             DmMsg::JournalRefused { seqs } => state.on_journal_refused(&seqs),
             DmMsg::Inject { fault } => state.on_inject(&myself, fault).await,
         }
+        state.tell_retention();
         Ok(())
     }
 }

@@ -87,8 +87,9 @@ pub struct DmArgs {
     pub journal_dir: Option<PathBuf>,
     /// Replicas on other nodes (`replica`): this is one of them. Needs a journal.
     pub replication: Option<Replication>,
-    /// Where a replica tells that it became the leader or stepped down (`dm_promoted`,
-    /// `dm_fenced`); a node gives its bus.
+    /// Where it tells what it does on its own: a replica that became the leader or stepped
+    /// down (`dm_promoted`, `dm_fenced`), a class that started dropping records by retention
+    /// (`dm_retention`); a node gives its bus.
     pub events: Option<EventBus>,
 }
 

@@ -3,14 +3,14 @@
 use super::acks::{Ack, AckSink};
 use super::error::DmError;
 use super::messages::{DmMsg, DmStats};
-use super::outbox::{frames, Outbox};
+use super::outbox::{frames, NotTaken, Outbox};
 use super::page::{Page, PAGE_BYTES};
 use super::query::Query;
 use super::record::{NewRecord, Payload, Record, RecordHeader};
 use super::shared::PayloadType;
 use marie_vocabulary::registry::{self, Instance, ModuleKind};
 use ractor::rpc::CallResult;
-use ractor::{ActorRef, RpcReplyPort};
+use ractor::{ActorRef, ActorStatus, RpcReplyPort};
 use serde::Serialize;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
@@ -21,19 +21,40 @@ use std::time::Duration;
 /// Requests that find the actor gone fail with [`DmError::Unreachable`]; requests that get no
 /// answer in time with [`DmError::Timeout`].
 ///
-/// # It follows its datamanager
-/// When the datamanager's actor is gone — it crashed and its supervisor restarts it, or a
-/// replica is promoted elsewhere — a request waits (at most [`DmClient::follow_within`], 5 s by
-/// default) for the next instance published under the same name, moves there, and is sent
-/// again: `select`, `select_wait` (and so a [`super::Subscription`]), `stats`, and `store`.
-/// A store sent again is idempotent: every record carries this client's producer id and its
-/// own number, and a datamanager that already holds it answers with the seq it got
-/// (`producers`). A `delete` is not sent again (its outcome is unknown, and a
-/// query such as "the oldest 4" would delete others); it fails `Unreachable`. A `put` finds
-/// the next instance if it is already published, else fails `Unreachable` at once: a put
-/// never waits, and a put cast to an instance lost before it acknowledged it is gone with
-/// it — [`DmClient::put_all`] keeps what it sent until it is acknowledged, and sends it
-/// again. Clones share what they follow.
+/// # What each road's `Ok` promises
+/// | road | `Ok` means | after a failover or a freeze |
+/// |---|---|---|
+/// | [`store`](DmClient::store), [`store_raw`](DmClient::store_raw) | stored, at the datamanager's [durability](super::Durability) — on a replicated one, in the journals of a majority of its replicas | sent again to the next instance, stored once: **nothing acknowledged is lost** |
+/// | [`put_all`](DmClient::put_all) | every record stored, as `store` | what the lost instance had not acknowledged is sent again, each stored once |
+/// | [`put`](DmClient::put), [`put_raw`](DmClient::put_raw), [`put_batch`](DmClient::put_batch) | checked and handed over: queued to leave at the producer's next await (to another node), or in the datamanager's mailbox (in this process) — **not stored yet** | **may be lost**: records on their way to an instance that is lost (its node killed, or frozen or cut off until the failure detector declares it down — about 1.5 s) never arrive |
+/// | [`put_waiting`](DmClient::put_waiting) | as `put`, once a credit was free: **flow control, not durability** | may be lost, as `put` (a window of records, up to [`super::credits::REPLICATED_WINDOW`], can be on their way) |
+/// | [`delete`](DmClient::delete) | done, at the datamanager's durability | not sent again (see there) |
+/// | [`ready`](DmClient::ready) | the window has room now | — |
+///
+/// A producer that **must not drop records** uses `store` (one at a time, each answered with
+/// its seq) or `put_all` (many, acknowledged together): `tests/dm_checker.rs` kills, freezes,
+/// cuts off and crashes the leader of a datamanager kept in three replicas under producers
+/// that `store`, and checks that every acknowledged record is there once. `put` and
+/// `put_waiting` are for samples a newer one replaces (a sensor's echoes).
+///
+/// # Every road follows its datamanager
+/// When the datamanager's instance is lost — it crashed and its supervisor restarts it, a
+/// replica is elected leader elsewhere, or the instance answers as a follower (an old leader)
+/// — the client moves to the next instance published under the same name, by itself, on
+/// whichever road it is used next; clones share what they follow (one moves, all move):
+///
+/// - requests (`store`, `select`, `select_wait` and so a [`super::Subscription`], `stats`,
+///   [`leader_node`](DmClient::leader_node), `delete`) and the waiting roads (`put_waiting`,
+///   `ready`, `put_all`) wait for it at most [`DmClient::follow_within`] (5 s by default).
+///   A store sent again is idempotent: every record carries this client's producer id and
+///   its own number, and a datamanager that already holds it answers with the seq it got
+///   (`producers`). A `delete` is not sent again (its outcome is unknown, and a query such
+///   as "the oldest 4" would delete others); it fails `Unreachable`, and a retry reaches the
+///   next instance;
+/// - `put`, `put_raw` and `put_batch` never wait: they go to the next instance if it is
+///   published already, else fail `Unreachable` at once — and the next one after its
+///   publication goes there (`tests/dm_replicas.rs` kills a leader's node under producers
+///   on every road).
 #[derive(Clone, Debug)]
 pub struct DmClient {
     /// The actor followed, shared by clones (one moves, all move).
@@ -66,6 +87,18 @@ impl Target {
         Target {
             outbox: Outbox::for_actor(&actor),
             actor,
+        }
+    }
+
+    /// Whether the instance is lost to the client: its actor stopped (a remote actor's shim
+    /// stops with its session: the node was killed, or declared down once frozen or cut
+    /// off), or its outbox found it lost (it went away with an acknowledgement of puts, or
+    /// answered as a follower). Puts to it would not be stored: they go to the next
+    /// instance instead.
+    fn is_lost(&self) -> bool {
+        match &self.outbox {
+            Some(outbox) => outbox.lost_with(&self.actor),
+            None => self.actor.get_status() > ActorStatus::Running,
         }
     }
 }
@@ -371,6 +404,13 @@ impl DmClient {
     }
 
     /// Store `value` (as MessagePack) under `class` / `sub1` / `sub2`. Returns its seq.
+    ///
+    /// `Ok` is the datamanager's acknowledgement: the record is stored at its durability
+    /// (`memory`: in its memory; `process`/`sync`: in its journal, which survives a crash
+    /// of its process, and with `sync` a power loss) and, on a replicated datamanager, in the
+    /// journals of a majority of its replicas — it survives the loss of the leader's node.
+    /// A store cut off by a failover is sent again to the next instance and stored once. The
+    /// road for a producer that must not drop records.
     pub async fn store<T: Serialize + ?Sized>(
         &self,
         class: &str,
@@ -387,6 +427,16 @@ impl DmClient {
     /// counted there. To a datamanager on another node the record takes a credit (`Busy`
     /// when none is left, see `credits`) and leaves with the puts around it, in
     /// order, before any later request of this client (`outbox`).
+    ///
+    /// `Ok` means handed over, not stored: the record is queued (or, to a datamanager in
+    /// this process, in its mailbox). It is lost if the instance is lost before it stores
+    /// it — a crash, the leader's node killed, or frozen or cut off until the failure
+    /// detector declares it down. A producer that must not drop records uses
+    /// [`DmClient::store`] or [`DmClient::put_all`].
+    ///
+    /// If the instance followed is lost, the put goes to the next one if it is published
+    /// already, else fails `Unreachable` at once (a put never waits); the next put after the
+    /// publication reaches it.
     pub fn put<T: Serialize + ?Sized>(
         &self,
         class: &str,
@@ -399,9 +449,17 @@ impl DmClient {
     }
 
     /// [`DmClient::put`], waiting for a credit rather than refusing `Busy` (at most
-    /// [`DmClient::timeout`], then `Timeout`): for a producer that must not drop a sample.
-    /// Unlike [`DmClient::ready`] followed by `put`, it holds when several tasks put through
-    /// clones of one client, which share one window: the credit is taken as it is seen free.
+    /// [`DmClient::timeout`], then `Timeout`): for a producer that would rather slow down
+    /// than have a sample refused. Unlike [`DmClient::ready`] followed by `put`, it holds
+    /// when several tasks put through clones of one client, which share one window: the
+    /// credit is taken as it is seen free.
+    ///
+    /// `Ok` is flow control, not durability: a credit was free and the record is handed
+    /// over, as by `put` — it is lost, as a put is, if the instance is lost before it stores
+    /// it (up to a window of records can be on their way: during a freeze of the leader's
+    /// node until it is declared down, every one of them). A producer that must not drop
+    /// records uses [`DmClient::store`] or [`DmClient::put_all`]. If the instance is lost,
+    /// it waits for the next one (at most [`DmClient::follow_within`]) and puts there.
     pub async fn put_waiting<T: Serialize + ?Sized>(
         &self,
         class: &str,
@@ -409,21 +467,33 @@ impl DmClient {
         sub2: Option<&str>,
         value: &T,
     ) -> Result<(), DmError> {
-        let record = self.checked(self.record(class, sub1, sub2, value)?)?;
-        let t = self.target();
-        match &t.outbox {
-            Some(outbox) => {
-                outbox
+        let mut record = self.checked(self.record(class, sub1, sub2, value)?)?;
+        let mut follows = 0;
+        loop {
+            let t = self.target();
+            if !t.is_lost() {
+                let Some(outbox) = &t.outbox else {
+                    return self.cast_put(&t.actor, record);
+                };
+                match outbox
                     .put_waiting(record, &t.actor, &self.dm, self.timeout)
                     .await
+                {
+                    Err(NotTaken(DmError::Unreachable(_), Some(back))) => record = *back,
+                    done => return done.map_err(NotTaken::error),
+                }
             }
-            None => self.cast_put(&t.actor, record),
+            // the instance is lost: wait for the next one, as a request does
+            if follows == FOLLOWS || !self.follow(&t.actor).await {
+                return Err(self.unreachable());
+            }
+            follows += 1;
         }
     }
 
     /// Store a prepared record; an empty `source` becomes this client's. Returns its seq.
     /// Sent again to the datamanager's next instance if it is gone meanwhile, and stored
-    /// once (see the type's docs).
+    /// once (see the type's docs). `Ok` promises what [`DmClient::store`]'s does.
     pub async fn store_raw(&self, record: NewRecord) -> Result<u64, DmError> {
         let record = self.fill_source(record);
         let seq = self
@@ -442,14 +512,33 @@ impl DmClient {
         Ok(seq)
     }
 
-    /// [`DmClient::put`] for a prepared record.
+    /// [`DmClient::put`] for a prepared record (its `Ok` promises no more).
     pub fn put_raw(&self, record: NewRecord) -> Result<(), DmError> {
-        let record = self.checked(record)?;
-        let t = self.target();
-        match &t.outbox {
-            Some(outbox) => outbox.put(record, &t.actor, &self.dm),
-            None => self.cast_put(&t.actor, record),
+        let mut record = self.checked(record)?;
+        // twice at most: the instance may be found lost as the record is queued
+        for _ in 0..2 {
+            let t = self.put_target()?;
+            let Some(outbox) = &t.outbox else {
+                return self.cast_put(&t.actor, record);
+            };
+            match outbox.put(record, &t.actor, &self.dm) {
+                Err(NotTaken(DmError::Unreachable(_), Some(back))) => record = *back,
+                done => return done.map_err(NotTaken::error),
+            }
         }
+        Err(self.unreachable())
+    }
+
+    /// The instance a put goes to: the one followed now or, if that is lost, the next one if
+    /// it is published already (a put never waits); `Unreachable` if none is.
+    fn put_target(&self) -> Result<Target, DmError> {
+        let t = self.target();
+        if !t.is_lost() {
+            return Ok(t);
+        }
+        self.next_published(&t.actor)
+            .ok_or_else(|| self.unreachable())?;
+        Ok(self.target())
     }
 
     /// A record to put without waiting for the DM: its source filled in and the record
@@ -507,7 +596,10 @@ impl DmClient {
     /// bad record refuses the whole batch here, and to a remote DM the batch takes one
     /// credit per record at once — `Busy` if the window lacks room for all of them,
     /// [`DmError::BatchTooLarge`] if it never could ([`super::credits::WINDOW`]). What the
-    /// DM refuses afterwards is counted there, as for [`DmClient::put`].
+    /// DM refuses afterwards is counted there, as for [`DmClient::put`], and its `Ok`
+    /// promises what a put's does: handed over, not stored (a lost instance loses the
+    /// batch; [`DmClient::put_all`] sends it again). It follows a lost instance as `put`
+    /// does.
     pub fn put_batch(&self, records: Vec<NewRecord>) -> Result<(), DmError> {
         if records.is_empty() {
             return Ok(());
@@ -516,7 +608,12 @@ impl DmClient {
             .into_iter()
             .map(|r| self.checked(r))
             .collect::<Result<Vec<_>, _>>()?;
-        let t = self.target();
+        self.put_batch_at(self.put_target()?, records)
+    }
+
+    /// Send checked `records` to `t` (not following a remote instance found lost: a
+    /// `put_all` sends what that one had not acknowledged first, in order).
+    fn put_batch_at(&self, t: Target, records: Vec<NewRecord>) -> Result<(), DmError> {
         if let Some(outbox) = &t.outbox {
             return outbox.put_batch(records, &t.actor, &self.dm);
         }
@@ -536,17 +633,23 @@ impl DmClient {
     /// datamanager; `Unreachable` if the actor is gone (the queued records are dropped).
     pub fn flush(&self) -> Result<(), DmError> {
         let t = self.target();
-        match &t.outbox {
-            Some(outbox) => outbox.flush(&t.actor, &self.dm),
-            None => Ok(()),
+        let Some(outbox) = &t.outbox else {
+            return Ok(());
+        };
+        let flushed = outbox.flush(&t.actor, &self.dm);
+        if t.is_lost() {
+            // the next put (or a retry) goes to the next instance, if it is published
+            self.next_published(&t.actor);
         }
+        flushed
     }
 
     /// Store every record of `records`, in order, waiting for credits rather than refusing
     /// with `Busy`: batches of [`super::credits::BATCH`] records. For bulk transfers (a log,
-    /// a replay) where nothing may be dropped: when it returns `Ok`, every record is stored
-    /// (acknowledged by the datamanager, at its durability); `Timeout` if the DM acknowledges
-    /// nothing for [`DmClient::timeout`].
+    /// a replay) and any producer where nothing may be dropped: when it returns `Ok`, every
+    /// record is stored (acknowledged by the datamanager, at its durability; on a
+    /// replicated one, in a majority of its replicas' journals), as [`DmClient::store`]
+    /// promises; `Timeout` if the DM acknowledges nothing for [`DmClient::timeout`].
     ///
     /// It follows a datamanager on another node: the records on their way to an instance
     /// that is lost meanwhile (a crash, a leader stepping down, its node lost) — at most a
@@ -594,8 +697,10 @@ impl DmClient {
                 // a request (or a clone) followed the datamanager meanwhile
                 self.send_again(unacked, None).await?;
             }
-            let sent = match self.ready(batch.len()).await {
-                Ok(()) => self.put_batch(batch.clone()),
+            // (here, not following: the unacknowledged records go again before this batch)
+            let t = self.target();
+            let sent = match self.ready_at(&t, batch.len()).await {
+                Ok(()) => self.put_batch_at(t, batch.clone()),
                 Err(e) => Err(e),
             };
             match sent {
@@ -631,8 +736,9 @@ impl DmClient {
         while records.peek().is_some() {
             let chunk: Vec<NewRecord> = records.by_ref().take(super::credits::BATCH).collect();
             // an instance lost again meanwhile: the caller comes back here
-            self.ready(chunk.len()).await?;
-            self.put_batch(chunk.clone())?;
+            let t = self.target();
+            self.ready_at(&t, chunk.len()).await?;
+            self.put_batch_at(t, chunk.clone())?;
             unacked.sent(&self.target(), chunk);
         }
         Ok(())
@@ -641,9 +747,29 @@ impl DmClient {
     /// Wait until `n` more puts fit in the window of a remote DM (at once for a local one),
     /// at most [`DmClient::timeout`]: a producer that would rather wait than have its puts
     /// refused `Busy`. With one producer per client, the puts that follow are then accepted;
-    /// tasks that share a client's window put with [`DmClient::put_waiting`] instead.
+    /// tasks that share a client's window put with [`DmClient::put_waiting`] instead. If the
+    /// instance followed is lost (its window with it), it waits for the next one (at most
+    /// [`DmClient::follow_within`]) and its window.
     pub async fn ready(&self, n: usize) -> Result<(), DmError> {
-        let t = self.target();
+        let mut follows = 0;
+        loop {
+            let t = self.target();
+            if !t.is_lost() {
+                match self.ready_at(&t, n).await {
+                    Err(DmError::Unreachable(_)) => {}
+                    done => return done,
+                }
+            }
+            // the instance is lost: its window is of no use; wait for the next one's
+            if follows == FOLLOWS || !self.follow(&t.actor).await {
+                return Err(self.unreachable());
+            }
+            follows += 1;
+        }
+    }
+
+    /// [`DmClient::ready`] towards `t`, not following it if it is lost (`Unreachable`).
+    async fn ready_at(&self, t: &Target, n: usize) -> Result<(), DmError> {
         match &t.outbox {
             None => Ok(()),
             Some(outbox) => outbox.ready(n, &t.actor, &self.dm, self.timeout).await,
@@ -758,7 +884,8 @@ impl DmClient {
         self.rest_of(first).await
     }
 
-    /// Delete the records matching `query`; returns how many.
+    /// Delete the records matching `query`; returns how many. `Ok` means done at the
+    /// datamanager's durability (on a replicated one, committed by a majority).
     ///
     /// Unlike a put, a delete is not sent again by itself when the datamanager goes away
     /// with it: it may have been done, and the same query sent again could take records
@@ -785,10 +912,37 @@ impl DmClient {
         Ok(deleted)
     }
 
-    /// What the DM holds.
+    /// What the DM holds. Asked of a replica that is no longer the leader (an old leader
+    /// living on as a follower), it follows the name to the leader published now and asks
+    /// that one.
     pub async fn stats(&self) -> Result<DmStats, DmError> {
-        self.call(self.timeout, true, |reply| DmMsg::Stats { reply })
-            .await
+        let mut follows = 0;
+        loop {
+            let asked = self.actor();
+            let stats = self
+                .call(self.timeout, true, |reply| DmMsg::Stats { reply })
+                .await?;
+            if follows == FOLLOWS
+                || !super::credits::answered_by_follower(&stats)
+                || self.next_published(&asked).is_none()
+            {
+                return Ok(stats);
+            }
+            follows += 1;
+        }
+    }
+
+    /// The node that holds the datamanager's leader now: for a replicated datamanager, the
+    /// node of the replica that answers as leader ([`DmStats::replica`]'s `node`); for one
+    /// without replicas, the node it runs on. It asks the datamanager, as
+    /// [`DmClient::stats`] does — following it to its next instance if it is gone — so the
+    /// answer is the leader's own word, not a registry entry that may be stale.
+    pub async fn leader_node(&self) -> Result<String, DmError> {
+        let stats = self.stats().await?;
+        Ok(match stats.replica {
+            Some(replica) => replica.node,
+            None => registry::node_name_of(&self.actor().get_id()),
+        })
     }
 }
 

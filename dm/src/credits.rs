@@ -45,7 +45,9 @@
 //! [`DmClient::put_all`]: super::DmClient::put_all
 
 use super::error::DmError;
-use super::messages::DmMsg;
+use super::messages::{DmMsg, DmStats};
+use marie_vocabulary::replica::ReplicaRole;
+use ractor::rpc::CallResult;
 use ractor::ActorRef;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::Arc;
@@ -110,6 +112,11 @@ pub(crate) struct Credits {
     /// ([`super::DmClient::put_all`] keeps what is not, to send it again).
     cast_total: AtomicU64,
     acked_total: AtomicU64,
+    /// The datamanager these credits are towards is lost to the producer: it went away with
+    /// an acknowledgement asked of it, a put could not be cast to it, or a replica that is
+    /// not the leader answered (it does not store puts). Nothing will come back: the client
+    /// follows the datamanager's name to its next instance (`DmClient`).
+    lost: AtomicBool,
 }
 
 impl Credits {
@@ -159,6 +166,17 @@ impl Credits {
         self.freed.notify_waiters();
     }
 
+    /// Whether the datamanager is lost to the producer (see the field).
+    pub(crate) fn lost(&self) -> bool {
+        self.lost.load(Ordering::Acquire)
+    }
+
+    /// The datamanager is lost to the producer: waiters look again (and give up).
+    pub(crate) fn mark_lost(&self) {
+        self.lost.store(true, Ordering::Release);
+        self.freed.notify_waiters();
+    }
+
     /// Puts in flight now (for tests and stats).
     pub(crate) fn in_flight(&self) -> usize {
         self.in_flight.load(Ordering::Acquire)
@@ -183,8 +201,9 @@ impl Credits {
             if self.in_flight() + n <= self.window() {
                 return Ok(());
             }
-            if actor.get_status() > ractor::ActorStatus::Running {
-                // gone (a remote actor's shim stops with it): nothing will come back
+            if actor.get_status() > ractor::ActorStatus::Running || self.lost() {
+                // gone (a remote actor's shim stops with it), or not the leader: nothing
+                // will come back
                 return Err(DmError::Unreachable(dm.to_string()));
             }
             self.ask_ack(actor);
@@ -216,20 +235,42 @@ impl Credits {
             let answer = actor
                 .call(|reply| DmMsg::Stats { reply }, Some(ACK_TIMEOUT))
                 .await;
-            if let Ok(ractor::rpc::CallResult::Success(stats)) = answer {
-                credits.grant.store(stats.window, Ordering::Release);
-                give_back(&credits.cast, covered);
-                give_back(&credits.in_flight, covered);
-                credits
-                    .acked_total
-                    .fetch_add(covered as u64, Ordering::AcqRel);
-            } else {
-                tracing::debug!("a datamanager did not acknowledge puts: credits held");
+            match answer {
+                Ok(CallResult::Success(stats)) if answered_by_follower(&stats) => {
+                    tracing::debug!(dm = %stats.name, "puts went to a replica that is not the leader: lost");
+                    credits.mark_lost();
+                }
+                Ok(CallResult::Success(stats)) => {
+                    credits.grant.store(stats.window, Ordering::Release);
+                    give_back(&credits.cast, covered);
+                    give_back(&credits.in_flight, covered);
+                    credits
+                        .acked_total
+                        .fetch_add(covered as u64, Ordering::AcqRel);
+                }
+                Ok(CallResult::Timeout) => {
+                    // a frozen node, a slow one: it may still answer a later ask
+                    tracing::debug!("a datamanager did not acknowledge puts in time: credits held");
+                }
+                Ok(CallResult::SenderError) | Err(_) => {
+                    tracing::debug!("a datamanager went away with puts unacknowledged: lost");
+                    credits.mark_lost();
+                }
             }
             credits.acking.store(false, Ordering::Release);
             credits.freed.notify_waiters();
         });
     }
+}
+
+/// Whether `stats` come from a replica that is not its datamanager's leader (one that lives
+/// on as a follower after it stepped down): it stores no puts, and its answer acknowledges
+/// none.
+pub(crate) fn answered_by_follower(stats: &DmStats) -> bool {
+    stats
+        .replica
+        .as_ref()
+        .is_some_and(|r| r.role != ReplicaRole::Leader)
 }
 
 /// `n` credits back, never below zero.

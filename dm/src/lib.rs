@@ -36,10 +36,22 @@
 //! at close to the speed of a bare actor message (see `benches/dm.rs`).
 //!
 //! # Retention
-//! Each class keeps at most a bounded number of records ([`DmConfig`]: a default bound and
-//! per-class bounds); storing one more drops the oldest record *of that class*, so a
-//! high-rate sensor cannot grow memory without limit nor push out a rarely written world map.
-//! A subscriber sees dropped records as a gap in seq numbers.
+//! Each class keeps at most a bounded number of records ([`DmConfig`]: a default bound,
+//! [`DmConfig::DEFAULT_RETENTION`] = 10 000 unless set, and per-class bounds; on a node,
+//! `retention` and `class_retention` of its `[[datamanager]]`); storing one more drops the
+//! oldest record *of that class*, so a high-rate sensor cannot grow memory without limit nor
+//! push out a rarely written world map. It is never silent: the first record a class drops
+//! is told — a warning in the log and a `dm_retention` event on the node's bus, once per
+//! class — and [`DmStats::dropped_by_class`] counts them. A subscriber sees dropped records
+//! as a gap in seq numbers.
+//!
+//! # What a client's `Ok` promises
+//! [`DmClient::store`] and [`DmClient::put_all`] answer once the datamanager has stored the
+//! record at its durability (on a replicated one, in a majority of its replicas' journals):
+//! the road for a producer that must not drop records. [`DmClient::put`],
+//! [`DmClient::put_batch`] and [`DmClient::put_waiting`] answer once it is handed over —
+//! lost if the datamanager's instance is lost before storing it. Every road follows the
+//! datamanager to its next instance; [`DmClient`] says how, road by road.
 //!
 //! ```
 //! use marie_vocabulary::clock::RealClock;

@@ -67,6 +67,10 @@ pub struct DmStats {
     /// The classes with a retention bound of their own, and their bounds.
     #[serde(default)]
     pub retention_by_class: BTreeMap<String, u64>,
+    /// Records dropped by retention since the DM started, per class (classes that dropped
+    /// none are not listed; their sum is [`DmStats::dropped`]).
+    #[serde(default)]
+    pub dropped_by_class: BTreeMap<String, u64>,
 }
 
 impl DmStats {

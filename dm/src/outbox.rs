@@ -46,6 +46,18 @@ pub(crate) const FLUSH_AT: usize = super::credits::BATCH;
 /// ractor_cluster's 16 MiB frame limit, whatever the payloads.
 pub(crate) const FRAME_BYTES: usize = 1 << 20;
 
+/// A put an outbox did not take: why, and the record back if it still has it, which its
+/// client may send to the datamanager's next instance (when the one it went to is lost).
+#[derive(Debug)]
+pub(crate) struct NotTaken(pub(crate) DmError, pub(crate) Option<Box<NewRecord>>);
+
+impl NotTaken {
+    /// Why it was not taken.
+    pub(crate) fn error(self) -> DmError {
+        self.0
+    }
+}
+
 /// The queued puts and the credits of one producer towards one remote datamanager.
 #[derive(Debug, Default)]
 pub(crate) struct Outbox {
@@ -76,8 +88,10 @@ impl Outbox {
         record: NewRecord,
         actor: &ActorRef<DmMsg>,
         dm: &str,
-    ) -> Result<(), DmError> {
-        self.take(1, actor, dm)?;
+    ) -> Result<(), NotTaken> {
+        if let Err(e) = self.take(1, actor, dm) {
+            return Err(NotTaken(e, Some(Box::new(record))));
+        }
         self.enqueue(record, actor, dm)
     }
 
@@ -91,11 +105,13 @@ impl Outbox {
         actor: &ActorRef<DmMsg>,
         dm: &str,
         timeout: Duration,
-    ) -> Result<(), DmError> {
+    ) -> Result<(), NotTaken> {
         let deadline = tokio::time::Instant::now() + timeout;
         while self.credits.take(1, dm).is_err() {
             let left = deadline.saturating_duration_since(tokio::time::Instant::now());
-            self.ready(1, actor, dm, left).await?;
+            if let Err(e) = self.ready(1, actor, dm, left).await {
+                return Err(NotTaken(e, Some(Box::new(record))));
+            }
         }
         self.enqueue(record, actor, dm)
     }
@@ -106,10 +122,13 @@ impl Outbox {
         record: NewRecord,
         actor: &ActorRef<DmMsg>,
         dm: &str,
-    ) -> Result<(), DmError> {
-        if gone(actor) {
+    ) -> Result<(), NotTaken> {
+        if self.lost_with(actor) {
             self.credits.refund(1);
-            return Err(DmError::Unreachable(dm.to_string()));
+            return Err(NotTaken(
+                DmError::Unreachable(dm.to_string()),
+                Some(Box::new(record)),
+            ));
         }
         let queued = {
             let mut queue = lock(&self.queue);
@@ -117,7 +136,8 @@ impl Outbox {
             queue.len()
         };
         if queued >= FLUSH_AT {
-            return self.flush(actor, dm);
+            // the record went with the queue: if the queue could not leave, it is dropped
+            return self.flush(actor, dm).map_err(|e| NotTaken(e, None));
         }
         self.schedule(actor, dm);
         Ok(())
@@ -200,6 +220,7 @@ impl Outbox {
             };
             if actor.cast(message).is_err() {
                 self.credits.refund(left);
+                self.credits.mark_lost();
                 return Err(DmError::Unreachable(dm.to_string()));
             }
             left -= n;
@@ -223,6 +244,14 @@ impl Outbox {
             let _ = self.flush(actor, dm);
         }
         self.credits.ready(n, actor, dm, timeout).await
+    }
+
+    /// Whether the datamanager `actor` is lost to this outbox: stopped (a remote actor's shim
+    /// stops with its session), or found lost by the credits (it went away with an
+    /// acknowledgement, or a replica that is not the leader answered). What is put to it
+    /// now is not stored: its client follows the datamanager's name.
+    pub(crate) fn lost_with(&self, actor: &ActorRef<DmMsg>) -> bool {
+        gone(actor) || self.credits.lost()
     }
 
     /// Records queued or unacknowledged.
@@ -288,6 +317,8 @@ mod tests {
         largest: usize,
         /// Hold acknowledgements (`Stats` calls) instead of answering them.
         hold: bool,
+        /// Answer acknowledgements as a replica that is not the leader does.
+        follower: bool,
         held: Vec<RpcReplyPort<DmStats>>,
     }
 
@@ -345,7 +376,14 @@ mod tests {
                         vec![]
                     }
                     DmMsg::Stats { reply } => {
-                        let _ = reply.send(DmStats::default());
+                        let replica = seen.follower.then(|| crate::ReplicaStats {
+                            role: marie_vocabulary::replica::ReplicaRole::Follower,
+                            ..Default::default()
+                        });
+                        let _ = reply.send(DmStats {
+                            replica,
+                            ..Default::default()
+                        });
                         vec![]
                     }
                     _ => vec![],
@@ -365,8 +403,14 @@ mod tests {
 
     /// A client of a stand-in, metered as a remote datamanager's client is.
     async fn metered() -> (DmClient, Arc<Probe>, ActorRef<DmMsg>) {
+        metered_named(None).await
+    }
+
+    /// [`metered`], the stand-in named `name` (the name its client follows).
+    async fn metered_named(name: Option<&str>) -> (DmClient, Arc<Probe>, ActorRef<DmMsg>) {
         let probe = Arc::new(Probe::default());
-        let (actor, _) = Actor::spawn(None, StandIn, probe.clone()).await.unwrap();
+        let name = name.map(str::to_string);
+        let (actor, _) = Actor::spawn(name, StandIn, probe.clone()).await.unwrap();
         let client = DmClient::new(actor.clone(), "producer").metered();
         (client, probe, actor)
     }
@@ -534,6 +578,65 @@ mod tests {
         probe.until(|s| s.values.len() == 6).await;
         assert_eq!(lock(&probe.seen).values, [0, 1, 2, 3, 4, 5]);
         actor.stop(None);
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn puts_to_an_instance_that_answers_as_a_follower_go_to_the_next_one_published() {
+        use marie_vocabulary::registry::{self, ModuleKind};
+        // an old leader living on as a follower: it stores no puts, and its answer to the
+        // acknowledgement says so
+        let (old, probe, old_actor) = metered_named(Some("ob-follower-puts")).await;
+        let name = old.dm_name().to_string();
+        lock(&probe.seen).follower = true;
+        for i in 0..WINDOW as u64 / 2 {
+            old.put("sonar", None, None, &i).unwrap();
+        }
+        // the acknowledgement asked at half the window comes back from a follower: the
+        // instance is lost to the client, which has nowhere to go yet (a put never waits)
+        let refused = tokio::time::timeout(Duration::from_secs(30), async {
+            loop {
+                match old.put("sonar", None, None, &0u64) {
+                    // (the window may be spent before the answer is in)
+                    Ok(()) | Err(DmError::Busy { .. }) => {
+                        tokio::time::sleep(Duration::from_millis(1)).await
+                    }
+                    Err(e) => break e,
+                }
+            }
+        })
+        .await
+        .expect("puts to a follower are refused once it has answered as one");
+        assert!(matches!(refused, DmError::Unreachable(_)), "{refused:?}");
+        // the leader is published under the name: the next put goes there by itself
+        let leader = Arc::new(Probe::default());
+        let (next, _) = Actor::spawn(None, StandIn, leader.clone()).await.unwrap();
+        registry::publish(ModuleKind::Datamanager, 4711, &name, next.get_cell()).unwrap();
+        old.put("sonar", None, None, &7u64).unwrap();
+        assert_eq!(old.actor().get_id(), next.get_id(), "the client moved");
+        leader.until(|s| s.values == [7]).await;
+        // and so does a put that waits, and the stats
+        old.put_waiting("sonar", None, None, &8u64).await.unwrap();
+        leader.until(|s| s.values == [7, 8]).await;
+        assert_eq!(old.stats().await.unwrap().replica, None, "the leader's");
+        old_actor.stop(None);
+        next.stop(None);
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn stats_asked_of_a_follower_are_asked_of_the_leader_published() {
+        use marie_vocabulary::registry::{self, ModuleKind};
+        let (old, probe, old_actor) = metered_named(Some("ob-follower-stats")).await;
+        let name = old.dm_name().to_string();
+        lock(&probe.seen).follower = true;
+        // no leader published: the follower's own answer
+        assert!(old.stats().await.unwrap().replica.is_some());
+        let leader = Arc::new(Probe::default());
+        let (next, _) = Actor::spawn(None, StandIn, leader.clone()).await.unwrap();
+        registry::publish(ModuleKind::Datamanager, 4712, &name, next.get_cell()).unwrap();
+        assert_eq!(old.stats().await.unwrap().replica, None, "the leader's");
+        assert_eq!(old.actor().get_id(), next.get_id(), "the client moved");
+        old_actor.stop(None);
+        next.stop(None);
     }
 
     #[test]

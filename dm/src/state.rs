@@ -35,6 +35,9 @@ pub struct DatamanagerState {
     pub(crate) producers: Producers,
     /// Retried puts answered with the seq their first copy got.
     pub(crate) duplicates: u64,
+    /// Where it tells what it does on its own: a class that starts dropping records by
+    /// retention (`dm_retention`); a node gives its bus.
+    pub(crate) events: Option<marie_vocabulary::events::EventBus>,
 }
 
 impl std::fmt::Debug for DatamanagerState {
@@ -99,6 +102,7 @@ impl DatamanagerState {
                 }
             }),
             retention: Some(bound(self.store.config().default_retention)),
+            dropped_by_class: self.store.dropped_by_class(),
             retention_by_class: self
                 .store
                 .config()
@@ -167,6 +171,28 @@ impl DatamanagerState {
             self.wake(&class, seq);
         }
         Ok(seq)
+    }
+
+    /// Tell of every class that dropped its first record by retention since the last call:
+    /// a warning and a `dm_retention` event, once per class (a follower's store drops what
+    /// its leader's does, which the leader tells). Retention is never silent.
+    pub(crate) fn tell_retention(&mut self) {
+        let full = self.store.take_newly_full();
+        if full.is_empty() || self.is_follower() {
+            return;
+        }
+        let node = marie_vocabulary::registry::local_node_name();
+        for (class, bound) in full {
+            tracing::warn!(dm = %self.name, %class, bound, "a class holds its retention bound: storing more drops its oldest records");
+            if let Some(bus) = &self.events {
+                bus.publish(marie_vocabulary::events::EventKind::DmRetention {
+                    dm: self.name.clone(),
+                    node: node.clone(),
+                    class: class.to_string(),
+                    bound: bound as u64,
+                });
+            }
+        }
     }
 
     /// Answer the waits that the record `seq` of `class` satisfies.

@@ -173,6 +173,8 @@ struct ClassIndex {
     /// sweep takes them all out: a dropped record then costs no hash lookups. Every reader
     /// of a set starts at the class's first live seq, below which every seq is stale.
     stale: usize,
+    /// Records of this class dropped by retention.
+    dropped: u64,
 }
 
 /// Which of a class's sequences a walk follows.
@@ -191,6 +193,7 @@ impl ClassIndex {
             subs: NameMap::default(),
             sources: NameMap::default(),
             stale: 0,
+            dropped: 0,
         }
     }
 
@@ -563,6 +566,10 @@ pub struct Store {
     last_time: Duration,
     dropped: u64,
     deleted: u64,
+    /// Classes that dropped their first record by retention since the last
+    /// [`Store::take_newly_full`], with their bounds: what the datamanager tells (an event
+    /// and a warning, once per class), so that retention is never silent.
+    newly_full: Vec<(Name, usize)>,
 }
 
 /// Run `work` on the value of `key`, creating it with `make` first if missing — one hash
@@ -594,6 +601,7 @@ impl Store {
             last_time: Duration::ZERO,
             dropped: 0,
             deleted: 0,
+            newly_full: Vec::new(),
         }
     }
 
@@ -707,6 +715,7 @@ impl Store {
         self.next_seq = seq.checked_add(1).ok_or(DmError::SeqExhausted)?;
         self.last_time = self.last_time.max(timestamp);
         let config = &self.config;
+        let newly_full = &mut self.newly_full;
         let evicted = with_slot(
             &mut self.classes,
             class,
@@ -714,7 +723,16 @@ impl Store {
                 let bound = config.retention_for(&name);
                 ClassIndex::new(name, bound)
             },
-            |ci| ci.add(seq, timestamp, source, sub1, sub2, payload),
+            |ci| {
+                let evicted = ci.add(seq, timestamp, source, sub1, sub2, payload);
+                if evicted.is_some() {
+                    if ci.dropped == 0 {
+                        newly_full.push((Name::shared(&ci.name), ci.bound));
+                    }
+                    ci.dropped += 1;
+                }
+                evicted
+            },
         );
         self.times.push(timestamp, seq);
         self.len += 1;
@@ -1106,6 +1124,22 @@ impl Store {
         self.dropped
     }
 
+    /// Records dropped by retention so far, per class (classes that dropped none are not
+    /// listed).
+    pub fn dropped_by_class(&self) -> BTreeMap<String, u64> {
+        self.classes
+            .values()
+            .filter(|c| c.dropped > 0)
+            .map(|c| (c.name.to_string(), c.dropped))
+            .collect()
+    }
+
+    /// The classes that dropped their first record by retention since the last call, each
+    /// with its bound: once per class in a store's life.
+    pub fn take_newly_full(&mut self) -> Vec<(Name, usize)> {
+        std::mem::take(&mut self.newly_full)
+    }
+
     /// Records deleted by query so far.
     pub fn deleted(&self) -> u64 {
         self.deleted
@@ -1451,6 +1485,29 @@ mod tests {
                 .sub1("rare"),
         );
         assert_eq!((seqs(&answer), visited), (vec![501], 1));
+    }
+
+    #[test]
+    fn a_class_that_starts_dropping_by_retention_is_told_once_with_its_bound() {
+        let mut s = Store::new(DmConfig::default().with_retention("sonar", 2));
+        for _ in 0..2 {
+            s.insert(new("sonar", None, None, "s"), Duration::ZERO)
+                .unwrap();
+        }
+        assert!(s.take_newly_full().is_empty(), "nothing dropped yet");
+        for _ in 0..5 {
+            s.insert(new("sonar", None, None, "s"), Duration::ZERO)
+                .unwrap();
+            s.insert(new("wall", None, None, "s"), Duration::ZERO)
+                .unwrap();
+        }
+        let told = s.take_newly_full();
+        assert_eq!(told, vec![(Name::from("sonar"), 2)]);
+        assert!(s.take_newly_full().is_empty(), "told once");
+        assert_eq!(
+            s.dropped_by_class(),
+            BTreeMap::from([("sonar".to_string(), 5)])
+        );
     }
 
     #[test]

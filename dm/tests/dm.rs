@@ -601,3 +601,60 @@ async fn batches_store_in_order_all_or_nothing() {
     assert_eq!(c.puts_in_flight(), 0, "local puts are not metered");
     dm.stop().await;
 }
+
+#[tokio::test]
+async fn a_class_reaching_its_retention_bound_is_told_once_and_its_drops_counted() {
+    use marie_vocabulary::events::{EventBus, EventKind};
+    let bus = EventBus::new("here", RealClock::shared());
+    let mut events = bus.subscribe();
+    let (actor, handle) = dm::spawn_datamanager(DmArgs {
+        id: 4610,
+        name: "retention-told".to_string(),
+        clock: RealClock::shared(),
+        config: DmConfig::default().with_retention("sonar", 3),
+        durability: dm::Durability::Memory,
+        journal_dir: None,
+        replication: None,
+        events: Some(bus.clone()),
+    })
+    .await
+    .expect("spawn dm");
+    let client = DmClient::new(actor.clone(), "tester");
+    for i in 0..3u64 {
+        client.store("sonar", None, None, &i).await.unwrap();
+    }
+    client.store("wall", None, None, &0u64).await.unwrap();
+    let quiet = client.stats().await.unwrap();
+    assert_eq!(quiet.dropped, 0);
+    assert!(
+        events
+            .drain()
+            .iter()
+            .all(|e| !matches!(e.kind, EventKind::DmRetention { .. })),
+        "nothing dropped, nothing told"
+    );
+    for i in 3..10u64 {
+        client.put("sonar", None, None, &i).unwrap();
+    }
+    let stats = client.stats().await.unwrap();
+    assert_eq!(stats.dropped, 7);
+    assert_eq!(stats.dropped_by_class.get("sonar"), Some(&7));
+    assert_eq!(stats.retention_of("sonar"), Some(3));
+    let told: Vec<_> = events
+        .drain()
+        .into_iter()
+        .filter_map(|e| match e.kind {
+            EventKind::DmRetention {
+                dm, class, bound, ..
+            } => Some((dm, class, bound)),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(
+        told,
+        [("retention-told".to_string(), "sonar".to_string(), 3)],
+        "told once, at the first record dropped"
+    );
+    actor.stop(None);
+    within("dm stops", handle).await.unwrap();
+}

@@ -77,6 +77,19 @@
 //! is gone (crashed, killed), the operation's steps wait for the DM's next incarnation, at
 //! most [`DATAMANAGER_RETURN`](eo::DATAMANAGER_RETURN) (5 s), and go on.
 //!
+//! **What a datamanager's `Ok` promises** ([`dm::DmClient`], which an operation's context
+//! hands out): `store` answers once the record is stored at the datamanager's durability —
+//! with replicas, in a majority of their journals — and `put_all` once every record of many
+//! is: a producer that must not drop records stores. `put`, `put_batch` and `put_waiting`
+//! answer once the record is handed over, before it is stored: those on their way to an
+//! instance that is lost (a crash, its node killed, frozen or cut off) are lost with it;
+//! `put_waiting` waits for a credit of flow control, not for the record to be stored. Every
+//! road follows a lost instance to the next one published under the datamanager's name, and
+//! [`dm::DmClient::leader_node`] says which node holds a replicated datamanager's leader.
+//! Each class keeps at most 10 000 records unless the datamanager says otherwise
+//! ([`cluster::node::DatamanagerConfig::with_retention`]); the first it drops is told (a
+//! `dm_retention` event).
+//!
 //! **2. A node** hosts the application's operations and datamanagers under supervision,
 //! with one clock: [`Node::builder`]. Each operation type's declarations are checked before
 //! anything starts, and a build whose panics abort is refused (self-healing needs panics to

@@ -14,6 +14,13 @@ pub(crate) mod netns;
 
 use std::process::{Command, Output};
 
+/// ractor's registry and `pg` are process-wide: a test that makes this process a member of
+/// a cluster holds this, so that no other test's cluster is a member beside it — two
+/// clusters' datamanagers of one name (`feature`) would be one name here, and a client could
+/// follow one into the other. One for the whole binary (each test file had its own, and
+/// `dm_backpressure` and `dm_replicas` ran side by side).
+pub(crate) static ONE_MEMBER: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 /// Run the built `marie` with `args` from the package root, without `RUST_LOG`. Whatever the
 /// input, `marie` must not panic: its stderr may say `panicked` only when a `panic:` fault
 /// was injected on purpose.

@@ -8,7 +8,7 @@ use super::{NodeOptions, OPERATION_SHUTDOWN};
 use marie_actors::dispatcher::DispatcherMsg;
 use marie_actors::eo::{HostOptions, OperationFactory};
 use marie_dm::AckSink;
-use marie_dm::{self as dm, DmArgs, DmClient, DmConfig, DmError, Durability, NewRecord};
+use marie_dm::{self as dm, DmArgs, DmClient, DmError, Durability, NewRecord};
 use marie_supervision::{
     ChildSpec, ChildTemplate, Restart, Shutdown, Supervisor, SupervisorError, SupervisorEvent,
     SupervisorRef, SupervisorSpec,
@@ -217,6 +217,7 @@ fn datamanagers(
                     .collect(),
             );
             let (id, name) = (spec.id, spec.name.clone());
+            let limits = spec.limits();
             let replication = (!spec.replicas.is_empty()).then(|| {
                 let r = dm::Replication::new(config.name.clone(), spec.replicas.clone());
                 match spec.catch_up {
@@ -236,12 +237,13 @@ fn datamanagers(
                 let journal = journal.clone();
                 let replication = replication.clone();
                 let events = events.clone();
+                let limits = limits.clone();
                 async move {
                     let mut args = DmArgs {
                         id,
                         name,
                         clock,
-                        config: DmConfig::default(),
+                        config: limits,
                         durability: Durability::Memory,
                         journal_dir: None,
                         replication: None,

@@ -80,6 +80,7 @@ pub fn class(kind: &EventKind, drawn: bool) -> Option<&'static str> {
         | EventKind::ConnectionRefused { .. } => "node",
         EventKind::DmPromoted { .. }
         | EventKind::DmFenced { .. }
+        | EventKind::DmRetention { .. }
         | EventKind::DmRecovered { .. }
         | EventKind::DmChecked(_) => "datamanager",
         EventKind::Robot { what, .. }

@@ -351,6 +351,20 @@ pub enum EventKind {
         /// Why.
         why: String,
     },
+    /// A class of a datamanager dropped its first record by retention: it holds its bound
+    /// of records, and each record stored in it from now on drops the oldest (told once per
+    /// class and datamanager instance; the count is in the datamanager's stats). Retention
+    /// is never silent.
+    DmRetention {
+        /// The datamanager's name.
+        dm: String,
+        /// The node it runs on.
+        node: String,
+        /// The class.
+        class: String,
+        /// Its bound: most records of the class kept.
+        bound: u64,
+    },
     /// What a datamanager holds now, as a monitor asked it (fed to the monitor's page every
     /// few seconds; never on a node's bus, so never in an events file).
     DmState {
@@ -485,6 +499,7 @@ impl EventKind {
             EventKind::DmRecovered { .. }
             | EventKind::DmPromoted { .. }
             | EventKind::DmFenced { .. }
+            | EventKind::DmRetention { .. }
             | EventKind::DmState { .. }
             | EventKind::DmAcked { .. }
             | EventKind::DmDeleted { .. }

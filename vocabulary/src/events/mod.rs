@@ -62,6 +62,7 @@
 //! {"at_ms":20003,"node":"features","kind":{"type":"dm_recovered","dm":"feature","records":1210,"bytes":139150,"ms":4,"dropped_bytes":0,"dropped_records":0,"torn":null}}
 //! {"at_ms":20090,"node":"operations","kind":{"type":"dm_promoted","dm":"feature","node":"operations","term":3}}
 //! {"at_ms":21000,"node":"features","kind":{"type":"dm_fenced","dm":"feature","node":"features","term":2,"why":"a newer term"}}
+//! {"at_ms":26400,"node":"features","kind":{"type":"dm_retention","dm":"feature","node":"features","class":"sonar","bound":10000}}
 //! {"at_ms":22000,"node":"features","kind":{"type":"dm_state","dm":"feature","durability":"process","records":1210,"journal_bytes":139150,"role":"leader","term":3,"lag":{"operations":0,"spare":2}}}
 //! {"at_ms":4100,"node":"operations","kind":{"type":"dm_acked","dm":"world","source":"wall-sensor","class":"wall","seq":212,"digest":1311768467463790320}}
 //! {"at_ms":4200,"node":"operations","kind":{"type":"dm_deleted","dm":"parameter","source":"path-planner","class":"path","deleted":3}}
@@ -214,6 +215,7 @@ mod tests {
             EventKind::DmRecovered { .. } => "dm_recovered",
             EventKind::DmPromoted { .. } => "dm_promoted",
             EventKind::DmFenced { .. } => "dm_fenced",
+            EventKind::DmRetention { .. } => "dm_retention",
             EventKind::DmState { .. } => "dm_state",
             EventKind::DmAcked { .. } => "dm_acked",
             EventKind::DmDeleted { .. } => "dm_deleted",
@@ -224,7 +226,7 @@ mod tests {
     }
 
     /// The `type` of every kind, as [`type_of`] names them.
-    const KINDS: [&str; 40] = [
+    const KINDS: [&str; 41] = [
         "provenance",
         "reparameterized",
         "run_started",
@@ -259,6 +261,7 @@ mod tests {
         "dm_recovered",
         "dm_promoted",
         "dm_fenced",
+        "dm_retention",
         "dm_state",
         "dm_acked",
         "dm_deleted",

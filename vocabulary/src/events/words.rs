@@ -524,6 +524,15 @@ fn datamanager(node: &str, kind: &EventKind) -> String {
             "datamanager {dm}: the leader on {on} (term {term}) stepped down: {why}; it \
              restarts as a follower"
         ),
+        EventKind::DmRetention {
+            dm,
+            node: on,
+            class,
+            bound,
+        } => format!(
+            "datamanager {dm} on {on}: class {class} holds its retention bound of {bound} \
+             records; storing more drops its oldest"
+        ),
         EventKind::DmState {
             dm,
             durability,
@@ -625,6 +634,7 @@ pub fn mark(kind: &EventKind) -> Mark {
         EventKind::DmRecovered { .. }
         | EventKind::DmPromoted { .. }
         | EventKind::DmFenced { .. }
+        | EventKind::DmRetention { .. }
         | EventKind::DmState { .. }
         | EventKind::DmAcked { .. }
         | EventKind::DmDeleted { .. } => '%',
@@ -661,7 +671,8 @@ pub fn gravity(kind: &EventKind) -> Gravity {
         | EventKind::NodeFrozen { .. }
         | EventKind::NodeRefused { .. }
         | EventKind::ConnectionRefused { .. }
-        | EventKind::DmFenced { .. } => Gravity::Warning,
+        | EventKind::DmFenced { .. }
+        | EventKind::DmRetention { .. } => Gravity::Warning,
         EventKind::DmRecovered { torn: Some(_), .. } => Gravity::Warning,
         EventKind::ChildExited { reason, .. } if reason != "normal" => Gravity::Warning,
         EventKind::DmAcked { .. } | EventKind::DmDeleted { .. } | EventKind::DmState { .. } => {

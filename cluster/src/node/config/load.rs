@@ -168,8 +168,22 @@ fn datamanager(
 ) -> Option<DatamanagerConfig> {
     r.unknown_keys(
         t,
-        &["name", "id", "durability", "replicas", "copies", "catch_up"],
+        &[
+            "name",
+            "id",
+            "durability",
+            "replicas",
+            "copies",
+            "catch_up",
+            "retention",
+            "class_retention",
+        ],
     );
+    let retention = r
+        .integer(t, "retention", Some(0), 1..=i64::MAX)
+        .filter(|n| *n > 0)
+        .map(|n| usize::try_from(n).unwrap_or(usize::MAX));
+    let class_retention = class_retention(r, t);
     let catch_up = r
         .integer(t, "catch_up", Some(0), 1..=i64::from(u32::MAX))
         .filter(|n| *n > 0)
@@ -206,8 +220,48 @@ fn datamanager(
         durability: durability.ok()?,
         replicas: replicas?,
         catch_up,
+        retention,
+        class_retention,
         ..spec
     })
+}
+
+/// `class_retention = { CLASS = N, ... }`: bounds of particular classes, each at least 1.
+fn class_retention(
+    r: &mut Reader<'_>,
+    t: &Tbl<'_, '_>,
+) -> std::collections::BTreeMap<String, usize> {
+    let mut bounds = std::collections::BTreeMap::new();
+    let Some(v) = t.get("class_retention") else {
+        return bounds;
+    };
+    let Some(table) = r.table_or(
+        v,
+        "class_retention",
+        "a table of class names and record counts for `class_retention`",
+    ) else {
+        return bounds;
+    };
+    for (class, n) in table.in_file_order() {
+        let Some(n) = r.int_value(n, class.get_ref()) else {
+            continue;
+        };
+        if n < 1 {
+            r.err(
+                &class.span(),
+                format!(
+                    "the retention of class {} must be at least 1 record, found {n}",
+                    quote(class.get_ref())
+                ),
+            );
+            continue;
+        }
+        bounds.insert(
+            class.get_ref().to_string(),
+            usize::try_from(n).unwrap_or(usize::MAX),
+        );
+    }
+    bounds
 }
 
 /// The nodes keeping replicas of a datamanager: `replicas = [...]`, or `copies`, its name in
@@ -735,6 +789,39 @@ mod tests {
             ))
             .unwrap_err();
             assert!(e.contains("<node>:6:12:"), "{bad}: {e}");
+        }
+    }
+
+    #[test]
+    fn retention_is_read_per_datamanager_and_class_and_a_bad_bound_is_refused_at_its_value() {
+        let c = parse(
+            "[node]\nname = \"n\"\n\
+             [[datamanager]]\nname = \"feature\"\nretention = 50000\n\
+             class_retention = { sonar = 200000, wall = 500 }\n\
+             [[datamanager]]\nname = \"world\"\n",
+        )
+        .unwrap();
+        let feature = c.datamanagers[0].limits();
+        assert_eq!(feature.retention_for("line"), 50_000);
+        assert_eq!(feature.retention_for("sonar"), 200_000);
+        assert_eq!(feature.retention_for("wall"), 500);
+        let world = c.datamanagers[1].limits();
+        assert_eq!(
+            world.retention_for("wall"),
+            marie_dm::DmConfig::DEFAULT_RETENTION
+        );
+        for (bad, at) in [
+            ("retention = 0", "<node>:5:13:"),
+            ("retention = \"lots\"", "<node>:5:13:"),
+            ("class_retention = { sonar = 0 }", "<node>:5:21:"),
+            ("class_retention = { sonar = \"x\" }", "<node>:5:29:"),
+            ("class_retention = 7", "<node>:5:19:"),
+        ] {
+            let e = parse(&format!(
+                "[node]\nname = \"n\"\n[[datamanager]]\nname = \"feature\"\n{bad}\n"
+            ))
+            .unwrap_err();
+            assert!(e.contains(at), "{bad}: {e}");
         }
     }
 

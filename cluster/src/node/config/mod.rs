@@ -150,6 +150,15 @@ pub struct DatamanagerConfig {
     /// [`Replication::DEFAULT_CATCH_UP`](marie_dm::Replication::DEFAULT_CATCH_UP)).
     /// In a file, `catch_up = 10000`.
     pub catch_up: Option<usize>,
+    /// Most records kept per class without a bound of its own (`None`:
+    /// [`DmConfig::DEFAULT_RETENTION`](marie_dm::DmConfig::DEFAULT_RETENTION), 10 000):
+    /// storing one more drops the oldest of that class. The first record a class drops is
+    /// told (a warning, and a `dm_retention` event on the node's bus); the counts are in the
+    /// datamanager's stats. In a file, `retention = 50000`.
+    pub retention: Option<usize>,
+    /// Bounds of particular classes (`class → most records kept`). In a file,
+    /// `class_retention = { sonar = 100000, wall = 500 }`.
+    pub class_retention: std::collections::BTreeMap<String, usize>,
 }
 
 impl DatamanagerConfig {
@@ -161,6 +170,8 @@ impl DatamanagerConfig {
             durability: None,
             replicas: Vec::new(),
             catch_up: None,
+            retention: None,
+            class_retention: Default::default(),
         }
     }
 
@@ -176,6 +187,42 @@ impl DatamanagerConfig {
     pub fn with_replicas(mut self, nodes: impl IntoIterator<Item = impl Into<String>>) -> Self {
         self.replicas = nodes.into_iter().map(Into::into).collect();
         self
+    }
+
+    /// Keep at most `n` records of each class without a bound of its own (at least 1);
+    /// the default is [`DmConfig::DEFAULT_RETENTION`](marie_dm::DmConfig::DEFAULT_RETENTION).
+    ///
+    /// ```
+    /// use marie_dm::FEATURE;
+    /// use marie_cluster::node::DatamanagerConfig;
+    /// let dm = DatamanagerConfig::from(FEATURE)
+    ///     .with_retention(50_000)
+    ///     .with_class_retention("sonar", 200_000);
+    /// let limits = dm.limits();
+    /// assert_eq!(limits.retention_for("wall"), 50_000);
+    /// assert_eq!(limits.retention_for("sonar"), 200_000);
+    /// ```
+    pub fn with_retention(mut self, n: usize) -> Self {
+        self.retention = Some(n);
+        self
+    }
+
+    /// Keep at most `n` records of `class` (at least 1).
+    pub fn with_class_retention(mut self, class: impl Into<String>, n: usize) -> Self {
+        self.class_retention.insert(class.into(), n);
+        self
+    }
+
+    /// The datamanager's limits as its retention settings make them.
+    pub fn limits(&self) -> marie_dm::DmConfig {
+        let mut limits = marie_dm::DmConfig::default();
+        if let Some(n) = self.retention {
+            limits = limits.with_default_retention(n);
+        }
+        for (class, n) in &self.class_retention {
+            limits = limits.with_retention(class.clone(), *n);
+        }
+        limits
     }
 
     /// At `durability` rather than the node's default.
