@@ -73,6 +73,7 @@ pub fn class(kind: &EventKind, drawn: bool) -> Option<&'static str> {
         | EventKind::FaultHealed { .. }
         | EventKind::FaultNotInjected { .. } => "fault",
         EventKind::NodeUp { .. }
+        | EventKind::NodeBack { .. }
         | EventKind::NodeLost { .. }
         | EventKind::NodeDown { .. }
         | EventKind::NodeFrozen { .. }

@@ -270,6 +270,17 @@ pub enum EventKind {
         /// The address it listened on.
         address: String,
     },
+    /// A peer node lost earlier is back: its process was started again (by `marie up`,
+    /// systemd, a container runtime) and rejoined under its name, or it was declared down
+    /// (frozen, cut off) and is heard again. Told after its [`NodeUp`](Self::NodeUp).
+    NodeBack {
+        /// Its node name.
+        peer: String,
+        /// The address it listens on.
+        address: String,
+        /// How long it was lost, ms of real time (from the first loss this node saw).
+        down_ms: u64,
+    },
     /// The failure detector declared a silent peer node down and closed its sessions.
     NodeDown {
         /// Its node name.
@@ -491,6 +502,7 @@ impl EventKind {
             | EventKind::FaultHealed { .. }
             | EventKind::FaultNotInjected { .. } => Family::Fault,
             EventKind::NodeUp { .. }
+            | EventKind::NodeBack { .. }
             | EventKind::NodeLost { .. }
             | EventKind::NodeDown { .. }
             | EventKind::NodeFrozen { .. }

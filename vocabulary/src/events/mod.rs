@@ -206,6 +206,7 @@ mod tests {
             EventKind::FaultNotInjected { .. } => "fault_not_injected",
             EventKind::FaultHealed { .. } => "fault_healed",
             EventKind::NodeUp { .. } => "node_up",
+            EventKind::NodeBack { .. } => "node_back",
             EventKind::NodeLost { .. } => "node_lost",
             EventKind::NodeDown { .. } => "node_down",
             EventKind::NodeFrozen { .. } => "node_frozen",

@@ -472,6 +472,14 @@ fn fault(kind: &EventKind) -> String {
 fn cluster(node: &str, kind: &EventKind) -> String {
     match kind {
         EventKind::NodeUp { peer, address } => format!("{node} sees {peer} ({address})"),
+        EventKind::NodeBack {
+            peer,
+            address,
+            down_ms,
+        } => format!(
+            "{node} sees {peer} back ({address}) after {:.1} s",
+            *down_ms as f64 / 1000.0
+        ),
         EventKind::NodeLost { peer, address } => format!("{node} lost {peer} ({address})"),
         EventKind::NodeDown { peer, silent_ms } => {
             format!("{node} declared {peer} down (silent {silent_ms} ms)")
@@ -626,6 +634,7 @@ pub fn mark(kind: &EventKind) -> Mark {
         | EventKind::ChildExited { .. }
         | EventKind::ChildRestarted { .. } => '^',
         EventKind::NodeUp { .. }
+        | EventKind::NodeBack { .. }
         | EventKind::NodeLost { .. }
         | EventKind::NodeDown { .. }
         | EventKind::NodeFrozen { .. }
