@@ -3,6 +3,7 @@
 //! durability, journal directory and replication said here into one storage mode at its
 //! start (`storage`), and refuses a combination that cannot work (`start`).
 
+use super::heir::Heir;
 use super::journal::Durability;
 use super::replica::Replication;
 use super::store::DmConfig;
@@ -38,6 +39,7 @@ impl DmSpec {
             journal_dir: None,
             replication: None,
             events: None,
+            heir: Some(Heir::new()),
         }
     }
 }
@@ -88,8 +90,15 @@ pub struct DmArgs {
     /// Replicas on other nodes (`replica`): this is one of them. Needs a journal.
     pub replication: Option<Replication>,
     /// Where a replica tells that it became the leader or stepped down (`dm_promoted`,
-    /// `dm_fenced`); a node gives its bus.
+    /// `dm_fenced`), and a datamanager what its puts applied (`dm_applied`); a node gives
+    /// its bus.
     pub events: Option<EventBus>,
+    /// At durability `memory`: where its records wait for its next incarnation when it
+    /// ends — a crash, a kill, a stop — so that a datamanager restarted from clones of these
+    /// arguments starts with them ([`Heir`]: memory survives the datamanager's crash, not
+    /// its process's). `None`: a restarted memory datamanager starts empty. Ignored with a
+    /// journal, which is read back instead.
+    pub heir: Option<Heir>,
 }
 
 impl DmArgs {
@@ -97,6 +106,12 @@ impl DmArgs {
     pub fn with_journal(mut self, dir: impl Into<PathBuf>, durability: Durability) -> DmArgs {
         self.journal_dir = Some(dir.into());
         self.durability = durability;
+        self
+    }
+
+    /// Start empty at every start, as if nothing had been kept (no [`Heir`]).
+    pub fn without_heir(mut self) -> DmArgs {
+        self.heir = None;
         self
     }
 
@@ -117,6 +132,7 @@ impl std::fmt::Debug for DmArgs {
             .field("durability", &self.durability)
             .field("journal_dir", &self.journal_dir)
             .field("replication", &self.replication)
+            .field("heir", &self.heir)
             .finish_non_exhaustive()
     }
 }
