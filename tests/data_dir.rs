@@ -317,3 +317,73 @@ fn chaos_with_datamanagers_and_a_data_dir_still_docks() {
     // the killed datamanagers came back with every record they acknowledged
     assert_eq!(report["acknowledged_lost"], 0, "{:?}", report["dm_checks"]);
 }
+
+/// A run that starts on an existing data directory tells what each datamanager read back
+/// (`dm_recovered`: records, bytes, a torn end if any) as the run begins — they were read
+/// at the node's start, before the run listened, and used to be told to no one — and the
+/// report says it (`dm_recoveries`).
+#[test]
+fn a_run_on_an_existing_data_dir_tells_what_its_datamanagers_read_back() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("data").display().to_string();
+    let events = dir.path().join("events.jsonl");
+    let events_arg = events.display().to_string();
+    let run = || {
+        report_of(&[
+            "run",
+            "missions/docking.toml",
+            "--speed",
+            "max",
+            "--data-dir",
+            &data,
+            "--events",
+            &events_arg,
+        ])
+    };
+    let (first, _) = run();
+    assert_eq!(first.status.code(), Some(0), "{}", text(&first.stdout));
+    let (out, report) = run();
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stdout));
+    let lines: Vec<serde_json::Value> = std::fs::read_to_string(&events)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let started = lines
+        .iter()
+        .position(|e| e["kind"]["type"] == "run_started")
+        .expect("run_started");
+    let recovered: Vec<&serde_json::Value> = lines
+        .iter()
+        .filter(|e| e["kind"]["type"] == "dm_recovered")
+        .map(|e| &e["kind"])
+        .collect();
+    let names: Vec<&str> = recovered
+        .iter()
+        .map(|k| k["dm"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["feature", "parameter", "world"], "{recovered:?}");
+    for k in &recovered {
+        assert!(k["records"].as_u64() > Some(0), "{k}");
+        assert!(k["bytes"].as_u64() > Some(0), "{k}");
+        assert!(k["torn"].is_null(), "{k}");
+    }
+    // told once each, as the run begins
+    assert!(
+        lines
+            .iter()
+            .take(started)
+            .filter(|e| e["kind"]["type"] == "dm_recovered")
+            .count()
+            == 3
+    );
+    let folded = report["dm_recoveries"].as_array().expect("dm_recoveries");
+    assert_eq!(folded.len(), 3, "{folded:?}");
+    for (r, k) in folded.iter().zip(&recovered) {
+        assert_eq!((&r["dm"], &r["records"]), (&k["dm"], &k["records"]));
+        assert_eq!(
+            (&r["from"], &r["node"]),
+            (&"journal".into(), &"embedded".into())
+        );
+    }
+}

@@ -105,11 +105,13 @@ impl ReportBuilder {
             }
             EventKind::RunStarted { mission, .. } => {
                 let voice = std::mem::take(&mut self.voice);
-                // what runs was told right before
+                // what runs, and what its datamanagers started from, was told right before
                 let provenance = self.report.provenance.take();
+                let recoveries = std::mem::take(&mut self.report.dm_recoveries);
                 *self = ReportBuilder::new();
                 self.voice = voice;
                 self.report.provenance = provenance;
+                self.report.dm_recoveries = recoveries;
                 self.report.mission = mission.clone();
                 self.start_ms = Some(event.at_ms);
             }
