@@ -387,3 +387,53 @@ fn a_run_on_an_existing_data_dir_tells_what_its_datamanagers_read_back() {
         );
     }
 }
+
+/// A run on a data directory another process holds is bad input (exit 2), said once,
+/// naming the directory and the holder's pid; so is a `--data-dir` that is a file.
+#[test]
+fn a_data_dir_held_by_another_run_or_that_is_a_file_is_bad_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("data");
+    let data_arg = data.to_str().unwrap();
+    // a slow run holds the directory while the second one starts
+    let mut holder = Proc::spawn(
+        "marie run",
+        &[
+            "run",
+            "missions/docking.toml",
+            "--data-dir",
+            data_arg,
+            "--speed",
+            "0.1",
+        ],
+    );
+    holder.wait_line("mission `docking`");
+    let out = marie(&["run", "missions/docking.toml", "--data-dir", data_arg]);
+    let stderr = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert_eq!(
+        stderr.trim_end(),
+        format!(
+            "marie: data_dir {data_arg} is in use by another marie node (pid {}): one node per \
+             data_dir (stop that node, or give this one another data_dir)",
+            holder.pid()
+        )
+    );
+    drop(holder);
+
+    let file = dir.path().join("a-file");
+    std::fs::write(&file, "not a directory").unwrap();
+    for path in [file.clone(), file.join("below")] {
+        let path = path.display().to_string();
+        let out = marie(&["run", "missions/docking.toml", "--data-dir", &path]);
+        let stderr = text(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{stderr}");
+        assert_eq!(
+            stderr.trim_end(),
+            format!(
+                "marie: data_dir {path}: it is a file, not a directory (give a directory, or a \
+                 path that does not exist yet)"
+            )
+        );
+    }
+}
