@@ -100,6 +100,7 @@ fn store_rate(c: &mut Criterion) {
             journal_dir: None,
             replication: None,
             events: None,
+            heir: None,
         }))
         .expect("spawn dm");
     let (counter, _counter_handle) = rt
@@ -260,6 +261,7 @@ fn select_scaling(c: &mut Criterion) {
                 journal_dir: None,
                 replication: None,
                 events: None,
+                heir: None,
             }))
             .expect("spawn dm");
         let client = DmClient::new(dm_ref.clone(), "bench");

@@ -108,13 +108,23 @@ fn a_woken_nodes_freeze_and_restart_reach_the_events_file_and_the_page_once_each
         mark,
         "node operations restarted its 1 operation instance(s) as a new incarnation",
     );
-    // the page: the node's own news, forwarded once it was back in reach, and the node
-    // shown frozen (up again, its operations restarted)
-    state_until(page, "operations' freeze on the page", |s| {
-        said(s, "operations", "was frozen") && s["cluster"]["operations"]["status"] == "frozen"
+    // the page: the node's own news, forwarded once it was back in reach, and the node up
+    // again, saying it woke from its freeze (it used to show `frozen` for good)
+    let woken = state_until(page, "operations' wake on the page", |s| {
+        let node = &s["cluster"]["operations"];
+        said(s, "operations", "was frozen")
+            && node["status"] == "up"
+            && node["woke"]["silent_ms"].as_u64() >= Some(default_deadline_ms())
     });
 
     run.wait_line("monitor: the run is over");
+    // and still up, long after it woke (the run went on)
+    let later = common::http::get_json(page, "/api/state");
+    assert_eq!(later["cluster"]["operations"]["status"], "up", "{later}");
+    assert_eq!(
+        later["cluster"]["operations"]["woke"],
+        woken["cluster"]["operations"]["woke"]
+    );
     run.signal("INT");
     assert_eq!(
         run.wait_exit(),

@@ -397,6 +397,7 @@ fn two_nodes_of_every_datamanager_killed_six_seconds_apart_are_restarted_and_the
     // back and every datamanager keeps its majority; the standby carries the run on
     let dir = tempfile::tempdir().unwrap();
     let report_path = dir.path().join("report.json");
+    let events_path = dir.path().join("events.jsonl");
     let out = marie(&[
         "up",
         THESIS,
@@ -410,6 +411,8 @@ fn two_nodes_of_every_datamanager_killed_six_seconds_apart_are_restarted_and_the
         "stop-node:operations@9",
         "--report",
         report_path.to_str().unwrap(),
+        "--events",
+        events_path.to_str().unwrap(),
     ]);
     let stdout = text(&out.stdout);
     assert_eq!(
@@ -446,6 +449,16 @@ fn two_nodes_of_every_datamanager_killed_six_seconds_apart_are_restarted_and_the
         assert!(
             n["back_at_ms"].as_u64().unwrap() > n["at_ms"].as_u64().unwrap(),
             "{lost:?}"
+        );
+    }
+    // the peers that lost each node tell it back, with how long it was away
+    let events = events(&events_path);
+    for node in ["features", "operations"] {
+        assert!(
+            events.iter().any(|e| e["kind"]["type"] == "node_back"
+                && e["kind"]["peer"] == node
+                && e["kind"]["down_ms"].as_u64().is_some_and(|ms| ms > 0)),
+            "no node_back of {node}"
         );
     }
 }

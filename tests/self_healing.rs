@@ -214,6 +214,81 @@ fn marie_kill_shows_the_datamanager_supervisor_restarting_a_datamanager() {
     }
 }
 
+/// The README's first command with a datamanager killed (or panicking): a memory
+/// datamanager survives its own crash — its next incarnation takes the records it left
+/// (`dm_inherited`) — so the mission docks, and the check at the end finds every
+/// acknowledged record and every put record still held. (Before, the restarted feature
+/// datamanager was empty, the docking mission failed, and the verdict said "0 lost": the
+/// operations' records are puts, which the check did not count.)
+#[test]
+fn docking_completes_when_a_datamanager_in_memory_is_killed_and_it_keeps_its_records() {
+    for (fault, dm) in [
+        ("kill:feature@20", "feature"),
+        ("kill:feature@45", "feature"),
+        ("panic:feature@20", "feature"),
+        ("kill:world@20", "world"),
+        // parking: the path planned and the progress driven so far
+        ("kill:parameter@50", "parameter"),
+    ] {
+        let dir = tempfile::tempdir().unwrap();
+        let events = dir.path().join("events.jsonl");
+        let events_arg = events.display().to_string();
+        let (out, json) = report_of(&[
+            "run",
+            "missions/docking.toml",
+            "--speed",
+            "max",
+            "--fault",
+            fault,
+            "--events",
+            &events_arg,
+        ]);
+        let stdout = text(&out.stdout);
+        let log = format!("{stdout}\n{}", text(&out.stderr));
+        assert_eq!(out.status.code(), Some(0), "{fault}: {log}");
+        assert!(stdout.contains("outcome: succeeded"), "{fault}: {log}");
+        assert_eq!(json["inside_goal"], true, "{fault}");
+        assert_eq!(json["faults"][0]["operation"], dm, "{fault}");
+        // the restarted datamanager took what its previous incarnation held
+        let inherited: Vec<serde_json::Value> = std::fs::read_to_string(&events)
+            .unwrap()
+            .lines()
+            .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+            .filter(|e| e["kind"]["type"] == "dm_inherited")
+            .collect();
+        assert_eq!(inherited.len(), 1, "{fault}: {inherited:?}");
+        assert_eq!(inherited[0]["kind"]["dm"], dm, "{fault}");
+        assert!(
+            inherited[0]["kind"]["records"].as_u64() > Some(0),
+            "{fault}"
+        );
+        assert_eq!(inherited[0]["kind"]["refused"], 0, "{fault}");
+        let recoveries = json["dm_recoveries"].as_array().expect("dm_recoveries");
+        assert!(
+            recoveries
+                .iter()
+                .any(|r| r["dm"] == dm && r["from"] == "heir"),
+            "{fault}: {recoveries:?}"
+        );
+        // nothing lost, puts counted: the operations' sonar readings and segments
+        let checks = json["dm_checks"].as_array().expect("dm_checks");
+        for check in checks {
+            assert_eq!(check["lost"], 0, "{fault}: {check}");
+            assert!(check["applied_lost"].is_null(), "{fault}: {check}");
+        }
+        let feature = checks.iter().find(|c| c["dm"] == "feature").unwrap();
+        let applied = feature["applied"].as_u64().unwrap_or_default();
+        assert!(applied > 100, "{fault}: {feature}");
+        assert_eq!(json["acknowledged_lost"], 0, "{fault}");
+        assert_eq!(json["applied_lost"], 0, "{fault}");
+        let puts: u64 = checks.iter().filter_map(|c| c["applied"].as_u64()).sum();
+        assert!(
+            stdout.contains(&format!(", 0 of {puts} put records lost, ")),
+            "{fault}: the verdict: {stdout}"
+        );
+    }
+}
+
 #[test]
 fn a_datamanager_fault_is_injected_and_in_the_report() {
     let (out, json) = report_of(&[

@@ -100,6 +100,7 @@ async fn a_typed_operation_reports_the_flags_the_mission_names_and_stores_typed_
         journal_dir: None,
         replication: None,
         events: None,
+        heir: None,
     })
     .await
     .unwrap();

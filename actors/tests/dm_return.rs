@@ -84,6 +84,7 @@ async fn datamanager(name: &str) -> ActorRef<DmMsg> {
         journal_dir: None,
         replication: None,
         events: None,
+        heir: None,
     })
     .await
     .expect("the DM starts")

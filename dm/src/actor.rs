@@ -18,10 +18,12 @@
 //! dm-interface's messages in `handlers.rs`, and those of the replication protocol in
 //! `replicated.rs`.
 
+use super::applied::Tally;
 use super::args::DmArgs;
 use super::messages::DmMsg;
 use super::start::{self, Mode};
 use super::state::DatamanagerState;
+use super::storage::Storage;
 use super::waits::Waits;
 use marie_vocabulary::registry::{self, ModuleKind};
 use ractor::{Actor, ActorCell, ActorProcessingErr, ActorRef, SpawnErr};
@@ -62,19 +64,10 @@ impl Actor for Datamanager {
     ) -> Result<DatamanagerState, ActorProcessingErr> {
         let mode = Mode::of(&args)?;
         let (held, storage) = start::open(&myself, &args, mode).await?;
-        // Published last, once nothing can fail any more: when `spawn_datamanager` returns
-        // the DM is already listed, and messages sent before it runs wait in its mailbox.
-        // A replica is published once it is elected leader.
-        if !storage.is_replicated() {
-            registry::publish(
-                ModuleKind::Datamanager,
-                args.id,
-                &args.name,
-                myself.get_cell(),
-            )?;
-        }
-        tracing::debug!(dm = %args.name, id = args.id, actor = %myself.get_id(), "datamanager started");
-        Ok(DatamanagerState {
+        let memory = matches!(storage, Storage::Memory);
+        // built at once: from here its drop leaves a memory datamanager's records to its
+        // heir again, whatever fails below
+        let state = DatamanagerState {
             id: args.id,
             name: args.name,
             clock: args.clock,
@@ -86,8 +79,25 @@ impl Actor for Datamanager {
             recovery: held.recovery,
             producers: held.producers,
             duplicates: 0,
+            heir: args.heir.filter(|_| memory),
+            inherited: held.inherited,
             events: args.events,
-        })
+            applied: Tally::default(),
+            applied_timer: None,
+        };
+        // Published last, once nothing can fail any more: when `spawn_datamanager` returns
+        // the DM is already listed, and messages sent before it runs wait in its mailbox.
+        // A replica is published once it is elected leader.
+        if !state.storage.is_replicated() {
+            registry::publish(
+                ModuleKind::Datamanager,
+                state.id,
+                &state.name,
+                myself.get_cell(),
+            )?;
+        }
+        tracing::debug!(dm = %state.name, id = state.id, actor = %myself.get_id(), "datamanager started");
+        Ok(state)
     }
 
     async fn post_stop(
@@ -102,7 +112,7 @@ impl Actor for Datamanager {
             &state.name,
             &myself.get_cell(),
         );
-        std::mem::replace(&mut state.storage, super::storage::Storage::Memory)
+        std::mem::replace(&mut state.storage, Storage::Memory)
             .close()
             .await;
         tracing::debug!(dm = %state.name, records = state.store.len(), pending = state.waits.len(), "datamanager stopped");
@@ -133,8 +143,8 @@ impl Actor for Datamanager {
             return Ok(());
         }
         match msg {
-            DmMsg::Put { record } => state.on_put(record),
-            DmMsg::PutBatch { records } => state.on_put_batch(records),
+            DmMsg::Put { record } => state.on_put(&myself, record),
+            DmMsg::PutBatch { records } => state.on_put_batch(&myself, records),
             DmMsg::Store { record, reply } => state.on_store(*record, reply),
             DmMsg::Select { query, reply } => state.on_select(&query, reply),
             DmMsg::SelectPage {
@@ -163,6 +173,7 @@ impl Actor for Datamanager {
             DmMsg::ReplicaTick {} => state.on_replica_tick(&myself),
             DmMsg::ReplicaDurable { seq, term } => state.on_replica_durable(&myself, seq, term),
             DmMsg::JournalRefused { seqs } => state.on_journal_refused(&seqs),
+            DmMsg::TellApplied {} => state.tell_applied(),
             DmMsg::Inject { fault } => state.on_inject(&myself, fault).await,
         }
         state.tell_retention();

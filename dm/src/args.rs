@@ -3,6 +3,7 @@
 //! durability, journal directory and replication said here into one storage mode at its
 //! start (`storage`), and refuses a combination that cannot work (`start`).
 
+use super::heir::Heir;
 use super::journal::Durability;
 use super::replica::Replication;
 use super::store::DmConfig;
@@ -38,6 +39,7 @@ impl DmSpec {
             journal_dir: None,
             replication: None,
             events: None,
+            heir: Some(Heir::new()),
         }
     }
 }
@@ -89,8 +91,14 @@ pub struct DmArgs {
     pub replication: Option<Replication>,
     /// Where it tells what it does on its own: a replica that became the leader or stepped
     /// down (`dm_promoted`, `dm_fenced`), a class that started dropping records by retention
-    /// (`dm_retention`); a node gives its bus.
+    /// (`dm_retention`), what its puts applied (`dm_applied`); a node gives its bus.
     pub events: Option<EventBus>,
+    /// At durability `memory`: where its records wait for its next incarnation when it
+    /// ends — a crash, a kill, a stop — so that a datamanager restarted from clones of these
+    /// arguments starts with them ([`Heir`]: memory survives the datamanager's crash, not
+    /// its process's). `None`: a restarted memory datamanager starts empty. Ignored with a
+    /// journal, which is read back instead.
+    pub heir: Option<Heir>,
 }
 
 impl DmArgs {
@@ -98,6 +106,12 @@ impl DmArgs {
     pub fn with_journal(mut self, dir: impl Into<PathBuf>, durability: Durability) -> DmArgs {
         self.journal_dir = Some(dir.into());
         self.durability = durability;
+        self
+    }
+
+    /// Start empty at every start, as if nothing had been kept (no [`Heir`]).
+    pub fn without_heir(mut self) -> DmArgs {
+        self.heir = None;
         self
     }
 
@@ -118,6 +132,7 @@ impl std::fmt::Debug for DmArgs {
             .field("durability", &self.durability)
             .field("journal_dir", &self.journal_dir)
             .field("replication", &self.replication)
+            .field("heir", &self.heir)
             .finish_non_exhaustive()
     }
 }

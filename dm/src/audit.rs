@@ -19,10 +19,23 @@
 //! - **lost**: anything else — also every acknowledged record of a datamanager that could
 //!   not be asked at all.
 //!
+//! A `put` is no acknowledged record (`acks`), but the datamanager tells what its puts
+//! applied (`dm_applied`, a span per class: `applied`), and each span is sorted the same
+//! way, as a whole: **held** when the records of its class the datamanager holds in the
+//! span's seqs are as many as it applied and their fingerprints add up to the span's — the
+//! same records, not others a datamanager that started over stored at the same seqs;
+//! **deleted** or **dropped by retention** under the same rules as above (retention: at
+//! least the bound of newer records held than the span's first seq); **lost** otherwise
+//! (`applied_lost`). When records are lost, the check says why if the run's events do: a
+//! datamanager that restarted during the run (`child_restarted`) and started with nothing
+//! — no journal read back, nothing inherited — "restarted empty".
+//!
 //! What it cannot see: an acknowledgement whose event never reached the checker (its
 //! producer's node killed in the instant between the answer and the event's sending) is not
-//! counted as acknowledged. A `put` is no acknowledged record (`acks`).
+//! counted as acknowledged; puts applied in the last moments before a crash that were never
+//! told (`applied`), and puts to a replicated datamanager, are not counted as applied.
 
+use super::applied;
 use super::client::DmClient;
 use super::error::DmError;
 use super::messages::{DmMsg, DmStats};
@@ -30,7 +43,7 @@ use super::query::Query;
 use marie_vocabulary::events::EventKind;
 use marie_vocabulary::registry::{self, Instance, ModuleKind};
 use marie_vocabulary::replica::ReplicaRole;
-use marie_vocabulary::run::DmCheck;
+use marie_vocabulary::run::{AppliedSpan, DmCheck};
 use ractor::rpc::CallResult;
 use ractor::ActorRef;
 use std::collections::{BTreeMap, BTreeSet, HashMap, VecDeque};
@@ -68,12 +81,16 @@ struct DmLedger {
     forgotten: u64,
     /// Classes an acknowledged delete named (`None`: a delete of any class).
     deleted: BTreeSet<Option<String>>,
+    /// The latest [`KEEPS`] spans of records its puts applied, in the order heard.
+    applied: VecDeque<AppliedSpan>,
 }
 
 /// The acknowledgements of a run, by datamanager: what a check at its end looks up.
 #[derive(Debug, Default)]
 pub struct Ledger {
     dms: BTreeMap<String, DmLedger>,
+    /// Restarts heard of, by child name (a datamanager's child is named after it).
+    restarts: HashMap<String, u64>,
     /// Class and source names, shared by the acknowledgements that carry them.
     names: HashMap<String, Arc<str>>,
 }
@@ -87,6 +104,8 @@ pub struct Held {
     pub stats: DmStats,
     /// Each record held: seq → (class, source, digest of the payload).
     records: HashMap<u64, (String, String, u64)>,
+    /// Each record's fingerprint (`applied`), by seq.
+    fingerprints: HashMap<u64, u64>,
     /// The seqs held per class, in order.
     by_class: HashMap<String, Vec<u64>>,
 }
@@ -107,6 +126,9 @@ impl Held {
             let class = r.class.to_string();
             held.by_class.entry(class.clone()).or_default().push(r.seq);
             let digest = super::acks::digest(r.payload.as_bytes());
+            let content = applied::content(&r.source, r.payload.as_bytes());
+            held.fingerprints
+                .insert(r.seq, applied::fingerprint(r.seq, content));
             held.records
                 .insert(r.seq, (class, r.source.to_string(), digest));
         }
@@ -114,6 +136,22 @@ impl Held {
             seqs.sort_unstable();
         }
         held
+    }
+
+    /// How many records of `class` are held with a seq in `from..=to`, and the sum of their
+    /// fingerprints.
+    fn in_span(&self, class: &str, from: u64, to: u64) -> (u64, u64) {
+        let Some(seqs) = self.by_class.get(class) else {
+            return (0, 0);
+        };
+        let (lo, hi) = (
+            seqs.partition_point(|s| *s < from),
+            seqs.partition_point(|s| *s <= to),
+        );
+        let sum = seqs[lo..hi].iter().fold(0u64, |sum, s| {
+            sum.wrapping_add(self.fingerprints.get(s).copied().unwrap_or_default())
+        });
+        ((hi - lo) as u64, sum)
     }
 
     /// Records of `class` held with a seq above `seq`.
@@ -163,6 +201,20 @@ impl Ledger {
                     .insert(class.clone());
                 true
             }
+            EventKind::DmApplied { dm, spans } => {
+                let ledger = self.dms.entry(dm.clone()).or_default();
+                for span in spans {
+                    if ledger.applied.len() >= KEEPS {
+                        ledger.applied.pop_front();
+                    }
+                    ledger.applied.push_back(span.clone());
+                }
+                true
+            }
+            EventKind::ChildRestarted { child, .. } => {
+                *self.restarts.entry(child.clone()).or_default() += 1;
+                false
+            }
             _ => false,
         }
     }
@@ -188,10 +240,19 @@ impl Ledger {
             .map_or(0, |l| l.acked.len() as u64 + l.forgotten)
     }
 
-    /// The classes of `dm`'s acknowledged records kept.
+    /// Records `dm` told its puts applied, in the spans kept.
+    pub fn applied(&self, dm: &str) -> u64 {
+        self.dms
+            .get(dm)
+            .map_or(0, |l| l.applied.iter().map(|s| s.records).sum())
+    }
+
+    /// The classes of `dm`'s acknowledged records and applied spans kept.
     fn classes(&self, dm: &str) -> BTreeSet<Arc<str>> {
         self.dms.get(dm).map_or_else(BTreeSet::new, |l| {
-            l.acked.iter().map(|a| a.class.clone()).collect()
+            let acked = l.acked.iter().map(|a| a.class.clone());
+            let applied = l.applied.iter().map(|s| Arc::from(s.class.as_str()));
+            acked.chain(applied).collect()
         })
     }
 
@@ -242,7 +303,67 @@ impl Ledger {
                 }
             }
         }
+        for span in &ledger.applied {
+            check.applied += span.records;
+            let lost = Self::compare_span(span, held, &ledger.deleted);
+            if lost > 0 && check.applied_lost < SAID {
+                tracing::warn!(
+                    dm,
+                    class = %span.class,
+                    from = span.from,
+                    to = span.to,
+                    "{lost} of {} put records the datamanager applied between these seqs are lost",
+                    span.records
+                );
+            }
+            check.applied_lost += lost;
+        }
+        if check.lost + check.applied_lost > 0 {
+            check.why = self.why(dm, held);
+        }
         check
+    }
+
+    /// How many of the records of `span` are lost (see the module docs), given what `held`
+    /// holds and the classes `deleted` by acknowledged deletes.
+    fn compare_span(span: &AppliedSpan, held: &Held, deleted: &BTreeSet<Option<String>>) -> u64 {
+        let (found, sum) = held.in_span(&span.class, span.from, span.to);
+        if found == span.records && sum == span.digest {
+            return 0;
+        }
+        if deleted.contains(&None) || deleted.contains(&Some(span.class.clone())) {
+            return 0;
+        }
+        let newer = held.newer_in(&span.class, span.from.saturating_sub(1));
+        if held
+            .stats
+            .retention_of(&span.class)
+            .is_some_and(|bound| newer >= bound)
+        {
+            return 0;
+        }
+        // not the same records: none of them can be vouched for
+        span.records
+    }
+
+    /// Why `dm` lost records, if the run's events say: it restarted during the run, and
+    /// its instance that answered started with nothing (no journal, nothing inherited).
+    fn why(&self, dm: &str, held: &Held) -> Option<String> {
+        let restarts = self.restarts.get(dm).copied().unwrap_or_default();
+        if restarts == 0 {
+            return None;
+        }
+        let stats = &held.stats;
+        Some(if stats.recovery.is_none() && stats.inherited.is_none() {
+            format!("the {dm} datamanager restarted empty")
+        } else {
+            let times = if restarts == 1 {
+                "once"
+            } else {
+                "more than once"
+            };
+            format!("the {dm} datamanager restarted {times} and no longer holds them")
+        })
     }
 
     /// Check `dm`: ask its leader what it holds — waiting at most `within` for one to
@@ -262,12 +383,14 @@ impl Ledger {
             }
             tokio::time::sleep(Duration::from_millis(200)).await;
         };
-        let acknowledged = self.acknowledged(dm);
+        let (acknowledged, applied) = (self.acknowledged(dm), self.applied(dm));
         DmCheck {
             dm: dm.to_string(),
             node: None,
             acknowledged,
             lost: acknowledged,
+            applied,
+            applied_lost: applied,
             error: Some(last.to_string()),
             ..DmCheck::default()
         }
@@ -513,6 +636,123 @@ mod tests {
             (check.held, check.unchecked, check.lost),
             (KEEPS as u64, 10, 0)
         );
+    }
+
+    /// The `dm_applied` a datamanager tells of `records` (seq, payload) of `class` by `source`.
+    fn applied(dm: &str, class: &str, source: &str, records: &[(u64, &[u8])]) -> EventKind {
+        let mut tally = crate::applied::Tally::default();
+        for (seq, payload) in records {
+            let content = crate::applied::content(source, payload);
+            tally.note(class, *seq, crate::applied::fingerprint(*seq, content));
+        }
+        EventKind::DmApplied {
+            dm: dm.into(),
+            spans: tally.take(),
+        }
+    }
+
+    #[test]
+    fn put_records_applied_and_held_are_no_loss_and_others_at_their_seqs_are() {
+        let mut ledger = Ledger::new();
+        let sonar: Vec<(u64, &[u8])> = vec![(1, b"s1"), (3, b"s3"), (5, b"s5")];
+        assert!(ledger.note(&applied("feature", "sonar", "ultrasonic", &sonar)));
+        assert!(ledger.note(&applied("feature", "segments", "extractor", &[(6, b"g")])));
+        let all = |s: &[(u64, &[u8])]| {
+            s.iter()
+                .map(|(seq, p)| record(*seq, "sonar", "ultrasonic", p))
+                .collect::<Vec<_>>()
+        };
+        let mut held = all(&sonar);
+        held.push(record(2, "other", "x", b"o"));
+        held.push(record(6, "segments", "extractor", b"g"));
+        let check = ledger.compare("feature", &Held::new("embedded", stats(100), held));
+        assert_eq!((check.applied, check.applied_lost), (4, 0), "{check:?}");
+        assert_eq!(check.why, None);
+
+        // the datamanager started over: records of the same class at the same seqs, but
+        // not the same ones (another payload), and the segment gone — all lost
+        let over: Vec<(u64, &[u8])> = vec![(1, b"n1"), (3, b"n3"), (5, b"n5")];
+        let check = ledger.compare("feature", &Held::new("embedded", stats(100), all(&over)));
+        assert_eq!((check.applied, check.applied_lost), (4, 4), "{check:?}");
+        // the run saw no restart: the words say where they were looked for
+        assert_eq!(check.why, None);
+        // one record of the span missing: the span cannot be vouched for
+        let check = ledger.compare(
+            "feature",
+            &Held::new("embedded", stats(100), all(&sonar[..2])),
+        );
+        assert_eq!(check.applied_lost, 3 + 1, "{check:?}");
+    }
+
+    #[test]
+    fn a_lost_put_of_a_datamanager_that_restarted_with_nothing_says_it_restarted_empty() {
+        let mut ledger = Ledger::new();
+        ledger.note(&applied(
+            "feature",
+            "sonar",
+            "ultrasonic",
+            &[(1, b"a"), (2, b"b")],
+        ));
+        ledger.note(&EventKind::ChildRestarted {
+            supervisor: "datamanagers".into(),
+            child: "feature".into(),
+            actor: "0.9".into(),
+            restarts: 1,
+            reason: "killed".into(),
+        });
+        let empty = Held::new("embedded", stats(100), []);
+        let check = ledger.compare("feature", &empty);
+        assert_eq!(check.applied_lost, 2);
+        assert_eq!(
+            check.why.as_deref(),
+            Some("the feature datamanager restarted empty")
+        );
+        // one that inherited its predecessor's records and still misses some says so
+        let mut inherited = stats(100);
+        inherited.inherited = Some(crate::Inherited {
+            records: 1,
+            refused: 0,
+        });
+        let check = ledger.compare(
+            "feature",
+            &Held::new(
+                "embedded",
+                inherited,
+                [record(1, "sonar", "ultrasonic", b"a")],
+            ),
+        );
+        assert_eq!(check.applied_lost, 2);
+        assert_eq!(
+            check.why.as_deref(),
+            Some("the feature datamanager restarted once and no longer holds them")
+        );
+    }
+
+    #[test]
+    fn put_records_retention_or_a_delete_took_are_no_loss() {
+        let mut ledger = Ledger::new();
+        let old: Vec<(u64, &[u8])> = vec![(1, b"1"), (2, b"2")];
+        ledger.note(&applied("feature", "sonar", "ultrasonic", &old));
+        let new: Vec<(u64, &[u8])> = vec![(3, b"3"), (4, b"4"), (5, b"5")];
+        ledger.note(&applied("feature", "sonar", "ultrasonic", &new));
+        // bound 3: the first span dropped by retention, the second held
+        let held = new
+            .iter()
+            .map(|(seq, p)| record(*seq, "sonar", "ultrasonic", p));
+        let check = ledger.compare("feature", &Held::new("embedded", stats(3), held.clone()));
+        assert_eq!((check.applied, check.applied_lost), (5, 0), "{check:?}");
+        // bound 4: retention would have kept one of the first span — lost
+        let check = ledger.compare("feature", &Held::new("embedded", stats(4), held));
+        assert_eq!(check.applied_lost, 2, "{check:?}");
+        // a delete of the class explains what is gone
+        ledger.note(&EventKind::DmDeleted {
+            dm: "feature".into(),
+            source: "planner".into(),
+            class: Some("sonar".into()),
+            deleted: 5,
+        });
+        let check = ledger.compare("feature", &Held::new("embedded", stats(4), []));
+        assert_eq!(check.applied_lost, 0, "{check:?}");
     }
 
     #[tokio::test]

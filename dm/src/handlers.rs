@@ -15,13 +15,13 @@ use ractor::{ActorRef, RpcReplyPort};
 
 impl DatamanagerState {
     /// `Put`: store it; a refusal is counted and logged (a cast has no answer).
-    pub(crate) fn on_put(&mut self, record: NewRecord) {
-        self.put(record);
+    pub(crate) fn on_put(&mut self, myself: &ActorRef<DmMsg>, record: NewRecord) {
+        self.put(myself, record);
     }
 
     /// `PutBatch`: store each in order, as `Put` does.
-    pub(crate) fn on_put_batch(&mut self, records: Vec<NewRecord>) {
-        records.into_iter().for_each(|r| self.put(r));
+    pub(crate) fn on_put_batch(&mut self, myself: &ActorRef<DmMsg>, records: Vec<NewRecord>) {
+        records.into_iter().for_each(|r| self.put(myself, r));
     }
 
     /// `Store`: store it, and answer its seq once it is durable (or why it was refused).

@@ -79,6 +79,7 @@
 
 mod acks;
 mod actor;
+mod applied;
 mod args;
 mod audit;
 mod client;
@@ -87,6 +88,7 @@ mod entry;
 mod error;
 mod follow;
 mod handlers;
+mod heir;
 mod index;
 mod journal;
 mod kind;
@@ -119,6 +121,7 @@ pub use credits::{
     BATCH as PUT_BATCH, REPLICATED_WINDOW as REPLICATED_PUT_WINDOW, WINDOW as PUT_WINDOW,
 };
 pub use error::DmError;
+pub use heir::{Heir, Inherited};
 pub use journal::{
     journal_dir, DirLock, Durability, LockError, Recovery, UnknownDurability, SNAPSHOT_MIN,
 };

@@ -51,6 +51,10 @@ pub struct DmStats {
     /// (`producers`).
     #[serde(default)]
     pub duplicates: u64,
+    /// At `memory`: what its start took from its previous incarnation (`None` if it was
+    /// left nothing: its first start, or no heir).
+    #[serde(default)]
+    pub inherited: Option<super::heir::Inherited>,
     /// A replicated datamanager's replica: its role, term and how far each replica lags.
     #[serde(default)]
     pub replica: Option<ReplicaStats>,
@@ -239,6 +243,8 @@ marie_vocabulary::remote_message! {
         },
         /// A replica's clock: campaign, send heartbeats, see who is reachable.
         ReplicaTick {},
+        /// Tell what the puts applied since it last told (`applied`).
+        TellApplied {},
         /// The journal made a replica's entries up to `seq` (of `term`) durable.
         ReplicaDurable {
             /// The last entry durable.

@@ -5,6 +5,7 @@
 
 use super::args::DmArgs;
 use super::error::DmError;
+use super::heir::{Inheritance, Inherited};
 use super::journal::{Durability, Hooks, Journal, Opened, Recovery};
 use super::messages::DmMsg;
 use super::producers::Producers;
@@ -131,17 +132,23 @@ fn valid_name(name: &str) -> bool {
         && !name.chars().all(|c| c.is_ascii_digit())
 }
 
-/// What a datamanager starts with: its store as its journal left it (empty at `memory`).
+/// What a datamanager starts with: its store as its journal left it, or at `memory` as its
+/// previous incarnation left it (`heir`; empty at the first start).
 pub(crate) struct Held {
     pub(crate) store: Store,
     pub(crate) fences: FenceTable,
     pub(crate) producers: Producers,
     /// What the start read back from the journal (`None` at `memory`).
     pub(crate) recovery: Option<Recovery>,
+    /// What the start took from its previous incarnation (at `memory`, if it was left
+    /// anything).
+    pub(crate) inherited: Option<Inherited>,
 }
 
 /// Open the storage `mode` names: the journal read back (and a replica's protocol state
-/// restored from it and joined to its group), or an empty store in memory.
+/// restored from it and joined to its group), or in memory what the previous incarnation
+/// left its heir. From here the heir is held: the state made of what this returns must be
+/// built before anything else can fail, so that its drop leaves the records again.
 pub(crate) async fn open(
     myself: &ActorRef<DmMsg>,
     args: &DmArgs,
@@ -149,11 +156,28 @@ pub(crate) async fn open(
 ) -> Result<(Held, Storage), StartError> {
     match mode {
         Mode::Memory => {
-            let held = Held {
-                store: Store::new(args.config.clone()),
-                fences: FenceTable::default(),
-                producers: Producers::default(),
-                recovery: None,
+            let inheritance = match &args.heir {
+                Some(heir) => heir.inherit(&args.name).await,
+                None => Inheritance::nothing(),
+            };
+            let held = match inheritance.estate {
+                Some(estate) => Held {
+                    inherited: Some(Inherited {
+                        records: estate.store.len() as u64,
+                        refused: inheritance.refused,
+                    }),
+                    store: estate.store,
+                    fences: estate.fences,
+                    producers: estate.producers,
+                    recovery: None,
+                },
+                None => Held {
+                    store: Store::new(args.config.clone()),
+                    fences: FenceTable::default(),
+                    producers: Producers::default(),
+                    recovery: None,
+                    inherited: None,
+                },
             };
             Ok((held, Storage::Memory))
         }
@@ -239,6 +263,7 @@ fn split(opened: Opened) -> (Held, Journal) {
         fences: opened.fences,
         producers: opened.producers,
         recovery: Some(opened.recovery),
+        inherited: None,
     };
     (held, opened.journal)
 }

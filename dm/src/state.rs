@@ -1,8 +1,11 @@
 //! What a datamanager holds while it runs, and the steps its handlers share: storing a
 //! record, waking the waits it satisfies, acknowledging a write once it is as durable as
-//! the storage promises, and telling its numbers.
+//! the storage promises, telling what its puts applied, and telling its numbers. What it
+//! leaves when it ends — however it ends — is in its `Drop`.
 
+use super::applied::{self, Tally};
 use super::error::DmError;
+use super::heir::{Estate, Heir, Inherited};
 use super::journal::Recovery;
 use super::messages::{DmMsg, DmStats, ReplicaStats};
 use super::producers::Producers;
@@ -12,6 +15,7 @@ use super::storage::Storage;
 use super::store::Store;
 use super::waits::{TimerGuard, WaitReply, Waiter, Waits};
 use marie_vocabulary::clock::{cast_after, SharedClock};
+use marie_vocabulary::events::{EventBus, EventKind};
 use marie_vocabulary::fence::FenceTable;
 use marie_vocabulary::replica::ReplicaRole;
 use ractor::{ActorRef, RpcReplyPort};
@@ -35,9 +39,37 @@ pub struct DatamanagerState {
     pub(crate) producers: Producers,
     /// Retried puts answered with the seq their first copy got.
     pub(crate) duplicates: u64,
+    /// At `memory`: where its store goes when it ends, for its next incarnation (`heir`).
+    pub(crate) heir: Option<Heir>,
+    /// What its start took from its previous incarnation, if anything (at `memory`).
+    pub(crate) inherited: Option<Inherited>,
     /// Where it tells what it does on its own: a class that starts dropping records by
-    /// retention (`dm_retention`); a node gives its bus.
-    pub(crate) events: Option<marie_vocabulary::events::EventBus>,
+    /// retention (`dm_retention`), what its puts applied (`applied`); a node gives its
+    /// bus. `None`: it tells nothing.
+    pub(crate) events: Option<EventBus>,
+    /// What its puts applied since it last told.
+    pub(crate) applied: Tally,
+    /// The timer that tells the tally (set while the tally holds something).
+    pub(crate) applied_timer: Option<TimerGuard>,
+}
+
+impl Drop for DatamanagerState {
+    /// However the actor ended — stopped, killed, or panicked (when ractor runs no
+    /// `post_stop`) — a memory datamanager tells what its puts applied, and leaves its
+    /// records to its heir.
+    fn drop(&mut self) {
+        if matches!(self.storage, Storage::Memory) {
+            self.tell_applied();
+        }
+        if let Some(heir) = self.heir.take() {
+            let store = Store::new(self.store.config().clone());
+            heir.leave(Estate {
+                store: std::mem::replace(&mut self.store, store),
+                producers: std::mem::take(&mut self.producers),
+                fences: std::mem::take(&mut self.fences),
+            });
+        }
+    }
 }
 
 impl std::fmt::Debug for DatamanagerState {
@@ -76,6 +108,7 @@ impl DatamanagerState {
             journal_bytes: self.storage.journal_bytes(),
             recovery: self.recovery.clone(),
             duplicates: self.duplicates,
+            inherited: self.inherited,
             window: self.window() as u64,
             replica: self.storage.replica().map(|r| {
                 let (core, last) = (&r.core, r.core.last().0);
@@ -123,11 +156,74 @@ impl DatamanagerState {
         }
     }
 
-    /// A put (no answer): stored, or counted and logged as refused.
-    pub(crate) fn put(&mut self, record: NewRecord) {
-        if let Err(e) = self.store(record) {
-            self.refused_puts += 1;
-            tracing::warn!(dm = %self.name, error = %e, "put refused");
+    /// A put (no answer): stored — and tallied, to be told (`applied`) — or counted and
+    /// logged as refused.
+    pub(crate) fn put(&mut self, myself: &ActorRef<DmMsg>, record: NewRecord) {
+        let tallied = (self.events.is_some() && !self.storage.is_replicated()).then(|| {
+            let content = applied::content(&record.source, record.payload.as_bytes());
+            (record.class.clone(), content)
+        });
+        let next = self.store.next_seq();
+        match self.store(record) {
+            // a seq below the next one: a retried put, stored (and tallied) once already
+            Ok(seq) if seq >= next => {
+                if let Some((class, content)) = tallied {
+                    self.tally(myself, &class, seq, content);
+                }
+            }
+            Ok(_) => {}
+            Err(e) => {
+                self.refused_puts += 1;
+                tracing::warn!(dm = %self.name, error = %e, "put refused");
+            }
+        }
+    }
+
+    /// Tally record `seq` of `class` as applied: told with the others once the timer goes
+    /// off, or now if the tally is full.
+    fn tally(&mut self, myself: &ActorRef<DmMsg>, class: &str, seq: u64, content: u64) {
+        if self.applied.is_empty() {
+            let timer = cast_after(
+                &self.clock,
+                applied::TELL_EVERY,
+                myself,
+                DmMsg::TellApplied {},
+            );
+            self.applied_timer = Some(TimerGuard(timer));
+        }
+        self.applied
+            .note(class, seq, applied::fingerprint(seq, content));
+        if self.applied.is_full() {
+            self.tell_applied();
+        }
+    }
+
+    /// Tell what the puts applied since it last told (`dm_applied`), once it is as
+    /// durable as the storage promises.
+    pub(crate) fn tell_applied(&mut self) {
+        self.applied_timer = None;
+        if self.applied.is_empty() {
+            return;
+        }
+        let spans = self.applied.take();
+        let Some(bus) = self.events.clone() else {
+            return;
+        };
+        let kind = EventKind::DmApplied {
+            dm: self.name.clone(),
+            spans,
+        };
+        match &mut self.storage {
+            Storage::Memory => {
+                bus.publish(kind);
+            }
+            Storage::Journaled(journal) => journal.after_durable(Box::new(move |durable| {
+                if durable.is_ok() {
+                    bus.publish(kind);
+                }
+            })),
+            // not tallied (see `applied`)
+            Storage::Replicated { .. } => {}
         }
     }
 

@@ -1014,6 +1014,44 @@ impl Store {
         h
     }
 
+    /// The same records in a store built anew: every index, count and time re-derived from
+    /// the records alone, in seq order, through the path a journal's replay takes — what an
+    /// heir does with a store its predecessor may have left half-updated by a panic
+    /// (`heir`). Seqs and time stamps handed out stay handed out; a record that does not
+    /// fit (a seq twice) is refused. Returns the store and how many records were refused.
+    pub(crate) fn rebuilt(self) -> (Store, u64) {
+        let Store {
+            config,
+            classes,
+            next_seq,
+            last_time,
+            dropped,
+            deleted,
+            ..
+        } = self;
+        let mut all: Vec<(u64, Arc<str>, Entry)> = Vec::new();
+        for (_, ci) in classes {
+            let name = ci.name;
+            all.extend(ci.entries.into_iter().map(|(s, e)| (s, name.clone(), e)));
+        }
+        all.sort_unstable_by_key(|(s, _, _)| *s);
+        let mut store = Store::new(config);
+        let mut refused = 0;
+        for (seq, class, e) in all {
+            let names = (&*class, &*e.source, e.sub1.as_deref(), e.sub2.as_deref());
+            let placed = store
+                .check_restored_seq(seq)
+                .and_then(|()| store.place_parts(seq, e.timestamp, names, e.payload));
+            if placed.is_err() {
+                refused += 1;
+            }
+        }
+        store.raise_floor(next_seq, last_time);
+        store.dropped += dropped;
+        store.deleted += deleted;
+        (store, refused)
+    }
+
     pub(crate) fn for_each_in_seq_order(&self, mut f: impl FnMut(u64, Duration, LiveRecord<'_>)) {
         let mut all: Vec<(u64, &ClassIndex, &Entry)> = Vec::with_capacity(self.len);
         for ci in self.classes.values() {
@@ -1750,5 +1788,66 @@ mod tests {
         let window = Query::all().time_range(Duration::from_millis(4), Duration::from_millis(6));
         let seqs: Vec<u64> = s.select(&window).iter().map(|r| r.seq).collect();
         assert_eq!(seqs, vec![6, 7]);
+    }
+
+    #[test]
+    fn a_store_left_half_updated_is_rebuilt_from_its_records() {
+        let mut s = sample();
+        s.delete(&Query::class("segment").seq_range(4, 4));
+        let (next, digest) = (s.next_seq(), s.digest());
+        // what a panic in the middle of an insert leaves: the record in its class, seq and
+        // time handed out, but in no sub-class or source set, the time index or the count
+        let ci = s.classes.get_mut("sonar").unwrap();
+        let (source, sub1) = (ci.entries[0].1.source.clone(), ci.entries[0].1.sub1.clone());
+        ci.entries.push_back((
+            next,
+            Entry {
+                timestamp: secs(20),
+                source,
+                sub1,
+                sub2: None,
+                payload: Packed::copy_of(b""),
+                shared: OnceLock::new(),
+            },
+        ));
+        s.next_seq = next + 1;
+        assert_eq!(s.len(), 11, "the count does not know of it");
+        assert!(!seqs(&s.select(&Query::class("sonar").sub1("front"))).contains(&next));
+
+        let (rebuilt, refused) = s.rebuilt();
+        assert_eq!(refused, 0);
+        assert_eq!(rebuilt.len(), 12);
+        assert!(seqs(&rebuilt.select(&Query::class("sonar").sub1("front"))).contains(&next));
+        assert!(seqs(&rebuilt.select(&Query::all().time_range(secs(20), secs(20)))) == [next]);
+        assert_eq!(rebuilt.next_seq(), next + 1);
+        assert_eq!(rebuilt.deleted(), 1, "its counts are kept");
+        assert_ne!(rebuilt.digest(), digest);
+
+        // a store rebuilt as it was: the same records, the same answers
+        let s = sample();
+        let (all, digest) = (s.select(&Query::all()), s.digest());
+        let (rebuilt, refused) = s.rebuilt();
+        assert_eq!((refused, rebuilt.digest()), (0, digest));
+        assert_eq!(rebuilt.select(&Query::all()), all);
+    }
+
+    #[test]
+    fn a_record_twice_in_a_store_left_corrupt_is_refused_by_its_rebuild() {
+        let mut s = sample();
+        // seq 1 (sonar) also in another class: two records for one seq
+        let e = s.classes.get("sonar").unwrap().entries[0].1.source.clone();
+        s.classes.get_mut("segment").unwrap().entries.push_front((
+            1,
+            Entry {
+                timestamp: secs(1),
+                source: e,
+                sub1: None,
+                sub2: None,
+                payload: Packed::copy_of(b""),
+                shared: OnceLock::new(),
+            },
+        ));
+        let (rebuilt, refused) = s.rebuilt();
+        assert_eq!((refused, rebuilt.len()), (1, 12));
     }
 }

@@ -47,6 +47,7 @@ async fn spawn(name: &str, id: u32, clock: SharedClock, config: DmConfig) -> Dm 
         journal_dir: None,
         replication: None,
         events: None,
+        heir: None,
     })
     .await
     .expect("spawn dm");

@@ -124,6 +124,9 @@ impl EmbeddedError {
                 | EmbeddedError::World(_)
                 | EmbeddedError::Clustered(_)
                 | EmbeddedError::Node(NodeError::Config(_))
+                // the data directory asked for: one another node holds, or a file
+                | EmbeddedError::Node(NodeError::DataDirInUse { .. })
+                | EmbeddedError::Node(NodeError::DataDir { .. })
                 | EmbeddedError::Node(NodeError::Cluster(TransportError::Tls(_)))
         )
     }

@@ -337,10 +337,17 @@ async function fetchProps(op) {
   }
 }
 
-// Whether a node is up: `frozen` is a node up again after a freeze (its operations new
-// incarnations), which may be faulted as any other.
+// Whether a node is up (one woken from a freeze is up again, and may be faulted as any other).
 function isUp(n) {
-  return n.status === "up" || n.status === "frozen";
+  return n.status === "up";
+}
+
+// A node's latest wake from a freeze past its peers' deadline: its operations restarted as
+// new incarnations then.
+function woke(n) {
+  if (!n.woke) return "";
+  return ` <span class="woke" title="its operations restarted as new incarnations">` +
+    `(woke at ${(n.woke.at_ms / 1000).toFixed(1)} s from a ${(n.woke.silent_ms / 1000).toFixed(1)} s freeze)</span>`;
 }
 
 function renderCluster(cluster) {
@@ -354,7 +361,7 @@ function renderCluster(cluster) {
           `title="${esc(FAULT_TITLES[k] || k)}">${esc(NODE_FAULT_LABELS[k] || k)}</button>`).join("")
         : "";
       return `<div class="node" data-node="${esc(n.name)}" data-status="${n.status}">` +
-        `<strong>${esc(n.name)}</strong> <span class="status">${n.status}</span> ${esc(n.address || "")}${stop}` +
+        `<strong>${esc(n.name)}</strong> <span class="status">${n.status}</span>${woke(n)} ${esc(n.address || "")}${stop}` +
         `<div class="modules">${mods.length} module(s): ` +
         mods.map((m) => `<span class="module" data-kind="${m.kind}" data-module="${esc(m.name)}" ` +
           `data-node="${esc(n.name)}" data-address="${esc(m.address)}"` +

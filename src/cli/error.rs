@@ -17,7 +17,13 @@ pub(crate) fn report(e: &anyhow::Error) -> ExitCode {
     }
     if let Some(err) = e.downcast_ref::<EmbeddedError>() {
         if err.is_bad_input() {
-            eprintln!("{err}");
+            match err {
+                // no file to point into: said as the command's own refusal
+                EmbeddedError::Node(
+                    node @ (NodeError::DataDir { .. } | NodeError::DataDirInUse { .. }),
+                ) => eprintln!("marie: {node}"),
+                _ => eprintln!("{err}"),
+            }
             return ExitCode::from(2);
         }
     }

@@ -175,11 +175,14 @@ pub(crate) fn outcome_line(report: &RunReport) -> String {
 
 /// What a faulted run went through, in one line — `None` for a run without faults, lost
 /// nodes or lost records: `verdict: 2 faults injected (freeze-node 1, partition 1), 1 node
-/// lost (1 back), 3 rebinds, 0 of 412 acknowledged records lost, 12 commands refused by
-/// epoch, 0 obeyed from an old epoch, 0 collisions`.
+/// lost (1 back), 3 rebinds, 0 of 412 acknowledged records lost, 0 of 5120 put records
+/// lost, 12 commands refused by epoch, 0 obeyed from an old epoch, 0 collisions` — a loss
+/// with why when the check knows (`812 of 5120 put records lost (the feature datamanager
+/// restarted empty)`).
 pub(crate) fn verdict_line(report: &RunReport) -> Option<String> {
     let lost = report.acknowledged_lost.unwrap_or_default();
-    if report.faults_total == 0 && report.nodes_lost.is_empty() && lost == 0 {
+    let applied_lost = report.applied_lost.unwrap_or_default();
+    if report.faults_total == 0 && report.nodes_lost.is_empty() && lost + applied_lost == 0 {
         return None;
     }
     let mut kinds: std::collections::BTreeMap<String, u64> = Default::default();
@@ -231,6 +234,19 @@ pub(crate) fn verdict_line(report: &RunReport) -> Option<String> {
         parts.push(format!(
             "{lost} of {acknowledged} acknowledged records lost"
         ));
+        let applied: u64 = report.dm_checks.iter().map(|c| c.applied).sum();
+        if applied > 0 {
+            parts.push(format!("{applied_lost} of {applied} put records lost"));
+        }
+        let why: Vec<&str> = report
+            .dm_checks
+            .iter()
+            .filter(|c| c.lost + c.applied_lost > 0)
+            .filter_map(|c| c.why.as_deref())
+            .collect();
+        if let (false, Some(last)) = (why.is_empty(), parts.last_mut()) {
+            last.push_str(&format!(" ({})", why.join("; ")));
+        }
     }
     parts.push(format!("{refused} commands refused by epoch"));
     match &cart.obeyed_late {

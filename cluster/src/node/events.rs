@@ -85,11 +85,12 @@ pub(crate) async fn bridge_supervisors(
             };
             if let Ok(rx) = sup.subscribe().await {
                 if child.id == DATAMANAGERS {
-                    // the datamanagers started before the bridge: their recoveries now
+                    // the datamanagers started before the bridge: their recoveries now,
+                    // before the node's start returns (a run tells them again: `Node::run`)
                     if let Ok(dms) = sup.which_children().await {
                         for dm in dms {
                             if let Some(actor) = dm.state.actor() {
-                                tell_recovery(bus, actor.clone());
+                                tell_start(bus, actor.clone()).await;
                             }
                         }
                     }
@@ -157,27 +158,45 @@ async fn child_supervisor(
     Some((id.clone(), sub))
 }
 
-/// Ask the datamanager `actor` what its start read back from its journal, and publish it
-/// (`dm_recovered`) if it has a journal.
+/// Ask the datamanager `actor` what it started from, and publish it: what it read back
+/// from its journal (`dm_recovered`), or the records its previous incarnation left it
+/// (`dm_inherited`).
 fn tell_recovery(bus: &EventBus, actor: ractor::ActorCell) {
     let bus = bus.clone();
-    tokio::spawn(async move {
-        let client = DmClient::new(actor.into(), "node");
-        let Ok(stats) = client.stats().await else {
-            return;
-        };
-        if let Some(r) = stats.recovery {
-            bus.publish(EventKind::DmRecovered {
-                dm: stats.name,
-                records: r.records,
-                bytes: r.bytes,
-                ms: r.millis,
-                dropped_bytes: r.dropped_bytes,
-                dropped_records: r.dropped_records,
-                torn: r.torn,
-            });
-        }
-    });
+    tokio::spawn(async move { tell_start(&bus, actor).await });
+}
+
+/// [`tell_recovery`], awaited: whether the datamanager could be asked.
+pub(crate) async fn tell_start(bus: &EventBus, actor: ractor::ActorCell) -> bool {
+    let client = DmClient::new(actor.into(), "node");
+    let Ok(stats) = client.stats().await else {
+        return false;
+    };
+    if let Some(kind) = started_from(stats) {
+        bus.publish(kind);
+    }
+    true
+}
+
+/// The event that tells what a datamanager whose stats are `stats` started from, if it
+/// started from anything.
+fn started_from(stats: marie_dm::DmStats) -> Option<EventKind> {
+    if let Some(r) = stats.recovery {
+        return Some(EventKind::DmRecovered {
+            dm: stats.name,
+            records: r.records,
+            bytes: r.bytes,
+            ms: r.millis,
+            dropped_bytes: r.dropped_bytes,
+            dropped_records: r.dropped_records,
+            torn: r.torn,
+        });
+    }
+    stats.inherited.map(|i| EventKind::DmInherited {
+        dm: stats.name,
+        records: i.records,
+        refused: i.refused,
+    })
 }
 
 /// Relay a supervisor's events in a task of their own (a plain function, so that the root's

@@ -213,13 +213,14 @@ pub enum NodeError {
         /// The holder's process id, as its lock file says.
         holder: Option<u32>,
     },
-    /// The node's data directory cannot be created or locked.
-    #[error("data_dir {}: {source}", dir.display())]
+    /// The node's data directory cannot be created or locked (said once: the reason is
+    /// part of the message, not a source a chain of errors would print again).
+    #[error("data_dir {}: {}", dir.display(), data_dir_problem(error))]
     DataDir {
         /// The directory.
         dir: PathBuf,
         /// Why.
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// An instance was asked of an operation the config does not allow.
     #[error("node `{node}` does not host operation `{operation}` (its config allows: {allowed})")]
@@ -520,8 +521,25 @@ impl Node {
 fn lock_data_dir(dir: &Path) -> Result<DirLock, NodeError> {
     DirLock::acquire(dir).map_err(|e| match e {
         LockError::Held { dir, holder } => NodeError::DataDirInUse { dir, holder },
-        LockError::Io { dir, source } => NodeError::DataDir { dir, source },
+        LockError::Io { dir, source } => NodeError::DataDir { dir, error: source },
     })
+}
+
+/// What is wrong with a data directory that cannot be made or locked, in a user's words:
+/// a path that is a file (or under one) says so rather than `File exists (os error 17)`.
+fn data_dir_problem(error: &std::io::Error) -> String {
+    use std::io::ErrorKind;
+    match error.kind() {
+        ErrorKind::AlreadyExists | ErrorKind::NotADirectory => {
+            "it is a file, not a directory (give a directory, or a path that does not exist \
+             yet)"
+                .to_string()
+        }
+        ErrorKind::PermissionDenied => {
+            format!("cannot be created or written by this user ({error})")
+        }
+        _ => error.to_string(),
+    }
 }
 
 #[cfg(test)]

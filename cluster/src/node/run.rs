@@ -31,7 +31,7 @@ use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::Duration;
 
-use super::tree::abort_on_give_up;
+use super::tree::{abort_on_give_up, DATAMANAGERS};
 use super::MissionInput;
 
 /// How long a run's start waits for a peer to name its build (heartbeats come every
@@ -242,6 +242,9 @@ impl Node {
         let provenance = self.provenance(provenance.unwrap_or_default()).await;
         self.bus
             .publish(EventKind::Provenance(Box::new(provenance)));
+        // what its datamanagers started from (told at the node's start, before any run
+        // listened): the events file and the report say what the run began with
+        self.tell_datamanager_starts().await;
         // the robot's world first, before the run's own events; the previous run's
         // reporting ends first, so nothing is told twice
         if let Some(robot) = &self.robot {
@@ -288,6 +291,19 @@ impl Node {
     /// `provenance` completed by what the node knows: this process's build, the start
     /// time, and the nodes — this one, then each peer with the build its heartbeats named
     /// (waited for up to [`PEER_BUILDS_WAIT`] should a peer not have said yet).
+    /// Tell again what each of this node's datamanagers started from (`dm_recovered`,
+    /// `dm_inherited`).
+    async fn tell_datamanager_starts(&self) {
+        let Ok(dms) = super::tree::child_supervisor(&self.starter.root, DATAMANAGERS).await else {
+            return; // a node without datamanagers
+        };
+        for dm in dms.which_children().await.unwrap_or_default() {
+            if let Some(actor) = dm.state.actor() {
+                super::events::tell_start(&self.bus, actor.clone()).await;
+            }
+        }
+    }
+
     async fn provenance(&self, mut provenance: Provenance) -> Provenance {
         let this = this_build();
         provenance.marie.get_or_insert_with(|| this.clone());

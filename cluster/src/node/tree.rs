@@ -195,8 +195,8 @@ pub(super) fn operation_child(
 /// The datamanagers' child specs: each at its durability, with its journal in the node's
 /// data directory when it keeps one. Each datamanager's start stores the a-priori records
 /// meant for it before it counts as started, so they are there before any operation looks
-/// for them — and are there again after a restart (stored again in a memory datamanager,
-/// read back from the journal of a durable one).
+/// for them — and are there again after a restart (left to a memory datamanager by its
+/// previous incarnation, read back from the journal of a durable one).
 fn datamanagers(
     config: &NodeConfig,
     clock: &SharedClock,
@@ -232,9 +232,12 @@ fn datamanagers(
                     Some((dm::journal_dir(data_dir, &spec.name), durability))
                 }
             };
+            // one heir for every incarnation of the child: a memory datamanager the
+            // supervisor restarts takes what the one before left (`marie_dm::Heir`)
+            let heir = dm::Heir::new();
             ChildSpec::worker(spec.name.clone(), move |sup| {
                 let (clock, records, name) = (clock.clone(), records.clone(), name.clone());
-                let journal = journal.clone();
+                let (journal, heir) = (journal.clone(), heir.clone());
                 let replication = replication.clone();
                 let events = events.clone();
                 let limits = limits.clone();
@@ -248,6 +251,7 @@ fn datamanagers(
                         journal_dir: None,
                         replication: None,
                         events: Some(events),
+                        heir: Some(heir),
                     };
                     if let Some((dir, durability)) = journal {
                         args = args.with_journal(dir, durability);
@@ -263,11 +267,11 @@ fn datamanagers(
                     let (actor, _) = dm::spawn_datamanager_linked(args, sup).await?;
                     let startup = |e: DmError| SpawnErr::StartupFailed(Box::new(e));
                     let client = DmClient::new(actor.clone(), NODE_SOURCE);
-                    // A durable datamanager read its journal back: the a-priori records it
-                    // ever stored are in it (the same seqs), and storing them again at every
-                    // restart of the datamanager or the node would pile up replicas. So they
-                    // are stored only in a datamanager that starts fresh — nothing was ever
-                    // handed a seq, `next_seq == 1` — which a memory one always does.
+                    // A durable datamanager read its journal back, and a memory one restarted
+                    // took what its previous incarnation left: the a-priori records it ever
+                    // stored are in it (the same seqs), and storing them again at every
+                    // restart would pile up copies. So they are stored only in a datamanager
+                    // that starts fresh — nothing was ever handed a seq, `next_seq == 1`.
                     if !records.is_empty() && client.stats().await.map_err(startup)?.next_seq == 1 {
                         for record in records.iter() {
                             client.store_raw(record.clone()).await.map_err(startup)?;

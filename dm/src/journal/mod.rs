@@ -57,7 +57,14 @@ use writer::{Ack, Job, Shared, Writer};
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Durability {
-    /// In memory only: a crash of the datamanager, or of its process, loses every record.
+    /// In memory only: survives a crash of the datamanager, not of its process. A
+    /// datamanager restarted from the same arguments (its supervisor's restart) takes the
+    /// records its previous incarnation left — its store kept outside the actor and handed
+    /// over when the actor ends, as an ETS table goes to its heir ([`Heir`](crate::Heir)),
+    /// and rebuilt from its records on the way, so a crash in the middle of a change hands
+    /// over no half-updated index. `kill -9` of the process loses every record. Why not a
+    /// journal in a temporary directory: it would cost every put of every embedded run a
+    /// write for a promise (surviving the process) nobody asks of `memory`.
     /// The fastest; right for data a run makes and needs only while it lasts.
     #[default]
     Memory,

@@ -14,16 +14,31 @@ use std::collections::BTreeMap;
 pub struct NodeView {
     /// Its name.
     pub name: String,
-    /// `up`, `lost` (its sessions ended), `down` (declared down by a failure detector) or
-    /// `frozen` (up again after it was frozen past its peers' deadline, its operations
-    /// restarted as new incarnations: shown until it is lost or declared down again).
+    /// `up`, `lost` (its sessions ended) or `down` (declared down by a failure detector).
+    /// A node frozen past its peers' deadline is `down` while it is frozen, and `up` again
+    /// once it woke (see `woke`).
     pub status: &'static str,
+    /// Its latest freeze past its peers' deadline, once it woke: its operations restarted
+    /// as new incarnations then. (It used to be a status of its own, `frozen`, that
+    /// nothing but another loss ended: a node that had long been back showed frozen.)
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub woke: Option<Woke>,
     /// The address it listens on, when a peer said.
     pub address: Option<String>,
     /// When its status last changed, ms of the reporting node's clock.
     pub since_ms: u64,
     /// The modules it hosts, by actor address.
     pub modules: BTreeMap<String, ModuleView>,
+}
+
+/// A node's wake from a freeze past its peers' deadline (`node_frozen`, told by the node
+/// once it woke).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct Woke {
+    /// When it woke, ms of its clock.
+    pub at_ms: u64,
+    /// How long it was frozen, ms of real time.
+    pub silent_ms: u64,
 }
 
 /// A module in the location table.
@@ -71,6 +86,7 @@ impl Cluster {
             status: "up",
             address: None,
             since_ms: at_ms,
+            woke: None,
             modules: BTreeMap::new(),
         })
     }
@@ -115,27 +131,20 @@ impl Cluster {
             EventKind::NodeUp { peer, address } => self.up(peer, address, at),
             EventKind::NodeLost { peer, address } => self.lost(peer, address, at),
             EventKind::NodeDown { peer, .. } => self.down(peer, at),
-            EventKind::NodeFrozen { .. } => self.frozen(node, at),
+            EventKind::NodeFrozen { silent_ms } => self.woke(node, at, *silent_ms),
             _ => {}
         }
     }
 
-    /// `node` published an event: it is alive (known, and up unless it said otherwise).
+    /// `node` published an event: it is alive (known, and up).
     pub fn heard_from(&mut self, node: &str, at_ms: u64) {
-        if self.of(node, at_ms).status != "frozen" {
-            // up again since now, not since it went down
-            self.set(node, at_ms, "up");
-        }
+        // up again since now, not since it went down
+        self.set(node, at_ms, "up");
     }
 
-    /// A peer's session is ready. A frozen node stays frozen: being up again is part of
-    /// what that tells.
+    /// A peer's session is ready.
     pub fn up(&mut self, peer: &str, address: &str, at_ms: u64) {
-        let node = self.of(peer, at_ms);
-        if node.status != "frozen" {
-            self.set(peer, at_ms, "up");
-        }
-        self.of(peer, at_ms).address = Some(address.to_string());
+        self.set(peer, at_ms, "up").address = Some(address.to_string());
     }
 
     /// A peer's sessions ended: its modules left.
@@ -155,13 +164,18 @@ impl Cluster {
         self.set(peer, at_ms, "down").modules.clear();
     }
 
-    /// A node found it was frozen past its peers' deadline. Its own news, which reaches a
-    /// watcher only once the node is back in session (its forwarder resends it then):
-    /// before or after its peers' news that they see it again, as the streams of two
-    /// nodes happen to interleave. So neither undoes the other: the node shows frozen —
-    /// up again, its operations restarted — until it is lost or declared down again.
-    pub fn frozen(&mut self, node: &str, at_ms: u64) {
-        self.set(node, at_ms, "frozen");
+    /// A node found, as it woke at `at_ms`, that it was frozen `silent_ms` past its peers'
+    /// deadline. Its own news, which reaches a watcher only once the node is back in
+    /// session (its forwarder resends it then): before or after its peers' news that they
+    /// see it again, as the streams of two nodes interleave — either way it is up again.
+    /// Only a loss newer than the wake (a second freeze, a kill) stands.
+    pub fn woke(&mut self, node: &str, at_ms: u64, silent_ms: u64) {
+        let view = self.of(node, at_ms);
+        view.woke = Some(Woke { at_ms, silent_ms });
+        let gone_since = matches!(view.status, "down" | "lost") && view.since_ms > at_ms;
+        if !gone_since {
+            self.set(node, at_ms, "up");
+        }
     }
 
     /// A module joined the location table.
@@ -217,33 +231,106 @@ mod tests {
         assert_eq!((c.0["a"].status, c.0["a"].since_ms), ("down", 20));
         c.heard_from("a", 35);
         assert_eq!((c.0["a"].status, c.0["a"].since_ms), ("up", 35));
-        // a frozen node stays frozen until it says otherwise
-        c.frozen("a", 40);
-        c.heard_from("a", 50);
-        assert_eq!((c.0["a"].status, c.0["a"].since_ms), ("frozen", 40));
+    }
+
+    /// What a watcher hears of a node frozen (SIGSTOP) past its peers' deadline and woken
+    /// (SIGCONT): a peer declares it down and loses its sessions; once it woke, its own
+    /// `node_frozen` and a peer's `node_up`, in either order; then its events as ever. It
+    /// is up again — not frozen for good — and says it woke.
+    #[test]
+    fn a_frozen_node_that_woke_is_up_again_whichever_news_comes_first() {
+        let event = |at_ms, node: &str, kind| Event {
+            at_ms,
+            node: node.into(),
+            kind,
+        };
+        let address = "127.0.0.1:1".to_string();
+        for frozen_first in [true, false] {
+            let mut c = Cluster::default();
+            let before = [
+                event(
+                    10,
+                    "b",
+                    EventKind::NodeUp {
+                        peer: "a".into(),
+                        address: address.clone(),
+                    },
+                ),
+                event(
+                    20,
+                    "b",
+                    EventKind::NodeDown {
+                        peer: "a".into(),
+                        silent_ms: 1500,
+                    },
+                ),
+                event(
+                    21,
+                    "b",
+                    EventKind::NodeLost {
+                        peer: "a".into(),
+                        address: address.clone(),
+                    },
+                ),
+            ];
+            let frozen = event(30, "a", EventKind::NodeFrozen { silent_ms: 4200 });
+            let seen = event(
+                31,
+                "b",
+                EventKind::NodeUp {
+                    peer: "a".into(),
+                    address: address.clone(),
+                },
+            );
+            for e in &before {
+                c.apply(e);
+            }
+            // (declared down is the stronger news: losing its sessions follows it)
+            assert_eq!(c.0["a"].status, "down");
+            let woke = if frozen_first {
+                [&frozen, &seen]
+            } else {
+                [&seen, &frozen]
+            };
+            for e in woke {
+                c.apply(e);
+            }
+            let a = &c.0["a"];
+            assert_eq!(a.status, "up", "frozen first: {frozen_first}");
+            assert_eq!(
+                a.woke,
+                Some(Woke {
+                    at_ms: 30,
+                    silent_ms: 4200
+                })
+            );
+            assert_eq!(a.address.as_deref(), Some("127.0.0.1:1"));
+            // long after: still up
+            c.apply(&event(
+                70_000,
+                "a",
+                EventKind::Robot {
+                    what: "pose".into(),
+                    data: serde_json::Value::Null,
+                },
+            ));
+            assert_eq!(c.0["a"].status, "up");
+            // lost again: lost, and back: up
+            c.lost("a", "127.0.0.1:1", 80_000);
+            assert_eq!(c.0["a"].status, "lost");
+            c.up("a", "127.0.0.1:1", 80_050);
+            assert_eq!((c.0["a"].status, c.0["a"].since_ms), ("up", 80_050));
+        }
     }
 
     #[test]
-    fn a_woken_node_shows_frozen_whichever_news_comes_first_until_it_is_gone_again() {
-        for freeze_first in [true, false] {
-            let mut c = Cluster::default();
-            c.up("a", "127.0.0.1:1", 10);
-            c.down("a", 20);
-            // the node's own news, stamped when it woke, and a peer's seeing it again
-            if freeze_first {
-                c.frozen("a", 30);
-                c.up("a", "127.0.0.1:1", 31);
-            } else {
-                c.up("a", "127.0.0.1:1", 31);
-                c.frozen("a", 30);
-            }
-            c.heard_from("a", 32);
-            assert_eq!(c.0["a"].status, "frozen", "freeze first: {freeze_first}");
-            assert_eq!(c.0["a"].address.as_deref(), Some("127.0.0.1:1"));
-            c.lost("a", "127.0.0.1:1", 40);
-            assert_eq!(c.0["a"].status, "lost");
-            c.up("a", "127.0.0.1:1", 50);
-            assert_eq!((c.0["a"].status, c.0["a"].since_ms), ("up", 50));
-        }
+    fn a_wake_told_late_does_not_undo_a_newer_loss() {
+        let mut c = Cluster::default();
+        c.up("a", "127.0.0.1:1", 10);
+        c.down("a", 50);
+        // the node's news of a wake at 30, reaching the watcher after the newer loss
+        c.woke("a", 30, 4200);
+        assert_eq!((c.0["a"].status, c.0["a"].since_ms), ("down", 50));
+        assert_eq!(c.0["a"].woke.map(|w| w.silent_ms), Some(4200));
     }
 }

@@ -50,8 +50,8 @@ impl Timeline {
 /// The timeline's class (the page's CSS class) of `kind`, or `None` for an event it does
 /// not list: choices and bindings (the bindings panel shows them), an operation's part, the
 /// tree's plan, the registry's comings and goings and a datamanager's state (the cluster
-/// panel), a supervisor starting a child, records acknowledged or deleted (too many to
-/// list: the check at the run's end tells them), and the robot's events the robot panel
+/// panel), a supervisor starting a child, records acknowledged, applied or deleted (too
+/// many to list: the check at the run's end tells them), and the robot's events the robot panel
 /// draws (`drawn`) but a dock found and a collision.
 pub fn class(kind: &EventKind, drawn: bool) -> Option<&'static str> {
     Some(match kind {
@@ -83,6 +83,7 @@ pub fn class(kind: &EventKind, drawn: bool) -> Option<&'static str> {
         | EventKind::DmFenced { .. }
         | EventKind::DmRetention { .. }
         | EventKind::DmRecovered { .. }
+        | EventKind::DmInherited { .. }
         | EventKind::DmChecked(_) => "datamanager",
         EventKind::Robot { what, .. }
             if !drawn || matches!(what.as_str(), "dock-found" | "collision") =>
@@ -99,6 +100,7 @@ pub fn class(kind: &EventKind, drawn: bool) -> Option<&'static str> {
         | EventKind::ChildStarted { .. }
         | EventKind::DmAcked { .. }
         | EventKind::DmDeleted { .. }
+        | EventKind::DmApplied { .. }
         | EventKind::Robot { .. } => return None,
     })
 }

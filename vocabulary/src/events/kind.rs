@@ -2,8 +2,8 @@
 
 use crate::registry::{Instance, ModuleKind};
 use crate::run::{
-    Choice, DmCheck, FaultKind, LossCause, OpEnd, Outcome, ParamValue, Provenance, RebindRecord,
-    RobotSection,
+    AppliedSpan, Choice, DmCheck, FaultKind, LossCause, OpEnd, Outcome, ParamValue, Provenance,
+    RebindRecord, RobotSection,
 };
 use serde::{Deserialize, Serialize};
 
@@ -421,6 +421,28 @@ pub enum EventKind {
         /// How many records it deleted.
         deleted: u64,
     },
+    /// A datamanager applied records stored by `put`s (no producer is answered for those):
+    /// told now and then, a span per class, so that the check at a run's end can count
+    /// them as it counts acknowledged ones — one the datamanager applied and no longer
+    /// holds is lost. A journaled datamanager tells them once they are durable.
+    DmApplied {
+        /// The datamanager's name.
+        dm: String,
+        /// What it applied since it last told, a span per class.
+        spans: Vec<AppliedSpan>,
+    },
+    /// A datamanager at durability `memory` restarted after a crash and took the records
+    /// its previous incarnation left (its heir): a memory datamanager survives its own
+    /// crash, not its process's.
+    DmInherited {
+        /// The datamanager's name.
+        dm: String,
+        /// Records it holds after it took them.
+        records: u64,
+        /// Records refused by the check of what it took (a store left half-updated by a
+        /// crash in the middle of a change).
+        refused: u64,
+    },
     /// The check of a datamanager at the end of a run: of the records acknowledged during
     /// it, how many its leader still holds and how many are lost.
     DmChecked(DmCheck),
@@ -515,6 +537,8 @@ impl EventKind {
             | EventKind::DmState { .. }
             | EventKind::DmAcked { .. }
             | EventKind::DmDeleted { .. }
+            | EventKind::DmApplied { .. }
+            | EventKind::DmInherited { .. }
             | EventKind::DmChecked(_) => Family::Datamanager,
             EventKind::Robot { .. } => Family::Robot,
         }

@@ -54,6 +54,7 @@
 //! {"at_ms":12000,"node":"marie@localhost","kind":{"type":"fault_healed","fault":"freeze-node","operation":"features"}}
 //! {"at_ms":6000,"node":"marie@localhost","kind":{"type":"fault_not_injected","fault":"hang","operation":"nobody","why":"no operation `nobody` is running","due_ms":4800}}
 //! {"at_ms":700,"node":"marie@localhost","kind":{"type":"node_up","peer":"cart","address":"127.0.0.1:7101"}}
+//! {"at_ms":9100,"node":"marie@localhost","kind":{"type":"node_back","peer":"cart","address":"127.0.0.1:7101","down_ms":420}}
 //! {"at_ms":9500,"node":"marie@localhost","kind":{"type":"node_down","peer":"cart","silent_ms":1530}}
 //! {"at_ms":9501,"node":"marie@localhost","kind":{"type":"node_lost","peer":"cart","address":"127.0.0.1:7101"}}
 //! {"at_ms":9900,"node":"marie@localhost","kind":{"type":"node_frozen","silent_ms":4200}}
@@ -66,6 +67,8 @@
 //! {"at_ms":22000,"node":"features","kind":{"type":"dm_state","dm":"feature","durability":"process","records":1210,"journal_bytes":139150,"role":"leader","term":3,"lag":{"operations":0,"spare":2}}}
 //! {"at_ms":4100,"node":"operations","kind":{"type":"dm_acked","dm":"world","source":"wall-sensor","class":"wall","seq":212,"digest":1311768467463790320}}
 //! {"at_ms":4200,"node":"operations","kind":{"type":"dm_deleted","dm":"parameter","source":"path-planner","class":"path","deleted":3}}
+//! {"at_ms":4300,"node":"operations","kind":{"type":"dm_applied","dm":"feature","spans":[{"class":"sonar","from":1201,"to":1263,"records":32,"digest":9034127731160021514}]}}
+//! {"at_ms":20004,"node":"embedded","kind":{"type":"dm_inherited","dm":"feature","records":1210,"refused":0}}
 //! {"at_ms":64100,"node":"marie@localhost","kind":{"type":"dm_checked","dm":"world","node":"features","acknowledged":412,"held":410,"dropped_by_retention":0,"deleted":0,"unchecked":0,"lost":2}}
 //! {"at_ms":30001,"node":"marie@localhost","kind":{"type":"judged","outcome":"succeeded","reason":"","collisions":0,"final_pose":[1.5,0.25,0.01],"inside_goal":true,"judgement":"success: inside the goal area","refused_commands":{},"seed":7}}
 //! {"at_ms":4000,"node":"marie@localhost","kind":{"type":"robot","what":"collision","data":{"x":1.0,"y":2.0}}}
@@ -220,6 +223,8 @@ mod tests {
             EventKind::DmState { .. } => "dm_state",
             EventKind::DmAcked { .. } => "dm_acked",
             EventKind::DmDeleted { .. } => "dm_deleted",
+            EventKind::DmApplied { .. } => "dm_applied",
+            EventKind::DmInherited { .. } => "dm_inherited",
             EventKind::DmChecked(_) => "dm_checked",
             EventKind::Judged { .. } => "judged",
             EventKind::Robot { .. } => "robot",
@@ -227,7 +232,7 @@ mod tests {
     }
 
     /// The `type` of every kind, as [`type_of`] names them.
-    const KINDS: [&str; 41] = [
+    const KINDS: [&str; 44] = [
         "provenance",
         "reparameterized",
         "run_started",
@@ -253,6 +258,7 @@ mod tests {
         "fault_not_injected",
         "fault_healed",
         "node_up",
+        "node_back",
         "node_lost",
         "node_down",
         "node_frozen",
@@ -266,6 +272,8 @@ mod tests {
         "dm_state",
         "dm_acked",
         "dm_deleted",
+        "dm_applied",
+        "dm_inherited",
         "dm_checked",
         "judged",
         "robot",

@@ -574,14 +574,61 @@ fn datamanager(node: &str, kind: &EventKind) -> String {
                 .map(|c| format!(" of {c}"))
                 .unwrap_or_default()
         ),
+        EventKind::DmApplied { dm, spans } => {
+            let records: u64 = spans.iter().map(|s| s.records).sum();
+            let classes: Vec<String> = spans
+                .iter()
+                .map(|s| format!("{} {} (#{}–#{})", s.class, s.records, s.from, s.to))
+                .collect();
+            cut(format!(
+                "datamanager {dm} on {node} applied {records} put records: {}",
+                classes.join(", ")
+            ))
+        }
+        EventKind::DmInherited {
+            dm,
+            records,
+            refused,
+        } => match refused {
+            0 => format!(
+                "datamanager {dm} on {node} restarted with the {records} records its \
+                 previous incarnation left"
+            ),
+            refused => format!(
+                "datamanager {dm} on {node} restarted with the records its previous \
+                 incarnation left: {records} kept, {refused} refused by their check"
+            ),
+        },
         EventKind::DmChecked(check) => checked(check),
         // told by the teller itself, or of another family: its type and fields
         _ => generic(kind),
     }
 }
 
-/// The check of a datamanager at the end of a run.
+/// The check of a datamanager at the end of a run: its acknowledged records, then its
+/// put records if it told any applied.
 fn checked(check: &DmCheck) -> String {
+    let acknowledged = acknowledged_checked(check);
+    if check.applied == 0 {
+        return acknowledged;
+    }
+    if let Some(why) = &check.error {
+        return format!(
+            "datamanager {}: could not be checked, its {} acknowledged and {} put records \
+             count lost: {why}",
+            check.dm, check.acknowledged, check.applied
+        );
+    }
+    let puts = match (check.applied_lost, &check.why) {
+        (0, _) => format!("{} put records held, 0 lost", check.applied),
+        (lost, Some(why)) => format!("{lost} of {} put records lost ({why})", check.applied),
+        (lost, None) => format!("{lost} of {} put records lost", check.applied),
+    };
+    format!("{acknowledged}; {puts}")
+}
+
+/// The check of a datamanager's acknowledged records.
+fn acknowledged_checked(check: &DmCheck) -> String {
     match (&check.error, check.lost) {
         (Some(why), _) => format!(
             "datamanager {}: could not be checked, its {} acknowledged records count lost: \
@@ -595,13 +642,19 @@ fn checked(check: &DmCheck) -> String {
             check.held,
             check.node.as_deref().unwrap_or("?")
         ),
-        (None, lost) => format!(
-            "datamanager {}: {lost} of {} acknowledged records lost (its leader on {} no \
-             longer holds them)",
-            check.dm,
-            check.acknowledged,
-            check.node.as_deref().unwrap_or("?")
-        ),
+        (None, lost) => match &check.why {
+            Some(why) => format!(
+                "datamanager {}: {lost} of {} acknowledged records lost ({why})",
+                check.dm, check.acknowledged,
+            ),
+            None => format!(
+                "datamanager {}: {lost} of {} acknowledged records lost (its leader on {} no \
+                 longer holds them)",
+                check.dm,
+                check.acknowledged,
+                check.node.as_deref().unwrap_or("?")
+            ),
+        },
     }
 }
 
@@ -646,7 +699,9 @@ pub fn mark(kind: &EventKind) -> Mark {
         | EventKind::DmRetention { .. }
         | EventKind::DmState { .. }
         | EventKind::DmAcked { .. }
-        | EventKind::DmDeleted { .. } => '%',
+        | EventKind::DmDeleted { .. }
+        | EventKind::DmApplied { .. }
+        | EventKind::DmInherited { .. } => '%',
         EventKind::Robot { .. } => '.',
     }
 }
@@ -660,7 +715,11 @@ pub fn gravity(kind: &EventKind) -> Gravity {
             Outcome::Failed => Gravity::Error,
         },
         EventKind::RebindGaveUp { .. } | EventKind::SupervisorGaveUp { .. } => Gravity::Error,
-        EventKind::DmChecked(check) if check.lost > 0 || check.error.is_some() => Gravity::Error,
+        EventKind::DmChecked(check)
+            if check.lost > 0 || check.applied_lost > 0 || check.error.is_some() =>
+        {
+            Gravity::Error
+        }
         EventKind::ActionEnded {
             result: Some(ActionResult::Failed),
             ..
@@ -684,9 +743,10 @@ pub fn gravity(kind: &EventKind) -> Gravity {
         | EventKind::DmRetention { .. } => Gravity::Warning,
         EventKind::DmRecovered { torn: Some(_), .. } => Gravity::Warning,
         EventKind::ChildExited { reason, .. } if reason != "normal" => Gravity::Warning,
-        EventKind::DmAcked { .. } | EventKind::DmDeleted { .. } | EventKind::DmState { .. } => {
-            Gravity::Detail
-        }
+        EventKind::DmAcked { .. }
+        | EventKind::DmDeleted { .. }
+        | EventKind::DmApplied { .. }
+        | EventKind::DmState { .. } => Gravity::Detail,
         // the robot's own events: as grave as its words say (see `Teller::tell`)
         _ => Gravity::Info,
     }
@@ -794,6 +854,40 @@ mod tests {
                  longer holds them)",
             ]
         );
+    }
+
+    #[test]
+    fn a_check_with_put_records_says_how_many_were_lost_and_why() {
+        let check = DmCheck {
+            dm: "feature".into(),
+            node: Some("embedded".into()),
+            acknowledged: 3,
+            held: 3,
+            applied: 900,
+            applied_lost: 300,
+            why: Some("the feature datamanager restarted empty".into()),
+            ..DmCheck::default()
+        };
+        assert_eq!(
+            checked(&check),
+            "datamanager feature: 3 acknowledged records, 3 held on embedded, 0 lost; 300 of \
+             900 put records lost (the feature datamanager restarted empty)"
+        );
+        assert_eq!(
+            gravity(&EventKind::DmChecked(check.clone())),
+            Gravity::Error
+        );
+        let held = DmCheck {
+            applied_lost: 0,
+            why: None,
+            ..check
+        };
+        assert_eq!(
+            checked(&held),
+            "datamanager feature: 3 acknowledged records, 3 held on embedded, 0 lost; 900 put \
+             records held, 0 lost"
+        );
+        assert_eq!(gravity(&EventKind::DmChecked(held)), Gravity::Info);
     }
 
     #[test]

@@ -16,7 +16,7 @@
 //!   freeze or back from a partition) is not folded — a stream that holds every node's events
 //!   makes the same report as the run's own bus.
 
-use super::{ActionRecord, FaultRecord, OpRecord, RunReport};
+use super::{keep_latest, ActionRecord, DmRecoveryRecord, FaultRecord, OpRecord, RunReport};
 use crate::events::{DispatcherVoice, Event, EventBus, EventKind, Family, OpStarted, Tap};
 use crate::property::Value;
 use crate::run::{OpEnd, Outcome, ParamSetting, ParamSource, TakeoverRecord};
@@ -105,11 +105,13 @@ impl ReportBuilder {
             }
             EventKind::RunStarted { mission, .. } => {
                 let voice = std::mem::take(&mut self.voice);
-                // what runs was told right before
+                // what runs, and what its datamanagers started from, was told right before
                 let provenance = self.report.provenance.take();
+                let recoveries = std::mem::take(&mut self.report.dm_recoveries);
                 *self = ReportBuilder::new();
                 self.voice = voice;
                 self.report.provenance = provenance;
+                self.report.dm_recoveries = recoveries;
                 self.report.mission = mission.clone();
                 self.start_ms = Some(event.at_ms);
             }
@@ -347,11 +349,37 @@ impl ReportBuilder {
         }
     }
 
-    /// The check of a datamanager at the run's end.
+    /// The check of a datamanager at the run's end, and what each started from.
     fn on_datamanager(&mut self, event: &Event) {
-        if let EventKind::DmChecked(check) = &event.kind {
-            self.report.record_dm_check(check.clone());
-        }
+        let record = |from: &str, dm: &str, records, dropped_records, torn| DmRecoveryRecord {
+            at_ms: self.run_ms(event),
+            dm: dm.to_string(),
+            node: event.node.clone(),
+            from: from.to_string(),
+            records,
+            dropped_records,
+            torn,
+        };
+        let recovery = match &event.kind {
+            EventKind::DmChecked(check) => {
+                self.report.record_dm_check(check.clone());
+                return;
+            }
+            EventKind::DmRecovered {
+                dm,
+                records,
+                dropped_records,
+                torn,
+                ..
+            } => record("journal", dm, *records, *dropped_records, torn.clone()),
+            EventKind::DmInherited {
+                dm,
+                records,
+                refused,
+            } => record("heir", dm, *records, *refused, None),
+            _ => return,
+        };
+        keep_latest(&mut self.report.dm_recoveries, recovery);
     }
 
     /// An action started: a start told again (by a standby that launched what its lost

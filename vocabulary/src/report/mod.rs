@@ -132,6 +132,16 @@ pub struct RunReport {
     /// and acknowledged deletes accounted for. `None` when the run checked no datamanager.
     #[serde(default)]
     pub acknowledged_lost: Option<u64>,
+    /// Put records lost: the sum of `dm_checks`' `applied_lost` — records a datamanager
+    /// told it applied from `put`s (`dm_applied`) that it no longer held at the end,
+    /// retention and deletes accounted for. `None` when the run checked no datamanager.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub applied_lost: Option<u64>,
+    /// What each datamanager started from during the run: a journal read back
+    /// (`dm_recovered`) or the records of its previous incarnation (`dm_inherited`), oldest
+    /// first, the latest [`REPORT_KEEPS`].
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub dm_recoveries: Vec<DmRecoveryRecord>,
     /// When the dispatcher bound each operation at each epoch (the run's start, a takeover,
     /// a rebind), on its node's clock: what the receivers' logs of obeyed commands are
     /// checked against ([`crate::fence::obeyed_late`]). The latest
@@ -213,9 +223,31 @@ pub struct FaultRecord {
     pub healed_at_ms: Option<u64>,
 }
 
+/// What a datamanager started from during a run (the report's `dm_recoveries`).
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct DmRecoveryRecord {
+    /// When, in ms since the run began.
+    pub at_ms: u64,
+    /// The datamanager.
+    pub dm: String,
+    /// The node it runs on.
+    pub node: String,
+    /// `journal` (read back from its journal) or `heir` (its previous incarnation's
+    /// records, at durability `memory`).
+    pub from: String,
+    /// Records it held after.
+    pub records: u64,
+    /// Records dropped: a journal's torn or corrupt end, or those an inherited store's
+    /// check refused.
+    pub dropped_records: u64,
+    /// Where and why a journal's replay stopped early, if it did.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub torn: Option<String>,
+}
+
 impl RunReport {
     /// The report's own JSON keys: a robot's section cannot take them.
-    pub const OWN_KEYS: [&'static str; 21] = [
+    pub const OWN_KEYS: [&'static str; 23] = [
         "mission",
         "outcome",
         "reason",
@@ -232,6 +264,8 @@ impl RunReport {
         "nodes_lost",
         "dm_checks",
         "acknowledged_lost",
+        "applied_lost",
+        "dm_recoveries",
         "bound_epochs",
         "control",
         "takeovers",
@@ -258,6 +292,8 @@ impl RunReport {
             takeovers: Vec::new(),
             dm_checks: Vec::new(),
             acknowledged_lost: None,
+            applied_lost: None,
+            dm_recoveries: Vec::new(),
             bound_epochs: Vec::new(),
             control: Vec::new(),
             provenance: None,
@@ -347,6 +383,7 @@ impl RunReport {
         self.dm_checks.retain(|c| c.dm != check.dm);
         self.dm_checks.push(check);
         self.acknowledged_lost = Some(self.dm_checks.iter().map(|c| c.lost).sum());
+        self.applied_lost = Some(self.dm_checks.iter().map(|c| c.applied_lost).sum());
     }
 
     /// Record that the run's node lost `peer` at `at_ms` (`declared_down` by its failure
@@ -510,6 +547,8 @@ mod tests {
             }],
             dm_checks: Vec::new(),
             acknowledged_lost: None,
+            applied_lost: None,
+            dm_recoveries: Vec::new(),
             bound_epochs: vec![BoundEpoch {
                 operation: "op".into(),
                 epoch: 7,

@@ -1,5 +1,6 @@
 //! What the check of a run's datamanagers found: of the records the run's producers were
-//! told were stored, how many the datamanager still holds at the end, and how many it lost.
+//! told were stored, and of those the datamanagers told they applied from puts, how many
+//! the datamanager still holds at the end, and how many it lost.
 
 use serde::{Deserialize, Serialize};
 
@@ -37,4 +38,40 @@ pub struct DmCheck {
     /// Why the datamanager could not be asked, if it could not.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub error: Option<String>,
+    /// Records stored by `put`s — no producer is answered for those — that the
+    /// datamanager told it applied (`dm_applied`). Sorted as the acknowledged ones are;
+    /// `applied_lost` counts those neither held nor explained (retention, a delete).
+    #[serde(skip_serializing_if = "is_zero")]
+    pub applied: u64,
+    /// Of `applied`, neither held nor explained: put records lost.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub applied_lost: u64,
+    /// Why records were lost, when the run's events say (e.g. `the feature datamanager
+    /// restarted empty`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub why: Option<String>,
+}
+
+fn is_zero(n: &u64) -> bool {
+    *n == 0
+}
+
+/// Records of one class a datamanager applied from puts, told together (`dm_applied`): how
+/// many, the seqs they lie between, and the sum of their fingerprints — so that a check can
+/// tell that the records it finds in that range are the same ones, not others stored at the
+/// same seqs by a datamanager that started over.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct AppliedSpan {
+    /// Their class.
+    pub class: String,
+    /// The first one's seq.
+    pub from: u64,
+    /// The last one's seq.
+    pub to: u64,
+    /// How many (the class's records between `from` and `to`).
+    pub records: u64,
+    /// The wrapping sum of each record's fingerprint (its seq, source and payload: see
+    /// `marie_dm`'s audit).
+    pub digest: u64,
 }

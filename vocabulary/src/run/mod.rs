@@ -27,7 +27,7 @@ pub mod provenance;
 mod rebind;
 mod takeover;
 
-pub use check::DmCheck;
+pub use check::{AppliedSpan, DmCheck};
 pub use choice::{Candidate, Choice, Verdict};
 pub use fault::{Aim, FaultKind, UnknownFault};
 pub use loss::LossCause;
