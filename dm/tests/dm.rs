@@ -617,6 +617,7 @@ async fn a_class_reaching_its_retention_bound_is_told_once_and_its_drops_counted
         journal_dir: None,
         replication: None,
         events: Some(bus.clone()),
+        heir: None,
     })
     .await
     .expect("spawn dm");
