@@ -384,6 +384,12 @@ impl Ledger {
             tokio::time::sleep(Duration::from_millis(200)).await;
         };
         let (acknowledged, applied) = (self.acknowledged(dm), self.applied(dm));
+        // a replicated datamanager without a majority holds its records in the journals of
+        // nodes that are gone: counted lost here (none can be read), and said why
+        let error = match super::majority::without_leader(dm, super::majority::VIEW_TIMEOUT).await {
+            Some(no_majority) => no_majority.to_string(),
+            None => last.to_string(),
+        };
         DmCheck {
             dm: dm.to_string(),
             node: None,
@@ -391,7 +397,7 @@ impl Ledger {
             lost: acknowledged,
             applied,
             applied_lost: applied,
-            error: Some(last.to_string()),
+            error: Some(error),
             ..DmCheck::default()
         }
     }

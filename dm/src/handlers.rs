@@ -117,6 +117,13 @@ impl DatamanagerState {
             return;
         }
         let stats = self.stats();
+        if self.is_follower() {
+            // a follower owes no credits and has nothing of its own to commit: it answers
+            // at once — also without a leader, when whoever asks wants to know why
+            // (`majority::without_leader`)
+            let _ = reply.send(stats);
+            return;
+        }
         self.acknowledge(reply, move |_| stats);
     }
 
