@@ -42,6 +42,8 @@ pub(crate) struct NodeLaunch {
     pub seed: Option<u64>,
     /// Its data directory (`--data-dir`), unless its config names one.
     pub data_dir: Option<PathBuf>,
+    /// The cluster file, when it declares replicated datamanagers (`--cluster`).
+    pub cluster_file: Option<PathBuf>,
     /// The network namespace it runs in, in a private network (`super::netns`).
     pub netns: Option<std::sync::Arc<std::fs::File>>,
 }
@@ -84,6 +86,9 @@ impl NodeChild {
         }
         if let Some(d) = &launch.data_dir {
             cmd.arg("--data-dir").arg(d);
+        }
+        if let Some(f) = &launch.cluster_file {
+            cmd.arg("--cluster").arg(f);
         }
         if let Some(ns) = launch.netns.clone() {
             // SAFETY: between fork and exec the child only calls setns(2), which is

@@ -53,6 +53,10 @@ pub(crate) struct NodeArgs {
     /// The cluster's speed factor: wall-clock time times X, the same on every node.
     #[arg(long, default_value = "1", value_parser = super::args::parse_cluster_speed, allow_hyphen_values = true)]
     pub speed: f64,
+    /// The cluster file: host a replica of each datamanager its `[[datamanager]]` tables
+    /// declare for this node (what `marie up` gives its nodes). Only those tables are read.
+    #[arg(long = "cluster", value_name = "FILE")]
+    pub cluster_file: Option<PathBuf>,
     /// Stop, like on SIGTERM, when standard input closes: what `marie up` gives its
     /// children, so that none outlives it even when it is killed.
     #[arg(long)]
@@ -135,6 +139,22 @@ impl NodeArgs {
         };
         if let Some(dir) = &self.data_dir {
             config.data_dir = Some(dir.clone());
+        }
+        if let Some(file) = &self.cluster_file {
+            let declared = marie::cluster::layout::declared_for(file, &config.name)
+                .map_err(EmbeddedError::Config)?;
+            for dm in declared {
+                if config.datamanagers.iter().any(|own| own.name == dm.name) {
+                    return Err(BadInput(format!(
+                        "datamanager `{}` is declared in {} and in {}: declare it once",
+                        dm.name,
+                        file.display(),
+                        self.config.display()
+                    ))
+                    .into());
+                }
+                config.datamanagers.push(dm);
+            }
         }
         Ok((config, cluster))
     }

@@ -13,6 +13,10 @@
 //! config = "thesis/features.toml"
 //! listen = "127.0.0.1:7102"    # optional: else a free port on 127.0.0.1
 //! restart = "transient"        # optional: how `marie up` restarts it (see `restart`)
+//!
+//! [[datamanager]]              # a replicated datamanager, declared once (`datamanagers`)
+//! name = "feature"
+//! replicas = ["features", "operations", "spare"]
 //! ```
 //!
 //! Every node config is loaded and checked with the file, and node names must differ (two
@@ -28,8 +32,10 @@
 //! assert_eq!(layout.nodes[0].config.name, "a");
 //! ```
 
+mod datamanagers;
 mod restart;
 
+pub use datamanagers::declared_for;
 pub use restart::{Exit, NodeRestart, RestartPolicy, RestartTracker, Verdict};
 
 use crate::net::check_cookie;
@@ -107,6 +113,9 @@ pub struct ClusterLayout {
     pub nodes: Vec<LayoutNode>,
     /// How `marie up` restarts a node whose config gives no restart keys of its own.
     pub restart: NodeRestart,
+    /// The replicated datamanagers the file declares (`[[datamanager]]`), each once for the
+    /// whole cluster; also in the config of every node that keeps a replica.
+    pub datamanagers: Vec<crate::node::config::DatamanagerConfig>,
 }
 
 impl ClusterLayout {
@@ -146,14 +155,14 @@ pub struct LayoutNode {
 impl ClusterLayout {
     /// Read and check a cluster file and every node config it names, against `catalog`.
     pub fn load(path: &Path, catalog: &[OperationFactory]) -> Result<ClusterLayout, Diagnostics> {
-        let src = read_source(path, "cluster file")?;
+        let src = read_source(path, "cluster")?;
         let dir = path.parent().unwrap_or(Path::new(""));
         let mut r = Reader::new(&src, path.display().to_string());
         let Some(doc) = r.parse() else {
             return r.finish(None, "the cluster file is not valid");
         };
         let top = r.top(&doc, "the cluster file");
-        r.unknown_keys(&top, &["cluster", "node"]);
+        r.unknown_keys(&top, &["cluster", "node", "datamanager"]);
         let mut layout = ClusterLayout {
             path: path.to_path_buf(),
             cookie: String::new(),
@@ -162,6 +171,7 @@ impl ClusterLayout {
             seed: None,
             nodes: Vec::new(),
             restart: NodeRestart::default(),
+            datamanagers: Vec::new(),
         };
         match top.get("cluster").map(|v| r.table(v, "[cluster]")) {
             None => r.err(
@@ -184,9 +194,58 @@ impl ClusterLayout {
                 }
             }
         }
+        if let Some(v) = top.get("datamanager") {
+            let declared = datamanagers::read(&mut r, v);
+            layout.place(&mut r, declared);
+        }
         let mut all = r.into_diagnostics();
         all.extend(nested);
         Diagnostics(all).into_result(layout)
+    }
+
+    /// Give each declared datamanager to the nodes its replicas name: every one a node of
+    /// this file, none of which declares it in its own config as well.
+    fn place(&mut self, r: &mut Reader<'_>, declared: Vec<datamanagers::Declared>) {
+        for d in declared {
+            let name = &d.config.name;
+            if let Some(ghost) = d
+                .config
+                .replicas
+                .iter()
+                .find(|n| !self.nodes.iter().any(|node| &node.config.name == *n))
+            {
+                r.err(
+                    &d.at,
+                    format!(
+                        "datamanager `{name}` keeps a replica on `{ghost}`, which is no node of \
+                         this cluster file"
+                    ),
+                );
+                continue;
+            }
+            let hosts = |node: &&mut LayoutNode| d.config.replicas.contains(&node.config.name);
+            if let Some(twice) = self
+                .nodes
+                .iter_mut()
+                .filter(hosts)
+                .find(|n| n.config.datamanagers.iter().any(|own| &own.name == name))
+            {
+                r.err(
+                    &d.at,
+                    format!(
+                        "datamanager `{name}` is declared here and in node `{}`'s config ({}): \
+                         declare it once",
+                        twice.config.name,
+                        twice.path.display()
+                    ),
+                );
+                continue;
+            }
+            for node in self.nodes.iter_mut().filter(hosts) {
+                node.config.datamanagers.push(d.config.clone());
+            }
+            self.datamanagers.push(d.config);
+        }
     }
 
     /// `[cluster]`: cookie, speed, world, seed, the nodes' restart settings.
@@ -375,6 +434,67 @@ mod tests {
             format!("{f}:4:16: `max_restarts` must be an integer in [0, 1000], found -1"),
             format!("{f}:9:18: `restart_period` must be in (0, 86400], found 0"),
             format!("{f}:8:15: `max_backoff` (1 s) must be at least `backoff` (2 s)"),
+        ] {
+            assert!(text.contains(&want), "{want}\nnot in:\n{text}");
+        }
+    }
+
+    #[test]
+    fn a_replicated_datamanager_is_declared_once_and_given_to_each_node_it_names() {
+        let dir = tempfile::tempdir().unwrap();
+        for n in ["a", "b", "c", "d"] {
+            write(
+                dir.path(),
+                &format!("{n}.toml"),
+                &format!("[node]\nname = \"{n}\"\n"),
+            );
+        }
+        let c = write(
+            dir.path(),
+            "cluster.toml",
+            "[cluster]\ncookie = \"k\"\n\
+             [[node]]\nconfig = \"a.toml\"\n[[node]]\nconfig = \"b.toml\"\n\
+             [[node]]\nconfig = \"c.toml\"\n[[node]]\nconfig = \"d.toml\"\n\
+             [[datamanager]]\nname = \"feature\"\nreplicas = [\"b\", \"c\", \"d\"]\ncatch_up = 100\n",
+        );
+        let l = ClusterLayout::load(&c, &[]).unwrap();
+        assert_eq!(l.datamanagers.len(), 1);
+        let hosts: Vec<(&str, usize)> = l
+            .nodes
+            .iter()
+            .map(|n| (n.config.name.as_str(), n.config.datamanagers.len()))
+            .collect();
+        assert_eq!(hosts, [("a", 0), ("b", 1), ("c", 1), ("d", 1)]);
+        let on_c = &l.nodes[2].config.datamanagers[0];
+        assert_eq!((on_c.replicas.len(), on_c.catch_up), (3, Some(100)));
+        // what `marie node --cluster FILE` hosts: the tables that name it, only
+        assert_eq!(declared_for(&c, "c").unwrap().len(), 1);
+        assert!(declared_for(&c, "a").unwrap().is_empty());
+    }
+
+    #[test]
+    fn a_datamanager_on_no_node_of_the_file_declared_twice_or_without_replicas_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        write(dir.path(), "a.toml", "[node]\nname = \"a\"\n");
+        write(
+            dir.path(),
+            "b.toml",
+            "[node]\nname = \"b\"\n[[datamanager]]\nname = \"world\"\n",
+        );
+        let c = write(
+            dir.path(),
+            "c.toml",
+            "[cluster]\ncookie = \"k\"\n[[node]]\nconfig = \"a.toml\"\n[[node]]\nconfig = \"b.toml\"\n\
+             [[datamanager]]\nname = \"feature\"\nreplicas = [\"a\", \"b\", \"ghost\"]\n\
+             [[datamanager]]\nname = \"world\"\nreplicas = [\"a\", \"b\"]\n\
+             [[datamanager]]\nname = \"parameter\"\n",
+        );
+        let text = ClusterLayout::load(&c, &[]).unwrap_err().to_string();
+        let f = c.display().to_string();
+        for want in [
+            format!("{f}:7:1: datamanager `feature` keeps a replica on `ghost`, which is no node of this cluster file"),
+            format!("{f}:10:1: datamanager `world` is declared here and in node `b`'s config"),
+            format!("{f}:13:1: datamanager `parameter` of a cluster file needs `replicas = [...]`"),
         ] {
             assert!(text.contains(&want), "{want}\nnot in:\n{text}");
         }

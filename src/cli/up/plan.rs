@@ -117,6 +117,7 @@ fn launches(
             world: world.clone(),
             seed,
             data_dir: data.of(&node.config),
+            cluster_file: (!layout.datamanagers.is_empty()).then(|| layout.path.clone()),
         })
         .collect()
 }

@@ -160,7 +160,7 @@ fn durability(
 
 /// One `[[datamanager]]`: a known name (feature, parameter, world) or a name with an `id`,
 /// and its durability.
-fn datamanager(
+pub(crate) fn datamanager(
     r: &mut Reader<'_>,
     t: &Tbl<'_, '_>,
     seen: &[DatamanagerConfig],

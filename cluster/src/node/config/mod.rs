@@ -54,7 +54,7 @@
 //! without a `data_dir` — is a diagnostic at its `file:line:column` (the shared
 //! [`marie_vocabulary::diagnostic`] reader).
 
-mod load;
+pub(crate) mod load;
 
 pub(crate) use load::socket_addr;
 
