@@ -171,9 +171,24 @@
 //! not shipped between nodes. An operation hosted with
 //! `operation_with::<O>(|c| c.with_instances(0))` (or `operation_factory`) is a standby:
 //! started only when no instance runs anywhere, after the
-//! [provisioning grace](provision::GRACE) (1 s). `embedding/failover` in the
-//! repository is a two-process application built this way whose mission fails over when
-//! the process running its operation is killed; its crate docs walk through it.
+//! [provisioning grace](provision::GRACE) (1 s).
+//!
+//! **A replicated datamanager of your own.** A datamanager the application names
+//! ([`dm::DmSpec::new`]) can be kept in replicas on three or more of its processes: each
+//! declares it with the same replicas, the preferred leader first
+//! ([`cluster::node::DatamanagerConfig::with_replicas`]), and gives its node a
+//! [data directory](NodeBuilder::data_dir) for the replica's journal. Once a majority of
+//! them run, one replica is elected leader; a `store` is acknowledged once a majority
+//! journaled it; when the leader's process dies another replica is elected, every client
+//! follows it and nothing acknowledged is lost. [`dm::DmClient::leader_node`] says where it
+//! is. A declaration that cannot work (fewer than three, no data directory, no cluster) is
+//! refused at start; [`NodeBuilder::datamanager`] says more.
+//!
+//! `embedding/failover` in the repository is a three-process application built this way:
+//! its mission fails over when the process running its operation is killed, and its pump
+//! log — a replicated datamanager of its own, with its own record kind — keeps every step
+//! it acknowledged when that process, which holds the log's leader, is killed; its crate
+//! docs walk through it.
 //!
 //! ```no_run
 //! # use marie::prelude::*;
@@ -183,13 +198,25 @@
 //! #     async fn step(&mut self, _: &mut OpContext) -> Result<Step, OpError> { Ok(Step::Continue) }
 //! # }
 //! use marie::cluster::net::ClusterConfig;
+//! use marie::cluster::node::DatamanagerConfig;
+//! use marie::dm::{DmClient, DmSpec, RecordKind};
+//! use std::time::Duration;
+//!
+//! const PUMP_LOG: DmSpec = DmSpec::new("pump-log", 7410);
+//! const PUMPED: RecordKind<f64> = RecordKind::new("pumped");
+//!
 //! # #[tokio::main] async fn main() -> Result<(), Box<dyn std::error::Error>> {
-//! let node = marie::Node::builder("b")
+//! let node = marie::Node::builder("b") // "a" and "c" alike, each in its own process
 //!     .operation_value(Pump)
+//!     .data_dir("/var/lib/pumps/b")
+//!     .datamanager(DatamanagerConfig::from(PUMP_LOG).with_replicas(["b", "a", "c"]))
 //!     .cluster(ClusterConfig::new("127.0.0.1:7101".parse()?, "secret")
 //!         .with_peer("127.0.0.1:7100".parse()?))
 //!     .start()
 //!     .await?;
+//! let log = DmClient::lookup_within(PUMP_LOG.name, "b", Duration::from_secs(30)).await?;
+//! log.store_kind(PUMPED, &0.1).await?; // acknowledged: in a majority of the journals
+//! println!("pump-log leader: {}", log.leader_node().await?);
 //! # node.shutdown().await; Ok(()) }
 //! ```
 //!

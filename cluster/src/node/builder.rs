@@ -333,6 +333,60 @@ impl NodeBuilder {
     /// node.shutdown().await;
     /// # Ok(()) }
     /// ```
+    ///
+    /// # A replicated datamanager of the application's own
+    /// Kept in replicas on three (or more) of the application's processes, each a node
+    /// built like this one: every process declares it with the same replicas
+    /// ([`DatamanagerConfig::with_replicas`]: node names, the preferred leader first, this
+    /// node among them), a [`data_dir`](NodeBuilder::data_dir) for its replica's journal
+    /// (Raft's term and vote must outlive the process) and a [`cluster`](NodeBuilder::cluster)
+    /// to meet the others in. Once a majority of them run, one replica is elected leader
+    /// and published under the datamanager's name: a `store` anywhere in the cluster is
+    /// acknowledged once a majority journaled it, and when the leader's process dies another
+    /// replica takes over and every client follows it (nothing acknowledged is lost).
+    /// [`DmClient::leader_node`](marie_dm::DmClient::leader_node) says which node leads.
+    /// A declaration that cannot work — fewer than three replicas, this node not among
+    /// them, no data_dir, no cluster — is refused at [`NodeBuilder::start`], naming the
+    /// datamanager.
+    ///
+    /// ```no_run
+    /// use marie_cluster::net::ClusterConfig;
+    /// use marie_cluster::node::{DatamanagerConfig, Node};
+    /// use marie_dm::{DmClient, DmSpec, RecordKind};
+    /// use std::time::Duration;
+    ///
+    /// const PUMP_LOG: DmSpec = DmSpec::new("pump-log", 7410);
+    /// const PUMPED: RecordKind<(String, f64)> = RecordKind::new("pumped");
+    ///
+    /// # #[tokio::main] async fn main() -> Result<(), Box<dyn std::error::Error>> {
+    /// // process "b"; "a" and "c" run the same with their own name, data_dir and address
+    /// let node = Node::builder("b")
+    ///     .data_dir("/var/lib/pumps/b")
+    ///     .datamanager(DatamanagerConfig::from(PUMP_LOG).with_replicas(["b", "a", "c"]))
+    ///     .cluster(
+    ///         ClusterConfig::new("127.0.0.1:7101".parse()?, "secret")
+    ///             .with_peer("127.0.0.1:7100".parse()?),
+    ///     )
+    ///     .start()
+    ///     .await?;
+    /// // a leader once a majority of the three runs; the client follows it from then on
+    /// let log = DmClient::lookup_within(PUMP_LOG.name, "b", Duration::from_secs(30)).await?;
+    /// let seq = log.store_kind(PUMPED, &("b".to_string(), 0.1)).await?; // in a majority now
+    /// println!("seq {seq}; leader on node {}", log.leader_node().await?);
+    /// node.shutdown().await;
+    /// # Ok(()) }
+    /// ```
+    ///
+    /// The builder only records the declaration, as the node will start it:
+    ///
+    /// ```
+    /// # use marie_cluster::node::{DatamanagerConfig, Node};
+    /// # const PUMP_LOG: marie_dm::DmSpec = marie_dm::DmSpec::new("pump-log", 7410);
+    /// let builder = Node::builder("b")
+    ///     .data_dir("/var/lib/pumps/b")
+    ///     .datamanager(DatamanagerConfig::from(PUMP_LOG).with_replicas(["b", "a", "c"]));
+    /// assert_eq!(builder.config().datamanagers[0].replicas, ["b", "a", "c"]);
+    /// ```
     pub fn datamanager(mut self, dm: impl Into<DatamanagerConfig>) -> Self {
         self.config.datamanagers.push(dm.into());
         self
@@ -341,7 +395,8 @@ impl NodeBuilder {
     /// Keep the node's files in `dir` ([`NodeConfig::data_dir`]): each durable
     /// datamanager's journal in `dir/dm/NAME`, so what it acknowledged survives a crash of
     /// the datamanager and of the process, and a node started again on `dir` finds its
-    /// records with their seqs. The node locks `dir` while it runs: another node on it is
+    /// records with their seqs (a replica of a replicated datamanager, its term and vote
+    /// too: it needs one). The node locks `dir` while it runs: another node on it is
     /// refused ([`NodeError::DataDirInUse`]). Its datamanagers are at `process` unless they
     /// say otherwise ([`DatamanagerConfig::with_durability`]); without a data_dir they are
     /// in memory and the node writes no file.
@@ -403,7 +458,8 @@ impl NodeBuilder {
     ///
     /// One node per process: ractor's registry and process groups are process-wide, so two
     /// nodes of one cluster are two processes (`embedding/failover` in marie's repository
-    /// is such an application, whose mission fails over from one process to the other).
+    /// is such an application, of three processes, whose mission fails over from one
+    /// process to another and whose own datamanager is replicated on all three).
     ///
     /// ```no_run
     /// use marie_cluster::net::ClusterConfig;
@@ -486,6 +542,7 @@ impl From<(&str, u32)> for DatamanagerConfig {
 mod tests {
     use super::*;
     use marie_actors::eo::{Identity, OpContext, OpError, Step};
+    use marie_dm::DmClient;
     use marie_vocabulary::property::{ParamDecl, ParamSchema};
 
     #[derive(Default)]
@@ -530,6 +587,65 @@ mod tests {
         let outside = marie_actors::eo::HostOptions::default().clock;
         assert!(Arc::ptr_eq(node.clock(), &outside));
         node.shutdown().await;
+    }
+
+    /// An application's own datamanager, kept in replicas on the nodes of its processes.
+    const LOG: marie_dm::DmSpec = marie_dm::DmSpec::new("t-log", 7990);
+
+    #[tokio::test]
+    async fn an_applications_replicated_datamanager_that_cannot_work_is_refused_naming_why() {
+        let dir = tempfile::tempdir().expect("a temporary directory");
+        let log = |replicas: &[&str]| {
+            DatamanagerConfig::from(LOG).with_replicas(replicas.iter().copied())
+        };
+        let cluster = || ClusterConfig::new("127.0.0.1:0".parse().expect("an address"), "c");
+        let cases = [
+            (
+                Node::builder("x")
+                    .cluster(cluster())
+                    .datamanager(log(&["x", "y", "z"])),
+                "replicas need a journal: give the node a data_dir",
+            ),
+            (
+                Node::builder("x")
+                    .data_dir(dir.path())
+                    .cluster(cluster())
+                    .datamanager(
+                        log(&["x", "y", "z"]).with_durability(marie_dm::Durability::Memory),
+                    ),
+                "replicas need a journal: durability process or sync, not memory",
+            ),
+            (
+                Node::builder("w")
+                    .data_dir(dir.path())
+                    .cluster(cluster())
+                    .datamanager(log(&["x", "y", "z"])),
+                r#"this node (w) is not among the replicas ["x", "y", "z"]"#,
+            ),
+            (
+                Node::builder("x")
+                    .data_dir(dir.path())
+                    .cluster(cluster())
+                    .datamanager(log(&["x", "y"])),
+                "2 replicas: a majority of them cannot survive the loss of one",
+            ),
+            // its replicas are on other nodes: without a cluster none is ever reached
+            (
+                Node::builder("x")
+                    .data_dir(dir.path())
+                    .datamanager(log(&["x", "y", "z"])),
+                r#"its replicas are on the nodes ["x", "y", "z"], and this node joins no cluster: give it one (NodeBuilder::cluster"#,
+            ),
+        ];
+        for (builder, why) in cases {
+            let text = refused(builder.start().await).to_string();
+            assert!(
+                text.contains("datamanager `t-log`: replicas: ") && text.contains(why),
+                "{why:?} not in {text:?}"
+            );
+        }
+        // nothing was started or published
+        assert!(DmClient::lookup("t-log", "test").is_err());
     }
 
     #[tokio::test]

@@ -284,6 +284,7 @@ impl Node {
         // first: a node that cannot heal itself must not half-start (publish, bridge events)
         marie_supervision::require_unwinding()?;
         config.validate(&options.catalog)?;
+        config.check_replicas_reachable()?;
         if let Some(cluster) = &config.cluster {
             cluster.validate(&config.name)?;
         }

@@ -1,34 +1,50 @@
-//! `failover-app`: one process of the two-process application of `marie_failover_app`
+//! `failover-app`: one process of the three-process application of `marie_failover_app`
 //! (see the crate docs for the whole story and the numbers behind a failover).
 //!
 //! ```text
-//! failover-app --name NAME [--listen ADDR] [--peer ADDR]... [--cookie C] [--rate L]
-//!              [--standby] [--run LITRES]
+//! failover-app --name NAME --data-dir DIR --replicas N1,N2,N3 [--listen ADDR] [--peer ADDR]...
+//!              [--cookie C] [--rate L] [--standby] [--run LITRES]
 //! ```
 //!
 //! - `--listen` defaults to `127.0.0.1:0` (a port the system picks; the first line says
 //!   which): `node NAME listening on ADDR`.
+//! - `--data-dir`: where its replica of the pump log keeps its journal (created if need be;
+//!   one process per directory).
+//! - `--replicas`: the nodes that keep the pump log, the preferred leader first — the same
+//!   list in every process, this one among them. Once a majority of them is up it prints
+//!   `pump-log leader: N`, and again each time another node's replica is elected; each
+//!   step its pumps logged is `pump-log: STATION#STEP stored as seq S`.
 //! - `--rate`: litres its station moves per step (default 1).
 //! - `--standby`: its pump starts only when no pump runs anywhere in the cluster.
 //! - `--run LITRES`: this process runs the dispatcher and the mission (pump LITRES litres)
 //!   once a pump runs somewhere, prints what happens — `pump runs on node N`, `pump lost:
 //!   …`, `pump rebound from node X to node Y …`, then `rebind: pump from X to Y` for each
-//!   rebind of the report and `outcome: succeeded|failed …` — and exits 0 if the mission
-//!   succeeded, 1 if not.
+//!   rebind of the report, the run's check of the pump log (`pump-log check: H of A
+//!   acknowledged held, L lost`), every step the log holds (`pump-log holds N records:
+//!   b#1=2 b#2=3 …`, each `STATION#STEP=SEQ`) and `outcome: succeeded|failed …` — and
+//!   exits 0 if the mission succeeded, 1 if not.
 //! - Without `--run` it hosts until its standard input closes, then leaves the cluster.
 //!
 //! A bad flag is exit 2. The lines go to standard output, flushed at once, for whoever waits
 //! for them (a person, `tests/failover.rs`).
 
 use marie::cluster::node::RunOptions;
+use marie::dm::DmClient;
 use marie::events::EventKind;
-use marie_failover_app::{mission, node, wait_for_pump, Setup, PUMP};
+use marie::report::RunReport;
+use marie_failover_app::{
+    logged_steps, mission, node, pump_log, tell_leaders, wait_for_pump, Setup, Station, PUMP,
+    PUMP_LOG,
+};
 use std::io::Write;
 use std::process::ExitCode;
 use std::time::Duration;
 
 /// How long the dispatcher's process waits for a pump to appear in the cluster.
 const PUMP_TIMEOUT: Duration = Duration::from_secs(60);
+/// How long a process waits for the pump log's first leader (a majority of its replicas'
+/// processes started, and an election).
+const LOG_TIMEOUT: Duration = Duration::from_secs(60);
 
 fn main() -> ExitCode {
     let (setup, run) = match parse(std::env::args().skip(1)) {
@@ -52,15 +68,35 @@ fn main() -> ExitCode {
     }
 }
 
-/// Start the node (it joins the cluster), then run the mission or host until stdin closes.
+/// Start the node (it joins the cluster), tell the pump log's leaders, then run the mission
+/// or host until stdin closes.
 async fn serve(setup: Setup, run: Option<f64>) -> Result<ExitCode, Box<dyn std::error::Error>> {
-    let node = node(&setup).start().await?;
+    let station = Station::new(&setup.name, setup.litres_per_step);
+    station.on_logged(|step, seq| {
+        say(&format!(
+            "{}: {} stored as seq {seq}",
+            PUMP_LOG.name,
+            step.label()
+        ))
+    });
+    let node = node(&setup, station).start().await?;
     let name = setup.name.clone();
     let listen = node.transport().map(|t| t.listen());
     say(&format!(
         "node {name} listening on {}",
         listen.map_or_else(|| "?".into(), |a| a.to_string())
     ));
+    let log = match pump_log(&name, LOG_TIMEOUT).await {
+        Ok(log) => log,
+        Err(e) => {
+            node.shutdown().await;
+            return Err(format!("the pump log has no leader within {LOG_TIMEOUT:?}: {e}").into());
+        }
+    };
+    tokio::spawn(tell_leaders(log.clone(), |leader| match leader {
+        Ok(node) => say(&format!("{} leader: {node}", PUMP_LOG.name)),
+        Err(e) => say(&format!("{} leader: none to ask ({e})", PUMP_LOG.name)),
+    }));
     let Some(litres) = run else {
         stdin_closed().await;
         node.shutdown().await;
@@ -79,6 +115,7 @@ async fn serve(setup: Setup, run: Option<f64>) -> Result<ExitCode, Box<dyn std::
         }
     });
     let report = node.run(mission(litres), options).await;
+    let listed = list_log(&log).await;
     node.shutdown().await;
     let report = report?;
     for r in &report.rebinds {
@@ -87,6 +124,8 @@ async fn serve(setup: Setup, run: Option<f64>) -> Result<ExitCode, Box<dyn std::
             r.operation, r.from_node, r.to_node
         ));
     }
+    say(&checked(&report));
+    say(&listed?);
     say(&format!(
         "outcome: {}{}",
         if report.succeeded() {
@@ -105,6 +144,33 @@ async fn serve(setup: Setup, run: Option<f64>) -> Result<ExitCode, Box<dyn std::
     } else {
         ExitCode::from(1)
     })
+}
+
+/// The run's own check of the pump log: of the steps the run heard acknowledged (the pumps'
+/// nodes tell them), how many the log's leader holds at the run's end.
+fn checked(report: &RunReport) -> String {
+    match report.dm_checks.iter().find(|c| c.dm == PUMP_LOG.name) {
+        Some(c) => format!(
+            "{} check: {} of {} acknowledged held, {} lost",
+            PUMP_LOG.name, c.held, c.acknowledged, c.lost
+        ),
+        None => format!("{} check: not checked", PUMP_LOG.name),
+    }
+}
+
+/// Every step the pump log holds, as one line: `pump-log holds N records: b#1=2 …`.
+async fn list_log(log: &DmClient) -> Result<String, Box<dyn std::error::Error>> {
+    let steps = logged_steps(log).await?;
+    let listed: Vec<String> = steps
+        .iter()
+        .map(|(header, step)| format!("{}={}", step.label(), header.seq))
+        .collect();
+    Ok(format!(
+        "{} holds {} records: {}",
+        PUMP_LOG.name,
+        listed.len(),
+        listed.join(" ")
+    ))
 }
 
 /// The line an event of the run gives, if any.
@@ -143,6 +209,8 @@ fn parse(mut args: impl Iterator<Item = String>) -> Result<(Setup, Option<f64>),
         litres_per_step: 1.0,
         standby: false,
         dispatcher: false,
+        data_dir: Default::default(),
+        log_replicas: Vec::new(),
     };
     let mut run = None;
     while let Some(flag) = args.next() {
@@ -157,6 +225,10 @@ fn parse(mut args: impl Iterator<Item = String>) -> Result<(Setup, Option<f64>),
             "--cookie" => setup.cookie = value()?,
             "--rate" => setup.litres_per_step = litres(&flag, &value()?)?,
             "--standby" => setup.standby = true,
+            "--data-dir" => setup.data_dir = value()?.into(),
+            "--replicas" => {
+                setup.log_replicas = value()?.split(',').map(|n| n.trim().to_string()).collect();
+            }
             "--run" => {
                 run = Some(litres(&flag, &value()?)?);
                 setup.dispatcher = true;
@@ -165,7 +237,17 @@ fn parse(mut args: impl Iterator<Item = String>) -> Result<(Setup, Option<f64>),
         }
     }
     if setup.name.is_empty() {
-        return Err(FlagError::NoName);
+        return Err(FlagError::Missing("--name NAME"));
+    }
+    if setup.data_dir.as_os_str().is_empty() {
+        return Err(FlagError::Missing(
+            "--data-dir DIR (the pump log's journal)",
+        ));
+    }
+    if setup.log_replicas.is_empty() {
+        return Err(FlagError::Missing(
+            "--replicas N1,N2,N3 (the nodes that keep the pump log)",
+        ));
     }
     Ok((setup, run))
 }
@@ -196,8 +278,8 @@ enum FlagError {
     NoValue(String),
     /// A flag this program does not know.
     Unknown(String),
-    /// No `--name`.
-    NoName,
+    /// A flag that must be given is not.
+    Missing(&'static str),
     /// An address flag whose value is none.
     NotAnAddress {
         flag: String,
@@ -213,7 +295,7 @@ impl std::fmt::Display for FlagError {
         match self {
             FlagError::NoValue(flag) => write!(f, "{flag} needs a value"),
             FlagError::Unknown(flag) => write!(f, "unknown flag {flag}"),
-            FlagError::NoName => write!(f, "--name NAME is required"),
+            FlagError::Missing(what) => write!(f, "{what} is required"),
             FlagError::NotAnAddress { flag, text, error } => {
                 write!(f, "{flag} {text}: not an address (ip:port): {error}")
             }

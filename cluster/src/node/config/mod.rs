@@ -176,7 +176,10 @@ impl DatamanagerConfig {
     }
 
     /// Keep replicas on the nodes `nodes` (this node among them; the first is the preferred
-    /// leader).
+    /// leader): three or more, each node declaring the datamanager with the same list. The
+    /// node needs a data_dir (each replica journals) and a cluster to meet the others in;
+    /// [`NodeBuilder::datamanager`](super::NodeBuilder::datamanager) shows an application's
+    /// own datamanager so declared.
     ///
     /// ```
     /// use marie_dm::FEATURE;
@@ -571,10 +574,11 @@ impl NodeConfig {
                 let replication = marie_dm::Replication::new(self.name.clone(), d.replicas.clone());
                 let durable = self.durability_of(d) != Durability::Memory;
                 let problem = replication.check().err().map(|e| e.to_string()).or_else(|| {
-                    (!durable).then(|| {
-                        "replicas need a journal: give the node a data_dir (durability process or sync)"
-                            .to_string()
-                    })
+                    (!durable).then(|| match self.data_dir {
+                        None => "replicas need a journal: give the node a data_dir (durability process or sync)",
+                        Some(_) => "replicas need a journal: durability process or sync, not memory",
+                    }
+                    .to_string())
                 });
                 if let Some(message) = problem {
                     return Err(ConfigError::Range {
@@ -611,6 +615,30 @@ impl NodeConfig {
             }
         }
         Ok(())
+    }
+}
+
+impl NodeConfig {
+    /// Refused unless every replicated datamanager can meet its replicas: they are on other
+    /// nodes, so the node must join a cluster ([`NodeConfig::cluster`]). Checked when the node
+    /// starts, not by [`NodeConfig::validate`]: a node file may leave `[cluster]` to the
+    /// command line that starts it. Without it the replica would never find a majority — no
+    /// leader, and every client waiting for one.
+    pub fn check_replicas_reachable(&self) -> Result<(), ConfigError> {
+        if self.cluster.is_some() {
+            return Ok(());
+        }
+        match self.datamanagers.iter().find(|d| !d.replicas.is_empty()) {
+            None => Ok(()),
+            Some(d) => Err(ConfigError::Range {
+                what: format!("datamanager `{}`: replicas", d.name),
+                message: format!(
+                    "its replicas are on the nodes {:?}, and this node joins no cluster: \
+                     give it one (NodeBuilder::cluster, or a [cluster] table)",
+                    d.replicas
+                ),
+            }),
+        }
     }
 }
 
