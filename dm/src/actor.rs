@@ -15,8 +15,8 @@
 //! each message to one `on_*` method. What it is started with is in `args.rs`, the checks
 //! and steps of its start in `start.rs`, its state and the steps its handlers share in
 //! `state.rs`, where it keeps its records in `storage.rs`, the handlers of the
-//! dm-interface's messages in `handlers.rs`, and those of the replication protocol in
-//! `replicated.rs`.
+//! dm-interface's messages in `handlers.rs`, how a replicated one's leader answers reads in
+//! `reads.rs`, and the handlers of the replication protocol in `replicated.rs`.
 
 use super::args::DmArgs;
 use super::messages::DmMsg;
@@ -135,26 +135,14 @@ impl Actor for Datamanager {
             DmMsg::Put { record } => state.on_put(record),
             DmMsg::PutBatch { records } => state.on_put_batch(records),
             DmMsg::Store { record, reply } => state.on_store(*record, reply),
-            DmMsg::Select { query, reply } => state.on_select(&query, reply),
-            DmMsg::SelectPage {
-                query,
-                max_bytes,
-                reply,
-            } => state.on_select_page(&query, max_bytes, reply),
-            DmMsg::SelectWait {
-                query,
-                timeout_ms,
-                reply,
-            } => state.on_select_wait(&myself, *query, timeout_ms, reply),
-            DmMsg::SelectWaitPage {
-                query,
-                timeout_ms,
-                max_bytes,
-                reply,
-            } => state.on_select_wait_page(&myself, *query, timeout_ms, max_bytes, reply),
+            // select, select_wait and stats: a leader answers them once it knows it leads
+            read @ (DmMsg::Select { .. }
+            | DmMsg::SelectPage { .. }
+            | DmMsg::SelectWait { .. }
+            | DmMsg::SelectWaitPage { .. }
+            | DmMsg::Stats { .. }) => state.read(&myself, read),
             DmMsg::WaitExpired { id } => state.on_wait_expired(id),
             DmMsg::Delete { query, reply } => state.on_delete(&query, reply),
-            DmMsg::Stats { reply } => state.on_stats(&myself, reply),
             DmMsg::AnswerStats { reply } => state.on_answer_stats(reply),
             DmMsg::JournalFlush {} => state.on_journal_flush(&myself),
             DmMsg::Digest { reply } => state.on_digest(reply),

@@ -85,6 +85,7 @@ mod packed;
 mod page;
 mod producers;
 mod query;
+mod reads;
 mod record;
 mod replica;
 mod replica_state;
@@ -117,6 +118,7 @@ pub use query::{Query, Take};
 pub use record::{NewRecord, Payload, Record, RecordHeader, MAX_NAME_LEN};
 pub use replica::{
     Replication, ReplicationError, Timing as ReplicationTiming, SCOPE as REPLICA_SCOPE,
+    UNCHECKED_READS_ENV,
 };
 pub use shared::PayloadType;
 pub use state::DatamanagerState;
