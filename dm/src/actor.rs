@@ -32,7 +32,8 @@ use tokio::task::JoinHandle;
 pub struct Datamanager;
 
 impl DmMsg {
-    /// A message of the replicas' own (a replica that is not the leader handles only these).
+    /// A message of the replicas' own (a replica that is not the leader handles only these,
+    /// and sends the others on to its leader).
     fn is_between_replicas(&self) -> bool {
         matches!(
             self,
@@ -42,7 +43,7 @@ impl DmMsg {
                 | DmMsg::JournalFlush {}
                 | DmMsg::JournalRefused { .. }
                 | DmMsg::Inject { .. }
-                | DmMsg::Stats { .. }
+                | DmMsg::ReplicaStats { .. }
                 | DmMsg::AnswerStats { .. }
                 | DmMsg::Digest { .. }
                 | DmMsg::WaitExpired { .. }
@@ -144,6 +145,7 @@ impl Actor for Datamanager {
             DmMsg::WaitExpired { id } => state.on_wait_expired(id),
             DmMsg::Delete { query, reply } => state.on_delete(&query, reply),
             DmMsg::AnswerStats { reply } => state.on_answer_stats(reply),
+            DmMsg::ReplicaStats { reply } => state.on_answer_stats(reply),
             DmMsg::JournalFlush {} => state.on_journal_flush(&myself),
             DmMsg::Digest { reply } => state.on_digest(reply),
             DmMsg::Replica { msg } => state.on_replica(&myself, *msg),

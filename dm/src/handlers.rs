@@ -120,7 +120,8 @@ impl DatamanagerState {
         self.acknowledge(reply, move |_| stats);
     }
 
-    /// `AnswerStats`: a leader's `Stats`, answered now that the puts before it are applied.
+    /// `AnswerStats`: a leader's `Stats`, answered now that the puts before it are applied;
+    /// and `ReplicaStats`: this replica's numbers, now.
     pub(crate) fn on_answer_stats(&self, reply: RpcReplyPort<DmStats>) {
         let _ = reply.send(self.stats());
     }
@@ -176,10 +177,30 @@ impl DatamanagerState {
         }
     }
 
-    /// A client's request reached a replica that is not the leader (an old reference): it
-    /// is not answered — its reply port is dropped, so a `DmClient` follows the
-    /// datamanager's name to the leader — and a put is counted refused.
+    /// A client's request reached a replica that is not the leader (a client holding it from
+    /// when it led, or from before an election): it is sent on to the leader this replica
+    /// follows, which answers the caller itself — so every request of that client keeps one
+    /// road, and its puts arrive in order, the credits' `Stats` after the puts it
+    /// acknowledges. A replica that knows no leader it can reach refuses it.
     pub(crate) fn not_leader(&mut self, msg: DmMsg) {
+        let Some(leader) = self.storage.replica().and_then(|r| r.leader_actor()) else {
+            self.refuse(msg);
+            return;
+        };
+        match leader.send_message(msg) {
+            Ok(()) => {}
+            Err(ractor::MessagingErr::SendErr(msg)) => self.refuse(msg),
+            Err(e) => {
+                tracing::debug!(dm = %self.name, error = %e, "a request sent on to the leader was lost")
+            }
+        }
+    }
+
+    /// A request this replica cannot answer (not the leader, and none known; or a read whose
+    /// leader was not confirmed in time): it is not answered — its reply port is dropped, so
+    /// a `DmClient` follows the datamanager's name to the leader — and a put is counted
+    /// refused.
+    pub(crate) fn refuse(&mut self, msg: DmMsg) {
         match msg {
             DmMsg::Put { .. } | DmMsg::PutBatch { .. } => {
                 self.refused_puts += 1;

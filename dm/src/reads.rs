@@ -4,12 +4,14 @@
 //! a write acknowledged before it was asked.
 //!
 //! The reads are `Select`, `SelectPage`, `SelectWait`, `SelectWaitPage` and `Stats` (a
-//! subscription is made of `Stats` and `SelectWait`s). A wait is checked when it comes: what
+//! subscription is made of `Stats` and `SelectWait`s); a follower sends them on to its
+//! leader (`not_leader`), where they are checked. A wait is checked when it comes: what
 //! wakes it later is an entry committed after that, and its answer a state the log reached
 //! then; it is dropped if its replica stops leading. A read that must wait is kept here, in
 //! order, and answered at the first answer from the replicas that confirms the leader; one
 //! that waited an election timeout (the leader would step down about then), or that reached
-//! a replica not leading, is refused: its reply port is dropped, unanswered — a `DmClient`
+//! a replica that neither leads nor knows a leader, is refused: its reply port is dropped,
+//! unanswered — a `DmClient`
 //! then follows the datamanager's name to its leader and asks again there
 //! ([`DmError::Unreachable`](super::DmError::Unreachable) if none is published within its
 //! follow time); a raw `call` sees `CallResult::SenderError`.
@@ -21,7 +23,7 @@ use ractor::ActorRef;
 
 impl DatamanagerState {
     /// A read: answered now, kept until the leader is confirmed, or refused (see above). A
-    /// datamanager without replicas, and a follower asked for its `Stats`, answer at once.
+    /// datamanager without replicas answers at once.
     pub(crate) fn read(&mut self, myself: &ActorRef<DmMsg>, msg: DmMsg) {
         let Some(replica) = self.leader_mut() else {
             self.answer_read(myself, msg);
@@ -30,7 +32,7 @@ impl DatamanagerState {
         let now = replica.now();
         match replica.core.read(now, now) {
             Read::Serve => self.answer_read(myself, msg),
-            Read::Refuse => self.not_leader(msg),
+            Read::Refuse => self.refuse(msg),
             Read::Wait => {
                 tracing::trace!(dm = %replica.name, "a read waits for the replicas to confirm the leader");
                 replica.reads.push_back((now, msg));
@@ -69,7 +71,7 @@ impl DatamanagerState {
                 Read::Serve => self.answer_read(myself, msg),
                 _ => {
                     tracing::debug!(dm = %self.name, "a read refused: the leader was not confirmed in time");
-                    self.not_leader(msg);
+                    self.refuse(msg);
                 }
             }
         }

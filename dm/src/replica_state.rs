@@ -244,6 +244,13 @@ impl ReplicaState {
         }
     }
 
+    /// The leader this replica follows, if it is another replica and reachable: where a
+    /// client's request to this one is sent on.
+    pub(crate) fn leader_actor(&self) -> Option<ActorRef<DmMsg>> {
+        let leader = self.core.leader().filter(|l| *l != self.core.me())?;
+        self.peers.get(leader).cloned().map(Into::into)
+    }
+
     /// Send `msg` to the replica on node `to`, if it is reachable.
     pub(crate) fn send(&self, to: &str, msg: ReplicaMsg) {
         match self.peers.get(to) {

@@ -9,8 +9,8 @@
 //! for a commit, the reads waiting for the leader to be confirmed, the waits filed) — their
 //! reply ports dropped, so a `DmClient` follows the name to the new leader and asks again
 //! there (a store sent again is stored once: `producers`). The actor, its `ActorRef` and
-//! every client's reference to it live on; a request reaching it as a follower is sent on
-//! the same way (`not_leader`).
+//! every client's reference to it live on: a request reaching it as a follower is sent on
+//! to the leader it follows, which answers the caller (`not_leader`).
 
 use super::messages::DmMsg;
 use super::producers::Producers;

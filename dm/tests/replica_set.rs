@@ -117,9 +117,13 @@ async fn replica(
     replica_of(NAME, dir, me, bus, parent).await
 }
 
+/// What the replica `actor` itself holds (its `Stats` a follower sends on to its leader).
 async fn stats(actor: &ActorRef<DmMsg>) -> Option<DmStats> {
     match actor
-        .call(|reply| DmMsg::Stats { reply }, Some(Duration::from_secs(5)))
+        .call(
+            |reply| DmMsg::ReplicaStats { reply },
+            Some(Duration::from_secs(5)),
+        )
         .await
     {
         Ok(CallResult::Success(s)) => Some(s),
@@ -225,14 +229,28 @@ async fn a_leader_handing_over_sends_its_vote_and_goes_on_as_the_same_actor_a_fo
         .map(|i| i.actor.get_id())
         .collect();
     assert_eq!(published, vec![r1.get_id()], "only r1 is published");
-    // a client still holding the old leader is sent on to r1
+    // a client still holding the old leader keeps a valid reference: its requests are sent
+    // on to r1, which answers them (a store too, stored at r1)
     assert_eq!(client.actor().get_id(), leader.get_id());
     let records = client.select(Query::class("echo")).await.expect("a select");
     assert_eq!(records.len(), 100, "answered by r1");
+    let seq = client
+        .store_raw(NewRecord::encode("echo", &100u64).unwrap())
+        .await
+        .expect("a store sent on to r1");
+    let on_r1 = DmClient::new(r1.clone(), "reader")
+        .select(Query::class("echo"))
+        .await
+        .expect("a select of r1");
+    assert_eq!(
+        (on_r1.len(), on_r1.last().map(|r| r.seq)),
+        (101, Some(seq)),
+        "stored at r1"
+    );
     assert_eq!(
         client.actor().get_id(),
-        r1.get_id(),
-        "the client follows r1"
+        leader.get_id(),
+        "the same reference"
     );
     // the old leader never stopped: no restart for the supervisor
     let exits: Vec<_> = exits.lock().unwrap().clone();

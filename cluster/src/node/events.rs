@@ -4,9 +4,11 @@
 //! happen.
 
 use super::tree::DATAMANAGERS;
-use marie_dm::DmClient;
+use marie_dm::{DmClient, DmMsg};
 use marie_supervision::{RestartCause, SupervisorEvent, SupervisorRef};
 use marie_vocabulary::events::{EventBus, EventKind};
+use ractor::rpc::CallResult;
+use ractor::ActorRef;
 use tokio::sync::broadcast::{self, error::RecvError};
 use tokio::task::JoinHandle;
 
@@ -158,12 +160,17 @@ async fn child_supervisor(
 }
 
 /// Ask the datamanager `actor` what its start read back from its journal, and publish it
-/// (`dm_recovered`) if it has a journal.
+/// (`dm_recovered`) if it has a journal. (`ReplicaStats`: a replica's own numbers — a
+/// follower sends a `Stats` on to its leader.)
 fn tell_recovery(bus: &EventBus, actor: ractor::ActorCell) {
     let bus = bus.clone();
     tokio::spawn(async move {
-        let client = DmClient::new(actor.into(), "node");
-        let Ok(stats) = client.stats().await else {
+        let actor: ActorRef<DmMsg> = actor.into();
+        let deadline = Some(DmClient::DEFAULT_TIMEOUT);
+        let Ok(CallResult::Success(stats)) = actor
+            .call(|reply| DmMsg::ReplicaStats { reply }, deadline)
+            .await
+        else {
             return;
         };
         if let Some(r) = stats.recovery {
