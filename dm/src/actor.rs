@@ -16,7 +16,8 @@
 //! and steps of its start in `start.rs`, its state and the steps its handlers share in
 //! `state.rs`, where it keeps its records in `storage.rs`, the handlers of the
 //! dm-interface's messages in `handlers.rs`, how a replicated one's leader answers reads in
-//! `reads.rs`, and the handlers of the replication protocol in `replicated.rs`.
+//! `reads.rs`, how a follower sends requests on to its leader in `forward.rs`, and the
+//! handlers of the replication protocol in `replicated.rs`.
 
 use super::args::DmArgs;
 use super::messages::DmMsg;
@@ -128,22 +129,17 @@ impl Actor for Datamanager {
         msg: DmMsg,
         state: &mut DatamanagerState,
     ) -> Result<(), ActorProcessingErr> {
-        if state.is_follower() && !msg.is_between_replicas() {
-            state.not_leader(msg);
+        if !msg.is_between_replicas() {
+            // a request of the dm-interface: a follower sends it on to its leader
+            if state.is_follower() {
+                state.not_leader(&myself, msg);
+            } else {
+                state.on_request(&myself, msg);
+            }
             return Ok(());
         }
         match msg {
-            DmMsg::Put { record } => state.on_put(record),
-            DmMsg::PutBatch { records } => state.on_put_batch(records),
-            DmMsg::Store { record, reply } => state.on_store(*record, reply),
-            // select, select_wait and stats: a leader answers them once it knows it leads
-            read @ (DmMsg::Select { .. }
-            | DmMsg::SelectPage { .. }
-            | DmMsg::SelectWait { .. }
-            | DmMsg::SelectWaitPage { .. }
-            | DmMsg::Stats { .. }) => state.read(&myself, read),
             DmMsg::WaitExpired { id } => state.on_wait_expired(id),
-            DmMsg::Delete { query, reply } => state.on_delete(&query, reply),
             DmMsg::AnswerStats { reply } => state.on_answer_stats(reply),
             DmMsg::ReplicaStats { reply } => state.on_answer_stats(reply),
             DmMsg::JournalFlush {} => state.on_journal_flush(&myself),
@@ -153,6 +149,8 @@ impl Actor for Datamanager {
             DmMsg::ReplicaDurable { seq, term } => state.on_replica_durable(&myself, seq, term),
             DmMsg::JournalRefused { seqs } => state.on_journal_refused(&seqs),
             DmMsg::Inject { fault } => state.on_inject(&myself, fault).await,
+            // (the requests of the dm-interface went above)
+            request => state.on_request(&myself, request),
         }
         Ok(())
     }

@@ -14,6 +14,26 @@ use marie_vocabulary::run::FaultKind;
 use ractor::{ActorRef, RpcReplyPort};
 
 impl DatamanagerState {
+    /// A request of the dm-interface, where it is answered (a datamanager without replicas,
+    /// or a replicated one's leader): each to its handler; the reads through `read`, which a
+    /// leader answers once it knows it leads.
+    pub(crate) fn on_request(&mut self, myself: &ActorRef<DmMsg>, msg: DmMsg) {
+        match msg {
+            DmMsg::Put { record } => self.on_put(record),
+            DmMsg::PutBatch { records } => self.on_put_batch(records),
+            DmMsg::Store { record, reply } => self.on_store(*record, reply),
+            DmMsg::Delete { query, reply } => self.on_delete(&query, reply),
+            read @ (DmMsg::Select { .. }
+            | DmMsg::SelectPage { .. }
+            | DmMsg::SelectWait { .. }
+            | DmMsg::SelectWaitPage { .. }
+            | DmMsg::Stats { .. }) => self.read(myself, read),
+            other => {
+                tracing::error!(dm = %self.name, msg = ?other, "not a request of the dm-interface: dropped")
+            }
+        }
+    }
+
     /// `Put`: store it; a refusal is counted and logged (a cast has no answer).
     pub(crate) fn on_put(&mut self, record: NewRecord) {
         self.put(record);
@@ -177,29 +197,10 @@ impl DatamanagerState {
         }
     }
 
-    /// A client's request reached a replica that is not the leader (a client holding it from
-    /// when it led, or from before an election): it is sent on to the leader this replica
-    /// follows, which answers the caller itself — so every request of that client keeps one
-    /// road, and its puts arrive in order, the credits' `Stats` after the puts it
-    /// acknowledges. A replica that knows no leader it can reach refuses it.
-    pub(crate) fn not_leader(&mut self, msg: DmMsg) {
-        let Some(leader) = self.storage.replica().and_then(|r| r.leader_actor()) else {
-            self.refuse(msg);
-            return;
-        };
-        match leader.send_message(msg) {
-            Ok(()) => {}
-            Err(ractor::MessagingErr::SendErr(msg)) => self.refuse(msg),
-            Err(e) => {
-                tracing::debug!(dm = %self.name, error = %e, "a request sent on to the leader was lost")
-            }
-        }
-    }
-
-    /// A request this replica cannot answer (not the leader, and none known; or a read whose
-    /// leader was not confirmed in time): it is not answered — its reply port is dropped, so
-    /// a `DmClient` follows the datamanager's name to the leader — and a put is counted
-    /// refused.
+    /// A request this replica cannot answer (not leading, and no leader known for an
+    /// election timeout; or a read whose leader was not confirmed in time): it is not
+    /// answered — its reply port is dropped, so a `DmClient` follows the datamanager's name
+    /// to the leader — and a put is counted refused.
     pub(crate) fn refuse(&mut self, msg: DmMsg) {
         match msg {
             DmMsg::Put { .. } | DmMsg::PutBatch { .. } => {

@@ -74,6 +74,7 @@ mod credits;
 mod entry;
 mod error;
 mod follow;
+mod forward;
 mod handlers;
 mod index;
 mod journal;

@@ -190,8 +190,8 @@ marie_vocabulary::remote_message! {
         /// replicas of a replicated datamanager by it; a replica answers it too).
         Digest {} -> StoreDigest,
         /// What this replica holds now, whatever its role (a follower answers it itself,
-        /// where it sends `Stats` on to its leader): its role, term, journal and lag, what
-        /// its start read back. A datamanager without replicas answers it as `Stats`, at
+        /// where it sends `Stats`, the datamanager's, on to its leader): its role, term,
+        /// journal and lag, what its start read back. A datamanager without replicas answers it as `Stats`, at
         /// once.
         ReplicaStats {} -> DmStats,
         /// The first page, of about `max_bytes`, of what `Select` answers, and the query

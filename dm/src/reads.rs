@@ -5,13 +5,12 @@
 //!
 //! The reads are `Select`, `SelectPage`, `SelectWait`, `SelectWaitPage` and `Stats` (a
 //! subscription is made of `Stats` and `SelectWait`s); a follower sends them on to its
-//! leader (`not_leader`), where they are checked. A wait is checked when it comes: what
+//! leader (`forward`), where they are checked. A wait is checked when it comes: what
 //! wakes it later is an entry committed after that, and its answer a state the log reached
 //! then; it is dropped if its replica stops leading. A read that must wait is kept here, in
 //! order, and answered at the first answer from the replicas that confirms the leader; one
 //! that waited an election timeout (the leader would step down about then), or that reached
-//! a replica that neither leads nor knows a leader, is refused: its reply port is dropped,
-//! unanswered — a `DmClient`
+//! a replica not leading, is refused: its reply port is dropped, unanswered — a `DmClient`
 //! then follows the datamanager's name to its leader and asks again there
 //! ([`DmError::Unreachable`](super::DmError::Unreachable) if none is published within its
 //! follow time); a raw `call` sees `CallResult::SenderError`.

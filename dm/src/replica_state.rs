@@ -54,6 +54,9 @@ pub(crate) struct ReplicaState {
     /// Reads waiting for a majority's word (`reads`), oldest first, with when they came on
     /// the protocol's clock.
     pub(crate) reads: VecDeque<(Duration, DmMsg)>,
+    /// Requests of the dm-interface that reached this replica, not leading, while it knew no
+    /// leader to send them on to (`forward`), oldest first, with when they came.
+    pub(crate) kept: VecDeque<(Duration, DmMsg)>,
     started: tokio::time::Instant,
     /// The newest time stamp handed out.
     pub(crate) last_time: Duration,
@@ -173,6 +176,7 @@ impl ReplicaState {
             peers: BTreeMap::new(),
             acks: BTreeMap::new(),
             reads: VecDeque::new(),
+            kept: VecDeque::new(),
             started,
             last_time: store.last_time(),
             incoming: None,

@@ -10,7 +10,7 @@
 //! reply ports dropped, so a `DmClient` follows the name to the new leader and asks again
 //! there (a store sent again is stored once: `producers`). The actor, its `ActorRef` and
 //! every client's reference to it live on: a request reaching it as a follower is sent on
-//! to the leader it follows, which answers the caller (`not_leader`).
+//! to the leader it follows, which answers the caller (`forward`).
 
 use super::messages::DmMsg;
 use super::producers::Producers;
@@ -280,7 +280,8 @@ impl DatamanagerState {
         }));
     }
 
-    /// Carry out what the core asked for, in order; then answer the reads that may be.
+    /// Carry out what the core asked for, in order; then answer the reads that may be, and
+    /// send on (or answer) the requests kept for want of a leader.
     pub(crate) fn carry_out(&mut self, myself: &ActorRef<DmMsg>, out: Vec<Out>) {
         for o in out {
             let Some((replica, journal)) = self.storage.replicated_mut() else {
@@ -306,8 +307,12 @@ impl DatamanagerState {
         }
         if let Some(replica) = self.storage.replica_mut() {
             replica.core.trim();
-            if !replica.reads.is_empty() {
+            let (reads, kept) = (!replica.reads.is_empty(), !replica.kept.is_empty());
+            if reads {
                 self.serve_reads(myself);
+            }
+            if kept {
+                self.send_kept_on(myself);
             }
         }
     }

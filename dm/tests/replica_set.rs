@@ -230,23 +230,29 @@ async fn a_leader_handing_over_sends_its_vote_and_goes_on_as_the_same_actor_a_fo
         .collect();
     assert_eq!(published, vec![r1.get_id()], "only r1 is published");
     // a client still holding the old leader keeps a valid reference: its requests are sent
-    // on to r1, which answers them (a store too, stored at r1)
+    // on to r1, which answers them — a put, a select, a store
     assert_eq!(client.actor().get_id(), leader.get_id());
+    client
+        .put_raw(NewRecord::encode("put", &1u64).unwrap())
+        .expect("a put cast");
     let records = client.select(Query::class("echo")).await.expect("a select");
     assert_eq!(records.len(), 100, "answered by r1");
     let seq = client
         .store_raw(NewRecord::encode("echo", &100u64).unwrap())
         .await
         .expect("a store sent on to r1");
-    let on_r1 = DmClient::new(r1.clone(), "reader")
-        .select(Query::class("echo"))
-        .await
-        .expect("a select of r1");
+    let r1_client = DmClient::new(r1.clone(), "reader");
+    let echo = r1_client.select(Query::class("echo")).await.expect("r1's");
     assert_eq!(
-        (on_r1.len(), on_r1.last().map(|r| r.seq)),
+        (echo.len(), echo.last().map(|r| r.seq)),
         (101, Some(seq)),
-        "stored at r1"
+        "the store is at r1"
     );
+    let put = r1_client
+        .select_wait(Query::class("put"), DEADLINE)
+        .await
+        .expect("r1's");
+    assert_eq!(put.len(), 1, "the put went on to r1");
     assert_eq!(
         client.actor().get_id(),
         leader.get_id(),

@@ -306,6 +306,11 @@ impl Core {
 
     // ---- what it is --------------------------------------------------------------------
 
+    /// The protocol's clocks.
+    pub(crate) fn timing(&self) -> Timing {
+        self.timing
+    }
+
     /// Its node.
     pub(crate) fn me(&self) -> &str {
         &self.me

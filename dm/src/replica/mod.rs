@@ -21,8 +21,8 @@
 //!   heard from a majority for an election timeout, *steps down*: the same actor goes on as
 //!   a follower — withdrawn from the datamanager's name, the callers it owed an answer sent
 //!   on (their reply ports dropped), so clients follow the name to the new leader; a
-//!   client's reference to it stays valid (a follower sends every client's request on to
-//!   its leader, which answers it).
+//!   client's reference to it stays valid (a follower sends a client's request on to its
+//!   leader, which answers it).
 //! - **Uncommitted entries** of a lost leader are kept or cut by the next one (Raft's log
 //!   matching); a client that got no answer retries with the same producer number, and the
 //!   `producers` table (replicated with the records) stores it once.
