@@ -50,7 +50,6 @@ impl DmMsg {
                 | DmMsg::AnswerStats { .. }
                 | DmMsg::Digest { .. }
                 | DmMsg::WaitExpired { .. }
-                | DmMsg::TellApplied {}
         )
     }
 }
