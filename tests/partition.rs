@@ -24,6 +24,7 @@
 use crate::common;
 
 use common::cluster::{default_deadline_ms, node_config, silence_ms, NodeProc, Proc};
+use common::layouts::thesis_node;
 use common::netns::Netns;
 use serde_json::Value;
 use std::path::Path;
@@ -179,21 +180,16 @@ const DISPATCHER: usize = 5;
 /// Write the nodes' configs into `dir` (`NAME.toml`, without `[cluster]`: the flags give
 /// it).
 fn layout(dir: &Path) {
-    let thesis = Path::new(env!("CARGO_MANIFEST_DIR")).join("missions/clusters/thesis");
-    let copy = |name: &str| std::fs::read_to_string(thesis.join(format!("{name}.toml"))).unwrap();
-    let operations = copy("operations");
-    let without_wf = operations.replace("[[operation]]\nname = \"wall-follower\"\n", "");
-    assert_ne!(
-        without_wf, operations,
-        "the operations node hosts a wall follower"
-    );
-    for (name, text) in [
-        ("cart", copy("cart")),
-        ("features", copy("features")),
-        ("operations", without_wf),
-    ] {
-        std::fs::write(dir.join(format!("{name}.toml")), text).unwrap();
-    }
+    thesis_node(dir, "cart", |text| text);
+    thesis_node(dir, "features", |text| text);
+    thesis_node(dir, "operations", |operations| {
+        let without_wf = operations.replace("[[operation]]\nname = \"wall-follower\"\n", "");
+        assert_ne!(
+            without_wf, operations,
+            "the operations node hosts a wall follower"
+        );
+        without_wf
+    });
     for wf in ["wf-a", "wf-b"] {
         std::fs::write(
             dir.join(format!("{wf}.toml")),

@@ -10,6 +10,7 @@
 use crate::common;
 
 use common::cluster::Proc;
+use common::layouts::thesis_node;
 use common::missions::docking_variant;
 use common::{marie, text};
 use serde_json::Value;
@@ -28,17 +29,19 @@ const CLUSTER_SEED: u64 = 4;
 fn layout(dir: &Path, followers: &[(&str, &str)]) -> PathBuf {
     let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
     let thesis = repo.join("missions/clusters/thesis");
-    let operations = std::fs::read_to_string(thesis.join("operations.toml")).unwrap();
     let without = "[[operation]]\nname = \"wall-follower\"\n";
-    assert!(operations.contains(without), "operations.toml changed");
-    std::fs::write(dir.join("operations.toml"), operations.replace(without, "")).unwrap();
+    thesis_node(dir, "operations", |operations| {
+        assert!(operations.contains(without), "operations.toml changed");
+        operations.replace(without, "")
+    });
+    let features = thesis_node(dir, "features", |text| text);
     let mut text = format!(
         "[cluster]\ncookie = \"{COOKIE}\"\nworld = \"{}\"\nseed = {CLUSTER_SEED}\n\
          [[node]]\nconfig = \"{}\"\n[[node]]\nconfig = \"{}\"\n\
          [[node]]\nconfig = \"operations.toml\"\n",
         repo.join("missions/worlds/lab.toml").display(),
         thesis.join("cart.toml").display(),
-        thesis.join("features.toml").display(),
+        features.display(),
     );
     for (node, version) in followers {
         std::fs::write(

@@ -2,23 +2,46 @@
 
 use std::path::{Path, PathBuf};
 
+/// The thesis' node config `name` (cart, features, operations, spare), written into `dir`
+/// as `NAME.toml`, with `edit` applied, and — for a node that keeps replicas in the thesis
+/// layout — the thesis cluster file's `[[datamanager]]` tables appended: a layout without
+/// the thesis cluster file (or without some of its nodes: a replica on a node the layout
+/// lacks is one that never answers) keeps them so. Gives its path.
+pub(crate) fn thesis_node(dir: &Path, name: &str, edit: impl Fn(String) -> String) -> PathBuf {
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let thesis = repo.join("missions/clusters");
+    let mut text =
+        edit(std::fs::read_to_string(thesis.join(format!("thesis/{name}.toml"))).unwrap());
+    if name != "cart" {
+        let cluster = std::fs::read_to_string(thesis.join("thesis.toml")).unwrap();
+        let at = cluster
+            .find("[[datamanager]]")
+            .expect("thesis.toml declares its datamanagers");
+        text.push('\n');
+        text.push_str(&cluster[at..]);
+    }
+    let path = dir.join(format!("{name}.toml"));
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
 /// Write the layout into `dir`: the thesis' with a wall follower on each node of
 /// `followers` (none on the operations node, which may only start one on request when
-/// `standby`); gives the cluster file.
+/// `standby`), those nodes not restarted once lost; gives the cluster file.
 pub(crate) fn failover_layout(dir: &Path, followers: &[&str], standby: bool) -> PathBuf {
     let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
     let thesis = repo.join("missions/clusters/thesis");
-    let operations = std::fs::read_to_string(thesis.join("operations.toml"))
-        .unwrap()
-        .replace(
+    thesis_node(dir, "operations", |text| {
+        text.replace(
             "[[operation]]\nname = \"wall-follower\"\n",
             if standby {
                 "[[operation]]\nname = \"wall-follower\"\ninstances = 0\n"
             } else {
                 ""
             },
-        );
-    std::fs::write(dir.join("operations.toml"), operations).unwrap();
+        )
+    });
+    let features = thesis_node(dir, "features", |text| text);
     for wf in followers {
         std::fs::write(
             dir.join(format!("{wf}.toml")),
@@ -35,10 +58,12 @@ pub(crate) fn failover_layout(dir: &Path, followers: &[&str], standby: bool) -> 
          [[node]]\nconfig = \"operations.toml\"\n",
         repo.join("missions/worlds/lab.toml").display(),
         thesis.join("cart.toml").display(),
-        thesis.join("features.toml").display(),
+        features.display(),
     );
+    // a wall follower's node lost stays lost (`marie up` would start it again, and its
+    // wall follower with it): these layouts are about what the survivors do
     for wf in followers {
-        text += &format!("[[node]]\nconfig = \"{wf}.toml\"\n");
+        text += &format!("[[node]]\nconfig = \"{wf}.toml\"\nrestart = \"temporary\"\n");
     }
     std::fs::write(&cluster, text).unwrap();
     cluster
