@@ -389,6 +389,34 @@ fn the_killed_node_of_the_bound_operations_is_replaced_by_the_other_and_the_miss
     assert_eq!(up.wait_exit(), Some(0), "{}", up.seen().join("\n"));
 }
 
+/// `marie up CLUSTER --run` docking with the dispatcher's node killed at 3 s and the
+/// operations' node at 9 s (each keeps a replica of every datamanager), and `extra` flags:
+/// its stdout, once it exited with `code`.
+fn two_kills(cluster: &str, extra: &[&str], code: i32) -> String {
+    let mut args = vec![
+        "up",
+        cluster,
+        "--run",
+        "missions/docking.toml",
+        "--speed",
+        SPEED,
+        "--fault",
+        "stop-node:features@3",
+        "--fault",
+        "stop-node:operations@9",
+    ];
+    args.extend_from_slice(extra);
+    let out = marie(&args);
+    let stdout = text(&out.stdout);
+    assert_eq!(
+        out.status.code(),
+        Some(code),
+        "{stdout}\n{}",
+        text(&out.stderr)
+    );
+    stdout
+}
+
 #[test]
 fn two_nodes_of_every_datamanager_killed_six_seconds_apart_are_restarted_and_the_mission_docks() {
     // the dispatcher's node (a replica of every datamanager) killed at 3 s, then the
@@ -398,28 +426,15 @@ fn two_nodes_of_every_datamanager_killed_six_seconds_apart_are_restarted_and_the
     let dir = tempfile::tempdir().unwrap();
     let report_path = dir.path().join("report.json");
     let events_path = dir.path().join("events.jsonl");
-    let out = marie(&[
-        "up",
+    let stdout = two_kills(
         THESIS,
-        "--run",
-        "missions/docking.toml",
-        "--speed",
-        SPEED,
-        "--fault",
-        "stop-node:features@3",
-        "--fault",
-        "stop-node:operations@9",
-        "--report",
-        report_path.to_str().unwrap(),
-        "--events",
-        events_path.to_str().unwrap(),
-    ]);
-    let stdout = text(&out.stdout);
-    assert_eq!(
-        out.status.code(),
-        Some(0),
-        "{stdout}\n{}",
-        text(&out.stderr)
+        &[
+            "--report",
+            report_path.to_str().unwrap(),
+            "--events",
+            events_path.to_str().unwrap(),
+        ],
+        0,
     );
     for node in ["features", "operations"] {
         assert!(
@@ -469,26 +484,8 @@ fn a_datamanager_that_lost_its_majority_ends_the_run_in_bounded_time_naming_the_
     // lose their majority; the run waits for it (marie_dm::MAJORITY_WAIT, 15 s), then
     // fails with a reason an operator can act on — not a wait without end
     let dir = tempfile::tempdir().unwrap();
-    let cluster = common::cluster::thesis_with(dir.path(), "restart = \"temporary\"");
-    let out = marie(&[
-        "up",
-        cluster.to_str().unwrap(),
-        "--run",
-        "missions/docking.toml",
-        "--speed",
-        SPEED,
-        "--fault",
-        "stop-node:features@3",
-        "--fault",
-        "stop-node:operations@9",
-    ]);
-    let stdout = text(&out.stdout);
-    assert_eq!(
-        out.status.code(),
-        Some(1),
-        "{stdout}\n{}",
-        text(&out.stderr)
-    );
+    let cluster = common::layouts::thesis_with(dir.path(), "restart = \"temporary\"");
+    let stdout = two_kills(cluster.to_str().unwrap(), &[], 1);
     assert!(
         stdout.contains(
             "node operations was killed (SIGKILL): it stays down (restart = \"temporary\")"

@@ -5,7 +5,8 @@
 
 use crate::common;
 
-use common::cluster::{ls_join, signal_pid, thesis_with, wait_gone, Proc};
+use common::cluster::{ls_join, ls_join_rows, signal_pid, wait_gone, Proc};
+use common::layouts::thesis_with;
 use common::monitor::page_of;
 use common::{marie, report_of, text};
 use std::collections::BTreeSet;
@@ -465,20 +466,11 @@ fn a_run_on_a_cluster_kept_up_starts_where_the_last_left_the_cart_or_from_the_st
     }
 }
 
-/// `marie ls --join ADDR --cookie marie-thesis --json`: its rows.
-fn ls_rows(addr: &str) -> Vec<serde_json::Value> {
-    let out = marie(&["ls", "--join", addr, "--cookie", "marie-thesis", "--json"]);
-    serde_json::from_slice::<serde_json::Value>(&out.stdout)
-        .ok()
-        .and_then(|v| v.as_array().cloned())
-        .unwrap_or_default()
-}
-
 /// Ask `ls` until `done` holds of its rows (every 250 ms, for at most 60 s); the last rows.
 fn ls_until(addr: &str, done: impl Fn(&[serde_json::Value]) -> bool) -> Vec<serde_json::Value> {
     let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
     loop {
-        let rows = ls_rows(addr);
+        let (_, rows, _) = ls_join_rows(addr, "marie-thesis", &[]);
         if done(&rows) || std::time::Instant::now() > deadline {
             return rows;
         }

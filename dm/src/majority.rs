@@ -13,7 +13,7 @@ use super::replica::SCOPE;
 use marie_vocabulary::replica::ReplicaRole;
 use ractor::rpc::CallResult;
 use ractor::ActorRef;
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet};
 use std::time::Duration;
 
 /// How long a run waits for a replicated datamanager that lost its majority to get it back
@@ -74,44 +74,48 @@ impl std::fmt::Display for NoMajority {
 /// `timeout`): `None` when one of them leads, or when `dm` has no replica here at all (it
 /// is not replicated, or unknown); else who is missing.
 pub async fn without_leader(dm: &str, timeout: Duration) -> Option<NoMajority> {
-    let scope = SCOPE.to_string();
-    let prefix = format!("{dm}/");
-    let groups: Vec<String> = ractor::pg::which_scoped_groups(&scope)
-        .into_iter()
-        .filter(|g| g.starts_with(&prefix))
-        .collect();
-    if groups.is_empty() {
-        return None;
+    let groups = replica_groups().remove(dm)?;
+    judge(dm, &views(&groups, timeout).await)
+}
+
+/// Every replicated datamanager whose replicas this process can find and none of which
+/// leads (each replica asked within `timeout`), by name.
+pub async fn leaderless(timeout: Duration) -> Vec<NoMajority> {
+    let mut lost = Vec::new();
+    for (dm, groups) in replica_groups() {
+        lost.extend(judge(&dm, &views(&groups, timeout).await));
     }
-    let mut views: Vec<ReplicaStats> = Vec::new();
-    for group in &groups {
+    lost
+}
+
+/// The replicas' groups this process knows ([`SCOPE`], one per datamanager and node:
+/// `DM/NODE`), by datamanager.
+fn replica_groups() -> BTreeMap<String, Vec<String>> {
+    let mut by_dm: BTreeMap<String, Vec<String>> = BTreeMap::new();
+    for group in ractor::pg::which_scoped_groups(&SCOPE.to_string()) {
+        if let Some((dm, _)) = group.split_once('/') {
+            by_dm.entry(dm.to_string()).or_default().push(group);
+        }
+    }
+    by_dm
+}
+
+/// What each replica in `groups` says of itself, of those that answer within `timeout`.
+async fn views(groups: &[String], timeout: Duration) -> Vec<ReplicaStats> {
+    let scope = SCOPE.to_string();
+    let mut views = Vec::new();
+    for group in groups {
         for cell in ractor::pg::get_scoped_members(&scope, group) {
             let actor: ActorRef<DmMsg> = cell.into();
             if let Ok(CallResult::Success(stats)) = actor
                 .call(|reply| DmMsg::Stats { reply }, Some(timeout))
                 .await
             {
-                if let Some(replica) = stats.replica {
-                    views.push(replica);
-                }
+                views.extend(stats.replica);
             }
         }
     }
-    judge(dm, &views)
-}
-
-/// Every replicated datamanager whose replicas this process can find and none of which
-/// leads (each replica asked within `timeout`), by name.
-pub async fn leaderless(timeout: Duration) -> Vec<NoMajority> {
-    let names: BTreeSet<String> = ractor::pg::which_scoped_groups(&SCOPE.to_string())
-        .into_iter()
-        .filter_map(|g| g.split_once('/').map(|(dm, _)| dm.to_string()))
-        .collect();
-    let mut lost = Vec::new();
-    for dm in names {
-        lost.extend(without_leader(&dm, timeout).await);
-    }
-    lost
+    views
 }
 
 /// The verdict over the replicas' views: `None` when one leads.

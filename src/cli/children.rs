@@ -2,6 +2,7 @@
 //! pipe it holds. Closing the pipe stops the child cleanly (`--stop-with-stdin`); the pipe
 //! also closes when `marie up` dies in any way, even `kill -9`, so no child outlives it.
 
+use marie::cluster::layout::Exit;
 use std::io::{BufRead, BufReader};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
@@ -132,27 +133,9 @@ impl NodeChild {
         self.child.id()
     }
 
-    /// How it ended, once it has (reaped); `None` while it runs.
-    pub(crate) fn exit(&mut self) -> Option<marie::cluster::layout::Exit> {
-        use marie::cluster::layout::Exit;
-        use std::os::unix::process::ExitStatusExt;
-        let status = self.child.try_wait().ok()??;
-        Some(match (status.code(), status.signal()) {
-            (Some(code), _) => Exit::Code(code),
-            (None, Some(sig)) => Exit::Signal(sig),
-            (None, None) => Exit::Code(-1),
-        })
-    }
-
-    /// Kill it (`SIGKILL`) and reap it: for a child that closed its output but lives on.
-    pub(crate) fn kill(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-
     /// Ask it to stop (close its pipe); kill it if it has not within the grace period.
-    /// Returns its exit code (`None` when killed by a signal).
-    pub(crate) fn stop(&mut self) -> Option<i32> {
+    /// How it ended.
+    pub(crate) fn stop(&mut self) -> Exit {
         self.go_on();
         self.stdin.take();
         self.wait_until(Instant::now() + STOP_GRACE)
@@ -168,28 +151,42 @@ impl NodeChild {
         }
     }
 
-    /// Wait for it to exit until `deadline`, then kill it. Polling: a child's exit has no
-    /// wait with a deadline in std.
-    fn wait_until(&mut self, deadline: Instant) -> Option<i32> {
+    /// Wait for it to exit until `deadline`, then kill it; how it ended. Polling: a child's
+    /// exit has no wait with a deadline in std. For the stop, and for a child whose output
+    /// ended (its exit is at hand; one that closed its output but lives on is killed).
+    pub(crate) fn wait_until(&mut self, deadline: Instant) -> Exit {
         loop {
             match self.child.try_wait() {
-                Ok(Some(status)) => return status.code(),
+                Ok(Some(status)) => return exit_of(status),
                 Ok(None) if Instant::now() < deadline => {
                     std::thread::sleep(Duration::from_millis(20))
                 }
                 _ => {
-                    tracing::warn!(node = %self.name, "did not stop in time: killed");
+                    tracing::warn!(node = %self.name, "did not end in time: killed");
                     let _ = self.child.kill();
-                    return self.child.wait().ok().and_then(|s| s.code());
+                    return self
+                        .child
+                        .wait()
+                        .map_or(Exit::Signal(libc::SIGKILL), exit_of);
                 }
             }
         }
     }
 }
 
+/// How a process ended, as its status says.
+fn exit_of(status: std::process::ExitStatus) -> Exit {
+    use std::os::unix::process::ExitStatusExt;
+    match (status.code(), status.signal()) {
+        (Some(code), _) => Exit::Code(code),
+        (None, Some(signal)) => Exit::Signal(signal),
+        (None, None) => Exit::Code(-1),
+    }
+}
+
 /// Stop every child: all pipes closed at once, then each awaited (killed after the grace
-/// period). Gives each node's name and exit code.
-pub(crate) fn stop_all(children: &mut [NodeChild]) -> Vec<(String, Option<i32>)> {
+/// period). Gives each node's name and how it ended.
+pub(crate) fn stop_all(children: &mut [NodeChild]) -> Vec<(String, Exit)> {
     for c in children.iter_mut() {
         c.go_on();
         c.stdin.take();

@@ -451,13 +451,7 @@ pub(crate) fn ls_join(
     cookie: &str,
     extra: &[String],
 ) -> (Option<i32>, Vec<Listed>, String) {
-    let mut args = vec!["ls", "--join", addr, "--cookie", cookie, "--json"];
-    args.extend(extra.iter().map(String::as_str));
-    let out = super::marie(&args);
-    let rows = serde_json::from_slice::<serde_json::Value>(&out.stdout)
-        .ok()
-        .and_then(|v| v.as_array().cloned())
-        .unwrap_or_default();
+    let (code, rows, stderr) = ls_join_rows(addr, cookie, extra);
     let mut entries: Vec<Listed> = rows
         .iter()
         .map(|r| {
@@ -466,7 +460,24 @@ pub(crate) fn ls_join(
         })
         .collect();
     entries.sort();
-    (out.status.code(), entries, super::text(&out.stderr))
+    (code, entries, stderr)
+}
+
+/// [`ls_join`]'s rows as `ls --json` gives them (a datamanager's `replica`, one without a
+/// leader's `no_majority`).
+pub(crate) fn ls_join_rows(
+    addr: &str,
+    cookie: &str,
+    extra: &[String],
+) -> (Option<i32>, Vec<serde_json::Value>, String) {
+    let mut args = vec!["ls", "--join", addr, "--cookie", cookie, "--json"];
+    args.extend(extra.iter().map(String::as_str));
+    let out = super::marie(&args);
+    let rows = serde_json::from_slice::<serde_json::Value>(&out.stdout)
+        .ok()
+        .and_then(|v| v.as_array().cloned())
+        .unwrap_or_default();
+    (out.status.code(), rows, super::text(&out.stderr))
 }
 
 /// Send `signal` (e.g. `TERM`, `KILL`, `STOP`) to process `pid`.
@@ -535,23 +546,4 @@ pub(crate) fn report_and_events(
         .map(|l| serde_json::from_str(l).expect("a JSON event"))
         .collect();
     (report, events)
-}
-
-/// The thesis layout (`missions/clusters/thesis.toml`) written into `dir` with `keys` added to
-/// its `[cluster]` table (e.g. `restart = "temporary"`); its path.
-pub(crate) fn thesis_with(dir: &Path, keys: &str) -> std::path::PathBuf {
-    let here = std::env::current_dir().unwrap().join("missions/clusters");
-    let layout = std::fs::read_to_string(here.join("thesis.toml"))
-        .unwrap()
-        .replace(
-            "config = \"thesis/",
-            &format!("config = \"{}/thesis/", here.display()),
-        )
-        .replace(
-            "world = \"../worlds/lab.toml\"",
-            &format!("world = \"{}/../worlds/lab.toml\"\n{keys}", here.display()),
-        );
-    let file = dir.join("thesis.toml");
-    std::fs::write(&file, layout).unwrap();
-    file
 }

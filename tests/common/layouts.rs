@@ -68,3 +68,22 @@ pub(crate) fn failover_layout(dir: &Path, followers: &[&str], standby: bool) -> 
     std::fs::write(&cluster, text).unwrap();
     cluster
 }
+
+/// The thesis layout (`missions/clusters/thesis.toml`) written into `dir` with `keys` added to
+/// its `[cluster]` table (e.g. `restart = "temporary"`); its path.
+pub(crate) fn thesis_with(dir: &Path, keys: &str) -> PathBuf {
+    let here = Path::new(env!("CARGO_MANIFEST_DIR")).join("missions/clusters");
+    let layout = std::fs::read_to_string(here.join("thesis.toml"))
+        .unwrap()
+        .replace(
+            "config = \"thesis/",
+            &format!("config = \"{}/thesis/", here.display()),
+        )
+        .replace(
+            "world = \"../worlds/lab.toml\"",
+            &format!("world = \"{}/../worlds/lab.toml\"\n{keys}", here.display()),
+        );
+    let file = dir.join("thesis.toml");
+    std::fs::write(&file, layout).unwrap();
+    file
+}

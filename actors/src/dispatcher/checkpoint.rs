@@ -38,8 +38,6 @@ use marie_vocabulary::property::ParamMap;
 use marie_vocabulary::run::Outcome;
 use ractor::ActorRef;
 use serde::{Deserialize, Serialize};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
 use std::time::Duration;
 use tokio::sync::{mpsc, oneshot};
 
@@ -200,9 +198,6 @@ pub(super) struct Checkpointer {
     seq: u64,
     /// The run datamanager, at the term's epoch.
     dm: DmClient,
-    /// Set when the writer gave up for want of the run datamanager's majority (rather than
-    /// being refused by a newer term).
-    gave_up: Arc<AtomicBool>,
     jobs: mpsc::UnboundedSender<Job>,
     /// The writing task, aborted with the dispatcher: a write it retries for a dispatcher
     /// that stopped must not land later.
@@ -222,11 +217,16 @@ impl Checkpointer {
         let dm = args.dm.with_epoch(args.term);
         let run = args.run.clone();
         let writer_dm = dm.clone();
-        let gave_up = Arc::new(AtomicBool::new(false));
-        let giving_up = gave_up.clone();
         let task = tokio::spawn(async move {
             let dm = writer_dm;
+            // once given up for want of a majority, every later job is dropped as the one
+            // given up on was: its waiter never hears it stored (the run's end concludes all
+            // the same: see `checkpoint_end`)
+            let mut given_up = false;
             while let Some(job) = rx.recv().await {
+                if given_up {
+                    continue;
+                }
                 match write(&dm, &run, &job.checkpoint, MAJORITY_WAIT).await {
                     Ok(()) => {
                         if let Some(done) = job.done {
@@ -243,11 +243,8 @@ impl Checkpointer {
                         break; // nothing more of this term is stored
                     }
                     Err(Unstored::NoMajority(reason)) => {
-                        // the job's waiter is dropped: what waited for it never goes out
-                        // (but the run's end does: see `checkpoint_end`)
-                        giving_up.store(true, Ordering::SeqCst);
+                        given_up = true;
                         let _ = dispatcher.cast(DispatcherMsg::NoMajority { reason });
-                        break;
                     }
                 }
             }
@@ -257,7 +254,6 @@ impl Checkpointer {
             term: args.term,
             seq: 0,
             dm,
-            gave_up,
             jobs,
             task,
         }
@@ -276,9 +272,8 @@ impl Checkpointer {
             done: Some(tx),
         };
         if let Err(mpsc::error::SendError(job)) = self.jobs.send(job) {
-            // the writer stopped after a refusal: so is this one; after it gave up for want
-            // of a majority, the waiter is dropped, as the job it gave up on was
-            if let (Some(done), false) = (job.done, self.gave_up.load(Ordering::SeqCst)) {
+            // the writer stopped after a refusal: so is this one
+            if let Some(done) = job.done {
                 let _ = done.send(Err(Superseded {
                     newer: self.term + 1,
                 }));

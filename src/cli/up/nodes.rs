@@ -163,11 +163,9 @@ impl Nodes {
         }
         let mut children = self.children;
         let stopped = tokio::task::spawn_blocking(move || stop_all(&mut children)).await?;
-        for (name, code) in stopped {
-            match code {
-                Some(0) => {}
-                Some(c) => println!("node {name} exited with code {c}"),
-                None => println!("node {name} was killed"),
+        for (name, exit) in stopped {
+            if !exit.is_normal() {
+                println!("node {name} {exit}");
             }
         }
         println!("cluster stopped");

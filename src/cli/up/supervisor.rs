@@ -182,11 +182,11 @@ impl Supervisor {
         let Some(n) = self.nodes.get_mut(node) else {
             return;
         };
-        let Some(mut child) = n.child.take() else {
+        let Some(child) = n.child.take() else {
             return;
         };
         self.processes.ended(node);
-        let exit = reap(&mut child).await;
+        let exit = reap(child).await;
         self.decide(node, exit);
     }
 
@@ -260,18 +260,11 @@ impl Supervisor {
     }
 }
 
-/// Reap a child whose output ended; one that lives on after [`REAP_WAIT`] is killed.
-async fn reap(child: &mut NodeChild) -> Exit {
-    let deadline = Instant::now() + REAP_WAIT;
-    loop {
-        if let Some(exit) = child.exit() {
-            return exit;
-        }
-        if Instant::now() >= deadline {
-            tracing::warn!(node = %child.name, "closed its output but lives on: killed");
-            child.kill();
-            return child.exit().unwrap_or(Exit::Signal(9));
-        }
-        tokio::time::sleep(Duration::from_millis(10)).await;
-    }
+/// Reap a child whose output ended (on a blocking thread: the wait polls); one that lives
+/// on after [`REAP_WAIT`] is killed.
+async fn reap(mut child: NodeChild) -> Exit {
+    let deadline = std::time::Instant::now() + REAP_WAIT;
+    tokio::task::spawn_blocking(move || child.wait_until(deadline))
+        .await
+        .unwrap_or(Exit::Signal(libc::SIGKILL))
 }
