@@ -396,7 +396,7 @@ impl Actor for ActionDispatcher {
                 state.on_provision_due(name, incarnation)
             }
             DispatcherMsg::RebindDeadline { name, incarnation } => {
-                state.on_rebind_deadline(&myself, name, incarnation)
+                state.on_rebind_deadline(&myself, name, incarnation).await
             }
             DispatcherMsg::ActionDeadline { generation } => {
                 state.on_action_deadline(&myself, generation)

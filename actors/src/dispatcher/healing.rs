@@ -553,7 +553,12 @@ impl DispatcherState {
         });
     }
 
-    pub(super) fn on_rebind_deadline(
+    /// The rebind deadline of `name` passed with no stand-in: the run fails. When a
+    /// replicated datamanager has no majority meanwhile, the reason names it and the nodes
+    /// it misses: an operation that could not store dies of it (`eo::absence`), and its
+    /// restarted instance waits for the datamanager before it registers, so the lost
+    /// operation is the symptom and the datamanager the cause an operator acts on.
+    pub(super) async fn on_rebind_deadline(
         &mut self,
         myself: &ActorRef<DispatcherMsg>,
         name: String,
@@ -580,6 +585,9 @@ impl DispatcherState {
                 .map(|(address, why)| format!("{address}: {why}"))
                 .collect();
             reason += &format!("; refused as stand-ins: {}", refused.join("; "));
+        }
+        for lost in marie_dm::leaderless(marie_dm::VIEW_TIMEOUT).await {
+            reason += &format!("; {lost}");
         }
         let gave_up = EventKind::RebindGaveUp {
             operation: name,
