@@ -80,9 +80,13 @@ fn copy_on(node: &str) -> Option<ActorRef<DmMsg>> {
         .map(Into::into)
 }
 
+/// What the replica `actor` itself holds (its `Stats` a follower sends on to its leader).
 async fn stats_of(actor: &ActorRef<DmMsg>) -> Option<DmStats> {
     match actor
-        .call(|reply| DmMsg::Stats { reply }, Some(Duration::from_secs(5)))
+        .call(
+            |reply| DmMsg::ReplicaStats { reply },
+            Some(Duration::from_secs(5)),
+        )
         .await
     {
         Ok(ractor::rpc::CallResult::Success(s)) => Some(s),

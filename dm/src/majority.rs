@@ -2,8 +2,8 @@
 //! so that whoever waited for it in vain (a dispatcher's checkpoint, an operation, `marie
 //! ls`) can say which nodes it is missing instead of only "not reachable".
 //!
-//! A replica answers [`DmMsg::Stats`] whatever its role; its
-//! [`ReplicaStats`] say every member's node and the ones it reaches. Asking every replica
+//! A replica answers [`DmMsg::ReplicaStats`] itself, whatever its role and whether or not
+//! there is a leader; its [`ReplicaStats`] say every member's node and the ones it reaches. Asking every replica
 //! found in the replicas' `pg` scope ([`SCOPE`]) gives the picture: a leader among them —
 //! there is a majority, perhaps just elected —, or none, and then the members nobody here
 //! reaches are the missing ones.
@@ -108,7 +108,7 @@ async fn views(groups: &[String], timeout: Duration) -> Vec<ReplicaStats> {
         for cell in ractor::pg::get_scoped_members(&scope, group) {
             let actor: ActorRef<DmMsg> = cell.into();
             if let Ok(CallResult::Success(stats)) = actor
-                .call(|reply| DmMsg::Stats { reply }, Some(timeout))
+                .call(|reply| DmMsg::ReplicaStats { reply }, Some(timeout))
                 .await
             {
                 views.extend(stats.replica);
