@@ -50,6 +50,7 @@ impl DmMsg {
                 | DmMsg::AnswerStats { .. }
                 | DmMsg::Digest { .. }
                 | DmMsg::WaitExpired { .. }
+                | DmMsg::TellApplied {}
         )
     }
 }
