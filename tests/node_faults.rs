@@ -373,6 +373,10 @@ fn the_killed_node_of_the_bound_operations_is_replaced_by_the_other_and_the_miss
         verdict.starts_with("verdict: 1 fault injected (stop-node 1), 1 node lost (1 back), "),
         "{verdict}"
     );
+    // the dispatcher (on features) was not lost: its checkpoints and its answers to the
+    // standby desk went on through the failover of the leaders on the killed node — no
+    // request of it waited for its client's deadline — so nothing was taken over
+    assert!(verdict.contains(", 0 takeovers, "), "{verdict}");
     // the datamanagers' leaders on the killed node failed over to replicas that hold every
     // record the operations were told was stored, the killed node's own producers' too
     // (`N of M acknowledged records lost`, M > 0: the stores were heard from the nodes)

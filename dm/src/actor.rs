@@ -15,8 +15,9 @@
 //! each message to one `on_*` method. What it is started with is in `args.rs`, the checks
 //! and steps of its start in `start.rs`, its state and the steps its handlers share in
 //! `state.rs`, where it keeps its records in `storage.rs`, the handlers of the
-//! dm-interface's messages in `handlers.rs`, and those of the replication protocol in
-//! `replicated.rs`.
+//! dm-interface's messages in `handlers.rs`, how a replicated one's leader answers reads in
+//! `reads.rs`, how a follower sends requests on to its leader in `forward.rs`, and the
+//! handlers of the replication protocol in `replicated.rs`.
 
 use super::applied::Tally;
 use super::args::DmArgs;
@@ -34,7 +35,8 @@ use tokio::task::JoinHandle;
 pub struct Datamanager;
 
 impl DmMsg {
-    /// A message of the replicas' own (a replica that is not the leader handles only these).
+    /// A message of the replicas' own (a replica that is not the leader handles only these,
+    /// and sends the others on to its leader).
     fn is_between_replicas(&self) -> bool {
         matches!(
             self,
@@ -44,10 +46,11 @@ impl DmMsg {
                 | DmMsg::JournalFlush {}
                 | DmMsg::JournalRefused { .. }
                 | DmMsg::Inject { .. }
-                | DmMsg::Stats { .. }
+                | DmMsg::ReplicaStats { .. }
                 | DmMsg::AnswerStats { .. }
                 | DmMsg::Digest { .. }
                 | DmMsg::WaitExpired { .. }
+                | DmMsg::TellApplied {}
         )
     }
 }
@@ -138,35 +141,20 @@ impl Actor for Datamanager {
         msg: DmMsg,
         state: &mut DatamanagerState,
     ) -> Result<(), ActorProcessingErr> {
-        if state.is_follower() && !msg.is_between_replicas() {
-            state.not_leader(msg);
+        if !msg.is_between_replicas() {
+            // a request of the dm-interface: a follower sends it on to its leader
+            if state.is_follower() {
+                state.not_leader(&myself, msg);
+            } else {
+                state.on_request(&myself, msg);
+                state.tell_retention();
+            }
             return Ok(());
         }
         match msg {
-            DmMsg::Put { record } => state.on_put(&myself, record),
-            DmMsg::PutBatch { records } => state.on_put_batch(&myself, records),
-            DmMsg::Store { record, reply } => state.on_store(*record, reply),
-            DmMsg::Select { query, reply } => state.on_select(&query, reply),
-            DmMsg::SelectPage {
-                query,
-                max_bytes,
-                reply,
-            } => state.on_select_page(&query, max_bytes, reply),
-            DmMsg::SelectWait {
-                query,
-                timeout_ms,
-                reply,
-            } => state.on_select_wait(&myself, *query, timeout_ms, reply),
-            DmMsg::SelectWaitPage {
-                query,
-                timeout_ms,
-                max_bytes,
-                reply,
-            } => state.on_select_wait_page(&myself, *query, timeout_ms, max_bytes, reply),
             DmMsg::WaitExpired { id } => state.on_wait_expired(id),
-            DmMsg::Delete { query, reply } => state.on_delete(&query, reply),
-            DmMsg::Stats { reply } => state.on_stats(&myself, reply),
             DmMsg::AnswerStats { reply } => state.on_answer_stats(reply),
+            DmMsg::ReplicaStats { reply } => state.on_answer_stats(reply),
             DmMsg::JournalFlush {} => state.on_journal_flush(&myself),
             DmMsg::Digest { reply } => state.on_digest(reply),
             DmMsg::Replica { msg } => state.on_replica(&myself, *msg),
@@ -175,6 +163,8 @@ impl Actor for Datamanager {
             DmMsg::JournalRefused { seqs } => state.on_journal_refused(&seqs),
             DmMsg::TellApplied {} => state.tell_applied(),
             DmMsg::Inject { fault } => state.on_inject(&myself, fault).await,
+            // (the requests of the dm-interface went above)
+            request => state.on_request(&myself, request),
         }
         state.tell_retention();
         Ok(())

@@ -464,7 +464,10 @@ async fn leader(dm: &str) -> Result<(Instance, DmStats), CheckError> {
     let mut why = CheckError::NonePublished(dm.to_string());
     for instance in registry::lookup(ModuleKind::Datamanager, dm) {
         let actor: ActorRef<DmMsg> = instance.actor.clone().into();
-        let stats = match actor.call(|reply| DmMsg::Stats { reply }, Some(ASK)).await {
+        let stats = match actor
+            .call(|reply| DmMsg::ReplicaStats { reply }, Some(ASK))
+            .await
+        {
             Ok(CallResult::Success(stats)) => stats,
             Ok(_) | Err(_) => {
                 why = CheckError::NoAnswer {

@@ -11,12 +11,17 @@ pub(crate) fn published(dm: &str, gone: Option<ActorId>) -> Option<Instance> {
     follow::published(ModuleKind::Datamanager, dm, gone)
 }
 
-/// [`published`], or the first such instance the registry publishes within `within` (on the
-/// runtime's timer). `None` if none comes.
+/// [`published`], or else `gone` itself if it is published and alive (a replicated
+/// datamanager's replica that stepped down — it refused or timed out a request meanwhile —
+/// and was elected leader again is the same actor), or the first instance the registry
+/// publishes within `within` (on the runtime's timer). `None` if none comes.
 pub(crate) async fn next_instance(
     dm: &str,
     gone: Option<ActorId>,
     within: Duration,
 ) -> Option<Instance> {
+    if let Some(found) = published(dm, gone).or_else(|| published(dm, None)) {
+        return Some(found);
+    }
     follow::next_instance(ModuleKind::Datamanager, dm, gone, within).await
 }

@@ -14,6 +14,26 @@ use marie_vocabulary::run::FaultKind;
 use ractor::{ActorRef, RpcReplyPort};
 
 impl DatamanagerState {
+    /// A request of the dm-interface, where it is answered (a datamanager without replicas,
+    /// or a replicated one's leader): each to its handler; the reads through `read`, which a
+    /// leader answers once it knows it leads.
+    pub(crate) fn on_request(&mut self, myself: &ActorRef<DmMsg>, msg: DmMsg) {
+        match msg {
+            DmMsg::Put { record } => self.on_put(myself, record),
+            DmMsg::PutBatch { records } => self.on_put_batch(myself, records),
+            DmMsg::Store { record, reply } => self.on_store(*record, reply),
+            DmMsg::Delete { query, reply } => self.on_delete(&query, reply),
+            read @ (DmMsg::Select { .. }
+            | DmMsg::SelectPage { .. }
+            | DmMsg::SelectWait { .. }
+            | DmMsg::SelectWaitPage { .. }
+            | DmMsg::Stats { .. }) => self.read(myself, read),
+            other => {
+                tracing::error!(dm = %self.name, msg = ?other, "not a request of the dm-interface: dropped")
+            }
+        }
+    }
+
     /// `Put`: store it; a refusal is counted and logged (a cast has no answer).
     pub(crate) fn on_put(&mut self, myself: &ActorRef<DmMsg>, record: NewRecord) {
         self.put(myself, record);
@@ -117,17 +137,11 @@ impl DatamanagerState {
             return;
         }
         let stats = self.stats();
-        if self.is_follower() {
-            // a follower owes no credits and has nothing of its own to commit: it answers
-            // at once — also without a leader, when whoever asks wants to know why
-            // (`majority::without_leader`)
-            let _ = reply.send(stats);
-            return;
-        }
         self.acknowledge(reply, move |_| stats);
     }
 
-    /// `AnswerStats`: a leader's `Stats`, answered now that the puts before it are applied.
+    /// `AnswerStats`: a leader's `Stats`, answered now that the puts before it are applied;
+    /// and `ReplicaStats`: this replica's numbers, now.
     pub(crate) fn on_answer_stats(&self, reply: RpcReplyPort<DmStats>) {
         let _ = reply.send(self.stats());
     }
@@ -183,10 +197,11 @@ impl DatamanagerState {
         }
     }
 
-    /// A client's request reached a replica that is not the leader (an old reference): it
-    /// is not answered — its reply port is dropped, so a `DmClient` follows the
-    /// datamanager's name to the leader — and a put is counted refused.
-    pub(crate) fn not_leader(&mut self, msg: DmMsg) {
+    /// A request this replica cannot answer (not leading, and no leader known for an
+    /// election timeout; or a read whose leader was not confirmed in time): it is not
+    /// answered — its reply port is dropped, so a `DmClient` follows the datamanager's name
+    /// to the leader — and a put is counted refused.
+    pub(crate) fn refuse(&mut self, msg: DmMsg) {
         match msg {
             DmMsg::Put { .. } | DmMsg::PutBatch { .. } => {
                 self.refused_puts += 1;

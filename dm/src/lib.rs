@@ -87,6 +87,7 @@ mod credits;
 mod entry;
 mod error;
 mod follow;
+mod forward;
 mod handlers;
 mod heir;
 mod index;
@@ -100,6 +101,7 @@ mod packed;
 mod page;
 mod producers;
 mod query;
+mod reads;
 mod record;
 mod replica;
 mod replica_state;
@@ -134,6 +136,7 @@ pub use query::{Query, Take};
 pub use record::{NewRecord, Payload, Record, RecordHeader, MAX_NAME_LEN};
 pub use replica::{
     Replication, ReplicationError, Timing as ReplicationTiming, SCOPE as REPLICA_SCOPE,
+    UNCHECKED_READS_ENV,
 };
 pub use shared::PayloadType;
 pub use state::DatamanagerState;

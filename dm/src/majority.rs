@@ -2,11 +2,11 @@
 //! so that whoever waited for it in vain (a dispatcher's checkpoint, an operation, `marie
 //! ls`) can say which nodes it is missing instead of only "not reachable".
 //!
-//! A replica answers [`DmMsg::Stats`] whatever its role; its
-//! [`ReplicaStats`] say every member's node and the ones it reaches. Asking every replica
-//! found in the replicas' `pg` scope ([`SCOPE`]) gives the picture: a leader among them —
-//! there is a majority, perhaps just elected —, or none, and then the members nobody here
-//! reaches are the missing ones.
+//! A replica answers [`DmMsg::ReplicaStats`] itself, whatever its role and whether or not
+//! there is a leader; its [`ReplicaStats`] say every member's node and the ones it
+//! reaches. Asking every replica found in the replicas' `pg` scope ([`SCOPE`]) gives the
+//! picture: a leader among them — there is a majority, perhaps just elected —, or none,
+//! and then the members nobody here reaches are the missing ones.
 
 use super::messages::{DmMsg, ReplicaStats};
 use super::replica::SCOPE;
@@ -112,7 +112,7 @@ async fn views(groups: &[String], timeout: Duration) -> Vec<ReplicaStats> {
             let actor: ActorRef<DmMsg> = cell.into();
             asked.spawn(async move {
                 match actor
-                    .call(|reply| DmMsg::Stats { reply }, Some(timeout))
+                    .call(|reply| DmMsg::ReplicaStats { reply }, Some(timeout))
                     .await
                 {
                     Ok(CallResult::Success(stats)) => stats.replica,

@@ -190,7 +190,8 @@ marie_vocabulary::remote_message! {
             /// What to delete.
             query: Box<Query>,
         } -> u64,
-        /// What the DM holds.
+        /// What the DM holds. A replicated datamanager's follower sends it on to its leader,
+        /// as every request of the dm-interface (`ReplicaStats` asks a replica itself).
         Stats {} -> DmStats,
         /// Commit `fault` on purpose (fault injection): a kill, a panic or a hang (only a
         /// kill ends it). Its supervisor restarts it. Any other kind is ignored with a
@@ -203,6 +204,11 @@ marie_vocabulary::remote_message! {
         /// A digest of the records it holds, and up to which seq (a checker compares the
         /// replicas of a replicated datamanager by it; a replica answers it too).
         Digest {} -> StoreDigest,
+        /// What this replica holds now, whatever its role (a follower answers it itself,
+        /// where it sends `Stats`, the datamanager's, on to its leader): its role, term,
+        /// journal and lag, what its start read back. A datamanager without replicas answers it as `Stats`, at
+        /// once.
+        ReplicaStats {} -> DmStats,
         /// The first page, of about `max_bytes`, of what `Select` answers, and the query
         /// for the rest: how a client on another node selects (`page`; an answer
         /// above ractor_cluster's 16 MiB frame limit would end the session between the

@@ -70,6 +70,16 @@ impl Producers {
         }
     }
 
+    /// Forget the pairs of seqs above `seq`: entries a leader proposed and noted, which
+    /// were not committed when it stopped leading (the next leader may give those seqs to
+    /// other records, and a retry must then be stored, not taken for one of them).
+    pub(crate) fn forget_after(&mut self, seq: u64) {
+        for recent in self.map.values_mut() {
+            recent.pairs.retain(|(_, s)| *s <= seq);
+        }
+        self.map.retain(|_, r| !r.pairs.is_empty());
+    }
+
     /// Drop the eighth of the producers heard from least recently.
     fn evict(&mut self) {
         let mut used: Vec<u64> = self.map.values().map(|r| r.used).collect();
@@ -113,6 +123,20 @@ mod tests {
         p.note(1, 1, 10);
         p.note(1, 3, 11); // 2 was lost on its way
         assert_eq!(p.seen(1, 2), None);
+    }
+
+    #[test]
+    fn pairs_of_entries_never_committed_are_forgotten() {
+        let mut p = Producers::default();
+        for i in 1..=5 {
+            p.note(1, i, 10 + i);
+        }
+        p.note(2, 1, 16);
+        p.forget_after(13);
+        assert_eq!(p.seen(1, 3), Some(13));
+        assert_eq!(p.seen(1, 4), None, "seq 14 may go to another record now");
+        assert_eq!(p.seen(2, 1), None);
+        assert_eq!(p.len(), 1, "a producer left with no pair is dropped");
     }
 
     #[test]

@@ -7,11 +7,12 @@ use super::error::DmError;
 use super::journal::{Journal, ReplicaLog};
 use super::messages::DmMsg;
 use super::replica::core::{Core, Restored};
-use super::replica::{vote, Op, ReplicaMsg, Replication, SCOPE};
+use super::replica::kept::Kept;
+use super::replica::{vote, Op, ReplicaMsg, Replication, SCOPE, UNCHECKED_READS_ENV};
 use super::store::Store;
 use marie_vocabulary::fence::FenceTable;
 use ractor::{pg, ActorCell, ActorRef};
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, VecDeque};
 use std::io;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -51,6 +52,12 @@ pub(crate) struct ReplicaState {
     pub(crate) peers: BTreeMap<String, ActorCell>,
     /// Answers waiting for the commit of the entry they name.
     pub(crate) acks: BTreeMap<u64, Vec<Ack>>,
+    /// Reads waiting for a majority's word (`reads`), oldest first, with when they came on
+    /// the protocol's clock.
+    pub(crate) reads: VecDeque<(Duration, DmMsg)>,
+    /// Requests of the dm-interface that reached this replica, not leading, while it knew no
+    /// leader to send them on to (`forward`), oldest first, with when they came.
+    pub(crate) kept: Kept<DmMsg>,
     started: tokio::time::Instant,
     /// The newest time stamp handed out.
     pub(crate) last_time: Duration,
@@ -130,6 +137,11 @@ impl ReplicaState {
             },
         };
         let eager = replication.members.first() == Some(&replication.me);
+        let unchecked =
+            replication.unchecked_reads || std::env::var_os(UNCHECKED_READS_ENV).is_some();
+        if unchecked {
+            tracing::warn!(dm = name, "replica: reads unchecked (a control run): a leader cut off from the others answers stale reads");
+        }
         let started = tokio::time::Instant::now();
         let core = Core::new(
             &replication.me,
@@ -139,7 +151,8 @@ impl ReplicaState {
             eager,
             Duration::ZERO,
         )
-        .with_tail_keep(replication.catch_up);
+        .with_tail_keep(replication.catch_up)
+        .with_unchecked_reads(unchecked);
         pg::join_scoped(
             SCOPE.to_string(),
             group(name, &replication.me),
@@ -163,6 +176,8 @@ impl ReplicaState {
             dir,
             peers: BTreeMap::new(),
             acks: BTreeMap::new(),
+            reads: VecDeque::new(),
+            kept: Kept::default(),
             started,
             last_time: store.last_time(),
             incoming: None,
@@ -232,6 +247,13 @@ impl ReplicaState {
                 None => journal.op(op),
             }
         }
+    }
+
+    /// The leader this replica follows, if it is another replica and reachable: where a
+    /// client's request to this one is sent on.
+    pub(crate) fn leader_actor(&self) -> Option<ActorRef<DmMsg>> {
+        let leader = self.core.leader().filter(|l| *l != self.core.me())?;
+        self.peers.get(leader).cloned().map(Into::into)
     }
 
     /// Send `msg` to the replica on node `to`, if it is reachable.

@@ -2,6 +2,15 @@
 //! (`replica`): the leader proposes writes and answers them once committed, every
 //! replica carries out what the protocol's core asks (persist the vote, send, journal,
 //! apply, publish itself or step down), and a replica too far behind takes in a snapshot.
+//!
+//! A change of role is a change of this actor's state, never a restart: elected, it is
+//! published under the datamanager's name and id; stepping down, it withdraws that
+//! publication and sends on every caller whose answer it still owed (the writes waiting
+//! for a commit, the reads waiting for the leader to be confirmed, the waits filed) — their
+//! reply ports dropped, so a `DmClient` follows the name to the new leader and asks again
+//! there (a store sent again is stored once: `producers`). The actor, its `ActorRef` and
+//! every client's reference to it live on: a request reaching it as a follower is sent on
+//! to the leader it follows, which answers the caller (`forward`).
 
 use super::messages::DmMsg;
 use super::producers::Producers;
@@ -271,19 +280,13 @@ impl DatamanagerState {
         }));
     }
 
-    /// Carry out what the core asked for, in order.
-    fn carry_out(&mut self, myself: &ActorRef<DmMsg>, out: Vec<Out>) {
-        // once it steps down, it still keeps its term and vote and sends its answers (a
-        // vote it granted, a refusal), and then stops: a granted vote dropped with the
-        // actor could cost the candidate its election
-        let mut stopping: Option<String> = None;
+    /// Carry out what the core asked for, in order; then answer the reads that may be, and
+    /// send on (or answer) the requests kept for want of a leader.
+    pub(crate) fn carry_out(&mut self, myself: &ActorRef<DmMsg>, out: Vec<Out>) {
         for o in out {
             let Some((replica, journal)) = self.storage.replicated_mut() else {
                 return;
             };
-            if stopping.is_some() && !matches!(o, Out::Persist | Out::Send(..)) {
-                continue;
-            }
             match o {
                 Out::Persist => {
                     if let Err(e) = replica.persist_vote() {
@@ -298,21 +301,43 @@ impl DatamanagerState {
                 Out::Journal(from, to) => replica.journal_ops(journal, from, to),
                 Out::Apply(from, to) => self.apply_committed(from, to),
                 Out::Lead => self.lead(myself),
-                Out::StepDown(why) => {
-                    replica.stepped_down(&why);
-                    stopping = Some(why);
-                }
+                Out::StepDown(why) => self.step_down(myself, &why),
                 Out::Install(to, seq, term) => self.send_snapshot(&to, (seq, term)),
             }
         }
-        if let Some(why) = stopping {
-            // (the stop's reason keeps the words it is known by)
-            myself.stop(Some(format!("no longer the leader: {why}")));
-            return;
-        }
         if let Some(replica) = self.storage.replica_mut() {
             replica.core.trim();
+            let (reads, kept) = (!replica.reads.is_empty(), !replica.kept.is_empty());
+            if reads {
+                self.serve_reads(myself);
+            }
+            if kept {
+                self.send_kept_on(myself);
+            }
         }
+    }
+
+    /// This replica led and does not any more: it says so, withdraws its publication under
+    /// the datamanager's name, and sends on every caller it owed an answer (see above). Its
+    /// proposals not committed may be cut by the next leader, whose entries then take their
+    /// seqs: their producers' pairs are forgotten, so that a retry is stored, not taken for
+    /// another record.
+    fn step_down(&mut self, myself: &ActorRef<DmMsg>, why: &str) {
+        let Some(replica) = self.storage.replica_mut() else {
+            return;
+        };
+        replica.stepped_down(why);
+        replica.acks.clear();
+        let applied = replica.core.applied();
+        replica.noted = applied;
+        self.producers.forget_after(applied);
+        self.send_readers_on();
+        registry::unpublish(
+            ModuleKind::Datamanager,
+            self.id,
+            &self.name,
+            &myself.get_cell(),
+        );
     }
 
     /// Apply the committed entries `from` to `to` to the store, wake the waits they
@@ -357,13 +382,7 @@ impl DatamanagerState {
             apply::note(&mut self.producers, op);
         }
         tracing::info!(dm = %replica.name, node = %replica.core.me(), term = replica.core.term(), "replica: this replica is the leader");
-        if let Some(bus) = &replica.events {
-            bus.publish(EventKind::DmPromoted {
-                dm: replica.name.clone(),
-                node: replica.core.me().to_string(),
-                term: replica.core.term(),
-            });
-        }
+        // published before it is told: whoever hears `dm_promoted` finds it by name
         if let Err(e) = registry::publish(
             ModuleKind::Datamanager,
             self.id,
@@ -371,6 +390,13 @@ impl DatamanagerState {
             myself.get_cell(),
         ) {
             tracing::error!(dm = %self.name, error = %e, "replica: cannot publish the leader");
+        }
+        if let Some(bus) = &replica.events {
+            bus.publish(EventKind::DmPromoted {
+                dm: replica.name.clone(),
+                node: replica.core.me().to_string(),
+                term: replica.core.term(),
+            });
         }
     }
 
@@ -492,9 +518,7 @@ impl ReplicaState {
 
     /// It was the leader and is not any more: say so (the log and the `dm_fenced` event).
     fn stepped_down(&self, why: &str) {
-        // every client's reference dies with this actor: they follow the name to the new
-        // leader; the supervisor starts this replica again, from its journal, as a follower
-        tracing::warn!(dm = %self.name, node = %self.core.me(), term = self.core.term(), why, "replica: no longer the leader: restarting as a follower");
+        tracing::warn!(dm = %self.name, node = %self.core.me(), term = self.core.term(), why, "replica: no longer the leader: a follower now");
         if let Some(bus) = &self.events {
             bus.publish(EventKind::DmFenced {
                 dm: self.name.clone(),

@@ -174,6 +174,14 @@ impl Waits {
         out
     }
 
+    /// Take out every waiter (their ids stay used: a late `WaitExpired` names none anew).
+    pub(crate) fn take_all(&mut self) -> Vec<Waiter> {
+        self.filed.clear();
+        let mut all = std::mem::take(&mut self.any_class);
+        all.extend(self.by_class.drain().flat_map(|(_, list)| list));
+        all
+    }
+
     /// Drop every waiter whose caller has gone.
     pub(crate) fn sweep_closed(&mut self) {
         let filed = &mut self.filed;

@@ -117,7 +117,19 @@ impl NodeProc {
         name: &str,
         args: &[&str],
     ) -> NodeProc {
-        let proc = Proc::spawn_in(netns, name, args);
+        NodeProc::launch_with(netns, addr, name, args, &[])
+    }
+
+    /// [`NodeProc::launch`] with the environment variables `env` set for the node.
+    pub(crate) fn launch_with(
+        netns: Option<&str>,
+        addr: SocketAddr,
+        name: &str,
+        args: &[&str],
+        env: &[(&str, String)],
+    ) -> NodeProc {
+        let marie = Path::new(env!("CARGO_BIN_EXE_marie"));
+        let proc = Proc::spawn_exe(netns, name, marie, args, env);
         let mut node = NodeProc { addr, proc };
         node.wait_line(&format!("node {name} listening on {addr}"));
         node

@@ -4,9 +4,11 @@
 //! happen.
 
 use super::tree::DATAMANAGERS;
-use marie_dm::DmClient;
+use marie_dm::{DmClient, DmMsg};
 use marie_supervision::{RestartCause, SupervisorEvent, SupervisorRef};
 use marie_vocabulary::events::{EventBus, EventKind};
+use ractor::rpc::CallResult;
+use ractor::ActorRef;
 use tokio::sync::broadcast::{self, error::RecvError};
 use tokio::task::JoinHandle;
 
@@ -166,10 +168,15 @@ fn tell_recovery(bus: &EventBus, actor: ractor::ActorCell) {
     tokio::spawn(async move { tell_start(&bus, actor).await });
 }
 
-/// [`tell_recovery`], awaited: whether the datamanager could be asked.
+/// [`tell_recovery`], awaited: whether the datamanager could be asked. (`ReplicaStats`: a
+/// replica's own numbers — a follower sends a `Stats` on to its leader.)
 pub(crate) async fn tell_start(bus: &EventBus, actor: ractor::ActorCell) -> bool {
-    let client = DmClient::new(actor.into(), "node");
-    let Ok(stats) = client.stats().await else {
+    let actor: ActorRef<DmMsg> = actor.into();
+    let deadline = Some(DmClient::DEFAULT_TIMEOUT);
+    let Ok(CallResult::Success(stats)) = actor
+        .call(|reply| DmMsg::ReplicaStats { reply }, deadline)
+        .await
+    else {
         return false;
     };
     if let Some(kind) = started_from(stats) {

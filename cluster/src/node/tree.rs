@@ -118,15 +118,9 @@ pub(super) fn children(
         .unwrap_or_default();
     let mut children = Vec::new();
     if !config.datamanagers.is_empty() {
-        // three restarts per datamanager: a replica changes role by restarting (a leader
-        // that sees a newer term restarts as a follower), and one election may step every
-        // replica of the node down at once — with four datamanagers, and a second term
-        // right after the first, that was more than a fixed three, and the node gave its
-        // datamanagers up (CI: `cluster_failover`, the world DM gone at the run's start)
-        let restarts = 3 * config.datamanagers.len();
         children.push(ChildSpec::supervisor(
             DATAMANAGERS,
-            SupervisorSpec::one_for_one().with_intensity(restarts, Duration::from_secs(5)),
+            SupervisorSpec::one_for_one().with_intensity(DEFAULT_RESTARTS, DEFAULT_PERIOD),
             datamanagers(config, &options.clock, &apriori, events),
         ));
     }

@@ -12,8 +12,10 @@
 //!   by counting only entries of its own term (Raft's figure 8);
 //! - a committed entry is never truncated, and every replica applies the same entries in the
 //!   same order;
-//! - a replica votes only for a log at least as up to date as its own, once per term.
+//! - a replica votes only for a log at least as up to date as its own, once per term;
+//! - a read is answered only by a leader no other can have replaced yet (`lease`).
 
+use super::lease::{self, Contact, Read};
 use super::msg::{Ops, ReplicaMsg};
 use super::op::{Op, OpBody};
 use super::tail::{Tail, KEEP_BYTES};
@@ -29,6 +31,24 @@ pub struct Timing {
     /// random part of up to half of it), and how long a leader goes without hearing from a
     /// majority before it steps down.
     pub election: Duration,
+    /// How long a leader answers reads from its own store after a majority last followed it
+    /// (its lease, `lease`); a follower votes for no other replica for [`Timing::guard`]
+    /// after it last heard a leader. Below the heartbeat, reads always wait for a round.
+    pub lease: Duration,
+}
+
+/// The guard's margin over the lease: an eighth, for clocks that run at different rates
+/// (monotonic clocks drift by well under 0.1 %; the margin also holds a `tick` late by
+/// 100 ms).
+const DRIFT: u32 = 8;
+
+impl Timing {
+    /// How long a follower refuses to vote for another replica after it last heard from a
+    /// leader: the lease and a margin for clock drift, so that a leader's lease ends, on any
+    /// clock, before anyone can be elected in its place.
+    pub fn guard(&self) -> Duration {
+        self.lease + self.lease / DRIFT
+    }
 }
 
 impl Default for Timing {
@@ -36,9 +56,13 @@ impl Default for Timing {
         // The node's failure detector declares a lost node within 1.2 s and closes its
         // sessions; a replica that sees the leader leave campaigns at once. The election
         // timeout is the backstop (a leader hung with its node alive), not the fast path.
+        // The lease's guard (1.0125 s) ends before the detector's deadline (1.2 s), so it
+        // does not slow the failover of a lost node; only a datamanager that crashed on a
+        // live node (its replicas see it leave at once) waits for it.
         Timing {
             heartbeat: Duration::from_millis(100),
             election: Duration::from_millis(2500),
+            lease: Duration::from_millis(900),
         }
     }
 }
@@ -50,6 +74,12 @@ const INFLIGHT: u64 = 65_536;
 /// Applied entries a replica keeps in memory to catch a lagging replica up (beyond them, or
 /// beyond [`KEEP_BYTES`](tail::KEEP_BYTES), a snapshot is sent).
 pub(crate) const TAIL_KEEP: usize = 16_384;
+
+/// A time on this replica's clock as an `Append` carries it (0 reads as none: a clock's
+/// first instant is never a send time that matters).
+fn nanos(t: Duration) -> u64 {
+    u64::try_from(t.as_nanos()).unwrap_or(u64::MAX)
+}
 
 /// What the actor must do, in order.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -89,6 +119,8 @@ struct Progress {
     probing: bool,
     /// A snapshot was sent at this time and is not acknowledged yet.
     installing: Option<Duration>,
+    /// The send time of the newest `Append` of this term it said it took in (`lease`).
+    echo: Option<Duration>,
 }
 
 #[derive(Clone, Debug)]
@@ -101,6 +133,9 @@ enum Role {
     Leader {
         peers: BTreeMap<String, Progress>,
         since: Duration,
+        /// Its no-op's seq: once it is applied, the store holds what its predecessors
+        /// committed.
+        first: u64,
     },
 }
 
@@ -125,6 +160,17 @@ pub(crate) struct Core {
     leader: Option<String>,
     /// When this replica last heard from the current leader.
     heard: Option<Duration>,
+    /// When it last took in a leader's word, kept through a failure detector's word and a
+    /// new term: it votes for nobody else until the lease's guard after it (`lease`).
+    contact: Contact,
+    /// The send time (leader's clock, ns) of the newest `Append` taken in from the current
+    /// leader in this term, echoed in every answer (0: none).
+    echo: u64,
+    /// On a leader: when it last sent a round to confirm it still leads (for reads).
+    confirming: Option<Duration>,
+    /// Reads answered by a leader at once, unchecked, and votes given without the guard
+    /// (stale reads possible): for the checker's control run and the read bench only.
+    unchecked_reads: bool,
     deadline: Duration,
     visible: BTreeSet<String>,
     rng: u64,
@@ -209,6 +255,16 @@ impl Core {
             role: Role::Follower,
             leader: None,
             heard: None,
+            // a replica with a term behind it may have answered a leader just before it
+            // stopped: it keeps the guard from its start
+            contact: if restored.term > 0 {
+                Contact::restarted(now)
+            } else {
+                Contact::default()
+            },
+            echo: 0,
+            confirming: None,
+            unchecked_reads: false,
             deadline: now,
             visible: BTreeSet::new(),
             rng: seed,
@@ -233,6 +289,14 @@ impl Core {
         self
     }
 
+    /// Answer every read at once while it leads, and vote without the lease's guard
+    /// (`true`): the protocol as it was before leases, stale reads possible. For the
+    /// checker's control run and the read bench only.
+    pub(crate) fn with_unchecked_reads(mut self, unchecked: bool) -> Core {
+        self.unchecked_reads = unchecked;
+        self
+    }
+
     /// Keep at most `bytes` of applied entries in memory ([`KEEP_BYTES`](tail::KEEP_BYTES); less in tests).
     #[cfg(test)]
     pub(crate) fn with_tail_bytes(mut self, bytes: usize) -> Core {
@@ -241,6 +305,11 @@ impl Core {
     }
 
     // ---- what it is --------------------------------------------------------------------
+
+    /// The protocol's clocks.
+    pub(crate) fn timing(&self) -> Timing {
+        self.timing
+    }
 
     /// Its node.
     pub(crate) fn me(&self) -> &str {
@@ -471,6 +540,7 @@ impl Core {
                 prev_term,
                 ops,
                 commit,
+                at: nanos(now),
             },
         ));
     }
@@ -478,8 +548,7 @@ impl Core {
     fn on_append_ack(
         &mut self,
         from: &str,
-        ok: bool,
-        last: u64,
+        (ok, last, at): (bool, u64, u64),
         now: Duration,
         out: &mut Vec<Out>,
     ) {
@@ -490,6 +559,10 @@ impl Core {
             return;
         };
         pr.acked = Some(now);
+        if at > 0 {
+            // it took in an `Append` of this term sent then: it follows this leader since
+            pr.echo = pr.echo.max(Some(Duration::from_nanos(at)));
+        }
         if ok {
             pr.matched = pr.matched.max(last);
             pr.next = pr.next.max(last + 1);
@@ -561,6 +634,75 @@ impl Core {
         }
     }
 
+    // ---- reads ---------------------------------------------------------------------------
+
+    /// What a read asked at `asked` may do at `now` (see `lease`): answered from the store
+    /// while the lease holds, or once a majority followed this leader since `asked`; refused
+    /// on a replica that is not the leader, or after an election timeout of waiting.
+    pub(crate) fn read(&self, asked: Duration, now: Duration) -> Read {
+        let Role::Leader { peers, first, .. } = &self.role else {
+            return Read::Refuse;
+        };
+        if self.unchecked_reads {
+            return Read::Serve;
+        }
+        if self.applied >= *first {
+            let echoes = peers.values().map(|p| p.echo);
+            if let Some(anchor) = lease::confirmed(echoes, self.majority(), now) {
+                // after a hand-over the voters skip their guard: no lease for the term
+                let leased = self.handed.is_none() && now < anchor + self.timing.lease;
+                if leased || anchor >= asked {
+                    return Read::Serve;
+                }
+            }
+        }
+        if now.saturating_sub(asked) >= self.timing.election {
+            Read::Refuse
+        } else {
+            Read::Wait
+        }
+    }
+
+    /// A read asked at `asked` waits: unless a round went out since, send every replica an
+    /// `Append` now — their answers confirm this leader ([`Core::read`]). One round at a time
+    /// (until it is answered, or for a heartbeat): reads that come meanwhile wait for the
+    /// next, not a round each.
+    pub(crate) fn confirm(&mut self, asked: Duration, now: Duration, out: &mut Vec<Out>) {
+        let Role::Leader { peers, .. } = &self.role else {
+            return;
+        };
+        if let Some(t) = self.confirming {
+            let answered = lease::confirmed(peers.values().map(|p| p.echo), self.majority(), now)
+                .is_some_and(|anchor| anchor >= t);
+            if t >= asked || !answered && now.saturating_sub(t) < self.timing.heartbeat {
+                return;
+            }
+        }
+        self.confirming = Some(now);
+        let names: Vec<String> = peers.keys().cloned().collect();
+        let mut shared = Vec::new();
+        for peer in names {
+            self.send_to(&peer, now, true, &mut shared, out);
+        }
+    }
+
+    /// The earliest time from `now` on that this replica may vote for a replica other than
+    /// the leader it last heard (itself included): after the lease's guard. (With reads
+    /// unchecked there is no lease to guard.)
+    fn unguarded(&self, now: Duration) -> Duration {
+        if self.unchecked_reads {
+            return now;
+        }
+        self.contact
+            .until(self.timing.guard())
+            .map_or(now, |u| u.max(now))
+    }
+
+    /// Whether it must refuse `candidate` its vote at `now` for the lease's guard.
+    fn barred(&self, candidate: &str, now: Duration) -> bool {
+        !self.unchecked_reads && self.contact.bars(candidate, now, self.timing.guard())
+    }
+
     // ---- everyone ------------------------------------------------------------------------
 
     /// The entries up to `seq` (of `term`) are durable here (the journal said so).
@@ -587,6 +729,7 @@ impl Core {
                 from: self.me.clone(),
                 ok: true,
                 last: self.durable_here().min(self.verified),
+                at: self.echo,
             },
         )
     }
@@ -632,11 +775,10 @@ impl Core {
                 prev_term,
                 ops,
                 commit,
+                at,
             } => self.on_append(
-                term,
-                leader,
-                prev_seq,
-                prev_term,
+                (term, leader, at),
+                (prev_seq, prev_term),
                 ops.into_vec(),
                 commit,
                 now,
@@ -647,11 +789,12 @@ impl Core {
                 from,
                 ok,
                 last,
+                at,
             } => {
                 if term > self.term {
                     self.adopt(term, out);
                 } else if term == self.term {
-                    self.on_append_ack(&from, ok, last, now, out);
+                    self.on_append_ack(&from, (ok, last, at), now, out);
                 }
             }
             ReplicaMsg::Vote {
@@ -711,6 +854,7 @@ impl Core {
                     from: self.me.clone(),
                     ok: false,
                     last: self.last().0,
+                    at: self.echo,
                 },
             ));
             return false;
@@ -725,6 +869,7 @@ impl Core {
                     from: self.me.clone(),
                     ok: true,
                     last: self.commit.min(self.durable_here().max(self.applied)),
+                    at: self.echo,
                 },
             ));
             return false;
@@ -756,10 +901,12 @@ impl Core {
         }
         if self.leader.as_deref() != Some(leader) {
             self.verified = 0;
+            self.echo = 0;
         }
         self.role = Role::Follower;
         self.leader = Some(leader.to_string());
         self.heard = Some(now);
+        self.contact.heard(leader, now);
         self.deadline = now + self.election_timeout();
     }
 
@@ -769,6 +916,7 @@ impl Core {
         self.voted_for = None;
         self.leader = None;
         self.verified = 0;
+        self.echo = 0;
         if self.is_leader() {
             self.step_down("a newer term", out);
         }
@@ -784,13 +932,10 @@ impl Core {
         }
     }
 
-    #[allow(clippy::too_many_arguments)]
     fn on_append(
         &mut self,
-        term: u64,
-        leader: String,
-        prev_seq: u64,
-        prev_term: u64,
+        (term, leader, at): (u64, String, u64),
+        (prev_seq, prev_term): (u64, u64),
         ops: Vec<Op>,
         commit: u64,
         now: Duration,
@@ -804,6 +949,7 @@ impl Core {
                     from: core.me.clone(),
                     ok: false,
                     last,
+                    at: core.echo,
                 },
             ));
         };
@@ -812,6 +958,7 @@ impl Core {
             return;
         }
         self.follow(term, &leader, now, out);
+        self.echo = self.echo.max(at);
         let last = self.last().0;
         if prev_seq > last {
             refuse(self, last, out);
@@ -914,7 +1061,10 @@ impl Core {
                 },
             ));
         };
-        if !transfer && self.sticky(now) && self.leader.as_deref() != Some(candidate.as_str()) {
+        let sticky = self.sticky(now) && self.leader.as_deref() != Some(candidate.as_str());
+        // the guard holds even once the failure detector spoke: a leader it followed may
+        // still answer reads on its lease (`lease`); a hand-over's election skips both
+        if !transfer && (sticky || self.barred(&candidate, now)) {
             answer(self, false, out);
             return;
         }
@@ -950,7 +1100,7 @@ impl Core {
     /// replica's failure detector then names a node that is no longer its leader).
     fn campaign_soon_if_behind(&mut self, up_to_date: bool, now: Duration) {
         if !up_to_date && self.leader.is_none() && !self.is_leader() {
-            let soon = now + self.rank_delay(None);
+            let soon = self.unguarded(now) + self.rank_delay(None);
             self.deadline = self.deadline.min(soon);
         }
     }
@@ -1046,12 +1196,18 @@ impl Core {
                         sent: None,
                         probing: true,
                         installing: None,
+                        echo: None,
                     },
                 )
             })
             .collect();
-        self.role = Role::Leader { peers, since: now };
+        self.role = Role::Leader {
+            peers,
+            since: now,
+            first: next,
+        };
         self.handed = None;
+        self.confirming = None;
         self.leader = Some(self.me.clone());
         self.verified = 0;
         // a new leader's first entry: committing it commits everything before it
@@ -1068,7 +1224,7 @@ impl Core {
     /// Time passed: campaign, send heartbeats, or step down without a majority.
     pub(crate) fn tick(&mut self, now: Duration, out: &mut Vec<Out>) {
         match &self.role {
-            Role::Leader { peers, since } => {
+            Role::Leader { peers, since, .. } => {
                 let fresh = 1 + peers
                     .values()
                     .filter(|p| {
@@ -1084,7 +1240,10 @@ impl Core {
                 self.replicate(now, out);
             }
             _ if now >= self.deadline => {
-                if self.visible.len() + 1 >= self.majority() {
+                if self.unguarded(now) > now {
+                    // it may not vote for itself yet: a leader it followed may hold a lease
+                    self.deadline = self.unguarded(now) + self.rank_delay(None);
+                } else if self.visible.len() + 1 >= self.majority() {
                     self.campaign(true, now, out);
                 } else {
                     self.deadline = now + self.election_timeout();
@@ -1134,7 +1293,7 @@ impl Core {
         if self.leader.as_deref() == Some(node) && !self.is_leader() {
             self.leader = None;
             self.heard = None;
-            let soon = now + self.rank_delay(Some(node));
+            let soon = self.unguarded(now) + self.rank_delay(Some(node));
             self.deadline = self.deadline.min(soon);
         }
     }

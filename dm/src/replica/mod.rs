@@ -12,21 +12,26 @@
 //! sequence numbers continue across a change of leader. An entry is committed once a
 //! majority of replicas have journaled it at the datamanager's durability; only then is it
 //! applied to a replica's store (on every replica alike), and only then does the leader answer
-//! the write. A select on the leader sees committed records only.
+//! the write. A select on the leader sees committed records only, and only while no other
+//! leader can have acknowledged a newer write (`lease`: a leader lease, or a round of the
+//! replicas' word).
 //!
 //! - **Terms fence.** Each election raises the term; a replica's term and vote are synced to
 //!   disk before they are used (`vote`). A leader that meets a newer term, or that has not
-//!   heard from a majority for an election timeout, *steps down*: its actor stops, so every
-//!   client's reference to it dies and the clients follow the name to the new leader; its
-//!   supervisor starts it again from its journal as a follower, which catches up.
+//!   heard from a majority for an election timeout, *steps down*: the same actor goes on as
+//!   a follower — withdrawn from the datamanager's name, the callers it owed an answer sent
+//!   on (their reply ports dropped), so clients follow the name to the new leader; a
+//!   client's reference to it stays valid (a follower sends a client's request on to its
+//!   leader, which answers it).
 //! - **Uncommitted entries** of a lost leader are kept or cut by the next one (Raft's log
 //!   matching); a client that got no answer retries with the same producer number, and the
 //!   `producers` table (replicated with the records) stores it once.
 //! - **Elections are fast and rare.** A replica campaigns as soon as it sees the leader's
 //!   replica leave its group (the node's failure detector closes a lost node's sessions), the
-//!   lower-ranked replicas first; an election timeout is the backstop. Pre-votes and leader
-//!   stickiness keep a replica that was cut off from unseating a working leader when it
-//!   comes back; a replica that refuses a less up-to-date candidate while no leader is known
+//!   lower-ranked replicas first, once the lease's guard after their leader's last word has
+//!   passed (it ends before the failure detector's deadline); an election timeout is the
+//!   backstop. Pre-votes and leader stickiness keep a replica that was cut off from
+//!   unseating a working leader when it comes back; a replica that refuses a less up-to-date candidate while no leader is known
 //!   campaigns soon itself (the candidate cannot win, and this replica may have been refused
 //!   by one that had not yet seen the leader go). A leader not on the configured node
 //!   hands its role there once that replica caught up, and meanwhile sends the others nothing
@@ -40,6 +45,8 @@
 
 pub(crate) mod apply;
 pub(crate) mod core;
+pub(crate) mod kept;
+pub(crate) mod lease;
 mod msg;
 mod op;
 pub(crate) mod tail;
@@ -67,7 +74,18 @@ pub struct Replication {
     /// `KEEP_BYTES` (32 MiB) of them); a replica further behind is sent a snapshot of the store
     /// instead ([`Replication::DEFAULT_CATCH_UP`]).
     pub catch_up: usize,
+    /// The leader answers every read from its store at once, without its lease or a
+    /// confirmation round: a leader cut off from the others then answers reads older than
+    /// what a new leader acknowledged. For the checker's control run and the read bench
+    /// only (`false` unless set; the environment variable [`UNCHECKED_READS_ENV`] sets it
+    /// in a process).
+    pub unchecked_reads: bool,
 }
+
+/// The environment variable that makes every replica started in the process answer reads
+/// unchecked ([`Replication::unchecked_reads`]): what the checker's control run sets on its
+/// nodes, to show that its readers catch stale reads.
+pub const UNCHECKED_READS_ENV: &str = "MARIE_DM_UNCHECKED_READS";
 
 impl Replication {
     /// Default [`Replication::catch_up`]: 16 384 entries — over a second of puts at
@@ -88,7 +106,15 @@ impl Replication {
             members: members.into_iter().map(Into::into).collect(),
             timing: Timing::default(),
             catch_up: Self::DEFAULT_CATCH_UP,
+            unchecked_reads: false,
         }
+    }
+
+    /// Answer reads unchecked ([`Replication::unchecked_reads`]): stale reads become
+    /// possible. For a control run or a bench only.
+    pub fn with_unchecked_reads(mut self) -> Replication {
+        self.unchecked_reads = true;
+        self
     }
 
     /// Keep `entries` applied entries in memory to catch a lagging replica up (at least 1).

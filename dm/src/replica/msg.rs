@@ -24,6 +24,10 @@ pub enum ReplicaMsg {
         ops: Ops,
         /// The leader's commit seq.
         commit: u64,
+        /// When the leader sent it, in ns of its own clock: echoed back, it dates the
+        /// follower's word for the leader's lease (`lease`). 0 from a build without leases.
+        #[serde(default)]
+        at: u64,
     },
     /// A replica's answer to an `Append` or to an installed snapshot.
     AppendAck {
@@ -36,6 +40,9 @@ pub enum ReplicaMsg {
         /// If `ok`, the last seq it holds as the leader does and durably; if not, the seq
         /// after which the leader should send again.
         last: u64,
+        /// The `at` of the newest `Append` it took in from this leader in this term (0: none).
+        #[serde(default)]
+        at: u64,
     },
     /// A request for a vote (or, `pre`, whether a vote would be given: a replica that cannot
     /// win does not raise everyone's term).
@@ -418,6 +425,7 @@ mod tests {
             prev_term: 1,
             ops,
             commit: 5,
+            at: 11,
         }
     }
 

@@ -350,8 +350,8 @@ pub enum EventKind {
         term: u64,
     },
     /// The leader of a replicated datamanager stopped being one — a newer term exists, or
-    /// it lost its majority — and restarts as a follower: its late answers and writes count
-    /// for nothing.
+    /// it lost its majority — and goes on as a follower (the same actor, withdrawn from the
+    /// datamanager's name): its late answers and writes count for nothing.
     DmFenced {
         /// The datamanager's name.
         dm: String,

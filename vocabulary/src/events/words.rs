@@ -530,7 +530,7 @@ fn datamanager(node: &str, kind: &EventKind) -> String {
             why,
         } => format!(
             "datamanager {dm}: the leader on {on} (term {term}) stepped down: {why}; it \
-             restarts as a follower"
+             goes on as a follower"
         ),
         EventKind::DmRetention {
             dm,

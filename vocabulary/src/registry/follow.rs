@@ -14,8 +14,10 @@ pub fn published(kind: ModuleKind, key: &str, gone: Option<ActorId>) -> Option<I
         .find(|i| Some(i.actor.get_id()) != gone && i.actor.get_status() <= ActorStatus::Running)
 }
 
-/// [`published`], or the first such instance the registry publishes within `within` (on the
-/// runtime's timer). `None` if none comes.
+/// [`published`], or the first instance the registry publishes as `key` within `within` (on
+/// the runtime's timer) — `gone` too, if it is published again meanwhile: a replicated
+/// datamanager's replica that stepped down and is elected leader again is the same actor,
+/// and its publication is news. `None` if none comes.
 pub async fn next_instance(
     kind: ModuleKind,
     key: &str,
@@ -32,7 +34,7 @@ pub async fn next_instance(
     tokio::time::timeout(within, async {
         while let Some(event) = watch.next().await {
             if let super::RegistryEvent::Joined(i) = event {
-                if i.answers_to(key) && Some(i.actor.get_id()) != gone {
+                if i.answers_to(key) {
                     return Some(i);
                 }
             }
