@@ -116,6 +116,42 @@ fn a_run_after_one_that_was_taken_over_is_not_fenced_off_by_its_term() {
 }
 
 #[test]
+fn a_run_refused_while_its_dispatch_node_is_frozen_is_tried_again_once_it_is_back() {
+    // the features node (the one the runs are dispatched on) frozen at 50 s of each run for
+    // 40 s of mission time (10 s of real time): spare's standby takes the run over and docks,
+    // run 1 ends while features is still frozen — its desk out of the registry — and run 2,
+    // refused at first ("--dispatch-on features: that node runs no dispatcher desk"), is
+    // tried again every second until features is back
+    let out = common::marie(&[
+        "up",
+        common::soak::CLUSTER,
+        "--run",
+        common::soak::MISSION,
+        "--runs",
+        "2",
+        "--speed",
+        "4",
+        "--fault",
+        "freeze-node:features@50+40",
+    ]);
+    let stdout = common::text(&out.stdout);
+    let shown = format!("{stdout}\n{}", common::text(&out.stderr));
+    assert!(
+        stdout.contains(
+            "run 2 of 2 could not start: --dispatch-on features: that node runs no dispatcher desk"
+        ),
+        "{shown}"
+    );
+    assert!(stdout.contains("trying again in 1 s"), "{shown}");
+    assert!(!stdout.contains("could not run"), "{shown}");
+    assert!(
+        stdout.contains("soak of docking: 2 runs, 2 succeeded, 0 failed"),
+        "{shown}"
+    );
+    assert_eq!(out.status.code(), Some(0), "{shown}");
+}
+
+#[test]
 fn fault_lines_parse() {
     let f = Fault::parse(
         "fault 7 (stop-node features, run 3 at 12.4 s): back 0.21 s after it struck, \

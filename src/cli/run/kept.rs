@@ -15,6 +15,11 @@ impl KeptReport {
         *self.0.lock().unwrap_or_else(|e| e.into_inner()) = Some(report.clone());
     }
 
+    /// Whether no report was left (the run's mission did not end, or it was taken).
+    pub(crate) fn is_empty(&self) -> bool {
+        self.0.lock().unwrap_or_else(|e| e.into_inner()).is_none()
+    }
+
     /// The report the run left, taken.
     pub(crate) fn take(&self) -> Option<RunReport> {
         self.0.lock().unwrap_or_else(|e| e.into_inner()).take()

@@ -123,7 +123,9 @@ pub(crate) struct UpArgs {
     /// records lost, epochs obeyed late, collisions, and each node's memory (VmRSS) at the
     /// start and the end. `--report`, `--events`, `--mcap`, `--svg` are written per run
     /// (`report.json` → `report-1.json`, `report-2.json`, …); a `--fault` strikes in every
-    /// run. Keeps going after a failed run; exit 0 when every run succeeded. Not with
+    /// run. Keeps going after a failed run (one refused before it started — its node to
+    /// dispatch on out at that moment — is tried again for up to 60 s); exit 0 when every
+    /// run succeeded. Not with
     /// `--monitor` (a run's page stays up until Ctrl-C).
     #[arg(long, value_name = "N", requires = "run", conflicts_with = "monitor",
           value_parser = clap::value_parser!(u32).range(1..))]

@@ -14,6 +14,7 @@ use super::mission::{node_chaos, run_mission, Turn};
 use super::plan::UpPlan;
 use super::supervisor::Restarted;
 use super::UpArgs;
+use crate::cli::error::BadInput;
 use crate::cli::run::KeptReport;
 use crate::cli::signal::Shutdown;
 use marie::cluster::fault::NodeProcesses;
@@ -67,7 +68,7 @@ pub(super) async fn soak(
             chaos: chaos.clone(),
             kept: KeptReport::default(),
         };
-        let ran = match run_mission(args, plan, mission, processes.clone(), &turn).await {
+        let ran = match start_run(args, plan, mission, &processes, &turn).await {
             Ok(code) => Ok(code == ExitCode::SUCCESS),
             // the first run refuses what every run would (bad input): as `--run` alone
             Err(e) if number == 1 => return Err(e),
@@ -106,6 +107,47 @@ pub(super) async fn soak(
         true => ExitCode::SUCCESS,
         false => ExitCode::from(1),
     })
+}
+
+/// How long a run refused before its mission ran (the node it is dispatched on frozen or cut
+/// off at that moment by the soak's last fault, its desk out of the registry) is tried again
+/// before it counts as failed.
+const START_WITHIN: Duration = Duration::from_secs(60);
+/// The pause between two tries.
+const START_RETRY: Duration = Duration::from_secs(1);
+
+/// Run `turn`; a run after the first refused before its mission ran (bad input now: a fault
+/// of the soak may have the node it is dispatched on out at that moment; the first run
+/// refuses what every run would) is tried again every [`START_RETRY`] for [`START_WITHIN`] —
+/// a refused run ran nothing, so nothing of it is hidden — unless a Ctrl-C came.
+async fn start_run(
+    args: &UpArgs,
+    plan: &UpPlan,
+    mission: &Path,
+    processes: &NodeProcesses,
+    turn: &Turn,
+) -> anyhow::Result<ExitCode> {
+    let until = std::time::Instant::now() + START_WITHIN;
+    loop {
+        match run_mission(args, plan, mission, processes.clone(), turn).await {
+            Err(e)
+                if turn.number > 1
+                    && e.downcast_ref::<BadInput>().is_some()
+                    && turn.kept.is_empty()
+                    && turn.stop.heard().is_none()
+                    && std::time::Instant::now() < until =>
+            {
+                println!(
+                    "run {} of {} could not start: {e:#}; trying again in {} s",
+                    turn.number,
+                    turn.of,
+                    START_RETRY.as_secs()
+                );
+                tokio::time::sleep(START_RETRY).await;
+            }
+            ended => return ended,
+        }
+    }
 }
 
 /// One run, as the summary counts it.
