@@ -7,9 +7,10 @@
 //! operations still running, its enders done, whether it is ending), every binding with
 //! its instance, epoch and the parameters sent last, and the dispatcher's *term*. It is
 //! stored as one record (class [`CHECKPOINT_CLASS`], sub-class the run's id) stamped with
-//! the term as its epoch, from the source [`CHECKPOINT_SOURCE`]: the datamanager's fence
-//! ([`marie_vocabulary::fence`]) then refuses every checkpoint of an older term once a newer one was
-//! stored. That refusal is how a dispatcher learns that a standby carries its run on (it
+//! the term as its epoch, from the source [`CHECKPOINT_SOURCE`]`/RUN-ID`: the datamanager's
+//! fence ([`marie_vocabulary::fence`]) then refuses every checkpoint of the run of an older
+//! term once a newer one was stored — of that run only: each run's terms count from 1, and
+//! a run after one that was taken over (term 2) is not fenced off by it. That refusal is how a dispatcher learns that a standby carries its run on (it
 //! was frozen, or cut off, and declared lost): it stops without ending the run.
 //!
 //! # Invariants
@@ -43,7 +44,8 @@ use tokio::sync::{mpsc, oneshot};
 
 /// The class of checkpoint records in the run datamanager.
 pub const CHECKPOINT_CLASS: &str = "checkpoint";
-/// The source checkpoints are stored under (the term is their epoch).
+/// The source checkpoints are stored under, followed by `/` and the run's id (the term is
+/// their epoch, fenced per run).
 pub const CHECKPOINT_SOURCE: &str = "dispatcher";
 /// How long a checkpoint write waits before it is tried again.
 const RETRY: Duration = Duration::from_millis(200);
@@ -214,7 +216,11 @@ impl Checkpointer {
     /// Start writing `args`' checkpoints for `dispatcher`.
     pub(super) fn start(args: CheckpointArgs, dispatcher: ActorRef<DispatcherMsg>) -> Checkpointer {
         let (jobs, mut rx) = mpsc::unbounded_channel::<Job>();
-        let dm = args.dm.with_epoch(args.term);
+        // fenced per run: a term counts within its run only
+        let dm = args
+            .dm
+            .with_source(&format!("{CHECKPOINT_SOURCE}/{}", args.run))
+            .with_epoch(args.term);
         let run = args.run.clone();
         let writer_dm = dm.clone();
         let task = tokio::spawn(async move {
