@@ -152,6 +152,53 @@ fn a_run_refused_while_its_dispatch_node_is_frozen_is_tried_again_once_it_is_bac
 }
 
 #[test]
+fn a_standby_woken_after_its_run_was_taken_back_commands_nothing_of_it() {
+    // in each of two runs: the features node (the active dispatcher's) killed at 6 s, spare's
+    // standby takes the run over (term 2); spare frozen at 30 s for 16 s of mission time (4 s
+    // of real time), features' desk takes the run back (term 4) and holds the cart's
+    // operations at its epochs. Woken, spare's dispatcher finds its instances gone (its
+    // sessions redialled), adopts them again above term 4's epochs, and learns only then that
+    // its checkpoints are refused. The soak's run failed so: "operation `ultrasonic` was
+    // suspended by another party" — the woken dispatcher ended an action on the cart's
+    // operations, at an epoch it raised and never stored (the order of its messages decides;
+    // actors/tests/fenced_dispatcher.rs makes it the failing one every time)
+    let out = common::marie(&[
+        "up",
+        common::soak::CLUSTER,
+        "--run",
+        common::soak::MISSION,
+        "--runs",
+        "2",
+        "--speed",
+        "4",
+        "--fault",
+        "stop-node:features@6",
+        "--fault",
+        "freeze-node:spare@30+16",
+    ]);
+    let stdout = common::text(&out.stdout);
+    let shown = format!("{stdout}\n{}", common::text(&out.stderr));
+    assert!(!stdout.contains("another party"), "{shown}");
+    assert_eq!(out.status.code(), Some(0), "{shown}");
+    for (from, to, term) in [("features", "spare", 2), ("spare", "features", 4)] {
+        let line = format!("# the run taken over by {to} from {from} at ");
+        assert_eq!(stdout.matches(&line).count(), 2, "{line}: {shown}");
+        assert!(
+            stdout.contains(&format!("(term {term}, claimed")),
+            "{shown}"
+        );
+    }
+    // woken, it was fenced off, in each run
+    let fenced = "# the dispatcher on spare (term 2) fenced off by term 4";
+    assert_eq!(stdout.matches(fenced).count(), 2, "{shown}");
+    assert!(
+        stdout.contains("soak of docking: 2 runs, 2 succeeded, 0 failed"),
+        "{shown}"
+    );
+    assert!(stdout.contains("): holds"), "{shown}");
+}
+
+#[test]
 fn fault_lines_parse() {
     let f = Fault::parse(
         "fault 7 (stop-node features, run 3 at 12.4 s): back 0.21 s after it struck, \

@@ -23,6 +23,12 @@
 //!   report, an action's end) are recorded as they happen, without waiting: their commands
 //!   carry epochs already in force, which the operations fence, and an operation whose
 //!   report a standby never saw is attached again (or resumed, if it ended).
+//! - A dispatcher one of whose checkpoints a newer term refused commands nothing more: it
+//!   is fenced off before it handles another message (the writer's refusal is read before
+//!   every message, not only when its `Fenced` comes through the mailbox) or, when it was
+//!   waiting for that checkpoint, at once. So an epoch it raised and could not store —
+//!   an adoption raises the epoch above the instance's, which may be its successor's —
+//!   never reaches an operation its successor holds.
 //! - A checkpoint that cannot be stored for want of the datamanager (its leader failing
 //!   over, a partition, a node of its replicas restarting) is retried until it is stored or
 //!   refused — for at most [`MAJORITY_WAIT`]: a run datamanager without a majority for that
@@ -39,6 +45,8 @@ use marie_vocabulary::property::ParamMap;
 use marie_vocabulary::run::Outcome;
 use ractor::ActorRef;
 use serde::{Deserialize, Serialize};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
 use std::time::Duration;
 use tokio::sync::{mpsc, oneshot};
 
@@ -201,6 +209,13 @@ pub(super) struct Checkpointer {
     /// The run datamanager, at the term's epoch.
     dm: DmClient,
     jobs: mpsc::UnboundedSender<Job>,
+    /// The newer term that refused a checkpoint (0: none yet), set by the writing task
+    /// the moment it is refused. Read by the dispatcher before every message it handles:
+    /// [`DispatcherMsg::Fenced`] queues behind what already waits in its mailbox, and a
+    /// dispatcher that handled those first would command a run its successor holds — with
+    /// epochs it raised above the successor's (an adoption reads the instance's epoch) and
+    /// could not store (the soak's `suspended by another party`).
+    superseded: Arc<AtomicU64>,
     /// The writing task, aborted with the dispatcher: a write it retries for a dispatcher
     /// that stopped must not land later.
     task: tokio::task::JoinHandle<()>,
@@ -216,6 +231,8 @@ impl Checkpointer {
     /// Start writing `args`' checkpoints for `dispatcher`.
     pub(super) fn start(args: CheckpointArgs, dispatcher: ActorRef<DispatcherMsg>) -> Checkpointer {
         let (jobs, mut rx) = mpsc::unbounded_channel::<Job>();
+        let superseded = Arc::new(AtomicU64::new(0));
+        let refused = superseded.clone();
         // fenced per run: a term counts within its run only
         let dm = args
             .dm
@@ -240,6 +257,7 @@ impl Checkpointer {
                         }
                     }
                     Err(Unstored::Superseded(superseded)) => {
+                        refused.store(superseded.newer.max(1), Ordering::SeqCst);
                         let _ = dispatcher.cast(DispatcherMsg::Fenced {
                             newer: superseded.newer,
                         });
@@ -261,7 +279,17 @@ impl Checkpointer {
             seq: 0,
             dm,
             jobs,
+            superseded,
             task,
+        }
+    }
+
+    /// The newer term that refused one of this writer's checkpoints, if one did: the
+    /// dispatcher is fenced off from then on, whatever its mailbox still holds.
+    pub(super) fn superseded(&self) -> Option<Superseded> {
+        match self.superseded.load(Ordering::SeqCst) {
+            0 => None,
+            newer => Some(Superseded { newer }),
         }
     }
 
@@ -280,9 +308,10 @@ impl Checkpointer {
         if let Err(mpsc::error::SendError(job)) = self.jobs.send(job) {
             // the writer stopped after a refusal: so is this one
             if let Some(done) = job.done {
-                let _ = done.send(Err(Superseded {
+                let refused = self.superseded().unwrap_or(Superseded {
                     newer: self.term + 1,
-                }));
+                });
+                let _ = done.send(Err(refused));
             }
         }
         rx
