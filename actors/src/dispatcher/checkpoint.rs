@@ -55,6 +55,13 @@ pub const CHECKPOINT_CLASS: &str = "checkpoint";
 /// The source checkpoints are stored under, followed by `/` and the run's id (the term is
 /// their epoch, fenced per run).
 pub const CHECKPOINT_SOURCE: &str = "dispatcher";
+/// How many checkpoints the run datamanager keeps (of all runs together, the newest), unless
+/// its declaration bounds the class otherwise: a standby reads only the newest, and a run's
+/// check counts an older one gone as dropped by retention, not lost. Unbounded but for the
+/// datamanagers' default (10 000 records a class, some 4 KiB each), every replica of a kept-up
+/// cluster's run datamanager held every run's checkpoints — tens of MB after a soak of a few
+/// hundred runs. A docking run writes some 35.
+pub const CHECKPOINTS_KEPT: usize = 512;
 /// How long a checkpoint write waits before it is tried again.
 const RETRY: Duration = Duration::from_millis(200);
 /// How long the end of a run that ended for want of a majority is still tried, once its

@@ -24,6 +24,11 @@ pub enum ReplicaMsg {
         ops: Ops,
         /// The leader's commit seq.
         commit: u64,
+        /// The seq up to which every replica holds the log durably, as the leader knows it
+        /// (0: not known, as from a leader of an older build): a replica keeps no applied
+        /// entry up to it in memory — no replica can need it from there.
+        #[serde(default)]
+        held: u64,
     },
     /// A replica's answer to an `Append` or to an installed snapshot.
     AppendAck {
@@ -418,6 +423,7 @@ mod tests {
             prev_term: 1,
             ops,
             commit: 5,
+            held: 4,
         }
     }
 
