@@ -314,6 +314,9 @@ impl DispatcherState {
         name: &str,
         mut cands: Vec<Prospect>,
     ) -> bool {
+        if self.ended {
+            return false; // over, or fenced off by an earlier refusal
+        }
         let here = registry::local_node_name();
         let Some(b) = self.bindings.get_mut(name) else {
             return false;
@@ -354,8 +357,9 @@ impl DispatcherState {
         let (client, epoch, params, incarnation) =
             (b.client.clone(), b.epoch, b.params.clone(), b.incarnation);
         // the raised epoch is recorded before any command carries it: a dispatcher that a
-        // standby replaced is refused here and never outbids its successor
-        if self.checkpoint_now().await.is_err() {
+        // standby replaced is refused here, fenced off at once, and never outbids its
+        // successor (the epoch raised above the instance's may be above the successor's)
+        if self.checkpoint_now(myself).await.is_err() {
             return false;
         }
         self.announce(Some(name)).await;
