@@ -164,7 +164,10 @@ fn a_datamanager_error_becomes_an_op_error_naming_the_datamanager_where_known() 
         missing.to_string(),
         "datamanager nowhere: no datamanager \"nowhere\" is registered"
     );
-    assert!(matches!(missing, OpError::Unreachable { .. }), "{missing:?}");
+    assert!(
+        matches!(missing, OpError::Unreachable { .. }),
+        "{missing:?}"
+    );
     let refused: OpError = DmError::InvalidRecord("empty class".into()).into();
     assert_eq!(refused.datamanager(), Some("?"));
     let decode: OpError = DmError::Decode("bad".into()).into();
