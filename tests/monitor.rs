@@ -187,7 +187,12 @@ fn a_monitor_joined_to_a_cluster_shows_its_nodes_asks_their_operations_and_kills
 
 #[test]
 fn up_with_a_monitor_shows_every_node_and_what_it_hosts_and_stops_one_from_the_page() {
-    let (mut up, line) = monitored_up(THESIS, &["--allow-faults"]);
+    // spare stays down once stopped: `up` would start it again (restart = "permanent", the
+    // default), and a second stop from the page would find the new process — this test
+    // is about stopping one
+    let dir = tempfile::tempdir().unwrap();
+    let cluster = common::layouts::thesis_with_temporary(dir.path(), "spare");
+    let (mut up, line) = monitored_up(cluster.to_str().unwrap(), &["--allow-faults"]);
     let (addr, _) = page_of(&line);
     let info = http::get_json(addr, "/api/info");
     assert_eq!(
@@ -373,18 +378,7 @@ fn the_page_says_no_majority_while_a_datamanager_lacks_one_and_a_node_back_once_
     // node's answers — no majority, said with the nodes it misses — until operations wakes:
     // a leader again, and operations back
     let dir = tempfile::tempdir().unwrap();
-    let cluster = common::layouts::thesis_with(dir.path(), "");
-    let layout = std::fs::read_to_string(&cluster).unwrap();
-    let spare = layout
-        .lines()
-        .find(|l| l.ends_with("thesis/spare.toml\""))
-        .unwrap()
-        .to_string();
-    std::fs::write(
-        &cluster,
-        layout.replace(&spare, &format!("{spare}\nrestart = \"temporary\"")),
-    )
-    .unwrap();
+    let cluster = common::layouts::thesis_with_temporary(dir.path(), "spare");
     let (mut up, line) = monitored_up(cluster.to_str().unwrap(), &["--allow-faults"]);
     let (addr, _) = page_of(&line);
     state_until(addr, "the feature datamanager's leader", |s| {

@@ -87,3 +87,18 @@ pub(crate) fn thesis_with(dir: &Path, keys: &str) -> PathBuf {
     std::fs::write(&file, layout).unwrap();
     file
 }
+
+/// The thesis layout written into `dir` with node `node` kept down once stopped
+/// (`restart = "temporary"` on its `[[node]]`; the others restarted as ever); its path.
+pub(crate) fn thesis_with_temporary(dir: &Path, node: &str) -> PathBuf {
+    let cluster = thesis_with(dir, "");
+    let layout = std::fs::read_to_string(&cluster).unwrap();
+    let line = layout
+        .lines()
+        .find(|l| l.ends_with(&format!("thesis/{node}.toml\"")))
+        .unwrap_or_else(|| panic!("no node {node} in the thesis layout"))
+        .to_string();
+    let layout = layout.replace(&line, &format!("{line}\nrestart = \"temporary\""));
+    std::fs::write(&cluster, layout).unwrap();
+    cluster
+}
