@@ -85,21 +85,8 @@ fn a_run_after_one_that_was_taken_over_is_not_fenced_off_by_its_term() {
     // checkpoints were refused for the last run's term 2 (the fence was the dispatchers',
     // not the run's), and the run failed at once: "the dispatcher on `features` was fenced
     // off and no standby took the run over within 20 s"
-    let out = common::marie(&[
-        "up",
-        common::soak::CLUSTER,
-        "--run",
-        common::soak::MISSION,
-        "--runs",
-        "2",
-        "--speed",
-        "4",
-        "--fault",
-        "stop-node:features@20",
-    ]);
-    let stdout = common::text(&out.stdout);
-    let shown = format!("{stdout}\n{}", common::text(&out.stderr));
-    assert_eq!(out.status.code(), Some(0), "{shown}");
+    let (code, stdout, shown) = two_runs(&["stop-node:features@20"]);
+    assert_eq!(code, Some(0), "{shown}");
     assert_eq!(
         stdout
             .matches("# the run taken over by spare from features")
@@ -122,20 +109,7 @@ fn a_run_refused_while_its_dispatch_node_is_frozen_is_tried_again_once_it_is_bac
     // run 1 ends while features is still frozen — its desk out of the registry — and run 2,
     // refused at first ("--dispatch-on features: that node runs no dispatcher desk"), is
     // tried again every second until features is back
-    let out = common::marie(&[
-        "up",
-        common::soak::CLUSTER,
-        "--run",
-        common::soak::MISSION,
-        "--runs",
-        "2",
-        "--speed",
-        "4",
-        "--fault",
-        "freeze-node:features@50+40",
-    ]);
-    let stdout = common::text(&out.stdout);
-    let shown = format!("{stdout}\n{}", common::text(&out.stderr));
+    let (code, stdout, shown) = two_runs(&["freeze-node:features@50+40"]);
     assert!(
         stdout.contains(
             "run 2 of 2 could not start: --dispatch-on features: that node runs no dispatcher desk"
@@ -148,7 +122,7 @@ fn a_run_refused_while_its_dispatch_node_is_frozen_is_tried_again_once_it_is_bac
         stdout.contains("soak of docking: 2 runs, 2 succeeded, 0 failed"),
         "{shown}"
     );
-    assert_eq!(out.status.code(), Some(0), "{shown}");
+    assert_eq!(code, Some(0), "{shown}");
 }
 
 #[test]
@@ -162,24 +136,9 @@ fn a_standby_woken_after_its_run_was_taken_back_commands_nothing_of_it() {
     // suspended by another party" — the woken dispatcher ended an action on the cart's
     // operations, at an epoch it raised and never stored (the order of its messages decides;
     // actors/tests/fenced_dispatcher.rs makes it the failing one every time)
-    let out = common::marie(&[
-        "up",
-        common::soak::CLUSTER,
-        "--run",
-        common::soak::MISSION,
-        "--runs",
-        "2",
-        "--speed",
-        "4",
-        "--fault",
-        "stop-node:features@6",
-        "--fault",
-        "freeze-node:spare@30+16",
-    ]);
-    let stdout = common::text(&out.stdout);
-    let shown = format!("{stdout}\n{}", common::text(&out.stderr));
+    let (code, stdout, shown) = two_runs(&["stop-node:features@6", "freeze-node:spare@30+16"]);
     assert!(!stdout.contains("another party"), "{shown}");
-    assert_eq!(out.status.code(), Some(0), "{shown}");
+    assert_eq!(code, Some(0), "{shown}");
     for (from, to, term) in [("features", "spare", 2), ("spare", "features", 4)] {
         let line = format!("# the run taken over by {to} from {from} at ");
         assert_eq!(stdout.matches(&line).count(), 2, "{line}: {shown}");
@@ -234,4 +193,26 @@ fn fault_lines_parse() {
         Fault::parse("* injected stop-node into features (pid 1) at 14.0s"),
         None
     );
+}
+
+/// `marie up` running the mission twice at speed 4 with `faults` (`--fault` each): its exit
+/// code, its stdout, and stdout and stderr together (what a failed assertion shows).
+fn two_runs(faults: &[&str]) -> (Option<i32>, String, String) {
+    let mut args = vec![
+        "up",
+        common::soak::CLUSTER,
+        "--run",
+        common::soak::MISSION,
+        "--runs",
+        "2",
+        "--speed",
+        "4",
+    ];
+    for fault in faults {
+        args.extend(["--fault", fault]);
+    }
+    let out = common::marie(&args);
+    let stdout = common::text(&out.stdout);
+    let shown = format!("{stdout}\n{}", common::text(&out.stderr));
+    (out.status.code(), stdout, shown)
 }
