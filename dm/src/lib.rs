@@ -135,8 +135,8 @@ pub use page::{Page, PAGE_BYTES};
 pub use query::{Query, Take};
 pub use record::{NewRecord, Payload, Record, RecordHeader, MAX_NAME_LEN};
 pub use replica::{
-    Replication, ReplicationError, Timing as ReplicationTiming, SCOPE as REPLICA_SCOPE,
-    UNCHECKED_READS_ENV,
+    Change, ChangeError, Members, Replication, ReplicationError, Timing as ReplicationTiming,
+    MIN_VOTERS, SCOPE as REPLICA_SCOPE, UNCHECKED_READS_ENV,
 };
 pub use shared::PayloadType;
 pub use state::DatamanagerState;

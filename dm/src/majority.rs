@@ -155,6 +155,7 @@ mod tests {
             snapshots_taken: 0,
             members: ["a", "b", "c"].map(String::from).to_vec(),
             reachable: reachable.iter().map(|s| s.to_string()).collect(),
+            ..ReplicaStats::default()
         }
     }
 

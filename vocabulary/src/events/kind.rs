@@ -443,6 +443,39 @@ pub enum EventKind {
         /// crash in the middle of a change).
         refused: u64,
     },
+    /// A replica of a replicated datamanager was added on `node` while it ran, as a
+    /// learner: it takes in the log (or a snapshot) and counts for no commit or election
+    /// until the leader promotes it (`dm_replica_promoted`). Told by the leader once the
+    /// change is committed.
+    DmReplicaAdded {
+        /// The datamanager's name.
+        dm: String,
+        /// The node of the replica added.
+        node: String,
+        /// The voters now.
+        voters: Vec<String>,
+    },
+    /// A learner of a replicated datamanager caught up and was promoted: it votes and counts
+    /// for a commit from now on. Told by the leader once the change is committed.
+    DmReplicaPromoted {
+        /// The datamanager's name.
+        dm: String,
+        /// The node of the replica promoted.
+        node: String,
+        /// The voters now, it among them.
+        voters: Vec<String>,
+    },
+    /// A replica of a replicated datamanager was removed while it ran: it counts for nothing
+    /// and is sent nothing any more. Told by the leader once the change is committed (a
+    /// leader that removed itself tells it before it steps down).
+    DmReplicaRemoved {
+        /// The datamanager's name.
+        dm: String,
+        /// The node of the replica removed.
+        node: String,
+        /// The voters now.
+        voters: Vec<String>,
+    },
     /// The check of a datamanager at the end of a run: of the records acknowledged during
     /// it, how many its leader still holds and how many are lost.
     DmChecked(DmCheck),
@@ -539,6 +572,9 @@ impl EventKind {
             | EventKind::DmDeleted { .. }
             | EventKind::DmApplied { .. }
             | EventKind::DmInherited { .. }
+            | EventKind::DmReplicaAdded { .. }
+            | EventKind::DmReplicaPromoted { .. }
+            | EventKind::DmReplicaRemoved { .. }
             | EventKind::DmChecked(_) => Family::Datamanager,
             EventKind::Robot { .. } => Family::Robot,
         }

@@ -585,6 +585,31 @@ fn datamanager(node: &str, kind: &EventKind) -> String {
                 classes.join(", ")
             ))
         }
+        EventKind::DmReplicaAdded {
+            dm,
+            node: on,
+            voters,
+        } => format!(
+            "datamanager {dm}: a replica on {on} was added as a learner; it catches up before \
+             it votes (voters: {})",
+            voters.join(", ")
+        ),
+        EventKind::DmReplicaPromoted {
+            dm,
+            node: on,
+            voters,
+        } => format!(
+            "datamanager {dm}: the replica on {on} caught up and votes now (voters: {})",
+            voters.join(", ")
+        ),
+        EventKind::DmReplicaRemoved {
+            dm,
+            node: on,
+            voters,
+        } => format!(
+            "datamanager {dm}: the replica on {on} was removed (voters: {})",
+            voters.join(", ")
+        ),
         EventKind::DmInherited {
             dm,
             records,
@@ -701,7 +726,10 @@ pub fn mark(kind: &EventKind) -> Mark {
         | EventKind::DmAcked { .. }
         | EventKind::DmDeleted { .. }
         | EventKind::DmApplied { .. }
-        | EventKind::DmInherited { .. } => '%',
+        | EventKind::DmInherited { .. }
+        | EventKind::DmReplicaAdded { .. }
+        | EventKind::DmReplicaPromoted { .. }
+        | EventKind::DmReplicaRemoved { .. } => '%',
         EventKind::Robot { .. } => '.',
     }
 }
@@ -740,6 +768,7 @@ pub fn gravity(kind: &EventKind) -> Gravity {
         | EventKind::NodeRefused { .. }
         | EventKind::ConnectionRefused { .. }
         | EventKind::DmFenced { .. }
+        | EventKind::DmReplicaRemoved { .. }
         | EventKind::DmRetention { .. } => Gravity::Warning,
         EventKind::DmRecovered { torn: Some(_), .. } => Gravity::Warning,
         EventKind::ChildExited { reason, .. } if reason != "normal" => Gravity::Warning,
