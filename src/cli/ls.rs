@@ -102,10 +102,14 @@ async fn print_listing(list: &[Instance], json: bool) -> anyhow::Result<()> {
             let replicas = match &s.replica {
                 None => String::new(),
                 Some(r) => {
+                    // a learner (added while it runs) is said: it does not vote yet
                     let lags: Vec<String> = r
                         .lag
                         .iter()
-                        .map(|(node, lag)| format!("{node} (lag {lag})"))
+                        .map(|(node, lag)| match r.learners.contains(node) {
+                            true => format!("{node} (lag {lag}, learning)"),
+                            false => format!("{node} (lag {lag})"),
+                        })
                         .collect();
                     format!(
                         "; {}, term {}, replicas on {}",
