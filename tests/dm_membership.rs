@@ -267,3 +267,93 @@ fn a_datamanager_grows_from_three_replicas_to_five_and_back_while_producers_put_
     }
     drop(nodes);
 }
+
+/// `  n1 at 127.0.0.1:4242 (pid 77): ...` → (name, address, pid).
+fn node_line(line: &str) -> Option<(String, String, u32)> {
+    let (name, rest) = line.trim().split_once(" at ")?;
+    let (addr, rest) = rest.split_once(" (pid ")?;
+    let pid = rest.split_once(')')?.0.parse().ok()?;
+    Some((name.to_string(), addr.to_string(), pid))
+}
+
+/// A node of `replace_after = 2` killed for good (restart = "temporary") is replaced: its
+/// datamanager's leader adds a replica on the live node that keeps none, waits for its
+/// promotion, removes the gone one and says so (`dm_replica_replaced`, on `marie up`'s
+/// output) — back to three voters, and stores acknowledged before, during and after are
+/// all there.
+#[test]
+fn a_node_gone_longer_than_replace_after_has_its_replica_replaced_on_a_live_node() {
+    let _one = ONE_MEMBER.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = tempfile::tempdir().unwrap();
+    for n in ["n1", "n2", "n3", "n4"] {
+        std::fs::write(
+            dir.path().join(format!("{n}.toml")),
+            format!("[node]\nname = \"{n}\"\n"),
+        )
+        .unwrap();
+    }
+    let file = dir.path().join("cluster.toml");
+    std::fs::write(
+        &file,
+        "[cluster]\ncookie = \"replace\"\n\
+         [[node]]\nconfig = \"n1.toml\"\n[[node]]\nconfig = \"n2.toml\"\n\
+         [[node]]\nconfig = \"n3.toml\"\nrestart = \"temporary\"\n[[node]]\nconfig = \"n4.toml\"\n\
+         [[datamanager]]\nname = \"feature\"\nreplicas = [\"n1\", \"n2\", \"n3\"]\nreplace_after = 2\n",
+    )
+    .unwrap();
+    let mut up = common::cluster::Proc::spawn("marie up", &["up", file.to_str().unwrap()]);
+    up.wait_line("Ctrl-C stops the cluster");
+    let nodes: Vec<(String, String, u32)> = up.seen().iter().filter_map(|l| node_line(l)).collect();
+    assert_eq!(nodes.len(), 4, "{:?}", up.seen());
+    let rt = runtime();
+    rt.block_on(async {
+        let mut me = ClusterConfig::new("127.0.0.1:0".parse().unwrap(), "replace");
+        me = me.with_peer(nodes[0].1.parse().unwrap());
+        let transport = Transport::start("producer", &me).await.unwrap();
+        transport.wait_for_peers(4, T).await.unwrap();
+        let client = DmClient::lookup_within("feature", "producer", T)
+            .await
+            .unwrap()
+            .with_follow(T);
+        settled(&client, &["n1", "n2", "n3"]).await;
+        let stop = Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let acked = Arc::new(Mutex::new(BTreeMap::new()));
+        let producer = tokio::spawn(produce(client.clone(), 0, stop.clone(), acked.clone()));
+        let acked_now = || acked.lock().unwrap().len();
+        while acked_now() < 100 {
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+        let (_, _, pid) = &nodes[2];
+        common::cluster::signal_pid(*pid, "KILL");
+        let waited = tokio::task::spawn_blocking(move || {
+            up.wait_line("node n3 was killed (SIGKILL): it stays down (restart = \"temporary\")");
+            let replaced = up.wait_line("n3 had been gone");
+            (up, replaced)
+        });
+        let (up, replaced) = waited.await.unwrap();
+        eprintln!("{replaced}");
+        assert!(
+            replaced.contains("datamanager feature: n3 had been gone")
+                && replaced.contains("its replica was replaced by one on n4, caught up and voting (voters: n1, n2, n4)"),
+            "{replaced}"
+        );
+        settled(&client, &["n1", "n2", "n4"]).await;
+        let after = acked_now();
+        while acked_now() < after + 100 {
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+        stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        producer.await.unwrap();
+        let acked = acked.lock().unwrap().clone();
+        let records = client.select(Query::class("echo")).await.unwrap();
+        let stored: BTreeMap<u64, (u64, u64)> =
+            records.iter().map(|r| (r.seq, r.decode().unwrap())).collect();
+        let lost = acked.iter().filter(|(s, v)| stored.get(s) != Some(v)).count();
+        eprintln!("{} acknowledged, {} stored, {lost} lost", acked.len(), stored.len());
+        assert_eq!(lost, 0);
+        transport.stop().await;
+        let mut up = up;
+        up.signal("INT");
+        up.wait_line("cluster stopped");
+    });
+}

@@ -12,7 +12,9 @@ use marie_vocabulary::clock::SharedClock;
 use marie_vocabulary::events::EventBus;
 use ractor::rpc::CallResult;
 use ractor::{Actor, ActorProcessingErr, ActorRef};
+use std::collections::BTreeMap;
 use std::time::Duration;
+use tokio::task::JoinHandle;
 
 /// Child id of the replica host under the node's root supervisor.
 pub(crate) const REPLICA_HOST: &str = "replica-host";
@@ -192,26 +194,81 @@ async fn running(sup: &SupervisorRef, id: &str) -> bool {
 /// The replica host actor, published under its node's name in [`replicas::SCOPE`].
 pub(crate) struct ReplicaHost;
 
+/// The host's state: what it needs, and the replacement watch of each datamanager it keeps
+/// a replica of with `replace_after` ([`replicas::replace`]).
+pub(crate) struct Hosting {
+    host: Host,
+    watches: BTreeMap<String, JoinHandle<()>>,
+}
+
+impl Hosting {
+    /// Watch the replicas of every datamanager of the node's config with `replace_after`
+    /// that is not watched yet; stop watching those no longer there.
+    fn watch(&mut self) {
+        let config = &self.host.config;
+        self.watches.retain(|name, task| {
+            let kept = config.datamanagers.iter().any(|d| &d.name == name);
+            if !kept {
+                task.abort();
+            }
+            kept
+        });
+        for dm in &config.datamanagers {
+            let Some(after) = dm.replace_after.filter(|_| !dm.replicas.is_empty()) else {
+                continue;
+            };
+            if self.watches.contains_key(&dm.name) {
+                continue;
+            }
+            let task = tokio::spawn(replicas::replace::watch(
+                dm.name.clone(),
+                config.name.clone(),
+                after,
+                dm.spares.clone(),
+                self.host.events.clone(),
+            ));
+            self.watches.insert(dm.name.clone(), task);
+        }
+    }
+}
+
 impl Actor for ReplicaHost {
     type Msg = HostMsg;
-    type State = Host;
+    type State = Hosting;
     type Arguments = Host;
 
     async fn pre_start(
         &self,
         myself: ActorRef<HostMsg>,
         host: Host,
-    ) -> Result<Host, ActorProcessingErr> {
+    ) -> Result<Hosting, ActorProcessingErr> {
         replicas::publish(myself.get_cell(), &host.config.name);
-        Ok(host)
+        let mut hosting = Hosting {
+            host,
+            watches: BTreeMap::new(),
+        };
+        hosting.watch();
+        Ok(hosting)
+    }
+
+    async fn post_stop(
+        &self,
+        _myself: ActorRef<HostMsg>,
+        hosting: &mut Hosting,
+    ) -> Result<(), ActorProcessingErr> {
+        for task in hosting.watches.values() {
+            task.abort();
+        }
+        Ok(())
     }
 
     async fn handle(
         &self,
         _myself: ActorRef<HostMsg>,
         msg: HostMsg,
-        host: &mut Host,
+        hosting: &mut Hosting,
     ) -> Result<(), ActorProcessingErr> {
+        let host = &mut hosting.host;
         match msg {
             HostMsg::Start {
                 declaration,
@@ -228,6 +285,7 @@ impl Actor for ReplicaHost {
                 let _ = reply.send(declared.map(Declaration::of));
             }
         }
+        hosting.watch();
         Ok(())
     }
 }

@@ -32,6 +32,12 @@ pub struct Declaration {
     /// Bounds of particular classes.
     #[serde(default)]
     pub class_retention: BTreeMap<String, usize>,
+    /// How long a replica's node may be gone before the leader replaces it (`None`: never).
+    #[serde(default)]
+    pub replace_after: Option<Duration>,
+    /// The nodes that may take a gone replica's place (empty: any).
+    #[serde(default)]
+    pub spares: Vec<String>,
 }
 
 impl Declaration {
@@ -44,6 +50,8 @@ impl Declaration {
             catch_up: dm.catch_up,
             retention: dm.retention,
             class_retention: dm.class_retention.clone(),
+            replace_after: dm.replace_after,
+            spares: dm.spares.clone(),
         }
     }
 
@@ -57,6 +65,8 @@ impl Declaration {
             retention: self.retention,
             class_retention: self.class_retention.clone(),
             joined: true,
+            replace_after: self.replace_after,
+            spares: self.spares.clone(),
             ..DatamanagerConfig::new(self.name.clone(), self.id)
         }
     }

@@ -21,6 +21,7 @@
 mod change;
 mod host;
 pub mod joined;
+pub mod replace;
 
 pub use change::{add, remove, ChangeFailure, Step, CHANGE_WITHIN};
 pub use host::{host_of, hosts, publish, Declaration, HostMsg, HostRefusal, SCOPE};

@@ -87,6 +87,7 @@ pub fn class(kind: &EventKind, drawn: bool) -> Option<&'static str> {
         | EventKind::DmReplicaAdded { .. }
         | EventKind::DmReplicaPromoted { .. }
         | EventKind::DmReplicaRemoved { .. }
+        | EventKind::DmReplicaReplaced { .. }
         | EventKind::DmChecked(_) => "datamanager",
         EventKind::Robot { what, .. }
             if !drawn || matches!(what.as_str(), "dock-found" | "collision") =>

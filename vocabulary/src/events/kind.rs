@@ -476,6 +476,22 @@ pub enum EventKind {
         /// The voters now.
         voters: Vec<String>,
     },
+    /// A replica of a replicated datamanager whose node had been gone longer than the
+    /// cluster file's `replace_after` was replaced: a replica added on node `by`, caught up
+    /// and promoted, then the gone one removed — the datamanager back to as many voters as
+    /// before. Told by the node of the leader that did it.
+    DmReplicaReplaced {
+        /// The datamanager's name.
+        dm: String,
+        /// The node that was gone.
+        gone: String,
+        /// The node of the replica that took its place.
+        by: String,
+        /// How long the node had been gone when the replacement began, in seconds.
+        after_secs: f64,
+        /// The voters now.
+        voters: Vec<String>,
+    },
     /// The check of a datamanager at the end of a run: of the records acknowledged during
     /// it, how many its leader still holds and how many are lost.
     DmChecked(DmCheck),
@@ -575,6 +591,7 @@ impl EventKind {
             | EventKind::DmReplicaAdded { .. }
             | EventKind::DmReplicaPromoted { .. }
             | EventKind::DmReplicaRemoved { .. }
+            | EventKind::DmReplicaReplaced { .. }
             | EventKind::DmChecked(_) => Family::Datamanager,
             EventKind::Robot { .. } => Family::Robot,
         }

@@ -610,6 +610,17 @@ fn datamanager(node: &str, kind: &EventKind) -> String {
             "datamanager {dm}: the replica on {on} was removed (voters: {})",
             voters.join(", ")
         ),
+        EventKind::DmReplicaReplaced {
+            dm,
+            gone,
+            by,
+            after_secs,
+            voters,
+        } => format!(
+            "datamanager {dm}: {gone} had been gone {after_secs:.1} s, its replica was replaced \
+             by one on {by}, caught up and voting (voters: {})",
+            voters.join(", ")
+        ),
         EventKind::DmInherited {
             dm,
             records,
@@ -729,7 +740,8 @@ pub fn mark(kind: &EventKind) -> Mark {
         | EventKind::DmInherited { .. }
         | EventKind::DmReplicaAdded { .. }
         | EventKind::DmReplicaPromoted { .. }
-        | EventKind::DmReplicaRemoved { .. } => '%',
+        | EventKind::DmReplicaRemoved { .. }
+        | EventKind::DmReplicaReplaced { .. } => '%',
         EventKind::Robot { .. } => '.',
     }
 }
@@ -769,6 +781,7 @@ pub fn gravity(kind: &EventKind) -> Gravity {
         | EventKind::ConnectionRefused { .. }
         | EventKind::DmFenced { .. }
         | EventKind::DmReplicaRemoved { .. }
+        | EventKind::DmReplicaReplaced { .. }
         | EventKind::DmRetention { .. } => Gravity::Warning,
         EventKind::DmRecovered { torn: Some(_), .. } => Gravity::Warning,
         EventKind::ChildExited { reason, .. } if reason != "normal" => Gravity::Warning,

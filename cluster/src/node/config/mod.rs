@@ -166,6 +166,15 @@ pub struct DatamanagerConfig {
     /// the voters it first asks (its journal's configuration, once it has one, is what it
     /// follows). See [`crate::replicas`].
     pub joined: bool,
+    /// With replicas: how long a replica's node may be gone before the leader replaces
+    /// it — adds a replica on a [spare](Self::spares), waits for its promotion, removes the
+    /// gone one (`None`: never; `marie dm add-replica`/`remove-replica` do it by hand). In a
+    /// file, `replace_after = 30` (seconds).
+    pub replace_after: Option<std::time::Duration>,
+    /// The nodes that may take a gone replica's place, in the order tried (empty: any live
+    /// node that hosts replicas and keeps none of this datamanager). In a file,
+    /// `spares = ["spare1", "spare2"]`.
+    pub spares: Vec<String>,
 }
 
 impl DatamanagerConfig {
@@ -180,6 +189,8 @@ impl DatamanagerConfig {
             retention: None,
             class_retention: Default::default(),
             joined: false,
+            replace_after: None,
+            spares: Vec::new(),
         }
     }
 
