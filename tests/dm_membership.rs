@@ -265,6 +265,22 @@ fn a_datamanager_grows_from_three_replicas_to_five_and_back_while_producers_put_
         );
         std::thread::sleep(Duration::from_millis(500));
     }
+    // r1, removed, started again on a wiped data directory: its config declares it a
+    // replica, so it runs one — which `ls` says is none of the replicas
+    drop(nodes.remove(0));
+    std::fs::remove_dir_all(dir.path().join("r1")).unwrap();
+    let peers: Vec<_> = nodes.iter().map(|n| n.addr).collect();
+    let _r1 = NodeProc::start(dir.path(), "r1", &hosts(dir.path(), "r1"), &peers, COOKIE);
+    let start = Instant::now();
+    loop {
+        let out = common::marie(&["ls", "--join", &addr, "--cookie", COOKIE]);
+        let listing = common::text(&out.stdout);
+        if listing.contains("DM feature: the replica on r1 is none of its replicas (removed while its node was away, or started again on a wiped data directory)") {
+            break;
+        }
+        assert!(start.elapsed() < T, "r1 not said: {listing}");
+        std::thread::sleep(Duration::from_millis(500));
+    }
     drop(nodes);
 }
 

@@ -128,7 +128,9 @@ pub use journal::{
     journal_dir, DirLock, Durability, LockError, Recovery, UnknownDurability, SNAPSHOT_MIN,
 };
 pub use kind::RecordKind;
-pub use majority::{leaderless, without_leader, NoMajority, MAJORITY_WAIT, VIEW_TIMEOUT};
+pub use majority::{
+    leaderless, replica_nodes, without_leader, NoMajority, MAJORITY_WAIT, VIEW_TIMEOUT,
+};
 pub use messages::{DmMsg, DmStats, ReplicaStats, StoreDigest};
 pub use name::Name;
 pub use page::{Page, PAGE_BYTES};
