@@ -154,6 +154,27 @@ fn a_datamanager_grows_from_three_replicas_to_five_and_back_while_producers_put_
         let (code, _, err) = dm_verb("add-replica", "nowhere", addr.clone()).await;
         assert_eq!(code, Some(2), "an unknown node: {err}");
         assert!(err.contains("no node `nowhere` hosts replicas"), "{err}");
+        let a = addr.clone();
+        let out = tokio::task::spawn_blocking(move || {
+            common::marie(&[
+                "dm",
+                "add-replica",
+                "nothing",
+                "r4",
+                "--join",
+                &a,
+                "--cookie",
+                COOKIE,
+            ])
+        })
+        .await
+        .unwrap();
+        let err = common::text(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "an unknown datamanager: {err}");
+        assert!(
+            err.contains("no datamanager `nothing` in the cluster"),
+            "{err}"
+        );
         let (code, _, err) = dm_verb("remove-replica", "r1", addr.clone()).await;
         assert_eq!(code, Some(1), "below three voters: {err}");
         assert!(err.contains("would leave 2 voting replicas"), "{err}");
@@ -372,4 +393,18 @@ fn a_node_gone_longer_than_replace_after_has_its_replica_replaced_on_a_live_node
         up.signal("INT");
         up.wait_line("cluster stopped");
     });
+}
+
+/// Without `--join` the verb has no cluster to act on: bad input, said at once.
+#[test]
+fn a_change_of_replicas_without_a_cluster_to_join_is_bad_input() {
+    let out = common::marie(&["dm", "add-replica", "feature", "r4"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        common::text(&out.stderr).contains(
+            "marie dm add-replica acts on a running cluster: give --join ADDR --cookie C"
+        ),
+        "{}",
+        common::text(&out.stderr)
+    );
 }
