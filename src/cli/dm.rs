@@ -19,14 +19,17 @@ pub(crate) struct DmArgs {
 /// The `marie dm` verbs.
 #[derive(clap::Subcommand, Debug)]
 pub(crate) enum DmCommand {
-    /// Start a replica of datamanager DM on node NODE and add it to the replicas: it
-    /// catches up as a learner (its lag told as it falls), then the leader promotes it to a
-    /// voter. Exit 0 once it votes, 1 when the cluster could not do it (no leader, a change
+    /// Add a replica of datamanager DM on node NODE (a learner, then a voter).
+    ///
+    /// The node's host starts the replica; it catches up as a learner (its lag told as it
+    /// falls), then the leader promotes it to a voter. Exit 0 once it votes, 1 when the cluster could not do it (no leader, a change
     /// already under way, the node's host refused or did not answer, not done in time), 2
     /// for a datamanager or node that does not exist or a node that already keeps one.
     AddReplica(ReplicaArgs),
-    /// Remove the replica of datamanager DM on node NODE from the replicas (its leader
-    /// hands its role over first), then stop it on its node and drop its journal — or, when
+    /// Remove the replica of datamanager DM on node NODE, and stop it there.
+    ///
+    /// The leader removes it from the replicas (a leader removing itself hands its role
+    /// over first), then its node's host stops it and drops its journal — or, when
     /// the node is gone, only remove it. Exit 0 once removed, 1 when the cluster could not
     /// (fewer than three voters would be left, the others could not commit it: no
     /// majority, a change under way, not done in time), 2 for a datamanager or node that

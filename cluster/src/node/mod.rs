@@ -348,17 +348,7 @@ impl Node {
                 tracing::warn!("the node will not start instances on request: {e}");
             }
         }
-        if replica_host::hosts_replicas(&node.config) {
-            let spec = replica_host::child_spec(replica_host::Host {
-                config: node.config.clone(),
-                clock: node.starter.clock.clone(),
-                events: node.bus.clone(),
-                root: node.starter.root.clone(),
-            });
-            if let Err(e) = node.starter.root.start_child(spec).await {
-                tracing::warn!("the node will not host replicas on request: {e}");
-            }
-        }
+        node.start_replica_host().await;
         if let Some(role) = node.config.desk {
             let spec = desk::child_spec(desk::DeskArgs {
                 node: node.config.name.clone(),
@@ -385,6 +375,23 @@ impl Node {
             }
         }
         Ok(node)
+    }
+
+    /// Start the replica host, on a node that hosts replicas on request
+    /// ([`crate::replicas`]); a node that cannot still runs, and says so.
+    async fn start_replica_host(&self) {
+        if !replica_host::hosts_replicas(&self.config) {
+            return;
+        }
+        let spec = replica_host::child_spec(replica_host::Host {
+            config: self.config.clone(),
+            clock: self.starter.clock.clone(),
+            events: self.bus.clone(),
+            root: self.starter.root.clone(),
+        });
+        if let Err(e) = self.starter.root.start_child(spec).await {
+            tracing::warn!("the node will not host replicas on request: {e}");
+        }
     }
 
     /// The config the node was built from.
