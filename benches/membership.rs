@@ -44,7 +44,8 @@ impl Drop for Kid {
 fn node(dir: &Path, name: &str, peers: &[SocketAddr]) -> (Kid, SocketAddr) {
     let declared = match name {
         "r1" | "r2" | "r3" => {
-            "[[datamanager]]\nname = \"feature\"\nreplicas = [\"r1\", \"r2\", \"r3\"]\n"
+            // every record kept (the default retention is 10 000 per class): all are checked
+            "[[datamanager]]\nname = \"feature\"\nreplicas = [\"r1\", \"r2\", \"r3\"]\nretention = 100000000\n"
         }
         _ => "",
     };
