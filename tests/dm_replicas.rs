@@ -10,6 +10,9 @@
 //! its way to the lost leader is sent again to the next. A replica that comes back further
 //! behind than the leader keeps entries for is sent a snapshot of the store, and ends
 //! equal; a leader started again catches replicas up from the entries its journal holds.
+//! A request whose answer is lost on another node than its caller's — a leader deposed with
+//! it, or a follower that sent it on to a leader whose node is killed — is answered at once
+//! as lost, and its client asks again at the next leader (not at its own deadline).
 
 use crate::common;
 
@@ -680,6 +683,114 @@ fn after_the_leaders_node_is_killed_every_road_of_a_client_follows_the_new_leade
             let n = c["select"].select(Query::class(road)).await.unwrap().len();
             assert!(n > 0, "nothing of {road} reached the new leader");
         }
+        transport.stop().await;
+    });
+}
+
+/// The wait a parked `select_wait` asks for: far longer than a failover, so that only the
+/// road's following — not the wait's end — can answer it in time.
+const PARKED: Duration = Duration::from_secs(30);
+
+/// A `select_wait` for class `class` through `client`, once it waits in the replica on
+/// `node` (its `pending_waits`).
+async fn park(
+    client: &DmClient,
+    node: &str,
+    class: &'static str,
+) -> tokio::task::JoinHandle<Result<Vec<dm::Record>, dm::DmError>> {
+    let parked = {
+        let client = client.clone();
+        tokio::spawn(async move { client.select_wait(Query::class(class), PARKED).await })
+    };
+    let start = Instant::now();
+    loop {
+        if let Some(copy) = copy_on(node) {
+            if stats_of(&copy).await.is_some_and(|s| s.pending_waits > 0) {
+                return parked;
+            }
+        }
+        assert!(start.elapsed() < T, "no select_wait reached {node}");
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+}
+
+/// Store a record of `class` through `producer` (which follows the name), then the parked
+/// wait's outcome: that record, if the road whose answer was lost followed the datamanager
+/// and asked again there; a `Timeout` after its own deadline (the wait and the client's
+/// 5 s) if it was left hanging.
+async fn unparked(
+    parked: tokio::task::JoinHandle<Result<Vec<dm::Record>, dm::DmError>>,
+    class: &'static str,
+    producer: &DmClient,
+) -> Result<Vec<dm::Record>, dm::DmError> {
+    until_ok(|| producer.store(class, None, None, &7u64))
+        .await
+        .unwrap_or_else(|e| panic!("no store of {class} after the fault: {e}"));
+    parked.await.unwrap()
+}
+
+#[test]
+fn a_request_whose_leader_is_lost_is_answered_and_asked_again_at_the_next_leader() {
+    // Clients in this process (a member of the cluster, a node of its own) whose requests
+    // wait in a replica on another node: (a) in the leader, which is deposed — the
+    // preferred replica, back, is handed the role — and stays a follower, the same actor;
+    // (b) sent on by that follower to the leader, whose node is then killed (kill -9). Each
+    // answer owed is lost on a node other than the caller's; each road must follow the
+    // datamanager to the next leader and ask again there, not wait for its own deadline
+    // (a dispatcher waiting that long for a checkpoint is taken for hung and taken over).
+    let _one = ONE_MEMBER.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = tempfile::tempdir().unwrap();
+    let mut nodes = start_nodes(dir.path(), "");
+    let rt = runtime();
+    let client = |source: &str| DmClient::lookup("feature", source).unwrap().with_follow(T);
+    let (deposed, transport, idle, producer, parked) = rt.block_on(async {
+        let transport = join(&nodes).await;
+        assert_eq!(leader(None).await.0, "r1");
+        let (parker, idle, producer) = (client("parker"), client("idle"), client("producer"));
+        producer.store("before", None, None, &0u64).await.unwrap();
+        // r1's node killed: r2 or r3 leads, and every client follows it
+        nodes[0].signal("KILL");
+        let (second, _) = leader(Some("r1")).await;
+        for c in [&parker, &idle, &producer] {
+            until_ok(|| c.store("after", None, None, &1u64))
+                .await
+                .unwrap();
+        }
+        // (a) a wait parked in the leader, which r1, back, will depose
+        let parked = park(&parker, &second, "a").await;
+        (second, transport, idle, producer, parked)
+    });
+    // r1 starts again: once caught up, the preferred replica is handed the role back
+    let peers: Vec<_> = nodes[1..].iter().map(|n| n.addr).collect();
+    nodes[0] = NodeProc::start(dir.path(), "r1", &hosts(dir.path(), "r1"), &peers, COOKIE);
+    rt.block_on(async {
+        primary_where(|n| n == "r1").await;
+        let a = unparked(parked, "a", &producer).await;
+        assert!(
+            a.as_ref().is_ok_and(|r| r.len() == 1),
+            "the wait parked in the deposed leader {deposed}: {a:?}"
+        );
+        // the idle client still holds the deposed leader: a follower now, the same actor
+        let held = idle.actor();
+        assert_eq!(held.get_id(), copy_on(&deposed).unwrap().get_id());
+        let role = stats_of(&held).await.unwrap().replica.unwrap().role;
+        assert_eq!(role, marie::replica::ReplicaRole::Follower);
+
+        // (b) a wait that follower sent on to r1, whose node is then killed
+        let parked = park(&idle, "r1", "b").await;
+        nodes[0].signal("KILL");
+        leader(Some("r1")).await;
+        let b = unparked(parked, "b", &producer).await;
+        assert!(
+            b.as_ref().is_ok_and(|r| r.len() == 1),
+            "the wait sent on to r1, killed: {b:?}"
+        );
+        // the road followed the next leader: its next calls are answered there
+        until_ok(|| idle.store("next", None, None, &2u64))
+            .await
+            .unwrap();
+        let stats = idle.stats().await.unwrap();
+        assert!(stats.classes.contains_key("next"), "{stats:?}");
         transport.stop().await;
     });
 }

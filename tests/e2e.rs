@@ -1,6 +1,6 @@
 //! marie's end-to-end tests, one binary: every `tests/*.rs` is a module of it, and
 //! `tests/common/` what they share (a cluster's processes, the monitor's page, a headless
-//! Chromium, network namespaces, the acceptance's schedules).
+//! Chromium, network namespaces, the acceptance's schedules, the soak's reading).
 //!
 //! Why one binary: each test file used to be a binary of its own — one link each, and
 //! `cargo test` ran them one after another, each waiting for its longest test before the
@@ -45,6 +45,7 @@ mod robot;
 mod selection;
 mod selection_cluster;
 mod self_healing;
+mod soak;
 mod speed;
 mod takeover;
 mod tls;

@@ -365,3 +365,61 @@ fn a_run_joined_to_a_cluster_with_a_monitor_lists_the_modules_of_a_node_that_joi
     });
     assert!(run.alive(), "the run was still going on");
 }
+
+#[test]
+fn the_page_says_no_majority_while_a_datamanager_lacks_one_and_a_node_back_once_it_returns() {
+    // the spare node stays down once stopped (restart = "temporary"); then the operations
+    // node is frozen from the page: of each datamanager's three replicas only the features
+    // node's answers — no majority, said with the nodes it misses — until operations wakes:
+    // a leader again, and operations back
+    let dir = tempfile::tempdir().unwrap();
+    let cluster = common::layouts::thesis_with(dir.path(), "");
+    let layout = std::fs::read_to_string(&cluster).unwrap();
+    let spare = layout
+        .lines()
+        .find(|l| l.ends_with("thesis/spare.toml\""))
+        .unwrap()
+        .to_string();
+    std::fs::write(
+        &cluster,
+        layout.replace(&spare, &format!("{spare}\nrestart = \"temporary\"")),
+    )
+    .unwrap();
+    let (mut up, line) = monitored_up(cluster.to_str().unwrap(), &["--allow-faults"]);
+    let (addr, _) = page_of(&line);
+    state_until(addr, "the feature datamanager's leader", |s| {
+        s["cluster"]["features"]["modules"]
+            .as_object()
+            .into_iter()
+            .flat_map(|m| m.values())
+            .any(|m| m["name"] == "feature" && m["dm"]["role"] == "leader")
+    });
+    let stop = serde_json::json!({"fault": "stop-node", "node": "spare"});
+    let (status, answer) = http::post_json(addr, "/api/fault", &stop);
+    assert_eq!(status, 200, "{answer}");
+    up.wait_line("node spare was killed (SIGKILL): it stays down");
+    let freeze = serde_json::json!({"fault": "freeze-node", "node": "operations"});
+    let (status, answer) = http::post_json(addr, "/api/fault", &freeze);
+    assert_eq!(status, 200, "{answer}");
+    let state = state_until(addr, "the feature datamanager without a majority", |s| {
+        s["no_majority"]["feature"]["missing"] == serde_json::json!(["operations", "spare"])
+    });
+    let words = state["no_majority"]["feature"]["words"].as_str().unwrap();
+    assert!(
+        words.contains("has no majority: 1 of its 3 replicas answers (features), a leader needs 2"),
+        "{words}"
+    );
+    // the freeze ends: operations is back, and the datamanager has a leader again
+    let state = state_until(
+        addr,
+        "operations back and the feature datamanager led",
+        |s| {
+            s["cluster"]["operations"]["back"]["down_ms"].is_u64()
+                && s["no_majority"].get("feature").is_none()
+        },
+    );
+    assert_eq!(state["cluster"]["operations"]["status"], "up", "{state}");
+    up.signal("INT");
+    up.wait_line("cluster stopped");
+    assert_eq!(up.wait_exit(), Some(0));
+}

@@ -67,8 +67,9 @@ fn a_frozen_node_is_let_go_on_after_its_duration_and_the_mission_docks() {
             .as_u64()
             .expect("the freeze was healed"),
     );
-    // (the report counts from the run's start, the plan from a few ms before it)
-    assert!((5900..7000).contains(&at), "{freeze}");
+    // (the report counts from the run's start, the plan from before it: a few ms, a few
+    // hundred on a loaded machine — 125 ms was seen)
+    assert!((5500..7000).contains(&at), "{freeze}");
     assert!(healed >= at + 8000 && healed < at + 8000 + 4000, "{freeze}");
     // the events file holds the injection and the healing, in that order
     let kinds: Vec<String> = events(&events_path)
@@ -372,6 +373,10 @@ fn the_killed_node_of_the_bound_operations_is_replaced_by_the_other_and_the_miss
         verdict.starts_with("verdict: 1 fault injected (stop-node 1), 1 node lost (1 back), "),
         "{verdict}"
     );
+    // the dispatcher (on features) was not lost: its checkpoints and its answers to the
+    // standby desk went on through the failover of the leaders on the killed node — no
+    // request of it waited for its client's deadline — so nothing was taken over
+    assert!(verdict.contains(", 0 takeovers, "), "{verdict}");
     // the datamanagers' leaders on the killed node failed over to replicas that hold every
     // record the operations were told was stored, the killed node's own producers' too
     // (`N of M acknowledged records lost`, M > 0: the stores were heard from the nodes)
@@ -450,16 +455,25 @@ fn two_nodes_of_every_datamanager_killed_six_seconds_apart_are_restarted_and_the
         );
     }
     assert!(stdout.contains("mission succeeded"), "{stdout}");
+    // the two killed nodes lost and back, and the run taken over from features; on a
+    // machine loaded far past its cores a starved node may be declared down too (and a
+    // takeover follow): every node lost is back all the same
     assert!(
-        stdout.contains("2 nodes lost (2 back)") && stdout.contains("1 takeover"),
+        stdout.contains("2 faults injected (stop-node 2)"),
         "{stdout}"
     );
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&report_path).unwrap()).unwrap();
     assert_eq!(report["outcome"], "succeeded");
     assert_eq!(report["acknowledged_lost"], 0, "{report}");
+    assert!(
+        !report["takeovers"].as_array().unwrap().is_empty(),
+        "{report}"
+    );
     let lost = report["nodes_lost"].as_array().unwrap();
-    assert_eq!(lost.len(), 2, "{lost:?}");
+    for node in ["features", "operations"] {
+        assert!(lost.iter().any(|n| n["peer"] == node), "{lost:?}");
+    }
     for n in lost {
         assert!(
             n["back_at_ms"].as_u64().unwrap() > n["at_ms"].as_u64().unwrap(),

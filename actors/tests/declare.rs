@@ -156,14 +156,20 @@ async fn a_typed_operation_reports_the_flags_the_mission_names_and_stores_typed_
 
 #[test]
 fn a_datamanager_error_becomes_an_op_error_naming_the_datamanager_where_known() {
+    // a DM absent at the call is an unreachable module (the host waits for it), in the
+    // words of any DM error
     let missing: OpError = DmError::NotRegistered("nowhere".into()).into();
+    assert_eq!(missing.datamanager(), Some("nowhere"));
     assert_eq!(
-        missing,
-        OpError::Datamanager {
-            dm: "nowhere".into(),
-            problem: "no datamanager \"nowhere\" is registered".into()
-        }
+        missing.to_string(),
+        "datamanager nowhere: no datamanager \"nowhere\" is registered"
     );
+    assert!(
+        matches!(missing, OpError::Unreachable { .. }),
+        "{missing:?}"
+    );
+    let refused: OpError = DmError::InvalidRecord("empty class".into()).into();
+    assert_eq!(refused.datamanager(), Some("?"));
     let decode: OpError = DmError::Decode("bad".into()).into();
     assert_eq!(
         decode.to_string(),

@@ -28,6 +28,9 @@ struct Recorder {
     dm: &'static str,
     taken: i64,
     missed: i64,
+    /// A step at which the DM is found absent though it is published (once): the race of
+    /// a call that failed before a new leader was published and a look after it.
+    absent_at: Option<i64>,
 }
 
 impl Operation for Recorder {
@@ -54,6 +57,12 @@ impl Operation for Recorder {
     }
     async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
         let n = self.taken.to_string();
+        if self.absent_at == Some(self.taken) {
+            self.absent_at = None;
+            self.missed += 1;
+            let absent = marie_dm::DmError::NotRegistered(self.dm.to_string());
+            return Err(OpError::of_dm(self.dm, &absent));
+        }
         let stored = match ctx.dm(self.dm) {
             Ok(dm) => dm
                 .store("step", Some(&n), None, &self.taken)
@@ -92,11 +101,16 @@ async fn datamanager(name: &str) -> ActorRef<DmMsg> {
 }
 
 async fn recorder(dm: &'static str) -> EoClient {
+    recorder_absent_at(dm, None).await
+}
+
+async fn recorder_absent_at(dm: &'static str, absent_at: Option<i64>) -> EoClient {
     let (actor, _) = spawn_operation(
         Recorder {
             dm,
             taken: 0,
             missed: 0,
+            absent_at,
         },
         HostOptions::default(),
     )
@@ -181,6 +195,23 @@ async fn an_operation_steps_on_into_its_datamanagers_next_incarnation() {
         "the first incarnation's records went with it"
     );
     second.stop(None);
+    op.actor().stop(None);
+}
+
+#[tokio::test]
+async fn a_datamanager_absent_at_the_call_but_published_by_the_look_is_waited_for_not_failed() {
+    // the thesis layout's operations node killed: the world DM's call failed "no datamanager
+    // is registered", a new leader was published before the host looked, and the host
+    // failed the activation (the module was not gone by then) — the mission with it
+    let dm = datamanager("logbook-race").await;
+    let op = recorder_absent_at("logbook-race", Some(3)).await;
+    let report = op
+        .activate(param_map([("steps", Value::Int(20))]), 1)
+        .unwrap();
+    let report = timeout(T, report).await.unwrap().unwrap();
+    assert!(matches!(report, EoReport::Finished { .. }), "{report:?}");
+    assert_eq!(missed(&op).await, 1);
+    dm.stop(None);
     op.actor().stop(None);
 }
 

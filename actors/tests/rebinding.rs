@@ -172,6 +172,29 @@ async fn a_killed_operation_is_rebound_to_its_replacement_and_the_action_complet
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_operation_stopped_mid_action_is_rebound_not_taken_for_a_suspension() {
+    // a node that comes back after its peers declared it down stops its operations (a new
+    // incarnation of each): the soak's run 7 failed so, its dispatcher on that very node
+    // hearing "suspended" from each — "operation `docking-detector` was suspended by
+    // another party"
+    let first = start("rb-stop", "1.0.0").await;
+    let _sup = replace_on_death("rb-stop", 1).await;
+    let (run, mut events) = launch(&mission("stop", "rb-stop", STEPS)).await;
+    activated(&first).await;
+    first.actor().stop(None);
+    let record = event(&mut events, |e| match e {
+        EventKind::Rebound(r) => Some(r.clone()),
+        _ => None,
+    })
+    .await;
+    let report = run.await.unwrap();
+    assert_eq!(report.outcome, Outcome::Succeeded, "{}", report.reason);
+    assert_eq!(record.from, first.actor().get_id().to_string());
+    assert!(died(&record.cause), "{}", record.cause);
+    assert_eq!(report.actions[0].operations[0].ended, OpEnd::Finished);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_stand_in_gets_the_last_parameters_a_higher_epoch_and_resumes() {
     let first = start("rb-params", "1.0.0").await;
     let _sup = replace_on_death("rb-params", 1).await;

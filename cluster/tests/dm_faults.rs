@@ -6,6 +6,7 @@
 //! Each test uses a datamanager of its own name: the registry is one per process.
 
 use marie_cluster::fault::{FaultError, Injector, Target};
+use marie_cluster::node::config::DEFAULT_RESTARTS;
 use marie_cluster::node::{watchdog, Node};
 use marie_dm::{DmClient, DmError, Query};
 use marie_vocabulary::events::{EventKind, EventSubscription};
@@ -207,13 +208,17 @@ async fn a_fault_a_datamanager_cannot_suffer_is_refused_and_told() {
     node.shutdown().await;
 }
 
-/// A replica changes role by restarting, and one election can step every replica of a node
-/// down at once, twice in a second (CI saw four datamanagers step down at terms 2 and 4):
-/// the datamanagers' supervisor allows three restarts *per datamanager* within its period,
-/// so eight restarts of four DMs in a row are taken — a fixed three gave the node's
-/// datamanagers up at the fourth.
+/// Every datamanager of a node killed, and one of them again — as many restarts in a row
+/// as an ordinary child's intensity allows (`DEFAULT_RESTARTS` within its period) — are all
+/// taken: none is given up. The datamanagers' supervisor once allowed three restarts per
+/// datamanager, because a replica changed role by restarting and one election could step
+/// every replica of a node down at once, twice in a second (CI saw four datamanagers step
+/// down at terms 2 and 4: eight restarts). A change of role is now a change of the live
+/// actor's state, no restart (`marie_dm`'s `replicated`; issue 43 named the raised intensity
+/// as the defect's cost), so the supervisor is back to the ordinary intensity, and elections
+/// no longer count against it.
 #[tokio::test]
-async fn every_datamanager_of_a_node_restarted_twice_at_once_is_not_given_up() {
+async fn every_datamanager_of_a_node_restarted_at_once_is_not_given_up() {
     let dms = [
         ("feature-s1", 1301),
         ("feature-s2", 1302),
@@ -227,16 +232,20 @@ async fn every_datamanager_of_a_node_restarted_twice_at_once_is_not_given_up() {
     let node = builder.start().await.unwrap();
     let injector = Injector::new(node.events());
     let mut events = node.events().subscribe();
-    for round in 0..2 {
-        for (dm, _) in dms {
-            strike_and_wait_restart(&injector, FaultKind::Kill, dm, dm).await;
-            eprintln!("round {round}: {dm} restarted");
-        }
+    let kills: Vec<&str> = dms
+        .iter()
+        .map(|(dm, _)| *dm)
+        .chain(["feature-s1"])
+        .collect();
+    assert_eq!(kills.len(), DEFAULT_RESTARTS);
+    for dm in &kills {
+        strike_and_wait_restart(&injector, FaultKind::Kill, dm, dm).await;
+        eprintln!("{dm} restarted");
     }
     // every restart is told, and no supervisor gives anything up
     let mut restarted = 0;
     timeout(T, async {
-        while restarted < 8 {
+        while restarted < kills.len() {
             match events.recv().await.expect("the bus").kind {
                 EventKind::SupervisorGaveUp { supervisor, reason } => {
                     panic!("{supervisor} gave up: {reason}")
@@ -249,7 +258,7 @@ async fn every_datamanager_of_a_node_restarted_twice_at_once_is_not_given_up() {
         }
     })
     .await
-    .unwrap_or_else(|_| panic!("{restarted} of 8 restarts told"));
+    .unwrap_or_else(|_| panic!("{restarted} of {} restarts told", kills.len()));
     for (dm, _) in dms {
         let client = DmClient::lookup(dm, "test").unwrap();
         client.store("landmark", None, None, &1u32).await.unwrap();

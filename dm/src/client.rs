@@ -250,6 +250,14 @@ impl DmClient {
         self
     }
 
+    /// Store records under the producer name `source` instead: the datamanager fences each
+    /// source on its own ([`with_epoch`](Self::with_epoch)), so a writer whose epochs count
+    /// afresh for each thing it writes (a dispatcher's terms, per run) names each apart.
+    pub fn with_source(mut self, source: &str) -> DmClient {
+        self.source = Arc::from(source);
+        self
+    }
+
     /// Stamp the records it stores with `epoch` (an operation's binding epoch): the DM then
     /// refuses records of older epochs from the same source ([`marie_vocabulary::fence`]).
     pub fn with_epoch(mut self, epoch: u64) -> DmClient {

@@ -3,13 +3,14 @@
 //! ls`) can say which nodes it is missing instead of only "not reachable".
 //!
 //! A replica answers [`DmMsg::ReplicaStats`] itself, whatever its role and whether or not
-//! there is a leader; its [`ReplicaStats`] say every member's node and the ones it reaches. Asking every replica
-//! found in the replicas' `pg` scope ([`SCOPE`]) gives the picture: a leader among them —
-//! there is a majority, perhaps just elected —, or none, and then the members nobody here
-//! reaches are the missing ones.
+//! there is a leader; its [`ReplicaStats`] say every member's node and the ones it
+//! reaches. Asking every replica found in the replicas' `pg` scope ([`SCOPE`]) gives the
+//! picture: a leader among them — there is a majority, perhaps just elected —, or none,
+//! and then the members nobody here reaches are the missing ones.
 
 use super::messages::{DmMsg, ReplicaStats};
 use super::replica::SCOPE;
+use marie_vocabulary::events::EventKind;
 use marie_vocabulary::replica::ReplicaRole;
 use ractor::rpc::CallResult;
 use ractor::ActorRef;
@@ -44,29 +45,25 @@ pub struct NoMajority {
 
 impl std::fmt::Display for NoMajority {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        if self.members.is_empty() {
-            return write!(
-                f,
-                "datamanager `{}` has no leader and none of its replicas answers from here",
-                self.dm
-            );
+        // worded once, with the page's `dm_no_majority`
+        f.write_str(&marie_vocabulary::events::no_majority(
+            &self.dm,
+            &self.members,
+            &self.answering,
+            &self.missing,
+        ))
+    }
+}
+
+impl NoMajority {
+    /// The page's news of it (see [`EventKind::DmNoMajority`]).
+    pub fn event(&self) -> EventKind {
+        EventKind::DmNoMajority {
+            dm: self.dm.clone(),
+            members: self.members.clone(),
+            answering: self.answering.clone(),
+            missing: self.missing.clone(),
         }
-        write!(
-            f,
-            "datamanager `{}` has no majority: {} of its {} replicas answer{} ({}), a leader \
-             needs {}; missing: {}",
-            self.dm,
-            self.answering.len(),
-            self.members.len(),
-            if self.answering.len() == 1 { "s" } else { "" },
-            self.answering.join(", "),
-            self.members.len() / 2 + 1,
-            if self.missing.is_empty() {
-                "none (an election is under way)".to_string()
-            } else {
-                self.missing.join(", ")
-            }
-        )
     }
 }
 
@@ -79,12 +76,17 @@ pub async fn without_leader(dm: &str, timeout: Duration) -> Option<NoMajority> {
 }
 
 /// Every replicated datamanager whose replicas this process can find and none of which
-/// leads (each replica asked within `timeout`), by name.
+/// leads (every replica asked at once, each within `timeout`), by name.
 pub async fn leaderless(timeout: Duration) -> Vec<NoMajority> {
-    let mut lost = Vec::new();
+    let mut asked = tokio::task::JoinSet::new();
     for (dm, groups) in replica_groups() {
-        lost.extend(judge(&dm, &views(&groups, timeout).await));
+        asked.spawn(async move { judge(&dm, &views(&groups, timeout).await) });
     }
+    let mut lost = Vec::new();
+    while let Some(verdict) = asked.join_next().await {
+        lost.extend(verdict.ok().flatten());
+    }
+    lost.sort_by(|a, b| a.dm.cmp(&b.dm));
     lost
 }
 
@@ -116,20 +118,28 @@ fn replica_groups() -> BTreeMap<String, Vec<String>> {
     by_dm
 }
 
-/// What each replica in `groups` says of itself, of those that answer within `timeout`.
+/// What each replica in `groups` says of itself, of those that answer within `timeout` —
+/// all asked at once, so a frozen node's replicas cost one `timeout`, not one each.
 async fn views(groups: &[String], timeout: Duration) -> Vec<ReplicaStats> {
     let scope = SCOPE.to_string();
-    let mut views = Vec::new();
+    let mut asked = tokio::task::JoinSet::new();
     for group in groups {
         for cell in ractor::pg::get_scoped_members(&scope, group) {
             let actor: ActorRef<DmMsg> = cell.into();
-            if let Ok(CallResult::Success(stats)) = actor
-                .call(|reply| DmMsg::ReplicaStats { reply }, Some(timeout))
-                .await
-            {
-                views.extend(stats.replica);
-            }
+            asked.spawn(async move {
+                match actor
+                    .call(|reply| DmMsg::ReplicaStats { reply }, Some(timeout))
+                    .await
+                {
+                    Ok(CallResult::Success(stats)) => stats.replica,
+                    _ => None,
+                }
+            });
         }
+    }
+    let mut views = Vec::new();
+    while let Some(answer) = asked.join_next().await {
+        views.extend(answer.ok().flatten());
     }
     views
 }

@@ -7,6 +7,7 @@ use super::error::DmError;
 use super::journal::{Journal, ReplicaLog};
 use super::messages::DmMsg;
 use super::replica::core::{Core, Restored};
+use super::replica::kept::Kept;
 use super::replica::{vote, Members, Op, ReplicaMsg, Replication, SCOPE, UNCHECKED_READS_ENV};
 use super::store::Store;
 use marie_vocabulary::fence::FenceTable;
@@ -56,7 +57,7 @@ pub(crate) struct ReplicaState {
     pub(crate) reads: VecDeque<(Duration, DmMsg)>,
     /// Requests of the dm-interface that reached this replica, not leading, while it knew no
     /// leader to send them on to (`forward`), oldest first, with when they came.
-    pub(crate) kept: VecDeque<(Duration, DmMsg)>,
+    pub(crate) kept: Kept<DmMsg>,
     started: tokio::time::Instant,
     /// The newest time stamp handed out.
     pub(crate) last_time: Duration,
@@ -183,7 +184,7 @@ impl ReplicaState {
             peers: BTreeMap::new(),
             acks: BTreeMap::new(),
             reads: VecDeque::new(),
-            kept: VecDeque::new(),
+            kept: Kept::default(),
             started,
             last_time: store.last_time(),
             incoming: None,

@@ -68,6 +68,7 @@ function render(state) {
   renderBindings(state.bindings);
   refreshProps(state.bindings);
   renderCluster(state.cluster);
+  renderNoMajority(state.no_majority || {});
   renderRobot(state.robot);
   renderTimeline(state.timeline);
   document.body.dataset.renders = String(++renders);
@@ -350,6 +351,21 @@ function woke(n) {
     `(woke at ${(n.woke.at_ms / 1000).toFixed(1)} s from a ${(n.woke.silent_ms / 1000).toFixed(1)} s freeze)</span>`;
 }
 
+// A node's latest return after it was lost (restarted, or heard again): when, after how long.
+function back(n) {
+  if (!n.back) return "";
+  return ` <span class="back" title="lost, then seen again by a peer">` +
+    `(back at ${(n.back.at_ms / 1000).toFixed(1)} s after ${(n.back.down_ms / 1000).toFixed(1)} s down)</span>`;
+}
+
+// The replicated datamanagers without a leader now, in the words marie ls says them.
+function renderNoMajority(lost) {
+  setHtml($("#no-majority"), Object.entries(lost)
+    .map(([dm, v]) => `<div class="no-majority" data-dm="${esc(dm)}" ` +
+      `data-missing="${esc(v.missing.join(","))}">no majority: ${esc(v.words)}</div>`)
+    .join(""));
+}
+
 function renderCluster(cluster) {
   setHtml($("#cluster"), Object.values(cluster)
     .map((n) => {
@@ -361,7 +377,7 @@ function renderCluster(cluster) {
           `title="${esc(FAULT_TITLES[k] || k)}">${esc(NODE_FAULT_LABELS[k] || k)}</button>`).join("")
         : "";
       return `<div class="node" data-node="${esc(n.name)}" data-status="${n.status}">` +
-        `<strong>${esc(n.name)}</strong> <span class="status">${n.status}</span>${woke(n)} ${esc(n.address || "")}${stop}` +
+        `<strong>${esc(n.name)}</strong> <span class="status">${n.status}</span>${woke(n)}${back(n)} ${esc(n.address || "")}${stop}` +
         `<div class="modules">${mods.length} module(s): ` +
         mods.map((m) => `<span class="module" data-kind="${m.kind}" data-module="${esc(m.name)}" ` +
           `data-node="${esc(n.name)}" data-address="${esc(m.address)}"` +

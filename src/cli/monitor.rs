@@ -148,7 +148,8 @@ const DM_POLL: std::time::Duration = std::time::Duration::from_secs(2);
 
 /// Ask every datamanager in the registry what it holds — durability, records, journal, and
 /// for a replicated one its role, term and replicas' lag — every [`DM_POLL`], and feed it to
-/// the page (`dm_state`), until aborted. Only the monitor sees these: the bus does not.
+/// the page (`dm_state`), and the replicas of each without a leader who is missing
+/// (`dm_no_majority`), until aborted. Only the monitor sees these: the bus does not.
 fn poll_datamanagers(feed: Feed, bus: EventBus) -> JoinHandle<()> {
     use marie::dm::DmClient;
     tokio::spawn(async move {
@@ -179,6 +180,14 @@ fn poll_datamanagers(feed: Feed, bus: EventBus) -> JoinHandle<()> {
                         term,
                         lag,
                     },
+                });
+            }
+            // a datamanager without a leader is in no registry listing: ask its replicas
+            for lost in marie::dm::leaderless(marie::dm::VIEW_TIMEOUT).await {
+                feed.offer(Event {
+                    at_ms: bus.clock().now().as_millis() as u64,
+                    node: bus.node().to_string(),
+                    kind: lost.event(),
                 });
             }
         }

@@ -88,6 +88,11 @@ impl Shutdown {
         }
     }
 
+    /// The signal's name if one came (or standard input closed) since [`Shutdown::watch`].
+    pub(crate) fn heard(&self) -> Option<&'static str> {
+        *self.heard.borrow()
+    }
+
     /// The signal's name once one came (or standard input closed) since [`Shutdown::watch`].
     pub(crate) async fn wait(&self) -> &'static str {
         let mut heard = self.heard.clone();

@@ -208,6 +208,8 @@ impl Schedule {
 pub(crate) struct Running {
     child: Option<Child>,
     started: Instant,
+    /// How long it may run before it is stopped.
+    timeout: Duration,
     /// Where its report, events, stdout and stderr go.
     pub dir: PathBuf,
 }
@@ -217,7 +219,6 @@ impl Running {
     /// writing into `dir` (made if missing). In a process group of its own: a Ctrl-C at
     /// the terminal reaches whoever started it, who tells it to stop once.
     pub(crate) fn start(fault: Option<&str>, speed: f64, dir: &Path) -> std::io::Result<Running> {
-        use std::os::unix::process::CommandExt;
         std::fs::create_dir_all(dir)?;
         let speed = speed.to_string();
         let report = dir.join("report.json");
@@ -237,8 +238,20 @@ impl Running {
         if let Some(f) = fault {
             args.extend(["--fault", f]);
         }
+        Running::start_with(&args, dir, RUN_TIMEOUT)
+    }
+
+    /// Start `marie` with `args` (from the package root, without `RUST_LOG`), its stdout
+    /// and stderr into `dir` (made if missing), stopped once it has run for `timeout`.
+    pub(crate) fn start_with(
+        args: &[&str],
+        dir: &Path,
+        timeout: Duration,
+    ) -> std::io::Result<Running> {
+        use std::os::unix::process::CommandExt;
+        std::fs::create_dir_all(dir)?;
         let child = Command::new(marie_exe())
-            .args(&args)
+            .args(args)
             .current_dir(root())
             .env_remove("RUST_LOG")
             .stdin(Stdio::null())
@@ -249,12 +262,13 @@ impl Running {
         Ok(Running {
             child: Some(child),
             started: Instant::now(),
+            timeout,
             dir: dir.to_path_buf(),
         })
     }
 
     /// Its exit code once it has ended (`Some(None)`: killed by a signal); `None` while it
-    /// runs. Past [`RUN_TIMEOUT`] it is stopped.
+    /// runs. Past its timeout ([`RUN_TIMEOUT`] for a schedule's run) it is stopped.
     pub(crate) fn poll(&mut self) -> Option<Option<i32>> {
         let child = self.child.as_mut()?;
         match child.try_wait() {
@@ -262,7 +276,7 @@ impl Running {
                 self.child = None;
                 Some(status.code())
             }
-            Ok(None) if self.started.elapsed() > RUN_TIMEOUT => {
+            Ok(None) if self.started.elapsed() > self.timeout => {
                 self.stop();
                 Some(None)
             }

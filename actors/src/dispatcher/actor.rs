@@ -196,6 +196,9 @@ pub struct DispatcherState {
     /// The run's own timers, cancelled with the dispatcher.
     pub(super) timers: RunTimers,
     pub(super) ended: bool,
+    /// The newer term this dispatcher was fenced off by, once it was
+    /// ([`DispatcherState::fenced`]).
+    pub(super) fenced_by: Option<u64>,
     /// Records the run's progress, if it is recorded.
     pub(super) checkpoints: Option<Checkpointer>,
     /// What to record it with, until the run starts.
@@ -258,8 +261,8 @@ impl DispatcherState {
             return;
         }
         // the run's first epochs are recorded before any command carries them
-        if self.checkpoint_now().await.is_err() {
-            return; // fenced: told by the writer
+        if self.checkpoint_now(myself).await.is_err() {
+            return; // fenced off
         }
         self.announce(None).await;
         self.emit_bound();
@@ -353,6 +356,7 @@ impl Actor for ActionDispatcher {
 
             timers: RunTimers::default(),
             ended: false,
+            fenced_by: None,
             checkpoints: None,
             checkpoint_args: args.checkpoint,
             take_over: args.take_over,
@@ -367,6 +371,12 @@ impl Actor for ActionDispatcher {
         msg: DispatcherMsg,
         state: &mut DispatcherState,
     ) -> Result<(), ActorProcessingErr> {
+        // a newer term refused a checkpoint: whatever this message says, the run is the
+        // successor's (see `Checkpointer::superseded`)
+        if let Some(superseded) = state.superseded() {
+            state.fenced(&myself, superseded.newer);
+            return Ok(());
+        }
         match msg {
             DispatcherMsg::Run { reply } => state.on_run(&myself, reply).await,
             DispatcherMsg::OpEnded {
@@ -396,7 +406,7 @@ impl Actor for ActionDispatcher {
                 state.on_provision_due(name, incarnation)
             }
             DispatcherMsg::RebindDeadline { name, incarnation } => {
-                state.on_rebind_deadline(&myself, name, incarnation)
+                state.on_rebind_deadline(&myself, name, incarnation).await
             }
             DispatcherMsg::ActionDeadline { generation } => {
                 state.on_action_deadline(&myself, generation)

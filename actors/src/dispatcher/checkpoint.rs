@@ -7,9 +7,10 @@
 //! operations still running, its enders done, whether it is ending), every binding with
 //! its instance, epoch and the parameters sent last, and the dispatcher's *term*. It is
 //! stored as one record (class [`CHECKPOINT_CLASS`], sub-class the run's id) stamped with
-//! the term as its epoch, from the source [`CHECKPOINT_SOURCE`]: the datamanager's fence
-//! ([`marie_vocabulary::fence`]) then refuses every checkpoint of an older term once a newer one was
-//! stored. That refusal is how a dispatcher learns that a standby carries its run on (it
+//! the term as its epoch, from the source [`CHECKPOINT_SOURCE`]`/RUN-ID`: the datamanager's
+//! fence ([`marie_vocabulary::fence`]) then refuses every checkpoint of the run of an older
+//! term once a newer one was stored — of that run only: each run's terms count from 1, and
+//! a run after one that was taken over (term 2) is not fenced off by it. That refusal is how a dispatcher learns that a standby carries its run on (it
 //! was frozen, or cut off, and declared lost): it stops without ending the run.
 //!
 //! # Invariants
@@ -22,6 +23,12 @@
 //!   report, an action's end) are recorded as they happen, without waiting: their commands
 //!   carry epochs already in force, which the operations fence, and an operation whose
 //!   report a standby never saw is attached again (or resumed, if it ended).
+//! - A dispatcher one of whose checkpoints a newer term refused commands nothing more: it
+//!   is fenced off before it handles another message (the writer's refusal is read before
+//!   every message, not only when its `Fenced` comes through the mailbox) or, when it was
+//!   waiting for that checkpoint, at once. So an epoch it raised and could not store —
+//!   an adoption raises the epoch above the instance's, which may be its successor's —
+//!   never reaches an operation its successor holds.
 //! - A checkpoint that cannot be stored for want of the datamanager (its leader failing
 //!   over, a partition, a node of its replicas restarting) is retried until it is stored or
 //!   refused — for at most [`MAJORITY_WAIT`]: a run datamanager without a majority for that
@@ -38,13 +45,23 @@ use marie_vocabulary::property::ParamMap;
 use marie_vocabulary::run::Outcome;
 use ractor::ActorRef;
 use serde::{Deserialize, Serialize};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
 use std::time::Duration;
 use tokio::sync::{mpsc, oneshot};
 
 /// The class of checkpoint records in the run datamanager.
 pub const CHECKPOINT_CLASS: &str = "checkpoint";
-/// The source checkpoints are stored under (the term is their epoch).
+/// The source checkpoints are stored under, followed by `/` and the run's id (the term is
+/// their epoch, fenced per run).
 pub const CHECKPOINT_SOURCE: &str = "dispatcher";
+/// How many checkpoints the run datamanager keeps (of all runs together, the newest), unless
+/// its declaration bounds the class otherwise: a standby reads only the newest, and a run's
+/// check counts an older one gone as dropped by retention, not lost. Unbounded but for the
+/// datamanagers' default (10 000 records a class, some 4 KiB each), every replica of a kept-up
+/// cluster's run datamanager held every run's checkpoints — tens of MB after a soak of a few
+/// hundred runs. A docking run writes some 35.
+pub const CHECKPOINTS_KEPT: usize = 512;
 /// How long a checkpoint write waits before it is tried again.
 const RETRY: Duration = Duration::from_millis(200);
 /// How long the end of a run that ended for want of a majority is still tried, once its
@@ -199,6 +216,13 @@ pub(super) struct Checkpointer {
     /// The run datamanager, at the term's epoch.
     dm: DmClient,
     jobs: mpsc::UnboundedSender<Job>,
+    /// The newer term that refused a checkpoint (0: none yet), set by the writing task
+    /// the moment it is refused. Read by the dispatcher before every message it handles:
+    /// [`DispatcherMsg::Fenced`] queues behind what already waits in its mailbox, and a
+    /// dispatcher that handled those first would command a run its successor holds — with
+    /// epochs it raised above the successor's (an adoption reads the instance's epoch) and
+    /// could not store (the soak's `suspended by another party`).
+    superseded: Arc<AtomicU64>,
     /// The writing task, aborted with the dispatcher: a write it retries for a dispatcher
     /// that stopped must not land later.
     task: tokio::task::JoinHandle<()>,
@@ -214,7 +238,13 @@ impl Checkpointer {
     /// Start writing `args`' checkpoints for `dispatcher`.
     pub(super) fn start(args: CheckpointArgs, dispatcher: ActorRef<DispatcherMsg>) -> Checkpointer {
         let (jobs, mut rx) = mpsc::unbounded_channel::<Job>();
-        let dm = args.dm.with_epoch(args.term);
+        let superseded = Arc::new(AtomicU64::new(0));
+        let refused = superseded.clone();
+        // fenced per run: a term counts within its run only
+        let dm = args
+            .dm
+            .with_source(&format!("{CHECKPOINT_SOURCE}/{}", args.run))
+            .with_epoch(args.term);
         let run = args.run.clone();
         let writer_dm = dm.clone();
         let task = tokio::spawn(async move {
@@ -234,6 +264,7 @@ impl Checkpointer {
                         }
                     }
                     Err(Unstored::Superseded(superseded)) => {
+                        refused.store(superseded.newer.max(1), Ordering::SeqCst);
                         let _ = dispatcher.cast(DispatcherMsg::Fenced {
                             newer: superseded.newer,
                         });
@@ -255,7 +286,17 @@ impl Checkpointer {
             seq: 0,
             dm,
             jobs,
+            superseded,
             task,
+        }
+    }
+
+    /// The newer term that refused one of this writer's checkpoints, if one did: the
+    /// dispatcher is fenced off from then on, whatever its mailbox still holds.
+    pub(super) fn superseded(&self) -> Option<Superseded> {
+        match self.superseded.load(Ordering::SeqCst) {
+            0 => None,
+            newer => Some(Superseded { newer }),
         }
     }
 
@@ -274,9 +315,10 @@ impl Checkpointer {
         if let Err(mpsc::error::SendError(job)) = self.jobs.send(job) {
             // the writer stopped after a refusal: so is this one
             if let Some(done) = job.done {
-                let _ = done.send(Err(Superseded {
+                let refused = self.superseded().unwrap_or(Superseded {
                     newer: self.term + 1,
-                }));
+                });
+                let _ = done.send(Err(refused));
             }
         }
         rx

@@ -314,6 +314,9 @@ impl DispatcherState {
         name: &str,
         mut cands: Vec<Prospect>,
     ) -> bool {
+        if self.ended {
+            return false; // over, or fenced off by an earlier refusal
+        }
         let here = registry::local_node_name();
         let Some(b) = self.bindings.get_mut(name) else {
             return false;
@@ -354,8 +357,9 @@ impl DispatcherState {
         let (client, epoch, params, incarnation) =
             (b.client.clone(), b.epoch, b.params.clone(), b.incarnation);
         // the raised epoch is recorded before any command carries it: a dispatcher that a
-        // standby replaced is refused here and never outbids its successor
-        if self.checkpoint_now().await.is_err() {
+        // standby replaced is refused here, fenced off at once, and never outbids its
+        // successor (the epoch raised above the instance's may be above the successor's)
+        if self.checkpoint_now(myself).await.is_err() {
             return false;
         }
         self.announce(Some(name)).await;
@@ -553,7 +557,12 @@ impl DispatcherState {
         });
     }
 
-    pub(super) fn on_rebind_deadline(
+    /// The rebind deadline of `name` passed with no stand-in: the run fails. When a
+    /// replicated datamanager has no majority meanwhile, the reason names it and the nodes
+    /// it misses: an operation that could not store dies of it (`eo::absence`), and its
+    /// restarted instance waits for the datamanager before it registers, so the lost
+    /// operation is the symptom and the datamanager the cause an operator acts on.
+    pub(super) async fn on_rebind_deadline(
         &mut self,
         myself: &ActorRef<DispatcherMsg>,
         name: String,
@@ -580,6 +589,9 @@ impl DispatcherState {
                 .map(|(address, why)| format!("{address}: {why}"))
                 .collect();
             reason += &format!("; refused as stand-ins: {}", refused.join("; "));
+        }
+        for lost in marie_dm::leaderless(marie_dm::VIEW_TIMEOUT).await {
+            reason += &format!("; {lost}");
         }
         let gave_up = EventKind::RebindGaveUp {
             operation: name,

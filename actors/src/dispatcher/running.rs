@@ -412,7 +412,7 @@ impl DispatcherState {
             return;
         }
         if let Some(EoReport::Stale { current, .. }) = &report {
-            if self.checkpoint_now().await.is_err() {
+            if self.checkpoint_now(myself).await.is_err() {
                 return; // a newer dispatcher bound it: this one is fenced
             }
             let reason =

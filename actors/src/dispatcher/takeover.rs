@@ -141,13 +141,32 @@ impl DispatcherState {
     }
 
     /// Record the run's progress and wait until it is stored: `Err` when a newer term
-    /// refused it (the writer tells the dispatcher, which then stops).
-    pub(super) async fn checkpoint_now(&mut self) -> Result<(), Superseded> {
+    /// refused it — the dispatcher is then fenced off at once ([`Self::fenced`]): what it
+    /// was about to command (an epoch it raised for this checkpoint) never goes out.
+    pub(super) async fn checkpoint_now(
+        &mut self,
+        myself: &ActorRef<DispatcherMsg>,
+    ) -> Result<(), Superseded> {
         let term = self.checkpoints.as_ref().map_or(0, |w| w.term);
-        match self.record(None) {
-            None => Ok(()),
-            Some(stored) => stored.await.unwrap_or(Err(Superseded { newer: term + 1 })),
+        let Some(stored) = self.record(None) else {
+            return Ok(());
+        };
+        match stored.await {
+            Ok(Ok(())) => Ok(()),
+            Ok(Err(superseded)) => {
+                self.fenced(myself, superseded.newer);
+                Err(superseded)
+            }
+            // given up for want of the run datamanager's majority (the writer dropped the
+            // job and told the dispatcher, which ends the run): nothing to command either
+            Err(_) => Err(Superseded { newer: term + 1 }),
         }
+    }
+
+    /// The newer term that refused one of this dispatcher's checkpoints, if one did
+    /// (see [`Checkpointer::superseded`](super::checkpoint::Checkpointer)).
+    pub(super) fn superseded(&self) -> Option<Superseded> {
+        self.checkpoints.as_ref()?.superseded()
     }
 
     /// Record the run's end; `Conclude` publishes it once it is stored. Without
@@ -182,11 +201,19 @@ impl DispatcherState {
 
     /// A newer term refused a checkpoint: a standby carries the run on. Stop without
     /// ending the run (no `run_ended`, no answer: the run is not over) and without
-    /// commanding anything (the operations obey the newer dispatcher's epochs).
+    /// commanding anything more — not even a suspension: the operations are the newer
+    /// dispatcher's, and an epoch this one raised (an adoption outbids the instance's
+    /// epoch, which may be the successor's) was never stored. Once only: the refusal is
+    /// seen by a waiting checkpoint, by [`Self::superseded`] before a message, and by the
+    /// writer's [`DispatcherMsg::Fenced`].
     pub(super) fn fenced(&mut self, myself: &ActorRef<DispatcherMsg>, newer: u64) {
         let Some(writer) = &self.checkpoints else {
             return;
         };
+        if self.fenced_by.is_some() {
+            return;
+        }
+        self.fenced_by = Some(newer);
         let (run, term) = (writer.run.clone(), writer.term);
         tracing::warn!(%run, term, newer, "fenced off: a newer dispatcher carries the run on");
         self.ended = true;
@@ -236,7 +263,7 @@ impl DispatcherState {
             return;
         }
         // the bindings' new epochs, before any command carries them
-        if self.checkpoint_now().await.is_err() {
+        if self.checkpoint_now(myself).await.is_err() {
             return;
         }
         self.command_again(myself, &from).await;

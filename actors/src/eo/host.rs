@@ -6,8 +6,8 @@
 //!
 //! # Invariants
 //! - At most one activation runs; its reply port is answered exactly once (`Finished`,
-//!   `Suspended`, `Failed`), or dropped if the host crashes — which the waiting side sees as a
-//!   closed port.
+//!   `Suspended`, `Failed`), or dropped if the host crashes or is stopped — which the waiting
+//!   side sees as a closed port (the instance is gone), never as a suspension.
 //! - A command whose epoch is older than the highest accepted one changes nothing.
 //! - Parameters change all at once or not at all.
 //! - A finished task suspends the operation; the host never stops because work is done.
@@ -296,6 +296,23 @@ impl<O: Operation> HostState<O> {
         let _ = active.reply.send(report);
     }
 
+    /// The host stops with an activation running (its node reincarnates its operations, its
+    /// supervisor ends it): the operation's suspend hook runs, and the activation's port is
+    /// dropped unanswered — nobody commanded its end, and its dispatcher hears what it hears
+    /// of a crash (a closed port: the instance is gone, a stand-in is bound). Answered
+    /// `Suspended`, as it was, the dispatcher took it for a suspension by another party and
+    /// failed the run: the soak's run 7, its holder's own node reincarnating its operations.
+    async fn abandon_activation(&mut self) {
+        let Some(active) = self.active.take() else {
+            return;
+        };
+        if let Err(e) = self.op.suspend(&mut self.ctx).await {
+            tracing::warn!(op = %self.identity.name, error = %e, "suspend hook failed");
+        }
+        tracing::debug!(op = %self.identity.name, activation = active.number, "host stopped: activation abandoned");
+        drop(active.reply);
+    }
+
     /// Hand the running activation's report to a dispatcher taking over a lost one's run
     /// (see [`EoMsg::Attach`]).
     fn attach(&mut self, epoch: u64, since: u64, reply: RpcReplyPort<EoReport>) {
@@ -369,8 +386,9 @@ impl<O: Operation> HostState<O> {
     fn held_for(&self, e: &super::OpError) -> Option<(u64, ModuleKind, String)> {
         let activation = self.active.as_ref()?.number;
         let (kind, module) = e.needed_module()?;
-        self.ctx
-            .module_gone(kind, module)
+        // a datamanager absent at the call is waited for even if it is published again
+        // by now (the wait then ends at once): the look comes after the call
+        (e.dm_absent() || self.ctx.module_gone(kind, module))
             .then(|| (activation, kind, module.to_string()))
     }
 
@@ -521,9 +539,7 @@ impl<O: Operation> Actor for EoHost<O> {
         _myself: ActorRef<EoMsg>,
         state: &mut HostState<O>,
     ) -> Result<(), ActorProcessingErr> {
-        state
-            .end_activation(|flags, epoch| EoReport::Suspended { flags, epoch })
-            .await;
+        state.abandon_activation().await;
         Ok(())
     }
 

@@ -116,10 +116,46 @@ impl OpError {
         }
     }
 
+    /// Datamanager `dm`'s error `e`: [`OpError::Unreachable`] when it says the datamanager
+    /// was absent (none registered, its actor gone) — the host then waits for it even if a
+    /// new leader is published by the time it looks (an election between the failed call
+    /// and the look), and steps again —, [`OpError::Datamanager`] otherwise. The words are
+    /// the same either way: `datamanager DM: PROBLEM`.
+    pub fn of_dm(dm: impl Into<String>, e: &DmError) -> Self {
+        let dm = dm.into();
+        match e {
+            DmError::NotRegistered(_) | DmError::Unreachable(_) => OpError::Unreachable {
+                kind: ModuleKind::Datamanager,
+                problem: format!("datamanager {dm}: {e}"),
+                module: dm,
+            },
+            _ => OpError::Datamanager {
+                dm,
+                problem: e.to_string(),
+            },
+        }
+    }
+
+    /// Whether it says a datamanager was absent when the operation called it.
+    pub(crate) fn dm_absent(&self) -> bool {
+        matches!(
+            self,
+            OpError::Unreachable {
+                kind: ModuleKind::Datamanager,
+                ..
+            }
+        )
+    }
+
     /// The datamanager it names, for a datamanager's error.
     pub fn datamanager(&self) -> Option<&str> {
         match self {
             OpError::Datamanager { dm, .. } => Some(dm),
+            OpError::Unreachable {
+                kind: ModuleKind::Datamanager,
+                module,
+                ..
+            } => Some(module),
             _ => None,
         }
     }
@@ -141,10 +177,7 @@ impl OpError {
 /// `map_err` to name it there.
 impl From<DmError> for OpError {
     fn from(e: DmError) -> OpError {
-        OpError::Datamanager {
-            dm: e.datamanager().unwrap_or("?").to_string(),
-            problem: e.to_string(),
-        }
+        OpError::of_dm(e.datamanager().unwrap_or("?"), &e)
     }
 }
 

@@ -48,7 +48,7 @@ mod target;
 pub use chaos::Chaos;
 pub use inject::{inject_into, Injected, Injector};
 pub use network::NodeNetwork;
-pub use node_chaos::{NodeChaos, NodeStrike};
+pub use node_chaos::{NodeChaos, NodeStrike, Struck, DEFAULT_MAX_GAP, DEFAULT_MIN_GAP};
 pub(crate) use plan::{FaultPlan, PlanRun};
 pub use processes::NodeProcesses;
 pub use resolve::{find, Hit, RunBindings};

@@ -5,7 +5,9 @@
 //! simulated run whatever the speed. Fixed faults wait until the mission has bound its
 //! operations, so that even a fault at 0 s hits the bound instance. Every planned fault ends
 //! up on the bus, so in the report — injected, or why not (no such instance, the mission
-//! was over first); none is dropped silently.
+//! was over first); none is dropped silently. The node chaos's schedule alone runs on
+//! across runs (see [`NodeChaos`]): its clock stops when a run ends and goes on when the
+//! next one has bound its operations.
 
 use super::{Chaos, FaultSpec, Injector, NodeChaos, Target};
 use marie_vocabulary::clock::SharedClock;
@@ -29,6 +31,8 @@ pub(crate) struct FaultPlan {
 /// The injection tasks of one run.
 pub(crate) struct PlanRun {
     tasks: Vec<JoinHandle<()>>,
+    /// The node chaos, whose schedule outlives the run (see [`NodeChaos`]).
+    node_chaos: Option<NodeChaos>,
     /// Fixed faults not yet done, in time order.
     pending: Arc<Mutex<Vec<FaultSpec>>>,
     injector: Injector,
@@ -84,24 +88,32 @@ impl PlanRun {
                 }
             }));
         }
-        if let Some(mut chaos) = plan.node_chaos {
+        if let Some(chaos) = plan.node_chaos.clone() {
             let (clock, injector) = (clock.clone(), injector.clone());
             tasks.push(tokio::spawn(async move {
                 injector.bound().await;
+                // the schedule's clock runs from the binding on (see `NodeChaos`)
+                chaos.lap_begins(clock.now());
                 loop {
-                    clock.sleep(chaos.next_gap()).await;
+                    clock.sleep(chaos.until_next(clock.now())).await;
                     let Some(strike) = chaos.draw(injector.processes()) else {
-                        tracing::info!("node chaos: no node left to hit");
-                        return;
+                        tracing::info!(
+                            "node chaos: no node to hit now; the next strike is due later"
+                        );
+                        chaos.done(None, clock.now().saturating_sub(t0));
+                        continue;
                     };
-                    let _ = injector
+                    let injected = injector
                         .inject_for(strike.kind, &strike.target, strike.lasting)
                         .await;
+                    let outcome = injected.map(|_| ()).map_err(|e| e.to_string());
+                    chaos.done(Some((strike, outcome)), clock.now().saturating_sub(t0));
                 }
             }));
         }
         PlanRun {
             tasks,
+            node_chaos: plan.node_chaos,
             pending,
             injector,
             clock,
@@ -111,10 +123,8 @@ impl PlanRun {
 
     /// Stop injecting; tell the bus of each fault not yet due that the mission was over
     /// first.
-    pub(crate) fn finish(self) {
-        for t in &self.tasks {
-            t.abort();
-        }
+    pub(crate) fn finish(mut self) {
+        self.stop();
         let ended = self.clock.now().saturating_sub(self.t0);
         for spec in std::mem::take(&mut *lock(&self.pending)) {
             let why = format!(
@@ -126,11 +136,21 @@ impl PlanRun {
     }
 }
 
-impl Drop for PlanRun {
-    fn drop(&mut self) {
+impl PlanRun {
+    /// Stop the tasks; the node chaos's schedule stops with the run's mission time.
+    fn stop(&mut self) {
         for t in &self.tasks {
             t.abort();
         }
+        if let Some(chaos) = self.node_chaos.take() {
+            chaos.lap_ends(self.clock.now());
+        }
+    }
+}
+
+impl Drop for PlanRun {
+    fn drop(&mut self) {
+        self.stop();
     }
 }
 

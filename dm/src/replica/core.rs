@@ -202,6 +202,9 @@ pub(crate) struct Core {
     durable: (u64, u64),
     /// The highest seq this replica knows to match the current leader's log.
     verified: u64,
+    /// The seq up to which every replica holds the log durably, as the leader last told
+    /// (see [`Core::held_everywhere`]).
+    held: u64,
     role: Role,
     leader: Option<String>,
     /// When this replica last heard from the current leader.
@@ -304,6 +307,7 @@ impl Core {
             applied: restored.committed.0,
             durable: durable_last,
             verified: 0,
+            held: 0,
             role: Role::Follower,
             leader: None,
             heard: None,
@@ -809,6 +813,7 @@ impl Core {
         out: &mut Vec<Out>,
     ) {
         let (last, base, commit, term) = (self.last().0, self.base, self.commit, self.term);
+        let held = self.held_everywhere();
         let commit_term = self.term_at(commit).unwrap_or(0);
         let (heartbeat, election) = (self.timing.heartbeat, self.timing.election);
         // while the preferred replica takes over, the others get nothing it may lack
@@ -895,6 +900,7 @@ impl Core {
                 ops,
                 commit,
                 at: nanos(now),
+                held,
             },
         ));
     }
@@ -992,6 +998,22 @@ impl Core {
         if n > self.commit && self.term_at(n) == Some(self.term) {
             self.commit = n;
             self.apply(out);
+        }
+    }
+
+    /// The seq up to which every replica holds the log durably: on a leader, the least of
+    /// what its peers matched and of what is durable here; on another replica, what the
+    /// leader last told. No replica can need an entry up to it from memory: the tail drops
+    /// them ([`Core::trim`]), so that replicas that all keep up keep next to nothing there.
+    fn held_everywhere(&self) -> u64 {
+        match &self.role {
+            Role::Leader { peers, .. } => peers
+                .values()
+                .map(|p| p.matched)
+                .chain([self.durable_here()])
+                .min()
+                .unwrap_or(0),
+            _ => self.held,
         }
     }
 
@@ -1111,10 +1133,18 @@ impl Core {
         self.settle_members(out);
     }
 
-    /// Drop the oldest applied entries beyond what it keeps in memory (a replica that still
-    /// needs them gets a snapshot). Called once the actor has carried out the [`Out`]s that
-    /// name entries: they may name these.
+    /// Drop the applied entries every replica holds ([`Core::held_everywhere`]), and the
+    /// oldest applied entries beyond what it keeps in memory (a replica that still needs
+    /// them gets a snapshot). Called once the actor has carried out the [`Out`]s that name
+    /// entries: they may name these.
+    ///
+    /// Why the first: the bound alone let every replica of a datamanager that never lags
+    /// hold its last [`TAIL_KEEP`] entries (up to [`KEEP_BYTES`](tail::KEEP_BYTES)) for
+    /// good — a copy of the store's newest records no replica would ever ask for. On a
+    /// kept-up cluster the nodes' memory grew with every run until each datamanager's tail
+    /// was full (the soak's replica nodes, 31 MiB to 98–135 MiB over 20–30 runs).
     pub(crate) fn trim(&mut self) {
+        let held = self.held_everywhere().min(self.applied);
         let keep_from = if let Role::Leader { peers, .. } = &self.role {
             peers
                 .values()
@@ -1127,7 +1157,10 @@ impl Core {
         let (keep, keep_bytes, applied) = (self.keep, self.keep_bytes, self.applied);
         let over = |len: usize, bytes: usize, k: usize| len > keep * k || bytes > keep_bytes * k;
         let dropped = self.tail.drop_front_while(|op, len, bytes| {
-            over(len, bytes, 1) && op.seq <= applied && (op.seq <= keep_from || over(len, bytes, 2))
+            op.seq <= held
+                || over(len, bytes, 1)
+                    && op.seq <= applied
+                    && (op.seq <= keep_from || over(len, bytes, 2))
         });
         if let Some(last) = dropped {
             self.base = last;
@@ -1146,14 +1179,21 @@ impl Core {
                 ops,
                 commit,
                 at,
-            } => self.on_append(
-                (term, leader, at),
-                (prev_seq, prev_term),
-                ops.into_vec(),
-                commit,
-                now,
-                out,
-            ),
+                held,
+            } => {
+                if term >= self.term {
+                    // a fact of the log's prefix, true whoever told it last
+                    self.held = self.held.max(held);
+                }
+                self.on_append(
+                    (term, leader, at),
+                    (prev_seq, prev_term),
+                    ops.into_vec(),
+                    commit,
+                    now,
+                    out,
+                )
+            }
             ReplicaMsg::AppendAck {
                 term,
                 from,

@@ -28,6 +28,11 @@ pub enum ReplicaMsg {
         /// follower's word for the leader's lease (`lease`). 0 from a build without leases.
         #[serde(default)]
         at: u64,
+        /// The seq up to which every replica holds the log durably, as the leader knows it
+        /// (0: not known, as from a leader of an older build): a replica keeps no applied
+        /// entry up to it in memory — no replica can need it from there.
+        #[serde(default)]
+        held: u64,
     },
     /// A replica's answer to an `Append` or to an installed snapshot.
     AppendAck {
@@ -430,6 +435,7 @@ mod tests {
             ops,
             commit: 5,
             at: 11,
+            held: 4,
         }
     }
 

@@ -53,10 +53,7 @@ impl Operation for Checker {
     }
 
     async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
-        let in_world = |e: DmError| OpError::Datamanager {
-            dm: WORLD.name.into(),
-            problem: e.to_string(),
-        };
+        let in_world = |e: DmError| OpError::of_dm(WORLD.name, &e);
         let newest = ctx
             .dm(WORLD)?
             .newest_kind(STATISTICS)

@@ -107,10 +107,7 @@ impl Operation for Sampler {
         ctx.dm(FEATURE)?
             .store_kind(SAMPLES, &sample)
             .await
-            .map_err(|e| OpError::Datamanager {
-                dm: FEATURE.name.into(),
-                problem: e.to_string(),
-            })?;
+            .map_err(|e| OpError::of_dm(FEATURE.name, &e))?;
         self.index += 1;
         Ok(if self.index >= count {
             Step::finish(SamplerFlag::Sampled)

@@ -87,10 +87,7 @@ pub(crate) async fn newest_with_seq<T: marie_dm::PayloadType>(
 
 /// Turn a datamanager error into an operation error naming the DM.
 pub(crate) fn dm_err(dm: DmSpec) -> impl Fn(DmError) -> OpError {
-    move |e| OpError::Datamanager {
-        dm: dm.name.to_string(),
-        problem: e.to_string(),
-    }
+    move |e| OpError::of_dm(dm.name, &e)
 }
 
 /// The localizer's newest odometry correction ([`records::LOCATION`]); the identity when

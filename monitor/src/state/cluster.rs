@@ -23,6 +23,10 @@ pub struct NodeView {
     /// nothing but another loss ended: a node that had long been back showed frozen.)
     #[serde(skip_serializing_if = "Option::is_none")]
     pub woke: Option<Woke>,
+    /// Its latest return after it was lost (a process restarted under its name, or a
+    /// node declared down heard again), as a peer told it (`node_back`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub back: Option<Back>,
     /// The address it listens on, when a peer said.
     pub address: Option<String>,
     /// When its status last changed, ms of the reporting node's clock.
@@ -39,6 +43,15 @@ pub struct Woke {
     pub at_ms: u64,
     /// How long it was frozen, ms of real time.
     pub silent_ms: u64,
+}
+
+/// A node's return after it was lost (`node_back`, told by a peer that sees it again).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct Back {
+    /// When the peer saw it back, ms of the peer's clock.
+    pub at_ms: u64,
+    /// How long it was lost, ms of real time.
+    pub down_ms: u64,
 }
 
 /// A module in the location table.
@@ -87,6 +100,7 @@ impl Cluster {
             address: None,
             since_ms: at_ms,
             woke: None,
+            back: None,
             modules: BTreeMap::new(),
         })
     }
@@ -131,6 +145,7 @@ impl Cluster {
             EventKind::NodeUp { peer, address } => self.up(peer, address, at),
             EventKind::NodeLost { peer, address } => self.lost(peer, address, at),
             EventKind::NodeDown { peer, .. } => self.down(peer, at),
+            EventKind::NodeBack { peer, down_ms, .. } => self.back(peer, at, *down_ms),
             EventKind::NodeFrozen { silent_ms } => self.woke(node, at, *silent_ms),
             _ => {}
         }
@@ -157,11 +172,24 @@ impl Cluster {
         }
         node.address = Some(address.to_string());
         node.modules.clear();
+        node.back = None;
+    }
+
+    /// A peer saw `peer` back after it was lost `down_ms`: up, and the page says since when
+    /// and after how long. Each peer tells it; the first to tell of a return is kept (a
+    /// loss forgets the previous return).
+    pub fn back(&mut self, peer: &str, at_ms: u64, down_ms: u64) {
+        let node = self.set(peer, at_ms, "up");
+        if node.back.is_none() {
+            node.back = Some(Back { at_ms, down_ms });
+        }
     }
 
     /// A failure detector declared a peer down.
     pub fn down(&mut self, peer: &str, at_ms: u64) {
-        self.set(peer, at_ms, "down").modules.clear();
+        let node = self.set(peer, at_ms, "down");
+        node.modules.clear();
+        node.back = None;
     }
 
     /// A node found, as it woke at `at_ms`, that it was frozen `silent_ms` past its peers'
@@ -222,6 +250,35 @@ fn kind_label(m: &ModuleInfo) -> &'static str {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_node_back_is_told_once_per_return_by_the_first_peer_that_sees_it() {
+        let mut c = Cluster::default();
+        c.down("a", 20);
+        c.lost("a", "127.0.0.1:1", 21);
+        c.back("a", 300, 270);
+        // the other peers' news of the same return keep the first
+        c.back("a", 320, 295);
+        assert_eq!(c.0["a"].status, "up");
+        assert_eq!(
+            c.0["a"].back,
+            Some(Back {
+                at_ms: 300,
+                down_ms: 270
+            })
+        );
+        // lost again: the return is forgotten until the next
+        c.lost("a", "127.0.0.1:1", 900);
+        assert_eq!((c.0["a"].status, c.0["a"].back), ("lost", None));
+        c.back("a", 1_400, 480);
+        assert_eq!(
+            c.0["a"].back,
+            Some(Back {
+                at_ms: 1_400,
+                down_ms: 480
+            })
+        );
+    }
 
     #[test]
     fn a_node_heard_from_after_it_went_down_is_up_since_then() {

@@ -8,12 +8,14 @@
 //! live state. Nothing here waits or does I/O.
 //!
 //! One concept per file: the mission's task tree ([`mission`]), its behaviour tree
-//! ([`tree`]), the bindings ([`bindings`]), the cluster ([`cluster`]), the robot
-//! ([`robot`]), the timeline ([`timeline`]). Every part is bounded (history, timeline,
+//! ([`tree`]), the bindings ([`bindings`]), the cluster ([`cluster`]), the datamanagers
+//! without a majority ([`majority`]), the robot ([`robot`]), the timeline ([`timeline`]).
+//! Every part is bounded (history, timeline,
 //! path, a node's decisions), so a long run cannot grow the monitor without limit.
 
 pub mod bindings;
 pub mod cluster;
+pub mod majority;
 pub mod mission;
 pub mod robot;
 pub mod timeline;
@@ -21,6 +23,7 @@ pub mod tree;
 
 use bindings::Bindings;
 use cluster::Cluster;
+use majority::NoMajorities;
 use marie_vocabulary::events::{Event, EventKind, Teller};
 use mission::MissionView;
 use robot::RobotView;
@@ -50,6 +53,8 @@ pub struct MonitorState {
     pub bindings: Bindings,
     /// The nodes, by name.
     pub cluster: Cluster,
+    /// The replicated datamanagers without a leader now ("no majority"), by name.
+    pub no_majority: NoMajorities,
     /// The robot in its world.
     pub robot: RobotView,
     /// Faults, restarts, rebinds, node news.
@@ -80,6 +85,7 @@ impl MonitorState {
         self.tree.apply(kind);
         self.bindings.apply(event.at_ms, kind);
         self.cluster.apply(event);
+        self.no_majority.apply(event.at_ms, kind);
         let drawn = match kind {
             EventKind::Robot { what, data } => self.robot.apply(what, data),
             _ => false,

@@ -101,6 +101,8 @@ pub fn class(kind: &EventKind, drawn: bool) -> Option<&'static str> {
         | EventKind::Joined(_)
         | EventKind::Left(_)
         | EventKind::DmState { .. }
+        // the poll's news every 2 s while it lasts: the cluster panel says it
+        | EventKind::DmNoMajority { .. }
         | EventKind::ChildStarted { .. }
         | EventKind::DmAcked { .. }
         | EventKind::DmDeleted { .. }

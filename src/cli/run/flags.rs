@@ -2,7 +2,7 @@
 //! checks and turns into a plan. `marie up --run` builds them too, with the fields clap
 //! skips (the files it read, its node processes, its node chaos, its Ctrl-C watch).
 
-use super::MissionOver;
+use super::{KeptReport, MissionOver};
 use crate::cli::args::{parse_seed, parse_speed, RobotArgs};
 use crate::cli::join::JoinArgs;
 use marie::cluster::fault::{FaultSpec, NodeChaos, NodeProcesses};
@@ -118,6 +118,10 @@ pub(crate) struct RunArgs {
     /// [`MissionOver`]).
     #[arg(skip)]
     pub mission_over: MissionOver,
+    /// Where the run leaves its report for whoever ran it from this process (`marie up
+    /// --runs`).
+    #[arg(skip)]
+    pub kept: KeptReport,
     /// With `--join`: dispatch the run on NODE (a node whose config says `dispatcher =
     /// "active"` or `"standby"`, e.g. `features` of the thesis layout) instead of this
     /// member, and follow it there — and to the standby that takes it over should NODE be

@@ -14,10 +14,12 @@
 //! - `taps.rs` — the followers of the run's events: lines, files, page, relays;
 //! - `page.rs` — the `--monitor` page, up until Ctrl-C;
 //! - `ended.rs` — the end lines, the outputs written, the exit code;
-//! - `mission_over.rs` — when `marie up --run` may let a Ctrl-C be the run's.
+//! - `mission_over.rs` — when `marie up --run` may let a Ctrl-C be the run's;
+//! - `kept.rs` — the report handed back to `marie up --runs`.
 
 mod ended;
 mod flags;
+mod kept;
 mod mission_over;
 mod page;
 mod plan;
@@ -26,6 +28,7 @@ mod session;
 mod taps;
 
 pub(crate) use flags::RunArgs;
+pub(crate) use kept::KeptReport;
 pub(crate) use mission_over::MissionOver;
 
 use plan::Plan;
@@ -42,6 +45,7 @@ pub(crate) async fn run(flags: RunArgs) -> anyhow::Result<ExitCode> {
     // the mission runs, its events followed; then the node stops
     let ended = session.follow().await?;
     ended.tell();
+    ended.plan.kept.keep(&ended.report);
     let written = ended.write_outputs();
     let code = ended.verdict(written);
     // the page stays up until Ctrl-C; then the cluster is left

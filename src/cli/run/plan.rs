@@ -8,7 +8,7 @@
 //! ([`super::ready`]) before the mission runs.
 
 use super::flags::RunArgs;
-use super::MissionOver;
+use super::{KeptReport, MissionOver};
 use crate::cli::args::{RobotArgs, MAX_SPEED};
 use crate::cli::error::BadInput;
 use crate::cli::files;
@@ -49,6 +49,8 @@ pub(super) struct Plan {
     pub(super) monitor: Option<MonitorPlan>,
     /// Set once the mission has ended.
     pub(super) mission_over: MissionOver,
+    /// Where the report is left for whoever ran the run (`marie up --runs`).
+    pub(super) kept: KeptReport,
 }
 
 /// The files a run writes, each checked writable before it starts: a run must not end in a
@@ -139,6 +141,7 @@ impl Plan {
                 processes: flags.node_processes,
             }),
             mission_over: flags.mission_over,
+            kept: flags.kept,
         })
     }
 

@@ -20,20 +20,27 @@
 //! - `nodes.rs` — the node processes started, converged, stopped;
 //! - `supervisor.rs` — a node whose process ends restarted as the cluster file says;
 //! - `serve.rs` — the listing, then the mission or the cluster served until a signal;
-//! - `mission.rs` — `--run`: the mission run as `run --join` would.
+//! - `mission.rs` — `--run`: the mission run as `run --join` would;
+//! - `soak.rs` — `--runs N`: the mission run N times, then the summary;
+//! - `catch_up.rs` — under `--runs`: when each node fault's node was back and caught up;
+//! - `memory.rs` — the node processes' resident memory, at the soak's start and end.
 
+mod catch_up;
 mod data_dirs;
+mod memory;
 mod mission;
 mod network;
 mod nodes;
 mod plan;
 mod serve;
+mod soak;
 mod supervisor;
 
 pub(crate) use network::private_network;
 
 use crate::cli::args::{parse_cluster_speed, parse_seed};
 use marie::cluster::fault::FaultSpec;
+use mission::{parse_gaps, Gaps};
 use nodes::Nodes;
 use plan::UpPlan;
 use serve::serve;
@@ -94,13 +101,35 @@ pub(crate) struct UpArgs {
         requires = "run"
     )]
     pub faults: Vec<FaultSpec>,
-    /// With `--run`: every 8 to 16 s of mission time, stop, freeze (2 to 6 s) or cut off
-    /// (2 to 6 s, where the nodes run in a private network) a random node other than the
-    /// cart's, drawn by a generator seeded with SEED. A stopped node is restarted as the
-    /// cluster file says (by default at once: `restart = "permanent"`).
+    /// With `--run`: every 10 to 20 s of mission time (`--chaos-every`), stop, freeze (2 to
+    /// 6 s) or cut off (2 to 6 s, where the nodes run in a private network) a random node
+    /// other than the cart's, drawn by a generator seeded with SEED. A stopped node is
+    /// restarted as the cluster file says (by default at once: `restart = "permanent"`).
+    /// With `--runs`: one schedule for all the runs — its clock is the runs' mission time,
+    /// so the faults keep coming from one run to the next.
     #[arg(long, value_name = "SEED", value_parser = parse_seed, allow_hyphen_values = true,
           requires = "run")]
     pub chaos_nodes: Option<u64>,
+    /// With `--chaos-nodes`: strike every MIN to MAX seconds of mission time instead of 10
+    /// to 20 (e.g. `4-8`).
+    #[arg(long, value_name = "MIN-MAX", value_parser = parse_gaps, requires = "chaos_nodes")]
+    pub chaos_every: Option<Gaps>,
+    /// With `--run`: run the mission N times on the same cluster, one after another — the
+    /// first from where the cluster starts, every next one with the cart put back at the
+    /// world's start (as `run --join --from-start`) — while the cluster's nodes are
+    /// restarted as its file says: a soak. Each run prints its lines, outcome and verdict;
+    /// then a summary of them all: runs failed, faults (with `--chaos-nodes`: each fault's
+    /// node, when it was back and when every replica on it had caught up), acknowledged
+    /// records lost, epochs obeyed late, collisions, and each node's memory (VmRSS) at the
+    /// start and the end. `--report`, `--events`, `--mcap`, `--svg` are written per run
+    /// (`report.json` → `report-1.json`, `report-2.json`, …); a `--fault` strikes in every
+    /// run. Keeps going after a failed run (one refused before it started — its node to
+    /// dispatch on out at that moment — is tried again for up to 60 s); exit 0 when every
+    /// run succeeded. Not with
+    /// `--monitor` (a run's page stays up until Ctrl-C).
+    #[arg(long, value_name = "N", requires = "run", conflicts_with = "monitor",
+          value_parser = clap::value_parser!(u32).range(1..))]
+    pub runs: Option<u32>,
     /// Start the nodes in a private network of Linux namespaces (needs root and `ip`), so
     /// that they can be cut apart: by `--fault partition:…` (which makes one by itself),
     /// `--chaos-nodes` (which makes one where it can) or the page (`--allow-faults`). Only

@@ -3,7 +3,7 @@
 //! stopped on the way out.
 
 use super::plan::UpPlan;
-use super::supervisor::{self, Lines, Supervised};
+use super::supervisor::{self, Lines, Restarted, Supervised};
 use crate::cli::children::{stop_all, Line, Listening, NodeChild, NodeLaunch};
 use crate::cli::join::{join, member_name};
 use marie::cluster::fault::NodeProcesses;
@@ -135,8 +135,14 @@ impl Nodes {
     }
 
     /// From now on, restart a node whose process ends as the cluster file says; `lines`
-    /// gives what the supervisor passes on (it ends when every node is down for good).
-    pub(super) fn supervise(&mut self, plan: &UpPlan, processes: NodeProcesses) {
+    /// gives what the supervisor passes on (it ends when every node is down for good);
+    /// `restarted`, if given, hears of every node started again once it listens.
+    pub(super) fn supervise(
+        &mut self,
+        plan: &UpPlan,
+        processes: NodeProcesses,
+        restarted: Option<mpsc::UnboundedSender<Restarted>>,
+    ) {
         let Some(raw_tx) = self.raw_tx.take() else {
             return;
         };
@@ -148,7 +154,12 @@ impl Nodes {
             std::mem::take(&mut self.children),
             &plan.launches,
             &restarts,
-            Lines { raw, raw_tx, out },
+            Lines {
+                raw,
+                raw_tx,
+                out,
+                restarted,
+            },
             processes,
         ));
     }

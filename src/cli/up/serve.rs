@@ -1,10 +1,11 @@
 //! What `marie up` does while its nodes run: wait for the registry to converge and list the
-//! nodes, then run the mission (`--run`) or serve the cluster — its page with `--monitor`,
-//! the nodes' lines — until a signal.
+//! nodes, then run the mission (`--run`, `--runs` times) or serve the cluster — its page
+//! with `--monitor`, the nodes' lines — until a signal.
 
-use super::mission::run_mission;
+use super::mission::{run_mission, Turn};
 use super::nodes::{converged, Nodes};
 use super::plan::UpPlan;
+use super::soak::soak;
 use super::UpArgs;
 use crate::cli::children::Line;
 use crate::cli::monitor::ClusterWatch;
@@ -21,10 +22,22 @@ pub(super) async fn serve(
 ) -> anyhow::Result<ExitCode> {
     list_when_converged(plan, nodes).await?;
     let processes = nodes.processes(&plan.launches);
-    nodes.supervise(plan, processes.clone());
-    match &args.run {
-        Some(mission) => run_mission(args, plan, mission, processes).await,
-        None => watch(args, plan, &mut nodes.lines, processes).await,
+    match (&args.run, args.runs) {
+        (Some(mission), Some(runs)) => {
+            // the soak hears of every node restarted, for its faults' fates
+            let (tell, restarted) = mpsc::unbounded_channel();
+            nodes.supervise(plan, processes.clone(), Some(tell));
+            soak(args, plan, mission, processes, restarted, runs).await
+        }
+        (Some(mission), None) => {
+            nodes.supervise(plan, processes.clone(), None);
+            let turn = Turn::only(args, &plan.layout);
+            run_mission(args, plan, mission, processes, &turn).await
+        }
+        (None, _) => {
+            nodes.supervise(plan, processes.clone(), None);
+            watch(args, plan, &mut nodes.lines, processes).await
+        }
     }
 }
 

@@ -44,6 +44,18 @@ impl Supervised {
     }
 }
 
+/// A node started again, as the supervisor tells whoever watches (`marie up --runs`'s
+/// soak): once it listens.
+#[derive(Clone, Debug)]
+pub(super) struct Restarted {
+    /// The node.
+    pub(super) node: String,
+    /// When it listened again.
+    pub(super) at: Instant,
+    /// How long after its process had ended.
+    pub(super) after: Duration,
+}
+
 /// A node under supervision.
 struct Supervisee {
     launch: NodeLaunch,
@@ -62,6 +74,8 @@ struct Supervisor {
     raw_tx: mpsc::UnboundedSender<Line>,
     out: mpsc::UnboundedSender<Line>,
     due: JoinSet<String>,
+    /// Told of every node started again, once it listens.
+    restarted: Option<mpsc::UnboundedSender<Restarted>>,
 }
 
 /// The children's lines, as the supervisor hears them and as it passes them on.
@@ -73,6 +87,8 @@ pub(super) struct Lines {
     /// Every node's lines, and its end (`text: None`); closes when every node is down and
     /// none will be restarted.
     pub(super) out: mpsc::UnboundedSender<Line>,
+    /// Told of every node started again, once it listens (`None`: nobody asks).
+    pub(super) restarted: Option<mpsc::UnboundedSender<Restarted>>,
 }
 
 /// Supervise `children`, started from `launches` (at the addresses they bound), restarting
@@ -85,7 +101,12 @@ pub(super) fn supervise(
     lines: Lines,
     processes: NodeProcesses,
 ) -> Supervised {
-    let Lines { raw, raw_tx, out } = lines;
+    let Lines {
+        raw,
+        raw_tx,
+        out,
+        restarted,
+    } = lines;
     let mut children: BTreeMap<String, NodeChild> =
         children.into_iter().map(|c| (c.name.clone(), c)).collect();
     let nodes = launches
@@ -108,6 +129,7 @@ pub(super) fn supervise(
         raw_tx,
         out,
         due: JoinSet::new(),
+        restarted,
     };
     let (stop, stopped) = oneshot::channel();
     let task = tokio::spawn(supervisor.run(raw, stopped));
@@ -169,12 +191,20 @@ impl Supervisor {
         };
         n.ended_at = None;
         let pid = n.child.as_ref().map(NodeChild::pid).unwrap_or(0);
+        let after = at.elapsed();
         println!(
             "node {node} restarted: listening on {} (pid {pid}), {:.2} s after its process \
              ended",
             listening.addr,
-            at.elapsed().as_secs_f64()
+            after.as_secs_f64()
         );
+        if let Some(tell) = &self.restarted {
+            let _ = tell.send(Restarted {
+                node: node.to_string(),
+                at: Instant::now(),
+                after,
+            });
+        }
     }
 
     /// `node`'s output ended: reap it, take it out of the fault table, restart it or not.

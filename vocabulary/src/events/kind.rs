@@ -394,6 +394,20 @@ pub enum EventKind {
         /// On the leader: how many entries each other replica lacks.
         lag: std::collections::BTreeMap<String, u64>,
     },
+    /// A replicated datamanager has no leader, as a monitor asked its replicas (fed to the
+    /// monitor's page with [`DmState`](Self::DmState) while it lasts; never on a node's bus):
+    /// which replicas answer and which nodes it misses for a majority. A leader's
+    /// `DmState` of the same datamanager ends it.
+    DmNoMajority {
+        /// The datamanager's name.
+        dm: String,
+        /// Every replica's node (empty when none answered).
+        members: Vec<String>,
+        /// The nodes whose replica answered.
+        answering: Vec<String>,
+        /// The members neither answering nor reached by one that did.
+        missing: Vec<String>,
+    },
     /// A producer of this node was told a record was stored: a `store` answered with its
     /// seq. What the check at the end of a run ([`DmChecked`](Self::DmChecked)) looks up.
     DmAcked {
@@ -584,6 +598,7 @@ impl EventKind {
             | EventKind::DmFenced { .. }
             | EventKind::DmRetention { .. }
             | EventKind::DmState { .. }
+            | EventKind::DmNoMajority { .. }
             | EventKind::DmAcked { .. }
             | EventKind::DmDeleted { .. }
             | EventKind::DmApplied { .. }

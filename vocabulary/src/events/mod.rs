@@ -123,7 +123,7 @@ pub use kind::{
 };
 pub use registry_bridge::{bridge_registry, RegistryBridge};
 pub use voice::DispatcherVoice;
-pub use words::{gravity, mark, Gravity, Mark, RobotWords, Teller, Words, TEXT_LIMIT};
+pub use words::{gravity, mark, no_majority, Gravity, Mark, RobotWords, Teller, Words, TEXT_LIMIT};
 
 use serde::{Deserialize, Serialize};
 
@@ -225,6 +225,7 @@ mod tests {
             EventKind::DmFenced { .. } => "dm_fenced",
             EventKind::DmRetention { .. } => "dm_retention",
             EventKind::DmState { .. } => "dm_state",
+            EventKind::DmNoMajority { .. } => "dm_no_majority",
             EventKind::DmAcked { .. } => "dm_acked",
             EventKind::DmDeleted { .. } => "dm_deleted",
             EventKind::DmApplied { .. } => "dm_applied",

@@ -555,6 +555,12 @@ fn datamanager(node: &str, kind: &EventKind) -> String {
                 .unwrap_or_default();
             format!("datamanager {dm} on {node}: {records} records ({durability}){role}")
         }
+        EventKind::DmNoMajority {
+            dm,
+            members,
+            answering,
+            missing,
+        } => no_majority(dm, members, answering, missing),
         EventKind::DmAcked {
             dm,
             source,
@@ -734,6 +740,7 @@ pub fn mark(kind: &EventKind) -> Mark {
         | EventKind::DmFenced { .. }
         | EventKind::DmRetention { .. }
         | EventKind::DmState { .. }
+        | EventKind::DmNoMajority { .. }
         | EventKind::DmAcked { .. }
         | EventKind::DmDeleted { .. }
         | EventKind::DmApplied { .. }
@@ -782,7 +789,8 @@ pub fn gravity(kind: &EventKind) -> Gravity {
         | EventKind::DmFenced { .. }
         | EventKind::DmReplicaRemoved { .. }
         | EventKind::DmReplicaReplaced { .. }
-        | EventKind::DmRetention { .. } => Gravity::Warning,
+        | EventKind::DmRetention { .. }
+        | EventKind::DmNoMajority { .. } => Gravity::Warning,
         EventKind::DmRecovered { torn: Some(_), .. } => Gravity::Warning,
         EventKind::ChildExited { reason, .. } if reason != "normal" => Gravity::Warning,
         EventKind::DmAcked { .. }
@@ -792,6 +800,36 @@ pub fn gravity(kind: &EventKind) -> Gravity {
         // the robot's own events: as grave as its words say (see `Teller::tell`)
         _ => Gravity::Info,
     }
+}
+
+/// How a replicated datamanager without a leader is told — by the page's `dm_no_majority`
+/// and by whoever waited for it in vain (`marie ls`, a run that failed for it): its
+/// replicas `members`, those `answering`, and the `missing` nodes a majority needs.
+pub fn no_majority(
+    dm: &str,
+    members: &[String],
+    answering: &[String],
+    missing: &[String],
+) -> String {
+    if members.is_empty() {
+        return format!(
+            "datamanager `{dm}` has no leader and none of its replicas answers from here"
+        );
+    }
+    format!(
+        "datamanager `{dm}` has no majority: {} of its {} replicas answer{} ({}), a leader needs \
+         {}; missing: {}",
+        answering.len(),
+        members.len(),
+        if answering.len() == 1 { "s" } else { "" },
+        answering.join(", "),
+        members.len() / 2 + 1,
+        if missing.is_empty() {
+            "none (an election is under way)".to_string()
+        } else {
+            missing.join(", ")
+        }
+    )
 }
 
 /// A text told from data of unknown length is cut to this many characters.

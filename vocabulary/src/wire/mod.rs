@@ -11,6 +11,14 @@
 //! declared with `-> Reply` carries a `reply: RpcReplyPort<Reply>` field and travels as a call:
 //! its port is bridged to a byte port and back with [`bridge_out`] / [`bridge_in`].
 //!
+//! A call's reply port dropped unanswered on the node that received it reaches the caller at
+//! once, as a dropped port, as it does between actors of one process: the receiving side
+//! sends [`NO_ANSWER`] back in its stead. ractor_cluster sends nothing back for a port dropped
+//! there, so without it the caller on another node learned only as its own deadline passed
+//! — and a datamanager's replica drops the ports of the callers it cannot answer on purpose,
+//! so that they follow the datamanager's name to its leader (a leader deposed, a request it
+//! sent on to a leader that is lost, one it kept for want of a leader too long).
+//!
 //! Frames marie sends between nodes outside ractor's own messages (heartbeats, membership,
 //! events) travel in the versioned [`envelope::Envelope`]: a peer that speaks another
 //! [`PROTOCOL_VERSION`] is refused with an error naming both versions, never misread.
@@ -41,9 +49,16 @@ fn port_from<T>(tx: concurrency::OneshotSender<T>, timeout: Option<Duration>) ->
     }
 }
 
+/// The frame a receiving node sends back for a call whose reply port was dropped unanswered
+/// there: no bytes, which no MessagePack value encodes to (each is at least one byte). The
+/// caller's side drops its own port on it ([`bridge_out`]); a node of a build before it took
+/// it for a reply that does not decode, which does the same.
+pub const NO_ANSWER: &[u8] = &[];
+
 /// Turn a typed reply port into a byte port for the sending side: bytes that arrive are
-/// decoded and forwarded. Undecodable replies are dropped with a warning, which the caller
-/// sees as a closed port.
+/// decoded and forwarded. [`NO_ANSWER`] — the port was dropped unanswered on the other side
+/// — and undecodable replies (with a warning) are dropped, which the caller sees as a
+/// closed port at once.
 pub fn bridge_out<T>(port: RpcReplyPort<T>) -> RpcReplyPort<Vec<u8>>
 where
     T: DeserializeOwned + Send + 'static,
@@ -55,20 +70,25 @@ where
             Some(t) => concurrency::timeout(t, rx).await.ok().and_then(|r| r.ok()),
             None => rx.await.ok(),
         };
-        if let Some(bytes) = bytes {
-            match decode::<T>(&bytes) {
+        match bytes {
+            Some(bytes) if bytes == NO_ANSWER => {
+                tracing::debug!("a call was dropped unanswered on the node that received it")
+            }
+            Some(bytes) => match decode::<T>(&bytes) {
                 Ok(v) => {
                     let _ = port.send(v);
                 }
                 Err(e) => tracing::warn!(error = %e, "dropping a reply that does not decode"),
-            }
+            },
+            None => {}
         }
     });
     port_from(tx, timeout)
 }
 
 /// Turn a byte reply port (from a peer) into a typed port for the receiving actor: the typed
-/// answer is encoded and sent back.
+/// answer is encoded and sent back; a port dropped unanswered is sent back as [`NO_ANSWER`],
+/// so that the caller hears of it now rather than at its deadline.
 pub fn bridge_in<T>(port: RpcReplyPort<Vec<u8>>) -> RpcReplyPort<T>
 where
     T: Serialize + Send + 'static,
@@ -76,16 +96,23 @@ where
     let timeout = port.get_timeout();
     let (tx, rx) = concurrency::oneshot::<T>();
     concurrency::spawn(async move {
-        let value = match timeout {
-            Some(t) => concurrency::timeout(t, rx).await.ok().and_then(|r| r.ok()),
-            None => rx.await.ok(),
+        let answer = match timeout {
+            // past the deadline the caller no longer listens: nothing is sent
+            Some(t) => match concurrency::timeout(t, rx).await {
+                Ok(answer) => answer,
+                Err(_) => return,
+            },
+            None => rx.await,
         };
-        if let Some(v) = value {
-            match encode(&v) {
+        match answer {
+            Ok(v) => match encode(&v) {
                 Ok(bytes) => {
                     let _ = port.send(bytes);
                 }
                 Err(e) => tracing::warn!(error = %e, "a reply could not be encoded"),
+            },
+            Err(_) => {
+                let _ = port.send(NO_ANSWER.to_vec());
             }
         }
     });
@@ -315,6 +342,93 @@ mod tests {
             other => panic!("wrong variant {other:?}"),
         }
         assert_eq!(rx.await.unwrap(), vec![1, 2, 3]);
+    }
+
+    /// A call whose port has a deadline of `deadline`, as the receiving node gets it, and the
+    /// caller's end. Between the two byte ports stands what ractor_cluster does: the
+    /// receiving node's session sends back the bytes of an answer, and nothing for a port
+    /// dropped there; the caller's node holds the caller's byte port until its deadline.
+    fn call_across(
+        deadline: std::time::Duration,
+    ) -> (
+        ractor::RpcReplyPort<Vec<u32>>,
+        ractor::concurrency::OneshotReceiver<Vec<u32>>,
+    ) {
+        let (tx, rx) = ractor::concurrency::oneshot();
+        let wire = TestMsg::Get {
+            key: "k".into(),
+            reply: (tx, deadline).into(),
+        }
+        .serialize()
+        .unwrap();
+        let SerializedMessage::Call {
+            variant,
+            args,
+            reply: callers,
+            metadata,
+        } = wire
+        else {
+            panic!("not a call");
+        };
+        let (there, bytes) = ractor::concurrency::oneshot::<Vec<u8>>();
+        tokio::spawn(async move {
+            match tokio::time::timeout(deadline, bytes).await {
+                Ok(Ok(bytes)) => {
+                    let _ = callers.send(bytes);
+                }
+                _ => tokio::time::sleep(deadline).await,
+            }
+        });
+        let arrived = SerializedMessage::Call {
+            variant,
+            args,
+            reply: (there, deadline).into(),
+            metadata,
+        };
+        match TestMsg::deserialize(arrived).unwrap() {
+            TestMsg::Get { reply, .. } => (reply, rx),
+            other => panic!("wrong variant {other:?}"),
+        }
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn an_answer_crosses_the_nodes() {
+        let (reply, rx) = call_across(std::time::Duration::from_secs(60));
+        reply.send(vec![4, 2]).unwrap();
+        assert_eq!(rx.await.unwrap(), vec![4, 2]);
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn a_port_dropped_unanswered_closes_the_callers_port_at_once() {
+        let deadline = std::time::Duration::from_secs(60);
+        let (reply, rx) = call_across(deadline);
+        let asked = tokio::time::Instant::now();
+        drop(reply);
+        // (the clock is paused: it moves only when every task waits for a timer, so a port
+        // closed at its deadline would show 60 s gone)
+        assert!(rx.await.is_err(), "no answer, and the port closed");
+        assert!(
+            asked.elapsed() < deadline,
+            "closed at once, not at the deadline"
+        );
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn a_port_neither_answered_nor_dropped_closes_at_the_callers_deadline() {
+        let deadline = std::time::Duration::from_secs(60);
+        let (reply, rx) = call_across(deadline);
+        let asked = tokio::time::Instant::now();
+        assert!(rx.await.is_err());
+        assert!(asked.elapsed() >= deadline);
+        drop(reply);
+    }
+
+    #[test]
+    fn no_value_encodes_to_the_frame_of_no_answer() {
+        assert_ne!(super::encode(&()).unwrap(), super::NO_ANSWER);
+        assert_ne!(super::encode(&Vec::<u32>::new()).unwrap(), super::NO_ANSWER);
+        assert_ne!(super::encode(&"").unwrap(), super::NO_ANSWER);
+        assert_ne!(super::encode(&None::<u8>).unwrap(), super::NO_ANSWER);
     }
 
     #[test]

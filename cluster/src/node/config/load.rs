@@ -840,6 +840,35 @@ mod tests {
     }
 
     #[test]
+    fn the_run_datamanager_keeps_a_bounded_number_of_checkpoints_unless_told_otherwise() {
+        use marie_actors::dispatcher::checkpoint::{CHECKPOINTS_KEPT, CHECKPOINT_CLASS};
+        let c = parse(
+            "[node]\nname = \"n\"\n\
+             [[datamanager]]\nname = \"run\"\n\
+             [[datamanager]]\nname = \"world\"\n",
+        )
+        .unwrap();
+        let run = c.datamanagers[0].limits();
+        assert_eq!(run.retention_for(CHECKPOINT_CLASS), CHECKPOINTS_KEPT);
+        let world = c.datamanagers[1].limits();
+        assert_eq!(
+            world.retention_for(CHECKPOINT_CLASS),
+            marie_dm::DmConfig::DEFAULT_RETENTION
+        );
+        let told = parse(
+            "[node]\nname = \"n\"\n\
+             [[datamanager]]\nname = \"run\"\nclass_retention = { checkpoint = 9000 }\n",
+        )
+        .unwrap();
+        assert_eq!(
+            told.datamanagers[0]
+                .limits()
+                .retention_for(CHECKPOINT_CLASS),
+            9000
+        );
+    }
+
+    #[test]
     fn retention_is_read_per_datamanager_and_class_and_a_bad_bound_is_refused_at_its_value() {
         let c = parse(
             "[node]\nname = \"n\"\n\

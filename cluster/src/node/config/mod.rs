@@ -58,6 +58,7 @@ pub(crate) mod load;
 
 pub(crate) use load::socket_addr;
 
+use marie_actors::dispatcher::checkpoint::{CHECKPOINTS_KEPT, CHECKPOINT_CLASS};
 use marie_actors::eo::OperationFactory;
 use marie_dm::{self as dm, DmSpec, Durability};
 use marie_supervision::{Restart, Strategy};
@@ -251,9 +252,14 @@ impl DatamanagerConfig {
         self
     }
 
-    /// The datamanager's limits as its retention settings make them.
+    /// The datamanager's limits as its retention settings make them. The run datamanager
+    /// ([`RUN`](marie_dm::RUN)) keeps [`CHECKPOINTS_KEPT`] checkpoints unless its
+    /// `class_retention` says otherwise.
     pub fn limits(&self) -> marie_dm::DmConfig {
         let mut limits = marie_dm::DmConfig::default();
+        if self.name == dm::RUN.name {
+            limits = limits.with_retention(CHECKPOINT_CLASS, CHECKPOINTS_KEPT);
+        }
         if let Some(n) = self.retention {
             limits = limits.with_default_retention(n);
         }
