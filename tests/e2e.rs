@@ -24,6 +24,7 @@ mod diff;
 mod dm_backpressure;
 mod dm_checker;
 mod dm_failover;
+mod dm_membership;
 mod dm_replicas;
 mod events_file;
 mod examples;

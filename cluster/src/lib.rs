@@ -26,3 +26,4 @@ pub mod layout;
 pub mod net;
 pub mod node;
 pub mod relay;
+pub mod replicas;

@@ -940,6 +940,24 @@ impl DmClient {
         }
     }
 
+    /// Change the datamanager's replicas by one ([`Change`](crate::Change)): add a replica
+    /// on a node that started one to join ([`Replication::joining`](crate::Replication::joining)),
+    /// or remove one. The outer error: the leader could not be asked (or stepped down with
+    /// the change: [`DmError`] says it gave no answer); the inner one: it refused, and why.
+    /// Ok is the seq of the new configuration, committed: a replica added is a learner then,
+    /// promoted by the leader once it caught up (see `ReplicaStats`). Not sent again once
+    /// asked: a change may have been appended before the leader went.
+    pub async fn change_replicas(
+        &self,
+        change: crate::Change,
+    ) -> Result<Result<u64, crate::ChangeError>, DmError> {
+        self.call(self.timeout, false, |reply| DmMsg::ChangeReplicas {
+            change: change.clone(),
+            reply,
+        })
+        .await
+    }
+
     /// The node that holds the datamanager's leader now: for a replicated datamanager, the
     /// node of the replica that answers as leader ([`DmStats::replica`]'s `node`); for one
     /// without replicas, the node it runs on. It asks the datamanager, as

@@ -18,6 +18,10 @@
 //! Mark     (9) = seq u64 | count u32 | seq u64 × count
 //!                                  (a replicated DM's delete of seqs, or with none a no-op,
 //!                                   taking log place `seq`)
+//! Members (10) = seq u64 | names (voters) | names (learners)
+//!                                  (a replicated DM's configuration: a log entry at place
+//!                                   `seq`, or inside a snapshot the one committed then)
+//! names   = u16 LE count | str × count
 //! str     = u16 LE length | UTF-8 bytes;  opt = u16 LE length (0xFFFF: none) | bytes
 //! bytes   = u32 LE length | bytes
 //! ```
@@ -47,6 +51,7 @@ const TERM: u8 = 6;
 const COMMIT: u8 = 7;
 const TRUNCATE: u8 = 8;
 const MARK: u8 = 9;
+const MEMBERS: u8 = 10;
 const NONE: u16 = u16::MAX;
 
 /// What one entry says.
@@ -77,6 +82,12 @@ pub(crate) enum Entry {
     Truncate { seq: u64 },
     /// A replicated delete of `seqs` (or, with none, a no-op) at log place `seq`.
     Mark { seq: u64, seqs: Vec<u64> },
+    /// A replicated datamanager's configuration at log place `seq`: who votes, who learns.
+    Members {
+        seq: u64,
+        voters: Vec<String>,
+        learners: Vec<String>,
+    },
 }
 
 /// Why the bytes at some offset are not a whole entry.
@@ -217,6 +228,20 @@ pub(crate) fn encode_mark(out: &mut Vec<u8>, seq: u64, seqs: &[u64]) {
     finish(out, at);
 }
 
+/// Append a configuration (`voters`, `learners`) at log place `seq`. Names are node
+/// names, at most 255 bytes (checked where a node is named).
+pub(crate) fn encode_members(out: &mut Vec<u8>, seq: u64, voters: &[String], learners: &[String]) {
+    let at = begin(out, MEMBERS);
+    out.extend_from_slice(&seq.to_le_bytes());
+    for names in [voters, learners] {
+        out.extend_from_slice(&(names.len() as u16).to_le_bytes());
+        for n in names {
+            put_str(out, n);
+        }
+    }
+    finish(out, at);
+}
+
 /// Append the opening of a snapshot.
 pub(crate) fn encode_snap_open(out: &mut Vec<u8>, next_seq: u64, last_time: Duration) {
     let at = begin(out, SNAP_OPEN);
@@ -287,6 +312,11 @@ impl<'a> Body<'a> {
         }
         (0..n).map(|_| self.u64()).collect()
     }
+    /// A count and that many strings.
+    fn names(&mut self) -> Option<Vec<String>> {
+        let n = self.u16()?;
+        (0..n).map(|_| self.string()).collect()
+    }
     fn opt(&mut self) -> Option<Option<String>> {
         match self.u16()? {
             NONE => Some(None),
@@ -350,6 +380,11 @@ fn decode_body(body: &[u8]) -> Option<Entry> {
             seq: b.u64()?,
             seqs: b.seqs()?,
         },
+        MEMBERS => Entry::Members {
+            seq: b.u64()?,
+            voters: b.names()?,
+            learners: b.names()?,
+        },
         _ => return None,
     };
     // every byte of the body belongs to a field
@@ -406,6 +441,8 @@ mod tests {
         encode_truncate(&mut out, 46);
         encode_mark(&mut out, 45, &[41]);
         encode_mark(&mut out, 46, &[]);
+        let (voters, learners) = (vec!["a".to_string(), "b".into()], vec!["c".to_string()]);
+        encode_members(&mut out, 47, &voters, &learners);
         let entries = vec![
             Entry::Put {
                 seq: 41,
@@ -437,6 +474,11 @@ mod tests {
             Entry::Mark {
                 seq: 46,
                 seqs: vec![],
+            },
+            Entry::Members {
+                seq: 47,
+                voters,
+                learners,
             },
         ];
         (out, entries)

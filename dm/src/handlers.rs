@@ -28,6 +28,9 @@ impl DatamanagerState {
             | DmMsg::SelectWait { .. }
             | DmMsg::SelectWaitPage { .. }
             | DmMsg::Stats { .. }) => self.read(myself, read),
+            DmMsg::ChangeReplicas { change, reply } => {
+                self.on_change_replicas(myself, &change, reply);
+            }
             other => {
                 tracing::error!(dm = %self.name, msg = ?other, "not a request of the dm-interface: dropped")
             }

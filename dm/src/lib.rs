@@ -128,15 +128,17 @@ pub use journal::{
     journal_dir, DirLock, Durability, LockError, Recovery, UnknownDurability, SNAPSHOT_MIN,
 };
 pub use kind::RecordKind;
-pub use majority::{leaderless, without_leader, NoMajority, MAJORITY_WAIT, VIEW_TIMEOUT};
+pub use majority::{
+    leaderless, replica_nodes, without_leader, NoMajority, MAJORITY_WAIT, VIEW_TIMEOUT,
+};
 pub use messages::{DmMsg, DmStats, ReplicaStats, StoreDigest};
 pub use name::Name;
 pub use page::{Page, PAGE_BYTES};
 pub use query::{Query, Take};
 pub use record::{NewRecord, Payload, Record, RecordHeader, MAX_NAME_LEN};
 pub use replica::{
-    Replication, ReplicationError, Timing as ReplicationTiming, SCOPE as REPLICA_SCOPE,
-    UNCHECKED_READS_ENV,
+    Change, ChangeError, Members, Replication, ReplicationError, Timing as ReplicationTiming,
+    MIN_VOTERS, SCOPE as REPLICA_SCOPE, UNCHECKED_READS_ENV,
 };
 pub use shared::PayloadType;
 pub use state::DatamanagerState;

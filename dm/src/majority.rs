@@ -90,6 +90,22 @@ pub async fn leaderless(timeout: Duration) -> Vec<NoMajority> {
     lost
 }
 
+/// The nodes whose replica of `dm` this process finds (its replicas' `pg` groups), sorted:
+/// with a leader's configuration, what shows a replica that runs though it is none of the
+/// replicas (removed while its node was away, or started again on a wiped data directory).
+pub fn replica_nodes(dm: &str) -> Vec<String> {
+    let scope = SCOPE.to_string();
+    let mut nodes: Vec<String> = replica_groups()
+        .remove(dm)
+        .unwrap_or_default()
+        .into_iter()
+        .filter(|g| !ractor::pg::get_scoped_members(&scope, g).is_empty())
+        .filter_map(|g| g.split_once('/').map(|(_, n)| n.to_string()))
+        .collect();
+    nodes.sort();
+    nodes
+}
+
 /// The replicas' groups this process knows ([`SCOPE`], one per datamanager and node:
 /// `DM/NODE`), by datamanager.
 fn replica_groups() -> BTreeMap<String, Vec<String>> {
@@ -133,8 +149,18 @@ fn judge(dm: &str, views: &[ReplicaStats]) -> Option<NoMajority> {
     if views.iter().any(|v| v.role == ReplicaRole::Leader) {
         return None;
     }
-    let members: BTreeSet<&String> = views.iter().flat_map(|v| &v.members).collect();
-    let answering: BTreeSet<&String> = views.iter().map(|v| &v.node).collect();
+    // during a change the replicas' configurations differ: the newest is the one of the
+    // replica with the newest log (highest term, then seq), as an election would judge —
+    // not their union, which would count a replica removed (or not yet added) as missing
+    let newest = views.iter().max_by_key(|v| (v.term, v.last));
+    let members: BTreeSet<&String> = newest
+        .map(|v| v.members.iter().collect())
+        .unwrap_or_default();
+    let answering: BTreeSet<&String> = views
+        .iter()
+        .map(|v| &v.node)
+        .filter(|n| members.contains(n))
+        .collect();
     let reached: BTreeSet<&String> = views.iter().flat_map(|v| &v.reachable).collect();
     Some(NoMajority {
         dm: dm.to_string(),
@@ -165,6 +191,7 @@ mod tests {
             snapshots_taken: 0,
             members: ["a", "b", "c"].map(String::from).to_vec(),
             reachable: reachable.iter().map(|s| s.to_string()).collect(),
+            ..ReplicaStats::default()
         }
     }
 
@@ -178,6 +205,24 @@ mod tests {
             "datamanager `run` has no majority: 1 of its 3 replicas answers (c), a leader \
              needs 2; missing: a, b"
         );
+    }
+
+    #[test]
+    fn during_a_change_the_newest_configuration_names_the_members() {
+        // d was added and a removed: c's log is the newest (term 4), b is behind (term 3)
+        let mut c = view("c", ReplicaRole::Follower, &[]);
+        c.term = 4;
+        c.members = ["b", "c", "d"].map(String::from).to_vec();
+        let mut a = view("a", ReplicaRole::Follower, &[]);
+        a.last = 100;
+        let lost = judge("run", &[c, a]).unwrap();
+        assert_eq!(lost.members, ["b", "c", "d"]);
+        assert_eq!(
+            lost.answering,
+            ["c"],
+            "a, removed, answers but is no member"
+        );
+        assert_eq!(lost.missing, ["b", "d"]);
     }
 
     #[test]

@@ -123,9 +123,16 @@ pub struct ReplicaStats {
     /// Snapshots of the store this replica took in from a leader (it lagged further than the
     /// leader keeps entries for), since it started.
     pub snapshots_taken: u64,
-    /// Every replica's node, this one's included (empty from builds before it was told).
+    /// The voting replicas' nodes, as this replica knows them (the newest configuration in
+    /// its log; empty from builds before it was told).
     #[serde(default)]
     pub members: Vec<String>,
+    /// The replicas catching up before they vote (added while it runs).
+    #[serde(default)]
+    pub learners: Vec<String>,
+    /// It was removed from the replicas (its journal says so): it takes no part.
+    #[serde(default)]
+    pub removed: bool,
     /// The other replicas' nodes it reaches now (it finds their actors): with itself, a
     /// majority of [`members`](Self::members) is what a leader needs.
     #[serde(default)]
@@ -219,6 +226,16 @@ marie_vocabulary::remote_message! {
             /// About how many bytes of records the page may carry.
             max_bytes: u64,
         } -> super::page::Page,
+        /// Change the replicas of a replicated datamanager by one: add a replica on a node
+        /// (started there first; it catches up as a learner and the leader promotes it once it
+        /// holds everything committed), or remove one. Answered once the new configuration is
+        /// committed — with its seq — or with why it was refused (one change at a time; a
+        /// removal that would leave no majority answering). A follower sends it on to its
+        /// leader.
+        ChangeReplicas {
+            /// The change.
+            change: super::replica::Change,
+        } -> Result<u64, super::replica::ChangeError>,
         /// A message between the replicas of a replicated datamanager: the replication
         /// protocol's own, not part of the dm-interface (hidden, and its type private).
         #[doc(hidden)]

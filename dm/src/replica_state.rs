@@ -8,7 +8,7 @@ use super::journal::{Journal, ReplicaLog};
 use super::messages::DmMsg;
 use super::replica::core::{Core, Restored};
 use super::replica::kept::Kept;
-use super::replica::{vote, Op, ReplicaMsg, Replication, SCOPE, UNCHECKED_READS_ENV};
+use super::replica::{vote, Members, Op, ReplicaMsg, Replication, SCOPE, UNCHECKED_READS_ENV};
 use super::store::Store;
 use marie_vocabulary::fence::FenceTable;
 use ractor::{pg, ActorCell, ActorRef};
@@ -128,6 +128,7 @@ impl ReplicaState {
                 tail: log.tail,
                 applied: log.applied,
                 before: log.before,
+                members: log.members,
             },
             None if store.next_seq() > 1 => return Err(ReplicaStartError::Unreplicated { dir }),
             None => Restored {
@@ -136,14 +137,14 @@ impl ReplicaState {
                 ..Restored::default()
             },
         };
-        let eager = replication.members.first() == Some(&replication.me);
+        let eager = !replication.joining && replication.members.first() == Some(&replication.me);
         let unchecked =
             replication.unchecked_reads || std::env::var_os(UNCHECKED_READS_ENV).is_some();
         if unchecked {
             tracing::warn!(dm = name, "replica: reads unchecked (a control run): a leader cut off from the others answers stale reads");
         }
         let started = tokio::time::Instant::now();
-        let core = Core::new(
+        let mut core = Core::new(
             &replication.me,
             &replication.members,
             replication.timing,
@@ -153,6 +154,12 @@ impl ReplicaState {
         )
         .with_tail_keep(replication.catch_up)
         .with_unchecked_reads(unchecked);
+        if replication.joining {
+            core = core.joining();
+        }
+        if core.is_removed() {
+            tracing::warn!(dm = name, node = %replication.me, members = %core.members(), "replica: its journal says it was removed from the replicas: it takes no part");
+        }
         pg::join_scoped(
             SCOPE.to_string(),
             group(name, &replication.me),
@@ -212,13 +219,14 @@ impl ReplicaState {
 
     /// Where its committed log ends, (seq, term), and the entries after it: what a
     /// snapshot of its journal writes again after the store (`Journal::snapshot`).
-    pub(crate) fn log_after_commit(&self) -> ((u64, u64), Vec<&Op>) {
+    pub(crate) fn log_after_commit(&self) -> ((u64, u64), Vec<&Op>, (u64, &Members)) {
         let core = &self.core;
         let commit = core.commit().min(core.applied());
         let term = core.term_at(commit).unwrap_or(0);
         (
             (commit, term),
             core.ops(commit + 1, core.last().0).collect(),
+            core.committed_members(),
         )
     }
 

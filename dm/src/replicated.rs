@@ -17,7 +17,7 @@ use super::producers::Producers;
 use super::query::Query;
 use super::record::NewRecord;
 use super::replica::core::Out;
-use super::replica::{apply, InstallPart, OpBody, ReplicaMsg, SCOPE};
+use super::replica::{apply, Change, ChangeError, InstallPart, Members, OpBody, ReplicaMsg, SCOPE};
 use super::replica_state::{group, Incoming, ReplicaState};
 use super::state::DatamanagerState;
 use super::store::Store;
@@ -103,6 +103,42 @@ impl DatamanagerState {
         Ok(n)
     }
 
+    /// `ChangeReplicas`, on the leader: append the new configuration, and answer once it is
+    /// committed (its seq), or at once why not. A leader that steps down first drops the
+    /// answer (its caller learns it from its reply port: `Interrupted`, at the client).
+    pub(crate) fn on_change_replicas(
+        &mut self,
+        myself: &ActorRef<DmMsg>,
+        change: &Change,
+        reply: RpcReplyPort<Result<u64, ChangeError>>,
+    ) {
+        let Some(replica) = self.storage.replica_mut() else {
+            let _ = reply.send(Err(ChangeError::Unreplicated));
+            return;
+        };
+        let now = replica.now();
+        let mut out = Vec::new();
+        match replica.core.change(change, now, &mut out) {
+            Ok(seq) => {
+                tracing::info!(dm = %replica.name, ?change, seq, members = %replica.core.members(), "replica: the replicas change");
+                replica.after_applied(
+                    seq,
+                    Box::new(move |done| {
+                        let _ = reply.send(
+                            done.map(|()| seq)
+                                .map_err(|e| ChangeError::Interrupted(e.to_string())),
+                        );
+                    }),
+                );
+                self.carry_out(myself, out);
+            }
+            Err(e) => {
+                tracing::info!(dm = %replica.name, ?change, error = %e, "replica: a change of the replicas refused");
+                let _ = reply.send(Err(e));
+            }
+        }
+    }
+
     /// The journal's batch is handed over: learn when it is durable, and send the other
     /// replicas what they lack.
     pub(crate) fn replica_flush(&mut self, myself: &ActorRef<DmMsg>) {
@@ -153,7 +189,10 @@ impl DatamanagerState {
         };
         let now = replica.now();
         let mut out = Vec::new();
-        for m in replica.core.others() {
+        let others = replica.core.others();
+        // a replica no configuration names any more is no peer
+        replica.peers.retain(|p, _| others.contains(p));
+        for m in others {
             let found = pg::get_scoped_members(&SCOPE.to_string(), &group(&replica.name, &m))
                 .into_iter()
                 .find(|c| c.get_status() <= ractor::ActorStatus::Running);
@@ -230,7 +269,8 @@ impl DatamanagerState {
             InstallPart::End {
                 records,
                 last_time_ns,
-            } => self.install(myself, last, records, last_time_ns),
+                members,
+            } => self.install(myself, last, (records, last_time_ns), members),
         }
     }
 
@@ -240,8 +280,8 @@ impl DatamanagerState {
         &mut self,
         myself: &ActorRef<DmMsg>,
         last: (u64, u64),
-        records: u64,
-        last_time_ns: u64,
+        (records, last_time_ns): (u64, u64),
+        members: Option<(u64, Members)>,
     ) {
         let Some((replica, journal)) = self.storage.replicated_mut() else {
             return;
@@ -260,14 +300,14 @@ impl DatamanagerState {
         self.store = inc.store;
         self.fences = inc.fences;
         self.producers = table;
-        replica.core.installed(last.0, last.1);
+        replica.core.installed(last.0, last.1, members);
         replica.snapshots_taken += 1;
         replica.last_time = replica.last_time.max(self.store.last_time());
         journal.snapshot(
             &self.store,
             &self.fences,
             &self.producers,
-            Some((last, Vec::new())),
+            Some((last, Vec::new(), replica.core.committed_members())),
         );
         let me = myself.clone();
         journal.after_durable(Box::new(move |durable| {
@@ -303,6 +343,8 @@ impl DatamanagerState {
                 Out::Lead => self.lead(myself),
                 Out::StepDown(why) => self.step_down(myself, &why),
                 Out::Install(to, seq, term) => self.send_snapshot(&to, (seq, term)),
+                Out::Reconfigured { was, now } => replica.reconfigured(&was, &now),
+                Out::Removed => replica.removed(),
             }
         }
         if let Some(replica) = self.storage.replica_mut() {
@@ -465,6 +507,11 @@ impl DatamanagerState {
             part(InstallPart::End {
                 records: n,
                 last_time_ns: u64::try_from(self.store.last_time().as_nanos()).unwrap_or(u64::MAX),
+                members: Some({
+                    let (at, m) = replica.core.committed_members();
+                    (at, m.clone())
+                })
+                .filter(|(at, _)| *at > 0),
             }),
         );
     }
@@ -514,6 +561,44 @@ impl ReplicaState {
                 inc.producers.note(producer, pseq, seq);
             }
         }
+    }
+
+    /// A configuration was committed: the leader tells each replica added, promoted or
+    /// removed (a leader that removed itself, too: it steps down after this).
+    pub(crate) fn reconfigured(&self, was: &Members, now: &Members) {
+        tracing::info!(dm = %self.name, node = %self.core.me(), was = %was, now = %now, "replica: the replicas changed");
+        let leads = self.core.is_leader() || self.core.is_removed() && was.is_voter(self.core.me());
+        let Some(bus) = self.events.as_ref().filter(|_| leads) else {
+            return;
+        };
+        let (dm, voters) = (self.name.clone(), now.voters.clone());
+        for node in now.learners.iter().filter(|n| !was.contains(n)) {
+            bus.publish(EventKind::DmReplicaAdded {
+                dm: dm.clone(),
+                node: node.clone(),
+                voters: voters.clone(),
+            });
+        }
+        for node in now.voters.iter().filter(|n| was.is_learner(n)) {
+            bus.publish(EventKind::DmReplicaPromoted {
+                dm: dm.clone(),
+                node: node.clone(),
+                voters: voters.clone(),
+            });
+        }
+        for node in was.all().filter(|n| !now.contains(n)) {
+            bus.publish(EventKind::DmReplicaRemoved {
+                dm: dm.clone(),
+                node: node.clone(),
+                voters: voters.clone(),
+            });
+        }
+    }
+
+    /// A configuration without this replica was committed: it is out, and says so in the
+    /// log (it campaigns no more; its node stops it when asked).
+    pub(crate) fn removed(&self) {
+        tracing::warn!(dm = %self.name, node = %self.core.me(), "replica: removed from the replicas: it takes no part any more");
     }
 
     /// It was the leader and is not any more: say so (the log and the `dm_fenced` event).

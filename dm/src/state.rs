@@ -125,12 +125,9 @@ impl DatamanagerState {
                     last,
                     lag: core.lag(),
                     snapshots_taken: r.snapshots_taken,
-                    members: {
-                        let mut all = core.others();
-                        all.push(core.me().to_string());
-                        all.sort();
-                        all
-                    },
+                    members: core.members().voters.clone(),
+                    learners: core.members().learners.clone(),
+                    removed: core.is_removed(),
                     reachable: r.peers.keys().cloned().collect(),
                 }
             }),

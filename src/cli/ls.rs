@@ -75,6 +75,7 @@ async fn print_listing(list: &[Instance], json: bool) -> anyhow::Result<()> {
                     row["journal_bytes"] = s.journal_bytes.into();
                     if let Some(r) = &s.replica {
                         row["replica"] = serde_json::to_value(r).unwrap_or_default();
+                        row["stray_replicas"] = stray(&i.name, r).into();
                     }
                 }
                 row
@@ -102,10 +103,14 @@ async fn print_listing(list: &[Instance], json: bool) -> anyhow::Result<()> {
             let replicas = match &s.replica {
                 None => String::new(),
                 Some(r) => {
+                    // a learner (added while it runs) is said: it does not vote yet
                     let lags: Vec<String> = r
                         .lag
                         .iter()
-                        .map(|(node, lag)| format!("{node} (lag {lag})"))
+                        .map(|(node, lag)| match r.learners.contains(node) {
+                            true => format!("{node} (lag {lag}, learning)"),
+                            false => format!("{node} (lag {lag})"),
+                        })
                         .collect();
                     format!(
                         "; {}, term {}, replicas on {}",
@@ -119,12 +124,37 @@ async fn print_listing(list: &[Instance], json: bool) -> anyhow::Result<()> {
                 "DM {} on {}: {} records, {journal}{replicas}",
                 i.name, i.node, s.records
             );
+            for node in s
+                .replica
+                .as_ref()
+                .map(|r| stray(&i.name, r))
+                .unwrap_or_default()
+            {
+                println!(
+                    "DM {}: the replica on {node} is none of its replicas (removed while its \
+                     node was away, or started again on a wiped data directory): it takes no \
+                     part — stop it, or add it with marie dm add-replica",
+                    i.name
+                );
+            }
         }
         for lost in &leaderless {
             println!("DM {}: no majority — {lost}", lost.dm);
         }
     }
     Ok(())
+}
+
+/// The nodes where a replica of `dm` runs that the leader's configuration `r` does not
+/// name (only a leader's word is taken: a follower's may be behind).
+fn stray(dm: &str, r: &marie::dm::ReplicaStats) -> Vec<String> {
+    if r.role != marie::replica::ReplicaRole::Leader {
+        return Vec::new();
+    }
+    marie::dm::replica_nodes(dm)
+        .into_iter()
+        .filter(|n| *n != r.node && !r.members.contains(n) && !r.learners.contains(n))
+        .collect()
 }
 
 /// A size as people read it.

@@ -1,6 +1,6 @@
 //! The `marie` command line: the flags of every verb, and which verb runs what.
 //!
-//! One module per verb (`run`, `check`, `ls`, `props`, `kill`, `node`, `up`, `monitor`), each holding its flags and
+//! One module per verb (`run`, `check`, `ls`, `props`, `kill`, `node`, `up`, `monitor`, `dm`), each holding its flags and
 //! its work; the modules beside them hold what verbs share: flags and parsers (`args`), the
 //! node a mission is prepared on (`prepare`), the printed lines (`output`), the runtime and
 //! tracing set-up (`runtime`) and how an error becomes an exit code (`error`).
@@ -9,6 +9,7 @@ pub(crate) mod args;
 pub(crate) mod check;
 pub(crate) mod children;
 pub(crate) mod diff;
+pub(crate) mod dm;
 pub(crate) mod error;
 pub(crate) mod events_file;
 pub(crate) mod export;
@@ -85,6 +86,9 @@ pub(crate) enum Command {
     /// diff of their texts. Exit 0 when the runs are the same in every aspect, 1 when they
     /// differ, 2 when a file is not a report.
     Diff(diff::DiffArgs),
+    /// Change a replicated datamanager's replicas while the cluster runs (`--join`): add
+    /// one on a node, remove one.
+    Dm(dm::DmArgs),
 }
 
 /// This binary's build, as its `build.rs` captured it (`--version` says the same).
@@ -147,6 +151,7 @@ impl Command {
             Command::Monitor(args) => monitor::monitor(args).await,
             Command::Export(args) => export::export(args).await,
             Command::Diff(args) => diff::diff(args),
+            Command::Dm(args) => dm::dm(args).await,
         }
     }
 }

@@ -160,6 +160,19 @@ impl NodeArgs {
     }
 }
 
+/// Whether `kind` is a change of a datamanager's replicas (told on the node's stdout, so
+/// `marie up` shows it).
+fn replicas_changed(kind: &marie::events::EventKind) -> bool {
+    use marie::events::EventKind;
+    matches!(
+        kind,
+        EventKind::DmReplicaAdded { .. }
+            | EventKind::DmReplicaPromoted { .. }
+            | EventKind::DmReplicaRemoved { .. }
+            | EventKind::DmReplicaReplaced { .. }
+    )
+}
+
 /// `node NAME listening on ADDR with N module(s) at speed X; joining PEERS`: the line
 /// `marie up` and the tests wait for.
 fn listening_line(node: &Node, cluster: &ClusterConfig, speed: f64) -> String {
@@ -236,9 +249,17 @@ async fn tell_until(node: &Node, stop: impl Future<Output = &'static str>) -> &'
     let mut reincarnations = node
         .reincarnations()
         .expect("a node in a cluster tells its reincarnations");
+    // the changes of the replicas this node's leaders make, in the Teller's words
+    let mut bus = node.events().subscribe();
+    let mut teller = marie::events::Teller::default();
     loop {
         tokio::select! {
             signal = &mut stop => return signal,
+            event = bus.recv() => if let Ok(event) = event {
+                if replicas_changed(&event.kind) {
+                    say(&format!("node {name}: {}", teller.tell(&event).text));
+                }
+            },
             event = net.recv() => if let Ok(event) = event {
                 say(&format!("node {name} {event}"));
             },

@@ -223,6 +223,21 @@ impl ClusterLayout {
                 );
                 continue;
             }
+            if let Some(ghost) = d
+                .config
+                .spares
+                .iter()
+                .find(|n| !self.nodes.iter().any(|node| &node.config.name == *n))
+            {
+                r.err(
+                    &d.at,
+                    format!(
+                        "datamanager `{name}` names spare `{ghost}`, which is no node of this \
+                         cluster file"
+                    ),
+                );
+                continue;
+            }
             let hosts = |node: &&mut LayoutNode| d.config.replicas.contains(&node.config.name);
             if let Some(twice) = self
                 .nodes
@@ -495,6 +510,46 @@ mod tests {
             format!("{f}:7:1: datamanager `feature` keeps a replica on `ghost`, which is no node of this cluster file"),
             format!("{f}:10:1: datamanager `world` is declared here and in node `b`'s config"),
             format!("{f}:13:1: datamanager `parameter` of a cluster file needs `replicas = [...]`"),
+        ] {
+            assert!(text.contains(&want), "{want}\nnot in:\n{text}");
+        }
+    }
+
+    #[test]
+    fn replacement_keys_are_read_and_each_bad_one_is_reported_at_its_line() {
+        let dir = tempfile::tempdir().unwrap();
+        for n in ["a", "b", "c", "d"] {
+            write(
+                dir.path(),
+                &format!("{n}.toml"),
+                &format!("[node]\nname = \"{n}\"\n"),
+            );
+        }
+        let nodes = "[cluster]\ncookie = \"k\"\n[[node]]\nconfig = \"a.toml\"\n[[node]]\nconfig = \"b.toml\"\n\
+                     [[node]]\nconfig = \"c.toml\"\n[[node]]\nconfig = \"d.toml\"\n";
+        let good = write(
+            dir.path(),
+            "good.toml",
+            &format!("{nodes}[[datamanager]]\nname = \"feature\"\nreplicas = [\"a\", \"b\", \"c\"]\nreplace_after = 2.5\nspares = [\"d\"]\n"),
+        );
+        let on_a = declared_for(&good, "a").unwrap();
+        assert_eq!(on_a[0].replace_after, Some(Duration::from_millis(2500)));
+        assert_eq!(on_a[0].spares, ["d"]);
+        let bad = write(
+            dir.path(),
+            "bad.toml",
+            &format!(
+                "{nodes}[[datamanager]]\nname = \"feature\"\nreplicas = [\"a\", \"b\", \"c\"]\nreplace_after = 0\n\
+                 [[datamanager]]\nname = \"world\"\nreplicas = [\"a\", \"b\", \"c\"]\nspares = [\"d\"]\n\
+                 [[datamanager]]\nname = \"run\"\nreplicas = [\"a\", \"b\", \"c\"]\nreplace_after = 9\nspares = [\"ghost\"]\n"
+            ),
+        );
+        let text = ClusterLayout::load(&bad, &[]).unwrap_err().to_string();
+        let f = bad.display().to_string();
+        for want in [
+            format!("{f}:14:17: `replace_after` must be"),
+            format!("{f}:18:11: `spares` are the nodes that may take a gone replica's place: give `replace_after = SECONDS` too"),
+            format!("{f}:19:1: datamanager `run` names spare `ghost`, which is no node of this cluster file"),
         ] {
             assert!(text.contains(&want), "{want}\nnot in:\n{text}");
         }

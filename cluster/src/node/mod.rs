@@ -58,6 +58,7 @@ mod membership;
 mod mission_input;
 mod provisioner;
 mod remote_run;
+mod replica_host;
 pub mod robot;
 mod run;
 mod tree;
@@ -245,6 +246,8 @@ pub enum NodeError {
 ///  ├─ dynamic (simple_one_for_one)─ instances started on request (start_instance)
 ///  ├─ provisioner                   (another node's requests for an instance; when the
 ///  │                                 config has operations)
+///  ├─ replica-host                  (replicas added or dropped while the cluster runs;
+///  │                                 with a data directory and a cluster)
 ///  └─ dispatcher-N                  (temporary, one per run; with `dispatcher = true`)
 /// ```
 pub struct Node {
@@ -280,9 +283,10 @@ impl Node {
     /// A program built with `panic = "abort"` is refused before anything starts
     /// ([`SupervisorError::PanicsAbort`], displayed as `node supervisor: supervisors need
     /// panics to unwind ...`): its supervisors could not restart a panicking operation.
-    pub async fn start(config: NodeConfig, options: NodeOptions) -> Result<Node, NodeError> {
+    pub async fn start(mut config: NodeConfig, options: NodeOptions) -> Result<Node, NodeError> {
         // first: a node that cannot heal itself must not half-start (publish, bridge events)
         marie_supervision::require_unwinding()?;
+        add_joined_replicas(&mut config);
         config.validate(&options.catalog)?;
         config.check_replicas_reachable()?;
         if let Some(cluster) = &config.cluster {
@@ -344,6 +348,7 @@ impl Node {
                 tracing::warn!("the node will not start instances on request: {e}");
             }
         }
+        node.start_replica_host().await;
         if let Some(role) = node.config.desk {
             let spec = desk::child_spec(desk::DeskArgs {
                 node: node.config.name.clone(),
@@ -370,6 +375,23 @@ impl Node {
             }
         }
         Ok(node)
+    }
+
+    /// Start the replica host, on a node that hosts replicas on request
+    /// ([`crate::replicas`]); a node that cannot still runs, and says so.
+    async fn start_replica_host(&self) {
+        if !replica_host::hosts_replicas(&self.config) {
+            return;
+        }
+        let spec = replica_host::child_spec(replica_host::Host {
+            config: self.config.clone(),
+            clock: self.starter.clock.clone(),
+            events: self.bus.clone(),
+            root: self.starter.root.clone(),
+        });
+        if let Err(e) = self.starter.root.start_child(spec).await {
+            tracing::warn!("the node will not host replicas on request: {e}");
+        }
     }
 
     /// The config the node was built from.
@@ -515,6 +537,30 @@ impl Node {
             task.abort();
         }
         tracing::info!(node = %self.config.name, "node stopped");
+    }
+}
+
+/// Add to `config` the replicas added to the node while the cluster ran, which its data
+/// directory describes ([`crate::replicas::joined`]), unless the config declares the
+/// datamanager itself; only on a node that hosts replicas on request (a data directory and
+/// a cluster).
+fn add_joined_replicas(config: &mut NodeConfig) {
+    let Some(data_dir) = config.data_dir.as_deref() else {
+        return;
+    };
+    if config.cluster.is_none() {
+        return;
+    }
+    for dm in crate::replicas::joined::read_all(data_dir) {
+        match config.datamanagers.iter().any(|own| own.name == dm.name) {
+            true => {
+                tracing::warn!(dm = %dm.name, "a replica added while the cluster ran is declared in the node's config too: the declaration is used")
+            }
+            false => {
+                tracing::info!(node = %config.name, dm = %dm.name, "a replica added while the cluster ran starts again");
+                config.datamanagers.push(dm);
+            }
+        }
     }
 }
 

@@ -118,11 +118,12 @@ pub(super) fn children(
         .unwrap_or_default();
     let mut children = Vec::new();
     if !config.datamanagers.is_empty() {
-        children.push(ChildSpec::supervisor(
-            DATAMANAGERS,
-            SupervisorSpec::one_for_one().with_intensity(DEFAULT_RESTARTS, DEFAULT_PERIOD),
-            datamanagers(config, &options.clock, &apriori, events),
-        ));
+        children.push(datamanager_supervisor(datamanagers(
+            config,
+            &options.clock,
+            &apriori,
+            events,
+        )));
     }
     if let Some(robot) = &options.robot {
         children.extend(robot.drivers(&options.clock, events));
@@ -186,11 +187,19 @@ pub(super) fn operation_child(
         .with_restart(restart)
 }
 
-/// The datamanagers' child specs: each at its durability, with its journal in the node's
-/// data directory when it keeps one. Each datamanager's start stores the a-priori records
-/// meant for it before it counts as started, so they are there before any operation looks
-/// for them — and are there again after a restart (left to a memory datamanager by its
-/// previous incarnation, read back from the journal of a durable one).
+/// The supervisor of the node's datamanagers (one_for_one, the default intensity) with
+/// `children`: in the tree from the start when the config has datamanagers, else started
+/// with the first replica added to the node ([`super::replica_host`]).
+pub(super) fn datamanager_supervisor(children: Vec<ChildSpec>) -> ChildSpec {
+    ChildSpec::supervisor(
+        DATAMANAGERS,
+        SupervisorSpec::one_for_one().with_intensity(DEFAULT_RESTARTS, DEFAULT_PERIOD),
+        children,
+    )
+}
+
+/// The datamanagers' child specs, one per datamanager of the config
+/// ([`datamanager_child`]).
 fn datamanagers(
     config: &NodeConfig,
     clock: &SharedClock,
@@ -200,82 +209,89 @@ fn datamanagers(
     config
         .datamanagers
         .iter()
-        .map(|spec| {
-            let clock = clock.clone();
-            let events = events.clone();
-            let records: Arc<Vec<_>> = Arc::new(
-                apriori
-                    .iter()
-                    .filter(|a| a.datamanager == spec.name)
-                    .map(|a| a.record.clone())
-                    .collect(),
-            );
-            let (id, name) = (spec.id, spec.name.clone());
-            let limits = spec.limits();
-            let replication = (!spec.replicas.is_empty()).then(|| {
-                let r = dm::Replication::new(config.name.clone(), spec.replicas.clone());
-                match spec.catch_up {
-                    Some(n) => r.with_catch_up(n),
-                    None => r,
-                }
-            });
-            // validated: a durability other than memory comes with a data directory
-            let journal = match (config.durability_of(spec), &config.data_dir) {
-                (Durability::Memory, _) | (_, None) => None,
-                (durability, Some(data_dir)) => {
-                    Some((dm::journal_dir(data_dir, &spec.name), durability))
-                }
-            };
-            // one heir for every incarnation of the child: a memory datamanager the
-            // supervisor restarts takes what the one before left (`marie_dm::Heir`)
-            let heir = dm::Heir::new();
-            ChildSpec::worker(spec.name.clone(), move |sup| {
-                let (clock, records, name) = (clock.clone(), records.clone(), name.clone());
-                let (journal, heir) = (journal.clone(), heir.clone());
-                let replication = replication.clone();
-                let events = events.clone();
-                let limits = limits.clone();
-                async move {
-                    let mut args = DmArgs {
-                        id,
-                        name,
-                        clock,
-                        config: limits,
-                        durability: Durability::Memory,
-                        journal_dir: None,
-                        replication: None,
-                        events: Some(events),
-                        heir: Some(heir),
-                    };
-                    if let Some((dir, durability)) = journal {
-                        args = args.with_journal(dir, durability);
-                    }
-                    if let Some(replication) = replication {
-                        let args = args.with_replication(replication);
-                        let (actor, _) = dm::spawn_datamanager_linked(args.clone(), sup).await?;
-                        if !records.is_empty() {
-                            tokio::spawn(apriori_to_primary(args.name.clone(), records.clone()));
-                        }
-                        return Ok(actor.get_cell());
-                    }
-                    let (actor, _) = dm::spawn_datamanager_linked(args, sup).await?;
-                    let startup = |e: DmError| SpawnErr::StartupFailed(Box::new(e));
-                    let client = DmClient::new(actor.clone(), NODE_SOURCE);
-                    // A durable datamanager read its journal back, and a memory one restarted
-                    // took what its previous incarnation left: the a-priori records it ever
-                    // stored are in it (the same seqs), and storing them again at every
-                    // restart would pile up copies. So they are stored only in a datamanager
-                    // that starts fresh — nothing was ever handed a seq, `next_seq == 1`.
-                    if !records.is_empty() && client.stats().await.map_err(startup)?.next_seq == 1 {
-                        for record in records.iter() {
-                            client.store_raw(record.clone()).await.map_err(startup)?;
-                        }
-                    }
-                    Ok(actor.get_cell())
-                }
-            })
-        })
+        .map(|spec| datamanager_child(config, spec, clock, apriori, events))
         .collect()
+}
+
+/// The child spec of datamanager `spec` on the node of `config`: at its durability, with
+/// its journal in the node's data directory when it keeps one. Its start stores the
+/// a-priori records meant for it before it counts as started, so they are there before any
+/// operation looks for them — and are there again after a restart (left to a memory
+/// datamanager by its previous incarnation, read back from the journal of a durable one).
+/// Also how a replica added while the datamanager runs is started
+/// ([`super::replica_host`]).
+pub(super) fn datamanager_child(
+    config: &NodeConfig,
+    spec: &crate::node::DatamanagerConfig,
+    clock: &SharedClock,
+    apriori: &[AprioriRecord],
+    events: &EventBus,
+) -> ChildSpec {
+    let clock = clock.clone();
+    let events = events.clone();
+    let records: Arc<Vec<_>> = Arc::new(
+        apriori
+            .iter()
+            .filter(|a| a.datamanager == spec.name)
+            .map(|a| a.record.clone())
+            .collect(),
+    );
+    let (id, name) = (spec.id, spec.name.clone());
+    let limits = spec.limits();
+    let replication = spec.replication(&config.name);
+    // validated: a durability other than memory comes with a data directory
+    let journal = match (config.durability_of(spec), &config.data_dir) {
+        (Durability::Memory, _) | (_, None) => None,
+        (durability, Some(data_dir)) => Some((dm::journal_dir(data_dir, &spec.name), durability)),
+    };
+    // one heir for every incarnation of the child: a memory datamanager the
+    // supervisor restarts takes what the one before left (`marie_dm::Heir`)
+    let heir = dm::Heir::new();
+    ChildSpec::worker(spec.name.clone(), move |sup| {
+        let (clock, records, name) = (clock.clone(), records.clone(), name.clone());
+        let (journal, heir) = (journal.clone(), heir.clone());
+        let replication = replication.clone();
+        let events = events.clone();
+        let limits = limits.clone();
+        async move {
+            let mut args = DmArgs {
+                id,
+                name,
+                clock,
+                config: limits,
+                durability: Durability::Memory,
+                journal_dir: None,
+                replication: None,
+                events: Some(events),
+                heir: Some(heir),
+            };
+            if let Some((dir, durability)) = journal {
+                args = args.with_journal(dir, durability);
+            }
+            if let Some(replication) = replication {
+                let args = args.with_replication(replication);
+                let (actor, _) = dm::spawn_datamanager_linked(args.clone(), sup).await?;
+                if !records.is_empty() {
+                    tokio::spawn(apriori_to_primary(args.name.clone(), records.clone()));
+                }
+                return Ok(actor.get_cell());
+            }
+            let (actor, _) = dm::spawn_datamanager_linked(args, sup).await?;
+            let startup = |e: DmError| SpawnErr::StartupFailed(Box::new(e));
+            let client = DmClient::new(actor.clone(), NODE_SOURCE);
+            // A durable datamanager read its journal back, and a memory one restarted
+            // took what its previous incarnation left: the a-priori records it ever
+            // stored are in it (the same seqs), and storing them again at every
+            // restart would pile up copies. So they are stored only in a datamanager
+            // that starts fresh — nothing was ever handed a seq, `next_seq == 1`.
+            if !records.is_empty() && client.stats().await.map_err(startup)?.next_seq == 1 {
+                for record in records.iter() {
+                    client.store_raw(record.clone()).await.map_err(startup)?;
+                }
+            }
+            Ok(actor.get_cell())
+        }
+    })
 }
 
 /// How long a replica's node waits for its replicated datamanager's leader to store the

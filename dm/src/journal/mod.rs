@@ -43,7 +43,7 @@ use super::entry;
 use super::error::DmError;
 use super::producers::Producers;
 use super::record::NewRecord;
-use super::replica::{Op, OpBody};
+use super::replica::{Members, Op, OpBody};
 use super::store::{DmConfig, Store};
 use marie_vocabulary::fence::FenceTable;
 use serde::{Deserialize, Serialize};
@@ -110,6 +110,10 @@ impl std::str::FromStr for Durability {
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 #[error("unknown durability {0:?}: use memory, process or sync")]
 pub struct UnknownDurability(pub String);
+
+/// What a replicated datamanager's snapshot writes after its store: where its committed log
+/// ends (seq, term), its entries after that, and its committed configuration with its seq.
+pub(crate) type LogAfterCommit<'a> = ((u64, u64), Vec<&'a Op>, (u64, &'a Members));
 
 /// A journal of fewer put entries than this is never snapshotted.
 pub const SNAPSHOT_MIN: u64 = 65_536;
@@ -500,7 +504,7 @@ impl Journal {
         store: &Store,
         fences: &FenceTable,
         producers: &Producers,
-        log: Option<((u64, u64), Vec<&Op>)>,
+        log: Option<LogAfterCommit<'_>>,
     ) {
         self.flush();
         let mut bytes = Vec::with_capacity(store.len() * 96 + 64);
@@ -514,9 +518,16 @@ impl Journal {
         for (producer, pairs) in producers.each() {
             entry::encode_producer(&mut bytes, producer, pairs.iter().copied());
         }
+        if let Some((_, _, (at, members))) = &log {
+            // the configuration committed then: the entry that made it goes with the
+            // segments before (0: the configured one, nothing to keep)
+            if *at > 0 {
+                entry::encode_members(&mut bytes, *at, &members.voters, &members.learners);
+            }
+        }
         entry::encode_snap_end(&mut bytes, n);
         self.puts = n;
-        if let Some(((seq, term), tail)) = log {
+        if let Some(((seq, term), tail, _)) = log {
             entry::encode_term(&mut bytes, term);
             entry::encode_commit(&mut bytes, seq);
             self.term = Some(term);

@@ -13,7 +13,7 @@ use super::segment;
 use crate::entry::{self, Entry, Torn};
 use crate::producers::Producers;
 use crate::replica::tail::{Tail, KEEP_BYTES};
-use crate::replica::{apply, Op, OpBody};
+use crate::replica::{apply, Members, Op, OpBody};
 use crate::store::{DmConfig, Store};
 use marie_vocabulary::fence::FenceTable;
 use serde::{Deserialize, Serialize};
@@ -70,6 +70,9 @@ pub(crate) struct ReplicaLog {
     pub applied: Tail,
     /// (seq, term) of the entry just before the first of `applied`.
     pub before: (u64, u64),
+    /// The newest committed configuration (from a committed entry, or a snapshot), and
+    /// its seq: `None` if the journal holds none (the configured replicas are in use).
+    pub members: Option<(u64, Members)>,
 }
 
 /// Committed entries a replay keeps ([`ReplicaLog::applied`]).
@@ -102,6 +105,9 @@ impl ReplicaLog {
                     }
                     self.committed = (op.seq, op.term);
                     state.puts += matches!(op.body, OpBody::Put { .. }) as u64;
+                    if let OpBody::Members(m) = &op.body {
+                        state.members = Some((op.seq, m.clone()));
+                    }
                     apply::apply(store, &mut state.fences, Some(&mut state.producers), &op);
                     self.applied.push_back(op);
                     let over = |len: usize, bytes: usize| len > TAIL_KEEP || bytes > KEEP_BYTES;
@@ -138,6 +144,8 @@ struct State {
     /// A snapshot's floor (next seq, last time stamp), raised once its records are in: they
     /// carry seqs below it.
     floor: Option<(u64, std::time::Duration)>,
+    /// A replicated datamanager's newest committed configuration, and its seq.
+    members: Option<(u64, Members)>,
 }
 
 /// The state being rebuilt: the store, and a snapshot being read into a store of its own.
@@ -209,6 +217,14 @@ impl Replay {
             }
             Entry::Delete { seqs } => {
                 store.remove_seqs(&seqs);
+            }
+            Entry::Members {
+                seq,
+                voters,
+                learners,
+            } => {
+                // (in a snapshot: the configuration committed when it was taken)
+                state.members = Some((seq, Members { voters, learners }));
             }
             Entry::Producer { producer, pairs } => {
                 for (pseq, seq) in pairs {
@@ -377,7 +393,10 @@ pub(crate) fn recover(dir: &Path, config: DmConfig) -> io::Result<Recovered> {
         report: r.report,
         tail,
         puts: r.state.puts,
-        log: r.log,
+        log: r.log.map(|log| ReplicaLog {
+            members: r.state.members,
+            ..log
+        }),
     })
 }
 

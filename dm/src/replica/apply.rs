@@ -38,7 +38,7 @@ pub(crate) fn apply<'a>(
             store.raise_floor(op.seq + 1, Duration::ZERO);
             None
         }
-        OpBody::Noop => {
+        OpBody::Noop | OpBody::Members(_) => {
             store.raise_floor(op.seq + 1, Duration::ZERO);
             None
         }

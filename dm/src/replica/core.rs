@@ -1,5 +1,7 @@
-//! The replication protocol of a datamanager's replicas as a pure state machine: Raft with a
-//! fixed set of members, pre-votes and leader stickiness, with time passed in.
+//! The replication protocol of a datamanager's replicas as a pure state machine: Raft with
+//! pre-votes and leader stickiness, and its members changed one at a time while it runs
+//! (`members`: a configuration is a log entry, in use once appended; a replica added
+//! catches up as a learner before it votes), with time passed in.
 //!
 //! The datamanager actor feeds it what arrives (a message, a tick, a durable write, a peer
 //! that came or went) and carries out what it returns ([`Out`]): persist the term and vote,
@@ -13,9 +15,14 @@
 //! - a committed entry is never truncated, and every replica applies the same entries in the
 //!   same order;
 //! - a replica votes only for a log at least as up to date as its own, once per term;
-//! - a read is answered only by a leader no other can have replaced yet (`lease`).
+//! - a read is answered only by a leader no other can have replaced yet (`lease`);
+//! - a replica uses the newest configuration in its log; a leader appends one only when the
+//!   one before is committed and an entry of its own term is, so two configurations in use
+//!   at once always share a majority's replica; only voters count for a commit, a vote or a
+//!   lease.
 
 use super::lease::{self, Contact, Read};
+use super::members::{Change, ChangeError, Members};
 use super::msg::{Ops, ReplicaMsg};
 use super::op::{Op, OpBody};
 use super::tail::{Tail, KEEP_BYTES};
@@ -101,12 +108,23 @@ pub(crate) enum Out {
     /// majority): it must stop answering as one.
     StepDown(String),
     /// Send the replica on node `to` a snapshot of the committed store (it needs entries this
-    /// replica no longer holds). The snapshot ends at seq `.1` of term `.2`.
+    /// replica no longer holds). The snapshot ends at seq `.1` of term `.2`; its
+    /// configuration is [`Core::committed_members`].
     Install(String, u64, u64),
+    /// A configuration was committed: the replicas were `was` and are `now`.
+    Reconfigured {
+        /// The configuration committed before.
+        was: Members,
+        /// The one committed now.
+        now: Members,
+    },
+    /// A configuration without this replica was committed: it is out (a leader handed its
+    /// role on and stepped down first). It campaigns no more.
+    Removed,
 }
 
 #[derive(Clone, Debug)]
-struct Progress {
+pub(crate) struct Progress {
     /// The next seq to send.
     next: u64,
     /// The highest seq known held (durably) by the replica as here.
@@ -121,6 +139,22 @@ struct Progress {
     installing: Option<Duration>,
     /// The send time of the newest `Append` of this term it said it took in (`lease`).
     echo: Option<Duration>,
+}
+
+impl Progress {
+    /// A replica a new leader (or a new configuration) starts sending to: from `next`, one
+    /// append at a time until it answers.
+    fn fresh(next: u64) -> Progress {
+        Progress {
+            next,
+            matched: 0,
+            acked: None,
+            sent: None,
+            probing: true,
+            installing: None,
+            echo: None,
+        }
+    }
 }
 
 #[derive(Clone, Debug)]
@@ -143,7 +177,19 @@ enum Role {
 #[derive(Clone, Debug)]
 pub(crate) struct Core {
     me: String,
-    members: Vec<String>,
+    /// The configurations its log holds: the newest committed first, then those appended
+    /// after it (not committed yet). The last is the one in use ([`Core::members`]).
+    configs: Vec<(u64, Members)>,
+    /// The other replicas of every configuration it holds: who a leader sends to.
+    others: Vec<String>,
+    /// The seq of the first configuration naming this replica that it took in (0: the one
+    /// it was started with); `None` while it holds none (a replica added, catching up).
+    joined_at: Option<u64>,
+    /// It took in the commit of a configuration without it: it is out.
+    removed: bool,
+    /// The latest time it was given (a tick, a message): when a commit, which is told no
+    /// time, sends a replica removed its last word.
+    clock: Duration,
     timing: Timing,
     term: u64,
     voted_for: Option<String>,
@@ -207,6 +253,9 @@ pub(crate) struct Restored {
     pub(crate) applied: Tail,
     /// (seq, term) of the entry just before the first of `applied` (unused when empty).
     pub(crate) before: (u64, u64),
+    /// The newest committed configuration it held, and its seq (`None`: the one it is
+    /// started with — a cluster file's — is in use).
+    pub(crate) members: Option<(u64, Members)>,
 }
 
 impl Core {
@@ -221,9 +270,8 @@ impl Core {
         now: Duration,
     ) -> Core {
         let preferred_member = members.first().cloned().unwrap_or_default();
-        let mut members = members.to_vec();
-        members.sort();
-        members.dedup();
+        let genesis = Members::new(members.iter().cloned(), Vec::<String>::new());
+        let config = restored.members.clone().unwrap_or((0, genesis));
         let seed = me
             .bytes()
             .fold(0x9E37_79B9_7F4A_7C15u64, |h, b| {
@@ -245,7 +293,11 @@ impl Core {
         tail.extend(restored.tail);
         let mut core = Core {
             me: me.to_string(),
-            members,
+            configs: vec![config],
+            others: Vec::new(),
+            joined_at: None,
+            removed: false,
+            clock: now,
             timing,
             term: restored.term,
             voted_for: restored.voted_for,
@@ -283,7 +335,54 @@ impl Core {
         } else {
             now + core.election_timeout()
         };
+        core.restore_members();
         core
+    }
+
+    /// The configurations its log holds beyond the committed one it was started with, and
+    /// whether it is (still) one of the replicas.
+    fn restore_members(&mut self) {
+        let base = self.configs[0].0;
+        let logged: Vec<(u64, Members)> = self
+            .tail
+            .range(0..self.tail.len())
+            .filter(|o| o.seq > base)
+            .filter_map(|o| match &o.body {
+                OpBody::Members(m) => Some((o.seq, m.clone())),
+                _ => None,
+            })
+            .collect();
+        self.configs.extend(logged);
+        let settled = self.configs[1..]
+            .iter()
+            .take_while(|(s, _)| *s <= self.commit)
+            .count();
+        self.configs.drain(..settled);
+        self.joined_at = self
+            .configs
+            .iter()
+            .find(|(_, m)| m.contains(&self.me))
+            .map(|(s, _)| *s);
+        // started again after its removal was committed: it stays out
+        self.removed = self.joined_at.is_none() && self.configs[0].0 > 0;
+        self.reconfigured();
+    }
+
+    /// A replica started to join a running datamanager (added as a learner by its leader):
+    /// until its log says otherwise, it takes itself for a learner of the configured voters —
+    /// it never campaigns, and it answers the leader that sends to it.
+    pub(crate) fn joining(mut self) -> Core {
+        if self.configs.len() == 1 && self.configs[0].0 == 0 && !self.removed {
+            let m = &self.configs[0].1;
+            if !m.contains(&self.me) {
+                self.configs[0].1 = Members::new(m.voters.clone(), [self.me.clone()]);
+                // not a configuration of its log: a removal before its own addition is no
+                // removal of it
+                self.joined_at = None;
+                self.reconfigured();
+            }
+        }
+        self
     }
 
     /// Keep at most `n` applied entries in memory (beyond them a lagging replica is sent a
@@ -392,17 +491,268 @@ impl Core {
         }
     }
 
+    /// The configuration in use: the newest in its log, committed or not.
+    pub(crate) fn members(&self) -> &Members {
+        &self.configs[self.configs.len() - 1].1
+    }
+
+    /// The newest committed configuration it holds, and its seq (0: the one it was
+    /// started with): what a snapshot of its store carries.
+    pub(crate) fn committed_members(&self) -> (u64, &Members) {
+        (self.configs[0].0, &self.configs[0].1)
+    }
+
+    /// Whether a configuration was appended and is not committed yet.
+    pub(crate) fn change_pending(&self) -> bool {
+        self.configs.len() > 1
+    }
+
+    /// Whether it took in the commit of a configuration without it.
+    pub(crate) fn is_removed(&self) -> bool {
+        self.removed
+    }
+
     fn majority(&self) -> usize {
-        self.members.len() / 2 + 1
+        self.members().majority()
+    }
+
+    /// Whether this replica votes (campaigns, counts for a commit).
+    fn votes(&self) -> bool {
+        !self.removed && self.members().is_voter(&self.me)
     }
 
     fn peers(&self) -> impl Iterator<Item = &String> {
-        self.members.iter().filter(move |m| **m != self.me)
+        self.others.iter()
     }
 
-    /// The other replicas' nodes.
+    /// The other replicas' nodes, of every configuration it holds.
     pub(crate) fn others(&self) -> Vec<String> {
-        self.peers().cloned().collect()
+        self.others.clone()
+    }
+
+    /// The configurations changed: who it sends to and counts as reachable, and on a
+    /// leader whom it keeps track of.
+    fn reconfigured(&mut self) {
+        let mut others: Vec<String> = self
+            .configs
+            .iter()
+            .flat_map(|(_, m)| m.all())
+            .filter(|n| **n != self.me)
+            .cloned()
+            .collect();
+        others.sort();
+        others.dedup();
+        self.visible.retain(|v| others.contains(v));
+        let next = self.last().0 + 1;
+        if let Role::Leader { peers, .. } = &mut self.role {
+            peers.retain(|p, _| others.contains(p));
+            for o in &others {
+                peers
+                    .entry(o.clone())
+                    .or_insert_with(|| Progress::fresh(next));
+            }
+        }
+        self.others = others;
+    }
+
+    /// Configuration `m` was appended to its log at `seq`: in use from now on.
+    fn logged_members(&mut self, seq: u64, m: Members) {
+        if m.contains(&self.me) {
+            self.joined_at.get_or_insert(seq);
+            self.removed = false;
+        }
+        self.configs.push((seq, m));
+    }
+
+    /// Its log was cut from `seq` on: the configurations appended there are undone.
+    fn cut_members(&mut self, seq: u64) {
+        let keep = 1 + self.configs[1..]
+            .iter()
+            .take_while(|(s, _)| *s < seq)
+            .count();
+        if keep < self.configs.len() {
+            self.configs.truncate(keep);
+            if self.joined_at.is_some_and(|j| j >= seq) {
+                self.joined_at = None;
+            }
+            self.reconfigured();
+        }
+    }
+
+    /// The commit passed configurations: the newest of them is the committed one. A leader
+    /// removed hands its role to the most up-to-date voter and steps down.
+    fn settle_members(&mut self, out: &mut Vec<Out>) {
+        let settled = self.configs[1..]
+            .iter()
+            .take_while(|(s, _)| *s <= self.commit)
+            .count();
+        if settled == 0 {
+            return;
+        }
+        let was = self.configs[0].1.clone();
+        self.configs.drain(..settled);
+        let (seq, now) = self.configs[0].clone();
+        if self.is_leader() {
+            // the replicas removed get a last word, with the commit: so they know they are
+            // out (the leader sends them nothing more)
+            let gone: Vec<String> = self
+                .others
+                .iter()
+                .filter(|o| !self.configs.iter().any(|(_, m)| m.contains(o)))
+                .cloned()
+                .collect();
+            for g in gone {
+                self.send_to(&g, self.clock, true, &mut Vec::new(), out);
+            }
+        }
+        let out_now = !now.contains(&self.me) && self.joined_at.is_some_and(|j| j < seq);
+        if out_now && !self.removed {
+            if self.is_leader() {
+                self.hand_off(out);
+                self.step_down("it was removed from the replicas", out);
+            }
+            self.removed = true;
+        }
+        self.reconfigured();
+        out.push(Out::Reconfigured { was, now });
+        if out_now {
+            out.push(Out::Removed);
+        }
+    }
+
+    /// A leader removed: ask the voter that holds the most of its log to campaign now.
+    fn hand_off(&self, out: &mut Vec<Out>) {
+        let Role::Leader { peers, .. } = &self.role else {
+            return;
+        };
+        let voters = &self.configs[0].1;
+        if let Some((best, _)) = peers
+            .iter()
+            .filter(|(p, _)| voters.is_voter(p))
+            .max_by_key(|(_, pr)| pr.matched)
+        {
+            out.push(Out::Send(
+                best.clone(),
+                ReplicaMsg::TimeoutNow {
+                    term: self.term,
+                    from: self.me.clone(),
+                },
+            ));
+        }
+    }
+
+    /// The latest time a majority of the voters followed this leader (`lease`): itself
+    /// among them if it votes.
+    fn anchor(&self, peers: &BTreeMap<String, Progress>, now: Duration) -> Option<Duration> {
+        let m = self.members();
+        let echoes = peers
+            .iter()
+            .filter(|(p, _)| m.is_voter(p))
+            .map(|(_, pr)| pr.echo);
+        // `confirmed` counts the leader itself: one more from the others if it does not vote
+        let needed = m.majority() + usize::from(!m.is_voter(&self.me));
+        lease::confirmed(echoes, needed, now)
+    }
+
+    // ---- changes of members -------------------------------------------------------------
+
+    /// Change the replicas by one (`change`), on the leader: the new configuration is
+    /// appended (and journaled: see `out`) and in use at once; its seq, which the caller
+    /// waits to see committed. Refused unless this is the leader, an entry of its term is
+    /// committed, no other change is under way (a configuration not committed, or a learner
+    /// not yet promoted — but removing that learner, which cancels its addition), and a
+    /// majority of the voters that would remain answers it.
+    pub(crate) fn change(
+        &mut self,
+        change: &Change,
+        now: Duration,
+        out: &mut Vec<Out>,
+    ) -> Result<u64, ChangeError> {
+        let Role::Leader { peers, first, .. } = &self.role else {
+            return Err(ChangeError::NotLeader);
+        };
+        if self.commit < *first {
+            return Err(ChangeError::NotReady);
+        }
+        if let Some((seq, m)) = self.configs.get(1) {
+            return Err(ChangeError::Pending(format!(
+                "the configuration at seq {seq} ({m}) is not committed yet"
+            )));
+        }
+        let current = self.members();
+        if let Some(l) = current.learners.first() {
+            if *change != Change::Remove(l.clone()) {
+                let lag = peers
+                    .get(l)
+                    .map_or(self.last().0, |p| self.last().0.saturating_sub(p.matched));
+                return Err(ChangeError::Pending(format!(
+                    "{l} is catching up as a learner (lag {lag}); remove it to cancel"
+                )));
+            }
+        }
+        let node = change.node();
+        if node.is_empty() || node.len() > crate::MAX_NAME_LEN || node.contains(char::is_whitespace)
+        {
+            return Err(ChangeError::InvalidNode(node.to_string()));
+        }
+        let next = current.changed(change)?;
+        if matches!(change, Change::Remove(n) if current.is_voter(n)) {
+            let election = self.timing.election;
+            let live: Vec<String> = next
+                .voters
+                .iter()
+                .filter(|v| {
+                    **v == self.me
+                        || peers.get(*v).is_some_and(|p| {
+                            p.acked.is_some_and(|t| now.saturating_sub(t) < election)
+                        })
+                })
+                .cloned()
+                .collect();
+            if live.len() < next.majority() {
+                return Err(ChangeError::NoMajority {
+                    node: node.to_string(),
+                    remain: next.voters.clone(),
+                    live,
+                });
+            }
+        }
+        let seq = self.append_members(next, out);
+        self.replicate(now, out);
+        Ok(seq)
+    }
+
+    /// The leader appends configuration `m` as its next entry (journaled: `out`).
+    fn append_members(&mut self, m: Members, out: &mut Vec<Out>) -> u64 {
+        let seq = self.last().0 + 1;
+        self.tail.push_back(Op {
+            seq,
+            term: self.term,
+            body: OpBody::Members(m.clone()),
+        });
+        self.logged_members(seq, m);
+        self.reconfigured();
+        out.push(Out::Journal(seq, seq));
+        seq
+    }
+
+    /// A learner that holds everything committed is promoted to a voter (by the leader, if
+    /// no other change is under way).
+    fn promote_if_caught_up(&mut self, from: &str, out: &mut Vec<Out>) {
+        let Role::Leader { peers, first, .. } = &self.role else {
+            return;
+        };
+        let caught_up = peers.get(from).is_some_and(|p| p.matched >= self.commit);
+        if !caught_up
+            || !self.members().is_learner(from)
+            || self.configs.len() > 1
+            || self.commit < *first
+            || self.removed
+        {
+            return;
+        }
+        let next = self.members().promoted(from);
+        self.append_members(next, out);
     }
 
     fn random(&mut self, below: u64) -> u64 {
@@ -428,11 +778,15 @@ impl Core {
             return None;
         }
         let seq = self.last().0 + 1;
+        if let OpBody::Members(m) = &body {
+            self.logged_members(seq, m.clone());
+        }
         self.tail.push_back(Op {
             seq,
             term: self.term,
             body,
         });
+        self.reconfigured();
         self.tail.back()
     }
 
@@ -576,7 +930,13 @@ impl Core {
             pr.installing = None;
             let caught_up = pr.matched >= self.last().0;
             self.advance_commit(out);
-            if caught_up && from == self.preferred_member && self.me != self.preferred_member {
+            self.promote_if_caught_up(from, out);
+            if caught_up
+                && from == self.preferred_member
+                && self.me != self.preferred_member
+                && self.members().is_voter(from)
+                && !self.change_pending()
+            {
                 self.hand_over(now, out);
             }
         } else {
@@ -621,10 +981,20 @@ impl Core {
         let Role::Leader { peers, .. } = &self.role else {
             return;
         };
-        let mut held: Vec<u64> = peers.values().map(|p| p.matched).collect();
-        held.push(self.durable_here());
+        // the voters only, itself if it votes (a leader removing itself does not)
+        let m = self.members();
+        let mut held: Vec<u64> = peers
+            .iter()
+            .filter(|(p, _)| m.is_voter(p))
+            .map(|(_, pr)| pr.matched)
+            .collect();
+        if m.is_voter(&self.me) {
+            held.push(self.durable_here());
+        }
         held.sort_unstable_by(|a, b| b.cmp(a));
-        let n = held[self.majority() - 1];
+        let Some(&n) = held.get(self.majority() - 1) else {
+            return;
+        };
         if n > self.commit && self.term_at(n) == Some(self.term) {
             self.commit = n;
             self.apply(out);
@@ -669,8 +1039,7 @@ impl Core {
             return Read::Serve;
         }
         if self.applied >= *first {
-            let echoes = peers.values().map(|p| p.echo);
-            if let Some(anchor) = lease::confirmed(echoes, self.majority(), now) {
+            if let Some(anchor) = self.anchor(peers, now) {
                 // after a hand-over the voters skip their guard: no lease for the term
                 let leased = self.handed.is_none() && now < anchor + self.timing.lease;
                 if leased || anchor >= asked {
@@ -694,8 +1063,7 @@ impl Core {
             return;
         };
         if let Some(t) = self.confirming {
-            let answered = lease::confirmed(peers.values().map(|p| p.echo), self.majority(), now)
-                .is_some_and(|anchor| anchor >= t);
+            let answered = self.anchor(peers, now).is_some_and(|anchor| anchor >= t);
             if t >= asked || !answered && now.saturating_sub(t) < self.timing.heartbeat {
                 return;
             }
@@ -762,6 +1130,7 @@ impl Core {
             out.push(Out::Apply(self.applied + 1, upto));
             self.applied = upto;
         }
+        self.settle_members(out);
     }
 
     /// Drop the applied entries every replica holds ([`Core::held_everywhere`]), and the
@@ -800,6 +1169,7 @@ impl Core {
 
     /// A message from another replica.
     pub(crate) fn receive(&mut self, msg: ReplicaMsg, now: Duration, out: &mut Vec<Out>) {
+        self.clock = self.clock.max(now);
         match msg {
             ReplicaMsg::Append {
                 term,
@@ -857,6 +1227,7 @@ impl Core {
                 if term == self.term
                     && self.leader.as_deref() == Some(from.as_str())
                     && !self.is_leader()
+                    && self.votes()
                 {
                     self.campaign_as(false, true, now, out);
                 }
@@ -918,14 +1289,29 @@ impl Core {
     }
 
     /// A snapshot ending at (`seq`, `term`) was taken in and journaled: the log starts
-    /// after it. The actor calls [`Core::durable`] once the journal has it.
-    pub(crate) fn installed(&mut self, seq: u64, term: u64) {
+    /// after it, and the configuration is the snapshot's (`members`, with its seq; `None`
+    /// from a leader that sent none: the newest this replica held up to `seq`). The actor
+    /// calls [`Core::durable`] once the journal has it.
+    pub(crate) fn installed(&mut self, seq: u64, term: u64, members: Option<(u64, Members)>) {
         self.tail.clear();
         self.base = (seq, term);
         self.commit = seq;
         self.applied = seq;
         self.verified = seq;
         self.durable = (0, 0);
+        let keep = 1 + self.configs[1..]
+            .iter()
+            .take_while(|(s, _)| *s <= seq)
+            .count();
+        self.configs.truncate(keep);
+        let newest = self.configs.pop().expect("one configuration at least");
+        let (at, m) = members.unwrap_or(newest);
+        if m.contains(&self.me) {
+            self.joined_at.get_or_insert(at);
+            self.removed = false;
+        }
+        self.configs = vec![(at, m)];
+        self.reconfigured();
     }
 
     /// Become a follower of `leader` in `term` (adopting a higher term).
@@ -1021,6 +1407,7 @@ impl Core {
         }
         let new_last = prev_seq + ops.len() as u64;
         let mut first_new = None;
+        let mut reconfigured = false;
         for op in ops {
             let seq = op.seq;
             if seq <= self.last().0 {
@@ -1030,6 +1417,7 @@ impl Core {
                 // a conflicting uncommitted entry: it and all after it go
                 let keep = (seq - self.base.0 - 1) as usize;
                 self.tail.truncate(keep);
+                self.cut_members(seq);
                 if self.durable.0 >= seq {
                     self.durable = (0, 0);
                 }
@@ -1045,7 +1433,14 @@ impl Core {
                 break;
             }
             first_new.get_or_insert(seq);
+            if let OpBody::Members(m) = &op.body {
+                self.logged_members(seq, m.clone());
+                reconfigured = true;
+            }
             self.tail.push_back(op);
+        }
+        if reconfigured {
+            self.reconfigured();
         }
         if let Some(first) = first_new {
             out.push(Out::Journal(first, self.last().0));
@@ -1168,6 +1563,10 @@ impl Core {
         if *p != pre || asked != expected || !granted {
             return;
         }
+        if !self.configs[self.configs.len() - 1].1.is_voter(&from) {
+            // a learner's (or a removed replica's) vote counts for nothing
+            return;
+        }
         votes.insert(from);
         if votes.len() < majority {
             return;
@@ -1199,7 +1598,8 @@ impl Core {
         self.deadline = now + self.election_timeout();
         let (last_seq, last_term) = self.last();
         let term = if pre { self.term + 1 } else { self.term };
-        let peers: Vec<String> = self.peers().cloned().collect();
+        let m = self.members();
+        let peers: Vec<String> = self.peers().filter(|p| m.is_voter(p)).cloned().collect();
         for p in peers {
             out.push(Out::Send(
                 p,
@@ -1226,20 +1626,7 @@ impl Core {
         let next = self.last().0 + 1;
         let peers = self
             .peers()
-            .map(|p| {
-                (
-                    p.clone(),
-                    Progress {
-                        next,
-                        matched: 0,
-                        acked: None,
-                        sent: None,
-                        probing: true,
-                        installing: None,
-                        echo: None,
-                    },
-                )
-            })
+            .map(|p| (p.clone(), Progress::fresh(next)))
             .collect();
         self.role = Role::Leader {
             peers,
@@ -1263,15 +1650,20 @@ impl Core {
 
     /// Time passed: campaign, send heartbeats, or step down without a majority.
     pub(crate) fn tick(&mut self, now: Duration, out: &mut Vec<Out>) {
+        self.clock = self.clock.max(now);
         match &self.role {
             Role::Leader { peers, since, .. } => {
-                let fresh = 1 + peers
-                    .values()
-                    .filter(|p| {
-                        p.acked
-                            .is_some_and(|t| now.saturating_sub(t) < self.timing.election)
-                    })
-                    .count();
+                let m = self.members();
+                let fresh = usize::from(m.is_voter(&self.me))
+                    + peers
+                        .iter()
+                        .filter(|(p, pr)| {
+                            m.is_voter(p)
+                                && pr
+                                    .acked
+                                    .is_some_and(|t| now.saturating_sub(t) < self.timing.election)
+                        })
+                        .count();
                 if fresh < self.majority() && now.saturating_sub(*since) >= self.timing.election {
                     self.step_down("it lost its majority", out);
                     self.deadline = now + self.election_timeout();
@@ -1280,10 +1672,13 @@ impl Core {
                 self.replicate(now, out);
             }
             _ if now >= self.deadline => {
-                if self.unguarded(now) > now {
+                if !self.votes() {
+                    // a learner, or a replica removed: it never campaigns
+                    self.deadline = now + self.election_timeout();
+                } else if self.unguarded(now) > now {
                     // it may not vote for itself yet: a leader it followed may hold a lease
                     self.deadline = self.unguarded(now) + self.rank_delay(None);
-                } else if self.visible.len() + 1 >= self.majority() {
+                } else if self.visible_voters() + 1 >= self.majority() {
                     self.campaign(true, now, out);
                 } else {
                     self.deadline = now + self.election_timeout();
@@ -1295,13 +1690,14 @@ impl Core {
 
     /// The replica on `node` is reachable (it joined the replicas' group).
     pub(crate) fn peer_up(&mut self, node: &str, now: Duration, out: &mut Vec<Out>) {
-        if node == self.me || !self.members.iter().any(|m| m == node) {
+        if node == self.me || !self.others.iter().any(|m| m == node) {
             return;
         }
         self.visible.insert(node.to_string());
         if matches!(self.role, Role::Follower)
             && self.leader.is_none()
-            && self.visible.len() + 1 >= self.majority()
+            && self.votes()
+            && self.visible_voters() + 1 >= self.majority()
         {
             // a majority is reachable and no leader is known (a cluster starting): campaign
             // soon rather than after an election timeout — the configured leader at once,
@@ -1338,6 +1734,12 @@ impl Core {
         }
     }
 
+    /// The voters it reaches now (itself not counted).
+    fn visible_voters(&self) -> usize {
+        let m = self.members();
+        self.visible.iter().filter(|v| m.is_voter(v)).count()
+    }
+
     /// How long to wait before campaigning when no leader is known: the configured leader
     /// at once, the others by their rank among the members (but `gone`), 60 ms apart, with a
     /// little randomness, so that they rarely split the votes.
@@ -1346,7 +1748,8 @@ impl Core {
             0
         } else {
             1 + self
-                .members
+                .members()
+                .voters
                 .iter()
                 .filter(|m| Some(m.as_str()) != gone)
                 .position(|m| *m == self.me)

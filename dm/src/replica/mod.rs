@@ -47,12 +47,14 @@ pub(crate) mod apply;
 pub(crate) mod core;
 pub(crate) mod kept;
 pub(crate) mod lease;
+mod members;
 mod msg;
 mod op;
 pub(crate) mod tail;
 pub(crate) mod vote;
 
 pub use self::core::Timing;
+pub use members::{Change, ChangeError, Members, MIN_VOTERS};
 pub(crate) use msg::RawOps;
 pub(crate) use msg::{InstallPart, ReplicaMsg};
 pub(crate) use op::{Op, OpBody};
@@ -80,6 +82,10 @@ pub struct Replication {
     /// only (`false` unless set; the environment variable [`UNCHECKED_READS_ENV`] sets it
     /// in a process).
     pub unchecked_reads: bool,
+    /// A replica started on a node that is not among `members` (the datamanager's voters
+    /// now), to join them: it takes itself for a learner until its leader's log says
+    /// otherwise, and never campaigns before it is promoted ([`Replication::joining`]).
+    pub joining: bool,
 }
 
 /// The environment variable that makes every replica started in the process answer reads
@@ -107,6 +113,21 @@ impl Replication {
             timing: Timing::default(),
             catch_up: Self::DEFAULT_CATCH_UP,
             unchecked_reads: false,
+            joining: false,
+        }
+    }
+
+    /// Replica `me` of a datamanager whose voters are `members` now, started to join them
+    /// while it runs (its leader adds it as a learner and promotes it once it caught up:
+    /// `marie dm add-replica`). A journal of it that says otherwise wins: restarted, it is
+    /// what its log says.
+    pub fn joining(
+        me: impl Into<String>,
+        members: impl IntoIterator<Item = impl Into<String>>,
+    ) -> Replication {
+        Replication {
+            joining: true,
+            ..Replication::new(me, members)
         }
     }
 
@@ -132,7 +153,7 @@ impl Replication {
         if sorted.len() != self.members.len() {
             return Err(ReplicationError::Duplicate(self.members.clone()));
         }
-        if !self.members.contains(&self.me) {
+        if !self.joining && !self.members.contains(&self.me) {
             return Err(ReplicationError::NotAMember {
                 me: self.me.clone(),
                 members: self.members.clone(),

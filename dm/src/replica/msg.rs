@@ -127,6 +127,10 @@ pub enum InstallPart {
         records: u64,
         /// The newest time stamp handed out, in ns.
         last_time_ns: u64,
+        /// The configuration committed at the snapshot's end, and its seq (`None` from a
+        /// build before configurations changed, or when it is the configured one).
+        #[serde(default)]
+        members: Option<(u64, super::members::Members)>,
     },
 }
 

@@ -1,5 +1,6 @@
 //! One entry of a replicated datamanager's log, as it is journaled and sent to replicas.
 
+use super::members::Members;
 use crate::entry::{self, Entry};
 use crate::record::NewRecord;
 use serde::{Deserialize, Serialize};
@@ -36,6 +37,9 @@ pub enum OpBody {
     /// Nothing: a new leader's first entry, which commits what its predecessors left
     /// uncommitted (Raft's rule: a leader counts replicas only of its own term's entries).
     Noop,
+    /// The datamanager's replicas from here on (`members`): taken in use where it is
+    /// appended, committed or not; to the store, a no-op.
+    Members(Members),
 }
 
 impl Op {
@@ -48,6 +52,7 @@ impl Op {
             }
             OpBody::Delete { seqs } => entry::encode_mark(out, self.seq, seqs),
             OpBody::Noop => entry::encode_mark(out, self.seq, &[]),
+            OpBody::Members(m) => entry::encode_members(out, self.seq, &m.voters, &m.learners),
         }
     }
 
@@ -67,6 +72,11 @@ impl Op {
             }
             Entry::Mark { seq, seqs } if seqs.is_empty() => (seq, OpBody::Noop),
             Entry::Mark { seq, seqs } => (seq, OpBody::Delete { seqs }),
+            Entry::Members {
+                seq,
+                voters,
+                learners,
+            } => (seq, OpBody::Members(Members { voters, learners })),
             other => return Err(other),
         };
         Ok(Op { seq, term, body })

@@ -27,6 +27,7 @@ pub(crate) fn op_bytes(op: &Op) -> usize {
             OpBody::Put { record, .. } => record.wire_bytes(),
             OpBody::Delete { seqs } => seqs.len() * std::mem::size_of::<u64>(),
             OpBody::Noop => 0,
+            OpBody::Members(m) => m.all().map(String::len).sum(),
         }
 }
 

@@ -84,6 +84,10 @@ pub fn class(kind: &EventKind, drawn: bool) -> Option<&'static str> {
         | EventKind::DmRetention { .. }
         | EventKind::DmRecovered { .. }
         | EventKind::DmInherited { .. }
+        | EventKind::DmReplicaAdded { .. }
+        | EventKind::DmReplicaPromoted { .. }
+        | EventKind::DmReplicaRemoved { .. }
+        | EventKind::DmReplicaReplaced { .. }
         | EventKind::DmChecked(_) => "datamanager",
         EventKind::Robot { what, .. }
             if !drawn || matches!(what.as_str(), "dock-found" | "collision") =>

@@ -366,6 +366,8 @@ mod tests {
                 .map(String::from)
                 .to_vec(),
             reachable: lag.iter().map(|(n, _)| n.to_string()).collect(),
+            learners: Vec::new(),
+            removed: false,
         }
     }
 

@@ -457,6 +457,55 @@ pub enum EventKind {
         /// crash in the middle of a change).
         refused: u64,
     },
+    /// A replica of a replicated datamanager was added on `node` while it ran, as a
+    /// learner: it takes in the log (or a snapshot) and counts for no commit or election
+    /// until the leader promotes it (`dm_replica_promoted`). Told by the leader once the
+    /// change is committed.
+    DmReplicaAdded {
+        /// The datamanager's name.
+        dm: String,
+        /// The node of the replica added.
+        node: String,
+        /// The voters now.
+        voters: Vec<String>,
+    },
+    /// A learner of a replicated datamanager caught up and was promoted: it votes and counts
+    /// for a commit from now on. Told by the leader once the change is committed.
+    DmReplicaPromoted {
+        /// The datamanager's name.
+        dm: String,
+        /// The node of the replica promoted.
+        node: String,
+        /// The voters now, it among them.
+        voters: Vec<String>,
+    },
+    /// A replica of a replicated datamanager was removed while it ran: it counts for nothing
+    /// and is sent nothing any more. Told by the leader once the change is committed (a
+    /// leader that removed itself tells it before it steps down).
+    DmReplicaRemoved {
+        /// The datamanager's name.
+        dm: String,
+        /// The node of the replica removed.
+        node: String,
+        /// The voters now.
+        voters: Vec<String>,
+    },
+    /// A replica of a replicated datamanager whose node had been gone longer than the
+    /// cluster file's `replace_after` was replaced: a replica added on node `by`, caught up
+    /// and promoted, then the gone one removed — the datamanager back to as many voters as
+    /// before. Told by the node of the leader that did it.
+    DmReplicaReplaced {
+        /// The datamanager's name.
+        dm: String,
+        /// The node that was gone.
+        gone: String,
+        /// The node of the replica that took its place.
+        by: String,
+        /// How long the node had been gone when the replacement began, in seconds.
+        after_secs: f64,
+        /// The voters now.
+        voters: Vec<String>,
+    },
     /// The check of a datamanager at the end of a run: of the records acknowledged during
     /// it, how many its leader still holds and how many are lost.
     DmChecked(DmCheck),
@@ -554,6 +603,10 @@ impl EventKind {
             | EventKind::DmDeleted { .. }
             | EventKind::DmApplied { .. }
             | EventKind::DmInherited { .. }
+            | EventKind::DmReplicaAdded { .. }
+            | EventKind::DmReplicaPromoted { .. }
+            | EventKind::DmReplicaRemoved { .. }
+            | EventKind::DmReplicaReplaced { .. }
             | EventKind::DmChecked(_) => Family::Datamanager,
             EventKind::Robot { .. } => Family::Robot,
         }

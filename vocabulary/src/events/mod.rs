@@ -69,6 +69,10 @@
 //! {"at_ms":4200,"node":"operations","kind":{"type":"dm_deleted","dm":"parameter","source":"path-planner","class":"path","deleted":3}}
 //! {"at_ms":4300,"node":"operations","kind":{"type":"dm_applied","dm":"feature","spans":[{"class":"sonar","from":1201,"to":1263,"records":32,"digest":9034127731160021514}]}}
 //! {"at_ms":20004,"node":"embedded","kind":{"type":"dm_inherited","dm":"feature","records":1210,"refused":0}}
+//! {"at_ms":40100,"node":"features","kind":{"type":"dm_replica_added","dm":"feature","node":"spare","voters":["features","operations","robot"]}}
+//! {"at_ms":41300,"node":"features","kind":{"type":"dm_replica_promoted","dm":"feature","node":"spare","voters":["features","operations","robot","spare"]}}
+//! {"at_ms":41500,"node":"features","kind":{"type":"dm_replica_removed","dm":"feature","node":"robot","voters":["features","operations","spare"]}}
+//! {"at_ms":41600,"node":"features","kind":{"type":"dm_replica_replaced","dm":"feature","gone":"robot","by":"spare","after_secs":30.2,"voters":["features","operations","spare"]}}
 //! {"at_ms":64100,"node":"marie@localhost","kind":{"type":"dm_checked","dm":"world","node":"features","acknowledged":412,"held":410,"dropped_by_retention":0,"deleted":0,"unchecked":0,"lost":2}}
 //! {"at_ms":30001,"node":"marie@localhost","kind":{"type":"judged","outcome":"succeeded","reason":"","collisions":0,"final_pose":[1.5,0.25,0.01],"inside_goal":true,"judgement":"success: inside the goal area","refused_commands":{},"seed":7}}
 //! {"at_ms":4000,"node":"marie@localhost","kind":{"type":"robot","what":"collision","data":{"x":1.0,"y":2.0}}}
@@ -226,6 +230,10 @@ mod tests {
             EventKind::DmDeleted { .. } => "dm_deleted",
             EventKind::DmApplied { .. } => "dm_applied",
             EventKind::DmInherited { .. } => "dm_inherited",
+            EventKind::DmReplicaAdded { .. } => "dm_replica_added",
+            EventKind::DmReplicaPromoted { .. } => "dm_replica_promoted",
+            EventKind::DmReplicaRemoved { .. } => "dm_replica_removed",
+            EventKind::DmReplicaReplaced { .. } => "dm_replica_replaced",
             EventKind::DmChecked(_) => "dm_checked",
             EventKind::Judged { .. } => "judged",
             EventKind::Robot { .. } => "robot",
@@ -233,7 +241,7 @@ mod tests {
     }
 
     /// The `type` of every kind, as [`type_of`] names them.
-    const KINDS: [&str; 44] = [
+    const KINDS: [&str; 48] = [
         "provenance",
         "reparameterized",
         "run_started",
@@ -275,6 +283,10 @@ mod tests {
         "dm_deleted",
         "dm_applied",
         "dm_inherited",
+        "dm_replica_added",
+        "dm_replica_promoted",
+        "dm_replica_removed",
+        "dm_replica_replaced",
         "dm_checked",
         "judged",
         "robot",

@@ -591,6 +591,42 @@ fn datamanager(node: &str, kind: &EventKind) -> String {
                 classes.join(", ")
             ))
         }
+        EventKind::DmReplicaAdded {
+            dm,
+            node: on,
+            voters,
+        } => format!(
+            "datamanager {dm}: a replica on {on} was added as a learner; it catches up before \
+             it votes (voters: {})",
+            voters.join(", ")
+        ),
+        EventKind::DmReplicaPromoted {
+            dm,
+            node: on,
+            voters,
+        } => format!(
+            "datamanager {dm}: the replica on {on} caught up and votes now (voters: {})",
+            voters.join(", ")
+        ),
+        EventKind::DmReplicaRemoved {
+            dm,
+            node: on,
+            voters,
+        } => format!(
+            "datamanager {dm}: the replica on {on} was removed (voters: {})",
+            voters.join(", ")
+        ),
+        EventKind::DmReplicaReplaced {
+            dm,
+            gone,
+            by,
+            after_secs,
+            voters,
+        } => format!(
+            "datamanager {dm}: {gone} had been gone {after_secs:.1} s, its replica was replaced \
+             by one on {by}, caught up and voting (voters: {})",
+            voters.join(", ")
+        ),
         EventKind::DmInherited {
             dm,
             records,
@@ -708,7 +744,11 @@ pub fn mark(kind: &EventKind) -> Mark {
         | EventKind::DmAcked { .. }
         | EventKind::DmDeleted { .. }
         | EventKind::DmApplied { .. }
-        | EventKind::DmInherited { .. } => '%',
+        | EventKind::DmInherited { .. }
+        | EventKind::DmReplicaAdded { .. }
+        | EventKind::DmReplicaPromoted { .. }
+        | EventKind::DmReplicaRemoved { .. }
+        | EventKind::DmReplicaReplaced { .. } => '%',
         EventKind::Robot { .. } => '.',
     }
 }
@@ -747,6 +787,8 @@ pub fn gravity(kind: &EventKind) -> Gravity {
         | EventKind::NodeRefused { .. }
         | EventKind::ConnectionRefused { .. }
         | EventKind::DmFenced { .. }
+        | EventKind::DmReplicaRemoved { .. }
+        | EventKind::DmReplicaReplaced { .. }
         | EventKind::DmRetention { .. }
         | EventKind::DmNoMajority { .. } => Gravity::Warning,
         EventKind::DmRecovered { torn: Some(_), .. } => Gravity::Warning,

@@ -177,6 +177,8 @@ pub(crate) fn datamanager(
             "catch_up",
             "retention",
             "class_retention",
+            "replace_after",
+            "spares",
         ],
     );
     let retention = r
@@ -190,6 +192,7 @@ pub(crate) fn datamanager(
         .map(|n| n as usize);
     let durability = durability(r, t, has_data_dir);
     let replicas = replicas(r, t);
+    let (replace_after, spares) = replacement(r, t, replicas.as_deref().unwrap_or_default());
     let name = r.required_string(t, "name")?;
     let known = [dm::FEATURE, dm::PARAMETER, dm::WORLD, dm::RUN];
     let id = r.integer(t, "id", Some(0), 0..=i64::from(u32::MAX));
@@ -222,6 +225,8 @@ pub(crate) fn datamanager(
         catch_up,
         retention,
         class_retention,
+        replace_after,
+        spares,
         ..spec
     })
 }
@@ -283,6 +288,48 @@ fn replicas(r: &mut Reader<'_>, t: &Tbl<'_, '_>) -> Option<Vec<String>> {
         return None;
     }
     Some(names(replicas.or(copies)))
+}
+
+/// The longest `replace_after`: a day (a node gone longer is an operator's matter).
+const REPLACE_AFTER_MAX: f64 = 86_400.0;
+
+/// `replace_after = SECONDS` and `spares = [...]` of a `[[datamanager]]` with `replicas`:
+/// after a replica's node has been gone that long, the leader puts a replica on a spare
+/// (or, without `spares`, on any live node that keeps none) and removes the gone one.
+fn replacement(
+    r: &mut Reader<'_>,
+    t: &Tbl<'_, '_>,
+    replicas: &[String],
+) -> (Option<std::time::Duration>, Vec<String>) {
+    let after = r.num(
+        t,
+        "replace_after",
+        Some(0.0),
+        Rule::AboveUpTo(0.0, REPLACE_AFTER_MAX),
+    );
+    let after = after.filter(|_| t.get("replace_after").is_some());
+    let spares: Vec<(String, _)> = r.string_array(t, "spares").unwrap_or_default();
+    if let Some((_, span)) = spares.first().filter(|_| t.get("replace_after").is_none()) {
+        r.err(
+            span,
+            "`spares` are the nodes that may take a gone replica's place: give `replace_after = SECONDS` too",
+        );
+    }
+    if let Some(v) = t.get("replace_after").filter(|_| replicas.is_empty()) {
+        r.err(
+            &v.span(),
+            "`replace_after` replaces a gone replica: the datamanager keeps none (give `replicas = [...]`)",
+        );
+    }
+    let mut names = Vec::new();
+    for (name, span) in spares {
+        if names.contains(&name) {
+            r.err(&span, format!("spare {} is named twice", quote(&name)));
+        } else {
+            names.push(name);
+        }
+    }
+    (after.map(std::time::Duration::from_secs_f64), names)
 }
 
 /// The `[simulation]` table.

@@ -160,6 +160,22 @@ pub struct DatamanagerConfig {
     /// Bounds of particular classes (`class → most records kept`). In a file,
     /// `class_retention = { sonar = 100000, wall = 500 }`.
     pub class_retention: std::collections::BTreeMap<String, usize>,
+    /// This node's replica was added while the datamanager ran (`marie dm add-replica`,
+    /// an automatic replacement), not declared: it starts as a replica that joins
+    /// ([`marie_dm::Replication::joining`]) — a learner until the leader promotes it, never
+    /// campaigning on the strength of [`replicas`](Self::replicas), which are then only
+    /// the voters it first asks (its journal's configuration, once it has one, is what it
+    /// follows). See [`crate::replicas`].
+    pub joined: bool,
+    /// With replicas: how long a replica's node may be gone before the leader replaces
+    /// it — adds a replica on a [spare](Self::spares), waits for its promotion, removes the
+    /// gone one (`None`: never; `marie dm add-replica`/`remove-replica` do it by hand). In a
+    /// file, `replace_after = 30` (seconds).
+    pub replace_after: Option<std::time::Duration>,
+    /// The nodes that may take a gone replica's place, in the order tried (empty: any live
+    /// node that hosts replicas and keeps none of this datamanager). In a file,
+    /// `spares = ["spare1", "spare2"]`.
+    pub spares: Vec<String>,
 }
 
 impl DatamanagerConfig {
@@ -173,7 +189,26 @@ impl DatamanagerConfig {
             catch_up: None,
             retention: None,
             class_retention: Default::default(),
+            joined: false,
+            replace_after: None,
+            spares: Vec::new(),
         }
+    }
+
+    /// How the replica of this datamanager on node `me` replicates (`None`: it keeps no
+    /// replicas): one of the declared replicas, or one that [joined](Self::joined).
+    pub fn replication(&self, me: &str) -> Option<marie_dm::Replication> {
+        if self.replicas.is_empty() {
+            return None;
+        }
+        let r = match self.joined {
+            true => marie_dm::Replication::joining(me, self.replicas.clone()),
+            false => marie_dm::Replication::new(me, self.replicas.clone()),
+        };
+        Some(match self.catch_up {
+            Some(n) => r.with_catch_up(n),
+            None => r,
+        })
     }
 
     /// Keep replicas on the nodes `nodes` (this node among them; the first is the preferred
@@ -576,8 +611,7 @@ impl NodeConfig {
                 }
                 _ => {}
             }
-            if !d.replicas.is_empty() {
-                let replication = marie_dm::Replication::new(self.name.clone(), d.replicas.clone());
+            if let Some(replication) = d.replication(&self.name) {
                 let durable = self.durability_of(d) != Durability::Memory;
                 let problem = replication.check().err().map(|e| e.to_string()).or_else(|| {
                     (!durable).then(|| match self.data_dir {

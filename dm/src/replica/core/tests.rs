@@ -5,8 +5,10 @@
 //! `reads`.
 
 use super::*;
+use crate::replica::members::{Change, ChangeError};
 use std::collections::{HashMap, VecDeque};
 
+mod members;
 mod reads;
 
 const MEMBERS: [&str; 3] = ["a", "b", "c"];
@@ -38,6 +40,8 @@ struct Disk {
     applied: u64,
     /// A snapshot's end (seq, term): entries up to it are not in `log`.
     snap: (u64, u64),
+    /// The configuration committed at the snapshot's end, and its seq.
+    snap_members: Option<(u64, Members)>,
 }
 
 /// One simulated replica: its core (`None` while it is down), its disk, what it applied.
@@ -81,6 +85,12 @@ struct Sim {
     stale: Vec<String>,
     /// Replicas started with reads unchecked (the protocol without leases).
     unchecked: bool,
+    /// Every replica of the simulation, those added while it runs included.
+    names: Vec<String>,
+    /// The replicas added while it runs, with the voters they were started with.
+    joined: BTreeMap<String, Vec<String>>,
+    /// Change the replicas now and then (add one, remove one) in [`Sim::step`].
+    changes: bool,
 }
 
 fn put(id: u64, payload: usize) -> OpBody {
@@ -126,6 +136,9 @@ impl Sim {
             reads: Vec::new(),
             stale: Vec::new(),
             unchecked,
+            names: Sim::members(),
+            joined: BTreeMap::new(),
+            changes: false,
         };
         for m in MEMBERS {
             sim.replicas.insert(
@@ -164,7 +177,19 @@ impl Sim {
                 .expect("applied is logged");
             (op.seq, op.term)
         };
+        // the newest committed configuration its disk holds
+        let members = disk
+            .log
+            .iter()
+            .rev()
+            .filter(|o| o.seq <= disk.applied)
+            .find_map(|o| match &o.body {
+                OpBody::Members(m) => Some((o.seq, m.clone())),
+                _ => None,
+            })
+            .or(disk.snap_members.clone());
         let restored = Restored {
+            members,
             term: disk.term,
             voted_for: disk.voted_for.clone(),
             committed,
@@ -183,35 +208,35 @@ impl Sim {
                 .collect(),
             before: disk.snap,
         };
-        let core = Core::new(
-            m,
-            &Sim::members(),
-            self.timing,
-            restored,
-            m == "a",
-            self.now,
-        )
-        .with_tail_keep(self.keep)
-        .with_tail_bytes(self.keep_bytes)
-        .with_unchecked_reads(self.unchecked);
+        let (genesis, joining) = match self.joined.get(m) {
+            Some(voters) => (voters.clone(), true),
+            None => (Sim::members(), false),
+        };
+        let mut core = Core::new(m, &genesis, self.timing, restored, m == "a", self.now)
+            .with_tail_keep(self.keep)
+            .with_tail_bytes(self.keep_bytes)
+            .with_unchecked_reads(self.unchecked);
+        if joining {
+            core = core.joining();
+        }
         let replica = self.replicas.get_mut(m).unwrap();
         // the store is rebuilt from the disk: the applied prefix
         replica.applied.retain(|o| o.seq <= disk.applied);
         replica.core = Some(core);
         let mut out = Vec::new();
-        for other in MEMBERS {
-            if other != m && self.reachable(m, other) {
+        for other in self.names.clone() {
+            if other != m && self.reachable(m, &other) {
                 let now = self.now;
-                self.core(m).peer_up(other, now, &mut out);
+                self.core(m).peer_up(&other, now, &mut out);
             }
         }
         self.run(m, out);
-        for other in MEMBERS {
-            if other != m && self.reachable(m, other) {
+        for other in self.names.clone() {
+            if other != m && self.reachable(m, &other) {
                 let mut out = Vec::new();
                 let now = self.now;
-                self.core(other).peer_up(m, now, &mut out);
-                self.run(other, out);
+                self.core(&other).peer_up(m, now, &mut out);
+                self.run(&other, out);
             }
         }
     }
@@ -235,14 +260,14 @@ impl Sim {
     fn stop(&mut self, m: &str, its_node: bool) {
         self.replicas.get_mut(m).unwrap().core = None;
         self.pending.retain(|p| p.0 != m);
-        for other in MEMBERS {
+        for other in self.names.clone() {
             if its_node {
                 self.wires.remove(&(m.to_string(), other.to_string()));
             }
             self.wires.remove(&(other.to_string(), m.to_string()));
-            if other != m && self.replicas[other].core.is_some() {
+            if other != m && self.replicas[&other].core.is_some() {
                 let now = self.now;
-                self.core(other).peer_down(m, now);
+                self.core(&other).peer_down(m, now);
             }
         }
     }
@@ -251,7 +276,7 @@ impl Sim {
     /// nobody has seen it go yet (their failure detectors have not spoken).
     fn vanish(&mut self, m: &str) {
         self.replicas.get_mut(m).unwrap().core = None;
-        for other in MEMBERS {
+        for other in self.names.clone() {
             self.wires.remove(&(m.to_string(), other.to_string()));
             self.wires.remove(&(other.to_string(), m.to_string()));
         }
@@ -259,11 +284,11 @@ impl Sim {
 
     fn partition(&mut self, alone: &str) {
         *self.counts.entry("partitions").or_default() += 1;
-        for other in MEMBERS {
+        for other in self.names.clone() {
             if other == alone {
                 continue;
             }
-            for (x, y) in [(alone, other), (other, alone)] {
+            for (x, y) in [(alone, other.as_str()), (other.as_str(), alone)] {
                 self.cut.insert((x.to_string(), y.to_string()));
                 self.wires.remove(&(x.to_string(), y.to_string()));
                 if self.replicas[x].core.is_some() {
@@ -412,6 +437,12 @@ impl Sim {
                         assert_eq!(other, m, "two leaders in term {term}");
                     }
                 }
+                Out::Reconfigured { .. } => {
+                    *self.counts.entry("reconfigured").or_default() += 1;
+                }
+                Out::Removed => {
+                    *self.counts.entry("removed").or_default() += 1;
+                }
                 Out::StepDown(_) => {
                     // as the actor: it goes on as a follower, and the answers it owed go
                     // unanswered (their callers retry at the new leader)
@@ -433,16 +464,26 @@ impl Sim {
                         .filter(|o| o.seq <= seq)
                         .cloned()
                         .collect();
+                    // the configuration committed at the snapshot's end
+                    let members = snapshot
+                        .iter()
+                        .rev()
+                        .find_map(|o| match &o.body {
+                            OpBody::Members(m) => Some((o.seq, m.clone())),
+                            _ => None,
+                        })
+                        .or(replica.disk.snap_members.clone());
                     let leader_term = core.term();
                     let target = self.replicas.get_mut(&to).unwrap();
                     let core_to = target.core.as_mut().unwrap();
                     let mut more = Vec::new();
                     *self.counts.entry("installs").or_default() += 1;
                     if core_to.install_from(leader_term, m, seq, self.now, &mut more) {
-                        core_to.installed(seq, term);
+                        core_to.installed(seq, term, members.clone());
                         target.applied = snapshot;
                         target.disk.log.clear();
                         target.disk.snap = (seq, term);
+                        target.disk.snap_members = members;
                         target.disk.applied = seq;
                         core_to.durable(seq, term, &mut more);
                     }
@@ -488,26 +529,26 @@ impl Sim {
     }
 
     fn tick_all(&mut self) {
-        for m in MEMBERS {
-            if self.replicas[m].core.is_some() {
+        for m in self.names.clone() {
+            if self.replicas[&m].core.is_some() {
                 let mut out = Vec::new();
                 let now = self.now;
-                self.core(m).tick(now, &mut out);
-                self.run(m, out);
+                self.core(&m).tick(now, &mut out);
+                self.run(&m, out);
             }
         }
     }
 
     fn leader(&self) -> Option<String> {
-        MEMBERS
+        self.names
             .iter()
             .find(|m| {
-                self.replicas[**m]
+                self.replicas[m.as_str()]
                     .core
                     .as_ref()
                     .is_some_and(Core::is_leader)
             })
-            .map(|m| m.to_string())
+            .cloned()
     }
 
     /// One random step: deliver, drop, propose, time passes, or a fault.
@@ -533,8 +574,11 @@ impl Sim {
         }
         match r {
             0..=54 if !pairs.is_empty() => {
-                let (f, t) = pairs[self.rng.below(pairs.len() as u64) as usize].clone();
-                self.deliver(&f, &t);
+                // (more replicas send more: a delivery per three, or the wires only grow)
+                for _ in 0..self.names.len().div_ceil(3) {
+                    let (f, t) = pairs[self.rng.below(pairs.len() as u64) as usize].clone();
+                    self.deliver(&f, &t);
+                }
             }
             55..=56 if !pairs.is_empty() && faults => {
                 // a message lost with a session that broke
@@ -556,22 +600,25 @@ impl Sim {
                 }
             }
             96 if faults => {
-                let m = MEMBERS[self.rng.below(3) as usize];
-                if self.replicas[m].core.is_some() && self.up() == 3 {
-                    self.crash(m);
-                } else if self.replicas[m].core.is_none() {
-                    self.start(m);
+                let n = self.names.len();
+                let m = self.names[self.rng.below(n as u64) as usize].clone();
+                if self.replicas[&m].core.is_some() && self.up() == n {
+                    self.crash(&m);
+                } else if self.replicas[&m].core.is_none() {
+                    self.start(&m);
                 }
             }
             97 if faults => {
-                let m = MEMBERS[self.rng.below(3) as usize];
-                if self.cut.is_empty() && self.up() == 3 {
-                    self.partition(m);
+                let n = self.names.len();
+                let m = self.names[self.rng.below(n as u64) as usize].clone();
+                if self.cut.is_empty() && self.up() == n {
+                    self.partition(&m);
                 } else {
                     self.heal();
                 }
             }
             98 if faults => self.heal(),
+            99 if self.changes && proposals => self.change_at_random(),
             _ => {}
         }
         self.serve_reads();
@@ -579,15 +626,15 @@ impl Sim {
 
     /// A read asked now of every replica that takes itself for the leader.
     fn read_all(&mut self) {
-        for m in MEMBERS {
-            let Some(core) = self.replicas[m].core.as_ref() else {
+        for m in self.names.clone() {
+            let Some(core) = self.replicas[&m].core.as_ref() else {
                 continue;
             };
             if !core.is_leader() {
                 continue;
             }
             *self.counts.entry("reads").or_default() += 1;
-            self.reads.push((m.to_string(), self.now, self.acked_max));
+            self.reads.push((m.clone(), self.now, self.acked_max));
         }
         // (a read that waits is answered after the heartbeats' next round: the schedules'
         // messages are delivered one per step, and the actor's extra rounds would outgrow
@@ -622,6 +669,82 @@ impl Sim {
         }
     }
 
+    /// The replicas of the leader's configuration (every replica while there is none).
+    fn in_use(&self) -> Vec<String> {
+        match self.leader() {
+            Some(l) => self.replicas[&l]
+                .core
+                .as_ref()
+                .map(|c| c.members().all().cloned().collect())
+                .unwrap_or_default(),
+            None => self.names.clone(),
+        }
+    }
+
+    /// A replica started on a new node `m` to join (as a learner) the voters the leader has
+    /// now, as a node hosting a replica added while it runs does.
+    fn add_node(&mut self, m: &str) {
+        let voters = self
+            .leader()
+            .and_then(|l| {
+                self.replicas[&l]
+                    .core
+                    .as_ref()
+                    .map(|c| c.members().voters.clone())
+            })
+            .unwrap_or_else(Sim::members);
+        self.names.push(m.to_string());
+        self.joined.insert(m.to_string(), voters);
+        self.replicas.insert(
+            m.to_string(),
+            SimReplica {
+                core: None,
+                disk: Disk::default(),
+                applied: Vec::new(),
+            },
+        );
+        self.start(m);
+    }
+
+    /// Ask the leader to change the replicas; what it answered.
+    fn change(&mut self, change: Change) -> Result<u64, ChangeError> {
+        let l = self.leader().ok_or(ChangeError::NotLeader)?;
+        let now = self.now;
+        let mut out = Vec::new();
+        let r = self.core(&l).change(&change, now, &mut out);
+        self.run(&l, out);
+        r
+    }
+
+    /// Now and then: add a replica on a new node (up to five voters), or remove a voter
+    /// (down to three), as the leader allows.
+    fn change_at_random(&mut self) {
+        let Some(l) = self.leader() else {
+            return;
+        };
+        let m = self.replicas[&l].core.as_ref().unwrap().members().clone();
+        let grow = m.voters.len() < 5 && (m.voters.len() == 3 || self.rng.below(2) == 0);
+        let r = if grow && self.names.len() < 9 {
+            let node = ["d", "e", "f", "g", "h", "i"][self.names.len() - 3].to_string();
+            let r = self.change(Change::Add(node.clone()));
+            if r.is_ok() {
+                self.add_node(&node);
+            }
+            r
+        } else if !grow {
+            let v = m.voters[self.rng.below(m.voters.len() as u64) as usize].clone();
+            self.change(Change::Remove(v))
+        } else {
+            return;
+        };
+        let what = if r.is_ok() {
+            "changes"
+        } else {
+            "changes refused"
+        };
+        *self.counts.entry(what).or_default() += 1;
+    }
+
     fn up(&self) -> usize {
         self.replicas.values().filter(|c| c.core.is_some()).count()
     }
@@ -629,16 +752,18 @@ impl Sim {
     /// Heal everything and run without faults until every replica applied the same entries.
     fn settle(&mut self) {
         self.heal();
-        for m in MEMBERS {
-            if self.replicas[m].core.is_none() {
-                self.start(m);
+        for m in self.names.clone() {
+            if self.replicas[&m].core.is_none() {
+                self.start(&m);
             }
         }
         for _ in 0..200_000 {
             self.step_with(false, false);
-            let applied: Vec<u64> = MEMBERS
+            // the replicas of the configuration in use (one removed falls behind)
+            let applied: Vec<u64> = self
+                .in_use()
                 .iter()
-                .map(|m| self.replicas[*m].disk.applied)
+                .map(|m| self.replicas[m].disk.applied)
                 .collect();
             let settled = self.leader().is_some()
                 && self.pending.is_empty()
@@ -648,9 +773,36 @@ impl Sim {
                 return;
             }
         }
+        for m in &self.names {
+            if let Some(c) = self.replicas[m].core.as_ref() {
+                eprintln!(
+                    "{m}: term {} leader {:?} last {:?} commit {} members {} removed {} lag {:?}",
+                    c.term(),
+                    c.leader(),
+                    c.last(),
+                    c.commit(),
+                    c.members(),
+                    c.is_removed(),
+                    c.lag()
+                );
+            }
+        }
+        for (k, q) in &self.wires {
+            if !q.is_empty() {
+                eprintln!(
+                    "{k:?}: {} first {:?}",
+                    q.len(),
+                    q.front()
+                        .map(|m| format!("{m:?}").chars().take(150).collect::<String>())
+                );
+            }
+        }
         panic!(
             "did not settle: applied {:?}, leader {:?}, pending {:?}, in flight {:?}",
-            MEMBERS.map(|m| self.replicas[m].disk.applied),
+            self.names
+                .iter()
+                .map(|m| (m, self.replicas[m].disk.applied))
+                .collect::<Vec<_>>(),
             self.leader(),
             self.pending,
             self.wires.values().map(VecDeque::len).sum::<usize>()
@@ -662,7 +814,7 @@ impl Sim {
             assert!(self.stale.is_empty(), "stale reads: {:#?}", self.stale);
         }
         // every replica applied the same entries: the truth, in full
-        for m in MEMBERS {
+        for m in &self.names {
             let c = &self.replicas[m];
             for op in &c.applied {
                 assert_eq!(&self.truth[&op.seq], op, "{m} at {}", op.seq);
