@@ -26,7 +26,7 @@ use marie_actors::dispatcher::checkpoint::CheckpointArgs;
 use marie_actors::dispatcher::mission::ParsedMission;
 use marie_actors::dispatcher::{request_run, spawn_dispatcher, DispatcherArgs, RegistryCatalog};
 use marie_actors::eo::EoClient;
-use marie_dm::{spawn_datamanager, DmArgs, DmClient, DmConfig, DmMsg};
+use marie_dm::{spawn_datamanager, DmClient, DmMsg, DmSpec};
 use marie_vocabulary::clock::RealClock;
 use marie_vocabulary::events::{EventBus, EventKind, EventSubscription};
 use marie_vocabulary::property::{ParamMap, Value};
@@ -89,20 +89,10 @@ impl Actor for Gate {
 }
 
 async fn run_datamanager() -> ActorRef<DmMsg> {
-    spawn_datamanager(DmArgs {
-        id: 4811,
-        name: "fenced-run-dm".to_string(),
-        clock: RealClock::shared(),
-        config: DmConfig::default(),
-        durability: Default::default(),
-        journal_dir: None,
-        replication: None,
-        events: None,
-        heir: None,
-    })
-    .await
-    .expect("the DM starts")
-    .0
+    let args = DmSpec::new("fenced-run-dm", 4811)
+        .args(RealClock::shared())
+        .without_heir();
+    spawn_datamanager(args).await.expect("the DM starts").0
 }
 
 /// Wait until `c` runs an activation.

@@ -72,22 +72,28 @@ impl NoMajority {
 /// is not replicated, or unknown); else who is missing.
 pub async fn without_leader(dm: &str, timeout: Duration) -> Option<NoMajority> {
     let groups = replica_groups().remove(dm)?;
-    judge(dm, &views(&groups, timeout).await)
+    let views = ask_views(groups.into_iter().map(|g| (dm.to_string(), g)), timeout).await;
+    judge(dm, views.get(dm).map_or(&[][..], Vec::as_slice))
 }
 
 /// Every replicated datamanager whose replicas this process can find and none of which
 /// leads (every replica asked at once, each within `timeout`), by name.
 pub async fn leaderless(timeout: Duration) -> Vec<NoMajority> {
-    let mut asked = tokio::task::JoinSet::new();
-    for (dm, groups) in replica_groups() {
-        asked.spawn(async move { judge(&dm, &views(&groups, timeout).await) });
-    }
-    let mut lost = Vec::new();
-    while let Some(verdict) = asked.join_next().await {
-        lost.extend(verdict.ok().flatten());
-    }
-    lost.sort_by(|a, b| a.dm.cmp(&b.dm));
-    lost
+    replica_views(timeout)
+        .await
+        .iter()
+        .filter_map(|(dm, views)| judge(dm, views))
+        .collect()
+}
+
+/// What every replica this process can find (the replicas' `pg` scope, [`SCOPE`]) says of
+/// itself ([`DmMsg::ReplicaStats`]: its own numbers, whatever its role), by datamanager —
+/// all asked at once, each within `timeout`; empty when this process is in no cluster.
+pub async fn replica_views(timeout: Duration) -> BTreeMap<String, Vec<ReplicaStats>> {
+    let groups = replica_groups()
+        .into_iter()
+        .flat_map(|(dm, groups)| groups.into_iter().map(move |g| (dm.clone(), g)));
+    ask_views(groups, timeout).await
 }
 
 /// The nodes whose replica of `dm` this process finds (its replicas' `pg` groups), sorted:
@@ -118,28 +124,34 @@ fn replica_groups() -> BTreeMap<String, Vec<String>> {
     by_dm
 }
 
-/// What each replica in `groups` says of itself, of those that answer within `timeout` —
-/// all asked at once, so a frozen node's replicas cost one `timeout`, not one each.
-async fn views(groups: &[String], timeout: Duration) -> Vec<ReplicaStats> {
+/// What each replica in `groups` (`(datamanager, group)`) says of itself, of those that
+/// answer within `timeout` — all asked at once, so a frozen node's replicas cost one
+/// `timeout`, not one each —, by datamanager.
+async fn ask_views(
+    groups: impl Iterator<Item = (String, String)>,
+    timeout: Duration,
+) -> BTreeMap<String, Vec<ReplicaStats>> {
     let scope = SCOPE.to_string();
     let mut asked = tokio::task::JoinSet::new();
-    for group in groups {
-        for cell in ractor::pg::get_scoped_members(&scope, group) {
-            let actor: ActorRef<DmMsg> = cell.into();
+    for (dm, group) in groups {
+        for cell in ractor::pg::get_scoped_members(&scope, &group) {
+            let (dm, actor) = (dm.clone(), ActorRef::<DmMsg>::from(cell));
             asked.spawn(async move {
                 match actor
                     .call(|reply| DmMsg::ReplicaStats { reply }, Some(timeout))
                     .await
                 {
-                    Ok(CallResult::Success(stats)) => stats.replica,
+                    Ok(CallResult::Success(stats)) => stats.replica.map(|r| (dm, r)),
                     _ => None,
                 }
             });
         }
     }
-    let mut views = Vec::new();
+    let mut views: BTreeMap<String, Vec<ReplicaStats>> = BTreeMap::new();
     while let Some(answer) = asked.join_next().await {
-        views.extend(answer.ok().flatten());
+        if let Ok(Some((dm, view))) = answer {
+            views.entry(dm).or_default().push(view);
+        }
     }
     views
 }

@@ -384,6 +384,17 @@ mod tests {
         p
     }
 
+    /// Node configs `a.toml` to `d.toml` in `dir`, each naming its node only.
+    fn four_nodes(dir: &Path) {
+        for n in ["a", "b", "c", "d"] {
+            write(
+                dir,
+                &format!("{n}.toml"),
+                &format!("[node]\nname = \"{n}\"\n"),
+            );
+        }
+    }
+
     #[test]
     fn a_cluster_file_gives_its_nodes_cookie_speed_and_world() {
         let dir = tempfile::tempdir().unwrap();
@@ -457,13 +468,7 @@ mod tests {
     #[test]
     fn a_replicated_datamanager_is_declared_once_and_given_to_each_node_it_names() {
         let dir = tempfile::tempdir().unwrap();
-        for n in ["a", "b", "c", "d"] {
-            write(
-                dir.path(),
-                &format!("{n}.toml"),
-                &format!("[node]\nname = \"{n}\"\n"),
-            );
-        }
+        four_nodes(dir.path());
         let c = write(
             dir.path(),
             "cluster.toml",
@@ -518,13 +523,7 @@ mod tests {
     #[test]
     fn replacement_keys_are_read_and_each_bad_one_is_reported_at_its_line() {
         let dir = tempfile::tempdir().unwrap();
-        for n in ["a", "b", "c", "d"] {
-            write(
-                dir.path(),
-                &format!("{n}.toml"),
-                &format!("[node]\nname = \"{n}\"\n"),
-            );
-        }
+        four_nodes(dir.path());
         let nodes = "[cluster]\ncookie = \"k\"\n[[node]]\nconfig = \"a.toml\"\n[[node]]\nconfig = \"b.toml\"\n\
                      [[node]]\nconfig = \"c.toml\"\n[[node]]\nconfig = \"d.toml\"\n";
         let good = write(

@@ -218,30 +218,26 @@ pub async fn add(
         }
     }
     let mut last_lag = None;
-    loop {
-        let now = replica_stats(dm, &client).await;
-        if let Ok(s) = &now {
-            if s.members.iter().any(|v| v == node) {
-                tell(&Step::Voter {
-                    node: node.to_string(),
-                    voters: s.members.clone(),
-                });
-                return Ok(());
-            }
-            let lag = s.lag.get(node).copied();
-            if let Some(lag) = lag.filter(|l| Some(*l) != last_lag) {
-                tell(&Step::Learning {
-                    node: node.to_string(),
-                    lag,
-                });
-                last_lag = Some(lag);
-            }
+    let promoted = |s: &ReplicaStats| {
+        if s.members.iter().any(|v| v == node) {
+            return Some(s.members.clone());
         }
-        if Instant::now() >= deadline {
-            return Err(timed_out(dm, "the promotion of the learner", within, &now));
+        if let Some(lag) = s.lag.get(node).copied().filter(|l| Some(*l) != last_lag) {
+            tell(&Step::Learning {
+                node: node.to_string(),
+                lag,
+            });
+            last_lag = Some(lag);
         }
-        tokio::time::sleep(POLL).await;
-    }
+        None
+    };
+    let what = "the promotion of the learner";
+    let voters = poll_until(dm, &client, (deadline, within), what, promoted).await?;
+    tell(&Step::Voter {
+        node: node.to_string(),
+        voters,
+    });
+    Ok(())
 }
 
 /// Remove the replica of datamanager `dm` on node `node`: the leader removes it from the
@@ -258,22 +254,15 @@ pub async fn remove(
     let client = leader_of(dm).await?;
     let seq = ask_change(dm, &client, Change::Remove(node.to_string()), deadline).await?;
     tell(&Step::Committed { seq });
-    loop {
-        let now = replica_stats(dm, &client).await;
-        if let Ok(s) = &now {
-            if !s.members.iter().chain(&s.learners).any(|v| v == node) && s.node != node {
-                tell(&Step::Removed {
-                    node: node.to_string(),
-                    voters: s.members.clone(),
-                });
-                break;
-            }
-        }
-        if Instant::now() >= deadline {
-            return Err(timed_out(dm, "the removal", within, &now));
-        }
-        tokio::time::sleep(POLL).await;
-    }
+    let removed = |s: &ReplicaStats| {
+        let out = !s.members.iter().chain(&s.learners).any(|v| v == node) && s.node != node;
+        out.then(|| s.members.clone())
+    };
+    let voters = poll_until(dm, &client, (deadline, within), "the removal", removed).await?;
+    tell(&Step::Removed {
+        node: node.to_string(),
+        voters,
+    });
     let Some(host) = host_of(node) else {
         tell(&Step::Unreachable {
             node: node.to_string(),
@@ -301,6 +290,28 @@ pub async fn remove(
             }
             Err(e) => return Err(e.into()),
         }
+    }
+}
+
+/// Ask the leader what it says of the replicas every [`POLL`] until `done` finds what it
+/// waits for, or fail as `what` not done by the deadline (`(deadline, within)`: when, and
+/// the time given, which the failure says).
+async fn poll_until<T>(
+    dm: &str,
+    client: &DmClient,
+    (deadline, within): (Instant, Duration),
+    what: &str,
+    mut done: impl FnMut(&ReplicaStats) -> Option<T>,
+) -> Result<T, ChangeFailure> {
+    loop {
+        let now = replica_stats(dm, client).await;
+        if let Some(found) = now.as_ref().ok().and_then(&mut done) {
+            return Ok(found);
+        }
+        if Instant::now() >= deadline {
+            return Err(timed_out(dm, what, within, &now));
+        }
+        tokio::time::sleep(POLL).await;
     }
 }
 

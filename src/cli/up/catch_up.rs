@@ -16,17 +16,15 @@ use super::plan::UpPlan;
 use super::supervisor::Restarted;
 use crate::cli::join::{join, member_name};
 use marie::cluster::fault::Struck;
-use marie::dm::{DmMsg, ReplicaStats, REPLICA_SCOPE};
+use marie::dm::ReplicaStats;
 use marie::replica::ReplicaRole;
 use marie::run::FaultKind;
-use ractor::rpc::CallResult;
-use ractor::ActorRef;
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 use tokio::sync::{mpsc, oneshot};
-use tokio::task::{JoinHandle, JoinSet};
+use tokio::task::JoinHandle;
 
 /// How often the replicas are asked, while a fault's node is back and not caught up.
 const PROBE_EVERY: Duration = Duration::from_millis(100);
@@ -264,7 +262,7 @@ impl Watch {
         {
             return;
         }
-        let views = views().await;
+        let views = marie::dm::replica_views(PROBE_TIMEOUT).await;
         if views.is_empty() {
             // no member of this process in the cluster now (between two runs)
             return;
@@ -291,38 +289,6 @@ impl Watch {
         println!("{}", fate.line());
         self.fates.push(fate);
     }
-}
-
-/// Every replica found in the replicas' `pg` scope, asked for its view (each within
-/// [`PROBE_TIMEOUT`], all at once), by datamanager: empty when this process is in no
-/// cluster.
-async fn views() -> BTreeMap<String, Vec<ReplicaStats>> {
-    let scope = REPLICA_SCOPE.to_string();
-    let mut asked = JoinSet::new();
-    for group in ractor::pg::which_scoped_groups(&scope) {
-        let Some((dm, _)) = group.split_once('/') else {
-            continue;
-        };
-        for cell in ractor::pg::get_scoped_members(&scope, &group) {
-            let (dm, actor) = (dm.to_string(), ActorRef::<DmMsg>::from(cell));
-            asked.spawn(async move {
-                match actor
-                    .call(|reply| DmMsg::Stats { reply }, Some(PROBE_TIMEOUT))
-                    .await
-                {
-                    Ok(CallResult::Success(stats)) => stats.replica.map(|r| (dm, r)),
-                    _ => None,
-                }
-            });
-        }
-    }
-    let mut views: BTreeMap<String, Vec<ReplicaStats>> = BTreeMap::new();
-    while let Some(answer) = asked.join_next().await {
-        if let Ok(Some((dm, view))) = answer {
-            views.entry(dm).or_default().push(view);
-        }
-    }
-    views
 }
 
 /// Whether every replica on `node` has caught up, by `views`: for each datamanager one of
