@@ -30,7 +30,7 @@ struct Recorder {
     missed: i64,
     /// A step at which the DM is found absent though it is published (once): the race of
     /// a call that failed before a new leader was published and a look after it.
-    absent_at: Option<i64>,
+    absent_at: Option<(i64, OpError)>,
 }
 
 impl Operation for Recorder {
@@ -57,11 +57,15 @@ impl Operation for Recorder {
     }
     async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
         let n = self.taken.to_string();
-        if self.absent_at == Some(self.taken) {
-            self.absent_at = None;
+        if self
+            .absent_at
+            .as_ref()
+            .is_some_and(|(at, _)| *at == self.taken)
+        {
             self.missed += 1;
-            let absent = marie_dm::DmError::NotRegistered(self.dm.to_string());
-            return Err(OpError::of_dm(self.dm, &absent));
+            if let Some((_, e)) = self.absent_at.take() {
+                return Err(e);
+            }
         }
         let stored = match ctx.dm(self.dm) {
             Ok(dm) => dm
@@ -104,7 +108,7 @@ async fn recorder(dm: &'static str) -> EoClient {
     recorder_absent_at(dm, None).await
 }
 
-async fn recorder_absent_at(dm: &'static str, absent_at: Option<i64>) -> EoClient {
+async fn recorder_absent_at(dm: &'static str, absent_at: Option<(i64, OpError)>) -> EoClient {
     let (actor, _) = spawn_operation(
         Recorder {
             dm,
@@ -204,7 +208,12 @@ async fn a_datamanager_absent_at_the_call_but_published_by_the_look_is_waited_fo
     // is registered", a new leader was published before the host looked, and the host
     // failed the activation (the module was not gone by then) — the mission with it
     let dm = datamanager("logbook-race").await;
-    let op = recorder_absent_at("logbook-race", Some(3)).await;
+    let absent = marie_dm::DmError::NotRegistered("logbook-race".into());
+    let op = recorder_absent_at(
+        "logbook-race",
+        Some((3, OpError::of_dm("logbook-race", &absent))),
+    )
+    .await;
     let report = op
         .activate(param_map([("steps", Value::Int(20))]), 1)
         .unwrap();
@@ -236,4 +245,60 @@ async fn an_operation_fails_when_its_datamanager_does_not_come_back() {
         other => panic!("{other:?}"),
     }
     op.actor().stop(None);
+}
+
+/// A hardware module that does nothing but be published, as a cart is.
+struct StandIn;
+
+impl ractor::Actor for StandIn {
+    type Msg = ();
+    type State = ();
+    type Arguments = &'static str;
+    async fn pre_start(
+        &self,
+        myself: ActorRef<()>,
+        name: &'static str,
+    ) -> Result<(), ractor::ActorProcessingErr> {
+        registry::publish(ModuleKind::Hardware, 4302, name, myself.get_cell())?;
+        Ok(())
+    }
+}
+
+#[tokio::test]
+async fn hardware_lost_mid_call_but_back_by_the_look_is_waited_for_and_one_that_runs_unanswering_fails(
+) {
+    // the cart's node cut off for 4 s: the session closed, the cart's call ended at its own
+    // deadline (5 s) — by then the node was back and the cart published again, so the look
+    // found nothing gone and the activation (the mission with it) failed
+    let (stand_in, _) = ractor::Actor::spawn(None, StandIn, "rig-race")
+        .await
+        .unwrap();
+    let dm = datamanager("logbook-rig").await;
+    let lost = OpError::absent(
+        ModuleKind::Hardware,
+        "rig-race",
+        "the rig was lost before it answered",
+    );
+    let op = recorder_absent_at("logbook-rig", Some((3, lost))).await;
+    let report = op
+        .activate(param_map([("steps", Value::Int(20))]), 1)
+        .unwrap();
+    let report = timeout(T, report).await.unwrap().unwrap();
+    assert!(matches!(report, EoReport::Finished { .. }), "{report:?}");
+    assert_eq!(missed(&op).await, 1);
+    op.actor().stop(None);
+
+    // the same module running but not answering is a failure, not a wait
+    let silent = OpError::unreachable(ModuleKind::Hardware, "rig-race", "the rig did not answer");
+    let op = recorder_absent_at("logbook-rig", Some((3, silent))).await;
+    let report = op
+        .activate(param_map([("steps", Value::Int(20))]), 2)
+        .unwrap();
+    match timeout(T, report).await.unwrap().unwrap() {
+        EoReport::Failed { reason, .. } => assert_eq!(reason, "the rig did not answer"),
+        other => panic!("{other:?}"),
+    }
+    op.actor().stop(None);
+    dm.stop(None);
+    stand_in.stop(None);
 }

@@ -386,9 +386,9 @@ impl<O: Operation> HostState<O> {
     fn held_for(&self, e: &super::OpError) -> Option<(u64, ModuleKind, String)> {
         let activation = self.active.as_ref()?.number;
         let (kind, module) = e.needed_module()?;
-        // a datamanager absent at the call is waited for even if it is published again
-        // by now (the wait then ends at once): the look comes after the call
-        (e.dm_absent() || self.ctx.module_gone(kind, module))
+        // a module absent at the call is waited for even if it is published again by now
+        // (the wait then ends at once): the look comes after the call
+        (e.is_absent() || self.ctx.module_gone(kind, module))
             .then(|| (activation, kind, module.to_string()))
     }
 

@@ -83,9 +83,10 @@ pub enum OpError {
     },
     /// Another module the operation needs (a hardware module such as the cart) could not
     /// be reached. When the module is gone from the registry (its node lost, or cut off
-    /// from this one), the host holds the operation's steps until it is back, as for a
-    /// datamanager ([`DATAMANAGER_RETURN`](super::DATAMANAGER_RETURN)), instead of failing
-    /// the activation at once.
+    /// from this one), or was absent at the call (`absent`), the host holds the
+    /// operation's steps until it is back, as for a datamanager
+    /// ([`DATAMANAGER_RETURN`](super::DATAMANAGER_RETURN)), instead of failing the
+    /// activation at once.
     #[error("{problem}")]
     Unreachable {
         /// What kind of module.
@@ -94,6 +95,12 @@ pub enum OpError {
         module: String,
         /// What went wrong.
         problem: String,
+        /// Whether the module was absent at the call: none was published, or the instance
+        /// called stopped before it answered (its node lost or cut off mid-call). The host
+        /// then waits for the next instance even if one is published by the time it looks
+        /// — the look comes after the call, and a node cut off for a few seconds is back
+        /// by the end of a call's deadline —; the wait ends at once if it is.
+        absent: bool,
     },
 }
 
@@ -103,7 +110,8 @@ impl OpError {
         OpError::Failed(msg.into())
     }
 
-    /// A module `kind` named `module` could not be reached: `problem` says how.
+    /// A module `kind` named `module` could not be reached: `problem` says how. Use
+    /// [`OpError::absent`] when the module is known to have been absent at the call.
     pub fn unreachable(
         kind: ModuleKind,
         module: impl Into<String>,
@@ -113,6 +121,28 @@ impl OpError {
             kind,
             module: module.into(),
             problem: problem.into(),
+            absent: false,
+        }
+    }
+
+    /// A module `kind` named `module` was absent at the call (none published, or the
+    /// instance called stopped before it answered): the host waits for its next instance
+    /// and steps again — at once if one is published by the time it looks.
+    ///
+    /// ```
+    /// use marie_actors::eo::OpError;
+    /// use marie_vocabulary::registry::ModuleKind;
+    ///
+    /// let e = OpError::absent(ModuleKind::Hardware, "cart", "the virtual cart was lost");
+    /// assert!(e.is_absent());
+    /// assert!(!OpError::unreachable(ModuleKind::Hardware, "cart", "no answer").is_absent());
+    /// ```
+    pub fn absent(kind: ModuleKind, module: impl Into<String>, problem: impl Into<String>) -> Self {
+        OpError::Unreachable {
+            kind,
+            module: module.into(),
+            problem: problem.into(),
+            absent: true,
         }
     }
 
@@ -128,6 +158,7 @@ impl OpError {
                 kind: ModuleKind::Datamanager,
                 problem: format!("datamanager {dm}: {e}"),
                 module: dm,
+                absent: true,
             },
             _ => OpError::Datamanager {
                 dm,
@@ -136,15 +167,10 @@ impl OpError {
         }
     }
 
-    /// Whether it says a datamanager was absent when the operation called it.
-    pub(crate) fn dm_absent(&self) -> bool {
-        matches!(
-            self,
-            OpError::Unreachable {
-                kind: ModuleKind::Datamanager,
-                ..
-            }
-        )
+    /// Whether it says a module was absent when the operation called it
+    /// ([`OpError::absent`], a datamanager's [`OpError::of_dm`]).
+    pub fn is_absent(&self) -> bool {
+        matches!(self, OpError::Unreachable { absent: true, .. })
     }
 
     /// The datamanager it names, for a datamanager's error.

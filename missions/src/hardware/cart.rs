@@ -432,9 +432,15 @@ pub enum CartError {
     /// No cart in the registry.
     #[error("no virtual cart is running")]
     NotFound,
-    /// The cart is gone or did not answer in time.
+    /// The cart did not answer in time, though the instance called still runs (as far as
+    /// this node knows).
     #[error("the virtual cart did not answer")]
     Unreachable,
+    /// The instance called stopped before it answered: the cart's node was lost or cut
+    /// off from this one mid-call (its session closed), or the cart restarted. A new
+    /// instance may be published by now.
+    #[error("the virtual cart was lost before it answered")]
+    Gone,
 }
 
 /// A typed handle to the cart.
@@ -486,7 +492,7 @@ impl CartClient {
                 steer,
                 fence: self.fence.clone(),
             })
-            .map_err(|_| CartError::Unreachable)
+            .map_err(|_| self.failed())
     }
 
     /// Cap the speed, or lift the cap.
@@ -496,7 +502,7 @@ impl CartClient {
                 max,
                 fence: self.fence.clone(),
             })
-            .map_err(|_| CartError::Unreachable)
+            .map_err(|_| self.failed())
     }
 
     /// Stop now, leaving the emergency stop as it is ([`CartMsg::Halt`]).
@@ -505,7 +511,7 @@ impl CartClient {
             .cast(CartMsg::Halt {
                 fence: self.fence.clone(),
             })
-            .map_err(|_| CartError::Unreachable)
+            .map_err(|_| self.failed())
     }
 
     /// Engage or release the emergency stop.
@@ -515,7 +521,7 @@ impl CartClient {
                 on,
                 fence: self.fence.clone(),
             })
-            .map_err(|_| CartError::Unreachable)
+            .map_err(|_| self.failed())
     }
 
     async fn call<T: Send + 'static>(
@@ -524,7 +530,20 @@ impl CartClient {
     ) -> Result<T, CartError> {
         match self.actor.call(make, Some(Duration::from_secs(5))).await {
             Ok(CallResult::Success(v)) => Ok(v),
-            _ => Err(CartError::Unreachable),
+            _ => Err(self.failed()),
+        }
+    }
+
+    /// Why a message to the cart went unanswered: [`CartError::Gone`] when the instance
+    /// called has stopped by now — a partition that outlasts the failure detector's
+    /// deadline closes the session, and a call waiting on it ends only at its own deadline,
+    /// when the cart may be back under a new instance —, [`CartError::Unreachable`]
+    /// otherwise.
+    fn failed(&self) -> CartError {
+        if self.is_alive() {
+            CartError::Unreachable
+        } else {
+            CartError::Gone
         }
     }
 

@@ -61,9 +61,19 @@ pub(crate) fn cart<'s>(
 
 /// Turn a cart error into an operation error: the cart could not be reached, so the host
 /// holds the operation while the cart is gone from the registry (its node lost, or cut off
-/// from this one) and steps on once it is back.
+/// from this one) and steps on once it is back. A cart absent at the call (none published,
+/// or the instance called lost mid-call) is waited for even if it is back by the time the
+/// host looks; a cart that runs and does not answer fails the activation.
 pub(crate) fn cart_err(e: crate::hardware::CartError) -> OpError {
-    OpError::unreachable(ModuleKind::Hardware, CART_NAME, e.to_string())
+    use crate::hardware::CartError;
+    match e {
+        CartError::NotFound | CartError::Gone => {
+            OpError::absent(ModuleKind::Hardware, CART_NAME, e.to_string())
+        }
+        CartError::Unreachable => {
+            OpError::unreachable(ModuleKind::Hardware, CART_NAME, e.to_string())
+        }
+    }
 }
 
 /// The newest record of `kind` in datamanager `dm`, decoded; `None` when there is none.
@@ -110,4 +120,19 @@ pub(crate) async fn located(
         &correction(ctx).await?,
         odometry,
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::cart_err;
+    use crate::hardware::CartError;
+
+    #[test]
+    fn a_cart_absent_at_the_call_is_waited_for_and_a_silent_one_is_not() {
+        assert!(cart_err(CartError::Gone).is_absent());
+        assert!(cart_err(CartError::NotFound).is_absent());
+        let silent = cart_err(CartError::Unreachable);
+        assert!(!silent.is_absent());
+        assert_eq!(silent.to_string(), "the virtual cart did not answer");
+    }
 }
