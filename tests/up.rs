@@ -487,10 +487,24 @@ fn a_node_killed_under_up_is_restarted_rejoins_and_its_replicas_catch_up() {
     let (name, _, pid) = &nodes[2];
     assert_eq!(name, "operations");
     // killed by something else than a fault of marie's: `up` sees its process end
+    let mark = up.seen().len();
     signal_pid(*pid, "KILL");
     up.wait_line("node operations was killed (SIGKILL): restarting it in 0.10 s");
     let back = up.wait_line("node operations restarted: listening on ");
     assert!(!back.contains(&format!("(pid {pid})")), "{back}");
+    // every datamanager's leader tells the replica on operations caught up, then its
+    // redundancy restored (each has a replica there)
+    for dm in ["feature", "parameter", "world", "run"] {
+        let caught = up.wait_line_since(
+            mark,
+            &format!("datamanager {dm}: the replica on operations caught up"),
+        );
+        assert!(caught.contains("s after it was lost"), "{caught}");
+        up.wait_line_since(
+            mark,
+            &format!("datamanager {dm}: redundancy restored, all 3 replicas current"),
+        );
+    }
     // the whole cluster is listed again, and every datamanager's leader sees both of its
     // followers with nothing left to catch up
     let caught_up = |rows: &[serde_json::Value]| {

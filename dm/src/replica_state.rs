@@ -10,6 +10,7 @@ use super::replica::core::{Core, Restored};
 use super::replica::kept::Kept;
 use super::replica::{vote, Members, Op, ReplicaMsg, Replication, SCOPE, UNCHECKED_READS_ENV};
 use super::store::Store;
+use marie_vocabulary::events::EventKind;
 use marie_vocabulary::fence::FenceTable;
 use ractor::{pg, ActorCell, ActorRef};
 use std::collections::{BTreeMap, VecDeque};
@@ -77,6 +78,8 @@ pub(crate) struct ReplicaState {
     pub(crate) name: String,
     /// Where it tells that it became the leader or stepped down.
     pub(crate) events: Option<marie_vocabulary::events::EventBus>,
+    /// The replicas lost and not yet caught up: what it tells, as the leader, once they are.
+    pub(crate) redundancy: super::replica::redundancy::Redundancy,
 }
 
 impl Drop for ReplicaState {
@@ -194,12 +197,51 @@ impl ReplicaState {
             ticker,
             name: name.to_string(),
             events,
+            redundancy: Default::default(),
         })
     }
 
     /// Time since it started: the protocol's clock.
     pub(crate) fn now(&self) -> Duration {
         self.started.elapsed()
+    }
+
+    /// As the leader: tell each lost replica that caught up since the last look, and the
+    /// redundancy restored once every replica is current (`dm_replica_caught_up`,
+    /// `dm_redundancy_restored`).
+    pub(crate) fn look_at_strength(&mut self) {
+        use super::replica::redundancy::Strength;
+        if !self.core.is_leader() || !self.redundancy.reduced() {
+            return;
+        }
+        let present = self.peers.keys().cloned().collect();
+        let news = self
+            .redundancy
+            .look(&present, &self.core.lacking_committed(), self.now());
+        for news in news {
+            let ms = |d: Duration| u64::try_from(d.as_millis()).unwrap_or(u64::MAX);
+            let kind = match news {
+                Strength::CaughtUp { node, after } => {
+                    tracing::info!(dm = %self.name, %node, ?after, "replica: a lost replica caught up");
+                    EventKind::DmReplicaCaughtUp {
+                        dm: self.name.clone(),
+                        node,
+                        after_ms: ms(after),
+                    }
+                }
+                Strength::Restored { replicas, after } => {
+                    tracing::info!(dm = %self.name, replicas, ?after, "replica: redundancy restored");
+                    EventKind::DmRedundancyRestored {
+                        dm: self.name.clone(),
+                        replicas: u32::try_from(replicas).unwrap_or(u32::MAX),
+                        after_ms: ms(after),
+                    }
+                }
+            };
+            if let Some(bus) = &self.events {
+                bus.publish(kind);
+            }
+        }
     }
 
     /// Run `ack` once the entries up to `seq` are applied (at once if they are).

@@ -165,6 +165,7 @@ impl DatamanagerState {
         let Some(replica) = self.storage.replica_mut() else {
             return;
         };
+        replica.look_at_strength();
         let mut out = Vec::new();
         let now = replica.now();
         replica.core.tick(now, &mut out);
@@ -200,12 +201,17 @@ impl DatamanagerState {
             match (known, found) {
                 (Some(a), Some(b)) if a == b.get_id() => {}
                 (_, Some(b)) => {
+                    if known.is_some() {
+                        // another actor: its node was restarted, and its replica lags
+                        replica.redundancy.lost(&m, now, replica.core.last().0);
+                    }
                     replica.peers.insert(m.clone(), b);
                     tracing::debug!(dm = %replica.name, peer = %m, "replica: a replica is reachable");
                     replica.core.peer_up(&m, now, &mut out);
                 }
                 (Some(_), None) => {
                     replica.peers.remove(&m);
+                    replica.redundancy.lost(&m, now, replica.core.last().0);
                     tracing::debug!(dm = %replica.name, peer = %m, "replica: a replica is gone");
                     replica.core.peer_down(&m, now);
                 }
@@ -240,10 +246,14 @@ impl DatamanagerState {
                 }
             }
             msg => {
-                if let ReplicaMsg::Append { ops, .. } = &msg {
+                if let ReplicaMsg::Append { ops, held, .. } = &msg {
                     replica.arrived = Some(ops.raw());
+                    replica.redundancy.held_everywhere(*held);
                 }
                 replica.core.receive(msg, now, &mut out);
+                // at once, not at the next tick: the acknowledgement that shows a lost
+                // replica caught up may also hand it the role (the preferred replica's)
+                replica.look_at_strength();
             }
         }
         self.carry_out(myself, out);

@@ -69,6 +69,7 @@ function render(state) {
   refreshProps(state.bindings);
   renderCluster(state.cluster);
   renderNoMajority(state.no_majority || {});
+  renderStrength(state.strength || {});
   renderRobot(state.robot);
   renderTimeline(state.timeline);
   document.body.dataset.renders = String(++renders);
@@ -363,6 +364,25 @@ function renderNoMajority(lost) {
   setHtml($("#no-majority"), Object.entries(lost)
     .map(([dm, v]) => `<div class="no-majority" data-dm="${esc(dm)}" ` +
       `data-missing="${esc(v.missing.join(","))}">no majority: ${esc(v.words)}</div>`)
+    .join(""));
+}
+
+// Each replicated datamanager's way back to full strength: the lost replicas caught up,
+// and when every replica was current again, as its leader told it.
+function renderStrength(strength) {
+  setHtml($("#strength"), Object.entries(strength)
+    .map(([dm, v]) => {
+      const caught = Object.entries(v.caught_up)
+        .map(([node, ms]) => `<span class="caught-up" data-node="${esc(node)}">` +
+          `replica on ${esc(node)} caught up ${(ms / 1000).toFixed(1)} s after its loss</span>`);
+      const restored = v.restored
+        ? [`<span class="restored" data-after-ms="${v.restored.after_ms}">redundancy restored at ` +
+          `${fmtAt(v.restored.at_ms)}: all ${v.restored.replicas} replicas current ` +
+          `${(v.restored.after_ms / 1000).toFixed(1)} s after the first loss</span>`]
+        : [];
+      return `<div class="strength" data-dm="${esc(dm)}">${esc(dm)}: ` +
+        caught.concat(restored).join("; ") + `</div>`;
+    })
     .join(""));
 }
 

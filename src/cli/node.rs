@@ -160,8 +160,9 @@ impl NodeArgs {
     }
 }
 
-/// Whether `kind` is a change of a datamanager's replicas (told on the node's stdout, so
-/// `marie up` shows it).
+/// Whether `kind` is a change of a datamanager's replicas or of their strength (a lost
+/// replica caught up, redundancy restored): told on the node's stdout, so `marie up` shows
+/// it.
 fn replicas_changed(kind: &marie::events::EventKind) -> bool {
     use marie::events::EventKind;
     matches!(
@@ -170,6 +171,8 @@ fn replicas_changed(kind: &marie::events::EventKind) -> bool {
             | EventKind::DmReplicaPromoted { .. }
             | EventKind::DmReplicaRemoved { .. }
             | EventKind::DmReplicaReplaced { .. }
+            | EventKind::DmReplicaCaughtUp { .. }
+            | EventKind::DmRedundancyRestored { .. }
     )
 }
 

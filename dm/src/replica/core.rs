@@ -491,6 +491,21 @@ impl Core {
         }
     }
 
+    /// How many committed entries each other replica lacks (on the leader): 0 for one that
+    /// holds all of them, however many newer entries are still in flight to it — the
+    /// measure of a replica caught up under a steady stream of writes, where the lag to the
+    /// last entry is rarely 0 for all at once.
+    pub(crate) fn lacking_committed(&self) -> BTreeMap<String, u64> {
+        let commit = self.commit();
+        match &self.role {
+            Role::Leader { peers, .. } => peers
+                .iter()
+                .map(|(p, pr)| (p.clone(), commit.saturating_sub(pr.matched)))
+                .collect(),
+            _ => BTreeMap::new(),
+        }
+    }
+
     /// The configuration in use: the newest in its log, committed or not.
     pub(crate) fn members(&self) -> &Members {
         &self.configs[self.configs.len() - 1].1

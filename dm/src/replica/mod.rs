@@ -50,6 +50,7 @@ pub(crate) mod lease;
 mod members;
 mod msg;
 mod op;
+pub(crate) mod redundancy;
 pub(crate) mod tail;
 pub(crate) mod vote;
 

@@ -18,6 +18,7 @@ pub mod cluster;
 pub mod majority;
 pub mod mission;
 pub mod robot;
+pub mod strength;
 pub mod timeline;
 pub mod tree;
 
@@ -28,6 +29,7 @@ use marie_vocabulary::events::{Event, EventKind, Teller};
 use mission::MissionView;
 use robot::RobotView;
 use serde::Serialize;
+use strength::Strengths;
 use timeline::Timeline;
 use tree::ControlTree;
 
@@ -55,6 +57,8 @@ pub struct MonitorState {
     pub cluster: Cluster,
     /// The replicated datamanagers without a leader now ("no majority"), by name.
     pub no_majority: NoMajorities,
+    /// The replicated datamanagers' way back to full strength after a loss, by name.
+    pub strength: Strengths,
     /// The robot in its world.
     pub robot: RobotView,
     /// Faults, restarts, rebinds, node news.
@@ -86,6 +90,7 @@ impl MonitorState {
         self.bindings.apply(event.at_ms, kind);
         self.cluster.apply(event);
         self.no_majority.apply(event.at_ms, kind);
+        self.strength.apply(event.at_ms, kind);
         let drawn = match kind {
             EventKind::Robot { what, data } => self.robot.apply(what, data),
             _ => false,

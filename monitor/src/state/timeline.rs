@@ -88,6 +88,8 @@ pub fn class(kind: &EventKind, drawn: bool) -> Option<&'static str> {
         | EventKind::DmReplicaPromoted { .. }
         | EventKind::DmReplicaRemoved { .. }
         | EventKind::DmReplicaReplaced { .. }
+        | EventKind::DmReplicaCaughtUp { .. }
+        | EventKind::DmRedundancyRestored { .. }
         | EventKind::DmChecked(_) => "datamanager",
         EventKind::Robot { what, .. }
             if !drawn || matches!(what.as_str(), "dock-found" | "collision") =>

@@ -506,6 +506,28 @@ pub enum EventKind {
         /// The voters now.
         voters: Vec<String>,
     },
+    /// A replica of a replicated datamanager that was lost (its node gone, its process
+    /// killed and started again) holds every entry again: back in the replicas' group and
+    /// lagging the leader by none. Told by the leader.
+    DmReplicaCaughtUp {
+        /// The datamanager's name.
+        dm: String,
+        /// The node of the replica.
+        node: String,
+        /// How long after its loss (as the replica now leading saw it), ms of real time.
+        after_ms: u64,
+    },
+    /// Every replica of a replicated datamanager holds every entry again after one or more
+    /// were lost: the datamanager survives the loss of another node, as before the first.
+    /// Told by the leader.
+    DmRedundancyRestored {
+        /// The datamanager's name.
+        dm: String,
+        /// How many replicas it has, all current.
+        replicas: u32,
+        /// How long after the first loss, ms of real time.
+        after_ms: u64,
+    },
     /// The check of a datamanager at the end of a run: of the records acknowledged during
     /// it, how many its leader still holds and how many are lost.
     DmChecked(DmCheck),
@@ -607,6 +629,8 @@ impl EventKind {
             | EventKind::DmReplicaPromoted { .. }
             | EventKind::DmReplicaRemoved { .. }
             | EventKind::DmReplicaReplaced { .. }
+            | EventKind::DmReplicaCaughtUp { .. }
+            | EventKind::DmRedundancyRestored { .. }
             | EventKind::DmChecked(_) => Family::Datamanager,
             EventKind::Robot { .. } => Family::Robot,
         }

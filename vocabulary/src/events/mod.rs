@@ -234,6 +234,8 @@ mod tests {
             EventKind::DmReplicaPromoted { .. } => "dm_replica_promoted",
             EventKind::DmReplicaRemoved { .. } => "dm_replica_removed",
             EventKind::DmReplicaReplaced { .. } => "dm_replica_replaced",
+            EventKind::DmReplicaCaughtUp { .. } => "dm_replica_caught_up",
+            EventKind::DmRedundancyRestored { .. } => "dm_redundancy_restored",
             EventKind::DmChecked(_) => "dm_checked",
             EventKind::Judged { .. } => "judged",
             EventKind::Robot { .. } => "robot",

@@ -627,6 +627,23 @@ fn datamanager(node: &str, kind: &EventKind) -> String {
              by one on {by}, caught up and voting (voters: {})",
             voters.join(", ")
         ),
+        EventKind::DmReplicaCaughtUp {
+            dm,
+            node: on,
+            after_ms,
+        } => format!(
+            "datamanager {dm}: the replica on {on} caught up, {:.1} s after it was lost",
+            *after_ms as f64 / 1000.0
+        ),
+        EventKind::DmRedundancyRestored {
+            dm,
+            replicas,
+            after_ms,
+        } => format!(
+            "datamanager {dm}: redundancy restored, all {replicas} replicas current {:.1} s \
+             after the first was lost",
+            *after_ms as f64 / 1000.0
+        ),
         EventKind::DmInherited {
             dm,
             records,
@@ -748,7 +765,9 @@ pub fn mark(kind: &EventKind) -> Mark {
         | EventKind::DmReplicaAdded { .. }
         | EventKind::DmReplicaPromoted { .. }
         | EventKind::DmReplicaRemoved { .. }
-        | EventKind::DmReplicaReplaced { .. } => '%',
+        | EventKind::DmReplicaReplaced { .. }
+        | EventKind::DmReplicaCaughtUp { .. }
+        | EventKind::DmRedundancyRestored { .. } => '%',
         EventKind::Robot { .. } => '.',
     }
 }
