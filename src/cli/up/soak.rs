@@ -51,6 +51,10 @@ pub(super) async fn soak(
         .map(|c| CatchUp::start(c.watch(), restarted, run_now.clone(), plan.speed));
     let mut tallies = Vec::new();
     let mut interrupted = None;
+    // read again halfway: stored records grow to their classes' retention bound, so a
+    // plateau (half → end flat) tells bounded data from a leak, which grows on
+    let half = (runs >= 4).then(|| runs / 2);
+    let mut memory_half = None;
     for number in 1..=runs {
         run_now.store(number, Ordering::SeqCst);
         println!(
@@ -78,6 +82,9 @@ pub(super) async fn soak(
             }
         };
         tallies.push(Tally::of(number, ran, turn.kept.take()));
+        if half == Some(number) {
+            memory_half = Some((number, Memory::of(&processes, &names)));
+        }
         if let Some(signal) = stop.heard() {
             interrupted = Some(signal);
             break;
@@ -97,6 +104,7 @@ pub(super) async fn soak(
         tallies,
         fates,
         memory_start,
+        memory_half,
         memory_end: Memory::of(&processes, &names),
         interrupted,
     };
@@ -237,6 +245,8 @@ struct Summary {
     tallies: Vec<Tally>,
     fates: Vec<Fate>,
     memory_start: Memory,
+    /// Halfway (after which run), for a soak of 4 runs or more.
+    memory_half: Option<(u32, Memory)>,
     memory_end: Memory,
     interrupted: Option<&'static str>,
 }
@@ -350,7 +360,8 @@ impl Summary {
         line
     }
 
-    /// `node memory (VmRSS at the soak's start → its end): cart 35.2 → 36.1 MiB, …`.
+    /// `node memory (VmRSS at the soak's start → after run 15 → its end): cart 35.2 → 36.0 →
+    /// 36.1 MiB, …` (without the middle for a soak of fewer than 4 runs).
     fn memory_line(&self) -> String {
         let mut restarted: BTreeMap<&str, u64> = BTreeMap::new();
         for f in self
@@ -370,11 +381,19 @@ impl Summary {
                     Some(n) => format!(" (killed {n} times: its latest process)"),
                     None => String::new(),
                 };
-                format!("{node} {} → {}{again}", mib(*start), mib(end))
+                let half = match &self.memory_half {
+                    Some((_, m)) => format!("{} → ", mib(m.0.get(node).copied().flatten())),
+                    None => String::new(),
+                };
+                format!("{node} {} → {half}{}{again}", mib(*start), mib(end))
             })
             .collect();
+        let half = match &self.memory_half {
+            Some((run, _)) => format!(" → after run {run}"),
+            None => String::new(),
+        };
         format!(
-            "node memory (VmRSS at the soak's start → its end): {}",
+            "node memory (VmRSS at the soak's start{half} → its end): {}",
             nodes.join(", ")
         )
     }
@@ -447,6 +466,7 @@ mod tests {
             tallies: vec![good.clone(), failed],
             fates: Vec::new(),
             memory_start: Memory::default(),
+            memory_half: None,
             memory_end: Memory::default(),
             interrupted: None,
         };
@@ -465,6 +485,19 @@ mod tests {
             ..summary
         };
         assert!(!short.goal());
+        // the memory line, with its middle reading once there is one
+        let kib = |v: u64| Memory([("cart".to_string(), Some(v))].into_iter().collect());
+        let read = Summary {
+            memory_start: kib(40 * 1024),
+            memory_half: Some((15, kib(50 * 1024))),
+            memory_end: kib(51 * 1024),
+            ..short
+        };
+        assert_eq!(
+            read.memory_line(),
+            "node memory (VmRSS at the soak's start → after run 15 → its end): cart 40.0 MiB → \
+             50.0 MiB → 51.0 MiB"
+        );
         assert_eq!(
             spread(&[Duration::from_millis(300), Duration::from_millis(100)]),
             "0.10–0.30 s (median 0.30 s)"
