@@ -53,7 +53,7 @@ pub(super) async fn soak(
     let mut interrupted = None;
     // read again halfway: stored records grow to their classes' retention bound, so a
     // plateau (half → end flat) tells bounded data from a leak, which grows on
-    let half = (runs >= 4).then(|| runs / 2);
+    let half = (runs >= 4).then_some(runs / 2);
     let mut memory_half = None;
     for number in 1..=runs {
         run_now.store(number, Ordering::SeqCst);
