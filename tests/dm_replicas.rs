@@ -10,6 +10,9 @@
 //! its way to the lost leader is sent again to the next. A replica that comes back further
 //! behind than the leader keeps entries for is sent a snapshot of the store, and ends
 //! equal; a leader started again catches replicas up from the entries its journal holds.
+//! A follower killed while records are stored is not caught up until it is started again
+//! and holds every entry its leader does — the judgement (`marie_dm::caught_up`) `marie up`
+//! and the catch-up bench time a restarted node by.
 //! A request whose answer is lost on another node than its caller's — a leader deposed with
 //! it, or a follower that sent it on to a leader whose node is killed — is answered at once
 //! as lost, and its client asks again at the next leader (not at its own deadline).
@@ -461,6 +464,86 @@ fn a_restarted_primary_catches_a_copy_up_from_its_journal_without_a_snapshot() {
             0,
             "r3 caught up from entries: {r3:#?}"
         );
+        check_acked(&client, &acked).await;
+        transport.stop().await;
+    });
+}
+
+/// Wait until every leader of a datamanager with a replica on `node` counts it at lag 0 (or
+/// it leads), as `marie up` and the catch-up bench judge it ([`dm::caught_up`]); the views
+/// that said so.
+async fn caught_up(node: &str) -> BTreeMap<String, Vec<marie::dm::ReplicaStats>> {
+    let start = Instant::now();
+    loop {
+        let views = dm::replica_views(Duration::from_secs(1)).await;
+        if dm::caught_up(node, &views) {
+            return views;
+        }
+        assert!(
+            start.elapsed() < T,
+            "{node} not caught up within {T:?}: {views:#?}"
+        );
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+}
+
+#[test]
+fn a_follower_killed_while_records_are_stored_is_caught_up_once_restarted_and_not_before() {
+    let _one = ONE_MEMBER.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = tempfile::tempdir().unwrap();
+    let mut nodes = start_nodes(dir.path(), "");
+    let rt = runtime();
+    let transport = rt.block_on(join(&nodes));
+    assert_eq!(rt.block_on(leader(None)).0, "r1");
+    let client = DmClient::lookup("feature", "producer")
+        .unwrap()
+        .with_follow(T);
+    let mut acked = BTreeMap::new();
+    rt.block_on(async {
+        store_all(&client, 0..100, &mut acked).await;
+        caught_up("r3").await;
+    });
+    // r3 is killed; 200 records are acknowledged by r1 and r2 while it is down: it is not
+    // caught up, whatever the leader remembers of it
+    nodes[2].signal("KILL");
+    rt.block_on(async {
+        store_all(&client, 100..300, &mut acked).await;
+        let views = dm::replica_views(Duration::from_secs(1)).await;
+        assert!(!dm::caught_up("r3", &views), "{views:#?}");
+    });
+    // started again on its data directory, with its own command line: caught up, and when
+    // the leader says so, r3's own log holds every entry the leader's did
+    let peers: Vec<_> = nodes[..2].iter().map(|n| n.addr).collect();
+    let config = hosts(dir.path(), "r3");
+    nodes[2] = NodeProc::start(dir.path(), "r3", &config, &peers, COOKIE);
+    rt.block_on(async {
+        let views = caught_up("r3").await;
+        let leader = dm::newest_leader(&views["feature"]).unwrap().clone();
+        assert_eq!(leader.node, "r1");
+        // this member redials r3 with backoff: its replica is found here a little later
+        let start = Instant::now();
+        let r3 = loop {
+            if let Some(s) = match copy_on("r3") {
+                Some(actor) => stats_of(&actor).await,
+                None => None,
+            } {
+                break s;
+            }
+            assert!(start.elapsed() < T, "r3's replica does not answer");
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        };
+        let own = r3.replica.as_ref().unwrap();
+        assert!(
+            own.last >= leader.last,
+            "counted at lag 0 with its log at {} of the leader's {}: {r3:#?}",
+            own.last,
+            leader.last
+        );
+        assert!(
+            r3.recovery.as_ref().is_some_and(|r| r.entries >= 100),
+            "r3 read its records back from its journal: {r3:#?}"
+        );
+        converged().await;
         check_acked(&client, &acked).await;
         transport.stop().await;
     });

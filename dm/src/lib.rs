@@ -129,8 +129,8 @@ pub use journal::{
 };
 pub use kind::RecordKind;
 pub use majority::{
-    leaderless, replica_nodes, replica_views, without_leader, NoMajority, MAJORITY_WAIT,
-    VIEW_TIMEOUT,
+    caught_up, leaderless, newest_leader, replica_nodes, replica_views, without_leader, NoMajority,
+    MAJORITY_WAIT, VIEW_TIMEOUT,
 };
 pub use messages::{DmMsg, DmStats, ReplicaStats, StoreDigest};
 pub use name::Name;

@@ -96,6 +96,36 @@ pub async fn replica_views(timeout: Duration) -> BTreeMap<String, Vec<ReplicaSta
     ask_views(groups, timeout).await
 }
 
+/// The leader among one datamanager's replica `views` (from [`replica_views`]): the replica
+/// that says it leads, of the highest term — a deposed leader that has not heard of its
+/// successor yet still says it leads, of an older term. `None`: none leads.
+pub fn newest_leader(views: &[ReplicaStats]) -> Option<&ReplicaStats> {
+    views
+        .iter()
+        .filter(|r| r.role == ReplicaRole::Leader)
+        .max_by_key(|r| r.term)
+}
+
+/// Whether every replica on `node` has caught up, by `views` (from [`replica_views`]): for
+/// each datamanager one of whose replicas is on it, the [`newest_leader`] is that replica,
+/// or reaches it and counts it at lag 0. A node that holds no replica has nothing to catch
+/// up. What `marie up` judges a restarted node by, and the catch-up bench.
+pub fn caught_up(node: &str, views: &BTreeMap<String, Vec<ReplicaStats>>) -> bool {
+    views.values().all(|replicas| {
+        let member = replicas
+            .iter()
+            .any(|r| r.node == node || r.members.iter().any(|m| m == node));
+        if !member {
+            return true;
+        }
+        match newest_leader(replicas) {
+            None => false,
+            Some(l) if l.node == node => true,
+            Some(l) => l.reachable.iter().any(|n| n == node) && l.lag.get(node) == Some(&0),
+        }
+    })
+}
+
 /// The nodes whose replica of `dm` this process finds (its replicas' `pg` groups), sorted:
 /// with a leader's configuration, what shows a replica that runs though it is none of the
 /// replicas (removed while its node was away, or started again on a wiped data directory).
@@ -205,6 +235,57 @@ mod tests {
             reachable: reachable.iter().map(|s| s.to_string()).collect(),
             ..ReplicaStats::default()
         }
+    }
+
+    fn led(node: &str, role: ReplicaRole, term: u64, lag: &[(&str, u64)]) -> ReplicaStats {
+        ReplicaStats {
+            node: node.to_string(),
+            role,
+            term,
+            lag: lag.iter().map(|(n, l)| (n.to_string(), *l)).collect(),
+            members: ["features", "operations", "spare"]
+                .map(String::from)
+                .to_vec(),
+            reachable: lag.iter().map(|(n, _)| n.to_string()).collect(),
+            ..ReplicaStats::default()
+        }
+    }
+
+    #[test]
+    fn a_node_has_caught_up_when_every_leader_counts_its_replica_at_lag_0() {
+        use ReplicaRole::{Follower, Leader};
+        let mut views = BTreeMap::new();
+        views.insert(
+            "feature".to_string(),
+            vec![
+                led("operations", Leader, 3, &[("features", 0), ("spare", 2)]),
+                led("spare", Follower, 3, &[]),
+                // a deposed leader's stale view, of an older term
+                led("features", Leader, 2, &[("operations", 9), ("spare", 9)]),
+            ],
+        );
+        views.insert(
+            "run".to_string(),
+            vec![led(
+                "features",
+                Leader,
+                1,
+                &[("operations", 0), ("spare", 0)],
+            )],
+        );
+        assert_eq!(newest_leader(&views["feature"]).unwrap().node, "operations");
+        assert!(caught_up("features", &views));
+        // spare lags on the feature datamanager
+        assert!(!caught_up("spare", &views));
+        // a node unreached by the leader has not caught up, whatever its lag says
+        views.get_mut("run").unwrap()[0].reachable = vec!["spare".to_string()];
+        assert!(!caught_up("operations", &views));
+        // a datamanager without a leader: nobody has caught up on it
+        views.insert("world".to_string(), vec![led("spare", Follower, 4, &[])]);
+        assert_eq!(newest_leader(&views["world"]), None);
+        assert!(!caught_up("features", &views));
+        // a node that holds no replica has nothing to catch up
+        assert!(caught_up("cart", &views));
     }
 
     #[test]

@@ -6,20 +6,18 @@
 //! see it: every 100 ms, while a member of this process is in the cluster (a run's), every
 //! datamanager replica found in the replicas' `pg` scope is asked for its view; the node
 //! has caught up once, for every replicated datamanager that has a replica on it, the
-//! leader's view reaches that replica and counts it at lag 0 (or the replica leads). The
-//! time said is from the moment it was back to the end of the first probe that found it
-//! so: at most 100 ms and one probe late. Between two runs no member is in the cluster and
-//! nothing is probed; after the last run, [`CatchUp::finish`] joins as a member of its own
-//! to see the last faults through.
+//! leader's view reaches that replica and counts it at lag 0 (or the replica leads):
+//! [`marie::dm::caught_up`], which `benches/catch_up.rs` measures by too. The time said
+//! is from the moment it was back to the end of the first probe that found it so: at most
+//! 100 ms and one probe late. Between two runs no member is in the cluster and nothing is
+//! probed; after the last run, [`CatchUp::finish`] joins as a member of its own to see the
+//! last faults through.
 
 use super::plan::UpPlan;
 use super::supervisor::Restarted;
 use crate::cli::join::{join, member_name};
 use marie::cluster::fault::Struck;
-use marie::dm::ReplicaStats;
-use marie::replica::ReplicaRole;
 use marie::run::FaultKind;
-use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -273,7 +271,7 @@ impl Watch {
             let p = &self.pending[i];
             let node = p.fate.struck.strike.node();
             match p.back_at {
-                Some(back) if back <= now && caught_up(node, &views) => {
+                Some(back) if back <= now && marie::dm::caught_up(node, &views) => {
                     let mut p = self.pending.remove(i);
                     p.fate.back_after.get_or_insert(back - p.struck_at);
                     p.fate.caught_up_after = Some(seen.saturating_duration_since(back));
@@ -291,86 +289,9 @@ impl Watch {
     }
 }
 
-/// Whether every replica on `node` has caught up, by `views`: for each datamanager one of
-/// whose replicas is on it, the leader (of the highest term) is that replica, or reaches it
-/// and counts it at lag 0. A node that holds no replica has nothing to catch up.
-fn caught_up(node: &str, views: &BTreeMap<String, Vec<ReplicaStats>>) -> bool {
-    views.values().all(|replicas| {
-        let member = replicas
-            .iter()
-            .any(|r| r.node == node || r.members.iter().any(|m| m == node));
-        if !member {
-            return true;
-        }
-        let leader = replicas
-            .iter()
-            .filter(|r| r.role == ReplicaRole::Leader)
-            .max_by_key(|r| r.term);
-        match leader {
-            None => false,
-            Some(l) if l.node == node => true,
-            Some(l) => l.reachable.iter().any(|n| n == node) && l.lag.get(node) == Some(&0),
-        }
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn view(node: &str, role: ReplicaRole, term: u64, lag: &[(&str, u64)]) -> ReplicaStats {
-        ReplicaStats {
-            node: node.to_string(),
-            role,
-            term,
-            leader: None,
-            commit: 0,
-            last: 0,
-            lag: lag.iter().map(|(n, l)| (n.to_string(), *l)).collect(),
-            snapshots_taken: 0,
-            members: ["features", "operations", "spare"]
-                .map(String::from)
-                .to_vec(),
-            reachable: lag.iter().map(|(n, _)| n.to_string()).collect(),
-            learners: Vec::new(),
-            removed: false,
-        }
-    }
-
-    #[test]
-    fn a_node_has_caught_up_when_every_leader_counts_its_replica_at_lag_0() {
-        use ReplicaRole::{Follower, Leader};
-        let mut views = BTreeMap::new();
-        views.insert(
-            "feature".to_string(),
-            vec![
-                view("operations", Leader, 3, &[("features", 0), ("spare", 2)]),
-                view("spare", Follower, 3, &[]),
-                // a deposed leader's stale view, of an older term
-                view("features", Leader, 2, &[("operations", 9), ("spare", 9)]),
-            ],
-        );
-        views.insert(
-            "run".to_string(),
-            vec![view(
-                "features",
-                Leader,
-                1,
-                &[("operations", 0), ("spare", 0)],
-            )],
-        );
-        assert!(caught_up("features", &views));
-        // spare lags on the feature datamanager
-        assert!(!caught_up("spare", &views));
-        // a node unreached by the leader has not caught up, whatever its lag says
-        views.get_mut("run").unwrap()[0].reachable = vec!["spare".to_string()];
-        assert!(!caught_up("operations", &views));
-        // a datamanager without a leader: nobody has caught up on it
-        views.insert("world".to_string(), vec![view("spare", Follower, 4, &[])]);
-        assert!(!caught_up("features", &views));
-        // a node that holds no replica has nothing to catch up
-        assert!(caught_up("cart", &views));
-    }
 
     #[test]
     fn a_fate_says_what_became_of_its_fault() {
