@@ -12,9 +12,14 @@
 //!
 //! A follower forgets a lost replica once the leader's word says every replica durably
 //! holds the log up to where it was at the loss (`Append.held`): the leader tells that
-//! one's recovery, and a next leader does not tell it again. (A leader elected between
-//! the recovery and that word may still tell it twice: a second word for one recovery,
-//! never a missed one.)
+//! one's recovery, and a next leader does not tell it again.
+//!
+//! What it does not see: a leader tells the losses it saw itself. A replica that was
+//! itself started again has seen none, so a datamanager that lost two of its three
+//! replicas at once, and whose next leader is one of them, tells nothing. A session to a
+//! peer that is dialled anew (as at a node's start) shows its replica as another actor,
+//! which is told as a loss caught up at once. A leader elected between a recovery and the
+//! word that covers it may tell that recovery a second time.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::time::Duration;
