@@ -8,6 +8,7 @@ use super::journal::{Journal, ReplicaLog};
 use super::messages::DmMsg;
 use super::replica::core::{Core, Restored};
 use super::replica::kept::Kept;
+use super::replica::redundancy::Redundancy;
 use super::replica::{vote, Members, Op, ReplicaMsg, Replication, SCOPE, UNCHECKED_READS_ENV};
 use super::store::Store;
 use marie_vocabulary::events::EventKind;
@@ -123,6 +124,9 @@ impl ReplicaState {
             dir: dir.clone(),
             error,
         })?;
+        // a replica started on a log of its own was lost (its process, or its actor): its
+        // datamanager is short of a replica until it is current again
+        let started_again = log.is_some();
         let restored = match log {
             Some(log) => Restored {
                 term: term.max(log.term),
@@ -197,7 +201,7 @@ impl ReplicaState {
             ticker,
             name: name.to_string(),
             events,
-            redundancy: Default::default(),
+            redundancy: Redundancy::new(started_again.then_some(Duration::ZERO)),
         })
     }
 

@@ -14,12 +14,14 @@
 //! holds the log up to where it was at the loss (`Append.held`): the leader tells that
 //! one's recovery, and a next leader does not tell it again.
 //!
-//! What it does not see: a leader tells the losses it saw itself. A replica that was
-//! itself started again has seen none, so a datamanager that lost two of its three
-//! replicas at once, and whose next leader is one of them, tells nothing. A session to a
-//! peer that is dialled anew (as at a node's start) shows its replica as another actor,
-//! which is told as a loss caught up at once. A leader elected between a recovery and the
-//! word that covers it may tell that recovery a second time.
+//! A replica started again on its own log (its process killed, its actor crashed) counts
+//! its datamanager short of strength from its start ([`Redundancy::new`]): should it
+//! lead — two of three replicas lost at once, the next leader one of them — it tells the
+//! strength restored, timed from its start (the loss it cannot know). What it does not
+//! see: the other replicas' losses before its start, told one by one only by a leader
+//! that saw them. A session to a peer dialled anew (as at a node's start) shows its
+//! replica as another actor, which is told as a loss caught up at once; and a leader
+//! elected between a recovery and the word that covers it may tell it a second time.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::time::Duration;
@@ -53,6 +55,19 @@ pub(crate) struct Redundancy {
 }
 
 impl Redundancy {
+    /// The tracker of a replica started at `started_again` on a log of its own (`None`: on
+    /// none, a new replica): such a replica was lost itself, so its datamanager is short
+    /// of strength from then until every replica is current — what it tells should it
+    /// lead, as after two of three replicas were lost at once and the next leader is one of
+    /// them (the others' losses it cannot have seen). The leader's word of what every
+    /// replica holds ends it on a follower, as it ends a loss seen.
+    pub(crate) fn new(started_again: Option<Duration>) -> Self {
+        Redundancy {
+            behind: BTreeMap::new(),
+            reduced_since: started_again,
+        }
+    }
+
     /// The replica on `node` left the group at `now` (its node lost, its actor gone), when
     /// this replica's log ended at `last`.
     pub(crate) fn lost(&mut self, node: &str, now: Duration, last: u64) {
@@ -226,6 +241,31 @@ mod tests {
         // leading later, it has nothing to tell
         assert!(r
             .look(&set(&["b", "c"]), &lags(&[("b", 0), ("c", 0)]), ms(900))
+            .is_empty());
+    }
+
+    #[test]
+    fn a_replica_started_again_that_leads_tells_the_strength_restored_from_its_start() {
+        let mut r = Redundancy::new(Some(ms(0)));
+        assert!(r.reduced());
+        // others not yet current
+        assert!(r
+            .look(&set(&["b"]), &lags(&[("b", 0), ("c", 7)]), ms(400))
+            .is_empty());
+        let news = r.look(&set(&["b", "c"]), &lags(&[("b", 0), ("c", 0)]), ms(900));
+        assert_eq!(
+            news,
+            vec![Strength::Restored {
+                replicas: 3,
+                after: ms(900)
+            }]
+        );
+        // as a follower, the leader's word ends it: nothing to tell should it lead later
+        let mut r = Redundancy::new(Some(ms(0)));
+        r.held_everywhere(12);
+        assert!(!r.reduced());
+        assert!(Redundancy::new(None)
+            .look(&set(&["b"]), &lags(&[("b", 0)]), ms(5))
             .is_empty());
     }
 }
