@@ -63,7 +63,14 @@ pub(crate) struct Scene {
     followed: Option<[Point; 2]>,
     /// The dock the detector found.
     dock_found: Option<Vec<Point>>,
+    /// Poses that came before the world told the cart's size, drawn once it does (at
+    /// most [`UNDRAWN`]): a cluster's events reach the file as they arrive, and the cart
+    /// node's first pose may come before another node's world.
+    undrawn: Vec<(CartPose, u64)>,
 }
+
+/// Poses kept for drawing until the cart's size is known.
+const UNDRAWN: usize = 256;
 
 impl Scene {
     /// The messages `event` makes (none but for the robot's live events).
@@ -81,6 +88,11 @@ impl Scene {
             Some(Telemetry::World(world)) => {
                 self.cart = world.cart.or(self.cart);
                 out.push(Message::new(Topic::World, at, &world_update(&world, at))?);
+                if let Some(cart) = self.cart {
+                    for (pose, at) in std::mem::take(&mut self.undrawn) {
+                        out.push(cart_box(cart, pose, at)?);
+                    }
+                }
             }
             Some(Telemetry::Pose(pose)) => self.pose(pose, at, out)?,
             Some(Telemetry::Echoes(echoes)) => {
@@ -134,35 +146,10 @@ impl Scene {
                 rotation: heading,
             },
         )?);
-        if let Some(cart) = self.cart {
-            let (sin, cos) = pose.heading.sin_cos();
-            let centre = [
-                pose.x + cart.axle_to_centre * cos,
-                pose.y + cart.axle_to_centre * sin,
-            ];
-            let mut entity = SceneEntity::new("cart", at);
-            entity.cubes.push(CubePrimitive {
-                pose: Pose {
-                    position: Vector3::at(centre, CART_HEIGHT / 2.0),
-                    orientation: heading,
-                },
-                size: Vector3 {
-                    x: cart.length,
-                    y: cart.width,
-                    z: CART_HEIGHT,
-                },
-                color: CART,
-            });
-            entity.metadata = vec![
-                meta("x", format!("{:.3}", pose.x)),
-                meta("y", format!("{:.3}", pose.y)),
-                meta("heading", format!("{:.1}°", pose.heading.to_degrees())),
-            ];
-            out.push(Message::new(
-                Topic::Cart,
-                at,
-                &SceneUpdate::of(vec![entity]),
-            )?);
+        match self.cart {
+            Some(cart) => out.push(cart_box(cart, pose, at)?),
+            None if self.undrawn.len() < UNDRAWN => self.undrawn.push((pose, at)),
+            None => {}
         }
         if self.path.len() >= PATH_LIMIT {
             self.path = thin(&self.path, PATH_LIMIT / 2);
@@ -310,6 +297,36 @@ fn base64(bytes: &[u8]) -> String {
     out
 }
 
+/// The cart's box at `pose`, at `at`: its footprint's centre `axle_to_centre` ahead of the
+/// rear axle the pose gives.
+fn cart_box(cart: CartSize, pose: CartPose, at: u64) -> Result<Message, serde_json::Error> {
+    let heading = Quaternion::yaw(pose.heading);
+    let (sin, cos) = pose.heading.sin_cos();
+    let centre = [
+        pose.x + cart.axle_to_centre * cos,
+        pose.y + cart.axle_to_centre * sin,
+    ];
+    let mut entity = SceneEntity::new("cart", at);
+    entity.cubes.push(CubePrimitive {
+        pose: Pose {
+            position: Vector3::at(centre, CART_HEIGHT / 2.0),
+            orientation: heading,
+        },
+        size: Vector3 {
+            x: cart.length,
+            y: cart.width,
+            z: CART_HEIGHT,
+        },
+        color: CART,
+    });
+    entity.metadata = vec![
+        meta("x", format!("{:.3}", pose.x)),
+        meta("y", format!("{:.3}", pose.y)),
+        meta("heading", format!("{:.1}°", pose.heading.to_degrees())),
+    ];
+    Message::new(Topic::Cart, at, &SceneUpdate::of(vec![entity]))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -349,6 +366,26 @@ mod tests {
         assert_eq!(base64(b"foo"), "Zm9v");
         assert_eq!(base64(b"foobar"), "Zm9vYmFy");
         assert_eq!(base64(&[0xff, 0xfe, 0x00, 0x01]), "//4AAQ==");
+    }
+
+    #[test]
+    fn a_pose_that_came_before_the_world_is_drawn_once_the_cart_size_is_known() {
+        // a cluster's relay: the cart node's first pose before another node's world
+        let world = json!({"cart":{"axle_to_centre":0.35,"length":1.0,"width":0.6},
+            "dock":[], "goal":[], "walls":[]});
+        let out = run(&[
+            robot(10, "pose", json!({"heading":0.0,"x":1.0,"y":0.0})),
+            robot(15, "world", world),
+            robot(20, "pose", json!({"heading":0.0,"x":1.1,"y":0.0})),
+        ]);
+        let carts: Vec<u64> = out
+            .iter()
+            .filter(|m| m.topic == Topic::Cart)
+            .map(|m| m.at_ms)
+            .collect();
+        assert_eq!(carts, [10, 20], "every pose drawn, each at its own time");
+        let first = json_of(out.iter().find(|m| m.topic == Topic::Cart).unwrap());
+        assert_eq!(first["entities"][0]["metadata"][0]["value"], "1.000");
     }
 
     #[test]
