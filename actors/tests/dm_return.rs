@@ -150,6 +150,14 @@ async fn kill(dm: ActorRef<DmMsg>) {
 }
 
 /// How many of the operation's steps found its DM gone.
+/// Activate `op` for `steps` steps at `epoch`; its report at the end.
+async fn run_to_end(op: &EoClient, steps: i64, epoch: u64) -> EoReport {
+    let report = op
+        .activate(param_map([("steps", Value::Int(steps))]), epoch)
+        .unwrap();
+    timeout(T, report).await.unwrap().unwrap()
+}
+
 async fn missed(op: &EoClient) -> i64 {
     match op.property(PropertyRequest::Get("missed".into())).await {
         Ok(PropertyReply::Value(Value::Int(n))) => n,
@@ -214,10 +222,7 @@ async fn a_datamanager_absent_at_the_call_but_published_by_the_look_is_waited_fo
         Some((3, OpError::of_dm("logbook-race", &absent))),
     )
     .await;
-    let report = op
-        .activate(param_map([("steps", Value::Int(20))]), 1)
-        .unwrap();
-    let report = timeout(T, report).await.unwrap().unwrap();
+    let report = run_to_end(&op, 20, 1).await;
     assert!(matches!(report, EoReport::Finished { .. }), "{report:?}");
     assert_eq!(missed(&op).await, 1);
     dm.stop(None);
@@ -280,10 +285,7 @@ async fn hardware_lost_mid_call_but_back_by_the_look_is_waited_for_and_one_that_
         "the rig was lost before it answered",
     );
     let op = recorder_absent_at("logbook-rig", Some((3, lost))).await;
-    let report = op
-        .activate(param_map([("steps", Value::Int(20))]), 1)
-        .unwrap();
-    let report = timeout(T, report).await.unwrap().unwrap();
+    let report = run_to_end(&op, 20, 1).await;
     assert!(matches!(report, EoReport::Finished { .. }), "{report:?}");
     assert_eq!(missed(&op).await, 1);
     op.actor().stop(None);
@@ -291,10 +293,7 @@ async fn hardware_lost_mid_call_but_back_by_the_look_is_waited_for_and_one_that_
     // the same module running but not answering is a failure, not a wait
     let silent = OpError::unreachable(ModuleKind::Hardware, "rig-race", "the rig did not answer");
     let op = recorder_absent_at("logbook-rig", Some((3, silent))).await;
-    let report = op
-        .activate(param_map([("steps", Value::Int(20))]), 2)
-        .unwrap();
-    match timeout(T, report).await.unwrap().unwrap() {
+    match run_to_end(&op, 20, 2).await {
         EoReport::Failed { reason, .. } => assert_eq!(reason, "the rig did not answer"),
         other => panic!("{other:?}"),
     }

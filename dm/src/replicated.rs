@@ -250,10 +250,14 @@ impl DatamanagerState {
                     replica.arrived = Some(ops.raw());
                     replica.redundancy.held_everywhere(*held);
                 }
+                let ack = matches!(msg, ReplicaMsg::AppendAck { .. });
                 replica.core.receive(msg, now, &mut out);
-                // at once, not at the next tick: the acknowledgement that shows a lost
-                // replica caught up may also hand it the role (the preferred replica's)
-                replica.look_at_strength();
+                // after an acknowledgement, not only at the next tick: the one that shows
+                // a lost replica caught up may also hand it the role (the preferred
+                // replica's)
+                if ack {
+                    replica.look_at_strength();
+                }
             }
         }
         self.carry_out(myself, out);

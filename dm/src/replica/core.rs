@@ -481,14 +481,7 @@ impl Core {
 
     /// How far each replica is behind the leader's last entry (on the leader).
     pub(crate) fn lag(&self) -> BTreeMap<String, u64> {
-        let last = self.last().0;
-        match &self.role {
-            Role::Leader { peers, .. } => peers
-                .iter()
-                .map(|(p, pr)| (p.clone(), last.saturating_sub(pr.matched)))
-                .collect(),
-            _ => BTreeMap::new(),
-        }
+        self.lacking_up_to(self.last().0)
     }
 
     /// How many committed entries each other replica lacks (on the leader): 0 for one that
@@ -496,11 +489,16 @@ impl Core {
     /// measure of a replica caught up under a steady stream of writes, where the lag to the
     /// last entry is rarely 0 for all at once.
     pub(crate) fn lacking_committed(&self) -> BTreeMap<String, u64> {
-        let commit = self.commit();
+        self.lacking_up_to(self.commit())
+    }
+
+    /// How many entries up to `seq` each other replica lacks (on the leader; empty on
+    /// another replica).
+    fn lacking_up_to(&self, seq: u64) -> BTreeMap<String, u64> {
         match &self.role {
             Role::Leader { peers, .. } => peers
                 .iter()
-                .map(|(p, pr)| (p.clone(), commit.saturating_sub(pr.matched)))
+                .map(|(p, pr)| (p.clone(), seq.saturating_sub(pr.matched)))
                 .collect(),
             _ => BTreeMap::new(),
         }
