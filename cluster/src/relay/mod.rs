@@ -49,7 +49,7 @@ mod watchers;
 
 pub use backlog::{BACKLOG_BYTES, BACKLOG_EVENTS};
 pub use forward::forward;
-pub use watch::{reaches, watch, Watch};
+pub use watch::{reaches, watch, watch_each, Watch};
 pub use watchers::ABSENCE_KEPT;
 
 /// `pg` scope of the event watchers.

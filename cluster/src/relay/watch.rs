@@ -14,7 +14,7 @@ use tokio::sync::mpsc;
 pub struct Watch {
     events: mpsc::Receiver<Event>,
     lost: Arc<AtomicU64>,
-    actor: ActorRef<WatcherMsg>,
+    actor: Arc<Watcher>,
     /// Leave out the dispatchers' events ([`Watch::without_dispatch`]).
     without_dispatch: bool,
 }
@@ -68,12 +68,12 @@ impl Watch {
     /// The watcher's actor number on this node: with the node's name, how another node
     /// knows it ([`reaches`]).
     pub fn pid(&self) -> u64 {
-        self.actor.get_id().pid()
+        self.actor.0.get_id().pid()
     }
 
     #[cfg(test)]
     pub(super) fn actor(&self) -> &ActorRef<WatcherMsg> {
-        &self.actor
+        &self.actor.0
     }
 }
 
@@ -104,9 +104,12 @@ pub async fn reaches(node: &str, pid: u64, within: std::time::Duration) -> bool 
     tokio::time::timeout(within, wait).await.is_ok()
 }
 
-impl Drop for Watch {
+/// The watcher's actor, stopped when the last [`Watch`] of it is dropped.
+struct Watcher(ActorRef<WatcherMsg>);
+
+impl Drop for Watcher {
     fn drop(&mut self) {
-        self.actor.stop(None);
+        self.0.stop(None);
     }
 }
 
@@ -115,35 +118,63 @@ impl Drop for Watch {
 /// (once the membership has reached them), and resend what it missed while out of their
 /// reach.
 pub async fn watch(capacity: usize) -> Result<Watch, SpawnErr> {
-    let (tx, events) = mpsc::channel(capacity.max(1));
-    let lost = Arc::new(AtomicU64::new(0));
+    let mut watches = watch_each(capacity, 1).await?;
+    Ok(watches.remove(0))
+}
+
+/// `n` watches (at least one) of one watcher: each takes every event it takes. Followers
+/// that must hold the same events — a run's events file and its MCAP file — share one
+/// watcher, as the nodes reach each watcher at a moment of their own and forward to it
+/// from their next event on: two watchers would each miss different early events.
+pub async fn watch_each(capacity: usize, n: usize) -> Result<Vec<Watch>, SpawnErr> {
+    let (outlets, ends): (Vec<Outlet>, Vec<_>) = (0..n.max(1))
+        .map(|_| {
+            let (tx, events) = mpsc::channel(capacity.max(1));
+            let lost = Arc::new(AtomicU64::new(0));
+            ((tx, lost.clone()), (events, lost))
+        })
+        .unzip();
     let (actor, _) = Actor::spawn(
         None,
-        Watcher,
+        WatcherActor,
         WatcherState {
-            tx,
-            lost: lost.clone(),
+            outlets,
             order: Order::default(),
         },
     )
     .await?;
-    Ok(Watch {
-        events,
-        lost,
-        actor,
-        without_dispatch: false,
-    })
+    let actor = Arc::new(Watcher(actor));
+    Ok(ends
+        .into_iter()
+        .map(|(events, lost)| Watch {
+            events,
+            lost,
+            actor: actor.clone(),
+            without_dispatch: false,
+        })
+        .collect())
 }
 
-struct Watcher;
+/// Where a watcher hands an event, and what that watch lost.
+type Outlet = (mpsc::Sender<Event>, Arc<AtomicU64>);
+
+struct WatcherActor;
 
 struct WatcherState {
-    tx: mpsc::Sender<Event>,
-    lost: Arc<AtomicU64>,
+    outlets: Vec<Outlet>,
     order: Order,
 }
 
-impl Actor for Watcher {
+impl WatcherState {
+    /// `n` more events lost to every watch.
+    fn lost(&self, n: u64) {
+        for (_, lost) in &self.outlets {
+            lost.fetch_add(n, Ordering::Relaxed);
+        }
+    }
+}
+
+impl Actor for WatcherActor {
     type Msg = WatcherMsg;
     type State = WatcherState;
     type Arguments = WatcherState;
@@ -171,7 +202,7 @@ impl Actor for Watcher {
                     missed,
                     "events of another node never came: its forwarder no longer held them"
                 );
-                state.lost.fetch_add(missed, Ordering::Relaxed);
+                state.lost(missed);
             }
             Admit::Take { .. } => {}
         }
@@ -185,12 +216,14 @@ impl Actor for Watcher {
             });
         match event {
             Ok(event) => {
-                if state.tx.try_send(event).is_err() {
-                    state.lost.fetch_add(1, Ordering::Relaxed);
+                for (tx, lost) in &state.outlets {
+                    if tx.try_send(event.clone()).is_err() {
+                        lost.fetch_add(1, Ordering::Relaxed);
+                    }
                 }
             }
             Err(e) => {
-                state.lost.fetch_add(1, Ordering::Relaxed);
+                state.lost(1);
                 tracing::warn!(error = %e, "a forwarded event that does not decode: dropped");
             }
         }
@@ -248,6 +281,37 @@ mod tests {
         // the actor handles its messages in order: the two bad frames came first
         assert_eq!(watch.recv().await, Some(first));
         assert_eq!(watch.lost(), 2);
+    }
+
+    #[tokio::test]
+    async fn watches_of_one_watcher_each_take_every_event_and_it_lives_until_the_last_goes() {
+        let mut watches = watch_each(8, 2).await.unwrap();
+        let (first, second) = (event("one"), event("two"));
+        for (seq, e) in [(1, &first), (2, &second)] {
+            let msg = WatcherMsg::Numbered {
+                stream: 3,
+                seq,
+                frame: frame(e),
+            };
+            watches[0].actor().cast(msg).unwrap();
+        }
+        assert_eq!(watches[0].pid(), watches[1].pid(), "one watcher");
+        let mut b = watches.pop().unwrap();
+        let mut a = watches.pop().unwrap();
+        assert_eq!(a.recv().await, Some(first.clone()));
+        assert_eq!(a.recv().await, Some(second.clone()));
+        // one watch gone: the other still has its own events, and the watcher runs on
+        let actor = a.actor().clone();
+        drop(a);
+        assert_eq!(actor.get_status(), ractor::ActorStatus::Running);
+        assert_eq!(b.recv().await, Some(first));
+        assert_eq!(b.recv().await, Some(second));
+        drop(b);
+        actor
+            .get_cell()
+            .wait(Some(std::time::Duration::from_secs(10)))
+            .await
+            .expect("the watcher stops with its last watch");
     }
 
     #[tokio::test]

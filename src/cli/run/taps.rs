@@ -117,26 +117,30 @@ impl Files {
         in_cluster: bool,
         dispatched_elsewhere: bool,
     ) -> anyhow::Result<Files> {
-        let others = || async {
-            match in_cluster {
-                true => marie::cluster::relay::watch(EVENTS_FROM_OTHERS)
-                    .await
-                    .map(|watch| match dispatched_elsewhere {
-                        true => Some(watch.without_dispatch()),
-                        false => Some(watch),
-                    }),
-                false => Ok::<Option<Watch>, _>(None),
-            }
+        // one watcher for both files: the nodes reach each watcher at a moment of their
+        // own, and two would each miss different early events (the files then disagree)
+        let asked = usize::from(outputs.events.is_some()) + usize::from(outputs.mcap.is_some());
+        let mut others: Vec<Option<Watch>> = match in_cluster && asked > 0 {
+            true => marie::cluster::relay::watch_each(EVENTS_FROM_OTHERS, asked)
+                .await?
+                .into_iter()
+                .map(|watch| match dispatched_elsewhere {
+                    true => Some(watch.without_dispatch()),
+                    false => Some(watch),
+                })
+                .collect(),
+            false => Vec::new(),
         };
+        let mut next = || others.pop().flatten();
         let events = match &outputs.events {
             Some(p) => Some(
-                EventsFile::start(bus, others().await?, p)
+                EventsFile::start(bus, next(), p)
                     .with_context(|| format!("cannot write the events to {}", p.display()))?,
             ),
             None => None,
         };
         let mcap = match &outputs.mcap {
-            Some(p) => Some(McapFile::start(bus, others().await?, p)?),
+            Some(p) => Some(McapFile::start(bus, next(), p)?),
             None => None,
         };
         Ok(Files { events, mcap })
