@@ -4,10 +4,11 @@
 //! across the runs — `marie up missions/clusters/thesis.toml --run missions/docking.toml
 //! --runs N --chaos-nodes SEED`, each stopped node restarted by `up`. Then the table per
 //! fault (node, kind, run and mission time, back after — for a kill, `up`'s restart line —,
-//! caught up after, the records its run lost), the table per run, the totals and every
-//! node's resident memory at the start and the end; exit 1 when the goal (0 missions
-//! failed, 0 acknowledged records lost, 0 epochs obeyed late) does not hold, 130 when
-//! interrupted.
+//! caught up after, the records its run lost), the table per run, the totals, the reads of
+//! `up --probe feature` (a writer and readers by name and per replica beside the runs) and
+//! every node's resident memory at the start and the end; exit 1 when the goal (0 missions
+//! failed, 0 acknowledged records lost, 0 epochs obeyed late, 0 stale reads) does not
+//! hold, 130 when interrupted.
 //!
 //! ```text
 //! scripts/soak                          # 30 runs at wall-clock speed, chaos seed 1

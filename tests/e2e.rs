@@ -38,6 +38,7 @@ mod monitor_faults;
 mod node_faults;
 mod nodes;
 mod partition;
+mod probe;
 mod provenance;
 mod recovery;
 mod replay;

@@ -71,6 +71,16 @@ fn faults_that_keep_coming_across_runs_fail_no_mission_and_lose_nothing() {
         outcome.runs.iter().all(|r| r.acknowledged > 0),
         "a run's check heard no store: {shown}"
     );
+    // the probe read all along, every replica's node included, and nothing stale
+    assert_eq!(outcome.stale_reads(), Some(0), "{shown}");
+    let reads = outcome.reads().unwrap_or_default();
+    for node in holders {
+        assert!(
+            reads.contains(&format!("; {node} ")),
+            "{node} not read: {shown}"
+        );
+    }
+    assert!(outcome.reads_answered().is_some_and(|n| n > 100), "{shown}");
     assert!(outcome.goal(), "the soak's goal does not hold: {shown}");
     assert!(
         outcome.memory().is_some_and(|m| m.contains("cart ")),
@@ -155,6 +165,30 @@ fn a_standby_woken_after_its_run_was_taken_back_commands_nothing_of_it() {
         "{shown}"
     );
     assert!(stdout.contains("): holds"), "{shown}");
+}
+
+#[test]
+fn the_probes_line_parses() {
+    let outcome = Outcome {
+        exit: Some(0),
+        runs: Vec::new(),
+        faults: Vec::new(),
+        summary: vec![
+            "records: 0 of 10 acknowledged records lost".into(),
+            "reads: probe of feature, 34.3 s: 345 writes acknowledged (1 failed and tried \
+             again), reads: by name 841 answered; features 783 answered, 3 refused; spare 7 \
+             answered, 1 unanswered; 2 stale; the newest acknowledged write read back"
+                .into(),
+        ],
+    };
+    assert_eq!(outcome.stale_reads(), Some(2));
+    assert_eq!(outcome.reads_answered(), Some(841 + 783 + 7));
+    let unchecked = Outcome {
+        summary: vec!["reads: NOT checked: the probe ended".into()],
+        ..outcome
+    };
+    assert_eq!(unchecked.stale_reads(), None);
+    assert!(!unchecked.goal());
 }
 
 #[test]

@@ -99,6 +99,7 @@ mod name;
 mod outbox;
 mod packed;
 mod page;
+pub mod probe;
 mod producers;
 mod query;
 mod reads;

@@ -1,6 +1,6 @@
 //! `marie dm add-replica DM NODE --join ADDR --cookie C` and `marie dm remove-replica`: move
 //! a replicated datamanager's replicas while the cluster runs ([`marie::cluster::replicas`]),
-//! telling each step on stdout.
+//! telling each step on stdout; `marie dm probe` ([`super::probe`]).
 
 use super::error::BadInput;
 use super::join::{join, member_name, JoinArgs};
@@ -35,6 +35,16 @@ pub(crate) enum DmCommand {
     /// majority, a change under way, not done in time), 2 for a datamanager or node that
     /// keeps no such replica.
     RemoveReplica(ReplicaArgs),
+    /// Write numbered records into DM and read them back — by name and from each replica —
+    /// until Ctrl-C or `--for SECS`, checking that no read is stale.
+    ///
+    /// A read is stale when it shows an older record than one acknowledged before it was
+    /// sent (the reads are linearizable against the writes). Says every 10 s how it goes;
+    /// then the verdict: reads answered, refused and unanswered per road, each stale read,
+    /// and whether the newest acknowledged write was read back. Run it while you kill,
+    /// freeze and cut off nodes. Exit 0 when nothing was wrong, 1 when a read was stale or
+    /// the newest write missing, 2 for a datamanager without a leader.
+    Probe(super::probe::ProbeArgs),
 }
 
 /// The flags of `add-replica` and `remove-replica`.
@@ -57,6 +67,7 @@ pub(crate) async fn dm(args: DmArgs) -> anyhow::Result<ExitCode> {
     let (adding, args) = match args.command {
         DmCommand::AddReplica(a) => (true, a),
         DmCommand::RemoveReplica(a) => (false, a),
+        DmCommand::Probe(a) => return super::probe::probe(a).await,
     };
     let verb = if adding {
         "add-replica"

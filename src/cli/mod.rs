@@ -25,6 +25,7 @@ pub(crate) mod node;
 pub(crate) mod output;
 pub(crate) mod page_control;
 pub(crate) mod prepare;
+pub(crate) mod probe;
 pub(crate) mod props;
 pub(crate) mod provenance;
 pub(crate) mod replay;

@@ -27,10 +27,17 @@ pub(crate) static ONE_MEMBER: std::sync::Mutex<()> = std::sync::Mutex::new(());
 /// was injected on purpose.
 #[track_caller]
 pub(crate) fn marie(args: &[&str]) -> Output {
+    marie_with_env(args, &[])
+}
+
+/// [`marie`] with `env` set besides (its children inherit it).
+#[track_caller]
+pub(crate) fn marie_with_env(args: &[&str], env: &[(&str, &str)]) -> Output {
     let out = Command::new(env!("CARGO_BIN_EXE_marie"))
         .args(args)
         .current_dir(env!("CARGO_MANIFEST_DIR"))
         .env_remove("RUST_LOG")
+        .envs(env.iter().copied())
         .output()
         .expect("marie runs");
     if !args.iter().any(|a| a.starts_with("panic:")) {

@@ -24,6 +24,8 @@ use std::time::Duration;
 pub(crate) const CLUSTER: &str = "missions/clusters/thesis.toml";
 /// The mission it runs.
 pub(crate) const MISSION: &str = "missions/docking.toml";
+/// The datamanager `up --probe` writes into and reads back while the runs go on.
+pub(crate) const PROBED: &str = "feature";
 
 /// What a soak is asked for.
 #[derive(Clone, Debug)]
@@ -62,6 +64,9 @@ impl SoakArgs {
             &speed,
             "--report",
             report.to_str().unwrap_or_default(),
+            // readers beside the runs: no read may be stale
+            "--probe",
+            PROBED,
         ];
         if let Some(every) = &every {
             args.extend(["--chaos-every", every]);
@@ -238,9 +243,47 @@ impl Outcome {
     }
 
     /// Whether the goal holds: every run docked, checked with nothing lost, nothing obeyed
-    /// late, no collision, and `up` said so (exit 0).
+    /// late, no collision, the probe's reads checked with none stale, and `up` said so
+    /// (exit 0).
     pub(crate) fn goal(&self) -> bool {
-        !self.runs.is_empty() && self.runs.iter().all(RunVerdict::passes) && self.exit == Some(0)
+        !self.runs.is_empty()
+            && self.runs.iter().all(RunVerdict::passes)
+            && self.stale_reads() == Some(0)
+            && self.exit == Some(0)
+    }
+
+    /// `up`'s line of the probe's verdict (`reads: probe of feature, …`).
+    pub(crate) fn reads(&self) -> Option<&str> {
+        self.summary
+            .iter()
+            .find(|l| l.starts_with("reads: "))
+            .map(String::as_str)
+    }
+
+    /// The stale reads the probe counted (`None`: no verdict — not checked).
+    pub(crate) fn stale_reads(&self) -> Option<u64> {
+        let line = self.reads()?;
+        let (before, _) = line.split_once(" stale")?;
+        before.rsplit("; ").next()?.trim().parse().ok()
+    }
+
+    /// Reads the probe had answered (`None`: no verdict).
+    pub(crate) fn reads_answered(&self) -> Option<u64> {
+        let line = self.reads()?;
+        let tallies = line.split_once("reads: ")?.1.split_once("reads: ")?.1;
+        Some(
+            tallies
+                .split("; ")
+                .filter_map(|road| {
+                    road.split(" answered")
+                        .next()?
+                        .rsplit(' ')
+                        .next()?
+                        .parse::<u64>()
+                        .ok()
+                })
+                .sum(),
+        )
     }
 
     /// The table per fault.
@@ -328,7 +371,8 @@ impl Outcome {
         format!(
             "missions run: {}, failed: {failed}; faults: {injected} ({}), {} not injected, {caught} \
              caught up; acknowledged records lost: {lost} of {acked}{}; epochs obeyed late: {late}; \
-             collisions: {collisions}. Goal (0 missions failed, 0 lost, 0 obeyed late): {}",
+             collisions: {collisions}; stale reads: {} of {} answered. Goal (0 missions failed, 0 \
+             lost, 0 obeyed late, 0 stale reads): {}",
             self.runs.len(),
             kinds.join(", "),
             self.faults.len() - injected,
@@ -337,6 +381,10 @@ impl Outcome {
             } else {
                 String::new()
             },
+            self.stale_reads()
+                .map_or_else(|| "not checked".to_string(), |n| n.to_string()),
+            self.reads_answered()
+                .map_or_else(|| "-".to_string(), |n| n.to_string()),
             if self.goal() { "holds" } else { "NOT met" }
         )
     }

@@ -23,7 +23,8 @@
 //! - `mission.rs` — `--run`: the mission run as `run --join` would;
 //! - `soak.rs` — `--runs N`: the mission run N times, then the summary;
 //! - `catch_up.rs` — under `--runs`: when each node fault's node was back and caught up;
-//! - `memory.rs` — the node processes' resident memory, at the soak's start and end.
+//! - `memory.rs` — the node processes' resident memory, at the soak's start and end;
+//! - `probe.rs` — `--probe DM`: `marie dm probe` beside the runs, its verdict in the summary.
 
 mod catch_up;
 mod data_dirs;
@@ -32,6 +33,7 @@ mod mission;
 mod network;
 mod nodes;
 mod plan;
+mod probe;
 mod serve;
 mod soak;
 mod supervisor;
@@ -130,6 +132,13 @@ pub(crate) struct UpArgs {
     #[arg(long, value_name = "N", requires = "run", conflicts_with = "monitor",
           value_parser = clap::value_parser!(u32).range(1..))]
     pub runs: Option<u32>,
+    /// With `--run`: probe datamanager DM while the runs go on, as `marie dm probe DM`
+    /// does — write numbered records into it and read them back, by name and from each
+    /// replica (a leader cut off from the others too), counting stale reads — and say the
+    /// verdict after the runs (`reads: …`). A stale read, or the newest write missing, fails
+    /// `up` (exit 1) as a failed run does.
+    #[arg(long, value_name = "DM", requires = "run")]
+    pub probe: Option<String>,
     /// Start the nodes in a private network of Linux namespaces (needs root and `ip`), so
     /// that they can be cut apart: by `--fault partition:…` (which makes one by itself),
     /// `--chaos-nodes` (which makes one where it can) or the page (`--allow-faults`). Only

@@ -5,6 +5,7 @@
 use super::mission::{run_mission, Turn};
 use super::nodes::{converged, Nodes};
 use super::plan::UpPlan;
+use super::probe::{self, ProbeChild};
 use super::soak::soak;
 use super::UpArgs;
 use crate::cli::children::Line;
@@ -22,17 +23,34 @@ pub(super) async fn serve(
 ) -> anyhow::Result<ExitCode> {
     list_when_converged(plan, nodes).await?;
     let processes = nodes.processes(&plan.launches);
+    let probe = match &args.probe {
+        Some(dm) => Some(
+            ProbeChild::start(plan, dm)
+                .map_err(|e| anyhow::anyhow!("cannot start the probe of {dm}: {e}"))?,
+        ),
+        None => None,
+    };
     match (&args.run, args.runs) {
         (Some(mission), Some(runs)) => {
             // the soak hears of every node restarted, for its faults' fates
             let (tell, restarted) = mpsc::unbounded_channel();
             nodes.supervise(plan, processes.clone(), Some(tell));
-            soak(args, plan, mission, processes, restarted, runs).await
+            soak(args, plan, mission, processes, restarted, runs, probe).await
         }
         (Some(mission), None) => {
             nodes.supervise(plan, processes.clone(), None);
             let turn = Turn::only(args, &plan.layout);
-            run_mission(args, plan, mission, processes, &turn).await
+            let ran = run_mission(args, plan, mission, processes, &turn).await;
+            let Some(probe) = probe else { return ran };
+            let verdict = probe.finish().await;
+            for line in probe::lines(&verdict) {
+                println!("{line}");
+            }
+            match (ran, verdict) {
+                (Ok(code), Ok(v)) if v.holds() => Ok(code),
+                (Ok(_), _) => Ok(ExitCode::from(1)),
+                (Err(e), _) => Err(e),
+            }
         }
         (None, _) => {
             nodes.supervise(plan, processes.clone(), None);

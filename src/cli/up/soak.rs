@@ -12,12 +12,14 @@ use super::catch_up::{CatchUp, Fate};
 use super::memory::{mib, Memory};
 use super::mission::{node_chaos, run_mission, Turn};
 use super::plan::UpPlan;
+use super::probe::{self, ProbeChild};
 use super::supervisor::Restarted;
 use super::UpArgs;
 use crate::cli::error::BadInput;
 use crate::cli::run::KeptReport;
 use crate::cli::signal::Shutdown;
 use marie::cluster::fault::NodeProcesses;
+use marie::dm::probe::ProbeVerdict;
 use marie::report::RunReport;
 use marie::run::{FaultKind, Outcome};
 use marie_missions::robot::RobotReport;
@@ -39,6 +41,7 @@ pub(super) async fn soak(
     processes: NodeProcesses,
     restarted: mpsc::UnboundedReceiver<Restarted>,
     runs: u32,
+    probe: Option<ProbeChild>,
 ) -> anyhow::Result<ExitCode> {
     let names: Vec<String> = plan.launches.iter().map(|l| l.name.clone()).collect();
     let memory_start = Memory::of(&processes, &names);
@@ -95,6 +98,10 @@ pub(super) async fn soak(
         Some(w) => w.finish(plan).await,
         None => Vec::new(),
     };
+    let probe = match probe {
+        Some(p) => Some(p.finish().await),
+        None => None,
+    };
     let summary = Summary {
         mission: tallies
             .iter()
@@ -107,6 +114,7 @@ pub(super) async fn soak(
         memory_half,
         memory_end: Memory::of(&processes, &names),
         interrupted,
+        probe,
     };
     for line in summary.lines() {
         println!("{line}");
@@ -249,12 +257,20 @@ struct Summary {
     memory_half: Option<(u32, Memory)>,
     memory_end: Memory,
     interrupted: Option<&'static str>,
+    /// With `--probe`: its verdict, or why there is none.
+    probe: Option<Result<ProbeVerdict, String>>,
 }
 
 impl Summary {
-    /// Whether the goal holds: every run ran and held it.
+    /// Whether the goal holds: every run ran and held it, and the probe (with `--probe`)
+    /// found no stale read and its newest write.
     fn goal(&self) -> bool {
-        self.tallies.len() == self.runs as usize && self.tallies.iter().all(Tally::holds)
+        self.tallies.len() == self.runs as usize
+            && self.tallies.iter().all(Tally::holds)
+            && self
+                .probe
+                .as_ref()
+                .is_none_or(|p| p.as_ref().is_ok_and(ProbeVerdict::holds))
     }
 
     fn lines(&self) -> Vec<String> {
@@ -266,10 +282,18 @@ impl Summary {
             lines.push(self.faults_line());
         }
         lines.push(self.records_line());
+        if let Some(p) = &self.probe {
+            lines.extend(probe::lines(p));
+        }
         lines.push(self.memory_line());
         lines.push(format!(
             "soak goal (every run succeeded, 0 acknowledged records lost, 0 epochs obeyed \
-             from an old epoch, 0 collisions): {}",
+             from an old epoch, 0 collisions{}): {}",
+            if self.probe.is_some() {
+                ", 0 stale reads"
+            } else {
+                ""
+            },
             if self.goal() { "holds" } else { "NOT met" }
         ));
         lines
@@ -469,6 +493,7 @@ mod tests {
             memory_half: None,
             memory_end: Memory::default(),
             interrupted: None,
+            probe: None,
         };
         assert!(!summary.goal());
         let lines = summary.lines();
@@ -481,10 +506,61 @@ mod tests {
         // every run held it, but the soak was cut short
         let short = Summary {
             runs: 3,
-            tallies: vec![good],
+            tallies: vec![good.clone()],
             ..summary
         };
         assert!(!short.goal());
+        // every run held it, and the probe's verdict decides
+        let verdict = |stale: u64| ProbeVerdict {
+            dm: "feature".into(),
+            ran_ms: 1000,
+            writes: 10,
+            write_failures: 0,
+            roads: [(
+                "spare".to_string(),
+                marie::dm::probe::RoadTally {
+                    answered: 40,
+                    stale,
+                    ..Default::default()
+                },
+            )]
+            .into_iter()
+            .collect(),
+            stale_reads: Vec::new(),
+            read_back: Some(marie::dm::probe::ReadBack::Found),
+        };
+        let probed = |probe| Summary {
+            mission: "docking".into(),
+            runs: 1,
+            tallies: vec![good.clone()],
+            fates: Vec::new(),
+            memory_start: Memory::default(),
+            memory_half: None,
+            memory_end: Memory::default(),
+            interrupted: None,
+            probe: Some(probe),
+        };
+        let fresh = probed(Ok(verdict(0)));
+        assert!(fresh.goal());
+        assert!(
+            fresh
+                .lines()
+                .iter()
+                .any(|l| l.starts_with("reads: probe of feature") && l.contains("; 0 stale")),
+            "{:?}",
+            fresh.lines()
+        );
+        assert!(fresh
+            .lines()
+            .last()
+            .unwrap()
+            .contains("0 stale reads): holds"));
+        assert!(!probed(Ok(verdict(1))).goal());
+        let unread = probed(Err("the probe ended".into()));
+        assert!(!unread.goal());
+        assert!(unread
+            .lines()
+            .contains(&"reads: NOT checked: the probe ended".to_string()));
         // the memory line, with its middle reading once there is one
         let kib = |v: u64| Memory([("cart".to_string(), Some(v))].into_iter().collect());
         let read = Summary {
