@@ -46,6 +46,10 @@ pub(crate) struct MonitorArgs {
     /// wherever it runs.
     #[arg(long, conflicts_with = "events")]
     pub allow_faults: bool,
+    /// Let the page change the cluster it watches: add a datamanager's replica on a node,
+    /// remove one (what `marie dm add-replica` and `remove-replica` do).
+    #[arg(long, conflicts_with = "events")]
+    pub allow_changes: bool,
 }
 
 /// Serve the replay or the live cluster until SIGINT or SIGTERM.
@@ -53,7 +57,8 @@ pub(crate) async fn monitor(args: MonitorArgs) -> anyhow::Result<ExitCode> {
     let options = MonitorOptions {
         require_token: args.require_token,
         ..MonitorOptions::new(args.listen)
-    };
+    }
+    .allowing_changes(args.allow_changes);
     if let Some(path) = &args.events {
         let monitor = Monitor::replay(path, options).map_err(bad_file)?;
         // watched before the page's line: a Ctrl-C right after it is not missed
@@ -231,8 +236,8 @@ pub(crate) struct ClusterWatch {
 
 impl ClusterWatch {
     /// Join the cluster at `target`, watch every node's events and serve them; the page
-    /// asks operations for their properties, and injects faults when `allow_faults` (also
-    /// stopping `processes`).
+    /// asks operations for their properties, injects faults when `allow_faults` (also
+    /// stopping `processes`), and moves replicas when `options` allow changes.
     pub(crate) async fn start(
         target: &ClusterEntry,
         options: MonitorOptions,

@@ -84,7 +84,7 @@ async fn watch(
 ) -> anyhow::Result<ExitCode> {
     let watching = match args.monitor {
         Some(listen) => {
-            let options = PrivateNet::monitor_options(listen);
+            let options = PrivateNet::monitor_options(listen).allowing_changes(args.allow_changes);
             Some(
                 ClusterWatch::start(&plan.first_node(), options, args.allow_faults, processes)
                     .await?,
