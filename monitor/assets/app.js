@@ -353,14 +353,14 @@ function isUp(n) {
 function woke(n) {
   if (!n.woke) return "";
   return ` <span class="woke" title="its operations restarted as new incarnations">` +
-    `(woke at ${(n.woke.at_ms / 1000).toFixed(1)} s from a ${(n.woke.silent_ms / 1000).toFixed(1)} s freeze)</span>`;
+    `(woke at ${fmtAt(n.woke.at_ms)} from a ${(n.woke.silent_ms / 1000).toFixed(1)} s freeze)</span>`;
 }
 
 // A node's latest return after it was lost (restarted, or heard again): when, after how long.
 function back(n) {
   if (!n.back) return "";
   return ` <span class="back" title="lost, then seen again by a peer">` +
-    `(back at ${(n.back.at_ms / 1000).toFixed(1)} s after ${(n.back.down_ms / 1000).toFixed(1)} s down)</span>`;
+    `(back at ${fmtAt(n.back.at_ms)} after ${(n.back.down_ms / 1000).toFixed(1)} s down)</span>`;
 }
 
 // The replicated datamanagers without a leader now, in the words marie ls says them.

@@ -86,8 +86,14 @@ async fn watch(
         Some(listen) => {
             let options = PrivateNet::monitor_options(listen).allowing_changes(args.allow_changes);
             Some(
-                ClusterWatch::start(&plan.first_node(), options, args.allow_faults, processes)
-                    .await?,
+                ClusterWatch::start(
+                    &plan.first_node(),
+                    plan.speed,
+                    options,
+                    args.allow_faults,
+                    processes,
+                )
+                .await?,
             )
         }
         None => None,
