@@ -65,7 +65,7 @@ fn faults_from_the_page_need_a_live_page() {
 }
 
 #[test]
-fn changes_from_the_page_need_a_live_page_and_a_watch_a_clusters_speed() {
+fn changes_from_the_page_need_a_live_page_and_a_watchers_speed_is_checked() {
     let out = marie(&["run", "missions/demo.toml", "--allow-changes"]);
     refused(&out, "--monitor");
     let out = marie(&["up", "missions/clusters/thesis.toml", "--allow-changes"]);
