@@ -65,6 +65,30 @@ fn faults_from_the_page_need_a_live_page() {
 }
 
 #[test]
+fn changes_from_the_page_need_a_live_page_and_a_watchers_speed_is_checked() {
+    let out = marie(&["run", "missions/demo.toml", "--allow-changes"]);
+    refused(&out, "--monitor");
+    let out = marie(&["up", "missions/clusters/thesis.toml", "--allow-changes"]);
+    refused(&out, "--monitor");
+    // a replay has no cluster to change
+    let out = marie(&["monitor", "--events", "run.jsonl", "--allow-changes"]);
+    refused(&out, "cannot be used with '--allow-changes'");
+    // a cluster's speed is a factor of real time, checked before joining
+    let out = marie(&[
+        "monitor",
+        "--join",
+        "127.0.0.1:9",
+        "--cookie",
+        "c",
+        "--speed",
+        "0",
+    ]);
+    refused(&out, "--speed: expected a factor of real time");
+    let out = marie(&["monitor", "--events", "run.jsonl", "--speed", "2"]);
+    refused(&out, "--join");
+}
+
+#[test]
 fn malformed_fault_targets_are_refused() {
     for spec in [
         "kill:wall follower@1",

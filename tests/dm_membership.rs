@@ -8,7 +8,7 @@
 
 use crate::common;
 
-use common::cluster::NodeProc;
+use common::cluster::{node_line, NodeProc};
 use marie::cluster::net::{ClusterConfig, Transport};
 use marie::dm::{DmClient, NewRecord, Query};
 use std::collections::BTreeMap;
@@ -303,14 +303,6 @@ fn a_datamanager_grows_from_three_replicas_to_five_and_back_while_producers_put_
         std::thread::sleep(Duration::from_millis(500));
     }
     drop(nodes);
-}
-
-/// `  n1 at 127.0.0.1:4242 (pid 77): ...` → (name, address, pid).
-fn node_line(line: &str) -> Option<(String, String, u32)> {
-    let (name, rest) = line.trim().split_once(" at ")?;
-    let (addr, rest) = rest.split_once(" (pid ")?;
-    let pid = rest.split_once(')')?.0.parse().ok()?;
-    Some((name.to_string(), addr.to_string(), pid))
 }
 
 /// A node of `replace_after = 2` killed for good (restart = "temporary") is replaced: its

@@ -5,13 +5,17 @@
 //! events file ends with every action of the task tree succeeded; a viewer without the
 //! token of a monitor that requires one is refused; a behaviour tree of 200 items (issue
 //! 24), fed live, is drawn whole with its running branch, retry counts and timeouts, and an
-//! update redraws only the rows that changed.
+//! update redraws only the rows that changed. On the thesis cluster kept up (issue 43): a
+//! node killed and restarted, the strength panel says each datamanager's redundancy
+//! restored, when and after how long; and with `--allow-changes` the page adds a replica of
+//! a datamanager on a node and removes it again, and says why it will not for bad input.
 //!
 //! Every `marie` process and the browser are killed when the test ends, also on panic.
 
 use crate::common;
 
 use common::browser::Browser;
+use common::cluster::{ls_join_rows, node_line, signal_pid, Proc};
 use common::layouts::failover_layout;
 use common::monitor::{monitored_run, monitored_up, page_of, recorded_run, replay_monitor, url_of};
 use marie::clock::{Clock, ManualClock};
@@ -24,6 +28,12 @@ use std::time::Duration;
 
 /// Generous: the page is fed live while a loaded 2-core machine also runs the mission.
 const PAGE_TIMEOUT: Duration = Duration::from_secs(120);
+
+/// The thesis' cluster, and its cookie.
+const THESIS: &str = "missions/clusters/thesis.toml";
+const THESIS_COOKIE: &str = "marie-thesis";
+/// The datamanagers of the thesis' cluster, each kept in three replicas.
+const THESIS_DMS: [&str; 4] = ["feature", "parameter", "world", "run"];
 
 /// The wall follower's losses and rebinds in its binding's history.
 const LOST: &str =
@@ -762,4 +772,356 @@ fn a_behaviour_tree_of_200_items_shows_its_running_branch_retries_and_timeouts()
     // flake, for a page that would redraw everything on a slow machine too
     assert!(tree_max < PAGE_TIMEOUT.as_millis() as f64, "{tree_max} ms");
     fed.monitor.stop();
+}
+
+/// `marie up` of the thesis' cluster at speed 4 with its page (and `extra` flags): the
+/// process, the page's URL, and each node's (name, address, pid).
+fn thesis_up(extra: &[&str]) -> (Proc, String, Vec<(String, String, u32)>) {
+    let mut args = vec!["--speed", "4"];
+    args.extend_from_slice(extra);
+    let (up, line) = monitored_up(THESIS, &args);
+    // the nodes are listed before the page's line
+    let nodes: Vec<_> = up.seen().iter().filter_map(|l| node_line(l)).collect();
+    assert_eq!(nodes.len(), 4, "{}", up.seen().join("\n"));
+    (up, url_of(&line), nodes)
+}
+
+/// JavaScript: every datamanager of the thesis' cluster shows its leader in the cluster
+/// panel (the page has asked them what they hold).
+fn every_dm_led() -> String {
+    THESIS_DMS
+        .iter()
+        .map(|dm| {
+            format!(
+                "Array.from(document.querySelectorAll('#cluster .module[data-module=\"{dm}\"] + .dm-state'))\
+                 .some((s) => s.textContent.includes('leader (term '))"
+            )
+        })
+        .collect::<Vec<_>>()
+        .join(" && ")
+}
+
+/// Stop `up` with Ctrl-C: it stops the cluster and exits 0.
+fn stop_up(mut up: Proc) {
+    up.signal("INT");
+    up.wait_line("cluster stopped");
+    assert_eq!(up.wait_exit(), Some(0), "{}", up.seen().join("\n"));
+}
+
+/// `… redundancy restored, all 3 replicas current 2.3 s after the first was lost` → the
+/// datamanager and the seconds.
+fn restored_line(line: &str) -> Option<(String, f64)> {
+    let (_, rest) = line.split_once("datamanager ")?;
+    let (dm, rest) = rest.split_once(": redundancy restored, all ")?;
+    let (_, rest) = rest.split_once(" replicas current ")?;
+    let secs = rest.split_once(" s after")?.0.parse().ok()?;
+    Some((dm.to_string(), secs))
+}
+
+#[test]
+fn the_strength_panel_shows_each_datamanagers_redundancy_restored_after_a_node_is_killed_and_restarted(
+) {
+    let Some(mut browser) = Browser::launch_or_skip("monitor_browser") else {
+        return;
+    };
+    let (mut up, url, nodes) = thesis_up(&[]);
+    browser.navigate(&url).unwrap();
+    shows(&mut browser, &every_dm_led(), "every datamanager led");
+    // without --allow-changes the page offers no change of replicas
+    assert_eq!(
+        browser
+            .evaluate("document.querySelector('#replicas').hidden")
+            .unwrap(),
+        serde_json::json!(true)
+    );
+    // the operations node, which keeps a replica of every datamanager, killed by something
+    // else than marie: `up` starts it again
+    let (_, _, pid) = nodes.iter().find(|(n, _, _)| n == "operations").unwrap();
+    let mark = up.seen().len();
+    signal_pid(*pid, "KILL");
+    up.wait_line_since(mark, "node operations was killed (SIGKILL): restarting it");
+    up.wait_line_since(mark, "node operations restarted: listening on ");
+    // each datamanager's leader tells its redundancy restored (on up's output); the page
+    // says it in the strength panel, with when and after how long — the restoration told
+    // last since the kill, as the line says it (a leader elected meanwhile may tell one
+    // again)
+    for dm in THESIS_DMS {
+        up.wait_line_since(
+            mark,
+            &format!("datamanager {dm}: redundancy restored, all 3 replicas current"),
+        );
+    }
+    let deadline = std::time::Instant::now() + PAGE_TIMEOUT;
+    loop {
+        up.drain();
+        let told: std::collections::BTreeMap<String, f64> = up.seen()[mark..]
+            .iter()
+            .filter_map(|l| restored_line(l))
+            .collect();
+        let shown = browser
+            .evaluate(
+                "Object.fromEntries(Array.from(document.querySelectorAll('#strength .strength'), \
+                 (d) => [d.dataset.dm, { text: d.querySelector('.restored')?.textContent ?? '', \
+                 after_ms: Number(d.querySelector('.restored')?.dataset.afterMs ?? -1) }]))",
+            )
+            .unwrap();
+        let matches = |dm: &str| {
+            let (Some(secs), Some(page)) = (told.get(dm), shown.get(dm)) else {
+                return false;
+            };
+            let after = page["after_ms"].as_f64().unwrap_or(-1.0) / 1000.0;
+            // the line says tenths of a second
+            after >= 0.0 && (after - secs).abs() <= 0.051
+        };
+        if THESIS_DMS.iter().all(|dm| matches(dm)) {
+            for dm in THESIS_DMS {
+                let text = shown[dm]["text"].as_str().unwrap();
+                let (at, rest) = text
+                    .strip_prefix("redundancy restored at ")
+                    .and_then(|t| t.split_once(" s: all 3 replicas current "))
+                    .unwrap_or_else(|| panic!("{dm}: {text:?}"));
+                // from the page's first event, on the nodes' clock (which runs 4 times
+                // real time): within the test's life, not decades away
+                assert!(
+                    at.parse::<f64>().is_ok_and(|t| t > 0.0 && t < 3600.0),
+                    "{dm}: {text:?}"
+                );
+                assert!(rest.ends_with(" s after the first loss"), "{dm}: {text:?}");
+                assert!(
+                    shown[dm]["after_ms"].as_f64().unwrap() > 0.0,
+                    "restored after a loss that took time: {dm}: {text:?}"
+                );
+            }
+            break;
+        }
+        assert!(
+            std::time::Instant::now() < deadline,
+            "the strength panel does not say what the leaders told: told {told:?}, shown {shown:#}"
+        );
+        std::thread::sleep(Duration::from_millis(200));
+    }
+    // and the node back in the cluster panel
+    shows(
+        &mut browser,
+        "document.querySelector('#cluster .node[data-node=\"operations\"] .back') !== null \
+         && document.querySelector('#cluster .node[data-node=\"operations\"]').dataset.status === 'up'",
+        "operations back",
+    );
+    let back = text_of(
+        &mut browser,
+        "document.querySelector('#cluster .node[data-node=\"operations\"] .back').textContent",
+    );
+    let at = back
+        .strip_prefix("(back at ")
+        .and_then(|b| b.split_once(" s after "))
+        .and_then(|(at, _)| at.parse::<f64>().ok());
+    assert!(at.is_some_and(|t| t > 0.0 && t < 3600.0), "{back:?}");
+    browser.set_viewport(1400, 1500).unwrap();
+    screenshot(&mut browser, "monitor-strength.png");
+    stop_up(up);
+}
+
+/// How long the page may wait for a change of replicas: a learner catching up, on a loaded
+/// machine (the control's own bound is a minute).
+const CHANGE_TIMEOUT: Duration = Duration::from_secs(150);
+
+/// Type `dm` and `node` into the page's replicas form and click `add` or `remove`; wait for
+/// the answer: whether it was done, and what the page says.
+fn change_from_page(browser: &mut Browser, change: &str, dm: &str, node: &str) -> (bool, String) {
+    let clicked = browser
+        .evaluate(&format!(
+            "(() => {{ document.querySelector('#replica-dm').value = {dm:?}; \
+             document.querySelector('#replica-node').value = {node:?}; \
+             document.querySelector('#replica-{change}').click(); \
+             return document.querySelector('#control-result').dataset.ok; }})()"
+        ))
+        .unwrap();
+    assert_eq!(clicked, "pending", "{change} {dm} on {node}: the page asks");
+    if let Err(e) = browser.wait_for(
+        "document.querySelector('#control-result').dataset.ok !== 'pending'",
+        CHANGE_TIMEOUT,
+    ) {
+        panic!("{change} {dm} on {node}: no answer on the page: {e:#}");
+    }
+    let ok = text_of(
+        browser,
+        "document.querySelector('#control-result').dataset.ok",
+    );
+    let said = text_of(
+        browser,
+        "document.querySelector('#control-result').textContent",
+    );
+    (ok == "true", said)
+}
+
+/// The voters of datamanager `dm` as its leader tells them (`marie ls --json`), sorted,
+/// asked of the node at `addr` until `done` holds of them (at most [`CHANGE_TIMEOUT`]).
+fn voters_until(addr: &str, dm: &str, done: impl Fn(&[String]) -> bool) -> Vec<String> {
+    let deadline = std::time::Instant::now() + CHANGE_TIMEOUT;
+    loop {
+        let (_, rows, _) = ls_join_rows(addr, THESIS_COOKIE, &[]);
+        let voters: Vec<String> = rows
+            .iter()
+            .find(|r| r["name"] == dm && r["replica"].is_object())
+            .and_then(|r| r["replica"]["members"].as_array().cloned())
+            .unwrap_or_default()
+            .iter()
+            .filter_map(|v| v.as_str().map(str::to_string))
+            .collect();
+        let mut voters = voters;
+        voters.sort();
+        if done(&voters) {
+            return voters;
+        }
+        assert!(
+            std::time::Instant::now() < deadline,
+            "{dm}: voters {voters:?}; rows {rows:#?}"
+        );
+        std::thread::sleep(Duration::from_millis(500));
+    }
+}
+
+/// JavaScript: whether the feature datamanager's leader lists a replica on `node`.
+fn feature_lists(node: &str) -> String {
+    format!(
+        "Array.from(document.querySelectorAll('#cluster .module[data-module=\"feature\"] + .dm-state'))\
+         .some((s) => s.querySelector('.replica[data-node=\"{node}\"]') !== null)"
+    )
+}
+
+#[test]
+fn the_page_adds_a_replica_on_a_node_and_removes_it_and_says_why_not_for_bad_input() {
+    let Some(mut browser) = Browser::launch_or_skip("monitor_browser") else {
+        return;
+    };
+    let (up, url, nodes) = thesis_up(&["--allow-changes"]);
+    let (_, cart, _) = &nodes[0];
+    browser.navigate(&url).unwrap();
+    shows(
+        &mut browser,
+        "document.body.dataset.changes === 'true' && !document.querySelector('#replicas').hidden",
+        "the replicas' form",
+    );
+    shows(&mut browser, &every_dm_led(), "every datamanager led");
+    shows(
+        &mut browser,
+        &format!(
+            "{} && {}",
+            feature_lists("operations"),
+            feature_lists("spare")
+        ),
+        "the feature datamanager's replicas on operations and spare",
+    );
+    // changes allowed, faults not: each has its own permission
+    assert_eq!(count(&mut browser, "button.fault, button.node-fault"), 0);
+    let declared = ["features", "operations", "spare"];
+    assert_eq!(
+        voters_until(cart, "feature", |v| v.len() == 3),
+        declared.map(String::from)
+    );
+
+    // what the cluster will not do, said on the page in `marie dm`'s words
+    let refusals = [
+        (
+            "remove",
+            "feature",
+            "spare",
+            "would leave 2 voting replicas",
+        ),
+        (
+            "add",
+            "feature",
+            "nowhere",
+            "no node `nowhere` hosts replicas in the cluster",
+        ),
+        (
+            "add",
+            "feature",
+            "features",
+            "features already keeps a replica",
+        ),
+        (
+            "add",
+            "nothing",
+            "cart",
+            "no datamanager `nothing` in the cluster",
+        ),
+        ("remove", "feature", "cart", "cart keeps no replica"),
+        (
+            "add",
+            "feature",
+            "",
+            "name the node whose replica of feature to add",
+        ),
+    ];
+    for (change, dm, node, why) in refusals {
+        let (ok, said) = change_from_page(&mut browser, change, dm, node);
+        assert!(!ok, "{change} {dm} on {node:?}: {said}");
+        assert!(
+            said.starts_with("refused: ") && said.contains(why),
+            "{change} {dm} on {node:?}: {said}"
+        );
+    }
+    assert_eq!(
+        voters_until(cart, "feature", |v| v.len() == 3),
+        declared.map(String::from)
+    );
+
+    // a fourth replica, on the cart's node: it catches up, then votes
+    let (ok, said) = change_from_page(&mut browser, "add", "feature", "cart");
+    assert!(ok, "{said}");
+    assert!(
+        said.starts_with("feature: replica on cart added (replica started on cart; ")
+            && said.contains("cart votes: voters "),
+        "{said}"
+    );
+    let voters = voters_until(cart, "feature", |v| v.len() == 4);
+    assert!(voters.iter().any(|v| v == "cart"), "{voters:?}");
+    shows(
+        &mut browser,
+        &feature_lists("cart"),
+        "the leader lists the replica on cart",
+    );
+    shows(
+        &mut browser,
+        &any("#timeline li.entry.datamanager"),
+        "the change in the timeline",
+    );
+    assert!(
+        text_of(
+            &mut browser,
+            "document.querySelector('#timeline').textContent"
+        )
+        .contains("datamanager feature: the replica on cart caught up and votes now"),
+        "the promotion told in the timeline"
+    );
+    browser.set_viewport(1400, 1500).unwrap();
+    screenshot(&mut browser, "monitor-replicas.png");
+
+    // and removed again: back to the three declared
+    let (ok, said) = change_from_page(&mut browser, "remove", "feature", "cart");
+    assert!(ok, "{said}");
+    assert!(
+        said.starts_with("feature: replica on cart removed (configuration committed at seq ")
+            && said.contains("cart removed: voters "),
+        "{said}"
+    );
+    assert_eq!(
+        voters_until(cart, "feature", |v| v.len() == 3),
+        declared.map(String::from)
+    );
+    shows(
+        &mut browser,
+        &format!("!({})", feature_lists("cart")),
+        "the leader no longer lists a replica on cart",
+    );
+    assert!(
+        text_of(
+            &mut browser,
+            "document.querySelector('#timeline').textContent"
+        )
+        .contains("datamanager feature: the replica on cart was removed"),
+        "the removal told in the timeline"
+    );
+    stop_up(up);
 }

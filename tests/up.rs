@@ -5,7 +5,7 @@
 
 use crate::common;
 
-use common::cluster::{ls_join, ls_join_rows, signal_pid, wait_gone, Proc};
+use common::cluster::{ls_join, ls_join_rows, node_line, signal_pid, wait_gone, Proc};
 use common::layouts::thesis_with;
 use common::monitor::page_of;
 use common::{marie, report_of, text};
@@ -112,14 +112,6 @@ fn the_thesis_layout_docks_with_the_dispatcher_on_a_process_of_its_own() {
             "{op}: {placed:?}"
         );
     }
-}
-
-/// `  cart at 127.0.0.1:4242 (pid 77): EO ultrasonic, ...` → (name, address, pid).
-fn node_line(line: &str) -> Option<(String, String, u32)> {
-    let (name, rest) = line.trim().split_once(" at ")?;
-    let (addr, rest) = rest.split_once(" (pid ")?;
-    let pid = rest.split_once(')')?.0.parse().ok()?;
-    Some((name.to_string(), addr.to_string(), pid))
 }
 
 #[test]

@@ -2,7 +2,8 @@
 // Live: one EventSource on /api/live (snapshot, state, lagged). Replay: the state at time T
 // from /api/replay/state?at_ms=T, T moved by play/pause, speed and the slider.
 // A click on a binding asks the live operation for its properties (/api/props); with faults
-// allowed, a button per fault kind the monitor names (/api/info) posts it (/api/fault).
+// allowed, a button per fault kind the monitor names (/api/info) posts it (/api/fault); with
+// changes allowed, a form adds or removes a datamanager's replica on a node (/api/replicas).
 // Plain JavaScript, no build step; every element has a stable id, class or data attribute
 // (browser tests query them).
 "use strict";
@@ -21,6 +22,8 @@ let selectedOp = null;
 let latest = null;
 // what /api/info says the page may offer
 let offers = { properties: false, operation_faults: false, stoppable_nodes: [], cuttable: false };
+// whether the page may add and remove datamanagers' replicas (/api/info)
+let changesAllowed = false;
 // the fault kinds by what they aim at (/api/info): a button per kind
 let faultKinds = { operation: [], node: [], cut: [], datamanager: [] };
 // what each kind does, for its button's title (a kind without one is titled by its name)
@@ -70,6 +73,7 @@ function render(state) {
   renderCluster(state.cluster);
   renderNoMajority(state.no_majority || {});
   renderStrength(state.strength || {});
+  renderReplicaForm(state);
   renderRobot(state.robot);
   renderTimeline(state.timeline);
   document.body.dataset.renders = String(++renders);
@@ -349,14 +353,14 @@ function isUp(n) {
 function woke(n) {
   if (!n.woke) return "";
   return ` <span class="woke" title="its operations restarted as new incarnations">` +
-    `(woke at ${(n.woke.at_ms / 1000).toFixed(1)} s from a ${(n.woke.silent_ms / 1000).toFixed(1)} s freeze)</span>`;
+    `(woke at ${fmtAt(n.woke.at_ms)} from a ${(n.woke.silent_ms / 1000).toFixed(1)} s freeze)</span>`;
 }
 
 // A node's latest return after it was lost (restarted, or heard again): when, after how long.
 function back(n) {
   if (!n.back) return "";
   return ` <span class="back" title="lost, then seen again by a peer">` +
-    `(back at ${(n.back.at_ms / 1000).toFixed(1)} s after ${(n.back.down_ms / 1000).toFixed(1)} s down)</span>`;
+    `(back at ${fmtAt(n.back.at_ms)} after ${(n.back.down_ms / 1000).toFixed(1)} s down)</span>`;
 }
 
 // The replicated datamanagers without a leader now, in the words marie ls says them.
@@ -384,6 +388,23 @@ function renderStrength(strength) {
         caught.concat(restored).join("; ") + `</div>`;
     })
     .join(""));
+}
+
+// The form that adds or removes a replica, when the page may: the replicated datamanagers
+// and the nodes the page knows of, offered (any name may be typed: the cluster answers).
+function renderReplicaForm(state) {
+  const form = $("#replicas");
+  form.hidden = !changesAllowed;
+  if (!changesAllowed) return;
+  const dms = new Set([...Object.keys(state.strength || {}), ...Object.keys(state.no_majority || {})]);
+  const nodes = [];
+  for (const n of Object.values(state.cluster)) {
+    if (isUp(n)) nodes.push(n.name);
+    for (const m of Object.values(n.modules)) if (m.dm && m.dm.role) dms.add(m.name);
+  }
+  const options = (names) => [...names].sort().map((x) => `<option value="${esc(x)}"></option>`).join("");
+  setHtml($("#replica-dms"), options(dms));
+  setHtml($("#replica-nodes"), options(nodes));
 }
 
 function renderCluster(cluster) {
@@ -414,9 +435,11 @@ function dmState(m) {
   const d = m.dm;
   if (!d) return "";
   const journal = d.durability === "memory" ? "in memory" : `${esc(d.durability)}, journal ${bytes(d.journal_bytes)}`;
+  // each other replica's node: a click puts it and the datamanager in the replicas' form
   const replicas = d.role
     ? ` · ${esc(d.role)} (term ${d.term}); replicas: ` +
-      Object.entries(d.lag).map(([node, lag]) => `${esc(node)} lag ${lag}`).join(", ")
+      Object.entries(d.lag).map(([node, lag]) =>
+        `<span class="replica" data-dm="${esc(m.name)}" data-node="${esc(node)}">${esc(node)}</span> lag ${lag}`).join(", ")
     : "";
   return ` <span class="dm-state">(${d.records} records, ${journal}${replicas})</span>`;
 }
@@ -532,6 +555,13 @@ $("#cluster").addEventListener("click", (ev) => {
     injectFault({ fault: button.dataset.fault, node: button.dataset.node });
     return;
   }
+  // a datamanager, or one of its replicas: into the replicas' form
+  const replica = ev.target.closest(".dm-state .replica, .module[data-kind=\"datamanager\"]");
+  if (replica && changesAllowed) {
+    $("#replica-dm").value = replica.dataset.dm || replica.dataset.module;
+    $("#replica-node").value = replica.dataset.node;
+    return;
+  }
   const module = ev.target.closest(".module[data-kind=\"operation\"]");
   if (module && offers.properties) {
     const d = module.dataset;
@@ -558,13 +588,44 @@ $("#module-props").addEventListener("click", (ev) => {
 });
 
 // Post a fault; its answer (or refusal) goes to #control-result.
-async function injectFault(request) {
+function injectFault(request) {
+  return postControl("/api/fault", request, "asking: " + request.fault + " " + (request.operation || request.node) + "…");
+}
+
+// Add or remove the replica the form names (a blank name is the monitor's to refuse); the
+// form waits for the answer, which can take a while: a replica added catches up first.
+async function changeReplicas(change) {
+  const form = $("#replicas");
+  if (form.dataset.busy === "true") return;
+  const dm = $("#replica-dm").value.trim();
+  const node = $("#replica-node").value.trim();
+  form.dataset.busy = "true";
+  form.querySelectorAll("button").forEach((b) => { b.disabled = true; });
+  try {
+    await postControl("/api/replicas", { change, dm, node },
+      `asking: ${change} the replica of ${dm || "?"} on ${node || "?"}…` +
+      (change === "add" ? " (it catches up before it votes)" : ""));
+  } finally {
+    form.dataset.busy = "false";
+    form.querySelectorAll("button").forEach((b) => { b.disabled = false; });
+  }
+}
+
+$("#replicas").addEventListener("submit", (ev) => {
+  ev.preventDefault();
+  changeReplicas("add");
+});
+$("#replica-remove").addEventListener("click", () => changeReplicas("remove"));
+
+// Post `request` as JSON to the control route `path`; its answer (or refusal) goes to
+// #control-result (`data-ok`: pending, then true or false).
+async function postControl(path, request, asking) {
   const out = $("#control-result");
   out.hidden = false;
   out.dataset.ok = "pending";
-  out.textContent = "asking: " + request.fault + " " + (request.operation || request.node) + "…";
+  out.textContent = asking;
   try {
-    const res = await fetch(withToken("/api/fault"), {
+    const res = await fetch(withToken(path), {
       method: "POST",
       headers: { "Content-Type": "application/json" },
       body: JSON.stringify(request),
@@ -671,7 +732,9 @@ async function replay() {
     const info = await getJson("/api/info");
     offers = info.offers || offers;
     faultKinds = info.fault_kinds || faultKinds;
+    changesAllowed = info.changes_allowed === true;
     document.body.dataset.faults = String(info.faults_allowed);
+    document.body.dataset.changes = String(changesAllowed);
     const mode = $("#mode");
     mode.dataset.mode = info.mode;
     mode.textContent = info.mode;

@@ -1,6 +1,8 @@
 //! What a viewer may ask of a live run beyond watching it: an operation's properties (on a
-//! click) and, only when the monitor was started with faults allowed, a fault — kill or hang
-//! an operation, stop a node's process.
+//! click); only when the monitor was started with faults allowed, a fault — kill or hang
+//! an operation, stop a node's process; and only when it was started with changes allowed,
+//! a change of a replicated datamanager's replicas — add one on a node, remove one (what
+//! `marie dm add-replica` and `remove-replica` do).
 //!
 //! Why a trait: reaching an operation (the registry, the property interface, fault
 //! injection) and a node's process (the children `marie up` started) is the node's and the
@@ -30,6 +32,19 @@
 //! let stop: FaultRequest = serde_json::from_str(r#"{"fault": "stop-node", "node": "wf-b"}"#).unwrap();
 //! assert_eq!(stop.on, FaultOn::Node { node: "wf-b".into() });
 //! assert!(stop.fits());
+//! ```
+//!
+//! A change of replicas names the change, the datamanager and the node:
+//!
+//! ```
+//! use marie_monitor::control::{ReplicaChange, ReplicaRequest};
+//! let add: ReplicaRequest =
+//!     serde_json::from_str(r#"{"change": "add", "dm": "feature", "node": "cart"}"#).unwrap();
+//! assert_eq!(add.change, ReplicaChange::Add);
+//! assert_eq!(add.unfit(), None);
+//! let blank: ReplicaRequest =
+//!     serde_json::from_str(r#"{"change": "remove", "dm": "feature", "node": " "}"#).unwrap();
+//! assert_eq!(blank.unfit().as_deref(), Some("name the node whose replica of feature to remove"));
 //! ```
 
 use marie_vocabulary::run::{Aim, FaultKind};
@@ -90,6 +105,56 @@ pub enum FaultOn {
     },
 }
 
+/// A change of a replicated datamanager's replicas asked for from the page:
+/// `{"change": "add" | "remove", "dm": NAME, "node": NAME}` — the replica of `dm` on `node`.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ReplicaRequest {
+    /// Add the replica, or remove it.
+    pub change: ReplicaChange,
+    /// The datamanager (its name, e.g. `feature`).
+    pub dm: String,
+    /// The node whose replica is added or removed.
+    pub node: String,
+}
+
+impl ReplicaRequest {
+    /// Why the request names nothing the cluster could be asked about (a blank name), if
+    /// it does not. Whether the names exist is the cluster's to say.
+    pub fn unfit(&self) -> Option<String> {
+        let verb = self.change.verb();
+        if self.dm.trim().is_empty() {
+            return Some(format!("name the datamanager whose replica to {verb}"));
+        }
+        if self.node.trim().is_empty() {
+            return Some(format!(
+                "name the node whose replica of {} to {verb}",
+                self.dm
+            ));
+        }
+        None
+    }
+}
+
+/// What a [`ReplicaRequest`] does.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ReplicaChange {
+    /// Start a replica on the node: a learner until it caught up, then a voter.
+    Add,
+    /// Take the node's replica out of the replicas, and stop it there.
+    Remove,
+}
+
+impl ReplicaChange {
+    /// `add` or `remove`.
+    pub fn verb(self) -> &'static str {
+        match self {
+            ReplicaChange::Add => "add",
+            ReplicaChange::Remove => "remove",
+        }
+    }
+}
+
 /// What a [`Control`] can do, as `/api/info` tells the page (which offers only that).
 #[derive(Clone, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct Offers {
@@ -109,10 +174,11 @@ pub struct Offers {
 /// Why a control request was not done.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum ControlError {
-    /// The operation or node is not (or no longer) there.
+    /// The operation, node or datamanager is not (or no longer) there.
     #[error("{0}")]
     NotFound(String),
-    /// The request names several instances, or cannot be done by this monitor.
+    /// The request names several instances, cannot be done by this monitor, or the
+    /// cluster refuses it as it is now (a replica already there, too few left).
     #[error("{0}")]
     Refused(String),
     /// It was tried and failed (the operation did not answer, the signal failed).
@@ -131,4 +197,9 @@ pub trait Control: Send + Sync + 'static {
 
     /// Inject `fault`; the answer says what was done, in a sentence.
     fn fault(&self, fault: FaultRequest) -> Answer<String>;
+
+    /// Add or remove a replica of a datamanager as `change` asks, and wait until it is done
+    /// (a replica added has caught up and votes); the answer says what was done, step by
+    /// step. Bounded by the control's own deadline.
+    fn replicas(&self, change: ReplicaRequest) -> Answer<String>;
 }

@@ -8,7 +8,8 @@
 //! - [`state`]: the [`MonitorState`] reduced from [`Event`](marie_vocabulary::events::Event)s
 //!   — task tree, bindings, cluster, robot, timeline, outcome.
 //! - [`control`]: what the page's clicks ask of a live run (an operation's properties;
-//!   faults when allowed), done by whoever started the monitor.
+//!   faults when allowed; a datamanager's replicas added or removed when allowed), done by
+//!   whoever started the monitor.
 //! - [`Monitor`]: the server — live on an [`EventBus`](marie_vocabulary::events::EventBus)
 //!   (and whatever else feeds it events), or replaying a `.jsonl` file.
 //!
@@ -38,8 +39,9 @@
 //! ```
 //!
 //! With a [`Control`] ([`MonitorOptions::with_control`]) the page also asks operations for
-//! their properties and, when allowed, injects faults; `marie`'s CLI hands it one that
-//! reaches the cluster's registry and `marie up`'s node processes.
+//! their properties and, when allowed, injects faults and moves datamanagers' replicas
+//! ([`MonitorOptions::allowing_changes`]); `marie`'s CLI hands it one that reaches the
+//! cluster's registry, its datamanagers' replica hosts and `marie up`'s node processes.
 
 pub mod control;
 pub mod state;
@@ -48,7 +50,9 @@ pub use state::MonitorState;
 pub mod error;
 mod server;
 
-pub use control::{Control, ControlError, FaultRequest, Offers, OperationRef};
+pub use control::{
+    Control, ControlError, FaultRequest, Offers, OperationRef, ReplicaChange, ReplicaRequest,
+};
 pub use error::MonitorError;
 pub use server::live::Feed;
 pub use server::{Binder, Monitor, MonitorHandle, MonitorOptions, DEFAULT_LISTEN};

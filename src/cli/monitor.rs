@@ -46,6 +46,15 @@ pub(crate) struct MonitorArgs {
     /// wherever it runs.
     #[arg(long, conflicts_with = "events")]
     pub allow_faults: bool,
+    /// With `--join`: the cluster's clock speed, a factor of real time (default 1), so that
+    /// what this monitor tells itself (nodes seen and lost, faults injected) is timed as the
+    /// nodes time their events.
+    #[arg(long, value_name = "FACTOR", requires = "join")]
+    pub speed: Option<f64>,
+    /// Let the page change the cluster it watches: add a datamanager's replica on a node,
+    /// remove one (what `marie dm add-replica` and `remove-replica` do).
+    #[arg(long, conflicts_with = "events")]
+    pub allow_changes: bool,
 }
 
 /// Serve the replay or the live cluster until SIGINT or SIGTERM.
@@ -53,7 +62,8 @@ pub(crate) async fn monitor(args: MonitorArgs) -> anyhow::Result<ExitCode> {
     let options = MonitorOptions {
         require_token: args.require_token,
         ..MonitorOptions::new(args.listen)
-    };
+    }
+    .allowing_changes(args.allow_changes);
     if let Some(path) = &args.events {
         let monitor = Monitor::replay(path, options).map_err(bad_file)?;
         // watched before the page's line: a Ctrl-C right after it is not missed
@@ -72,9 +82,12 @@ pub(crate) async fn monitor(args: MonitorArgs) -> anyhow::Result<ExitCode> {
         )
         .into());
     };
+    let speed = marie::cluster::layout::cluster_speed(args.speed.unwrap_or(1.0))
+        .map_err(|e| BadInput(format!("--speed: {e}")))?;
     let stop = super::signal::shutdown_signal(false);
     let watching = ClusterWatch::start(
         &target,
+        speed,
         options,
         args.allow_faults,
         NodeProcesses::default(),
@@ -230,11 +243,18 @@ pub(crate) struct ClusterWatch {
 }
 
 impl ClusterWatch {
-    /// Join the cluster at `target`, watch every node's events and serve them; the page
-    /// asks operations for their properties, and injects faults when `allow_faults` (also
-    /// stopping `processes`).
+    /// Join the cluster at `target`, whose clocks run `speed` times real time, watch every
+    /// node's events and serve them; the page asks operations for their properties,
+    /// injects faults when `allow_faults` (also stopping `processes`), and moves replicas
+    /// when `options` allow changes.
+    ///
+    /// Why the speed: this member's own news (nodes seen and lost, faults injected) is
+    /// stamped by a clock of its own, which must read the nodes' time — at another speed
+    /// its events would sort decades apart from theirs, and the page, which shows times
+    /// from the earliest event, would show the nodes' at nonsense.
     pub(crate) async fn start(
         target: &ClusterEntry,
+        speed: f64,
         options: MonitorOptions,
         allow_faults: bool,
         processes: NodeProcesses,
@@ -243,7 +263,7 @@ impl ClusterWatch {
         let transport = join(&me, target).await?;
         // this member's own news of the cluster (nodes seen, lost, declared down), and the
         // faults its page injects
-        let bus = EventBus::new(me.clone(), Arc::new(ScaledClock::cluster(1.0)));
+        let bus = EventBus::new(me.clone(), Arc::new(ScaledClock::cluster(speed)));
         let options = options.with_control(PageControl::new(bus.clone(), processes), allow_faults);
         let monitor = match Monitor::live(&bus, options) {
             Ok(m) => m,

@@ -1,17 +1,22 @@
 //! What the monitor's page may ask of the run it shows: an operation's live properties on a
-//! click, and with `--allow-faults` a fault of any kind — to an operation (wherever it runs:
+//! click; with `--allow-faults` a fault of any kind — to an operation (wherever it runs:
 //! the registry is the cluster's), or to a node whose process `marie up` started — through
-//! the one road of faults ([`marie::cluster::fault`]).
+//! the one road of faults ([`marie::cluster::fault`]); and with `--allow-changes` a replica
+//! of a datamanager added on a node or removed, through the road `marie dm` takes
+//! ([`marie::cluster::replicas`]), its refusals in the same words.
 //!
 //! The monitor runs this on its own thread and runtime; everything here is a registry
 //! lookup, an actor message or a signal, none of which needs the node's runtime.
 
 use super::props::ask_every_group;
 use marie::cluster::fault::{self, FaultError, Hit, Injector, NodeProcesses, Target, TargetError};
+use marie::cluster::replicas::{self, ChangeFailure, Step};
+use marie::dm::ChangeError;
 use marie::events::EventBus;
 use marie::run::{Aim, FaultKind};
 use marie_monitor::control::{
-    Answer, Control, ControlError, FaultOn, FaultRequest, Offers, OperationRef,
+    Answer, Control, ControlError, FaultOn, FaultRequest, Offers, OperationRef, ReplicaChange,
+    ReplicaRequest,
 };
 use std::sync::Arc;
 
@@ -99,6 +104,61 @@ impl Control for PageControl {
                 ),
             })
         })
+    }
+
+    fn replicas(&self, request: ReplicaRequest) -> Answer<String> {
+        Box::pin(async move {
+            PageControl::change_replicas(request)
+                .await
+                .map_err(change_error)
+        })
+    }
+}
+
+impl PageControl {
+    /// Add or remove the replica `request` names, as `marie dm` does (bounded by
+    /// [`replicas::CHANGE_WITHIN`]); what was done, step by step.
+    async fn change_replicas(request: ReplicaRequest) -> Result<String, ChangeFailure> {
+        let ReplicaRequest { change, dm, node } = request;
+        let mut steps = Vec::new();
+        let tell = |step: &Step| steps.push(step.to_string());
+        let within = replicas::CHANGE_WITHIN;
+        match change {
+            ReplicaChange::Add => replicas::add(&dm, &node, within, tell).await?,
+            ReplicaChange::Remove => replicas::remove(&dm, &node, within, tell).await?,
+        }
+        let done = match change {
+            ReplicaChange::Add => "added",
+            ReplicaChange::Remove => "removed",
+        };
+        Ok(format!(
+            "{dm}: replica on {node} {done} ({})",
+            steps.join("; ")
+        ))
+    }
+}
+
+/// A change the cluster did not make, as the page is answered: 404 for a datamanager or
+/// node it does not have (or a replica it does not keep), 409 for what it refuses as it is
+/// now, 502 for what was tried and failed — in `marie dm`'s words.
+fn change_error(e: ChangeFailure) -> ControlError {
+    let why = e.to_string();
+    match e {
+        ChangeFailure::UnknownDm(_)
+        | ChangeFailure::UnknownNode { .. }
+        | ChangeFailure::Refused {
+            why: ChangeError::NotAMember(_),
+            ..
+        } => ControlError::NotFound(why),
+        ChangeFailure::Unreplicated(_) | ChangeFailure::NoLeader(_) => ControlError::Refused(why),
+        ChangeFailure::Refused {
+            why: ChangeError::Interrupted(_),
+            ..
+        } => ControlError::Failed(why),
+        ChangeFailure::Refused { .. } => ControlError::Refused(why),
+        ChangeFailure::Host(_) | ChangeFailure::Dm { .. } | ChangeFailure::TimedOut { .. } => {
+            ControlError::Failed(why)
+        }
     }
 }
 

@@ -492,6 +492,15 @@ pub(crate) fn ls_join_rows(
     (out.status.code(), rows, super::text(&out.stderr))
 }
 
+/// A node's line as `marie up` lists it at the start — `  cart at 127.0.0.1:4242 (pid 77):
+/// EO ultrasonic, ...` → (name, address, pid).
+pub(crate) fn node_line(line: &str) -> Option<(String, String, u32)> {
+    let (name, rest) = line.trim().split_once(" at ")?;
+    let (addr, rest) = rest.split_once(" (pid ")?;
+    let pid = rest.split_once(')')?.0.parse().ok()?;
+    Some((name.to_string(), addr.to_string(), pid))
+}
+
 /// Send `signal` (e.g. `TERM`, `KILL`, `STOP`) to process `pid`.
 #[track_caller]
 pub(crate) fn signal_pid(pid: u32, signal: &str) {

@@ -5,17 +5,23 @@
 //! | route | answer |
 //! |---|---|
 //! | `GET /` | the page (`/app.js`, `/style.css` beside it) |
-//! | `GET /api/info` | `{"mode": "live" \| "replay", "token_required": bool, "faults_allowed": bool, "offers": {"properties", "operation_faults", "stoppable_nodes", "cuttable"}, "fault_kinds": {"operation": [..], "node": [..], "cut": [..], "datamanager": [..]}}`: what the page may offer ([`Offers`]), and the fault kinds by what they aim at (the page draws a button per kind) |
+//! | `GET /api/info` | `{"mode": "live" \| "replay", "token_required": bool, "faults_allowed": bool, "changes_allowed": bool, "offers": {"properties", "operation_faults", "stoppable_nodes", "cuttable"}, "fault_kinds": {"operation": [..], "node": [..], "cut": [..], "datamanager": [..]}}`: what the page may offer ([`Offers`]), and the fault kinds by what they aim at (the page draws a button per kind) |
 //! | `GET /api/state` | the state now (live) or after the whole run (replay), JSON |
 //! | `GET /api/live` | live only: server-sent events — `snapshot` (the state), then `state` on each change (at most 10 a second), `lagged` (`{"missed": n}`) then `snapshot` after a viewer fell behind |
 //! | `GET /api/replay/info` | replay only: `{"events", "start_ms", "end_ms", "duration_ms"}` |
 //! | `GET /api/replay/state?at_ms=T` | replay only: the state after every event up to T |
 //! | `GET /api/props?operation=NAME&node=N&address=A` | live, with a [`Control`]: the operation's properties, asked of it now (404: not running; 502: it did not answer) |
 //! | `POST /api/fault` | live, with a [`Control`] and faults allowed: a [`FaultRequest`] as JSON (`Content-Type: application/json`); 200 `{"done": "…"}`, 403 when faults are not allowed, 404 when the target is gone, 422 for an unknown kind or one that aims at something else |
+//! | `POST /api/replicas` | live, with a [`Control`] and changes allowed: a [`ReplicaRequest`] as JSON (`Content-Type: application/json`), answered once the change is done; 200 `{"done": "…"}` (its steps), 403 when changes are not allowed, 404 for a datamanager or node the cluster does not have (or a replica the node does not keep), 409 when the cluster refuses it (a replica already there, too few left, no leader, a change under way), 422 for a blank name, 502 when it was tried and failed |
 //!
-//! Why a fault needs `application/json`: a cross-site page cannot send that content type
-//! without the browser asking first (a CORS preflight, which the monitor never grants), so a
-//! page elsewhere cannot inject faults into a monitor on loopback.
+//! Why a fault or a change needs `application/json`: a cross-site page cannot send that
+//! content type without the browser asking first (a CORS preflight, which the monitor
+//! never grants), so a page elsewhere cannot inject faults into a monitor on loopback, nor
+//! move its cluster's replicas.
+//!
+//! Why changes have a permission of their own: a page allowed to inject faults (a drill on
+//! a test cluster) need not be one allowed to reshape where the datamanagers keep their
+//! replicas (an operator's console), and the other way round.
 //!
 //! Why a thread of its own: a node's `marie run` runs on a single-threaded runtime whose
 //! clock is virtual; the monitor's serving, serializing and rate limiting must take none of
@@ -27,7 +33,7 @@ pub(crate) mod live;
 pub(crate) mod replay;
 pub(crate) mod token;
 
-use crate::control::{Control, ControlError, FaultRequest, Offers, OperationRef};
+use crate::control::{Control, ControlError, FaultRequest, Offers, OperationRef, ReplicaRequest};
 use crate::error::MonitorError;
 use axum::extract::{Query, State};
 use axum::http::{header, StatusCode};
@@ -57,6 +63,9 @@ pub struct MonitorOptions {
     pub control: Option<Arc<dyn Control>>,
     /// Let the page inject faults through [`control`](Self::control) (`--allow-faults`).
     pub allow_faults: bool,
+    /// Let the page add and remove datamanagers' replicas through
+    /// [`control`](Self::control) (`--allow-changes`).
+    pub allow_changes: bool,
     /// How to bind the listener (default: [`std::net::TcpListener::bind`]) — e.g. in
     /// another network namespace than the calling thread's, where a browser reaches it.
     pub binder: Option<Binder>,
@@ -73,6 +82,7 @@ impl MonitorOptions {
             require_token: false,
             control: None,
             allow_faults: false,
+            allow_changes: false,
             binder: None,
         }
     }
@@ -89,6 +99,13 @@ impl MonitorOptions {
         self.allow_faults = allow_faults;
         self
     }
+
+    /// Let the page add and remove datamanagers' replicas through the control, when
+    /// `allowed` (the page offers it only with a control, on a live run).
+    pub fn allowing_changes(mut self, allowed: bool) -> Self {
+        self.allow_changes = allowed;
+        self
+    }
 }
 
 impl std::fmt::Debug for MonitorOptions {
@@ -98,6 +115,7 @@ impl std::fmt::Debug for MonitorOptions {
             .field("require_token", &self.require_token)
             .field("control", &self.control.as_ref().map(|c| c.offers()))
             .field("allow_faults", &self.allow_faults)
+            .field("allow_changes", &self.allow_changes)
             .field("binder", &self.binder.is_some())
             .finish()
     }
@@ -143,6 +161,7 @@ struct App {
     /// Live only (a replay has no run to ask).
     control: Option<Arc<dyn Control>>,
     allow_faults: bool,
+    allow_changes: bool,
 }
 
 impl App {
@@ -291,6 +310,7 @@ fn start(
         token: token.clone(),
         control: options.control.clone(),
         allow_faults: options.allow_faults,
+        allow_changes: options.allow_changes,
     });
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
@@ -345,6 +365,7 @@ fn router(app: Shared) -> Router {
         .route("/api/replay/state", get(replay_state))
         .route("/api/props", get(props))
         .route("/api/fault", post(fault))
+        .route("/api/replicas", post(replicas))
         .layer(axum::middleware::from_fn_with_state(token, token::check))
         .with_state(app)
 }
@@ -404,6 +425,7 @@ async fn info(State(app): State<Shared>) -> Response {
         "mode": mode,
         "token_required": app.token.is_some(),
         "faults_allowed": app.allow_faults && app.live_control().is_some(),
+        "changes_allowed": app.allow_changes && app.live_control().is_some(),
         "offers": app.offers(),
         "fault_kinds": {
             "operation": FaultKind::aiming_at(Aim::Operation).collect::<Vec<_>>(),
@@ -465,6 +487,29 @@ async fn fault(State(app): State<Shared>, Json(request): Json<FaultRequest>) -> 
     }
     tracing::warn!(?request, "fault asked from the monitor's page");
     match control.fault(request).await {
+        Ok(done) => json_of(&serde_json::json!({ "done": done })),
+        Err(e) => control_error(e),
+    }
+}
+
+async fn replicas(State(app): State<Shared>, Json(request): Json<ReplicaRequest>) -> Response {
+    let Some(control) = app.live_control() else {
+        return refused(
+            StatusCode::NOT_FOUND,
+            "a replay has no cluster whose replicas could change",
+        );
+    };
+    if !app.allow_changes {
+        return refused(
+            StatusCode::FORBIDDEN,
+            "changes from the page are off: start the monitor with --allow-changes",
+        );
+    }
+    if let Some(why) = request.unfit() {
+        return refused(StatusCode::UNPROCESSABLE_ENTITY, why);
+    }
+    tracing::warn!(?request, "replica change asked from the monitor's page");
+    match control.replicas(request).await {
         Ok(done) => json_of(&serde_json::json!({ "done": done })),
         Err(e) => control_error(e),
     }

@@ -107,6 +107,10 @@ pub(crate) struct RunArgs {
     /// `marie up`, stop a node's process) — and watch the dispatcher rebind.
     #[arg(long, requires = "monitor")]
     pub allow_faults: bool,
+    /// With `--monitor`: let the page add a datamanager's replica on a node and remove one
+    /// (what `marie dm add-replica` and `remove-replica` do; a run that joined a cluster).
+    #[arg(long, requires = "monitor")]
+    pub allow_changes: bool,
     /// The node processes the page and the faults may stop, freeze or cut apart (`marie
     /// up`'s children; none otherwise).
     #[arg(skip)]

@@ -34,8 +34,9 @@ impl LivePage {
         says: bool,
     ) -> anyhow::Result<LivePage> {
         let control = PageControl::new(bus.clone(), asked.processes.clone());
-        let options =
-            PrivateNet::monitor_options(asked.listen).with_control(control, asked.allow_faults);
+        let options = PrivateNet::monitor_options(asked.listen)
+            .with_control(control, asked.allow_faults)
+            .allowing_changes(asked.allow_changes);
         let (monitor, relay) =
             crate::cli::monitor::start_live(bus, options, in_cluster, dispatched_elsewhere).await?;
         let what = format!("mission `{mission}`");

@@ -72,6 +72,8 @@ pub(super) struct MonitorPlan {
     pub(super) listen: SocketAddr,
     /// `--allow-faults`.
     pub(super) allow_faults: bool,
+    /// `--allow-changes`.
+    pub(super) allow_changes: bool,
     /// The node processes its faults may stop (`marie up`'s children).
     pub(super) processes: NodeProcesses,
 }
@@ -138,6 +140,7 @@ impl Plan {
             monitor: flags.monitor.map(|listen| MonitorPlan {
                 listen,
                 allow_faults: flags.allow_faults,
+                allow_changes: flags.allow_changes,
                 processes: flags.node_processes,
             }),
             mission_over: flags.mission_over,

@@ -195,6 +195,7 @@ fn run_flags(
         node_chaos: turn.chaos.clone().map(Box::new),
         monitor: args.monitor,
         allow_faults: args.allow_faults,
+        allow_changes: args.allow_changes,
         node_processes: processes,
         mission_over,
         kept: turn.kept.clone(),

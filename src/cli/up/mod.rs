@@ -92,6 +92,10 @@ pub(crate) struct UpArgs {
     /// fail over.
     #[arg(long, requires = "monitor")]
     pub allow_faults: bool,
+    /// With `--monitor`: let the page add a datamanager's replica on a node and remove one
+    /// (what `marie dm add-replica` and `remove-replica` do).
+    #[arg(long, requires = "monitor")]
+    pub allow_changes: bool,
     /// With `--run`: inject a fault while the mission runs, as `marie run --fault` does,
     /// and the node faults only `marie up` can do: `stop-node:NODE@SECS` (`SIGKILL`),
     /// `freeze-node:NODE@SECS+SECS` (`SIGSTOP`, then `SIGCONT`), `partition:A,B|C,D@SECS+SECS`

@@ -102,10 +102,16 @@ async fn watch(
 ) -> anyhow::Result<ExitCode> {
     let watching = match args.monitor {
         Some(listen) => {
-            let options = PrivateNet::monitor_options(listen);
+            let options = PrivateNet::monitor_options(listen).allowing_changes(args.allow_changes);
             Some(
-                ClusterWatch::start(&plan.first_node(), options, args.allow_faults, processes)
-                    .await?,
+                ClusterWatch::start(
+                    &plan.first_node(),
+                    plan.speed,
+                    options,
+                    args.allow_faults,
+                    processes,
+                )
+                .await?,
             )
         }
         None => None,
