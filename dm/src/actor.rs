@@ -192,5 +192,6 @@ pub async fn spawn_datamanager_linked(
 /// (`replica::incarnation`); one without replicas has none.
 fn actor_name(args: &DmArgs) -> Option<String> {
     let replication = args.replication.as_ref()?;
-    Some(Incarnation::draw().actor_name(&args.name, &replication.me))
+    let group = super::replica_state::group(&args.name, &replication.me);
+    Some(Incarnation::draw().actor_name(&group))
 }

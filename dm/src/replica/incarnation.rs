@@ -41,9 +41,9 @@ impl Incarnation {
         Incarnation(h.finish())
     }
 
-    /// The name the replica of `dm` on `node` is spawned under, in this incarnation.
-    pub(crate) fn actor_name(self, dm: &str, node: &str) -> String {
-        format!("{}#{:016x}", crate::replica_state::group(dm, node), self.0)
+    /// The name a replica whose group is `group` is spawned under, in this incarnation.
+    pub(crate) fn actor_name(self, group: &str) -> String {
+        format!("{group}#{:016x}", self.0)
     }
 
     /// The incarnation an actor's name carries (`None`: it carries none, as a replica of
@@ -69,7 +69,7 @@ mod tests {
     #[test]
     fn an_incarnation_is_read_back_from_the_name_it_gives_and_each_start_draws_another() {
         let a = Incarnation::draw();
-        let name = a.actor_name("feature", "spare");
+        let name = a.actor_name("feature/spare");
         assert!(name.starts_with("feature/spare#"), "{name}");
         assert_eq!(Incarnation::of_name(&name), Some(a));
         assert_ne!(Incarnation::draw(), a);
