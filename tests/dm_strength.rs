@@ -152,6 +152,10 @@ fn a_session_to_a_live_replica_dialled_anew_is_no_loss_and_its_node_restarted_is
             assert!(start.elapsed() < T, "no new session to r2 within {T:?}");
             tokio::time::sleep(Duration::from_millis(10)).await;
         };
+        eprintln!(
+            "r2's replica found through a new session {} ms after the old one ended",
+            start.elapsed().as_millis()
+        );
         assert_eq!(
             (after.get_id().pid(), after.get_name()),
             (before.get_id().pid(), before.get_name()),
