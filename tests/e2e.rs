@@ -26,6 +26,7 @@ mod dm_checker;
 mod dm_failover;
 mod dm_membership;
 mod dm_replicas;
+mod dm_strength;
 mod events_file;
 mod examples;
 mod export;

@@ -22,6 +22,7 @@
 use super::applied::Tally;
 use super::args::DmArgs;
 use super::messages::DmMsg;
+use super::replica::incarnation::Incarnation;
 use super::start::{self, Mode};
 use super::state::DatamanagerState;
 use super::storage::Storage;
@@ -175,7 +176,7 @@ impl Actor for Datamanager {
 pub async fn spawn_datamanager(
     args: DmArgs,
 ) -> Result<(ActorRef<DmMsg>, JoinHandle<()>), SpawnErr> {
-    Actor::spawn(None, Datamanager, args).await
+    Actor::spawn(actor_name(&args), Datamanager, args).await
 }
 
 /// Spawn a datamanager linked to `supervisor`.
@@ -183,5 +184,14 @@ pub async fn spawn_datamanager_linked(
     args: DmArgs,
     supervisor: ActorCell,
 ) -> Result<(ActorRef<DmMsg>, JoinHandle<()>), SpawnErr> {
-    Actor::spawn_linked(None, Datamanager, args, supervisor).await
+    Actor::spawn_linked(actor_name(&args), Datamanager, args, supervisor).await
+}
+
+/// The name a datamanager's actor is spawned under: a replica's carries a fresh
+/// incarnation, which tells its peers a new start of it from a new session to it
+/// (`replica::incarnation`); one without replicas has none.
+fn actor_name(args: &DmArgs) -> Option<String> {
+    let replication = args.replication.as_ref()?;
+    let group = super::replica_state::group(&args.name, &replication.me);
+    Some(Incarnation::draw().actor_name(&group))
 }

@@ -17,6 +17,7 @@ use super::producers::Producers;
 use super::query::Query;
 use super::record::NewRecord;
 use super::replica::core::Out;
+use super::replica::incarnation::Incarnation;
 use super::replica::{apply, Change, ChangeError, InstallPart, Members, OpBody, ReplicaMsg, SCOPE};
 use super::replica_state::{group, Incoming, ReplicaState};
 use super::state::DatamanagerState;
@@ -201,17 +202,20 @@ impl DatamanagerState {
             match (known, found) {
                 (Some(a), Some(b)) if a == b.get_id() => {}
                 (_, Some(b)) => {
-                    if known.is_some() {
-                        // another actor: its node was restarted, and its replica lags
-                        replica.redundancy.lost(&m, now, replica.core.last().0);
-                    }
+                    // first seen, back, or another actor: a new session to it (a remote
+                    // actor's id is its session's) or a new start of it (its node
+                    // restarted: it lags) — its incarnation tells which
+                    let start = Incarnation::of(&b);
+                    replica
+                        .redundancy
+                        .seen(&m, start, now, replica.core.last().0);
                     replica.peers.insert(m.clone(), b);
-                    tracing::debug!(dm = %replica.name, peer = %m, "replica: a replica is reachable");
+                    tracing::debug!(dm = %replica.name, peer = %m, ?start, "replica: a replica is reachable");
                     replica.core.peer_up(&m, now, &mut out);
                 }
                 (Some(_), None) => {
                     replica.peers.remove(&m);
-                    replica.redundancy.lost(&m, now, replica.core.last().0);
+                    replica.redundancy.left(&m, now, replica.core.last().0);
                     tracing::debug!(dm = %replica.name, peer = %m, "replica: a replica is gone");
                     replica.core.peer_down(&m, now);
                 }

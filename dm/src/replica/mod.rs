@@ -45,6 +45,7 @@
 
 pub(crate) mod apply;
 pub(crate) mod core;
+pub(crate) mod incarnation;
 pub(crate) mod kept;
 pub(crate) mod lease;
 mod members;

@@ -3,12 +3,21 @@
 //! waits for before the next fault may strike, told as events with how long it took.
 //!
 //! The leader decides (it alone knows how far each replica lags); a replica is *behind*
-//! from the moment this replica saw it leave the replicas' group, or come back as another
-//! actor (a restarted node's), whatever this replica's role then — a new leader elected
-//! after the loss knows since when —, until, with this replica the leader, it is in the
-//! group again and lacks no committed entry (newer ones may be in flight: under a steady
-//! stream of writes the lag to the last entry is seldom 0 for every replica at once).
-//! Time is passed in, as in the core.
+//! from the moment this replica saw it leave the replicas' group — or, never seen gone,
+//! come back as another start of its actor (a restarted node's) —, whatever this
+//! replica's role then — a new leader elected after the loss knows since when —, until,
+//! with this replica the leader, it is in the group again and lacks no committed entry
+//! (newer ones may be in flight: under a steady stream of writes the lag to the last entry
+//! is seldom 0 for every replica at once). Time is passed in, as in the core.
+//!
+//! A replica that leaves the group is lost only once it is seen to be: back as another
+//! start ([`Incarnation`](super::incarnation::Incarnation): its process or its actor started
+//! again), or back after [`SESSION_GRACE`] or more — then timed from its leave. Back as the
+//! same start within the grace, it was never lost: its session to this node was dialled
+//! anew (a duplicate session closed after its twin authenticated, a re-dial after a reset
+//! connection, as around a node's restart), which shows the live replica as another actor
+//! after a moment out of the group. A replica whose start is unknown (a build before
+//! incarnations) counts, seen as another actor, as another start.
 //!
 //! A follower forgets a lost replica once the leader's word says every replica durably
 //! holds the log up to where it was at the loss (`Append.held`): the leader tells that
@@ -19,10 +28,12 @@
 //! lead — two of three replicas lost at once, the next leader one of them — it tells the
 //! strength restored, timed from its start (the loss it cannot know). What it does not
 //! see: the other replicas' losses before its start, told one by one only by a leader
-//! that saw them. A session to a peer dialled anew (as at a node's start) shows its
-//! replica as another actor, which is told as a loss caught up at once; and a leader
-//! elected between a recovery and the word that covers it may tell it a second time.
+//! that saw them. A freeze or a cut of a replica's node whose sessions are back within the
+//! grace of their end (the failure detector closed them, the node was heard again at
+//! once) is not told; and a leader elected between a recovery and the word that covers it
+//! may tell it a second time.
 
+use super::incarnation::Incarnation;
 use std::collections::{BTreeMap, BTreeSet};
 use std::time::Duration;
 
@@ -45,6 +56,18 @@ pub(crate) enum Strength {
     },
 }
 
+/// How long a replica may be out of the replicas' group and come back as the same start
+/// without being lost. A session to a live peer is dialled anew at once — the transport
+/// redials as soon as a session ends, and a duplicate session ends tens of ms after its
+/// twin authenticated — but a dial whose session is turned away (the peer still holds the
+/// old one, or dialled at the same moment) waits out the transport's dial timeout (2 s)
+/// before the next: a new session to a live replica measured 10–240 ms after the old one
+/// ended, once in a dozen 2.1 s. 3 s covers that on a loaded machine. A frozen or cut-off
+/// node is out of the group from when the failure detector closes its sessions (after
+/// 1.2 s of silence) until it is heard again: one heard again within the grace of that is
+/// not told.
+pub(crate) const SESSION_GRACE: Duration = Duration::from_secs(3);
+
 /// The replicas that are behind, and since when.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct Redundancy {
@@ -52,6 +75,11 @@ pub(crate) struct Redundancy {
     behind: BTreeMap<String, (Duration, u64)>,
     /// The first loss of the current spell of reduced strength.
     reduced_since: Option<Duration>,
+    /// The start each other replica was last seen as (`None`: its actor carries none).
+    starts: BTreeMap<String, Option<Incarnation>>,
+    /// Each replica out of the group, not yet known lost: since when, and the last seq this
+    /// replica held then.
+    away: BTreeMap<String, (Duration, u64)>,
 }
 
 impl Redundancy {
@@ -63,16 +91,55 @@ impl Redundancy {
     /// replica holds ends it on a follower, as it ends a loss seen.
     pub(crate) fn new(started_again: Option<Duration>) -> Self {
         Redundancy {
-            behind: BTreeMap::new(),
             reduced_since: started_again,
+            ..Redundancy::default()
         }
     }
 
-    /// The replica on `node` left the group at `now` (its node lost, its actor gone), when
-    /// this replica's log ended at `last`.
-    pub(crate) fn lost(&mut self, node: &str, now: Duration, last: u64) {
-        self.behind.entry(node.to_string()).or_insert((now, last));
-        self.reduced_since.get_or_insert(now);
+    /// The replica on `node` left the group at `now` (its node lost, its actor gone — or
+    /// only its session to this node), when this replica's log ended at `last`: lost if it
+    /// comes back as another start, or late ([`Redundancy::seen`]).
+    pub(crate) fn left(&mut self, node: &str, now: Duration, last: u64) {
+        self.away.entry(node.to_string()).or_insert((now, last));
+    }
+
+    /// The replica on `node` is in the group at `now` as an actor of start `start` — the
+    /// first seen of it, back after [`Redundancy::left`], or another actor than the one seen
+    /// before (a new session to it, or a new start) —, this replica's log ending at `last`.
+    /// Another start than the one seen before is a loss: timed from its leave if it was
+    /// seen leaving, else from now; the same start back after [`SESSION_GRACE`] or more is
+    /// one too (it was out of reach).
+    pub(crate) fn seen(
+        &mut self,
+        node: &str,
+        start: Option<Incarnation>,
+        now: Duration,
+        last: u64,
+    ) {
+        let before = self.starts.insert(node.to_string(), start);
+        let another = match before {
+            // never seen before: nothing to compare with
+            None => false,
+            Some(before) => before.is_none() || before != start,
+        };
+        match self.away.remove(node) {
+            // out of reach for longer than a new session takes, or another start
+            Some((since, held)) if another || now.saturating_sub(since) >= SESSION_GRACE => {
+                self.lost(node, since, held);
+            }
+            // a new session to the same start
+            Some(_) => {}
+            None if another => self.lost(node, now, last),
+            None => {}
+        }
+    }
+
+    /// The replica on `node` was lost at `since`, when this replica's log ended at `last`.
+    fn lost(&mut self, node: &str, since: Duration, last: u64) {
+        self.behind.entry(node.to_string()).or_insert((since, last));
+        // a loss known late (back after its leave) may be the spell's first
+        let first = self.reduced_since.map_or(since, |s| s.min(since));
+        self.reduced_since = Some(first);
     }
 
     /// As a follower: the leader says every replica holds the log durably up to `held`.
@@ -104,6 +171,7 @@ impl Redundancy {
         now: Duration,
     ) -> Vec<Strength> {
         self.behind.retain(|n, _| lag.contains_key(n));
+        self.away.retain(|n, _| lag.contains_key(n));
         let current = |n: &String| present.contains(n) && lag.get(n) == Some(&0);
         let caught: Vec<String> = self.behind.keys().filter(|n| current(n)).cloned().collect();
         let mut news = Vec::new();
@@ -267,5 +335,151 @@ mod tests {
         assert!(Redundancy::new(None)
             .look(&set(&["b"]), &lags(&[("b", 0)]), ms(5))
             .is_empty());
+    }
+
+    /// Start `n` of a replica, as its actor's name carries it.
+    fn start(n: u64) -> Option<Incarnation> {
+        Incarnation::of_name(&format!("dm/b#{n:016x}"))
+    }
+
+    /// Nothing to tell, nothing behind.
+    fn quiet(r: &mut Redundancy, at: Duration) {
+        assert!(!r.reduced());
+        let news = r.look(&set(&["b", "c"]), &lags(&[("b", 0), ("c", 0)]), at);
+        assert!(news.is_empty(), "{news:?}");
+    }
+
+    #[test]
+    fn a_new_session_to_the_same_start_of_a_replica_is_no_loss() {
+        let mut r = Redundancy::default();
+        r.seen("b", start(1), ms(0), 5);
+        r.seen("c", start(2), ms(0), 5);
+        // the session ends and is dialled again: out of the group for a moment, back as
+        // the same start (another actor, the same incarnation)
+        r.left("b", ms(100), 10);
+        r.seen("b", start(1), ms(130), 10);
+        quiet(&mut r, ms(200));
+        // or another actor of the same start found before its twin's leave was seen
+        r.seen("b", start(1), ms(300), 12);
+        quiet(&mut r, ms(400));
+        // out for just under the grace: still the same session dialled anew
+        r.left("c", ms(1_000), 20);
+        r.seen("c", start(2), ms(1_000) + SESSION_GRACE - ms(1), 20);
+        quiet(&mut r, ms(1_000) + SESSION_GRACE);
+    }
+
+    #[test]
+    fn another_start_of_a_replica_is_a_loss_timed_from_its_leave_or_from_when_it_was_found() {
+        let mut r = Redundancy::default();
+        r.seen("b", start(1), ms(0), 0);
+        // killed (it leaves the group), started again fast (back within the grace)
+        r.left("b", ms(100), 10);
+        assert!(!r.reduced(), "not known lost while it is away");
+        r.seen("b", start(2), ms(300), 30);
+        assert!(r.reduced());
+        let news = r.look(&set(&["b", "c"]), &lags(&[("b", 0), ("c", 0)]), ms(900));
+        assert_eq!(
+            news,
+            vec![
+                Strength::CaughtUp {
+                    node: "b".into(),
+                    after: ms(800)
+                },
+                Strength::Restored {
+                    replicas: 3,
+                    after: ms(800)
+                }
+            ]
+        );
+        // a new start found with no leave seen (its actor crashed and came back in a
+        // blink): lost from when it was found
+        r.seen("b", start(3), ms(1_000), 40);
+        let news = r.look(&set(&["b", "c"]), &lags(&[("b", 0), ("c", 0)]), ms(1_250));
+        assert_eq!(
+            news[0],
+            Strength::CaughtUp {
+                node: "b".into(),
+                after: ms(250)
+            }
+        );
+    }
+
+    #[test]
+    fn the_same_start_of_a_replica_back_after_the_grace_was_lost_from_its_leave() {
+        let mut r = Redundancy::default();
+        r.seen("b", start(1), ms(0), 0);
+        r.seen("c", start(2), ms(0), 0);
+        // its node frozen past the failure detector's deadline: out, then back as itself
+        r.left("b", ms(500), 10);
+        r.seen("b", start(1), ms(500) + SESSION_GRACE, 60);
+        assert!(r.reduced());
+        let back = ms(500) + SESSION_GRACE;
+        let news = r.look(&set(&["b"]), &lags(&[("b", 0), ("c", 0)]), back + ms(200));
+        assert_eq!(
+            news,
+            vec![Strength::CaughtUp {
+                node: "b".into(),
+                after: SESSION_GRACE + ms(200)
+            }]
+        );
+        // c away (not yet known lost) and absent: not restored
+        r.left("c", back + ms(300), 50);
+        assert!(r
+            .look(&set(&["b"]), &lags(&[("b", 0), ("c", 0)]), back + ms(400))
+            .is_empty());
+        assert!(r.reduced());
+        // c back within the grace: its session dialled anew; strength restored from b's loss
+        r.seen("c", start(2), back + ms(500), 70);
+        let news = r.look(
+            &set(&["b", "c"]),
+            &lags(&[("b", 0), ("c", 0)]),
+            back + ms(600),
+        );
+        assert_eq!(
+            news,
+            vec![Strength::Restored {
+                replicas: 3,
+                after: SESSION_GRACE + ms(600)
+            }]
+        );
+    }
+
+    #[test]
+    fn a_replica_of_unknown_start_seen_as_another_actor_counts_as_another_start() {
+        // a replica of a build whose actor carries no incarnation: as before them
+        let mut r = Redundancy::default();
+        r.seen("b", None, ms(0), 0);
+        r.seen("b", None, ms(100), 10);
+        assert!(r.reduced());
+        let mut r = Redundancy::default();
+        r.seen("b", None, ms(0), 0);
+        r.left("b", ms(100), 10);
+        r.seen("b", None, ms(110), 10);
+        assert!(r.reduced());
+        // the first sight of a replica is no loss, whatever its start
+        let mut r = Redundancy::default();
+        r.seen("b", None, ms(0), 0);
+        r.seen("c", start(2), ms(0), 0);
+        quiet(&mut r, ms(10));
+    }
+
+    #[test]
+    fn a_loss_known_late_opens_the_spell_of_reduced_strength_from_its_leave() {
+        let mut r = Redundancy::default();
+        r.seen("b", start(1), ms(0), 0);
+        r.seen("c", start(2), ms(0), 0);
+        r.left("b", ms(100), 10);
+        // c restarted in a blink meanwhile: lost at 400
+        r.seen("c", start(3), ms(400), 10);
+        // b back as another start at 900: lost since 100, the spell's first loss
+        r.seen("b", start(4), ms(900), 10);
+        let news = r.look(&set(&["b", "c"]), &lags(&[("b", 0), ("c", 0)]), ms(1_000));
+        assert_eq!(
+            news.last(),
+            Some(&Strength::Restored {
+                replicas: 3,
+                after: ms(900)
+            })
+        );
     }
 }
