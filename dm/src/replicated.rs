@@ -190,8 +190,14 @@ impl DatamanagerState {
         };
         let now = replica.now();
         let mut out = Vec::new();
-        let others = replica.core.others();
-        // a replica no configuration names any more is no peer
+        let members = replica.core.others();
+        let mut others = members.clone();
+        if replica.core.is_leader() {
+            // and, on the leader, the replicas that run though no configuration names them:
+            // it tells them they are out (`Core::outsider_seen`)
+            others.extend(strangers(&replica.name, replica.core.me(), &members));
+        }
+        // a replica no configuration names any more is no peer (but an outsider told)
         replica.peers.retain(|p, _| others.contains(p));
         for m in others {
             let found = pg::get_scoped_members(&SCOPE.to_string(), &group(&replica.name, &m))
@@ -201,7 +207,7 @@ impl DatamanagerState {
             match (known, found) {
                 (Some(a), Some(b)) if a == b.get_id() => {}
                 (_, Some(b)) => {
-                    if known.is_some() {
+                    if known.is_some() && members.contains(&m) {
                         // another actor: its node was restarted, and its replica lags
                         replica.redundancy.lost(&m, now, replica.core.last().0);
                     }
@@ -211,7 +217,9 @@ impl DatamanagerState {
                 }
                 (Some(_), None) => {
                     replica.peers.remove(&m);
-                    replica.redundancy.lost(&m, now, replica.core.last().0);
+                    if members.contains(&m) {
+                        replica.redundancy.lost(&m, now, replica.core.last().0);
+                    }
                     tracing::debug!(dm = %replica.name, peer = %m, "replica: a replica is gone");
                     replica.core.peer_down(&m, now);
                 }
@@ -314,7 +322,8 @@ impl DatamanagerState {
         self.store = inc.store;
         self.fences = inc.fences;
         self.producers = table;
-        replica.core.installed(last.0, last.1, members);
+        let mut out = Vec::new();
+        replica.core.installed(last.0, last.1, members, &mut out);
         replica.snapshots_taken += 1;
         replica.last_time = replica.last_time.max(self.store.last_time());
         journal.snapshot(
@@ -332,6 +341,8 @@ impl DatamanagerState {
                 });
             }
         }));
+        // (an outsider told by the snapshot that it is out)
+        self.carry_out(myself, out);
     }
 
     /// Carry out what the core asked for, in order; then answer the reads that may be, and
@@ -627,4 +638,15 @@ impl ReplicaState {
             });
         }
     }
+}
+
+/// The nodes where a replica of `dm` runs, as the replicas' groups show (`DM/NODE` in
+/// [`SCOPE`]), that are neither `me` nor among `known`.
+fn strangers(dm: &str, me: &str, known: &[String]) -> Vec<String> {
+    let prefix = format!("{dm}/");
+    pg::which_scoped_groups(&SCOPE.to_string())
+        .into_iter()
+        .filter_map(|g| g.strip_prefix(&prefix).map(str::to_string))
+        .filter(|n| n != me && !known.contains(n))
+        .collect()
 }
