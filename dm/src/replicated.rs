@@ -197,6 +197,13 @@ impl DatamanagerState {
             // it tells them they are out (`Core::outsider_seen`)
             others.extend(strangers(&replica.name, replica.core.me(), &members));
         }
+        // and the leader it follows, though no configuration it holds names it (an outsider
+        // being told it is out: its configurations are older than that leader)
+        if let Some(l) = replica.core.leader() {
+            if l != replica.core.me() && !others.iter().any(|o| o == l) {
+                others.push(l.to_string());
+            }
+        }
         // a replica no configuration names any more is no peer (but an outsider told)
         replica.peers.retain(|p, _| others.contains(p));
         for m in others {
@@ -244,6 +251,7 @@ impl DatamanagerState {
                 last_term,
                 part,
             } => {
+                replica.reach(&leader);
                 if replica
                     .core
                     .install_from(term, &leader, last_seq, now, &mut out)
@@ -254,7 +262,11 @@ impl DatamanagerState {
                 }
             }
             msg => {
-                if let ReplicaMsg::Append { ops, held, .. } = &msg {
+                if let ReplicaMsg::Append {
+                    ops, held, leader, ..
+                } = &msg
+                {
+                    replica.reach(leader);
                     replica.arrived = Some(ops.raw());
                     replica.redundancy.held_everywhere(*held);
                 }
@@ -621,9 +633,11 @@ impl ReplicaState {
     }
 
     /// A configuration without this replica was committed: it is out, and says so in the
-    /// log (it campaigns no more; its node stops it when asked).
+    /// log and on its node (`dm_replica_out`: it campaigns no more; its node's replica host
+    /// stops it).
     pub(crate) fn removed(&self) {
         tracing::warn!(dm = %self.name, node = %self.core.me(), "replica: removed from the replicas: it takes no part any more");
+        self.tell_out();
     }
 
     /// It was the leader and is not any more: say so (the log and the `dm_fenced` event).

@@ -388,6 +388,7 @@ impl Node {
             clock: self.starter.clock.clone(),
             events: self.bus.clone(),
             root: self.starter.root.clone(),
+            dropped: Default::default(),
         });
         if let Err(e) = self.starter.root.start_child(spec).await {
             tracing::warn!("the node will not host replicas on request: {e}");

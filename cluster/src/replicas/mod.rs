@@ -24,4 +24,5 @@ pub mod joined;
 pub mod replace;
 
 pub use change::{add, remove, ChangeFailure, Step, CHANGE_WITHIN};
+pub(crate) use host::ask as ask_host;
 pub use host::{host_of, hosts, publish, Declaration, HostMsg, HostRefusal, SCOPE};

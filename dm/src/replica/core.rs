@@ -575,12 +575,18 @@ impl Core {
         others.dedup();
         self.visible.retain(|v| others.contains(v));
         let next = self.last().0 + 1;
-        if let Role::Leader { peers, .. } = &mut self.role {
+        if let Role::Leader {
+            peers, outsiders, ..
+        } = &mut self.role
+        {
             peers.retain(|p, _| others.contains(p));
             for o in &others {
+                // an outsider added (a replica started to join, met before its addition):
+                // what it was sent counts — a snapshot on its way is not sent twice
+                let met = outsiders.remove(o);
                 peers
                     .entry(o.clone())
-                    .or_insert_with(|| Progress::fresh(next));
+                    .or_insert_with(|| met.unwrap_or_else(|| Progress::fresh(next)));
             }
         }
         self.others = others;
@@ -1859,7 +1865,7 @@ impl Core {
         if outsiders.contains_key(node) {
             return;
         }
-        tracing::info!(me = %self.me, node, "replica: a replica no configuration names: telling it it is out");
+        tracing::debug!(me = %self.me, node, "replica: a replica no configuration names: sent the log up to the configuration without it");
         outsiders.insert(node.to_string(), Progress::fresh(next));
         self.send_to(node, now, true, &mut Vec::new(), out);
     }
@@ -1872,7 +1878,7 @@ impl Core {
             return;
         };
         if outsiders.get(node).is_some_and(|pr| pr.matched >= upto) {
-            tracing::info!(me = %self.me, node, "replica: an outsider holds the configuration without it: told");
+            tracing::debug!(me = %self.me, node, "replica: an outsider holds the configuration without it");
             outsiders.remove(node);
             return;
         }
