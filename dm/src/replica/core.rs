@@ -1259,14 +1259,7 @@ impl Core {
                 at,
             } => {
                 if term > self.term && self.stranger(&from) {
-                    // an outsider of a newer term (it campaigned while it was away) cannot
-                    // be told by this leader, and must not depose it: it stays an outsider
-                    // (its pre-votes fail: its log lacks what was committed without it)
-                    if let Role::Leader { outsiders, .. } = &mut self.role {
-                        if outsiders.remove(&from).is_some() {
-                            tracing::warn!(me = %self.me, node = %from, term, "replica: an outsider of a newer term cannot be told it is out");
-                        }
-                    }
+                    self.outsider_of_newer_term(&from, term);
                 } else if term > self.term {
                     self.adopt(term, out);
                 } else if term == self.term {
@@ -1279,19 +1272,7 @@ impl Core {
                 pre,
                 ..
             } if self.is_leader() && self.stranger(&candidate) => {
-                // a replica removed while it was away asks for a vote: refused, its term
-                // never taken (it must not depose this leader), and it is told it is out
-                out.push(Out::Send(
-                    candidate.clone(),
-                    ReplicaMsg::VoteAck {
-                        term: self.term,
-                        asked: term,
-                        from: self.me.clone(),
-                        granted: false,
-                        pre,
-                    },
-                ));
-                self.outsider_seen(&candidate, now, out);
+                self.on_outsider_vote(term, candidate, pre, now, out)
             }
             ReplicaMsg::Vote {
                 term,
@@ -1868,6 +1849,41 @@ impl Core {
         tracing::debug!(me = %self.me, node, "replica: a replica no configuration names: sent the log up to the configuration without it");
         outsiders.insert(node.to_string(), Progress::fresh(next));
         self.send_to(node, now, true, &mut Vec::new(), out);
+    }
+
+    /// An outsider of a newer `term` (it campaigned while it was away) answered: this leader
+    /// cannot tell it, and must not be deposed by it — it stays an outsider (its pre-votes
+    /// fail: its log lacks what was committed without it).
+    fn outsider_of_newer_term(&mut self, node: &str, term: u64) {
+        if let Role::Leader { outsiders, .. } = &mut self.role {
+            if outsiders.remove(node).is_some() {
+                tracing::warn!(me = %self.me, node, term, "replica: an outsider of a newer term cannot be told it is out");
+            }
+        }
+    }
+
+    /// A replica no configuration names asks this leader for a vote (removed while it was
+    /// away): refused, its term never taken (it must not depose this leader), and it is
+    /// told it is out.
+    fn on_outsider_vote(
+        &mut self,
+        asked: u64,
+        candidate: String,
+        pre: bool,
+        now: Duration,
+        out: &mut Vec<Out>,
+    ) {
+        out.push(Out::Send(
+            candidate.clone(),
+            ReplicaMsg::VoteAck {
+                term: self.term,
+                asked,
+                from: self.me.clone(),
+                granted: false,
+                pre,
+            },
+        ));
+        self.outsider_seen(&candidate, now, out);
     }
 
     /// An outsider answered: done once it holds the committed configuration (it took in
