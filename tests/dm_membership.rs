@@ -287,22 +287,148 @@ fn a_datamanager_grows_from_three_replicas_to_five_and_back_while_producers_put_
         std::thread::sleep(Duration::from_millis(500));
     }
     // r1, removed, started again on a wiped data directory: its config declares it a
-    // replica, so it runs one — which `ls` says is none of the replicas
+    // replica, so it runs one — which the leader tells it is none of the replicas (a
+    // snapshot: it holds nothing), and its node stops it. (Before, it ran on for good,
+    // and `ls` said it was none of the replicas.)
     drop(nodes.remove(0));
     std::fs::remove_dir_all(dir.path().join("r1")).unwrap();
     let peers: Vec<_> = nodes.iter().map(|n| n.addr).collect();
-    let _r1 = NodeProc::start(dir.path(), "r1", &hosts(dir.path(), "r1"), &peers, COOKIE);
+    let mut r1 = NodeProc::start(dir.path(), "r1", &hosts(dir.path(), "r1"), &peers, COOKIE);
+    r1.wait_line("datamanager feature: the replica on r1 knows it is none of the replicas");
+    no_stray(&addr, "r1");
+    drop(nodes);
+}
+
+/// Wait until `marie ls` lists no replica of `feature` on `node` that is none of its
+/// replicas: its node stopped the replica told it is out.
+fn no_stray(addr: &str, node: &str) {
     let start = Instant::now();
     loop {
-        let out = common::marie(&["ls", "--join", &addr, "--cookie", COOKIE]);
+        let out = common::marie(&["ls", "--join", addr, "--cookie", COOKIE]);
         let listing = common::text(&out.stdout);
-        if listing.contains("DM feature: the replica on r1 is none of its replicas (removed while its node was away, or started again on a wiped data directory)") {
-            break;
+        if out.status.success()
+            && listing.contains("DM feature on ")
+            && !listing.contains(&format!("DM feature: the replica on {node} is none"))
+        {
+            return;
         }
-        assert!(start.elapsed() < T, "r1 not said: {listing}");
+        assert!(
+            start.elapsed() < T,
+            "{node}'s replica still runs: {listing}"
+        );
         std::thread::sleep(Duration::from_millis(500));
     }
-    drop(nodes);
+}
+
+/// The leader's word on the replicas.
+async fn leader_stats(client: &DmClient) -> marie::dm::ReplicaStats {
+    client.stats().await.unwrap().replica.unwrap()
+}
+
+/// A replica removed while its node was down (kill -9) is told so once its node is started
+/// again with its own command line: the node's journal still names it a voter, nobody is
+/// left to stop it, and the leader — seeing a replica no configuration names — sends it the
+/// configuration without it. It says it is out on its node (`dm_replica_out`) and its node
+/// stops it; `marie ls` lists no replica there; the leader keeps its role and its term (the
+/// replica's vote requests unseat nobody); the remaining replicas go on storing.
+#[test]
+fn a_replica_removed_while_its_node_was_down_is_told_once_the_node_is_back() {
+    let _one = ONE_MEMBER.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = tempfile::tempdir().unwrap();
+    let mut nodes: Vec<NodeProc> = Vec::new();
+    for name in ["r1", "r2", "r3", "r4"] {
+        let peers: Vec<_> = nodes.iter().map(|n| n.addr).collect();
+        nodes.push(NodeProc::start(
+            dir.path(),
+            name,
+            &hosts(dir.path(), name),
+            &peers,
+            COOKIE,
+        ));
+    }
+    let addr = nodes[0].addr.to_string();
+    let rt = runtime();
+    rt.block_on(async move {
+        let mut me = ClusterConfig::new("127.0.0.1:0".parse().unwrap(), COOKIE);
+        for n in &nodes {
+            me = me.with_peer(n.addr);
+        }
+        let transport = Transport::start("producer", &me).await.unwrap();
+        transport.wait_for_peers(nodes.len(), T).await.unwrap();
+        let client = DmClient::lookup_within("feature", "producer", T)
+            .await
+            .unwrap()
+            .with_follow(T);
+        settled(&client, &["r1", "r2", "r3"]).await;
+        // four voters, so that one can go
+        let (code, out, err) = dm_verb("add-replica", "r4", addr.clone()).await;
+        assert_eq!(code, Some(0), "add-replica r4: {out}{err}");
+        settled(&client, &["r1", "r2", "r3", "r4"]).await;
+        for v in 0..50u64 {
+            client.store("echo", None, None, &(0u64, v)).await.unwrap();
+        }
+
+        // r3's node killed, its replica removed while it is down
+        let r3 = nodes.remove(2);
+        drop(r3);
+        let (code, out, err) = dm_verb("remove-replica", "r3", addr.clone()).await;
+        eprintln!("remove-replica r3:\n{out}{err}");
+        assert_eq!(code, Some(0), "remove-replica r3: {out}{err}");
+        assert!(
+            out.contains("feature: r3 removed: voters r1, r2, r4"),
+            "{out}"
+        );
+        settled(&client, &["r1", "r2", "r4"]).await;
+        for v in 50..100u64 {
+            client.store("echo", None, None, &(0u64, v)).await.unwrap();
+        }
+        let before = leader_stats(&client).await;
+        eprintln!("leader {} at term {}", before.node, before.term);
+
+        // r3's node started again with its own command line: its journal names its replica
+        // a voter of r1, r2, r3, r4
+        let peers: Vec<_> = nodes.iter().map(|n| n.addr).collect();
+        let r3 = tokio::task::spawn_blocking(move || {
+            let mut r3 =
+                NodeProc::start(dir.path(), "r3", &hosts(dir.path(), "r3"), &peers, COOKIE);
+            let told = r3.wait_line(
+                "datamanager feature: the replica on r3 knows it is none of the replicas",
+            );
+            eprintln!("{told}");
+            assert!(told.contains("(voters: r1, r2, r4)"), "{told}");
+            assert!(
+                dir.path().join("r3").join("dm").join("feature").is_dir(),
+                "a declared replica's journal is kept: it says the replica was removed"
+            );
+            (r3, dir)
+        });
+        let (_r3, dir) = r3.await.unwrap();
+        let a = addr.clone();
+        tokio::task::spawn_blocking(move || no_stray(&a, "r3"))
+            .await
+            .unwrap();
+        assert!(
+            !marie::dm::replica_nodes("feature").contains(&"r3".to_string()),
+            "its replica stopped: {:?}",
+            marie::dm::replica_nodes("feature")
+        );
+
+        // the leader kept its role and its term; the others go on storing, all current
+        for v in 100..150u64 {
+            client.store("echo", None, None, &(0u64, v)).await.unwrap();
+        }
+        settled(&client, &["r1", "r2", "r4"]).await;
+        let after = leader_stats(&client).await;
+        assert_eq!(
+            (after.node.as_str(), after.term),
+            (before.node.as_str(), before.term),
+            "no new leader, no new term"
+        );
+        let records = client.select(Query::class("echo")).await.unwrap();
+        assert_eq!(records.len(), 150);
+        transport.stop().await;
+        drop(dir);
+    });
 }
 
 /// A node of `replace_after = 2` killed for good (restart = "temporary") is replaced: its

@@ -185,7 +185,7 @@ impl ReplicaState {
                 }
             }
         });
-        Ok(ReplicaState {
+        let state = ReplicaState {
             core,
             dir,
             peers: BTreeMap::new(),
@@ -202,7 +202,23 @@ impl ReplicaState {
             name: name.to_string(),
             events,
             redundancy: Redundancy::new(started_again.then_some(Duration::ZERO)),
-        })
+        };
+        if state.core.is_removed() {
+            state.tell_out();
+        }
+        Ok(state)
+    }
+
+    /// Tell `dm_replica_out` on its node: it took in a configuration without it (or its
+    /// journal says so at its start).
+    pub(crate) fn tell_out(&self) {
+        if let Some(bus) = &self.events {
+            bus.publish(EventKind::DmReplicaOut {
+                dm: self.name.clone(),
+                node: self.core.me().to_string(),
+                voters: self.core.members().voters.clone(),
+            });
+        }
     }
 
     /// Time since it started: the protocol's clock.
@@ -308,6 +324,21 @@ impl ReplicaState {
     pub(crate) fn leader_actor(&self) -> Option<ActorRef<DmMsg>> {
         let leader = self.core.leader().filter(|l| *l != self.core.me())?;
         self.peers.get(leader).cloned().map(Into::into)
+    }
+
+    /// Make the replica on `node` reachable if it is not yet (a leader no configuration it
+    /// holds names sends to it: it answers that leader at once, not after its next look at
+    /// the replicas' groups).
+    pub(crate) fn reach(&mut self, node: &str) {
+        if node == self.core.me() || self.peers.contains_key(node) {
+            return;
+        }
+        if let Some(cell) = pg::get_scoped_members(&SCOPE.to_string(), &group(&self.name, node))
+            .into_iter()
+            .find(|c| c.get_status() <= ractor::ActorStatus::Running)
+        {
+            self.peers.insert(node.to_string(), cell);
+        }
     }
 
     /// Send `msg` to the replica on node `to`, if it is reachable.

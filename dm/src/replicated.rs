@@ -191,8 +191,21 @@ impl DatamanagerState {
         };
         let now = replica.now();
         let mut out = Vec::new();
-        let others = replica.core.others();
-        // a replica no configuration names any more is no peer
+        let members = replica.core.others();
+        let mut others = members.clone();
+        if replica.core.is_leader() {
+            // and, on the leader, the replicas that run though no configuration names them:
+            // it tells them they are out (`Core::outsider_seen`)
+            others.extend(strangers(&replica.name, replica.core.me(), &members));
+        }
+        // and the leader it follows, though no configuration it holds names it (an outsider
+        // being told it is out: its configurations are older than that leader)
+        if let Some(l) = replica.core.leader() {
+            if l != replica.core.me() && !others.iter().any(|o| o == l) {
+                others.push(l.to_string());
+            }
+        }
+        // a replica no configuration names any more is no peer (but an outsider told)
         replica.peers.retain(|p, _| others.contains(p));
         for m in others {
             let found = pg::get_scoped_members(&SCOPE.to_string(), &group(&replica.name, &m))
@@ -204,18 +217,23 @@ impl DatamanagerState {
                 (_, Some(b)) => {
                     // first seen, back, or another actor: a new session to it (a remote
                     // actor's id is its session's) or a new start of it (its node
-                    // restarted: it lags) — its incarnation tells which
+                    // restarted: it lags) — its incarnation tells which; an outsider (no
+                    // configuration names it) counts for no strength
                     let start = Incarnation::of(&b);
-                    replica
-                        .redundancy
-                        .seen(&m, start, now, replica.core.last().0);
+                    if members.contains(&m) {
+                        replica
+                            .redundancy
+                            .seen(&m, start, now, replica.core.last().0);
+                    }
                     replica.peers.insert(m.clone(), b);
                     tracing::debug!(dm = %replica.name, peer = %m, ?start, "replica: a replica is reachable");
                     replica.core.peer_up(&m, now, &mut out);
                 }
                 (Some(_), None) => {
                     replica.peers.remove(&m);
-                    replica.redundancy.left(&m, now, replica.core.last().0);
+                    if members.contains(&m) {
+                        replica.redundancy.left(&m, now, replica.core.last().0);
+                    }
                     tracing::debug!(dm = %replica.name, peer = %m, "replica: a replica is gone");
                     replica.core.peer_down(&m, now);
                 }
@@ -240,6 +258,7 @@ impl DatamanagerState {
                 last_term,
                 part,
             } => {
+                replica.reach(&leader);
                 if replica
                     .core
                     .install_from(term, &leader, last_seq, now, &mut out)
@@ -250,7 +269,11 @@ impl DatamanagerState {
                 }
             }
             msg => {
-                if let ReplicaMsg::Append { ops, held, .. } = &msg {
+                if let ReplicaMsg::Append {
+                    ops, held, leader, ..
+                } = &msg
+                {
+                    replica.reach(leader);
                     replica.arrived = Some(ops.raw());
                     replica.redundancy.held_everywhere(*held);
                 }
@@ -318,7 +341,8 @@ impl DatamanagerState {
         self.store = inc.store;
         self.fences = inc.fences;
         self.producers = table;
-        replica.core.installed(last.0, last.1, members);
+        let mut out = Vec::new();
+        replica.core.installed(last.0, last.1, members, &mut out);
         replica.snapshots_taken += 1;
         replica.last_time = replica.last_time.max(self.store.last_time());
         journal.snapshot(
@@ -336,6 +360,8 @@ impl DatamanagerState {
                 });
             }
         }));
+        // (an outsider told by the snapshot that it is out)
+        self.carry_out(myself, out);
     }
 
     /// Carry out what the core asked for, in order; then answer the reads that may be, and
@@ -614,9 +640,11 @@ impl ReplicaState {
     }
 
     /// A configuration without this replica was committed: it is out, and says so in the
-    /// log (it campaigns no more; its node stops it when asked).
+    /// log and on its node (`dm_replica_out`: it campaigns no more; its node's replica host
+    /// stops it).
     pub(crate) fn removed(&self) {
         tracing::warn!(dm = %self.name, node = %self.core.me(), "replica: removed from the replicas: it takes no part any more");
+        self.tell_out();
     }
 
     /// It was the leader and is not any more: say so (the log and the `dm_fenced` event).
@@ -631,4 +659,15 @@ impl ReplicaState {
             });
         }
     }
+}
+
+/// The nodes where a replica of `dm` runs, as the replicas' groups show (`DM/NODE` in
+/// [`SCOPE`]), that are neither `me` nor among `known`.
+fn strangers(dm: &str, me: &str, known: &[String]) -> Vec<String> {
+    let prefix = format!("{dm}/");
+    pg::which_scoped_groups(&SCOPE.to_string())
+        .into_iter()
+        .filter_map(|g| g.strip_prefix(&prefix).map(str::to_string))
+        .filter(|n| n != me && !known.contains(n))
+        .collect()
 }

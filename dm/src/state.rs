@@ -128,7 +128,15 @@ impl DatamanagerState {
                     members: core.members().voters.clone(),
                     learners: core.members().learners.clone(),
                     removed: core.is_removed(),
-                    reachable: r.peers.keys().cloned().collect(),
+                    // the replicas of its configurations (not an outsider being told)
+                    reachable: {
+                        let others = core.others();
+                        r.peers
+                            .keys()
+                            .filter(|p| others.contains(p))
+                            .cloned()
+                            .collect()
+                    },
                 }
             }),
             retention: Some(bound(self.store.config().default_retention)),

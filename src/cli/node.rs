@@ -170,6 +170,7 @@ fn replicas_changed(kind: &marie::events::EventKind) -> bool {
         EventKind::DmReplicaAdded { .. }
             | EventKind::DmReplicaPromoted { .. }
             | EventKind::DmReplicaRemoved { .. }
+            | EventKind::DmReplicaOut { .. }
             | EventKind::DmReplicaReplaced { .. }
             | EventKind::DmReplicaCaughtUp { .. }
             | EventKind::DmRedundancyRestored { .. }

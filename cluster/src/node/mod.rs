@@ -310,9 +310,9 @@ impl Node {
         let children = tree::children(&config, &options, &bus);
         let (root, _) = tree::start_root(children).await?;
         let mut tasks = events::bridge_supervisors(&bus, &root).await;
-        if !config.datamanagers.is_empty() {
-            let names = config.datamanagers.iter().map(|d| d.name.clone()).collect();
-            tasks.push(watchdog::spawn(names));
+        // every datamanager it hosts, those added while it runs too
+        if !config.datamanagers.is_empty() || replica_host::hosts_replicas(&config) {
+            tasks.push(watchdog::spawn(root.clone()));
         }
         tracing::info!(node = %config.name, "node started");
         let starter = provisioner::Starter {
@@ -388,6 +388,7 @@ impl Node {
             clock: self.starter.clock.clone(),
             events: self.bus.clone(),
             root: self.starter.root.clone(),
+            dropped: Default::default(),
         });
         if let Err(e) = self.starter.root.start_child(spec).await {
             tracing::warn!("the node will not host replicas on request: {e}");

@@ -1,6 +1,9 @@
 //! The node's replica host ([`crate::replicas`]): starts a replica of a datamanager that
 //! joins while it runs — under the node's datamanager supervisor, as the declared ones —
-//! and stops and drops one that was removed.
+//! and stops and drops one that was removed: when asked (`marie dm remove-replica`), and of
+//! itself when one of its replicas tells `dm_replica_out` on the node's bus — a replica
+//! removed while its node was away learns it from the leader once back, and nobody is left
+//! to ask for its drop (or its journal says so at its start: swept when the host starts).
 
 use super::config::NodeConfig;
 use super::tree;
@@ -9,7 +12,8 @@ use crate::replicas::{self, Declaration, HostMsg, HostRefusal};
 use marie_dm::{DmMsg, Durability};
 use marie_supervision::SupervisorRef;
 use marie_vocabulary::clock::SharedClock;
-use marie_vocabulary::events::EventBus;
+use marie_vocabulary::events::{BusError, EventBus, EventKind};
+use marie_vocabulary::registry::{self, ModuleKind};
 use ractor::rpc::CallResult;
 use ractor::{Actor, ActorProcessingErr, ActorRef};
 use std::collections::BTreeMap;
@@ -40,6 +44,9 @@ pub(crate) struct Host {
     pub(crate) clock: SharedClock,
     pub(crate) events: EventBus,
     pub(crate) root: SupervisorRef,
+    /// The replicas dropped since the host started, and whether their journal went too: a
+    /// drop asked again (`remove-replica` after the replica's own word) gets the same answer.
+    pub(crate) dropped: BTreeMap<String, bool>,
 }
 
 impl Host {
@@ -119,6 +126,7 @@ impl Host {
             return Err(self.failed(e));
         }
         tracing::info!(node = %self.config.name, dm = %dm.name, "replica started: it joins the datamanager's replicas");
+        self.dropped.remove(&dm.name);
         self.config.datamanagers.retain(|d| d.name != dm.name);
         self.config.datamanagers.push(dm);
         Ok(())
@@ -137,7 +145,10 @@ impl Host {
             .find(|d| d.name == name && !d.replicas.is_empty())
             .cloned()
         else {
-            return Err(not_hosted());
+            return match self.dropped.get(&name) {
+                Some(journal) => Ok(*journal),
+                None => Err(not_hosted()),
+            };
         };
         let sup = self.datamanagers().await.map_err(|e| self.failed(e))?;
         let child = sup
@@ -176,6 +187,7 @@ impl Host {
             _ => false,
         };
         tracing::info!(node = %self.config.name, dm = %name, journal, "removed replica stopped");
+        self.dropped.insert(name, journal);
         Ok(journal)
     }
 }
@@ -199,6 +211,8 @@ pub(crate) struct ReplicaHost;
 pub(crate) struct Hosting {
     host: Host,
     watches: BTreeMap<String, JoinHandle<()>>,
+    /// Drops the replicas that say they are out ([`drop_the_removed`]).
+    listener: JoinHandle<()>,
 }
 
 impl Hosting {
@@ -243,9 +257,16 @@ impl Actor for ReplicaHost {
         host: Host,
     ) -> Result<Hosting, ActorProcessingErr> {
         replicas::publish(myself.get_cell(), &host.config.name);
+        let listener = tokio::spawn(drop_the_removed(
+            myself.clone(),
+            host.events.subscribe(),
+            host.config.name.clone(),
+            host.root.clone(),
+        ));
         let mut hosting = Hosting {
             host,
             watches: BTreeMap::new(),
+            listener,
         };
         hosting.watch();
         Ok(hosting)
@@ -259,6 +280,7 @@ impl Actor for ReplicaHost {
         for task in hosting.watches.values() {
             task.abort();
         }
+        hosting.listener.abort();
         Ok(())
     }
 
@@ -287,6 +309,82 @@ impl Actor for ReplicaHost {
         }
         hosting.watch();
         Ok(())
+    }
+}
+
+/// Drop, through the host `me` of node `node`, each replica of the node that says it is out
+/// (`dm_replica_out` on `events`): first every one whose journal said so at its start
+/// (told before the host listened), again after the subscription fell behind, until the
+/// host stops. A replica that is still one of its datamanager's replicas is kept: the host
+/// asks it first.
+async fn drop_the_removed(
+    me: ActorRef<HostMsg>,
+    mut events: marie_vocabulary::events::EventSubscription,
+    node: String,
+    root: SupervisorRef,
+) {
+    let drop_one = |dm: String| {
+        let (me, node) = (me.clone(), node.clone());
+        async move {
+            let asked = replicas::ask_host(&me, &node, |reply| HostMsg::Drop { dm, reply });
+            if let Ok(Ok(journal)) = asked.await {
+                tracing::debug!(%node, journal, "a replica that said it is out dropped");
+            }
+        }
+    };
+    let sweep = || async {
+        let Ok(sup) = tree::child_supervisor(&root, tree::DATAMANAGERS).await else {
+            return;
+        };
+        for child in sup.which_children().await.unwrap_or_default() {
+            drop_one(child.id).await;
+        }
+    };
+    sweep().await;
+    loop {
+        match events.recv().await {
+            Ok(event) => match event.kind {
+                EventKind::DmReplicaOut { dm, node: on, .. } if on == node => {
+                    tokio::spawn(drop_once_led_elsewhere(me.clone(), node.clone(), dm));
+                }
+                _ => {}
+            },
+            Err(BusError::Lagged { .. }) => sweep().await,
+            Err(BusError::Closed) => return,
+        }
+    }
+}
+
+/// How long a replica that says it is out may wait for a leader of its datamanager on
+/// another node before it is dropped all the same (it takes no part either way).
+const LEADER_WITHIN: Duration = Duration::from_secs(60);
+
+/// Drop the replica of `dm` (through the host `me` of node `node`) once a leader of `dm`
+/// runs on another node, or after [`LEADER_WITHIN`]: a leader that removed itself lives on
+/// until its successor leads — the requests its clients send it meanwhile wait in it for
+/// the successor and are sent on —; an outsider the leader told finds that leader at once.
+async fn drop_once_led_elsewhere(me: ActorRef<HostMsg>, node: String, dm: String) {
+    let led_elsewhere = || {
+        registry::lookup(ModuleKind::Datamanager, &dm)
+            .iter()
+            .any(|i| !i.is_local())
+    };
+    if !led_elsewhere() {
+        if let Ok(mut watch) = registry::watch(Some(ModuleKind::Datamanager)).await {
+            let _ = tokio::time::timeout(LEADER_WITHIN, async {
+                // looked at again once watching: a publication may have come between
+                while !led_elsewhere() {
+                    if watch.next().await.is_none() {
+                        return;
+                    }
+                }
+            })
+            .await;
+        }
+    }
+    let asked = replicas::ask_host(&me, &node, |reply| HostMsg::Drop { dm, reply });
+    if let Ok(Ok(journal)) = asked.await {
+        tracing::debug!(%node, journal, "a replica that said it is out dropped");
     }
 }
 

@@ -60,7 +60,7 @@ pub enum Step {
         journal: bool,
     },
     /// The removed replica's node does not answer: nothing runs there to stop (if it comes
-    /// back, its replica takes no part in the datamanager).
+    /// back, the leader tells its replica it is out, and its node stops it).
     Unreachable {
         /// The node.
         node: String,

@@ -177,7 +177,7 @@ pub fn hosts() -> Vec<String> {
 }
 
 /// Ask `host` (of node `node`) with `msg`, within [`ANSWER_WITHIN`].
-pub(super) async fn ask<T: Send + 'static>(
+pub(crate) async fn ask<T: Send + 'static>(
     host: &ActorRef<HostMsg>,
     node: &str,
     msg: impl FnOnce(ractor::RpcReplyPort<T>) -> HostMsg,

@@ -16,7 +16,10 @@
 //! ([`joined`]), and a node that starts on that data directory — `marie up`, systemd, by
 //! hand — starts it again. Dropping a replica added so removes its directory; a declared
 //! replica's journal is kept (it says the replica was removed, so the replica restarted
-//! takes no part).
+//! takes no part, and its host drops it again). A replica removed while its node was away
+//! learns it from the leader once the node is back (the leader sends a replica no
+//! configuration names the configuration without it), says so (`dm_replica_out`), and its
+//! host drops it as `remove` would have.
 
 mod change;
 mod host;
@@ -24,4 +27,5 @@ pub mod joined;
 pub mod replace;
 
 pub use change::{add, remove, ChangeFailure, Step, CHANGE_WITHIN};
+pub(crate) use host::ask as ask_host;
 pub use host::{host_of, hosts, publish, Declaration, HostMsg, HostRefusal, SCOPE};

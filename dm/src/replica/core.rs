@@ -157,6 +157,19 @@ impl Progress {
     }
 }
 
+/// On a leader, what it knows of the replica on `peer`: a member's, or an outsider's.
+fn progress_mut<'a>(role: &'a mut Role, peer: &str) -> Option<&'a mut Progress> {
+    match role {
+        Role::Leader {
+            peers, outsiders, ..
+        } => match peers.get_mut(peer) {
+            Some(pr) => Some(pr),
+            None => outsiders.get_mut(peer),
+        },
+        _ => None,
+    }
+}
+
 #[derive(Clone, Debug)]
 enum Role {
     Follower,
@@ -166,6 +179,11 @@ enum Role {
     },
     Leader {
         peers: BTreeMap<String, Progress>,
+        /// Replicas it met that no configuration it holds names — removed while their node
+        /// was away, they started again believing they are replicas —, each being sent the
+        /// log (or a snapshot) up to the committed configuration without it, so that it
+        /// learns it is out ([`Core::outsider_seen`]). They count for nothing.
+        outsiders: BTreeMap<String, Progress>,
         since: Duration,
         /// Its no-op's seq: once it is applied, the store holds what its predecessors
         /// committed.
@@ -557,12 +575,18 @@ impl Core {
         others.dedup();
         self.visible.retain(|v| others.contains(v));
         let next = self.last().0 + 1;
-        if let Role::Leader { peers, .. } = &mut self.role {
+        if let Role::Leader {
+            peers, outsiders, ..
+        } = &mut self.role
+        {
             peers.retain(|p, _| others.contains(p));
             for o in &others {
+                // an outsider added (a replica started to join, met before its addition):
+                // what it was sent counts — a snapshot on its way is not sent twice
+                let met = outsiders.remove(o);
                 peers
                     .entry(o.clone())
-                    .or_insert_with(|| Progress::fresh(next));
+                    .or_insert_with(|| met.unwrap_or_else(|| Progress::fresh(next)));
             }
         }
         self.others = others;
@@ -805,10 +829,13 @@ impl Core {
 
     /// Send each replica what it lacks (or a heartbeat, if it is due).
     pub(crate) fn replicate(&mut self, now: Duration, out: &mut Vec<Out>) {
-        let Role::Leader { peers, .. } = &self.role else {
+        let Role::Leader {
+            peers, outsiders, ..
+        } = &self.role
+        else {
             return;
         };
-        let names: Vec<String> = peers.keys().cloned().collect();
+        let names: Vec<String> = peers.keys().chain(outsiders.keys()).cloned().collect();
         let mut shared = Vec::new();
         for peer in names {
             self.send_to(&peer, now, false, &mut shared, out);
@@ -838,10 +865,7 @@ impl Core {
             }
             _ => last,
         };
-        let Role::Leader { peers, .. } = &mut self.role else {
-            return;
-        };
-        let Some(pr) = peers.get_mut(peer) else {
+        let Some(pr) = progress_mut(&mut self.role, peer) else {
             return;
         };
         if let Some(at) = pr.installing {
@@ -895,10 +919,9 @@ impl Core {
         } else {
             self.tail[(prev_seq - base.0 - 1) as usize].term
         };
-        let Role::Leader { peers, .. } = &mut self.role else {
+        let Some(pr) = progress_mut(&mut self.role, peer) else {
             return;
         };
-        let pr = peers.get_mut(peer).expect("looked up above");
         pr.sent = Some(now);
         if !pr.probing {
             pr.next += n as u64;
@@ -925,10 +948,31 @@ impl Core {
         now: Duration,
         out: &mut Vec<Out>,
     ) {
-        let Role::Leader { peers, .. } = &mut self.role else {
+        let Role::Leader {
+            peers, outsiders, ..
+        } = &mut self.role
+        else {
             return;
         };
         let Some(pr) = peers.get_mut(from) else {
+            if let Some(pr) = outsiders.get_mut(from) {
+                // an outsider being told: only how far it holds the log matters
+                if ok {
+                    pr.matched = pr.matched.max(last);
+                    pr.next = pr.next.max(last + 1);
+                    pr.probing = false;
+                    pr.installing = None;
+                } else {
+                    let n = (last + 1).max(pr.matched + 1);
+                    if n < pr.next || pr.installing.is_some() {
+                        pr.next = n;
+                    }
+                    pr.installing = None;
+                    pr.probing = true;
+                    pr.sent = None;
+                }
+                self.told_outsider(from, now, out);
+            }
             return;
         };
         pr.acked = Some(now);
@@ -1214,11 +1258,21 @@ impl Core {
                 last,
                 at,
             } => {
-                if term > self.term {
+                if term > self.term && self.stranger(&from) {
+                    self.outsider_of_newer_term(&from, term);
+                } else if term > self.term {
                     self.adopt(term, out);
                 } else if term == self.term {
                     self.on_append_ack(&from, (ok, last, at), now, out);
                 }
+            }
+            ReplicaMsg::Vote {
+                term,
+                candidate,
+                pre,
+                ..
+            } if self.is_leader() && self.stranger(&candidate) => {
+                self.on_outsider_vote(term, candidate, pre, now, out)
             }
             ReplicaMsg::Vote {
                 term,
@@ -1304,8 +1358,16 @@ impl Core {
     /// A snapshot ending at (`seq`, `term`) was taken in and journaled: the log starts
     /// after it, and the configuration is the snapshot's (`members`, with its seq; `None`
     /// from a leader that sent none: the newest this replica held up to `seq`). The actor
-    /// calls [`Core::durable`] once the journal has it.
-    pub(crate) fn installed(&mut self, seq: u64, term: u64, members: Option<(u64, Members)>) {
+    /// calls [`Core::durable`] once the journal has it. A configuration without this replica,
+    /// newer than the one it joined: it is out ([`Out::Removed`], as at a commit) — an
+    /// outsider told so by a snapshot.
+    pub(crate) fn installed(
+        &mut self,
+        seq: u64,
+        term: u64,
+        members: Option<(u64, Members)>,
+        out: &mut Vec<Out>,
+    ) {
         self.tail.clear();
         self.base = (seq, term);
         self.commit = seq;
@@ -1319,12 +1381,17 @@ impl Core {
         self.configs.truncate(keep);
         let newest = self.configs.pop().expect("one configuration at least");
         let (at, m) = members.unwrap_or(newest);
+        let out_now = !m.contains(&self.me) && self.joined_at.is_some_and(|j| j < at);
         if m.contains(&self.me) {
             self.joined_at.get_or_insert(at);
             self.removed = false;
         }
         self.configs = vec![(at, m)];
         self.reconfigured();
+        if out_now && !self.removed {
+            self.removed = true;
+            out.push(Out::Removed);
+        }
     }
 
     /// Become a follower of `leader` in `term` (adopting a higher term).
@@ -1564,7 +1631,7 @@ impl Core {
         now: Duration,
         out: &mut Vec<Out>,
     ) {
-        if term > self.term && !granted {
+        if term > self.term && !granted && !self.stranger(&from) {
             self.adopt(term, out);
             return;
         }
@@ -1643,6 +1710,7 @@ impl Core {
             .collect();
         self.role = Role::Leader {
             peers,
+            outsiders: BTreeMap::new(),
             since: now,
             first: next,
         };
@@ -1703,7 +1771,11 @@ impl Core {
 
     /// The replica on `node` is reachable (it joined the replicas' group).
     pub(crate) fn peer_up(&mut self, node: &str, now: Duration, out: &mut Vec<Out>) {
-        if node == self.me || !self.others.iter().any(|m| m == node) {
+        if node == self.me {
+            return;
+        }
+        if !self.others.iter().any(|m| m == node) {
+            self.outsider_seen(node, now, out);
             return;
         }
         self.visible.insert(node.to_string());
@@ -1739,11 +1811,102 @@ impl Core {
     /// the leader, campaign soon: the lower-ranked replicas first, so they rarely split.
     pub(crate) fn peer_down(&mut self, node: &str, now: Duration) {
         self.visible.remove(node);
+        if let Role::Leader { outsiders, .. } = &mut self.role {
+            outsiders.remove(node);
+        }
         if self.leader.as_deref() == Some(node) && !self.is_leader() {
             self.leader = None;
             self.heard = None;
             let soon = self.unguarded(now) + self.rank_delay(Some(node));
             self.deadline = self.deadline.min(soon);
+        }
+    }
+
+    /// Whether `node` keeps no replica in any configuration this replica holds (nor is it).
+    fn stranger(&self, node: &str) -> bool {
+        node != self.me && !self.others.iter().any(|o| o == node)
+    }
+
+    /// A replica on `node` that no configuration this one holds names was met: its actor
+    /// appeared, or a message came from it. It was removed while its node was away (or its
+    /// node started again on a wiped data directory) and believes it is one of the replicas;
+    /// the last word a leader gives the replicas it removes, at the commit, reached only
+    /// those present then. On a leader: it is sent the log — or a snapshot, the entries
+    /// gone from memory — up to the committed configuration, which does not name it, with
+    /// the commit, until it holds it: it then knows it is out (and says so in its journal).
+    /// It counts for nothing meanwhile. Another replica leaves it to the leader.
+    pub(crate) fn outsider_seen(&mut self, node: &str, now: Duration, out: &mut Vec<Out>) {
+        if !self.stranger(node) {
+            return;
+        }
+        let next = self.last().0 + 1;
+        let Role::Leader { outsiders, .. } = &mut self.role else {
+            return;
+        };
+        if outsiders.contains_key(node) {
+            return;
+        }
+        tracing::debug!(me = %self.me, node, "replica: a replica no configuration names: sent the log up to the configuration without it");
+        outsiders.insert(node.to_string(), Progress::fresh(next));
+        self.send_to(node, now, true, &mut Vec::new(), out);
+    }
+
+    /// An outsider of a newer `term` (it campaigned while it was away) answered: this leader
+    /// cannot tell it, and must not be deposed by it — it stays an outsider (its pre-votes
+    /// fail: its log lacks what was committed without it).
+    fn outsider_of_newer_term(&mut self, node: &str, term: u64) {
+        if let Role::Leader { outsiders, .. } = &mut self.role {
+            if outsiders.remove(node).is_some() {
+                tracing::warn!(me = %self.me, node, term, "replica: an outsider of a newer term cannot be told it is out");
+            }
+        }
+    }
+
+    /// A replica no configuration names asks this leader for a vote (removed while it was
+    /// away): refused, its term never taken (it must not depose this leader), and it is
+    /// told it is out.
+    fn on_outsider_vote(
+        &mut self,
+        asked: u64,
+        candidate: String,
+        pre: bool,
+        now: Duration,
+        out: &mut Vec<Out>,
+    ) {
+        out.push(Out::Send(
+            candidate.clone(),
+            ReplicaMsg::VoteAck {
+                term: self.term,
+                asked,
+                from: self.me.clone(),
+                granted: false,
+                pre,
+            },
+        ));
+        self.outsider_seen(&candidate, now, out);
+    }
+
+    /// An outsider answered: done once it holds the committed configuration (it took in
+    /// the commit with it), else sent what it still lacks.
+    fn told_outsider(&mut self, node: &str, now: Duration, out: &mut Vec<Out>) {
+        let upto = self.configs[0].0;
+        let Role::Leader { outsiders, .. } = &mut self.role else {
+            return;
+        };
+        if outsiders.get(node).is_some_and(|pr| pr.matched >= upto) {
+            tracing::debug!(me = %self.me, node, "replica: an outsider holds the configuration without it");
+            outsiders.remove(node);
+            return;
+        }
+        self.send_to(node, now, false, &mut Vec::new(), out);
+    }
+
+    /// The outsiders a leader is telling ([`Core::outsider_seen`]).
+    #[cfg(test)]
+    pub(crate) fn outsiders(&self) -> Vec<String> {
+        match &self.role {
+            Role::Leader { outsiders, .. } => outsiders.keys().cloned().collect(),
+            _ => Vec::new(),
         }
     }
 

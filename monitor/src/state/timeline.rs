@@ -87,6 +87,7 @@ pub fn class(kind: &EventKind, drawn: bool) -> Option<&'static str> {
         | EventKind::DmReplicaAdded { .. }
         | EventKind::DmReplicaPromoted { .. }
         | EventKind::DmReplicaRemoved { .. }
+        | EventKind::DmReplicaOut { .. }
         | EventKind::DmReplicaReplaced { .. }
         | EventKind::DmReplicaCaughtUp { .. }
         | EventKind::DmRedundancyRestored { .. }

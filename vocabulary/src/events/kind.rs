@@ -490,6 +490,18 @@ pub enum EventKind {
         /// The voters now.
         voters: Vec<String>,
     },
+    /// A replica of a replicated datamanager took in a configuration without it: it takes
+    /// no part any more, and its node stops it. Told by that replica, on its node — also
+    /// when it was removed while its node was away and learned it from the leader once back,
+    /// or when its journal says so at its start.
+    DmReplicaOut {
+        /// The datamanager's name.
+        dm: String,
+        /// The node of the replica (where it is told).
+        node: String,
+        /// The voters of the configuration it took in.
+        voters: Vec<String>,
+    },
     /// A replica of a replicated datamanager whose node had been gone longer than the
     /// cluster file's `replace_after` was replaced: a replica added on node `by`, caught up
     /// and promoted, then the gone one removed — the datamanager back to as many voters as
@@ -628,6 +640,7 @@ impl EventKind {
             | EventKind::DmReplicaAdded { .. }
             | EventKind::DmReplicaPromoted { .. }
             | EventKind::DmReplicaRemoved { .. }
+            | EventKind::DmReplicaOut { .. }
             | EventKind::DmReplicaReplaced { .. }
             | EventKind::DmReplicaCaughtUp { .. }
             | EventKind::DmRedundancyRestored { .. }

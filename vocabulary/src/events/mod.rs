@@ -72,6 +72,7 @@
 //! {"at_ms":40100,"node":"features","kind":{"type":"dm_replica_added","dm":"feature","node":"spare","voters":["features","operations","robot"]}}
 //! {"at_ms":41300,"node":"features","kind":{"type":"dm_replica_promoted","dm":"feature","node":"spare","voters":["features","operations","robot","spare"]}}
 //! {"at_ms":41500,"node":"features","kind":{"type":"dm_replica_removed","dm":"feature","node":"robot","voters":["features","operations","spare"]}}
+//! {"at_ms":58200,"node":"robot","kind":{"type":"dm_replica_out","dm":"feature","node":"robot","voters":["features","operations","spare"]}}
 //! {"at_ms":41600,"node":"features","kind":{"type":"dm_replica_replaced","dm":"feature","gone":"robot","by":"spare","after_secs":30.2,"voters":["features","operations","spare"]}}
 //! {"at_ms":64100,"node":"marie@localhost","kind":{"type":"dm_checked","dm":"world","node":"features","acknowledged":412,"held":410,"dropped_by_retention":0,"deleted":0,"unchecked":0,"lost":2}}
 //! {"at_ms":30001,"node":"marie@localhost","kind":{"type":"judged","outcome":"succeeded","reason":"","collisions":0,"final_pose":[1.5,0.25,0.01],"inside_goal":true,"judgement":"success: inside the goal area","refused_commands":{},"seed":7}}
@@ -233,6 +234,7 @@ mod tests {
             EventKind::DmReplicaAdded { .. } => "dm_replica_added",
             EventKind::DmReplicaPromoted { .. } => "dm_replica_promoted",
             EventKind::DmReplicaRemoved { .. } => "dm_replica_removed",
+            EventKind::DmReplicaOut { .. } => "dm_replica_out",
             EventKind::DmReplicaReplaced { .. } => "dm_replica_replaced",
             EventKind::DmReplicaCaughtUp { .. } => "dm_replica_caught_up",
             EventKind::DmRedundancyRestored { .. } => "dm_redundancy_restored",
@@ -243,7 +245,7 @@ mod tests {
     }
 
     /// The `type` of every kind, as [`type_of`] names them.
-    const KINDS: [&str; 48] = [
+    const KINDS: [&str; 49] = [
         "provenance",
         "reparameterized",
         "run_started",
@@ -288,6 +290,7 @@ mod tests {
         "dm_replica_added",
         "dm_replica_promoted",
         "dm_replica_removed",
+        "dm_replica_out",
         "dm_replica_replaced",
         "dm_checked",
         "judged",

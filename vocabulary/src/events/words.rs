@@ -616,6 +616,15 @@ fn datamanager(node: &str, kind: &EventKind) -> String {
             "datamanager {dm}: the replica on {on} was removed (voters: {})",
             voters.join(", ")
         ),
+        EventKind::DmReplicaOut {
+            dm,
+            node: on,
+            voters,
+        } => format!(
+            "datamanager {dm}: the replica on {on} knows it is none of the replicas: it takes \
+             no part, and its node stops it (voters: {})",
+            voters.join(", ")
+        ),
         EventKind::DmReplicaReplaced {
             dm,
             gone,
@@ -765,6 +774,7 @@ pub fn mark(kind: &EventKind) -> Mark {
         | EventKind::DmReplicaAdded { .. }
         | EventKind::DmReplicaPromoted { .. }
         | EventKind::DmReplicaRemoved { .. }
+        | EventKind::DmReplicaOut { .. }
         | EventKind::DmReplicaReplaced { .. }
         | EventKind::DmReplicaCaughtUp { .. }
         | EventKind::DmRedundancyRestored { .. } => '%',
@@ -807,6 +817,7 @@ pub fn gravity(kind: &EventKind) -> Gravity {
         | EventKind::ConnectionRefused { .. }
         | EventKind::DmFenced { .. }
         | EventKind::DmReplicaRemoved { .. }
+        | EventKind::DmReplicaOut { .. }
         | EventKind::DmReplicaReplaced { .. }
         | EventKind::DmRetention { .. }
         | EventKind::DmNoMajority { .. } => Gravity::Warning,

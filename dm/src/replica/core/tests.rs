@@ -479,7 +479,7 @@ impl Sim {
                     let mut more = Vec::new();
                     *self.counts.entry("installs").or_default() += 1;
                     if core_to.install_from(leader_term, m, seq, self.now, &mut more) {
-                        core_to.installed(seq, term, members.clone());
+                        core_to.installed(seq, term, members.clone(), &mut more);
                         target.applied = snapshot;
                         target.disk.log.clear();
                         target.disk.snap = (seq, term);

@@ -397,3 +397,112 @@ fn seeded_schedules_that_change_the_replicas_keep_every_invariant() {
         );
     }
 }
+
+#[test]
+fn a_replica_removed_while_its_node_was_away_is_told_once_back_and_unseats_nobody() {
+    // told by entries (the leader still holds them), and by a snapshot (it does not)
+    for (keep, by) in [(TAIL_KEEP, "entries"), (16, "a snapshot")] {
+        let mut sim = Sim::new(73, keep);
+        sim.settle();
+        let leader = sim.leader().unwrap();
+        grow(&mut sim, "d");
+        let gone = if leader == "c" { "b" } else { "c" };
+        sim.crash(gone);
+        sim.change(Change::Remove(gone.into())).expect("removed");
+        run_for(&mut sim, 100);
+        let l = sim.leader().unwrap();
+        for _ in 0..100 {
+            sim.propose(&l);
+        }
+        run_for(&mut sim, 100);
+        assert!(!voters(&mut sim, &l).contains(&gone.to_string()));
+        let term = sim.core(&l).term();
+        let installs = sim.counts.get("installs").copied().unwrap_or(0);
+        // back, its disk says it is a voter of the configuration before: nobody told it
+        sim.start(gone);
+        assert!(!sim.core(gone).is_removed(), "{by}");
+        assert!(sim.core(gone).members().is_voter(gone), "{by}");
+        run_for(&mut sim, 500);
+        assert!(sim.core(gone).is_removed(), "told by {by}");
+        assert!(!sim.core(gone).members().contains(gone), "{by}");
+        assert!(sim.core(&l).outsiders().is_empty(), "{by}: done telling");
+        if keep == 16 {
+            assert!(sim.counts["installs"] > installs, "by a snapshot");
+        }
+        // it campaigns no more, and the leader keeps its role and its term
+        run_for(&mut sim, 3000);
+        assert_eq!(sim.leader().as_deref(), Some(l.as_str()), "{by}");
+        assert_eq!(sim.core(&l).term(), term, "{by}: no term churn");
+        // restarted from its disk, it stays out
+        sim.crash(gone);
+        sim.start(gone);
+        assert!(sim.core(gone).is_removed(), "{by}: its journal says it");
+        sim.settle();
+        sim.check();
+    }
+}
+
+#[test]
+fn a_replicas_word_of_a_newer_term_from_outside_the_configuration_never_deposes_the_leader() {
+    let (mut sim, leader) = three(79, 10);
+    let term = sim.core(&leader).term();
+    let now = sim.now;
+    // a replica no configuration names, of a newer term, asks for a vote — even as if
+    // at a leader's word
+    let mut out = Vec::new();
+    sim.core(&leader).receive(
+        ReplicaMsg::Vote {
+            term: term + 5,
+            candidate: "x".into(),
+            last_seq: 1_000,
+            last_term: term + 4,
+            pre: false,
+            transfer: true,
+        },
+        now,
+        &mut out,
+    );
+    assert!(sim.core(&leader).is_leader());
+    assert_eq!(sim.core(&leader).term(), term);
+    assert!(out.iter().any(|o| matches!(o,
+        Out::Send(to, ReplicaMsg::VoteAck { granted: false, .. }) if to == "x")));
+    assert!(
+        out.iter().any(|o| matches!(o,
+            Out::Send(to, ReplicaMsg::Append { term: t, .. }) if to == "x" && *t == term)),
+        "it is told what the leader holds: {out:?}"
+    );
+    assert_eq!(sim.core(&leader).outsiders(), ["x"]);
+    // it refuses the leader's word with its newer term: the leader goes on
+    let mut out = Vec::new();
+    sim.core(&leader).receive(
+        ReplicaMsg::AppendAck {
+            term: term + 5,
+            from: "x".into(),
+            ok: false,
+            last: 0,
+            at: 0,
+        },
+        now,
+        &mut out,
+    );
+    assert!(sim.core(&leader).is_leader());
+    assert_eq!(sim.core(&leader).term(), term);
+    assert!(
+        sim.core(&leader).outsiders().is_empty(),
+        "it cannot be told"
+    );
+    // a member's newer term still counts
+    let member = ["a", "b", "c"].into_iter().find(|m| *m != leader).unwrap();
+    sim.core(&leader).receive(
+        ReplicaMsg::AppendAck {
+            term: term + 1,
+            from: member.into(),
+            ok: false,
+            last: 0,
+            at: 0,
+        },
+        now,
+        &mut Vec::new(),
+    );
+    assert!(!sim.core(&leader).is_leader());
+}
