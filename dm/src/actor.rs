@@ -71,7 +71,7 @@ impl Actor for Datamanager {
         let memory = matches!(storage, Storage::Memory);
         // built at once: from here its drop leaves a memory datamanager's records to its
         // heir again, whatever fails below
-        let state = DatamanagerState {
+        let mut state = DatamanagerState {
             id: args.id,
             name: args.name,
             clock: args.clock,
@@ -89,6 +89,10 @@ impl Actor for Datamanager {
             applied: Tally::default(),
             applied_timer: None,
         };
+        if state.snapshot_if_due() {
+            let replayed = state.recovery.as_ref().map_or(0, |r| r.entries);
+            tracing::info!(dm = %state.name, replayed, records = state.store.len(), "journal snapshotted at the start: its replay went through mostly garbage");
+        }
         // Published last, once nothing can fail any more: when `spawn_datamanager` returns
         // the DM is already listed, and messages sent before it runs wait in its mailbox.
         // A replica is published once it is elected leader.

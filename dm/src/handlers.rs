@@ -153,16 +153,29 @@ impl DatamanagerState {
     /// others what they lack), and snapshot the journal once it holds mostly garbage.
     pub(crate) fn on_journal_flush(&mut self, myself: &ActorRef<DmMsg>) {
         self.replica_flush(myself);
+        if let Some(journal) = self.storage.journal_mut() {
+            journal.flush();
+        }
+        self.snapshot_if_due();
+    }
+
+    /// Snapshot the journal if it holds mostly garbage (`Journal::wants_snapshot`): after
+    /// a flush, and at the start on the journal just read back — a replay goes through every
+    /// put since the last snapshot, so a journal left long (a node killed before its
+    /// journal was due) made every start after it replay it all again, and leave what the
+    /// replay decoded and dropped scattered in the process's memory. True if it took one.
+    pub(crate) fn snapshot_if_due(&mut self) -> bool {
         let (journal, replica) = match &mut self.storage {
-            Storage::Memory => return,
+            Storage::Memory => return false,
             Storage::Journaled(journal) => (journal, None),
             Storage::Replicated { journal, replica } => (journal, Some(&*replica)),
         };
-        journal.flush();
-        if journal.wants_snapshot(self.store.len()) {
-            let log = replica.map(|r| r.log_after_commit());
-            journal.snapshot(&self.store, &self.fences, &self.producers, log);
+        if !journal.wants_snapshot(self.store.len()) {
+            return false;
         }
+        let log = replica.map(|r| r.log_after_commit());
+        journal.snapshot(&self.store, &self.fences, &self.producers, log);
+        true
     }
 
     /// `Digest`: a digest of its records, and up to which seq (a replica's: what it applied).

@@ -308,6 +308,68 @@ async fn retention_and_snapshots_keep_the_journal_near_the_size_of_the_store() {
     stop(actor, handle).await;
 }
 
+/// A journal that is mostly garbage when it is read back — here its class's retention was
+/// lowered between two starts; a node killed on a journal written under a higher
+/// [`dm::SNAPSHOT_MIN`] is the other way — is snapshotted at the start, so the next start
+/// replays the live records, not the whole history again.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_journal_read_back_mostly_garbage_is_snapshotted_at_the_start() {
+    let tmp = TempDir::new("startsnap");
+    let n = dm::SNAPSHOT_MIN as u32 + 1000;
+    let mut a = args("jr-startsnap", 4410, &tmp.0, Durability::Process);
+    // every put kept: the journal is never due while they are written
+    a.config = DmConfig::default().with_retention("sonar", n as usize);
+    let (actor, handle, client) = start(a.clone()).await;
+    put_sonar(&client, n).await;
+    stop(actor, handle).await;
+    let before = segments(&tmp.0);
+    assert_eq!(before.len(), 1);
+
+    a.config = DmConfig::default().with_retention("sonar", 1000);
+    let (actor, handle, client) = start(a.clone()).await;
+    let stats = client.stats().await.unwrap();
+    let recovery = stats.recovery.clone().expect("read back");
+    assert!(
+        recovery.entries >= n as u64,
+        "the whole history: {recovery:?}"
+    );
+    assert_eq!(stats.records, 1000);
+    let newest = client
+        .select(Query::class("sonar").newest(1))
+        .await
+        .unwrap();
+    assert_eq!(newest[0].decode::<u32>().unwrap(), n - 1);
+    stop(actor, handle).await;
+    let after = segments(&tmp.0);
+    assert_eq!(
+        after.len(),
+        1,
+        "the old segment gone for the snapshot's: {after:?}"
+    );
+    assert_ne!(after, before);
+
+    let (actor, handle, client) = start(a).await;
+    let stats = client.stats().await.unwrap();
+    let recovery = stats.recovery.clone().expect("read back");
+    // the snapshot's records, its open and end marks and its producers' table
+    assert!(
+        recovery.entries < 1100,
+        "the live records only: {recovery:?}"
+    );
+    assert!(recovery.torn.is_none(), "{recovery:?}");
+    assert_eq!(stats.records, 1000);
+    assert_eq!(stats.next_seq, n as u64 + 1);
+    let again = client
+        .select(Query::class("sonar").newest(1))
+        .await
+        .unwrap();
+    assert_eq!(
+        (again[0].seq, again[0].decode::<u32>().unwrap()),
+        (newest[0].seq, n - 1)
+    );
+    stop(actor, handle).await;
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn eight_producers_at_sync_are_acknowledged_in_groups_and_all_come_back() {
     let tmp = TempDir::new("sync8");

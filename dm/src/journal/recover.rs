@@ -9,6 +9,7 @@
 //! by a crash is dropped, and the state before it kept. What was kept and dropped is the
 //! [`Recovery`] report. Nothing here panics on any bytes, and nothing corrupt is served.
 
+use super::reader::SegmentReader;
 use super::segment;
 use crate::entry::{self, Entry, Torn};
 use crate::producers::Producers;
@@ -297,15 +298,11 @@ pub(crate) fn recover(dir: &Path, config: DmConfig) -> io::Result<Recovered> {
     let mut tail = segments.last().map_or(1, |(n, _)| *n);
     let mut stop: Option<(usize, usize)> = None; // (index of the segment, offset)
     for (i, (n, path)) in segments.iter().enumerate() {
-        let bytes = std::fs::read(path)?;
-        let mut at = 0;
-        while at < bytes.len() {
-            match entry::decode(&bytes[at..]) {
-                Ok((e, len)) => {
-                    r.apply(e, *n, at);
-                    at += len;
-                }
-                Err(torn) => {
+        let mut entries = SegmentReader::open(path)?;
+        while let Some(next) = entries.next()? {
+            match next {
+                Ok((e, at)) => r.apply(e, *n, at),
+                Err((torn, at)) => {
                     let dropped = if torn == Torn::Short { 0 } else { 1 };
                     r.report.dropped_records += dropped;
                     r.report.torn = Some(format!(
@@ -317,7 +314,7 @@ pub(crate) fn recover(dir: &Path, config: DmConfig) -> io::Result<Recovered> {
                 }
             }
         }
-        r.report.bytes += at as u64;
+        r.report.bytes += entries.offset() as u64;
         if stop.is_some() {
             break;
         }

@@ -20,6 +20,9 @@ use std::collections::VecDeque;
 /// again).
 pub(crate) const KEEP_BYTES: usize = 32 << 20;
 
+/// A tail's buffer of fewer entries than this is never shrunk (a few KiB).
+const SHRINK_FROM: usize = 256;
+
 /// About what `op` takes in memory: the entry and what its record holds on the heap.
 pub(crate) fn op_bytes(op: &Op) -> usize {
     std::mem::size_of::<Op>()
@@ -103,7 +106,21 @@ impl Tail {
         }
         self.ops.drain(..n);
         self.bytes = bytes;
+        self.shrink();
         last
+    }
+
+    /// Give back the room of entries long dropped: a tail that once held thousands — a
+    /// replica's replay of its journal, a peer that lagged — and now holds a few would keep
+    /// the deque's whole buffer for good (168 bytes an entry: a 16 384-entry tail's is 2.7 to
+    /// 5.5 MiB, per datamanager).
+    /// Only when at most a quarter of it is used, to half: a tail that grows again pays one
+    /// reallocation per halving, not one per trim.
+    fn shrink(&mut self) {
+        let room = self.ops.capacity();
+        if room >= SHRINK_FROM && self.ops.len() <= room / 4 {
+            self.ops.shrink_to(room / 2);
+        }
     }
 
     /// Keep the first `n` entries.
@@ -198,5 +215,31 @@ mod tests {
         assert!(tail.over(1, usize::MAX) && tail.over(9, 10) && !tail.over(2, usize::MAX));
         tail.clear();
         assert_eq!((tail.len(), tail.bytes()), (0, 0));
+    }
+
+    #[test]
+    fn a_tail_trimmed_to_a_few_entries_gives_its_buffer_back() {
+        let mut tail: Tail = (1..=16_384).map(|s| put(s, 8)).collect();
+        let full = tail.ops.capacity();
+        assert!(full >= 16_384);
+        // trimmed to what is not held everywhere: a few entries
+        let last = tail.drop_front_while(|op, _, _| op.seq <= 16_380);
+        assert_eq!(last, Some((16_380, 1)));
+        assert_eq!(tail.len(), 4);
+        assert!(tail.ops.capacity() <= full / 2, "{}", tail.ops.capacity());
+        // every later trim halves it again, down to the floor
+        for _ in 0..16 {
+            tail.drop_front_while(|_, _, _| false);
+        }
+        assert!(tail.ops.capacity() < SHRINK_FROM, "{}", tail.ops.capacity());
+        assert_eq!(
+            (0..tail.len()).map(|i| tail[i].seq).collect::<Vec<_>>(),
+            [16_381, 16_382, 16_383, 16_384]
+        );
+        // a tail that holds most of its buffer keeps it
+        let mut busy: Tail = (1..=1000).map(|s| put(s, 8)).collect();
+        let room = busy.ops.capacity();
+        busy.drop_front_while(|op, _, _| op.seq <= 100);
+        assert_eq!(busy.ops.capacity(), room);
     }
 }
