@@ -109,6 +109,8 @@ pub(crate) async fn node(args: NodeArgs) -> anyhow::Result<ExitCode> {
     })
     .await?;
     let node = embedded.node;
+    // what the journals' replay freed goes back to the system
+    super::give_back::spawn();
     // watched before the line that tells whoever waits for it that the node runs
     let stop = super::signal::shutdown_signal(args.stop_with_stdin);
     say(&listening_line(&node, &cluster, args.speed));
