@@ -155,6 +155,24 @@ impl Progress {
             echo: None,
         }
     }
+
+    /// Its answer to an `Append` (or a snapshot): `ok`, it holds the log up to `last`;
+    /// refused, it lacks entries before `last + 1` — sent again from there, one at a time.
+    fn answered(&mut self, ok: bool, last: u64) {
+        if ok {
+            self.matched = self.matched.max(last);
+            self.next = self.next.max(last + 1);
+            self.probing = false;
+        } else {
+            let n = (last + 1).max(self.matched + 1);
+            if n < self.next || self.installing.is_some() {
+                self.next = n;
+            }
+            self.probing = true;
+            self.sent = None;
+        }
+        self.installing = None;
+    }
 }
 
 /// On a leader, what it knows of the replica on `peer`: a member's, or an outsider's.
@@ -957,20 +975,7 @@ impl Core {
         let Some(pr) = peers.get_mut(from) else {
             if let Some(pr) = outsiders.get_mut(from) {
                 // an outsider being told: only how far it holds the log matters
-                if ok {
-                    pr.matched = pr.matched.max(last);
-                    pr.next = pr.next.max(last + 1);
-                    pr.probing = false;
-                    pr.installing = None;
-                } else {
-                    let n = (last + 1).max(pr.matched + 1);
-                    if n < pr.next || pr.installing.is_some() {
-                        pr.next = n;
-                    }
-                    pr.installing = None;
-                    pr.probing = true;
-                    pr.sent = None;
-                }
+                pr.answered(ok, last);
                 self.told_outsider(from, now, out);
             }
             return;
@@ -980,11 +985,8 @@ impl Core {
             // it took in an `Append` of this term sent then: it follows this leader since
             pr.echo = pr.echo.max(Some(Duration::from_nanos(at)));
         }
+        pr.answered(ok, last);
         if ok {
-            pr.matched = pr.matched.max(last);
-            pr.next = pr.next.max(last + 1);
-            pr.probing = false;
-            pr.installing = None;
             let caught_up = pr.matched >= self.last().0;
             self.advance_commit(out);
             self.promote_if_caught_up(from, out);
@@ -996,14 +998,6 @@ impl Core {
             {
                 self.hand_over(now, out);
             }
-        } else {
-            let n = (last + 1).max(pr.matched + 1);
-            if n < pr.next || pr.installing.is_some() {
-                pr.next = n;
-            }
-            pr.installing = None;
-            pr.probing = true;
-            pr.sent = None;
         }
         self.send_to(from, now, false, &mut Vec::new(), out);
     }
