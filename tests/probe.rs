@@ -46,14 +46,10 @@ fn read_verdict(stdout: &str, shown: &str) -> (u64, u64) {
         .lines()
         .find(|l| l.starts_with("reads: probe of feature"))
         .unwrap_or_else(|| panic!("no verdict of the probe: {shown}"));
-    let stale: u64 = line
-        .split_once(" stale")
-        .and_then(|(before, _)| before.rsplit("; ").next()?.trim().parse().ok())
-        .unwrap_or_else(|| panic!("no stale count: {line}"));
-    let features: u64 = line
-        .split("; features ")
-        .nth(1)
-        .and_then(|rest| rest.split(" answered").next()?.parse().ok())
+    let stale = common::soak::stale_in(line).unwrap_or_else(|| panic!("no stale count: {line}"));
+    let features = common::soak::answered_in(line)
+        .get("features")
+        .copied()
         .unwrap_or_else(|| panic!("no reads of the replica on features: {line}"));
     (stale, features)
 }

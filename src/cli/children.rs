@@ -155,20 +155,30 @@ impl NodeChild {
     /// exit has no wait with a deadline in std. For the stop, and for a child whose output
     /// ended (its exit is at hand; one that closed its output but lives on is killed).
     pub(crate) fn wait_until(&mut self, deadline: Instant) -> Exit {
-        loop {
-            match self.child.try_wait() {
-                Ok(Some(status)) => return exit_of(status),
-                Ok(None) if Instant::now() < deadline => {
-                    std::thread::sleep(Duration::from_millis(20))
-                }
-                _ => {
-                    tracing::warn!(node = %self.name, "did not end in time: killed");
-                    let _ = self.child.kill();
-                    return self
-                        .child
-                        .wait()
-                        .map_or(Exit::Signal(libc::SIGKILL), exit_of);
-                }
+        match exit_by(&mut self.child, deadline) {
+            Ok(status) => exit_of(status),
+            Err(killed) => {
+                tracing::warn!(node = %self.name, "did not end in time: killed");
+                killed.map_or(Exit::Signal(libc::SIGKILL), exit_of)
+            }
+        }
+    }
+}
+
+/// Wait for `child` to exit until `deadline` (polling: a child's exit has no wait with a
+/// deadline in std); `Ok` with its status if it did, else it is killed and reaped: `Err`
+/// with the status of that, if any.
+pub(crate) fn exit_by(
+    child: &mut Child,
+    deadline: Instant,
+) -> Result<std::process::ExitStatus, Option<std::process::ExitStatus>> {
+    loop {
+        match child.try_wait() {
+            Ok(Some(status)) => return Ok(status),
+            Ok(None) if Instant::now() < deadline => std::thread::sleep(Duration::from_millis(20)),
+            _ => {
+                let _ = child.kill();
+                return Err(child.wait().ok());
             }
         }
     }

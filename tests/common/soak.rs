@@ -262,28 +262,12 @@ impl Outcome {
 
     /// The stale reads the probe counted (`None`: no verdict — not checked).
     pub(crate) fn stale_reads(&self) -> Option<u64> {
-        let line = self.reads()?;
-        let (before, _) = line.split_once(" stale")?;
-        before.rsplit("; ").next()?.trim().parse().ok()
+        stale_in(self.reads()?)
     }
 
     /// Reads the probe had answered (`None`: no verdict).
     pub(crate) fn reads_answered(&self) -> Option<u64> {
-        let line = self.reads()?;
-        let tallies = line.split_once("reads: ")?.1.split_once("reads: ")?.1;
-        Some(
-            tallies
-                .split("; ")
-                .filter_map(|road| {
-                    road.split(" answered")
-                        .next()?
-                        .rsplit(' ')
-                        .next()?
-                        .parse::<u64>()
-                        .ok()
-                })
-                .sum(),
-        )
+        Some(answered_in(self.reads()?).values().sum())
     }
 
     /// The table per fault.
@@ -396,4 +380,26 @@ impl Outcome {
             .find(|l| l.starts_with("node memory"))
             .map(String::as_str)
     }
+}
+
+/// The stale reads a probe's verdict line says (`… ; 2 stale; …`).
+pub(crate) fn stale_in(verdict: &str) -> Option<u64> {
+    let (before, _) = verdict.split_once(" stale")?;
+    before.rsplit("; ").next()?.trim().parse().ok()
+}
+
+/// The reads answered per road that a probe's verdict line says (`reads: by name 841
+/// answered; features 783 answered, 3 refused; …`): road → answered.
+pub(crate) fn answered_in(verdict: &str) -> std::collections::BTreeMap<String, u64> {
+    let Some((_, tallies)) = verdict.rsplit_once("reads: ") else {
+        return Default::default();
+    };
+    tallies
+        .split("; ")
+        .filter_map(|road| {
+            let (who, _) = road.split_once(" answered")?;
+            let (name, n) = who.rsplit_once(' ')?;
+            Some((name.to_string(), n.parse().ok()?))
+        })
+        .collect()
 }

@@ -6,6 +6,7 @@
 //! standard input is a pipe `up` holds: closed, the probe stops — also when `up` dies.
 
 use super::plan::UpPlan;
+use crate::cli::children::exit_by;
 use marie::dm::probe::ProbeVerdict;
 use std::io::{BufRead, BufReader, Read};
 use std::process::{Child, ChildStdin, Command, Stdio};
@@ -78,18 +79,7 @@ impl ProbeChild {
     }
 
     fn wait(&mut self) -> Result<ProbeVerdict, String> {
-        let until = Instant::now() + FINISH_WITHIN;
-        let status = loop {
-            match self.child.try_wait() {
-                Ok(Some(status)) => break Some(status),
-                Ok(None) if Instant::now() < until => std::thread::sleep(Duration::from_millis(50)),
-                _ => {
-                    let _ = self.child.kill();
-                    let _ = self.child.wait();
-                    break None;
-                }
-            }
-        };
+        let status = exit_by(&mut self.child, Instant::now() + FINISH_WITHIN).ok();
         let out = self
             .stdout
             .take()
