@@ -26,6 +26,7 @@ fn main() -> ExitCode {
     }
     let cli = cli::Cli::parse();
     cli::runtime::init_tracing(cli.log_format);
+    cli::huge_pages::decline();
     cli.command.set_build();
     // dropped last: the private network outlives the runtime and the nodes in it
     let _network = match cli.command.before_runtime() {

@@ -16,6 +16,7 @@ pub(crate) mod export;
 pub(crate) mod feed;
 pub(crate) mod files;
 pub(crate) mod give_back;
+pub(crate) mod huge_pages;
 pub(crate) mod join;
 pub(crate) mod kill;
 pub(crate) mod ls;
