@@ -4,6 +4,10 @@ use super::detector::{HeartbeatConfig, HeartbeatError};
 use super::tls::TlsFiles;
 use marie_vocabulary::wire::PROTOCOL_VERSION;
 use std::net::SocketAddr;
+use std::time::Duration;
+
+/// How long a dial may take by default ([`ClusterConfig::dial_timeout`]).
+pub const DEFAULT_DIAL_TIMEOUT: Duration = Duration::from_secs(2);
 
 /// Longest cookie accepted (ractor_cluster hashes it; a longer one gains nothing).
 pub const MAX_COOKIE_LEN: usize = 256;
@@ -56,6 +60,9 @@ pub enum ClusterConfigError {
     /// The heartbeat period and deadline cannot work together.
     #[error(transparent)]
     Heartbeat(#[from] HeartbeatError),
+    /// The dial timeout is zero: no dial could ever succeed.
+    #[error("the dial timeout must be longer than zero")]
+    DialTimeoutZero,
     /// A peer's address has port 0: nobody listens there.
     #[error("peer {peer} has no port")]
     PeerWithoutPort {
@@ -80,6 +87,11 @@ pub struct ClusterConfig {
     pub protocol: u16,
     /// Mutual TLS for every session; `None`: plain TCP (the cookie still authenticates).
     pub tls: Option<TlsFiles>,
+    /// Longest a dial may take — the connection, then its session until ready or turned
+    /// away, each — before the peer is dialed again: a peer behind a partition drops the
+    /// connection's SYNs silently, and the kernel would retry them for minutes, long after
+    /// the partition healed. Default [`DEFAULT_DIAL_TIMEOUT`].
+    pub dial_timeout: Duration,
 }
 
 impl ClusterConfig {
@@ -92,6 +104,7 @@ impl ClusterConfig {
             heartbeat: HeartbeatConfig::default(),
             protocol: PROTOCOL_VERSION,
             tls: None,
+            dial_timeout: DEFAULT_DIAL_TIMEOUT,
         }
     }
 
@@ -116,6 +129,14 @@ impl ClusterConfig {
         self
     }
 
+    /// Give up a dial after `timeout` (default [`DEFAULT_DIAL_TIMEOUT`]): its connection, and
+    /// then its session until ready. A session the peer turns away ends the wait at once,
+    /// whatever the timeout; a longer one only lets a slow connection or handshake finish.
+    pub fn with_dial_timeout(mut self, timeout: Duration) -> Self {
+        self.dial_timeout = timeout;
+        self
+    }
+
     /// What ractor_cluster would otherwise take silently or fail on later. The public check
     /// is [`ClusterConfig::validate`], beside the transport whose error it answers.
     pub(crate) fn check(&self, node: &str) -> Result<(), ClusterConfigError> {
@@ -126,6 +147,9 @@ impl ClusterConfig {
         }
         check_cookie(&self.cookie)?;
         self.heartbeat.validate()?;
+        if self.dial_timeout.is_zero() {
+            return Err(ClusterConfigError::DialTimeoutZero);
+        }
         if let Some(&peer) = self.peers.iter().find(|p| p.port() == 0) {
             return Err(ClusterConfigError::PeerWithoutPort { peer });
         }

@@ -39,6 +39,7 @@
 mod auth;
 mod config;
 pub mod detector;
+mod dialed;
 mod events;
 pub mod heartbeat;
 pub mod listener;
@@ -47,7 +48,10 @@ mod sessions;
 pub mod tls;
 mod transport;
 
-pub use config::{check_cookie, ClusterConfig, ClusterConfigError, CookieError, MAX_COOKIE_LEN};
+pub use config::{
+    check_cookie, ClusterConfig, ClusterConfigError, CookieError, DEFAULT_DIAL_TIMEOUT,
+    MAX_COOKIE_LEN,
+};
 pub use detector::{HeartbeatConfig, HeartbeatError};
 pub use events::NetEvent;
 pub use publish::publish_on;

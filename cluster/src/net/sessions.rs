@@ -4,6 +4,7 @@
 //! peer).
 
 use super::auth::AuthWatch;
+use super::dialed::Dialed;
 use super::events::NetEvent;
 use marie_vocabulary::registry;
 use ractor::ActorRef;
@@ -41,6 +42,9 @@ pub(crate) struct Sessions {
     /// What the transport tells ([`NetEvent`]): peers up and lost from here, the rest from
     /// the heartbeat.
     events: broadcast::Sender<NetEvent>,
+    /// The sessions this node dialed, opened and ended: what ends a dial's wait for its
+    /// session when the peer turns it away ([`Dialed`]).
+    dialed: broadcast::Sender<Dialed>,
     node: String,
     /// Peers refused (another protocol version): a session with one is closed as soon as
     /// it is authenticated, before its modules reach the registry.
@@ -61,6 +65,7 @@ impl Sessions {
             refusals: Arc::default(),
             changed: watch::Sender::new(0),
             events: broadcast::Sender::new(256),
+            dialed: broadcast::Sender::new(256),
             node: node.to_string(),
         }
     }
@@ -117,6 +122,12 @@ impl Sessions {
     pub(crate) fn listen(&self) -> (Vec<Peer>, broadcast::Receiver<NetEvent>) {
         let table = self.table();
         (peers_of(&table), self.events.subscribe())
+    }
+
+    /// The sessions this node dials from now on, opened and ended. A receiver that falls
+    /// 256 behind loses the oldest.
+    pub(crate) fn dialed(&self) -> broadcast::Receiver<Dialed> {
+        self.dialed.subscribe()
     }
 
     /// A receiver that sees every change of the table.
@@ -241,6 +252,12 @@ impl NodeEventSubscription for Sessions {
     fn node_session_opened(&self, ses: NodeServerSessionInformation) {
         self.open().insert(ses.node_id, (None, ses.actor.clone()));
         self.auth().opened(ses.node_id);
+        if !ses.is_server {
+            let _ = self.dialed.send(Dialed::Opened {
+                session: ses.node_id,
+                to: ses.peer_addr.clone(),
+            });
+        }
         tracing::debug!(node = %self.node, peer_addr = %ses.peer_addr, incoming = ses.is_server, "session opened");
     }
 
@@ -319,6 +336,12 @@ impl NodeEventSubscription for Sessions {
             self.bump();
         } else {
             tracing::debug!(node = %self.node, peer_addr = %ses.peer_addr, "session closed before it was ready");
+        }
+        // told last: a dialer that hears it finds the table as the session left it
+        if !ses.is_server {
+            let _ = self.dialed.send(Dialed::Ended {
+                session: ses.node_id,
+            });
         }
     }
 }

@@ -1,6 +1,7 @@
 //! Starting and stopping a node's transport, and dialing its peers until they answer.
 
 use super::config::{ClusterConfig, ClusterConfigError};
+use super::dialed::{Dialed, OwnDial};
 use super::events::NetEvent;
 use super::heartbeat::{Heartbeat, HeartbeatArgs};
 use super::listener;
@@ -14,16 +15,13 @@ use std::collections::BTreeSet;
 use std::net::SocketAddr;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
-use tokio::sync::mpsc;
+use tokio::sync::{broadcast, mpsc, watch};
 use tokio::task::JoinHandle;
 
 /// First wait before dialing a peer again; doubled on each failure up to [`REDIAL_MAX`].
 const REDIAL_MIN: Duration = Duration::from_millis(100);
 /// Longest wait between two dials of an absent peer.
 const REDIAL_MAX: Duration = Duration::from_secs(2);
-/// Longest a dial may take: a peer behind a partition drops our SYNs silently, and the
-/// kernel would retry them for minutes — long after the partition healed.
-const DIAL_TIMEOUT: Duration = Duration::from_secs(2);
 
 /// Why the transport cannot start or did not see its peers.
 #[derive(Debug, thiserror::Error)]
@@ -145,6 +143,7 @@ impl Transport {
             server: server.clone(),
             sessions: sessions.clone(),
             tls,
+            timeout: config.dial_timeout,
             dialing: Arc::default(),
         };
         let (learned, heard) = mpsc::unbounded_channel();
@@ -274,6 +273,14 @@ impl Transport {
     }
 }
 
+/// What became of a dialed session.
+enum Fate {
+    /// Its peer is ready (through it, or through a session the peer dialed).
+    Ready,
+    /// It ended before it was ready: turned away, or its handshake failed.
+    Gone,
+}
+
 /// Dials peers: the configured ones while they are absent, and those other peers name in
 /// their heartbeats (so that the cluster stays a full mesh, also with TLS and after a
 /// partition heals).
@@ -284,6 +291,9 @@ struct Dialer {
     server: ActorRef<NodeServerMessage>,
     sessions: Sessions,
     tls: Option<Tls>,
+    /// Longest a connection, and then its session until ready, may take
+    /// ([`ClusterConfig::dial_timeout`]).
+    timeout: Duration,
     /// Addresses being dialed now (connecting, or their session not yet ready): never
     /// two dials to one address at once.
     dialing: Arc<Mutex<BTreeSet<SocketAddr>>>,
@@ -296,15 +306,20 @@ impl Dialer {
         self.sessions.peers().iter().any(|p| p.address == wanted)
     }
 
-    /// One dial, with TLS if on, given up after [`DIAL_TIMEOUT`]; then wait, up to as
-    /// long again, for the session to be ready. Nothing if `addr` is being dialed already.
+    /// One dial, with TLS if on, given up after the dial timeout; then wait, up to as long
+    /// again, for its session to be ready — or to be gone: a session the peer turns away
+    /// (a duplicate, a failed handshake) ends the wait at once, so the next dial comes
+    /// after the redial backoff, not after the timeout. Nothing if `addr` is being dialed
+    /// already.
     async fn dial(&self, addr: SocketAddr) {
         let lock = || self.dialing.lock().unwrap_or_else(|e| e.into_inner());
         if !lock().insert(addr) {
             return;
         }
-        let mut changes = self.sessions.subscribe();
-        let dialed = tokio::time::timeout(DIAL_TIMEOUT, async {
+        // both before the dial: its session's news comes after it
+        let changes = self.sessions.subscribe();
+        let news = self.sessions.dialed();
+        let dialed = tokio::time::timeout(self.timeout, async {
             match &self.tls {
                 None => ractor_cluster::client_connect(&self.server, addr).await,
                 Some(tls) => tls.dial(&self.server, addr).await,
@@ -316,14 +331,15 @@ impl Dialer {
             Ok(Ok(())) => {
                 tracing::debug!(%node, peer = %addr, "dialed");
                 // the handshake and the state exchange follow
-                let _ = tokio::time::timeout(DIAL_TIMEOUT, async {
-                    while !self.present(addr) {
-                        if changes.changed().await.is_err() {
-                            return;
-                        }
+                match self.session_of(addr, changes, news).await {
+                    Some(Fate::Ready) => {}
+                    Some(Fate::Gone) => {
+                        tracing::debug!(%node, peer = %addr, "the dialed session ended before it was ready")
                     }
-                })
-                .await;
+                    None => {
+                        tracing::debug!(%node, peer = %addr, "the dialed session not ready in time")
+                    }
+                }
             }
             Ok(Err(e)) => match tls::refused_certificate(&e) {
                 // this node's own refusal, told (once) like an incoming one
@@ -333,6 +349,39 @@ impl Dialer {
             Err(_) => tracing::debug!(%node, peer = %addr, "dial timed out"),
         }
         lock().remove(&addr);
+    }
+
+    /// What became of the session a dial to `addr` opened, heard on `changes` and `news`
+    /// (both subscribed before the dial): ready, gone, or — `None` — neither within the
+    /// dial timeout.
+    async fn session_of(
+        &self,
+        addr: SocketAddr,
+        mut changes: watch::Receiver<u64>,
+        mut news: broadcast::Receiver<Dialed>,
+    ) -> Option<Fate> {
+        let mut own = OwnDial::new(addr.to_string());
+        let wait = async {
+            loop {
+                if self.present(addr) {
+                    return Fate::Ready;
+                }
+                tokio::select! {
+                    changed = changes.changed() => if changed.is_err() {
+                        // the sessions are gone: the transport is stopping
+                        return Fate::Gone;
+                    },
+                    heard = news.recv() => match heard {
+                        Ok(heard) if own.ended(&heard) => return Fate::Gone,
+                        Ok(_) => {}
+                        // news missed (256 behind): the timeout still ends the wait
+                        Err(broadcast::error::RecvError::Lagged(_)) => {}
+                        Err(broadcast::error::RecvError::Closed) => return Fate::Gone,
+                    },
+                }
+            }
+        };
+        tokio::time::timeout(self.timeout, wait).await.ok()
     }
 
     /// Keep a session with the peer at `addr`: dial it whenever no ready peer listens
