@@ -6,9 +6,9 @@
 //! fault (node, kind, run and mission time, back after — for a kill, `up`'s restart line —,
 //! caught up after, the records its run lost), the table per run, the totals, the reads of
 //! `up --probe feature` (a writer and readers by name and per replica beside the runs) and
-//! every node's resident memory at the start and the end; exit 1 when the goal (0 missions
-//! failed, 0 acknowledged records lost, 0 epochs obeyed late, 0 stale reads) does not
-//! hold, 130 when interrupted.
+//! every node's resident memory at the start and after the runs; exit 1 when the goal (0
+//! missions failed, 0 acknowledged records lost, 0 epochs obeyed late, 0 stale reads, node
+//! memory flat) does not hold, 130 when interrupted.
 //!
 //! ```text
 //! scripts/soak                          # 30 runs at wall-clock speed, chaos seed 1

@@ -11,7 +11,8 @@
 //! struck, caught up 0.84 s after it was back`: for a kill, "back" is the supervisor's
 //! restart, measured from the process's end; "caught up" is when `up`, probing the
 //! replicas every 100 ms, first saw every replica on the node counted at lag 0 by its
-//! leader) and the summary's memory line (VmRSS of every node at the start and the end).
+//! leader) and the summary's memory line (VmRSS of every node at the start and after the runs, and
+//! whether it stayed flat).
 
 use super::acceptance::Running;
 use serde_json::Value;
@@ -249,7 +250,14 @@ impl Outcome {
         !self.runs.is_empty()
             && self.runs.iter().all(RunVerdict::passes)
             && self.stale_reads() == Some(0)
+            && self.memory_flat()
             && self.exit == Some(0)
+    }
+
+    /// Whether `up` found every node's memory flat (its memory line names none
+    /// `GROWING`; a soak too short to compare halves is flat).
+    pub(crate) fn memory_flat(&self) -> bool {
+        self.memory().is_some_and(|m| !m.contains("GROWING"))
     }
 
     /// `up`'s line of the probe's verdict (`reads: probe of feature, …`).
@@ -356,7 +364,7 @@ impl Outcome {
             "missions run: {}, failed: {failed}; faults: {injected} ({}), {} not injected, {caught} \
              caught up; acknowledged records lost: {lost} of {acked}{}; epochs obeyed late: {late}; \
              collisions: {collisions}; stale reads: {} of {} answered. Goal (0 missions failed, 0 \
-             lost, 0 obeyed late, 0 stale reads): {}",
+             lost, 0 obeyed late, 0 stale reads, node memory flat): {}",
             self.runs.len(),
             kinds.join(", "),
             self.faults.len() - injected,

@@ -26,7 +26,9 @@
 
 mod verdict;
 
-pub use verdict::{stale, ProbeVerdict, ReadBack, RoadTally, StaleRead, BY_NAME};
+pub use verdict::{
+    stale, LostWrite, ProbeVerdict, ReadBack, RoadTally, StaleRead, Survivors, BY_NAME,
+};
 
 use super::client::DmClient;
 use super::error::DmError;
@@ -107,6 +109,8 @@ struct Shared {
     stop: AtomicBool,
     /// How many writes were acknowledged (the newest acknowledged is this minus 1).
     acked: AtomicU64,
+    /// The seq each acknowledged write was acknowledged with, by number.
+    seqs: Mutex<Vec<u64>>,
     verdict: Mutex<ProbeVerdict>,
 }
 
@@ -122,18 +126,21 @@ impl Shared {
     /// Count a read on `road`, sent when `acked_before` writes had been acknowledged, at
     /// `sent` from the start.
     fn read(&self, road: &str, acked_before: u64, sent: Duration, outcome: Outcome) {
+        let acked_seq = acked_before.checked_sub(1).and_then(|n| self.seq_of(n));
         self.tally(|v| {
             let t = v.roads.entry(road.to_string()).or_default();
             match outcome {
                 Outcome::Seen(seen) => {
                     t.answered += 1;
-                    if stale(acked_before, seen) {
+                    if stale(acked_before, seen.map(|(n, _)| n)) {
                         t.stale += 1;
                         let read = StaleRead {
                             road: road.to_string(),
-                            seen,
+                            seen: seen.map(|(n, _)| n),
                             newest_acked: acked_before - 1,
                             at_ms: sent.as_millis() as u64,
+                            seen_seq: seen.map(|(_, seq)| seq),
+                            acked_seq,
                         };
                         tracing::warn!(dm = %v.dm, "stale read: {read}");
                         if v.stale_reads.len() < STALE_KEPT {
@@ -149,10 +156,27 @@ impl Shared {
     }
 }
 
+impl Shared {
+    /// Write `n` was acknowledged with `seq`.
+    fn acknowledged(&self, n: u64, seq: u64) {
+        let mut seqs = self.seqs.lock().unwrap_or_else(|p| p.into_inner());
+        seqs.push(seq);
+        debug_assert_eq!(seqs.len() as u64, n + 1);
+        drop(seqs);
+        self.acked.store(n + 1, Ordering::SeqCst);
+    }
+
+    /// The seq write `n` was acknowledged with.
+    fn seq_of(&self, n: u64) -> Option<u64> {
+        let seqs = self.seqs.lock().unwrap_or_else(|p| p.into_inner());
+        seqs.get(usize::try_from(n).ok()?).copied()
+    }
+}
+
 /// How one read ended.
 enum Outcome {
-    /// Answered: the newest of the probe's records it showed.
-    Seen(Option<u64>),
+    /// Answered: the newest of the probe's records it showed (number, seq).
+    Seen(Option<(u64, u64)>),
     Refused,
     Unanswered,
     Absent,
@@ -171,6 +195,7 @@ impl Probe {
             started: Instant::now(),
             stop: AtomicBool::new(false),
             acked: AtomicU64::new(0),
+            seqs: Mutex::new(Vec::new()),
             verdict: Mutex::new(ProbeVerdict {
                 dm: config.dm.clone(),
                 ran_ms: 0,
@@ -179,6 +204,7 @@ impl Probe {
                 roads: BTreeMap::new(),
                 stale_reads: Vec::new(),
                 read_back: None,
+                survivors: None,
             }),
         });
         let tasks = vec![
@@ -225,14 +251,52 @@ impl Probe {
             let _ = task.await;
         }
         let mut verdict = self.tally();
-        verdict.read_back = Some(read_back(&self.shared, &self.config, &self.source).await);
+        let (read_back, survivors) = read_back(&self.shared, &self.config, &self.source).await;
+        verdict.read_back = Some(read_back);
+        verdict.survivors = survivors;
         verdict
     }
 }
 
-/// The newest of the probe's records in `records` (their payload is its number).
-fn newest(records: &[Record]) -> Option<u64> {
-    records.iter().filter_map(|r| r.decode::<u64>().ok()).max()
+/// The newest of the probe's records in `records` (their payload is its number), with its
+/// seq.
+fn newest(records: &[Record]) -> Option<(u64, u64)> {
+    records
+        .iter()
+        .filter_map(|r| r.decode::<u64>().ok().map(|n| (n, r.seq)))
+        .max()
+}
+
+/// Every acknowledged write (`acked`: the seq of write 0, 1, …) against the probe's
+/// records the datamanager holds: those not older than the oldest held must be held under
+/// the seq they were acknowledged with.
+pub fn survivors(acked: &[u64], held: &[Record]) -> Survivors {
+    // a number may be held twice (a retry stored again): each seq it is held under
+    let mut found: BTreeMap<u64, BTreeSet<u64>> = BTreeMap::new();
+    for (n, seq) in held
+        .iter()
+        .filter_map(|r| r.decode::<u64>().ok().map(|n| (n, r.seq)))
+    {
+        found.entry(n).or_default().insert(seq);
+    }
+    let oldest = found.keys().next().copied().unwrap_or(0);
+    let mut s = Survivors::default();
+    for (n, &seq) in acked.iter().enumerate().skip(oldest as usize) {
+        let n = n as u64;
+        s.looked_for += 1;
+        let at = found.get(&n);
+        if !at.is_some_and(|seqs| seqs.contains(&seq)) {
+            s.lost += 1;
+            if s.missing.len() < STALE_KEPT {
+                s.missing.push(LostWrite {
+                    number: n,
+                    acked_seq: seq,
+                    found_seq: at.and_then(|seqs| seqs.first().copied()),
+                });
+            }
+        }
+    }
+    s
 }
 
 /// The query of the probe's newest record.
@@ -259,9 +323,9 @@ async fn write(shared: Arc<Shared>, client: DmClient, config: ProbeConfig) {
             }
         };
         match client.store_raw(record).await {
-            Ok(_) => {
+            Ok(seq) => {
+                shared.acknowledged(n, seq);
                 n += 1;
-                shared.acked.store(n, Ordering::SeqCst);
                 shared.tally(|v| v.writes = n);
                 tokio::time::sleep(config.write_pause).await;
             }
@@ -350,37 +414,111 @@ async fn read_replica(shared: Arc<Shared>, config: ProbeConfig, source: String, 
 }
 
 /// Look for the newest acknowledged write by name (a few tries, each following the
-/// datamanager to its leader: a fault may have struck just before the stop).
-async fn read_back(shared: &Shared, config: &ProbeConfig, source: &str) -> ReadBack {
+/// datamanager to its leader: a fault may have struck just before the stop), and then for
+/// every acknowledged write the datamanager still keeps ([`survivors`]).
+async fn read_back(
+    shared: &Shared,
+    config: &ProbeConfig,
+    source: &str,
+) -> (ReadBack, Option<Survivors>) {
     let acked = shared.acked.load(Ordering::SeqCst);
     if acked == 0 {
-        return ReadBack::NothingWritten;
+        return (ReadBack::NothingWritten, None);
     }
     let client = match DmClient::lookup_within(&config.dm, source, config.patience * 5).await {
         Ok(c) => c
             .with_timeout(config.patience)
             .with_follow(config.patience * 5),
         Err(e) => {
-            return ReadBack::Unreachable {
-                error: e.to_string(),
-            }
+            let error = e.to_string();
+            return (ReadBack::Unreachable { error }, None);
         }
     };
     let mut last = String::new();
     for _ in 0..3 {
         match client.select(newest_query(source)).await {
             Ok(records) => {
-                let seen = newest(&records);
-                return match stale(acked, seen) {
+                let seen = newest(&records).map(|(n, _)| n);
+                let back = match stale(acked, seen) {
                     false => ReadBack::Found,
                     true => ReadBack::Missing {
                         newest_acked: acked - 1,
                         seen,
                     },
                 };
+                let all = Query::class(CLASS).source(source);
+                let seqs = shared
+                    .seqs
+                    .lock()
+                    .unwrap_or_else(|p| p.into_inner())
+                    .clone();
+                let kept = match client.select(all).await {
+                    Ok(held) => Some(survivors(&seqs, &held)),
+                    Err(e) => {
+                        tracing::warn!(dm = %config.dm, "the probe's records could not be read back: {e}");
+                        None
+                    }
+                };
+                return (back, kept);
             }
             Err(e) => last = e.to_string(),
         }
     }
-    ReadBack::Unreachable { error: last }
+    (ReadBack::Unreachable { error: last }, None)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::record::Payload;
+
+    fn held(n: u64, seq: u64) -> Record {
+        Record {
+            seq,
+            timestamp: Duration::ZERO,
+            source: "probe-1".into(),
+            class: CLASS.into(),
+            sub1: None,
+            sub2: None,
+            payload: Payload::encode(&n).unwrap(),
+        }
+    }
+
+    #[test]
+    fn an_acknowledged_write_still_kept_must_be_held_under_its_seq() {
+        // writes 0..=5 acknowledged as seqs 10..=15; retention dropped 0 and 1
+        let acked: Vec<u64> = (10..=15).collect();
+        let all = [held(2, 12), held(3, 13), held(4, 14), held(5, 15)];
+        let s = survivors(&acked, &all);
+        assert_eq!((s.looked_for, s.lost), (4, 0));
+        // write 4 gone, write 3 held under another seq (a copy stored again)
+        let s = survivors(&acked, &[held(2, 12), held(3, 17), held(5, 15)]);
+        assert_eq!((s.looked_for, s.lost), (4, 2));
+        assert_eq!(
+            s.missing,
+            vec![
+                LostWrite {
+                    number: 3,
+                    acked_seq: 13,
+                    found_seq: Some(17)
+                },
+                LostWrite {
+                    number: 4,
+                    acked_seq: 14,
+                    found_seq: None
+                },
+            ]
+        );
+        // a copy stored twice: held under its seq, so not lost
+        let twice = [
+            held(2, 12),
+            held(3, 13),
+            held(3, 17),
+            held(4, 14),
+            held(5, 15),
+        ];
+        assert_eq!(survivors(&acked, &twice).lost, 0);
+        // nothing held: every acknowledged write is looked for, and lost
+        assert_eq!(survivors(&acked, &[]).lost, 6);
+    }
 }

@@ -50,6 +50,37 @@ pub struct StaleRead {
     pub newest_acked: u64,
     /// Milliseconds from the probe's start to when it was sent.
     pub at_ms: u64,
+    /// The seq of the record it showed, as the datamanager numbered it.
+    #[serde(default)]
+    pub seen_seq: Option<u64>,
+    /// The seq the newest acknowledged write was acknowledged with.
+    #[serde(default)]
+    pub acked_seq: Option<u64>,
+}
+
+/// An acknowledged write not found among the probe's records at its end, though newer
+/// than the oldest one found (retention drops the oldest: those are not looked for).
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct LostWrite {
+    /// The write's number.
+    pub number: u64,
+    /// The seq it was acknowledged with.
+    pub acked_seq: u64,
+    /// The seq it was found under instead (`None`: not found at all).
+    pub found_seq: Option<u64>,
+}
+
+/// Every acknowledged write looked for at the probe's end: the datamanager's records of the
+/// probe, as its leader holds them, against the seqs the writes were acknowledged with.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Survivors {
+    /// Acknowledged writes looked for (those not older than the oldest record found).
+    pub looked_for: u64,
+    /// Of them, not found under the seq they were acknowledged with (at most
+    /// [`super::STALE_KEPT`] described; `lost` counts them all).
+    pub missing: Vec<LostWrite>,
+    /// How many were not found under their seq.
+    pub lost: u64,
 }
 
 /// The newest acknowledged write, looked for at the probe's end (by name, following the
@@ -94,6 +125,10 @@ pub struct ProbeVerdict {
     pub stale_reads: Vec<StaleRead>,
     /// The newest acknowledged write, looked for at the end (`None` while it runs).
     pub read_back: Option<ReadBack>,
+    /// Every acknowledged write the datamanager still keeps, looked for at the end (`None`
+    /// while it runs, or if the records could not be read: see `read_back`).
+    #[serde(default)]
+    pub survivors: Option<Survivors>,
 }
 
 impl ProbeVerdict {
@@ -111,6 +146,7 @@ impl ProbeVerdict {
     /// back (when it has been looked for).
     pub fn holds(&self) -> bool {
         self.stale() == 0
+            && self.survivors.as_ref().is_none_or(|s| s.lost == 0)
             && !matches!(
                 self.read_back,
                 Some(ReadBack::Missing { .. } | ReadBack::Unreachable { .. })
@@ -153,6 +189,27 @@ impl fmt::Display for ProbeVerdict {
             false => write!(f, "{}", roads.join("; "))?,
         }
         write!(f, "; {} stale", self.stale())?;
+        if let Some(s) = &self.survivors {
+            write!(
+                f,
+                "; {} of the {} acknowledged writes still kept lost",
+                s.lost, s.looked_for
+            )?;
+            for m in &s.missing {
+                match m.found_seq {
+                    Some(seq) => write!(
+                        f,
+                        " (number {} acknowledged as seq {}, found as seq {seq})",
+                        m.number, m.acked_seq
+                    )?,
+                    None => write!(
+                        f,
+                        " (number {} acknowledged as seq {}, NOT found)",
+                        m.number, m.acked_seq
+                    )?,
+                }
+            }
+        }
         match &self.read_back {
             None => Ok(()),
             Some(ReadBack::NothingWritten) => write!(f, "; nothing written to read back"),
@@ -189,7 +246,11 @@ impl fmt::Display for StaleRead {
                     "record number {n}"
                 )),
             self.newest_acked
-        )
+        )?;
+        if let (Some(seen), Some(acked)) = (self.seen_seq, self.acked_seq) {
+            write!(f, " (seen as seq {seen}, acknowledged as seq {acked})")?;
+        }
+        Ok(())
     }
 }
 
@@ -220,6 +281,10 @@ mod tests {
             roads: BTreeMap::new(),
             stale_reads: Vec::new(),
             read_back: Some(ReadBack::Found),
+            survivors: Some(Survivors {
+                looked_for: 240,
+                ..Survivors::default()
+            }),
         };
         v.roads.insert(
             BY_NAME.into(),
@@ -244,7 +309,10 @@ mod tests {
             said.contains("240 writes acknowledged (2 failed")
                 && said
                     .contains("by name 500 answered; spare 480 answered, 20 refused, 3 not sent")
-                && said.contains("; 0 stale; the newest acknowledged write read back"),
+                && said.contains(
+                    "; 0 stale; 0 of the 240 acknowledged writes still kept lost; the newest \
+                     acknowledged write read back"
+                ),
             "{said}"
         );
         let json = serde_json::to_string(&v).unwrap();
@@ -256,14 +324,36 @@ mod tests {
             seen: Some(3),
             newest_acked: 7,
             at_ms: 1500,
+            seen_seq: Some(30),
+            acked_seq: Some(34),
         });
         assert!(!v.holds());
         assert!(v.to_string().contains("; 1 stale"));
         assert_eq!(
             v.stale_reads[0].to_string(),
             "a read of the replica on spare sent 1.500 s into the probe showed record number \
-             3, though number 7 had been acknowledged before it was sent"
+             3, though number 7 had been acknowledged before it was sent (seen as seq 30, \
+             acknowledged as seq 34)"
         );
+        v.roads.get_mut("spare").unwrap().stale = 0;
+        v.survivors = Some(Survivors {
+            looked_for: 240,
+            missing: vec![LostWrite {
+                number: 7,
+                acked_seq: 34,
+                found_seq: None,
+            }],
+            lost: 1,
+        });
+        assert!(!v.holds());
+        assert!(
+            v.to_string().contains(
+                "; 1 of the 240 acknowledged writes still kept lost (number 7 acknowledged as \
+                 seq 34, NOT found)"
+            ),
+            "{v}"
+        );
+        v.survivors = None;
         v.roads.get_mut("spare").unwrap().stale = 0;
         v.read_back = Some(ReadBack::Missing {
             newest_acked: 239,

@@ -1,6 +1,18 @@
 //! The node processes' resident memory (`VmRSS` of `/proc/PID/status`), read at a soak's
-//! start and at its end: a node that leaks grows over many runs and faults. A node
-//! restarted meanwhile is read in its current process (which started later).
+//! start and after each of its runs: a node that leaks grows run after run and fault after
+//! fault, one whose stores fill levels off once they hold what their retention keeps. A
+//! node restarted meanwhile is read in its current process (which started later).
+//!
+//! # When memory is flat
+//! A node starts empty and its datamanagers fill up to their bounds (the thesis layout's
+//! feature and world keep 2000 records a class, reached in the fourth docking run; the run
+//! datamanager 512 checkpoints, in the fifteenth), so the start and the end cannot be equal
+//! and are not what is compared. The soak's runs after the first quarter are split in two
+//! halves, and a node's memory is *flat* when the median of its readings in the second half
+//! is at most [`FLAT_WITHIN`] above the median in the first: a leak of a fraction of a MiB a
+//! run moves the median by that times a quarter of the runs or more. Medians, not highest
+//! readings: a node read just after its restart holds what its journal's replay left
+//! (some 4 MiB more until the command gives it back, `give_back.rs`), once in a while.
 
 use marie::cluster::fault::NodeProcesses;
 use std::collections::BTreeMap;
@@ -21,6 +33,75 @@ impl Memory {
                 .collect(),
         )
     }
+}
+
+/// How much higher a node's median reading may be in the soak's second half than in its
+/// first (after the first quarter) and still be flat: a tenth.
+pub(super) const FLAT_WITHIN: f64 = 0.10;
+
+/// Every node's memory at a soak's start and after each of its runs.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub(super) struct Readings {
+    /// Before the first run.
+    pub(super) start: Memory,
+    /// After run 1, 2, … (in order).
+    pub(super) after: Vec<Memory>,
+}
+
+/// A node's memory over the soak, as the summary says it.
+#[derive(Clone, Debug, PartialEq)]
+pub(super) struct Trend {
+    /// At the start, after the first quarter, halfway and at the end (KiB; `None`: not
+    /// read).
+    pub(super) marks: Vec<(String, Option<u64>)>,
+    /// The medians of the first and the second half after the first quarter (KiB), when
+    /// each half has a reading.
+    pub(super) medians: Option<(u64, u64)>,
+}
+
+impl Trend {
+    /// Whether the second half's median is within [`FLAT_WITHIN`] of the first's (a soak
+    /// too short to have two halves is flat: there is nothing to compare).
+    pub(super) fn flat(&self) -> bool {
+        self.medians
+            .is_none_or(|(first, second)| second as f64 <= first as f64 * (1.0 + FLAT_WITHIN))
+    }
+}
+
+impl Readings {
+    /// The runs after the first quarter, split in two halves: (first run of the first half,
+    /// first run of the second, last run), 1-based. `None` for fewer than 4 runs.
+    pub(super) fn halves(&self) -> Option<(usize, usize, usize)> {
+        let runs = self.after.len();
+        (runs >= 4).then(|| {
+            let from = runs / 4 + 1;
+            (from, from + (runs - from).div_ceil(2), runs)
+        })
+    }
+
+    /// `node`'s trend.
+    pub(super) fn trend(&self, node: &str) -> Trend {
+        let at = |m: &Memory| m.0.get(node).copied().flatten();
+        let after = |run: usize| self.after.get(run - 1).and_then(at);
+        let mut marks = vec![("start".to_string(), at(&self.start))];
+        let mut medians = None;
+        if let Some((from, second, last)) = self.halves() {
+            marks.push((format!("after run {}", from - 1), after(from - 1)));
+            marks.push((format!("after run {}", second - 1), after(second - 1)));
+            let median = |runs: std::ops::Range<usize>| median(runs.filter_map(after).collect());
+            medians = median(from..second).zip(median(second..last + 1));
+        }
+        if !self.after.is_empty() {
+            marks.push(("end".to_string(), after(self.after.len())));
+        }
+        Trend { marks, medians }
+    }
+}
+
+/// The middle of `values` (the upper one of an even count), `None` for none.
+fn median(mut values: Vec<u64>) -> Option<u64> {
+    values.sort_unstable();
+    values.get(values.len() / 2).copied()
 }
 
 /// `VmRSS` of process `pid`, KiB.
@@ -59,5 +140,45 @@ mod tests {
         let read = Memory::of(&me, &["me".to_string(), "gone".to_string()]);
         assert!(read.0["me"].is_some_and(|k| k > 0), "{read:?}");
         assert_eq!(read.0["gone"], None);
+    }
+
+    fn readings(start: u64, after: &[u64]) -> Readings {
+        let one = |kib: u64| Memory([("n".to_string(), Some(kib))].into_iter().collect());
+        Readings {
+            start: one(start),
+            after: after.iter().map(|k| one(*k)).collect(),
+        }
+    }
+
+    #[test]
+    fn a_node_that_fills_its_stores_and_levels_off_is_flat_one_that_grows_on_is_not() {
+        // 8 runs: the first quarter (runs 1-2) fills; halves runs 3-5 and 6-8
+        let filled = readings(18, &[25, 30, 33, 34, 33, 34, 35, 34]);
+        let t = filled.trend("n");
+        assert_eq!(
+            t.marks,
+            vec![
+                ("start".to_string(), Some(18)),
+                ("after run 2".to_string(), Some(30)),
+                ("after run 5".to_string(), Some(33)),
+                ("end".to_string(), Some(34)),
+            ]
+        );
+        assert_eq!(t.medians, Some((33, 34)));
+        assert!(t.flat());
+        // one reading high after a restart does not move a median
+        assert!(readings(18, &[25, 30, 33, 34, 33, 34, 60, 34])
+            .trend("n")
+            .flat());
+        // a leak: 2 a run
+        let leaking = readings(18, &[20, 22, 24, 26, 28, 30, 32, 34]).trend("n");
+        assert_eq!(leaking.medians, Some((26, 32)));
+        assert!(!leaking.flat());
+        // too short to compare: start and end only, flat
+        let short = readings(18, &[25, 30]).trend("n");
+        assert_eq!(short.marks.len(), 2);
+        assert!(short.medians.is_none() && short.flat());
+        // a node never read
+        assert_eq!(filled.trend("other").medians, None);
     }
 }

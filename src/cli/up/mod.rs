@@ -23,7 +23,7 @@
 //! - `mission.rs` — `--run`: the mission run as `run --join` would;
 //! - `soak.rs` — `--runs N`: the mission run N times, then the summary;
 //! - `catch_up.rs` — under `--runs`: when each node fault's node was back and caught up;
-//! - `memory.rs` — the node processes' resident memory, at the soak's start and end;
+//! - `memory.rs` — the node processes' resident memory, at the soak's start and after each run, and when it is flat;
 //! - `probe.rs` — `--probe DM`: `marie dm probe` beside the runs, its verdict in the summary.
 
 mod catch_up;
@@ -127,11 +127,12 @@ pub(crate) struct UpArgs {
     /// then a summary of them all: runs failed, faults (with `--chaos-nodes`: each fault's
     /// node, when it was back and when every replica on it had caught up), acknowledged
     /// records lost, epochs obeyed late, collisions, and each node's memory (VmRSS) at the
-    /// start and the end. `--report`, `--events`, `--mcap`, `--svg` are written per run
-    /// (`report.json` → `report-1.json`, `report-2.json`, …); a `--fault` strikes in every
-    /// run. Keeps going after a failed run (one refused before it started — its node to
-    /// dispatch on out at that moment — is tried again for up to 60 s); exit 0 when every
-    /// run succeeded. Not with
+    /// start and after every run, and whether it stayed flat. `--report`, `--events`,
+    /// `--mcap`, `--svg` are written per run (`report.json` → `report-1.json`,
+    /// `report-2.json`, …); a `--fault` strikes in every run. Keeps going after a failed run (one refused before it started — its node to
+    /// dispatch on out at that moment — is tried again for up to 60 s); exit 0 when the
+    /// soak's goal holds (every run succeeded with nothing lost, nothing obeyed late, no
+    /// collision, no stale read with `--probe`, every node's memory flat). Not with
     /// `--monitor` (a run's page stays up until Ctrl-C).
     #[arg(long, value_name = "N", requires = "run", conflicts_with = "monitor",
           value_parser = clap::value_parser!(u32).range(1..))]

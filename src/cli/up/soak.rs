@@ -5,11 +5,12 @@
 //! its lines, outcome and verdict as a single run does, then how the soak stands; with
 //! node chaos every fault's fate is said once known ([`super::catch_up`]); at the end a
 //! summary: runs failed, faults, records lost, epochs obeyed late, collisions and each
-//! node's resident memory at the start and the end. A failed run does not end the soak (a
+//! node's resident memory at the start and after every run, and whether it is flat
+//! ([`super::memory`]). A failed run does not end the soak (a
 //! Ctrl-C does, with the summary so far).
 
 use super::catch_up::{CatchUp, Fate};
-use super::memory::{mib, Memory};
+use super::memory::{mib, Memory, Readings, FLAT_WITHIN};
 use super::mission::{node_chaos, run_mission, Turn};
 use super::plan::UpPlan;
 use super::probe::{self, ProbeChild};
@@ -44,7 +45,10 @@ pub(super) async fn soak(
     probe: Option<ProbeChild>,
 ) -> anyhow::Result<ExitCode> {
     let names: Vec<String> = plan.launches.iter().map(|l| l.name.clone()).collect();
-    let memory_start = Memory::of(&processes, &names);
+    let mut memory = Readings {
+        start: Memory::of(&processes, &names),
+        after: Vec::new(),
+    };
     // one Ctrl-C watch for the whole soak and each of its runs
     let stop = Shutdown::watch(false);
     let chaos = node_chaos(args, &plan.layout);
@@ -54,10 +58,6 @@ pub(super) async fn soak(
         .map(|c| CatchUp::start(c.watch(), restarted, run_now.clone(), plan.speed));
     let mut tallies = Vec::new();
     let mut interrupted = None;
-    // read again halfway: stored records grow to their classes' retention bound, so a
-    // plateau (half → end flat) tells bounded data from a leak, which grows on
-    let half = (runs >= 4).then_some(runs / 2);
-    let mut memory_half = None;
     for number in 1..=runs {
         run_now.store(number, Ordering::SeqCst);
         println!(
@@ -85,9 +85,9 @@ pub(super) async fn soak(
             }
         };
         tallies.push(Tally::of(number, ran, turn.kept.take()));
-        if half == Some(number) {
-            memory_half = Some((number, Memory::of(&processes, &names)));
-        }
+        // stored records grow to their classes' retention bound, then level off: a
+        // reading after every run tells that from a leak, which grows on
+        memory.after.push(Memory::of(&processes, &names));
         if let Some(signal) = stop.heard() {
             interrupted = Some(signal);
             break;
@@ -110,9 +110,7 @@ pub(super) async fn soak(
         runs,
         tallies,
         fates,
-        memory_start,
-        memory_half,
-        memory_end: Memory::of(&processes, &names),
+        memory,
         interrupted,
         probe,
     };
@@ -252,18 +250,16 @@ struct Summary {
     runs: u32,
     tallies: Vec<Tally>,
     fates: Vec<Fate>,
-    memory_start: Memory,
-    /// Halfway (after which run), for a soak of 4 runs or more.
-    memory_half: Option<(u32, Memory)>,
-    memory_end: Memory,
+    /// Every node's memory at the start and after each run.
+    memory: Readings,
     interrupted: Option<&'static str>,
     /// With `--probe`: its verdict, or why there is none.
     probe: Option<Result<ProbeVerdict, String>>,
 }
 
 impl Summary {
-    /// Whether the goal holds: every run ran and held it, and the probe (with `--probe`)
-    /// found no stale read and its newest write.
+    /// Whether the goal holds: every run ran and held it, the probe (with `--probe`)
+    /// found no stale read and its newest write, and every node's memory is flat.
     fn goal(&self) -> bool {
         self.tallies.len() == self.runs as usize
             && self.tallies.iter().all(Tally::holds)
@@ -271,6 +267,7 @@ impl Summary {
                 .probe
                 .as_ref()
                 .is_none_or(|p| p.as_ref().is_ok_and(ProbeVerdict::holds))
+            && self.memory_flat()
     }
 
     fn lines(&self) -> Vec<String> {
@@ -288,7 +285,7 @@ impl Summary {
         lines.push(self.memory_line());
         lines.push(format!(
             "soak goal (every run succeeded, 0 acknowledged records lost, 0 epochs obeyed \
-             from an old epoch, 0 collisions{}): {}",
+             from an old epoch, 0 collisions{}, node memory flat): {}",
             if self.probe.is_some() {
                 ", 0 stale reads"
             } else {
@@ -384,8 +381,10 @@ impl Summary {
         line
     }
 
-    /// `node memory (VmRSS at the soak's start → after run 15 → its end): cart 35.2 → 36.0 →
-    /// 36.1 MiB, …` (without the middle for a soak of fewer than 4 runs).
+    /// `node memory (VmRSS at the soak's start → after run 7 → after run 18 → its end;
+    /// median of runs 8–18 → of runs 19–30): cart 17.9 → 18.2 → 18.3 → 18.4 MiB (18.2 →
+    /// 18.3 MiB, flat), …` (start and end only for a soak of fewer than 4 runs; see
+    /// `memory.rs` for when memory is flat).
     fn memory_line(&self) -> String {
         let mut restarted: BTreeMap<&str, u64> = BTreeMap::new();
         for f in self
@@ -395,31 +394,62 @@ impl Summary {
         {
             *restarted.entry(f.struck.strike.node()).or_default() += 1;
         }
+        let mut marks = Vec::new();
         let nodes: Vec<String> = self
-            .memory_start
+            .memory
+            .start
             .0
-            .iter()
-            .map(|(node, start)| {
-                let end = self.memory_end.0.get(node).copied().flatten();
+            .keys()
+            .map(|node| {
+                let trend = self.memory.trend(node);
+                marks = trend.marks.iter().map(|(at, _)| at.clone()).collect();
+                let read: Vec<String> = trend.marks.iter().map(|(_, kib)| mib(*kib)).collect();
+                let medians = match trend.medians {
+                    Some((first, second)) => format!(
+                        " ({} → {}, {})",
+                        mib(Some(first)),
+                        mib(Some(second)),
+                        if trend.flat() { "flat" } else { "GROWING" }
+                    ),
+                    None => String::new(),
+                };
                 let again = match restarted.get(node.as_str()) {
                     Some(n) => format!(" (killed {n} times: its latest process)"),
                     None => String::new(),
                 };
-                let half = match &self.memory_half {
-                    Some((_, m)) => format!("{} → ", mib(m.0.get(node).copied().flatten())),
-                    None => String::new(),
-                };
-                format!("{node} {} → {half}{}{again}", mib(*start), mib(end))
+                format!("{node} {}{medians}{again}", read.join(" → "))
             })
             .collect();
-        let half = match &self.memory_half {
-            Some((run, _)) => format!(" → after run {run}"),
+        let marks = marks
+            .iter()
+            .map(|m| match m.as_str() {
+                "start" => "the soak's start",
+                "end" => "its end",
+                other => other,
+            })
+            .collect::<Vec<_>>()
+            .join(" → ");
+        let halves = match self.memory.halves() {
+            Some((from, second, last)) => format!(
+                "; median of runs {from}–{} → of runs {second}–{last}, flat within {:.0} %",
+                second - 1,
+                FLAT_WITHIN * 100.0
+            ),
             None => String::new(),
         };
         format!(
-            "node memory (VmRSS at the soak's start{half} → its end): {}",
+            "node memory (VmRSS at {marks}{halves}): {}",
             nodes.join(", ")
         )
+    }
+
+    /// Whether every node's memory is flat (`memory.rs`).
+    fn memory_flat(&self) -> bool {
+        self.memory
+            .start
+            .0
+            .keys()
+            .all(|node| self.memory.trend(node).flat())
     }
 }
 
@@ -489,9 +519,7 @@ mod tests {
             runs: 2,
             tallies: vec![good.clone(), failed],
             fates: Vec::new(),
-            memory_start: Memory::default(),
-            memory_half: None,
-            memory_end: Memory::default(),
+            memory: Readings::default(),
             interrupted: None,
             probe: None,
         };
@@ -534,9 +562,7 @@ mod tests {
             runs: 1,
             tallies: vec![good.clone()],
             fates: Vec::new(),
-            memory_start: Memory::default(),
-            memory_half: None,
-            memory_end: Memory::default(),
+            memory: Readings::default(),
             interrupted: None,
             probe: Some(probe),
         };
@@ -554,25 +580,55 @@ mod tests {
             .lines()
             .last()
             .unwrap()
-            .contains("0 stale reads): holds"));
+            .contains("0 stale reads, node memory flat): holds"));
         assert!(!probed(Ok(verdict(1))).goal());
         let unread = probed(Err("the probe ended".into()));
         assert!(!unread.goal());
         assert!(unread
             .lines()
             .contains(&"reads: NOT checked: the probe ended".to_string()));
-        // the memory line, with its middle reading once there is one
-        let kib = |v: u64| Memory([("cart".to_string(), Some(v))].into_iter().collect());
-        let read = Summary {
-            memory_start: kib(40 * 1024),
-            memory_half: Some((15, kib(50 * 1024))),
-            memory_end: kib(51 * 1024),
-            ..short
+        // the memory line: its marks and halves once there are 4 runs, and a node that
+        // grows on fails the goal
+        let kib = |v: u64| Memory([("cart".to_string(), Some(v * 1024))].into_iter().collect());
+        let soaked = |after: &[u64]| Summary {
+            mission: "docking".into(),
+            runs: after.len() as u32,
+            tallies: (1..=after.len() as u32)
+                .map(|n| Tally {
+                    number: n,
+                    ..good.clone()
+                })
+                .collect(),
+            memory: Readings {
+                start: kib(18),
+                after: after.iter().map(|v| kib(*v)).collect(),
+            },
+            fates: Vec::new(),
+            interrupted: None,
+            probe: None,
         };
+        let level = soaked(&[25, 30, 33, 34, 33, 34, 35, 34]);
         assert_eq!(
-            read.memory_line(),
-            "node memory (VmRSS at the soak's start → after run 15 → its end): cart 40.0 MiB → \
-             50.0 MiB → 51.0 MiB"
+            level.memory_line(),
+            "node memory (VmRSS at the soak's start → after run 2 → after run 5 → its end; \
+             median of runs 3–5 → of runs 6–8, flat within 10 %): cart 18.0 MiB → 30.0 MiB → \
+             33.0 MiB → 34.0 MiB (33.0 MiB → 34.0 MiB, flat)"
+        );
+        assert!(level.goal());
+        let growing = soaked(&[20, 22, 24, 26, 28, 30, 32, 34]);
+        assert!(growing
+            .memory_line()
+            .contains("(26.0 MiB → 32.0 MiB, GROWING)"));
+        assert!(!growing.goal());
+        assert!(growing
+            .lines()
+            .last()
+            .unwrap()
+            .contains("node memory flat): NOT met"));
+        let two = soaked(&[25, 30]);
+        assert_eq!(
+            two.memory_line(),
+            "node memory (VmRSS at the soak's start → its end): cart 18.0 MiB → 30.0 MiB"
         );
         assert_eq!(
             spread(&[Duration::from_millis(300), Duration::from_millis(100)]),
