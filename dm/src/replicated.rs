@@ -536,8 +536,9 @@ impl DatamanagerState {
             }),
         );
         let mut producers = Vec::with_capacity(INSTALL_PRODUCERS);
-        for (p, pairs) in self.producers.each() {
-            producers.push((p, pairs.iter().copied().collect()));
+        // the pairs of what the snapshot holds, not of proposals after it (`each_upto`)
+        for (p, pairs) in self.producers.each_upto(last.0) {
+            producers.push((p, pairs));
             if producers.len() == INSTALL_PRODUCERS {
                 let producers = std::mem::take(&mut producers);
                 replica.send(to, part(InstallPart::Producers { producers }));
@@ -600,8 +601,10 @@ impl ReplicaState {
         let Some(inc) = self.incoming.as_mut().filter(|i| i.last == last) else {
             return;
         };
+        // a leader of an older build sent every pair it held: those past the snapshot may
+        // be of proposals never committed (`Producers::each_upto`)
         for (producer, pairs) in producers {
-            for (pseq, seq) in pairs {
+            for (pseq, seq) in pairs.into_iter().filter(|(_, s)| *s <= last.0) {
                 inc.producers.note(producer, pseq, seq);
             }
         }

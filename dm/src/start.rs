@@ -194,6 +194,12 @@ pub(crate) async fn open(
         } => {
             // (no rebase: a replica's time stamps are the leader's, the same on every replica)
             let mut opened = open_journal(myself, args, dir, durability).await?;
+            // the pairs of what is committed only: a journal of an older build kept those of
+            // proposals past it too (`Producers::each_upto`); the tail's are noted as it is
+            // applied
+            if let Some(log) = &opened.log {
+                opened.producers.forget_after(log.committed.0);
+            }
             let replica = ReplicaState::start(
                 &args.name,
                 replication,

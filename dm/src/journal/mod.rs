@@ -530,8 +530,11 @@ impl Journal {
             entry::encode_parts(&mut bytes, seq, timestamp, epoch, (0, 0), record);
             n += 1;
         });
-        for (producer, pairs) in producers.each() {
-            entry::encode_producer(&mut bytes, producer, pairs.iter().copied());
+        // a replica's pairs up to its committed store only: those of its proposals after
+        // it may be of entries the next leader cuts (`Producers::each_upto`)
+        let upto = log.as_ref().map_or(u64::MAX, |((commit, _), _, _)| *commit);
+        for (producer, pairs) in producers.each_upto(upto) {
+            entry::encode_producer(&mut bytes, producer, pairs.into_iter());
         }
         if let Some((_, _, (at, members))) = &log {
             // the configuration committed then: the entry that made it goes with the
