@@ -177,7 +177,8 @@ fn the_probes_line_parses() {
             "records: 0 of 10 acknowledged records lost".into(),
             "reads: probe of feature, 34.3 s: 345 writes acknowledged (1 failed and tried \
              again), reads: by name 841 answered; features 783 answered, 3 refused; spare 7 \
-             answered, 1 unanswered; 2 stale; the newest acknowledged write read back"
+             answered, 1 unanswered; 2 stale; 0 of the 345 acknowledged writes still kept \
+             lost; the newest acknowledged write read back"
                 .into(),
         ],
     };
