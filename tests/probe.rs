@@ -82,10 +82,11 @@ fn with_reads_unchecked_the_probe_catches_the_cut_off_leaders_stale_reads() {
         stale > 0,
         "reads unchecked, and no stale read caught: {shown}"
     );
-    assert!(
-        stdout.contains("  stale: a read of the replica on features"),
-        "{shown}"
-    );
+    // which road shows them depends on timing: the cut-off leader on features answering
+    // alone, or — on a loaded machine, seen in a full run at load 11–13 — the new leader on
+    // operations or spare answering before its no-op is applied; reads unchecked, either is
+    // stale, and each is described
+    assert!(stdout.contains("  stale: a read "), "{shown}");
     // a stale read fails `up`, whatever the mission did
     assert_eq!(code, Some(1), "{shown}");
 }
