@@ -556,6 +556,7 @@ mod tests {
             .collect(),
             stale_reads: Vec::new(),
             read_back: Some(marie::dm::probe::ReadBack::Found),
+            survivors: None,
         };
         let probed = |probe| Summary {
             mission: "docking".into(),
