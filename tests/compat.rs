@@ -157,3 +157,73 @@ fn a_written_corpus_agrees_with_the_committed_one() {
         );
     }
 }
+
+/// The `remote_message!` enums of the workspace's sources, by name.
+fn remote_message_enums() -> Vec<(String, PathBuf)> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut found = Vec::new();
+    let mut dirs: Vec<PathBuf> = [
+        "vocabulary",
+        "dm",
+        "actors",
+        "supervision",
+        "cluster",
+        "missions",
+        "monitor",
+        "marie",
+        "src",
+    ]
+    .iter()
+    .map(|d| root.join(d))
+    .collect();
+    while let Some(dir) = dirs.pop() {
+        for entry in std::fs::read_dir(&dir).expect("a source dir reads") {
+            let path = entry.expect("an entry").path();
+            if path.is_dir() {
+                dirs.push(path);
+            } else if path.extension().is_some_and(|e| e == "rs")
+                // the macro's own tests
+                && !path.ends_with("vocabulary/src/wire/mod.rs")
+            {
+                let text = std::fs::read_to_string(&path).expect("a source file reads");
+                let mut lines = text.lines();
+                while let Some(line) = lines.next() {
+                    let code = line.trim_start();
+                    if code.starts_with("//") || !code.contains("remote_message! {") {
+                        continue;
+                    }
+                    let name = lines
+                        .by_ref()
+                        .map(str::trim)
+                        .find(|l| !l.starts_with("//") && !l.starts_with("#["))
+                        .and_then(|l| l.trim_start_matches("pub ").strip_prefix("enum "))
+                        .and_then(|l| l.split_whitespace().next())
+                        .unwrap_or_else(|| {
+                            panic!("{}: a remote_message! without an enum", path.display())
+                        });
+                    found.push((name.to_string(), path.clone()));
+                }
+            }
+        }
+    }
+    found
+}
+
+#[test]
+fn every_remote_message_enum_has_samples() {
+    // a new enum is not caught by the samples' exhaustive matches: this finds it
+    let manifest =
+        std::fs::read_to_string(current_corpus().join("manifest.toml")).expect("the manifest");
+    let enums = remote_message_enums();
+    assert!(enums.len() >= 10, "the scan finds the enums: {enums:?}");
+    for (name, path) in enums {
+        assert!(
+            manifest.contains(&format!("type = \"{name}\"")),
+            "`{name}` ({}) crosses nodes but the corpus has no sample of it: add its samples \
+             to src/cli/compat/samples.rs (and its decoder to decode.rs), then \
+             `marie compat write compat/v{}`",
+            path.display(),
+            marie::wire::PROTOCOL_VERSION
+        );
+    }
+}
