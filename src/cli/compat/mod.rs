@@ -37,6 +37,7 @@
 
 mod corpus;
 mod decode;
+mod journal;
 mod samples;
 mod shape;
 
@@ -82,14 +83,21 @@ pub(crate) enum CompatVerb {
 /// Do what `marie compat` says.
 pub(crate) async fn compat(args: CompatArgs) -> anyhow::Result<ExitCode> {
     match args.verb {
-        CompatVerb::Write { dir } => write(&dir),
-        CompatVerb::Check { dir } => check(&dir),
+        CompatVerb::Write { dir } => write(&dir).await,
+        CompatVerb::Check { dir } => check(&dir).await,
         CompatVerb::Diff { a, b } => diff(&a, &b),
     }
 }
 
-fn write(dir: &Path) -> anyhow::Result<ExitCode> {
-    let samples = samples::all().map_err(|e| anyhow::anyhow!("a sample: {e}"))?;
+async fn write(dir: &Path) -> anyhow::Result<ExitCode> {
+    let mut samples = samples::all().map_err(|e| anyhow::anyhow!("a sample: {e}"))?;
+    std::fs::create_dir_all(dir)
+        .map_err(|e| BadInput(format!("cannot create {}: {e}", dir.display())))?;
+    samples.push(
+        journal::write(dir)
+            .await
+            .map_err(|e| anyhow::anyhow!("the journal sample: {e}"))?,
+    );
     let build = crate::cli::this_build();
     let manifest = Manifest {
         version: build.version,
@@ -116,12 +124,16 @@ fn shape_of(entry: &Entry, bytes: &[u8]) -> Result<Shape, String> {
     }
 }
 
-fn check(dir: &Path) -> anyhow::Result<ExitCode> {
+async fn check(dir: &Path) -> anyhow::Result<ExitCode> {
     let corpus = corpus::read(dir)?;
     let own = samples::all().map_err(|e| anyhow::anyhow!("a sample: {e}"))?;
     let mut broken = 0;
     for (entry, bytes) in &corpus.samples {
-        let problems = check_one(entry, bytes, &own);
+        let again = match entry.form {
+            Form::Journal => journal::replay(dir, &entry.file, bytes).await,
+            _ => decode::redo(entry, bytes),
+        };
+        let problems = check_one(entry, bytes, again, &own);
         if problems.is_empty() {
             println!("ok      {}", entry.name());
         } else {
@@ -164,12 +176,17 @@ fn written_by(corpus: &Corpus) -> String {
 }
 
 /// What breaks in one sample (nothing: it is read and written back compatibly).
-fn check_one(entry: &Entry, bytes: &[u8], own: &[samples::Sample]) -> Vec<String> {
+fn check_one(
+    entry: &Entry,
+    bytes: &[u8],
+    again: Result<Vec<u8>, String>,
+    own: &[samples::Sample],
+) -> Vec<String> {
     let old = match shape_of(entry, bytes) {
         Ok(s) => s,
         Err(e) => return vec![e],
     };
-    match decode::redo(entry, bytes) {
+    match again {
         Ok(again) => match shape_of(entry, &again) {
             Ok(new) => shape::breaks(&old, &new),
             Err(e) => vec![format!("this build's own encoding does not read back: {e}")],

@@ -37,6 +37,8 @@ pub(crate) enum Form {
     Envelope,
     /// A serde value encoded with `wire::encode` (records stored in a datamanager).
     Value,
+    /// A datamanager's journal directory, beside the file of the records it keeps.
+    Journal,
 }
 
 /// One encoded sample.
