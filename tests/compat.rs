@@ -256,3 +256,29 @@ fn a_journal_cut_short_is_refused() {
         "{stdout}"
     );
 }
+
+#[test]
+fn a_report_field_renamed_is_refused() {
+    // the run report (`marie run --report` of the demo mission) is read as `marie diff`
+    // reads it and written back: a key it had and this build no longer writes is a break
+    let tmp = tempfile::tempdir().expect("a temp dir");
+    let altered = tmp.path().join("corpus");
+    copy(&current_corpus(), &altered);
+    let file = altered.join("RunReport.demo.json");
+    let text = std::fs::read_to_string(&file).expect("the report reads");
+    assert!(text.contains("\"duration_ms\""), "{text}");
+    std::fs::write(&file, text.replacen("\"duration_ms\"", "\"elapsed_ms\"", 1))
+        .expect("the report writes");
+
+    let out = marie(&["compat", "check", altered.to_str().expect("UTF-8")]);
+    let stdout = common::text(&out.stdout);
+    assert_eq!(out.status.code(), Some(1), "{stdout}");
+    let line = stdout
+        .lines()
+        .find(|l| l.starts_with("BROKEN  RunReport::demo"))
+        .unwrap_or_else(|| panic!("no broken line for the report:\n{stdout}"));
+    assert!(
+        line.contains("elapsed_ms") || line.contains("duration_ms"),
+        "{line}"
+    );
+}

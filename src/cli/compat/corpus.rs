@@ -41,12 +41,16 @@ pub(crate) struct Entry {
 impl Entry {
     /// `Type::Variant` (or `Type` for a plain value), and the file when it says more.
     pub(crate) fn name(&self) -> String {
-        let stem = format!("{}.{}.msgpack", self.ty, self.variant);
+        let stem = format!("{}.{}.", self.ty, self.variant);
         let base = match self.variant.as_str() {
             "-" => self.ty.clone(),
             v => format!("{}::{v}", self.ty),
         };
-        if self.file == stem {
+        if self
+            .file
+            .strip_prefix(&stem)
+            .is_some_and(|ext| !ext.contains('.'))
+        {
             base
         } else {
             format!("{base} ({})", self.file)

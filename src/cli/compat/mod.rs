@@ -38,6 +38,7 @@
 mod corpus;
 mod decode;
 mod journal;
+mod report;
 mod samples;
 mod shape;
 
@@ -98,6 +99,11 @@ async fn write(dir: &Path) -> anyhow::Result<ExitCode> {
             .await
             .map_err(|e| anyhow::anyhow!("the journal sample: {e}"))?,
     );
+    samples.push(
+        report::write(dir)
+            .await
+            .map_err(|e| anyhow::anyhow!("the run report sample: {e}"))?,
+    );
     let build = crate::cli::this_build();
     let manifest = Manifest {
         version: build.version,
@@ -120,6 +126,7 @@ async fn write(dir: &Path) -> anyhow::Result<ExitCode> {
 fn shape_of(entry: &Entry, bytes: &[u8]) -> Result<Shape, String> {
     match entry.form {
         Form::Envelope => Shape::of_envelope(bytes),
+        Form::Report => Shape::of_json(bytes),
         _ => Shape::of(bytes),
     }
 }
@@ -131,6 +138,7 @@ async fn check(dir: &Path) -> anyhow::Result<ExitCode> {
     for (entry, bytes) in &corpus.samples {
         let again = match entry.form {
             Form::Journal => journal::replay(dir, &entry.file, bytes).await,
+            Form::Report => report::redo(bytes),
             _ => decode::redo(entry, bytes),
         };
         let problems = check_one(entry, bytes, again, &own);

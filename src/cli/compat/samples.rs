@@ -39,6 +39,8 @@ pub(crate) enum Form {
     Value,
     /// A datamanager's journal directory, beside the file of the records it keeps.
     Journal,
+    /// A run report: JSON, not MessagePack.
+    Report,
 }
 
 /// One encoded sample.
@@ -60,9 +62,13 @@ pub(crate) struct Sample {
 impl Sample {
     /// The sample's file name in a corpus.
     pub(crate) fn file(&self) -> String {
+        let ext = match self.form {
+            Form::Report => "json",
+            _ => "msgpack",
+        };
         match self.label {
-            Some(label) => format!("{}.{}.{label}.msgpack", self.ty, self.variant),
-            None => format!("{}.{}.msgpack", self.ty, self.variant),
+            Some(label) => format!("{}.{}.{label}.{ext}", self.ty, self.variant),
+            None => format!("{}.{}.{ext}", self.ty, self.variant),
         }
     }
 }

@@ -27,6 +27,12 @@ impl Shape {
         rmp_serde::from_slice(bytes).map_err(|e| format!("not MessagePack: {e}"))
     }
 
+    /// The shape of a JSON document (a run report): the same kinds, JSON's numbers read as
+    /// integers when they have no fraction.
+    pub(crate) fn of_json(bytes: &[u8]) -> Result<Shape, String> {
+        serde_json::from_slice(bytes).map_err(|e| format!("not JSON: {e}"))
+    }
+
     /// The shape of an envelope frame, its payload read as a value in its place (the
     /// payload's fields are what the receiving node decodes).
     pub(crate) fn of_envelope(bytes: &[u8]) -> Result<Shape, String> {

@@ -1,0 +1,61 @@
+//! A run report as a sample: the JSON `marie run --report` writes, of a real run of the
+//! demo mission by this very binary; the check reads it with the reader `marie diff` uses
+//! and writes it back.
+
+use super::samples::{Form, Sample};
+use marie::report::RunReport;
+use std::path::Path;
+
+/// The type named in the manifest.
+pub(crate) const TYPE: &str = "RunReport";
+
+/// The demo mission (missions/demo.toml): sampler and averager, no world, a tenth of a
+/// second at `--speed max`, bounded by its own 60 s deadline.
+const DEMO: &str = include_str!("../../../missions/demo.toml");
+
+/// Run the demo mission with this binary and give its report as a sample.
+pub(crate) async fn write(corpus: &Path) -> Result<Sample, String> {
+    let sample = Sample {
+        ty: TYPE,
+        variant: "demo".into(),
+        label: None,
+        form: Form::Report,
+        bytes: Vec::new(),
+    };
+    let mission = corpus.join(".demo-mission.toml");
+    let report = corpus.join(sample.file());
+    std::fs::write(&mission, DEMO).map_err(|e| format!("{}: {e}", mission.display()))?;
+    let exe = std::env::current_exe().map_err(|e| format!("this binary: {e}"))?;
+    let (m, r) = (mission.clone(), report.clone());
+    let out = tokio::task::spawn_blocking(move || {
+        std::process::Command::new(exe)
+            .arg("run")
+            .arg(&m)
+            .arg("--seed")
+            .arg("1")
+            .arg("--report")
+            .arg(&r)
+            .stdout(std::process::Stdio::null())
+            .output()
+    })
+    .await
+    .map_err(|e| format!("the demo run: {e}"))?
+    .map_err(|e| format!("the demo run does not start: {e}"))?;
+    let _ = std::fs::remove_file(&mission);
+    if !out.status.success() {
+        return Err(format!(
+            "the demo run failed ({}): {}",
+            out.status,
+            String::from_utf8_lossy(&out.stderr)
+        ));
+    }
+    let bytes = std::fs::read(&report).map_err(|e| format!("{}: {e}", report.display()))?;
+    Ok(Sample { bytes, ..sample })
+}
+
+/// Read a report as `marie diff` does and write it back.
+pub(crate) fn redo(bytes: &[u8]) -> Result<Vec<u8>, String> {
+    let report: RunReport = serde_json::from_slice(bytes)
+        .map_err(|e| format!("is not a run report this build reads: {e}"))?;
+    serde_json::to_vec_pretty(&report).map_err(|e| e.to_string())
+}
