@@ -99,10 +99,10 @@ async fn write(dir: &Path) -> anyhow::Result<ExitCode> {
             .await
             .map_err(|e| anyhow::anyhow!("the journal sample: {e}"))?,
     );
-    samples.push(
+    samples.extend(
         report::write(dir)
             .await
-            .map_err(|e| anyhow::anyhow!("the run report sample: {e}"))?,
+            .map_err(|e| anyhow::anyhow!("the demo run's samples: {e}"))?,
     );
     let build = crate::cli::this_build();
     let manifest = Manifest {

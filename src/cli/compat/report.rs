@@ -1,8 +1,10 @@
 //! A run report as a sample: the JSON `marie run --report` writes, of a real run of the
 //! demo mission by this very binary; the check reads it with the reader `marie diff` uses
-//! and writes it back.
+//! and writes it back. The same run's events (`--events`), one of each kind it published,
+//! are samples of event frames as the relay sends them.
 
 use super::samples::{Form, Sample};
+use marie::events::Event;
 use marie::report::RunReport;
 use std::path::Path;
 
@@ -13,8 +15,8 @@ pub(crate) const TYPE: &str = "RunReport";
 /// second at `--speed max`, bounded by its own 60 s deadline.
 const DEMO: &str = include_str!("../../../missions/demo.toml");
 
-/// Run the demo mission with this binary and give its report as a sample.
-pub(crate) async fn write(corpus: &Path) -> Result<Sample, String> {
+/// Run the demo mission with this binary and give its report and events as samples.
+pub(crate) async fn write(corpus: &Path) -> Result<Vec<Sample>, String> {
     let sample = Sample {
         ty: TYPE,
         variant: "demo".into(),
@@ -24,9 +26,10 @@ pub(crate) async fn write(corpus: &Path) -> Result<Sample, String> {
     };
     let mission = corpus.join(".demo-mission.toml");
     let report = corpus.join(sample.file());
+    let events = corpus.join(".demo-events.jsonl");
     std::fs::write(&mission, DEMO).map_err(|e| format!("{}: {e}", mission.display()))?;
     let exe = std::env::current_exe().map_err(|e| format!("this binary: {e}"))?;
-    let (m, r) = (mission.clone(), report.clone());
+    let (m, r, e) = (mission.clone(), report.clone(), events.clone());
     let out = tokio::task::spawn_blocking(move || {
         std::process::Command::new(exe)
             .arg("run")
@@ -35,6 +38,8 @@ pub(crate) async fn write(corpus: &Path) -> Result<Sample, String> {
             .arg("1")
             .arg("--report")
             .arg(&r)
+            .arg("--events")
+            .arg(&e)
             .stdout(std::process::Stdio::null())
             .output()
     })
@@ -50,7 +55,35 @@ pub(crate) async fn write(corpus: &Path) -> Result<Sample, String> {
         ));
     }
     let bytes = std::fs::read(&report).map_err(|e| format!("{}: {e}", report.display()))?;
-    Ok(Sample { bytes, ..sample })
+    let lines = std::fs::read_to_string(&events);
+    let _ = std::fs::remove_file(&events);
+    let lines = lines.map_err(|e| format!("{}: {e}", events.display()))?;
+    let mut out = vec![Sample { bytes, ..sample }];
+    out.extend(one_of_each_kind(&lines)?);
+    Ok(out)
+}
+
+/// The first event of each kind in an events file, as event frames.
+fn one_of_each_kind(lines: &str) -> Result<Vec<Sample>, String> {
+    let mut out: Vec<Sample> = Vec::new();
+    for line in lines.lines().filter(|l| !l.trim().is_empty()) {
+        let event = Event::from_json_line(line).map_err(|e| format!("the demo's event: {e}"))?;
+        let kind = serde_json::to_value(&event.kind)
+            .ok()
+            .and_then(|v| v.get("type").and_then(|t| t.as_str()).map(str::to_string))
+            .ok_or("an event kind without its `type`")?;
+        if out.iter().any(|s| s.variant == kind) {
+            continue;
+        }
+        out.push(Sample {
+            ty: "Event",
+            variant: kind,
+            label: Some("demo"),
+            form: Form::Envelope,
+            bytes: super::samples::event_frame(&event)?,
+        });
+    }
+    Ok(out)
 }
 
 /// Read a report as `marie diff` does and write it back.

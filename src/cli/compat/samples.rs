@@ -347,7 +347,7 @@ fn run_ended() -> Event {
 /// The kind of an event frame (marie-cluster's relay names it so; private there).
 const EVENT_KIND: &str = "event";
 
-fn event_frame(event: &Event) -> Result<Vec<u8>, String> {
+pub(crate) fn event_frame(event: &Event) -> Result<Vec<u8>, String> {
     Envelope::new(EVENT_KIND, event)
         .and_then(|e| e.to_bytes())
         .map_err(|e| e.to_string())
@@ -365,7 +365,7 @@ fn events() -> Result<Vec<Sample>, String> {
             },
         },
     };
-    [("RunEnded", run_ended()), ("Lost", lost)]
+    [("run_ended", run_ended()), ("lost", lost)]
         .into_iter()
         .map(|(variant, event)| {
             Ok(Sample {
