@@ -78,7 +78,7 @@ fn one_of_each_kind(lines: &str) -> Result<Vec<Sample>, String> {
         out.push(Sample {
             ty: "Event",
             variant: kind,
-            label: Some("demo"),
+            label: Some("demo".into()),
             form: Form::Envelope,
             bytes: super::samples::event_frame(&event)?,
         });

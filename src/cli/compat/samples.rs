@@ -52,7 +52,7 @@ pub(crate) struct Sample {
     pub variant: String,
     /// A second sample of one variant (another form of its fields) is told apart by this
     /// label in its file name.
-    pub label: Option<&'static str>,
+    pub label: Option<String>,
     /// How it travels.
     pub form: Form,
     /// The bytes a node sends or stores.
@@ -66,7 +66,7 @@ impl Sample {
             Form::Report => "json",
             _ => "msgpack",
         };
-        match self.label {
+        match &self.label {
             Some(label) => format!("{}.{}.{label}.{ext}", self.ty, self.variant),
             None => format!("{}.{}.{ext}", self.ty, self.variant),
         }
@@ -187,7 +187,7 @@ fn eo() -> Result<Vec<Sample>, String> {
                     reply: port(),
                 },
             )?;
-            s.label = Some(label);
+            s.label = Some(label.into());
             v.push(s);
         }
         Ok(v)
@@ -277,12 +277,20 @@ fn dm() -> Result<Vec<Sample>, String> {
         ReplicaStats { reply: port() },
         SelectPage { query: query(), max_bytes: 65536, reply: port() },
         ChangeReplicas { change: Change::Add("gamma".into()), reply: port() },
+        // the replicas' own messages, crate-private to marie-dm: sampled there (its
+        // `replica_samples`, exhaustive over their variants) and added below
     } local {
-        // TODO(issue 44): the replicas' own messages (`ReplicaMsg`, crate-private to
-        // marie-dm) need a sample hook in marie-dm; until then they are not in the corpus
         Replica,
         WaitExpired, JournalFlush, JournalRefused, AnswerStats, ReplicaTick, TellApplied,
         ReplicaDurable,
+    })
+    .and_then(|mut v| {
+        for (label, m) in marie::dm::replica_samples() {
+            let mut s = message("DmMsg", m)?;
+            s.label = Some(label);
+            v.push(s);
+        }
+        Ok(v)
     })
 }
 
