@@ -1,28 +1,41 @@
 //! `marie compat`: the compatibility gate — a corpus of this build's encodings, and the
 //! check that a build still reads an older build's corpus and still writes what it read.
 //!
-//! Every message that crosses nodes (each `remote_message!` enum, every remote variant),
-//! the event frames the relay sends in the versioned envelope, and the records a
-//! datamanager stores have one sample each in `samples` (a new variant without a sample
-//! does not compile: see that module). `marie compat write DIR` writes them, one file per
-//! sample and a `manifest.toml`; the repository keeps the corpus of each protocol version in
-//! `compat/vN/`, and `tests/compat.rs` checks the current one on every test run.
+//! What the corpus holds, one file per sample (`samples`, `journal`, `report`):
+//! - every remote variant of every `remote_message!` enum, encoded as ractor_cluster sends
+//!   it (the variant's name in the manifest, its fields' MessagePack map in the file), the
+//!   replicas' own messages (`DmMsg::Replica`: every `ReplicaMsg`, sampled by marie-dm)
+//!   among them — a variant without a sample does not compile (see `samples`), an enum
+//!   without samples fails `tests/compat.rs`;
+//! - event frames in the versioned envelope, as the relay sends them to watchers: two built
+//!   here and one of each kind a real run of the demo mission published;
+//! - a stored record (`NewRecord`), and a datamanager's journal: a `process`-durability
+//!   datamanager started in this process on a directory of the corpus, three stores and a
+//!   delete, the records it kept beside it;
+//! - the run report (`marie run --report`) of that demo run, made by this very binary.
 //!
-//! `marie compat check DIR` decodes each sample with this build, through the path a node
+//! `marie compat write DIR` writes them with a `manifest.toml` (the build, the protocol
+//! version, each sample's type, variant, form and file); the repository keeps the corpus of
+//! each protocol version in `compat/vN/`, and `tests/compat.rs` checks the current one.
+//!
+//! `marie compat check DIR` decodes each sample with this build through the path a node
 //! takes (ractor's `Message::deserialize` for messages, the envelope and its payload for
-//! frames, `wire::decode` for records), encodes the value again and requires every key of
-//! the old encoding to be still there with the same MessagePack kind — a renamed field
-//! breaks an older peer that reads this build's frames even when this build reads the old
-//! ones thanks to a default. A sample that does not decode is compared with this build's
-//! own sample of its variant, which names the field that changed.
+//! frames, `wire::decode` for records, a datamanager's replay for the journal, `marie
+//! diff`'s reader for the report), encodes it again and requires every key of the old
+//! encoding to be still there with the same kind — a renamed field breaks an older peer
+//! that reads this build's frames even when this build reads the old ones thanks to a
+//! default. A sample that does not decode is compared with this build's own sample of its
+//! variant, which names the field that changed.
 //!
 //! ```text
 //! $ marie compat write /tmp/corpus
-//! wrote 47 samples of marie 0.1.0 (protocol 2) to /tmp/corpus
+//! wrote 69 samples of marie 0.1.0 (protocol 2) to /tmp/corpus
 //! $ marie compat check compat/v2
 //! ok      EoMsg::Activate
 //! …
-//! compat/v2: 47 samples of marie 0.1.0 (f18eb2f), protocol 2: 47 ok, 0 broken
+//! compat/v2: 69 samples of marie 0.1.0 (415555e…), protocol 2: 69 ok, 0 broken
+//! $ marie compat check /tmp/renamed      # an older build that called `epoch` `epich`
+//! BROKEN  EoMsg::Activate: does not decode with this build (…); field `epich` is gone; field `epoch` is new
 //! $ marie compat diff compat/v2 /tmp/corpus
 //! same    EoMsg::Activate
 //! …
@@ -31,8 +44,9 @@
 //! Exit codes: 0 every sample is read and written back compatibly (`diff`: the corpora
 //! agree), 1 a break (`diff`: they differ), 2 bad input (no manifest, an unreadable sample).
 //! When the check fails, either make the change compatible (add a field rather than rename
-//! it, as an `Option` or with a default; add a variant rather than rename one), or raise
-//! `PROTOCOL_VERSION` and write the new version's corpus with
+//! it — in a message, as an `Option`: a remote variant's fields carry no serde attributes
+//! on the wire, so `#[serde(default)]` there does not apply —; add a variant rather than
+//! rename one), or raise `PROTOCOL_VERSION` and write the new version's corpus with
 //! `marie compat write compat/vN`.
 
 mod corpus;
