@@ -19,6 +19,7 @@ mod browser;
 mod cli;
 mod cluster;
 mod cluster_failover;
+mod compat;
 mod data_dir;
 mod diff;
 mod dm_backpressure;

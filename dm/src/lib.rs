@@ -138,6 +138,10 @@ pub use name::Name;
 pub use page::{Page, PAGE_BYTES};
 pub use query::{Query, Take};
 pub use record::{NewRecord, Payload, Record, RecordHeader, MAX_NAME_LEN};
+/// One sample of each message the replicas of a replicated datamanager send each other, as
+/// the `DmMsg::Replica` that carries it: the compatibility corpus's (`marie compat`).
+#[doc(hidden)]
+pub use replica::samples::samples as replica_samples;
 pub use replica::{
     Change, ChangeError, Members, Replication, ReplicationError, Timing as ReplicationTiming,
     MIN_VOTERS, SCOPE as REPLICA_SCOPE, UNCHECKED_READS_ENV,

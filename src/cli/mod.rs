@@ -8,6 +8,7 @@
 pub(crate) mod args;
 pub(crate) mod check;
 pub(crate) mod children;
+pub(crate) mod compat;
 pub(crate) mod diff;
 pub(crate) mod dm;
 pub(crate) mod error;
@@ -92,6 +93,10 @@ pub(crate) enum Command {
     /// Change a replicated datamanager's replicas while the cluster runs (`--join`): add
     /// one on a node, remove one.
     Dm(dm::DmArgs),
+    /// The compatibility gate: write this build's corpus of encodings (every message that
+    /// crosses nodes, the event frames, the records a datamanager stores), check that this
+    /// build still reads a corpus and writes back every key it had, compare two corpora.
+    Compat(compat::CompatArgs),
 }
 
 /// This binary's build, as its `build.rs` captured it (`--version` says the same).
@@ -155,6 +160,7 @@ impl Command {
             Command::Export(args) => export::export(args).await,
             Command::Diff(args) => diff::diff(args),
             Command::Dm(args) => dm::dm(args).await,
+            Command::Compat(args) => compat::compat(args).await,
         }
     }
 }

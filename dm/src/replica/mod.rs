@@ -52,6 +52,7 @@ mod members;
 mod msg;
 mod op;
 pub(crate) mod redundancy;
+pub(crate) mod samples;
 pub(crate) mod tail;
 pub(crate) mod vote;
 
