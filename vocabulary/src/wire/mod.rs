@@ -20,12 +20,17 @@
 //! sent on to a leader that is lost, one it kept for want of a leader too long).
 //!
 //! Frames marie sends between nodes outside ractor's own messages (heartbeats, membership,
-//! events) travel in the versioned [`envelope::Envelope`]: a peer that speaks another
-//! [`PROTOCOL_VERSION`] is refused with an error naming both versions, never misread.
+//! events) travel in the versioned [`envelope::Envelope`]: a node speaks a
+//! [`ProtocolRange`] of versions, agrees with each peer on the highest both speak, and
+//! refuses a peer whose range does not meet its own, with an error naming both, never
+//! misreading it. The rules of evolution — what may change within a version, what needs a
+//! new one — are in `docs/compatibility.md`.
 
 pub mod envelope;
+pub mod range;
 
-pub use envelope::{Envelope, EnvelopeError, PROTOCOL_VERSION};
+pub use envelope::{Envelope, EnvelopeError, OLDEST_PROTOCOL, PROTOCOL_VERSION};
+pub use range::{ProtocolRange, RangeError};
 
 use ractor::concurrency::{self, Duration};
 use ractor::RpcReplyPort;
