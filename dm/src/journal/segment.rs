@@ -199,4 +199,18 @@ mod tests {
             );
         }
     }
+
+    /// Why a new kind of entry needs a new journal format: an older build takes an entry
+    /// of a kind it does not know for a corrupt one, and its replay cuts the journal there.
+    #[test]
+    fn an_entry_of_an_unknown_kind_reads_as_corrupt() {
+        let body = [200u8, 1, 2, 3];
+        let mut bytes = (body.len() as u32).to_le_bytes().to_vec();
+        bytes.extend_from_slice(&crc32c::crc32c(&body).to_le_bytes());
+        bytes.extend_from_slice(&body);
+        assert_eq!(
+            crate::entry::decode(&bytes).unwrap_err(),
+            crate::entry::Torn::Malformed
+        );
+    }
 }

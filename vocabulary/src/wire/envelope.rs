@@ -23,9 +23,11 @@
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
-/// The protocol version this build speaks. Raise it when a frame's meaning changes in a way
-/// older nodes would misread (a renamed variant, a field with another meaning); adding
-/// variants and `#[serde(default)]` fields does not need a new version.
+/// The protocol version this build speaks. Raise it when a message or frame changes in a
+/// way older nodes would misread or drop (a renamed or retyped field or variant, a field with
+/// another meaning, a variant they must understand); a struct's field added with
+/// `#[serde(default)]` or as an `Option`, or a `remote_message!` variant's field added as an
+/// `Option`, does not need one. The rules, each with its test: `docs/compatibility.md`.
 ///
 /// 2: one fault vocabulary (`Inject` carries a `FaultKind`), the dispatcher answers a run
 /// with its outcome, fault events carry no run time of their own.

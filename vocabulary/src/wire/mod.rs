@@ -7,7 +7,9 @@
 //! that does not decode is refused with a warning.
 //!
 //! Each variant travels as its name (the wire tag: never rename a variant, add new ones) and
-//! its fields as a MessagePack map (`to_vec_named`, so fields can be added later). A variant
+//! its fields as a MessagePack map (`to_vec_named`, so fields can be added later — as
+//! `Option`s: a variant's fields take no `#[serde]` attribute, and a missing field of another
+//! type does not decode; see `docs/compatibility.md`). A variant
 //! declared with `-> Reply` carries a `reply: RpcReplyPort<Reply>` field and travels as a call:
 //! its port is bridged to a byte port and back with [`bridge_out`] / [`bridge_in`].
 //!
@@ -27,6 +29,8 @@
 //! new one — are in `docs/compatibility.md`.
 
 pub mod envelope;
+#[cfg(test)]
+mod evolution;
 pub mod range;
 
 pub use envelope::{Envelope, EnvelopeError, OLDEST_PROTOCOL, PROTOCOL_VERSION};
