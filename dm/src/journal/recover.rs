@@ -269,6 +269,51 @@ impl Replay {
     }
 }
 
+impl Replay {
+    /// Replay the `segments` (whose format `headers` were read) in order, up to the first
+    /// entry that is not whole: where it is (index of the segment, offset), if there is one.
+    fn read(
+        &mut self,
+        segments: &[(u64, std::path::PathBuf)],
+        headers: &[Header],
+    ) -> io::Result<Option<(usize, usize)>> {
+        let name = |path: &Path| {
+            path.file_name()
+                .unwrap_or_default()
+                .to_string_lossy()
+                .into_owned()
+        };
+        for (i, ((n, path), header)) in segments.iter().zip(headers).enumerate() {
+            let start = match header {
+                Header::Format { start, .. } => *start,
+                Header::Torn => {
+                    // created, and its header cut short: it holds nothing
+                    self.report.torn = Some(format!(
+                        "segment {}: its format header is cut short",
+                        name(path)
+                    ));
+                    return Ok(Some((i, 0)));
+                }
+            };
+            let mut entries = SegmentReader::open(path, start)?;
+            while let Some(next) = entries.next()? {
+                match next {
+                    Ok((e, at)) => self.apply(e, *n, at),
+                    Err((torn, at)) => {
+                        self.report.dropped_records += u64::from(torn != Torn::Short);
+                        self.report.torn =
+                            Some(format!("segment {} at byte {at}: {torn}", name(path)));
+                        self.report.bytes += entries.offset() as u64;
+                        return Ok(Some((i, at)));
+                    }
+                }
+            }
+            self.report.bytes += entries.offset() as u64;
+        }
+        Ok(None)
+    }
+}
+
 /// Count the whole puts at the start of `bytes` (what a dropped region held).
 fn count_puts(mut bytes: &[u8]) -> u64 {
     let mut n = 0;
@@ -304,41 +349,7 @@ pub(crate) fn recover(dir: &Path, config: DmConfig) -> io::Result<Recovered> {
         .map(|(_, path)| segment::header(path))
         .collect::<io::Result<Vec<Header>>>()?;
     let mut tail = segments.last().map_or(1, |(n, _)| *n);
-    let mut stop: Option<(usize, usize)> = None; // (index of the segment, offset)
-    for (i, ((n, path), header)) in segments.iter().zip(&headers).enumerate() {
-        let start = match header {
-            Header::Format { start, .. } => *start,
-            Header::Torn => {
-                // created, and its header cut short: it holds nothing
-                r.report.torn = Some(format!(
-                    "segment {}: its format header is cut short",
-                    path.file_name().unwrap_or_default().to_string_lossy()
-                ));
-                stop = Some((i, 0));
-                break;
-            }
-        };
-        let mut entries = SegmentReader::open(path, start)?;
-        while let Some(next) = entries.next()? {
-            match next {
-                Ok((e, at)) => r.apply(e, *n, at),
-                Err((torn, at)) => {
-                    let dropped = if torn == Torn::Short { 0 } else { 1 };
-                    r.report.dropped_records += dropped;
-                    r.report.torn = Some(format!(
-                        "segment {} at byte {at}: {torn}",
-                        path.file_name().unwrap_or_default().to_string_lossy()
-                    ));
-                    stop = Some((i, at));
-                    break;
-                }
-            }
-        }
-        r.report.bytes += entries.offset() as u64;
-        if stop.is_some() {
-            break;
-        }
-    }
+    let stop = r.read(&segments, &headers)?;
     // A torn end: cut the segment there, and drop every segment after it.
     if let Some((i, at)) = stop {
         let (n, path) = &segments[i];
