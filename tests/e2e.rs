@@ -41,6 +41,7 @@ mod node_faults;
 mod nodes;
 mod partition;
 mod probe;
+mod protocol_range;
 mod provenance;
 mod recovery;
 mod replay;

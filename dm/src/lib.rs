@@ -126,7 +126,8 @@ pub use credits::{
 pub use error::DmError;
 pub use heir::{Heir, Inherited};
 pub use journal::{
-    journal_dir, DirLock, Durability, LockError, Recovery, UnknownDurability, SNAPSHOT_MIN,
+    journal_dir, DirLock, Durability, FormatError, LockError, Recovery, UnknownDurability,
+    FORMAT as JOURNAL_FORMAT, OLDEST_FORMAT as OLDEST_JOURNAL_FORMAT, SNAPSHOT_MIN,
 };
 pub use kind::RecordKind;
 pub use majority::{

@@ -4,8 +4,10 @@
 use super::args::RobotArgs;
 use super::join::{join, member_name, JoinArgs};
 use super::prepare::start_node;
+use marie::cluster::net::heartbeat::{peers_said, PeerSaid};
 use marie::dm::{DmClient, DmStats, Durability};
 use marie::registry::{self, Instance, ModuleKind};
+use std::collections::BTreeMap;
 use std::process::ExitCode;
 use std::time::Duration;
 
@@ -28,14 +30,40 @@ pub(crate) async fn ls(args: LsArgs) -> anyhow::Result<ExitCode> {
     if let Some(target) = args.cluster.target_alone(&args.robot, "lists")? {
         // a member that hosts nothing: what it lists is the others'
         let transport = join(&member_name("ls"), &target).await?;
-        let result = print_listing(&registry::list(), args.json).await;
+        let said = peers_said(PEERS_SAID_WITHIN).await;
+        let result = print_listing(&registry::list(), &said, args.json).await;
         transport.stop().await;
         return result.map(|()| ExitCode::SUCCESS);
     }
     let node = start_node(args.robot.options(None)).await?.node;
-    print_listing(&registry::list(), args.json).await?;
+    print_listing(&registry::list(), &BTreeMap::new(), args.json).await?;
     node.shutdown().await;
     Ok(ExitCode::SUCCESS)
+}
+
+/// How long `ls --join` waits for every node to have named its build and protocol.
+const PEERS_SAID_WITHIN: Duration = Duration::from_secs(2);
+
+/// What the nodes of the cluster said in their beats, by node name.
+type Said = BTreeMap<String, Option<PeerSaid>>;
+
+/// How a node's protocol reads in `ls`: `protocol 2 (speaks 2..=3)`.
+fn protocol_words(said: &PeerSaid) -> String {
+    format!("protocol {} (speaks {})", said.agreed, said.speaks)
+}
+
+/// A node's line: its protocol agreed with this member and its build.
+fn node_line(node: &str, said: &Option<PeerSaid>) -> String {
+    match said {
+        None => format!("node {node}: has not said its protocol and build"),
+        Some(s) => {
+            let build = s.build.as_ref().map_or_else(
+                || "a build that does not say".to_string(),
+                |b| b.to_string(),
+            );
+            format!("node {node}: {}, build {build}", protocol_words(s))
+        }
+    }
 }
 
 /// How long `ls` waits for a datamanager's stats.
@@ -52,7 +80,7 @@ async fn dm_state(i: &Instance) -> Option<DmStats> {
     client.stats().await.ok()
 }
 
-async fn print_listing(list: &[Instance], json: bool) -> anyhow::Result<()> {
+async fn print_listing(list: &[Instance], said: &Said, json: bool) -> anyhow::Result<()> {
     let mut dms = Vec::with_capacity(list.len());
     for i in list {
         dms.push(dm_state(i).await);
@@ -69,6 +97,12 @@ async fn print_listing(list: &[Instance], json: bool) -> anyhow::Result<()> {
                     "kind": i.kind.label(), "id": i.id, "name": i.name,
                     "node": i.node, "address": i.actor.get_id().to_string(),
                 });
+                if let Some(Some(s)) = said.get(&i.node) {
+                    row["protocol"] = serde_json::json!({
+                        "agreed": s.agreed, "speaks": s.speaks.to_string(),
+                        "build": s.build.as_ref().map(ToString::to_string),
+                    });
+                }
                 if let Some(s) = dm {
                     row["durability"] = s.durability.as_str().into();
                     row["records"] = s.records.into();
@@ -94,6 +128,9 @@ async fn print_listing(list: &[Instance], json: bool) -> anyhow::Result<()> {
         println!("{}", serde_json::to_string_pretty(&rows)?);
     } else {
         print!("{}", registry::render_listing(list));
+        for (node, s) in said {
+            println!("{}", node_line(node, s));
+        }
         for (i, s) in list.iter().zip(&dms) {
             let Some(s) = s else { continue };
             let journal = match s.durability {

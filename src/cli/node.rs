@@ -61,9 +61,14 @@ pub(crate) struct NodeArgs {
     /// children, so that none outlives it even when it is killed.
     #[arg(long)]
     pub stop_with_stdin: bool,
-    /// Claim another protocol version in heartbeats: only to see a cluster refuse it.
-    #[arg(long, hide = true, value_name = "N")]
+    /// Claim another protocol version in heartbeats (that one alone): only to see a
+    /// cluster refuse it.
+    #[arg(long, hide = true, value_name = "N", conflicts_with = "protocol_range")]
     pub protocol_version: Option<u16>,
+    /// Claim to speak another range of protocol versions in heartbeats (`LO-HI`): only to
+    /// see a cluster agree with a node of another build, or refuse it.
+    #[arg(long, hide = true, value_name = "LO-HI")]
+    pub protocol_range: Option<marie::wire::ProtocolRange>,
     /// Claim to be built from another commit (40 hex digits) in heartbeats and
     /// provenance: only to see a run name a node of another commit.
     #[arg(long, hide = true, value_name = "COMMIT")]
@@ -89,7 +94,10 @@ impl NodeArgs {
             cluster.peers = self.peers.clone();
         }
         if let Some(v) = self.protocol_version {
-            cluster.protocol = v;
+            cluster.protocol = marie::wire::ProtocolRange::single(v);
+        }
+        if let Some(range) = self.protocol_range {
+            cluster.protocol = range;
         }
         Some(cluster)
     }

@@ -2,7 +2,7 @@
 
 use super::detector::{HeartbeatConfig, HeartbeatError};
 use super::tls::TlsFiles;
-use marie_vocabulary::wire::PROTOCOL_VERSION;
+use marie_vocabulary::wire::ProtocolRange;
 use std::net::SocketAddr;
 use std::time::Duration;
 
@@ -82,9 +82,10 @@ pub struct ClusterConfig {
     pub cookie: String,
     /// The failure detector's heartbeat period and deadline.
     pub heartbeat: HeartbeatConfig,
-    /// The protocol version the node claims in its heartbeats: [`PROTOCOL_VERSION`]; another
-    /// value only to see a cluster refuse it (`marie node --protocol-version`, hidden).
-    pub protocol: u16,
+    /// The protocol versions the node claims to speak in its heartbeats: this build's
+    /// ([`ProtocolRange::this_build`]); another range only to see a cluster agree with a
+    /// node of another build or refuse it (`marie node --protocol-range`, hidden).
+    pub protocol: ProtocolRange,
     /// Mutual TLS for every session; `None`: plain TCP (the cookie still authenticates).
     pub tls: Option<TlsFiles>,
     /// Longest a dial may take — the connection, then its session until ready or turned
@@ -102,7 +103,7 @@ impl ClusterConfig {
             peers: Vec::new(),
             cookie: cookie.into(),
             heartbeat: HeartbeatConfig::default(),
-            protocol: PROTOCOL_VERSION,
+            protocol: ProtocolRange::this_build(),
             tls: None,
             dial_timeout: DEFAULT_DIAL_TIMEOUT,
         }

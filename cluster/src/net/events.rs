@@ -2,7 +2,14 @@
 //! [`NetEvent`]s: plain data, told by the sessions and the heartbeat, put on the node's
 //! event bus by [`publish_on`](super::publish_on).
 
+use marie_vocabulary::run::Build;
+use marie_vocabulary::wire::envelope::speaks;
+use marie_vocabulary::wire::ProtocolRange;
 use std::time::Duration;
+
+/// What a refusal of another protocol says to do.
+pub const UPGRADE_ADVICE: &str =
+    "upgrade the cluster one build at a time: a build speaks its own protocol and the one before";
 
 /// What the transport tells of its peers, as it happens.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -38,14 +45,18 @@ pub enum NetEvent {
         /// that told it measured.
         silent: Duration,
     },
-    /// A peer speaks another protocol version and was refused.
+    /// A peer speaks no protocol version this node speaks and was refused.
     PeerRefused {
         /// Its node name.
         peer: String,
-        /// Its protocol version.
-        theirs: u16,
-        /// This node's.
-        ours: u16,
+        /// The protocol versions it speaks.
+        theirs: ProtocolRange,
+        /// Those this node speaks.
+        ours: ProtocolRange,
+        /// Its build, as its beat named it (`None` from a build that does not say).
+        their_build: Option<Build>,
+        /// This node's build.
+        our_build: Build,
     },
     /// An incoming connection was refused before it became a session: with TLS on, it
     /// presented no valid certificate (none, one of another CA, one naming another
@@ -93,11 +104,24 @@ impl std::fmt::Display for NetEvent {
                 "was frozen for {} ms: its peers have declared it down",
                 silent.as_millis()
             ),
-            NetEvent::PeerRefused { peer, theirs, ours } => write!(
-                f,
-                "refused {peer}: it speaks protocol version {theirs}, this node speaks \
-                 protocol version {ours}"
-            ),
+            NetEvent::PeerRefused {
+                peer,
+                theirs,
+                ours,
+                their_build,
+                our_build,
+            } => {
+                let their_build = their_build
+                    .as_ref()
+                    .map_or_else(|| "a build that does not say".to_string(), Build::to_string);
+                write!(
+                    f,
+                    "refused {peer}: it speaks {} (build {their_build}), this node speaks {} \
+                     (build {our_build}); {UPGRADE_ADVICE}",
+                    speaks(theirs.oldest, theirs.newest),
+                    speaks(ours.oldest, ours.newest),
+                )
+            }
             NetEvent::ConnectionRefused { from, reason } => {
                 write!(f, "refused a connection from {from}: {reason}")
             }

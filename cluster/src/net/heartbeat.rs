@@ -15,17 +15,22 @@
 //! sender declared down ([`DownNotice`]), and a node that reads its own name there once its
 //! sessions are back tells [`NetEvent::Frozen`] (see [`Detector::told`]).
 //!
-//! A beat of another protocol version refuses its sender for the transport's life: a
-//! [`NetEvent::PeerRefused`] names both versions, its sessions are closed two periods later
-//! (time for this node's own beat to tell it the same), and a later session with it is
-//! closed as soon as it is authenticated, before its modules reach the registry.
+//! A beat names the protocol versions its sender speaks (a beat of a build before ranges
+//! names none: its envelope's version is its range). The receiver agrees with it on the
+//! highest version both speak, kept in the session table (`Sessions::agreed`) and carried
+//! by every beat for that peer — a beat for a peer not heard yet carries this node's oldest
+//! version, which a node of the build before ranges (one exact version) reads. A sender
+//! whose range does not meet this node's is refused for the transport's life: a
+//! [`NetEvent::PeerRefused`] names both ranges and both builds, its sessions are closed two
+//! periods later (time for this node's own beat to tell it the same), and a later session
+//! with it is closed as soon as it is authenticated, before its modules reach the registry.
 
 use super::detector::{BeatId, Detector, DownNotice, HeartbeatConfig, Reach};
 use super::events::NetEvent;
 use super::sessions::{Peer, Sessions};
 use marie_vocabulary::run::provenance::this_build;
 use marie_vocabulary::run::Build;
-use marie_vocabulary::wire::{self, Envelope};
+use marie_vocabulary::wire::{self, Envelope, ProtocolRange};
 use ractor::{pg, Actor, ActorProcessingErr, ActorRef};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -65,6 +70,21 @@ struct Beat {
     /// and one of another commit (absent from older builds' beats).
     #[serde(default)]
     build: Option<Build>,
+    /// The protocol versions the sender speaks; absent from the beats of builds before
+    /// ranges, which speak their envelope's version alone.
+    #[serde(default)]
+    speaks: Option<ProtocolRange>,
+}
+
+/// What a peer's beats said: its build and protocol range, and the version agreed with it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct PeerSaid {
+    /// Its marie build; `None` from a build that does not say.
+    pub build: Option<Build>,
+    /// The protocol versions it speaks.
+    pub speaks: ProtocolRange,
+    /// The version this node and it agreed on: the highest both speak.
+    pub agreed: u16,
 }
 
 marie_vocabulary::remote_message! {
@@ -82,13 +102,13 @@ marie_vocabulary::remote_message! {
             /// Beat to every peer too.
             beat: bool,
         },
-        /// The builds the ready peers said they run ([`peer_builds`]): answered once every
-        /// one has said, or once `within` has passed.
-        Builds {
+        /// What the ready peers said of their builds and protocols ([`peers_said`]):
+        /// answered once every one has named its build, or once `within` has passed.
+        Said {
             /// How long the answer may wait for a peer that has not said yet.
             within: std::time::Duration,
             /// Where the answer goes.
-            reply: ractor::RpcReplyPort<BTreeMap<String, Option<Build>>>,
+            reply: ractor::RpcReplyPort<BTreeMap<String, Option<PeerSaid>>>,
         },
         /// Whom this node reaches now: the peers heard from within half the deadline, of
         /// all it ever heard ([`reach`]).
@@ -125,6 +145,18 @@ pub async fn reach() -> Option<Reach> {
 /// runs a build that does not say); answered as soon as every peer has said. Empty without
 /// a transport or when its heartbeat actor does not answer in time.
 pub async fn peer_builds(within: std::time::Duration) -> BTreeMap<String, Option<Build>> {
+    peers_said(within)
+        .await
+        .into_iter()
+        .map(|(peer, said)| (peer, said.and_then(|s| s.build)))
+        .collect()
+}
+
+/// What the peers this process has a ready session with said in their beats — build,
+/// protocol range, and the version agreed with each — by node name (`None`: not heard
+/// within `within`); answered as soon as every peer has named its build. Empty without a
+/// transport or when its heartbeat actor does not answer in time.
+pub async fn peers_said(within: std::time::Duration) -> BTreeMap<String, Option<PeerSaid>> {
     let Some(cell) = pg::get_scoped_local_members(&SCOPE.to_string(), &GROUP.to_string())
         .into_iter()
         .next()
@@ -134,7 +166,7 @@ pub async fn peer_builds(within: std::time::Duration) -> BTreeMap<String, Option
     let heartbeat: ActorRef<BeatMsg> = cell.into();
     match heartbeat
         .call(
-            |reply| BeatMsg::Builds { within, reply },
+            |reply| BeatMsg::Said { within, reply },
             Some(within + std::time::Duration::from_secs(1)),
         )
         .await
@@ -144,10 +176,10 @@ pub async fn peer_builds(within: std::time::Duration) -> BTreeMap<String, Option
     }
 }
 
-/// A [`BeatMsg::Builds`] waiting for a peer to name its build.
+/// A [`BeatMsg::Said`] waiting for a peer to name its build.
 struct BuildsAsked {
     until: Instant,
-    reply: ractor::RpcReplyPort<BTreeMap<String, Option<Build>>>,
+    reply: ractor::RpcReplyPort<BTreeMap<String, Option<PeerSaid>>>,
 }
 
 /// What a heartbeat actor is started with.
@@ -157,9 +189,9 @@ pub(crate) struct HeartbeatArgs {
     pub sessions: Sessions,
     /// Where the addresses of peers that peers see go, to be dialed.
     pub learned: tokio::sync::mpsc::UnboundedSender<std::net::SocketAddr>,
-    /// The protocol version it claims (another than [`PROTOCOL_VERSION`] only to test
-    /// refusal).
-    pub protocol: u16,
+    /// The protocol versions it claims to speak (another range than this build's only to
+    /// test agreement and refusal).
+    pub protocol: ProtocolRange,
 }
 
 pub(crate) struct Heartbeat;
@@ -169,8 +201,8 @@ pub(crate) struct State {
     detector: Detector,
     ticker: tokio::task::JoinHandle<()>,
     greeter: tokio::task::JoinHandle<()>,
-    /// The build each peer's latest beat named.
-    builds: BTreeMap<String, Build>,
+    /// What each peer's latest beat said.
+    said: BTreeMap<String, PeerSaid>,
     /// Asks for the peers' builds waiting for one to say it.
     builds_asked: Vec<BuildsAsked>,
 }
@@ -233,7 +265,7 @@ impl Actor for Heartbeat {
             args,
             ticker,
             greeter,
-            builds: BTreeMap::new(),
+            said: BTreeMap::new(),
             builds_asked: Vec::new(),
         })
     }
@@ -253,7 +285,7 @@ impl Actor for Heartbeat {
                 state.received(&frame);
                 state.answer_builds();
             }
-            BeatMsg::Builds { within, reply } => {
+            BeatMsg::Said { within, reply } => {
                 state.builds_asked.push(BuildsAsked {
                     until: Instant::now() + within,
                     reply,
@@ -276,17 +308,19 @@ impl State {
         if self.builds_asked.is_empty() {
             return;
         }
-        let builds: BTreeMap<String, Option<Build>> = self
+        let builds: BTreeMap<String, Option<PeerSaid>> = self
             .args
             .sessions
             .peers()
             .into_iter()
             .map(|p| {
-                let build = self.builds.get(&p.name).cloned();
-                (p.name, build)
+                let said = self.said.get(&p.name).cloned();
+                (p.name, said)
             })
             .collect();
-        let all_said = builds.values().all(Option::is_some);
+        let all_said = builds
+            .values()
+            .all(|s| s.as_ref().is_some_and(|s| s.build.is_some()));
         let now = Instant::now();
         let (due, waiting) = std::mem::take(&mut self.builds_asked)
             .into_iter()
@@ -297,7 +331,8 @@ impl State {
         }
     }
 
-    /// Cast a beat naming the `ready` peers to every remote heartbeat actor.
+    /// Cast a beat naming the `ready` peers to every remote heartbeat actor, each at the
+    /// protocol version agreed with its node (this node's oldest before its first beat).
     fn beat(&mut self, ready: &[Peer]) {
         let beat = Beat {
             node: self.args.node.clone(),
@@ -306,27 +341,41 @@ impl State {
             life: self.detector.life(),
             down: self.detector.notices(),
             build: Some(this_build()),
+            speaks: Some(self.args.protocol),
         };
-        let frame = Envelope::new(KIND, &beat)
-            .map(|mut env| {
-                env.version = self.args.protocol;
-                env
-            })
-            .and_then(|env| env.to_bytes());
-        match frame {
-            Ok(frame) => {
-                for cell in pg::get_scoped_members(&SCOPE.to_string(), &GROUP.to_string()) {
-                    if cell.get_id().is_local() {
-                        continue;
-                    }
-                    let to: ActorRef<BeatMsg> = cell.into();
-                    let _ = to.cast(BeatMsg::Beat {
-                        frame: frame.clone(),
-                    });
-                }
+        // encoded once per version: the peers of one version share the frame
+        let mut frames: BTreeMap<u16, Option<Vec<u8>>> = BTreeMap::new();
+        for cell in pg::get_scoped_members(&SCOPE.to_string(), &GROUP.to_string()) {
+            let id = cell.get_id();
+            if id.is_local() {
+                continue;
             }
-            Err(e) => tracing::error!(error = %e, "cannot encode a heartbeat"),
+            let version = self.version_for(id.node());
+            let frame = frames.entry(version).or_insert_with(|| {
+                Envelope::at(version, KIND, &beat)
+                    .and_then(|env| env.to_bytes())
+                    .inspect_err(|e| tracing::error!(error = %e, "cannot encode a heartbeat"))
+                    .ok()
+            });
+            if let Some(frame) = frame {
+                let to: ActorRef<BeatMsg> = cell.into();
+                let _ = to.cast(BeatMsg::Beat {
+                    frame: frame.clone(),
+                });
+            }
         }
+    }
+
+    /// The protocol version of frames for the node behind session `session`: the one
+    /// agreed with it, or this node's oldest before its first beat — which a peer of the
+    /// build before ranges (one exact version) reads when it is that one, and a peer of a
+    /// newer build judges by the range the beat names.
+    fn version_for(&self, session: u64) -> u16 {
+        self.args
+            .sessions
+            .name_of(session)
+            .and_then(|name| self.args.sessions.agreed(&name))
+            .unwrap_or(self.args.protocol.oldest)
     }
 
     /// Beat to every remote heartbeat actor if `beat`, then judge the ready peers.
@@ -385,32 +434,19 @@ impl State {
                 return;
             }
         };
-        if env.version != self.args.protocol {
-            if self.args.sessions.refuse(
-                &beat.node,
-                "refused: another protocol version",
-                self.args.config.period * 2,
-            ) {
-                let event = NetEvent::PeerRefused {
-                    peer: beat.node.clone(),
-                    theirs: env.version,
-                    ours: self.args.protocol,
-                };
-                tracing::error!(node = %self.args.node, "{event}");
-                self.args.sessions.tell(event);
-            }
+        let Some(said) = self.agree(env.version, &beat) else {
             return;
+        };
+        self.args.sessions.set_agreed(&beat.node, Some(said.agreed));
+        if self.said.get(&beat.node) != Some(&said) {
+            tracing::debug!(node = %self.args.node, peer = %beat.node, agreed = said.agreed, speaks = %said.speaks, "protocol agreed");
+            self.said.insert(beat.node.clone(), said);
         }
         let id = BeatId {
             life: beat.life,
             seq: beat.seq,
         };
         self.detector.heard(&beat.node, id, Instant::now());
-        if let Some(build) = &beat.build {
-            if self.builds.get(&beat.node) != Some(build) {
-                self.builds.insert(beat.node.clone(), build.clone());
-            }
-        }
         // the sender declared this node down: if this node did not notice it had stopped
         // (its own deadline is longer than the sender's, or its freeze was just past it),
         // it learns it here
@@ -432,6 +468,39 @@ impl State {
     }
 }
 
+impl State {
+    /// Agree with the sender of `beat` (in an envelope of `version`) on the highest version
+    /// both speak; refuse it when their ranges do not meet (`None`).
+    fn agree(&mut self, version: u16, beat: &Beat) -> Option<PeerSaid> {
+        let theirs = beat.speaks.unwrap_or(ProtocolRange::single(version));
+        if let Some(agreed) = self.args.protocol.agree(&theirs) {
+            return Some(PeerSaid {
+                build: beat.build.clone(),
+                speaks: theirs,
+                agreed,
+            });
+        }
+        self.args.sessions.set_agreed(&beat.node, None);
+        self.said.remove(&beat.node);
+        if self.args.sessions.refuse(
+            &beat.node,
+            "refused: no common protocol version",
+            self.args.config.period * 2,
+        ) {
+            let event = NetEvent::PeerRefused {
+                peer: beat.node.clone(),
+                theirs,
+                ours: self.args.protocol,
+                their_build: beat.build.clone(),
+                our_build: this_build(),
+            };
+            tracing::error!(node = %self.args.node, "{event}");
+            self.args.sessions.tell(event);
+        }
+        None
+    }
+}
+
 /// A life for this process's heartbeat ([`BeatId::life`]): random, never 0.
 fn draw_life() -> u64 {
     use std::hash::{BuildHasher, Hasher};
@@ -441,4 +510,79 @@ fn draw_life() -> u64 {
         h.write_u128(t.as_nanos());
     }
     h.finish().max(1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A beat as the build before ranges encodes it: no `speaks`.
+    #[derive(Serialize)]
+    struct BeatBeforeRanges {
+        node: String,
+        seq: u64,
+        sees: Vec<String>,
+        life: u64,
+        down: Vec<DownNotice>,
+        build: Option<Build>,
+    }
+
+    #[test]
+    fn a_beat_of_the_build_before_ranges_speaks_its_envelopes_version_alone() {
+        let old = BeatBeforeRanges {
+            node: "old".into(),
+            seq: 3,
+            sees: vec![],
+            life: 9,
+            down: vec![],
+            build: Some(Build::new("0.1.0", Some("ab"), Some(false))),
+        };
+        let frame = Envelope::at(2, KIND, &old).unwrap().to_bytes().unwrap();
+        let env: Envelope = wire::decode(&frame).unwrap();
+        let beat: Beat = env.payload().unwrap();
+        assert_eq!((beat.node.as_str(), beat.speaks), ("old", None));
+        let theirs = beat.speaks.unwrap_or(ProtocolRange::single(env.version));
+        assert_eq!(ProtocolRange::new(2, 3).unwrap().agree(&theirs), Some(2));
+        assert_eq!(ProtocolRange::single(3).agree(&theirs), None);
+    }
+
+    #[test]
+    fn a_beat_with_a_range_is_read_by_the_build_before_ranges() {
+        // what the build before ranges decodes: today's fields, `speaks` ignored
+        #[derive(Deserialize)]
+        struct Old {
+            node: String,
+            seq: u64,
+        }
+        let beat = Beat {
+            node: "new".into(),
+            seq: 5,
+            sees: vec![],
+            life: 1,
+            down: vec![],
+            build: None,
+            speaks: Some(ProtocolRange::new(2, 3).unwrap()),
+        };
+        let old: Old = wire::decode(&wire::encode(&beat).unwrap()).unwrap();
+        assert_eq!((old.node.as_str(), old.seq), ("new", 5));
+    }
+
+    #[test]
+    fn a_refusal_names_both_ranges_both_builds_and_what_to_do() {
+        let event = NetEvent::PeerRefused {
+            peer: "far".into(),
+            theirs: ProtocolRange::single(4),
+            ours: ProtocolRange::new(2, 3).unwrap(),
+            their_build: Some(Build::new("0.2.0", Some("beef"), Some(false))),
+            our_build: Build::new("0.1.0", Some("cafe"), Some(false)),
+        };
+        let text = event.to_string();
+        for said in [
+            "refused far: it speaks protocol version 4 (build 0.2.0 (commit beef))",
+            "this node speaks protocol versions 2..=3 (build 0.1.0 (commit cafe))",
+            super::super::events::UPGRADE_ADVICE,
+        ] {
+            assert!(text.contains(said), "{said:?} not in {text}");
+        }
+    }
 }

@@ -53,7 +53,7 @@ pub use config::{
     MAX_COOKIE_LEN,
 };
 pub use detector::{HeartbeatConfig, HeartbeatError};
-pub use events::NetEvent;
+pub use events::{NetEvent, UPGRADE_ADVICE};
 pub use publish::publish_on;
 pub use sessions::Peer;
 pub use tls::{TlsError, TlsFile, TlsFiles};

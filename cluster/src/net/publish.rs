@@ -74,9 +74,15 @@ pub fn publish_on(transport: &Transport, bus: EventBus) -> tokio::task::JoinHand
                 Ok(NetEvent::Frozen { silent }) => EventKind::NodeFrozen {
                     silent_ms: silent.as_millis() as u64,
                 },
-                Ok(NetEvent::PeerRefused { peer, theirs, ours }) => {
-                    EventKind::NodeRefused { peer, theirs, ours }
-                }
+                // the events' vocabulary names the newest version of each side; the node's
+                // own line (its stderr, `marie node`'s stdout) names both ranges and builds
+                Ok(NetEvent::PeerRefused {
+                    peer, theirs, ours, ..
+                }) => EventKind::NodeRefused {
+                    peer,
+                    theirs: theirs.newest,
+                    ours: ours.newest,
+                },
                 Ok(NetEvent::ConnectionRefused { from, reason }) => EventKind::ConnectionRefused {
                     from: from.to_string(),
                     reason,

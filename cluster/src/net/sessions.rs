@@ -53,6 +53,9 @@ pub(crate) struct Sessions {
     /// or by itself: what was last told of it, so that a redial refused again is not told
     /// again. Forgotten when a session with that address is ready.
     refusals: Arc<Mutex<BTreeMap<String, NetEvent>>>,
+    /// The protocol version agreed with each peer (the highest both speak), by node name:
+    /// what a frame for that peer is encoded at. Set by the heartbeat from each beat.
+    agreed: Arc<Mutex<BTreeMap<String, u16>>>,
 }
 
 impl Sessions {
@@ -63,6 +66,7 @@ impl Sessions {
             auth: Arc::default(),
             refused: Arc::default(),
             refusals: Arc::default(),
+            agreed: Arc::default(),
             changed: watch::Sender::new(0),
             events: broadcast::Sender::new(256),
             dialed: broadcast::Sender::new(256),
@@ -154,6 +158,29 @@ impl Sessions {
         new
     }
 
+    /// The protocol version agreed with `peer`; `None` before its first beat.
+    pub(crate) fn agreed(&self, peer: &str) -> Option<u16> {
+        self.agreed
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .get(peer)
+            .copied()
+    }
+
+    /// Note the version agreed with `peer` (`None`: none, it is refused).
+    pub(crate) fn set_agreed(&self, peer: &str, version: Option<u16>) {
+        let mut agreed = self.agreed.lock().unwrap_or_else(|e| e.into_inner());
+        match version {
+            Some(v) => agreed.insert(peer.to_string(), v),
+            None => agreed.remove(peer),
+        };
+    }
+
+    /// The node name behind ractor's session number `session`, once authenticated.
+    pub(crate) fn name_of(&self, session: u64) -> Option<String> {
+        self.open().get(&session).and_then(|(name, _)| name.clone())
+    }
+
     fn is_refused(&self, peer: &str) -> bool {
         self.refused
             .lock()
@@ -223,6 +250,11 @@ impl Sessions {
         let (Some(name), Some(peer)) = (name, peer) else {
             return;
         };
+        // a peer this node refused (no common protocol version) refuses this node too: it
+        // closes the sessions this node dials at authentication, which is no cookie's doing
+        if self.is_refused(peer) {
+            return;
+        }
         let address = &name.connection_string;
         if ses.is_server {
             // this node checked the peer's answer to its challenge, and closed

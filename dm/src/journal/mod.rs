@@ -42,6 +42,7 @@ mod writer;
 pub use lock::{DirLock, LockError};
 pub use recover::Recovery;
 pub(crate) use recover::ReplicaLog;
+pub use segment::{FormatError, FORMAT, OLDEST_FORMAT};
 
 use super::entry;
 use super::error::DmError;

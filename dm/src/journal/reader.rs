@@ -8,7 +8,7 @@
 
 use crate::entry::{self, Entry, Torn};
 use std::fs::File;
-use std::io::{self, Read as _};
+use std::io::{self, Read as _, Seek as _};
 use std::path::Path;
 
 /// Bytes read from the file at a time.
@@ -30,9 +30,14 @@ pub(crate) struct SegmentReader {
 }
 
 impl SegmentReader {
-    /// Open the segment at `path` for reading.
-    pub(crate) fn open(path: &Path) -> io::Result<SegmentReader> {
-        Ok(SegmentReader::with_chunk(File::open(path)?, CHUNK))
+    /// Open the segment at `path` for reading its entries from byte `start` (after its
+    /// format header, if it has one: see [`segment::header`](super::segment::header)).
+    pub(crate) fn open(path: &Path, start: usize) -> io::Result<SegmentReader> {
+        let mut file = File::open(path)?;
+        file.seek(io::SeekFrom::Start(start as u64))?;
+        let mut reader = SegmentReader::with_chunk(file, CHUNK);
+        reader.base = start;
+        Ok(reader)
     }
 
     fn with_chunk(file: File, chunk: usize) -> SegmentReader {

@@ -10,7 +10,7 @@
 //! [`Recovery`] report. Nothing here panics on any bytes, and nothing corrupt is served.
 
 use super::reader::SegmentReader;
-use super::segment;
+use super::segment::{self, Header};
 use crate::entry::{self, Entry, Torn};
 use crate::producers::Producers;
 use crate::replica::tail::{Tail, KEEP_BYTES};
@@ -269,6 +269,51 @@ impl Replay {
     }
 }
 
+impl Replay {
+    /// Replay the `segments` (whose format `headers` were read) in order, up to the first
+    /// entry that is not whole: where it is (index of the segment, offset), if there is one.
+    fn read(
+        &mut self,
+        segments: &[(u64, std::path::PathBuf)],
+        headers: &[Header],
+    ) -> io::Result<Option<(usize, usize)>> {
+        let name = |path: &Path| {
+            path.file_name()
+                .unwrap_or_default()
+                .to_string_lossy()
+                .into_owned()
+        };
+        for (i, ((n, path), header)) in segments.iter().zip(headers).enumerate() {
+            let start = match header {
+                Header::Format { start, .. } => *start,
+                Header::Torn => {
+                    // created, and its header cut short: it holds nothing
+                    self.report.torn = Some(format!(
+                        "segment {}: its format header is cut short",
+                        name(path)
+                    ));
+                    return Ok(Some((i, 0)));
+                }
+            };
+            let mut entries = SegmentReader::open(path, start)?;
+            while let Some(next) = entries.next()? {
+                match next {
+                    Ok((e, at)) => self.apply(e, *n, at),
+                    Err((torn, at)) => {
+                        self.report.dropped_records += u64::from(torn != Torn::Short);
+                        self.report.torn =
+                            Some(format!("segment {} at byte {at}: {torn}", name(path)));
+                        self.report.bytes += entries.offset() as u64;
+                        return Ok(Some((i, at)));
+                    }
+                }
+            }
+            self.report.bytes += entries.offset() as u64;
+        }
+        Ok(None)
+    }
+}
+
 /// Count the whole puts at the start of `bytes` (what a dropped region held).
 fn count_puts(mut bytes: &[u8]) -> u64 {
     let mut n = 0;
@@ -280,7 +325,9 @@ fn count_puts(mut bytes: &[u8]) -> u64 {
 }
 
 /// Read the journal in `dir` into a store with `config`, repairing its end (see the module
-/// docs). Errors are the file system's; the bytes themselves never make it fail.
+/// docs). Errors are the file system's, and a segment of a journal format this build does
+/// not read ([`FormatError`](segment::FormatError), before anything is changed); other
+/// bytes never make it fail.
 pub(crate) fn recover(dir: &Path, config: DmConfig) -> io::Result<Recovered> {
     let started = Instant::now();
     let segments = segment::list(dir)?;
@@ -295,30 +342,14 @@ pub(crate) fn recover(dir: &Path, config: DmConfig) -> io::Result<Recovered> {
         snapshot_segment: None,
         log: None,
     };
+    // every segment's format first: one this build does not read refuses the journal
+    // before anything is replayed, cut or removed
+    let headers = segments
+        .iter()
+        .map(|(_, path)| segment::header(path))
+        .collect::<io::Result<Vec<Header>>>()?;
     let mut tail = segments.last().map_or(1, |(n, _)| *n);
-    let mut stop: Option<(usize, usize)> = None; // (index of the segment, offset)
-    for (i, (n, path)) in segments.iter().enumerate() {
-        let mut entries = SegmentReader::open(path)?;
-        while let Some(next) = entries.next()? {
-            match next {
-                Ok((e, at)) => r.apply(e, *n, at),
-                Err((torn, at)) => {
-                    let dropped = if torn == Torn::Short { 0 } else { 1 };
-                    r.report.dropped_records += dropped;
-                    r.report.torn = Some(format!(
-                        "segment {} at byte {at}: {torn}",
-                        path.file_name().unwrap_or_default().to_string_lossy()
-                    ));
-                    stop = Some((i, at));
-                    break;
-                }
-            }
-        }
-        r.report.bytes += entries.offset() as u64;
-        if stop.is_some() {
-            break;
-        }
-    }
+    let stop = r.read(&segments, &headers)?;
     // A torn end: cut the segment there, and drop every segment after it.
     if let Some((i, at)) = stop {
         let (n, path) = &segments[i];
@@ -345,7 +376,12 @@ pub(crate) fn recover(dir: &Path, config: DmConfig) -> io::Result<Recovered> {
             records = puts,
             "journal: an unfinished snapshot dropped"
         );
-        if at == 0 {
+        // the snapshot's start is the segment's first entry (after its format header, if
+        // it has one: an entry is longer than a header)
+        if at <= segment::HEADER_BYTES {
+            // its header goes with it
+            r.report.bytes -= (at as u64).min(r.report.bytes);
+            r.report.dropped_bytes += at as u64;
             std::fs::remove_file(&path)?;
             tail = segments
                 .iter()

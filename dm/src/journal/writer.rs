@@ -217,8 +217,9 @@ impl Writer {
             segment::sync_dir(&self.dir)?;
         }
         self.segment += 1;
+        // its format header: what a torn batch is cut back to, at the least
+        self.len = file.metadata()?.len();
         self.file = file;
-        self.len = 0;
         Ok(())
     }
 
@@ -250,8 +251,8 @@ impl Writer {
                 }
                 let _ = segment::sync_dir(&self.dir);
                 self.segment = next;
+                self.len = file.metadata().map_or(bytes.len() as u64, |m| m.len());
                 self.file = file;
-                self.len = bytes.len() as u64;
                 self.shared.bytes.store(self.len, Ordering::Relaxed);
                 tracing::debug!(journal = %self.dir.display(), bytes = self.len, removed = old.len(), "journal snapshot");
             }

@@ -1,8 +1,16 @@
 //! The versioned envelope of cluster frames: `{ version, kind, payload }` in MessagePack.
 //!
-//! A node refuses a frame whose protocol version it does not speak, with an error naming
-//! both versions, instead of misreading it; payloads are decoded only after that check.
-//! No input makes it panic: bytes that are not an envelope are an [`EnvelopeError`].
+//! A node refuses a frame whose protocol version it does not speak (outside
+//! [`OLDEST_PROTOCOL`]`..=`[`PROTOCOL_VERSION`]), with an error naming both, instead of
+//! misreading it; payloads are decoded only after that check. No input makes it panic:
+//! bytes that are not an envelope are an [`EnvelopeError`].
+//!
+//! Two nodes agree on one version per peer ([`ProtocolRange::agree`](super::ProtocolRange)),
+//! and a frame for a peer carries the agreed one ([`Envelope::at`]). What may change within
+//! a protocol version and what needs a new one is written in `docs/compatibility.md`: in
+//! short, a field added with `#[serde(default)]` is compatible; a renamed, retyped or
+//! re-meant field or variant, or a new variant an older node would have to understand, is
+//! a new protocol version.
 //!
 //! ```
 //! use marie_vocabulary::wire::envelope::{Envelope, PROTOCOL_VERSION};
@@ -15,13 +23,22 @@
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
-/// The protocol version this build speaks. Raise it when a frame's meaning changes in a way
-/// older nodes would misread (a renamed variant, a field with another meaning); adding
-/// variants and `#[serde(default)]` fields does not need a new version.
+/// The protocol version this build speaks. Raise it when a message or frame changes in a
+/// way older nodes would misread or drop (a renamed or retyped field or variant, a field with
+/// another meaning, a variant they must understand); a struct's field added with
+/// `#[serde(default)]` or as an `Option`, or a `remote_message!` variant's field added as an
+/// `Option`, does not need one. The rules, each with its test: `docs/compatibility.md`.
 ///
 /// 2: one fault vocabulary (`Inject` carries a `FaultKind`), the dispatcher answers a run
 /// with its outcome, fault events carry no run time of their own.
 pub const PROTOCOL_VERSION: u16 = 2;
+
+/// The oldest protocol version this build speaks. A build speaks its own version and, when
+/// it can, the one before, so that a cluster is upgraded one node at a time. This build
+/// speaks 2 alone: version 1's fault vocabulary (`Inject` without a `FaultKind`) and runs
+/// answered without their outcome are gone from this build's code, so it could only
+/// misread a node of 1. The next protocol version's build sets this to 2.
+pub const OLDEST_PROTOCOL: u16 = 2;
 
 /// Why a frame was refused.
 #[derive(Debug, thiserror::Error)]
@@ -29,13 +46,15 @@ pub enum EnvelopeError {
     /// The bytes are not an envelope.
     #[error("malformed frame: {0}")]
     Malformed(String),
-    /// Another protocol version.
-    #[error("frame of protocol version {got}, this node speaks protocol version {ours}")]
+    /// A protocol version this node does not speak.
+    #[error("frame of protocol version {got}, this node speaks {}", speaks(*oldest, *ours))]
     Version {
         /// Version of the frame.
         got: u16,
-        /// Version this node speaks ([`PROTOCOL_VERSION`]).
+        /// The newest version this node speaks ([`PROTOCOL_VERSION`]).
         ours: u16,
+        /// The oldest ([`OLDEST_PROTOCOL`]).
+        oldest: u16,
     },
     /// The payload is not of the expected type.
     #[error("payload of `{kind}` does not decode: {reason}")]
@@ -45,6 +64,16 @@ pub enum EnvelopeError {
         /// Decoder's message.
         reason: String,
     },
+}
+
+/// `protocol version N`, or `protocol versions LO..=HI`: how errors and events name what a
+/// node speaks.
+pub fn speaks(oldest: u16, newest: u16) -> String {
+    if oldest == newest {
+        format!("protocol version {newest}")
+    } else {
+        format!("protocol versions {oldest}..={newest}")
+    }
 }
 
 /// One frame.
@@ -98,8 +127,14 @@ mod bytes {
 impl Envelope {
     /// Wrap `payload` as a frame of `kind`, at this build's protocol version.
     pub fn new<T: Serialize>(kind: &str, payload: &T) -> Result<Self, EnvelopeError> {
+        Envelope::at(PROTOCOL_VERSION, kind, payload)
+    }
+
+    /// Wrap `payload` as a frame of `kind` at protocol `version`: the one agreed with the
+    /// peer it is for.
+    pub fn at<T: Serialize>(version: u16, kind: &str, payload: &T) -> Result<Self, EnvelopeError> {
         Ok(Envelope {
-            version: PROTOCOL_VERSION,
+            version,
             kind: kind.to_string(),
             payload: rmp_serde::to_vec_named(payload)
                 .map_err(|e| EnvelopeError::Malformed(e.to_string()))?,
@@ -111,14 +146,15 @@ impl Envelope {
         rmp_serde::to_vec_named(self).map_err(|e| EnvelopeError::Malformed(e.to_string()))
     }
 
-    /// Decode a frame and check its version.
+    /// Decode a frame and check that this build speaks its version.
     pub fn from_bytes(bytes: &[u8]) -> Result<Self, EnvelopeError> {
         let env: Envelope =
             rmp_serde::from_slice(bytes).map_err(|e| EnvelopeError::Malformed(e.to_string()))?;
-        if env.version != PROTOCOL_VERSION {
+        if !(OLDEST_PROTOCOL..=PROTOCOL_VERSION).contains(&env.version) {
             return Err(EnvelopeError::Version {
                 got: env.version,
                 ours: PROTOCOL_VERSION,
+                oldest: OLDEST_PROTOCOL,
             });
         }
         Ok(env)
@@ -182,14 +218,33 @@ mod tests {
         let bytes = env.to_bytes().unwrap();
         let err = Envelope::from_peer("old@localhost", &bytes).unwrap_err();
         assert!(
-            matches!(err, EnvelopeError::Version { got, ours } if got == PROTOCOL_VERSION + 8 && ours == PROTOCOL_VERSION)
+            matches!(err, EnvelopeError::Version { got, ours, .. } if got == PROTOCOL_VERSION + 8 && ours == PROTOCOL_VERSION)
         );
         let text = err.to_string();
         assert!(text.contains(&(PROTOCOL_VERSION + 8).to_string()), "{text}");
         assert!(
-            text.contains(&format!("speaks protocol version {PROTOCOL_VERSION}")),
+            text.contains(&format!(
+                "speaks {}",
+                speaks(OLDEST_PROTOCOL, PROTOCOL_VERSION)
+            )),
             "{text}"
         );
+    }
+
+    #[test]
+    fn a_frame_at_the_agreed_version_carries_it_and_every_spoken_version_reads() {
+        for version in OLDEST_PROTOCOL..=PROTOCOL_VERSION {
+            let bytes = Envelope::at(version, "x", &1u8)
+                .unwrap()
+                .to_bytes()
+                .unwrap();
+            assert_eq!(Envelope::from_bytes(&bytes).unwrap().version, version);
+        }
+        let older = Envelope::at(OLDEST_PROTOCOL - 1, "x", &1u8).unwrap();
+        assert!(matches!(
+            Envelope::from_bytes(&older.to_bytes().unwrap()),
+            Err(EnvelopeError::Version { got, .. }) if got == OLDEST_PROTOCOL - 1
+        ));
     }
 
     #[test]

@@ -7,7 +7,9 @@
 //! that does not decode is refused with a warning.
 //!
 //! Each variant travels as its name (the wire tag: never rename a variant, add new ones) and
-//! its fields as a MessagePack map (`to_vec_named`, so fields can be added later). A variant
+//! its fields as a MessagePack map (`to_vec_named`, so fields can be added later — as
+//! `Option`s: a variant's fields take no `#[serde]` attribute, and a missing field of another
+//! type does not decode; see `docs/compatibility.md`). A variant
 //! declared with `-> Reply` carries a `reply: RpcReplyPort<Reply>` field and travels as a call:
 //! its port is bridged to a byte port and back with [`bridge_out`] / [`bridge_in`].
 //!
@@ -20,12 +22,19 @@
 //! sent on to a leader that is lost, one it kept for want of a leader too long).
 //!
 //! Frames marie sends between nodes outside ractor's own messages (heartbeats, membership,
-//! events) travel in the versioned [`envelope::Envelope`]: a peer that speaks another
-//! [`PROTOCOL_VERSION`] is refused with an error naming both versions, never misread.
+//! events) travel in the versioned [`envelope::Envelope`]: a node speaks a
+//! [`ProtocolRange`] of versions, agrees with each peer on the highest both speak, and
+//! refuses a peer whose range does not meet its own, with an error naming both, never
+//! misreading it. The rules of evolution — what may change within a version, what needs a
+//! new one — are in `docs/compatibility.md`.
 
 pub mod envelope;
+#[cfg(test)]
+mod evolution;
+pub mod range;
 
-pub use envelope::{Envelope, EnvelopeError, PROTOCOL_VERSION};
+pub use envelope::{Envelope, EnvelopeError, OLDEST_PROTOCOL, PROTOCOL_VERSION};
+pub use range::{ProtocolRange, RangeError};
 
 use ractor::concurrency::{self, Duration};
 use ractor::RpcReplyPort;
