@@ -250,11 +250,6 @@ impl Sessions {
         let (Some(name), Some(peer)) = (name, peer) else {
             return;
         };
-        // a peer this node refused (no common protocol version) refuses this node too: it
-        // closes the sessions this node dials at authentication, which is no cookie's doing
-        if self.is_refused(peer) {
-            return;
-        }
         let address = &name.connection_string;
         if ses.is_server {
             // this node checked the peer's answer to its challenge, and closed

@@ -312,7 +312,7 @@ fn beat() -> Result<Vec<Sample>, String> {
     let frame = Envelope::new("heartbeat", &0u64)
         .and_then(|e| e.to_bytes())
         .map_err(|e| e.to_string())?;
-    samples!(BeatMsg { Beat { frame: frame } } local { Tick, Builds, Reach })
+    samples!(BeatMsg { Beat { frame: frame } } local { Tick, Said, Reach })
 }
 
 fn host() -> Result<Vec<Sample>, String> {
