@@ -40,20 +40,35 @@ fn follower_in<'a>(report: &'a Value, action: &str) -> &'a Value {
         .unwrap_or_else(|| panic!("no wall follower in {action}: {report:#}"))
 }
 
-#[test]
-fn a_newer_wall_follower_started_mid_action_takes_the_binding_at_the_next_action() {
-    let dir = tempfile::tempdir().unwrap();
-    let cluster = start_at(dir.path(), &[("wf-one", "1")], SPEED);
-    let mission = docking_edited(
-        dir.path(),
-        "docking-twice",
+/// The docking mission that also runs the wall follower in `plan-parking`, with `tail`
+/// appended, written into `dir`.
+fn docking_twice(dir: &std::path::Path, name: &str, tail: &str) -> std::path::PathBuf {
+    let path = docking_edited(
+        dir,
+        name,
         &[(
             "[action.ops.path-planner]\n",
             "ends_on = [\"path-planner\"]\n[action.ops.wall-follower]\ndistance = 0.8\n\
              [action.ops.path-planner]\n",
         )],
     );
-    let report = dir.path().join("report.json");
+    let mut src = std::fs::read_to_string(&path).unwrap();
+    src += tail;
+    std::fs::write(&path, src).unwrap();
+    path
+}
+
+/// Start a cluster whose wall follower is version 1.0.0 on node `wf-one`, run `mission` on
+/// it, and start node `wf-new` hosting the newer version once `follow-wall` started: the
+/// run's process (its lines read until `wait_for`, a line the run prints after the newer
+/// instance joined), the new node and the cluster, to keep until the run ended.
+fn run_with_newer(
+    dir: &std::path::Path,
+    mission: &std::path::Path,
+    report: &std::path::Path,
+    wait_for: &str,
+) -> (Proc, String, NodeProc, crate::selection_cluster::Cluster) {
+    let cluster = start_at(dir, &[("wf-one", "1")], SPEED);
     let mut run = Proc::spawn(
         "marie run",
         &[
@@ -75,8 +90,22 @@ fn a_newer_wall_follower_started_mid_action_takes_the_binding_at_the_next_action
     let hosts = format!(
         "dispatcher = false\n[[operation]]\nname = \"wall-follower\"\nversion = \"={NEWER}\"\n"
     );
-    let _newer = NodeProc::start(dir.path(), "wf-new", &hosts, &[join], COOKIE);
-    let upgraded = run.wait_line("wall-follower upgraded at `plan-parking`");
+    let newer = NodeProc::start(dir, "wf-new", &hosts, &[join], COOKIE);
+    let line = run.wait_line(wait_for);
+    (run, line, newer, cluster)
+}
+
+#[test]
+fn a_newer_wall_follower_started_mid_action_takes_the_binding_at_the_next_action() {
+    let dir = tempfile::tempdir().unwrap();
+    let mission = docking_twice(dir.path(), "docking-twice", "");
+    let report = dir.path().join("report.json");
+    let (mut run, upgraded, _newer, _cluster) = run_with_newer(
+        dir.path(),
+        &mission,
+        &report,
+        "wall-follower upgraded at `plan-parking`",
+    );
     assert!(
         upgraded.contains("v1.0.0") && upgraded.contains(&format!("v{NEWER}")),
         "{upgraded}"
@@ -135,4 +164,38 @@ fn a_newer_wall_follower_started_mid_action_takes_the_binding_at_the_next_action
     // the binding's epoch went up with the move
     let epochs = report["bound_epochs"].to_string();
     assert!(epochs.contains("wall-follower"), "{epochs}");
+}
+
+#[test]
+fn a_pinned_wall_follower_stays_on_its_version_when_a_newer_one_appears() {
+    let dir = tempfile::tempdir().unwrap();
+    let mission = docking_twice(
+        dir.path(),
+        "docking-pinned",
+        "\n[pin]\nwall-follower = \"1.0.0\"\n",
+    );
+    let report = dir.path().join("report.json");
+    let (mut run, refused, _newer, _cluster) =
+        run_with_newer(dir.path(), &mission, &report, "wall-follower stays");
+    assert!(
+        refused.contains(&format!("not moving to v{NEWER}"))
+            && refused.contains("on wf-new")
+            && refused.contains("the mission pins it to =1.0.0"),
+        "{refused}"
+    );
+    let code = run.wait_exit();
+    let report: Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(code, Some(0), "{report:#}");
+    assert_eq!(report["outcome"], "succeeded", "{report:#}");
+    for action in ["follow-wall", "plan-parking"] {
+        let op = follower_in(&report, action);
+        assert_eq!(
+            (&op["version"], &op["node"]),
+            (&Value::from("1.0.0"), &Value::from("wf-one")),
+            "{action}: {op:#}"
+        );
+    }
+    assert!(report.get("upgrades").is_none(), "{report:#}");
+    let lines = run.drain();
+    assert!(!lines.iter().any(|l| l.contains("upgraded")), "{lines:#?}");
 }

@@ -19,6 +19,8 @@
 //! - the mission could have chosen it ([`selection::admits`]): the mission's `[requires]`
 //!   matches it and its schema takes every parameter the mission supplies.
 //!
+//! A binding the mission pins (`[pin]`) never moves: a newer version is refused, saying so.
+//!
 //! An instance that is newer and compatible but that the mission could not have chosen is
 //! *refused*, and the run says why (`binding_upgrade_refused`); an older, equal or
 //! incompatible one is ignored without a word (a restart of the bound version is no news).
@@ -59,6 +61,9 @@ pub fn judge(current: &str, need: &Need, candidate: &OpInfo, due: Option<&str>) 
             "version {offered} is not compatible with {bound} (another {})",
             if bound.major == 0 { "minor" } else { "major" }
         ));
+    }
+    if let Some(pin) = &need.pin {
+        return Judgement::Refused(format!("the mission pins it to {pin}"));
     }
     if let Some(due) = due.and_then(|d| Version::parse(d).ok()) {
         if offered <= due {
@@ -191,6 +196,33 @@ mod tests {
             judge("1.0.0", &need, &follower("1.1.0", true), None),
             Judgement::Newer
         );
+    }
+
+    #[test]
+    fn a_pinned_binding_never_moves_and_says_why() {
+        let pinned = wall().pinned(VersionReq::parse("=1.0.0").unwrap());
+        let Judgement::Refused(why) = judge("1.0.0", &pinned, &follower("1.1.0", true), None)
+        else {
+            panic!("a pinned binding moved")
+        };
+        assert_eq!(why, "the mission pins it to =1.0.0");
+        // a requirement pin holds too, even for a version inside it
+        let pinned = wall().pinned(VersionReq::parse("~1.0").unwrap());
+        assert!(matches!(
+            judge("1.0.0", &pinned, &follower("1.0.1", false), None),
+            Judgement::Refused(_)
+        ));
+        // and the same version restarting is no news
+        assert!(matches!(
+            judge("1.0.0", &pinned, &follower("1.0.0", false), None),
+            Judgement::Ignored(_)
+        ));
+        // a stand-in after a loss must match the pin (the selection's test)
+        assert!(selection::admits(&pinned, &follower("1.0.3", false)).is_ok());
+        let Err(why) = selection::admits(&pinned, &follower("1.1.0", true)) else {
+            panic!("a stand-in outside the pin admitted")
+        };
+        assert!(why.to_string().contains("the mission's pin ~1.0"), "{why}");
     }
 
     #[test]
