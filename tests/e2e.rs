@@ -54,3 +54,4 @@ mod speed;
 mod takeover;
 mod tls;
 mod up;
+mod upgrade_cluster;

@@ -129,7 +129,7 @@ fn each_bad_node_config_names_its_file_line_and_column() {
         ),
         (
             "[node]\nname = \"x\"\n[[operation]]\nname = \"wall-follower\"\nversion = \"3\"\n",
-            ":5:11: no version of `wall-follower` matches `^3` (available: 1.0.0, 2.0.0)",
+            ":5:11: no version of `wall-follower` matches `^3` (available: 1.0.0, 1.1.0-rc.1, 2.0.0)",
         ),
         (
             "[node]\nname = \"x\"\n[[operation]]\nname = \"sampler\"\nversion = \"one\"\n",

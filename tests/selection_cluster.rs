@@ -16,7 +16,7 @@ use common::{marie, text};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 
-const COOKIE: &str = "selection";
+pub(crate) const COOKIE: &str = "selection";
 /// The cluster's speed: a docking run takes about 8 s of wall time.
 const SPEED: &str = "8";
 /// The cluster's seed: not the default (1), so a run that names its own seed instead of the
@@ -26,7 +26,7 @@ const CLUSTER_SEED: u64 = 4;
 /// Write the cluster file into `dir`: the thesis' cart, features and operations nodes (the
 /// operations node without a wall follower), and for each `(node, version)` of `followers`
 /// a node that hosts that version of the wall follower alone.
-fn layout(dir: &Path, followers: &[(&str, &str)]) -> PathBuf {
+pub(crate) fn layout(dir: &Path, followers: &[(&str, &str)]) -> PathBuf {
     let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
     let thesis = repo.join("missions/clusters/thesis");
     let without = "[[operation]]\nname = \"wall-follower\"\n";
@@ -60,16 +60,21 @@ fn layout(dir: &Path, followers: &[(&str, &str)]) -> PathBuf {
 }
 
 /// A running cluster and the address of a node to join it by.
-struct Cluster {
+pub(crate) struct Cluster {
     _up: Proc,
-    join: String,
+    pub(crate) join: String,
 }
 
-fn start(dir: &Path, followers: &[(&str, &str)]) -> Cluster {
+pub(crate) fn start(dir: &Path, followers: &[(&str, &str)]) -> Cluster {
+    start_at(dir, followers, SPEED)
+}
+
+/// [`start`], the cluster's clock at `speed`.
+pub(crate) fn start_at(dir: &Path, followers: &[(&str, &str)], speed: &str) -> Cluster {
     let cluster = layout(dir, followers);
     let mut up = Proc::spawn(
         "marie up",
-        &["up", cluster.to_str().unwrap(), "--speed", SPEED],
+        &["up", cluster.to_str().unwrap(), "--speed", speed],
     );
     up.wait_line("Ctrl-C stops the cluster");
     // `  cart at 127.0.0.1:4242 (pid 77): ...`

@@ -59,6 +59,7 @@ pub fn robot_operations() -> Vec<OperationFactory> {
         OperationFactory::of::<ops::PathPlanner>("path-planner"),
         OperationFactory::of::<ops::TrajectoryController>("trajectory-controller"),
         OperationFactory::of::<ops::WallFollowerV1>("wall-follower"),
+        OperationFactory::of::<ops::WallFollowerV1_1>("wall-follower"),
         OperationFactory::of::<ops::WallFollowerV2>("wall-follower"),
         OperationFactory::of::<ops::SensorBasedController>("sensor-based-controller"),
         OperationFactory::of::<ops::CollisionAvoidance>("collision-avoidance"),

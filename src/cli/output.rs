@@ -123,7 +123,7 @@ impl Printer {
 }
 
 /// The events `marie run` prints as lines: the run's story as it happens — bindings,
-/// actions, decisions, losses, rebinds, faults, takeovers, records lost — but not what
+/// actions, decisions, losses, rebinds, upgrades, faults, takeovers, records lost — but not what
 /// the report and the outcome line tell at the end, nor the registry's, the supervisors',
 /// the cluster's or the robot's news (the monitor and `--events` have those).
 fn printed(kind: &EventKind) -> bool {
@@ -136,6 +136,8 @@ fn printed(kind: &EventKind) -> bool {
         | EventKind::Control { .. }
         | EventKind::Lost { .. }
         | EventKind::Rebound(_)
+        | EventKind::BindingUpgraded(_)
+        | EventKind::BindingUpgradeRefused { .. }
         | EventKind::FaultInjected { .. }
         | EventKind::FaultNotInjected { .. } => true,
         EventKind::DmChecked(check) => check.lost > 0,

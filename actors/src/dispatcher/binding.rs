@@ -69,6 +69,13 @@ pub(crate) struct Binding {
     pub(crate) provision_timer: Option<Timer>,
     /// A liveness probe is under way.
     pub(crate) probing: bool,
+    /// An instance of a newer compatible version that appeared while this one lives: the
+    /// binding moves to it at the next action's start that uses the operation
+    /// ([`super::upgrade`]); forgotten if it leaves the registry first.
+    pub(crate) due: Option<Prospect>,
+    /// When the current instance last reported the end of its part of an action, in ms
+    /// since the run began (an upgrade's record carries it).
+    pub(crate) last_report_ms: Option<u64>,
     /// What the mission needs of the operation: a stand-in must meet it, as the first
     /// instance did (see [`super::selection`]).
     need: Need,
@@ -94,8 +101,15 @@ impl Binding {
             deadline_timer: None,
             provision_timer: None,
             probing: false,
+            due: None,
+            last_report_ms: None,
             need,
         }
+    }
+
+    /// What the mission needs of the operation.
+    pub(crate) fn need(&self) -> &Need {
+        &self.need
     }
 
     /// The versions a stand-in may have (the mission's requirement; any without one).
@@ -173,6 +187,14 @@ impl Binding {
         self.deadline_timer = None;
         self.provision_timer = None;
         self.last_alive = Some(now);
+        self.last_report_ms = None;
+        if self
+            .due
+            .as_ref()
+            .is_some_and(|d| d.client.actor().get_id() == self.client.actor().get_id())
+        {
+            self.due = None; // the rebind took the newer instance itself
+        }
         self.lost
             .take()
             .map(|lost| (lost.clone(), now.saturating_sub(lost.since)))

@@ -515,6 +515,7 @@ impl DispatcherState {
         match event {
             RegistryEvent::Left(inst) => {
                 let id = inst.actor.get_id();
+                self.forget_newer(id);
                 let name = self
                     .bindings
                     .values()
@@ -532,6 +533,9 @@ impl DispatcherState {
                 if lost {
                     let name = inst.name.clone();
                     self.try_adopt(myself, &name, &inst).await;
+                } else {
+                    // perhaps a newer version, to move to at the next action's start
+                    self.note_newer(&inst).await;
                 }
             }
         }

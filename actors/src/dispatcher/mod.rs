@@ -30,6 +30,8 @@ pub mod selection;
 pub mod survey;
 mod takeover;
 pub mod tree;
+pub mod upgrade;
+mod upgrading;
 
 pub use actor::{
     request_run, run_mission, spawn_dispatcher, ActionDispatcher, DispatchError, DispatcherArgs,

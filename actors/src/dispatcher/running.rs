@@ -281,6 +281,7 @@ impl DispatcherState {
         };
         tracing::info!(action = %action.name, "action started");
         for op in &action.ops {
+            self.upgrade_at_start(&op.name, &action.name);
             let Some(b) = self.bindings.get_mut(&op.name) else {
                 let reason = format!("operation `{}` is not bound", op.key);
                 self.finish(myself, Outcome::Failed, reason);
@@ -406,6 +407,10 @@ impl DispatcherState {
             return; // about an instance already let go
         }
         let name = b.name.clone();
+        let reported_ms = self.elapsed_ms();
+        if let Some(b) = self.bindings.get_mut(&name) {
+            b.last_report_ms = Some(reported_ms);
+        }
         if matches!(report, Some(EoReport::Idle { .. })) {
             // attached after a takeover, and nothing ran: it carries on resumed
             self.resume_idle(myself, &key, generation, incarnation);

@@ -57,6 +57,10 @@ pub struct Need {
     pub supplied: Vec<ParamMap>,
     /// The versions the mission accepts (`None`: any).
     pub version: Option<VersionReq>,
+    /// The versions the mission pins the operation to (`[pin]`; `None`: not pinned): an
+    /// instance must match it as it must match `version`, and a binding never moves to a
+    /// newer version (see [`super::upgrade`]).
+    pub pin: Option<VersionReq>,
 }
 
 impl Need {
@@ -66,6 +70,7 @@ impl Need {
             operation: operation.into(),
             supplied: Vec::new(),
             version: None,
+            pin: None,
         }
     }
 
@@ -80,6 +85,12 @@ impl Need {
             Some(first) => first.extend(map),
             None => self.supplied.push(map),
         }
+        self
+    }
+
+    /// Pin the operation to the versions matching `req` for the whole mission.
+    pub fn pinned(mut self, req: VersionReq) -> Self {
+        self.pin = Some(req);
         self
     }
 
@@ -166,6 +177,14 @@ pub enum Inadmissible {
         /// What the mission requires.
         required: VersionReq,
     },
+    /// The instance's version is outside the versions the mission pins the operation to.
+    #[error("its version {version} does not match the mission's pin {pin}")]
+    Pinned {
+        /// The instance's version.
+        version: Version,
+        /// The mission's pin.
+        pin: VersionReq,
+    },
     /// The instance's schema refuses a parameter the mission supplies (an unknown name, a
     /// wrong type, a value out of range).
     #[error("its schema refuses what the mission supplies: {}", list(.rejections))]
@@ -194,6 +213,18 @@ pub fn admits(need: &Need, info: &OpInfo) -> Result<(), Inadmissible> {
             return Err(Inadmissible::Version {
                 version,
                 required: req.clone(),
+            });
+        }
+    }
+    if let Some(pin) = &need.pin {
+        let version = Version::parse(&info.version).map_err(|error| Inadmissible::NotSemver {
+            version: info.version.clone(),
+            error,
+        })?;
+        if !pin.matches(&version) {
+            return Err(Inadmissible::Pinned {
+                version,
+                pin: pin.clone(),
             });
         }
     }

@@ -25,7 +25,8 @@ pub use motion::{
     PathPlanner, PathPlannerFlag, PathPlannerParams, PlanTarget, SensorBasedController,
     SensorBasedControllerFlag, SensorBasedControllerParams, SensorBasedMode, TrajectoryController,
     TrajectoryControllerFlag, TrajectoryControllerParams, WallFollowerMode, WallFollowerV1,
-    WallFollowerV1Params, WallFollowerV2, WallFollowerV2Params,
+    WallFollowerV1Params, WallFollowerV1_1, WallFollowerV1_1Params, WallFollowerV2,
+    WallFollowerV2Params,
 };
 pub use perception::{
     Beams, DockingDetector, DockingDetectorFlag, DockingDetectorParams, SegmentExtractor,

@@ -63,7 +63,7 @@ pub fn class(kind: &EventKind, drawn: bool) -> Option<&'static str> {
         EventKind::ActionStarted { .. } | EventKind::ActionEnded { .. } => "action",
         EventKind::Control { .. } => "control",
         EventKind::Lost { .. } => "lost",
-        EventKind::Rebound(_) => "rebind",
+        EventKind::Rebound(_) | EventKind::BindingUpgraded(_) => "rebind",
         EventKind::RebindGaveUp { .. } | EventKind::SupervisorGaveUp { .. } => "gave_up",
         EventKind::Takeover { .. } => "takeover",
         EventKind::DispatcherFenced { .. } => "fenced",
@@ -98,6 +98,7 @@ pub fn class(kind: &EventKind, drawn: bool) -> Option<&'static str> {
             "robot"
         }
         EventKind::Selected { .. }
+        | EventKind::BindingUpgradeRefused { .. }
         | EventKind::Bound { .. }
         | EventKind::OpEnded { .. }
         | EventKind::ControlPlan { .. }

@@ -3,7 +3,7 @@
 use crate::registry::{Instance, ModuleKind};
 use crate::run::{
     AppliedSpan, Choice, DmCheck, FaultKind, LossCause, OpEnd, Outcome, ParamValue, Provenance,
-    RebindRecord, RobotSection,
+    RebindRecord, RobotSection, UpgradeRecord,
 };
 use serde::{Deserialize, Serialize};
 
@@ -134,6 +134,24 @@ pub enum EventKind {
         cause: LossCause,
         /// How long the dispatcher waited, in ms.
         waited_ms: u64,
+    },
+    /// A binding moved to an instance of a newer compatible version of its operation, at
+    /// the start of an action that uses it (never in the middle of one).
+    BindingUpgraded(UpgradeRecord),
+    /// An instance of a newer version of a bound operation appeared, and the binding will
+    /// not move to it: why (outside the mission's requirement or pin, a schema that
+    /// refuses the mission's parameters).
+    BindingUpgradeRefused {
+        /// Operation name.
+        operation: String,
+        /// The newer instance's address.
+        address: String,
+        /// Its version.
+        version: String,
+        /// Its node.
+        node: String,
+        /// Why the binding does not move to it.
+        reason: String,
     },
     /// A standby dispatcher took the run over from a dispatcher whose node was lost (its
     /// process gone, or declared down): the run goes on from the lost one's last checkpoint,
@@ -610,6 +628,8 @@ impl EventKind {
             | EventKind::Bound { .. }
             | EventKind::Lost { .. }
             | EventKind::Rebound(_)
+            | EventKind::BindingUpgraded(_)
+            | EventKind::BindingUpgradeRefused { .. }
             | EventKind::RebindGaveUp { .. } => Family::Binding,
             EventKind::Takeover { .. } | EventKind::DispatcherFenced { .. } => Family::Dispatcher,
             EventKind::Joined(_) | EventKind::Left(_) => Family::Registry,
@@ -666,6 +686,8 @@ impl EventKind {
                 | EventKind::RunEnded { .. }
                 | EventKind::Lost { .. }
                 | EventKind::Rebound(_)
+                | EventKind::BindingUpgraded(_)
+                | EventKind::BindingUpgradeRefused { .. }
                 | EventKind::RebindGaveUp { .. }
                 | EventKind::Selected { .. }
                 | EventKind::Takeover { .. }

@@ -201,6 +201,8 @@ mod tests {
             EventKind::RunEnded { .. } => "run_ended",
             EventKind::Lost { .. } => "lost",
             EventKind::Rebound(_) => "rebound",
+            EventKind::BindingUpgraded(_) => "binding_upgraded",
+            EventKind::BindingUpgradeRefused { .. } => "binding_upgrade_refused",
             EventKind::RebindGaveUp { .. } => "rebind_gave_up",
             EventKind::Takeover { .. } => "takeover",
             EventKind::DispatcherFenced { .. } => "dispatcher_fenced",

@@ -379,6 +379,24 @@ fn binding(kind: &EventKind) -> String {
             "{} rebound: {} -> {} after {} ms",
             r.operation, r.from, r.to, r.downtime_ms
         ),
+        EventKind::BindingUpgraded(u) => format!(
+            "{} upgraded at `{}`: v{} {} on {} -> v{} {} on {}",
+            u.operation,
+            u.action,
+            u.from_version,
+            u.from,
+            u.from_node,
+            u.to_version,
+            u.to,
+            u.to_node
+        ),
+        EventKind::BindingUpgradeRefused {
+            operation,
+            address,
+            version,
+            node,
+            reason,
+        } => format!("{operation} stays: not moving to v{version} {address} on {node}: {reason}"),
         EventKind::RebindGaveUp {
             operation,
             cause,
@@ -731,12 +749,14 @@ pub fn mark(kind: &EventKind) -> Mark {
     match kind {
         EventKind::ActionStarted { .. } => '>',
         EventKind::ActionEnded { .. } => '<',
-        EventKind::Control { .. } | EventKind::Selected { .. } => '?',
+        EventKind::Control { .. }
+        | EventKind::Selected { .. }
+        | EventKind::BindingUpgradeRefused { .. } => '?',
         EventKind::Lost { .. }
         | EventKind::RebindGaveUp { .. }
         | EventKind::SupervisorGaveUp { .. }
         | EventKind::DmChecked(_) => '!',
-        EventKind::Rebound(_) => '~',
+        EventKind::Rebound(_) | EventKind::BindingUpgraded(_) => '~',
         EventKind::FaultInjected { .. }
         | EventKind::FaultHealed { .. }
         | EventKind::FaultNotInjected { .. } => '*',

@@ -247,6 +247,11 @@ impl ReportBuilder {
                 }
                 self.report.record_rebind(rebind.clone());
             }
+            EventKind::BindingUpgraded(upgrade) => {
+                self.report
+                    .record_bound_epoch(&upgrade.operation, upgrade.epoch, event.at_ms);
+                self.report.record_upgrade(upgrade.clone());
+            }
             _ => {}
         }
     }

@@ -24,7 +24,7 @@ pub use builder::{AttachedReport, ReportBuilder};
 use crate::fence::BoundEpoch;
 use crate::run::{
     Choice, DmCheck, FaultKind, OpEnd, Outcome, ParamSetting, ParamSource, Provenance,
-    RebindRecord, RobotSection, TakeoverRecord,
+    RebindRecord, RobotSection, TakeoverRecord, UpgradeRecord,
 };
 use serde::{Deserialize, Serialize};
 
@@ -89,6 +89,10 @@ pub struct RunReport {
     /// How many rebindings the run had in all.
     #[serde(default)]
     pub rebinds_total: u64,
+    /// The latest [`REPORT_KEEPS`] bindings moved to a newer compatible version of their
+    /// operation at an action's start, oldest first.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub upgrades: Vec<UpgradeRecord>,
     /// Mission clock time the run took, in ms.
     pub duration_ms: u64,
     /// What a robot said of the run ([`RobotSection`]; empty without a robot). Its keys
@@ -247,7 +251,7 @@ pub struct DmRecoveryRecord {
 
 impl RunReport {
     /// The report's own JSON keys: a robot's section cannot take them.
-    pub const OWN_KEYS: [&'static str; 23] = [
+    pub const OWN_KEYS: [&'static str; 24] = [
         "mission",
         "outcome",
         "reason",
@@ -256,6 +260,7 @@ impl RunReport {
         "actions",
         "rebinds",
         "rebinds_total",
+        "upgrades",
         "duration_ms",
         "faults",
         "faults_total",
@@ -285,6 +290,7 @@ impl RunReport {
             actions: Vec::new(),
             rebinds: Vec::new(),
             rebinds_total: 0,
+            upgrades: Vec::new(),
             duration_ms: 0,
             selection: Vec::new(),
             selection_total: 0,
@@ -367,6 +373,11 @@ impl RunReport {
     pub fn record_rebind(&mut self, rebind: RebindRecord) {
         self.rebinds_total += 1;
         keep_latest(&mut self.rebinds, rebind);
+    }
+
+    /// Keep a binding's move to a newer version among the latest [`REPORT_KEEPS`].
+    pub fn record_upgrade(&mut self, upgrade: UpgradeRecord) {
+        keep_latest(&mut self.upgrades, upgrade);
     }
 
     /// Count faults and keep them among the latest [`REPORT_KEEPS`].
@@ -534,6 +545,19 @@ mod tests {
                 epoch: 7,
             }],
             rebinds_total: 1,
+            upgrades: vec![UpgradeRecord {
+                operation: "op".into(),
+                action: "a".into(),
+                from: "0.3".into(),
+                from_version: "1.0.0".into(),
+                from_node: "local".into(),
+                to: "1.4".into(),
+                to_version: "1.1.0".into(),
+                to_node: "other".into(),
+                epoch: 8,
+                run_ms: 6,
+                from_last_ms: Some(5),
+            }],
             duration_ms: 10,
             selection: Vec::new(),
             selection_total: 0,

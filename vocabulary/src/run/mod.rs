@@ -26,6 +26,7 @@ mod outcome;
 pub mod provenance;
 mod rebind;
 mod takeover;
+mod upgrade;
 
 pub use check::{AppliedSpan, DmCheck};
 pub use choice::{Candidate, Choice, Verdict};
@@ -37,6 +38,7 @@ pub use provenance::{
 };
 pub use rebind::RebindRecord;
 pub use takeover::TakeoverRecord;
+pub use upgrade::UpgradeRecord;
 
 /// What a robot said of a run — its judgement beside the dispatcher's (for marie's
 /// simulated cart: where it ended, collisions, the seed, whether it ended in the goal area,

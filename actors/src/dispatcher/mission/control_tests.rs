@@ -91,7 +91,7 @@ fn unknown_keys_of_groups_and_retries_are_reported_with_the_accepted_ones() {
         [at(
             7,
             3,
-            "unknown key `grop` in the mission file (expected one of: mission, flags, action, requires, group)"
+            "unknown key `grop` in the mission file (expected one of: mission, flags, action, requires, pin, group)"
         )]
     );
 }

@@ -68,6 +68,10 @@
 //!
 //! [requires]                 # optional: the versions the mission accepts (semver)
 //! counter = "^1"
+//!
+//! [pin]                      # optional: the version an operation runs on for the whole
+//! ticker = "1.0.0"           #   mission ("1.0.0": exactly; or a requirement, "~1.0"): its
+//!                            #   binding never moves to a newer version that appears
 //! ```
 //!
 //! With control keys and groups (all optional; a file without them means what it always
@@ -428,6 +432,9 @@ pub struct Mission {
     /// instance of a matching version is chosen, or stands in after a failure.
     #[serde(default)]
     pub requires: BTreeMap<String, semver::VersionReq>,
+    /// The versions operations run on for the whole mission, by operation name (`[pin]`):
+    /// a pinned binding never moves to a newer version, and a stand-in must match too.
+    pub pins: BTreeMap<String, semver::VersionReq>,
     /// The choices the check against the running instances made, handed to the dispatcher
     /// so that the run selects once ([`Mission::checked`]). Never serialized.
     #[serde(skip)]
@@ -548,6 +555,7 @@ impl Mission {
     pub fn need(&self, name: &str) -> super::selection::Need {
         let mut need = super::selection::Need::new(name);
         need.version = self.requires.get(name).cloned();
+        need.pin = self.pins.get(name).cloned();
         need.supplied = self
             .actions
             .iter()
@@ -582,6 +590,8 @@ pub struct ParsedMission {
     pub(crate) items: Vec<parsed::Item>,
     /// `[requires]`: version requirements by operation key, where written.
     pub(crate) requires: Vec<(String, semver::VersionReq, Pos)>,
+    /// `[pin]`: the versions operations run on for the whole mission, by key, where written.
+    pub(crate) pins: Vec<(String, semver::VersionReq, Pos)>,
 }
 
 impl ParsedMission {
@@ -640,6 +650,11 @@ impl ParsedMission {
         let mut need = super::selection::Need::new(key);
         need.version = self
             .requires
+            .iter()
+            .find(|(k, _, _)| k == key)
+            .map(|(_, r, _)| r.clone());
+        need.pin = self
+            .pins
             .iter()
             .find(|(k, _, _)| k == key)
             .map(|(_, r, _)| r.clone());
@@ -749,6 +764,33 @@ mod tests {
         assert_eq!(m.actions[1].ops[0].params["gain"], Value::Float(2.0));
         assert_eq!(m.flag_name(3), Some("counted"));
         assert_eq!(m.flags_to_names(StatusFlags(0b1001)), ["#0", "counted"]);
+    }
+
+    #[test]
+    fn a_pin_is_an_exact_version_or_a_requirement_and_must_name_an_operation_that_runs() {
+        let mission = |pin: &str| {
+            let src = format!(
+                "[mission]\nname = \"m\"\n[[action]]\nname = \"a\"\n\
+                 [action.ops.counter]\n[pin]\n{pin}\n"
+            );
+            ParsedMission::parse(&src, None).and_then(|p| p.validate(&catalog()))
+        };
+        let m = mission("counter = \"1.0.0\"").unwrap_or_else(|d| panic!("{d}"));
+        assert_eq!(m.pins["counter"].to_string(), "=1.0.0");
+        let need = m.need("counter");
+        assert_eq!(need.pin.map(|p| p.to_string()).as_deref(), Some("=1.0.0"));
+        let m = mission("counter = \"~1.0\"").unwrap_or_else(|d| panic!("{d}"));
+        assert_eq!(m.pins["counter"].to_string(), "~1.0");
+        let err = mission("counter = \"one\"").unwrap_err().to_string();
+        assert!(
+            err.contains("neither a version nor a version requirement"),
+            "{err}"
+        );
+        let err = mission("ticker = \"1.0.0\"").unwrap_err().to_string();
+        assert!(
+            err.contains("`[pin]` names operation `ticker`, which no action runs"),
+            "{err}"
+        );
     }
 
     #[test]

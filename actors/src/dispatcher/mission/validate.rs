@@ -69,23 +69,8 @@ pub(crate) fn validate<C: Catalog + ?Sized>(
     v.check_raisable(pm);
     v.check_parallels(pm, &actions);
     v.check_waits(pm, &actions);
-    let mut requires = BTreeMap::new();
-    for (key, req, at) in &pm.requires {
-        let op = actions
-            .iter()
-            .flat_map(|a| a.ops.iter())
-            .find(|o| &o.key == key || &o.name == key);
-        match op {
-            Some(op) => {
-                requires.insert(op.name.clone(), req.clone());
-            }
-            None => v.diags.push(Diagnostic::at(
-                v.file,
-                *at,
-                format!("`[requires]` names operation `{key}`, which no action runs"),
-            )),
-        }
-    }
+    let requires = named_ops(&mut v, &actions, &pm.requires, "[requires]");
+    let pins = named_ops(&mut v, &actions, &pm.pins, "[pin]");
     let mission = Mission {
         name: pm.name.clone(),
         description: pm.description.clone(),
@@ -99,6 +84,7 @@ pub(crate) fn validate<C: Catalog + ?Sized>(
         actions,
         world: pm.world.clone(),
         requires,
+        pins,
         checked: Default::default(),
     };
     Diagnostics(v.diags)
@@ -113,6 +99,34 @@ pub(crate) fn validate<C: Catalog + ?Sized>(
 fn bits(bits: impl Iterator<Item = u8>) -> StatusFlags {
     bits.filter_map(StatusFlags::bit)
         .fold(StatusFlags::EMPTY, |acc, b| acc | b)
+}
+
+/// The version requirements of `table` (`[requires]`, `[pin]`) by operation name; an entry
+/// naming an operation no action runs is an error.
+fn named_ops<C: Catalog + ?Sized>(
+    v: &mut Validator<'_, C>,
+    actions: &[Action],
+    entries: &[(String, semver::VersionReq, super::Pos)],
+    table: &str,
+) -> BTreeMap<String, semver::VersionReq> {
+    let mut out = BTreeMap::new();
+    for (key, req, at) in entries {
+        let op = actions
+            .iter()
+            .flat_map(|a| a.ops.iter())
+            .find(|o| &o.key == key || &o.name == key);
+        match op {
+            Some(op) => {
+                out.insert(op.name.clone(), req.clone());
+            }
+            None => v.diags.push(Diagnostic::at(
+                v.file,
+                *at,
+                format!("`{table}` names operation `{key}`, which no action runs"),
+            )),
+        }
+    }
+    out
 }
 
 struct Validator<'a, C: ?Sized> {

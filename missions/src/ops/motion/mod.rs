@@ -16,7 +16,8 @@ pub use sensor_based::{
 };
 pub use trajectory::{TrajectoryController, TrajectoryControllerFlag, TrajectoryControllerParams};
 pub use wall_follower::{
-    WallFollowerMode, WallFollowerV1, WallFollowerV1Params, WallFollowerV2, WallFollowerV2Params,
+    WallFollowerMode, WallFollowerV1, WallFollowerV1Params, WallFollowerV1_1,
+    WallFollowerV1_1Params, WallFollowerV2, WallFollowerV2Params,
 };
 
 use super::{cart, cart_err};

@@ -1,4 +1,4 @@
-//! The wall follower (1514), versions 1 and 2: the cart kept at a distance from the
+//! The wall follower (1514), versions 1, 1.1 and 2: the cart kept at a distance from the
 //! followed wall (version 2 also along a corridor's middle), with a stall check.
 
 use super::follow::{follow_params, follow_step};
@@ -110,6 +110,64 @@ impl Operation for WallFollowerV1 {
     async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
         let WallFollowerV1Params { distance } = ctx.params().read()?;
         let params = follow_params(distance, FollowMode::Wall, FOLLOW_SPEED);
+        self.follower.step(ctx, &params).await
+    }
+
+    async fn activate(&mut self, _ctx: &mut OpContext) -> Result<Step, OpError> {
+        self.follower.activate()
+    }
+
+    async fn suspend(&mut self, ctx: &mut OpContext) -> Result<(), OpError> {
+        self.follower.suspend(ctx)
+    }
+}
+
+marie_actors::params! {
+    /// The parameters of the wall follower, version 1.1: version 1's, and the forward speed.
+    pub struct WallFollowerV1_1Params {
+        /// distance kept from the wall
+        pub distance: f64 = 0.6, range(0.3, 3.0), unit("m");
+        /// forward speed along the wall
+        pub speed: f64 = FOLLOW_SPEED, range(0.1, 0.5), unit("m/s");
+    }
+}
+
+/// The wall follower, version 1.1 (`1.1.0-rc.1`): version 1 with one more parameter, the
+/// forward speed, whose default is version 1's — so a mission written for version 1 drives
+/// the same with it. It is what a newer compatible build of an operation looks like: a
+/// binding on version 1 moves to it at an action's start when it appears
+/// (`marie_actors::dispatcher::upgrade`).
+///
+/// A release candidate on purpose: semver requirements (`version = "1"` in a node's config,
+/// `*` when it names none) never match a pre-release, so it is hosted only where a node
+/// names it exactly (`version = "=1.1.0-rc.1"`), and every cluster that hosted version 1
+/// hosts what it did.
+#[derive(Debug, Default)]
+pub struct WallFollowerV1_1 {
+    follower: Follower,
+}
+
+impl Operation for WallFollowerV1_1 {
+    fn identity(&self) -> Identity {
+        Identity::new(
+            "wall-follower",
+            1514,
+            "1.1.0-rc.1",
+            "follows a wall at a distance, at a chosen speed",
+        )
+    }
+
+    fn parameters(&self) -> ParamSchema {
+        WallFollowerV1_1Params::schema()
+    }
+
+    fn period(&self) -> Duration {
+        CONTROL_PERIOD
+    }
+
+    async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
+        let WallFollowerV1_1Params { distance, speed } = ctx.params().read()?;
+        let params = follow_params(distance, FollowMode::Wall, speed);
         self.follower.step(ctx, &params).await
     }
 

@@ -85,6 +85,45 @@ fn fields(ctx: &mut Reader<'_>, t: &Tbl<'_, '_>) -> RawHeader {
     }
 }
 
+/// `[pin]`: operation = "version" (exactly that version) or "requirement" (with an
+/// operator: `"~1.0"`, `">=1, <1.1"`), each at its position — the versions the operation
+/// runs on for the whole mission: its binding never moves to a newer version, and a
+/// stand-in after a loss must match too.
+pub(super) fn pins(ctx: &mut Reader<'_>, v: &Val<'_>) -> Vec<Requirement> {
+    let Some(t) = ctx.table_or(
+        v,
+        "`[pin]`",
+        "a table `[pin]` of operations and the version each runs on \
+         (e.g. wall-follower = \"1.0.0\")",
+    ) else {
+        return Vec::new();
+    };
+    let mut out = Vec::new();
+    for (key, v) in t.in_file_order() {
+        let Some(text) = ctx.string_value(v, key.get_ref()) else {
+            continue;
+        };
+        // a bare version pins exactly it; semver would read it as `^1.0.0`
+        let exact = match semver::Version::parse(text.trim()) {
+            Ok(version) => format!("={version}"),
+            Err(_) => text.clone(),
+        };
+        match semver::VersionReq::parse(&exact) {
+            Ok(req) => out.push((key.get_ref().to_string(), req, ctx.pos(&key.span()))),
+            Err(e) => ctx.err(
+                &v.span(),
+                format!(
+                    "{} is neither a version nor a version requirement to pin {} to: {e} \
+                     (e.g. \"1.0.0\", \"~1.0\")",
+                    quote(&text),
+                    quote(key.get_ref())
+                ),
+            ),
+        }
+    }
+    out
+}
+
 /// `[requires]`: operation = "semver requirement", each at its position.
 pub(super) fn requires(ctx: &mut Reader<'_>, v: &Val<'_>) -> Vec<Requirement> {
     let Some(t) = ctx.table_or(

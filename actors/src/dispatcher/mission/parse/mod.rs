@@ -27,7 +27,7 @@ use resolve::Tables;
 use std::path::Path;
 
 /// The top-level tables a mission file may have.
-const TOP_KEYS: &[&str] = &["mission", "flags", "action", "requires", "group"];
+const TOP_KEYS: &[&str] = &["mission", "flags", "action", "requires", "pin", "group"];
 
 /// Stage 1 entry point: every table read, then related, then the structure checked.
 pub(crate) fn parse(src: &str, path: Option<&Path>) -> Result<ParsedMission, Diagnostics> {
@@ -64,11 +64,16 @@ fn read_tables(ctx: &mut Reader<'_>, top: &Tbl<'_, '_>) -> Tables {
         .get("requires")
         .map(|v| header::requires(ctx, v))
         .unwrap_or_default();
+    let pins = top
+        .get("pin")
+        .map(|v| header::pins(ctx, v))
+        .unwrap_or_default();
     Tables {
         header,
         flags,
         actions,
         groups,
         requires,
+        pins,
     }
 }

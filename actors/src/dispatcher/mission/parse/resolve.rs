@@ -21,6 +21,7 @@ pub(super) struct Tables {
     pub(super) actions: Vec<RawAction>,
     pub(super) groups: Vec<RawGroup>,
     pub(super) requires: Vec<Requirement>,
+    pub(super) pins: Vec<Requirement>,
 }
 
 /// The mission the tables make, every name in it resolved.
@@ -31,6 +32,7 @@ pub(super) fn mission(ctx: &mut Reader<'_>, path: Option<&Path>, tables: Tables)
         actions,
         groups,
         requires,
+        pins,
     } = tables;
     let flags = Flags::resolve(ctx, flags);
     let initial = flags.refs(ctx, &header.initial, "mission.initial");
@@ -62,6 +64,7 @@ pub(super) fn mission(ctx: &mut Reader<'_>, path: Option<&Path>, tables: Tables)
         groups,
         items,
         requires,
+        pins,
     }
 }
 

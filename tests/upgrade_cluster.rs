@@ -1,0 +1,201 @@
+//! A newer compatible version of an operation takes its binding over at an action boundary
+//! (issue 44, point 3): a docking run binds the wall follower's version 1.0.0 on a node of
+//! its own; while the wall follower runs `follow-wall`, a node hosting version 1.1.0-rc.1
+//! (one more optional parameter, the same behaviour by default) joins the cluster. The
+//! binding does not move in the middle of `follow-wall`: the next action that uses the wall
+//! follower starts on the new version, and the report and the run's lines say so.
+//!
+//! The docking mission uses the wall follower in one action only, so the test's variant also
+//! runs it in `plan-parking` (until the path is planned: a control period or two of driving,
+//! which the trajectory controller absorbs).
+
+use crate::common;
+use crate::selection_cluster::{start_at, COOKIE};
+
+use common::cluster::{NodeProc, Proc};
+use common::missions::docking_edited;
+use serde_json::Value;
+use std::net::SocketAddr;
+
+/// The cluster's speed: `follow-wall` takes about 36 s of mission time, 12 s of wall time —
+/// ample for a node to start and join while it runs, on a loaded machine.
+const SPEED: &str = "3";
+
+/// The newer wall follower (`missions/src/ops/motion/wall_follower.rs`): a release
+/// candidate, hosted only where a node names it exactly.
+const NEWER: &str = "1.1.0-rc.1";
+
+/// The wall follower's record in action `action` of `report`.
+fn follower_in<'a>(report: &'a Value, action: &str) -> &'a Value {
+    report["actions"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|a| a["name"] == action)
+        .unwrap_or_else(|| panic!("no action {action}: {report:#}"))["operations"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|op| op["name"] == "wall-follower")
+        .unwrap_or_else(|| panic!("no wall follower in {action}: {report:#}"))
+}
+
+/// The docking mission that also runs the wall follower in `plan-parking`, with `tail`
+/// appended, written into `dir`.
+fn docking_twice(dir: &std::path::Path, name: &str, tail: &str) -> std::path::PathBuf {
+    let path = docking_edited(
+        dir,
+        name,
+        &[(
+            "[action.ops.path-planner]\n",
+            "ends_on = [\"path-planner\"]\n[action.ops.wall-follower]\ndistance = 0.8\n\
+             [action.ops.path-planner]\n",
+        )],
+    );
+    let mut src = std::fs::read_to_string(&path).unwrap();
+    src += tail;
+    std::fs::write(&path, src).unwrap();
+    path
+}
+
+/// Start a cluster whose wall follower is version 1.0.0 on node `wf-one`, run `mission` on
+/// it, and start node `wf-new` hosting the newer version once `follow-wall` started: the
+/// run's process (its lines read until `wait_for`, a line the run prints after the newer
+/// instance joined), the new node and the cluster, to keep until the run ended.
+fn run_with_newer(
+    dir: &std::path::Path,
+    mission: &std::path::Path,
+    report: &std::path::Path,
+    wait_for: &str,
+) -> (Proc, String, NodeProc, crate::selection_cluster::Cluster) {
+    let cluster = start_at(dir, &[("wf-one", "1")], SPEED);
+    let mut run = Proc::spawn(
+        "marie run",
+        &[
+            "run",
+            mission.to_str().unwrap(),
+            "--join",
+            &cluster.join,
+            "--cookie",
+            COOKIE,
+            "--speed",
+            SPEED,
+            "--report",
+            report.to_str().unwrap(),
+        ],
+    );
+    run.wait_line("> follow-wall: start");
+    // the newer version joins while version 1.0.0 follows the wall
+    let join: SocketAddr = cluster.join.parse().unwrap();
+    let hosts = format!(
+        "dispatcher = false\n[[operation]]\nname = \"wall-follower\"\nversion = \"={NEWER}\"\n"
+    );
+    let newer = NodeProc::start(dir, "wf-new", &hosts, &[join], COOKIE);
+    let line = run.wait_line(wait_for);
+    (run, line, newer, cluster)
+}
+
+#[test]
+fn a_newer_wall_follower_started_mid_action_takes_the_binding_at_the_next_action() {
+    let dir = tempfile::tempdir().unwrap();
+    let mission = docking_twice(dir.path(), "docking-twice", "");
+    let report = dir.path().join("report.json");
+    let (mut run, upgraded, _newer, _cluster) = run_with_newer(
+        dir.path(),
+        &mission,
+        &report,
+        "wall-follower upgraded at `plan-parking`",
+    );
+    assert!(
+        upgraded.contains("v1.0.0") && upgraded.contains(&format!("v{NEWER}")),
+        "{upgraded}"
+    );
+    assert!(
+        upgraded.contains("on wf-one") && upgraded.contains("on wf-new"),
+        "{upgraded}"
+    );
+    let code = run.wait_exit();
+    let report: Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(code, Some(0), "{report:#}");
+    assert_eq!(report["outcome"], "succeeded", "{report:#}");
+
+    // the action running when the newer version appeared finished on the old instance ...
+    let old = follower_in(&report, "follow-wall");
+    assert_eq!(
+        (&old["version"], &old["node"]),
+        (&Value::from("1.0.0"), &Value::from("wf-one")),
+        "{old:#}"
+    );
+    // ... and the next one that used the wall follower started on the new one
+    let new = follower_in(&report, "plan-parking");
+    assert_eq!(
+        (&new["version"], &new["node"]),
+        (&Value::from(NEWER), &Value::from("wf-new")),
+        "{new:#}"
+    );
+    let upgrades = report["upgrades"].as_array().expect("an upgrades section");
+    assert_eq!(upgrades.len(), 1, "{upgrades:#?}");
+    let up = &upgrades[0];
+    assert_eq!(up["operation"], "wall-follower");
+    assert_eq!(up["action"], "plan-parking");
+    assert_eq!(up["from_version"], "1.0.0");
+    assert_eq!(up["to_version"], NEWER);
+    assert_eq!(up["from_node"], "wf-one");
+    assert_eq!(up["to_node"], "wf-new");
+    assert_eq!(up["to"], new["address"], "{up:#}\n{new:#}");
+    // the move happened at the action boundary: after the old instance's last report,
+    // when follow-wall had ended, at plan-parking's start
+    let follow_end = report["actions"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|a| a["name"] == "follow-wall")
+        .unwrap()["end_ms"]
+        .as_u64()
+        .unwrap();
+    let (at, last) = (
+        up["run_ms"].as_u64().unwrap(),
+        up["from_last_ms"].as_u64().unwrap(),
+    );
+    assert!(
+        last <= at && follow_end <= at,
+        "{up:#}, follow-wall ended at {follow_end}"
+    );
+    // the binding's epoch went up with the move
+    let epochs = report["bound_epochs"].to_string();
+    assert!(epochs.contains("wall-follower"), "{epochs}");
+}
+
+#[test]
+fn a_pinned_wall_follower_stays_on_its_version_when_a_newer_one_appears() {
+    let dir = tempfile::tempdir().unwrap();
+    let mission = docking_twice(
+        dir.path(),
+        "docking-pinned",
+        "\n[pin]\nwall-follower = \"1.0.0\"\n",
+    );
+    let report = dir.path().join("report.json");
+    let (mut run, refused, _newer, _cluster) =
+        run_with_newer(dir.path(), &mission, &report, "wall-follower stays");
+    assert!(
+        refused.contains(&format!("not moving to v{NEWER}"))
+            && refused.contains("on wf-new")
+            && refused.contains("the mission pins it to =1.0.0"),
+        "{refused}"
+    );
+    let code = run.wait_exit();
+    let report: Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(code, Some(0), "{report:#}");
+    assert_eq!(report["outcome"], "succeeded", "{report:#}");
+    for action in ["follow-wall", "plan-parking"] {
+        let op = follower_in(&report, action);
+        assert_eq!(
+            (&op["version"], &op["node"]),
+            (&Value::from("1.0.0"), &Value::from("wf-one")),
+            "{action}: {op:#}"
+        );
+    }
+    assert!(report.get("upgrades").is_none(), "{report:#}");
+    let lines = run.drain();
+    assert!(!lines.iter().any(|l| l.contains("upgraded")), "{lines:#?}");
+}
