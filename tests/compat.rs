@@ -25,6 +25,27 @@ fn current_corpus() -> PathBuf {
     dir
 }
 
+/// Rename the MessagePack map key `old` to `new` (both of 5 bytes: a fixstr, renamed in
+/// place) in the sample `file`, as an older build that named the field so would have
+/// written it.
+fn rename_key(file: &Path, old: &str, new: &str) {
+    assert!(
+        old.len() == 5 && new.len() == 5,
+        "keys of 5 bytes: a fixstr of the same size"
+    );
+    let (old, new) = (
+        [&[0xa5][..], old.as_bytes()].concat(),
+        [&[0xa5][..], new.as_bytes()].concat(),
+    );
+    let mut bytes = std::fs::read(file).expect("the sample reads");
+    let at = bytes
+        .windows(old.len())
+        .position(|w| w == old.as_slice())
+        .expect("the sample has the key");
+    bytes[at..at + old.len()].copy_from_slice(&new);
+    std::fs::write(file, bytes).expect("the sample writes");
+}
+
 /// Copy a corpus (its samples, manifest and journal directories) into `to`.
 fn copy(from: &Path, to: &Path) {
     std::fs::create_dir_all(to).expect("a temp dir");
@@ -63,16 +84,7 @@ fn a_renamed_field_is_refused_naming_its_type_and_field() {
     copy(&current_corpus(), &altered);
     // an older build whose `EoMsg::Activate` called its field `epich`: the MessagePack map
     // key, a fixstr of 5 bytes, renamed in place
-    let file = altered.join("EoMsg.Activate.msgpack");
-    let bytes = std::fs::read(&file).expect("the sample reads");
-    let (old, new) = (b"\xa5epoch", b"\xa5epich");
-    let at = bytes
-        .windows(old.len())
-        .position(|w| w == old)
-        .expect("the sample has the key `epoch`");
-    let mut renamed = bytes.clone();
-    renamed[at..at + old.len()].copy_from_slice(new);
-    std::fs::write(&file, renamed).expect("the sample writes");
+    rename_key(&altered.join("EoMsg.Activate.msgpack"), "epoch", "epich");
 
     let out = marie(&["compat", "check", altered.to_str().expect("UTF-8")]);
     let stdout = text(&out.stdout);
@@ -107,16 +119,7 @@ fn a_field_renamed_under_a_default_is_refused_too() {
     let tmp = tempfile::tempdir().expect("a temp dir");
     let altered = tmp.path().join("corpus");
     copy(&current_corpus(), &altered);
-    let file = altered.join("NewRecord.-.msgpack");
-    let bytes = std::fs::read(&file).expect("the sample reads");
-    let (old, new) = (b"\xa5class", b"\xa5klass");
-    let at = bytes
-        .windows(old.len())
-        .position(|w| w == old)
-        .expect("the sample has the key `class`");
-    let mut renamed = bytes.clone();
-    renamed[at..at + old.len()].copy_from_slice(new);
-    std::fs::write(&file, renamed).expect("the sample writes");
+    rename_key(&altered.join("NewRecord.-.msgpack"), "class", "klass");
 
     let out = marie(&["compat", "check", altered.to_str().expect("UTF-8")]);
     let stdout = text(&out.stdout);
