@@ -3,7 +3,7 @@
 //! allocated and freed stays resident in their allocator's heaps after they exit
 //! (mimalloc keeps an exited thread's heap "abandoned" until another thread reclaims it;
 //! glibc keeps freed blocks in its arenas). Measured with `scripts/restart-memory 24`
-//! (mimalloc, before this): nodes restarted on the journals of 24 docking runs came back
+//! (mimalloc with transparent huge pages, before this and before `huge_pages.rs`): nodes restarted on the journals of 24 docking runs came back
 //! 2–16 MiB above the same nodes that ran on (features 64.7–70.9 against 54.6 MiB), and
 //! with glibc `malloc_trim(0)` gave 9–10 MiB back. So once a while, and soon after the
 //! start, the node asks its allocator to return what is free: `mi_collect(true)` reclaims

@@ -237,19 +237,20 @@ impl Sessions {
     fn ended(&self, ses: &NodeServerSessionInformation) {
         let name = ses.peer_name.as_ref();
         let peer = name.map(|n| node_name(&n.name));
-        // a peer this node refused (another protocol version) has its sessions closed in
-        // the handshake by both sides: that explains the end, not a cookie. (Told wrongly
-        // since a turned-away dial is redialled at once: two such ends came within the
-        // e2e test's watch, `failure_detector::a_node_of_another_protocol_version_…`.)
-        if peer.is_some_and(|p| self.is_refused(p)) {
-            return;
-        }
+        // every end reaches the watch: it forgets the session there
         let Some(attempts) = self.auth().ended(ses.node_id, peer) else {
             return;
         };
         let (Some(name), Some(peer)) = (name, peer) else {
             return;
         };
+        // a peer this node refused (another protocol version) has its sessions closed in
+        // the handshake by both sides: that explains the end, not a cookie. (Told wrongly
+        // since a turned-away dial is redialled at once: two such ends came within the
+        // e2e test's watch, `failure_detector::a_node_of_another_protocol_version_…`.)
+        if self.is_refused(peer) {
+            return;
+        }
         let address = &name.connection_string;
         if ses.is_server {
             // this node checked the peer's answer to its challenge, and closed

@@ -40,7 +40,7 @@ use super::replica::SCOPE;
 use ractor::rpc::CallResult;
 use ractor::ActorRef;
 use std::collections::{BTreeMap, BTreeSet};
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use tokio::task::JoinHandle;
@@ -107,9 +107,8 @@ impl Drop for Probe {
 struct Shared {
     started: Instant,
     stop: AtomicBool,
-    /// How many writes were acknowledged (the newest acknowledged is this minus 1).
-    acked: AtomicU64,
-    /// The seq each acknowledged write was acknowledged with, by number.
+    /// The seq each acknowledged write was acknowledged with, by number: as many as were
+    /// acknowledged (the newest acknowledged is their count minus 1).
     seqs: Mutex<Vec<u64>>,
     verdict: Mutex<ProbeVerdict>,
 }
@@ -157,19 +156,23 @@ impl Shared {
 }
 
 impl Shared {
-    /// Write `n` was acknowledged with `seq`.
-    fn acknowledged(&self, n: u64, seq: u64) {
-        let mut seqs = self.seqs.lock().unwrap_or_else(|p| p.into_inner());
-        seqs.push(seq);
-        debug_assert_eq!(seqs.len() as u64, n + 1);
-        drop(seqs);
-        self.acked.store(n + 1, Ordering::SeqCst);
+    fn seqs(&self) -> std::sync::MutexGuard<'_, Vec<u64>> {
+        self.seqs.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// The next write was acknowledged with `seq`.
+    fn acknowledged(&self, seq: u64) {
+        self.seqs().push(seq);
+    }
+
+    /// How many writes were acknowledged.
+    fn acked(&self) -> u64 {
+        self.seqs().len() as u64
     }
 
     /// The seq write `n` was acknowledged with.
     fn seq_of(&self, n: u64) -> Option<u64> {
-        let seqs = self.seqs.lock().unwrap_or_else(|p| p.into_inner());
-        seqs.get(usize::try_from(n).ok()?).copied()
+        self.seqs().get(usize::try_from(n).ok()?).copied()
     }
 }
 
@@ -194,7 +197,6 @@ impl Probe {
         let shared = Arc::new(Shared {
             started: Instant::now(),
             stop: AtomicBool::new(false),
-            acked: AtomicU64::new(0),
             seqs: Mutex::new(Vec::new()),
             verdict: Mutex::new(ProbeVerdict {
                 dm: config.dm.clone(),
@@ -324,7 +326,7 @@ async fn write(shared: Arc<Shared>, client: DmClient, config: ProbeConfig) {
         };
         match client.store_raw(record).await {
             Ok(seq) => {
-                shared.acknowledged(n, seq);
+                shared.acknowledged(seq);
                 n += 1;
                 shared.tally(|v| v.writes = n);
                 tokio::time::sleep(config.write_pause).await;
@@ -341,7 +343,7 @@ async fn write(shared: Arc<Shared>, client: DmClient, config: ProbeConfig) {
 /// Read the newest record through the datamanager's name, following it to its leader.
 async fn read_by_name(shared: Arc<Shared>, client: DmClient, config: ProbeConfig, source: String) {
     while !shared.stopped() {
-        let acked_before = shared.acked.load(Ordering::SeqCst);
+        let acked_before = shared.acked();
         let sent = shared.started.elapsed();
         let outcome = match client.select(newest_query(&source)).await {
             Ok(records) => Outcome::Seen(newest(&records)),
@@ -392,7 +394,7 @@ async fn read_replica(shared: Arc<Shared>, config: ProbeConfig, source: String, 
             continue;
         };
         let actor: ActorRef<DmMsg> = cell.into();
-        let acked_before = shared.acked.load(Ordering::SeqCst);
+        let acked_before = shared.acked();
         let sent = shared.started.elapsed();
         let answer = actor
             .call(
@@ -421,7 +423,7 @@ async fn read_back(
     config: &ProbeConfig,
     source: &str,
 ) -> (ReadBack, Option<Survivors>) {
-    let acked = shared.acked.load(Ordering::SeqCst);
+    let acked = shared.acked();
     if acked == 0 {
         return (ReadBack::NothingWritten, None);
     }
@@ -447,11 +449,7 @@ async fn read_back(
                     },
                 };
                 let all = Query::class(CLASS).source(source);
-                let seqs = shared
-                    .seqs
-                    .lock()
-                    .unwrap_or_else(|p| p.into_inner())
-                    .clone();
+                let seqs = shared.seqs().clone();
                 let kept = match client.select(all).await {
                     Ok(held) => Some(survivors(&seqs, &held)),
                     Err(e) => {

@@ -79,21 +79,40 @@ impl Readings {
         })
     }
 
+    /// When the summary says a node's memory, in order: the start (`None`), then after
+    /// which run (1-based) — the end of the first quarter and of the first half when the
+    /// soak is long enough, and the last run — each with its words.
+    fn marks(&self) -> Vec<(String, Option<usize>)> {
+        let mut marks = vec![("the soak's start".to_string(), None)];
+        if let Some((from, second, _)) = self.halves() {
+            for run in [from - 1, second - 1] {
+                marks.push((format!("after run {run}"), Some(run)));
+            }
+        }
+        if !self.after.is_empty() {
+            marks.push(("its end".to_string(), Some(self.after.len())));
+        }
+        marks
+    }
+
+    /// The words of [`Readings::marks`], the same for every node.
+    pub(super) fn mark_words(&self) -> Vec<String> {
+        self.marks().into_iter().map(|(words, _)| words).collect()
+    }
+
     /// `node`'s trend.
     pub(super) fn trend(&self, node: &str) -> Trend {
         let at = |m: &Memory| m.0.get(node).copied().flatten();
         let after = |run: usize| self.after.get(run - 1).and_then(at);
-        let mut marks = vec![("start".to_string(), at(&self.start))];
-        let mut medians = None;
-        if let Some((from, second, last)) = self.halves() {
-            marks.push((format!("after run {}", from - 1), after(from - 1)));
-            marks.push((format!("after run {}", second - 1), after(second - 1)));
+        let marks = self
+            .marks()
+            .into_iter()
+            .map(|(words, run)| (words, run.map_or_else(|| at(&self.start), after)))
+            .collect();
+        let medians = self.halves().and_then(|(from, second, last)| {
             let median = |runs: std::ops::Range<usize>| median(runs.filter_map(after).collect());
-            medians = median(from..second).zip(median(second..last + 1));
-        }
-        if !self.after.is_empty() {
-            marks.push(("end".to_string(), after(self.after.len())));
-        }
+            median(from..second).zip(median(second..last + 1))
+        });
         Trend { marks, medians }
     }
 }
@@ -158,10 +177,10 @@ mod tests {
         assert_eq!(
             t.marks,
             vec![
-                ("start".to_string(), Some(18)),
+                ("the soak's start".to_string(), Some(18)),
                 ("after run 2".to_string(), Some(30)),
                 ("after run 5".to_string(), Some(33)),
-                ("end".to_string(), Some(34)),
+                ("its end".to_string(), Some(34)),
             ]
         );
         assert_eq!(t.medians, Some((33, 34)));

@@ -394,7 +394,6 @@ impl Summary {
         {
             *restarted.entry(f.struck.strike.node()).or_default() += 1;
         }
-        let mut marks = Vec::new();
         let nodes: Vec<String> = self
             .memory
             .start
@@ -402,7 +401,6 @@ impl Summary {
             .keys()
             .map(|node| {
                 let trend = self.memory.trend(node);
-                marks = trend.marks.iter().map(|(at, _)| at.clone()).collect();
                 let read: Vec<String> = trend.marks.iter().map(|(_, kib)| mib(*kib)).collect();
                 let medians = match trend.medians {
                     Some((first, second)) => format!(
@@ -420,15 +418,7 @@ impl Summary {
                 format!("{node} {}{medians}{again}", read.join(" → "))
             })
             .collect();
-        let marks = marks
-            .iter()
-            .map(|m| match m.as_str() {
-                "start" => "the soak's start",
-                "end" => "its end",
-                other => other,
-            })
-            .collect::<Vec<_>>()
-            .join(" → ");
+        let marks = self.memory.mark_words().join(" → ");
         let halves = match self.memory.halves() {
             Some((from, second, last)) => format!(
                 "; median of runs {from}–{} → of runs {second}–{last}, flat within {:.0} %",

@@ -90,48 +90,50 @@ fn fields(ctx: &mut Reader<'_>, t: &Tbl<'_, '_>) -> RawHeader {
 /// runs on for the whole mission: its binding never moves to a newer version, and a
 /// stand-in after a loss must match too.
 pub(super) fn pins(ctx: &mut Reader<'_>, v: &Val<'_>) -> Vec<Requirement> {
-    let Some(t) = ctx.table_or(
-        v,
-        "`[pin]`",
-        "a table `[pin]` of operations and the version each runs on \
-         (e.g. wall-follower = \"1.0.0\")",
-    ) else {
-        return Vec::new();
-    };
-    let mut out = Vec::new();
-    for (key, v) in t.in_file_order() {
-        let Some(text) = ctx.string_value(v, key.get_ref()) else {
-            continue;
-        };
+    let expects = "a table `[pin]` of operations and the version each runs on \
+                   (e.g. wall-follower = \"1.0.0\")";
+    requirements(ctx, v, "`[pin]`", expects, |text, op| {
         // a bare version pins exactly it; semver would read it as `^1.0.0`
         let exact = match semver::Version::parse(text.trim()) {
             Ok(version) => format!("={version}"),
-            Err(_) => text.clone(),
+            Err(_) => text.to_string(),
         };
-        match semver::VersionReq::parse(&exact) {
-            Ok(req) => out.push((key.get_ref().to_string(), req, ctx.pos(&key.span()))),
-            Err(e) => ctx.err(
-                &v.span(),
-                format!(
-                    "{} is neither a version nor a version requirement to pin {} to: {e} \
-                     (e.g. \"1.0.0\", \"~1.0\")",
-                    quote(&text),
-                    quote(key.get_ref())
-                ),
-            ),
-        }
-    }
-    out
+        semver::VersionReq::parse(&exact).map_err(|e| {
+            format!(
+                "{} is neither a version nor a version requirement to pin {} to: {e} \
+                 (e.g. \"1.0.0\", \"~1.0\")",
+                quote(text),
+                quote(op)
+            )
+        })
+    })
 }
 
 /// `[requires]`: operation = "semver requirement", each at its position.
 pub(super) fn requires(ctx: &mut Reader<'_>, v: &Val<'_>) -> Vec<Requirement> {
-    let Some(t) = ctx.table_or(
-        v,
-        "`[requires]`",
-        "a table `[requires]` of operations and version requirements \
-         (e.g. wall-follower = \"^2\")",
-    ) else {
+    let expects = "a table `[requires]` of operations and version requirements \
+                   (e.g. wall-follower = \"^2\")";
+    requirements(ctx, v, "`[requires]`", expects, |text, op| {
+        semver::VersionReq::parse(text).map_err(|e| {
+            format!(
+                "{} is not a version requirement for {}: {e} (e.g. \"^2\", \">=1.2, <3\")",
+                quote(text),
+                quote(op)
+            )
+        })
+    })
+}
+
+/// A table `table` of operation = requirement, each read by `read(text, operation)` (its
+/// error is the diagnostic, at the value), each kept at its key's position.
+fn requirements(
+    ctx: &mut Reader<'_>,
+    v: &Val<'_>,
+    table: &str,
+    expects: &str,
+    read: impl Fn(&str, &str) -> Result<semver::VersionReq, String>,
+) -> Vec<Requirement> {
+    let Some(t) = ctx.table_or(v, table, expects) else {
         return Vec::new();
     };
     let mut out = Vec::new();
@@ -139,16 +141,9 @@ pub(super) fn requires(ctx: &mut Reader<'_>, v: &Val<'_>) -> Vec<Requirement> {
         let Some(text) = ctx.string_value(v, key.get_ref()) else {
             continue;
         };
-        match semver::VersionReq::parse(&text) {
+        match read(&text, key.get_ref()) {
             Ok(req) => out.push((key.get_ref().to_string(), req, ctx.pos(&key.span()))),
-            Err(e) => ctx.err(
-                &v.span(),
-                format!(
-                    "{} is not a version requirement for {}: {e} (e.g. \"^2\", \">=1.2, <3\")",
-                    quote(&text),
-                    quote(key.get_ref())
-                ),
-            ),
+            Err(words) => ctx.err(&v.span(), words),
         }
     }
     out
