@@ -111,6 +111,12 @@ pub struct Checkpoint {
     pub bindings: Vec<BindingCheckpoint>,
     /// The run's outcome, once it ended.
     pub ended: Option<Outcome>,
+    /// The writing dispatcher's actor number on its node (`None` from a build before it):
+    /// a desk that sees one dispatcher of a node leave takes the run over only if that one
+    /// wrote the newest checkpoint — not when a superseded dispatcher of the same node is
+    /// stopped while the node's new one carries the run.
+    #[serde(default)]
+    pub writer: Option<u64>,
 }
 
 /// The running action in a [`Checkpoint`].
@@ -156,6 +162,19 @@ pub struct BindingCheckpoint {
 }
 
 impl Checkpoint {
+    /// True if the dispatcher of node `node` with actor number `pid` (`None`: any of that
+    /// node) wrote it: a desk takes the run over from a lost dispatcher only then. A
+    /// superseded dispatcher stopped on the node whose new one carries the run on (a desk
+    /// that takes the run back kills its hung one) is not the run's. A checkpoint of a build
+    /// that named no writer is weighed by its node alone.
+    pub fn written_by(&self, node: &str, pid: Option<u64>) -> bool {
+        self.node == node
+            && match (pid, self.writer) {
+                (Some(lost), Some(writer)) => lost == writer,
+                _ => true,
+            }
+    }
+
     /// The newest checkpoint in the run datamanager `dm` (of any run: a dispatcher of an
     /// older term can no longer store one once a newer term has).
     pub async fn newest(dm: &DmClient) -> Result<Option<Checkpoint>, DmError> {
@@ -213,6 +232,8 @@ pub(super) struct Checkpointer {
     pub(super) run: String,
     pub(super) term: u64,
     seq: u64,
+    /// The dispatcher's actor number, stamped on each checkpoint ([`Checkpoint::writer`]).
+    pid: u64,
     /// The run datamanager, at the term's epoch.
     dm: DmClient,
     jobs: mpsc::UnboundedSender<Job>,
@@ -238,6 +259,7 @@ impl Checkpointer {
     /// Start writing `args`' checkpoints for `dispatcher`.
     pub(super) fn start(args: CheckpointArgs, dispatcher: ActorRef<DispatcherMsg>) -> Checkpointer {
         let (jobs, mut rx) = mpsc::unbounded_channel::<Job>();
+        let pid = dispatcher.get_id().pid();
         let superseded = Arc::new(AtomicU64::new(0));
         let refused = superseded.clone();
         // fenced per run: a term counts within its run only
@@ -284,6 +306,7 @@ impl Checkpointer {
             run: args.run,
             term: args.term,
             seq: 0,
+            pid,
             dm,
             jobs,
             superseded,
@@ -307,6 +330,7 @@ impl Checkpointer {
     ) -> oneshot::Receiver<Result<(), Superseded>> {
         self.seq += 1;
         checkpoint.seq = self.seq;
+        checkpoint.writer = Some(self.pid);
         let (tx, rx) = oneshot::channel();
         let job = Job {
             checkpoint: Box::new(checkpoint),
@@ -332,6 +356,7 @@ impl Checkpointer {
     pub(super) fn store_end_later(mut self, mut checkpoint: Checkpoint) {
         self.seq += 1;
         checkpoint.seq = self.seq;
+        checkpoint.writer = Some(self.pid);
         store_end_later(self.dm.clone(), checkpoint);
     }
 }
@@ -438,7 +463,7 @@ mod tests {
     }
 
     #[test]
-    fn a_checkpoint_crosses_nodes_whole_and_its_hash_tells_missions_apart() {
+    fn a_checkpoint_crosses_nodes_whole_its_hash_tells_missions_apart_and_it_names_its_writer() {
         let m = mission("m");
         assert_eq!(Checkpoint::hash_of(&m), Checkpoint::hash_of(&m.clone()));
         assert_ne!(Checkpoint::hash_of(&m), Checkpoint::hash_of(&mission("n")));
@@ -477,9 +502,21 @@ mod tests {
                 lost: false,
             }],
             ended: None,
+            writer: Some(17),
         };
         let bytes = rmp_serde::to_vec(&checkpoint).unwrap();
         let back: Checkpoint = rmp_serde::from_slice(&bytes).unwrap();
         assert_eq!(back, checkpoint);
+        // the run is lost with the dispatcher that wrote it, or with its whole node; not
+        // with another dispatcher of that node (a superseded one stopped)
+        assert!(checkpoint.written_by("spare", Some(17)));
+        assert!(checkpoint.written_by("spare", None));
+        assert!(!checkpoint.written_by("spare", Some(16)));
+        assert!(!checkpoint.written_by("features", Some(17)));
+        let older = Checkpoint {
+            writer: None,
+            ..checkpoint
+        };
+        assert!(older.written_by("spare", Some(16)));
     }
 }

@@ -121,6 +121,7 @@ impl DispatcherState {
                 })
                 .collect(),
             ended,
+            writer: None, // stamped by the writer
         })
     }
 

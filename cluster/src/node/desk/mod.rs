@@ -12,7 +12,8 @@
 //! Every desk watches the cluster's dispatchers: when one leaves the registry (its process
 //! died, its actor was killed) or its node is declared down (frozen, cut off), the desk
 //! reads the run datamanager's newest checkpoint; if it belongs to a run that has not
-//! ended and was written on the lost dispatcher's node, the desk takes the run over under a
+//! ended and was written by the lost dispatcher (or, when a whole node is lost, on its
+//! node), the desk takes the run over under a
 //! higher term ([`TakeOver`]). A dispatcher that hangs — registered, its node up, but not
 //! answering a desk's [`DispatcherMsg::Alive`] within [`ALIVE_DEADLINE`] — is lost too. A
 //! standby's desk does so at once; an active node's desk
@@ -33,7 +34,8 @@
 //!
 //! # Invariants
 //! - A desk runs at most one dispatcher at a time.
-//! - A takeover needs a checkpoint that has not ended and was written on the lost node.
+//! - A takeover needs a checkpoint that has not ended and was written by the lost
+//!   dispatcher (on the lost node).
 
 mod refusal;
 mod role;
@@ -107,6 +109,9 @@ marie_vocabulary::remote_message! {
             noticed: Instant,
             /// It hangs (still registered, its node up), rather than gone.
             hung: bool,
+            /// Its actor number on its node; `None`: every dispatcher of the node is lost
+            /// (the node declared down or its sessions ended).
+            pid: Option<u64>,
         },
         /// Take over the run whose last checkpoint is `from`.
         TakeOver {
@@ -213,6 +218,7 @@ impl Actor for Desk {
                 node,
                 noticed,
                 hung,
+                pid,
             } => {
                 // (busy or not: a dispatcher of this desk that another node's took over
                 // from is superseded, and the run may be this desk's again)
@@ -241,11 +247,14 @@ impl Actor for Desk {
                         return; // no run recorded in this cluster
                     };
                     match Checkpoint::newest(&dm).await {
-                        Ok(Some(from)) if from.ended.is_none() && from.node == node => {
+                        Ok(Some(from)) if from.ended.is_none() && from.written_by(&node, pid) => {
                             let _ = me.cast(DeskMsg::TakeOver {
                                 from: Box::new(from),
                                 noticed,
                             });
+                        }
+                        Ok(Some(from)) if from.ended.is_none() && from.node == node => {
+                            tracing::info!(%node, ?pid, writer = ?from.writer, term = from.term, "the dispatcher lost there did not write the run's newest checkpoint: nothing to take over");
                         }
                         Ok(_) => {}
                         Err(e) => {
@@ -402,14 +411,17 @@ async fn watch_dispatchers(
     let me = args.node.clone();
     Ok(tokio::spawn(async move {
         loop {
-            let node = tokio::select! {
+            let (node, pid) = tokio::select! {
                 event = leaves.next() => match event {
-                    Some(RegistryEvent::Left(inst)) if inst.name == "dispatcher" => inst.node,
+                    Some(RegistryEvent::Left(inst)) if inst.name == "dispatcher" => {
+                        let pid = inst.actor_id().pid();
+                        (inst.node, Some(pid))
+                    }
                     Some(_) => continue,
                     None => return,
                 },
                 event = bus.recv() => match event {
-                    Ok(Event { kind: EventKind::NodeDown { peer, .. } | EventKind::NodeLost { peer, .. }, .. }) => peer,
+                    Ok(Event { kind: EventKind::NodeDown { peer, .. } | EventKind::NodeLost { peer, .. }, .. }) => (peer, None),
                     Ok(_) | Err(BusError::Lagged { .. }) => continue,
                     Err(BusError::Closed) => return,
                 },
@@ -423,6 +435,7 @@ async fn watch_dispatchers(
                     node,
                     noticed,
                     hung: false,
+                    pid,
                 })
                 .is_err()
             {
@@ -461,6 +474,7 @@ fn watch_hangs(me: String, desk: ActorRef<DeskMsg>) -> JoinHandle<()> {
                             node: inst.node.clone(),
                             noticed: asked + ALIVE_DEADLINE,
                             hung: true,
+                            pid: Some(inst.actor_id().pid()),
                         })
                         .is_err()
                     {
