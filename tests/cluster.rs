@@ -5,7 +5,7 @@
 
 use crate::common;
 
-use common::cluster::{Listed, NodeProc};
+use common::cluster::{Listed, NodeProc, Proc};
 use common::{marie, text};
 use serde_json::Value;
 
@@ -305,4 +305,34 @@ fn garbage_and_oversized_frames_on_a_nodes_port_change_nothing() {
     assert_eq!(entries.len(), 2, "{entries:?}");
     alpha.signal("TERM");
     assert_eq!(alpha.wait_exit(), Some(0));
+}
+
+#[test]
+fn a_mission_checked_by_a_member_as_a_node_joins_finds_that_nodes_operations() {
+    // a member that checks a mission may not have heard of every node's modules yet (it
+    // joined just now; a node joins after it): it looks again for a few seconds before it
+    // calls an operation unknown. A kept-up cluster's run was refused so: "unknown operation
+    // `ultrasonic` (available: …, ultrasonic, …)"
+    let dir = tempfile::tempdir().unwrap();
+    let hosts = format!("{ALPHA_HOSTS}[[operation]]\nname = \"checker\"\n");
+    let mut alpha = NodeProc::start(dir.path(), "alpha", &hosts, &[], COOKIE);
+    let addr = alpha.addr.to_string();
+    let mut check = Proc::spawn(
+        "check",
+        &[
+            "check",
+            "missions/demo.toml",
+            "--join",
+            &addr,
+            "--cookie",
+            COOKIE,
+        ],
+    );
+    // joined, it checks at once: averager runs nowhere yet
+    check.wait_stderr(" sees alpha");
+    let mut beta = NodeProc::start(dir.path(), "beta", BETA_HOSTS, &[alpha.addr], COOKIE);
+    let code = check.wait_exit();
+    assert_eq!(code, Some(0), "{}", check.stderr_tail());
+    beta.wait_line("node beta sees alpha");
+    alpha.wait_line("node alpha sees beta");
 }

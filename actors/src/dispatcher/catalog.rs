@@ -56,6 +56,18 @@ impl RegistryCatalog {
     pub fn unfit(&self) -> &BTreeMap<String, String> {
         &self.unfit
     }
+
+    /// The operations [`RegistryCatalog::for_mission`] asked for that no instance answered
+    /// for, each with how many the registry listed (0: none runs, or this member has not
+    /// heard of it yet; more: listed, but silent — a remote module of a session that just
+    /// ended, or one that did not answer in time).
+    pub fn unanswered(&self) -> BTreeMap<String, usize> {
+        self.examined
+            .iter()
+            .filter(|(_, e)| e.found.is_empty())
+            .map(|(key, e)| (key.clone(), e.seen.len()))
+            .collect()
+    }
 }
 
 impl RegistryCatalog {

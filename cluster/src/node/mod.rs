@@ -92,7 +92,7 @@ use ractor::ActorCell;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicU64;
 use std::sync::Arc;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 use tree::DATAMANAGERS;
 
 /// What a node is built with besides its config: the operations it can build, the robot it
@@ -151,6 +151,12 @@ impl std::fmt::Debug for NodeOptions {
 
 /// How long an operation gets to stop before it is killed.
 const OPERATION_SHUTDOWN: Duration = Duration::from_secs(1);
+/// How long a member of a cluster checking a mission looks again for operations no
+/// instance answered for ([`Node::check_mission`]): a few times the registry's usual
+/// convergence (0.1–0.4 s after the last node listened, as `marie up` prints it).
+pub const CHECK_SETTLE: Duration = Duration::from_secs(5);
+/// How long it waits between two looks.
+const CHECK_AGAIN: Duration = Duration::from_millis(250);
 
 /// Why a node could not do what was asked.
 #[derive(Debug, thiserror::Error)]
@@ -496,8 +502,23 @@ impl Node {
     /// ([`Mission::checked`]) to its run, which binds them unless an instance changed
     /// since (the chosen one gone, busy or silent, a new one of that operation) — so a
     /// checked mission is not selected again at its run.
+    ///
+    /// A member of a cluster that finds no answering instance of an operation looks again
+    /// for up to [`CHECK_SETTLE`]: it may have joined just now and not heard every node's
+    /// modules yet, or still list those of a session of its own that just ended (a kept-up
+    /// cluster's soak: one run in 40 was refused "unknown operation `ultrasonic`" with
+    /// `ultrasonic` among those it listed).
     pub async fn check_mission(&self, parsed: &ParsedMission) -> Result<Mission, NodeError> {
-        let catalog = RegistryCatalog::for_mission(parsed).await?;
+        let until = Instant::now() + CHECK_SETTLE;
+        let mut catalog = RegistryCatalog::for_mission(parsed).await?;
+        while !catalog.unanswered().is_empty()
+            && Instant::now() < until
+            && crate::net::heartbeat::reach().await.is_some()
+        {
+            tracing::info!(unanswered = ?catalog.unanswered(), "no instance of these answered yet: looking again");
+            tokio::time::sleep(CHECK_AGAIN).await;
+            catalog = RegistryCatalog::for_mission(parsed).await?;
+        }
         let mission = parsed.validate(&catalog).map_err(NodeError::Mission)?;
         // every parameter is known to some instance; one must also take them all, in a
         // version the mission accepts (selection, as the dispatcher will choose)
