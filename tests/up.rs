@@ -516,6 +516,18 @@ fn a_node_killed_under_up_is_restarted_rejoins_and_its_replicas_catch_up() {
             .any(|r| r["node"] == "operations" && r["name"] == "localizer"),
         "{rows:#?}"
     );
+    // each replica says what it holds in memory, the one restarted too: caught up, it
+    // holds the leader's records
+    for dm in rows.iter().filter(|r| r["replica"].is_object()) {
+        let replicas = dm["replicas"].as_array().cloned().unwrap_or_default();
+        let mut nodes: Vec<&str> = replicas.iter().filter_map(|r| r["node"].as_str()).collect();
+        nodes.sort();
+        assert_eq!(nodes, ["features", "operations", "spare"], "{dm:#}");
+        let records: Vec<&serde_json::Value> =
+            replicas.iter().map(|r| &r["held"]["records"]).collect();
+        assert!(records[0].is_u64(), "{dm:#}");
+        assert!(records.iter().all(|r| *r == records[0]), "{dm:#}");
+    }
     up.signal("INT");
     up.wait_line("cluster stopped");
     assert_eq!(up.wait_exit(), Some(0), "{}", up.seen().join("\n"));

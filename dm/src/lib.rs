@@ -134,7 +134,7 @@ pub use majority::{
     caught_up, leaderless, newest_leader, replica_nodes, replica_views, without_leader, NoMajority,
     MAJORITY_WAIT, VIEW_TIMEOUT,
 };
-pub use messages::{DmMsg, DmStats, ReplicaStats, StoreDigest};
+pub use messages::{DmMsg, DmStats, Held, ReplicaStats, StoreDigest};
 pub use name::Name;
 pub use page::{Page, PAGE_BYTES};
 pub use query::{Query, Take};

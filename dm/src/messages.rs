@@ -137,6 +137,27 @@ pub struct ReplicaStats {
     /// majority of [`members`](Self::members) is what a leader needs.
     #[serde(default)]
     pub reachable: Vec<String>,
+    /// What it holds in memory (0 from builds before it was told): a kept-up cluster's
+    /// nodes' memory is read beside it, to tell stores and logs filling to their bounds
+    /// from a leak.
+    #[serde(default)]
+    pub held: Held,
+}
+
+/// What a replica holds in memory ([`ReplicaStats::held`]).
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Held {
+    /// Records in its store.
+    pub records: u64,
+    /// Bytes of those records' payloads and names.
+    pub record_bytes: u64,
+    /// Log entries it keeps in memory (uncommitted ones, and applied ones a lagging
+    /// replica may still need).
+    pub tail_entries: u64,
+    /// Bytes those entries take (`op_bytes`, summed).
+    pub tail_bytes: u64,
+    /// Producers' pairs it keeps to store a retried put once.
+    pub producer_pairs: u64,
 }
 
 marie_vocabulary::remote_message! {

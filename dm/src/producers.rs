@@ -113,6 +113,11 @@ impl Producers {
     pub(crate) fn len(&self) -> usize {
         self.map.len()
     }
+
+    /// Pairs kept, of every producer.
+    pub(crate) fn pairs(&self) -> usize {
+        self.map.values().map(|r| r.pairs.len()).sum()
+    }
 }
 
 #[cfg(test)]

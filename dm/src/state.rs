@@ -137,6 +137,16 @@ impl DatamanagerState {
                             .cloned()
                             .collect()
                     },
+                    held: {
+                        let (tail_entries, tail_bytes) = core.tail_held();
+                        crate::messages::Held {
+                            records: self.store.len() as u64,
+                            record_bytes: self.store.record_bytes(),
+                            tail_entries: tail_entries as u64,
+                            tail_bytes: tail_bytes as u64,
+                            producer_pairs: self.producers.pairs() as u64,
+                        }
+                    },
                 }
             }),
             retention: Some(bound(self.store.config().default_retention)),

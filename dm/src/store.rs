@@ -1131,6 +1131,27 @@ impl Store {
         self.len
     }
 
+    /// Bytes of the stored records' payloads and names — walked, for stats, not kept.
+    pub fn record_bytes(&self) -> u64 {
+        let bytes: usize = self
+            .classes
+            .values()
+            .map(|ci| {
+                ci.entries
+                    .iter()
+                    .map(|(_, e)| {
+                        ci.name.len()
+                            + e.source.len()
+                            + e.sub1.as_deref().map_or(0, str::len)
+                            + e.sub2.as_deref().map_or(0, str::len)
+                            + e.payload.as_bytes().len()
+                    })
+                    .sum::<usize>()
+            })
+            .sum();
+        bytes as u64
+    }
+
     /// True when nothing is stored.
     pub fn is_empty(&self) -> bool {
         self.len == 0

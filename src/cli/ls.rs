@@ -88,6 +88,12 @@ async fn print_listing(list: &[Instance], said: &Said, json: bool) -> anyhow::Re
     // replicated datamanagers without a leader are in no listing of the registry: their
     // replicas say why
     let leaderless = marie::dm::leaderless(STATS_WITHIN).await;
+    // every replica's own numbers (what it holds in memory among them): the leader's
+    // stats speak for the datamanager, not for its followers
+    let views = match json {
+        true => marie::dm::replica_views(STATS_WITHIN).await,
+        false => Default::default(),
+    };
     if json {
         let rows: Vec<_> = list
             .iter()
@@ -110,6 +116,9 @@ async fn print_listing(list: &[Instance], said: &Said, json: bool) -> anyhow::Re
                     if let Some(r) = &s.replica {
                         row["replica"] = serde_json::to_value(r).unwrap_or_default();
                         row["stray_replicas"] = stray(&i.name, r).into();
+                        if let Some(all) = views.get(&i.name) {
+                            row["replicas"] = serde_json::to_value(all).unwrap_or_default();
+                        }
                     }
                 }
                 row

@@ -1056,6 +1056,11 @@ impl Core {
     /// what its peers matched and of what is durable here; on another replica, what the
     /// leader last told. No replica can need an entry up to it from memory: the tail drops
     /// them ([`Core::trim`]), so that replicas that all keep up keep next to nothing there.
+    /// The entries it keeps in memory, and the bytes they take.
+    pub(crate) fn tail_held(&self) -> (usize, usize) {
+        (self.tail.len(), self.tail.bytes())
+    }
+
     fn held_everywhere(&self) -> u64 {
         match &self.role {
             Role::Leader { peers, .. } => peers

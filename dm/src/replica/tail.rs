@@ -53,7 +53,6 @@ impl Tail {
     }
 
     /// What its entries take ([`op_bytes`] summed).
-    #[cfg(test)]
     pub(crate) fn bytes(&self) -> usize {
         self.bytes
     }
