@@ -31,11 +31,20 @@ fn faulted_runs(faults: &[&str]) -> (String, serde_json::Value, Vec<Event>) {
 /// Run `mission` on the thesis' layout with every fault of `faults`; stdout, the report and
 /// the events.
 fn faulted_runs_of(mission: &str, faults: &[&str]) -> (String, serde_json::Value, Vec<Event>) {
+    faulted_runs_on(THESIS, mission, faults)
+}
+
+/// The same on the cluster file `layout`.
+fn faulted_runs_on(
+    layout: &str,
+    mission: &str,
+    faults: &[&str],
+) -> (String, serde_json::Value, Vec<Event>) {
     let dir = tempfile::tempdir().unwrap();
     let events_path = dir.path().join("events.jsonl");
     let mut args = vec![
         "up",
-        THESIS,
+        layout,
         "--run",
         mission,
         "--speed",
@@ -235,6 +244,32 @@ fn a_desk_taken_over_from_takes_the_run_back_when_the_standby_is_lost_in_turn() 
     let expected = [("features", "spare", 2), ("spare", "features", 4)]
         .map(|(f, t, n)| (f.to_string(), t.to_string(), n));
     assert_eq!(takeovers, expected, "{stdout}");
+    assert_one_run(&format!("{faults:?}"), &report, &events, "features");
+}
+
+#[test]
+fn a_run_left_without_a_dispatcher_is_resumed_by_its_restarted_node_and_docks() {
+    // spare, the standby, is killed and stays down (`restart = "temporary"`); then features,
+    // the node of the run's dispatcher, is killed and restarted by `up`: no standby is
+    // left, and its new process's desk finds the run without a dispatcher and followed
+    // still, and takes it over (term 1 + 2). Before, `up` waited for the run's end for
+    // ever: the node came back, without the run's dispatcher
+    let dir = tempfile::tempdir().unwrap();
+    let layout = common::layouts::thesis_with_temporary(dir.path(), "spare");
+    let faults = ["stop-node:spare@2", "stop-node:features@6"];
+    let (stdout, report, events) =
+        faulted_runs_on(layout.to_str().unwrap(), "missions/docking.toml", &faults);
+    assert_eq!(report["outcome"], "succeeded", "{stdout}");
+    assert!(
+        stdout.contains("node spare was killed (SIGKILL): it stays down"),
+        "{stdout}"
+    );
+    let takeovers = takeovers_of(&report);
+    assert_eq!(
+        takeovers,
+        [("features".to_string(), "features".to_string(), 3)],
+        "{stdout}"
+    );
     assert_one_run(&format!("{faults:?}"), &report, &events, "features");
 }
 

@@ -163,6 +163,7 @@ async fn a_dispatcher_fenced_off_never_suspends_what_its_successor_holds() {
         run: RUN.to_string(),
         term: 1,
         dm: DmClient::new(through_gate, "dispatcher"),
+        watcher: None,
     };
     let dispatcher = spawn_dispatcher(
         DispatcherArgs {

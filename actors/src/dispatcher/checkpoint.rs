@@ -117,6 +117,22 @@ pub struct Checkpoint {
     /// stopped while the node's new one carries the run.
     #[serde(default)]
     pub writer: Option<u64>,
+    /// Who follows the run (the requester's event watcher), if it was asked for by
+    /// another node (`None` from a build before it, and for a run of the dispatcher's own
+    /// node): a desk restarted after its dispatcher's process died resumes the run only
+    /// while that watcher is still in reach — a cluster started again on old data
+    /// directories leaves a run nobody waits for alone.
+    #[serde(default)]
+    pub watcher: Option<RunWatcher>,
+}
+
+/// The event watcher of whoever asked for a run ([`Checkpoint::watcher`]).
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct RunWatcher {
+    /// Its node.
+    pub node: String,
+    /// Its actor number there.
+    pub pid: u64,
 }
 
 /// The running action in a [`Checkpoint`].
@@ -200,6 +216,8 @@ pub struct CheckpointArgs {
     pub term: u64,
     /// The run datamanager (its epoch is set to the term).
     pub dm: DmClient,
+    /// Who follows the run, stamped on each checkpoint ([`Checkpoint::watcher`]).
+    pub watcher: Option<RunWatcher>,
 }
 
 /// Why a checkpoint was not stored: a dispatcher of a newer term carries the run on.
@@ -234,6 +252,8 @@ pub(super) struct Checkpointer {
     seq: u64,
     /// The dispatcher's actor number, stamped on each checkpoint ([`Checkpoint::writer`]).
     pid: u64,
+    /// Who follows the run, stamped on each checkpoint ([`Checkpoint::watcher`]).
+    watcher: Option<RunWatcher>,
     /// The run datamanager, at the term's epoch.
     dm: DmClient,
     jobs: mpsc::UnboundedSender<Job>,
@@ -307,6 +327,7 @@ impl Checkpointer {
             term: args.term,
             seq: 0,
             pid,
+            watcher: args.watcher,
             dm,
             jobs,
             superseded,
@@ -331,6 +352,7 @@ impl Checkpointer {
         self.seq += 1;
         checkpoint.seq = self.seq;
         checkpoint.writer = Some(self.pid);
+        checkpoint.watcher = self.watcher.clone();
         let (tx, rx) = oneshot::channel();
         let job = Job {
             checkpoint: Box::new(checkpoint),
@@ -357,6 +379,7 @@ impl Checkpointer {
         self.seq += 1;
         checkpoint.seq = self.seq;
         checkpoint.writer = Some(self.pid);
+        checkpoint.watcher = self.watcher.clone();
         store_end_later(self.dm.clone(), checkpoint);
     }
 }
@@ -503,6 +526,10 @@ mod tests {
             }],
             ended: None,
             writer: Some(17),
+            watcher: Some(RunWatcher {
+                node: "run-1".into(),
+                pid: 9,
+            }),
         };
         let bytes = rmp_serde::to_vec(&checkpoint).unwrap();
         let back: Checkpoint = rmp_serde::from_slice(&bytes).unwrap();

@@ -121,7 +121,8 @@ impl DispatcherState {
                 })
                 .collect(),
             ended,
-            writer: None, // stamped by the writer
+            writer: None,  // stamped by the writer
+            watcher: None, // stamped by the writer
         })
     }
 

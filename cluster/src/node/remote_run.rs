@@ -7,8 +7,9 @@
 //! node's bus ([`EventBus::republish`]), so the run's report, its fault injector, its
 //! lines, events file and page see one continuous run, wherever it is dispatched. The run
 //! ends with the `run_ended` of its current dispatcher. Should that dispatcher's node be
-//! lost, or the dispatcher be fenced off, and no standby tell its takeover within
-//! [`TAKEOVER_WAIT`], the run fails, saying so.
+//! lost (and not come back with it: a node restarted is a new process), or the dispatcher
+//! be fenced off, and no standby tell its takeover within [`TAKEOVER_WAIT`], the run fails,
+//! saying so.
 //!
 //! # Invariants
 //! - The watch of the relayed events starts before the run does, and the desk waits until
@@ -32,6 +33,9 @@ use tokio::time::Instant;
 
 /// How long a run waits for a standby to take it over once its dispatcher's node is lost.
 pub const TAKEOVER_WAIT: Duration = Duration::from_secs(20);
+/// How often a run whose dispatcher was lost with its node looks whether the node is back
+/// with it.
+const LOOK_AGAIN: Duration = Duration::from_millis(500);
 /// How long a desk may take to start a run.
 const START_TIMEOUT: Duration = Duration::from_secs(20);
 /// How many relayed events the watch holds before it takes them (it takes them as they
@@ -64,6 +68,8 @@ struct RemoteRun {
     told: (u64, Instant),
     /// Since when the run has no dispatcher, and why.
     lost_since: Option<(Instant, Orphaned)>,
+    /// When to look next whether a lost dispatcher's node is back with it.
+    look_at: Instant,
 }
 
 impl RemoteRun {
@@ -72,6 +78,7 @@ impl RemoteRun {
             voice: DispatcherVoice::default(),
             told: (0, Instant::now()),
             lost_since: None,
+            look_at: Instant::now(),
         }
     }
 
@@ -117,22 +124,38 @@ impl RemoteRun {
             }) if peer == current && self.lost_since.is_none() => {
                 tracing::warn!(node = %current, "the run's dispatcher node is lost: waiting for a standby to take the run over");
                 self.lost_since = Some((Instant::now(), Orphaned::WithNode));
+                self.look_at = Instant::now() + LOOK_AGAIN;
             }
-            // its node back: the dispatcher goes on (unless it was fenced off)
-            Ok(Event {
-                kind: EventKind::NodeUp { peer, .. },
-                ..
-            }) if peer == current
-                && self
-                    .lost_since
-                    .is_some_and(|(_, why)| why == Orphaned::WithNode) =>
-            {
-                self.lost_since = None;
-            }
+            // its node back: whether its dispatcher goes on is told by the registry
+            // ([`RemoteRun::look_again`]) — a node frozen or cut off comes back with it, one
+            // restarted (a new process) without it
             Ok(_) | Err(BusError::Lagged { .. }) => {}
             Err(BusError::Closed) => return Err(NodeError::Desk("the node's bus closed".into())),
         }
         Ok(())
+    }
+
+    /// While the run's dispatcher is lost with its node (`current`): if the node is up
+    /// again and a dispatcher of it is in the registry, that one goes on — the node was
+    /// frozen or cut off, not restarted (a restarted node's new process runs no dispatcher
+    /// of the run: a run watched on was left without one, for ever, when no standby was
+    /// left to take it over).
+    fn look_again(&mut self, current: &str) {
+        let orphaned = self
+            .lost_since
+            .is_some_and(|(_, why)| why == Orphaned::WithNode);
+        if orphaned && dispatcher_of(current) {
+            tracing::info!(node = %current, "the run's dispatcher node is back with its dispatcher");
+            self.lost_since = None;
+        }
+        self.look_at = Instant::now() + LOOK_AGAIN;
+    }
+
+    /// When to look again whether the run's dispatcher is back ([`RemoteRun::look_again`]).
+    fn look_again_at(&self) -> Option<Instant> {
+        self.lost_since
+            .filter(|(_, why)| *why == Orphaned::WithNode)
+            .map(|_| self.look_at)
     }
 
     /// When the run fails for want of a takeover, if it has no dispatcher now.
@@ -252,12 +275,21 @@ impl Node {
                     }
                 }
                 news = own.recv() => run.own(news, &current)?,
+                () = until(run.look_again_at()) => run.look_again(&current),
                 () = until(run.no_takeover_after()) => {
                     return Ok(run.no_takeover(&self.bus, &current));
                 }
             }
         }
     }
+}
+
+/// True if node `node` is up and a run's dispatcher of it is in the registry.
+fn dispatcher_of(node: &str) -> bool {
+    !registry::is_declared_down(node)
+        && registry::list_of(ModuleKind::Dispatcher)
+            .iter()
+            .any(|i| i.id == marie_actors::dispatcher::DISPATCHER_ID && i.node == node)
 }
 
 /// The dispatcher desk of node `on`.

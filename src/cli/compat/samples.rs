@@ -303,7 +303,7 @@ fn desk() -> Result<Vec<Sample>, String> {
             watcher_pid: 42,
             reply: port(),
         },
-    } local { Lost, TakeOver })
+    } local { Lost, Resume, TakeOver })
 }
 
 fn beat() -> Result<Vec<Sample>, String> {

@@ -44,7 +44,9 @@ pub use refusal::{DeskRefusal, NoRunDm};
 pub use role::{DeskRole, UnknownDeskRole, ACTIVE_STAGGER};
 
 use super::NodeError;
-use marie_actors::dispatcher::checkpoint::{Checkpoint, CheckpointArgs, CHECKPOINT_SOURCE};
+use marie_actors::dispatcher::checkpoint::{
+    Checkpoint, CheckpointArgs, RunWatcher, CHECKPOINT_SOURCE,
+};
 use marie_actors::dispatcher::mission::Mission;
 use marie_actors::dispatcher::{self, DispatcherArgs, DispatcherMsg, TakeOver};
 use marie_dm::{AckSink, DmClient, RUN};
@@ -112,6 +114,12 @@ marie_vocabulary::remote_message! {
             /// Its actor number on its node; `None`: every dispatcher of the node is lost
             /// (the node declared down or its sessions ended).
             pid: Option<u64>,
+        },
+        /// The run whose newest checkpoint is `from` was written on this node and has not
+        /// ended: this desk (just started) takes it over unless it runs a dispatcher.
+        Resume {
+            /// The checkpoint.
+            from: Box<Checkpoint>,
         },
         /// Take over the run whose last checkpoint is `from`.
         TakeOver {
@@ -188,6 +196,7 @@ impl Actor for Desk {
             myself.get_cell(),
         )?;
         tracing::info!(node = %args.node, role = args.role.label(), "dispatcher desk ready");
+        resume_orphan(args.node.clone(), myself.clone());
         Ok(DeskState {
             args,
             running: None,
@@ -263,6 +272,18 @@ impl Actor for Desk {
                     }
                 });
             }
+            DeskMsg::Resume { from } => {
+                // a dispatcher of this desk may have started the run since it looked (a run
+                // asked for as the cluster came up): then it is the writer, alive
+                if state.busy() {
+                    return Ok(());
+                }
+                tracing::warn!(run = %from.run, term = from.term, "a run of this node's previous process, without a dispatcher and followed still: taking it over");
+                let _ = myself.cast(DeskMsg::TakeOver {
+                    from,
+                    noticed: Instant::now(),
+                });
+            }
             DeskMsg::TakeOver { from, noticed } => {
                 let term = from.term + state.args.role.rank().1;
                 if state
@@ -325,7 +346,16 @@ impl DeskState {
         // the checkpoints are acknowledged records too: the check at the run's end looks
         // them up
         let dm = dm.with_acks(AckSink::publishing_on(self.args.bus.clone()));
-        let checkpoint = CheckpointArgs { run, term: 1, dm };
+        let watcher = Some(RunWatcher {
+            node: watcher_node.to_string(),
+            pid: watcher_pid,
+        });
+        let checkpoint = CheckpointArgs {
+            run,
+            term: 1,
+            dm,
+            watcher,
+        };
         self.spawn(DispatcherArgs {
             checkpoint: Some(checkpoint),
             ..DispatcherArgs::new(mission, self.args.clock.clone(), self.args.bus.clone())
@@ -344,6 +374,7 @@ impl DeskState {
             run: from.run.clone(),
             term: from.term + raise,
             dm,
+            watcher: from.watcher.clone(),
         };
         let mission = from.mission.clone();
         self.spawn(DispatcherArgs {
@@ -367,6 +398,49 @@ impl DeskState {
         });
         Ok(())
     }
+}
+
+/// A desk that starts — its node restarted, a new process — looks once for a run left
+/// without a dispatcher: the run datamanager's newest checkpoint has not ended, was written
+/// on this node (by a dispatcher of its previous process: dead, unless this desk started
+/// the run since — [`DeskMsg::Resume`] asks), and whoever follows the run still listens
+/// ([`Checkpoint::watcher`]). Then it takes the run over. Without this, a run whose active
+/// dispatcher's node was killed while no standby was left (given up after too many
+/// restarts, or none declared) had no dispatcher for ever, though its node was back within
+/// a second. A run nobody follows any more (a cluster started again on old data
+/// directories) is left alone; so is one written on another node — the desks that watch
+/// that node take it over when its dispatcher is lost (a desk starting as a run starts
+/// elsewhere took it over needlessly, before its dispatcher was in the registry).
+fn resume_orphan(me: String, desk: ActorRef<DeskMsg>) {
+    tokio::spawn(async move {
+        // the cluster heard first: a majority of the nodes, and their modules
+        let until = Instant::now() + MINORITY_WAIT;
+        while !in_majority().await && Instant::now() < until {
+            tokio::time::sleep(Duration::from_millis(200)).await;
+        }
+        tokio::time::sleep(REJOIN_SETTLE).await;
+        let Ok(dm) = run_dm().await else {
+            return; // no run recorded in this cluster
+        };
+        let from = match Checkpoint::newest(&dm).await {
+            Ok(Some(from)) if from.ended.is_none() => from,
+            Ok(_) => return,
+            Err(e) => {
+                tracing::warn!(error = %e, "cannot read the run's checkpoints");
+                return;
+            }
+        };
+        let Some(watcher) = from.watcher.clone().filter(|_| from.node == me) else {
+            return;
+        };
+        if !crate::relay::reaches(&watcher.node, watcher.pid, WATCHER_WAIT).await {
+            tracing::info!(run = %from.run, watcher = %watcher.node, "a run without a dispatcher, but nobody follows it: left alone");
+            return;
+        }
+        let _ = desk.cast(DeskMsg::Resume {
+            from: Box::new(from),
+        });
+    });
 }
 
 /// True if this node hears a majority of the nodes it ever heard, or has no heartbeat to
