@@ -178,6 +178,7 @@ fn a_node_of_the_next_build_joins_mid_docking_and_its_wall_follower_takes_over()
 
     let mission = docking_twice(d, "docking-twice", "");
     let report = d.join("report.json");
+    let events = d.join("events.jsonl");
     let mut run = Proc::spawn(
         "marie run",
         &[
@@ -191,6 +192,8 @@ fn a_node_of_the_next_build_joins_mid_docking_and_its_wall_follower_takes_over()
             SPEED,
             "--report",
             report.to_str().unwrap(),
+            "--events",
+            events.to_str().unwrap(),
         ],
     );
     run.wait_line("> follow-wall: start");
@@ -270,6 +273,30 @@ fn a_node_of_the_next_build_joins_mid_docking_and_its_wall_follower_takes_over()
     said.extend(wf_next.stderr_tail().lines().map(str::to_string));
     let warnings = decode_warnings(&said);
     assert!(warnings.is_empty(), "{warnings:#?}");
+    // the refusal reached the run's events, naming both ranges
+    let events = std::fs::read_to_string(&events).unwrap();
+    let refused: Vec<Value> = events
+        .lines()
+        .filter_map(|l| serde_json::from_str::<Value>(l).ok())
+        .filter(|e| e["kind"]["type"] == "node_refused" && e["kind"]["peer"] == "far")
+        .collect();
+    assert!(
+        !refused.is_empty(),
+        "no node_refused of far in the run's events"
+    );
+    for e in &refused {
+        let k = &e["kind"];
+        assert_eq!(
+            k["theirs_speak"],
+            serde_json::json!({"oldest": 4, "newest": 4}),
+            "{e}"
+        );
+        assert_eq!(
+            k["ours_speak"],
+            serde_json::json!({"oldest": 2, "newest": 2}),
+            "{e}"
+        );
+    }
 
     // the cluster keeps running after the refusal: the next build's node and the refused
     // one are alive, and `ls` still lists the next build's wall follower, not `far`'s sampler
