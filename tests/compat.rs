@@ -47,7 +47,7 @@ fn rename_key(file: &Path, old: &str, new: &str) {
 }
 
 /// Copy a corpus (its samples, manifest and journal directories) into `to`.
-fn copy(from: &Path, to: &Path) {
+pub(crate) fn copy(from: &Path, to: &Path) {
     std::fs::create_dir_all(to).expect("a temp dir");
     for f in std::fs::read_dir(from).expect("the corpus reads") {
         let f = f.expect("an entry");

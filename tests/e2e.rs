@@ -53,5 +53,6 @@ mod soak;
 mod speed;
 mod takeover;
 mod tls;
+mod two_builds;
 mod up;
 mod upgrade_cluster;

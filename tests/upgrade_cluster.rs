@@ -26,7 +26,7 @@ const SPEED: &str = "3";
 const NEWER: &str = "1.1.0-rc.1";
 
 /// The wall follower's record in action `action` of `report`.
-fn follower_in<'a>(report: &'a Value, action: &str) -> &'a Value {
+pub(crate) fn follower_in<'a>(report: &'a Value, action: &str) -> &'a Value {
     report["actions"]
         .as_array()
         .unwrap()
@@ -42,7 +42,7 @@ fn follower_in<'a>(report: &'a Value, action: &str) -> &'a Value {
 
 /// The docking mission that also runs the wall follower in `plan-parking`, with `tail`
 /// appended, written into `dir`.
-fn docking_twice(dir: &std::path::Path, name: &str, tail: &str) -> std::path::PathBuf {
+pub(crate) fn docking_twice(dir: &std::path::Path, name: &str, tail: &str) -> std::path::PathBuf {
     let path = docking_edited(
         dir,
         name,

@@ -61,6 +61,9 @@ pub fn robot_operations() -> Vec<OperationFactory> {
         OperationFactory::of::<ops::WallFollowerV1>("wall-follower"),
         OperationFactory::of::<ops::WallFollowerV1_1>("wall-follower"),
         OperationFactory::of::<ops::WallFollowerV2>("wall-follower"),
+        // the next build's (feature `next-protocol`): the newer version of the two-build tests
+        #[cfg(feature = "next-protocol")]
+        OperationFactory::of::<ops::WallFollowerV1_2>("wall-follower"),
         OperationFactory::of::<ops::SensorBasedController>("sensor-based-controller"),
         OperationFactory::of::<ops::CollisionAvoidance>("collision-avoidance"),
         OperationFactory::of::<ops::Localizer>("localizer"),

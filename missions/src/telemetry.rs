@@ -408,6 +408,8 @@ mod tests {
             side: 1.0,
             pose: Pose::new(12.5, 1.5, std::f64::consts::PI),
             correction: Pose::default(),
+            #[cfg(feature = "next-protocol")]
+            seen_among: None,
         };
         let mut last = None;
         let told: Vec<bool> = [11.5, 11.4, 11.3, 11.2, 10.0]

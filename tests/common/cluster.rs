@@ -102,7 +102,29 @@ impl NodeProc {
         let path = node_config(dir, name, hosts, any, peers, cookie, cluster_extra);
         let mut args = vec!["node", "--config", path.to_str().expect("utf-8 path")];
         args.extend_from_slice(flags);
-        let mut proc = Proc::spawn_in(None, name, &args);
+        NodeProc::listening(name, Proc::spawn_in(None, name, &args))
+    }
+
+    /// [`NodeProc::start`] of another build's `marie`, `exe` (the two-build tests' next
+    /// build), with more flags.
+    pub(crate) fn start_exe(
+        exe: &Path,
+        dir: &Path,
+        name: &str,
+        hosts: &str,
+        peers: &[SocketAddr],
+        cookie: &str,
+        flags: &[&str],
+    ) -> NodeProc {
+        let any = SocketAddr::from(([127, 0, 0, 1], 0));
+        let path = node_config(dir, name, hosts, any, peers, cookie, "");
+        let mut args = vec!["node", "--config", path.to_str().expect("utf-8 path")];
+        args.extend_from_slice(flags);
+        NodeProc::listening(name, Proc::spawn_exe(None, name, exe, &args, &[]))
+    }
+
+    /// `proc`, a node `name` started on port 0, once it says where it listens.
+    fn listening(name: &str, mut proc: Proc) -> NodeProc {
         let line = proc.wait_line(&format!("node {name} listening on "));
         let addr =
             listening_addr(&line).unwrap_or_else(|| panic!("{name}: no address in `{line}`"));

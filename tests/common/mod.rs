@@ -11,6 +11,7 @@ pub(crate) mod layouts;
 pub(crate) mod missions;
 pub(crate) mod monitor;
 pub(crate) mod netns;
+pub(crate) mod next_build;
 pub(crate) mod soak;
 
 use std::process::{Command, Output};

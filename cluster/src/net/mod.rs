@@ -36,6 +36,7 @@
 //! # Ok(()) }
 //! ```
 
+mod agreement;
 mod auth;
 mod config;
 pub mod detector;
@@ -48,6 +49,7 @@ mod sessions;
 pub mod tls;
 mod transport;
 
+pub use agreement::Agreement;
 pub use config::{
     check_cookie, ClusterConfig, ClusterConfigError, CookieError, DEFAULT_DIAL_TIMEOUT,
     MAX_COOKIE_LEN,

@@ -74,14 +74,17 @@ pub fn publish_on(transport: &Transport, bus: EventBus) -> tokio::task::JoinHand
                 Ok(NetEvent::Frozen { silent }) => EventKind::NodeFrozen {
                     silent_ms: silent.as_millis() as u64,
                 },
-                // the events' vocabulary names the newest version of each side; the node's
-                // own line (its stderr, `marie node`'s stdout) names both ranges and builds
+                // both ranges (and the newest of each, what a reader of the build before
+                // ranges knows); the node's own line (its stderr, `marie node`'s stdout)
+                // names both builds too
                 Ok(NetEvent::PeerRefused {
                     peer, theirs, ours, ..
                 }) => EventKind::NodeRefused {
                     peer,
                     theirs: theirs.newest,
                     ours: ours.newest,
+                    theirs_speak: Some(theirs),
+                    ours_speak: Some(ours),
                 },
                 Ok(NetEvent::ConnectionRefused { from, reason }) => EventKind::ConnectionRefused {
                     from: from.to_string(),

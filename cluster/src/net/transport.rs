@@ -66,6 +66,8 @@ pub struct Transport {
     tasks: Vec<JoinHandle<()>>,
     heartbeat: ActorRef<super::heartbeat::BeatMsg>,
     heartbeat_handle: JoinHandle<()>,
+    /// The protocol versions its heartbeat claims.
+    protocol: marie_vocabulary::wire::ProtocolRange,
 }
 
 impl std::fmt::Debug for Transport {
@@ -182,7 +184,13 @@ impl Transport {
             tasks,
             heartbeat,
             heartbeat_handle,
+            protocol: config.protocol,
         })
+    }
+
+    /// The protocol versions agreed with its peers: what a frame for one is encoded at.
+    pub fn agreement(&self) -> super::Agreement {
+        super::Agreement::new(self.sessions.clone(), self.protocol)
     }
 
     /// The peers ready now, and what happens from then on: peers up, lost, declared down,

@@ -54,7 +54,7 @@ impl Membership {
         let (reincarnations, _) = broadcast::channel(REINCARNATIONS_KEPT);
         let tasks = vec![
             crate::net::publish_on(&transport, bus.clone()),
-            crate::relay::forward(bus.clone()),
+            crate::relay::forward(bus.clone(), transport.agreement()),
             tokio::spawn(reincarnate_when_frozen(
                 transport.events().1,
                 root,

@@ -5,21 +5,24 @@ use super::backlog::Backlog;
 use super::scope::Changes;
 use super::watchers::{WatcherKey, Watchers};
 use super::{WatcherMsg, GROUP, KIND, SCOPE};
+use crate::net::Agreement;
 use marie_vocabulary::events::{BusError, Event, EventBus, EventKind};
 use marie_vocabulary::registry::node_name_of;
-use marie_vocabulary::wire::Envelope;
+use marie_vocabulary::wire::{Envelope, EnvelopeError, PROTOCOL_VERSION};
 use ractor::{pg, ActorRef};
+use std::collections::BTreeMap;
 use tokio::task::JoinHandle;
 use tokio::time::Instant;
 
 /// Forward every event `bus` publishes to the remote watchers, until the bus closes or the
-/// task is aborted. The watchers are looked at on every event, and whenever one comes or
-/// goes: one back in reach gets what it missed at once, even from a node that publishes
-/// nothing more.
-pub fn forward(bus: EventBus) -> JoinHandle<()> {
+/// task is aborted, each in a frame of the protocol version `agreement` says for its node
+/// (a transport's [`Transport::agreement`](crate::net::Transport::agreement)). The watchers
+/// are looked at on every event, and whenever one comes or goes: one back in reach gets
+/// what it missed at once, even from a node that publishes nothing more.
+pub fn forward(bus: EventBus, agreement: Agreement) -> JoinHandle<()> {
     let mut sub = bus.subscribe();
     tokio::spawn(async move {
-        let mut forwarder = Forwarder::new(bus.node());
+        let mut forwarder = Forwarder::new(bus.node(), agreement);
         let mut changes = match Changes::watch().await {
             Ok(changes) => Some(changes),
             Err(e) => {
@@ -62,18 +65,22 @@ struct Forwarder {
     stream: u64,
     /// The number of the next event.
     next: u64,
+    /// The frames of the latest events, each at this build's newest protocol version.
     backlog: Backlog,
     watchers: Watchers,
+    /// The protocol version of a frame for each watcher's node.
+    agreement: Agreement,
 }
 
 impl Forwarder {
-    fn new(node: &str) -> Forwarder {
+    fn new(node: &str, agreement: Agreement) -> Forwarder {
         Forwarder {
             node: node.to_string(),
             stream: new_stream(),
             next: 1,
             backlog: Backlog::default(),
             watchers: Watchers::default(),
+            agreement,
         }
     }
 
@@ -89,17 +96,35 @@ impl Forwarder {
         if !self.watchers.any() {
             return;
         }
-        let frame = match Envelope::new(KIND, event).and_then(|e| e.to_bytes()) {
-            Ok(frame) => frame,
-            Err(e) => {
-                tracing::error!(error = %e, "cannot encode an event to forward");
-                return;
-            }
-        };
-        for w in &in_reach {
-            self.cast(&w.1, seq, frame.clone());
+        // encoded once per protocol version: the watchers agreed on one share its frame
+        let mut frames: BTreeMap<u16, Vec<u8>> = BTreeMap::new();
+        for (_, w) in &in_reach {
+            let version = self.agreement.for_session(w.get_id().node());
+            let frame = match frames.entry(version) {
+                std::collections::btree_map::Entry::Occupied(f) => f.into_mut(),
+                std::collections::btree_map::Entry::Vacant(slot) => {
+                    match frame_at(event, version) {
+                        Ok(frame) => slot.insert(frame),
+                        Err(e) => {
+                            tracing::error!(error = %e, version, "cannot encode an event to forward");
+                            continue;
+                        }
+                    }
+                }
+            };
+            self.cast(w, seq, frame.clone());
         }
-        self.backlog.push(seq, frame);
+        let newest = match frames.remove(&PROTOCOL_VERSION) {
+            Some(frame) => frame,
+            None => match frame_at(event, PROTOCOL_VERSION) {
+                Ok(frame) => frame,
+                Err(e) => {
+                    tracing::error!(error = %e, "cannot encode an event to keep");
+                    return;
+                }
+            },
+        };
+        self.backlog.push(seq, newest);
     }
 
     /// The bus dropped `missed` events before this forwarder read them: their numbers are
@@ -144,8 +169,14 @@ impl Forwarder {
                 resent = frames.len(),
                 "an event watcher is back in reach: what it may have missed is sent again"
             );
+            let version = self.agreement.for_session(w.get_id().node());
             for (seq, frame) in frames {
-                self.cast(w, seq, frame);
+                match reframe(frame, version) {
+                    Ok(frame) => self.cast(w, seq, frame),
+                    Err(e) => {
+                        tracing::error!(error = %e, version, "cannot encode a kept event again")
+                    }
+                }
             }
         }
         if !self.watchers.any() {
@@ -161,6 +192,22 @@ impl Forwarder {
             frame,
         });
     }
+}
+
+/// The frame of `event` for a watcher agreed on protocol `version`: the event as that
+/// version defines it, in an envelope of that version.
+fn frame_at(event: &Event, version: u16) -> Result<Vec<u8>, EnvelopeError> {
+    Envelope::at(version, KIND, &*event.spoken_at(version))?.to_bytes()
+}
+
+/// A kept frame (of this build's newest version) for a watcher agreed on `version`: itself,
+/// or its event encoded again at that version.
+fn reframe(frame: Vec<u8>, version: u16) -> Result<Vec<u8>, EnvelopeError> {
+    if version == PROTOCOL_VERSION {
+        return Ok(frame);
+    }
+    let event: Event = Envelope::from_bytes(&frame)?.payload()?;
+    frame_at(&event, version)
 }
 
 /// A number for a forwarder's stream, new with every forwarder: the std hasher's random
@@ -197,13 +244,13 @@ mod tests {
     }
 
     fn joined(node: &str) -> EventKind {
-        EventKind::Joined(ModuleInfo {
-            module: ModuleKind::Operation,
-            name: "sampler".into(),
-            id: 1,
-            node: node.into(),
-            address: "0.1".into(),
-        })
+        EventKind::Joined(ModuleInfo::new(
+            ModuleKind::Operation,
+            "sampler",
+            1,
+            node,
+            "0.1",
+        ))
     }
 
     #[test]
@@ -212,6 +259,46 @@ mod tests {
         assert!(echo_of_another_node(&event(joined("beta")), "alpha"));
         let frozen = event(EventKind::NodeFrozen { silent_ms: 1 });
         assert!(!echo_of_another_node(&frozen, "alpha"));
+    }
+
+    /// The version of `frame` and the keys of its event's `kind`.
+    fn opened(frame: &[u8]) -> (u16, String) {
+        let env = Envelope::from_bytes(frame).unwrap();
+        let event: serde_json::Value = env.payload().unwrap();
+        (env.version, event["kind"].to_string())
+    }
+
+    #[test]
+    fn a_frame_for_a_watcher_is_of_the_version_agreed_with_it() {
+        use marie_vocabulary::wire::OLDEST_PROTOCOL;
+        let e = event(joined("alpha"));
+        for version in OLDEST_PROTOCOL..=PROTOCOL_VERSION {
+            let frame = frame_at(&e, version).unwrap();
+            assert_eq!(opened(&frame).0, version);
+            let back: Event = Envelope::from_bytes(&frame).unwrap().payload().unwrap();
+            assert_eq!(back, *e.spoken_at(version));
+            // a kept frame (of the newest version) sent again at that version is the same
+            let kept = frame_at(&e, PROTOCOL_VERSION).unwrap();
+            assert_eq!(reframe(kept, version).unwrap(), frame);
+        }
+    }
+
+    /// The next build (protocol 3) tells the version of a module's node in its `joined`
+    /// event; a watcher agreed on 2 gets a frame of 2 without it.
+    #[cfg(feature = "next-protocol")]
+    #[test]
+    fn a_watcher_agreed_on_2_gets_no_field_of_3() {
+        let mut info = ModuleInfo::new(ModuleKind::Operation, "wall-follower", 1, "alpha", "0.1");
+        info.speaks = Some(3);
+        let e = event(EventKind::Joined(info));
+        let (v3, kind3) = opened(&frame_at(&e, 3).unwrap());
+        assert_eq!(v3, 3);
+        assert!(kind3.contains("\"speaks\":3"), "{kind3}");
+        let (v2, kind2) = opened(&frame_at(&e, 2).unwrap());
+        assert_eq!(v2, 2);
+        assert!(!kind2.contains("speaks"), "{kind2}");
+        let again = reframe(frame_at(&e, 3).unwrap(), 2).unwrap();
+        assert_eq!(opened(&again), (2, kind2));
     }
 
     #[test]

@@ -4,7 +4,8 @@
 //!
 //! A watcher is an actor in `pg` (scope [`SCOPE`], group [`GROUP`]); each node's forwarder
 //! ([`forward`]) subscribes to its bus and casts each event — a versioned
-//! [`Envelope`](marie_vocabulary::wire::Envelope) of kind `event`, encoded once — to every remote watcher. A node that has no watcher only
+//! [`Envelope`](marie_vocabulary::wire::Envelope) of kind `event`, encoded once per protocol
+//! version, at the one agreed with the watcher's node — to every remote watcher. A node that has no watcher only
 //! reads its bus. A module's joining and leaving is told by its own node only, not echoed
 //! by every node whose registry it reaches.
 //!
@@ -29,9 +30,9 @@
 //! a frame that does not decode is dropped with a warning.
 //!
 //! ```no_run
-//! # async fn demo(bus: marie_vocabulary::events::EventBus) {
+//! # async fn demo(bus: marie_vocabulary::events::EventBus, transport: marie_cluster::net::Transport) {
 //! use marie_cluster::relay;
-//! let forwarder = relay::forward(bus); // on every node
+//! let forwarder = relay::forward(bus, transport.agreement()); // on every node
 //! let mut watch = relay::watch(1024).await.unwrap(); // on the watcher
 //! while let Some(event) = watch.recv().await {
 //!     println!("{} on {}: {:?}", event.at_ms, event.node, event.kind);

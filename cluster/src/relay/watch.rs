@@ -241,13 +241,13 @@ mod tests {
         Event {
             at_ms: 7,
             node: "alpha".into(),
-            kind: EventKind::Joined(ModuleInfo {
-                module: ModuleKind::Operation,
-                name: name.into(),
-                id: 1,
-                node: "alpha".into(),
-                address: "0.1".into(),
-            }),
+            kind: EventKind::Joined(ModuleInfo::new(
+                ModuleKind::Operation,
+                name,
+                1,
+                "alpha",
+                "0.1",
+            )),
         }
     }
 

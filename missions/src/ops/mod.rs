@@ -28,6 +28,9 @@ pub use motion::{
     WallFollowerV1Params, WallFollowerV1_1, WallFollowerV1_1Params, WallFollowerV2,
     WallFollowerV2Params,
 };
+/// The next build's wall follower (feature `next-protocol`, issue 44's two-build tests).
+#[cfg(feature = "next-protocol")]
+pub use motion::{WallFollowerV1_2, WALL_FOLLOWER_NEXT};
 pub use perception::{
     Beams, DockingDetector, DockingDetectorFlag, DockingDetectorParams, SegmentExtractor,
     SegmentExtractorParams, WallSensor, WallSensorFlag, WallSensorParams, WallSide,

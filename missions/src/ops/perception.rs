@@ -302,6 +302,8 @@ impl Operation for WallSensor {
             side: w.side.sign(),
             pose,
             correction: now,
+            #[cfg(feature = "next-protocol")]
+            seen_among: u32::try_from(set.segments.len()).ok(),
         };
         self.tracked = Some((w.line, now));
         tracing::debug!(

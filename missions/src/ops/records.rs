@@ -150,6 +150,13 @@ pub struct WallRecord {
     /// under a newer correction moves it into its own frame first.
     #[serde(default)]
     pub correction: Pose,
+    /// How many segments the wall sensor saw when it picked this wall (the next build's,
+    /// feature `next-protocol`: a field added with its default, which the build before
+    /// ignores in the records it reads, and which reads as absent in the records that build
+    /// stored — `docs/compatibility.md`).
+    #[cfg(feature = "next-protocol")]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub seen_among: Option<u32>,
 }
 
 impl WallRecord {
@@ -198,5 +205,52 @@ impl PathRecord {
             .iter()
             .flat_map(|l| l.waypoints.iter().copied())
             .collect()
+    }
+}
+
+/// The next build's field of the followed wall's record, read both ways: what each build
+/// does with the other's records in one datamanager.
+#[cfg(all(test, feature = "next-protocol"))]
+mod next_build {
+    use super::*;
+
+    /// The record as the build before the next one has it.
+    #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+    struct WallRecordBefore {
+        segment: Segment,
+        distance: f64,
+        relative_angle: f64,
+        side: f64,
+        pose: Pose,
+        #[serde(default)]
+        correction: Pose,
+    }
+
+    fn before() -> WallRecordBefore {
+        WallRecordBefore {
+            segment: Segment::new(Point::new(0.0, 1.0), Point::new(4.0, 1.0)),
+            distance: 1.0,
+            relative_angle: 0.1,
+            side: 1.0,
+            pose: Pose::new(1.0, 0.0, 0.0),
+            correction: Pose::default(),
+        }
+    }
+
+    #[test]
+    fn each_build_reads_the_others_wall_records() {
+        // the build before's record, read by the next: the field absent
+        let old = marie_dm::Payload::encode(&before()).unwrap();
+        let read: WallRecord = old.decode().unwrap();
+        assert_eq!(read.seen_among, None);
+        assert_eq!(read.distance, 1.0);
+        // the next build's, read by the build before: the field ignored
+        let new = WallRecord {
+            seen_among: Some(4),
+            ..read
+        };
+        let bytes = marie_dm::Payload::encode(&new).unwrap();
+        assert_eq!(bytes.decode::<WallRecordBefore>().unwrap(), before());
+        assert_eq!(bytes.decode::<WallRecord>().unwrap().seen_among, Some(4));
     }
 }

@@ -72,11 +72,13 @@ fn message<M: Message>(entry: &Entry, bytes: &[u8]) -> Result<Vec<u8>, String> {
     }
 }
 
-/// An event frame as a watcher reads it: the envelope (its version checked), then the event.
+/// An event frame as a watcher reads it: the envelope (its version checked), then the
+/// event; encoded again as this build sends it to a watcher of the frame's version (the
+/// event as that version defines it, `Event::spoken_at`).
 fn event(bytes: &[u8]) -> Result<Vec<u8>, String> {
     let env = Envelope::from_bytes(bytes).map_err(|e| e.to_string())?;
     let event: Event = env.payload().map_err(|e| e.to_string())?;
-    Envelope::new(&env.kind, &event)
+    Envelope::at(env.version, &env.kind, &*event.spoken_at(env.version))
         .and_then(|e| e.to_bytes())
         .map_err(|e| e.to_string())
 }

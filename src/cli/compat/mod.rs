@@ -18,7 +18,10 @@
 //! version, each sample's type, variant, form and file); the repository keeps the corpus of
 //! each protocol version in `compat/vN/`, and `tests/compat.rs` checks the current one.
 //!
-//! `marie compat check DIR` decodes each sample with this build through the path a node
+//! `marie compat check DIR` refuses a corpus of a protocol version this build does not
+//! speak (exit 2: its nodes and this build's refuse each other anyway), and otherwise — the
+//! corpus of this build's version or of an older one it still speaks, as the next build
+//! checks the previous build's `compat/v2` — decodes each sample with this build through the path a node
 //! takes (ractor's `Message::deserialize` for messages, the envelope and its payload for
 //! frames, `wire::decode` for records, a datamanager's replay for the journal, `marie
 //! diff`'s reader for the report), encodes it again and requires every key of the old
@@ -147,6 +150,7 @@ fn shape_of(entry: &Entry, bytes: &[u8]) -> Result<Shape, String> {
 
 async fn check(dir: &Path) -> anyhow::Result<ExitCode> {
     let corpus = corpus::read(dir)?;
+    in_range(dir, &corpus)?;
     let own = samples::all().map_err(|e| anyhow::anyhow!("a sample: {e}"))?;
     let mut broken = 0;
     for (entry, bytes) in &corpus.samples {
@@ -187,6 +191,26 @@ async fn check(dir: &Path) -> anyhow::Result<ExitCode> {
     } else {
         ExitCode::from(1)
     })
+}
+
+/// A corpus of a protocol version this build does not speak is refused before any sample
+/// is read: the build would drop or misread that version's frames, so a sample read clean
+/// would prove nothing — its nodes refuse each other at the handshake.
+fn in_range(dir: &Path, corpus: &Corpus) -> Result<(), BadInput> {
+    use marie::wire::{envelope::speaks, OLDEST_PROTOCOL, PROTOCOL_VERSION};
+    let version = corpus.manifest.protocol;
+    if (OLDEST_PROTOCOL..=PROTOCOL_VERSION).contains(&version) {
+        return Ok(());
+    }
+    Err(BadInput(format!(
+        "{} is a corpus of {} ({}); this build speaks {}: two such builds cannot run side \
+         by side (their nodes refuse each other at the handshake), so it is not checked — \
+         check it with a build that speaks its version",
+        dir.display(),
+        speaks(version, version),
+        written_by(corpus),
+        speaks(OLDEST_PROTOCOL, PROTOCOL_VERSION)
+    )))
 }
 
 fn written_by(corpus: &Corpus) -> String {

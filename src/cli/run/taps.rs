@@ -57,7 +57,8 @@ impl Taps {
         // the live lines subscribe to the node's bus, as the events file and the monitor do
         let lines = LiveLines::start(bus, plan.progress);
         // this member's events go to whoever watches the cluster; its events file has theirs
-        let forwarder = transport.map(|_| marie::cluster::relay::forward(bus.clone()));
+        let forwarder =
+            transport.map(|t| marie::cluster::relay::forward(bus.clone(), t.agreement()));
         let relays = Relays(publisher.into_iter().chain(forwarder).collect());
         let files = Files::start(
             &plan.outputs,

@@ -5,6 +5,7 @@ use crate::run::{
     AppliedSpan, Choice, DmCheck, FaultKind, LossCause, OpEnd, Outcome, ParamValue, Provenance,
     RebindRecord, RobotSection, UpgradeRecord,
 };
+use crate::wire::ProtocolRange;
 use serde::{Deserialize, Serialize};
 
 /// What happened. Serialized internally tagged with `type` in snake_case (see the module
@@ -314,14 +315,21 @@ pub enum EventKind {
         /// it measured).
         silent_ms: u64,
     },
-    /// A peer node of another protocol version was refused.
+    /// A peer node whose protocol versions do not meet this node's was refused.
     NodeRefused {
         /// Its node name.
         peer: String,
-        /// Its protocol version.
+        /// The newest protocol version it speaks.
         theirs: u16,
-        /// This node's.
+        /// This node's newest.
         ours: u16,
+        /// Every version it speaks (absent from the events of builds before ranges, which
+        /// named the newest alone).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        theirs_speak: Option<ProtocolRange>,
+        /// Every version this node speaks (absent likewise).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        ours_speak: Option<ProtocolRange>,
     },
     /// An incoming connection was refused before it could become a session (with TLS on:
     /// no valid certificate, or no handshake in time).
@@ -804,6 +812,34 @@ pub struct ModuleInfo {
     pub node: String,
     /// Actor address.
     pub address: String,
+    /// The newest protocol version its node speaks, told by the node itself (protocol 3,
+    /// the next build's: absent from the events of version 2, and left out of a frame for
+    /// a peer agreed on 2 — [`Event::spoken_at`](super::Event::spoken_at)).
+    #[cfg(feature = "next-protocol")]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub speaks: Option<u16>,
+}
+
+impl ModuleInfo {
+    /// Module `name` of kind `module`, number `id`, at actor `address` on `node` (a
+    /// module of another node, or one whose node's protocol version is not told).
+    pub fn new(
+        module: ModuleKind,
+        name: impl Into<String>,
+        id: u32,
+        node: impl Into<String>,
+        address: impl Into<String>,
+    ) -> ModuleInfo {
+        ModuleInfo {
+            module,
+            name: name.into(),
+            id,
+            node: node.into(),
+            address: address.into(),
+            #[cfg(feature = "next-protocol")]
+            speaks: None,
+        }
+    }
 }
 
 impl From<&Instance> for ModuleInfo {
@@ -814,6 +850,9 @@ impl From<&Instance> for ModuleInfo {
             id: inst.id,
             node: inst.node.clone(),
             address: inst.actor.get_id().to_string(),
+            // a node tells the version of its own modules only
+            #[cfg(feature = "next-protocol")]
+            speaks: inst.is_local().then_some(crate::wire::PROTOCOL_VERSION),
         }
     }
 }

@@ -58,7 +58,7 @@
 //! {"at_ms":9500,"node":"marie@localhost","kind":{"type":"node_down","peer":"cart","silent_ms":1530}}
 //! {"at_ms":9501,"node":"marie@localhost","kind":{"type":"node_lost","peer":"cart","address":"127.0.0.1:7101"}}
 //! {"at_ms":9900,"node":"marie@localhost","kind":{"type":"node_frozen","silent_ms":4200}}
-//! {"at_ms":800,"node":"marie@localhost","kind":{"type":"node_refused","peer":"old","theirs":2,"ours":1}}
+//! {"at_ms":800,"node":"marie@localhost","kind":{"type":"node_refused","peer":"far","theirs":4,"ours":3,"theirs_speak":{"oldest":4,"newest":4},"ours_speak":{"oldest":2,"newest":3}}}
 //! {"at_ms":850,"node":"marie@localhost","kind":{"type":"connection_refused","from":"127.0.0.1:45042","reason":"TLS: invalid peer certificate: UnknownIssuer"}}
 //! {"at_ms":20003,"node":"features","kind":{"type":"dm_recovered","dm":"feature","records":1210,"bytes":139150,"ms":4,"dropped_bytes":0,"dropped_records":0,"torn":null}}
 //! {"at_ms":20090,"node":"operations","kind":{"type":"dm_promoted","dm":"feature","node":"operations","term":3}}
@@ -115,6 +115,7 @@
 mod bus;
 mod kind;
 mod registry_bridge;
+mod spoken;
 mod voice;
 mod words;
 

@@ -505,8 +505,23 @@ fn cluster(node: &str, kind: &EventKind) -> String {
         EventKind::NodeFrozen { silent_ms } => {
             format!("{node} was frozen {silent_ms} ms: it restarts its operations")
         }
-        EventKind::NodeRefused { peer, theirs, ours } => {
-            format!("{node} refused {peer} (protocol {theirs}, ours {ours})")
+        EventKind::NodeRefused {
+            peer,
+            theirs,
+            ours,
+            theirs_speak,
+            ours_speak,
+        } => {
+            // the ranges when the event names them, else the newest of each side
+            let say = |range: &Option<crate::wire::ProtocolRange>, newest: &u16| match range {
+                Some(r) => crate::wire::envelope::speaks(r.oldest, r.newest),
+                None => format!("protocol version {newest}"),
+            };
+            format!(
+                "{node} refused {peer}: it speaks {}, {node} speaks {}",
+                say(theirs_speak, theirs),
+                say(ours_speak, ours)
+            )
         }
         EventKind::ConnectionRefused { from, reason } => {
             format!("{node} refused a connection from {from}: {reason}")
@@ -950,6 +965,26 @@ mod tests {
 {"at_ms":9500,"node":"a","kind":{"type":"dispatcher_fenced","run":"r","term":1,"newer":2}}
 {"at_ms":9900,"node":"c","kind":{"type":"action_ended","action":"park","run_ms":8900,"flags":["parked"],"status":8,"result":"succeeded"}}
 {"at_ms":9990,"node":"c","kind":{"type":"dm_checked","dm":"world","acknowledged":10,"held":8,"lost":2,"node":"b"}}"#;
+
+    #[test]
+    fn a_refusal_names_both_ranges_and_reads_an_event_of_the_build_before_ranges() {
+        let new: Event = serde_json::from_str(
+            r#"{"at_ms":1,"node":"r1","kind":{"type":"node_refused","peer":"far","theirs":4,"ours":3,"theirs_speak":{"oldest":4,"newest":4},"ours_speak":{"oldest":2,"newest":3}}}"#,
+        )
+        .unwrap();
+        assert_eq!(
+            said(&new.node, &new.kind),
+            "r1 refused far: it speaks protocol version 4, r1 speaks protocol versions 2..=3"
+        );
+        let old: Event = serde_json::from_str(
+            r#"{"at_ms":1,"node":"r1","kind":{"type":"node_refused","peer":"old","theirs":1,"ours":2}}"#,
+        )
+        .unwrap();
+        assert_eq!(
+            said(&old.node, &old.kind),
+            "r1 refused old: it speaks protocol version 1, r1 speaks protocol version 2"
+        );
+    }
 
     #[test]
     fn the_lines_of_a_run_read_as_they_always_have() {

@@ -15,6 +15,8 @@ pub use sensor_based::{
     SensorBasedController, SensorBasedControllerFlag, SensorBasedControllerParams, SensorBasedMode,
 };
 pub use trajectory::{TrajectoryController, TrajectoryControllerFlag, TrajectoryControllerParams};
+#[cfg(feature = "next-protocol")]
+pub use wall_follower::next::{WallFollowerV1_2, NEXT_VERSION as WALL_FOLLOWER_NEXT};
 pub use wall_follower::{
     WallFollowerMode, WallFollowerV1, WallFollowerV1Params, WallFollowerV1_1,
     WallFollowerV1_1Params, WallFollowerV2, WallFollowerV2Params,

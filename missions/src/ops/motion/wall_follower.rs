@@ -1,5 +1,9 @@
 //! The wall follower (1514), versions 1, 1.1 and 2: the cart kept at a distance from the
-//! followed wall (version 2 also along a corridor's middle), with a stall check.
+//! followed wall (version 2 also along a corridor's middle), with a stall check. The next
+//! build (feature `next-protocol`) adds version 1.2 (`wall_follower/next.rs`).
+
+#[cfg(feature = "next-protocol")]
+pub(crate) mod next;
 
 use super::follow::{follow_params, follow_step};
 use super::{stop_cart, CONTROL_PERIOD};
