@@ -59,13 +59,15 @@ fn docking_twice(dir: &std::path::Path, name: &str, tail: &str) -> std::path::Pa
 }
 
 /// Start a cluster whose wall follower is version 1.0.0 on node `wf-one`, run `mission` on
-/// it, and start node `wf-new` hosting the newer version once `follow-wall` started: the
-/// run's process (its lines read until `wait_for`, a line the run prints after the newer
-/// instance joined), the new node and the cluster, to keep until the run ended.
+/// it, and start node `wf-new` hosting the newer version (its `[[operation]]` table ending
+/// with `knobs`) once `follow-wall` started: the run's process (its lines read until
+/// `wait_for`, a line the run prints after the newer instance joined), the new node and the
+/// cluster, to keep until the run ended.
 fn run_with_newer(
     dir: &std::path::Path,
     mission: &std::path::Path,
     report: &std::path::Path,
+    knobs: &str,
     wait_for: &str,
 ) -> (Proc, String, NodeProc, crate::selection_cluster::Cluster) {
     let cluster = start_at(dir, &[("wf-one", "1")], SPEED);
@@ -82,13 +84,15 @@ fn run_with_newer(
             SPEED,
             "--report",
             report.to_str().unwrap(),
+            "--events",
+            report.with_extension("jsonl").to_str().unwrap(),
         ],
     );
     run.wait_line("> follow-wall: start");
     // the newer version joins while version 1.0.0 follows the wall
     let join: SocketAddr = cluster.join.parse().unwrap();
     let hosts = format!(
-        "dispatcher = false\n[[operation]]\nname = \"wall-follower\"\nversion = \"={NEWER}\"\n"
+        "dispatcher = false\n[[operation]]\nname = \"wall-follower\"\nversion = \"={NEWER}\"\n{knobs}"
     );
     let newer = NodeProc::start(dir, "wf-new", &hosts, &[join], COOKIE);
     let line = run.wait_line(wait_for);
@@ -104,6 +108,7 @@ fn a_newer_wall_follower_started_mid_action_takes_the_binding_at_the_next_action
         dir.path(),
         &mission,
         &report,
+        "",
         "wall-follower upgraded at `plan-parking`",
     );
     assert!(
@@ -176,7 +181,7 @@ fn a_pinned_wall_follower_stays_on_its_version_when_a_newer_one_appears() {
     );
     let report = dir.path().join("report.json");
     let (mut run, refused, _newer, _cluster) =
-        run_with_newer(dir.path(), &mission, &report, "wall-follower stays");
+        run_with_newer(dir.path(), &mission, &report, "", "wall-follower stays");
     assert!(
         refused.contains(&format!("not moving to v{NEWER}"))
             && refused.contains("on wf-new")
@@ -198,4 +203,80 @@ fn a_pinned_wall_follower_stays_on_its_version_when_a_newer_one_appears() {
     assert!(report.get("upgrades").is_none(), "{report:#}");
     let lines = run.drain();
     assert!(!lines.iter().any(|l| l.contains("upgraded")), "{lines:#?}");
+}
+
+#[test]
+fn a_newer_wall_follower_whose_first_activation_fails_rolls_the_binding_back() {
+    let dir = tempfile::tempdir().unwrap();
+    let mission = docking_twice(dir.path(), "docking-rollback", "");
+    let report_path = dir.path().join("report.json");
+    let report = report_path.clone();
+    // the newer version's instance fails its first activation (the node's test knob)
+    let (mut run, rolled, _newer, _cluster) = run_with_newer(
+        dir.path(),
+        &mission,
+        &report,
+        "fail_first_activations = 1\n",
+        "wall-follower rolled back at `plan-parking`",
+    );
+    assert!(
+        rolled.contains(&format!("v{NEWER}"))
+            && rolled.contains("on wf-new")
+            && rolled.contains("-> v1.0.0")
+            && rolled.contains("on wf-one")
+            && rolled.contains("its first activation failed")
+            && rolled.contains("fail_first_activations"),
+        "{rolled}"
+    );
+    let code = run.wait_exit();
+    let report: Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(code, Some(0), "{report:#}");
+    assert_eq!(report["outcome"], "succeeded", "{report:#}");
+    assert_eq!(report["acknowledged_lost"], 0, "{report:#}");
+
+    // the binding moved at plan-parking's start, and went back at once
+    let upgrades = report["upgrades"].as_array().expect("an upgrades section");
+    assert_eq!(upgrades.len(), 1, "{upgrades:#?}");
+    assert_eq!(upgrades[0]["action"], "plan-parking");
+    let rollbacks = report["rollbacks"].as_array().expect("a rollbacks section");
+    assert_eq!(rollbacks.len(), 1, "{rollbacks:#?}");
+    let back = &rollbacks[0];
+    assert_eq!(back["operation"], "wall-follower");
+    assert_eq!(back["action"], "plan-parking");
+    assert_eq!(
+        (&back["from_version"], &back["from_node"]),
+        (&Value::from(NEWER), &Value::from("wf-new")),
+        "{back:#}"
+    );
+    assert_eq!(
+        (&back["to_version"], &back["to_node"]),
+        (&Value::from("1.0.0"), &Value::from("wf-one")),
+        "{back:#}"
+    );
+    assert_eq!(back["from"], upgrades[0]["to"], "{back:#}");
+    assert_eq!(back["to"], upgrades[0]["from"], "{back:#}");
+    assert!(
+        back["epoch"].as_u64() > upgrades[0]["epoch"].as_u64(),
+        "the rollback raises the epoch above the move's: {back:#}"
+    );
+    // plan-parking ran on the old instance in the end, and so did the rest of the run
+    for action in ["follow-wall", "plan-parking"] {
+        let op = follower_in(&report, action);
+        assert_eq!(
+            (&op["version"], &op["node"], &op["address"]),
+            (&Value::from("1.0.0"), &Value::from("wf-one"), &back["to"]),
+            "{action}: {op:#}"
+        );
+    }
+    // the instance rolled back from was not taken again, and no rebind happened
+    assert_eq!(report["rebinds_total"], 0, "{report:#}");
+    // the events file has the fact, as the run's lines had it
+    let (_, events) =
+        common::cluster::report_and_events(&report_path, &report_path.with_extension("jsonl"));
+    let told: Vec<&Value> = events
+        .iter()
+        .filter(|e| e["kind"]["type"] == "binding_rolled_back")
+        .collect();
+    assert_eq!(told.len(), 1, "{told:#?}");
+    assert_eq!(told[0]["kind"]["to_version"], "1.0.0", "{:#}", told[0]);
 }

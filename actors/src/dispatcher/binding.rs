@@ -41,6 +41,21 @@ pub(crate) struct Lost {
     pub(crate) refused: Vec<(String, String)>,
 }
 
+/// A move to a newer version on trial: the binding moved at the start of action
+/// `generation` and its new instance has not reported that first activation yet. If it
+/// fails, the binding may go back to the instance it moved from ([`super::upgrade`]).
+#[derive(Clone, Debug)]
+pub(crate) struct Trial {
+    /// The action whose start moved the binding (its generation number).
+    pub(crate) generation: u64,
+    /// Its name, for the rollback's record.
+    pub(crate) action: String,
+    /// The instance the binding moved from.
+    pub(crate) from: ActorId,
+    /// Its declared deadline: how long it may take to answer whether it still lives.
+    pub(crate) from_deadline: Duration,
+}
+
 /// The dispatcher's hold on one operation.
 pub(crate) struct Binding {
     pub(crate) client: EoClient,
@@ -76,6 +91,12 @@ pub(crate) struct Binding {
     /// When the current instance last reported the end of its part of an action, in ms
     /// since the run began (an upgrade's record carries it).
     pub(crate) last_report_ms: Option<u64>,
+    /// Set from a move to a newer version until the new instance's first activation
+    /// reports (see [`Trial`]).
+    pub(crate) trial: Option<Trial>,
+    /// The instances the binding rolled back from, with why: never taken to again in this
+    /// run, neither as an upgrade nor as a stand-in.
+    pub(crate) spurned: Vec<(ActorId, String)>,
     /// What the mission needs of the operation: a stand-in must meet it, as the first
     /// instance did (see [`super::selection`]).
     need: Need,
@@ -103,6 +124,8 @@ impl Binding {
             probing: false,
             due: None,
             last_report_ms: None,
+            trial: None,
+            spurned: Vec::new(),
             need,
         }
     }
@@ -159,10 +182,23 @@ impl Binding {
         None
     }
 
+    /// Why the binding rolled back from instance `actor` earlier in the run, if it did.
+    pub(crate) fn spurned(&self, actor: ActorId) -> Option<&str> {
+        self.spurned
+            .iter()
+            .find(|(id, _)| *id == actor)
+            .map(|(_, why)| why.as_str())
+    }
+
     /// Why `cand` cannot stand in for this binding whatever the mission needs, if it cannot.
     fn cannot_stand_in(&self, cand: &Prospect) -> Option<String> {
         if let Some(why) = self.ruled_out_unasked(cand.client.actor().get_id(), &cand.node) {
             return Some(why);
+        }
+        if let Some(why) = self.spurned(cand.client.actor().get_id()) {
+            return Some(format!(
+                "the binding rolled back from it earlier in this run: {why}"
+            ));
         }
         if cand.info.name != self.name || cand.info.id != self.id {
             return Some(format!(
@@ -219,6 +255,7 @@ impl Binding {
         };
         self.incarnation += 1;
         self.probing = false;
+        self.trial = None;
         self.lost = Some(Lost {
             since,
             cause,

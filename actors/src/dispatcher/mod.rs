@@ -25,6 +25,7 @@ mod healing;
 mod messages;
 pub mod mission;
 pub mod plan;
+mod rollback;
 mod running;
 pub mod selection;
 pub mod survey;

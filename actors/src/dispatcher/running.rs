@@ -281,7 +281,7 @@ impl DispatcherState {
         };
         tracing::info!(action = %action.name, "action started");
         for op in &action.ops {
-            self.upgrade_at_start(&op.name, &action.name);
+            self.upgrade_at_start(&op.name, &action.name, generation);
             let Some(b) = self.bindings.get_mut(&op.name) else {
                 let reason = format!("operation `{}` is not bound", op.key);
                 self.finish(myself, Outcome::Failed, reason);
@@ -424,6 +424,12 @@ impl DispatcherState {
                 format!("operation `{key}` is now bound by another dispatcher (epoch {current})");
             self.finish(myself, Outcome::Failed, reason);
             return;
+        }
+        if let Some(reason) = self.first_activation_failed(&name, generation, report.as_ref()) {
+            // an upgrade's new instance replied with an error: back to the old one
+            if self.roll_back(myself, &name, reason).await {
+                return;
+            }
         }
         let Some(cur) = self.live.get(&generation) else {
             return;

@@ -13,6 +13,7 @@
 //!   old instance that arrives late is about an instance the dispatcher has let go of.
 
 use super::actor::DispatcherState;
+use super::binding::Trial;
 use super::candidates::examine;
 use super::upgrade::{self, Judgement};
 use marie_vocabulary::events::EventKind;
@@ -50,7 +51,8 @@ impl DispatcherState {
             return;
         }
         let due = b.due.as_ref().map(|d| d.info.version.as_str());
-        match upgrade::judge(&b.version, b.need(), &cand.info, due) {
+        let spurned = b.spurned(cand.client.actor().get_id());
+        match upgrade::judge(&b.version, b.need(), &cand.info, due, spurned) {
             Judgement::Newer => {
                 tracing::info!(op = %b.name, from = %b.version, to = %cand.info.version, node = %cand.node, "a newer version appeared: the binding moves at the next action's start");
                 b.due = Some(cand);
@@ -84,10 +86,11 @@ impl DispatcherState {
         }
     }
 
-    /// Action `action` starts and runs operation `name`: move its binding to the newer
-    /// instance due, if any and if it may move now ([`upgrade::moves_at_start`]), and tell
-    /// it (`binding_upgraded`).
-    pub(super) fn upgrade_at_start(&mut self, name: &str, action: &str) {
+    /// Action `action` (generation `generation`) starts and runs operation `name`: move
+    /// its binding to the newer instance due, if any and if it may move now
+    /// ([`upgrade::moves_at_start`]), and tell it (`binding_upgraded`). The move is on
+    /// trial until that action's first activation reports ([`super::rollback`]).
+    pub(super) fn upgrade_at_start(&mut self, name: &str, action: &str, generation: u64) {
         let running_elsewhere = self.running_key(name).is_some();
         let run_ms = self.elapsed_ms();
         let now = self.clock.now();
@@ -106,6 +109,12 @@ impl DispatcherState {
             b.node.clone(),
             b.last_report_ms,
         );
+        b.trial = Some(Trial {
+            generation,
+            action: action.to_string(),
+            from: b.actor_id(),
+            from_deadline: b.deadline,
+        });
         // the old instance's late probes and reports are about an instance let go of
         b.incarnation += 1;
         b.adopt(cand, now);

@@ -42,6 +42,13 @@ pub struct HostOptions {
     /// Where a `Parameterize` that changes its values is told (`reparameterized`: a run's
     /// provenance names every value an operation ran with). `None` by default.
     pub events: Option<marie_vocabulary::events::EventBus>,
+    /// A test knob: the instance's first `n` activations fail at once (an
+    /// [`EoReport::Failed`] right after their parameters are applied, before the
+    /// operation's own `activate`); 0 by default. A node config sets it per `[[operation]]`
+    /// (`fail_first_activations = 1`) to prove that a binding moved to a new version whose
+    /// first activation fails goes back to the old instance (issue 44's rollback). Counted
+    /// per instance: a restarted instance fails its first `n` again.
+    pub fail_first_activations: u64,
 }
 
 impl std::fmt::Debug for HostOptions {
@@ -51,6 +58,7 @@ impl std::fmt::Debug for HostOptions {
             .field("publish", &self.publish)
             .field("acks", &self.acks.is_some())
             .field("events", &self.events.is_some())
+            .field("fail_first_activations", &self.fail_first_activations)
             .finish_non_exhaustive()
     }
 }
@@ -63,6 +71,7 @@ impl Default for HostOptions {
             publish: true,
             acks: None,
             events: None,
+            fail_first_activations: 0,
         }
     }
 }
@@ -140,6 +149,8 @@ pub struct HostState<O> {
     epoch: u64,
     active: Option<Active>,
     activations: u64,
+    /// [`HostOptions::fail_first_activations`].
+    fail_first: u64,
     started: Duration,
 }
 
@@ -376,6 +387,20 @@ impl<O: Operation> HostState<O> {
             reply,
             set_up: false,
         });
+        if self.activations <= self.fail_first {
+            let reason = format!(
+                "activation {} of the first {} fails on purpose (fail_first_activations)",
+                self.activations, self.fail_first
+            );
+            tracing::warn!(op = %self.identity.name, %reason, "activation failed by the test knob");
+            self.end_activation(|flags, epoch| EoReport::Failed {
+                reason,
+                flags,
+                epoch,
+            })
+            .await;
+            return;
+        }
         let outcome = self.op.activate(&mut self.ctx).await;
         self.after_step(myself, outcome).await;
     }
@@ -530,6 +555,7 @@ impl<O: Operation> Actor for EoHost<O> {
             epoch: 0,
             active: None,
             activations: 0,
+            fail_first: options.fail_first_activations,
             started,
         })
     }

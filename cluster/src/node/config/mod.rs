@@ -47,6 +47,8 @@
 //! instances = 1                # default 1; 0 hosts none but allows dynamic instances
 //! supervisor = "operations"    # default
 //! restart = "permanent"        # permanent | transient | temporary
+//! fail_first_activations = 0   # a test knob: each instance's first N activations fail at
+//!                              # once (default 0; see OperationConfig::fail_first_activations)
 //! ```
 //!
 //! Every problem — unknown key, wrong type, a number out of range, an operation or version
@@ -350,7 +352,18 @@ pub struct OperationConfig {
     pub supervisor: String,
     /// When it is restarted.
     pub restart: Restart,
+    /// A test knob, 0 (off) by default: each instance of this entry fails its first `n`
+    /// activations at once, with an error reply naming the knob
+    /// ([`HostOptions::fail_first_activations`](marie_actors::eo::HostOptions::fail_first_activations)).
+    /// It exists to prove a rollback end to end: a node of a new version whose first
+    /// activation fails, and the binding that goes back to the old instance. Counted per
+    /// instance (a restarted instance fails its first `n` again). In a file,
+    /// `fail_first_activations = 1`; at most [`MAX_FAILING_ACTIVATIONS`].
+    pub fail_first_activations: u64,
 }
+
+/// Most activations [`OperationConfig::fail_first_activations`] may fail.
+pub const MAX_FAILING_ACTIVATIONS: u64 = 1000;
 
 impl OperationConfig {
     /// One permanent instance of every version of `name` under [`OPERATIONS`].
@@ -361,7 +374,15 @@ impl OperationConfig {
             instances: 1,
             supervisor: OPERATIONS.to_string(),
             restart: Restart::Permanent,
+            fail_first_activations: 0,
         }
+    }
+
+    /// Each instance fails its first `n` activations at once (a test knob, see
+    /// [`OperationConfig::fail_first_activations`]).
+    pub fn failing_first_activations(mut self, n: u64) -> Self {
+        self.fail_first_activations = n;
+        self
     }
 
     /// Only versions matching `req`.
@@ -645,6 +666,15 @@ impl NodeConfig {
                 return Err(ConfigError::Range {
                     what: format!("operation `{}`: instances", op.name),
                     message: format!("at most {MAX_INSTANCES}, got {}", op.instances),
+                });
+            }
+            if op.fail_first_activations > MAX_FAILING_ACTIVATIONS {
+                return Err(ConfigError::Range {
+                    what: format!("operation `{}`: fail_first_activations", op.name),
+                    message: format!(
+                        "at most {MAX_FAILING_ACTIVATIONS}, got {}",
+                        op.fail_first_activations
+                    ),
                 });
             }
             if !supervisors.iter().any(|s| s.name == op.supervisor) {
