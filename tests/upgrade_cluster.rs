@@ -8,6 +8,12 @@
 //! The docking mission uses the wall follower in one action only, so the test's variant also
 //! runs it in `plan-parking` (until the path is planned: a control period or two of driving,
 //! which the trajectory controller absorbs).
+//!
+//! Version 1.1.0-rc.1 calls version 1's `distance` `wall_distance` and declares the rename as
+//! a migration: the mission's `distance` reaches it under its new name. Its range is
+//! narrower (2.5 m): a mission asking for more is refused by `marie check`, unless it pins
+//! the operation. If the new instance fails its first activation (a node config's
+//! `fail_first_activations` knob), the binding goes back to version 1.0.0 (rollback).
 
 use crate::common;
 use crate::selection_cluster::{start_at, COOKIE};
@@ -169,6 +175,27 @@ fn a_newer_wall_follower_started_mid_action_takes_the_binding_at_the_next_action
     // the binding's epoch went up with the move
     let epochs = report["bound_epochs"].to_string();
     assert!(epochs.contains("wall-follower"), "{epochs}");
+    // the mission's `distance` (version 1's name) reached version 1.1 as `wall_distance`,
+    // through the migration it declares
+    let settings: Vec<&Value> = report["provenance"]["parameters"]
+        .as_array()
+        .expect("the provenance's parameters")
+        .iter()
+        .filter(|p| p["action"] == "plan-parking" && p["operation"] == "wall-follower")
+        .collect();
+    let distance = settings
+        .iter()
+        .find(|p| p["name"] == "wall_distance")
+        .unwrap_or_else(|| panic!("no wall_distance in {settings:#?}"));
+    assert_eq!(distance["source"], "mission", "{distance:#}");
+    assert!(
+        distance["value"].to_string().contains("0.8"),
+        "{distance:#}"
+    );
+    assert!(
+        !settings.iter().any(|p| p["name"] == "distance"),
+        "{settings:#?}"
+    );
 }
 
 #[test]
@@ -279,4 +306,50 @@ fn a_newer_wall_follower_whose_first_activation_fails_rolls_the_binding_back() {
         .collect();
     assert_eq!(told.len(), 1, "{told:#?}");
     assert_eq!(told[0]["kind"]["to_version"], "1.0.0", "{:#}", told[0]);
+}
+
+/// `marie check MISSION`: the exit code and stderr.
+fn check(mission: &std::path::Path) -> (Option<i32>, String) {
+    let out = common::marie(&["check", mission.to_str().unwrap()]);
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn check_refuses_a_mission_a_newer_version_could_not_take_unless_it_pins_the_operation() {
+    let dir = tempfile::tempdir().unwrap();
+    // version 1.1.0-rc.1 (this build's) keeps the wall within 2.5 m: 2.8 is refused ...
+    let far = docking_edited(
+        dir.path(),
+        "docking-far",
+        &[("distance = 0.8", "distance = 2.8")],
+    );
+    let (code, stderr) = check(&far);
+    assert_eq!(code, Some(2), "{stderr}");
+    for want in [
+        "a newer version could not take the mission's parameters",
+        &format!("operation `wall-follower`: version {NEWER} (known from this build)"),
+        "could not take over from 1.0.0",
+        "wall_distance: 2.8 is out of range",
+        "[pin] wall-follower = \"1.0.0\"",
+    ] {
+        assert!(stderr.contains(want), "{want:?} not in:\n{stderr}");
+    }
+    // ... unless the mission pins the wall follower (it never moves)
+    let pinned = docking_edited(
+        dir.path(),
+        "docking-far-pinned",
+        &[("distance = 0.8", "distance = 2.8")],
+    );
+    let mut src = std::fs::read_to_string(&pinned).unwrap();
+    src += "\n[pin]\nwall-follower = \"1.0.0\"\n";
+    std::fs::write(&pinned, src).unwrap();
+    let (code, stderr) = check(&pinned);
+    assert_eq!(code, Some(0), "{stderr}");
+    // and version 1's `distance` within range reaches version 1.1 through its migration
+    let near = docking_twice(dir.path(), "docking-near", "");
+    let (code, stderr) = check(&near);
+    assert_eq!(code, Some(0), "{stderr}");
 }

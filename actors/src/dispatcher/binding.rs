@@ -15,6 +15,7 @@
 //!   older number are about an instance the dispatcher has let go of, and are ignored.
 
 use super::candidates::Prospect;
+use super::mission::op_info::OpInfo;
 use super::selection::{self, Need, Offer};
 use crate::eo::EoClient;
 use marie_vocabulary::clock::Timer;
@@ -67,6 +68,9 @@ pub(crate) struct Binding {
     /// Grows with every loss; see the module invariants.
     pub(crate) incarnation: u64,
     pub(crate) defaults: ParamMap,
+    /// The instance's parameter declarations and migrations: what the mission supplies
+    /// reaches it as [`Binding::supplied`] maps it.
+    pub(crate) info: OpInfo,
     pub(crate) flag_names: Vec<String>,
     /// The parameters sent last (restored on a new instance).
     pub(crate) params: ParamMap,
@@ -107,14 +111,15 @@ impl Binding {
     pub(crate) fn new(cand: Prospect, base: u64, need: Need) -> Binding {
         Binding {
             client: cand.client,
-            name: cand.info.name,
+            name: cand.info.name.clone(),
             id: cand.info.id,
-            version: cand.info.version,
+            version: cand.info.version.clone(),
             node: cand.node,
             epoch: (cand.epoch + 1).max(base),
             incarnation: 0,
             defaults: cand.info.schema.defaults(),
-            flag_names: cand.info.flags.into_iter().map(|f| f.name).collect(),
+            flag_names: cand.info.flags.iter().map(|f| f.name.clone()).collect(),
+            info: cand.info,
             params: ParamMap::new(),
             deadline: cand.deadline,
             lost: None,
@@ -128,6 +133,15 @@ impl Binding {
             spurned: Vec::new(),
             need,
         }
+    }
+
+    /// The parameters an action sends the instance for what the mission `supplied`: its
+    /// declared defaults, then the mission's values as its migrations map them (see
+    /// [`crate::declare::Migrations`]) — so values left by an earlier action never leak.
+    pub(crate) fn supplied(&self, supplied: &ParamMap) -> ParamMap {
+        let mut params = self.defaults.clone();
+        params.extend(self.info.migrated(supplied));
+        params
     }
 
     /// What the mission needs of the operation.
@@ -214,10 +228,11 @@ impl Binding {
     pub(crate) fn adopt(&mut self, cand: Prospect, now: Duration) -> Option<(Lost, Duration)> {
         self.epoch = self.epoch.max(cand.epoch) + 1;
         self.client = cand.client;
-        self.version = cand.info.version;
+        self.version = cand.info.version.clone();
         self.node = cand.node;
         self.defaults = cand.info.schema.defaults();
-        self.flag_names = cand.info.flags.into_iter().map(|f| f.name).collect();
+        self.flag_names = cand.info.flags.iter().map(|f| f.name.clone()).collect();
+        self.info = cand.info;
         self.deadline = cand.deadline;
         self.probing = false;
         self.deadline_timer = None;

@@ -32,6 +32,7 @@ pub mod survey;
 mod takeover;
 pub mod tree;
 pub mod upgrade;
+pub mod upgrade_check;
 mod upgrading;
 
 pub use actor::{

@@ -16,8 +16,8 @@
 //!   report of the failed instance is about one let go of), and the raised epoch is stored in
 //!   the checkpoint and announced to the fence keepers before any command carries it.
 //! - The old instance gets the action's parameters as its own schema takes them: its
-//!   declared defaults, then what the mission gives (a parameter only the newer version
-//!   knows is not sent to it).
+//!   declared defaults, then what the mission gives, through its own migrations (a
+//!   parameter only the newer version knows is not sent to it).
 //! - The instance rolled back from is never taken to again in the run (the binding's
 //!   `spurned`: [`upgrade::judge`] refuses it, and it stands in for nothing).
 
@@ -97,8 +97,7 @@ impl DispatcherState {
         // the failed instance's late reports are about an instance let go of
         b.incarnation += 1;
         b.adopt(old, now);
-        let mut params = b.defaults.clone();
-        params.extend(mission_params);
+        let params = b.supplied(&mission_params);
         b.params = params.clone();
         let record = RollbackRecord {
             operation: name.to_string(),

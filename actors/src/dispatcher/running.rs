@@ -287,9 +287,7 @@ impl DispatcherState {
                 self.finish(myself, Outcome::Failed, reason);
                 return;
             };
-            let mut params = b.defaults.clone();
-            params.extend(op.params.clone());
-            b.params = params;
+            b.params = b.supplied(&op.params);
             current.running.insert(op.key.clone());
         }
         self.live.insert(generation, current);
@@ -325,6 +323,7 @@ impl DispatcherState {
             let Some(b) = self.bindings.get(&op.name) else {
                 continue;
             };
+            let supplied = b.info.migrated(&op.params);
             started.push(OpStarted {
                 key: op.key.clone(),
                 name: b.name.clone(),
@@ -338,7 +337,7 @@ impl DispatcherState {
                     .map(|(name, value)| ParamValue {
                         name: name.clone(),
                         value: value.clone(),
-                        source: match op.params.contains_key(name) {
+                        source: match supplied.contains_key(name) {
                             true => ParamSource::Mission,
                             false => ParamSource::Default,
                         },

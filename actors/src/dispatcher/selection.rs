@@ -230,7 +230,11 @@ pub fn admits(need: &Need, info: &OpInfo) -> Result<(), Inadmissible> {
     }
     let defaults = info.schema.defaults();
     for supplied in &need.supplied {
-        if let Err(rejections) = info.schema.apply(&defaults, supplied, false) {
+        // written for an older version perhaps: as the instance's migrations map it
+        if let Err(rejections) = info
+            .schema
+            .apply(&defaults, &info.migrated(supplied), false)
+        {
             return Err(Inadmissible::Schema { rejections });
         }
     }

@@ -101,6 +101,29 @@ pub fn judge(
     }
 }
 
+/// Why `candidate`, a newer compatible version of the operation bound (or to be bound) at
+/// version `current`, could not take the parameters the mission supplies, if it could not —
+/// what `marie check` refuses a mission for (before anything runs, rather than a binding
+/// that silently stays at run time). `None` when it could take them, when it is not a newer
+/// compatible version, when the mission's requirement excludes it anyway, or when the
+/// mission pins the operation (a pinned binding never moves).
+pub fn parameters_refused(current: &str, need: &Need, candidate: &OpInfo) -> Option<String> {
+    if need.pin.is_some() {
+        return None;
+    }
+    let (Ok(bound), Ok(offered)) = (Version::parse(current), Version::parse(&candidate.version))
+    else {
+        return None;
+    };
+    if offered <= bound || !compatible(&bound, &offered) {
+        return None;
+    }
+    match selection::admits(need, candidate) {
+        Err(why @ selection::Inadmissible::Schema { .. }) => Some(why.to_string()),
+        _ => None,
+    }
+}
+
 /// Whether `offered` may replace `bound` by semver's rule for a caret requirement: the same
 /// major version, or for `0.x` the same minor.
 fn compatible(bound: &Version, offered: &Version) -> bool {
@@ -393,5 +416,52 @@ mod tests {
             judge("1.0.0", &wall(), &follower("0.9.0", false), None, Some("x")),
             Judgement::Ignored(_)
         ));
+    }
+
+    /// Version 1.1 of the wall follower as a test declares it: `distance` renamed
+    /// `wall_distance` (with the migration if `migrated`), its range narrowed to 2.5 m.
+    fn renamed(migrated: bool) -> OpInfo {
+        let info = OpInfo::new("wall-follower", 1514, "1.1.0").params(ParamSchema::new(vec![
+            ParamDecl::float("wall_distance", 0.6).range(0.3, 2.5),
+        ]));
+        match migrated {
+            true => info
+                .migrations(crate::declare::Migrations::new().rename("distance", "wall_distance")),
+            false => info,
+        }
+    }
+
+    #[test]
+    fn a_renamed_parameter_is_taken_through_its_migration_and_refused_without_one() {
+        assert_eq!(
+            judge("1.0.0", &wall(), &renamed(true), None, None),
+            Judgement::Newer
+        );
+        assert_eq!(parameters_refused("1.0.0", &wall(), &renamed(true)), None);
+        let Judgement::Refused(why) = judge("1.0.0", &wall(), &renamed(false), None, None) else {
+            panic!("a rename without a migration taken")
+        };
+        assert!(why.contains("distance"), "{why}");
+        let refused = parameters_refused("1.0.0", &wall(), &renamed(false)).expect("refused");
+        assert!(refused.contains("distance: unknown parameter"), "{refused}");
+    }
+
+    #[test]
+    fn a_value_outside_a_narrowed_range_is_refused_not_clamped() {
+        let far = Need::new("wall-follower").supplies([("distance", Value::Float(2.8))]);
+        let Judgement::Refused(why) = judge("1.0.0", &far, &renamed(true), None, None) else {
+            panic!("a value out of the new range taken")
+        };
+        assert!(why.contains("wall_distance"), "{why}");
+        let refused = parameters_refused("1.0.0", &far, &renamed(true)).expect("refused");
+        assert!(refused.contains("wall_distance"), "{refused}");
+        // pinned, it never moves: nothing to refuse
+        let pinned = far.clone().pinned(VersionReq::parse("=1.0.0").unwrap());
+        assert_eq!(parameters_refused("1.0.0", &pinned, &renamed(true)), None);
+        // outside the mission's requirement, or not newer, or another major: not a move
+        let req = far.clone().version(VersionReq::parse("~1.0").unwrap());
+        assert_eq!(parameters_refused("1.0.0", &req, &renamed(true)), None);
+        assert_eq!(parameters_refused("1.1.0", &far, &renamed(true)), None);
+        assert_eq!(parameters_refused("0.9.0", &far, &renamed(true)), None);
     }
 }

@@ -151,6 +151,9 @@ pub struct HostState<O> {
     activations: u64,
     /// [`HostOptions::fail_first_activations`].
     fail_first: u64,
+    /// What the operation declares of its older versions' parameters, as the property
+    /// interface answers it (`Get("migrations")`).
+    migrations: Value,
     started: Duration,
 }
 
@@ -285,6 +288,7 @@ impl<O: Operation> HostState<O> {
             "in_use" => Value::Bool(self.active.is_some()),
             "activations" => Value::Int(self.activations as i64),
             "epoch" => Value::Int(self.epoch as i64),
+            crate::declare::Migrations::PROPERTY => self.migrations.clone(),
             _ => {
                 if let Some(param) = name.strip_prefix("param.") {
                     return self.current().get(param).cloned();
@@ -504,6 +508,7 @@ impl<O: Operation> Actor for EoHost<O> {
         super::check_declaration(&operation)?;
         let schema = operation.parameters();
         let flags = operation.flags();
+        let migrations = operation.migrations().to_value();
         let initial = schema
             .apply(&schema.defaults(), &options.params, true)
             .map_err(|rej| {
@@ -556,6 +561,7 @@ impl<O: Operation> Actor for EoHost<O> {
             active: None,
             activations: 0,
             fail_first: options.fail_first_activations,
+            migrations,
             started,
         })
     }

@@ -49,7 +49,7 @@ mod messages;
 mod operation;
 
 pub use client::{EoClient, EoError};
-pub use declaration::{check_declaration, DeclarationError, MAX_FLAGS};
+pub use declaration::{check_declaration, DeclarationError, Declared, MAX_FLAGS};
 pub use factory::{OperationFactory, StartOperation};
 pub use handle::OperationHandle;
 pub use handle_error::{HandleError, SetError};
