@@ -16,7 +16,7 @@
 //! `fail_first_activations` knob), the binding goes back to version 1.0.0 (rollback).
 
 use crate::common;
-use crate::selection_cluster::{start_at, COOKIE};
+use crate::selection_cluster::{layout, COOKIE};
 
 use common::cluster::{NodeProc, Proc};
 use common::missions::docking_edited;
@@ -64,26 +64,51 @@ fn docking_twice(dir: &std::path::Path, name: &str, tail: &str) -> std::path::Pa
     path
 }
 
-/// Start a cluster whose wall follower is version 1.0.0 on node `wf-one`, run `mission` on
-/// it, and start node `wf-new` hosting the newer version (its `[[operation]]` table ending
-/// with `knobs`) once `follow-wall` started: the run's process (its lines read until
-/// `wait_for`, a line the run prints after the newer instance joined), the new node and the
-/// cluster, to keep until the run ended.
+/// `marie up` of the selection tests' cluster whose wall follower is version 1 on node
+/// `wf-one`, its `[[operation]]` table ending with `wf_one` (`pin = true`): the process, to
+/// keep until the run ended, and the cart node's address to join by.
+fn start(dir: &std::path::Path, wf_one: &str) -> (Proc, String) {
+    let cluster = layout(dir, &[("wf-one", "1")]);
+    let config = dir.join("wf-one.toml");
+    let text = std::fs::read_to_string(&config).unwrap() + wf_one;
+    std::fs::write(&config, text).unwrap();
+    let mut up = Proc::spawn(
+        "marie up",
+        &["up", cluster.to_str().unwrap(), "--speed", SPEED],
+    );
+    up.wait_line("Ctrl-C stops the cluster");
+    // `  cart at 127.0.0.1:4242 (pid 77): ...`
+    let join = up
+        .seen()
+        .iter()
+        .find_map(|l| {
+            let rest = l.trim().strip_prefix("cart at ")?;
+            Some(rest.split_once(' ')?.0.to_string())
+        })
+        .expect("the cart node's address");
+    (up, join)
+}
+
+/// Start a cluster whose wall follower is version 1.0.0 on node `wf-one` (its
+/// `[[operation]]` table ending with `wf_one`), run `mission` on it, and start node `wf-new`
+/// hosting the newer version (its table ending with `knobs`) once `follow-wall` started: the
+/// run's process (its lines read until `wait_for`, a line the run prints after the newer
+/// instance joined), the new node and the cluster, to keep until the run ended.
 fn run_with_newer(
     dir: &std::path::Path,
     mission: &std::path::Path,
     report: &std::path::Path,
-    knobs: &str,
+    (wf_one, knobs): (&str, &str),
     wait_for: &str,
-) -> (Proc, String, NodeProc, crate::selection_cluster::Cluster) {
-    let cluster = start_at(dir, &[("wf-one", "1")], SPEED);
+) -> (Proc, String, NodeProc, (Proc, String)) {
+    let cluster = start(dir, wf_one);
     let mut run = Proc::spawn(
         "marie run",
         &[
             "run",
             mission.to_str().unwrap(),
             "--join",
-            &cluster.join,
+            &cluster.1,
             "--cookie",
             COOKIE,
             "--speed",
@@ -96,7 +121,7 @@ fn run_with_newer(
     );
     run.wait_line("> follow-wall: start");
     // the newer version joins while version 1.0.0 follows the wall
-    let join: SocketAddr = cluster.join.parse().unwrap();
+    let join: SocketAddr = cluster.1.parse().unwrap();
     let hosts = format!(
         "dispatcher = false\n[[operation]]\nname = \"wall-follower\"\nversion = \"={NEWER}\"\n{knobs}"
     );
@@ -114,7 +139,7 @@ fn a_newer_wall_follower_started_mid_action_takes_the_binding_at_the_next_action
         dir.path(),
         &mission,
         &report,
-        "",
+        ("", ""),
         "wall-follower upgraded at `plan-parking`",
     );
     assert!(
@@ -207,12 +232,52 @@ fn a_pinned_wall_follower_stays_on_its_version_when_a_newer_one_appears() {
         "\n[pin]\nwall-follower = \"1.0.0\"\n",
     );
     let report = dir.path().join("report.json");
-    let (mut run, refused, _newer, _cluster) =
-        run_with_newer(dir.path(), &mission, &report, "", "wall-follower stays");
+    let (mut run, refused, _newer, _cluster) = run_with_newer(
+        dir.path(),
+        &mission,
+        &report,
+        ("", ""),
+        "wall-follower stays",
+    );
     assert!(
         refused.contains(&format!("not moving to v{NEWER}"))
             && refused.contains("on wf-new")
             && refused.contains("the mission pins it to =1.0.0"),
+        "{refused}"
+    );
+    let code = run.wait_exit();
+    let report: Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(code, Some(0), "{report:#}");
+    assert_eq!(report["outcome"], "succeeded", "{report:#}");
+    for action in ["follow-wall", "plan-parking"] {
+        let op = follower_in(&report, action);
+        assert_eq!(
+            (&op["version"], &op["node"]),
+            (&Value::from("1.0.0"), &Value::from("wf-one")),
+            "{action}: {op:#}"
+        );
+    }
+    assert!(report.get("upgrades").is_none(), "{report:#}");
+    let lines = run.drain();
+    assert!(!lines.iter().any(|l| l.contains("upgraded")), "{lines:#?}");
+}
+
+#[test]
+fn a_wall_follower_its_node_config_pins_stays_on_its_version_when_a_newer_one_appears() {
+    let dir = tempfile::tempdir().unwrap();
+    let mission = docking_twice(dir.path(), "docking-node-pinned", "");
+    let report = dir.path().join("report.json");
+    let (mut run, refused, _newer, _cluster) = run_with_newer(
+        dir.path(),
+        &mission,
+        &report,
+        ("pin = true\n", ""),
+        "wall-follower stays",
+    );
+    assert!(
+        refused.contains(&format!("not moving to v{NEWER}"))
+            && refused.contains("on wf-new")
+            && refused.contains("node wf-one's config pins it to =1.0.0"),
         "{refused}"
     );
     let code = run.wait_exit();
@@ -243,7 +308,7 @@ fn a_newer_wall_follower_whose_first_activation_fails_rolls_the_binding_back() {
         dir.path(),
         &mission,
         &report,
-        "fail_first_activations = 1\n",
+        ("", "fail_first_activations = 1\n"),
         "wall-follower rolled back at `plan-parking`",
     );
     assert!(

@@ -108,7 +108,8 @@ pub(crate) struct Binding {
 
 impl Binding {
     /// Bind to `cand`, chosen for `need`, at an epoch above both its own and `base`.
-    pub(crate) fn new(cand: Prospect, base: u64, need: Need) -> Binding {
+    pub(crate) fn new(cand: Prospect, base: u64, mut need: Need) -> Binding {
+        pin_by_node(&mut need, &cand);
         Binding {
             client: cand.client,
             name: cand.info.name.clone(),
@@ -226,6 +227,7 @@ impl Binding {
     /// Take `cand` as the new incarnation; returns the record's `(from, downtime)` if the
     /// binding was lost.
     pub(crate) fn adopt(&mut self, cand: Prospect, now: Duration) -> Option<(Lost, Duration)> {
+        pin_by_node(&mut self.need, &cand);
         self.epoch = self.epoch.max(cand.epoch) + 1;
         self.client = cand.client;
         self.version = cand.info.version.clone();
@@ -279,5 +281,20 @@ impl Binding {
             dead: self.actor_id(),
             refused: Vec::new(),
         });
+    }
+}
+
+/// If `cand`'s node pins it (`pin = true` on its `[[operation]]`) and nothing pins the
+/// binding yet, the binding runs on `cand`'s exact version for the rest of the mission
+/// ([`Need::node_pin`]; the mission's own pin, if any, wins).
+fn pin_by_node(need: &mut Need, cand: &Prospect) {
+    if !cand.info.pinned || need.pin_in_force().is_some() {
+        return;
+    }
+    match VersionReq::parse(&format!("={}", cand.info.version)) {
+        Ok(req) => need.node_pin = Some((req, cand.node.clone())),
+        Err(e) => {
+            tracing::warn!(op = %cand.info.name, version = %cand.info.version, error = %e, "a node pins a version that is not semver: not pinned")
+        }
     }
 }

@@ -6,8 +6,9 @@
 use super::mission::op_info::OpInfo;
 use super::selection::{self, Need, Offer};
 use crate::declare::Migrations;
+use crate::eo::PINNED;
 use crate::eo::{EoClient, EoError};
-use marie_vocabulary::property::{General, Group, PropertyReply, PropertyRequest};
+use marie_vocabulary::property::{General, Group, PropertyReply, PropertyRequest, Value};
 use marie_vocabulary::registry::Instance;
 use ractor::ActorId;
 use std::time::Duration;
@@ -31,6 +32,12 @@ pub async fn describe(client: EoClient) -> Result<OpInfo, EoError> {
         }),
         _ => Migrations::default(),
     };
+    let pinned = matches!(
+        client
+            .property(PropertyRequest::Get(PINNED.to_string()))
+            .await?,
+        PropertyReply::Value(Value::Bool(true))
+    );
     match (ident, specific) {
         (PropertyReply::Identification(i), PropertyReply::Specific(s)) => Ok(OpInfo {
             name: i.name.to_string(),
@@ -39,6 +46,7 @@ pub async fn describe(client: EoClient) -> Result<OpInfo, EoError> {
             schema: marie_vocabulary::property::ParamSchema::new(s.params),
             flags: s.flags,
             migrations,
+            pinned,
         }),
         _ => Err(EoError::Gone(client.actor().get_id().to_string())),
     }

@@ -85,8 +85,8 @@ pub fn judge(
             "the binding rolled back from it earlier in this run: {reason}"
         ));
     }
-    if let Some(pin) = &need.pin {
-        return Judgement::Refused(format!("the mission pins it to {pin}"));
+    if let Some((pin, by)) = need.pin_in_force() {
+        return Judgement::Refused(format!("{by} pins it to {pin}"));
     }
     if let Some(due) = due.and_then(|d| Version::parse(d).ok()) {
         if offered <= due {
@@ -108,7 +108,7 @@ pub fn judge(
 /// compatible version, when the mission's requirement excludes it anyway, or when the
 /// mission pins the operation (a pinned binding never moves).
 pub fn parameters_refused(current: &str, need: &Need, candidate: &OpInfo) -> Option<String> {
-    if need.pin.is_some() {
+    if need.pin_in_force().is_some() {
         return None;
     }
     let (Ok(bound), Ok(offered)) = (Version::parse(current), Version::parse(&candidate.version))
@@ -463,5 +463,40 @@ mod tests {
         assert_eq!(parameters_refused("1.0.0", &req, &renamed(true)), None);
         assert_eq!(parameters_refused("1.1.0", &far, &renamed(true)), None);
         assert_eq!(parameters_refused("0.9.0", &far, &renamed(true)), None);
+    }
+
+    #[test]
+    fn a_node_config_pin_holds_the_binding_and_the_missions_own_pin_wins() {
+        let pinned = |need: Need| Need {
+            node_pin: Some((VersionReq::parse("=1.0.0").unwrap(), "wf-one".to_string())),
+            ..need
+        };
+        let by_node = pinned(wall());
+        let Judgement::Refused(why) =
+            judge("1.0.0", &by_node, &follower("1.1.0", true), None, None)
+        else {
+            panic!("a binding its node pins moved")
+        };
+        assert_eq!(why, "node wf-one's config pins it to =1.0.0");
+        // a stand-in must be of the pinned version
+        let Err(why) = selection::admits(&by_node, &follower("1.0.1", false)) else {
+            panic!("a stand-in outside the node's pin admitted")
+        };
+        assert!(
+            why.to_string()
+                .contains("the pin of node wf-one's config =1.0.0"),
+            "{why}"
+        );
+        assert!(selection::admits(&by_node, &follower("1.0.0", false)).is_ok());
+        // the mission pins it too: the mission's pin alone counts
+        let both = pinned(wall().pinned(VersionReq::parse("~1.0").unwrap()));
+        let Judgement::Refused(why) = judge("1.0.0", &both, &follower("1.1.0", true), None, None)
+        else {
+            panic!("a pinned binding moved")
+        };
+        assert_eq!(why, "the mission pins it to ~1.0");
+        assert!(selection::admits(&both, &follower("1.0.1", false)).is_ok());
+        // no upgrade to refuse a mission for at check time: it never moves
+        assert_eq!(parameters_refused("1.0.0", &by_node, &renamed(false)), None);
     }
 }

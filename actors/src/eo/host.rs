@@ -49,7 +49,16 @@ pub struct HostOptions {
     /// first activation fails goes back to the old instance (issue 44's rollback). Counted
     /// per instance: a restarted instance fails its first `n` again.
     pub fail_first_activations: u64,
+    /// A binding to this instance runs on its version for the rest of the mission: it
+    /// never moves to a newer version, and a stand-in must be of this version (the node
+    /// config's `pin = true` on an `[[operation]]`). Answered as the property
+    /// [`PINNED`]. False by default.
+    pub pinned: bool,
 }
+
+/// The property an operation's host answers whether its node pins it under
+/// ([`HostOptions::pinned`]); a build before pins answers `NotFound`: not pinned.
+pub const PINNED: &str = "pinned";
 
 impl std::fmt::Debug for HostOptions {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -59,6 +68,7 @@ impl std::fmt::Debug for HostOptions {
             .field("acks", &self.acks.is_some())
             .field("events", &self.events.is_some())
             .field("fail_first_activations", &self.fail_first_activations)
+            .field("pinned", &self.pinned)
             .finish_non_exhaustive()
     }
 }
@@ -72,6 +82,7 @@ impl Default for HostOptions {
             acks: None,
             events: None,
             fail_first_activations: 0,
+            pinned: false,
         }
     }
 }
@@ -154,6 +165,8 @@ pub struct HostState<O> {
     /// What the operation declares of its older versions' parameters, as the property
     /// interface answers it (`Get("migrations")`).
     migrations: Value,
+    /// [`HostOptions::pinned`].
+    pinned: bool,
     started: Duration,
 }
 
@@ -289,6 +302,7 @@ impl<O: Operation> HostState<O> {
             "activations" => Value::Int(self.activations as i64),
             "epoch" => Value::Int(self.epoch as i64),
             crate::declare::Migrations::PROPERTY => self.migrations.clone(),
+            PINNED => Value::Bool(self.pinned),
             _ => {
                 if let Some(param) = name.strip_prefix("param.") {
                     return self.current().get(param).cloned();
@@ -562,6 +576,7 @@ impl<O: Operation> Actor for EoHost<O> {
             activations: 0,
             fail_first: options.fail_first_activations,
             migrations,
+            pinned: options.pinned,
             started,
         })
     }

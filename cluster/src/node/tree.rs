@@ -151,6 +151,7 @@ pub(super) fn children(
                 };
                 let host = HostOptions {
                     fail_first_activations: op.fail_first_activations,
+                    pinned: op.pin,
                     ..host.clone()
                 };
                 operation_child(id, (*f).clone(), host, op.restart)

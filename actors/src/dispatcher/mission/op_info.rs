@@ -27,6 +27,10 @@ pub struct OpInfo {
     /// written for an older version supplies reaches it through these.
     #[serde(default, skip_serializing_if = "Migrations::is_empty")]
     pub migrations: Migrations,
+    /// Its node's config pins the version of a binding to it (`pin = true` on its
+    /// `[[operation]]`, [`crate::eo::HostOptions::pinned`]).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub pinned: bool,
 }
 
 impl OpInfo {
@@ -40,6 +44,7 @@ impl OpInfo {
             schema: ParamSchema::default(),
             flags: Vec::new(),
             migrations: Migrations::default(),
+            pinned: false,
         }
     }
 
@@ -52,6 +57,7 @@ impl OpInfo {
             schema,
             flags,
             migrations: Migrations::default(),
+            pinned: false,
         }
     }
 

@@ -425,6 +425,7 @@ fn operation(
             "instances",
             "supervisor",
             "restart",
+            "pin",
             "fail_first_activations",
         ],
     );
@@ -499,6 +500,7 @@ fn operation(
         instances: instances? as usize,
         supervisor: supervisor?,
         restart: restart?,
+        pin: r.boolean(t, "pin", false),
         fail_first_activations: failing? as u64,
     };
     if let Err(problem) = check_operation(&op, catalog) {
@@ -960,7 +962,7 @@ mod tests {
     }
 
     #[test]
-    fn the_fail_first_activations_knob_is_read_and_bounded() {
+    fn the_pin_and_the_fail_first_activations_knob_are_read_and_checked() {
         let catalog = [OperationFactory::new::<Idle>()];
         let parse = |extra: &str| {
             NodeConfig::parse(
@@ -973,6 +975,10 @@ mod tests {
         assert_eq!(parse("").unwrap().operations[0].fail_first_activations, 0);
         let c = parse("fail_first_activations = 2\n").unwrap();
         assert_eq!(c.operations[0].fail_first_activations, 2);
+        assert!(!c.operations[0].pin);
+        assert!(parse("pin = true\n").unwrap().operations[0].pin);
+        let e = parse("pin = 1\n").unwrap_err();
+        assert!(e.contains("<node>:5:7") && e.contains("pin"), "{e}");
         let e = parse("fail_first_activations = -1\n").unwrap_err();
         assert!(
             e.contains("<node>:5:26") && e.contains("fail_first_activations"),
