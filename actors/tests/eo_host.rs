@@ -187,6 +187,53 @@ async fn failure_is_reported_and_the_operation_survives() {
 }
 
 #[tokio::test]
+async fn the_fail_first_activations_knob_fails_only_the_first_activations() {
+    let opts = HostOptions {
+        fail_first_activations: 2,
+        ..Default::default()
+    };
+    let (actor, _) = spawn_operation(
+        Stepper {
+            name: "stepper-knob",
+            taken: 0,
+        },
+        opts,
+    )
+    .await
+    .unwrap();
+    let c = EoClient::new(actor);
+    for n in 1..=2 {
+        let rx = c
+            .activate(param_map([("steps", Value::Int(2))]), n)
+            .unwrap();
+        match timeout(T, rx).await.unwrap().unwrap() {
+            EoReport::Failed { reason, epoch, .. } => {
+                assert_eq!(epoch, n);
+                assert!(
+                    reason.contains(&format!("activation {n} of the first 2"))
+                        && reason.contains("fail_first_activations"),
+                    "{reason}"
+                );
+            }
+            other => panic!("activation {n}: expected the knob's failure, got {other:?}"),
+        }
+    }
+    // the operation itself never ran for those, and runs from the third on
+    assert_eq!(
+        ask(&c, PropertyRequest::Get("taken".into())).await,
+        PropertyReply::Value(Value::Int(0))
+    );
+    let rx = c
+        .activate(param_map([("steps", Value::Int(2))]), 3)
+        .unwrap();
+    assert!(matches!(
+        timeout(T, rx).await.unwrap().unwrap(),
+        EoReport::Finished { .. }
+    ));
+    c.actor().stop(None);
+}
+
+#[tokio::test]
 async fn older_epochs_are_ignored() {
     let c = host("stepper-epoch").await;
     assert_eq!(

@@ -2,12 +2,23 @@
 //! without running it — each operation's choice, the source of every flag it waits for,
 //! the control details it supplies against those left at declared defaults, and, for a
 //! mission with recoveries (`on_failure`), the mission flags each recovery can raise.
+//!
+//! It also refuses a mission whose parameters a newer compatible version of one of its
+//! operations could not take (a renamed parameter without a declared migration, a value
+//! outside a changed range): a binding would stay on its old version at run time, so the
+//! operator hears of it now. The newer versions it knows are this build's declarations (its
+//! catalogue, hosted anywhere or not) and the instances it sees — the check's own node's,
+//! or a joined cluster's, a newer build's among them (see
+//! `marie::dispatcher::upgrade_check`). A mission that pins the operation is not refused.
 
 use super::args::RobotArgs;
+use super::error::BadInput;
 use super::join::JoinArgs;
 use super::prepare::prepare;
 use marie::cluster::node::NodeError;
+use marie::dispatcher::mission::OpInfo;
 use marie::dispatcher::survey::Survey;
+use marie::dispatcher::upgrade_check::{refusing_versions, UpgradeRefusal};
 use marie::dispatcher::{mission::Mission, survey};
 use marie::run::Choice;
 use marie_missions::embedded::EmbeddedError;
@@ -55,6 +66,11 @@ pub(crate) async fn check(args: CheckArgs) -> anyhow::Result<ExitCode> {
         }
     };
     let m = &prepared.mission;
+    let refusals = refusing_versions(m, &this_build()).await;
+    if !refusals.is_empty() {
+        prepared.shutdown().await;
+        return Err(refused(&mission, &refusals, json)?);
+    }
     let surveyed = survey(m).await;
     let world = prepared.robot.as_ref().map(|r| r.world().name.clone());
     let recoveries = recoveries(m, &surveyed.choices);
@@ -80,6 +96,40 @@ pub(crate) async fn check(args: CheckArgs) -> anyhow::Result<ExitCode> {
     }
     prepared.shutdown().await;
     Ok(ExitCode::SUCCESS)
+}
+
+/// What this build's catalogue declares, one entry per operation version.
+fn this_build() -> Vec<OpInfo> {
+    marie_missions::catalog()
+        .iter()
+        .filter_map(|f| f.declared())
+        .map(OpInfo::from_declared)
+        .collect()
+}
+
+/// The error of a mission that newer versions could not take over (printed as JSON first
+/// with `--json`): bad input, exit 2.
+fn refused(
+    mission: &Path,
+    refusals: &[UpgradeRefusal],
+    json: bool,
+) -> anyhow::Result<anyhow::Error> {
+    let lines: Vec<String> = refusals.iter().map(ToString::to_string).collect();
+    if json {
+        let doc = serde_json::json!({
+            "ok": false,
+            "mission": mission.display().to_string(),
+            "errors": lines.iter().map(|l| serde_json::json!({ "message": l })).collect::<Vec<_>>(),
+            "upgrades_refused": refusals,
+        });
+        println!("{}", serde_json::to_string_pretty(&doc)?);
+    }
+    Ok(BadInput(format!(
+        "{}: a newer version could not take the mission's parameters:\n  {}",
+        mission.display(),
+        lines.join("\n  ")
+    ))
+    .into())
 }
 
 /// A recovery of the mission (`on_failure`) and the mission flags its operations can raise.

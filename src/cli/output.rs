@@ -137,6 +137,7 @@ fn printed(kind: &EventKind) -> bool {
         | EventKind::Lost { .. }
         | EventKind::Rebound(_)
         | EventKind::BindingUpgraded(_)
+        | EventKind::BindingRolledBack(_)
         | EventKind::BindingUpgradeRefused { .. }
         | EventKind::FaultInjected { .. }
         | EventKind::FaultNotInjected { .. } => true,

@@ -16,6 +16,8 @@
 //!   parameters an enum (see [`DeclaredParams`], [`ParamValue`]);
 //! - [`flags!`](crate::flags!) — an enum of flags whose variant is both the declaration and the
 //!   bit (see [`DeclaredFlags`]);
+//! - [`Migrations`] — how a parameter of an older version maps onto this version's (a
+//!   rename), for a binding that moves to a newer version mid-mission;
 //! - [`DmName`] — datamanagers by constant ([`marie_dm::FEATURE`]);
 //! - [`RecordKind<T>`](marie_dm::RecordKind) — a record's class, sub-classes and payload
 //!   type (with the datamanagers, whose records it makes and selects).
@@ -76,8 +78,10 @@
 mod choice;
 mod dm;
 mod flags;
+mod migration;
 mod params;
 
 pub use dm::DmName;
 pub use flags::DeclaredFlags;
+pub use migration::{Migrations, MigrationsError, Rename};
 pub use params::{Bound, DeclaredParams, IntoParam, Param, ParamError, ParamMapExt, ParamValue};

@@ -15,6 +15,7 @@
 //!   older number are about an instance the dispatcher has let go of, and are ignored.
 
 use super::candidates::Prospect;
+use super::mission::op_info::OpInfo;
 use super::selection::{self, Need, Offer};
 use crate::eo::EoClient;
 use marie_vocabulary::clock::Timer;
@@ -41,6 +42,21 @@ pub(crate) struct Lost {
     pub(crate) refused: Vec<(String, String)>,
 }
 
+/// A move to a newer version on trial: the binding moved at the start of action
+/// `generation` and its new instance has not reported that first activation yet. If it
+/// fails, the binding may go back to the instance it moved from ([`super::upgrade`]).
+#[derive(Clone, Debug)]
+pub(crate) struct Trial {
+    /// The action whose start moved the binding (its generation number).
+    pub(crate) generation: u64,
+    /// Its name, for the rollback's record.
+    pub(crate) action: String,
+    /// The instance the binding moved from.
+    pub(crate) from: ActorId,
+    /// Its declared deadline: how long it may take to answer whether it still lives.
+    pub(crate) from_deadline: Duration,
+}
+
 /// The dispatcher's hold on one operation.
 pub(crate) struct Binding {
     pub(crate) client: EoClient,
@@ -52,6 +68,9 @@ pub(crate) struct Binding {
     /// Grows with every loss; see the module invariants.
     pub(crate) incarnation: u64,
     pub(crate) defaults: ParamMap,
+    /// The instance's parameter declarations and migrations: what the mission supplies
+    /// reaches it as [`Binding::supplied`] maps it.
+    pub(crate) info: OpInfo,
     pub(crate) flag_names: Vec<String>,
     /// The parameters sent last (restored on a new instance).
     pub(crate) params: ParamMap,
@@ -76,6 +95,12 @@ pub(crate) struct Binding {
     /// When the current instance last reported the end of its part of an action, in ms
     /// since the run began (an upgrade's record carries it).
     pub(crate) last_report_ms: Option<u64>,
+    /// Set from a move to a newer version until the new instance's first activation
+    /// reports (see [`Trial`]).
+    pub(crate) trial: Option<Trial>,
+    /// The instances the binding rolled back from, with why: never taken to again in this
+    /// run, neither as an upgrade nor as a stand-in.
+    pub(crate) spurned: Vec<(ActorId, String)>,
     /// What the mission needs of the operation: a stand-in must meet it, as the first
     /// instance did (see [`super::selection`]).
     need: Need,
@@ -83,17 +108,19 @@ pub(crate) struct Binding {
 
 impl Binding {
     /// Bind to `cand`, chosen for `need`, at an epoch above both its own and `base`.
-    pub(crate) fn new(cand: Prospect, base: u64, need: Need) -> Binding {
+    pub(crate) fn new(cand: Prospect, base: u64, mut need: Need) -> Binding {
+        pin_by_node(&mut need, &cand);
         Binding {
             client: cand.client,
-            name: cand.info.name,
+            name: cand.info.name.clone(),
             id: cand.info.id,
-            version: cand.info.version,
+            version: cand.info.version.clone(),
             node: cand.node,
             epoch: (cand.epoch + 1).max(base),
             incarnation: 0,
             defaults: cand.info.schema.defaults(),
-            flag_names: cand.info.flags.into_iter().map(|f| f.name).collect(),
+            flag_names: cand.info.flags.iter().map(|f| f.name.clone()).collect(),
+            info: cand.info,
             params: ParamMap::new(),
             deadline: cand.deadline,
             lost: None,
@@ -103,8 +130,19 @@ impl Binding {
             probing: false,
             due: None,
             last_report_ms: None,
+            trial: None,
+            spurned: Vec::new(),
             need,
         }
+    }
+
+    /// The parameters an action sends the instance for what the mission `supplied`: its
+    /// declared defaults, then the mission's values as its migrations map them (see
+    /// [`crate::declare::Migrations`]) — so values left by an earlier action never leak.
+    pub(crate) fn supplied(&self, supplied: &ParamMap) -> ParamMap {
+        let mut params = self.defaults.clone();
+        params.extend(self.info.migrated(supplied));
+        params
     }
 
     /// What the mission needs of the operation.
@@ -159,10 +197,23 @@ impl Binding {
         None
     }
 
+    /// Why the binding rolled back from instance `actor` earlier in the run, if it did.
+    pub(crate) fn spurned(&self, actor: ActorId) -> Option<&str> {
+        self.spurned
+            .iter()
+            .find(|(id, _)| *id == actor)
+            .map(|(_, why)| why.as_str())
+    }
+
     /// Why `cand` cannot stand in for this binding whatever the mission needs, if it cannot.
     fn cannot_stand_in(&self, cand: &Prospect) -> Option<String> {
         if let Some(why) = self.ruled_out_unasked(cand.client.actor().get_id(), &cand.node) {
             return Some(why);
+        }
+        if let Some(why) = self.spurned(cand.client.actor().get_id()) {
+            return Some(format!(
+                "the binding rolled back from it earlier in this run: {why}"
+            ));
         }
         if cand.info.name != self.name || cand.info.id != self.id {
             return Some(format!(
@@ -176,12 +227,14 @@ impl Binding {
     /// Take `cand` as the new incarnation; returns the record's `(from, downtime)` if the
     /// binding was lost.
     pub(crate) fn adopt(&mut self, cand: Prospect, now: Duration) -> Option<(Lost, Duration)> {
+        pin_by_node(&mut self.need, &cand);
         self.epoch = self.epoch.max(cand.epoch) + 1;
         self.client = cand.client;
-        self.version = cand.info.version;
+        self.version = cand.info.version.clone();
         self.node = cand.node;
         self.defaults = cand.info.schema.defaults();
-        self.flag_names = cand.info.flags.into_iter().map(|f| f.name).collect();
+        self.flag_names = cand.info.flags.iter().map(|f| f.name.clone()).collect();
+        self.info = cand.info;
         self.deadline = cand.deadline;
         self.probing = false;
         self.deadline_timer = None;
@@ -219,6 +272,7 @@ impl Binding {
         };
         self.incarnation += 1;
         self.probing = false;
+        self.trial = None;
         self.lost = Some(Lost {
             since,
             cause,
@@ -227,5 +281,20 @@ impl Binding {
             dead: self.actor_id(),
             refused: Vec::new(),
         });
+    }
+}
+
+/// If `cand`'s node pins it (`pin = true` on its `[[operation]]`) and nothing pins the
+/// binding yet, the binding runs on `cand`'s exact version for the rest of the mission
+/// ([`Need::node_pin`]; the mission's own pin, if any, wins).
+fn pin_by_node(need: &mut Need, cand: &Prospect) {
+    if !cand.info.pinned || need.pin_in_force().is_some() {
+        return;
+    }
+    match VersionReq::parse(&format!("={}", cand.info.version)) {
+        Ok(req) => need.node_pin = Some((req, cand.node.clone())),
+        Err(e) => {
+            tracing::warn!(op = %cand.info.name, version = %cand.info.version, error = %e, "a node pins a version that is not semver: not pinned")
+        }
     }
 }

@@ -5,8 +5,10 @@
 
 use super::mission::op_info::OpInfo;
 use super::selection::{self, Need, Offer};
+use crate::declare::Migrations;
+use crate::eo::PINNED;
 use crate::eo::{EoClient, EoError};
-use marie_vocabulary::property::{General, Group, PropertyReply, PropertyRequest};
+use marie_vocabulary::property::{General, Group, PropertyReply, PropertyRequest, Value};
 use marie_vocabulary::registry::Instance;
 use ractor::ActorId;
 use std::time::Duration;
@@ -19,6 +21,23 @@ pub async fn describe(client: EoClient) -> Result<OpInfo, EoError> {
     let specific = client
         .property(PropertyRequest::Group(Group::Specific))
         .await?;
+    // a build before migrations answers NotFound: it declares none
+    let migrations = match client
+        .property(PropertyRequest::Get(Migrations::PROPERTY.to_string()))
+        .await?
+    {
+        PropertyReply::Value(v) => Migrations::from_value(&v).unwrap_or_else(|e| {
+            tracing::warn!(actor = %client.actor().get_id(), error = %e, "migrations unreadable: taken as none");
+            Migrations::default()
+        }),
+        _ => Migrations::default(),
+    };
+    let pinned = matches!(
+        client
+            .property(PropertyRequest::Get(PINNED.to_string()))
+            .await?,
+        PropertyReply::Value(Value::Bool(true))
+    );
     match (ident, specific) {
         (PropertyReply::Identification(i), PropertyReply::Specific(s)) => Ok(OpInfo {
             name: i.name.to_string(),
@@ -26,6 +45,8 @@ pub async fn describe(client: EoClient) -> Result<OpInfo, EoError> {
             version: i.version.to_string(),
             schema: marie_vocabulary::property::ParamSchema::new(s.params),
             flags: s.flags,
+            migrations,
+            pinned,
         }),
         _ => Err(EoError::Gone(client.actor().get_id().to_string())),
     }

@@ -213,6 +213,16 @@ impl DispatcherState {
         if b.lost.is_some() || self.ended {
             return;
         }
+        if b.trial.is_some() {
+            // an upgrade's new instance lost in its first activation: back to the old one
+            let reason = format!("it was lost in its first activation: {cause}");
+            if self.roll_back(myself, name, reason).await {
+                return;
+            }
+        }
+        let Some(b) = self.bindings.get_mut(name) else {
+            return;
+        };
         // however it showed (a closed reply port, a registry leave), the failure
         // detector's verdict says why
         let cause = if registry::is_declared_down(&b.node) {

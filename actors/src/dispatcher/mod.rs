@@ -25,12 +25,14 @@ mod healing;
 mod messages;
 pub mod mission;
 pub mod plan;
+mod rollback;
 mod running;
 pub mod selection;
 pub mod survey;
 mod takeover;
 pub mod tree;
 pub mod upgrade;
+pub mod upgrade_check;
 mod upgrading;
 
 pub use actor::{

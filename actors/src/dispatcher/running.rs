@@ -56,6 +56,24 @@ pub(super) fn forward_report(
     });
 }
 
+/// Tell the fence keepers the epochs of the bindings an action's start moved to a newer
+/// version (none: nothing to tell), as an adoption tells its raised epoch: before the
+/// action's first command carries them. A keeper that does not answer learns them from
+/// that command (each ask is bounded by the fence's own timeout).
+async fn announce_moves(moved: &[marie_vocabulary::fence::Fence]) {
+    if moved.is_empty() {
+        return;
+    }
+    let announced = marie_vocabulary::fence::announce(moved).await;
+    if announced.told < announced.keepers {
+        tracing::warn!(
+            "a move's epoch reached {} of {} fence keepers: the others learn it from the first command",
+            announced.told,
+            announced.keepers
+        );
+    }
+}
+
 /// How long suspended operations get to report before the dispatcher moves on.
 pub(super) const SUSPEND_GRACE: Duration = Duration::from_secs(5);
 
@@ -280,30 +298,36 @@ impl DispatcherState {
             launched: false,
         };
         tracing::info!(action = %action.name, "action started");
+        let mut moved = Vec::new();
         for op in &action.ops {
-            self.upgrade_at_start(&op.name, &action.name);
+            moved.extend(self.upgrade_at_start(&op.name, &action.name, generation));
             let Some(b) = self.bindings.get_mut(&op.name) else {
                 let reason = format!("operation `{}` is not bound", op.key);
                 self.finish(myself, Outcome::Failed, reason);
                 return;
             };
-            let mut params = b.defaults.clone();
-            params.extend(op.params.clone());
-            b.params = params;
+            b.params = b.supplied(&op.params);
             current.running.insert(op.key.clone());
         }
         self.live.insert(generation, current);
+        let me = myself.clone();
         match self.record(None) {
             Some(stored) => {
-                let me = myself.clone();
                 ractor::concurrency::spawn(async move {
                     // refused: the writer told the dispatcher it is fenced
                     if let Ok(Ok(())) = stored.await {
+                        announce_moves(&moved).await;
                         let _ = me.cast(DispatcherMsg::Launch { generation });
                     }
                 });
             }
-            None => self.launch(myself, generation),
+            None if moved.is_empty() => self.launch(myself, generation),
+            None => {
+                ractor::concurrency::spawn(async move {
+                    announce_moves(&moved).await;
+                    let _ = me.cast(DispatcherMsg::Launch { generation });
+                });
+            }
         }
     }
 
@@ -325,6 +349,7 @@ impl DispatcherState {
             let Some(b) = self.bindings.get(&op.name) else {
                 continue;
             };
+            let supplied = b.info.migrated(&op.params);
             started.push(OpStarted {
                 key: op.key.clone(),
                 name: b.name.clone(),
@@ -338,7 +363,7 @@ impl DispatcherState {
                     .map(|(name, value)| ParamValue {
                         name: name.clone(),
                         value: value.clone(),
-                        source: match op.params.contains_key(name) {
+                        source: match supplied.contains_key(name) {
                             true => ParamSource::Mission,
                             false => ParamSource::Default,
                         },
@@ -424,6 +449,12 @@ impl DispatcherState {
                 format!("operation `{key}` is now bound by another dispatcher (epoch {current})");
             self.finish(myself, Outcome::Failed, reason);
             return;
+        }
+        if let Some(reason) = self.first_activation_failed(&name, generation, report.as_ref()) {
+            // an upgrade's new instance replied with an error: back to the old one
+            if self.roll_back(myself, &name, reason).await {
+                return;
+            }
         }
         let Some(cur) = self.live.get(&generation) else {
             return;

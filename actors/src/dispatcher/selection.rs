@@ -48,6 +48,25 @@ use semver::{Version, VersionReq};
 use std::cmp::Ordering;
 use std::collections::BTreeSet;
 
+/// Who pinned an operation's version ([`Need::pin_in_force`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PinnedBy<'a> {
+    /// The mission's `[pin]` table.
+    Mission,
+    /// The node config of the bound instance (`pin = true` on its `[[operation]]`): that
+    /// node.
+    Node(&'a str),
+}
+
+impl std::fmt::Display for PinnedBy<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            PinnedBy::Mission => write!(f, "the mission"),
+            PinnedBy::Node(node) => write!(f, "node {node}'s config"),
+        }
+    }
+}
+
 /// What a mission needs of one operation.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Need {
@@ -61,6 +80,14 @@ pub struct Need {
     /// instance must match it as it must match `version`, and a binding never moves to a
     /// newer version (see [`super::upgrade`]).
     pub pin: Option<VersionReq>,
+    /// The version the node config of the bound instance pins the operation to (its
+    /// `[[operation]]`'s `pin = true`), and that node: set on a binding once it is bound
+    /// to a pinning node's instance, for the rest of the mission. It acts as the mission's
+    /// pin does — stand-ins must match it, the binding never moves to a newer version —
+    /// unless the mission pins the operation itself: then the mission's pin alone counts
+    /// (the mission's author wrote it for this run and these parameters; a node's pin is a
+    /// standing default for whatever runs there).
+    pub node_pin: Option<(VersionReq, String)>,
 }
 
 impl Need {
@@ -71,6 +98,7 @@ impl Need {
             supplied: Vec::new(),
             version: None,
             pin: None,
+            node_pin: None,
         }
     }
 
@@ -86,6 +114,15 @@ impl Need {
             None => self.supplied.push(map),
         }
         self
+    }
+
+    /// The pin in force: the mission's, else the node's — and who set it.
+    pub fn pin_in_force(&self) -> Option<(&VersionReq, PinnedBy<'_>)> {
+        match (&self.pin, &self.node_pin) {
+            (Some(pin), _) => Some((pin, PinnedBy::Mission)),
+            (None, Some((pin, node))) => Some((pin, PinnedBy::Node(node))),
+            (None, None) => None,
+        }
     }
 
     /// Pin the operation to the versions matching `req` for the whole mission.
@@ -177,13 +214,16 @@ pub enum Inadmissible {
         /// What the mission requires.
         required: VersionReq,
     },
-    /// The instance's version is outside the versions the mission pins the operation to.
-    #[error("its version {version} does not match the mission's pin {pin}")]
+    /// The instance's version is outside the versions the mission (or the bound instance's
+    /// node config) pins the operation to.
+    #[error("its version {version} does not match {whose} {pin}")]
     Pinned {
         /// The instance's version.
         version: Version,
-        /// The mission's pin.
+        /// The pin.
         pin: VersionReq,
+        /// Whose pin: `the mission's pin`, or `the pin of node NAME's config`.
+        whose: String,
     },
     /// The instance's schema refuses a parameter the mission supplies (an unknown name, a
     /// wrong type, a value out of range).
@@ -216,7 +256,7 @@ pub fn admits(need: &Need, info: &OpInfo) -> Result<(), Inadmissible> {
             });
         }
     }
-    if let Some(pin) = &need.pin {
+    if let Some((pin, by)) = need.pin_in_force() {
         let version = Version::parse(&info.version).map_err(|error| Inadmissible::NotSemver {
             version: info.version.clone(),
             error,
@@ -225,12 +265,20 @@ pub fn admits(need: &Need, info: &OpInfo) -> Result<(), Inadmissible> {
             return Err(Inadmissible::Pinned {
                 version,
                 pin: pin.clone(),
+                whose: match by {
+                    PinnedBy::Mission => "the mission's pin".to_string(),
+                    PinnedBy::Node(_) => format!("the pin of {by}"),
+                },
             });
         }
     }
     let defaults = info.schema.defaults();
     for supplied in &need.supplied {
-        if let Err(rejections) = info.schema.apply(&defaults, supplied, false) {
+        // written for an older version perhaps: as the instance's migrations map it
+        if let Err(rejections) = info
+            .schema
+            .apply(&defaults, &info.migrated(supplied), false)
+        {
             return Err(Inadmissible::Schema { rejections });
         }
     }

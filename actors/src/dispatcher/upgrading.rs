@@ -9,13 +9,18 @@
 //!   raised epoch is in the checkpoint the action's launch waits for, and the action's
 //!   activation — the new instance's first command — carries the action's parameters
 //!   (the declared defaults of the new schema for what the mission leaves out).
+//! - The move's raised epoch is announced to the fence keepers, as an adoption's is, after
+//!   that checkpoint is stored and before the launch sends the first command: a replaced
+//!   dispatcher's commands to the new instance's node are refused from then on.
 //! - The move raises the binding's incarnation as a loss does: a probe or report of the
 //!   old instance that arrives late is about an instance the dispatcher has let go of.
 
 use super::actor::DispatcherState;
+use super::binding::Trial;
 use super::candidates::examine;
 use super::upgrade::{self, Judgement};
 use marie_vocabulary::events::EventKind;
+use marie_vocabulary::fence::Fence;
 use marie_vocabulary::registry::Instance;
 use marie_vocabulary::run::UpgradeRecord;
 use ractor::ActorId;
@@ -50,7 +55,8 @@ impl DispatcherState {
             return;
         }
         let due = b.due.as_ref().map(|d| d.info.version.as_str());
-        match upgrade::judge(&b.version, b.need(), &cand.info, due) {
+        let spurned = b.spurned(cand.client.actor().get_id());
+        match upgrade::judge(&b.version, b.need(), &cand.info, due, spurned) {
             Judgement::Newer => {
                 tracing::info!(op = %b.name, from = %b.version, to = %cand.info.version, node = %cand.node, "a newer version appeared: the binding moves at the next action's start");
                 b.due = Some(cand);
@@ -84,28 +90,38 @@ impl DispatcherState {
         }
     }
 
-    /// Action `action` starts and runs operation `name`: move its binding to the newer
-    /// instance due, if any and if it may move now ([`upgrade::moves_at_start`]), and tell
-    /// it (`binding_upgraded`).
-    pub(super) fn upgrade_at_start(&mut self, name: &str, action: &str) {
+    /// Action `action` (generation `generation`) starts and runs operation `name`: move
+    /// its binding to the newer instance due, if any and if it may move now
+    /// ([`upgrade::moves_at_start`]), and tell it (`binding_upgraded`). The move is on
+    /// trial until that action's first activation reports ([`super::rollback`]). Gives the
+    /// raised epoch to announce to the fence keepers if the binding moved (the action's
+    /// launch waits for that, see `running.rs`).
+    pub(super) fn upgrade_at_start(
+        &mut self,
+        name: &str,
+        action: &str,
+        generation: u64,
+    ) -> Option<Fence> {
         let running_elsewhere = self.running_key(name).is_some();
         let run_ms = self.elapsed_ms();
         let now = self.clock.now();
-        let Some(b) = self.bindings.get_mut(name) else {
-            return;
-        };
+        let b = self.bindings.get_mut(name)?;
         if !upgrade::moves_at_start(b.due.is_some(), b.lost.is_some(), running_elsewhere) {
-            return;
+            return None;
         }
-        let Some(cand) = b.due.take() else {
-            return;
-        };
+        let cand = b.due.take()?;
         let (from, from_version, from_node, from_last_ms) = (
             b.address(),
             b.version.clone(),
             b.node.clone(),
             b.last_report_ms,
         );
+        b.trial = Some(Trial {
+            generation,
+            action: action.to_string(),
+            from: b.actor_id(),
+            from_deadline: b.deadline,
+        });
         // the old instance's late probes and reports are about an instance let go of
         b.incarnation += 1;
         b.adopt(cand, now);
@@ -123,6 +139,8 @@ impl DispatcherState {
             from_last_ms,
         };
         tracing::info!(op = %name, %action, from = %record.from_version, to = %record.to_version, "binding upgraded");
+        let fence = Fence::new(name.to_string(), record.epoch);
         self.emit(EventKind::BindingUpgraded(record));
+        Some(fence)
     }
 }

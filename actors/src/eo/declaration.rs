@@ -5,6 +5,34 @@
 
 use super::Operation;
 
+/// What an operation declares about itself, read from one instance built for it
+/// ([`OperationFactory::declared`](super::OperationFactory::declared)): what a check knows
+/// of a version without starting it — `marie check` looks at the newer versions this build
+/// knows this way.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Declared {
+    /// Name, id, version, description.
+    pub identity: super::Identity,
+    /// Its parameters.
+    pub schema: marie_vocabulary::property::ParamSchema,
+    /// Its flags.
+    pub flags: Vec<marie_vocabulary::status::FlagDecl>,
+    /// How its older versions' parameters map onto its own.
+    pub migrations: crate::declare::Migrations,
+}
+
+impl Declared {
+    /// What `op` declares.
+    pub fn of<O: Operation>(op: &O) -> Self {
+        Declared {
+            identity: op.identity(),
+            schema: op.parameters(),
+            flags: op.flags(),
+            migrations: op.migrations(),
+        }
+    }
+}
+
 /// Most flags an operation may declare: its status word has 32 bits.
 pub const MAX_FLAGS: usize = 32;
 
@@ -51,6 +79,7 @@ pub fn check_declaration<O: Operation>(op: &O) -> Result<(), DeclarationError> {
     for p in schema.self_check() {
         problems.push(format!("a bad parameter: {p}"));
     }
+    problems.extend(op.migrations().problems(&schema));
     let flags = op.flags();
     if flags.len() > MAX_FLAGS {
         problems.push(format!(

@@ -39,8 +39,8 @@
 //! ```
 
 use super::{
-    check_declaration, spawn_operation, spawn_operation_linked, DeclarationError, HostOptions,
-    Operation,
+    check_declaration, spawn_operation, spawn_operation_linked, DeclarationError, Declared,
+    HostOptions, Operation,
 };
 use ractor::{ActorCell, SpawnErr};
 use std::future::Future;
@@ -74,6 +74,8 @@ pub struct OperationFactory {
     /// Build one instance the way [`OperationFactory::start`] does and check what it
     /// declares.
     check: Arc<dyn Fn() -> Result<(), DeclarationError> + Send + Sync>,
+    /// Build one instance and read what it declares.
+    declared: Arc<dyn Fn() -> Option<Declared> + Send + Sync>,
 }
 
 impl OperationFactory {
@@ -125,6 +127,7 @@ impl OperationFactory {
     /// A factory whose instances `make` builds.
     fn built<O: Operation>(name: &'static str, version: String, make: Make<O>) -> Self {
         let for_check = make.clone();
+        let for_declared = make.clone();
         let checked_version = version.clone();
         OperationFactory {
             name,
@@ -148,7 +151,16 @@ impl OperationFactory {
                     problems: vec![e.to_string()],
                 }),
             }),
+            declared: Arc::new(move || {
+                build(name, &*for_declared).ok().map(|op| Declared::of(&op))
+            }),
         }
+    }
+
+    /// What the operation declares (identity, parameters, flags, migrations), read from one
+    /// instance built the way every start builds it (`None` if that build panics).
+    pub fn declared(&self) -> Option<Declared> {
+        (self.declared)()
     }
 
     /// Build one instance the way every start does and check its declarations

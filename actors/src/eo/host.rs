@@ -42,7 +42,23 @@ pub struct HostOptions {
     /// Where a `Parameterize` that changes its values is told (`reparameterized`: a run's
     /// provenance names every value an operation ran with). `None` by default.
     pub events: Option<marie_vocabulary::events::EventBus>,
+    /// A test knob: the instance's first `n` activations fail at once (an
+    /// [`EoReport::Failed`] right after their parameters are applied, before the
+    /// operation's own `activate`); 0 by default. A node config sets it per `[[operation]]`
+    /// (`fail_first_activations = 1`) to prove that a binding moved to a new version whose
+    /// first activation fails goes back to the old instance (issue 44's rollback). Counted
+    /// per instance: a restarted instance fails its first `n` again.
+    pub fail_first_activations: u64,
+    /// A binding to this instance runs on its version for the rest of the mission: it
+    /// never moves to a newer version, and a stand-in must be of this version (the node
+    /// config's `pin = true` on an `[[operation]]`). Answered as the property
+    /// [`PINNED`]. False by default.
+    pub pinned: bool,
 }
+
+/// The property an operation's host answers whether its node pins it under
+/// ([`HostOptions::pinned`]); a build before pins answers `NotFound`: not pinned.
+pub const PINNED: &str = "pinned";
 
 impl std::fmt::Debug for HostOptions {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -51,6 +67,8 @@ impl std::fmt::Debug for HostOptions {
             .field("publish", &self.publish)
             .field("acks", &self.acks.is_some())
             .field("events", &self.events.is_some())
+            .field("fail_first_activations", &self.fail_first_activations)
+            .field("pinned", &self.pinned)
             .finish_non_exhaustive()
     }
 }
@@ -63,6 +81,8 @@ impl Default for HostOptions {
             publish: true,
             acks: None,
             events: None,
+            fail_first_activations: 0,
+            pinned: false,
         }
     }
 }
@@ -140,6 +160,13 @@ pub struct HostState<O> {
     epoch: u64,
     active: Option<Active>,
     activations: u64,
+    /// [`HostOptions::fail_first_activations`].
+    fail_first: u64,
+    /// What the operation declares of its older versions' parameters, as the property
+    /// interface answers it (`Get("migrations")`).
+    migrations: Value,
+    /// [`HostOptions::pinned`].
+    pinned: bool,
     started: Duration,
 }
 
@@ -274,6 +301,8 @@ impl<O: Operation> HostState<O> {
             "in_use" => Value::Bool(self.active.is_some()),
             "activations" => Value::Int(self.activations as i64),
             "epoch" => Value::Int(self.epoch as i64),
+            crate::declare::Migrations::PROPERTY => self.migrations.clone(),
+            PINNED => Value::Bool(self.pinned),
             _ => {
                 if let Some(param) = name.strip_prefix("param.") {
                     return self.current().get(param).cloned();
@@ -376,6 +405,20 @@ impl<O: Operation> HostState<O> {
             reply,
             set_up: false,
         });
+        if self.activations <= self.fail_first {
+            let reason = format!(
+                "activation {} of the first {} fails on purpose (fail_first_activations)",
+                self.activations, self.fail_first
+            );
+            tracing::warn!(op = %self.identity.name, %reason, "activation failed by the test knob");
+            self.end_activation(|flags, epoch| EoReport::Failed {
+                reason,
+                flags,
+                epoch,
+            })
+            .await;
+            return;
+        }
         let outcome = self.op.activate(&mut self.ctx).await;
         self.after_step(myself, outcome).await;
     }
@@ -479,6 +522,7 @@ impl<O: Operation> Actor for EoHost<O> {
         super::check_declaration(&operation)?;
         let schema = operation.parameters();
         let flags = operation.flags();
+        let migrations = operation.migrations().to_value();
         let initial = schema
             .apply(&schema.defaults(), &options.params, true)
             .map_err(|rej| {
@@ -530,6 +574,9 @@ impl<O: Operation> Actor for EoHost<O> {
             epoch: 0,
             active: None,
             activations: 0,
+            fail_first: options.fail_first_activations,
+            migrations,
+            pinned: options.pinned,
             started,
         })
     }

@@ -49,11 +49,13 @@ mod messages;
 mod operation;
 
 pub use client::{EoClient, EoError};
-pub use declaration::{check_declaration, DeclarationError, MAX_FLAGS};
+pub use declaration::{check_declaration, DeclarationError, Declared, MAX_FLAGS};
 pub use factory::{OperationFactory, StartOperation};
 pub use handle::OperationHandle;
 pub use handle_error::{HandleError, SetError};
-pub use host::{spawn_operation, spawn_operation_linked, EoHost, HostArgs, HostOptions, HostState};
+pub use host::{
+    spawn_operation, spawn_operation_linked, EoHost, HostArgs, HostOptions, HostState, PINNED,
+};
 pub use messages::{EoMsg, EoReport, ParamOutcome};
 
 /// How long an operation may take to answer a command unless it declares otherwise

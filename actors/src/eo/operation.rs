@@ -457,6 +457,14 @@ pub trait Operation: Send + 'static {
         Vec::new()
     }
 
+    /// How parameters of this operation's older versions map onto this version's (see
+    /// [`Migrations`](crate::declare::Migrations)): none unless the operation says so. A
+    /// binding that moves to this version mid-mission sends the mission's parameters
+    /// through them.
+    fn migrations(&self) -> crate::declare::Migrations {
+        crate::declare::Migrations::default()
+    }
+
     /// Clock time between steps: [`DEFAULT_PERIOD`](super::DEFAULT_PERIOD) (100 ms)
     /// unless the operation says otherwise.
     fn period(&self) -> Duration {

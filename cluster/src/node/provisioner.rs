@@ -57,10 +57,11 @@ impl Starter {
                 self.catalog
                     .iter()
                     .filter(move |f| op.allows(f) && f.name == name)
+                    .map(move |f| (op, f))
             })
-            .filter(|f| f.semver().is_some_and(|v| version.matches(&v)))
-            .max_by_key(|f| f.semver());
-        let Some(factory) = chosen else {
+            .filter(|(_, f)| f.semver().is_some_and(|v| version.matches(&v)))
+            .max_by_key(|(_, f)| f.semver());
+        let Some((op, factory)) = chosen else {
             let allowed: Vec<String> = self
                 .operations
                 .iter()
@@ -79,6 +80,9 @@ impl Starter {
                 host: HostOptions {
                     acks: Some(self.acks.clone()),
                     events: Some(self.events.clone()),
+                    // the entry's pin and knob, as its configured instances have them
+                    pinned: op.pin,
+                    fail_first_activations: op.fail_first_activations,
                     ..HostOptions::with_clock(self.clock.clone())
                 },
             })

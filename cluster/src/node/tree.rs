@@ -149,7 +149,12 @@ pub(super) fn children(
                 } else {
                     format!("{}#{n}", f.key())
                 };
-                operation_child(id, (*f).clone(), host.clone(), op.restart)
+                let host = HostOptions {
+                    fail_first_activations: op.fail_first_activations,
+                    pinned: op.pin,
+                    ..host.clone()
+                };
+                operation_child(id, (*f).clone(), host, op.restart)
             })
             .collect();
         children.push(ChildSpec::supervisor(

@@ -63,7 +63,9 @@ pub fn class(kind: &EventKind, drawn: bool) -> Option<&'static str> {
         EventKind::ActionStarted { .. } | EventKind::ActionEnded { .. } => "action",
         EventKind::Control { .. } => "control",
         EventKind::Lost { .. } => "lost",
-        EventKind::Rebound(_) | EventKind::BindingUpgraded(_) => "rebind",
+        EventKind::Rebound(_)
+        | EventKind::BindingUpgraded(_)
+        | EventKind::BindingRolledBack(_) => "rebind",
         EventKind::RebindGaveUp { .. } | EventKind::SupervisorGaveUp { .. } => "gave_up",
         EventKind::Takeover { .. } => "takeover",
         EventKind::DispatcherFenced { .. } => "fenced",

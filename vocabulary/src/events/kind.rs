@@ -3,7 +3,7 @@
 use crate::registry::{Instance, ModuleKind};
 use crate::run::{
     AppliedSpan, Choice, DmCheck, FaultKind, LossCause, OpEnd, Outcome, ParamValue, Provenance,
-    RebindRecord, RobotSection, UpgradeRecord,
+    RebindRecord, RobotSection, RollbackRecord, UpgradeRecord,
 };
 use crate::wire::ProtocolRange;
 use serde::{Deserialize, Serialize};
@@ -139,6 +139,9 @@ pub enum EventKind {
     /// A binding moved to an instance of a newer compatible version of its operation, at
     /// the start of an action that uses it (never in the middle of one).
     BindingUpgraded(UpgradeRecord),
+    /// The instance a binding was upgraded to failed its first activation and the binding
+    /// went back to the old instance, which starts the action again (issue 44: rollback).
+    BindingRolledBack(RollbackRecord),
     /// An instance of a newer version of a bound operation appeared, and the binding will
     /// not move to it: why (outside the mission's requirement or pin, a schema that
     /// refuses the mission's parameters).
@@ -637,6 +640,7 @@ impl EventKind {
             | EventKind::Lost { .. }
             | EventKind::Rebound(_)
             | EventKind::BindingUpgraded(_)
+            | EventKind::BindingRolledBack(_)
             | EventKind::BindingUpgradeRefused { .. }
             | EventKind::RebindGaveUp { .. } => Family::Binding,
             EventKind::Takeover { .. } | EventKind::DispatcherFenced { .. } => Family::Dispatcher,
@@ -695,6 +699,7 @@ impl EventKind {
                 | EventKind::Lost { .. }
                 | EventKind::Rebound(_)
                 | EventKind::BindingUpgraded(_)
+                | EventKind::BindingRolledBack(_)
                 | EventKind::BindingUpgradeRefused { .. }
                 | EventKind::RebindGaveUp { .. }
                 | EventKind::Selected { .. }

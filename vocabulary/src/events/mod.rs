@@ -203,6 +203,7 @@ mod tests {
             EventKind::Lost { .. } => "lost",
             EventKind::Rebound(_) => "rebound",
             EventKind::BindingUpgraded(_) => "binding_upgraded",
+            EventKind::BindingRolledBack(_) => "binding_rolled_back",
             EventKind::BindingUpgradeRefused { .. } => "binding_upgrade_refused",
             EventKind::RebindGaveUp { .. } => "rebind_gave_up",
             EventKind::Takeover { .. } => "takeover",

@@ -390,6 +390,18 @@ fn binding(kind: &EventKind) -> String {
             u.to,
             u.to_node
         ),
+        EventKind::BindingRolledBack(r) => format!(
+            "{} rolled back at `{}`: v{} {} on {} -> v{} {} on {}: {}",
+            r.operation,
+            r.action,
+            r.from_version,
+            r.from,
+            r.from_node,
+            r.to_version,
+            r.to,
+            r.to_node,
+            r.reason
+        ),
         EventKind::BindingUpgradeRefused {
             operation,
             address,
@@ -768,6 +780,7 @@ pub fn mark(kind: &EventKind) -> Mark {
         | EventKind::Selected { .. }
         | EventKind::BindingUpgradeRefused { .. } => '?',
         EventKind::Lost { .. }
+        | EventKind::BindingRolledBack(_)
         | EventKind::RebindGaveUp { .. }
         | EventKind::SupervisorGaveUp { .. }
         | EventKind::DmChecked(_) => '!',

@@ -252,6 +252,20 @@ impl ReportBuilder {
                     .record_bound_epoch(&upgrade.operation, upgrade.epoch, event.at_ms);
                 self.report.record_upgrade(upgrade.clone());
             }
+            EventKind::BindingRolledBack(rollback) => {
+                self.report
+                    .record_bound_epoch(&rollback.operation, rollback.epoch, event.at_ms);
+                // the action starts again on the old instance: its record says so
+                let name = rollback.operation.as_str();
+                if let Some(rec) = self.open_op(Some(&rollback.action), |_, r| {
+                    r.name == name && r.ended == OpEnd::Running
+                }) {
+                    rec.address = rollback.to.clone();
+                    rec.node = rollback.to_node.clone();
+                    rec.version = rollback.to_version.clone();
+                }
+                self.report.record_rollback(rollback.clone());
+            }
             _ => {}
         }
     }

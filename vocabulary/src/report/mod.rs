@@ -24,7 +24,7 @@ pub use builder::{AttachedReport, ReportBuilder};
 use crate::fence::BoundEpoch;
 use crate::run::{
     Choice, DmCheck, FaultKind, OpEnd, Outcome, ParamSetting, ParamSource, Provenance,
-    RebindRecord, RobotSection, TakeoverRecord, UpgradeRecord,
+    RebindRecord, RobotSection, RollbackRecord, TakeoverRecord, UpgradeRecord,
 };
 use serde::{Deserialize, Serialize};
 
@@ -93,6 +93,10 @@ pub struct RunReport {
     /// operation at an action's start, oldest first.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub upgrades: Vec<UpgradeRecord>,
+    /// The latest [`REPORT_KEEPS`] bindings moved back from an upgrade whose instance
+    /// failed its first activation, oldest first.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub rollbacks: Vec<RollbackRecord>,
     /// Mission clock time the run took, in ms.
     pub duration_ms: u64,
     /// What a robot said of the run ([`RobotSection`]; empty without a robot). Its keys
@@ -251,7 +255,7 @@ pub struct DmRecoveryRecord {
 
 impl RunReport {
     /// The report's own JSON keys: a robot's section cannot take them.
-    pub const OWN_KEYS: [&'static str; 24] = [
+    pub const OWN_KEYS: [&'static str; 25] = [
         "mission",
         "outcome",
         "reason",
@@ -261,6 +265,7 @@ impl RunReport {
         "rebinds",
         "rebinds_total",
         "upgrades",
+        "rollbacks",
         "duration_ms",
         "faults",
         "faults_total",
@@ -291,6 +296,7 @@ impl RunReport {
             rebinds: Vec::new(),
             rebinds_total: 0,
             upgrades: Vec::new(),
+            rollbacks: Vec::new(),
             duration_ms: 0,
             selection: Vec::new(),
             selection_total: 0,
@@ -378,6 +384,11 @@ impl RunReport {
     /// Keep a binding's move to a newer version among the latest [`REPORT_KEEPS`].
     pub fn record_upgrade(&mut self, upgrade: UpgradeRecord) {
         keep_latest(&mut self.upgrades, upgrade);
+    }
+
+    /// Keep a binding's move back from a failed upgrade among the latest [`REPORT_KEEPS`].
+    pub fn record_rollback(&mut self, rollback: RollbackRecord) {
+        keep_latest(&mut self.rollbacks, rollback);
     }
 
     /// Count faults and keep them among the latest [`REPORT_KEEPS`].
@@ -557,6 +568,19 @@ mod tests {
                 epoch: 8,
                 run_ms: 6,
                 from_last_ms: Some(5),
+            }],
+            rollbacks: vec![RollbackRecord {
+                operation: "op".into(),
+                action: "a".into(),
+                from: "1.4".into(),
+                from_version: "1.1.0".into(),
+                from_node: "other".into(),
+                to: "0.3".into(),
+                to_version: "1.0.0".into(),
+                to_node: "local".into(),
+                reason: "it failed: no".into(),
+                epoch: 9,
+                run_ms: 7,
             }],
             duration_ms: 10,
             selection: Vec::new(),

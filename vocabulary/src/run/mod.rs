@@ -38,7 +38,7 @@ pub use provenance::{
 };
 pub use rebind::RebindRecord;
 pub use takeover::TakeoverRecord;
-pub use upgrade::UpgradeRecord;
+pub use upgrade::{RollbackRecord, UpgradeRecord};
 
 /// What a robot said of a run — its judgement beside the dispatcher's (for marie's
 /// simulated cart: where it ended, collisions, the seed, whether it ended in the goal area,

@@ -38,3 +38,34 @@ pub struct UpgradeRecord {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub from_last_ms: Option<u64>,
 }
+
+/// A binding moved back from the instance an upgrade took it to, because that instance failed
+/// its first activation (an error reply, its actor gone, or no answer within its declared
+/// deadline): the old instance still lived, its parameters were restored and the action
+/// started again on it. The newer instance is not taken to again in the run.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct RollbackRecord {
+    /// Operation name.
+    pub operation: String,
+    /// The action whose first activation on the newer instance failed, started again on the
+    /// old one.
+    pub action: String,
+    /// The newer instance's address (the one given up).
+    pub from: String,
+    /// Its version.
+    pub from_version: String,
+    /// Its node.
+    pub from_node: String,
+    /// The old instance's address (the binding's again).
+    pub to: String,
+    /// Its version.
+    pub to_version: String,
+    /// Its node.
+    pub to_node: String,
+    /// Why the first activation failed.
+    pub reason: String,
+    /// The binding's epoch from the rollback on (above the move's).
+    pub epoch: u64,
+    /// When the binding moved back, in ms since the run began.
+    pub run_ms: u64,
+}

@@ -3,6 +3,7 @@
 //! catalogs validation asks and the candidates selection ranks — and neither should reach
 //! the other through it.
 
+use crate::declare::Migrations;
 use crate::eo::{Identity, Operation};
 use marie_vocabulary::property::ParamSchema;
 use marie_vocabulary::status::FlagDecl;
@@ -22,6 +23,14 @@ pub struct OpInfo {
     pub schema: ParamSchema,
     /// Flags the operation can raise, by name.
     pub flags: Vec<FlagDecl>,
+    /// How parameters of its older versions map onto its own (a rename): what a mission
+    /// written for an older version supplies reaches it through these.
+    #[serde(default, skip_serializing_if = "Migrations::is_empty")]
+    pub migrations: Migrations,
+    /// Its node's config pins the version of a binding to it (`pin = true` on its
+    /// `[[operation]]`, [`crate::eo::HostOptions::pinned`]).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub pinned: bool,
 }
 
 impl OpInfo {
@@ -34,6 +43,8 @@ impl OpInfo {
             version: version.into(),
             schema: ParamSchema::default(),
             flags: Vec::new(),
+            migrations: Migrations::default(),
+            pinned: false,
         }
     }
 
@@ -45,12 +56,36 @@ impl OpInfo {
             version: identity.version.to_string(),
             schema,
             flags,
+            migrations: Migrations::default(),
+            pinned: false,
         }
     }
 
     /// What `op` declares about itself.
     pub fn of<O: Operation>(op: &O) -> Self {
         OpInfo::from_identity(&op.identity(), op.parameters(), op.flags())
+            .migrations(op.migrations())
+    }
+
+    /// From what an operation declares (an instance of a factory, [`crate::eo::Declared`]).
+    pub fn from_declared(declared: crate::eo::Declared) -> Self {
+        OpInfo::from_identity(&declared.identity, declared.schema, declared.flags)
+            .migrations(declared.migrations)
+    }
+
+    /// With these migrations.
+    pub fn migrations(mut self, migrations: Migrations) -> Self {
+        self.migrations = migrations;
+        self
+    }
+
+    /// What the mission `supplied` reaches this operation as: mapped by its migrations (a
+    /// parameter an older version called otherwise, under its name here).
+    pub fn migrated(
+        &self,
+        supplied: &marie_vocabulary::property::ParamMap,
+    ) -> marie_vocabulary::property::ParamMap {
+        self.migrations.apply(supplied, &self.schema)
     }
 
     /// With these parameter declarations.

@@ -194,7 +194,13 @@ impl<C: Catalog + ?Sized> Validator<'_, C> {
         p: &ParsedParam,
         info: &OpInfo,
     ) -> Option<marie_vocabulary::property::Value> {
-        let Some(decl) = info.schema.get(&p.name) else {
+        // a name an older version used, which this one's migrations rename: checked as the
+        // parameter it became (and sent under that name, see `Migrations::apply`)
+        let renamed = || {
+            let r = info.migrations.renames.iter().find(|r| r.from == p.name)?;
+            info.schema.get(&r.to)
+        };
+        let Some(decl) = info.schema.get(&p.name).or_else(renamed) else {
             let hint = if info.schema.is_empty() {
                 format!("operation {} has no parameters", quote(&info.name))
             } else {

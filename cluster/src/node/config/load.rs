@@ -419,7 +419,15 @@ fn operation(
 ) -> Option<OperationConfig> {
     r.unknown_keys(
         t,
-        &["name", "version", "instances", "supervisor", "restart"],
+        &[
+            "name",
+            "version",
+            "instances",
+            "supervisor",
+            "restart",
+            "pin",
+            "fail_first_activations",
+        ],
     );
     let name = r.required_string(t, "name");
     let version = match t.get("version") {
@@ -442,6 +450,12 @@ fn operation(
         }
     };
     let instances = r.integer(t, "instances", Some(1), 0..=MAX_INSTANCES as i64);
+    let failing = r.integer(
+        t,
+        "fail_first_activations",
+        Some(0),
+        0..=MAX_FAILING_ACTIVATIONS as i64,
+    );
     let supervisor = match t.get("supervisor") {
         None => Some(OPERATIONS.to_string()),
         Some(v) => {
@@ -486,6 +500,8 @@ fn operation(
         instances: instances? as usize,
         supervisor: supervisor?,
         restart: restart?,
+        pin: r.boolean(t, "pin", false),
+        fail_first_activations: failing? as u64,
     };
     if let Err(problem) = check_operation(&op, catalog) {
         let (span, message) = match problem {
@@ -928,5 +944,54 @@ mod tests {
             parse("[node]\nname = \"a@b\"\n[cluster]\nlisten = \"127.0.0.1:1\"\ncookie = \"x\"\n")
                 .unwrap_err();
         assert!(e.contains("cannot join a cluster"), "{e}");
+    }
+
+    /// A do-nothing operation, for a catalogue to check `[[operation]]` tables against.
+    #[derive(Default)]
+    struct Idle;
+    impl marie_actors::eo::Operation for Idle {
+        fn identity(&self) -> marie_actors::eo::Identity {
+            marie_actors::eo::Identity::new("idle", 4801, "1.0.0", "does nothing")
+        }
+        async fn step(
+            &mut self,
+            _: &mut marie_actors::eo::OpContext,
+        ) -> Result<marie_actors::eo::Step, marie_actors::eo::OpError> {
+            Ok(marie_actors::eo::Step::Continue)
+        }
+    }
+
+    #[test]
+    fn the_pin_and_the_fail_first_activations_knob_are_read_and_checked() {
+        let catalog = [OperationFactory::new::<Idle>()];
+        let parse = |extra: &str| {
+            NodeConfig::parse(
+                &format!("[node]\nname = \"n\"\n[[operation]]\nname = \"idle\"\n{extra}"),
+                None,
+                &catalog,
+            )
+            .map_err(|d| d.to_string())
+        };
+        assert_eq!(parse("").unwrap().operations[0].fail_first_activations, 0);
+        let c = parse("fail_first_activations = 2\n").unwrap();
+        assert_eq!(c.operations[0].fail_first_activations, 2);
+        assert!(!c.operations[0].pin);
+        assert!(parse("pin = true\n").unwrap().operations[0].pin);
+        let e = parse("pin = 1\n").unwrap_err();
+        assert!(e.contains("<node>:5:7") && e.contains("pin"), "{e}");
+        let e = parse("fail_first_activations = -1\n").unwrap_err();
+        assert!(
+            e.contains("<node>:5:26") && e.contains("fail_first_activations"),
+            "{e}"
+        );
+        let e = parse("fail_first_activations = 1001\n").unwrap_err();
+        assert!(e.contains("fail_first_activations"), "{e}");
+        // as a Rust value, the same bound
+        let mut c = c;
+        c.operations[0].fail_first_activations = MAX_FAILING_ACTIVATIONS + 1;
+        assert!(matches!(
+            c.validate(&catalog),
+            Err(ConfigError::Range { .. })
+        ));
     }
 }

@@ -47,6 +47,11 @@
 //! instances = 1                # default 1; 0 hosts none but allows dynamic instances
 //! supervisor = "operations"    # default
 //! restart = "permanent"        # permanent | transient | temporary
+//! pin = false                  # true: a mission's binding to an instance of this entry
+//!                              # runs on its version for the rest of the mission (see
+//!                              # OperationConfig::pin)
+//! fail_first_activations = 0   # a test knob: each instance's first N activations fail at
+//!                              # once (default 0; see OperationConfig::fail_first_activations)
 //! ```
 //!
 //! Every problem — unknown key, wrong type, a number out of range, an operation or version
@@ -350,7 +355,28 @@ pub struct OperationConfig {
     pub supervisor: String,
     /// When it is restarted.
     pub restart: Restart,
+    /// A mission's binding to an instance of this entry runs on that instance's version
+    /// for the rest of the mission: it never moves to a newer version that joins the
+    /// cluster, and a stand-in after a loss must be of the same version (issue 44). Where
+    /// a node's operator, not each mission, decides that what runs here is not upgraded
+    /// mid-mission. A mission's own `[pin]` of the operation wins over it: the mission's
+    /// author wrote that for this run and these parameters, a node's pin is a standing
+    /// default for whatever runs there. In a file, `pin = true` (default false); the
+    /// instances say it through their property interface
+    /// ([`HostOptions::pinned`](marie_actors::eo::HostOptions::pinned)).
+    pub pin: bool,
+    /// A test knob, 0 (off) by default: each instance of this entry fails its first `n`
+    /// activations at once, with an error reply naming the knob
+    /// ([`HostOptions::fail_first_activations`](marie_actors::eo::HostOptions::fail_first_activations)).
+    /// It exists to prove a rollback end to end: a node of a new version whose first
+    /// activation fails, and the binding that goes back to the old instance. Counted per
+    /// instance (a restarted instance fails its first `n` again). In a file,
+    /// `fail_first_activations = 1`; at most [`MAX_FAILING_ACTIVATIONS`].
+    pub fail_first_activations: u64,
 }
+
+/// Most activations [`OperationConfig::fail_first_activations`] may fail.
+pub const MAX_FAILING_ACTIVATIONS: u64 = 1000;
 
 impl OperationConfig {
     /// One permanent instance of every version of `name` under [`OPERATIONS`].
@@ -361,7 +387,23 @@ impl OperationConfig {
             instances: 1,
             supervisor: OPERATIONS.to_string(),
             restart: Restart::Permanent,
+            pin: false,
+            fail_first_activations: 0,
         }
+    }
+
+    /// A binding to an instance of this entry runs on its version for the rest of the
+    /// mission (see [`OperationConfig::pin`]).
+    pub fn pinned(mut self) -> Self {
+        self.pin = true;
+        self
+    }
+
+    /// Each instance fails its first `n` activations at once (a test knob, see
+    /// [`OperationConfig::fail_first_activations`]).
+    pub fn failing_first_activations(mut self, n: u64) -> Self {
+        self.fail_first_activations = n;
+        self
     }
 
     /// Only versions matching `req`.
@@ -645,6 +687,15 @@ impl NodeConfig {
                 return Err(ConfigError::Range {
                     what: format!("operation `{}`: instances", op.name),
                     message: format!("at most {MAX_INSTANCES}, got {}", op.instances),
+                });
+            }
+            if op.fail_first_activations > MAX_FAILING_ACTIVATIONS {
+                return Err(ConfigError::Range {
+                    what: format!("operation `{}`: fail_first_activations", op.name),
+                    message: format!(
+                        "at most {MAX_FAILING_ACTIVATIONS}, got {}",
+                        op.fail_first_activations
+                    ),
                 });
             }
             if !supervisors.iter().any(|s| s.name == op.supervisor) {

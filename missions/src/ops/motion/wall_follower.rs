@@ -10,7 +10,7 @@ use super::{stop_cart, CONTROL_PERIOD};
 use crate::algo::follow::{FollowMode, FollowParams};
 use crate::geom::Pose;
 use crate::hardware::CartClient;
-use marie_actors::declare::DeclaredParams;
+use marie_actors::declare::{DeclaredParams, Migrations};
 use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
 use marie_vocabulary::property::ParamSchema;
 use std::time::Duration;
@@ -127,10 +127,13 @@ impl Operation for WallFollowerV1 {
 }
 
 marie_actors::params! {
-    /// The parameters of the wall follower, version 1.1: version 1's, and the forward speed.
+    /// The parameters of the wall follower, version 1.1: version 1's `distance` renamed
+    /// `wall_distance` (declared as a migration) and kept within 2.5 m, and the forward
+    /// speed.
     pub struct WallFollowerV1_1Params {
-        /// distance kept from the wall
-        pub distance: f64 = 0.6, range(0.3, 3.0), unit("m");
+        /// distance kept from the wall (version 1's `distance`), at most 2.5 m: beyond it the
+        /// side sonar's echo of a wall is too faint to hold a distance on
+        pub wall_distance: f64 = 0.6, range(0.3, 2.5), unit("m");
         /// forward speed along the wall
         pub speed: f64 = FOLLOW_SPEED, range(0.1, 0.5), unit("m/s");
     }
@@ -141,6 +144,12 @@ marie_actors::params! {
 /// the same with it. It is what a newer compatible build of an operation looks like: a
 /// binding on version 1 moves to it at an action's start when it appears
 /// (`marie_actors::dispatcher::upgrade`).
+///
+/// It also exercises both parameter changes a newer version may make: version 1's
+/// `distance` is called `wall_distance` here, and a declared migration
+/// ([`Operation::migrations`]) maps a mission's `distance` onto it; and its range is
+/// narrowed to 2.5 m, so a mission asking for more is refused by `marie check` (never
+/// clamped) and a binding carrying such a value does not move to it.
 ///
 /// A release candidate on purpose: semver requirements (`version = "1"` in a node's config,
 /// `*` when it names none) never match a pre-release, so it is hosted only where a node
@@ -165,13 +174,20 @@ impl Operation for WallFollowerV1_1 {
         WallFollowerV1_1Params::schema()
     }
 
+    fn migrations(&self) -> Migrations {
+        Migrations::new().rename("distance", "wall_distance")
+    }
+
     fn period(&self) -> Duration {
         CONTROL_PERIOD
     }
 
     async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
-        let WallFollowerV1_1Params { distance, speed } = ctx.params().read()?;
-        let params = follow_params(distance, FollowMode::Wall, speed);
+        let WallFollowerV1_1Params {
+            wall_distance,
+            speed,
+        } = ctx.params().read()?;
+        let params = follow_params(wall_distance, FollowMode::Wall, speed);
         self.follower.step(ctx, &params).await
     }
 
