@@ -225,59 +225,42 @@ fn a_newer_wall_follower_started_mid_action_takes_the_binding_at_the_next_action
 
 #[test]
 fn a_pinned_wall_follower_stays_on_its_version_when_a_newer_one_appears() {
-    let dir = tempfile::tempdir().unwrap();
-    let mission = docking_twice(
-        dir.path(),
+    stays_pinned(
         "docking-pinned",
         "\n[pin]\nwall-follower = \"1.0.0\"\n",
+        "",
+        "the mission pins it to =1.0.0",
     );
-    let report = dir.path().join("report.json");
-    let (mut run, refused, _newer, _cluster) = run_with_newer(
-        dir.path(),
-        &mission,
-        &report,
-        ("", ""),
-        "wall-follower stays",
-    );
-    assert!(
-        refused.contains(&format!("not moving to v{NEWER}"))
-            && refused.contains("on wf-new")
-            && refused.contains("the mission pins it to =1.0.0"),
-        "{refused}"
-    );
-    let code = run.wait_exit();
-    let report: Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
-    assert_eq!(code, Some(0), "{report:#}");
-    assert_eq!(report["outcome"], "succeeded", "{report:#}");
-    for action in ["follow-wall", "plan-parking"] {
-        let op = follower_in(&report, action);
-        assert_eq!(
-            (&op["version"], &op["node"]),
-            (&Value::from("1.0.0"), &Value::from("wf-one")),
-            "{action}: {op:#}"
-        );
-    }
-    assert!(report.get("upgrades").is_none(), "{report:#}");
-    let lines = run.drain();
-    assert!(!lines.iter().any(|l| l.contains("upgraded")), "{lines:#?}");
 }
 
 #[test]
 fn a_wall_follower_its_node_config_pins_stays_on_its_version_when_a_newer_one_appears() {
+    stays_pinned(
+        "docking-node-pinned",
+        "",
+        "pin = true\n",
+        "node wf-one's config pins it to =1.0.0",
+    );
+}
+
+/// Docking twice (`name`, with `header` in its `[mission]`), wf-one's wall follower with
+/// `knobs` in its `[[operation]]`, a newer one started mid-run: the binding stays on
+/// version 1.0.0 on wf-one, the refusal saying `why`, and the mission docks.
+fn stays_pinned(name: &str, header: &str, knobs: &str, why: &str) {
     let dir = tempfile::tempdir().unwrap();
-    let mission = docking_twice(dir.path(), "docking-node-pinned", "");
+    let mission = docking_twice(dir.path(), name, header);
     let report = dir.path().join("report.json");
     let (mut run, refused, _newer, _cluster) = run_with_newer(
         dir.path(),
         &mission,
         &report,
-        ("pin = true\n", ""),
+        (knobs, ""),
         "wall-follower stays",
     );
     assert!(
         refused.contains(&format!("not moving to v{NEWER}"))
             && refused.contains("on wf-new")
-            && refused.contains("node wf-one's config pins it to =1.0.0"),
+            && refused.contains(why),
         "{refused}"
     );
     let code = run.wait_exit();

@@ -2,7 +2,7 @@
 //! `next-protocol`), made to prove an upgrade across two real builds — a node restarted
 //! with the next build hosts it, and a binding on version 1 moves to it at an action's start.
 //!
-//! Version 1.1's parameters and behaviour: a newer compatible version, no more. What differs
+//! Version 1.1's parameters, migrations and behaviour: a newer compatible version, no more. What differs
 //! is the build it comes in: it reads the followed wall's record of its own build, which has
 //! a field the build before lacks ([`WallRecord`](crate::ops::WallRecord)'s `seen_among`),
 //! from a datamanager that holds the records of both builds — those of the build before
@@ -11,8 +11,8 @@
 //! A release candidate, like version 1.1: hosted only where a node names it exactly
 //! (`version = "=1.2.0-rc.1"`).
 
-use super::{follow_params, FollowMode, Follower, WallFollowerV1_1Params, CONTROL_PERIOD};
-use marie_actors::declare::DeclaredParams;
+use super::{WallFollowerV1_1, CONTROL_PERIOD};
+use marie_actors::declare::Migrations;
 use marie_actors::eo::{Identity, OpContext, OpError, Operation, Step};
 use marie_vocabulary::property::ParamSchema;
 use std::time::Duration;
@@ -20,10 +20,11 @@ use std::time::Duration;
 /// The wall follower's version in the next build.
 pub const NEXT_VERSION: &str = "1.2.0-rc.1";
 
-/// The wall follower, version 1.2 (`1.2.0-rc.1`), of the next build: see the module.
+/// The wall follower, version 1.2 (`1.2.0-rc.1`), of the next build: version 1.1 under a
+/// newer version (its parameters, migrations and behaviour, by delegation); see the module.
 #[derive(Debug, Default)]
 pub struct WallFollowerV1_2 {
-    follower: Follower,
+    v1_1: WallFollowerV1_1,
 }
 
 impl Operation for WallFollowerV1_2 {
@@ -37,7 +38,11 @@ impl Operation for WallFollowerV1_2 {
     }
 
     fn parameters(&self) -> ParamSchema {
-        WallFollowerV1_1Params::schema()
+        self.v1_1.parameters()
+    }
+
+    fn migrations(&self) -> Migrations {
+        self.v1_1.migrations()
     }
 
     fn period(&self) -> Duration {
@@ -45,17 +50,15 @@ impl Operation for WallFollowerV1_2 {
     }
 
     async fn step(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
-        let WallFollowerV1_1Params { distance, speed } = ctx.params().read()?;
-        let params = follow_params(distance, FollowMode::Wall, speed);
-        self.follower.step(ctx, &params).await
+        self.v1_1.step(ctx).await
     }
 
-    async fn activate(&mut self, _ctx: &mut OpContext) -> Result<Step, OpError> {
-        self.follower.activate()
+    async fn activate(&mut self, ctx: &mut OpContext) -> Result<Step, OpError> {
+        self.v1_1.activate(ctx).await
     }
 
     async fn suspend(&mut self, ctx: &mut OpContext) -> Result<(), OpError> {
-        self.follower.suspend(ctx)
+        self.v1_1.suspend(ctx).await
     }
 }
 
