@@ -18,7 +18,7 @@
 use crate::common;
 use crate::compat::copy;
 use crate::selection_cluster::{layout, COOKIE};
-use crate::upgrade_cluster::{docking_twice, follower_in};
+use crate::upgrade_cluster::{docked_on, docking_twice};
 
 use common::cluster::{NodeProc, Proc};
 use common::next_build::marie_next;
@@ -238,22 +238,7 @@ fn a_node_of_the_next_build_joins_mid_docking_and_its_wall_follower_takes_over()
     );
 
     // the run docks on, with the next build's wall follower
-    let code = run.wait_exit();
-    let report: Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
-    assert_eq!(code, Some(0), "{report:#}");
-    assert_eq!(report["outcome"], "succeeded", "{report:#}");
-    let old = follower_in(&report, "follow-wall");
-    assert_eq!(
-        (&old["version"], &old["node"]),
-        (&Value::from("1.0.0"), &Value::from("wf-one")),
-        "{old:#}"
-    );
-    let new = follower_in(&report, "plan-parking");
-    assert_eq!(
-        (&new["version"], &new["node"]),
-        (&Value::from(NEXT), &Value::from("wf-next")),
-        "{new:#}"
-    );
+    let report = docked_on(&mut run, &report, [("1.0.0", "wf-one"), (NEXT, "wf-next")]);
     assert_eq!(report["acknowledged_lost"], 0, "{}", report["dm_checks"]);
     let upgrades = report["upgrades"].as_array().expect("an upgrades section");
     assert_eq!(upgrades.len(), 1, "{upgrades:#?}");

@@ -32,7 +32,7 @@ const SPEED: &str = "3";
 const NEWER: &str = "1.1.0-rc.1";
 
 /// The wall follower's record in action `action` of `report`.
-pub(crate) fn follower_in<'a>(report: &'a Value, action: &str) -> &'a Value {
+fn follower_in<'a>(report: &'a Value, action: &str) -> &'a Value {
     report["actions"]
         .as_array()
         .unwrap()
@@ -44,6 +44,24 @@ pub(crate) fn follower_in<'a>(report: &'a Value, action: &str) -> &'a Value {
         .iter()
         .find(|op| op["name"] == "wall-follower")
         .unwrap_or_else(|| panic!("no wall follower in {action}: {report:#}"))
+}
+
+/// Wait for `run` to end and read its report from `path`: the run docked, and the wall
+/// follower ran `follow-wall` and `plan-parking` on the (version, node) `ran` gives for each.
+pub(crate) fn docked_on(run: &mut Proc, path: &std::path::Path, ran: [(&str, &str); 2]) -> Value {
+    let code = run.wait_exit();
+    let report: Value = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    assert_eq!(code, Some(0), "{report:#}");
+    assert_eq!(report["outcome"], "succeeded", "{report:#}");
+    for (action, (version, node)) in ["follow-wall", "plan-parking"].into_iter().zip(ran) {
+        let op = follower_in(&report, action);
+        assert_eq!(
+            (&op["version"], &op["node"]),
+            (&Value::from(version), &Value::from(node)),
+            "{action}: {op:#}"
+        );
+    }
+    report
 }
 
 /// The docking mission that also runs the wall follower in `plan-parking`, with `tail`
@@ -150,25 +168,9 @@ fn a_newer_wall_follower_started_mid_action_takes_the_binding_at_the_next_action
         upgraded.contains("on wf-one") && upgraded.contains("on wf-new"),
         "{upgraded}"
     );
-    let code = run.wait_exit();
-    let report: Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
-    assert_eq!(code, Some(0), "{report:#}");
-    assert_eq!(report["outcome"], "succeeded", "{report:#}");
-
-    // the action running when the newer version appeared finished on the old instance ...
-    let old = follower_in(&report, "follow-wall");
-    assert_eq!(
-        (&old["version"], &old["node"]),
-        (&Value::from("1.0.0"), &Value::from("wf-one")),
-        "{old:#}"
-    );
-    // ... and the next one that used the wall follower started on the new one
-    let new = follower_in(&report, "plan-parking");
-    assert_eq!(
-        (&new["version"], &new["node"]),
-        (&Value::from(NEWER), &Value::from("wf-new")),
-        "{new:#}"
-    );
+    // the action running when the newer version appeared finished on the old instance, and
+    // the next one that used the wall follower started on the new one
+    let report = docked_on(&mut run, &report, [("1.0.0", "wf-one"), (NEWER, "wf-new")]);
     let upgrades = report["upgrades"].as_array().expect("an upgrades section");
     assert_eq!(upgrades.len(), 1, "{upgrades:#?}");
     let up = &upgrades[0];
@@ -178,6 +180,7 @@ fn a_newer_wall_follower_started_mid_action_takes_the_binding_at_the_next_action
     assert_eq!(up["to_version"], NEWER);
     assert_eq!(up["from_node"], "wf-one");
     assert_eq!(up["to_node"], "wf-new");
+    let new = follower_in(&report, "plan-parking");
     assert_eq!(up["to"], new["address"], "{up:#}\n{new:#}");
     // the move happened at the action boundary: after the old instance's last report,
     // when follow-wall had ended, at plan-parking's start
@@ -263,18 +266,7 @@ fn stays_pinned(name: &str, header: &str, knobs: &str, why: &str) {
             && refused.contains(why),
         "{refused}"
     );
-    let code = run.wait_exit();
-    let report: Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
-    assert_eq!(code, Some(0), "{report:#}");
-    assert_eq!(report["outcome"], "succeeded", "{report:#}");
-    for action in ["follow-wall", "plan-parking"] {
-        let op = follower_in(&report, action);
-        assert_eq!(
-            (&op["version"], &op["node"]),
-            (&Value::from("1.0.0"), &Value::from("wf-one")),
-            "{action}: {op:#}"
-        );
-    }
+    let report = docked_on(&mut run, &report, [("1.0.0", "wf-one"); 2]);
     assert!(report.get("upgrades").is_none(), "{report:#}");
     let lines = run.drain();
     assert!(!lines.iter().any(|l| l.contains("upgraded")), "{lines:#?}");
@@ -303,10 +295,7 @@ fn a_newer_wall_follower_whose_first_activation_fails_rolls_the_binding_back() {
             && rolled.contains("fail_first_activations"),
         "{rolled}"
     );
-    let code = run.wait_exit();
-    let report: Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
-    assert_eq!(code, Some(0), "{report:#}");
-    assert_eq!(report["outcome"], "succeeded", "{report:#}");
+    let report = docked_on(&mut run, &report, [("1.0.0", "wf-one"); 2]);
     assert_eq!(report["acknowledged_lost"], 0, "{report:#}");
 
     // the binding moved at plan-parking's start, and went back at once

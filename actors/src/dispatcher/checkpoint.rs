@@ -344,15 +344,20 @@ impl Checkpointer {
         }
     }
 
+    /// Number `checkpoint` (the next of this writer's) and name its writer and watcher.
+    fn stamp(&mut self, checkpoint: &mut Checkpoint) {
+        self.seq += 1;
+        checkpoint.seq = self.seq;
+        checkpoint.writer = Some(self.pid);
+        checkpoint.watcher = self.watcher.clone();
+    }
+
     /// Number `checkpoint` and queue it; the receiver says when it is stored (or refused).
     pub(super) fn write(
         &mut self,
         mut checkpoint: Checkpoint,
     ) -> oneshot::Receiver<Result<(), Superseded>> {
-        self.seq += 1;
-        checkpoint.seq = self.seq;
-        checkpoint.writer = Some(self.pid);
-        checkpoint.watcher = self.watcher.clone();
+        self.stamp(&mut checkpoint);
         let (tx, rx) = oneshot::channel();
         let job = Job {
             checkpoint: Box::new(checkpoint),
@@ -376,10 +381,7 @@ impl Checkpointer {
     /// store it once it has one again, for at most [`END_AFTERLIFE`], in a task of its own
     /// (the dispatcher stops): refused by a newer term or given up, nothing more is done.
     pub(super) fn store_end_later(mut self, mut checkpoint: Checkpoint) {
-        self.seq += 1;
-        checkpoint.seq = self.seq;
-        checkpoint.writer = Some(self.pid);
-        checkpoint.watcher = self.watcher.clone();
+        self.stamp(&mut checkpoint);
         store_end_later(self.dm.clone(), checkpoint);
     }
 }

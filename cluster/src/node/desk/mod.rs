@@ -238,11 +238,7 @@ impl Actor for Desk {
                 let me = myself.clone();
                 tokio::spawn(async move {
                     tokio::time::sleep(stagger).await;
-                    if !in_majority().await {
-                        let until = Instant::now() + MINORITY_WAIT;
-                        while !in_majority().await && Instant::now() < until {
-                            tokio::time::sleep(Duration::from_millis(200)).await;
-                        }
+                    if majority_back().await {
                         tokio::time::sleep(REJOIN_SETTLE).await;
                     }
                     // gone, unless another dispatcher of that node answers for it (this
@@ -414,10 +410,7 @@ impl DeskState {
 fn resume_orphan(me: String, desk: ActorRef<DeskMsg>) {
     tokio::spawn(async move {
         // the cluster heard first: a majority of the nodes, and their modules
-        let until = Instant::now() + MINORITY_WAIT;
-        while !in_majority().await && Instant::now() < until {
-            tokio::time::sleep(Duration::from_millis(200)).await;
-        }
+        majority_back().await;
         tokio::time::sleep(REJOIN_SETTLE).await;
         let Ok(dm) = run_dm().await else {
             return; // no run recorded in this cluster
@@ -441,6 +434,20 @@ fn resume_orphan(me: String, desk: ActorRef<DeskMsg>) {
             from: Box::new(from),
         });
     });
+}
+
+/// Wait up to [`MINORITY_WAIT`] until this node hears a majority ([`in_majority`]); true if
+/// it did not at first (it was in doubt: whatever comes back needs [`REJOIN_SETTLE`] to be
+/// heard again).
+async fn majority_back() -> bool {
+    if in_majority().await {
+        return false;
+    }
+    let until = Instant::now() + MINORITY_WAIT;
+    while !in_majority().await && Instant::now() < until {
+        tokio::time::sleep(Duration::from_millis(200)).await;
+    }
+    true
 }
 
 /// True if this node hears a majority of the nodes it ever heard, or has no heartbeat to
